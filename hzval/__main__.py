@@ -1,0 +1,3 @@
+from hzval.cli import main
+
+raise SystemExit(main())

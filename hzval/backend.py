@@ -1,0 +1,88 @@
+"""Choosing the Mitsuba 3 / Dr.Jit variant and checking that it can run.
+
+hzval uses the ``*_ad_rgb`` variants: ``cuda_ad_rgb`` where a CUDA device is
+present, ``llvm_ad_rgb`` (CPU) elsewhere. ``HZVAL_VARIANT`` overrides the
+choice. Code elsewhere asks :func:`variant` and uses ``mi.Float`` and friends,
+so that it runs unchanged on either backend.
+
+Dr.Jit's LLVM backend crashes on Debian 12's default LLVM 15 at the first
+kernel that uses ``min``/``max`` (``LLVM ERROR: Cannot select: ... fmaximum``,
+DESIGN.md, pitfalls): we refuse such an LLVM with a message that says what to
+do, rather than let the process abort.
+"""
+
+from __future__ import annotations
+
+import os
+
+from hzval.errors import EnvironmentProblem
+
+#: The oldest LLVM major version known to work with Dr.Jit's LLVM backend here.
+MIN_LLVM_MAJOR = 16
+
+_FIX = ("install Debian's libllvm19 (apt-get install libllvm19) or point "
+        "DRJIT_LIBLLVM_PATH at a libLLVM.so of version 16 or newer")
+
+_chosen: str | None = None
+
+
+def check_llvm() -> tuple[int, int, int]:
+    """Return the LLVM version that Dr.Jit loaded; raise if it is missing or broken."""
+    import drjit as dr
+
+    version = tuple(dr.detail.llvm_version())
+    if version[0] < 0 or not dr.has_backend(dr.JitBackend.LLVM):
+        raise EnvironmentProblem(f"Dr.Jit found no usable LLVM library: {_FIX}")
+    if version[0] < MIN_LLVM_MAJOR:
+        raise EnvironmentProblem(
+            f"Dr.Jit loaded LLVM {'.'.join(map(str, version))}, whose code generator "
+            f"crashes on Dr.Jit's min/max kernels: {_FIX}")
+    return version  # type: ignore[return-value]
+
+
+def variant(requested: str | None = None) -> str:
+    """Select (once) and return the Mitsuba variant that hzval renders with.
+
+    ``requested`` or ``$HZVAL_VARIANT`` picks one explicitly; otherwise CUDA
+    if Dr.Jit sees a device, else LLVM. The LLVM library is checked first.
+    """
+    global _chosen
+    import drjit as dr
+    import mitsuba as mi
+
+    name = requested or os.environ.get("HZVAL_VARIANT") or None
+    if name is None and _chosen is not None:
+        return _chosen
+    if name is None:
+        name = "cuda_ad_rgb" if dr.has_backend(dr.JitBackend.CUDA) else "llvm_ad_rgb"
+    if name not in mi.variants():
+        raise EnvironmentProblem(
+            f"Mitsuba variant {name!r} is not available; this build has {', '.join(mi.variants())}")
+    if name.startswith("llvm"):
+        check_llvm()
+    mi.set_variant(name)
+    _chosen = name
+    return name
+
+
+def sync() -> None:
+    """Wait for queued kernels; Dr.Jit evaluates asynchronously, so time after this."""
+    import drjit as dr
+
+    dr.sync_thread()
+
+
+def versions() -> dict[str, str]:
+    """Versions of hzval, Mitsuba, Dr.Jit and the LLVM in use, for reports."""
+    import drjit as dr
+    import mitsuba as mi
+
+    import hzval
+
+    out = {"hzval": hzval.__version__, "mitsuba": mi.__version__, "drjit": dr.__version__}
+    llvm = tuple(dr.detail.llvm_version())
+    if llvm[0] >= 0:
+        out["llvm"] = ".".join(map(str, llvm))
+    if _chosen:
+        out["variant"] = _chosen
+    return out

@@ -1,0 +1,233 @@
+"""The conventions of hzval: axes, directions, height scale, boundaries, colour.
+
+This module is the only place that defines them (``DESIGN.md``,
+"Conventions"); every other module asks it. Tests in
+``tests/test_conventions.py`` pin each one.
+
+Height map
+    ``H[row, col]``, row 0 at the top of the image as displayed. PNG values are
+    data, normalised to [0, 1] without sRGB decoding.
+
+Tangent space (texel units)
+    +x = increasing column (right on screen), +y = decreasing row (up on
+    screen), +z = out of the surface. The centre of texel ``(row, col)`` sits
+    at ``x = col + 0.5``, ``y = rows - row - 0.5``.
+
+Height scale
+    ``depth`` is the world height of ``H = 1`` in units of the image width, so
+    a height in texel units is ``H * depth * cols``.
+
+Directions
+    Azimuth ``phi`` is measured counterclockwise from +x as seen on screen.
+    Horizon channel ``k`` (0..7) is azimuth ``45 k`` degrees; layer 0 holds
+    channels 0-3 as RGBA, layer 1 channels 4-7.
+
+Light
+    ``L = (cos e cos phi, cos e sin phi, sin e)`` points *toward* the light.
+
+Boundary
+    ``wrap``: the texture tiles. ``open``: nothing exists outside the image.
+
+Colour
+    Renders are linear float. Albedo images are sRGB-encoded; previews are
+    sRGB-encoded 8-bit. The transfer functions are colour-science's.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+
+Boundary = Literal["wrap", "open"]
+BOUNDARIES: tuple[str, ...] = ("wrap", "open")
+
+#: Number of horizon channels and their azimuths in degrees.
+CHANNEL_COUNT = 8
+CHANNEL_AZIMUTHS_DEG = tuple(45.0 * k for k in range(CHANNEL_COUNT))
+#: Channels per RGBA layer of the horizon map.
+CHANNELS_PER_LAYER = 4
+
+
+# --------------------------------------------------------------------------
+# Axes and height scale
+# --------------------------------------------------------------------------
+
+def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent-space ``(x, y)`` of every texel centre, each of shape (rows, cols).
+
+    Units are texels; ``x = col + 0.5`` and ``y = rows - row - 0.5``.
+    """
+    col = np.arange(cols, dtype=np.float64) + 0.5
+    y = rows - np.arange(rows, dtype=np.float64) - 0.5
+    return np.broadcast_to(col, (rows, cols)), np.broadcast_to(y[:, None], (rows, cols))
+
+
+def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
+    """A tangent-space offset ``(dx, dy)`` in texels as ``(drow, dcol)``."""
+    return -dy, dx
+
+
+def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
+    """A pixel offset ``(drow, dcol)`` as a tangent-space ``(dx, dy)`` in texels."""
+    return dcol, -drow
+
+
+def height_scale(depth: float, cols: int) -> float:
+    """Factor from a normalised height ``H`` to texel units: ``depth * cols``."""
+    return float(depth) * int(cols)
+
+
+def heights_in_texels(height: np.ndarray, depth: float) -> np.ndarray:
+    """``H * depth * cols`` as float32: the heights that every stage reads."""
+    height = np.asarray(height, dtype=np.float32)
+    return height * np.float32(height_scale(depth, height.shape[1]))
+
+
+# --------------------------------------------------------------------------
+# Directions
+# --------------------------------------------------------------------------
+
+def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+    """Unit tangent-space vector toward a light at ``(azimuth, elevation)``.
+
+    ``L = (cos e cos phi, cos e sin phi, sin e)``, angles in degrees.
+    """
+    phi = math.radians(azimuth_deg)
+    e = math.radians(elevation_deg)
+    return np.array([math.cos(e) * math.cos(phi), math.cos(e) * math.sin(phi), math.sin(e)])
+
+
+def azimuth_of(x, y):
+    """Azimuth in radians, in (-pi, pi], of the tangent-space direction ``(x, y)``.
+
+    Works on NumPy and Dr.Jit arrays alike.
+    """
+    try:
+        import drjit as dr
+
+        if dr.is_array_v(x) or dr.is_array_v(y):
+            return dr.atan2(y, x)
+    except ImportError:  # pragma: no cover - drjit is a dependency
+        pass
+    return np.arctan2(y, x)
+
+
+def channel_layer(channel: int) -> tuple[int, int]:
+    """``(layer, component)`` that store horizon channel ``channel`` (0..7)."""
+    return divmod(int(channel), CHANNELS_PER_LAYER)
+
+
+def channel_weights(lx, ly) -> np.ndarray:
+    """Exact weights of the 8 horizon channels for a light direction ``(lx, ly)``.
+
+    The horizon sine toward azimuth ``phi`` is the linear interpolation
+    between the two channels adjacent to ``phi = atan2(ly, lx)`` (Lengyel,
+    section 5.3); the weights sum to 1. Returns shape ``(..., 8)``. A light
+    straight above (``lx = ly = 0``) takes ``phi = 0``: its elevation is 90
+    degrees, above every horizon, so the choice does not matter.
+    """
+    phi = np.arctan2(np.asarray(ly, dtype=np.float64), np.asarray(lx, dtype=np.float64))
+    t = np.mod(phi / (np.pi / 4.0), CHANNEL_COUNT)
+    lo = np.floor(t).astype(np.int64) % CHANNEL_COUNT
+    frac = t - np.floor(t)
+    hi = (lo + 1) % CHANNEL_COUNT
+    w = np.zeros(np.shape(t) + (CHANNEL_COUNT,))
+    np.put_along_axis(w, lo[..., None], (1.0 - frac)[..., None], axis=-1)
+    # add, not put: when frac == 0, hi's weight is 0 and must not clobber lo
+    w_hi = np.take_along_axis(w, hi[..., None], axis=-1) + frac[..., None]
+    np.put_along_axis(w, hi[..., None], w_hi, axis=-1)
+    return w
+
+
+# --------------------------------------------------------------------------
+# The weight cube map (OpenGL face layout)
+# --------------------------------------------------------------------------
+
+#: Cube faces in OpenGL order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + i).
+CUBE_FACES: tuple[str, ...] = ("posx", "negx", "posy", "negy", "posz", "negz")
+
+
+def cube_texel_directions(size: int) -> np.ndarray:
+    """Unnormalised direction through the centre of every cube-map texel.
+
+    Shape ``(6, size, size, 3)``, indexed ``[face, row, col]``, with the face
+    layout of the OpenGL specification (4.6, table 8.19): a direction ``r``
+    with major axis ``ma`` is looked up at ``s = (sc/|ma| + 1)/2`` (column)
+    and ``t = (tc/|ma| + 1)/2`` (row, row 0 first in memory). The cube is
+    indexed with tangent-space vectors, so its x, y, z are tangent space's.
+    The seed generators use two different layouts (DESIGN.md); this one is
+    the GPU's.
+    """
+    c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    tc, sc = np.meshgrid(c, c, indexing="ij")  # tc varies along rows
+    one = np.ones_like(sc)
+    faces = [
+        (one, -tc, -sc),   # +x: sc = -rz, tc = -ry
+        (-one, -tc, sc),   # -x: sc = +rz, tc = -ry
+        (sc, one, tc),     # +y: sc = +rx, tc = +rz
+        (sc, -one, -tc),   # -y: sc = +rx, tc = -rz
+        (sc, -tc, one),    # +z: sc = +rx, tc = -ry
+        (-sc, -tc, -one),  # -z: sc = -rx, tc = -ry
+    ]
+    return np.stack([np.stack(f, axis=-1) for f in faces])
+
+
+def cube_lookup(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Face index and face coordinates ``(s, t)`` in [0, 1] of directions ``(..., 3)``.
+
+    The inverse of :func:`cube_texel_directions` (OpenGL table 8.19). Ties
+    between axes go to x, then y, then z.
+    """
+    d = np.asarray(direction, dtype=np.float64)
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
+    use_x = (ax >= ay) & (ax >= az)
+    use_y = ~use_x & (ay >= az)
+    face = np.where(use_x, np.where(x >= 0, 0, 1),
+                    np.where(use_y, np.where(y >= 0, 2, 3), np.where(z >= 0, 4, 5)))
+    ma = np.where(use_x, ax, np.where(use_y, ay, az))
+    sc = np.choose(face, [-z, z, x, x, x, -x])
+    tc = np.choose(face, [-y, -y, z, -z, -y, -y])
+    return face, (sc / ma + 1.0) * 0.5, (tc / ma + 1.0) * 0.5
+
+
+def encode_signed_weight(w: np.ndarray) -> np.ndarray:
+    """Store weights in [-1, 1] as 8-bit values, ``round((w + 1) * 127.5)``.
+
+    Lengyel remaps [-1, 1] to [0, 255]; a zero weight (127.5) cannot be stored
+    exactly and rounds (half to even) to 128, which decodes to a weight of
+    ``2 * 128 / 255 - 1 = 1/255`` on layer 0.
+    """
+    return np.clip(np.round((np.asarray(w, dtype=np.float64) + 1.0) * 127.5), 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------
+# Colour
+# --------------------------------------------------------------------------
+
+def srgb_decode(values: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] to linear (IEC 61966-2-1, via colour-science)."""
+    import colour
+
+    return np.asarray(colour.cctf_decoding(np.asarray(values, dtype=np.float64), function="sRGB"))
+
+
+def srgb_encode(values: np.ndarray) -> np.ndarray:
+    """Linear values to sRGB-encoded values (IEC 61966-2-1, via colour-science)."""
+    import colour
+
+    v = np.clip(np.asarray(values, dtype=np.float64), 0.0, None)
+    return np.asarray(colour.cctf_encoding(v, function="sRGB"))
+
+
+def luminance_weights() -> np.ndarray:
+    """Weights of R, G, B in the luminance Y of the sRGB / Rec. 709 primaries.
+
+    Taken from colour-science's sRGB RGB-to-XYZ matrix (its Y row), so that
+    RGB height maps are reduced as ``Y = w . rgb`` on their data values.
+    """
+    import colour
+
+    return np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ[1], dtype=np.float64)

@@ -1,0 +1,188 @@
+"""Reading and writing hzval's files: EXR (OpenEXR), PNG (Pillow), JSON.
+
+Every writer is atomic: it writes to a hidden temporary name in the target
+folder and renames it into place (``os.replace``), so a reader never sees a
+partial file and a crash leaves no corrupt output behind. :class:`Staging`
+extends that to a whole set of outputs: nothing appears in the output folder
+until every file has been written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import numpy as np
+
+from hzval.errors import InputError
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it to ``path`` on success.
+
+    On an exception the temporary file is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+class Staging:
+    """Collect a set of output files, then move them into ``out`` together.
+
+    Files are written under a hidden folder inside ``out`` (same file system,
+    so the final moves are renames). :meth:`commit` moves each into place;
+    leaving the ``with`` block without committing removes everything staged.
+    ``out`` itself is created only on :meth:`commit`, or if it is needed to
+    hold the staging folder.
+    """
+
+    def __init__(self, out: str | os.PathLike):
+        self.out = Path(out)
+        self._created_out = not self.out.exists()
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.dir = Path(tempfile.mkdtemp(prefix=".hzval-staging-", dir=self.out))
+        self._committed = False
+
+    def path(self, name: str) -> Path:
+        """Path in the staging folder for the output called ``name`` (may contain '/')."""
+        p = self.dir / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def commit(self) -> list[Path]:
+        """Move every staged file to its place under ``out``; return the final paths."""
+        final = []
+        for src in sorted(p for p in self.dir.rglob("*") if p.is_file()):
+            dst = self.out / src.relative_to(self.dir)
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(src, dst)
+            final.append(dst)
+        shutil.rmtree(self.dir, ignore_errors=True)
+        self._committed = True
+        return final
+
+    def __enter__(self) -> "Staging":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not self._committed:
+            shutil.rmtree(self.dir, ignore_errors=True)
+            if self._created_out:
+                with contextlib.suppress(OSError):
+                    self.out.rmdir()  # only if empty
+
+
+# --------------------------------------------------------------------------
+# EXR
+# --------------------------------------------------------------------------
+
+def write_exr(path: str | os.PathLike, channels: Mapping[str, np.ndarray], *, atomic: bool = True) -> None:
+    """Write float32 channels ``{name: (rows, cols)}`` to a scanline EXR (ZIP).
+
+    Channel names ``R, G, B, A`` are written as such; an ``(rows, cols, 3|4)``
+    array under the key ``"RGB"``/``"RGBA"`` is split into them.
+    """
+    import OpenEXR
+
+    chans: dict[str, np.ndarray] = {}
+    for name, arr in channels.items():
+        arr = np.asarray(arr, dtype=np.float32)
+        if name in ("RGB", "RGBA"):
+            for k, c in enumerate(name):
+                chans[c] = np.ascontiguousarray(arr[..., k])
+        else:
+            chans[name] = np.ascontiguousarray(arr)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    target = Path(path)
+    ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
+    with ctx as tmp:
+        with OpenEXR.File(header, chans) as f:
+            f.write(str(tmp))
+
+
+def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read every channel of the first part of an EXR as float32 ``(rows, cols)`` arrays.
+
+    Raises :class:`InputError` naming the file if it cannot be read.
+    """
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            return {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
+        raise InputError(path, f"not a readable EXR file ({_first_line(exc)})") from None
+
+
+# --------------------------------------------------------------------------
+# PNG
+# --------------------------------------------------------------------------
+
+def write_png(path: str | os.PathLike, pixels: np.ndarray, *, atomic: bool = True) -> None:
+    """Write 8-bit grey/RGB/RGBA or 16-bit grey pixels to a PNG.
+
+    ``pixels`` is ``uint8 (rows, cols[, 3|4])`` or ``uint16 (rows, cols)``.
+    Values are written as they are: encode them before calling.
+    """
+    from PIL import Image
+
+    pixels = np.ascontiguousarray(pixels)
+    if pixels.dtype == np.uint16:
+        img = Image.fromarray(pixels)  # 16-bit grey ("I;16")
+    elif pixels.dtype == np.uint8:
+        img = Image.fromarray(pixels)
+    else:
+        raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
+    target = Path(path)
+    ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
+    with ctx as tmp:
+        # compress_level 1: these are data files, written on every bake
+        img.save(tmp, format="PNG", compress_level=1)
+
+
+def unit_to_u8(values: np.ndarray) -> np.ndarray:
+    """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does)."""
+    return np.clip(np.rint(np.asarray(values, dtype=np.float32) * 255.0), 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------
+# JSON
+# --------------------------------------------------------------------------
+
+def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
+    """Write ``data`` as indented JSON, atomically."""
+    text = json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n"
+    target = Path(path)
+    ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
+    with ctx as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot serialise {type(obj).__name__}")
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]
