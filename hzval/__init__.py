@@ -13,3 +13,7 @@ The package follows the data flow of ``DESIGN.md``, one module per stage:
 """
 
 __version__ = "0.1.0"
+
+from hzval.backend import prefer_working_llvm as _prefer_working_llvm
+
+_prefer_working_llvm()

@@ -26,6 +26,27 @@ _FIX = ("install Debian's libllvm19 (apt-get install libllvm19) or point "
 _chosen: str | None = None
 
 
+def prefer_working_llvm() -> None:
+    """Point Dr.Jit at the newest installed libLLVM >= 16, unless the user chose one.
+
+    Dr.Jit loads the first libLLVM it finds, which on Debian 12 may be the
+    broken LLVM 15 even when ``libllvm19`` is installed beside it. Must run
+    before Dr.Jit initialises its LLVM backend; ``hzval/__init__`` calls it.
+    """
+    import glob
+    import re
+
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return
+    found = []
+    for path in glob.glob("/usr/lib/*-linux-gnu/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"):
+        m = re.search(r"libLLVM[-.](?:so\.)?(\d+)", os.path.basename(path))
+        if m and int(m.group(1)) >= MIN_LLVM_MAJOR:
+            found.append((int(m.group(1)), path))
+    if found:
+        os.environ["DRJIT_LIBLLVM_PATH"] = max(found)[1]
+
+
 def check_llvm() -> tuple[int, int, int]:
     """Return the LLVM version that Dr.Jit loaded; raise if it is missing or broken."""
     import drjit as dr

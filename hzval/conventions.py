@@ -85,6 +85,40 @@ def heights_in_texels(height: np.ndarray, depth: float) -> np.ndarray:
     return height * np.float32(height_scale(depth, height.shape[1]))
 
 
+def pad_heights(h: np.ndarray, pad: int | tuple, boundary: str) -> np.ndarray:
+    """Extend a height map beyond its edges as the boundary prescribes.
+
+    ``wrap`` repeats the tile (any size, also pads wider than the image);
+    ``open`` fills with ``-inf``: nothing is there, so nothing outside the
+    image can occlude, and ``-inf`` loses every ``max``.
+    """
+    if boundary == "wrap":
+        return np.pad(h, pad, mode="wrap")
+    if boundary == "open":
+        return np.pad(h, pad, mode="constant", constant_values=-np.inf)
+    raise ValueError(f"unknown boundary {boundary!r}")
+
+
+def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent-space slopes ``(dh/dx, dh/dy)`` of heights ``h`` by central differences.
+
+    ``h`` and the slopes are in texel units. +y is *up* the image, so
+    ``dh/dy`` at row ``r`` is ``(h[r-1] - h[r+1]) / 2``. ``wrap`` takes the
+    neighbours across the edge; ``open`` uses one-sided differences at the
+    border (there is no neighbour), and zero slope along an axis of length 1.
+    """
+    h = np.asarray(h, dtype=np.float32)
+
+    def central(axis: int) -> np.ndarray:
+        if h.shape[axis] == 1:
+            return np.zeros_like(h)
+        if boundary == "wrap":
+            return (np.roll(h, -1, axis) - np.roll(h, 1, axis)) * np.float32(0.5)
+        return np.gradient(h, axis=axis).astype(np.float32)
+
+    return central(1), -central(0)
+
+
 # --------------------------------------------------------------------------
 # Directions
 # --------------------------------------------------------------------------

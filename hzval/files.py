@@ -126,7 +126,7 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             return {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
     except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
-        raise InputError(path, f"not a readable EXR file ({_first_line(exc)})") from None
+        raise InputError(path, f"not a readable EXR file ({first_line(exc)})") from None
 
 
 # --------------------------------------------------------------------------
@@ -183,6 +183,7 @@ def _json_default(obj):
     raise TypeError(f"cannot serialise {type(obj).__name__}")
 
 
-def _first_line(exc: BaseException) -> str:
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, for one-line errors."""
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]

@@ -1,0 +1,142 @@
+"""The displaced triangle mesh: the surface that the ground truth renders.
+
+One vertex per texel centre at ``(x, y, h)`` in texel units (x, y from
+:func:`hzval.conventions.texel_centres`, ``h = H * depth * cols``), two
+triangles per quad of neighbouring centres. The mesh lives in the same
+tangent space as the technique's textures, so a camera looking down -z sees
+pixel ``(row, col)`` of both at the same surface point.
+
+Boundaries (DESIGN.md):
+
+``wrap``
+    The mesh carries a margin of neighbouring tiles around the central one,
+    wide enough that a shadow ray from the tile toward a light at the
+    sweep's lowest elevation ``e_min`` rises above the highest point before it
+    leaves the mesh: ``margin = ceil(relief / tan(e_min)) + 1`` texels.
+``open``
+    A terrain: nothing outside the image. The centres' grid is extended by
+    half a texel to the image border with the edge heights (a flat skirt), so
+    the mesh covers exactly ``[0, cols] x [0, rows]``.
+
+UVs are image coordinates, ``(0, 0)`` at the top-left corner, as Mitsuba's
+bitmap texture indexes its rows; they run past [0, 1] in the wrap margin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hzval import conventions as cv
+
+#: Lowest light elevation, in degrees, whose shadows the wrap margin must hold.
+MIN_ELEVATION_DEG = 10.0
+
+#: Bytes per vertex in Mitsuba (positions, UVs, normals) plus two faces and
+#: Embree's BVH per vertex, rounded up: for memory estimates.
+MESH_BYTES_PER_VERTEX = 200
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The vertex grid of a displaced mesh, before it becomes a Mitsuba mesh.
+
+    ``x``, ``y``: vertex coordinates along columns and rows (1-D, texel
+    units); ``z``: ``(len(y), len(x))`` heights; ``margin``: texels of
+    neighbouring tiles on each side (0 for ``open``).
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    margin: int
+
+
+def wrap_margin(h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_DEG) -> int:
+    """Texels of neighbouring tiles that a wrap mesh needs on each side.
+
+    A shadow ray toward elevation ``e`` rises ``tan(e)`` per texel, so past
+    ``relief / tan(e)`` texels it is above every point of the surface.
+    """
+    relief = float(np.max(h_texels) - np.min(h_texels))
+    return int(math.ceil(relief / math.tan(math.radians(min_elevation_deg)))) + 1
+
+
+def grid(h_texels: np.ndarray, boundary: str, *, min_elevation_deg: float = MIN_ELEVATION_DEG,
+         margin: int | None = None) -> Grid:
+    """Vertex grid of the displaced surface for heights in texel units."""
+    h = np.asarray(h_texels, dtype=np.float32)
+    rows, cols = h.shape
+    xc, yc = cv.texel_centres(rows, cols)
+    xc, yc = xc[0], yc[:, 0]
+    if boundary == "wrap":
+        m = wrap_margin(h, min_elevation_deg) if margin is None else int(margin)
+        z = cv.pad_heights(h, m, "wrap")
+        x = np.concatenate([xc[0] - np.arange(m, 0, -1), xc, xc[-1] + np.arange(1, m + 1)])
+        y = np.concatenate([yc[0] + np.arange(m, 0, -1), yc, yc[-1] - np.arange(1, m + 1)])
+        return Grid(x, y, z, m)
+    if boundary == "open":
+        z = np.pad(h, 1, mode="edge")
+        x = np.concatenate([[0.0], xc, [float(cols)]])
+        y = np.concatenate([[float(rows)], yc, [0.0]])
+        return Grid(x, y, z, 0)
+    raise ValueError(f"unknown boundary {boundary!r}")
+
+
+def triangles(n_rows: int, n_cols: int) -> np.ndarray:
+    """Faces ``(2 (n_rows-1)(n_cols-1), 3)`` uint32 of a vertex grid, counterclockwise from +z.
+
+    Vertex ``(r, c)`` has index ``r * n_cols + c``; row index grows toward -y,
+    so the quad's corners ``a = (r, c), b = (r, c+1), d = (r+1, c)`` run
+    clockwise on screen unless ordered ``a, d, b``: each quad is split along
+    the ``b``-``d`` diagonal into ``(a, d, b)`` and ``(b, d, e)``.
+    """
+    r, c = np.meshgrid(np.arange(n_rows - 1), np.arange(n_cols - 1), indexing="ij")
+    a = (r * n_cols + c).ravel()
+    b, d = a + 1, a + n_cols
+    e = d + 1
+    faces = np.stack([np.stack([a, d, b], -1), np.stack([b, d, e], -1)], axis=1)
+    return faces.reshape(-1, 3).astype(np.uint32)
+
+
+def estimate_bytes(rows: int, cols: int, margin: int) -> int:
+    """Memory in bytes of a displaced mesh with ``margin`` texels around the tile."""
+    return MESH_BYTES_PER_VERTEX * (rows + 2 * margin + 2) * (cols + 2 * margin + 2)
+
+
+def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
+                   min_elevation_deg: float = MIN_ELEVATION_DEG, margin: int | None = None,
+                   normals: bool = False, name: str = "displaced"):
+    """The displaced surface of a normalised height map as a ``mitsuba.Mesh``.
+
+    ``normals=True`` adds vertex normals from the same central differences
+    as the normal map; without them Mitsuba shades with the triangles' own
+    normals. Needs a Mitsuba variant to be set (:func:`hzval.backend.variant`).
+    """
+    import mitsuba as mi
+
+    h = cv.heights_in_texels(height, depth)
+    rows, cols = h.shape
+    g = grid(h, boundary, min_elevation_deg=min_elevation_deg, margin=margin)
+    ny, nx = g.z.shape
+    X, Y = np.meshgrid(g.x, g.y)
+    positions = np.stack([X, Y, g.z], axis=-1).astype(np.float32)
+    uv = np.stack([X / cols, (rows - Y) / rows], axis=-1).astype(np.float32)
+    faces = triangles(ny, nx)
+
+    mesh = mi.Mesh(name, nx * ny, len(faces), has_vertex_normals=normals, has_vertex_texcoords=True)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(positions.ravel())
+    params["faces"] = mi.UInt32(faces.ravel())
+    params["vertex_texcoords"] = mi.Float(uv.ravel())
+    if normals:
+        # "open" on the grid itself: inside the tile every vertex has both
+        # neighbours (margin or skirt), so only the grid's own rim differs
+        gx, gy = cv.height_gradient(g.z, "open")
+        n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        params["vertex_normals"] = mi.Float(n.astype(np.float32).ravel())
+    params.update()
+    return mesh

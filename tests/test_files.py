@@ -1,0 +1,52 @@
+"""Outputs appear whole or not at all."""
+
+import numpy as np
+import pytest
+
+from hzval import files
+
+
+def test_staging_commits_all_files_together(tmp_path):
+    out = tmp_path / "out"
+    with files.Staging(out) as stage:
+        files.write_json(stage.path("a.json"), {"x": 1}, atomic=False)
+        files.write_png(stage.path("sub/b.png"), np.zeros((2, 2), np.uint8), atomic=False)
+        assert not (out / "a.json").exists()           # nothing visible before commit
+        stage.commit()
+    assert sorted(p.name for p in out.rglob("*") if p.is_file()) == ["a.json", "b.png"]
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
+
+
+def test_staging_leaves_nothing_when_interrupted(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError):
+        with files.Staging(out) as stage:
+            files.write_json(stage.path("a.json"), {}, atomic=False)
+            raise RuntimeError("disk full")
+    assert not out.exists()
+
+
+def test_staging_keeps_an_existing_folder_and_its_files(tmp_path):
+    (tmp_path / "keep.txt").write_text("mine")
+    with pytest.raises(RuntimeError):
+        with files.Staging(tmp_path) as stage:
+            files.write_json(stage.path("a.json"), {}, atomic=False)
+            raise RuntimeError
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
+
+
+def test_atomic_write_keeps_the_old_file_on_failure(tmp_path):
+    target = tmp_path / "x.json"
+    files.write_json(target, {"v": 1})
+    with pytest.raises(TypeError):
+        files.write_json(target, {"v": object()})
+    assert target.read_text().strip().endswith("}") and '"v": 1' in target.read_text()
+    assert [p.name for p in tmp_path.iterdir()] == ["x.json"]
+
+
+def test_exr_round_trip(tmp_path):
+    rgba = np.random.default_rng(0).random((5, 7, 4)).astype(np.float32)
+    files.write_exr(tmp_path / "a.exr", {"RGBA": rgba, "extra": rgba[..., 0]})
+    back = files.read_exr(tmp_path / "a.exr")
+    assert set(back) == {"R", "G", "B", "A", "extra"}
+    assert np.array_equal(back["B"], rgba[..., 2]) and np.array_equal(back["extra"], rgba[..., 0])
