@@ -122,11 +122,45 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """
     import OpenEXR
 
-    try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
-            return {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
-    except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
-        raise InputError(path, f"not a readable EXR file ({first_line(exc)})") from None
+    with library_output() as printed:
+        try:
+            with OpenEXR.File(str(path), separate_channels=True) as f:
+                return {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
+        except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
+            error = exc
+    # the C library's own diagnosis (e.g. a corrupt chunk) is more telling
+    # than the binding's exception, which may only say "0 parts"
+    lines = [ln for ln in printed() if "EXR_ERR" in ln] or printed() or [first_line(error)]
+    detail = lines[-1].removeprefix(f"{path}: ")
+    raise InputError(path, f"truncated or corrupt EXR file: {detail}")
+
+
+@contextlib.contextmanager
+def library_output() -> Iterator:
+    """Capture what C/C++ libraries print on stdout and stderr (file descriptors 1, 2).
+
+    OpenEXR reports a corrupt file by printing to both before it raises; a
+    command line that promises one-line errors must not let that through.
+    Yields a function that returns the captured lines.
+    """
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    lines: list[str] = []
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            yield lambda: lines
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sink.seek(0)
+            lines[:] = [ln.strip() for ln in sink.read().decode(errors="replace").splitlines() if ln.strip()]
 
 
 # --------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from PIL import Image, ImageFile, UnidentifiedImageError
 
 from hzval.conventions import luminance_weights
 from hzval.errors import InputError
-from hzval.files import first_line, read_exr
+from hzval.files import first_line, library_output, read_exr
 
 _PathLike = str | os.PathLike
 
@@ -304,11 +304,12 @@ def _decode_png_pypng(path: _PathLike) -> tuple[np.ndarray, bool]:
 def _probe_exr(path: _PathLike) -> tuple[int, int]:
     import OpenEXR
 
-    try:
-        with OpenEXR.File(os.fspath(path), header_only=True) as f:
-            (xmin, ymin), (xmax, ymax) = f.header()["dataWindow"]
-    except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
-        raise InputError(path, f"not a readable EXR file ({first_line(exc)})") from None
+    with library_output():   # the C library prints its complaints; we raise ours
+        try:
+            with OpenEXR.File(os.fspath(path), header_only=True) as f:
+                (xmin, ymin), (xmax, ymax) = f.header()["dataWindow"]
+        except Exception as exc:  # OpenEXR raises bare RuntimeErrors with library text
+            raise InputError(path, f"not a readable EXR file ({first_line(exc)})") from None
     return int(ymax - ymin + 1), int(xmax - xmin + 1)
 
 

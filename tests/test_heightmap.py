@@ -347,7 +347,7 @@ BAD_INPUTS = {
     "truncated npy": (_truncated_npy, "truncated or corrupt .npy file ("),
     "corrupt npy header": (lambda p: _write(p, "h.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': <?? }\n"),
                            "unreadable .npy header ("),
-    "truncated exr": (_truncated_exr, "not a readable EXR file ("),
+    "truncated exr": (_truncated_exr, "truncated or corrupt EXR file: (EXR_ERR_BAD_CHUNK_LEADER)"),
     "exr header only": (lambda p: _write(p, "h.exr", b"v/1\x01\x02\0\0\0"), "not a readable EXR file ("),
 }
 
