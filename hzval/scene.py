@@ -1,0 +1,315 @@
+"""The scene: one description that both the truth and the approximation render.
+
+A scene names a material, a camera, a light with its sweep, the effects it
+calls for, and sample counts. It is read from TOML (``scenes/*.toml``) and
+the command line overrides it. Only the surface differs between the two
+renderers; everything here (camera, sample positions, light directions,
+units) is shared, so that any error that is not the technique's shows up as
+a bug rather than as error.
+
+Units and conventions: positions in texel units of the tangent space of
+:mod:`hzval.conventions`; the light's ``irradiance`` is the irradiance E on
+a surface facing it (so a Lambertian surface of albedo a shows radiance
+``a / pi * E * cos(theta)``); angles in degrees.
+
+TOML layout (every key optional; see ``scenes/bricks.toml``)::
+
+    name = "bricks"
+    [material]  height = "bricks" | "path/relative/to/scene.png", size, depth, boundary, albedo
+    [camera]    supersampling = 1
+    [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
+    [effects]   list = ["shadow"], interreflection_depth = 2
+    [samples]   spp = 16, seed = 0
+    [tolerances]  free-form, read by the regression check
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hzval import conventions as cv
+from hzval.errors import InputError
+
+#: Effects a scene can call for (DESIGN.md, "Effects"), in rendering order.
+EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
+                            "interreflection")
+#: The sweep of Lengyel's Figure 5.3: -60..+60 degrees in 15-degree steps.
+DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    """Which height map, at which depth and boundary; ``height="bricks"`` is built in."""
+
+    height: str = "bricks"
+    size: int = 512
+    depth: float = 0.05
+    boundary: str = "wrap"
+    albedo: str | float = 0.8       # an sRGB image path, or a constant linear albedo
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Orthographic, straight down; ``supersampling`` pixels per texel along each axis."""
+
+    supersampling: int = 1
+
+
+@dataclass(frozen=True)
+class Light:
+    """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``)."""
+
+    kind: str = "hard"
+    radius_deg: float = 0.0
+    elevation_deg: float = 30.0
+    azimuths_deg: tuple[float, ...] = DEFAULT_AZIMUTHS
+    irradiance: float = 1.0
+
+    def direction(self, azimuth_deg: float) -> np.ndarray:
+        """Unit vector toward the light's centre at ``azimuth_deg``."""
+        return cv.light_direction(azimuth_deg, self.elevation_deg)
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str = "bricks"
+    material: MaterialSpec = MaterialSpec()
+    camera: Camera = Camera()
+    light: Light = Light()
+    effects: tuple[str, ...] = ("shadow",)
+    interreflection_depth: int = 2
+    spp: int = 16
+    seed: int = 0
+    tolerances: dict = field(default_factory=dict)
+    source: str | None = None       # the TOML file it came from
+
+    def validate(self) -> "Scene":
+        what = self.source or "scene"
+        m, lt = self.material, self.light
+        if not np.isfinite(m.depth) or m.depth <= 0:
+            raise InputError(what, f"material.depth must be positive, got {m.depth}")
+        if m.boundary not in cv.BOUNDARIES:
+            raise InputError(what, f"material.boundary must be wrap or open, got {m.boundary!r}")
+        if m.size < 2:
+            raise InputError(what, f"material.size must be at least 2, got {m.size}")
+        if lt.kind not in ("hard", "soft"):
+            raise InputError(what, f"light.kind must be hard or soft, got {lt.kind!r}")
+        if lt.kind == "soft" and not 0 < lt.radius_deg < 90:
+            raise InputError(what, f"a soft light needs 0 < light.radius_deg < 90, got {lt.radius_deg}")
+        if not -90 <= lt.elevation_deg <= 90:
+            raise InputError(what, f"light.elevation_deg must be in [-90, 90], got {lt.elevation_deg}")
+        if not lt.azimuths_deg:
+            raise InputError(what, "light.azimuths is empty")
+        unknown = [e for e in self.effects if e not in EFFECTS]
+        if unknown or not self.effects:
+            raise InputError(what, f"unknown or no effects {unknown}; choose from {', '.join(EFFECTS)}")
+        if self.camera.supersampling < 1 or self.spp < 1:
+            raise InputError(what, "camera.supersampling and samples.spp must be at least 1")
+        return self
+
+    def declares(self, effect: str) -> bool:
+        return effect in self.effects
+
+
+# --------------------------------------------------------------------------
+# Reading and overriding
+# --------------------------------------------------------------------------
+
+def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
+    """``"-60:60:15"`` (start:stop:step, stop included), ``"0,45,90"`` or a list, in degrees."""
+    if isinstance(text, (list, tuple)):
+        return tuple(float(a) for a in text)
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if step <= 0 or stop < start:
+                raise ValueError
+            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            return tuple(start + i * step for i in range(n))
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}") from None
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene from TOML; a relative ``material.height`` is relative to the scene file."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "no such scene file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
+    try:
+        mat = dict(data.get("material", {}))
+        if mat.get("height", "bricks") != "bricks":
+            mat["height"] = str((path.parent / mat["height"]).resolve())
+        if isinstance(mat.get("albedo"), str):
+            mat["albedo"] = str((path.parent / mat["albedo"]).resolve())
+        light = dict(data.get("light", {}))
+        if "azimuths" in light:
+            light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
+        effects = data.get("effects", {})
+        samples = data.get("samples", {})
+        scene = Scene(
+            name=data.get("name", path.stem),
+            material=MaterialSpec(**mat),
+            camera=Camera(**data.get("camera", {})),
+            light=Light(**light),
+            effects=tuple(effects.get("list", ("shadow",))),
+            interreflection_depth=int(effects.get("interreflection_depth", 2)),
+            spp=int(samples.get("spp", 16)),
+            seed=int(samples.get("seed", 0)),
+            tolerances=dict(data.get("tolerances", {})),
+            source=str(path),
+        )
+    except TypeError as exc:   # an unknown key in a section
+        raise InputError(path, f"unknown setting ({exc})") from None
+    return scene.validate()
+
+
+def override(scene: Scene, **changes) -> Scene:
+    """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
+
+    Keys: ``height, size, depth, boundary, elevation, azimuths, light, light_radius,
+    effects, spp, seed, supersampling``.
+    """
+    c = {k: v for k, v in changes.items() if v is not None}
+    mat = dataclasses.replace(scene.material, **{k: c[k] for k in ("height", "size", "depth", "boundary") if k in c})
+    light = scene.light
+    if "elevation" in c:
+        light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))
+    if "azimuths" in c:
+        light = dataclasses.replace(light, azimuths_deg=parse_azimuths(c["azimuths"]))
+    if "light" in c:
+        light = dataclasses.replace(light, kind=c["light"])
+    if "light_radius" in c:
+        light = dataclasses.replace(light, radius_deg=float(c["light_radius"]))
+    effects = scene.effects
+    if "effects" in c:
+        effects = tuple(e.strip() for e in c["effects"].split(",") if e.strip()) \
+            if isinstance(c["effects"], str) else tuple(c["effects"])
+    camera = dataclasses.replace(scene.camera, **({"supersampling": c["supersampling"]} if "supersampling" in c else {}))
+    return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera,
+                               spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()
+
+
+# --------------------------------------------------------------------------
+# Where each pixel is sampled, and toward where its light is
+# --------------------------------------------------------------------------
+
+def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
+    """Pixels of a render of a ``rows x cols`` height map."""
+    return rows * camera.supersampling, cols * camera.supersampling
+
+
+def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent-space ``(x, y)`` of every sample, float32 arrays of shape ``(pixels * spp,)``.
+
+    Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``.
+    Samples are stratified: ``spp = n * n`` gives one jittered sample per cell
+    of an ``n x n`` grid over the pixel, other counts are uniform. Both
+    renderers use these positions, so no error comes from sampling alone.
+    Jittered points almost never land on a texel centre, where the mesh has
+    a vertex and shadow rays self-intersect (DESIGN.md, pitfalls).
+    """
+    ss = camera.supersampling
+    height, width = image_shape(rows, cols, camera)
+    rng = np.random.default_rng([seed, 0x5A3F])
+    n = int(round(math.sqrt(spp)))
+    if n * n == spp:
+        cell = np.arange(spp)
+        ox, oy = (cell % n)[None, :], (cell // n)[None, :]
+        u = (ox + rng.random((height * width, spp))) / n
+        v = (oy + rng.random((height * width, spp))) / n
+    else:
+        u = rng.random((height * width, spp))
+        v = rng.random((height * width, spp))
+    prow, pcol = np.divmod(np.arange(height * width), width)
+    # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top
+    x = (pcol[:, None] + u) / ss
+    y = rows - (prow[:, None] + v) / ss
+    return x.astype(np.float32).ravel(), y.astype(np.float32).ravel()
+
+
+def light_samples(light: Light, azimuth_deg: float, count: int, seed: int) -> np.ndarray:
+    """``(count, 3)`` unit directions toward the light, one per sample.
+
+    A hard light gives its direction every time; a soft light samples the
+    cone of half-angle ``radius_deg`` about its centre uniformly in solid
+    angle (a disk light of that angular radius, uniformly bright).
+    """
+    centre = light.direction(azimuth_deg)
+    if light.kind == "hard":
+        return np.broadcast_to(centre, (count, 3)).astype(np.float32)
+    rng = np.random.default_rng([seed, 0x11647])
+    cos_max = math.cos(math.radians(light.radius_deg))
+    u1, u2 = rng.random(count), rng.random(count)
+    cos_t = 1.0 - u1 * (1.0 - cos_max)
+    sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0, None))
+    phi = 2 * math.pi * u2
+    local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
+    # an orthonormal frame around the centre (Duff et al. 2017)
+    z = centre
+    sign = math.copysign(1.0, z[2])
+    a = -1.0 / (sign + z[2])
+    b = z[0] * z[1] * a
+    t = np.array([1 + sign * z[0] * z[0] * a, sign * b, -sign * z[0]])
+    s = np.array([b, sign + z[1] * z[1] * a, -z[1]])
+    return (local[:, :1] * t + local[:, 1:2] * s + local[:, 2:] * z).astype(np.float32)
+
+
+def load_material_height(spec: MaterialSpec):
+    """The scene's height map as a :class:`hzval.heightmap.HeightMap`."""
+    from hzval import heightmap, material
+
+    if spec.height == "bricks":
+        return heightmap.from_array(material.bricks(spec.size),
+                                    source=f"built-in brick wall, {spec.size}x{spec.size}")
+    return heightmap.load_height(spec.height)
+
+
+def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
+    """Linear albedo ``(rows, cols, 3)`` float32: a constant, or an sRGB image decoded to linear."""
+    if not isinstance(spec.albedo, str):
+        a = float(spec.albedo)
+        if not 0 <= a <= 1:
+            raise InputError("material.albedo", f"must be in [0, 1], got {a}")
+        return np.full((rows, cols, 3), a, np.float32)
+    from PIL import Image
+
+    try:
+        with Image.open(spec.albedo) as img:
+            rgb = np.asarray(img.convert("RGB"), dtype=np.float64) / 255.0
+    except (OSError, ValueError) as exc:
+        raise InputError(spec.albedo, f"not a readable albedo image ({str(exc).splitlines()[0]})") from None
+    if rgb.shape[:2] != (rows, cols):
+        raise InputError(spec.albedo, f"albedo is {rgb.shape[1]}x{rgb.shape[0]}, the height map {cols}x{rows}")
+    return cv.srgb_decode(rgb).astype(np.float32)
+
+
+@dataclass
+class Frame:
+    """One render of one light of the sweep, by the truth or the approximation.
+
+    ``image``: the shaded result, linear radiance, float32 ``(H, W, 3)``.
+    ``layers``: named one-channel ``(H, W)`` images: the truth's
+    ``visibility`` (V) and the approximation's ``factor`` (F), in [0, 1],
+    and any other per-effect term (e.g. ``ambient``). ``variance``: for Monte
+    Carlo images, the per-pixel variance of the pixel's mean (squared
+    standard error), keyed like ``layers`` (``"image"`` for the image).
+    ``seconds``: render time, kernels synchronised.
+    """
+
+    azimuth_deg: float
+    elevation_deg: float
+    image: np.ndarray
+    layers: dict[str, np.ndarray] = field(default_factory=dict)
+    variance: dict[str, np.ndarray] = field(default_factory=dict)
+    seconds: float = 0.0
