@@ -1,0 +1,210 @@
+"""The built-in material: a procedural, seamlessly tiling brick wall.
+
+:func:`bricks` returns a height map ``H[row, col]`` in [0, 1] (row 0 at the
+top, ``DESIGN.md`` "Conventions") of bricks laid in running bond: bevelled
+brick faces standing proud of recessed mortar joints, each brick with its own
+height, tilt, chipped edges and rough face, over a fine grain everywhere. It
+lets every hzval command run with no input, and its relief (at
+:data:`DEFAULT_DEPTH`) casts long, structured shadows at the ~30 degree light
+elevations of the sweep.
+
+The map is exactly periodic with period ``(rows, cols)``: the bond has an
+integer number of bricks per course and an even number of courses per
+period, and all noise is seeded white noise filtered in the Fourier domain,
+which is periodic by construction. It therefore tiles (``boundary="wrap"``)
+without a seam.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "bricks"]
+
+#: Side of the default height map in texels.
+DEFAULT_SIZE = 512
+#: Suggested ``depth`` for :func:`bricks`: the world height of ``H = 1`` in
+#: units of the image width (``DESIGN.md``), i.e. 25.6 texels at 512 texels.
+DEFAULT_DEPTH = 0.05
+
+# Height levels of the profile (fractions of the [0, 1] range).
+_MORTAR_LEVEL = 0.14      # mean height of the mortar bed
+_TOP_LEVEL = 0.82         # mean height of a brick face
+_TOP_SPREAD = 0.05        # per-brick height offset, +- (uniform)
+_TILT = 0.05              # per-brick tilt: height change across a brick, +-
+# Geometry, as fractions of the brick height (in texels).
+_MORTAR_FRACTION = 0.03   # width of the mortar joint
+_MORTAR_MIN_PX = 1.5      # ... but at least this many texels
+_BEVEL_FRACTION = 0.13    # width of the rounded brick edge
+# Chips: fracture surface slope (height per brick height of inset), its
+# drop per unit of chip noise, and the noise level where chips begin.
+_CHIP_SLOPE = 6.0
+_CHIP_DEPTH = 0.25
+_CHIP_THRESHOLD = 1.0
+_MIN_BRICK_PX = 48        # narrowest brick, in texels (fewer bricks on small maps)
+
+
+def _shape(size: int | tuple[int, int]) -> tuple[int, int]:
+    if np.ndim(size) == 0:
+        rows = cols = int(size)
+    else:
+        rows, cols = (int(s) for s in size)
+    if rows < 8 or cols < 8:
+        raise ValueError(f"bricks: size must be at least 8x8 texels, got {rows}x{cols}")
+    return rows, cols
+
+
+def _periodic_noise(rng: np.random.Generator, shape: tuple[int, int],
+                    sigmas: tuple[float, ...], weights: tuple[float, ...]) -> np.ndarray:
+    """Exactly periodic noise of zero mean and unit variance, float32 ``shape``.
+
+    White Gaussian noise is drawn directly as Fourier coefficients and
+    shaped by a sum of Gaussian low-pass kernels of standard deviations
+    ``sigmas`` (texels) with ``weights``; the inverse real FFT of a discrete
+    spectrum is periodic with the image. Coefficients where every kernel is
+    below ``exp(-8)`` are zero and not drawn, so smooth fields are cheap.
+    """
+    rows, cols = shape
+    # Band limit: |f| <= 4 / (2 pi sigma_min) cycles per texel, per axis.
+    f_max = 4.0 / (2.0 * np.pi * min(sigmas))
+    ky = min(rows // 2, int(np.ceil(f_max * rows)))
+    kx = min(cols // 2, int(np.ceil(f_max * cols)))
+    iy = np.r_[0:ky + 1, rows - ky:rows] if 2 * ky + 1 < rows else np.arange(rows)
+    fy = np.where(iy <= rows // 2, iy, iy - rows) / rows
+    fx = np.arange(kx + 1) / cols
+    kernel = np.zeros((fy.size, fx.size))
+    for sigma, weight in zip(sigmas, weights):
+        c = 2.0 * np.pi ** 2 * sigma ** 2        # the Gaussian is separable
+        kernel += weight * np.outer(np.exp(-c * fy * fy), np.exp(-c * fx * fx))
+    kernel[0, 0] = 0.0                           # zero mean
+    white = rng.standard_normal((fy.size, fx.size, 2), dtype=np.float32)
+    band = (white[..., 0] + 1j * white[..., 1]) * kernel.astype(np.float32)
+    spectrum = np.zeros((rows, cols // 2 + 1), dtype=np.complex64)
+    spectrum[iy, :kx + 1] = band
+    field = np.fft.irfft2(spectrum, s=shape)
+    std = field.std()
+    return field / std if std > 0 else field
+
+
+def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
+           bricks_across: int = 4) -> np.ndarray:
+    """A seamlessly tiling height map of a brick wall in running bond.
+
+    Parameters
+    ----------
+    size
+        ``n`` for an ``n x n`` map or ``(rows, cols)``; each at least 8.
+    seed
+        Seed of :func:`numpy.random.default_rng`, the only source of
+        randomness: equal ``(size, seed, bricks_across)`` give equal maps.
+    bricks_across
+        Bricks per course across the width, at least 1. It is lowered where
+        bricks would be narrower than 48 texels and raised where a brick
+        would be wider than the map is tall. The number of courses follows:
+        the even number that keeps bricks closest to 2:1 (width:height).
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, shape ``(rows, cols)``, values in [0, 1], row 0 at the top.
+        Mortar lies near 0.1-0.2 and brick faces near 0.7-1.0; use it with
+        :data:`DEFAULT_DEPTH`. The map is exactly periodic with period
+        ``(rows, cols)``: whole bricks per course, an even number of courses
+        (the half-brick offset repeats every two) and Fourier-filtered noise.
+
+    Notes
+    -----
+    A brick's height is a rounded (quarter-sine) profile of its inset
+    distance to the brick boundary, so its edges are bevelled and meet the
+    mortar in a joint ``max(1.5 texels, 3%)`` of the brick height wide.
+    Chips cut the brick down to a gently sloping fracture surface near its
+    edges. Every term is continuous, so the relief has steep bevels but no
+    steps or spikes. Units: ``H`` is dimensionless; texel-space lengths scale
+    with the brick height, so the look does not depend on the resolution.
+    """
+    rows, cols = _shape(size)
+    if int(bricks_across) < 1:
+        raise ValueError(f"bricks: bricks_across must be at least 1, got {bricks_across}")
+    rng = np.random.default_rng(seed)
+    f32 = np.float32
+
+    # Bond: n bricks per course, an even number of courses, bricks ~2:1.
+    n = max(1, min(int(bricks_across), cols // _MIN_BRICK_PX))
+    n = max(n, -(-cols // rows))          # two courses of half-width bricks fit
+    brick_w = cols / n
+    courses = max(2, 2 * int(round(rows / (brick_w / 2.0) / 2.0)))
+    brick_h = rows / courses
+
+    # Brick-space coordinates of texel centres; the pattern is shifted by a
+    # quarter brick and half a course so the image edges cut through bricks
+    # (the seam is then a real test of tiling, not hidden in a joint).
+    v = (np.arange(rows) + 0.5) / rows * courses + 0.5          # courses, downwards
+    u = (np.arange(cols) + 0.5) / cols * n + 0.25               # bricks, rightwards
+    course = np.floor(v).astype(np.int64)
+    fv = (v - course).astype(f32)[:, None]                      # [0, 1) in the course
+    shifted = u[None, :] + 0.5 * (course % 2)[:, None]          # running bond
+    column = np.floor(shifted)
+    fu = (shifted - column).astype(f32)                         # [0, 1) in the brick
+    brick_id = ((course % courses)[:, None] * n
+                + column.astype(np.int64) % n).astype(np.intp)  # (rows, cols)
+
+    # Per-brick random properties (drawn in a fixed order).
+    count = courses * n
+    top = (_TOP_LEVEL + _TOP_SPREAD * rng.uniform(-1.0, 1.0, count)).astype(f32)
+    tilt_u = (_TILT * rng.uniform(-1.0, 1.0, count)).astype(f32)
+    tilt_v = (0.5 * _TILT * rng.uniform(-1.0, 1.0, count)).astype(f32)
+    bevel_scale = rng.uniform(0.8, 1.25, count).astype(f32)
+    rough_scale = rng.uniform(0.6, 1.4, count).astype(f32)
+
+    # Noise fields, all exactly periodic. Scales are in texels, tied to the
+    # brick height so the look does not depend on the resolution.
+    shape = (rows, cols)
+    s = brick_h / 64.0
+    chip_field = _periodic_noise(rng, shape, (5.0 * s,), (1.0,))
+    face_field = _periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2))
+    pit_field = _periodic_noise(rng, shape, (2.5 * s,), (1.0,))
+    grain_field = _periodic_noise(rng, shape, (0.6,), (1.0,))
+    edge_field = _periodic_noise(rng, shape, (10.0 * s,), (1.0,))
+
+    # Inset distance (texels) to the brick boundary, with slightly rounded
+    # corners, less half the mortar joint.
+    mortar = max(_MORTAR_MIN_PX, _MORTAR_FRACTION * brick_h)
+    qx = (f32(0.5) - np.abs(fu - f32(0.5))) * f32(brick_w)
+    qy = (f32(0.5) - np.abs(fv - f32(0.5))) * f32(brick_h)
+    corner = f32(0.35 * _BEVEL_FRACTION * brick_h)
+    inset = np.minimum(qx, qy)
+    rounded = corner - np.hypot(np.maximum(corner - qx, 0), np.maximum(corner - qy, 0))
+    inset = np.where((qx < corner) & (qy < corner), rounded, inset)
+    inset -= f32(0.5 * mortar)
+
+    # The edge wanders a little along its length.
+    inset -= f32(0.015 * brick_h) * (f32(0.5) + f32(0.5) * np.tanh(edge_field))
+
+    # Rounded profile: 0 in the joint, rising as a quarter sine over the bevel.
+    bevel = f32(_BEVEL_FRACTION * brick_h) * bevel_scale[brick_id]
+    profile = np.sin(f32(0.5 * np.pi) * np.clip(inset / bevel, 0, 1))
+
+    # Brick face: per-brick height and tilt, rough face, small pits.
+    face = top[brick_id]
+    face += tilt_u[brick_id] * (fu - f32(0.5)) * f32(2.0)
+    face += tilt_v[brick_id] * (fv - f32(0.5)) * f32(2.0)
+    face += f32(0.022) * rough_scale[brick_id] * face_field
+    face -= f32(0.04) * _smoothstep(1.5, 3.2, pit_field)
+    mortar_height = f32(_MORTAR_LEVEL) + f32(0.02) * pit_field
+
+    height = mortar_height + profile * (face - mortar_height)
+
+    # Chips: a fracture surface that rises gently from the joint and sinks
+    # where the chip field is high; the brick is cut down to it (min), never
+    # below the mortar (max). Both are continuous, so chips add no steps.
+    fracture = (mortar_height + f32(_CHIP_SLOPE / brick_h) * inset
+                + f32(_CHIP_DEPTH) * (f32(_CHIP_THRESHOLD) - chip_field)
+                + f32(0.03) * face_field)
+    height = np.minimum(height, np.maximum(fracture, mortar_height))
+    height += f32(0.005) * grain_field
+    return np.clip(height, 0.0, 1.0).astype(np.float32)
