@@ -1,0 +1,133 @@
+"""Comparing a frame of the approximation with the truth (DESIGN.md, "Metrics").
+
+Visibility, on the one-channel layers in [0, 1]:
+
+* ``visibility_mae``: mean ``|F - V|`` over pixels;
+* ``leak_fraction``: pixels the technique lights (``F >= 0.5``) that are in
+  shadow (``V < 0.5``);
+* ``false_shadow_fraction``: pixels it shadows (``F < 0.5``) that are lit
+  (``V >= 0.5``).
+
+Images: ``rmse`` and ``psnr_db`` on linear values (peak 1: a white
+Lambertian surface facing the light, after :func:`exposure`); FLIP (NVIDIA,
+``flip-evaluator``, LDR, 67 pixels per degree) and CIEDE2000 (colour-science)
+on display values, i.e. exposed, clipped to [0, 1] and sRGB-encoded.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from hzval import conventions as cv
+from hzval.errors import HzvalError
+
+#: FLIP's viewing condition: its default 67 pixels per degree (a 0.7 m
+#: viewing distance from a 3840-pixel, 0.7 m wide monitor), fixed so that
+#: numbers compare across runs.
+FLIP_PPD = 67.0
+
+
+@dataclass(frozen=True)
+class FrameMetrics:
+    visibility_mae: float | None
+    leak_fraction: float | None
+    false_shadow_fraction: float | None
+    flip_mean: float
+    rmse: float
+    psnr_db: float
+    delta_e2000_mean: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def exposure(scene) -> float:
+    """Scale from radiance to display values: a white Lambertian surface facing the light shows 1.
+
+    Its radiance is ``E / pi`` when diffuse or specular shading is declared;
+    otherwise images hold ``E`` times a visibility and ``E`` shows as 1.
+    """
+    e = scene.light.irradiance
+    if scene.declares("diffuse") or scene.declares("specular"):
+        return math.pi / e
+    return 1.0 / e
+
+
+def display(image: np.ndarray, scale: float) -> np.ndarray:
+    """Linear radiance ``(H, W[, 3])`` to sRGB-encoded display values in [0, 1], ``(H, W, 3)``."""
+    img = np.asarray(image, dtype=np.float64) * scale
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=-1)
+    return cv.srgb_encode(np.clip(img, 0.0, 1.0))
+
+
+def visibility_metrics(V: np.ndarray, F: np.ndarray) -> tuple[float, float, float]:
+    """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.float64)
+    lit_truth, lit_approx = V >= 0.5, F >= 0.5
+    return (float(np.mean(np.abs(F - V))),
+            float(np.mean(lit_approx & ~lit_truth)),
+            float(np.mean(~lit_approx & lit_truth)))
+
+
+def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:
+    """FLIP error map ``(H, W)`` and its mean, for sRGB display values in [0, 1].
+
+    ``flip-evaluator``'s Python wrapper calls ``sys.exit`` on some bad
+    arguments and raises ``RuntimeError`` on others; both become an
+    :class:`~hzval.errors.HzvalError` here rather than ending the process.
+    """
+    import flip_evaluator
+
+    try:
+        err, mean, _ = flip_evaluator.evaluate(
+            np.ascontiguousarray(reference_display, dtype=np.float32),
+            np.ascontiguousarray(test_display, dtype=np.float32),
+            "LDR", inputsRGB=True, applyMagma=False, computeMeanError=True,
+            parameters={"ppd": FLIP_PPD})
+    except SystemExit as exc:
+        raise HzvalError(f"flip-evaluator refused its input (exit {exc.code})") from None
+    except (RuntimeError, ValueError) as exc:
+        raise HzvalError(f"flip-evaluator refused its input ({str(exc).splitlines()[0]})") from None
+    err = np.asarray(err, dtype=np.float32)
+    return err.reshape(err.shape[:2]), float(mean)
+
+
+def delta_e2000(reference_display: np.ndarray, test_display: np.ndarray) -> np.ndarray:
+    """Per-pixel CIEDE2000 between two sRGB display images (D65), via colour-science."""
+    import colour
+
+    def lab(rgb):
+        xyz = colour.sRGB_to_XYZ(np.asarray(rgb, dtype=np.float64), apply_cctf_decoding=True)
+        return colour.XYZ_to_Lab(xyz)
+
+    return np.asarray(colour.delta_E(lab(reference_display), lab(test_display), method="CIE 2000"))
+
+
+def compare(truth, approx, scale: float) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
+    """Metrics of one frame and the maps behind them (``flip``, ``delta_e``, ``visibility_diff``).
+
+    ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
+    sweep's :func:`exposure`.
+    """
+    maps: dict[str, np.ndarray] = {}
+    V, F = truth.layers.get("visibility"), approx.layers.get("factor")
+    if V is not None and F is not None:
+        mae, leak, false_shadow = visibility_metrics(V, F)
+        maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
+    else:
+        mae = leak = false_shadow = None
+    t_lin = np.asarray(truth.image, np.float64) * scale
+    a_lin = np.asarray(approx.image, np.float64) * scale
+    mse = float(np.mean((t_lin - a_lin) ** 2))
+    rmse = math.sqrt(mse)
+    psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
+    t_disp, a_disp = display(truth.image, scale), display(approx.image, scale)
+    maps["flip"], flip_mean = flip(t_disp, a_disp)
+    maps["delta_e"] = delta_e2000(t_disp, a_disp)
+    return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
+                        float(np.mean(maps["delta_e"]))), maps

@@ -1,0 +1,53 @@
+"""Metrics against cases whose values are known."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hzval import compare as C
+from hzval.errors import HzvalError
+from hzval.scene import Frame
+
+
+def frame(img, **layers):
+    return Frame(0.0, 30.0, np.asarray(img, np.float32), layers)
+
+
+def test_visibility_metrics_count_leaks_and_false_shadows():
+    V = np.array([[1, 1, 0, 0]], np.float32)
+    F = np.array([[1, 0.2, 0.9, 0]], np.float32)   # one false shadow, one leak
+    mae, leak, false_shadow = C.visibility_metrics(V, F)
+    assert mae == pytest.approx((0 + 0.8 + 0.9 + 0) / 4)
+    assert leak == 0.25 and false_shadow == 0.25
+
+
+def test_identical_frames_have_no_error():
+    img = np.random.default_rng(0).random((16, 16, 3)) * 0.5
+    m, maps = C.compare(frame(img, visibility=img[..., 0]), frame(img, factor=img[..., 0]), 1.0)
+    assert m.visibility_mae == 0 and m.rmse == 0 and m.flip_mean == 0 and m.delta_e2000_mean == 0
+    assert m.psnr_db == math.inf
+
+
+def test_black_against_white():
+    black, white = np.zeros((8, 8, 3)), np.ones((8, 8, 3))
+    m, maps = C.compare(frame(white), frame(black), 1.0)
+    assert m.rmse == pytest.approx(1.0) and m.psnr_db == pytest.approx(0.0)
+    assert m.delta_e2000_mean == pytest.approx(100.0, abs=0.01)   # L* 100 -> 0
+    assert m.flip_mean > 0.5 and m.visibility_mae is None
+
+
+def test_psnr_of_a_constant_offset():
+    a = np.full((8, 8, 3), 0.5)
+    m, _ = C.compare(frame(a), frame(a + 0.1), 1.0)
+    assert m.psnr_db == pytest.approx(20.0)
+
+
+def test_display_encodes_srgb_after_exposure():
+    d = C.display(np.array([[0.5 / math.pi]]), math.pi)
+    assert d.shape == (1, 1, 3) and d[0, 0, 0] == pytest.approx(0.7353569, abs=1e-6)
+
+
+def test_flip_refusal_is_an_error_not_an_exit():
+    with pytest.raises(HzvalError):
+        C.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
