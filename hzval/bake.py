@@ -357,3 +357,37 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
             "versions": backend.versions(),
         }, atomic=False)
         return stage.commit()
+
+
+def read_bake(folder: str | Path) -> Bake:
+    """Read a bake written by :func:`write_bake` back from its EXR files (exact float32)."""
+    import json
+
+    from hzval import files
+
+    folder = Path(folder)
+    record = json.loads((folder / "bake.json").read_text())
+    h0, h1 = files.read_exr(folder / "horizon0.exr"), files.read_exr(folder / "horizon1.exr")
+    n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
+    horizon = np.stack([h0[c] for c in "RGBA"] + [h1[c] for c in "RGBA"], axis=-1)
+    normal = np.stack([n[c] for c in "RGB"], axis=-1)
+    return Bake(BakeParams(**record["parameters"]), horizon, normal, amb["mean_cos"], amb["mean_cos2"],
+                dict(record["timings_s"]))
+
+
+def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
+                input_info: dict) -> tuple[Bake, bool]:
+    """Bake into ``folder``, or read the bake already there if it was made from the
+    same input (``digest``) with the same parameters. Returns ``(bake, cached)``."""
+    import json
+
+    folder = Path(folder)
+    try:
+        record = json.loads((folder / "bake.json").read_text())
+        if record["input"]["digest"] == digest and record["parameters"] == asdict(params):
+            return read_bake(folder), True
+    except (OSError, ValueError, KeyError, TypeError):
+        pass   # no usable cache: bake anew
+    result = bake(height, params)
+    write_bake(result, folder, input_info=input_info)
+    return result, False

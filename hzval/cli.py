@@ -8,6 +8,8 @@ can act on are one line on stderr, ``hzval: error: <what>: <problem>``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import sys
 import time
 from pathlib import Path
@@ -20,7 +22,7 @@ def _add_material_args(p: argparse.ArgumentParser) -> None:
                    help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall")
     p.add_argument("--depth", type=float, default=None,
                    help="world height of H = 1 in image widths (default 0.05)")
-    p.add_argument("--boundary", choices=["wrap", "open"], default="wrap",
+    p.add_argument("--boundary", choices=["wrap", "open"], default=None,
                    help="wrap: the texture tiles; open: a terrain with nothing outside (default wrap)")
     p.add_argument("--size", type=int, default=None, metavar="N",
                    help="size in texels of the built-in material (default 512); ignored with HEIGHT")
@@ -43,6 +45,36 @@ def _parser() -> argparse.ArgumentParser:
                    help="also write the displaced triangle mesh as mesh.ply")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.set_defaults(run=cmd_bake)
+
+    p = sub.add_parser("sweep", help="render truth and horizon mapping over a light sweep and report",
+                       description="Render the ground truth and the horizon-mapping approximation for every "
+                                   "light of the sweep (Lengyel's Figure 5.3 by default), compare them, and "
+                                   "write metrics.json and an HTML report.")
+    _add_material_args(p)
+    p.add_argument("--scene", type=Path, default=None,
+                   help="scene description (TOML); the flags below override it (default: built-in bricks)")
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--azimuths", default=None,
+                   help="light azimuths in degrees, START:STOP:STEP or a list (default -60:60:15)")
+    p.add_argument("--k", type=float, default=8.0, help="shadow hardness k of F = clamp(k (Lz - s) + 1) (default 8)")
+    p.add_argument("--light", choices=["hard", "soft"], default=None, help="directional or disk light")
+    p.add_argument("--light-radius", type=float, default=None, metavar="DEG",
+                   help="angular radius of a soft light in degrees")
+    p.add_argument("--effects", default=None,
+                   help="comma-separated effects: shadow, diffuse, specular, ambient, "
+                        "reflection_occlusion, interreflection (default shadow)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the samples (default 0)")
+    p.add_argument("--supersampling", type=int, default=None, help="pixels per texel along each axis (default 1)")
+    p.add_argument("--path", choices=["exact", "gpu"], default="exact",
+                   help="approximation: exact float math, or emulate the GPU's 8-bit textures (default exact)")
+    p.add_argument("--ambient", choices=["mean_cos2", "mean_cos"], default="mean_cos2",
+                   help="which ambient-map definition the approximation uses")
+    p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
+    p.add_argument("--angles", type=int, default=32, help="bake angular bins (default 32)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_sweep)
     return parser
 
 
@@ -69,7 +101,7 @@ def cmd_bake(args) -> int:
 
     depth = material.DEFAULT_DEPTH if args.depth is None else args.depth
     params = bake.BakeParams(depth=depth, radius=args.radius, angles=args.angles,
-                             boundary=args.boundary).validate()
+                             boundary=args.boundary or "wrap").validate()
     if args.height is not None:
         rows, cols = heightmap.probe_shape(args.height)
         bake.check_fits(args.height, rows, cols, params)
@@ -94,8 +126,36 @@ def cmd_bake(args) -> int:
     return errors.EXIT_OK
 
 
+def cmd_sweep(args) -> int:
+    import shlex
+
+    from hzval import backend, scene as sc, sweep
+
+    base = sc.load_scene(args.scene) if args.scene else sc.Scene()
+    scene = sc.override(base, height=str(args.height) if args.height else None, size=args.size,
+                        depth=args.depth, boundary=args.boundary, elevation=args.elevation, azimuths=args.azimuths, light=args.light,
+                        light_radius=args.light_radius, effects=args.effects, spp=args.spp, seed=args.seed,
+                        supersampling=args.supersampling)
+    if args.height:
+        scene = dataclasses.replace(scene, name=Path(args.height).stem)
+    options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles)
+    if not (math.isfinite(options.k) and options.k > 0):
+        raise errors.InputError("--k", f"must be a positive number, got {options.k}")
+    out = args.out or Path("reports") / scene.name
+    backend.variant(args.variant)
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet)
+    print(sweep.summary_table(result))
+    t = result["timings"]
+    print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s (bake {t['bake_s']:.2f} s"
+          f"{', cached' if t['bake_cached'] else ''}, truth {t['truth_setup_s'] + t['truth_s']:.2f} s, "
+          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s); report: {out / 'index.html'}")
+    return errors.EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     try:
         return args.run(args)
     except errors.HzvalError as exc:

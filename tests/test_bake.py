@@ -157,3 +157,19 @@ def test_memory_estimate_refuses_a_map_that_cannot_fit():
     with pytest.raises(InputError, match="GiB"):
         B.check_fits("huge.png", 1_000_000, 1_000_000, DEFAULT)
     B.check_fits("small.png", 64, 64, DEFAULT)
+
+
+def test_cached_bake_reads_back_exactly_and_rebakes_on_change(variant, tmp_path):
+    rng = np.random.default_rng(5)
+    h = rng.random((12, 10)).astype(np.float32)
+    p = B.BakeParams(radius=5, angles=16)
+    info = {"digest": "sha256:abc"}
+    first, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info)
+    assert not cached
+    again, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info)
+    assert cached and np.array_equal(again.horizon, first.horizon) and np.array_equal(again.normal, first.normal)
+    assert np.array_equal(again.mean_cos2, first.mean_cos2)
+    _, cached = B.cached_bake(h, "sha256:abc", B.BakeParams(radius=5, angles=16, depth=0.1), tmp_path, info)
+    assert not cached
+    _, cached = B.cached_bake(h, "sha256:def", B.BakeParams(radius=5, angles=16, depth=0.1), tmp_path, info)
+    assert not cached
