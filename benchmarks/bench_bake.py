@@ -5,8 +5,12 @@ brick wall (:func:`hzval.material.bricks`), baked at depth 0.05, radius 16,
 32 bins, wrap. Rows of the table:
 
 1. the C peer (``benchmarks/seed_bake.c``) compiled with
-   ``gcc -O3 -march=native -fopenmp`` on two threads: whole-process wall time
-   and the time of its bake loop alone;
+   ``gcc -O3 -march=native -fopenmp`` on two threads, in both variants:
+   (1a) ``-DHOISTED_TABLE``, the seed loop with its offset-to-bins table
+   computed once (DESIGN.md: "compute it once") -- the peer that the speed
+   target is measured against -- and (1b) the literal seed loop, which
+   recomputes ``atan2f``/``atanf``/``sqrtf`` for every texel and neighbour;
+   whole-process wall time and the time of the bake loop alone;
 2. ``hzval bake INPUT.png --out DIR`` as a subprocess (the console script of
    this Python's environment) with a warm Dr.Jit kernel cache: one run to warm
    it, then the best of ``--repeat``;
@@ -14,7 +18,8 @@ brick wall (:func:`hzval.material.bricks`), baked at depth 0.05, radius 16,
    a new empty folder for every run): what a first run on a machine pays;
 4. :func:`hzval.bake.horizon_map` alone, in this process, kernel warm.
 
-It also checks that the peer and ``hzval bake`` computed the same thing:
+It also checks that the two C variants agree bit for bit and that the peer
+and ``hzval bake`` computed the same thing:
 the peer's output against ``horizon0.exr``, ``horizon1.exr`` and
 ``ambient.exr`` (max abs difference). The peer reads the very heights that
 hzval decodes from the PNG (written to raw float32), so both see one input.
@@ -43,6 +48,9 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "seed_bake.c"
 DEPTH, RADIUS, ANGLES, BOUNDARY = 0.05, 16, 32, "wrap"
 THREADS = 2
+C_FLAGS = ["-O3", "-march=native", "-fopenmp"]
+#: The two builds of seed_bake.c; "hoisted" is the peer the target is measured against.
+C_VARIANTS = {"hoisted": ["-DHOISTED_TABLE"], "literal": []}
 TARGET_RATIO = 0.5
 
 
@@ -104,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.size < 8 or args.repeat < 1:
         parser.error("--size must be at least 8 and --repeat at least 1")
 
+    load_start = os.getloadavg()  # before this script loads the machine itself
     gcc = shutil.which("gcc")
     if gcc is None:
         raise SystemExit("bench_bake: gcc is not installed; it is needed to build the C peer")
@@ -124,20 +133,24 @@ def main(argv: list[str] | None = None) -> int:
         raw = work / "height.f32"
         decoded.astype("<f4").tofile(raw)
 
-        # -- (1) the C peer
-        exe = work / "seed_bake"
-        build = [gcc, "-O3", "-march=native", "-fopenmp", "-o", str(exe), str(SOURCE), "-lm"]
-        _run(build)
-        peer_out = work / "peer.f32"
-        peer_cmd = [str(exe), str(raw), str(rows), str(cols), repr(DEPTH), str(RADIUS), str(ANGLES),
-                    BOUNDARY, str(peer_out)]
+        # -- (1) the C peer, both variants: (1a) offset table hoisted, (1b) literal
         env_c = dict(os.environ, OMP_NUM_THREADS=str(THREADS))
-        c_wall, c_loop = [], []
-        for _ in range(args.repeat):
-            wall, proc = _run(peer_cmd, env_c)
-            c_wall.append(wall)
-            c_loop.append(float(re.search(r"loop_s ([0-9.]+)", proc.stderr).group(1)))
-        peer = np.fromfile(peer_out, dtype="<f4").reshape(rows, cols, 10)
+        c_cmd, c_wall, c_loop, c_out = {}, {}, {}, {}
+        for name, defines in C_VARIANTS.items():
+            exe = work / f"seed_bake_{name}"
+            _run([gcc, *C_FLAGS, *defines, "-o", str(exe), str(SOURCE), "-lm"])
+            c_out[name] = work / f"peer_{name}.f32"
+            c_cmd[name] = [str(exe), str(raw), str(rows), str(cols), repr(DEPTH), str(RADIUS),
+                           str(ANGLES), BOUNDARY, str(c_out[name])]
+            c_wall[name], c_loop[name] = [], []
+        for _ in range(args.repeat):  # the variants alternate, so that both see the same machine
+            for name in C_VARIANTS:
+                wall, proc = _run(c_cmd[name], env_c)
+                c_wall[name].append(wall)
+                c_loop[name].append(float(re.search(r"loop_s ([0-9.]+)", proc.stderr).group(1)))
+        peer = np.fromfile(c_out["hoisted"], dtype="<f4").reshape(rows, cols, 10)
+        literal = np.fromfile(c_out["literal"], dtype="<f4").reshape(rows, cols, 10)
+        c_identical = peer.tobytes() == literal.tobytes()
 
         # -- (2) hzval bake, warm kernel cache (a private cache, warmed by one run)
         base = [hzval, "bake", str(png), "--depth", repr(DEPTH), "--radius", str(RADIUS),
@@ -177,35 +190,53 @@ def main(argv: list[str] | None = None) -> int:
         diffs = {name: _peer_vs_bake(peer, work / name) for name in (f"bake-warm{best_warm}", "bake-cold0")}
 
         # -- the table
-        c_w, c_l, w, c, kern = min(c_wall), min(c_loop), min(hz_warm), min(hz_cold), min(kernel)
-        ratio, ratio_cold = w / c_w, c / c_w
-        load = os.getloadavg()
+        c_w, c_l = min(c_wall["hoisted"]), min(c_loop["hoisted"])
+        lit_w, lit_l = min(c_wall["literal"]), min(c_loop["literal"])
+        w, c, kern = min(hz_warm), min(hz_cold), min(kernel)
+        ratio, ratio_cold, ratio_lit = w / c_w, c / c_w, w / lit_w
+        load_end = os.getloadavg()
+        nan = float("nan")
+        stage_keys = ["load_s", "normal_s", "horizon_s", "write_s"]
+        stage_keys += [k for k in stages if k not in stage_keys]
+        staged = sum(stages.get(k, 0.0) for k in stage_keys)
+        flags = " ".join(C_FLAGS)
         lines = [
             f"hzval horizon bake vs the seed loop in C: {what}, {cols}x{rows}, 16-bit PNG,",
             f"depth {DEPTH}, radius {RADIUS}, {ANGLES} bins, {BOUNDARY}; {os.cpu_count()} CPUs, "
-            f"load average {load[0]:.2f}; best of {args.repeat}; hzval variant {variant}",
+            f"load average {load_start[0]:.2f} at start ({load_end[0]:.2f} at end, with this run's own load);",
+            f"best of {args.repeat}; hzval variant {variant}",
             "",
             f"{'what':<58} {'whole s':>8} {'bake s':>8}",
             f"{'-' * 58} {'-' * 8} {'-' * 8}",
-            f"{f'(1) C peer, gcc -O3 -march=native -fopenmp, {THREADS} threads':<58} {c_w:8.3f} {c_l:8.3f}",
+            f"{'(1a) C seed loop, offset table hoisted (-DHOISTED_TABLE)':<58} {c_w:8.3f} {c_l:8.3f}",
+            f"{'(1b) C seed loop, literal (atan2f/atanf/sqrtf per texel)':<58} {lit_w:8.3f} {lit_l:8.3f}",
             f"{'(2) hzval bake (process), Dr.Jit kernel cache warm':<58} {w:8.3f} "
             f"{stages.get('horizon_s', float('nan')):8.3f}",
             f"{'(3) hzval bake (process), Dr.Jit kernel cache EMPTY':<58} {c:8.3f} {'':>8}",
             f"{'(4) hzval.bake.horizon_map in-process, kernel warm':<58} {'':>8} {kern:8.3f}",
             "",
+            f"(1a), (1b): gcc {flags}, OMP_NUM_THREADS={THREADS}; outputs bit-identical: "
+            f"{'yes' if c_identical else 'NO'}.",
             "whole s: wall time of the whole process (C: reads raw float32, writes raw float32;",
             "         hzval: starts Python, decodes the PNG, bakes normal+horizon+ambient,",
             "         writes 14 files: EXR, PNG, cube map, bake.json).",
-            "bake s:  C: its loop alone; (2): bake.json horizon_s of the best timed run;",
+            "bake s:  C: its loop alone (1a: with building the table); (2): bake.json horizon_s",
+            "         of the best timed run;",
             "         (4): horizon_map alone, best of the runs.",
-            "hzval bake stages (bake.json, best warm run): " + ", ".join(f"{k} {v:.3f}" for k, v in stages.items()),
-            f"all runs, s: C whole {fmt(c_wall)}; C loop {fmt(c_loop)}; warm {fmt(hz_warm)}; "
-            f"cold {fmt(hz_cold)}; kernel {fmt(kernel)}",
+            "hzval bake stages, s (bake.json, best warm run): "
+            + ", ".join(f"{k[:-2] if k.endswith('_s') else k} {stages.get(k, nan):.3f}" for k in stage_keys)
+            + f"; sum {staged:.3f};",
+            f"         rest of the process (Python start, imports, Dr.Jit set-up) {w - staged:.3f}",
+            f"all runs, s: C hoisted whole {fmt(c_wall['hoisted'])}, loop {fmt(c_loop['hoisted'])};",
+            f"             C literal whole {fmt(c_wall['literal'])}, loop {fmt(c_loop['literal'])};",
+            f"             hzval warm {fmt(hz_warm)}; cold {fmt(hz_cold)}; kernel {fmt(kernel)}",
             "",
-            f"ratio hzval/C, whole process, warm cache: {ratio:.2f} (target <= {TARGET_RATIO}: "
-            f"{'met' if ratio <= TARGET_RATIO else 'NOT met'})",
-            f"ratio hzval/C, whole process, empty cache: {ratio_cold:.2f}",
-            f"ratio hzval/C, bake alone (4)/(1 loop): {kern / c_l:.2f}",
+            f"HEADLINE ratio hzval/C hoisted, whole process, warm cache (2)/(1a): {ratio:.2f} "
+            f"(target <= {TARGET_RATIO}: {'met' if ratio <= TARGET_RATIO else 'NOT met'})",
+            f"ratio hzval/C hoisted, whole process, empty cache (3)/(1a): {ratio_cold:.2f}",
+            f"ratio hzval/C hoisted, bake alone (4)/(1a loop): {kern / c_l:.2f}",
+            f"ratio hzval/C literal, whole process, warm cache (2)/(1b): {ratio_lit:.2f}; "
+            f"bake alone (4)/(1b loop): {kern / lit_l:.2f}",
             "",
             "same output: max |peer - hzval bake| "
             + "; ".join(f"{name}: " + ", ".join(f"{k} {v:.2g}" for k, v in d.items())
@@ -214,6 +245,9 @@ def main(argv: list[str] | None = None) -> int:
             f"reproduce: {shlex.join([sys.executable, str(Path(__file__).resolve())] + (argv if argv is not None else sys.argv[1:]))}",
         ]
         print("\n".join(lines))
+        if not c_identical:
+            print("bench_bake: the hoisted and literal C variants differ", file=sys.stderr)
+            return 1
         worst = max(v for d in diffs.values() for v in d.values())
         if not worst <= 2e-6:
             print(f"bench_bake: hzval's output differs from the peer's by {worst:.3g}", file=sys.stderr)

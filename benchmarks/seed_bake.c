@@ -4,8 +4,9 @@
  * independent peer for tests (tests/test_seed_peer.py) and its timing
  * baseline (benchmarks/bench_bake.py).
  *
- * Build:
+ * Build (literal seed loop, the default; and the hoisted-table variant):
  *   gcc -O3 -march=native -fopenmp -o seed_bake seed_bake.c -lm
+ *   gcc -O3 -march=native -fopenmp -DHOISTED_TABLE -o seed_bake_hoisted seed_bake.c -lm
  *
  * Usage:
  *   seed_bake IN.f32 ROWS COLS DEPTH RADIUS ANGLES wrap|open OUT.f32
@@ -13,7 +14,8 @@
  * IN  is raw little-endian float32 H[row][col] (normalised heights).
  * OUT is raw float32 [row][col][10]: the 8 channel sines (channel k toward
  *     azimuth 45k degrees), then mean_cos and mean_cos2.
- * The time of the bake loop alone is printed to stderr.
+ * The time of the bake loop alone (for -DHOISTED_TABLE including building
+ * the table) is printed to stderr, with the variant's name.
  *
  * The loop body is the seed's, statement for statement, in the same float32
  * math (atan2f, atanf, sqrtf, floorf, ceilf, fmaxf). The ONLY deliberate
@@ -32,7 +34,25 @@
  *       means one), without the seed's pow(., ambientPower):
  *       mean_cos = mean of 1/sqrt(t+1), and also mean_cos2 = mean of 1/(t+1);
  *   (f) two_pi is the float constant 6.2831855f and
- *       kAngleIndex = float(N) / two_pi is computed in float.
+ *       kAngleIndex = float(N) / two_pi is computed in float;
+ *   (g) ONLY when compiled with -DHOISTED_TABLE (the default build is the
+ *       literal loop): the offset-to-bins table is computed once, before the
+ *       texel loops, as DESIGN.md says ("The offset-to-bins table is the same
+ *       for every texel: compute it once"). For every offset (i, j) with
+ *       0 < r2 < R^2, in the seed's order (j outer, i inner), the table holds
+ *       i, float(r2) and minIndex/maxIndex computed by the very same float
+ *       expressions (atan2f, atanf, sqrtf, floorf, ceilf), grouped by j. The
+ *       per-texel loop keeps the seed's j loop (one row lookup per j, same
+ *       wrap/open handling) and walks row j's entries; per entry it does only
+ *       what the seed does that does not depend on the offset alone: fetch
+ *       the neighbour height (same wrap/open handling), the dh > 0 test,
+ *       t = dh*dh / float(r2) and the bin max loop. Nothing else is
+ *       optimised (no SIMD intrinsics; the same bin loop with pmod). Every
+ *       value and every fmaxf update are the same, in the same order, so the
+ *       output is bit-identical to the literal variant's
+ *       (tests/test_seed_peer.py checks it). This variant is the speed peer
+ *       of benchmarks/bench_bake.py: the literal one recomputes atan2f, atanf
+ *       and sqrtf for every texel and every higher neighbour.
  * Output layout (the 10-float record per texel instead of two ColorRGBA
  * layers and an ambient map) is I/O, not algorithm.
  */
@@ -59,6 +79,46 @@ static void ConstructHorizonMap(const float *heightMap, float *out,
     const float two_pi = 6.2831855f;
     const float kAngleIndex = (float)kAngleCount / two_pi;
 
+#ifdef HOISTED_TABLE
+    /* CHANGE (g): the offset-to-bins table, computed once for all texels:
+     * the seed's j, i loops and r2 test, and its float expressions for
+     * direction, delta, minIndex and maxIndex, unchanged. The entries of
+     * row j (in the seed's i order) are tab*[rowStart[j + R - 1]] up to
+     * tab*[rowStart[j + R] - 1], so that the texel loop keeps the seed's row
+     * structure (one row lookup per j). */
+    int side = 2*kHorizonRadius - 1;
+    size_t cap = (size_t)side * (size_t)side;
+    int *tabI = malloc(cap * sizeof(int));
+    float *tabR2 = malloc(cap * sizeof(float));
+    int *tabMin = malloc(cap * sizeof(int));
+    int *tabMax = malloc(cap * sizeof(int));
+    int *rowStart = malloc((size_t)(side + 1) * sizeof(int));
+    if (!tabI || !tabR2 || !tabMin || !tabMax || !rowStart) {
+        fprintf(stderr, "seed_bake: out of memory\n");
+        exit(1);
+    }
+    int tabCount = 0;
+    for (int j = -kHorizonRadius + 1; j < kHorizonRadius; j++)
+    {
+        rowStart[j + kHorizonRadius - 1] = tabCount;
+        for (int i = -kHorizonRadius + 1; i < kHorizonRadius; i++)
+        {
+            int r2 = i*i + j*j;
+            if ((r2 < kHorizonRadius*kHorizonRadius) && (r2 != 0))
+            {
+                float direction = atan2f((float)j, (float)i);
+                float delta = atanf(0.7071f / sqrtf((float)r2));
+                tabI[tabCount] = i;
+                tabR2[tabCount] = (float)r2;
+                tabMin[tabCount] = (int)floorf((direction - delta) * kAngleIndex);
+                tabMax[tabCount] = (int)ceilf((direction + delta) * kAngleIndex);
+                tabCount++;
+            }
+        }
+    }
+    rowStart[side] = tabCount;
+#endif
+
     #pragma omp parallel for schedule(dynamic, 8)
     for (int y = 0; y < height; y++)
     {
@@ -72,6 +132,36 @@ static void ConstructHorizonMap(const float *heightMap, float *out,
             memset(maxTan2, 0, sizeof(float) * (size_t)kAngleCount);
 
             // Search neighborhood for larger heights
+#ifdef HOISTED_TABLE
+            /* CHANGE (g): walk the precomputed table, in the seed's order:
+             * the seed's j loop, then row j's table entries in its i order. */
+            for (int j = -kHorizonRadius + 1; j < kHorizonRadius; j++)
+            {
+                /* CHANGE (b), (c): as in the literal variant below. */
+                int ry = y - j;
+                if (wrap) ry = pmod(ry, height);
+                else if (ry < 0 || ry >= height) continue;
+                const float *row = heightMap + (size_t)ry * width;
+                int eEnd = rowStart[j + kHorizonRadius];
+                for (int e = rowStart[j + kHorizonRadius - 1]; e < eEnd; e++)
+                {
+                    int cx = x + tabI[e];
+                    if (wrap) cx = pmod(cx, width);
+                    else if (cx < 0 || cx >= width) continue;
+                    float dh = row[cx] - h0;
+                    if (dh > 0.0f)
+                    {
+                        // calculate squared tangent with equation 7.53
+                        float t = dh*dh / tabR2[e];
+                        for (int n = tabMin[e]; n <= tabMax[e]; n++)
+                        {
+                            int m = pmod(n, kAngleCount);  /* CHANGE (a) */
+                            maxTan2[m] = fmaxf(maxTan2[m], t);
+                        }
+                    }
+                }
+            }
+#else
             for (int j = -kHorizonRadius + 1; j < kHorizonRadius; j++)
             {
                 /* CHANGE (c): tangent +y is up the image and row 0 is the top,
@@ -113,6 +203,7 @@ static void ConstructHorizonMap(const float *heightMap, float *out,
                     }
                 }
             }
+#endif
 
             // Generate eight channels of horizon map
             float *texel = out + ((size_t)y * width + x) * OUT_CHANNELS;
@@ -154,7 +245,16 @@ static void ConstructHorizonMap(const float *heightMap, float *out,
             texel[9] = sum2 / (float)kAngleCount;
         }
     }
+#ifdef HOISTED_TABLE
+    free(tabI); free(tabR2); free(tabMin); free(tabMax); free(rowStart);
+#endif
 }
+
+#ifdef HOISTED_TABLE
+#define VARIANT "hoisted"  /* CHANGE (g) */
+#else
+#define VARIANT "literal"
+#endif
 
 static int usage(void)
 {
@@ -205,7 +305,7 @@ int main(int argc, char **argv)
     double t0 = omp_get_wtime();
     ConstructHorizonMap(h, out, cols, rows, radius, angles, wrap);
     double t1 = omp_get_wtime();
-    fprintf(stderr, "loop_s %.6f threads %d\n", t1 - t0, omp_get_max_threads());
+    fprintf(stderr, "loop_s %.6f threads %d variant %s\n", t1 - t0, omp_get_max_threads(), VARIANT);
 
     f = fopen(out_path, "wb");
     if (!f) { perror(out_path); return 1; }

@@ -6,7 +6,9 @@ that hzval's conventions call for (any size, wrap/open, +y up the image,
 heights in texel units, averaged ambient terms). It is compiled once per
 session; :func:`hzval.bake.horizon_map` must reproduce it texel for texel up
 to float rounding, on odd, tiny, degenerate and power-of-two sizes, both
-boundaries and several radii and bin counts.
+boundaries and several radii and bin counts. The peer's ``-DHOISTED_TABLE``
+variant (its offset table computed once: the benchmark's speed peer) must
+reproduce the literal one bit for bit.
 """
 
 from __future__ import annotations
@@ -38,6 +40,16 @@ def seed_peer(tmp_path_factory) -> Path:
     """The seed peer, compiled once per session (no -march=native: portable rounding)."""
     exe = tmp_path_factory.mktemp("seed_peer") / "seed_bake"
     cmd = [GCC, "-O2", "-fopenmp", "-o", str(exe), str(SOURCE), "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
+    return exe
+
+
+@pytest.fixture(scope="session")
+def seed_peer_hoisted(tmp_path_factory) -> Path:
+    """The seed peer's -DHOISTED_TABLE variant (offset table computed once), compiled once."""
+    exe = tmp_path_factory.mktemp("seed_peer_hoisted") / "seed_bake_hoisted"
+    cmd = [GCC, "-O2", "-fopenmp", "-DHOISTED_TABLE", "-o", str(exe), str(SOURCE), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
     return exe
@@ -148,3 +160,33 @@ def test_offset_table_matches_libm(radius, angles):
     wrong = {off: (ours.get(off), bins) for off, bins in expected.items() if ours.get(off) != bins}
     assert set(ours) == set(expected), "hzval's table and the seed's loop visit different offsets"
     assert not wrong, f"{len(wrong)} offsets cover other bins than the seed's (hzval, seed): {dict(list(wrong.items())[:5])}"
+
+
+# (rows, cols, depth, boundary, radius, angles): odd sizes, both boundaries, and
+# a radius larger than the map and a bin count that is not a power of two.
+HOISTED_CASES = [
+    (129, 257, 0.05, "wrap", 16, 32),
+    (129, 257, 0.05, "open", 16, 32),
+    (23, 37, 0.5, "wrap", 5, 48),
+    (5, 3, 0.5, "open", 16, 64),
+]
+
+
+@pytest.mark.parametrize(
+    "rows, cols, depth, boundary, radius, angles", HOISTED_CASES,
+    ids=[f"{r}x{c}-d{d}-{b}-R{R}-N{n}" for r, c, d, b, R, n in HOISTED_CASES])
+def test_hoisted_table_variant_is_bit_identical(seed_peer, seed_peer_hoisted, tmp_path,
+                                                rows, cols, depth, boundary, radius, angles):
+    """seed_bake.c -DHOISTED_TABLE (the benchmark's speed peer) computes the
+    literal seed loop's output bit for bit: only where the offset table is
+    computed changes, not a single float operation."""
+    rng = np.random.default_rng(rows * 7 + cols + radius * 3 + angles)
+    height = rng.random((rows, cols), dtype=np.float32)
+    (tmp_path / "literal").mkdir()
+    (tmp_path / "hoisted").mkdir()
+    literal = run_peer(seed_peer, height, depth, radius, angles, boundary, tmp_path / "literal")
+    hoisted = run_peer(seed_peer_hoisted, height, depth, radius, angles, boundary, tmp_path / "hoisted")
+    assert literal[..., :8].max() > 0.0  # something is occluded: the comparison means something
+    differ = literal.view(np.uint32) != hoisted.view(np.uint32)
+    assert not differ.any(), (f"{int(differ.sum())} of {differ.size} floats differ, first at "
+                              f"{tuple(int(i) for i in np.argwhere(differ)[0])}")
