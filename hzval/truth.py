@@ -1,0 +1,720 @@
+"""The ground truth: Mitsuba 3 traces the displaced mesh, simulating only what the scene declares.
+
+Every number hzval reports is measured against this module, so it favours
+being right over being fast. It builds the displaced mesh of
+:mod:`hzval.mesh` once and loads it into a ``mi.Scene`` with nothing else
+in it: no sensor, no emitter and no Mitsuba BSDF. What the technique
+approximates is the *geometry* - who sees the light, who sees the sky - and
+that is what Mitsuba answers here, with ``Scene.ray_intersect`` and
+``Scene.ray_test`` on the true surface. The shading formulas are the ones
+the approximation evaluates (a Mitsuba BSDF would only be a second place to
+define them, and one more way for the two sides to drift apart), applied
+per sample with the normal of the triangle that was hit. For every light
+of the sweep :meth:`Truth.render` returns a :class:`hzval.scene.Frame`.
+
+Sampling
+    Camera rays run straight down (-z) through the positions of
+    :func:`hzval.scene.sample_positions`, the very points at which the
+    approximation shades, so no error comes from sampling alone. They are
+    traced once, when the truth is built; only rays toward the light (and,
+    for ``interreflection``, the paths) depend on the frame. Pixel values
+    are the means of their ``spp`` samples, and every layer comes with the
+    variance of that mean (sample variance / spp; NaN for spp = 1). For
+    stratified positions it is an upper bound: the strata remove part of it.
+
+Light
+    ``L`` points toward the light (:mod:`hzval.conventions`). A ``soft``
+    light gives every sample its own direction from
+    :func:`hzval.scene.light_samples` (uniform over the disk's solid angle),
+    used for its shadow ray and its shading alike; ``irradiance`` E is the
+    irradiance on a surface facing the light. A direction at or below the
+    horizontal plane (``L.z <= 0``) is occluded: the material lies on that
+    plane, which is the horizon of every point (the horizon bake never
+    reports a horizon below 0 either, ``open`` included).
+
+Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
+
+``shadow``
+    ``V`` = 1 if the ray toward ``L`` escapes, else 0: 0 also where the
+    triangle hit faces away from the light (``n.L <= 0``), whose own surface
+    blocks the ray. Shadow rays only.
+``diffuse``
+    ``albedo / pi * E * max(0, n.L)`` with the geometric normal ``n`` of the
+    mesh triangle hit and the linear albedo of the texel that holds the
+    sample (nearest: the approximation reads the same texel).
+``specular``
+    Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n.h)^alpha * [n.L > 0]``
+    with ``h = normalize(L + v)`` and ``v = +z`` (the camera looks straight
+    down), ``ks`` = :data:`hzval.scene.SPECULAR_KS`, ``alpha`` = :data:`hzval.scene.SPECULAR_EXPONENT`.
+``ambient``
+    ``A`` = 1 if a cosine-weighted direction about ``n`` escapes, else 0
+    (``layers["ambient"]``, the exact cosine-weighted unoccluded fraction);
+    the sky is uniform over the upper hemisphere with radiance
+    ``sky = E *`` :data:`hzval.scene.SKY_RADIANCE_PER_IRRADIANCE` and a Lambertian surface
+    reflects ``albedo * A * sky`` of it. ``A`` does not depend on the light:
+    it is traced once.
+``interreflection``
+    A path tracer to Mitsuba's ``max_depth`` convention
+    (:meth:`Truth._path_trace`); only then are paths traced.
+``reflection_occlusion``
+    Not simulated yet: it is left out of :attr:`Truth.simulated`.
+
+The direct term is ``D`` = diffuse + specular, or ``D = E`` (grey) when the
+scene declares neither; the image is ``D * V`` (``D`` without ``shadow``),
+plus ``albedo * A * sky`` when ``ambient`` is declared, all per sample.
+
+Self-intersection
+    A shadow ray spawned with Mitsuba's ``SurfaceInteraction3f.spawn_ray``
+    starts a small distance along the normal of the triangle hit. At a mesh
+    vertex (a texel centre) or near an edge in a valley, that point can lie
+    *under* the neighbouring triangle, and the ray hits it: on a 64x64
+    uniform-noise map with 4 texels of relief and the light at the zenith,
+    where nothing can be occluded, 29.8% of rays from the vertices reported a
+    hit (41% on a 512x512 noise map of 25.6 texels relief, and 1.1% of its
+    jittered samples, whose offset, proportional to the coordinates, is
+    0.045 texels there). The mesh is a height field, so a point raised
+    *vertically* above the surface is above every triangle around it, and a
+    ray toward any direction that one of them faces stays above: shadow rays
+    start at the sample's exact ``(x, y)``, at the surface height plus
+    :attr:`Truth.lift` (1.2e-4 texels for heights up to 32 texels; 1e-6 is
+    too little for float32 heights of tens of texels, 1e-5 is enough). No
+    false shadow remains (``tests/test_truth.py``). The lift has one side
+    effect, which a rule removes: on a triangle facing away from a light
+    that grazes it, the lifted ray can run above the triangle's plane to its
+    far edge and escape, so ``n.L <= 0`` counts as shadowed without a ray (on
+    the bricks at 30 degrees that concerns about 1000 of 4.2M samples;
+    with the rule the answer moves by 73 samples between lifts of 1e-5 and
+    1.2e-4 texels: it has converged). Samples exactly on a line of mesh
+    edges are moved a few ulps off it (:func:`_off_edge_lines`): a ray
+    running inside an edge can slip between its two triangles. Mitsuba's
+    own offset, 0.045 texels at 500 texels from the origin, also leaks light
+    where shadows begin: on the bricks at 30 degrees it lit 6,000 to 15,000
+    of the 4.2M samples that are in shadow (0.15-0.35%, azimuths -60 to 45),
+    and shadowed 40 to 360 that are lit.
+
+Boundaries
+    ``open``: nothing outside the image. ``wrap``: the mesh carries a margin
+    of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for the
+    lowest elevation the light reaches (``min(10, e - rho)`` degrees). Rays
+    that need more - ambient and path rays near the horizon, soft lights
+    that dip low - are traced in hops: a hop ends before the ray can leave
+    the margin, its end point is wrapped back into the tile, and the next hop
+    continues from there, until the ray is above the highest point of the
+    surface. So the surface tiles without end for every ray, not only within
+    the margin.
+
+Kernels
+    Everything that changes between frames (the light direction) and every
+    scene-dependent number enters the kernels as an opaque Dr.Jit variable
+    (``dr.opaque``), so a new azimuth - or a new ``Truth`` of the same kind -
+    reuses the compiled kernels (``DESIGN.md``, pitfalls). Frames are timed
+    with :func:`hzval.backend.sync`. Only ``mi.Float``, ``mi.Point3f`` and
+    friends are used: ``llvm_ad_rgb`` and ``cuda_ad_rgb`` run the same code.
+
+References: Mitsuba 3 documentation ("Scene.ray_test", "Scene.ray_intersect",
+"SurfaceInteraction3f.spawn_ray", the ``path`` integrator's ``max_depth``);
+Dr.Jit documentation ("dr.opaque", "dr.block_sum", "dr.gather"); Lengyel,
+FGED2 chapter 7 (Blinn-Phong); Walter et al. 2007 (half-vector sampling).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from hzval import backend
+from hzval import conventions as cv
+from hzval import mesh as meshes
+from hzval.errors import InputError
+from hzval.scene import (EFFECTS, SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS, Frame, Scene,
+                         image_shape, light_samples, load_albedo, sample_positions)
+
+#: Smallest lift of ray origins above the surface, in texels.
+LIFT_TEXELS = 2.0 ** -13
+#: Lift per texel of height magnitude: 32 float32 ulps of the heights.
+LIFT_PER_HEIGHT = 2.0 ** -18
+#: How far inside an ``open`` tile's border its height is probed, texels.
+_EDGE = 2.0 ** -10
+#: Rays lower than this above the horizontal (ambient and path rays, soft
+#: lights reaching the horizon; ``wrap`` only) are not traced in more hops
+#: than it takes to clear the surface at this elevation; the few still below
+#: the surface's top after that count as occluded. The cosine-weighted share
+#: of such directions is about sin^2 of it (2e-5).
+MIN_TRACED_ELEVATION_DEG = 0.25
+
+#: Effects that this truth simulates, in the order of ``hzval.scene.EFFECTS``.
+SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "interreflection")
+#: Random stream of the ambient directions; the path tracer's first bounce
+#: reuses it, so that its cosine-weighted directions are the ambient layer's.
+_AMBIENT_STREAM = 0xA3B1
+#: Declared effects that need the material's albedo.
+_NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
+
+
+class Truth:
+    """Ground-truth renderer of one scene and height map.
+
+    ``height``: the normalised height map ``H[row, col]`` (float32); the
+    scene's ``material`` gives depth and boundary. ``positions``: optional
+    ``(x, y)`` sample positions in texel units replacing
+    :func:`hzval.scene.sample_positions` (same length and pixel-major order,
+    ``pixels * spp``); tests use it to put samples exactly on mesh vertices.
+    ``albedo``: optional linear ``(rows, cols, 3)`` albedo replacing
+    :func:`hzval.scene.load_albedo`; read only if an effect needs it.
+
+    Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
+    ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
+    ``lift`` (ray origin lift, texels), ``moved_off_edges`` (samples moved
+    off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
+    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``).
+    """
+
+    def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
+                 albedo: np.ndarray | None = None):
+        backend.variant()
+        import drjit as dr
+        import mitsuba as mi
+
+        self.scene = scene.validate()
+        h = np.asarray(height, dtype=np.float32)
+        if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
+            raise InputError("height", f"expected a finite 2-D height map of at least 2x2, got shape {h.shape}")
+        self.rows, self.cols = rows, cols = h.shape
+        self.shape = image_shape(rows, cols, scene.camera)
+        self.spp = scene.spp
+        mat, light = scene.material, scene.light
+        if scene.declares("interreflection") and not (scene.declares("diffuse") or scene.declares("specular")):
+            raise InputError(scene.source or "scene", "interreflection needs a surface that reflects: "
+                             "declare diffuse and/or specular as well")
+        self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
+        self.timings: dict[str, float] = {}
+
+        # -- the surface ----------------------------------------------------
+        t0 = time.perf_counter()
+        h_tex = cv.heights_in_texels(h, mat.depth)
+        self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
+        self.relief = self.z_max - self.z_min
+        lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
+        self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
+        if mat.boundary == "wrap":
+            self.margin = meshes.wrap_margin(h_tex, self.min_elevation_deg)
+        else:
+            self.margin = 0
+        self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
+                                          margin=self.margin if mat.boundary == "wrap" else None)
+        self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
+        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
+        # a hop may run this far horizontally from any point of the tile and
+        # stay over the margin (texel centres start half a texel inside)
+        self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
+        self._c = {  # scene-dependent numbers, opaque so that kernels are shared
+            "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
+            "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
+            "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
+            "E": dr.opaque(mi.Float, float(light.irradiance)),
+        }
+        backend.sync()
+        self.timings["mesh_s"] = time.perf_counter() - t0
+
+        # -- camera rays, once ----------------------------------------------
+        t0 = time.perf_counter()
+        if positions is None:
+            xs, ys = sample_positions(rows, cols, scene.camera, scene.spp, scene.seed)
+        else:
+            xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
+            need = self.shape[0] * self.shape[1] * scene.spp
+            if xs.shape != (need,) or ys.shape != (need,):
+                raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
+        xs, ys, self.moved_off_edges = _off_edge_lines(xs, ys, rows, cols)
+        self.count = xs.size
+        self._o, self._n, valid = self._surface_at(mi.Float(xs), mi.Float(ys))
+        dr.eval(self._o, self._n, valid)
+        if not bool(dr.all(valid)):
+            raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
+        self._albedo = None
+        if any(scene.declares(e) for e in _NEEDS_ALBEDO):
+            a = load_albedo(mat, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
+            if a.shape != (rows, cols, 3):
+                raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+            col = np.clip(np.floor(xs), 0, cols - 1).astype(np.int64)
+            row = np.clip(np.floor(rows - ys.astype(np.float64)), 0, rows - 1).astype(np.int64)
+            self._texel = mi.UInt32((row * cols + col).astype(np.uint32))
+            self._albedo_texels = mi.Float(np.ascontiguousarray(a).ravel())
+            self._albedo = dr.gather(mi.Color3f, self._albedo_texels, self._texel)
+            dr.eval(self._albedo)
+        backend.sync()
+        self.timings["primary_s"] = time.perf_counter() - t0
+
+        # -- ambient: independent of the light, once ---------------------------
+        self._ambient = None
+        if scene.declares("ambient"):
+            t0 = time.perf_counter()
+            rng = self._rng(_AMBIENT_STREAM)
+            d = mi.Frame3f(self._n).to_world(
+                mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+            blocked = self._occluded(self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)),
+                                     dynamic=True)
+            self._ambient = dr.select(blocked, 0.0, 1.0)
+            dr.eval(self._ambient)
+            backend.sync()
+            self.timings["ambient_s"] = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------
+    # Ray queries
+    # ------------------------------------------------------------------
+
+    def _rng(self, stream: int):
+        """A PCG32 per sample, seeded by the scene's seed and a stream tag: deterministic."""
+        import drjit as dr
+        import mitsuba as mi
+
+        state = (int(self.scene.seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
+        return mi.PCG32(size=self.count, initstate=state, initseq=dr.arange(mi.UInt64, self.count))
+
+    def _surface_at(self, x, y, active=True):
+        """Lifted ray origin and geometric normal of the surface above ``(x, y)``.
+
+        A ray straight down from above the highest point finds the surface;
+        the origin keeps the exact ``(x, y)`` and takes the height of the hit
+        plus :attr:`lift`: vertically above the height field, it is above
+        every triangle around it (module docstring, "Self-intersection").
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self._c
+        px, py = x, y
+        if self.scene.material.boundary == "open":
+            # a sample on the image border is on the mesh's outer edge, which
+            # a ray may miss; the border half-texel is flat (hzval.mesh), so
+            # probing just inside it finds the same height
+            px = dr.clip(x, _EDGE, c["cols"] - _EDGE)
+            py = dr.clip(y, _EDGE, c["rows"] - _EDGE)
+        si = self.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
+                                         active)
+        return mi.Point3f(x, y, si.p.z + c["lift"]), mi.Vector3f(si.n), si.is_valid()
+
+    def _hops_for(self, elevation: float) -> int:
+        """Hops that a ray rising at ``elevation`` (radians) needs to clear the surface.
+
+        From the lowest point it must rise ``relief`` (plus the lift) to be
+        above the highest, i.e. run ``relief / tan(elevation)`` texels; one
+        hop runs :attr:`_hop` texels. ``open`` needs one (unbounded) ray.
+        """
+        if self.scene.material.boundary == "open" or self.relief <= 0:
+            return 1
+        elevation = max(elevation, math.radians(MIN_TRACED_ELEVATION_DEG))
+        run = (self.relief + 2 * self.lift) / math.tan(elevation)
+        return max(1, math.ceil(run / self._hop))
+
+    def _advance(self, o, d, maxt):
+        """The point ``o + maxt d``, wrapped back into the tile (``wrap`` only)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self._c
+        p = o + d * maxt
+        return mi.Point3f(p.x - c["cols"] * dr.floor(p.x / c["cols"]),
+                          p.y - c["rows"] * dr.floor(p.y / c["rows"]), p.z)
+
+    def _hop_length(self, d):
+        import drjit as dr
+
+        dxy = dr.sqrt(dr.fma(d.x, d.x, d.y * d.y))
+        return self._c["hop"] / dr.maximum(dxy, 1e-12)
+
+    def _occluded(self, o, d, hops: int, dynamic: bool = False, coherent: bool = False):
+        """Whether the rays ``o + t d`` (``t > 0``) hit the surface; ``d`` unit.
+
+        Directions at or below the horizontal are occluded (module docstring).
+        ``wrap`` traces ``hops`` hops (see "Boundaries"); with ``dynamic`` it
+        stops early once every ray is resolved (a host round trip per hop),
+        and rays still unresolved after ``hops`` count as occluded.
+        ``coherent`` tells Embree that neighbouring rays travel together
+        (parallel shadow rays from neighbouring samples: about 30% faster).
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        active = d.z > 0.0
+        coherent = mi.Bool(coherent)
+        if self.scene.material.boundary == "open":
+            return ~active | self.mi_scene.ray_test(mi.Ray3f(o, d), coherent, active)
+        blocked = ~active
+        maxt = self._hop_length(d)
+        for i in range(hops):
+            ray = mi.Ray3f(o, d)
+            ray.maxt = maxt
+            hit = self.mi_scene.ray_test(ray, coherent, active)
+            blocked |= hit & active
+            if i + 1 == hops:
+                o_next = o + d * maxt
+                active &= ~hit & (o_next.z < self._c["top"])
+                break
+            o = self._advance(o, d, maxt)
+            active &= ~hit & (o.z < self._c["top"])
+            if dynamic:
+                dr.eval(o, active, blocked)
+                if not bool(dr.any(active)):
+                    return blocked
+        return blocked | active
+
+    def _next_surface(self, o, d, active, hops: int):
+        """Where the rays ``o + t d`` first meet the surface, wrapped into the tile.
+
+        Returns ``(x, y, hit, escaped)``: ``hit`` rays met the surface at
+        ``(x, y)``; ``escaped`` rays rose above it (``d.z > 0``) without
+        meeting it. Rays that are neither went below the horizontal off an
+        ``open`` tile, or were unresolved after ``hops`` hops. Only the
+        position is kept: the path continues from :meth:`_surface_at` there,
+        with an exact, lifted origin.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        if self.scene.material.boundary == "open":
+            si = self.mi_scene.ray_intersect(mi.Ray3f(o, d), active)
+            hit = active & si.is_valid()
+            return si.p.x, si.p.y, hit, active & ~hit & (d.z > 0.0)
+        start = active
+        active = mi.Bool(active)                 # a copy: &= below must not touch the caller's mask
+        hit = mi.Bool(False)
+        x, y = mi.Float(0.0), mi.Float(0.0)
+        maxt = self._hop_length(d)
+        for _ in range(hops):
+            ray = mi.Ray3f(o, d)
+            ray.maxt = maxt
+            si = self.mi_scene.ray_intersect(ray, active)
+            now = active & si.is_valid()
+            p = self._advance(si.p, d, 0.0)
+            x, y = dr.select(now, p.x, x), dr.select(now, p.y, y)
+            hit |= now
+            o = self._advance(o, d, maxt)
+            # rays going down never clear the top: they meet the surface or stop at the cap
+            active &= ~now & ((o.z < self._c["top"]) | (d.z <= 0.0))
+            dr.eval(o, active, hit, x, y)
+            if not bool(dr.any(active)):
+                break
+        return x, y, hit, start & ~hit & ~active & (d.z > 0.0)
+
+    # ------------------------------------------------------------------
+    # Frames
+    # ------------------------------------------------------------------
+
+    def light_directions(self, azimuth_deg: float):
+        """``(L, lowest, highest)``: the light direction of every sample, elevations in radians.
+
+        A hard light is one opaque vector for all samples (a new azimuth
+        changes its value, not the kernel); a soft one an array from
+        :func:`hzval.scene.light_samples`, the approximation's directions.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        light = self.scene.light
+        if light.kind == "hard":
+            v = light.direction(azimuth_deg)
+            L = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in v))
+            e = math.asin(max(-1.0, min(1.0, float(v[2]))))
+            return L, e, e
+        s = np.ascontiguousarray(light_samples(light, azimuth_deg, self.count, self.scene.seed), dtype=np.float32)
+        # a gather, not three column arrays: Dr.Jit maps NumPy memory as it
+        # is, and a contiguous load would compile one kernel per alignment
+        L = dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, self.count))
+        z = np.clip(s[:, 2], -1.0, 1.0)
+        return L, math.asin(float(z.min())), math.asin(float(z.max()))
+
+    def _visible(self, o, n, L, lowest: float, highest: float):
+        """1 where the light direction ``L`` escapes from ``o`` on a triangle of normal ``n``, else 0.
+
+        A triangle that faces away from the light (``n.L <= 0``) shadows its
+        own points: the ray enters the surface at once. That is decided
+        here, not by the ray, whose lifted origin could otherwise slip over
+        the triangle's far edge when the light grazes it (module docstring).
+        Frames whose every direction is below the horizon trace nothing;
+        lights that reach below the margin's elevation take the hops they
+        need, stopping early once every ray is resolved.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        if highest <= 0.0:
+            return dr.zeros(mi.Float, dr.width(o))
+        hops = self._hops_for(lowest)
+        blocked = self._occluded(o, L, hops, dynamic=hops > 2, coherent=True) | (dr.dot(n, L) <= 0.0)
+        return dr.select(blocked, 0.0, 1.0)
+
+    def _direct(self, n, L, v, albedo):
+        """Direct radiance per unit visibility: ``D`` of the module docstring."""
+        import drjit as dr
+        import mitsuba as mi
+
+        E = self._c["E"]
+        sc = self.scene
+        if not (sc.declares("diffuse") or sc.declares("specular")):
+            return mi.Color3f(E)
+        cos = dr.dot(n, L)
+        D = mi.Color3f(0.0)
+        if sc.declares("diffuse"):
+            D += albedo * (E * dr.maximum(cos, 0.0) * (1.0 / math.pi))
+        if sc.declares("specular"):
+            hv = dr.normalize(L + v)
+            spec = SPECULAR_KS * E * dr.power(dr.maximum(dr.dot(n, hv), 0.0), SPECULAR_EXPONENT)
+            D += mi.Color3f(dr.select(cos > 0.0, spec, 0.0))
+        return D
+
+    def render(self, azimuth_deg: float) -> Frame:
+        """Render the light at ``azimuth_deg`` (degrees; elevation from the scene).
+
+        Returns a :class:`hzval.scene.Frame`: ``image`` (rows, cols, 3) linear
+        radiance; ``layers["visibility"]`` (with ``shadow``) and
+        ``layers["ambient"]`` (with ``ambient``) in [0, 1]; ``variance`` of the
+        pixel mean for each (sample variance / spp; NaN when spp = 1; for
+        stratified positions an upper bound); ``seconds`` the wall time of
+        this call, kernels synchronised.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        t0 = time.perf_counter()
+        sc = self.scene
+        L, lowest, highest = self.light_directions(azimuth_deg)
+        up = mi.Vector3f(0.0, 0.0, 1.0)
+        sums: dict[str, object] = {}
+        vis = None
+        if sc.declares("shadow"):
+            vis = self._visible(self._o, self._n, L, lowest, highest)
+            sums["visibility"] = vis
+        grey = not any(sc.declares(e) for e in ("diffuse", "specular", "ambient", "interreflection"))
+        if grey:
+            img = None                           # E * V or E: derived from the layers below
+        elif sc.declares("interreflection"):
+            img = self._path_trace(L, vis, azimuth_deg)
+        else:
+            img = self._direct(self._n, L, up, self._albedo)
+            if vis is not None:
+                img = img * vis
+            if self._ambient is not None:
+                img = img + self._albedo * (self._c["E"] * SKY_RADIANCE_PER_IRRADIANCE * self._ambient)
+        if self._ambient is not None:
+            sums["ambient"] = self._ambient
+
+        spp = self.spp
+        reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
+        img_sum = img_ss = None
+        if img is not None:
+            # two passes: squared deviations from the pixel mean, not E[x^2] - E[x]^2,
+            # which cancels catastrophically in float32 where the image hardly varies
+            img_sum = dr.block_sum(img, spp)
+            pixel = dr.arange(mi.UInt32, self.count) // spp
+            dev = img - dr.gather(mi.Color3f, img_sum, pixel) * (1.0 / spp)
+            img_ss = dr.block_sum(dev * dev, spp)
+        dr.eval(reduced, img_sum, img_ss)
+        backend.sync()
+        H, W = self.shape
+        layers, variance = {}, {}
+        for k, s in reduced.items():
+            s = np.asarray(s, dtype=np.float64).reshape(H, W)
+            # 0/1 samples: the squared deviations sum to s (1 - s / spp)
+            layers[k], variance[k] = _mean_and_variance(s, s * (1.0 - s / spp), spp)
+        if img is None:
+            E = float(sc.light.irradiance)
+            v = layers["visibility"] if vis is not None else np.ones((H, W), np.float32)
+            var = variance["visibility"] if vis is not None else np.zeros((H, W), np.float32)
+            image = np.repeat((E * v)[..., None], 3, axis=-1).astype(np.float32)
+            variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
+        else:
+            s1 = np.stack([np.asarray(c, dtype=np.float64) for c in img_sum], axis=-1).reshape(H, W, 3)
+            ss = np.stack([np.asarray(c, dtype=np.float64) for c in img_ss], axis=-1).reshape(H, W, 3)
+            image, variance["image"] = _mean_and_variance(s1, ss, spp)
+        seconds = time.perf_counter() - t0
+        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
+                     layers=layers, variance=variance, seconds=seconds)
+
+    # ------------------------------------------------------------------
+    # Interreflection
+    # ------------------------------------------------------------------
+
+    def _path_trace(self, L1, vis1, azimuth_deg: float):
+        """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
+
+        As in Mitsuba's ``path`` integrator, ``max_depth`` counts path
+        segments from the camera: 2 is direct light only, 3 adds one
+        interreflection, and so on. At each surface vertex the light is
+        sampled (next-event estimation: the first vertex uses the samples'
+        own light directions ``L1`` and their visibility ``vis1``, later ones
+        draw from the light's cone), its visibility tested only if
+        ``shadow`` is declared; the BSDF then samples the next direction,
+        which collects the sky if ``ambient`` is declared and it escapes, or
+        continues from the surface it meets. The light is reached by
+        next-event estimation only and the sky by BSDF sampling only, so
+        neither is counted twice and no MIS is needed. The first bounce
+        reuses the ambient layer's cosine-weighted directions, so with
+        ``max_depth = 2`` and a diffuse surface the result is the direct
+        render's, sample for sample (with ``specular``, the sky's glossy
+        reflection, which the direct render leaves out, is added).
+
+        This is written here rather than run through Mitsuba's own ``path``
+        integrator because its rays start at ``spawn_ray`` offsets, which
+        show false shadows at mesh vertices and near valley edges of the
+        displaced mesh and leak light where shadows begin (module
+        docstring), and its rays see only the wrap margin, not the endless
+        tiling; every ray here takes the same robust origins and hops as the
+        shadow rays.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        sc = self.scene
+        light = sc.light
+        E = self._c["E"]
+        max_depth = int(sc.interreflection_depth)
+        rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF))
+        first = self._rng(_AMBIENT_STREAM)        # the ambient layer's directions at the first vertex
+        centre = light.direction(azimuth_deg)
+        centre_v = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in centre))
+        cos_max = dr.opaque(mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0)
+        cap = self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG))
+        rho = light.radius_deg if light.kind == "soft" else 0.0
+        lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
+
+        o, n, albedo = self._o, self._n, self._albedo
+        v = mi.Vector3f(0.0, 0.0, 1.0)            # toward the previous vertex (the camera)
+        beta = mi.Color3f(1.0)                    # path throughput
+        result = mi.Color3f(0.0)
+        active = mi.Bool(True)
+        p_spec = _specular_sampling_share(sc)
+        for depth in range(1, max_depth):
+            # next-event estimation toward the light
+            if depth == 1:
+                L = L1
+            else:
+                if light.kind == "soft":
+                    L = mi.Frame3f(centre_v).to_world(mi.warp.square_to_uniform_cone(
+                        mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
+                else:
+                    L = centre_v
+            contrib = self._direct(n, L, v, albedo)
+            if sc.declares("shadow"):
+                contrib = contrib * (vis1 if depth == 1 else self._visible(o, n, L, lowest, highest))
+            result += dr.select(active, beta * contrib, 0.0)
+            if depth + 1 >= max_depth and not sc.declares("ambient"):
+                break
+            # sample the BSDF for the next segment: the sky if it escapes, else the next vertex
+            u_lobe = rng.next_float32()
+            u = mi.Point2f(rng.next_float32(), rng.next_float32())
+            if depth == 1:
+                u = mi.Point2f(first.next_float32(), first.next_float32())
+            wo, weight = _sample_bsdf(sc, n, v, albedo, p_spec, u_lobe, u)
+            active &= dr.any(weight > 0.0)
+            beta *= weight
+            x, y, hit, escaped = self._next_surface(o, wo, active, cap)
+            if sc.declares("ambient"):
+                result += dr.select(escaped, beta * (E * SKY_RADIANCE_PER_IRRADIANCE), 0.0)
+            if depth + 1 >= max_depth:
+                break
+            active &= hit
+            o_next, n_next, valid = self._surface_at(x, y, active)
+            active &= valid
+            o = dr.select(active, o_next, o)
+            n = dr.select(active, n_next, n)
+            v = -wo
+            if albedo is not None:
+                col = dr.clip(mi.Int32(dr.floor(x)), 0, self.cols - 1)
+                row = dr.clip(mi.Int32(dr.floor(self._c["rows"] - y)), 0, self.rows - 1)
+                albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * self.cols + col), active)
+            dr.eval(o, n, v, beta, result, active, albedo)
+        return result
+
+
+def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Move samples that lie exactly on a line of mesh edges a few ulps off it.
+
+    The mesh's edges run along ``x = k + 1/2`` (columns of texel centres),
+    ``y = k + 1/2`` (rows) and ``x - y = k`` (the quads' diagonals,
+    :func:`hzval.mesh.triangles`). A sample on such a line has no single
+    triangle, and a ray toward an azimuth along the line (0, 90, 180, 270
+    or 45, 225 degrees, all in common sweeps) runs inside the edge and can
+    slip between its two triangles: Embree's traversal is not watertight
+    there (embree/embree#387). With float32 positions this is not rare: on a
+    512x512 map at 16 spp about 230 samples per frame sit on such lines. They
+    move by 8 ulps of the map's largest coordinate (1/2048 texel at 512)
+    toward the tile's interior, to a point of one triangle.
+    """
+    x = xs.astype(np.float64)
+    y = ys.astype(np.float64)
+    step = 2.0 ** (math.ceil(math.log2(max(rows, cols, 2))) - 20)
+    moved = 0
+    for _ in range(3):
+        on = (np.mod(x, 1.0) == 0.5) | (np.mod(y, 1.0) == 0.5) | (np.mod(x - y, 1.0) == 0.0)
+        if not on.any():
+            break
+        moved += int(on.sum()) if _ == 0 else 0
+        x = np.where(on, x + np.where(x < cols / 2, step, -step), x).astype(np.float32).astype(np.float64)
+        y = np.where(on, y + np.where(y < rows / 2, step / 2, -step / 2), y).astype(np.float32).astype(np.float64)
+    return x.astype(np.float32), y.astype(np.float32), moved
+
+
+def _specular_sampling_share(scene: Scene) -> float:
+    """Share of BSDF samples drawn from the specular lobe (the rest cosine-weighted)."""
+    if not scene.declares("specular"):
+        return 0.0
+    return 1.0 if not scene.declares("diffuse") else 0.25
+
+
+def _sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
+    """Sample the truth's BSDF about normal ``n`` seen from ``v``: ``(wo, f cos / pdf)``.
+
+    The BSDF is the one :meth:`Truth._direct` evaluates: Lambert
+    ``albedo / pi`` and, with ``specular``, FGED2's Blinn-Phong written as a
+    BSDF, ``f cos = ks (n.h)^alpha [n.wo > 0]``. Directions come from a
+    mixture of the cosine-weighted hemisphere and the lobe's half-vector
+    distribution ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``, ``pdf(wo) =
+    pdf(h) / (4 wo.h)`` (Walter et al. 2007), so the weight stays bounded.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    frame = mi.Frame3f(n)
+    wo_d = frame.to_world(mi.warp.square_to_cosine_hemisphere(u))
+    if p_spec > 0.0:
+        cos_h = dr.power(u.x, 1.0 / (SPECULAR_EXPONENT + 1.0))
+        sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
+        phi = 2.0 * math.pi * u.y
+        h = frame.to_world(mi.Vector3f(sin_h * dr.cos(phi), sin_h * dr.sin(phi), cos_h))
+        wo_s = 2.0 * dr.dot(v, h) * h - v
+        wo = dr.select(u_lobe < p_spec, wo_s, wo_d) if p_spec < 1.0 else wo_s
+    else:
+        wo = wo_d
+    cos_o = dr.dot(n, wo)
+    f_cos = mi.Color3f(0.0)
+    pdf = mi.Float(0.0)
+    if scene.declares("diffuse"):
+        f_cos += albedo * (dr.maximum(cos_o, 0.0) * (1.0 / math.pi))
+    if p_spec < 1.0:
+        pdf += (1.0 - p_spec) * dr.maximum(cos_o, 0.0) * (1.0 / math.pi)
+    if scene.declares("specular"):
+        hv = dr.normalize(wo + v)
+        nh = dr.maximum(dr.dot(n, hv), 0.0)
+        lobe = dr.power(nh, SPECULAR_EXPONENT)
+        f_cos += mi.Color3f(dr.select(cos_o > 0.0, SPECULAR_KS * lobe, 0.0))
+        pdf_h = (SPECULAR_EXPONENT + 1.0) * (0.5 / math.pi) * lobe
+        pdf += p_spec * pdf_h / dr.maximum(4.0 * dr.abs(dr.dot(wo, hv)), 1e-12)
+    ok = (cos_o > 0.0) & (pdf > 0.0)
+    return wo, dr.select(ok, f_cos / dr.maximum(pdf, 1e-30), 0.0)
+
+
+def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2.
+
+    The variance of the mean is the sample variance (``spp - 1`` in the
+    denominator) over ``spp``: NaN for one sample, which has none. Float32 out.
+    """
+    mean = s1 / spp
+    if spp < 2:
+        var = np.full_like(mean, np.nan)
+    else:
+        var = np.maximum(ss, 0.0) / (spp - 1) / spp
+    return mean.astype(np.float32), var.astype(np.float32)
