@@ -1,0 +1,595 @@
+"""The approximation: horizon-map shading of the *flat* surface, in Dr.Jit.
+
+The truth (:mod:`hzval.truth`) ray-traces the displaced mesh; this module
+shades the flat plane ``z = 0`` from the baked textures alone, as a real-time
+renderer would, and computes only the effects that the scene declares
+(DESIGN.md, "Effects"). Both read the same :class:`hzval.scene.Scene`: the
+same sample positions, the same light, the same units, so that every
+difference between them is the technique's.
+
+Conventions (:mod:`hzval.conventions`): tangent space in texel units, +x
+right, +y up the image, +z out of the surface; the light's azimuth ``phi``
+counterclockwise from +x and elevation ``e`` give
+``L = (cos e cos phi, cos e sin phi, sin e)``, toward the light; the view is
+``v = +z`` (orthographic camera straight down). Radiance is linear; the
+light's ``irradiance`` ``E`` is the irradiance on a surface facing it.
+
+Per sample, with every texture filtered bilinearly between texel centres
+(texel ``(row, col)`` at ``x = col + 0.5``, ``y = rows - row - 0.5``; ``wrap``
+repeats, ``open`` clamps to the edge):
+
+``shadow``
+    ``F = clamp(k (Lz - s) + 1, 0, 1)`` (Lengyel, GPU Zen 2, eq. 5.4), ``s``
+    the horizon sine toward the light's azimuth, interpolated between the two
+    adjacent channels (section 5.3). ``k`` is the technique's only softness:
+    it has no area light, so the light's centre direction is used.
+``diffuse``
+    ``albedo / pi * E * max(0, n.L)``, ``n`` the normal map's (renormalised)
+    normal (FGED2 ch. 7, Lambert).
+``specular``
+    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]``, ``h = normalize(L + v)``
+    (FGED2 ch. 7, Blinn-Phong with its ``float(nl > 0.0)`` gate).
+``ambient``
+    ``+ albedo * A * E / pi``: a uniform sky of radiance ``E / pi`` seen
+    through the ambient map ``A`` (``mean_cos2``, the exact cosine-weighted
+    unoccluded fraction, or ``mean_cos``, Lengyel's term; DESIGN.md).
+``reflection_occlusion``
+    Toolbag's horizon fade (Russell, "Horizon Occlusion for Normal Mapped
+    Reflections"): ``o = saturate(1 + fade * dot(r, n_vertex))^2`` with
+    ``r = reflect(-v, n)``. On the flat surface ``dot(r, n_vertex) = r_z``,
+    and we measure it against the *baked* horizon instead of the tangent
+    plane: ``o = saturate(1 + fade * (r_z - s_r))^2``, ``s_r`` the
+    interpolated horizon sine toward ``r``'s azimuth. With no occluders
+    (``s_r = 0``) this is exactly Toolbag's term. The scene has no
+    environment map to reflect, so ``o`` is output as its own layer and does
+    not change the image.
+``interreflection``
+    Not modelled; it never appears in :attr:`Approximation.simulated`.
+
+The image is ``D * F + ambient`` where ``D`` is the sum of the declared
+direct terms, or ``E`` (grey) when neither ``diffuse`` nor ``specular`` is
+declared. Every direct term is gated by ``[Lz > 0]``: the flat surface
+cannot be lit from below its tangent plane, yet eq. 5.4 leaves ``F > 0`` for
+a light up to ``1/k`` in sine below the horizon (``F = 0`` only when
+``Lz <= s - 1/k``), so without the gate a light just below the horizon would
+still light the plane.
+
+Two paths:
+
+``exact``
+    float textures; the channel weights are the exact linear interpolation
+    (:func:`hzval.conventions.channel_weights`), computed in the kernel.
+``gpu``
+    what a GPU running Lengyel's Listing 5.1 computes: the horizon layers
+    quantised to 8 bits (:func:`hzval.files.unit_to_u8` / 255), the 16x16
+    8-bit weight cube map of :func:`hzval.bake.weight_cube` sampled
+    bilinearly (OpenGL face selection, :func:`hzval.conventions.cube_lookup`;
+    filtering stays *within* the face, clamped to its edge, where a GPU with
+    seamless cube maps would blend across the seam: a difference only within
+    half a cube texel of an edge), and the shader's arithmetic:
+    ``f0 = clamp(2f - 1, 0, 1)``, ``f1 = clamp(-2f + 1, 0, 1)``,
+    ``s = dot(h0, f0) + dot(h1, f1)``, ``F = clamp((Lz - s) k + 1, 0, 1)``.
+    Normal and albedo maps stay float on both paths, so the two paths differ
+    only in the horizon technique. The 8-bit cube cannot store a zero weight
+    (127.5): it stores 128, which decodes to a weight of ``1/255`` on layer 0
+    and to 0 on layer 1 (:func:`hzval.conventions.encode_signed_weight`).
+
+    What the GPU path costs (``tests/test_approx.py`` derives and asserts it
+    per light): ``s_gpu - s_exact = sum w^ (h^ - h) + sum (w^ - w) h``, so
+    ``|F_gpu - F_exact| <= k (0.5/255 * sum(w^) + sum |w^_c - w_c| max h_c)``.
+    Over all directions ``sum(w^) <= 1 + 3/255`` (the leaks); for elevations
+    up to 45 degrees (the cube's side faces, where the weights depend on the
+    azimuth only) ``sum |w^ - w| <= 0.169``, largest at the channel azimuths,
+    where the tent's peak falls between two cube texels 3.6 degrees either
+    side (w^ = 0.92 instead of 1); on the +z face, near the zenith, the weights
+    are arbitrary (up to 1.99) but ``Lz`` is large there. Because the +z
+    face's weights differ from the side faces', ``F_gpu`` can *drop* as a
+    light rises across that seam (elevation 35-45 degrees): it is not
+    monotonic in elevation there, by design of the cube map, not of this
+    emulation.
+
+Textures are filtered in float32 arithmetic (``use_accel=False``) on every
+backend: CUDA's texture units resolve the position within a texel to 1/256,
+which would make the exact path inexact and the two backends disagree.
+
+Speed: textures and sample positions are uploaded once, in the constructor.
+Everything that changes per frame (``L``) and the per-object constants
+(``k``, ``E``, ``fade``, a uniform albedo) enter kernels as opaque Dr.Jit
+arrays, so a new light reuses the compiled kernels (DESIGN.md, pitfalls).
+A frame is two kernels: a one-lane kernel for the light's channel weights
+(which are uniform over the frame) and the shading kernel, one lane per
+pixel, looping over the pixel's samples, so that no per-sample values go
+through memory.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from hzval import conventions as cv
+from hzval.errors import InputError
+from hzval.scene import (EFFECTS, SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS, Frame, Scene,
+                         image_shape, load_albedo, sample_positions)
+
+__all__ = ["Approximation", "PATHS", "AMBIENT_TERMS", "DEFAULT_K", "DEFAULT_FADE",
+           "CUBE_SIZE", "NOT_MODELLED"]
+
+#: The two ways of evaluating the technique (module docstring).
+PATHS: tuple[str, ...] = ("exact", "gpu")
+#: The ambient map's two definitions (:class:`hzval.bake.Bake` attributes).
+AMBIENT_TERMS: tuple[str, ...] = ("mean_cos2", "mean_cos")
+#: Lengyel's shadow hardness (Listing 5.1 ``kShadowHardness``): F falls from 1
+#: to 0 over a horizon-sine range of 1/k.
+DEFAULT_K = 8.0
+#: Toolbag's per-material horizon fade constant. The post leaves it to the
+#: artist ("best left as a per-material setting"); 1.3 is this project's
+#: default: a reflection 1/1.3 = 0.77 in sine below the horizon is fully
+#: occluded, one at the horizon is not occluded. The report should vary it.
+DEFAULT_FADE = 1.3
+#: Edge length in texels of a face of the GPU path's weight cube map (Lengyel:
+#: 16 x 16 is sufficient).
+CUBE_SIZE = 16
+#: Declarable effects that the technique does not model.
+NOT_MODELLED: tuple[str, ...] = ("interreflection",)
+
+_QUARTER_PI_INV = 4.0 / math.pi  # channels per radian: channel c sits at c * pi/4
+
+
+class Approximation:
+    """Horizon-map shading of one material's flat surface, frame by frame.
+
+    Parameters
+    ----------
+    scene
+        Camera, light (elevation, irradiance), declared effects, samples.
+    bake
+        The material's textures (:func:`hzval.bake.bake`); its boundary
+        (``wrap``/``open``) sets the textures' wrap mode and its shape the
+        image's (times the camera's supersampling).
+    albedo
+        Linear albedo ``(rows, cols, 3)``; ``None`` reads the scene's
+        (:func:`hzval.scene.load_albedo`). Only used by ``diffuse`` and
+        ``ambient``; a uniform albedo enters the kernel as a constant.
+    path
+        ``"exact"`` or ``"gpu"`` (module docstring).
+    k
+        Shadow hardness of eq. 5.4, > 0.
+    ambient
+        Which ambient map: ``"mean_cos2"`` or ``"mean_cos"``.
+    fade
+        Toolbag's reflection-occlusion constant, >= 0 (:data:`DEFAULT_FADE`).
+
+    Attributes
+    ----------
+    simulated
+        The effects this object computes, in :data:`hzval.scene.EFFECTS`
+        order: the declared ones less :data:`NOT_MODELLED`
+        (``metrics.json``'s ``simulated.approx``).
+    shape
+        ``(height, width)`` of every image it renders.
+    """
+
+    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *,
+                 path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
+                 fade: float = DEFAULT_FADE):
+        from hzval import backend
+
+        backend.variant()
+        import drjit as dr
+        import mitsuba as mi
+
+        if path not in PATHS:
+            raise InputError("path", f"must be one of {', '.join(PATHS)}, got {path!r}")
+        if ambient not in AMBIENT_TERMS:
+            raise InputError("ambient", f"must be one of {', '.join(AMBIENT_TERMS)}, got {ambient!r}")
+        if not (math.isfinite(k) and k > 0):
+            raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
+        if not (math.isfinite(fade) and fade >= 0):
+            raise InputError("fade", f"the horizon fade must be a non-negative number, got {fade}")
+
+        self.scene, self.bake = scene, bake
+        self.path, self.k, self.ambient, self.fade = path, float(k), ambient, float(fade)
+        rows, cols = bake.horizon.shape[:2]
+        self.rows, self.cols = rows, cols
+        self.shape = image_shape(rows, cols, scene.camera)
+        self.simulated: tuple[str, ...] = tuple(
+            e for e in EFFECTS if scene.declares(e) and e not in NOT_MODELLED)
+        eff = set(self.simulated)
+        self._shadow = "shadow" in eff
+        self._diffuse = "diffuse" in eff
+        self._specular = "specular" in eff
+        self._ambient = "ambient" in eff
+        self._reflection = "reflection_occlusion" in eff
+        need_horizon = self._shadow or self._reflection
+        need_normal = self._diffuse or self._specular or self._reflection
+        need_albedo = self._diffuse or self._ambient
+
+        # ---- textures: one packed texture holding only the channels needed,
+        # so that each sample computes one set of bilinear indices
+        planes: list[np.ndarray] = []
+        self._slots: dict[str, slice] = {}
+
+        def add(name: str, data: np.ndarray) -> None:
+            data = np.asarray(data, dtype=np.float32)
+            data = data[..., None] if data.ndim == 2 else data
+            start = sum(p.shape[-1] for p in planes)
+            self._slots[name] = slice(start, start + data.shape[-1])
+            planes.append(data)
+
+        if need_horizon:
+            h = np.asarray(bake.horizon, dtype=np.float32)
+            if path == "gpu":
+                from hzval.files import unit_to_u8
+
+                h = unit_to_u8(h).astype(np.float32) / np.float32(255.0)
+            add("horizon", h)
+        if need_normal:
+            add("normal", bake.normal)
+        self._albedo_const = None
+        if need_albedo:
+            a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
+            if a.shape != (rows, cols, 3):
+                raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+            if np.all(a == a[:1, :1]):
+                self._albedo_const = dr.opaque(mi.Color3f, [float(c) for c in a[0, 0]])
+            else:
+                add("albedo", a)
+        if self._ambient:
+            add("ambient", getattr(bake, ambient))
+        self._texture = None
+        if planes:
+            wrap = dr.WrapMode.Repeat if bake.params.boundary == "wrap" else dr.WrapMode.Clamp
+            self._texture = mi.Texture2f(
+                mi.TensorXf(_aligned(np.concatenate(planes, axis=-1))),
+                use_accel=False, migrate=False,
+                filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
+
+        self._cube = None
+        if need_horizon and path == "gpu":
+            from hzval.bake import weight_cube
+
+            cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
+            self._cube = mi.Float(_aligned(cube).ravel())
+
+        # ---- per-object constants, opaque so that objects share kernels
+        self._k = dr.opaque(mi.Float, self.k)
+        self._fade = dr.opaque(mi.Float, self.fade)
+        self._E = dr.opaque(mi.Float, float(scene.light.irradiance))
+
+        # ---- sample positions as texture coordinates. One sample per pixel:
+        # two plain arrays. More: (u, v) pairs in the scene's pixel-major order,
+        # which the per-pixel loop gathers as one packet per sample; a pixel's
+        # samples share cache lines (a sample-major layout, with its stride of
+        # a power-of-two number of pixels, thrashed the caches: 2x slower).
+        spp = int(scene.spp)
+        x, y = sample_positions(rows, cols, scene.camera, spp, scene.seed)
+        self.spp, self.pixels = spp, self.shape[0] * self.shape[1]
+        u = (x.astype(np.float64) / cols).astype(np.float32)
+        v = ((rows - y.astype(np.float64)) / rows).astype(np.float32)
+        if spp == 1:
+            self._u, self._v, self._uv = mi.Float(_aligned(u)), mi.Float(_aligned(v)), None
+        else:
+            self._u = self._v = None
+            self._uv = mi.Float(_aligned(np.stack([u, v], axis=-1)).ravel())
+        dr.eval(self._u, self._v, self._uv, self._cube, self._albedo_const)
+
+    # ------------------------------------------------------------------
+    # Public
+    # ------------------------------------------------------------------
+
+    @property
+    def parameters(self) -> dict:
+        """The technique's settings, for ``metrics.json``."""
+        out = {"path": self.path, "k": self.k, "simulated": list(self.simulated)}
+        if self._ambient:
+            out["ambient"] = self.ambient
+        if self._reflection:
+            out["fade"] = self.fade
+        if self._specular:
+            out.update(specular_ks=SPECULAR_KS, specular_alpha=SPECULAR_EXPONENT)
+        if self.path == "gpu":
+            out.update(horizon_bits=8, cube_size=CUBE_SIZE, cube_bits=8,
+                       cube_filter="bilinear within the face, clamped to its edge")
+        return out
+
+    def render(self, azimuth_deg: float, *, shadows: bool = True,
+               elevation_deg: float | None = None, k: float | None = None) -> Frame:
+        """Render the frame for the light at ``azimuth_deg`` (degrees).
+
+        ``elevation_deg`` defaults to the scene light's, ``k`` to the
+        object's (a sweep over k reuses the textures and kernels). ``shadows=False``
+        leaves out the horizon factor (plain normal mapping, the report's
+        comparison column); the other declared effects stay. Layers:
+        ``factor`` (pixel mean of F, when shadowing), ``ambient`` (A) and
+        ``reflection_occlusion`` (o), each where declared. ``seconds`` is the
+        wall time of the frame, kernels synchronised and images read back.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        t0 = time.perf_counter()
+        elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
+        uni = self._uniforms(azimuth_deg, elevation, shadows, k)
+        if self.spp == 1:
+            out = self._shade(self._u, self._v, uni, shadows)
+        else:
+            names, zeros = self._output_layout(shadows)
+            P, spp = self.pixels, self.spp
+            pixel = dr.arange(mi.UInt32, P)
+
+            def body(i, *acc):
+                uv = dr.gather(mi.Point2f, self._uv, pixel * spp + i)
+                o = self._shade(uv.x, uv.y, uni, shadows)
+                return (i + 1, *[a + b for a, b in zip(acc, self._flatten(o, names))])
+
+            state = dr.while_loop(state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
+                                  cond=lambda i, *acc: i < spp, body=body)
+            inv = 1.0 / spp
+            out = self._unflatten([a * inv for a in state[1:]], names)
+        dr.eval(out)
+        H, W = self.shape
+
+        def plane(v):
+            # a term that does not vary (e.g. unshadowed grey light, 1 spp) is a width-1 array
+            return np.broadcast_to(np.asarray(v, dtype=np.float32), (H * W,)).reshape(H, W)
+
+        image = np.stack([plane(c) for c in out.pop("image")], axis=-1)
+        layers = {name: plane(val) for name, val in out.items()}
+        return Frame(float(azimuth_deg), elevation, image, layers, seconds=time.perf_counter() - t0)
+
+    def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None, *,
+               shadows: bool = True, k: float | None = None) -> dict[str, np.ndarray]:
+        """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging.
+
+        For probing single texels (at ``x = col + 0.5``, ``y = rows - row - 0.5``
+        the bilinear filter returns that texel exactly). Keys as in
+        :meth:`render`'s layers plus ``image`` ``(n, 3)`` and, when
+        shadowing, ``horizon_sine`` (``s`` of eq. 5.3/5.4).
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        x = np.asarray(x, dtype=np.float64).ravel()
+        y = np.asarray(y, dtype=np.float64).ravel()
+        u = mi.Float((x / self.cols).astype(np.float32))
+        v = mi.Float(((self.rows - y) / self.rows).astype(np.float32))
+        elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
+        uni = self._uniforms(azimuth_deg, elevation, shadows, k)
+        out = self._shade(u, v, uni, shadows, probe=True)
+        dr.eval(out)
+        image = np.stack([np.asarray(c, dtype=np.float32) for c in out.pop("image")], axis=-1)
+        res = {name: np.asarray(val, dtype=np.float32) for name, val in out.items()}
+        res["image"] = image
+        return res
+
+    # ------------------------------------------------------------------
+    # Kernels
+    # ------------------------------------------------------------------
+
+    def _uniforms(self, azimuth_deg: float, elevation_deg: float, shadows: bool,
+                  k: float | None = None) -> dict:
+        """The frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``.
+
+        The light's channel weights and half vector are the same for every
+        sample; computing them once per frame keeps the shading kernel lean.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        L = dr.opaque(mi.Vector3f, [float(c) for c in cv.light_direction(azimuth_deg, elevation_deg)])
+        uni = {"L": L, "k": self._k}
+        if k is not None:
+            if not (math.isfinite(k) and k > 0):
+                raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
+            uni["k"] = dr.opaque(mi.Float, float(k))
+        if self._shadow and shadows:
+            uni["w"] = self._channel_weights(L)
+        if self._specular:
+            uni["h"] = dr.normalize(L + mi.Vector3f(0.0, 0.0, 1.0))
+        dr.eval(uni)
+        return uni
+
+    def _channel_weights(self, d) -> list:
+        """The 8 channel weights toward the azimuth of directions ``d`` (path-specific)."""
+        return self._exact_weights(d) if self.path == "exact" else self._cube_weights(d)
+
+    @staticmethod
+    def _exact_weights(d) -> list:
+        """Exact linear interpolation between the two channels adjacent to ``atan2(dy, dx)``.
+
+        Channel ``c`` gets the tent ``max(0, 1 - dist(t, c))`` with ``t`` the
+        azimuth in channel units and ``dist`` the circular distance modulo 8:
+        :func:`hzval.conventions.channel_weights` without a per-lane channel
+        index. ``t`` in [0, 8]: azimuths of 360 deg or -0 deg land on 8 or 0,
+        both of which give channel 0 all the weight.
+        """
+        import drjit as dr
+
+        t = dr.atan2(d.y, d.x) * _QUARTER_PI_INV
+        t = dr.select(t < 0.0, t + float(cv.CHANNEL_COUNT), t)
+        weights = []
+        for c in range(cv.CHANNEL_COUNT):
+            dist = dr.abs(t - float(c))
+            dist = dr.minimum(dist, float(cv.CHANNEL_COUNT) - dist)
+            weights.append(dr.maximum(1.0 - dist, 0.0))
+        return weights
+
+    def _cube_weights(self, d) -> list:
+        """Lengyel's channel factors from the 8-bit weight cube map, as a GPU computes them.
+
+        Face and face coordinates follow OpenGL (table 8.19, ties to x, then
+        y, then z, as :func:`hzval.conventions.cube_lookup`); bilinear within
+        the face, clamped to its edge texels. Returns ``f0`` (layer 0) then
+        ``f1`` (layer 1) of Listing 5.1: ``clamp(+-(2f - 1), 0, 1)`` applied
+        to the *filtered* 8-bit values, as the shader does.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        x, y, z = d.x, d.y, d.z
+        ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
+        use_x = (ax >= ay) & (ax >= az)
+        use_y = ~use_x & (ay >= az)
+        face = dr.select(use_x, dr.select(x >= 0, mi.UInt32(0), mi.UInt32(1)),
+                         dr.select(use_y, dr.select(y >= 0, mi.UInt32(2), mi.UInt32(3)),
+                                   dr.select(z >= 0, mi.UInt32(4), mi.UInt32(5))))
+        ma = dr.select(use_x, ax, dr.select(use_y, ay, az))
+        sc = dr.select(use_x, dr.select(x >= 0, -z, z), dr.select(use_y | (z >= 0), x, -x))
+        tc = dr.select(use_y, dr.select(y >= 0, z, -z), -y)
+        inv = dr.rcp(ma)
+        n = CUBE_SIZE
+        # texel space: centres at integers 0..n-1; clamp to the edge centres
+        ps = dr.clip(dr.fma(sc * inv, 0.5 * n, 0.5 * n - 0.5), 0.0, n - 1.0)
+        pt = dr.clip(dr.fma(tc * inv, 0.5 * n, 0.5 * n - 0.5), 0.0, n - 1.0)
+        c0 = dr.minimum(mi.UInt32(ps), n - 2)   # ps >= 0: truncation is floor
+        r0 = dr.minimum(mi.UInt32(pt), n - 2)
+        fs, ft = ps - mi.Float(c0), pt - mi.Float(r0)
+        base = (face * n + r0) * n + c0
+        t00 = dr.gather(mi.Vector4f, self._cube, base)
+        t01 = dr.gather(mi.Vector4f, self._cube, base + 1)
+        t10 = dr.gather(mi.Vector4f, self._cube, base + n)
+        t11 = dr.gather(mi.Vector4f, self._cube, base + n + 1)
+        f = dr.lerp(dr.lerp(t00, t01, fs), dr.lerp(t10, t11, fs), ft)
+        f0 = [dr.clip(dr.fma(f[i], 2.0, -1.0), 0.0, 1.0) for i in range(4)]
+        f1 = [dr.clip(dr.fma(f[i], -2.0, 1.0), 0.0, 1.0) for i in range(4)]
+        return f0 + f1
+
+    def _fetch(self, u, v) -> dict:
+        """Bilinearly filtered texture values at texture coordinates ``(u, v)``."""
+        import mitsuba as mi
+
+        if self._texture is None:
+            return {}
+        vals = self._texture.eval(mi.Point2f(u, v))
+        return {name: vals[s] for name, s in self._slots.items()}
+
+    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False) -> dict:
+        """Per-sample outputs: ``image`` (Color3f) and the declared layers."""
+        import drjit as dr
+        import mitsuba as mi
+
+        tex = self._fetch(u, v)
+        L, E = uni["L"], self._E
+        out = {}
+        lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
+
+        if "normal" in tex:
+            n = dr.normalize(mi.Vector3f(*tex["normal"]))
+        if self._diffuse or self._ambient:
+            albedo = self._albedo_const if self._albedo_const is not None else mi.Color3f(*tex["albedo"])
+
+        # direct term D
+        if self._diffuse or self._specular:
+            nl = dr.dot(n, L)
+            direct = mi.Color3f(0.0)
+            if self._diffuse:
+                direct += albedo * (E * dr.maximum(nl, 0.0) * (1.0 / math.pi))
+            if self._specular:
+                nh = dr.maximum(dr.dot(n, uni["h"]), 0.0)
+                spec = dr.select(nl > 0.0, SPECULAR_KS * E * _ipow(nh, SPECULAR_EXPONENT), 0.0)
+                direct += mi.Color3f(spec)
+            direct = dr.select(lit, direct, 0.0)
+        else:
+            direct = dr.select(lit, mi.Color3f(E), 0.0)
+
+        if self._shadow and shadows:
+            s = _dot8(tex["horizon"], uni["w"])
+            F = dr.clip(dr.fma(L.z - s, uni["k"], 1.0), 0.0, 1.0)
+            image = direct * F
+            out["factor"] = F
+            if probe:
+                out["horizon_sine"] = s
+        else:
+            image = direct
+
+        if self._ambient:
+            A = tex["ambient"][0]
+            image = image + albedo * (A * E * SKY_RADIANCE_PER_IRRADIANCE)
+            out["ambient"] = A
+
+        if self._reflection:
+            # r = reflect(-v, n) = 2 (n.v) n - v with v = +z
+            r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
+            s_r = _dot8(tex["horizon"], self._channel_weights(r))
+            o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
+            out["reflection_occlusion"] = o * o
+
+        out["image"] = image
+        return out
+
+    # the loop state of render() is a flat list of Floats
+    def _output_layout(self, shadows: bool) -> tuple[list[tuple[str, int]], int]:
+        names = [("image", 3)]
+        if self._shadow and shadows:
+            names.append(("factor", 1))
+        if self._ambient:
+            names.append(("ambient", 1))
+        if self._reflection:
+            names.append(("reflection_occlusion", 1))
+        return names, sum(n for _, n in names)
+
+    @staticmethod
+    def _flatten(out: dict, names) -> list:
+        flat = []
+        for name, n in names:
+            if n == 3:
+                flat.extend(out[name][i] for i in range(3))
+            else:
+                flat.append(out[name])
+        return flat
+
+    @staticmethod
+    def _unflatten(flat: list, names) -> dict:
+        import mitsuba as mi
+
+        out, i = {}, 0
+        for name, n in names:
+            out[name] = mi.Color3f(*flat[i:i + 3]) if n == 3 else flat[i]
+            i += n
+        return out
+
+
+def _aligned(a, alignment: int = 64) -> np.ndarray:
+    """A C-contiguous float32 copy of ``a`` that starts on an ``alignment``-byte boundary.
+
+    On the LLVM backend Dr.Jit maps NumPy memory without copying it, and it
+    reads a texel's channels as one packet (vector loads) only from aligned
+    memory; from NumPy's 16-byte-aligned buffers it fell back to one scalar
+    gather per channel and lane: 2-4x slower frames, varying from run to run
+    with where NumPy's allocation happened to land. (CUDA copies anyway.)
+    """
+    a = np.asarray(a, dtype=np.float32)
+    buf = np.empty(a.size + alignment // 4, dtype=np.float32)
+    start = (-buf.ctypes.data % alignment) // 4
+    out = buf[start:start + a.size].reshape(a.shape)
+    out[...] = a
+    return out
+
+
+def _dot8(h: list, w: list):
+    """``sum_c w_c h_c`` over the 8 channels (eq. 5.3 as two RGBA dot products)."""
+    import drjit as dr
+
+    s0 = h[0] * w[0]
+    for c in range(1, 4):
+        s0 = dr.fma(h[c], w[c], s0)
+    s1 = h[4] * w[4]
+    for c in range(5, 8):
+        s1 = dr.fma(h[c], w[c], s1)
+    return s0 + s1
+
+
+def _ipow(x, n: int):
+    """``x ** n`` for a positive integer ``n`` by repeated squaring (no exp/log)."""
+    result = None
+    base = x
+    while n:
+        if n & 1:
+            result = base if result is None else result * base
+        n >>= 1
+        if n:
+            base = base * base
+    return result
