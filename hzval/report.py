@@ -1,0 +1,681 @@
+"""The HTML comparison report of a sweep (DESIGN.md; issue 5).
+
+:func:`write_report` turns the content of ``metrics.json`` into
+``out/index.html`` and ``out/plots/*.png``. The page is self-contained: no
+network, no frameworks; its CSS and JavaScript are inline, and its images
+are the sweep's PNG previews beside it, referenced by relative, URL-quoted
+paths. It opens from disk.
+
+What it shows, top to bottom: the material, every parameter, the versions
+and the machine, the timings, which effects each side simulated, and the
+command that reproduces the run; the worst value of each metric at a
+glance; a table of every frame (worst values highlighted); the metrics
+against azimuth and where the time goes (matplotlib, Agg); and per frame
+truth | horizon-mapped | plain normal mapping | FLIP | visibility
+difference, with a swipe comparison, hover/click flipping between truth
+and approximation, and pixel zoom.
+
+Every value from ``metrics`` reaches the page through Jinja2 with
+autoescaping (attribute values included); data for the script goes
+through ``|tojson`` only, and file paths are URL-quoted
+(:func:`urllib.parse.quote`) before they are escaped into ``src``/``href``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+from urllib.parse import quote
+
+from hzval import files
+
+#: Colours of the visibility-difference map, as :mod:`hzval.sweep` paints it:
+#: leaks (the technique lights what the truth shadows) and false shadows.
+LEAK_RGB = (255, 127, 14)
+FALSE_SHADOW_RGB = (31, 119, 180)
+
+#: Colours of the two sides, on the page and in the plots.
+TRUTH_COLOUR = "#7fd1ae"
+APPROX_COLOUR = "#b9a3ff"
+
+#: Plot palette (matches the page's dark neutral theme).
+_BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
+    "#1f1f22", "#1f1f22", "#e4e4e7", "#9b9ba3", "#34343a", "#e8e8ec", "#ff6b6b")
+
+TEMPLATES = Path(__file__).parent / "templates"
+
+
+# --------------------------------------------------------------------------
+# Formatting
+# --------------------------------------------------------------------------
+
+def _num(x) -> float | None:
+    """A finite float, or ``None`` (missing, null, NaN, not a number)."""
+    if isinstance(x, bool) or x is None:
+        return None
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def fmt_deg(x) -> str:
+    """``-60`` -> ``−60°``, ``0`` -> ``0°``, ``7.5`` -> ``+7.5°``."""
+    v = _num(x)
+    if v is None:
+        return "—"
+    if v == 0:
+        return "0°"
+    return f"{v:+g}°".replace("-", "\u2212")
+
+
+def fmt_seconds(x) -> str:
+    """Seconds with a unit that suits them: ``850 µs``, ``12.3 ms``, ``1.25 s``."""
+    v = _num(x)
+    if v is None:
+        return "—"
+    a = abs(v)
+    if a == 0:
+        return "0 s"
+    if a < 1e-3:
+        return f"{v * 1e6:.0f} µs"
+    if a < 1:
+        return f"{v * 1e3:.3g} ms" if a < 0.1 else f"{v * 1e3:.0f} ms"
+    if a < 100:
+        return f"{v:.2f} s"
+    return f"{v:.0f} s"
+
+
+def _fixed(digits: int) -> Callable[[Any], str]:
+    return lambda v: "—" if _num(v) is None else f"{_num(v):.{digits}f}"
+
+
+def _percent(v) -> str:
+    v = _num(v)
+    return "—" if v is None else f"{100 * v:.2f} %"
+
+
+def _psnr(v) -> str:
+    v = _num(v)
+    return "∞" if v is None else f"{v:.2f}"
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A column of the summary table and a chip of each frame."""
+
+    key: str
+    label: str          # short, for the table head and chips
+    unit: str           # shown after the label in the table head, or ""
+    title: str          # tooltip: what it is and how it was computed
+    fmt: Callable[[Any], str]
+    worse: str = "max"  # "max": larger is worse; "min": smaller is worse
+    null_is: float | None = None   # the value ``null`` stands for (PSNR: +inf), else "not measured"
+    bar: bool = True    # draw a data bar (share of the column's largest value)
+    group: str = ""     # the table's column group
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric("visibility_mae", "|F−V|", "", "Visibility: mean |F − V| over pixels, horizon factor F against "
+           "ray-traced visibility V, both in [0, 1]", _fixed(4), group="visibility"),
+    Metric("leak_fraction", "leaks", "%", "Light leaks: pixels the technique lights (F ≥ 0.5) that the truth "
+           "shadows (V < 0.5), as a share of all pixels", _percent, group="visibility"),
+    Metric("false_shadow_fraction", "false shadows", "%", "False shadows: pixels the technique shadows "
+           "(F < 0.5) that the truth lights (V ≥ 0.5), as a share of all pixels", _percent, group="visibility"),
+    Metric("flip_mean", "FLIP", "", "Mean FLIP error (NVIDIA, LDR, 67 pixels per degree) on display "
+           "values: 0 = identical, 1 = maximally different", _fixed(4), group="image"),
+    Metric("delta_e2000_mean", "ΔE2000", "", "Mean CIEDE2000 colour difference on display (sRGB) values; "
+           "about 1 is just noticeable", _fixed(3), group="image"),
+    Metric("rmse", "RMSE", "", "Root mean square error on linear values (a white Lambertian surface "
+           "facing the light = 1)", _fixed(4), group="image"),
+    Metric("psnr_db", "PSNR", "dB", "Peak signal-to-noise ratio on linear values, peak 1; ∞ = identical. "
+           "Lower is worse", _psnr, worse="min", null_is=math.inf, bar=False, group="image"),
+    Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels synchronised)",
+           fmt_seconds, group="render time"),
+    Metric("approx_s", "approx.", "time", "Horizon-mapping render time of the frame (Dr.Jit, kernels "
+           "synchronised)", fmt_seconds, group="render time"),
+)
+
+#: The images of a frame, in the order of the row, with their captions.
+PANELS: tuple[tuple[str, str, str], ...] = (
+    ("truth_png", "truth", "ray-traced, Mitsuba"),
+    ("approx_png", "horizon-mapped", "Dr.Jit"),
+    ("plain_png", "normal mapping only", "no shadows"),
+    ("flip_png", "FLIP error", ""),
+    ("visdiff_png", "visibility difference", "F against V"),
+)
+
+#: Raw files of a frame, linked from its card: (group, [(key, label)]).
+RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
+    ("EXR", (("truth", "truth"), ("approx", "approx."), ("plain", "plain"), ("visibility", "V"),
+             ("factor", "F"), ("truth_variance", "variance"))),
+    ("PNG", (("visibility_png", "V"), ("factor_png", "F"))),
+)
+
+_PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
+    ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("radius", "bake radius"),
+                        ("angles", "bake angles"))),
+    ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
+               ("azimuths_deg", "azimuths"))),
+    ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"))),
+    ("sampling", (("spp", "samples per pixel"), ("supersampling", "supersampling"), ("seed", "seed"))),
+)
+
+_TIMING_LABELS: tuple[tuple[str, str], ...] = (
+    ("bake_s", "bake"), ("truth_setup_s", "truth set-up"), ("approx_setup_s", "approximation set-up"),
+    ("truth_s", "truth renders"), ("approx_s", "approximation renders"), ("compare_s", "compare"),
+    ("write_s", "write frames"), ("report_s", "report"),
+)
+
+_VERSION_LABELS: tuple[tuple[str, str], ...] = (
+    ("hzval", "hzval"), ("mitsuba", "Mitsuba"), ("drjit", "Dr.Jit"), ("llvm", "LLVM"),
+    ("variant", "variant"), ("python", "Python"), ("machine", "machine"),
+)
+
+
+def _hex(rgb) -> str:
+    return "#" + "".join(f"{int(c):02x}" for c in rgb)
+
+
+def _map_colours() -> tuple[str, str]:
+    """The leak and false-shadow colours the sweep paints, read from it when it says."""
+    leak, false_shadow = LEAK_RGB, FALSE_SHADOW_RGB
+    try:
+        from hzval import sweep
+        leak = tuple(getattr(sweep, "LEAK_RGB", leak))
+        false_shadow = tuple(getattr(sweep, "FALSE_SHADOW_RGB", false_shadow))
+    except Exception:  # noqa: BLE001 - the report must not depend on the sweep importing cleanly
+        pass
+    return _hex(leak), _hex(false_shadow)
+
+
+def _value_text(key: str, value) -> str:
+    """A parameter, version or material value as text."""
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if key == "azimuths_deg" and isinstance(value, (list, tuple)):
+        return _azimuth_text(value)
+    if key in ("elevation_deg", "light_radius_deg"):
+        return fmt_deg(value).lstrip("+")
+    if isinstance(value, (list, tuple)):
+        return ", ".join(str(v) for v in value) or "none"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def _azimuth_text(values) -> str:
+    vals = [_num(v) for v in values]
+    if not vals or any(v is None for v in vals):
+        return ", ".join(str(v) for v in values) or "none"
+    n = len(vals)
+    listed = ", ".join(fmt_deg(v) for v in vals)
+    if n >= 3:
+        steps = {round(b - a, 9) for a, b in zip(vals, vals[1:])}
+        if len(steps) == 1 and next(iter(steps)) > 0:
+            return f"{fmt_deg(vals[0])} … {fmt_deg(vals[-1])}, step {next(iter(steps)):g}° ({n} lights)"
+    return f"{listed} ({n} light{'s' if n != 1 else ''})"
+
+
+# --------------------------------------------------------------------------
+# The view model: everything the template shows, formatted
+# --------------------------------------------------------------------------
+
+def _src(out: Path, rel) -> dict | None:
+    """A file of the report as ``{"src": URL-quoted relative path, "path": as given}``; ``None`` if absent."""
+    if not isinstance(rel, str) or not rel:
+        return None
+    if not (out / rel).is_file():
+        return {"src": None, "path": rel}
+    return {"src": quote(rel.replace("\\", "/"), safe="/"), "path": rel}
+
+
+def _columns(frames: list[dict]) -> list[dict]:
+    """Per metric: the values, which frames are worst, the bar scale, and the summary."""
+    cols = []
+    for m in METRICS:
+        raw = [f.get(m.key) for f in frames]
+        vals = []
+        for r in raw:
+            v = _num(r)
+            if v is None and r is None and m.null_is is not None:
+                v = m.null_is
+            vals.append(v)
+        measured = [v for v in vals if v is not None]
+        worst_idx: set[int] = set()
+        worst = best = None
+        if measured:
+            worst = max(measured) if m.worse == "max" else min(measured)
+            best = min(measured) if m.worse == "max" else max(measured)
+            # a column with no spread (e.g. no leaks anywhere) has no worst frame to point at
+            if len(measured) >= 2 and worst != best:
+                worst_idx = {i for i, v in enumerate(vals) if v == worst}
+        top = max((abs(v) for v in measured if math.isfinite(v)), default=0.0)
+        finite = [v for v in measured if math.isfinite(v)]
+        mean = sum(finite) / len(finite) if finite else None
+        mean_title = f"mean over {len(finite)} frame{'s' if len(finite) != 1 else ''}"
+        if len(finite) < len(measured):
+            mean_title += f" (without the {len(measured) - len(finite)} infinite)"
+        cols.append({"metric": m, "vals": vals, "worst_idx": worst_idx, "worst": worst, "top": top,
+                     # all infinite (identical images): shown as the null value, "∞"
+                     "mean_text": m.fmt(mean) if mean is not None else (m.fmt(None) if measured else "—"),
+                     "mean_title": mean_title if measured else "not measured",
+                     "measured": bool(measured)})
+    return cols
+
+
+def _cell(col: dict, i: int, frame: dict) -> dict:
+    m: Metric = col["metric"]
+    v = col["vals"][i]
+    raw = frame.get(m.key)
+    if v is None:
+        text, title = "—", f"{m.label}: not measured"
+    else:
+        text = m.fmt(raw)
+        title = m.title
+    bar = None
+    if m.bar and v is not None and col["top"] > 0 and math.isfinite(v):
+        bar = round(max(0.0, min(1.0, abs(v) / col["top"])), 4)
+    return {"key": m.key, "label": m.label, "text": text, "worst": i in col["worst_idx"], "bar": bar,
+            "gstart": m.key in _GROUP_STARTS,
+            "title": title, "unit": m.unit if m.unit not in ("time", "%") else ""}
+
+
+def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
+    """The worst value of each quality metric and the frame it comes from."""
+    tiles = []
+    for col in cols:
+        m: Metric = col["metric"]
+        if m.unit == "time" or m.key == "rmse":
+            continue
+        if not col["measured"]:
+            tiles.append({"label": m.label, "value": "not measured", "where": "", "href": None,
+                          "title": m.title, "dim": True})
+            continue
+        idx = [i for i, v in enumerate(col["vals"]) if v == col["worst"]]
+        i = idx[0]
+        value = m.fmt(frames[i].get(m.key))
+        if m.unit == "dB" and value != "∞":
+            value += " dB"
+        where = "every frame" if len(idx) == len(frames) and len(frames) > 1 else \
+            f"at {fmt_deg(frames[i].get('azimuth_deg'))}"
+        kind = "lowest" if m.worse == "min" else "worst"
+        tiles.append({"label": f"{kind} {m.label}", "value": value, "where": where,
+                      "href": None if len(idx) == len(frames) and len(frames) > 1 else f"#frame-{i}",
+                      "title": m.title, "dim": False})
+    return tiles
+
+
+def _timings(t: dict, n_frames: int) -> dict:
+    rows, known = [], set()
+    for key, label in _TIMING_LABELS:
+        known.add(key)
+        v = _num(t.get(key))
+        if v is None:
+            continue
+        note = ""
+        if key == "bake_s" and t.get("bake_cached"):
+            note = "cached"
+        elif key in ("truth_s", "approx_s") and n_frames:
+            note = f"{fmt_seconds(v / n_frames)} per frame"
+        rows.append({"label": label, "seconds": v, "text": fmt_seconds(v), "note": note})
+    for key, value in t.items():   # anything else the sweep timed
+        if key in known or key in ("total_s", "bake_cached"):
+            continue
+        v = _num(value)
+        if v is not None:
+            rows.append({"label": key.removesuffix("_s").replace("_", " "), "seconds": v,
+                         "text": fmt_seconds(v), "note": ""})
+    stages = sum(r["seconds"] for r in rows)
+    total = _num(t.get("total_s"))
+    for r in rows:
+        r["share"] = f"{100 * r['seconds'] / stages:.0f} %" if stages > 0 else ""
+    return {"rows": rows, "total_text": fmt_seconds(total if total is not None else stages),
+            "total_is_sum": total is None, "stages": stages}
+
+
+def _effects(parameters: dict, simulated: dict) -> dict:
+    declared = [str(e) for e in (parameters.get("effects") or [])]
+    truth = [str(e) for e in (simulated.get("truth") or [])]
+    approx = [str(e) for e in (simulated.get("approx") or [])]
+    notes = []
+    for e in declared:
+        if e not in approx:
+            notes.append(f"{e}: not modelled by the approximation")
+        if e not in truth:
+            notes.append(f"{e}: not simulated by the truth")
+    return {"declared": declared, "truth": truth, "approx": approx, "notes": notes}
+
+
+def _parameters(p: dict) -> list[dict]:
+    groups, seen = [], set()
+    for title, keys in _PARAMETER_GROUPS:
+        rows = []
+        for key, label in keys:
+            if key in p:
+                seen.add(key)
+                value = p[key]
+                text = _value_text(key, value)
+                if key == "depth" and _num(value) is not None:
+                    text = f"{value:g} × image width"
+                elif key == "k" and _num(value) is not None:
+                    text = f"{value:g}"
+                elif key == "path":
+                    text = {"exact": "exact (float)", "gpu": "GPU emulation (8-bit maps, cube map)"}.get(
+                        str(value), str(value))
+                elif key == "ambient":
+                    text = {"mean_cos2": "mean cos² (cosine-weighted)", "mean_cos": "mean cos (Lengyel)"}.get(
+                        str(value), str(value))
+                elif key == "supersampling" and _num(value) is not None:
+                    text = f"{value:g} × {value:g} per texel"
+                elif key == "radius" and _num(value) is not None:
+                    text = f"{value:g} texels"
+                rows.append({"label": label, "text": text, "key": key})
+        if rows:
+            groups.append({"title": title, "rows": rows})
+    other = [{"label": k, "text": _value_text(k, v), "key": k} for k, v in p.items() if k not in seen
+             and k != "effects"]
+    if other:
+        groups.append({"title": "other", "rows": other})
+    return groups
+
+
+def _versions(v: dict) -> list[dict]:
+    rows, seen = [], set()
+    for key, label in _VERSION_LABELS:
+        if key in v:
+            seen.add(key)
+            rows.append({"label": label, "text": _value_text(key, v[key])})
+    rows += [{"label": k, "text": _value_text(k, val)} for k, val in v.items() if k not in seen]
+    return rows
+
+
+def _material(m: dict) -> dict:
+    digest = str(m.get("digest") or "")
+    algo, _, hexpart = digest.partition(":")
+    short = f"{algo}:{hexpart[:12]}" if hexpart else digest[:19]
+    rows, cols = m.get("rows"), m.get("cols")
+    size = f"{cols} × {rows} texels" if rows is not None and cols is not None else "—"
+    return {"name": str(m.get("name") or "unnamed material"), "source": str(m.get("source") or "—"),
+            "digest": digest, "digest_short": short or "—", "size": size,
+            "path": None if m.get("path") is None else str(m.get("path")),
+            "aspect": f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"}
+
+
+_GROUP_STARTS = {m.key for i, m in enumerate(METRICS) if i == 0 or METRICS[i - 1].group != m.group}
+
+
+def _column_groups() -> list[dict]:
+    groups: list[dict] = []
+    for m in METRICS:
+        if groups and groups[-1]["title"] == m.group:
+            groups[-1]["span"] += 1
+        else:
+            groups.append({"title": m.group, "span": 1})
+    return groups
+
+
+def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str | None]) -> dict:
+    """Everything the template needs, formatted; no markup."""
+    out = Path(out)
+    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    parameters = metrics.get("parameters") or {}
+    cols = _columns(frames)
+    leak_hex, false_shadow_hex = _map_colours()
+    material = _material(metrics.get("material") or {})
+
+    frame_views = []
+    for i, f in enumerate(frames):
+        fl = f.get("files") or {}
+        panels = []
+        for key, title, subtitle in PANELS:
+            panels.append({"key": key, "title": title, "subtitle": subtitle, "file": _src(out, fl.get(key))})
+        raw = []
+        for group, keys in RAW_FILES:
+            links = [{"label": label, "file": _src(out, fl.get(key))} for key, label in keys]
+            links = [r for r in links if r["file"] and r["file"]["src"]]
+            if links:
+                raw.append({"group": group, "links": links})
+        frame_views.append({
+            "index": i, "id": f"frame-{i}",
+            "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
+            "cells": [_cell(c, i, f) for c in cols],
+            "panels": {p["key"]: p for p in panels},
+            "raw": raw,
+        })
+
+    azimuths = parameters.get("azimuths_deg") or [f.get("azimuth_deg") for f in frames]
+    elevation = parameters.get("elevation_deg", frames[0].get("elevation_deg") if frames else None)
+    light = str(parameters.get("light", "—"))
+    if light == "soft" and _num(parameters.get("light_radius_deg")) is not None:
+        light = f"soft, radius {fmt_deg(parameters['light_radius_deg']).lstrip('+')}"
+    subtitle = (f"{len(frames)} frame{'s' if len(frames) != 1 else ''} · azimuth {_azimuth_text(azimuths)} · "
+                f"elevation {fmt_deg(elevation).lstrip('+')} · {light} light")
+
+    return {
+        "material": material,
+        "subtitle": subtitle,
+        "command": command or "",
+        "parameters": _parameters(parameters),
+        "effects": _effects(parameters, metrics.get("simulated") or {}),
+        "versions": _versions(metrics.get("versions") or {}),
+        "timings": _timings(metrics.get("timings") or {}, len(frames)),
+        "columns": [{"label": c["metric"].label, "unit": c["metric"].unit, "title": c["metric"].title,
+                     "key": c["metric"].key, "mean_text": c["mean_text"], "mean_title": c["mean_title"], "gstart": c["metric"].key in _GROUP_STARTS}
+                    for c in cols],
+        "column_groups": _column_groups(),
+        "glance": _glance(cols, frames),
+        "frames": frame_views,
+        "plots": plots,
+        "leak_hex": leak_hex, "false_shadow_hex": false_shadow_hex,
+        "truth_colour": TRUTH_COLOUR, "approx_colour": APPROX_COLOUR,
+        # the script's data: labels of the two sides, and the zoom steps
+        "js": {"labels": {"truth": "truth", "approx": "horizon-mapped"}, "zooms": [0, 1, 2, 4, 8]},
+    }
+
+
+# --------------------------------------------------------------------------
+# Plots (matplotlib, Agg, no pyplot state)
+# --------------------------------------------------------------------------
+
+def _figure(width: float, height: float):
+    """A figure on an Agg canvas. Margins are set by hand: constrained layout
+    would double the time a plot takes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), facecolor=_BG)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _style_axes(ax, title: str) -> None:
+    ax.set_facecolor(_PANEL)
+    ax.set_title(title, color=_TEXT, fontsize=10, loc="left", pad=6)
+    ax.tick_params(colors=_MUTED, labelsize=8, length=3)
+    for side, spine in ax.spines.items():
+        spine.set_visible(side in ("left", "bottom"))
+        spine.set_color(_GRID)
+    ax.grid(True, color=_GRID, linewidth=0.6, alpha=0.8)
+    ax.set_axisbelow(True)
+
+
+def _save(fig, path: Path) -> None:
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
+
+
+def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex: str) -> None:
+    """Small multiples: every quality metric against azimuth; the worst frame ringed."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter
+
+    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
+                   for f in frames], dtype=float)
+
+    def series(key, scale=1.0):
+        return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
+
+    panels = (
+        ("visibility  mean |F − V|", [("visibility_mae", "", _ACCENT, 1.0)], "max", ""),
+        ("leaks & false shadows  (% of pixels)", [("leak_fraction", "leak (F lit, V shadowed)", leak_hex, 100.0),
+                                                  ("false_shadow_fraction", "false shadow", false_shadow_hex,
+                                                   100.0)], "max", "%"),
+        ("FLIP  mean", [("flip_mean", "", _ACCENT, 1.0)], "max", ""),
+        ("ΔE2000  mean", [("delta_e2000_mean", "", _ACCENT, 1.0)], "max", ""),
+        ("PSNR  dB (linear; higher is better)", [("psnr_db", "", _ACCENT, 1.0)], "min", ""),
+        ("RMSE  (linear)", [("rmse", "", _ACCENT, 1.0)], "max", ""),
+    )
+    fig = _figure(13.0, 5.4)
+    axes = fig.subplots(2, 3, sharex=True)
+    fig.subplots_adjust(left=0.045, right=0.99, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)
+    ticks = [a for a in az if np.isfinite(a)]
+    for ax, (title, lines, worse, unit) in zip(axes.flat, panels):
+        _style_axes(ax, title)
+        keys = [line[0] for line in lines]
+        any_data = False
+        for key, label, colour, scale in lines:
+            y = series(key, scale)
+            ok = np.isfinite(y) & np.isfinite(az)
+            if not ok.any():
+                continue
+            any_data = True
+            order = np.argsort(az[ok])
+            ax.plot(az[ok][order], y[ok][order], color=colour, linewidth=1.6, marker="o", markersize=3.5,
+                    label=label or None, zorder=3)
+            w = int(np.nanargmax(np.where(ok, y, -np.inf)) if worse == "max"
+                    else np.nanargmin(np.where(ok, y, np.inf)))
+            if np.nanmax(y[ok]) != np.nanmin(y[ok]):
+                ax.plot([az[w]], [y[w]], marker="o", markersize=10, markerfacecolor="none",
+                        markeredgecolor=_WORST, markeredgewidth=1.4, zorder=4, clip_on=False)
+        if "psnr_db" in keys:
+            inf = np.array([f.get("psnr_db") is None for f in frames]) & np.isfinite(az)
+            if inf.any():
+                any_data = True
+                ax.plot(az[inf], np.full(inf.sum(), 0.96), linestyle="none", marker="^", color=_MUTED,
+                        transform=ax.get_xaxis_transform(), label="∞ (identical)", zorder=3)
+        if not any_data:
+            ax.text(0.5, 0.5, "not measured", transform=ax.transAxes, ha="center", va="center",
+                    color=_MUTED, fontsize=9)
+            ax.set_yticks([])
+        if len(lines) > 1 or "psnr_db" in keys:
+            handles, _ = ax.get_legend_handles_labels()
+            if handles:
+                leg = ax.legend(fontsize=8, frameon=False, loc="best", labelcolor=_TEXT)
+                leg.set_zorder(5)
+        if unit == "%":
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g} %"))
+        if any_data:
+            ax.margins(x=0.04, y=0.12)
+            if worse == "max":
+                ax.set_ylim(bottom=0)
+    for ax in axes[-1]:
+        ax.set_xlabel("light azimuth (degrees)", color=_MUTED, fontsize=8)
+        if 0 < len(ticks) <= 13:
+            ax.set_xticks(ticks)
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt_deg(v)))
+    _save(fig, path)
+
+
+def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
+    """Where the time goes: the run's stages, and each frame's truth and approximation times."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter
+
+    t = _timings(timings, len(frames))
+    height = max(2.8, 0.9 + 0.3 * max(len(t["rows"]), len(frames)))
+    fig = _figure(13.0, height)
+    ax1, ax2 = fig.subplots(1, 2, width_ratios=(1.25, 1))
+    fig.subplots_adjust(left=1.55 / 13.0, right=0.99, top=1 - 0.36 / height, bottom=0.42 / height, wspace=0.1)
+
+    _style_axes(ax1, "where the time goes  (seconds)")
+    labels = [r["label"] + (f" ({r['note']})" if r["note"] == "cached" else "") for r in t["rows"]]
+    secs = np.array([r["seconds"] for r in t["rows"]], dtype=float)
+    palette = {"truth renders": TRUTH_COLOUR, "truth set-up": TRUTH_COLOUR,
+               "approximation renders": APPROX_COLOUR, "approximation set-up": APPROX_COLOUR}
+    colours = [palette.get(r["label"], "#8d8d96") for r in t["rows"]]
+    y = np.arange(len(secs))
+    if len(secs):
+        ax1.barh(y, secs, color=colours, height=0.62, zorder=3)
+        ax1.set_yticks(y, labels)
+        ax1.invert_yaxis()
+        top = secs.max() if secs.max() > 0 else 1.0
+        for yi, r in zip(y, t["rows"]):
+            ax1.text(r["seconds"] + top * 0.01, yi, f"{r['text']}  {r['share']}", va="center",
+                     color=_TEXT, fontsize=8)
+        ax1.set_xlim(0, top * 1.22)
+        ax1.grid(False, axis="y")
+    else:
+        ax1.text(0.5, 0.5, "no timings", transform=ax1.transAxes, ha="center", color=_MUTED)
+    ax1.tick_params(axis="y", colors=_TEXT)
+
+    _style_axes(ax2, "")
+    ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6)
+    ts = np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float)
+    aps = np.array([_num(f.get("approx_s")) or np.nan for f in frames], dtype=float)
+    y = np.arange(len(frames))
+    if len(frames) and (np.isfinite(ts).any() or np.isfinite(aps).any()):
+        h = 0.38
+        ax2.barh(y - h / 2, np.nan_to_num(ts), height=h, color=TRUTH_COLOUR, label="truth", zorder=3)
+        ax2.barh(y + h / 2, np.nan_to_num(aps), height=h, color=APPROX_COLOUR, label="horizon-mapped", zorder=3)
+        ax2.set_yticks(y, [fmt_deg(f.get("azimuth_deg")) for f in frames])
+        ax2.invert_yaxis()
+        positive = np.concatenate([ts[ts > 0], aps[aps > 0]])
+        if positive.size:
+            ax2.set_xscale("log")
+            ax2.set_xlim(positive.min() / 2, positive.max() * 2)
+            ax2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt_seconds(v)))
+        ax2.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                   ncol=2, borderaxespad=0.2, handlelength=1.2)
+        ax2.grid(False, axis="y")
+    else:
+        ax2.text(0.5, 0.5, "no frames", transform=ax2.transAxes, ha="center", color=_MUTED)
+    ax2.tick_params(axis="y", colors=_TEXT)
+    _save(fig, path)
+
+
+# --------------------------------------------------------------------------
+# The page
+# --------------------------------------------------------------------------
+
+def _environment():
+    import jinja2
+
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+        autoescape=jinja2.select_autoescape(enabled_extensions=("html", "htm", "xml", "j2"),
+                                            default_for_string=True, default=True),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+    )
+    return env
+
+
+def render_html(context: dict) -> str:
+    """The page for a :func:`build_context` result."""
+    return _environment().get_template("report.html.j2").render(**context)
+
+
+def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
+    """Write ``out/index.html`` and ``out/plots/*.png`` for a sweep's ``metrics``; return the index path.
+
+    ``metrics`` is the content of ``out/metrics.json`` (DESIGN.md); its file
+    paths are relative to ``out``. ``command`` is the command line that
+    reproduces the run. Every file is written atomically.
+    """
+    out = Path(out)
+    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    leak_hex, false_shadow_hex = _map_colours()
+    plot_metrics(out / "plots" / "metrics.png", frames, leak_hex, false_shadow_hex)
+    plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames)
+    plots = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
+    html = render_html(build_context(out, metrics, command, plots))
+    index = out / "index.html"
+    with files.atomic_path(index) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return index
