@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set up hzval on a Debian machine with Python 3.11: Debian's LLVM 19 for
 # Dr.Jit's CPU backend (Debian 12's default LLVM 15 crashes it), a virtualenv
-# in .venv with hzval installed. `--test` adds what the test suite needs.
+# in .venv with hzval installed. `--test` adds what the test suite needs
+# (gcc for the seed peer, chromium for the report's browser test).
 # Safe to run again: it only does what is missing.
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -15,6 +16,9 @@ ls /usr/lib/*-linux-gnu/libLLVM*.so.19* >/dev/null 2>&1 || packages+=(libllvm19)
 python3 -c 'import ensurepip, venv' 2>/dev/null || packages+=(python3-venv)
 if ((tests)); then
     command -v gcc >/dev/null || packages+=(gcc libc6-dev)
+    # the report is tested in a real browser: Debian's chromium, driven by
+    # Playwright's Python package (never `playwright install`: no downloads)
+    [[ -x /usr/bin/chromium ]] || packages+=(chromium)
 fi
 if ((${#packages[@]})); then
     echo "setup: installing Debian packages: ${packages[*]}"

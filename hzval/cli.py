@@ -62,7 +62,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="angular radius of a soft light in degrees")
     p.add_argument("--effects", default=None,
                    help="comma-separated effects: shadow, diffuse, specular, ambient, "
-                        "reflection_occlusion, interreflection (default shadow)")
+                        "reflection_occlusion, interreflection (default shadow,diffuse)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the samples (default 0)")
     p.add_argument("--supersampling", type=int, default=None, help="pixels per texel along each axis (default 1)")
@@ -153,9 +153,27 @@ def cmd_sweep(args) -> int:
     return errors.EXIT_OK
 
 
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--azimuths -60:60:15`` as ``--azimuths=-60:60:15``.
+
+    argparse takes a value that starts with ``-`` for an option unless it
+    looks like a plain negative number, and the sweep's own default,
+    ``-60:60:15``, does not.
+    """
+    out, it = [], iter(argv)
+    for a in it:
+        if a in ("--azimuths", "--elevation"):
+            nxt = next(it, None)
+            out.append(a if nxt is None else f"{a}={nxt}")
+        else:
+            out.append(a)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = _parser().parse_args(_join_negative_values(argv))
+    args.argv = argv
     try:
         return args.run(args)
     except errors.HzvalError as exc:

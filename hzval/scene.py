@@ -18,7 +18,7 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [material]  height = "bricks" | "path/relative/to/scene.png", size, depth, boundary, albedo
     [camera]    supersampling = 1
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
-    [effects]   list = ["shadow"], interreflection_depth = 2
+    [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
     [tolerances]  free-form, read by the regression check
 """
@@ -35,6 +35,18 @@ import numpy as np
 
 from hzval import conventions as cv
 from hzval.errors import InputError
+
+# Shading constants that both renderers use: one place, so that the two sides
+# cannot drift apart. (Material properties; a scene cannot set them yet.)
+#: Blinn-Phong specular colour ``ks`` (grey; a dielectric's normal-incidence
+#: reflectance), FGED2 ch. 7's ``C_specular``.
+SPECULAR_KS = 0.04
+#: Blinn-Phong exponent ``alpha`` (FGED2 ch. 7).
+SPECULAR_EXPONENT = 64
+#: Radiance of the uniform sky of ``ambient`` per unit of the light's
+#: irradiance E: ``1/pi`` gives an unoccluded horizontal plane an irradiance
+#: E from the sky.
+SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
 
 #: Effects a scene can call for (DESIGN.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
@@ -76,14 +88,24 @@ class Light:
         return cv.light_direction(azimuth_deg, self.elevation_deg)
 
 
+#: What a scene simulates when it does not say: Lengyel's Figure 5.3 - a
+#: normal-mapped (Lambertian) surface with horizon-mapped shadows - so that
+#: the report's plain normal mapping differs from the horizon-mapped image
+#: by exactly the shadows.
+DEFAULT_EFFECTS = ("shadow", "diffuse")
+
+#: Mitsuba's ``max_depth`` convention: 2 is direct light only, 3 adds one bounce.
+DEFAULT_INTERREFLECTION_DEPTH = 3
+
+
 @dataclass(frozen=True)
 class Scene:
     name: str = "bricks"
     material: MaterialSpec = MaterialSpec()
     camera: Camera = Camera()
     light: Light = Light()
-    effects: tuple[str, ...] = ("shadow",)
-    interreflection_depth: int = 2
+    effects: tuple[str, ...] = DEFAULT_EFFECTS
+    interreflection_depth: int = DEFAULT_INTERREFLECTION_DEPTH
     spp: int = 16
     seed: int = 0
     tolerances: dict = field(default_factory=dict)
@@ -162,8 +184,8 @@ def load_scene(path: str | Path) -> Scene:
             material=MaterialSpec(**mat),
             camera=Camera(**data.get("camera", {})),
             light=Light(**light),
-            effects=tuple(effects.get("list", ("shadow",))),
-            interreflection_depth=int(effects.get("interreflection_depth", 2)),
+            effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
+            interreflection_depth=int(effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH)),
             spp=int(samples.get("spp", 16)),
             seed=int(samples.get("seed", 0)),
             tolerances=dict(data.get("tolerances", {})),

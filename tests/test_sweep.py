@@ -1,0 +1,149 @@
+"""``hzval sweep`` end to end on small maps: metrics.json as DESIGN.md fixes it, the frames it
+points to, the bake cache, analytic answers for a flat map and a wall, and bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hzval import cli, files, sweep
+
+# DESIGN.md, "Interface that scripts and CI rely on".
+TOP_KEYS = {"material", "parameters", "versions", "timings", "simulated", "frames"}
+FRAME_KEYS = {"azimuth_deg", "elevation_deg", "visibility_mae", "leak_fraction", "false_shadow_fraction",
+              "flip_mean", "rmse", "psnr_db", "delta_e2000_mean", "truth_s", "approx_s", "files"}
+FRAME_FILES = {"truth", "approx", "visibility", "factor"}
+
+
+def run(*argv) -> int:
+    return cli.main([str(a) for a in argv])
+
+
+@pytest.fixture(scope="module")
+def bricks_sweep(tmp_path_factory):
+    """The default sweep's shape on a 48x48 built-in brick wall, three lights; run twice."""
+    out = tmp_path_factory.mktemp("sweep") / "bricks"
+    argv = ("sweep", "--size", 48, "--azimuths", "-15:15:15", "--spp", 4, "--quiet", "--out", out)
+    assert run(*argv) == 0
+    first = json.loads((out / "metrics.json").read_text())
+    assert run(*argv) == 0
+    second = json.loads((out / "metrics.json").read_text())
+    return out, first, second
+
+
+def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
+    out, m, _ = bricks_sweep
+    assert TOP_KEYS <= set(m)
+    assert [f["azimuth_deg"] for f in m["frames"]] == [-15.0, 0.0, 15.0]
+    for f in m["frames"]:
+        assert FRAME_KEYS <= set(f)
+        assert FRAME_FILES <= set(f["files"])
+        assert f["elevation_deg"] == 30.0
+        for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
+            assert 0.0 <= f[key] <= 1.0, key
+        assert f["truth_s"] > 0 and f["approx_s"] > 0
+    # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
+    assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"]}
+    assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
+    assert m["parameters"]["spp"] == 4
+    assert {"mitsuba", "drjit"} <= {k.lower() for k in m["versions"]}
+
+
+def test_frame_files_exist_and_hold_what_they_say(variant, bricks_sweep):
+    out, m, _ = bricks_sweep
+    for f in m["frames"]:
+        for rel in f["files"].values():
+            assert not rel.startswith("/") and (out / rel).is_file(), rel
+        V = files.read_exr(out / f["files"]["visibility"])
+        F = files.read_exr(out / f["files"]["factor"])
+        assert list(V) == ["Y"] and list(F) == ["Y"]        # one-channel
+        assert V["Y"].shape == F["Y"].shape == (48, 48)       # one pixel per texel
+        for layer in (V["Y"], F["Y"]):
+            assert np.isfinite(layer).all() and layer.min() >= 0 and layer.max() <= 1
+        # the metrics are those of the stored layers
+        assert f["visibility_mae"] == pytest.approx(float(np.mean(np.abs(F["Y"] - V["Y"]))), abs=1e-6)
+        # the bricks (2.4 texels of relief at this size) cast some shadows at 30 degrees
+        assert 0.005 < (V["Y"] < 0.5).mean() < 0.5
+    assert (out / "index.html").is_file()
+
+
+def test_second_run_reuses_the_bake(variant, bricks_sweep):
+    _, first, second = bricks_sweep
+    assert first["timings"]["bake_cached"] is False
+    assert second["timings"]["bake_cached"] is True
+    # same scene, same seed: the same numbers
+    for a, b in zip(first["frames"], second["frames"]):
+        assert a["visibility_mae"] == b["visibility_mae"] and a["rmse"] == b["rmse"]
+
+
+def test_summary_table_lists_every_frame(bricks_sweep):
+    _, m, _ = bricks_sweep
+    table = sweep.summary_table(m).splitlines()
+    assert len(table) == 2 + len(m["frames"])
+    assert table[2].split()[0] == "-15" and table[-1].split()[0] == "+15"
+
+
+def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path):
+    """A flat plane is fully lit, and normal mapping a flat plane is exact: no error at all."""
+    np.save(tmp_path / "flat.npy", np.full((32, 32), 0.5, np.float32))
+    out = tmp_path / "out"
+    assert run("sweep", tmp_path / "flat.npy", "--azimuths", "-60,0,45", "--spp", 2, "--quiet",
+               "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["material"]["name"] == "flat" or m["material"].get("path", "").endswith("flat.npy")
+    for f in m["frames"]:
+        assert f["visibility_mae"] == 0 and f["leak_fraction"] == 0 and f["false_shadow_fraction"] == 0
+        assert f["rmse"] == pytest.approx(0, abs=1e-6)
+        assert f["psnr_db"] is None or f["psnr_db"] > 100        # infinite PSNR is written as null
+        assert f["flip_mean"] == pytest.approx(0, abs=1e-6)
+
+
+def test_wall_shadow_is_seen_by_both(variant, tmp_path):
+    """A wall 8 texels high at 30 degrees shadows about 8 / tan(30) = 13.9 texels behind it;
+    both the truth and the horizon factor see that shadow (the technique's error is elsewhere)."""
+    h = np.zeros((32, 48), np.float32)
+    h[:, 10] = 1.0
+    np.save(tmp_path / "wall.npy", h)
+    out = tmp_path / "out"
+    # depth in image widths: 8 texels / 48 texels
+    assert run("sweep", tmp_path / "wall.npy", "--depth", 8 / 48, "--boundary", "open",
+               "--azimuths", "180", "--effects", "shadow", "--spp", 4, "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    (f,) = m["frames"]
+    V = files.read_exr(out / f["files"]["visibility"])["Y"]
+    F = files.read_exr(out / f["files"]["factor"])["Y"]
+    length = 8 / math.tan(math.radians(30))
+    # light from -x (azimuth 180): the shadow falls on +x of the wall, columns 11 .. 10 + length
+    row = 16
+    assert V[row, 11:10 + int(length)].max() < 0.5
+    assert V[row, 10 + int(length) + 2:].min() > 0.5
+    assert V[row, :10].min() > 0.5
+    assert F[row, 11:16].max() < 0.5        # the horizon map sees the wall right behind it
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (("sweep", "MISSING.png"), "MISSING.png"),
+    (("sweep", "--size", "24", "--azimuths", "a:b"), "azimuths"),
+    (("sweep", "--size", "24", "--depth", "-1"), "depth"),
+    (("sweep", "--size", "24", "--k", "0"), "--k"),
+    (("sweep", "--size", "24", "--effects", "glitter"), "effects"),
+])
+def test_bad_input_is_one_line_exit_2_and_no_output(argv, needle, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    assert run(*argv, "--quiet", "--out", out) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hzval: error:") and needle in err and "\n" not in err
+    assert not out.exists()
+
+
+def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
+    """``--azimuths -30:30:30`` (a value that starts with '-') is taken as the option's value."""
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 24, "--azimuths", "-30:30:30", "--effects", "shadow", "--spp", 1,
+               "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
