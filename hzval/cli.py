@@ -75,6 +75,22 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_sweep)
+
+    p = sub.add_parser("check", help="render the shipped scenes and compare them with reference/ (CI)",
+                       description="Render every scene of scenes/ at its small [check] size and compare the "
+                                   "truth (statistically) and the approximation (tightly) with the references. "
+                                   "Exit 0 when all pass, 1 when any fails; a failure writes an HTML report.")
+    p.add_argument("--references", type=Path, default=None, help="reference folder (default: reference/)")
+    p.add_argument("--scenes", type=Path, default=None, help="scene folder (default: scenes/)")
+    p.add_argument("--report", type=Path, default=None,
+                   help="write the HTML report here (default: reports/check, and only on failure)")
+    p.add_argument("--update", action="store_true",
+                   help="rewrite the references that are missing or failing, and say which")
+    p.add_argument("--seed", type=int, default=None, help="render the truth with this seed instead of the scene's")
+    p.add_argument("--scene", dest="only", action="append", default=None, metavar="NAME",
+                   help="check only this scene (repeatable)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_check)
     return parser
 
 
@@ -151,6 +167,26 @@ def cmd_sweep(args) -> int:
           f"{', cached' if t['bake_cached'] else ''}, truth {t['truth_setup_s'] + t['truth_s']:.2f} s, "
           f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s); report: {out / 'index.html'}")
     return errors.EXIT_OK
+
+
+def cmd_check(args) -> int:
+    import shlex
+
+    from hzval import backend, check
+
+    backend.variant(args.variant)
+    result = check.run(scenes_dir=args.scenes, references=args.references, update=args.update,
+                       seed=args.seed, progress=not args.quiet, only=args.only)
+    print(check.summary(result))
+    for path in result.updated:
+        print(f"updated {path}")
+    failed = not result.passed and not args.update
+    if failed or args.report:
+        out = args.report or Path("reports") / "check"
+        command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+        index = check.write_report(result, out, command=command)
+        print(f"report: {index}")
+    return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 
 def _join_negative_values(argv: list[str]) -> list[str]:

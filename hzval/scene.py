@@ -20,7 +20,8 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
-    [tolerances]  free-form, read by the regression check
+    [check]     size, azimuths, spp: how the regression check renders it (hzval.check)
+    [tolerances.truth], [tolerances.approx]  fail, fail_percent, hard_fail, warn (hzval.check)
 """
 
 from __future__ import annotations
@@ -109,6 +110,7 @@ class Scene:
     spp: int = 16
     seed: int = 0
     tolerances: dict = field(default_factory=dict)
+    check: dict = field(default_factory=dict)   # how `hzval check` renders it (hzval.check)
     source: str | None = None       # the TOML file it came from
 
     def validate(self) -> "Scene":
@@ -189,6 +191,7 @@ def load_scene(path: str | Path) -> Scene:
             spp=int(samples.get("spp", 16)),
             seed=int(samples.get("seed", 0)),
             tolerances=dict(data.get("tolerances", {})),
+            check=dict(data.get("check", {})),
             source=str(path),
         )
     except TypeError as exc:   # an unknown key in a section

@@ -1,0 +1,433 @@
+"""The regression check: the shipped scenes, rendered small, against the references in ``reference/``.
+
+:func:`run` renders every scene of ``scenes/*.toml`` at the small size its
+``[check]`` section asks for (64-128 px) with the truth (:mod:`hzval.truth`)
+and the approximation (:mod:`hzval.approx`, both the ``exact`` and the
+``gpu`` path), and compares each image with its reference::
+
+    reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
+    reference/<scene>/az<azimuth>/approx.exr       R, G, B, F
+    reference/<scene>/az<azimuth>/approx_gpu.exr   R, G, B, F
+
+(linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
+horizon factor, ``var.*`` the variance of each pixel's mean). Values are
+compared after the sweep's exposure (:func:`hzval.compare.exposure`), so a
+difference of 1 is the difference between black and a white Lambertian
+surface facing the light.
+
+Two kinds of image, two tests
+    The approximation is deterministic: a pixel's score is its largest
+    absolute difference over the channels, and tolerances are tight (what
+    float rounding on another CPU or on a GPU may change, no more).
+
+    The truth is Monte Carlo: a new render with another seed differs from
+    the reference by noise alone, which the check must not mistake for a
+    regression. Each pixel is z-tested: ``z = |new - ref| / sqrt(var_new +
+    var_ref)``, two-sided p-value ``erfc(z / sqrt 2)``, as Mitsuba 3's own
+    render tests do (``src/render/tests/test_renders.py``: a z-test against
+    the reference's variance, with the Sidak correction ``alpha' = 1 - (1 -
+    alpha)^(1/n)`` for ``n`` tests). A per-pixel test at 16 samples cannot
+    see a change that stays within one pixel's noise yet covers many pixels
+    (a patch 20% darker), so the means of 8 x 8 blocks of pixels are tested
+    too (Jung, Hanika and Dachsbacher 2020, "Detecting Bias in Monte Carlo
+    Renderers using Welch's t-test", test pixel regions for the same
+    reason), all ``n`` pixel and block tests under one Sidak correction.
+
+    A pixel whose samples all agree has a sample variance of 0, though its
+    mean is uncertain: the variance of each mean is floored at
+    ``s^2 q (1 - q) / spp`` with ``q = 1 / (spp + 2)`` (Laplace's rule of
+    succession: after ``spp`` agreeing samples of a 0/1 event the other
+    outcome still has a probability of about ``1 / (spp + 2)``), ``s`` the
+    larger of the two values. Stratified sampling makes the estimated
+    variance an upper bound: the test errs toward passing noise.
+
+Tiers, per scene (``[tolerances.truth]``, ``[tolerances.approx]``; the
+defaults are :data:`DEFAULT_TIERS`)
+    ``fail``: when a pixel fails - approx: its difference exceeds ``fail``;
+    truth: its p-value is below the Sidak-corrected level ``fail``.
+    ``fail_percent``: the image fails when more than this percentage of its
+    pixels fail; a failing 8 x 8 block (truth) always fails it.
+    ``hard_fail``: the image fails outright - approx: any pixel differs by
+    more than ``hard_fail``; truth: the image means differ by more than
+    ``hard_fail`` (a bias no per-pixel allowance may hide).
+    ``warn``: a passing image is flagged when more than this percentage of
+    its pixels fail.
+
+``--update`` rewrites only the references that are missing or failing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hzval import compare, files
+from hzval.errors import InputError
+
+__all__ = ["Tiers", "DEFAULT_TIERS", "KINDS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
+           "render_references", "compare_image", "run", "write_report", "repository_path"]
+
+#: The images of one frame: the truth and the approximation's two paths.
+KINDS: tuple[str, ...] = ("truth", "approx", "approx_gpu")
+#: Side of the pixel blocks whose means the truth's test also compares.
+BLOCK = 8
+#: Largest side of a check render, in texels (references stay small).
+MAX_CHECK_SIZE = 128
+
+
+@dataclass(frozen=True)
+class Tiers:
+    """Thresholds of one kind of image (see the module docstring for their meaning)."""
+
+    fail: float
+    fail_percent: float
+    hard_fail: float
+    warn: float
+
+    @classmethod
+    def of(cls, scene, kind: str) -> "Tiers":
+        base = DEFAULT_TIERS["truth" if kind == "truth" else "approx"]
+        given = dict(scene.tolerances.get("truth" if kind == "truth" else "approx", {}))
+        unknown = set(given) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise InputError(scene.source or scene.name, f"unknown tolerance {sorted(unknown)[0]!r}; "
+                                                          "use fail, fail_percent, hard_fail, warn")
+        return dataclasses.replace(base, **{k: float(v) for k, v in given.items()})
+
+
+#: Default tiers. approx: absolute differences in exposed linear units (1 =
+#: white); 1e-4 is about 1/40 of an 8-bit step in the darks and far above
+#: float32 rounding. truth: significance level 0.01 (Sidak-corrected), an
+#: allowance of 0.2% of pixels, and a bias of 0.01 in the image mean.
+DEFAULT_TIERS = {
+    "approx": Tiers(fail=1e-4, fail_percent=0.0, hard_fail=0.01, warn=0.0),
+    "truth": Tiers(fail=0.01, fail_percent=0.2, hard_fail=0.01, warn=0.05),
+}
+
+
+@dataclass
+class ImageResult:
+    """The comparison of one image with its reference."""
+
+    scene: str
+    frame: str
+    kind: str
+    status: str                      # "pass", "warn", "fail" or "new"
+    reasons: list[str] = field(default_factory=list)
+    tiers: Tiers | None = None
+    numbers: dict = field(default_factory=dict)
+    maps: dict = field(default_factory=dict)          # "score": per-pixel map for the report
+    new: dict | None = None
+    reference: dict | None = None
+    scale: float = 1.0
+
+    @property
+    def name(self) -> str:
+        return f"{self.scene}/{self.frame}/{self.kind}"
+
+
+@dataclass
+class CheckResult:
+    images: list[ImageResult]
+    updated: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def passed(self) -> bool:
+        return all(r.status in ("pass", "warn") for r in self.images)
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.images)
+
+
+def repository_path(name: str) -> Path:
+    """``scenes/`` or ``reference/`` of the source tree hzval runs from."""
+    return Path(__file__).resolve().parent.parent / name
+
+
+# --------------------------------------------------------------------------
+# Rendering
+# --------------------------------------------------------------------------
+
+def check_scene(scene):
+    """``scene`` as the check renders it: the ``[check]`` section's size, azimuths and spp."""
+    from hzval import scene as sc
+
+    c = scene.check
+    size = c.get("size")
+    if size is not None and scene.material.height != "bricks":
+        raise InputError(scene.source or scene.name, "check.size applies to the built-in material only")
+    s = sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"))
+    return s
+
+
+def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
+    ``seed`` replaces the scene's seed for the truth."""
+    from hzval import approx, bake, scene as sc, sweep, truth
+
+    # another seed moves the samples: only the truth takes it (the approximation is
+    # deterministic, and its references hold its images at the scene's own positions)
+    truth_scene = scene if seed is None else dataclasses.replace(scene, seed=int(seed))
+    hm = sc.load_material_height(scene.material)
+    rows, cols = hm.height.shape
+    if max(rows, cols) > MAX_CHECK_SIZE:
+        raise InputError(scene.source or scene.name,
+                         f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)")
+    params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
+    baked = bake.bake(hm.height, params)
+    albedo = sc.load_albedo(scene.material, rows, cols)
+    the_truth = truth.Truth(truth_scene, hm.height)
+    renderers = {"approx": approx.Approximation(scene, baked, albedo, path="exact"),
+                 "approx_gpu": approx.Approximation(scene, baked, albedo, path="gpu")}
+    out = {}
+    for az in scene.light.azimuths_deg:
+        name = sweep.frame_folder(az)
+        t = the_truth.render(az)
+        ch = _rgb(t.image)
+        ch["V"] = t.layers["visibility"]
+        var = _rgb(t.variance["image"])
+        ch.update({f"var.{k}": v for k, v in var.items()})
+        ch["var.V"] = t.variance["visibility"]
+        out[(name, "truth")] = ch
+        for kind, r in renderers.items():
+            a = r.render(az)
+            ch = _rgb(a.image)
+            ch["F"] = a.layers["factor"]
+            out[(name, kind)] = ch
+    return out
+
+
+def _rgb(image: np.ndarray) -> dict[str, np.ndarray]:
+    return {c: np.asarray(image[..., k], np.float32) for k, c in enumerate("RGB")}
+
+
+# --------------------------------------------------------------------------
+# Comparing
+# --------------------------------------------------------------------------
+
+def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
+    """The value channels (not ``var.*``) stacked last, in the order of ``names`` if given
+    (an EXR file lists its channels sorted by name)."""
+    names = names or [k for k in ch if not k.startswith("var.")]
+    return names, np.stack([np.asarray(ch[k], np.float64) for k in names], axis=-1)
+
+
+def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: str, tiers: Tiers,
+                  scale: float, spp: int) -> tuple[str, list[str], dict, dict]:
+    """``(status, reasons, numbers, maps)`` of one image against its reference.
+
+    ``scale`` multiplies the RGB channels (the exposure); ``V`` and ``F`` are
+    already in [0, 1].
+    """
+    names, a = _values(new)
+    ref_names = sorted(k for k in ref if not k.startswith("var."))
+    shapes = {np.shape(v) for v in ref.values()}
+    if ref_names != sorted(names) or (kind == "truth" and any(f"var.{n}" not in ref for n in names)) \
+            or shapes != {a.shape[:2]}:
+        return "fail", [f"reference has channels {sorted(ref)} of shape {sorted(shapes)}, the new render "
+                        f"{sorted(new)} of shape {a.shape[:2]}: render it again with --update"], {}, {}
+    _, b = _values(ref, names)
+    s = np.array([scale if n in "RGB" else 1.0 for n in names])
+    a, b = a * s, b * s
+    diff = a - b
+    absdiff = np.abs(diff)
+    n_pix = diff.shape[0] * diff.shape[1]
+    numbers = {"max_abs": float(absdiff.max()), "mean_abs": float(absdiff.mean()),
+               "mean_diff": float(diff.mean()), "pixels": n_pix}
+    reasons = []
+    if not np.isfinite(a).all():
+        return "fail", ["the new render has non-finite values"], numbers, {"score": absdiff.max(-1)}
+    if kind != "truth":
+        score = absdiff.max(-1)
+        failing = score > tiers.fail
+        hard = bool((score > tiers.hard_fail).any())
+        maps = {"score": score}
+        if hard:
+            reasons.append(f"a pixel differs by {score.max():.3g} > hard_fail {tiers.hard_fail:g}")
+    else:
+        var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
+        var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
+        q = 1.0 / (spp + 2)
+        floor = np.maximum(np.abs(a), np.abs(b)) ** 2 * q * (1 - q) / spp
+        var = np.maximum(np.nan_to_num(var_a), floor) + np.maximum(np.nan_to_num(var_b), floor)
+        var = np.maximum(var, 1e-12)           # two exact zeros: any difference is significant
+        p_pix = _p_value(absdiff / np.sqrt(var)).min(-1)
+        blocks_d, blocks_v = _block_sums(diff), _block_sums(var)
+        nb = blocks_d.shape[0] * blocks_d.shape[1]
+        p_blk = _p_value(np.abs(blocks_d) / np.sqrt(blocks_v)).min(-1)
+        n_tests = (n_pix + nb) * len(names)
+        alpha = -math.expm1(math.log1p(-tiers.fail) / n_tests)       # Sidak, without cancellation
+        failing = p_pix < alpha
+        bad_blocks = int((p_blk < alpha).sum())
+        bias = np.abs(diff.mean(axis=(0, 1)))
+        hard = bool((bias > tiers.hard_fail).any())
+        numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
+                       bias=float(bias.max()))
+        # the map shows the stronger evidence at each pixel: its own test or its block's
+        p_map = p_pix.copy()
+        hb, wb = p_blk.shape
+        p_map[:hb * BLOCK, :wb * BLOCK] = np.minimum(
+            p_map[:hb * BLOCK, :wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK))))
+        maps = {"score": np.minimum(-np.log10(np.maximum(p_map, 1e-300)), 300.0), "alpha": alpha}
+        if hard:
+            reasons.append(f"the image mean differs by {bias.max():.3g} > hard_fail {tiers.hard_fail:g}")
+        if bad_blocks:
+            reasons.append(f"{bad_blocks} of {nb} blocks of {BLOCK}x{BLOCK} pixels differ (p < {alpha:.2g})")
+    percent = 100.0 * float(failing.mean())
+    numbers.update(failing_pixels=int(failing.sum()), failing_percent=percent)
+    if percent > tiers.fail_percent:
+        what = f"|diff| > {tiers.fail:g}" if kind != "truth" else f"p < {numbers['alpha']:.2g}"
+        reasons.append(f"{percent:.3g}% of pixels fail ({what}) > fail_percent {tiers.fail_percent:g}%")
+    if reasons:
+        return "fail", reasons, numbers, maps
+    if percent > tiers.warn:
+        return "warn", [f"{percent:.3g}% of pixels fail > warn {tiers.warn:g}% (allowed up to "
+                        f"{tiers.fail_percent:g}%)"], numbers, maps
+    return "pass", [], numbers, maps
+
+
+def _p_value(z: np.ndarray) -> np.ndarray:
+    from scipy.special import erfc
+
+    return erfc(z / math.sqrt(2.0))
+
+
+def _block_sums(x: np.ndarray) -> np.ndarray:
+    """Means of ``BLOCK x BLOCK`` blocks (for differences) are sums / BLOCK^2; variances of
+    means are sums / BLOCK^4: the ratio tested is the same, so sums are enough."""
+    h, w = x.shape[0] // BLOCK * BLOCK, x.shape[1] // BLOCK * BLOCK
+    x = x[:h, :w]
+    return x.reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK, -1).sum(axis=(1, 3))
+
+
+# --------------------------------------------------------------------------
+# The run
+# --------------------------------------------------------------------------
+
+def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
+    return Path(references) / scene / frame / f"{kind}.exr"
+
+
+def load_scenes(scenes_dir: str | Path) -> list:
+    from hzval import scene as sc
+
+    paths = sorted(Path(scenes_dir).glob("*.toml"))
+    if not paths:
+        raise InputError(scenes_dir, "no scene files (*.toml)")
+    return [sc.load_scene(p) for p in paths]
+
+
+def run(*, scenes_dir: str | Path | None = None, references: str | Path | None = None,
+        update: bool = False, seed: int | None = None, progress: bool = False,
+        only: list[str] | None = None) -> CheckResult:
+    """Render the shipped scenes and compare them with ``references``; with ``update``,
+    rewrite the references that are missing or failing."""
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
+    references = Path(references) if references else repository_path("reference")
+    scenes = [check_scene(s) for s in load_scenes(scenes_dir) if not only or s.name in only]
+    result = CheckResult(images=[])
+    for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):
+        scale = compare.exposure(scene)
+        rendered = render_references(scene, seed=seed)
+        for (frame, kind), new in rendered.items():
+            path = reference_file(references, scene.name, frame, kind)
+            tiers = Tiers.of(scene, kind)
+            r = ImageResult(scene.name, frame, kind, "new", tiers=tiers, new=new, scale=scale)
+            if path.is_file():
+                try:
+                    ref = files.read_exr(path)
+                except Exception as exc:   # a corrupt reference fails its image, not the run
+                    r.status, r.reasons = "fail", [f"{path}: unreadable reference ({files.first_line(exc)})"]
+                else:
+                    r.reference = ref
+                    r.status, r.reasons, r.numbers, r.maps = compare_image(new, ref, kind, tiers, scale, scene.spp)
+            else:
+                r.reasons = [f"no reference at {path}"]
+            if update and r.status in ("new", "fail"):
+                files.write_exr(path, new)
+                result.updated.append(str(path))
+            result.images.append(r)
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def summary(result: CheckResult) -> str:
+    """Failures first, then warnings and new images; a last line with the counts."""
+    lines = []
+    order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
+    for r in sorted(result.images, key=lambda r: order[r.status]):
+        if r.status == "pass":
+            continue
+        lines.append(f"{r.status.upper():4}  {r.name}: {'; '.join(r.reasons)}")
+    lines.append(f"{len(result.images)} images: {result.count('pass')} pass, {result.count('warn')} warn, "
+                 f"{result.count('fail')} fail, {result.count('new')} new ({result.seconds:.1f} s)")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------
+# The failure report
+# --------------------------------------------------------------------------
+
+def write_report(result: CheckResult, out: str | Path, *, command: str = "") -> Path:
+    """``out/index.html``: reference | new | difference for every image, failures first."""
+    from matplotlib import colormaps
+
+    from hzval import backend, report
+
+    out = Path(out)
+    order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
+    items = []
+    for i, r in enumerate(sorted(result.images, key=lambda r: (order[r.status], r.name))):
+        stem = f"img/{i:03d}"
+        entry = {"name": r.name, "status": r.status, "reasons": r.reasons, "kind": r.kind,
+                 "numbers": _fmt_numbers(r.numbers), "tiers": dataclasses.asdict(r.tiers) if r.tiers else {},
+                 "ref": None, "new": None, "diff": None, "diff_caption": ""}
+        if r.new is not None:
+            entry["new"] = _write_preview(out, f"{stem}-new.png", r.new, r.scale)
+        if r.reference is not None:
+            entry["ref"] = _write_preview(out, f"{stem}-ref.png", r.reference, r.scale)
+        score = r.maps.get("score")
+        if score is not None:
+            if r.kind == "truth":
+                top = max(-math.log10(r.maps["alpha"]), 1e-9)
+                entry["diff_caption"] = (f"-log10 p of each pixel or of its 8x8 block, whichever is smaller; "
+                                         f"white at the failing level p = {r.maps['alpha']:.2g}")
+            else:
+                top = r.tiers.hard_fail
+                entry["diff_caption"] = f"largest |new - ref| per pixel; white at hard_fail = {top:g}"
+            rgb = colormaps["magma"](np.clip(score / top, 0, 1))[..., :3]
+            files.write_png(out / f"{stem}-diff.png", files.unit_to_u8(rgb))
+            entry["diff"] = f"{stem}-diff.png"
+        items.append(entry)
+    html = report._environment().get_template("check.html.j2").render(
+        items=items, passed=result.passed, counts={s: result.count(s) for s in order},
+        updated=result.updated, seconds=result.seconds, command=command, versions=backend.versions())
+    index = out / "index.html"
+    with files.atomic_path(index) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return index
+
+
+def _write_preview(out: Path, rel: str, ch: dict, scale: float) -> str:
+    rgb = np.stack([ch["R"], ch["G"], ch["B"]], -1)
+    files.write_png(out / rel, files.unit_to_u8(compare.display(rgb, scale)))
+    return rel
+
+
+def _fmt_numbers(n: dict) -> list[tuple[str, str]]:
+    def g(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+    labels = {"failing_percent": "failing pixels %", "failing_pixels": "failing pixels", "max_abs": "max |diff|",
+              "mean_abs": "mean |diff|", "mean_diff": "mean diff", "bias": "largest channel bias",
+              "min_p": "smallest p", "alpha": "failing level (Sidak)", "failing_blocks": "failing blocks",
+              "blocks": "blocks", "pixels": "pixels"}
+    return [(labels.get(k, k), g(v)) for k, v in n.items()]

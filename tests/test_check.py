@@ -1,0 +1,209 @@
+"""``hzval check``: the shipped references pass, and the check has teeth without crying wolf."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+
+import numpy as np
+import pytest
+
+from hzval import approx, check, cli, files
+
+SHIPPED = check.repository_path("reference")
+
+
+@pytest.fixture
+def refs(tmp_path):
+    """A private copy of the shipped references, to change at will."""
+    dst = tmp_path / "reference"
+    shutil.copytree(SHIPPED, dst)
+    return dst
+
+
+def statuses(result) -> dict[str, str]:
+    return {r.name: r.status for r in result.images}
+
+
+# --------------------------------------------------------------------------
+# The shipped references: the default test run fails on a regression
+# --------------------------------------------------------------------------
+
+def test_shipped_references_pass(variant):
+    """This is the regression check of CI: every shipped scene against reference/."""
+    result = check.run()
+    failing = [f"{r.name}: {'; '.join(r.reasons)}" for r in result.images if r.status not in ("pass", "warn")]
+    assert not failing, "\n".join(failing)
+    scenes = {r.scene for r in result.images}
+    assert {"bricks", "wall", "wall-soft"} <= scenes
+    assert {r.kind for r in result.images} == set(check.KINDS)
+
+
+def test_references_are_small():
+    for p in SHIPPED.rglob("*.exr"):
+        ch = files.read_exr(p)
+        h, w = next(iter(ch.values())).shape
+        assert 32 <= max(h, w) <= check.MAX_CHECK_SIZE, p
+
+
+# --------------------------------------------------------------------------
+# No wolf: Monte Carlo noise passes
+# --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [5, 123])
+def test_truth_rendered_with_another_seed_passes(variant, refs, seed):
+    result = check.run(references=refs, seed=seed)
+    assert result.passed, check.summary(result)
+    # the new truth really is another render, not the reference again
+    t = next(r for r in result.images if r.kind == "truth" and r.scene == "bricks")
+    assert t.numbers["max_abs"] > 0.05
+
+
+# --------------------------------------------------------------------------
+# Teeth
+# --------------------------------------------------------------------------
+
+def _edit(path, fn):
+    ch = files.read_exr(path)
+    fn(ch)
+    files.write_exr(path, ch)
+
+
+def test_a_visibly_darker_patch_in_a_truth_reference_fails(variant, refs, tmp_path):
+    target = check.reference_file(refs, "bricks", "az+0", "truth")
+
+    def darken(ch):   # a 24x24 patch 15% darker: visible, and within each pixel's noise at 16 spp
+        for c in "RGB":
+            ch[c][30:54, 30:54] *= 0.85
+    _edit(target, darken)
+    result = check.run(references=refs, only=["bricks"])
+    st = statuses(result)
+    assert st["bricks/az+0/truth"] == "fail"
+    assert all(s == "pass" for n, s in st.items() if n != "bricks/az+0/truth"), st
+    r = next(r for r in result.images if r.name == "bricks/az+0/truth")
+    assert r.numbers["failing_blocks"] > 0       # the block test sees what single pixels cannot
+
+    index = check.write_report(result, tmp_path / "report", command="hzval check")
+    html = index.read_text()
+    first = html.index("<section")
+    assert html.index("bricks/az+0/truth", first) < html.index("bricks/az-60/truth", first)  # failures first
+    for name in ("ref", "new", "diff"):
+        assert (tmp_path / "report" / "img" / f"000-{name}.png").is_file()
+
+
+def test_a_changed_approximation_reference_fails(variant, refs):
+    target = check.reference_file(refs, "wall", "az+135", "approx")
+
+    def nudge(ch):     # one pixel 0.01 brighter: invisible, but the approximation is deterministic
+        ch["R"][10, 10] += 0.01
+    _edit(target, nudge)
+    st = statuses(check.run(references=refs, only=["wall"]))
+    assert st["wall/az+135/approx"] == "fail"
+    assert st["wall/az+135/approx_gpu"] == "pass" and st["wall/az+135/truth"] == "pass"
+
+
+def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatch):
+    """Channel 0 faces azimuth 0: the exact path's frames at 0 degrees fail, the others do not."""
+    original = approx.Approximation._exact_weights
+
+    def flipped(d):
+        w = original(d)
+        return [-w[0], *w[1:]]
+    monkeypatch.setattr(approx.Approximation, "_exact_weights", staticmethod(flipped))
+    st = statuses(check.run(references=refs, only=["bricks", "wall"]))
+    assert st["bricks/az+0/approx"] == "fail" and st["wall/az+0/approx"] == "fail"
+    assert st["bricks/az+45/approx"] == "pass" and st["wall/az+135/approx"] == "pass"
+    assert st["bricks/az+0/approx_gpu"] == "pass"       # the GPU path reads the cube map instead
+
+
+def test_a_biased_truth_fails_even_within_each_pixels_noise(variant, refs):
+    target = check.reference_file(refs, "wall-soft", "az+0", "truth")
+
+    def brighten(ch):  # everything 3% brighter: below one pixel's noise, a bias of the whole image
+        for c in "RGBV":
+            ch[c] *= 1.03
+    _edit(target, brighten)
+    result = check.run(references=refs, only=["wall-soft"])
+    r = next(r for r in result.images if r.name == "wall-soft/az+0/truth")
+    assert r.status == "fail", r.reasons
+
+
+# --------------------------------------------------------------------------
+# --update and the command line
+# --------------------------------------------------------------------------
+
+def test_update_rewrites_only_missing_and_failing_references(variant, refs):
+    missing = check.reference_file(refs, "wall", "az+0", "approx_gpu")
+    broken = check.reference_file(refs, "wall", "az+135", "approx")
+    untouched = check.reference_file(refs, "wall", "az+0", "truth")
+    missing.unlink()
+    _edit(broken, lambda ch: ch["G"].__imul__(0.5))
+    before = untouched.stat().st_mtime_ns
+    result = check.run(references=refs, only=["wall"], update=True)
+    assert sorted(result.updated) == sorted([str(missing), str(broken)])
+    assert untouched.stat().st_mtime_ns == before
+    assert check.run(references=refs, only=["wall"]).passed
+
+
+def test_cli_exit_codes_and_report(variant, refs, tmp_path, capsys):
+    assert cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall"]) == 0
+    capsys.readouterr()
+    _edit(check.reference_file(refs, "wall", "az+0", "approx"), lambda ch: ch["F"].__iadd__(0.2))
+    report = tmp_path / "rep"
+    assert cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall", "--report", str(report)]) == 1
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].startswith("FAIL  wall/az+0/approx")
+    assert (report / "index.html").is_file()
+    # a folder without references: every image is new, which fails until --update writes them
+    empty = tmp_path / "empty"
+    assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall",
+                     "--report", str(report)]) == 1
+    assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall", "--update"]) == 0
+    assert len(list(empty.rglob("*.exr"))) == 6
+    assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall"]) == 0
+
+
+# --------------------------------------------------------------------------
+# The comparison itself, on synthetic images
+# --------------------------------------------------------------------------
+
+def _truth_channels(rng, mean, var, spp=16):
+    noise = rng.standard_normal(mean.shape) * np.sqrt(var)
+    ch = {c: (mean + noise).astype(np.float32) for c in "RGBV"}
+    ch.update({f"var.{c}": np.full(mean.shape, var, np.float32) for c in "RGBV"})
+    return ch
+
+
+def test_pure_noise_passes_and_a_shift_of_a_few_sigma_over_a_block_fails():
+    rng = np.random.default_rng(0)
+    mean, var = np.full((64, 64), 0.5), 0.01
+    tiers = check.DEFAULT_TIERS["truth"]
+    fails = 0
+    for _ in range(20):
+        status, *_ = check.compare_image(_truth_channels(rng, mean, var), _truth_channels(rng, mean, var),
+                                         "truth", tiers, 1.0, 16)
+        fails += status == "fail"
+    assert fails == 0
+    shifted = mean.copy()
+    shifted[:8, :8] += 0.15          # 1.5 sigma per pixel, 8.5 sigma for the block mean
+    status, reasons, numbers, _ = check.compare_image(_truth_channels(rng, shifted, var),
+                                                      _truth_channels(rng, mean, var), "truth", tiers, 1.0, 16)
+    assert status == "fail" and numbers["failing_blocks"] >= 1, reasons
+
+
+def test_shape_mismatch_fails_with_a_reason():
+    a = {c: np.zeros((8, 8), np.float32) for c in "RGBF"}
+    b = {c: np.zeros((8, 9), np.float32) for c in "RGBF"}
+    status, reasons, *_ = check.compare_image(a, b, "approx", check.DEFAULT_TIERS["approx"], 1.0, 16)
+    assert status == "fail" and "--update" in reasons[0]
+
+
+def test_unknown_tolerance_is_an_input_error(variant):
+    from hzval.errors import InputError
+    from hzval.scene import Scene
+
+    s = dataclasses.replace(Scene(), tolerances={"truth": {"fial": 0.1}})
+    with pytest.raises(InputError, match="fial"):
+        check.Tiers.of(s, "truth")
+    s = dataclasses.replace(Scene(), tolerances={"approx": {"fail": 0.5}})
+    assert check.Tiers.of(s, "approx_gpu").fail == 0.5
