@@ -41,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_material_args(p)
     p.add_argument("--radius", type=int, default=16, help="search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 16 (default 32)")
+    p.add_argument("--method", choices=["seed", "exact"], default="seed",
+                   help="horizon bake: seed (Lengyel's bins within --radius) or exact (exact horizons toward "
+                        "the 8 channel directions, unlimited radius; ignores --radius and --angles) (default seed)")
     p.add_argument("--mesh", action="store_true",
                    help="also write the displaced triangle mesh as mesh.ply")
     p.add_argument("--out", required=True, type=Path, help="output folder")
@@ -72,6 +75,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="which ambient-map definition the approximation uses")
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="bake angular bins (default 32)")
+    p.add_argument("--method", choices=["seed", "exact"], default="seed",
+                   help="horizon bake method: seed or exact (unlimited radius) (default seed)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_sweep)
@@ -91,6 +96,22 @@ def _parser() -> argparse.ArgumentParser:
                    help="check only this scene (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_check)
+
+    p = sub.add_parser("tradeoff", help="measure what accuracy costs in time and memory on one material",
+                       description="Measure bake, approximation and truth settings against a converged truth "
+                                   "over the sweep: time, texture memory, visibility error and FLIP; write "
+                                   "tradeoff.json, a Pareto plot and a page that recommends a setting.")
+    _add_material_args(p)
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--azimuths", default=None, help="light azimuths in degrees (default -60:60:15)")
+    p.add_argument("--truth-spp", type=int, default=None, metavar="N",
+                   help="shadow rays per pixel of the converged truth (default 256)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel of the settings (default 16)")
+    p.add_argument("--only", action="append", default=None, metavar="TEXT",
+                   help="measure only the settings whose names contain TEXT (repeatable)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/tradeoff-<name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_tradeoff)
     return parser
 
 
@@ -117,7 +138,7 @@ def cmd_bake(args) -> int:
 
     depth = material.DEFAULT_DEPTH if args.depth is None else args.depth
     params = bake.BakeParams(depth=depth, radius=args.radius, angles=args.angles,
-                             boundary=args.boundary or "wrap").validate()
+                             boundary=args.boundary or "wrap", method=args.method).validate()
     if args.height is not None:
         rows, cols = heightmap.probe_shape(args.height)
         bake.check_fits(args.height, rows, cols, params)
@@ -137,8 +158,10 @@ def cmd_bake(args) -> int:
         written.append(args.out / "mesh.ply")
     total = time.perf_counter() - t0
     rows, cols = height.shape
-    print(f"baked {info['source']} ({cols}x{rows}, depth {params.depth:g}, radius {params.radius}, "
-          f"{params.angles} bins, {params.boundary}) in {total:.2f} s -> {args.out} ({len(written)} files)")
+    how = (f"radius {params.radius}, {params.angles} bins" if params.method == "seed"
+           else "exact horizons, unlimited radius")
+    print(f"baked {info['source']} ({cols}x{rows}, depth {params.depth:g}, {how}, "
+          f"{params.boundary}) in {total:.2f} s -> {args.out} ({len(written)} files)")
     return errors.EXIT_OK
 
 
@@ -154,7 +177,8 @@ def cmd_sweep(args) -> int:
                         supersampling=args.supersampling)
     if args.height:
         scene = dataclasses.replace(scene, name=Path(args.height).stem)
-    options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles)
+    options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles,
+                            method=args.method)
     if not (math.isfinite(options.k) and options.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {options.k}")
     out = args.out or Path("reports") / scene.name
@@ -187,6 +211,39 @@ def cmd_check(args) -> int:
         index = check.write_report(result, out, command=command)
         print(f"report: {index}")
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
+
+
+def cmd_tradeoff(args) -> int:
+    import shlex
+
+    from hzval import backend, scene as sc, tradeoff
+
+    size = args.size if args.size is not None else (None if args.height else tradeoff.DEFAULT_SIZE)
+    scene = sc.override(sc.Scene(), height=str(args.height) if args.height else None, size=size,
+                        depth=args.depth, boundary=args.boundary, elevation=args.elevation,
+                        azimuths=args.azimuths, spp=args.spp)
+    name = Path(args.height).stem if args.height else scene.name
+    truth_spp = tradeoff.DEFAULT_TRUTH_SPP if args.truth_spp is None else args.truth_spp
+    if truth_spp < 1:
+        raise errors.InputError("--truth-spp", f"must be at least 1, got {truth_spp}")
+    backend.variant(args.variant)
+    hm = sc.load_material_height(scene.material)
+    points, info = tradeoff.measure(scene, hm.height, truth_spp=truth_spp, only=args.only,
+                                    progress=not args.quiet)
+    if not points:
+        raise errors.InputError("--only", "no setting matches")
+    out = args.out or Path("reports") / f"tradeoff-{name}"
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    material = {"name": name, "source": hm.source, "digest": hm.digest, "depth": scene.material.depth,
+                "boundary": scene.material.boundary}
+    index = tradeoff.write_tradeoff(out, points, info, material=material, command=command)
+    print(tradeoff.table(points))
+    rec = tradeoff.recommend(points)
+    if rec:
+        print(f"\nrecommended: {rec['setting']} (|F-V| {rec['visibility_mae']:.4f}; "
+              f"best {rec['best']} {rec['best_visibility_mae']:.4f})")
+    print(f"report: {index}")
+    return errors.EXIT_OK
 
 
 def _join_negative_values(argv: list[str]) -> list[str]:

@@ -47,6 +47,7 @@ class Options:
     ambient: str = "mean_cos2"   # which ambient-map definition the approximation uses
     radius: int = 16
     angles: int = 32
+    method: str = "seed"         # horizon bake method: "seed" or "exact" (BakeParams.method)
 
 
 def frame_folder(azimuth_deg: float) -> str:
@@ -93,7 +94,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     params = BakeParams(depth=scene.material.depth, radius=options.radius, angles=options.angles,
-                        boundary=scene.material.boundary).validate()
+                        boundary=scene.material.boundary, method=options.method).validate()
     bake.check_fits(hm.path or "material", rows, cols, params)
     material_info = {"name": scene.name, "source": hm.source, "digest": hm.digest,
                      "rows": rows, "cols": cols, "path": hm.path}
@@ -136,7 +137,8 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     result = {
         "material": material_info,
         "parameters": {"depth": scene.material.depth, "boundary": scene.material.boundary,
-                       "radius": options.radius, "angles": options.angles,
+                       "method": params.method, "radius": params.record()["radius"],
+                       "angles": params.record()["angles"],
                        "elevation_deg": scene.light.elevation_deg,
                        "azimuths_deg": list(scene.light.azimuths_deg), "k": options.k,
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
