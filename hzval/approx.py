@@ -154,7 +154,15 @@ class Approximation:
         (:func:`hzval.scene.load_albedo`). Only used by ``diffuse`` and
         ``ambient``; a uniform albedo enters the kernel as a constant.
     path
-        ``"exact"`` or ``"gpu"`` (module docstring).
+        ``"exact"`` or ``"gpu"`` (module docstring): the defaults of the two
+        settings below.
+    storage
+        ``"float"`` or ``"u8"``: the horizon map as baked, or quantised to 8
+        bits as an engine stores it. Default: ``"u8"`` on the ``gpu`` path.
+    weights
+        ``"analytic"`` (the exact interpolation) or ``"cube"`` (the 8-bit
+        weight cube map). Default: ``"cube"`` on the ``gpu`` path. The two
+        settings separate the costs of the GPU path (``hzval tradeoff``).
     k
         Shadow hardness of eq. 5.4, > 0.
     ambient
@@ -174,7 +182,7 @@ class Approximation:
 
     def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *,
                  path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
-                 fade: float = DEFAULT_FADE):
+                 fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None):
         from hzval import backend
 
         backend.variant()
@@ -183,6 +191,12 @@ class Approximation:
 
         if path not in PATHS:
             raise InputError("path", f"must be one of {', '.join(PATHS)}, got {path!r}")
+        storage = storage or ("u8" if path == "gpu" else "float")
+        weights = weights or ("cube" if path == "gpu" else "analytic")
+        if storage not in ("float", "u8"):
+            raise InputError("storage", f"must be float or u8, got {storage!r}")
+        if weights not in ("analytic", "cube"):
+            raise InputError("weights", f"must be analytic or cube, got {weights!r}")
         if ambient not in AMBIENT_TERMS:
             raise InputError("ambient", f"must be one of {', '.join(AMBIENT_TERMS)}, got {ambient!r}")
         if not (math.isfinite(k) and k > 0):
@@ -192,6 +206,7 @@ class Approximation:
 
         self.scene, self.bake = scene, bake
         self.path, self.k, self.ambient, self.fade = path, float(k), ambient, float(fade)
+        self.storage, self.weights = storage, weights
         rows, cols = bake.horizon.shape[:2]
         self.rows, self.cols = rows, cols
         self.shape = image_shape(rows, cols, scene.camera)
@@ -221,7 +236,7 @@ class Approximation:
 
         if need_horizon:
             h = np.asarray(bake.horizon, dtype=np.float32)
-            if path == "gpu":
+            if storage == "u8":
                 from hzval.files import unit_to_u8
 
                 h = unit_to_u8(h).astype(np.float32) / np.float32(255.0)
@@ -248,7 +263,7 @@ class Approximation:
                 filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
 
         self._cube = None
-        if need_horizon and path == "gpu":
+        if need_horizon and weights == "cube":
             from hzval.bake import weight_cube
 
             cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
@@ -283,15 +298,18 @@ class Approximation:
     @property
     def parameters(self) -> dict:
         """The technique's settings, for ``metrics.json``."""
-        out = {"path": self.path, "k": self.k, "simulated": list(self.simulated)}
+        out = {"path": self.path, "storage": self.storage, "weights": self.weights, "k": self.k,
+               "simulated": list(self.simulated)}
         if self._ambient:
             out["ambient"] = self.ambient
         if self._reflection:
             out["fade"] = self.fade
         if self._specular:
             out.update(specular_ks=SPECULAR_KS, specular_alpha=SPECULAR_EXPONENT)
-        if self.path == "gpu":
-            out.update(horizon_bits=8, cube_size=CUBE_SIZE, cube_bits=8,
+        if self.storage == "u8":
+            out.update(horizon_bits=8)
+        if self.weights == "cube":
+            out.update(cube_size=CUBE_SIZE, cube_bits=8,
                        cube_filter="bilinear within the face, clamped to its edge")
         return out
 
@@ -394,7 +412,7 @@ class Approximation:
 
     def _channel_weights(self, d) -> list:
         """The 8 channel weights toward the azimuth of directions ``d`` (path-specific)."""
-        return self._exact_weights(d) if self.path == "exact" else self._cube_weights(d)
+        return self._exact_weights(d) if self.weights == "analytic" else self._cube_weights(d)
 
     @staticmethod
     def _exact_weights(d) -> list:
