@@ -156,8 +156,8 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 )
 
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
-    ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("radius", "bake radius"),
-                        ("angles", "bake angles"))),
+    ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("method", "bake method"),
+                        ("radius", "bake radius"), ("angles", "bake angles"))),
     ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
                ("azimuths_deg", "azimuths"))),
     ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"))),
@@ -375,6 +375,11 @@ def _parameters(p: dict) -> list[dict]:
                     text = f"{value:g} × {value:g} per texel"
                 elif key == "radius" and _num(value) is not None:
                     text = f"{value:g} texels"
+                elif key in ("radius", "angles") and value is None and p.get("method") == "exact":
+                    text = "unlimited" if key == "radius" else "8 exact directions"
+                elif key == "method":
+                    text = {"seed": "seed (binned, Lengyel)",
+                            "exact": "exact horizons (convex-hull sweeps)"}.get(str(value), str(value))
                 rows.append({"label": label, "text": text, "key": key})
         if rows:
             groups.append({"title": title, "rows": rows})
