@@ -189,7 +189,8 @@ def cmd_sweep(args) -> int:
     t = result["timings"]
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s (bake {t['bake_s']:.2f} s"
           f"{', cached' if t['bake_cached'] else ''}, truth {t['truth_setup_s'] + t['truth_s']:.2f} s, "
-          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s); report: {out / 'index.html'}")
+          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s; peak memory "
+          f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
     return errors.EXIT_OK
 
 

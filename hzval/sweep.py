@@ -73,6 +73,14 @@ def flip_image(error: np.ndarray) -> np.ndarray:
     return (colormaps["magma"](np.clip(error, 0, 1))[..., :3] * 255 + 0.5).astype(np.uint8)
 
 
+def peak_rss_bytes() -> int:
+    """Peak resident memory of this process so far, in bytes (Linux reports KiB, macOS bytes)."""
+    import resource
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(rss if sys.platform == "darwin" else rss * 1024)
+
+
 def _machine() -> str:
     return f"{platform.system()} {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}"
 
@@ -154,6 +162,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     report.write_report(out, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
+    result["memory"] = {"peak_rss_bytes": peak_rss_bytes()}
     files.write_json(out / "metrics.json", result)
     return result
 

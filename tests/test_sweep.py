@@ -49,6 +49,7 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
     assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"]}
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
+    assert m["memory"]["peak_rss_bytes"] > 2**20
     assert {"mitsuba", "drjit"} <= {k.lower() for k in m["versions"]}
 
 
