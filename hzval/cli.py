@@ -120,9 +120,11 @@ def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
     from hzval import heightmap, material
 
     if args.height is None:
+        from hzval.scene import BRICKS_MIN_SIZE
+
         size = material.DEFAULT_SIZE if args.size is None else args.size
-        if size < 2:
-            raise errors.InputError("--size", f"must be at least 2 texels, got {size}")
+        if size < BRICKS_MIN_SIZE:
+            raise errors.InputError("--size", f"the built-in bricks need at least {BRICKS_MIN_SIZE} texels, got {size}")
         hm = heightmap.from_array(material.bricks(size), source=f"built-in brick wall, {size}x{size}")
         info = {"path": None, "builtin": "bricks", "size": size}
     else:
@@ -142,6 +144,9 @@ def cmd_bake(args) -> int:
     if args.height is not None:
         rows, cols = heightmap.probe_shape(args.height)
         bake.check_fits(args.height, rows, cols, params)
+    else:   # estimate before generating the built-in map too
+        size = material.DEFAULT_SIZE if args.size is None else args.size
+        bake.check_fits("--size", size, size, params)
     t0 = time.perf_counter()
     height, info = load_material(args)
     t_load = time.perf_counter() - t0

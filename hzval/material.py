@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "bricks"]
+__all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "MIN_SIZE", "bricks"]
 
 #: Side of the default height map in texels.
 DEFAULT_SIZE = 512
+#: Smallest side :func:`bricks` accepts, in texels.
+MIN_SIZE = 8
 #: Suggested ``depth`` for :func:`bricks`: the world height of ``H = 1`` in
 #: units of the image width (``DESIGN.md``), i.e. 25.6 texels at 512 texels.
 DEFAULT_DEPTH = 0.05
@@ -49,8 +51,8 @@ def _shape(size: int | tuple[int, int]) -> tuple[int, int]:
         rows = cols = int(size)
     else:
         rows, cols = (int(s) for s in size)
-    if rows < 8 or cols < 8:
-        raise ValueError(f"bricks: size must be at least 8x8 texels, got {rows}x{cols}")
+    if rows < MIN_SIZE or cols < MIN_SIZE:
+        raise ValueError(f"bricks: size must be at least {MIN_SIZE}x{MIN_SIZE} texels, got {rows}x{cols}")
     return rows, cols
 
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from hzval import conventions as cv
 from hzval.errors import InputError
+from hzval.material import MIN_SIZE as BRICKS_MIN_SIZE
 
 # Shading constants that both renderers use: one place, so that the two sides
 # cannot drift apart. (Material properties; a scene cannot set them yet.)
@@ -116,12 +117,35 @@ class Scene:
     def validate(self) -> "Scene":
         what = self.source or "scene"
         m, lt = self.material, self.light
-        if not np.isfinite(m.depth) or m.depth <= 0:
+        # values from TOML may be of any type: every number must be one (and finite) before it is compared
+        for name, value in (("material.depth", m.depth), ("material.size", m.size),
+                            ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
+                            ("light.irradiance", lt.irradiance), ("samples.spp", self.spp),
+                            ("samples.seed", self.seed), ("camera.supersampling", self.camera.supersampling),
+                            ("effects.interreflection_depth", self.interreflection_depth),
+                            *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg))):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise InputError(what, f"{name} must be a number, got {value!r}")
+            if name == "light.radius_deg" and lt.kind != "soft":
+                continue
+            if not math.isfinite(value):
+                raise InputError(what, f"{name} must be a finite number, got {value}")
+        if m.depth <= 0:
             raise InputError(what, f"material.depth must be positive, got {m.depth}")
         if m.boundary not in cv.BOUNDARIES:
             raise InputError(what, f"material.boundary must be wrap or open, got {m.boundary!r}")
         if m.size < 2:
             raise InputError(what, f"material.size must be at least 2, got {m.size}")
+        if m.height == "bricks" and m.size < BRICKS_MIN_SIZE:
+            raise InputError(what, f"material.size of the built-in bricks must be at least {BRICKS_MIN_SIZE}, "
+                                   f"got {m.size}")
+        if lt.irradiance <= 0:
+            raise InputError(what, f"light.irradiance must be positive, got {lt.irradiance}")
+        if int(self.seed) != self.seed or self.seed < 0:
+            raise InputError(what, f"samples.seed must be a non-negative integer, got {self.seed}")
+        if self.interreflection_depth < 2:
+            raise InputError(what, "effects.interreflection_depth counts path segments as Mitsuba's max_depth: "
+                                   f"at least 2 (direct light), got {self.interreflection_depth}")
         if lt.kind not in ("hard", "soft"):
             raise InputError(what, f"light.kind must be hard or soft, got {lt.kind!r}")
         if lt.kind == "soft" and not 0 < lt.radius_deg < 90:
@@ -196,6 +220,8 @@ def load_scene(path: str | Path) -> Scene:
         )
     except TypeError as exc:   # an unknown key in a section
         raise InputError(path, f"unknown setting ({exc})") from None
+    except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
+        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     return scene.validate()
 
 

@@ -99,6 +99,11 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     out = Path(out)
     t_start = time.perf_counter()
     backend.variant()
+    if scene.material.height == "bricks":     # estimate before generating the built-in map
+        n = scene.material.size
+        bake.check_fits("--size", n, n, BakeParams(depth=scene.material.depth, radius=options.radius,
+                                                   angles=options.angles, boundary=scene.material.boundary,
+                                                   method=options.method).validate())
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     params = BakeParams(depth=scene.material.depth, radius=options.radius, angles=options.angles,

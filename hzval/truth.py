@@ -179,8 +179,9 @@ class Truth:
 
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
-        if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
-            raise InputError("height", f"expected a finite 2-D height map of at least 2x2, got shape {h.shape}")
+        if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
+            # any size the loader and the bake take (1xN and Nx1 included): the mesh handles them
+            raise InputError("height", f"expected a finite 2-D height map of at least 2 pixels, got shape {h.shape}")
         self.rows, self.cols = rows, cols = h.shape
         self.shape = image_shape(rows, cols, scene.camera)
         self.spp = scene.spp

@@ -131,6 +131,7 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     (("sweep", "--size", "24", "--depth", "-1"), "depth"),
     (("sweep", "--size", "24", "--k", "0"), "--k"),
     (("sweep", "--size", "24", "--effects", "glitter"), "effects"),
+    (("sweep", "--size", "200000"), "GiB"),          # estimated before the map is generated
 ])
 def test_bad_input_is_one_line_exit_2_and_no_output(argv, needle, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
