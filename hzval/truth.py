@@ -94,9 +94,8 @@ Self-intersection
 
 Boundaries
     ``open``: nothing outside the image. ``wrap``: the mesh carries a margin
-    of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for the
-    lowest elevation the light reaches, but never for less than 10 degrees:
-    a margin for a grazing light grows as ``relief / tan(e)`` and the mesh
+    of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for a ray
+    at 10 degrees, whatever the light: a margin for a grazing light grows as ``relief / tan(e)`` and the mesh
     with its square (the bricks at 1 degree: 2.4 GB). Rays that need more -
     lights below 10 degrees, ambient and path rays near the horizon, soft
     lights that dip low - are traced in hops: a hop ends before the ray can leave
