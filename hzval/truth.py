@@ -41,7 +41,9 @@ Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
 ``diffuse``
     ``albedo / pi * E * max(0, n.L)`` with the geometric normal ``n`` of the
     mesh triangle hit and the linear albedo of the texel that holds the
-    sample (nearest: the approximation reads the same texel).
+    sample (nearest: the approximation reads the same texel). It equals
+    Mitsuba's own ``diffuse`` plugin evaluated at the same surface
+    interactions to 1e-4 (``tests/test_truth.py``).
 ``specular``
     Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n.h)^alpha * [n.L > 0]``
     with ``h = normalize(L + v)`` and ``v = +z`` (the camera looks straight

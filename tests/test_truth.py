@@ -340,6 +340,32 @@ def test_blinn_phong_specular_on_a_flat_plane(variant):
     np.testing.assert_allclose(both, expected + a / math.pi * E * math.sin(math.radians(e)), rtol=1e-5)
 
 
+
+def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bumps):
+    """The truth shades with its own Lambert (module docstring); it must equal
+    Mitsuba's ``diffuse`` plugin evaluated at the same surface interactions."""
+    import drjit as dr
+    import mitsuba as mi
+
+    h, depth = bumps
+    E, a, az, e = 1.7, 0.45, 30.0, 35.0
+    t = truth(h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4)
+    image = t.render(az).image
+    xs, ys = S.sample_positions(*h.shape, t.scene.camera, t.spp, t.scene.seed)
+    si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0),
+                                           mi.Vector3f(0.0, 0.0, -1.0)))
+    assert bool(dr.all(si.is_valid()))
+    si.sh_frame = mi.Frame3f(si.n)            # the facet's own normal, as the truth uses
+    si.wi = si.to_local(mi.Vector3f(0.0, 0.0, 1.0))
+    bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [a, a, a]}})
+    L = mi.Vector3f(*(float(c) for c in t.scene.light.direction(az)))
+    f_cos = bsdf.eval(mi.BSDFContext(), si, si.to_local(L))        # f * cos(theta_o)
+    per_sample = np.asarray(f_cos.x, np.float64) * E
+    expected = per_sample.reshape(-1, t.spp).mean(axis=1).reshape(h.shape)
+    assert expected.std() > 0.01                                   # the bumps do vary the shading
+    np.testing.assert_allclose(image[..., 0], expected, rtol=1e-4, atol=1e-6)
+
+
 # --------------------------------------------------------------------------
 # Boundaries
 # --------------------------------------------------------------------------
