@@ -59,7 +59,18 @@ Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
     A path tracer to Mitsuba's ``max_depth`` convention
     (:meth:`Truth._path_trace`); only then are paths traced.
 ``reflection_occlusion``
-    Not simulated yet: it is left out of :attr:`Truth.simulated`.
+    ``R`` = 1 if a direction drawn from the glossy lobe about the mirror
+    direction escapes the surface, else 0 (``layers["reflection_occlusion"]``):
+    the fraction of a glossy reflection of a uniform environment that the
+    displaced surface does not block. The lobe is the ``specular`` one,
+    FGED2's Blinn-Phong of exponent :data:`hzval.scene.SPECULAR_EXPONENT`
+    about the geometric normal, seen from ``v = +z``, sampled by its
+    half-vector distribution (Walter et al. 2007); a direction below the
+    triangle hit (``n.wo <= 0``) or below the horizontal reflects nothing
+    and counts as blocked. It is what the approximation's Toolbag fade ``o``
+    estimates. Like ``A`` it does not depend on the light (traced once) and,
+    as in the approximation, the scene has no environment map, so it is a
+    layer of its own and leaves the image unchanged.
 
 The direct term is ``D`` = diffuse + specular, or ``D = E`` (grey) when the
 scene declares neither; the image is ``D * V`` (``D`` without ``shadow``),
@@ -148,10 +159,12 @@ _EDGE = 2.0 ** -10
 MIN_TRACED_ELEVATION_DEG = 0.25
 
 #: Effects that this truth simulates, in the order of ``hzval.scene.EFFECTS``.
-SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "interreflection")
+SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
+                               "interreflection")
 #: Random stream of the ambient directions; the path tracer's first bounce
 #: reuses it, so that its cosine-weighted directions are the ambient layer's.
 _AMBIENT_STREAM = 0xA3B1
+_REFLECTION_STREAM = 0x5EF1
 #: Declared effects that need the material's albedo.
 _NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
 
@@ -266,6 +279,20 @@ class Truth:
             dr.eval(self._ambient)
             backend.sync()
             self.timings["ambient_s"] = time.perf_counter() - t0
+
+        # -- reflection occlusion: independent of the light, once ---------------
+        self._reflection = None
+        if scene.declares("reflection_occlusion"):
+            t0 = time.perf_counter()
+            rng = self._rng(_REFLECTION_STREAM)
+            wo = _lobe_direction(self._n, mi.Vector3f(0.0, 0.0, 1.0),
+                                 mi.Point2f(rng.next_float32(), rng.next_float32()))
+            blocked = (dr.dot(self._n, wo) <= 0.0) | self._occluded(
+                self._o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+            self._reflection = dr.select(blocked, 0.0, 1.0)
+            dr.eval(self._reflection)
+            backend.sync()
+            self.timings["reflection_s"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
     # Ray queries
@@ -506,6 +533,8 @@ class Truth:
                 img = img + self._albedo * (self._c["E"] * SKY_RADIANCE_PER_IRRADIANCE * self._ambient)
         if self._ambient is not None:
             sums["ambient"] = self._ambient
+        if self._reflection is not None:
+            sums["reflection_occlusion"] = self._reflection
 
         spp = self.spp
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
@@ -683,14 +712,9 @@ def _sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
     import drjit as dr
     import mitsuba as mi
 
-    frame = mi.Frame3f(n)
-    wo_d = frame.to_world(mi.warp.square_to_cosine_hemisphere(u))
+    wo_d = mi.Frame3f(n).to_world(mi.warp.square_to_cosine_hemisphere(u))
     if p_spec > 0.0:
-        cos_h = dr.power(u.x, 1.0 / (SPECULAR_EXPONENT + 1.0))
-        sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
-        phi = 2.0 * math.pi * u.y
-        h = frame.to_world(mi.Vector3f(sin_h * dr.cos(phi), sin_h * dr.sin(phi), cos_h))
-        wo_s = 2.0 * dr.dot(v, h) * h - v
+        wo_s = _lobe_direction(n, v, u)
         wo = dr.select(u_lobe < p_spec, wo_s, wo_d) if p_spec < 1.0 else wo_s
     else:
         wo = wo_d
@@ -710,6 +734,24 @@ def _sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
         pdf += p_spec * pdf_h / dr.maximum(4.0 * dr.abs(dr.dot(wo, hv)), 1e-12)
     ok = (cos_o > 0.0) & (pdf > 0.0)
     return wo, dr.select(ok, f_cos / dr.maximum(pdf, 1e-30), 0.0)
+
+
+def _lobe_direction(n, v, u):
+    """A direction of the Blinn-Phong lobe about normal ``n`` seen from ``v``, from ``u`` in [0, 1)^2.
+
+    The half vector ``h`` has ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``
+    (``alpha`` = :data:`hzval.scene.SPECULAR_EXPONENT`) and the direction is
+    ``v`` reflected about it (Walter et al. 2007); with ``h = n`` it is the
+    mirror direction. It may point below the surface.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    cos_h = dr.power(u.x, 1.0 / (SPECULAR_EXPONENT + 1.0))
+    sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
+    phi = 2.0 * math.pi * u.y
+    h = mi.Frame3f(n).to_world(mi.Vector3f(sin_h * dr.cos(phi), sin_h * dr.sin(phi), cos_h))
+    return 2.0 * dr.dot(v, h) * h - v
 
 
 def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
