@@ -77,6 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--angles", type=int, default=32, help="bake angular bins (default 32)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")
+    p.add_argument("--no-terrain", dest="terrain", action="store_false",
+                   help="leave out the third technique, Raudins' per-light terrain shadows (hzval.terrain)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_sweep)
@@ -183,7 +185,7 @@ def cmd_sweep(args) -> int:
     if args.height:
         scene = dataclasses.replace(scene, name=Path(args.height).stem)
     options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles,
-                            method=args.method)
+                            method=args.method, terrain=args.terrain)
     if not (math.isfinite(options.k) and options.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {options.k}")
     out = args.out or Path("reports") / scene.name
@@ -194,7 +196,9 @@ def cmd_sweep(args) -> int:
     t = result["timings"]
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s (bake {t['bake_s']:.2f} s"
           f"{', cached' if t['bake_cached'] else ''}, truth {t['truth_setup_s'] + t['truth_s']:.2f} s, "
-          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s; peak memory "
+          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s"
+          + (f", terrain {t.get('terrain_setup_s', 0) + t['terrain_s']:.2f} s" if "terrain_s" in t else "")
+          + "; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
     return errors.EXIT_OK
 

@@ -97,23 +97,51 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
     return err.reshape(err.shape[:2]), float(mean)
 
 
-def delta_e2000(reference_display: np.ndarray, test_display: np.ndarray) -> np.ndarray:
-    """Per-pixel CIEDE2000 between two sRGB display images (D65), via colour-science."""
+def _lab(display_rgb: np.ndarray) -> np.ndarray:
+    """CIELAB (D65) of sRGB display values, as :func:`delta_e2000` computes it."""
     import colour
 
-    def lab(rgb):
-        xyz = colour.sRGB_to_XYZ(np.asarray(rgb, dtype=np.float64), apply_cctf_decoding=True)
-        return colour.XYZ_to_Lab(xyz)
-
-    return np.asarray(colour.delta_E(lab(reference_display), lab(test_display), method="CIE 2000"))
+    xyz = colour.sRGB_to_XYZ(np.asarray(display_rgb, dtype=np.float64), apply_cctf_decoding=True)
+    return colour.XYZ_to_Lab(xyz)
 
 
-def compare(truth, approx, scale: float) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
+def delta_e2000(reference_display: np.ndarray, test_display: np.ndarray, *,
+                reference_lab: np.ndarray | None = None) -> np.ndarray:
+    """Per-pixel CIEDE2000 between two sRGB display images (D65), via colour-science.
+
+    ``reference_lab``: the reference's Lab when the caller has it already
+    (:class:`Reference`); the same values either way.
+    """
+    import colour
+
+    ref = _lab(reference_display) if reference_lab is None else reference_lab
+    return np.asarray(colour.delta_E(ref, _lab(test_display), method="CIE 2000"))
+
+
+class Reference:
+    """What :func:`compare` derives from the truth alone, computed once per frame.
+
+    A frame compared with several techniques (horizon map, terrain) reuses
+    the truth's linear values, display values and Lab; every metric's value
+    is the same as without it.
+    """
+
+    def __init__(self, truth, scale: float):
+        self.truth, self.scale = truth, float(scale)
+        self.linear = np.asarray(truth.image, np.float64) * scale
+        self.display = display(truth.image, scale)
+        self.lab = _lab(self.display)
+
+
+def compare(truth, approx, scale: float, *, reference: Reference | None = None
+            ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
     """Metrics of one frame and the maps behind them (``flip``, ``delta_e``, ``visibility_diff``).
 
     ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
-    sweep's :func:`exposure`.
+    sweep's :func:`exposure`; ``reference``: ``Reference(truth, scale)``
+    when several techniques are compared with the same truth.
     """
+    ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
     V, F = truth.layers.get("visibility"), approx.layers.get("factor")
     if V is not None and F is not None:
@@ -121,13 +149,13 @@ def compare(truth, approx, scale: float) -> tuple[FrameMetrics, dict[str, np.nda
         maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
     else:
         mae = leak = false_shadow = None
-    t_lin = np.asarray(truth.image, np.float64) * scale
+    t_lin = ref.linear
     a_lin = np.asarray(approx.image, np.float64) * scale
     mse = float(np.mean((t_lin - a_lin) ** 2))
     rmse = math.sqrt(mse)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    t_disp, a_disp = display(truth.image, scale), display(approx.image, scale)
+    t_disp, a_disp = ref.display, display(approx.image, scale)
     maps["flip"], flip_mean = flip(t_disp, a_disp)
-    maps["delta_e"] = delta_e2000(t_disp, a_disp)
+    maps["delta_e"] = delta_e2000(t_disp, a_disp, reference_lab=ref.lab)
     return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
                         float(np.mean(maps["delta_e"]))), maps

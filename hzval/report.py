@@ -39,6 +39,8 @@ FALSE_SHADOW_RGB = (31, 119, 180)
 #: Colours of the two sides, on the page and in the plots.
 TRUTH_COLOUR = "#7fd1ae"
 APPROX_COLOUR = "#b9a3ff"
+#: The third technique's colour (hzval.terrain, Raudins' terrain shadows).
+TERRAIN_COLOUR = "#f2c14e"
 
 #: Plot palette (matches the page's dark neutral theme).
 _BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
@@ -139,6 +141,36 @@ METRICS: tuple[Metric, ...] = (
            "synchronised)", fmt_seconds, group="render time"),
 )
 
+#: The terrain technique's columns (``frames[i]["terrain"]``, flattened to
+#: ``terrain_<key>`` and ``terrain_s``); shown only when a frame has them.
+TERRAIN_METRICS: tuple[Metric, ...] = (
+    Metric("terrain_visibility_mae", "terrain |F−V|", "", "Terrain technique (Raudins' per-light shadow "
+           "boundary): mean |F − V| over pixels against the same ray-traced visibility", _fixed(4),
+           group="terrain"),
+    Metric("terrain_flip_mean", "terrain FLIP", "", "Terrain technique: mean FLIP error against the truth "
+           "(display values)", _fixed(4), group="terrain"),
+    Metric("terrain_s", "terrain", "time", "Terrain technique's frame time: its per-light sweep, the factor "
+           "and the normal-mapped shading it multiplies (Dr.Jit, kernels synchronised)", fmt_seconds,
+           group="terrain"),
+)
+
+
+def _flatten_terrain(frames: list[dict]) -> list[dict]:
+    """Frames with ``terrain`` metrics lifted to ``terrain_<key>`` (and its seconds to ``terrain_s``)."""
+    out = []
+    for f in frames:
+        te = f.get("terrain")
+        if isinstance(te, dict):
+            f = {**f, **{f"terrain_{k}": v for k, v in te.items() if k not in ("files", "seconds")},
+                 "terrain_s": te.get("seconds")}
+        out.append(f)
+    return out
+
+
+def _has_terrain(frames: list[dict]) -> bool:
+    return any(isinstance(f.get("terrain"), dict) for f in frames)
+
+
 #: The images of a frame, in the order of the row, with their captions.
 PANELS: tuple[tuple[str, str, str], ...] = (
     ("truth_png", "truth", "ray-traced, Mitsuba"),
@@ -146,6 +178,11 @@ PANELS: tuple[tuple[str, str, str], ...] = (
     ("plain_png", "normal mapping only", "no shadows"),
     ("flip_png", "FLIP error", ""),
     ("visdiff_png", "visibility difference", "F against V"),
+)
+#: The terrain technique's images (keys of ``frames[i]["terrain"]["files"]``).
+TERRAIN_PANELS: tuple[tuple[str, str, str], ...] = (
+    ("png", "terrain shadows", "Raudins, Dr.Jit"),
+    ("visdiff_png", "terrain visibility difference", "F against V"),
 )
 
 #: Raw files of a frame, linked from its card: (group, [(key, label)]).
@@ -167,7 +204,8 @@ _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 _TIMING_LABELS: tuple[tuple[str, str], ...] = (
     ("bake_s", "bake"), ("truth_setup_s", "truth set-up"), ("approx_setup_s", "approximation set-up"),
     ("truth_s", "truth renders"), ("approx_s", "approximation renders"), ("compare_s", "compare"),
-    ("write_s", "write frames"), ("report_s", "report"),
+    ("write_s", "write frames"), ("report_s", "report"), ("terrain_setup_s", "terrain set-up"),
+    ("terrain_s", "terrain renders"),
 )
 
 _VERSION_LABELS: tuple[tuple[str, str], ...] = (
@@ -235,10 +273,10 @@ def _src(out: Path, rel) -> dict | None:
     return {"src": quote(rel.replace("\\", "/"), safe="/"), "path": rel}
 
 
-def _columns(frames: list[dict]) -> list[dict]:
+def _columns(frames: list[dict], metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
     """Per metric: the values, which frames are worst, the bar scale, and the summary."""
     cols = []
-    for m in METRICS:
+    for m in metrics:
         raw = [f.get(m.key) for f in frames]
         vals = []
         for r in raw:
@@ -321,7 +359,7 @@ def _timings(t: dict, n_frames: int) -> dict:
         note = ""
         if key == "bake_s" and t.get("bake_cached"):
             note = "cached"
-        elif key in ("truth_s", "approx_s") and n_frames:
+        elif key in ("truth_s", "approx_s", "terrain_s") and n_frames:
             note = f"{fmt_seconds(v / n_frames)} per frame"
         rows.append({"label": label, "seconds": v, "text": fmt_seconds(v), "note": note})
     for key, value in t.items():   # anything else the sweep timed
@@ -412,12 +450,13 @@ def _material(m: dict) -> dict:
             "aspect": f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"}
 
 
-_GROUP_STARTS = {m.key for i, m in enumerate(METRICS) if i == 0 or METRICS[i - 1].group != m.group}
+_ALL_METRICS = METRICS + TERRAIN_METRICS
+_GROUP_STARTS = {m.key for i, m in enumerate(_ALL_METRICS) if i == 0 or _ALL_METRICS[i - 1].group != m.group}
 
 
-def _column_groups() -> list[dict]:
+def _column_groups(metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
     groups: list[dict] = []
-    for m in METRICS:
+    for m in metrics:
         if groups and groups[-1]["title"] == m.group:
             groups[-1]["span"] += 1
         else:
@@ -429,8 +468,11 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
     """Everything the template needs, formatted; no markup."""
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    terrain = _has_terrain(frames)
+    shown = METRICS + TERRAIN_METRICS if terrain else METRICS
+    frames = _flatten_terrain(frames)
     parameters = metrics.get("parameters") or {}
-    cols = _columns(frames)
+    cols = _columns(frames, shown)
     leak_hex, false_shadow_hex = _map_colours()
     material = _material(metrics.get("material") or {})
 
@@ -446,8 +488,11 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
             links = [r for r in links if r["file"] and r["file"]["src"]]
             if links:
                 raw.append({"group": group, "links": links})
+        te_files = (f.get("terrain") or {}).get("files") or {}
+        te_panels = [{"key": key, "title": title, "subtitle": subtitle, "file": _src(out, te_files.get(key))}
+                     for key, title, subtitle in TERRAIN_PANELS] if terrain else []
         frame_views.append({
-            "index": i, "id": f"frame-{i}",
+            "index": i, "id": f"frame-{i}", "terrain_panels": te_panels,
             "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
             "cells": [_cell(c, i, f) for c in cols],
             "panels": {p["key"]: p for p in panels},
@@ -473,12 +518,12 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "columns": [{"label": c["metric"].label, "unit": c["metric"].unit, "title": c["metric"].title,
                      "key": c["metric"].key, "mean_text": c["mean_text"], "mean_title": c["mean_title"], "gstart": c["metric"].key in _GROUP_STARTS}
                     for c in cols],
-        "column_groups": _column_groups(),
+        "column_groups": _column_groups(shown),
         "glance": _glance(cols, frames),
         "frames": frame_views,
         "plots": plots,
         "leak_hex": leak_hex, "false_shadow_hex": false_shadow_hex,
-        "truth_colour": TRUTH_COLOUR, "approx_colour": APPROX_COLOUR,
+        "truth_colour": TRUTH_COLOUR, "approx_colour": APPROX_COLOUR, "terrain_colour": TERRAIN_COLOUR,
         # the script's data: labels of the two sides, and the zoom steps
         "js": {"labels": {"truth": "truth", "approx": "horizon-mapped"}, "zooms": [0, 1, 2, 4, 8]},
     }
@@ -526,15 +571,27 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
     def series(key, scale=1.0):
         return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
 
+    terrain = _has_terrain(frames)
+    frames = _flatten_terrain(frames)
+
+    def one(key):
+        """The horizon map's line of a metric and, with the terrain technique, its line on the same axes."""
+        if not terrain:
+            return [(key, "", _ACCENT, 1.0)]
+        return [(key, "horizon map", _ACCENT, 1.0), ("terrain_" + key, "terrain", TERRAIN_COLOUR, 1.0, "--")]
+
+    leaks = [("leak_fraction", "leak (F lit, V shadowed)", leak_hex, 100.0),
+             ("false_shadow_fraction", "false shadow", false_shadow_hex, 100.0)]
+    if terrain:
+        leaks += [("terrain_leak_fraction", "terrain leak", leak_hex, 100.0, "--"),
+                  ("terrain_false_shadow_fraction", "terrain false shadow", false_shadow_hex, 100.0, "--")]
     panels = (
-        ("visibility  mean |F − V|", [("visibility_mae", "", _ACCENT, 1.0)], "max", ""),
-        ("leaks & false shadows  (% of pixels)", [("leak_fraction", "leak (F lit, V shadowed)", leak_hex, 100.0),
-                                                  ("false_shadow_fraction", "false shadow", false_shadow_hex,
-                                                   100.0)], "max", "%"),
-        ("FLIP  mean", [("flip_mean", "", _ACCENT, 1.0)], "max", ""),
-        ("ΔE2000  mean", [("delta_e2000_mean", "", _ACCENT, 1.0)], "max", ""),
-        ("PSNR  dB (linear; higher is better)", [("psnr_db", "", _ACCENT, 1.0)], "min", ""),
-        ("RMSE  (linear)", [("rmse", "", _ACCENT, 1.0)], "max", ""),
+        ("visibility  mean |F − V|", one("visibility_mae"), "max", ""),
+        ("leaks & false shadows  (% of pixels)", leaks, "max", "%"),
+        ("FLIP  mean", one("flip_mean"), "max", ""),
+        ("ΔE2000  mean", one("delta_e2000_mean"), "max", ""),
+        ("PSNR  dB (linear; higher is better)", one("psnr_db"), "min", ""),
+        ("RMSE  (linear)", one("rmse"), "max", ""),
     )
     fig = _figure(13.0, 5.4)
     axes = fig.subplots(2, 3, sharex=True)
@@ -544,7 +601,7 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
         _style_axes(ax, title)
         keys = [line[0] for line in lines]
         any_data = False
-        for key, label, colour, scale in lines:
+        for key, label, colour, scale, *style in lines:
             y = series(key, scale)
             ok = np.isfinite(y) & np.isfinite(az)
             if not ok.any():
@@ -552,7 +609,7 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
             any_data = True
             order = np.argsort(az[ok])
             ax.plot(az[ok][order], y[ok][order], color=colour, linewidth=1.6, marker="o", markersize=3.5,
-                    label=label or None, zorder=3)
+                    label=label or None, zorder=3, linestyle=style[0] if style else "-")
             w = int(np.nanargmax(np.where(ok, y, -np.inf)) if worse == "max"
                     else np.nanargmin(np.where(ok, y, np.inf)))
             if np.nanmax(y[ok]) != np.nanmin(y[ok]):
@@ -602,7 +659,8 @@ def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
     labels = [r["label"] + (f" ({r['note']})" if r["note"] == "cached" else "") for r in t["rows"]]
     secs = np.array([r["seconds"] for r in t["rows"]], dtype=float)
     palette = {"truth renders": TRUTH_COLOUR, "truth set-up": TRUTH_COLOUR,
-               "approximation renders": APPROX_COLOUR, "approximation set-up": APPROX_COLOUR}
+               "approximation renders": APPROX_COLOUR, "approximation set-up": APPROX_COLOUR,
+               "terrain renders": TERRAIN_COLOUR, "terrain set-up": TERRAIN_COLOUR}
     colours = [palette.get(r["label"], "#8d8d96") for r in t["rows"]]
     y = np.arange(len(secs))
     if len(secs):

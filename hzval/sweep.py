@@ -14,7 +14,20 @@ Output folder::
     bake/                                 the bake (cache)
     frames/az<azimuth>/                   per light: truth.exr, approx.exr, plain.exr,
                                           visibility.exr (V), factor.exr (F), truth_variance.exr,
-                                          and PNG previews of each, flip.png, visdiff.png
+                                          and PNG previews of each, flip.png, visdiff.png;
+                                          terrain.exr, terrain_factor.exr and PNGs, terrain_flip.png,
+                                          terrain_visdiff.png (the terrain technique)
+
+The third technique (:mod:`hzval.terrain`, Raudins' per-light shadow
+boundary, ``Options.terrain``, on by default when the scene declares
+``shadow``) is rendered for every light beside the horizon-mapped one, from
+the same plain normal-mapped render, and compared with the same truth. Its
+metrics go under ``frames[i]["terrain"]`` (the DESIGN.md keys of a frame stay
+the horizon map's) and ``simulated["terrain"]``.
+
+Speed: the truth's display values and Lab are computed once per frame for
+both comparisons (:class:`hzval.compare.Reference`) and PNG previews are
+compressed at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value.
 """
 
 from __future__ import annotations
@@ -48,6 +61,7 @@ class Options:
     radius: int = 16
     angles: int = 32
     method: str = "seed"         # horizon bake method: "seed" or "exact" (BakeParams.method)
+    terrain: bool = True         # also render and compare Raudins' terrain shadows (hzval.terrain)
 
 
 def frame_folder(azimuth_deg: float) -> str:
@@ -124,29 +138,50 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     the_approx = approx.Approximation(scene, baked, albedo, path=options.path, k=options.k,
                                       ambient=options.ambient)
     timings["approx_setup_s"] = time.perf_counter() - t0
+    the_terrain = None
+    if options.terrain and scene.declares("shadow"):
+        from hzval import terrain
+
+        t0 = time.perf_counter()
+        the_terrain = terrain.TerrainShadow(scene, hm.height, bake=baked, albedo=albedo, approximation=the_approx)
+        timings["terrain_setup_s"] = time.perf_counter() - t0
 
     scale = compare.exposure(scene)
     frames, compare_s, write_s = [], 0.0, 0.0
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
                file=sys.stderr, leave=False)
-    for az in bar:
-        bar.set_postfix_str(f"azimuth {az:+g} deg")
-        t_frame = the_truth.render(az)
-        a_frame = the_approx.render(az)
-        plain = the_approx.render(az, shadows=False)
-        t0 = time.perf_counter()
-        metrics, maps = compare.compare(t_frame, a_frame, scale)
-        compare_s += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        rel = _write_frame(out, frame_folder(az), t_frame, a_frame, plain, maps, scale)
-        write_s += time.perf_counter() - t0
-        frames.append({"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg,
-                       **{k: _finite(v) for k, v in metrics.as_dict().items()},
-                       "truth_s": t_frame.seconds, "approx_s": a_frame.seconds, "files": rel})
-    bar.close()
+    try:
+        for az in bar:
+            bar.set_postfix_str(f"azimuth {az:+g} deg")
+            t_frame = the_truth.render(az)
+            a_frame = the_approx.render(az)
+            plain = the_approx.render(az, shadows=False)
+            te_frame = the_terrain.render(az, plain=plain) if the_terrain is not None else None
+            t0 = time.perf_counter()
+            ref = compare.Reference(t_frame, scale)
+            metrics, maps = compare.compare(t_frame, a_frame, scale, reference=ref)
+            te = [compare.compare(t_frame, te_frame, scale, reference=ref)] if te_frame is not None else []
+            compare_s += time.perf_counter() - t0
+            folder = frame_folder(az)
+            rel = _frame_files(folder, t_frame, a_frame, plain)
+            frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg,
+                     **{k: _finite(v) for k, v in metrics.as_dict().items()},
+                     "truth_s": t_frame.seconds, "approx_s": a_frame.seconds, "files": rel}
+            te_maps = None
+            if te:
+                te_metrics, te_maps = te[0]
+                frame["terrain"] = {**{k: _finite(v) for k, v in te_metrics.as_dict().items()},
+                                    "seconds": te_frame.seconds,
+                                    "files": _terrain_files(folder, te_frame, t_frame)}
+            write_s += _write_frame(out, folder, t_frame, a_frame, plain, maps, scale, te_frame, te_maps)
+            frames.append(frame)
+    finally:
+        bar.close()
 
     timings.update(truth_s=sum(f["truth_s"] for f in frames), approx_s=sum(f["approx_s"] for f in frames),
                    compare_s=compare_s, write_s=write_s)
+    if the_terrain is not None:
+        timings["terrain_s"] = sum(f["terrain"]["seconds"] for f in frames)
     result = {
         "material": material_info,
         "parameters": {"depth": scene.material.depth, "boundary": scene.material.boundary,
@@ -157,10 +192,12 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling, "path": options.path,
-                       "ambient": options.ambient},
+                       "ambient": options.ambient,
+                       **({"terrain_ramp_texels": the_terrain.ramp} if the_terrain is not None else {})},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
         "timings": timings,
-        "simulated": {"truth": list(the_truth.simulated), "approx": list(the_approx.simulated)},
+        "simulated": {"truth": list(the_truth.simulated), "approx": list(the_approx.simulated),
+                      **({"terrain": list(the_terrain.simulated)} if the_terrain is not None else {})},
         "frames": frames,
     }
     t0 = time.perf_counter()
@@ -172,46 +209,99 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     return result
 
 
-def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: float) -> dict:
-    """Write one frame's images; return their paths relative to ``out``."""
-    folder = out / "frames" / name
-    rel = {}
+#: PNG previews are written at zlib level 1: on these renders it is several
+#: times faster than the default 6 and the files are about 10% larger.
+PNG_LEVEL = 1
 
-    def put(key: str, filename: str, writer, data):
-        writer(folder / filename, data)
-        rel[key] = f"frames/{name}/{filename}"
 
-    put("truth", "truth.exr", files.write_exr, {"RGB": truth.image})
-    put("approx", "approx.exr", files.write_exr, {"RGB": approx.image})
-    put("plain", "plain.exr", files.write_exr, {"RGB": plain.image})
+def _frame_files(name: str, truth, approx, plain) -> dict:
+    """The paths, relative to the report folder, that :func:`_write_frame` writes for a frame."""
+    rel = {k: f"frames/{name}/{f}" for k, f in (
+        ("truth", "truth.exr"), ("approx", "approx.exr"), ("plain", "plain.exr"),
+        ("truth_png", "truth.png"), ("approx_png", "approx.png"), ("plain_png", "plain.png"),
+        ("flip_png", "flip.png"))}
     if "image" in truth.variance:
-        put("truth_variance", "truth_variance.exr", files.write_exr, {"RGB": truth.variance["image"]})
-    for key, img in (("truth_png", truth.image), ("approx_png", approx.image), ("plain_png", plain.image)):
-        put(key, key.removesuffix("_png") + ".png", files.write_png, files.unit_to_u8(compare.display(img, scale)))
+        rel["truth_variance"] = f"frames/{name}/truth_variance.exr"
     V, F = truth.layers.get("visibility"), approx.layers.get("factor")
     if V is not None:
-        put("visibility", "visibility.exr", files.write_exr, {"Y": V})
-        put("visibility_png", "visibility.png", files.write_png, files.unit_to_u8(V))
+        rel.update(visibility=f"frames/{name}/visibility.exr", visibility_png=f"frames/{name}/visibility.png")
     if F is not None:
-        put("factor", "factor.exr", files.write_exr, {"Y": F})
-        put("factor_png", "factor.png", files.write_png, files.unit_to_u8(F))
+        rel.update(factor=f"frames/{name}/factor.exr", factor_png=f"frames/{name}/factor.png")
     if V is not None and F is not None:
-        put("visdiff_png", "visdiff.png", files.write_png, visibility_diff_image(V, F))
-    put("flip_png", "flip.png", files.write_png, flip_image(maps["flip"]))
+        rel["visdiff_png"] = f"frames/{name}/visdiff.png"
     return rel
+
+
+def _terrain_files(name: str, terrain, truth) -> dict:
+    """The terrain technique's files of a frame (:func:`_write_frame`), relative paths."""
+    rel = {k: f"frames/{name}/{f}" for k, f in (
+        ("image", "terrain.exr"), ("png", "terrain.png"), ("flip_png", "terrain_flip.png"))}
+    if "factor" in terrain.layers:
+        rel.update(factor=f"frames/{name}/terrain_factor.exr", factor_png=f"frames/{name}/terrain_factor.png")
+        if "visibility" in truth.layers:
+            rel["visdiff_png"] = f"frames/{name}/terrain_visdiff.png"
+    return rel
+
+
+def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: float,
+                 terrain=None, terrain_maps: dict | None = None) -> float:
+    """Write one frame's images (the paths of :func:`_frame_files`, :func:`_terrain_files`); return the seconds."""
+    t0 = time.perf_counter()
+    folder = out / "frames" / name
+    exr, png = files.write_exr, lambda path, px: files.write_png(path, px, compress_level=PNG_LEVEL)
+
+    def preview(img):
+        return files.unit_to_u8(compare.display(img, scale))
+
+    exr(folder / "truth.exr", {"RGB": truth.image})
+    exr(folder / "approx.exr", {"RGB": approx.image})
+    exr(folder / "plain.exr", {"RGB": plain.image})
+    if "image" in truth.variance:
+        exr(folder / "truth_variance.exr", {"RGB": truth.variance["image"]})
+    for stem, img in (("truth", truth.image), ("approx", approx.image), ("plain", plain.image)):
+        png(folder / f"{stem}.png", preview(img))
+    V, F = truth.layers.get("visibility"), approx.layers.get("factor")
+    if V is not None:
+        exr(folder / "visibility.exr", {"Y": V})
+        png(folder / "visibility.png", files.unit_to_u8(V))
+    if F is not None:
+        exr(folder / "factor.exr", {"Y": F})
+        png(folder / "factor.png", files.unit_to_u8(F))
+    if V is not None and F is not None:
+        png(folder / "visdiff.png", visibility_diff_image(V, F))
+    png(folder / "flip.png", flip_image(maps["flip"]))
+    if terrain is not None:
+        exr(folder / "terrain.exr", {"RGB": terrain.image})
+        png(folder / "terrain.png", preview(terrain.image))
+        png(folder / "terrain_flip.png", flip_image(terrain_maps["flip"]))
+        TF = terrain.layers.get("factor")
+        if TF is not None:
+            exr(folder / "terrain_factor.exr", {"Y": TF})
+            png(folder / "terrain_factor.png", files.unit_to_u8(TF))
+            if V is not None:
+                png(folder / "terrain_visdiff.png", visibility_diff_image(V, TF))
+    return time.perf_counter() - t0
 
 
 def summary_table(result: dict) -> str:
     """The sweep's metrics as a plain-text table for the terminal."""
+    terrain = any("terrain" in f for f in result["frames"])
     head = ("azimuth", "|F-V|", "leaks", "false sh.", "FLIP", "dE2000", "PSNR dB", "truth s", "approx s")
+    if terrain:
+        head += ("terrain |F-V|", "terrain s")
     rows = []
     for f in result["frames"]:
         def pct(v):
             return "-" if v is None else f"{100 * v:.2f}%"
-        rows.append((f"{f['azimuth_deg']:+g}", "-" if f["visibility_mae"] is None else f"{f['visibility_mae']:.4f}",
-                     pct(f["leak_fraction"]), pct(f["false_shadow_fraction"]), f"{f['flip_mean']:.4f}",
-                     f"{f['delta_e2000_mean']:.3f}", "inf" if f["psnr_db"] is None else f"{f['psnr_db']:.2f}",
-                     f"{f['truth_s']:.3f}", f"{f['approx_s']:.4f}"))
+        row = (f"{f['azimuth_deg']:+g}", "-" if f["visibility_mae"] is None else f"{f['visibility_mae']:.4f}",
+               pct(f["leak_fraction"]), pct(f["false_shadow_fraction"]), f"{f['flip_mean']:.4f}",
+               f"{f['delta_e2000_mean']:.3f}", "inf" if f["psnr_db"] is None else f"{f['psnr_db']:.2f}",
+               f"{f['truth_s']:.3f}", f"{f['approx_s']:.4f}")
+        if terrain:
+            te = f.get("terrain") or {}
+            mae = te.get("visibility_mae")
+            row += ("-" if mae is None else f"{mae:.4f}", "-" if "seconds" not in te else f"{te['seconds']:.4f}")
+        rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
     return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows)])

@@ -46,7 +46,8 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
             assert 0.0 <= f[key] <= 1.0, key
         assert f["truth_s"] > 0 and f["approx_s"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
-    assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"]}
+    assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"],
+                              "terrain": ["shadow", "diffuse"]}
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
     assert m["memory"]["peak_rss_bytes"] > 2**20
@@ -149,3 +150,40 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
                "--quiet", "--out", out) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
+
+
+def test_terrain_technique_is_compared_on_the_same_sweep(variant, bricks_sweep):
+    """The third technique (hzval.terrain): its metrics under frames[i]["terrain"], its images beside
+    the horizon map's, the DESIGN.md keys of a frame unchanged, and its columns in the report."""
+    from PIL import Image
+
+    out, m, _ = bricks_sweep
+    assert m["simulated"]["terrain"] == ["shadow", "diffuse"]
+    for f in m["frames"]:
+        te = f["terrain"]
+        for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
+            assert 0.0 <= te[key] <= 1.0, key
+        assert math.isfinite(te["rmse"]) and math.isfinite(te["delta_e2000_mean"]) and te["seconds"] > 0
+        assert {"image", "png", "factor", "factor_png", "visdiff_png", "flip_png"} <= set(te["files"])
+        for rel in te["files"].values():
+            assert (out / rel).is_file(), rel
+        V = files.read_exr(out / f["files"]["visibility"])["Y"]
+        TF = files.read_exr(out / te["files"]["factor"])["Y"]
+        assert TF.shape == (48, 48) and np.isfinite(TF).all() and 0 <= TF.min() and TF.max() <= 1
+        assert te["visibility_mae"] == pytest.approx(float(np.mean(np.abs(TF - V))), abs=1e-6)
+        with Image.open(out / te["files"]["png"]) as img:
+            assert img.size == (48, 48)
+    html = (out / "index.html").read_text()
+    assert "terrain |F−V|" in html and "terrain_visdiff.png" in html and "terrain.png" in html
+    head = sweep.summary_table(m).splitlines()[0]
+    assert "terrain |F-V|" in head
+    assert m["timings"]["terrain_s"] > 0
+
+
+def test_no_terrain_leaves_it_out(variant, tmp_path):
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--no-terrain", "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert "terrain" not in m["frames"][0] and "terrain" not in m["simulated"]
+    assert not (out / "frames" / "az+0" / "terrain.png").exists()
+    assert "terrain |F-V|" not in sweep.summary_table(m)
