@@ -6,7 +6,11 @@ Visibility, on the one-channel layers in [0, 1]:
 * ``leak_fraction``: pixels the technique lights (``F >= 0.5``) that are in
   shadow (``V < 0.5``);
 * ``false_shadow_fraction``: pixels it shadows (``F < 0.5``) that are lit
-  (``V >= 0.5``).
+  (``V >= 0.5``);
+* ``reflection_mae`` (with ``reflection_occlusion``): mean ``|o - R|``, the
+  Toolbag fade ``o`` of :mod:`hzval.approx` against the truth's unoccluded
+  fraction ``R`` of the glossy lobe about the mirror direction
+  (:mod:`hzval.truth`).
 
 Images: ``rmse`` and ``psnr_db`` on linear values (peak 1: a white
 Lambertian surface facing the light, after :func:`exposure`); FLIP (NVIDIA,
@@ -39,9 +43,13 @@ class FrameMetrics:
     rmse: float
     psnr_db: float
     delta_e2000_mean: float
+    reflection_mae: float | None = None
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        d = asdict(self)
+        if d["reflection_mae"] is None:       # only scenes that declare reflection_occlusion have it
+            del d["reflection_mae"]
+        return d
 
 
 def exposure(scene) -> float:
@@ -133,13 +141,16 @@ class Reference:
         self.lab = _lab(self.display)
 
 
-def compare(truth, approx, scale: float, *, reference: Reference | None = None
-            ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
+def compare(truth, approx, scale: float, *, reference: Reference | None = None,
+            flip_result: tuple[np.ndarray, float] | None = None) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
     """Metrics of one frame and the maps behind them (``flip``, ``delta_e``, ``visibility_diff``).
 
     ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
     sweep's :func:`exposure`; ``reference``: ``Reference(truth, scale)``
-    when several techniques are compared with the same truth.
+    when several techniques are compared with the same truth;
+    ``flip_result``: :func:`flip` of ``reference.display`` and the
+    approximation's display values when the caller has computed it
+    already (:class:`FlipWorker`).
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
@@ -149,13 +160,92 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None
         maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
     else:
         mae = leak = false_shadow = None
+    O, R = approx.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
+    reflection = None
+    if O is not None and R is not None:
+        reflection = float(np.mean(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64))))
     t_lin = ref.linear
     a_lin = np.asarray(approx.image, np.float64) * scale
     mse = float(np.mean((t_lin - a_lin) ** 2))
     rmse = math.sqrt(mse)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
     t_disp, a_disp = ref.display, display(approx.image, scale)
-    maps["flip"], flip_mean = flip(t_disp, a_disp)
+    maps["flip"], flip_mean = flip(t_disp, a_disp) if flip_result is None else flip_result
     maps["delta_e"] = delta_e2000(t_disp, a_disp, reference_lab=ref.lab)
     return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
-                        float(np.mean(maps["delta_e"]))), maps
+                        float(np.mean(maps["delta_e"])), reflection), maps
+
+
+#: Frames of at least this many pixels have their FLIP computed in a worker
+#: process (:class:`FlipWorker`); smaller ones are cheaper than starting it.
+FLIP_WORKER_MIN_PIXELS = 256 * 256
+
+
+class FlipWorker:
+    """:func:`flip` evaluated in one separate process, so that it runs beside the sweep.
+
+    ``flip-evaluator`` holds the GIL and runs on one core for about 0.3 s a
+    512 x 512 frame, a third of a default sweep's time with two techniques
+    to compare; threads do not overlap it with anything. A process started
+    with ``spawn`` (never ``fork``: Dr.Jit's threads are running) does, while
+    the sweep renders and writes the next frame. Below ``min_pixels``, when
+    no process can be started, or if it dies, FLIP runs inline: the values
+    are the same either way. :meth:`submit` returns a
+    :class:`concurrent.futures.Future` of ``(error map, mean)``; use it as a
+    context manager.
+    """
+
+    def __init__(self, pixels: int, min_pixels: int = FLIP_WORKER_MIN_PIXELS):
+        self._pool = None
+        if pixels >= min_pixels:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            try:
+                self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            except (OSError, ValueError, NotImplementedError):
+                self._pool = None
+
+    @property
+    def in_process(self) -> bool:
+        """Whether FLIP runs in a worker process."""
+        return self._pool is not None
+
+    def submit(self, reference_display: np.ndarray, test_display: np.ndarray):
+        from concurrent.futures import Future
+
+        if self._pool is not None:
+            try:
+                return _Fallback(self._pool.submit(flip, reference_display, test_display),
+                                 reference_display, test_display)
+            except RuntimeError:            # a broken pool refuses new work
+                self._pool = None
+        done = Future()
+        done.set_result(flip(reference_display, test_display))
+        return done
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> "FlipWorker":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class _Fallback:
+    """A worker's future whose ``result()`` computes inline if the worker process died."""
+
+    def __init__(self, future, reference_display, test_display):
+        self._future, self._args = future, (reference_display, test_display)
+
+    def result(self):
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return self._future.result()
+        except BrokenProcessPool:
+            return flip(*self._args)

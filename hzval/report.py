@@ -155,6 +155,14 @@ TERRAIN_METRICS: tuple[Metric, ...] = (
 )
 
 
+#: Shown only when a frame has it (scenes that declare ``reflection_occlusion``).
+REFLECTION_METRICS: tuple[Metric, ...] = (
+    Metric("reflection_mae", "|o−R|", "", "Reflection occlusion: mean |o − R| over pixels, the Toolbag horizon "
+           "fade o against the ray-traced unoccluded fraction R of the glossy lobe about the mirror direction",
+           _fixed(4), group="reflection"),
+)
+
+
 def _flatten_terrain(frames: list[dict]) -> list[dict]:
     """Frames with ``terrain`` metrics lifted to ``terrain_<key>`` (and its seconds to ``terrain_s``)."""
     out = []
@@ -450,7 +458,7 @@ def _material(m: dict) -> dict:
             "aspect": f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"}
 
 
-_ALL_METRICS = METRICS + TERRAIN_METRICS
+_ALL_METRICS = METRICS + REFLECTION_METRICS + TERRAIN_METRICS
 _GROUP_STARTS = {m.key for i, m in enumerate(_ALL_METRICS) if i == 0 or _ALL_METRICS[i - 1].group != m.group}
 
 
@@ -469,7 +477,8 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     terrain = _has_terrain(frames)
-    shown = METRICS + TERRAIN_METRICS if terrain else METRICS
+    reflection = any(f.get("reflection_mae") is not None for f in frames)
+    shown = METRICS + (REFLECTION_METRICS if reflection else ()) + (TERRAIN_METRICS if terrain else ())
     frames = _flatten_terrain(frames)
     parameters = metrics.get("parameters") or {}
     cols = _columns(frames, shown)

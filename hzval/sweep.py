@@ -26,8 +26,10 @@ metrics go under ``frames[i]["terrain"]`` (the DESIGN.md keys of a frame stay
 the horizon map's) and ``simulated["terrain"]``.
 
 Speed: the truth's display values and Lab are computed once per frame for
-both comparisons (:class:`hzval.compare.Reference`) and PNG previews are
-compressed at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value.
+both comparisons (:class:`hzval.compare.Reference`); FLIP runs in a worker
+process a frame ahead of the rest of the comparison
+(:class:`hzval.compare.FlipWorker`); PNG previews are compressed at zlib
+level 1 (:data:`PNG_LEVEL`). None of this changes a value.
 """
 
 from __future__ import annotations
@@ -150,33 +152,52 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     frames, compare_s, write_s = [], 0.0, 0.0
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
                file=sys.stderr, leave=False)
-    try:
-        for az in bar:
-            bar.set_postfix_str(f"azimuth {az:+g} deg")
-            t_frame = the_truth.render(az)
-            a_frame = the_approx.render(az)
-            plain = the_approx.render(az, shadows=False)
-            te_frame = the_terrain.render(az, plain=plain) if the_terrain is not None else None
-            t0 = time.perf_counter()
-            ref = compare.Reference(t_frame, scale)
-            metrics, maps = compare.compare(t_frame, a_frame, scale, reference=ref)
-            te = [compare.compare(t_frame, te_frame, scale, reference=ref)] if te_frame is not None else []
-            compare_s += time.perf_counter() - t0
-            folder = frame_folder(az)
-            rel = _frame_files(folder, t_frame, a_frame, plain)
-            frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg,
-                     **{k: _finite(v) for k, v in metrics.as_dict().items()},
-                     "truth_s": t_frame.seconds, "approx_s": a_frame.seconds, "files": rel}
-            te_maps = None
-            if te:
-                te_metrics, te_maps = te[0]
-                frame["terrain"] = {**{k: _finite(v) for k, v in te_metrics.as_dict().items()},
-                                    "seconds": te_frame.seconds,
-                                    "files": _terrain_files(folder, te_frame, t_frame)}
-            write_s += _write_frame(out, folder, t_frame, a_frame, plain, maps, scale, te_frame, te_maps)
-            frames.append(frame)
-    finally:
-        bar.close()
+
+    def finish(az, t_frame, a_frame, plain, te_frame, ref, flips):
+        """Compare and write a frame once its FLIP is in (a frame behind the renders)."""
+        nonlocal compare_s, write_s
+        t0 = time.perf_counter()
+        results = [f.result() for f in flips]
+        metrics, maps = compare.compare(t_frame, a_frame, scale, reference=ref, flip_result=results[0])
+        te = (compare.compare(t_frame, te_frame, scale, reference=ref, flip_result=results[1])
+              if te_frame is not None else None)
+        compare_s += time.perf_counter() - t0
+        folder = frame_folder(az)
+        frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg,
+                 **{k: _finite(v) for k, v in metrics.as_dict().items()},
+                 "truth_s": t_frame.seconds, "approx_s": a_frame.seconds,
+                 "files": _frame_files(folder, t_frame, a_frame, plain)}
+        if te is not None:
+            frame["terrain"] = {**{k: _finite(v) for k, v in te[0].as_dict().items()},
+                                "seconds": te_frame.seconds, "files": _terrain_files(folder, te_frame, t_frame)}
+        write_s += _write_frame(out, folder, t_frame, a_frame, plain, maps, scale, te_frame,
+                                te[1] if te is not None else None)
+        frames.append(frame)
+
+    # FLIP, the slowest metric, runs in a worker process on frame i while
+    # this one renders frame i + 1 and compares and writes frame i - 1
+    with compare.FlipWorker(math.prod(the_truth.shape)) as flipper:
+        pending = None
+        try:
+            for az in bar:
+                bar.set_postfix_str(f"azimuth {az:+g} deg")
+                t_frame = the_truth.render(az)
+                a_frame = the_approx.render(az)
+                plain = the_approx.render(az, shadows=False)
+                te_frame = the_terrain.render(az, plain=plain) if the_terrain is not None else None
+                t0 = time.perf_counter()
+                ref = compare.Reference(t_frame, scale)
+                flips = [flipper.submit(ref.display, compare.display(f.image, scale))
+                         for f in (a_frame, te_frame) if f is not None]
+                compare_s += time.perf_counter() - t0
+                if pending is not None:
+                    finish(*pending)
+                pending = (az, t_frame, a_frame, plain, te_frame, ref, flips)
+            if pending is not None:
+                finish(*pending)
+        finally:
+            bar.close()
+        timings["flip_in_worker"] = flipper.in_process
 
     timings.update(truth_s=sum(f["truth_s"] for f in frames), approx_s=sum(f["approx_s"] for f in frames),
                    compare_s=compare_s, write_s=write_s)

@@ -187,3 +187,19 @@ def test_no_terrain_leaves_it_out(variant, tmp_path):
     assert "terrain" not in m["frames"][0] and "terrain" not in m["simulated"]
     assert not (out / "frames" / "az+0" / "terrain.png").exists()
     assert "terrain |F-V|" not in sweep.summary_table(m)
+
+
+def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, bricks_sweep):
+    """Flat: the fade and the truth's lobe both see the whole environment, |o - R| = 0;
+    bricks: a number in [0, 1] and a report column; absent where undeclared."""
+    np.save(tmp_path / "flat.npy", np.full((16, 16), 0.5, np.float32))
+    for height, out in ((tmp_path / "flat.npy", tmp_path / "flat"), ("--size=24", tmp_path / "bricks")):
+        assert run("sweep", height, "--azimuths", "0", "--spp", 2, "--effects", "shadow,diffuse,reflection_occlusion",
+                   "--no-terrain", "--quiet", "--out", out) == 0
+        m = json.loads((out / "metrics.json").read_text())
+        assert "reflection_occlusion" in m["simulated"]["truth"] and "reflection_occlusion" in m["simulated"]["approx"]
+        r = m["frames"][0]["reflection_mae"]
+        assert r == 0.0 if out.name == "flat" else 0.0 < r < 1.0
+        assert "|o−R|" in (out / "index.html").read_text(encoding="utf-8")
+    _, first, _ = bricks_sweep
+    assert all("reflection_mae" not in f for f in first["frames"])
