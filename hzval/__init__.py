@@ -5,10 +5,21 @@ The package follows the data flow of ``DESIGN.md``, one module per stage:
 ``conventions``  axes, directions, height scale, boundaries, colour (the only
                  module that defines them)
 ``heightmap``    reading height maps from PNG, EXR and .npy
-``material``     the material description and the built-in procedural bricks
+``material``     the built-in procedural bricks
 ``bake``         height map -> normal, horizon and ambient maps, weight cube map
 ``mesh``         height map -> displaced triangle mesh for Mitsuba
+``scene``        the scene description (TOML): material, camera, light, effects
+``truth``        the ground truth: Mitsuba traces the displaced mesh
+``approx``       horizon-map shading of the flat surface in Dr.Jit
+``terrain``      Raudins' per-light terrain shadows, a third technique
+``compare``      metrics of a frame against the truth
+``sweep``        truth and techniques over a light sweep, compared
+``report``       the sweep's HTML report and plots
+``check``        image-diff regression against ``reference/``
+``tradeoff``     what accuracy costs: settings measured against a converged truth
+``files``        atomic EXR, PNG and JSON writing
 ``backend``      choosing the Mitsuba/Dr.Jit variant, checking LLVM
+``errors``       the errors the CLI turns into one-line messages and exit codes
 ``cli``          the ``hzval`` command, a thin layer over the above
 """
 
