@@ -190,6 +190,7 @@ PANELS: tuple[tuple[str, str, str], ...] = (
 #: The terrain technique's images (keys of ``frames[i]["terrain"]["files"]``).
 TERRAIN_PANELS: tuple[tuple[str, str, str], ...] = (
     ("png", "terrain shadows", "Raudins, Dr.Jit"),
+    ("flip_png", "terrain FLIP error", ""),
     ("visdiff_png", "terrain visibility difference", "F against V"),
 )
 
