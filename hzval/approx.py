@@ -88,6 +88,15 @@ Two paths:
     monotonic in elevation there, by design of the cube map, not of this
     emulation.
 
+Directions: a bake may store 8 (the seed's) or 16 horizon directions
+(:attr:`hzval.bake.BakeParams.directions`, channel ``c`` toward azimuth
+``360 c / D``, :func:`hzval.conventions.channel_azimuth_deg`). The exact
+path's weights interpolate between the two channels adjacent to the light's
+azimuth for any ``D`` (the same tent in ``360 / D``-degree steps), and 8-bit
+storage quantises any number of channels; the weight cube map, and so the
+``gpu`` path, exists for 8 channels only (an :class:`InputError` otherwise).
+With 8 channels every kernel is the one it was before ``D`` existed.
+
 Textures are filtered in float32 arithmetic (``use_accel=False``) on every
 backend: CUDA's texture units resolve the position within a texel to 1/256,
 which would make the exact path inexact and the two backends disagree.
@@ -135,7 +144,14 @@ CUBE_SIZE = 16
 #: Declarable effects that the technique does not model.
 NOT_MODELLED: tuple[str, ...] = ("interreflection",)
 
-_QUARTER_PI_INV = 4.0 / math.pi  # channels per radian: channel c sits at c * pi/4
+
+
+def _channels_per_radian(directions: int) -> float:
+    """``D / (2 pi)``: channel ``c`` of a ``D``-channel map sits at ``c * 2 pi / D`` radians.
+
+    For 8 channels this is ``4 / pi`` exactly (a power-of-two scaling of
+    ``1 / (2 pi)``), the constant the 8-channel kernels always used."""
+    return directions / (2.0 * math.pi)
 
 
 class Approximation:
@@ -197,6 +213,11 @@ class Approximation:
             raise InputError("storage", f"must be float or u8, got {storage!r}")
         if weights not in ("analytic", "cube"):
             raise InputError("weights", f"must be analytic or cube, got {weights!r}")
+        directions = int(bake.horizon.shape[-1])
+        if weights == "cube" and directions != cv.CHANNEL_COUNT:
+            raise InputError("weights", f"the weight cube map (and so the gpu path) holds {cv.CHANNEL_COUNT} "
+                                        f"channel weights; this bake stores {directions} directions: use "
+                                        "path='exact' / weights='analytic'")
         if ambient not in AMBIENT_TERMS:
             raise InputError("ambient", f"must be one of {', '.join(AMBIENT_TERMS)}, got {ambient!r}")
         if not (math.isfinite(k) and k > 0):
@@ -207,6 +228,7 @@ class Approximation:
         self.scene, self.bake = scene, bake
         self.path, self.k, self.ambient, self.fade = path, float(k), ambient, float(fade)
         self.storage, self.weights = storage, weights
+        self.directions = directions
         rows, cols = bake.horizon.shape[:2]
         self.rows, self.cols = rows, cols
         self.shape = image_shape(rows, cols, scene.camera)
@@ -300,6 +322,8 @@ class Approximation:
         """The technique's settings, for ``metrics.json``."""
         out = {"path": self.path, "storage": self.storage, "weights": self.weights, "k": self.k,
                "simulated": list(self.simulated)}
+        if self.directions != cv.CHANNEL_COUNT:
+            out["directions"] = self.directions
         if self._ambient:
             out["ambient"] = self.ambient
         if self._reflection:
@@ -411,27 +435,29 @@ class Approximation:
         return uni
 
     def _channel_weights(self, d) -> list:
-        """The 8 channel weights toward the azimuth of directions ``d`` (path-specific)."""
-        return self._exact_weights(d) if self.weights == "analytic" else self._cube_weights(d)
+        """The ``D`` channel weights toward the azimuth of directions ``d`` (path-specific)."""
+        return self._exact_weights(d, self.directions) if self.weights == "analytic" else self._cube_weights(d)
 
     @staticmethod
-    def _exact_weights(d) -> list:
+    def _exact_weights(d, directions: int = cv.CHANNEL_COUNT) -> list:
         """Exact linear interpolation between the two channels adjacent to ``atan2(dy, dx)``.
 
-        Channel ``c`` gets the tent ``max(0, 1 - dist(t, c))`` with ``t`` the
-        azimuth in channel units and ``dist`` the circular distance modulo 8:
+        Channel ``c`` of ``D = directions`` gets the tent ``max(0, 1 - dist(t,
+        c))`` with ``t`` the azimuth in channel units (``360 / D`` degrees)
+        and ``dist`` the circular distance modulo ``D``:
         :func:`hzval.conventions.channel_weights` without a per-lane channel
-        index. ``t`` in [0, 8]: azimuths of 360 deg or -0 deg land on 8 or 0,
+        index. ``t`` in [0, D]: azimuths of 360 deg or -0 deg land on D or 0,
         both of which give channel 0 all the weight.
         """
         import drjit as dr
 
-        t = dr.atan2(d.y, d.x) * _QUARTER_PI_INV
-        t = dr.select(t < 0.0, t + float(cv.CHANNEL_COUNT), t)
+        n = float(directions)
+        t = dr.atan2(d.y, d.x) * _channels_per_radian(directions)
+        t = dr.select(t < 0.0, t + n, t)
         weights = []
-        for c in range(cv.CHANNEL_COUNT):
+        for c in range(directions):
             dist = dr.abs(t - float(c))
-            dist = dr.minimum(dist, float(cv.CHANNEL_COUNT) - dist)
+            dist = dr.minimum(dist, n - dist)
             weights.append(dr.maximum(1.0 - dist, 0.0))
         return weights
 
@@ -514,7 +540,7 @@ class Approximation:
             direct = dr.select(lit, mi.Color3f(E), 0.0)
 
         if self._shadow and shadows:
-            s = _dot8(tex["horizon"], uni["w"])
+            s = _dot(tex["horizon"], uni["w"])
             F = dr.clip(dr.fma(L.z - s, uni["k"], 1.0), 0.0, 1.0)
             image = direct * F
             out["factor"] = F
@@ -531,7 +557,7 @@ class Approximation:
         if self._reflection:
             # r = reflect(-v, n) = 2 (n.v) n - v with v = +z
             r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
-            s_r = _dot8(tex["horizon"], self._channel_weights(r))
+            s_r = _dot(tex["horizon"], self._channel_weights(r))
             o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
             out["reflection_occlusion"] = o * o
 
@@ -587,17 +613,19 @@ def _aligned(a, alignment: int = 64) -> np.ndarray:
     return out
 
 
-def _dot8(h: list, w: list):
-    """``sum_c w_c h_c`` over the 8 channels (eq. 5.3 as two RGBA dot products)."""
+def _dot(h: list, w: list):
+    """``sum_c w_c h_c`` over the channels, as one RGBA dot product per layer, summed
+    in layer order (eq. 5.3: two layers for 8 channels, four for 16)."""
     import drjit as dr
 
-    s0 = h[0] * w[0]
-    for c in range(1, 4):
-        s0 = dr.fma(h[c], w[c], s0)
-    s1 = h[4] * w[4]
-    for c in range(5, 8):
-        s1 = dr.fma(h[c], w[c], s1)
-    return s0 + s1
+    n = cv.CHANNELS_PER_LAYER
+    total = None
+    for first in range(0, len(h), n):
+        s = h[first] * w[first]
+        for c in range(first + 1, first + n):
+            s = dr.fma(h[c], w[c], s)
+        total = s if total is None else total + s
+    return total
 
 
 def _ipow(x, n: int):

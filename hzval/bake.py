@@ -11,6 +11,16 @@ rounding:
 * ``sin = sqrt(t / (t + 1))`` per bin, and channel ``k`` averages the
   ``angles / 8 + 1`` bins centred on azimuth ``45 k`` degrees.
 
+``BakeParams(directions=16)`` stores 16 directions instead of the seed's 8:
+channel ``k`` toward azimuth ``22.5 k`` degrees
+(:func:`hzval.conventions.channel_azimuth_deg`) averages the
+``angles / 16 + 1`` bins centred on it (``angles`` a multiple of 32: with 32
+bins, channel ``k`` is the mean of bins ``2k - 1, 2k, 2k + 1``). The rule is
+the seed's, ``angles / D + 1`` bins for ``D`` directions, i.e. the bins
+between the two neighbouring channels' centres, ends included: each channel
+covers its own ``360 / D``-degree sector, so the 16-direction channels are
+narrower, not just more. The bins, and so the ambient terms, do not change.
+
 Heights are in texel units (``H * depth * cols``), and ``(i, j)`` are
 tangent-space offsets (+y up the image), so the bins follow hzval's azimuth
 convention rather than the seed's memory layout. The offset-to-bins table is
@@ -23,6 +33,15 @@ texel of a padded row and each neighbour is a zero-copy, shifted view of the
 padded map, so the kernel reads memory with contiguous vector loads instead
 of gathers (on AVX2 this was 6x faster); on CUDA, gathers are cheap and the
 same lanes gather from one copy of the map.
+
+That kernel unrolls the offset table, and its LLVM compile time grows faster
+than the offset count (radius 16: 0.5 s; 32: 4 s; 64: 100 s). For large
+radii on maps that are not large, :func:`horizon_map` runs a looped kernel
+instead (symbolic Dr.Jit loops over the table, read as data: the same small
+kernel at every radius), which gathers its neighbours and is 3-10x slower to
+run but compiles at once; the two agree bit for bit, and
+:func:`choose_kernel` picks by a cost model fitted to
+``benchmarks/bench_bake_radius.py``.
 
 The ambient map holds two averages over the bins' horizon angles ``alpha``:
 ``mean_cos``, Lengyel's term (the seed's ``sum * kAngleCount`` means an
@@ -57,8 +76,12 @@ _TWO_PI_F32 = np.float32(6.2831855)
 
 #: Bytes of memory per texel that a bake needs at its peak (inputs, padded
 #: copy, ten kernel outputs, their NumPy copies, normal map, 8-bit encodings),
-#: measured with tracemalloc and rounded up.
+#: measured with tracemalloc and rounded up, for 8 directions.
 BAKE_BYTES_PER_TEXEL = 160
+#: Bytes per texel that each direction beyond 8 adds (a kernel output, its
+#: NumPy copy and stacked channel, its 8-bit encoding: 4 + 4 + 4 + 1, rounded
+#: up; an estimate from the 8-direction figure, not measured separately).
+BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION = 16
 
 
 @dataclass(frozen=True)
@@ -67,13 +90,20 @@ class BakeParams:
 
     ``depth``: world height of ``H = 1`` in units of the image width.
     ``radius``: search radius in texels; neighbours with ``r < radius`` count.
-    ``angles``: number of angular bins; a multiple of 16 (each channel
-    averages ``angles/8 + 1`` bins centred on its direction).
+    ``angles``: number of angular bins; a multiple of ``2 * directions``
+    (each channel averages ``angles/directions + 1`` bins centred on its
+    direction, module docstring).
     ``boundary``: ``wrap`` or ``open`` (:mod:`hzval.conventions`).
     ``method``: ``seed`` (the seed algorithm above, :func:`horizon_map`) or
     ``exact`` (exact horizons toward the 8 channel directions with unlimited
     radius, :func:`exact_horizon_map`; ``radius`` and ``angles`` are ignored
     and not validated, and :meth:`record` writes them as ``None``).
+    ``directions``: stored horizon directions, 8 (the seed's) or 16
+    (:data:`hzval.conventions.DIRECTION_COUNTS`); channel ``c`` looks toward
+    azimuth ``360 c / directions`` degrees. ``exact`` supports 8 only: along
+    the odd multiples of 22.5 degrees a ray from a texel centre meets no
+    texel centres, so the exact sweeps would need interpolated heights
+    (not implemented; :meth:`validate` says so).
     """
 
     depth: float = 0.05
@@ -81,17 +111,28 @@ class BakeParams:
     angles: int = 32
     boundary: str = "wrap"
     method: str = "seed"
+    directions: int = cv.CHANNEL_COUNT
 
     def validate(self) -> "BakeParams":
         if not np.isfinite(self.depth) or self.depth <= 0:
             raise InputError("--depth", f"must be a positive number of image widths, got {self.depth}")
         if self.method not in METHODS:
             raise InputError("--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}")
+        if (isinstance(self.directions, bool) or not isinstance(self.directions, (int, np.integer))
+                or self.directions not in cv.DIRECTION_COUNTS):
+            raise InputError("--directions", f"must be one of {', '.join(map(str, cv.DIRECTION_COUNTS))}, "
+                                             f"got {self.directions}")
+        if self.method == "exact" and self.directions != cv.CHANNEL_COUNT:
+            raise InputError("--directions", f"the exact method stores {cv.CHANNEL_COUNT} directions only: along "
+                                             "22.5-degree directions a ray meets no texel centres, and the exact "
+                                             "sweeps do not interpolate heights; use --method seed")
         if self.method == "seed":
             if self.radius is None or int(self.radius) != self.radius or self.radius < 2:
                 raise InputError("--radius", f"must be an integer of at least 2 texels, got {self.radius}")
-            if self.angles is None or int(self.angles) != self.angles or self.angles < 16 or self.angles % 16:
-                raise InputError("--angles", f"must be a multiple of 16 (16, 32, 48, 64, ...), got {self.angles}")
+            m = 2 * int(self.directions)
+            if self.angles is None or int(self.angles) != self.angles or self.angles < m or self.angles % m:
+                raise InputError("--angles", f"must be a multiple of {m} ({m}, {2 * m}, {3 * m}, ...) with "
+                                             f"{self.directions} directions, got {self.angles}")
         if self.boundary not in cv.BOUNDARIES:
             raise InputError("--boundary", f"must be one of {', '.join(cv.BOUNDARIES)}, got {self.boundary!r}")
         return self
@@ -110,8 +151,19 @@ class BakeParams:
 
     @classmethod
     def from_record(cls, record: dict) -> "BakeParams":
-        """The inverse of :meth:`record` (``None`` entries take the defaults)."""
+        """The inverse of :meth:`record` (``None`` entries take the defaults).
+
+        A record without ``directions`` (written before it existed) is a
+        bake of the seed's 8 directions."""
         return cls(**{k: v for k, v in record.items() if v is not None})
+
+    @staticmethod
+    def normalise_record(record: dict) -> dict:
+        """``record`` as :meth:`record` writes it now: a missing ``directions`` is 8.
+
+        The bake cache compares records, and a ``bake.json`` from before
+        ``directions`` existed holds an 8-direction bake."""
+        return {"directions": cv.CHANNEL_COUNT, **record}
 
 
 #: Horizon bake methods (``BakeParams.method``, ``--method``).
@@ -122,8 +174,8 @@ METHODS: tuple[str, ...] = ("seed", "exact")
 class Bake:
     """The textures of the technique, as float32 arrays indexed ``[row, col]``.
 
-    ``horizon``: ``(rows, cols, 8)`` sines of the horizon angle, channel ``k``
-    toward azimuth ``45 k`` degrees. ``normal``: ``(rows, cols, 3)`` unit
+    ``horizon``: ``(rows, cols, D)`` sines of the horizon angle, channel ``k``
+    toward azimuth ``360 k / D`` degrees (``D = params.directions``, 8 or 16). ``normal``: ``(rows, cols, 3)`` unit
     tangent-space normals. ``mean_cos``, ``mean_cos2``: ``(rows, cols)``
     ambient terms. ``timings``: seconds per stage.
     """
@@ -136,10 +188,15 @@ class Bake:
     timings: dict[str, float] = field(default_factory=dict)
 
     @property
-    def layers(self) -> tuple[np.ndarray, np.ndarray]:
-        """The two RGBA layers: channels 0-3 and 4-7."""
+    def directions(self) -> int:
+        """Stored horizon directions (channels), 8 or 16."""
+        return int(self.horizon.shape[-1])
+
+    @property
+    def layers(self) -> tuple[np.ndarray, ...]:
+        """The ``D / 4`` RGBA layers: layer ``l`` holds channels ``4 l .. 4 l + 3``."""
         n = cv.CHANNELS_PER_LAYER
-        return self.horizon[..., :n], self.horizon[..., n:]
+        return tuple(self.horizon[..., n * i:n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
 
 # --------------------------------------------------------------------------
@@ -199,17 +256,91 @@ def horizon_table(radius: int, angles: int) -> list[OffsetGroup]:
             for bins, v in groups.items()]
 
 
+#: Horizon-bake kernel forms (:func:`horizon_map`'s ``kernel``).
+KERNELS: tuple[str, ...] = ("auto", "unrolled", "loop")
+
+#: Offset tables up to this size always take the unrolled kernel (radius 20,
+#: 1,240 offsets, is the largest radius below it). The default radius 16 (792
+#: offsets) compiles in 0.54 s and then runs 10x faster than the loop (512 x
+#: 512: 0.040 s against 0.43 s; benchmarks/README.md); Dr.Jit caches the
+#: compiled kernel on disk, so the compile is paid once per machine, not per
+#: bake. On a first bake the loop is only about as fast (0.48 s against 0.59 s),
+#: so below this size the unrolled kernel is the better choice overall.
+UNROLL_MAX_OFFSETS = 1300
+
+#: Cost model of a first bake (empty kernel cache) above
+#: :data:`UNROLL_MAX_OFFSETS`, for ``kernel="auto"``; fitted to
+#: ``benchmarks/bench_bake_radius.py --size 512`` on the 2-core AVX2 machine
+#: of benchmarks/README.md. The unrolled kernel's LLVM compile time grows
+#: faster than its offset count ``n``: 4.3 s at radius 32 (3,204 offsets),
+#: 102 s at radius 64 (12,848), i.e. ``UNROLL_COMPILE_S * (n / 1000) **
+#: UNROLL_COMPILE_POWER`` seconds through those two points. Run times are
+#: nanoseconds per (offset x lane), a lane being a texel of a padded row:
+#: measured 0.17-0.46 unrolled (contiguous vector loads), 1.2-1.9 for the
+#: loop (it gathers every neighbour and table entry). The loop wins when the
+#: compile outweighs the loop's slower run: for radius 32 below about
+#: 1000 x 1000 texels, for radius 64 below about 2500 x 2500.
+UNROLL_COMPILE_S = 0.296
+UNROLL_COMPILE_POWER = 2.29
+UNROLL_RUN_NS = 0.3
+LOOP_RUN_NS = 1.5
+
+
+def choose_kernel(offsets: int, lanes: int) -> str:
+    """The kernel form that :func:`horizon_map` uses by default (``kernel="auto"``).
+
+    ``offsets``: entries of the offset table (:func:`horizon_table`);
+    ``lanes``: texels of the padded rows, ``rows * (cols + 2 (radius - 1))``.
+    Tables up to :data:`UNROLL_MAX_OFFSETS` unroll; larger ones take the
+    form whose first bake, compile included, the cost model above predicts
+    to be faster. Once compiled, the unrolled kernel is loaded from Dr.Jit's
+    disk cache and is always the faster one, but ``auto`` decides for a
+    first bake: a large radius is rarely baked twice at one setting.
+    """
+    if offsets <= UNROLL_MAX_OFFSETS:
+        return "unrolled"
+    compile_s = UNROLL_COMPILE_S * (offsets / 1000.0) ** UNROLL_COMPILE_POWER
+    unrolled_s = compile_s + UNROLL_RUN_NS * 1e-9 * offsets * lanes
+    loop_s = LOOP_RUN_NS * 1e-9 * offsets * lanes
+    return "loop" if loop_s < unrolled_s else "unrolled"
+
+
 def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
-                boundary: str = "wrap") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                boundary: str = "wrap", *, kernel: str = "auto",
+                directions: int = cv.CHANNEL_COUNT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Seed horizon bake of heights in texel units.
 
-    Returns ``(horizon, mean_cos, mean_cos2)``: the ``(rows, cols, 8)`` channel
-    sines and the two ``(rows, cols)`` ambient terms, float32. Runs on the
-    current Mitsuba variant's Dr.Jit backend (:func:`hzval.backend.variant`).
+    Returns ``(horizon, mean_cos, mean_cos2)``: the ``(rows, cols, D)`` channel
+    sines (``D = directions``, 8 or 16; ``angles`` a multiple of ``2 D``;
+    channel ``k`` the mean of the ``angles / D + 1`` bins centred on azimuth
+    ``360 k / D`` degrees) and the two ``(rows, cols)`` ambient terms over
+    all bins, float32. Runs on the current Mitsuba variant's Dr.Jit backend
+    (:func:`hzval.backend.variant`).
+
+    ``kernel`` chooses how the offset table (:func:`horizon_table`) becomes
+    code; both forms compute the same float32 operations on the same values
+    and agree bit for bit (``tests/test_bake_radius.py``):
+
+    ``unrolled``
+        one block of code per offset, neighbours read as shifted views
+        (module docstring). Fastest to run, but its compile time grows faster
+        than the offset count (about ``radius^2``): 0.6 s at radius 16, 5 s
+        at 32, 100 s at 64 (benchmarks/README.md).
+    ``loop``
+        a symbolic loop over the offset table (:func:`_max_tan_loop`): one
+        small kernel whatever the radius (compiles in well under a second),
+        but it gathers every neighbour and is about 10x slower to run.
+    ``auto``
+        :func:`choose_kernel`: unrolled up to :data:`UNROLL_MAX_OFFSETS`
+        offsets (the default radius 16), else the faster first bake.
     """
     import drjit as dr
     import mitsuba as mi
 
+    if kernel not in KERNELS:
+        raise ValueError(f"unknown kernel form {kernel!r}; available: {', '.join(KERNELS)}")
+    if directions not in cv.DIRECTION_COUNTS or angles % (2 * directions):
+        raise ValueError(f"{directions} directions need a multiple of {2 * directions} bins, got {angles}")
     h = np.asarray(h_texels, dtype=np.float32)
     rows, cols = h.shape
     pad = radius - 1
@@ -221,40 +352,46 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
     flat = np.concatenate([np.zeros(pad, np.float32), padded.ravel(), np.zeros(pad, np.float32)])
     start = pad + pad * pcols  # flat index of padded (row pad, col 0)
     lanes = rows * pcols
-
-    if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
-        def neighbour(shift: int):
-            # zero-copy view: the kernel reads it with contiguous loads
-            return mi.Float(flat[start + shift:start + shift + lanes])
-    else:
-        source = mi.Float(flat)
-        lane = dr.arange(mi.Int32, lanes) + start
-
-        def neighbour(shift: int):
-            return dr.gather(mi.Float, source, mi.UInt32(lane + shift))
+    table = horizon_table(radius, angles)
+    if kernel == "auto":
+        kernel = choose_kernel(sum(len(g.offsets) for g in table), lanes)
 
     def shift_of(i: int, j: int) -> int:
         drow, dcol = cv.tangent_to_pixel_offset(i, j)
         return drow * pcols + dcol
 
-    h0 = neighbour(0)
-    max_tan = [mi.Float(0.0) for _ in range(angles)]
-    for group in horizon_table(radius, angles):
-        # max over the group of tan = dh / r; clamped at 0 by the bins' start
-        # value, which is the seed's "dh > 0" test
-        g = None
-        for (i, j), inv_r in zip(group.offsets, group.inv_r):
-            t = (neighbour(shift_of(i, j)) - h0) * inv_r
-            g = t if g is None else dr.maximum(g, t)
-        for b in group.bins:
-            max_tan[b] = dr.maximum(max_tan[b], g)
+    if kernel == "loop":
+        max_tan = _max_tan_loop(mi.Float(flat), start, lanes, table, angles, shift_of)
+    else:
+        if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
+            def neighbour(shift: int):
+                # zero-copy view: the kernel reads it with contiguous loads
+                return mi.Float(flat[start + shift:start + shift + lanes])
+        else:
+            source = mi.Float(flat)
+            lane = dr.arange(mi.Int32, lanes) + start
+
+            def neighbour(shift: int):
+                return dr.gather(mi.Float, source, mi.UInt32(lane + shift))
+
+        h0 = neighbour(0)
+        max_tan = [mi.Float(0.0) for _ in range(angles)]
+        for group in table:
+            # max over the group of tan = dh / r; clamped at 0 by the bins' start
+            # value, which is the seed's "dh > 0" test
+            g = None
+            for (i, j), inv_r in zip(group.offsets, group.inv_r):
+                t = (neighbour(shift_of(i, j)) - h0) * inv_r
+                g = t if g is None else dr.maximum(g, t)
+            for b in group.bins:
+                max_tan[b] = dr.maximum(max_tan[b], g)
 
     cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]     # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))
-    half = angles // 16
+    half = angles // (2 * directions)   # each channel: 2 half + 1 = angles / D + 1 bins
     channels = []
-    for k in range(cv.CHANNEL_COUNT):
-        centre = k * angles // cv.CHANNEL_COUNT
+    for k in range(directions):
+        centre = k * angles // directions
         s = sines[(centre - half) % angles]
         for d in range(-half + 1, half + 1):
             s = s + sines[(centre + d) % angles]
@@ -271,6 +408,69 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
     result = horizon, image(mean_cos).copy(), image(mean_cos2).copy()
     del flat  # the views above must not outlive it; they are evaluated by now
     return result
+
+
+def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angles: int, shift_of) -> list:
+    """The ``angles`` per-bin maxima of ``tan`` (>= 0) by symbolic Dr.Jit loops over ``table``.
+
+    ``source`` is the flat padded map (:func:`horizon_map`), lane ``l`` the
+    texel at flat index ``start + l``, ``shift_of(i, j)`` the flat shift of
+    tangent offset ``(i, j)``. The table travels as data, so the kernel's
+    code does not depend on the radius, the bin count or the map size:
+
+    * ``pairs``: ``(1/r, shift)`` of every offset as float32 pairs (one
+      packet gather per offset; shifts are integers far below 2^24, exact
+      in float32), ordered group by group;
+    * per group: the first and one-past-last offset, and the range of its
+      bin indices in ``bins``.
+
+    An outer loop runs over the groups; an inner loop takes the group's
+    maximum ``g`` of ``tan = (h_neighbour - h_0) / r`` (starting at -inf,
+    the identity of max), and a third loop raises the group's bins to ``g``
+    in a per-lane local array of ``angles`` floats (``dr.alloc_local``),
+    which starts at 0: the seed's ``dh > 0`` test, as in the unrolled form.
+    Every value is the same float32 ``(h_n - h_0) * (1/r)`` and max is exact
+    and order-free, so the result equals the unrolled kernel's bit for bit.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    pairs, group_first, group_end, bin_first, bin_end, bins = [], [], [], [], [], []
+    for group in table:
+        group_first.append(len(pairs))
+        pairs += [(inv_r, shift_of(i, j)) for (i, j), inv_r in zip(group.offsets, group.inv_r)]
+        group_end.append(len(pairs))
+        bin_first.append(len(bins))
+        bins += group.bins
+        bin_end.append(len(bins))
+    pairs_f = mi.Float(np.asarray(pairs, dtype=np.float32).ravel())
+    g_first, g_end, b_first, b_end, bin_of = (mi.UInt32(np.asarray(a, dtype=np.uint32))
+                                              for a in (group_first, group_end, bin_first, bin_end, bins))
+    lane = dr.arange(mi.Int32, lanes) + start
+    h0 = dr.gather(mi.Float, source, mi.UInt32(lane))
+    n_groups = len(table)
+
+    def group_body(gi, best):
+        def offset_body(o, g):
+            inv_r, shift = dr.gather(mi.Vector2f, pairs_f, o)     # one 2-float packet
+            t = (dr.gather(mi.Float, source, mi.UInt32(lane + mi.Int32(shift))) - h0) * inv_r
+            return o + 1, dr.maximum(g, t)
+
+        _, g = dr.while_loop((dr.gather(mi.UInt32, g_first, gi), mi.Float(-np.inf)),
+                             lambda o, g: o < dr.gather(mi.UInt32, g_end, gi), offset_body)
+
+        def bin_body(k, best):
+            b = dr.gather(mi.UInt32, bin_of, k)
+            best[b] = dr.maximum(best[b], g)
+            return k + 1, best
+
+        _, best = dr.while_loop((dr.gather(mi.UInt32, b_first, gi), best),
+                                lambda k, best: k < dr.gather(mi.UInt32, b_end, gi), bin_body)
+        return gi + 1, best
+
+    _, best = dr.while_loop((mi.UInt32(0), dr.alloc_local(mi.Float, angles, mi.Float(0.0))),
+                            lambda gi, best: gi < n_groups, group_body)
+    return [best[b] for b in range(angles)]
 
 
 # --------------------------------------------------------------------------
@@ -650,7 +850,8 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     seed's ten kernel outputs, so the seed's figure per texel bounds it.
     """
     pad = params.radius - 1 if params.method == "seed" else 0
-    return BAKE_BYTES_PER_TEXEL * (rows + 2 * pad) * (cols + 2 * pad)
+    per_texel = BAKE_BYTES_PER_TEXEL + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (params.directions - cv.CHANNEL_COUNT)
+    return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
 
 
 def available_bytes() -> int:
@@ -678,7 +879,7 @@ def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
 #: What each method's horizon and ambient maps are, for ``bake.json``.
 METHOD_NOTES: dict[str, str] = {
     "seed": "seed (Lengyel): max tan over neighbours with r < radius in `angles` bins; "
-            "each channel the mean sine of its angles/8 + 1 nearest bins; ambient over the bins",
+            "each channel the mean sine of its angles/directions + 1 nearest bins; ambient over the bins",
     "exact": "exact: horizon toward each channel's azimuth with unlimited radius (wrap: one period "
              "along the line, which is exact; open: to the edge), by line sweeps with a convex-hull "
              "stack (Timonen and Westerholm 2010); radius and angles unused (null); ambient over "
@@ -701,7 +902,8 @@ def bake(height: np.ndarray, params: BakeParams = BakeParams()) -> Bake:
     if params.method == "exact":
         horizon, mean_cos, mean_cos2 = exact_horizon_map(h, params.boundary)
     else:
-        horizon, mean_cos, mean_cos2 = horizon_map(h, params.radius, params.angles, params.boundary)
+        horizon, mean_cos, mean_cos2 = horizon_map(h, params.radius, params.angles, params.boundary,
+                                                   directions=params.directions)
     timings["horizon_s"] = time.perf_counter() - t1
     return Bake(params, horizon, normal, mean_cos, mean_cos2, timings)
 
@@ -710,13 +912,18 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     """Write a bake's files into ``out`` (DESIGN.md, ``hzval bake``), all or nothing.
 
     ``input_info`` describes the input (path, digest, source, shape) and goes
-    into ``bake.json`` with the parameters, versions and timings.
+    into ``bake.json`` with the parameters, versions and timings. The
+    horizon map goes into ``horizon0`` .. ``horizon{D/4 - 1}`` (``.exr`` and
+    ``.png``), channels ``4 l .. 4 l + 3`` in layer ``l``; the weight cube
+    map only for 8 directions (it holds Lengyel's 8 channel weights).
     """
     from hzval import backend, files
 
     t0 = time.perf_counter()
-    layer0, layer1 = result.layers
-    cube = weight_cube()
+    layers = result.layers
+    # the weight cube map holds Lengyel's 8 channel weights (2 RGBA layers):
+    # a 16-direction map has no GPU cube path (hzval.approx), so none is written
+    cube = weight_cube() if result.directions == cv.CHANNEL_COUNT else None
 
     # Writing dominated a 2048x2048 bake: zlib runs at ~35 MB/s here, and
     # ZIP shrinks float32 horizon data by 8% and 8-bit layers by 12%, while
@@ -729,49 +936,74 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         files.write_png(stage.path(name), pixels, atomic=False, compress_level=0)
 
     with files.Staging(out) as stage:
-        exr("horizon0.exr", {"RGBA": layer0})
-        exr("horizon1.exr", {"RGBA": layer1})
-        png("horizon0.png", files.unit_to_u8(layer0))
-        png("horizon1.png", files.unit_to_u8(layer1))
+        for i, layer in enumerate(layers):
+            exr(f"horizon{i}.exr", {"RGBA": layer})
+        for i, layer in enumerate(layers):
+            png(f"horizon{i}.png", files.unit_to_u8(layer))
         exr("normal.exr", {"RGB": result.normal})
         png("normal.png", files.unit_to_u8(0.5 + 0.5 * result.normal))
         exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
-        for i, face in enumerate(cv.CUBE_FACES):
-            png(f"cube/{face}.png", cube[i])
+        if cube is not None:
+            for i, face in enumerate(cv.CUBE_FACES):
+                png(f"cube/{face}.png", cube[i])
         timings = dict(result.timings, write_s=time.perf_counter() - t0)
         files.write_json(stage.path("bake.json"), {
             "input": input_info,
             "parameters": result.params.record(),
             "method": METHOD_NOTES[result.params.method],
-            "outputs": {
-                "horizon0": "channels 0-3 (azimuth 0, 45, 90, 135 deg) as RGBA: sine of the horizon angle",
-                "horizon1": "channels 4-7 (azimuth 180, 225, 270, 315 deg) as RGBA",
-                "normal": "tangent-space unit normal (PNG: 0.5 + 0.5 n)",
-                "ambient": "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)",
-                "cube": "channel weights, 16x16 per face, OpenGL face order, 8-bit (w + 1) * 127.5",
-            },
+            "outputs": _output_notes(result.directions),
             "conventions": "DESIGN.md: +x right, +y up the image, azimuth counterclockwise from +x; "
                            "heights in texel units are H * depth * cols",
             "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "versions": backend.versions(),
         }, atomic=False)
-        return stage.commit()
+        written = stage.commit()
+    # a folder that held a bake with another number of directions keeps no
+    # files of it that this bake.json does not describe (extra layers, a cube)
+    stale = [f"horizon{i}.{ext}" for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
+             for ext in ("exr", "png")]
+    if cube is None:
+        stale += [f"cube/{face}.png" for face in cv.CUBE_FACES]
+    for name in stale:
+        (Path(out) / name).unlink(missing_ok=True)
+    return written
+
+
+def _output_notes(directions: int) -> dict:
+    """``bake.json``'s description of the files of a ``directions``-channel bake."""
+    n = cv.CHANNELS_PER_LAYER
+    notes = {}
+    for i in range(cv.layer_count(directions)):
+        az = ", ".join(f"{cv.channel_azimuth_deg(c, directions):g}" for c in range(n * i, n * i + n))
+        notes[f"horizon{i}"] = (f"channels {n * i}-{n * i + n - 1} (azimuth {az} deg) as RGBA"
+                                + (": sine of the horizon angle" if i == 0 else ""))
+    notes["normal"] = "tangent-space unit normal (PNG: 0.5 + 0.5 n)"
+    notes["ambient"] = "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)"
+    if directions == cv.CHANNEL_COUNT:
+        notes["cube"] = "channel weights, 16x16 per face, OpenGL face order, 8-bit (w + 1) * 127.5"
+    else:
+        notes["cube"] = (f"not written: the weight cube map holds {cv.CHANNEL_COUNT} channel weights; "
+                         f"{directions} directions use the analytic weights")
+    return notes
 
 
 def read_bake(folder: str | Path) -> Bake:
-    """Read a bake written by :func:`write_bake` back from its EXR files (exact float32)."""
+    """Read a bake written by :func:`write_bake` back from its EXR files (exact float32).
+
+    The number of horizon layers follows the recorded ``directions`` (8,
+    i.e. ``horizon0``-``horizon1``, when ``bake.json`` predates it)."""
     import json
 
     from hzval import files
 
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
-    h0, h1 = files.read_exr(folder / "horizon0.exr"), files.read_exr(folder / "horizon1.exr")
+    params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
+    layers = [files.read_exr(folder / f"horizon{i}.exr") for i in range(cv.layer_count(params.directions))]
     n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
-    horizon = np.stack([h0[c] for c in "RGBA"] + [h1[c] for c in "RGBA"], axis=-1)
+    horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
     normal = np.stack([n[c] for c in "RGB"], axis=-1)
-    return Bake(BakeParams.from_record(record["parameters"]), horizon, normal, amb["mean_cos"], amb["mean_cos2"],
-                dict(record["timings_s"]))
+    return Bake(params, horizon, normal, amb["mean_cos"], amb["mean_cos2"], dict(record["timings_s"]))
 
 
 def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
@@ -783,7 +1015,8 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
     folder = Path(folder)
     try:
         record = json.loads((folder / "bake.json").read_text())
-        if record["input"]["digest"] == digest and record["parameters"] == params.record():
+        if (record["input"]["digest"] == digest
+                and BakeParams.normalise_record(record["parameters"]) == params.record()):
             return read_bake(folder), True
     except (OSError, ValueError, KeyError, TypeError):
         pass   # no usable cache: bake anew

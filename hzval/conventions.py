@@ -19,8 +19,10 @@ Height scale
 
 Directions
     Azimuth ``phi`` is measured counterclockwise from +x as seen on screen.
-    Horizon channel ``k`` (0..7) is azimuth ``45 k`` degrees; layer 0 holds
-    channels 0-3 as RGBA, layer 1 channels 4-7.
+    A horizon map stores ``D`` directions (8, the default and the seed's, or
+    16): channel ``k`` (0..D-1) is azimuth ``360 k / D`` degrees (``45 k``
+    for 8); RGBA layer ``l`` holds channels ``4 l .. 4 l + 3``, so 8
+    directions fill layers 0-1 and 16 directions layers 0-3.
 
 Light
     ``L = (cos e cos phi, cos e sin phi, sin e)`` points *toward* the light.
@@ -43,11 +45,32 @@ import numpy as np
 Boundary = Literal["wrap", "open"]
 BOUNDARIES: tuple[str, ...] = ("wrap", "open")
 
-#: Number of horizon channels and their azimuths in degrees.
+#: Number of horizon channels of the default (seed) horizon map and their
+#: azimuths in degrees.
 CHANNEL_COUNT = 8
 CHANNEL_AZIMUTHS_DEG = tuple(45.0 * k for k in range(CHANNEL_COUNT))
 #: Channels per RGBA layer of the horizon map.
 CHANNELS_PER_LAYER = 4
+#: Numbers of stored horizon directions a bake may have
+#: (:attr:`hzval.bake.BakeParams.directions`): the seed's 8, or 16.
+DIRECTION_COUNTS: tuple[int, ...] = (8, 16)
+
+
+def channel_azimuth_deg(channel: int, directions: int = CHANNEL_COUNT) -> float:
+    """Azimuth in degrees of horizon channel ``channel`` of a ``directions``-channel map: ``360 c / D``."""
+    return 360.0 * int(channel) / int(directions)
+
+
+def channel_azimuths_deg(directions: int = CHANNEL_COUNT) -> tuple[float, ...]:
+    """Azimuths in degrees of all channels of a ``directions``-channel map, channel order."""
+    return tuple(channel_azimuth_deg(c, directions) for c in range(int(directions)))
+
+
+def layer_count(directions: int = CHANNEL_COUNT) -> int:
+    """RGBA layers that hold ``directions`` channels (``directions / 4``)."""
+    if directions % CHANNELS_PER_LAYER:
+        raise ValueError(f"the directions must fill whole RGBA layers, got {directions}")
+    return int(directions) // CHANNELS_PER_LAYER
 
 
 # --------------------------------------------------------------------------
@@ -149,25 +172,28 @@ def azimuth_of(x, y):
 
 
 def channel_layer(channel: int) -> tuple[int, int]:
-    """``(layer, component)`` that store horizon channel ``channel`` (0..7)."""
+    """``(layer, component)`` that store horizon channel ``channel`` (0..D-1)."""
     return divmod(int(channel), CHANNELS_PER_LAYER)
 
 
-def channel_weights(lx, ly) -> np.ndarray:
-    """Exact weights of the 8 horizon channels for a light direction ``(lx, ly)``.
+def channel_weights(lx, ly, directions: int = CHANNEL_COUNT) -> np.ndarray:
+    """Exact weights of the ``directions`` horizon channels for a light direction ``(lx, ly)``.
 
     The horizon sine toward azimuth ``phi`` is the linear interpolation
     between the two channels adjacent to ``phi = atan2(ly, lx)`` (Lengyel,
-    section 5.3); the weights sum to 1. Returns shape ``(..., 8)``. A light
-    straight above (``lx = ly = 0``) takes ``phi = 0``: its elevation is 90
-    degrees, above every horizon, so the choice does not matter.
+    section 5.3, for 8; the same tent in ``360 / D``-degree steps for ``D``
+    channels); the weights sum to 1. Returns shape ``(..., directions)``. A
+    light straight above (``lx = ly = 0``) takes ``phi = 0``: its elevation
+    is 90 degrees, above every horizon, so the choice does not matter.
     """
+    n = int(directions)
     phi = np.arctan2(np.asarray(ly, dtype=np.float64), np.asarray(lx, dtype=np.float64))
-    t = np.mod(phi / (np.pi / 4.0), CHANNEL_COUNT)
-    lo = np.floor(t).astype(np.int64) % CHANNEL_COUNT
+    # 2 pi / 8 is pi / 4 exactly (a power-of-two scaling): 8 channels as before
+    t = np.mod(phi / (2.0 * np.pi / n), n)
+    lo = np.floor(t).astype(np.int64) % n
     frac = t - np.floor(t)
-    hi = (lo + 1) % CHANNEL_COUNT
-    w = np.zeros(np.shape(t) + (CHANNEL_COUNT,))
+    hi = (lo + 1) % n
+    w = np.zeros(np.shape(t) + (n,))
     np.put_along_axis(w, lo[..., None], (1.0 - frac)[..., None], axis=-1)
     # add, not put: when frac == 0, hi's weight is 0 and must not clobber lo
     w_hi = np.take_along_axis(w, hi[..., None], axis=-1) + frac[..., None]

@@ -12,7 +12,8 @@ setting of :func:`settings` against it, each with
     setting (``"truth"``) a frame of the truth at that many shadow rays.
 ``storage_bytes``
     the texture memory the setting needs at run time: the horizon map
-    (channels x texels x 1 byte for 8-bit storage, 4 for float), plus the
+    (channels x texels x 1 byte for 8-bit storage, 4 for float; 8 channels,
+    or 16 for the "16 directions" bake settings), plus the
     weight cube map (6 faces x 16 x 16 texels x 2 RGBA layers, 8-bit) where
     it is sampled; the height map alone (16-bit) for the terrain technique;
     the displaced mesh (a float32 vertex and two triangles of uint32 indices
@@ -119,6 +120,9 @@ def settings() -> list[Setting]:
     if "exact" in _available_bake_methods():
         s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}))
     s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}) for a in (16, 64)]
+    # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
+    # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
+    s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16}) for a in (32, 64)]
     s += [Setting("8-bit horizon map", "approx", approx={"storage": "u8"}),
           Setting("cube-map weights", "approx", approx={"weights": "cube"}),
           Setting("GPU path: 8-bit map + cube weights", "approx", approx={"storage": "u8", "weights": "cube"})]

@@ -215,7 +215,8 @@ def test_outputs_are_finite_and_in_range(variant):
 
 def test_params_record_radius_and_angles_as_unused(variant):
     p = B.BakeParams(radius=7, angles=48, method="exact").validate()
-    assert p.record() == {"depth": 0.05, "radius": None, "angles": None, "boundary": "wrap", "method": "exact"}
+    assert p.record() == {"depth": 0.05, "radius": None, "angles": None, "boundary": "wrap", "method": "exact",
+                          "directions": 8}
     assert B.BakeParams.from_record(p.record()).method == "exact"
     assert B.BakeParams(radius=1, angles=3, method="exact").validate()   # ignored, so not checked
     with pytest.raises(Exception, match="--method"):
@@ -244,7 +245,7 @@ def test_cli_bake_method_exact(variant, tmp_path, capsys):
     assert cli.main(["bake", "--size", "32", "--method", "exact", "--radius", "4", "--out", str(tmp_path)]) == 0
     record = json.loads((tmp_path / "bake.json").read_text())
     assert record["parameters"] == {"depth": 0.05, "radius": None, "angles": None, "boundary": "wrap",
-                                    "method": "exact"}
+                                    "method": "exact", "directions": 8}
     assert "unlimited radius" in capsys.readouterr().out
     with pytest.raises(SystemExit):   # argparse rejects an unknown method
         cli.main(["bake", "--size", "32", "--method", "nope", "--out", str(tmp_path / "x")])

@@ -106,8 +106,8 @@ def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatc
     """Channel 0 faces azimuth 0: the exact path's frames at 0 degrees fail, the others do not."""
     original = approx.Approximation._exact_weights
 
-    def flipped(d):
-        w = original(d)
+    def flipped(d, *directions):
+        w = original(d, *directions)
         return [-w[0], *w[1:]]
     monkeypatch.setattr(approx.Approximation, "_exact_weights", staticmethod(flipped))
     st = statuses(check.run(references=refs, only=["bricks", "wall"]))

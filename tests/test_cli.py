@@ -41,7 +41,8 @@ def test_bake_writes_every_file_and_a_record(variant, height_png, tmp_path):
                "--boundary", "open", "--out", out) == 0
     assert listing(out) == BAKE_FILES
     record = json.loads((out / "bake.json").read_text())
-    assert record["parameters"] == {"depth": 0.1, "radius": 5, "angles": 16, "boundary": "open", "method": "seed"}
+    assert record["parameters"] == {"depth": 0.1, "radius": 5, "angles": 16, "boundary": "open", "method": "seed",
+                                    "directions": 8}
     assert record["input"]["digest"].startswith("sha256:")
     assert record["input"]["rows"] == 24 and record["input"]["cols"] == 40
     assert "horizon_s" in record["timings_s"] and record["versions"]["mitsuba"]

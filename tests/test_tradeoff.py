@@ -120,7 +120,7 @@ def test_cli_rejects_an_empty_selection(variant, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_full_tradeoff_of_the_builtin_material(variant, tmp_path):
-    """Every setting, the built-in material at 64 px (r64 compiles a large kernel: slow)."""
+    """Every setting, the built-in material at 64 px (slow: a converged truth and ~25 settings)."""
     out = tmp_path / "full"
     assert cli.main(["tradeoff", "--size", "64", "--truth-spp", "64", "--quiet", "--out", str(out)]) == 0
     data = json.loads((out / "tradeoff.json").read_text())

@@ -52,9 +52,10 @@ def assert_unit(x, what=""):
 # The seed bake in float64
 # --------------------------------------------------------------------------
 
-def horizon_f64(h_texels, radius=16, angles=32, boundary="wrap", points=None):
-    """``(horizon (n, 8), mean_cos (n,), mean_cos2 (n,))`` at texels ``points`` ((rows, cols) index
-    arrays; all texels, row-major, if None), in float64."""
+def horizon_f64(h_texels, radius=16, angles=32, boundary="wrap", points=None, directions=8):
+    """``(horizon (n, D), mean_cos (n,), mean_cos2 (n,))`` at texels ``points`` ((rows, cols) index
+    arrays; all texels, row-major, if None), in float64; ``D = directions`` channels, channel
+    ``k`` the mean of the ``angles/D + 1`` bins centred on bin ``k angles / D``."""
     h = np.asarray(h_texels, np.float64)
     rows, cols = h.shape
     pad = radius - 1
@@ -74,10 +75,10 @@ def horizon_f64(h_texels, radius=16, angles=32, boundary="wrap", points=None):
         for b in g.bins:
             max_tan[:, b] = np.maximum(max_tan[:, b], best)
     sines = max_tan / np.sqrt(1.0 + max_tan ** 2)
-    half = angles // 16
+    half = angles // (2 * directions)
     channels = []
-    for k in range(cv.CHANNEL_COUNT):
-        centre = k * angles // cv.CHANNEL_COUNT
+    for k in range(directions):
+        centre = k * angles // directions
         channels.append(np.mean([sines[:, (centre + d) % angles] for d in range(-half, half + 1)], axis=0))
     cos2 = 1.0 / (1.0 + max_tan ** 2)
     return np.stack(channels, axis=-1), np.sqrt(cos2).mean(axis=1), cos2.mean(axis=1)
