@@ -41,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_material_args(p)
     p.add_argument("--radius", type=int, default=16, help="search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 16 (default 32)")
+    p.add_argument("--directions", type=int, default=8,
+                   help="stored horizon directions: 8 (Lengyel's, two RGBA layers) or 16 (22.5 degrees apart, "
+                        "four layers; seed method, --angles a multiple of 32) (default 8)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake: seed (Lengyel's bins within --radius) or exact (exact horizons toward "
                         "the 8 channel directions, unlimited radius; ignores --radius and --angles) (default seed)")
@@ -75,6 +78,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="which ambient-map definition the approximation uses")
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="bake angular bins (default 32)")
+    p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")
     p.add_argument("--no-terrain", dest="terrain", action="store_false",
@@ -142,7 +146,8 @@ def cmd_bake(args) -> int:
 
     depth = material.DEFAULT_DEPTH if args.depth is None else args.depth
     params = bake.BakeParams(depth=depth, radius=args.radius, angles=args.angles,
-                             boundary=args.boundary or "wrap", method=args.method).validate()
+                             boundary=args.boundary or "wrap", method=args.method,
+                             directions=args.directions).validate()
     if args.height is not None:
         rows, cols = heightmap.probe_shape(args.height)
         bake.check_fits(args.height, rows, cols, params)
@@ -165,7 +170,7 @@ def cmd_bake(args) -> int:
         written.append(args.out / "mesh.ply")
     total = time.perf_counter() - t0
     rows, cols = height.shape
-    how = (f"radius {params.radius}, {params.angles} bins" if params.method == "seed"
+    how = (f"radius {params.radius}, {params.angles} bins, {params.directions} directions" if params.method == "seed"
            else "exact horizons, unlimited radius")
     print(f"baked {info['source']} ({cols}x{rows}, depth {params.depth:g}, {how}, "
           f"{params.boundary}) in {total:.2f} s -> {args.out} ({len(written)} files)")
@@ -185,7 +190,7 @@ def cmd_sweep(args) -> int:
     if args.height:
         scene = dataclasses.replace(scene, name=Path(args.height).stem)
     options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles,
-                            method=args.method, terrain=args.terrain)
+                            method=args.method, directions=args.directions, terrain=args.terrain)
     if not (math.isfinite(options.k) and options.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {options.k}")
     out = args.out or Path("reports") / scene.name

@@ -203,7 +203,8 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("method", "bake method"),
-                        ("radius", "bake radius"), ("angles", "bake angles"))),
+                        ("radius", "bake radius"), ("angles", "bake angles"),
+                        ("directions", "stored directions"))),
     ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
                ("azimuths_deg", "azimuths"))),
     ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"))),

@@ -46,6 +46,7 @@ import numpy as np
 
 from hzval import compare, files
 from hzval.bake import BakeParams
+from hzval.errors import InputError
 
 #: Colours of the visibility-difference map (sRGB 8-bit): where the technique
 #: lights what the truth shadows, and where it shadows what the truth lights.
@@ -63,6 +64,7 @@ class Options:
     radius: int = 16
     angles: int = 32
     method: str = "seed"         # horizon bake method: "seed" or "exact" (BakeParams.method)
+    directions: int = 8          # stored horizon directions: 8 or 16 (BakeParams.directions)
     terrain: bool = True         # also render and compare Raudins' terrain shadows (hzval.terrain)
 
 
@@ -115,15 +117,17 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     out = Path(out)
     t_start = time.perf_counter()
     backend.variant()
+    params = BakeParams(depth=scene.material.depth, radius=options.radius, angles=options.angles,
+                        boundary=scene.material.boundary, method=options.method,
+                        directions=options.directions).validate()
+    if options.path == "gpu" and params.directions != 8:   # before anything is written
+        raise InputError("--path", f"the gpu path emulates Lengyel's 8-channel weight cube map; a bake of "
+                                   f"{params.directions} directions needs --path exact")
     if scene.material.height == "bricks":     # estimate before generating the built-in map
         n = scene.material.size
-        bake.check_fits("--size", n, n, BakeParams(depth=scene.material.depth, radius=options.radius,
-                                                   angles=options.angles, boundary=scene.material.boundary,
-                                                   method=options.method).validate())
+        bake.check_fits("--size", n, n, params)
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
-    params = BakeParams(depth=scene.material.depth, radius=options.radius, angles=options.angles,
-                        boundary=scene.material.boundary, method=options.method).validate()
     bake.check_fits(hm.path or "material", rows, cols, params)
     material_info = {"name": scene.name, "source": hm.source, "digest": hm.digest,
                      "rows": rows, "cols": cols, "path": hm.path}
@@ -207,7 +211,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
         "material": material_info,
         "parameters": {"depth": scene.material.depth, "boundary": scene.material.boundary,
                        "method": params.method, "radius": params.record()["radius"],
-                       "angles": params.record()["angles"],
+                       "angles": params.record()["angles"], "directions": params.directions,
                        "elevation_deg": scene.light.elevation_deg,
                        "azimuths_deg": list(scene.light.azimuths_deg), "k": options.k,
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,

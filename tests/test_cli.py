@@ -115,7 +115,10 @@ def test_bad_input_is_one_line_exit_2_and_no_files(case, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("flags,what", [(["--depth", "0"], "--depth"), (["--depth", "-0.5"], "--depth"),
-                                        (["--angles", "20"], "--angles"), (["--size", "1"], "--size")])
+                                        (["--angles", "20"], "--angles"), (["--size", "1"], "--size"),
+                                        (["--directions", "12"], "--directions"),
+                                        (["--directions", "16", "--angles", "48"], "--angles"),
+                                        (["--directions", "16", "--method", "exact"], "--directions")])
 def test_bad_parameter_is_one_line_exit_2_and_no_files(flags, what, tmp_path, capsys):
     out = tmp_path / "out"
     assert run("bake", *flags, "--out", out) == 2
@@ -137,3 +140,12 @@ def test_usage_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["bake"])          # --out is required
     assert e.value.code == 2
+
+
+def test_sixteen_directions_bake_four_layers_and_no_cube(variant, tmp_path):
+    out = tmp_path / "out"
+    assert run("bake", "--size", 24, "--directions", 16, "--out", out) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {f"horizon{i}.{e}" for i in range(4) for e in ("exr", "png")} <= names
+    assert "cube" not in names
+    assert json.loads((out / "bake.json").read_text())["parameters"]["directions"] == 16

@@ -133,6 +133,9 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     (("sweep", "--size", "24", "--k", "0"), "--k"),
     (("sweep", "--size", "24", "--effects", "glitter"), "effects"),
     (("sweep", "--size", "200000"), "GiB"),          # estimated before the map is generated
+    (("sweep", "--size", "24", "--directions", "12"), "--directions"),
+    (("sweep", "--size", "24", "--directions", "16", "--path", "gpu"), "--path"),
+    (("sweep", "--size", "24", "--directions", "16", "--method", "exact"), "--directions"),
 ])
 def test_bad_input_is_one_line_exit_2_and_no_output(argv, needle, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -203,3 +206,13 @@ def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, brick
         assert "|o−R|" in (out / "index.html").read_text(encoding="utf-8")
     _, first, _ = bricks_sweep
     assert all("reflection_mae" not in f for f in first["frames"])
+
+
+def test_sixteen_directions_sweep_records_them(variant, tmp_path):
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 32, "--azimuths", "0,22.5", "--spp", 2, "--directions", 16, "--no-terrain",
+               "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["parameters"]["directions"] == 16
+    assert sorted(p.name for p in (out / "bake").glob("horizon*.exr")) == [f"horizon{i}.exr" for i in range(4)]
+    assert all(0 <= f["visibility_mae"] < 0.2 for f in m["frames"])
