@@ -141,16 +141,27 @@ class Reference:
         self.lab = _lab(self.display)
 
 
+def image_metrics(reference_display: np.ndarray, test_display: np.ndarray,
+                  reference_lab: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """The display-value metrics of a frame, the slow part of :func:`compare`:
+    ``(FLIP error map, FLIP mean, CIEDE2000 map)``."""
+    flip_map, flip_mean = flip(reference_display, test_display)
+    return flip_map, flip_mean, delta_e2000(reference_display, test_display, reference_lab=reference_lab)
+
+
 def compare(truth, approx, scale: float, *, reference: Reference | None = None,
-            flip_result: tuple[np.ndarray, float] | None = None) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
-    """Metrics of one frame and the maps behind them (``flip``, ``delta_e``, ``visibility_diff``).
+            approx_display: np.ndarray | None = None,
+            image_result: tuple[np.ndarray, float, np.ndarray] | None = None
+            ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
+    """Metrics of one frame and the maps behind them (``flip``, ``delta_e``,
+    ``visibility_diff``, and ``display``, the approximation's display values).
 
     ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
     sweep's :func:`exposure`; ``reference``: ``Reference(truth, scale)``
     when several techniques are compared with the same truth;
-    ``flip_result``: :func:`flip` of ``reference.display`` and the
-    approximation's display values when the caller has computed it
-    already (:class:`FlipWorker`).
+    ``approx_display``: ``display(approx.image, scale)`` if the caller has it;
+    ``image_result``: :func:`image_metrics` of the two when the caller has
+    computed it already. The values are the same either way.
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
@@ -169,83 +180,9 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None,
     mse = float(np.mean((t_lin - a_lin) ** 2))
     rmse = math.sqrt(mse)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    t_disp, a_disp = ref.display, display(approx.image, scale)
-    maps["flip"], flip_mean = flip(t_disp, a_disp) if flip_result is None else flip_result
-    maps["delta_e"] = delta_e2000(t_disp, a_disp, reference_lab=ref.lab)
+    a_disp = display(approx.image, scale) if approx_display is None else approx_display
+    maps["display"] = a_disp
+    maps["flip"], flip_mean, maps["delta_e"] = (image_metrics(ref.display, a_disp, ref.lab)
+                                                 if image_result is None else image_result)
     return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
                         float(np.mean(maps["delta_e"])), reflection), maps
-
-
-#: Frames of at least this many pixels have their FLIP computed in a worker
-#: process (:class:`FlipWorker`); smaller ones are cheaper than starting it.
-FLIP_WORKER_MIN_PIXELS = 256 * 256
-
-
-class FlipWorker:
-    """:func:`flip` evaluated in one separate process, so that it runs beside the sweep.
-
-    ``flip-evaluator`` holds the GIL and runs on one core for about 0.3 s a
-    512 x 512 frame, a third of a default sweep's time with two techniques
-    to compare; threads do not overlap it with anything. A process started
-    with ``spawn`` (never ``fork``: Dr.Jit's threads are running) does, while
-    the sweep renders and writes the next frame. Below ``min_pixels``, when
-    no process can be started, or if it dies, FLIP runs inline: the values
-    are the same either way. :meth:`submit` returns a
-    :class:`concurrent.futures.Future` of ``(error map, mean)``; use it as a
-    context manager.
-    """
-
-    def __init__(self, pixels: int, min_pixels: int = FLIP_WORKER_MIN_PIXELS):
-        self._pool = None
-        if pixels >= min_pixels:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            try:
-                self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-            except (OSError, ValueError, NotImplementedError):
-                self._pool = None
-
-    @property
-    def in_process(self) -> bool:
-        """Whether FLIP runs in a worker process."""
-        return self._pool is not None
-
-    def submit(self, reference_display: np.ndarray, test_display: np.ndarray):
-        from concurrent.futures import Future
-
-        if self._pool is not None:
-            try:
-                return _Fallback(self._pool.submit(flip, reference_display, test_display),
-                                 reference_display, test_display)
-            except RuntimeError:            # a broken pool refuses new work
-                self._pool = None
-        done = Future()
-        done.set_result(flip(reference_display, test_display))
-        return done
-
-    def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = None
-
-    def __enter__(self) -> "FlipWorker":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
-class _Fallback:
-    """A worker's future whose ``result()`` computes inline if the worker process died."""
-
-    def __init__(self, future, reference_display, test_display):
-        self._future, self._args = future, (reference_display, test_display)
-
-    def result(self):
-        from concurrent.futures.process import BrokenProcessPool
-
-        try:
-            return self._future.result()
-        except BrokenProcessPool:
-            return flip(*self._args)

@@ -51,19 +51,3 @@ def test_display_encodes_srgb_after_exposure():
 def test_flip_refusal_is_an_error_not_an_exit():
     with pytest.raises(HzvalError):
         C.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
-
-
-def test_flip_in_a_worker_process_gives_the_inline_values():
-    rng = np.random.default_rng(7)
-    a, b = rng.random((2, 40, 48, 3))
-    with C.FlipWorker(40 * 48, min_pixels=0) as worker:
-        assert worker.in_process
-        futures = [worker.submit(a, b), worker.submit(b, a)]
-        results = [f.result() for f in futures]
-    for (err, mean), (x, y) in zip(results, ((a, b), (b, a))):
-        ref_err, ref_mean = C.flip(x, y)
-        np.testing.assert_array_equal(err, ref_err)
-        assert mean == ref_mean
-    with C.FlipWorker(40 * 48) as small:             # below the threshold: inline
-        assert not small.in_process
-        assert small.submit(a, b).result()[1] == C.flip(a, b)[1]
