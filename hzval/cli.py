@@ -257,6 +257,10 @@ def cmd_tradeoff(args) -> int:
     if rec:
         print(f"\nrecommended: {rec['setting']} (|F-V| {rec['visibility_mae']:.4f}; "
               f"best {rec['best']} {rec['best_visibility_mae']:.4f})")
+        if "horizon_map" in rec:
+            h = rec["horizon_map"]
+            print(f"for horizon mapping: {h['setting']} (|F-V| {h['visibility_mae']:.4f}; "
+                  f"default {rec['default']} {rec['default_visibility_mae']:.4f})")
     print(f"report: {index}")
     return errors.EXIT_OK
 

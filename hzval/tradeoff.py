@@ -77,6 +77,12 @@ class Point:
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
 
+    @property
+    def label(self) -> str:
+        """The name, with what this run found out about the setting (``params["note"]``)."""
+        note = self.params.get("note")
+        return f"{self.name} ({note})" if note else self.name
+
 
 @dataclass(frozen=True)
 class Setting:
@@ -250,6 +256,12 @@ def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, on
             bakes[key] = _timed_bake(height, params)
         bk, bake_s = bakes[key]
         p = {"bake": dataclasses.asdict(params)}
+        if params.method == "seed" and s.kind == "bake":
+            # a large radius may take the looped kernel (hzval.bake.choose_kernel): say so
+            offsets = sum(len(g.offsets) for g in bake.horizon_table(params.radius, params.angles))
+            p["kernel"] = bake.choose_kernel(offsets, rows * (cols + 2 * (params.radius - 1)))
+            if p["kernel"] != "unrolled":
+                p["note"] = f"{p['kernel']}ed kernel"
         if s.kind == "truth":
             tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
             frames, t = _render_all(tr, az)
@@ -271,6 +283,8 @@ def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, on
             t = bake_s if s.kind == "bake" else frame_s
             storage = _horizon_bytes(bk, ap.storage) + (CUBE_BYTES if ap.weights == "cube" else 0)
             p.update(k=ap.k, storage=ap.storage, weights=ap.weights, frame_s=frame_s)
+            if s.fit_k:
+                p["note"] = f"k = {ap.k:.3g}"
         mae, flip = _errors(ref, frames)
         points.append(Point(s.name, s.kind, float(t), int(storage), mae, flip, params=p))
     mark_pareto(points)
@@ -292,22 +306,34 @@ def mark_pareto(points: list[Point]) -> None:
             for q in points)
 
 
-def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
-    """The setting to use: among the approximation's settings (bake, approx, technique), the one
-    of least storage, then least time, whose visibility error is within ``tolerance`` (relative)
-    of the best; and the fewest truth rays whose own error is below a tenth of that."""
-    cand = [p for p in points if p.kind != "truth"]
-    if not cand:
-        return {}
+def _pick(cand: list[Point], tolerance: float) -> tuple[Point, Point]:
+    """``(pick, best)``: the least storage, then time, within ``tolerance`` of the best."""
     best = min(cand, key=lambda p: p.visibility_mae)
     limit = best.visibility_mae * (1 + tolerance) + 1e-4
     good = [p for p in cand if p.visibility_mae <= limit]
-    pick = min(good, key=lambda p: (p.storage_bytes, p.time_s, p.visibility_mae))
+    return min(good, key=lambda p: (p.storage_bytes, p.time_s, p.visibility_mae)), best
+
+
+def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
+    """The setting to use: among the approximation's settings (bake, approx, technique), the one
+    of least storage, then least time, whose visibility error is within ``tolerance`` (relative)
+    of the best; the same among the horizon map's own settings (bake and approx), under
+    ``horizon_map``, since another technique (terrain shadows) has another cost, a sweep per
+    light; and the fewest truth rays whose own error is below a tenth of the best."""
+    cand = [p for p in points if p.kind != "truth"]
+    if not cand:
+        return {}
+    pick, best = _pick(cand, tolerance)
     default = next((p for p in points if "(default)" in p.name), None)
     out = {"setting": pick.name, "visibility_mae": pick.visibility_mae, "best": best.name,
            "best_visibility_mae": best.visibility_mae, "tolerance": tolerance,
            "default": default.name if default else None,
            "default_visibility_mae": default.visibility_mae if default else None}
+    horizon = [p for p in cand if p.kind in ("bake", "approx")]
+    if horizon and pick not in horizon:
+        hpick, hbest = _pick(horizon, tolerance)
+        out["horizon_map"] = {"setting": hpick.name, "visibility_mae": hpick.visibility_mae,
+                              "best": hbest.name, "best_visibility_mae": hbest.visibility_mae}
     truths = sorted((p for p in points if p.kind == "truth"), key=lambda p: p.params.get("spp", 0))
     enough = next((p for p in truths if p.visibility_mae <= best.visibility_mae / 10), None)
     if enough:
@@ -325,6 +351,7 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator, NullFormatter
 
     kinds = [k for k in KINDS if any(p.kind == k for p in points)]
     fig, axes = plt.subplots(1, len(kinds), figsize=(4.6 * len(kinds), 4.2), squeeze=False)
@@ -337,12 +364,20 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
             area = 30 + 270 * p.storage_bytes / smax
             ax.scatter(p.time_s, p.visibility_mae, s=area, alpha=0.75,
                        color="#d62728" if p.pareto else "#1f77b4", edgecolors="black", linewidths=0.5)
-            ax.annotate(p.name, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4),
+            ax.annotate(p.label, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4),
                         textcoords="offset points")
         front = sorted((p for p in pts if p.pareto), key=lambda p: p.time_s)
         if len(front) > 1:
             ax.plot([p.time_s for p in front], [p.visibility_mae for p in front], color="#d62728", lw=1)
-        ax.set_xscale("log")
+        times = [p.time_s for p in pts if p.time_s > 0]
+        if times and max(times) > 10 * min(times):
+            # decades only, in engineering units: finer log ticks crowd the axis
+            ax.set_xscale("log")
+            ax.xaxis.set_major_locator(LogLocator(numticks=6))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        else:
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+        ax.xaxis.set_major_formatter(EngFormatter(unit="s", places=None, sep=" "))
         ax.set_xlabel(labels[kind])
         ax.set_ylabel("visibility mean |F - V|")
         ax.set_title(kind)
@@ -379,7 +414,7 @@ def write_tradeoff(out: str | Path, points: list[Point], info: dict, *, material
 def table(points: list[Point]) -> str:
     """The points as a plain-text table for the terminal."""
     head = ("setting", "kind", "time", "storage", "|F-V|", "FLIP", "pareto")
-    rows = [(p.name, p.kind, _fmt_s(p.time_s), _fmt_bytes(p.storage_bytes), f"{p.visibility_mae:.4f}",
+    rows = [(p.label, p.kind, _fmt_s(p.time_s), _fmt_bytes(p.storage_bytes), f"{p.visibility_mae:.4f}",
              f"{p.flip_mean:.4f}", "*" if p.pareto else "") for p in points]
     w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda c: "  ".join(x.ljust(w[0]) if i == 0 else x.rjust(w[i]) for i, x in enumerate(c))  # noqa: E731

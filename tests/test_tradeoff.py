@@ -95,6 +95,11 @@ def test_recommendation_takes_the_cheapest_within_tolerance():
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "small" and rec["best"] == "big (default)"
     assert rec["truth"] == "truth, 64"
+    assert "horizon_map" not in rec                # the pick is a horizon-map setting already
+    pts.append(Point("terrain", "technique", 1.0, 50, 0.02, 0))
+    rec = tradeoff.recommend(pts)
+    assert rec["setting"] == "terrain"
+    assert rec["horizon_map"]["setting"] == "small" and rec["horizon_map"]["best"] == "big (default)"
 
 
 def test_cli_writes_json_plot_and_page(variant, tmp_path, capsys):
