@@ -17,7 +17,11 @@ from pathlib import Path
 from hzval import errors
 
 
-def _add_material_args(p: argparse.ArgumentParser) -> None:
+def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
+    if default_size is None:
+        from hzval import material
+
+        default_size = material.DEFAULT_SIZE
     p.add_argument("height", nargs="?", metavar="HEIGHT",
                    help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall")
     p.add_argument("--depth", type=float, default=None,
@@ -25,7 +29,13 @@ def _add_material_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--boundary", choices=["wrap", "open"], default=None,
                    help="wrap: the texture tiles; open: a terrain with nothing outside (default wrap)")
     p.add_argument("--size", type=int, default=None, metavar="N",
-                   help="size in texels of the built-in material (default 512); ignored with HEIGHT")
+                   help=f"size in texels of the built-in material (default {default_size}); ignored with HEIGHT")
+
+
+def _tradeoff_default_size() -> int:
+    from hzval import tradeoff
+
+    return tradeoff.DEFAULT_SIZE
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -107,7 +117,7 @@ def _parser() -> argparse.ArgumentParser:
                        description="Measure bake, approximation and truth settings against a converged truth "
                                    "over the sweep: time, texture memory, visibility error and FLIP; write "
                                    "tradeoff.json, a Pareto plot and a page that recommends a setting.")
-    _add_material_args(p)
+    _add_material_args(p, default_size=_tradeoff_default_size())
     p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
     p.add_argument("--azimuths", default=None, help="light azimuths in degrees (default -60:60:15)")
     p.add_argument("--truth-spp", type=int, default=None, metavar="N",
