@@ -51,3 +51,17 @@ def test_display_encodes_srgb_after_exposure():
 def test_flip_refusal_is_an_error_not_an_exit():
     with pytest.raises(HzvalError):
         C.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
+
+
+def test_colour_metrics_in_row_blocks_are_bit_for_bit_one_call(monkeypatch):
+    import colour
+
+    rng = np.random.default_rng(3)
+    a, b = rng.random((2, 3 * C.PARALLEL_MIN_ROWS + 5, 40, 3))
+    monkeypatch.setattr("os.cpu_count", lambda: 3)             # three blocks, on three threads
+
+    def lab(x):
+        return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(x, apply_cctf_decoding=True))
+
+    np.testing.assert_array_equal(C._lab(a), lab(a))
+    np.testing.assert_array_equal(C.delta_e2000(a, b), colour.delta_E(lab(a), lab(b), method="CIE 2000"))
