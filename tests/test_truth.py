@@ -130,6 +130,39 @@ def walls(variant):
     return out
 
 
+def wall_shadow_extents(column, row, azimuth):
+    """Shadow extents across a column wall and a row wall at ``WALL_AT`` (40x40), lit from ``azimuth``.
+
+    ``column()`` and ``row()`` give the lit fraction (``V`` or ``F``, 1 = lit)
+    of the two walls. Checks the side each shadow falls on (light from +x:
+    toward -x; from +y, up the image: toward larger rows) and that the other
+    side is fully lit; returns ``[(texels across the wall, |cos| or |sin| of
+    the azimuth)]`` for each wall the light is not parallel to.
+    """
+    phi = math.radians(azimuth)
+    top = WALL_AT + 0.5
+    cx, cy = math.cos(phi), math.sin(phi)
+    out = []
+    if abs(cx) > 0.1:
+        lit = column()
+        middle = lit[8:-2] if cy > 0 else lit[2:-8]      # rows whose casters are inside the map
+        x = np.arange(40) + 0.5
+        centroid = ((1.0 - middle).sum(axis=0) * x).sum() / (1.0 - middle).sum()
+        assert (centroid < top) if cx > 0 else (centroid > top)
+        assert np.all((lit[:, WALL_AT + 1:] if cx > 0 else lit[:, :WALL_AT]) == 1.0)
+        out.append(((1.0 - middle).sum(axis=1).mean(), abs(cx)))
+    if abs(cy) > 0.1:
+        lit = row()
+        middle = lit[:, 2:-8] if cx > 0 else lit[:, 8:-2]
+        r = np.arange(40) + 0.5
+        centroid = ((1.0 - middle).sum(axis=1) * r).sum() / (1.0 - middle).sum()
+        assert (centroid > top) if cy > 0 else (centroid < top)
+        assert np.all((lit[:WALL_AT] if cy > 0 else lit[WALL_AT + 1:]) == 1.0)
+        out.append(((1.0 - middle).sum(axis=0).mean(), abs(cy)))
+    assert out
+    return out
+
+
 @pytest.mark.parametrize("elevation", [30.0, 50.0])
 @pytest.mark.parametrize("azimuth", [0.0, 45.0, 90.0, 180.0])
 def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimuth, elevation):
@@ -142,35 +175,11 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
     the azimuth. A column wall measures the x extent, a row wall the y
     extent; which side the shadow falls on pins +x right and +y up.
     """
-    phi, e = math.radians(azimuth), math.radians(elevation)
-    expected = WALL_H / math.tan(e)
-    top = WALL_AT + 0.5
-    cx, cy = math.cos(phi), math.sin(phi)
-    checked = 0
-    if abs(cx) > 0.1:
-        V = walls["col", elevation].render(azimuth).layers["visibility"]
-        middle = V[8:-2] if cy > 0 else V[2:-8]          # rows whose casters are inside the map
-        across = (1.0 - middle).sum(axis=1).mean()
-        assert across / abs(cx) == pytest.approx(expected, abs=0.2)
-        x = np.arange(40) + 0.5
-        centroid = ((1.0 - middle).sum(axis=0) * x).sum() / (1.0 - middle).sum()
-        lit_side = V[:, WALL_AT + 1:] if cx > 0 else V[:, :WALL_AT]
-        assert (centroid < top) if cx > 0 else (centroid > top)  # light from +x: shadow toward -x
-        assert np.all(lit_side == 1.0)
-        checked += 1
-    if abs(cy) > 0.1:
-        V = walls["row", elevation].render(azimuth).layers["visibility"]
-        middle = V[:, 2:-8] if cx > 0 else V[:, 8:-2]
-        across = (1.0 - middle).sum(axis=0).mean()
-        assert across / abs(cy) == pytest.approx(expected, abs=0.2)
-        row = np.arange(40) + 0.5
-        centroid = ((1.0 - middle).sum(axis=1) * row).sum() / (1.0 - middle).sum()
-        # light from +y (up on screen): the shadow falls down the image, to larger rows
-        assert (centroid > top) if cy > 0 else (centroid < top)
-        lit_side = V[:WALL_AT] if cy > 0 else V[WALL_AT + 1:]
-        assert np.all(lit_side == 1.0)
-        checked += 1
-    assert checked
+    expected = WALL_H / math.tan(math.radians(elevation))
+    for across, c in wall_shadow_extents(lambda: walls["col", elevation].render(azimuth).layers["visibility"],
+                                         lambda: walls["row", elevation].render(azimuth).layers["visibility"],
+                                         azimuth):
+        assert across / c == pytest.approx(expected, abs=0.2)
 
 
 def test_the_shipped_wall_scene_casts_its_documented_shadow(variant):
