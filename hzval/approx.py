@@ -146,14 +146,6 @@ NOT_MODELLED: tuple[str, ...] = ("interreflection",)
 
 
 
-def _channels_per_radian(directions: int) -> float:
-    """``D / (2 pi)``: channel ``c`` of a ``D``-channel map sits at ``c * 2 pi / D`` radians.
-
-    For 8 channels this is ``4 / pi`` exactly (a power-of-two scaling of
-    ``1 / (2 pi)``), the constant the 8-channel kernels always used."""
-    return directions / (2.0 * math.pi)
-
-
 class Approximation:
     """Horizon-map shading of one material's flat surface, frame by frame.
 
@@ -452,7 +444,7 @@ class Approximation:
         import drjit as dr
 
         n = float(directions)
-        t = dr.atan2(d.y, d.x) * _channels_per_radian(directions)
+        t = dr.atan2(d.y, d.x) * cv.channels_per_radian(directions)
         t = dr.select(t < 0.0, t + n, t)
         weights = []
         for c in range(directions):

@@ -260,7 +260,7 @@ def horizon_table(radius: int, angles: int) -> list[OffsetGroup]:
 KERNELS: tuple[str, ...] = ("auto", "unrolled", "loop")
 
 #: Offset tables up to this size always take the unrolled kernel (radius 20,
-#: 1,240 offsets, is the largest radius below it). The default radius 16 (792
+#: 1,244 offsets, is the largest radius below it). The default radius 16 (792
 #: offsets) compiles in 0.54 s and then runs 10x faster than the loop (512 x
 #: 512: 0.040 s against 0.43 s; benchmarks/README.md); Dr.Jit caches the
 #: compiled kernel on disk, so the compile is paid once per machine, not per
@@ -303,6 +303,13 @@ def choose_kernel(offsets: int, lanes: int) -> str:
     unrolled_s = compile_s + UNROLL_RUN_NS * 1e-9 * offsets * lanes
     loop_s = LOOP_RUN_NS * 1e-9 * offsets * lanes
     return "loop" if loop_s < unrolled_s else "unrolled"
+
+
+def kernel_for(rows: int, cols: int, radius: int, angles: int) -> str:
+    """The kernel form :func:`horizon_map` takes by default for a ``rows x cols`` map
+    (:func:`choose_kernel` on its offset table and its lanes, the padded rows)."""
+    offsets = sum(len(g.offsets) for g in horizon_table(radius, angles))
+    return choose_kernel(offsets, rows * (cols + 2 * (radius - 1)))
 
 
 def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
@@ -354,7 +361,7 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
     lanes = rows * pcols
     table = horizon_table(radius, angles)
     if kernel == "auto":
-        kernel = choose_kernel(sum(len(g.offsets) for g in table), lanes)
+        kernel = kernel_for(rows, cols, radius, angles)
 
     def shift_of(i: int, j: int) -> int:
         drow, dcol = cv.tangent_to_pixel_offset(i, j)
@@ -416,7 +423,8 @@ def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angl
     ``source`` is the flat padded map (:func:`horizon_map`), lane ``l`` the
     texel at flat index ``start + l``, ``shift_of(i, j)`` the flat shift of
     tangent offset ``(i, j)``. The table travels as data, so the kernel's
-    code does not depend on the radius, the bin count or the map size:
+    code does not depend on the radius or the map size (the bin count sets
+    the size of its local array):
 
     * ``pairs``: ``(1/r, shift)`` of every offset as float32 pairs (one
       packet gather per offset; shifts are integers far below 2^24, exact
@@ -446,9 +454,10 @@ def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angl
     pairs_f = mi.Float(np.asarray(pairs, dtype=np.float32).ravel())
     g_first, g_end, b_first, b_end, bin_of = (mi.UInt32(np.asarray(a, dtype=np.uint32))
                                               for a in (group_first, group_end, bin_first, bin_end, bins))
-    lane = dr.arange(mi.Int32, lanes) + start
+    # opaque: the radius and the map's width change these, and must not change the kernel
+    lane = dr.arange(mi.Int32, lanes) + dr.opaque(mi.Int32, start)
     h0 = dr.gather(mi.Float, source, mi.UInt32(lane))
-    n_groups = len(table)
+    n_groups = dr.opaque(mi.UInt32, len(table))
 
     def group_body(gi, best):
         def offset_body(o, g):
@@ -966,6 +975,8 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         stale += [f"cube/{face}.png" for face in cv.CUBE_FACES]
     for name in stale:
         (Path(out) / name).unlink(missing_ok=True)
+    if cube is None and (Path(out) / "cube").is_dir() and not any((Path(out) / "cube").iterdir()):
+        (Path(out) / "cube").rmdir()
     return written
 
 

@@ -50,7 +50,7 @@ def _parser() -> argparse.ArgumentParser:
                        description="Bake the horizon-mapping textures of a height map (DESIGN.md).")
     _add_material_args(p)
     p.add_argument("--radius", type=int, default=16, help="search radius in texels (default 16)")
-    p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 16 (default 32)")
+    p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 2 x --directions (16 or 32) (default 32)")
     p.add_argument("--directions", type=int, default=8,
                    help="stored horizon directions: 8 (Lengyel's, two RGBA layers) or 16 (22.5 degrees apart, "
                         "four layers; seed method, --angles a multiple of 32) (default 8)")
@@ -87,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient", choices=["mean_cos2", "mean_cos"], default="mean_cos2",
                    help="which ambient-map definition the approximation uses")
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
-    p.add_argument("--angles", type=int, default=32, help="bake angular bins (default 32)")
+    p.add_argument("--angles", type=int, default=32, help="bake angular bins, a multiple of 2 x --directions (default 32)")
     p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")

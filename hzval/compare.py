@@ -119,23 +119,35 @@ def _by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
     images, CIEDE2000 with both Lab conversions: 0.27 s against 0.47 s).
     The values are bit for bit those of one call.
     """
-    import os
-
     rows = arrays[0].shape[0]
-    n = min(os.cpu_count() or 1, rows // PARALLEL_MIN_ROWS)
+    n = min(_cores(), rows // PARALLEL_MIN_ROWS)
     if n < 2:
         return fn(*arrays)
     bounds = np.linspace(0, rows, n + 1).astype(int)
-    with _pool() as pool:
-        parts = list(pool.map(lambda a, b: fn(*(x[a:b] for x in arrays)), bounds[:-1], bounds[1:]))
+    parts = list(_pool(n).map(lambda a, b: fn(*(x[a:b] for x in arrays)), bounds[:-1], bounds[1:]))
     return np.concatenate(parts, axis=0)
 
 
-def _pool():
+def _cores() -> int:
+    """Cores this process may run on (its affinity, where the OS says)."""
     import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:                  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+_POOLS: dict = {}
+
+
+def _pool(n: int):
+    """A thread pool of ``n`` workers, made once per process."""
     from concurrent.futures import ThreadPoolExecutor
 
-    return ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="hzval-colour")
+    if n not in _POOLS:
+        _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix="hzval-colour")
+    return _POOLS[n]
 
 
 def _lab(display_rgb: np.ndarray) -> np.ndarray:
@@ -176,27 +188,14 @@ class Reference:
         self.lab = _lab(self.display)
 
 
-def image_metrics(reference_display: np.ndarray, test_display: np.ndarray,
-                  reference_lab: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """The display-value metrics of a frame, the slow part of :func:`compare`:
-    ``(FLIP error map, FLIP mean, CIEDE2000 map)``."""
-    flip_map, flip_mean = flip(reference_display, test_display)
-    return flip_map, flip_mean, delta_e2000(reference_display, test_display, reference_lab=reference_lab)
-
-
-def compare(truth, approx, scale: float, *, reference: Reference | None = None,
-            approx_display: np.ndarray | None = None,
-            image_result: tuple[np.ndarray, float, np.ndarray] | None = None
+def compare(truth, approx, scale: float, *, reference: Reference | None = None
             ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
     """Metrics of one frame and the maps behind them (``flip``, ``delta_e``,
     ``visibility_diff``, and ``display``, the approximation's display values).
 
     ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
     sweep's :func:`exposure`; ``reference``: ``Reference(truth, scale)``
-    when several techniques are compared with the same truth;
-    ``approx_display``: ``display(approx.image, scale)`` if the caller has it;
-    ``image_result``: :func:`image_metrics` of the two when the caller has
-    computed it already. The values are the same either way.
+    when several techniques are compared with the same truth.
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
@@ -215,9 +214,8 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None,
     mse = float(np.mean((t_lin - a_lin) ** 2))
     rmse = math.sqrt(mse)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    a_disp = display(approx.image, scale) if approx_display is None else approx_display
-    maps["display"] = a_disp
-    maps["flip"], flip_mean, maps["delta_e"] = (image_metrics(ref.display, a_disp, ref.lab)
-                                                 if image_result is None else image_result)
+    maps["display"] = a_disp = display(approx.image, scale)
+    maps["flip"], flip_mean = flip(ref.display, a_disp)
+    maps["delta_e"] = delta_e2000(ref.display, a_disp, reference_lab=ref.lab)
     return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
                         float(np.mean(maps["delta_e"])), reflection), maps

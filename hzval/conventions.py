@@ -66,6 +66,14 @@ def channel_azimuths_deg(directions: int = CHANNEL_COUNT) -> tuple[float, ...]:
     return tuple(channel_azimuth_deg(c, directions) for c in range(int(directions)))
 
 
+def channels_per_radian(directions: int = CHANNEL_COUNT) -> float:
+    """``D / (2 pi)``: channel ``c`` of a ``D``-channel map sits at ``c * 2 pi / D`` radians.
+
+    For 8 channels this is ``4 / pi`` exactly (a power-of-two scaling of
+    ``1 / (2 pi)``)."""
+    return int(directions) / (2.0 * math.pi)
+
+
 def layer_count(directions: int = CHANNEL_COUNT) -> int:
     """RGBA layers that hold ``directions`` channels (``directions / 4``)."""
     if directions % CHANNELS_PER_LAYER:
@@ -188,7 +196,8 @@ def channel_weights(lx, ly, directions: int = CHANNEL_COUNT) -> np.ndarray:
     """
     n = int(directions)
     phi = np.arctan2(np.asarray(ly, dtype=np.float64), np.asarray(lx, dtype=np.float64))
-    # 2 pi / 8 is pi / 4 exactly (a power-of-two scaling): 8 channels as before
+    # divided by the spacing 2 pi / n rather than times channels_per_radian(n):
+    # 2 pi / 8 is pi / 4 exactly, so 8 channels keep their original arithmetic
     t = np.mod(phi / (2.0 * np.pi / n), n)
     lo = np.floor(t).astype(np.int64) % n
     frac = t - np.floor(t)

@@ -123,7 +123,7 @@ IMPLS: tuple[str, ...] = ("drjit", "numpy")
 #: below any height, so that it loses every max and lights what it bounds.
 NOTHING = -1.0e30
 #: Effects the technique does not model (as the horizon map).
-NOT_MODELLED: tuple[str, ...] = ("interreflection",)
+NOT_MODELLED: tuple[str, ...] = ("interreflection", "reflection_occlusion")
 
 
 # --------------------------------------------------------------------------
@@ -385,12 +385,15 @@ class TerrainShadow:
             approximation = ap.Approximation(dataclasses.replace(scene, effects=self._plain_effects),
                                              bake, albedo)
         self._approx = approximation
-        # the ambient term, to keep it out of the shadowed product (it is not shadowed)
-        self._ambient_only = None
+        # the ambient term, kept out of the shadowed product (the sky is not
+        # shadowed by the light's horizon) and the same for every light: an
+        # ambient-only render with the light below the horizon, where the
+        # direct term is 0, is that term alone
+        self._ambient_image = None
         if "ambient" in self._plain_effects:
-            self._ambient_only = ap.Approximation(
+            self._ambient_image = np.asarray(ap.Approximation(
                 dataclasses.replace(scene, effects=("ambient",)), approximation.bake, albedo,
-                ambient=approximation.ambient)
+                ambient=approximation.ambient).render(0.0, elevation_deg=-90.0).image, np.float32)
 
         # ---- sample positions: the scene's, as the truth and the horizon map use them
         self.spp = int(scene.spp)
@@ -453,13 +456,12 @@ class TerrainShadow:
         else:
             extra = plain.seconds
         image = np.asarray(plain.image, np.float32)
-        layers = {k: v for k, v in plain.layers.items() if k != "factor"}
+        # the horizon map's reflection fade is not this technique's: leave it out
+        layers = {k: v for k, v in plain.layers.items() if k not in ("factor", "reflection_occlusion")}
         if self._shadow:
             F = self.factor(azimuth_deg, e)
-            if self._ambient_only is not None:
-                amb = self._ambient_only.render(azimuth_deg, elevation_deg=e).image
-                grey = np.float32(self.scene.light.irradiance if e > 0 else 0.0)  # its unlit direct term
-                amb = amb - grey
+            if self._ambient_image is not None:
+                amb = self._ambient_image
                 image = (image - amb) * F[..., None] + amb
             else:
                 image = image * F[..., None]
@@ -553,9 +555,8 @@ class TerrainShadow:
         else:
             l0 = dr.clip(l0, 0, n_lanes - 2)
             l1 = l0 + 1
-        s0, s1 = UInt32((c * n_lanes + l0) * 2), UInt32((c * n_lanes + l1) * 2)
-        p0 = dr.gather(mi.Vector2f, rec, s0 // 2)
-        p1 = dr.gather(mi.Vector2f, rec, s1 // 2)
+        p0 = dr.gather(mi.Vector2f, rec, UInt32(c * n_lanes + l0))
+        p1 = dr.gather(mi.Vector2f, rec, UInt32(c * n_lanes + l1))
         hidx = UInt32(off + i * si + c * sj)
         # a line that saw nothing (open) does not dilute its neighbour's boundary
         b0 = dr.select(p0.x <= NOTHING / 2, p1.x, p0.x)

@@ -7,9 +7,13 @@ setting of :func:`settings` against it, each with
 ``time_s``
     what the setting costs in time: for a bake setting (``kind = "bake"``)
     the bake (normal and horizon maps, in process, kernels warm, best of
-    two); for an approximation or technique setting (``"approx"``,
-    ``"technique"``) a frame's render, mean over the sweep (best of three sweeps); for a truth
-    setting (``"truth"``) a frame of the truth at that many shadow rays.
+    two; in the kernel form :func:`hzval.bake.kernel_for` chooses, which
+    for a large radius is the looped one, fast to compile and slower to
+    run: ``params["kernel"]``); for an approximation or technique setting
+    (``"approx"``, ``"technique"``) a frame's render, mean over the sweep,
+    best of three sweeps (a bake setting's frame time is
+    ``params["frame_s"]``); for a truth setting (``"truth"``) a frame of the
+    truth at that many shadow rays, mean over the sweep.
 ``storage_bytes``
     the texture memory the setting needs at run time: the horizon map
     (channels x texels x 1 byte for 8-bit storage, 4 for float; 8 channels,
@@ -263,13 +267,12 @@ def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, on
         p = {"bake": dataclasses.asdict(params)}
         if params.method == "seed" and s.kind == "bake":
             # a large radius may take the looped kernel (hzval.bake.choose_kernel): say so
-            offsets = sum(len(g.offsets) for g in bake.horizon_table(params.radius, params.angles))
-            p["kernel"] = bake.choose_kernel(offsets, rows * (cols + 2 * (params.radius - 1)))
+            p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
             if p["kernel"] != "unrolled":
-                p["note"] = f"{p['kernel']}ed kernel"
+                p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
         if s.kind == "truth":
             tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
-            frames, t = _render_all(tr, az)
+            frames, t = _render_all(tr, az, repeat=1)     # seconds a frame: timing noise is small here
             storage = rows * cols * (12 + 24)
             p = {"spp": s.truth_spp}
         elif s.kind == "technique":

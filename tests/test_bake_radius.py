@@ -33,7 +33,7 @@ def assert_identical(a, b):
 
 
 # radius 40's unrolled kernel (4,992 offsets) takes ~13 s to compile with an
-# empty kernel cache: slow-marked; 25 (1,936 offsets) is above the unroll bound
+# empty kernel cache: slow-marked; 25 (1,940 offsets) is above the unroll bound
 @pytest.mark.parametrize("radius", [2, 4, 9, 17, 25, pytest.param(40, marks=pytest.mark.slow)])
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_loop_and_unrolled_agree_bit_for_bit(variant, radius, boundary):

@@ -34,7 +34,7 @@ def test_direction_geometry_lives_in_conventions():
     assert cv.channel_azimuths_deg(8) == cv.CHANNEL_AZIMUTHS_DEG
     assert cv.channel_azimuths_deg(16) == tuple(22.5 * c for c in range(16))
     assert cv.layer_count(8) == 2 and cv.layer_count(16) == 4
-    assert A._channels_per_radian(8) == 4.0 / math.pi       # the 8-channel kernels' constant, exactly
+    assert cv.channels_per_radian(8) == 4.0 / math.pi      # the 8-channel kernels' constant, exactly
 
 
 def test_validation():
