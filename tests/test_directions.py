@@ -118,6 +118,9 @@ def test_bake_files_round_trip_with_16_directions(variant, tmp_path):
     B.write_bake(bake(rng.random((10, 12))), tmp_path, input_info={"digest": "y"})
     assert not (tmp_path / "horizon2.exr").exists() and (tmp_path / "cube").is_dir()
     assert B.read_bake(tmp_path).horizon.shape[-1] == 8
+    # and a 16-direction bake over that leaves no cube, not even an empty folder
+    B.write_bake(r, tmp_path, input_info={"digest": "x"})
+    assert not (tmp_path / "cube").exists()
 
 
 def test_old_bake_json_without_directions_reads_as_8_and_stays_cached(variant, tmp_path):
