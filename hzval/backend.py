@@ -9,6 +9,10 @@ Dr.Jit's LLVM backend crashes on Debian 12's default LLVM 15 at the first
 kernel that uses ``min``/``max`` (``LLVM ERROR: Cannot select: ... fmaximum``,
 DESIGN.md, pitfalls): we refuse such an LLVM with a message that says what to
 do, rather than let the process abort.
+
+Host-side work that NumPy, colour-science, OpenEXR and Pillow do without
+the GIL (colour conversions, image files) runs on :func:`host_pool`, a
+thread per core this process may use (:func:`host_cores`).
 """
 
 from __future__ import annotations
@@ -107,3 +111,25 @@ def versions() -> dict[str, str]:
     if _chosen:
         out["variant"] = _chosen
     return out
+
+
+def host_cores() -> int:
+    """CPU cores this process may run on (its affinity where the OS says, else the count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:                  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+_pools: dict = {}
+
+
+def host_pool(workers: int | None = None):
+    """A ``concurrent.futures.ThreadPoolExecutor`` of ``workers`` threads (default
+    :func:`host_cores`), made once per process and size."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    n = max(1, int(workers or host_cores()))
+    if n not in _pools:
+        _pools[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix="hzval-host")
+    return _pools[n]

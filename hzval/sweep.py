@@ -43,11 +43,12 @@ import os
 import platform
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from hzval import compare, files
+from hzval import backend, compare, files
 from hzval.bake import BakeParams
 from hzval.errors import InputError
 
@@ -260,7 +261,13 @@ def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: 
     (``maps["display"]``, ``truth_display``) where given."""
     t0 = time.perf_counter()
     folder = out / "frames" / name
-    exr, png = files.write_exr, lambda path, px: files.write_png(path, px, compress_level=PNG_LEVEL)
+    jobs = []       # written on a thread per core: the encoders release the GIL (2 cores: 0.55x the time)
+
+    def exr(path, channels):
+        jobs.append(partial(files.write_exr, path, channels))
+
+    def png(path, make, *args):
+        jobs.append(partial(_write_png_of, path, make, *args))
 
     def preview(img, shown=None):
         return files.unit_to_u8(compare.display(img, scale) if shown is None else shown)
@@ -272,28 +279,34 @@ def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: 
         exr(folder / "truth_variance.exr", {"RGB": truth.variance["image"]})
     for stem, img, shown in (("truth", truth.image, truth_display), ("approx", approx.image, maps.get("display")),
                              ("plain", plain.image, None)):
-        png(folder / f"{stem}.png", preview(img, shown))
+        png(folder / f"{stem}.png", preview, img, shown)
     V, F = truth.layers.get("visibility"), approx.layers.get("factor")
     if V is not None:
         exr(folder / "visibility.exr", {"Y": V})
-        png(folder / "visibility.png", files.unit_to_u8(V))
+        png(folder / "visibility.png", files.unit_to_u8, V)
     if F is not None:
         exr(folder / "factor.exr", {"Y": F})
-        png(folder / "factor.png", files.unit_to_u8(F))
+        png(folder / "factor.png", files.unit_to_u8, F)
     if V is not None and F is not None:
-        png(folder / "visdiff.png", visibility_diff_image(V, F))
-    png(folder / "flip.png", flip_image(maps["flip"]))
+        png(folder / "visdiff.png", visibility_diff_image, V, F)
+    png(folder / "flip.png", flip_image, maps["flip"])
     if terrain is not None:
         exr(folder / "terrain.exr", {"RGB": terrain.image})
-        png(folder / "terrain.png", preview(terrain.image, terrain_maps.get("display")))
-        png(folder / "terrain_flip.png", flip_image(terrain_maps["flip"]))
+        png(folder / "terrain.png", preview, terrain.image, terrain_maps.get("display"))
+        png(folder / "terrain_flip.png", flip_image, terrain_maps["flip"])
         TF = terrain.layers.get("factor")
         if TF is not None:
             exr(folder / "terrain_factor.exr", {"Y": TF})
-            png(folder / "terrain_factor.png", files.unit_to_u8(TF))
+            png(folder / "terrain_factor.png", files.unit_to_u8, TF)
             if V is not None:
-                png(folder / "terrain_visdiff.png", visibility_diff_image(V, TF))
+                png(folder / "terrain_visdiff.png", visibility_diff_image, V, TF)
+    for done in [backend.host_pool().submit(job) for job in jobs]:
+        done.result()                       # re-raises a writer's error here
     return time.perf_counter() - t0
+
+
+def _write_png_of(path: Path, make, *args) -> None:
+    files.write_png(path, make(*args), compress_level=PNG_LEVEL)
 
 
 def summary_table(result: dict) -> str:

@@ -58,7 +58,9 @@ def test_colour_metrics_in_row_blocks_are_bit_for_bit_one_call(monkeypatch):
 
     rng = np.random.default_rng(3)
     a, b = rng.random((2, 3 * C.PARALLEL_MIN_ROWS + 5, 40, 3))
-    monkeypatch.setattr(C, "_cores", lambda: 3)                # three blocks, on three threads
+    from hzval import backend
+
+    monkeypatch.setattr(backend, "host_cores", lambda: 3)      # three blocks, on three threads
 
     def lab(x):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(x, apply_cctf_decoding=True))
