@@ -19,7 +19,7 @@ than 0.05.
 
 Run from the repository root::
 
-    /tmp/dev/bin/python benchmarks/bench_horizon_methods.py [--sizes 512,2048] [--repeat 3]
+    .venv/bin/python benchmarks/bench_horizon_methods.py [--sizes 512,2048] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
             print(f"ambient {name}: seed (32 bins) - exact (8 directions): mean {d.mean():+.4f}, "
                   f"max |d| {np.abs(d).max():.4f}")
     print()
-    print(f"reproduce: /tmp/dev/bin/python benchmarks/bench_horizon_methods.py --sizes {args.sizes} "
+    print(f"reproduce: .venv/bin/python benchmarks/bench_horizon_methods.py --sizes {args.sizes} "
           f"--repeat {args.repeat}")
     return 0
 

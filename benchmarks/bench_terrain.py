@@ -17,7 +17,7 @@ must be 0 (per-frame values are opaque); the script exits 1 otherwise.
 
 Usage::
 
-    /tmp/dev/bin/python benchmarks/bench_terrain.py [--size 512] [--frames 9] [--spp 16]
+    .venv/bin/python benchmarks/bench_terrain.py [--size 512] [--frames 9] [--spp 16]
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         ("horizon-map frame (hzval.approx, exact)", lambda az: ap_.render(az)),
         ("unshadowed normal-mapped frame", lambda az: ap_.render(az, shadows=False)),
     ]
-    cmd = "/tmp/dev/bin/python benchmarks/bench_terrain.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    cmd = ".venv/bin/python benchmarks/bench_terrain.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     print(f"# {cmd.strip()}")
     print(f"# {args.size}x{args.size} bricks, wrap, elevation 30, {args.spp} spp, {args.frames} frames, "
           f"variant {variant}")
