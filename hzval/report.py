@@ -201,6 +201,9 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("PNG", (("visibility_png", "V"), ("factor_png", "F"))),
 )
 
+#: The terrain technique's raw files (keys of ``frames[i]["terrain"]["files"]``).
+TERRAIN_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"))
+
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("method", "bake method"),
                         ("radius", "bake radius"), ("angles", "bake angles"),
@@ -500,6 +503,10 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
             if links:
                 raw.append({"group": group, "links": links})
         te_files = (f.get("terrain") or {}).get("files") or {}
+        te_links = [{"label": label, "file": _src(out, te_files.get(key))} for key, label in TERRAIN_RAW_FILES]
+        te_links = [r for r in te_links if r["file"] and r["file"]["src"]]
+        if te_links:
+            raw.append({"group": "terrain EXR", "links": te_links})
         te_panels = [{"key": key, "title": title, "subtitle": subtitle, "file": _src(out, te_files.get(key))}
                      for key, title, subtitle in TERRAIN_PANELS] if terrain else []
         frame_views.append({
@@ -658,7 +665,7 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
 def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
     """Where the time goes: the run's stages, and each frame's truth and approximation times."""
     import numpy as np
-    from matplotlib.ticker import FuncFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     t = _timings(timings, len(frames))
     height = max(2.8, 0.9 + 0.3 * max(len(t["rows"]), len(frames)))
@@ -692,20 +699,29 @@ def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
     ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6)
     ts = np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float)
     aps = np.array([_num(f.get("approx_s")) or np.nan for f in frames], dtype=float)
+    series = [(ts, TRUTH_COLOUR, "truth"), (aps, APPROX_COLOUR, "horizon-mapped")]
+    if _has_terrain(frames):
+        tes = np.array([_num((f.get("terrain") or {}).get("seconds")) or np.nan for f in frames], dtype=float)
+        series.append((tes, TERRAIN_COLOUR, "terrain"))
     y = np.arange(len(frames))
-    if len(frames) and (np.isfinite(ts).any() or np.isfinite(aps).any()):
-        h = 0.38
-        ax2.barh(y - h / 2, np.nan_to_num(ts), height=h, color=TRUTH_COLOUR, label="truth", zorder=3)
-        ax2.barh(y + h / 2, np.nan_to_num(aps), height=h, color=APPROX_COLOUR, label="horizon-mapped", zorder=3)
+    if len(frames) and any(np.isfinite(v).any() for v, _, _ in series):
+        h = 0.8 / len(series)
+        for i, (v, colour, label) in enumerate(series):
+            ax2.barh(y + (i - (len(series) - 1) / 2) * h, np.nan_to_num(v), height=h, color=colour,
+                     label=label, zorder=3)
         ax2.set_yticks(y, [fmt_deg(f.get("azimuth_deg")) for f in frames])
         ax2.invert_yaxis()
-        positive = np.concatenate([ts[ts > 0], aps[aps > 0]])
+        positive = np.concatenate([v[v > 0] for v, _, _ in series])
         if positive.size:
             ax2.set_xscale("log")
             ax2.set_xlim(positive.min() / 2, positive.max() * 2)
+            # 1-2-5 ticks labelled in seconds; unlabelled minor ticks (their default
+            # labels are scientific notation in the axis' default colour)
+            ax2.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
             ax2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt_seconds(v)))
+            ax2.xaxis.set_minor_formatter(NullFormatter())
         ax2.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-                   ncol=2, borderaxespad=0.2, handlelength=1.2)
+                   ncol=len(series), borderaxespad=0.2, handlelength=1.2)
         ax2.grid(False, axis="y")
     else:
         ax2.text(0.5, 0.5, "no frames", transform=ax2.transAxes, ha="center", color=_MUTED)
