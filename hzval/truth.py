@@ -678,18 +678,24 @@ def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tup
     move by 8 ulps of the map's largest coordinate (1/2048 texel at 512)
     toward the tile's interior, to a point of one triangle.
     """
-    x = xs.astype(np.float64)
-    y = ys.astype(np.float64)
     step = 2.0 ** (math.ceil(math.log2(max(rows, cols, 2))) - 20)
-    moved = 0
+
+    def on_lines(x, y):
+        x, y = x.astype(np.float64), y.astype(np.float64)       # x - y exact
+        return (np.mod(x, 1.0) == 0.5) | (np.mod(y, 1.0) == 0.5) | (np.mod(x - y, 1.0) == 0.0)
+
+    # only the few samples found on a line are moved and checked again
+    idx = np.flatnonzero(on_lines(xs, ys))
+    moved = int(idx.size)
+    xs, ys = np.array(xs, dtype=np.float32), np.array(ys, dtype=np.float32)
     for _ in range(3):
-        on = (np.mod(x, 1.0) == 0.5) | (np.mod(y, 1.0) == 0.5) | (np.mod(x - y, 1.0) == 0.0)
-        if not on.any():
+        if not idx.size:
             break
-        moved += int(on.sum()) if _ == 0 else 0
-        x = np.where(on, x + np.where(x < cols / 2, step, -step), x).astype(np.float32).astype(np.float64)
-        y = np.where(on, y + np.where(y < rows / 2, step / 2, -step / 2), y).astype(np.float32).astype(np.float64)
-    return x.astype(np.float32), y.astype(np.float32), moved
+        x, y = xs[idx].astype(np.float64), ys[idx].astype(np.float64)
+        xs[idx] = x + np.where(x < cols / 2, step, -step)
+        ys[idx] = y + np.where(y < rows / 2, step / 2, -step / 2)
+        idx = idx[on_lines(xs[idx], ys[idx])]
+    return xs, ys, moved
 
 
 def _specular_sampling_share(scene: Scene) -> float:
