@@ -2,15 +2,19 @@
 
 :func:`run` renders every scene of ``scenes/*.toml`` at the small size its
 ``[check]`` section asks for (64-128 px) with the truth (:mod:`hzval.truth`)
-and the approximation (:mod:`hzval.approx`, both the ``exact`` and the
-``gpu`` path), and compares each image with its reference::
+the approximation (:mod:`hzval.approx`, both the ``exact`` and the ``gpu``
+path) and, for scenes that declare ``shadow``, the terrain technique
+(:mod:`hzval.terrain`), and compares each image with its reference::
 
     reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
     reference/<scene>/az<azimuth>/approx.exr       R, G, B, F
     reference/<scene>/az<azimuth>/approx_gpu.exr   R, G, B, F
+    reference/<scene>/az<azimuth>/terrain.exr      R, G, B, F
 
 (linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
-horizon factor, ``var.*`` the variance of each pixel's mean). Values are
+horizon factor or the terrain's, ``var.*`` the variance of each pixel's
+mean). The approximation and the terrain technique are deterministic and
+share the ``approx`` tiers. Values are
 compared after the sweep's exposure (:func:`hzval.compare.exposure`), so a
 difference of 1 is the difference between black and a white Lambertian
 surface facing the light.
@@ -72,8 +76,8 @@ from hzval.errors import InputError
 __all__ = ["Tiers", "DEFAULT_TIERS", "KINDS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
            "render_references", "compare_image", "run", "write_report", "repository_path"]
 
-#: The images of one frame: the truth and the approximation's two paths.
-KINDS: tuple[str, ...] = ("truth", "approx", "approx_gpu")
+#: The images of one frame: the truth, the approximation's two paths and the terrain technique.
+KINDS: tuple[str, ...] = ("truth", "approx", "approx_gpu", "terrain")
 #: Side of the pixel blocks whose means the truth's test also compares.
 BLOCK = 8
 #: Largest side of a check render, in texels (references stay small).
@@ -169,7 +173,7 @@ def check_scene(scene):
 def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
     """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
     ``seed`` replaces the scene's seed for the truth."""
-    from hzval import approx, bake, scene as sc, sweep, truth
+    from hzval import approx, bake, scene as sc, sweep, terrain, truth
 
     # another seed moves the samples: only the truth takes it (the approximation is
     # deterministic, and its references hold its images at the scene's own positions)
@@ -185,6 +189,8 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
     the_truth = truth.Truth(truth_scene, hm.height)
     renderers = {"approx": approx.Approximation(scene, baked, albedo, path="exact"),
                  "approx_gpu": approx.Approximation(scene, baked, albedo, path="gpu")}
+    if scene.declares("shadow"):
+        renderers["terrain"] = terrain.TerrainShadow(scene, hm.height, bake=baked, albedo=albedo)
     out = {}
     for az in scene.light.azimuths_deg:
         name = sweep.frame_folder(az)

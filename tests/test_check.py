@@ -116,6 +116,19 @@ def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatc
     assert st["bricks/az+0/approx_gpu"] == "pass"       # the GPU path reads the cube map instead
 
 
+def test_a_softer_terrain_ramp_fails_the_terrain_images_only(variant, refs, monkeypatch):
+    """The terrain technique is guarded too: a ramp 25x wider changes its penumbrae."""
+    from hzval import terrain
+
+    class Softer(terrain.TerrainShadow):
+        def __init__(self, *args, **kw):
+            super().__init__(*args, **{**kw, "ramp": 25 * terrain.DEFAULT_RAMP})
+    monkeypatch.setattr(terrain, "TerrainShadow", Softer)
+    st = statuses(check.run(references=refs, only=["bricks", "wall"]))
+    assert all(v == "fail" for k, v in st.items() if k.endswith("/terrain") and k.startswith("bricks"))
+    assert all(v == "pass" for k, v in st.items() if not k.endswith("/terrain"))
+
+
 def test_a_biased_truth_fails_even_within_each_pixels_noise(variant, refs):
     target = check.reference_file(refs, "wall-soft", "az+0", "truth")
 
@@ -159,7 +172,7 @@ def test_cli_exit_codes_and_report(variant, refs, tmp_path, capsys):
     assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall",
                      "--report", str(report)]) == 1
     assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall", "--update"]) == 0
-    assert len(list(empty.rglob("*.exr"))) == 6
+    assert len(list(empty.rglob("*.exr"))) == 2 * len(check.KINDS)      # two lights
     assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall"]) == 0
 
 
