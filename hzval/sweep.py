@@ -173,17 +173,16 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
             metrics, maps = compare.compare(t_frame, a_frame, scale, reference=ref)
             te = compare.compare(t_frame, te_frame, scale, reference=ref) if te_frame is not None else None
             compare_s += time.perf_counter() - t0
-            folder = frame_folder(az)
+            rel, te_rel, seconds = _write_frame(out, frame_folder(az), t_frame, a_frame, plain, maps, scale,
+                                                te_frame, te[1] if te is not None else None,
+                                                truth_display=ref.display)
+            write_s += seconds
             frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg,
                      **{k: _finite(v) for k, v in metrics.as_dict().items()},
-                     "truth_s": t_frame.seconds, "approx_s": a_frame.seconds,
-                     "files": _frame_files(folder, t_frame, a_frame, plain)}
+                     "truth_s": t_frame.seconds, "approx_s": a_frame.seconds, "files": rel}
             if te is not None:
                 frame["terrain"] = {**{k: _finite(v) for k, v in te[0].as_dict().items()},
-                                    "seconds": te_frame.seconds,
-                                    "files": _terrain_files(folder, te_frame, t_frame)}
-            write_s += _write_frame(out, folder, t_frame, a_frame, plain, maps, scale, te_frame,
-                                    te[1] if te is not None else None, truth_display=ref.display)
+                                    "seconds": te_frame.seconds, "files": te_rel}
             frames.append(frame)
     finally:
         bar.close()
@@ -224,38 +223,11 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
 PNG_LEVEL = 1
 
 
-def _frame_files(name: str, truth, approx, plain) -> dict:
-    """The paths, relative to the report folder, that :func:`_write_frame` writes for a frame."""
-    rel = {k: f"frames/{name}/{f}" for k, f in (
-        ("truth", "truth.exr"), ("approx", "approx.exr"), ("plain", "plain.exr"),
-        ("truth_png", "truth.png"), ("approx_png", "approx.png"), ("plain_png", "plain.png"),
-        ("flip_png", "flip.png"))}
-    if "image" in truth.variance:
-        rel["truth_variance"] = f"frames/{name}/truth_variance.exr"
-    V, F = truth.layers.get("visibility"), approx.layers.get("factor")
-    if V is not None:
-        rel.update(visibility=f"frames/{name}/visibility.exr", visibility_png=f"frames/{name}/visibility.png")
-    if F is not None:
-        rel.update(factor=f"frames/{name}/factor.exr", factor_png=f"frames/{name}/factor.png")
-    if V is not None and F is not None:
-        rel["visdiff_png"] = f"frames/{name}/visdiff.png"
-    return rel
-
-
-def _terrain_files(name: str, terrain, truth) -> dict:
-    """The terrain technique's files of a frame (:func:`_write_frame`), relative paths."""
-    rel = {k: f"frames/{name}/{f}" for k, f in (
-        ("image", "terrain.exr"), ("png", "terrain.png"), ("flip_png", "terrain_flip.png"))}
-    if "factor" in terrain.layers:
-        rel.update(factor=f"frames/{name}/terrain_factor.exr", factor_png=f"frames/{name}/terrain_factor.png")
-        if "visibility" in truth.layers:
-            rel["visdiff_png"] = f"frames/{name}/terrain_visdiff.png"
-    return rel
-
-
 def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: float,
-                 terrain=None, terrain_maps: dict | None = None, truth_display: np.ndarray | None = None) -> float:
-    """Write one frame's images (the paths of :func:`_frame_files`, :func:`_terrain_files`); return the seconds.
+                 terrain=None, terrain_maps: dict | None = None,
+                 truth_display: np.ndarray | None = None) -> tuple[dict, dict, float]:
+    """Write one frame's images; return ``(files, terrain_files, seconds)``, the
+    files as ``{key: path relative to out}`` (``metrics.json``'s ``files``).
 
     Previews reuse the display values :func:`hzval.compare.compare` computed
     (``maps["display"]``, ``truth_display``) where given."""
@@ -263,46 +235,49 @@ def _write_frame(out: Path, name: str, truth, approx, plain, maps: dict, scale: 
     folder = out / "frames" / name
     jobs = []       # written on a thread per core: the encoders release the GIL (2 cores: 0.55x the time)
 
-    def exr(path, channels):
-        jobs.append(partial(files.write_exr, path, channels))
+    def exr(rel: dict, key: str, filename: str, channels):
+        jobs.append(partial(files.write_exr, folder / filename, channels))
+        rel[key] = f"frames/{name}/{filename}"
 
-    def png(path, make, *args):
-        jobs.append(partial(_write_png_of, path, make, *args))
+    def png(rel: dict, key: str, filename: str, make, *args):
+        jobs.append(partial(_write_png_of, folder / filename, make, *args))
+        rel[key] = f"frames/{name}/{filename}"
 
     def preview(img, shown=None):
         return files.unit_to_u8(compare.display(img, scale) if shown is None else shown)
 
-    exr(folder / "truth.exr", {"RGB": truth.image})
-    exr(folder / "approx.exr", {"RGB": approx.image})
-    exr(folder / "plain.exr", {"RGB": plain.image})
+    rel, te_rel = {}, {}
+    exr(rel, "truth", "truth.exr", {"RGB": truth.image})
+    exr(rel, "approx", "approx.exr", {"RGB": approx.image})
+    exr(rel, "plain", "plain.exr", {"RGB": plain.image})
     if "image" in truth.variance:
-        exr(folder / "truth_variance.exr", {"RGB": truth.variance["image"]})
+        exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth.variance["image"]})
     for stem, img, shown in (("truth", truth.image, truth_display), ("approx", approx.image, maps.get("display")),
                              ("plain", plain.image, None)):
-        png(folder / f"{stem}.png", preview, img, shown)
+        png(rel, f"{stem}_png", f"{stem}.png", preview, img, shown)
     V, F = truth.layers.get("visibility"), approx.layers.get("factor")
     if V is not None:
-        exr(folder / "visibility.exr", {"Y": V})
-        png(folder / "visibility.png", files.unit_to_u8, V)
+        exr(rel, "visibility", "visibility.exr", {"Y": V})
+        png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
     if F is not None:
-        exr(folder / "factor.exr", {"Y": F})
-        png(folder / "factor.png", files.unit_to_u8, F)
+        exr(rel, "factor", "factor.exr", {"Y": F})
+        png(rel, "factor_png", "factor.png", files.unit_to_u8, F)
     if V is not None and F is not None:
-        png(folder / "visdiff.png", visibility_diff_image, V, F)
-    png(folder / "flip.png", flip_image, maps["flip"])
+        png(rel, "visdiff_png", "visdiff.png", visibility_diff_image, V, F)
+    png(rel, "flip_png", "flip.png", flip_image, maps["flip"])
     if terrain is not None:
-        exr(folder / "terrain.exr", {"RGB": terrain.image})
-        png(folder / "terrain.png", preview, terrain.image, terrain_maps.get("display"))
-        png(folder / "terrain_flip.png", flip_image, terrain_maps["flip"])
+        exr(te_rel, "image", "terrain.exr", {"RGB": terrain.image})
+        png(te_rel, "png", "terrain.png", preview, terrain.image, terrain_maps.get("display"))
+        png(te_rel, "flip_png", "terrain_flip.png", flip_image, terrain_maps["flip"])
         TF = terrain.layers.get("factor")
         if TF is not None:
-            exr(folder / "terrain_factor.exr", {"Y": TF})
-            png(folder / "terrain_factor.png", files.unit_to_u8, TF)
+            exr(te_rel, "factor", "terrain_factor.exr", {"Y": TF})
+            png(te_rel, "factor_png", "terrain_factor.png", files.unit_to_u8, TF)
             if V is not None:
-                png(folder / "terrain_visdiff.png", visibility_diff_image, V, TF)
+                png(te_rel, "visdiff_png", "terrain_visdiff.png", visibility_diff_image, V, TF)
     for done in [backend.host_pool().submit(job) for job in jobs]:
         done.result()                       # re-raises a writer's error here
-    return time.perf_counter() - t0
+    return rel, te_rel, time.perf_counter() - t0
 
 
 def _write_png_of(path: Path, make, *args) -> None:
