@@ -326,7 +326,7 @@ class TerrainShadow:
         The material's :class:`hzval.bake.Bake` for the unshadowed shading
         (normal map, ambient map); ``None`` computes the normal map only
         (:func:`hzval.bake.normal_map`), which serves ``diffuse`` and
-        ``specular``; ``ambient`` and ``reflection_occlusion`` need a bake.
+        ``specular``; ``ambient`` needs a bake.
     albedo
         Linear albedo ``(rows, cols, 3)``; ``None`` reads the scene's.
     ramp
@@ -371,12 +371,12 @@ class TerrainShadow:
         self._shadow = "shadow" in self.simulated
 
         # ---- the unshadowed shading: an Approximation without the horizon shadow
-        self._plain_effects = tuple(e for e in scene.effects if e != "shadow")
+        # the horizon map's reflection fade is not this technique's: not computed
+        self._plain_effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
         if approximation is None:
             if bake is None:
-                needs = [e for e in ("ambient", "reflection_occlusion") if e in self._plain_effects]
-                if needs:
-                    raise InputError("bake", f"{', '.join(needs)} needs the bake's textures")
+                if "ambient" in self._plain_effects:
+                    raise InputError("bake", "ambient needs the bake's textures")
                 zeros = np.broadcast_to(np.float32(0), (rows, cols))
                 bake = Bake(params=BakeParams(depth=scene.material.depth, boundary=boundary),
                             horizon=np.broadcast_to(np.float32(0), (rows, cols, cv.CHANNEL_COUNT)),
