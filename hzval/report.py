@@ -539,6 +539,7 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "column_groups": _column_groups(shown),
         "glance": _glance(cols, frames),
         "frames": frame_views,
+        "has_terrain": terrain,
         "plots": plots,
         "leak_hex": leak_hex, "false_shadow_hex": false_shadow_hex,
         "truth_colour": TRUTH_COLOUR, "approx_colour": APPROX_COLOUR, "terrain_colour": TERRAIN_COLOUR,
