@@ -46,8 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     height = sc.load_material_height(scene.material).height
     baked = bake.bake(height, bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     ap_ = approx.Approximation(scene, baked)
-    ts = terrain.TerrainShadow(scene, height, bake=baked, approximation=ap_)
-    ref = terrain.TerrainShadow(scene, height, bake=baked, approximation=ap_, impl="numpy")
+    plain = approx.Unshadowed(scene, baked)
+    ts = terrain.TerrainShadow(scene, height, bake=baked, unshadowed=plain)
+    ref = terrain.TerrainShadow(scene, height, bake=baked, unshadowed=plain, impl="numpy")
     azimuths = np.linspace(-60, 60, args.frames)
 
     def timed(fn):

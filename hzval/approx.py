@@ -118,16 +118,23 @@ import time
 
 import numpy as np
 
+from hzval import backend, shading
 from hzval import conventions as cv
 from hzval.errors import InputError
-from hzval.scene import (EFFECTS, SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS, Frame, Scene,
-                         image_shape, load_albedo, sample_positions)
+from hzval.files import unit_to_u8
+from hzval.scene import Frame, Scene, image_shape, load_albedo, sample_positions
+from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
+from hzval.technique import Context, Technique, Variant, replace_effects
 
-__all__ = ["Approximation", "PATHS", "AMBIENT_TERMS", "DEFAULT_K", "DEFAULT_FADE",
-           "CUBE_SIZE", "NOT_MODELLED"]
+__all__ = ["Approximation", "Unshadowed", "unshadowed", "PATHS", "STORAGES", "WEIGHTS", "AMBIENT_TERMS",
+           "DEFAULT_K", "DEFAULT_FADE", "CUBE_SIZE", "CUBE_BYTES", "NOT_MODELLED"]
 
 #: The two ways of evaluating the technique (module docstring).
 PATHS: tuple[str, ...] = ("exact", "gpu")
+#: How the horizon map is stored: as baked, or quantised to 8 bits.
+STORAGES: tuple[str, ...] = ("float", "u8")
+#: How the channel weights are computed: exactly, or from the 8-bit weight cube map.
+WEIGHTS: tuple[str, ...] = ("analytic", "cube")
 #: The ambient map's two definitions (:class:`hzval.bake.Bake` attributes).
 AMBIENT_TERMS: tuple[str, ...] = ("mean_cos2", "mean_cos")
 #: Lengyel's shadow hardness (Listing 5.1 ``kShadowHardness``): F falls from 1
@@ -141,13 +148,15 @@ DEFAULT_FADE = 1.3
 #: Edge length in texels of a face of the GPU path's weight cube map (Lengyel:
 #: 16 x 16 is sufficient).
 CUBE_SIZE = 16
+#: The weight cube map's texture memory: 6 faces of two 8-bit RGBA layers.
+CUBE_BYTES = 6 * CUBE_SIZE * CUBE_SIZE * 4 * 2
 #: Declarable effects that the technique does not model.
 NOT_MODELLED: tuple[str, ...] = ("interreflection",)
 
 
 
-class Approximation:
-    """Horizon-map shading of one material's flat surface, frame by frame.
+class Approximation(Technique):
+    """Horizon-map shading of one material's flat surface, frame by frame: the ``horizon`` technique.
 
     Parameters
     ----------
@@ -188,56 +197,47 @@ class Approximation:
         ``(height, width)`` of every image it renders.
     """
 
+    name = "horizon"
+    label = "horizon map"
+    summary = "Lengyel's horizon mapping: 8 horizon sines in two RGBA textures, F = clamp(k (Lz - s) + 1)"
+    file_stem = "approx"
+    needs = ()                      # it also shades (and fades reflections) without shadows
+    not_modelled = NOT_MODELLED
+
     def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *,
                  path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
                  fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None):
-        from hzval import backend
-
         backend.variant()
-        import drjit as dr
-        import mitsuba as mi
-
-        if path not in PATHS:
-            raise InputError("path", f"must be one of {', '.join(PATHS)}, got {path!r}")
         storage = storage or ("u8" if path == "gpu" else "float")
         weights = weights or ("cube" if path == "gpu" else "analytic")
-        if storage not in ("float", "u8"):
-            raise InputError("storage", f"must be float or u8, got {storage!r}")
-        if weights not in ("analytic", "cube"):
-            raise InputError("weights", f"must be analytic or cube, got {weights!r}")
-        directions = int(bake.horizon.shape[-1])
-        if weights == "cube" and directions != cv.CHANNEL_COUNT:
-            raise InputError("weights", f"the weight cube map (and so the gpu path) holds {cv.CHANNEL_COUNT} "
-                                        f"channel weights; this bake stores {directions} directions: use "
-                                        "path='exact' / weights='analytic'")
-        if ambient not in AMBIENT_TERMS:
-            raise InputError("ambient", f"must be one of {', '.join(AMBIENT_TERMS)}, got {ambient!r}")
-        if not (math.isfinite(k) and k > 0):
-            raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
-        if not (math.isfinite(fade) and fade >= 0):
-            raise InputError("fade", f"the horizon fade must be a non-negative number, got {fade}")
-
+        directions = int(bake.horizon.shape[-1]) if bake.horizon is not None else cv.CHANNEL_COUNT
+        _validate(path, storage, weights, directions, ambient, k, fade)
         self.scene, self.bake = scene, bake
         self.path, self.k, self.ambient, self.fade = path, float(k), ambient, float(fade)
         self.storage, self.weights = storage, weights
         self.directions = directions
-        rows, cols = bake.horizon.shape[:2]
+        rows, cols = bake.normal.shape[:2]
         self.rows, self.cols = rows, cols
         self.shape = image_shape(rows, cols, scene.camera)
-        self.simulated: tuple[str, ...] = tuple(
-            e for e in EFFECTS if scene.declares(e) and e not in NOT_MODELLED)
+        self.simulated = self.simulates(scene)
         eff = set(self.simulated)
         self._shadow = "shadow" in eff
         self._diffuse = "diffuse" in eff
         self._specular = "specular" in eff
         self._ambient = "ambient" in eff
         self._reflection = "reflection_occlusion" in eff
-        need_horizon = self._shadow or self._reflection
-        need_normal = self._diffuse or self._specular or self._reflection
-        need_albedo = self._diffuse or self._ambient
+        self._upload_textures(albedo)
+        self._upload_constants()
+        self._upload_samples()
 
-        # ---- textures: one packed texture holding only the channels needed,
-        # so that each sample computes one set of bilinear indices
+    def _upload_textures(self, albedo) -> None:
+        """One packed texture holding only the channels needed, so that each sample
+        computes one set of bilinear indices; the weight cube map for ``weights="cube"``."""
+        import drjit as dr
+        import mitsuba as mi
+
+        bake, rows, cols = self.bake, self.rows, self.cols
+        need_horizon = self._shadow or self._reflection
         planes: list[np.ndarray] = []
         self._slots: dict[str, slice] = {}
 
@@ -250,16 +250,12 @@ class Approximation:
 
         if need_horizon:
             h = np.asarray(bake.horizon, dtype=np.float32)
-            if storage == "u8":
-                from hzval.files import unit_to_u8
-
-                h = unit_to_u8(h).astype(np.float32) / np.float32(255.0)
-            add("horizon", h)
-        if need_normal:
+            add("horizon", unit_to_u8(h).astype(np.float32) / np.float32(255.0) if self.storage == "u8" else h)
+        if self._diffuse or self._specular or self._reflection:
             add("normal", bake.normal)
         self._albedo_const = None
-        if need_albedo:
-            a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
+        if self._diffuse or self._ambient:
+            a = load_albedo(self.scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
             if a.shape != (rows, cols, 3):
                 raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
             if np.all(a == a[:1, :1]):
@@ -267,7 +263,7 @@ class Approximation:
             else:
                 add("albedo", a)
         if self._ambient:
-            add("ambient", getattr(bake, ambient))
+            add("ambient", getattr(bake, self.ambient))
         self._texture = None
         if planes:
             wrap = dr.WrapMode.Repeat if bake.params.boundary == "wrap" else dr.WrapMode.Clamp
@@ -275,35 +271,105 @@ class Approximation:
                 mi.TensorXf(_aligned(np.concatenate(planes, axis=-1))),
                 use_accel=False, migrate=False,
                 filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
-
         self._cube = None
-        if need_horizon and weights == "cube":
+        if need_horizon and self.weights == "cube":
             from hzval.bake import weight_cube
 
             cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
             self._cube = mi.Float(_aligned(cube).ravel())
 
-        # ---- per-object constants, opaque so that objects share kernels
+    def _upload_constants(self) -> None:
+        """Per-object constants, opaque so that objects share kernels."""
+        import drjit as dr
+        import mitsuba as mi
+
         self._k = dr.opaque(mi.Float, self.k)
         self._fade = dr.opaque(mi.Float, self.fade)
-        self._E = dr.opaque(mi.Float, float(scene.light.irradiance))
+        self._E = dr.opaque(mi.Float, float(self.scene.light.irradiance))
 
-        # ---- sample positions as texture coordinates. One sample per pixel:
-        # two plain arrays. More: (u, v) pairs in the scene's pixel-major order,
-        # which the per-pixel loop gathers as one packet per sample; a pixel's
-        # samples share cache lines (a sample-major layout, with its stride of
-        # a power-of-two number of pixels, thrashed the caches: 2x slower).
+    def _upload_samples(self) -> None:
+        """Sample positions as texture coordinates. One sample per pixel: two plain
+        arrays. More: (u, v) pairs in the scene's pixel-major order, which the
+        per-pixel loop gathers as one packet per sample; a pixel's samples share
+        cache lines (a sample-major layout, with its stride of a power-of-two
+        number of pixels, thrashed the caches: 2x slower)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        scene = self.scene
         spp = int(scene.spp)
-        x, y = sample_positions(rows, cols, scene.camera, spp, scene.seed)
+        x, y = sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed)
         self.spp, self.pixels = spp, self.shape[0] * self.shape[1]
-        u = (x.astype(np.float64) / cols).astype(np.float32)
-        v = ((rows - y.astype(np.float64)) / rows).astype(np.float32)
+        u, v = cv.tangent_to_uv(x, y, self.rows, self.cols)
         if spp == 1:
             self._u, self._v, self._uv = mi.Float(_aligned(u)), mi.Float(_aligned(v)), None
         else:
             self._u = self._v = None
             self._uv = mi.Float(_aligned(np.stack([u, v], axis=-1)).ravel())
         dr.eval(self._u, self._v, self._uv, self._cube, self._albedo_const)
+
+    # ------------------------------------------------------------------
+    # The Technique interface (hzval.technique)
+    # ------------------------------------------------------------------
+
+    @classmethod
+    def build(cls, ctx: Context, **settings) -> "Approximation":
+        return cls(ctx.scene, ctx.bake, ctx.albedo, **settings)
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        parser.add_argument("--k", type=float, default=DEFAULT_K,
+                            help=f"horizon map: shadow hardness k of F = clamp(k (Lz - s) + 1) (default {DEFAULT_K:g})")
+        parser.add_argument("--path", choices=PATHS, default="exact",
+                            help="horizon map: exact float math, or emulate the GPU's 8-bit textures and weight "
+                                 "cube map (default exact)")
+        parser.add_argument("--ambient", choices=AMBIENT_TERMS, default="mean_cos2",
+                            help="horizon map: which ambient-map definition to shade with (default mean_cos2)")
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        if not (math.isfinite(args.k) and args.k > 0):
+            raise InputError("--k", f"must be a positive number, got {args.k}")
+        return {"k": args.k, "path": args.path, "ambient": args.ambient}
+
+    @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        if settings.get("path") == "gpu" and bake_params.directions != cv.CHANNEL_COUNT:
+            raise InputError("--path", f"the gpu path emulates Lengyel's {cv.CHANNEL_COUNT}-channel weight cube map; "
+                                       f"a bake of {bake_params.directions} directions needs --path exact")
+
+    @classmethod
+    def check_variants(cls) -> list[Variant]:
+        return [Variant("approx", {"path": "exact"}), Variant("approx_gpu", {"path": "gpu"})]
+
+    @classmethod
+    def tradeoff_variants(cls) -> list[Variant]:
+        v = [Variant("8-bit horizon map", {"storage": "u8"}, kind="approx"),
+             Variant("cube-map weights", {"weights": "cube"}, kind="approx"),
+             Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"}, kind="approx")]
+        v += [Variant(f"k = {k:g}", {"k": float(k)}, kind="approx") for k in (2, 4, 16, 32)]
+        v.append(Variant("k fitted to the truth", {"k": "fit"}, kind="approx"))
+        return v
+
+    @classmethod
+    def fit(cls, ctx: Context, settings: dict, visibility: list[np.ndarray], azimuths) -> dict:
+        """``settings`` with ``k = "fit"`` replaced by the k that minimises the sweep's mean ``|F - V|``
+        against ``visibility`` (one layer per azimuth): a golden-section search on ``log k`` in [1, 128]."""
+        if settings.get("k") != "fit":
+            return settings
+        ap = cls.build(ctx, **{**settings, "k": DEFAULT_K})
+
+        def cost(logk: float) -> float:
+            k = math.exp(logk)
+            return float(np.mean([np.mean(np.abs(ap.render(az, k=k).layers["factor"] - V))
+                                  for az, V in zip(azimuths, visibility)]))
+
+        return {**settings, "k": _golden_section(cost, math.log(1.0), math.log(128.0))}
+
+    def storage_bytes(self) -> int:
+        """The horizon map (1 byte a channel and texel in 8 bits, 4 in float) and the weight cube map."""
+        rows, cols, ch = self.bake.horizon.shape
+        return rows * cols * ch * (1 if self.storage == "u8" else 4) + (CUBE_BYTES if self.weights == "cube" else 0)
 
     # ------------------------------------------------------------------
     # Public
@@ -386,10 +452,7 @@ class Approximation:
         import drjit as dr
         import mitsuba as mi
 
-        x = np.asarray(x, dtype=np.float64).ravel()
-        y = np.asarray(y, dtype=np.float64).ravel()
-        u = mi.Float((x / self.cols).astype(np.float32))
-        v = mi.Float(((self.rows - y) / self.rows).astype(np.float32))
+        u, v = (mi.Float(c.ravel()) for c in cv.tangent_to_uv(x, y, self.rows, self.cols))
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, k)
         out = self._shade(u, v, uni, shadows, probe=True)
@@ -512,24 +575,13 @@ class Approximation:
         out = {}
         lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
 
-        if "normal" in tex:
-            n = dr.normalize(mi.Vector3f(*tex["normal"]))
+        n = dr.normalize(mi.Vector3f(*tex["normal"])) if "normal" in tex else None
+        albedo = None
         if self._diffuse or self._ambient:
             albedo = self._albedo_const if self._albedo_const is not None else mi.Color3f(*tex["albedo"])
-
-        # direct term D
-        if self._diffuse or self._specular:
-            nl = dr.dot(n, L)
-            direct = mi.Color3f(0.0)
-            if self._diffuse:
-                direct += albedo * (E * dr.maximum(nl, 0.0) * (1.0 / math.pi))
-            if self._specular:
-                nh = dr.maximum(dr.dot(n, uni["h"]), 0.0)
-                spec = dr.select(nl > 0.0, SPECULAR_KS * E * _ipow(nh, SPECULAR_EXPONENT), 0.0)
-                direct += mi.Color3f(spec)
-            direct = dr.select(lit, direct, 0.0)
-        else:
-            direct = dr.select(lit, mi.Color3f(E), 0.0)
+        direct = shading.direct(n, L, None, albedo, E, diffuse=self._diffuse, specular=self._specular,
+                                h=uni.get("h"))
+        direct = dr.select(lit, direct, 0.0)
 
         if self._shadow and shadows:
             s = _dot(tex["horizon"], uni["w"])
@@ -543,7 +595,7 @@ class Approximation:
 
         if self._ambient:
             A = tex["ambient"][0]
-            image = image + albedo * (A * E * SKY_RADIANCE_PER_IRRADIANCE)
+            image = image + shading.sky(albedo, A, E)
             out["ambient"] = A
 
         if self._reflection:
@@ -620,14 +672,97 @@ def _dot(h: list, w: list):
     return total
 
 
-def _ipow(x, n: int):
-    """``x ** n`` for a positive integer ``n`` by repeated squaring (no exp/log)."""
-    result = None
-    base = x
-    while n:
-        if n & 1:
-            result = base if result is None else result * base
-        n >>= 1
-        if n:
-            base = base * base
-    return result
+def _validate(path: str, storage: str, weights: str, directions: int, ambient: str, k: float, fade: float) -> None:
+    """Every setting of :class:`Approximation`, checked before anything is uploaded."""
+    for what, value, allowed in (("path", path, PATHS), ("storage", storage, STORAGES),
+                                 ("weights", weights, WEIGHTS), ("ambient", ambient, AMBIENT_TERMS)):
+        if value not in allowed:
+            raise InputError(what, f"must be one of {', '.join(allowed)}, got {value!r}")
+    if weights == "cube" and directions != cv.CHANNEL_COUNT:
+        raise InputError("weights", f"the weight cube map (and so the gpu path) holds {cv.CHANNEL_COUNT} "
+                                    f"channel weights; this bake stores {directions} directions: use "
+                                    "path='exact' / weights='analytic'")
+    if not (math.isfinite(k) and k > 0):
+        raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
+    if not (math.isfinite(fade) and fade >= 0):
+        raise InputError("fade", f"the horizon fade must be a non-negative number, got {fade}")
+
+
+def _golden_section(cost, a: float, b: float, iterations: int = 14) -> float:
+    """``exp`` of the minimiser of a unimodal ``cost`` on ``[a, b]`` (a log-scale search)."""
+    g = (math.sqrt(5) - 1) / 2
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = cost(c), cost(d)
+    for _ in range(iterations):
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = cost(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = cost(d)
+    return math.exp((a + b) / 2)
+
+
+# --------------------------------------------------------------------------
+# The unshadowed shading that per-pixel techniques build on
+# --------------------------------------------------------------------------
+
+class Unshadowed:
+    """The flat surface's shading without any technique's shadow, split as a factor needs it.
+
+    Techniques whose shadow factor ``F`` is computed per pixel (terrain,
+    pom) shade with :func:`hzval.shading.compose`: ``direct * F + ambient``.
+    ``render`` gives the frame of plain normal mapping (the report's
+    "normal mapping only" column), its ``direct`` part and the ``ambient``
+    image, which is the same for every light (the sky is not shadowed by
+    the light's horizon), rendered once: an ambient-only render with the
+    light below the horizon, where the direct term is 0. The horizon map's
+    reflection fade is no other technique's, so it is left out. The last
+    frame is kept: every technique of a sweep frame shares one render.
+    """
+
+    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2"):
+        effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
+        self.scene = scene
+        self._grey = not effects            # shadows alone: the direct term is E, grey
+        self._plain = None if self._grey else Approximation(replace_effects(scene, effects), bake, albedo,
+                                                            ambient=ambient)
+        self.ambient_image = None
+        if "ambient" in effects:
+            self.ambient_image = Approximation(replace_effects(scene, ("ambient",)), bake, albedo,
+                                               ambient=ambient).render(0.0, elevation_deg=-90.0).image
+        self.shape = image_shape(*bake.normal.shape[:2], scene.camera)
+        self._last: tuple | None = None
+
+    def render(self, azimuth_deg: float, elevation_deg: float | None = None) -> tuple[Frame, np.ndarray]:
+        """``(frame, direct)``: the unshadowed frame and its direct part ``(H, W, 3)``."""
+        e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
+        key = (float(azimuth_deg), e)
+        if self._last is None or self._last[0] != key:
+            if self._grey:
+                t0 = time.perf_counter()
+                E = float(self.scene.light.irradiance) if e > 0 else 0.0
+                frame = Frame(float(azimuth_deg), e, np.full((*self.shape, 3), E, np.float32),
+                              seconds=time.perf_counter() - t0)
+            else:
+                frame = self._plain.render(azimuth_deg, shadows=False, elevation_deg=e)
+            direct = frame.image if self.ambient_image is None else frame.image - self.ambient_image
+            self._last = (key, frame, direct)
+        return self._last[1], self._last[2]
+
+    def shade(self, azimuth_deg: float, elevation_deg: float | None, factor: np.ndarray, seconds: float,
+              layers: dict | None = None) -> Frame:
+        """The frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
+        the unshadowed render's time counts toward it, as an engine would pay it."""
+        frame, direct = self.render(azimuth_deg, elevation_deg)
+        image = shading.compose(direct, factor, self.ambient_image)
+        out = {k: v for k, v in frame.layers.items() if k != "reflection_occlusion"}
+        out.update(layers or {}, factor=np.asarray(factor, np.float32))
+        return Frame(frame.azimuth_deg, frame.elevation_deg, image, out, seconds=seconds + frame.seconds)
+
+
+def unshadowed(ctx: Context) -> Unshadowed:
+    """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
+    return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo))

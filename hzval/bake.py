@@ -199,6 +199,15 @@ class Bake:
         return tuple(self.horizon[..., n * i:n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
 
+def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
+    """A :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``):
+    the unshadowed shading of a technique that reads no horizon map, built
+    without the horizon bake's cost. ``height`` normalised, ``(rows, cols)``."""
+    h = cv.heights_in_texels(height, depth)
+    return Bake(params=BakeParams(depth=depth, boundary=boundary), horizon=None,
+                normal=normal_map(h, boundary), mean_cos=None, mean_cos2=None)
+
+
 # --------------------------------------------------------------------------
 # Normal map
 # --------------------------------------------------------------------------

@@ -2,20 +2,19 @@
 
 :func:`run` renders every scene of ``scenes/*.toml`` at the small size its
 ``[check]`` section asks for (64-128 px) with the truth (:mod:`hzval.truth`)
-the approximation (:mod:`hzval.approx`, both the ``exact`` and the ``gpu``
-path) and, for scenes that declare ``shadow``, the terrain technique
-(:mod:`hzval.terrain`), and compares each image with its reference::
+and every technique of the registry that applies to the scene
+(:mod:`hzval.technique`), each in the variants it asks to be guarded
+(:meth:`hzval.technique.Technique.check_variants`: the horizon map's
+``exact`` and ``gpu`` paths, the others as built), and compares each image
+with its reference::
 
     reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
-    reference/<scene>/az<azimuth>/approx.exr       R, G, B, F
-    reference/<scene>/az<azimuth>/approx_gpu.exr   R, G, B, F
-    reference/<scene>/az<azimuth>/terrain.exr      R, G, B, F
+    reference/<scene>/az<azimuth>/<variant>.exr    R, G, B, F   (approx, approx_gpu, terrain, pom, ...)
 
 (linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
-horizon factor or the terrain's, ``var.*`` the variance of each pixel's
-mean). The approximation and the terrain technique are deterministic and
-share the ``approx`` tiers. Values are
-compared after the sweep's exposure (:func:`hzval.compare.exposure`), so a
+technique's shadow factor, ``var.*`` the variance of each pixel's mean).
+The techniques are deterministic and share the ``approx`` tiers. Values are
+compared after the sweep's exposure (:func:`hzval.shading.exposure`), so a
 difference of 1 is the difference between black and a white Lambertian
 surface facing the light.
 
@@ -70,14 +69,14 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import compare, files
+from hzval import bake, compare, files, images, shading, technique, truth
+from hzval import scene as sc
 from hzval.errors import InputError
+from hzval.sweep import frame_folder
 
-__all__ = ["Tiers", "DEFAULT_TIERS", "KINDS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
+__all__ = ["Tiers", "DEFAULT_TIERS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
            "render_references", "compare_image", "run", "write_report", "repository_path"]
 
-#: The images of one frame: the truth, the approximation's two paths and the terrain technique.
-KINDS: tuple[str, ...] = ("truth", "approx", "approx_gpu", "terrain")
 #: Side of the pixel blocks whose means the truth's test also compares.
 BLOCK = 8
 #: Largest side of a check render, in texels (references stay small).
@@ -160,40 +159,41 @@ def repository_path(name: str) -> Path:
 
 def check_scene(scene):
     """``scene`` as the check renders it: the ``[check]`` section's size, azimuths and spp."""
-    from hzval import scene as sc
-
     c = scene.check
     size = c.get("size")
     if size is not None and scene.material.height != "bricks":
         raise InputError(scene.source or scene.name, "check.size applies to the built-in material only")
-    s = sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"))
-    return s
+    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"))
+
+
+def renderers(scene, height: np.ndarray) -> dict:
+    """``{kind: technique}``: every check variant of every technique that applies to ``scene``."""
+    params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
+    rows, cols = height.shape
+    ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols))
+    out = {}
+    for t in technique.select(None, scene):
+        for v in t.check_variants():
+            out[v.name] = t.build(ctx, **v.settings)
+    return out
 
 
 def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
     """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
     ``seed`` replaces the scene's seed for the truth."""
-    from hzval import approx, bake, scene as sc, sweep, terrain, truth
-
-    # another seed moves the samples: only the truth takes it (the approximation is
-    # deterministic, and its references hold its images at the scene's own positions)
+    # another seed moves the samples: only the truth takes it (the techniques are
+    # deterministic, and their references hold their images at the scene's own positions)
     truth_scene = scene if seed is None else dataclasses.replace(scene, seed=int(seed))
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     if max(rows, cols) > MAX_CHECK_SIZE:
         raise InputError(scene.source or scene.name,
                          f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)")
-    params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
-    baked = bake.bake(hm.height, params)
-    albedo = sc.load_albedo(scene.material, rows, cols)
     the_truth = truth.Truth(truth_scene, hm.height)
-    renderers = {"approx": approx.Approximation(scene, baked, albedo, path="exact"),
-                 "approx_gpu": approx.Approximation(scene, baked, albedo, path="gpu")}
-    if scene.declares("shadow"):
-        renderers["terrain"] = terrain.TerrainShadow(scene, hm.height, bake=baked, albedo=albedo)
+    kinds = renderers(scene, hm.height)
     out = {}
     for az in scene.light.azimuths_deg:
-        name = sweep.frame_folder(az)
+        name = frame_folder(az)
         t = the_truth.render(az)
         ch = _rgb(t.image)
         ch["V"] = t.layers["visibility"]
@@ -201,7 +201,7 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
         ch.update({f"var.{k}": v for k, v in var.items()})
         ch["var.V"] = t.variance["visibility"]
         out[(name, "truth")] = ch
-        for kind, r in renderers.items():
+        for kind, r in kinds.items():
             a = r.render(az)
             ch = _rgb(a.image)
             ch["F"] = a.layers["factor"]
@@ -342,7 +342,7 @@ def run(*, scenes_dir: str | Path | None = None, references: str | Path | None =
     scenes = [check_scene(s) for s in load_scenes(scenes_dir) if not only or s.name in only]
     result = CheckResult(images=[])
     for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):
-        scale = compare.exposure(scene)
+        scale = shading.exposure(scene)
         rendered = render_references(scene, seed=seed)
         for (frame, kind), new in rendered.items():
             path = reference_file(references, scene.name, frame, kind)
@@ -385,8 +385,6 @@ def summary(result: CheckResult) -> str:
 
 def write_report(result: CheckResult, out: str | Path, *, command: str = "") -> Path:
     """``out/index.html``: reference | new | difference for every image, failures first."""
-    from matplotlib import colormaps
-
     from hzval import backend, report
 
     out = Path(out)
@@ -410,8 +408,7 @@ def write_report(result: CheckResult, out: str | Path, *, command: str = "") -> 
             else:
                 top = r.tiers.hard_fail
                 entry["diff_caption"] = f"largest |new - ref| per pixel; white at hard_fail = {top:g}"
-            rgb = colormaps["magma"](np.clip(score / top, 0, 1))[..., :3]
-            files.write_png(out / f"{stem}-diff.png", files.unit_to_u8(rgb))
+            files.write_png(out / f"{stem}-diff.png", images.magma(score / top))
             entry["diff"] = f"{stem}-diff.png"
         items.append(entry)
     html = report._environment().get_template("check.html.j2").render(

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import sys
 import time
 from pathlib import Path
@@ -36,6 +35,35 @@ def _tradeoff_default_size() -> int:
     from hzval import tradeoff
 
     return tradeoff.DEFAULT_SIZE
+
+
+def _add_technique_args(p: argparse.ArgumentParser) -> None:
+    """``--techniques``, a ``--no-NAME`` for each technique but the primary, and each technique's
+    own options (:meth:`hzval.technique.Technique.add_arguments`), from the registry."""
+    from hzval import technique
+
+    names = technique.names()
+    p.add_argument("--techniques", default=None, metavar="NAMES",
+                   help=f"comma-separated techniques to score: {', '.join(names)} (default: every one that "
+                        "applies to the declared effects)")
+    for name in names:
+        t = technique.get(name)
+        if name != technique.PRIMARY:
+            p.add_argument(f"--no-{name}", dest="exclude", action="append_const", const=name, default=[],
+                           help=f"leave out {t.label} ({t.summary})")
+    for name in names:
+        technique.get(name).add_arguments(p)
+
+
+def _technique_options(args) -> dict:
+    """``sweep.Options`` keywords of the technique options."""
+    from hzval import technique
+
+    requested = None
+    if args.techniques is not None:
+        requested = tuple(n.strip() for n in args.techniques.split(",") if n.strip())
+    settings = {n: technique.get(n).settings_from_args(args) for n in technique.names()}
+    return {"techniques": requested, "exclude": tuple(args.exclude), "settings": settings}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -72,7 +100,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
     p.add_argument("--azimuths", default=None,
                    help="light azimuths in degrees, START:STOP:STEP or a list (default -60:60:15)")
-    p.add_argument("--k", type=float, default=8.0, help="shadow hardness k of F = clamp(k (Lz - s) + 1) (default 8)")
     p.add_argument("--light", choices=["hard", "soft"], default=None, help="directional or disk light")
     p.add_argument("--light-radius", type=float, default=None, metavar="DEG",
                    help="angular radius of a soft light in degrees")
@@ -82,17 +109,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the samples (default 0)")
     p.add_argument("--supersampling", type=int, default=None, help="pixels per texel along each axis (default 1)")
-    p.add_argument("--path", choices=["exact", "gpu"], default="exact",
-                   help="approximation: exact float math, or emulate the GPU's 8-bit textures (default exact)")
-    p.add_argument("--ambient", choices=["mean_cos2", "mean_cos"], default="mean_cos2",
-                   help="which ambient-map definition the approximation uses")
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="bake angular bins, a multiple of 2 x --directions (default 32)")
     p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")
-    p.add_argument("--no-terrain", dest="terrain", action="store_false",
-                   help="leave out the third technique, Raudins' per-light terrain shadows (hzval.terrain)")
+    _add_technique_args(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_sweep)
@@ -199,21 +221,19 @@ def cmd_sweep(args) -> int:
                         supersampling=args.supersampling)
     if args.height:
         scene = dataclasses.replace(scene, name=Path(args.height).stem)
-    options = sweep.Options(k=args.k, path=args.path, ambient=args.ambient, radius=args.radius, angles=args.angles,
-                            method=args.method, directions=args.directions, terrain=args.terrain)
-    if not (math.isfinite(options.k) and options.k > 0):
-        raise errors.InputError("--k", f"must be a positive number, got {options.k}")
+    options = sweep.Options(radius=args.radius, angles=args.angles, method=args.method,
+                            directions=args.directions, **_technique_options(args))
     out = args.out or Path("reports") / scene.name
     backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet)
     print(sweep.summary_table(result))
     t = result["timings"]
-    print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s (bake {t['bake_s']:.2f} s"
-          f"{', cached' if t['bake_cached'] else ''}, truth {t['truth_setup_s'] + t['truth_s']:.2f} s, "
-          f"approximation {t['approx_setup_s'] + t['approx_s']:.2f} s"
-          + (f", terrain {t.get('terrain_setup_s', 0) + t['terrain_s']:.2f} s" if "terrain_s" in t else "")
-          + "; peak memory "
+    parts = [f"bake {t['bake_s']:.2f} s{', cached' if t['bake_cached'] else ''}",
+             f"truth {t['truth_setup_s'] + t['truth_s']:.2f} s"]
+    parts += [f"{name} {t.get(info['file_stem'] + '_setup_s', 0) + t[info['file_stem'] + '_s']:.2f} s"
+              for name, info in result["techniques"].items()]
+    print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
     return errors.EXIT_OK
 
@@ -241,7 +261,7 @@ def cmd_check(args) -> int:
 def cmd_tradeoff(args) -> int:
     import shlex
 
-    from hzval import backend, scene as sc, tradeoff
+    from hzval import backend, scene as sc, technique, tradeoff
 
     size = args.size if args.size is not None else (None if args.height else tradeoff.DEFAULT_SIZE)
     scene = sc.override(sc.Scene(), height=str(args.height) if args.height else None, size=size,
@@ -269,8 +289,10 @@ def cmd_tradeoff(args) -> int:
               f"best {rec['best']} {rec['best_visibility_mae']:.4f})")
         if "horizon_map" in rec:
             h = rec["horizon_map"]
-            print(f"for horizon mapping: {h['setting']} (|F-V| {h['visibility_mae']:.4f}; "
-                  f"default {rec['default']} {rec['default_visibility_mae']:.4f})")
+            default = "" if rec["default"] is None else \
+                f"; default {rec['default']} {rec['default_visibility_mae']:.4f}"
+            print(f"for the {technique.get(technique.PRIMARY).label}'s own settings: {h['setting']} "
+                  f"(|F-V| {h['visibility_mae']:.4f}{default})")
     print(f"report: {index}")
     return errors.EXIT_OK
 

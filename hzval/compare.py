@@ -13,7 +13,7 @@ Visibility, on the one-channel layers in [0, 1]:
   (:mod:`hzval.truth`).
 
 Images: ``rmse`` and ``psnr_db`` on linear values (peak 1: a white
-Lambertian surface facing the light, after :func:`exposure`); FLIP (NVIDIA,
+Lambertian surface facing the light, after :func:`hzval.shading.exposure`); FLIP (NVIDIA,
 ``flip-evaluator``, LDR, 67 pixels per degree) and CIEDE2000 (colour-science)
 on display values, i.e. exposed, clipped to [0, 1] and sRGB-encoded.
 """
@@ -27,6 +27,10 @@ import numpy as np
 
 from hzval import conventions as cv
 from hzval.errors import HzvalError
+
+#: A layer value at or above this counts as lit (``V`` and ``F`` alike): the
+#: leak and false-shadow counts here and the maps of :mod:`hzval.images`.
+LIT_THRESHOLD = 0.5
 
 #: FLIP's viewing condition: its default 67 pixels per degree (a 0.7 m
 #: viewing distance from a 3840-pixel, 0.7 m wide monitor), fixed so that
@@ -52,18 +56,6 @@ class FrameMetrics:
         return d
 
 
-def exposure(scene) -> float:
-    """Scale from radiance to display values: a white Lambertian surface facing the light shows 1.
-
-    Its radiance is ``E / pi`` when diffuse or specular shading is declared;
-    otherwise images hold ``E`` times a visibility and ``E`` shows as 1.
-    """
-    e = scene.light.irradiance
-    if scene.declares("diffuse") or scene.declares("specular"):
-        return math.pi / e
-    return 1.0 / e
-
-
 def display(image: np.ndarray, scale: float) -> np.ndarray:
     """Linear radiance ``(H, W[, 3])`` to sRGB-encoded display values in [0, 1], ``(H, W, 3)``."""
     img = np.asarray(image, dtype=np.float64)
@@ -76,7 +68,7 @@ def visibility_metrics(V: np.ndarray, F: np.ndarray) -> tuple[float, float, floa
     """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.float64)
-    lit_truth, lit_approx = V >= 0.5, F >= 0.5
+    lit_truth, lit_approx = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
     return (float(np.mean(np.abs(F - V))),
             float(np.mean(lit_approx & ~lit_truth)),
             float(np.mean(~lit_approx & lit_truth)))
@@ -174,7 +166,7 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None
     ``visibility_diff``, and ``display``, the approximation's display values).
 
     ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
-    sweep's :func:`exposure`; ``reference``: ``Reference(truth, scale)``
+    sweep's :func:`hzval.shading.exposure`; ``reference``: ``Reference(truth, scale)``
     when several techniques are compared with the same truth.
     """
     ref = reference if reference is not None else Reference(truth, scale)

@@ -95,6 +95,19 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(col, (rows, cols)), np.broadcast_to(y[:, None], (rows, cols))
 
 
+def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent-space points ``(x, y)`` in texels as texture coordinates ``(u, v)``, float32.
+
+    ``u = x / cols`` runs right, ``v = (rows - y) / rows`` runs down the
+    image (row 0 at ``v = 0``), as Dr.Jit's and Mitsuba's textures index a
+    ``(rows, cols)`` array; texel ``(row, col)``'s centre is at ``u = (col +
+    0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    return (x / cols).astype(np.float32), ((rows - y) / rows).astype(np.float32)
+
+
 def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
     """A tangent-space offset ``(dx, dy)`` in texels as ``(drow, dcol)``."""
     return -dy, dx

@@ -34,11 +34,6 @@ from hzval import conventions as cv
 #: Lowest light elevation, in degrees, whose shadows the wrap margin must hold.
 MIN_ELEVATION_DEG = 10.0
 
-#: Bytes per vertex in Mitsuba (positions, UVs, normals) plus two faces and
-#: Embree's BVH per vertex, rounded up: for memory estimates.
-MESH_BYTES_PER_VERTEX = 200
-
-
 @dataclass(frozen=True)
 class Grid:
     """The vertex grid of a displaced mesh, before it becomes a Mitsuba mesh.
@@ -101,11 +96,6 @@ def triangles(n_rows: int, n_cols: int) -> np.ndarray:
     return faces.reshape(-1, 3).astype(np.uint32)
 
 
-def estimate_bytes(rows: int, cols: int, margin: int) -> int:
-    """Memory in bytes of a displaced mesh with ``margin`` texels around the tile."""
-    return MESH_BYTES_PER_VERTEX * (rows + 2 * margin + 2) * (cols + 2 * margin + 2)
-
-
 def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
                    min_elevation_deg: float = MIN_ELEVATION_DEG, margin: int | None = None,
                    normals: bool = False, name: str = "displaced"):
@@ -123,7 +113,7 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
     ny, nx = g.z.shape
     X, Y = np.meshgrid(g.x, g.y)
     positions = np.stack([X, Y, g.z], axis=-1).astype(np.float32)
-    uv = np.stack([X / cols, (rows - Y) / rows], axis=-1).astype(np.float32)
+    uv = np.stack(cv.tangent_to_uv(X, Y, rows, cols), axis=-1)
     faces = triangles(ny, nx)
 
     mesh = mi.Mesh(name, nx * ny, len(faces), has_vertex_normals=normals, has_vertex_texcoords=True)

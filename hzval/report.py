@@ -29,18 +29,15 @@ from pathlib import Path
 from typing import Any, Callable
 from urllib.parse import quote
 
-from hzval import files
+from hzval import files, images, technique
 
-#: Colours of the visibility-difference map, as :mod:`hzval.sweep` paints it:
-#: leaks (the technique lights what the truth shadows) and false shadows.
-LEAK_RGB = (255, 127, 14)
-FALSE_SHADOW_RGB = (31, 119, 180)
-
-#: Colours of the two sides, on the page and in the plots.
+#: The truth's colour, on the page and in the plots.
 TRUTH_COLOUR = "#7fd1ae"
-APPROX_COLOUR = "#b9a3ff"
-#: The third technique's colour (hzval.terrain, Raudins' terrain shadows).
-TERRAIN_COLOUR = "#f2c14e"
+#: The techniques' colours, in the order ``metrics.json`` lists them (the
+#: first is the primary technique's, the page's "approx" side).
+TECHNIQUE_COLOURS = ("#b9a3ff", "#f2c14e", "#6cc3ff", "#ff8fa3", "#c7e36b")
+#: Line styles of the techniques in the plots, in the same order.
+TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
 #: Plot palette (matches the page's dark neutral theme).
 _BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
@@ -141,20 +138,6 @@ METRICS: tuple[Metric, ...] = (
            "synchronised)", fmt_seconds, group="render time"),
 )
 
-#: The terrain technique's columns (``frames[i]["terrain"]``, flattened to
-#: ``terrain_<key>`` and ``terrain_s``); shown only when a frame has them.
-TERRAIN_METRICS: tuple[Metric, ...] = (
-    Metric("terrain_visibility_mae", "terrain |F−V|", "", "Terrain technique (Raudins' per-light shadow "
-           "boundary): mean |F − V| over pixels against the same ray-traced visibility", _fixed(4),
-           group="terrain"),
-    Metric("terrain_flip_mean", "terrain FLIP", "", "Terrain technique: mean FLIP error against the truth "
-           "(display values)", _fixed(4), group="terrain"),
-    Metric("terrain_s", "terrain", "time", "Terrain technique's frame time: its per-light sweep, the factor "
-           "and the normal-mapped shading it multiplies (Dr.Jit, kernels synchronised)", fmt_seconds,
-           group="terrain"),
-)
-
-
 #: Shown only when a frame has it (scenes that declare ``reflection_occlusion``).
 REFLECTION_METRICS: tuple[Metric, ...] = (
     Metric("reflection_mae", "|o−R|", "", "Reflection occlusion: mean |o − R| over pixels, the Toolbag horizon "
@@ -163,20 +146,61 @@ REFLECTION_METRICS: tuple[Metric, ...] = (
 )
 
 
-def _flatten_terrain(frames: list[dict]) -> list[dict]:
-    """Frames with ``terrain`` metrics lifted to ``terrain_<key>`` (and its seconds to ``terrain_s``)."""
+@dataclass(frozen=True)
+class TechniqueView:
+    """A technique as the report shows it (``metrics.json``'s ``techniques``)."""
+
+    name: str
+    label: str
+    stem: str
+    colour: str
+    style: object
+    primary: bool
+
+
+def technique_views(metrics: dict) -> list[TechniqueView]:
+    """The techniques of a sweep's ``metrics``, in their order; a ``metrics.json`` without
+    ``techniques`` (written before the registry) has the primary technique alone."""
+    info = metrics.get("techniques")
+    if not isinstance(info, dict) or not info:
+        info = {technique.PRIMARY: {"label": "approximation", "file_stem": "approx"}}
+    views = []
+    for i, (name, t) in enumerate(info.items()):
+        t = t if isinstance(t, dict) else {}
+        views.append(TechniqueView(str(name), str(t.get("label") or name), str(t.get("file_stem") or name),
+                                   TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
+                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], name == technique.PRIMARY))
+    return views
+
+
+def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
+    """Frames with every technique's metrics lifted to ``<name>_<key>`` and its seconds to
+    ``<name>_s``; the primary technique's also come from the frame's top-level keys."""
     out = []
     for f in frames:
-        te = f.get("terrain")
-        if isinstance(te, dict):
-            f = {**f, **{f"terrain_{k}": v for k, v in te.items() if k not in ("files", "seconds")},
-                 "terrain_s": te.get("seconds")}
-        out.append(f)
+        per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
+        g = dict(f)
+        for v in views:
+            m = per.get(v.name)
+            if not isinstance(m, dict) and v.primary:
+                m = {**f, "seconds": f.get("approx_s")}
+            if isinstance(m, dict):
+                g.update({f"{v.name}_{k}": val for k, val in m.items() if k not in ("files", "seconds")})
+                g[f"{v.name}_s"] = m.get("seconds")
+        out.append(g)
     return out
 
 
-def _has_terrain(frames: list[dict]) -> bool:
-    return any(isinstance(f.get("terrain"), dict) for f in frames)
+def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
+    """The summary table's columns of a technique other than the primary."""
+    return (
+        Metric(f"{v.name}_visibility_mae", f"{v.name} |F−V|", "", f"{v.label}: mean |F − V| over pixels against "
+               "the same ray-traced visibility", _fixed(4), group=v.name),
+        Metric(f"{v.name}_flip_mean", f"{v.name} FLIP", "", f"{v.label}: mean FLIP error against the truth "
+               "(display values)", _fixed(4), group=v.name),
+        Metric(f"{v.name}_s", v.name, "time", f"{v.label}: frame time, the unshadowed shading it multiplies "
+               "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name),
+    )
 
 
 #: The images of a frame, in the order of the row, with their captions.
@@ -187,11 +211,11 @@ PANELS: tuple[tuple[str, str, str], ...] = (
     ("flip_png", "FLIP error", ""),
     ("visdiff_png", "visibility difference", "F against V"),
 )
-#: The terrain technique's images (keys of ``frames[i]["terrain"]["files"]``).
-TERRAIN_PANELS: tuple[tuple[str, str, str], ...] = (
-    ("png", "terrain shadows", "Raudins, Dr.Jit"),
-    ("flip_png", "terrain FLIP error", ""),
-    ("visdiff_png", "terrain visibility difference", "F against V"),
+#: A technique's images after the primary's (keys of ``frames[i]["techniques"][name]["files"]``).
+TECHNIQUE_PANELS: tuple[tuple[str, str, str], ...] = (
+    ("png", "", "Dr.Jit"),
+    ("flip_png", "FLIP error", ""),
+    ("visdiff_png", "visibility difference", "F against V"),
 )
 
 #: Raw files of a frame, linked from its card: (group, [(key, label)]).
@@ -201,8 +225,8 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("PNG", (("visibility_png", "V"), ("factor_png", "F"))),
 )
 
-#: The terrain technique's raw files (keys of ``frames[i]["terrain"]["files"]``).
-TERRAIN_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"))
+#: A technique's raw files (keys of ``frames[i]["techniques"][name]["files"]``).
+TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"))
 
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("method", "bake method"),
@@ -215,32 +239,23 @@ _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 )
 
 _TIMING_LABELS: tuple[tuple[str, str], ...] = (
-    ("bake_s", "bake"), ("truth_setup_s", "truth set-up"), ("approx_setup_s", "approximation set-up"),
-    ("truth_s", "truth renders"), ("approx_s", "approximation renders"), ("compare_s", "compare"),
-    ("write_s", "write frames"), ("report_s", "report"), ("terrain_setup_s", "terrain set-up"),
-    ("terrain_s", "terrain renders"),
+    ("bake_s", "bake"), ("truth_setup_s", "truth set-up"), ("truth_s", "truth renders"),
+    ("plain_setup_s", "normal mapping set-up"), ("plain_s", "normal mapping renders"),
+    ("compare_s", "compare"), ("write_s", "write frames"), ("report_s", "report"),
 )
+
+
+def _timing_labels(views: list[TechniqueView]) -> tuple[tuple[str, str], ...]:
+    """The stages of a sweep's timings: the fixed ones, then each technique's set-up and renders."""
+    fixed = _TIMING_LABELS[:5]
+    own = tuple(pair for v in views for pair in ((f"{v.stem}_setup_s", f"{v.label} set-up"),
+                                                  (f"{v.stem}_s", f"{v.label} renders")))
+    return fixed + own + _TIMING_LABELS[5:]
 
 _VERSION_LABELS: tuple[tuple[str, str], ...] = (
     ("hzval", "hzval"), ("mitsuba", "Mitsuba"), ("drjit", "Dr.Jit"), ("llvm", "LLVM"),
     ("variant", "variant"), ("python", "Python"), ("machine", "machine"),
 )
-
-
-def _hex(rgb) -> str:
-    return "#" + "".join(f"{int(c):02x}" for c in rgb)
-
-
-def _map_colours() -> tuple[str, str]:
-    """The leak and false-shadow colours the sweep paints, read from it when it says."""
-    leak, false_shadow = LEAK_RGB, FALSE_SHADOW_RGB
-    try:
-        from hzval import sweep
-        leak = tuple(getattr(sweep, "LEAK_RGB", leak))
-        false_shadow = tuple(getattr(sweep, "FALSE_SHADOW_RGB", false_shadow))
-    except Exception:  # noqa: BLE001 - the report must not depend on the sweep importing cleanly
-        pass
-    return _hex(leak), _hex(false_shadow)
 
 
 def _value_text(key: str, value) -> str:
@@ -320,7 +335,7 @@ def _columns(frames: list[dict], metrics: tuple[Metric, ...] = METRICS) -> list[
     return cols
 
 
-def _cell(col: dict, i: int, frame: dict) -> dict:
+def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
     m: Metric = col["metric"]
     v = col["vals"][i]
     raw = frame.get(m.key)
@@ -333,7 +348,7 @@ def _cell(col: dict, i: int, frame: dict) -> dict:
     if m.bar and v is not None and col["top"] > 0 and math.isfinite(v):
         bar = round(max(0.0, min(1.0, abs(v) / col["top"])), 4)
     return {"key": m.key, "label": m.label, "text": text, "worst": i in col["worst_idx"], "bar": bar,
-            "gstart": m.key in _GROUP_STARTS,
+            "gstart": m.key in starts,
             "title": title, "unit": m.unit if m.unit not in ("time", "%") else ""}
 
 
@@ -362,9 +377,10 @@ def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
     return tiles
 
 
-def _timings(t: dict, n_frames: int) -> dict:
+def _timings(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
     rows, known = [], set()
-    for key, label in _TIMING_LABELS:
+    per_frame = {"truth_s", "plain_s"} | {f"{v.stem}_s" for v in views}
+    for key, label in _timing_labels(views):
         known.add(key)
         v = _num(t.get(key))
         if v is None:
@@ -372,7 +388,7 @@ def _timings(t: dict, n_frames: int) -> dict:
         note = ""
         if key == "bake_s" and t.get("bake_cached"):
             note = "cached"
-        elif key in ("truth_s", "approx_s", "terrain_s") and n_frames:
+        elif key in per_frame and n_frames:
             note = f"{fmt_seconds(v / n_frames)} per frame"
         rows.append({"label": label, "seconds": v, "text": fmt_seconds(v), "note": note})
     for key, value in t.items():   # anything else the sweep timed
@@ -463,8 +479,9 @@ def _material(m: dict) -> dict:
             "aspect": f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"}
 
 
-_ALL_METRICS = METRICS + REFLECTION_METRICS + TERRAIN_METRICS
-_GROUP_STARTS = {m.key for i, m in enumerate(_ALL_METRICS) if i == 0 or _ALL_METRICS[i - 1].group != m.group}
+def _group_starts(metrics: tuple[Metric, ...]) -> set[str]:
+    """Keys of the columns that open a column group (drawn with a rule before them)."""
+    return {m.key for i, m in enumerate(metrics) if i == 0 or metrics[i - 1].group != m.group}
 
 
 def _column_groups(metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
@@ -477,45 +494,77 @@ def _column_groups(metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
     return groups
 
 
+def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metric, ...]:
+    """The summary table's columns: the primary technique's (the frame's top-level keys), the
+    reflection fade's where measured, then three for each other technique."""
+    lead = views[0]
+    shown = METRICS if lead.primary else tuple(m for m in METRICS if m.key == "truth_s")
+    if any(f.get("reflection_mae") is not None for f in frames):
+        shown += REFLECTION_METRICS
+    for v in views:
+        if not (v.primary and v is lead):
+            shown += _technique_metrics(v)
+    return shown
+
+
+def _technique_files(f: dict, v: TechniqueView) -> dict:
+    """A technique's files in a frame (``techniques[name].files``; for a ``metrics.json`` from
+    before the registry, the primary's are the frame's own)."""
+    per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
+    own = (per.get(v.name) or {}).get("files") if isinstance(per.get(v.name), dict) else None
+    if own is None and v.primary:
+        fl = f.get("files") or {}
+        own = {"image": fl.get("approx"), "png": fl.get("approx_png"), "factor": fl.get("factor"),
+               "factor_png": fl.get("factor_png"), "flip_png": fl.get("flip_png"),
+               "visdiff_png": fl.get("visdiff_png")}
+    return own or {}
+
+
+def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
+                views: list[TechniqueView]) -> dict:
+    """One frame's card: its chips, the lead technique's panels beside the truth, the others' rows."""
+    fl = f.get("files") or {}
+    lead_files = _technique_files(f, views[0])
+    own = {"truth_png": fl.get("truth_png"), "plain_png": fl.get("plain_png"), "approx_png": lead_files.get("png"),
+           "flip_png": lead_files.get("flip_png"), "visdiff_png": lead_files.get("visdiff_png")}
+    panels = []
+    for key, title, subtitle in PANELS:
+        if key == "approx_png":
+            title = views[0].label
+        panels.append({"key": key, "title": title, "subtitle": subtitle, "file": _src(out, own.get(key))})
+    raw = []
+    for group, keys in RAW_FILES:
+        links = [{"label": label, "file": _src(out, fl.get(key))} for key, label in keys]
+        links = [r for r in links if r["file"] and r["file"]["src"]]
+        if links:
+            raw.append({"group": group, "links": links})
+    rows = []
+    for v in views:
+        tf = _technique_files(f, v)
+        links = [{"label": label, "file": _src(out, tf.get(key))} for key, label in TECHNIQUE_RAW_FILES]
+        links = [r for r in links if r["file"] and r["file"]["src"]]
+        if links and v is not views[0]:
+            raw.append({"group": f"{v.name} EXR", "links": links})
+        if v is not views[0]:
+            rows.append({"name": v.name, "label": v.label, "colour": v.colour,
+                         "panels": [{"key": key, "title": f"{v.label} {title}".strip(), "subtitle": subtitle,
+                                     "file": _src(out, tf.get(key))} for key, title, subtitle in TECHNIQUE_PANELS]})
+    return {"index": i, "id": f"frame-{i}", "technique_rows": rows,
+            "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
+            "cells": [_cell(c, i, f, starts) for c in cols], "panels": {p["key"]: p for p in panels}, "raw": raw}
+
+
 def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str | None]) -> dict:
     """Everything the template needs, formatted; no markup."""
     out = Path(out)
-    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
-    terrain = _has_terrain(frames)
-    reflection = any(f.get("reflection_mae") is not None for f in frames)
-    shown = METRICS + (REFLECTION_METRICS if reflection else ()) + (TERRAIN_METRICS if terrain else ())
-    frames = _flatten_terrain(frames)
+    views = technique_views(metrics)
+    frames = _flatten([f for f in (metrics.get("frames") or []) if isinstance(f, dict)], views)
+    shown = _shown_metrics(frames, views)
+    starts = _group_starts(shown)
     parameters = metrics.get("parameters") or {}
     cols = _columns(frames, shown)
-    leak_hex, false_shadow_hex = _map_colours()
     material = _material(metrics.get("material") or {})
-
-    frame_views = []
-    for i, f in enumerate(frames):
-        fl = f.get("files") or {}
-        panels = []
-        for key, title, subtitle in PANELS:
-            panels.append({"key": key, "title": title, "subtitle": subtitle, "file": _src(out, fl.get(key))})
-        raw = []
-        for group, keys in RAW_FILES:
-            links = [{"label": label, "file": _src(out, fl.get(key))} for key, label in keys]
-            links = [r for r in links if r["file"] and r["file"]["src"]]
-            if links:
-                raw.append({"group": group, "links": links})
-        te_files = (f.get("terrain") or {}).get("files") or {}
-        te_links = [{"label": label, "file": _src(out, te_files.get(key))} for key, label in TERRAIN_RAW_FILES]
-        te_links = [r for r in te_links if r["file"] and r["file"]["src"]]
-        if te_links:
-            raw.append({"group": "terrain EXR", "links": te_links})
-        te_panels = [{"key": key, "title": title, "subtitle": subtitle, "file": _src(out, te_files.get(key))}
-                     for key, title, subtitle in TERRAIN_PANELS] if terrain else []
-        frame_views.append({
-            "index": i, "id": f"frame-{i}", "terrain_panels": te_panels,
-            "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
-            "cells": [_cell(c, i, f) for c in cols],
-            "panels": {p["key"]: p for p in panels},
-            "raw": raw,
-        })
+    frame_views = [_frame_view(out, i, f, cols, starts, views) for i, f in enumerate(frames)]
 
     azimuths = parameters.get("azimuths_deg") or [f.get("azimuth_deg") for f in frames]
     elevation = parameters.get("elevation_deg", frames[0].get("elevation_deg") if frames else None)
@@ -532,19 +581,20 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "parameters": _parameters(parameters),
         "effects": _effects(parameters, metrics.get("simulated") or {}),
         "versions": _versions(metrics.get("versions") or {}),
-        "timings": _timings(metrics.get("timings") or {}, len(frames)),
+        "timings": _timings(metrics.get("timings") or {}, len(frames), views),
         "columns": [{"label": c["metric"].label, "unit": c["metric"].unit, "title": c["metric"].title,
-                     "key": c["metric"].key, "mean_text": c["mean_text"], "mean_title": c["mean_title"], "gstart": c["metric"].key in _GROUP_STARTS}
+                     "key": c["metric"].key, "mean_text": c["mean_text"], "mean_title": c["mean_title"],
+                     "gstart": c["metric"].key in starts}
                     for c in cols],
         "column_groups": _column_groups(shown),
         "glance": _glance(cols, frames),
         "frames": frame_views,
-        "has_terrain": terrain,
+        "techniques": [{"name": v.name, "label": v.label, "colour": v.colour} for v in views],
         "plots": plots,
-        "leak_hex": leak_hex, "false_shadow_hex": false_shadow_hex,
-        "truth_colour": TRUTH_COLOUR, "approx_colour": APPROX_COLOUR, "terrain_colour": TERRAIN_COLOUR,
+        "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
+        "truth_colour": TRUTH_COLOUR, "approx_colour": views[0].colour,
         # the script's data: labels of the two sides, and the zoom steps
-        "js": {"labels": {"truth": "truth", "approx": "horizon-mapped"}, "zooms": [0, 1, 2, 4, 8]},
+        "js": {"labels": {"truth": "truth", "approx": views[0].label}, "zooms": [0, 1, 2, 4, 8]},
     }
 
 
@@ -579,32 +629,20 @@ def _save(fig, path: Path) -> None:
         fig.savefig(tmp, format="png", dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
 
 
-def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex: str) -> None:
-    """Small multiples: every quality metric against azimuth; the worst frame ringed."""
-    import numpy as np
-    from matplotlib.ticker import FuncFormatter
-
-    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
-                   for f in frames], dtype=float)
-
-    def series(key, scale=1.0):
-        return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
-
-    terrain = _has_terrain(frames)
-    frames = _flatten_terrain(frames)
+def _metric_panels(views: list[TechniqueView], leak_hex: str, false_shadow_hex: str) -> tuple:
+    """``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`; a line is
+    ``(key, label, colour, scale, style)`` on the flattened frames (:func:`_flatten`)."""
+    many = len(views) > 1
 
     def one(key):
-        """The horizon map's line of a metric and, with the terrain technique, its line on the same axes."""
-        if not terrain:
-            return [(key, "", _ACCENT, 1.0)]
-        return [(key, "horizon map", _ACCENT, 1.0), ("terrain_" + key, "terrain", TERRAIN_COLOUR, 1.0, "--")]
+        return [(f"{v.name}_{key}", v.label if many else "", v.colour, 1.0, v.style) for v in views]
 
-    leaks = [("leak_fraction", "leak (F lit, V shadowed)", leak_hex, 100.0),
-             ("false_shadow_fraction", "false shadow", false_shadow_hex, 100.0)]
-    if terrain:
-        leaks += [("terrain_leak_fraction", "terrain leak", leak_hex, 100.0, "--"),
-                  ("terrain_false_shadow_fraction", "terrain false shadow", false_shadow_hex, 100.0, "--")]
-    panels = (
+    leaks = []
+    for v in views:
+        prefix = f"{v.name} " if many else ""
+        leaks += [(f"{v.name}_leak_fraction", f"{prefix}leak (F lit, V shadowed)", leak_hex, 100.0, v.style),
+                  (f"{v.name}_false_shadow_fraction", f"{prefix}false shadow", false_shadow_hex, 100.0, v.style)]
+    return (
         ("visibility  mean |F − V|", one("visibility_mae"), "max", ""),
         ("leaks & false shadows  (% of pixels)", leaks, "max", "%"),
         ("FLIP  mean", one("flip_mean"), "max", ""),
@@ -612,6 +650,21 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
         ("PSNR  dB (linear; higher is better)", one("psnr_db"), "min", ""),
         ("RMSE  (linear)", one("rmse"), "max", ""),
     )
+
+
+def plot_metrics(path: Path, frames: list[dict], views: list[TechniqueView]) -> None:
+    """Small multiples: every quality metric against azimuth, a line per technique; the worst frame ringed."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter
+
+    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
+                   for f in frames], dtype=float)
+    frames = _flatten(frames, views)
+
+    def series(key, scale=1.0):
+        return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
+
+    panels = _metric_panels(views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB))
     fig = _figure(13.0, 5.4)
     axes = fig.subplots(2, 3, sharex=True)
     fig.subplots_adjust(left=0.045, right=0.99, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)
@@ -620,7 +673,7 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
         _style_axes(ax, title)
         keys = [line[0] for line in lines]
         any_data = False
-        for key, label, colour, scale, *style in lines:
+        for key, label, colour, scale, style in lines:
             y = series(key, scale)
             ok = np.isfinite(y) & np.isfinite(az)
             if not ok.any():
@@ -628,14 +681,15 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
             any_data = True
             order = np.argsort(az[ok])
             ax.plot(az[ok][order], y[ok][order], color=colour, linewidth=1.6, marker="o", markersize=3.5,
-                    label=label or None, zorder=3, linestyle=style[0] if style else "-")
+                    label=label or None, zorder=3, linestyle=style)
             w = int(np.nanargmax(np.where(ok, y, -np.inf)) if worse == "max"
                     else np.nanargmin(np.where(ok, y, np.inf)))
             if np.nanmax(y[ok]) != np.nanmin(y[ok]):
                 ax.plot([az[w]], [y[w]], marker="o", markersize=10, markerfacecolor="none",
                         markeredgecolor=_WORST, markeredgewidth=1.4, zorder=4, clip_on=False)
-        if "psnr_db" in keys:
-            inf = np.array([f.get("psnr_db") is None for f in frames]) & np.isfinite(az)
+        psnr = [k for k in keys if k.endswith("_psnr_db")]
+        if psnr:
+            inf = np.array([f.get(psnr[0]) is None and psnr[0] in f for f in frames]) & np.isfinite(az)
             if inf.any():
                 any_data = True
                 ax.plot(az[inf], np.full(inf.sum(), 0.96), linestyle="none", marker="^", color=_MUTED,
@@ -644,7 +698,7 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
             ax.text(0.5, 0.5, "not measured", transform=ax.transAxes, ha="center", va="center",
                     color=_MUTED, fontsize=9)
             ax.set_yticks([])
-        if len(lines) > 1 or "psnr_db" in keys:
+        if len(lines) > 1 or psnr:
             handles, _ = ax.get_legend_handles_labels()
             if handles:
                 leg = ax.legend(fontsize=8, frameon=False, loc="best", labelcolor=_TEXT)
@@ -663,12 +717,12 @@ def plot_metrics(path: Path, frames: list[dict], leak_hex: str, false_shadow_hex
     _save(fig, path)
 
 
-def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
-    """Where the time goes: the run's stages, and each frame's truth and approximation times."""
+def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[TechniqueView]) -> None:
+    """Where the time goes: the run's stages, and each frame's truth and technique times."""
     import numpy as np
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-    t = _timings(timings, len(frames))
+    t = _timings(timings, len(frames), views)
     height = max(2.8, 0.9 + 0.3 * max(len(t["rows"]), len(frames)))
     fig = _figure(13.0, height)
     ax1, ax2 = fig.subplots(1, 2, width_ratios=(1.25, 1))
@@ -678,8 +732,7 @@ def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
     labels = [r["label"] + (f" ({r['note']})" if r["note"] == "cached" else "") for r in t["rows"]]
     secs = np.array([r["seconds"] for r in t["rows"]], dtype=float)
     palette = {"truth renders": TRUTH_COLOUR, "truth set-up": TRUTH_COLOUR,
-               "approximation renders": APPROX_COLOUR, "approximation set-up": APPROX_COLOUR,
-               "terrain renders": TERRAIN_COLOUR, "terrain set-up": TERRAIN_COLOUR}
+               **{f"{v.label} {what}": v.colour for v in views for what in ("renders", "set-up")}}
     colours = [palette.get(r["label"], "#8d8d96") for r in t["rows"]]
     y = np.arange(len(secs))
     if len(secs):
@@ -698,12 +751,10 @@ def plot_timings(path: Path, timings: dict, frames: list[dict]) -> None:
 
     _style_axes(ax2, "")
     ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6)
-    ts = np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float)
-    aps = np.array([_num(f.get("approx_s")) or np.nan for f in frames], dtype=float)
-    series = [(ts, TRUTH_COLOUR, "truth"), (aps, APPROX_COLOUR, "horizon-mapped")]
-    if _has_terrain(frames):
-        tes = np.array([_num((f.get("terrain") or {}).get("seconds")) or np.nan for f in frames], dtype=float)
-        series.append((tes, TERRAIN_COLOUR, "terrain"))
+    flat = _flatten(frames, views)
+    series = [(np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float), TRUTH_COLOUR, "truth")]
+    series += [(np.array([_num(f.get(f"{v.name}_s")) or np.nan for f in flat], dtype=float), v.colour, v.label)
+               for v in views]
     y = np.arange(len(frames))
     if len(frames) and any(np.isfinite(v).any() for v, _, _ in series):
         h = 0.8 / len(series)
@@ -761,9 +812,9 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     """
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
-    leak_hex, false_shadow_hex = _map_colours()
-    plot_metrics(out / "plots" / "metrics.png", frames, leak_hex, false_shadow_hex)
-    plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames)
+    views = technique_views(metrics)
+    plot_metrics(out / "plots" / "metrics.png", frames, views)
+    plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames, views)
     plots = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
     html = render_html(build_context(out, metrics, command, plots))
     index = out / "index.html"

@@ -38,18 +38,6 @@ from hzval import conventions as cv
 from hzval.errors import InputError
 from hzval.material import MIN_SIZE as BRICKS_MIN_SIZE
 
-# Shading constants that both renderers use: one place, so that the two sides
-# cannot drift apart. (Material properties; a scene cannot set them yet.)
-#: Blinn-Phong specular colour ``ks`` (grey; a dielectric's normal-incidence
-#: reflectance), FGED2 ch. 7's ``C_specular``.
-SPECULAR_KS = 0.04
-#: Blinn-Phong exponent ``alpha`` (FGED2 ch. 7).
-SPECULAR_EXPONENT = 64
-#: Radiance of the uniform sky of ``ambient`` per unit of the light's
-#: irradiance E: ``1/pi`` gives an unoccluded horizontal plane an irradiance
-#: E from the sky.
-SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
-
 #: Effects a scene can call for (DESIGN.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
                             "interreflection")

@@ -31,7 +31,7 @@ Factor
     top is hidden: umbra), so the ramp spans the light's angular diameter
     and widens with the distance to the occluder, as a real penumbra does;
     linear in height where the true fraction of a disk is S-shaped. ``e -
-    rho`` is floored at :data:`MIN_ELEVATION_DEG`, ``e + rho`` capped at
+    rho`` is floored at :data:`FLOOR_ELEVATION_DEG`, ``e + rho`` capped at
     :data:`MAX_ELEVATION_DEG`.
 Ramp ``r``
     In texel height units (:data:`DEFAULT_RAMP`, 0.02 texel): a hard light
@@ -76,13 +76,14 @@ Lights at or above the zenith (``e >= 90``) light everything (``F = 1``); at
 or below the horizon (``e <= 0``) nothing (``F = 0``), as :mod:`hzval.approx`.
 
 Shading: the declared effects are those of :mod:`hzval.approx` with the
-terrain factor in place of the horizon factor. The unshadowed terms come
-from an :class:`hzval.approx.Approximation` (plain normal mapping,
-``shadows=False``), per pixel: ``image = (plain - ambient) * F + ambient``.
-The horizon-mapped image multiplies per *sample*; the two differ only where
-the direct term varies inside a pixel that a shadow edge crosses (a
-covariance within one texel; the ``factor`` layer and the visibility
-metrics are unaffected).
+terrain factor in place of the horizon factor, less the horizon map's
+reflection fade. The unshadowed terms come from
+:class:`hzval.approx.Unshadowed` (plain normal mapping), per pixel:
+``image = direct * F + ambient`` (:func:`hzval.shading.compose`). The
+horizon-mapped image multiplies per *sample*; the two differ only where the
+direct term varies inside a pixel that a shadow edge crosses (a covariance
+within one texel; the ``factor`` layer and the visibility metrics are
+unaffected).
 
 Two implementations of the frame's factor, the same algorithm: Dr.Jit (the
 default, variant-agnostic: ``mi.Float``, per-frame values opaque so that a
@@ -94,25 +95,28 @@ both.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from hzval import approx, backend
 from hzval import conventions as cv
+from hzval.bake import normals_only
 from hzval.errors import InputError
-from hzval.scene import EFFECTS, Frame, Scene, image_shape, sample_positions
+from hzval.scene import Frame, Scene, image_shape, sample_positions
+from hzval.technique import Context, Technique, Variant
 
 __all__ = ["TerrainShadow", "SweepPlan", "plan_sweep", "boundaries_numpy", "factor_numpy",
-           "DEFAULT_RAMP", "MIN_ELEVATION_DEG", "MAX_ELEVATION_DEG", "MAX_PRIME_TILES", "IMPLS"]
+           "DEFAULT_RAMP", "FLOOR_ELEVATION_DEG", "MAX_ELEVATION_DEG", "MAX_PRIME_TILES", "IMPLS"]
 
 #: Extra ramp width ``r`` in texel height units (module docstring).
 DEFAULT_RAMP = 0.02
 #: Floor of the soft light's lower elevation ``e - rho``, degrees: at 0 the
-#: contour would never fall and a wrap sweep would never end.
-MIN_ELEVATION_DEG = 0.05
+#: contour would never fall and a wrap sweep would never end. (Not the
+#: truth's wrap-margin elevation, :data:`hzval.mesh.MIN_ELEVATION_DEG`.)
+FLOOR_ELEVATION_DEG = 0.05
 #: Cap of ``e + rho``, degrees (``tan`` stays finite).
 MAX_ELEVATION_DEG = 89.9
 #: Most tile lengths a ``wrap`` sweep primes before it records.
@@ -122,7 +126,8 @@ IMPLS: tuple[str, ...] = ("drjit", "numpy")
 #: "Nothing here": finite (so that differences of it stay 0, not NaN) and far
 #: below any height, so that it loses every max and lights what it bounds.
 NOTHING = -1.0e30
-#: Effects the technique does not model (as the horizon map).
+#: Effects the technique does not model: interreflection, as the horizon map,
+#: and the horizon map's own reflection fade.
 NOT_MODELLED: tuple[str, ...] = ("interreflection", "reflection_occlusion")
 
 
@@ -311,8 +316,8 @@ def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray
 # The technique
 # --------------------------------------------------------------------------
 
-class TerrainShadow:
-    """Raudins' per-light terrain shadows of one material, frame by frame.
+class TerrainShadow(Technique):
+    """Raudins' per-light terrain shadows of one material, frame by frame: the ``terrain`` technique.
 
     Parameters
     ----------
@@ -325,7 +330,7 @@ class TerrainShadow:
     bake
         The material's :class:`hzval.bake.Bake` for the unshadowed shading
         (normal map, ambient map); ``None`` computes the normal map only
-        (:func:`hzval.bake.normal_map`), which serves ``diffuse`` and
+        (:func:`hzval.bake.normals_only`), which serves ``diffuse`` and
         ``specular``; ``ambient`` needs a bake.
     albedo
         Linear albedo ``(rows, cols, 3)``; ``None`` reads the scene's.
@@ -333,28 +338,26 @@ class TerrainShadow:
         ``r`` of the factor, texel height units, > 0 (:data:`DEFAULT_RAMP`).
     impl
         ``"drjit"`` (default) or ``"numpy"`` (the reference).
-    approximation
-        An :class:`hzval.approx.Approximation` of the same scene to take the
-        unshadowed shading from (the sweep shares its own); by default one
-        is built.
+    unshadowed
+        The :class:`hzval.approx.Unshadowed` shading to multiply (a sweep
+        shares one between its techniques); by default one is built.
 
     Attributes: ``simulated`` (effects computed, :data:`hzval.scene.EFFECTS`
     order), ``shape`` (image shape), ``parameters`` (for ``metrics.json``).
     """
 
+    name = "terrain"
+    label = "terrain shadows"
+    summary = "Raudins' terrain shadows: a per-light sweep of the shadow-boundary height"
+    file_stem = "terrain"
+    not_modelled = NOT_MODELLED
+
     def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo: np.ndarray | None = None,
-                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", approximation=None):
-        from hzval import approx as ap, backend
-        from hzval.bake import Bake, BakeParams, normal_map
-
+                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: approx.Unshadowed | None = None):
         backend.variant()
-        import drjit as dr
-        import mitsuba as mi
-
         if impl not in IMPLS:
             raise InputError("impl", f"must be one of {', '.join(IMPLS)}, got {impl!r}")
-        if not (isinstance(ramp, (int, float)) and math.isfinite(ramp) and ramp > 0):
-            raise InputError("ramp", f"the terrain ramp must be a positive number of texels, got {ramp}")
+        self.check_settings(None, {"ramp": ramp})
         height = np.asarray(height, dtype=np.float32)
         if height.ndim != 2:
             raise InputError("height", f"expected a (rows, cols) height map, got shape {height.shape}")
@@ -366,43 +369,60 @@ class TerrainShadow:
         self.shape = image_shape(rows, cols, scene.camera)
         self.h = cv.heights_in_texels(height, scene.material.depth).astype(np.float64)
         self.relief = float(self.h.max() - self.h.min())
-        self.simulated: tuple[str, ...] = tuple(
-            e for e in EFFECTS if scene.declares(e) and e not in NOT_MODELLED)
+        self.simulated = self.simulates(scene)
         self._shadow = "shadow" in self.simulated
-
-        # ---- the unshadowed shading: an Approximation without the horizon shadow
-        # the horizon map's reflection fade is not this technique's: not computed
-        self._plain_effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
-        if approximation is None:
+        if unshadowed is None:
             if bake is None:
-                if "ambient" in self._plain_effects:
+                if scene.declares("ambient"):
                     raise InputError("bake", "ambient needs the bake's textures")
-                zeros = np.broadcast_to(np.float32(0), (rows, cols))
-                bake = Bake(params=BakeParams(depth=scene.material.depth, boundary=boundary),
-                            horizon=np.broadcast_to(np.float32(0), (rows, cols, cv.CHANNEL_COUNT)),
-                            normal=normal_map(self.h.astype(np.float32), boundary),
-                            mean_cos=zeros, mean_cos2=zeros)
-            approximation = ap.Approximation(dataclasses.replace(scene, effects=self._plain_effects),
-                                             bake, albedo)
-        self._approx = approximation
-        # the ambient term, kept out of the shadowed product (the sky is not
-        # shadowed by the light's horizon) and the same for every light: an
-        # ambient-only render with the light below the horizon, where the
-        # direct term is 0, is that term alone
-        self._ambient_image = None
-        if "ambient" in self._plain_effects:
-            self._ambient_image = np.asarray(ap.Approximation(
-                dataclasses.replace(scene, effects=("ambient",)), approximation.bake, albedo,
-                ambient=approximation.ambient).render(0.0, elevation_deg=-90.0).image, np.float32)
+                bake = normals_only(height, scene.material.depth, boundary)
+            unshadowed = approx.Unshadowed(scene, bake, albedo)
+        self._unshadowed = unshadowed
+        self._upload_samples()
 
-        # ---- sample positions: the scene's, as the truth and the horizon map use them
+    def _upload_samples(self) -> None:
+        """The scene's sample positions, as the truth and the horizon map use them."""
+        import drjit as dr
+        import mitsuba as mi
+
+        scene = self.scene
         self.spp = int(scene.spp)
-        self._x, self._y = sample_positions(rows, cols, scene.camera, self.spp, scene.seed)
-        if impl == "drjit":
+        self._x, self._y = sample_positions(self.rows, self.cols, scene.camera, self.spp, scene.seed)
+        if self.impl == "drjit":
             self._h_dr = mi.Float(self.h.astype(np.float32).ravel())
             self._xy = mi.Float(np.stack([self._x, self._y], axis=-1).ravel())
             self._r_dr = dr.opaque(mi.Float, self.ramp)
             dr.eval(self._h_dr, self._xy)
+
+    # -- the Technique interface (hzval.technique) --------------------------
+
+    @classmethod
+    def build(cls, ctx: Context, **settings) -> "TerrainShadow":
+        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=approx.unshadowed(ctx),
+                   **settings)
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        parser.add_argument("--terrain-ramp", type=float, default=DEFAULT_RAMP, metavar="TEXELS",
+                            help=f"terrain shadows: extra ramp width in texel heights (default {DEFAULT_RAMP:g})")
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        return {"ramp": args.terrain_ramp}
+
+    @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        ramp = settings.get("ramp", DEFAULT_RAMP)
+        if isinstance(ramp, bool) or not (isinstance(ramp, (int, float)) and math.isfinite(ramp) and ramp > 0):
+            raise InputError("ramp", f"the terrain ramp must be a positive number of texels, got {ramp}")
+
+    @classmethod
+    def tradeoff_variants(cls) -> list[Variant]:
+        return [Variant("terrain shadow map (Raudins)", params={"ramp_texels": DEFAULT_RAMP})]
+
+    def storage_bytes(self) -> int:
+        """The height map alone, 16-bit: the boundary is recomputed per light."""
+        return self.rows * self.cols * 2
 
     @property
     def parameters(self) -> dict:
@@ -415,8 +435,8 @@ class TerrainShadow:
     def elevations(self, elevation_deg: float) -> tuple[float, float]:
         """Elevations of ``(B_hi, B_lo)`` in degrees: ``e -+ rho`` for a soft light, else ``(e, e)``."""
         rho = self.scene.light.radius_deg if self.scene.light.kind == "soft" else 0.0
-        lo = min(max(elevation_deg - rho, MIN_ELEVATION_DEG), MAX_ELEVATION_DEG)
-        hi = min(max(elevation_deg + rho, MIN_ELEVATION_DEG), MAX_ELEVATION_DEG)
+        lo = min(max(elevation_deg - rho, FLOOR_ELEVATION_DEG), MAX_ELEVATION_DEG)
+        hi = min(max(elevation_deg + rho, FLOOR_ELEVATION_DEG), MAX_ELEVATION_DEG)
         return lo, hi
 
     def plan(self, azimuth_deg: float, elevation_deg: float) -> SweepPlan:
@@ -439,35 +459,21 @@ class TerrainShadow:
             return factor_numpy(self.h - B, W + self.ramp, self._x, self._y, self.boundary, self.spp, self.shape)
         return self._factor_drjit(plan, t_hi, t_lo)
 
-    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None, plain: Frame | None = None) -> Frame:
+    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
         """Render the frame for the light at ``azimuth_deg`` (degrees).
 
-        ``plain``: the frame's unshadowed render (``Approximation.render(az,
-        shadows=False)``) when the caller already has it; its time counts
-        toward this frame's. Layers: ``factor`` (pixel mean of ``F``, when
-        ``shadow`` is declared) and the unshadowed render's others.
-        ``seconds``: the frame's wall time, kernels synchronised.
+        Layers: ``factor`` (pixel mean of ``F``, when ``shadow`` is
+        declared) and the unshadowed render's others. ``seconds``: the
+        frame's wall time, kernels synchronised, the unshadowed shading's
+        included (an engine pays for it too, whoever rendered it first).
         """
         t0 = time.perf_counter()
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
-        extra = 0.0
-        if plain is None:
-            plain = self._approx.render(azimuth_deg, shadows=False, elevation_deg=e)
-        else:
-            extra = plain.seconds
-        image = np.asarray(plain.image, np.float32)
-        # the horizon map's reflection fade is not this technique's: leave it out
-        layers = {k: v for k, v in plain.layers.items() if k not in ("factor", "reflection_occlusion")}
-        if self._shadow:
-            F = self.factor(azimuth_deg, e)
-            if self._ambient_image is not None:
-                amb = self._ambient_image
-                image = (image - amb) * F[..., None] + amb
-            else:
-                image = image * F[..., None]
-            layers["factor"] = F
-        return Frame(float(azimuth_deg), e, image.astype(np.float32), layers,
-                     seconds=time.perf_counter() - t0 + extra)
+        if not self._shadow:
+            frame, _ = self._unshadowed.render(azimuth_deg, e)
+            return frame
+        F = self.factor(azimuth_deg, e)
+        return self._unshadowed.shade(azimuth_deg, e, F, time.perf_counter() - t0)
 
     # ------------------------------------------------------------------
     # Dr.Jit

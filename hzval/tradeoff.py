@@ -19,8 +19,9 @@ setting of :func:`settings` against it, each with
     (channels x texels x 1 byte for 8-bit storage, 4 for float; 8 channels,
     or 16 for the "16 directions" bake settings), plus the
     weight cube map (6 faces x 16 x 16 texels x 2 RGBA layers, 8-bit) where
-    it is sampled; the height map alone (16-bit) for the terrain technique;
-    the displaced mesh (a float32 vertex and two triangles of uint32 indices
+    it is sampled; each technique's own
+    (:meth:`hzval.technique.Technique.storage_bytes`: the 16-bit height map
+    for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of uint32 indices
     per texel, margin excluded) for the truth.
 ``visibility_mae``
     mean over the sweep of the mean ``|F - V|`` against the converged
@@ -28,6 +29,13 @@ setting of :func:`settings` against it, each with
 ``flip_mean``
     mean over the sweep of the mean FLIP error of the image against the
     converged truth's image (display values, :func:`hzval.compare.flip`).
+
+Technique settings come from the registry
+(:meth:`hzval.technique.Technique.tradeoff_variants`): the primary
+technique's own (``kind = "approx"``: storage, weights, k, fitted k) and
+every other technique's (``"technique"``: the terrain technique, pom at 4 to
+64 steps, ...), each point's ``params`` naming its setting (``steps``,
+``storage``, ...).
 
 and marks the Pareto front (no other setting of the same kind is at least
 as good in time, storage and visibility error and better in one) within each
@@ -37,9 +45,9 @@ each other. Every setting but the one it varies is the default
 weights); the approximation samples each pixel at the scene's ``spp``
 positions, the converged truth at ``truth_spp`` others.
 
-``k`` is also fitted: the ``k`` that minimises ``visibility_mae`` over the
-sweep (a golden-section search on ``log k`` in [1, 128]), i.e. the k whose
-ramp ``F = clamp(k (Lz - s) + 1, 0, 1)`` best matches the truth's
+A technique may fit a setting to the converged truth
+(:meth:`hzval.technique.Technique.fit`): the horizon map fits ``k``, the k
+whose ramp ``F = clamp(k (Lz - s) + 1, 0, 1)`` best matches the truth's
 penumbrae.
 """
 
@@ -53,7 +61,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import compare, files
+from hzval import bake, compare, files, shading, technique, truth
+from hzval import scene as sc
 
 __all__ = ["Point", "Setting", "settings", "measure", "mark_pareto", "recommend", "write_tradeoff",
            "DEFAULT_TRUTH_SPP", "DEFAULT_SIZE"]
@@ -90,57 +99,42 @@ class Point:
 
 @dataclass(frozen=True)
 class Setting:
-    """A setting to measure: its name, kind, and the parameters it changes from the defaults."""
+    """A setting to measure: its name, kind, and what it changes from the defaults.
+
+    ``bake``: :class:`hzval.bake.BakeParams` fields; ``technique``: the
+    registry name of the technique it renders (``None``: the truth);
+    ``settings``: that technique's build keywords (a
+    :class:`hzval.technique.Variant`'s); ``params``: what the point records.
+    """
 
     name: str
     kind: str
-    bake: dict = field(default_factory=dict)        # BakeParams fields
-    approx: dict = field(default_factory=dict)      # Approximation keywords (k, storage, weights)
+    bake: dict = field(default_factory=dict)
+    technique: str | None = technique.PRIMARY
+    settings: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
     truth_spp: int | None = None
-    technique: str | None = None
-    fit_k: bool = False
 
 
-def _available_bake_methods() -> set[str]:
-    from hzval.bake import BakeParams
-    from hzval.errors import InputError
-
-    out = set()
-    for m in ("seed", "exact"):
-        try:
-            BakeParams(method=m).validate()
-            out.add(m)
-        except InputError:
-            pass
-    return out
-
-
-def _has_terrain() -> bool:
-    try:
-        import hzval.terrain  # noqa: F401
-        return True
-    except ImportError:
-        return False
-
-
-def settings() -> list[Setting]:
-    """Every setting :func:`measure` measures, defaults first."""
+def settings(scene=None) -> list[Setting]:
+    """Every setting :func:`measure` measures, defaults first: the bake's (rendered with the
+    primary technique), every technique's own from the registry (those that apply to
+    ``scene``, when given), and the truth's ray counts."""
     s = [Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32})]
     s += [Setting(f"seed r{r}", "bake", {"radius": r}) for r in (4, 8, 32, 64)]
-    if "exact" in _available_bake_methods():
-        s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}))
+    s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}))
     s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}) for a in (16, 64)]
     # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
     # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
     s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16}) for a in (32, 64)]
-    s += [Setting("8-bit horizon map", "approx", approx={"storage": "u8"}),
-          Setting("cube-map weights", "approx", approx={"weights": "cube"}),
-          Setting("GPU path: 8-bit map + cube weights", "approx", approx={"storage": "u8", "weights": "cube"})]
-    s += [Setting(f"k = {k:g}", "approx", approx={"k": float(k)}) for k in (2, 4, 16, 32)]
-    s.append(Setting("k fitted to the truth", "approx", fit_k=True))
-    if _has_terrain():
-        s.append(Setting("terrain shadow map (Raudins)", "technique", technique="terrain"))
-    s += [Setting(f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", truth_spp=n)
+    for name in technique.names():
+        t = technique.get(name)
+        if scene is not None and not t.applies(scene):
+            continue
+        s += [Setting(v.name, "approx" if name == technique.PRIMARY else "technique", technique=name,
+                      settings=dict(v.settings), params={"technique": name, **v.params})
+              for v in t.tradeoff_variants() if name != technique.PRIMARY or v.kind == "approx"]
+    s += [Setting(f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", technique=None, truth_spp=n)
           for n in (1, 4, 16, 64)]
     return s
 
@@ -161,12 +155,10 @@ class _Reference:
 
 
 def _reference(scene, height, truth_spp: int) -> _Reference:
-    from hzval import scene as sc, truth
-
     t0 = time.perf_counter()
     conv = dataclasses.replace(scene, spp=int(truth_spp), seed=scene.seed + 1)
     tr = truth.Truth(conv, height)
-    scale = compare.exposure(scene)
+    scale = shading.exposure(scene)
     vis, disp = [], []
     for az in scene.light.azimuths_deg:
         f = tr.render(az)
@@ -197,17 +189,7 @@ def _render_all(renderer, azimuths, repeat: int = 3, **kw):
     return frames, best
 
 
-def _horizon_bytes(bk, storage: str) -> int:
-    rows, cols, ch = bk.horizon.shape
-    return rows * cols * ch * (1 if storage == "u8" else 4)
-
-
-CUBE_BYTES = 6 * 16 * 16 * 4 * 2
-
-
 def _timed_bake(height, params):
-    from hzval import bake
-
     bake.bake(height, params)                       # compile (or load) the kernels
     best = None
     for _ in range(2):
@@ -217,89 +199,56 @@ def _timed_bake(height, params):
     return bk, best
 
 
-def fit_k(ref: _Reference, bk, lo: float = 1.0, hi: float = 128.0, iterations: int = 14) -> float:
-    """The ``k`` minimising the sweep's mean ``|F - V|`` (golden-section search on ``log k``)."""
-    from hzval import approx
-
-    ap = approx.Approximation(ref.scene, bk, ref.albedo, path="exact")
-
-    def cost(logk: float) -> float:
-        k = math.exp(logk)
-        return float(np.mean([np.mean(np.abs(ap.render(az, k=k).layers["factor"] - V))
-                              for az, V in zip(ref.scene.light.azimuths_deg, ref.visibility)]))
-
-    g = (math.sqrt(5) - 1) / 2
-    a, b = math.log(lo), math.log(hi)
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = cost(c), cost(d)
-    for _ in range(iterations):
-        if fc <= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = cost(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = cost(d)
-    return math.exp((a + b) / 2)
-
-
 def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, only: list[str] | None = None,
             progress: bool = False) -> tuple[list[Point], dict]:
     """Measure every setting of :func:`settings` (or those whose names contain one of ``only``)."""
     from tqdm import tqdm
 
-    from hzval import approx, bake, truth
-
     ref = _reference(scene, height, truth_spp)
     base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
-    az = scene.light.azimuths_deg
-    todo = [s for s in settings() if not only or any(o in s.name for o in only)]
+    todo = [s for s in settings(scene) if not only or any(o in s.name for o in only)]
     bakes: dict = {}
     points = []
-    rows, cols = height.shape
     for s in tqdm(todo, desc="tradeoff", unit="setting", disable=not progress, leave=False):
         params = dataclasses.replace(base, **s.bake)
         key = dataclasses.astuple(params)
         if key not in bakes:
             bakes[key] = _timed_bake(height, params)
-        bk, bake_s = bakes[key]
-        p = {"bake": dataclasses.asdict(params)}
-        if params.method == "seed" and s.kind == "bake":
-            # a large radius may take the looped kernel (hzval.bake.choose_kernel): say so
-            p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
-            if p["kernel"] != "unrolled":
-                p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
-        if s.kind == "truth":
-            tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
-            frames, t = _render_all(tr, az, repeat=1)     # seconds a frame: timing noise is small here
-            storage = rows * cols * (12 + 24)
-            p = {"spp": s.truth_spp}
-        elif s.kind == "technique":
-            from hzval import terrain
-
-            tech = terrain.TerrainShadow(scene, height, bake=bk, albedo=ref.albedo)
-            frames, t = _render_all(tech, az)
-            storage = rows * cols * 2
-            p = {"technique": s.technique}
-        else:
-            kw = dict(s.approx)
-            if s.fit_k:
-                kw["k"] = fit_k(ref, bk)
-            ap = approx.Approximation(scene, bk, ref.albedo, path="exact", **kw)
-            frames, frame_s = _render_all(ap, az)
-            t = bake_s if s.kind == "bake" else frame_s
-            storage = _horizon_bytes(bk, ap.storage) + (CUBE_BYTES if ap.weights == "cube" else 0)
-            p.update(k=ap.k, storage=ap.storage, weights=ap.weights, frame_s=frame_s)
-            if s.fit_k:
-                p["note"] = f"k = {ap.k:.3g}"
-        mae, flip = _errors(ref, frames)
-        points.append(Point(s.name, s.kind, float(t), int(storage), mae, flip, params=p))
+        points.append(_measure_one(s, ref, *bakes[key], params))
     mark_pareto(points)
+    rows, cols = height.shape
     info = {"truth_spp": truth_spp, "truth_s": ref.seconds, "rows": rows, "cols": cols,
-            "azimuths_deg": list(az), "elevation_deg": scene.light.elevation_deg, "spp": scene.spp,
-            "effects": list(scene.effects)}
+            "azimuths_deg": list(scene.light.azimuths_deg), "elevation_deg": scene.light.elevation_deg,
+            "spp": scene.spp, "effects": list(scene.effects)}
     return points, info
+
+
+def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Point:
+    """One setting's point: its time (a bake's for bake settings, else a frame's), storage and errors."""
+    scene, height, az = ref.scene, ref.height, ref.scene.light.azimuths_deg
+    rows, cols = height.shape
+    if s.kind == "truth":
+        tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
+        frames, t = _render_all(tr, az, repeat=1)     # seconds a frame: timing noise is small here
+        mae, flip = _errors(ref, frames)
+        return Point(s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp})
+    cls = technique.get(s.technique)
+    ctx = technique.Context(scene, height, bk, ref.albedo)
+    kw = cls.fit(ctx, dict(s.settings), ref.visibility, az)
+    tech = cls.build(ctx, **kw)
+    frames, frame_s = _render_all(tech, az)
+    p = {**s.params, **{k: v for k, v in tech.parameters.items() if k != "simulated"}, "frame_s": frame_s,
+         "bake": dataclasses.asdict(params)}
+    if s.kind == "bake" and params.method == "seed":
+        # a large radius may take the looped kernel (hzval.bake.choose_kernel): say so
+        p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
+        if p["kernel"] != "unrolled":
+            p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
+    if kw != s.settings:
+        p["note"] = ", ".join(f"{k} = {v:.3g}" for k, v in kw.items() if s.settings.get(k) != v)
+    mae, flip = _errors(ref, frames)
+    return Point(s.name, s.kind, float(bake_s if s.kind == "bake" else frame_s), int(tech.storage_bytes()),
+                 mae, flip, params=p)
 
 
 def mark_pareto(points: list[Point]) -> None:

@@ -47,12 +47,12 @@ Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
 ``specular``
     Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n.h)^alpha * [n.L > 0]``
     with ``h = normalize(L + v)`` and ``v = +z`` (the camera looks straight
-    down), ``ks`` = :data:`hzval.scene.SPECULAR_KS`, ``alpha`` = :data:`hzval.scene.SPECULAR_EXPONENT`.
+    down), ``ks`` = :data:`hzval.shading.SPECULAR_KS`, ``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`.
 ``ambient``
     ``A`` = 1 if a cosine-weighted direction about ``n`` escapes, else 0
     (``layers["ambient"]``, the exact cosine-weighted unoccluded fraction);
     the sky is uniform over the upper hemisphere with radiance
-    ``sky = E *`` :data:`hzval.scene.SKY_RADIANCE_PER_IRRADIANCE` and a Lambertian surface
+    ``sky = E *`` :data:`hzval.shading.SKY_RADIANCE_PER_IRRADIANCE` and a Lambertian surface
     reflects ``albedo * A * sky`` of it. ``A`` does not depend on the light:
     it is traced once.
 ``interreflection``
@@ -63,7 +63,7 @@ Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
     direction escapes the surface, else 0 (``layers["reflection_occlusion"]``):
     the fraction of a glossy reflection of a uniform environment that the
     displaced surface does not block. The lobe is the ``specular`` one,
-    FGED2's Blinn-Phong of exponent :data:`hzval.scene.SPECULAR_EXPONENT`
+    FGED2's Blinn-Phong of exponent :data:`hzval.shading.SPECULAR_EXPONENT`
     about the geometric normal, seen from ``v = +z``, sampled by its
     half-vector distribution (Walter et al. 2007); a direction below the
     triangle hit (``n.wo <= 0``) or below the horizontal reflects nothing
@@ -142,8 +142,9 @@ from hzval import backend
 from hzval import conventions as cv
 from hzval import mesh as meshes
 from hzval.errors import InputError
-from hzval.scene import (EFFECTS, SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS, Frame, Scene,
-                         image_shape, light_samples, load_albedo, sample_positions)
+from hzval import shading
+from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo, sample_positions
+from hzval.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
 
 #: Smallest lift of ray origins above the surface, in texels.
 LIFT_TEXELS = 2.0 ** -13
@@ -480,23 +481,10 @@ class Truth:
         return dr.select(blocked, 0.0, 1.0)
 
     def _direct(self, n, L, v, albedo):
-        """Direct radiance per unit visibility: ``D`` of the module docstring."""
-        import drjit as dr
-        import mitsuba as mi
-
-        E = self._c["E"]
+        """Direct radiance per unit visibility: ``D`` of :mod:`hzval.shading`."""
         sc = self.scene
-        if not (sc.declares("diffuse") or sc.declares("specular")):
-            return mi.Color3f(E)
-        cos = dr.dot(n, L)
-        D = mi.Color3f(0.0)
-        if sc.declares("diffuse"):
-            D += albedo * (E * dr.maximum(cos, 0.0) * (1.0 / math.pi))
-        if sc.declares("specular"):
-            hv = dr.normalize(L + v)
-            spec = SPECULAR_KS * E * dr.power(dr.maximum(dr.dot(n, hv), 0.0), SPECULAR_EXPONENT)
-            D += mi.Color3f(dr.select(cos > 0.0, spec, 0.0))
-        return D
+        return shading.direct(n, L, v, albedo, self._c["E"], diffuse=sc.declares("diffuse"),
+                              specular=sc.declares("specular"))
 
     def render(self, azimuth_deg: float) -> Frame:
         """Render the light at ``azimuth_deg`` (degrees; elevation from the scene).
@@ -530,7 +518,7 @@ class Truth:
             if vis is not None:
                 img = img * vis
             if self._ambient is not None:
-                img = img + self._albedo * (self._c["E"] * SKY_RADIANCE_PER_IRRADIANCE * self._ambient)
+                img = img + shading.sky(self._albedo, self._ambient, self._c["E"])
         if self._ambient is not None:
             sums["ambient"] = self._ambient
         if self._reflection is not None:
@@ -746,7 +734,7 @@ def _lobe_direction(n, v, u):
     """A direction of the Blinn-Phong lobe about normal ``n`` seen from ``v``, from ``u`` in [0, 1)^2.
 
     The half vector ``h`` has ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``
-    (``alpha`` = :data:`hzval.scene.SPECULAR_EXPONENT`) and the direction is
+    (``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`) and the direction is
     ``v`` reflected about it (Walter et al. 2007); with ``h = n`` it is the
     mirror direction. It may point below the surface.
     """

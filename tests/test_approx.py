@@ -422,7 +422,7 @@ def test_with_one_sample_the_image_is_direct_light_times_factor(bricks):
 
 
 def test_specular_is_blinn_phong(variant):
-    from hzval.scene import SPECULAR_EXPONENT, SPECULAR_KS
+    from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
 
     n = np.array([0.2, -0.1, 1.0])
     bake = uniform_bake(np.zeros(8), n)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import cli, files, sweep
+from hzval import cli, files, sweep, technique
 
 # DESIGN.md, "Interface that scripts and CI rely on".
 TOP_KEYS = {"material", "parameters", "versions", "timings", "simulated", "frames"}
@@ -47,7 +47,8 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
         assert f["truth_s"] > 0 and f["approx_s"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
     assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"],
-                              "terrain": ["shadow", "diffuse"]}
+                              **{name: ["shadow", "diffuse"] for name in technique.names()}}
+    assert list(m["techniques"]) == technique.names()          # every technique applies, in registry order
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
     assert m["memory"]["peak_rss_bytes"] > 2**20
@@ -155,15 +156,17 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
 
 
-def test_terrain_technique_is_compared_on_the_same_sweep(variant, bricks_sweep):
-    """The third technique (hzval.terrain): its metrics under frames[i]["terrain"], its images beside
-    the horizon map's, the DESIGN.md keys of a frame unchanged, and its columns in the report."""
+@pytest.mark.parametrize("name", [n for n in technique.names() if n != technique.PRIMARY])
+def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
+    """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
+    the primary's, the DESIGN.md keys of a frame unchanged, and its columns in the report and the table."""
     from PIL import Image
 
     out, m, _ = bricks_sweep
-    assert m["simulated"]["terrain"] == ["shadow", "diffuse"]
+    assert m["simulated"][name] == ["shadow", "diffuse"]
+    stem = m["techniques"][name]["file_stem"]
     for f in m["frames"]:
-        te = f["terrain"]
+        te = f["techniques"][name]
         for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
             assert 0.0 <= te[key] <= 1.0, key
         assert math.isfinite(te["rmse"]) and math.isfinite(te["delta_e2000_mean"]) and te["seconds"] > 0
@@ -177,19 +180,55 @@ def test_terrain_technique_is_compared_on_the_same_sweep(variant, bricks_sweep):
         with Image.open(out / te["files"]["png"]) as img:
             assert img.size == (48, 48)
     html = (out / "index.html").read_text()
-    assert "terrain |F−V|" in html and "terrain_visdiff.png" in html and "terrain.png" in html
+    assert f"{name} |F−V|" in html and f"{stem}_visdiff.png" in html and f"{stem}.png" in html
+    assert m["techniques"][name]["label"] in html
     head = sweep.summary_table(m).splitlines()[0]
-    assert "terrain |F-V|" in head
-    assert m["timings"]["terrain_s"] > 0
+    assert f"{name} |F-V|" in head
+    assert m["timings"][f"{stem}_s"] > 0
+
+
+def test_primary_technique_fills_the_documented_frame_keys(bricks_sweep):
+    """The frame's top-level metrics and files are the primary technique's, under its name too."""
+    _, m, _ = bricks_sweep
+    for f in m["frames"]:
+        own = f["techniques"][technique.PRIMARY]
+        for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse",
+                    "delta_e2000_mean"):
+            assert f[key] == own[key], key
+        assert f["approx_s"] == own["seconds"]
+        assert f["files"]["approx"] == own["files"]["image"] and f["files"]["factor"] == own["files"]["factor"]
 
 
 def test_no_terrain_leaves_it_out(variant, tmp_path):
     out = tmp_path / "out"
     assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--no-terrain", "--quiet", "--out", out) == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert "terrain" not in m["frames"][0] and "terrain" not in m["simulated"]
+    assert "terrain" not in m["frames"][0]["techniques"] and "terrain" not in m["simulated"]
     assert not (out / "frames" / "az+0" / "terrain.png").exists()
     assert "terrain |F-V|" not in sweep.summary_table(m)
+
+
+def test_techniques_selects_and_orders(variant, tmp_path):
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain,horizon",
+               "--terrain-ramp", 0.5, "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert list(m["techniques"]) == ["horizon", "terrain"]            # registry order
+    assert m["techniques"]["terrain"]["parameters"]["ramp_texels"] == 0.5
+    assert set(m["frames"][0]["techniques"]) == {"horizon", "terrain"}
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (("--techniques", "nope"), "nope"),
+    (("--techniques", "terrain", "--effects", "diffuse"), "shadow"),
+    (("--terrain-ramp", "0"), "ramp"),
+])
+def test_bad_technique_choices_are_one_line_errors(argv, needle, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, *argv, "--quiet", "--out", out) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hzval: error:") and needle in err and "\n" not in err
+    assert not out.exists()
 
 
 def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, bricks_sweep):

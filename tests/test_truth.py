@@ -337,7 +337,7 @@ def test_lambert_on_a_ramp_uses_the_normal_of_the_displaced_surface(variant, azi
 
 
 def test_blinn_phong_specular_on_a_flat_plane(variant):
-    from hzval.scene import SPECULAR_EXPONENT, SPECULAR_KS
+    from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
 
     E, e, a = 1.2, 70.0, 0.3
     flat = np.full((4, 4), 0.2)
@@ -578,7 +578,7 @@ def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
     """Per column, the escaping fraction of the Blinn-Phong lobe on the V-grooves of
     :func:`sawtooth`, by an independent 2-D calculation: the grooves run along y, so a
     direction is blocked iff its run across x rises slower than the profile ahead of it."""
-    from hzval.scene import SPECULAR_EXPONENT
+    from hzval.shading import SPECULAR_EXPONENT
 
     rng = np.random.default_rng(seed)
     b = math.radians(slope_deg)

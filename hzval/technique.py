@@ -1,0 +1,204 @@
+"""Techniques as plug-ins: the interface every self-shadowing technique implements, and its registry.
+
+A *technique* renders the flat surface's frame for one light from what a
+real-time renderer would have (the bake's textures, the height map), and
+hzval scores that frame against the truth. The sweep, the comparison, the
+report, the regression check, the tradeoff and the command line all loop
+over :data:`REGISTRY`; none of them names a technique. Adding one is a
+module with a :class:`Technique` subclass and one line here, as Mitsuba
+registers its plugins by name and colour-science maps method names to
+functions (``colour.DELTA_E_METHODS``). docs/ARCHITECTURE.md, "Adding a
+technique", walks through ``pom`` as the example.
+
+The interface
+    Class attributes: ``name`` (the registry key, also ``--techniques``),
+    ``label`` and ``summary`` (for the report), ``file_stem`` (its files in a
+    frame folder: ``<stem>.exr``, ``<stem>_factor.exr``, ``<stem>_flip.png``,
+    ...), ``needs`` (effects a scene must declare for the technique to apply:
+    every shadowing technique needs ``shadow``), ``not_modelled`` (declarable
+    effects it leaves out). :meth:`Technique.build` makes one from a
+    :class:`Context`; :meth:`Technique.render` returns a
+    :class:`hzval.scene.Frame` whose ``layers["factor"]`` is the pixel mean of
+    its shadow factor ``F`` in [0, 1]; ``simulated`` and ``parameters`` go to
+    ``metrics.json``. Optional hooks: command-line options
+    (:meth:`Technique.add_arguments`, :meth:`Technique.settings_from_args`),
+    the images the check guards (:meth:`Technique.check_variants`) and the
+    settings the tradeoff measures (:meth:`Technique.tradeoff_variants`,
+    :meth:`Technique.storage_bytes`).
+
+The registry maps names to ``"module:Class"`` and imports a technique only
+when it is asked for, so this module imports none of them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from hzval.errors import InputError
+from hzval.scene import EFFECTS, Frame, Scene
+
+__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "names", "select"]
+
+#: Every technique, by name, in the order the report shows them.
+REGISTRY: dict[str, str] = {
+    "horizon": "hzval.approx:Approximation",
+    "terrain": "hzval.terrain:TerrainShadow",
+}
+#: The technique whose metrics are a frame's top-level keys in ``metrics.json``
+#: (the documented layout predates the registry; scripts read those keys).
+PRIMARY = "horizon"
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A named setting of a technique: keywords for :meth:`Technique.build`, and what to record.
+
+    ``kind`` sorts tradeoff settings (``"approx"`` for the primary
+    technique's own settings, ``"technique"`` for the others); ``params``
+    is what ``tradeoff.json`` records of it (``steps`` for pom, ``storage``
+    for the horizon map's textures, ...).
+    """
+
+    name: str
+    settings: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    kind: str = "technique"
+
+
+@dataclass
+class Context:
+    """What a technique is built from: the scene, the material and its bake.
+
+    ``height``: the normalised height map ``(rows, cols)`` float32;
+    ``bake``: its :class:`hzval.bake.Bake`; ``albedo``: linear ``(rows,
+    cols, 3)``. :meth:`shared` lets techniques share what they would each
+    build (the unshadowed shading of :func:`hzval.approx.unshadowed`).
+    """
+
+    scene: Scene
+    height: np.ndarray
+    bake: Any
+    albedo: np.ndarray
+    _shared: dict = field(default_factory=dict, repr=False)
+
+    def shared(self, key: str, make: Callable[[], Any]) -> Any:
+        """The object stored under ``key``, made by ``make()`` the first time."""
+        if key not in self._shared:
+            self._shared[key] = make()
+        return self._shared[key]
+
+
+class Technique:
+    """Base class of the techniques (module docstring). Subclasses set the class attributes."""
+
+    name: ClassVar[str]
+    label: ClassVar[str]
+    summary: ClassVar[str] = ""
+    file_stem: ClassVar[str]
+    needs: ClassVar[tuple[str, ...]] = ("shadow",)
+    not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
+
+    simulated: tuple[str, ...] = ()
+
+    @classmethod
+    def applies(cls, scene: Scene) -> bool:
+        """Whether the technique has something to render for ``scene``."""
+        return all(scene.declares(e) for e in cls.needs)
+
+    @classmethod
+    def simulates(cls, scene: Scene) -> tuple[str, ...]:
+        """The declared effects less those it does not model, in :data:`hzval.scene.EFFECTS` order."""
+        return tuple(e for e in EFFECTS if scene.declares(e) and e not in cls.not_modelled)
+
+    @classmethod
+    def build(cls, ctx: Context, **settings) -> "Technique":
+        raise NotImplementedError
+
+    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
+        raise NotImplementedError
+
+    @property
+    def parameters(self) -> dict:
+        """Its settings, for ``metrics.json``."""
+        return {}
+
+    # -- optional hooks --------------------------------------------------------
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        """Add the technique's own ``hzval sweep`` options to an argparse parser."""
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        """The :meth:`build` keywords of the options :meth:`add_arguments` added."""
+        return {}
+
+    @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        """Refuse settings that cannot work with this bake, before anything is written
+        (raise :class:`hzval.errors.InputError`)."""
+
+    @classmethod
+    def check_variants(cls) -> list[Variant]:
+        """The images ``hzval check`` guards: one reference per variant, named after it."""
+        return [Variant(cls.file_stem)]
+
+    @classmethod
+    def tradeoff_variants(cls) -> list[Variant]:
+        """The settings ``hzval tradeoff`` measures; by default the technique as built."""
+        return [Variant(cls.label)]
+
+    @classmethod
+    def fit(cls, ctx: Context, settings: dict, visibility: list, azimuths) -> dict:
+        """``settings`` with any value the technique fits to a converged truth filled in
+        (``visibility``: the truth's V per azimuth); by default unchanged."""
+        return settings
+
+    def storage_bytes(self) -> int:
+        """Texture memory the technique reads at run time, bytes."""
+        return 0
+
+
+def names() -> list[str]:
+    """The registered technique names, in registry order."""
+    return list(REGISTRY)
+
+
+def get(name: str) -> type[Technique]:
+    """The technique class registered as ``name``."""
+    try:
+        module, cls = REGISTRY[name].split(":")
+    except KeyError:
+        raise InputError("--techniques", f"unknown technique {name!r}; choose from {', '.join(REGISTRY)}") from None
+    return getattr(importlib.import_module(module), cls)
+
+
+def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
+    """The techniques to render for ``scene``: ``requested`` (names, in registry order),
+    or every one that applies; ``exclude`` leaves some out.
+
+    A requested technique that does not apply (``pom`` on a scene without
+    ``shadow``) is an :class:`InputError`, not silently dropped.
+    """
+    if requested is None:
+        chosen = [get(n) for n in REGISTRY if n not in exclude]
+        return [t for t in chosen if t.applies(scene)]
+    wanted = list(dict.fromkeys(requested))
+    if not wanted:
+        raise InputError("--techniques", "name at least one technique")
+    classes = [get(n) for n in wanted]          # unknown names fail here
+    for t in classes:
+        if not t.applies(scene):
+            raise InputError("--techniques", f"{t.name} needs the scene to declare {', '.join(t.needs)}")
+    order = list(REGISTRY)
+    return sorted((t for t in classes if t.name not in exclude), key=lambda t: order.index(t.name))
+
+
+def replace_effects(scene: Scene, effects) -> Scene:
+    """``scene`` with another effect list (for the shading a technique builds on)."""
+    return dataclasses.replace(scene, effects=tuple(effects))
