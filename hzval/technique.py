@@ -48,6 +48,7 @@ __all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "nam
 REGISTRY: dict[str, str] = {
     "horizon": "hzval.approx:Approximation",
     "terrain": "hzval.terrain:TerrainShadow",
+    "pom": "hzval.pom:RayMarchShadow",
 }
 #: The technique whose metrics are a frame's top-level keys in ``metrics.json``
 #: (the documented layout predates the registry; scripts read those keys).
