@@ -7,7 +7,7 @@ brick wall (:func:`hzval.material.bricks`), baked at depth 0.05, radius 16,
 1. the C peer (``benchmarks/seed_bake.c``) compiled with
    ``gcc -O3 -march=native -fopenmp`` on two threads, in both variants:
    (1a) ``-DHOISTED_TABLE``, the seed loop with its offset-to-bins table
-   computed once (DESIGN.md: "compute it once") -- the peer that the speed
+   computed once (the original design notes: "compute it once") -- the peer that the speed
    target is measured against -- and (1b) the literal seed loop, which
    recomputes ``atan2f``/``atanf``/``sqrtf`` for every texel and neighbour;
    whole-process wall time and the time of the bake loop alone;

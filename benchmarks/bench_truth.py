@@ -2,10 +2,10 @@
 
 A 512x512 visibility image (``shadow`` only) of the built-in brick wall
 (:func:`hzval.material.bricks`, depth 0.05, wrap) with 16 shadow rays per
-pixel, hard light at 30 degrees: the case ``DESIGN.md`` measured at 0.26 s.
+pixel, hard light at 30 degrees: the case ``the original design notes`` measured at 0.26 s.
 It prints the one-off costs (mesh build, camera rays) and the time of every
 frame; frame 1 compiles the kernel, frames 2..n run at other azimuths and
-must reuse it (the light direction is opaque: ``DESIGN.md``, pitfalls), which
+must reuse it (the light direction is opaque: ``the original design notes``, pitfalls), which
 the script checks with Dr.Jit's kernel history (a frame that compiled is
 marked). The figure of merit is the median of frames 2..n.
 
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warm frames 2..{len(rows)}: median {med:.3f} s, min {min(warm):.3f} s, max {max(warm):.3f} s "
               f"({rays / med / 1e6:.1f} M shadow rays/s); recompiled in frames 2..n: "
               f"{sum(r[3] + r[4] for r in rows[1:])} kernels")
-        print("DESIGN.md reports 0.26 s for this case measured elsewhere on this machine")
+        print("the original design notes reports 0.26 s for this case measured elsewhere on this machine")
     cmd = [os.path.relpath(sys.executable) if not os.path.isabs(sys.executable) else sys.executable,
            "benchmarks/bench_truth.py"] + (argv if argv is not None else sys.argv[1:])
     print(f"reproduce: cd {os.path.dirname(os.path.dirname(os.path.abspath(__file__)))} && "

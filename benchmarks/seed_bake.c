@@ -29,7 +29,7 @@
  *       UP, so the neighbour at tangent offset (i, j) is at pixel
  *       (row - j, col + i); direction = atan2f(j, i) stays as in the seed;
  *   (d) heights are converted to texel units first: h = H * depth * cols
- *       (DESIGN.md, "height scale");
+ *       (the original design notes, "height scale");
  *   (e) the ambient output is the average (the seed's "sum * kAngleCount"
  *       means one), without the seed's pow(., ambientPower):
  *       mean_cos = mean of 1/sqrt(t+1), and also mean_cos2 = mean of 1/(t+1);
@@ -37,7 +37,7 @@
  *       kAngleIndex = float(N) / two_pi is computed in float;
  *   (g) ONLY when compiled with -DHOISTED_TABLE (the default build is the
  *       literal loop): the offset-to-bins table is computed once, before the
- *       texel loops, as DESIGN.md says ("The offset-to-bins table is the same
+ *       texel loops, as the original design notes says ("The offset-to-bins table is the same
  *       for every texel: compute it once"). For every offset (i, j) with
  *       0 < r2 < R^2, in the seed's order (j outer, i inner), the table holds
  *       i, float(r2) and minIndex/maxIndex computed by the very same float

@@ -1,6 +1,6 @@
 """hzval: a physically based validation harness for horizon mapping.
 
-The package follows the data flow of ``DESIGN.md``, one module per stage:
+The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 
 ``conventions``  axes, directions, height scale, boundaries, colour (the only
                  module that defines them)

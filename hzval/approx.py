@@ -3,7 +3,7 @@
 The truth (:mod:`hzval.truth`) ray-traces the displaced mesh; this module
 shades the flat plane ``z = 0`` from the baked textures alone, as a real-time
 renderer would, and computes only the effects that the scene declares
-(DESIGN.md, "Effects"). Both read the same :class:`hzval.scene.Scene`: the
+(docs/ARCHITECTURE.md, "Effects"). Both read the same :class:`hzval.scene.Scene`: the
 same sample positions, the same light, the same units, so that every
 difference between them is the technique's.
 
@@ -32,7 +32,7 @@ repeats, ``open`` clamps to the edge):
 ``ambient``
     ``+ albedo * A * E / pi``: a uniform sky of radiance ``E / pi`` seen
     through the ambient map ``A`` (``mean_cos2``, the exact cosine-weighted
-    unoccluded fraction, or ``mean_cos``, Lengyel's term; DESIGN.md).
+    unoccluded fraction, or ``mean_cos``, Lengyel's term; docs/ARCHITECTURE.md).
 ``reflection_occlusion``
     Toolbag's horizon fade (Russell, "Horizon Occlusion for Normal Mapped
     Reflections"): ``o = saturate(1 + fade * dot(r, n_vertex))^2`` with
@@ -104,7 +104,7 @@ which would make the exact path inexact and the two backends disagree.
 Speed: textures and sample positions are uploaded once, in the constructor.
 Everything that changes per frame (``L``) and the per-object constants
 (``k``, ``E``, ``fade``, a uniform albedo) enter kernels as opaque Dr.Jit
-arrays, so a new light reuses the compiled kernels (DESIGN.md, pitfalls).
+arrays, so a new light reuses the compiled kernels (docs/ARCHITECTURE.md, "Known pitfalls").
 A frame is two kernels: a one-lane kernel for the light's channel weights
 (which are uniform over the frame) and the shading kernel, one lane per
 pixel, looping over the pixel's samples, so that no per-sample values go
@@ -120,6 +120,7 @@ import numpy as np
 
 from hzval import backend, shading
 from hzval import conventions as cv
+from hzval.bake import CUBE_SIZE, weight_cube
 from hzval.errors import InputError
 from hzval.files import unit_to_u8
 from hzval.scene import Frame, Scene, image_shape, load_albedo, sample_positions
@@ -145,9 +146,6 @@ DEFAULT_K = 8.0
 #: default: a reflection 1/1.3 = 0.77 in sine below the horizon is fully
 #: occluded, one at the horizon is not occluded. The report should vary it.
 DEFAULT_FADE = 1.3
-#: Edge length in texels of a face of the GPU path's weight cube map (Lengyel:
-#: 16 x 16 is sufficient).
-CUBE_SIZE = 16
 #: The weight cube map's texture memory: 6 faces of two 8-bit RGBA layers.
 CUBE_BYTES = 6 * CUBE_SIZE * CUBE_SIZE * 4 * 2
 #: Declarable effects that the technique does not model.
@@ -273,8 +271,6 @@ class Approximation(Technique):
                 filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
         self._cube = None
         if need_horizon and self.weights == "cube":
-            from hzval.bake import weight_cube
-
             cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
             self._cube = mi.Float(_aligned(cube).ravel())
 

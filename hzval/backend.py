@@ -7,7 +7,7 @@ so that it runs unchanged on either backend.
 
 Dr.Jit's LLVM backend crashes on Debian 12's default LLVM 15 at the first
 kernel that uses ``min``/``max`` (``LLVM ERROR: Cannot select: ... fmaximum``,
-DESIGN.md, pitfalls): we refuse such an LLVM with a message that says what to
+docs/ARCHITECTURE.md, "Known pitfalls"): we refuse such an LLVM with a message that says what to
 do, rather than let the process abort.
 
 Host-side work that NumPy, colour-science, OpenEXR and Pillow do without

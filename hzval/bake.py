@@ -68,6 +68,10 @@ import numpy as np
 from hzval import conventions as cv
 from hzval.errors import InputError
 
+#: Edge length in texels of a face of the weight cube map (Lengyel: 16 x 16
+#: is sufficient); the GPU path of :mod:`hzval.approx` samples it.
+CUBE_SIZE = 16
+
 #: Angular half-width factor of a texel seen from distance r: atan(0.7071 / r),
 #: the seed's constant for a texel's half diagonal (sqrt(2)/2, rounded).
 TEXEL_HALF_EXTENT = np.float32(0.7071)
@@ -216,7 +220,7 @@ def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
     """Unit tangent-space normals ``normalize(-dh/dx, -dh/dy, 1)``, ``(rows, cols, 3)``.
 
     Central differences of heights in texel units (FGED2 ch. 7, with its
-    listing's use-before-definition fixed, DESIGN.md).
+    listing's use-before-definition fixed, docs/ARCHITECTURE.md).
     """
     gx, gy = cv.height_gradient(h_texels, boundary)
     n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
@@ -840,7 +844,7 @@ def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray
 # Weight cube map
 # --------------------------------------------------------------------------
 
-def weight_cube(size: int = 16) -> np.ndarray:
+def weight_cube(size: int | None = None) -> np.ndarray:
     """The 8-bit channel-weight cube map, ``(6, size, size, 4)`` uint8, OpenGL face order.
 
     Component ``c`` of a texel holds the weight of channel ``c`` (positive)
@@ -849,6 +853,7 @@ def weight_cube(size: int = 16) -> np.ndarray:
     exact linear interpolation of :func:`hzval.conventions.channel_weights`
     at each texel's centre direction.
     """
+    size = CUBE_SIZE if size is None else int(size)
     d = cv.cube_texel_directions(size)
     w = cv.channel_weights(d[..., 0], d[..., 1])
     n = cv.CHANNELS_PER_LAYER
@@ -927,7 +932,7 @@ def bake(height: np.ndarray, params: BakeParams = BakeParams()) -> Bake:
 
 
 def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]:
-    """Write a bake's files into ``out`` (DESIGN.md, ``hzval bake``), all or nothing.
+    """Write a bake's files into ``out`` (docs/ARCHITECTURE.md, ``hzval bake``), all or nothing.
 
     ``input_info`` describes the input (path, digest, source, shape) and goes
     into ``bake.json`` with the parameters, versions and timings. The
@@ -970,7 +975,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
             "parameters": result.params.record(),
             "method": METHOD_NOTES[result.params.method],
             "outputs": _output_notes(result.directions),
-            "conventions": "DESIGN.md: +x right, +y up the image, azimuth counterclockwise from +x; "
+            "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, azimuth counterclockwise from +x; "
                            "heights in texel units are H * depth * cols",
             "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "versions": backend.versions(),
@@ -1000,7 +1005,8 @@ def _output_notes(directions: int) -> dict:
     notes["normal"] = "tangent-space unit normal (PNG: 0.5 + 0.5 n)"
     notes["ambient"] = "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)"
     if directions == cv.CHANNEL_COUNT:
-        notes["cube"] = "channel weights, 16x16 per face, OpenGL face order, 8-bit (w + 1) * 127.5"
+        notes["cube"] = (f"channel weights, {CUBE_SIZE}x{CUBE_SIZE} per face, OpenGL face order, "
+                         "8-bit (w + 1) * 127.5")
     else:
         notes["cube"] = (f"not written: the weight cube map holds {cv.CHANNEL_COUNT} channel weights; "
                          f"{directions} directions use the analytic weights")

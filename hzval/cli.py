@@ -1,6 +1,6 @@
 """The ``hzval`` command: a thin layer over the stage modules.
 
-Exit status (DESIGN.md): 0 done, 1 check failed, 2 bad input or usage,
+Exit status (docs/ARCHITECTURE.md): 0 done, 1 check failed, 2 bad input or usage,
 3 a machine that cannot run hzval (e.g. a broken LLVM). Errors that the user
 can act on are one line on stderr, ``hzval: error: <what>: <problem>``.
 """
@@ -73,9 +73,16 @@ def _parser() -> argparse.ArgumentParser:
                         help="Mitsuba variant (default: cuda_ad_rgb with a GPU, else llvm_ad_rgb; "
                              "or $HZVAL_VARIANT)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_bake(sub)
+    _add_sweep(sub)
+    _add_check(sub)
+    _add_tradeoff(sub)
+    return parser
 
+
+def _add_bake(sub) -> None:
     p = sub.add_parser("bake", help="bake normal, horizon and ambient maps from a height map",
-                       description="Bake the horizon-mapping textures of a height map (DESIGN.md).")
+                       description="Bake the horizon-mapping textures of a height map (docs/ARCHITECTURE.md).")
     _add_material_args(p)
     p.add_argument("--radius", type=int, default=16, help="search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 2 x --directions (16 or 32) (default 32)")
@@ -90,6 +97,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.set_defaults(run=cmd_bake)
 
+
+def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="render truth and horizon mapping over a light sweep and report",
                        description="Render the ground truth and the horizon-mapping approximation for every "
                                    "light of the sweep (Lengyel's Figure 5.3 by default), compare them, and "
@@ -119,6 +128,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_sweep)
 
+
+def _add_check(sub) -> None:
     p = sub.add_parser("check", help="render the shipped scenes and compare them with reference/ (CI)",
                        description="Render every scene of scenes/ at its small [check] size and compare the "
                                    "truth (statistically) and the approximation (tightly) with the references. "
@@ -135,6 +146,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_check)
 
+
+def _add_tradeoff(sub) -> None:
     p = sub.add_parser("tradeoff", help="measure what accuracy costs in time and memory on one material",
                        description="Measure bake, approximation and truth settings against a converged truth "
                                    "over the sweep: time, texture memory, visibility error and FLIP; write "
@@ -150,7 +163,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/tradeoff-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_tradeoff)
-    return parser
 
 
 def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821

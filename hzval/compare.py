@@ -1,4 +1,4 @@
-"""Comparing a frame of the approximation with the truth (DESIGN.md, "Metrics").
+"""Comparing a frame of the approximation with the truth (docs/ARCHITECTURE.md, "Metrics").
 
 Visibility, on the one-channel layers in [0, 1]:
 

@@ -1,6 +1,6 @@
 """The conventions of hzval: axes, directions, height scale, boundaries, colour.
 
-This module is the only place that defines them (``DESIGN.md``,
+This module is the only place that defines them (docs/ARCHITECTURE.md,
 "Conventions"); every other module asks it. Tests in
 ``tests/test_conventions.py`` pin each one.
 
@@ -239,7 +239,7 @@ def cube_texel_directions(size: int) -> np.ndarray:
     with major axis ``ma`` is looked up at ``s = (sc/|ma| + 1)/2`` (column)
     and ``t = (tc/|ma| + 1)/2`` (row, row 0 first in memory). The cube is
     indexed with tangent-space vectors, so its x, y, z are tangent space's.
-    The seed generators use two different layouts (DESIGN.md); this one is
+    The seed generators use two different layouts (docs/ARCHITECTURE.md); this one is
     the GPU's.
     """
     c = (np.arange(size) + 0.5) / size * 2.0 - 1.0

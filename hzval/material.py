@@ -1,7 +1,7 @@
 """The built-in material: a procedural, seamlessly tiling brick wall.
 
 :func:`bricks` returns a height map ``H[row, col]`` in [0, 1] (row 0 at the
-top, ``DESIGN.md`` "Conventions") of bricks laid in running bond: bevelled
+top, docs/ARCHITECTURE.md "Conventions") of bricks laid in running bond: bevelled
 brick faces standing proud of recessed mortar joints, each brick with its own
 height, tilt, chipped edges and rough face, over a fine grain everywhere. It
 lets every hzval command run with no input, and its relief (at
@@ -26,7 +26,7 @@ DEFAULT_SIZE = 512
 #: Smallest side :func:`bricks` accepts, in texels.
 MIN_SIZE = 8
 #: Suggested ``depth`` for :func:`bricks`: the world height of ``H = 1`` in
-#: units of the image width (``DESIGN.md``), i.e. 25.6 texels at 512 texels.
+#: units of the image width (docs/ARCHITECTURE.md), i.e. 25.6 texels at 512 texels.
 DEFAULT_DEPTH = 0.05
 
 # Height levels of the profile (fractions of the [0, 1] range).

@@ -6,7 +6,7 @@ triangles per quad of neighbouring centres. The mesh lives in the same
 tangent space as the technique's textures, so a camera looking down -z sees
 pixel ``(row, col)`` of both at the same surface point.
 
-Boundaries (DESIGN.md):
+Boundaries (docs/ARCHITECTURE.md):
 
 ``wrap``
     The mesh carries a margin of neighbouring tiles around the central one,

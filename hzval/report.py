@@ -1,4 +1,4 @@
-"""The HTML comparison report of a sweep (DESIGN.md; issue 5).
+"""The HTML comparison report of a sweep (docs/ARCHITECTURE.md; issue 5).
 
 :func:`write_report` turns the content of ``metrics.json`` into
 ``out/index.html`` and ``out/plots/*.png``. The page is self-contained: no
@@ -406,17 +406,19 @@ def _timings(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
             "total_is_sum": total is None, "stages": stages}
 
 
-def _effects(parameters: dict, simulated: dict) -> dict:
+def _effects(parameters: dict, simulated: dict, views: list[TechniqueView]) -> dict:
+    """The declared effects, what the truth and each technique simulated, and what each left out."""
     declared = [str(e) for e in (parameters.get("effects") or [])]
     truth = [str(e) for e in (simulated.get("truth") or [])]
-    approx = [str(e) for e in (simulated.get("approx") or [])]
-    notes = []
-    for e in declared:
-        if e not in approx:
-            notes.append(f"{e}: not modelled by the approximation")
-        if e not in truth:
-            notes.append(f"{e}: not simulated by the truth")
-    return {"declared": declared, "truth": truth, "approx": approx, "notes": notes}
+    rows, notes = [], []
+    for v in views:
+        own = simulated.get(v.name, simulated.get("approx") if v.primary else None) or []
+        own = [str(e) for e in own]
+        rows.append({"label": v.label, "colour": v.colour, "effects": own})
+        notes += [f"{e}: not modelled by {v.label if len(views) > 1 else 'the approximation'}"
+                  for e in declared if e not in own]
+    notes += [f"{e}: not simulated by the truth" for e in declared if e not in truth]
+    return {"declared": declared, "truth": truth, "techniques": rows, "notes": notes}
 
 
 def _parameters(p: dict) -> list[dict]:
@@ -579,7 +581,7 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "subtitle": subtitle,
         "command": command or "",
         "parameters": _parameters(parameters),
-        "effects": _effects(parameters, metrics.get("simulated") or {}),
+        "effects": _effects(parameters, metrics.get("simulated") or {}, views),
         "versions": _versions(metrics.get("versions") or {}),
         "timings": _timings(metrics.get("timings") or {}, len(frames), views),
         "columns": [{"label": c["metric"].label, "unit": c["metric"].unit, "title": c["metric"].title,
@@ -806,7 +808,7 @@ def render_html(context: dict) -> str:
 def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     """Write ``out/index.html`` and ``out/plots/*.png`` for a sweep's ``metrics``; return the index path.
 
-    ``metrics`` is the content of ``out/metrics.json`` (DESIGN.md); its file
+    ``metrics`` is the content of ``out/metrics.json`` (docs/ARCHITECTURE.md); its file
     paths are relative to ``out``. ``command`` is the command line that
     reproduces the run. Every file is written atomically.
     """

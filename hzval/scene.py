@@ -38,7 +38,7 @@ from hzval import conventions as cv
 from hzval.errors import InputError
 from hzval.material import MIN_SIZE as BRICKS_MIN_SIZE
 
-#: Effects a scene can call for (DESIGN.md, "Effects"), in rendering order.
+#: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
                             "interreflection")
 #: The sweep of Lengyel's Figure 5.3: -60..+60 degrees in 15-degree steps.
@@ -256,7 +256,7 @@ def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int) 
     of an ``n x n`` grid over the pixel, other counts are uniform. Both
     renderers use these positions, so no error comes from sampling alone.
     Jittered points almost never land on a texel centre, where the mesh has
-    a vertex and shadow rays self-intersect (DESIGN.md, pitfalls).
+    a vertex and shadow rays self-intersect (docs/ARCHITECTURE.md, "Known pitfalls").
     """
     ss = camera.supersampling
     height, width = image_shape(rows, cols, camera)

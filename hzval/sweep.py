@@ -49,7 +49,6 @@ import numpy as np
 from hzval import approx, backend, bake, compare, files, images, report, shading, technique, truth
 from hzval import scene as sc
 from hzval.bake import BakeParams
-from hzval.errors import InputError
 
 __all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "PNG_LEVEL"]
 
@@ -207,7 +206,7 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     return frame
 
 
-#: The primary technique's files under the frame's own ``files`` (DESIGN's keys).
+#: The primary technique's files under the frame's own ``files`` (the documented keys).
 _PRIMARY_FILE_KEYS = {"image": "approx", "png": "approx_png"}
 
 

@@ -483,18 +483,34 @@ class TerrainShadow(Technique):
         """Three kernels: the sweep (one lane per line, a symbolic loop over
         steps), the texels' ``(h - B_hi, ramp)``, and the samples' factor
         averaged per pixel. Every per-frame value is opaque."""
+        rec = self._sweep_drjit(plan, tan_hi, tan_lo)
+        F = self._sample(self._gap_ramp_drjit(plan, rec))
+        return np.asarray(F, dtype=np.float32).reshape(self.shape)
+
+    @staticmethod
+    def _plan_constants(plan: SweepPlan) -> dict:
+        """The plan's numbers as opaque Dr.Jit values (one kernel for every light and map)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        op, Float, Int32 = dr.opaque, mi.Float, mi.Int32
+        return {"n": op(Int32, plan.n), "m": op(Int32, plan.m), "off": op(Int32, plan.off),
+                "si": op(Int32, plan.si), "sj": op(Int32, plan.sj), "slope": op(Float, plan.slope),
+                "first": op(Int32, plan.first), "steps": op(Int32, plan.steps),
+                "rec0": op(Int32, plan.record_from), "n_lanes": op(Int32, plan.lanes)}
+
+    def _sweep_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float):
+        """The sweep: per line and recorded column, ``(B_hi, B_hi - B_lo)`` pairs."""
         import drjit as dr
         import mitsuba as mi
 
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque
-        n, m = op(Int32, plan.n), op(Int32, plan.m)
-        off, si, sj = op(Int32, plan.off), op(Int32, plan.si), op(Int32, plan.sj)
-        slope, first = op(Float, plan.slope), op(Int32, plan.first)
-        steps, rec0 = op(Int32, plan.steps), op(Int32, plan.record_from)
+        k = self._plan_constants(plan)
+        n, m, off, si, sj = k["n"], k["m"], k["off"], k["si"], k["sj"]
+        slope, first, steps, rec0, n_lanes = k["slope"], k["first"], k["steps"], k["rec0"], k["n_lanes"]
         drop_hi, drop_lo = op(Float, tan_hi * plan.step), op(Float, tan_lo * plan.step)
         nl = plan.lanes
-        n_lanes = op(Int32, nl)
         wrap = plan.wrap
         h = self._h_dr
         rec = dr.zeros(Float, 2 * nl * plan.m)
@@ -536,9 +552,21 @@ class TerrainShadow(Technique):
         dr.while_loop(state=(zero, Int32(zero), dr.full(Float, NOTHING, nl), dr.full(Float, NOTHING, nl)),
                       cond=lambda j, col, a, b: j < steps, body=body)
         dr.eval(rec)
+        return rec
 
-        # texels of A, written to the height map's layout as (gap, ramp) pairs
-        # (no integer division: float quotient, then corrected)
+    def _gap_ramp_drjit(self, plan: SweepPlan, rec):
+        """The texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs:
+        the boundary interpolated between the two lines that bracket each texel."""
+        import drjit as dr
+        import mitsuba as mi
+
+        Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
+        op = dr.opaque
+        k = self._plan_constants(plan)
+        m, off, si, sj = k["m"], k["off"], k["si"], k["sj"]
+        slope, first, rec0, n_lanes = k["slope"], k["first"], k["rec0"], k["n_lanes"]
+        wrap, h = plan.wrap, self._h_dr
+        # no integer division: float quotient, then corrected
         N = plan.n * plan.m
         t = dr.arange(Int32, N)
         i = Int32(dr.floor((Float(t) + 0.5) / Float(m)))
@@ -573,9 +601,7 @@ class TerrainShadow(Technique):
         dr.scatter(gap_ramp, dr.gather(Float, h, hidx) - b, hidx * 2)
         dr.scatter(gap_ramp, w + self._r_dr, hidx * 2 + 1)
         dr.eval(gap_ramp)
-
-        F = self._sample(gap_ramp)
-        return np.asarray(F, dtype=np.float32).reshape(self.shape)
+        return gap_ramp
 
     def _sample(self, gap_ramp):
         """Pixel means of ``clamp(gap / ramp + 1, 0, 1)`` over the pixel's samples (bilinear)."""

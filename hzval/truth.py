@@ -32,7 +32,7 @@ Light
     plane, which is the horizon of every point (the horizon bake never
     reports a horizon below 0 either, ``open`` included).
 
-Effects (``DESIGN.md``, "Effects"), per sample, then averaged per pixel:
+Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
 
 ``shadow``
     ``V`` = 1 if the ray toward ``L`` escapes, else 0: 0 also where the
@@ -121,7 +121,7 @@ Kernels
     Everything that changes between frames (the light direction) and every
     scene-dependent number enters the kernels as an opaque Dr.Jit variable
     (``dr.opaque``), so a new azimuth - or a new ``Truth`` of the same kind -
-    reuses the compiled kernels (``DESIGN.md``, pitfalls). Frames are timed
+    reuses the compiled kernels (docs/ARCHITECTURE.md, "Known pitfalls"). Frames are timed
     with :func:`hzval.backend.sync`. Only ``mi.Float``, ``mi.Point3f`` and
     friends are used: ``llvm_ad_rgb`` and ``cuda_ad_rgb`` run the same code.
 
@@ -191,9 +191,6 @@ class Truth:
     def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
                  albedo: np.ndarray | None = None):
         backend.variant()
-        import drjit as dr
-        import mitsuba as mi
-
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
         if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
@@ -202,14 +199,24 @@ class Truth:
         self.rows, self.cols = rows, cols = h.shape
         self.shape = image_shape(rows, cols, scene.camera)
         self.spp = scene.spp
-        mat, light = scene.material, scene.light
         if scene.declares("interreflection") and not (scene.declares("diffuse") or scene.declares("specular")):
             raise InputError(scene.source or "scene", "interreflection needs a surface that reflects: "
                              "declare diffuse and/or specular as well")
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
         self.timings: dict[str, float] = {}
 
-        # -- the surface ----------------------------------------------------
+        self._build_surface(h)
+        self._trace_camera_rays(positions, albedo)
+        self._ambient = self._trace_ambient() if scene.declares("ambient") else None
+        self._reflection = self._trace_reflection() if scene.declares("reflection_occlusion") else None
+
+    def _build_surface(self, h: np.ndarray) -> None:
+        """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
+        import drjit as dr
+        import mitsuba as mi
+
+        rows, cols = self.rows, self.cols
+        mat, light = self.scene.material, self.scene.light
         t0 = time.perf_counter()
         h_tex = cv.heights_in_texels(h, mat.depth)
         self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
@@ -238,7 +245,13 @@ class Truth:
         backend.sync()
         self.timings["mesh_s"] = time.perf_counter() - t0
 
-        # -- camera rays, once ----------------------------------------------
+    def _trace_camera_rays(self, positions, albedo) -> None:
+        """Where every sample's camera ray meets the surface, once; the albedo there."""
+        import drjit as dr
+        import mitsuba as mi
+
+        scene, rows, cols = self.scene, self.rows, self.cols
+        mat = scene.material
         t0 = time.perf_counter()
         if positions is None:
             xs, ys = sample_positions(rows, cols, scene.camera, scene.spp, scene.seed)
@@ -267,33 +280,39 @@ class Truth:
         backend.sync()
         self.timings["primary_s"] = time.perf_counter() - t0
 
-        # -- ambient: independent of the light, once ---------------------------
-        self._ambient = None
-        if scene.declares("ambient"):
-            t0 = time.perf_counter()
-            rng = self._rng(_AMBIENT_STREAM)
-            d = mi.Frame3f(self._n).to_world(
-                mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
-            blocked = self._occluded(self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)),
-                                     dynamic=True)
-            self._ambient = dr.select(blocked, 0.0, 1.0)
-            dr.eval(self._ambient)
-            backend.sync()
-            self.timings["ambient_s"] = time.perf_counter() - t0
+    def _trace_ambient(self):
+        """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
+        import drjit as dr
+        import mitsuba as mi
 
-        # -- reflection occlusion: independent of the light, once ---------------
-        self._reflection = None
-        if scene.declares("reflection_occlusion"):
-            t0 = time.perf_counter()
-            rng = self._rng(_REFLECTION_STREAM)
-            wo = _lobe_direction(self._n, mi.Vector3f(0.0, 0.0, 1.0),
-                                 mi.Point2f(rng.next_float32(), rng.next_float32()))
-            blocked = (dr.dot(self._n, wo) <= 0.0) | self._occluded(
-                self._o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
-            self._reflection = dr.select(blocked, 0.0, 1.0)
-            dr.eval(self._reflection)
-            backend.sync()
-            self.timings["reflection_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        rng = self._rng(_AMBIENT_STREAM)
+        d = mi.Frame3f(self._n).to_world(
+            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+        blocked = self._occluded(self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)),
+                                 dynamic=True)
+        ambient = dr.select(blocked, 0.0, 1.0)
+        dr.eval(ambient)
+        backend.sync()
+        self.timings["ambient_s"] = time.perf_counter() - t0
+        return ambient
+
+    def _trace_reflection(self):
+        """``R`` per sample: a direction of the glossy lobe escapes (independent of the light, once)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        t0 = time.perf_counter()
+        rng = self._rng(_REFLECTION_STREAM)
+        wo = _lobe_direction(self._n, mi.Vector3f(0.0, 0.0, 1.0),
+                             mi.Point2f(rng.next_float32(), rng.next_float32()))
+        blocked = (dr.dot(self._n, wo) <= 0.0) | self._occluded(
+            self._o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+        reflection = dr.select(blocked, 0.0, 1.0)
+        dr.eval(reflection)
+        backend.sync()
+        self.timings["reflection_s"] = time.perf_counter() - t0
+        return reflection
 
     # ------------------------------------------------------------------
     # Ray queries

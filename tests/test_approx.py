@@ -66,7 +66,7 @@ def exact_weights(d):
 
 
 def bilerp(tex, x, y, boundary):
-    """Bilinear filtering between texel centres at tangent-space (x, y) (DESIGN.md)."""
+    """Bilinear filtering between texel centres at tangent-space (x, y) (docs/ARCHITECTURE.md)."""
     rows, cols = tex.shape[:2]
     fx, fy = x.astype(np.float64) - 0.5, rows - y.astype(np.float64) - 0.5   # fy: row coordinate
     c0, r0 = np.floor(fx).astype(int), np.floor(fy).astype(int)

@@ -1,4 +1,4 @@
-"""The baker against answers known in advance (DESIGN.md, issue 2).
+"""The baker against answers known in advance (docs/ARCHITECTURE.md, issue 2).
 
 The seed peer (tests/test_seed_peer.py) checks that the bake reproduces the
 seed loop; these tests check that what it computes means what we say it does.

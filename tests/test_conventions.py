@@ -1,4 +1,4 @@
-"""Each convention of DESIGN.md, pinned by a case whose answer is known."""
+"""Each convention of docs/ARCHITECTURE.md, pinned by a case whose answer is known."""
 
 import math
 

@@ -84,7 +84,7 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
 
 
 def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dict:
-    """Write a sweep's previews under ``out`` and return its metrics (DESIGN.md's structure)."""
+    """Write a sweep's previews under ``out`` and return its metrics (docs/ARCHITECTURE.md's structure)."""
     frames = []
     for i, az in enumerate(azimuths):
         folder = WEIRD_FOLDER if az == 0 else f"frames/az{az:+g}"

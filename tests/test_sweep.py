@@ -1,4 +1,4 @@
-"""``hzval sweep`` end to end on small maps: metrics.json as DESIGN.md fixes it, the frames it
+"""``hzval sweep`` end to end on small maps: metrics.json as docs/ARCHITECTURE.md fixes it, the frames it
 points to, the bake cache, analytic answers for a flat map and a wall, and bad input."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 
 from hzval import cli, files, sweep, technique
 
-# DESIGN.md, "Interface that scripts and CI rely on".
+# docs/ARCHITECTURE.md, "metrics.json".
 TOP_KEYS = {"material", "parameters", "versions", "timings", "simulated", "frames"}
 FRAME_KEYS = {"azimuth_deg", "elevation_deg", "visibility_mae", "leak_fraction", "false_shadow_fraction",
               "flip_mean", "rmse", "psnr_db", "delta_e2000_mean", "truth_s", "approx_s", "files"}
@@ -159,7 +159,7 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
 @pytest.mark.parametrize("name", [n for n in technique.names() if n != technique.PRIMARY])
 def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
     """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
-    the primary's, the DESIGN.md keys of a frame unchanged, and its columns in the report and the table."""
+    the primary's, the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""
     from PIL import Image
 
     out, m, _ = bricks_sweep

@@ -1,4 +1,4 @@
-"""The ground truth against answers known in advance (DESIGN.md "Effects", issue 3).
+"""The ground truth against answers known in advance (docs/ARCHITECTURE.md "Effects", issue 3).
 
 Every number hzval reports is measured against :mod:`hzval.truth`, so these
 tests pin it to geometry and radiometry that can be worked out by hand:
