@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import sys
 import time
 from pathlib import Path
@@ -77,6 +78,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_check(sub)
     _add_tradeoff(sub)
+    _add_export_scene(sub)
     return parser
 
 
@@ -117,7 +119,12 @@ def _add_sweep(sub) -> None:
                         "reflection_occlusion, interreflection (default shadow,diffuse)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the samples (default 0)")
-    p.add_argument("--supersampling", type=int, default=None, help="pixels per texel along each axis (default 1)")
+    p.add_argument("--supersampling", type=int, default=None,
+                   help="pixels per texel along each axis: a magnification, not anti-aliasing (--spp samples "
+                        "each pixel); FLIP and the other image scores depend on it (default 1)")
+    p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
+                   help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
+                        "or faceted (each triangle's own) (default smooth)")
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="bake angular bins, a multiple of 2 x --directions (default 32)")
     p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
@@ -163,6 +170,24 @@ def _add_tradeoff(sub) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/tradeoff-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_tradeoff)
+
+
+def _add_export_scene(sub) -> None:
+    p = sub.add_parser("export-scene", help="write the truth of one light as a Mitsuba 3 scene file",
+                       description="Write DIR/scene.xml and DIR/mesh.ply: the displaced mesh with its vertex "
+                                   "normals, a diffuse BSDF with the albedo, a directional emitter and an "
+                                   "orthographic sensor over the tile, as hzval's truth traces them. "
+                                   "Render it with `mitsuba DIR/scene.xml -o out.exr`.")
+    _add_material_args(p)
+    p.add_argument("--scene", type=Path, default=None, help="scene description (TOML)")
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--azimuth", type=float, default=0.0, help="light azimuth in degrees (default 0)")
+    p.add_argument("--effects", default=None, help="shadow and/or diffuse (default shadow,diffuse)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
+    p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
+                   help="vertex normals in the PLY (smooth, default) or none (faceted)")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.set_defaults(run=cmd_export_scene)
 
 
 def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
@@ -230,7 +255,7 @@ def cmd_sweep(args) -> int:
     scene = sc.override(base, height=str(args.height) if args.height else None, size=args.size,
                         depth=args.depth, boundary=args.boundary, elevation=args.elevation, azimuths=args.azimuths, light=args.light,
                         light_radius=args.light_radius, effects=args.effects, spp=args.spp, seed=args.seed,
-                        supersampling=args.supersampling)
+                        supersampling=args.supersampling, shading=args.shading)
     if args.height:
         scene = dataclasses.replace(scene, name=Path(args.height).stem)
     options = sweep.Options(radius=args.radius, angles=args.angles, method=args.method,
@@ -309,6 +334,23 @@ def cmd_tradeoff(args) -> int:
     return errors.EXIT_OK
 
 
+def cmd_export_scene(args) -> int:
+    from hzval import backend, export, scene as sc
+
+    base = sc.load_scene(args.scene) if args.scene else sc.Scene()
+    scene = sc.override(base, height=str(args.height) if args.height else None, size=args.size, depth=args.depth,
+                        boundary=args.boundary, elevation=args.elevation, effects=args.effects, spp=args.spp,
+                        shading=args.shading)
+    if not math.isfinite(args.azimuth):
+        raise errors.InputError("--azimuth", f"must be a finite number of degrees, got {args.azimuth}")
+    backend.variant(args.variant)
+    hm = sc.load_material_height(scene.material)
+    written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth)
+    print(f"wrote {', '.join(str(p) for p in written)}; render it with: mitsuba {args.out / 'scene.xml'} "
+          f"-o {args.out / 'mitsuba.exr'}")
+    return errors.EXIT_OK
+
+
 def _join_negative_values(argv: list[str]) -> list[str]:
     """``--azimuths -60:60:15`` as ``--azimuths=-60:60:15``.
 
@@ -318,7 +360,7 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     """
     out, it = [], iter(argv)
     for a in it:
-        if a in ("--azimuths", "--elevation"):
+        if a in ("--azimuths", "--elevation", "--azimuth"):
             nxt = next(it, None)
             out.append(a if nxt is None else f"{a}={nxt}")
         else:

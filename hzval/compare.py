@@ -12,8 +12,8 @@ Visibility, on the one-channel layers in [0, 1]:
   fraction ``R`` of the glossy lobe about the mirror direction
   (:mod:`hzval.truth`).
 
-Images: ``rmse`` and ``psnr_db`` on linear values (peak 1: a white
-Lambertian surface facing the light, after :func:`hzval.shading.exposure`); FLIP (NVIDIA,
+Images: ``rmse`` and ``psnr_db`` on linear values (peak 1: the largest
+radiance the declared effects can produce, :func:`hzval.shading.exposure`); FLIP (NVIDIA,
 ``flip-evaluator``, LDR, 67 pixels per degree) and CIEDE2000 (colour-science)
 on display values, i.e. exposed, clipped to [0, 1] and sRGB-encoded.
 """
@@ -181,13 +181,25 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None
     reflection = None
     if O is not None and R is not None:
         reflection = float(np.mean(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64))))
-    t_lin = ref.linear
-    a_lin = np.asarray(approx.image, np.float64) * scale
-    mse = float(np.mean((t_lin - a_lin) ** 2))
-    rmse = math.sqrt(mse)
+    scores, image_maps = image_metrics(ref, approx.image)
+    maps.update(image_maps)
+    return FrameMetrics(mae, leak, false_shadow, scores["flip_mean"], scores["rmse"], scores["psnr_db"],
+                        scores["delta_e2000_mean"], reflection), maps
+
+
+#: The image metrics of a frame, the keys of :func:`image_metrics` (and of a frame's ``floor``).
+IMAGE_METRICS: tuple[str, ...] = ("flip_mean", "rmse", "psnr_db", "delta_e2000_mean")
+
+
+def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """``({flip_mean, rmse, psnr_db, delta_e2000_mean}, {display, flip, delta_e})`` of a linear
+    ``(H, W, 3)`` image against the truth of ``ref``: RMSE and PSNR (peak 1) on exposed linear
+    values, FLIP and CIEDE2000 on display values."""
+    a_lin = np.asarray(image, np.float64) * ref.scale
+    mse = float(np.mean((ref.linear - a_lin) ** 2))
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    maps["display"] = a_disp = display(approx.image, scale)
-    maps["flip"], flip_mean = flip(ref.display, a_disp)
-    maps["delta_e"] = delta_e2000(ref.display, a_disp, reference_lab=ref.lab)
-    return FrameMetrics(mae, leak, false_shadow, flip_mean, rmse, psnr,
-                        float(np.mean(maps["delta_e"])), reflection), maps
+    maps = {"display": display(image, ref.scale)}
+    maps["flip"], flip_mean = flip(ref.display, maps["display"])
+    maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab)
+    return {"flip_mean": flip_mean, "rmse": math.sqrt(mse), "psnr_db": psnr,
+            "delta_e2000_mean": float(np.mean(maps["delta_e"]))}, maps

@@ -80,6 +80,22 @@ def grid(h_texels: np.ndarray, boundary: str, *, min_elevation_deg: float = MIN_
     raise ValueError(f"unknown boundary {boundary!r}")
 
 
+def vertex_normals(h_texels: np.ndarray, g: Grid, boundary: str) -> np.ndarray:
+    """``(len(g.y), len(g.x), 3)`` float32: the normal map's normal of the texel under each vertex
+    (texel centres are vertices; margin vertices repeat the tile, skirt vertices the border)."""
+    from hzval.bake import normal_map
+
+    rows, cols = h_texels.shape
+    nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
+    col = np.floor(g.x).astype(np.int64)
+    row = np.floor(rows - np.asarray(g.y, np.float64)).astype(np.int64)
+    if boundary == "wrap":
+        col, row = col % cols, row % rows
+    else:
+        col, row = np.clip(col, 0, cols - 1), np.clip(row, 0, rows - 1)
+    return np.ascontiguousarray(nmap[row[:, None], col[None, :]], dtype=np.float32)
+
+
 def triangles(n_rows: int, n_cols: int) -> np.ndarray:
     """Faces ``(2 (n_rows-1)(n_cols-1), 3)`` uint32 of a vertex grid, counterclockwise from +z.
 
@@ -101,9 +117,16 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
                    normals: bool = False, name: str = "displaced"):
     """The displaced surface of a normalised height map as a ``mitsuba.Mesh``.
 
-    ``normals=True`` adds vertex normals from the same central differences
-    as the normal map; without them Mitsuba shades with the triangles' own
-    normals. Needs a Mitsuba variant to be set (:func:`hzval.backend.variant`).
+    ``normals=True`` adds vertex normals: each vertex takes the normal map's
+    normal (:func:`hzval.bake.normal_map`, the very central differences the
+    techniques shade with) of the texel it stands on, a margin vertex that of
+    the texel it repeats (``wrap``), a skirt vertex on an ``open`` tile's
+    border that of the border texel, whose one-sided slope the normal map
+    uses (so the skirt is shaded as the techniques shade it, though its
+    geometry stays flat). Mitsuba interpolates them over each triangle for
+    its shading frame (``si.sh_frame.n``); without them it shades with the
+    triangles' own normals. Needs a Mitsuba variant to be set
+    (:func:`hzval.backend.variant`).
     """
     import mitsuba as mi
 
@@ -122,11 +145,6 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
     params["faces"] = mi.UInt32(faces.ravel())
     params["vertex_texcoords"] = mi.Float(uv.ravel())
     if normals:
-        # "open" on the grid itself: inside the tile every vertex has both
-        # neighbours (margin or skirt), so only the grid's own rim differs
-        gx, gy = cv.height_gradient(g.z, "open")
-        n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
-        n /= np.linalg.norm(n, axis=-1, keepdims=True)
-        params["vertex_normals"] = mi.Float(n.astype(np.float32).ravel())
+        params["vertex_normals"] = mi.Float(vertex_normals(h, g, boundary).ravel())
     params.update()
     return mesh

@@ -146,6 +146,19 @@ REFLECTION_METRICS: tuple[Metric, ...] = (
 )
 
 
+#: The perfect-shadows floor (``frames[i]["floor"]``, flattened to ``floor_<key>``): the
+#: techniques' unshadowed shading times the truth's visibility, scored against the truth.
+FLOOR_METRICS: tuple[Metric, ...] = (
+    Metric("floor_flip_mean", "floor FLIP", "", "Perfect-shadows floor: FLIP of the techniques' unshadowed "
+           "shading times the truth's own visibility V, against the truth. The part of every technique's FLIP "
+           "that is shading and noise, not shadows", _fixed(4), group="floor"),
+    Metric("floor_rmse", "floor RMSE", "", "Perfect-shadows floor: RMSE (linear) of the unshadowed shading "
+           "times V against the truth", _fixed(4), group="floor"),
+)
+#: Image metrics whose floor a frame's chips show beside them ("FLIP 0.085, of which 0.004 ...").
+_FLOORED = {"flip_mean", "rmse", "delta_e2000_mean", "psnr_db"}
+
+
 @dataclass(frozen=True)
 class TechniqueView:
     """A technique as the report shows it (``metrics.json``'s ``techniques``)."""
@@ -180,6 +193,9 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
     for f in frames:
         per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
         g = dict(f)
+        g["_technique_names"] = tuple(v.name for v in views)
+        if isinstance(f.get("floor"), dict):
+            g.update({f"floor_{k}": val for k, val in f["floor"].items()})
         for v in views:
             m = per.get(v.name)
             if not isinstance(m, dict) and v.primary:
@@ -235,7 +251,7 @@ _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
                ("azimuths_deg", "azimuths"))),
     ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"))),
-    ("sampling", (("spp", "samples per pixel"), ("supersampling", "supersampling"), ("seed", "seed"))),
+    ("sampling", (("spp", "samples per pixel"), ("supersampling", "pixels per texel"), ("seed", "seed"))),
 )
 
 _TIMING_LABELS: tuple[tuple[str, str], ...] = (
@@ -347,8 +363,13 @@ def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
     bar = None
     if m.bar and v is not None and col["top"] > 0 and math.isfinite(v):
         bar = round(max(0.0, min(1.0, abs(v) / col["top"])), 4)
+    floor = None
+    base = m.key.split("_", 1)[1] if m.key.split("_", 1)[0] in frame.get("_technique_names", ()) else m.key
+    if base in _FLOORED and _num(frame.get(f"floor_{base}")) is not None and v is not None:
+        floor = m.fmt(frame[f"floor_{base}"])
+        title += f" (perfect-shadows floor: {floor}, the part that is shading and noise)"
     return {"key": m.key, "label": m.label, "text": text, "worst": i in col["worst_idx"], "bar": bar,
-            "gstart": m.key in starts,
+            "gstart": m.key in starts, "floor": floor,
             "title": title, "unit": m.unit if m.unit not in ("time", "%") else ""}
 
 
@@ -441,7 +462,8 @@ def _parameters(p: dict) -> list[dict]:
                     text = {"mean_cos2": "mean cos² (cosine-weighted)", "mean_cos": "mean cos (Lengyel)"}.get(
                         str(value), str(value))
                 elif key == "supersampling" and _num(value) is not None:
-                    text = f"{value:g} × {value:g} per texel"
+                    text = f"{value:g} × {value:g} (a magnification: image scores depend on it)" if value != 1 \
+                        else "1 (one pixel per texel)"
                 elif key == "radius" and _num(value) is not None:
                     text = f"{value:g} texels"
                 elif key in ("radius", "angles") and value is None and p.get("method") == "exact":
@@ -503,6 +525,8 @@ def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metr
     shown = METRICS if lead.primary else tuple(m for m in METRICS if m.key == "truth_s")
     if any(f.get("reflection_mae") is not None for f in frames):
         shown += REFLECTION_METRICS
+    if any(_num(f.get("floor_flip_mean")) is not None for f in frames):
+        shown += FLOOR_METRICS
     for v in views:
         if not (v.primary and v is lead):
             shown += _technique_metrics(v)
@@ -631,13 +655,21 @@ def _save(fig, path: Path) -> None:
         fig.savefig(tmp, format="png", dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
 
 
-def _metric_panels(views: list[TechniqueView], leak_hex: str, false_shadow_hex: str) -> tuple:
+#: The perfect-shadows floor's line in the plots.
+FLOOR_COLOUR = "#8d8d96"
+
+
+def _metric_panels(views: list[TechniqueView], leak_hex: str, false_shadow_hex: str, floor: bool) -> tuple:
     """``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`; a line is
-    ``(key, label, colour, scale, style)`` on the flattened frames (:func:`_flatten`)."""
+    ``(key, label, colour, scale, style)`` on the flattened frames (:func:`_flatten`).
+    Image metrics get the perfect-shadows floor's line where the sweep has it."""
     many = len(views) > 1
 
-    def one(key):
-        return [(f"{v.name}_{key}", v.label if many else "", v.colour, 1.0, v.style) for v in views]
+    def one(key, floored=False):
+        lines = [(f"{v.name}_{key}", v.label if many or floor else "", v.colour, 1.0, v.style) for v in views]
+        if floored and floor:
+            lines.append((f"floor_{key}", "perfect-shadows floor", FLOOR_COLOUR, 1.0, ":"))
+        return lines
 
     leaks = []
     for v in views:
@@ -647,10 +679,10 @@ def _metric_panels(views: list[TechniqueView], leak_hex: str, false_shadow_hex: 
     return (
         ("visibility  mean |F − V|", one("visibility_mae"), "max", ""),
         ("leaks & false shadows  (% of pixels)", leaks, "max", "%"),
-        ("FLIP  mean", one("flip_mean"), "max", ""),
-        ("ΔE2000  mean", one("delta_e2000_mean"), "max", ""),
-        ("PSNR  dB (linear; higher is better)", one("psnr_db"), "min", ""),
-        ("RMSE  (linear)", one("rmse"), "max", ""),
+        ("FLIP  mean", one("flip_mean", True), "max", ""),
+        ("ΔE2000  mean", one("delta_e2000_mean", True), "max", ""),
+        ("PSNR  dB (linear; higher is better)", one("psnr_db", True), "min", ""),
+        ("RMSE  (linear)", one("rmse", True), "max", ""),
     )
 
 
@@ -666,7 +698,9 @@ def plot_metrics(path: Path, frames: list[dict], views: list[TechniqueView]) -> 
     def series(key, scale=1.0):
         return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
 
-    panels = _metric_panels(views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB))
+    floor = any(_num(f.get("floor_flip_mean")) is not None for f in frames)
+    panels = _metric_panels(views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB),
+                            floor)
     fig = _figure(13.0, 5.4)
     axes = fig.subplots(2, 3, sharex=True)
     fig.subplots_adjust(left=0.045, right=0.99, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)

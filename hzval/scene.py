@@ -15,7 +15,8 @@ a surface facing it (so a Lambertian surface of albedo a shows radiance
 TOML layout (every key optional; see ``scenes/bricks.toml``)::
 
     name = "bricks"
-    [material]  height = "bricks" | "path/relative/to/scene.png", size, depth, boundary, albedo
+    [material]  height = "bricks" | "path/relative/to/scene.png", size, depth, boundary, albedo,
+                shading = "smooth" | "faceted"
     [camera]    supersampling = 1
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
@@ -41,6 +42,10 @@ from hzval.material import MIN_SIZE as BRICKS_MIN_SIZE
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
                             "interreflection")
+#: How the truth shades the displaced mesh (:mod:`hzval.truth`, "Shading"): with
+#: the normal interpolated from vertex normals, as a displaced mesh is shaded
+#: and as the techniques' normal map is, or with each triangle's flat normal.
+SHADINGS: tuple[str, ...] = ("smooth", "faceted")
 #: The sweep of Lengyel's Figure 5.3: -60..+60 degrees in 15-degree steps.
 DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
 
@@ -54,11 +59,19 @@ class MaterialSpec:
     depth: float = 0.05
     boundary: str = "wrap"
     albedo: str | float = 0.8       # an sRGB image path, or a constant linear albedo
+    shading: str = "smooth"         # the truth's shading normal: "smooth" (vertex normals) or "faceted"
 
 
 @dataclass(frozen=True)
 class Camera:
-    """Orthographic, straight down; ``supersampling`` pixels per texel along each axis."""
+    """Orthographic, straight down; ``supersampling`` pixels per texel along each axis.
+
+    ``supersampling`` magnifies: each pixel covers ``1 / supersampling``
+    texels, and every renderer samples it at ``spp`` positions (which is what
+    anti-aliases). Image scores (FLIP above all, whose viewing distance is in
+    pixels) depend on it, so compare them only at one setting; the
+    visibility scores, per surface area, hardly do.
+    """
 
     supersampling: int = 1
 
@@ -120,6 +133,8 @@ class Scene:
                 raise InputError(what, f"{name} must be a finite number, got {value}")
         if m.depth <= 0:
             raise InputError(what, f"material.depth must be positive, got {m.depth}")
+        if m.shading not in SHADINGS:
+            raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
         if m.boundary not in cv.BOUNDARIES:
             raise InputError(what, f"material.boundary must be wrap or open, got {m.boundary!r}")
         if m.size < 2:
@@ -216,11 +231,12 @@ def load_scene(path: str | Path) -> Scene:
 def override(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
 
-    Keys: ``height, size, depth, boundary, elevation, azimuths, light, light_radius,
+    Keys: ``height, size, depth, boundary, shading, elevation, azimuths, light, light_radius,
     effects, spp, seed, supersampling``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
-    mat = dataclasses.replace(scene.material, **{k: c[k] for k in ("height", "size", "depth", "boundary") if k in c})
+    mat = dataclasses.replace(scene.material, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading")
+                                                 if k in c})
     light = scene.light
     if "elevation" in c:
         light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))

@@ -29,6 +29,20 @@ toward the viewer, all unit vectors in tangent space):
 
 A frame's image is ``D * S + ambient``, ``S`` the shadow term (the truth's
 visibility ``V`` or a technique's factor ``F``).
+
+Soft light
+    A disk of angular radius ``rho`` is sampled uniformly in solid angle
+    (:func:`hzval.scene.light_samples`), one direction per sample. Over the
+    cone the mean of ``cos`` of the angle to its axis is ``(1 + cos rho) /
+    2`` (``int cos dw = pi sin^2 rho`` over ``Omega = 2 pi (1 - cos rho)``),
+    so a surface facing the disk's centre receives ``E`` when each direction
+    carries :func:`disk_sample_irradiance` ``= 2 E / (1 + cos rho)``; a
+    technique, which sees the centre direction alone, uses ``E``.
+Exposure
+    :func:`exposure` maps the largest radiance the declared effects can
+    produce (:func:`max_radiance`: a white surface facing the light, specular
+    peak and unoccluded sky included) to display value 1, so that nothing a
+    display metric sees is clipped.
 """
 
 from __future__ import annotations
@@ -37,8 +51,8 @@ import math
 
 import numpy as np
 
-__all__ = ["SPECULAR_KS", "SPECULAR_EXPONENT", "SKY_RADIANCE_PER_IRRADIANCE", "exposure", "direct",
-           "sky", "compose", "ipow"]
+__all__ = ["SPECULAR_KS", "SPECULAR_EXPONENT", "SKY_RADIANCE_PER_IRRADIANCE", "exposure", "max_radiance",
+           "disk_sample_irradiance", "direct", "sky", "compose", "ipow"]
 
 #: Blinn-Phong specular colour ``ks`` (grey; a dielectric's normal-incidence
 #: reflectance), FGED2 ch. 7's ``C_specular``.
@@ -51,16 +65,28 @@ SPECULAR_EXPONENT = 64
 SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
 
 
-def exposure(scene) -> float:
-    """Scale from radiance to display values: a white Lambertian surface facing the light shows 1.
+def max_radiance(scene) -> float:
+    """The largest radiance the scene's declared direct and sky terms can produce, per the formulas
+    above with a white albedo: ``E / pi`` (diffuse, facing the light) ``+ KS E`` (specular, at its
+    peak ``n.h = 1``), or ``E`` (grey, neither declared), ``+ E * SKY_RADIANCE_PER_IRRADIANCE``
+    (ambient, the whole sky seen). Interreflection can add more; it is not counted."""
+    E = float(scene.light.irradiance)
+    diffuse, specular = scene.declares("diffuse"), scene.declares("specular")
+    peak = E if not (diffuse or specular) else E / math.pi * diffuse + SPECULAR_KS * E * specular
+    if scene.declares("ambient"):
+        peak += E * SKY_RADIANCE_PER_IRRADIANCE
+    return peak
 
-    Its radiance is ``E / pi`` when diffuse or specular shading is declared;
-    otherwise images hold ``E`` times a visibility and ``E`` shows as 1.
-    """
-    e = scene.light.irradiance
-    if scene.declares("diffuse") or scene.declares("specular"):
-        return math.pi / e
-    return 1.0 / e
+
+def exposure(scene) -> float:
+    """Scale from radiance to display values: :func:`max_radiance` shows as 1."""
+    return 1.0 / max_radiance(scene)
+
+
+def disk_sample_irradiance(E: float, radius_deg: float) -> float:
+    """The irradiance each sampled direction of a soft light carries: ``2 E / (1 + cos rho)``
+    (module docstring, "Soft light"), so that a surface facing the disk's centre receives ``E``."""
+    return 2.0 * float(E) / (1.0 + math.cos(math.radians(radius_deg)))
 
 
 def ipow(x, n: int):

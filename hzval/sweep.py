@@ -184,17 +184,20 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
 def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict) -> dict:
     """Render, compare and write one light of the sweep; its ``metrics.json`` frame."""
     t_frame = setup.truth.render(az)
-    plain, _ = setup.unshadowed.render(az)
+    plain, direct = setup.unshadowed.render(az)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az)) for t in setup.techniques]
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)
     compared = [(t, f, *compare.compare(t_frame, f, scale, reference=ref)) for t, f in rendered]
+    floor = _floor(ref, direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
     clock["compare_s"] += time.perf_counter() - t0
     rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, plain, compared, scale,
                                             truth_display=ref.display)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
+    if floor is not None:
+        frame["floor"] = floor
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
     primary = per.get(technique.PRIMARY)
     if primary is not None:             # the documented top-level keys are the primary technique's
@@ -204,6 +207,20 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
             rel[_PRIMARY_FILE_KEYS.get(key, key)] = value
     frame.update(files=rel, techniques=per)
     return frame
+
+
+def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | None, V: np.ndarray | None):
+    """The perfect-shadows floor of a frame: the techniques' unshadowed shading times the truth's own
+    visibility, ``direct * V + ambient``, scored against the truth (``compare.IMAGE_METRICS``).
+
+    No technique can score better than its shadows being exactly right, so
+    this is the part of every image score that is not the shadows' (the
+    shading's difference from the truth's, and the truth's noise); ``None``
+    without ``shadow``."""
+    if V is None:
+        return None
+    scores, _ = compare.image_metrics(ref, shading.compose(direct, V, ambient))
+    return {k: _finite(v) for k, v in scores.items()}
 
 
 #: The primary technique's files under the frame's own ``files`` (the documented keys).
@@ -232,6 +249,9 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "supersampling": scene.camera.supersampling,
                        "techniques": [t.name for t in setup.techniques]},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
+        "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
+                     "note": "display = clip(scale * radiance); the largest radiance the declared effects "
+                             "can produce shows as 1"},
         "timings": timings,
         "simulated": simulated,
         "techniques": techniques,

@@ -229,8 +229,10 @@ class Truth:
             self.margin = meshes.wrap_margin(h_tex, max(self.min_elevation_deg, meshes.MIN_ELEVATION_DEG))
         else:
             self.margin = 0
+        self.smooth = mat.shading == "smooth"
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                          margin=self.margin if mat.boundary == "wrap" else None)
+                                          margin=self.margin if mat.boundary == "wrap" else None,
+                                          normals=self.smooth)
         self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
         # a hop may run this far horizontally from any point of the tile and
@@ -240,7 +242,10 @@ class Truth:
             "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
             "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
             "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
-            "E": dr.opaque(mi.Float, float(light.irradiance)),
+            # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
+            "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
+                           if light.kind == "soft" else float(light.irradiance)),
+            "E_sky": dr.opaque(mi.Float, float(light.irradiance)),
         }
         backend.sync()
         self.timings["mesh_s"] = time.perf_counter() - t0
@@ -262,8 +267,8 @@ class Truth:
                 raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
         xs, ys, self.moved_off_edges = _off_edge_lines(xs, ys, rows, cols)
         self.count = xs.size
-        self._o, self._n, valid = self._surface_at(mi.Float(xs), mi.Float(ys))
-        dr.eval(self._o, self._n, valid)
+        self._o, self._n, self._ns, valid = self._surface_at(mi.Float(xs), mi.Float(ys))
+        dr.eval(self._o, self._n, self._ns, valid)
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         self._albedo = None
@@ -287,32 +292,51 @@ class Truth:
 
         t0 = time.perf_counter()
         rng = self._rng(_AMBIENT_STREAM)
-        d = mi.Frame3f(self._n).to_world(
+        # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
+        d = mi.Frame3f(self._ns).to_world(
             mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
-        blocked = self._occluded(self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)),
-                                 dynamic=True)
+        blocked = (dr.dot(self._n, d) <= 0.0) | self._occluded(
+            self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
         ambient = dr.select(blocked, 0.0, 1.0)
         dr.eval(ambient)
         backend.sync()
         self.timings["ambient_s"] = time.perf_counter() - t0
         return ambient
 
-    def _trace_reflection(self):
-        """``R`` per sample: a direction of the glossy lobe escapes (independent of the light, once)."""
+    def _trace_reflection(self) -> tuple[np.ndarray, np.ndarray]:
+        """``R`` per pixel and its variance: the share of the glossy lobe that escapes
+        (independent of the light, once).
+
+        Directions come from the lobe's half-vector distribution about the
+        shading normal (:func:`_lobe_direction`), so each carries the
+        estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
+        (Walter et al. 2007; ``f cos = ks (n.h)^alpha [n.wo > 0]``, ``pdf =
+        (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``): ``R = sum w V / sum w``
+        with ``w = wo.h`` where ``n.wo > 0`` (else 0), ``V`` = 1 where the
+        direction escapes. Variance: the ratio estimator's, ``sum w^2 (V -
+        R)^2 / (sum w)^2``.
+        """
         import drjit as dr
         import mitsuba as mi
 
         t0 = time.perf_counter()
         rng = self._rng(_REFLECTION_STREAM)
-        wo = _lobe_direction(self._n, mi.Vector3f(0.0, 0.0, 1.0),
-                             mi.Point2f(rng.next_float32(), rng.next_float32()))
+        wo, h = _lobe_direction(self._ns, mi.Vector3f(0.0, 0.0, 1.0),
+                                mi.Point2f(rng.next_float32(), rng.next_float32()))
+        w = dr.select(dr.dot(self._ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
         blocked = (dr.dot(self._n, wo) <= 0.0) | self._occluded(
             self._o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
-        reflection = dr.select(blocked, 0.0, 1.0)
-        dr.eval(reflection)
+        V = dr.select(blocked, 0.0, 1.0)
+        sums = [dr.block_sum(x, self.spp) for x in (w * V, w, w * w * V, w * w)]
+        dr.eval(sums)
         backend.sync()
+        wv, ws, w2v, w2 = (np.asarray(x, np.float64).reshape(self.shape) for x in sums)
+        R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
+        var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
+        if self.spp < 2:
+            var[:] = np.nan
         self.timings["reflection_s"] = time.perf_counter() - t0
-        return reflection
+        return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
 
     # ------------------------------------------------------------------
     # Ray queries
@@ -327,7 +351,11 @@ class Truth:
         return mi.PCG32(size=self.count, initstate=state, initseq=dr.arange(mi.UInt64, self.count))
 
     def _surface_at(self, x, y, active=True):
-        """Lifted ray origin and geometric normal of the surface above ``(x, y)``.
+        """Lifted ray origin, geometric normal and shading normal of the surface above ``(x, y)``.
+
+        The shading normal is Mitsuba's interpolated vertex normal
+        (``si.sh_frame.n``) for ``smooth`` shading, the triangle's own for
+        ``faceted`` (module docstring, "Shading").
 
         A ray straight down from above the highest point finds the surface;
         the origin keeps the exact ``(x, y)`` and takes the height of the hit
@@ -347,7 +375,9 @@ class Truth:
             py = dr.clip(y, _EDGE, c["rows"] - _EDGE)
         si = self.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
                                          active)
-        return mi.Point3f(x, y, si.p.z + c["lift"]), mi.Vector3f(si.n), si.is_valid()
+        n = mi.Vector3f(si.n)
+        return mi.Point3f(x, y, si.p.z + c["lift"]), n, mi.Vector3f(si.sh_frame.n) if self.smooth else n, \
+            si.is_valid()
 
     def _hops_for(self, elevation: float) -> int:
         """Hops that a ray rising at ``elevation`` (radians) needs to clear the surface.
@@ -533,15 +563,13 @@ class Truth:
         elif sc.declares("interreflection"):
             img = self._path_trace(L, vis, azimuth_deg)
         else:
-            img = self._direct(self._n, L, up, self._albedo)
+            img = self._direct(self._ns, L, up, self._albedo)
             if vis is not None:
                 img = img * vis
             if self._ambient is not None:
-                img = img + shading.sky(self._albedo, self._ambient, self._c["E"])
+                img = img + shading.sky(self._albedo, self._ambient, self._c["E_sky"])
         if self._ambient is not None:
             sums["ambient"] = self._ambient
-        if self._reflection is not None:
-            sums["reflection_occlusion"] = self._reflection
 
         spp = self.spp
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
@@ -561,6 +589,8 @@ class Truth:
             s = np.asarray(s, dtype=np.float64).reshape(H, W)
             # 0/1 samples: the squared deviations sum to s (1 - s / spp)
             layers[k], variance[k] = _mean_and_variance(s, s * (1.0 - s / spp), spp)
+        if self._reflection is not None:
+            layers["reflection_occlusion"], variance["reflection_occlusion"] = self._reflection
         if img is None:
             E = float(sc.light.irradiance)
             v = layers["visibility"] if vis is not None else np.ones((H, W), np.float32)
@@ -611,7 +641,7 @@ class Truth:
 
         sc = self.scene
         light = sc.light
-        E = self._c["E"]
+        E_sky = self._c["E_sky"]
         max_depth = int(sc.interreflection_depth)
         rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF))
         first = self._rng(_AMBIENT_STREAM)        # the ambient layer's directions at the first vertex
@@ -622,7 +652,7 @@ class Truth:
         rho = light.radius_deg if light.kind == "soft" else 0.0
         lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
 
-        o, n, albedo = self._o, self._n, self._albedo
+        o, n, ns, albedo = self._o, self._n, self._ns, self._albedo
         v = mi.Vector3f(0.0, 0.0, 1.0)            # toward the previous vertex (the camera)
         beta = mi.Color3f(1.0)                    # path throughput
         result = mi.Color3f(0.0)
@@ -638,7 +668,7 @@ class Truth:
                         mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
                 else:
                     L = centre_v
-            contrib = self._direct(n, L, v, albedo)
+            contrib = self._direct(ns, L, v, albedo)
             if sc.declares("shadow"):
                 contrib = contrib * (vis1 if depth == 1 else self._visible(o, n, L, lowest, highest))
             result += dr.select(active, beta * contrib, 0.0)
@@ -649,25 +679,27 @@ class Truth:
             u = mi.Point2f(rng.next_float32(), rng.next_float32())
             if depth == 1:
                 u = mi.Point2f(first.next_float32(), first.next_float32())
-            wo, weight = _sample_bsdf(sc, n, v, albedo, p_spec, u_lobe, u)
+            wo, weight = _sample_bsdf(sc, ns, v, albedo, p_spec, u_lobe, u)
+            weight = dr.select(dr.dot(n, wo) > 0.0, weight, 0.0)     # not into the triangle hit
             active &= dr.any(weight > 0.0)
             beta *= weight
             x, y, hit, escaped = self._next_surface(o, wo, active, cap)
             if sc.declares("ambient"):
-                result += dr.select(escaped, beta * (E * SKY_RADIANCE_PER_IRRADIANCE), 0.0)
+                result += dr.select(escaped, beta * (E_sky * SKY_RADIANCE_PER_IRRADIANCE), 0.0)
             if depth + 1 >= max_depth:
                 break
             active &= hit
-            o_next, n_next, valid = self._surface_at(x, y, active)
+            o_next, n_next, ns_next, valid = self._surface_at(x, y, active)
             active &= valid
             o = dr.select(active, o_next, o)
             n = dr.select(active, n_next, n)
+            ns = dr.select(active, ns_next, ns)
             v = -wo
             if albedo is not None:
                 col = dr.clip(mi.Int32(dr.floor(x)), 0, self.cols - 1)
                 row = dr.clip(mi.Int32(dr.floor(self._c["rows"] - y)), 0, self.rows - 1)
                 albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * self.cols + col), active)
-            dr.eval(o, n, v, beta, result, active, albedo)
+            dr.eval(o, n, ns, v, beta, result, active, albedo)
         return result
 
 
@@ -727,7 +759,7 @@ def _sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
 
     wo_d = mi.Frame3f(n).to_world(mi.warp.square_to_cosine_hemisphere(u))
     if p_spec > 0.0:
-        wo_s = _lobe_direction(n, v, u)
+        wo_s, _ = _lobe_direction(n, v, u)
         wo = dr.select(u_lobe < p_spec, wo_s, wo_d) if p_spec < 1.0 else wo_s
     else:
         wo = wo_d
@@ -755,7 +787,7 @@ def _lobe_direction(n, v, u):
     The half vector ``h`` has ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``
     (``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`) and the direction is
     ``v`` reflected about it (Walter et al. 2007); with ``h = n`` it is the
-    mirror direction. It may point below the surface.
+    mirror direction. It may point below the surface. Returns ``(wo, h)``.
     """
     import drjit as dr
     import mitsuba as mi
@@ -764,7 +796,7 @@ def _lobe_direction(n, v, u):
     sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
     phi = 2.0 * math.pi * u.y
     h = mi.Frame3f(n).to_world(mi.Vector3f(sin_h * dr.cos(phi), sin_h * dr.sin(phi), cos_h))
-    return 2.0 * dr.dot(v, h) * h - v
+    return 2.0 * dr.dot(v, h) * h - v, h
 
 
 def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:

@@ -24,10 +24,12 @@ SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
 def make_scene(shape, depth, boundary="open", *, effects=("shadow",), elevation=30.0, kind="hard",
-               radius=0.0, spp=16, seed=0, irradiance=1.0, albedo=0.5, supersampling=1, depth_ir=2):
+               radius=0.0, spp=16, seed=0, irradiance=1.0, albedo=0.5, supersampling=1, depth_ir=2,
+               shading="smooth"):
     return S.Scene(
         name="test",
-        material=S.MaterialSpec(height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo),
+        material=S.MaterialSpec(height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo,
+                                shading=shading),
         camera=S.Camera(supersampling=supersampling),
         light=S.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
         effects=tuple(effects), interreflection_depth=depth_ir, spp=spp, seed=seed).validate()
@@ -351,21 +353,25 @@ def test_blinn_phong_specular_on_a_flat_plane(variant):
 
 
 
-def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bumps):
+@pytest.mark.parametrize("shading", S.SHADINGS)
+def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bumps, shading):
     """The truth shades with its own Lambert (module docstring); it must equal
-    Mitsuba's ``diffuse`` plugin evaluated at the same surface interactions."""
+    Mitsuba's ``diffuse`` plugin evaluated at the same surface interactions: with
+    Mitsuba's own shading frame from the mesh's vertex normals (smooth), or with
+    the facet's normal (faceted)."""
     import drjit as dr
     import mitsuba as mi
 
     h, depth = bumps
     E, a, az, e = 1.7, 0.45, 30.0, 35.0
-    t = truth(h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4)
+    t = truth(h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4, shading=shading)
     image = t.render(az).image
     xs, ys = S.sample_positions(*h.shape, t.scene.camera, t.spp, t.scene.seed)
     si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0),
                                            mi.Vector3f(0.0, 0.0, -1.0)))
     assert bool(dr.all(si.is_valid()))
-    si.sh_frame = mi.Frame3f(si.n)            # the facet's own normal, as the truth uses
+    if shading == "faceted":
+        si.sh_frame = mi.Frame3f(si.n)        # the facet's own normal, as the truth uses
     si.wi = si.to_local(mi.Vector3f(0.0, 0.0, 1.0))
     bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [a, a, a]}})
     L = mi.Vector3f(*(float(c) for c in t.scene.light.direction(az)))
@@ -463,7 +469,7 @@ def test_no_false_shadows_on_vertices_and_edges_with_the_light_at_the_zenith(noi
         assert t.moved_off_edges == xs.size
         assert np.all(t.render(0.0).layers["visibility"] == 1.0)
         # the lift alone, from the exact vertices and edge points
-        o, n, valid = t._surface_at(mi.Float(xs), mi.Float(ys))
+        o, n, _, valid = t._surface_at(mi.Float(xs), mi.Float(ys))
         up = mi.Vector3f(0.0, 0.0, 1.0)
         assert dr.all(valid) and dr.none(t._occluded(o, up, 1))
         # Mitsuba's own offset, from the same hits
@@ -567,7 +573,8 @@ def test_reflection_of_a_flat_plane_escapes_and_leaves_the_image_alone(variant):
 ])
 def test_reflection_in_v_grooves_escapes_shallow_facets_and_not_steep_ones(variant, slope, lo, hi):
     h, depth = sawtooth(4, 32, 16, slope)
-    R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=16).render(0.0).layers["reflection_occlusion"]
+    R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=16,
+              shading="faceted").render(0.0).layers["reflection_occlusion"]
     # the ridge and valley columns sit on a crease: leave them out, and the lobe's upper
     # edge clears the facing ridge from the top quarter of a steep facet: leave that out too
     facets = np.r_[3:8, 9:14, 19:24, 25:30]
@@ -575,9 +582,11 @@ def test_reflection_in_v_grooves_escapes_shallow_facets_and_not_steep_ones(varia
 
 
 def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
-    """Per column, the escaping fraction of the Blinn-Phong lobe on the V-grooves of
-    :func:`sawtooth`, by an independent 2-D calculation: the grooves run along y, so a
-    direction is blocked iff its run across x rises slower than the profile ahead of it."""
+    """Per column, the escaping share of the Blinn-Phong lobe on the V-grooves of
+    :func:`sawtooth` (faceted), by an independent 2-D calculation: the grooves run along y,
+    so a direction is blocked iff its run across x rises slower than the profile ahead of
+    it. Half vectors drawn from ``pdf(h)`` weigh ``f cos / pdf``, proportional to ``wo.h``
+    (``= h_z`` seen from ``v = +z``), where the lobe is above the facet."""
     from hzval.shading import SPECULAR_EXPONENT
 
     rng = np.random.default_rng(seed)
@@ -607,7 +616,8 @@ def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
         s = np.linspace(0.0, period, 400)[None, :]
         z = z0[:, None] + s * (wz / run)[:, None]
         blocked = np.any(profile(x0[:, None] + np.sign(wx)[:, None] * s) > z + 1e-6, axis=1)
-        out[c] = np.mean(ok & ~blocked)
+        w = np.where(nx * wx + nz * wz > 0, hz, 0.0)
+        out[c] = np.sum(w * (ok & ~blocked)) / np.sum(w)
     return out
 
 
@@ -616,7 +626,7 @@ def test_reflection_in_v_grooves_matches_an_independent_2d_calculation(variant):
     low on a facet it is blocked, high on it it clears the facing ridge."""
     P, slope = 16, 35.0
     h, depth = sawtooth(4, P, P, slope)
-    R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=256).render(0.0)
+    R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=256, shading="faceted").render(0.0)
     r = R.layers["reflection_occlusion"].mean(axis=0)
     ref = _grooves_reflection_reference(P, P, slope)
     assert ref.max() - ref.min() > 0.5                              # the case does discriminate
@@ -655,8 +665,9 @@ def test_white_furnace_a_white_surface_under_a_uniform_sky_is_as_bright_as_the_s
     """
     h, depth = bumps
     E = 1.0
+    # faceted: interpolated shading normals do not conserve energy (directions below the facet are lost)
     kw = dict(effects=("shadow", "diffuse", "ambient", "interreflection"), elevation=-90.0, albedo=1.0,
-              irradiance=E, spp=4)
+              irradiance=E, spp=4, shading="faceted")
     sky = E / math.pi
     deep = truth(h, depth, "wrap", depth_ir=8, **kw).render(0.0)
     assert deep.image.mean() == pytest.approx(sky, rel=1e-3)
