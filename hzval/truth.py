@@ -7,10 +7,27 @@ in it: no sensor, no emitter and no Mitsuba BSDF. What the technique
 approximates is the *geometry* - who sees the light, who sees the sky - and
 that is what Mitsuba answers here, with ``Scene.ray_intersect`` and
 ``Scene.ray_test`` on the true surface. The shading formulas are the ones
-the approximation evaluates (a Mitsuba BSDF would only be a second place to
-define them, and one more way for the two sides to drift apart), applied
-per sample with the normal of the triangle that was hit. For every light
-of the sweep :meth:`Truth.render` returns a :class:`hzval.scene.Frame`.
+the techniques evaluate (:mod:`hzval.shading`; a Mitsuba BSDF would only be
+a second place to define them, and one more way for the two sides to drift
+apart), applied per sample at the point that was hit. For every light of
+the sweep :meth:`Truth.render` returns a :class:`hzval.scene.Frame`.
+
+Shading (``[material] shading``)
+    ``smooth`` (the default): the shading normal ``n_s`` is interpolated from
+    vertex normals, as a displaced mesh is shaded, and the vertex normals
+    are the normal map's own (:func:`hzval.bake.normal_map`: the same
+    central differences, one-sided at an ``open`` border). It is their
+    bilinear interpolation at the sample's ``(x, y)``, the interpolation the
+    techniques' texture filtering applies, so that where the light is seen
+    the truth's shading *is* the techniques' and every remaining difference
+    is the shadows (``tests/test_fidelity.py``). Mitsuba's own renderer
+    interpolates vertex normals over each triangle instead
+    (:mod:`hzval.export` writes them to the PLY); the two differ by a few
+    thousandths of white on rough maps. ``faceted``: each triangle's own
+    normal, as before (on a photographed map it put 67% of the image error
+    into the shading). The geometric normal ``n`` still decides what faces
+    away from the light, where rays start and which directions enter the
+    surface.
 
 Sampling
     Camera rays run straight down (-z) through the positions of
@@ -39,17 +56,20 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     triangle hit faces away from the light (``n.L <= 0``), whose own surface
     blocks the ray. Shadow rays only.
 ``diffuse``
-    ``albedo / pi * E * max(0, n.L)`` with the geometric normal ``n`` of the
-    mesh triangle hit and the linear albedo of the texel that holds the
-    sample (nearest: the approximation reads the same texel). It equals
-    Mitsuba's own ``diffuse`` plugin evaluated at the same surface
-    interactions to 1e-4 (``tests/test_truth.py``).
+    ``albedo / pi * E * max(0, n_s.L)`` with the shading normal ``n_s`` and
+    the linear albedo of the texel that holds the sample (nearest: the
+    approximation reads the same texel). It equals Mitsuba's own ``diffuse``
+    plugin evaluated at the same surface interactions and shading frame to
+    1e-4 (``tests/test_truth.py``). A ``soft`` light's sampled directions
+    each carry ``2 E / (1 + cos rho)`` (:func:`hzval.shading.disk_sample_irradiance`),
+    so that a surface facing the disk receives ``E``.
 ``specular``
-    Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n.h)^alpha * [n.L > 0]``
+    Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n_s.h)^alpha * [n_s.L > 0]``
     with ``h = normalize(L + v)`` and ``v = +z`` (the camera looks straight
     down), ``ks`` = :data:`hzval.shading.SPECULAR_KS`, ``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`.
 ``ambient``
-    ``A`` = 1 if a cosine-weighted direction about ``n`` escapes, else 0
+    ``A`` = 1 if a cosine-weighted direction about ``n_s`` escapes (one into the
+    triangle hit, ``n.d <= 0``, does not), else 0
     (``layers["ambient"]``, the exact cosine-weighted unoccluded fraction);
     the sky is uniform over the upper hemisphere with radiance
     ``sky = E *`` :data:`hzval.shading.SKY_RADIANCE_PER_IRRADIANCE` and a Lambertian surface
@@ -59,15 +79,14 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     A path tracer to Mitsuba's ``max_depth`` convention
     (:meth:`Truth._path_trace`); only then are paths traced.
 ``reflection_occlusion``
-    ``R`` = 1 if a direction drawn from the glossy lobe about the mirror
-    direction escapes the surface, else 0 (``layers["reflection_occlusion"]``):
-    the fraction of a glossy reflection of a uniform environment that the
-    displaced surface does not block. The lobe is the ``specular`` one,
-    FGED2's Blinn-Phong of exponent :data:`hzval.shading.SPECULAR_EXPONENT`
-    about the geometric normal, seen from ``v = +z``, sampled by its
-    half-vector distribution (Walter et al. 2007); a direction below the
-    triangle hit (``n.wo <= 0``) or below the horizontal reflects nothing
-    and counts as blocked. It is what the approximation's Toolbag fade ``o``
+    ``R``, the share of a glossy reflection of a uniform environment that
+    the displaced surface does not block (``layers["reflection_occlusion"]``).
+    The lobe is the ``specular`` one, FGED2's Blinn-Phong of exponent
+    :data:`hzval.shading.SPECULAR_EXPONENT` about ``n_s``, seen from ``v =
+    +z``, sampled by its half-vector distribution (Walter et al. 2007), each
+    direction weighted as that sampling requires (:meth:`Truth._trace_reflection`);
+    a direction below the triangle hit (``n.wo <= 0``) or below the
+    horizontal reflects nothing and counts as blocked. It is what the approximation's Toolbag fade ``o``
     estimates. Like ``A`` it does not depend on the light (traced once) and,
     as in the approximation, the scene has no environment map, so it is a
     layer of its own and leaves the image unchanged.
@@ -143,6 +162,7 @@ from hzval import conventions as cv
 from hzval import mesh as meshes
 from hzval.errors import InputError
 from hzval import shading
+from hzval.bake import normal_map
 from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo, sample_positions
 from hzval.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
 
@@ -229,10 +249,15 @@ class Truth:
             self.margin = meshes.wrap_margin(h_tex, max(self.min_elevation_deg, meshes.MIN_ELEVATION_DEG))
         else:
             self.margin = 0
-        self.smooth = mat.shading == "smooth"
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                          margin=self.margin if mat.boundary == "wrap" else None,
-                                          normals=self.smooth)
+                                          margin=self.margin if mat.boundary == "wrap" else None)
+        self._normals = None
+        if mat.shading == "smooth":
+            # the vertex normals, bilinearly between texel centres (module docstring, "Shading")
+            wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
+            self._normals = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
+                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
+                                         wrap_mode=wrap)
         self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
         # a hop may run this far horizontally from any point of the tile and
@@ -353,9 +378,9 @@ class Truth:
     def _surface_at(self, x, y, active=True):
         """Lifted ray origin, geometric normal and shading normal of the surface above ``(x, y)``.
 
-        The shading normal is Mitsuba's interpolated vertex normal
-        (``si.sh_frame.n``) for ``smooth`` shading, the triangle's own for
-        ``faceted`` (module docstring, "Shading").
+        The shading normal is the vertex normals' bilinear interpolation at
+        ``(x, y)`` for ``smooth`` shading, the triangle's own for ``faceted``
+        (module docstring, "Shading").
 
         A ray straight down from above the highest point finds the surface;
         the origin keeps the exact ``(x, y)`` and takes the height of the hit
@@ -376,8 +401,10 @@ class Truth:
         si = self.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
                                          active)
         n = mi.Vector3f(si.n)
-        return mi.Point3f(x, y, si.p.z + c["lift"]), n, mi.Vector3f(si.sh_frame.n) if self.smooth else n, \
-            si.is_valid()
+        ns = n
+        if self._normals is not None:
+            ns = dr.normalize(mi.Vector3f(*self._normals.eval(mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"]))))
+        return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
 
     def _hops_for(self, elevation: float) -> int:
         """Hops that a ray rising at ``elevation`` (radians) needs to clear the surface.

@@ -317,7 +317,7 @@ def test_lambertian_flat_plane_gives_albedo_over_pi_E_cos_theta(variant, effects
     expected = np.repeat(np.repeat(albedo, ss, 0), ss, 1) / np.pi * E * math.cos(math.radians(90.0 - e))
     assert f.image.shape == (rows * ss, cols * ss, 3)
     np.testing.assert_allclose(f.image, expected, rtol=2e-6)
-    assert np.all(f.variance["image"] == 0.0)
+    assert np.all(f.variance["image"] <= 1e-12)        # only float rounding of the filtered normal
 
 
 def ramp(rows, cols, slope_deg):
@@ -370,8 +370,8 @@ def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bum
     si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0),
                                            mi.Vector3f(0.0, 0.0, -1.0)))
     assert bool(dr.all(si.is_valid()))
-    if shading == "faceted":
-        si.sh_frame = mi.Frame3f(si.n)        # the facet's own normal, as the truth uses
+    # the truth's shading frame: the facet's own normal, or the vertex normals' bilinear interpolation
+    si.sh_frame = mi.Frame3f(si.n if shading == "faceted" else t._surface_at(mi.Float(xs), mi.Float(ys))[2])
     si.wi = si.to_local(mi.Vector3f(0.0, 0.0, 1.0))
     bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [a, a, a]}})
     L = mi.Vector3f(*(float(c) for c in t.scene.light.direction(az)))
