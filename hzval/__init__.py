@@ -9,14 +9,19 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``bake``         height map -> normal, horizon and ambient maps, weight cube map
 ``mesh``         height map -> displaced triangle mesh for Mitsuba
 ``scene``        the scene description (TOML): material, camera, light, effects
+``shading``      how a point turns light into radiance, for the truth and every technique
 ``truth``        the ground truth: Mitsuba traces the displaced mesh
-``approx``       horizon-map shading of the flat surface in Dr.Jit
-``terrain``      Raudins' per-light terrain shadows, a third technique
+``technique``    the Technique interface and the registry of techniques:
+``approx``         horizon-map shading of the flat surface in Dr.Jit (``horizon``)
+``terrain``        Raudins' per-light terrain shadows (``terrain``)
+``pom``            ray-marched height-field shadows, parallax occlusion mapping's (``pom``)
 ``compare``      metrics of a frame against the truth
+``images``       the visibility-difference and FLIP maps and their colours
 ``sweep``        truth and techniques over a light sweep, compared
 ``report``       the sweep's HTML report and plots
 ``check``        image-diff regression against ``reference/``
 ``tradeoff``     what accuracy costs: settings measured against a converged truth
+``export``       the truth as a Mitsuba 3 scene file
 ``files``        atomic EXR, PNG and JSON writing
 ``backend``      choosing the Mitsuba/Dr.Jit variant, checking LLVM
 ``errors``       the errors the CLI turns into one-line messages and exit codes

@@ -120,7 +120,7 @@ import numpy as np
 
 from hzval import backend, shading
 from hzval import conventions as cv
-from hzval.bake import CUBE_SIZE, weight_cube
+from hzval.bake import CUBE_SIZE, normals_only, weight_cube
 from hzval.errors import InputError
 from hzval.files import unit_to_u8
 from hzval.scene import Frame, Scene, image_shape, load_albedo, sample_positions
@@ -762,3 +762,26 @@ class Unshadowed:
 def unshadowed(ctx: Context) -> Unshadowed:
     """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
     return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo))
+
+
+class HeightFieldShadow(Technique):
+    """Base of the techniques that read the height map and multiply the :class:`Unshadowed`
+    shading by a per-pixel factor (terrain, pom): they are built as ``cls(scene, height,
+    bake=..., albedo=..., unshadowed=..., **settings)``."""
+
+    @classmethod
+    def build(cls, ctx: Context, **settings) -> "HeightFieldShadow":
+        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=unshadowed(ctx), **settings)
+
+    @staticmethod
+    def shading_for(scene: Scene, height: np.ndarray, bake, albedo, shared: Unshadowed | None) -> Unshadowed:
+        """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
+        without one from the normal map alone (:func:`hzval.bake.normals_only`), which serves
+        ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map."""
+        if shared is not None:
+            return shared
+        if bake is None:
+            if scene.declares("ambient"):
+                raise InputError("bake", "ambient needs the bake's textures")
+            bake = normals_only(height, scene.material.depth, scene.material.boundary)
+        return Unshadowed(scene, bake, albedo)

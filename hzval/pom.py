@@ -57,10 +57,9 @@ import numpy as np
 
 from hzval import approx, backend
 from hzval import conventions as cv
-from hzval.bake import normals_only
 from hzval.errors import InputError
 from hzval.scene import Frame, Scene, image_shape, sample_positions
-from hzval.technique import Context, Technique, Variant
+from hzval.technique import Variant
 
 __all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS"]
 
@@ -83,7 +82,7 @@ EPSILON_PER_HEIGHT = 2.0 ** -18
 TRADEOFF_STEPS: tuple[int, ...] = (4, 8, 16, 32, 64)
 
 
-class RayMarchShadow(Technique):
+class RayMarchShadow(approx.HeightFieldShadow):
     """Per-pixel height-field ray marching toward the light, frame by frame: the ``pom`` technique.
 
     Parameters: ``scene`` and ``height`` (normalised ``(rows, cols)``) as
@@ -118,13 +117,7 @@ class RayMarchShadow(Technique):
         self.simulated = self.simulates(scene)
         h = cv.heights_in_texels(height, scene.material.depth)
         self.h_max = float(h.max())
-        if unshadowed is None:
-            if bake is None:
-                if scene.declares("ambient"):
-                    raise InputError("bake", "ambient needs the bake's textures")
-                bake = normals_only(height, scene.material.depth, scene.material.boundary)
-            unshadowed = approx.Unshadowed(scene, bake, albedo)
-        self._unshadowed = unshadowed
+        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed)
         self._upload(h)
 
     def _upload(self, h: np.ndarray) -> None:
@@ -148,11 +141,6 @@ class RayMarchShadow(Technique):
         dr.eval(self._uv)
 
     # -- the Technique interface (hzval.technique) --------------------------
-
-    @classmethod
-    def build(cls, ctx: Context, **settings) -> "RayMarchShadow":
-        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=approx.unshadowed(ctx),
-                   **settings)
 
     @classmethod
     def add_arguments(cls, parser) -> None:

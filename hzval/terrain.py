@@ -103,10 +103,9 @@ import numpy as np
 
 from hzval import approx, backend
 from hzval import conventions as cv
-from hzval.bake import normals_only
 from hzval.errors import InputError
 from hzval.scene import Frame, Scene, image_shape, sample_positions
-from hzval.technique import Context, Technique, Variant
+from hzval.technique import Variant
 
 __all__ = ["TerrainShadow", "SweepPlan", "plan_sweep", "boundaries_numpy", "factor_numpy",
            "DEFAULT_RAMP", "FLOOR_ELEVATION_DEG", "MAX_ELEVATION_DEG", "MAX_PRIME_TILES", "IMPLS"]
@@ -316,7 +315,7 @@ def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray
 # The technique
 # --------------------------------------------------------------------------
 
-class TerrainShadow(Technique):
+class TerrainShadow(approx.HeightFieldShadow):
     """Raudins' per-light terrain shadows of one material, frame by frame: the ``terrain`` technique.
 
     Parameters
@@ -371,13 +370,7 @@ class TerrainShadow(Technique):
         self.relief = float(self.h.max() - self.h.min())
         self.simulated = self.simulates(scene)
         self._shadow = "shadow" in self.simulated
-        if unshadowed is None:
-            if bake is None:
-                if scene.declares("ambient"):
-                    raise InputError("bake", "ambient needs the bake's textures")
-                bake = normals_only(height, scene.material.depth, boundary)
-            unshadowed = approx.Unshadowed(scene, bake, albedo)
-        self._unshadowed = unshadowed
+        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed)
         self._upload_samples()
 
     def _upload_samples(self) -> None:
@@ -395,11 +388,6 @@ class TerrainShadow(Technique):
             dr.eval(self._h_dr, self._xy)
 
     # -- the Technique interface (hzval.technique) --------------------------
-
-    @classmethod
-    def build(cls, ctx: Context, **settings) -> "TerrainShadow":
-        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=approx.unshadowed(ctx),
-                   **settings)
 
     @classmethod
     def add_arguments(cls, parser) -> None:
