@@ -383,28 +383,56 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
     if kernel == "loop":
         max_tan = _max_tan_loop(mi.Float(flat), start, lanes, table, angles, shift_of)
     else:
-        if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
-            def neighbour(shift: int):
-                # zero-copy view: the kernel reads it with contiguous loads
-                return mi.Float(flat[start + shift:start + shift + lanes])
-        else:
-            source = mi.Float(flat)
-            lane = dr.arange(mi.Int32, lanes) + start
+        max_tan = _max_tan_unrolled(flat, start, lanes, table, angles, shift_of)
+    channels, mean_cos, mean_cos2 = _channels(max_tan, angles, directions)
+    dr.eval(*channels, mean_cos, mean_cos2)
 
-            def neighbour(shift: int):
-                return dr.gather(mi.Float, source, mi.UInt32(lane + shift))
+    def image(v) -> np.ndarray:
+        return np.asarray(v, dtype=np.float32).reshape(rows, pcols)[:, pad:pad + cols]
 
-        h0 = neighbour(0)
-        max_tan = [mi.Float(0.0) for _ in range(angles)]
-        for group in table:
-            # max over the group of tan = dh / r; clamped at 0 by the bins' start
-            # value, which is the seed's "dh > 0" test
-            g = None
-            for (i, j), inv_r in zip(group.offsets, group.inv_r):
-                t = (neighbour(shift_of(i, j)) - h0) * inv_r
-                g = t if g is None else dr.maximum(g, t)
-            for b in group.bins:
-                max_tan[b] = dr.maximum(max_tan[b], g)
+    horizon = np.stack([image(c) for c in channels], axis=-1)
+    result = horizon, image(mean_cos).copy(), image(mean_cos2).copy()
+    del flat  # the views above must not outlive it; they are evaluated by now
+    return result
+
+
+def _max_tan_unrolled(flat: np.ndarray, start: int, lanes: int, table, angles: int, shift_of) -> list:
+    """Per bin, the largest ``tan = dh / r`` of the offsets it covers: one block of code per
+    offset group, neighbours read as zero-copy shifted views on the LLVM backend (contiguous
+    loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
+        def neighbour(shift: int):
+            # zero-copy view: the kernel reads it with contiguous loads
+            return mi.Float(flat[start + shift:start + shift + lanes])
+    else:
+        source = mi.Float(flat)
+        lane = dr.arange(mi.Int32, lanes) + start
+
+        def neighbour(shift: int):
+            return dr.gather(mi.Float, source, mi.UInt32(lane + shift))
+
+    h0 = neighbour(0)
+    max_tan = [mi.Float(0.0) for _ in range(angles)]
+    for group in table:
+        # max over the group of tan = dh / r; clamped at 0 by the bins' start
+        # value, which is the seed's "dh > 0" test
+        g = None
+        for (i, j), inv_r in zip(group.offsets, group.inv_r):
+            t = (neighbour(shift_of(i, j)) - h0) * inv_r
+            g = t if g is None else dr.maximum(g, t)
+        for b in group.bins:
+            max_tan[b] = dr.maximum(max_tan[b], g)
+    return max_tan
+
+
+def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object, object]:
+    """``(channels, mean_cos, mean_cos2)`` from the bins' largest tangents: ``sin = sqrt(t^2 /
+    (t^2 + 1))``, each channel the mean of the ``angles / D + 1`` bins centred on it, and the
+    ambient terms' means over all bins."""
+    import drjit as dr
 
     cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]     # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))
@@ -418,16 +446,7 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
         channels.append(s * (1.0 / (2 * half + 1)))
     mean_cos = sum(dr.sqrt(c) for c in cos2) * (1.0 / angles)
     mean_cos2 = sum(cos2) * (1.0 / angles)
-    outputs = channels + [mean_cos, mean_cos2]
-    dr.eval(*outputs)
-
-    def image(v) -> np.ndarray:
-        return np.asarray(v, dtype=np.float32).reshape(rows, pcols)[:, pad:pad + cols]
-
-    horizon = np.stack([image(c) for c in channels], axis=-1)
-    result = horizon, image(mean_cos).copy(), image(mean_cos2).copy()
-    del flat  # the views above must not outlive it; they are evaluated by now
-    return result
+    return channels, mean_cos, mean_cos2
 
 
 def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angles: int, shift_of) -> list:

@@ -17,6 +17,8 @@ without a seam.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "MIN_SIZE", "bricks"]
@@ -133,18 +135,36 @@ def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
     if int(bricks_across) < 1:
         raise ValueError(f"bricks: bricks_across must be at least 1, got {bricks_across}")
     rng = np.random.default_rng(seed)
-    f32 = np.float32
+    bond = _bond(rows, cols, int(bricks_across))
+    per_brick = _brick_properties(rng, bond.courses * bond.n)        # drawn first, then the noise
+    fields = _noise_fields(rng, (rows, cols), bond.brick_h)
+    return _relief(bond, per_brick, fields)
 
-    # Bond: n bricks per course, an even number of courses, bricks ~2:1.
-    n = max(1, min(int(bricks_across), cols // _MIN_BRICK_PX))
+
+@dataclass(frozen=True)
+class _Bond:
+    """The running bond: ``n`` bricks per course, ``courses`` courses, brick size in texels, and per
+    texel its position in its brick (``fu``, ``fv`` in [0, 1)) and the brick's index."""
+
+    n: int
+    courses: int
+    brick_w: float
+    brick_h: float
+    fu: np.ndarray
+    fv: np.ndarray
+    brick_id: np.ndarray
+
+
+def _bond(rows: int, cols: int, bricks_across: int) -> _Bond:
+    """n bricks per course, an even number of courses, bricks ~2:1; brick-space coordinates of texel
+    centres, shifted by a quarter brick and half a course so the image edges cut through bricks
+    (the seam is then a real test of tiling, not hidden in a joint)."""
+    f32 = np.float32
+    n = max(1, min(bricks_across, cols // _MIN_BRICK_PX))
     n = max(n, -(-cols // rows))          # two courses of half-width bricks fit
     brick_w = cols / n
     courses = max(2, 2 * int(round(rows / (brick_w / 2.0) / 2.0)))
     brick_h = rows / courses
-
-    # Brick-space coordinates of texel centres; the pattern is shifted by a
-    # quarter brick and half a course so the image edges cut through bricks
-    # (the seam is then a real test of tiling, not hidden in a joint).
     v = (np.arange(rows) + 0.5) / rows * courses + 0.5          # courses, downwards
     u = (np.arange(cols) + 0.5) / cols * n + 0.25               # bricks, rightwards
     course = np.floor(v).astype(np.int64)
@@ -154,59 +174,68 @@ def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
     fu = (shifted - column).astype(f32)                         # [0, 1) in the brick
     brick_id = ((course % courses)[:, None] * n
                 + column.astype(np.int64) % n).astype(np.intp)  # (rows, cols)
+    return _Bond(n, courses, brick_w, brick_h, fu, fv, brick_id)
 
-    # Per-brick random properties (drawn in a fixed order).
-    count = courses * n
-    top = (_TOP_LEVEL + _TOP_SPREAD * rng.uniform(-1.0, 1.0, count)).astype(f32)
-    tilt_u = (_TILT * rng.uniform(-1.0, 1.0, count)).astype(f32)
-    tilt_v = (0.5 * _TILT * rng.uniform(-1.0, 1.0, count)).astype(f32)
-    bevel_scale = rng.uniform(0.8, 1.25, count).astype(f32)
-    rough_scale = rng.uniform(0.6, 1.4, count).astype(f32)
 
-    # Noise fields, all exactly periodic. Scales are in texels, tied to the
-    # brick height so the look does not depend on the resolution.
-    shape = (rows, cols)
+def _brick_properties(rng, count: int) -> dict[str, np.ndarray]:
+    """Per-brick random properties, drawn in a fixed order."""
+    f32 = np.float32
+    return {"top": (_TOP_LEVEL + _TOP_SPREAD * rng.uniform(-1.0, 1.0, count)).astype(f32),
+            "tilt_u": (_TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
+            "tilt_v": (0.5 * _TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
+            "bevel_scale": rng.uniform(0.8, 1.25, count).astype(f32),
+            "rough_scale": rng.uniform(0.6, 1.4, count).astype(f32)}
+
+
+def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.ndarray]:
+    """Noise fields, all exactly periodic, drawn in a fixed order. Scales are in texels, tied to the
+    brick height so the look does not depend on the resolution."""
     s = brick_h / 64.0
-    chip_field = _periodic_noise(rng, shape, (5.0 * s,), (1.0,))
-    face_field = _periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2))
-    pit_field = _periodic_noise(rng, shape, (2.5 * s,), (1.0,))
-    grain_field = _periodic_noise(rng, shape, (0.6,), (1.0,))
-    edge_field = _periodic_noise(rng, shape, (10.0 * s,), (1.0,))
+    return {"chip": _periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
+            "face": _periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2)),
+            "pit": _periodic_noise(rng, shape, (2.5 * s,), (1.0,)),
+            "grain": _periodic_noise(rng, shape, (0.6,), (1.0,)),
+            "edge": _periodic_noise(rng, shape, (10.0 * s,), (1.0,))}
 
-    # Inset distance (texels) to the brick boundary, with slightly rounded
-    # corners, less half the mortar joint.
-    mortar = max(_MORTAR_MIN_PX, _MORTAR_FRACTION * brick_h)
-    qx = (f32(0.5) - np.abs(fu - f32(0.5))) * f32(brick_w)
-    qy = (f32(0.5) - np.abs(fv - f32(0.5))) * f32(brick_h)
-    corner = f32(0.35 * _BEVEL_FRACTION * brick_h)
+
+def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
+    """Inset distance (texels) to the brick boundary, with slightly rounded corners, less half the
+    mortar joint; the edge wanders a little along its length."""
+    f32 = np.float32
+    mortar = max(_MORTAR_MIN_PX, _MORTAR_FRACTION * bond.brick_h)
+    qx = (f32(0.5) - np.abs(bond.fu - f32(0.5))) * f32(bond.brick_w)
+    qy = (f32(0.5) - np.abs(bond.fv - f32(0.5))) * f32(bond.brick_h)
+    corner = f32(0.35 * _BEVEL_FRACTION * bond.brick_h)
     inset = np.minimum(qx, qy)
     rounded = corner - np.hypot(np.maximum(corner - qx, 0), np.maximum(corner - qy, 0))
     inset = np.where((qx < corner) & (qy < corner), rounded, inset)
     inset -= f32(0.5 * mortar)
+    inset -= f32(0.015 * bond.brick_h) * (f32(0.5) + f32(0.5) * np.tanh(edge_field))
+    return inset
 
-    # The edge wanders a little along its length.
-    inset -= f32(0.015 * brick_h) * (f32(0.5) + f32(0.5) * np.tanh(edge_field))
 
+def _relief(bond: _Bond, b: dict[str, np.ndarray], fields: dict[str, np.ndarray]) -> np.ndarray:
+    """The height: mortar, the bevelled brick face, chips, grain (:func:`bricks`, Notes)."""
+    f32 = np.float32
+    ids, brick_h = bond.brick_id, bond.brick_h
+    inset = _inset(bond, fields["edge"])
     # Rounded profile: 0 in the joint, rising as a quarter sine over the bevel.
-    bevel = f32(_BEVEL_FRACTION * brick_h) * bevel_scale[brick_id]
+    bevel = f32(_BEVEL_FRACTION * brick_h) * b["bevel_scale"][ids]
     profile = np.sin(f32(0.5 * np.pi) * np.clip(inset / bevel, 0, 1))
-
     # Brick face: per-brick height and tilt, rough face, small pits.
-    face = top[brick_id]
-    face += tilt_u[brick_id] * (fu - f32(0.5)) * f32(2.0)
-    face += tilt_v[brick_id] * (fv - f32(0.5)) * f32(2.0)
-    face += f32(0.022) * rough_scale[brick_id] * face_field
-    face -= f32(0.04) * _smoothstep(1.5, 3.2, pit_field)
-    mortar_height = f32(_MORTAR_LEVEL) + f32(0.02) * pit_field
-
+    face = b["top"][ids]
+    face += b["tilt_u"][ids] * (bond.fu - f32(0.5)) * f32(2.0)
+    face += b["tilt_v"][ids] * (bond.fv - f32(0.5)) * f32(2.0)
+    face += f32(0.022) * b["rough_scale"][ids] * fields["face"]
+    face -= f32(0.04) * _smoothstep(1.5, 3.2, fields["pit"])
+    mortar_height = f32(_MORTAR_LEVEL) + f32(0.02) * fields["pit"]
     height = mortar_height + profile * (face - mortar_height)
-
     # Chips: a fracture surface that rises gently from the joint and sinks
     # where the chip field is high; the brick is cut down to it (min), never
     # below the mortar (max). Both are continuous, so chips add no steps.
     fracture = (mortar_height + f32(_CHIP_SLOPE / brick_h) * inset
-                + f32(_CHIP_DEPTH) * (f32(_CHIP_THRESHOLD) - chip_field)
-                + f32(0.03) * face_field)
+                + f32(_CHIP_DEPTH) * (f32(_CHIP_THRESHOLD) - fields["chip"])
+                + f32(0.03) * fields["face"])
     height = np.minimum(height, np.maximum(fracture, mortar_height))
-    height += f32(0.005) * grain_field
+    height += f32(0.005) * fields["grain"]
     return np.clip(height, 0.0, 1.0).astype(np.float32)

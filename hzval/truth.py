@@ -687,14 +687,7 @@ class Truth:
         p_spec = _specular_sampling_share(sc)
         for depth in range(1, max_depth):
             # next-event estimation toward the light
-            if depth == 1:
-                L = L1
-            else:
-                if light.kind == "soft":
-                    L = mi.Frame3f(centre_v).to_world(mi.warp.square_to_uniform_cone(
-                        mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
-                else:
-                    L = centre_v
+            L = L1 if depth == 1 else self._light_sample(rng, centre_v, cos_max)
             contrib = self._direct(ns, L, v, albedo)
             if sc.declares("shadow"):
                 contrib = contrib * (vis1 if depth == 1 else self._visible(o, n, L, lowest, highest))
@@ -728,6 +721,16 @@ class Truth:
                 albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * self.cols + col), active)
             dr.eval(o, n, ns, v, beta, result, active, albedo)
         return result
+
+    def _light_sample(self, rng, centre, cos_max):
+        """A direction toward the light for a later path vertex: the centre of a hard light, or a
+        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius)."""
+        import mitsuba as mi
+
+        if self.scene.light.kind != "soft":
+            return centre
+        return mi.Frame3f(centre).to_world(mi.warp.square_to_uniform_cone(
+            mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
 
 
 def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int]:
