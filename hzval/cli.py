@@ -39,7 +39,7 @@ def _tradeoff_default_size() -> int:
 
 
 def _add_technique_args(p: argparse.ArgumentParser) -> None:
-    """``--techniques``, a ``--no-NAME`` for each technique but the primary, and each technique's
+    """``--techniques``, a ``--no-NAME`` for each technique, and each technique's
     own options (:meth:`hzval.technique.Technique.add_arguments`), from the registry."""
     from hzval import technique
 
@@ -49,9 +49,8 @@ def _add_technique_args(p: argparse.ArgumentParser) -> None:
                         "applies to the declared effects)")
     for name in names:
         t = technique.get(name)
-        if name != technique.PRIMARY:
-            p.add_argument(f"--no-{name}", dest="exclude", action="append_const", const=name, default=[],
-                           help=f"leave out {t.label} ({t.summary})")
+        p.add_argument(f"--no-{name}", dest="exclude", action="append_const", const=name, default=[],
+                       help=f"leave out {t.label} ({t.summary})")
     for name in names:
         technique.get(name).add_arguments(p)
 
@@ -69,7 +68,8 @@ def _technique_options(args) -> dict:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="hzval", description="Validate horizon mapping against ray-traced ground truth.")
+        prog="hzval", description="Validate horizon mapping and the self-shadowing techniques it competes with "
+                                  "against ray-traced ground truth.")
     parser.add_argument("--variant", default=None,
                         help="Mitsuba variant (default: cuda_ad_rgb with a GPU, else llvm_ad_rgb; "
                              "or $HZVAL_VARIANT)")
@@ -101,10 +101,11 @@ def _add_bake(sub) -> None:
 
 
 def _add_sweep(sub) -> None:
-    p = sub.add_parser("sweep", help="render truth and horizon mapping over a light sweep and report",
-                       description="Render the ground truth and the horizon-mapping approximation for every "
-                                   "light of the sweep (Lengyel's Figure 5.3 by default), compare them, and "
-                                   "write metrics.json and an HTML report.")
+    p = sub.add_parser("sweep", help="render the truth and every technique over a light sweep and report",
+                       description="Render the ground truth and every self-shadowing technique (horizon mapping, "
+                                   "terrain shadows, ray-marched shadows: --techniques) for every light of the "
+                                   "sweep (Lengyel's Figure 5.3 by default), compare them, and write metrics.json "
+                                   "and an HTML report.")
     _add_material_args(p)
     p.add_argument("--scene", type=Path, default=None,
                    help="scene description (TOML); the flags below override it (default: built-in bricks)")

@@ -573,8 +573,9 @@ def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
             raw.append({"group": f"{v.name} EXR", "links": links})
         if v is not views[0]:
             rows.append({"name": v.name, "label": v.label, "colour": v.colour,
-                         "panels": [{"key": key, "title": f"{v.label} {title}".strip(), "subtitle": subtitle,
-                                     "file": _src(out, tf.get(key))} for key, title, subtitle in TECHNIQUE_PANELS]})
+                         "panels": [{"key": key, "title": f"{v.name} {title}" if title else v.label,
+                                     "subtitle": subtitle, "file": _src(out, tf.get(key))}
+                                    for key, title, subtitle in TECHNIQUE_PANELS]})
     return {"index": i, "id": f"frame-{i}", "technique_rows": rows,
             "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
             "cells": [_cell(c, i, f, starts) for c in cols], "panels": {p["key"]: p for p in panels}, "raw": raw}

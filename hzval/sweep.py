@@ -329,8 +329,9 @@ def summary_table(result: dict) -> str:
     others = [n for n in result.get("techniques", {}) if n != technique.PRIMARY]
     primary = any("flip_mean" in f for f in result["frames"])
     head = ("azimuth",)
+    p = technique.PRIMARY
     if primary:
-        head += ("|F-V|", "leaks", "false sh.", "FLIP", "dE2000", "PSNR dB", "truth s", "approx s")
+        head += (f"{p} |F-V|", "leaks", "false sh.", f"{p} FLIP", "dE2000", "PSNR dB", "truth s", f"{p} s")
     else:
         head += ("truth s",)
     for n in others:

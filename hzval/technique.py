@@ -187,8 +187,11 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
     ``shadow``) is an :class:`InputError`, not silently dropped.
     """
     if requested is None:
-        chosen = [get(n) for n in REGISTRY if n not in exclude]
-        return [t for t in chosen if t.applies(scene)]
+        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.applies(scene)]
+        if not chosen:
+            raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
+                                             "effects the scene does not declare")
+        return chosen
     wanted = list(dict.fromkeys(requested))
     if not wanted:
         raise InputError("--techniques", "name at least one technique")
