@@ -101,11 +101,13 @@ def _add_bake(sub) -> None:
 
 
 def _add_sweep(sub) -> None:
+    from hzval import technique
+
+    labels = ", ".join(technique.get(n).label for n in technique.names())
     p = sub.add_parser("sweep", help="render the truth and every technique over a light sweep and report",
-                       description="Render the ground truth and every self-shadowing technique (horizon mapping, "
-                                   "terrain shadows, ray-marched shadows: --techniques) for every light of the "
-                                   "sweep (Lengyel's Figure 5.3 by default), compare them, and write metrics.json "
-                                   "and an HTML report.")
+                       description=f"Render the ground truth and every self-shadowing technique ({labels}: "
+                                   "--techniques) for every light of the sweep (Lengyel's Figure 5.3 by "
+                                   "default), compare them, and write metrics.json and an HTML report.")
     _add_material_args(p)
     p.add_argument("--scene", type=Path, default=None,
                    help="scene description (TOML); the flags below override it (default: built-in bricks)")

@@ -569,7 +569,7 @@ def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
         tf = _technique_files(f, v)
         links = [{"label": label, "file": _src(out, tf.get(key))} for key, label in TECHNIQUE_RAW_FILES]
         links = [r for r in links if r["file"] and r["file"]["src"]]
-        if links and v is not views[0]:
+        if links and not (v is views[0] and v.primary):   # the primary's are the frame's own EXR links
             raw.append({"group": f"{v.name} EXR", "links": links})
         if v is not views[0]:
             rows.append({"name": v.name, "label": v.label, "colour": v.colour,
