@@ -119,10 +119,10 @@ import time
 import numpy as np
 
 from hzval import backend, shading
+from hzval import storage as hz_storage
 from hzval import conventions as cv
 from hzval.bake import CUBE_SIZE, normals_only, weight_cube
 from hzval.errors import InputError
-from hzval.files import unit_to_u8
 from hzval.scene import Frame, Scene, image_shape, load_albedo, sample_positions
 from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
 from hzval.technique import Context, Technique, Variant, replace_effects
@@ -132,8 +132,8 @@ __all__ = ["Approximation", "Unshadowed", "unshadowed", "PATHS", "STORAGES", "WE
 
 #: The two ways of evaluating the technique (module docstring).
 PATHS: tuple[str, ...] = ("exact", "gpu")
-#: How the horizon map is stored: as baked, or quantised to 8 bits.
-STORAGES: tuple[str, ...] = ("float", "u8")
+#: How the horizon map is stored (:mod:`hzval.storage`): as baked, 8-bit, or block-compressed.
+STORAGES: tuple[str, ...] = tuple(hz_storage.names())
 #: How the channel weights are computed: exactly, or from the 8-bit weight cube map.
 WEIGHTS: tuple[str, ...] = ("analytic", "cube")
 #: The ambient map's two definitions (:class:`hzval.bake.Bake` attributes).
@@ -172,8 +172,11 @@ class Approximation(Technique):
         ``"exact"`` or ``"gpu"`` (module docstring): the defaults of the two
         settings below.
     storage
-        ``"float"`` or ``"u8"``: the horizon map as baked, or quantised to 8
-        bits as an engine stores it. Default: ``"u8"`` on the ``gpu`` path.
+        How the horizon map is stored (:data:`hzval.storage.STORAGES`):
+        ``"float"`` as baked, ``"u8"`` quantised to 8 bits as an engine stores
+        it, or block-compressed (``"bc7"``, ``"bc3"``, ``"bc1"``, ``"bc4"``,
+        each also ``-sqrt``), decoded as a GPU decodes it. Default: ``"u8"``
+        on the ``gpu`` path, else ``"float"``.
     weights
         ``"analytic"`` (the exact interpolation) or ``"cube"`` (the 8-bit
         weight cube map). Default: ``"cube"`` on the ``gpu`` path. The two
@@ -247,8 +250,7 @@ class Approximation(Technique):
             planes.append(data)
 
         if need_horizon:
-            h = np.asarray(bake.horizon, dtype=np.float32)
-            add("horizon", unit_to_u8(h).astype(np.float32) / np.float32(255.0) if self.storage == "u8" else h)
+            add("horizon", hz_storage.get(self.storage).roundtrip(bake.horizon))
         if self._diffuse or self._specular or self._reflection:
             add("normal", bake.normal)
         self._albedo_const = None
@@ -321,12 +323,17 @@ class Approximation(Technique):
                                  "cube map (default exact)")
         parser.add_argument("--ambient", choices=AMBIENT_TERMS, default="mean_cos2",
                             help="horizon map: which ambient-map definition to shade with (default mean_cos2)")
+        parser.add_argument("--storage", choices=STORAGES, default=None,
+                            help="horizon map: how its textures are stored: float, 8-bit or block-compressed "
+                                 "(BC7, BC3, BC1, BC4; -sqrt stores square-root sines) (default float, u8 with "
+                                 "--path gpu)")
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
         if not (math.isfinite(args.k) and args.k > 0):
             raise InputError("--k", f"must be a positive number, got {args.k}")
-        return {"k": args.k, "path": args.path, "ambient": args.ambient}
+        return {"k": args.k, "path": args.path, "ambient": args.ambient,
+                **({"storage": args.storage} if args.storage else {})}
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
@@ -340,9 +347,11 @@ class Approximation(Technique):
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
-        v = [Variant("8-bit horizon map", {"storage": "u8"}, kind="approx"),
-             Variant("cube-map weights", {"weights": "cube"}, kind="approx"),
-             Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"}, kind="approx")]
+        v = [Variant("8-bit horizon map", {"storage": "u8"}, kind="approx")]
+        v += [Variant(f"{name} horizon map ({hz_storage.get(name).label})", {"storage": name}, kind="approx")
+              for name in ("u8-sqrt", "bc7", "bc7-sqrt", "bc3", "bc1", "bc4")]
+        v += [Variant("cube-map weights", {"weights": "cube"}, kind="approx"),
+              Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"}, kind="approx")]
         v += [Variant(f"k = {k:g}", {"k": float(k)}, kind="approx") for k in (2, 4, 16, 32)]
         v.append(Variant("k fitted to the truth", {"k": "fit"}, kind="approx"))
         return v
@@ -363,9 +372,9 @@ class Approximation(Technique):
         return {**settings, "k": _golden_section(cost, math.log(1.0), math.log(128.0))}
 
     def storage_bytes(self) -> int:
-        """The horizon map (1 byte a channel and texel in 8 bits, 4 in float) and the weight cube map."""
+        """The horizon map as stored (:meth:`hzval.storage.Storage.bytes`) and the weight cube map."""
         rows, cols, ch = self.bake.horizon.shape
-        return rows * cols * ch * (1 if self.storage == "u8" else 4) + (CUBE_BYTES if self.weights == "cube" else 0)
+        return hz_storage.get(self.storage).bytes(rows, cols, ch) + (CUBE_BYTES if self.weights == "cube" else 0)
 
     # ------------------------------------------------------------------
     # Public
@@ -384,8 +393,8 @@ class Approximation(Technique):
             out["fade"] = self.fade
         if self._specular:
             out.update(specular_ks=SPECULAR_KS, specular_alpha=SPECULAR_EXPONENT)
-        if self.storage == "u8":
-            out.update(horizon_bits=8)
+        if self.storage != "float":
+            out.update(storage_bytes=self.storage_bytes())
         if self.weights == "cube":
             out.update(cube_size=CUBE_SIZE, cube_bits=8,
                        cube_filter="bilinear within the face, clamped to its edge")

@@ -79,6 +79,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_check(sub)
     _add_tradeoff(sub)
     _add_export_scene(sub)
+    _add_score(sub)
     return parser
 
 
@@ -191,6 +192,18 @@ def _add_export_scene(sub) -> None:
                    help="vertex normals in the PLY (smooth, default) or none (faceted)")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.set_defaults(run=cmd_export_scene)
+
+
+def _add_score(sub) -> None:
+    p = sub.add_parser("score", help="score your engine's frames of a sweep against its truth",
+                       description="Read one image per light of SWEEP_DIR (named after its frame folders: "
+                                   "az+0.exr linear, or az+0.png sRGB; SWEEP_DIR/frames.json says how to render "
+                                   "them), score each against the sweep's truth with the sweep's image metrics, "
+                                   "and write metrics.json and a report.")
+    p.add_argument("frames", type=Path, metavar="FRAMES_DIR", help="folder of your renderer's frames")
+    p.add_argument("--against", required=True, type=Path, metavar="SWEEP_DIR", help="a folder hzval sweep wrote")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default FRAMES_DIR/score)")
+    p.set_defaults(run=cmd_score)
 
 
 def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
@@ -351,6 +364,26 @@ def cmd_export_scene(args) -> int:
     written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth)
     print(f"wrote {', '.join(str(p) for p in written)}; render it with: mitsuba {args.out / 'scene.xml'} "
           f"-o {args.out / 'mitsuba.exr'}")
+    return errors.EXIT_OK
+
+
+def cmd_score(args) -> int:
+    import shlex
+
+    from hzval import backend, score
+
+    backend.variant(args.variant)
+    result, maps = score.score(args.frames, args.against)
+    out = args.out or args.frames / "score"
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    index = score.write(result, maps, out, command=command)
+    print("azimuth     FLIP   dE2000    RMSE  PSNR dB  floor FLIP")
+    for f in result["frames"]:
+        floor = (f.get("floor") or {}).get("flip_mean")
+        psnr = "inf" if f["psnr_db"] is None else f"{f['psnr_db']:.2f}"
+        print(f"{f['azimuth_deg']:+7g}  {f['flip_mean']:.4f}  {f['delta_e2000_mean']:7.3f}  {f['rmse']:.4f}  "
+              f"{psnr:>7}  {'-' if floor is None else f'{floor:.4f}':>10}")
+    print(f"report: {index}")
     return errors.EXIT_OK
 
 

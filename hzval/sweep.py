@@ -177,8 +177,46 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes()}
+    files.write_json(out / "frames.json", engine_frames(scene, result))
     files.write_json(out / "metrics.json", result)
     return result
+
+
+def camera_record(scene, rows: int, cols: int) -> dict:
+    """The view in ``metrics.json``'s camera layout (docs/ARCHITECTURE.md), tangent-space texels.
+
+    The ``top`` view: orthographic, straight down over the tile's centre, up = +y, the film the
+    whole tile (``film_size`` [w, h] in texels) at ``resolution`` [cols, rows] pixels. A pixel
+    (row, col) sees ``x = (col + 0.5) w / cols``, ``y = h - (row + 0.5) h / rows``."""
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    return {"kind": "top", "eye": [cols / 2.0, rows / 2.0, 1.0e6], "target": [cols / 2.0, rows / 2.0, 0.0],
+            "up": [0.0, 1.0, 0.0], "fov_deg": None, "film_size": [float(cols), float(rows)], "resolution": [W, H]}
+
+
+def engine_frames(scene, result: dict) -> dict:
+    """``frames.json``: what an engine needs to render the sweep's frames itself, for ``hzval score``.
+
+    Per light: the frame's name (``az+0``: the file ``hzval score`` looks for, ``az+0.exr`` linear
+    or ``az+0.png`` sRGB), azimuth and elevation, and ``L`` in tangent space (toward the light);
+    for all: the camera, the light's irradiance and kind, the display exposure (``display =
+    srgb(clip(exposure * radiance))``), the image size and the material."""
+    m = result["material"]
+    return {
+        "format": "hzval engine frames 1",
+        "material": m,
+        "image_size": result["camera"]["resolution"],
+        "camera": result["camera"],
+        "light": {"kind": scene.light.kind, "radius_deg": scene.light.radius_deg,
+                  "irradiance": scene.light.irradiance},
+        "exposure": result["exposure"]["scale"],
+        "effects": list(scene.effects),
+        "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
+                       "azimuth counterclockwise from +x; L points toward the light",
+        "frames": [{"name": frame_folder(f["azimuth_deg"]), "azimuth_deg": f["azimuth_deg"],
+                    "elevation_deg": f["elevation_deg"],
+                    "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])]}
+                   for f in result["frames"]],
+    }
 
 
 def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict) -> dict:
@@ -249,6 +287,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "supersampling": scene.camera.supersampling,
                        "techniques": [t.name for t in setup.techniques]},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
+        "camera": camera_record(scene, setup.material["rows"], setup.material["cols"]),
         "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
                      "note": "display = clip(scale * radiance); the largest radiance the declared effects "
                              "can produce shows as 1"},

@@ -1,0 +1,154 @@
+"""Score an engine's own frames against a sweep's truth: ``hzval score FRAMES_DIR --against SWEEP_DIR``.
+
+An engineer renders the sweep's frames with their own baker and shader,
+from what ``SWEEP_DIR/frames.json`` says (camera, light directions in
+tangent space, irradiance, exposure, image size; :func:`hzval.sweep.engine_frames`),
+one image per light named after the frame folders: ``az+0.exr`` (linear
+radiance, RGB or Y) or ``az-60.png`` (8- or 16-bit sRGB display values,
+``display = srgb(clip(exposure * radiance))``, decoded back to radiance
+here). :func:`score` scores each against the sweep's truth with the very
+image metrics the sweep uses (:func:`hzval.compare.image_metrics`: FLIP,
+RMSE, PSNR, CIEDE2000), beside that frame's perfect-shadows floor, and
+:func:`write` writes ``OUT/metrics.json`` (``frames[i].azimuth_deg``,
+``flip_mean``, ``rmse``, ``psnr_db``, ``delta_e2000_mean``) and a report
+in which the external images are a technique beside the truth.
+
+Bad input is one line naming the file: a folder that is not a sweep's, a
+missing frame, a wrong size, a non-finite value, an unreadable image.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hzval import compare, files, images, report
+from hzval import conventions as cv
+from hzval.errors import InputError
+from hzval.scene import Frame
+
+__all__ = ["score", "write", "read_frame", "LABEL"]
+
+#: What the report calls the scored images.
+LABEL = "your renderer"
+
+
+def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
+    """The sweep's ``metrics.json`` and ``frames.json``."""
+    out = []
+    for name in ("metrics.json", "frames.json"):
+        path = sweep_dir / name
+        try:
+            out.append(json.loads(path.read_text(encoding="utf-8")))
+        except FileNotFoundError:
+            raise InputError(sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(path, f"unreadable ({files.first_line(exc)})") from None
+    return out[0], out[1]
+
+
+def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
+    """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
+    PNG decoded from sRGB and divided by the exposure."""
+    if path.suffix.lower() == ".exr":
+        ch = files.read_exr(path)
+        if all(c in ch for c in "RGB"):
+            img = np.stack([ch[c] for c in "RGB"], axis=-1)
+        elif "Y" in ch:
+            img = np.repeat(ch["Y"][..., None], 3, axis=-1)
+        else:
+            raise InputError(path, f"no R, G, B or Y channel (has {', '.join(sorted(ch))})")
+    else:
+        from PIL import Image
+
+        try:
+            with Image.open(path) as im:
+                depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
+                arr = np.asarray(im.convert("RGB") if depth == 255.0 else im, dtype=np.float64) / depth
+        except OSError as exc:
+            raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
+        arr = np.repeat(arr[..., None], 3, axis=-1) if arr.ndim == 2 else arr[..., :3]
+        img = cv.srgb_decode(arr) / exposure
+    img = np.asarray(img, np.float32)
+    if img.shape[:2] != tuple(shape):
+        raise InputError(path, f"is {img.shape[1]}x{img.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}")
+    if not np.isfinite(img).all():
+        raise InputError(path, f"has {int((~np.isfinite(img)).sum())} non-finite values (NaN or infinity)")
+    return img
+
+
+def _find(frames_dir: Path, name: str) -> Path:
+    for ext in (".exr", ".png"):
+        if (frames_dir / f"{name}{ext}").is_file():
+            return frames_dir / f"{name}{ext}"
+    raise InputError(frames_dir / f"{name}.exr", f"missing: the frame for light {name} (an .exr or .png)")
+
+
+def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tuple[str, np.ndarray, dict]]]:
+    """Score every frame of ``frames_dir`` against ``sweep_dir``'s truth.
+
+    Returns ``(result, maps)``: the ``metrics.json`` content (without the
+    report) and, per frame, ``(name, image, image_maps)`` for :func:`write`.
+    Every frame is read and checked before any is scored.
+    """
+    frames_dir, sweep_dir = Path(frames_dir), Path(sweep_dir)
+    if not frames_dir.is_dir():
+        raise InputError(frames_dir, "no such folder of frames")
+    metrics, engine = _sweep(sweep_dir)
+    exposure = float(engine["exposure"])
+    W, H = engine["image_size"]
+    todo = [(f, _find(frames_dir, f["name"])) for f in engine["frames"]]
+    loaded = [(f, p, read_frame(p, exposure, (H, W))) for f, p in todo]
+    t0 = time.perf_counter()
+    frames, maps = [], []
+    for (f, path, img), swept in zip(loaded, metrics["frames"]):
+        truth_ch = files.read_exr(sweep_dir / swept["files"]["truth"])
+        truth = Frame(f["azimuth_deg"], f["elevation_deg"], np.stack([truth_ch[c] for c in "RGB"], axis=-1))
+        scores, image_maps = compare.image_metrics(compare.Reference(truth, exposure), img)
+        scores = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
+        frames.append({"azimuth_deg": f["azimuth_deg"], "elevation_deg": f["elevation_deg"], **scores,
+                       "file": str(path), **({"floor": swept["floor"]} if "floor" in swept else {})})
+        maps.append((f["name"], img, image_maps))
+    result = {"material": metrics.get("material", {}), "against": str(sweep_dir), "frames_dir": str(frames_dir),
+              "parameters": metrics.get("parameters", {}), "exposure": metrics.get("exposure", {}),
+              "versions": metrics.get("versions", {}), "timings": {"score_s": time.perf_counter() - t0},
+              "frames": frames}
+    return result, maps
+
+
+def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Path:
+    """``out/metrics.json`` and ``out/index.html``: the external images as a technique beside the
+    sweep's truth (whose previews are copied in, so the report stands alone). Returns the index."""
+    out = Path(out)
+    sweep_dir = Path(result["against"])
+    swept = json.loads((sweep_dir / "metrics.json").read_text(encoding="utf-8"))
+    page_frames = []
+    for frame, swept_frame, (name, img, image_maps) in zip(result["frames"], swept["frames"], maps):
+        rel = {}
+        for key in ("truth_png", "plain_png", "visibility_png"):
+            if key in swept_frame["files"]:
+                dst = f"frames/{name}/{Path(swept_frame['files'][key]).name}"
+                (out / dst).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(sweep_dir / swept_frame["files"][key], out / dst)
+                rel[key] = dst
+        own = {"png": f"frames/{name}/external.png", "flip_png": f"frames/{name}/external_flip.png"}
+        files.write_png(out / own["png"], files.unit_to_u8(image_maps["display"]))
+        files.write_png(out / own["flip_png"], images.flip_image(image_maps["flip"]))
+        metrics = {k: frame[k] for k in compare.IMAGE_METRICS}
+        page_frames.append({"azimuth_deg": frame["azimuth_deg"], "elevation_deg": frame["elevation_deg"],
+                            "truth_s": None, "files": rel, **({"floor": frame["floor"]} if "floor" in frame else {}),
+                            "techniques": {"external": {**metrics, "visibility_mae": None, "leak_fraction": None,
+                                                        "false_shadow_fraction": None, "seconds": None,
+                                                        "files": own}}})
+    page = {**{k: result[k] for k in ("material", "parameters", "versions", "timings")},
+            "simulated": {"truth": swept.get("simulated", {}).get("truth", []),
+                          "external": list(result["parameters"].get("effects", []))},
+            "techniques": {"external": {"label": LABEL, "file_stem": "external", "summary": result["frames_dir"]}},
+            "frames": page_frames}
+    index = report.write_report(out, page, command=command)
+    files.write_json(out / "metrics.json", result)
+    return index
