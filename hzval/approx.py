@@ -113,12 +113,14 @@ through memory.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
-from hzval import backend, shading
+from hzval import backend, external, shading
 from hzval import storage as hz_storage
 from hzval import conventions as cv
 from hzval.bake import CUBE_SIZE, normals_only, weight_cube
@@ -227,6 +229,7 @@ class Approximation(Technique):
         self._specular = "specular" in eff
         self._ambient = "ambient" in eff
         self._reflection = "reflection_occlusion" in eff
+        self.external: list[str] | None = None       # the external bake's layers, when one is used
         self._upload_textures(albedo)
         self._upload_constants()
         self._upload_samples()
@@ -311,8 +314,24 @@ class Approximation(Technique):
     # ------------------------------------------------------------------
 
     @classmethod
-    def build(cls, ctx: Context, **settings) -> "Approximation":
-        return cls(ctx.scene, ctx.bake, ctx.albedo, **settings)
+    def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Approximation":
+        """From a context; ``horizon_map`` (layer paths) and ``encoding``
+        (:class:`hzval.external.Encoding`) replace the bake's horizon map by an external one, whose
+        convention is checked against hzval's exact bake (:func:`hzval.external.detect`)."""
+        if not horizon_map:
+            return cls(ctx.scene, ctx.bake, ctx.albedo, **settings)
+        raw = external.read_layers(list(horizon_map))
+        enc = (encoding or external.Encoding()).validate()
+        if raw.shape[:2] != ctx.height.shape:
+            raise InputError(horizon_map[0], f"is {raw.shape[1]}x{raw.shape[0]}, the height map "
+                                             f"{ctx.height.shape[1]}x{ctx.height.shape[0]}")
+        sines = external.to_hzval(raw, enc)
+        found = external.detect(raw, _reference_horizons(ctx, enc.channels), enc)
+        own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, **settings)
+        own.external = [str(p) for p in horizon_map]
+        own.extras = {"external_bake": {**found, "paths": own.external}}
+        own.warnings = tuple(w for w in (external.advice(found),) if w)
+        return own
 
     @classmethod
     def add_arguments(cls, parser) -> None:
@@ -323,6 +342,22 @@ class Approximation(Technique):
                                  "cube map (default exact)")
         parser.add_argument("--ambient", choices=AMBIENT_TERMS, default="mean_cos2",
                             help="horizon map: which ambient-map definition to shade with (default mean_cos2)")
+        parser.add_argument("--horizon-map", default=None, metavar="P0,P1",
+                            help="horizon map: your own bake's RGBA layers (8/16-bit PNG or EXR), in place of "
+                                 "hzval's; its encoding from --horizon-encoding or the --horizon-* options "
+                                 "(default: hzval's layout)")
+        parser.add_argument("--horizon-encoding", type=Path, default=None, metavar="FILE.toml",
+                            help="horizon map: a TOML file of channels, azimuth0, direction, y, values")
+        d = external.Encoding()
+        parser.add_argument("--horizon-channels", type=int, default=None, help=f"(default {d.channels})")
+        parser.add_argument("--horizon-azimuth0", type=float, default=None, metavar="DEG",
+                            help=f"azimuth of channel 0 (default {d.azimuth0:g})")
+        parser.add_argument("--horizon-direction", choices=["ccw", "cw"], default=None,
+                            help=f"which way channels turn (default {d.direction})")
+        parser.add_argument("--horizon-y", choices=["up", "down"], default=None,
+                            help=f"the baker's +y on screen (default {d.y})")
+        parser.add_argument("--horizon-values", choices=external.VALUES, default=None,
+                            help=f"what a channel holds (default {d.values})")
         parser.add_argument("--storage", choices=STORAGES, default=None,
                             help="horizon map: how its textures are stored: float, 8-bit or block-compressed "
                                  "(BC7, BC3, BC1, BC4; -sqrt stores square-root sines) (default float, u8 with "
@@ -332,8 +367,16 @@ class Approximation(Technique):
     def settings_from_args(cls, args) -> dict:
         if not (math.isfinite(args.k) and args.k > 0):
             raise InputError("--k", f"must be a positive number, got {args.k}")
-        return {"k": args.k, "path": args.path, "ambient": args.ambient,
-                **({"storage": args.storage} if args.storage else {})}
+        out = {"k": args.k, "path": args.path, "ambient": args.ambient,
+               **({"storage": args.storage} if args.storage else {})}
+        if args.horizon_map:
+            enc = external.Encoding.from_toml(args.horizon_encoding) if args.horizon_encoding else external.Encoding()
+            given = {"channels": args.horizon_channels, "azimuth0": args.horizon_azimuth0,
+                     "direction": args.horizon_direction, "y": args.horizon_y, "values": args.horizon_values}
+            enc = dataclasses.replace(enc, **{k: v for k, v in given.items() if v is not None}).validate()
+            out.update(horizon_map=tuple(p.strip() for p in args.horizon_map.split(",") if p.strip()),
+                       encoding=enc)
+        return out
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
@@ -384,6 +427,7 @@ class Approximation(Technique):
     def parameters(self) -> dict:
         """The technique's settings, for ``metrics.json``."""
         out = {"path": self.path, "storage": self.storage, "weights": self.weights, "k": self.k,
+               "bake": "external: " + ", ".join(self.external) if self.external else "hzval",
                "simulated": list(self.simulated)}
         if self.directions != cv.CHANNEL_COUNT:
             out["directions"] = self.directions
@@ -675,6 +719,17 @@ def _dot(h: list, w: list):
             s = dr.fma(h[c], w[c], s)
         total = s if total is None else total + s
     return total
+
+
+def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
+    """hzval's own horizons of the context's height map to detect an external bake's convention by:
+    the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16."""
+    from hzval.bake import BakeParams, bake
+
+    p = ctx.bake.params
+    params = BakeParams(depth=p.depth, boundary=p.boundary, method="exact") if directions == cv.CHANNEL_COUNT \
+        else BakeParams(depth=p.depth, boundary=p.boundary, radius=32, angles=64, directions=directions)
+    return bake(ctx.height, params.validate()).horizon
 
 
 def _validate(path: str, storage: str, weights: str, directions: int, ambient: str, k: float, fade: float) -> None:

@@ -280,6 +280,8 @@ def cmd_sweep(args) -> int:
     backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet)
+    for w in result.get("warnings", []):
+        print(f"hzval: warning: {w}", file=sys.stderr)
     print(sweep.summary_table(result))
     t = result["timings"]
     parts = [f"bake {t['bake_s']:.2f} s{', cached' if t['bake_cached'] else ''}",

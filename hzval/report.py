@@ -250,7 +250,8 @@ _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
                         ("directions", "stored directions"))),
     ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
                ("azimuths_deg", "azimuths"))),
-    ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"))),
+    ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"),
+                       ("storage", "horizon map storage"), ("horizon_map", "horizon map bake"))),
     ("sampling", (("spp", "samples per pixel"), ("supersampling", "pixels per texel"), ("seed", "seed"))),
 )
 
@@ -481,6 +482,18 @@ def _parameters(p: dict) -> list[dict]:
     return groups
 
 
+def _technique_parameters(metrics: dict, views: list[TechniqueView]) -> list[dict]:
+    """Each technique's own settings (``techniques[name].parameters``), for the parameters card."""
+    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    out = []
+    for v in views:
+        params = (info.get(v.name) or {}).get("parameters") or {}
+        rows = [(k.replace("_", " "), _value_text(k, val)) for k, val in params.items() if k != "simulated"]
+        if rows:
+            out.append({"label": v.label, "colour": v.colour, "rows": rows})
+    return out
+
+
 def _versions(v: dict) -> list[dict]:
     rows, seen = [], set()
     for key, label in _VERSION_LABELS:
@@ -617,6 +630,8 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "glance": _glance(cols, frames),
         "frames": frame_views,
         "techniques": [{"name": v.name, "label": v.label, "colour": v.colour} for v in views],
+        "warnings": [str(w) for w in (metrics.get("warnings") or [])],
+        "technique_parameters": _technique_parameters(metrics, views),
         "plots": plots,
         "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
         "truth_colour": TRUTH_COLOUR, "approx_colour": views[0].colour,

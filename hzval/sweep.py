@@ -294,6 +294,8 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
         "timings": timings,
         "simulated": simulated,
         "techniques": techniques,
+        **{k: v for t in setup.techniques for k, v in t.extras.items()},
+        "warnings": [w for t in setup.techniques for w in t.warnings],
         "frames": frames,
     }
 

@@ -105,6 +105,10 @@ class Technique:
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
 
     simulated: tuple[str, ...] = ()
+    #: One-line warnings the sweep prints and the report shows (e.g. a suspicious external bake).
+    warnings: tuple[str, ...] = ()
+    #: Entries the technique adds to the top level of ``metrics.json`` (e.g. ``external_bake``).
+    extras: dict = {}
 
     @classmethod
     def applies(cls, scene: Scene) -> bool:
