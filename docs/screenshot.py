@@ -1,6 +1,7 @@
 """Regenerate docs/report.png, the picture the README leads with: the top of a sweep's report.
 
-Runs ``hzval sweep`` on the built-in bricks (or renders the report of an
+Runs the README's main job, ``hzval sweep`` on the built-in bricks, from the
+repository root (it writes ``reports/bricks``; or takes the report of an
 existing sweep folder given with ``--from``), opens its ``index.html`` in
 Debian's chromium through Playwright (no download) and saves the first
 screenful, then one frame's panels, stacked into one PNG.
@@ -26,7 +27,6 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from", dest="source", type=Path, default=None, help="an existing sweep folder")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("report.png"))
-    ap.add_argument("--size", type=int, default=256, help="built-in bricks size when no --from (default 256)")
     args = ap.parse_args(argv)
 
     from playwright.sync_api import sync_playwright
@@ -35,9 +35,10 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.source
         if folder is None:
-            folder = Path(tmp) / "bricks"
-            subprocess.run([sys.executable, "-m", "hzval", "sweep", "--size", str(args.size), "--quiet",
-                            "--out", str(folder)], check=True, stdout=subprocess.DEVNULL)
+            root = Path(__file__).resolve().parent.parent
+            subprocess.run([sys.executable, "-m", "hzval", "sweep"], check=True, cwd=root,
+                           stdout=subprocess.DEVNULL)
+            folder = root / "reports" / "bricks"
         shots = []
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)

@@ -156,7 +156,7 @@ FLOOR_METRICS: tuple[Metric, ...] = (
            "times V against the truth", _fixed(4), group="floor"),
 )
 #: Image metrics whose floor a frame's chips show beside them ("FLIP 0.085, of which 0.004 ...").
-_FLOORED = {"flip_mean", "rmse", "delta_e2000_mean", "psnr_db"}
+_FLOORED = {"flip_mean", "rmse", "delta_e2000_mean"}   # (PSNR: higher is better, "of which" would mislead)
 
 
 @dataclass(frozen=True)
