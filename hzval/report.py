@@ -115,6 +115,7 @@ class Metric:
     null_is: float | None = None   # the value ``null`` stands for (PSNR: +inf), else "not measured"
     bar: bool = True    # draw a data bar (share of the column's largest value)
     group: str = ""     # the table's column group
+    floor: str | None = None   # the flattened key of its perfect-shadows floor, shown beside it
 
 
 METRICS: tuple[Metric, ...] = (
@@ -125,11 +126,11 @@ METRICS: tuple[Metric, ...] = (
     Metric("false_shadow_fraction", "false shadows", "%", "False shadows: pixels the technique shadows "
            "(F < 0.5) that the truth lights (V ≥ 0.5), as a share of all pixels", _percent, group="visibility"),
     Metric("flip_mean", "FLIP", "", "Mean FLIP error (NVIDIA, LDR, 67 pixels per degree) on display "
-           "values: 0 = identical, 1 = maximally different", _fixed(4), group="image"),
+           "values: 0 = identical, 1 = maximally different", _fixed(4), group="image", floor="floor_flip_mean"),
     Metric("delta_e2000_mean", "ΔE2000", "", "Mean CIEDE2000 colour difference on display (sRGB) values; "
-           "about 1 is just noticeable", _fixed(3), group="image"),
-    Metric("rmse", "RMSE", "", "Root mean square error on linear values (a white Lambertian surface "
-           "facing the light = 1)", _fixed(4), group="image"),
+           "about 1 is just noticeable", _fixed(3), group="image", floor="floor_delta_e2000_mean"),
+    Metric("rmse", "RMSE", "", "Root mean square error on linear values (the largest radiance the declared "
+           "effects can produce = 1)", _fixed(4), group="image", floor="floor_rmse"),
     Metric("psnr_db", "PSNR", "dB", "Peak signal-to-noise ratio on linear values, peak 1; ∞ = identical. "
            "Lower is worse", _psnr, worse="min", null_is=math.inf, bar=False, group="image"),
     Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels synchronised)",
@@ -155,8 +156,6 @@ FLOOR_METRICS: tuple[Metric, ...] = (
     Metric("floor_rmse", "floor RMSE", "", "Perfect-shadows floor: RMSE (linear) of the unshadowed shading "
            "times V against the truth", _fixed(4), group="floor"),
 )
-#: Image metrics whose floor a frame's chips show beside them ("FLIP 0.085, of which 0.004 ...").
-_FLOORED = {"flip_mean", "rmse", "delta_e2000_mean"}   # (PSNR: higher is better, "of which" would mislead)
 
 
 @dataclass(frozen=True)
@@ -193,7 +192,6 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
     for f in frames:
         per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
         g = dict(f)
-        g["_technique_names"] = tuple(v.name for v in views)
         if isinstance(f.get("floor"), dict):
             g.update({f"floor_{k}": val for k, val in f["floor"].items()})
         for v in views:
@@ -213,7 +211,7 @@ def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
         Metric(f"{v.name}_visibility_mae", f"{v.name} |F−V|", "", f"{v.label}: mean |F − V| over pixels against "
                "the same ray-traced visibility", _fixed(4), group=v.name),
         Metric(f"{v.name}_flip_mean", f"{v.name} FLIP", "", f"{v.label}: mean FLIP error against the truth "
-               "(display values)", _fixed(4), group=v.name),
+               "(display values)", _fixed(4), group=v.name, floor="floor_flip_mean"),
         Metric(f"{v.name}_s", v.name, "time", f"{v.label}: frame time, the unshadowed shading it multiplies "
                "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name),
     )
@@ -365,9 +363,9 @@ def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
     if m.bar and v is not None and col["top"] > 0 and math.isfinite(v):
         bar = round(max(0.0, min(1.0, abs(v) / col["top"])), 4)
     floor = None
-    base = m.key.split("_", 1)[1] if m.key.split("_", 1)[0] in frame.get("_technique_names", ()) else m.key
-    if base in _FLOORED and _num(frame.get(f"floor_{base}")) is not None and v is not None:
-        floor = m.fmt(frame[f"floor_{base}"])
+    # beside it, its perfect-shadows floor ("FLIP 0.085, of which 0.004 ..."); PSNR has none (higher is better)
+    if m.floor and _num(frame.get(m.floor)) is not None and v is not None:
+        floor = m.fmt(frame[m.floor])
         title += f" (perfect-shadows floor: {floor}, the part that is shading and noise)"
     return {"key": m.key, "label": m.label, "text": text, "worst": i in col["worst_idx"], "bar": bar,
             "gstart": m.key in starts, "floor": floor,

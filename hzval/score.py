@@ -88,12 +88,12 @@ def _find(frames_dir: Path, name: str) -> Path:
     raise InputError(frames_dir / f"{name}.exr", f"missing: the frame for light {name} (an .exr or .png)")
 
 
-def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tuple[str, np.ndarray, dict]]]:
+def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tuple[str, dict, dict]]]:
     """Score every frame of ``frames_dir`` against ``sweep_dir``'s truth.
 
     Returns ``(result, maps)``: the ``metrics.json`` content (without the
-    report) and, per frame, ``(name, image, image_maps)`` for :func:`write`.
-    Every frame is read and checked before any is scored.
+    report) and, per frame, ``(name, the sweep's frame, image_maps)`` for
+    :func:`write`. Every frame is read and checked before any is scored.
     """
     frames_dir, sweep_dir = Path(frames_dir), Path(sweep_dir)
     if not frames_dir.is_dir():
@@ -112,11 +112,11 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
         scores = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
         frames.append({"azimuth_deg": f["azimuth_deg"], "elevation_deg": f["elevation_deg"], **scores,
                        "file": str(path), **({"floor": swept["floor"]} if "floor" in swept else {})})
-        maps.append((f["name"], img, image_maps))
+        maps.append((f["name"], swept, image_maps))
     result = {"material": metrics.get("material", {}), "against": str(sweep_dir), "frames_dir": str(frames_dir),
               "parameters": metrics.get("parameters", {}), "exposure": metrics.get("exposure", {}),
               "versions": metrics.get("versions", {}), "timings": {"score_s": time.perf_counter() - t0},
-              "frames": frames}
+              "simulated": {"truth": metrics.get("simulated", {}).get("truth", [])}, "frames": frames}
     return result, maps
 
 
@@ -125,9 +125,8 @@ def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Pa
     sweep's truth (whose previews are copied in, so the report stands alone). Returns the index."""
     out = Path(out)
     sweep_dir = Path(result["against"])
-    swept = json.loads((sweep_dir / "metrics.json").read_text(encoding="utf-8"))
     page_frames = []
-    for frame, swept_frame, (name, img, image_maps) in zip(result["frames"], swept["frames"], maps):
+    for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
         rel = {}
         for key in ("truth_png", "plain_png", "visibility_png"):
             if key in swept_frame["files"]:
@@ -145,8 +144,7 @@ def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Pa
                                                         "false_shadow_fraction": None, "seconds": None,
                                                         "files": own}}})
     page = {**{k: result[k] for k in ("material", "parameters", "versions", "timings")},
-            "simulated": {"truth": swept.get("simulated", {}).get("truth", []),
-                          "external": list(result["parameters"].get("effects", []))},
+            "simulated": {**result["simulated"], "external": list(result["parameters"].get("effects", []))},
             "techniques": {"external": {"label": LABEL, "file_stem": "external", "summary": result["frames_dir"]}},
             "frames": page_frames}
     index = report.write_report(out, page, command=command)

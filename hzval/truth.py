@@ -403,7 +403,9 @@ class Truth:
         n = mi.Vector3f(si.n)
         ns = n
         if self._normals is not None:
-            ns = dr.normalize(mi.Vector3f(*self._normals.eval(mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"]))))
+            # u, v of hzval.conventions.tangent_to_uv, in the kernel
+            uv = mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"])
+            ns = dr.normalize(mi.Vector3f(*self._normals.eval(uv)))
         return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
 
     def _hops_for(self, elevation: float) -> int:
