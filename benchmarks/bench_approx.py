@@ -1,6 +1,6 @@
 """Benchmark: horizon-map shading frames (hzval.approx), once compiled.
 
-Bakes ``hzval.material.bricks(SIZE)`` at depth 0.05 (radius 16, 32 bins,
+Bakes ``hzval.materials.bricks.bricks(SIZE)`` at depth 0.05 (radius 16, 32 bins,
 wrap) once, then for every effect set, sample count and path builds an
 :class:`hzval.approx.Approximation` of a ``SIZE x SIZE`` frame, renders one
 frame (compiles its kernels, or loads them from Dr.Jit's disk cache), and
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from hzval import backend
     from hzval import bake as B
-    from hzval import material
+    from hzval.materials.bricks import bricks
     from hzval import scene as S
     from hzval.approx import Approximation
 
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     t0 = time.perf_counter()
-    bake = B.bake(material.bricks(args.size), B.BakeParams(depth=DEPTH))
+    bake = B.bake(bricks(args.size), B.BakeParams(depth=DEPTH))
     bake_s = time.perf_counter() - t0
     azimuths = np.linspace(-60.0, 60.0, args.frames)
 

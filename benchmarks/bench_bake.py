@@ -1,7 +1,7 @@
 """Benchmark: hzval's horizon bake against the seed loop in C, side by side.
 
 One run, one input, one table. The input is a 16-bit PNG of the built-in
-brick wall (:func:`hzval.material.bricks`), baked at depth 0.05, radius 16,
+brick wall (:func:`hzval.materials.bricks.bricks`), baked at depth 0.05, radius 16,
 32 bins, wrap. Rows of the table:
 
 1. the C peer (``benchmarks/seed_bake.c``) compiled with
@@ -77,16 +77,16 @@ def _hzval_script() -> str:
 def _input_map(size: int) -> tuple[np.ndarray, str]:
     """The benchmark's height map and its description."""
     try:
-        from hzval import material
+        from hzval.materials.bricks import bricks
 
-        return material.bricks(size), f"hzval.material.bricks({size})"
+        return bricks(size), f"hzval.materials.bricks.bricks({size})"
     except (ImportError, AttributeError):  # pragma: no cover - material.py not written yet
         from scipy.ndimage import gaussian_filter
 
         rng = np.random.default_rng(1)
         h = gaussian_filter(rng.random((size, size)), sigma=size / 64, mode="wrap")
         h = (h - h.min()) / (h.max() - h.min())
-        return h.astype(np.float32), f"smooth random map {size}x{size} (hzval.material missing)"
+        return h.astype(np.float32), f"smooth random map {size}x{size} (hzval.materials missing)"
 
 
 def _peer_vs_bake(peer: np.ndarray, out: Path) -> dict[str, float]:

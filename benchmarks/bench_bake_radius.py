@@ -8,7 +8,7 @@ which the kernel reads as data) has the same code at every radius, bin
 count and map size, and compiles in well under a second, but gathers every
 neighbour and runs 3-10x slower. This script measures,
 for each radius and kernel form, on a ``SIZE x SIZE`` brick map
-(:func:`hzval.material.bricks`, depth 0.05, 32 bins, wrap):
+(:func:`hzval.materials.bricks.bricks`, depth 0.05, 32 bins, wrap):
 
 ``cold``
     the first :func:`~hzval.bake.horizon_map` call of a fresh process with an
@@ -67,11 +67,11 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     """Runs in a fresh process: one cold (or disk-cached) call, then warm calls; prints JSON."""
     import drjit as dr
 
-    from hzval import backend, bake, material
+    from hzval import backend, bake
     from hzval import conventions as cv
 
     backend.variant()
-    h = cv.heights_in_texels(material.bricks(size), DEPTH)
+    h = cv.heights_in_texels(bricks(size), DEPTH)
     kw = {} if kernel == "auto" else {"kernel": kernel}
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         dr.kernel_history()
@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
                 same = out.tobytes() == ref.tobytes()
                 rows[-len(kernels) + list(outputs).index(kernel)][2]["identical"] = same
 
-    print(f"seed horizon bake: hzval.material.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, {BOUNDARY}; "
+    print(f"seed horizon bake: hzval.materials.bricks.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, {BOUNDARY}; "
           f"{os.cpu_count()} CPUs, load average {load:.2f} at start")
     print(f"{'radius':>6} {'offsets':>7} {'kernel':<15} {'cold s':>8} {'codegen':>8} {'backend':>8} "
           f"{'disk s':>7} {'warm s':>7} {'same':>5}")

@@ -1,6 +1,6 @@
 """Seed against exact horizon bake: time and accuracy, side by side in one run.
 
-For each size (default 512 and 2048) this bakes ``hzval.material.bricks(size)``
+For each size (default 512 and 2048) this bakes ``hzval.materials.bricks.bricks(size)``
 (depth 0.05, wrap) in-process with both methods, kernels warm (one untimed
 run each first), alternating seed and exact, and prints the best of
 ``--repeat`` of each, with their ratio:
@@ -34,7 +34,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hzval import backend, material  # noqa: E402
+from hzval import backend  # noqa: E402
+from hzval.materials.bricks import bricks
 from hzval import bake as B  # noqa: E402
 from hzval import conventions as cv  # noqa: E402
 
@@ -56,14 +57,14 @@ def main(argv=None) -> int:
 
     variant = backend.variant()
     load = os.getloadavg()[0]
-    print(f"seed vs exact horizon bake: hzval.material.bricks(N), depth {args.depth:g}, {args.boundary}; "
+    print(f"seed vs exact horizon bake: hzval.materials.bricks.bricks(N), depth {args.depth:g}, {args.boundary}; "
           f"variant {variant}; {os.cpu_count()} CPUs, load average {load:.2f} at start; best of {args.repeat}, "
           f"kernels warm, in-process")
     print()
     print(f"{'size':>5} {'method':<32} {'best s':>8}  all runs, s")
     accuracy = {}
     for n in sizes:
-        h = cv.heights_in_texels(material.bricks(n), args.depth)
+        h = cv.heights_in_texels(bricks(n), args.depth)
         runs = {
             "seed (radius 16, 32 bins)": lambda: B.horizon_map(h, 16, 32, args.boundary),
             "exact (Dr.Jit)": lambda: B.exact_horizon_map(h, args.boundary, engine="drjit"),

@@ -1,6 +1,6 @@
 """Benchmark: ray-marched height-field shadows (hzval.pom) against the steps, beside horizon mapping.
 
-Builds the built-in brick wall (``hzval.material.bricks(SIZE)``, depth 0.05,
+Builds the built-in brick wall (``hzval.materials.bricks.bricks(SIZE)``, depth 0.05,
 wrap, shadow + diffuse, elevation 30, ``--spp`` samples per pixel) and its
 converged truth (``--truth-spp`` shadow rays), then for each step count and
 both variants renders the sweep's azimuths -60..+60 (one warm-up frame

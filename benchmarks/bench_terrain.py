@@ -1,6 +1,6 @@
 """Benchmark: Raudins' terrain shadows (hzval.terrain) against horizon-map shading, per frame.
 
-Builds the built-in brick wall (``hzval.material.bricks(SIZE)``, depth 0.05,
+Builds the built-in brick wall (``hzval.materials.bricks.bricks(SIZE)``, depth 0.05,
 wrap, the default sweep's scene: shadow + diffuse, 16 samples per pixel,
 elevation 30), bakes it once, renders one warm-up frame per technique
 (compiles the kernels or loads them from Dr.Jit's cache), then times

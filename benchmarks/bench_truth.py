@@ -1,7 +1,7 @@
 """Benchmark: the ground truth's visibility image, once its kernels are compiled.
 
 A 512x512 visibility image (``shadow`` only) of the built-in brick wall
-(:func:`hzval.material.bricks`, depth 0.05, wrap) with 16 shadow rays per
+(:func:`hzval.materials.bricks.bricks`, depth 0.05, wrap) with 16 shadow rays per
 pixel, hard light at 30 degrees: the case ``the original design notes`` measured at 0.26 s.
 It prints the one-off costs (mesh build, camera rays) and the time of every
 frame; frame 1 compiles the kernel, frames 2..n run at other azimuths and
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--radius", type=float, default=2.0, help="soft light's angular radius, degrees")
     args = ap.parse_args(argv)
 
-    from hzval import backend, material
+    from hzval import backend
     from hzval import scene as S
     from hzval.truth import Truth
 
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     import drjit as dr
 
     t0 = time.perf_counter()
-    height = material.bricks(args.size)
+    height = bricks(args.size)
     t_material = time.perf_counter() - t0
     sc = S.Scene(name="bricks", material=S.MaterialSpec(height="bricks", size=args.size, depth=0.05, boundary="wrap"),
                  light=S.Light(kind=args.light, radius_deg=args.radius if args.light == "soft" else 0.0,

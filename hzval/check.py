@@ -69,7 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import bake, compare, files, images, shading, technique, truth
+from hzval import bake, compare, files, images, materials, shading, technique, truth
 from hzval import scene as sc
 from hzval.errors import InputError
 from hzval.sweep import frame_folder
@@ -161,8 +161,8 @@ def check_scene(scene):
     """``scene`` as the check renders it: the ``[check]`` section's size, azimuths and spp."""
     c = scene.check
     size = c.get("size")
-    if size is not None and scene.material.height != "bricks":
-        raise InputError(scene.source or scene.name, "check.size applies to the built-in material only")
+    if size is not None and not materials.is_builtin(scene.material.height):
+        raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
     return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"))
 
 

@@ -18,18 +18,39 @@ from hzval import errors
 
 
 def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
-    if default_size is None:
-        from hzval import material
+    from hzval import materials
 
-        default_size = material.DEFAULT_SIZE
+    if default_size is None:
+        default_size = materials.DEFAULT_SIZE
     p.add_argument("height", nargs="?", metavar="HEIGHT",
                    help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall")
+    p.add_argument("--material", choices=materials.names(), default=None, metavar="NAME",
+                   help=f"a built-in material instead of HEIGHT: {', '.join(materials.names())} "
+                        "(`hzval materials` describes them)")
     p.add_argument("--depth", type=float, default=None,
-                   help="world height of H = 1 in image widths (default 0.05)")
+                   help="world height of H = 1 in image widths (default: the material's, 0.05 for a file)")
     p.add_argument("--boundary", choices=["wrap", "open"], default=None,
-                   help="wrap: the texture tiles; open: a terrain with nothing outside (default wrap)")
+                   help="wrap: the texture tiles; open: a terrain with nothing outside (default: the "
+                        "material's, wrap for a file)")
     p.add_argument("--size", type=int, default=None, metavar="N",
-                   help=f"size in texels of the built-in material (default {default_size}); ignored with HEIGHT")
+                   help=f"size in texels of a built-in material (default {default_size}); ignored with HEIGHT")
+
+
+def _material_of(args) -> str | None:
+    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``."""
+    if args.height is not None and args.material is not None:
+        raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
+    return str(args.height) if args.height is not None else args.material
+
+
+def _scene_name(args, scene) -> str:
+    """A sweep's name: HEIGHT's stem, else the scene's (a built-in material's name unless a scene file
+    names it)."""
+    if args.height is not None:
+        return Path(args.height).stem
+    if getattr(args, "material", None) is not None and not getattr(args, "scene", None):
+        return args.material
+    return scene.name
 
 
 def _tradeoff_default_size() -> int:
@@ -80,6 +101,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_tradeoff(sub)
     _add_export_scene(sub)
     _add_score(sub)
+    _add_suite(sub)
+    _add_materials(sub)
     return parser
 
 
@@ -112,6 +135,14 @@ def _add_sweep(sub) -> None:
     _add_material_args(p)
     p.add_argument("--scene", type=Path, default=None,
                    help="scene description (TOML); the flags below override it (default: built-in bricks)")
+    _add_sweep_flags(p)
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_sweep)
+
+
+def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
+    """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``)."""
     p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
     p.add_argument("--azimuths", default=None,
                    help="light azimuths in degrees, START:STOP:STEP or a list (default -60:60:15)")
@@ -135,9 +166,38 @@ def _add_sweep(sub) -> None:
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")
     _add_technique_args(p)
-    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
+
+
+def _add_suite(sub) -> None:
+    p = sub.add_parser("suite", help="sweep many materials (the built-in ones by default) and write an overview",
+                       description="Sweep every material (the built-in ones, or scene TOMLs, height maps - each "
+                                   "with an optional sidecar <stem>.toml - folders of them, or built-in names) "
+                                   "with the same options, on a pool of worker processes or a Dask cluster; "
+                                   "write each material's report under DIR, and DIR/index.html and "
+                                   "DIR/suite.json with every material's mean errors and times.")
+    p.add_argument("inputs", nargs="*", metavar="SCENE.toml|HEIGHT|FOLDER|NAME",
+                   help="materials to sweep (default: every built-in material)")
+    p.add_argument("--depth", type=float, default=None, help="override every material's depth")
+    p.add_argument("--boundary", choices=["wrap", "open"], default=None, help="override every material's boundary")
+    p.add_argument("--size", type=int, default=None, metavar="N", help="size of the built-in materials (default 512)")
+    _add_sweep_flags(p)
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="sweeps at once on this machine, each in its own process (default: 1 per 2 cores, "
+                        "at most the number of materials; 1 runs them in this process)")
+    p.add_argument("--cluster", default=None, metavar="ADDRESS",
+                   help="run on the Dask scheduler at ADDRESS (tcp://host:8786) instead; its workers need "
+                        "hzval and DIR and the inputs at the same paths")
+    p.add_argument("--out", type=Path, default=Path("reports") / "suite", metavar="DIR",
+                   help="output folder (default reports/suite)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(run=cmd_sweep)
+    p.set_defaults(run=cmd_suite)
+
+
+def _add_materials(sub) -> None:
+    p = sub.add_parser("materials", help="list the built-in materials",
+                       description="List the built-in materials (--material NAME, [material] height = \"NAME\", "
+                                   "hzval suite) with their default depth and boundary.")
+    p.set_defaults(run=cmd_materials)
 
 
 def _add_check(sub) -> None:
@@ -207,17 +267,17 @@ def _add_score(sub) -> None:
 
 
 def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
-    """The height map named on the command line, or the built-in one, with its description."""
-    from hzval import heightmap, material
+    """The height map named on the command line, or a built-in one, with its description."""
+    from hzval import heightmap, materials
 
     if args.height is None:
-        from hzval.scene import BRICKS_MIN_SIZE
-
-        size = material.DEFAULT_SIZE if args.size is None else args.size
-        if size < BRICKS_MIN_SIZE:
-            raise errors.InputError("--size", f"the built-in bricks need at least {BRICKS_MIN_SIZE} texels, got {size}")
-        hm = heightmap.from_array(material.bricks(size), source=f"built-in brick wall, {size}x{size}")
-        info = {"path": None, "builtin": "bricks", "size": size}
+        name = args.material or materials.DEFAULT
+        m = materials.get(name)
+        size = materials.DEFAULT_SIZE if args.size is None else args.size
+        if size < m.min_size:
+            raise errors.InputError("--size", f"the built-in {name} needs at least {m.min_size} texels, got {size}")
+        hm = heightmap.from_array(materials.generate(name, size).height, source=f"built-in {m.label}, {size}x{size}")
+        info = {"path": None, "builtin": name, "size": size}
     else:
         hm = heightmap.load_height(args.height)
         info = {"path": str(args.height)}
@@ -227,17 +287,18 @@ def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
 
 
 def cmd_bake(args) -> int:
-    from hzval import backend, bake, heightmap, material, mesh
+    from hzval import backend, bake, heightmap, materials, mesh
+    from hzval.scene import material_defaults
 
-    depth = material.DEFAULT_DEPTH if args.depth is None else args.depth
-    params = bake.BakeParams(depth=depth, radius=args.radius, angles=args.angles,
-                             boundary=args.boundary or "wrap", method=args.method,
-                             directions=args.directions).validate()
+    defaults = material_defaults(_material_of(args) or materials.DEFAULT)
+    params = bake.BakeParams(depth=defaults["depth"] if args.depth is None else args.depth, radius=args.radius,
+                             angles=args.angles, boundary=args.boundary or defaults["boundary"],
+                             method=args.method, directions=args.directions).validate()
     if args.height is not None:
         rows, cols = heightmap.probe_shape(args.height)
         bake.check_fits(args.height, rows, cols, params)
     else:   # estimate before generating the built-in map too
-        size = material.DEFAULT_SIZE if args.size is None else args.size
+        size = materials.DEFAULT_SIZE if args.size is None else args.size
         bake.check_fits("--size", size, size, params)
     t0 = time.perf_counter()
     height, info = load_material(args)
@@ -267,15 +328,10 @@ def cmd_sweep(args) -> int:
 
     from hzval import backend, scene as sc, sweep
 
-    base = sc.load_scene(args.scene) if args.scene else sc.Scene()
-    scene = sc.override(base, height=str(args.height) if args.height else None, size=args.size,
-                        depth=args.depth, boundary=args.boundary, elevation=args.elevation, azimuths=args.azimuths, light=args.light,
-                        light_radius=args.light_radius, effects=args.effects, spp=args.spp, seed=args.seed,
-                        supersampling=args.supersampling, shading=args.shading)
-    if args.height:
-        scene = dataclasses.replace(scene, name=Path(args.height).stem)
-    options = sweep.Options(radius=args.radius, angles=args.angles, method=args.method,
-                            directions=args.directions, **_technique_options(args))
+    scene = sc.override(sc.load_scene(args.scene) if args.scene else sc.Scene(), **_scene_overrides(args),
+                        height=_material_of(args))
+    scene = dataclasses.replace(scene, name=_scene_name(args, scene))
+    options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
@@ -290,6 +346,51 @@ def cmd_sweep(args) -> int:
               for name, info in result["techniques"].items()]
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
+    return errors.EXIT_OK
+
+
+def _scene_overrides(args) -> dict:
+    """The sweep flags that change a scene (:func:`hzval.scene.override`'s keywords), material aside."""
+    return dict(size=args.size, depth=args.depth, boundary=args.boundary, elevation=args.elevation,
+                azimuths=args.azimuths, light=args.light, light_radius=args.light_radius, effects=args.effects,
+                spp=args.spp, seed=args.seed, supersampling=args.supersampling, shading=args.shading)
+
+
+def sweep_options(args):
+    """The :class:`hzval.sweep.Options` of the sweep flags."""
+    from hzval import sweep
+
+    return sweep.Options(radius=args.radius, angles=args.angles, method=args.method, directions=args.directions,
+                         **_technique_options(args))
+
+
+def cmd_suite(args) -> int:
+    import os
+    import shlex
+
+    from hzval import backend, suite
+
+    items = suite.entries(args.inputs, **_scene_overrides(args))
+    workers = args.workers if args.workers is not None else max(1, min(len(items), (os.cpu_count() or 1) // 2))
+    if args.cluster is None and workers == 1:
+        backend.variant(args.variant)
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
+                       variant=args.variant, command=command, progress=not args.quiet)
+    print(suite.summary_table(result))
+    s = result["suite"]
+    print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
+          f"overview: {args.out / 'index.html'}")
+    return errors.EXIT_OK if not s["failed"] else errors.EXIT_CHECK_FAILED
+
+
+def cmd_materials(args) -> int:
+    from hzval import materials
+
+    print(f"{'name':13s} {'depth':>6s}  {'boundary':8s}  what it is")
+    for name in materials.names():
+        m = materials.get(name)
+        print(f"{name:13s} {m.depth:6g}  {m.boundary:8s}  {m.label}: {m.summary}")
     return errors.EXIT_OK
 
 
@@ -319,10 +420,9 @@ def cmd_tradeoff(args) -> int:
     from hzval import backend, scene as sc, technique, tradeoff
 
     size = args.size if args.size is not None else (None if args.height else tradeoff.DEFAULT_SIZE)
-    scene = sc.override(sc.Scene(), height=str(args.height) if args.height else None, size=size,
-                        depth=args.depth, boundary=args.boundary, elevation=args.elevation,
-                        azimuths=args.azimuths, spp=args.spp)
-    name = Path(args.height).stem if args.height else scene.name
+    scene = sc.override(sc.Scene(), height=_material_of(args), size=size, depth=args.depth,
+                        boundary=args.boundary, elevation=args.elevation, azimuths=args.azimuths, spp=args.spp)
+    name = _scene_name(args, scene)
     truth_spp = tradeoff.DEFAULT_TRUTH_SPP if args.truth_spp is None else args.truth_spp
     if truth_spp < 1:
         raise errors.InputError("--truth-spp", f"must be at least 1, got {truth_spp}")
@@ -356,7 +456,7 @@ def cmd_export_scene(args) -> int:
     from hzval import backend, export, scene as sc
 
     base = sc.load_scene(args.scene) if args.scene else sc.Scene()
-    scene = sc.override(base, height=str(args.height) if args.height else None, size=args.size, depth=args.depth,
+    scene = sc.override(base, height=_material_of(args), size=args.size, depth=args.depth,
                         boundary=args.boundary, elevation=args.elevation, effects=args.effects, spp=args.spp,
                         shading=args.shading)
     if not math.isfinite(args.azimuth):

@@ -44,13 +44,14 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from hzval import backend, files, mesh
+from hzval import backend, files, materials, mesh
+from hzval import conventions as cv
 from hzval.errors import InputError
-from hzval.scene import Scene, image_shape
+from hzval.scene import DEFAULT_ALBEDO, Scene, image_shape
 
 __all__ = ["write_scene", "mitsuba_render", "FILES"]
 
-#: What :func:`write_scene` writes (``albedo.png`` only for an albedo image).
+#: What :func:`write_scene` writes (``albedo.png`` only for an albedo image or a built-in material's own).
 FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
 
 
@@ -92,16 +93,22 @@ def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_de
 def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
     """The diffuse BSDF's ``reflectance`` element; copies an albedo image beside the scene."""
     albedo = scene.material.albedo
-    if not isinstance(albedo, str):
-        a = float(albedo)
+    own = None
+    if albedo is None and materials.is_builtin(scene.material.height):
+        own = materials.generate(scene.material.height, scene.material.size).albedo
+    if not isinstance(albedo, str) and own is None:
+        a = DEFAULT_ALBEDO if albedo is None else float(albedo)
         return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
-    from PIL import Image
+    if own is not None:     # a built-in material's linear albedo, stored as sRGB as a bitmap expects
+        rgb = np.round(np.clip(cv.srgb_encode(own), 0.0, 1.0) * 255.0).astype(np.uint8)
+    else:
+        from PIL import Image
 
-    try:
-        with Image.open(albedo) as img:
-            rgb = np.asarray(img.convert("RGB"))
-    except OSError as exc:
-        raise InputError(albedo, f"not a readable albedo image ({files.first_line(exc)})") from None
+        try:
+            with Image.open(albedo) as img:
+                rgb = np.asarray(img.convert("RGB"))
+        except OSError as exc:
+            raise InputError(albedo, f"not a readable albedo image ({files.first_line(exc)})") from None
     files.write_png(out / "albedo.png", rgb)
     written.append(out / "albedo.png")
     return ('<texture type="bitmap" name="reflectance"><string name="filename" value="albedo.png"/>'

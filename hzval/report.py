@@ -871,3 +871,46 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
+
+
+# --------------------------------------------------------------------------
+# The suite's overview (hzval.suite)
+# --------------------------------------------------------------------------
+
+def _cell_of(value, fmt: Callable[[Any], str]) -> dict:
+    return {"v": "" if value is None else f"{value:.6g}", "text": "—" if value is None else fmt(value)}
+
+
+def _suite_row(r: dict, names: list[str]) -> dict:
+    """A material's row and card, formatted."""
+    row = {"name": r["name"], "origin": r.get("origin", ""), "status": r["status"], "report": r.get("report"),
+           "error": r.get("error", "")}
+    if r["status"] != "ok":
+        return row
+    cells = []
+    for n in names:
+        t = r["techniques"].get(n, {})
+        cells += [_cell_of(t.get("visibility_mae"), _fixed(4)), _cell_of(t.get("flip_mean"), _fixed(4)),
+                  _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], _fixed(0))]
+    kinds = [{"name": "truth", "label": "truth"}] + [{"name": n, "label": technique.get(n).label.split(" (")[0]}
+                                                     for n in names if n in r["techniques"]]
+    row.update(size=f"{r['cols']} × {r['rows']}", texels=r["cols"] * r["rows"], depth=f"{r['depth']:g}",
+               boundary=r["boundary"], cells=cells,
+               floor=_cell_of(r["floor"].get("flip_mean"), _fixed(4)),
+               truth=_cell_of(None if r.get("truth_s") is None else 1000 * r["truth_s"], _fixed(0)),
+               sweep=_cell_of(r.get("seconds"), _fixed(1)),
+               peak=_cell_of(r["peak_rss_bytes"] / 2 ** 30, _fixed(2)),
+               lights=list(r.get("thumbs", {})), thumbs=r.get("thumbs", {}), kinds=kinds)
+    return row
+
+
+def render_suite(result: dict) -> str:
+    """The suite's ``index.html`` for :func:`hzval.suite.write_overview`'s ``result``."""
+    names = list(result["techniques"])
+    s = result["suite"]
+    context = {"count": s["materials"], "failed": s["failed"], "engine": s["engine"], "workers": s["workers"],
+               "seconds": fmt_seconds(s["seconds"]), "versions": s.get("versions") or {},
+               "command": s["command"],
+               "techniques": [{"name": n, **result["techniques"][n]} for n in names],
+               "rows": [_suite_row(r, names) for r in result["materials"]]}
+    return _environment().get_template("suite.html.j2").render(**context)

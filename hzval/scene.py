@@ -15,7 +15,8 @@ a surface facing it (so a Lambertian surface of albedo a shows radiance
 TOML layout (every key optional; see ``scenes/bricks.toml``)::
 
     name = "bricks"
-    [material]  height = "bricks" | "path/relative/to/scene.png", size, depth, boundary, albedo,
+    [material]  height = "bricks" (a built-in material: ``hzval materials``) | "path/relative/to/scene.png",
+                size, depth, boundary (default: the material's), albedo (default: the material's),
                 shading = "smooth" | "faceted"
     [camera]    supersampling = 1
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
@@ -36,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from hzval import conventions as cv
+from hzval import materials
 from hzval.errors import InputError
-from hzval.material import MIN_SIZE as BRICKS_MIN_SIZE
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
@@ -50,15 +51,25 @@ SHADINGS: tuple[str, ...] = ("smooth", "faceted")
 DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
 
 
+#: The albedo of a height map that comes without one.
+DEFAULT_ALBEDO = 0.8
+
+
 @dataclass(frozen=True)
 class MaterialSpec:
-    """Which height map, at which depth and boundary; ``height="bricks"`` is built in."""
+    """Which height map, at which depth and boundary.
 
-    height: str = "bricks"
-    size: int = 512
+    ``height`` names a built-in material (:data:`hzval.materials.REGISTRY`,
+    generated at ``size``) or a height map file. ``albedo``: an sRGB image
+    path, a constant linear albedo, or ``None`` for the material's own (a
+    built-in material's albedo; :data:`DEFAULT_ALBEDO` for a file).
+    """
+
+    height: str = materials.DEFAULT
+    size: int = materials.DEFAULT_SIZE
     depth: float = 0.05
     boundary: str = "wrap"
-    albedo: str | float = 0.8       # an sRGB image path, or a constant linear albedo
+    albedo: str | float | None = None
     shading: str = "smooth"         # the truth's shading normal: "smooth" (vertex normals) or "faceted"
 
 
@@ -139,9 +150,9 @@ class Scene:
             raise InputError(what, f"material.boundary must be wrap or open, got {m.boundary!r}")
         if m.size < 2:
             raise InputError(what, f"material.size must be at least 2, got {m.size}")
-        if m.height == "bricks" and m.size < BRICKS_MIN_SIZE:
-            raise InputError(what, f"material.size of the built-in bricks must be at least {BRICKS_MIN_SIZE}, "
-                                   f"got {m.size}")
+        if materials.is_builtin(m.height) and m.size < materials.get(m.height).min_size:
+            raise InputError(what, f"material.size of the built-in {m.height} must be at least "
+                                   f"{materials.get(m.height).min_size}, got {m.size}")
         if lt.irradiance <= 0:
             raise InputError(what, f"light.irradiance must be positive, got {lt.irradiance}")
         if int(self.seed) != self.seed or self.seed < 0:
@@ -188,8 +199,22 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
         raise InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}") from None
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read a scene from TOML; a relative ``material.height`` is relative to the scene file."""
+def material_defaults(height: str) -> dict:
+    """``depth`` and ``boundary`` of a scene of ``height`` that does not set them: a built-in
+    material's own, else 0.05 and ``wrap``."""
+    if materials.is_builtin(height):
+        m = materials.get(height)
+        return {"depth": m.depth, "boundary": m.boundary}
+    return {"depth": MaterialSpec.depth, "boundary": MaterialSpec.boundary}
+
+
+def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
+    """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
+
+    ``height`` is the material when the file names none (a sidecar scene beside its height map);
+    otherwise the built-in default. Depth and boundary default to the material's
+    (:func:`material_defaults`).
+    """
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -199,7 +224,9 @@ def load_scene(path: str | Path) -> Scene:
         raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
     try:
         mat = dict(data.get("material", {}))
-        if mat.get("height", "bricks") != "bricks":
+        mat.setdefault("height", materials.DEFAULT if height is None else str(height))
+        mat = {**material_defaults(mat["height"]), **mat}
+        if not materials.is_builtin(mat["height"]):
             mat["height"] = str((path.parent / mat["height"]).resolve())
         if isinstance(mat.get("albedo"), str):
             mat["albedo"] = str((path.parent / mat["albedo"]).resolve())
@@ -235,8 +262,13 @@ def override(scene: Scene, **changes) -> Scene:
     effects, spp, seed, supersampling``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
-    mat = dataclasses.replace(scene.material, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading")
-                                                 if k in c})
+    mat = scene.material
+    if "height" in c and c["height"] != mat.height:
+        # another material: a depth or boundary that was the old material's default becomes the new one's
+        old, new = material_defaults(mat.height), material_defaults(c["height"])
+        mat = dataclasses.replace(mat, **{k: new[k] for k in new if getattr(mat, k) == old[k]})
+    mat = dataclasses.replace(mat, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading")
+                                      if k in c})
     light = scene.light
     if "elevation" in c:
         light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))
@@ -322,18 +354,24 @@ def light_samples(light: Light, azimuth_deg: float, count: int, seed: int) -> np
 
 def load_material_height(spec: MaterialSpec):
     """The scene's height map as a :class:`hzval.heightmap.HeightMap`."""
-    from hzval import heightmap, material
+    from hzval import heightmap
 
-    if spec.height == "bricks":
-        return heightmap.from_array(material.bricks(spec.size),
-                                    source=f"built-in brick wall, {spec.size}x{spec.size}")
+    if materials.is_builtin(spec.height):
+        m = materials.get(spec.height)
+        return heightmap.from_array(materials.generate(spec.height, spec.size).height,
+                                    source=f"built-in {m.label}, {spec.size}x{spec.size}")
     return heightmap.load_height(spec.height)
 
 
 def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
-    """Linear albedo ``(rows, cols, 3)`` float32: a constant, or an sRGB image decoded to linear."""
+    """Linear albedo ``(rows, cols, 3)`` float32: a constant, an sRGB image decoded to linear, or
+    (``albedo = None``) a built-in material's own."""
+    if spec.albedo is None and materials.is_builtin(spec.height):
+        own = materials.generate(spec.height, spec.size).albedo
+        if own is not None:
+            return np.array(own)
     if not isinstance(spec.albedo, str):
-        a = float(spec.albedo)
+        a = DEFAULT_ALBEDO if spec.albedo is None else float(spec.albedo)
         if not 0 <= a <= 1:
             raise InputError("material.albedo", f"must be in [0, 1], got {a}")
         return np.full((rows, cols, 3), a, np.float32)

@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import approx, backend, bake, compare, files, images, report, shading, technique, truth
+from hzval import approx, backend, bake, compare, files, images, materials, report, shading, technique, truth
 from hzval import scene as sc
 from hzval.bake import BakeParams
 
@@ -126,7 +126,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     params = options.bake_params(scene)
     for t in chosen:                            # settings are checked before anything is written
         t.check_settings(params, options.settings.get(t.name, {}))
-    if scene.material.height == "bricks":       # estimate before generating the built-in map
+    if materials.is_builtin(scene.material.height):   # estimate before generating a built-in map
         bake.check_fits("--size", scene.material.size, scene.material.size, params)
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape

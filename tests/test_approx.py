@@ -14,7 +14,7 @@ import pytest
 
 from hzval import bake as B
 from hzval import conventions as cv
-from hzval import material
+from hzval.materials import bricks as brick_wall
 from hzval import scene as S
 from hzval.approx import CUBE_SIZE, DEFAULT_FADE, Approximation
 from hzval.errors import InputError
@@ -111,7 +111,7 @@ def scene(size=32, effects=("shadow",), spp=4, elevation=30.0, **kw):
 
 @pytest.fixture(scope="module")
 def bricks(variant):
-    return B.bake(material.bricks(32), B.BakeParams(depth=0.1))
+    return B.bake(brick_wall.bricks(32), B.BakeParams(depth=0.1))
 
 
 @pytest.fixture(scope="module")
@@ -397,7 +397,7 @@ def test_k_per_frame_is_eq_5_4s_k(wall):
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
-    bake = B.bake(material.bricks(24), B.BakeParams(depth=0.1, boundary=boundary))
+    bake = B.bake(brick_wall.bricks(24), B.BakeParams(depth=0.1, boundary=boundary))
     sc = scene(size=24, effects=("shadow", "diffuse"), irradiance=1.5, boundary=boundary, spp=4)
     rng = np.random.default_rng(3)
     albedo = rng.uniform(0.1, 0.9, (24, 24, 3)).astype(np.float32)

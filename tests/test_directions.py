@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from hzval import approx as A
+from hzval.materials.bricks import bricks
 from hzval import bake as B
 from hzval import conventions as cv
 from hzval.errors import InputError
@@ -164,11 +165,11 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
 
 def test_bricks_16_directions_against_the_truth(variant, capsys):
     """|F - V| over the default sweep on the built-in bricks at 64 px: measured and printed."""
-    from hzval import material, truth
+    from hzval import truth
     from hzval.scene import load_albedo
 
     scene = Scene(material=MaterialSpec(size=64), spp=4)
-    h = material.bricks(64)
+    h = bricks(64)
     albedo = load_albedo(scene.material, 64, 64)
     V = [f.layers["visibility"] for f in map(truth.Truth(scene, h).render, scene.light.azimuths_deg)]
     mae = {}

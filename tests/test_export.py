@@ -15,14 +15,15 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from hzval import cli, export, material, shading, truth
+from hzval import cli, export, shading, truth
+from hzval.materials.bricks import bricks
 from hzval import scene as S
 from test_truth import column_wall, make_scene
 
 CASES = {
     "wall": lambda: (column_wall(40, 40, 20),
                      make_scene((40, 40), 4 / 40, "open", effects=("shadow", "diffuse"), spp=64, elevation=30.0)),
-    "bricks": lambda: (material.bricks(48), S.override(S.Scene(), size=48, spp=64, depth=0.1)),
+    "bricks": lambda: (bricks(48), S.override(S.Scene(), size=48, spp=64, depth=0.1)),
 }
 
 

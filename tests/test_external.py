@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake, cli, external, files, material
+from hzval import bake, cli, external, files
+from hzval.materials.bricks import bricks
 from hzval.errors import InputError
 from hzval.external import Encoding
 from test_seed_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
@@ -52,7 +53,7 @@ def test_an_azimuth_between_channels_interpolates_around_the_ring():
 
 @pytest.fixture(scope="module")
 def bricks64():
-    h = material.bricks(64)
+    h = bricks(64)
     exact = bake.bake(h, bake.BakeParams(depth=0.05, method="exact")).horizon
     seed4 = bake.bake(h, bake.BakeParams(depth=0.05, radius=4)).horizon
     return h, exact, seed4
@@ -87,7 +88,7 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed
     """The C seed peer bakes at radius 4; as 8-bit PNGs in hzval's layout it replaces hzval's bake
     (F follows it: mirrored it shadows elsewhere), its convention is confirmed, and the same map
     mirrored (+y down) is reported as a different convention, in metrics.json and a warning line."""
-    h = material.bricks(64)
+    h = bricks(64)
     depth = 0.2                   # 12.8 texels of relief: a radius of 4 sees less than 16 does
     peer = run_peer(seed_peer, h, depth, 4, 32, "wrap", tmp_path)[..., :8]
     u8 = files.unit_to_u8(peer)

@@ -88,9 +88,9 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
 def test_the_exposure_never_clips_what_the_declared_effects_can_produce(variant, effects):
     """The exposure maps the largest radiance of the declared effects to 1: no truth pixel of an
     ambient scene reaches the clip, yet the brightest are within a factor 2 of it."""
-    from hzval import material
+    from hzval.materials.bricks import bricks
 
-    h = material.bricks(64)
+    h = bricks(64)
     sc = S.override(S.Scene(), size=64, effects=",".join(effects), spp=4, elevation=60.0)
     shown = truth.Truth(sc, h).render(0.0).image * shading.exposure(sc)
     assert (shown >= 1.0).mean() < 0.01 and shown.max() <= 1.0 + 1e-5

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hzval.material import DEFAULT_DEPTH, DEFAULT_SIZE, bricks
+from hzval.materials.bricks import DEFAULT_DEPTH, DEFAULT_SIZE, bricks
 
 SHAPES = [(32, 32), (64, 64), (128, 128), (96, 160), (128, 48)]
 

@@ -118,10 +118,10 @@ def test_converges_to_the_truths_visibility_on_the_bricks(variant):
     """On the 64 x 64 built-in bricks (hard light at 30 degrees) |F - V| falls as steps grow,
     from about 0.013 at 4 steps to about 0.005 at 64 (spp 4; the rest is the bilinear height field
     against the mesh's triangles and the truth's noise)."""
-    from hzval import material
+    from hzval.materials.bricks import bricks
     from hzval import scene as S
 
-    h = material.bricks(64)
+    h = bricks(64)
     scene = S.override(S.Scene(), size=64, effects="shadow", spp=4)
     t = truth.Truth(scene, h)
     azimuths = (-60.0, 0.0, 45.0)

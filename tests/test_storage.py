@@ -67,9 +67,9 @@ def test_bc7_beats_bc1_and_square_roots_help_low_horizons():
 def test_approximation_reads_the_stored_map(variant):
     """The horizon technique samples the decoded textures: storage_bytes follows the format, and a
     BC7 map shadows almost exactly where the float map does."""
-    from hzval import material
+    from hzval.materials.bricks import bricks
 
-    h = material.bricks(64)
+    h = bricks(64)
     sc = make_scene(h.shape, 0.1, "wrap", effects=("shadow", "diffuse"), spp=4)
     bk = bake.bake(h, bake.BakeParams(depth=0.1))
     F = {n: approx.Approximation(sc, bk, storage=n) for n in ("float", "bc7", "bc1")}

@@ -80,7 +80,7 @@ def test_wrap_finds_occluders_several_tiles_away_at_grazing_light(variant):
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 @pytest.mark.parametrize("kind", ["hard", "soft"])
 def test_drjit_and_numpy_agree(variant, boundary, kind):
-    from hzval.material import bricks
+    from hzval.materials.bricks import bricks
 
     h = bricks(64)[:48, :56]                     # not square: the transposed sweeps differ
     kw = dict(elevation=25.0, kind=kind, radius=4.0 if kind == "soft" else 0.0, spp=4)
@@ -95,7 +95,7 @@ def test_drjit_and_numpy_agree(variant, boundary, kind):
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 @pytest.mark.parametrize("elevation, expect", [(0.5, None), (90.0, 1.0), (89.99, None), (0.0, 0.0), (-5.0, 0.0)])
 def test_factor_is_finite_in_unit_range_at_extreme_lights(variant, boundary, elevation, expect):
-    from hzval.material import bricks
+    from hzval.materials.bricks import bricks
 
     for kind in ("hard", "soft"):
         ts = shadow(bricks(32), 0.05, boundary, elevation=elevation, kind=kind,

@@ -1,4 +1,4 @@
-"""The built-in material: a procedural, seamlessly tiling brick wall.
+"""The built-in brick wall, hzval's default material: procedural and seamlessly tiling.
 
 :func:`bricks` returns a height map ``H[row, col]`` in [0, 1] (row 0 at the
 top, docs/ARCHITECTURE.md "Conventions") of bricks laid in running bond: bevelled
@@ -21,10 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "MIN_SIZE", "bricks"]
+from hzval.materials import DEFAULT_SIZE, Material
+from hzval.materials.noise import periodic_noise, shape_of, smoothstep
 
-#: Side of the default height map in texels.
-DEFAULT_SIZE = 512
+__all__ = ["DEFAULT_SIZE", "DEFAULT_DEPTH", "MIN_SIZE", "MATERIAL", "bricks"]
+
 #: Smallest side :func:`bricks` accepts, in texels.
 MIN_SIZE = 8
 #: Suggested ``depth`` for :func:`bricks`: the world height of ``H = 1`` in
@@ -46,53 +47,6 @@ _CHIP_SLOPE = 6.0
 _CHIP_DEPTH = 0.25
 _CHIP_THRESHOLD = 1.0
 _MIN_BRICK_PX = 48        # narrowest brick, in texels (fewer bricks on small maps)
-
-
-def _shape(size: int | tuple[int, int]) -> tuple[int, int]:
-    if np.ndim(size) == 0:
-        rows = cols = int(size)
-    else:
-        rows, cols = (int(s) for s in size)
-    if rows < MIN_SIZE or cols < MIN_SIZE:
-        raise ValueError(f"bricks: size must be at least {MIN_SIZE}x{MIN_SIZE} texels, got {rows}x{cols}")
-    return rows, cols
-
-
-def _periodic_noise(rng: np.random.Generator, shape: tuple[int, int],
-                    sigmas: tuple[float, ...], weights: tuple[float, ...]) -> np.ndarray:
-    """Exactly periodic noise of zero mean and unit variance, float32 ``shape``.
-
-    White Gaussian noise is drawn directly as Fourier coefficients and
-    shaped by a sum of Gaussian low-pass kernels of standard deviations
-    ``sigmas`` (texels) with ``weights``; the inverse real FFT of a discrete
-    spectrum is periodic with the image. Coefficients where every kernel is
-    below ``exp(-8)`` are zero and not drawn, so smooth fields are cheap.
-    """
-    rows, cols = shape
-    # Band limit: |f| <= 4 / (2 pi sigma_min) cycles per texel, per axis.
-    f_max = 4.0 / (2.0 * np.pi * min(sigmas))
-    ky = min(rows // 2, int(np.ceil(f_max * rows)))
-    kx = min(cols // 2, int(np.ceil(f_max * cols)))
-    iy = np.r_[0:ky + 1, rows - ky:rows] if 2 * ky + 1 < rows else np.arange(rows)
-    fy = np.where(iy <= rows // 2, iy, iy - rows) / rows
-    fx = np.arange(kx + 1) / cols
-    kernel = np.zeros((fy.size, fx.size))
-    for sigma, weight in zip(sigmas, weights):
-        c = 2.0 * np.pi ** 2 * sigma ** 2        # the Gaussian is separable
-        kernel += weight * np.outer(np.exp(-c * fy * fy), np.exp(-c * fx * fx))
-    kernel[0, 0] = 0.0                           # zero mean
-    white = rng.standard_normal((fy.size, fx.size, 2), dtype=np.float32)
-    band = (white[..., 0] + 1j * white[..., 1]) * kernel.astype(np.float32)
-    spectrum = np.zeros((rows, cols // 2 + 1), dtype=np.complex64)
-    spectrum[iy, :kx + 1] = band
-    field = np.fft.irfft2(spectrum, s=shape)
-    std = field.std()
-    return field / std if std > 0 else field
-
-
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
 
 
 def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
@@ -131,7 +85,7 @@ def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
     steps or spikes. Units: ``H`` is dimensionless; texel-space lengths scale
     with the brick height, so the look does not depend on the resolution.
     """
-    rows, cols = _shape(size)
+    rows, cols = shape_of(size, "bricks", MIN_SIZE)
     if int(bricks_across) < 1:
         raise ValueError(f"bricks: bricks_across must be at least 1, got {bricks_across}")
     rng = np.random.default_rng(seed)
@@ -191,11 +145,11 @@ def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.n
     """Noise fields, all exactly periodic, drawn in a fixed order. Scales are in texels, tied to the
     brick height so the look does not depend on the resolution."""
     s = brick_h / 64.0
-    return {"chip": _periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
-            "face": _periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2)),
-            "pit": _periodic_noise(rng, shape, (2.5 * s,), (1.0,)),
-            "grain": _periodic_noise(rng, shape, (0.6,), (1.0,)),
-            "edge": _periodic_noise(rng, shape, (10.0 * s,), (1.0,))}
+    return {"chip": periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
+            "face": periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2)),
+            "pit": periodic_noise(rng, shape, (2.5 * s,), (1.0,)),
+            "grain": periodic_noise(rng, shape, (0.6,), (1.0,)),
+            "edge": periodic_noise(rng, shape, (10.0 * s,), (1.0,))}
 
 
 def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
@@ -227,7 +181,7 @@ def _relief(bond: _Bond, b: dict[str, np.ndarray], fields: dict[str, np.ndarray]
     face += b["tilt_u"][ids] * (bond.fu - f32(0.5)) * f32(2.0)
     face += b["tilt_v"][ids] * (bond.fv - f32(0.5)) * f32(2.0)
     face += f32(0.022) * b["rough_scale"][ids] * fields["face"]
-    face -= f32(0.04) * _smoothstep(1.5, 3.2, fields["pit"])
+    face -= f32(0.04) * smoothstep(1.5, 3.2, fields["pit"])
     mortar_height = f32(_MORTAR_LEVEL) + f32(0.02) * fields["pit"]
     height = mortar_height + profile * (face - mortar_height)
     # Chips: a fracture surface that rises gently from the joint and sinks
@@ -239,3 +193,13 @@ def _relief(bond: _Bond, b: dict[str, np.ndarray], fields: dict[str, np.ndarray]
     height = np.minimum(height, np.maximum(fracture, mortar_height))
     height += f32(0.005) * fields["grain"]
     return np.clip(height, 0.0, 1.0).astype(np.float32)
+
+
+def _make(shape: tuple[int, int], seed: int):
+    return bricks(shape, seed=seed), None
+
+
+MATERIAL = Material(
+    name="bricks", label="brick wall",
+    summary="bevelled bricks in running bond, proud of recessed mortar: steep walls, long straight joints",
+    depth=DEFAULT_DEPTH, make=_make, min_size=MIN_SIZE)

@@ -1,0 +1,388 @@
+"""The suite: many materials swept with one set of options, side by side, on one machine or a cluster.
+
+:func:`entries` turns the command line's inputs into one :class:`Entry` per
+material - every built-in material (:mod:`hzval.materials`) by default; a
+scene TOML; a height map, with a sidecar scene of the same stem beside it
+(``gravel.png`` + ``gravel.toml``, whose ``[material]`` table gives depth and
+boundary); a folder of height maps (each with its optional sidecar); or a
+built-in material's name. :func:`run` sweeps each one (:func:`hzval.sweep.run`,
+unchanged: a material's ``DIR/<name>/`` is exactly what ``hzval sweep`` writes
+with the same settings) and, once all are in, writes the overview::
+
+    DIR/index.html      thumbnails (the truth and each technique at three lights) and a sortable
+                        table of each material's mean errors and times, worst first
+    DIR/suite.json      the same numbers (docs/ARCHITECTURE.md, "suite.json")
+    DIR/thumbs/         the thumbnails
+    DIR/<name>/         each material's sweep report
+
+Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
+    One worker: in this process, one material after another. More: a pool
+    of worker processes on this machine, a Dask ``LocalCluster``. With
+    ``cluster``: the Dask scheduler at that address (``tcp://host:8786``),
+    whose workers must have hzval installed and see ``DIR`` and the inputs
+    at the same paths (a shared filesystem; a task checks and fails with a
+    line that says so). One task per material, ``retries=0``; a task that
+    raises, or whose worker dies, is one failed material on the overview,
+    never the end of the others.
+
+    Dask distributed was chosen over Ray after measuring both on this
+    2-core machine (``benchmarks/README.md``, "Suite engines"): a local
+    cluster up in 1.3 s against 3.5 s, 16 small tasks in 0.09 s against
+    0.10 s, 24 MB installed against 240 MB, and a pure-Python wheel; both
+    take a scheduler address. Each local worker's Dr.Jit runs ``cores /
+    workers`` threads, so workers do not oversubscribe the cores.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import socket
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hzval import files, materials, technique
+from hzval import scene as sc
+from hzval.errors import InputError
+
+__all__ = ["Entry", "Task", "entries", "run", "sweep_material", "summarise", "write_overview", "summary_table",
+           "HEIGHT_SUFFIXES", "LIGHTS_SHOWN"]
+
+#: File suffixes a folder's height maps have (:mod:`hzval.heightmap` reads them by content).
+HEIGHT_SUFFIXES = (".png", ".exr", ".npy")
+#: Thumbnails per material and technique: the sweep's first, middle and last lights.
+LIGHTS_SHOWN = 3
+#: Side of a thumbnail in pixels.
+THUMB_PX = 144
+#: The per-frame metrics a material's row averages over its sweep.
+MEANS = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "delta_e2000_mean", "rmse",
+         "seconds")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One material of the suite: its unique ``name`` (its folder under ``DIR``), the scene to sweep
+    and where it came from (``origin``: "built-in", a scene file, or a height map [+ sidecar])."""
+
+    name: str
+    scene: sc.Scene
+    origin: str
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs to sweep one material (picklable: it travels to other processes)."""
+
+    entry: Entry
+    out: str                    # the material's folder, DIR/<name>
+    options: object             # hzval.sweep.Options
+    variant: str | None
+    command: str
+    threads: int | None         # Dr.Jit threads in the worker; None leaves them alone
+
+
+# --------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------
+
+def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
+    """The suite's materials: one :class:`Entry` per input (each built-in material when there is
+    none), with the sweep flags ``overrides`` (:func:`hzval.scene.override`'s keywords) applied to
+    every one. Names are made unique with ``-2``, ``-3``. An input that is no file, folder or built-in
+    material, or a folder without height maps, is an :class:`InputError` before anything runs; a height
+    map that cannot be read is not: it becomes that material's failure."""
+    found: list[Entry] = []
+    for item in inputs or materials.names():
+        found.extend(_entries_of(item))
+    out, seen = [], {}
+    for e in found:
+        n = seen[e.name] = seen.get(e.name, 0) + 1
+        name = e.name if n == 1 else f"{e.name}-{n}"
+        scene = sc.override(e.scene, **overrides)
+        out.append(Entry(name, dataclasses.replace(scene, name=name), e.origin))
+    return out
+
+
+def _entries_of(item) -> list[Entry]:
+    path = Path(item)
+    if path.is_dir():
+        maps = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in HEIGHT_SUFFIXES)
+        if not maps:
+            raise InputError(path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) in this folder")
+        return [_height_entry(p) for p in maps]
+    if path.is_file():
+        if path.suffix.lower() == ".toml":
+            scene = sc.load_scene(path)
+            return [Entry(scene.name, scene, str(path))]
+        return [_height_entry(path)]
+    if materials.is_builtin(str(item)):
+        scene = sc.override(sc.Scene(), height=str(item))
+        return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
+    raise InputError(item, "no such file, folder or built-in material "
+                           f"({', '.join(materials.names())})")
+
+
+def _height_entry(path: Path) -> Entry:
+    """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one."""
+    sidecar = path.with_suffix(".toml")
+    if sidecar.is_file():
+        scene = sc.load_scene(sidecar, height=path.resolve())
+        return Entry(path.stem, scene, f"{path} + {sidecar.name}")
+    return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
+
+
+# --------------------------------------------------------------------------
+# One material, in a worker
+# --------------------------------------------------------------------------
+
+def sweep_material(task: Task) -> dict:
+    """Sweep one material into ``task.out``; its row of ``suite.json`` (:func:`summarise`), or
+    ``{"status": "failed", "error": <one line>}``. Runs in a worker process; never raises for a
+    material's own failure, so one bad material cannot take the others down."""
+    from hzval import backend, errors, sweep
+
+    entry, out = task.entry, Path(task.out)
+    t0 = time.perf_counter()
+    try:
+        if not out.parent.is_dir():
+            raise InputError(out.parent, f"this worker ({socket.gethostname()}) cannot see the suite's folder: "
+                                         "--cluster needs it on a filesystem the workers share")
+        backend.variant(task.variant)
+        if task.threads:
+            import drjit as dr
+
+            dr.set_thread_count(task.threads)
+        result = sweep.run(entry.scene, out, options=task.options, command=task.command, progress=False)
+        return summarise(entry, result)
+    except errors.HzvalError as exc:
+        return _failed(entry, str(exc), time.perf_counter() - t0)
+    except Exception as exc:                  # a material's crash is its own row, not the suite's end
+        return _failed(entry, f"{type(exc).__name__}: {files.first_line(exc)}", time.perf_counter() - t0,
+                       traceback.format_exc())
+
+
+def _failed(entry: Entry, error: str, seconds: float | None, trace: str | None = None) -> dict:
+    row = {"name": entry.name, "origin": entry.origin, "status": "failed", "error": error,
+           "seconds": seconds}
+    if trace:
+        row["traceback"] = trace
+    return row
+
+
+def _mean(values) -> float | None:
+    vals = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
+    return float(np.mean(vals)) if vals else None
+
+
+def summarise(entry: Entry, metrics: dict) -> dict:
+    """A material's row of ``suite.json`` from its sweep's ``metrics.json`` content: per technique the
+    mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
+    FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
+    frames = metrics["frames"]
+    techniques = {name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
+                  for name in metrics["techniques"]}
+    m, p = metrics["material"], metrics["parameters"]
+    return {"name": entry.name, "origin": entry.origin, "status": "ok", "report": f"{entry.name}/index.html",
+            "source": m.get("source"), "digest": m.get("digest"), "rows": m.get("rows"), "cols": m.get("cols"),
+            "depth": p["depth"], "boundary": p["boundary"],
+            "azimuths_deg": [f["azimuth_deg"] for f in frames],
+            "techniques": techniques,
+            "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
+            "truth_s": _mean(f.get("truth_s") for f in frames),
+            "seconds": metrics["timings"]["total_s"],
+            "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
+            "files": _thumbnail_sources(frames, metrics["techniques"])}
+
+
+def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
+    """``{azimuth: {"truth": png, <technique>: png}}`` (relative to the material's folder) for the
+    sweep's first, middle and last lights."""
+    n = len(frames)
+    picks = sorted({0, n // 2, n - 1})[:LIGHTS_SHOWN]
+    out = {}
+    for i in picks:
+        f = frames[i]
+        row = {"truth": f["files"]["truth_png"]}
+        row.update({name: f["techniques"][name]["files"]["png"] if "png" in f["techniques"][name]["files"]
+                    else f["techniques"][name]["files"].get("approx_png") for name in techniques})
+        out[f"{f['azimuth_deg']:+g}"] = row
+    return out
+
+
+# --------------------------------------------------------------------------
+# Running them all
+# --------------------------------------------------------------------------
+
+def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, cluster: str | None = None,
+        variant: str | None = None, command: str = "", progress: bool = True) -> dict:
+    """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
+
+    ``workers``: sweeps at once on this machine (1: in this process); ``cluster``: a Dask scheduler's
+    address instead (its workers decide). The overview is written once every material is in, failed
+    ones included."""
+    from hzval import sweep
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    options = options or sweep.Options()
+    if workers < 1:
+        raise InputError("--workers", f"must be at least 1, got {workers}")
+    local = cluster is None
+    threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 1 else None
+    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads)
+             for e in items]
+    t0 = time.perf_counter()
+    if local and workers == 1:
+        rows, engine = _run_here(tasks, progress), "in-process"
+    else:
+        rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
+    seconds = time.perf_counter() - t0
+    return write_overview(out, rows, command=command, engine=engine, workers=workers if local else None,
+                          cluster=cluster, seconds=seconds)
+
+
+def _bar(total: int, progress: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="suite", unit="material", disable=not progress, file=sys.stderr, leave=False)
+
+
+def _run_here(tasks: list[Task], progress: bool) -> list[dict]:
+    rows = []
+    with _bar(len(tasks), progress) as bar:
+        for task in tasks:
+            bar.set_postfix_str(task.entry.name)
+            rows.append(sweep_material(task))
+            bar.update()
+    return rows
+
+
+def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progress: bool) -> tuple[list[dict], str]:
+    """Each task on a Dask cluster: a ``LocalCluster`` of ``workers`` processes, or the scheduler at
+    ``address``. Rows come back in the tasks' order."""
+    import logging
+
+    import dask
+    import distributed
+
+    cluster = None
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        if address is None:
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=None, silence_logs=logging.ERROR)
+            address = cluster.scheduler_address
+        try:
+            client = distributed.Client(address, timeout="30s")
+        except OSError as exc:
+            if cluster is not None:
+                cluster.close()
+            raise InputError("--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})") from None
+    try:
+        futures = {client.submit(sweep_material, t, key=f"hzval-suite-{t.entry.name}-{os.getpid()}-{i}",
+                                 pure=False, retries=0): i for i, t in enumerate(tasks)}
+        rows: list[dict | None] = [None] * len(tasks)
+        with _bar(len(tasks), progress) as bar:
+            for future in distributed.as_completed(futures):
+                i = futures[future]
+                try:
+                    rows[i] = future.result()
+                except Exception as exc:     # the worker died (KilledWorker) or the task could not run
+                    rows[i] = _failed(tasks[i].entry, f"the worker running it failed: {type(exc).__name__}: "
+                                                      f"{files.first_line(exc)}", None)
+                bar.set_postfix_str(tasks[i].entry.name)
+                bar.update()
+        engine = f"dask.distributed {distributed.__version__} at {address}"
+        return rows, engine
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+# --------------------------------------------------------------------------
+# The overview
+# --------------------------------------------------------------------------
+
+def _sort_key(row: dict) -> tuple:
+    """Worst first: failed materials, then the primary technique's (else the first's) mean |F - V|."""
+    if row["status"] != "ok":
+        return (0, 0.0, row["name"])
+    tech = row["techniques"].get(technique.PRIMARY) or next(iter(row["techniques"].values()), {})
+    v = tech.get("visibility_mae")
+    return (1, -(v if v is not None else -1.0), row["name"])
+
+
+def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, workers: int | None,
+                   cluster: str | None, seconds: float) -> dict:
+    """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material."""
+    from hzval import backend, report
+
+    rows = sorted(rows, key=_sort_key)
+    for row in rows:
+        if row["status"] == "ok":
+            row["thumbs"] = _thumbnails(out, row)
+    names = []
+    for row in rows:
+        names += [n for n in row.get("techniques", {}) if n not in names]
+    techniques = {n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
+                  for n in names if n in technique.REGISTRY}
+    result = {"suite": {"command": command, "engine": engine, "workers": workers, "cluster": cluster,
+                        "seconds": seconds, "materials": len(rows),
+                        "failed": sum(r["status"] != "ok" for r in rows),
+                        "versions": backend.versions()},
+              "techniques": techniques, "materials": rows}
+    files.write_json(out / "suite.json", result)
+    html = report.render_suite(result)
+    with files.atomic_path(out / "index.html") as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return result
+
+
+def _thumbnails(out: Path, row: dict) -> dict:
+    """Downsampled copies of the chosen frames under ``out/thumbs/<name>/``; same layout as
+    ``row["files"]``, paths relative to ``out``."""
+    from PIL import Image
+
+    thumbs = {}
+    for az, images in row["files"].items():
+        thumbs[az] = {}
+        for kind, rel in images.items():
+            if rel is None:
+                continue
+            src = out / row["name"] / rel
+            dst = Path("thumbs") / row["name"] / f"az{az}_{kind}.png"
+            try:
+                with Image.open(src) as img:
+                    img = img.convert("RGB")
+                    img.thumbnail((THUMB_PX, THUMB_PX), Image.Resampling.BOX)
+                    pixels = np.asarray(img)
+            except OSError:
+                continue
+            (out / dst).parent.mkdir(parents=True, exist_ok=True)
+            files.write_png(out / dst, pixels)
+            thumbs[az][kind] = dst.as_posix()
+    return thumbs
+
+
+def summary_table(result: dict) -> str:
+    """The terminal's table: per material (worst first) each technique's mean |F - V| and FLIP."""
+    names = list(result["techniques"])
+    head = f"{'material':16s}" + "".join(f" {n[:10]:>10s} |F-V|  FLIP" for n in names) + "  sweep s"
+    lines = [head]
+    for r in result["materials"]:
+        if r["status"] != "ok":
+            lines.append(f"{r['name'][:16]:16s} failed: {r['error']}")
+            continue
+        cells = ""
+        for n in names:
+            t = r["techniques"].get(n, {})
+            v, f = t.get("visibility_mae"), t.get("flip_mean")
+            cells += f" {'-' if v is None else f'{v:.4f}':>16s} {'-' if f is None else f'{f:.4f}':>5s}"
+        lines.append(f"{r['name'][:16]:16s}{cells}  {r['seconds']:7.1f}")
+    return "\n".join(lines)
