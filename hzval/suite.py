@@ -60,6 +60,8 @@ HEIGHT_SUFFIXES = (".png", ".exr", ".npy")
 LIGHTS_SHOWN = 3
 #: Side of a thumbnail in pixels.
 THUMB_PX = 144
+#: How long to keep trying a ``--cluster`` scheduler that does not answer, in seconds.
+CONNECT_TIMEOUT_S = 15
 #: The per-frame metrics a material's row averages over its sweep.
 MEANS = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "delta_e2000_mean", "rmse",
          "seconds")
@@ -278,7 +280,7 @@ def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progr
                                                dashboard_address=None, silence_logs=logging.ERROR)
             address = cluster.scheduler_address
         try:
-            client = distributed.Client(address, timeout="30s")
+            client = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
         except OSError as exc:
             if cluster is not None:
                 cluster.close()

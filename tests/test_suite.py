@@ -1,0 +1,164 @@
+"""hzval suite: many materials, one overview; in this process, on a pool of workers, on a cluster."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hzval import cli, files, materials, suite, sweep
+from hzval import scene as S
+from hzval.errors import InputError
+
+SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
+#: Scores a suite row must reproduce from a standalone sweep (times differ run to run).
+SCORES = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "delta_e2000_mean", "rmse")
+
+
+def _folder(tmp_path):
+    """A folder of height maps: one with a sidecar scene, one without, one that is not a height map."""
+    d = tmp_path / "maps"
+    d.mkdir()
+    h = materials.generate("cobblestones", 24).height
+    files.write_png(d / "stones.png", np.round(h * 65535).astype(np.uint16))
+    (d / "stones.toml").write_text('[material]\ndepth = 0.07\nboundary = "open"\n[light]\nelevation_deg = 40\n')
+    np.save(d / "dome.npy", materials.generate("gravel", 24).height)
+    (d / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
+    (d / "notes.txt").write_text("not a height map")
+    return d
+
+
+def test_default_entries_are_the_built_in_materials():
+    items = suite.entries()
+    assert [e.name for e in items] == materials.names()
+    ridges = next(e for e in items if e.name == "ridges")
+    assert ridges.scene.material.boundary == "open" and ridges.origin == "built-in"
+
+
+def test_entries_read_folders_sidecars_scene_files_and_names(tmp_path):
+    d = _folder(tmp_path)
+    items = suite.entries([d, "spikes", "spikes"], elevation=20)
+    names = [e.name for e in items]
+    assert names == ["broken", "dome", "stones", "spikes", "spikes-2"]
+    stones = items[2].scene
+    assert (stones.material.depth, stones.material.boundary) == (0.07, "open")     # the sidecar's
+    assert stones.light.elevation_deg == 20                                        # the flags win
+    assert items[1].scene.material.depth == 0.05 and items[1].scene.material.boundary == "wrap"
+    assert all(e.scene.name == e.name for e in items)
+    with pytest.raises(InputError, match="no such file"):
+        suite.entries([tmp_path / "nothing"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="no height maps"):
+        suite.entries([tmp_path / "empty"])
+
+
+@pytest.fixture(scope="module")
+def in_process(tmp_path_factory, variant):
+    tmp = tmp_path_factory.mktemp("suite")
+    items = suite.entries([_folder(tmp), "planks"], **SMALL)
+    out = tmp / "out"
+    return items, out, suite.run(items, out, workers=1, command="hzval suite (test)", progress=False)
+
+
+def test_a_failed_material_is_reported_and_the_others_are_not_lost(in_process):
+    items, out, result = in_process
+    rows = {r["name"]: r for r in result["materials"]}
+    assert set(rows) == {e.name for e in items}
+    assert rows["broken"]["status"] == "failed" and "broken.png" in rows["broken"]["error"]
+    assert result["materials"][0]["name"] == "broken"                 # worst first: failures lead
+    for name in ("dome", "stones", "planks"):
+        assert rows[name]["status"] == "ok"
+        assert (out / name / "index.html").is_file() and (out / name / "metrics.json").is_file()
+    assert result["suite"]["failed"] == 1
+    on_disk = json.loads((out / "suite.json").read_text())
+    assert [r["name"] for r in on_disk["materials"]] == [r["name"] for r in result["materials"]]
+
+
+def test_rows_are_sorted_worst_first_and_equal_their_sweeps_means(in_process):
+    _, out, result = in_process
+    ok = [r for r in result["materials"] if r["status"] == "ok"]
+    worst = [r["techniques"]["horizon"]["visibility_mae"] for r in ok]
+    assert worst == sorted(worst, reverse=True)
+    for r in ok:
+        metrics = json.loads((out / r["name"] / "metrics.json").read_text())
+        for name, t in r["techniques"].items():
+            for key in SCORES:
+                values = [f["techniques"][name][key] for f in metrics["frames"]]
+                assert t[key] == pytest.approx(float(np.mean(values)), rel=1e-12), (r["name"], name, key)
+
+
+def test_a_material_equals_its_standalone_sweep(in_process, tmp_path):
+    """The acceptance criterion: a suite's material scores exactly what `hzval sweep` does."""
+    items, out, _ = in_process
+    stones = next(e for e in items if e.name == "stones")
+    alone = sweep.run(stones.scene, tmp_path / "alone", progress=False)
+    suite_metrics = json.loads((out / "stones" / "metrics.json").read_text())
+    for a, b in zip(alone["frames"], suite_metrics["frames"]):
+        for name in alone["techniques"]:
+            for key in SCORES:
+                assert a["techniques"][name][key] == b["techniques"][name][key]
+        assert a["floor"] == b["floor"]
+
+
+def test_the_overview_page_links_every_report_and_shows_thumbnails(in_process):
+    _, out, result = in_process
+    html = (out / "index.html").read_text()
+    for r in result["materials"]:
+        if r["status"] == "ok":
+            assert f'href="{r["name"]}/index.html"' in html
+            assert len(r["thumbs"]) == 3                          # three lights
+            for az, images in r["thumbs"].items():
+                assert set(images) == {"truth", *r["techniques"]}
+                for rel in images.values():
+                    assert (out / rel).is_file() and f'src="{rel}"' in html
+        else:
+            assert r["error"].split(":")[0] in html
+    assert "sort" in html and "worst first" in html
+
+
+def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path):
+    """A Dask cluster the test starts itself (two worker processes), addressed like a remote one."""
+    distributed = pytest.importorskip("distributed")
+    items, out, result = in_process
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        remote = suite.run(items, tmp_path / "cluster", cluster=c.scheduler_address, progress=False)
+    assert remote["suite"]["cluster"] == c.scheduler_address and "dask" in remote["suite"]["engine"]
+    here = {r["name"]: r for r in result["materials"]}
+    for r in remote["materials"]:
+        assert r["status"] == here[r["name"]]["status"]
+        if r["status"] == "ok":
+            for name, t in r["techniques"].items():
+                for key in SCORES:
+                    assert t[key] == here[r["name"]]["techniques"][name][key], (r["name"], name, key)
+
+
+def test_a_cluster_that_is_not_there_is_one_line(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(suite, "CONNECT_TIMEOUT_S", 1)
+    with pytest.raises(InputError, match="no Dask scheduler"):
+        suite.run(suite.entries(["planks"], **SMALL), tmp_path, cluster="tcp://127.0.0.1:9", progress=False)
+
+
+def test_cli_suite_exit_status_and_table(variant, tmp_path, capsys):
+    d = _folder(tmp_path)
+    code = cli.main(["suite", str(d / "stones.png"), "planks", "--size", "24", "--azimuths", "0", "--spp", "4",
+                     "--techniques", "horizon,terrain", "--workers", "1", "--out", str(tmp_path / "o"), "--quiet"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "stones" in out and "planks" in out and "overview" in out
+    rows = json.loads((tmp_path / "o" / "suite.json").read_text())["materials"]
+    assert all(set(r["techniques"]) == {"horizon", "terrain"} for r in rows)
+    assert cli.main(["suite", str(d), "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
+                     "--workers", "1", "--out", str(tmp_path / "p"), "--quiet"]) == 1    # broken.png failed
+    assert cli.main(["suite", str(tmp_path / "missing"), "--out", str(tmp_path / "q")]) == 2
+    assert not (tmp_path / "q").exists()
+
+
+def test_suite_json_has_no_nan(in_process):
+    _, out, _ = in_process
+    text = (out / "suite.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    json.loads(text)
+    assert not math.isnan(json.loads(text)["suite"]["seconds"])
