@@ -5,7 +5,7 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``conventions``  axes, directions, height scale, boundaries, colour (the only
                  module that defines them)
 ``heightmap``    reading height maps from PNG, EXR and .npy
-``material``     the built-in procedural bricks
+``materials``    the built-in procedural materials (a registry: bricks, cobblestones, ...)
 ``bake``         height map -> normal, horizon and ambient maps, weight cube map
 ``mesh``         height map -> displaced triangle mesh for Mitsuba
 ``scene``        the scene description (TOML): material, camera, light, effects
@@ -21,6 +21,7 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``report``       the sweep's HTML report and plots
 ``check``        image-diff regression against ``reference/``
 ``tradeoff``     what accuracy costs: settings measured against a converged truth
+``suite``        many materials' sweeps on worker processes or a Dask cluster, one overview
 ``export``       the truth as a Mitsuba 3 scene file
 ``files``        atomic EXR, PNG and JSON writing
 ``backend``      choosing the Mitsuba/Dr.Jit variant, checking LLVM

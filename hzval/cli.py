@@ -183,7 +183,8 @@ def _add_suite(sub) -> None:
     _add_sweep_flags(p)
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="sweeps at once on this machine, each in its own process (default: 1 per 2 cores, "
-                        "at most the number of materials; 1 runs them in this process)")
+                        "as many as fit in memory, at most the number of materials; 1 runs them in this "
+                        "process)")
     p.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (tcp://host:8786) instead; its workers need "
                         "hzval and DIR and the inputs at the same paths")
@@ -365,13 +366,12 @@ def sweep_options(args):
 
 
 def cmd_suite(args) -> int:
-    import os
     import shlex
 
     from hzval import backend, suite
 
     items = suite.entries(args.inputs, **_scene_overrides(args))
-    workers = args.workers if args.workers is not None else max(1, min(len(items), (os.cpu_count() or 1) // 2))
+    workers = args.workers if args.workers is not None else suite.default_workers(items)
     if args.cluster is None and workers == 1:
         backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))

@@ -5,7 +5,9 @@ material - every built-in material (:mod:`hzval.materials`) by default; a
 scene TOML; a height map, with a sidecar scene of the same stem beside it
 (``gravel.png`` + ``gravel.toml``, whose ``[material]`` table gives depth and
 boundary); a folder of height maps (each with its optional sidecar); or a
-built-in material's name. :func:`run` sweeps each one (:func:`hzval.sweep.run`,
+built-in material's name; a folder's scene files that are no height map's
+sidecar are materials too (``hzval suite scenes/`` runs the shipped scenes).
+:func:`run` sweeps each one (:func:`hzval.sweep.run`,
 unchanged: a material's ``DIR/<name>/`` is exactly what ``hzval sweep`` writes
 with the same settings) and, once all are in, writes the overview::
 
@@ -26,11 +28,13 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     never the end of the others.
 
     Dask distributed was chosen over Ray after measuring both on this
-    2-core machine (``benchmarks/README.md``, "Suite engines"): a local
-    cluster up in 1.3 s against 3.5 s, 16 small tasks in 0.09 s against
-    0.10 s, 24 MB installed against 240 MB, and a pure-Python wheel; both
-    take a scheduler address. Each local worker's Dr.Jit runs ``cores /
-    workers`` threads, so workers do not oversubscribe the cores.
+    2-core machine (``benchmarks/bench_suite_engines.py``): a local cluster
+    up in 0.8 s against 3.7 s, 16 small tasks in 0.06 s against 0.12 s,
+    21 MB installed against 225 MB, pure-Python wheels; both take a
+    scheduler address. Each local worker's Dr.Jit runs ``cores / workers``
+    threads. On this 2-core machine one worker is fastest (the built-in
+    suite in 262 s, against 316 s with two: one sweep already keeps both
+    cores busy), and :func:`default_workers` picks it.
 """
 
 from __future__ import annotations
@@ -60,6 +64,12 @@ HEIGHT_SUFFIXES = (".png", ".exr", ".npy")
 LIGHTS_SHOWN = 3
 #: Side of a thumbnail in pixels.
 THUMB_PX = 144
+#: A sweep's peak memory, roughly: a base plus a cost per pixel at 16 samples per pixel, from the
+#: peaks measured on this machine (1.1 GiB at 512 x 512, 11.1 GiB at 2048 x 2048: issue 16's figures).
+SWEEP_BASE_BYTES = 0.4 * 2 ** 30
+SWEEP_BYTES_PER_PIXEL = 2.7 * 2 ** 10
+#: The file in DIR by which a cluster's worker proves it sees the caller's DIR.
+TOKEN_FILE = ".hzval-suite"
 #: How long to keep trying a ``--cluster`` scheduler that does not answer, in seconds.
 CONNECT_TIMEOUT_S = 15
 #: The per-frame metrics a material's row averages over its sweep.
@@ -87,6 +97,7 @@ class Task:
     variant: str | None
     command: str
     threads: int | None         # Dr.Jit threads in the worker; None leaves them alone
+    token: str = ""             # what DIR/.hzval-suite holds: a worker that reads it sees the caller's DIR
 
 
 # --------------------------------------------------------------------------
@@ -114,20 +125,25 @@ def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
 def _entries_of(item) -> list[Entry]:
     path = Path(item)
     if path.is_dir():
-        maps = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in HEIGHT_SUFFIXES)
-        if not maps:
-            raise InputError(path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) in this folder")
-        return [_height_entry(p) for p in maps]
+        maps = [p for p in path.iterdir() if p.is_file() and p.suffix.lower() in HEIGHT_SUFFIXES]
+        stems = {p.stem for p in maps}
+        scenes = [p for p in path.glob("*.toml") if p.is_file() and p.stem not in stems]   # not a sidecar
+        if not maps and not scenes:
+            raise InputError(path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) or scene files in this folder")
+        return [_height_entry(p) if p.suffix.lower() != ".toml" else _scene_entry(p)
+                for p in sorted(maps + scenes, key=lambda p: (p.stem, p.suffix))]
     if path.is_file():
-        if path.suffix.lower() == ".toml":
-            scene = sc.load_scene(path)
-            return [Entry(scene.name, scene, str(path))]
-        return [_height_entry(path)]
+        return [_scene_entry(path) if path.suffix.lower() == ".toml" else _height_entry(path)]
     if materials.is_builtin(str(item)):
         scene = sc.override(sc.Scene(), height=str(item))
         return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
     raise InputError(item, "no such file, folder or built-in material "
                            f"({', '.join(materials.names())})")
+
+
+def _scene_entry(path: Path) -> Entry:
+    scene = sc.load_scene(path)
+    return Entry(scene.name, scene, str(path))
 
 
 def _height_entry(path: Path) -> Entry:
@@ -137,6 +153,33 @@ def _height_entry(path: Path) -> Entry:
         scene = sc.load_scene(sidecar, height=path.resolve())
         return Entry(path.stem, scene, f"{path} + {sidecar.name}")
     return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
+
+
+def estimate_peak_bytes(entry: Entry) -> int:
+    """A rough peak of ``entry``'s sweep (:data:`SWEEP_BYTES_PER_PIXEL`), from its size alone: a
+    height map's header, or a built-in material's ``size``; scaled with spp and supersampling."""
+    from hzval import heightmap
+
+    spec, scene = entry.scene.material, entry.scene
+    try:
+        rows, cols = ((spec.size, spec.size) if materials.is_builtin(spec.height)
+                      else heightmap.probe_shape(spec.height))
+    except InputError:                          # unreadable: it will fail on its own, small
+        rows = cols = 1
+    pixels = rows * cols * scene.camera.supersampling ** 2
+    return int(SWEEP_BASE_BYTES + SWEEP_BYTES_PER_PIXEL * pixels * max(1.0, scene.spp / 16))
+
+
+def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:
+    """Workers for this machine: one per two cores (Dr.Jit and FLIP already use two threads each
+    well), no more than there are materials, and no more than fit in 80% of the available memory
+    beside each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
+    from hzval import bake
+
+    cores = (os.cpu_count() or 1) if cores is None else cores
+    available = bake.available_bytes() if available is None else available
+    largest = max((estimate_peak_bytes(e) for e in items), default=1)
+    return max(1, min(len(items), cores // 2, int(0.8 * available // largest)))
 
 
 # --------------------------------------------------------------------------
@@ -152,7 +195,7 @@ def sweep_material(task: Task) -> dict:
     entry, out = task.entry, Path(task.out)
     t0 = time.perf_counter()
     try:
-        if not out.parent.is_dir():
+        if task.token and _read(out.parent / TOKEN_FILE) != task.token:
             raise InputError(out.parent, f"this worker ({socket.gethostname()}) cannot see the suite's folder: "
                                          "--cluster needs it on a filesystem the workers share")
         backend.variant(task.variant)
@@ -167,6 +210,13 @@ def sweep_material(task: Task) -> dict:
     except Exception as exc:                  # a material's crash is its own row, not the suite's end
         return _failed(entry, f"{type(exc).__name__}: {files.first_line(exc)}", time.perf_counter() - t0,
                        traceback.format_exc())
+
+
+def _read(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError:
+        return None
 
 
 def _failed(entry: Entry, error: str, seconds: float | None, trace: str | None = None) -> dict:
@@ -225,9 +275,10 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         variant: str | None = None, command: str = "", progress: bool = True) -> dict:
     """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
 
-    ``workers``: sweeps at once on this machine (1: in this process); ``cluster``: a Dask scheduler's
-    address instead (its workers decide). The overview is written once every material is in, failed
-    ones included."""
+    ``workers``: sweeps at once on this machine (1: in this process; see :func:`default_workers`);
+    ``cluster``: a Dask scheduler's address instead (its workers decide). The overview is written
+    once every material is in, failed ones included. With more than one worker, worker processes
+    are spawned: a script that calls this must do so under ``if __name__ == "__main__":``."""
     from hzval import sweep
 
     out = Path(out)
@@ -237,13 +288,19 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         raise InputError("--workers", f"must be at least 1, got {workers}")
     local = cluster is None
     threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 1 else None
-    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads)
+    token = "" if local else f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
+    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token)
              for e in items]
     t0 = time.perf_counter()
-    if local and workers == 1:
-        rows, engine = _run_here(tasks, progress), "in-process"
-    else:
-        rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
+    try:
+        if token:
+            (out / TOKEN_FILE).write_text(token, encoding="utf-8")
+        if local and workers == 1:
+            rows, engine = _run_here(tasks, progress), "in-process"
+        else:
+            rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
+    finally:
+        (out / TOKEN_FILE).unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
     return write_overview(out, rows, command=command, engine=engine, workers=workers if local else None,
                           cluster=cluster, seconds=seconds)
@@ -277,7 +334,7 @@ def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progr
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
         if address is None:
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               dashboard_address=None, silence_logs=logging.ERROR)
+                                               dashboard_address=":0", silence_logs=logging.ERROR)
             address = cluster.scheduler_address
         try:
             client = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
@@ -375,7 +432,7 @@ def _thumbnails(out: Path, row: dict) -> dict:
 def summary_table(result: dict) -> str:
     """The terminal's table: per material (worst first) each technique's mean |F - V| and FLIP."""
     names = list(result["techniques"])
-    head = f"{'material':16s}" + "".join(f" {n[:10]:>10s} |F-V|  FLIP" for n in names) + "  sweep s"
+    head = f"{'material':16s}" + "".join(f" {n[:10]:>10s} |F-V|   FLIP" for n in names) + "  sweep s"
     lines = [head]
     for r in result["materials"]:
         if r["status"] != "ok":
@@ -385,6 +442,6 @@ def summary_table(result: dict) -> str:
         for n in names:
             t = r["techniques"].get(n, {})
             v, f = t.get("visibility_mae"), t.get("flip_mean")
-            cells += f" {'-' if v is None else f'{v:.4f}':>16s} {'-' if f is None else f'{f:.4f}':>5s}"
+            cells += f" {'-' if v is None else f'{v:.4f}':>16s} {'-' if f is None else f'{f:.4f}':>6s}"
         lines.append(f"{r['name'][:16]:16s}{cells}  {r['seconds']:7.1f}")
     return "\n".join(lines)

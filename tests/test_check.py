@@ -8,7 +8,7 @@ import shutil
 import numpy as np
 import pytest
 
-from hzval import approx, check, cli, files, technique
+from hzval import approx, check, cli, files, materials, technique
 
 SHIPPED = check.repository_path("reference")
 
@@ -39,7 +39,7 @@ def test_shipped_references_pass(variant):
     failing = [f"{r.name}: {'; '.join(r.reasons)}" for r in result.images if r.status not in ("pass", "warn")]
     assert not failing, "\n".join(failing)
     scenes = {r.scene for r in result.images}
-    assert {"bricks", "wall", "wall-soft"} <= scenes
+    assert {"bricks", "wall", "wall-soft"} | set(materials.names()) <= scenes    # every built-in material
     assert {r.kind for r in result.images} == KINDS
 
 

@@ -54,6 +54,16 @@ def test_entries_read_folders_sidecars_scene_files_and_names(tmp_path):
         suite.entries([tmp_path / "empty"])
 
 
+def test_a_folder_of_scene_files_is_a_suite_of_them():
+    """`hzval suite scenes/`: the shipped scenes, each by its own name; wall.toml is wall.png's sidecar."""
+    from hzval import check
+
+    items = {e.name: e for e in suite.entries([check.repository_path("scenes")])}
+    assert set(materials.names()) | {"wall", "wall-soft"} <= set(items)
+    assert items["wall"].scene.material.depth == 0.125 and items["wall"].origin.endswith("wall.toml")
+    assert items["spikes"].scene.material.height == "spikes"
+
+
 @pytest.fixture(scope="module")
 def in_process(tmp_path_factory, variant):
     tmp = tmp_path_factory.mktemp("suite")
@@ -122,7 +132,7 @@ def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path):
     """A Dask cluster the test starts itself (two worker processes), addressed like a remote one."""
     distributed = pytest.importorskip("distributed")
     items, out, result = in_process
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         remote = suite.run(items, tmp_path / "cluster", cluster=c.scheduler_address, progress=False)
     assert remote["suite"]["cluster"] == c.scheduler_address and "dask" in remote["suite"]["engine"]
     here = {r["name"]: r for r in result["materials"]}
@@ -162,3 +172,51 @@ def test_suite_json_has_no_nan(in_process):
     assert "NaN" not in text and "Infinity" not in text
     json.loads(text)
     assert not math.isnan(json.loads(text)["suite"]["seconds"])
+
+
+def test_default_workers_follow_cores_materials_and_memory():
+    items = suite.entries(["planks", "gravel", "fabric", "panels"], size=512)
+    gib = 2 ** 30
+    assert suite.default_workers(items, cores=2, available=64 * gib) == 1
+    assert suite.default_workers(items, cores=16, available=64 * gib) == 4           # four materials
+    assert suite.default_workers(items[:4], cores=64, available=64 * gib) == 4
+    big = suite.entries(["planks", "gravel", "fabric", "panels"], size=2048)
+    per = suite.estimate_peak_bytes(big[0])
+    assert 8 * gib < per < 14 * gib                  # about the 11.1 GiB measured for a 2048 sweep
+    assert suite.default_workers(big, cores=16, available=24 * gib) == 1
+
+
+def test_a_worker_that_cannot_see_the_folder_says_so(tmp_path):
+    """On a cluster, a worker must see DIR: the task checks the token the caller left there."""
+    e = suite.entries(["planks"], **SMALL)[0]
+    task = suite.Task(e, str(tmp_path / "planks"), sweep.Options(), None, "", None, token="abc")
+    row = suite.sweep_material(task)
+    assert row["status"] == "failed" and "cannot see the suite's folder" in row["error"]
+
+
+class _KillsItsWorker:
+    """Touched in any process but the test's, it ends that process: a material that crashes its worker."""
+
+    def __init__(self):
+        import os
+
+        self.pid = os.getpid()
+
+    def __getattr__(self, name):
+        import os
+
+        pid = self.__dict__.get("pid")           # absent while being unpickled
+        if pid is not None and os.getpid() != pid:
+            os._exit(3)
+        raise AttributeError(name)
+
+
+def test_a_worker_that_dies_is_one_failed_material(tmp_path):
+    pytest.importorskip("distributed")
+    good = suite.entries(["planks"], **SMALL)[0]
+    bad = suite.entries(["gravel"], **SMALL)[0]
+    tasks = [suite.Task(good, str(tmp_path / "planks"), sweep.Options(), None, "", 1),
+             suite.Task(bad, str(tmp_path / "gravel"), _KillsItsWorker(), None, "", 1)]
+    rows, engine = suite._run_dask(tasks, 2, None, progress=False)
+    assert rows[0]["status"] == "ok" and rows[0]["name"] == "planks"
+    assert rows[1]["status"] == "failed" and "worker" in rows[1]["error"] and rows[1]["name"] == "gravel"
