@@ -68,6 +68,7 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     import drjit as dr
 
     from hzval import backend, bake
+    from hzval.materials.bricks import bricks
     from hzval import conventions as cv
 
     backend.variant()

@@ -50,6 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from hzval import backend
+    from hzval.materials.bricks import bricks
     from hzval import scene as S
     from hzval.truth import Truth
 

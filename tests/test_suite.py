@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from hzval import cli, files, materials, suite, sweep
-from hzval import scene as S
 from hzval.errors import InputError
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
