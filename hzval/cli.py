@@ -329,8 +329,13 @@ def cmd_sweep(args) -> int:
 
     from hzval import backend, scene as sc, sweep
 
-    scene = sc.override(sc.load_scene(args.scene) if args.scene else sc.Scene(), **_scene_overrides(args),
-                        height=_material_of(args))
+    base = sc.Scene()
+    if args.scene:
+        base = sc.load_scene(args.scene)
+    elif args.height is not None and sc.sidecar_of(args.height) is not None:
+        base = sc.load_scene(sc.sidecar_of(args.height), height=Path(args.height).resolve())
+        print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
+    scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name

@@ -41,6 +41,8 @@ _LUMINANCE = "luminance (Rec. 709 weights)"
 
 _MAGIC = {b"\x89PNG\r\n\x1a\n": "png", b"v/1\x01": "exr", b"\x93NUMPY": "npy"}
 _KIND_BY_EXTENSION = {".png": "png", ".exr": "exr", ".npy": "npy"}
+#: The suffixes height map files have (a file is read by its content, whatever its name).
+SUFFIXES: tuple[str, ...] = tuple(_KIND_BY_EXTENSION)
 _KIND_NAME = {"png": "PNG", "exr": "EXR", "npy": ".npy"}
 
 #: PNG colour types (IHDR) by name, and those that carry RGB.

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval import conventions as cv
-from hzval import materials
+from hzval import heightmap, materials
 from hzval.errors import InputError
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
@@ -208,12 +208,25 @@ def material_defaults(height: str) -> dict:
     return {"depth": MaterialSpec.depth, "boundary": MaterialSpec.boundary}
 
 
+def sidecar_of(height: str | Path) -> Path | None:
+    """The sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
+    p = Path(height).with_suffix(".toml")
+    return p if p.is_file() else None
+
+
+def _height_beside(path: Path) -> str | None:
+    """The height map a sidecar scene ``path`` (naming no height) sits beside: the one file of its stem
+    with a height map suffix, if there is exactly one."""
+    found = [path.with_suffix(s) for s in heightmap.SUFFIXES if path.with_suffix(s).is_file()]
+    return str(found[0]) if len(found) == 1 else None
+
+
 def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
 
-    ``height`` is the material when the file names none (a sidecar scene beside its height map);
-    otherwise the built-in default. Depth and boundary default to the material's
-    (:func:`material_defaults`).
+    When the file names no height map, the material is ``height`` if given, else the height map of
+    the same stem beside the file (the file is its sidecar: ``gravel.toml`` for ``gravel.png``), else
+    the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
     """
     path = Path(path)
     try:
@@ -224,7 +237,8 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
     try:
         mat = dict(data.get("material", {}))
-        mat.setdefault("height", materials.DEFAULT if height is None else str(height))
+        if "height" not in mat:
+            mat["height"] = str(height) if height is not None else (_height_beside(path) or materials.DEFAULT)
         mat = {**material_defaults(mat["height"]), **mat}
         if not materials.is_builtin(mat["height"]):
             mat["height"] = str((path.parent / mat["height"]).resolve())
@@ -354,8 +368,6 @@ def light_samples(light: Light, azimuth_deg: float, count: int, seed: int) -> np
 
 def load_material_height(spec: MaterialSpec):
     """The scene's height map as a :class:`hzval.heightmap.HeightMap`."""
-    from hzval import heightmap
-
     if materials.is_builtin(spec.height):
         m = materials.get(spec.height)
         return heightmap.from_array(materials.generate(spec.height, spec.size).height,

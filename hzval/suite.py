@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import files, materials, technique
+from hzval import files, heightmap, materials, technique
 from hzval import scene as sc
 from hzval.errors import InputError
 
@@ -59,7 +59,7 @@ __all__ = ["Entry", "Task", "entries", "run", "sweep_material", "summarise", "wr
            "HEIGHT_SUFFIXES", "LIGHTS_SHOWN"]
 
 #: File suffixes a folder's height maps have (:mod:`hzval.heightmap` reads them by content).
-HEIGHT_SUFFIXES = (".png", ".exr", ".npy")
+HEIGHT_SUFFIXES = heightmap.SUFFIXES
 #: Thumbnails per material and technique: the sweep's first, middle and last lights.
 LIGHTS_SHOWN = 3
 #: Side of a thumbnail in pixels.
@@ -148,8 +148,8 @@ def _scene_entry(path: Path) -> Entry:
 
 def _height_entry(path: Path) -> Entry:
     """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one."""
-    sidecar = path.with_suffix(".toml")
-    if sidecar.is_file():
+    sidecar = sc.sidecar_of(path)
+    if sidecar is not None:
         scene = sc.load_scene(sidecar, height=path.resolve())
         return Entry(path.stem, scene, f"{path} + {sidecar.name}")
     return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
@@ -158,8 +158,6 @@ def _height_entry(path: Path) -> Entry:
 def estimate_peak_bytes(entry: Entry) -> int:
     """A rough peak of ``entry``'s sweep (:data:`SWEEP_BYTES_PER_PIXEL`), from its size alone: a
     height map's header, or a built-in material's ``size``; scaled with spp and supersampling."""
-    from hzval import heightmap
-
     spec, scene = entry.scene.material, entry.scene
     try:
         rows, cols = ((spec.size, spec.size) if materials.is_builtin(spec.height)

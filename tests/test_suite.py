@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from hzval import cli, files, materials, suite, sweep
+from hzval import scene as S
 from hzval.errors import InputError
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
@@ -219,3 +220,61 @@ def test_a_worker_that_dies_is_one_failed_material(tmp_path):
     rows, engine = suite._run_dask(tasks, 2, None, progress=False)
     assert rows[0]["status"] == "ok" and rows[0]["name"] == "planks"
     assert rows[1]["status"] == "failed" and "worker" in rows[1]["error"] and rows[1]["name"] == "gravel"
+
+
+def test_a_sidecar_scene_serves_sweep_as_it_serves_suite(tmp_path, capsys, variant):
+    d = _folder(tmp_path)
+    # the sidecar alone (`--scene stones.toml`) finds the height map beside it
+    s = S.load_scene(d / "stones.toml")
+    assert s.material.height == str((d / "stones.png").resolve()) and s.material.depth == 0.07
+    # `hzval sweep stones.png` reads stones.toml and says so
+    out = tmp_path / "o"
+    assert cli.main(["sweep", str(d / "stones.png"), "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
+                     "--out", str(out), "--quiet"]) == 0
+    assert "sidecar scene" in capsys.readouterr().err
+    m = json.loads((out / "metrics.json").read_text())
+    assert (m["parameters"]["depth"], m["parameters"]["boundary"], m["parameters"]["elevation_deg"]) == \
+        (0.07, "open", 40)
+
+
+@pytest.mark.browser
+def test_the_overview_sorts_in_a_browser(in_process):
+    """Chromium: every thumbnail loads, no console errors, and a click on a column sorts the rows."""
+    import os
+
+    from test_report import CHROMIUM, CHROMIUM_ARGS
+
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
+    sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
+    _, out, result = in_process
+    problems: list[str] = []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.on("console", lambda m: problems.append(m.text) if m.type in ("error", "warning") else None)
+            page.on("pageerror", lambda e: problems.append(str(e)))
+            page.goto((out / "index.html").as_uri(), wait_until="load")
+            images = page.eval_on_selector_all("img", "els => els.map(e => [e.complete, e.naturalWidth])")
+            ok = [r for r in result["materials"] if r["status"] == "ok"]
+            assert len(images) == sum(len(r["thumbs"]) * (1 + len(r["techniques"])) for r in ok)
+            assert all(c and w > 0 for c, w in images)
+
+            def names():
+                return page.eval_on_selector_all("#scores tbody tr", "rs => rs.map(r => r.cells[0].textContent.trim())")
+
+            assert names()[0] == "broken"                       # worst first: the failure leads
+            material = page.locator("#scores thead tr:nth-child(2) th").nth(0)
+            material.click()                                    # descending by name
+            assert names() == sorted(names(), reverse=True)
+            material.click()                                    # and ascending
+            assert names() == sorted(names())
+            flip = page.locator("#scores thead tr:nth-child(2) th", has_text="FLIP").first
+            flip.click()
+            values = page.eval_on_selector_all(
+                "#scores tbody tr.ok", "rs => rs.map(r => parseFloat(r.cells[6].dataset.v))")
+            assert values == sorted(values, reverse=True) and len(values) == len(ok)
+        finally:
+            browser.close()
+    assert problems == []
