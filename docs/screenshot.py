@@ -1,4 +1,5 @@
-"""Regenerate docs/report.png, the picture the README leads with: the top of a sweep's report.
+"""Regenerate docs/report.png, the picture the README leads with (the top of a sweep's report), and
+docs/suite.png (the top of ``hzval suite``'s overview).
 
 Runs the README's main job, ``hzval sweep`` on the built-in bricks, from the
 repository root (it writes ``reports/bricks``; or takes the report of an
@@ -6,9 +7,13 @@ existing sweep folder given with ``--from``), opens its ``index.html`` in
 Debian's chromium through Playwright (no download) and saves the first
 screenful, then one frame's panels, stacked into one PNG.
 
+With ``--suite DIR`` it saves the first screenful of the suite overview in
+``DIR`` (``hzval suite --out DIR``, the built-in materials) instead.
+
 Usage (from the repository root)::
 
     .venv/bin/python docs/screenshot.py [--from reports/bricks] [--out docs/report.png]
+    .venv/bin/python docs/screenshot.py --suite reports/suite [--out docs/suite.png]
 """
 
 from __future__ import annotations
@@ -26,8 +31,12 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disa
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from", dest="source", type=Path, default=None, help="an existing sweep folder")
-    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("report.png"))
+    ap.add_argument("--suite", type=Path, default=None, help="a folder hzval suite wrote: shoot its overview")
+    ap.add_argument("--out", type=Path, default=None, help="the PNG (default docs/report.png or docs/suite.png)")
     args = ap.parse_args(argv)
+    if args.suite is not None:
+        return _suite(args.suite, args.out or Path(__file__).with_name("suite.png"))
+    args.out = args.out or Path(__file__).with_name("report.png")
 
     from playwright.sync_api import sync_playwright
     from PIL import Image
@@ -69,6 +78,23 @@ def main(argv: list[str] | None = None) -> int:
         sheet.save(tmp_out, optimize=True)
         tmp_out.replace(args.out)
     print(f"wrote {args.out} ({sheet.width} x {sheet.height})")
+    return 0
+
+
+def _suite(folder: Path, out: Path) -> int:
+    """The overview's table and its first cards, 1440 x 1000."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1440, "height": 1000}, device_scale_factor=1)
+        page.goto((folder / "index.html").resolve().as_uri(), wait_until="load")
+        page.wait_for_function("[...document.images].slice(0, 12).every(i => i.complete && i.naturalWidth > 0)")
+        tmp_out = out.with_suffix(".tmp.png")
+        page.screenshot(path=str(tmp_out))
+        browser.close()
+    tmp_out.replace(out)
+    print(f"wrote {out}")
     return 0
 
 
