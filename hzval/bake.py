@@ -989,6 +989,8 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
             for i, face in enumerate(cv.CUBE_FACES):
                 png(f"cube/{face}.png", cube[i])
         timings = dict(result.timings, write_s=time.perf_counter() - t0)
+        digests = {p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+                   for p in sorted(stage.dir.rglob("*")) if p.is_file()}
         files.write_json(stage.path("bake.json"), {
             "input": input_info,
             "parameters": result.params.record(),
@@ -998,6 +1000,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
                            "heights in texel units are H * depth * cols",
             "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "versions": backend.versions(),
+            "files": digests,           # what cached_bake checks before it trusts the cache
         }, atomic=False)
         written = stage.commit()
     # a folder that held a bake with another number of directions keeps no
@@ -1052,19 +1055,48 @@ def read_bake(folder: str | Path) -> Bake:
 
 
 def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
-                input_info: dict) -> tuple[Bake, bool]:
+                input_info: dict, notices: list[str] | None = None) -> tuple[Bake, bool]:
     """Bake into ``folder``, or read the bake already there if it was made from the
-    same input (``digest``) with the same parameters. Returns ``(bake, cached)``."""
+    same input (``digest``) with the same parameters and its files are intact.
+    Returns ``(bake, cached)``.
+
+    Every file of the cache must still have the SHA-256 that ``bake.json``
+    recorded when it was written (:func:`write_bake`): a truncated or
+    corrupted file, or a cache from before digests were recorded, is baked
+    anew, with one line saying why appended to ``notices``.
+    """
     import json
+
+    from hzval import files
 
     folder = Path(folder)
     try:
         record = json.loads((folder / "bake.json").read_text())
-        if (record["input"]["digest"] == digest
-                and BakeParams.normalise_record(record["parameters"]) == params.record()):
-            return read_bake(folder), True
+        same = (record["input"]["digest"] == digest
+                and BakeParams.normalise_record(record["parameters"]) == params.record())
     except (OSError, ValueError, KeyError, TypeError):
-        pass   # no usable cache: bake anew
+        same = False   # no usable cache: bake anew
+    if same:
+        damaged = _damaged_file(folder, record.get("files"), files.file_digest)
+        if damaged is None:
+            return read_bake(folder), True
+        if notices is not None:
+            notices.append(f"{damaged}: the cached bake is damaged; baked it anew")
     result = bake(height, params)
     write_bake(result, folder, input_info=input_info)
     return result, False
+
+
+def _damaged_file(folder: Path, digests, digest_of) -> str | None:
+    """The first cache file whose digest differs from the record (or is missing); ``None`` if all
+    agree. A record without digests names ``bake.json`` itself."""
+    if not isinstance(digests, dict) or not digests:
+        return str(folder / "bake.json") + " (no file digests)"
+    for name, want in digests.items():
+        path = folder / name
+        try:
+            if digest_of(path) != want:
+                return str(path)
+        except OSError:
+            return str(path)
+    return None

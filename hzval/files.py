@@ -10,6 +10,7 @@ until every file has been written.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import dataclasses
 import json
 import os
@@ -51,6 +52,12 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def file_digest(path: str | os.PathLike) -> str:
+    """``"sha256:<hex>"`` of a file's bytes."""
+    with open(path, "rb") as f:
+        return "sha256:" + hashlib.file_digest(f, "sha256").hexdigest()
 
 
 class Staging:

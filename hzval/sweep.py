@@ -116,6 +116,7 @@ class _Setup:
     unshadowed: approx.Unshadowed
     techniques: list            # built Technique objects, registry order
     timings: dict
+    notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
 
 
 def _set_up(scene, out: Path, options: Options) -> _Setup:
@@ -134,7 +135,8 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     material = {"name": scene.name, "source": hm.source, "digest": hm.digest, "rows": rows, "cols": cols,
                 "path": hm.path}
     t0 = time.perf_counter()
-    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material)
+    notices: list[str] = []
+    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices)
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     the_truth = truth.Truth(scene, hm.height)
@@ -148,7 +150,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
-    return _Setup(material, params, the_truth, plain, built, timings)
+    return _Setup(material, params, the_truth, plain, built, timings, notices)
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True) -> dict:
@@ -295,7 +297,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
         "simulated": simulated,
         "techniques": techniques,
         **{k: v for t in setup.techniques for k, v in t.extras.items()},
-        "warnings": [w for t in setup.techniques for w in t.warnings],
+        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings],
         "frames": frames,
     }
 

@@ -173,3 +173,33 @@ def test_cached_bake_reads_back_exactly_and_rebakes_on_change(variant, tmp_path)
     assert not cached
     _, cached = B.cached_bake(h, "sha256:def", B.BakeParams(radius=5, angles=16, depth=0.1), tmp_path, info)
     assert not cached
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip a byte", "delete", "no digests"])
+def test_a_damaged_bake_cache_is_baked_anew_with_a_notice(variant, tmp_path, damage):
+    """A cache file that no longer has the digest bake.json recorded is never read: it is rebaked."""
+    import json
+
+    h = np.random.default_rng(6).random((12, 10)).astype(np.float32)
+    p = B.BakeParams(radius=5, angles=16)
+    first, _ = B.cached_bake(h, "sha256:abc", p, tmp_path, {"digest": "sha256:abc"})
+    victim = tmp_path / "horizon0.exr"
+    data = victim.read_bytes()
+    if damage == "truncate":
+        victim.write_bytes(data[: len(data) // 2])
+    elif damage == "flip a byte":
+        victim.write_bytes(data[:-9] + bytes([data[-9] ^ 0x01]) + data[-8:])
+    elif damage == "delete":
+        victim.unlink()
+    else:
+        record = json.loads((tmp_path / "bake.json").read_text())
+        del record["files"]
+        (tmp_path / "bake.json").write_text(json.dumps(record))
+    notices: list[str] = []
+    again, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, {"digest": "sha256:abc"}, notices)
+    assert not cached and len(notices) == 1 and "baked it anew" in notices[0]
+    assert ("bake.json" if damage == "no digests" else "horizon0.exr") in notices[0]
+    assert np.array_equal(again.horizon, first.horizon)
+    # and the cache is whole again
+    third, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, {"digest": "sha256:abc"}, notices)
+    assert cached and len(notices) == 1

@@ -255,3 +255,20 @@ def test_sixteen_directions_sweep_records_them(variant, tmp_path):
     assert m["parameters"]["directions"] == 16
     assert sorted(p.name for p in (out / "bake").glob("horizon*.exr")) == [f"horizon{i}.exr" for i in range(4)]
     assert all(0 <= f["visibility_mae"] < 0.2 for f in m["frames"])
+
+
+def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_path, capsys):
+    """A sweep into a folder whose cached bake was cut short rebakes it, with one warning line, and
+    exits 0 (it used to fail with exit 2 on every later run)."""
+    from hzval import cli
+
+    argv = ["sweep", "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
+            "--out", str(tmp_path), "--quiet"]
+    assert cli.main(argv) == 0
+    victim = tmp_path / "bake" / "horizon1.exr"
+    victim.write_bytes(victim.read_bytes()[:100])
+    capsys.readouterr()
+    assert cli.main(argv) == 0
+    err = capsys.readouterr().err
+    warnings = [line for line in err.splitlines() if "damaged" in line]
+    assert len(warnings) == 1 and "horizon1.exr" in warnings[0] and warnings[0].startswith("hzval: warning:")
