@@ -10,12 +10,14 @@ until every file has been written.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import dataclasses
+import hashlib
 import json
 import os
 import shutil
+import socket
 import tempfile
+import time
 from pathlib import Path
 from typing import Iterator, Mapping
 
@@ -52,6 +54,47 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+#: The lock file of an output folder (:func:`folder_lock`).
+LOCK_NAME = ".hzval-lock"
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | os.PathLike, command: str = "") -> Iterator[Path]:
+    """Hold ``folder`` for this run: an exclusive ``flock`` on ``folder/.hzval-lock``.
+
+    A second run into the same folder fails at once with an :class:`InputError`
+    naming the run that holds it (host, pid, start time and command, which
+    the holder writes into the lock file). The kernel drops the lock when its
+    process ends, however it ends, so a crashed run leaves no stale lock. A
+    folder this creates and the run leaves empty is removed again: a run
+    refused for bad input leaves nothing behind.
+    """
+    import fcntl
+
+    folder = Path(folder)
+    created = not folder.exists()
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_NAME
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip() or "another run"
+            raise InputError(folder, f"in use by another hzval run ({holder}); wait for it or choose "
+                                     "another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (f"{socket.gethostname()} pid {os.getpid()}, since "
+                       f"{time.strftime('%Y-%m-%d %H:%M:%S')}: {command or 'hzval'}").encode(), 0)
+        yield path
+    finally:
+        if created and [p.name for p in folder.iterdir()] == [LOCK_NAME]:
+            path.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        os.close(fd)                 # releases the lock
 
 
 def file_digest(path: str | os.PathLike) -> str:
@@ -94,6 +137,32 @@ class Staging:
         shutil.rmtree(self.dir, ignore_errors=True)
         self._committed = True
         return final
+
+    def swap(self) -> None:
+        """Put each staged top-level entry in place of ``out``'s entry of that name, whole: a folder
+        replaces the old folder (none of its old files survive), a file the old file. Each swap is
+        two renames, so a reader sees the old entry or the new one."""
+        for src in sorted(self.dir.iterdir()):
+            dst = self.out / src.name
+            if src.is_dir() and dst.is_dir():
+                old = Path(tempfile.mkdtemp(prefix=".hzval-old-", dir=self.out))
+                os.replace(dst, old / src.name)
+                os.replace(src, dst)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                if dst.is_dir():
+                    shutil.rmtree(dst)
+                os.replace(src, dst)
+        shutil.rmtree(self.dir, ignore_errors=True)
+        self._committed = True
+
+    @staticmethod
+    def remove_leftovers(out: str | os.PathLike) -> None:
+        """Remove the staging folders a killed run left in ``out`` (call it holding :func:`folder_lock`)."""
+        for p in Path(out).glob(".hzval-staging-*"):
+            shutil.rmtree(p, ignore_errors=True)
+        for p in Path(out).glob(".hzval-old-*"):
+            shutil.rmtree(p, ignore_errors=True)
 
     def __enter__(self) -> "Staging":
         return self

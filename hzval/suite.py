@@ -275,8 +275,10 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
 
     ``workers``: sweeps at once on this machine (1: in this process; see :func:`default_workers`);
     ``cluster``: a Dask scheduler's address instead (its workers decide). The overview is written
-    once every material is in, failed ones included. With more than one worker, worker processes
-    are spawned: a script that calls this must do so under ``if __name__ == "__main__":``."""
+    once every material is in, failed ones included; the run holds ``out``
+    (:func:`hzval.files.folder_lock`) as each sweep holds its material's folder. With more than one
+    worker, worker processes are spawned: a script that calls this must do so under
+    ``if __name__ == "__main__":``."""
     from hzval import sweep
 
     out = Path(out)
@@ -290,18 +292,19 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
     tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token)
              for e in items]
     t0 = time.perf_counter()
-    try:
-        if token:
-            (out / TOKEN_FILE).write_text(token, encoding="utf-8")
-        if local and workers == 1:
-            rows, engine = _run_here(tasks, progress), "in-process"
-        else:
-            rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
-    finally:
-        (out / TOKEN_FILE).unlink(missing_ok=True)
-    seconds = time.perf_counter() - t0
-    return write_overview(out, rows, command=command, engine=engine, workers=workers if local else None,
-                          cluster=cluster, seconds=seconds)
+    with files.folder_lock(out, command):
+        try:
+            if token:
+                (out / TOKEN_FILE).write_text(token, encoding="utf-8")
+            if local and workers == 1:
+                rows, engine = _run_here(tasks, progress), "in-process"
+            else:
+                rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
+        finally:
+            (out / TOKEN_FILE).unlink(missing_ok=True)
+        seconds = time.perf_counter() - t0
+        return write_overview(out, rows, command=command, engine=engine, workers=workers if local else None,
+                              cluster=cluster, seconds=seconds)
 
 
 def _bar(total: int, progress: bool):

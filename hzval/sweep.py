@@ -154,12 +154,31 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True) -> dict:
-    """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content."""
+    """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content.
+
+    All or nothing: the report (frames, plots, ``index.html``, ``metrics.json``,
+    ``frames.json``) is written into a staging folder inside ``out`` and swapped
+    in whole at the end, so an error or Ctrl-C leaves ``out`` as it was (the bake
+    cache aside, which is whole by itself). The run holds ``out``
+    (:func:`hzval.files.folder_lock`): a second run into it fails at once,
+    naming this one.
+    """
+    out = Path(out)
+    with files.folder_lock(out, command):
+        files.Staging.remove_leftovers(out)
+        with files.Staging(out) as stage:
+            result = _run(scene, out, stage.dir, options, command, progress)
+            stage.swap()
+    return result
+
+
+def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool) -> dict:
+    """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
     from tqdm import tqdm
 
-    out = Path(out)
     t_start = time.perf_counter()
     setup = _set_up(scene, out, options)
+    out = report_dir
     scale = shading.exposure(scene)
     frames, clock = [], {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,

@@ -256,6 +256,9 @@ def test_the_overview_sorts_in_a_browser(in_process):
             page.on("console", lambda m: problems.append(m.text) if m.type in ("error", "warning") else None)
             page.on("pageerror", lambda e: problems.append(str(e)))
             page.goto((out / "index.html").as_uri(), wait_until="load")
+            # thumbnails load lazily: ask for all of them, then wait until each has decoded
+            page.evaluate("document.querySelectorAll('img').forEach(i => { i.loading = 'eager'; })")
+            page.wait_for_function("[...document.images].every(i => i.complete)", timeout=10000)
             images = page.eval_on_selector_all("img", "els => els.map(e => [e.complete, e.naturalWidth])")
             ok = [r for r in result["materials"] if r["status"] == "ok"]
             assert len(images) == sum(len(r["thumbs"]) * (1 + len(r["techniques"])) for r in ok)
@@ -278,3 +281,10 @@ def test_the_overview_sorts_in_a_browser(in_process):
         finally:
             browser.close()
     assert problems == []
+
+
+def test_a_second_suite_into_a_busy_folder_is_refused(tmp_path):
+    out = tmp_path / "o"
+    with files.folder_lock(out, "hzval suite (first)"):
+        with pytest.raises(InputError, match="in use by another hzval run"):
+            suite.run(suite.entries(["planks"], **SMALL), out, progress=False)

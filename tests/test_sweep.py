@@ -272,3 +272,62 @@ def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_pa
     err = capsys.readouterr().err
     warnings = [line for line in err.splitlines() if "damaged" in line]
     assert len(warnings) == 1 and "horizon1.exr" in warnings[0] and warnings[0].startswith("hzval: warning:")
+
+
+SMALL_SWEEP = ["sweep", "--size", "24", "--azimuths", "-30,0,30", "--spp", "4", "--techniques", "horizon", "--quiet"]
+
+
+def _tree(folder):
+    """Every file under ``folder`` with its bytes (the lock file aside)."""
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != ".hzval-lock"}
+
+
+def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypatch):
+    """Interrupted at its second light, a sweep into a folder with an earlier report leaves every file of
+    that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130."""
+    from hzval import cli, sweep as sw
+
+    out = tmp_path / "out"
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
+    before = _tree(out)
+    calls = {"n": 0}
+    real = sw._frame
+
+    def interrupted(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sw, "_frame", interrupted)
+    capsys.readouterr()
+    assert cli.main(SMALL_SWEEP + ["--elevation", "20", "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == "hzval: interrupted"
+    after = _tree(out)
+    assert {k: v for k, v in after.items() if not k.startswith("bake/")} == \
+        {k: v for k, v in before.items() if not k.startswith("bake/")}
+    assert not [p for p in out.iterdir() if p.name.startswith(".hzval-") and p.name != ".hzval-lock"]
+
+
+def test_a_finished_sweep_replaces_the_old_report_whole(variant, tmp_path):
+    from hzval import cli
+
+    out = tmp_path / "out"
+    assert cli.main(SMALL_SWEEP + ["--azimuths", "-30,0,30,60", "--out", str(out)]) == 0
+    assert (out / "frames" / "az+60").is_dir()
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
+    assert not (out / "frames" / "az+60").exists()           # no frame of the old run survives
+    assert sorted(p.name for p in (out / "frames").iterdir()) == ["az+0", "az+30", "az-30"]
+
+
+def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, capsys):
+    from hzval import cli, files
+
+    out = tmp_path / "out"
+    with files.folder_lock(out, "hzval sweep (the first run)"):
+        assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "in use by another hzval run" in err and "the first run" in err
+    assert not (out / "index.html").exists()
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0            # free again once it is done
