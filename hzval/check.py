@@ -158,12 +158,20 @@ def repository_path(name: str) -> Path:
 # --------------------------------------------------------------------------
 
 def check_scene(scene):
-    """``scene`` as the check renders it: the ``[check]`` section's size, azimuths and spp."""
+    """``scene`` as the check renders it: the ``[check]`` section's size, azimuths, spp and depth.
+
+    ``depth``: a material whose relief is a few texels at 512 has next to none at a check size of
+    64-96 texels (its depth is in image widths); a deeper check keeps its shadows there to guard.
+    """
     c = scene.check
     size = c.get("size")
     if size is not None and not materials.is_builtin(scene.material.height):
         raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
-    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"))
+    unknown = set(c) - {"size", "azimuths", "spp", "depth"}
+    if unknown:
+        raise InputError(scene.source or scene.name, f"unknown check setting {sorted(unknown)[0]!r}; "
+                                                      "use size, azimuths, spp, depth")
+    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"), depth=c.get("depth"))
 
 
 def renderers(scene, height: np.ndarray) -> dict:

@@ -169,6 +169,8 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
 
 
 def _add_suite(sub) -> None:
+    from hzval import materials
+
     p = sub.add_parser("suite", help="sweep many materials (the built-in ones by default) and write an overview",
                        description="Sweep every material (the built-in ones, or scene TOMLs, height maps - each "
                                    "with an optional sidecar <stem>.toml - folders of them, or built-in names) "
@@ -179,7 +181,8 @@ def _add_suite(sub) -> None:
                    help="materials to sweep (default: every built-in material)")
     p.add_argument("--depth", type=float, default=None, help="override every material's depth")
     p.add_argument("--boundary", choices=["wrap", "open"], default=None, help="override every material's boundary")
-    p.add_argument("--size", type=int, default=None, metavar="N", help="size of the built-in materials (default 512)")
+    p.add_argument("--size", type=int, default=None, metavar="N",
+                   help=f"size of the built-in materials (default {materials.DEFAULT_SIZE})")
     _add_sweep_flags(p)
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="sweeps at once on this machine, each in its own process (default: 1 per 2 cores, "
@@ -333,7 +336,7 @@ def cmd_sweep(args) -> int:
     if args.scene:
         base = sc.load_scene(args.scene)
     elif args.height is not None and sc.sidecar_of(args.height) is not None:
-        base = sc.load_scene(sc.sidecar_of(args.height), height=Path(args.height).resolve())
+        base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
     scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))

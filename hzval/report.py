@@ -908,7 +908,8 @@ def render_suite(result: dict) -> str:
     """The suite's ``index.html`` for :func:`hzval.suite.write_overview`'s ``result``."""
     names = list(result["techniques"])
     s = result["suite"]
-    context = {"count": s["materials"], "failed": s["failed"], "engine": s["engine"], "workers": s["workers"],
+    context = {"count": s["materials"], "failed": s["failed"], "not_run": s.get("not_run", 0),
+               "interrupted": s.get("interrupted", False), "engine": s["engine"], "workers": s["workers"],
                "seconds": fmt_seconds(s["seconds"]), "versions": s.get("versions") or {},
                "command": s["command"],
                "techniques": [{"name": n, **result["techniques"][n]} for n in names],

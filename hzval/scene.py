@@ -22,7 +22,7 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
-    [check]     size, azimuths, spp: how the regression check renders it (hzval.check)
+    [check]     size, azimuths, spp, depth: how the regression check renders it (hzval.check)
     [tolerances.truth], [tolerances.approx]  fail, fail_percent, hard_fail, warn (hzval.check)
 """
 
@@ -212,6 +212,18 @@ def sidecar_of(height: str | Path) -> Path | None:
     """The sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
     p = Path(height).with_suffix(".toml")
     return p if p.is_file() else None
+
+
+def load_sidecar(path: str | Path, height: str | Path) -> Scene:
+    """The sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
+    file says; a sidecar that names another height map is an error (it would sweep another material
+    under this map's name)."""
+    path, height = Path(path), Path(height).resolve()
+    scene = load_scene(path, height=height)
+    if scene.material.height != str(height):
+        raise InputError(path, f"names the material {scene.material.height!r}, but it is the sidecar scene of "
+                               f"{height.name}: remove its material.height")
+    return scene
 
 
 def _height_beside(path: Path) -> str | None:

@@ -8,8 +8,8 @@ boundary); a folder of height maps (each with its optional sidecar); or a
 built-in material's name; a folder's scene files that are no height map's
 sidecar are materials too (``hzval suite scenes/`` runs the shipped scenes).
 :func:`run` sweeps each one (:func:`hzval.sweep.run`,
-unchanged: a material's ``DIR/<name>/`` is exactly what ``hzval sweep`` writes
-with the same settings) and, once all are in, writes the overview::
+unchanged: a material's ``DIR/<name>/`` has the very scores ``hzval sweep``
+gives it with the same settings) and, once all are in, writes the overview::
 
     DIR/index.html      thumbnails (the truth and each technique at three lights) and a sortable
                         table of each material's mean errors and times, worst first
@@ -23,9 +23,11 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     ``cluster``: the Dask scheduler at that address (``tcp://host:8786``),
     whose workers must have hzval installed and see ``DIR`` and the inputs
     at the same paths (a shared filesystem; a task checks and fails with a
-    line that says so). One task per material, ``retries=0``; a task that
-    raises, or whose worker dies, is one failed material on the overview,
-    never the end of the others.
+    line that says so; start them with ``--nthreads 1``). One task per
+    material, ``retries=0``; a task that raises, or whose worker dies, is one
+    failed material on the overview, never the end of the others (a worker's
+    death is retried on another unless the scheduler has
+    ``distributed.scheduler.allowed-failures: 0``, as the local one has).
 
     Dask distributed was chosen over Ray after measuring both on this
     2-core machine (``benchmarks/bench_suite_engines.py``): a local cluster
@@ -42,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import socket
 import sys
 import time
@@ -51,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import files, heightmap, materials, technique
+from hzval import backend, bake, errors, files, heightmap, materials, report, sweep, technique
 from hzval import scene as sc
 from hzval.errors import InputError
 
@@ -68,6 +71,8 @@ THUMB_PX = 144
 #: peaks measured on this machine (1.1 GiB at 512 x 512, 11.1 GiB at 2048 x 2048: issue 16's figures).
 SWEEP_BASE_BYTES = 0.4 * 2 ** 30
 SWEEP_BYTES_PER_PIXEL = 2.7 * 2 ** 10
+#: Names under DIR that are the overview's own, never a material's folder.
+RESERVED = ("thumbs",)
 #: The file in DIR by which a cluster's worker proves it sees the caller's DIR.
 TOKEN_FILE = ".hzval-suite"
 #: How long to keep trying a ``--cluster`` scheduler that does not answer, in seconds.
@@ -107,19 +112,31 @@ class Task:
 def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
     """The suite's materials: one :class:`Entry` per input (each built-in material when there is
     none), with the sweep flags ``overrides`` (:func:`hzval.scene.override`'s keywords) applied to
-    every one. Names are made unique with ``-2``, ``-3``. An input that is no file, folder or built-in
-    material, or a folder without height maps, is an :class:`InputError` before anything runs; a height
-    map that cannot be read is not: it becomes that material's failure."""
+    every one. A name is the folder of its report under DIR and a part of URLs: characters other than
+    letters, digits, ``.``, ``_`` and ``-`` become ``_``, and names are made unique with ``-2``,
+    ``-3``. An input that is no file, folder or built-in material, or a folder without height maps or
+    scenes, is an :class:`InputError` before anything runs; a height map that cannot be read is not:
+    it becomes that material's failure."""
     found: list[Entry] = []
     for item in inputs or materials.names():
         found.extend(_entries_of(item))
-    out, seen = [], {}
+    out, taken = [], set(RESERVED)
     for e in found:
-        n = seen[e.name] = seen.get(e.name, 0) + 1
-        name = e.name if n == 1 else f"{e.name}-{n}"
+        base = _safe_name(e.name)
+        name, n = base, 1
+        while name in taken:
+            n += 1
+            name = f"{base}-{n}"
+        taken.add(name)
         scene = sc.override(e.scene, **overrides)
         out.append(Entry(name, dataclasses.replace(scene, name=name), e.origin))
     return out
+
+
+def _safe_name(name) -> str:
+    """``name`` as a folder and URL part: only ``[A-Za-z0-9._-]``, no leading dot."""
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", str(name)).lstrip(".")
+    return safe or "material"
 
 
 def _entries_of(item) -> list[Entry]:
@@ -127,7 +144,8 @@ def _entries_of(item) -> list[Entry]:
     if path.is_dir():
         maps = [p for p in path.iterdir() if p.is_file() and p.suffix.lower() in HEIGHT_SUFFIXES]
         stems = {p.stem for p in maps}
-        scenes = [p for p in path.glob("*.toml") if p.is_file() and p.stem not in stems]   # not a sidecar
+        scenes = [p for p in path.iterdir()                 # scene files that are no map's sidecar
+                  if p.is_file() and p.suffix.lower() == ".toml" and p.stem not in stems]
         if not maps and not scenes:
             raise InputError(path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) or scene files in this folder")
         return [_height_entry(p) if p.suffix.lower() != ".toml" else _scene_entry(p)
@@ -150,8 +168,7 @@ def _height_entry(path: Path) -> Entry:
     """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one."""
     sidecar = sc.sidecar_of(path)
     if sidecar is not None:
-        scene = sc.load_scene(sidecar, height=path.resolve())
-        return Entry(path.stem, scene, f"{path} + {sidecar.name}")
+        return Entry(path.stem, sc.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
     return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
 
 
@@ -172,8 +189,6 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
     """Workers for this machine: one per two cores (Dr.Jit and FLIP already use two threads each
     well), no more than there are materials, and no more than fit in 80% of the available memory
     beside each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
-    from hzval import bake
-
     cores = (os.cpu_count() or 1) if cores is None else cores
     available = bake.available_bytes() if available is None else available
     largest = max((estimate_peak_bytes(e) for e in items), default=1)
@@ -188,8 +203,6 @@ def sweep_material(task: Task) -> dict:
     """Sweep one material into ``task.out``; its row of ``suite.json`` (:func:`summarise`), or
     ``{"status": "failed", "error": <one line>}``. Runs in a worker process; never raises for a
     material's own failure, so one bad material cannot take the others down."""
-    from hzval import backend, errors, sweep
-
     entry, out = task.entry, Path(task.out)
     t0 = time.perf_counter()
     try:
@@ -208,6 +221,11 @@ def sweep_material(task: Task) -> dict:
     except Exception as exc:                  # a material's crash is its own row, not the suite's end
         return _failed(entry, f"{type(exc).__name__}: {files.first_line(exc)}", time.perf_counter() - t0,
                        traceback.format_exc())
+
+
+def _not_run(entry: Entry) -> dict:
+    return {"name": entry.name, "origin": entry.origin, "status": "not run",
+            "error": "not run: the suite was interrupted first", "seconds": None}
 
 
 def _read(path: Path) -> str | None:
@@ -278,33 +296,41 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
     once every material is in, failed ones included; the run holds ``out``
     (:func:`hzval.files.folder_lock`) as each sweep holds its material's folder. With more than one
     worker, worker processes are spawned: a script that calls this must do so under
-    ``if __name__ == "__main__":``."""
-    from hzval import sweep
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    options = options or sweep.Options()
+    ``if __name__ == "__main__":``. Ctrl-C stops the run with an overview of what finished (the rest
+    marked "not run"), each finished material's report whole."""
     if workers < 1:
         raise InputError("--workers", f"must be at least 1, got {workers}")
+    out = Path(out).resolve()           # the tasks' paths must mean the same on every worker
+    out.mkdir(parents=True, exist_ok=True)
+    options = options or sweep.Options()
     local = cluster is None
     threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 1 else None
     token = "" if local else f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
     tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token)
              for e in items]
     t0 = time.perf_counter()
+    rows: list[dict | None] = [None] * len(tasks)
+    engine = {"name": "in-process"}
+
+    def overview(interrupted: bool = False) -> dict:
+        done = [r if r is not None else _not_run(t.entry) for t, r in zip(tasks, rows)]
+        return write_overview(out, done, command=command, engine=engine["name"], workers=workers if local else None,
+                              cluster=cluster, seconds=time.perf_counter() - t0, interrupted=interrupted)
+
     with files.folder_lock(out, command):
         try:
             if token:
                 (out / TOKEN_FILE).write_text(token, encoding="utf-8")
             if local and workers == 1:
-                rows, engine = _run_here(tasks, progress), "in-process"
+                _run_here(tasks, rows, progress)
             else:
-                rows, engine = _run_dask(tasks, workers if local else None, cluster, progress)
+                _run_dask(tasks, rows, engine, workers if local else None, cluster, progress)
+        except KeyboardInterrupt:
+            overview(interrupted=True)
+            raise
         finally:
             (out / TOKEN_FILE).unlink(missing_ok=True)
-        seconds = time.perf_counter() - t0
-        return write_overview(out, rows, command=command, engine=engine, workers=workers if local else None,
-                              cluster=cluster, seconds=seconds)
+        return overview()
 
 
 def _bar(total: int, progress: bool):
@@ -313,22 +339,23 @@ def _bar(total: int, progress: bool):
     return tqdm(total=total, desc="suite", unit="material", disable=not progress, file=sys.stderr, leave=False)
 
 
-def _run_here(tasks: list[Task], progress: bool) -> list[dict]:
-    rows = []
+def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
+    """Each task in this process, one after another, into ``rows`` (in the tasks' order)."""
     with _bar(len(tasks), progress) as bar:
-        for task in tasks:
+        for i, task in enumerate(tasks):
             bar.set_postfix_str(task.entry.name)
-            rows.append(sweep_material(task))
+            rows[i] = sweep_material(task)
             bar.update()
-    return rows
 
 
-def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progress: bool) -> tuple[list[dict], str]:
-    """Each task on a Dask cluster: a ``LocalCluster`` of ``workers`` processes, or the scheduler at
-    ``address``. Rows come back in the tasks' order."""
+def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, address: str | None,
+              progress: bool) -> None:
+    """Each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish: a
+    ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``. ``engine["name"]``
+    says which."""
     import logging
 
-    import dask
+    import dask                 # imported here: 0.5 s that a suite in this process does not need
     import distributed
 
     cluster = None
@@ -343,10 +370,11 @@ def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progr
             if cluster is not None:
                 cluster.close()
             raise InputError("--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})") from None
+    engine["name"] = f"dask.distributed {distributed.__version__} at {address}"
+    futures: dict = {}
     try:
         futures = {client.submit(sweep_material, t, key=f"hzval-suite-{t.entry.name}-{os.getpid()}-{i}",
                                  pure=False, retries=0): i for i, t in enumerate(tasks)}
-        rows: list[dict | None] = [None] * len(tasks)
         with _bar(len(tasks), progress) as bar:
             for future in distributed.as_completed(futures):
                 i = futures[future]
@@ -357,9 +385,8 @@ def _run_dask(tasks: list[Task], workers: int | None, address: str | None, progr
                                                       f"{files.first_line(exc)}", None)
                 bar.set_postfix_str(tasks[i].entry.name)
                 bar.update()
-        engine = f"dask.distributed {distributed.__version__} at {address}"
-        return rows, engine
     finally:
+        client.cancel(list(futures))        # an interrupted suite leaves nothing running on the cluster
         client.close()
         if cluster is not None:
             cluster.close()
@@ -379,10 +406,8 @@ def _sort_key(row: dict) -> tuple:
 
 
 def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, workers: int | None,
-                   cluster: str | None, seconds: float) -> dict:
+                   cluster: str | None, seconds: float, interrupted: bool = False) -> dict:
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material."""
-    from hzval import backend, report
-
     rows = sorted(rows, key=_sort_key)
     for row in rows:
         if row["status"] == "ok":
@@ -393,8 +418,9 @@ def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, wo
     techniques = {n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
                   for n in names if n in technique.REGISTRY}
     result = {"suite": {"command": command, "engine": engine, "workers": workers, "cluster": cluster,
-                        "seconds": seconds, "materials": len(rows),
-                        "failed": sum(r["status"] != "ok" for r in rows),
+                        "seconds": seconds, "materials": len(rows), "interrupted": interrupted,
+                        "failed": sum(r["status"] == "failed" for r in rows),
+                        "not_run": sum(r["status"] == "not run" for r in rows),
                         "versions": backend.versions()},
               "techniques": techniques, "materials": rows}
     files.write_json(out / "suite.json", result)

@@ -50,7 +50,7 @@ from hzval import approx, backend, bake, compare, files, images, materials, repo
 from hzval import scene as sc
 from hzval.bake import BakeParams
 
-__all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "PNG_LEVEL"]
+__all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "reset_peak_rss", "PNG_LEVEL"]
 
 _BAKE_DEFAULTS = BakeParams()
 
@@ -86,11 +86,32 @@ def frame_folder(azimuth_deg: float) -> str:
 
 
 def peak_rss_bytes() -> int:
-    """Peak resident memory of this process so far, in bytes (Linux reports KiB, macOS bytes)."""
+    """Peak resident memory of this process since :func:`reset_peak_rss` (or its start), in bytes.
+
+    Linux: ``VmHWM`` of ``/proc/self/status``, which :func:`reset_peak_rss` can reset, so that a
+    second sweep in one process (``hzval suite``) reports its own peak; elsewhere ``ru_maxrss``
+    (KiB on Linux, bytes on macOS), which only ever grows."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
     import resource
 
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return int(rss if sys.platform == "darwin" else rss * 1024)
+
+
+def reset_peak_rss() -> None:
+    """Start :func:`peak_rss_bytes` afresh from the current resident memory (Linux 4.0+: writing 5 to
+    ``/proc/self/clear_refs`` resets ``VmHWM``); a no-op where that is not possible."""
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
+            f.write("5")
+    except OSError:
+        pass
 
 
 def _machine() -> str:
@@ -164,6 +185,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     naming this one.
     """
     out = Path(out)
+    reset_peak_rss()                    # this sweep's own peak, even after others in this process
     with files.folder_lock(out, command):
         files.Staging.remove_leftovers(out)
         with files.Staging(out) as stage:

@@ -56,22 +56,23 @@ def _seam_statistic(h: np.ndarray) -> tuple[float, float]:
 
 
 @pytest.mark.parametrize("name", WRAPPING)
-@pytest.mark.parametrize("shape", [(128, 128), (96, 160)])
+@pytest.mark.parametrize("shape", [(128, 128), (96, 160), (97, 131)])
 def test_wrapping_materials_tile_without_a_seam(name, shape):
-    """Rolled by half a period, the old edges meet in the middle: a seam there would be a jump no
-    interior neighbour pair has. The map's own interior is the yardstick."""
-    h = materials.generate(name, shape).height
-    wrap, inner = _seam_statistic(h)
+    """Across the wrap edges, neighbours differ by no more than neighbours anywhere inside the map:
+    the largest interior jump is the yardstick (steep rims make it generous, so a seam test follows)."""
+    wrap, inner = _seam_statistic(materials.generate(name, shape).height)
     assert wrap <= inner
-    rolled = np.roll(h, (shape[0] // 2, shape[1] // 2), axis=(0, 1))
-    assert _seam_statistic(rolled)[1] <= inner + 1e-6
 
 
-def test_the_seam_statistic_sees_a_seam():
-    h = materials.generate("cobblestones", 128).height
-    broken = np.roll(np.concatenate([h[:, :64], np.roll(h, 29, axis=0)[:, 64:]], axis=1), -64, axis=1)
-    wrap, inner = _seam_statistic(broken)
-    assert wrap > np.percentile(np.abs(np.diff(broken, axis=1)), 99.9)
+@pytest.mark.parametrize("name", ["bricks", "cobblestones", "fabric", "planks", "ridges"])
+def test_the_seam_statistic_sees_a_seam(name):
+    """The same statistic on a map that does not tile (the right half moved down by 29 rows, so a cut
+    runs down the middle and across the wrap) must fail, or the test above proves nothing. (Not for
+    the panels and spikes: a cut through their flat plates and ground is too gentle for it to see.)"""
+    h = materials.generate(name, 128).height
+    broken = np.concatenate([h[:, :64], np.roll(h, 29, axis=0)[:, 64:]], axis=1)
+    wrap, inner = _seam_statistic(np.roll(broken, -64, axis=1))     # the cut now on the wrap edge
+    assert wrap > _seam_statistic(h)[1]
 
 
 def test_materials_are_distinct_shapes():
@@ -130,16 +131,18 @@ def test_cobblestones_are_one_dome_per_cell_in_sand():
 
 
 def test_fabric_warp_passes_over_where_its_parity_says():
+    """Warp i is over weft j where i + j is even: there the crossing shows the warp's colour (blue),
+    elsewhere the weft's (ochre); either way the crossing is high and the holes between threads low."""
     size = 192
-    h, _ = fabric.fabric(size)
+    h, albedo = fabric.fabric(size)
     n = noise.count(size, fabric._ACROSS, fabric._MIN_PX, even=True)
     pitch = size / n
     for i in range(n):
         for j in range(n):
             x, y = int((i + 0.5) * pitch), int((j + 0.5) * pitch)     # crossing of warp i and weft j
-            over = h[y, x]
-            # the over thread's centre line is high at the crossing, the hole between threads low
-            assert over > 0.8
+            r, _, b = albedo[y, x]
+            assert (b > r) == ((i + j) % 2 == 0), (i, j)
+            assert h[y, x] > 0.8
     holes = h[(np.arange(n) * pitch).astype(int)][:, (np.arange(n) * pitch).astype(int)]
     assert holes.max() < 0.5
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from urllib.parse import quote
 
 import numpy as np
 import pytest
@@ -21,9 +22,9 @@ def _folder(tmp_path):
     """A folder of height maps: one with a sidecar scene, one without, one that is not a height map."""
     d = tmp_path / "maps"
     d.mkdir()
-    h = materials.generate("cobblestones", 24).height
+    h = materials.generate("cobblestones", 32).height
     files.write_png(d / "stones.png", np.round(h * 65535).astype(np.uint16))
-    (d / "stones.toml").write_text('[material]\ndepth = 0.07\nboundary = "open"\n[light]\nelevation_deg = 40\n')
+    (d / "stones.toml").write_text('[material]\ndepth = 0.3\nboundary = "open"\n[light]\nelevation_deg = 40\n')
     np.save(d / "dome.npy", materials.generate("gravel", 24).height)
     (d / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
     (d / "notes.txt").write_text("not a height map")
@@ -43,7 +44,7 @@ def test_entries_read_folders_sidecars_scene_files_and_names(tmp_path):
     names = [e.name for e in items]
     assert names == ["broken", "dome", "stones", "spikes", "spikes-2"]
     stones = items[2].scene
-    assert (stones.material.depth, stones.material.boundary) == (0.07, "open")     # the sidecar's
+    assert (stones.material.depth, stones.material.boundary) == (0.3, "open")     # the sidecar's
     assert stones.light.elevation_deg == 20                                        # the flags win
     assert items[1].scene.material.depth == 0.05 and items[1].scene.material.boundary == "wrap"
     assert all(e.scene.name == e.name for e in items)
@@ -99,12 +100,20 @@ def test_rows_are_sorted_worst_first_and_equal_their_sweeps_means(in_process):
                 assert t[key] == pytest.approx(float(np.mean(values)), rel=1e-12), (r["name"], name, key)
 
 
-def test_a_material_equals_its_standalone_sweep(in_process, tmp_path):
-    """The acceptance criterion: a suite's material scores exactly what `hzval sweep` does."""
+def test_a_material_equals_its_standalone_sweep(in_process, tmp_path, capsys):
+    """The acceptance criterion: a suite's material scores exactly what `hzval sweep` does, run as a
+    user would, on the height map (with its sidecar) and the suite's flags."""
     items, out, _ = in_process
     stones = next(e for e in items if e.name == "stones")
-    alone = sweep.run(stones.scene, tmp_path / "alone", progress=False)
+    path = stones.scene.material.height
+    assert cli.main(["sweep", path, "--azimuths", SMALL["azimuths"], "--spp", str(SMALL["spp"]),
+                     "--out", str(tmp_path / "alone"), "--quiet"]) == 0
+    alone = json.loads((tmp_path / "alone" / "metrics.json").read_text())
     suite_metrics = json.loads((out / "stones" / "metrics.json").read_text())
+    settings = ("k", "path", "ambient")     # the CLI states the horizon map's default settings, Options() not
+    assert {k: v for k, v in alone["parameters"].items() if k not in settings} == \
+        {k: v for k, v in suite_metrics["parameters"].items() if k not in settings}
+    assert max(f["techniques"]["horizon"]["visibility_mae"] for f in alone["frames"]) > 0.01   # not trivial
     for a, b in zip(alone["frames"], suite_metrics["frames"]):
         for name in alone["techniques"]:
             for key in SCORES:
@@ -122,18 +131,20 @@ def test_the_overview_page_links_every_report_and_shows_thumbnails(in_process):
             for az, images in r["thumbs"].items():
                 assert set(images) == {"truth", *r["techniques"]}
                 for rel in images.values():
-                    assert (out / rel).is_file() and f'src="{rel}"' in html
+                    assert (out / rel).is_file() and f'src="{quote(rel)}"' in html
         else:
             assert r["error"].split(":")[0] in html
     assert "sort" in html and "worst first" in html
 
 
-def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path):
-    """A Dask cluster the test starts itself (two worker processes), addressed like a remote one."""
+def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path, monkeypatch):
+    """A Dask cluster the test starts itself (two worker processes), addressed like a remote one; the
+    output folder given relative to this process's directory, which the workers do not share."""
     distributed = pytest.importorskip("distributed")
     items, out, result = in_process
+    monkeypatch.chdir(tmp_path)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
-        remote = suite.run(items, tmp_path / "cluster", cluster=c.scheduler_address, progress=False)
+        remote = suite.run(items, "cluster", cluster=c.scheduler_address, progress=False)
     assert remote["suite"]["cluster"] == c.scheduler_address and "dask" in remote["suite"]["engine"]
     here = {r["name"]: r for r in result["materials"]}
     for r in remote["materials"]:
@@ -217,7 +228,9 @@ def test_a_worker_that_dies_is_one_failed_material(tmp_path):
     bad = suite.entries(["gravel"], **SMALL)[0]
     tasks = [suite.Task(good, str(tmp_path / "planks"), sweep.Options(), None, "", 1),
              suite.Task(bad, str(tmp_path / "gravel"), _KillsItsWorker(), None, "", 1)]
-    rows, engine = suite._run_dask(tasks, 2, None, progress=False)
+    rows, engine = [None, None], {}
+    suite._run_dask(tasks, rows, engine, 2, None, progress=False)
+    assert "dask" in engine["name"]
     assert rows[0]["status"] == "ok" and rows[0]["name"] == "planks"
     assert rows[1]["status"] == "failed" and "worker" in rows[1]["error"] and rows[1]["name"] == "gravel"
 
@@ -226,7 +239,7 @@ def test_a_sidecar_scene_serves_sweep_as_it_serves_suite(tmp_path, capsys, varia
     d = _folder(tmp_path)
     # the sidecar alone (`--scene stones.toml`) finds the height map beside it
     s = S.load_scene(d / "stones.toml")
-    assert s.material.height == str((d / "stones.png").resolve()) and s.material.depth == 0.07
+    assert s.material.height == str((d / "stones.png").resolve()) and s.material.depth == 0.3
     # `hzval sweep stones.png` reads stones.toml and says so
     out = tmp_path / "o"
     assert cli.main(["sweep", str(d / "stones.png"), "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
@@ -234,7 +247,7 @@ def test_a_sidecar_scene_serves_sweep_as_it_serves_suite(tmp_path, capsys, varia
     assert "sidecar scene" in capsys.readouterr().err
     m = json.loads((out / "metrics.json").read_text())
     assert (m["parameters"]["depth"], m["parameters"]["boundary"], m["parameters"]["elevation_deg"]) == \
-        (0.07, "open", 40)
+        (0.3, "open", 40)
 
 
 @pytest.mark.browser
@@ -288,3 +301,57 @@ def test_a_second_suite_into_a_busy_folder_is_refused(tmp_path):
     with files.folder_lock(out, "hzval suite (first)"):
         with pytest.raises(InputError, match="in use by another hzval run"):
             suite.run(suite.entries(["planks"], **SMALL), out, progress=False)
+
+
+def test_names_are_safe_folders_and_unique(tmp_path):
+    for stem in ("a", "a-2"):
+        np.save(tmp_path / f"{stem}.npy", materials.generate("gravel", 16).height)
+    (tmp_path / "odd.toml").write_text('name = "../escape me#"\n[material]\nheight = "planks"\nsize = 16\n')
+    (tmp_path / "num.toml").write_text('name = 5\n[material]\nheight = "planks"\nsize = 16\n')
+    (tmp_path / "thumbs.toml").write_text('[material]\nheight = "planks"\nsize = 16\n')
+    names = [e.name for e in suite.entries([tmp_path / "a.npy", tmp_path / "a.npy", tmp_path / "a-2.npy",
+                                            tmp_path / "odd.toml", tmp_path / "num.toml",
+                                            tmp_path / "thumbs.toml"])]
+    assert names == ["a", "a-2", "a-2-2", "_escape_me_", "5", "thumbs-2"]
+    assert len(set(names)) == len(names)
+
+
+def test_a_sidecar_that_names_another_material_is_refused(tmp_path):
+    np.save(tmp_path / "x.npy", materials.generate("gravel", 16).height)
+    (tmp_path / "x.toml").write_text('[material]\nheight = "spikes"\n')
+    with pytest.raises(InputError, match="sidecar scene of x.npy"):
+        suite.entries([tmp_path])
+    assert cli.main(["sweep", str(tmp_path / "x.npy"), "--out", str(tmp_path / "o")]) == 2
+
+
+def test_ctrl_c_writes_the_overview_of_what_finished(tmp_path, monkeypatch, variant):
+    items = suite.entries(["planks", "gravel", "fabric"], **SMALL)
+    real = suite.sweep_material
+
+    def interrupt_the_second(task):
+        if task.entry.name == "gravel":
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(suite, "sweep_material", interrupt_the_second)
+    with pytest.raises(KeyboardInterrupt):
+        suite.run(items, tmp_path, progress=False)
+    result = json.loads((tmp_path / "suite.json").read_text())
+    assert result["suite"]["interrupted"] and result["suite"]["not_run"] == 2
+    status = {r["name"]: r["status"] for r in result["materials"]}
+    assert status == {"planks": "ok", "gravel": "not run", "fabric": "not run"}
+    assert (tmp_path / "planks" / "index.html").is_file() and not (tmp_path / "gravel").exists()
+    assert "Interrupted" in (tmp_path / "index.html").read_text()
+
+
+def test_each_sweep_reports_its_own_peak_memory(in_process):
+    """In one process, a small sweep after a larger one reports its own peak, not the process's."""
+    from hzval.sweep import peak_rss_bytes, reset_peak_rss
+
+    reset_peak_rss()
+    base = peak_rss_bytes()
+    big = np.ones(300 * 2 ** 20, np.uint8)          # 300 MiB, touched
+    assert peak_rss_bytes() > base + 0.9 * big.nbytes
+    del big
+    reset_peak_rss()
+    assert peak_rss_bytes() < base + 0.5 * 300 * 2 ** 20      # forgotten after the reset

@@ -69,7 +69,8 @@ class Material:
     """One built-in material.
 
     ``make(shape, seed)`` returns ``(height, albedo)`` for ``shape = (rows,
-    cols)``; equal arguments give equal arrays on any machine. ``depth`` and
+    cols)``; equal arguments give equal arrays (on one machine: NumPy's
+    vectorised maths may round the last bit differently on another CPU). ``depth`` and
     ``boundary`` are what a scene uses unless it says otherwise.
     """
 
@@ -100,7 +101,7 @@ def get(name: str) -> Material:
     return getattr(importlib.import_module(module), attribute)
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=2)   # one scene's height and albedo, and one more
 def _generate(name: str, shape: tuple[int, int], seed: int) -> Generated:
     height, albedo = get(name).make(shape, seed)
     height = np.ascontiguousarray(height, np.float32)

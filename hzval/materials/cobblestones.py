@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import cells, count, periodic_noise, shape_of, smoothstep, tint
+from hzval.materials.noise import cells, finish, grid, periodic_noise, shape_of, smoothstep, tint
 
 MIN_SIZE = 8
 _ACROSS = 7            # stones per period across
@@ -27,8 +27,7 @@ def cobblestones(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Height ``(rows, cols)`` in [0, 1] and linear albedo ``(rows, cols, 3)``, exactly periodic."""
     rows, cols = shape_of(size, "cobblestones", MIN_SIZE)
     rng = np.random.default_rng(seed)
-    gx = count(cols, _ACROSS, _MIN_PX)
-    gy = count(rows, max(1, round(gx * rows / cols)), _MIN_PX)
+    gy, gx = grid((rows, cols), _ACROSS, _MIN_PX)
     c = cells(rng, (rows, cols), (gy, gx), jitter=0.7)
     stone = min(c.cell_w, c.cell_h)
     n = gx * gy
@@ -48,7 +47,7 @@ def cobblestones(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     stone_rgb = palette[kind][c.index] * (1.0 + shade[c.index] + 0.05 * bumps)[..., None]
     m = smoothstep(0.0, 0.25, t)[..., None]
     albedo = tint(_SAND_SRGB, 0.08 * sand_noise) * (1.0 - m) + stone_rgb * m
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(

@@ -4,7 +4,8 @@ Warp threads run down the image (along y), weft threads across; warp ``i``
 passes over weft ``j`` where ``i + j`` is even and under it elsewhere, its
 centre line a cosine between the two levels, so each thread undulates over
 and under its neighbours (an even count of threads per period keeps the
-pattern periodic). A thread's cross-section is a half circle, and a faint
+pattern periodic). A thread's cross-section is round (a half ellipse: at
+the default depth it stands about a fifth as tall as it is wide), and a faint
 twist of its fibres rides on it. A regular grid of small saddles: shadows
 repeat with the weave and flip between warp and weft as the light turns.
 """
@@ -14,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import count, periodic_noise, shape_of, tint
+from hzval.materials.noise import count, finish, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
 _ACROSS = 12           # threads per period across (even)
@@ -48,7 +49,7 @@ def fabric(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     height = np.maximum(np.maximum(warp, weft), 0.04) + 0.006 * fuzz
     on_top = (warp >= weft)[..., None]
     albedo = np.where(on_top, tint(_WARP_SRGB), tint(_WEFT_SRGB)) * (0.55 + 0.45 * height)[..., None]
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import count, periodic_noise, shape_of, tint
+from hzval.materials.noise import finish, grid, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
 _ACROSS = 14           # pebbles per period across
@@ -28,8 +28,7 @@ def gravel(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Height ``(rows, cols)`` in [0, 1] and linear albedo ``(rows, cols, 3)``, exactly periodic."""
     rows, cols = shape_of(size, "gravel", MIN_SIZE)
     rng = np.random.default_rng(seed)
-    gx = count(cols, _ACROSS, _MIN_PX)
-    gy = count(rows, max(1, round(gx * rows / cols)), _MIN_PX)
+    gy, gx = grid((rows, cols), _ACROSS, _MIN_PX)
     cw, ch = cols / gx, rows / gy
     n = gx * gy
     centre = 0.15 + 0.7 * rng.random((n, 2))                   # (y, x) within the cell
@@ -61,7 +60,7 @@ def gravel(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     palette = np.stack([tint(s) for s in _PEBBLES_SRGB])
     rgb = palette[kind][owner] * (1.0 + shade[owner])[..., None]
     albedo = np.where(covered[..., None], rgb, tint(_GRIT_SRGB, 0.2 * grit))
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(

@@ -14,7 +14,7 @@ import numpy as np
 
 from hzval import conventions as cv
 
-__all__ = ["periodic_noise", "smoothstep", "Cells", "cells", "count", "tint", "shape_of"]
+__all__ = ["periodic_noise", "smoothstep", "Cells", "cells", "count", "grid", "finish", "tint", "shape_of"]
 
 
 def shape_of(size, name: str, min_size: int) -> tuple[int, int]:
@@ -26,6 +26,20 @@ def shape_of(size, name: str, min_size: int) -> tuple[int, int]:
     if rows < min_size or cols < min_size:
         raise ValueError(f"{name}: size must be at least {min_size}x{min_size} texels, got {rows}x{cols}")
     return rows, cols
+
+
+def grid(shape: tuple[int, int], across: int, min_px: float) -> tuple[int, int]:
+    """``(gy, gx)`` cells per period for ``across`` features across the width, as many down as keep
+    them about square (:func:`count` on each axis)."""
+    rows, cols = shape
+    gx = count(cols, across, min_px)
+    return count(rows, max(1, round(gx * rows / cols)), min_px), gx
+
+
+def finish(height: np.ndarray, albedo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A material's result: height clipped to [0, 1], albedo to [0.02, 0.9] (no perfect black or
+    white), both float32."""
+    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
 
 
 def count(length: int, wanted: int, min_px: float, *, even: bool = False) -> int:
@@ -120,19 +134,23 @@ def cells(rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, i
     dx1 = np.zeros((rows, cols), np.float32)
     dy1 = np.zeros((rows, cols), np.float32)
     idx = np.zeros((rows, cols), np.int64)
-    for oy, ox in offsets:
+    which = np.zeros((rows, cols), np.int64)          # the nearest point's offset, 0..8
+    for k, (oy, ox) in enumerate(offsets):
         dx, dy, i = neighbour(oy, ox)
         d2 = dx * dx + dy * dy
         closer = d2 < best
         best = np.where(closer, d2, best)
         dx1, dy1, idx = np.where(closer, dx, dx1), np.where(closer, dy, dy1), np.where(closer, i, idx)
+        which = np.where(closer, k, which)
     edge = np.full((rows, cols), np.inf, np.float32)
-    for oy, ox in offsets:
-        dx, dy, i = neighbour(oy, ox)
+    for k, (oy, ox) in enumerate(offsets):
+        # every other point bounds the cell, a periodic copy of the nearest one too (1 or 2 cells
+        # per period along an axis): skip the nearest point itself by its offset, not by its index
+        dx, dy, _ = neighbour(oy, ox)
         bx, by = dx1 - dx, dy1 - dy                                     # b - a, in texels
         sep = np.sqrt(bx * bx + by * by)
         e = (dx * dx + dy * dy - best) / np.maximum(2.0 * sep, 1e-6)
-        edge = np.where(i != idx, np.minimum(edge, e), edge)
+        edge = np.where(which != k, np.minimum(edge, e), edge)
     return Cells(idx, dx1, dy1, np.sqrt(best), edge.astype(np.float32), cw, ch)
 
 

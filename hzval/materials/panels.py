@@ -1,8 +1,8 @@
 """Riveted metal panels: flat plates with seams between them and rows of rivets along their edges.
 
 Panels (2 x 2 per period) bulge very slightly and carry shallow dents; a
-narrow V seam separates them; rivets, small half spheres, run along each
-panel's edges inset from the seam. Mostly flat: the shadows are those of
+narrow flat-bottomed seam with smoothstep walls separates them; rivets,
+small half spheres, run along each panel's edges inset from the seam. Mostly flat: the shadows are those of
 small isolated domes and of the seams' walls - little for a technique to
 get right, and much it can get wrong (light leaking past a rivet).
 """
@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import count, periodic_noise, shape_of, smoothstep, tint
+from hzval.materials.noise import count, finish, periodic_noise, shape_of, smoothstep, tint
 
 MIN_SIZE = 8
 _ACROSS = 2             # panels per period across
 _MIN_PX = 16            # narrowest panel, texels
-_RIVETS = 8             # rivets per panel edge
+_RIVETS = 8             # rivet spacings per panel edge: 9 rivets on it, 32 per panel (corners shared)
 _SEAM = 0.2             # seam floor
 _PLATE = 0.45           # plate level
 _RIVET_HEIGHT = 0.25    # above the plate
@@ -68,7 +68,7 @@ def panels(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     metal = tint(_METAL_SRGB, shade[ids] + 0.04 * streaks)
     albedo = np.where((rivet > 0)[..., None], tint(_RIVET_SRGB), metal)
     albedo = albedo * plate[..., None] + tint(_SEAM_SRGB) * (1.0 - plate[..., None])
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(

@@ -2,7 +2,7 @@
 
 Rows of boards (6 per period) run across the image, 2 boards per row with
 staggered butt joints; a V groove separates rows and a narrower one the
-boards' ends. Each board has its own height, a slight cupping across its
+boards' ends. Each board has its own height, a slight crown across its
 width, and a grain of fine ridges along it (noise stretched 20:1 along x).
 Long straight grooves, like the bricks' joints, but V-shaped: a horizon map
 sees the same wall in every direction along them.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import count, periodic_noise, shape_of, tint
+from hzval.materials.noise import count, finish, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
 _ROWS = 6              # rows of boards per period
@@ -54,7 +54,7 @@ def planks(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     wood = tint(_WOOD_SRGB, shade[ids] + 0.12 * grain + 4.0 * rings)
     m = profile[..., None]
     albedo = wood * m + tint(_GROOVE_SRGB) * (1.0 - m)
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from hzval.materials import Material
-from hzval.materials.noise import periodic_noise, shape_of, smoothstep, tint
+from hzval.materials.noise import finish, periodic_noise, shape_of, smoothstep, tint
 
 MIN_SIZE = 8
 DEPTH = 0.08
@@ -49,7 +49,7 @@ def ridges(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     snow = (smoothstep(0.62, 0.75, height) * (1.0 - smoothstep(0.5, 1.2, slope)))[..., None]
     albedo = tint(_GRASS_SRGB) * (1.0 - rock) + tint(_ROCK_SRGB) * rock
     albedo = albedo * (1.0 - snow) + tint(_SNOW_SRGB) * snow
-    return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
+    return finish(height, albedo)
 
 
 MATERIAL = Material(
