@@ -33,6 +33,12 @@ from hzval import conventions as cv
 
 #: Lowest light elevation, in degrees, whose shadows the wrap margin must hold.
 MIN_ELEVATION_DEG = 10.0
+#: The wrap margin is never wider than this many tile widths (nor below :data:`MIN_MARGIN_CAP`
+#: texels): a deep relief would otherwise ask for a margin of ``relief / tan(10 deg)`` (depth 5 on
+#: 512 texels: 14,500 texels a side, a mesh of 30,000 x 30,000 vertices). Rays that need more
+#: than the margin hop (:mod:`hzval.truth`, "Boundaries"), so the cap costs hops, not accuracy.
+MAX_MARGIN_TILES = 0.5
+MIN_MARGIN_CAP = 32
 
 @dataclass(frozen=True)
 class Grid:
@@ -49,14 +55,20 @@ class Grid:
     margin: int
 
 
-def wrap_margin(h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_DEG) -> int:
+def wrap_margin(h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_DEG, *,
+                capped: bool = False) -> int:
     """Texels of neighbouring tiles that a wrap mesh needs on each side.
 
     A shadow ray toward elevation ``e`` rises ``tan(e)`` per texel, so past
     ``relief / tan(e)`` texels it is above every point of the surface.
+    ``capped``: at most :data:`MAX_MARGIN_TILES` of the tile's smaller side (at
+    least :data:`MIN_MARGIN_CAP` texels), for a renderer whose rays hop.
     """
     relief = float(np.max(h_texels) - np.min(h_texels))
-    return int(math.ceil(relief / math.tan(math.radians(min_elevation_deg)))) + 1
+    need = int(math.ceil(relief / math.tan(math.radians(min_elevation_deg)))) + 1
+    if not capped:
+        return need
+    return min(need, max(MIN_MARGIN_CAP, int(MAX_MARGIN_TILES * min(np.shape(h_texels)))))
 
 
 def grid(h_texels: np.ndarray, boundary: str, *, min_elevation_deg: float = MIN_ELEVATION_DEG,

@@ -127,10 +127,12 @@ Self-intersection
 Boundaries
     ``open``: nothing outside the image. ``wrap``: the mesh carries a margin
     of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for a ray
-    at 10 degrees, whatever the light: a margin for a grazing light grows as ``relief / tan(e)`` and the mesh
-    with its square (the bricks at 1 degree: 2.4 GB). Rays that need more -
-    lights below 10 degrees, ambient and path rays near the horizon, soft
-    lights that dip low - are traced in hops: a hop ends before the ray can leave
+    at 10 degrees, whatever the light, and at most half a tile wide: a margin
+    for a grazing light or a deep relief grows as ``relief / tan(e)`` and the
+    mesh with its square (the bricks at 1 degree: 2.4 GB; a 512 x 512 photo at
+    depth 5: 30,000 x 30,000 vertices). Rays that need more - lights below
+    10 degrees, ambient and path rays near the horizon, soft lights that dip
+    low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends before the ray can leave
     the margin, its end point is wrapped back into the tile, and the next hop
     continues from there, until the ray is above the highest point of the
     surface. So the surface tiles without end for every ray, not only within
@@ -244,9 +246,11 @@ class Truth:
         lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
         self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
         if mat.boundary == "wrap":
-            # never wider than the margin for 10 degrees: lower rays hop (see "Boundaries"),
-            # while a margin for a grazing light would grow as relief / tan(e), quadratically in memory
-            self.margin = meshes.wrap_margin(h_tex, max(self.min_elevation_deg, meshes.MIN_ELEVATION_DEG))
+            # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
+            # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
+            # relief / tan(e), quadratically in memory
+            self.margin = meshes.wrap_margin(h_tex, max(self.min_elevation_deg, meshes.MIN_ELEVATION_DEG),
+                                             capped=True)
         else:
             self.margin = 0
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,

@@ -688,3 +688,43 @@ def test_path_tracer_handles_soft_light_specular_and_sky_together(bumps, boundar
         assert np.all(np.isfinite(f.image)) and np.all(f.image >= 0.0)
         assert np.all(np.isfinite(f.variance["image"]))
     assert four.image.mean() > two.image.mean()
+
+
+# --------------------------------------------------------------------------
+# Deep relief under a grazing light: a bounded margin, the endless tiling by hops
+# --------------------------------------------------------------------------
+
+def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, monkeypatch):
+    """Depth 2 on 48 x 48 bricks (80 texels of relief) at 10 degrees would want a margin of 457 texels
+    (a mesh 20 times the tile a side); the capped margin is 32 texels, and its rays hop to the same
+    visibility, sample for sample, as the full margin's."""
+    from hzval import conventions as cv
+    from hzval import mesh as meshes
+    from hzval.materials.bricks import bricks
+
+    h = bricks(48)
+    capped = truth(h, 2.0, "wrap", elevation=10.0, spp=4)
+    assert capped.margin == meshes.MIN_MARGIN_CAP
+    assert capped.margin < meshes.wrap_margin(cv.heights_in_texels(h, 2.0), 10.0) / 10
+    monkeypatch.setattr(meshes, "MAX_MARGIN_TILES", 1e9)
+    full = truth(h, 2.0, "wrap", elevation=10.0, spp=4)
+    assert full.margin > 400
+    for az in (0.0, 37.0, -120.0):
+        a, b = capped.render(az).layers["visibility"], full.render(az).layers["visibility"]
+        assert 0.05 < a.mean() < 0.95                       # real shadows, long ones
+        assert np.abs(a - b).max() <= 1 / 4 + 1e-6 and np.mean(a != b) < 0.002   # at most a sample of four
+
+
+def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
+    """Issue 16's case at a small size: depth 5 at 10 degrees was killed for memory at 512 x 512."""
+    import json
+
+    from hzval import cli
+
+    np.save(tmp_path / "deep.npy", np.random.default_rng(3).random((40, 40)).astype(np.float32))
+    out = tmp_path / "o"
+    assert cli.main(["sweep", str(tmp_path / "deep.npy"), "--depth", "5", "--elevation", "10", "--azimuths", "0,90",
+                     "--spp", "4", "--out", str(out), "--quiet"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["parameters"]["depth"] == 5 and len(m["frames"]) == 2
+    assert all(0 < f["techniques"]["horizon"]["visibility_mae"] < 1 for f in m["frames"])
