@@ -276,10 +276,8 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
     out = {}
     for i in picks:
         f = frames[i]
-        row = {"truth": f["files"]["truth_png"]}
-        row.update({name: f["techniques"][name]["files"]["png"] if "png" in f["techniques"][name]["files"]
-                    else f["techniques"][name]["files"].get("approx_png") for name in techniques})
-        out[f"{f['azimuth_deg']:+g}"] = row
+        out[f"{f['azimuth_deg']:+g}"] = {"truth": f["files"]["truth_png"],
+                                         **{name: f["techniques"][name]["files"]["png"] for name in techniques}}
     return out
 
 
