@@ -67,10 +67,6 @@ HEIGHT_SUFFIXES = heightmap.SUFFIXES
 LIGHTS_SHOWN = 3
 #: Side of a thumbnail in pixels.
 THUMB_PX = 144
-#: A sweep's peak memory, roughly: a base plus a cost per pixel at 16 samples per pixel, from the
-#: peaks measured on this machine (1.1 GiB at 512 x 512, 11.1 GiB at 2048 x 2048: issue 16's figures).
-SWEEP_BASE_BYTES = 0.4 * 2 ** 30
-SWEEP_BYTES_PER_PIXEL = 2.7 * 2 ** 10
 #: Names under DIR that are the overview's own, never a material's folder.
 RESERVED = ("thumbs",)
 #: The file in DIR by which a cluster's worker proves it sees the caller's DIR.
@@ -173,16 +169,14 @@ def _height_entry(path: Path) -> Entry:
 
 
 def estimate_peak_bytes(entry: Entry) -> int:
-    """A rough peak of ``entry``'s sweep (:data:`SWEEP_BYTES_PER_PIXEL`), from its size alone: a
-    height map's header, or a built-in material's ``size``; scaled with spp and supersampling."""
-    spec, scene = entry.scene.material, entry.scene
+    """``entry``'s sweep's estimated peak (:func:`hzval.sweep.estimate_peak_bytes`), from its size
+    alone (a height map's header, a built-in material's ``size``); a map that cannot be read counts
+    as tiny (it will fail on its own)."""
     try:
-        rows, cols = ((spec.size, spec.size) if materials.is_builtin(spec.height)
-                      else heightmap.probe_shape(spec.height))
-    except InputError:                          # unreadable: it will fail on its own, small
+        rows, cols = sweep.material_shape(entry.scene)
+    except InputError:
         rows = cols = 1
-    pixels = rows * cols * scene.camera.supersampling ** 2
-    return int(SWEEP_BASE_BYTES + SWEEP_BYTES_PER_PIXEL * pixels * max(1.0, scene.spp / 16))
+    return sweep.estimate_peak_bytes(entry.scene, rows, cols)
 
 
 def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:

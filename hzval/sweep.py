@@ -46,9 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import approx, backend, bake, compare, files, images, materials, report, shading, technique, truth
+from hzval import approx, backend, bake, compare, files, heightmap, images, materials, report, shading, technique, truth
 from hzval import scene as sc
 from hzval.bake import BakeParams
+from hzval.errors import InputError
 
 __all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "reset_peak_rss", "PNG_LEVEL"]
 
@@ -138,6 +139,45 @@ class _Setup:
     techniques: list            # built Technique objects, registry order
     timings: dict
     notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
+    estimate: int = 0                                           # estimated peak memory, bytes
+
+
+#: A sweep's peak memory: a base, a cost per pixel (images, comparisons) and one per sample (the
+#: truth's and the techniques' per-sample arrays), fitted to the peaks measured on this machine
+#: (every technique, 16 spp unless said): 1.06 GiB at 512 x 512, 2.51 GiB at 512 x 512 and 64 spp,
+#: 13.0 GiB at 2048 x 2048 (``hzval sweep --size N [--spp 64]``, "peak memory").
+PEAK_BASE_BYTES = 0.26 * 2 ** 30
+PEAK_BYTES_PER_PIXEL = 1200
+PEAK_BYTES_PER_SAMPLE = 124
+
+
+def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
+    """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
+    in bytes (:data:`PEAK_BYTES_PER_SAMPLE`); ``metrics.json`` records it beside the measured peak."""
+    pixels = rows * cols * scene.camera.supersampling ** 2
+    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * pixels + PEAK_BYTES_PER_SAMPLE * pixels * scene.spp)
+
+
+def material_shape(scene) -> tuple[int, int]:
+    """``(rows, cols)`` of the scene's height map, without generating or decoding it."""
+    spec = scene.material
+    if materials.is_builtin(spec.height):
+        return spec.size, spec.size
+    return heightmap.probe_shape(spec.height)
+
+
+def check_fits(scene, params: BakeParams) -> int:
+    """Refuse, before anything is allocated, a sweep whose bake or whose estimated peak
+    (:func:`estimate_peak_bytes`) would not fit in the memory available now; return the estimate."""
+    rows, cols = material_shape(scene)
+    what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
+    bake.check_fits(what, rows, cols, params)
+    need, have = estimate_peak_bytes(scene, rows, cols), bake.available_bytes()
+    if need > have:
+        raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
+                               f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
+                               "are available (fewer --spp, a smaller map or a larger machine)")
+    return need
 
 
 def _set_up(scene, out: Path, options: Options) -> _Setup:
@@ -148,11 +188,9 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     params = options.bake_params(scene)
     for t in chosen:                            # settings are checked before anything is written
         t.check_settings(params, options.settings.get(t.name, {}))
-    if materials.is_builtin(scene.material.height):   # estimate before generating a built-in map
-        bake.check_fits("--size", scene.material.size, scene.material.size, params)
+    estimate = check_fits(scene, params)       # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
-    bake.check_fits(hm.path or "material", rows, cols, params)
     material = {"name": scene.name, "source": hm.source, "digest": hm.digest, "rows": rows, "cols": cols,
                 "path": hm.path}
     t0 = time.perf_counter()
@@ -171,7 +209,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
-    return _Setup(material, params, the_truth, plain, built, timings, notices)
+    return _Setup(material, params, the_truth, plain, built, timings, notices, estimate)
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True) -> dict:
@@ -219,7 +257,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     report.write_report(out, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
-    result["memory"] = {"peak_rss_bytes": peak_rss_bytes()}
+    result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate}
     files.write_json(out / "frames.json", engine_frames(scene, result))
     files.write_json(out / "metrics.json", result)
     return result

@@ -331,3 +331,25 @@ def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, ca
     assert "\n" not in err and "in use by another hzval run" in err and "the first run" in err
     assert not (out / "index.html").exists()
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0            # free again once it is done
+
+
+def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_path, capsys, monkeypatch):
+    """The estimate (hzval.sweep.estimate_peak_bytes) against the memory available: over it, one line
+    naming the input and the estimate, exit 2, nothing written; under it, recorded beside the peak."""
+    from hzval import bake, cli, scene as S, sweep as sw
+
+    scene = S.override(S.Scene(), size=1024)
+    need = sw.estimate_peak_bytes(scene, 1024, 1024)
+    assert 2.5 * 2 ** 30 < need < 5 * 2 ** 30                 # between the 512 and 2048 measurements
+    monkeypatch.setattr(bake, "available_bytes", lambda: need - 1)
+    out = tmp_path / "o"
+    assert cli.main(["sweep", "--size", "1024", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hzval: error: --size:") and "GiB" in err and "estimated" in err and "\n" not in err
+    assert not out.exists()
+    monkeypatch.undo()
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
+    import json
+
+    memory = json.loads((out / "metrics.json").read_text())["memory"]
+    assert 0.5 < memory["estimate_bytes"] / memory["peak_rss_bytes"] < 2.0
