@@ -185,9 +185,9 @@ def _add_suite(sub) -> None:
                    help=f"size of the built-in materials (default {materials.DEFAULT_SIZE})")
     _add_sweep_flags(p)
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="sweeps at once on this machine, each in its own process (default: 1 per 2 cores, "
-                        "as many as fit in memory, at most the number of materials; 1 runs them in this "
-                        "process)")
+                   help="worker processes on this machine, each sweeping one material at a time (default: "
+                        "1 per 2 cores, as many as fit in memory, at most the number of materials, at least "
+                        "1); 0 sweeps them in this process, where a crash ends the suite")
     p.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (tcp://host:8786) instead; its workers need "
                         "hzval and DIR and the inputs at the same paths")
@@ -380,7 +380,7 @@ def cmd_suite(args) -> int:
 
     items = suite.entries(args.inputs, **_scene_overrides(args))
     workers = args.workers if args.workers is not None else suite.default_workers(items)
-    if args.cluster is None and workers == 1:
+    if args.cluster is None and workers == 0:
         backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,

@@ -18,8 +18,11 @@ gives it with the same settings) and, once all are in, writes the overview::
     DIR/<name>/         each material's sweep report
 
 Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
-    One worker: in this process, one material after another. More: a pool
-    of worker processes on this machine, a Dask ``LocalCluster``. With
+    A pool of worker processes on this machine, a Dask ``LocalCluster``, by
+    default (:func:`default_workers`: one per two cores, at least one): a
+    material that crashes its process (a segfault, the kernel's OOM killer)
+    is one failed row. ``workers=0``: in this process, one material after
+    another, nothing between a crash and the others. With
     ``cluster``: the Dask scheduler at that address (``tcp://host:8786``),
     whose workers must have hzval installed and see ``DIR`` and the inputs
     at the same paths (a shared filesystem; a task checks and fails with a
@@ -35,8 +38,8 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     21 MB installed against 225 MB, pure-Python wheels; both take a
     scheduler address. Each local worker's Dr.Jit runs ``cores / workers``
     threads. On this 2-core machine one worker is fastest (the built-in
-    suite in 262 s, against 316 s with two: one sweep already keeps both
-    cores busy), and :func:`default_workers` picks it.
+    suite in WORKER1 s, against 316 s with two: one sweep already keeps both
+    cores busy; 262 s in this process), and :func:`default_workers` picks it.
 """
 
 from __future__ import annotations
@@ -283,20 +286,22 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         variant: str | None = None, command: str = "", progress: bool = True) -> dict:
     """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
 
-    ``workers``: sweeps at once on this machine (1: in this process; see :func:`default_workers`);
+    ``workers``: worker processes on this machine, each sweeping one material at a time (see
+    :func:`default_workers`); 0 sweeps them in this process, one after another, with no process
+    between a material that crashes and the others;
     ``cluster``: a Dask scheduler's address instead (its workers decide). The overview is written
     once every material is in, failed ones included; the run holds ``out``
     (:func:`hzval.files.folder_lock`) as each sweep holds its material's folder. With more than one
     worker, worker processes are spawned: a script that calls this must do so under
     ``if __name__ == "__main__":``. Ctrl-C stops the run with an overview of what finished (the rest
     marked "not run"), each finished material's report whole."""
-    if workers < 1:
-        raise InputError("--workers", f"must be at least 1, got {workers}")
+    if workers < 0:
+        raise InputError("--workers", f"must be 0 (this process) or more, got {workers}")
     out = Path(out).resolve()           # the tasks' paths must mean the same on every worker
     out.mkdir(parents=True, exist_ok=True)
     options = options or sweep.Options()
     local = cluster is None
-    threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 1 else None
+    threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 0 else None
     token = "" if local else f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
     tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token)
              for e in items]
@@ -313,7 +318,7 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         try:
             if token:
                 (out / TOKEN_FILE).write_text(token, encoding="utf-8")
-            if local and workers == 1:
+            if local and workers == 0:
                 _run_here(tasks, rows, progress)
             else:
                 _run_dask(tasks, rows, engine, workers if local else None, cluster, progress)

@@ -70,7 +70,7 @@ def in_process(tmp_path_factory, variant):
     tmp = tmp_path_factory.mktemp("suite")
     items = suite.entries([_folder(tmp), "planks"], **SMALL)
     out = tmp / "out"
-    return items, out, suite.run(items, out, workers=1, command="hzval suite (test)", progress=False)
+    return items, out, suite.run(items, out, workers=0, command="hzval suite (test)", progress=False)
 
 
 def test_a_failed_material_is_reported_and_the_others_are_not_lost(in_process):
@@ -165,14 +165,14 @@ def test_a_cluster_that_is_not_there_is_one_line(tmp_path, monkeypatch):
 def test_cli_suite_exit_status_and_table(variant, tmp_path, capsys):
     d = _folder(tmp_path)
     code = cli.main(["suite", str(d / "stones.png"), "planks", "--size", "24", "--azimuths", "0", "--spp", "4",
-                     "--techniques", "horizon,terrain", "--workers", "1", "--out", str(tmp_path / "o"), "--quiet"])
+                     "--techniques", "horizon,terrain", "--workers", "0", "--out", str(tmp_path / "o"), "--quiet"])
     assert code == 0
     out = capsys.readouterr().out
     assert "stones" in out and "planks" in out and "overview" in out
     rows = json.loads((tmp_path / "o" / "suite.json").read_text())["materials"]
     assert all(set(r["techniques"]) == {"horizon", "terrain"} for r in rows)
     assert cli.main(["suite", str(d), "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
-                     "--workers", "1", "--out", str(tmp_path / "p"), "--quiet"]) == 1    # broken.png failed
+                     "--workers", "1", "--out", str(tmp_path / "p"), "--quiet"]) == 1    # broken.png failed, in a pool
     assert cli.main(["suite", str(tmp_path / "missing"), "--out", str(tmp_path / "q")]) == 2
     assert not (tmp_path / "q").exists()
 
@@ -300,7 +300,7 @@ def test_a_second_suite_into_a_busy_folder_is_refused(tmp_path):
     out = tmp_path / "o"
     with files.folder_lock(out, "hzval suite (first)"):
         with pytest.raises(InputError, match="in use by another hzval run"):
-            suite.run(suite.entries(["planks"], **SMALL), out, progress=False)
+            suite.run(suite.entries(["planks"], **SMALL), out, workers=0, progress=False)
 
 
 def test_names_are_safe_folders_and_unique(tmp_path):
@@ -335,7 +335,7 @@ def test_ctrl_c_writes_the_overview_of_what_finished(tmp_path, monkeypatch, vari
 
     monkeypatch.setattr(suite, "sweep_material", interrupt_the_second)
     with pytest.raises(KeyboardInterrupt):
-        suite.run(items, tmp_path, progress=False)
+        suite.run(items, tmp_path, workers=0, progress=False)
     result = json.loads((tmp_path / "suite.json").read_text())
     assert result["suite"]["interrupted"] and result["suite"]["not_run"] == 2
     status = {r["name"]: r["status"] for r in result["materials"]}
