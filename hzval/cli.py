@@ -186,8 +186,8 @@ def _add_suite(sub) -> None:
     _add_sweep_flags(p)
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes on this machine, each sweeping one material at a time (default: "
-                        "1 per 2 cores, as many as fit in memory, at most the number of materials, at least "
-                        "1); 0 sweeps them in this process, where a crash ends the suite")
+                        "1 per core, as many as fit in memory, at most the number of materials, at least 1); "
+                        "0 sweeps them in this process, where a crash ends the suite")
     p.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (tcp://host:8786) instead; its workers need "
                         "hzval and DIR and the inputs at the same paths")

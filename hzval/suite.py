@@ -19,14 +19,16 @@ gives it with the same settings) and, once all are in, writes the overview::
 
 Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     A pool of worker processes on this machine, a Dask ``LocalCluster``, by
-    default (:func:`default_workers`: one per two cores, at least one): a
+    default (:func:`default_workers`: one per core, as memory allows): a
     material that crashes its process (a segfault, the kernel's OOM killer)
     is one failed row. ``workers=0``: in this process, one material after
     another, nothing between a crash and the others. With
     ``cluster``: the Dask scheduler at that address (``tcp://host:8786``),
     whose workers must have hzval installed and see ``DIR`` and the inputs
     at the same paths (a shared filesystem; a task checks and fails with a
-    line that says so; start them with ``--nthreads 1``). One task per
+    line that says so; start them with ``--nthreads 1`` and the setting
+    ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null``,
+    as :func:`_run_dask` gives its local cluster). One task per
     material, ``retries=0``; a task that raises, or whose worker dies, is one
     failed material on the overview, never the end of the others (a worker's
     death is retried on another unless the scheduler has
@@ -37,9 +39,9 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     up in 0.8 s against 3.7 s, 16 small tasks in 0.06 s against 0.12 s,
     21 MB installed against 225 MB, pure-Python wheels; both take a
     scheduler address. Each local worker's Dr.Jit runs ``cores / workers``
-    threads. On this 2-core machine one worker is fastest (the built-in
-    suite in WORKER1 s, against 316 s with two: one sweep already keeps both
-    cores busy; 262 s in this process), and :func:`default_workers` picks it.
+    threads. On this 2-core machine the built-in suite took 260 s on two
+    workers, 280 s on one (with both cores) and 262 s in this process, with
+    the same scores.
 """
 
 from __future__ import annotations
@@ -183,13 +185,14 @@ def estimate_peak_bytes(entry: Entry) -> int:
 
 
 def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:
-    """Workers for this machine: one per two cores (Dr.Jit and FLIP already use two threads each
-    well), no more than there are materials, and no more than fit in 80% of the available memory
-    beside each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
+    """Workers for this machine: one per core (each then runs Dr.Jit and FLIP on one thread: on this
+    2-core machine two workers swept the built-in suite in 260 s, one worker on both cores in 280 s),
+    no more than there are materials, and no more than fit in 80% of the available memory beside
+    each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
     cores = (os.cpu_count() or 1) if cores is None else cores
     available = bake.available_bytes() if available is None else available
     largest = max((estimate_peak_bytes(e) for e in items), default=1)
-    return max(1, min(len(items), cores // 2, int(0.8 * available // largest)))
+    return max(1, min(len(items), cores, int(0.8 * available // largest)))
 
 
 # --------------------------------------------------------------------------

@@ -188,7 +188,8 @@ def test_suite_json_has_no_nan(in_process):
 def test_default_workers_follow_cores_materials_and_memory():
     items = suite.entries(["planks", "gravel", "fabric", "panels"], size=512)
     gib = 2 ** 30
-    assert suite.default_workers(items, cores=2, available=64 * gib) == 1
+    assert suite.default_workers(items, cores=2, available=64 * gib) == 2
+    assert suite.default_workers(items, cores=1, available=64 * gib) == 1
     assert suite.default_workers(items, cores=16, available=64 * gib) == 4           # four materials
     assert suite.default_workers(items[:4], cores=64, available=64 * gib) == 4
     big = suite.entries(["planks", "gravel", "fabric", "panels"], size=2048)
