@@ -238,7 +238,6 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
 
     t_start = time.perf_counter()
     setup = _set_up(scene, out, options)
-    out = report_dir
     scale = shading.exposure(scene)
     frames, clock = [], {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
@@ -246,7 +245,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     try:
         for az in bar:
             bar.set_postfix_str(f"azimuth {az:+g} deg")
-            frames.append(_frame(out, scene, setup, az, scale, clock))
+            frames.append(_frame(report_dir, scene, setup, az, scale, clock))
     finally:
         bar.close()
     timings = {**setup.timings, "truth_s": sum(f["truth_s"] for f in frames), **clock}
@@ -254,12 +253,12 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
         timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
     result = _result(scene, options, setup, timings, frames)
     t0 = time.perf_counter()
-    report.write_report(out, result, command=command)
+    report.write_report(report_dir, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate}
-    files.write_json(out / "frames.json", engine_frames(scene, result))
-    files.write_json(out / "metrics.json", result)
+    files.write_json(report_dir / "frames.json", engine_frames(scene, result))
+    files.write_json(report_dir / "metrics.json", result)
     return result
 
 
