@@ -645,9 +645,9 @@ def _sweep_numpy(h: np.ndarray, lines: SweepLines) -> np.ndarray:
             act = act[nn[act] >= 0]
         nxt_of[lane, k] = np.where(has, cand, -1)
         h_at[lane, k] = hk
-        dh = hc - hk
         d = ((cand - k) * lines.step).astype(np.float32)
         with np.errstate(over="ignore", invalid="ignore"):  # lanes without `has` read unset scratch
+            dh = hc - hk
             sine = np.where(has & (dh > 0), dh / np.sqrt(dh * dh + d * d), np.float32(0))
         keep = k < length[:m]
         out[texel[keep]] = sine[keep]

@@ -35,6 +35,7 @@ CIEDE2000 into a worker process a frame ahead was measured to gain nothing
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import math
 import os
@@ -435,8 +436,17 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
             if V is not None:
                 png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_image, V, F)
         per[t.name] = own
-    for done in [backend.host_pool().submit(job) for job in jobs]:
-        done.result()                       # re-raises a writer's error here
+    pending = [backend.host_pool().submit(job) for job in jobs]
+    try:
+        for done in pending:
+            done.result()                   # re-raises a writer's error here
+    except BaseException:
+        # Ctrl-C (or a writer's error) here: no writer may outlive this frame and put a file
+        # into the staging folder after run() has removed it
+        for p in pending:
+            p.cancel()
+        concurrent.futures.wait(pending)
+        raise
     return rel, per, time.perf_counter() - t0
 
 

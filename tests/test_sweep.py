@@ -357,3 +357,29 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
                    capture_output=True)
     memory = json.loads((out / "metrics.json").read_text())["memory"]
     assert 0.5 < memory["estimate_bytes"] / memory["peak_rss_bytes"] < 2.0
+
+
+def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path, monkeypatch):
+    """Interrupted while its writer threads are busy, a sweep waits for them before it clears its
+    staging folder: no file of the interrupted run is left behind."""
+    import _thread
+    import threading
+    import time as _time
+
+    from hzval import cli, sweep as sw
+
+    out = tmp_path / "out"
+    real_png = sw._write_png_of
+    fired = threading.Event()
+
+    def slow_png(path, make, *args):
+        if not fired.is_set():
+            fired.set()
+            _thread.interrupt_main()                 # Ctrl-C reaches the main thread ...
+        _time.sleep(0.2)                             # ... while this writer is still at work
+        real_png(path, make, *args)
+
+    monkeypatch.setattr(sw, "_write_png_of", slow_png)
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 130
+    _time.sleep(0.5)                                 # a straggler would have written by now
+    assert [p for p in out.rglob("*") if p.is_file() and ".hzval-staging" in str(p)] == []
