@@ -265,6 +265,7 @@ def summarise(entry: Entry, metrics: dict) -> dict:
             "truth_s": _mean(f.get("truth_s") for f in frames),
             "seconds": metrics["timings"]["total_s"],
             "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
+            "variant": metrics["versions"].get("variant"),       # the Mitsuba variant its worker ran
             "files": _thumbnail_sources(frames, metrics["techniques"])}
 
 
@@ -429,7 +430,8 @@ def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, wo
                         "seconds": seconds, "materials": len(rows), "interrupted": interrupted,
                         "failed": sum(r["status"] == "failed" for r in rows),
                         "not_run": sum(r["status"] == "not run" for r in rows),
-                        "versions": backend.versions()},
+                        "versions": {**backend.versions(),
+                                     "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")}))}},
               "techniques": techniques, "materials": rows}
     files.write_json(out / "suite.json", result)
     html = report.render_suite(result)
