@@ -362,7 +362,8 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
 def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path, monkeypatch):
     """Interrupted while its writer threads are busy, a sweep waits for them before it clears its
     staging folder: no file of the interrupted run is left behind."""
-    import _thread
+    import os
+    import signal
     import threading
     import time as _time
 
@@ -375,7 +376,7 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
     def slow_png(path, make, *args):
         if not fired.is_set():
             fired.set()
-            _thread.interrupt_main()                 # Ctrl-C reaches the main thread ...
+            os.kill(os.getpid(), signal.SIGINT)      # Ctrl-C reaches the main thread ...
         _time.sleep(0.2)                             # ... while this writer is still at work
         real_png(path, make, *args)
 
