@@ -273,6 +273,7 @@ def _add_score(sub) -> None:
 def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
     """The height map named on the command line, or a built-in one, with its description."""
     from hzval import heightmap, materials
+    from hzval import scene as sc
 
     if args.height is None:
         name = args.material or materials.DEFAULT
@@ -280,7 +281,7 @@ def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
         size = materials.DEFAULT_SIZE if args.size is None else args.size
         if size < m.min_size:
             raise errors.InputError("--size", f"the built-in {name} needs at least {m.min_size} texels, got {size}")
-        hm = heightmap.from_array(materials.generate(name, size).height, source=f"built-in {m.label}, {size}x{size}")
+        hm = sc.load_material_height(sc.MaterialSpec(height=name, size=size))
         info = {"path": None, "builtin": name, "size": size}
     else:
         hm = heightmap.load_height(args.height)

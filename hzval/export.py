@@ -100,7 +100,7 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
         a = DEFAULT_ALBEDO if albedo is None else float(albedo)
         return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
     if own is not None:     # a built-in material's linear albedo, stored as sRGB as a bitmap expects
-        rgb = np.round(np.clip(cv.srgb_encode(own), 0.0, 1.0) * 255.0).astype(np.uint8)
+        rgb = files.unit_to_u8(cv.srgb_encode(own))
     else:
         from PIL import Image
 

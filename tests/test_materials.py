@@ -9,6 +9,7 @@ import pytest
 from scipy import ndimage
 
 from hzval import cli, materials
+from hzval import conventions as cv
 from hzval import scene as S
 from hzval.materials import cobblestones, fabric, noise, panels, planks, spikes
 
@@ -111,10 +112,14 @@ def test_spikes_are_one_thin_cone_per_cell():
     # thin: each cone's footprint is a disk of 14% of a cell in radius; tall: its top is at least 0.6
     r = spikes._RADIUS * 512 / n
     assert (h > 0.1).mean() < n * n * np.pi * r * r / 512 ** 2
-    tops = ndimage.maximum(h, *ndimage.label(h > 0.3))
-    assert np.min(tops) > 0.5 * 0.6
-    # at the default depth a cone is several times as tall as it is wide
-    assert 0.6 * spikes.MATERIAL.depth * 512 > 2 * (2 * r)
+    labels, count = ndimage.label(h > 0.05)
+    index = np.arange(1, count + 1)
+    tops = np.asarray(ndimage.maximum(h, labels, index))
+    assert np.min(tops[tops > 0.3]) > 0.5 * 0.6
+    # at the default depth the tallest cone stands more than twice as tall as its footprint is wide
+    width = 2 * np.sqrt(np.asarray(ndimage.sum(np.ones_like(h), labels, index)) / np.pi)   # texels
+    tall = cv.heights_in_texels(h, spikes.MATERIAL.depth).max()
+    assert tall > 2 * width[np.argmax(tops)]
 
 
 def test_cobblestones_are_one_dome_per_cell_in_sand():

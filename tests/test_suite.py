@@ -345,7 +345,7 @@ def test_ctrl_c_writes_the_overview_of_what_finished(tmp_path, monkeypatch, vari
     assert "Interrupted" in (tmp_path / "index.html").read_text()
 
 
-def test_each_sweep_reports_its_own_peak_memory(in_process):
+def test_each_sweep_reports_its_own_peak_memory():
     """In one process, a small sweep after a larger one reports its own peak, not the process's."""
     from hzval.sweep import peak_rss_bytes, reset_peak_rss
 

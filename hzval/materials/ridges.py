@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hzval import conventions as cv
 from hzval.materials import Material
 from hzval.materials.noise import finish, periodic_noise, shape_of, smoothstep, tint
 
@@ -43,7 +44,7 @@ def ridges(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     height *= 0.8 + 0.2 * np.tanh(periodic_noise(rng, (rows, cols), (cols / 6.0,), (1.0,)))
     lo, hi = float(height.min()), float(height.max())
     height = (height - lo) / (hi - lo if hi > lo else 1.0)
-    gy, gx = np.gradient(height * DEPTH * cols)                      # slope, texel units
+    gy, gx = np.gradient(cv.heights_in_texels(height, DEPTH))        # slope, texel units
     slope = np.hypot(gx, gy)
     rock = smoothstep(0.35, 0.9, slope)[..., None]
     snow = (smoothstep(0.62, 0.75, height) * (1.0 - smoothstep(0.5, 1.2, slope)))[..., None]
