@@ -361,26 +361,32 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
 
 def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path, monkeypatch):
     """Interrupted while its writer threads are busy, a sweep waits for them before it clears its
-    staging folder: no file of the interrupted run is left behind."""
-    import os
-    import signal
+    staging folder: no file of the interrupted run is left behind. The Ctrl-C is raised where it
+    lands, in the main thread's wait for the first writer (a real SIGINT reaches that wait only when
+    the kernel hands it to the main thread)."""
+    import concurrent.futures
     import threading
     import time as _time
 
     from hzval import cli, sweep as sw
 
     out = tmp_path / "out"
-    real_png = sw._write_png_of
+    real_png, real_result = sw._write_png_of, concurrent.futures.Future.result
     fired = threading.Event()
 
     def slow_png(path, make, *args):
-        if not fired.is_set():
-            fired.set()
-            os.kill(os.getpid(), signal.SIGINT)      # Ctrl-C reaches the main thread ...
-        _time.sleep(0.2)                             # ... while this writer is still at work
+        _time.sleep(0.2)                             # the writers are still at work ...
         real_png(path, make, *args)
 
+    def result(self, timeout=None):
+        if threading.current_thread() is threading.main_thread() and not fired.is_set():
+            fired.set()
+            raise KeyboardInterrupt                  # ... when Ctrl-C reaches the main thread
+        return real_result(self, timeout)
+
     monkeypatch.setattr(sw, "_write_png_of", slow_png)
+    monkeypatch.setattr(concurrent.futures.Future, "result", result)
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 130
+    assert fired.is_set()
     _time.sleep(0.5)                                 # a straggler would have written by now
     assert [p for p in out.rglob("*") if p.is_file() and ".hzval-staging" in str(p)] == []
