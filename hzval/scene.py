@@ -29,6 +29,7 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -37,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval import conventions as cv
-from hzval import heightmap, materials
+from hzval import backend, heightmap, materials
 from hzval.errors import InputError
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
@@ -322,7 +323,8 @@ def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
     return rows * camera.supersampling, cols * camera.supersampling
 
 
-def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int,
+                     pixels: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Tangent-space ``(x, y)`` of every sample, float32 arrays of shape ``(pixels * spp,)``.
 
     Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``.
@@ -331,20 +333,71 @@ def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int) 
     renderers use these positions, so no error comes from sampling alone.
     Jittered points almost never land on a texel centre, where the mesh has
     a vertex and shadow rays self-intersect (docs/ARCHITECTURE.md, "Known pitfalls").
+
+    ``pixels``: ``(first, stop)``, only the samples of the pixels ``first <= p < stop`` (a band
+    of rows for a renderer that works in bands), bit for bit those of the whole image. The
+    jitters are one PCG64 stream, all ``u`` then all ``v``, one double each; a band starts its
+    own copy of the stream at its offset (``PCG64.advance``), so bands and the whole image
+    alike are made in chunks of :data:`SAMPLE_CHUNK_PIXELS` pixels on a thread per core, in
+    bounded memory.
     """
+    height, width = image_shape(rows, cols, camera)
+    if pixels is None or tuple(pixels) == (0, height * width):
+        return _all_positions(rows, cols, camera, spp, seed)
+    return _positions(rows, cols, camera, spp, seed, int(pixels[0]), int(pixels[1]))
+
+
+@functools.lru_cache(maxsize=1)
+def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
+    """The whole image's positions, made once for the truth and every technique of a sweep
+    (read-only: they share them)."""
+    height, width = image_shape(rows, cols, camera)
+    xs, ys = _positions(rows, cols, camera, spp, seed, 0, height * width)
+    xs.flags.writeable = ys.flags.writeable = False
+    return xs, ys
+
+
+def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first: int, stop: int):
+    """:func:`sample_positions` of the pixels ``first <= p < stop``."""
+    height, width = image_shape(rows, cols, camera)
+    if not 0 <= first <= stop <= height * width:
+        raise ValueError(f"pixels {first}..{stop} outside the image's {height * width}")
+    xs = np.empty((stop - first) * spp, np.float32)
+    ys = np.empty_like(xs)
+    bounds = list(range(first, stop, SAMPLE_CHUNK_PIXELS)) + [stop]
+
+    def chunk(a: int, b: int) -> None:
+        x, y = _jittered_chunk(rows, cols, camera, spp, seed, a, b)
+        xs[(a - first) * spp:(b - first) * spp], ys[(a - first) * spp:(b - first) * spp] = x, y
+
+    list(backend.host_pool().map(chunk, bounds[:-1], bounds[1:]))
+    return xs, ys
+
+
+#: Pixels per chunk of :func:`sample_positions` (16 spp: 64 MB of float64 jitters in flight per thread).
+SAMPLE_CHUNK_PIXELS = 1 << 18
+
+
+def _jitter_stream(seed: int, offset: int) -> np.random.Generator:
+    """The jitters' PCG64 stream (``default_rng([seed, 0x5A3F])``), advanced by ``offset`` doubles."""
+    bits = np.random.PCG64(np.random.SeedSequence([seed, 0x5A3F]))
+    bits.advance(offset)
+    return np.random.Generator(bits)
+
+
+def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a: int, b: int):
+    """:func:`sample_positions` of the pixels ``a <= p < b``."""
     ss = camera.supersampling
     height, width = image_shape(rows, cols, camera)
-    rng = np.random.default_rng([seed, 0x5A3F])
+    total = height * width * spp
+    u = _jitter_stream(seed, a * spp).random((b - a, spp))
+    v = _jitter_stream(seed, total + a * spp).random((b - a, spp))
     n = int(round(math.sqrt(spp)))
     if n * n == spp:
         cell = np.arange(spp)
-        ox, oy = (cell % n)[None, :], (cell // n)[None, :]
-        u = (ox + rng.random((height * width, spp))) / n
-        v = (oy + rng.random((height * width, spp))) / n
-    else:
-        u = rng.random((height * width, spp))
-        v = rng.random((height * width, spp))
-    prow, pcol = np.divmod(np.arange(height * width), width)
+        u = ((cell % n)[None, :] + u) / n
+        v = ((cell // n)[None, :] + v) / n
+    prow, pcol = np.divmod(np.arange(a, b), width)
     # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top
     x = (pcol[:, None] + u) / ss
     y = rows - (prow[:, None] + v) / ss
