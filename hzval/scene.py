@@ -378,9 +378,10 @@ def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first:
 SAMPLE_CHUNK_PIXELS = 1 << 18
 
 
-def _jitter_stream(seed: int, offset: int) -> np.random.Generator:
-    """The jitters' PCG64 stream (``default_rng([seed, 0x5A3F])``), advanced by ``offset`` doubles."""
-    bits = np.random.PCG64(np.random.SeedSequence([seed, 0x5A3F]))
+def _stream(entropy, offset: int) -> np.random.Generator:
+    """``np.random.default_rng(entropy)`` advanced by ``offset`` doubles (PCG64 draws one 64-bit
+    word per double of ``random``)."""
+    bits = np.random.PCG64(np.random.SeedSequence(entropy))
     bits.advance(offset)
     return np.random.Generator(bits)
 
@@ -390,8 +391,8 @@ def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a
     ss = camera.supersampling
     height, width = image_shape(rows, cols, camera)
     total = height * width * spp
-    u = _jitter_stream(seed, a * spp).random((b - a, spp))
-    v = _jitter_stream(seed, total + a * spp).random((b - a, spp))
+    u = _stream([seed, 0x5A3F], a * spp).random((b - a, spp))
+    v = _stream([seed, 0x5A3F], total + a * spp).random((b - a, spp))
     n = int(round(math.sqrt(spp)))
     if n * n == spp:
         cell = np.arange(spp)
@@ -404,19 +405,23 @@ def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a
     return x.astype(np.float32).ravel(), y.astype(np.float32).ravel()
 
 
-def light_samples(light: Light, azimuth_deg: float, count: int, seed: int) -> np.ndarray:
+def light_samples(light: Light, azimuth_deg: float, count: int, seed: int,
+                  samples: tuple[int, int] | None = None) -> np.ndarray:
     """``(count, 3)`` unit directions toward the light, one per sample.
 
     A hard light gives its direction every time; a soft light samples the
     cone of half-angle ``radius_deg`` about its centre uniformly in solid
     angle (a disk light of that angular radius, uniformly bright).
+    ``samples``: ``(first, stop)``, only those of the ``count`` (a band), bit for bit.
     """
+    first, stop = (0, count) if samples is None else (int(samples[0]), int(samples[1]))
     centre = light.direction(azimuth_deg)
     if light.kind == "hard":
-        return np.broadcast_to(centre, (count, 3)).astype(np.float32)
-    rng = np.random.default_rng([seed, 0x11647])
+        return np.broadcast_to(centre, (stop - first, 3)).astype(np.float32)
     cos_max = math.cos(math.radians(light.radius_deg))
-    u1, u2 = rng.random(count), rng.random(count)
+    # one PCG64 stream: all u1, then all u2 (as default_rng([seed, 0x11647]).random twice)
+    u1 = _stream([seed, 0x11647], first).random(stop - first)
+    u2 = _stream([seed, 0x11647], count + first).random(stop - first)
     cos_t = 1.0 - u1 * (1.0 - cos_max)
     sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0, None))
     phi = 2 * math.pi * u2

@@ -140,6 +140,17 @@ Boundaries
     surface. So the surface tiles without end for every ray, not only within
     the margin.
 
+Memory
+    Camera rays are traced once, and every sample's hit (origin, normals,
+    albedo: :data:`STATE_BYTES_PER_SAMPLE` bytes) is kept for the frames, up
+    to :data:`KEEP_SAMPLES` samples. A larger image (4096 x 4096 at 16 spp:
+    268M samples, 14 GB of such state) is rendered in bands of whole pixel
+    rows, :data:`BAND_SAMPLES` samples each, whose camera rays are traced
+    again in every frame; only ``A`` is kept per band. Sample positions,
+    random streams and light samples are indexed by the sample's place in
+    the whole image, so a band gives bit for bit the pixels of one piece
+    (``tests/test_truth.py``).
+
 Kernels
     Everything that changes between frames (the light direction) and every
     scene-dependent number enters the kernels as an opaque Dr.Jit variable
@@ -156,6 +167,7 @@ FGED2 chapter 7 (Blinn-Phong); Walter et al. 2007 (half-vector sampling).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -213,7 +225,7 @@ class Truth:
     """
 
     def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
-                 albedo: np.ndarray | None = None):
+                 albedo: np.ndarray | None = None, band_samples: int | None = None):
         backend.variant()
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
@@ -230,9 +242,11 @@ class Truth:
         self.timings: dict[str, float] = {}
 
         self._build_surface(h)
-        self._trace_camera_rays(positions, albedo)
-        self._ambient = self._trace_ambient() if scene.declares("ambient") else None
-        self._reflection = self._trace_reflection() if scene.declares("reflection_occlusion") else None
+        self._albedo_texels = self._load_albedo(albedo)
+        self._positions = self._check_positions(positions)
+        self.count = self.shape[0] * self.shape[1] * self.spp
+        self.bands = _bands(self.shape, self.spp, band_samples)
+        self._trace_camera_rays()
 
     def _build_surface(self, h: np.ndarray) -> None:
         """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
@@ -292,67 +306,113 @@ class Truth:
             return meshes.MIN_ELEVATION_DEG
         return max(meshes.MIN_ELEVATION_DEG, lowest)
 
-    def _trace_camera_rays(self, positions, albedo) -> None:
-        """Where every sample's camera ray meets the surface, once; the albedo there."""
-        import drjit as dr
+    def _load_albedo(self, albedo):
+        """The linear albedo texels as one flat ``mi.Float`` array, or ``None`` when no effect reads it."""
         import mitsuba as mi
 
         scene, rows, cols = self.scene, self.rows, self.cols
-        mat = scene.material
-        t0 = time.perf_counter()
+        if not any(scene.declares(e) for e in _NEEDS_ALBEDO):
+            return None
+        a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
+        if a.shape != (rows, cols, 3):
+            raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+        return mi.Float(np.ascontiguousarray(a, dtype=np.float32).ravel())
+
+    def _check_positions(self, positions):
+        """The tests' own sample positions, flat float32, or ``None`` for the scene's."""
         if positions is None:
-            xs, ys = sample_positions(rows, cols, scene.camera, scene.spp, scene.seed)
+            return None
+        xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
+        need = self.shape[0] * self.shape[1] * self.spp
+        if xs.shape != (need,) or ys.shape != (need,):
+            raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
+        return xs, ys
+
+    def _trace_camera_rays(self) -> None:
+        """Where every sample's camera ray meets the surface, once, and what does not depend on the
+        light (``A``, ``R``). One band keeps its samples (:class:`_Samples`) for every frame; with
+        more (module docstring, "Memory") only ``A`` is kept, per band, and the reflection layer."""
+        t0 = time.perf_counter()
+        self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
+        self.timings.update(primary_s=0.0, **{f"{k}_s": 0.0 for k, e in (("ambient", "ambient"), (
+            "reflection", "reflection_occlusion")) if self.scene.declares(e)})
+        reflection = []
+        for first, stop in self.bands:
+            st = self._camera_samples(first, stop)
+            self.moved_off_edges += st.moved
+            if self.scene.declares("ambient"):
+                st.ambient = self._trace_ambient(st)
+                self._ambient_bands.append(st.ambient)
+            if self.scene.declares("reflection_occlusion"):
+                reflection.append(self._trace_reflection(st))
+            if len(self.bands) == 1:
+                self._kept = st
+        self._reflection = None
+        if reflection:
+            self._reflection = tuple(np.concatenate(parts).reshape(self.shape) for parts in zip(*reflection))
+        self.timings["primary_s"] = (time.perf_counter() - t0 - self.timings.get("ambient_s", 0.0)
+                                     - self.timings.get("reflection_s", 0.0))
+
+    def _camera_samples(self, first: int, stop: int) -> "_Samples":
+        """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
+        (lifted origin, geometric and shading normal) and the albedo of the texel that holds each."""
+        import drjit as dr
+        import mitsuba as mi
+
+        scene, rows, cols, spp = self.scene, self.rows, self.cols, self.spp
+        if self._positions is None:
+            xs, ys = sample_positions(rows, cols, scene.camera, spp, scene.seed, pixels=(first, stop))
         else:
-            xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
-            need = self.shape[0] * self.shape[1] * scene.spp
-            if xs.shape != (need,) or ys.shape != (need,):
-                raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
-        xs, ys, self.moved_off_edges = _off_edge_lines(xs, ys, rows, cols)
-        self.count = xs.size
+            xs, ys = (p[first * spp:stop * spp] for p in self._positions)
+        xs, ys, moved = _off_edge_lines(xs, ys, rows, cols)
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
-        self._o, self._n, self._ns, valid = self._surface_at(x, y, coherent=True)
-        dr.eval(self._o, self._n, self._ns, valid)
-        if not bool(dr.all(valid)):
-            raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
-        self._albedo = None
-        if any(scene.declares(e) for e in _NEEDS_ALBEDO):
-            a = load_albedo(mat, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
-            if a.shape != (rows, cols, 3):
-                raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+        o, n, ns, valid = self._surface_at(x, y, coherent=True)
+        albedo = None
+        if self._albedo_texels is not None:
             # the texel that holds (x, y): column floor(x), row floor(rows - y) = rows - ceil(y),
             # exact in float32 (rows - y itself would round)
             c = self._c                          # opaque: one kernel for every size
             n_cols, n_rows = mi.Int32(c["cols"]), mi.Int32(c["rows"])
             col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)
             row = dr.clip(mi.Int32(c["rows"] - dr.ceil(y)), 0, n_rows - 1)
-            self._texel = mi.UInt32(row * n_cols + col)
-            self._albedo_texels = mi.Float(np.ascontiguousarray(a).ravel())
-            self._albedo = dr.gather(mi.Color3f, self._albedo_texels, self._texel)
-            dr.eval(self._albedo)
+            albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * n_cols + col))
+        dr.eval(o, n, ns, valid, albedo)
+        if not bool(dr.all(valid)):
+            raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
-        self.timings["primary_s"] = time.perf_counter() - t0
+        return _Samples(first, stop, first * spp, (stop - first) * spp, o, n, ns, albedo, moved)
 
-    def _trace_ambient(self):
+    def _frame_samples(self):
+        """The samples of every band for a frame: the kept ones, or each band's traced again."""
+        if self._kept is not None:
+            yield self._kept
+            return
+        for i, (first, stop) in enumerate(self.bands):
+            st = self._camera_samples(first, stop)
+            st.ambient = self._ambient_bands[i] if self._ambient_bands else None
+            yield st
+
+    def _trace_ambient(self, st: "_Samples"):
         """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
         import drjit as dr
         import mitsuba as mi
 
         t0 = time.perf_counter()
-        rng = self._rng(_AMBIENT_STREAM)
+        rng = self._rng(_AMBIENT_STREAM, st)
         # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
-        d = mi.Frame3f(self._ns).to_world(
+        d = mi.Frame3f(st.ns).to_world(
             mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
-        blocked = (dr.dot(self._n, d) <= 0.0) | self._occluded(
-            self._o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+        blocked = (dr.dot(st.n, d) <= 0.0) | self._occluded(
+            st.o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
         ambient = dr.select(blocked, 0.0, 1.0)
         dr.eval(ambient)
         backend.sync()
-        self.timings["ambient_s"] = time.perf_counter() - t0
+        self.timings["ambient_s"] += time.perf_counter() - t0
         return ambient
 
-    def _trace_reflection(self) -> tuple[np.ndarray, np.ndarray]:
-        """``R`` per pixel and its variance: the share of the glossy lobe that escapes
+    def _trace_reflection(self, st: "_Samples") -> tuple[np.ndarray, np.ndarray]:
+        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that escapes
         (independent of the light, once).
 
         Directions come from the lobe's half-vector distribution about the
@@ -368,35 +428,40 @@ class Truth:
         import mitsuba as mi
 
         t0 = time.perf_counter()
-        rng = self._rng(_REFLECTION_STREAM)
-        wo, h = _lobe_direction(self._ns, mi.Vector3f(0.0, 0.0, 1.0),
+        rng = self._rng(_REFLECTION_STREAM, st)
+        wo, h = _lobe_direction(st.ns, mi.Vector3f(0.0, 0.0, 1.0),
                                 mi.Point2f(rng.next_float32(), rng.next_float32()))
-        w = dr.select(dr.dot(self._ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
-        blocked = (dr.dot(self._n, wo) <= 0.0) | self._occluded(
-            self._o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+        w = dr.select(dr.dot(st.ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
+        blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
+            st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
         V = dr.select(blocked, 0.0, 1.0)
         sums = [dr.block_sum(x, self.spp) for x in (w * V, w, w * w * V, w * w)]
         dr.eval(sums)
         backend.sync()
-        wv, ws, w2v, w2 = (np.asarray(x, np.float64).reshape(self.shape) for x in sums)
+        wv, ws, w2v, w2 = (np.asarray(x, np.float64) for x in sums)
         R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
         var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
         if self.spp < 2:
             var[:] = np.nan
-        self.timings["reflection_s"] = time.perf_counter() - t0
+        self.timings["reflection_s"] += time.perf_counter() - t0
         return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
 
     # ------------------------------------------------------------------
     # Ray queries
     # ------------------------------------------------------------------
 
-    def _rng(self, stream: int):
-        """A PCG32 per sample, seeded by the scene's seed and a stream tag: deterministic."""
+    def _rng(self, stream: int, st: "_Samples"):
+        """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
+        in the whole image: deterministic, and the same in a band as in one piece."""
         import drjit as dr
         import mitsuba as mi
 
         state = (int(self.scene.seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
-        return mi.PCG32(size=self.count, initstate=state, initseq=dr.arange(mi.UInt64, self.count))
+        # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
+        # sample k of one piece starts from initstate + k with the sequence 2k, so lane j of a
+        # band starting at sample s takes initstate + s and initseq j + 2 s
+        return mi.PCG32(size=st.count, initstate=(state + st.start) & 0xFFFFFFFFFFFFFFFF,
+                        initseq=dr.arange(mi.UInt64, st.count) + 2 * st.start)
 
     def _surface_at(self, x, y, active=True, coherent: bool = False):
         """Lifted ray origin, geometric normal and shading normal of the surface above ``(x, y)``.
@@ -540,12 +605,15 @@ class Truth:
     # Frames
     # ------------------------------------------------------------------
 
-    def light_directions(self, azimuth_deg: float):
-        """``(L, lowest, highest)``: the light direction of every sample, elevations in radians.
+    def light_directions(self, azimuth_deg: float, st: "_Samples | None" = None):
+        """``(L, lowest, highest)``: the light direction of every sample of ``st`` (default: every
+        sample, one band), and the lowest and highest elevations of the light, radians.
 
         A hard light is one opaque vector for all samples (a new azimuth
         changes its value, not the kernel); a soft one an array from
-        :func:`hzval.scene.light_samples`, the approximation's directions.
+        :func:`hzval.scene.light_samples`, the approximation's directions. A soft light's bounds
+        are its disk's (elevation -+ radius), the same in every band: the hops they ask for
+        suffice for each of its directions.
         """
         import drjit as dr
         import mitsuba as mi
@@ -556,12 +624,14 @@ class Truth:
             L = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in v))
             e = math.asin(max(-1.0, min(1.0, float(v[2]))))
             return L, e, e
-        s = np.ascontiguousarray(light_samples(light, azimuth_deg, self.count, self.scene.seed), dtype=np.float32)
+        first, count = (0, self.count) if st is None else (st.start, st.count)
+        s = np.ascontiguousarray(light_samples(light, azimuth_deg, self.count, self.scene.seed,
+                                               samples=(first, first + count)), dtype=np.float32)
         # a gather, not three column arrays: Dr.Jit maps NumPy memory as it
         # is, and a contiguous load would compile one kernel per alignment
-        L = dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, self.count))
-        z = np.clip(s[:, 2], -1.0, 1.0)
-        return L, math.asin(float(z.min())), math.asin(float(z.max()))
+        L = dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, count))
+        e, rho = math.radians(light.elevation_deg), math.radians(light.radius_deg)
+        return L, e - rho, e + rho
 
     def _visible(self, o, n, L, lowest: float, highest: float):
         """1 where the light direction ``L`` escapes from ``o`` on a triangle of normal ``n``, else 0.
@@ -597,73 +667,92 @@ class Truth:
         ``layers["ambient"]`` (with ``ambient``) in [0, 1]; ``variance`` of the
         pixel mean for each (sample variance / spp; NaN when spp = 1; for
         stratified positions an upper bound); ``seconds`` the wall time of
-        this call, kernels synchronised.
+        this call, kernels synchronised. Band by band where there are several, the same values.
         """
+        t0 = time.perf_counter()
+        sc = self.scene
+        H, W = self.shape
+        sums: dict[str, np.ndarray] = {}
+        for st in self._frame_samples():
+            rows = slice(st.first // W, st.stop // W)
+            for k, v in self._render_band(st, azimuth_deg).items():
+                if k not in sums:
+                    sums[k] = np.empty((H, W) + v.shape[1:], np.float64)
+                sums[k][rows] = v.reshape((-1, W) + v.shape[1:])
+        layers, variance = {}, {}
+        spp = self.spp
+        for k in ("visibility", "ambient"):
+            if k in sums:
+                s = sums[k]
+                # 0/1 samples: the squared deviations sum to s (1 - s / spp)
+                layers[k], variance[k] = _mean_and_variance(s, s * (1.0 - s / spp), spp)
+        if self._reflection is not None:
+            layers["reflection_occlusion"], variance["reflection_occlusion"] = self._reflection
+        if "image" not in sums:
+            E = float(sc.light.irradiance)
+            v = layers["visibility"] if "visibility" in layers else np.ones((H, W), np.float32)
+            var = variance["visibility"] if "visibility" in layers else np.zeros((H, W), np.float32)
+            image = np.repeat((E * v)[..., None], 3, axis=-1).astype(np.float32)
+            variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
+        else:
+            image, variance["image"] = _mean_and_variance(sums["image"], sums["image_ss"], spp)
+        seconds = time.perf_counter() - t0
+        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
+                     layers=layers, variance=variance, seconds=seconds)
+
+    def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, np.ndarray]:
+        """Per-pixel sums over the samples of the band ``st``: ``visibility`` and ``ambient`` (the
+        0/1 samples), ``image`` and ``image_ss`` (the radiance, and its squared deviations from the
+        pixel mean), flat float64, ``(pixels[, 3])``; ``image`` only where an effect shades."""
         import drjit as dr
         import mitsuba as mi
 
-        t0 = time.perf_counter()
         sc = self.scene
-        L, lowest, highest = self.light_directions(azimuth_deg)
+        L, lowest, highest = self.light_directions(azimuth_deg, st)
         up = mi.Vector3f(0.0, 0.0, 1.0)
         sums: dict[str, object] = {}
         vis = None
         if sc.declares("shadow"):
-            vis = self._visible(self._o, self._n, L, lowest, highest)
+            vis = self._visible(st.o, st.n, L, lowest, highest)
             sums["visibility"] = vis
         grey = not any(sc.declares(e) for e in ("diffuse", "specular", "ambient", "interreflection"))
         if grey:
-            img = None                           # E * V or E: derived from the layers below
+            img = None                           # E * V or E: derived from the layers
         elif sc.declares("interreflection"):
-            img = self._path_trace(L, vis, azimuth_deg)
+            img = self._path_trace(st, L, vis, azimuth_deg)
         else:
-            img = self._direct(self._ns, L, up, self._albedo)
+            img = self._direct(st.ns, L, up, st.albedo)
             if vis is not None:
                 img = img * vis
-            if self._ambient is not None:
-                img = img + shading.sky(self._albedo, self._ambient, self._c["E_sky"])
-        if self._ambient is not None:
-            sums["ambient"] = self._ambient
+            if st.ambient is not None:
+                img = img + shading.sky(st.albedo, st.ambient, self._c["E_sky"])
+        if st.ambient is not None:
+            sums["ambient"] = st.ambient
 
         spp = self.spp
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
-        img_sum = img_ss = None
         if img is not None:
             # two passes: squared deviations from the pixel mean, not E[x^2] - E[x]^2,
             # which cancels catastrophically in float32 where the image hardly varies
             img_sum = dr.block_sum(img, spp)
-            pixel = dr.arange(mi.UInt32, self.count) // spp
+            pixel = dr.arange(mi.UInt32, st.count) // spp
             dev = img - dr.gather(mi.Color3f, img_sum, pixel) * (1.0 / spp)
-            img_ss = dr.block_sum(dev * dev, spp)
-        dr.eval(reduced, img_sum, img_ss)
+            reduced["image"], reduced["image_ss"] = img_sum, dr.block_sum(dev * dev, spp)
+        dr.eval(reduced)
         backend.sync()
-        H, W = self.shape
-        layers, variance = {}, {}
-        for k, s in reduced.items():
-            s = np.asarray(s, dtype=np.float64).reshape(H, W)
-            # 0/1 samples: the squared deviations sum to s (1 - s / spp)
-            layers[k], variance[k] = _mean_and_variance(s, s * (1.0 - s / spp), spp)
-        if self._reflection is not None:
-            layers["reflection_occlusion"], variance["reflection_occlusion"] = self._reflection
-        if img is None:
-            E = float(sc.light.irradiance)
-            v = layers["visibility"] if vis is not None else np.ones((H, W), np.float32)
-            var = variance["visibility"] if vis is not None else np.zeros((H, W), np.float32)
-            image = np.repeat((E * v)[..., None], 3, axis=-1).astype(np.float32)
-            variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
-        else:
-            s1 = np.stack([np.asarray(c, dtype=np.float64) for c in img_sum], axis=-1).reshape(H, W, 3)
-            ss = np.stack([np.asarray(c, dtype=np.float64) for c in img_ss], axis=-1).reshape(H, W, 3)
-            image, variance["image"] = _mean_and_variance(s1, ss, spp)
-        seconds = time.perf_counter() - t0
-        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
-                     layers=layers, variance=variance, seconds=seconds)
+        out = {}
+        for k, v in reduced.items():
+            if k.startswith("image"):
+                out[k] = np.stack([np.asarray(c, dtype=np.float64) for c in v], axis=-1)
+            else:
+                out[k] = np.asarray(v, dtype=np.float64)
+        return out
 
     # ------------------------------------------------------------------
     # Interreflection
     # ------------------------------------------------------------------
 
-    def _path_trace(self, L1, vis1, azimuth_deg: float):
+    def _path_trace(self, st: "_Samples", L1, vis1, azimuth_deg: float):
         """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
 
         As in Mitsuba's ``path`` integrator, ``max_depth`` counts path
@@ -697,8 +786,8 @@ class Truth:
         light = sc.light
         E_sky = self._c["E_sky"]
         max_depth = int(sc.interreflection_depth)
-        rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF))
-        first = self._rng(_AMBIENT_STREAM)        # the ambient layer's directions at the first vertex
+        rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF), st)
+        first = self._rng(_AMBIENT_STREAM, st)    # the ambient layer's directions at the first vertex
         centre = light.direction(azimuth_deg)
         centre_v = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in centre))
         cos_max = dr.opaque(mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0)
@@ -706,7 +795,7 @@ class Truth:
         rho = light.radius_deg if light.kind == "soft" else 0.0
         lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
 
-        o, n, ns, albedo = self._o, self._n, self._ns, self._albedo
+        o, n, ns, albedo = st.o, st.n, st.ns, st.albedo
         v = mi.Vector3f(0.0, 0.0, 1.0)            # toward the previous vertex (the camera)
         beta = mi.Color3f(1.0)                    # path throughput
         result = mi.Color3f(0.0)
@@ -758,6 +847,46 @@ class Truth:
             return centre
         return mi.Frame3f(centre).to_world(mi.warp.square_to_uniform_cone(
             mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
+
+
+#: Up to this many samples (2048 x 2048 at 32 spp) the truth keeps every sample's camera hit
+#: between frames (module docstring, "Memory"); a larger image works in bands.
+KEEP_SAMPLES = 1 << 27
+#: Samples per band of a larger image: about 1 GB of per-sample state at a time.
+BAND_SAMPLES = 1 << 24
+#: Bytes per sample of that state: lifted origin, geometric and shading normal, albedo (4 x 3
+#: float32) and ``A`` (``sweep.estimate_peak_bytes`` counts it).
+STATE_BYTES_PER_SAMPLE = 52
+
+
+def _bands(shape: tuple[int, int], spp: int, band_samples: int | None = None) -> list[tuple[int, int]]:
+    """Whole rows of pixels, ``[(first, stop), ...]`` pixel indices, each of at most ``band_samples``
+    samples (at least one row); default: one band up to :data:`KEEP_SAMPLES`, else bands of
+    :data:`BAND_SAMPLES`."""
+    H, W = shape
+    total = H * W * spp
+    if band_samples is None:
+        band_samples = total if total <= KEEP_SAMPLES else BAND_SAMPLES
+    rows = max(1, int(band_samples) // (W * spp))
+    return [(r * W, min(H, r + rows) * W) for r in range(0, H, rows)]
+
+
+@dataclasses.dataclass
+class _Samples:
+    """The camera samples of a band of pixels ``first <= p < stop`` (samples ``start`` to ``start +
+    count``): lifted origin ``o``, geometric normal ``n``, shading normal ``ns``, ``albedo`` (or
+    None), ``A`` (``ambient``, when declared), and how many were ``moved`` off a line of edges."""
+
+    first: int
+    stop: int
+    start: int
+    count: int
+    o: object
+    n: object
+    ns: object
+    albedo: object
+    moved: int
+    ambient: object = None
 
 
 def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int]:

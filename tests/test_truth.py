@@ -728,3 +728,50 @@ def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert m["parameters"]["depth"] == 5 and len(m["frames"]) == 2
     assert all(0 < f["techniques"]["horizon"]["visibility_mae"] < 1 for f in m["frames"])
+
+
+# ----------------------------------------------------------------------
+# Bands (module docstring, "Memory"): a large image is rendered band by band, bit for bit
+# ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("kw", [
+    dict(boundary="wrap", effects=("shadow", "diffuse"), spp=16),
+    dict(boundary="open", effects=("shadow", "diffuse", "specular", "ambient"), kind="soft", radius=8.0, spp=5),
+    dict(boundary="wrap", effects=("shadow", "diffuse", "reflection_occlusion"), spp=4, supersampling=2),
+    dict(boundary="wrap", effects=("shadow", "diffuse", "ambient", "interreflection"), spp=4, depth_ir=3,
+         elevation=12.0),
+    dict(boundary="open", effects=("shadow",), spp=1),
+])
+def test_bands_give_the_pixels_of_one_piece(kw):
+    """Bands of 3 and of 7 pixel rows (the last one short) against one band: every layer, the
+    image and the variances are equal, not close; the samples moved off edge lines are counted once."""
+    from hzval.truth import Truth
+
+    h = np.random.default_rng(8).random((17, 13)).astype(np.float32)
+    sc = make_scene(h.shape, 0.15, **kw)
+    whole = Truth(sc, h)
+    ss = sc.camera.supersampling
+    frames = [whole.render(az) for az in (-40.0, 25.0)]
+    for rows in (3, 7):
+        banded = Truth(sc, h, band_samples=rows * 13 * ss * sc.spp)
+        assert len(banded.bands) == -(-17 * ss // rows) and len(whole.bands) == 1
+        assert banded.moved_off_edges == whole.moved_off_edges
+        for az, f in zip((-40.0, 25.0), frames):
+            g = banded.render(az)
+            assert np.array_equal(g.image, f.image)
+            assert g.layers.keys() == f.layers.keys() and g.variance.keys() == f.variance.keys()
+            for k in f.layers:
+                assert np.array_equal(g.layers[k], f.layers[k]), k
+            for k in f.variance:
+                assert np.array_equal(g.variance[k], f.variance[k], equal_nan=True), k
+
+
+def test_large_images_are_banded_by_default():
+    from hzval.truth import BAND_SAMPLES, KEEP_SAMPLES, _bands
+
+    assert _bands((2048, 2048), 16) == [(0, 2048 * 2048)]          # 67M samples: kept whole
+    bands = _bands((4096, 4096), 16)                                 # 268M: bands of whole rows
+    assert 4096 * 4096 * 16 > KEEP_SAMPLES and len(bands) == 4096 * 4096 * 16 // BAND_SAMPLES
+    assert bands[0] == (0, 256 * 4096) and bands[-1][1] == 4096 * 4096
+    assert all(a % 4096 == 0 and b % 4096 == 0 for a, b in bands)
+    assert _bands((5, 3), 10**6, band_samples=1) == [(i * 3, i * 3 + 3) for i in range(5)]  # one row at least
