@@ -58,7 +58,7 @@ import numpy as np
 from hzval import approx, backend
 from hzval import conventions as cv
 from hzval.errors import InputError
-from hzval.scene import Frame, Scene, image_shape, sample_positions
+from hzval.scene import Frame, Scene, image_shape
 from hzval.technique import Variant
 
 __all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS"]
@@ -132,9 +132,7 @@ class RayMarchShadow(approx.HeightFieldShadow):
                                     use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
                                     wrap_mode=wrap)
         self.spp = int(scene.spp)
-        x, y = sample_positions(self.rows, self.cols, scene.camera, self.spp, scene.seed)
-        u, v = cv.tangent_to_uv(x, y, self.rows, self.cols)
-        self._uv = mi.Float(np.stack([u, v], axis=-1).ravel())
+        self._uv = approx.sample_uv(self.rows, self.cols, scene.camera, self.spp, scene.seed)   # shared
         self._c = {"steps": dr.opaque(mi.UInt32, self.steps), "w": dr.opaque(mi.Float, self.softness),
                    "h_max": dr.opaque(mi.Float, self.h_max),
                    "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)))}

@@ -380,10 +380,13 @@ class TerrainShadow(approx.HeightFieldShadow):
 
         scene = self.scene
         self.spp = int(scene.spp)
-        self._x, self._y = sample_positions(self.rows, self.cols, scene.camera, self.spp, scene.seed)
-        if self.impl == "drjit":
+        x, y = sample_positions(self.rows, self.cols, scene.camera, self.spp, scene.seed)
+        self._x = self._y = None
+        if self.impl != "drjit":
+            self._x, self._y = x, y
+        else:
             self._h_dr = mi.Float(self.h.astype(np.float32).ravel())
-            self._xy = mi.Float(np.stack([self._x, self._y], axis=-1).ravel())
+            self._xy = approx.interleaved(x, y)
             self._r_dr = dr.opaque(mi.Float, self.ramp)
             dr.eval(self._h_dr, self._xy)
 
