@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hzval import compare as C
+from hzval import conventions as cv
 from hzval.errors import HzvalError
 from hzval.scene import Frame
 
@@ -53,7 +54,7 @@ def test_flip_refusal_is_an_error_not_an_exit():
         C.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
 
 
-def test_colour_metrics_in_row_blocks_are_bit_for_bit_one_call(monkeypatch):
+def test_colour_science_in_row_blocks_is_bit_for_bit_one_call(monkeypatch):
     import colour
 
     rng = np.random.default_rng(3)
@@ -65,5 +66,21 @@ def test_colour_metrics_in_row_blocks_are_bit_for_bit_one_call(monkeypatch):
     def lab(x):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(x, apply_cctf_decoding=True))
 
-    np.testing.assert_array_equal(C._lab(a), lab(a))
-    np.testing.assert_array_equal(C.delta_e2000(a, b), colour.delta_E(lab(a), lab(b), method="CIE 2000"))
+    np.testing.assert_array_equal(C.delta_e2000_colour(a, b), colour.delta_E(lab(a), lab(b), method="CIE 2000"))
+    np.testing.assert_array_equal(C.display(a, 0.7), cv.srgb_encode(np.clip(a * 0.7, 0, 1)))
+
+
+def test_image_metrics_match_flip_evaluator_and_colour_science():
+    """The sweep's FLIP (hzval.flip) and CIEDE2000 (the Dr.Jit kernel) against the packages they
+    replaced, through a Reference reused for two images (tests/test_flip.py checks them in depth)."""
+    rng = np.random.default_rng(5)
+    truth = rng.random((40, 70, 3)) * 0.4
+    ref = C.Reference(frame(truth), 1.2)
+    for img in (truth * 0.8, np.clip(truth + 0.05 * rng.standard_normal(truth.shape), 0, None)):
+        scores, maps = C.image_metrics(ref, img)
+        want_map, want_mean = C.flip_evaluator_flip(ref.display, maps["display"])
+        assert abs(scores["flip_mean"] - want_mean) < 1e-6
+        assert np.max(np.abs(maps["flip"] - want_map)) < 1e-4
+        de = C.delta_e2000_colour(ref.display, maps["display"])
+        assert np.max(np.abs(maps["delta_e"] - de)) < 1e-9
+        assert scores["delta_e2000_mean"] == pytest.approx(float(np.mean(de)), abs=1e-9)
