@@ -527,10 +527,14 @@ class Truth:
         dxy = dr.sqrt(dr.fma(d.x, d.x, d.y * d.y))
         return self._c["hop"] / dr.maximum(dxy, 1e-12)
 
-    def _occluded(self, o, d, hops: int, dynamic: bool = False, coherent: bool = False):
+    def _occluded(self, o, d, hops: int, dynamic: bool = False, coherent: bool = False, skip=None):
         """Whether the rays ``o + t d`` (``t > 0``) hit the surface; ``d`` unit.
 
         Directions at or below the horizontal are occluded (module docstring).
+        Rays where ``skip`` is set are not traced (their answer is the caller's).
+        A ray is traced only until it rises above the highest point of the
+        surface (``t = (top - o.z) / d.z``), past which nothing can block it:
+        the same answers, and Embree leaves the rest of the BVH alone.
         ``wrap`` traces ``hops`` hops (see "Boundaries"); with ``dynamic`` it
         stops early once every ray is resolved (a host round trip per hop),
         and rays still unresolved after ``hops`` count as occluded.
@@ -541,14 +545,19 @@ class Truth:
         import mitsuba as mi
 
         active = d.z > 0.0
+        if skip is not None:
+            active &= ~skip
         coherent = mi.Bool(coherent)
+        top = self._c["top"]
         if self.scene.material.boundary == "open":
-            return ~active | self.mi_scene.ray_test(mi.Ray3f(o, d), coherent, active)
-        blocked = ~active
+            ray = mi.Ray3f(o, d)
+            ray.maxt = dr.maximum((top - o.z) / d.z, 0.0)
+            return (d.z <= 0.0) | self.mi_scene.ray_test(ray, coherent, active)
+        blocked = d.z <= 0.0
         maxt = self._hop_length(d)
         for i in range(hops):
             ray = mi.Ray3f(o, d)
-            ray.maxt = maxt
+            ray.maxt = dr.minimum(maxt, dr.maximum((top - o.z) / d.z, 0.0))
             hit = self.mi_scene.ray_test(ray, coherent, active)
             blocked |= hit & active
             if i + 1 == hops:
@@ -650,7 +659,8 @@ class Truth:
         if highest <= 0.0:
             return dr.zeros(mi.Float, dr.width(o))
         hops = self._hops_for(lowest)
-        blocked = self._occluded(o, L, hops, dynamic=hops > 2, coherent=True) | (dr.dot(n, L) <= 0.0)
+        facing_away = dr.dot(n, L) <= 0.0
+        blocked = self._occluded(o, L, hops, dynamic=hops > 2, coherent=True, skip=facing_away) | facing_away
         return dr.select(blocked, 0.0, 1.0)
 
     def _direct(self, n, L, v, albedo):
