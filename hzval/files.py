@@ -19,7 +19,7 @@ import socket
 import tempfile
 import time
 from pathlib import Path
-from typing import Iterator, Mapping
+from typing import Iterator, Mapping, NamedTuple
 
 import numpy as np
 
@@ -179,14 +179,30 @@ class Staging:
 # EXR
 # --------------------------------------------------------------------------
 
+#: The largest finite OpenEXR HALF (float16): a larger value would be stored as infinity.
+HALF_MAX = 65504.0
+
+
 def write_exr(path: str | os.PathLike, channels: Mapping[str, np.ndarray], *, atomic: bool = True,
-              compression: str = "zip") -> None:
-    """Write float32 channels ``{name: (rows, cols)}`` to a scanline EXR.
+              compression: str = "zip", half: bool = False, grey: bool = False) -> None:
+    """Write channels ``{name: (rows, cols)}`` to a scanline EXR, float32 or half.
 
     Channel names ``R, G, B, A`` are written as such; an ``(rows, cols, 3|4)``
     array under the key ``"RGB"``/``"RGBA"`` is split into them.
-    ``compression``: ``"zip"`` or ``"none"`` (float32 bake data compresses
-    by under 10%, at five times the writing time).
+    ``compression``: ``"zip"``, ``"none"`` (float32 bake data compresses
+    by under 10%, at five times the writing time) or ``"pxr24"`` (OpenEXR's
+    24-bit float: float32's range with 2^-16 relative precision, the lowest
+    8 bits of a float32 rounded away; 35% fewer bytes than ZIP on noisy
+    float32 data; lossless on half).
+
+    ``half``: each channel as OpenEXR HALF (11 significant bits: 2^-11
+    relative from 6.1e-5 up; below that steps of 6e-8), about half the bytes
+    and time; a channel with a finite value beyond :data:`HALF_MAX` stays
+    float32 rather than turn infinite. The default, float32, is for data that
+    is read back as it was computed (the bake cache, the check's references).
+    ``grey``: an ``"RGB"``/``"RGBA"`` array whose R, G and B are bitwise equal
+    is written as one ``Y`` channel (and ``A``): lossless, a third of the
+    bytes; :func:`read_rgb_exr` reads either back as RGB.
     """
     import OpenEXR
 
@@ -194,17 +210,50 @@ def write_exr(path: str | os.PathLike, channels: Mapping[str, np.ndarray], *, at
     for name, arr in channels.items():
         arr = np.asarray(arr, dtype=np.float32)
         if name in ("RGB", "RGBA"):
-            for k, c in enumerate(name):
-                chans[c] = np.ascontiguousarray(arr[..., k])
+            chans.update(_split_colour(name, arr, grey))
         else:
             chans[name] = np.ascontiguousarray(arr)
-    codec = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}[compression]
+    if half:
+        chans = {name: _as_half(arr) for name, arr in chans.items()}
+    codec = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION,
+             "pxr24": OpenEXR.PXR24_COMPRESSION}[compression]
     header = {"compression": codec, "type": OpenEXR.scanlineimage}
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
         with OpenEXR.File(header, chans) as f:
             f.write(str(tmp))
+
+
+def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarray]:
+    """``{"R": .., "G": .., "B": ..[, "A": ..]}`` of an ``(rows, cols, 3|4)`` float32 array, or
+    ``{"Y": ..[, "A": ..]}`` with ``grey`` when R, G and B are bitwise equal (NaNs and signed zeros
+    included, so nothing is lost)."""
+    planes = {c: np.ascontiguousarray(arr[..., k]) for k, c in enumerate(name)}
+    if grey and is_grey(arr[..., :3]):
+        return {"Y": planes["R"], **({"A": planes["A"]} if "A" in planes else {})}
+    return planes
+
+
+def is_grey(rgb: np.ndarray) -> bool:
+    """Whether the channels of an ``(..., 3)`` array are bitwise equal everywhere (floats compared as
+    their bits: NaNs and signed zeros included)."""
+    rgb = np.asarray(rgb)
+    if rgb.shape[-1:] != (3,):
+        return False
+    bits = rgb.view(f"u{rgb.itemsize}") if rgb.dtype.kind == "f" else rgb
+    return bool(np.array_equal(bits[..., 0], bits[..., 1]) and np.array_equal(bits[..., 1], bits[..., 2]))
+
+
+def _as_half(arr: np.ndarray) -> np.ndarray:
+    """A float32 channel as float16 (rounded to nearest), unless a finite value would become infinite
+    (beyond :data:`HALF_MAX` and its rounding margin)."""
+    with np.errstate(over="ignore"):
+        h = arr.astype(np.float16)
+    overflow = np.isinf(h)
+    if overflow.any() and np.isfinite(arr[overflow]).any():
+        return arr
+    return h
 
 
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
@@ -225,6 +274,25 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     lines = [ln for ln in printed() if "EXR_ERR" in ln] or printed() or [first_line(error)]
     detail = lines[-1].removeprefix(f"{path}: ")
     raise InputError(path, f"truncated or corrupt EXR file: {detail}")
+
+
+def read_rgb_exr(path: str | os.PathLike) -> np.ndarray:
+    """An EXR's colour as ``(rows, cols, 3)`` float32: its ``R, G, B`` channels, or its grey ``Y``
+    channel repeated (:func:`write_exr` with ``grey`` stores an image with R == G == B so; the
+    sweep's frames are written that way). Half channels come back as float32, exactly.
+
+    Raises :class:`InputError` naming the file if it has neither.
+    """
+    return rgb_of(read_exr(path), path)
+
+
+def rgb_of(channels: Mapping[str, np.ndarray], path: str | os.PathLike) -> np.ndarray:
+    """``(rows, cols, 3)`` float32 of channels read by :func:`read_exr`: R, G, B, else Y as grey."""
+    if all(c in channels for c in "RGB"):
+        return np.stack([channels[c] for c in "RGB"], axis=-1)
+    if "Y" in channels:
+        return np.repeat(channels["Y"][..., None], 3, axis=-1)
+    raise InputError(path, f"no R, G, B or Y channel (has {', '.join(sorted(channels))})")
 
 
 @contextlib.contextmanager
@@ -259,27 +327,56 @@ def library_output() -> Iterator:
 # PNG
 # --------------------------------------------------------------------------
 
-def write_png(path: str | os.PathLike, pixels: np.ndarray, *, atomic: bool = True,
-              compress_level: int = 6) -> None:
-    """Write 8-bit grey/RGB/RGBA or 16-bit grey pixels to a PNG.
+class Indexed(NamedTuple):
+    """An 8-bit palette image: ``index`` uint8 ``(rows, cols)`` into ``palette`` uint8 ``(n, 3)``
+    sRGB colours, ``n <= 256``. Exact for an image of at most 256 colours (a colour map's, a
+    legend's), at about a third of an RGB PNG's bytes; it decodes to ``palette[index]``."""
 
-    ``pixels`` is ``uint8 (rows, cols[, 3|4])`` or ``uint16 (rows, cols)``.
+    index: np.ndarray
+    palette: np.ndarray
+
+    def rgb(self) -> np.ndarray:
+        """The image as uint8 ``(rows, cols, 3)``."""
+        return self.palette[self.index]
+
+
+def write_png(path: str | os.PathLike, pixels: np.ndarray | Indexed, *, atomic: bool = True,
+              compress_level: int = 6, grey: bool = False) -> None:
+    """Write 8-bit grey/RGB/RGBA, 16-bit grey or palette pixels to a PNG.
+
+    ``pixels`` is ``uint8 (rows, cols[, 3|4])``, ``uint16 (rows, cols)`` or an
+    :class:`Indexed` image (a PNG of colour type 3, Pillow's mode ``"P"``).
     Values are written as they are: encode them before calling.
-    ``compress_level`` is zlib's, 0 (stored) to 9.
+    ``compress_level`` is zlib's, 0 (stored) to 9. ``grey``: an 8-bit RGB
+    image whose channels are equal everywhere is written as 8-bit grey
+    (``"L"``): lossless, a third of the bytes to compress; it decodes (e.g.
+    Pillow's ``convert("RGB")``) to the same RGB pixels.
     """
-    from PIL import Image
-
-    pixels = np.ascontiguousarray(pixels)
-    if pixels.dtype == np.uint16:
-        img = Image.fromarray(pixels)  # 16-bit grey ("I;16")
-    elif pixels.dtype == np.uint8:
-        img = Image.fromarray(pixels)
-    else:
-        raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
     target = Path(path)
+    img = _png_image(pixels, grey)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
         img.save(tmp, format="PNG", compress_level=compress_level)
+
+
+def _png_image(pixels: np.ndarray | Indexed, grey: bool):
+    """The Pillow image :func:`write_png` saves."""
+    from PIL import Image
+
+    if isinstance(pixels, Indexed):
+        index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
+        if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:
+            raise ValueError(f"an Indexed image needs (rows, cols) indices and 1-256 RGB colours, "
+                             f"got {index.shape} and {palette.shape}")
+        img = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
+        img.putpalette(palette.tobytes(), rawmode="RGB")
+        return img
+    pixels = np.ascontiguousarray(pixels)
+    if pixels.dtype not in (np.uint8, np.uint16):
+        raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
+    if grey and pixels.dtype == np.uint8 and pixels.ndim == 3 and pixels.shape[-1] == 3 and is_grey(pixels):
+        pixels = np.ascontiguousarray(pixels[..., 0])
+    return Image.fromarray(pixels)      # uint16 (rows, cols): 16-bit grey ("I;16")
 
 
 def unit_to_u8(values: np.ndarray) -> np.ndarray:
