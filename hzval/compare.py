@@ -24,7 +24,10 @@ i.e. exposed, clipped to [0, 1] and sRGB-encoded. The truth's half of both
 ``flip_evaluator_flip`` and ``delta_e2000_colour`` are the implementations
 these replaced (flip-evaluator, colour-science), kept as the tests' and
 ``benchmarks/bench_compare.py``'s references: at 2048 x 2048, one truth and
-four test images, the new ones took ... (see that benchmark).
+four test images, FLIP and CIEDE2000 took 3.8 s against 51.5 s for them (14x;
+FLIP 11x, CIEDE2000 26x; this 2-core machine shared with other processes,
+load average 1.4-3.0), with FLIP means within 1e-7 and CIEDE2000 within
+1e-12 of theirs (benchmarks/README.md).
 """
 
 from __future__ import annotations
