@@ -221,6 +221,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
+    sc.forget_sample_positions()
     return _Setup(material, params, the_truth, plain, built, timings, notices, estimate)
 
 
