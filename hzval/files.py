@@ -379,6 +379,40 @@ def _png_image(pixels: np.ndarray | Indexed, grey: bool):
     return Image.fromarray(pixels)      # uint16 (rows, cols): 16-bit grey ("I;16")
 
 
+#: A PNG with more pixels than this on its longer side also gets a preview (:func:`preview_of`)
+#: for the report's pages, which a 4096 x 4096 sweep's full images (126 of 8-20 MB) would stall.
+PREVIEW_ABOVE_PX = 2048
+#: The preview's longer side at most, in pixels: the full image box-filtered by a whole factor.
+PREVIEW_PX = 1024
+
+
+def preview_of(rel: str) -> str:
+    """Where the preview of the PNG ``rel`` lives: ``frames/az+0/truth.png`` ->
+    ``frames/az+0/previews/truth.png`` (the writer's and the report's one convention)."""
+    head, _, name = rel.replace("\\", "/").rpartition("/")
+    return f"{head}/previews/{name}" if head else f"previews/{name}"
+
+
+def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed, **kw) -> bool:
+    """:func:`write_png`, and, for an image larger than :data:`PREVIEW_ABOVE_PX`, its preview at
+    :func:`preview_of` (every channel box-averaged over ``f x f`` pixels, ``f`` the smallest whole
+    factor that brings it to :data:`PREVIEW_PX`; edges repeated to a multiple of ``f``). Returns
+    whether a preview was written."""
+    write_png(path, pixels, **kw)
+    rgb = pixels.rgb() if isinstance(pixels, Indexed) else np.asarray(pixels)
+    rows, cols = rgb.shape[:2]
+    if max(rows, cols) <= PREVIEW_ABOVE_PX:
+        return False
+    f = -(-max(rows, cols) // PREVIEW_PX)
+    pad = [(0, -rows % f), (0, -cols % f)] + [(0, 0)] * (rgb.ndim - 2)
+    block = np.pad(rgb, pad, mode="edge").astype(np.float32)
+    block = block.reshape(block.shape[0] // f, f, block.shape[1] // f, f, *rgb.shape[2:]).mean(axis=(1, 3))
+    small = np.clip(np.rint(block), 0, 255).astype(np.uint8)
+    target = Path(path)
+    write_png(target.parent / "previews" / target.name, small, **kw)
+    return True
+
+
 def unit_to_u8(values: np.ndarray) -> np.ndarray:
     """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does)."""
     return np.clip(np.rint(np.asarray(values, dtype=np.float32) * 255.0), 0, 255).astype(np.uint8)

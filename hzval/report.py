@@ -308,12 +308,23 @@ def _azimuth_text(values) -> str:
 # --------------------------------------------------------------------------
 
 def _src(out: Path, rel) -> dict | None:
-    """A file of the report as ``{"src": URL-quoted relative path, "path": as given}``; ``None`` if absent."""
+    """A file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
+    ``None`` if absent. A large PNG with a preview (:func:`hzval.files.preview_of`) is shown by
+    its preview: ``src`` is the preview's, ``full`` the file's own URL and ``width`` its width in
+    pixels, which the page loads when the reader zooms in (else both ``None``)."""
     if not isinstance(rel, str) or not rel:
         return None
     if not (out / rel).is_file():
-        return {"src": None, "path": rel}
-    return {"src": quote(rel.replace("\\", "/"), safe="/"), "path": rel}
+        return {"src": None, "path": rel, "full": None, "width": None}
+    url = quote(rel.replace("\\", "/"), safe="/")
+    preview = files.preview_of(rel)
+    if rel.endswith(".png") and (out / preview).is_file():
+        from PIL import Image
+
+        with Image.open(out / rel) as img:            # reads the header only
+            width = img.size[0]
+        return {"src": quote(preview, safe="/"), "path": rel, "full": url, "width": width}
+    return {"src": url, "path": rel, "full": None, "width": None}
 
 
 def _columns(frames: list[dict], metrics: tuple[Metric, ...] = METRICS) -> list[dict]:

@@ -486,8 +486,9 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
 
 
 def _write_png_of(path: Path, make, *args) -> None:
-    """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey."""
-    files.write_png(path, make(*args), compress_level=PNG_LEVEL, grey=True)
+    """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
+    with the report's preview if it is large (:func:`hzval.files.write_png_with_preview`)."""
+    files.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True)
 
 
 def summary_table(result: dict) -> str:

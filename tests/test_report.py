@@ -11,6 +11,7 @@ from urllib.parse import unquote, urlsplit
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from hzval import files, report
 
@@ -92,7 +93,7 @@ def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dic
         rel = {}
         for key, img in imgs.items():
             name = key.removesuffix("_png") + ".png"
-            files.write_png(out / folder / name, img)
+            files.write_png_with_preview(out / folder / name, img)     # as the sweep: previews if large
             rel[key] = f"{folder}/{name}"
         for key in ("truth", "approx", "visibility", "factor"):
             rel[key] = f"{folder}/{key}.exr"    # not written: the report only links files that exist
@@ -331,6 +332,80 @@ def test_report_in_a_browser(tmp_path):
 
             page.locator("#copy").click()
             page.wait_for_timeout(100)
+        finally:
+            browser.close()
+    assert problems == []
+
+
+def test_large_images_get_previews_that_average_their_pixels(tmp_path):
+    small = np.full((8, 8, 3), 7, np.uint8)
+    assert not files.write_png_with_preview(tmp_path / "small.png", small)
+    assert not (tmp_path / "previews").exists()
+    rng = np.random.default_rng(2)
+    big = rng.integers(0, 256, (files.PREVIEW_ABOVE_PX + 5, 30, 3), dtype=np.uint8)   # 2053 x 30
+    assert files.write_png_with_preview(tmp_path / "big.png", big)
+    with Image.open(tmp_path / files.preview_of("big.png")) as im:
+        prev = np.asarray(im.convert("RGB"))
+    f = 3                                              # the smallest whole factor down to 1024 rows
+    assert prev.shape == (-(-big.shape[0] // f), -(-30 // f), 3)
+    block = big[3 * 5:3 * 6, 3 * 2:3 * 3].astype(np.float64).mean(axis=(0, 1))
+    assert np.array_equal(prev[5, 2], np.rint(block).astype(np.uint8))
+    left = big.shape[0] % f                            # 2053 = 3 x 684 + 1: the last row, repeated
+    last = big[-left:, :3].astype(np.float64)
+    last = np.concatenate([last] + [last[-1:]] * (f - left))
+    assert np.array_equal(prev[-1, 0], np.rint(last.mean(axis=(0, 1))).astype(np.uint8))
+    assert files.preview_of("frames/az+0/truth.png") == "frames/az+0/previews/truth.png"
+
+
+@pytest.mark.browser
+def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
+    """Images above files.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
+    files of the views on screen, scaled by the full width; the page's load time is printed."""
+    import time
+
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip("the playwright Python package is not importable (pip install playwright)")
+    n = files.PREVIEW_ABOVE_PX + 52                    # 2100: previews of 1050
+    out = tmp_path / "big"
+    metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
+    metrics["material"].update(rows=n, cols=n)
+    for f in metrics["frames"]:                        # each small PNG blown up to n x n, nearest
+        for key, rel in f["files"].items():
+            if rel.endswith(".png"):
+                with Image.open(out / rel) as im:
+                    small = np.asarray(im)
+                big = np.repeat(np.repeat(small, -(-n // 16), axis=0), -(-n // 16), axis=1)[:n, :n]
+                files.write_png_with_preview(out / rel, np.ascontiguousarray(big), compress_level=1)
+    index = report.write_report(out, metrics, command=COMMAND)
+    problems: list[str] = []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1440, "height": 900})
+            page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
+            page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
+            t0 = time.perf_counter()
+            page.goto(index.as_uri(), wait_until="load")
+            print(f"report of {n} x {n} images loaded in {time.perf_counter() - t0:.2f} s")
+            target = page.locator("#frame-0 .flip[data-own='approx'] img")
+            assert "/previews/" in target.get_attribute("src")
+            target.scroll_into_view_if_needed()
+            page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
+            assert target.evaluate("e => e.naturalWidth") == -(-n // 3)
+            page.locator("button[data-zoom='1']").click()
+            assert "/previews/" not in target.get_attribute("src")
+            assert target.bounding_box()["width"] == pytest.approx(n, abs=1)    # the full width, 1:1
+            page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
+            assert target.evaluate("e => e.naturalWidth") == n
+            # a flip shows the other side's full image while zoomed
+            view = page.locator("#frame-0 .flip[data-own='truth'] .view")
+            view.hover()
+            flipped = page.locator("#frame-0 .flip[data-own='truth'] img").get_attribute("src")
+            assert flipped.endswith("approx.png") and "/previews/" not in flipped
         finally:
             browser.close()
     assert problems == []

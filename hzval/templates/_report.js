@@ -15,7 +15,7 @@
     const content = contentOf(view);
     const img = firstImage(view);
     if (!content || !img) return;
-    const nw = img.naturalWidth;
+    const nw = Number(img.dataset.width) || img.naturalWidth;   // a preview's full width
     content.style.width = zoom > 0 && nw > 0 ? (nw * zoom) + 'px' : '';
     view.classList.toggle('zoomed', zoom > 0);
     // nearest-neighbour whenever an image pixel covers at least a screen pixel
@@ -46,9 +46,25 @@
       v.scrollTop = fy * v.scrollHeight - v.clientHeight / 2;
     });
     syncing = false;
+    views.forEach(sharpen);
     zoomButtons.forEach((b) => b.setAttribute('aria-pressed', String(Number(b.dataset.zoom) === z)));
     document.body.dataset.zoom = String(z);
   }
+
+  // ------------------------------- previews: full resolution on demand
+  // An image larger than the report shows at "fit" comes as a downsampled preview (src) and its
+  // full-resolution file (data-full; its width in data-width, which the zoom scales by): a view
+  // loads the full files once the reader zooms in while it is on screen.
+  const fullOf = new Map();
+  document.querySelectorAll('img[data-full]').forEach((img) => fullOf.set(img.getAttribute('src'), img.dataset.full));
+  function sharpen(view) {
+    if (zoom === 0 || !fullOf.size || !onScreen(view)) return;
+    view.querySelectorAll('img').forEach((img) => {
+      const full = fullOf.get(img.getAttribute('src'));
+      if (full) img.setAttribute('src', full);
+    });
+  }
+  window.addEventListener('scroll', () => { if (zoom > 0) views.forEach(sharpen); }, { passive: true });
 
   zoomButtons.forEach((b) => b.addEventListener('click', () => setZoom(Number(b.dataset.zoom))));
   views.forEach((v) => v.querySelectorAll('img').forEach((img) => {
@@ -149,6 +165,7 @@
     function show(side) {
       if (fig.dataset.showing === side) return;
       img.setAttribute('src', src[side]);
+      sharpen(view);
       img.alt = labels[side] + ', ' + azimuth;
       tag.textContent = labels[side];
       tag.className = 'tag tl which tag-' + side;

@@ -37,7 +37,8 @@ def noise(variant):
 
 
 def per_sample_visibility(t, azimuth):
-    return np.asarray(t._visible(t._o, t._n, *t.light_directions(azimuth)))
+    st = t._kept                                   # a small image: one band, kept between frames
+    return np.asarray(t._visible(st.o, st.n, *t.light_directions(azimuth, st)))
 
 
 @pytest.mark.parametrize("boundary,elevation,where", [
