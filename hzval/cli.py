@@ -165,6 +165,9 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
     p.add_argument("--method", choices=["seed", "exact"], default="seed",
                    help="horizon bake method: seed or exact (unlimited radius) (default seed)")
+    p.add_argument("--all-files", action="store_true",
+                   help="also write each frame's files that the others determine: the unshadowed render and "
+                        "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
     _add_technique_args(p)
 
 
@@ -371,7 +374,7 @@ def sweep_options(args):
     from hzval import sweep
 
     return sweep.Options(radius=args.radius, angles=args.angles, method=args.method, directions=args.directions,
-                         **_technique_options(args))
+                         all_files=args.all_files, **_technique_options(args))
 
 
 def cmd_suite(args) -> int:

@@ -17,21 +17,19 @@ Output folder::
 
     index.html, metrics.json, plots/      the report
     bake/                                 the bake (cache)
-    frames/az<azimuth>/                   per light: truth.exr, plain.exr, visibility.exr (V),
-                                          truth_variance.exr and PNG previews of the first three;
-                                          per technique <stem>.exr, <stem>_factor.exr (F), their
-                                          PNGs, <stem>_flip.png, <stem>_visdiff.png
+    frames/az<azimuth>/                   per light: truth.exr, truth_variance.exr, visibility.exr
+                                          (V), truth.png, plain.png; per technique
+                                          <stem>_factor.exr (F), <stem>.png, <stem>_flip.png,
+                                          <stem>_visdiff.png; previews/ (PNGs above 2048 px, at
+                                          most 1024 px); with --all-files also plain.exr,
+                                          <stem>.exr, visibility.png, <stem>_factor.png
 
 Frame files (:func:`_write_frame`): EXRs in half float, ZIP (2^-11 relative,
 below the previews' 8-bit quantisation; the metrics are computed before, in
-float32), except truth_variance.exr in 24-bit float (PXR24: 2^-16 relative,
-float32's range, as many variances lie below half's smallest normal); an
-image whose R, G and B are equal (every one of a grey material under a white
-light) as one ``Y`` channel and a grey PNG, losslessly
+float32); an image whose R, G and B are equal (every one of a grey material
+under a white light) as one ``Y`` channel and a grey PNG, losslessly
 (:func:`hzval.files.read_rgb_exr` reads R, G, B or Y); FLIP and
 visibility-difference maps as palette PNGs, pixel for pixel the RGB ones.
-A 2048 x 2048 frame with two techniques: 72 MB written in 5 s, where float32
-RGB and RGB PNGs took 140 MB and 8.5 s (on two threads of the 2-core machine).
 
 Speed: the truth's display values and Lab are computed once per frame for
 every comparison (:class:`hzval.compare.Reference`); the unshadowed render
@@ -76,7 +74,8 @@ class Options:
     registry names (:data:`hzval.technique.REGISTRY`), or ``None`` for
     every technique that applies to the scene's effects; ``exclude`` leaves
     some out; ``settings``: per technique name, the keywords of its
-    ``build`` (e.g. ``{"horizon": {"k": 4.0}, "pom": {"steps": 64}}``).
+    ``build`` (e.g. ``{"horizon": {"k": 4.0}, "pom": {"steps": 64}}``);
+    ``all_files``: write a frame's derived files too (:func:`_write_frame`).
     """
 
     radius: int = _BAKE_DEFAULTS.radius
@@ -86,6 +85,7 @@ class Options:
     techniques: tuple[str, ...] | None = None
     exclude: tuple[str, ...] = ()
     settings: dict = dataclasses.field(default_factory=dict)
+    all_files: bool = False     # also the frame files that the others determine (_write_frame)
 
     def bake_params(self, scene) -> BakeParams:
         return BakeParams(depth=scene.material.depth, radius=self.radius, angles=self.angles,
@@ -258,7 +258,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     try:
         for az in bar:
             bar.set_postfix_str(f"azimuth {az:+g} deg")
-            frames.append(_frame(report_dir, scene, setup, az, scale, clock))
+            frames.append(_frame(report_dir, scene, setup, az, scale, clock, options.all_files))
     finally:
         bar.close()
     timings = {**setup.timings, "truth_s": sum(f["truth_s"] for f in frames), **clock}
@@ -312,7 +312,7 @@ def engine_frames(scene, result: dict) -> dict:
     }
 
 
-def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict) -> dict:
+def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict, all_files: bool = False) -> dict:
     """Render, compare and write one light of the sweep; its ``metrics.json`` frame."""
     t_frame = setup.truth.render(az)
     plain, direct = setup.unshadowed.render(az)
@@ -324,7 +324,7 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     floor = _floor(ref, direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
     clock["compare_s"] += time.perf_counter() - t0
     rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, plain, compared, scale,
-                                            truth_display=ref.display)
+                                            truth_display=ref.display, all_files=all_files)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
     if floor is not None:
@@ -403,7 +403,7 @@ PNG_LEVEL = 1
 
 
 def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale: float,
-                 truth_display: np.ndarray | None = None) -> tuple[dict, dict, float]:
+                 truth_display: np.ndarray | None = None, all_files: bool = False) -> tuple[dict, dict, float]:
     """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
     ``{key: path relative to out}`` (``metrics.json``'s ``files``).
 
@@ -413,11 +413,19 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     ``<stem>_visdiff.png``. Previews reuse the display values
     :func:`hzval.compare.compare` computed (``maps["display"]``, ``truth_display``).
 
+    What is written: the truth (``truth.exr``, its variance, ``visibility.exr``), each technique's
+    ``F`` (``<stem>_factor.exr``), and the PNGs the report shows. The files that these determine
+    are written only with ``all_files`` (``--all-files``): ``plain.exr`` (the report shows
+    ``plain.png``), each technique's image ``<stem>.exr`` (``plain`` times ``F`` for the
+    techniques that shade through :class:`hzval.approx.Unshadowed`; ``<stem>.png`` shows it) and
+    the 8-bit PNGs of ``V`` and ``F`` (the EXRs hold them): 1.6x the bytes of a 2048 frame.
+
     Formats, each chosen to lose nothing a reader needs (the metrics were
     computed in float32 before): EXRs in half float (2^-11 relative, finer
-    than the previews' 8 bits), but ``truth_variance.exr`` in OpenEXR's
-    24-bit float (PXR24: float32's range, 2^-16 relative); an
-    image with R == G == B as one ``Y`` channel and an 8-bit grey PNG
+    than the previews' 8 bits), the variance included: a third of the variances of a 2048
+    frame at 16 spp lie below half's smallest normal (6.1e-5), where half rounds them by up
+    to 2.3% (p99), far inside the estimate's own relative error, sqrt(2 / (spp - 1)) = 37%;
+    an image with R == G == B as one ``Y`` channel and an 8-bit grey PNG
     (lossless); FLIP and visibility-difference maps as palette PNGs (exact).
     """
     t0 = time.perf_counter()
@@ -445,29 +453,29 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
 
     rel = {}
     exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
-    exr(rel, "plain", "plain.exr", {"RGB": plain.image})
+    if all_files:
+        exr(rel, "plain", "plain.exr", {"RGB": plain.image})
     if "image" in truth_frame.variance:
-        # not half: a third of the variances lie below half's smallest normal (6.1e-5), where it keeps
-        # few bits (p99 2% off, some flushed to 0, at 2048 x 2048 spp 16); PXR24 keeps float32's
-        # range to 2^-16 relative, far below the estimate's own noise, in 0.65x ZIP's bytes
-        exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]},
-            half=False, compression="pxr24")
+        exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
     png(rel, "truth_png", "truth.png", preview, display(truth_frame.image, truth_display))
     png(rel, "plain_png", "plain.png", preview, display(plain.image))
     V = truth_frame.layers.get("visibility")
     if V is not None:
         exr(rel, "visibility", "visibility.exr", {"Y": V})
-        png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
+        if all_files:
+            png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
     per = {}
     for t, frame, _, maps in compared:
         stem, own = t.file_stem, {}
-        exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
+        if all_files:
+            exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
         png(own, "png", f"{stem}.png", preview, display(frame.image, maps.get("display")))
         png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
         F = frame.layers.get("factor")
         if F is not None:
             exr(own, "factor", f"{stem}_factor.exr", {"Y": F})
-            png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
+            if all_files:
+                png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
             if V is not None:
                 png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
         per[t.name] = own

@@ -180,13 +180,12 @@ def synthetic_frame(size=32, grey=True):
 @pytest.mark.parametrize("grey", [True, False])
 def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
     truth, plain, compared = synthetic_frame(grey=grey)
-    rel, per, seconds = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0)
+    rel, per, seconds = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0, all_files=True)
     assert seconds > 0 and per["horizon"]["flip_png"] == "frames/az+0/approx_flip.png"
     layout = {k: exr_layout(tmp_path / p) for k, p in {**rel, **per["horizon"]}.items() if p.endswith(".exr")}
     colour = {"Y"} if grey else {"R", "G", "B"}
-    for key in ("truth", "plain", "image"):
+    for key in ("truth", "plain", "image", "truth_variance"):
         assert layout[key] == {**{c: "HALF" for c in colour}, "compression": "ZIP_COMPRESSION"}, key
-    assert layout["truth_variance"] == {**{c: "FLOAT" for c in colour}, "compression": "PXR24_COMPRESSION"}
     assert layout["visibility"]["Y"] == layout["factor"]["Y"] == "HALF"
     t, frame, _, maps = compared[0]
     for key, img in (("truth", truth.image), ("plain", plain.image)):
@@ -207,7 +206,7 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
     """The default scene (grey bricks, white light): every render is R == G == B, so one channel."""
     out = tmp_path / "sweep"
     assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "2", "--techniques", "horizon",
-                     "--quiet", "--out", str(out)]) == 0
+                     "--quiet", "--all-files", "--out", str(out)]) == 0
     (f,) = json.loads((out / "metrics.json").read_text())["frames"]
     for key in ("truth", "plain", "approx", "truth_variance"):
         assert set(files.read_exr(out / f["files"][key])) == {"Y"}, key
@@ -215,3 +214,14 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
     modes = {key: png_mode_and_rgb(out / f["files"][key])[0]
              for key in ("truth_png", "plain_png", "approx_png", "flip_png", "visdiff_png")}
     assert modes == {"truth_png": "L", "plain_png": "L", "approx_png": "L", "flip_png": "P", "visdiff_png": "P"}
+
+
+def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
+    """Without --all-files: no plain.exr, technique image EXR or V/F PNG; the rest as with it."""
+    truth, plain, compared = synthetic_frame(grey=False)
+    rel, per, _ = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0)
+    assert set(rel) == {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
+    assert set(per["horizon"]) == {"png", "flip_png", "factor", "visdiff_png"}
+    written = {p.name for p in (tmp_path / "frames" / "az+0").iterdir()}
+    assert written == {"truth.exr", "truth_variance.exr", "visibility.exr", "truth.png", "plain.png",
+                       "approx.png", "approx_flip.png", "approx_factor.exr", "approx_visdiff.png"}

@@ -15,7 +15,9 @@ from hzval import cli, files, sweep, technique
 TOP_KEYS = {"material", "parameters", "versions", "timings", "simulated", "frames"}
 FRAME_KEYS = {"azimuth_deg", "elevation_deg", "visibility_mae", "leak_fraction", "false_shadow_fraction",
               "flip_mean", "rmse", "psnr_db", "delta_e2000_mean", "truth_s", "approx_s", "files"}
-FRAME_FILES = {"truth", "approx", "visibility", "factor"}
+FRAME_FILES = {"truth", "truth_variance", "visibility", "factor", "truth_png", "plain_png"}
+#: What only --all-files adds (sweep._write_frame): files the others determine.
+DERIVED_FILES = {"approx", "plain", "visibility_png", "factor_png"}
 
 
 def run(*argv) -> int:
@@ -40,7 +42,7 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
     assert [f["azimuth_deg"] for f in m["frames"]] == [-15.0, 0.0, 15.0]
     for f in m["frames"]:
         assert FRAME_KEYS <= set(f)
-        assert FRAME_FILES <= set(f["files"])
+        assert FRAME_FILES <= set(f["files"]) and not DERIVED_FILES & set(f["files"])
         assert f["elevation_deg"] == 30.0
         for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
             assert 0.0 <= f[key] <= 1.0, key
@@ -171,7 +173,8 @@ def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, na
         for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
             assert 0.0 <= te[key] <= 1.0, key
         assert math.isfinite(te["rmse"]) and math.isfinite(te["delta_e2000_mean"]) and te["seconds"] > 0
-        assert {"image", "png", "factor", "factor_png", "visdiff_png", "flip_png"} <= set(te["files"])
+        assert {"png", "factor", "visdiff_png", "flip_png"} <= set(te["files"])
+        assert not {"image", "factor_png"} & set(te["files"])         # --all-files only
         for rel in te["files"].values():
             assert (out / rel).is_file(), rel
         V = files.read_exr(out / f["files"]["visibility"])["Y"]
@@ -197,7 +200,7 @@ def test_primary_technique_fills_the_documented_frame_keys(bricks_sweep):
                     "delta_e2000_mean"):
             assert f[key] == own[key], key
         assert f["approx_s"] == own["seconds"]
-        assert f["files"]["approx"] == own["files"]["image"] and f["files"]["factor"] == own["files"]["factor"]
+        assert f["files"]["approx_png"] == own["files"]["png"] and f["files"]["factor"] == own["files"]["factor"]
 
 
 def test_no_terrain_leaves_it_out(variant, tmp_path):
