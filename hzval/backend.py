@@ -97,6 +97,16 @@ def sync() -> None:
     dr.sync_thread()
 
 
+def release_memory() -> None:
+    """Hand Dr.Jit's cache of freed buffers back to the system (``dr.flush_malloc_cache``): a sweep's
+    set-up and each frame's renders leave gigabytes of them at 4096 x 4096, which would otherwise
+    stay resident beside the NumPy images of the comparison (about 1.5 GB of a 4096 sweep's peak)."""
+    import drjit as dr
+
+    dr.sync_thread()
+    dr.flush_malloc_cache()
+
+
 def versions() -> dict[str, str]:
     """Versions of hzval, Mitsuba, Dr.Jit and the LLVM in use, for reports."""
     import drjit as dr

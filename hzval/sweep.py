@@ -154,20 +154,27 @@ class _Setup:
     estimate: int = 0                                           # estimated peak memory, bytes
 
 
-#: A sweep's peak memory: a base, a cost per pixel (images, comparisons) and one per sample (the
-#: truth's and the techniques' per-sample arrays), fitted to the peaks measured on this machine
-#: (every technique, 16 spp unless said): 1.06 GiB at 512 x 512, 2.51 GiB at 512 x 512 and 64 spp,
-#: 13.0 GiB at 2048 x 2048 (``hzval sweep --size N [--spp 64]``, "peak memory").
-PEAK_BASE_BYTES = 0.26 * 2 ** 30
-PEAK_BYTES_PER_PIXEL = 1200
-PEAK_BYTES_PER_SAMPLE = 124
+#: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
+#: per sample for the techniques (the shared uv, terrain's xy, the positions while they are set up)
+#: and one per sample the truth keeps between frames (its hits: every sample up to
+#: hzval.truth.KEEP_SAMPLES, one band's beyond). Fitted to the peaks measured on this machine
+#: (``python benchmarks/bench_production.py stages``, the default sweep, two lights; benchmarks/README.md).
+PEAK_BASE_BYTES = 0.3 * 2 ** 30
+PEAK_BYTES_PER_PIXEL = 560
+PEAK_BYTES_PER_SAMPLE = 24
+PEAK_BYTES_PER_KEPT_SAMPLE = 76
 
 
 def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
     """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
-    in bytes (:data:`PEAK_BYTES_PER_SAMPLE`); ``metrics.json`` records it beside the measured peak."""
-    pixels = rows * cols * scene.camera.supersampling ** 2
-    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * pixels + PEAK_BYTES_PER_SAMPLE * pixels * scene.spp)
+    in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``metrics.json`` records it beside the
+    measured peak."""
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    samples = H * W * scene.spp
+    bands = truth.bands(H, W, scene.spp)
+    kept = max(b - a for a, b in bands) * scene.spp
+    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_SAMPLE * samples
+               + PEAK_BYTES_PER_KEPT_SAMPLE * kept)
 
 
 def material_shape(scene) -> tuple[int, int]:
@@ -222,6 +229,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
     sc.forget_sample_positions()
+    backend.release_memory()
     return _Setup(material, params, the_truth, plain, built, timings, notices, estimate)
 
 
@@ -318,13 +326,22 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     plain, direct = setup.unshadowed.render(az)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az)) for t in setup.techniques]
+    backend.release_memory()
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)
-    compared = [(t, f, *compare.compare(t_frame, f, scale, reference=ref)) for t, f in rendered]
+    compared = []
+    for t, f in rendered:
+        metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
+        # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
+        # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
+        compared.append((t, f, metrics, {"shown": _shown(maps["display"]), "flip": maps["flip"]}))
+        del maps
     floor = _floor(ref, direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
+    truth_shown = _shown(ref.display)
+    del ref
     clock["compare_s"] += time.perf_counter() - t0
     rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, plain, compared, scale,
-                                            truth_display=ref.display, all_files=all_files)
+                                            truth_shown=truth_shown, all_files=all_files)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
     if floor is not None:
@@ -402,16 +419,25 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
 PNG_LEVEL = 1
 
 
+def _shown(display: np.ndarray) -> np.ndarray:
+    """A preview's 8-bit values of display values ``(H, W, 3)``: ``(H, W)`` where they are grey.
+
+    Grey display values are quantised once, not per channel: the same values, a third of the
+    work, and :func:`hzval.files.write_png` takes the ``(H, W)`` result as the grey PNG it would
+    have made of them."""
+    return files.unit_to_u8(display[..., 0] if files.is_grey(display) else display)
+
+
 def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale: float,
-                 truth_display: np.ndarray | None = None, all_files: bool = False) -> tuple[dict, dict, float]:
+                 truth_shown: np.ndarray | None = None, all_files: bool = False) -> tuple[dict, dict, float]:
     """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
     ``{key: path relative to out}`` (``metrics.json``'s ``files``).
 
     ``compared``: ``(technique, frame, metrics, maps)`` per technique; each
     technique's files are named after its ``file_stem``: ``<stem>.exr``,
     ``<stem>.png``, ``<stem>_factor.exr`` and ``.png``, ``<stem>_flip.png``,
-    ``<stem>_visdiff.png``. Previews reuse the display values
-    :func:`hzval.compare.compare` computed (``maps["display"]``, ``truth_display``).
+    ``<stem>_visdiff.png``. Previews reuse the 8-bit values of the display values
+    :func:`hzval.compare.compare` computed (``maps["shown"]``, ``truth_shown``: :func:`_shown`).
 
     What is written: the truth (``truth.exr``, its variance, ``visibility.exr``), each technique's
     ``F`` (``<stem>_factor.exr``), and the PNGs the report shows. The files that these determine
@@ -441,15 +467,13 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
         jobs.append(partial(_write_png_of, folder / filename, make, *args))
         rel[key] = f"frames/{name}/{filename}"
 
-    def preview(shown):
-        # grey display values are quantised once, not per channel: the same values, a third of the
-        # work, and write_png takes the (H, W) result as the grey PNG it would have made of them
-        return files.unit_to_u8(shown[..., 0] if files.is_grey(shown) else shown)
-
-    def display(img, shown=None):
+    def shown(img, values=None):
         # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
         # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
-        return compare.display(img, scale) if shown is None else shown
+        return _shown(compare.display(img, scale)) if values is None else values
+
+    def as_is(pixels):
+        return pixels
 
     rel = {}
     exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
@@ -457,8 +481,8 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
         exr(rel, "plain", "plain.exr", {"RGB": plain.image})
     if "image" in truth_frame.variance:
         exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
-    png(rel, "truth_png", "truth.png", preview, display(truth_frame.image, truth_display))
-    png(rel, "plain_png", "plain.png", preview, display(plain.image))
+    png(rel, "truth_png", "truth.png", as_is, shown(truth_frame.image, truth_shown))
+    png(rel, "plain_png", "plain.png", as_is, shown(plain.image))
     V = truth_frame.layers.get("visibility")
     if V is not None:
         exr(rel, "visibility", "visibility.exr", {"Y": V})
@@ -469,7 +493,7 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
         stem, own = t.file_stem, {}
         if all_files:
             exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
-        png(own, "png", f"{stem}.png", preview, display(frame.image, maps.get("display")))
+        png(own, "png", f"{stem}.png", as_is, shown(frame.image, maps.get("shown")))
         png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
         F = frame.layers.get("factor")
         if F is not None:

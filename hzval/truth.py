@@ -682,30 +682,37 @@ class Truth:
         t0 = time.perf_counter()
         sc = self.scene
         H, W = self.shape
-        sums: dict[str, np.ndarray] = {}
+        spp = self.spp
+        layers, variance = {}, {}
+
+        def place(key, rows, mean, var):
+            # each band's means and variances go straight into the float32 results: no image-sized
+            # float64 sums (a GB at 4096 x 4096)
+            for out, part in ((layers, mean), (variance, var)):
+                if key not in out:
+                    out[key] = np.empty((H, W) + part.shape[1:], np.float32)
+                out[key][rows] = part.reshape((-1, W) + part.shape[1:])
+
         for st in self._frame_samples():
             rows = slice(st.first // W, st.stop // W)
-            for k, v in self._render_band(st, azimuth_deg).items():
-                if k not in sums:
-                    sums[k] = np.empty((H, W) + v.shape[1:], np.float64)
-                sums[k][rows] = v.reshape((-1, W) + v.shape[1:])
-        layers, variance = {}, {}
-        spp = self.spp
-        for k in ("visibility", "ambient"):
-            if k in sums:
-                s = sums[k]
-                # 0/1 samples: the squared deviations sum to s (1 - s / spp)
-                layers[k], variance[k] = _mean_and_variance(s, s * (1.0 - s / spp), spp)
+            sums = self._render_band(st, azimuth_deg)
+            for k in ("visibility", "ambient"):
+                if k in sums:
+                    # 0/1 samples: the squared deviations sum to s (1 - s / spp)
+                    place(k, rows, *_mean_and_variance(sums[k], sums[k] * (1.0 - sums[k] / spp), spp))
+            if "image" in sums:
+                place("image", rows, *_mean_and_variance(sums["image"], sums["image_ss"], spp))
+        image = layers.pop("image", None)
+        if image is not None:
+            variance["image"] = variance.pop("image")
         if self._reflection is not None:
             layers["reflection_occlusion"], variance["reflection_occlusion"] = self._reflection
-        if "image" not in sums:
+        if image is None:
             E = float(sc.light.irradiance)
             v = layers["visibility"] if "visibility" in layers else np.ones((H, W), np.float32)
             var = variance["visibility"] if "visibility" in layers else np.zeros((H, W), np.float32)
             image = np.repeat((E * v)[..., None], 3, axis=-1).astype(np.float32)
             variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
-        else:
-            image, variance["image"] = _mean_and_variance(sums["image"], sums["image_ss"], spp)
         seconds = time.perf_counter() - t0
         return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
                      layers=layers, variance=variance, seconds=seconds)
@@ -867,6 +874,11 @@ BAND_SAMPLES = 1 << 24
 #: Bytes per sample of that state: lifted origin, geometric and shading normal, albedo (4 x 3
 #: float32) and ``A`` (``sweep.estimate_peak_bytes`` counts it).
 STATE_BYTES_PER_SAMPLE = 52
+
+
+def bands(rows: int, cols: int, spp: int) -> list[tuple[int, int]]:
+    """The bands of pixels in which a truth of a ``rows x cols`` image at ``spp`` works (:func:`_bands`)."""
+    return _bands((rows, cols), spp)
 
 
 def _bands(shape: tuple[int, int], spp: int, band_samples: int | None = None) -> list[tuple[int, int]]:
