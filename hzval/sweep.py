@@ -326,7 +326,11 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     plain, direct = setup.unshadowed.render(az)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az)) for t in setup.techniques]
-    backend.release_memory()
+    if len(setup.truth.bands) > 1:
+        # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back
+        # before the comparison's NumPy arrays (smaller images keep them: re-faulting the pages
+        # of every frame's buffers cost 1 s a frame at 2048)
+        backend.release_memory()
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)
     compared = []

@@ -344,7 +344,7 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
 
     scene = S.override(S.Scene(), size=1024)
     need = sw.estimate_peak_bytes(scene, 1024, 1024)
-    assert 2.5 * 2 ** 30 < need < 5 * 2 ** 30                 # between the 512 and 2048 measurements
+    assert 2.0 * 2 ** 30 < need < 3.0 * 2 ** 30               # measured: 2.35 GiB (benchmarks/README.md)
     monkeypatch.setattr(bake, "available_bytes", lambda: need - 1)
     out = tmp_path / "o"
     assert cli.main(["sweep", "--size", "1024", "--out", str(out), "--quiet"]) == 2
