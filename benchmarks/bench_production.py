@@ -1,0 +1,159 @@
+"""Benchmark: production-size sweeps, where their time and memory go, and a side-by-side ratio.
+
+Two modes, each running ``hzval sweep`` in child processes (fresh output folders, the bake
+included) and reading what each run wrote (``metrics.json``: per-stage seconds, peak memory;
+the bytes under ``frames/``):
+
+``stages``
+    The default sweep of the built-in bricks at each size (``--sizes 512,1024,2048,4096``),
+    with the lights of ``--azimuths`` (default ``-60:60:120``, two lights), and a table of
+    seconds per stage, peak resident memory (the child's own ``ru_maxrss``, beside the sweep's
+    estimate) and the frame bytes, each with its growth from one size to the next (4x the
+    pixels per step).
+
+``side-by-side``
+    The same sweep on this tree and on ``--baseline REV`` (a detached ``git worktree`` of it,
+    run with this virtualenv), one after the other in one run: wall time, peak memory and frame
+    bytes of each, and the ratios. Options after ``--`` go to this tree's sweep only (e.g. ``--
+    --techniques horizon,terrain`` for the techniques an older tree ran, which had no such flag).
+
+Usage::
+
+    python benchmarks/bench_production.py stages [--sizes 512,1024,2048,4096] [--azimuths=-60:60:120]
+    python benchmarks/bench_production.py side-by-side --baseline 9219ded [--size 2048]
+                                          [--azimuths=-60:60:30] [-- SWEEP OPTIONS]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: Stages of metrics.json's timings, in the order of a sweep, as (label, keys summed).
+STAGES = (
+    ("bake", ("bake_s",)),
+    ("truth set-up", ("truth_setup_s",)),
+    ("technique set-up", ("plain_setup_s", "approx_setup_s", "terrain_setup_s", "pom_setup_s")),
+    ("truth frames", ("truth_s",)),
+    ("technique frames", ("plain_s", "approx_s", "terrain_s", "pom_s")),
+    ("compare", ("compare_s",)),
+    ("write", ("write_s",)),
+    ("report", ("report_s",)),
+)
+
+
+def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
+    """Run ``hzval sweep`` from ``tree`` (its own package first on the path) into ``out``;
+    return wall seconds, the child's peak RSS, its metrics.json and the frame bytes."""
+    cmd = [sys.executable, "-m", "hzval", "sweep", *args, "--out", str(out)]
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    t0 = time.perf_counter()
+    child = subprocess.Popen(cmd, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(child.pid, 0)
+    wall = time.perf_counter() - t0
+    err = child.stderr.read().decode(errors="replace").strip().splitlines()
+    child.stderr.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(cmd)} (in {tree}) failed: {err[-1] if err else status}")
+    metrics = json.loads((out / "metrics.json").read_text())
+    frames = sum(p.stat().st_size for p in (out / "frames").rglob("*") if p.is_file())
+    return {"wall_s": wall, "peak_bytes": usage.ru_maxrss * 1024, "metrics": metrics, "frame_bytes": frames}
+
+
+def stage_seconds(timings: dict) -> dict:
+    return {label: sum(float(timings.get(k) or 0.0) for k in keys) for label, keys in STAGES}
+
+
+def gib(n: float) -> str:
+    return f"{n / 2**30:.2f} GiB"
+
+
+def stages(sizes: list[int], azimuths: str, extra: list[str], scratch: Path) -> None:
+    runs = {}
+    for n in sizes:
+        print(f"size {n} ...", file=sys.stderr, flush=True)
+        runs[n] = run_sweep(ROOT, scratch / f"s{n}", ["--size", str(n), f"--azimuths={azimuths}", *extra])
+    head = ["stage"] + [f"{n}" for n in sizes] + [f"x {b}/{a}" for a, b in zip(sizes, sizes[1:])]
+    rows = []
+    secs = {n: stage_seconds(r["metrics"]["timings"]) for n, r in runs.items()}
+    for label, _ in STAGES:
+        vals = [secs[n][label] for n in sizes]
+        rows.append([label] + [f"{v:.1f} s" for v in vals] + [_ratio(b, a) for a, b in zip(vals, vals[1:])])
+    total = [runs[n]["wall_s"] for n in sizes]
+    rows.append(["wall (whole run)"] + [f"{v:.1f} s" for v in total] + [_ratio(b, a) for a, b in zip(total, total[1:])])
+    peak = [runs[n]["peak_bytes"] for n in sizes]
+    rows.append(["peak memory"] + [gib(v) for v in peak] + [_ratio(b, a) for a, b in zip(peak, peak[1:])])
+    est = [runs[n]["metrics"].get("memory", {}).get("estimate_bytes", 0) for n in sizes]
+    rows.append(["  estimate"] + [gib(v) for v in est] + [""] * (len(sizes) - 1))
+    fb = [runs[n]["frame_bytes"] for n in sizes]
+    rows.append(["frame files"] + [f"{v / 1e6:.0f} MB" for v in fb] + [_ratio(b, a) for a, b in zip(fb, fb[1:])])
+    _print_table(head, rows)
+
+
+def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path) -> None:
+    tree = scratch / "baseline"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
+                   check=True, capture_output=True)
+    try:
+        args = ["--size", str(size), f"--azimuths={azimuths}"]
+        print(f"{baseline} ...", file=sys.stderr, flush=True)
+        old = run_sweep(tree, scratch / "old", args)
+        print("this tree ...", file=sys.stderr, flush=True)
+        new = run_sweep(ROOT, scratch / "new", args + extra)
+    finally:
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
+    so, sn = stage_seconds(old["metrics"]["timings"]), stage_seconds(new["metrics"]["timings"])
+    rows = [[label, f"{so[label]:.1f} s", f"{sn[label]:.1f} s", _ratio(sn[label], so[label])] for label, _ in STAGES]
+    rows.append(["wall (whole run)", f"{old['wall_s']:.1f} s", f"{new['wall_s']:.1f} s",
+                 _ratio(new["wall_s"], old["wall_s"])])
+    rows.append(["peak memory", gib(old["peak_bytes"]), gib(new["peak_bytes"]),
+                 _ratio(new["peak_bytes"], old["peak_bytes"])])
+    rows.append(["frame files", f"{old['frame_bytes'] / 1e6:.0f} MB", f"{new['frame_bytes'] / 1e6:.0f} MB",
+                 _ratio(new["frame_bytes"], old["frame_bytes"])])
+    print(f"hzval sweep {' '.join(args)}   (this tree: + {' '.join(extra) or 'nothing'}; techniques: {baseline}: "
+          f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
+          f"{', '.join(new['metrics'].get('techniques', {}))})")
+    _print_table(["stage", baseline, "this tree", "ratio"], rows)
+
+
+def _ratio(new: float, old: float) -> str:
+    return f"{new / old:.2f}x" if old else "-"
+
+
+def _print_table(head: list[str], rows: list[list[str]]) -> None:
+    widths = [max(len(str(r[i])) for r in [head] + rows) for i in range(len(head))]
+    for r in [head, ["-" * w for w in widths]] + rows:
+        print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+
+
+def main(argv=None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    argv = argv[:argv.index("--")] if "--" in argv else argv
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="mode", required=True)
+    s = sub.add_parser("stages")
+    s.add_argument("--sizes", default="512,1024,2048,4096")
+    s.add_argument("--azimuths", default="-60:60:120")
+    b = sub.add_parser("side-by-side")
+    b.add_argument("--baseline", default="9219ded")
+    b.add_argument("--size", type=int, default=2048)
+    b.add_argument("--azimuths", default="-60:60:30")
+    a = p.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="hzval-bench-") as scratch:
+        if a.mode == "stages":
+            stages([int(x) for x in a.sizes.split(",")], a.azimuths, extra, Path(scratch))
+        else:
+            side_by_side(a.baseline, a.size, a.azimuths, extra, Path(scratch))
+
+
+if __name__ == "__main__":
+    main()
