@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
+import time
 from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -250,90 +252,97 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
-@pytest.mark.browser
-def test_report_in_a_browser(tmp_path):
+@contextlib.contextmanager
+def chromium_page(problems: list[str]):
+    """A 1440 x 900 page of headless chromium that records page errors and failed requests in
+    ``problems``; the test is skipped where chromium or Playwright is missing."""
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
         pytest.skip("the playwright Python package is not importable (pip install playwright)")
-
-    out = tmp_path / "out #1"
-    metrics = make_fake_out(out, size=64, azimuths=(-30.0, -15.0, 0.0, 15.0, 30.0))
-    index = report.write_report(out, metrics, command=COMMAND)
-    problems: list[str] = []
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport={"width": 1440, "height": 900})
-            page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}")
-                    if m.type in ("error", "warning") else None)
             page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
             page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
-            page.goto(index.as_uri(), wait_until="load")
-            shot = os.environ.get("HZVAL_REPORT_SCREENSHOT")   # a path: keep a full-page picture to look at
-            if shot:
-                page.screenshot(path=shot, full_page=True)
-
-            # every image loaded
-            images = page.eval_on_selector_all(
-                "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])")
-            assert len(images) == 2 + 5 * 7
-            assert [i for i in images if not (i[1] and i[2] > 0)] == []
-
-            # flip: hover shows the other side, in place and labelled; leaving restores it
-            fig = page.locator("#frame-2 .flip[data-own='truth']")
-            img, tag, view = fig.locator("img"), fig.locator(".which"), fig.locator(".view")
-            truth_src, approx_src = img.get_attribute("data-truth"), img.get_attribute("data-approx")
-            assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
-            view.hover()
-            assert img.get_attribute("src") == approx_src
-            assert tag.inner_text() == "horizon-mapped" and fig.get_attribute("data-showing") == "approx"
-            page.mouse.move(2, 2)
-            assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
-            # click flips (with hover flipping off), and again flips back
-            page.locator("#hover-flip").uncheck()
-            view.click()
-            assert img.get_attribute("src") == approx_src and tag.inner_text() == "horizon-mapped"
-            view.click()
-            assert img.get_attribute("src") == truth_src
-            page.locator("#hover-flip").check()
-
-            # the swipe slider moves the clip of the top image
-            swipe = page.locator("#frame-0 .swipe")
-            over = swipe.locator("img.over")
-            clip = lambda: over.evaluate("e => getComputedStyle(e).clipPath")  # noqa: E731
-            before = clip()
-            swipe.locator(".swipe-range").focus()
-            page.keyboard.press("Home")
-            assert clip() != before and "100%" in clip()
-            page.keyboard.press("End")
-            assert re.search(r"inset\(0(px)? 0(px|%)? 0(px)? 0(px)?\)|inset\(0px\)|inset\(0\)", clip()), clip()
-
-            # zoom: 8 screen pixels per image pixel, nearest-neighbour
-            target = page.locator("#frame-1 .flip[data-own='approx'] img")
-            w_fit = target.bounding_box()["width"]
-            page.locator("button[data-zoom='8']").click()
-            w8 = target.bounding_box()["width"]
-            assert w8 == pytest.approx(64 * 8, abs=1) and w8 != pytest.approx(w_fit, abs=1)
-            assert target.evaluate("e => getComputedStyle(e).imageRendering") == "pixelated"
-            # panning one view moves the others to the same place
-            v = page.locator("#frame-1 .flip[data-own='approx'] .view")
-            box = v.bounding_box()
-            page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-            page.mouse.down()
-            page.mouse.move(box["x"] + box["width"] / 2 - 60, box["y"] + box["height"] / 2 - 40, steps=5)
-            page.mouse.up()
-            scrolls = page.eval_on_selector_all(".view", "els => els.map(e => [e.scrollLeft, e.scrollTop])")
-            assert scrolls[0][0] > 0 and all(s == pytest.approx(scrolls[0], abs=2) for s in scrolls), scrolls
-            page.keyboard.press("0")
-            assert target.bounding_box()["width"] == pytest.approx(w_fit, abs=1)
-
-            page.locator("#copy").click()
-            page.wait_for_timeout(100)
+            yield page
         finally:
             browser.close()
+
+
+@pytest.mark.browser
+def test_report_in_a_browser(tmp_path):
+    out = tmp_path / "out #1"
+    metrics = make_fake_out(out, size=64, azimuths=(-30.0, -15.0, 0.0, 15.0, 30.0))
+    index = report.write_report(out, metrics, command=COMMAND)
+    problems: list[str] = []
+    with chromium_page(problems) as page:
+        page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}")
+                if m.type in ("error", "warning") else None)
+        page.goto(index.as_uri(), wait_until="load")
+        shot = os.environ.get("HZVAL_REPORT_SCREENSHOT")   # a path: keep a full-page picture to look at
+        if shot:
+            page.screenshot(path=shot, full_page=True)
+
+        # every image loaded
+        images = page.eval_on_selector_all(
+            "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])")
+        assert len(images) == 2 + 5 * 7
+        assert [i for i in images if not (i[1] and i[2] > 0)] == []
+
+        # flip: hover shows the other side, in place and labelled; leaving restores it
+        fig = page.locator("#frame-2 .flip[data-own='truth']")
+        img, tag, view = fig.locator("img"), fig.locator(".which"), fig.locator(".view")
+        truth_src, approx_src = img.get_attribute("data-truth"), img.get_attribute("data-approx")
+        assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
+        view.hover()
+        assert img.get_attribute("src") == approx_src
+        assert tag.inner_text() == "horizon-mapped" and fig.get_attribute("data-showing") == "approx"
+        page.mouse.move(2, 2)
+        assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
+        # click flips (with hover flipping off), and again flips back
+        page.locator("#hover-flip").uncheck()
+        view.click()
+        assert img.get_attribute("src") == approx_src and tag.inner_text() == "horizon-mapped"
+        view.click()
+        assert img.get_attribute("src") == truth_src
+        page.locator("#hover-flip").check()
+
+        # the swipe slider moves the clip of the top image
+        swipe = page.locator("#frame-0 .swipe")
+        over = swipe.locator("img.over")
+        clip = lambda: over.evaluate("e => getComputedStyle(e).clipPath")  # noqa: E731
+        before = clip()
+        swipe.locator(".swipe-range").focus()
+        page.keyboard.press("Home")
+        assert clip() != before and "100%" in clip()
+        page.keyboard.press("End")
+        assert re.search(r"inset\(0(px)? 0(px|%)? 0(px)? 0(px)?\)|inset\(0px\)|inset\(0\)", clip()), clip()
+
+        # zoom: 8 screen pixels per image pixel, nearest-neighbour
+        target = page.locator("#frame-1 .flip[data-own='approx'] img")
+        w_fit = target.bounding_box()["width"]
+        page.locator("button[data-zoom='8']").click()
+        w8 = target.bounding_box()["width"]
+        assert w8 == pytest.approx(64 * 8, abs=1) and w8 != pytest.approx(w_fit, abs=1)
+        assert target.evaluate("e => getComputedStyle(e).imageRendering") == "pixelated"
+        # panning one view moves the others to the same place
+        v = page.locator("#frame-1 .flip[data-own='approx'] .view")
+        box = v.bounding_box()
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(box["x"] + box["width"] / 2 - 60, box["y"] + box["height"] / 2 - 40, steps=5)
+        page.mouse.up()
+        scrolls = page.eval_on_selector_all(".view", "els => els.map(e => [e.scrollLeft, e.scrollTop])")
+        assert scrolls[0][0] > 0 and all(s == pytest.approx(scrolls[0], abs=2) for s in scrolls), scrolls
+        page.keyboard.press("0")
+        assert target.bounding_box()["width"] == pytest.approx(w_fit, abs=1)
+
+        page.locator("#copy").click()
+        page.wait_for_timeout(100)
     assert problems == []
 
 
@@ -361,14 +370,6 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
 def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
     """Images above files.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
     files of the views on screen, scaled by the full width; the page's load time is printed."""
-    import time
-
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("the playwright Python package is not importable (pip install playwright)")
     n = files.PREVIEW_ABOVE_PX + 52                    # 2100: previews of 1050
     out = tmp_path / "big"
     metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
@@ -382,30 +383,23 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
                 files.write_png_with_preview(out / rel, np.ascontiguousarray(big), compress_level=1)
     index = report.write_report(out, metrics, command=COMMAND)
     problems: list[str] = []
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            page = browser.new_page(viewport={"width": 1440, "height": 900})
-            page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-            page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
-            t0 = time.perf_counter()
-            page.goto(index.as_uri(), wait_until="load")
-            print(f"report of {n} x {n} images loaded in {time.perf_counter() - t0:.2f} s")
-            target = page.locator("#frame-0 .flip[data-own='approx'] img")
-            assert "/previews/" in target.get_attribute("src")
-            target.scroll_into_view_if_needed()
-            page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
-            assert target.evaluate("e => e.naturalWidth") == -(-n // 3)
-            page.locator("button[data-zoom='1']").click()
-            assert "/previews/" not in target.get_attribute("src")
-            assert target.bounding_box()["width"] == pytest.approx(n, abs=1)    # the full width, 1:1
-            page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
-            assert target.evaluate("e => e.naturalWidth") == n
-            # a flip shows the other side's full image while zoomed
-            view = page.locator("#frame-0 .flip[data-own='truth'] .view")
-            view.hover()
-            flipped = page.locator("#frame-0 .flip[data-own='truth'] img").get_attribute("src")
-            assert flipped.endswith("approx.png") and "/previews/" not in flipped
-        finally:
-            browser.close()
+    with chromium_page(problems) as page:
+        t0 = time.perf_counter()
+        page.goto(index.as_uri(), wait_until="load")
+        print(f"report of {n} x {n} images loaded in {time.perf_counter() - t0:.2f} s")
+        target = page.locator("#frame-0 .flip[data-own='approx'] img")
+        assert "/previews/" in target.get_attribute("src")
+        target.scroll_into_view_if_needed()
+        page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
+        assert target.evaluate("e => e.naturalWidth") == -(-n // 3)
+        page.locator("button[data-zoom='1']").click()
+        assert "/previews/" not in target.get_attribute("src")
+        assert target.bounding_box()["width"] == pytest.approx(n, abs=1)    # the full width, 1:1
+        page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
+        assert target.evaluate("e => e.naturalWidth") == n
+        # a flip shows the other side's full image while zoomed
+        view = page.locator("#frame-0 .flip[data-own='truth'] .view")
+        view.hover()
+        flipped = page.locator("#frame-0 .flip[data-own='truth'] img").get_attribute("src")
+        assert flipped.endswith("approx.png") and "/previews/" not in flipped
     assert problems == []
