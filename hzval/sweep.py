@@ -31,15 +31,21 @@ under a white light) as one ``Y`` channel and a grey PNG, losslessly
 (:func:`hzval.files.read_rgb_exr` reads R, G, B or Y); FLIP and
 visibility-difference maps as palette PNGs, pixel for pixel the RGB ones.
 
-Speed: the truth's display values and Lab are computed once per frame for
-every comparison (:class:`hzval.compare.Reference`); the unshadowed render
-once per frame for every technique that shades with it; previews reuse the
-comparison's display values; PNG previews are compressed at zlib level 1
-(:data:`PNG_LEVEL`). None of this changes a value. The comparison stays in
-this process: ``flip-evaluator`` already runs on both cores of the 2-core
-machine (0.40 s wall, 0.75 s CPU a 512 x 512 frame), and moving FLIP and
-CIEDE2000 into a worker process a frame ahead was measured to gain nothing
-(24.8 s against 24.9 s for the default sweep).
+Speed: the truth's display values, Lab and FLIP half are computed once per
+frame for every comparison (:class:`hzval.compare.Reference`); the
+unshadowed render once per frame for every technique that shades with it;
+previews reuse the comparison's display values; PNG previews are compressed
+at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value. The
+comparison stays in this process: FLIP (:mod:`hzval.flip`) and CIEDE2000
+already run on both cores of the 2-core machine, and moving the comparison
+into a worker process a frame ahead was measured to gain nothing (24.8 s
+against 24.9 s for the default sweep, with flip-evaluator then).
+
+Memory: a sweep's peak is estimated before anything is allocated
+(:func:`estimate_peak_bytes`, :func:`check_fits`); past 2^27 samples the
+truth renders in bands (:mod:`hzval.truth`, "Memory") and Dr.Jit's freed
+buffers are handed back every frame; a frame keeps only the 8-bit previews
+and FLIP maps of its comparisons until they are written.
 """
 
 from __future__ import annotations
