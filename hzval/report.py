@@ -784,10 +784,17 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     t = _timings(timings, len(frames), views)
-    height = max(2.8, 0.9 + 0.3 * max(len(t["rows"]), len(frames)))
+    # the per-frame legend sits above its bars in rows of two, the title above the legend (four
+    # labels in one row ran into the title); the left margin fits the longest stage label
+    legend_cols = min(1 + len(views), 2)
+    legend_rows = -(-(1 + len(views)) // legend_cols)
+    longest = max((len(r["label"]) + 9 for r in t["rows"]), default=10)
+    top_in, left_in = 0.36 + 0.2 * legend_rows, max(1.55, 0.075 * longest)
+    height = max(2.8, 0.9 + 0.2 * legend_rows + 0.3 * max(len(t["rows"]), len(frames)))
     fig = _figure(13.0, height)
     ax1, ax2 = fig.subplots(1, 2, width_ratios=(1.25, 1))
-    fig.subplots_adjust(left=1.55 / 13.0, right=0.99, top=1 - 0.36 / height, bottom=0.42 / height, wspace=0.1)
+    fig.subplots_adjust(left=left_in / 13.0, right=0.99, top=1 - top_in / height, bottom=0.42 / height,
+                        wspace=0.1)
 
     _style_axes(ax1, "where the time goes  (seconds)")
     labels = [r["label"] + (f" ({r['note']})" if r["note"] == "cached" else "") for r in t["rows"]]
@@ -811,11 +818,11 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
     ax1.tick_params(axis="y", colors=_TEXT)
 
     _style_axes(ax2, "")
-    ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6)
     flat = _flatten(frames, views)
     series = [(np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float), TRUTH_COLOUR, "truth")]
     series += [(np.array([_num(f.get(f"{v.name}_s")) or np.nan for f in flat], dtype=float), v.colour, v.label)
                for v in views]
+    ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6 + 13 * legend_rows)
     y = np.arange(len(frames))
     if len(frames) and any(np.isfinite(v).any() for v, _, _ in series):
         h = 0.8 / len(series)
@@ -834,7 +841,7 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
             ax2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt_seconds(v)))
             ax2.xaxis.set_minor_formatter(NullFormatter())
         ax2.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-                   ncol=len(series), borderaxespad=0.2, handlelength=1.2)
+                   ncol=legend_cols, borderaxespad=0.2, handlelength=1.2)
         ax2.grid(False, axis="y")
     else:
         ax2.text(0.5, 0.5, "no frames", transform=ax2.transAxes, ha="center", color=_MUTED)
