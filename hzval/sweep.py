@@ -468,9 +468,8 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     folder = out / "frames" / name
     jobs = []       # written on a thread per core: the encoders release the GIL (2 cores: 0.55x the time)
 
-    def exr(rel: dict, key: str, filename: str, channels, half: bool = True, compression: str = "zip"):
-        jobs.append(partial(files.write_exr, folder / filename, channels, half=half, grey=True,
-                            compression=compression))
+    def exr(rel: dict, key: str, filename: str, channels):
+        jobs.append(partial(files.write_exr, folder / filename, channels, half=True, grey=True))
         rel[key] = f"frames/{name}/{filename}"
 
     def png(rel: dict, key: str, filename: str, make, *args):

@@ -334,22 +334,25 @@ class Truth:
         more (module docstring, "Memory") only ``A`` is kept, per band, and the reflection layer."""
         t0 = time.perf_counter()
         self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
-        self.timings.update(primary_s=0.0, **{f"{k}_s": 0.0 for k, e in (("ambient", "ambient"), (
-            "reflection", "reflection_occlusion")) if self.scene.declares(e)})
+        ambient, reflects = self.scene.declares("ambient"), self.scene.declares("reflection_occlusion")
+        self.timings["primary_s"] = 0.0
+        if ambient:
+            self.timings["ambient_s"] = 0.0
+        if reflects:
+            self.timings["reflection_s"] = 0.0
         reflection = []
-        traced_once = self.scene.declares("ambient") or self.scene.declares("reflection_occlusion")
         for first, stop in self.bands:
-            if len(self.bands) > 1 and not traced_once:
+            if len(self.bands) > 1 and not (ambient or reflects):
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
                 self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop), self.rows, self.cols)[2]
                 continue
             st = self._camera_samples(first, stop)
             self.moved_off_edges += st.moved
-            if self.scene.declares("ambient"):
+            if ambient:
                 st.ambient = self._trace_ambient(st)
                 self._ambient_bands.append(st.ambient)
-            if self.scene.declares("reflection_occlusion"):
+            if reflects:
                 reflection.append(self._trace_reflection(st))
             if len(self.bands) == 1:
                 self._kept = st
@@ -370,20 +373,25 @@ class Truth:
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
         o, n, ns, valid = self._surface_at(x, y, coherent=True)
-        albedo = None
-        if self._albedo_texels is not None:
-            # the texel that holds (x, y): column floor(x), row floor(rows - y) = rows - ceil(y),
-            # exact in float32 (rows - y itself would round)
-            c = self._c                          # opaque: one kernel for every size
-            n_cols, n_rows = mi.Int32(c["cols"]), mi.Int32(c["rows"])
-            col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)
-            row = dr.clip(mi.Int32(c["rows"] - dr.ceil(y)), 0, n_rows - 1)
-            albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * n_cols + col))
+        albedo = self._albedo_at(x, y) if self._albedo_texels is not None else None
         dr.eval(o, n, ns, valid, albedo)
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
         return _Samples(first, stop, first * spp, (stop - first) * spp, o, n, ns, albedo, moved)
+
+    def _albedo_at(self, x, y, active=True):
+        """The linear albedo of the texel that holds ``(x, y)`` (nearest, as the techniques read it)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        # column floor(x), row floor(rows - y) = rows - ceil(y), exact in float32 (rows - y itself
+        # would round); opaque sizes: one kernel for every map
+        c = self._c
+        n_cols, n_rows = mi.Int32(c["cols"]), mi.Int32(c["rows"])
+        col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)
+        row = dr.clip(mi.Int32(c["rows"] - dr.ceil(y)), 0, n_rows - 1)
+        return dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * n_cols + col), active)
 
     def _band_positions(self, first: int, stop: int):
         """The sample positions of the pixels ``first <= p < stop`` (the scene's, or the tests')."""
@@ -858,9 +866,7 @@ class Truth:
             ns = dr.select(active, ns_next, ns)
             v = -wo
             if albedo is not None:
-                col = dr.clip(mi.Int32(dr.floor(x)), 0, self.cols - 1)
-                row = dr.clip(mi.Int32(dr.floor(self._c["rows"] - y)), 0, self.rows - 1)
-                albedo = dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * self.cols + col), active)
+                albedo = self._albedo_at(x, y, active)
             dr.eval(o, n, ns, v, beta, result, active, albedo)
         return result
 
