@@ -114,19 +114,18 @@ through memory.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
-from hzval import backend, external, shading
+from hzval import backend, external, lookup, shading
 from hzval import storage as hz_storage
 from hzval import conventions as cv
 from hzval.bake import CUBE_SIZE, normals_only, weight_cube
 from hzval.errors import InputError
-from hzval.scene import Frame, Scene, image_shape, load_albedo, sample_positions
+from hzval.scene import Frame, Scene, image_shape, load_albedo
 from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
 from hzval.technique import Context, Technique, Variant, replace_effects
 
@@ -210,7 +209,8 @@ class Approximation(Technique):
 
     def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *,
                  path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
-                 fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None):
+                 fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None,
+                 height: np.ndarray | None = None, samples: lookup.Samples | None = None):
         backend.variant()
         storage = storage or ("u8" if path == "gpu" else "float")
         weights = weights or ("cube" if path == "gpu" else "analytic")
@@ -231,13 +231,15 @@ class Approximation(Technique):
         self._ambient = "ambient" in eff
         self._reflection = "reflection_occlusion" in eff
         self.external: list[str] | None = None       # the external bake's layers, when one is used
-        self._upload_textures(albedo)
+        samples = samples if samples is not None else lookup.samples_for(scene, rows, cols, height)
+        self._upload_textures(albedo, samples)
         self._upload_constants()
-        self._upload_samples()
+        self._upload_samples(samples)
 
-    def _upload_textures(self, albedo) -> None:
+    def _upload_textures(self, albedo, samples: lookup.Samples) -> None:
         """One packed texture holding only the channels needed, so that each sample
-        computes one set of bilinear indices; the weight cube map for ``weights="cube"``."""
+        computes one set of bilinear indices, filtered as the scene's lookup says
+        (:class:`hzval.lookup.Filtered`); the weight cube map for ``weights="cube"``."""
         import drjit as dr
         import mitsuba as mi
 
@@ -270,11 +272,9 @@ class Approximation(Technique):
             add("ambient", getattr(bake, self.ambient))
         self._texture = None
         if planes:
-            wrap = dr.WrapMode.Repeat if bake.params.boundary == "wrap" else dr.WrapMode.Clamp
-            self._texture = mi.Texture2f(
-                mi.TensorXf(_aligned(np.concatenate(planes, axis=-1))),
-                use_accel=False, migrate=False,
-                filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
+            self._texture = lookup.Filtered(np.concatenate(planes, axis=-1), bake.params.boundary,
+                                            self.scene.lookup, samples, max_channels=self._slots.get("horizon"),
+                                            aligned=_aligned)
         self._cube = None
         if need_horizon and self.weights == "cube":
             cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
@@ -286,10 +286,12 @@ class Approximation(Technique):
         import mitsuba as mi
 
         self._k = dr.opaque(mi.Float, self.k)
+        # toward the (orthographic) camera; a perspective one is refused with the effects that read it
+        self._view = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._fade = dr.opaque(mi.Float, self.fade)
         self._E = dr.opaque(mi.Float, float(self.scene.light.irradiance))
 
-    def _upload_samples(self) -> None:
+    def _upload_samples(self, samples: lookup.Samples) -> None:
         """Sample positions as texture coordinates. One sample per pixel: two plain
         arrays. More: (u, v) pairs in the scene's pixel-major order, which the
         per-pixel loop gathers as one packet per sample; a pixel's samples share
@@ -302,12 +304,11 @@ class Approximation(Technique):
         spp = int(scene.spp)
         self.spp, self.pixels = spp, self.shape[0] * self.shape[1]
         if spp == 1:
-            x, y = sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed)
-            u, v = cv.tangent_to_uv(x, y, self.rows, self.cols)
+            u, v = cv.tangent_to_uv(samples.x, samples.y, self.rows, self.cols)
             self._u, self._v, self._uv = mi.Float(_aligned(u)), mi.Float(_aligned(v)), None
         else:
             self._u = self._v = None
-            self._uv = sample_uv(self.rows, self.cols, scene.camera, spp, scene.seed)
+            self._uv = samples.uv()
         dr.eval(self._u, self._v, self._uv, self._cube, self._albedo_const)
 
     # ------------------------------------------------------------------
@@ -320,7 +321,7 @@ class Approximation(Technique):
         (:class:`hzval.external.Encoding`) replace the bake's horizon map by an external one, whose
         convention is checked against hzval's exact bake (:func:`hzval.external.detect`)."""
         if not horizon_map:
-            return cls(ctx.scene, ctx.bake, ctx.albedo, **settings)
+            return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
         raw = external.read_layers(list(horizon_map))
         enc = (encoding or external.Encoding()).validate()
         if raw.shape[:2] != ctx.height.shape:
@@ -328,7 +329,8 @@ class Approximation(Technique):
                                              f"{ctx.height.shape[1]}x{ctx.height.shape[0]}")
         sines = external.to_hzval(raw, enc)
         found = external.detect(raw, _reference_horizons(ctx, enc.channels), enc)
-        own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, **settings)
+        own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, samples=ctx.samples(),
+                  **settings)
         own.external = [str(p) for p in horizon_map]
         own.extras = {"external_bake": {**found, "paths": own.external}}
         own.warnings = tuple(w for w in (external.advice(found),) if w)
@@ -464,7 +466,7 @@ class Approximation(Technique):
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, k)
         if self.spp == 1:
-            out = self._shade(self._u, self._v, uni, shadows)
+            out = self._shade(self._u, self._v, uni, shadows, pixel=dr.arange(mi.UInt32, self.pixels))
         else:
             names, zeros = self._output_layout(shadows)
             P, spp = self.pixels, self.spp
@@ -472,7 +474,7 @@ class Approximation(Technique):
 
             def body(i, *acc):
                 uv = dr.gather(mi.Point2f, self._uv, pixel * spp + i)
-                o = self._shade(uv.x, uv.y, uni, shadows)
+                o = self._shade(uv.x, uv.y, uni, shadows, pixel=pixel)
                 return (i + 1, *[a + b for a, b in zip(acc, self._flatten(o, names))])
 
             state = dr.while_loop(state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
@@ -535,7 +537,7 @@ class Approximation(Technique):
         if self._shadow and shadows:
             uni["w"] = self._channel_weights(L)
         if self._specular:
-            uni["h"] = dr.normalize(L + mi.Vector3f(0.0, 0.0, 1.0))
+            uni["h"] = dr.normalize(L + self._view)
         dr.eval(uni)
         return uni
 
@@ -606,21 +608,22 @@ class Approximation(Technique):
         f1 = [dr.clip(dr.fma(f[i], -2.0, 1.0), 0.0, 1.0) for i in range(4)]
         return f0 + f1
 
-    def _fetch(self, u, v) -> dict:
-        """Bilinearly filtered texture values at texture coordinates ``(u, v)``."""
+    def _fetch(self, u, v, pixel=None) -> dict:
+        """Filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
+        (whose footprints a mip filter reads; ``None``: level 0)."""
         import mitsuba as mi
 
         if self._texture is None:
             return {}
-        vals = self._texture.eval(mi.Point2f(u, v))
+        vals = self._texture.eval(mi.Point2f(u, v), pixel)
         return {name: vals[s] for name, s in self._slots.items()}
 
-    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False) -> dict:
+    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None) -> dict:
         """Per-sample outputs: ``image`` (Color3f) and the declared layers."""
         import drjit as dr
         import mitsuba as mi
 
-        tex = self._fetch(u, v)
+        tex = self._fetch(u, v, pixel)
         L, E = uni["L"], self._E
         out = {}
         lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
@@ -649,8 +652,11 @@ class Approximation(Technique):
             out["ambient"] = A
 
         if self._reflection:
-            # r = reflect(-v, n) = 2 (n.v) n - v with v = +z
-            r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
+            # r = reflect(-v, n) = 2 (n.v) n - v (the top view's v = +z: (2 nz nx, 2 nz ny, 2 nz^2 - 1))
+            if self.scene.camera.kind == "top":
+                r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
+            else:
+                r = 2.0 * dr.dot(n, self._view) * n - self._view
             s_r = _dot(tex["horizon"], self._channel_weights(r))
             o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
             out["reflection_occlusion"] = o * o
@@ -688,20 +694,6 @@ class Approximation(Technique):
             out[name] = mi.Color3f(*flat[i:i + 3]) if n == 3 else flat[i]
             i += n
         return out
-
-
-@functools.lru_cache(maxsize=1)
-def sample_uv(rows: int, cols: int, camera, spp: int, seed: int):
-    """The scene's sample positions (:func:`hzval.scene.sample_positions`) as texture coordinates,
-    interleaved ``u0, v0, u1, v1, ...`` in one aligned ``mi.Float`` (:func:`_aligned`).
-
-    Made once per sweep and shared by every technique that reads its textures at the samples
-    (the horizon map, the unshadowed shading, pom): 8 bytes a sample, 2.1 GB at 4096 x 4096 and
-    16 spp, where each technique's own copy, made through NumPy temporaries, had cost 8 GB at
-    the peak. Converted in chunks (:func:`interleaved`): the values of ``tangent_to_uv`` itself.
-    """
-    x, y = sample_positions(rows, cols, camera, spp, seed)
-    return interleaved(x, y, lambda a, b: cv.tangent_to_uv(a, b, rows, cols))
 
 
 #: Samples per chunk of :func:`interleaved`.
@@ -820,16 +812,17 @@ class Unshadowed:
     frame is kept: every technique of a sweep frame shares one render.
     """
 
-    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2"):
+    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2",
+                 samples: lookup.Samples | None = None):
         effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
         self.scene = scene
         self._grey = not effects            # shadows alone: the direct term is E, grey
         self._plain = None if self._grey else Approximation(replace_effects(scene, effects), bake, albedo,
-                                                            ambient=ambient)
+                                                            ambient=ambient, samples=samples)
         self.ambient_image = None
         if "ambient" in effects:
-            self.ambient_image = Approximation(replace_effects(scene, ("ambient",)), bake, albedo,
-                                               ambient=ambient).render(0.0, elevation_deg=-90.0).image
+            self.ambient_image = Approximation(replace_effects(scene, ("ambient",)), bake, albedo, ambient=ambient,
+                                               samples=samples).render(0.0, elevation_deg=-90.0).image
         self.shape = image_shape(*bake.normal.shape[:2], scene.camera)
         self._last: tuple | None = None
 
@@ -862,7 +855,7 @@ class Unshadowed:
 
 def unshadowed(ctx: Context) -> Unshadowed:
     """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
-    return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo))
+    return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples()))
 
 
 class HeightFieldShadow(Technique):
@@ -872,10 +865,12 @@ class HeightFieldShadow(Technique):
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "HeightFieldShadow":
-        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=unshadowed(ctx), **settings)
+        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=unshadowed(ctx),
+                   samples=ctx.samples(), **settings)
 
     @staticmethod
-    def shading_for(scene: Scene, height: np.ndarray, bake, albedo, shared: Unshadowed | None) -> Unshadowed:
+    def shading_for(scene: Scene, height: np.ndarray, bake, albedo, shared: Unshadowed | None,
+                    samples: lookup.Samples | None = None) -> Unshadowed:
         """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
         without one from the normal map alone (:func:`hzval.bake.normals_only`), which serves
         ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map."""
@@ -885,4 +880,4 @@ class HeightFieldShadow(Technique):
             if scene.declares("ambient"):
                 raise InputError("bake", "ambient needs the bake's textures")
             bake = normals_only(height, scene.material.depth, scene.material.boundary)
-        return Unshadowed(scene, bake, albedo)
+        return Unshadowed(scene, bake, albedo, samples=samples)

@@ -83,10 +83,13 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     return np.repeat(shown[..., None], 3, axis=-1) if shown.ndim == 2 else shown
 
 
-def visibility_metrics(V: np.ndarray, F: np.ndarray) -> tuple[float, float, float]:
-    """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers."""
+def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None) -> tuple[float, float, float]:
+    """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers, over the
+    pixels of ``mask`` (those that see the surface; ``None``: all)."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.float64)
+    if mask is not None:
+        V, F = V[mask], F[mask]
     lit_truth, lit_approx = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
     return (float(np.mean(np.abs(F - V))),
             float(np.mean(lit_approx & ~lit_truth)),
@@ -364,15 +367,16 @@ def compare(truth, approx, scale: float, *, reference: Reference | None = None
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
     V, F = truth.layers.get("visibility"), approx.layers.get("factor")
+    mask = truth.mask
     if V is not None and F is not None:
-        mae, leak, false_shadow = visibility_metrics(V, F)
+        mae, leak, false_shadow = visibility_metrics(V, F, mask)
         maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
     else:
         mae = leak = false_shadow = None
     O, R = approx.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
     reflection = None
     if O is not None and R is not None:
-        reflection = float(np.mean(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64))))
+        reflection = float(np.mean(_seen(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64)), mask)))
     scores, image_maps = image_metrics(ref, approx.image)
     maps.update(image_maps)
     return FrameMetrics(mae, leak, false_shadow, scores["flip_mean"], scores["rmse"], scores["psnr_db"],
@@ -396,12 +400,21 @@ def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
 def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """``({flip_mean, rmse, psnr_db, delta_e2000_mean}, {display, flip, delta_e})`` of a linear
     ``(H, W, 3)`` image against the truth of ``ref``: RMSE and PSNR (peak 1) on exposed linear
-    values, FLIP and CIEDE2000 on display values."""
+    values, FLIP and CIEDE2000 on display values; each a mean over the pixels that see the surface
+    (the truth frame's ``mask``; all of the ``top`` view's)."""
+    mask = ref.truth.mask
     a_lin = np.asarray(image, np.float64) * ref.scale
-    mse = float(np.mean((ref.linear - a_lin) ** 2))
+    mse = float(np.mean(_seen((ref.linear - a_lin) ** 2, mask)))
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
     maps = {"display": display(image, ref.scale)}
     maps["flip"], flip_mean = flip_error(ref.flip, maps["display"])
+    if mask is not None:
+        flip_mean = float(np.mean(maps["flip"][mask]))
     maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab)
     return {"flip_mean": flip_mean, "rmse": math.sqrt(mse), "psnr_db": psnr,
-            "delta_e2000_mean": float(np.mean(maps["delta_e"]))}, maps
+            "delta_e2000_mean": float(np.mean(_seen(maps["delta_e"], mask)))}, maps
+
+
+def _seen(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """The pixels of ``values`` ``(H, W[, C])`` that ``mask`` keeps (all for ``None``)."""
+    return values if mask is None else values[mask]

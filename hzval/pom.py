@@ -55,7 +55,7 @@ import time
 
 import numpy as np
 
-from hzval import approx, backend
+from hzval import approx, backend, lookup
 from hzval import conventions as cv
 from hzval.errors import InputError
 from hzval.scene import Frame, Scene, image_shape
@@ -101,7 +101,7 @@ class RayMarchShadow(approx.HeightFieldShadow):
 
     def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = DEFAULT_STEPS, variant: str | None = None,
                  softness: float | None = None, bake=None, albedo: np.ndarray | None = None,
-                 unshadowed: approx.Unshadowed | None = None):
+                 unshadowed: approx.Unshadowed | None = None, samples=None):
         backend.variant()
         variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
         if softness is None:
@@ -117,10 +117,11 @@ class RayMarchShadow(approx.HeightFieldShadow):
         self.simulated = self.simulates(scene)
         h = cv.heights_in_texels(height, scene.material.depth)
         self.h_max = float(h.max())
-        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed)
-        self._upload(h)
+        samples = samples if samples is not None else lookup.samples_for(scene, self.rows, self.cols, height)
+        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed, samples)
+        self._upload(h, samples)
 
-    def _upload(self, h: np.ndarray) -> None:
+    def _upload(self, h: np.ndarray, samples) -> None:
         """The height texture (texel units) and the samples' texture coordinates, once."""
         import drjit as dr
         import mitsuba as mi
@@ -132,7 +133,7 @@ class RayMarchShadow(approx.HeightFieldShadow):
                                     use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
                                     wrap_mode=wrap)
         self.spp = int(scene.spp)
-        self._uv = approx.sample_uv(self.rows, self.cols, scene.camera, self.spp, scene.seed)   # shared
+        self._uv = samples.uv()   # shared
         self._c = {"steps": dr.opaque(mi.UInt32, self.steps), "w": dr.opaque(mi.Float, self.softness),
                    "h_max": dr.opaque(mi.Float, self.h_max),
                    "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)))}

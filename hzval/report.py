@@ -147,6 +147,14 @@ REFLECTION_METRICS: tuple[Metric, ...] = (
 )
 
 
+#: Shown when a view other than ``top`` measured them: the factor at the truth's own hit points.
+PARALLAX_METRICS: tuple[Metric, ...] = (
+    Metric("perfect_parallax_mae", "|F−V| at hit", "", "Horizon map at perfect parallax: mean |F − V| with "
+           "the textures read at the truth's own hit point of each sample rather than where the camera ray "
+           "meets the flat plane; the difference from |F−V| is the parallax error's share", _fixed(4),
+           group="parallax"),
+)
+
 #: The perfect-shadows floor (``frames[i]["floor"]``, flattened to ``floor_<key>``): the
 #: techniques' unshadowed shading times the truth's visibility, scored against the truth.
 FLOOR_METRICS: tuple[Metric, ...] = (
@@ -168,6 +176,7 @@ class TechniqueView:
     colour: str
     style: object
     primary: bool
+    parallax: bool = False      # a view measured its factor at the truth's hit points
 
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
@@ -177,11 +186,15 @@ def technique_views(metrics: dict) -> list[TechniqueView]:
     if not isinstance(info, dict) or not info:
         info = {technique.PRIMARY: {"label": "approximation", "file_stem": "approx"}}
     views = []
+    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     for i, (name, t) in enumerate(info.items()):
         t = t if isinstance(t, dict) else {}
+        parallax = any(isinstance((f.get("techniques") or {}).get(name), dict)
+                       and "perfect_parallax_mae" in f["techniques"][name] for f in frames)
         views.append(TechniqueView(str(name), str(t.get("label") or name), str(t.get("file_stem") or name),
                                    TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
-                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], name == technique.PRIMARY))
+                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], name == technique.PRIMARY,
+                                   parallax))
     return views
 
 
@@ -212,6 +225,9 @@ def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
                "the same ray-traced visibility", _fixed(4), group=v.name),
         Metric(f"{v.name}_flip_mean", f"{v.name} FLIP", "", f"{v.label}: mean FLIP error against the truth "
                "(display values)", _fixed(4), group=v.name, floor="floor_flip_mean"),
+        *((Metric(f"{v.name}_perfect_parallax_mae", f"{v.name} at hit", "", f"{v.label}: mean |F − V| with "
+                  "its textures read at the truth's own hit points (perfect parallax)", _fixed(4), group=v.name),)
+          if v.parallax else ()),
         Metric(f"{v.name}_s", v.name, "time", f"{v.label}: frame time, the unshadowed shading it multiplies "
                "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name),
     )
@@ -251,6 +267,11 @@ _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"),
                        ("storage", "horizon map storage"), ("horizon_map", "horizon map bake"))),
     ("sampling", (("spp", "samples per pixel"), ("supersampling", "pixels per texel"), ("seed", "seed"))),
+    ("view", (("camera", "camera"), ("view_elevation_deg", "view elevation"), ("view_azimuth_deg", "view azimuth"),
+              ("fov_deg", "field of view"), ("distance_tiles", "distance (tile widths)"),
+              ("plane", "techniques' plane"), ("filter", "texture filter"), ("mips", "mip-maps"),
+              ("max_anisotropy", "max anisotropy"), ("parallax", "parallax mapping"),
+              ("parallax_steps", "parallax steps"))),
 )
 
 _TIMING_LABELS: tuple[tuple[str, str], ...] = (
@@ -513,7 +534,7 @@ def _versions(v: dict) -> list[dict]:
     return rows
 
 
-def _material(m: dict) -> dict:
+def _material(m: dict, camera: dict | None = None) -> dict:
     digest = str(m.get("digest") or "")
     algo, _, hexpart = digest.partition(":")
     short = f"{algo}:{hexpart[:12]}" if hexpart else digest[:19]
@@ -522,7 +543,46 @@ def _material(m: dict) -> dict:
     return {"name": str(m.get("name") or "unnamed material"), "source": str(m.get("source") or "—"),
             "digest": digest, "digest_short": short or "—", "size": size,
             "path": None if m.get("path") is None else str(m.get("path")),
-            "aspect": f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"}
+            "aspect": _aspect(cols, rows, camera or {})}
+
+
+def _aspect(cols, rows, camera: dict) -> str:
+    """The images' aspect ratio: the camera's resolution, else the tile's."""
+    res = camera.get("resolution")
+    if isinstance(res, (list, tuple)) and len(res) == 2 and all(_num(c) for c in res):
+        cols, rows = res
+    return f"{int(cols)} / {int(rows)}" if _num(cols) and _num(rows) else "1 / 1"
+
+
+def _view(out: Path, metrics: dict) -> dict | None:
+    """The camera and the view's errors (``metrics.json``'s ``camera`` and ``view``), for a view other
+    than ``top``; ``None`` for it."""
+    cam, view = metrics.get("camera") or {}, metrics.get("view")
+    if cam.get("kind", "top") == "top" or not isinstance(view, dict):
+        return None
+
+    def spread(d):
+        d = d if isinstance(d, dict) else {}
+        if _num(d.get("mean")) is None:
+            return "—"
+        return f"mean {d['mean']:.2f}, median {d['p50']:.2f}, p95 {d['p95']:.2f}, max {d['max']:.2f}"
+
+    def vec(v):
+        return "(" + ", ".join(f"{c:.1f}" for c in v) + ")" if isinstance(v, list) else "—"
+
+    rows = [("camera", str(cam.get("kind"))), ("eye", vec(cam.get("eye"))), ("target", vec(cam.get("target"))),
+            ("resolution", " × ".join(str(c) for c in cam.get("resolution") or [])),
+            ("pixels that see the surface", f"{100 * view['seen_fraction']:.1f}%"
+             if _num(view.get("seen_fraction")) is not None else "—"),
+            ("parallax error (texels)", spread(view.get("parallax_error_texels"))),
+            ("pixel footprint (texels)", spread(view.get("footprint_texels")))]
+    if _num(cam.get("fov_deg")) is not None:
+        rows.insert(3, ("field of view", f"{cam['fov_deg']:g}°"))
+    maps = view.get("files") or {}
+    return {"rows": [{"label": a, "text": b} for a, b in rows],
+            "maps": [{"title": t, "file": _src(out, maps.get(k))} for k, t in
+                     (("parallax_error_png", "parallax error"), ("footprint_png", "pixel footprint"))
+                     if maps.get(k)]}
 
 
 def _group_starts(metrics: tuple[Metric, ...]) -> set[str]:
@@ -547,6 +607,8 @@ def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metr
     shown = METRICS if lead.primary else tuple(m for m in METRICS if m.key == "truth_s")
     if any(f.get("reflection_mae") is not None for f in frames):
         shown += REFLECTION_METRICS
+    if any(_num(f.get("perfect_parallax_mae")) is not None for f in frames):
+        shown += PARALLAX_METRICS
     if any(_num(f.get("floor_flip_mean")) is not None for f in frames):
         shown += FLOOR_METRICS
     for v in views:
@@ -612,7 +674,7 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
     starts = _group_starts(shown)
     parameters = metrics.get("parameters") or {}
     cols = _columns(frames, shown)
-    material = _material(metrics.get("material") or {})
+    material = _material(metrics.get("material") or {}, metrics.get("camera") or {})
     frame_views = [_frame_view(out, i, f, cols, starts, views) for i, f in enumerate(frames)]
 
     azimuths = parameters.get("azimuths_deg") or [f.get("azimuth_deg") for f in frames]
@@ -641,6 +703,7 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "techniques": [{"name": v.name, "label": v.label, "colour": v.colour} for v in views],
         "warnings": [str(w) for w in (metrics.get("warnings") or [])],
         "technique_parameters": _technique_parameters(metrics, views),
+        "view": _view(out, metrics),
         "plots": plots,
         "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
         "truth_colour": TRUTH_COLOUR, "approx_colour": views[0].colour,

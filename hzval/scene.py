@@ -18,7 +18,12 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [material]  height = "bricks" (a built-in material: ``hzval materials``) | "path/relative/to/scene.png",
                 size, depth, boundary (default: the material's), albedo (default: the material's),
                 shading = "smooth" | "faceted"
-    [camera]    supersampling = 1
+    [camera]    kind = "top" | "orthographic" | "perspective", supersampling = 1 (top), elevation_deg,
+                azimuth_deg, fov_deg, distance (tile widths), resolution = [W, H], film_size = [w, h]
+                (hzval.camera)
+    [lookup]    plane = "bottom" | "mean" | "top", filter = "nearest" | "bilinear" | "trilinear" |
+                "anisotropic", mips = "average" | "max", max_anisotropy, parallax = "none" | "offset" |
+                "occlusion", parallax_steps: how the techniques find and read their textures (hzval.lookup)
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
@@ -39,6 +44,8 @@ import numpy as np
 
 from hzval import conventions as cv
 from hzval import backend, heightmap, materials
+from hzval.camera import Camera, pixel_jitter, stream
+from hzval.lookup import Lookup
 from hzval.errors import InputError
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
@@ -75,20 +82,6 @@ class MaterialSpec:
 
 
 @dataclass(frozen=True)
-class Camera:
-    """Orthographic, straight down; ``supersampling`` pixels per texel along each axis.
-
-    ``supersampling`` magnifies: each pixel covers ``1 / supersampling``
-    texels, and every renderer samples it at ``spp`` positions (which is what
-    anti-aliases). Image scores (FLIP above all, whose viewing distance is in
-    pixels) depend on it, so compare them only at one setting; the
-    visibility scores, per surface area, hardly do.
-    """
-
-    supersampling: int = 1
-
-
-@dataclass(frozen=True)
 class Light:
     """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``)."""
 
@@ -118,6 +111,7 @@ class Scene:
     name: str = "bricks"
     material: MaterialSpec = MaterialSpec()
     camera: Camera = Camera()
+    lookup: Lookup = Lookup()
     light: Light = Light()
     effects: tuple[str, ...] = DEFAULT_EFFECTS
     interreflection_depth: int = DEFAULT_INTERREFLECTION_DEPTH
@@ -134,7 +128,7 @@ class Scene:
         for name, value in (("material.depth", m.depth), ("material.size", m.size),
                             ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
                             ("light.irradiance", lt.irradiance), ("samples.spp", self.spp),
-                            ("samples.seed", self.seed), ("camera.supersampling", self.camera.supersampling),
+                            ("samples.seed", self.seed),
                             ("effects.interreflection_depth", self.interreflection_depth),
                             *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg))):
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -172,8 +166,15 @@ class Scene:
         unknown = [e for e in self.effects if e not in EFFECTS]
         if unknown or not self.effects:
             raise InputError(what, f"unknown or no effects {unknown}; choose from {', '.join(EFFECTS)}")
-        if self.camera.supersampling < 1 or self.spp < 1:
-            raise InputError(what, "camera.supersampling and samples.spp must be at least 1")
+        if self.spp < 1:
+            raise InputError(what, "samples.spp must be at least 1")
+        self.camera.validate(what)
+        self.lookup.validate(what)
+        if self.camera.kind == "perspective":
+            needs_v = [e for e in ("specular", "reflection_occlusion") if self.declares(e)]
+            if needs_v:
+                raise InputError(what, f"{' and '.join(needs_v)} with a perspective camera need the view direction "
+                                       "per pixel, which the techniques do not take yet: use an orthographic camera")
         return self
 
     def declares(self, effect: str) -> bool:
@@ -198,6 +199,11 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
         return tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
         raise InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}") from None
+
+
+def _pairs(section: dict, keys) -> dict:
+    """A TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
+    return {k: (tuple(v) if k in keys and isinstance(v, list) else v) for k, v in section.items()}
 
 
 def material_defaults(height: str) -> dict:
@@ -265,7 +271,8 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         scene = Scene(
             name=data.get("name", path.stem),
             material=MaterialSpec(**mat),
-            camera=Camera(**data.get("camera", {})),
+            camera=Camera(**_pairs(data.get("camera", {}), ("resolution", "film_size"))),
+            lookup=Lookup(**data.get("lookup", {})),
             light=Light(**light),
             effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
             interreflection_depth=int(effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH)),
@@ -286,7 +293,9 @@ def override(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
 
     Keys: ``height, size, depth, boundary, shading, elevation, azimuths, light, light_radius,
-    effects, spp, seed, supersampling``.
+    effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
+    ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
+    lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
     mat = scene.material
@@ -309,8 +318,18 @@ def override(scene: Scene, **changes) -> Scene:
     if "effects" in c:
         effects = tuple(e.strip() for e in c["effects"].split(",") if e.strip()) \
             if isinstance(c["effects"], str) else tuple(c["effects"])
-    camera = dataclasses.replace(scene.camera, **({"supersampling": c["supersampling"]} if "supersampling" in c else {}))
-    return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera,
+    camera_keys = {"camera": "kind", "supersampling": "supersampling", "view_elevation": "elevation_deg",
+                   "view_azimuth": "azimuth_deg", "fov": "fov_deg", "distance": "distance",
+                   "resolution": "resolution", "film_size": "film_size"}
+    camera = dataclasses.replace(scene.camera, **{camera_keys[k]: (tuple(v) if isinstance(v, list) else v)
+                                                  for k, v in c.items() if k in camera_keys})
+    placed = [k for k in ("view_elevation", "view_azimuth", "fov", "distance", "resolution", "film_size") if k in c]
+    if camera.kind == "top" and placed:
+        raise InputError("--" + placed[0].replace("_", "-"), "places a camera: choose one with --camera "
+                                                            "orthographic or perspective (top is straight down)")
+    lookup = dataclasses.replace(scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax",
+                                                                    "parallax_steps") if k in c})
+    return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera, lookup=lookup,
                                spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()
 
 
@@ -319,28 +338,29 @@ def override(scene: Scene, **changes) -> Scene:
 # --------------------------------------------------------------------------
 
 def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
-    """Pixels of a render of a ``rows x cols`` height map."""
-    return rows * camera.supersampling, cols * camera.supersampling
+    """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map (:meth:`hzval.camera.Camera.image_shape`)."""
+    return camera.image_shape(rows, cols)
 
 
 def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int,
                      pixels: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space ``(x, y)`` of every sample, float32 arrays of shape ``(pixels * spp,)``.
+    """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels * spp,)``.
 
-    Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``.
-    Samples are stratified: ``spp = n * n`` gives one jittered sample per cell
-    of an ``n x n`` grid over the pixel, other counts are uniform. Both
+    Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``,
+    at the jitter of :func:`hzval.camera.pixel_jitter` in its pixel. Both
     renderers use these positions, so no error comes from sampling alone.
     Jittered points almost never land on a texel centre, where the mesh has
     a vertex and shadow rays self-intersect (docs/ARCHITECTURE.md, "Known pitfalls").
+    Other views' samples are where their camera rays meet the surface (the
+    truth) or the technique's plane (:mod:`hzval.lookup`).
 
     ``pixels``: ``(first, stop)``, only the samples of the pixels ``first <= p < stop`` (a band
-    of rows for a renderer that works in bands), bit for bit those of the whole image. The
-    jitters are one PCG64 stream, all ``u`` then all ``v``, one double each; a band starts its
-    own copy of the stream at its offset (``PCG64.advance``), so bands and the whole image
-    alike are made in chunks of :data:`SAMPLE_CHUNK_PIXELS` pixels on a thread per core, in
-    bounded memory.
+    of rows for a renderer that works in bands), bit for bit those of the whole image; bands and
+    the whole image alike are made in chunks of :data:`SAMPLE_CHUNK_PIXELS` pixels on a thread
+    per core, in bounded memory.
     """
+    if camera.kind != "top":
+        raise ValueError(f"sample_positions is the top view's; a {camera.kind} camera's samples come from its rays")
     height, width = image_shape(rows, cols, camera)
     if pixels is None or tuple(pixels) == (0, height * width):
         return _all_positions(rows, cols, camera, spp, seed)
@@ -358,9 +378,13 @@ def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
 
 
 def forget_sample_positions() -> None:
-    """Drop the whole image's shared positions (:func:`sample_positions`): a sweep's set-up is done
-    with them once the truth and every technique hold what they need (2.1 GB at 4096 x 4096)."""
+    """Drop the whole image's shared positions (:func:`sample_positions`, and the techniques'
+    :func:`hzval.lookup.samples_for`): a sweep's set-up is done with them once the truth and every
+    technique hold what they need (2.1 GB at 4096 x 4096)."""
+    from hzval import lookup
+
     _all_positions.cache_clear()
+    lookup.forget()
 
 
 def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first: int, stop: int):
@@ -384,26 +408,11 @@ def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first:
 SAMPLE_CHUNK_PIXELS = 1 << 18
 
 
-def _stream(entropy, offset: int) -> np.random.Generator:
-    """``np.random.default_rng(entropy)`` advanced by ``offset`` doubles (PCG64 draws one 64-bit
-    word per double of ``random``)."""
-    bits = np.random.PCG64(np.random.SeedSequence(entropy))
-    bits.advance(offset)
-    return np.random.Generator(bits)
-
-
 def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a: int, b: int):
     """:func:`sample_positions` of the pixels ``a <= p < b``."""
     ss = camera.supersampling
     height, width = image_shape(rows, cols, camera)
-    total = height * width * spp
-    u = _stream([seed, 0x5A3F], a * spp).random((b - a, spp))
-    v = _stream([seed, 0x5A3F], total + a * spp).random((b - a, spp))
-    n = int(round(math.sqrt(spp)))
-    if n * n == spp:
-        cell = np.arange(spp)
-        u = ((cell % n)[None, :] + u) / n
-        v = ((cell // n)[None, :] + v) / n
+    u, v = pixel_jitter((height, width), spp, seed, a, b)
     prow, pcol = np.divmod(np.arange(a, b), width)
     # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top
     x = (pcol[:, None] + u) / ss
@@ -426,8 +435,8 @@ def light_samples(light: Light, azimuth_deg: float, count: int, seed: int,
         return np.broadcast_to(centre, (stop - first, 3)).astype(np.float32)
     cos_max = math.cos(math.radians(light.radius_deg))
     # one PCG64 stream: all u1, then all u2 (as default_rng([seed, 0x11647]).random twice)
-    u1 = _stream([seed, 0x11647], first).random(stop - first)
-    u2 = _stream([seed, 0x11647], count + first).random(stop - first)
+    u1 = stream([seed, 0x11647], first).random(stop - first)
+    u2 = stream([seed, 0x11647], count + first).random(stop - first)
     cos_t = 1.0 - u1 * (1.0 - cos_max)
     sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0, None))
     phi = 2 * math.pi * u2
@@ -485,7 +494,9 @@ class Frame:
     and any other per-effect term (e.g. ``ambient``). ``variance``: for Monte
     Carlo images, the per-pixel variance of the pixel's mean (squared
     standard error), keyed like ``layers`` (``"image"`` for the image).
-    ``seconds``: render time, kernels synchronised.
+    ``seconds``: render time, kernels synchronised. ``mask``: ``(H, W)`` bool, the
+    pixels whose camera rays see the surface (a view other than ``top``; ``None``: all);
+    the others are left out of every metric.
     """
 
     azimuth_deg: float
@@ -494,3 +505,4 @@ class Frame:
     layers: dict[str, np.ndarray] = field(default_factory=dict)
     variance: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
+    mask: np.ndarray | None = None

@@ -62,7 +62,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import approx, backend, bake, compare, files, heightmap, images, materials, report, shading, technique, truth
+from hzval import approx, backend, bake, compare, files, heightmap, images, lookup, materials, report, shading
+from hzval import technique, truth
+from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
 from hzval.errors import InputError
@@ -158,6 +160,9 @@ class _Setup:
     timings: dict
     notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
     estimate: int = 0                                           # estimated peak memory, bytes
+    perfect: list = dataclasses.field(default_factory=list)    # the techniques at the truth's hits
+    view: dict = dataclasses.field(default_factory=dict)       # metrics.json's "view" (_view_errors)
+    view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
 
 
 #: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
@@ -169,6 +174,8 @@ PEAK_BASE_BYTES = 0.3 * 2 ** 30
 PEAK_BYTES_PER_PIXEL = 560
 PEAK_BYTES_PER_SAMPLE = 24
 PEAK_BYTES_PER_KEPT_SAMPLE = 76
+#: What a view other than ``top`` adds per sample of a band (rays on the host, the hits).
+PEAK_BYTES_PER_VIEW_SAMPLE = 64
 
 
 def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
@@ -179,8 +186,12 @@ def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
     samples = H * W * scene.spp
     bands = truth.bands(H, W, scene.spp)
     kept = max(b - a for a, b in bands) * scene.spp
+    view = 0
+    if scene.camera.kind != "top":
+        # a band's rays in float64 on the host, the truth's hits, the techniques built twice
+        view = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples
     return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_SAMPLE * samples
-               + PEAK_BYTES_PER_KEPT_SAMPLE * kept)
+               + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
 
 
 def material_shape(scene) -> tuple[int, int]:
@@ -234,9 +245,81 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
+    setup = _Setup(material, params, the_truth, plain, built, timings, notices, estimate)
+    if the_truth.hits is not None:
+        t0 = time.perf_counter()
+        _set_up_view(setup, ctx, chosen, options)
+        timings["view_setup_s"] = time.perf_counter() - t0
     sc.forget_sample_positions()
     backend.release_memory()
-    return _Setup(material, params, the_truth, plain, built, timings, notices, estimate)
+    return setup
+
+
+def _set_up_view(setup: _Setup, ctx, chosen, options: Options) -> None:
+    """A view other than ``top``: every technique again at the truth's own hit points (perfect
+    parallax, :attr:`_Setup.perfect`) and the view's errors (:func:`view_errors`)."""
+    hits = setup.truth.hits
+    own = ctx.samples()
+    at_truth = lookup.from_points(hits[0], hits[1], own)
+    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth)
+    setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
+    setup.view, setup.view_maps = view_errors(setup.truth, own)
+
+
+def view_errors(the_truth, samples: lookup.Samples) -> tuple[dict, dict]:
+    """``(record, maps)``: where the techniques' lookups land against what the truth sees.
+
+    ``parallax_error``: per pixel, the mean distance in texels (``wrap``: the shortest, across
+    tiles) between the point a technique shades and the truth's hit point of the same sample;
+    ``footprint``: per pixel, ``max(|dP/dcol|, |dP/drow|)`` on the technique's plane, the texels
+    a pixel covers (OpenGL's ``rho``). The record has their means and quantiles over the pixels
+    that see the surface."""
+    rows, cols, spp = samples.rows, samples.cols, samples.spp
+    hx, hy = the_truth.hits
+    dx = samples.x.astype(np.float64) - hx
+    dy = samples.y.astype(np.float64) - hy
+    if the_truth.scene.material.boundary == "wrap":
+        dx, dy = (dx + cols / 2) % cols - cols / 2, (dy + rows / 2) % rows - rows / 2
+    seen = the_truth._seen_samples.reshape(-1, spp)
+    dist = np.where(seen, np.hypot(dx, dy).reshape(-1, spp), 0.0)
+    per_pixel = (dist.sum(axis=1) / np.maximum(seen.sum(axis=1), 1)).reshape(the_truth.shape)
+    mask = the_truth.seen
+    maps = {"parallax_error": per_pixel.astype(np.float32)}
+    record = {"seen_fraction": float(mask.mean()), "parallax_error_texels": _spread(per_pixel[mask])}
+    view = the_truth.scene.camera.view(rows, cols, (the_truth.z_min, the_truth.z_max))
+    z = lookup.plane_height(the_truth.scene.lookup, the_truth.z_min, the_truth.z_max, the_truth.z_mean)
+    fp = view.footprints(z)
+    rho = np.maximum(np.hypot(fp[:, 0], fp[:, 1]), np.hypot(fp[:, 2], fp[:, 3])).reshape(the_truth.shape)
+    maps["footprint"] = rho.astype(np.float32)
+    record["footprint_texels"] = _spread(rho[mask & np.isfinite(rho)])
+    record["plane_z"] = float(z)
+    return record, maps
+
+
+def _write_view_maps(report_dir: Path, maps: dict, seen: np.ndarray) -> dict:
+    """``view/<name>.exr`` (texels, NaN where no surface is seen) and a PNG of each of the view's
+    maps (magma, 0 to the largest seen value, the unseen pixels in the background colour);
+    their paths relative to ``report_dir``."""
+    folder = report_dir / "view"
+    rel = {}
+    for name, values in maps.items():
+        v = np.where(seen, values, np.float32(np.nan)).astype(np.float32)
+        files.write_exr(folder / f"{name}.exr", {"Y": v}, half=False)
+        top = float(np.nanmax(v)) if np.isfinite(v).any() else 1.0
+        rgb = images.magma(np.nan_to_num(v / max(top, 1e-12)))
+        rgb[~seen] = files.unit_to_u8(np.asarray(UNSEEN_DISPLAY))
+        files.write_png(folder / f"{name}.png", rgb)
+        rel[name] = f"view/{name}.exr"
+        rel[f"{name}_png"] = f"view/{name}.png"
+    return rel
+
+
+def _spread(values: np.ndarray) -> dict:
+    """Mean and quantiles of ``values`` (empty: nulls)."""
+    if values.size == 0:
+        return {"mean": None, "p50": None, "p95": None, "max": None}
+    q = np.quantile(values, [0.5, 0.95])
+    return {"mean": float(values.mean()), "p50": float(q[0]), "p95": float(q[1]), "max": float(values.max())}
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True) -> dict:
@@ -265,6 +348,8 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
 
     t_start = time.perf_counter()
     setup = _set_up(scene, out, options)
+    if setup.view_maps:
+        setup.view["files"] = _write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)
     frames, clock = [], {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
@@ -287,17 +372,6 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     files.write_json(report_dir / "frames.json", engine_frames(scene, result))
     files.write_json(report_dir / "metrics.json", result)
     return result
-
-
-def camera_record(scene, rows: int, cols: int) -> dict:
-    """The view in ``metrics.json``'s camera layout (docs/ARCHITECTURE.md), tangent-space texels.
-
-    The ``top`` view: orthographic, straight down over the tile's centre, up = +y, the film the
-    whole tile (``film_size`` [w, h] in texels) at ``resolution`` [cols, rows] pixels. A pixel
-    (row, col) sees ``x = (col + 0.5) w / cols``, ``y = h - (row + 0.5) h / rows``."""
-    H, W = sc.image_shape(rows, cols, scene.camera)
-    return {"kind": "top", "eye": [cols / 2.0, rows / 2.0, 1.0e6], "target": [cols / 2.0, rows / 2.0, 0.0],
-            "up": [0.0, 1.0, 0.0], "fov_deg": None, "film_size": [float(cols), float(rows)], "resolution": [W, H]}
 
 
 def engine_frames(scene, result: dict) -> dict:
@@ -332,6 +406,18 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     plain, direct = setup.unshadowed.render(az)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az)) for t in setup.techniques]
+    mask = t_frame.mask
+    perfect = {}
+    if mask is not None:
+        # a view: what no camera ray sees is the background in every image, and left out of the metrics
+        bg = (cv.srgb_decode(np.asarray(UNSEEN_DISPLAY)) / scale).astype(np.float32)
+        t_frame, plain = _unseen(t_frame, mask, bg), _unseen(plain, mask, bg)
+        rendered = [(t, _unseen(f, mask, bg)) for t, f in rendered]
+        V = t_frame.layers.get("visibility")
+        for t in setup.perfect:
+            F = t.render(az).layers.get("factor")
+            if V is not None and F is not None:
+                perfect[t.name] = compare.visibility_metrics(V, F, mask)[0]
     if len(setup.truth.bands) > 1:
         # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back
         # before the comparison's NumPy arrays (smaller images keep them: re-faulting the pages
@@ -351,12 +437,14 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     del ref
     clock["compare_s"] += time.perf_counter() - t0
     rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, plain, compared, scale,
-                                            truth_shown=truth_shown, all_files=all_files)
+                                            truth_shown=truth_shown, all_files=all_files, mask=mask)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
     if floor is not None:
         frame["floor"] = floor
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
+    for name, value in perfect.items():
+        per[name]["perfect_parallax_mae"] = value
     primary = per.get(technique.PRIMARY)
     if primary is not None:             # the documented top-level keys are the primary technique's
         frame.update({k: v for k, v in primary.items() if k not in ("seconds", "files")},
@@ -365,6 +453,17 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
             rel[_PRIMARY_FILE_KEYS.get(key, key)] = value
     frame.update(files=rel, techniques=per)
     return frame
+
+
+#: The display (sRGB) colour of pixels that see no surface (a view's sky, or off an ``open`` tile).
+UNSEEN_DISPLAY = (0.33, 0.42, 0.55)
+
+
+def _unseen(frame, mask: np.ndarray, background: np.ndarray):
+    """``frame`` with ``background`` (linear) where ``mask`` is false and its layers 0 there."""
+    image = np.where(mask[..., None], frame.image, background).astype(np.float32)
+    layers = {k: np.where(mask, v, 0.0).astype(np.float32) for k, v in frame.layers.items()}
+    return dataclasses.replace(frame, image=image, layers=layers, mask=mask)
 
 
 def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | None, V: np.ndarray | None):
@@ -383,6 +482,27 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
 
 #: The primary technique's files under the frame's own ``files`` (the documented keys).
 _PRIMARY_FILE_KEYS = {"image": "approx", "png": "approx_png"}
+
+
+def _view_parameters(scene) -> dict:
+    """The camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
+    view with the default lookup, whose parameters are as they always were)."""
+    cam, lk = scene.camera, scene.lookup
+    if cam.kind == "top" and lk == lookup.Lookup():
+        return {}
+    out = {"camera": cam.kind}
+    if cam.kind != "top":
+        out.update(view_elevation_deg=cam.elevation_deg, view_azimuth_deg=cam.azimuth_deg)
+    if cam.kind == "perspective":
+        out.update(fov_deg=cam.fov_deg, distance_tiles=cam.distance)
+    out.update(plane=lk.plane, filter=lk.filter, parallax=lk.parallax)
+    if lk.mipmapped:
+        out["mips"] = lk.mips
+    if lk.filter == "anisotropic":
+        out["max_anisotropy"] = lk.max_anisotropy
+    if lk.parallax == "occlusion":
+        out["parallax_steps"] = lk.parallax_steps
+    return out
 
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
@@ -405,9 +525,11 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling,
+                       **_view_parameters(scene),
                        "techniques": [t.name for t in setup.techniques]},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
-        "camera": camera_record(scene, setup.material["rows"], setup.material["cols"]),
+        "camera": setup.truth.view.record(),
+        **({"view": setup.view} if setup.view else {}),
         "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
                      "note": "display = clip(scale * radiance); the largest radiance the declared effects "
                              "can produce shows as 1"},
@@ -439,7 +561,8 @@ def _shown(display: np.ndarray) -> np.ndarray:
 
 
 def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale: float,
-                 truth_shown: np.ndarray | None = None, all_files: bool = False) -> tuple[dict, dict, float]:
+                 truth_shown: np.ndarray | None = None, all_files: bool = False,
+                 mask: np.ndarray | None = None) -> tuple[dict, dict, float]:
     """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
     ``{key: path relative to out}`` (``metrics.json``'s ``files``).
 
@@ -462,7 +585,8 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     frame at 16 spp lie below half's smallest normal (6.1e-5), where half rounds them by up
     to 2.3% (p99), far inside the estimate's own relative error, sqrt(2 / (spp - 1)) = 37%;
     an image with R == G == B as one ``Y`` channel and an 8-bit grey PNG
-    (lossless); FLIP and visibility-difference maps as palette PNGs (exact).
+    (lossless); FLIP and visibility-difference maps as palette PNGs (exact). ``mask``: the
+    pixels a view's camera rays see; the layers' EXRs are NaN at the others.
     """
     t0 = time.perf_counter()
     folder = out / "frames" / name
@@ -484,6 +608,9 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     def as_is(pixels):
         return pixels
 
+    def layer(values):
+        return values if mask is None else np.where(mask, values, np.float32(np.nan)).astype(np.float32)
+
     rel = {}
     exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
     if all_files:
@@ -494,7 +621,7 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     png(rel, "plain_png", "plain.png", as_is, shown(plain.image))
     V = truth_frame.layers.get("visibility")
     if V is not None:
-        exr(rel, "visibility", "visibility.exr", {"Y": V})
+        exr(rel, "visibility", "visibility.exr", {"Y": layer(V)})
         if all_files:
             png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
     per = {}
@@ -506,7 +633,7 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
         png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
         F = frame.layers.get("factor")
         if F is not None:
-            exr(own, "factor", f"{stem}_factor.exr", {"Y": F})
+            exr(own, "factor", f"{stem}_factor.exr", {"Y": layer(F)})
             if all_files:
                 png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
             if V is not None:

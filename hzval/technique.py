@@ -39,6 +39,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
+from hzval import lookup
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene
 
@@ -79,13 +80,23 @@ class Context:
     ``bake``: its :class:`hzval.bake.Bake`; ``albedo``: linear ``(rows,
     cols, 3)``. :meth:`shared` lets techniques share what they would each
     build (the unshadowed shading of :func:`hzval.approx.unshadowed`).
+    ``points``: where the techniques read their textures, when not where the
+    camera's rays meet their plane (:meth:`samples`): the truth's own hit
+    points, for the factor at perfect parallax.
     """
 
     scene: Scene
     height: np.ndarray
     bake: Any
     albedo: np.ndarray
+    points: lookup.Samples | None = None
     _shared: dict = field(default_factory=dict, repr=False)
+
+    def samples(self) -> lookup.Samples:
+        """Where every technique of the context reads its textures (:func:`hzval.lookup.samples_for`)."""
+        if self.points is not None:
+            return self.points
+        return lookup.samples_for(self.scene, *self.height.shape, self.height)
 
     def shared(self, key: str, make: Callable[[], Any]) -> Any:
         """The object stored under ``key``, made by ``make()`` the first time."""

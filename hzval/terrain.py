@@ -101,10 +101,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval import approx, backend
+from hzval import approx, backend, lookup
 from hzval import conventions as cv
 from hzval.errors import InputError
-from hzval.scene import Frame, Scene, image_shape, sample_positions
+from hzval.scene import Frame, Scene, image_shape
 from hzval.technique import Variant
 
 __all__ = ["TerrainShadow", "SweepPlan", "plan_sweep", "boundaries_numpy", "factor_numpy",
@@ -352,7 +352,8 @@ class TerrainShadow(approx.HeightFieldShadow):
     not_modelled = NOT_MODELLED
 
     def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo: np.ndarray | None = None,
-                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: approx.Unshadowed | None = None):
+                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: approx.Unshadowed | None = None,
+                 samples=None):
         backend.variant()
         if impl not in IMPLS:
             raise InputError("impl", f"must be one of {', '.join(IMPLS)}, got {impl!r}")
@@ -370,17 +371,18 @@ class TerrainShadow(approx.HeightFieldShadow):
         self.relief = float(self.h.max() - self.h.min())
         self.simulated = self.simulates(scene)
         self._shadow = "shadow" in self.simulated
-        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed)
-        self._upload_samples()
+        samples = samples if samples is not None else lookup.samples_for(scene, rows, cols, height)
+        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed, samples)
+        self._upload_samples(samples)
 
-    def _upload_samples(self) -> None:
+    def _upload_samples(self, samples) -> None:
         """The scene's sample positions, as the truth and the horizon map use them."""
         import drjit as dr
         import mitsuba as mi
 
         scene = self.scene
         self.spp = int(scene.spp)
-        x, y = sample_positions(self.rows, self.cols, scene.camera, self.spp, scene.seed)
+        x, y = samples.x, samples.y
         self._x = self._y = None
         if self.impl != "drjit":
             self._x, self._y = x, y

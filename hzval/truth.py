@@ -242,6 +242,7 @@ class Truth:
         self.timings: dict[str, float] = {}
 
         self._build_surface(h)
+        self.view = scene.camera.view(rows, cols, (self.z_min, self.z_max))
         self._albedo_texels = self._load_albedo(albedo)
         self._positions = self._check_positions(positions)
         self.count = self.shape[0] * self.shape[1] * self.spp
@@ -257,7 +258,7 @@ class Truth:
         mat, light = self.scene.material, self.scene.light
         t0 = time.perf_counter()
         h_tex = cv.heights_in_texels(h, mat.depth)
-        self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
+        self.z_min, self.z_max, self.z_mean = float(h_tex.min()), float(h_tex.max()), float(h_tex.mean())
         self.relief = self.z_max - self.z_min
         lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
         self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
@@ -282,6 +283,9 @@ class Truth:
         # a hop may run this far horizontally from any point of the tile and
         # stay over the margin (texel centres start half a texel inside)
         self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
+        # toward the camera: the top view's +z, an orthographic camera's direction (a perspective
+        # one's differs per pixel: the effects that read it are refused with it, hzval.scene)
+        self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._c = {  # scene-dependent numbers, opaque so that kernels are shared
             "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
             "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
@@ -334,6 +338,9 @@ class Truth:
         more (module docstring, "Memory") only ``A`` is kept, per band, and the reflection layer."""
         t0 = time.perf_counter()
         self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
+        self.seen, self.hits = None, None
+        if self.scene.camera.kind != "top":
+            self._trace_view()
         ambient, reflects = self.scene.declares("ambient"), self.scene.declares("reflection_occlusion")
         self.timings["primary_s"] = 0.0
         if ambient:
@@ -345,7 +352,8 @@ class Truth:
             if len(self.bands) > 1 and not (ambient or reflects):
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
-                self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop), self.rows, self.cols)[2]
+                self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop)[:2],
+                                                        self.rows, self.cols)[2]
                 continue
             st = self._camera_samples(first, stop)
             self.moved_off_edges += st.moved
@@ -369,7 +377,8 @@ class Truth:
         import mitsuba as mi
 
         rows, cols, spp = self.rows, self.cols, self.spp
-        xs, ys, moved = _off_edge_lines(*self._band_positions(first, stop), rows, cols)
+        xs, ys, seen = self._band_positions(first, stop)
+        xs, ys, moved = _off_edge_lines(xs, ys, rows, cols)
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
         o, n, ns, valid = self._surface_at(x, y, coherent=True)
@@ -378,7 +387,8 @@ class Truth:
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
-        return _Samples(first, stop, first * spp, (stop - first) * spp, o, n, ns, albedo, moved)
+        return _Samples(first, stop, first * spp, (stop - first) * spp, o, n, ns, albedo, moved,
+                        seen=None if seen is None else mi.Bool(seen))
 
     def _albedo_at(self, x, y, active=True):
         """The linear albedo of the texel that holds ``(x, y)`` (nearest, as the techniques read it)."""
@@ -394,11 +404,67 @@ class Truth:
         return dr.gather(mi.Color3f, self._albedo_texels, mi.UInt32(row * n_cols + col), active)
 
     def _band_positions(self, first: int, stop: int):
-        """The sample positions of the pixels ``first <= p < stop`` (the scene's, or the tests')."""
+        """``(x, y, seen)`` of the samples of the pixels ``first <= p < stop``: the scene's top-view
+        positions or the tests' (``seen`` None: all), or where the camera's rays meet the surface
+        (``seen``: which do; the others are put on the tile, and count for nothing)."""
         scene, spp = self.scene, self.spp
+        if self.hits is not None:
+            a, b = first * spp, stop * spp
+            return self.hits[0][a:b], self.hits[1][a:b], self._seen_samples[a:b]
+        if scene.camera.kind != "top":
+            return self._view_hits(first, stop)
         if self._positions is None:
-            return sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed, pixels=(first, stop))
-        return tuple(p[first * spp:stop * spp] for p in self._positions)
+            return (*sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed, pixels=(first, stop)),
+                    None)
+        return (*(p[first * spp:stop * spp] for p in self._positions), None)
+
+    def _trace_view(self) -> None:
+        """Trace every camera ray once (a view other than ``top``): :attr:`seen`, the pixels whose
+        rays meet the surface, and, when one band holds the image, :attr:`hits` (float32 ``(x, y)``
+        of each sample's surface point, in the tile), which the frames reuse."""
+        H, W = self.shape
+        seen_px, hx, hy, hs = [], [], [], []
+        for first, stop in self.bands:
+            xs, ys, seen = self._view_hits(first, stop)
+            seen_px.append(seen.reshape(-1, self.spp).any(axis=1))
+            if len(self.bands) == 1:
+                hx.append(xs), hy.append(ys), hs.append(seen)
+        self.seen = np.concatenate(seen_px).reshape(H, W)
+        if len(self.bands) == 1:
+            self.hits = (hx[0], hy[0])
+            self._seen_samples = hs[0]
+
+    def _view_hits(self, first: int, stop: int):
+        """Where the camera rays of the pixels ``first <= p < stop`` meet the surface: float32 ``x, y``
+        in the tile (``wrap``: the endless tiling, in hops; ``open``: the tile alone) and which rays
+        do. A ray first runs in float64, on the host, to just above the highest point (wrapped into
+        the tile), so that the float32 rays start near the surface whatever the eye's distance."""
+        import drjit as dr
+        import mitsuba as mi
+
+        o, d = self.view.rays(self.spp, self.scene.seed, first, stop)
+        down = d[:, 2] < 0.0
+        top = self.z_max + 4.0 * self.lift + 1e-3
+        t0 = np.where(down & (o[:, 2] > top), (top - o[:, 2]) / np.where(down, d[:, 2], -1.0), 0.0)
+        o = o + t0[:, None] * d
+        wrap = self.scene.material.boundary == "wrap"
+        if wrap:
+            o[:, 0] %= self.cols
+            o[:, 1] %= self.rows
+        lowest = float(np.min(-d[down, 2])) if down.any() else 1.0
+        hops = self._hops_for(math.asin(min(1.0, lowest))) + 1 if wrap else 1
+        O = mi.Point3f(*(mi.Float(o[:, k].astype(np.float32)) for k in range(3)))
+        D = mi.Vector3f(*(mi.Float(d[:, k].astype(np.float32)) for k in range(3)))
+        del o, d
+        x, y, hit, _ = self._next_surface(O, D, mi.Bool(down), hops)
+        dr.eval(x, y, hit)
+        seen = np.asarray(hit, bool)
+        xs, ys = np.asarray(x, np.float32).copy(), np.asarray(y, np.float32).copy()
+        # the rays that see nothing are put at a point of the tile: traced, and counted for nothing
+        xs[~seen], ys[~seen] = np.float32(self.cols * 0.5 + 0.25), np.float32(self.rows * 0.5 + 0.25)
+        if not wrap:
+            xs, ys = np.clip(xs, 0.0, self.cols), np.clip(ys, 0.0, self.rows)
+        return xs, ys, seen
 
     def _frame_samples(self):
         """The samples of every band for a frame: the kept ones, or each band's traced again."""
@@ -446,7 +512,7 @@ class Truth:
 
         t0 = time.perf_counter()
         rng = self._rng(_REFLECTION_STREAM, st)
-        wo, h = _lobe_direction(st.ns, mi.Vector3f(0.0, 0.0, 1.0),
+        wo, h = _lobe_direction(st.ns, self._toward_eye,
                                 mi.Point2f(rng.next_float32(), rng.next_float32()))
         w = dr.select(dr.dot(st.ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
         blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
@@ -713,12 +779,14 @@ class Truth:
         for st in self._frame_samples():
             rows = slice(st.first // W, st.stop // W)
             sums = self._render_band(st, azimuth_deg)
+            n = sums.pop("seen", spp)              # samples per pixel that see the surface
             for k in ("visibility", "ambient"):
                 if k in sums:
-                    # 0/1 samples: the squared deviations sum to s (1 - s / spp)
-                    place(k, rows, *_mean_and_variance(sums[k], sums[k] * (1.0 - sums[k] / spp), spp))
+                    # 0/1 samples: the squared deviations sum to s (1 - s / n)
+                    place(k, rows, *_mean_and_variance(sums[k], sums[k] * (1.0 - sums[k] / np.maximum(n, 1)), n))
             if "image" in sums:
-                place("image", rows, *_mean_and_variance(sums["image"], sums["image_ss"], spp))
+                n3 = n if np.isscalar(n) else n[:, None]
+                place("image", rows, *_mean_and_variance(sums["image"], sums["image_ss"], n3))
         image = layers.pop("image", None)
         if image is not None:
             variance["image"] = variance.pop("image")
@@ -732,7 +800,7 @@ class Truth:
             variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
         seconds = time.perf_counter() - t0
         return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
-                     layers=layers, variance=variance, seconds=seconds)
+                     layers=layers, variance=variance, seconds=seconds, mask=self.seen)
 
     def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, np.ndarray]:
         """Per-pixel sums over the samples of the band ``st``: ``visibility`` and ``ambient`` (the
@@ -743,7 +811,6 @@ class Truth:
 
         sc = self.scene
         L, lowest, highest = self.light_directions(azimuth_deg, st)
-        up = mi.Vector3f(0.0, 0.0, 1.0)
         sums: dict[str, object] = {}
         vis = None
         if sc.declares("shadow"):
@@ -755,7 +822,7 @@ class Truth:
         elif sc.declares("interreflection"):
             img = self._path_trace(st, L, vis, azimuth_deg)
         else:
-            img = self._direct(st.ns, L, up, st.albedo)
+            img = self._direct(st.ns, L, self._toward_eye, st.albedo)
             if vis is not None:
                 img = img * vis
             if st.ambient is not None:
@@ -764,13 +831,23 @@ class Truth:
             sums["ambient"] = st.ambient
 
         spp = self.spp
+        if st.seen is not None:
+            # a sample whose ray sees no surface counts for nothing: pixel means are over the others
+            sums = {k: dr.select(st.seen, v, 0.0) for k, v in sums.items()}
+            sums["seen"] = dr.select(st.seen, 1.0, 0.0)
+            if img is not None:
+                img = dr.select(st.seen, img, 0.0)
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
         if img is not None:
             # two passes: squared deviations from the pixel mean, not E[x^2] - E[x]^2,
             # which cancels catastrophically in float32 where the image hardly varies
             img_sum = dr.block_sum(img, spp)
             pixel = dr.arange(mi.UInt32, st.count) // spp
-            dev = img - dr.gather(mi.Color3f, img_sum, pixel) * (1.0 / spp)
+            if st.seen is None:
+                dev = img - dr.gather(mi.Color3f, img_sum, pixel) * (1.0 / spp)
+            else:
+                n = dr.maximum(dr.gather(mi.Float, reduced["seen"], pixel), 1.0)
+                dev = dr.select(st.seen, img - dr.gather(mi.Color3f, img_sum, pixel) / n, 0.0)
             reduced["image"], reduced["image_ss"] = img_sum, dr.block_sum(dev * dev, spp)
         dr.eval(reduced)
         backend.sync()
@@ -830,7 +907,7 @@ class Truth:
         lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
 
         o, n, ns, albedo = st.o, st.n, st.ns, st.albedo
-        v = mi.Vector3f(0.0, 0.0, 1.0)            # toward the previous vertex (the camera)
+        v = self._toward_eye                      # toward the previous vertex (the camera)
         beta = mi.Color3f(1.0)                    # path throughput
         result = mi.Color3f(0.0)
         active = mi.Bool(True)
@@ -924,6 +1001,7 @@ class _Samples:
     albedo: object
     moved: int
     ambient: object = None
+    seen: object = None
 
 
 def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -1027,15 +1105,22 @@ def _lobe_direction(n, v, u):
     return 2.0 * dr.dot(v, h) * h - v, h
 
 
-def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
+def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp) -> tuple[np.ndarray, np.ndarray]:
     """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2.
 
-    The variance of the mean is the sample variance (``spp - 1`` in the
-    denominator) over ``spp``: NaN for one sample, which has none. Float32 out.
+    ``spp``: the samples of every pixel, or an array of each pixel's (those that see the surface;
+    a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1`` in the
+    denominator) over ``n``: NaN for one sample, which has none. Float32 out.
     """
-    mean = s1 / spp
-    if spp < 2:
-        var = np.full_like(mean, np.nan)
-    else:
-        var = np.maximum(ss, 0.0) / (spp - 1) / spp
-    return mean.astype(np.float32), var.astype(np.float32)
+    if np.isscalar(spp):
+        mean = s1 / spp
+        if spp < 2:
+            var = np.full_like(mean, np.nan)
+        else:
+            var = np.maximum(ss, 0.0) / (spp - 1) / spp
+        return mean.astype(np.float32), var.astype(np.float32)
+    n = np.asarray(spp, np.float64)
+    mean = s1 / np.maximum(n, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        var = np.where(n >= 2, np.maximum(ss, 0.0) / np.maximum(n - 1, 1.0) / np.maximum(n, 1.0), np.nan)
+    return mean.astype(np.float32), np.broadcast_to(var, mean.shape).astype(np.float32)
