@@ -99,6 +99,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_check(sub)
     _add_tradeoff(sub)
+    _add_views(sub)
     _add_export_scene(sub)
     _add_score(sub)
     _add_suite(sub)
@@ -160,6 +161,7 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
+    _add_view_flags(p)
     p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
     p.add_argument("--angles", type=int, default=32, help="bake angular bins, a multiple of 2 x --directions (default 32)")
     p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
@@ -169,6 +171,96 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
                    help="also write each frame's files that the others determine: the unshadowed render and "
                         "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
     _add_technique_args(p)
+
+
+def _add_views(sub) -> None:
+    from hzval import views
+
+    p = sub.add_parser("views", help="the light sweep from a set of views, and where each technique breaks",
+                       description="Sweep one material from the top, orthographically at 60, 45, 30 and 15 "
+                                   "degrees and in perspective near and far, each with bilinear reads, "
+                                   "mip-maps, parallax occlusion mapping and both; write DIR/<view>/<lookup>/ "
+                                   "(sweep reports), DIR/views.json and DIR/index.html, which plots each "
+                                   "technique's error against view elevation and pixel footprint.")
+    _add_material_args(p, default_size=128)
+    p.add_argument("--azimuths", default="-60:60:30", help="light azimuths in degrees (default -60:60:30)")
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--spp", type=int, default=4, help="samples per pixel (default 4)")
+    p.add_argument("--views", default=None, help=f"comma-separated views (default all: {', '.join(views.VIEWS)})")
+    p.add_argument("--lookups", default=None,
+                   help=f"comma-separated lookups (default all: {', '.join(views.LOOKUPS)})")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/views-<name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=cmd_views)
+
+
+def cmd_views(args) -> int:
+    import shlex
+
+    from hzval import backend, scene as sc, views
+
+    base = sc.Scene()
+    if args.height is not None and sc.sidecar_of(args.height) is not None:
+        base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
+    size = args.size if args.size is not None else (None if args.height else 128)
+    scene = sc.override(base, height=_material_of(args), size=size, depth=args.depth, boundary=args.boundary,
+                        elevation=args.elevation, azimuths=args.azimuths, spp=args.spp)
+    scene = dataclasses.replace(scene, name=_scene_name(args, scene))
+    backend.variant(args.variant)
+    out = args.out or Path("reports") / f"views-{scene.name}"
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    split = (lambda t: None if t is None else [v.strip() for v in t.split(",") if v.strip()])
+    data = views.run(scene, out, views=split(args.views), lookups=split(args.lookups), progress=not args.quiet,
+                     command=command)
+    names = sorted({n for r in data["rows"] for n in r["techniques"]})
+    print(f"{'view':10} {'lookup':14} {'footprint':>9} {'parallax':>9}  " + "  ".join(f"{n:>9}" for n in names))
+    for r in data["rows"]:
+        fp, pe = r["footprint_texels"].get("p50"), r["parallax_error_texels"].get("mean")
+        vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f}" for n in names)
+        print(f"{r['view']:10} {r['lookup']:14} {fp if fp is not None else float('nan'):9.2f} "
+              f"{pe if pe is not None else float('nan'):9.3f}  {vals}")
+    print(f"report: {out / 'index.html'}")
+    return errors.EXIT_OK
+
+
+def _add_view_flags(p: argparse.ArgumentParser) -> None:
+    """The camera's and the techniques' lookup flags (:mod:`hzval.camera`, :mod:`hzval.lookup`)."""
+    from hzval import camera, lookup
+
+    g = p.add_argument_group("view", "where the camera is, and how the techniques read their textures")
+    g.add_argument("--camera", choices=camera.KINDS, default=None,
+                   help="top (straight down, one pixel per texel: the default), orthographic or perspective")
+    g.add_argument("--view-elevation", type=float, default=None, metavar="DEG",
+                   help="the camera's elevation above the surface (default 45)")
+    g.add_argument("--view-azimuth", type=float, default=None, metavar="DEG",
+                   help="the direction from the surface toward the camera, as the light's azimuth (default -90)")
+    g.add_argument("--fov", type=float, default=None, metavar="DEG",
+                   help="perspective: horizontal field of view (default 40)")
+    g.add_argument("--distance", type=float, default=None, metavar="D",
+                   help="perspective: the eye's distance from the tile's centre in tile widths (default 1.5)")
+    g.add_argument("--resolution", default=None, metavar="WxH", help="image size (default the top view's)")
+    g.add_argument("--plane", choices=lookup.PLANES, default=None,
+                   help="the techniques' flat surface at the bottom, mean or top of the relief (default mean)")
+    g.add_argument("--filter", choices=lookup.FILTERS, default=None,
+                   help="texture filtering: nearest, bilinear (default), trilinear from mip-maps, anisotropic")
+    g.add_argument("--mips", choices=lookup.MIPS, default=None,
+                   help="the horizon map's mip-maps by averaging (default) or by the maximum (conservative)")
+    g.add_argument("--parallax", choices=lookup.PARALLAX, default=None,
+                   help="parallax mapping of the lookup: none (default), offset (with offset limiting) or "
+                        "occlusion (linear search and refinement)")
+
+
+def _resolution(text: str | None):
+    """``"WxH"`` as ``(W, H)``."""
+    if text is None:
+        return None
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+    except ValueError:
+        raise errors.InputError("--resolution", f"expected WIDTHxHEIGHT in pixels, e.g. 512x384, got {text!r}") from None
+    return (w, h)
 
 
 def _add_suite(sub) -> None:
@@ -366,7 +458,10 @@ def _scene_overrides(args) -> dict:
     """The sweep flags that change a scene (:func:`hzval.scene.override`'s keywords), material aside."""
     return dict(size=args.size, depth=args.depth, boundary=args.boundary, elevation=args.elevation,
                 azimuths=args.azimuths, light=args.light, light_radius=args.light_radius, effects=args.effects,
-                spp=args.spp, seed=args.seed, supersampling=args.supersampling, shading=args.shading)
+                spp=args.spp, seed=args.seed, supersampling=args.supersampling, shading=args.shading,
+                camera=args.camera, view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
+                fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
+                filter=args.filter, mips=args.mips, parallax=args.parallax)
 
 
 def sweep_options(args):
