@@ -228,3 +228,21 @@ def test_a_scene_file_places_the_camera(tmp_path):
     assert s.camera.kind == "perspective" and s.camera.resolution == (40, 30)
     assert s.camera.image_shape(64, 64) == (30, 40)
     assert s.lookup.filter == "anisotropic" and s.lookup.parallax == "offset"
+
+
+def test_hzval_views_sweeps_each_view_and_plots_the_errors(tmp_path):
+    from hzval import views
+
+    scene = sc.override(sc.Scene(), height="gravel", size=32, azimuths="0", spp=1)
+    data = views.run(scene, tmp_path / "v", views=["top", "ortho-45"], lookups=["bilinear", "parallax"],
+                     progress=False)
+    got = [(r["view"], r["lookup"]) for r in data["rows"]]
+    assert got == [("top", "bilinear"), ("ortho-45", "bilinear"), ("ortho-45", "parallax")]
+    oblique = {r["lookup"]: r for r in data["rows"] if r["view"] == "ortho-45"}
+    assert oblique["parallax"]["parallax_error_texels"]["mean"] < oblique["bilinear"]["parallax_error_texels"]["mean"]
+    assert oblique["bilinear"]["footprint_texels"]["p50"] == pytest.approx(math.sqrt(2), rel=1e-3)
+    for name in ("views.json", "index.html", "plots/views.png", "ortho-45/parallax/index.html"):
+        assert (tmp_path / "v" / name).is_file(), name
+    assert "ortho-45" in (tmp_path / "v" / "index.html").read_text()
+    with pytest.raises(InputError, match="--views"):
+        views.run(scene, tmp_path / "w", views=["sideways"], progress=False)
