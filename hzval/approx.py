@@ -11,7 +11,11 @@ Conventions (:mod:`hzval.conventions`): tangent space in texel units, +x
 right, +y up the image, +z out of the surface; the light's azimuth ``phi``
 counterclockwise from +x and elevation ``e`` give
 ``L = (cos e cos phi, cos e sin phi, sin e)``, toward the light; the view is
-``v = +z`` (orthographic camera straight down). Radiance is linear; the
+``v`` toward the camera: ``+z`` for the ``top`` view, an orthographic
+camera's direction otherwise (:mod:`hzval.camera`). Every sample is read
+where :mod:`hzval.lookup` puts it (the top view: the scene's sample
+positions; another view: where its ray meets the base plane, after any
+parallax mapping), filtered as the lookup says. Radiance is linear; the
 light's ``irradiance`` ``E`` is the irradiance on a surface facing it.
 
 Per sample, with every texture filtered bilinearly between texel centres

@@ -91,8 +91,8 @@ class Samples:
     ``x``, ``y``: tangent-space texels, float32 ``(pixels * spp,)``, pixel-major
     (``wrap``: inside the tile); ``footprint``: per pixel ``(dx/dcol, dy/dcol,
     dx/drow, dy/drow)`` texels, float32 ``(pixels, 4)``, or ``None`` where no
-    filter needs it; ``source``: ``"camera"`` or ``"truth"`` (the truth's own
-    hit points: perfect parallax).
+    filter needs it; ``plane_z``: the base plane's height, texels (:func:`plane_height`);
+    ``source``: ``"camera"`` or ``"truth"`` (the truth's own hit points: perfect parallax).
     """
 
     x: np.ndarray
@@ -101,6 +101,7 @@ class Samples:
     cols: int
     spp: int
     footprint: np.ndarray | None = None
+    plane_z: float = 0.0
     source: str = "camera"
     _uv: object = dataclasses.field(default=None, repr=False)
 
@@ -143,18 +144,16 @@ def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -
     _CACHE.clear()
     if cam.kind != "top" and height is None:
         raise InputError("camera", f"a {cam.kind} view needs the height map to place the techniques' base plane")
+    h = None if height is None else cv.heights_in_texels(height, mat.depth)
+    z = (0.0, 0.0, 0.0) if h is None else (float(h.min()), float(h.max()), float(h.mean()))
+    view = cam.view(rows, cols, z[:2])
+    z0 = plane_height(lk, *z)
     if cam.kind == "top":
         x, y = sample_positions(rows, cols, cam, scene.spp, scene.seed)
-        h = None if height is None else cv.heights_in_texels(height, mat.depth)
     else:
-        h = cv.heights_in_texels(height, mat.depth)
-        x, y = _view_positions(scene, h)
-    footprint = None
-    if lk.mipmapped:
-        z = (0.0, 0.0, 0.0) if h is None else (float(h.min()), float(h.max()), float(h.mean()))
-        view = cam.view(rows, cols, z[:2])
-        footprint = view.footprints(plane_height(lk, *z))
-    out = Samples(x, y, rows, cols, int(scene.spp), footprint)
+        x, y = _view_positions(scene, h, view, z0)
+    footprint = view.footprints(z0) if lk.mipmapped else None
+    out = Samples(x, y, rows, cols, int(scene.spp), footprint, z0)
     _CACHE[key] = out
     return out
 
@@ -162,20 +161,19 @@ def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -
 def from_points(x: np.ndarray, y: np.ndarray, like: Samples, source: str = "truth") -> Samples:
     """:class:`Samples` at given points (the truth's hits), with ``like``'s footprints."""
     return Samples(np.asarray(x, np.float32), np.asarray(y, np.float32), like.rows, like.cols, like.spp,
-                   like.footprint, source)
+                   like.footprint, like.plane_z, source)
 
 
 #: Pixels per chunk of the plane and parallax computations.
 _CHUNK_PIXELS = 1 << 16
 
 
-def _view_positions(scene, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where the camera's rays meet the base plane (and the parallax mapping), float32 texels."""
-    cam, lk = scene.camera, scene.lookup
+def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where the camera's rays (``view``) meet the base plane ``z = z0`` (and the parallax mapping),
+    float32 texels."""
+    lk = scene.lookup
     rows, cols = h.shape
-    z_lo, z_hi, z_mean = float(h.min()), float(h.max()), float(h.mean())
-    view = cam.view(rows, cols, (z_lo, z_hi))
-    z0 = plane_height(lk, z_lo, z_hi, z_mean)
+    z_lo, z_hi = view.z_lo, view.z_hi
     H, W = view.shape
     spp = int(scene.spp)
     xs = np.empty(H * W * spp, np.float32)

@@ -280,19 +280,17 @@ def view_errors(the_truth, samples: lookup.Samples) -> tuple[dict, dict]:
     dy = samples.y.astype(np.float64) - hy
     if the_truth.scene.material.boundary == "wrap":
         dx, dy = (dx + cols / 2) % cols - cols / 2, (dy + rows / 2) % rows - rows / 2
-    seen = the_truth._seen_samples.reshape(-1, spp)
+    seen = the_truth.seen_samples.reshape(-1, spp)
     dist = np.where(seen, np.hypot(dx, dy).reshape(-1, spp), 0.0)
     per_pixel = (dist.sum(axis=1) / np.maximum(seen.sum(axis=1), 1)).reshape(the_truth.shape)
     mask = the_truth.seen
     maps = {"parallax_error": per_pixel.astype(np.float32)}
     record = {"seen_fraction": float(mask.mean()), "parallax_error_texels": _spread(per_pixel[mask])}
-    view = the_truth.scene.camera.view(rows, cols, (the_truth.z_min, the_truth.z_max))
-    z = lookup.plane_height(the_truth.scene.lookup, the_truth.z_min, the_truth.z_max, the_truth.z_mean)
-    fp = view.footprints(z)
+    fp = samples.footprint if samples.footprint is not None else the_truth.view.footprints(samples.plane_z)
     rho = np.maximum(np.hypot(fp[:, 0], fp[:, 1]), np.hypot(fp[:, 2], fp[:, 3])).reshape(the_truth.shape)
     maps["footprint"] = rho.astype(np.float32)
     record["footprint_texels"] = _spread(rho[mask & np.isfinite(rho)])
-    record["plane_z"] = float(z)
+    record["plane_z"] = float(samples.plane_z)
     return record, maps
 
 

@@ -30,9 +30,15 @@ Shading (``[material] shading``)
     surface.
 
 Sampling
-    Camera rays run straight down (-z) through the positions of
+    The camera (:mod:`hzval.camera`) gives the rays. The ``top`` view's run
+    straight down (-z) through the positions of
     :func:`hzval.scene.sample_positions`, the very points at which the
-    approximation shades, so no error comes from sampling alone. They are
+    techniques shade, so no error comes from sampling alone. Another view's
+    rays are traced into the mesh (:meth:`Truth._view_hits`: ``wrap`` the
+    endless tiling, in hops; ``open`` the tile alone), and each sample is
+    then the surface point its ray hits, found again from above as a top-view
+    sample is; a sample whose ray hits nothing counts for nothing, and a pixel
+    none of whose samples hit is left out (``Frame.mask``). Camera rays are
     traced once, when the truth is built; only rays toward the light (and,
     for ``interreflection``, the paths) depend on the frame. Pixel values
     are the means of their ``spp`` samples, and every layer comes with the
@@ -65,8 +71,9 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     so that a surface facing the disk receives ``E``.
 ``specular``
     Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n_s.h)^alpha * [n_s.L > 0]``
-    with ``h = normalize(L + v)`` and ``v = +z`` (the camera looks straight
-    down), ``ks`` = :data:`hzval.shading.SPECULAR_KS`, ``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`.
+    with ``h = normalize(L + v)`` and ``v`` toward the camera (``+z`` for
+    ``top``; a perspective camera, whose ``v`` differs per pixel, is refused
+    with it), ``ks`` = :data:`hzval.shading.SPECULAR_KS`, ``alpha`` = :data:`hzval.shading.SPECULAR_EXPONENT`.
 ``ambient``
     ``A`` = 1 if a cosine-weighted direction about ``n_s`` escapes (one into the
     triangle hit, ``n.d <= 0``, does not), else 0
@@ -82,8 +89,8 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     ``R``, the share of a glossy reflection of a uniform environment that
     the displaced surface does not block (``layers["reflection_occlusion"]``).
     The lobe is the ``specular`` one, FGED2's Blinn-Phong of exponent
-    :data:`hzval.shading.SPECULAR_EXPONENT` about ``n_s``, seen from ``v =
-    +z``, sampled by its half-vector distribution (Walter et al. 2007), each
+    :data:`hzval.shading.SPECULAR_EXPONENT` about ``n_s``, seen from ``v``
+    (the camera's direction, as for ``specular``), sampled by its half-vector distribution (Walter et al. 2007), each
     direction weighted as that sampling requires (:meth:`Truth._trace_reflection`);
     a direction below the triangle hit (``n.wo <= 0``) or below the
     horizontal reflects nothing and counts as blocked. It is what the approximation's Toolbag fade ``o``
@@ -221,7 +228,11 @@ class Truth:
     ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
     ``lift`` (ray origin lift, texels), ``moved_off_edges`` (samples moved
     off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
-    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``).
+    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
+    camera, :class:`hzval.camera.View`). A view other than ``top`` also sets
+    ``seen`` (``(H, W)`` bool: pixels whose rays hit the surface) and, when one
+    band holds the image, ``hits`` (float32 ``(x, y)`` of each sample's hit,
+    in the tile) and ``seen_samples`` (which samples' rays hit).
     """
 
     def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
@@ -258,7 +269,7 @@ class Truth:
         mat, light = self.scene.material, self.scene.light
         t0 = time.perf_counter()
         h_tex = cv.heights_in_texels(h, mat.depth)
-        self.z_min, self.z_max, self.z_mean = float(h_tex.min()), float(h_tex.max()), float(h_tex.mean())
+        self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
         self.relief = self.z_max - self.z_min
         lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
         self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
@@ -410,7 +421,7 @@ class Truth:
         scene, spp = self.scene, self.spp
         if self.hits is not None:
             a, b = first * spp, stop * spp
-            return self.hits[0][a:b], self.hits[1][a:b], self._seen_samples[a:b]
+            return self.hits[0][a:b], self.hits[1][a:b], self.seen_samples[a:b]
         if scene.camera.kind != "top":
             return self._view_hits(first, stop)
         if self._positions is None:
@@ -432,7 +443,7 @@ class Truth:
         self.seen = np.concatenate(seen_px).reshape(H, W)
         if len(self.bands) == 1:
             self.hits = (hx[0], hy[0])
-            self._seen_samples = hs[0]
+            self.seen_samples = hs[0]
 
     def _view_hits(self, first: int, stop: int):
         """Where the camera rays of the pixels ``first <= p < stop`` meet the surface: float32 ``x, y``

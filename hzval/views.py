@@ -53,9 +53,9 @@ LOOKUPS: dict[str, lookup.Lookup] = {
 def run(scene, out: str | Path, *, views: list[str] | None = None, lookups: list[str] | None = None,
         options=None, progress: bool = True, command: str = "") -> dict:
     """Sweep ``scene`` from every view with every lookup into ``out``; write ``views.json`` and
-    ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the default
-    lookup only (its plane is the surface: mips and parallax change nothing it measures but the
-    filter)."""
+    ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
+    lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
+    mapping moves nothing, and a pixel covers one texel, where mips read level 0."""
     from hzval import sweep
 
     out = Path(out)

@@ -113,7 +113,7 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     h = sc.load_material_height(scene.material).height
     T = truth.Truth(scene, h)
     T.render(0.0)
-    seen = T._seen_samples
+    seen = T.seen_samples
     x, y = T.hits
     o, n, ns, valid = T._kept.o, T._kept.n, T._kept.ns, None
     z = np.asarray(o.z) - T.lift
