@@ -70,17 +70,25 @@ class FrameMetrics:
 
 
 def display(image: np.ndarray, scale: float) -> np.ndarray:
-    """Linear radiance ``(H, W[, 3])`` to sRGB-encoded display values in [0, 1], ``(H, W, 3)``.
+    """Linear radiance ``(H, W[, 3])`` to sRGB-encoded display values in [0, 1], ``(H, W, 3)`` float64:
+    ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.conventions.srgb_encode`), in one
+    float64 Dr.Jit kernel over every value (0.1 s against 2.5 s through colour-science at 2048 x
+    2048 x 3, within 4e-16 of it)."""
+    import drjit as dr
+    import mitsuba as mi
 
-    A grey image (``(H, W)``, or R == G == B: every render of a grey material under a white
-    light) is encoded once per pixel rather than per channel: the same values, a third of the
-    work (0.36 s of a 2048 x 2048 frame's comparison per image)."""
+    from hzval import backend
+
+    backend.variant()
     img = np.asarray(image)
-    if img.ndim == 3 and files.is_grey(img):
-        img = img[..., 0]
-    img = np.asarray(img, dtype=np.float64)
-    shown = _by_rows(lambda x: cv.srgb_encode(np.clip(x * scale, 0.0, 1.0)), img)
-    return np.repeat(shown[..., None], 3, axis=-1) if shown.ndim == 2 else shown
+    grey = img.ndim == 2
+    flat = np.ascontiguousarray(img, dtype=np.float32 if img.dtype.itemsize <= 4 else np.float64).ravel()
+    # a gather, not the mapped array itself: Dr.Jit maps NumPy memory as it is, and a contiguous load
+    # would compile one kernel per alignment
+    kind = mi.Float if flat.dtype == np.float32 else mi.Float64
+    v = mi.Float64(dr.gather(kind, kind(flat), dr.arange(mi.UInt32, flat.size))) * dr.opaque(mi.Float64, float(scale))
+    shown = np.asarray(cv.srgb_encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
+    return np.repeat(shown[..., None], 3, axis=-1) if grey else shown
 
 
 def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None) -> tuple[float, float, float]:
@@ -349,7 +357,7 @@ class Reference:
         from hzval.flip import FlipReference
 
         self.truth, self.scale = truth, float(scale)
-        self.linear = np.asarray(truth.image, np.float64) * scale
+        self.linear = _flat_values(truth.image)
         self.display = display(truth.image, scale)
         self.lab = LabImage(self.display)
         self.flip = FlipReference(self.display, FLIP_PPD)
@@ -403,8 +411,7 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     values, FLIP and CIEDE2000 on display values; each a mean over the pixels that see the surface
     (the truth frame's ``mask``; all of the ``top`` view's)."""
     mask = ref.truth.mask
-    a_lin = np.asarray(image, np.float64) * ref.scale
-    mse = float(np.mean(_seen((ref.linear - a_lin) ** 2, mask)))
+    mse = _mean_squared_error(ref, image)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
     maps = {"display": display(image, ref.scale)}
     maps["flip"], flip_mean = flip_error(ref.flip, maps["display"])
@@ -413,6 +420,42 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab)
     return {"flip_mean": flip_mean, "rmse": math.sqrt(mse), "psnr_db": psnr,
             "delta_e2000_mean": float(np.mean(_seen(maps["delta_e"], mask)))}, maps
+
+
+def _flat_values(image: np.ndarray):
+    """An image's values, row-major, as a float32 or float64 Dr.Jit array gathered from its NumPy
+    memory (a gather: a mapped array's contiguous load would compile one kernel per alignment)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from hzval import backend
+
+    backend.variant()
+    img = np.asarray(image)
+    flat = np.ascontiguousarray(img, dtype=np.float32 if img.dtype.itemsize <= 4 else np.float64).ravel()
+    kind = mi.Float if flat.dtype == np.float32 else mi.Float64
+    return dr.gather(kind, kind(flat), dr.arange(mi.UInt32, flat.size))
+
+
+def _mean_squared_error(ref: Reference, image: np.ndarray) -> float:
+    """Mean of ``(scale (truth - image))^2`` over the values of the pixels the truth sees, in float64."""
+    import drjit as dr
+    import mitsuba as mi
+
+    img = np.asarray(image)
+    if img.shape != ref.truth.image.shape:
+        raise HzvalError(f"images of different shapes: {ref.truth.image.shape} and {img.shape}")
+    s = dr.opaque(mi.Float64, ref.scale)
+    d = mi.Float64(ref.linear) * s - mi.Float64(_flat_values(img)) * s
+    d2 = d * d
+    mask = ref.truth.mask
+    count = img.size
+    if mask is not None:
+        channels = img.size // mask.size
+        seen = np.repeat(np.asarray(mask, bool).ravel(), channels)
+        d2 = dr.select(mi.Bool(seen), d2, 0.0)
+        count = int(seen.sum())
+    return float(dr.sum(d2)[0]) / count if count else float("nan")
 
 
 def _seen(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:

@@ -296,8 +296,22 @@ def srgb_decode(values: np.ndarray) -> np.ndarray:
     return np.asarray(colour.cctf_decoding(np.asarray(values, dtype=np.float64), function="sRGB"))
 
 
-def srgb_encode(values: np.ndarray) -> np.ndarray:
-    """Linear values to sRGB-encoded values (IEC 61966-2-1, via colour-science)."""
+def srgb_encode(values):
+    """Linear values to sRGB-encoded values (IEC 61966-2-1), negatives as 0.
+
+    NumPy values (or anything array-like) go through colour-science's
+    ``cctf_encoding(function="sRGB")``. A Dr.Jit array (``mi.Float64``: the
+    comparison's display values, :func:`hzval.compare.display`) is encoded in a
+    kernel by the formula colour-science's ``eotf_inverse_sRGB`` evaluates,
+    ``12.92 L`` at or below ``L = 0.0031308``, else ``1.055 L^(1/2.4) - 0.055``:
+    within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's), 25x faster on
+    12M values on this 2-core machine (``tests/test_conventions.py``).
+    """
+    if not isinstance(values, (np.ndarray, np.generic, float, int, list, tuple)):
+        import drjit as dr
+
+        v = dr.maximum(values, 0.0)
+        return dr.select(v <= 0.0031308, v * 12.92, 1.055 * dr.power(v, 1 / 2.4) - 0.055)
     import colour
 
     v = np.clip(np.asarray(values, dtype=np.float64), 0.0, None)

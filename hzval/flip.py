@@ -1,4 +1,4 @@
-"""LDR-FLIP in NumPy float32, NVIDIA's C++ reference step for step, with the reference side reusable.
+"""LDR-FLIP in Dr.Jit float32, NVIDIA's C++ reference step for step, with the reference side reusable.
 
 FLIP (Andersson, Nilsson, Akenine-Moller, Oskarsson, Astrom and Fairchild,
 "FLIP: A Difference Evaluator for Alternating Images", Proc. ACM Comput.
@@ -30,32 +30,35 @@ with ``"LDR", inputsRGB=True`` (``src/nanobindFLIP.cpp``):
    ``(max(|edge_r - edge_t|, |point_r - point_t|) / sqrt 2) ** QF``;
 4. the error is ``colour_difference ** (1 - feature_difference)``.
 
-Borders are clamped to the edge (FLIP's ``Min(Max(0, x + ix), w - 1)``): the
-x-direction passes are ``scipy.ndimage.correlate1d(mode="nearest")``, the
-y-direction ones a float32 sum, in FLIP's tap order, of row-shifted slices of
-an edge-padded plane (:func:`_correlate_rows`): 24 ms against 85-115 ms for
-``correlate1d`` along the first axis (2048 x 2048 float32, 21 taps, one core).
-Both are correlations, the filter index running with the image index, as
-FLIP's loops have it. Every per-pixel step is float32 with FLIP's constants
-and expression order (``powf`` where FLIP has it, ``x / 12.92`` and not
-``x * (1 / 12.92)``, NaN clamped to 0 as its ``Max`` macro does); ``correlate1d``
-sums in float64 where FLIP sums in float32, and NumPy's ``pow``/``exp`` are
-not glibc's, so the values differ from the C++ by float32 rounding. The mean
-is FLIP's too: a float32 running sum over the map in row-major order, divided
-by the pixel count (``FLIP::evaluate``), which at 2048 x 2048 differs from the
+Borders are clamped to the edge (FLIP's ``Min(Max(0, x + ix), w - 1)``). The
+work is three Dr.Jit kernels per image on the current variant (the LLVM
+backend vectorises them over every core; CUDA runs the same code): the
+colour conversion to YCxCz; the x-direction passes, one gather of each
+plane per tap shared by the filters that read it (Cz by two, the feature
+luminance by three); and the y-direction passes fused with everything that
+follows them. Both passes are correlations, the filter index running with
+the image index, summed in float32 in FLIP's tap order. Image sizes enter
+the kernels as opaque values, so one compiled kernel serves every size.
+Every per-pixel step is float32 with FLIP's constants and expression order
+(``powf`` where FLIP has it, ``x / 12.92`` and not ``x * (1 / 12.92)``, NaN
+clamped to 0 as its ``Max`` macro does); Dr.Jit's ``pow`` and ``exp`` are not
+glibc's, so the values differ from the C++ by float32 rounding. The mean is
+FLIP's: a float32 running sum over the map in row-major order, divided by the
+pixel count (``FLIP::evaluate``), which at 2048 x 2048 differs from the
 float64 mean of the same map by about 1e-6.
 
 Validated against ``flip-evaluator`` (NVlabs/flip's nanobind build, 1.7) by
-``tests/test_flip.py``: the means agree to 4e-6 on noise, gradients,
-constant, tiny (1 x 1 to 5 x 40), non-square and shaded-bricks images, and to
-1.3e-5 on a hard black-white edge; per pixel, to 5e-6 on all but the renders
-(3e-4) and the hard edge (1.5e-3). The larger ones are in flat regions near a
-difference, where the two images' filtered colours agree to float32
-rounding: FLIP's error there is that rounding (``|dLab| ** 0.7``) raised to
-``1 - feature_difference``, in either implementation (summing the x passes in
-float32 in FLIP's order too took the hard edge to 4e-7, not the renders, and
-cost 1.6x the x passes). ``benchmarks/bench_compare.py`` compares the two at
-512-2048 pixels (the README there has its figures).
+``tests/test_flip.py``: the means agree to 1e-4 (in practice a few 1e-7; 1.3e-5
+on a hard black-white edge) on noise, gradients, constant, tiny (1 x 1 to 5 x
+40), non-square and shaded-bricks images, and per pixel to 2e-5 on all but
+the renders (1e-3) and the hard edge (5e-3). The larger ones are in flat
+regions near a difference, where the two images' filtered colours agree to
+float32 rounding: FLIP's error there is that rounding (``|dLab| ** 0.7``)
+raised to ``1 - feature_difference``, in either implementation.
+``benchmarks/bench_compare.py`` compares the two at 512-2048 pixels: at 2048 x
+2048, one reference and four test images took 1.6 s against 19.8 s for
+flip-evaluator (12x; the NumPy implementation this replaced took 3.1 s), with
+means within 1.2e-7.
 
 Images are ``(H, W, 3)`` sRGB-encoded display values, nominally in [0, 1]
 (any float dtype; computed in float32); rows are y (row 0 first, as FLIP's
@@ -65,19 +68,13 @@ such an image and clamp to its edge, as FLIP's do.
 The reference's half of the work (its filtered, Hunt-adjusted Lab and its
 edge and point magnitudes) depends on the reference alone: a
 :class:`FlipReference` holds it, and :func:`flip_error` compares any number of
-test images with it at the cost of the test side only. The work runs on
-:func:`hzval.backend.host_pool` in row blocks, one per core (NumPy and SciPy
-release the GIL): first each block's colour conversion and x passes, then,
-once the planes are edge-padded, each block's y passes and the per-pixel rest,
-:data:`CHUNK_ROWS` rows at a time so that a step's planes stay in cache. The
-values do not depend on the blocks.
+test images with it at the cost of the test side only.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,34 +106,80 @@ PI = f32(3.14159265358979)
 #: (``calculatePPD(0.7, 3840, 0.7)`` = 67.02 pixels per degree).
 DEFAULT_PPD = f32(0.7) * (f32(3840.0) / f32(0.7)) * (PI / f32(180.0))
 
-_ILLUMINANT = (f32(0.950428545), f32(1.0), f32(1.088900371))        # DEFAULT_ILLUMINANT (D65)
-_INV_ILLUMINANT = (f32(1.052156925), f32(1.0), f32(0.918357670))    # INV_DEFAULT_ILLUMINANT
 
-_RGB_TO_XYZ = ((f32(10135552.0) / f32(24577794.0), f32(8788810.0) / f32(24577794.0), f32(4435075.0) / f32(24577794.0)),
-               (f32(2613072.0) / f32(12288897.0), f32(8788810.0) / f32(12288897.0), f32(887015.0) / f32(12288897.0)),
-               (f32(1425312.0) / f32(73733382.0), f32(8788810.0) / f32(73733382.0), f32(70074185.0) / f32(73733382.0)))
-_XYZ_TO_RGB = ((f32(3.241003275), f32(-1.537398934), f32(-0.498615861)),
-               (f32(-0.969224334), f32(1.875930071), f32(0.041554224)),
-               (f32(0.055639423), f32(-0.204011202), f32(1.057148933)))
+def _K(v):
+    """A float32 constant of FLIP's, as the value both NumPy and Dr.Jit (a Python float: exact)
+    compute with."""
+    return float(f32(v))
 
-#: Rows per step inside a block: the planes of a step stay in the core's cache.
-CHUNK_ROWS = 32
 
-#: Images of at least this many rows run in row blocks on a thread per core.
-PARALLEL_MIN_ROWS = 64
+_ILLUMINANT = (_K(0.950428545), 1.0, _K(1.088900371))        # DEFAULT_ILLUMINANT (D65)
+_INV_ILLUMINANT = (_K(1.052156925), 1.0, _K(0.918357670))    # INV_DEFAULT_ILLUMINANT
 
+_RGB_TO_XYZ = ((_K(f32(10135552.0) / f32(24577794.0)), _K(f32(8788810.0) / f32(24577794.0)),
+                _K(f32(4435075.0) / f32(24577794.0))),
+               (_K(f32(2613072.0) / f32(12288897.0)), _K(f32(8788810.0) / f32(12288897.0)),
+                _K(f32(887015.0) / f32(12288897.0))),
+               (_K(f32(1425312.0) / f32(73733382.0)), _K(f32(8788810.0) / f32(73733382.0)),
+                _K(f32(70074185.0) / f32(73733382.0))))
+_XYZ_TO_RGB = ((_K(3.241003275), _K(-1.537398934), _K(-0.498615861)),
+               (_K(-0.969224334), _K(1.875930071), _K(0.041554224)),
+               (_K(0.055639423), _K(-0.204011202), _K(1.057148933)))
 
 # -- FLIP.h's color3 conversions, on planes ------------------------------------------------------
 
-def _clamp(v: np.ndarray) -> np.ndarray:
+def _numpy(v) -> bool:
+    """Whether ``v`` is a NumPy value (the filters' constants) rather than a Dr.Jit array (the images)."""
+    return isinstance(v, (np.ndarray, np.generic, float, int))
+
+
+def _where(cond, a, b):
+    if _numpy(cond):
+        return np.where(cond, a, b)
+    import drjit as dr
+
+    return dr.select(cond, a, b)
+
+
+def _powf(x, e):
+    """``powf(x, e)`` for ``x >= 0`` (``powf(0, 0) = 1``, ``powf(0, e > 0) = 0``)."""
+    if _numpy(x):
+        return np.power(x, e)
+    import drjit as dr
+
+    positive = dr.power(dr.maximum(x, 1e-38), e)
+    return dr.select(x > 0, positive, dr.select(e == 0, 1.0, 0.0) if not _numpy(e) or e == 0 else 0.0)
+
+
+def _sqrt(x):
+    if _numpy(x):
+        return np.sqrt(x)
+    import drjit as dr
+
+    return dr.sqrt(x)
+
+
+def _abs(x):
+    if _numpy(x):
+        return np.abs(x)
+    import drjit as dr
+
+    return dr.abs(x)
+
+
+def _clamp(v):
     """``Min(Max(v, 0), 1)``: NaN becomes 0, as FLIP's macros make it."""
-    return np.fmin(np.fmax(v, f32(0.0)), f32(1.0))
+    if _numpy(v):
+        return np.fmin(np.fmax(v, f32(0.0)), f32(1.0))
+    import drjit as dr
+
+    return dr.select(v > 0.0, dr.minimum(v, 1.0), 0.0)      # NaN > 0 is false: 0
 
 
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+def srgb_to_linear(c):
     """``color3::sRGBToLinearRGB`` of float32 values."""
     with np.errstate(invalid="ignore"):
-        return np.where(c <= f32(0.04045), c / f32(12.92), np.power((c + f32(0.055)) / f32(1.055), f32(2.4)))
+        return _where(c <= _K(0.04045), c / _K(12.92), _powf((c + _K(0.055)) / _K(1.055), _K(2.4)))
 
 
 def _mat(m, x, y, z):
@@ -158,42 +201,42 @@ def xyz_to_linear_rgb(x, y, z):
 def xyz_to_ycxcz(x, y, z):
     """``color3::XYZToYCxCz``."""
     x, y, z = x * _INV_ILLUMINANT[0], y * _INV_ILLUMINANT[1], z * _INV_ILLUMINANT[2]
-    return f32(116.0) * y - f32(16.0), f32(500.0) * (x - y), f32(200.0) * (y - z)
+    return 116.0 * y - 16.0, 500.0 * (x - y), 200.0 * (y - z)
 
 
 def ycxcz_to_xyz(yy, cx, cz):
     """``color3::YCxCzToXYZ``."""
-    y = (yy + f32(16.0)) / f32(116.0)
-    cx, cz = cx / f32(500.0), cz / f32(200.0)
+    y = (yy + 16.0) / 116.0
+    cx, cz = cx / 500.0, cz / 200.0
     return (y + cx) * _ILLUMINANT[0], y * _ILLUMINANT[1], (y - cz) * _ILLUMINANT[2]
 
 
 _DELTA = f32(6.0) / f32(29.0)
-_DELTA_CUBE = _DELTA * (_DELTA * _DELTA)
-_LAB_FACTOR = f32(1.0) / (f32(3.0) * (_DELTA * _DELTA))
-_LAB_TERM = f32(4.0) / f32(29.0)
-_THIRD = f32(1.0) / f32(3.0)
+_DELTA_CUBE = _K(_DELTA * (_DELTA * _DELTA))
+_LAB_FACTOR = _K(f32(1.0) / (f32(3.0) * (_DELTA * _DELTA)))
+_LAB_TERM = _K(f32(4.0) / f32(29.0))
+_THIRD = _K(f32(1.0) / f32(3.0))
 
 
 def _lab_f(t):
-    return np.where(t > _DELTA_CUBE, np.power(t, _THIRD), _LAB_FACTOR * t + _LAB_TERM)
+    return _where(t > _DELTA_CUBE, _powf(t, _THIRD), _LAB_FACTOR * t + _LAB_TERM)
 
 
 def xyz_to_cielab(x, y, z):
     """``color3::XYZToCIELab`` (D65; ``powf(t, 1.0f / 3.0f)`` as FLIP has it, not ``cbrtf``)."""
     fx, fy, fz = _lab_f(x * _INV_ILLUMINANT[0]), _lab_f(y * _INV_ILLUMINANT[1]), _lab_f(z * _INV_ILLUMINANT[2])
-    return f32(116.0) * fy - f32(16.0), f32(500.0) * (fx - fy), f32(200.0) * (fy - fz)
+    return 116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)
 
 
 def hunt(luminance, chrominance):
     """``color3::Hunt``: the Hunt effect's adjustment of a chrominance."""
-    return f32(0.01) * luminance * chrominance
+    return _K(0.01) * luminance * chrominance
 
 
 def hyab(l1, a1, b1, l2, a2, b2):
     """``color3::HyAB``: city-block in L, Euclidean in (a, b)."""
     da, db = a1 - a2, b1 - b2
-    return np.abs(l1 - l2) + np.sqrt(da * da + db * db)
+    return _abs(l1 - l2) + _sqrt(da * da + db * db)
 
 
 def max_distance() -> np.float32:
@@ -309,67 +352,93 @@ def filters(ppd: float = DEFAULT_PPD) -> Filters:
     return Filters(ppd, rs, y, cx, cz1, cz2, rf, g, dg, ddg, cmax, PC * cmax)
 
 
-# -- convolutions ----------------------------------------------------------------------------------
+# -- the pipeline, in Dr.Jit ------------------------------------------------------------------------
 
-def _correlate_columns(plane: np.ndarray, weights: np.ndarray, out: np.ndarray) -> None:
-    """FLIP's x-direction pass: ``out[y, x] = sum_i w[i] plane[y, clamp(x + i - r)]``."""
-    from scipy.ndimage import correlate1d
+class _Grid:
+    """Pixel indices of an ``h x w`` image, row-major: the column ``x`` and row ``y`` of each, and the
+    flat index of a neighbour clamped to the image (FLIP's ``Min(Max(0, x + ix), w - 1)``). The sizes
+    are opaque, so one compiled kernel serves every image size."""
 
-    correlate1d(plane, weights, axis=1, mode="nearest", output=out)
+    def __init__(self, h: int, w: int):
+        import drjit as dr
+        import mitsuba as mi
+
+        self.h, self.w = h, w
+        self.W = dr.opaque(mi.Int32, w)
+        self.H = dr.opaque(mi.Int32, h)
+        i = dr.arange(mi.Int32, h * w)
+        self.y = i // self.W
+        self.x = i - self.y * self.W
+
+    def along_x(self, offset: int):
+        import drjit as dr
+
+        return self.y * self.W + dr.clip(self.x + offset, 0, self.W - 1)
+
+    def along_y(self, offset: int):
+        import drjit as dr
+
+        return dr.clip(self.y + offset, 0, self.H - 1) * self.W + self.x
 
 
-def _correlate_rows(padded: np.ndarray, weights: np.ndarray, r0: int, r1: int) -> np.ndarray:
-    """FLIP's y-direction pass for rows ``r0:r1``: ``sum_i w[i] plane[clamp(y + i - r)]``, from
-    ``padded``, the plane with ``r`` copies of its first and last rows above and below it.
+def _correlate(planes, weights, index):
+    """FLIP's 1-D passes: ``sum_i w[i] plane[index(i - r)]`` for each ``(plane, w)`` of ``weights``
+    (``weights``: per plane, a tuple of filters applied to it), summed in float32 in FLIP's order
+    (``i`` from 0 to ``2r``); a plane read by several filters is read once per tap."""
+    import drjit as dr
+    import mitsuba as mi
 
-    Summed in float32 in FLIP's order (``i`` from 0 to ``2r``), a multiply and an add per tap
-    on row-shifted slices: as fast here as pairing the symmetric taps, and closer to the C++.
-    """
-    n = r1 - r0
-    out = padded[r0:r0 + n] * weights[0]
-    tmp = np.empty_like(out)
-    for i in range(1, len(weights)):
-        np.multiply(padded[r0 + i:r0 + i + n], weights[i], out=tmp)
-        out += tmp
+    out = []
+    for plane, filters_of in zip(planes, weights):
+        r = (len(filters_of[0]) - 1) // 2
+        acc = [None] * len(filters_of)
+        for i in range(2 * r + 1):
+            v = dr.gather(mi.Float, plane, index(i - r))
+            for k, w in enumerate(filters_of):
+                term = v * float(w[i])
+                acc[k] = term if acc[k] is None else acc[k] + term
+        out.extend(acc)
     return out
 
 
-def _pad_rows(padded: np.ndarray, r: int) -> None:
-    """Fill the ``r`` rows above and below the plane in ``padded`` with its edge rows."""
-    padded[:r] = padded[r]
-    padded[padded.shape[0] - r:] = padded[padded.shape[0] - r - 1]
+def _image_planes(img: np.ndarray, grid: _Grid):
+    """The ``(H, W, 3)`` image's R, G and B as float32 Dr.Jit arrays (``display`` values cast to float32
+    as FLIP's Python wrapper takes them), gathered from one flat array of it: Dr.Jit maps NumPy
+    memory as it is, and a gather, unlike a strided load, compiles one kernel for every alignment."""
+    import drjit as dr
+    import mitsuba as mi
+
+    flat = mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
+    i = dr.arange(mi.UInt32, grid.h * grid.w) * 3
+    return tuple(dr.gather(mi.Float, flat, i + c) for c in range(3))
 
 
-# -- the pipeline ----------------------------------------------------------------------------------
+class _Side:
+    """One image's FLIP quantities: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``) and its edge
+    and point magnitudes (``edge``, ``point``), as unevaluated Dr.Jit expressions over the x-filtered
+    planes, which are evaluated (FLIP's first loops: to YCxCz, then the x-direction passes)."""
 
-def _in_host_pool() -> bool:
-    return threading.current_thread().name.startswith("hzval-host")
+    def __init__(self, display: np.ndarray, f: Filters):
+        import drjit as dr
 
-
-def _blocks(rows: int) -> list[tuple[int, int]]:
-    """Row blocks, one per core (one block for small images or inside a host-pool thread)."""
-    from hzval import backend
-
-    n = min(backend.host_cores(), rows // PARALLEL_MIN_ROWS)
-    if n < 2 or _in_host_pool():
-        return [(0, rows)]
-    bounds = np.linspace(0, rows, n + 1).astype(int)
-    return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
-
-
-def _run(fn, blocks) -> None:
-    from hzval import backend
-
-    if len(blocks) == 1:
-        fn(*blocks[0])
-        return
-    for _ in backend.host_pool(len(blocks)).map(lambda b: fn(*b), blocks):
-        pass
-
-
-def _chunks(r0: int, r1: int):
-    for c0 in range(r0, r1, CHUNK_ROWS):
-        yield c0, min(r1, c0 + CHUNK_ROWS)
+        h, w = display.shape[:2]
+        self.grid = g = _Grid(h, w)
+        r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(display, g))
+        yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
+        yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))      # oneOver116, sixteenOver116
+        dr.eval(yy, cx, cz, yn)
+        # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
+        x_pass = _correlate((yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)), g.along_x)
+        dr.eval(x_pass)
+        sp0, sp1, sp2, sp3, ft0, ft1, ft2 = x_pass
+        # the y-direction passes, and what follows them
+        yy, cx, cz1, cz2 = _correlate((sp0, sp1, sp2, sp3), ((f.y,), (f.cx,), (f.cz1,), (f.cz2,)), g.along_y)
+        r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy, cx, cz1 + cz2)))
+        self.L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
+        self.A, self.B = hunt(self.L, a), hunt(self.L, b)
+        dx, ddx, dy, ddy = _correlate((ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)), g.along_y)
+        self.edge = dr.sqrt(dx * dx + dy * dy)
+        self.point = dr.sqrt(ddx * ddx + ddy * ddy)
 
 
 def _check_image(img, name: str) -> np.ndarray:
@@ -381,120 +450,56 @@ def _check_image(img, name: str) -> np.ndarray:
     return a
 
 
-class _Side:
-    """One image's FLIP quantities: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``) and its
-    edge and point magnitudes, computed row block by row block."""
-
-    def __init__(self, display: np.ndarray, f: Filters):
-        self.f = f
-        self.display = display
-        h, w = display.shape[:2]
-        rs, rf = f.spatial_radius, f.feature_radius
-        # x-filtered planes, edge-padded in y for the y passes
-        self.sp = np.empty((4, h + 2 * rs, w), f32)      # Y, Cx, Cz (first Gaussian), Cz (second)
-        self.ft = np.empty((3, h + 2 * rf, w), f32)      # d/dx, d2/dx2, Gaussian of (Y + 16) / 116
-
-    def filter_x(self, r0: int, r1: int) -> None:
-        """Rows ``r0:r1``: to YCxCz and the x-direction passes (FLIP's first loops)."""
-        f, rs, rf = self.f, self.f.spatial_radius, self.f.feature_radius
-        for c0, c1 in _chunks(r0, r1):
-            rgb = np.asarray(self.display[c0:c1], f32).transpose(2, 0, 1)
-            r, g, b = (_clamp(srgb_to_linear(c)) for c in rgb)
-            yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, g, b))
-            _correlate_columns(yy, f.y, self.sp[0, rs + c0:rs + c1])
-            _correlate_columns(cx, f.cx, self.sp[1, rs + c0:rs + c1])
-            _correlate_columns(cz, f.cz1, self.sp[2, rs + c0:rs + c1])
-            _correlate_columns(cz, f.cz2, self.sp[3, rs + c0:rs + c1])
-            yn = yy * (f32(1.0) / f32(116.0)) + f32(16.0) / f32(116.0)    # oneOver116, sixteenOver116
-            _correlate_columns(yn, f.dg, self.ft[0, rf + c0:rf + c1])
-            _correlate_columns(yn, f.ddg, self.ft[1, rf + c0:rf + c1])
-            _correlate_columns(yn, f.g, self.ft[2, rf + c0:rf + c1])
-
-    def pad(self) -> None:
-        for p in self.sp:
-            _pad_rows(p, self.f.spatial_radius)
-        for p in self.ft:
-            _pad_rows(p, self.f.feature_radius)
-
-    def finish(self, c0: int, c1: int):
-        """Rows ``c0:c1`` of ``(L, A, B, edge, point)``: the y-direction passes and what follows them."""
-        f = self.f
-        yy = _correlate_rows(self.sp[0], f.y, c0, c1)
-        cx = _correlate_rows(self.sp[1], f.cx, c0, c1)
-        cz = _correlate_rows(self.sp[2], f.cz1, c0, c1)
-        cz += _correlate_rows(self.sp[3], f.cz2, c0, c1)
-        r, g, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy, cx, cz)))
-        L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, g, b))
-        A, B = hunt(L, a), hunt(L, b)
-        dx = _correlate_rows(self.ft[0], f.g, c0, c1)
-        ddx = _correlate_rows(self.ft[1], f.g, c0, c1)
-        dy = _correlate_rows(self.ft[2], f.dg, c0, c1)
-        ddy = _correlate_rows(self.ft[2], f.ddg, c0, c1)
-        edge = np.sqrt(dx * dx + dy * dy)
-        point = np.sqrt(ddx * ddx + ddy * ddy)
-        return L, A, B, edge, point
-
-
 class FlipReference:
     """The reference image's half of LDR-FLIP, computed once for any number of test images.
 
     ``reference_display``: ``(H, W, 3)`` sRGB-encoded display values in [0, 1];
     ``ppd``: pixels per degree (FLIP's default, 67.02, unless given).
-    ``lab``: ``(3, H, W)`` float32, its spatially filtered, clamped, Hunt-adjusted
-    CIELAB (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: ``(H, W)``
-    float32, the magnitudes of its first- and second-derivative feature responses.
+    ``L``, ``A``, ``B``: its spatially filtered, clamped, Hunt-adjusted CIELAB
+    (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: the magnitudes of its
+    first- and second-derivative feature responses; each a float32 Dr.Jit array of
+    the current variant, row-major (:meth:`numpy` gives them as ``(H, W)`` planes).
     """
 
     def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD):
+        import drjit as dr
+
+        from hzval import backend
+
+        backend.variant()
         disp = _check_image(reference_display, "reference")
-        self.filters = f = filters(ppd)
+        self.filters = filters(ppd)
         self.shape = disp.shape[:2]
-        h, w = self.shape
-        self.lab = np.empty((3, h, w), f32)
-        self.edge = np.empty((h, w), f32)
-        self.point = np.empty((h, w), f32)
-        side = _Side(disp, f)
-        blocks = _blocks(h)
-        _run(side.filter_x, blocks)
-        side.pad()
+        side = _Side(disp, self.filters)
+        self.L, self.A, self.B, self.edge, self.point = side.L, side.A, side.B, side.edge, side.point
+        dr.eval(self.L, self.A, self.B, self.edge, self.point)
 
-        def finish(r0, r1):
-            for c0, c1 in _chunks(r0, r1):
-                L, A, B, self.edge[c0:c1], self.point[c0:c1] = side.finish(c0, c1)
-                self.lab[0, c0:c1], self.lab[1, c0:c1], self.lab[2, c0:c1] = L, A, B
-
-        _run(finish, blocks)
+    def numpy(self) -> dict[str, np.ndarray]:
+        """``{L, A, B, edge, point}`` as ``(H, W)`` float32 planes."""
+        return {k: np.asarray(getattr(self, k), dtype=f32).reshape(self.shape) for k in ("L", "A", "B", "edge", "point")}
 
 
 def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray, float]:
     """LDR-FLIP of ``test_display`` (``(H, W, 3)`` sRGB display values) against ``ref``:
     the error map ``(H, W)`` float32 in [0, 1] and its mean (FLIP's: a float32 running sum
     in row-major order over the pixel count)."""
+    import drjit as dr
+
     disp = _check_image(test_display, "test")
     if disp.shape[:2] != ref.shape:
         raise ValueError(f"reference and test image resolutions differ: {ref.shape[0]} x {ref.shape[1]} "
                          f"against {disp.shape[0]} x {disp.shape[1]}")
     f = ref.filters
-    h, w = ref.shape
-    err = np.empty((h, w), f32)
-    side = _Side(disp, f)
-    blocks = _blocks(h)
-    _run(side.filter_x, blocks)
-    side.pad()
-    nf = f32(1.0) / np.sqrt(f32(2.0))
-    scale_low = PT / f.pccmax
-
-    def finish(r0, r1):
-        for c0, c1 in _chunks(r0, r1):
-            L, A, B, edge, point = side.finish(c0, c1)
-            cd = np.power(hyab(ref.lab[0, c0:c1], ref.lab[1, c0:c1], ref.lab[2, c0:c1], L, A, B), QC)
-            # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
-            cd = np.where(cd < f.pccmax, cd * scale_low,
-                          PT + ((cd - f.pccmax) / (f.cmax - f.pccmax)) * (f32(1.0) - PT))
-            fd = np.power(nf * np.maximum(np.abs(ref.edge[c0:c1] - edge), np.abs(ref.point[c0:c1] - point)), QF)
-            err[c0:c1] = np.power(cd, f32(1.0) - fd)
-
-    _run(finish, blocks)
+    t = _Side(disp, f)
+    cd = _powf(hyab(ref.L, ref.A, ref.B, t.L, t.A, t.B), _K(QC))
+    # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
+    pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
+    cd = dr.select(cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT))
+    nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
+    fd = _powf(nf * dr.maximum(dr.abs(ref.edge - t.edge), dr.abs(ref.point - t.point)), _K(QF))
+    err = _powf(cd, 1.0 - fd)
+    dr.eval(err)
+    err = np.asarray(err, dtype=f32).reshape(ref.shape)
     return err, mean_error(err)
 
 

@@ -145,17 +145,18 @@ def test_reference_reused_for_several_tests_is_the_same_as_fresh():
         assert mean == mean1
 
 
-def test_row_blocks_on_threads_are_bit_for_bit_one_block(monkeypatch):
-    from hzval import backend
-
-    a, b = noise((3 * F.PARALLEL_MIN_ROWS + 5, 41)), noise((3 * F.PARALLEL_MIN_ROWS + 5, 41))
-    monkeypatch.setattr(backend, "host_cores", lambda: 1)
-    one = F.flip(a, b, PPD)
-    monkeypatch.setattr(backend, "host_cores", lambda: 3)
-    assert len(F._blocks(a.shape[0])) == 3
-    three = F.flip(a, b, PPD)
-    np.testing.assert_array_equal(one[0], three[0])
-    assert one[1] == three[1]
+def test_a_crop_away_from_its_border_is_the_whole_images():
+    """Each pixel reads its neighbours within the filters' radii (x, then y), clamped at the image's
+    border: a crop's pixels farther than that from the crop's border are the whole image's, bit for
+    bit, whatever the sizes (one kernel serves every size)."""
+    a, b = noise((90, 130)), noise((90, 130))
+    whole, _ = F.flip(a, b, PPD)
+    f = F.filters(PPD)
+    m = 2 * max(f.spatial_radius, f.feature_radius)
+    crop = (slice(7, 83), slice(20, 111))
+    part, _ = F.flip(a[crop], b[crop], PPD)
+    np.testing.assert_array_equal(part[m:-m, m:-m], whole[crop][m:-m, m:-m])
+    assert not np.array_equal(part[:2], whole[crop][:2])       # the border itself differs: clamped
 
 
 def test_mean_is_flips_float32_running_sum():
