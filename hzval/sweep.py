@@ -349,13 +349,11 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     if setup.view_maps:
         setup.view["files"] = _write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)
-    frames, clock = [], {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
+    clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
                file=sys.stderr, leave=False)
     try:
-        for az in bar:
-            bar.set_postfix_str(f"azimuth {az:+g} deg")
-            frames.append(_frame(report_dir, scene, setup, az, scale, clock, options.all_files))
+        frames = _frames(report_dir, scene, setup, scale, clock, options.all_files, bar)
     finally:
         bar.close()
     timings = {**setup.timings, "truth_s": sum(f["truth_s"] for f in frames), **clock}
@@ -398,9 +396,63 @@ def engine_frames(scene, result: dict) -> dict:
     }
 
 
-def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict, all_files: bool = False) -> dict:
-    """Render, compare and write one light of the sweep; its ``metrics.json`` frame."""
-    t_frame = setup.truth.render(az)
+def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
+    """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of the azimuths) gives them:
+    their ``metrics.json`` frames, in order.
+
+    A frame's comparison and files (:func:`_finish`) run on a thread of their own beside the next
+    frame's truth, which leaves a core partly idle (Embree's shadow rays keep 1.7 of 2 busy): the
+    default sweep at 2048 x 2048 takes ... of the time one after the other. The techniques render
+    alone, once the previous frame is finished, so that their seconds are theirs (the truth's
+    seconds, and the comparison's and the writers', include what they share the cores with). A
+    truth that works in bands (images above :data:`hzval.truth.KEEP_SAMPLES` samples) renders one
+    frame at a time: a second frame in flight would not fit the memory that such an image leaves.
+    ``HZVAL_SERIAL_FRAMES=1`` in the environment does the same for any image (the benchmarks
+    measure the gain with it); the values are the same either way.
+    """
+    overlap = len(setup.truth.bands) == 1 and not os.environ.get("HZVAL_SERIAL_FRAMES")
+    frames: list[dict] = []
+    with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="hzval-frame") as finisher:
+        pending = None
+        try:
+            for az in bar:
+                bar.set_postfix_str(f"azimuth {az:+g} deg")
+                t_frame = setup.truth.render(az)
+                if pending is not None:
+                    frames.append(pending.result())
+                    pending = None
+                rendered = _render(setup, t_frame, az, scale, clock)
+                if overlap:
+                    pending = finisher.submit(_finish, out, scene, setup, rendered, scale, clock, all_files)
+                else:
+                    frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
+            if pending is not None:
+                frames.append(pending.result())
+                pending = None
+        finally:
+            if pending is not None:
+                # Ctrl-C or an error: the frame being written is finished (its writers awaited) before
+                # run() removes the staging folder, so that no file lands in it afterwards
+                concurrent.futures.wait([pending])
+    return frames
+
+
+@dataclasses.dataclass
+class _Rendered:
+    """One light's renders: the truth, the unshadowed shading and its direct term, each technique's
+    frame, and (a view other than ``top``) each technique's error at the truth's hit points."""
+
+    azimuth_deg: float
+    truth: object
+    plain: object
+    direct: np.ndarray
+    techniques: list
+    perfect: dict
+
+
+def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Rendered:
+    """The techniques' renders of the light at ``az`` beside the truth's ``t_frame`` (a view's unseen
+    pixels made the background in every image)."""
     plain, direct = setup.unshadowed.render(az)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az)) for t in setup.techniques]
@@ -416,6 +468,12 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
             F = t.render(az).layers.get("factor")
             if V is not None and F is not None:
                 perfect[t.name] = compare.visibility_metrics(V, F, mask)[0]
+    return _Rendered(az, t_frame, plain, direct, rendered, perfect)
+
+
+def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool) -> dict:
+    """Compare and write one light's renders; its ``metrics.json`` frame."""
+    t_frame, az = r.truth, r.azimuth_deg
     if len(setup.truth.bands) > 1:
         # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back
         # before the comparison's NumPy arrays (smaller images keep them: re-faulting the pages
@@ -424,24 +482,24 @@ def _frame(out: Path, scene, setup: _Setup, az: float, scale: float, clock: dict
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)
     compared = []
-    for t, f in rendered:
+    for t, f in r.techniques:
         metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
         # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
         # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
         compared.append((t, f, metrics, {"shown": _shown(maps["display"]), "flip": maps["flip"]}))
         del maps
-    floor = _floor(ref, direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
+    floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
     truth_shown = _shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
-    rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, plain, compared, scale,
-                                            truth_shown=truth_shown, all_files=all_files, mask=mask)
+    rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, r.plain, compared, scale,
+                                            truth_shown=truth_shown, all_files=all_files, mask=t_frame.mask)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
     if floor is not None:
         frame["floor"] = floor
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
-    for name, value in perfect.items():
+    for name, value in r.perfect.items():
         per[name]["perfect_parallax_mae"] = value
     primary = per.get(technique.PRIMARY)
     if primary is not None:             # the documented top-level keys are the primary technique's

@@ -789,15 +789,8 @@ class Truth:
 
         for st in self._frame_samples():
             rows = slice(st.first // W, st.stop // W)
-            sums = self._render_band(st, azimuth_deg)
-            n = sums.pop("seen", spp)              # samples per pixel that see the surface
-            for k in ("visibility", "ambient"):
-                if k in sums:
-                    # 0/1 samples: the squared deviations sum to s (1 - s / n)
-                    place(k, rows, *_mean_and_variance(sums[k], sums[k] * (1.0 - sums[k] / np.maximum(n, 1)), n))
-            if "image" in sums:
-                n3 = n if np.isscalar(n) else n[:, None]
-                place("image", rows, *_mean_and_variance(sums["image"], sums["image_ss"], n3))
+            for k, (mean, var) in self._render_band(st, azimuth_deg).items():
+                place(k, rows, mean, var)
         image = layers.pop("image", None)
         if image is not None:
             variance["image"] = variance.pop("image")
@@ -813,10 +806,10 @@ class Truth:
         return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
                      layers=layers, variance=variance, seconds=seconds, mask=self.seen)
 
-    def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, np.ndarray]:
-        """Per-pixel sums over the samples of the band ``st``: ``visibility`` and ``ambient`` (the
-        0/1 samples), ``image`` and ``image_ss`` (the radiance, and its squared deviations from the
-        pixel mean), flat float64, ``(pixels[, 3])``; ``image`` only where an effect shades."""
+    def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Pixel means and variances of the mean (:func:`_mean_and_variance`) over the samples of the
+        band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;
+        only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``."""
         import drjit as dr
         import mitsuba as mi
 
@@ -861,13 +854,25 @@ class Truth:
                 dev = dr.select(st.seen, img - dr.gather(mi.Color3f, img_sum, pixel) / n, 0.0)
             reduced["image"], reduced["image_ss"] = img_sum, dr.block_sum(dev * dev, spp)
         dr.eval(reduced)
+        n = reduced.pop("seen", spp)                # samples per pixel that see the surface
+        stats = {}
+        for k in ("visibility", "ambient"):
+            if k in reduced:
+                # 0/1 samples: the squared deviations sum to s (1 - s / n)
+                s1 = mi.Float64(reduced[k])
+                nn = n if isinstance(n, int) else dr.maximum(mi.Float64(n), 1.0)
+                stats[k] = _mean_and_variance(s1, s1 * (1.0 - s1 / nn), n)
+        if "image" in reduced:
+            stats["image"] = tuple(zip(*(_mean_and_variance(mi.Float64(c), mi.Float64(q), n)
+                                         for c, q in zip(reduced["image"], reduced["image_ss"]))))
+        dr.eval(stats)
         backend.sync()
         out = {}
-        for k, v in reduced.items():
-            if k.startswith("image"):
-                out[k] = np.stack([np.asarray(c, dtype=np.float64) for c in v], axis=-1)
+        for k, (mean, var) in stats.items():
+            if k == "image":
+                out[k] = tuple(np.stack([np.asarray(c, dtype=np.float32) for c in v], axis=-1) for v in (mean, var))
             else:
-                out[k] = np.asarray(v, dtype=np.float64)
+                out[k] = (np.asarray(mean, dtype=np.float32), np.asarray(var, dtype=np.float32))
         return out
 
     # ------------------------------------------------------------------
@@ -1116,22 +1121,22 @@ def _lobe_direction(n, v, u):
     return 2.0 * dr.dot(v, h) * h - v, h
 
 
-def _mean_and_variance(s1: np.ndarray, ss: np.ndarray, spp) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2.
+def _mean_and_variance(s1, ss, spp):
+    """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2: float64
+    Dr.Jit arrays in, float32 arrays out (rounded once, from float64).
 
-    ``spp``: the samples of every pixel, or an array of each pixel's (those that see the surface;
-    a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1`` in the
-    denominator) over ``n``: NaN for one sample, which has none. Float32 out.
+    ``spp``: the samples of every pixel (an ``int``), or an array of each pixel's (those that see the
+    surface; a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1``
+    in the denominator) over ``n``: NaN for one sample, which has none.
     """
-    if np.isscalar(spp):
+    import drjit as dr
+    import mitsuba as mi
+
+    if isinstance(spp, int):
         mean = s1 / spp
-        if spp < 2:
-            var = np.full_like(mean, np.nan)
-        else:
-            var = np.maximum(ss, 0.0) / (spp - 1) / spp
-        return mean.astype(np.float32), var.astype(np.float32)
-    n = np.asarray(spp, np.float64)
-    mean = s1 / np.maximum(n, 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        var = np.where(n >= 2, np.maximum(ss, 0.0) / np.maximum(n - 1, 1.0) / np.maximum(n, 1.0), np.nan)
-    return mean.astype(np.float32), np.broadcast_to(var, mean.shape).astype(np.float32)
+        var = dr.full(mi.Float64, math.nan, dr.width(mean)) if spp < 2 else dr.maximum(ss, 0.0) / (spp - 1) / spp
+        return mi.Float(mean), mi.Float(var)
+    n = mi.Float64(spp)
+    mean = s1 / dr.maximum(n, 1.0)
+    var = dr.select(n >= 2, dr.maximum(ss, 0.0) / dr.maximum(n - 1, 1.0) / dr.maximum(n, 1.0), math.nan)
+    return mi.Float(mean), mi.Float(var)

@@ -287,16 +287,21 @@ def _tree(folder):
             if p.is_file() and p.name != ".hzval-lock"}
 
 
-def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("stage", ["render", "_finish"])
+def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypatch, stage):
     """Interrupted at its second light, a sweep into a folder with an earlier report leaves every file of
-    that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130."""
-    from hzval import cli, sweep as sw
+    that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130.
+    ``render``: the truth's, in the main thread, while the first light's files are being written
+    beside it; ``_finish``: in the thread that writes them."""
+    from hzval import cli, sweep as sw, truth
+
+    owner = truth.Truth if stage == "render" else sw
 
     out = tmp_path / "out"
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
     before = _tree(out)
     calls = {"n": 0}
-    real = sw._frame
+    real = getattr(owner, stage)
 
     def interrupted(*args, **kwargs):
         calls["n"] += 1
@@ -304,7 +309,7 @@ def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypat
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(sw, "_frame", interrupted)
+    monkeypatch.setattr(owner, stage, interrupted)
     capsys.readouterr()
     assert cli.main(SMALL_SWEEP + ["--elevation", "20", "--out", str(out)]) == 130
     assert capsys.readouterr().err.strip() == "hzval: interrupted"
