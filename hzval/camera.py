@@ -258,9 +258,12 @@ def pixel_jitter(shape: tuple[int, int], spp: int, seed: int, a: int, b: int) ->
     v = stream([seed, 0x5A3F], total + a * spp).random((b - a, spp))
     n = int(round(math.sqrt(spp)))
     if n * n == spp:
+        # ((cell % n) + u) / n, in place (the same operations, half the memory traffic)
         cell = np.arange(spp)
-        u = ((cell % n)[None, :] + u) / n
-        v = ((cell // n)[None, :] + v) / n
+        u += (cell % n)[None, :]
+        u /= n
+        v += (cell // n)[None, :]
+        v /= n
     return u, v
 
 

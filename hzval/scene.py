@@ -414,10 +414,14 @@ def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a
     height, width = image_shape(rows, cols, camera)
     u, v = pixel_jitter((height, width), spp, seed, a, b)
     prow, pcol = np.divmod(np.arange(a, b), width)
-    # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top
-    x = (pcol[:, None] + u) / ss
-    y = rows - (prow[:, None] + v) / ss
-    return x.astype(np.float32).ravel(), y.astype(np.float32).ravel()
+    # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top:
+    # x = (pcol + u) / ss and y = rows - (prow + v) / ss, in place in float64, then rounded once
+    u += pcol[:, None]
+    u /= ss
+    v += prow[:, None]
+    v /= ss
+    np.subtract(rows, v, out=v)
+    return u.astype(np.float32).ravel(), v.astype(np.float32).ravel()
 
 
 def light_samples(light: Light, azimuth_deg: float, count: int, seed: int,
