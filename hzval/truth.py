@@ -1048,6 +1048,8 @@ def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tup
                                     bounds[:-1], bounds[1:])
     idx = np.concatenate([np.zeros(0, np.int64), *found])
     moved = int(idx.size)
+    if not moved:
+        return xs, ys, 0            # as they are (the shared positions are read-only: no copy)
     xs, ys = np.array(xs, dtype=np.float32), np.array(ys, dtype=np.float32)
     for _ in range(3):
         if not idx.size:
