@@ -93,15 +93,29 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
 
 def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None) -> tuple[float, float, float]:
     """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers, over the
-    pixels of ``mask`` (those that see the surface; ``None``: all)."""
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.float64)
+    pixels of ``mask`` (those that see the surface; ``None``: all): one float64 Dr.Jit kernel and its
+    sums (the counts exact; the mean as NumPy's to 1e-15)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from hzval import backend
+
+    backend.variant()
+    if np.shape(V) != np.shape(F):
+        raise HzvalError(f"visibility layers of different shapes: {np.shape(V)} and {np.shape(F)}")
+    v, f = mi.Float64(_flat_values(V)), mi.Float64(_flat_values(F))
+    lit_truth, lit_approx = v >= LIT_THRESHOLD, f >= LIT_THRESHOLD
+    terms = [dr.abs(f - v), dr.select(lit_approx & ~lit_truth, 1.0, 0.0), dr.select(~lit_approx & lit_truth, 1.0, 0.0)]
+    count = np.size(V)
     if mask is not None:
-        V, F = V[mask], F[mask]
-    lit_truth, lit_approx = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
-    return (float(np.mean(np.abs(F - V))),
-            float(np.mean(lit_approx & ~lit_truth)),
-            float(np.mean(~lit_approx & lit_truth)))
+        seen = mi.Bool(np.ascontiguousarray(mask, bool).ravel())
+        terms = [dr.select(seen, t, 0.0) for t in terms]
+        count = int(np.count_nonzero(mask))
+    sums = [dr.sum(t) for t in terms]
+    dr.eval(sums)
+    if not count:
+        return (math.nan,) * 3
+    return tuple(float(t[0]) / count for t in sums)
 
 
 def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:

@@ -399,10 +399,10 @@ def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed
     factor that brings it to :data:`PREVIEW_PX`; edges repeated to a multiple of ``f``). Returns
     whether a preview was written."""
     write_png(path, pixels, **kw)
-    rgb = pixels.rgb() if isinstance(pixels, Indexed) else np.asarray(pixels)
-    rows, cols = rgb.shape[:2]
+    rows, cols = (pixels.index if isinstance(pixels, Indexed) else np.asarray(pixels)).shape[:2]
     if max(rows, cols) <= PREVIEW_ABOVE_PX:
         return False
+    rgb = pixels.rgb() if isinstance(pixels, Indexed) else np.asarray(pixels)
     f = -(-max(rows, cols) // PREVIEW_PX)
     pad = [(0, -rows % f), (0, -cols % f)] + [(0, 0)] * (rgb.ndim - 2)
     block = np.pad(rgb, pad, mode="edge").astype(np.float32)

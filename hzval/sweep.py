@@ -35,11 +35,9 @@ Speed: the truth's display values, Lab and FLIP half are computed once per
 frame for every comparison (:class:`hzval.compare.Reference`); the
 unshadowed render once per frame for every technique that shades with it;
 previews reuse the comparison's display values; PNG previews are compressed
-at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value. The
-comparison stays in this process: FLIP (:mod:`hzval.flip`) and CIEDE2000
-already run on both cores of the 2-core machine, and moving the comparison
-into a worker process a frame ahead was measured to gain nothing (24.8 s
-against 24.9 s for the default sweep, with flip-evaluator then).
+at zlib level 1 (:data:`PNG_LEVEL`); a frame's comparison and files are made on
+a thread of their own beside the next frame's truth (:func:`_frames`). None of
+this changes a value.
 
 Memory: a sweep's peak is estimated before anything is allocated
 (:func:`estimate_peak_bytes`, :func:`check_fits`); past 2^27 samples the
