@@ -35,7 +35,9 @@ work is three Dr.Jit kernels per image on the current variant (the LLVM
 backend vectorises them over every core; CUDA runs the same code): the
 colour conversion to YCxCz; the x-direction passes, one gather of each
 plane per tap shared by the filters that read it (Cz by two, the feature
-luminance by three); and the y-direction passes fused with everything that
+luminance by three), over the image with its edge rows repeated above and
+below it; and the y-direction passes, whose taps are then plain offsets of
+a pixel's index (0.6x the time of clamping each), fused with everything that
 follows them. Both passes are correlations, the filter index running with
 the image index, summed in float32 in FLIP's tap order. Image sizes enter
 the kernels as opaque values, so one compiled kernel serves every size.
@@ -355,30 +357,34 @@ def filters(ppd: float = DEFAULT_PPD) -> Filters:
 # -- the pipeline, in Dr.Jit ------------------------------------------------------------------------
 
 class _Grid:
-    """Pixel indices of an ``h x w`` image, row-major: the column ``x`` and row ``y`` of each, and the
-    flat index of a neighbour clamped to the image (FLIP's ``Min(Max(0, x + ix), w - 1)``). The sizes
-    are opaque, so one compiled kernel serves every image size."""
+    """Pixel indices of an ``h x w`` image, row-major, for FLIP's two passes. The x-direction pass
+    runs over the image with ``pad`` rows above and below it, each a copy of the nearest edge row
+    (FLIP's ``Min(Max(0, y + iy), h - 1)``, made once instead of per tap); the y-direction pass then
+    reads row ``y + k`` of that padded plane for its tap ``k``, a plain offset of the pixel's index.
+    The sizes are opaque, so one compiled kernel serves every image size."""
 
-    def __init__(self, h: int, w: int):
+    def __init__(self, h: int, w: int, pad: int):
         import drjit as dr
         import mitsuba as mi
 
-        self.h, self.w = h, w
+        self.h, self.w, self.pad = h, w, pad
         self.W = dr.opaque(mi.Int32, w)
-        self.H = dr.opaque(mi.Int32, h)
-        i = dr.arange(mi.Int32, h * w)
-        self.y = i // self.W
-        self.x = i - self.y * self.W
+        H = dr.opaque(mi.Int32, h)
+        j = dr.arange(mi.Int32, (h + 2 * pad) * w)         # a padded plane's index
+        row = j // self.W
+        self.x = j - row * self.W
+        self.source_row = dr.clip(row - pad, 0, H - 1)
+        self.i = dr.arange(mi.Int32, h * w)                # a pixel's index
 
     def along_x(self, offset: int):
+        """Where the padded planes' x pass reads its tap ``offset``: the column clamped to the image."""
         import drjit as dr
 
-        return self.y * self.W + dr.clip(self.x + offset, 0, self.W - 1)
+        return self.source_row * self.W + dr.clip(self.x + offset, 0, self.W - 1)
 
     def along_y(self, offset: int):
-        import drjit as dr
-
-        return dr.clip(self.y + offset, 0, self.H - 1) * self.W + self.x
+        """Where a pixel's y pass reads its tap ``offset`` in a padded plane."""
+        return self.i + (self.pad + offset) * self.W
 
 
 def _correlate(planes, weights, index):
@@ -422,7 +428,7 @@ class _Side:
         import drjit as dr
 
         h, w = display.shape[:2]
-        self.grid = g = _Grid(h, w)
+        self.grid = g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
         r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(display, g))
         yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
         yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))      # oneOver116, sixteenOver116
