@@ -323,6 +323,26 @@ def library_output() -> Iterator:
             lines[:] = [ln.strip() for ln in sink.read().decode(errors="replace").splitlines() if ln.strip()]
 
 
+def run_writers(jobs) -> None:
+    """Run the callables ``jobs`` (each writes a file) on the host pool, a thread per core (the
+    image encoders release the GIL), and wait for every one. A writer's error is re-raised here; on
+    it, or Ctrl-C, the writers not yet started are cancelled and the running ones awaited, so that
+    none puts a file into a folder after its caller has removed it."""
+    import concurrent.futures
+
+    from hzval import backend
+
+    pending = [backend.host_pool().submit(job) for job in jobs]
+    try:
+        for done in pending:
+            done.result()
+    except BaseException:
+        for p in pending:
+            p.cancel()
+        concurrent.futures.wait(pending)
+        raise
+
+
 # --------------------------------------------------------------------------
 # PNG
 # --------------------------------------------------------------------------

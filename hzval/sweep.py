@@ -693,17 +693,9 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
             if V is not None:
                 png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
         per[t.name] = own
-    pending = [backend.host_pool().submit(job) for job in jobs]
-    try:
-        for done in pending:
-            done.result()                   # re-raises a writer's error here
-    except BaseException:
-        # Ctrl-C (or a writer's error) here: no writer may outlive this frame and put a file
-        # into the staging folder after run() has removed it
-        for p in pending:
-            p.cancel()
-        concurrent.futures.wait(pending)
-        raise
+    # Ctrl-C (or a writer's error): no writer outlives this frame to put a file into the staging
+    # folder after run() has removed it
+    files.run_writers(jobs)
     return rel, per, time.perf_counter() - t0
 
 
