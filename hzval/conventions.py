@@ -101,8 +101,13 @@ def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     ``u = x / cols`` runs right, ``v = (rows - y) / rows`` runs down the
     image (row 0 at ``v = 0``), as Dr.Jit's and Mitsuba's textures index a
     ``(rows, cols)`` array; texel ``(row, col)``'s centre is at ``u = (col +
-    0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64.
+    0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64 and rounded once:
+    NumPy values, or Dr.Jit arrays (``mi.Float64`` in a kernel: the same bits).
     """
+    if not isinstance(x, (np.ndarray, np.generic, float, int, list, tuple)):
+        import mitsuba as mi
+
+        return mi.Float(mi.Float64(x) / cols), mi.Float((rows - mi.Float64(y)) / rows)
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     return (x / cols).astype(np.float32), ((rows - y) / rows).astype(np.float32)
