@@ -16,18 +16,12 @@ the bytes under ``frames/``):
     run with this virtualenv), one after the other in one run: wall time, peak memory and frame
     bytes of each, and the ratios. Options after ``--`` go to this tree's sweep only (e.g. ``--
     --techniques horizon,terrain`` for the techniques an older tree ran, which had no such flag).
-    ``--serial`` also runs this tree with ``HZVAL_SERIAL_FRAMES=1`` (each frame compared and
-    written before the next one's truth, as the baseline does): what overlapping them gains.
-
-Stage seconds are each stage's own wall time. In this tree a frame's comparison and files are
-made beside the next frame's truth (:func:`hzval.sweep._frames`), so those stages overlap and
-their seconds add up to more than the run's: the wall time is the figure to compare.
 
 Usage::
 
     python benchmarks/bench_production.py stages [--sizes 512,1024,2048,4096] [--azimuths=-60:60:120]
     python benchmarks/bench_production.py side-by-side --baseline 9219ded [--size 2048]
-                                          [--azimuths=-60:60:30] [--serial] [-- SWEEP OPTIONS]
+                                          [--azimuths=-60:60:30] [-- SWEEP OPTIONS]
 """
 
 from __future__ import annotations
@@ -56,12 +50,11 @@ STAGES = (
 )
 
 
-def run_sweep(tree: Path, out: Path, args: list[str], env: dict | None = None) -> dict:
-    """Run ``hzval sweep`` from ``tree`` (its own package first on the path) into ``out``, with
-    ``env`` added to the environment; return wall seconds, the child's peak RSS, its metrics.json
-    and the frame bytes."""
+def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
+    """Run ``hzval sweep`` from ``tree`` (its own package first on the path) into ``out``;
+    return wall seconds, the child's peak RSS, its metrics.json and the frame bytes."""
     cmd = [sys.executable, "-m", "hzval", "sweep", *args, "--out", str(out)]
-    env = {**os.environ, **(env or {}), "PYTHONPATH": str(tree)}
+    env = {**os.environ, "PYTHONPATH": str(tree)}
     t0 = time.perf_counter()
     child = subprocess.Popen(cmd, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(child.pid, 0)
@@ -105,8 +98,7 @@ def stages(sizes: list[int], azimuths: str, extra: list[str], scratch: Path) -> 
     _print_table(head, rows)
 
 
-def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path,
-                 serial: bool = False) -> None:
+def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path) -> None:
     tree = scratch / "baseline"
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
                    check=True, capture_output=True)
@@ -116,9 +108,6 @@ def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scra
         old = run_sweep(tree, scratch / "old", args)
         print("this tree ...", file=sys.stderr, flush=True)
         new = run_sweep(ROOT, scratch / "new", args + extra)
-        if serial:
-            print("this tree, frames one after the other ...", file=sys.stderr, flush=True)
-            one = run_sweep(ROOT, scratch / "serial", args + extra, {"HZVAL_SERIAL_FRAMES": "1"})
     finally:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
     so, sn = stage_seconds(old["metrics"]["timings"]), stage_seconds(new["metrics"]["timings"])
@@ -133,10 +122,6 @@ def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scra
           f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
           f"{', '.join(new['metrics'].get('techniques', {}))})")
     _print_table(["stage", baseline, "this tree", "ratio"], rows)
-    if serial:
-        print(f"\nthis tree with HZVAL_SERIAL_FRAMES=1: {one['wall_s']:.1f} s wall "
-              f"({_ratio(one['wall_s'], old['wall_s'])} of {baseline}); overlapping the frames: "
-              f"{_ratio(new['wall_s'], one['wall_s'])} of that")
 
 
 def _ratio(new: float, old: float) -> str:
@@ -162,13 +147,12 @@ def main(argv=None) -> None:
     b.add_argument("--baseline", default="9219ded")
     b.add_argument("--size", type=int, default=2048)
     b.add_argument("--azimuths", default="-60:60:30")
-    b.add_argument("--serial", action="store_true", help="also this tree with HZVAL_SERIAL_FRAMES=1")
     a = p.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="hzval-bench-") as scratch:
         if a.mode == "stages":
             stages([int(x) for x in a.sizes.split(",")], a.azimuths, extra, Path(scratch))
         else:
-            side_by_side(a.baseline, a.size, a.azimuths, extra, Path(scratch), a.serial)
+            side_by_side(a.baseline, a.size, a.azimuths, extra, Path(scratch))
 
 
 if __name__ == "__main__":

@@ -35,9 +35,7 @@ Speed: the truth's display values, Lab and FLIP half are computed once per
 frame for every comparison (:class:`hzval.compare.Reference`); the
 unshadowed render once per frame for every technique that shades with it;
 previews reuse the comparison's display values; PNG previews are compressed
-at zlib level 1 (:data:`PNG_LEVEL`); a frame's comparison and files are made on
-a thread of their own beside the next frame's truth (:func:`_frames`). None of
-this changes a value.
+at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value.
 
 Memory: a sweep's peak is estimated before anything is allocated
 (:func:`estimate_peak_bytes`, :func:`check_fits`); past 2^27 samples the
@@ -48,7 +46,6 @@ and FLIP maps of its comparisons until they are written.
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import math
 import os
@@ -396,42 +393,19 @@ def engine_frames(scene, result: dict) -> dict:
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
     """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of the azimuths) gives them:
-    their ``metrics.json`` frames, in order.
+    their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then compared and
+    written (:func:`_finish`).
 
-    A frame's comparison and files (:func:`_finish`) run on a thread of their own beside the next
-    frame's truth, which leaves a core partly idle (Embree's shadow rays keep 1.7 of 2 busy): the
-    default sweep at 2048 x 2048 takes ... of the time one after the other. The techniques render
-    alone, once the previous frame is finished, so that their seconds are theirs (the truth's
-    seconds, and the comparison's and the writers', include what they share the cores with). A
-    truth that works in bands (images above :data:`hzval.truth.KEEP_SAMPLES` samples) renders one
-    frame at a time: a second frame in flight would not fit the memory that such an image leaves.
-    ``HZVAL_SERIAL_FRAMES=1`` in the environment does the same for any image (the benchmarks
-    measure the gain with it); the values are the same either way.
-    """
-    overlap = len(setup.truth.bands) == 1 and not os.environ.get("HZVAL_SERIAL_FRAMES")
+    One frame at a time, every stage on both cores. Making a frame's comparison and files on a
+    thread of their own beside the next frame's truth (commits 1a78ee7 to dcae3f5) gained 2%
+    at 2048 x 2048 (57.8 s against 58.7 s with horizon and terrain, side by side), since both are
+    Dr.Jit kernels on the same two cores; it cost 0.3 GiB more memory and every stage's seconds
+    the share of the other's, so it was taken out."""
     frames: list[dict] = []
-    with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="hzval-frame") as finisher:
-        pending = None
-        try:
-            for az in bar:
-                bar.set_postfix_str(f"azimuth {az:+g} deg")
-                t_frame = setup.truth.render(az)
-                if pending is not None:
-                    frames.append(pending.result())
-                    pending = None
-                rendered = _render(setup, t_frame, az, scale, clock)
-                if overlap:
-                    pending = finisher.submit(_finish, out, scene, setup, rendered, scale, clock, all_files)
-                else:
-                    frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
-            if pending is not None:
-                frames.append(pending.result())
-                pending = None
-        finally:
-            if pending is not None:
-                # Ctrl-C or an error: the frame being written is finished (its writers awaited) before
-                # run() removes the staging folder, so that no file lands in it afterwards
-                concurrent.futures.wait([pending])
+    for az in bar:
+        bar.set_postfix_str(f"azimuth {az:+g} deg")
+        rendered = _render(setup, setup.truth.render(az), az, scale, clock)
+        frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
     return frames
 
 

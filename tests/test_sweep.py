@@ -291,8 +291,7 @@ def _tree(folder):
 def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypatch, stage):
     """Interrupted at its second light, a sweep into a folder with an earlier report leaves every file of
     that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130.
-    ``render``: the truth's, in the main thread, while the first light's files are being written
-    beside it; ``_finish``: in the thread that writes them."""
+    ``render``: the truth's; ``_finish``: while the light is compared and its files written."""
     from hzval import cli, sweep as sw, truth
 
     owner = truth.Truth if stage == "render" else sw
