@@ -700,24 +700,34 @@ class Approximation(Technique):
         return out
 
 
+#: Samples per chunk of :func:`interleaved`.
+_CHUNK = 1 << 22
+
+
 def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
-    """``mi.Float`` of ``convert(x, y)`` (default: ``(x, y)``) interleaved pair by pair, float32, in
-    one kernel on every core: ``convert`` takes and returns ``mi.Float`` arrays (e.g.
-    :func:`hzval.conventions.tangent_to_uv`). Each value is a gather from the mapped NumPy
-    memory (a contiguous load would compile one kernel per alignment); the result is Dr.Jit's
-    own, aligned, memory. 67M pairs at 2048 x 2048 x 16: 0.15 s against 1.5 s chunk by chunk
-    in NumPy, the same bits."""
+    """``mi.Float`` of ``convert(x, y)`` (default: ``(x, y)``) interleaved pair by pair, float32,
+    made in Dr.Jit kernels on every core, :data:`_CHUNK` samples at a time so that no full-size
+    temporary is made (the output alone: 2.1 GB at 4096 x 4096 x 16). ``convert`` takes and
+    returns ``mi.Float`` arrays (e.g. :func:`hzval.conventions.tangent_to_uv`). Each value is a
+    gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
+    one kernel per alignment); the result is Dr.Jit's own, aligned, memory. 67M pairs at 2048 x
+    2048 x 16: 0.2 s against 1.5 s in NumPy chunks, the same bits."""
     import drjit as dr
     import mitsuba as mi
 
-    j = dr.arange(mi.UInt32, 2 * np.size(x))
-    i = j >> 1
-    first = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(x, np.float32)), i)
-    second = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(y, np.float32)), i)
-    if convert is not None:
-        first, second = convert(first, second)
-    out = dr.select((j & 1) == 1, second, first)
-    dr.eval(out)
+    n = int(np.size(x))
+    out = dr.empty(mi.Float, 2 * n)
+    for a in range(0, n, _CHUNK):
+        b = min(n, a + _CHUNK)
+        j = dr.arange(mi.UInt32, 2 * (b - a))
+        i = j >> 1
+        first = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(x[a:b], np.float32)), i)
+        second = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(y[a:b], np.float32)), i)
+        if convert is not None:
+            first, second = convert(first, second)
+        # the chunk's offset is opaque: one kernel for every chunk
+        dr.scatter(out, dr.select((j & 1) == 1, second, first), j + dr.opaque(mi.UInt32, 2 * a))
+        dr.eval(out)
     return out
 
 

@@ -404,8 +404,10 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
     frames: list[dict] = []
     for az in bar:
         bar.set_postfix_str(f"azimuth {az:+g} deg")
-        rendered = _render(setup, setup.truth.render(az), az, scale, clock)
-        frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
+        # no name holds a frame's renders past its _finish: the next frame's renders would
+        # otherwise be made beside them (1.8 GB at 4096 x 4096)
+        frames.append(_finish(out, scene, setup, _render(setup, setup.truth.render(az), az, scale, clock), scale,
+                              clock, all_files))
     return frames
 
 
@@ -446,20 +448,23 @@ def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Re
 def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool) -> dict:
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
-    if len(setup.truth.bands) > 1:
-        # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back
-        # before the comparison's NumPy arrays (smaller images keep them: re-faulting the pages
-        # of every frame's buffers cost 1 s a frame at 2048)
-        backend.release_memory()
+    # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
+    # the comparison, and after each of its steps, whose buffers differ in size and would each stay
+    # cached (1.1 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
+    # every frame's buffers cost 1 s a frame at 2048
+    release = backend.release_memory if len(setup.truth.bands) > 1 else (lambda: None)
+    release()
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)
     compared = []
     for t, f in r.techniques:
+        release()
         metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
         # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
         # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
         compared.append((t, f, metrics, {"shown": _shown(maps["display"]), "flip": maps["flip"]}))
         del maps
+    release()
     floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
     truth_shown = _shown(ref.display)
     del ref
