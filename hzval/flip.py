@@ -58,9 +58,9 @@ regions near a difference, where the two images' filtered colours agree to
 float32 rounding: FLIP's error there is that rounding (``|dLab| ** 0.7``)
 raised to ``1 - feature_difference``, in either implementation.
 ``benchmarks/bench_compare.py`` compares the two at 512-2048 pixels: at 2048 x
-2048, one reference and four test images took 1.6 s against 19.8 s for
-flip-evaluator (12x; the NumPy implementation this replaced took 3.1 s), with
-means within 1.2e-7.
+2048, one reference and four test images took 1.45 s against 23.9 s for
+flip-evaluator (16.6x; the NumPy implementation this replaced took 3.1 s
+against its 21.8 s), with means within 1.2e-7.
 
 Images are ``(H, W, 3)`` sRGB-encoded display values, nominally in [0, 1]
 (any float dtype; computed in float32); rows are y (row 0 first, as FLIP's

@@ -166,7 +166,7 @@ class _Setup:
 #: hzval.truth.KEEP_SAMPLES, one band's beyond). Fitted to the peaks measured on this machine
 #: (``python benchmarks/bench_production.py stages``, the default sweep, two lights; benchmarks/README.md).
 PEAK_BASE_BYTES = 0.3 * 2 ** 30
-PEAK_BYTES_PER_PIXEL = 560
+PEAK_BYTES_PER_PIXEL = 600
 PEAK_BYTES_PER_SAMPLE = 24
 PEAK_BYTES_PER_KEPT_SAMPLE = 76
 #: What a view other than ``top`` adds per sample of a band (rays on the host, the hits).
@@ -450,7 +450,7 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     t_frame, az = r.truth, r.azimuth_deg
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
-    # cached (1.1 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
+    # cached (0.2 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
     # every frame's buffers cost 1 s a frame at 2048
     release = backend.release_memory if len(setup.truth.bands) > 1 else (lambda: None)
     release()
