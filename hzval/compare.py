@@ -84,11 +84,7 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     backend.variant()
     img = np.asarray(image)
     grey = img.ndim == 2
-    flat = np.ascontiguousarray(img, dtype=np.float32 if img.dtype.itemsize <= 4 else np.float64).ravel()
-    # a gather, not the mapped array itself: Dr.Jit maps NumPy memory as it is, and a contiguous load
-    # would compile one kernel per alignment
-    kind = mi.Float if flat.dtype == np.float32 else mi.Float64
-    v = mi.Float64(dr.gather(kind, kind(flat), dr.arange(mi.UInt32, flat.size))) * dr.opaque(mi.Float64, float(scale))
+    v = mi.Float64(_flat_values(img)) * dr.opaque(mi.Float64, float(scale))
     shown = np.asarray(cv.srgb_encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
     return np.repeat(shown[..., None], 3, axis=-1) if grey else shown
 

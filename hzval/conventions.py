@@ -95,6 +95,11 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(col, (rows, cols)), np.broadcast_to(y[:, None], (rows, cols))
 
 
+def is_drjit(values) -> bool:
+    """Whether ``values`` is a Dr.Jit array (a kernel's operand) rather than NumPy or Python values."""
+    return not isinstance(values, (np.ndarray, np.generic, float, int, list, tuple))
+
+
 def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     """Tangent-space points ``(x, y)`` in texels as texture coordinates ``(u, v)``, float32.
 
@@ -104,7 +109,7 @@ def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64 and rounded once:
     NumPy values, or Dr.Jit arrays (``mi.Float64`` in a kernel: the same bits).
     """
-    if not isinstance(x, (np.ndarray, np.generic, float, int, list, tuple)):
+    if is_drjit(x):
         import mitsuba as mi
 
         return mi.Float(mi.Float64(x) / cols), mi.Float((rows - mi.Float64(y)) / rows)
@@ -310,9 +315,9 @@ def srgb_encode(values):
     kernel by the formula colour-science's ``eotf_inverse_sRGB`` evaluates,
     ``12.92 L`` at or below ``L = 0.0031308``, else ``1.055 L^(1/2.4) - 0.055``:
     within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's), 25x faster on
-    12M values on this 2-core machine (``tests/test_conventions.py``).
+    12M values on this 2-core machine (``tests/test_compare.py``).
     """
-    if not isinstance(values, (np.ndarray, np.generic, float, int, list, tuple)):
+    if is_drjit(values):
         import drjit as dr
 
         v = dr.maximum(values, 0.0)

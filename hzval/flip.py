@@ -81,6 +81,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hzval import conventions as cv
+
 f32 = np.float32
 
 #: FLIP's constants (``FLIPConstants`` in FLIP.h): the colour-difference exponent ``qc``,
@@ -132,7 +134,7 @@ _XYZ_TO_RGB = ((_K(3.241003275), _K(-1.537398934), _K(-0.498615861)),
 
 def _numpy(v) -> bool:
     """Whether ``v`` is a NumPy value (the filters' constants) rather than a Dr.Jit array (the images)."""
-    return isinstance(v, (np.ndarray, np.generic, float, int))
+    return not cv.is_drjit(v)
 
 
 def _where(cond, a, b):
@@ -149,8 +151,8 @@ def _powf(x, e):
         return np.power(x, e)
     import drjit as dr
 
-    positive = dr.power(dr.maximum(x, 1e-38), e)
-    return dr.select(x > 0, positive, dr.select(e == 0, 1.0, 0.0) if not _numpy(e) or e == 0 else 0.0)
+    at_zero = (1.0 if e == 0 else 0.0) if _numpy(e) else dr.select(e == 0, 1.0, 0.0)
+    return dr.select(x > 0, dr.power(dr.maximum(x, 1e-38), e), at_zero)
 
 
 def _sqrt(x):
@@ -464,7 +466,7 @@ class FlipReference:
     ``L``, ``A``, ``B``: its spatially filtered, clamped, Hunt-adjusted CIELAB
     (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: the magnitudes of its
     first- and second-derivative feature responses; each a float32 Dr.Jit array of
-    the current variant, row-major (:meth:`numpy` gives them as ``(H, W)`` planes).
+    the current variant, row-major.
     """
 
     def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD):
@@ -479,10 +481,6 @@ class FlipReference:
         side = _Side(disp, self.filters)
         self.L, self.A, self.B, self.edge, self.point = side.L, side.A, side.B, side.edge, side.point
         dr.eval(self.L, self.A, self.B, self.edge, self.point)
-
-    def numpy(self) -> dict[str, np.ndarray]:
-        """``{L, A, B, edge, point}`` as ``(H, W)`` float32 planes."""
-        return {k: np.asarray(getattr(self, k), dtype=f32).reshape(self.shape) for k in ("L", "A", "B", "edge", "point")}
 
 
 def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray, float]:

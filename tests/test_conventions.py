@@ -111,6 +111,18 @@ def test_pad_heights():
     assert np.isneginf(o[0]).all() and (o[1:3, 1:4] == h).all()
 
 
+def test_tangent_to_uv_of_drjit_arrays_is_numpys_bit_for_bit(variant):
+    import mitsuba as mi
+
+    rng = np.random.default_rng(4)
+    x, y = (rng.random(10_001) * 517).astype(np.float32), (rng.random(10_001) * 383).astype(np.float32)
+    x[:3], y[:3] = (0.0, 516.5, 517.0), (383.0, 0.5, 0.0)
+    want_u, want_v = cv.tangent_to_uv(x, y, 383, 517)
+    got_u, got_v = cv.tangent_to_uv(mi.Float(x), mi.Float(y), 383, 517)
+    assert np.array_equal(np.asarray(got_u).view(np.uint32), want_u.view(np.uint32))
+    assert np.array_equal(np.asarray(got_v).view(np.uint32), want_v.view(np.uint32))
+
+
 def test_srgb_round_trip_and_known_value():
     assert cv.srgb_encode(np.array(0.0031308)) == pytest.approx(0.04045, abs=1e-5)
     x = np.linspace(0, 1, 11)
