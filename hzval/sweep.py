@@ -179,8 +179,10 @@ def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
     measured peak."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
-    bands = truth.bands(H, W, scene.spp)
-    kept = max(b - a for a, b in bands) * scene.spp
+    if truth.keeps_samples(H, W, scene.spp):
+        kept = samples
+    else:
+        kept = max(b - a for a, b in truth.bands(H, W, scene.spp)) * scene.spp
     view = 0
     if scene.camera.kind != "top":
         # a band's rays in float64 on the host, the truth's hits, the techniques built twice
@@ -452,7 +454,7 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
     # cached (0.2 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
     # every frame's buffers cost 1 s a frame at 2048
-    release = backend.release_memory if len(setup.truth.bands) > 1 else (lambda: None)
+    release = backend.release_memory if not setup.truth.keeps else (lambda: None)
     release()
     t0 = time.perf_counter()
     ref = compare.Reference(t_frame, scale)

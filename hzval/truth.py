@@ -150,7 +150,11 @@ Boundaries
 Memory
     Camera rays are traced once, and every sample's hit (origin, normals,
     albedo: :data:`STATE_BYTES_PER_SAMPLE` bytes) is kept for the frames, up
-    to :data:`KEEP_SAMPLES` samples. A larger image (4096 x 4096 at 16 spp:
+    to :data:`KEEP_SAMPLES` samples, in bands of :data:`KEPT_BAND_SAMPLES`:
+    the rays' own buffers (Embree's inputs and outputs, the shading's terms)
+    are then a band's, reused from band to band, not the image's (at 2048 x
+    2048 and 16 spp: a peak 1.7 GB lower, and 4-5 s less in a sweep of five
+    lights, most of it the kernel's zeroing of pages new to the process). A larger image (4096 x 4096 at 16 spp:
     268M samples, 14 GB of such state) is rendered in bands of whole pixel
     rows, :data:`BAND_SAMPLES` samples each, whose camera rays are traced
     again in every frame; only ``A`` is kept per band. Sample positions,
@@ -221,6 +225,10 @@ class Truth:
     ``(x, y)`` sample positions in texel units replacing
     :func:`hzval.scene.sample_positions` (same length and pixel-major order,
     ``pixels * spp``); tests use it to put samples exactly on mesh vertices.
+    ``band_samples`` (samples per band) and ``keep`` (whether the camera hits
+    are kept between frames) override :func:`_bands` and :func:`keeps_samples`
+    (module docstring, "Memory"); tests use them to check that every way gives
+    the same pixels.
     ``albedo``: optional linear ``(rows, cols, 3)`` albedo replacing
     :func:`hzval.scene.load_albedo`; read only if an effect needs it.
 
@@ -236,7 +244,7 @@ class Truth:
     """
 
     def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
-                 albedo: np.ndarray | None = None, band_samples: int | None = None):
+                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None):
         backend.variant()
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
@@ -257,6 +265,7 @@ class Truth:
         self._albedo_texels = self._load_albedo(albedo)
         self._positions = self._check_positions(positions)
         self.count = self.shape[0] * self.shape[1] * self.spp
+        self.keeps = keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
         self.bands = _bands(self.shape, self.spp, band_samples)
         self._trace_camera_rays()
 
@@ -359,8 +368,9 @@ class Truth:
         if reflects:
             self.timings["reflection_s"] = 0.0
         reflection = []
+        kept = []
         for first, stop in self.bands:
-            if len(self.bands) > 1 and not (ambient or reflects):
+            if not self.keeps and not (ambient or reflects):
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
                 self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop)[:2],
@@ -373,8 +383,9 @@ class Truth:
                 self._ambient_bands.append(st.ambient)
             if reflects:
                 reflection.append(self._trace_reflection(st))
-            if len(self.bands) == 1:
-                self._kept = st
+            if self.keeps:
+                kept.append(st)
+        self._kept = kept if self.keeps else None
         self._reflection = None
         if reflection:
             self._reflection = tuple(np.concatenate(parts).reshape(self.shape) for parts in zip(*reflection))
@@ -424,26 +435,31 @@ class Truth:
             return self.hits[0][a:b], self.hits[1][a:b], self.seen_samples[a:b]
         if scene.camera.kind != "top":
             return self._view_hits(first, stop)
-        if self._positions is None:
+        if self._positions is None and not self.keeps:
             return (*sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed, pixels=(first, stop)),
                     None)
+        if self._positions is None:
+            # the whole image's positions, made once and shared with the techniques (hzval.scene)
+            whole = sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed)
+            return (*(p[first * spp:stop * spp] for p in whole), None)
         return (*(p[first * spp:stop * spp] for p in self._positions), None)
 
     def _trace_view(self) -> None:
         """Trace every camera ray once (a view other than ``top``): :attr:`seen`, the pixels whose
-        rays meet the surface, and, when one band holds the image, :attr:`hits` (float32 ``(x, y)``
-        of each sample's surface point, in the tile), which the frames reuse."""
+        rays meet the surface, and, when the truth keeps its samples (:attr:`keeps`), :attr:`hits`
+        (float32 ``(x, y)`` of each sample's surface point, in the tile), which the frames reuse."""
         H, W = self.shape
         seen_px, hx, hy, hs = [], [], [], []
         for first, stop in self.bands:
             xs, ys, seen = self._view_hits(first, stop)
             seen_px.append(seen.reshape(-1, self.spp).any(axis=1))
-            if len(self.bands) == 1:
+            if self.keeps:
                 hx.append(xs), hy.append(ys), hs.append(seen)
         self.seen = np.concatenate(seen_px).reshape(H, W)
-        if len(self.bands) == 1:
-            self.hits = (hx[0], hy[0])
-            self.seen_samples = hs[0]
+        if self.keeps:
+            one = len(hx) == 1          # one band: its arrays as they are, no copy
+            self.hits = (hx[0], hy[0]) if one else (np.concatenate(hx), np.concatenate(hy))
+            self.seen_samples = hs[0] if one else np.concatenate(hs)
 
     def _view_hits(self, first: int, stop: int):
         """Where the camera rays of the pixels ``first <= p < stop`` meet the surface: float32 ``x, y``
@@ -480,7 +496,7 @@ class Truth:
     def _frame_samples(self):
         """The samples of every band for a frame: the kept ones, or each band's traced again."""
         if self._kept is not None:
-            yield self._kept
+            yield from self._kept
             return
         for i, (first, stop) in enumerate(self.bands):
             st = self._camera_samples(first, stop)
@@ -975,10 +991,13 @@ class Truth:
 
 
 #: Up to this many samples (2048 x 2048 at 32 spp) the truth keeps every sample's camera hit
-#: between frames (module docstring, "Memory"); a larger image works in bands.
+#: between frames (module docstring, "Memory"); a larger image traces them again in each frame.
 KEEP_SAMPLES = 1 << 27
 #: Samples per band of a larger image: about 1 GB of per-sample state at a time.
 BAND_SAMPLES = 1 << 24
+#: Samples per band of an image whose samples are kept: the rays' own buffers (Embree's inputs
+#: and outputs, the shading's terms) stay this small, and are reused from band to band.
+KEPT_BAND_SAMPLES = 1 << 22
 #: Bytes per sample of that state: lifted origin, geometric and shading normal, albedo (4 x 3
 #: float32) and ``A`` (``sweep.estimate_peak_bytes`` counts it).
 STATE_BYTES_PER_SAMPLE = 52
@@ -989,14 +1008,19 @@ def bands(rows: int, cols: int, spp: int) -> list[tuple[int, int]]:
     return _bands((rows, cols), spp)
 
 
+def keeps_samples(rows: int, cols: int, spp: int) -> bool:
+    """Whether a truth of a ``rows x cols`` image at ``spp`` keeps every sample's camera hit between
+    frames (up to :data:`KEEP_SAMPLES`; module docstring, "Memory")."""
+    return rows * cols * spp <= KEEP_SAMPLES
+
+
 def _bands(shape: tuple[int, int], spp: int, band_samples: int | None = None) -> list[tuple[int, int]]:
     """Whole rows of pixels, ``[(first, stop), ...]`` pixel indices, each of at most ``band_samples``
-    samples (at least one row); default: one band up to :data:`KEEP_SAMPLES`, else bands of
-    :data:`BAND_SAMPLES`."""
+    samples (at least one row); default: bands of :data:`KEPT_BAND_SAMPLES` where the samples are
+    kept (:func:`keeps_samples`), else of :data:`BAND_SAMPLES`."""
     H, W = shape
-    total = H * W * spp
     if band_samples is None:
-        band_samples = total if total <= KEEP_SAMPLES else BAND_SAMPLES
+        band_samples = KEPT_BAND_SAMPLES if keeps_samples(H, W, spp) else BAND_SAMPLES
     rows = max(1, int(band_samples) // (W * spp))
     return [(r * W, min(H, r + rows) * W) for r in range(0, H, rows)]
 

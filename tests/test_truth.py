@@ -743,8 +743,9 @@ def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
     dict(boundary="open", effects=("shadow",), spp=1),
 ])
 def test_bands_give_the_pixels_of_one_piece(kw):
-    """Bands of 3 and of 7 pixel rows (the last one short) against one band: every layer, the
-    image and the variances are equal, not close; the samples moved off edge lines are counted once."""
+    """Bands of 3 and of 7 pixel rows (the last one short) against one band, their camera hits
+    traced again in each frame or kept: every layer, the image and the variances are equal, not
+    close; the samples moved off edge lines are counted once."""
     from hzval.truth import Truth
 
     h = np.random.default_rng(8).random((17, 13)).astype(np.float32)
@@ -752,9 +753,10 @@ def test_bands_give_the_pixels_of_one_piece(kw):
     whole = Truth(sc, h)
     ss = sc.camera.supersampling
     frames = [whole.render(az) for az in (-40.0, 25.0)]
-    for rows in (3, 7):
-        banded = Truth(sc, h, band_samples=rows * 13 * ss * sc.spp)
+    for rows, keep in ((3, False), (7, False), (3, True)):
+        banded = Truth(sc, h, band_samples=rows * 13 * ss * sc.spp, keep=keep)
         assert len(banded.bands) == -(-17 * ss // rows) and len(whole.bands) == 1
+        assert banded.keeps is keep and whole.keeps
         assert banded.moved_off_edges == whole.moved_off_edges
         for az, f in zip((-40.0, 25.0), frames):
             g = banded.render(az)
@@ -767,9 +769,12 @@ def test_bands_give_the_pixels_of_one_piece(kw):
 
 
 def test_large_images_are_banded_by_default():
-    from hzval.truth import BAND_SAMPLES, KEEP_SAMPLES, _bands
+    from hzval.truth import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, _bands, keeps_samples
 
-    assert _bands((2048, 2048), 16) == [(0, 2048 * 2048)]          # 67M samples: kept whole
+    kept = _bands((2048, 2048), 16)                                  # 67M samples: kept, in bands
+    assert keeps_samples(2048, 2048, 16) and not keeps_samples(4096, 4096, 16)
+    assert len(kept) == 2048 * 2048 * 16 // KEPT_BAND_SAMPLES and kept[-1][1] == 2048 * 2048
+    assert _bands((64, 64), 16) == [(0, 64 * 64)]                   # a small image: one band
     bands = _bands((4096, 4096), 16)                                 # 268M: bands of whole rows
     assert 4096 * 4096 * 16 > KEEP_SAMPLES and len(bands) == 4096 * 4096 * 16 // BAND_SAMPLES
     assert bands[0] == (0, 256 * 4096) and bands[-1][1] == 4096 * 4096

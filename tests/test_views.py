@@ -115,10 +115,11 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     T.render(0.0)
     seen = T.seen_samples
     x, y = T.hits
-    o, n, ns, valid = T._kept.o, T._kept.n, T._kept.ns, None
+    (kept,) = T._kept
+    o, n, ns, valid = kept.o, kept.n, kept.ns, None
     z = np.asarray(o.z) - T.lift
     L = T.light_directions(0.0)[0]
-    V = np.asarray(T._visible(T._kept.o, T._kept.n, L, math.radians(30), math.radians(30)))
+    V = np.asarray(T._visible(kept.o, kept.n, L, math.radians(30), math.radians(30)))
     ground = seen & (z < 1e-3) & (y > 8) & (y < 56)
     edge = 40.5 - 8 / math.tan(math.radians(30))
     shadow = ground & (x > edge + 0.75) & (x < 39.4)
