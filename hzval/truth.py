@@ -148,8 +148,8 @@ Boundaries
     the margin.
 
 Memory
-    Camera rays are traced once, and every sample's hit (origin, normals,
-    albedo: :data:`STATE_BYTES_PER_SAMPLE` bytes) is kept for the frames, up
+    Camera rays are traced once, and every sample's hit (the origin's height,
+    the normals: :data:`STATE_BYTES_PER_SAMPLE` bytes) is kept for the frames, up
     to :data:`KEEP_SAMPLES` samples, in bands of :data:`KEPT_BAND_SAMPLES`:
     the rays' own buffers (Embree's inputs and outputs, the shading's terms)
     are then a band's, reused from band to band, not the image's (at 2048 x
@@ -394,7 +394,8 @@ class Truth:
 
     def _camera_samples(self, first: int, stop: int) -> "_Samples":
         """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
-        (lifted origin, geometric and shading normal) and the albedo of the texel that holds each."""
+        (lifted origin, geometric and shading normal) and the albedo of the texel that holds each
+        (an expression over the positions: the kernels that read it gather it)."""
         import drjit as dr
         import mitsuba as mi
 
@@ -404,8 +405,10 @@ class Truth:
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
         o, n, ns, valid = self._surface_at(x, y, coherent=True)
+        # the albedo stays an expression, a gather from the texels that each frame's kernel makes
+        # again: 12 bytes a sample less to keep (0.8 GB at 2048 x 2048 x 16), the same values
         albedo = self._albedo_at(x, y) if self._albedo_texels is not None else None
-        dr.eval(o, n, ns, valid, albedo)
+        dr.eval(o, n, ns, valid)
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
@@ -998,9 +1001,10 @@ BAND_SAMPLES = 1 << 24
 #: Samples per band of an image whose samples are kept: the rays' own buffers (Embree's inputs
 #: and outputs, the shading's terms) stay this small, and are reused from band to band.
 KEPT_BAND_SAMPLES = 1 << 22
-#: Bytes per sample of that state: lifted origin, geometric and shading normal, albedo (4 x 3
-#: float32) and ``A`` (``sweep.estimate_peak_bytes`` counts it).
-STATE_BYTES_PER_SAMPLE = 52
+#: Bytes per sample of that state: the lifted origin's height (its x and y are the sample positions
+#: themselves), the geometric and shading normals and ``A`` (8 float32; the albedo is gathered
+#: again by each frame's kernel; ``sweep.estimate_peak_bytes`` counts the state).
+STATE_BYTES_PER_SAMPLE = 32
 
 
 def bands(rows: int, cols: int, spp: int) -> list[tuple[int, int]]:
