@@ -416,8 +416,12 @@ def _image_planes(img: np.ndarray, grid: _Grid):
     import drjit as dr
     import mitsuba as mi
 
-    flat = mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
     i = dr.arange(mi.UInt32, grid.h * grid.w) * 3
+    if img.dtype == np.float64 and img.flags.c_contiguous:
+        # cast in the kernel, as NumPy casts (to nearest): no float32 copy made on one core first
+        flat = mi.Float64(img.ravel())
+        return tuple(mi.Float(dr.gather(mi.Float64, flat, i + c)) for c in range(3))
+    flat = mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
     return tuple(dr.gather(mi.Float, flat, i + c) for c in range(3))
 
 

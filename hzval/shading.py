@@ -142,7 +142,9 @@ def compose(direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndar
     differ only where the direct term varies inside a pixel that a shadow
     edge crosses (a covariance within one pixel).
     """
-    out = np.asarray(direct_image, np.float32) * np.asarray(factor, np.float32)[..., None]
+    # one new image, the sum made in it (each full-size temporary is pages new to the process)
+    out = np.multiply(np.asarray(direct_image, np.float32), np.asarray(factor, np.float32)[..., None],
+                      dtype=np.float32)
     if ambient_image is not None:
-        out = out + ambient_image
-    return out.astype(np.float32)
+        np.add(out, ambient_image, out=out)     # in float64 first if the ambient is, as before
+    return out
