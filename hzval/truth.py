@@ -290,6 +290,7 @@ class Truth:
         else:
             self.margin = 0
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
+                                          texcoords=False,
                                           margin=self.margin if mat.boundary == "wrap" else None)
         self._normals = None
         if mat.shading == "smooth":
