@@ -398,3 +398,49 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
     assert fired.is_set()
     _time.sleep(0.5)                                 # a straggler would have written by now
     assert [p for p in out.rglob("*") if p.is_file() and ".hzval-staging" in str(p)] == []
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmRSS:"))
+
+
+def test_freed_memory_is_kept_while_retained_and_handed_back_after():
+    """hzval.backend.retain_freed_memory: a freed 256 MB array stays with the process (its pages are
+    the next allocation's); hand_back_freed_memory gives them back, and a later one is unmapped
+    again as glibc does."""
+    from hzval import backend
+
+    if not backend.retain_freed_memory():
+        pytest.skip("not glibc: nothing to retain")
+    try:
+        base = _rss_bytes()
+        big = np.ones(256 * 2 ** 20, np.uint8)
+        del big
+        assert _rss_bytes() > base + 200 * 2 ** 20            # kept
+    finally:
+        backend.hand_back_freed_memory()
+    assert _rss_bytes() < base + 64 * 2 ** 20                 # handed back
+    after = _rss_bytes()
+    big = np.ones(256 * 2 ** 20, np.uint8)
+    del big
+    assert _rss_bytes() < after + 64 * 2 ** 20                # glibc's own way again
+    backend.hand_back_freed_memory()                          # a second call does nothing
+
+
+def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_path, monkeypatch):
+    """A sweep far below the memory available retains what it frees (metrics.json says so) and hands
+    it back when it ends; one near the limit does not retain."""
+    from hzval import backend, bake
+
+    calls = []
+    real = backend.hand_back_freed_memory
+    monkeypatch.setattr(backend, "hand_back_freed_memory", lambda: calls.append(backend._retaining) or real())
+    out = tmp_path / "o"
+    assert run("sweep", "--size", 24, "--azimuths", 0, "--spp", 2, "--quiet", "--out", out) == 0
+    retains = json.loads((out / "metrics.json").read_text())["memory"]["retains_freed"]
+    assert retains is (backend._mallopt() is not None) and calls == [retains] and not backend._retaining
+    monkeypatch.setattr(bake, "available_bytes", lambda: int(1.5 * sweep.estimate_peak_bytes(
+        sweep.sc.override(sweep.sc.Scene(), size=24, spp=2), 24, 24)))
+    assert run("sweep", "--size", 24, "--azimuths", 0, "--spp", 2, "--quiet", "--out", tmp_path / "p") == 0
+    assert json.loads((tmp_path / "p" / "metrics.json").read_text())["memory"]["retains_freed"] is False

@@ -37,7 +37,7 @@ def noise(variant):
 
 
 def per_sample_visibility(t, azimuth):
-    st = t._kept                                   # a small image: one band, kept between frames
+    (st,) = t._kept                                # a small image: one band, kept between frames
     return np.asarray(t._visible(st.o, st.n, *t.light_directions(azimuth, st)))
 
 
