@@ -172,7 +172,7 @@ class _Setup:
 PEAK_BASE_BYTES = 0.3 * 2 ** 30
 PEAK_BYTES_PER_PIXEL = 600
 PEAK_BYTES_PER_SAMPLE = 24
-PEAK_BYTES_PER_KEPT_SAMPLE = 76
+PEAK_BYTES_PER_KEPT_SAMPLE = 52
 #: What a view other than ``top`` adds per sample of a band (rays on the host, the hits).
 PEAK_BYTES_PER_VIEW_SAMPLE = 64
 #: A sweep whose estimated peak is at most this share of the memory available keeps what it frees
