@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import dataclasses
 
-    from hzval import approx, backend, bake, pom, scene as sc, truth
+    from hzval import horizon, surface, backend, bake, pom, scene as sc, truth
 
     variant = backend.variant()
     import drjit as dr
@@ -48,8 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     azimuths = [float(a) for a in np.linspace(-60, 60, args.frames)]
     tr = truth.Truth(dataclasses.replace(scene, spp=args.truth_spp, seed=1), height)
     V = {az: tr.render(az).layers["visibility"] for az in azimuths}
-    plain = approx.Unshadowed(scene, baked)
-    horizon = approx.Approximation(scene, baked)
+    plain = surface.Unshadowed(scene, baked)
+    horizon = horizon.Horizon(scene, baked)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
 
     def timed(fn):

@@ -9,7 +9,7 @@ elevation 30), bakes it once, renders one warm-up frame per technique
 * terrain, Dr.Jit: the factor alone (sweep + texel + sample kernels), and the
   whole frame (factor + the unshadowed normal-mapped render it multiplies);
 * terrain, NumPy: the factor alone (the reference implementation);
-* horizon map (``hzval.approx``, exact path): the whole shaded frame.
+* horizon map (``hzval.horizon``, exact path): the whole shaded frame.
 
 Times are wall times with kernels synchronised and images read back into
 NumPy (mean and min over the frames, ms). Kernels compiled after the warm-up
@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=16)
     args = ap.parse_args(argv)
 
-    from hzval import approx, backend, bake, scene as sc, terrain
+    from hzval import horizon, surface, backend, bake, scene as sc, terrain
 
     variant = backend.variant()
     import drjit as dr
@@ -45,8 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     scene = sc.Scene(material=sc.MaterialSpec(size=args.size), spp=args.spp).validate()
     height = sc.load_material_height(scene.material).height
     baked = bake.bake(height, bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
-    ap_ = approx.Approximation(scene, baked)
-    plain = approx.Unshadowed(scene, baked)
+    ap_ = horizon.Horizon(scene, baked)
+    plain = surface.Unshadowed(scene, baked)
     ts = terrain.TerrainShadow(scene, height, bake=baked, unshadowed=plain)
     ref = terrain.TerrainShadow(scene, height, bake=baked, unshadowed=plain, impl="numpy")
     azimuths = np.linspace(-60, 60, args.frames)
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         ("terrain factor, Dr.Jit", lambda az: ts.factor(az)),
         ("terrain factor, NumPy", lambda az: ref.factor(az)),
         ("terrain frame, Dr.Jit (factor + unshadowed render)", lambda az: ts.render(az)),
-        ("horizon-map frame (hzval.approx, exact)", lambda az: ap_.render(az)),
+        ("horizon-map frame (hzval.horizon, exact)", lambda az: ap_.render(az)),
         ("unshadowed normal-mapped frame", lambda az: ap_.render(az, shadows=False)),
     ]
     cmd = ".venv/bin/python benchmarks/bench_terrain.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))

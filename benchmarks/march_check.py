@@ -69,7 +69,7 @@ sees the surface with only some of its samples (a silhouette) are left out and c
 pixels where the two sides disagree on seen/unseen are counted.
 
 What it does not share with hzval: it imports none of ``hzval.truth``, ``hzval.camera``,
-``hzval.scene``, ``hzval.lookup``, ``hzval.mesh`` or ``hzval.approx``; the camera model, the
+``hzval.scene``, ``hzval.lookup``, ``hzval.mesh`` or ``hzval.horizon``; the camera model, the
 sample positions (its own jitter and seed, so it differs from hzval's samples by sampling noise),
 the surface evaluation, the ray traversal and intersection (hzval's is Mitsuba's BVH on a float32
 mesh, with a wrap margin and hops), the shadow-ray offset and the light direction are computed

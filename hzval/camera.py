@@ -41,11 +41,13 @@ pixels gets bit for bit the rays of the whole image.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from hzval.backend import host_pool
 from hzval.errors import InputError
 
 #: The camera kinds (module docstring).
@@ -273,3 +275,85 @@ def stream(entropy, offset: int) -> np.random.Generator:
     bits = np.random.PCG64(np.random.SeedSequence(entropy))
     bits.advance(offset)
     return np.random.Generator(bits)
+
+
+# --------------------------------------------------------------------------
+# Where each pixel of the top view is sampled
+# --------------------------------------------------------------------------
+
+def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int,
+                     pixels: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels * spp,)``.
+
+    Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``,
+    at the jitter of :func:`hzval.camera.pixel_jitter` in its pixel. Both
+    renderers use these positions, so no error comes from sampling alone.
+    Jittered points almost never land on a texel centre, where the mesh has
+    a vertex and shadow rays self-intersect (docs/ARCHITECTURE.md, "Known pitfalls").
+    Other views' samples are where their camera rays meet the surface (the
+    truth) or the technique's plane (:mod:`hzval.lookup`).
+
+    ``pixels``: ``(first, stop)``, only the samples of the pixels ``first <= p < stop`` (a band
+    of rows for a renderer that works in bands), bit for bit those of the whole image; bands and
+    the whole image alike are made in chunks of :data:`SAMPLE_CHUNK_PIXELS` pixels on a thread
+    per core, in bounded memory.
+    """
+    if camera.kind != "top":
+        raise ValueError(f"sample_positions is the top view's; a {camera.kind} camera's samples come from its rays")
+    height, width = camera.image_shape(rows, cols)
+    if pixels is None or tuple(pixels) == (0, height * width):
+        return _all_positions(rows, cols, camera, spp, seed)
+    return _positions(rows, cols, camera, spp, seed, int(pixels[0]), int(pixels[1]))
+
+
+@functools.lru_cache(maxsize=1)
+def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
+    """The whole image's positions, made once for the truth and every technique of a sweep
+    (read-only: they share them)."""
+    height, width = camera.image_shape(rows, cols)
+    xs, ys = _positions(rows, cols, camera, spp, seed, 0, height * width)
+    xs.flags.writeable = ys.flags.writeable = False
+    return xs, ys
+
+
+def forget_sample_positions() -> None:
+    """Drop the whole image's shared positions (:func:`sample_positions`): a sweep's set-up is done
+    with them once the truth and every technique hold what they need (2.1 GB at 4096 x 4096)."""
+    _all_positions.cache_clear()
+
+
+def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first: int, stop: int):
+    """:func:`sample_positions` of the pixels ``first <= p < stop``."""
+    height, width = camera.image_shape(rows, cols)
+    if not 0 <= first <= stop <= height * width:
+        raise ValueError(f"pixels {first}..{stop} outside the image's {height * width}")
+    xs = np.empty((stop - first) * spp, np.float32)
+    ys = np.empty_like(xs)
+    bounds = list(range(first, stop, SAMPLE_CHUNK_PIXELS)) + [stop]
+
+    def chunk(a: int, b: int) -> None:
+        x, y = _jittered_chunk(rows, cols, camera, spp, seed, a, b)
+        xs[(a - first) * spp:(b - first) * spp], ys[(a - first) * spp:(b - first) * spp] = x, y
+
+    list(host_pool().map(chunk, bounds[:-1], bounds[1:]))
+    return xs, ys
+
+
+#: Pixels per chunk of :func:`sample_positions` (16 spp: 64 MB of float64 jitters in flight per thread).
+SAMPLE_CHUNK_PIXELS = 1 << 18
+
+
+def _jittered_chunk(rows: int, cols: int, camera: Camera, spp: int, seed: int, a: int, b: int):
+    """:func:`sample_positions` of the pixels ``a <= p < b``."""
+    ss = camera.supersampling
+    height, width = camera.image_shape(rows, cols)
+    u, v = pixel_jitter((height, width), spp, seed, a, b)
+    prow, pcol = np.divmod(np.arange(a, b), width)
+    # pixel (prow, pcol) covers x in [pcol, pcol + 1) / ss, and y downward from the top:
+    # x = (pcol + u) / ss and y = rows - (prow + v) / ss, in place in float64, then rounded once
+    u += pcol[:, None]
+    u /= ss
+    v += prow[:, None]
+    v /= ss
+    np.subtract(rows, v, out=v)
+    return u.astype(np.float32).ravel(), v.astype(np.float32).ravel()

@@ -37,8 +37,8 @@ Soft (``variant="soft"``; Tatarchuk's approximate soft shadows)
     anything: the penumbra lies inside the geometric shadow.
 
 Lights at or above the zenith light everything, at or below the horizon
-nothing (as :mod:`hzval.approx`). The shading is the other techniques':
-:class:`hzval.approx.Unshadowed` times the pixel mean of ``F``
+nothing (as :mod:`hzval.surface`). The shading is the other techniques':
+:class:`hzval.surface.Unshadowed` times the pixel mean of ``F``
 (:func:`hzval.shading.compose`).
 
 Dr.Jit: one kernel for every step count, light and material (the step count,
@@ -55,7 +55,7 @@ import time
 
 import numpy as np
 
-from hzval import approx, backend, lookup
+from hzval import backend, lookup, surface
 from hzval import conventions as cv
 from hzval.errors import InputError
 from hzval.scene import Frame, Scene, image_shape
@@ -82,7 +82,7 @@ EPSILON_PER_HEIGHT = 2.0 ** -18
 TRADEOFF_STEPS: tuple[int, ...] = (4, 8, 16, 32, 64)
 
 
-class RayMarchShadow(approx.HeightFieldShadow):
+class RayMarchShadow(surface.HeightFieldShadow):
     """Per-pixel height-field ray marching toward the light, frame by frame: the ``pom`` technique.
 
     Parameters: ``scene`` and ``height`` (normalised ``(rows, cols)``) as
@@ -101,7 +101,7 @@ class RayMarchShadow(approx.HeightFieldShadow):
 
     def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = DEFAULT_STEPS, variant: str | None = None,
                  softness: float | None = None, bake=None, albedo: np.ndarray | None = None,
-                 unshadowed: approx.Unshadowed | None = None, samples=None):
+                 unshadowed: surface.Unshadowed | None = None, samples=None):
         backend.variant()
         variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
         if softness is None:

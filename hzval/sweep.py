@@ -3,7 +3,7 @@
 For a scene (:mod:`hzval.scene`), :func:`run` bakes the material (or reuses
 the bake in ``out/bake`` when input digest and parameters match), builds the
 ground truth (:mod:`hzval.truth`), the unshadowed shading
-(:class:`hzval.approx.Unshadowed`, the report's "normal mapping only") and
+(:class:`hzval.surface.Unshadowed`, the report's "normal mapping only") and
 every selected technique (:mod:`hzval.technique`: by default each one that
 applies to the declared effects) once, then renders each light of the sweep
 with all of them. Each technique's frame is compared with the same truth
@@ -60,8 +60,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import approx, backend, bake, compare, files, heightmap, images, lookup, materials, report, shading
-from hzval import technique, truth
+from hzval import backend, bake, camera, compare, files, heightmap, images, lookup, materials, report, shading
+from hzval import surface, technique, truth
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
@@ -153,7 +153,7 @@ class _Setup:
     material: dict
     params: BakeParams
     truth: truth.Truth
-    unshadowed: approx.Unshadowed
+    unshadowed: surface.Unshadowed
     techniques: list            # built Technique objects, registry order
     timings: dict
     notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
@@ -245,7 +245,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     timings["truth_setup_s"] = time.perf_counter() - t0
     ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols))
     t0 = time.perf_counter()
-    plain = approx.unshadowed(ctx)
+    plain = surface.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
     built = []
     for t in chosen:
@@ -257,7 +257,8 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
         timings["view_setup_s"] = time.perf_counter() - t0
-    sc.forget_sample_positions()
+    camera.forget_sample_positions()
+    lookup.forget()
     backend.release_memory()
     return setup
 
@@ -625,7 +626,7 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     ``F`` (``<stem>_factor.exr``), and the PNGs the report shows. The files that these determine
     are written only with ``all_files`` (``--all-files``): ``plain.exr`` (the report shows
     ``plain.png``), each technique's image ``<stem>.exr`` (``plain`` times ``F`` for the
-    techniques that shade through :class:`hzval.approx.Unshadowed`; ``<stem>.png`` shows it) and
+    techniques that shade through :class:`hzval.surface.Unshadowed`; ``<stem>.png`` shows it) and
     the 8-bit PNGs of ``V`` and ``F`` (the EXRs hold them): 1.6x the bytes of a 2048 frame.
 
     Formats, each chosen to lose nothing a reader needs (the metrics were

@@ -47,7 +47,7 @@ __all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "nam
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
-    "horizon": "hzval.approx:Approximation",
+    "horizon": "hzval.horizon:Horizon",
     "terrain": "hzval.terrain:TerrainShadow",
     "pom": "hzval.pom:RayMarchShadow",
 }

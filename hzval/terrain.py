@@ -57,8 +57,8 @@ Lines, interpolation (the sweep's geometry)
     fraction for a whole scanline). Per sample, ``h - B_hi`` and ``ramp`` are
     filtered bilinearly between texel centres (``wrap`` repeats, ``open``
     clamps to the edge, like the horizon map's textures in
-    :mod:`hzval.approx`) at the scene's sample positions
-    (:func:`hzval.scene.sample_positions`); ``F`` is their pixel mean.
+    :mod:`hzval.horizon`) at the scene's sample positions
+    (:func:`hzval.camera.sample_positions`); ``F`` is their pixel mean.
 
 Boundary conditions (:func:`hzval.conventions.pad_heights` has the meaning)
     ``wrap``: lines wrap around the tile in both axes and the sweep starts
@@ -73,12 +73,12 @@ Boundary conditions (:func:`hzval.conventions.pad_heights` has the meaning)
     border's half-texel skirt (the truth's open mesh, :mod:`hzval.mesh`).
 
 Lights at or above the zenith (``e >= 90``) light everything (``F = 1``); at
-or below the horizon (``e <= 0``) nothing (``F = 0``), as :mod:`hzval.approx`.
+or below the horizon (``e <= 0``) nothing (``F = 0``), as :mod:`hzval.surface`.
 
-Shading: the declared effects are those of :mod:`hzval.approx` with the
+Shading: the declared effects are those of :mod:`hzval.surface` with the
 terrain factor in place of the horizon factor, less the horizon map's
 reflection fade. The unshadowed terms come from
-:class:`hzval.approx.Unshadowed` (plain normal mapping), per pixel:
+:class:`hzval.surface.Unshadowed` (plain normal mapping), per pixel:
 ``image = direct * F + ambient`` (:func:`hzval.shading.compose`). The
 horizon-mapped image multiplies per *sample*; the two differ only where the
 direct term varies inside a pixel that a shadow edge crosses (a covariance
@@ -101,7 +101,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval import approx, backend, lookup
+from hzval import backend, lookup, surface
 from hzval import conventions as cv
 from hzval.errors import InputError
 from hzval.scene import Frame, Scene, image_shape
@@ -288,7 +288,7 @@ def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray
     ``gap = h - B_hi`` and ``ramp`` per texel ``(rows, cols)``, filtered
     bilinearly between texel centres (``wrap`` repeats, ``open`` clamps);
     ``x, y`` in tangent texel units, pixel-major with ``spp`` samples per
-    pixel (:func:`hzval.scene.sample_positions`). Returns ``shape`` float32.
+    pixel (:func:`hzval.camera.sample_positions`). Returns ``shape`` float32.
     """
     rows, cols = gap.shape
     cx = np.asarray(x, np.float64) - 0.5
@@ -315,7 +315,7 @@ def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray
 # The technique
 # --------------------------------------------------------------------------
 
-class TerrainShadow(approx.HeightFieldShadow):
+class TerrainShadow(surface.HeightFieldShadow):
     """Raudins' per-light terrain shadows of one material, frame by frame: the ``terrain`` technique.
 
     Parameters
@@ -338,7 +338,7 @@ class TerrainShadow(approx.HeightFieldShadow):
     impl
         ``"drjit"`` (default) or ``"numpy"`` (the reference).
     unshadowed
-        The :class:`hzval.approx.Unshadowed` shading to multiply (a sweep
+        The :class:`hzval.surface.Unshadowed` shading to multiply (a sweep
         shares one between its techniques); by default one is built.
 
     Attributes: ``simulated`` (effects computed, :data:`hzval.scene.EFFECTS`
@@ -352,7 +352,7 @@ class TerrainShadow(approx.HeightFieldShadow):
     not_modelled = NOT_MODELLED
 
     def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo: np.ndarray | None = None,
-                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: approx.Unshadowed | None = None,
+                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: surface.Unshadowed | None = None,
                  samples=None):
         backend.variant()
         if impl not in IMPLS:
@@ -388,7 +388,7 @@ class TerrainShadow(approx.HeightFieldShadow):
             self._x, self._y = x, y
         else:
             self._h_dr = mi.Float(self.h.astype(np.float32).ravel())
-            self._xy = approx.interleaved(x, y)
+            self._xy = lookup.interleaved(x, y)
             self._r_dr = dr.opaque(mi.Float, self.ramp)
             dr.eval(self._h_dr, self._xy)
 

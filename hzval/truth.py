@@ -32,7 +32,7 @@ Shading (``[material] shading``)
 Sampling
     The camera (:mod:`hzval.camera`) gives the rays. The ``top`` view's run
     straight down (-z) through the positions of
-    :func:`hzval.scene.sample_positions`, the very points at which the
+    :func:`hzval.camera.sample_positions`, the very points at which the
     techniques shade, so no error comes from sampling alone. Another view's
     rays are traced into the mesh (:meth:`Truth._view_hits`: ``wrap`` the
     endless tiling, in hops; ``open`` the tile alone), and each sample is
@@ -190,7 +190,8 @@ from hzval import mesh as meshes
 from hzval.errors import InputError
 from hzval import shading
 from hzval.bake import normal_map
-from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo, sample_positions
+from hzval.camera import sample_positions
+from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
 from hzval.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
 
 #: Smallest lift of ray origins above the surface, in texels.
@@ -223,7 +224,7 @@ class Truth:
     ``height``: the normalised height map ``H[row, col]`` (float32); the
     scene's ``material`` gives depth and boundary. ``positions``: optional
     ``(x, y)`` sample positions in texel units replacing
-    :func:`hzval.scene.sample_positions` (same length and pixel-major order,
+    :func:`hzval.camera.sample_positions` (same length and pixel-major order,
     ``pixels * spp``); tests use it to put samples exactly on mesh vertices.
     ``band_samples`` (samples per band) and ``keep`` (whether the camera hits
     are kept between frames) override :func:`_bands` and :func:`keeps_samples`

@@ -8,7 +8,7 @@ import shutil
 import numpy as np
 import pytest
 
-from hzval import approx, check, cli, files, materials, technique
+from hzval import horizon, surface, check, cli, files, materials, technique
 
 SHIPPED = check.repository_path("reference")
 
@@ -108,12 +108,12 @@ def test_a_changed_approximation_reference_fails(variant, refs):
 
 def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatch):
     """Channel 0 faces azimuth 0: the exact path's frames at 0 degrees fail, the others do not."""
-    original = approx.Approximation._exact_weights
+    original = horizon.Horizon._exact_weights
 
     def flipped(d, *directions):
         w = original(d, *directions)
         return [-w[0], *w[1:]]
-    monkeypatch.setattr(approx.Approximation, "_exact_weights", staticmethod(flipped))
+    monkeypatch.setattr(horizon.Horizon, "_exact_weights", staticmethod(flipped))
     st = statuses(check.run(references=refs, only=["bricks", "wall"]))
     assert st["bricks/az+0/approx"] == "fail" and st["wall/az+0/approx"] == "fail"
     assert st["bricks/az+45/approx"] == "pass" and st["wall/az+135/approx"] == "pass"

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import approx as A
+from hzval import horizon as A
 from hzval.materials.bricks import bricks
 from hzval import bake as B
 from hzval import conventions as cv
@@ -143,8 +143,8 @@ def test_cube_weights_and_the_gpu_path_need_8_directions(variant):
     scene = Scene(material=MaterialSpec(size=8), spp=1)
     for kw in ({"path": "gpu"}, {"weights": "cube"}):
         with pytest.raises(InputError, match="8"):
-            A.Approximation(scene, r, **kw)
-    A.Approximation(scene, r, storage="u8")                     # 8-bit storage works for any D
+            A.Horizon(scene, r, **kw)
+    A.Horizon(scene, r, storage="u8")                     # 8-bit storage works for any D
 
 
 @pytest.mark.parametrize("c", [0, 1, 3, 5, 10, 15])
@@ -152,7 +152,7 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
     rng = np.random.default_rng(c)
     r = bake(rng.random((8, 8)), depth=0.2, directions=16)
     scene = Scene(material=MaterialSpec(size=8), spp=1)
-    a = A.Approximation(scene, r)
+    a = A.Horizon(scene, r)
     rows, cols = 8, 8
     x, y = cv.texel_centres(rows, cols)
     az, el = cv.channel_azimuth_deg(c, 16), 20.0
@@ -174,7 +174,7 @@ def test_bricks_16_directions_against_the_truth(variant, capsys):
     V = [f.layers["visibility"] for f in map(truth.Truth(scene, h).render, scene.light.azimuths_deg)]
     mae = {}
     for d in (8, 16):
-        ap = A.Approximation(scene, B.bake(h, B.BakeParams(directions=d)), albedo)
+        ap = A.Horizon(scene, B.bake(h, B.BakeParams(directions=d)), albedo)
         F = [ap.render(az).layers["factor"] for az in scene.light.azimuths_deg]
         assert all(np.isfinite(f).all() and (f >= 0).all() and (f <= 1).all() for f in F)
         mae[d] = float(np.mean([np.mean(np.abs(f.astype(np.float64) - v)) for f, v in zip(F, V)]))

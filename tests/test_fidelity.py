@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import approx, bake, cli, shading, truth
+from hzval import horizon, surface, bake, cli, shading, truth
 from hzval import scene as S
 from test_truth import make_scene
 
@@ -34,7 +34,7 @@ def lit_difference(h, depth, shading_, azimuth, boundary="wrap"):
     sc = make_scene(h.shape, depth, boundary, effects=("shadow", "diffuse"), spp=16, shading=shading_,
                     elevation=40.0)
     fr = truth.Truth(sc, h).render(azimuth)
-    plain, _ = approx.Unshadowed(sc, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(azimuth)
+    plain, _ = surface.Unshadowed(sc, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(azimuth)
     lit = fr.layers["visibility"] == 1.0
     assert lit.mean() > 0.3
     return float((np.abs(fr.image - plain.image).mean(-1)[lit]).mean() * shading.exposure(sc))
@@ -61,7 +61,7 @@ def test_open_border_is_shaded_as_the_normal_map_shades_it(variant):
     for shade in ("smooth", "faceted"):
         sc = make_scene(h.shape, 0.2, "open", effects=("diffuse",), spp=16, elevation=40.0, shading=shade)
         T = truth.Truth(sc, h).render(180.0).image[..., 0]
-        A = approx.Approximation(sc, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open"))).render(180.0).image[..., 0]
+        A = horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open"))).render(180.0).image[..., 0]
         border = np.zeros(h.shape, bool)
         border[:, [0, -1]] = border[[0, -1], :] = True
         out[shade] = np.abs(T - A)[border].mean() * shading.exposure(sc)
@@ -76,7 +76,7 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
         sc = make_scene(h.shape, 0.1, "wrap", effects=("diffuse",), kind="soft", radius=20.0,
                         elevation=elevation, spp=64, albedo=0.7, irradiance=2.0)
         t = truth.Truth(sc, h).render(30.0).image
-        a = approx.Approximation(sc, bake.bake(h, bake.BakeParams(depth=0.1))).render(30.0).image
+        a = horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.1))).render(30.0).image
         expect = 0.7 / math.pi * 2.0 * math.sin(math.radians(elevation))
         assert a.mean() == pytest.approx(expect, rel=1e-5)
         assert t.mean() == pytest.approx(expect, rel=0.003)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hzval import approx, bake, storage
+from hzval import horizon, surface, bake, storage
 from hzval.files import unit_to_u8
 from test_truth import make_scene
 
@@ -72,10 +72,10 @@ def test_approximation_reads_the_stored_map(variant):
     h = bricks(64)
     sc = make_scene(h.shape, 0.1, "wrap", effects=("shadow", "diffuse"), spp=4)
     bk = bake.bake(h, bake.BakeParams(depth=0.1))
-    F = {n: approx.Approximation(sc, bk, storage=n) for n in ("float", "bc7", "bc1")}
+    F = {n: horizon.Horizon(sc, bk, storage=n) for n in ("float", "bc7", "bc1")}
     f = {n: a.render(30.0).layers["factor"] for n, a in F.items()}
     assert F["bc7"].storage_bytes() == storage.get("bc7").bytes(64, 64, 8) < F["float"].storage_bytes() // 4 + 1
     assert 0 < np.abs(f["bc7"] - f["float"]).mean() < 0.02
     assert F["bc7"].parameters["storage"] == "bc7"
     with pytest.raises(Exception, match="storage"):
-        approx.Approximation(sc, bk, storage="dxt9")
+        horizon.Horizon(sc, bk, storage="dxt9")

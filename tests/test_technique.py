@@ -15,7 +15,7 @@ import json
 import numpy as np
 import pytest
 
-from hzval import approx, bake, check, cli, sweep, technique, tradeoff
+from hzval import horizon, surface, bake, check, cli, sweep, technique, tradeoff
 from hzval import scene as S
 from hzval.errors import InputError
 from hzval.scene import Frame
@@ -31,7 +31,7 @@ class NeverShadow(technique.Technique):
 
     def __init__(self, ctx):
         self.simulated = self.simulates(ctx.scene)
-        self._plain = approx.unshadowed(ctx)
+        self._plain = surface.unshadowed(ctx)
 
     @classmethod
     def build(cls, ctx, **settings):

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import approx
+from hzval import horizon, surface
 from hzval import terrain as T
 from hzval.errors import InputError
 from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
@@ -132,12 +132,12 @@ def test_bad_ramp_and_impl_are_refused(variant):
 
 @pytest.fixture(scope="module")
 def bricks64(variant):
-    from hzval import approx, bake, scene as S, truth
+    from hzval import horizon, surface, bake, scene as S, truth
 
     sc = S.Scene(material=S.MaterialSpec(size=64), effects=("shadow", "diffuse")).validate()
     height = S.load_material_height(sc.material).height
     bk = bake.bake(height, bake.BakeParams(depth=sc.material.depth, boundary="wrap"))
-    return sc, height, bk, truth.Truth(sc, height), approx.Approximation(sc, bk)
+    return sc, height, bk, truth.Truth(sc, height), horizon.Horizon(sc, bk)
 
 
 def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
@@ -145,7 +145,7 @@ def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
     from hzval import compare
 
     sc, height, bk, tr, ap = bricks64
-    shared = approx.Unshadowed(sc, bk)
+    shared = surface.Unshadowed(sc, bk)
     ts = T.TerrainShadow(sc, height, bake=bk, unshadowed=shared)
     terrain_mae, horizon_mae = [], []
     for az in sc.light.azimuths_deg:
@@ -165,7 +165,7 @@ def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
 def test_without_a_bake_it_shades_with_its_own_normal_map(bricks64):
     sc, height, bk, _, ap = bricks64
     own = T.TerrainShadow(sc, height)
-    shared = T.TerrainShadow(sc, height, bake=bk, unshadowed=approx.Unshadowed(sc, bk))
+    shared = T.TerrainShadow(sc, height, bake=bk, unshadowed=surface.Unshadowed(sc, bk))
     a, b = own.render(20.0), shared.render(20.0)
     np.testing.assert_allclose(a.image, b.image, atol=1e-5)
     assert own.simulated == shared.simulated == ("shadow", "diffuse")

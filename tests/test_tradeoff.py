@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from hzval import approx, cli, tradeoff
+from hzval import horizon, surface, cli, tradeoff
 from hzval.scene import MaterialSpec, Scene
 from hzval.tradeoff import Point
 
@@ -61,7 +61,7 @@ def test_storage_of_8_bit_maps_and_the_cube(wall_points):
     float_bytes = points["seed r16, 32 bins (default)"].storage_bytes
     assert float_bytes == 32 * 64 * 8 * 4
     assert points["8-bit horizon map"].storage_bytes == float_bytes // 4
-    assert points["GPU path: 8-bit map + cube weights"].storage_bytes == float_bytes // 4 + approx.CUBE_BYTES
+    assert points["GPU path: 8-bit map + cube weights"].storage_bytes == float_bytes // 4 + horizon.CUBE_BYTES
 
 
 def test_fitted_k_is_at_least_as_good_as_the_fixed_ones(wall_points):

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hzval import camera as hz_camera
 from hzval import scene as S
 from hzval.errors import InputError
 
@@ -366,7 +367,7 @@ def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bum
     E, a, az, e = 1.7, 0.45, 30.0, 35.0
     t = truth(h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4, shading=shading)
     image = t.render(az).image
-    xs, ys = S.sample_positions(*h.shape, t.scene.camera, t.spp, t.scene.seed)
+    xs, ys = hz_camera.sample_positions(*h.shape, t.scene.camera, t.spp, t.scene.seed)
     si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0),
                                            mi.Vector3f(0.0, 0.0, -1.0)))
     assert bool(dr.all(si.is_valid()))
@@ -423,7 +424,7 @@ def test_a_low_soft_light_sees_past_endless_walls_traced_in_hops(variant):
     assert t.margin < 40                                     # sized for 10 degrees: the rays need hops
     azimuth = 80.0
     V = t.render(azimuth).layers["visibility"]
-    xs, ys = S.sample_positions(rows, cols, t.scene.camera, 16, 0)
+    xs, ys = hz_camera.sample_positions(rows, cols, t.scene.camera, 16, 0)
     xs, ys, _ = _off_edge_lines(xs, ys, rows, cols)
     L = S.light_samples(t.scene.light, azimuth, xs.size, 0).astype(np.float64)
     top = wall + 0.5

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hzval import camera as hz_camera
 from hzval import bake, camera, files, lookup, technique, truth
 from hzval import scene as sc
 from hzval.errors import InputError
@@ -66,7 +67,7 @@ def test_the_top_record_is_the_top_views_positions():
     view = cam.view(8, 12)
     assert view.record()["resolution"] == [24, 16]
     o, d = _record_rays(view.record(), 16, 24)
-    x, y = sc.sample_positions(8, 12, cam, 1, 0)      # one jittered sample a pixel
+    x, y = hz_camera.sample_positions(8, 12, cam, 1, 0)      # one jittered sample a pixel
     assert np.all(np.abs(o[:, 0] - x) <= 0.25 + 1e-6) and np.all(np.abs(o[:, 1] - y) <= 0.25 + 1e-6)
     np.testing.assert_allclose(d, [[0, 0, -1]] * len(d))
 

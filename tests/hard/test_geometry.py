@@ -15,7 +15,7 @@ import pytest
 
 from hzval import bake as B
 from hzval import conventions as cv
-from hzval.approx import Approximation
+from hzval.horizon import Horizon
 from hzval.errors import InputError
 
 from ._ref import (assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, texel_centres_flat,
@@ -203,7 +203,7 @@ def test_constant_map_has_no_horizon_anywhere(variant, value, depth, boundary):
     for az in (0.0, 45.0, 200.0):
         assert np.all(t.render(az).layers["visibility"] == 1.0)
     for path in ("exact", "gpu"):
-        a = Approximation(make_scene(h.shape, depth, boundary), r, path=path)
+        a = Horizon(make_scene(h.shape, depth, boundary), r, path=path)
         for e in (0.0, 0.5, 90.0):
             assert np.all(a.render(10.0, elevation_deg=e).layers["factor"] == 1.0), (path, e)
 
@@ -227,7 +227,7 @@ def test_depth_1e6_is_linear_and_casts_no_shadow(variant):
             for az in (0.0, 45.0, 123.0, 270.0):
                 assert np.all(t.render(az).layers["visibility"] == 1.0), (boundary, e, az)
     for path in ("exact", "gpu"):
-        a = Approximation(make_scene(noise.shape, 1e-6, "wrap"), rn, path=path)
+        a = Horizon(make_scene(noise.shape, 1e-6, "wrap"), rn, path=path)
         assert np.all(a.render(77.0, elevation_deg=0.5).layers["factor"] == 1.0)
 
 
@@ -245,7 +245,7 @@ def test_depth_10_stays_finite_and_in_range(variant):
         assert np.all(V == expect), e
     V = truth(noise, 10.0, "open", elevation=60.0, spp=4).render(30.0).layers["visibility"]
     assert_unit(V)
-    a = Approximation(make_scene(noise.shape, 10.0, "open"), r, path="gpu")
+    a = Horizon(make_scene(noise.shape, 10.0, "open"), r, path="gpu")
     f = a.render(30.0, elevation_deg=60.0)
     assert_unit(f.layers["factor"])
 

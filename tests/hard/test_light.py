@@ -23,7 +23,7 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from hzval import bake as B
-from hzval.approx import Approximation
+from hzval.horizon import Horizon
 
 from ._ref import assert_unit, make_scene, truth
 
@@ -65,7 +65,7 @@ def approx_frames(bumps):
     sc = make_scene((N, N), depth, "wrap", effects=("shadow", "diffuse"), spp=4)
     out = {}
     for path in ("exact", "gpu"):
-        a = Approximation(sc, baked, path=path)
+        a = Horizon(sc, baked, path=path)
         for el in ELEVATIONS:
             for az in AZIMUTHS:
                 out[path, az, el] = a.render(az, elevation_deg=el)
@@ -141,7 +141,7 @@ def test_exact_path_is_continuous_across_channel_directions_and_bin_edges(bumps)
     """s(phi) is linear between channel directions with slope (h_c+1 - h_c) * 4 / pi per radian,
     so a step of 1e-3 degrees moves F by at most k * 1e-3 * pi/180 * 4/pi = 1.8e-4 (plus float32)."""
     h, depth, baked = bumps
-    a = Approximation(make_scene((N, N), depth, "wrap", spp=1), baked)
+    a = Horizon(make_scene((N, N), depth, "wrap", spp=1), baked)
     step = 1e-3
     bound = 8.0 * math.radians(step) * 4 / math.pi + 1e-5
     for az in CHANNELS + BIN_EDGES + (360.0,):

@@ -11,7 +11,7 @@ import pytest
 
 from hzval import bake as B
 from hzval import conventions as cv
-from hzval.approx import Approximation
+from hzval.horizon import Horizon
 
 from ._ref import (assert_bake_sane, exact_weights, gpu_weights, horizon_f64, light32, make_scene,
                    uniform_bake)
@@ -40,7 +40,7 @@ def test_8_bit_horizon_near_the_horizon_is_rounded_to_the_nearest_255th(variant,
         assert stored == 0.0
     b = uniform_bake([s] * 8, rows=4, cols=4)
     sc = make_scene((4, 4), 0.1, "wrap")
-    gpu, exact = Approximation(sc, b, path="gpu"), Approximation(sc, b, path="exact")
+    gpu, exact = Horizon(sc, b, path="gpu"), Horizon(sc, b, path="exact")
     x, y = np.array([1.5]), np.array([2.5])
     for az in (0.0, 22.5, 45.0, 100.0, 359.0):
         for el in (0.0, 0.05, 0.1, 0.5, 1.0, 2.0, 5.0):
@@ -66,8 +66,8 @@ def test_8_bit_horizon_near_the_horizon_on_a_bake(variant):
     assert set(np.unique(np.rint(b.horizon * 255))) <= {0.0, 1.0}
     sc = make_scene(h.shape, depth, "open", spp=4)
     for az in (0.0, 30.0, 180.0):
-        F_exact = Approximation(sc, b).render(az, elevation_deg=0.5).layers["factor"]
-        F_gpu = Approximation(sc, b, path="gpu").render(az, elevation_deg=0.5).layers["factor"]
+        F_exact = Horizon(sc, b).render(az, elevation_deg=0.5).layers["factor"]
+        F_gpu = Horizon(sc, b, path="gpu").render(az, elevation_deg=0.5).layers["factor"]
         assert np.all(F_exact == 1.0)
         L = light32(az, 0.5)
         wg = gpu_weights(L)
@@ -115,7 +115,7 @@ def test_cube_leak_darkens_a_grazing_light_by_k_times_the_leak(variant):
     F drops to 1 + k (Lz - 1.8/255) < 1. Bound over all lights: k * 3/255 * max h = 0.0847."""
     b = uniform_bake([0.9] * 4 + [0.0] * 4)
     sc = make_scene((4, 4), 0.1, "wrap")
-    gpu, exact = Approximation(sc, b, path="gpu"), Approximation(sc, b, path="exact")
+    gpu, exact = Horizon(sc, b, path="gpu"), Horizon(sc, b, path="exact")
     h8 = round(0.9 * 255) / 255
     az = 202.5
     for el in (0.1, 0.5, 1.0):

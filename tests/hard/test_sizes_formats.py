@@ -17,7 +17,7 @@ from hzval import bake as B
 from hzval import cli, files
 from hzval import conventions as cv
 from hzval import heightmap
-from hzval.approx import Approximation
+from hzval.horizon import Horizon
 
 from ._ref import assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, truth, uniform_bake
 
@@ -95,7 +95,7 @@ def test_truth_and_approximation_take_1xN_and_Nx1(variant, shape, boundary):
     assert list(V[behind]) == [0.0, 0.0, 0.0, 1.0]
     b = B.bake(h, B.BakeParams(depth=depth, boundary=boundary))
     assert_bake_sane(b)
-    a = Approximation(make_scene(shape, depth, boundary), b)
+    a = Horizon(make_scene(shape, depth, boundary), b)
     f = a.render(along)
     assert_unit(f.layers["factor"])
     F = f.layers["factor"].ravel()
@@ -114,7 +114,7 @@ def test_2x2_map_renders_finite_on_both_sides(variant, boundary):
     b = check_against_reference(h, B.BakeParams(depth=1.0, boundary=boundary))
     t = truth(h, 1.0, boundary, elevation=20.0, spp=16)
     for path in ("exact", "gpu"):
-        a = Approximation(make_scene((2, 2), 1.0, boundary, elevation=20.0), b, path=path)
+        a = Horizon(make_scene((2, 2), 1.0, boundary, elevation=20.0), b, path=path)
         for az in (0.0, 45.0, 180.0, 300.0):
             assert_unit(a.render(az).layers["factor"])
     for az in (0.0, 45.0, 180.0, 300.0):
@@ -236,7 +236,7 @@ def test_approximation_filters_across_edges_with_wrap_and_clamps_with_open(varia
     hz = rng.uniform(0.0, 0.8, (rows, cols)).astype(np.float32)
     b = uniform_bake(np.zeros(8), rows=rows, cols=cols, boundary=boundary)
     b.horizon[..., 0] = hz                             # channel 0: azimuth 0 reads it exactly
-    a = Approximation(make_scene((rows, cols), 0.1, boundary), b)
+    a = Horizon(make_scene((rows, cols), 0.1, boundary), b)
     xs = np.array([0.1, cols / 2, cols - 0.1, 0.1, cols - 0.1, 0.1, cols / 2, cols - 0.1])
     ys = np.array([0.1, 0.1, 0.1, rows / 2, rows / 2, rows - 0.1, rows - 0.1, rows - 0.1])
     s = a.sample(xs, ys, 0.0, 10.0)["horizon_sine"]

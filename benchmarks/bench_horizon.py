@@ -1,8 +1,8 @@
-"""Benchmark: horizon-map shading frames (hzval.approx), once compiled.
+"""Benchmark: horizon-map shading frames (hzval.horizon), once compiled.
 
 Bakes ``hzval.materials.bricks.bricks(SIZE)`` at depth 0.05 (radius 16, 32 bins,
 wrap) once, then for every effect set, sample count and path builds an
-:class:`hzval.approx.Approximation` of a ``SIZE x SIZE`` frame, renders one
+:class:`hzval.horizon.Horizon` of a ``SIZE x SIZE`` frame, renders one
 frame (compiles its kernels, or loads them from Dr.Jit's disk cache), and
 times ``--frames`` more at different azimuths (-60..+60 degrees, the sweep of
 Lengyel's Figure 5.3, elevation 30). Per row it prints the mean, min and max
@@ -15,7 +15,7 @@ The issue's target: a 512 x 512 frame at 1 sample per pixel in under 10 ms.
 
 Usage::
 
-    python benchmarks/bench_approx.py [--size 512] [--spp 1,16] [--paths exact,gpu]
+    python benchmarks/bench_horizon.py [--size 512] [--spp 1,16] [--paths exact,gpu]
                                       [--effects "shadow;shadow,diffuse;shadow,diffuse,specular,ambient,reflection_occlusion"]
                                       [--frames 20]
 
@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from hzval import bake as B
     from hzval.materials.bricks import bricks
     from hzval import scene as S
-    from hzval.approx import Approximation
+    from hzval.horizon import Horizon
 
     variant = backend.variant()
     import drjit as dr
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
             for path in args.paths.split(","):
                 scene = S.Scene(material=S.MaterialSpec(size=args.size, depth=DEPTH),
                                 light=S.Light(elevation_deg=ELEVATION), effects=effects, spp=spp).validate()
-                approx = Approximation(scene, bake, path=path)
+                approx = Horizon(scene, bake, path=path)
                 first = approx.render(float(azimuths[0]) - 7.0).seconds
                 seconds, kernel_ms, compiled = [], [], 0
                 with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"target: a {args.size}x{args.size} frame at 1 spp in under {TARGET_MS:.0f} ms, "
           "0 kernels compiled after the first frame")
     cmd = [os.path.relpath(sys.executable, REPO) if sys.executable.startswith(str(REPO)) else sys.executable,
-           "benchmarks/bench_approx.py", "--size", str(args.size), "--spp", args.spp, "--paths", args.paths,
+           "benchmarks/bench_horizon.py", "--size", str(args.size), "--spp", args.spp, "--paths", args.paths,
            "--effects", args.effects, "--frames", str(args.frames)]
     print(f"reproduce: cd {shlex.quote(str(REPO))} && {shlex.join(cmd)}")
     return 1 if failed else 0

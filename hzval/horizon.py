@@ -48,7 +48,7 @@ repeats, ``open`` clamps to the edge):
     environment map to reflect, so ``o`` is output as its own layer and does
     not change the image.
 ``interreflection``
-    Not modelled; it never appears in :attr:`Approximation.simulated`.
+    Not modelled; it never appears in :attr:`Horizon.simulated`.
 
 The image is ``D * F + ambient`` where ``D`` is the sum of the declared
 direct terms, or ``E`` (grey) when neither ``diffuse`` nor ``specular`` is
@@ -124,17 +124,21 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import backend, external, lookup, shading
+import drjit as dr
+import mitsuba as mi
+
+from hzval import external, lookup
 from hzval import storage as hz_storage
 from hzval import conventions as cv
-from hzval.bake import CUBE_SIZE, normals_only, weight_cube
+from hzval.bake import CUBE_SIZE, weight_cube
 from hzval.errors import InputError
-from hzval.scene import Frame, Scene, image_shape, load_albedo
+from hzval.scene import Frame, Scene
 from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
-from hzval.technique import Context, Technique, Variant, replace_effects
+from hzval.surface import NOT_MODELLED, FlatShading
+from hzval.technique import Context, Technique, Variant
 
-__all__ = ["Approximation", "Unshadowed", "unshadowed", "PATHS", "STORAGES", "WEIGHTS", "AMBIENT_TERMS",
-           "DEFAULT_K", "DEFAULT_FADE", "CUBE_SIZE", "CUBE_BYTES", "NOT_MODELLED"]
+__all__ = ["Horizon", "PATHS", "STORAGES", "WEIGHTS", "AMBIENT_TERMS", "DEFAULT_K", "DEFAULT_FADE", "CUBE_SIZE",
+           "CUBE_BYTES"]
 
 #: The two ways of evaluating the technique (module docstring).
 PATHS: tuple[str, ...] = ("exact", "gpu")
@@ -154,12 +158,10 @@ DEFAULT_K = 8.0
 DEFAULT_FADE = 1.3
 #: The weight cube map's texture memory: 6 faces of two 8-bit RGBA layers.
 CUBE_BYTES = 6 * CUBE_SIZE * CUBE_SIZE * 4 * 2
-#: Declarable effects that the technique does not model.
-NOT_MODELLED: tuple[str, ...] = ("interreflection",)
 
 
 
-class Approximation(Technique):
+class Horizon(FlatShading, Technique):
     """Horizon-map shading of one material's flat surface, frame by frame: the ``horizon`` technique.
 
     Parameters
@@ -207,7 +209,7 @@ class Approximation(Technique):
     name = "horizon"
     label = "horizon map"
     summary = "Lengyel's horizon mapping: 8 horizon sines in two RGBA textures, F = clamp(k (Lz - s) + 1)"
-    file_stem = "approx"
+    file_stem = "horizon"
     needs = ()                      # it also shades (and fades reflections) without shadows
     not_modelled = NOT_MODELLED
 
@@ -215,112 +217,87 @@ class Approximation(Technique):
                  path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
                  fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None,
                  height: np.ndarray | None = None, samples: lookup.Samples | None = None):
-        backend.variant()
         storage = storage or ("u8" if path == "gpu" else "float")
         weights = weights or ("cube" if path == "gpu" else "analytic")
         directions = int(bake.horizon.shape[-1]) if bake.horizon is not None else cv.CHANNEL_COUNT
         _validate(path, storage, weights, directions, ambient, k, fade)
-        self.scene, self.bake = scene, bake
-        self.path, self.k, self.ambient, self.fade = path, float(k), ambient, float(fade)
+        self.path, self.k, self.fade = path, float(k), float(fade)
         self.storage, self.weights = storage, weights
         self.directions = directions
-        rows, cols = bake.normal.shape[:2]
-        self.rows, self.cols = rows, cols
-        self.shape = image_shape(rows, cols, scene.camera)
-        self.simulated = self.simulates(scene)
-        eff = set(self.simulated)
-        self._shadow = "shadow" in eff
-        self._diffuse = "diffuse" in eff
-        self._specular = "specular" in eff
-        self._ambient = "ambient" in eff
-        self._reflection = "reflection_occlusion" in eff
         self.external: list[str] | None = None       # the external bake's layers, when one is used
-        samples = samples if samples is not None else lookup.samples_for(scene, rows, cols, height)
-        self._upload_textures(albedo, samples)
-        self._upload_constants()
-        self._upload_samples(samples)
+        super().__init__(scene, bake, albedo, ambient=ambient, height=height, samples=samples)
 
-    def _upload_textures(self, albedo, samples: lookup.Samples) -> None:
-        """One packed texture holding only the channels needed, so that each sample
-        computes one set of bilinear indices, filtered as the scene's lookup says
-        (:class:`hzval.lookup.Filtered`); the weight cube map for ``weights="cube"``."""
-        import drjit as dr
-        import mitsuba as mi
+    # -- the hooks of the flat shading (hzval.surface.FlatShading) ----------------------------
 
-        bake, rows, cols = self.bake, self.rows, self.cols
-        need_horizon = self._shadow or self._reflection
-        planes: list[np.ndarray] = []
-        self._slots: dict[str, slice] = {}
+    @property
+    def _needs_horizon(self) -> bool:
+        return self._shadow or self._reflection
 
-        def add(name: str, data: np.ndarray) -> None:
-            data = np.asarray(data, dtype=np.float32)
-            data = data[..., None] if data.ndim == 2 else data
-            start = sum(p.shape[-1] for p in planes)
-            self._slots[name] = slice(start, start + data.shape[-1])
-            planes.append(data)
+    def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
+        """The horizon map as stored (:mod:`hzval.storage`), first in the packed texture."""
+        return [("horizon", hz_storage.get(self.storage).roundtrip(self.bake.horizon))] if self._needs_horizon else []
 
-        if need_horizon:
-            add("horizon", hz_storage.get(self.storage).roundtrip(bake.horizon))
-        if self._diffuse or self._specular or self._reflection:
-            add("normal", bake.normal)
-        self._albedo_const = None
-        if self._diffuse or self._ambient:
-            a = load_albedo(self.scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
-            if a.shape != (rows, cols, 3):
-                raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
-            if np.all(a == a[:1, :1]):
-                self._albedo_const = dr.opaque(mi.Color3f, [float(c) for c in a[0, 0]])
-            else:
-                add("albedo", a)
-        if self._ambient:
-            add("ambient", getattr(bake, self.ambient))
-        self._texture = None
-        if planes:
-            self._texture = lookup.Filtered(np.concatenate(planes, axis=-1), bake.params.boundary,
-                                            self.scene.lookup, samples, max_channels=self._slots.get("horizon"),
-                                            aligned=_aligned)
-        self._cube = None
-        if need_horizon and self.weights == "cube":
-            cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
-            self._cube = mi.Float(_aligned(cube).ravel())
+    def _max_channels(self) -> slice | None:
+        return self._slots.get("horizon")
 
     def _upload_constants(self) -> None:
-        """Per-object constants, opaque so that objects share kernels."""
-        import drjit as dr
-        import mitsuba as mi
-
+        """``k``, the fade and the weight cube map for ``weights="cube"``, beside the shading's."""
+        super()._upload_constants()
         self._k = dr.opaque(mi.Float, self.k)
-        # toward the (orthographic) camera; a perspective one is refused with the effects that read it
-        self._view = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._fade = dr.opaque(mi.Float, self.fade)
-        self._E = dr.opaque(mi.Float, float(self.scene.light.irradiance))
+        self._cube = None
+        if self._needs_horizon and self.weights == "cube":
+            cube = weight_cube(CUBE_SIZE).astype(np.float32) / np.float32(255.0)
+            self._cube = mi.Float(lookup.aligned(cube).ravel())
+            dr.eval(self._cube)
 
-    def _upload_samples(self, samples: lookup.Samples) -> None:
-        """Sample positions as texture coordinates. One sample per pixel: two plain
-        arrays. More: (u, v) pairs in the scene's pixel-major order, which the
-        per-pixel loop gathers as one packet per sample; a pixel's samples share
-        cache lines (a sample-major layout, with its stride of a power-of-two
-        number of pixels, thrashed the caches: 2x slower)."""
-        import drjit as dr
-        import mitsuba as mi
+    def _extra_uniforms(self, uni: dict, shadows: bool, overrides: dict) -> None:
+        """``k`` (``overrides["k"]`` for a sweep over k that reuses textures and kernels) and the
+        light's channel weights, the same for every sample of the frame."""
+        k = overrides.pop("k", None)
+        super()._extra_uniforms(uni, shadows, overrides)
+        uni["k"] = self._k
+        if k is not None:
+            if not (math.isfinite(k) and k > 0):
+                raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
+            uni["k"] = dr.opaque(mi.Float, float(k))
+        if self._shadow and shadows:
+            uni["w"] = self._channel_weights(uni["L"])
 
-        scene = self.scene
-        spp = int(scene.spp)
-        self.spp, self.pixels = spp, self.shape[0] * self.shape[1]
-        if spp == 1:
-            u, v = cv.tangent_to_uv(samples.x, samples.y, self.rows, self.cols)
-            self._u, self._v, self._uv = mi.Float(_aligned(u)), mi.Float(_aligned(v)), None
+    def _shadowed(self, direct, tex: dict, uni: dict, out: dict, shadows: bool, probe: bool):
+        """``direct * F``, ``F = clamp(k (Lz - s) + 1, 0, 1)`` (eq. 5.4), ``s`` by eq. 5.3."""
+        if not (self._shadow and shadows):
+            return direct
+        s = _dot(tex["horizon"], uni["w"])
+        F = dr.clip(dr.fma(uni["L"].z - s, uni["k"], 1.0), 0.0, 1.0)
+        out["factor"] = F
+        if probe:
+            out["horizon_sine"] = s
+        return direct * F
+
+    def _extra_layers(self, tex: dict, n, out: dict) -> None:
+        """Toolbag's reflection fade ``o`` against the baked horizon toward ``r`` (module docstring)."""
+        if not self._reflection:
+            return
+        # r = reflect(-v, n) = 2 (n.v) n - v (the top view's v = +z: (2 nz nx, 2 nz ny, 2 nz^2 - 1))
+        if self.scene.camera.kind == "top":
+            r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
         else:
-            self._u = self._v = None
-            self._uv = samples.uv()
-        dr.eval(self._u, self._v, self._uv, self._cube, self._albedo_const)
+            r = 2.0 * dr.dot(n, self._view) * n - self._view
+        s_r = _dot(tex["horizon"], self._channel_weights(r))
+        o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
+        out["reflection_occlusion"] = o * o
+
+    def _extra_layout(self, shadows: bool) -> tuple[list, list]:
+        before = [("factor", 1)] if self._shadow and shadows else []
+        return before, [("reflection_occlusion", 1)] if self._reflection else []
 
     # ------------------------------------------------------------------
     # The Technique interface (hzval.technique)
     # ------------------------------------------------------------------
 
     @classmethod
-    def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Approximation":
+    def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Horizon":
         """From a context; ``horizon_map`` (layer paths) and ``encoding``
         (:class:`hzval.external.Encoding`) replace the bake's horizon map by an external one, whose
         convention is checked against hzval's exact bake (:func:`hzval.external.detect`)."""
@@ -393,7 +370,7 @@ class Approximation(Technique):
 
     @classmethod
     def check_variants(cls) -> list[Variant]:
-        return [Variant("approx", {"path": "exact"}), Variant("approx_gpu", {"path": "gpu"})]
+        return [Variant("horizon", {"path": "exact"}), Variant("horizon_gpu", {"path": "gpu"})]
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
@@ -453,97 +430,25 @@ class Approximation(Technique):
 
     def render(self, azimuth_deg: float, *, shadows: bool = True,
                elevation_deg: float | None = None, k: float | None = None) -> Frame:
-        """Render the frame for the light at ``azimuth_deg`` (degrees).
+        """The frame of the light at ``azimuth_deg`` (degrees) (:meth:`hzval.surface.FlatShading.render`).
 
-        ``elevation_deg`` defaults to the scene light's, ``k`` to the
-        object's (a sweep over k reuses the textures and kernels). ``shadows=False``
-        leaves out the horizon factor (plain normal mapping, the report's
-        comparison column); the other declared effects stay. Layers:
-        ``factor`` (pixel mean of F, when shadowing), ``ambient`` (A) and
-        ``reflection_occlusion`` (o), each where declared. ``seconds`` is the
-        wall time of the frame, kernels synchronised and images read back.
+        ``k`` defaults to the object's. ``shadows=False`` leaves out the
+        horizon factor (plain normal mapping); the other declared effects stay.
+        Layers: ``factor`` (pixel mean of F, when shadowing), ``ambient`` (A)
+        and ``reflection_occlusion`` (o), each where declared.
         """
-        import drjit as dr
-        import mitsuba as mi
-
-        t0 = time.perf_counter()
-        elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
-        uni = self._uniforms(azimuth_deg, elevation, shadows, k)
-        if self.spp == 1:
-            out = self._shade(self._u, self._v, uni, shadows, pixel=dr.arange(mi.UInt32, self.pixels))
-        else:
-            names, zeros = self._output_layout(shadows)
-            P, spp = self.pixels, self.spp
-            pixel = dr.arange(mi.UInt32, P)
-
-            def body(i, *acc):
-                uv = dr.gather(mi.Point2f, self._uv, pixel * spp + i)
-                o = self._shade(uv.x, uv.y, uni, shadows, pixel=pixel)
-                return (i + 1, *[a + b for a, b in zip(acc, self._flatten(o, names))])
-
-            state = dr.while_loop(state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
-                                  cond=lambda i, *acc: i < spp, body=body)
-            inv = 1.0 / spp
-            out = self._unflatten([a * inv for a in state[1:]], names)
-        dr.eval(out)
-        H, W = self.shape
-
-        def plane(v):
-            # a term that does not vary (e.g. unshadowed grey light, 1 spp) is a width-1 array
-            return np.broadcast_to(np.asarray(v, dtype=np.float32), (H * W,)).reshape(H, W)
-
-        image = np.stack([plane(c) for c in out.pop("image")], axis=-1)
-        layers = {name: plane(val) for name, val in out.items()}
-        return Frame(float(azimuth_deg), elevation, image, layers, seconds=time.perf_counter() - t0)
+        return super().render(azimuth_deg, shadows=shadows, elevation_deg=elevation_deg,
+                              **({} if k is None else {"k": k}))
 
     def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None, *,
                shadows: bool = True, k: float | None = None) -> dict[str, np.ndarray]:
-        """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging.
-
-        For probing single texels (at ``x = col + 0.5``, ``y = rows - row - 0.5``
-        the bilinear filter returns that texel exactly). Keys as in
-        :meth:`render`'s layers plus ``image`` ``(n, 3)`` and, when
-        shadowing, ``horizon_sine`` (``s`` of eq. 5.3/5.4).
-        """
-        import drjit as dr
-        import mitsuba as mi
-
-        u, v = (mi.Float(c.ravel()) for c in cv.tangent_to_uv(x, y, self.rows, self.cols))
-        elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
-        uni = self._uniforms(azimuth_deg, elevation, shadows, k)
-        out = self._shade(u, v, uni, shadows, probe=True)
-        dr.eval(out)
-        image = np.stack([np.asarray(c, dtype=np.float32) for c in out.pop("image")], axis=-1)
-        res = {name: np.asarray(val, dtype=np.float32) for name, val in out.items()}
-        res["image"] = image
-        return res
+        """Per-point values (:meth:`hzval.surface.FlatShading.sample`); when shadowing, also
+        ``horizon_sine`` (``s`` of eq. 5.3/5.4)."""
+        return super().sample(x, y, azimuth_deg, elevation_deg, shadows=shadows, **({} if k is None else {"k": k}))
 
     # ------------------------------------------------------------------
     # Kernels
     # ------------------------------------------------------------------
-
-    def _uniforms(self, azimuth_deg: float, elevation_deg: float, shadows: bool,
-                  k: float | None = None) -> dict:
-        """The frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``.
-
-        The light's channel weights and half vector are the same for every
-        sample; computing them once per frame keeps the shading kernel lean.
-        """
-        import drjit as dr
-        import mitsuba as mi
-
-        L = dr.opaque(mi.Vector3f, [float(c) for c in cv.light_direction(azimuth_deg, elevation_deg)])
-        uni = {"L": L, "k": self._k}
-        if k is not None:
-            if not (math.isfinite(k) and k > 0):
-                raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
-            uni["k"] = dr.opaque(mi.Float, float(k))
-        if self._shadow and shadows:
-            uni["w"] = self._channel_weights(L)
-        if self._specular:
-            uni["h"] = dr.normalize(L + self._view)
-        dr.eval(uni)
-        return uni
 
     def _channel_weights(self, d) -> list:
         """The ``D`` channel weights toward the azimuth of directions ``d`` (path-specific)."""
@@ -560,8 +465,6 @@ class Approximation(Technique):
         index. ``t`` in [0, D]: azimuths of 360 deg or -0 deg land on D or 0,
         both of which give channel 0 all the weight.
         """
-        import drjit as dr
-
         n = float(directions)
         t = dr.atan2(d.y, d.x) * cv.channels_per_radian(directions)
         t = dr.select(t < 0.0, t + n, t)
@@ -581,9 +484,6 @@ class Approximation(Technique):
         ``f1`` (layer 1) of Listing 5.1: ``clamp(+-(2f - 1), 0, 1)`` applied
         to the *filtered* 8-bit values, as the shader does.
         """
-        import drjit as dr
-        import mitsuba as mi
-
         x, y, z = d.x, d.y, d.z
         ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
         use_x = (ax >= ay) & (ax >= az)
@@ -612,152 +512,10 @@ class Approximation(Technique):
         f1 = [dr.clip(dr.fma(f[i], -2.0, 1.0), 0.0, 1.0) for i in range(4)]
         return f0 + f1
 
-    def _fetch(self, u, v, pixel=None) -> dict:
-        """Filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
-        (whose footprints a mip filter reads; ``None``: level 0)."""
-        import mitsuba as mi
-
-        if self._texture is None:
-            return {}
-        vals = self._texture.eval(mi.Point2f(u, v), pixel)
-        return {name: vals[s] for name, s in self._slots.items()}
-
-    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None) -> dict:
-        """Per-sample outputs: ``image`` (Color3f) and the declared layers."""
-        import drjit as dr
-        import mitsuba as mi
-
-        tex = self._fetch(u, v, pixel)
-        L, E = uni["L"], self._E
-        out = {}
-        lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
-
-        n = dr.normalize(mi.Vector3f(*tex["normal"])) if "normal" in tex else None
-        albedo = None
-        if self._diffuse or self._ambient:
-            albedo = self._albedo_const if self._albedo_const is not None else mi.Color3f(*tex["albedo"])
-        direct = shading.direct(n, L, None, albedo, E, diffuse=self._diffuse, specular=self._specular,
-                                h=uni.get("h"))
-        direct = dr.select(lit, direct, 0.0)
-
-        if self._shadow and shadows:
-            s = _dot(tex["horizon"], uni["w"])
-            F = dr.clip(dr.fma(L.z - s, uni["k"], 1.0), 0.0, 1.0)
-            image = direct * F
-            out["factor"] = F
-            if probe:
-                out["horizon_sine"] = s
-        else:
-            image = direct
-
-        if self._ambient:
-            A = tex["ambient"][0]
-            image = image + shading.sky(albedo, A, E)
-            out["ambient"] = A
-
-        if self._reflection:
-            # r = reflect(-v, n) = 2 (n.v) n - v (the top view's v = +z: (2 nz nx, 2 nz ny, 2 nz^2 - 1))
-            if self.scene.camera.kind == "top":
-                r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
-            else:
-                r = 2.0 * dr.dot(n, self._view) * n - self._view
-            s_r = _dot(tex["horizon"], self._channel_weights(r))
-            o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
-            out["reflection_occlusion"] = o * o
-
-        out["image"] = image
-        return out
-
-    # the loop state of render() is a flat list of Floats
-    def _output_layout(self, shadows: bool) -> tuple[list[tuple[str, int]], int]:
-        names = [("image", 3)]
-        if self._shadow and shadows:
-            names.append(("factor", 1))
-        if self._ambient:
-            names.append(("ambient", 1))
-        if self._reflection:
-            names.append(("reflection_occlusion", 1))
-        return names, sum(n for _, n in names)
-
-    @staticmethod
-    def _flatten(out: dict, names) -> list:
-        flat = []
-        for name, n in names:
-            if n == 3:
-                flat.extend(out[name][i] for i in range(3))
-            else:
-                flat.append(out[name])
-        return flat
-
-    @staticmethod
-    def _unflatten(flat: list, names) -> dict:
-        import mitsuba as mi
-
-        out, i = {}, 0
-        for name, n in names:
-            out[name] = mi.Color3f(*flat[i:i + 3]) if n == 3 else flat[i]
-            i += n
-        return out
-
-
-#: Samples per chunk of :func:`interleaved`.
-_CHUNK = 1 << 22
-
-
-def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
-    """``mi.Float`` of ``convert(x, y)`` (default: ``(x, y)``) interleaved pair by pair, float32,
-    made in Dr.Jit kernels on every core, :data:`_CHUNK` samples at a time so that no full-size
-    temporary is made (the output alone: 2.1 GB at 4096 x 4096 x 16). ``convert`` takes and
-    returns ``mi.Float`` arrays (e.g. :func:`hzval.conventions.tangent_to_uv`). Each value is a
-    gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
-    one kernel per alignment); the result is Dr.Jit's own, aligned, memory. 67M pairs at 2048 x
-    2048 x 16: 0.2 s against 1.5 s in NumPy chunks, the same bits."""
-    import drjit as dr
-    import mitsuba as mi
-
-    n = int(np.size(x))
-    out = dr.empty(mi.Float, 2 * n)
-    for a in range(0, n, _CHUNK):
-        b = min(n, a + _CHUNK)
-        j = dr.arange(mi.UInt32, 2 * (b - a))
-        i = j >> 1
-        first = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(x[a:b], np.float32)), i)
-        second = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(y[a:b], np.float32)), i)
-        if convert is not None:
-            first, second = convert(first, second)
-        # the chunk's offset is opaque: one kernel for every chunk
-        dr.scatter(out, dr.select((j & 1) == 1, second, first), j + dr.opaque(mi.UInt32, 2 * a))
-        dr.eval(out)
-    return out
-
-
-def _aligned_empty(size: int, alignment: int = 64) -> np.ndarray:
-    """An uninitialised float32 array of ``size`` that starts on an ``alignment``-byte boundary."""
-    buf = np.empty(size + alignment // 4, dtype=np.float32)
-    start = (-buf.ctypes.data % alignment) // 4
-    return buf[start:start + size]
-
-
-def _aligned(a, alignment: int = 64) -> np.ndarray:
-    """A C-contiguous float32 copy of ``a`` that starts on an ``alignment``-byte boundary.
-
-    On the LLVM backend Dr.Jit maps NumPy memory without copying it, and it
-    reads a texel's channels as one packet (vector loads) only from aligned
-    memory; from NumPy's 16-byte-aligned buffers it fell back to one scalar
-    gather per channel and lane: 2-4x slower frames, varying from run to run
-    with where NumPy's allocation happened to land. (CUDA copies anyway.)
-    """
-    a = np.asarray(a, dtype=np.float32)
-    out = _aligned_empty(a.size, alignment).reshape(a.shape)
-    out[...] = a
-    return out
-
 
 def _dot(h: list, w: list):
     """``sum_c w_c h_c`` over the channels, as one RGBA dot product per layer, summed
     in layer order (eq. 5.3: two layers for 8 channels, four for 16)."""
-    import drjit as dr
-
     n = cv.CHANNELS_PER_LAYER
     total = None
     for first in range(0, len(h), n):
@@ -780,7 +538,7 @@ def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
 
 
 def _validate(path: str, storage: str, weights: str, directions: int, ambient: str, k: float, fade: float) -> None:
-    """Every setting of :class:`Approximation`, checked before anything is uploaded."""
+    """Every setting of :class:`Horizon`, checked before anything is uploaded."""
     for what, value, allowed in (("path", path, PATHS), ("storage", storage, STORAGES),
                                  ("weights", weights, WEIGHTS), ("ambient", ambient, AMBIENT_TERMS)):
         if value not in allowed:
@@ -810,92 +568,3 @@ def _golden_section(cost, a: float, b: float, iterations: int = 14) -> float:
             d = a + g * (b - a)
             fd = cost(d)
     return math.exp((a + b) / 2)
-
-
-# --------------------------------------------------------------------------
-# The unshadowed shading that per-pixel techniques build on
-# --------------------------------------------------------------------------
-
-class Unshadowed:
-    """The flat surface's shading without any technique's shadow, split as a factor needs it.
-
-    Techniques whose shadow factor ``F`` is computed per pixel (terrain,
-    pom) shade with :func:`hzval.shading.compose`: ``direct * F + ambient``.
-    ``render`` gives the frame of plain normal mapping (the report's
-    "normal mapping only" column), its ``direct`` part and the ``ambient``
-    image, which is the same for every light (the sky is not shadowed by
-    the light's horizon), rendered once: an ambient-only render with the
-    light below the horizon, where the direct term is 0. The horizon map's
-    reflection fade is no other technique's, so it is left out. The last
-    frame is kept: every technique of a sweep frame shares one render.
-    """
-
-    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2",
-                 samples: lookup.Samples | None = None):
-        effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
-        self.scene = scene
-        self._grey = not effects            # shadows alone: the direct term is E, grey
-        self._plain = None if self._grey else Approximation(replace_effects(scene, effects), bake, albedo,
-                                                            ambient=ambient, samples=samples)
-        self.ambient_image = None
-        if "ambient" in effects:
-            self.ambient_image = Approximation(replace_effects(scene, ("ambient",)), bake, albedo, ambient=ambient,
-                                               samples=samples).render(0.0, elevation_deg=-90.0).image
-        self.shape = image_shape(*bake.normal.shape[:2], scene.camera)
-        self._last: tuple | None = None
-
-    def render(self, azimuth_deg: float, elevation_deg: float | None = None) -> tuple[Frame, np.ndarray]:
-        """``(frame, direct)``: the unshadowed frame and its direct part ``(H, W, 3)``."""
-        e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
-        key = (float(azimuth_deg), e)
-        if self._last is None or self._last[0] != key:
-            if self._grey:
-                t0 = time.perf_counter()
-                E = float(self.scene.light.irradiance) if e > 0 else 0.0
-                frame = Frame(float(azimuth_deg), e, np.full((*self.shape, 3), E, np.float32),
-                              seconds=time.perf_counter() - t0)
-            else:
-                frame = self._plain.render(azimuth_deg, shadows=False, elevation_deg=e)
-            direct = frame.image if self.ambient_image is None else frame.image - self.ambient_image
-            self._last = (key, frame, direct)
-        return self._last[1], self._last[2]
-
-    def shade(self, azimuth_deg: float, elevation_deg: float | None, factor: np.ndarray, seconds: float,
-              layers: dict | None = None) -> Frame:
-        """The frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
-        the unshadowed render's time counts toward it, as an engine would pay it."""
-        frame, direct = self.render(azimuth_deg, elevation_deg)
-        image = shading.compose(direct, factor, self.ambient_image)
-        out = {k: v for k, v in frame.layers.items() if k != "reflection_occlusion"}
-        out.update(layers or {}, factor=np.asarray(factor, np.float32))
-        return Frame(frame.azimuth_deg, frame.elevation_deg, image, out, seconds=seconds + frame.seconds)
-
-
-def unshadowed(ctx: Context) -> Unshadowed:
-    """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
-    return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples()))
-
-
-class HeightFieldShadow(Technique):
-    """Base of the techniques that read the height map and multiply the :class:`Unshadowed`
-    shading by a per-pixel factor (terrain, pom): they are built as ``cls(scene, height,
-    bake=..., albedo=..., unshadowed=..., **settings)``."""
-
-    @classmethod
-    def build(cls, ctx: Context, **settings) -> "HeightFieldShadow":
-        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=unshadowed(ctx),
-                   samples=ctx.samples(), **settings)
-
-    @staticmethod
-    def shading_for(scene: Scene, height: np.ndarray, bake, albedo, shared: Unshadowed | None,
-                    samples: lookup.Samples | None = None) -> Unshadowed:
-        """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
-        without one from the normal map alone (:func:`hzval.bake.normals_only`), which serves
-        ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map."""
-        if shared is not None:
-            return shared
-        if bake is None:
-            if scene.declares("ambient"):
-                raise InputError("bake", "ambient needs the bake's textures")
-            bake = normals_only(height, scene.material.depth, scene.material.boundary)
-        return Unshadowed(scene, bake, albedo, samples=samples)

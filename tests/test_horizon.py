@@ -1,4 +1,4 @@
-"""The approximation (hzval.approx, issue 4) against answers known in advance.
+"""The approximation (hzval.horizon, issue 4) against answers known in advance.
 
 Every expected value here is computed independently of the kernels: with
 NumPy from the conventions (bilinear filtering between texel centres, the
@@ -12,11 +12,12 @@ import drjit as dr
 import numpy as np
 import pytest
 
+from hzval import camera as hz_camera
 from hzval import bake as B
 from hzval import conventions as cv
 from hzval.materials import bricks as brick_wall
 from hzval import scene as S
-from hzval.approx import CUBE_SIZE, DEFAULT_FADE, Approximation
+from hzval.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
 from hzval.errors import InputError
 
 K = 8.0
@@ -118,7 +119,7 @@ def bricks(variant):
 def grid(bricks):
     """Frames of both paths for every (azimuth, elevation) of the grid."""
     sc = scene(effects=("shadow", "diffuse", "specular"))
-    apps = {p: Approximation(sc, bricks, path=p) for p in ("exact", "gpu")}
+    apps = {p: Horizon(sc, bricks, path=p) for p in ("exact", "gpu")}
     frames = {(p, az, el): a.render(az, elevation_deg=el)
               for p, a in apps.items() for az in AZIMUTHS for el in ELEVATIONS}
     return apps, frames
@@ -130,12 +131,12 @@ def grid(bricks):
 
 def test_simulated_lists_exactly_the_declared_effects(bricks):
     every = S.EFFECTS
-    a = Approximation(scene(effects=every), bricks)
+    a = Horizon(scene(effects=every), bricks)
     assert a.simulated == tuple(e for e in every if e != "interreflection")
-    b = Approximation(scene(effects=("specular", "shadow")), bricks)
+    b = Horizon(scene(effects=("specular", "shadow")), bricks)
     assert b.simulated == ("shadow", "specular")
     assert set(b.render(10.0).layers) == {"factor"}
-    c = Approximation(scene(effects=("ambient", "reflection_occlusion")), bricks)
+    c = Horizon(scene(effects=("ambient", "reflection_occlusion")), bricks)
     assert set(c.render(10.0).layers) == {"ambient", "reflection_occlusion"}
 
 
@@ -143,12 +144,12 @@ def test_bad_parameters_are_refused(bricks):
     sc = scene()
     for kw in ({"path": "cuda"}, {"ambient": "mean"}, {"k": 0.0}, {"k": float("nan")}, {"fade": -1.0}):
         with pytest.raises(InputError):
-            Approximation(sc, bricks, **kw)
+            Horizon(sc, bricks, **kw)
 
 
 def test_frames_have_the_scene_shape(bricks):
     sc = scene(effects=("shadow", "diffuse"), camera=S.Camera(supersampling=2), spp=1)
-    f = Approximation(sc, bricks).render(15.0)
+    f = Horizon(sc, bricks).render(15.0)
     assert f.image.shape == (64, 64, 3) and f.layers["factor"].shape == (64, 64)
     assert f.image.dtype == np.float32 and f.seconds > 0
 
@@ -190,14 +191,14 @@ def test_factor_never_decreases_with_elevation(grid, path):
     # gpu: on the cube's side faces the weights depend on the azimuth only;
     # between the listed elevations Lz rises by more than the +z face changes
     # them. (Densely sampled, F_gpu does drop where L crosses onto the +z
-    # face, at 35-45 degrees: see hzval.approx.)
+    # face, at 35-45 degrees: see hzval.horizon.)
     for az in AZIMUTHS:
         F = np.stack([grid[1][path, az, el].layers["factor"] for el in ELEVATIONS])
         assert np.all(np.diff(F, axis=0) >= 0), az
 
 
 def test_factor_never_decreases_with_elevation_densely_on_the_exact_path(bricks):
-    a = Approximation(scene(spp=1), bricks)
+    a = Horizon(scene(spp=1), bricks)
     for az in (0.0, 22.5, 45.0, 200.0, 360.0, -0.0):
         F = np.stack([a.render(az, elevation_deg=e).layers["factor"] for e in np.arange(-10.0, 90.01, 1.25)])
         assert np.all(np.diff(F, axis=0) >= 0), az
@@ -247,7 +248,7 @@ def channel_blocks(variant):
     sc = scene(size=32)
     x = np.array([4 * c + 1.5 for c in range(8)])   # column 4c + 1, texel centre
     y = np.full(8, 4 - 1 - 0.5)                     # row 1
-    return {p: Approximation(sc, bake, path=p) for p in ("exact", "gpu")}, x, y
+    return {p: Horizon(sc, bake, path=p) for p in ("exact", "gpu")}, x, y
 
 
 LIGHTS = [(az, el) for az in (*AZIMUTHS, 22.5, 67.4, 191.0, 300.0, -135.0)
@@ -263,7 +264,7 @@ def test_horizon_sine_uses_the_paths_weights(channel_blocks, path, reference):
 
 
 def test_cube_weight_error_is_what_hzval_approx_documents():
-    # The numbers quoted in hzval.approx: over all directions the decoded
+    # The numbers quoted in hzval.horizon: over all directions the decoded
     # weights sum to at most 1 + 3/255 (three zero-weight leaks on layer 0);
     # on the side faces (elevation <= 45 deg) sum |w^ - w| <= 0.169, largest
     # at the channel azimuths, whose tent peak falls between cube texels.
@@ -308,7 +309,7 @@ def test_zero_weight_leaks_one_255th_on_layer_0_only(channel_blocks):
 def test_flat_plane_is_lambert_and_unshadowed(variant, path):
     flat = B.bake(np.full((16, 16), 0.3, np.float32), B.BakeParams(depth=0.1))
     sc = scene(size=16, effects=("shadow", "diffuse"), albedo=0.5, irradiance=2.0)
-    a = Approximation(sc, flat, path=path)
+    a = Horizon(sc, flat, path=path)
     for az in (0.0, 45.0, 123.0, 360.0, -0.0):
         for el in ELEVATIONS:
             f = a.render(az, elevation_deg=el)
@@ -321,7 +322,7 @@ def test_flat_plane_is_lambert_and_unshadowed(variant, path):
 
 def test_shadow_only_scene_shades_grey_irradiance_times_factor(bricks):
     sc = scene(effects=("shadow",), irradiance=3.0, spp=1)
-    f = Approximation(sc, bricks).render(30.0)
+    f = Horizon(sc, bricks).render(30.0)
     assert np.array_equal(f.image[..., 0], f.image[..., 2])
     assert f.image[..., 1] == pytest.approx(3.0 * f.layers["factor"], rel=1e-6)
 
@@ -344,7 +345,7 @@ def wall_sine(d):
 def test_wall_casts_the_shadow_of_its_baked_sine(wall, path):
     # d = 1..3 texels left of the wall, the light at azimuth 0 (channel 0)
     # facing it: s is exactly sin(atan(h/d)) (test_bake), and F follows eq. 5.4.
-    a = Approximation(scene(effects=("shadow",), boundary="open"), wall, path=path)
+    a = Horizon(scene(effects=("shadow",), boundary="open"), wall, path=path)
     for d in (1, 2, 3):
         s = wall_sine(d)
         assert wall.horizon[4, WALL_COL - d, 0] == pytest.approx(s, abs=1e-6)
@@ -365,11 +366,11 @@ def test_wall_pixel_averages_its_samples(wall):
     # d = 3, 2, 1, whose sines are all known: the pixel is the mean of eq. 5.4
     # over its samples.
     sc = scene(effects=("shadow",), boundary="open", spp=16)
-    a = Approximation(sc, wall)
+    a = Horizon(sc, wall)
     s_col = np.zeros(32)
     for d in (1, 2, 3):
         s_col[WALL_COL - d] = wall_sine(d)
-    x, y = S.sample_positions(8, 32, sc.camera, sc.spp, sc.seed)
+    x, y = hz_camera.sample_positions(8, 32, sc.camera, sc.spp, sc.seed)
     p = 4 * 32 + 18
     xs = x[p * sc.spp:(p + 1) * sc.spp].astype(np.float64) - 0.5
     c0 = np.floor(xs).astype(int)
@@ -381,7 +382,7 @@ def test_wall_pixel_averages_its_samples(wall):
 
 
 def test_k_per_frame_is_eq_5_4s_k(wall):
-    a = Approximation(scene(effects=("shadow",), boundary="open"), wall, k=8.0)
+    a = Horizon(scene(effects=("shadow",), boundary="open"), wall, k=8.0)
     x, y = np.array([WALL_COL - 2 + 0.5]), np.array([3.5])
     el = math.degrees(math.asin(wall_sine(2) - 0.05))
     for k in (2.0, 8.0, 30.0):
@@ -401,8 +402,8 @@ def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
     sc = scene(size=24, effects=("shadow", "diffuse"), irradiance=1.5, boundary=boundary, spp=4)
     rng = np.random.default_rng(3)
     albedo = rng.uniform(0.1, 0.9, (24, 24, 3)).astype(np.float32)
-    a = Approximation(sc, bake, albedo)
-    x, y = S.sample_positions(24, 24, sc.camera, sc.spp, sc.seed)
+    a = Horizon(sc, bake, albedo)
+    x, y = hz_camera.sample_positions(24, 24, sc.camera, sc.spp, sc.seed)
     n = bilerp(bake.normal, x, y, boundary)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     alb = bilerp(albedo, x, y, boundary)
@@ -416,7 +417,7 @@ def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
 
 
 def test_with_one_sample_the_image_is_direct_light_times_factor(bricks):
-    a = Approximation(scene(effects=("shadow", "diffuse", "specular"), spp=1), bricks)
+    a = Horizon(scene(effects=("shadow", "diffuse", "specular"), spp=1), bricks)
     on, off = a.render(70.0), a.render(70.0, shadows=False)
     assert on.image == pytest.approx(off.image * on.layers["factor"][..., None], rel=1e-6, abs=1e-8)
 
@@ -426,7 +427,7 @@ def test_specular_is_blinn_phong(variant):
 
     n = np.array([0.2, -0.1, 1.0])
     bake = uniform_bake(np.zeros(8), n)
-    a = Approximation(scene(size=8, effects=("specular",), irradiance=2.0), bake)
+    a = Horizon(scene(size=8, effects=("specular",), irradiance=2.0), bake)
     n = n / np.linalg.norm(n)
     for az, el in ((300.0, 70.0), (10.0, 80.0), (180.0, 5.0)):
         L = light32(az, el).astype(np.float64)
@@ -438,8 +439,8 @@ def test_specular_is_blinn_phong(variant):
 @pytest.mark.parametrize("term", ["mean_cos2", "mean_cos"])
 def test_ambient_map_is_sampled_and_added(bricks, term):
     sc = scene(effects=("ambient",), irradiance=2.0, albedo=0.6)
-    f = Approximation(sc, bricks, ambient=term).render(0.0, elevation_deg=-5.0)   # no direct light
-    x, y = S.sample_positions(32, 32, sc.camera, sc.spp, sc.seed)
+    f = Horizon(sc, bricks, ambient=term).render(0.0, elevation_deg=-5.0)   # no direct light
+    x, y = hz_camera.sample_positions(32, 32, sc.camera, sc.spp, sc.seed)
     A = pixel_mean(bilerp(getattr(bricks, term), x, y, "wrap"), sc, 32, 32)
     assert f.layers["ambient"] == pytest.approx(A, rel=1e-5)
     assert f.image == pytest.approx(np.repeat(0.6 * A[..., None] * 2.0 / math.pi, 3, -1), rel=1e-5)
@@ -450,7 +451,7 @@ def test_ambient_map_is_sampled_and_added(bricks, term):
 def test_reflection_occlusion_is_toolbags_fade_against_the_horizon(variant, path, normal):
     horizon = np.float32([0.3, 0.1, 0.1, 0.1, 0.2, 0.1, 0.1, 0.1])
     bake = uniform_bake(horizon, normal)
-    a = Approximation(scene(size=8, effects=("reflection_occlusion",)), bake, path=path)
+    a = Horizon(scene(size=8, effects=("reflection_occlusion",)), bake, path=path)
     n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
     r = 2 * n[2] * n - [0, 0, 1]
     if path == "exact":
@@ -469,7 +470,7 @@ def test_reflection_occlusion_is_toolbags_fade_against_the_horizon(variant, path
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 @pytest.mark.parametrize("spp", [1, 4])
 def test_a_new_light_compiles_no_kernel(bricks, path, spp):
-    a = Approximation(scene(effects=S.EFFECTS, spp=spp), bricks, path=path, k=5.0)
+    a = Horizon(scene(effects=S.EFFECTS, spp=spp), bricks, path=path, k=5.0)
     a.render(10.0)
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         dr.kernel_history()
