@@ -11,8 +11,9 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``scene``        the scene description (TOML): material, camera, light, effects
 ``shading``      how a point turns light into radiance, for the truth and every technique
 ``truth``        the ground truth: Mitsuba traces the displaced mesh
+``surface``      the flat surface's shading in Dr.Jit, which every technique builds on
 ``technique``    the Technique interface and the registry of techniques:
-``approx``         horizon-map shading of the flat surface in Dr.Jit (``horizon``)
+``horizon``        Lengyel's horizon mapping (``horizon``)
 ``terrain``        Raudins' per-light terrain shadows (``terrain``)
 ``pom``            ray-marched height-field shadows, parallax occlusion mapping's (``pom``)
 ``compare``      metrics of a frame against the truth
@@ -27,10 +28,26 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``backend``      choosing the Mitsuba/Dr.Jit variant, checking LLVM
 ``errors``       the errors the CLI turns into one-line messages and exit codes
 ``cli``          the ``hzval`` command, a thin layer over the above
+
+Before the first render, :func:`init` chooses the LLVM library and the
+Mitsuba variant (``hzval.cli.main`` calls it). Importing the package changes
+nothing in the environment.
 """
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError, version as _version
 
-from hzval.backend import prefer_working_llvm as _prefer_working_llvm
+try:
+    __version__ = _version("hzval")          # the installed package's, i.e. pyproject.toml's
+except PackageNotFoundError:                 # run from a source tree that was never installed
+    __version__ = "0+unknown"
 
-_prefer_working_llvm()
+
+def init(variant: str | None = None) -> str:
+    """Choose, once, the LLVM library Dr.Jit's CPU backend loads and the Mitsuba variant hzval
+    renders with (:func:`hzval.backend.prefer_working_llvm`, :func:`hzval.backend.variant`);
+    return the variant. Call it before anything imports Dr.Jit: Dr.Jit reads
+    ``DRJIT_LIBLLVM_PATH`` when it is first imported."""
+    from hzval import backend
+
+    backend.prefer_working_llvm()
+    return backend.variant(variant)

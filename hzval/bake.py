@@ -58,6 +58,7 @@ per line. It ignores ``radius`` and ``angles``; ``bake.json`` records them as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -69,7 +70,7 @@ from hzval import conventions as cv
 from hzval.errors import InputError
 
 #: Edge length in texels of a face of the weight cube map (Lengyel: 16 x 16
-#: is sufficient); the GPU path of :mod:`hzval.approx` samples it.
+#: is sufficient); the GPU path of :mod:`hzval.horizon` samples it.
 CUBE_SIZE = 16
 
 #: Angular half-width factor of a texel seen from distance r: atan(0.7071 / r),
@@ -193,8 +194,13 @@ class Bake:
 
     @property
     def directions(self) -> int:
-        """Stored horizon directions (channels), 8 or 16."""
-        return int(self.horizon.shape[-1])
+        """Stored horizon directions (channels), 8 or 16 (a bake without a horizon map: the parameters')."""
+        return int(self.horizon.shape[-1]) if self.horizon is not None else int(self.params.directions)
+
+    @property
+    def contents(self) -> tuple[str, ...]:
+        """What the bake holds (:data:`CONTENTS`)."""
+        return CONTENTS if self.horizon is not None else ("normal",)
 
     @property
     def layers(self) -> tuple[np.ndarray, ...]:
@@ -929,11 +935,28 @@ METHOD_NOTES: dict[str, str] = {
 }
 
 
-def bake(height: np.ndarray, params: BakeParams = BakeParams()) -> Bake:
-    """Bake a normalised height map ``H[row, col]`` into the technique's textures."""
+#: What a bake can hold (:attr:`Bake.contents`): the normal map alone, or with the horizon map and the
+#: ambient maps derived from it. Techniques declare which they read
+#: (:meth:`hzval.technique.Technique.bake_needs`); a sweep bakes what its techniques need.
+CONTENTS: tuple[str, ...] = ("normal", "horizon", "ambient")
+
+
+def needs_horizon(needs) -> bool:
+    """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
+    bake: the horizon map, and the ambient maps, which are made from its sines."""
+    return bool({"horizon", "ambient"} & set(needs))
+
+
+def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True) -> Bake:
+    """Bake a normalised height map ``H[row, col]`` into the technique's textures; ``horizon=False``:
+    the normal map alone (:func:`normals_only`), without the horizon bake's cost."""
     from hzval import backend
 
     params.validate()
+    if not horizon:
+        t0 = time.perf_counter()
+        only = normals_only(height, params.depth, params.boundary)
+        return dataclasses.replace(only, params=params, timings={"normal_s": time.perf_counter() - t0})
     backend.variant()
     timings = {}
     t0 = time.perf_counter()
@@ -962,10 +985,12 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     from hzval import backend, files
 
     t0 = time.perf_counter()
-    layers = result.layers
+    layers = result.layers if result.horizon is not None else ()
     # the weight cube map holds Lengyel's 8 channel weights (2 RGBA layers):
-    # a 16-direction map has no GPU cube path (hzval.approx), so none is written
-    cube = weight_cube() if result.directions == cv.CHANNEL_COUNT else None
+    # a 16-direction map has no GPU cube path (hzval.horizon), so none is written
+    full = result.horizon is not None
+    cube = weight_cube() if full and result.directions == cv.CHANNEL_COUNT else None
+    layers = layers if full else ()
 
     # Writing dominated a 2048x2048 bake: zlib runs at ~35 MB/s here, and
     # ZIP shrinks float32 horizon data by 8% and 8-bit layers by 12%. So bake
@@ -986,7 +1011,8 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
             png(f"horizon{i}.png", files.unit_to_u8, layer)
         exr("normal.exr", {"RGB": result.normal})
         png("normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.normal)
-        exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
+        if full:
+            exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
         if cube is not None:
             for i, face in enumerate(cv.CUBE_FACES):
                 png(f"cube/{face}.png", np.asarray, cube[i])
@@ -996,9 +1022,10 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
                    for p in sorted(stage.dir.rglob("*")) if p.is_file()}
         files.write_json(stage.path("bake.json"), {
             "input": input_info,
-            "parameters": result.params.record(),
-            "method": METHOD_NOTES[result.params.method],
-            "outputs": _output_notes(result.directions),
+            "contents": list(result.contents),
+            "parameters": result.params.record() if full else _normal_record(result.params),
+            **({"method": METHOD_NOTES[result.params.method]} if full else {}),
+            "outputs": _output_notes(result.directions, full),
             "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, azimuth counterclockwise from +x; "
                            "heights in texel units are H * depth * cols",
             "timings_s": {k: round(v, 4) for k, v in timings.items()},
@@ -1009,7 +1036,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     # a folder that held a bake with another number of directions keeps no
     # files of it that this bake.json does not describe (extra layers, a cube)
     stale = [f"horizon{i}.{ext}" for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
-             for ext in ("exr", "png")]
+             for ext in ("exr", "png")] + ([] if full else ["ambient.exr"])
     if cube is None:
         stale += [f"cube/{face}.png" for face in cv.CUBE_FACES]
     for name in stale:
@@ -1019,10 +1046,18 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     return written
 
 
-def _output_notes(directions: int) -> dict:
-    """``bake.json``'s description of the files of a ``directions``-channel bake."""
+def _normal_record(params: BakeParams) -> dict:
+    """``bake.json``'s parameters of a bake of the normal map alone: the horizon bake's are not its."""
+    return {"depth": params.depth, "boundary": params.boundary}
+
+
+def _output_notes(directions: int, full: bool = True) -> dict:
+    """``bake.json``'s description of the files of a ``directions``-channel bake (``full``: with the
+    horizon and ambient maps; else the normal map alone)."""
     n = cv.CHANNELS_PER_LAYER
     notes = {}
+    if not full:
+        return {"normal": "tangent-space unit normal (PNG: 0.5 + 0.5 n)"}
     for i in range(cv.layer_count(directions)):
         az = ", ".join(f"{cv.channel_azimuth_deg(c, directions):g}" for c in range(n * i, n * i + n))
         notes[f"horizon{i}"] = (f"channels {n * i}-{n * i + n - 1} (azimuth {az} deg) as RGBA"
@@ -1050,6 +1085,10 @@ def read_bake(folder: str | Path) -> Bake:
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
     params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
+    if "horizon" not in record.get("contents", CONTENTS):
+        n = files.read_exr(folder / "normal.exr")
+        return Bake(params, None, np.stack([n[c] for c in "RGB"], axis=-1), None, None,
+                    dict(record["timings_s"]))
     layers = [files.read_exr(folder / f"horizon{i}.exr") for i in range(cv.layer_count(params.directions))]
     n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
     horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
@@ -1058,9 +1097,10 @@ def read_bake(folder: str | Path) -> Bake:
 
 
 def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
-                input_info: dict, notices: list[str] | None = None) -> tuple[Bake, bool]:
+                input_info: dict, notices: list[str] | None = None, *, horizon: bool = True) -> tuple[Bake, bool]:
     """Bake into ``folder``, or read the bake already there if it was made from the
-    same input (``digest``) with the same parameters and its files are intact.
+    same input (``digest``) with the same parameters, holds what is asked for (``horizon``:
+    the horizon and ambient maps, else the normal map alone) and its files are intact.
     Returns ``(bake, cached)``.
 
     Every file of the cache must still have the SHA-256 that ``bake.json``
@@ -1075,8 +1115,12 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
     folder = Path(folder)
     try:
         record = json.loads((folder / "bake.json").read_text())
-        same = (record["input"]["digest"] == digest
-                and BakeParams.normalise_record(record["parameters"]) == params.record())
+        held = record.get("contents", CONTENTS)
+        if horizon:
+            same = "horizon" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
+        else:           # any bake of the same surface holds its normal map
+            same = {k: record["parameters"][k] for k in ("depth", "boundary")} == _normal_record(params)
+        same = same and record["input"]["digest"] == digest
     except (OSError, ValueError, KeyError, TypeError):
         same = False   # no usable cache: bake anew
     if same:
@@ -1085,7 +1129,7 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
             return read_bake(folder), True
         if notices is not None:
             notices.append(f"{damaged}: the cached bake is damaged; baked it anew")
-    result = bake(height, params)
+    result = bake(height, params, horizon=horizon)
     write_bake(result, folder, input_info=input_info)
     return result, False
 

@@ -9,17 +9,18 @@ and every technique of the registry that applies to the scene
 with its reference::
 
     reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
-    reference/<scene>/az<azimuth>/<variant>.exr    R, G, B, F   (approx, approx_gpu, terrain, pom, ...)
+    reference/<scene>/az<azimuth>/<variant>.exr    R, G, B, F   (horizon, horizon_gpu, terrain, pom, ...)
 
 (linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
 technique's shadow factor, ``var.*`` the variance of each pixel's mean).
-The techniques are deterministic and share the ``approx`` tiers. Values are
+The techniques are deterministic and share the ``technique`` tiers, which a
+scene may set per technique or variant. Values are
 compared after the sweep's exposure (:func:`hzval.shading.exposure`), so a
 difference of 1 is the difference between black and a white Lambertian
 surface facing the light.
 
 Two kinds of image, two tests
-    The approximation is deterministic: a pixel's score is its largest
+    A technique is deterministic: a pixel's score is its largest
     absolute difference over the channels, and tolerances are tight (what
     float rounding on another CPU or on a GPU may change, no more).
 
@@ -44,13 +45,15 @@ Two kinds of image, two tests
     larger of the two values. Stratified sampling makes the estimated
     variance an upper bound: the test errs toward passing noise.
 
-Tiers, per scene (``[tolerances.truth]``, ``[tolerances.approx]``; the
-defaults are :data:`DEFAULT_TIERS`)
-    ``fail``: when a pixel fails - approx: its difference exceeds ``fail``;
+Tiers, per scene (``[tolerances.truth]``, ``[tolerances.technique]`` for every
+technique, then ``[tolerances.<technique>]`` and ``[tolerances.<variant>]``,
+each overriding the one before; ``[tolerances.approx]``, schema 1's name, is
+read as ``technique``; the defaults are :data:`DEFAULT_TIERS`)
+    ``fail``: when a pixel fails - technique: its difference exceeds ``fail``;
     truth: its p-value is below the Sidak-corrected level ``fail``.
     ``fail_percent``: the image fails when more than this percentage of its
     pixels fail; a failing 8 x 8 block (truth) always fails it.
-    ``hard_fail``: the image fails outright - approx: any pixel differs by
+    ``hard_fail``: the image fails outright - technique: any pixel differs by
     more than ``hard_fail``; truth: the image means differ by more than
     ``hard_fail`` (a bias no per-pixel allowance may hide).
     ``warn``: a passing image is flagged when more than this percentage of
@@ -93,9 +96,13 @@ class Tiers:
     warn: float
 
     @classmethod
-    def of(cls, scene, kind: str) -> "Tiers":
-        base = DEFAULT_TIERS["truth" if kind == "truth" else "approx"]
-        given = dict(scene.tolerances.get("truth" if kind == "truth" else "approx", {}))
+    def of(cls, scene, kind: str, technique_name: str | None = None) -> "Tiers":
+        """The tiers of image ``kind`` (``truth`` or a technique's check variant) of ``scene``."""
+        base = DEFAULT_TIERS["truth" if kind == "truth" else "technique"]
+        tables = ("truth",) if kind == "truth" else ("approx", "technique", technique_name, kind)
+        given = {}
+        for table in dict.fromkeys(t for t in tables if t):
+            given.update(scene.tolerances.get(table, {}))
         unknown = set(given) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise InputError(scene.source or scene.name, f"unknown tolerance {sorted(unknown)[0]!r}; "
@@ -103,12 +110,12 @@ class Tiers:
         return dataclasses.replace(base, **{k: float(v) for k, v in given.items()})
 
 
-#: Default tiers. approx: absolute differences in exposed linear units (1 =
+#: Default tiers. technique: absolute differences in exposed linear units (1 =
 #: white); 1e-4 is about 1/40 of an 8-bit step in the darks and far above
 #: float32 rounding. truth: significance level 0.01 (Sidak-corrected), an
 #: allowance of 0.2% of pixels, and a bias of 0.01 in the image mean.
 DEFAULT_TIERS = {
-    "approx": Tiers(fail=1e-4, fail_percent=0.0, hard_fail=0.01, warn=0.0),
+    "technique": Tiers(fail=1e-4, fail_percent=0.0, hard_fail=0.01, warn=0.0),
     "truth": Tiers(fail=0.01, fail_percent=0.2, hard_fail=0.01, warn=0.05),
 }
 
@@ -175,14 +182,15 @@ def check_scene(scene):
 
 
 def renderers(scene, height: np.ndarray) -> dict:
-    """``{kind: technique}``: every check variant of every technique that applies to ``scene``."""
+    """``{kind: (variant, technique class, built technique)}``: every check variant of every
+    technique that applies to ``scene``."""
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
     ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols))
     out = {}
     for t in technique.select(None, scene):
         for v in t.check_variants():
-            out[v.name] = t.build(ctx, **v.settings)
+            out[v.name] = (v, t, t.build(ctx, **v.settings))
     return out
 
 
@@ -209,7 +217,7 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
         ch.update({f"var.{k}": v for k, v in var.items()})
         ch["var.V"] = t.variance["visibility"]
         out[(name, "truth")] = ch
-        for kind, r in kinds.items():
+        for kind, (_, _, r) in kinds.items():
             a = r.render(az)
             ch = _rgb(a.image)
             ch["F"] = a.layers["factor"]
@@ -328,6 +336,20 @@ def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
     return Path(references) / scene / frame / f"{kind}.exr"
 
 
+def _variants(scene) -> dict:
+    """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``."""
+    return {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
+
+
+def _former_reference(references: Path, scene: str, frame: str, entry) -> Path | None:
+    """The reference a variant had under its former name (:attr:`hzval.technique.Variant.formerly`),
+    if there is one and none under its name: a reference folder of an earlier release."""
+    if entry is None or not entry[0].formerly:
+        return None
+    old = reference_file(references, scene, frame, entry[0].formerly)
+    return old if old.is_file() else None
+
+
 def load_scenes(scenes_dir: str | Path) -> list:
     from hzval import scene as sc
 
@@ -352,9 +374,13 @@ def run(*, scenes_dir: str | Path | None = None, references: str | Path | None =
     for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):
         scale = shading.exposure(scene)
         rendered = render_references(scene, seed=seed)
+        variants = _variants(scene)
         for (frame, kind), new in rendered.items():
             path = reference_file(references, scene.name, frame, kind)
-            tiers = Tiers.of(scene, kind)
+            old = _former_reference(references, scene.name, frame, variants.get(kind))
+            tiers = Tiers.of(scene, kind, variants[kind][1] if kind in variants else None)
+            if old is not None and not path.is_file():
+                path = old
             r = ImageResult(scene.name, frame, kind, "new", tiers=tiers, new=new, scale=scale)
             if path.is_file():
                 try:
@@ -366,9 +392,12 @@ def run(*, scenes_dir: str | Path | None = None, references: str | Path | None =
                     r.status, r.reasons, r.numbers, r.maps = compare_image(new, ref, kind, tiers, scale, scene.spp)
             else:
                 r.reasons = [f"no reference at {path}"]
-            if update and r.status in ("new", "fail"):
-                files.write_exr(path, new)
-                result.updated.append(str(path))
+            if update and (r.status in ("new", "fail") or path == old):
+                target = reference_file(references, scene.name, frame, kind)
+                files.write_exr(target, new)
+                if path == old:
+                    old.unlink()            # renamed: the reference now has its variant's name
+                result.updated.append(str(target))
             result.images.append(r)
     result.seconds = time.perf_counter() - t0
     return result

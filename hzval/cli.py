@@ -77,23 +77,66 @@ def _add_technique_args(p: argparse.ArgumentParser) -> None:
 
 
 def _technique_options(args) -> dict:
-    """``sweep.Options`` keywords of the technique options."""
-    from hzval import technique
+    """``sweep.Options`` keywords of the technique options, each checked, an error naming the flag
+    as typed (:func:`hzval.technique.flag_errors`)."""
+    from hzval import bake, technique
 
     requested = None
     if args.techniques is not None:
         requested = tuple(n.strip() for n in args.techniques.split(",") if n.strip())
-    settings = {n: technique.get(n).settings_from_args(args) for n in technique.names()}
+    params = bake.BakeParams(radius=args.radius, angles=args.angles, method=args.method, directions=args.directions)
+    settings = {}
+    for n in technique.names():
+        t = technique.get(n)
+        with technique.flag_errors(t, getattr(args, "typed", {})):
+            settings[n] = t.settings_from_args(args)
+            t.check_settings(params, settings[n])
     return {"techniques": requested, "exclude": tuple(args.exclude), "settings": settings}
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="hzval", description="Validate horizon mapping and the self-shadowing techniques it competes with "
-                                  "against ray-traced ground truth.")
-    parser.add_argument("--variant", default=None,
+def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, str]:
+    """``{canonical flag: the spelling in argv}`` for the flags of ``parser`` that ``argv`` uses under
+    another name (a hidden alias such as ``--k`` for ``--horizon-k``): errors name what was typed."""
+    canonical: dict[str, str] = {}
+    for a in parser._actions:
+        if a.option_strings and a.help != argparse.SUPPRESS:
+            canonical.setdefault(a.dest, a.option_strings[-1])
+    out = {}
+    for a in parser._actions:
+        for opt in a.option_strings:
+            if any(t == opt or t.startswith(opt + "=") for t in argv) and a.dest in canonical \
+                    and opt != canonical[a.dest]:
+                out[canonical[a.dest]] = opt
+    return out
+
+
+def _common() -> argparse.ArgumentParser:
+    """The flags every command takes, before or after its name (argparse ``parents=``)."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--variant", default=argparse.SUPPRESS,
                         help="Mitsuba variant (default: cuda_ad_rgb with a GPU, else llvm_ad_rgb; "
                              "or $HZVAL_VARIANT)")
+    return common
+
+
+class _Subcommands(argparse._SubParsersAction):
+    """Every command's parser gets the common flags (:func:`_common`)."""
+
+    def add_parser(self, name, **kwargs):
+        p = super().add_parser(name, parents=[_common()], **kwargs)
+        p.set_defaults(parser=p)
+        return p
+
+
+def _parser() -> argparse.ArgumentParser:
+    import hzval
+
+    parser = argparse.ArgumentParser(
+        prog="hzval", parents=[_common()],
+        description="Validate horizon mapping and the self-shadowing techniques it competes with "
+                    "against ray-traced ground truth.")
+    parser.add_argument("--version", action="version", version=f"hzval {hzval.__version__}")
+    parser.register("action", "parsers", _Subcommands)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_bake(sub)
     _add_sweep(sub)
@@ -107,18 +150,28 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_bake_flags(p: argparse.ArgumentParser) -> None:
+    """The horizon bake's flags (:class:`hzval.bake.BakeParams`, whose defaults they show)."""
+    from hzval import bake
+
+    d = bake.BakeParams()
+    p.add_argument("--radius", type=int, default=d.radius, help=f"bake search radius in texels (default {d.radius})")
+    p.add_argument("--angles", type=int, default=d.angles,
+                   help=f"bake angular bins, a multiple of 2 x --directions (default {d.angles})")
+    p.add_argument("--directions", type=int, default=d.directions,
+                   help=f"stored horizon directions: 8 (Lengyel's, two RGBA layers) or 16 (22.5 degrees apart, "
+                        f"four layers; seed method, --angles a multiple of 32) (default {d.directions})")
+    p.add_argument("--method", choices=bake.METHODS, default=d.method,
+                   help="horizon bake: seed (Lengyel's bins within --radius) or exact (exact horizons toward "
+                        f"the 8 channel directions, unlimited radius; ignores --radius and --angles) "
+                        f"(default {d.method})")
+
+
 def _add_bake(sub) -> None:
     p = sub.add_parser("bake", help="bake normal, horizon and ambient maps from a height map",
                        description="Bake the horizon-mapping textures of a height map (docs/ARCHITECTURE.md).")
     _add_material_args(p)
-    p.add_argument("--radius", type=int, default=16, help="search radius in texels (default 16)")
-    p.add_argument("--angles", type=int, default=32, help="angular bins, a multiple of 2 x --directions (16 or 32) (default 32)")
-    p.add_argument("--directions", type=int, default=8,
-                   help="stored horizon directions: 8 (Lengyel's, two RGBA layers) or 16 (22.5 degrees apart, "
-                        "four layers; seed method, --angles a multiple of 32) (default 8)")
-    p.add_argument("--method", choices=["seed", "exact"], default="seed",
-                   help="horizon bake: seed (Lengyel's bins within --radius) or exact (exact horizons toward "
-                        "the 8 channel directions, unlimited radius; ignores --radius and --angles) (default seed)")
+    _add_bake_flags(p)
     p.add_argument("--mesh", action="store_true",
                    help="also write the displaced triangle mesh as mesh.ply")
     p.add_argument("--out", required=True, type=Path, help="output folder")
@@ -143,18 +196,23 @@ def _add_sweep(sub) -> None:
 
 
 def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
-    """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``)."""
-    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
+    defaults those of :class:`hzval.scene.Scene`."""
+    from hzval import scene as sc
+
+    d, light = sc.Scene(), sc.Light()
+    p.add_argument("--elevation", type=float, default=None,
+                   help=f"light elevation in degrees (default {light.elevation_deg:g})")
     p.add_argument("--azimuths", default=None,
-                   help="light azimuths in degrees, START:STOP:STEP or a list (default -60:60:15)")
+                   help=f"light azimuths in degrees, START:STOP:STEP or a list (default {sc.DEFAULT_AZIMUTHS_TEXT})")
     p.add_argument("--light", choices=["hard", "soft"], default=None, help="directional or disk light")
     p.add_argument("--light-radius", type=float, default=None, metavar="DEG",
                    help="angular radius of a soft light in degrees")
     p.add_argument("--effects", default=None,
                    help="comma-separated effects: shadow, diffuse, specular, ambient, "
-                        "reflection_occlusion, interreflection (default shadow,diffuse)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
-    p.add_argument("--seed", type=int, default=None, help="random seed of the samples (default 0)")
+                        f"reflection_occlusion, interreflection (default {','.join(d.effects)})")
+    p.add_argument("--spp", type=int, default=None, help=f"samples per pixel (default {d.spp})")
+    p.add_argument("--seed", type=int, default=None, help=f"random seed of the samples (default {d.seed})")
     p.add_argument("--supersampling", type=int, default=None,
                    help="pixels per texel along each axis: a magnification, not anti-aliasing (--spp samples "
                         "each pixel); FLIP and the other image scores depend on it (default 1)")
@@ -162,11 +220,7 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
     _add_view_flags(p)
-    p.add_argument("--radius", type=int, default=16, help="bake search radius in texels (default 16)")
-    p.add_argument("--angles", type=int, default=32, help="bake angular bins, a multiple of 2 x --directions (default 32)")
-    p.add_argument("--directions", type=int, default=8, help="stored horizon directions, 8 or 16 (default 8)")
-    p.add_argument("--method", choices=["seed", "exact"], default="seed",
-                   help="horizon bake method: seed or exact (unlimited radius) (default seed)")
+    _add_bake_flags(p)
     p.add_argument("--all-files", action="store_true",
                    help="also write each frame's files that the others determine: the unshadowed render and "
                         "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
@@ -197,7 +251,7 @@ def _add_views(sub) -> None:
 def cmd_views(args) -> int:
     import shlex
 
-    from hzval import backend, scene as sc, views
+    from hzval import scene as sc, views
 
     base = sc.Scene()
     if args.height is not None and sc.sidecar_of(args.height) is not None:
@@ -206,7 +260,6 @@ def cmd_views(args) -> int:
     scene = sc.override(base, height=_material_of(args), size=size, depth=args.depth, boundary=args.boundary,
                         elevation=args.elevation, azimuths=args.azimuths, spp=args.spp)
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
-    backend.variant(args.variant)
     out = args.out or Path("reports") / f"views-{scene.name}"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     split = (lambda t: None if t is None else [v.strip() for v in t.split(",") if v.strip()])
@@ -306,13 +359,15 @@ def _add_check(sub) -> None:
                                    "Exit 0 when all pass, 1 when any fails; a failure writes an HTML report.")
     p.add_argument("--references", type=Path, default=None, help="reference folder (default: reference/)")
     p.add_argument("--scenes", type=Path, default=None, help="scene folder (default: scenes/)")
-    p.add_argument("--report", type=Path, default=None,
+    p.add_argument("--out", type=Path, default=None,
                    help="write the HTML report here (default: reports/check, and only on failure)")
+    p.add_argument("--report", dest="out", type=Path, default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     p.add_argument("--update", action="store_true",
                    help="rewrite the references that are missing or failing, and say which")
     p.add_argument("--seed", type=int, default=None, help="render the truth with this seed instead of the scene's")
-    p.add_argument("--scene", dest="only", action="append", default=None, metavar="NAME",
-                   help="check only this scene (repeatable)")
+    p.add_argument("--only", dest="only", action="append", default=None, metavar="NAME",
+                   help="check only the scene of this name (repeatable)")
+    p.add_argument("--scene", dest="only", action="append", help=argparse.SUPPRESS)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_check)
 
@@ -387,7 +442,7 @@ def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
 
 
 def cmd_bake(args) -> int:
-    from hzval import backend, bake, heightmap, materials, mesh
+    from hzval import bake, heightmap, materials, mesh
     from hzval.scene import material_defaults
 
     defaults = material_defaults(_material_of(args) or materials.DEFAULT)
@@ -403,7 +458,6 @@ def cmd_bake(args) -> int:
     t0 = time.perf_counter()
     height, info = load_material(args)
     t_load = time.perf_counter() - t0
-    backend.variant(args.variant)
     result = bake.bake(height, params)
     result.timings = {"load_s": t_load, **result.timings}
     written = bake.write_bake(result, args.out, input_info=info)
@@ -426,7 +480,7 @@ def cmd_bake(args) -> int:
 def cmd_sweep(args) -> int:
     import shlex
 
-    from hzval import backend, scene as sc, sweep
+    from hzval import scene as sc, sweep
 
     base = sc.Scene()
     if args.scene:
@@ -438,7 +492,6 @@ def cmd_sweep(args) -> int:
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
-    backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet)
     for w in result.get("warnings", []):
@@ -475,15 +528,13 @@ def sweep_options(args):
 def cmd_suite(args) -> int:
     import shlex
 
-    from hzval import backend, suite
+    from hzval import suite
 
     items = suite.entries(args.inputs, **_scene_overrides(args))
     workers = args.workers if args.workers is not None else suite.default_workers(items)
-    if args.cluster is None and workers == 0:
-        backend.variant(args.variant)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
-                       variant=args.variant, command=command, progress=not args.quiet)
+                       variant=args.requested_variant, command=command, progress=not args.quiet)
     print(suite.summary_table(result))
     s = result["suite"]
     print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
@@ -504,17 +555,16 @@ def cmd_materials(args) -> int:
 def cmd_check(args) -> int:
     import shlex
 
-    from hzval import backend, check
+    from hzval import check
 
-    backend.variant(args.variant)
     result = check.run(scenes_dir=args.scenes, references=args.references, update=args.update,
                        seed=args.seed, progress=not args.quiet, only=args.only)
     print(check.summary(result))
     for path in result.updated:
         print(f"updated {path}")
     failed = not result.passed and not args.update
-    if failed or args.report:
-        out = args.report or Path("reports") / "check"
+    if failed or args.out:
+        out = args.out or Path("reports") / "check"
         command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
         index = check.write_report(result, out, command=command)
         print(f"report: {index}")
@@ -524,7 +574,7 @@ def cmd_check(args) -> int:
 def cmd_tradeoff(args) -> int:
     import shlex
 
-    from hzval import backend, scene as sc, technique, tradeoff
+    from hzval import scene as sc, technique, tradeoff
 
     size = args.size if args.size is not None else (None if args.height else tradeoff.DEFAULT_SIZE)
     scene = sc.override(sc.Scene(), height=_material_of(args), size=size, depth=args.depth,
@@ -533,7 +583,6 @@ def cmd_tradeoff(args) -> int:
     truth_spp = tradeoff.DEFAULT_TRUTH_SPP if args.truth_spp is None else args.truth_spp
     if truth_spp < 1:
         raise errors.InputError("--truth-spp", f"must be at least 1, got {truth_spp}")
-    backend.variant(args.variant)
     hm = sc.load_material_height(scene.material)
     points, info = tradeoff.measure(scene, hm.height, truth_spp=truth_spp, only=args.only,
                                     progress=not args.quiet)
@@ -549,18 +598,18 @@ def cmd_tradeoff(args) -> int:
     if rec:
         print(f"\nrecommended: {rec['setting']} (|F-V| {rec['visibility_mae']:.4f}; "
               f"best {rec['best']} {rec['best_visibility_mae']:.4f})")
-        if "horizon_map" in rec:
-            h = rec["horizon_map"]
+        if "own" in rec:
+            h = rec["own"]
             default = "" if rec["default"] is None else \
                 f"; default {rec['default']} {rec['default_visibility_mae']:.4f}"
-            print(f"for the {technique.get(technique.PRIMARY).label}'s own settings: {h['setting']} "
+            print(f"for the {technique.get(h['technique']).label}'s own settings: {h['setting']} "
                   f"(|F-V| {h['visibility_mae']:.4f}{default})")
     print(f"report: {index}")
     return errors.EXIT_OK
 
 
 def cmd_export_scene(args) -> int:
-    from hzval import backend, export, scene as sc
+    from hzval import export, scene as sc
 
     base = sc.load_scene(args.scene) if args.scene else sc.Scene()
     scene = sc.override(base, height=_material_of(args), size=args.size, depth=args.depth,
@@ -568,7 +617,6 @@ def cmd_export_scene(args) -> int:
                         shading=args.shading)
     if not math.isfinite(args.azimuth):
         raise errors.InputError("--azimuth", f"must be a finite number of degrees, got {args.azimuth}")
-    backend.variant(args.variant)
     hm = sc.load_material_height(scene.material)
     written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth)
     print(f"wrote {', '.join(str(p) for p in written)}; render it with: mitsuba {args.out / 'scene.xml'} "
@@ -579,9 +627,8 @@ def cmd_export_scene(args) -> int:
 def cmd_score(args) -> int:
     import shlex
 
-    from hzval import backend, score
+    from hzval import score
 
-    backend.variant(args.variant)
     result, maps = score.score(args.frames, args.against)
     out = args.out or args.frames / "score"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
@@ -614,10 +661,18 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import hzval
+    from hzval import backend
+
     argv = list(sys.argv[1:] if argv is None else argv)
+    backend.prefer_working_llvm()           # before the parser imports the techniques, and so Dr.Jit
     args = _parser().parse_args(_join_negative_values(argv))
     args.argv = argv
+    args.typed = typed_flags(args.parser, argv)
+    args.requested_variant = getattr(args, "variant", None)       # as asked: a suite's workers choose their own
     try:
+        if args.command != "materials":      # the one command that renders nothing
+            args.variant = hzval.init(getattr(args, "variant", None))
         return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)

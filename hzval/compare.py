@@ -1,4 +1,4 @@
-"""Comparing a frame of the approximation with the truth (docs/ARCHITECTURE.md, "Metrics").
+"""Comparing a technique's frame with the truth (docs/ARCHITECTURE.md, "Metrics").
 
 Visibility, on the one-channel layers in [0, 1]:
 
@@ -8,7 +8,7 @@ Visibility, on the one-channel layers in [0, 1]:
 * ``false_shadow_fraction``: pixels it shadows (``F < 0.5``) that are lit
   (``V >= 0.5``);
 * ``reflection_mae`` (with ``reflection_occlusion``): mean ``|o - R|``, the
-  Toolbag fade ``o`` of :mod:`hzval.approx` against the truth's unoccluded
+  Toolbag fade ``o`` of :mod:`hzval.horizon` against the truth's unoccluded
   fraction ``R`` of the glossy lobe about the mirror direction
   (:mod:`hzval.truth`).
 
@@ -102,8 +102,8 @@ def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = N
     if np.shape(V) != np.shape(F):
         raise HzvalError(f"visibility layers of different shapes: {np.shape(V)} and {np.shape(F)}")
     v, f = mi.Float64(_flat_values(V)), mi.Float64(_flat_values(F))
-    lit_truth, lit_approx = v >= LIT_THRESHOLD, f >= LIT_THRESHOLD
-    terms = [dr.abs(f - v), dr.select(lit_approx & ~lit_truth, 1.0, 0.0), dr.select(~lit_approx & lit_truth, 1.0, 0.0)]
+    lit_truth, lit_test = v >= LIT_THRESHOLD, f >= LIT_THRESHOLD
+    terms = [dr.abs(f - v), dr.select(lit_test & ~lit_truth, 1.0, 0.0), dr.select(~lit_test & lit_truth, 1.0, 0.0)]
     count = np.size(V)
     if mask is not None:
         seen = mi.Bool(np.ascontiguousarray(mask, bool).ravel())
@@ -375,29 +375,29 @@ class Reference:
         self.flip = FlipReference(self.display, FLIP_PPD)
 
 
-def compare(truth, approx, scale: float, *, reference: Reference | None = None
+def compare(truth, test, scale: float, *, reference: Reference | None = None
             ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
     """Metrics of one frame and the maps behind them (``flip``, ``delta_e``,
-    ``visibility_diff``, and ``display``, the approximation's display values).
+    ``visibility_diff``, and ``display``, the technique's display values).
 
-    ``truth`` and ``approx`` are :class:`hzval.scene.Frame`; ``scale`` is the
+    ``truth`` and ``test`` (a technique's frame) are :class:`hzval.scene.Frame`; ``scale`` is the
     sweep's :func:`hzval.shading.exposure`; ``reference``: ``Reference(truth, scale)``
     when several techniques are compared with the same truth.
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
-    V, F = truth.layers.get("visibility"), approx.layers.get("factor")
+    V, F = truth.layers.get("visibility"), test.layers.get("factor")
     mask = truth.mask
     if V is not None and F is not None:
         mae, leak, false_shadow = visibility_metrics(V, F, mask)
         maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
     else:
         mae = leak = false_shadow = None
-    O, R = approx.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
+    O, R = test.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
     reflection = None
     if O is not None and R is not None:
         reflection = float(np.mean(_seen(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64)), mask)))
-    scores, image_maps = image_metrics(ref, approx.image)
+    scores, image_maps = image_metrics(ref, test.image)
     maps.update(image_maps)
     return FrameMetrics(mae, leak, false_shadow, scores["flip_mean"], scores["rmse"], scores["psnr_db"],
                         scores["delta_e2000_mean"], reflection), maps

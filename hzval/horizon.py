@@ -117,9 +117,9 @@ through memory.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -201,7 +201,7 @@ class Horizon(FlatShading, Technique):
     simulated
         The effects this object computes, in :data:`hzval.scene.EFFECTS`
         order: the declared ones less :data:`NOT_MODELLED`
-        (``metrics.json``'s ``simulated.approx``).
+        (``metrics.json``'s ``techniques.horizon.simulated``).
     shape
         ``(height, width)`` of every image it renders.
     """
@@ -297,6 +297,12 @@ class Horizon(FlatShading, Technique):
     # ------------------------------------------------------------------
 
     @classmethod
+    def bake_needs(cls, scene: Scene) -> frozenset[str]:
+        """The horizon map (an external one replaces it, but hzval's own is what it is checked
+        against) and the normal and ambient maps."""
+        return frozenset({"horizon", "normal", "ambient"})
+
+    @classmethod
     def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Horizon":
         """From a context; ``horizon_map`` (layer paths) and ``encoding``
         (:class:`hzval.external.Encoding`) replace the bake's horizon map by an external one, whose
@@ -317,15 +323,29 @@ class Horizon(FlatShading, Technique):
         own.warnings = tuple(w for w in (external.advice(found),) if w)
         return own
 
+    #: The command line's flag of each setting (errors name the flag, :func:`hzval.technique.flag_errors`).
+    flags = {"k": "--horizon-k", "path": "--horizon-path", "ambient": "--horizon-ambient",
+             "storage": "--horizon-storage", "weights": "--horizon-path", "fade": "--horizon-k"}
+    #: The flags' names before they had the technique's prefix, hidden aliases for one release.
+    FORMER_FLAGS = {"--horizon-k": "--k", "--horizon-path": "--path", "--horizon-ambient": "--ambient",
+                    "--horizon-storage": "--storage"}
+
     @classmethod
     def add_arguments(cls, parser) -> None:
-        parser.add_argument("--k", type=float, default=DEFAULT_K,
-                            help=f"horizon map: shadow hardness k of F = clamp(k (Lz - s) + 1) (default {DEFAULT_K:g})")
-        parser.add_argument("--path", choices=PATHS, default="exact",
-                            help="horizon map: exact float math, or emulate the GPU's 8-bit textures and weight "
-                                 "cube map (default exact)")
-        parser.add_argument("--ambient", choices=AMBIENT_TERMS, default="mean_cos2",
-                            help="horizon map: which ambient-map definition to shade with (default mean_cos2)")
+        def add(flag: str, **kw) -> None:
+            parser.add_argument(flag, **kw)
+            hidden = {k: v for k, v in kw.items() if k not in ("help", "metavar")}
+            parser.add_argument(cls.FORMER_FLAGS[flag], dest=flag[2:].replace("-", "_"),
+                                **{**hidden, "default": argparse.SUPPRESS},
+                                help=argparse.SUPPRESS)
+
+        add("--horizon-k", type=float, default=DEFAULT_K,
+            help=f"horizon map: shadow hardness k of F = clamp(k (Lz - s) + 1) (default {DEFAULT_K:g})")
+        add("--horizon-path", choices=PATHS, default=PATHS[0],
+            help=f"horizon map: exact float math, or emulate the GPU's 8-bit textures and weight cube map "
+                 f"(default {PATHS[0]})")
+        add("--horizon-ambient", choices=AMBIENT_TERMS, default=AMBIENT_TERMS[0],
+            help=f"horizon map: which ambient-map definition to shade with (default {AMBIENT_TERMS[0]})")
         parser.add_argument("--horizon-map", default=None, metavar="P0,P1",
                             help="horizon map: your own bake's RGBA layers (8/16-bit PNG or EXR), in place of "
                                  "hzval's; its encoding from --horizon-encoding or the --horizon-* options "
@@ -342,17 +362,16 @@ class Horizon(FlatShading, Technique):
                             help=f"the baker's +y on screen (default {d.y})")
         parser.add_argument("--horizon-values", choices=external.VALUES, default=None,
                             help=f"what a channel holds (default {d.values})")
-        parser.add_argument("--storage", choices=STORAGES, default=None,
-                            help="horizon map: how its textures are stored: float, 8-bit or block-compressed "
-                                 "(BC7, BC3, BC1, BC4; -sqrt stores square-root sines) (default float, u8 with "
-                                 "--path gpu)")
+        add("--horizon-storage", choices=STORAGES, default=None,
+            help="horizon map: how its textures are stored: float, 8-bit or block-compressed (BC7, BC3, BC1, "
+                 "BC4; -sqrt stores square-root sines) (default float, u8 with --horizon-path gpu)")
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        if not (math.isfinite(args.k) and args.k > 0):
-            raise InputError("--k", f"must be a positive number, got {args.k}")
-        out = {"k": args.k, "path": args.path, "ambient": args.ambient,
-               **({"storage": args.storage} if args.storage else {})}
+        out = {"k": args.horizon_k, "path": args.horizon_path, "ambient": args.horizon_ambient,
+               **({"storage": args.horizon_storage} if args.horizon_storage else {})}
+        _validate(out["path"], out.get("storage", "float"), "analytic", cv.CHANNEL_COUNT, out["ambient"],
+                  out["k"], DEFAULT_FADE)
         if args.horizon_map:
             enc = external.Encoding.from_toml(args.horizon_encoding) if args.horizon_encoding else external.Encoding()
             given = {"channels": args.horizon_channels, "azimuth0": args.horizon_azimuth0,
@@ -365,22 +384,24 @@ class Horizon(FlatShading, Technique):
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         if settings.get("path") == "gpu" and bake_params.directions != cv.CHANNEL_COUNT:
-            raise InputError("--path", f"the gpu path emulates Lengyel's {cv.CHANNEL_COUNT}-channel weight cube map; "
-                                       f"a bake of {bake_params.directions} directions needs --path exact")
+            raise InputError("path", f"the gpu path emulates Lengyel's {cv.CHANNEL_COUNT}-channel weight cube map; "
+                                     f"a bake of {bake_params.directions} directions needs the exact path")
 
     @classmethod
     def check_variants(cls) -> list[Variant]:
-        return [Variant("horizon", {"path": "exact"}), Variant("horizon_gpu", {"path": "gpu"})]
+        # the references of hzval 0.1 (metrics.json schema 1) were named after "the approximation"
+        return [Variant("horizon", {"path": "exact"}, formerly="approx"),
+                Variant("horizon_gpu", {"path": "gpu"}, formerly="approx_gpu")]
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
-        v = [Variant("8-bit horizon map", {"storage": "u8"}, kind="approx")]
-        v += [Variant(f"{name} horizon map ({hz_storage.get(name).label})", {"storage": name}, kind="approx")
+        v = [Variant("8-bit horizon map", {"storage": "u8"})]
+        v += [Variant(f"{name} horizon map ({hz_storage.get(name).label})", {"storage": name})
               for name in ("u8-sqrt", "bc7", "bc7-sqrt", "bc3", "bc1", "bc4")]
-        v += [Variant("cube-map weights", {"weights": "cube"}, kind="approx"),
-              Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"}, kind="approx")]
-        v += [Variant(f"k = {k:g}", {"k": float(k)}, kind="approx") for k in (2, 4, 16, 32)]
-        v.append(Variant("k fitted to the truth", {"k": "fit"}, kind="approx"))
+        v += [Variant("cube-map weights", {"weights": "cube"}),
+              Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"})]
+        v += [Variant(f"k = {k:g}", {"k": float(k)}) for k in (2, 4, 16, 32)]
+        v.append(Variant("k fitted to the truth", {"k": "fit"}))
         return v
 
     @classmethod
@@ -413,8 +434,10 @@ class Horizon(FlatShading, Technique):
         out = {"path": self.path, "storage": self.storage, "weights": self.weights, "k": self.k,
                "bake": "external: " + ", ".join(self.external) if self.external else "hzval",
                "simulated": list(self.simulated)}
-        if self.directions != cv.CHANNEL_COUNT:
-            out["directions"] = self.directions
+        if not self.external:
+            record = self.bake.params.record()
+            out.update(bake_method=record["method"], bake_radius=record["radius"], bake_angles=record["angles"])
+        out["directions"] = self.directions
         if self._ambient:
             out["ambient"] = self.ambient
         if self._reflection:

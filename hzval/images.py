@@ -66,8 +66,8 @@ def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> files.Indexed | np.
 def _visibility_diff_parts(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(grey uint8, leak mask, false-shadow mask)`` of the visibility-difference map."""
     grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
-    lit_truth, lit_approx = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
-    return grey, lit_approx & ~lit_truth, ~lit_approx & lit_truth
+    lit_truth, lit_test = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
+    return grey, lit_test & ~lit_truth, ~lit_test & lit_truth
 
 
 def magma(values: np.ndarray) -> np.ndarray:

@@ -152,6 +152,9 @@ class RayMarchShadow(surface.HeightFieldShadow):
                             help=f"ray-marched shadows: softness w of the soft variant (default {DEFAULT_SOFTNESS:g}, "
                                  "or 1 / tan(light radius) for a soft light)")
 
+    #: The command line's flag of each setting (errors name the flag, :func:`hzval.technique.flag_errors`).
+    flags = {"steps": "--pom-steps", "variant": "--pom-variant", "softness": "--pom-softness"}
+
     @classmethod
     def settings_from_args(cls, args) -> dict:
         return {"steps": args.pom_steps, "variant": args.pom_variant, "softness": args.pom_softness}

@@ -13,7 +13,7 @@ glance; a table of every frame (worst values highlighted); the metrics
 against azimuth and where the time goes (matplotlib, Agg); and per frame
 truth | horizon-mapped | plain normal mapping | FLIP | visibility
 difference, with a swipe comparison, hover/click flipping between truth
-and approximation, and pixel zoom.
+and the lead technique, and pixel zoom.
 
 Every value from ``metrics`` reaches the page through Jinja2 with
 autoescaping (attribute values included); data for the script goes
@@ -29,12 +29,14 @@ from pathlib import Path
 from typing import Any, Callable
 from urllib.parse import quote
 
+import dataclasses
+
 from hzval import files, images, technique
 
 #: The truth's colour, on the page and in the plots.
 TRUTH_COLOUR = "#7fd1ae"
 #: The techniques' colours, in the order ``metrics.json`` lists them (the
-#: first is the primary technique's, the page's "approx" side).
+#: first is the lead technique's, the page's "lead" side beside the truth).
 TECHNIQUE_COLOURS = ("#b9a3ff", "#f2c14e", "#6cc3ff", "#ff8fa3", "#c7e36b")
 #: Line styles of the techniques in the plots, in the same order.
 TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
@@ -118,8 +120,10 @@ class Metric:
     floor: str | None = None   # the flattened key of its perfect-shadows floor, shown beside it
 
 
-METRICS: tuple[Metric, ...] = (
-    Metric("visibility_mae", "|F−V|", "", "Visibility: mean |F − V| over pixels, horizon factor F against "
+#: A technique's scores (keys of ``frames[i].techniques[name]``); the lead technique's are the summary
+#: table's first columns (:func:`_lead_metrics`).
+TECHNIQUE_METRICS: tuple[Metric, ...] = (
+    Metric("visibility_mae", "|F−V|", "", "Visibility: mean |F − V| over pixels, the technique's factor F against "
            "ray-traced visibility V, both in [0, 1]", _fixed(4), group="visibility"),
     Metric("leak_fraction", "leaks", "%", "Light leaks: pixels the technique lights (F ≥ 0.5) that the truth "
            "shadows (V < 0.5), as a share of all pixels", _percent, group="visibility"),
@@ -133,27 +137,19 @@ METRICS: tuple[Metric, ...] = (
            "effects can produce = 1)", _fixed(4), group="image", floor="floor_rmse"),
     Metric("psnr_db", "PSNR", "dB", "Peak signal-to-noise ratio on linear values, peak 1; ∞ = identical. "
            "Lower is worse", _psnr, worse="min", null_is=math.inf, bar=False, group="image"),
-    Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels synchronised)",
-           fmt_seconds, group="render time"),
-    Metric("approx_s", "approx.", "time", "Horizon-mapping render time of the frame (Dr.Jit, kernels "
-           "synchronised)", fmt_seconds, group="render time"),
+    Metric("reflection_mae", "|o−R|", "", "Reflection occlusion: mean |o − R| over pixels, the technique's "
+           "reflection fade o against the ray-traced unoccluded fraction R of the glossy lobe about the mirror "
+           "direction", _fixed(4), group="reflection"),
+    Metric("perfect_parallax_mae", "|F−V| at hit", "", "At perfect parallax: mean |F − V| with the textures "
+           "read at the truth's own hit point of each sample rather than where the camera ray meets the flat "
+           "plane; the difference from |F−V| is the parallax error's share", _fixed(4), group="parallax"),
 )
+#: Shown only where a frame has them: the reflection fade (scenes that declare
+#: ``reflection_occlusion``), and the factor at the truth's own hit points (a view other than ``top``).
+OPTIONAL_METRICS = ("reflection_mae", "perfect_parallax_mae")
 
-#: Shown only when a frame has it (scenes that declare ``reflection_occlusion``).
-REFLECTION_METRICS: tuple[Metric, ...] = (
-    Metric("reflection_mae", "|o−R|", "", "Reflection occlusion: mean |o − R| over pixels, the Toolbag horizon "
-           "fade o against the ray-traced unoccluded fraction R of the glossy lobe about the mirror direction",
-           _fixed(4), group="reflection"),
-)
-
-
-#: Shown when a view other than ``top`` measured them: the factor at the truth's own hit points.
-PARALLAX_METRICS: tuple[Metric, ...] = (
-    Metric("perfect_parallax_mae", "|F−V| at hit", "", "Horizon map at perfect parallax: mean |F − V| with "
-           "the textures read at the truth's own hit point of each sample rather than where the camera ray "
-           "meets the flat plane; the difference from |F−V| is the parallax error's share", _fixed(4),
-           group="parallax"),
-)
+TRUTH_TIME = Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels "
+                    "synchronised)", fmt_seconds, group="render time")
 
 #: The perfect-shadows floor (``frames[i]["floor"]``, flattened to ``floor_<key>``): the
 #: techniques' unshadowed shading times the truth's visibility, scored against the truth.
@@ -175,16 +171,13 @@ class TechniqueView:
     stem: str
     colour: str
     style: object
-    primary: bool
     parallax: bool = False      # a view measured its factor at the truth's hit points
 
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
-    """The techniques of a sweep's ``metrics``, in their order; a ``metrics.json`` without
-    ``techniques`` (written before the registry) has the primary technique alone."""
+    """The techniques of a sweep's ``metrics`` (``techniques``), in their order; the first leads."""
     info = metrics.get("techniques")
-    if not isinstance(info, dict) or not info:
-        info = {technique.PRIMARY: {"label": "approximation", "file_stem": "approx"}}
+    info = info if isinstance(info, dict) else {}
     views = []
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     for i, (name, t) in enumerate(info.items()):
@@ -193,14 +186,12 @@ def technique_views(metrics: dict) -> list[TechniqueView]:
                        and "perfect_parallax_mae" in f["techniques"][name] for f in frames)
         views.append(TechniqueView(str(name), str(t.get("label") or name), str(t.get("file_stem") or name),
                                    TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
-                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], name == technique.PRIMARY,
-                                   parallax))
+                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], parallax))
     return views
 
 
 def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
-    """Frames with every technique's metrics lifted to ``<name>_<key>`` and its seconds to
-    ``<name>_s``; the primary technique's also come from the frame's top-level keys."""
+    """Frames with every technique's metrics lifted to ``<name>_<key>`` and its seconds to ``<name>_s``."""
     out = []
     for f in frames:
         per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
@@ -209,8 +200,6 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
             g.update({f"floor_{k}": val for k, val in f["floor"].items()})
         for v in views:
             m = per.get(v.name)
-            if not isinstance(m, dict) and v.primary:
-                m = {**f, "seconds": f.get("approx_s")}
             if isinstance(m, dict):
                 g.update({f"{v.name}_{k}": val for k, val in m.items() if k not in ("files", "seconds")})
                 g[f"{v.name}_s"] = m.get("seconds")
@@ -218,8 +207,19 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
     return out
 
 
+def _lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
+    """The summary table's columns of the lead technique: every score it has in some frame."""
+    shown = []
+    for m in TECHNIQUE_METRICS:
+        key = f"{v.name}_{m.key}"
+        if m.key in OPTIONAL_METRICS and not any(_num(f.get(key)) is not None for f in frames):
+            continue
+        shown.append(dataclasses.replace(m, key=key))
+    return tuple(shown)
+
+
 def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
-    """The summary table's columns of a technique other than the primary."""
+    """The summary table's columns of a technique after the lead."""
     return (
         Metric(f"{v.name}_visibility_mae", f"{v.name} |F−V|", "", f"{v.label}: mean |F − V| over pixels against "
                "the same ray-traced visibility", _fixed(4), group=v.name),
@@ -236,12 +236,12 @@ def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
 #: The images of a frame, in the order of the row, with their captions.
 PANELS: tuple[tuple[str, str, str], ...] = (
     ("truth_png", "truth", "ray-traced, Mitsuba"),
-    ("approx_png", "horizon-mapped", "Dr.Jit"),
+    ("lead_png", "", "Dr.Jit"),
     ("plain_png", "normal mapping only", "no shadows"),
     ("flip_png", "FLIP error", ""),
     ("visdiff_png", "visibility difference", "F against V"),
 )
-#: A technique's images after the primary's (keys of ``frames[i]["techniques"][name]["files"]``).
+#: A technique's images after the lead's (keys of ``frames[i]["techniques"][name]["files"]``).
 TECHNIQUE_PANELS: tuple[tuple[str, str, str], ...] = (
     ("png", "", "Dr.Jit"),
     ("flip_png", "FLIP error", ""),
@@ -250,22 +250,17 @@ TECHNIQUE_PANELS: tuple[tuple[str, str, str], ...] = (
 
 #: Raw files of a frame, linked from its card: (group, [(key, label)]).
 RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
-    ("EXR", (("truth", "truth"), ("approx", "approx."), ("plain", "plain"), ("visibility", "V"),
-             ("factor", "F"), ("truth_variance", "variance"))),
-    ("PNG", (("visibility_png", "V"), ("factor_png", "F"))),
+    ("EXR", (("truth", "truth"), ("plain", "plain"), ("visibility", "V"), ("truth_variance", "variance"))),
+    ("PNG", (("visibility_png", "V"),)),
 )
 
 #: A technique's raw files (keys of ``frames[i]["techniques"][name]["files"]``).
-TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"))
+TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"), ("factor_png", "F png"))
 
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
-    ("surface & bake", (("depth", "depth"), ("boundary", "boundary"), ("method", "bake method"),
-                        ("radius", "bake radius"), ("angles", "bake angles"),
-                        ("directions", "stored directions"))),
+    ("surface", (("depth", "depth"), ("boundary", "boundary"), ("truth_tolerance", "truth tolerance"))),
     ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
                ("azimuths_deg", "azimuths"))),
-    ("approximation", (("k", "k (horizon fade)"), ("path", "path"), ("ambient", "ambient map"),
-                       ("storage", "horizon map storage"), ("horizon_map", "horizon map bake"))),
     ("sampling", (("spp", "samples per pixel"), ("supersampling", "pixels per texel"), ("seed", "seed"))),
     ("view", (("camera", "camera"), ("view_elevation_deg", "view elevation"), ("view_azimuth_deg", "view azimuth"),
               ("fov_deg", "field of view"), ("distance_tiles", "distance (tile widths)"),
@@ -348,7 +343,7 @@ def _src(out: Path, rel) -> dict | None:
     return {"src": url, "path": rel, "full": None, "width": None}
 
 
-def _columns(frames: list[dict], metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
+def _columns(frames: list[dict], metrics: tuple[Metric, ...]) -> list[dict]:
     """Per metric: the values, which frames are worst, the bar scale, and the summary."""
     cols = []
     for m in metrics:
@@ -464,11 +459,9 @@ def _effects(parameters: dict, simulated: dict, views: list[TechniqueView]) -> d
     truth = [str(e) for e in (simulated.get("truth") or [])]
     rows, notes = [], []
     for v in views:
-        own = simulated.get(v.name, simulated.get("approx") if v.primary else None) or []
-        own = [str(e) for e in own]
+        own = [str(e) for e in (simulated.get(v.name) or [])]
         rows.append({"label": v.label, "colour": v.colour, "effects": own})
-        notes += [f"{e}: not modelled by {v.label if len(views) > 1 else 'the approximation'}"
-                  for e in declared if e not in own]
+        notes += [f"{e}: not modelled by {v.label}" for e in declared if e not in own]
     notes += [f"{e}: not simulated by the truth" for e in declared if e not in truth]
     return {"declared": declared, "truth": truth, "techniques": rows, "notes": notes}
 
@@ -484,24 +477,9 @@ def _parameters(p: dict) -> list[dict]:
                 text = _value_text(key, value)
                 if key == "depth" and _num(value) is not None:
                     text = f"{value:g} × image width"
-                elif key == "k" and _num(value) is not None:
-                    text = f"{value:g}"
-                elif key == "path":
-                    text = {"exact": "exact (float)", "gpu": "GPU emulation (8-bit maps, cube map)"}.get(
-                        str(value), str(value))
-                elif key == "ambient":
-                    text = {"mean_cos2": "mean cos² (cosine-weighted)", "mean_cos": "mean cos (Lengyel)"}.get(
-                        str(value), str(value))
                 elif key == "supersampling" and _num(value) is not None:
                     text = f"{value:g} × {value:g} (a magnification: image scores depend on it)" if value != 1 \
                         else "1 (one pixel per texel)"
-                elif key == "radius" and _num(value) is not None:
-                    text = f"{value:g} texels"
-                elif key in ("radius", "angles") and value is None and p.get("method") == "exact":
-                    text = "unlimited" if key == "radius" else "8 exact directions"
-                elif key == "method":
-                    text = {"seed": "seed (binned, Lengyel)",
-                            "exact": "exact horizons (convex-hull sweeps)"}.get(str(value), str(value))
                 rows.append({"label": label, "text": text, "key": key})
         if rows:
             groups.append({"title": title, "rows": rows})
@@ -590,7 +568,7 @@ def _group_starts(metrics: tuple[Metric, ...]) -> set[str]:
     return {m.key for i, m in enumerate(metrics) if i == 0 or metrics[i - 1].group != m.group}
 
 
-def _column_groups(metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
+def _column_groups(metrics: tuple[Metric, ...]) -> list[dict]:
     groups: list[dict] = []
     for m in metrics:
         if groups and groups[-1]["title"] == m.group:
@@ -601,46 +579,39 @@ def _column_groups(metrics: tuple[Metric, ...] = METRICS) -> list[dict]:
 
 
 def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metric, ...]:
-    """The summary table's columns: the primary technique's (the frame's top-level keys), the
-    reflection fade's where measured, then three for each other technique."""
+    """The summary table's columns: the lead technique's scores, the render times, the floor where
+    measured, then a few for each other technique."""
+    if not views:
+        return (TRUTH_TIME,)
     lead = views[0]
-    shown = METRICS if lead.primary else tuple(m for m in METRICS if m.key == "truth_s")
-    if any(f.get("reflection_mae") is not None for f in frames):
-        shown += REFLECTION_METRICS
-    if any(_num(f.get("perfect_parallax_mae")) is not None for f in frames):
-        shown += PARALLAX_METRICS
+    times = (TRUTH_TIME, Metric(f"{lead.name}_s", lead.name, "time", f"{lead.label}: frame time (Dr.Jit, "
+                                "kernels synchronised)", fmt_seconds, group="render time"))
+    shown = _lead_metrics(lead, frames) + times
     if any(_num(f.get("floor_flip_mean")) is not None for f in frames):
         shown += FLOOR_METRICS
-    for v in views:
-        if not (v.primary and v is lead):
-            shown += _technique_metrics(v)
+    for v in views[1:]:
+        shown += _technique_metrics(v)
     return shown
 
 
 def _technique_files(f: dict, v: TechniqueView) -> dict:
-    """A technique's files in a frame (``techniques[name].files``; for a ``metrics.json`` from
-    before the registry, the primary's are the frame's own)."""
+    """A technique's files in a frame (``frames[i].techniques[name].files``)."""
     per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
     own = (per.get(v.name) or {}).get("files") if isinstance(per.get(v.name), dict) else None
-    if own is None and v.primary:
-        fl = f.get("files") or {}
-        own = {"image": fl.get("approx"), "png": fl.get("approx_png"), "factor": fl.get("factor"),
-               "factor_png": fl.get("factor_png"), "flip_png": fl.get("flip_png"),
-               "visdiff_png": fl.get("visdiff_png")}
-    return own or {}
+    return own if isinstance(own, dict) else {}
 
 
 def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
                 views: list[TechniqueView]) -> dict:
     """One frame's card: its chips, the lead technique's panels beside the truth, the others' rows."""
     fl = f.get("files") or {}
-    lead_files = _technique_files(f, views[0])
-    own = {"truth_png": fl.get("truth_png"), "plain_png": fl.get("plain_png"), "approx_png": lead_files.get("png"),
+    lead_files = _technique_files(f, views[0]) if views else {}
+    own = {"truth_png": fl.get("truth_png"), "plain_png": fl.get("plain_png"), "lead_png": lead_files.get("png"),
            "flip_png": lead_files.get("flip_png"), "visdiff_png": lead_files.get("visdiff_png")}
     panels = []
     for key, title, subtitle in PANELS:
-        if key == "approx_png":
-            title = views[0].label
+        if key == "lead_png":
+            title = views[0].label if views else "technique"
         panels.append({"key": key, "title": title, "subtitle": subtitle, "file": _src(out, own.get(key))})
     raw = []
     for group, keys in RAW_FILES:
@@ -653,7 +624,7 @@ def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
         tf = _technique_files(f, v)
         links = [{"label": label, "file": _src(out, tf.get(key))} for key, label in TECHNIQUE_RAW_FILES]
         links = [r for r in links if r["file"] and r["file"]["src"]]
-        if links and not (v is views[0] and v.primary):   # the primary's are the frame's own EXR links
+        if links:
             raw.append({"group": f"{v.name} EXR", "links": links})
         if v is not views[0]:
             rows.append({"name": v.name, "label": v.label, "colour": v.colour,
@@ -706,9 +677,10 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "view": _view(out, metrics),
         "plots": plots,
         "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
-        "truth_colour": TRUTH_COLOUR, "approx_colour": views[0].colour,
+        "truth_colour": TRUTH_COLOUR, "lead_colour": views[0].colour if views else TECHNIQUE_COLOURS[0],
         # the script's data: labels of the two sides, and the zoom steps
-        "js": {"labels": {"truth": "truth", "approx": views[0].label}, "zooms": [0, 1, 2, 4, 8]},
+        "js": {"labels": {"truth": "truth", "lead": views[0].label if views else "technique"},
+               "zooms": [0, 1, 2, 4, 8]},
     }
 
 

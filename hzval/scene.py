@@ -28,13 +28,12 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
     [check]     size, azimuths, spp, depth: how the regression check renders it (hzval.check)
-    [tolerances.truth], [tolerances.approx]  fail, fail_percent, hard_fail, warn (hzval.check)
+    [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn (hzval.check)
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -43,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval import conventions as cv
-from hzval import backend, heightmap, materials
+from hzval import heightmap, materials
 from hzval.camera import Camera, stream
 from hzval.lookup import Lookup
 from hzval.errors import InputError
@@ -55,7 +54,8 @@ EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflect
 #: the normal interpolated from vertex normals, as a displaced mesh is shaded
 #: and as the techniques' normal map is, or with each triangle's flat normal.
 SHADINGS: tuple[str, ...] = ("smooth", "faceted")
-#: The sweep of Lengyel's Figure 5.3: -60..+60 degrees in 15-degree steps.
+#: The default sweep (Lengyel's Figure 5.3), as ``--azimuths`` spells it and as degrees.
+DEFAULT_AZIMUTHS_TEXT = "-60:60:15"
 DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
 
 

@@ -1,6 +1,6 @@
 """Shading: the one place that defines how a surface point turns light into radiance.
 
-The truth (:mod:`hzval.truth`), every technique (:mod:`hzval.approx`,
+The truth (:mod:`hzval.truth`), every technique (:mod:`hzval.surface`,
 :mod:`hzval.terrain`, :mod:`hzval.pom`) and the display exposure
 (:mod:`hzval.compare`) use these formulas and constants, so that the two
 sides of a comparison cannot drift apart: whatever differs between them is

@@ -5,7 +5,7 @@ sample, and block compression has an error of its own. Each storage format
 here turns the baked ``(rows, cols, D)`` sines into what a GPU would read
 back (:meth:`Storage.roundtrip`) and says how many bytes that takes
 (:meth:`Storage.bytes`). The approximation's ``storage`` setting
-(:class:`hzval.approx.Approximation`, ``--storage``) names one; ``hzval
+(:class:`hzval.horizon.Horizon`, ``--horizon-storage``) names one; ``hzval
 tradeoff`` measures each.
 
 Formats (:data:`STORAGES`)

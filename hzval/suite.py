@@ -406,10 +406,10 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
 # --------------------------------------------------------------------------
 
 def _sort_key(row: dict) -> tuple:
-    """Worst first: failed materials, then the primary technique's (else the first's) mean |F - V|."""
+    """Worst first: failed materials, then the first technique's mean |F - V|."""
     if row["status"] != "ok":
         return (0, 0.0, row["name"])
-    tech = row["techniques"].get(technique.PRIMARY) or next(iter(row["techniques"].values()), {})
+    tech = next(iter(row["techniques"].values()), {})
     v = tech.get("visibility_mae")
     return (1, -(v if v is not None else -1.0), row["name"])
 

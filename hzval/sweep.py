@@ -9,9 +9,10 @@ applies to the declared effects) once, then renders each light of the sweep
 with all of them. Each technique's frame is compared with the same truth
 (:mod:`hzval.compare`) and its images are written under ``out/frames``;
 ``metrics.json`` and the HTML report (:mod:`hzval.report`) close the run.
-Nothing here names a technique: the primary one
-(:data:`hzval.technique.PRIMARY`) only fills the frame's documented
-top-level keys.
+Nothing here names a technique: each one's settings, scores and files are
+under its name in ``metrics.json`` (``techniques.NAME``,
+``frames[i].techniques.NAME``), and the bake holds only what the chosen
+techniques read (:func:`hzval.technique.bake_needs`).
 
 Output folder::
 
@@ -70,6 +71,11 @@ from hzval.errors import InputError
 __all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "reset_peak_rss", "PNG_LEVEL"]
 
 _BAKE_DEFAULTS = BakeParams()
+
+#: The layout of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"). 2: every technique's
+#: settings under ``techniques.NAME`` and its scores and files under ``frames[i].techniques.NAME``;
+#: 1 (no ``schema_version``) had the horizon map's at the top level too.
+SCHEMA_VERSION = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,6 +162,7 @@ class _Setup:
     unshadowed: surface.Unshadowed
     techniques: list            # built Technique objects, registry order
     timings: dict
+    bake_contents: tuple = ()   # what was baked (hzval.bake.CONTENTS)
     notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
     estimate: int = 0                                           # estimated peak memory, bytes
     retained: bool = False      # freed memory kept (RETAIN_BELOW_SHARE, backend.retain_freed_memory)
@@ -238,7 +245,8 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
                 "path": hm.path}
     t0 = time.perf_counter()
     notices: list[str] = []
-    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices)
+    horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
+    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices, horizon=horizon)
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     the_truth = truth.Truth(scene, hm.height)
@@ -252,7 +260,8 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
         t0 = time.perf_counter()
         built.append(t.build(ctx, **options.settings.get(t.name, {})))
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
-    setup = _Setup(material, params, the_truth, plain, built, timings, notices, estimate, retained=retained)
+    setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
+                   retained=retained)
     if the_truth.hits is not None:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
@@ -495,12 +504,6 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
     for name, value in r.perfect.items():
         per[name]["perfect_parallax_mae"] = value
-    primary = per.get(technique.PRIMARY)
-    if primary is not None:             # the documented top-level keys are the primary technique's
-        frame.update({k: v for k, v in primary.items() if k not in ("seconds", "files")},
-                     approx_s=primary["seconds"])
-        for key, value in primary["files"].items():
-            rel[_PRIMARY_FILE_KEYS.get(key, key)] = value
     frame.update(files=rel, techniques=per)
     return frame
 
@@ -530,10 +533,6 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
     return {k: _finite(v) for k, v in scores.items()}
 
 
-#: The primary technique's files under the frame's own ``files`` (the documented keys).
-_PRIMARY_FILE_KEYS = {"image": "approx", "png": "approx_png"}
-
-
 def _view_parameters(scene) -> dict:
     """The camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
     view with the default lookup, whose parameters are as they always were)."""
@@ -557,26 +556,22 @@ def _view_parameters(scene) -> dict:
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
-    params = setup.params
-    record = params.record()
     techniques = {t.name: {"label": t.label, "summary": t.summary, "file_stem": t.file_stem,
                            "parameters": t.parameters, "simulated": list(t.simulated)}
                   for t in setup.techniques}
     simulated = {"truth": list(setup.truth.simulated), **{n: v["simulated"] for n, v in techniques.items()}}
-    if technique.PRIMARY in techniques:
-        simulated["approx"] = techniques[technique.PRIMARY]["simulated"]
     return {
+        "schema_version": SCHEMA_VERSION,
         "material": setup.material,
         "parameters": {"depth": scene.material.depth, "boundary": scene.material.boundary,
-                       "method": params.method, "radius": record["radius"], "angles": record["angles"],
-                       "directions": params.directions, "elevation_deg": scene.light.elevation_deg,
+                       "elevation_deg": scene.light.elevation_deg,
                        "azimuths_deg": list(scene.light.azimuths_deg),
-                       **options.settings.get(technique.PRIMARY, {}),
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling,
                        **_view_parameters(scene),
                        "techniques": [t.name for t in setup.techniques]},
+        "bake": {"contents": list(setup.bake_contents)},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
         "camera": setup.truth.view.record(),
         **({"view": setup.view} if setup.view else {}),
@@ -702,16 +697,14 @@ def _write_png_of(path: Path, make, *args) -> None:
 
 
 def summary_table(result: dict) -> str:
-    """The sweep's metrics as a plain-text table for the terminal: the primary technique's
-    columns (the frame's top-level keys), then each other technique's |F-V| and frame time."""
-    others = [n for n in result.get("techniques", {}) if n != technique.PRIMARY]
-    primary = any("flip_mean" in f for f in result["frames"])
+    """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
+    scores and time, then each other technique's |F-V|, FLIP and frame time."""
+    names = list(result.get("techniques", {}))
+    lead, others = (names[0], names[1:]) if names else (None, [])
     head = ("azimuth",)
-    p = technique.PRIMARY
-    if primary:
-        head += (f"{p} |F-V|", "leaks", "false sh.", f"{p} FLIP", "dE2000", "PSNR dB", "truth s", f"{p} s")
-    else:
-        head += ("truth s",)
+    if lead:
+        head += (f"{lead} |F-V|", "leaks", "false sh.", f"{lead} FLIP", "dE2000", "PSNR dB")
+    head += ("truth s",) + ((f"{lead} s",) if lead else ())
     for n in others:
         head += (f"{n} |F-V|", f"{n} FLIP", f"{n} s")
 
@@ -723,16 +716,16 @@ def summary_table(result: dict) -> str:
 
     rows = []
     for f in result["frames"]:
+        per = f.get("techniques", {})
         row = (f"{f['azimuth_deg']:+g}",)
-        if primary:
-            row += (num(f.get("visibility_mae"), 4), pct(f.get("leak_fraction")), pct(f.get("false_shadow_fraction")),
-                    num(f.get("flip_mean"), 4), num(f.get("delta_e2000_mean"), 3),
-                    "inf" if f.get("psnr_db") is None else f"{f['psnr_db']:.2f}", f"{f['truth_s']:.3f}",
-                    num(f.get("approx_s"), 4))
-        else:
-            row += (f"{f['truth_s']:.3f}",)
+        if lead:
+            t = per.get(lead, {})
+            row += (num(t.get("visibility_mae"), 4), pct(t.get("leak_fraction")), pct(t.get("false_shadow_fraction")),
+                    num(t.get("flip_mean"), 4), num(t.get("delta_e2000_mean"), 3),
+                    "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}")
+        row += (f"{f['truth_s']:.3f}",) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
         for n in others:
-            te = f.get("techniques", {}).get(n, {})
+            te = per.get(n, {})
             row += (num(te.get("visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]

@@ -32,6 +32,7 @@ when it is asked for, so this module imports none of them.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ from hzval import lookup
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene
 
-__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "names", "select"]
+__all__ = ["REGISTRY", "Technique", "Context", "Variant", "get", "names", "select", "bake_needs"]
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
@@ -51,25 +52,25 @@ REGISTRY: dict[str, str] = {
     "terrain": "hzval.terrain:TerrainShadow",
     "pom": "hzval.pom:RayMarchShadow",
 }
-#: The technique whose metrics are a frame's top-level keys in ``metrics.json``
-#: (the documented layout predates the registry; scripts read those keys).
-PRIMARY = "horizon"
 
 
 @dataclass(frozen=True)
 class Variant:
     """A named setting of a technique: keywords for :meth:`Technique.build`, and what to record.
 
-    ``kind`` sorts tradeoff settings (``"approx"`` for the primary
-    technique's own settings, ``"technique"`` for the others); ``params``
-    is what ``tradeoff.json`` records of it (``steps`` for pom, ``storage``
-    for the horizon map's textures, ...).
+    ``kind`` sorts tradeoff settings (``"technique"``: a setting of the
+    technique itself; ``"bake"``: of the bake it reads); ``params`` is what
+    ``tradeoff.json`` records of it (``steps`` for pom, ``storage`` for the
+    horizon map's textures, ...); ``formerly``: the name its ``hzval check``
+    reference had in an earlier release.
     """
 
     name: str
     settings: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
     kind: str = "technique"
+    #: A name the variant's check reference had before (read when there is none under ``name``).
+    formerly: str | None = None
 
 
 @dataclass
@@ -79,7 +80,7 @@ class Context:
     ``height``: the normalised height map ``(rows, cols)`` float32;
     ``bake``: its :class:`hzval.bake.Bake`; ``albedo``: linear ``(rows,
     cols, 3)``. :meth:`shared` lets techniques share what they would each
-    build (the unshadowed shading of :func:`hzval.approx.unshadowed`).
+    build (the unshadowed shading of :func:`hzval.surface.unshadowed`).
     ``points``: where the techniques read their textures, when not where the
     camera's rays meet their plane (:meth:`samples`): the truth's own hit
     points, for the factor at perfect parallax.
@@ -116,6 +117,9 @@ class Technique:
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
 
     simulated: tuple[str, ...] = ()
+    #: The command-line flag of each :meth:`build` setting (``{"steps": "--pom-steps"}``), which an
+    #: error about that setting names (:func:`flag_errors`).
+    flags: ClassVar[dict[str, str]] = {}
     #: One-line warnings the sweep prints and the report shows (e.g. a suspicious external bake).
     warnings: tuple[str, ...] = ()
     #: Entries the technique adds to the top level of ``metrics.json`` (e.g. ``external_bake``).
@@ -130,6 +134,13 @@ class Technique:
     def simulates(cls, scene: Scene) -> tuple[str, ...]:
         """The declared effects less those it does not model, in :data:`hzval.scene.EFFECTS` order."""
         return tuple(e for e in EFFECTS if scene.declares(e) and e not in cls.not_modelled)
+
+    @classmethod
+    def bake_needs(cls, scene: Scene) -> frozenset[str]:
+        """What the technique reads for ``scene``: names of :data:`hzval.bake.CONTENTS` (``normal``,
+        ``horizon``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
+        its techniques need; by default everything."""
+        return frozenset({"normal", "horizon", "ambient", "height"})
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "Technique":
@@ -221,3 +232,26 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
 def replace_effects(scene: Scene, effects) -> Scene:
     """``scene`` with another effect list (for the shading a technique builds on)."""
     return dataclasses.replace(scene, effects=tuple(effects))
+
+
+def bake_needs(techniques, scene: Scene) -> frozenset[str]:
+    """What a sweep must bake for ``techniques`` (classes) on ``scene``: their
+    :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
+    ambient map) that the unshadowed shading reads (:class:`hzval.surface.Unshadowed`)."""
+    needs = {"normal"} | ({"ambient"} if scene.declares("ambient") else set())
+    for t in techniques:
+        needs |= t.bake_needs(scene)
+    return frozenset(needs)
+
+
+@contextlib.contextmanager
+def flag_errors(cls: type[Technique], typed: dict[str, str] | None = None):
+    """Errors about one of ``cls``'s settings name its command-line flag (:attr:`Technique.flags`),
+    or the spelling of it the user typed (``typed``: canonical flag -> as typed, e.g. an alias)."""
+    try:
+        yield
+    except InputError as exc:
+        flag = cls.flags.get(exc.what)
+        if flag is None:
+            raise
+        raise InputError((typed or {}).get(flag, flag), exc.problem) from None

@@ -399,6 +399,9 @@ class TerrainShadow(surface.HeightFieldShadow):
         parser.add_argument("--terrain-ramp", type=float, default=DEFAULT_RAMP, metavar="TEXELS",
                             help=f"terrain shadows: extra ramp width in texel heights (default {DEFAULT_RAMP:g})")
 
+    #: The command line's flag of each setting (errors name the flag, :func:`hzval.technique.flag_errors`).
+    flags = {"ramp": "--terrain-ramp"}
+
     @classmethod
     def settings_from_args(cls, args) -> dict:
         return {"ramp": args.terrain_ramp}

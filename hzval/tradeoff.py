@@ -1,4 +1,4 @@
-"""What accuracy costs: settings of the bake, the approximation and the truth, measured on one material.
+"""What accuracy costs: settings of the bake, the techniques and the truth, measured on one material.
 
 :func:`measure` renders a converged ground truth once for the scene's sweep
 (:mod:`hzval.truth` at ``truth_spp`` samples per pixel), then measures every
@@ -9,8 +9,8 @@ setting of :func:`settings` against it, each with
     the bake (normal and horizon maps, in process, kernels warm, best of
     two; in the kernel form :func:`hzval.bake.kernel_for` chooses, which
     for a large radius is the looped one, fast to compile and slower to
-    run: ``params["kernel"]``); for an approximation or technique setting
-    (``"approx"``, ``"technique"``) a frame's render, mean over the sweep,
+    run: ``params["kernel"]``); for a technique setting
+    (``"technique"``) a frame's render, mean over the sweep,
     best of three sweeps (a bake setting's frame time is
     ``params["frame_s"]``); for a truth setting (``"truth"``) a frame of the
     truth at that many shadow rays, mean over the sweep.
@@ -31,18 +31,19 @@ setting of :func:`settings` against it, each with
     converged truth's image (display values, :func:`hzval.compare.flip`).
 
 Technique settings come from the registry
-(:meth:`hzval.technique.Technique.tradeoff_variants`): the primary
-technique's own (``kind = "approx"``: storage, weights, k, fitted k) and
-every other technique's (``"technique"``: the terrain technique, pom at 4 to
-64 steps, ...), each point's ``params`` naming its setting (``steps``,
-``storage``, ...).
+(:meth:`hzval.technique.Technique.tradeoff_variants`), every technique's
+own (``"technique"``: the horizon map's storage, weights and k, pom at 4 to
+64 steps, ...), each point's ``params`` naming its technique and setting
+(``technique``, ``steps``, ``storage``, ...). Bake settings vary the horizon
+bake and are rendered with the first technique that reads it
+(:func:`baked_technique`).
 
 and marks the Pareto front (no other setting of the same kind is at least
 as good in time, storage and visibility error and better in one) within each
 kind, since a bake's seconds and a frame's milliseconds do not trade against
 each other. Every setting but the one it varies is the default
 (:class:`hzval.bake.BakeParams`, ``k = 8``, float storage, analytic
-weights); the approximation samples each pixel at the scene's ``spp``
+weights); the techniques sample each pixel at the scene's ``spp``
 positions, the converged truth at ``truth_spp`` others.
 
 A technique may fit a setting to the converged truth
@@ -70,7 +71,7 @@ __all__ = ["Point", "Setting", "settings", "measure", "mark_pareto", "recommend"
 DEFAULT_TRUTH_SPP = 256
 #: Size of the built-in material for a tradeoff (FLIP and 256 spp make 512 slow).
 DEFAULT_SIZE = 256
-KINDS = ("bake", "approx", "technique", "truth")
+KINDS = ("bake", "technique", "truth")
 
 
 @dataclass
@@ -109,30 +110,44 @@ class Setting:
     name: str
     kind: str
     bake: dict = field(default_factory=dict)
-    technique: str | None = technique.PRIMARY
+    technique: str | None = None
     settings: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
     truth_spp: int | None = None
 
 
+def baked_technique(scene=None) -> str | None:
+    """The technique the bake settings are rendered with: the first in the registry that reads the
+    horizon bake (:meth:`hzval.technique.Technique.bake_needs`) and applies to ``scene``."""
+    from hzval.scene import Scene
+
+    sc_ = scene if scene is not None else Scene()
+    return next((n for n in technique.names() if "horizon" in technique.get(n).bake_needs(sc_)
+                 and (scene is None or technique.get(n).applies(scene))), None)
+
+
 def settings(scene=None) -> list[Setting]:
-    """Every setting :func:`measure` measures, defaults first: the bake's (rendered with the
-    primary technique), every technique's own from the registry (those that apply to
+    """Every setting :func:`measure` measures, defaults first: the bake's (rendered with
+    :func:`baked_technique`), every technique's own from the registry (those that apply to
     ``scene``, when given), and the truth's ray counts."""
-    s = [Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32})]
-    s += [Setting(f"seed r{r}", "bake", {"radius": r}) for r in (4, 8, 32, 64)]
-    s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}))
-    s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}) for a in (16, 64)]
-    # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
-    # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
-    s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16}) for a in (32, 64)]
+    s: list[Setting] = []
+    baked = baked_technique(scene)
+    if baked is not None:
+        s.append(Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32}, technique=baked))
+        s += [Setting(f"seed r{r}", "bake", {"radius": r}, technique=baked) for r in (4, 8, 32, 64)]
+        s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}, technique=baked))
+        s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}, technique=baked) for a in (16, 64)]
+        # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
+        # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
+        s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16},
+                      technique=baked) for a in (32, 64)]
     for name in technique.names():
         t = technique.get(name)
         if scene is not None and not t.applies(scene):
             continue
-        s += [Setting(v.name, "approx" if name == technique.PRIMARY else "technique", technique=name,
-                      settings=dict(v.settings), params={"technique": name, **v.params})
-              for v in t.tradeoff_variants() if name != technique.PRIMARY or v.kind == "approx"]
+        s += [Setting(v.name, "technique", technique=name, settings=dict(v.settings),
+                      params={"technique": name, **v.params})
+              for v in t.tradeoff_variants()]
     s += [Setting(f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", technique=None, truth_spp=n)
           for n in (1, 4, 16, 64)]
     return s
@@ -237,7 +252,7 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
     tech = cls.build(ctx, **kw)
     frames, frame_s = _render_all(tech, az)
     p = {**s.params, **{k: v for k, v in tech.parameters.items() if k != "simulated"}, "frame_s": frame_s,
-         "bake": dataclasses.asdict(params)}
+         "bake": dataclasses.asdict(params), **({"technique": s.technique} if s.technique else {})}
     if s.kind == "bake" and params.method == "seed":
         # a large radius may take the looped kernel (hzval.bake.choose_kernel): say so
         p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
@@ -271,11 +286,11 @@ def _pick(cand: list[Point], tolerance: float) -> tuple[Point, Point]:
 
 
 def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
-    """The setting to use: among the approximation's settings (bake, approx, technique), the one
-    of least storage, then least time, whose visibility error is within ``tolerance`` (relative)
-    of the best; the same among the horizon map's own settings (bake and approx), under
-    ``horizon_map``, since another technique (terrain shadows) has another cost, a sweep per
-    light; and the fewest truth rays whose own error is below a tenth of the best."""
+    """The setting to use: among the techniques' settings (bake and technique), the one of least
+    storage, then least time, whose visibility error is within ``tolerance`` (relative) of the best;
+    the same among the settings of the technique whose bake is varied (its bake and its own), under
+    ``own`` with that technique's name, since another technique (terrain shadows) has another
+    cost, a sweep per light; and the fewest truth rays whose own error is below a tenth of the best."""
     cand = [p for p in points if p.kind != "truth"]
     if not cand:
         return {}
@@ -285,11 +300,12 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
            "best_visibility_mae": best.visibility_mae, "tolerance": tolerance,
            "default": default.name if default else None,
            "default_visibility_mae": default.visibility_mae if default else None}
-    horizon = [p for p in cand if p.kind in ("bake", "approx")]
-    if horizon and pick not in horizon:
-        hpick, hbest = _pick(horizon, tolerance)
-        out["horizon_map"] = {"setting": hpick.name, "visibility_mae": hpick.visibility_mae,
-                              "best": hbest.name, "best_visibility_mae": hbest.visibility_mae}
+    baked = next((p.params.get("technique") for p in cand if p.kind == "bake"), None)
+    own = [p for p in cand if p.kind == "bake" or p.params.get("technique", "") == baked]
+    if own and pick not in own:
+        hpick, hbest = _pick(own, tolerance)
+        out["own"] = {"technique": baked, "setting": hpick.name, "visibility_mae": hpick.visibility_mae,
+                      "best": hbest.name, "best_visibility_mae": hbest.visibility_mae}
     truths = sorted((p for p in points if p.kind == "truth"), key=lambda p: p.params.get("spp", 0))
     enough = next((p for p in truths if p.visibility_mae <= best.visibility_mae / 10), None)
     if enough:
@@ -311,7 +327,7 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
 
     kinds = [k for k in KINDS if any(p.kind == k for p in points)]
     fig, axes = plt.subplots(1, len(kinds), figsize=(4.6 * len(kinds), 4.2), squeeze=False)
-    labels = {"bake": "bake time (s)", "approx": "frame time (s)", "technique": "frame time (s)",
+    labels = {"bake": "bake time (s)", "technique": "frame time (s)",
               "truth": "truth frame time (s)"}
     smax = max(p.storage_bytes for p in points) or 1
     for ax, kind in zip(axes[0], kinds):

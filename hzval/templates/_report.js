@@ -1,6 +1,6 @@
 (() => {
   'use strict';
-  const labels = (window.HZ && HZ.labels) || { truth: 'truth', approx: 'horizon-mapped' };
+  const labels = (window.HZ && HZ.labels) || { truth: 'truth', lead: 'technique' };
   const zooms = (window.HZ && HZ.zooms) || [0, 1, 2, 4, 8];
   const views = Array.from(document.querySelectorAll('.view'));
   const zoomButtons = Array.from(document.querySelectorAll('[data-zoom]'));
@@ -159,8 +159,8 @@
     const tag = fig.querySelector('.which');
     if (!view || !img || !tag) return;
     const own = fig.dataset.own;
-    const other = own === 'truth' ? 'approx' : 'truth';
-    const src = { truth: img.dataset.truth, approx: img.dataset.approx };
+    const other = own === 'truth' ? 'lead' : 'truth';
+    const src = { truth: img.dataset.truth, lead: img.dataset.lead };
     const azimuth = (img.alt.split(', ').pop()) || '';
     function show(side) {
       if (fig.dataset.showing === side) return;
