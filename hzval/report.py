@@ -214,7 +214,9 @@ def _lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
         key = f"{v.name}_{m.key}"
         if m.key in OPTIONAL_METRICS and not any(_num(f.get(key)) is not None for f in frames):
             continue
-        shown.append(dataclasses.replace(m, key=key))
+        # the headline scores carry the technique's name, as every other technique's columns do
+        label = f"{v.name} {m.label}" if m.key in ("visibility_mae", "flip_mean") else m.label
+        shown.append(dataclasses.replace(m, key=key, label=label))
     return tuple(shown)
 
 

@@ -12,12 +12,13 @@ import pytest
 from hzval import cli, files, sweep, technique
 
 # docs/ARCHITECTURE.md, "metrics.json".
-TOP_KEYS = {"material", "parameters", "versions", "timings", "simulated", "frames"}
-FRAME_KEYS = {"azimuth_deg", "elevation_deg", "visibility_mae", "leak_fraction", "false_shadow_fraction",
-              "flip_mean", "rmse", "psnr_db", "delta_e2000_mean", "truth_s", "approx_s", "files"}
-FRAME_FILES = {"truth", "truth_variance", "visibility", "factor", "truth_png", "plain_png"}
+TOP_KEYS = {"schema_version", "material", "parameters", "versions", "timings", "simulated", "techniques", "frames"}
+FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques"}
+SCORES = {"visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse", "psnr_db",
+          "delta_e2000_mean", "seconds", "files"}
+FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
 #: What only --all-files adds (sweep._write_frame): files the others determine.
-DERIVED_FILES = {"approx", "plain", "visibility_png", "factor_png"}
+DERIVED_FILES = {"plain", "visibility_png"}
 
 
 def run(*argv) -> int:
@@ -40,15 +41,18 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
     out, m, _ = bricks_sweep
     assert TOP_KEYS <= set(m)
     assert [f["azimuth_deg"] for f in m["frames"]] == [-15.0, 0.0, 15.0]
+    assert m["schema_version"] == sweep.SCHEMA_VERSION == 2
     for f in m["frames"]:
-        assert FRAME_KEYS <= set(f)
+        assert set(f) - {"floor"} == FRAME_KEYS
         assert FRAME_FILES <= set(f["files"]) and not DERIVED_FILES & set(f["files"])
-        assert f["elevation_deg"] == 30.0
-        for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
-            assert 0.0 <= f[key] <= 1.0, key
-        assert f["truth_s"] > 0 and f["approx_s"] > 0
+        assert f["elevation_deg"] == 30.0 and f["truth_s"] > 0
+        for name, te in f["techniques"].items():
+            assert SCORES <= set(te), name
+            for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean"):
+                assert 0.0 <= te[key] <= 1.0, key
+            assert te["seconds"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
-    assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"],
+    assert m["simulated"] == {"truth": ["shadow", "diffuse"],
                               **{name: ["shadow", "diffuse"] for name in technique.names()}}
     assert list(m["techniques"]) == technique.names()          # every technique applies, in registry order
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
@@ -63,14 +67,15 @@ def test_frame_files_exist_and_hold_what_they_say(variant, bricks_sweep):
         for rel in f["files"].values():
             assert not rel.startswith("/") and (out / rel).is_file(), rel
         V = files.read_exr(out / f["files"]["visibility"])
-        F = files.read_exr(out / f["files"]["factor"])
+        F = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])
         assert list(V) == ["Y"] and list(F) == ["Y"]        # one-channel
         assert V["Y"].shape == F["Y"].shape == (48, 48)       # one pixel per texel
         for layer in (V["Y"], F["Y"]):
             assert np.isfinite(layer).all() and layer.min() >= 0 and layer.max() <= 1
         # the metrics are those of the stored layers, which are half floats (the metrics were computed
         # in float32): each F within 2^-12 of its value in [0, 1] (V = k/4 is exact); measured 9e-7
-        assert f["visibility_mae"] == pytest.approx(float(np.mean(np.abs(F["Y"] - V["Y"]))), abs=2**-12)
+        assert f["techniques"]["horizon"]["visibility_mae"] == pytest.approx(
+            float(np.mean(np.abs(F["Y"] - V["Y"]))), abs=2**-12)
         # the bricks (2.4 texels of relief at this size) cast some shadows at 30 degrees
         assert 0.005 < (V["Y"] < 0.5).mean() < 0.5
     assert (out / "index.html").is_file()
@@ -82,7 +87,9 @@ def test_second_run_reuses_the_bake(variant, bricks_sweep):
     assert second["timings"]["bake_cached"] is True
     # same scene, same seed: the same numbers
     for a, b in zip(first["frames"], second["frames"]):
-        assert a["visibility_mae"] == b["visibility_mae"] and a["rmse"] == b["rmse"]
+        for name in a["techniques"]:
+            ta, tb = a["techniques"][name], b["techniques"][name]
+            assert ta["visibility_mae"] == tb["visibility_mae"] and ta["rmse"] == tb["rmse"]
 
 
 def test_summary_table_lists_every_frame(bricks_sweep):
@@ -101,10 +108,11 @@ def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert m["material"]["name"] == "flat" or m["material"].get("path", "").endswith("flat.npy")
     for f in m["frames"]:
-        assert f["visibility_mae"] == 0 and f["leak_fraction"] == 0 and f["false_shadow_fraction"] == 0
-        assert f["rmse"] == pytest.approx(0, abs=1e-6)
-        assert f["psnr_db"] is None or f["psnr_db"] > 100        # infinite PSNR is written as null
-        assert f["flip_mean"] == pytest.approx(0, abs=1e-6)
+        for name, te in f["techniques"].items():
+            assert te["visibility_mae"] == 0 and te["leak_fraction"] == 0 and te["false_shadow_fraction"] == 0
+            assert te["rmse"] == pytest.approx(0, abs=1e-6), name
+            assert te["psnr_db"] is None or te["psnr_db"] > 100        # infinite PSNR is written as null
+            assert te["flip_mean"] == pytest.approx(0, abs=1e-6), name
 
 
 def test_wall_shadow_is_seen_by_both(variant, tmp_path):
@@ -120,7 +128,7 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     (f,) = m["frames"]
     V = files.read_exr(out / f["files"]["visibility"])["Y"]
-    F = files.read_exr(out / f["files"]["factor"])["Y"]
+    F = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"]
     length = 8 / math.tan(math.radians(30))
     # light from -x (azimuth 180): the shadow falls on +x of the wall, columns 11 .. 10 + length
     row = 16
@@ -159,10 +167,10 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
 
 
-@pytest.mark.parametrize("name", [n for n in technique.names() if n != technique.PRIMARY])
+@pytest.mark.parametrize("name", technique.names())
 def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
     """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
-    the primary's, the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""
+    the others', the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""
     from PIL import Image
 
     out, m, _ = bricks_sweep
@@ -191,16 +199,43 @@ def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, na
     assert m["timings"][f"{stem}_s"] > 0
 
 
-def test_primary_technique_fills_the_documented_frame_keys(bricks_sweep):
-    """The frame's top-level metrics and files are the primary technique's, under its name too."""
-    _, m, _ = bricks_sweep
-    for f in m["frames"]:
-        own = f["techniques"][technique.PRIMARY]
-        for key in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse",
-                    "delta_e2000_mean"):
-            assert f[key] == own[key], key
-        assert f["approx_s"] == own["seconds"]
-        assert f["files"]["approx_png"] == own["files"]["png"] and f["files"]["factor"] == own["files"]["factor"]
+def test_no_key_or_file_is_named_approx(bricks_sweep):
+    """Schema 2: no technique is special; nothing in metrics.json or under frames/ says "approx"."""
+    out, m, _ = bricks_sweep
+
+    def keys(x):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                yield k
+                yield from keys(v)
+        elif isinstance(x, list):
+            for v in x:
+                yield from keys(v)
+
+    assert not [k for k in keys(m) if "approx" in k]
+    assert not [p for p in (out / "frames").rglob("*") if "approx" in p.name]
+
+
+def test_a_sweep_without_the_horizon_map_bakes_none_and_records_none(variant, tmp_path):
+    """--techniques terrain: the bake holds the normal map alone, and no horizon setting is recorded."""
+    out = tmp_path / "out"
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain", "--quiet",
+               "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert sorted(p.name for p in (out / "bake").iterdir()) == ["bake.json", "normal.exr", "normal.png"]
+    assert m["bake"]["contents"] == ["normal"] and list(m["techniques"]) == ["terrain"]
+    text = json.dumps({k: v for k, v in m.items() if k not in ("versions", "material")})   # material.path: the file
+    for setting in ('"k"', '"path"', '"ambient"', '"radius"', '"angles"', '"method"', '"directions"', "horizon"):
+        assert setting not in text, setting
+    # a later sweep that needs the horizon map bakes it then, into the same cache
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--quiet", "--out", out) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["timings"]["bake_cached"] is False and "horizon" in m["bake"]["contents"]
+    assert (out / "bake" / "horizon0.exr").is_file()
+    # and one that does not reuses it
+    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain", "--quiet",
+               "--out", out) == 0
+    assert json.loads((out / "metrics.json").read_text())["timings"]["bake_cached"] is True
 
 
 def test_no_terrain_leaves_it_out(variant, tmp_path):
@@ -243,12 +278,12 @@ def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, brick
         assert run("sweep", height, "--azimuths", "0", "--spp", 2, "--effects", "shadow,diffuse,reflection_occlusion",
                    "--no-terrain", "--quiet", "--out", out) == 0
         m = json.loads((out / "metrics.json").read_text())
-        assert "reflection_occlusion" in m["simulated"]["truth"] and "reflection_occlusion" in m["simulated"]["approx"]
-        r = m["frames"][0]["reflection_mae"]
+        assert "reflection_occlusion" in m["simulated"]["truth"] and "reflection_occlusion" in m["simulated"]["horizon"]
+        r = m["frames"][0]["techniques"]["horizon"]["reflection_mae"]
         assert r == 0.0 if out.name == "flat" else 0.0 < r < 1.0
         assert "|o−R|" in (out / "index.html").read_text(encoding="utf-8")
     _, first, _ = bricks_sweep
-    assert all("reflection_mae" not in f for f in first["frames"])
+    assert all("reflection_mae" not in te for f in first["frames"] for te in f["techniques"].values())
 
 
 def test_sixteen_directions_sweep_records_them(variant, tmp_path):
@@ -256,9 +291,9 @@ def test_sixteen_directions_sweep_records_them(variant, tmp_path):
     assert run("sweep", "--size", 32, "--azimuths", "0,22.5", "--spp", 2, "--directions", 16, "--no-terrain",
                "--quiet", "--out", out) == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert m["parameters"]["directions"] == 16
+    assert m["techniques"]["horizon"]["parameters"]["directions"] == 16
     assert sorted(p.name for p in (out / "bake").glob("horizon*.exr")) == [f"horizon{i}.exr" for i in range(4)]
-    assert all(0 <= f["visibility_mae"] < 0.2 for f in m["frames"])
+    assert all(0 <= f["techniques"]["horizon"]["visibility_mae"] < 0.2 for f in m["frames"])
 
 
 def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_path, capsys):
