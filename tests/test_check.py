@@ -96,14 +96,14 @@ def test_a_visibly_darker_patch_in_a_truth_reference_fails(variant, refs, tmp_pa
 
 
 def test_a_changed_approximation_reference_fails(variant, refs):
-    target = check.reference_file(refs, "wall", "az+135", "approx")
+    target = check.reference_file(refs, "wall", "az+135", "horizon")
 
     def nudge(ch):     # one pixel 0.01 brighter: invisible, but the approximation is deterministic
         ch["R"][10, 10] += 0.01
     _edit(target, nudge)
     st = statuses(check.run(references=refs, only=["wall"]))
-    assert st["wall/az+135/approx"] == "fail"
-    assert st["wall/az+135/approx_gpu"] == "pass" and st["wall/az+135/truth"] == "pass"
+    assert st["wall/az+135/horizon"] == "fail"
+    assert st["wall/az+135/horizon_gpu"] == "pass" and st["wall/az+135/truth"] == "pass"
 
 
 def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatch):
@@ -115,9 +115,9 @@ def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatc
         return [-w[0], *w[1:]]
     monkeypatch.setattr(horizon.Horizon, "_exact_weights", staticmethod(flipped))
     st = statuses(check.run(references=refs, only=["bricks", "wall"]))
-    assert st["bricks/az+0/approx"] == "fail" and st["wall/az+0/approx"] == "fail"
-    assert st["bricks/az+45/approx"] == "pass" and st["wall/az+135/approx"] == "pass"
-    assert st["bricks/az+0/approx_gpu"] == "pass"       # the GPU path reads the cube map instead
+    assert st["bricks/az+0/horizon"] == "fail" and st["wall/az+0/horizon"] == "fail"
+    assert st["bricks/az+45/horizon"] == "pass" and st["wall/az+135/horizon"] == "pass"
+    assert st["bricks/az+0/horizon_gpu"] == "pass"       # the GPU path reads the cube map instead
 
 
 def test_a_softer_terrain_ramp_fails_the_terrain_images_only(variant, refs, monkeypatch):
@@ -150,8 +150,8 @@ def test_a_biased_truth_fails_even_within_each_pixels_noise(variant, refs):
 # --------------------------------------------------------------------------
 
 def test_update_rewrites_only_missing_and_failing_references(variant, refs):
-    missing = check.reference_file(refs, "wall", "az+0", "approx_gpu")
-    broken = check.reference_file(refs, "wall", "az+135", "approx")
+    missing = check.reference_file(refs, "wall", "az+0", "horizon_gpu")
+    broken = check.reference_file(refs, "wall", "az+135", "horizon")
     untouched = check.reference_file(refs, "wall", "az+0", "truth")
     missing.unlink()
     _edit(broken, lambda ch: ch["G"].__imul__(0.5))
@@ -165,11 +165,11 @@ def test_update_rewrites_only_missing_and_failing_references(variant, refs):
 def test_cli_exit_codes_and_report(variant, refs, tmp_path, capsys):
     assert cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall"]) == 0
     capsys.readouterr()
-    _edit(check.reference_file(refs, "wall", "az+0", "approx"), lambda ch: ch["F"].__iadd__(0.2))
+    _edit(check.reference_file(refs, "wall", "az+0", "horizon"), lambda ch: ch["F"].__iadd__(0.2))
     report = tmp_path / "rep"
     assert cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall", "--report", str(report)]) == 1
     out = capsys.readouterr().out
-    assert out.splitlines()[0].startswith("FAIL  wall/az+0/approx")
+    assert out.splitlines()[0].startswith("FAIL  wall/az+0/horizon")
     assert (report / "index.html").is_file()
     # a folder without references: every image is new, which fails until --update writes them
     empty = tmp_path / "empty"
@@ -211,7 +211,7 @@ def test_pure_noise_passes_and_a_shift_of_a_few_sigma_over_a_block_fails():
 def test_shape_mismatch_fails_with_a_reason():
     a = {c: np.zeros((8, 8), np.float32) for c in "RGBF"}
     b = {c: np.zeros((8, 9), np.float32) for c in "RGBF"}
-    status, reasons, *_ = check.compare_image(a, b, "approx", check.DEFAULT_TIERS["approx"], 1.0, 16)
+    status, reasons, *_ = check.compare_image(a, b, "horizon", check.DEFAULT_TIERS["technique"], 1.0, 16)
     assert status == "fail" and "--update" in reasons[0]
 
 
@@ -222,5 +222,23 @@ def test_unknown_tolerance_is_an_input_error(variant):
     s = dataclasses.replace(Scene(), tolerances={"truth": {"fial": 0.1}})
     with pytest.raises(InputError, match="fial"):
         check.Tiers.of(s, "truth")
-    s = dataclasses.replace(Scene(), tolerances={"approx": {"fail": 0.5}})
-    assert check.Tiers.of(s, "approx_gpu").fail == 0.5
+    # every technique's tiers, then its own, then its variant's; schema 1's [tolerances.approx] still read
+    s = dataclasses.replace(Scene(), tolerances={"technique": {"fail": 0.5}, "pom": {"fail": 0.25},
+                                                 "horizon_gpu": {"hard_fail": 0.125}})
+    assert check.Tiers.of(s, "horizon", "horizon").fail == 0.5
+    assert check.Tiers.of(s, "pom", "pom").fail == 0.25
+    assert check.Tiers.of(s, "horizon_gpu", "horizon") == dataclasses.replace(
+        check.DEFAULT_TIERS["technique"], fail=0.5, hard_fail=0.125)
+    legacy = dataclasses.replace(Scene(), tolerances={"approx": {"fail": 0.5}})
+    assert check.Tiers.of(legacy, "terrain", "terrain").fail == 0.5
+
+
+def test_a_reference_folder_of_schema_1_is_read_and_renamed_by_update(variant, refs):
+    """References named approx.exr / approx_gpu.exr (hzval 0.1) pass as they are; --update renames them."""
+    for p in list(refs.rglob("horizon*.exr")):
+        p.rename(p.with_name(p.name.replace("horizon", "approx")))
+    result = check.run(references=refs, only=["wall"])
+    assert result.passed, check.summary(result)
+    assert {r.kind for r in result.images} >= {"horizon", "horizon_gpu"}
+    check.run(references=refs, only=["wall"], update=True)
+    assert not list((refs / "wall").rglob("approx*.exr")) and list((refs / "wall").rglob("horizon_gpu.exr"))

@@ -174,14 +174,14 @@ def synthetic_frame(size=32, grey=True):
     truth = ns(image=render(), variance={"image": render() * 1e-4}, layers={"visibility": V})
     frame = ns(image=render(), layers={"factor": F})
     maps = {"flip": RNG.random((size, size)).astype(np.float32), "display": compare.display(frame.image, 4.0)}
-    return truth, ns(image=render()), [(ns(name="horizon", file_stem="approx"), frame, {}, maps)]
+    return truth, ns(image=render()), [(ns(name="horizon", file_stem="horizon"), frame, {}, maps)]
 
 
 @pytest.mark.parametrize("grey", [True, False])
 def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
     truth, plain, compared = synthetic_frame(grey=grey)
     rel, per, seconds = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0, all_files=True)
-    assert seconds > 0 and per["horizon"]["flip_png"] == "frames/az+0/approx_flip.png"
+    assert seconds > 0 and per["horizon"]["flip_png"] == "frames/az+0/horizon_flip.png"
     layout = {k: exr_layout(tmp_path / p) for k, p in {**rel, **per["horizon"]}.items() if p.endswith(".exr")}
     colour = {"Y"} if grey else {"R", "G", "B"}
     for key in ("truth", "plain", "image", "truth_variance"):
@@ -208,12 +208,14 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
     assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "2", "--techniques", "horizon",
                      "--quiet", "--all-files", "--out", str(out)]) == 0
     (f,) = json.loads((out / "metrics.json").read_text())["frames"]
-    for key in ("truth", "plain", "approx", "truth_variance"):
-        assert set(files.read_exr(out / f["files"][key])) == {"Y"}, key
+    own = f["techniques"]["horizon"]["files"]
+    for path in (f["files"]["truth"], f["files"]["plain"], own["image"], f["files"]["truth_variance"]):
+        assert set(files.read_exr(out / path)) == {"Y"}, path
     assert exr_layout(out / f["files"]["truth"])["Y"] == "HALF"
-    modes = {key: png_mode_and_rgb(out / f["files"][key])[0]
-             for key in ("truth_png", "plain_png", "approx_png", "flip_png", "visdiff_png")}
-    assert modes == {"truth_png": "L", "plain_png": "L", "approx_png": "L", "flip_png": "P", "visdiff_png": "P"}
+    modes = {key: png_mode_and_rgb(out / path)[0]
+             for key, path in (("truth_png", f["files"]["truth_png"]), ("plain_png", f["files"]["plain_png"]),
+                               *((k, own[k]) for k in ("png", "flip_png", "visdiff_png")))}
+    assert modes == {"truth_png": "L", "plain_png": "L", "png": "L", "flip_png": "P", "visdiff_png": "P"}
 
 
 def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
@@ -224,4 +226,4 @@ def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
     assert set(per["horizon"]) == {"png", "flip_png", "factor", "visdiff_png"}
     written = {p.name for p in (tmp_path / "frames" / "az+0").iterdir()}
     assert written == {"truth.exr", "truth_variance.exr", "visibility.exr", "truth.png", "plain.png",
-                       "approx.png", "approx_flip.png", "approx_factor.exr", "approx_visdiff.png"}
+                       "horizon.png", "horizon_flip.png", "horizon_factor.exr", "horizon_visdiff.png"}

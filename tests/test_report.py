@@ -81,43 +81,53 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
     vis = np.repeat(files.unit_to_u8(0.25 + 0.5 * V)[..., None], 3, axis=-1)
     vis[(F >= 0.5) & (V < 0.5)] = LEAK_RGB
     vis[(F < 0.5) & (V >= 0.5)] = FALSE_SHADOW_RGB
-    return {"truth_png": _srgb_u8(truth), "approx_png": _srgb_u8(approx), "plain_png": _srgb_u8(plain),
+    return {"truth_png": _srgb_u8(truth), "horizon_png": _srgb_u8(approx), "plain_png": _srgb_u8(plain),
             "flip_png": flip, "visdiff_png": vis,
             "visibility_png": files.unit_to_u8(V), "factor_png": files.unit_to_u8(F)}
 
 
 def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dict:
-    """Write a sweep's previews under ``out`` and return its metrics (docs/ARCHITECTURE.md's structure)."""
+    """Write a sweep's previews under ``out`` and return its metrics (docs/ARCHITECTURE.md's structure,
+    schema 2: the one technique's scores and files under ``frames[i].techniques.horizon``)."""
     frames = []
+    own_keys = {"horizon_png": "png", "flip_png": "flip_png", "visdiff_png": "visdiff_png",
+                "factor_png": "factor_png"}
     for i, az in enumerate(azimuths):
         folder = WEIRD_FOLDER if az == 0 else f"frames/az{az:+g}"
         imgs = fake_frame_images(size, az)
-        rel = {}
+        rel, own = {}, {}
         for key, img in imgs.items():
             name = key.removesuffix("_png") + ".png"
             files.write_png_with_preview(out / folder / name, img)     # as the sweep: previews if large
-            rel[key] = f"{folder}/{name}"
-        for key in ("truth", "approx", "visibility", "factor"):
+            (own if key in own_keys else rel)[own_keys.get(key, key)] = f"{folder}/{name}"
+        for key in ("truth", "visibility"):
             rel[key] = f"{folder}/{key}.exr"    # not written: the report only links files that exist
+        own.update(image=f"{folder}/horizon.exr", factor=f"{folder}/factor.exr")
         frames.append({
-            "azimuth_deg": az, "elevation_deg": 30.0,
-            "visibility_mae": 0.02 + 0.01 * i, "leak_fraction": 0.01 * (i + 1), "false_shadow_fraction": 0.004,
-            "flip_mean": 0.05 + 0.02 * abs(az) / 15, "rmse": 0.01 + 0.001 * i,
-            "psnr_db": None if az == 0 else 38.0 - i, "delta_e2000_mean": 1.2 + 0.3 * i,
-            "truth_s": 0.25 + 0.01 * i, "approx_s": 0.004, "files": rel})
+            "azimuth_deg": az, "elevation_deg": 30.0, "truth_s": 0.25 + 0.01 * i, "files": rel,
+            "techniques": {"horizon": {
+                "visibility_mae": 0.02 + 0.01 * i, "leak_fraction": 0.01 * (i + 1), "false_shadow_fraction": 0.004,
+                "flip_mean": 0.05 + 0.02 * abs(az) / 15, "rmse": 0.01 + 0.001 * i,
+                "psnr_db": None if az == 0 else 38.0 - i, "delta_e2000_mean": 1.2 + 0.3 * i,
+                "seconds": 0.004, "files": own}}})
     metrics = {
         "material": {"name": NASTY_NAME, "source": "a <i>test</i> height map", "digest": "sha256:" + "ab12" * 16,
                      "rows": size, "cols": size, "path": "/tmp/<b>x.png"},
-        "parameters": {"depth": 0.05, "boundary": "wrap", "radius": 16, "angles": 32, "elevation_deg": 30.0,
-                       "azimuths_deg": list(azimuths), "k": 8.0, "light": "hard", "light_radius_deg": 0.0,
+        "schema_version": 2,
+        "parameters": {"depth": 0.05, "boundary": "wrap", "elevation_deg": 30.0,
+                       "azimuths_deg": list(azimuths), "light": "hard", "light_radius_deg": 0.0,
                        "effects": ["shadow", "diffuse", "interreflection"], "spp": 16, "seed": 0,
-                       "supersampling": 1, "path": "exact", "ambient": "mean_cos2"},
+                       "supersampling": 1},
         "versions": {"hzval": "0.1.0", "mitsuba": "3.7.1", "drjit": "1.2.0", "llvm": "19.1.7",
                      "variant": "llvm_ad_rgb", "python": "3.11.2", "machine": "Linux x86_64, 2 CPUs <cpu>"},
-        "timings": {"bake_s": 0.41, "bake_cached": False, "truth_setup_s": 0.8, "approx_setup_s": 0.2,
-                    "truth_s": sum(f["truth_s"] for f in frames), "approx_s": sum(f["approx_s"] for f in frames),
+        "timings": {"bake_s": 0.41, "bake_cached": False, "truth_setup_s": 0.8, "horizon_setup_s": 0.2,
+                    "truth_s": sum(f["truth_s"] for f in frames), "horizon_s": 0.004 * len(frames),
                     "compare_s": 0.3, "write_s": 0.15},
-        "simulated": {"truth": ["shadow", "diffuse", "interreflection"], "approx": ["shadow", "diffuse"]},
+        "simulated": {"truth": ["shadow", "diffuse", "interreflection"], "horizon": ["shadow", "diffuse"]},
+        "techniques": {"horizon": {"label": "horizon map", "file_stem": "horizon", "summary": "Lengyel's",
+                                   "parameters": {"k": 8.0, "path": "exact", "ambient": "mean_cos2",
+                                                  "bake_radius": 16, "bake_angles": 32},
+                                   "simulated": ["shadow", "diffuse"]}},
         "frames": frames,
     }
     files.write_json(out / "metrics.json", metrics)
@@ -204,12 +214,12 @@ def test_header_summary_and_frames(report_dir):
     _, index, metrics = report_dir
     html = index.read_text(encoding="utf-8")
     for text in ("3.7.1", "1.2.0", "19.1.7", "llvm_ad_rgb", "3.11.2", "sha256:ab12ab12ab12",
-                 "interreflection: not modelled by the approximation", "mean cos² (cosine-weighted)",
+                 "interreflection: not modelled by horizon map",
                  "leak (F lit, V shadowed)", "false shadow", "−15° … +15°, step 15° (3 lights)"):
         assert text in html, text
     for key in metrics["parameters"]:
         assert f">{report._value_text(key, metrics['parameters'][key])}<" in html or key in (
-            "depth", "path", "ambient", "supersampling", "radius", "k", "effects"), key
+            "depth", "supersampling", "effects"), key
     # one summary row per frame; the worst of each varying column highlighted
     body = html.split("<tbody>")[1].split("</tbody>")[0]
     assert body.count("<tr>") == 3
@@ -222,9 +232,9 @@ def test_missing_layers_and_files_do_not_break_the_page(tmp_path):
     out = tmp_path / "out"
     metrics = make_fake_out(out, azimuths=(0.0, 30.0))
     for f in metrics["frames"]:
-        f.update(visibility_mae=None, leak_fraction=None, false_shadow_fraction=None)
-        del f["files"]["visdiff_png"]
-    metrics["frames"][1]["files"]["flip_png"] = "frames/gone/flip.png"
+        f["techniques"]["horizon"].update(visibility_mae=None, leak_fraction=None, false_shadow_fraction=None)
+        del f["techniques"]["horizon"]["files"]["visdiff_png"]
+    metrics["frames"][1]["techniques"]["horizon"]["files"]["flip_png"] = "frames/gone/flip.png"
     metrics["timings"]["total_s"] = 3.5
     metrics.pop("versions")
     index = report.write_report(out, metrics, command="")
@@ -296,17 +306,17 @@ def test_report_in_a_browser(tmp_path):
         # flip: hover shows the other side, in place and labelled; leaving restores it
         fig = page.locator("#frame-2 .flip[data-own='truth']")
         img, tag, view = fig.locator("img"), fig.locator(".which"), fig.locator(".view")
-        truth_src, approx_src = img.get_attribute("data-truth"), img.get_attribute("data-approx")
+        truth_src, lead_src = img.get_attribute("data-truth"), img.get_attribute("data-lead")
         assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
         view.hover()
-        assert img.get_attribute("src") == approx_src
-        assert tag.inner_text() == "horizon-mapped" and fig.get_attribute("data-showing") == "approx"
+        assert img.get_attribute("src") == lead_src
+        assert tag.inner_text() == "horizon map" and fig.get_attribute("data-showing") == "lead"
         page.mouse.move(2, 2)
         assert img.get_attribute("src") == truth_src and tag.inner_text() == "truth"
         # click flips (with hover flipping off), and again flips back
         page.locator("#hover-flip").uncheck()
         view.click()
-        assert img.get_attribute("src") == approx_src and tag.inner_text() == "horizon-mapped"
+        assert img.get_attribute("src") == lead_src and tag.inner_text() == "horizon map"
         view.click()
         assert img.get_attribute("src") == truth_src
         page.locator("#hover-flip").check()
@@ -323,14 +333,14 @@ def test_report_in_a_browser(tmp_path):
         assert re.search(r"inset\(0(px)? 0(px|%)? 0(px)? 0(px)?\)|inset\(0px\)|inset\(0\)", clip()), clip()
 
         # zoom: 8 screen pixels per image pixel, nearest-neighbour
-        target = page.locator("#frame-1 .flip[data-own='approx'] img")
+        target = page.locator("#frame-1 .flip[data-own='lead'] img")
         w_fit = target.bounding_box()["width"]
         page.locator("button[data-zoom='8']").click()
         w8 = target.bounding_box()["width"]
         assert w8 == pytest.approx(64 * 8, abs=1) and w8 != pytest.approx(w_fit, abs=1)
         assert target.evaluate("e => getComputedStyle(e).imageRendering") == "pixelated"
         # panning one view moves the others to the same place
-        v = page.locator("#frame-1 .flip[data-own='approx'] .view")
+        v = page.locator("#frame-1 .flip[data-own='lead'] .view")
         box = v.bounding_box()
         page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
         page.mouse.down()
@@ -375,7 +385,7 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
     metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
     metrics["material"].update(rows=n, cols=n)
     for f in metrics["frames"]:                        # each small PNG blown up to n x n, nearest
-        for key, rel in f["files"].items():
+        for key, rel in (*f["files"].items(), *f["techniques"]["horizon"]["files"].items()):
             if rel.endswith(".png"):
                 with Image.open(out / rel) as im:
                     small = np.asarray(im)
@@ -387,7 +397,7 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
         t0 = time.perf_counter()
         page.goto(index.as_uri(), wait_until="load")
         print(f"report of {n} x {n} images loaded in {time.perf_counter() - t0:.2f} s")
-        target = page.locator("#frame-0 .flip[data-own='approx'] img")
+        target = page.locator("#frame-0 .flip[data-own='lead'] img")
         assert "/previews/" in target.get_attribute("src")
         target.scroll_into_view_if_needed()
         page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
@@ -401,5 +411,5 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
         view = page.locator("#frame-0 .flip[data-own='truth'] .view")
         view.hover()
         flipped = page.locator("#frame-0 .flip[data-own='truth'] img").get_attribute("src")
-        assert flipped.endswith("approx.png") and "/previews/" not in flipped
+        assert flipped.endswith("horizon.png") and "/previews/" not in flipped
     assert problems == []

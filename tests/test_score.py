@@ -45,18 +45,19 @@ def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
     computation, but the files are half float); its truth gives 0; its 8-bit sRGB previews add
     their quantisation (under 0.01)."""
     m = json.loads((sweep_dir / "metrics.json").read_text())
-    # approx.exr and truth.exr hold half floats (2^-11 relative), the sweep scored float32 in memory:
+    # horizon.exr and truth.exr hold half floats (2^-11 relative), the sweep scored float32 in memory:
     # measured at most 6e-6 FLIP at this size, a thousandth of what 8-bit quantisation adds (4e-3)
-    for source, ext, tol in (("approx", "exr", 2e-5), ("truth", "exr", 0), ("approx", "png", 0.01)):
+    for source, ext, tol in (("horizon", "exr", 2e-5), ("truth", "exr", 0), ("horizon", "png", 0.01)):
         out = tmp_path / f"out_{source}_{ext}"
         assert cli.main(["score", str(engine(tmp_path, sweep_dir, source, ext)), "--against", str(sweep_dir),
                          "--out", str(out)]) == 0
         s = json.loads((out / "metrics.json").read_text())
-        for mine, theirs in zip(s["frames"], m["frames"]):
-            assert mine["azimuth_deg"] == theirs["azimuth_deg"]
+        for mine, swept in zip(s["frames"], m["frames"]):
+            assert mine["azimuth_deg"] == swept["azimuth_deg"]
+            theirs = swept["techniques"]["horizon"]
             expect = 0.0 if source == "truth" else theirs["flip_mean"]
             assert mine["flip_mean"] == pytest.approx(expect, abs=tol + 1e-12)
-            if (source, ext) == ("approx", "exr"):        # the other scores: measured 1.4e-5, 1.3e-6
+            if (source, ext) == ("horizon", "exr"):        # the other scores: measured 1.4e-5, 1.3e-6
                 assert mine["delta_e2000_mean"] == pytest.approx(theirs["delta_e2000_mean"], abs=1e-4)
                 assert mine["rmse"] == pytest.approx(theirs["rmse"], abs=tol)
             if source == "truth":
@@ -66,7 +67,7 @@ def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
 
 
 def test_bad_frames_are_one_line_errors(sweep_dir, tmp_path, capsys):
-    good = engine(tmp_path, sweep_dir, "approx")
+    good = engine(tmp_path, sweep_dir, "horizon")
     cases = []
     missing = tmp_path / "missing"
     shutil.copytree(good, missing)

@@ -83,23 +83,26 @@ def test_the_truth_converges(wall_points):
 def test_pareto_front_within_each_kind():
     pts = [Point("a", "bake", 1.0, 10, 0.1, 0), Point("b", "bake", 2.0, 10, 0.05, 0),
            Point("c", "bake", 2.0, 10, 0.2, 0),      # dominated by a and b
-           Point("d", "approx", 9.0, 99, 0.9, 0)]     # alone in its kind
+           Point("d", "technique", 9.0, 99, 0.9, 0)]     # alone in its kind
     tradeoff.mark_pareto(pts)
     assert [p.pareto for p in pts] == [True, True, False, True]
 
 
 def test_recommendation_takes_the_cheapest_within_tolerance():
-    pts = [Point("big (default)", "bake", 1.0, 1000, 0.100, 0), Point("small", "approx", 1.0, 100, 0.105, 0),
-           Point("tiny but bad", "approx", 1.0, 10, 0.3, 0), Point("truth, 64", "truth", 1.0, 5, 0.005, 0,
-                                                                       params={"spp": 64})]
+    own = {"technique": "horizon"}
+    pts = [Point("big (default)", "bake", 1.0, 1000, 0.100, 0, params=own),
+           Point("small", "technique", 1.0, 100, 0.105, 0, params=own),
+           Point("tiny but bad", "technique", 1.0, 10, 0.3, 0, params=own),
+           Point("truth, 64", "truth", 1.0, 5, 0.005, 0, params={"spp": 64})]
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "small" and rec["best"] == "big (default)"
     assert rec["truth"] == "truth, 64"
-    assert "horizon_map" not in rec                # the pick is a horizon-map setting already
-    pts.append(Point("terrain", "technique", 1.0, 50, 0.02, 0))
+    assert "own" not in rec                # the pick is a setting of the baked technique already
+    pts.append(Point("terrain", "technique", 1.0, 50, 0.02, 0, params={"technique": "terrain"}))
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "terrain"
-    assert rec["horizon_map"]["setting"] == "small" and rec["horizon_map"]["best"] == "big (default)"
+    assert rec["own"] == {"technique": "horizon", "setting": "small", "visibility_mae": 0.105,
+                          "best": "big (default)", "best_visibility_mae": 0.100}
 
 
 def test_cli_writes_json_plot_and_page(variant, tmp_path, capsys):

@@ -1,6 +1,6 @@
 (() => {
   'use strict';
-  const labels = (window.HZ && HZ.labels) || { truth: 'truth', lead: 'technique' };
+  const labels = (typeof HZ !== 'undefined' && HZ.labels) || { truth: 'truth', lead: 'technique' };
   const zooms = (window.HZ && HZ.zooms) || [0, 1, 2, 4, 8];
   const views = Array.from(document.querySelectorAll('.view'));
   const zoomButtons = Array.from(document.querySelectorAll('[data-zoom]'));
