@@ -1,3 +1,7 @@
+"""``python -m hzval``: the ``hzval`` command (:func:`hzval.cli.main`)."""
+
+import sys
+
 from hzval.cli import main
 
-raise SystemExit(main())
+sys.exit(main())

@@ -1,0 +1,156 @@
+"""The figures of README.md and docs/: each reruns what it shows and rewrites its table in place.
+
+A figure is a function that runs hzval (a sweep, a benchmark) and returns a
+markdown block; in a document it stands between ``<!-- figure:NAME -->`` and
+``<!-- /figure:NAME -->``, and the block says the command that made it, the
+commit and the machine. Figures that take minutes are run only when named.
+
+    .venv/bin/python benchmarks/figures.py                  # every quick figure, every document
+    .venv/bin/python benchmarks/figures.py default-sweep    # one figure
+    .venv/bin/python benchmarks/figures.py --check          # exit 1 if a document has a figure no
+                                                            # function makes, or lacks its end marker
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+HZVAL = [sys.executable, "-m", "hzval"]
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "hzval"],
+                               capture_output=True, text=True).stdout.strip()
+        return out + (" + uncommitted changes" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _machine() -> str:
+    return f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores"
+
+
+def _sweep(*argv: str) -> dict:
+    """``hzval sweep ARGV`` into a fresh folder; its metrics.json."""
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([*HZVAL, "sweep", *argv, "--quiet", "--out", tmp], check=True, cwd=ROOT,
+                       stdout=subprocess.DEVNULL)
+        return json.loads((Path(tmp) / "metrics.json").read_text())
+
+
+def _spread(values: list[float], digits: int = 3) -> str:
+    vals = [v for v in values if v is not None]
+    if not vals:
+        return "—"
+    mean = sum(vals) / len(vals)
+    return f"{mean:.{digits}f} ({min(vals):.{digits}f}-{max(vals):.{digits}f})"
+
+
+def _provenance(command: str) -> str:
+    return f"*`{command}` at {_commit()}, {_machine()}; written by `benchmarks/figures.py`.*"
+
+
+def default_sweep() -> str:
+    """README's headline table: every technique on the default sweep, and the perfect-shadows floor."""
+    m = _sweep()
+    frames = m["frames"]
+    rows = ["| technique | mean \\|F - V\\| (range over the sweep) | mean FLIP (range) | frame time |",
+            "|---|---|---|---|"]
+    for name, info in m["techniques"].items():
+        per = [f["techniques"][name] for f in frames]
+        ms = 1000 * sum(t["seconds"] for t in per) / len(per)
+        rows.append(f"| `{name}`: {info['label']} | {_spread([t['visibility_mae'] for t in per])} | "
+                    f"{_spread([t['flip_mean'] for t in per])} | {ms:.0f} ms |")
+    floor = [f["floor"]["flip_mean"] for f in frames if "floor" in f]
+    rows.append(f"| perfect shadows (the floor: unshadowed shading times the truth's V) | 0 | {_spread(floor)} | — |")
+    p = m["parameters"]
+    what = (f"{m['material']['name']}, {m['material']['cols']} x {m['material']['rows']}, depth {p['depth']:g}, "
+            f"{p['light']} light at {p['elevation_deg']:g} degrees, azimuths {p['azimuths_deg'][0]:g} to "
+            f"{p['azimuths_deg'][-1]:+g}, {p['spp']} spp")
+    return "\n".join(rows) + f"\n\n*{what}.* " + _provenance("hzval sweep")
+
+
+def reflection() -> str:
+    """The reflection fade's score on a small sweep (README's sweep section)."""
+    argv = ("--size", "128", "--azimuths", "0", "--effects", "shadow,diffuse,reflection_occlusion")
+    m = _sweep(*argv)
+    r = m["frames"][0]["techniques"]["horizon"]["reflection_mae"]
+    return f"`reflection_mae` = {r:.3f}. " + _provenance("hzval sweep " + " ".join(argv))
+
+
+def pom_steps() -> str:
+    """The ray march's error and cost against its step count (benchmarks/bench_pom.py)."""
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_pom.py"), "--frames", "5"],
+                         capture_output=True, text=True, check=True, cwd=ROOT).stdout
+    table = [line for line in out.splitlines() if not line.startswith("#")]
+    return "```\n" + "\n".join(table) + "\n```\n\n" + _provenance("python benchmarks/bench_pom.py --frames 5")
+
+
+#: name -> (function, quick): quick figures run by default, the others only when named.
+FIGURES = {
+    "default-sweep": (default_sweep, True),
+    "reflection": (reflection, True),
+    "pom-steps": (pom_steps, False),
+}
+
+
+def _pattern(name: str) -> re.Pattern:
+    return re.compile(rf"(<!-- figure:{re.escape(name)} -->\n)(.*?)(\n<!-- /figure:{re.escape(name)} -->)", re.S)
+
+
+def used_figures(text: str) -> list[str]:
+    """The figure names a document marks."""
+    return re.findall(r"<!-- figure:([\w-]+) -->", text)
+
+
+def replace(text: str, name: str, block: str) -> str:
+    """``text`` with figure ``name``'s block replaced by ``block``."""
+    pattern = _pattern(name)
+    if not pattern.search(text):
+        raise SystemExit(f"figure {name}: no end marker <!-- /figure:{name} -->")
+    return pattern.sub(lambda mt: mt.group(1) + block + mt.group(3), text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("names", nargs="*", help=f"figures to rerun (default: the quick ones): {', '.join(FIGURES)}")
+    ap.add_argument("--check", action="store_true", help="check the documents' markers only")
+    args = ap.parse_args(argv)
+    docs = {p: p.read_text(encoding="utf-8") for p in DOCUMENTS}
+    problems = [f"{p.name}: figure {n} is made by no function" for p, t in docs.items()
+                for n in used_figures(t) if n not in FIGURES]
+    problems += [f"{p.name}: figure {n} has no end marker" for p, t in docs.items()
+                 for n in used_figures(t) if n in FIGURES and not _pattern(n).search(t)]
+    if args.check or problems:
+        print("\n".join(problems) or "every figure marker is known and closed")
+        return 1 if problems else 0
+    wanted = args.names or [n for n, (_, quick) in FIGURES.items() if quick]
+    for name in wanted:
+        make, _ = FIGURES[name]
+        users = [p for p, t in docs.items() if name in used_figures(t)]
+        if not users:
+            print(f"figure {name}: no document shows it")
+            continue
+        block = make()
+        for p in users:
+            docs[p] = replace(docs[p], name, block)
+            p.write_text(docs[p], encoding="utf-8")
+        print(f"figure {name}: {', '.join(str(p.relative_to(ROOT)) for p in users)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
