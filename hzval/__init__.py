@@ -29,9 +29,10 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``errors``       the errors the CLI turns into one-line messages and exit codes
 ``cli``          the ``hzval`` command, a thin layer over the above
 
-Before the first render, :func:`init` chooses the LLVM library and the
-Mitsuba variant (``hzval.cli.main`` calls it). Importing the package changes
-nothing in the environment.
+A script calls :func:`init` to choose the LLVM library and the Mitsuba
+variant before it imports hzval's rendering modules; the ``hzval`` command
+chooses the LLVM first thing in :func:`hzval.cli.main`. Importing the package
+changes nothing in the environment.
 """
 
 from importlib.metadata import PackageNotFoundError, version as _version

@@ -17,9 +17,35 @@ thread per core this process may use (:func:`host_cores`).
 
 from __future__ import annotations
 
+import importlib
 import os
 
 from hzval.errors import EnvironmentProblem
+
+
+class _Module:
+    """A module imported at the first use of one of its names, not where it is named.
+
+    ``from hzval.backend import dr, mi`` at a module's top stands for ``import drjit as dr`` and
+    ``import mitsuba as mi``: importing Dr.Jit initialises its backends (and reads
+    ``DRJIT_LIBLLVM_PATH``), which the command line must do only after it has chosen the LLVM
+    library and checked its input (:func:`prefer_working_llvm`; a bad file is one line, with no
+    backend started).
+    """
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr: str):
+        module = importlib.import_module(self._name)
+        return getattr(module, attr)
+
+    def __repr__(self) -> str:
+        return f"<module {self._name!r}, imported at first use>"
+
+
+dr = _Module("drjit")
+mi = _Module("mitsuba")
 
 #: The oldest LLVM major version known to work with Dr.Jit's LLVM backend here.
 MIN_LLVM_MAJOR = 16
@@ -28,6 +54,15 @@ _FIX = ("install Debian's libllvm19 (apt-get install libllvm19) or point "
         "DRJIT_LIBLLVM_PATH at a libLLVM.so of version 16 or newer")
 
 _chosen: str | None = None
+_requested: str | None = None
+
+
+def request(name: str | None) -> None:
+    """The variant :func:`variant` is to select when it is first called (the command line's
+    ``--variant``), without initialising Dr.Jit now: a command that fails on its input first never
+    starts a backend."""
+    global _requested
+    _requested = name
 
 
 def prefer_working_llvm() -> None:
@@ -75,7 +110,7 @@ def variant(requested: str | None = None) -> str:
     import drjit as dr
     import mitsuba as mi
 
-    name = requested or os.environ.get("HZVAL_VARIANT") or None
+    name = requested or _requested or os.environ.get("HZVAL_VARIANT") or None
     if name is None and _chosen is not None:
         return _chosen
     if name is None:

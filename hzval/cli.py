@@ -534,7 +534,7 @@ def cmd_suite(args) -> int:
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
-                       variant=args.requested_variant, command=command, progress=not args.quiet)
+                       variant=args.variant, command=command, progress=not args.quiet)
     print(suite.summary_table(result))
     s = result["suite"]
     print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
@@ -661,7 +661,6 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import hzval
     from hzval import backend
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -669,10 +668,10 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(_join_negative_values(argv))
     args.argv = argv
     args.typed = typed_flags(args.parser, argv)
-    args.requested_variant = getattr(args, "variant", None)       # as asked: a suite's workers choose their own
+    args.variant = getattr(args, "variant", None)
+    # the LLVM is chosen above; the variant when the first renderer asks for it (hzval.backend.variant)
+    backend.request(args.variant)
     try:
-        if args.command != "materials":      # the one command that renders nothing
-            args.variant = hzval.init(getattr(args, "variant", None))
         return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)

@@ -124,10 +124,8 @@ from pathlib import Path
 
 import numpy as np
 
-import drjit as dr
-import mitsuba as mi
-
 from hzval import external, lookup
+from hzval.backend import dr, mi
 from hzval import storage as hz_storage
 from hzval import conventions as cv
 from hzval.bake import CUBE_SIZE, weight_cube

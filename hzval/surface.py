@@ -63,11 +63,10 @@ from __future__ import annotations
 
 import time
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval import backend, lookup, shading
+from hzval.backend import dr, mi
 from hzval import conventions as cv
 from hzval.bake import normals_only
 from hzval.errors import InputError

@@ -115,13 +115,14 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed
     own_bake = bake.bake(h, bake.BakeParams(depth=depth))
     theirs = horizon.Horizon(sc, bake.Bake(own_bake.params, u8.astype(np.float32) / 255, own_bake.normal,
                                                 own_bake.mean_cos, own_bake.mean_cos2)).render(0.0).layers["factor"]
-    F = files.read_exr(out / m["frames"][0]["files"]["factor"])["Y"]
+    F = files.read_exr(out / m["frames"][0]["techniques"]["horizon"]["files"]["factor"])["Y"]
     np.testing.assert_allclose(F, theirs, atol=2**-12 + 1e-6)     # the file is half float: 2^-12 in [0, 1]
     assert np.abs(F - horizon.Horizon(sc, own_bake).render(0.0).layers["factor"]).mean() > 1e-3
     m2, err2, _ = results["mirrored"]
     assert not m2["external_bake"]["matches"] and m2["external_bake"]["best_match"]["y"] == "down"
     assert err2.startswith("hzval: warning: horizon map: the channels look mirrored: is +y down?")
-    assert m2["warnings"] and m2["frames"][1]["visibility_mae"] > m["frames"][1]["visibility_mae"]
+    assert m2["warnings"] and (m2["frames"][1]["techniques"]["horizon"]["visibility_mae"]
+                               > m["frames"][1]["techniques"]["horizon"]["visibility_mae"])
 
 
 def test_encoding_from_toml_and_bad_layers(tmp_path):

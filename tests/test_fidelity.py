@@ -159,6 +159,7 @@ def test_every_frame_records_its_perfect_shadows_floor(variant, tmp_path):
     assert m["exposure"]["scale"] == pytest.approx(math.pi)
     f0 = m["frames"][0]
     assert set(f0["floor"]) == {"flip_mean", "rmse", "psnr_db", "delta_e2000_mean"}
-    assert f0["floor"]["flip_mean"] < f0["flip_mean"] and f0["floor"]["rmse"] < f0["rmse"]
+    h0 = f0["techniques"]["horizon"]
+    assert f0["floor"]["flip_mean"] < h0["flip_mean"] and f0["floor"]["rmse"] < h0["rmse"]
     html = (out / "index.html").read_text(encoding="utf-8")
     assert "floor FLIP" in html and "shading &amp; noise" in html

@@ -157,4 +157,4 @@ def test_sweep_scores_it_with_its_own_options(variant, tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["sweep", "--size", "24", "--pom-steps", "0", "--quiet", "--out", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("hzval: error: steps") and "\n" not in err and not bad.exists()
+    assert err.startswith("hzval: error: --pom-steps") and "\n" not in err and not bad.exists()
