@@ -33,19 +33,23 @@ class _Module:
     backend started).
     """
 
-    def __init__(self, name: str):
-        self._name = name
+    def __init__(self, name: str, fixed: bool):
+        self._name, self._fixed = name, fixed
 
     def __getattr__(self, attr: str):
-        module = importlib.import_module(self._name)
-        return getattr(module, attr)
+        value = getattr(importlib.import_module(self._name), attr)
+        if self._fixed:
+            # Dr.Jit's names never change: later uses find it here, without this call. Mitsuba's
+            # (mi.Float, ...) follow the variant set, so they are looked up every time
+            setattr(self, attr, value)
+        return value
 
     def __repr__(self) -> str:
         return f"<module {self._name!r}, imported at first use>"
 
 
-dr = _Module("drjit")
-mi = _Module("mitsuba")
+dr = _Module("drjit", fixed=True)
+mi = _Module("mitsuba", fixed=False)
 
 #: The oldest LLVM major version known to work with Dr.Jit's LLVM backend here.
 MIN_LLVM_MAJOR = 16
