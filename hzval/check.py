@@ -262,45 +262,13 @@ def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: 
     n_pix = diff.shape[0] * diff.shape[1]
     numbers = {"max_abs": float(absdiff.max()), "mean_abs": float(absdiff.mean()),
                "mean_diff": float(diff.mean()), "pixels": n_pix}
-    reasons = []
+    reasons: list[str] = []
     if not np.isfinite(a).all():
         return "fail", ["the new render has non-finite values"], numbers, {"score": absdiff.max(-1)}
     if kind != "truth":
-        score = absdiff.max(-1)
-        failing = score > tiers.fail
-        hard = bool((score > tiers.hard_fail).any())
-        maps = {"score": score}
-        if hard:
-            reasons.append(f"a pixel differs by {score.max():.3g} > hard_fail {tiers.hard_fail:g}")
+        failing, maps = _technique_test(absdiff, tiers, reasons)
     else:
-        var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
-        var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
-        q = 1.0 / (spp + 2)
-        floor = np.maximum(np.abs(a), np.abs(b)) ** 2 * q * (1 - q) / spp
-        var = np.maximum(np.nan_to_num(var_a), floor) + np.maximum(np.nan_to_num(var_b), floor)
-        var = np.maximum(var, 1e-12)           # two exact zeros: any difference is significant
-        p_pix = _p_value(absdiff / np.sqrt(var)).min(-1)
-        blocks_d, blocks_v = _block_sums(diff), _block_sums(var)
-        nb = blocks_d.shape[0] * blocks_d.shape[1]
-        p_blk = _p_value(np.abs(blocks_d) / np.sqrt(blocks_v)).min(-1)
-        n_tests = (n_pix + nb) * len(names)
-        alpha = -math.expm1(math.log1p(-tiers.fail) / n_tests)       # Sidak, without cancellation
-        failing = p_pix < alpha
-        bad_blocks = int((p_blk < alpha).sum())
-        bias = np.abs(diff.mean(axis=(0, 1)))
-        hard = bool((bias > tiers.hard_fail).any())
-        numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
-                       bias=float(bias.max()))
-        # the map shows the stronger evidence at each pixel: its own test or its block's
-        p_map = p_pix.copy()
-        hb, wb = p_blk.shape
-        p_map[:hb * BLOCK, :wb * BLOCK] = np.minimum(
-            p_map[:hb * BLOCK, :wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK))))
-        maps = {"score": np.minimum(-np.log10(np.maximum(p_map, 1e-300)), 300.0), "alpha": alpha}
-        if hard:
-            reasons.append(f"the image mean differs by {bias.max():.3g} > hard_fail {tiers.hard_fail:g}")
-        if bad_blocks:
-            reasons.append(f"{bad_blocks} of {nb} blocks of {BLOCK}x{BLOCK} pixels differ (p < {alpha:.2g})")
+        failing, maps = _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers, spp, numbers, reasons)
     percent = 100.0 * float(failing.mean())
     numbers.update(failing_pixels=int(failing.sum()), failing_percent=percent)
     if percent > tiers.fail_percent:
@@ -312,6 +280,46 @@ def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: 
         return "warn", [f"{percent:.3g}% of pixels fail > warn {tiers.warn:g}% (allowed up to "
                         f"{tiers.fail_percent:g}%)"], numbers, maps
     return "pass", [], numbers, maps
+
+
+def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[np.ndarray, dict]:
+    """A deterministic image: a pixel's score is its largest absolute difference over the channels."""
+    score = absdiff.max(-1)
+    if (score > tiers.hard_fail).any():
+        reasons.append(f"a pixel differs by {score.max():.3g} > hard_fail {tiers.hard_fail:g}")
+    return score > tiers.fail, {"score": score}
+
+
+def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict,
+                reasons: list) -> tuple[np.ndarray, dict]:
+    """A Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
+    bound on the bias of the image mean (module docstring)."""
+    var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
+    var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
+    q = 1.0 / (spp + 2)
+    floor = np.maximum(np.abs(a), np.abs(b)) ** 2 * q * (1 - q) / spp
+    var = np.maximum(np.nan_to_num(var_a), floor) + np.maximum(np.nan_to_num(var_b), floor)
+    var = np.maximum(var, 1e-12)           # two exact zeros: any difference is significant
+    p_pix = _p_value(absdiff / np.sqrt(var)).min(-1)
+    blocks_d, blocks_v = _block_sums(diff), _block_sums(var)
+    nb = blocks_d.shape[0] * blocks_d.shape[1]
+    p_blk = _p_value(np.abs(blocks_d) / np.sqrt(blocks_v)).min(-1)
+    n_tests = (diff.shape[0] * diff.shape[1] + nb) * len(names)
+    alpha = -math.expm1(math.log1p(-tiers.fail) / n_tests)       # Sidak, without cancellation
+    bad_blocks = int((p_blk < alpha).sum())
+    bias = np.abs(diff.mean(axis=(0, 1)))
+    numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
+                   bias=float(bias.max()))
+    # the map shows the stronger evidence at each pixel: its own test or its block's
+    p_map = p_pix.copy()
+    hb, wb = p_blk.shape
+    p_map[:hb * BLOCK, :wb * BLOCK] = np.minimum(
+        p_map[:hb * BLOCK, :wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK))))
+    if (bias > tiers.hard_fail).any():
+        reasons.append(f"the image mean differs by {bias.max():.3g} > hard_fail {tiers.hard_fail:g}")
+    if bad_blocks:
+        reasons.append(f"{bad_blocks} of {nb} blocks of {BLOCK}x{BLOCK} pixels differ (p < {alpha:.2g})")
+    return p_pix < alpha, {"score": np.minimum(-np.log10(np.maximum(p_map, 1e-300)), 300.0), "alpha": alpha}
 
 
 def _p_value(z: np.ndarray) -> np.ndarray:

@@ -622,72 +622,86 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     are written only with ``all_files`` (``--all-files``): ``plain.exr`` (the report shows
     ``plain.png``), each technique's image ``<stem>.exr`` (``plain`` times ``F`` for the
     techniques that shade through :class:`hzval.surface.Unshadowed`; ``<stem>.png`` shows it) and
-    the 8-bit PNGs of ``V`` and ``F`` (the EXRs hold them): 1.6x the bytes of a 2048 frame.
+    the 8-bit PNGs of ``V`` and ``F`` (the EXRs hold them).
 
-    Formats, each chosen to lose nothing a reader needs (the metrics were
-    computed in float32 before): EXRs in half float (2^-11 relative, finer
-    than the previews' 8 bits), the variance included: a third of the variances of a 2048
-    frame at 16 spp lie below half's smallest normal (6.1e-5), where half rounds them by up
-    to 2.3% (p99), far inside the estimate's own relative error, sqrt(2 / (spp - 1)) = 37%;
-    an image with R == G == B as one ``Y`` channel and an 8-bit grey PNG
-    (lossless); FLIP and visibility-difference maps as palette PNGs (exact). ``mask``: the
-    pixels a view's camera rays see; the layers' EXRs are NaN at the others.
+    Formats, each chosen to lose nothing a reader needs (the metrics were computed in float32
+    before; docs/ARCHITECTURE.md, "metrics.json"): EXRs in half float, ZIP (2^-11 relative,
+    finer than the previews' 8 bits; the variance's smallest values are rounded far inside the
+    estimate's own relative error, sqrt(2 / (spp - 1))); an image with R == G == B as one ``Y``
+    channel and an 8-bit grey PNG (lossless); FLIP and visibility-difference maps as palette PNGs
+    (exact). ``mask``: the pixels a view's camera rays see; the layers' EXRs are NaN at the others.
     """
     t0 = time.perf_counter()
-    folder = out / "frames" / name
-    jobs = []       # written on a thread per core: the encoders release the GIL (2 cores: 0.55x the time)
-
-    def exr(rel: dict, key: str, filename: str, channels):
-        jobs.append(partial(files.write_exr, folder / filename, channels, half=True, grey=True))
-        rel[key] = f"frames/{name}/{filename}"
-
-    def png(rel: dict, key: str, filename: str, make, *args):
-        jobs.append(partial(_write_png_of, folder / filename, make, *args))
-        rel[key] = f"frames/{name}/{filename}"
-
-    def shown(img, values=None):
-        # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
-        # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
-        return _shown(compare.display(img, scale)) if values is None else values
-
-    def as_is(pixels):
-        return pixels
-
-    def layer(values):
-        return values if mask is None else np.where(mask, values, np.float32(np.nan)).astype(np.float32)
-
-    rel = {}
-    exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
-    if all_files:
-        exr(rel, "plain", "plain.exr", {"RGB": plain.image})
-    if "image" in truth_frame.variance:
-        exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
-    png(rel, "truth_png", "truth.png", as_is, shown(truth_frame.image, truth_shown))
-    png(rel, "plain_png", "plain.png", as_is, shown(plain.image))
+    w = _FrameWriter(out / "frames" / name, f"frames/{name}", scale, mask)
+    rel = w.truth_files(truth_frame, plain, truth_shown, all_files)
     V = truth_frame.layers.get("visibility")
-    if V is not None:
-        exr(rel, "visibility", "visibility.exr", {"Y": layer(V)})
-        if all_files:
-            png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
-    per = {}
-    for t, frame, _, maps in compared:
-        stem, own = t.file_stem, {}
-        if all_files:
-            exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
-        png(own, "png", f"{stem}.png", as_is, shown(frame.image, maps.get("shown")))
-        png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
-        F = frame.layers.get("factor")
-        if F is not None:
-            exr(own, "factor", f"{stem}_factor.exr", {"Y": layer(F)})
-            if all_files:
-                png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
-            if V is not None:
-                png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
-        per[t.name] = own
+    per = {t.name: w.technique_files(t.file_stem, frame, maps, V, all_files) for t, frame, _, maps in compared}
     # Ctrl-C (or a writer's error): no writer outlives this frame to put a file into the staging
     # folder after run() has removed it
-    files.run_writers(jobs)
+    files.run_writers(w.jobs)
     return rel, per, time.perf_counter() - t0
+
+
+class _FrameWriter:
+    """The writers of one frame's files (:func:`_write_frame`), queued to run on a thread per core:
+    the encoders release the GIL (2 cores: 0.55x the time)."""
+
+    def __init__(self, folder: Path, prefix: str, scale: float, mask: np.ndarray | None):
+        self.folder, self.prefix, self.scale, self.mask = folder, prefix, scale, mask
+        self.jobs: list = []
+
+    def exr(self, rel: dict, key: str, filename: str, channels) -> None:
+        self.jobs.append(partial(files.write_exr, self.folder / filename, channels, half=True, grey=True))
+        rel[key] = f"{self.prefix}/{filename}"
+
+    def png(self, rel: dict, key: str, filename: str, make, *args) -> None:
+        self.jobs.append(partial(_write_png_of, self.folder / filename, make, *args))
+        rel[key] = f"{self.prefix}/{filename}"
+
+    def shown(self, img, values=None):
+        # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
+        # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
+        return _shown(compare.display(img, self.scale)) if values is None else values
+
+    def layer(self, values):
+        return values if self.mask is None else np.where(self.mask, values, np.float32(np.nan)).astype(np.float32)
+
+    def truth_files(self, truth_frame, plain, truth_shown, all_files: bool) -> dict:
+        """The truth's and the unshadowed render's files."""
+        rel: dict = {}
+        self.exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
+        if all_files:
+            self.exr(rel, "plain", "plain.exr", {"RGB": plain.image})
+        if "image" in truth_frame.variance:
+            self.exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
+        self.png(rel, "truth_png", "truth.png", _as_is, self.shown(truth_frame.image, truth_shown))
+        self.png(rel, "plain_png", "plain.png", _as_is, self.shown(plain.image))
+        V = truth_frame.layers.get("visibility")
+        if V is not None:
+            self.exr(rel, "visibility", "visibility.exr", {"Y": self.layer(V)})
+            if all_files:
+                self.png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
+        return rel
+
+    def technique_files(self, stem: str, frame, maps: dict, V, all_files: bool) -> dict:
+        """One technique's files, named after its ``stem``."""
+        own: dict = {}
+        if all_files:
+            self.exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
+        self.png(own, "png", f"{stem}.png", _as_is, self.shown(frame.image, maps.get("shown")))
+        self.png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
+        F = frame.layers.get("factor")
+        if F is not None:
+            self.exr(own, "factor", f"{stem}_factor.exr", {"Y": self.layer(F)})
+            if all_files:
+                self.png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
+            if V is not None:
+                self.png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
+        return own
+
+
+def _as_is(pixels):
+    return pixels
 
 
 def _write_png_of(path: Path, make, *args) -> None:
