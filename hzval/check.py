@@ -391,11 +391,17 @@ def summary(result: CheckResult) -> str:
 # The failure report
 # --------------------------------------------------------------------------
 
-def write_report(result: CheckResult, out: str | Path, *, command: str = "") -> Path:
-    """``out/index.html``: reference | new | difference for every image, failures first."""
+def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
+    """``out/index.html``: reference | new | difference for every image, failures first; the folder
+    held while it is written (:func:`hzval.files.output_folder`, ``force`` as there)."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write_report(result, out, files.portable_command(command, out))
+
+
+def _write_report(result: CheckResult, out: Path, command: str) -> Path:
     from hzval import backend, report
 
-    out = Path(out)
     order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
     items = []
     for i, r in enumerate(sorted(result.images, key=lambda r: (order[r.status], r.name))):

@@ -123,10 +123,16 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     return result, maps
 
 
-def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Path:
+def write(result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False) -> Path:
     """``out/metrics.json`` and ``out/index.html``: the external images as a technique beside the
-    sweep's truth (whose previews are copied in, so the report stands alone). Returns the index."""
+    sweep's truth (whose previews are copied in, so the report stands alone). Returns the index.
+    The folder is held while they are written (:func:`hzval.files.output_folder`)."""
     out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write(result, maps, out, command)
+
+
+def _write(result: dict, maps: list, out: Path, command: str) -> Path:
     sweep_dir = Path(result["against"])
     page_frames = []
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
