@@ -328,6 +328,7 @@ class Approximation(Technique):
             return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
         raw = external.read_layers(list(horizon_map))
         enc = (encoding or external.Encoding()).validate()
+        external.check_layers(raw, enc, horizon_map)
         if raw.shape[:2] != ctx.height.shape:
             raise InputError(horizon_map[0], f"is {raw.shape[1]}x{raw.shape[0]}, the height map "
                                              f"{ctx.height.shape[1]}x{ctx.height.shape[0]}")

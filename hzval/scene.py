@@ -270,6 +270,42 @@ def _height_beside(path: Path) -> str | None:
     return str(found[0]) if len(found) == 1 else None
 
 
+def _schema() -> dict:
+    """What a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
+    dataclasses each table fills (:func:`hzval.strict.schema_of`), and the top-level ``name``."""
+    from hzval import strict
+
+    azimuths = str | tuple[float, ...]
+    tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
+    return {"material": strict.schema_of(MaterialSpec), "camera": strict.schema_of(Camera),
+            "lookup": strict.schema_of(Lookup),
+            "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
+            "effects": {"list": tuple[str, ...], "interreflection_depth": int},
+            "samples": {"spp": int, "seed": int},
+            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float},
+            "tolerances": {"truth": tiers, "approx": tiers}}
+
+
+def check_file(data: dict, path: str | Path) -> None:
+    """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
+    a value of the wrong type: types are checked, not coerced (:mod:`hzval.strict`)."""
+    from hzval import strict
+
+    schema = _schema()
+    strict.check_keys(data, {"name": None, **schema}, path)
+    if "name" in data:
+        strict.check_value(data["name"], str | int, path, "name")
+    for table, keys in schema.items():
+        if table not in data:
+            continue
+        if table == "tolerances":
+            strict.check_table(data[table], {k: dict for k in keys}, path, table)
+            for kind, tiers in data[table].items():
+                strict.check_table(tiers, keys[kind], path, f"{table}.{kind}")
+        else:
+            strict.check_table(data[table], keys, path, table)
+
+
 def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
 
@@ -284,6 +320,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         raise InputError(path, "no such scene file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
+    check_file(data, path)
     try:
         mat = dict(data.get("material", {}))
         if "height" not in mat:
@@ -305,15 +342,15 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
             lookup=Lookup(**data.get("lookup", {})),
             light=Light(**light),
             effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
-            interreflection_depth=int(effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH)),
-            spp=int(samples.get("spp", 16)),
-            seed=int(samples.get("seed", 0)),
+            interreflection_depth=effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH),
+            spp=samples.get("spp", 16),
+            seed=samples.get("seed", 0),
             tolerances=dict(data.get("tolerances", {})),
             check=dict(data.get("check", {})),
             source=str(path),
         )
-    except TypeError as exc:   # an unknown key in a section
-        raise InputError(path, f"unknown setting ({exc})") from None
+    except TypeError as exc:   # check_file has refused unknown keys: what is left is a value's
+        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
         raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     return scene.validate()

@@ -60,6 +60,35 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
     return out[0], out[1]
 
 
+def _check_shape(metrics, engine, sweep_dir: Path) -> None:
+    """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
+    ``metrics.json`` is not of the shape :func:`hzval.sweep.run` writes (what :func:`score` reads)."""
+    def need(ok: bool, name: str, key: str, what: str) -> None:
+        if not ok:
+            raise InputError(sweep_dir / name, f"not a sweep's {name}: {key} must be {what}")
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    need(isinstance(engine, dict), "frames.json", "the file", "a JSON object")
+    need(number(engine.get("exposure")), "frames.json", "exposure", "a number")
+    size = engine.get("image_size")
+    need(isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
+         "frames.json", "image_size", "[width, height]")
+    frames = engine.get("frames")
+    need(isinstance(frames, list) and frames and all(
+        isinstance(f, dict) and isinstance(f.get("name"), str) and number(f.get("azimuth_deg"))
+        and number(f.get("elevation_deg")) for f in frames), "frames.json", "frames",
+        "a list of {name, azimuth_deg, elevation_deg}")
+    need(isinstance(metrics, dict), "metrics.json", "the file", "a JSON object")
+    swept = metrics.get("frames")
+    need(isinstance(swept, list) and len(swept) == len(frames) and all(
+        isinstance(f, dict) and isinstance(f.get("files"), dict) and isinstance(f["files"].get("truth"), str)
+        for f in swept), "metrics.json", "frames", f"a list of {len(frames)} frames, each with files.truth")
+    for key in ("material", "parameters", "exposure", "versions", "simulated"):
+        need(isinstance(metrics.get(key, {}), dict), "metrics.json", key, "an object")
+
+
 def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
     """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
     PNG decoded from sRGB and divided by the exposure."""
@@ -102,6 +131,7 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     if not frames_dir.is_dir():
         raise InputError(frames_dir, "no such folder of frames")
     metrics, engine = _sweep(sweep_dir)
+    _check_shape(metrics, engine, sweep_dir)
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
     todo = [(f, _find(frames_dir, f["name"])) for f in engine["frames"]]

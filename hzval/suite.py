@@ -438,7 +438,8 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
                 try:
                     rows[i] = future.result()
                 except Exception as exc:     # the worker died (KilledWorker), the scheduler was lost, ...
-                    rows[i] = _classify(tasks[i], exc, _started(client, tasks[i].topic), engine["started"])
+                    started = _started(client, tasks[i].topic) if tasks[i].topic else None
+                    rows[i] = _classify(tasks[i], exc, started, engine.get("started", time.time()))
                 bar.set_postfix_str(tasks[i].entry.name)
                 bar.update()
     finally:

@@ -231,7 +231,6 @@ def check_fits(scene, params: BakeParams) -> int:
     bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
     now; return the estimate."""
     rows, cols = material_shape(scene)
-    check_frame_pixels(scene, rows, cols)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
     need, have = estimate_peak_bytes(scene, rows, cols), bake.available_bytes()
@@ -239,6 +238,7 @@ def check_fits(scene, params: BakeParams) -> int:
         raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
                                "are available (fewer --spp, a smaller map or a larger machine)")
+    check_frame_pixels(scene, rows, cols)
     return need
 
 
