@@ -253,10 +253,11 @@ def portable_command(command: str, report_dir: str | os.PathLike) -> str:
         return command
     out = []
     for w in words:
-        flag, eq, value = w.partition("=") if w.startswith("--") else ("", "", w)
+        prefix, value = ("", w) if not (w.startswith("--") and "=" in w) else (w.partition("=")[0] + "=",
+                                                                               w.partition("=")[2])
         if value.startswith("/"):
             value = report_path(value, report_dir)
-        out.append(f"{flag}{eq}{value}" if eq else value)
+        out.append(prefix + value)
     return " ".join(shlex.quote(w) if w != "#" else w for w in out)
 
 

@@ -124,6 +124,7 @@ class Scene:
     def validate(self) -> "Scene":
         what = self.source or "scene"
         m, lt = self.material, self.light
+        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth")
         # values from TOML may be of any type: every number must be one (and finite) before it is compared
         for name, value in (("material.depth", m.depth), ("material.size", m.size),
                             ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
@@ -137,7 +138,6 @@ class Scene:
                 continue
             if not math.isfinite(value):
                 raise InputError(what, f"{name} must be a finite number, got {value}")
-        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth")
         if m.shading not in SHADINGS:
             raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
         if m.boundary not in cv.BOUNDARIES:
@@ -195,7 +195,8 @@ MAX_LIGHTS = 361
 def check_light_count(n: int, what: str = "--azimuths") -> int:
     """``n`` if it is at most :data:`MAX_LIGHTS`, else one line naming ``what``."""
     if n > MAX_LIGHTS:
-        raise InputError(what, f"{n:.4g} lights; at most {MAX_LIGHTS} (one-degree steps around the circle)")
+        count = f"{int(n)}" if n < 1e12 else f"{n:.3g}"
+        raise InputError(what, f"{count} lights; at most {MAX_LIGHTS} (one-degree steps around the circle)")
     return n
 
 

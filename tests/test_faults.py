@@ -47,6 +47,7 @@ def hzval(*argv, limit_gib: float | None = 4.0, timeout: float = 60, cwd=None):
 
 def one_line(err: str, *needles: str) -> None:
     """An error of the command line: one line, ``hzval: error:``, no traceback, naming each needle."""
+    err = err.strip()
     assert err.startswith("hzval: error:") and "\n" not in err and "Traceback" not in err, err
     for n in needles:
         assert n in err, (n, err)
@@ -382,7 +383,7 @@ def test_cluster_failures_are_told_apart(tmp_path, variant):
 
     (entry,) = suite.entries(["planks"], size=24, azimuths="-30,0,30", spp=4)
     task = suite.Task(entry, str(tmp_path / "planks"), sweep.Options(), None, "", None, topic="t")
-    killed = distributed.KilledWorker("k", "tcp://127.0.0.1:1")
+    killed = distributed.KilledWorker("k", "tcp://127.0.0.1:1", 0)
     never = suite._classify(task, killed, set(), time.time())
     assert never["status"] == "not run" and "before it started" in never["error"]
     died = suite._classify(task, killed, {"planks"}, time.time())
