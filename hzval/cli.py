@@ -105,7 +105,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_suite(sub)
     _add_materials(sub)
     for p in sub.choices.values():      # every command that writes a folder (hzval.files.output_folder)
-        if "--out" in p._option_string_actions:
+        if "--out" in p._option_string_actions or "--report" in p._option_string_actions:
             p.add_argument("--force", action="store_true",
                            help="write into an --out that holds files hzval did not write (they are kept)")
     return parser
@@ -531,7 +531,7 @@ def cmd_check(args) -> int:
     if failed or args.report:
         out = args.report or Path("reports") / "check"
         command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-        index = check.write_report(result, out, command=command)
+        index = check.write_report(result, out, command=command, force=args.force)
         print(f"report: {index}")
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
@@ -638,9 +638,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(_join_negative_values(argv))
     args.argv = argv
-    interrupts.terminate_as_interrupt()     # SIGTERM unwinds as Ctrl-C does: nothing left behind
     try:
-        return args.run(args)
+        with interrupts.terminate_as_interrupt():   # SIGTERM unwinds as Ctrl-C does: nothing left behind
+            return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)
         return exc.exit_code

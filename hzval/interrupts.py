@@ -33,10 +33,18 @@ def _raise_interrupted(signum, frame) -> None:
     raise errors.Interrupted(signum)
 
 
-def terminate_as_interrupt() -> None:
-    """SIGTERM raises :class:`hzval.errors.Interrupted` (main thread only; call it once, at start)."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _raise_interrupted)
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`hzval.errors.Interrupted` (main thread only; the
+    previous handler is put back at its end, for a caller that runs commands in its own process)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class _Hold:

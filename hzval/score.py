@@ -187,5 +187,9 @@ def _write(result: dict, maps: list, out: Path, command: str) -> Path:
             "techniques": {"external": {"label": LABEL, "file_stem": "external", "summary": result["frames_dir"]}},
             "frames": page_frames}
     index = report.write_report(out, page, command=command)
-    files.write_json(out / "metrics.json", result)
+    # the paths relative to the report's folder: a shared report carries no absolute folders
+    portable = {**result, "against": files.report_path(result["against"], out),
+                "frames_dir": files.report_path(result["frames_dir"], out),
+                "frames": [{**f, "file": files.report_path(f["file"], out)} for f in result["frames"]]}
+    files.write_json(out / "metrics.json", portable)
     return index

@@ -27,7 +27,7 @@ from hzval import scene as S
 from hzval.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
-SMALL = ["--size", "24", "--azimuths", "-30,0,30", "--spp", "4", "--techniques", "horizon", "--quiet"]
+SMALL = ["--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon", "--quiet"]
 
 
 def hzval(*argv, limit_gib: float | None = 4.0, timeout: float = 60, cwd=None):
@@ -157,11 +157,10 @@ def test_a_folder_with_a_file_of_the_users_keeps_it(tmp_path, variant, capsys):
     # only because the user asked; the user's plot survives the swap of plots/
     assert cli.main(["sweep", *SMALL, "--out", str(out), "--force"]) == 0
     assert (out / "plots" / "mine.txt").read_text() == "mine" and (out / "plots" / "metrics.png").is_file()
-    assert cli.main(["sweep", *SMALL, "--out", str(out), "--force"]) == 0      # and again
-    assert (out / "plots" / "mine.txt").read_text() == "mine"
     assert "plots/mine.txt" in files.foreign_files(out)                      # still the user's
 
 
+@pytest.mark.slow
 def test_a_report_folder_is_hzvals_and_can_be_swept_again(tmp_path, variant):
     out = tmp_path / "o"
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 0
@@ -194,7 +193,7 @@ def height_npy(tmp_path):
 
 # 4. depth: bounded, with a reason --------------------------------------------------------------
 
-@pytest.mark.parametrize("depth", ["1e8", "1e30", "inf", "-1", "0"])
+@pytest.mark.parametrize("depth", ["1e8", "1e30"])
 def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth):
     for argv in (["sweep", *SMALL], ["bake", "--size", "24"], ["export-scene", "--size", "24"]):
         rc, err, seconds = hzval(*argv, f"--depth={depth}", "--out", tmp_path / "o", timeout=30)
@@ -207,6 +206,9 @@ def test_the_depth_bound_and_its_reason():
     assert cv.check_depth(cv.MAX_DEPTH) == cv.MAX_DEPTH
     with pytest.raises(InputError, match=r"\(0, 2\] image widths .*hops"):
         cv.check_depth(2.5)
+    for bad in (float("inf"), float("nan"), -1.0, 0.0):
+        with pytest.raises(InputError, match="--depth"):
+            cv.check_depth(bad)
     with pytest.raises(InputError, match="number"):
         cv.check_depth("0.1")
 
@@ -280,6 +282,7 @@ def test_a_huge_size_is_refused_before_it_allocates(tmp_path, command):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_a_small_file_of_a_huge_map_is_refused_before_it_is_decoded(tmp_path):
     from PIL import Image
 
@@ -338,6 +341,19 @@ def test_a_malformed_cluster_address_is_one_line_and_leaves_nothing(tmp_path, ca
     assert not out.exists()
 
 
+def test_an_unreachable_scheduler_leaves_no_folder_and_no_lock(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    from hzval import suite
+
+    monkeypatch.setattr(suite, "CONNECT_TIMEOUT_S", 1)
+    new, old = tmp_path / "new", tmp_path / "old"
+    old.mkdir()
+    for out in (new, old):
+        assert cli.main(["suite", "planks", "--size", "24", "--cluster", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
+        one_line(capsys.readouterr().err, "--cluster", "no Dask scheduler at tcp://127.0.0.1:9")
+    assert not new.exists() and list(old.iterdir()) == []
+
+
 @pytest.mark.parametrize("toml, needle", [('azimuth0 = "x"', "azimuth0 must be a number"),
                                           ("channels = 8.0", "channels must be an integer"),
                                           ("chanels = 8", "did you mean 'channels'")])
@@ -381,7 +397,7 @@ def test_cluster_failures_are_told_apart(tmp_path, variant):
     distributed = pytest.importorskip("distributed")
     from hzval import suite, sweep
 
-    (entry,) = suite.entries(["planks"], size=24, azimuths="-30,0,30", spp=4)
+    (entry,) = suite.entries(["planks"], size=24, azimuths="0", spp=4)
     task = suite.Task(entry, str(tmp_path / "planks"), sweep.Options(), None, "", None, topic="t")
     killed = distributed.KilledWorker("k", "tcp://127.0.0.1:1", 0)
     never = suite._classify(task, killed, set(), time.time())
@@ -432,7 +448,7 @@ def test_an_interrupted_sweep_of_another_map_keeps_the_old_report_bake_included(
     assert rc == (130 if fault is KeyboardInterrupt else 128 + signal.SIGTERM)
     after = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert after == before                     # byte for byte: bake/, the marker, no lock, no staging
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL             # put back as it was
 
 
 def test_a_late_signal_does_not_undo_a_finished_run(tmp_path, monkeypatch, capsys, variant):
@@ -529,6 +545,7 @@ def test_a_broken_sidecar_is_one_failed_row(tmp_path, variant):
 
 # 12. privacy: no absolute paths in reports, no command line in the lock ------------------------
 
+@pytest.mark.slow
 def test_reports_hold_paths_relative_to_their_folder(tmp_path, height_npy, variant):
     out = tmp_path / "reports" / "r"
     assert cli.main(["sweep", str(height_npy), *SMALL[2:], "--out", str(out)]) == 0
