@@ -426,8 +426,7 @@ def cmd_bake(args) -> int:
         written = bake.write_bake(result, args.out, input_info=info)
         if args.mesh:
             m = mesh.displaced_mesh(height, params.depth, params.boundary)
-            with files.atomic_path(args.out / "mesh.ply") as tmp:
-                m.write_ply(str(tmp))
+            mesh.write_ply(m, args.out / "mesh.ply")
             written.append(args.out / "mesh.ply")
     total = time.perf_counter() - t0
     rows, cols = height.shape

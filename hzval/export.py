@@ -102,8 +102,7 @@ def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
     m = mesh.displaced_mesh(h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth",
                             name="surface")
     written = []
-    with files.atomic_path(out / "mesh.ply") as tmp:
-        m.write_ply(str(tmp))
+    mesh.write_ply(m, out / "mesh.ply")
     written.append(out / "mesh.ply")
     reflectance = _reflectance(scene, out, written)
     xml = _scene_xml(scene, rows, cols, float(h.max()) * mat.depth * cols, azimuth_deg, reflectance)

@@ -32,7 +32,10 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     material, ``retries=0``; a task that raises, or whose worker dies, is one
     failed material on the overview, never the end of the others (a worker's
     death is retried on another unless the scheduler has
-    ``distributed.scheduler.allowed-failures: 0``, as the local one has).
+    ``distributed.scheduler.allowed-failures: 0``, as the local one has). A task that never
+    returns is told apart (:func:`_classify`): a material whose report completed anyway is ok, one
+    that no worker started is "not run", one whose worker died or whose scheduler was lost while
+    it ran is failed. A local cluster listens on 127.0.0.1 only and serves no dashboard.
 
     Dask distributed was chosen over Ray after measuring both on this
     2-core machine (``benchmarks/bench_suite_engines.py``): a local cluster
@@ -480,7 +483,7 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
         return _failed(task.entry, "its worker died while sweeping it (killed, or out of memory)", None)
     lost = isinstance(exc, (OSError, distributed.CancelledError, TimeoutError)) or "cancel" in type(exc).__name__.lower()
     if lost:
-        if ran is False or started is None and not Path(task.out).exists():
+        if ran is False or (started is None and not Path(task.out).exists()):
             return _not_run(task.entry, f"the scheduler was lost before it started ({type(exc).__name__})")
         return _failed(task.entry, f"the scheduler was lost while it ran ({type(exc).__name__})", None)
     return _failed(task.entry, f"its task could not run: {type(exc).__name__}: {files.first_line(exc)}", None)

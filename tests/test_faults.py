@@ -324,6 +324,20 @@ def test_a_read_only_full_or_forbidden_out_is_one_line(tmp_path, capsys, monkeyp
     monkeypatch.setattr(files, "atomic_path", real)
 
 
+def test_a_mesh_on_a_full_disk_is_one_line(tmp_path):
+    """Mitsuba's PLY writer raises a RuntimeError of its own text on a full disk."""
+    from hzval import mesh
+
+    class Full:
+        def write_ply(self, path):
+            raise RuntimeError(f'[FileStream] "{path}": I/O error while attempting to write 12 bytes: '
+                               "No space left on device")
+
+    with pytest.raises(InputError, match="mesh.ply: No space left on device"):
+        mesh.write_ply(Full(), tmp_path / "mesh.ply")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_folder_that_cannot_be_made_is_one_line(tmp_path, capsys, monkeypatch):
     def failing(self, *a, **kw):
         raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(self))
