@@ -119,8 +119,7 @@ class BakeParams:
     directions: int = cv.CHANNEL_COUNT
 
     def validate(self) -> "BakeParams":
-        if not np.isfinite(self.depth) or self.depth <= 0:
-            raise InputError("--depth", f"must be a positive number of image widths, got {self.depth}")
+        cv.check_depth(self.depth, "--depth")
         if self.method not in METHODS:
             raise InputError("--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}")
         if (isinstance(self.directions, bool) or not isinstance(self.directions, (int, np.integer))
@@ -1097,7 +1096,8 @@ def read_bake(folder: str | Path) -> Bake:
 
 
 def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
-                input_info: dict, notices: list[str] | None = None, *, horizon: bool = True) -> tuple[Bake, bool]:
+                input_info: dict, notices: list[str] | None = None, *, horizon: bool = True,
+                write_to: str | Path | None = None) -> tuple[Bake, bool]:
     """Bake into ``folder``, or read the bake already there if it was made from the
     same input (``digest``) with the same parameters, holds what is asked for (``horizon``:
     the horizon and ambient maps, else the normal map alone) and its files are intact.
@@ -1106,7 +1106,8 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
     Every file of the cache must still have the SHA-256 that ``bake.json``
     recorded when it was written (:func:`write_bake`): a truncated or
     corrupted file, or a cache from before digests were recorded, is baked
-    anew, with one line saying why appended to ``notices``.
+    anew, with one line saying why appended to ``notices``. ``write_to``: where a new bake is
+    written (default ``folder``): a sweep stages it, so that a failed run leaves the old bake.
     """
     import json
 
@@ -1130,7 +1131,7 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
         if notices is not None:
             notices.append(f"{damaged}: the cached bake is damaged; baked it anew")
     result = bake(height, params, horizon=horizon)
-    write_bake(result, folder, input_info=input_info)
+    write_bake(result, folder if write_to is None else write_to, input_info=input_info)
     return result, False
 
 

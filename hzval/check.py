@@ -65,6 +65,7 @@ read as ``technique``; the defaults are :data:`DEFAULT_TIERS`)
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import time
 from dataclasses import dataclass, field
@@ -345,8 +346,17 @@ def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
 
 
 def _variants(scene) -> dict:
-    """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``."""
-    return {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
+    """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``; a
+    ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line."""
+    out = {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
+    known = {"truth", "technique", "approx", *technique.names(),
+             *(v.name for n in technique.names() for v in technique.get(n).check_variants())}
+    for table in scene.tolerances:
+        if table not in known:
+            near = difflib.get_close_matches(table, sorted(known), n=1)
+            raise InputError(scene.source or scene.name, f"unknown table [tolerances.{table}]"
+                                                          + (f"; did you mean [tolerances.{near[0]}]?" if near else ""))
+    return out
 
 
 def _former_reference(references: Path, scene: str, frame: str, entry) -> Path | None:
@@ -428,11 +438,17 @@ def summary(result: CheckResult) -> str:
 # The failure report
 # --------------------------------------------------------------------------
 
-def write_report(result: CheckResult, out: str | Path, *, command: str = "") -> Path:
-    """``out/index.html``: reference | new | difference for every image, failures first."""
+def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
+    """``out/index.html``: reference | new | difference for every image, failures first; the folder
+    held while it is written (:func:`hzval.files.output_folder`, ``force`` as there)."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write_report(result, out, files.portable_command(command, out))
+
+
+def _write_report(result: CheckResult, out: Path, command: str) -> Path:
     from hzval import backend, report
 
-    out = Path(out)
     order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
     items = []
     for i, r in enumerate(sorted(result.images, key=lambda r: (order[r.status], r.name))):

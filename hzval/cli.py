@@ -147,6 +147,10 @@ def _parser() -> argparse.ArgumentParser:
     _add_score(sub)
     _add_suite(sub)
     _add_materials(sub)
+    for p in sub.choices.values():      # every command that writes a folder (hzval.files.output_folder)
+        if "--out" in p._option_string_actions or "--report" in p._option_string_actions:
+            p.add_argument("--force", action="store_true",
+                           help="write into an --out that holds files hzval did not write (they are kept)")
     return parser
 
 
@@ -264,7 +268,7 @@ def cmd_views(args) -> int:
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     split = (lambda t: None if t is None else [v.strip() for v in t.split(",") if v.strip()])
     data = views.run(scene, out, views=split(args.views), lookups=split(args.lookups), progress=not args.quiet,
-                     command=command)
+                     command=command, force=args.force)
     names = sorted({n for r in data["rows"] for n in r["techniques"]})
     print(f"{'view':10} {'lookup':14} {'footprint':>9} {'parallax':>9}  " + "  ".join(f"{n:>9}" for n in names))
     for r in data["rows"]:
@@ -441,11 +445,23 @@ def load_material(args) -> tuple["np.ndarray", dict]:  # noqa: F821
     return hm.height, info
 
 
+def _sidecar_scene(args):
+    """The sidecar scene of HEIGHT (``gravel.toml`` beside ``gravel.png``), as the sweep reads it,
+    or ``None``."""
+    from hzval import scene as sc
+
+    if args.height is None or getattr(args, "scene", None) or sc.sidecar_of(args.height) is None:
+        return None
+    return sc.load_sidecar(sc.sidecar_of(args.height), args.height)
+
+
 def cmd_bake(args) -> int:
-    from hzval import bake, heightmap, materials, mesh
+    from hzval import bake, files, heightmap, materials, mesh
     from hzval.scene import material_defaults
 
-    defaults = material_defaults(_material_of(args) or materials.DEFAULT)
+    side = _sidecar_scene(args)
+    defaults = (material_defaults(_material_of(args) or materials.DEFAULT) if side is None else
+                {"depth": side.material.depth, "boundary": side.material.boundary})
     params = bake.BakeParams(depth=defaults["depth"] if args.depth is None else args.depth, radius=args.radius,
                              angles=args.angles, boundary=args.boundary or defaults["boundary"],
                              method=args.method, directions=args.directions).validate()
@@ -456,18 +472,16 @@ def cmd_bake(args) -> int:
         size = materials.DEFAULT_SIZE if args.size is None else args.size
         bake.check_fits("--size", size, size, params)
     t0 = time.perf_counter()
-    height, info = load_material(args)
-    t_load = time.perf_counter() - t0
-    result = bake.bake(height, params)
-    result.timings = {"load_s": t_load, **result.timings}
-    written = bake.write_bake(result, args.out, input_info=info)
-    if args.mesh:
-        from hzval import files
-
-        m = mesh.displaced_mesh(height, params.depth, params.boundary)
-        with files.atomic_path(args.out / "mesh.ply") as tmp:
-            m.write_ply(str(tmp))
-        written.append(args.out / "mesh.ply")
+    with files.output_folder(args.out, force=args.force):
+        height, info = load_material(args)
+        t_load = time.perf_counter() - t0
+        result = bake.bake(height, params)
+        result.timings = {"load_s": t_load, **result.timings}
+        written = bake.write_bake(result, args.out, input_info=info)
+        if args.mesh:
+            m = mesh.displaced_mesh(height, params.depth, params.boundary)
+            mesh.write_ply(m, args.out / "mesh.ply")
+            written.append(args.out / "mesh.ply")
     total = time.perf_counter() - t0
     rows, cols = height.shape
     how = (f"radius {params.radius}, {params.angles} bins, {params.directions} directions" if params.method == "seed"
@@ -493,7 +507,7 @@ def cmd_sweep(args) -> int:
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet)
+    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet, force=args.force)
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(sweep.summary_table(result))
@@ -534,7 +548,7 @@ def cmd_suite(args) -> int:
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
-                       variant=args.variant, command=command, progress=not args.quiet)
+                       variant=args.variant, command=command, progress=not args.quiet, force=args.force)
     print(suite.summary_table(result))
     s = result["suite"]
     print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
@@ -566,7 +580,7 @@ def cmd_check(args) -> int:
     if failed or args.out:
         out = args.out or Path("reports") / "check"
         command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-        index = check.write_report(result, out, command=command)
+        index = check.write_report(result, out, command=command, force=args.force)
         print(f"report: {index}")
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
@@ -583,6 +597,7 @@ def cmd_tradeoff(args) -> int:
     truth_spp = tradeoff.DEFAULT_TRUTH_SPP if args.truth_spp is None else args.truth_spp
     if truth_spp < 1:
         raise errors.InputError("--truth-spp", f"must be at least 1, got {truth_spp}")
+    tradeoff.check_fits(scene, truth_spp)     # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
     points, info = tradeoff.measure(scene, hm.height, truth_spp=truth_spp, only=args.only,
                                     progress=not args.quiet)
@@ -592,7 +607,7 @@ def cmd_tradeoff(args) -> int:
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     material = {"name": name, "source": hm.source, "digest": hm.digest, "depth": scene.material.depth,
                 "boundary": scene.material.boundary}
-    index = tradeoff.write_tradeoff(out, points, info, material=material, command=command)
+    index = tradeoff.write_tradeoff(out, points, info, material=material, command=command, force=args.force)
     print(tradeoff.table(points))
     rec = tradeoff.recommend(points)
     if rec:
@@ -611,14 +626,15 @@ def cmd_tradeoff(args) -> int:
 def cmd_export_scene(args) -> int:
     from hzval import export, scene as sc
 
-    base = sc.load_scene(args.scene) if args.scene else sc.Scene()
+    base = sc.load_scene(args.scene) if args.scene else (_sidecar_scene(args) or sc.Scene())
     scene = sc.override(base, height=_material_of(args), size=args.size, depth=args.depth,
                         boundary=args.boundary, elevation=args.elevation, effects=args.effects, spp=args.spp,
                         shading=args.shading)
     if not math.isfinite(args.azimuth):
         raise errors.InputError("--azimuth", f"must be a finite number of degrees, got {args.azimuth}")
+    export.check_fits(scene)                # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
-    written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth)
+    written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth, force=args.force)
     print(f"wrote {', '.join(str(p) for p in written)}; render it with: mitsuba {args.out / 'scene.xml'} "
           f"-o {args.out / 'mitsuba.exr'}")
     return errors.EXIT_OK
@@ -632,7 +648,7 @@ def cmd_score(args) -> int:
     result, maps = score.score(args.frames, args.against)
     out = args.out or args.frames / "score"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    index = score.write(result, maps, out, command=command)
+    index = score.write(result, maps, out, command=command, force=args.force)
     print("azimuth     FLIP   dE2000    RMSE  PSNR dB  floor FLIP")
     for f in result["frames"]:
         floor = (f.get("floor") or {}).get("flip_mean")
@@ -661,7 +677,9 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hzval import backend
+    import signal
+
+    from hzval import backend, files, interrupts
 
     argv = list(sys.argv[1:] if argv is None else argv)
     backend.prefer_working_llvm()           # before the parser imports the techniques, and so Dr.Jit
@@ -672,10 +690,14 @@ def main(argv: list[str] | None = None) -> int:
     # the LLVM is chosen above; the variant when the first renderer asks for it (hzval.backend.variant)
     backend.request(args.variant)
     try:
-        return args.run(args)
+        with interrupts.terminate_as_interrupt():   # SIGTERM unwinds as Ctrl-C does: nothing left behind
+            return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
+    except OSError as exc:                  # a read-only or full disk, no permission: one line, its path
+        print(f"hzval: error: {files.os_error(exc, '--out')}", file=sys.stderr)
+        return errors.EXIT_BAD_INPUT
+    except KeyboardInterrupt as exc:
         print("hzval: interrupted", file=sys.stderr)
-        return 130
+        return 128 + getattr(exc, "signum", signal.SIGINT)

@@ -42,6 +42,8 @@ from typing import Literal
 
 import numpy as np
 
+from hzval.errors import InputError
+
 Boundary = Literal["wrap", "open"]
 BOUNDARIES: tuple[str, ...] = ("wrap", "open")
 
@@ -126,6 +128,26 @@ def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
 def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
     """A pixel offset ``(drow, dcol)`` as a tangent-space ``(dx, dy)`` in texels."""
     return dcol, -drow
+
+
+#: The deepest relief hzval renders: ``depth`` (the world height of ``H = 1`` in image widths) at
+#: most 2, a relief twice as tall as the tile is wide. Why: the truth's shadow rays over a ``wrap``
+#: tile are traced in hops of at most half a tile (:mod:`hzval.truth`, "Boundaries"), and a ray
+#: leaving the lowest point at 10 degrees needs ``2 depth / tan(10 deg)`` hops, 23 at depth 2 and
+#: 10^9 at the 10^8 the audit tried (it did not end in 600 s); far past that, the relief in texels
+#: (``depth * cols``, float32) grows beyond the precision of a camera ray's hit. Real surfaces
+#: (the built-in materials: 0.02-0.12) are two orders of magnitude inside it.
+MAX_DEPTH = 2.0
+
+
+def check_depth(depth, what: str = "--depth") -> float:
+    """``depth`` if it is a number in ``(0, MAX_DEPTH]``, else one line naming ``what`` and why."""
+    if isinstance(depth, bool) or not isinstance(depth, (int, float, np.integer, np.floating)):
+        raise InputError(what, f"must be a number of image widths, got {depth!r}")
+    if not math.isfinite(depth) or not 0 < depth <= MAX_DEPTH:
+        raise InputError(what, f"must be in (0, {MAX_DEPTH:g}] image widths (the relief against the tile; "
+                               f"deeper, the truth's shadow rays would cross it in ever more hops), got {depth:g}")
+    return float(depth)
 
 
 def height_scale(depth: float, cols: int) -> float:

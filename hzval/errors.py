@@ -37,3 +37,12 @@ class EnvironmentProblem(HzvalError):
     """The machine cannot run hzval as it is; the message says what to do."""
 
     exit_code = EXIT_ENVIRONMENT
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM (or another stop signal) as an interrupt: the run unwinds as on Ctrl-C; the command
+    line exits ``128 + signum`` (:mod:`hzval.interrupts`)."""
+
+    def __init__(self, signum: int):
+        self.signum = int(signum)
+        super().__init__(f"signal {self.signum}")

@@ -55,12 +55,37 @@ __all__ = ["write_scene", "mitsuba_render", "FILES"]
 FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
 
 
-def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_deg: float = 0.0) -> list[Path]:
+def check_fits(scene: Scene) -> int:
+    """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
+    sweep's estimate (:func:`hzval.sweep.estimate_peak_bytes`, whose per-pixel term holds the mesh)
+    at one sample a pixel, since nothing is rendered; return it in bytes."""
+    import dataclasses
+
+    from hzval import bake, sweep
+
+    one = dataclasses.replace(scene, spp=1)
+    rows, cols = sweep.material_shape(one)
+    what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
+    need, have = sweep.estimate_peak_bytes(one, rows, cols), bake.available_bytes()
+    if need > have:
+        raise InputError(what, f"the mesh of {cols}x{rows} texels needs about {need / 2**30:.1f} GiB of memory "
+                               f"(estimated); {have / 2**30:.1f} GiB are available (a smaller map)")
+    return need
+
+
+def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_deg: float = 0.0,
+                force: bool = False) -> list[Path]:
     """Write the Mitsuba 3 scene of ``scene``'s truth for the light at ``azimuth_deg`` into ``out``.
 
     ``height``: the normalised height map ``(rows, cols)``. Returns the paths
-    written; every file is written under a temporary name and renamed.
+    written; every file is written under a temporary name and renamed, in a folder held as
+    :func:`hzval.files.output_folder` holds it (``force`` as there).
     """
+    with files.output_folder(out, force=force):
+        return _write_scene(scene, height, Path(out), azimuth_deg)
+
+
+def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
     backend.variant()
     scene = scene.validate()
     if scene.declares("interreflection") or scene.declares("specular") or scene.declares("ambient") \
@@ -70,8 +95,6 @@ def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_de
     h = np.asarray(height, np.float32)
     rows, cols = h.shape
     mat, light = scene.material, scene.light
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     margin = None
     if mat.boundary == "wrap":
         margin = mesh.wrap_margin(np.asarray(h, np.float64) * mat.depth * cols,
@@ -79,8 +102,7 @@ def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_de
     m = mesh.displaced_mesh(h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth",
                             name="surface")
     written = []
-    with files.atomic_path(out / "mesh.ply") as tmp:
-        m.write_ply(str(tmp))
+    mesh.write_ply(m, out / "mesh.ply")
     written.append(out / "mesh.ply")
     reflectance = _reflectance(scene, out, written)
     xml = _scene_xml(scene, rows, cols, float(h.max()) * mat.depth * cols, azimuth_deg, reflectance)

@@ -73,6 +73,10 @@ class Encoding:
     values: str = "sine"
 
     def validate(self, what: str = "--horizon-map") -> "Encoding":
+        from hzval import strict
+
+        for f, hint in strict.schema_of(Encoding).items():      # types checked, not coerced
+            strict.check_value(getattr(self, f), hint, what, f)
         if self.channels not in cv.DIRECTION_COUNTS:
             raise InputError(what, f"channels must be one of {cv.DIRECTION_COUNTS}, got {self.channels}")
         if self.direction not in ("ccw", "cw"):
@@ -100,10 +104,11 @@ class Encoding:
             raise InputError(path, "no such encoding file") from None
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
             raise InputError(path, f"not a readable TOML file ({files.first_line(exc)})") from None
-        try:
-            return cls(**data.get("encoding", data)).validate(str(path))
-        except TypeError as exc:
-            raise InputError(path, f"unknown setting ({exc})") from None
+        from hzval import strict
+
+        table = data.get("encoding", data) if set(data) <= {"encoding"} else data
+        strict.check_keys(table, strict.schema_of(cls), path, "encoding" if "encoding" in data else "")
+        return cls(**table).validate(str(path))
 
 
 def read_layers(paths: list[str | Path]) -> np.ndarray:
@@ -121,8 +126,9 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
             continue
         try:
             with Image.open(p) as im:
-                if im.mode not in ("RGBA", "RGBa", "I;16", "I;16B", "RGBA;16B") and im.mode != "RGB":
-                    im = im.convert("RGBA")
+                if im.mode not in ("RGBA", "RGBa", "RGBA;16B"):     # nothing converted: 4 channels or none
+                    raise InputError(p, f"a horizon layer must be an RGBA image (4 channels), got a PNG of "
+                                        f"mode {im.mode} ({len(im.getbands())} channel(s))")
                 arr = np.asarray(im)
         except FileNotFoundError:
             raise InputError(p, "no such horizon layer") from None
@@ -136,6 +142,34 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
     if len(shapes) != 1:
         raise InputError(paths[0], f"the layers differ in size: {sorted(shapes)}")
     return np.concatenate(out, axis=-1)
+
+
+#: What a channel may hold under each value encoding (module docstring, "Encoding"): the sine, the
+#: angle over 90 degrees and the signed square root of the sine lie in [-1, 1], the cosine of an
+#: elevation in [0, 1]; a tangent may be any finite number.
+VALUE_RANGES: dict[str, tuple[float, float]] = {"sine": (-1.0, 1.0), "cosine": (0.0, 1.0), "angle": (-1.0, 1.0),
+                                                "tangent": (-np.inf, np.inf), "sqrt": (-1.0, 1.0)}
+
+
+def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
+    """``raw`` (:func:`read_layers`) if it holds the layers ``enc`` declares (``channels / 4`` RGBA
+    layers, no more, no fewer) with finite values in the encoding's range (:data:`VALUE_RANGES`);
+    else one line naming the first layer and what is wrong."""
+    first = paths[0] if isinstance(paths, (list, tuple)) and paths else paths
+    layers = cv.layer_count(enc.channels)
+    if raw.shape[-1] != enc.channels:
+        raise InputError(first, f"{enc.channels} channels declared: {layers} RGBA layers, got "
+                                f"{raw.shape[-1] // cv.CHANNELS_PER_LAYER}")
+    bad = ~np.isfinite(raw)
+    if bad.any():
+        row, col, ch = (int(i[0]) for i in np.nonzero(bad))
+        raise InputError(first, f"{int(bad.sum())} values are not finite (NaN or infinity), the first at texel "
+                                f"({row}, {col}), channel {ch}")
+    lo, hi = VALUE_RANGES[enc.values]
+    vmin, vmax = float(raw.min()), float(raw.max())
+    if vmin < lo - 1e-6 or vmax > hi + 1e-6:
+        raise InputError(first, f"values from {vmin:g} to {vmax:g}; {enc.values} values lie in [{lo:g}, {hi:g}]")
+    return raw
 
 
 def _decode_values(v: np.ndarray, values: str) -> np.ndarray:
@@ -174,8 +208,10 @@ def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
 
 
 def load(paths: list[str | Path], enc: Encoding) -> np.ndarray:
-    """Read and convert an external bake: sines ``(rows, cols, D)`` in hzval's layout."""
-    return to_hzval(read_layers(paths), enc.validate())
+    """Read, check (:func:`check_layers`) and convert an external bake: sines ``(rows, cols, D)`` in
+    hzval's layout."""
+    enc = enc.validate()
+    return to_hzval(check_layers(read_layers(paths), enc, list(paths)), enc)
 
 
 #: A candidate must beat the declared convention's error by this share to be called a better match:

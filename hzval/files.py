@@ -58,6 +58,11 @@ def _umask() -> int:
 
 #: The lock file of an output folder (:func:`folder_lock`).
 LOCK_NAME = ".hzval-lock"
+#: The marker of a folder hzval wrote: JSON that lists the files it wrote there (:func:`output_folder`).
+MARKER_NAME = ".hzval"
+#: Names of hzval's own bookkeeping in an output folder (never a user's file, never listed).
+_OWN_PREFIXES = (".hzval-staging-", ".hzval-old-")
+_OWN_NAMES = (LOCK_NAME, MARKER_NAME, ".hzval-suite")
 
 
 @contextlib.contextmanager
@@ -65,36 +70,195 @@ def folder_lock(folder: str | os.PathLike, command: str = "") -> Iterator[Path]:
     """Hold ``folder`` for this run: an exclusive ``flock`` on ``folder/.hzval-lock``.
 
     A second run into the same folder fails at once with an :class:`InputError`
-    naming the run that holds it (host, pid, start time and command, which
-    the holder writes into the lock file). The kernel drops the lock when its
-    process ends, however it ends, so a crashed run leaves no stale lock. A
-    folder this creates and the run leaves empty is removed again: a run
-    refused for bad input leaves nothing behind.
+    naming the run that holds it (host, pid and start time, which the holder
+    writes into the lock file; never its command line, which may hold private
+    paths). The kernel drops the lock when its process ends, however it ends;
+    the file is removed when the run leaves. A folder this creates and the run
+    leaves empty is removed again. ``command`` is accepted and not written.
     """
-    import fcntl
-
     folder = Path(folder)
     created = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    fd = _take_lock(path, folder)
     try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (f"{socket.gethostname()} pid {os.getpid()}, since "
+                       f"{time.strftime('%Y-%m-%d %H:%M:%S')}").encode(), 0)
+        yield path
+    finally:
+        path.unlink(missing_ok=True)        # before the lock goes: a waiting run then makes a new file
+        os.close(fd)                        # releases the lock
+        if created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()              # only if empty
+
+
+def _take_lock(path: Path, folder: Path) -> int:
+    """An open descriptor of ``path`` holding its exclusive ``flock``. A holder that left removed the
+    file it locked: a lock on that unlinked file would hold nothing, so take the new one."""
+    import fcntl
+
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip() or "another run"
+            os.close(fd)
             raise InputError(folder, f"in use by another hzval run ({holder}); wait for it or choose "
                                      "another --out") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, (f"{socket.gethostname()} pid {os.getpid()}, since "
-                       f"{time.strftime('%Y-%m-%d %H:%M:%S')}: {command or 'hzval'}").encode(), 0)
-        yield path
+        try:
+            if os.fstat(fd).st_ino == os.stat(path).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def _is_own(name: str) -> bool:
+    """Whether an entry's name is hzval's bookkeeping (lock, marker, staging, an atomic write's temporary)."""
+    return (name in _OWN_NAMES or name.startswith(_OWN_PREFIXES)
+            or (name.startswith(".") and ".tmp" in name))
+
+
+def _listed(folder: Path) -> set[str] | None:
+    """The files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
+    try:
+        data = json.loads((folder / MARKER_NAME).read_text(encoding="utf-8"))
+        return {str(p) for p in data["files"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _walk_files(folder: Path) -> list[str]:
+    """Every file under ``folder`` (relative POSIX paths), hzval's bookkeeping and the folders of other
+    hzval runs (a subfolder with a marker of its own: a suite's or views' sweeps) left out."""
+    found = []
+    for root, dirs, names in os.walk(folder):
+        here = Path(root)
+        dirs[:] = [d for d in dirs if not _is_own(d) and not (here / d / MARKER_NAME).is_file()]
+        found += [(here / n).relative_to(folder).as_posix() for n in names if not _is_own(n)]
+    return sorted(found)
+
+
+def foreign_files(folder: str | os.PathLike) -> list[str]:
+    """The files under ``folder`` that hzval did not write (not listed in its marker), as relative paths."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    listed = _listed(folder) or set()
+    return [p for p in _walk_files(folder) if p not in listed]
+
+
+def _write_marker(folder: Path, foreign: set[str]) -> None:
+    """List every file under ``folder`` but the ``foreign`` ones as hzval's (the folder's marker)."""
+    own = [p for p in _walk_files(folder) if p not in foreign]
+    write_json(folder / MARKER_NAME, {"format": "hzval folder 1",
+                                      "note": "the files hzval wrote here; it replaces only these", "files": own})
+
+
+def _first_missing(folder: Path) -> Path | None:
+    """The outermost folder of ``folder`` and its parents that does not exist yet (what a run creates)."""
+    missing = None
+    for p in [folder, *folder.parents]:
+        if p.exists() or p.is_symlink():
+            break
+        missing = p
+    return missing
+
+
+def _check_folder(folder: Path) -> None:
+    """Refuse an ``--out`` that is, or lies in, a file."""
+    for p in [folder, *folder.parents]:
+        if p.exists():
+            if not p.is_dir():
+                raise InputError(folder, "is a file, not a folder" if p == folder else
+                                 f"cannot be a folder: {p} is a file")
+            return
+
+
+def os_error(exc: OSError, fallback: str | os.PathLike) -> InputError:
+    """An :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path."""
+    where = exc.filename if exc.filename is not None else fallback
+    return InputError(where, exc.strerror or first_line(exc))
+
+
+@contextlib.contextmanager
+def output_folder(folder: str | os.PathLike, *, force: bool = False,
+                  keep_on_interrupt: bool = False) -> Iterator[Path]:
+    """Hold an output folder for one run: refuse one that is not hzval's, lock it, clean up after.
+
+    ``folder`` must be new, empty, or hzval's: every file in it listed in its
+    marker (:data:`MARKER_NAME`, which a run writes as it leaves). A folder
+    with other files is refused with one line naming some, unless ``force``;
+    even then only hzval's files are replaced (:meth:`Staging.swap` keeps the
+    others). The run holds :func:`folder_lock`. A run that fails or is
+    interrupted leaves no folder it created (``keep_on_interrupt``: a Ctrl-C
+    keeps what it wrote, for the suite's overview of what finished); an
+    :class:`OSError` becomes one line naming the path (:func:`os_error`).
+    """
+    folder = Path(folder)
+    _check_folder(folder)
+    created = _first_missing(folder)
+    done = False
+    try:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise os_error(exc, folder) from None
+        with folder_lock(folder):
+            foreign = foreign_files(folder)
+            if foreign and not force:
+                more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+                raise InputError(folder, f"holds files hzval did not write ({', '.join(foreign[:3])}{more}): "
+                                         "choose a new or empty folder, or --force to write beside them")
+            Staging.remove_leftovers(folder)
+            try:
+                yield folder
+            except KeyboardInterrupt:
+                if keep_on_interrupt:
+                    _write_marker(folder, set(foreign))
+                    done = True
+                raise
+            _write_marker(folder, set(foreign))
+            done = True
+    except OSError as exc:
+        raise os_error(exc, folder) from None
     finally:
-        if created and [p.name for p in folder.iterdir()] == [LOCK_NAME]:
-            path.unlink(missing_ok=True)
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        os.close(fd)                 # releases the lock
+        if not done and created is not None:
+            shutil.rmtree(created, ignore_errors=True)
+
+
+def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -> str | None:
+    """``path`` as a report records it: relative to ``report_dir`` (``../maps/x.png`` for a file
+    beside it), so that a shared report does not carry the absolute folders (a home folder's user
+    name) it was made in; the path as given where no relative one exists (another drive)."""
+    if path is None:
+        return None
+    try:
+        return Path(os.path.relpath(Path(path).resolve(), Path(report_dir).resolve())).as_posix()
+    except ValueError:
+        return os.fspath(path)
+
+
+def portable_command(command: str, report_dir: str | os.PathLike) -> str:
+    """A command line with each absolute path in it (``/home/me/x.png``, ``--out=/home/me/r``) made
+    relative to ``report_dir`` (:func:`report_path`), for the reports that show it."""
+    import shlex
+
+    try:
+        words = shlex.split(command, comments=False)
+    except ValueError:
+        return command
+    out = []
+    for w in words:
+        prefix, value = ("", w) if not (w.startswith("--") and "=" in w) else (w.partition("=")[0] + "=",
+                                                                               w.partition("=")[2])
+        if value.startswith("/"):
+            value = report_path(value, report_dir)
+        out.append(prefix + value)
+    return " ".join(shlex.quote(w) if w != "#" else w for w in out)
 
 
 def file_digest(path: str | os.PathLike) -> str:
@@ -140,17 +304,26 @@ class Staging:
 
     def swap(self) -> None:
         """Put each staged top-level entry in place of ``out``'s entry of that name, whole: a folder
-        replaces the old folder (none of its old files survive), a file the old file. Each swap is
-        two renames, so a reader sees the old entry or the new one."""
+        replaces the old folder (none of hzval's old files in it survive), a file the old file. Each
+        swap is two renames, so a reader sees the old entry or the new one. Files that hzval did not
+        write (:func:`foreign_files`; there only with ``--force``) are moved into the new folder
+        first: only hzval's own files are ever replaced."""
+        foreign = foreign_files(self.out)
         for src in sorted(self.dir.iterdir()):
             dst = self.out / src.name
             if src.is_dir() and dst.is_dir():
+                for rel in foreign:
+                    if rel.startswith(src.name + "/") and not (self.out / rel).is_symlink():
+                        keep = self.dir / rel
+                        if not keep.exists():
+                            keep.parent.mkdir(parents=True, exist_ok=True)
+                            os.replace(self.out / rel, keep)
                 old = Path(tempfile.mkdtemp(prefix=".hzval-old-", dir=self.out))
                 os.replace(dst, old / src.name)
                 os.replace(src, dst)
                 shutil.rmtree(old, ignore_errors=True)
             else:
-                if dst.is_dir():
+                if dst.is_dir() and not dst.is_symlink():
                     shutil.rmtree(dst)
                 os.replace(src, dst)
         shutil.rmtree(self.dir, ignore_errors=True)
@@ -447,12 +620,33 @@ def unit_to_u8(values: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------
 
 def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
-    """Write ``data`` as indented JSON, atomically."""
-    text = json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n"
+    """Write ``data`` as indented strict JSON, atomically.
+
+    Strict: JSON has no NaN or infinity, and a value that is not finite is
+    refused with one line naming the file and the key (a caller writes
+    ``null`` for what it knows may be undefined), never written as ``NaN``.
+    """
+    try:
+        text = json.dumps(data, indent=2, sort_keys=False, default=_json_default, allow_nan=False) + "\n"
+    except ValueError:
+        raise InputError(path, f"{_non_finite_key(data) or 'a value'} is not a finite number; "
+                               "strict JSON has no NaN or infinity, so nothing was written") from None
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def _non_finite_key(data, where: str = "") -> str | None:
+    """The first key path (``frames[0].flip_mean``) of ``data`` that holds a NaN or infinity."""
+    if isinstance(data, (float, np.floating)):
+        return None if np.isfinite(data) else (where or "the value")
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, (list, tuple)) else ()
+    for k, v in items:
+        found = _non_finite_key(v, f"{where}[{k}]" if isinstance(k, int) else f"{where}.{k}".lstrip("."))
+        if found:
+            return found
+    return None
 
 
 def _json_default(obj):

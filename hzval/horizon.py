@@ -78,7 +78,7 @@ Two paths:
     (127.5): it stores 128, which decodes to a weight of ``1/255`` on layer 0
     and to 0 on layer 1 (:func:`hzval.conventions.encode_signed_weight`).
 
-    What the GPU path costs (``tests/test_approx.py`` derives and asserts it
+    What the GPU path costs (``tests/test_horizon.py`` derives and asserts it
     per light): ``s_gpu - s_exact = sum w^ (h^ - h) + sum (w^ - w) h``, so
     ``|F_gpu - F_exact| <= k (0.5/255 * sum(w^) + sum |w^_c - w_c| max h_c)``.
     Over all directions ``sum(w^) <= 1 + 3/255`` (the leaks); for elevations
@@ -309,6 +309,7 @@ class Horizon(FlatShading, Technique):
             return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
         raw = external.read_layers(list(horizon_map))
         enc = (encoding or external.Encoding()).validate()
+        external.check_layers(raw, enc, horizon_map)
         if raw.shape[:2] != ctx.height.shape:
             raise InputError(horizon_map[0], f"is {raw.shape[1]}x{raw.shape[0]}, the height map "
                                              f"{ctx.height.shape[1]}x{ctx.height.shape[0]}")

@@ -170,3 +170,18 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
         params["vertex_normals"] = mi.Float(vertex_normals(h, g, boundary).ravel())
     params.update()
     return mesh
+
+
+def write_ply(m, path) -> None:
+    """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.files.atomic_path`).
+    Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
+    line naming the file here (:class:`hzval.errors.InputError`)."""
+    from hzval import files
+    from hzval.errors import InputError
+
+    with files.atomic_path(path) as tmp:
+        try:
+            m.write_ply(str(tmp))
+        except RuntimeError as exc:
+            problem = files.first_line(exc).rpartition(": ")[2] or "cannot be written"
+            raise InputError(path, problem) from None

@@ -921,7 +921,7 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     plot_metrics(out / "plots" / "metrics.png", frames, views)
     plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames, views)
     plots = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
-    html = render_html(build_context(out, metrics, command, plots))
+    html = render_html(build_context(out, metrics, files.portable_command(command, out), plots))
     index = out / "index.html"
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")

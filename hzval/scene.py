@@ -124,6 +124,7 @@ class Scene:
     def validate(self) -> "Scene":
         what = self.source or "scene"
         m, lt = self.material, self.light
+        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth")
         # values from TOML may be of any type: every number must be one (and finite) before it is compared
         for name, value in (("material.depth", m.depth), ("material.size", m.size),
                             ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
@@ -137,8 +138,6 @@ class Scene:
                 continue
             if not math.isfinite(value):
                 raise InputError(what, f"{name} must be a finite number, got {value}")
-        if m.depth <= 0:
-            raise InputError(what, f"material.depth must be positive, got {m.depth}")
         if m.shading not in SHADINGS:
             raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
         if m.boundary not in cv.BOUNDARIES:
@@ -163,6 +162,7 @@ class Scene:
             raise InputError(what, f"light.elevation_deg must be in [-90, 90], got {lt.elevation_deg}")
         if not lt.azimuths_deg:
             raise InputError(what, "light.azimuths is empty")
+        check_light_count(len(lt.azimuths_deg), what if self.source else "--azimuths")
         unknown = [e for e in self.effects if e not in EFFECTS]
         if unknown or not self.effects:
             raise InputError(what, f"unknown or no effects {unknown}; choose from {', '.join(EFFECTS)}")
@@ -185,20 +185,51 @@ class Scene:
 # Reading and overriding
 # --------------------------------------------------------------------------
 
+#: The most lights a sweep renders: one-degree steps around the whole circle, both ends included.
+#: Each light is a frame (the truth, every technique, their comparisons and about ten files: 1 s and
+#: 5 MB at 512 x 512, 70 MB at 2048); beyond one degree apart, neighbouring frames differ by less
+#: than their own noise. The count is computed from START:STOP:STEP before any list is made.
+MAX_LIGHTS = 361
+
+
+def check_light_count(n: int, what: str = "--azimuths") -> int:
+    """``n`` if it is at most :data:`MAX_LIGHTS`, else one line naming ``what``."""
+    if n > MAX_LIGHTS:
+        count = f"{int(n)}" if n < 1e12 else f"{n:.3g}"
+        raise InputError(what, f"{count} lights; at most {MAX_LIGHTS} (one-degree steps around the circle)")
+    return n
+
+
 def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
-    """``"-60:60:15"`` (start:stop:step, stop included), ``"0,45,90"`` or a list, in degrees."""
+    """``"-60:60:15"`` (start:stop:step, stop included), ``"0,45,90"`` or a list, in degrees; finite,
+    at most :data:`MAX_LIGHTS` of them (counted before the list is made)."""
+    bad = InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}")
     if isinstance(text, (list, tuple)):
-        return tuple(float(a) for a in text)
-    try:
-        if ":" in text:
+        check_light_count(len(text), what)
+        if any(isinstance(a, bool) or not isinstance(a, (int, float)) for a in text):
+            raise InputError(what, f"expected a list of numbers of degrees, got {list(text)!r}")
+        values = tuple(float(a) for a in text)
+    elif not isinstance(text, str):
+        raise bad
+    elif ":" in text:
+        try:
             start, stop, step = (float(v) for v in text.split(":"))
-            if step <= 0 or stop < start:
-                raise ValueError
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
-            return tuple(start + i * step for i in range(n))
-        return tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}") from None
+        except ValueError:
+            raise bad from None
+        if not all(map(math.isfinite, (start, stop, step))) or step <= 0 or stop < start:
+            raise bad
+        count = math.floor((stop - start) / step + 1e-9) + 1
+        check_light_count(count, what)
+        values = tuple(start + i * step for i in range(int(count)))
+    else:
+        try:
+            values = tuple(float(v) for v in text.split(",") if v.strip())
+        except ValueError:
+            raise bad from None
+        check_light_count(len(values), what)
+    if not all(map(math.isfinite, values)):
+        raise bad
+    return values
 
 
 def _pairs(section: dict, keys) -> dict:
@@ -240,6 +271,44 @@ def _height_beside(path: Path) -> str | None:
     return str(found[0]) if len(found) == 1 else None
 
 
+def _schema() -> dict:
+    """What a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
+    dataclasses each table fills (:func:`hzval.strict.schema_of`), and the top-level ``name``."""
+    from hzval import strict
+
+    azimuths = str | tuple[float, ...]
+    tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
+    return {"material": strict.schema_of(MaterialSpec), "camera": strict.schema_of(Camera),
+            "lookup": strict.schema_of(Lookup),
+            "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
+            "effects": {"list": tuple[str, ...], "interreflection_depth": int},
+            "samples": {"spp": int, "seed": int},
+            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float},
+            # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
+            # names the registry knows: hzval.check checks them (scene imports no technique)
+            "tolerances": {"*": tiers}}
+
+
+def check_file(data: dict, path: str | Path) -> None:
+    """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
+    a value of the wrong type: types are checked, not coerced (:mod:`hzval.strict`)."""
+    from hzval import strict
+
+    schema = _schema()
+    strict.check_keys(data, {"name": None, **schema}, path)
+    if "name" in data:
+        strict.check_value(data["name"], str | int, path, "name")
+    for table, keys in schema.items():
+        if table not in data:
+            continue
+        if table == "tolerances":
+            strict.check_table(data[table], {k: dict for k in data[table]}, path, table)
+            for kind, tiers in data[table].items():
+                strict.check_table(tiers, keys["*"], path, f"{table}.{kind}")
+        else:
+            strict.check_table(data[table], keys, path, table)
+
+
 def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
 
@@ -254,6 +323,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         raise InputError(path, "no such scene file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
+    check_file(data, path)
     try:
         mat = dict(data.get("material", {}))
         if "height" not in mat:
@@ -275,15 +345,15 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
             lookup=Lookup(**data.get("lookup", {})),
             light=Light(**light),
             effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
-            interreflection_depth=int(effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH)),
-            spp=int(samples.get("spp", 16)),
-            seed=int(samples.get("seed", 0)),
+            interreflection_depth=effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH),
+            spp=samples.get("spp", 16),
+            seed=samples.get("seed", 0),
             tolerances=dict(data.get("tolerances", {})),
             check=dict(data.get("check", {})),
             source=str(path),
         )
-    except TypeError as exc:   # an unknown key in a section
-        raise InputError(path, f"unknown setting ({exc})") from None
+    except TypeError as exc:   # check_file has refused unknown keys: what is left is a value's
+        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
         raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     return scene.validate()

@@ -60,6 +60,35 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
     return out[0], out[1]
 
 
+def _check_shape(metrics, engine, sweep_dir: Path) -> None:
+    """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
+    ``metrics.json`` is not of the shape :func:`hzval.sweep.run` writes (what :func:`score` reads)."""
+    def need(ok: bool, name: str, key: str, what: str) -> None:
+        if not ok:
+            raise InputError(sweep_dir / name, f"not a sweep's {name}: {key} must be {what}")
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    need(isinstance(engine, dict), "frames.json", "the file", "a JSON object")
+    need(number(engine.get("exposure")), "frames.json", "exposure", "a number")
+    size = engine.get("image_size")
+    need(isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
+         "frames.json", "image_size", "[width, height]")
+    frames = engine.get("frames")
+    need(isinstance(frames, list) and frames and all(
+        isinstance(f, dict) and isinstance(f.get("name"), str) and number(f.get("azimuth_deg"))
+        and number(f.get("elevation_deg")) for f in frames), "frames.json", "frames",
+        "a list of {name, azimuth_deg, elevation_deg}")
+    need(isinstance(metrics, dict), "metrics.json", "the file", "a JSON object")
+    swept = metrics.get("frames")
+    need(isinstance(swept, list) and len(swept) == len(frames) and all(
+        isinstance(f, dict) and isinstance(f.get("files"), dict) and isinstance(f["files"].get("truth"), str)
+        for f in swept), "metrics.json", "frames", f"a list of {len(frames)} frames, each with files.truth")
+    for key in ("material", "parameters", "exposure", "versions", "simulated"):
+        need(isinstance(metrics.get(key, {}), dict), "metrics.json", key, "an object")
+
+
 def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
     """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
     PNG decoded from sRGB and divided by the exposure."""
@@ -102,6 +131,7 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     if not frames_dir.is_dir():
         raise InputError(frames_dir, "no such folder of frames")
     metrics, engine = _sweep(sweep_dir)
+    _check_shape(metrics, engine, sweep_dir)
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
     todo = [(f, _find(frames_dir, f["name"])) for f in engine["frames"]]
@@ -123,10 +153,16 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     return result, maps
 
 
-def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Path:
+def write(result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False) -> Path:
     """``out/metrics.json`` and ``out/index.html``: the external images as a technique beside the
-    sweep's truth (whose previews are copied in, so the report stands alone). Returns the index."""
+    sweep's truth (whose previews are copied in, so the report stands alone). Returns the index.
+    The folder is held while they are written (:func:`hzval.files.output_folder`)."""
     out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write(result, maps, out, command)
+
+
+def _write(result: dict, maps: list, out: Path, command: str) -> Path:
     sweep_dir = Path(result["against"])
     page_frames = []
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
@@ -151,5 +187,9 @@ def write(result: dict, maps: list, out: str | Path, *, command: str = "") -> Pa
             "techniques": {"external": {"label": LABEL, "file_stem": "external", "summary": result["frames_dir"]}},
             "frames": page_frames}
     index = report.write_report(out, page, command=command)
-    files.write_json(out / "metrics.json", result)
+    # the paths relative to the report's folder: a shared report carries no absolute folders
+    portable = {**result, "against": files.report_path(result["against"], out),
+                "frames_dir": files.report_path(result["frames_dir"], out),
+                "frames": [{**f, "file": files.report_path(f["file"], out)} for f in result["frames"]]}
+    files.write_json(out / "metrics.json", portable)
     return index

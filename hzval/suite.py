@@ -32,7 +32,10 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     material, ``retries=0``; a task that raises, or whose worker dies, is one
     failed material on the overview, never the end of the others (a worker's
     death is retried on another unless the scheduler has
-    ``distributed.scheduler.allowed-failures: 0``, as the local one has).
+    ``distributed.scheduler.allowed-failures: 0``, as the local one has). A task that never
+    returns is told apart (:func:`_classify`): a material whose report completed anyway is ok, one
+    that no worker started is "not run", one whose worker died or whose scheduler was lost while
+    it ran is failed. A local cluster listens on 127.0.0.1 only and serves no dashboard.
 
     Dask distributed was chosen over Ray after measuring both on this
     2-core machine (``benchmarks/bench_suite_engines.py``): a local cluster
@@ -91,6 +94,7 @@ class Entry:
     name: str
     scene: sc.Scene
     origin: str
+    error: str | None = None    # why it cannot be swept (a broken sidecar): its failed row, one line
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,8 @@ class Task:
     command: str
     threads: int | None         # Dr.Jit threads in the worker; None leaves them alone
     token: str = ""             # what DIR/.hzval-suite holds: a worker that reads it sees the caller's DIR
+    force: bool = False         # write beside files hzval did not write (hzval.files.output_folder)
+    topic: str = ""             # the Dask event topic of started tasks (_log_start); "" in this process
 
 
 # --------------------------------------------------------------------------
@@ -130,7 +136,7 @@ def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
             name = f"{base}-{n}"
         taken.add(name)
         scene = sc.override(e.scene, **overrides)
-        out.append(Entry(name, dataclasses.replace(scene, name=name), e.origin))
+        out.append(Entry(name, dataclasses.replace(scene, name=name), e.origin, e.error))
     return out
 
 
@@ -166,10 +172,15 @@ def _scene_entry(path: Path) -> Entry:
 
 
 def _height_entry(path: Path) -> Entry:
-    """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one."""
+    """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one. A sidecar
+    that cannot be used is that material's failed row, as a map that cannot be read is."""
     sidecar = sc.sidecar_of(path)
     if sidecar is not None:
-        return Entry(path.stem, sc.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
+        try:
+            return Entry(path.stem, sc.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
+        except InputError as exc:
+            return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())),
+                         f"{path} + {sidecar.name}", error=str(exc))
     return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
 
 
@@ -205,6 +216,9 @@ def sweep_material(task: Task) -> dict:
     material's own failure, so one bad material cannot take the others down."""
     entry, out = task.entry, Path(task.out)
     t0 = time.perf_counter()
+    if entry.error:
+        return _failed(entry, entry.error, 0.0)
+    _log_start(task)
     try:
         if task.token and _read(out.parent / TOKEN_FILE) != task.token:
             raise InputError(out.parent, f"this worker ({socket.gethostname()}) cannot see the suite's folder: "
@@ -214,7 +228,8 @@ def sweep_material(task: Task) -> dict:
             import drjit as dr
 
             dr.set_thread_count(task.threads)
-        result = sweep.run(entry.scene, out, options=task.options, command=task.command, progress=False)
+        result = sweep.run(entry.scene, out, options=task.options, command=task.command, progress=False,
+                           force=task.force)
         return summarise(entry, result)
     except errors.HzvalError as exc:
         return _failed(entry, str(exc), time.perf_counter() - t0)
@@ -223,9 +238,26 @@ def sweep_material(task: Task) -> dict:
                        traceback.format_exc())
 
 
-def _not_run(entry: Entry) -> dict:
-    return {"name": entry.name, "origin": entry.origin, "status": "not run",
-            "error": "not run: the suite was interrupted first", "seconds": None}
+def _not_run(entry: Entry, why: str = "the suite was interrupted first") -> dict:
+    return {"name": entry.name, "origin": entry.origin, "status": "not run", "error": f"not run: {why}",
+            "seconds": None}
+
+
+#: The Dask event topic on which a task says it has started (:func:`_log_start`), by the suite's pid.
+START_TOPIC = "hzval-suite-started-{pid}"
+
+
+def _log_start(task: Task) -> None:
+    """On a Dask worker, tell the scheduler that this material has started: a worker's death is then
+    told apart from the loss of workers before a material ran (:func:`_classify`)."""
+    if not task.topic:
+        return
+    try:
+        import distributed
+
+        distributed.get_worker().log_event(task.topic, {"name": task.entry.name})
+    except Exception:               # not on a worker, or the scheduler is gone: nothing to tell
+        pass
 
 
 def _read(path: Path) -> str | None:
@@ -287,7 +319,7 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
 # --------------------------------------------------------------------------
 
 def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, cluster: str | None = None,
-        variant: str | None = None, command: str = "", progress: bool = True) -> dict:
+        variant: str | None = None, command: str = "", progress: bool = True, force: bool = False) -> dict:
     """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
 
     ``workers``: worker processes on this machine, each sweeping one material at a time (see
@@ -295,30 +327,33 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
     between a material that crashes and the others;
     ``cluster``: a Dask scheduler's address instead (its workers decide). The overview is written
     once every material is in, failed ones included; the run holds ``out``
-    (:func:`hzval.files.folder_lock`) as each sweep holds its material's folder. With more than one
+    (:func:`hzval.files.output_folder`, ``force`` as there) as each sweep holds its material's
+    folder. With more than one
     worker, worker processes are spawned: a script that calls this must do so under
     ``if __name__ == "__main__":``. Ctrl-C stops the run with an overview of what finished (the rest
     marked "not run"), each finished material's report whole."""
     if workers < 0:
         raise InputError("--workers", f"must be 0 (this process) or more, got {workers}")
+    if cluster is not None:
+        check_address(cluster)
     out = Path(out).resolve()           # the tasks' paths must mean the same on every worker
-    out.mkdir(parents=True, exist_ok=True)
     options = options or sweep.Options()
     local = cluster is None
     threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 0 else None
     token = "" if local else f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
-    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token)
-             for e in items]
+    topic = "" if local and workers == 0 else START_TOPIC.format(pid=os.getpid())
+    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token,
+                  force, topic) for e in items]
     t0 = time.perf_counter()
     rows: list[dict | None] = [None] * len(tasks)
-    engine = {"name": "in-process"}
+    engine = {"name": "in-process", "started": time.time()}
 
     def overview(interrupted: bool = False) -> dict:
         done = [r if r is not None else _not_run(t.entry) for t, r in zip(tasks, rows)]
         return write_overview(out, done, command=command, engine=engine["name"], workers=workers if local else None,
                               cluster=cluster, seconds=time.perf_counter() - t0, interrupted=interrupted)
 
-    with files.folder_lock(out, command):
+    with files.output_folder(out, force=force, keep_on_interrupt=True):
         try:
             if token:
                 (out / TOKEN_FILE).write_text(token, encoding="utf-8")
@@ -332,6 +367,20 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         finally:
             (out / TOKEN_FILE).unlink(missing_ok=True)
         return overview()
+
+
+#: A Dask scheduler's address: ``tcp://HOST:PORT`` (or ``tls://``; ``HOST:PORT`` means tcp).
+ADDRESS = re.compile(r"(?:(?:tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})")
+
+
+def check_address(address: str) -> str:
+    """``address`` if it is a Dask scheduler's (:data:`ADDRESS`, a port up to 65535), else one line
+    naming ``--cluster`` and the value."""
+    m = ADDRESS.fullmatch(str(address))
+    if m is None or not 0 < int(m.group(2)) < 65536:
+        raise InputError("--cluster", f"{address!r} is not a Dask scheduler address: give tcp://HOST:PORT "
+                                      "(e.g. tcp://10.0.0.5:8786, the address dask scheduler prints)")
+    return address
 
 
 def _bar(total: int, progress: bool):
@@ -370,12 +419,14 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
     environ["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, **environ}):
         if address is None:
+            # on loopback only, and no dashboard: nothing of a local cluster is served to the network
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               dashboard_address=":0", silence_logs=logging.ERROR)
+                                               host=LOOPBACK, dashboard_address=None,
+                                               worker_dashboard_address=None, silence_logs=logging.ERROR)
             address = cluster.scheduler_address
         try:
             client = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
-        except OSError as exc:
+        except (OSError, ValueError, TypeError) as exc:
             if cluster is not None:
                 cluster.close()
             raise InputError("--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})") from None
@@ -389,9 +440,9 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
                 i = futures[future]
                 try:
                     rows[i] = future.result()
-                except Exception as exc:     # the worker died (KilledWorker) or the task could not run
-                    rows[i] = _failed(tasks[i].entry, f"the worker running it failed: {type(exc).__name__}: "
-                                                      f"{files.first_line(exc)}", None)
+                except Exception as exc:     # the worker died (KilledWorker), the scheduler was lost, ...
+                    started = _started(client, tasks[i].topic) if tasks[i].topic else None
+                    rows[i] = _classify(tasks[i], exc, started, engine.get("started", time.time()))
                 bar.set_postfix_str(tasks[i].entry.name)
                 bar.update()
     finally:
@@ -399,6 +450,57 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+#: Where a local cluster's scheduler, workers and nannies listen.
+LOOPBACK = "127.0.0.1"
+
+
+def _started(client, topic: str) -> set[str] | None:
+    """The materials whose tasks said they started (:func:`_log_start`); ``None`` if the scheduler
+    cannot say (it is gone)."""
+    try:
+        return {msg.get("name") for _, msg in client.get_events(topic)}
+    except Exception:
+        return None
+
+
+def _classify(task: Task, exc: BaseException, started: set[str] | None, since: float) -> dict:
+    """A material's row when its task did not return: its report if that completed all the same
+    (:func:`_completed`); else, by what failed, "not run" (no worker ever started it), failed with
+    "its worker died" (:class:`distributed.KilledWorker` of a started task), or failed or "not run"
+    with "the scheduler was lost"."""
+    import distributed
+
+    done = _completed(task, since)
+    if done is not None:
+        return done
+    name = task.entry.name
+    ran = None if started is None else name in started
+    if isinstance(exc, distributed.KilledWorker):
+        if ran is False:
+            return _not_run(task.entry, "the workers it was given died before it started")
+        return _failed(task.entry, "its worker died while sweeping it (killed, or out of memory)", None)
+    lost = isinstance(exc, (OSError, distributed.CancelledError, TimeoutError)) or "cancel" in type(exc).__name__.lower()
+    if lost:
+        if ran is False or (started is None and not Path(task.out).exists()):
+            return _not_run(task.entry, f"the scheduler was lost before it started ({type(exc).__name__})")
+        return _failed(task.entry, f"the scheduler was lost while it ran ({type(exc).__name__})", None)
+    return _failed(task.entry, f"its task could not run: {type(exc).__name__}: {files.first_line(exc)}", None)
+
+
+def _completed(task: Task, since: float) -> dict | None:
+    """The row of a material whose sweep wrote its whole report during this suite (``metrics.json``
+    swapped in after ``since``, a wall-clock time), though its task's result never came back."""
+    path = Path(task.out) / "metrics.json"
+    try:
+        if path.stat().st_mtime < since:
+            return None
+        import json
+
+        return summarise(task.entry, json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 # --------------------------------------------------------------------------
@@ -417,7 +519,8 @@ def _sort_key(row: dict) -> tuple:
 def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, workers: int | None,
                    cluster: str | None, seconds: float, interrupted: bool = False) -> dict:
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material."""
-    rows = sorted(rows, key=_sort_key)
+    rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
+    command = files.portable_command(command, out)
     for row in rows:
         if row["status"] == "ok":
             row["thumbs"] = _thumbnails(out, row)
@@ -438,6 +541,15 @@ def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, wo
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(html, encoding="utf-8")
     return result
+
+
+def _portable_origin(origin: str | None, out: Path) -> str | None:
+    """A row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
+    ``out`` (:func:`hzval.files.report_path`)."""
+    if not origin or origin == "built-in":
+        return origin
+    path, plus, rest = origin.partition(" + ")
+    return files.report_path(path, out) + (plus + rest if plus else "")
 
 
 def _thumbnails(out: Path, row: dict) -> dict:

@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval import backend, bake, camera, compare, files, heightmap, images, lookup, materials, report, shading
-from hzval import surface, technique, truth
+from hzval import interrupts, surface, technique, truth
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
@@ -214,9 +214,29 @@ def material_shape(scene) -> tuple[int, int]:
     return heightmap.probe_shape(spec.height)
 
 
+#: The most frame pixels (lights x the image's pixels) a sweep renders: 2^31, e.g. 128 lights at
+#: 4096 x 4096 or the 361 lights of MAX_LIGHTS at 2400 x 2400. A frame's files take about 17 bytes a
+#: pixel (72 MB at 2048 x 2048) and its renders about 0.5 us a pixel here: 2^31 is 36 GB of files and
+#: a quarter of an hour to hours of rendering, the most a report is worth waiting for.
+MAX_FRAME_PIXELS = 2 ** 31
+
+
+def check_frame_pixels(scene, rows: int, cols: int) -> int:
+    """Lights times pixels of a sweep of ``scene`` on a ``rows x cols`` map, if at most
+    :data:`MAX_FRAME_PIXELS`; else one line naming ``--azimuths``."""
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    n = len(scene.light.azimuths_deg) * H * W
+    if n > MAX_FRAME_PIXELS:
+        raise InputError("--azimuths", f"{len(scene.light.azimuths_deg)} lights of {W}x{H} pixels are {n:.3g} "
+                                       f"frame pixels; at most {MAX_FRAME_PIXELS:.3g} (fewer lights or a "
+                                       "smaller image)")
+    return n
+
+
 def check_fits(scene, params: BakeParams) -> int:
-    """Refuse, before anything is allocated, a sweep whose bake or whose estimated peak
-    (:func:`estimate_peak_bytes`) would not fit in the memory available now; return the estimate."""
+    """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
+    bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
+    now; return the estimate."""
     rows, cols = material_shape(scene)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
@@ -225,11 +245,13 @@ def check_fits(scene, params: BakeParams) -> int:
         raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
                                "are available (fewer --spp, a smaller map or a larger machine)")
+    check_frame_pixels(scene, rows, cols)
     return need
 
 
-def _set_up(scene, out: Path, options: Options) -> _Setup:
-    """Bake (or reuse the bake), build the truth and every selected technique; timed."""
+def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> _Setup:
+    """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
+    with the report), build the truth and every selected technique; timed."""
     backend.variant()
     chosen = technique.select(list(options.techniques) if options.techniques is not None else None, scene,
                               exclude=options.exclude)
@@ -242,11 +264,12 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     material = {"name": scene.name, "source": hm.source, "digest": hm.digest, "rows": rows, "cols": cols,
-                "path": hm.path}
+                "path": files.report_path(hm.path, out)}
     t0 = time.perf_counter()
     notices: list[str] = []
     horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
-    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices, horizon=horizon)
+    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices,
+                                     horizon=horizon, write_to=None if report_dir is None else report_dir / "bake")
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     the_truth = truth.Truth(scene, hm.height)
@@ -337,23 +360,26 @@ def _spread(values: np.ndarray) -> dict:
     return {"mean": float(values.mean()), "p50": float(q[0]), "p95": float(q[1]), "max": float(values.max())}
 
 
-def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True) -> dict:
+def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True,
+        force: bool = False) -> dict:
     """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content.
 
     All or nothing: the report (frames, plots, ``index.html``, ``metrics.json``,
     ``frames.json``) is written into a staging folder inside ``out`` and swapped
-    in whole at the end, so an error or Ctrl-C leaves ``out`` as it was (the bake
-    cache aside, which is whole by itself). The run holds ``out``
-    (:func:`hzval.files.folder_lock`): a second run into it fails at once,
-    naming this one.
+    in whole at the end, so an error, Ctrl-C or SIGTERM leaves ``out`` as it was,
+    its bake included (a new bake is staged too), and a new ``out`` not at all.
+    ``out`` must be new, empty or hzval's (:func:`hzval.files.output_folder`;
+    ``force`` writes beside other files, which are kept); the run holds it: a
+    second run into it fails at once. Signals are held from the swap on
+    (:func:`hzval.interrupts.held`).
     """
     out = Path(out)
     reset_peak_rss()                    # this sweep's own peak, even after others in this process
     try:
-        with files.folder_lock(out, command):
-            files.Staging.remove_leftovers(out)
+        with interrupts.held() as hold, files.output_folder(out, force=force):
             with files.Staging(out) as stage:
                 result = _run(scene, out, stage.dir, options, command, progress)
+                hold.start()            # the last signal check: from here the run completes
                 stage.swap()
     finally:
         backend.hand_back_freed_memory()    # what the sweep kept (RETAIN_BELOW_SHARE), for what follows
@@ -365,7 +391,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     from tqdm import tqdm
 
     t_start = time.perf_counter()
-    setup = _set_up(scene, out, options)
+    setup = _set_up(scene, out, options, report_dir)
     if setup.view_maps:
         setup.view["files"] = _write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)

@@ -213,6 +213,17 @@ def _timed_bake(height, params):
     return bk, best
 
 
+def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
+    """Refuse, before the map is generated or decoded, a tradeoff that would not fit in memory: the
+    sweep's estimate (:func:`hzval.sweep.check_fits`) at the converged truth's ``truth_spp``, the
+    most samples it holds; return the estimate in bytes."""
+    from hzval import sweep
+
+    spp = max(int(scene.spp), int(truth_spp))
+    return sweep.check_fits(dataclasses.replace(scene, spp=spp),
+                            bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
+
+
 def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, only: list[str] | None = None,
             progress: bool = False) -> tuple[list[Point], dict]:
     """Measure every setting of :func:`settings` (or those whose names contain one of ``only``)."""
@@ -362,11 +373,18 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
     plt.close(fig)
 
 
-def write_tradeoff(out: str | Path, points: list[Point], info: dict, *, material: dict, command: str) -> Path:
-    """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path."""
+def write_tradeoff(out: str | Path, points: list[Point], info: dict, *, material: dict, command: str,
+                   force: bool = False) -> Path:
+    """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path. The
+    folder is held while they are written (:func:`hzval.files.output_folder`, ``force`` as there)."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write_tradeoff(out, points, info, material, files.portable_command(command, out))
+
+
+def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, command: str) -> Path:
     from hzval import backend, report
 
-    out = Path(out)
     rec = recommend(points)
     data = {"material": material, "measurement": info, "recommendation": rec,
             "versions": backend.versions(), "command": command,

@@ -51,16 +51,24 @@ LOOKUPS: dict[str, lookup.Lookup] = {
 
 
 def run(scene, out: str | Path, *, views: list[str] | None = None, lookups: list[str] | None = None,
-        options=None, progress: bool = True, command: str = "") -> dict:
+        options=None, progress: bool = True, command: str = "", force: bool = False) -> dict:
     """Sweep ``scene`` from every view with every lookup into ``out``; write ``views.json`` and
     ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
     lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
-    mapping moves nothing, and a pixel covers one texel, where mips read level 0."""
-    from hzval import sweep
-
+    mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds
+    ``out`` (:func:`hzval.files.output_folder`, ``force`` as there): a run that fails leaves no
+    folder it created, an existing report's views that it did not reach as they were."""
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
     kinds = _pick(lookups, LOOKUPS, "--lookups")
+    with files.output_folder(out, force=force):
+        return _run(scene, out, chosen, kinds, options, progress, command, force)
+
+
+def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str, force: bool) -> dict:
+    """:func:`run`'s sweeps and pages, ``out`` held."""
+    from hzval import sweep
+
     rows = []
     runs = [(v, k) for v in chosen for k in kinds if not (v == "top" and k != kinds[0])]
     for i, (v, k) in enumerate(runs):
@@ -70,12 +78,13 @@ def run(scene, out: str | Path, *, views: list[str] | None = None, lookups: list
         if progress:
             print(f"hzval views: {i + 1}/{len(runs)}: {v}, {k}", flush=True)
         result = sweep.run(sc_v, folder, options=options or sweep.Options(), progress=False,
-                           command=f"{command} # view {v}, lookup {k}".strip())
+                           command=f"{command} # view {v}, lookup {k}".strip(), force=force)
         rows.append(_row(v, k, result, folder.relative_to(out) / "index.html"))
     material = rows[0]["material"] if rows else {}
     for r in rows:
         r.pop("material")
-    data = {"format": "hzval views 1", "material": material, "command": command, "rows": rows}
+    data = {"format": "hzval views 1", "material": material, "command": files.portable_command(command, out),
+            "rows": rows}
     files.write_json(out / "views.json", data)
     _write_page(out, data)
     return data

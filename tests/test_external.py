@@ -130,7 +130,7 @@ def test_encoding_from_toml_and_bad_layers(tmp_path):
     enc = Encoding.from_toml(tmp_path / "enc.toml")
     assert enc == Encoding(azimuth0=90.0, y="down", values="angle")
     (tmp_path / "bad.toml").write_text('[encoding]\nchanels = 8\n')
-    with pytest.raises(InputError, match="unknown setting"):
+    with pytest.raises(InputError, match="unknown key 'chanels' in \\[encoding\\]; did you mean 'channels'"):
         Encoding.from_toml(tmp_path / "bad.toml")
     with pytest.raises(InputError, match="values"):
         Encoding(values="cubic").validate()

@@ -321,8 +321,10 @@ def test_names_are_safe_folders_and_unique(tmp_path):
 def test_a_sidecar_that_names_another_material_is_refused(tmp_path):
     np.save(tmp_path / "x.npy", materials.generate("gravel", 16).height)
     (tmp_path / "x.toml").write_text('[material]\nheight = "spikes"\n')
-    with pytest.raises(InputError, match="sidecar scene of x.npy"):
-        suite.entries([tmp_path])
+    (entry,) = suite.entries([tmp_path])           # a broken sidecar is that material's failed row
+    assert "sidecar scene of x.npy" in entry.error
+    row = suite.sweep_material(suite.Task(entry, str(tmp_path / "o"), sweep.Options(), None, "", None))
+    assert row["status"] == "failed" and "sidecar scene of x.npy" in row["error"]
     assert cli.main(["sweep", str(tmp_path / "x.npy"), "--out", str(tmp_path / "o")]) == 2
 
 
