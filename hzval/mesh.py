@@ -148,7 +148,8 @@ def triangles(n_rows: int, n_cols: int) -> np.ndarray:
 def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
                    min_elevation_deg: float = MIN_ELEVATION_DEG, margin: int | None = None,
                    normals: bool = False, texcoords: bool = True, name: str = "displaced",
-                   tolerance: float | None = None, info: dict | None = None):
+                   tolerance: float | None = None, info: dict | None = None,
+                   budget_bytes: int | None = None):
     """The displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
     interpolation of the texel centres' heights, tessellated to within ``tolerance`` texels
     (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
@@ -161,7 +162,7 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
     (:func:`vertex_normals`), as the truth shades. Mitsuba interpolates them over each triangle for
     its shading frame (``si.sh_frame.n``); without them it shades with the
     triangles' own normals. Needs a Mitsuba variant to be set
-    (:func:`hzval.backend.variant`). ``info``: a dict that receives the cells' ``levels``
+    (:func:`hzval.backend.variant`). ``budget_bytes``: as :func:`tessellate`'s. ``info``: a dict that receives the cells' ``levels``
     (:func:`cell_levels`) and the ``tolerance`` used.
     """
     import mitsuba as mi
@@ -169,7 +170,8 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     g = grid(h, boundary, min_elevation_deg=min_elevation_deg, margin=margin)
-    positions, faces, levels = tessellate(g, DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    positions, faces, levels = tessellate(g, DEFAULT_TOLERANCE if tolerance is None else tolerance,
+                                          budget_bytes=budget_bytes)
     mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=normals, has_vertex_texcoords=texcoords)
     params = mi.traverse(mesh)
     params["vertex_positions"] = mi.Float(positions.ravel())
@@ -193,6 +195,9 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
 #: Default :func:`cell_levels` tolerance, texels of height: the largest vertical distance allowed
 #: between the triangles and the bilinear surface (docs/truth-surface.md, the convergence study).
 DEFAULT_TOLERANCE = 0.02
+#: A cell whose twist is at most this share of the largest height (and of 1 texel) is planar: the
+#: rounding of float32 heights (2^-24 of them) leaves twists of a few of their ulps.
+PLANAR_TWIST = 2.0 ** -20
 #: Most fans per side of one cell: a cell of twist ``t`` texels is then within ``t / 4096`` texels.
 MAX_LEVEL = 16
 
@@ -209,14 +214,15 @@ def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
     so that no point of its triangles is more than ``tolerance`` texels above or below the bilinear
     surface of its four corners.
 
-    0: two triangles along the diagonal whose ends differ least in height (the shorter diagonal in 3-D,
-    a rule that mirroring, rotating or transposing the map carries along); their largest distance from
-    the bilinear patch, at the cell's centre, is ``|d| / 4`` for twist ``d`` (:func:`twists`), 0 for a
-    planar cell. ``n >= 1`` (a power of two up to :data:`MAX_LEVEL`): ``n x n`` sub-cells, each four
-    triangles around its centre on the bilinear surface; the patch minus its fan is ``d' uv - d'v/2``
-    on the sub-cell's lower triangle (``d' = d / n^2``), at most ``|d| / (16 n^2)`` (at ``u = v = 1/4``),
-    and it is 0 along the sub-cells' edges, so neighbouring cells meet on the bilinear surface's own
-    (straight) cell edges whatever their levels. A cell whose two diagonals tie takes a fan.
+    0: a planar cell (twist ``d`` = 0 to the heights' rounding, :func:`twists`,
+    :data:`PLANAR_TWIST`), two triangles, either way round: they are the bilinear patch. ``n >= 1`` (a power of two up to :data:`MAX_LEVEL`): ``n x n`` sub-cells, each four
+    triangles around its centre, a point of the bilinear surface (the mean of its corners), so that no
+    diagonal is preferred; the patch minus its fan is ``d' (uv - v/2)`` on a sub-cell's lower triangle
+    (``d' = d / n^2``), at most ``|d| / (16 n^2)`` (at ``u = v = 1/4``), zero-mean, and 0 along the
+    sub-cells' edges, so neighbouring cells meet on the bilinear surface's own (straight) cell edges
+    whatever their levels. Two triangles of a twisted cell would be ``|d| / 4`` off at its centre
+    and biased by ``d / 12`` in volume, one way or the other by the diagonal: on a grainy photo that
+    bias moved horizon's |F - V| by 2.5% between tolerances 0.04 and 0.02 (docs/truth-surface.md).
     """
     if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be a positive number of texels, got {tolerance!r}")
@@ -224,9 +230,8 @@ def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
     need = np.sqrt(a / (16.0 * tolerance))
     level = np.where(need <= 1.0, 1.0, 2.0 ** np.ceil(np.log2(np.maximum(need, 1.0))))
     level = np.minimum(level, MAX_LEVEL).astype(np.uint8)
-    z = np.asarray(z, np.float64)
-    tie = np.abs(z[:-1, :-1] - z[1:, 1:]) == np.abs(z[:-1, 1:] - z[1:, :-1])
-    level[(a <= 4.0 * tolerance) & ~(tie & (a > 0))] = 0
+    # planar to the float32 heights' own rounding (a ramp of slope 0.3 has twists of 1e-8 texels)
+    level[a <= PLANAR_TWIST * max(1.0, float(np.max(np.abs(z), initial=0.0)))] = 0
     return level
 
 
@@ -265,12 +270,26 @@ def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarr
     return np.stack([x, y, zz], axis=-1).astype(np.float32)
 
 
-def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE):
+#: Resident bytes per triangle of the truth's mesh: its faces, its share of the vertices and Embree's
+#: BVH (at 2048 x 2048 with a margin of 178: 4.42 GiB against 1.59 GiB for 33.9M triangles against
+#: 11.3M, 134 bytes a triangle more).
+BYTES_PER_TRIANGLE = 140
+
+
+def triangle_count(levels: np.ndarray) -> int:
+    """Triangles of a tessellation of these cell levels (:func:`cell_levels`)."""
+    counts = np.bincount(levels.ravel(), minlength=MAX_LEVEL + 1).astype(np.int64)
+    n = np.arange(len(counts), dtype=np.int64)
+    return int(2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:]))
+
+
+def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int | None = None):
     """The triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
 
     Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
     first, then each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and
-    the cells' levels. A node on an edge that two fanned cells share is made by each (the same bits);
+    the cells' levels. ``budget_bytes``: refuse (:class:`hzval.errors.InputError`), before allocating
+    them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned cells share is made by each (the same bits);
     where levels differ, the finer cell's nodes lie on the coarser one's straight edge.
     """
     ny, nx = g.z.shape
@@ -278,20 +297,24 @@ def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE):
     parts = [np.stack([X, Y, g.z.astype(np.float32)], axis=-1).reshape(-1, 3)]
     del X, Y
     levels = cell_levels(g.z, tolerance)
+    if budget_bytes is not None and triangle_count(levels) * BYTES_PER_TRIANGLE > budget_bytes:
+        from hzval.errors import InputError
+
+        n = triangle_count(levels)
+        raise InputError("--truth-tolerance", f"the truth's surface at a tolerance of {tolerance:g} texels has "
+                         f"{n / 1e6:.0f}M triangles, about {n * BYTES_PER_TRIANGLE / 2**30:.1f} GiB with its "
+                         f"BVH; {budget_bytes / 2**30:.1f} GiB are available (a larger tolerance or a smaller map)")
     corner = (np.arange(ny - 1, dtype=np.uint32)[:, None] * np.uint32(nx)
               + np.arange(nx - 1, dtype=np.uint32)[None, :])
     base, faces = ny * nx, []
     flat = levels.ravel()
     two = np.flatnonzero(flat == 0)
     if two.size:
+        # planar: the two triangles of hzval.mesh.triangles, (a, d, b) and (b, d, e)
         a = corner.ravel()[two]
-        b, d = a + np.uint32(1), a + np.uint32(nx)
-        e = d + np.uint32(1)
-        z = g.z.astype(np.float64, copy=False).ravel()
-        main = np.abs(z[a] - z[e]) < np.abs(z[b] - z[d])       # a-e the shorter diagonal
         f = np.empty((two.size, 2, 3), np.uint32)
-        f[:, 0] = np.where(main[:, None], np.stack([a, d, e], 1), np.stack([a, d, b], 1))
-        f[:, 1] = np.where(main[:, None], np.stack([a, e, b], 1), np.stack([b, d, e], 1))
+        f[:, 0, 0], f[:, 0, 1], f[:, 0, 2] = a, a + np.uint32(nx), a + np.uint32(1)
+        f[:, 1, 0], f[:, 1, 1], f[:, 1, 2] = a + np.uint32(1), a + np.uint32(nx), a + np.uint32(nx + 1)
         faces.append(f.reshape(-1, 3))
     for n in sorted(int(k) for k in np.unique(flat) if k > 0):
         cells = np.flatnonzero(flat == n)

@@ -189,6 +189,7 @@ from hzval import conventions as cv
 from hzval import mesh as meshes
 from hzval.errors import InputError
 from hzval import shading
+from hzval import bake
 from hzval.bake import normal_map
 from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo, sample_positions
 from hzval.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
@@ -292,6 +293,7 @@ class Truth:
         info: dict = {}
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
                                           texcoords=False, tolerance=mat.truth_tolerance, info=info,
+                                          budget_bytes=bake.available_bytes(),
                                           margin=self.margin if mat.boundary == "wrap" else None)
         # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
         self.edge_level = meshes.edge_level(info["levels"])
