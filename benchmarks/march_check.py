@@ -18,12 +18,11 @@ Model (hzval's conventions, tangent-space texel units)
 * Heights ``z = H * depth * cols`` (float32, as hzval computes them, then float64 here).
   Texel ``(row, col)`` has its centre at ``x = col + 0.5``, ``y = rows - row - 0.5``; ``+z`` out
   of the surface.
-* The surface is the height field through the texel-centre heights, **triangulated exactly as
-  hzval's mesh is**: each quad of neighbouring centres ``(x0, y0) .. (x0 + 1, y0 + 1)`` is split
-  along its diagonal from ``(x0, y0)`` to ``(x0 + 1, y0 + 1)`` (the line ``x - y = const``) into
-  a lower-right triangle (``fx >= fy``) and an upper-left one (``fy > fx``), with ``fx, fy`` the
-  offsets inside the quad. Bilinear patches are *not* used: on the same triangles the two sides
-  should agree to the sampling noise alone.
+* The surface is the **bilinear** height field through the texel-centre heights: on each quad of
+  neighbouring centres ``(x0, y0) .. (x0 + 1, y0 + 1)``, ``z = z00 + a fx + b fy + c fx fy`` with
+  ``fx, fy`` the offsets inside the quad (the surface the techniques' bilinear filter reads, and
+  the one hzval's mesh approximates to its ``truth_tolerance``, docs/truth-surface.md). The two
+  sides should agree to the sampling noise and that tolerance.
 * ``wrap``: the tile repeats endlessly in x and y. ``open``: the tile alone covers
   ``[0, cols] x [0, rows]``; between the border and the outermost centres (half a texel) the
   surface is flat at the edge heights; outside there is nothing (a camera ray that leaves sees
@@ -39,23 +38,23 @@ Model (hzval's conventions, tangent-space texel units)
   ``azimuth_deg`` and ``elevation_deg`` (cross-checked against ``frames.json``'s
   ``light_direction``). A hard (directional) light; for a ``soft`` light the centre direction
   is used and a note says so (the soft penumbrae then count as disagreement).
-* Visibility of a hit: 0 if ``L.z <= 0``; 0 if the hit triangle's geometric normal faces away
-  from the light (``n.L <= 0``, self-shadow); else the shadow ray from ``(x, y, surface + lift)``
+* Visibility of a hit: 0 if ``L.z <= 0``; 0 if the bilinear surface's own normal there faces
+  away from the light (``n.L <= 0``, self-shadow); else the shadow ray from ``(x, y, surface + lift)``
   toward ``L`` is occluded (0) if it is anywhere below the surface before it rises above the
   highest point (``open``: or leaves the tile, then it escapes); else 1. A pixel's ``V`` is the
   mean over its samples.
 
 The march
 ---------
-Exact and step-free: along a ray the height field is piecewise linear between the ray's
-crossings of the three families of mesh edges (``x - 0.5 = k``, ``y - 0.5 = k`` and
-``x - y = k``), so ``f(t) = ray_z(t) - surface(t)`` is linear between consecutive crossings.
-All rays advance together (NumPy, chunks of :data:`CHUNK` rays, the finished ones compacted
-away) from crossing to crossing, a three-way merge of arithmetic sequences; each piece takes its
-triangle's plane from its midpoint, and the first piece whose end has ``f <= 0`` holds the hit,
-found by linear interpolation (exact to rounding; no bisection is needed). Camera rays start
-where they descend to ``z_max`` (or at the eye, if it is below; a ray above ``z_max`` that does
-not descend misses) and end where they reach ``z_min`` (``open``: or leave the tile). A camera
+Exact and step-free: along a ray the bilinear field is a quadratic in ``t`` between the ray's
+crossings of the two families of cell edges (``x - 0.5 = k``, ``y - 0.5 = k``), so ``f(t) = ray_z(t)
+- surface(t)`` is a quadratic there too. All rays advance together (NumPy, chunks of :data:`CHUNK`
+rays, the finished ones compacted away) from crossing to crossing, a two-way merge of arithmetic
+sequences; each piece takes its cell from its midpoint and its quadratic measured from the piece's
+start; the first root in a piece (the stable quadratic formula) is the hit, and a shadow ray is
+blocked where the piece's ends or its parabola's lowest point are below the surface. Camera rays
+start where they descend to ``z_max`` (or at the eye, if it is below; a ray above ``z_max`` that
+does not descend misses) and end where they reach ``z_min`` (``open``: or leave the tile). A camera
 ray that enters *below* the surface (the side of an ``open`` tile, or an eye under it) hits where
 it first comes back through it (the underside; such hits are counted in ``underside``). A ray
 that neither descends nor rises above the relief is given up after :data:`MAX_TILES` tile
@@ -234,17 +233,13 @@ class _Field:
         g = self.flat
         return g[r0 + i0], g[r0 + i1], g[r1 + i0], g[r1 + i1]
 
-    def plane(self, X: np.ndarray, Y: np.ndarray):
-        """The triangle holding lattice points ``(X, Y)``: ``(i, j, z00, a, b)`` with the plane
-        ``z = z00 + a (X - i) + b (Y - j)``. Points on the diagonal take the lower-right one."""
+    def patch(self, X: np.ndarray, Y: np.ndarray):
+        """The bilinear patch holding lattice points ``(X, Y)``: ``(i, j, z00, a, b, c)`` with
+        ``z = z00 + a fx + b fy + c fx fy``, ``fx = X - i``, ``fy = Y - j`` (``c`` the cell's twist)."""
         i = np.floor(X)
         j = np.floor(Y)
-        fx, fy = X - i, Y - j
         z00, z10, z01, z11 = self.corners(i.astype(np.int64), j.astype(np.int64))
-        upper = fy > fx
-        a = np.where(upper, z11 - z01, z10 - z00)
-        b = np.where(upper, z01 - z00, z11 - z10)
-        return i, j, z00, a, b
+        return i, j, z00, z10 - z00, z01 - z00, z00 - z10 - z01 + z11
 
     def inside(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
         if self.wrap:
@@ -295,24 +290,19 @@ def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.n
         return (t_hit, under) if first else blocked
     ox, oy, oz = O[idx, 0].copy(), O[idx, 1].copy(), O[idx, 2].copy()
     dx, dy, dz = D[idx, 0].copy(), D[idx, 1].copy(), D[idx, 2].copy()
-    ow, dw = ox - oy, dx - dy
     tc, tend = t0[idx].astype(np.float64), t1[idx].astype(np.float64)
     kx, sx, tx = _crossings(ox, dx, tc)
     ky, sy, ty = _crossings(oy, dy, tc)
-    kw, sw, tw = _crossings(ow, dw, tc)
     sign0 = np.zeros(len(idx))          # the side of the surface the ray starts on (first mode)
-    state = [idx, ox, oy, oz, dx, dy, dz, ow, dw, tc, tend, kx, sx, tx, ky, sy, ty, kw, sw, tw, sign0]
+    state = [idx, ox, oy, oz, dx, dy, dz, tc, tend, kx, sx, tx, ky, sy, ty, sign0]
     fresh = True
     while len(state[0]):
-        (idx, ox, oy, oz, dx, dy, dz, ow, dw, tc, tend, kx, sx, tx, ky, sy, ty, kw, sw, tw,
-         sign0) = state
-        tn = np.minimum(np.minimum(tx, ty), np.minimum(tw, tend))
-        tm = 0.5 * (tc + tn)
-        i, j, z00, a, b = field.plane(ox + tm * dx, oy + tm * dy)
-        c0 = oz - z00 - a * (ox - i) - b * (oy - j)
-        c1 = dz - a * dx - b * dy
-        fc = c0 + tc * c1
-        fn = c0 + tn * c1
+        idx, ox, oy, oz, dx, dy, dz, tc, tend, kx, sx, tx, ky, sy, ty, sign0 = state
+        tn = np.minimum(np.minimum(tx, ty), tend)
+        c0, c1, c2 = _piece(field, ox, oy, oz, dx, dy, dz, tc, tn)
+        span = tn - tc
+        fc = c0
+        fn = c0 + span * (c1 + span * c2)
         if first:
             if fresh:
                 # below only by more than rounding (a ray started on z_max over a flat map is above)
@@ -320,36 +310,70 @@ def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.n
                 at_start = fc == 0
             else:
                 at_start = np.zeros(len(idx), bool)
-            crossed = at_start | (sign0 * fn <= 0)
+            s_hit = _first_root(c0, c1, c2, span)
+            crossed = at_start | np.isfinite(s_hit) | (sign0 * fn <= 0)
             if crossed.any():
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    w = np.where(fc != fn, fc / (fc - fn), 0.0)
-                th = tc + (tn - tc) * np.clip(w, 0.0, 1.0)
+                    w = np.clip(np.where(fc != fn, fc / (fc - fn), 0.0), 0.0, 1.0)
+                # no root in the piece by rounding, yet a change of sign: the chord's
+                th = tc + np.where(np.isfinite(s_hit), s_hit, span * w)
                 th = np.where(at_start, tc, th)
                 t_hit[idx[crossed]] = th[crossed]
                 under[idx[crossed]] = sign0[crossed] < 0
             done = crossed | (tn >= tend)
         else:
-            below = (fn < 0) | (fc < 0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sv = np.where(c2 > 0, -c1 / (2.0 * c2), -1.0)       # the parabola's lowest point
+            inner = (sv > 0) & (sv < span)
+            fv = np.where(inner, c0 + sv * (c1 + sv * c2), np.inf)
+            below = (fn < 0) | (fc < 0) | (fv < 0)
             blocked[idx[below]] = True
             done = below | (tn >= tend)
         fresh = False
         # advance past the crossing(s) at tn
-        hit_x, hit_y, hit_w = tx <= tn, ty <= tn, tw <= tn
+        hit_x, hit_y = tx <= tn, ty <= tn
         kx = kx + np.where(hit_x, sx, 0.0)
         ky = ky + np.where(hit_y, sy, 0.0)
-        kw = kw + np.where(hit_w, sw, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             tx = np.where(hit_x, (kx - ox) / dx, tx)
             ty = np.where(hit_y, (ky - oy) / dy, ty)
-            tw = np.where(hit_w, (kw - ow) / dw, tw)
         tc = tn
-        state = [idx, ox, oy, oz, dx, dy, dz, ow, dw, tc, tend, kx, sx, tx, ky, sy, ty, kw, sw, tw,
-                 sign0]
+        state = [idx, ox, oy, oz, dx, dy, dz, tc, tend, kx, sx, tx, ky, sy, ty, sign0]
         if done.any():
             keep = ~done
             state = [s[keep] for s in state]
     return (t_hit, under) if first else blocked
+
+
+def _piece(field: _Field, ox, oy, oz, dx, dy, dz, tc, tn):
+    """``f(s) = ray z - surface z = c0 + c1 s + c2 s^2`` for ``s = t - tc`` on the piece ``[tc, tn]``
+    of each ray, inside one cell (found at the piece's midpoint): the bilinear patch along a line is
+    a quadratic (``c2 = -c dx dy``), here measured from the piece's start for its rounding's sake."""
+    tm = 0.5 * (tc + tn)
+    i, j, z00, a, b, c = field.patch(ox + tm * dx, oy + tm * dy)
+    px, py = ox + tc * dx - i, oy + tc * dy - j
+    c0 = oz + tc * dz - (z00 + a * px + b * py + c * px * py)
+    c1 = dz - a * dx - b * dy - c * (px * dy + py * dx)
+    c2 = -c * dx * dy
+    return c0, c1, c2
+
+
+def _first_root(c0, c1, c2, span):
+    """The smallest ``s`` in ``[0, span]`` with ``c0 + c1 s + c2 s^2 = 0`` (NaN if none): the stable
+    form of the quadratic formula (Numerical Recipes 5.6), the linear root where ``c2`` is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = c1 * c1 - 4.0 * c2 * c0
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        q = -0.5 * (c1 + np.where(c1 >= 0, sq, -sq))
+        quad = c2 != 0
+        r1 = np.where(quad, q / c2, np.where(c1 != 0, -c0 / c1, np.nan))
+        r2 = np.where(quad, c0 / q, np.nan)
+        # a root a rounding's width before the piece's start is at its start
+        slack = 1e-12 * (1.0 + span)
+        ok = lambda r: (disc >= 0) & np.isfinite(r) & (r >= -slack) & (r <= span)
+        r1, r2 = np.where(ok(r1), r1, np.inf), np.where(ok(r2), r2, np.inf)
+    r = np.clip(np.minimum(r1, r2), 0.0, None)
+    return np.where(np.isfinite(r), r, np.nan)
 
 
 def _to_lattice(P: np.ndarray) -> np.ndarray:
@@ -411,9 +435,10 @@ def surface(height_texels: np.ndarray, boundary: str, x: np.ndarray, y: np.ndarr
 
 
 def _surface(field: _Field, X: np.ndarray, Y: np.ndarray):
-    i, j, z00, a, b = field.plane(X, Y)
-    z = z00 + a * (X - i) + b * (Y - j)
-    n = _unit(np.stack([-a, -b, np.ones_like(a)], axis=-1))
+    i, j, z00, a, b, c = field.patch(X, Y)
+    fx, fy = X - i, Y - j
+    z = z00 + a * fx + b * fy + c * fx * fy
+    n = _unit(np.stack([-(a + c * fy), -(b + c * fx), np.ones_like(a)], axis=-1))
     out = ~field.inside(X, Y)
     z = np.where(out, np.nan, z)
     n[out] = np.nan

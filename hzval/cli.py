@@ -223,12 +223,23 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
+    _add_truth_tolerance_flag(p)
     _add_view_flags(p)
     _add_bake_flags(p)
     p.add_argument("--all-files", action="store_true",
                    help="also write each frame's files that the others determine: the unshadowed render and "
                         "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
     _add_technique_args(p)
+
+
+def _add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
+    """``--truth-tolerance``: how closely the truth's triangles follow the bilinear surface."""
+    from hzval import mesh
+
+    p.add_argument("--truth-tolerance", type=float, default=None, metavar="TEXELS",
+                   help="the truth's surface: the largest height difference, in texels, between its "
+                        "triangles and the bilinear interpolation of the height map (docs/truth-surface.md) "
+                        f"(default {mesh.DEFAULT_TOLERANCE:g})")
 
 
 def _add_views(sub) -> None:
@@ -408,6 +419,7 @@ def _add_export_scene(sub) -> None:
     p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
     p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
                    help="vertex normals in the PLY (smooth, default) or none (faceted)")
+    _add_truth_tolerance_flag(p)
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.set_defaults(run=cmd_export_scene)
 
@@ -521,12 +533,21 @@ def cmd_sweep(args) -> int:
     return errors.EXIT_OK
 
 
+def _truth_tolerance(args):
+    """``--truth-tolerance`` checked: a positive, finite number of texels, or None."""
+    t = getattr(args, "truth_tolerance", None)
+    if t is not None and not (math.isfinite(t) and t > 0):
+        raise errors.InputError("--truth-tolerance", f"must be a positive number of texels, got {t}")
+    return t
+
+
 def _scene_overrides(args) -> dict:
     """The sweep flags that change a scene (:func:`hzval.scene.override`'s keywords), material aside."""
     return dict(size=args.size, depth=args.depth, boundary=args.boundary, elevation=args.elevation,
                 azimuths=args.azimuths, light=args.light, light_radius=args.light_radius, effects=args.effects,
                 spp=args.spp, seed=args.seed, supersampling=args.supersampling, shading=args.shading,
-                camera=args.camera, view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
+                truth_tolerance=_truth_tolerance(args), camera=args.camera,
+                view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
                 fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
                 filter=args.filter, mips=args.mips, parallax=args.parallax)
 
@@ -629,7 +650,7 @@ def cmd_export_scene(args) -> int:
     base = sc.load_scene(args.scene) if args.scene else (_sidecar_scene(args) or sc.Scene())
     scene = sc.override(base, height=_material_of(args), size=args.size, depth=args.depth,
                         boundary=args.boundary, elevation=args.elevation, effects=args.effects, spp=args.spp,
-                        shading=args.shading)
+                        shading=args.shading, truth_tolerance=_truth_tolerance(args))
     if not math.isfinite(args.azimuth):
         raise errors.InputError("--azimuth", f"must be a finite number of degrees, got {args.azimuth}")
     export.check_fits(scene)                # before the map is generated or decoded

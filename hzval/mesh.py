@@ -1,8 +1,12 @@
 """The displaced triangle mesh: the surface that the ground truth renders.
 
 One vertex per texel centre at ``(x, y, h)`` in texel units (x, y from
-:func:`hzval.conventions.texel_centres`, ``h = H * depth * cols``), two
-triangles per quad of neighbouring centres. The mesh lives in the same
+:func:`hzval.conventions.texel_centres`, ``h = H * depth * cols``); between
+them the surface is the *bilinear* interpolation of the four centres of each
+cell, the surface every technique's bilinear filter reads, tessellated with no
+preferred diagonal to within a tolerance (:func:`tessellate`, :func:`cell_levels`;
+docs/truth-surface.md), so that a map mirrored, rotated or transposed is the
+same surface mirrored, rotated or transposed. The mesh lives in the same
 tangent space as the technique's textures, so a camera looking down -z sees
 pixel ``(row, col)`` of both at the same surface point.
 
@@ -92,20 +96,31 @@ def grid(h_texels: np.ndarray, boundary: str, *, min_elevation_deg: float = MIN_
     raise ValueError(f"unknown boundary {boundary!r}")
 
 
-def vertex_normals(h_texels: np.ndarray, g: Grid, boundary: str) -> np.ndarray:
-    """``(len(g.y), len(g.x), 3)`` float32: the normal map's normal of the texel under each vertex
-    (texel centres are vertices; margin vertices repeat the tile, skirt vertices the border)."""
+def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -> np.ndarray:
+    """``(V, 3)`` float32: the normal map's normals (:func:`hzval.bake.normal_map`) interpolated
+    bilinearly between texel centres at each vertex's ``(x, y)`` and normalised, as the truth's
+    ``smooth`` shading reads them (:mod:`hzval.truth`, "Shading"): a texel centre takes its texel's
+    normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
+    clamped)."""
     from hzval.bake import normal_map
 
     rows, cols = h_texels.shape
-    nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
-    col = np.floor(g.x).astype(np.int64)
-    row = np.floor(rows - np.asarray(g.y, np.float64)).astype(np.int64)
-    if boundary == "wrap":
-        col, row = col % cols, row % rows
-    else:
-        col, row = np.clip(col, 0, cols - 1), np.clip(row, 0, rows - 1)
-    return np.ascontiguousarray(nmap[row[:, None], col[None, :]], dtype=np.float32)
+    nmap = normal_map(np.asarray(h_texels, np.float32), boundary).astype(np.float64)
+    fx = np.asarray(positions[:, 0], np.float64) - 0.5          # column coordinate of texel centres
+    fy = rows - np.asarray(positions[:, 1], np.float64) - 0.5   # row coordinate
+    c0, r0 = np.floor(fx), np.floor(fy)
+    u, v = (fx - c0)[:, None], (fy - r0)[:, None]
+    c0, r0 = c0.astype(np.int64), r0.astype(np.int64)
+
+    def at(r, c):
+        if boundary == "wrap":
+            return nmap[r % rows, c % cols]
+        return nmap[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
+
+    n = ((1 - v) * ((1 - u) * at(r0, c0) + u * at(r0, c0 + 1))
+         + v * ((1 - u) * at(r0 + 1, c0) + u * at(r0 + 1, c0 + 1)))
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.ascontiguousarray(n, dtype=np.float32)
 
 
 def triangles(n_rows: int, n_cols: int) -> np.ndarray:
@@ -132,43 +147,44 @@ def triangles(n_rows: int, n_cols: int) -> np.ndarray:
 
 def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
                    min_elevation_deg: float = MIN_ELEVATION_DEG, margin: int | None = None,
-                   normals: bool = False, texcoords: bool = True, name: str = "displaced"):
-    """The displaced surface of a normalised height map as a ``mitsuba.Mesh``.
+                   normals: bool = False, texcoords: bool = True, name: str = "displaced",
+                   tolerance: float | None = None, info: dict | None = None,
+                   budget_bytes: int | None = None):
+    """The displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
+    interpolation of the texel centres' heights, tessellated to within ``tolerance`` texels
+    (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
 
     ``texcoords``: each vertex's texture coordinates (:func:`hzval.conventions.tangent_to_uv`), for
     a file that others texture; the truth reads none (``False``: 0.3 s and 0.2 GB less at 2048).
 
-    ``normals=True`` adds vertex normals: each vertex takes the normal map's
-    normal (:func:`hzval.bake.normal_map`, the very central differences the
-    techniques shade with) of the texel it stands on, a margin vertex that of
-    the texel it repeats (``wrap``), a skirt vertex on an ``open`` tile's
-    border that of the border texel, whose one-sided slope the normal map
-    uses (so the skirt is shaded as the techniques shade it, though its
-    geometry stays flat). Mitsuba interpolates them over each triangle for
+    ``normals=True`` adds vertex normals: the normal map's normals (:func:`hzval.bake.normal_map`,
+    the very central differences the techniques shade with) interpolated bilinearly at each vertex
+    (:func:`vertex_normals`), as the truth shades. Mitsuba interpolates them over each triangle for
     its shading frame (``si.sh_frame.n``); without them it shades with the
     triangles' own normals. Needs a Mitsuba variant to be set
-    (:func:`hzval.backend.variant`).
+    (:func:`hzval.backend.variant`). ``budget_bytes``: as :func:`tessellate`'s. ``info``: a dict that receives the cells' ``levels``
+    (:func:`cell_levels`) and the ``tolerance`` used.
     """
     import mitsuba as mi
 
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     g = grid(h, boundary, min_elevation_deg=min_elevation_deg, margin=margin)
-    ny, nx = g.z.shape
-    X, Y = np.meshgrid(g.x, g.y)
-    positions = np.stack([X, Y, g.z], axis=-1).astype(np.float32)
-    faces = triangles(ny, nx)
-
-    mesh = mi.Mesh(name, nx * ny, len(faces), has_vertex_normals=normals, has_vertex_texcoords=texcoords)
+    positions, faces, levels = tessellate(g, DEFAULT_TOLERANCE if tolerance is None else tolerance,
+                                          budget_bytes=budget_bytes)
+    mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=normals, has_vertex_texcoords=texcoords)
     params = mi.traverse(mesh)
     params["vertex_positions"] = mi.Float(positions.ravel())
     params["faces"] = mi.UInt32(faces.ravel())
+    del faces
     if texcoords:
-        params["vertex_texcoords"] = mi.Float(np.stack(cv.tangent_to_uv(X, Y, rows, cols), axis=-1).ravel())
-    del X, Y, positions
+        params["vertex_texcoords"] = mi.Float(np.stack(cv.tangent_to_uv(positions[:, 0], positions[:, 1],
+                                                                        rows, cols), axis=-1).ravel())
     if normals:
-        params["vertex_normals"] = mi.Float(vertex_normals(h, g, boundary).ravel())
+        params["vertex_normals"] = mi.Float(vertex_normals(h, positions, boundary).ravel())
     params.update()
+    if info is not None:
+        info.update(levels=levels, tolerance=DEFAULT_TOLERANCE if tolerance is None else float(tolerance))
     return mesh
 
 
@@ -185,3 +201,154 @@ def write_ply(m, path) -> None:
         except RuntimeError as exc:
             problem = files.first_line(exc).rpartition(": ")[2] or "cannot be written"
             raise InputError(path, problem) from None
+
+
+# ----------------------------------------------------------------------
+# The bilinear surface (issue 27)
+# ----------------------------------------------------------------------
+
+#: Default :func:`cell_levels` tolerance, texels of height: the largest vertical distance allowed
+#: between the triangles and the bilinear surface (docs/truth-surface.md, the convergence study).
+DEFAULT_TOLERANCE = 0.02
+#: A cell whose twist is at most this share of the largest height (and of 1 texel) is planar: the
+#: rounding of float32 heights (2^-24 of them) leaves twists of a few of their ulps.
+PLANAR_TWIST = 2.0 ** -20
+#: Most fans per side of one cell: a cell of twist ``t`` texels is then within ``t / 4096`` texels.
+MAX_LEVEL = 16
+
+
+def twists(z: np.ndarray) -> np.ndarray:
+    """``(ny-1, nx-1)`` float64: each cell's twist ``h00 - h10 - h01 + h11`` (texels), the ``d`` of the
+    bilinear patch ``a + b u + c v + d u v`` on its four corners; 0 for a planar cell."""
+    z = np.asarray(z, np.float64)
+    return z[:-1, :-1] - z[:-1, 1:] - z[1:, :-1] + z[1:, 1:]
+
+
+def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
+    """``(ny-1, nx-1)`` uint8: how each cell of a vertex grid of heights ``z`` (texels) is tessellated
+    so that no point of its triangles is more than ``tolerance`` texels above or below the bilinear
+    surface of its four corners.
+
+    0: a planar cell (twist ``d`` = 0 to the heights' rounding, :func:`twists`,
+    :data:`PLANAR_TWIST`), two triangles, either way round: they are the bilinear patch. ``n >= 1`` (a power of two up to :data:`MAX_LEVEL`): ``n x n`` sub-cells, each four
+    triangles around its centre, a point of the bilinear surface (the mean of its corners), so that no
+    diagonal is preferred; the patch minus its fan is ``d' (uv - v/2)`` on a sub-cell's lower triangle
+    (``d' = d / n^2``), at most ``|d| / (16 n^2)`` (at ``u = v = 1/4``), zero-mean, and 0 along the
+    sub-cells' edges, so neighbouring cells meet on the bilinear surface's own (straight) cell edges
+    whatever their levels. Two triangles of a twisted cell would be ``|d| / 4`` off at its centre
+    and biased by ``d / 12`` in volume, one way or the other by the diagonal: on a grainy photo that
+    bias moved horizon's |F - V| by 2.5% between tolerances 0.04 and 0.02 (docs/truth-surface.md).
+    """
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be a positive number of texels, got {tolerance!r}")
+    a = np.abs(twists(z))
+    need = np.sqrt(a / (16.0 * tolerance))
+    level = np.where(need <= 1.0, 1.0, 2.0 ** np.ceil(np.log2(np.maximum(need, 1.0))))
+    level = np.minimum(level, MAX_LEVEL).astype(np.uint8)
+    # planar to the float32 heights' own rounding (a ramp of slope 0.3 has twists of 1e-8 texels)
+    level[a <= PLANAR_TWIST * max(1.0, float(np.max(np.abs(z), initial=0.0)))] = 0
+    return level
+
+
+def _fan_template(n: int):
+    """The local tessellation of a cell at level ``n``: ``(uv, faces)`` with ``uv`` ``(k, 2)`` float64
+    of its vertices that are not the cell's corners (sub-grid nodes, then sub-cell centres) and
+    ``faces`` ``(4 n^2, 3)`` int64 of local indices, 0-3 the corners ``a (u=0, v=0), b (1, 0),
+    d (0, 1), e (1, 1)`` and ``4 + i`` vertex ``i`` of ``uv``; ``u`` runs with the columns, ``v`` with
+    the rows (toward -y), so that ``(A, M, B)`` around the sub-cell's corners is counterclockwise
+    seen from +z, as :func:`triangles`."""
+    code = np.full((n + 1, n + 1), -1, np.int64)
+    code[0, 0], code[0, n], code[n, 0], code[n, n] = 0, 1, 2, 3
+    nodes = [(i, j) for i in range(n + 1) for j in range(n + 1) if code[i, j] < 0]
+    for k, (i, j) in enumerate(nodes):
+        code[i, j] = 4 + k
+    uv = [(j / n, i / n) for i, j in nodes] + [((j + 0.5) / n, (i + 0.5) / n) for i in range(n) for j in range(n)]
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            A, B, C, D = code[i, j], code[i, j + 1], code[i + 1, j + 1], code[i + 1, j]
+            M = 4 + len(nodes) + i * n + j
+            faces += [(A, M, B), (B, M, C), (C, M, D), (D, M, A)]
+    return np.array(uv, np.float64).reshape(-1, 2), np.array(faces, np.int64)
+
+
+def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``(len(r), len(uv), 3)`` float32 points of the bilinear patches of cells ``(r, c)`` at ``uv``:
+    the same float64 expression for every cell, so a node on a shared edge has the same bits from
+    either side (the other corners' weights are exactly 0 there)."""
+    u, v = uv[None, :, 0], uv[None, :, 1]
+    x = (1.0 - u) * g.x[c][:, None] + u * g.x[c + 1][:, None]
+    y = (1.0 - v) * g.y[r][:, None] + v * g.y[r + 1][:, None]
+    z = g.z.astype(np.float64, copy=False)
+    zz = ((1.0 - v) * ((1.0 - u) * z[r, c][:, None] + u * z[r, c + 1][:, None])
+          + v * ((1.0 - u) * z[r + 1, c][:, None] + u * z[r + 1, c + 1][:, None]))
+    return np.stack([x, y, zz], axis=-1).astype(np.float32)
+
+
+#: Resident bytes per triangle of the truth's mesh: its faces, its share of the vertices and Embree's
+#: BVH (at 2048 x 2048 with a margin of 178: 4.42 GiB against 1.59 GiB for 33.9M triangles against
+#: 11.3M, 134 bytes a triangle more).
+BYTES_PER_TRIANGLE = 140
+
+
+def triangle_count(levels: np.ndarray) -> int:
+    """Triangles of a tessellation of these cell levels (:func:`cell_levels`)."""
+    counts = np.bincount(levels.ravel(), minlength=MAX_LEVEL + 1).astype(np.int64)
+    n = np.arange(len(counts), dtype=np.int64)
+    return int(2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:]))
+
+
+def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int | None = None):
+    """The triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
+
+    Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
+    first, then each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and
+    the cells' levels. ``budget_bytes``: refuse (:class:`hzval.errors.InputError`), before allocating
+    them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned cells share is made by each (the same bits);
+    where levels differ, the finer cell's nodes lie on the coarser one's straight edge.
+    """
+    ny, nx = g.z.shape
+    X, Y = np.meshgrid(g.x.astype(np.float32), g.y.astype(np.float32))
+    parts = [np.stack([X, Y, g.z.astype(np.float32)], axis=-1).reshape(-1, 3)]
+    del X, Y
+    levels = cell_levels(g.z, tolerance)
+    if budget_bytes is not None and triangle_count(levels) * BYTES_PER_TRIANGLE > budget_bytes:
+        from hzval.errors import InputError
+
+        n = triangle_count(levels)
+        raise InputError("--truth-tolerance", f"the truth's surface at a tolerance of {tolerance:g} texels has "
+                         f"{n / 1e6:.0f}M triangles, about {n * BYTES_PER_TRIANGLE / 2**30:.1f} GiB with its "
+                         f"BVH; {budget_bytes / 2**30:.1f} GiB are available (a larger tolerance or a smaller map)")
+    corner = (np.arange(ny - 1, dtype=np.uint32)[:, None] * np.uint32(nx)
+              + np.arange(nx - 1, dtype=np.uint32)[None, :])
+    base, faces = ny * nx, []
+    flat = levels.ravel()
+    two = np.flatnonzero(flat == 0)
+    if two.size:
+        # planar: the two triangles of hzval.mesh.triangles, (a, d, b) and (b, d, e)
+        a = corner.ravel()[two]
+        f = np.empty((two.size, 2, 3), np.uint32)
+        f[:, 0, 0], f[:, 0, 1], f[:, 0, 2] = a, a + np.uint32(nx), a + np.uint32(1)
+        f[:, 1, 0], f[:, 1, 1], f[:, 1, 2] = a + np.uint32(1), a + np.uint32(nx), a + np.uint32(nx + 1)
+        faces.append(f.reshape(-1, 3))
+    for n in sorted(int(k) for k in np.unique(flat) if k > 0):
+        cells = np.flatnonzero(flat == n)
+        r, c = np.divmod(cells, nx - 1)
+        uv, local = _fan_template(n)
+        parts.append(_bilinear(g, r, c, uv).reshape(-1, 3))
+        a = corner.ravel()[cells]
+        idx = np.empty((cells.size, 4 + len(uv)), np.uint32)
+        idx[:, 0], idx[:, 1], idx[:, 2], idx[:, 3] = a, a + 1, a + nx, a + nx + 1
+        idx[:, 4:] = (base + np.arange(cells.size, dtype=np.int64)[:, None] * len(uv)
+                      + np.arange(len(uv))[None, :]).astype(np.uint32)
+        base += cells.size * len(uv)
+        faces.append(idx[:, local].reshape(-1, 3))
+    if base >= 2 ** 32:
+        raise ValueError("the tessellation has more than 2^32 vertices")
+    return np.concatenate(parts), np.concatenate(faces), levels
+
+
+def edge_level(levels: np.ndarray) -> int:
+    """The finest sub-cell grid of a tessellation: its largest level, at least 1 (every edge of the
+    mesh lies on a line ``(x - 1/2) n``, ``(y - 1/2) n`` integer, or on a diagonal of that grid's cells)."""
+    return max(1, int(levels.max(initial=0)))

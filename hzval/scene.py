@@ -17,7 +17,7 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     name = "bricks"
     [material]  height = "bricks" (a built-in material: ``hzval materials``) | "path/relative/to/scene.png",
                 size, depth, boundary (default: the material's), albedo (default: the material's),
-                shading = "smooth" | "faceted"
+                shading = "smooth" | "faceted", truth_tolerance (texels; hzval.mesh.cell_levels)
     [camera]    kind = "top" | "orthographic" | "perspective", supersampling = 1 (top), elevation_deg,
                 azimuth_deg, fov_deg, distance (tile widths), resolution = [W, H], film_size = [w, h]
                 (hzval.camera)
@@ -46,6 +46,7 @@ from hzval import heightmap, materials
 from hzval.camera import Camera, stream
 from hzval.lookup import Lookup
 from hzval.errors import InputError
+from hzval.mesh import DEFAULT_TOLERANCE
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
 EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
@@ -58,6 +59,9 @@ SHADINGS: tuple[str, ...] = ("smooth", "faceted")
 DEFAULT_AZIMUTHS_TEXT = "-60:60:15"
 DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
 
+
+#: The truth's default tolerance, texels (:data:`hzval.mesh.DEFAULT_TOLERANCE`).
+DEFAULT_TRUTH_TOLERANCE = DEFAULT_TOLERANCE
 
 #: The albedo of a height map that comes without one.
 DEFAULT_ALBEDO = 0.8
@@ -79,6 +83,9 @@ class MaterialSpec:
     boundary: str = "wrap"
     albedo: str | float | None = None
     shading: str = "smooth"         # the truth's shading normal: "smooth" (vertex normals) or "faceted"
+    #: how far, in texels of height, the truth's triangles may be from the bilinear surface
+    #: (hzval.mesh.cell_levels; the default from docs/truth-surface.md's convergence study)
+    truth_tolerance: float = DEFAULT_TRUTH_TOLERANCE
 
 
 @dataclass(frozen=True)
@@ -127,6 +134,7 @@ class Scene:
         cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth")
         # values from TOML may be of any type: every number must be one (and finite) before it is compared
         for name, value in (("material.depth", m.depth), ("material.size", m.size),
+                            ("material.truth_tolerance", m.truth_tolerance),
                             ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
                             ("light.irradiance", lt.irradiance), ("samples.spp", self.spp),
                             ("samples.seed", self.seed),
@@ -138,6 +146,9 @@ class Scene:
                 continue
             if not math.isfinite(value):
                 raise InputError(what, f"{name} must be a finite number, got {value}")
+        if m.truth_tolerance <= 0:
+            raise InputError(what, f"material.truth_tolerance must be a positive number of texels, got "
+                                   f"{m.truth_tolerance}")
         if m.shading not in SHADINGS:
             raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
         if m.boundary not in cv.BOUNDARIES:
@@ -362,7 +373,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
 def override(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
 
-    Keys: ``height, size, depth, boundary, shading, elevation, azimuths, light, light_radius,
+    Keys: ``height, size, depth, boundary, shading, truth_tolerance, elevation, azimuths, light, light_radius,
     effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
     ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
     lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``.
@@ -373,8 +384,8 @@ def override(scene: Scene, **changes) -> Scene:
         # another material: a depth or boundary that was the old material's default becomes the new one's
         old, new = material_defaults(mat.height), material_defaults(c["height"])
         mat = dataclasses.replace(mat, **{k: new[k] for k in new if getattr(mat, k) == old[k]})
-    mat = dataclasses.replace(mat, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading")
-                                      if k in c})
+    mat = dataclasses.replace(mat, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading",
+                                                        "truth_tolerance") if k in c})
     light = scene.light
     if "elevation" in c:
         light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))

@@ -595,6 +595,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling,
+                       "truth_tolerance": scene.material.truth_tolerance,
                        **_view_parameters(scene),
                        "techniques": [t.name for t in setup.techniques]},
         "bake": {"contents": list(setup.bake_contents)},

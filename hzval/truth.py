@@ -189,6 +189,7 @@ from hzval import conventions as cv
 from hzval import mesh as meshes
 from hzval.errors import InputError
 from hzval import shading
+from hzval import bake
 from hzval.bake import normal_map
 from hzval.camera import sample_positions
 from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
@@ -290,9 +291,15 @@ class Truth:
             self.margin = meshes.wrap_margin(h_tex, self._margin_elevation_deg(lowest), capped=True)
         else:
             self.margin = 0
+        info: dict = {}
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                          texcoords=False,
+                                          texcoords=False, tolerance=mat.truth_tolerance, info=info,
+                                          budget_bytes=bake.available_bytes(),
                                           margin=self.margin if mat.boundary == "wrap" else None)
+        # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
+        self.edge_level = meshes.edge_level(info["levels"])
+        self.tolerance = info["tolerance"]
+        del info
         self._normals = None
         if mat.shading == "smooth":
             # the vertex normals, bilinearly between texel centres (module docstring, "Shading")
@@ -376,7 +383,7 @@ class Truth:
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
                 self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop)[:2],
-                                                        self.rows, self.cols)[2]
+                                                        self.rows, self.cols, self.edge_level)[2]
                 continue
             st = self._camera_samples(first, stop)
             self.moved_off_edges += st.moved
@@ -403,7 +410,7 @@ class Truth:
 
         rows, cols, spp = self.rows, self.cols, self.spp
         xs, ys, seen = self._band_positions(first, stop)
-        xs, ys, moved = _off_edge_lines(xs, ys, rows, cols)
+        xs, ys, moved = _off_edge_lines(xs, ys, rows, cols, self.edge_level)
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
         o, n, ns, valid = self._surface_at(x, y, coherent=True)
@@ -1050,31 +1057,38 @@ class _Samples:
     seen: object = None
 
 
-def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int]:
+def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int,
+                    level: int = 1) -> tuple[np.ndarray, np.ndarray, int]:
     """Move samples that lie exactly on a line of mesh edges a few ulps off it.
 
-    The mesh's edges run along ``x = k + 1/2`` (columns of texel centres),
-    ``y = k + 1/2`` (rows) and ``x - y = k`` (the quads' diagonals,
-    :func:`hzval.mesh.triangles`). A sample on such a line has no single
-    triangle, and a ray toward an azimuth along the line (0, 90, 180, 270
-    or 45, 225 degrees, all in common sweeps) runs inside the edge and can
-    slip between its two triangles: Embree's traversal is not watertight
-    there (embree/embree#387). With float32 positions this is not rare: on a
-    512x512 map at 16 spp about 230 samples per frame sit on such lines. They
-    move by 8 ulps of the map's largest coordinate (1/2048 texel at 512)
-    toward the tile's interior, to a point of one triangle.
+    The mesh's edges (:func:`hzval.mesh.tessellate`) run along the lines of
+    the sub-cell grid of its finest ``level`` ``n`` (a power of two):
+    ``(x - 1/2) n`` or ``(y - 1/2) n`` an integer (the columns and rows of
+    texel centres among them), and along that grid's diagonals, where the
+    two fractions ``u``, ``v`` of those coordinates are equal or sum to 1
+    (a coarser cell's diagonals and sub-cells lie on the same lines). A
+    sample on such a line has no single triangle, and a ray toward an
+    azimuth along the line (0, 90, 180, 270 or 45, 135, 225, 315 degrees,
+    all in common sweeps) runs inside the edge and can slip between its two
+    triangles: Embree's traversal is not watertight there (embree/embree#387).
+    With float32 positions this is not rare: on a 512x512 map at 16 spp
+    about 230 samples per frame sat on the lines of the old diagonal mesh.
+    They move by 8 ulps of the map's largest coordinate (1/2048 texel at
+    512) toward the tile's interior, to a point of one triangle; a few on
+    lines of a finer grid than their cell's move for nothing.
     """
     step = 2.0 ** (math.ceil(math.log2(max(rows, cols, 2))) - 20)
 
     def on_lines(x, y):
-        # x - floor(x) is exact in float32, and x - y is an integer exactly when the two
-        # fractions are equal: no float64 copies of all samples
-        fx, fy = x - np.floor(x), y - np.floor(y)
-        return (fx == 0.5) | (fy == 0.5) | (fx == fy)
+        # (x - 1/2) n and its fraction are exact in float32 (n a power of two), and two fractions
+        # sum to exactly 1 only if 1 - fu, which is then a float32, equals fv
+        u, v = (x - np.float32(0.5)) * np.float32(level), (y - np.float32(0.5)) * np.float32(level)
+        fu, fv = u - np.floor(u), v - np.floor(v)
+        return (fu == 0) | (fv == 0) | (fu == fv) | (fv == 1 - fu)
 
     # only the few samples found on a line are moved and checked again; they are found in one
     # Dr.Jit kernel (the same float32 test: 0.1 s against 0.8 s in NumPy at 2048 x 2048 x 16)
-    idx = _on_edge_lines_index(xs, ys)
+    idx = _on_edge_lines_index(xs, ys, level)
     moved = int(idx.size)
     if not moved:
         return xs, ys, 0            # as they are (the shared positions are read-only: no copy)
@@ -1089,16 +1103,18 @@ def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int) -> tup
     return xs, ys, moved
 
 
-def _on_edge_lines_index(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def _on_edge_lines_index(xs: np.ndarray, ys: np.ndarray, level: int = 1) -> np.ndarray:
     """Indices (int64) of the samples exactly on a line of mesh edges (:func:`_off_edge_lines`)."""
     import drjit as dr
     import mitsuba as mi
 
     i = dr.arange(mi.UInt32, xs.size)
+    n = dr.opaque(mi.Float, float(level))
     x = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(xs, np.float32)), i)
     y = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(ys, np.float32)), i)
-    fx, fy = x - dr.floor(x), y - dr.floor(y)
-    return np.asarray(dr.compress((fx == 0.5) | (fy == 0.5) | (fx == fy)), dtype=np.int64)
+    u, v = (x - 0.5) * n, (y - 0.5) * n
+    fu, fv = u - dr.floor(u), v - dr.floor(v)
+    return np.asarray(dr.compress((fu == 0.0) | (fv == 0.0) | (fu == fv) | (fv == 1.0 - fu)), dtype=np.int64)
 
 
 def _specular_sampling_share(scene: Scene) -> float:
