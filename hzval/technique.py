@@ -43,17 +43,25 @@ from hzval import lookup
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene
 
-__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "names", "select"]
+__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "Unavailable", "get", "names", "select"]
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
     "horizon": "hzval.approx:Approximation",
     "terrain": "hzval.terrain:TerrainShadow",
     "pom": "hzval.pom:RayMarchShadow",
+    "horizon-gl": "hzval.horizon_gl:HorizonGL",
+    "pom-gl": "hzval.horizon_gl:PomGL",
 }
 #: The technique whose metrics are a frame's top-level keys in ``metrics.json``
 #: (the documented layout predates the registry; scripts read those keys).
 PRIMARY = "horizon"
+
+
+class Unavailable(Exception):
+    """Raised by :meth:`Technique.build` when this machine cannot run the technique (no OpenGL
+    context for the GL techniques): the message is one line saying what to install; the sweep
+    skips the technique with it and goes on."""
 
 
 @dataclass(frozen=True)
@@ -114,6 +122,8 @@ class Technique:
     file_stem: ClassVar[str]
     needs: ClassVar[tuple[str, ...]] = ("shadow",)
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
+    #: Whether a sweep without ``--techniques`` renders it (the GL techniques are opt-in).
+    by_default: ClassVar[bool] = True
 
     simulated: tuple[str, ...] = ()
     #: One-line warnings the sweep prints and the report shows (e.g. a suspicious external bake).
@@ -196,13 +206,14 @@ def get(name: str) -> type[Technique]:
 
 def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
     """The techniques to render for ``scene``: ``requested`` (names, in registry order),
-    or every one that applies; ``exclude`` leaves some out.
+    or every one that applies and is on by default (:attr:`Technique.by_default`); ``exclude``
+    leaves some out.
 
     A requested technique that does not apply (``pom`` on a scene without
     ``shadow``) is an :class:`InputError`, not silently dropped.
     """
     if requested is None:
-        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.applies(scene)]
+        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.by_default and t.applies(scene)]
         if not chosen:
             raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
                                              "effects the scene does not declare")
