@@ -82,7 +82,8 @@ Two paths:
     ``|F_gpu - F_exact| <= k (0.5/255 * sum(w^) + sum |w^_c - w_c| max h_c)``.
     Over all directions ``sum(w^) <= 1 + 3/255`` (the leaks); for elevations
     up to 45 degrees (the cube's side faces, where the weights depend on the
-    azimuth only) ``sum |w^ - w| <= 0.169``, largest at the channel azimuths,
+    azimuth only) ``sum |w^ - w| <= 0.169`` (0.173 at 45 degrees, where the
+    seamless filter blends in the +z face), largest at the channel azimuths,
     where the tent's peak falls between two cube texels 3.6 degrees either
     side (w^ = 0.92 instead of 1); on the +z face, near the zenith, the weights
     are arbitrary (up to 1.99) but ``Lz`` is large there. Because the +z
