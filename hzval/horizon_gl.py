@@ -7,9 +7,11 @@ texture units, as an engine would set them up:
 
 ``horizonMap``
     a 2-D array texture of two RGBA layers (channels 0-3, 4-7): RGBA8 for
-    ``u8`` storage; for a block format (``bc7``, ...) the blocks as a GPU
-    decodes them, in RGBA8 (decoding happens before filtering on a GPU, so
-    the filtered values are the same); RGBA32F for ``float``. Wrap mode from
+    ``u8`` storage; for ``bc7`` BPTC, the encoder's blocks (``etcpak``) uploaded
+    with ``glCompressedTexImage3D`` and decoded by the driver; for the other
+    block formats (whose channels are not packed as two RGBA layers) the
+    blocks as ``texture2ddecoder`` decodes them, in RGBA8 (a GPU decodes
+    before it filters, so the filtered values are the same); RGBA32F for ``float``. Wrap mode from
     the boundary (``REPEAT``, ``CLAMP_TO_EDGE``); the filter the scene's
     lookup names (``nearest``, ``bilinear``, ``trilinear``; ``anisotropic``
     adds ``GL_TEXTURE_MAX_ANISOTROPY``). Mips are uploaded level by level
@@ -58,6 +60,7 @@ _GL_NEAREST, _GL_LINEAR = 0x2600, 0x2601
 _GL_LINEAR_MIPMAP_LINEAR = 0x2703
 _GL_TEXTURE_2D_ARRAY = 0x8C1A
 _GL_RGBA, _GL_UNSIGNED_BYTE, _GL_FLOAT = 0x1908, 0x1401, 0x1406
+_GL_COMPRESSED_RGBA_BPTC_UNORM = 0x8E8C
 
 
 class _GLTechnique(approx.HeightFieldShadow):
@@ -229,18 +232,19 @@ def _layers(level: np.ndarray, u8: bool) -> bytes:
 def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
     """The horizon map's 2-D array texture with its levels (module docstring)."""
     lk = scene.lookup
-    stored = hz_storage.get(storage).roundtrip(horizon)       # what the GPU samples, before filtering
+    chain, blocks = _stored_chain(horizon, storage, lk)
     u8 = storage != "float"
-    quantise = None if storage == "float" else hz_storage.get(storage).roundtrip
-    everything = slice(None)
-    chain = (lookup.mip_chain(stored, everything if lk.mips == "max" else None, stored=everything, quantise=quantise)
-             if lk.mipmapped else [stored])
-    rows, cols = stored.shape[:2]
+    rows, cols = chain[0].shape[:2]
     tex = ctx.texture_array((cols, rows, 2), 4, _layers(chain[0], u8), dtype="f1" if u8 else "f4")
-    if len(chain) > 1:
+    if blocks:                                                 # BPTC: the encoder's blocks, as an engine ships them
+        for level, (data, layer_blocks) in enumerate(zip(chain, blocks)):
+            _compressed_image_3d(tex.glo, level, data.shape[1], data.shape[0], b"".join(layer_blocks))
+    elif len(chain) > 1:
         tex.build_mipmaps(0, len(chain) - 1)                   # allocates the levels; overwritten below
         for level, data in enumerate(chain[1:], start=1):
             _sub_image_3d(tex.glo, level, data.shape[1], data.shape[0], _layers(data, u8), u8)
+    _gl_function("glTexParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)(
+        _GL_TEXTURE_2D_ARRAY, 0x813D, len(chain) - 1)          # GL_TEXTURE_MAX_LEVEL
     if lk.filter == "nearest":
         tex.filter = (_GL_NEAREST, _GL_NEAREST)
     elif lk.mipmapped:
@@ -251,6 +255,31 @@ def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
         tex.anisotropy = float(lk.max_anisotropy)
     tex.repeat_x = tex.repeat_y = scene.material.boundary == "wrap"
     return tex
+
+
+def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarray], list[list[bytes]]]:
+    """``(levels, blocks)``: what the GPU samples at each level (level 0 alone without a mip
+    filter), each made from the stored one below and stored again (:func:`hzval.lookup.mip_chain`'s
+    ``quantise``, as ``--path gpu`` makes them); for ``bc7`` each level's encoded blocks per layer."""
+    st = hz_storage.get(storage)
+    keep = storage == "bc7"
+    blocks: list[list[bytes]] = []
+
+    def quantise(level: np.ndarray) -> np.ndarray:
+        out: list = []
+        q = st.roundtrip(level, out)
+        if keep:
+            blocks.append(out)
+        return q
+
+    if storage == "float":
+        quantise = None
+    stored = horizon if quantise is None else quantise(horizon)
+    if not lk.mipmapped:
+        return [stored], blocks
+    everything = slice(None)
+    chain = lookup.mip_chain(stored, everything if lk.mips == "max" else None, stored=everything, quantise=quantise)
+    return chain, blocks
 
 
 def _cube_texture(ctx):
@@ -275,6 +304,16 @@ def _gl_function(name: str, *argtypes):
             raise gl.Unavailable(f"the GL driver has no {name}")
         _gl_functions[name] = ctypes.CFUNCTYPE(None, *argtypes)(address)
     return _gl_functions[name]
+
+
+def _compressed_image_3d(glo: int, level: int, width: int, height: int, data: bytes) -> None:
+    """``glCompressedTexImage3D`` of both layers of mip ``level`` as BPTC (BC7) blocks."""
+    u, i = ctypes.c_uint, ctypes.c_int
+    _gl_function("glBindTexture", u, u)(_GL_TEXTURE_2D_ARRAY, glo)
+    buf = ctypes.create_string_buffer(data, len(data))
+    _gl_function("glCompressedTexImage3D", u, i, u, i, i, i, i, i, ctypes.c_void_p)(
+        _GL_TEXTURE_2D_ARRAY, level, _GL_COMPRESSED_RGBA_BPTC_UNORM, width, height, 2, 0, len(data),
+        ctypes.cast(buf, ctypes.c_void_p))
 
 
 def _sub_image_3d(glo: int, level: int, width: int, height: int, data: bytes, u8: bool) -> None:

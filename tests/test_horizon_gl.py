@@ -63,21 +63,39 @@ def texel_centre_context(size: int = 32, height: str = "bricks", boundary: str =
     return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points)
 
 
-def worst_difference(ctx: technique.Context, lights) -> float:
-    """max |F_gpu - F_gl| over the lights' frames."""
+def minified_context(size: int = 32, boundary: str = "wrap") -> technique.Context:
+    """The orthographic view from straight above at half the map's resolution (lambda = 1), trilinear."""
+    scene = S.override(S.Scene(), size=size, boundary=boundary, effects="shadow", spp=4, camera="orthographic",
+                       view_elevation=90.0, resolution=(size // 2, size // 2), filter="trilinear").validate()
+    hm = S.load_material_height(scene.material)
+    baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
+    return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, size, size))
+
+
+def differences(ctx: technique.Context, lights, storage: str = "u8") -> tuple[float, float]:
+    """(worst mean, worst max) of |F_gpu - F_gl| over the lights' frames."""
     from hzval.horizon_gl import HorizonGL
 
-    emu, real = Approximation.build(ctx, path="gpu"), HorizonGL.build(ctx)
-    worst = 0.0
+    emu, real = Approximation.build(ctx, path="gpu", storage=storage), HorizonGL.build(ctx, storage=storage)
+    means, maxes = [0.0], [0.0]
     for az, el in lights:
-        a = emu.render(az, elevation_deg=el).layers["factor"].astype(np.float64)
-        worst = max(worst, float(np.abs(a - real.factor(az, el)).max()))
-    return worst
+        d = np.abs(emu.render(az, elevation_deg=el).layers["factor"].astype(np.float64) - real.factor(az, el))
+        means.append(float(d.mean()))
+        maxes.append(float(d.max()))
+    return max(means), max(maxes)
+
+
+def worst_difference(ctx: technique.Context, lights) -> float:
+    """max |F_gpu - F_gl| over the lights' frames."""
+    return differences(ctx, lights)[1]
 
 
 def _float_path_main() -> None:
-    """Run in a subprocess with GALLIVM_PERF=no_aos_sampling: prints the worst difference as JSON."""
+    """Run in a subprocess with GALLIVM_PERF=no_aos_sampling: prints the worst differences as JSON."""
+    lights = [(-45.0, 30.0), (0.0, 30.0), (45.0, 30.0), (45.0, CORNER_EL), (90.0, 45.0)]
     print(json.dumps({"worst": worst_difference(texel_centre_context(), edge_lights()),
+                      "trilinear_u8": differences(minified_context(), lights, "u8")[1],
+                      "trilinear_bc7": differences(minified_context(), lights, "bc7")[1],
                       "gl": gl.info()}))
 
 
@@ -91,6 +109,35 @@ def test_float_sampling_agrees_to_1e_5_on_every_cube_edge_and_corner():
     res = json.loads(done.stdout.strip().splitlines()[-1])
     assert res["gl"]["gallivm_perf"] == "no_aos_sampling"
     assert res["worst"] <= 1e-5
+    # 2x minified, trilinear: the same 8-bit (and BPTC) mips, read at the same exact level
+    assert res["trilinear_u8"] <= 1e-5 and res["trilinear_bc7"] <= 1e-5
+
+
+@needs_gl
+@pytest.mark.parametrize("storage", ["u8", "bc7"])
+def test_default_sampling_of_a_minified_trilinear_view_agrees(storage):
+    mean, worst = differences(minified_context(), [(0.0, 30.0), (45.0, 30.0), (45.0, CORNER_EL)], storage)
+    assert mean <= 0.003 and worst <= 0.03
+
+
+@needs_gl
+def test_bc7_is_uploaded_as_bptc_blocks_at_every_level():
+    import ctypes
+
+    from hzval import horizon_gl as hg
+
+    ctx = minified_context(16)
+    tex = hg._horizon_texture(gl.context(), ctx.bake.horizon, "bc7", ctx.scene)
+    u, i = ctypes.c_uint, ctypes.c_int
+    query = hg._gl_function("glGetTexLevelParameteriv", u, i, u, ctypes.POINTER(i))
+    hg._gl_function("glBindTexture", u, u)(0x8C1A, tex.glo)
+    value = (i * 1)()
+    for level, width in enumerate((16, 8, 4, 2, 1)):
+        query(0x8C1A, level, 0x1003, value)             # GL_TEXTURE_INTERNAL_FORMAT
+        assert value[0] == 0x8E8C                       # GL_COMPRESSED_RGBA_BPTC_UNORM
+        query(0x8C1A, level, 0x1000, value)             # GL_TEXTURE_WIDTH
+        assert value[0] == width
+    tex.release()
 
 
 @needs_gl
