@@ -3,7 +3,7 @@
 Bakes a height map (a built-in material or an image file; ``--size`` resamples a
 built-in one), builds both techniques from one :class:`hzval.technique.Context`,
 so that they read the same sample positions, and prints per light the mean and
-max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer. Lights: the default
+max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``). Lights: the default
 sweep's azimuths at the scene's elevation plus the ``--extra`` ``AZ/EL`` pairs
 (default the cube's corner, 45/35.26). ``--texel-centres`` reads one sample at
 each texel centre instead of the sweep's jittered ones. Exits 1 when a bound
@@ -67,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--storage", default="u8")
     ap.add_argument("--texel-centres", action="store_true")
     ap.add_argument("--extra", nargs="*", default=["45/35.26"], metavar="AZ/EL")
+    ap.add_argument("--pom", default=None, choices=("hard", "soft"),
+                    help="compare pom with pom-gl (this variant, 32 steps) instead of the horizon map")
     ap.add_argument("--max-mean", type=float, default=None)
     ap.add_argument("--max-max", type=float, default=None)
     args = ap.parse_args(argv)
@@ -77,8 +79,14 @@ def main(argv: list[str] | None = None) -> int:
     scene = _scene(args)
     ctx = _context(scene, args.texel_centres)
     scene = ctx.scene
-    emu = Approximation.build(ctx, path="gpu", storage=args.storage)
-    real = HorizonGL.build(ctx, storage=args.storage)
+    if args.pom:
+        from hzval.horizon_gl import PomGL
+        from hzval.pom import RayMarchShadow
+
+        emu, real = RayMarchShadow.build(ctx, variant=args.pom), PomGL.build(ctx, variant=args.pom)
+    else:
+        emu = Approximation.build(ctx, path="gpu", storage=args.storage)
+        real = HorizonGL.build(ctx, storage=args.storage)
     print(f"{scene.material.height} {ctx.height.shape[1]}x{ctx.height.shape[0]} {scene.material.boundary}, "
           f"{scene.camera.kind}, filter {scene.lookup.filter}, {scene.spp} spp, storage {args.storage}; "
           f"{real.gl['renderer']} ({real.gl['version']}), GALLIVM_PERF={real.gl.get('gallivm_perf', '')}")
