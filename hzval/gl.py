@@ -68,6 +68,7 @@ def context():
     except Exception as e:          # glcontext raises plain Exceptions for a missing libEGL or driver
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise Unavailable(f"no OpenGL 3.3 context through EGL ({first}): {INSTALL}") from None
+    _context.gc_mode = "auto"               # GL objects are freed with their Python objects
     # filter the cube map across its faces (ARB_seamless_cube_map; core since 3.2, off by default)
     _context.enable_direct(0x884F)          # GL_TEXTURE_CUBE_MAP_SEAMLESS
     return _context
