@@ -52,6 +52,30 @@ def _context(scene, texel_centres: bool):
     return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points)
 
 
+def _from_sweep(args) -> int:
+    """Per frame of a sweep's output folder: |F| of ``approx_factor.exr`` against ``horizon_gl_factor.exr``."""
+    import json
+    from pathlib import Path
+
+    from hzval import files
+
+    out = Path(args.from_sweep)
+    m = json.loads((out / "metrics.json").read_text())
+    print(f"{out}: horizon {m['techniques']['horizon']['parameters']['path']} path against horizon-gl on "
+          f"{m['techniques']['horizon-gl']['parameters']['gl']['renderer']}")
+    worst_mean = worst_max = 0.0
+    for f in m["frames"]:
+        a = files.read_exr(out / f["files"]["factor"])["Y"].astype(np.float64)
+        b = files.read_exr(out / f["techniques"]["horizon-gl"]["files"]["factor"])["Y"].astype(np.float64)
+        d = np.abs(a - b)
+        worst_mean, worst_max = max(worst_mean, d.mean()), max(worst_max, d.max())
+        print(f"  az {f['azimuth_deg']:7.2f} el {f['elevation_deg']:6.2f}: mean |dF| {d.mean():.2e}  max {d.max():.2e}")
+    print(f"worst: mean {worst_mean:.2e}, max {worst_max:.2e}")
+    bad = (args.max_mean is not None and worst_mean > args.max_mean) or \
+          (args.max_max is not None and worst_max > args.max_max)
+    return 1 if bad else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--height", default="bricks", help="a built-in material or an image file (default bricks)")
@@ -69,10 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--extra", nargs="*", default=["45/35.26"], metavar="AZ/EL")
     ap.add_argument("--pom", default=None, choices=("hard", "soft"),
                     help="compare pom with pom-gl (this variant, 32 steps) instead of the horizon map")
+    ap.add_argument("--from-sweep", default=None, metavar="OUT",
+                    help="compare the factor EXRs of a finished `hzval sweep --techniques horizon,horizon-gl` in OUT")
     ap.add_argument("--max-mean", type=float, default=None)
     ap.add_argument("--max-max", type=float, default=None)
     args = ap.parse_args(argv)
 
+    if args.from_sweep:
+        return _from_sweep(args)
     from hzval.approx import Approximation
     from hzval.horizon_gl import HorizonGL
 
