@@ -2,7 +2,8 @@
 # Set up hzval on a Debian machine with Python 3.11: Debian's LLVM 19 for
 # Dr.Jit's CPU backend (Debian 12's default LLVM 15 crashes it), a virtualenv
 # in .venv with hzval installed. `--test` adds what the test suite needs
-# (gcc for the seed peer, chromium for the report's browser test).
+# (gcc for the seed peer, chromium for the report's browser test, Mesa's EGL
+# and llvmpipe for the GL techniques' tests).
 # Safe to run again: it only does what is missing.
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -19,6 +20,11 @@ if ((tests)); then
     # the report is tested in a real browser: Debian's chromium, driven by
     # Playwright's Python package (never `playwright install`: no downloads)
     [[ -x /usr/bin/chromium ]] || packages+=(chromium)
+    # the GL techniques (horizon-gl, pom-gl; opt-in) are tested on Mesa's llvmpipe
+    # through headless EGL: libEGL (glvnd), Mesa's EGL vendor library and its drivers
+    ls /usr/lib/*-linux-gnu/libEGL.so.1 >/dev/null 2>&1 || packages+=(libegl1)
+    ls /usr/lib/*-linux-gnu/libEGL_mesa.so.0 >/dev/null 2>&1 || packages+=(libegl-mesa0)
+    ls /usr/lib/*-linux-gnu/dri/swrast_dri.so >/dev/null 2>&1 || packages+=(libgl1-mesa-dri)
 fi
 if ((${#packages[@]})); then
     echo "setup: installing Debian packages: ${packages[*]}"

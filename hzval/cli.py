@@ -65,9 +65,10 @@ def _add_technique_args(p: argparse.ArgumentParser) -> None:
     from hzval import technique
 
     names = technique.names()
+    opt_in = [n for n in names if not technique.get(n).by_default]
     p.add_argument("--techniques", default=None, metavar="NAMES",
                    help=f"comma-separated techniques to score: {', '.join(names)} (default: every one that "
-                        "applies to the declared effects)")
+                        "applies to the declared effects" + (f", except {', '.join(opt_in)}" if opt_in else "") + ")")
     for name in names:
         t = technique.get(name)
         p.add_argument(f"--no-{name}", dest="exclude", action="append_const", const=name, default=[],

@@ -67,10 +67,9 @@ Two paths:
     what a GPU running Lengyel's Listing 5.1 computes: the horizon layers
     quantised to 8 bits (:func:`hzval.files.unit_to_u8` / 255), the 16x16
     8-bit weight cube map of :func:`hzval.bake.weight_cube` sampled
-    bilinearly (OpenGL face selection, :func:`hzval.conventions.cube_lookup`;
-    filtering stays *within* the face, clamped to its edge, where a GPU with
-    seamless cube maps would blend across the seam: a difference only within
-    half a cube texel of an edge), and the shader's arithmetic:
+    bilinearly and seamlessly across its faces, as OpenGL defines it
+    (:mod:`hzval.cubemap`), mips quantised to the storage (:func:`hzval.lookup.mip_chain`),
+    and the shader's arithmetic:
     ``f0 = clamp(2f - 1, 0, 1)``, ``f1 = clamp(-2f + 1, 0, 1)``,
     ``s = dot(h0, f0) + dot(h1, f1)``, ``F = clamp((Lz - s) k + 1, 0, 1)``.
     Normal and albedo maps stay float on both paths, so the two paths differ
@@ -83,7 +82,8 @@ Two paths:
     ``|F_gpu - F_exact| <= k (0.5/255 * sum(w^) + sum |w^_c - w_c| max h_c)``.
     Over all directions ``sum(w^) <= 1 + 3/255`` (the leaks); for elevations
     up to 45 degrees (the cube's side faces, where the weights depend on the
-    azimuth only) ``sum |w^ - w| <= 0.169``, largest at the channel azimuths,
+    azimuth only) ``sum |w^ - w| <= 0.169`` (0.173 at 45 degrees, where the
+    seamless filter blends in the +z face), largest at the channel azimuths,
     where the tent's peak falls between two cube texels 3.6 degrees either
     side (w^ = 0.92 instead of 1); on the +z face, near the zenith, the weights
     are arbitrary (up to 1.99) but ``Lz`` is large there. Because the +z
@@ -124,7 +124,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import external, lookup
+from hzval import cubemap, external, lookup
 from hzval.backend import dr, mi
 from hzval import storage as hz_storage
 from hzval import conventions as cv
@@ -237,6 +237,14 @@ class Horizon(FlatShading, Technique):
 
     def _max_channels(self) -> slice | None:
         return self._slots.get("horizon")
+
+    def _mip_quantise(self):
+        """What the horizon map's storage makes of each mip level (:func:`hzval.lookup.mip_chain`):
+        ``None`` for float; else the storage's round trip, as a GPU's chain of an RGBA8 (or BC7)
+        texture is RGBA8 (BC7)."""
+        if self.storage == "float" or "horizon" not in self._slots:
+            return None
+        return hz_storage.get(self.storage).roundtrip
 
     def _upload_constants(self) -> None:
         """``k``, the fade and the weight cube map for ``weights="cube"``, beside the shading's."""
@@ -447,7 +455,7 @@ class Horizon(FlatShading, Technique):
             out.update(storage_bytes=self.storage_bytes())
         if self.weights == "cube":
             out.update(cube_size=CUBE_SIZE, cube_bits=8,
-                       cube_filter="bilinear within the face, clamped to its edge")
+                       cube_filter="seamless bilinear")
         return out
 
     def render(self, azimuth_deg: float, *, shadows: bool = True,
@@ -500,36 +508,13 @@ class Horizon(FlatShading, Technique):
     def _cube_weights(self, d) -> list:
         """Lengyel's channel factors from the 8-bit weight cube map, as a GPU computes them.
 
-        Face and face coordinates follow OpenGL (table 8.19, ties to x, then
-        y, then z, as :func:`hzval.conventions.cube_lookup`); bilinear within
-        the face, clamped to its edge texels. Returns ``f0`` (layer 0) then
-        ``f1`` (layer 1) of Listing 5.1: ``clamp(+-(2f - 1), 0, 1)`` applied
-        to the *filtered* 8-bit values, as the shader does.
+        The cube is sampled as OpenGL samples it with ``GL_TEXTURE_CUBE_MAP_SEAMLESS``
+        (:func:`hzval.cubemap.bilinear`: table 8.19's faces, bilinear across the
+        faces' seams, a corner's missing texel the mean of the other three). Returns
+        ``f0`` (layer 0) then ``f1`` (layer 1) of Listing 5.1: ``clamp(+-(2f - 1), 0, 1)``
+        applied to the *filtered* 8-bit values, as the shader does.
         """
-        x, y, z = d.x, d.y, d.z
-        ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
-        use_x = (ax >= ay) & (ax >= az)
-        use_y = ~use_x & (ay >= az)
-        face = dr.select(use_x, dr.select(x >= 0, mi.UInt32(0), mi.UInt32(1)),
-                         dr.select(use_y, dr.select(y >= 0, mi.UInt32(2), mi.UInt32(3)),
-                                   dr.select(z >= 0, mi.UInt32(4), mi.UInt32(5))))
-        ma = dr.select(use_x, ax, dr.select(use_y, ay, az))
-        sc = dr.select(use_x, dr.select(x >= 0, -z, z), dr.select(use_y | (z >= 0), x, -x))
-        tc = dr.select(use_y, dr.select(y >= 0, z, -z), -y)
-        inv = dr.rcp(ma)
-        n = CUBE_SIZE
-        # texel space: centres at integers 0..n-1; clamp to the edge centres
-        ps = dr.clip(dr.fma(sc * inv, 0.5 * n, 0.5 * n - 0.5), 0.0, n - 1.0)
-        pt = dr.clip(dr.fma(tc * inv, 0.5 * n, 0.5 * n - 0.5), 0.0, n - 1.0)
-        c0 = dr.minimum(mi.UInt32(ps), n - 2)   # ps >= 0: truncation is floor
-        r0 = dr.minimum(mi.UInt32(pt), n - 2)
-        fs, ft = ps - mi.Float(c0), pt - mi.Float(r0)
-        base = (face * n + r0) * n + c0
-        t00 = dr.gather(mi.Vector4f, self._cube, base)
-        t01 = dr.gather(mi.Vector4f, self._cube, base + 1)
-        t10 = dr.gather(mi.Vector4f, self._cube, base + n)
-        t11 = dr.gather(mi.Vector4f, self._cube, base + n + 1)
-        f = dr.lerp(dr.lerp(t00, t01, fs), dr.lerp(t10, t11, fs), ft)
+        f = cubemap.bilinear(self._cube, CUBE_SIZE, d)
         f0 = [dr.clip(dr.fma(f[i], 2.0, -1.0), 0.0, 1.0) for i in range(4)]
         f1 = [dr.clip(dr.fma(f[i], -2.0, 1.0), 0.0, 1.0) for i in range(4)]
         return f0 + f1

@@ -246,10 +246,17 @@ def _parallax(lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: f
 # Filtering: textures read as a GPU reads them
 # --------------------------------------------------------------------------
 
-def mip_chain(data: np.ndarray, max_channels: slice | None = None) -> list[np.ndarray]:
+def mip_chain(data: np.ndarray, max_channels: slice | None = None, *, stored: slice | None = None,
+              quantise=None) -> list[np.ndarray]:
     """Levels 0.. of ``data`` ``(rows, cols, C)`` float32 down to 1x1: each the 2x2 average of the
     one below (``max_channels``: those channels by the 2x2 maximum); an odd size drops its last
-    row or column."""
+    row or column.
+
+    ``quantise`` (with ``stored``, the channels it applies to): what the texture's storage makes
+    of a level, e.g. :meth:`hzval.storage.Storage.roundtrip`. A GPU's chain of an RGBA8 texture
+    is RGBA8 (``glGenerateMipmap`` filters the stored level below and stores the result in the
+    texture's format), so each level is quantised before the next is made from it; a float chain
+    of an 8-bit map is 0.016-0.027 in F from the GPU's at lambda 1-2 (docs/gpu-pipeline.md)."""
     def halve(a: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
         m = a.shape[axis] // 2
         if m == 0:
@@ -264,20 +271,24 @@ def mip_chain(data: np.ndarray, max_channels: slice | None = None) -> list[np.nd
         out = sum(quads) / 4.0
         if max_channels is not None:
             out[..., max_channels] = np.maximum.reduce([q[..., max_channels] for q in quads])
-        levels.append(out.astype(np.float32))
+        out = out.astype(np.float32)
+        if quantise is not None:
+            out[..., stored] = quantise(out[..., stored])
+        levels.append(out)
     return levels
 
 
 class Filtered:
     """A ``(rows, cols, C)`` texture read at ``uv`` as the lookup's filter reads it (module docstring).
 
-    ``wrap``: ``"wrap"`` repeats, ``"open"`` clamps to the edge. ``samples``: the
+    ``wrap``: ``"wrap"`` repeats, ``"open"`` clamps to the edge. ``quantise``: applied to the
+    ``max_channels`` of every mip level (:func:`mip_chain`). ``samples``: the
     :class:`Samples` whose footprints set the level of detail of a mip filter.
     :meth:`eval` takes the lanes' texture coordinates and their pixel indices.
     """
 
     def __init__(self, data: np.ndarray, boundary: str, lookup: Lookup, samples: Samples | None = None, *,
-                 max_channels: slice | None = None, aligned=None):
+                 max_channels: slice | None = None, aligned=None, quantise=None):
         import drjit as dr
         import mitsuba as mi
 
@@ -285,7 +296,8 @@ class Filtered:
         wrap = dr.WrapMode.Repeat if boundary == "wrap" else dr.WrapMode.Clamp
         prep = aligned if aligned is not None else (lambda a: np.ascontiguousarray(a, np.float32))
         mode = dr.FilterMode.Nearest if lookup.filter == "nearest" else dr.FilterMode.Linear
-        chain = mip_chain(data, max_channels if lookup.mips == "max" else None) if lookup.mipmapped else [data]
+        chain = (mip_chain(data, max_channels if lookup.mips == "max" else None, stored=max_channels,
+                           quantise=quantise) if lookup.mipmapped else [data])
         self.levels = [mi.Texture2f(mi.TensorXf(prep(a)), use_accel=False, migrate=False, filter_mode=mode,
                                     wrap_mode=wrap) for a in chain]
         self.rows, self.cols = data.shape[0], data.shape[1]

@@ -69,8 +69,9 @@ class Storage:
         textures = math.ceil(directions / self.channels)
         return textures * math.ceil(rows / 4) * math.ceil(cols / 4) * self.block_bytes
 
-    def roundtrip(self, sines: np.ndarray) -> np.ndarray:
-        """What the GPU samples (before filtering) of the sines ``(rows, cols, D)`` in [0, 1]: float32."""
+    def roundtrip(self, sines: np.ndarray, blocks_out: list | None = None) -> np.ndarray:
+        """What the GPU samples (before filtering) of the sines ``(rows, cols, D)`` in [0, 1]: float32.
+        ``blocks_out`` (a list; block formats) receives the encoded blocks of each texture, as uploaded."""
         s = np.asarray(sines, np.float32)
         if self.name == "float":
             return s
@@ -78,26 +79,39 @@ class Storage:
         if self.codec is None:
             out = unit_to_u8(v).astype(np.float32) / np.float32(255.0)
         else:
-            out = _block_roundtrip(v, self.channels, *self.codec)
+            out = _block_roundtrip(v, self.channels, *self.codec, blocks_out=blocks_out)
         return (out * out if self.sqrt else out).astype(np.float32)
 
 
-def _block_roundtrip(v: np.ndarray, per_texture: int, encode, decode) -> np.ndarray:
-    """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack."""
+def _encode_blocks(v: np.ndarray, per_texture: int, encode) -> tuple[list[tuple[list[int], bytes]], int, int]:
+    """``([(channels, blocks), ...], W, H)``: the channels of ``v`` packed ``per_texture`` to RGBA8
+    images padded to multiples of 4 by repeating the edge, each encoded (the bytes a GPU uploads)."""
     rows, cols, D = v.shape
     pr, pc = -rows % 4, -cols % 4
     padded = np.pad(v, ((0, pr), (0, pc), (0, 0)), mode="edge")
     H, W = padded.shape[:2]
-    out = np.empty_like(padded)
+    out = []
     for first in range(0, D, per_texture):
         chans = list(range(first, min(first + per_texture, D)))
         rgba = np.zeros((H, W, 4), np.uint8)
         rgba[..., 3] = 255
         rgba[..., :len(chans)] = unit_to_u8(padded[..., chans])
-        blocks = encode(np.ascontiguousarray(rgba).tobytes(), W, H)
+        out.append((chans, encode(np.ascontiguousarray(rgba).tobytes(), W, H)))
+    return out, W, H
+
+
+def _block_roundtrip(v: np.ndarray, per_texture: int, encode, decode, blocks_out: list | None = None) -> np.ndarray:
+    """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack;
+    ``blocks_out`` (a list) receives each texture's encoded blocks."""
+    rows, cols, D = v.shape
+    textures, W, H = _encode_blocks(v, per_texture, encode)
+    out = np.empty((H, W, D), np.float32)
+    for chans, blocks in textures:
         bgra = np.frombuffer(decode(blocks, W, H), np.uint8).reshape(H, W, 4)
         rgba_back = bgra[..., [2, 1, 0, 3]]
         out[..., chans] = rgba_back[..., :len(chans)].astype(np.float32) / np.float32(255.0)
+    if blocks_out is not None:
+        blocks_out.extend(blocks for _, blocks in textures)
     return out[:rows, :cols]
 
 

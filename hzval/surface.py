@@ -122,7 +122,12 @@ class FlatShading:
         return []
 
     def _max_channels(self) -> slice | None:
-        """The packed channels a ``max`` mip chain takes the maximum of (:func:`hzval.lookup.mip_chain`)."""
+        """The packed channels a ``max`` mip chain takes the maximum of, and a storage quantises
+        (:func:`hzval.lookup.mip_chain`)."""
+        return None
+
+    def _mip_quantise(self):
+        """What the storage of :meth:`_max_channels` makes of each mip level; ``None``: float."""
         return None
 
     def _extra_uniforms(self, uni: dict, shadows: bool, overrides: dict) -> None:
@@ -177,7 +182,7 @@ class FlatShading:
         if planes:
             self._texture = lookup.Filtered(np.concatenate(planes, axis=-1), bake.params.boundary,
                                             self.scene.lookup, samples, max_channels=self._max_channels(),
-                                            aligned=lookup.aligned)
+                                            aligned=lookup.aligned, quantise=self._mip_quantise())
 
     def _upload_constants(self) -> None:
         """Per-object constants, opaque so that objects share kernels."""

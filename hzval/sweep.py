@@ -278,11 +278,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     t0 = time.perf_counter()
     plain = surface.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
-    built = []
-    for t in chosen:
-        t0 = time.perf_counter()
-        built.append(t.build(ctx, **options.settings.get(t.name, {})))
-        timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
+    built = _build_techniques(ctx, chosen, options, timings, notices)
+    chosen = [type(t) for t in built]
     setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
                    retained=retained)
     if the_truth.hits is not None:
@@ -293,6 +290,23 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     lookup.forget()
     backend.release_memory()
     return setup
+
+
+def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
+    """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
+    (:class:`hzval.technique.Unavailable`) is skipped with its one-line notice."""
+    built = []
+    for t in chosen:
+        t0 = time.perf_counter()
+        try:
+            built.append(t.build(ctx, **options.settings.get(t.name, {})))
+        except technique.Unavailable as e:
+            notices.append(str(e))             # metrics.json's warnings; the command line prints them
+            continue
+        timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
+    if not built:
+        raise InputError("--techniques", "no technique is left to score: " + "; ".join(notices[-len(chosen):]))
+    return built
 
 
 def _set_up_view(setup: _Setup, ctx, chosen, options: Options) -> None:

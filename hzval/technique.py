@@ -44,14 +44,23 @@ from hzval import lookup
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene
 
-__all__ = ["REGISTRY", "Technique", "Context", "Variant", "get", "names", "select", "bake_needs"]
+__all__ = ["REGISTRY", "Technique", "Context", "Variant", "Unavailable", "get", "names", "defaults",
+           "select", "bake_needs"]
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
     "horizon": "hzval.horizon:Horizon",
     "terrain": "hzval.terrain:TerrainShadow",
     "pom": "hzval.pom:RayMarchShadow",
+    "horizon-gl": "hzval.horizon_gl:HorizonGL",
+    "pom-gl": "hzval.horizon_gl:PomGL",
 }
+
+
+class Unavailable(Exception):
+    """Raised by :meth:`Technique.build` when this machine cannot run the technique (no OpenGL
+    context for the GL techniques): the message is one line saying what to install; the sweep
+    skips the technique with it and goes on."""
 
 
 @dataclass(frozen=True)
@@ -115,6 +124,8 @@ class Technique:
     file_stem: ClassVar[str]
     needs: ClassVar[tuple[str, ...]] = ("shadow",)
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
+    #: Whether a sweep without ``--techniques`` renders it (the GL techniques are opt-in).
+    by_default: ClassVar[bool] = True
 
     simulated: tuple[str, ...] = ()
     #: The command-line flag of each :meth:`build` setting (``{"steps": "--pom-steps"}``), which an
@@ -196,6 +207,12 @@ def names() -> list[str]:
     return list(REGISTRY)
 
 
+def defaults() -> list[str]:
+    """The names a sweep renders when none are asked for: the registry less the techniques that are
+    not on by default (:attr:`Technique.by_default`)."""
+    return [n for n in REGISTRY if get(n).by_default]
+
+
 def get(name: str) -> type[Technique]:
     """The technique class registered as ``name``."""
     try:
@@ -207,13 +224,14 @@ def get(name: str) -> type[Technique]:
 
 def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
     """The techniques to render for ``scene``: ``requested`` (names, in registry order),
-    or every one that applies; ``exclude`` leaves some out.
+    or every one that applies and is on by default (:attr:`Technique.by_default`); ``exclude``
+    leaves some out.
 
     A requested technique that does not apply (``pom`` on a scene without
     ``shadow``) is an :class:`InputError`, not silently dropped.
     """
     if requested is None:
-        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.applies(scene)]
+        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.by_default and t.applies(scene)]
         if not chosen:
             raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
                                              "effects the scene does not declare")

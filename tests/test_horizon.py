@@ -20,6 +20,8 @@ from hzval import scene as S
 from hzval.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
 from hzval.errors import InputError
 
+from cube_reference import seamless_bilinear
+
 K = 8.0
 #: Every azimuth the issue names, the channel directions exactly, both ways
 #: round, plus a few between channels (degrees).
@@ -47,17 +49,12 @@ _CUBE = B.weight_cube(CUBE_SIZE).astype(np.float64) / 255.0
 def gpu_weights(d):
     """The 8 channel weights that Listing 5.1 gets from the 8-bit cube map at ``d``.
 
-    Bilinear within the face selected by hzval.conventions.cube_lookup,
-    clamped to the face's edge texels, then f0 = clamp(2f - 1), f1 = clamp(1 - 2f).
+    Bilinear and seamless across the faces, as OpenGL filters a cube map with
+    GL_TEXTURE_CUBE_MAP_SEAMLESS (tests/cube_reference.py, built independently
+    of hzval.cubemap), then f0 = clamp(2f - 1), f1 = clamp(1 - 2f).
     """
     d = np.asarray(d, np.float32).astype(np.float64)
-    face, s, t = cv.cube_lookup(d)
-    n = CUBE_SIZE
-    ps, pt = np.clip(s * n - 0.5, 0, n - 1), np.clip(t * n - 0.5, 0, n - 1)
-    c0, r0 = min(int(ps), n - 2), min(int(pt), n - 2)
-    fs, ft = ps - c0, pt - r0
-    c = _CUBE[int(face)]
-    f = (1 - ft) * ((1 - fs) * c[r0, c0] + fs * c[r0, c0 + 1]) + ft * ((1 - fs) * c[r0 + 1, c0] + fs * c[r0 + 1, c0 + 1])
+    f = seamless_bilinear(_CUBE, d)
     return np.concatenate([np.clip(2 * f - 1, 0, 1), np.clip(1 - 2 * f, 0, 1)])
 
 
@@ -266,7 +263,7 @@ def test_horizon_sine_uses_the_paths_weights(channel_blocks, path, reference):
 def test_cube_weight_error_is_what_hzval_approx_documents():
     # The numbers quoted in hzval.horizon: over all directions the decoded
     # weights sum to at most 1 + 3/255 (three zero-weight leaks on layer 0);
-    # on the side faces (elevation <= 45 deg) sum |w^ - w| <= 0.169, largest
+    # on the side faces (elevation <= 45 deg) sum |w^ - w| <= 0.173, largest
     # at the channel azimuths, whose tent peak falls between cube texels.
     worst_sum, worst_err = 0.0, 0.0
     for az in np.arange(0.0, 360.0, 1.0):
@@ -276,7 +273,8 @@ def test_cube_weight_error_is_what_hzval_approx_documents():
             worst_sum = max(worst_sum, wg.sum())
             worst_err = max(worst_err, np.abs(wg - exact_weights(L)).sum())
     assert worst_sum == pytest.approx(1 + 3 / 255, abs=1e-9)
-    assert 0.16 < worst_err <= 0.169
+    # 0.169 below 45 degrees; at 45 the seamless filter blends in the +z face's texels: 0.173
+    assert 0.16 < worst_err <= 0.173
     L = light32(0.0, 30.0)   # channel 0: 0.92 = 235/255 instead of 1
     assert gpu_weights(L)[0] == pytest.approx(235 / 255, abs=1e-9)
 

@@ -21,6 +21,10 @@ FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"
 DERIVED_FILES = {"plain", "visibility_png"}
 
 
+#: The techniques a sweep renders without --techniques (the GL ones are opt-in: tests/test_horizon_gl.py).
+DEFAULT_TECHNIQUES = [n for n in technique.names() if technique.get(n).by_default]
+
+
 def run(*argv) -> int:
     return cli.main([str(a) for a in argv])
 
@@ -53,8 +57,8 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
             assert te["seconds"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
     assert m["simulated"] == {"truth": ["shadow", "diffuse"],
-                              **{name: ["shadow", "diffuse"] for name in technique.names()}}
-    assert list(m["techniques"]) == technique.names()          # every technique applies, in registry order
+                              **{name: ["shadow", "diffuse"] for name in DEFAULT_TECHNIQUES}}
+    assert list(m["techniques"]) == DEFAULT_TECHNIQUES          # every technique applies, in registry order
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
     assert m["memory"]["peak_rss_bytes"] > 2**20
@@ -167,7 +171,7 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
 
 
-@pytest.mark.parametrize("name", technique.names())
+@pytest.mark.parametrize("name", DEFAULT_TECHNIQUES)
 def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
     """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
     the others', the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""

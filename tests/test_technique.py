@@ -74,11 +74,12 @@ def test_every_technique_renders_a_documented_frame(variant, name):
 def test_selection_follows_the_declared_effects(variant):
     lit = small_context(("diffuse",)).scene
     assert [t.name for t in technique.select(None, lit)] == [n for n in technique.names()
-                                                           if not technique.get(n).needs]
+                                                           if not technique.get(n).needs and technique.get(n).by_default]
     shadowed = small_context().scene
-    assert [t.name for t in technique.select(None, shadowed)] == technique.names()
+    assert [t.name for t in technique.select(None, shadowed)] == [n for n in technique.names()
+                                                                if technique.get(n).by_default]
     assert [t.name for t in technique.select(None, shadowed, exclude=("terrain",))] == \
-        [n for n in technique.names() if n != "terrain"]
+        [n for n in technique.names() if n != "terrain" and technique.get(n).by_default]
     with pytest.raises(InputError, match="needs the scene to declare shadow"):
         technique.select(["terrain"], lit)
     with pytest.raises(InputError, match="unknown technique 'nope'"):
