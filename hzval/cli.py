@@ -85,13 +85,15 @@ def _technique_options(args) -> dict:
     requested = None
     if args.techniques is not None:
         requested = tuple(n.strip() for n in args.techniques.split(",") if n.strip())
-    params = bake.BakeParams(radius=args.radius, angles=args.angles, method=args.method, directions=args.directions)
+    params = bake.BakeParams(radius=args.radius, angles=args.angles, method=args.method,
+                             directions=args.directions).validate()
     settings = {}
     for n in technique.names():
         t = technique.get(n)
         with technique.flag_errors(t, getattr(args, "typed", {})):
             settings[n] = t.settings_from_args(args)
-            t.check_settings(params, settings[n])
+            if n in (requested or technique.defaults()):      # the others' settings are never used
+                t.check_settings(params, settings[n])
     return {"techniques": requested, "exclude": tuple(args.exclude), "settings": settings}
 
 
