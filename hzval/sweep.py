@@ -544,6 +544,8 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
     for name, value in r.perfect.items():
         per[name]["perfect_parallax_mae"] = value
+    for t in setup.techniques:
+        per[t.name].update(type(t).frame_extras(per))
     frame.update(files=rel, techniques=per)
     return frame
 

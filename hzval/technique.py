@@ -201,6 +201,13 @@ class Technique:
         """Texture memory the technique reads at run time, bytes."""
         return 0
 
+    @classmethod
+    def frame_extras(cls, scores: dict) -> dict:
+        """Entries the technique adds to its own record of a frame (``frames[i].techniques.NAME``)
+        from every technique's scores of that frame, ``{name: metrics}`` (e.g. how its error
+        splits against another's); by default none."""
+        return {}
+
 
 def names() -> list[str]:
     """The registered technique names, in registry order."""
