@@ -36,6 +36,17 @@ def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = No
                    help=f"size in texels of a built-in material (default {default_size}); ignored with HEIGHT")
 
 
+def _scene_module():
+    from hzval import scene
+
+    return scene
+
+
+def _light_default():
+    """The default light (:class:`hzval.scene.Light`), whose values the help texts show."""
+    return _scene_module().Light()
+
+
 def _material_of(args) -> str | None:
     """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``."""
     if args.height is not None and args.material is not None:
@@ -51,6 +62,12 @@ def _scene_name(args, scene) -> str:
     if getattr(args, "material", None) is not None and not getattr(args, "scene", None):
         return args.material
     return scene.name
+
+
+def _tradeoff_truth_spp() -> int:
+    from hzval import tradeoff
+
+    return tradeoff.DEFAULT_TRUTH_SPP
 
 
 def _tradeoff_default_size() -> int:
@@ -222,7 +239,8 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help=f"random seed of the samples (default {d.seed})")
     p.add_argument("--supersampling", type=int, default=None,
                    help="pixels per texel along each axis: a magnification, not anti-aliasing (--spp samples "
-                        "each pixel); FLIP and the other image scores depend on it (default 1)")
+                        f"each pixel); FLIP and the other image scores depend on it "
+                        f"(default {_scene_module().Camera().supersampling})")
     p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
@@ -255,9 +273,9 @@ def _add_views(sub) -> None:
                                    "(sweep reports), DIR/views.json and DIR/index.html, which plots each "
                                    "technique's error against view elevation and pixel footprint.")
     _add_material_args(p, default_size=128)
-    p.add_argument("--azimuths", default="-60:60:30", help="light azimuths in degrees (default -60:60:30)")
-    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
-    p.add_argument("--spp", type=int, default=4, help="samples per pixel (default 4)")
+    p.add_argument("--azimuths", default="-60:60:30", help="light azimuths in degrees (default %(default)s)")
+    p.add_argument("--elevation", type=float, default=None, help=f"light elevation in degrees (default {_light_default().elevation_deg:g})")
+    p.add_argument("--spp", type=int, default=4, help="samples per pixel (default %(default)s)")
     p.add_argument("--views", default=None, help=f"comma-separated views (default all: {', '.join(views.VIEWS)})")
     p.add_argument("--lookups", default=None,
                    help=f"comma-separated lookups (default all: {', '.join(views.LOOKUPS)})")
@@ -298,27 +316,29 @@ def _add_view_flags(p: argparse.ArgumentParser) -> None:
     """The camera's and the techniques' lookup flags (:mod:`hzval.camera`, :mod:`hzval.lookup`)."""
     from hzval import camera, lookup
 
+    c, lk = camera.Camera(), lookup.Lookup()
     g = p.add_argument_group("view", "where the camera is, and how the techniques read their textures")
     g.add_argument("--camera", choices=camera.KINDS, default=None,
-                   help="top (straight down, one pixel per texel: the default), orthographic or perspective")
+                   help=f"top (straight down, one pixel per texel), orthographic or perspective (default {c.kind})")
     g.add_argument("--view-elevation", type=float, default=None, metavar="DEG",
-                   help="the camera's elevation above the surface (default 45)")
+                   help=f"the camera's elevation above the surface (default {c.elevation_deg:g})")
     g.add_argument("--view-azimuth", type=float, default=None, metavar="DEG",
-                   help="the direction from the surface toward the camera, as the light's azimuth (default -90)")
+                   help=f"the direction from the surface toward the camera, as the light's azimuth "
+                        f"(default {c.azimuth_deg:g})")
     g.add_argument("--fov", type=float, default=None, metavar="DEG",
-                   help="perspective: horizontal field of view (default 40)")
+                   help=f"perspective: horizontal field of view (default {c.fov_deg:g})")
     g.add_argument("--distance", type=float, default=None, metavar="D",
-                   help="perspective: the eye's distance from the tile's centre in tile widths (default 1.5)")
+                   help=f"perspective: the eye's distance from the tile's centre in tile widths (default {c.distance:g})")
     g.add_argument("--resolution", default=None, metavar="WxH", help="image size (default the top view's)")
     g.add_argument("--plane", choices=lookup.PLANES, default=None,
-                   help="the techniques' flat surface at the bottom, mean or top of the relief (default mean)")
+                   help=f"the techniques' flat surface at the bottom, mean or top of the relief (default {lk.plane})")
     g.add_argument("--filter", choices=lookup.FILTERS, default=None,
-                   help="texture filtering: nearest, bilinear (default), trilinear from mip-maps, anisotropic")
+                   help=f"texture filtering: nearest, bilinear, trilinear from mip-maps, anisotropic (default {lk.filter})")
     g.add_argument("--mips", choices=lookup.MIPS, default=None,
-                   help="the horizon map's mip-maps by averaging (default) or by the maximum (conservative)")
+                   help=f"the horizon map's mip-maps by averaging or by the maximum (conservative) (default {lk.mips})")
     g.add_argument("--parallax", choices=lookup.PARALLAX, default=None,
-                   help="parallax mapping of the lookup: none (default), offset (with offset limiting) or "
-                        "occlusion (linear search and refinement)")
+                   help="parallax mapping of the lookup: none, offset (with offset limiting) or occlusion (linear "
+                        f"search and refinement) (default {lk.parallax})")
 
 
 def _resolution(text: str | None):
@@ -396,11 +416,11 @@ def _add_tradeoff(sub) -> None:
                                    "over the sweep: time, texture memory, visibility error and FLIP; write "
                                    "tradeoff.json, a Pareto plot and a page that recommends a setting.")
     _add_material_args(p, default_size=_tradeoff_default_size())
-    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
-    p.add_argument("--azimuths", default=None, help="light azimuths in degrees (default -60:60:15)")
+    p.add_argument("--elevation", type=float, default=None, help=f"light elevation in degrees (default {_light_default().elevation_deg:g})")
+    p.add_argument("--azimuths", default=None, help=f"light azimuths in degrees (default {_scene_module().DEFAULT_AZIMUTHS_TEXT})")
     p.add_argument("--truth-spp", type=int, default=None, metavar="N",
-                   help="shadow rays per pixel of the converged truth (default 256)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel of the settings (default 16)")
+                   help=f"shadow rays per pixel of the converged truth (default {_tradeoff_truth_spp()})")
+    p.add_argument("--spp", type=int, default=None, help=f"samples per pixel of the settings (default {_scene_module().Scene().spp})")
     p.add_argument("--only", action="append", default=None, metavar="TEXT",
                    help="measure only the settings whose names contain TEXT (repeatable)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/tradeoff-<name>)")
@@ -416,10 +436,10 @@ def _add_export_scene(sub) -> None:
                                    "Render it with `mitsuba DIR/scene.xml -o out.exr`.")
     _add_material_args(p)
     p.add_argument("--scene", type=Path, default=None, help="scene description (TOML)")
-    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
-    p.add_argument("--azimuth", type=float, default=0.0, help="light azimuth in degrees (default 0)")
+    p.add_argument("--elevation", type=float, default=None, help=f"light elevation in degrees (default {_light_default().elevation_deg:g})")
+    p.add_argument("--azimuth", type=float, default=0.0, help="light azimuth in degrees (default %(default)g)")
     p.add_argument("--effects", default=None, help="shadow and/or diffuse (default shadow,diffuse)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16)")
+    p.add_argument("--spp", type=int, default=None, help=f"samples per pixel (default {_scene_module().Scene().spp})")
     p.add_argument("--shading", choices=["smooth", "faceted"], default=None,
                    help="vertex normals in the PLY (smooth, default) or none (faceted)")
     _add_truth_tolerance_flag(p)
