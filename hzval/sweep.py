@@ -462,11 +462,8 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
     their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then compared and
     written (:func:`_finish`).
 
-    One frame at a time, every stage on both cores. Making a frame's comparison and files on a
-    thread of their own beside the next frame's truth (commits 1a78ee7 to dcae3f5) gained 2%
-    at 2048 x 2048 (57.8 s against 58.7 s with horizon and terrain, side by side), since both are
-    Dr.Jit kernels on the same two cores; it cost 0.3 GiB more memory and every stage's seconds
-    the share of the other's, so it was taken out."""
+    One frame at a time, every stage on all cores: the comparison and the truth are both Dr.Jit
+    kernels, so overlapping them gains next to nothing and costs memory and clear stage timings."""
     frames: list[dict] = []
     for az in bar:
         bar.set_postfix_str(f"azimuth {az:+g} deg")
@@ -630,12 +627,9 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
     }
 
 
-#: The frames' PNGs are written at zlib level 1. Measured on a 2048 x 2048 frame (one thread;
-#: level 1 / 3 / 6): a grey preview 3.44 / 3.43 / 3.39 MB in 0.21 / 0.21 / 0.22 s, a grey factor
-#: map 2.24 / 2.21 / 2.08 MB in 0.20 / 0.26 / 0.55 s, a palette FLIP map 3.25 / 3.25 / 3.24 MB in
-#: 0.11 / 0.13 / 0.15 s, a palette visibility difference 1.59 / 1.48 / 1.36 MB in 0.06 / 0.16 /
-#: 0.40 s. The renders' noise leaves zlib little to find: level 6 would save 1.2 MB of a 72 MB
-#: frame for 1.2 s more, level 3 0.4 MB for 0.3 s.
+#: The frames' PNGs are written at zlib level 1: the renders' noise leaves zlib little to find, so a
+#: higher level saves under 2% of a frame's bytes for several times the time (commit 'PNGs at
+#: level 1' has the measurements).
 PNG_LEVEL = 1
 
 
