@@ -204,8 +204,8 @@ def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth):
 
 def test_the_depth_bound_and_its_reason():
     assert cv.check_depth(cv.MAX_DEPTH) == cv.MAX_DEPTH
-    with pytest.raises(InputError, match=r"\(0, 2\] image widths .*hops"):
-        cv.check_depth(2.5)
+    with pytest.raises(InputError, match=r"\(0, 10\] image widths .*hops"):
+        cv.check_depth(10.5)
     for bad in (float("inf"), float("nan"), -1.0, 0.0):
         with pytest.raises(InputError, match="--depth"):
             cv.check_depth(bad)
