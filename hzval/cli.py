@@ -419,6 +419,7 @@ def cmd_bake(args) -> int:
     t0 = time.perf_counter()
     with files.output_folder(args.out, force=args.force):
         height, info = load_material(args)
+        info["path"] = files.report_path(info["path"], args.out)     # bake.json carries no absolute folders
         t_load = time.perf_counter() - t0
         backend.variant(args.variant)
         result = bake.bake(height, params)

@@ -538,6 +538,7 @@ def test_bake_and_export_read_the_sidecar_as_the_sweep_does(tmp_path, height_npy
     assert cli.main(["bake", str(height_npy), "--radius", "3", "--angles", "16", "--out", str(tmp_path / "b")]) == 0
     record = json.loads((tmp_path / "b" / "bake.json").read_text())
     assert record["parameters"]["depth"] == 0.2 and record["parameters"]["boundary"] == "open"
+    assert record["input"]["path"] == "../maps/h.npy"              # relative to the folder, not absolute
     assert cli.main(["export-scene", str(height_npy), "--out", str(tmp_path / "e")]) == 0
     assert "depth 0.2, open" in (tmp_path / "e" / "scene.xml").read_text()
 
