@@ -194,12 +194,14 @@ def height_npy(tmp_path):
 # 4. depth: bounded, with a reason --------------------------------------------------------------
 
 @pytest.mark.parametrize("depth", ["1e8", "1e30"])
-def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth):
-    for argv in (["sweep", *SMALL], ["bake", "--size", "24"], ["export-scene", "--size", "24"]):
-        rc, err, seconds = hzval(*argv, f"--depth={depth}", "--out", tmp_path / "o", timeout=30)
-        assert rc == 2 and seconds < 30, (argv, err)
-        one_line(err, "--depth")
-        assert not (tmp_path / "o").exists()
+def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth, capsys):
+    rc, err, seconds = hzval("sweep", *SMALL, f"--depth={depth}", "--out", tmp_path / "o", timeout=30)
+    assert rc == 2 and seconds < 30, err
+    one_line(err, "--depth")
+    for argv in (["bake", "--size", "24"], ["export-scene", "--size", "24"]):     # in this process: faster
+        assert cli.main([*argv, f"--depth={depth}", "--out", str(tmp_path / "o")]) == 2
+        one_line(capsys.readouterr().err, "--depth")
+    assert not (tmp_path / "o").exists()
 
 
 def test_the_depth_bound_and_its_reason():
@@ -297,13 +299,15 @@ def test_a_small_file_of_a_huge_map_is_refused_before_it_is_decoded(tmp_path):
 
 # 7. OS errors as one line ------------------------------------------------------------------------
 
-def test_an_out_that_is_a_file_is_one_line(tmp_path):
+def test_an_out_that_is_a_file_is_one_line(tmp_path, capsys):
     f = tmp_path / "f"
     f.write_text("x")
-    for out in (f, f / "sub"):
-        rc, err, _ = hzval("sweep", *SMALL, "--out", out)
-        assert rc == 2
-        one_line(err, str(f), "file")
+    rc, err, _ = hzval("sweep", *SMALL, "--out", f)                  # as a user runs it
+    assert rc == 2
+    one_line(err, str(f), "is a file, not a folder")
+    for argv in (["sweep", *SMALL], ["bake", "--size", "16"], ["views", "--size", "16", "--views", "top"]):
+        assert cli.main([*argv, "--out", str(f / "sub")]) == 2
+        one_line(capsys.readouterr().err, str(f / "sub"), f"{f} is a file")
     assert f.read_text() == "x"
 
 
