@@ -509,6 +509,7 @@ def cmd_bake(args) -> int:
     t0 = time.perf_counter()
     with files.output_folder(args.out, force=args.force):
         height, info = load_material(args)
+        info["path"] = files.report_path(info["path"], args.out)     # bake.json carries no absolute folders
         t_load = time.perf_counter() - t0
         result = bake.bake(height, params)
         result.timings = {"load_s": t_load, **result.timings}

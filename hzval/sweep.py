@@ -268,7 +268,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     t0 = time.perf_counter()
     notices: list[str] = []
     horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
-    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", material, notices,
+    record = {**material, "path": files.report_path(hm.path, out / "bake")}    # relative to bake.json's folder
+    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", record, notices,
                                      horizon=horizon, write_to=None if report_dir is None else report_dir / "bake")
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()

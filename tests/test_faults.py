@@ -194,18 +194,20 @@ def height_npy(tmp_path):
 # 4. depth: bounded, with a reason --------------------------------------------------------------
 
 @pytest.mark.parametrize("depth", ["1e8", "1e30"])
-def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth):
-    for argv in (["sweep", *SMALL], ["bake", "--size", "24"], ["export-scene", "--size", "24"]):
-        rc, err, seconds = hzval(*argv, f"--depth={depth}", "--out", tmp_path / "o", timeout=30)
-        assert rc == 2 and seconds < 30, (argv, err)
-        one_line(err, "--depth")
-        assert not (tmp_path / "o").exists()
+def test_an_unbounded_depth_is_one_line_in_seconds(tmp_path, depth, capsys):
+    rc, err, seconds = hzval("sweep", *SMALL, f"--depth={depth}", "--out", tmp_path / "o", timeout=30)
+    assert rc == 2 and seconds < 30, err
+    one_line(err, "--depth")
+    for argv in (["bake", "--size", "24"], ["export-scene", "--size", "24"]):     # in this process: faster
+        assert cli.main([*argv, f"--depth={depth}", "--out", str(tmp_path / "o")]) == 2
+        one_line(capsys.readouterr().err, "--depth")
+    assert not (tmp_path / "o").exists()
 
 
 def test_the_depth_bound_and_its_reason():
     assert cv.check_depth(cv.MAX_DEPTH) == cv.MAX_DEPTH
-    with pytest.raises(InputError, match=r"\(0, 2\] image widths .*hops"):
-        cv.check_depth(2.5)
+    with pytest.raises(InputError, match=r"\(0, 10\] image widths .*hops"):
+        cv.check_depth(10.5)
     for bad in (float("inf"), float("nan"), -1.0, 0.0):
         with pytest.raises(InputError, match="--depth"):
             cv.check_depth(bad)
@@ -297,13 +299,15 @@ def test_a_small_file_of_a_huge_map_is_refused_before_it_is_decoded(tmp_path):
 
 # 7. OS errors as one line ------------------------------------------------------------------------
 
-def test_an_out_that_is_a_file_is_one_line(tmp_path):
+def test_an_out_that_is_a_file_is_one_line(tmp_path, capsys):
     f = tmp_path / "f"
     f.write_text("x")
-    for out in (f, f / "sub"):
-        rc, err, _ = hzval("sweep", *SMALL, "--out", out)
-        assert rc == 2
-        one_line(err, str(f), "file")
+    rc, err, _ = hzval("sweep", *SMALL, "--out", f)                  # as a user runs it
+    assert rc == 2
+    one_line(err, str(f), "is a file, not a folder")
+    for argv in (["sweep", *SMALL], ["bake", "--size", "16"], ["views", "--size", "16", "--views", "top"]):
+        assert cli.main([*argv, "--out", str(f / "sub")]) == 2
+        one_line(capsys.readouterr().err, str(f / "sub"), f"{f} is a file")
     assert f.read_text() == "x"
 
 
@@ -538,6 +542,7 @@ def test_bake_and_export_read_the_sidecar_as_the_sweep_does(tmp_path, height_npy
     assert cli.main(["bake", str(height_npy), "--radius", "3", "--angles", "16", "--out", str(tmp_path / "b")]) == 0
     record = json.loads((tmp_path / "b" / "bake.json").read_text())
     assert record["parameters"]["depth"] == 0.2 and record["parameters"]["boundary"] == "open"
+    assert record["input"]["path"] == "../maps/h.npy"              # relative to the folder, not absolute
     assert cli.main(["export-scene", str(height_npy), "--out", str(tmp_path / "e")]) == 0
     assert "depth 0.2, open" in (tmp_path / "e" / "scene.xml").read_text()
 
