@@ -271,15 +271,14 @@ def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarra
     keep = storage == "bc7"
     blocks: list[list[bytes]] = []
 
-    def quantise(level: np.ndarray) -> np.ndarray:
+    def stored_level(level: np.ndarray) -> np.ndarray:
         out: list = []
         q = st.roundtrip(level, out)
         if keep:
             blocks.append(out)
         return q
 
-    if storage == "float":
-        quantise = None
+    quantise = None if storage == "float" else stored_level
     stored = horizon if quantise is None else quantise(horizon)
     if not lk.mipmapped:
         return [stored], blocks

@@ -219,15 +219,11 @@ def exact_weights(d):
 
 
 def gpu_weights(d):
-    """Listing 5.1's 8 channel factors from the 8-bit cube map at ``d`` (bilinear within the face)."""
-    d = np.asarray(d, np.float32).astype(np.float64)
-    face, s, t = cv.cube_lookup(d)
-    n = CUBE_SIZE
-    ps, pt = np.clip(s * n - 0.5, 0, n - 1), np.clip(t * n - 0.5, 0, n - 1)
-    c0, r0 = min(int(ps), n - 2), min(int(pt), n - 2)
-    fs, ft = ps - c0, pt - r0
-    c = _CUBE[int(face)]
-    f = (1 - ft) * ((1 - fs) * c[r0, c0] + fs * c[r0, c0 + 1]) + ft * ((1 - fs) * c[r0 + 1, c0] + fs * c[r0 + 1, c0 + 1])
+    """Listing 5.1's 8 channel factors from the 8-bit cube map at ``d``, filtered seamlessly across
+    the faces as OpenGL does (tests/cube_reference.py)."""
+    from cube_reference import seamless_bilinear
+
+    f = seamless_bilinear(_CUBE, np.asarray(d, np.float32).astype(np.float64))
     return np.concatenate([np.clip(2 * f - 1, 0, 1), np.clip(1 - 2 * f, 0, 1)])
 
 
