@@ -937,13 +937,13 @@ METHOD_NOTES: dict[str, str] = {
 #: What a bake can hold (:attr:`Bake.contents`): the normal map alone, or with the horizon map and the
 #: ambient maps derived from it. Techniques declare which they read
 #: (:meth:`hzval.technique.Technique.bake_needs`); a sweep bakes what its techniques need.
-CONTENTS: tuple[str, ...] = ("normal", "horizon", "ambient")
+CONTENTS: tuple[str, ...] = ("normal", "horizon_map", "ambient")
 
 
 def needs_horizon(needs) -> bool:
     """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
     bake: the horizon map, and the ambient maps, which are made from its sines."""
-    return bool({"horizon", "ambient"} & set(needs))
+    return bool({"horizon_map", "ambient"} & set(needs))
 
 
 def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True) -> Bake:
@@ -1084,7 +1084,7 @@ def read_bake(folder: str | Path) -> Bake:
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
     params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
-    if "horizon" not in record.get("contents", CONTENTS):
+    if "horizon_map" not in record.get("contents", CONTENTS):
         n = files.read_exr(folder / "normal.exr")
         return Bake(params, None, np.stack([n[c] for c in "RGB"], axis=-1), None, None,
                     dict(record["timings_s"]))
@@ -1118,7 +1118,7 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
         record = json.loads((folder / "bake.json").read_text())
         held = record.get("contents", CONTENTS)
         if horizon:
-            same = "horizon" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
+            same = "horizon_map" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
         else:           # any bake of the same surface holds its normal map
             same = {k: record["parameters"][k] for k in ("depth", "boundary")} == _normal_record(params)
         same = same and record["input"]["digest"] == digest

@@ -306,7 +306,7 @@ class Horizon(FlatShading, Technique):
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         """The horizon map (an external one replaces it, but hzval's own is what it is checked
         against) and the normal and ambient maps."""
-        return frozenset({"horizon", "normal", "ambient"})
+        return frozenset({"horizon_map", "normal", "ambient"})
 
     @classmethod
     def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Horizon":

@@ -106,7 +106,7 @@ class HorizonGL(_GLTechnique):
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         """The horizon map, and what the unshadowed shading reads (:class:`hzval.surface.HeightFieldShadow`)."""
-        return super().bake_needs(scene) | {"horizon"}
+        return super().bake_needs(scene) | {"horizon_map"}
 
     def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo=None, unshadowed=None,
                  samples=None, k: float = horizon.DEFAULT_K, storage: str = "u8"):

@@ -149,9 +149,9 @@ class Technique:
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         """What the technique reads for ``scene``: names of :data:`hzval.bake.CONTENTS` (``normal``,
-        ``horizon``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
+        ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
         its techniques need; by default everything."""
-        return frozenset({"normal", "horizon", "ambient", "height"})
+        return frozenset({"normal", "horizon_map", "ambient", "height"})
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "Technique":

@@ -122,7 +122,7 @@ def baked_technique(scene=None) -> str | None:
     from hzval.scene import Scene
 
     sc_ = scene if scene is not None else Scene()
-    return next((n for n in technique.names() if "horizon" in technique.get(n).bake_needs(sc_)
+    return next((n for n in technique.names() if "horizon_map" in technique.get(n).bake_needs(sc_)
                  and (scene is None or technique.get(n).applies(scene))), None)
 
 

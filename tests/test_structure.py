@@ -79,3 +79,31 @@ def test_no_import_cycle():
 def test_the_graph_sees_imports_inside_functions():
     # hzval.cli imports the sweep inside its command functions or at its top: either way an edge
     assert "hzval.sweep" in import_graph()["hzval.cli"]
+
+
+def _string_constants(path: Path) -> set[str]:
+    """The module's whole string literals (the pieces of an f-string, ``f"horizon{i}.exr"``, are not)."""
+    tree = ast.parse(path.read_text(), str(path))
+    pieces = {id(v) for n in ast.walk(tree) if isinstance(n, ast.JoinedStr) for v in n.values}
+    return {n.value for n in ast.walk(tree)
+            if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in pieces}
+
+
+def test_no_module_but_a_techniques_own_names_it():
+    """The registry is the one place that names the techniques: no other module of the package, and
+    no template, holds a technique's name as a string (docstrings aside: they may cite one)."""
+    from hzval import technique
+
+    own = {f"{technique.REGISTRY[n].split(':')[0].replace('.', '/')}.py" for n in technique.names()}
+    names = set(technique.names())
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE.parent).as_posix()
+        if rel in own or rel == "hzval/technique.py":
+            continue
+        docstrings = {ast.get_docstring(n, clean=False) for n in ast.walk(ast.parse(path.read_text()))
+                      if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef))}
+        named = (_string_constants(path) - docstrings) & names
+        assert not named, f"{rel} names {sorted(named)}"
+    for path in sorted((PACKAGE / "templates").iterdir()):
+        text = path.read_text()
+        assert not [n for n in names if f"'{n}'" in text or f'"{n}"' in text], path

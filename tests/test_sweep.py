@@ -234,7 +234,7 @@ def test_a_sweep_without_the_horizon_map_bakes_none_and_records_none(variant, tm
     # a later sweep that needs the horizon map bakes it then, into the same cache
     assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--quiet", "--out", out) == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert m["timings"]["bake_cached"] is False and "horizon" in m["bake"]["contents"]
+    assert m["timings"]["bake_cached"] is False and "horizon_map" in m["bake"]["contents"]
     assert (out / "bake" / "horizon0.exr").is_file()
     # and one that does not reuses it
     assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain", "--quiet",
