@@ -119,7 +119,7 @@ class BakeParams:
     directions: int = cv.CHANNEL_COUNT
 
     def validate(self) -> "BakeParams":
-        cv.check_depth(self.depth, "--depth")
+        cv.check_depth(self.depth, "--depth", self.boundary)
         if self.method not in METHODS:
             raise InputError("--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}")
         if (isinstance(self.directions, bool) or not isinstance(self.directions, (int, np.integer))

@@ -138,17 +138,25 @@ def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
 #: bound: 256 x 256, 4 spp, a light at 2 degrees, 4.8 s a frame of the truth (0.05 s at the
 #: bricks' 0.05). Far past it the relief in texels (``depth * cols``, float32) outgrows the
 #: precision of a camera ray's hit (the audit's 1e30: "a camera ray missed"). Depth 5 is a
-#: supported case (issue 16); the built-in materials use 0.02-0.12.
+#: supported case (issue 16); the built-in materials use 0.02-0.12. An ``open`` tile has no hops (a
+#: ray leaves it once it has crossed it), so its bound is only the precision's: a spike 1000 texels
+#: tall on a 16-texel terrain (depth 62.5) is one of the hard cases (tests/hard/test_geometry.py).
 MAX_DEPTH = 10.0
+#: The deepest relief of an ``open`` tile (module comment above).
+MAX_DEPTH_OPEN = 1000.0
 
 
-def check_depth(depth, what: str = "--depth") -> float:
-    """``depth`` if it is a number in ``(0, MAX_DEPTH]``, else one line naming ``what`` and why."""
+def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
+    """``depth`` if it is a number in ``(0, MAX_DEPTH]`` (``open``: ``MAX_DEPTH_OPEN``), else one line
+    naming ``what`` and why."""
     if isinstance(depth, bool) or not isinstance(depth, (int, float, np.integer, np.floating)):
         raise InputError(what, f"must be a number of image widths, got {depth!r}")
-    if not math.isfinite(depth) or not 0 < depth <= MAX_DEPTH:
-        raise InputError(what, f"must be in (0, {MAX_DEPTH:g}] image widths (the relief against the tile; "
-                               f"deeper, the truth's shadow rays would cross it in ever more hops), got {depth:g}")
+    top = MAX_DEPTH_OPEN if boundary == "open" else MAX_DEPTH
+    if not math.isfinite(depth) or not 0 < depth <= top:
+        why = ("the relief against the tile; deeper, the truth's shadow rays would cross a wrap tile in ever "
+               "more hops" if boundary != "open" else "deeper, the relief outgrows float32's precision")
+        tile = "an open tile" if boundary == "open" else f"a {boundary} tile"
+        raise InputError(what, f"must be in (0, {top:g}] image widths for {tile} ({why}), got {depth:g}")
     return float(depth)
 
 

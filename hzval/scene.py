@@ -131,7 +131,7 @@ class Scene:
     def validate(self) -> "Scene":
         what = self.source or "scene"
         m, lt = self.material, self.light
-        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth")
+        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth", m.boundary)
         # values from TOML may be of any type: every number must be one (and finite) before it is compared
         for name, value in (("material.depth", m.depth), ("material.size", m.size),
                             ("material.truth_tolerance", m.truth_tolerance),

@@ -213,6 +213,10 @@ def test_the_depth_bound_and_its_reason():
             cv.check_depth(bad)
     with pytest.raises(InputError, match="number"):
         cv.check_depth("0.1")
+    # an open tile has no hops: only float32's precision bounds it (a 1000-texel spike on 16 texels)
+    assert cv.check_depth(62.5, boundary="open") == 62.5
+    with pytest.raises(InputError, match=r"\(0, 1000\] image widths for an open tile"):
+        cv.check_depth(1e8, boundary="open")
 
 
 # 5. external horizon maps validated; metrics.json strict JSON ----------------------------------
