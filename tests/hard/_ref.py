@@ -103,12 +103,13 @@ def channel_share(i, j, channel, angles=32):
 # The displaced mesh's exact horizon (float64 ray caster)
 # --------------------------------------------------------------------------
 
-def mesh_triangles(h_texels, boundary, margin=None):
-    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds."""
+def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
+    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds: the tessellation of
+    the bilinear surface at ``tolerance`` (default :data:`hzval.mesh.DEFAULT_TOLERANCE`, the truth's).
+    The references below trace these triangles in float64, independently of Mitsuba."""
     g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
-    X, Y = np.meshgrid(g.x, g.y)
-    V = np.stack([X, Y, g.z.astype(np.float64)], axis=-1).reshape(-1, 3)
-    return V[M.triangles(len(g.y), len(g.x)).astype(np.int64)]
+    pos, faces, _ = M.tessellate(g, M.DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    return pos.astype(np.float64)[faces.astype(np.int64)]
 
 
 def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):
