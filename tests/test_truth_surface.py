@@ -160,3 +160,27 @@ def test_every_techniques_score_on_a_turned_map_agrees_to_one_percent(variant, t
     for (boundary, turn), scores in turned_scores.items():
         base = turned_scores[boundary, "as-is"][name]
         assert scores[name] == pytest.approx(base, rel=0.01), (boundary, turn)
+
+
+@pytest.mark.parametrize("value", ["0", "-0.1", "nan", "inf"])
+def test_a_bad_truth_tolerance_is_one_line_exit_2_and_no_files(tmp_path, capsys, value):
+    from hzval import cli
+
+    out = tmp_path / "out"
+    assert cli.main(["sweep", "--size", "32", "--azimuths", "0", f"--truth-tolerance={value}",
+                     "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--truth-tolerance" in err[0]
+    assert not out.exists()
+
+
+def test_the_truth_tolerance_is_recorded_and_read(variant, tmp_path):
+    from hzval import scene as sc, sweep
+    from hzval.truth import Truth
+
+    scene = sc.override(sc.Scene(), size=32, azimuths="0", spp=1, truth_tolerance=0.5)
+    m = sweep.run(scene, tmp_path / "s", options=sweep.Options(techniques=("horizon",)), progress=False)
+    assert m["parameters"]["truth_tolerance"] == 0.5
+    h = np.random.default_rng(5).random((16, 16)).astype(np.float32)
+    coarse, fine = (Truth(sc.override(scene, truth_tolerance=t), h) for t in (0.5, 0.005))
+    assert coarse.tolerance == 0.5 and fine.mesh.face_count() > 2 * coarse.mesh.face_count()
