@@ -177,7 +177,11 @@ class _Setup:
 #: hzval.truth.KEEP_SAMPLES, one band's beyond). Fitted to the peaks measured on this machine
 #: (``python benchmarks/bench_production.py stages``, the default sweep, two lights; benchmarks/README.md).
 PEAK_BASE_BYTES = 0.3 * 2 ** 30
-PEAK_BYTES_PER_PIXEL = 600
+#: The truth's bilinear surface (docs/truth-surface.md) adds its fans' triangles to the pixel's share:
+#: the 2048 bricks' 37.5M triangles against 11.5M, a peak of 8.79 GiB against 6.79 (5 lights,
+#: horizon and terrain), 2.0 GiB more, 500 bytes a pixel; a map of more twisted cells has more
+#: (hzval.mesh.tessellate refuses a mesh that cannot fit, before it is built).
+PEAK_BYTES_PER_PIXEL = 600 + 500
 PEAK_BYTES_PER_SAMPLE = 24
 PEAK_BYTES_PER_KEPT_SAMPLE = 52
 #: What a view other than ``top`` adds per sample of a band (rays on the host, the hits).

@@ -2,7 +2,10 @@
 
 Every number hzval reports is measured against this module, so it favours
 being right over being fast. It builds the displaced mesh of
-:mod:`hzval.mesh` once and loads it into a ``mi.Scene`` with nothing else
+:mod:`hzval.mesh` once - the bilinear height field of the texel centres,
+tessellated with no preferred diagonal to within ``material.truth_tolerance``
+texels (``--truth-tolerance``; docs/truth-surface.md), so that a turned map
+is the turned surface - and loads it into a ``mi.Scene`` with nothing else
 in it: no sensor, no emitter and no Mitsuba BSDF. What the technique
 approximates is the *geometry* - who sees the light, who sees the sky - and
 that is what Mitsuba answers here, with ``Scene.ray_intersect`` and
@@ -236,7 +239,8 @@ class Truth:
 
     Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
     ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
-    ``lift`` (ray origin lift, texels), ``moved_off_edges`` (samples moved
+    ``lift`` (ray origin lift, texels), ``tolerance`` (texels: how far the mesh may be from the
+    bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.mesh.edge_level`), ``moved_off_edges`` (samples moved
     off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
     (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
     camera, :class:`hzval.camera.View`). A view other than ``top`` also sets
