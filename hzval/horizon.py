@@ -27,16 +27,9 @@ repeats, ``open`` clamps to the edge):
     the horizon sine toward the light's azimuth, interpolated between the two
     adjacent channels (section 5.3). ``k`` is the technique's only softness:
     it has no area light, so the light's centre direction is used.
-``diffuse``
-    ``albedo / pi * E * max(0, n.L)``, ``n`` the normal map's (renormalised)
-    normal (FGED2 ch. 7, Lambert).
-``specular``
-    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]``, ``h = normalize(L + v)``
-    (FGED2 ch. 7, Blinn-Phong with its ``float(nl > 0.0)`` gate).
-``ambient``
-    ``+ albedo * A * E / pi``: a uniform sky of radiance ``E / pi`` seen
-    through the ambient map ``A`` (``mean_cos2``, the exact cosine-weighted
-    unoccluded fraction, or ``mean_cos``, Lengyel's term; docs/ARCHITECTURE.md).
+``diffuse``, ``specular``, ``ambient``
+    the flat surface's shading (:mod:`hzval.surface`), which this technique
+    extends in the same kernel.
 ``reflection_occlusion``
     Toolbag's horizon fade (Russell, "Horizon Occlusion for Normal Mapped
     Reflections"): ``o = saturate(1 + fade * dot(r, n_vertex))^2`` with
