@@ -641,8 +641,7 @@ class Approximation(Technique):
         direct = dr.select(lit, direct, 0.0)
 
         if self._shadow and shadows:
-            s = _dot(tex["horizon"], uni["w"])
-            F = dr.clip(dr.fma(L.z - s, uni["k"], 1.0), 0.0, 1.0)
+            F, s = shadow_factor(tex["horizon"], uni["w"], L.z, uni["k"])
             image = direct * F
             out["factor"] = F
             if probe:
@@ -766,6 +765,21 @@ def _dot(h: list, w: list):
             s = dr.fma(h[c], w[c], s)
         total = s if total is None else total + s
     return total
+
+
+def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
+    """``(F, s)``: eq. 5.4's ``F = clamp(k (Lz - s) + 1, 0, 1)`` of the filtered channels ``h`` and the
+    channel weights ``w`` (``s = sum_c w_c h_c``, :func:`_dot`); the shading kernel's own arithmetic.
+
+    ``straight_through``: for the fit (:mod:`hzval.fit`), ``F``'s value is the same but its gradient
+    is that of the unclamped ``k (Lz - s) + 1`` (a straight-through clamp), so that a texel whose
+    factor is saturated on the wrong side (0 where the truth is lit) still learns which way to move."""
+    import drjit as dr
+
+    s = _dot(h, w)
+    z = dr.fma(Lz - s, k, 1.0)
+    F = dr.clip(z, 0.0, 1.0)
+    return (dr.replace_grad(F, z) if straight_through else F), s
 
 
 def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
