@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from hzval import errors
+from hzval import errors, fit_cli
 
 
 def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
@@ -104,6 +104,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_score(sub)
     _add_suite(sub)
     _add_materials(sub)
+    fit_cli.add_parser(sub)
     return parser
 
 

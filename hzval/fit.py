@@ -41,8 +41,9 @@ Optimisation
     baked map; with ``fit_k`` also on ``log k`` (clipped to [0, log 128]).
     Lights are taken in shuffled batches of :data:`BATCH_LIGHTS` (one Adam
     step each); an *epoch* is a pass over every light, and the fit stops when
-    an epoch improves the loss by less than ``tolerance`` (relative) twice in
-    a row, or after ``max_epochs``.
+    an epoch improves the loss by less than ``tolerance`` (relative), the
+    learning rate is halved; the fit has converged at the :data:`HALVINGS`-th
+    such plateau (or stops after ``max_epochs``).
 
 Storage
     ``float``: the sines as they are. ``u8`` and the block formats
@@ -82,12 +83,14 @@ HELD_OUT_LIGHTS = "25@-52.5:52.5:15"
 #: ``eps`` of the Charbonnier loss (module docstring): a sixteenth of the 16-spp truth's V step.
 CHARBONNIER_EPS = 1.0 / 256.0
 #: Lights per Adam step.
-BATCH_LIGHTS = 24
+BATCH_LIGHTS = 8
 #: Adam's learning rate on the sines (and on log k).
-LEARNING_RATE = 0.01
+LEARNING_RATE = 0.02
 #: Relative improvement of an epoch's loss below which the fit counts as converged.
-TOLERANCE = 2e-3
+TOLERANCE = 5e-3
 MAX_EPOCHS = 60
+#: Plateaus (learning rate halved at each) after which the fit has converged.
+HALVINGS = 3
 #: The largest k that ``fit_k`` may reach (the tradeoff's golden-section search's bound).
 MAX_K = 128.0
 #: Samples per band of the forward model: bounds the AD graph's memory.
@@ -370,12 +373,12 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
         curve.append(total)
         bar.set_postfix_str(f"loss {total:.5f}")
         if len(curve) > 1 and curve[-2] - total < tolerance * total:
+            # a plateau: halve the step; converged after HALVINGS of them
             calm += 1
-            if calm >= 2:
+            if calm >= HALVINGS:
                 converged = True
                 break
-        else:
-            calm = 0
+            opt.set_learning_rate(lr * 0.5 ** calm)
     bar.close()
     h = np.asarray(opt["h"], np.float32).reshape(model.rows, model.cols, -1)
     k_fit = float(np.exp(np.asarray(opt["logk"])[0])) if fit_k else float(k)

@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval import approx, backend, bake, compare, files, heightmap, images, lookup, materials, report, shading
-from hzval import technique, truth
+from hzval import horizon_fit, technique, truth
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
@@ -243,7 +243,7 @@ def _set_up(scene, out: Path, options: Options) -> _Setup:
     t0 = time.perf_counter()
     the_truth = truth.Truth(scene, hm.height)
     timings["truth_setup_s"] = time.perf_counter() - t0
-    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols))
+    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), cache=out / "fit")
     t0 = time.perf_counter()
     plain = approx.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
@@ -268,7 +268,7 @@ def _set_up_view(setup: _Setup, ctx, chosen, options: Options) -> None:
     hits = setup.truth.hits
     own = ctx.samples()
     at_truth = lookup.from_points(hits[0], hits[1], own)
-    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth)
+    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth, cache=ctx.cache)
     setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     setup.view, setup.view_maps = view_errors(setup.truth, own)
 
@@ -501,6 +501,9 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
         for key, value in primary["files"].items():
             rel[_PRIMARY_FILE_KEYS.get(key, key)] = value
     frame.update(files=rel, techniques=per)
+    split = horizon_fit.split(per)      # with horizon and horizon-fit: the bake's share of the error
+    if split is not None:
+        frame["horizon_split"] = split
     return frame
 
 

@@ -50,6 +50,7 @@ REGISTRY: dict[str, str] = {
     "horizon": "hzval.approx:Approximation",
     "terrain": "hzval.terrain:TerrainShadow",
     "pom": "hzval.pom:RayMarchShadow",
+    "horizon-fit": "hzval.horizon_fit:FittedHorizon",
 }
 #: The technique whose metrics are a frame's top-level keys in ``metrics.json``
 #: (the documented layout predates the registry; scripts read those keys).
@@ -90,6 +91,7 @@ class Context:
     bake: Any
     albedo: np.ndarray
     points: lookup.Samples | None = None
+    cache: Any = None           # a folder where a technique may keep what it fits (hzval.horizon_fit)
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:
@@ -116,6 +118,8 @@ class Technique:
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
 
     simulated: tuple[str, ...] = ()
+    #: Rendered only when asked for by name (``--techniques``), never by default (a fit's cost).
+    opt_in: ClassVar[bool] = False
     #: One-line warnings the sweep prints and the report shows (e.g. a suspicious external bake).
     warnings: tuple[str, ...] = ()
     #: Entries the technique adds to the top level of ``metrics.json`` (e.g. ``external_bake``).
@@ -202,7 +206,7 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
     ``shadow``) is an :class:`InputError`, not silently dropped.
     """
     if requested is None:
-        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.applies(scene)]
+        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.applies(scene) and not t.opt_in]
         if not chosen:
             raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
                                              "effects the scene does not declare")
