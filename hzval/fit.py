@@ -210,6 +210,7 @@ class FitResult:
     held_out: tuple
     mae: dict
     loss: list
+    epoch_seconds: list
     epochs: int
     steps: int
     converged: bool
@@ -226,7 +227,8 @@ class FitResult:
             "fitted_over_baked": {w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None)
                                   for w in m},
             "loss": {"kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {CHARBONNIER_EPS:g}; "
-                             "straight-through clamp", "per_epoch": self.loss},
+                             "straight-through clamp", "per_epoch": self.loss,
+                     "epoch_seconds": self.epoch_seconds},
             "epochs": self.epochs, "steps": self.steps, "converged": self.converged,
             "seconds": self.seconds, "settings": self.settings,
             "lights": {"training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.lights],
@@ -237,9 +239,15 @@ class FitResult:
 
 
 class _Model:
-    """The horizon technique with its horizon texture replaced by differentiable parameters."""
+    """The horizon technique with its horizon texture replaced by differentiable parameters.
 
-    def __init__(self, scene, bake, k: float, storage: str):
+    One kernel (a forward and a backward pass) covers a *group* of lights: lane ``i`` is sample
+    ``i % n`` of light ``i // n`` of the group, its channel weights the technique's own
+    (``_channel_weights``) of that light's direction; a group holds at most :data:`BAND_SAMPLES`
+    lanes (one light in pixel bands beyond that), which bounds the AD graph's memory.
+    """
+
+    def __init__(self, scene, bake, k: float, storage: str, V_list: list[np.ndarray]):
         import drjit as dr
         import mitsuba as mi
 
@@ -251,8 +259,13 @@ class _Model:
         self.storage = hz_storage.get(storage)
         self.rows, self.cols = self.ap.rows, self.ap.cols
         self.P, self.spp = self.ap.pixels, self.ap.spp
+        self.group = max(1, BAND_SAMPLES // (self.P * self.spp))
         band = max(1, BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
+        V = approx._aligned_empty(len(V_list) * self.P)
+        for i, v in enumerate(V_list):          # one copy, not a stack and then an aligned copy
+            V[i * self.P:(i + 1) * self.P] = np.asarray(v, np.float32).ravel()
+        self.V = mi.Float(V)
         self._mi, self._dr = mi, dr
 
     def set_parameters(self, p, logk=None) -> None:
@@ -266,28 +279,43 @@ class _Model:
         self.texture.set_tensor(value)
         self.k = dr.exp(logk) if logk is not None else self.ap._k
 
-    def backward(self, light: tuple[float, float], V, scale: float) -> float:
-        """Accumulate ``scale *`` the light's summed loss's gradient; return that loss (a float)."""
+    def factor(self, lights, a: int, b: int):
+        """The pixel means of F, light-major, of ``lights`` over pixels ``a..b`` (straight-through clamp)."""
         dr, mi = self._dr, self._mi
-        e, az = light
-        uni = self.ap._uniforms(az, e, True)
+        d = np.array([cv.light_direction(az, e) for e, az in lights], np.float32)
+        L = mi.Vector3f(*(mi.Float(d[:, i].copy()) for i in range(3)))
+        w = self.ap._channel_weights(L)
+        n = (b - a) * self.spp
+        lane = dr.arange(mi.UInt32, len(lights) * n)
+        li = lane // n
+        sample = lane - li * n + a * self.spp
+        if self.spp == 1:
+            u, v = dr.gather(mi.Float, self.ap._u, sample), dr.gather(mi.Float, self.ap._v, sample)
+        else:
+            uv = dr.gather(mi.Point2f, self.ap._uv, sample)
+            u, v = uv.x, uv.y
+        h = self.ap._fetch(u, v)["horizon"]
+        F, _ = approx.shadow_factor(h, [dr.gather(mi.Float, c, li) for c in w], dr.gather(mi.Float, L.z, li), self.k,
+                                    straight_through=True)
+        return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
+
+    def backward(self, indices, lights, scale: float) -> float:
+        """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
+        and the V they were given in); return that loss (a float)."""
+        dr, mi = self._dr, self._mi
         total = 0.0
-        for a, b in self.bands:
-            n = (b - a) * self.spp
-            if self.spp == 1:
-                idx = dr.arange(mi.UInt32, a, b)
-                u, v = dr.gather(mi.Float, self.ap._u, idx), dr.gather(mi.Float, self.ap._v, idx)
-            else:
-                uv = dr.gather(mi.Point2f, self.ap._uv, dr.arange(mi.UInt32, a * self.spp, a * self.spp + n))
-                u, v = uv.x, uv.y
-            h = self.ap._fetch(u, v)["horizon"]
-            F, _ = approx.shadow_factor(h, uni["w"], uni["L"].z, self.k, straight_through=True)
-            if self.spp > 1:
-                F = dr.block_sum(F, self.spp) * (1.0 / self.spp)
-            d = F - dr.gather(mi.Float, V, dr.arange(mi.UInt32, a, b))
-            loss = dr.sum(dr.sqrt(dr.fma(d, d, CHARBONNIER_EPS ** 2)) - CHARBONNIER_EPS)
-            dr.backward(loss * scale)
-            total += float(loss[0] if hasattr(loss, "__len__") else loss)
+        for first in range(0, len(indices), self.group):
+            group = [int(i) for i in indices[first:first + self.group]]
+            for a, b in self.bands:
+                F = self.factor([lights[i] for i in group], a, b)
+                m = b - a
+                lane = dr.arange(mi.UInt32, len(group) * m)
+                li = lane // m
+                at = dr.gather(mi.UInt32, mi.UInt32(np.array(group, np.uint32)), li) * self.P + (lane - li * m + a)
+                diff = F - dr.gather(mi.Float, self.V, at)
+                loss = dr.sum(dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS ** 2)) - CHARBONNIER_EPS)
+                dr.backward(loss * scale)
+                total += float(loss[0] if hasattr(loss, "__len__") else loss)
         return total
 
 
@@ -301,7 +329,9 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     """
     backend.variant()
     lights = parse_lights(lights) if isinstance(lights, str) else tuple(lights)
-    held_out = parse_lights(held_out, "held_out") if isinstance(held_out, str) else tuple(held_out)
+    if isinstance(held_out, str):
+        held_out = parse_lights(held_out, "held_out") if held_out.strip() else ()
+    held_out = tuple(held_out)
     stored = hz_storage.get(storage)
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
@@ -312,7 +342,7 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     t_truth = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    fitted, k_fit, curve, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage, tolerance,
+    fitted, k_fit, curve, times, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage, tolerance,
                                                        max_epochs, learning_rate, progress)
     t_fit = time.perf_counter() - t0
     baked_stored = stored.roundtrip(bake.horizon)
@@ -324,7 +354,7 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     settings = {"tolerance": tolerance, "max_epochs": max_epochs, "learning_rate": learning_rate,
                 "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "seed": scene.seed,
                 "k_baked": k, "optimiser": "Adam (mitsuba.ad.Adam)"}
-    return FitResult(fitted, k_fit, storage, fit_k, lights, held_out, mae, curve, len(curve), steps, converged,
+    return FitResult(fitted, k_fit, storage, fit_k, lights, held_out, mae, curve, times, len(curve), steps, converged,
                      {"truth": t_truth, "fit": t_fit, "evaluate": time.perf_counter() - t0 - t_fit}, settings)
 
 
@@ -341,38 +371,38 @@ def _truth(scene, height, lights, held_out, progress: bool):
 
 def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, tolerance: float,
               max_epochs: int, lr: float, progress: bool):
-    """Adam from the baked map (module docstring); ``(stored sines, k, loss per epoch, steps, converged)``."""
+    """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
+    converged)``."""
     import sys
 
     import drjit as dr
     import mitsuba as mi
     from tqdm import tqdm
 
-    model = _Model(scene, bake, k, storage)
-    V = [mi.Float(np.ascontiguousarray(v, np.float32).ravel()) for v in V_list]
+    model = _Model(scene, bake, k, storage, V_list)
     opt = mi.ad.Adam(lr=lr)
     opt["h"] = mi.TensorXf(approx._aligned(np.clip(bake.horizon, 0.0, 1.0)))
     if fit_k:
         opt["logk"] = mi.Float(math.log(k))
     rng = np.random.default_rng(scene.seed)
     norm = 1.0 / (model.P * len(lights))
-    curve, steps, calm, converged = [], 0, 0, False
+    curve, times, steps, calm, converged = [], [], 0, 0, False
     bar = tqdm(range(max_epochs), desc="fit", unit="epoch", disable=not progress, file=sys.stderr, leave=False)
     for _ in bar:
-        total = 0.0
+        t0, total = time.perf_counter(), 0.0
         order = rng.permutation(len(lights))
         for first in range(0, len(order), BATCH_LIGHTS):
             model.set_parameters(opt["h"], opt["logk"] if fit_k else None)
-            for i in order[first:first + BATCH_LIGHTS]:
-                total += model.backward(lights[i], V[i], norm) * norm
+            total += model.backward(order[first:first + BATCH_LIGHTS], lights, norm) * norm
             opt.step()
             opt["h"] = dr.clip(opt["h"], 0.0, 1.0)
             if fit_k:
                 opt["logk"] = dr.clip(opt["logk"], 0.0, math.log(MAX_K))
             steps += 1
         curve.append(total)
+        times.append(time.perf_counter() - t0)
         bar.set_postfix_str(f"loss {total:.5f}")
-        if len(curve) > 1 and curve[-2] - total < tolerance * total:
+        if len(curve) > 1 and curve[-2] - total <= tolerance * total:
             # a plateau: halve the step; converged after HALVINGS of them
             calm += 1
             if calm >= HALVINGS:
@@ -382,7 +412,7 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
     bar.close()
     h = np.asarray(opt["h"], np.float32).reshape(model.rows, model.cols, -1)
     k_fit = float(np.exp(np.asarray(opt["logk"])[0])) if fit_k else float(k)
-    return hz_storage.get(storage).roundtrip(h), k_fit, curve, steps, converged
+    return hz_storage.get(storage).roundtrip(h), k_fit, curve, times, steps, converged
 
 
 def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
