@@ -134,15 +134,14 @@ def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float]
 
 
 def fit_scene(scene) -> "sc.Scene":
-    """The scene the fit renders: shadows only (``V`` and ``F`` are all it compares), a hard light; the
-    ``top`` view and a level-0 filter, where the fit's forward model is the sweep's."""
-    if scene.camera.kind != "top":
-        raise InputError("--camera", "the fit renders the top view, where a pixel sees its texel; "
-                                     f"got {scene.camera.kind}")
-    if scene.lookup.mipmapped:
-        raise InputError("--filter", f"the fit differentiates a level-0 filter, not {scene.lookup.filter}")
+    """The scene the fit renders: shadows only (``V`` and ``F`` are all it compares), a hard light, the
+    ``top`` view with the default lookup (a pixel a texel, bilinear), whatever view the scene's sweep
+    has: the fitted map is a texture, fitted where a pixel sees its texel."""
+    from hzval.camera import Camera
+
     light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
-    return dataclasses.replace(scene, effects=("shadow",), light=light)
+    return dataclasses.replace(scene, effects=("shadow",), light=light, camera=Camera(),
+                               lookup=lookup.Lookup())
 
 
 def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:

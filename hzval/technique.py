@@ -43,7 +43,7 @@ from hzval import lookup
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene
 
-__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "names", "select"]
+__all__ = ["REGISTRY", "PRIMARY", "Technique", "Context", "Variant", "get", "names", "defaults", "select"]
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
@@ -187,6 +187,11 @@ class Technique:
 def names() -> list[str]:
     """The registered technique names, in registry order."""
     return list(REGISTRY)
+
+
+def defaults() -> list[str]:
+    """The names a sweep renders when none are asked for: the registry less the opt-in techniques."""
+    return [n for n in REGISTRY if not get(n).opt_in]
 
 
 def get(name: str) -> type[Technique]:

@@ -49,8 +49,8 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
         assert f["truth_s"] > 0 and f["approx_s"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
     assert m["simulated"] == {"truth": ["shadow", "diffuse"], "approx": ["shadow", "diffuse"],
-                              **{name: ["shadow", "diffuse"] for name in technique.names()}}
-    assert list(m["techniques"]) == technique.names()          # every technique applies, in registry order
+                              **{name: ["shadow", "diffuse"] for name in technique.defaults()}}
+    assert list(m["techniques"]) == technique.defaults()       # every technique applies, in registry order
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
     assert m["memory"]["peak_rss_bytes"] > 2**20
@@ -159,7 +159,7 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
 
 
-@pytest.mark.parametrize("name", [n for n in technique.names() if n != technique.PRIMARY])
+@pytest.mark.parametrize("name", [n for n in technique.defaults() if n != technique.PRIMARY])
 def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
     """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
     the primary's, the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""

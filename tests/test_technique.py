@@ -76,9 +76,12 @@ def test_selection_follows_the_declared_effects(variant):
     assert [t.name for t in technique.select(None, lit)] == [n for n in technique.names()
                                                            if not technique.get(n).needs]
     shadowed = small_context().scene
-    assert [t.name for t in technique.select(None, shadowed)] == technique.names()
+    default = technique.defaults()          # the opt-in techniques only by name
+    assert default == [n for n in technique.names() if not technique.get(n).opt_in]
+    assert [t.name for t in technique.select(None, shadowed)] == default and "horizon-fit" not in default
     assert [t.name for t in technique.select(None, shadowed, exclude=("terrain",))] == \
-        [n for n in technique.names() if n != "terrain"]
+        [n for n in default if n != "terrain"]
+    assert [t.name for t in technique.select(["horizon-fit", "horizon"], shadowed)] == ["horizon", "horizon-fit"]
     with pytest.raises(InputError, match="needs the scene to declare shadow"):
         technique.select(["terrain"], lit)
     with pytest.raises(InputError, match="unknown technique 'nope'"):
