@@ -3,12 +3,12 @@
 For each material at ``--size`` (default 256; its own depth and boundary), ``hzval fit``'s
 :func:`hzval.fit.fit` with the default training lights and, as held-out lights, the default sweep's
 (elevation 30, azimuths -60..60 by 15: the same samples and the same metric as the sweep's
-``visibility_mae``), for each variant: float, ``--fit-k``, ``--storage u8`` and (``--bc7``)
-``--storage bc7``. Prints one table row per material and variant and writes the records as JSON.
+``visibility_mae``), for each variant: float (every material) and, for the ``--more`` materials,
+``--fit-k``, ``--storage u8`` and ``--storage bc7`` (each stored map against the bake stored alike). Prints one table row per material and variant and writes the records as JSON.
 
 Usage::
 
-    .venv/bin/python benchmarks/study_fit.py [--size 256] [--materials a,b] [--bc7 bricks] [--out study.json]
+    .venv/bin/python benchmarks/study_fit.py [--size 256] [--materials a,b] [--more bricks,gravel,spikes] [--out study.json]
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--materials", default=None)
-    ap.add_argument("--variants", default="float,fit-k,u8")
-    ap.add_argument("--bc7", default="bricks", help="materials also fitted with --storage bc7")
+    ap.add_argument("--variants", default="float", help="variants of every material")
+    ap.add_argument("--more", default="bricks,gravel,spikes", help="materials also fitted with --more-variants")
+    ap.add_argument("--more-variants", default="fit-k,u8,bc7")
     ap.add_argument("--out", default="study_fit.json")
     args = ap.parse_args(argv)
 
@@ -37,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
         hm = sc.load_material_height(scene.material)
         baked = bake.bake(hm.height, bake.BakeParams(depth=scene.material.depth,
                                                      boundary=scene.material.boundary).validate())
-        variants = args.variants.split(",") + (["bc7"] if name in args.bc7.split(",") else [])
+        variants = args.variants.split(",") + (args.more_variants.split(",") if name in args.more.split(",") else [])
         for v in variants:
             storage = v if v in ("u8", "bc7") else "float"
             r = fit.fit(hm.height, baked, scene, held_out="30@-60:60:15", storage=storage, fit_k=v == "fit-k",

@@ -66,6 +66,26 @@ def test_forward_model_is_the_techniques_own_bit_for_bit(variant, spp):
             np.testing.assert_allclose(F[i], want, rtol=0, atol=2e-7)
 
 
+@pytest.mark.parametrize("path", ["exact", "gpu"])
+def test_shadow_factor_is_the_kernels_former_arithmetic(variant, path):
+    """approx.shadow_factor, which the shading kernel now calls, gives the render the bits of the
+    expression it replaced: clip(fma(Lz - dot(h, w), k, 1), 0, 1)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    scene, h, b = _setup(n=16)
+    ap = approx.Approximation(fit.fit_scene(scene), b, None, path=path)
+    y, x = np.mgrid[0:16, 0:16]
+    xs, ys = (x + 0.3).ravel().astype(np.float32), (16 - y - 0.6).ravel().astype(np.float32)
+    u, v = (mi.Float(c) for c in cv.tangent_to_uv(xs, ys, 16, 16))
+    for e, az in ((25.0, -52.5), (45.0, 100.0)):
+        uni = ap._uniforms(az, e, True)
+        s = approx._dot(ap._fetch(u, v)["horizon"], uni["w"])
+        former = dr.clip(dr.fma(uni["L"].z - s, uni["k"], 1.0), 0.0, 1.0)
+        now = ap.sample(xs, ys, az, e)["factor"]
+        assert np.array_equal(np.asarray(former), now)
+
+
 def test_straight_through_factor_keeps_the_values(variant):
     import drjit as dr
     import mitsuba as mi
