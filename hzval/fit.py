@@ -163,19 +163,28 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
     return [out[light] for light in lights]
 
 
-def estimate_bytes(rows: int, cols: int, spp: int, lights: int) -> int:
-    """The fit's peak memory, bytes (:data:`FIT_BASE_BYTES` and the rest)."""
+def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
+    """The fit's peak memory, bytes: the truth's V of every light, beside the larger of the truth's own
+    peak while it renders (:func:`hzval.sweep.estimate_peak_bytes` of the fit's scene, when ``scene``
+    is given) and the optimisation's (:data:`FIT_BASE_BYTES` and the rest)."""
     P = rows * cols
     band = min(P * spp, BAND_SAMPLES)
-    return int(FIT_BASE_BYTES + FIT_BYTES_PER_PIXEL_LIGHT * P * lights + FIT_BYTES_PER_SAMPLE * P * spp
-               + FIT_BYTES_PER_TEXEL * P + FIT_BYTES_PER_BAND_SAMPLE * band)
+    optimise = (FIT_BASE_BYTES + FIT_BYTES_PER_SAMPLE * P * spp + FIT_BYTES_PER_TEXEL * P
+                + FIT_BYTES_PER_BAND_SAMPLE * band)
+    render = 0
+    if scene is not None:
+        from hzval import sweep
+
+        render = sweep.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
+    return int(FIT_BYTES_PER_PIXEL_LIGHT * P * lights + max(optimise, render))
 
 
-def check_fits(what: str, rows: int, cols: int, spp: int, lights: int) -> int:
-    """Refuse, before anything is allocated, a fit whose estimate exceeds the memory available."""
+def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
+    """Refuse, before anything is allocated, a fit whose estimate (:func:`estimate_bytes`) exceeds the
+    memory available now, with one line; return the estimate."""
     from hzval.bake import available_bytes
 
-    need, have = estimate_bytes(rows, cols, spp, lights), available_bytes()
+    need, have = estimate_bytes(rows, cols, spp, lights, scene), available_bytes()
     if need > have:
         raise InputError(what, f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights needs about "
                                f"{need / 2**30:.1f} GiB (estimated); {have / 2**30:.1f} GiB are available "
@@ -335,7 +344,7 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
-    check_fits("HEIGHT", rows, cols, scene.spp, len(lights))
+    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
     t0 = time.perf_counter()
     V_train, V_held = _truth(scene, height, lights, held_out, progress)
     t_truth = time.perf_counter() - t0

@@ -58,7 +58,7 @@ def cmd_fit(args) -> int:
     rows, cols = sweep.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
-    fit.check_fits(what, rows, cols, scene.spp, len(lights))
+    fit.check_fits(what, rows, cols, scene.spp, len(lights) + len(held_out), scene)
     height, info = cli.load_material(args)
     backend.variant(args.variant)
     baked = bake.bake(height, params)
