@@ -350,8 +350,8 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     t_truth = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    fitted, k_fit, curve, times, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage, tolerance,
-                                                       max_epochs, learning_rate, progress)
+    fitted, k_fit, curve, times, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage,
+                                                              tolerance, max_epochs, learning_rate, progress)
     t_fit = time.perf_counter() - t0
     baked_stored = stored.roundtrip(bake.horizon)
     mae = {}

@@ -43,9 +43,9 @@ class FittedHorizon(Approximation):
               lights: str = fit.TRAINING_LIGHTS, held_out: str = fit.HELD_OUT_LIGHTS, **settings) -> "FittedHorizon":
         """``lights``/``held_out``: the fit's training and held-out lights (:func:`hzval.fit.parse_lights`)."""
         storage = storage or "float"
-        result, sines, record, cached = fit.cached_fit(ctx.height, ctx.bake, ctx.scene, ctx.cache, k=float(k),
-                                                       storage=storage, fit_k=bool(fit_k), lights=lights,
-                                                       held_out=held_out)
+        _, sines, record, cached = fit.cached_fit(ctx.height, ctx.bake, ctx.scene, ctx.cache, k=float(k),
+                                                  storage=storage, fit_k=bool(fit_k), lights=lights,
+                                                  held_out=held_out)
         # the sines are the stored map, decoded: uploaded as they are
         own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, samples=ctx.samples(),
                   k=float(record["k"]), storage="float", **settings)

@@ -125,9 +125,7 @@ def test_gradient_matches_finite_differences(variant):
         return value, np.asarray(dr.grad(p)).reshape(hz.shape)
 
     _, grad = loss_of(base.astype(np.float32))
-    import drjit as dr2
-
-    F = np.asarray(dr2.detach(model.factor(lights, 0, model.P))).reshape(h.shape)
+    F = np.asarray(dr.detach(model.factor(lights, 0, model.P))).reshape(h.shape)
     inner = (F > 0.05) & (F < 0.95)
     ok = inner & np.roll(inner, 1, 0) & np.roll(inner, -1, 0) & np.roll(inner, 1, 1) & np.roll(inner, -1, 1)
     r, c = (int(i[0]) for i in np.nonzero(ok))
