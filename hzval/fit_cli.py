@@ -62,8 +62,11 @@ def cmd_fit(args) -> int:
     baked = bake.bake(height, params)
     result = fit.fit(height, baked, scene, lights=lights, held_out=held_out, fit_k=args.fit_k,
                      storage=args.storage, k=args.k, progress=not args.quiet)
+    # the key of the sweep's cache (hzval.horizon_fit): a fit written into a sweep's out/fit is reused there
+    key = fit.cache_key(height, baked, scene, {"k": float(args.k), "storage": args.storage, "fit_k": bool(args.fit_k),
+                                               "lights": args.lights, "held_out": args.held_out})
     fit.write_fit(result, args.out, input_info={**info, "depth": params.depth, "boundary": params.boundary,
-                                                "bake": params.record()})
+                                                "bake": params.record(), "key": key})
     parts = [f"{w} |F-V| {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in result.mae.items()]
     print(f"fitted {info['source']} ({cols}x{rows}, {args.storage}, k {result.k:.3g}) in {result.epochs} epochs, "
           f"{result.seconds['fit']:.1f} s ({'converged' if result.converged else 'not converged'}): "
