@@ -233,3 +233,12 @@ def test_horizon_fit_is_opt_in_cached_and_splits_the_error(variant, tmp_path):
     assert [f["techniques"]["horizon-fit"]["visibility_mae"] for f in again["frames"]] == \
            [f["techniques"]["horizon-fit"]["visibility_mae"] for f in m["frames"]]
     assert horizon_fit.split({"horizon": {"visibility_mae": 0.1}}) is None
+
+
+def test_the_pull_toward_the_bake_keeps_the_map_nearer_it(variant):
+    scene, h, b = _setup(n=24, spp=1)
+    free = fit.fit(h, b, scene, lights=FEW, held_out="", prior=0.0, progress=False)
+    held = fit.fit(h, b, scene, lights=FEW, held_out="", prior=1.0, progress=False)
+    assert held.settings["prior"] == 1.0 and free.settings["prior"] == 0.0
+    assert np.mean(np.abs(held.horizon - b.horizon)) < 0.5 * np.mean(np.abs(free.horizon - b.horizon))
+    assert free.mae["training"]["fitted"] <= held.mae["training"]["fitted"]
