@@ -167,6 +167,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_score(sub)
     _add_suite(sub)
     _add_materials(sub)
+    _add_fit(sub)
     for p in sub.choices.values():      # every command that writes a folder (hzval.files.output_folder)
         if "--out" in p._option_string_actions or "--report" in p._option_string_actions:
             p.add_argument("--force", action="store_true",
@@ -702,6 +703,88 @@ def cmd_score(args) -> int:
               f"{psnr:>7}  {'-' if floor is None else f'{floor:.4f}':>10}")
     print(f"report: {index}")
     return errors.EXIT_OK
+
+
+def _add_fit(sub) -> None:
+    """``hzval fit``: the best horizon map (:mod:`hzval.fit`)."""
+    from hzval import bake, fit, storage
+    from hzval.horizon import DEFAULT_K
+
+    d = bake.BakeParams()
+
+    p = sub.add_parser("fit", help="fit the horizon map to the truth (the representation's floor)",
+                       description="Fit the 8 horizon channels of a material to the truth's visibility with "
+                                   "Dr.Jit's automatic differentiation through the horizon technique's own "
+                                   "lookup and factor (docs/fit.md); writes horizon0/1.exr and .png in the "
+                                   "bake's layout and fit.json.")
+    _add_material_args(p)
+    p.add_argument("--lights", default=fit.TRAINING_LIGHTS, metavar="SPEC",
+                   help=f"training lights, ELEVATIONS@AZIMUTHS[;...] in degrees (default {fit.TRAINING_LIGHTS})")
+    p.add_argument("--held-out", default=fit.HELD_OUT_LIGHTS, metavar="SPEC",
+                   help=f"lights scored but not trained on (default {fit.HELD_OUT_LIGHTS}; '' for none)")
+    p.add_argument("--fit-k", action="store_true", help="fit the shadow hardness k too")
+    p.add_argument("--k", type=float, default=DEFAULT_K, help=f"shadow hardness k (the start with --fit-k) "
+                                                            f"(default {DEFAULT_K:g})")
+    p.add_argument("--storage", choices=storage.names(), default="float",
+                   help="how the map is stored; the fit is quantisation-aware for all but float (default float)")
+    p.add_argument("--spp", type=int, default=None,
+                   help=f"samples per pixel, as the sweep's (default {_scene_module().Scene().spp})")
+    p.add_argument("--seed", type=int, default=None,
+                   help=f"random seed of the samples (default {_scene_module().Scene().seed})")
+    p.add_argument("--radius", type=int, default=d.radius, help=f"bake search radius in texels (default {d.radius})")
+    p.add_argument("--angles", type=int, default=d.angles, help=f"bake angular bins (default {d.angles})")
+    p.add_argument("--method", choices=bake.METHODS, default=d.method,
+                   help=f"the bake the fit starts from and is compared with (default {d.method})")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(run=cmd_fit)
+
+
+def cmd_fit(args) -> int:
+    """Bake, fit, write; one line of figures."""
+    import math
+
+    from hzval import backend, bake, files, fit, sweep
+    from hzval import scene as sc
+
+    if not (math.isfinite(args.k) and args.k > 0):
+        raise errors.InputError("--k", f"must be a positive number, got {args.k}")
+    lights = fit.parse_lights(args.lights, "--lights")
+    held_out = fit.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
+    scene = sc.override(sc.Scene(), size=args.size, depth=args.depth, boundary=args.boundary, spp=args.spp,
+                        seed=args.seed, height=_material_of(args))
+    params = bake.BakeParams(depth=scene.material.depth, radius=args.radius, angles=args.angles,
+                             boundary=scene.material.boundary, method=args.method).validate()
+    rows, cols = sweep.material_shape(scene)
+    what = args.height or "--size"
+    bake.check_fits(what, rows, cols, params)
+    fit.check_fits(what, rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    with files.output_folder(args.out, force=args.force):
+        height, info = load_material(args)
+        backend.variant(args.variant)
+        baked = bake.bake(height, params)
+        result = _fitted(args, fit, height, baked, scene, params, info, lights, held_out)
+    _print_fit(args, info, rows, cols, result)
+    return errors.EXIT_OK
+
+
+def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
+    """The fit of ``baked`` to the truth, written to ``args.out`` with the sweep's cache key."""
+    result = fit.fit(height, baked, scene, lights=lights, held_out=held_out, fit_k=args.fit_k,
+                     storage=args.storage, k=args.k, progress=not args.quiet)
+    # the key of the sweep's cache (hzval.horizon_fit): a fit written into a sweep's out/fit is reused there
+    key = fit.cache_key(height, baked, scene, {"k": float(args.k), "storage": args.storage, "fit_k": bool(args.fit_k),
+                                               "lights": args.lights, "held_out": args.held_out})
+    fit.write_fit(result, args.out, input_info={**info, "depth": params.depth, "boundary": params.boundary,
+                                                "bake": params.record(), "key": key})
+    return result
+
+
+def _print_fit(args, info, rows, cols, result) -> None:
+    parts = [f"{w} |F-V| {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in result.mae.items()]
+    print(f"fitted {info['source']} ({cols}x{rows}, {args.storage}, k {result.k:.3g}) in {result.epochs} epochs, "
+          f"{result.seconds['fit']:.1f} s ({'converged' if result.converged else 'not converged'}): "
+          f"{'; '.join(parts)} -> {args.out}")
 
 
 def _join_negative_values(argv: list[str]) -> list[str]:

@@ -1,4 +1,4 @@
-"""The approximation: horizon-map shading of the *flat* surface, in Dr.Jit.
+"""The horizon map (Lengyel): horizon-map shading of the *flat* surface, in Dr.Jit: the ``horizon`` technique.
 
 The truth (:mod:`hzval.truth`) ray-traces the displaced mesh; this module
 shades the flat plane ``z = 0`` from the baked textures alone, as a real-time
@@ -147,6 +147,8 @@ DEFAULT_K = 8.0
 #: default: a reflection 1/1.3 = 0.77 in sine below the horizon is fully
 #: occluded, one at the horizon is not occluded. The report should vary it.
 DEFAULT_FADE = 1.3
+#: The horizon map's slot in the packed texture (:meth:`hzval.surface.FlatShading._extra_planes`).
+HORIZON_SLOT = "horizon"
 #: The weight cube map's texture memory: 6 faces of two 8-bit RGBA layers.
 CUBE_BYTES = 6 * CUBE_SIZE * CUBE_SIZE * 4 * 2
 
@@ -226,16 +228,16 @@ class Horizon(FlatShading, Technique):
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
         """The horizon map as stored (:mod:`hzval.storage`), first in the packed texture."""
-        return [("horizon", hz_storage.get(self.storage).roundtrip(self.bake.horizon))] if self._needs_horizon else []
+        return [(HORIZON_SLOT, hz_storage.get(self.storage).roundtrip(self.bake.horizon))] if self._needs_horizon else []
 
     def _max_channels(self) -> slice | None:
-        return self._slots.get("horizon")
+        return self._slots.get(HORIZON_SLOT)
 
     def _mip_quantise(self):
         """What the horizon map's storage makes of each mip level (:func:`hzval.lookup.mip_chain`):
         ``None`` for float; else the storage's round trip, as a GPU's chain of an RGBA8 (or BC7)
         texture is RGBA8 (BC7)."""
-        if self.storage == "float" or "horizon" not in self._slots:
+        if self.storage == "float" or HORIZON_SLOT not in self._slots:
             return None
         return hz_storage.get(self.storage).roundtrip
 
@@ -267,8 +269,7 @@ class Horizon(FlatShading, Technique):
         """``direct * F``, ``F = clamp(k (Lz - s) + 1, 0, 1)`` (eq. 5.4), ``s`` by eq. 5.3."""
         if not (self._shadow and shadows):
             return direct
-        s = _dot(tex["horizon"], uni["w"])
-        F = dr.clip(dr.fma(uni["L"].z - s, uni["k"], 1.0), 0.0, 1.0)
+        F, s = shadow_factor(tex[HORIZON_SLOT], uni["w"], uni["L"].z, uni["k"])
         out["factor"] = F
         if probe:
             out["horizon_sine"] = s
@@ -283,7 +284,7 @@ class Horizon(FlatShading, Technique):
             r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
         else:
             r = 2.0 * dr.dot(n, self._view) * n - self._view
-        s_r = _dot(tex["horizon"], self._channel_weights(r))
+        s_r = _dot(tex[HORIZON_SLOT], self._channel_weights(r))
         o = dr.clip(dr.fma(r.z - s_r, self._fade, 1.0), 0.0, 1.0)
         out["reflection_occlusion"] = o * o
 
@@ -524,6 +525,19 @@ def _dot(h: list, w: list):
             s = dr.fma(h[c], w[c], s)
         total = s if total is None else total + s
     return total
+
+
+def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
+    """``(F, s)``: eq. 5.4's ``F = clamp(k (Lz - s) + 1, 0, 1)`` of the filtered channels ``h`` and the
+    channel weights ``w`` (``s = sum_c w_c h_c``, :func:`_dot`); the shading kernel's own arithmetic.
+
+    ``straight_through``: for the fit (:mod:`hzval.fit`), ``F``'s value is the same but its gradient
+    is that of the unclamped ``k (Lz - s) + 1`` (a straight-through clamp), so that a texel whose
+    factor is saturated on the wrong side (0 where the truth is lit) still learns which way to move."""
+    s = _dot(h, w)
+    z = dr.fma(Lz - s, k, 1.0)
+    F = dr.clip(z, 0.0, 1.0)
+    return (dr.replace_grad(F, z) if straight_through else F), s
 
 
 def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:

@@ -279,7 +279,7 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     t0 = time.perf_counter()
     the_truth = truth.Truth(scene, hm.height)
     timings["truth_setup_s"] = time.perf_counter() - t0
-    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols))
+    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), cache=out / "fit")
     t0 = time.perf_counter()
     plain = surface.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
@@ -320,7 +320,7 @@ def _set_up_view(setup: _Setup, ctx, chosen, options: Options) -> None:
     hits = setup.truth.hits
     own = ctx.samples()
     at_truth = lookup.from_points(hits[0], hits[1], own)
-    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth)
+    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth, cache=ctx.cache)
     setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     setup.view, setup.view_maps = view_errors(setup.truth, own)
 

@@ -54,6 +54,7 @@ REGISTRY: dict[str, str] = {
     "pom": "hzval.pom:RayMarchShadow",
     "horizon-gl": "hzval.horizon_gl:HorizonGL",
     "pom-gl": "hzval.horizon_gl:PomGL",
+    "horizon-fit": "hzval.horizon_fit:FittedHorizon",
 }
 
 
@@ -100,6 +101,7 @@ class Context:
     bake: Any
     albedo: np.ndarray
     points: lookup.Samples | None = None
+    cache: Any = None           # a folder where a technique may keep what it fits (hzval.horizon_fit)
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:

@@ -80,6 +80,8 @@ def test_selection_follows_the_declared_effects(variant):
                                                                 if technique.get(n).by_default]
     assert [t.name for t in technique.select(None, shadowed, exclude=("terrain",))] == \
         [n for n in technique.names() if n != "terrain" and technique.get(n).by_default]
+    assert "horizon-fit" not in technique.defaults()          # opt-in: only by name
+    assert [t.name for t in technique.select(["horizon-fit", "horizon"], shadowed)] == ["horizon", "horizon-fit"]
     with pytest.raises(InputError, match="needs the scene to declare shadow"):
         technique.select(["terrain"], lit)
     with pytest.raises(InputError, match="unknown technique 'nope'"):

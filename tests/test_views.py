@@ -100,7 +100,7 @@ def test_a_plane_seen_obliquely_is_fully_lit_and_read_at_the_exact_point():
         ctx = technique.Context(scene, h, b, sc.load_albedo(scene.material, 32, 32))
         s = ctx.samples()
         assert np.max(np.abs((s.x - T.hits[0] + 16) % 32 - 16)) < 2e-3
-        for name in technique.names():
+        for name in technique.defaults():
             F = technique.get(name).build(ctx).render(15.0).layers["factor"]
             np.testing.assert_allclose(F, 1.0, atol=1e-6)
 

@@ -1,0 +1,64 @@
+"""Benchmark: fitting the horizon map to the truth (hzval.fit) at 512 x 512, epoch by epoch.
+
+Builds a built-in material (``--material``, default the brick wall) at
+``--size`` (default 512), bakes it (seed method, radius 16), renders the
+truth's V for the default training lights (elevations 10/20/40/60, azimuths
+0..345 by 15: 96 lights) and the held-out ones, and fits. Prints for each
+epoch (a pass over every light, ``steps`` Adam steps) its seconds, seconds
+per light (one forward and backward pass of the horizon technique's kernel)
+and the loss; then the truth's, the fit's and the evaluation's seconds, the
+memory estimate (:func:`hzval.fit.estimate_bytes`) beside the peak RSS, and
+|F - V| baked against fitted. The issue's bar: the whole fit of a 512 x 512
+material within 120 s here.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_fit.py [--size 512] [--material bricks] [--storage float] [--fit-k]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--material", default="bricks")
+    ap.add_argument("--storage", default="float")
+    ap.add_argument("--fit-k", action="store_true")
+    ap.add_argument("--spp", type=int, default=16)
+    args = ap.parse_args(argv)
+
+    from hzval import backend, bake, fit, scene as sc
+
+    backend.variant()
+    scene = sc.override(sc.Scene(), height=args.material, size=args.size, spp=args.spp)
+    hm = sc.load_material_height(scene.material)
+    baked = bake.bake(hm.height, bake.BakeParams(depth=scene.material.depth,
+                                                 boundary=scene.material.boundary).validate())
+    lights = fit.parse_lights(fit.TRAINING_LIGHTS)
+    t0 = time.perf_counter()
+    r = fit.fit(hm.height, baked, scene, storage=args.storage, fit_k=args.fit_k, progress=False)
+    total = time.perf_counter() - t0
+    per_step = max(1, r.steps // max(1, r.epochs))
+    print(f"{args.material} {args.size}x{args.size}, {args.spp} spp, {len(lights)} training lights, "
+          f"storage {args.storage}, fit_k {args.fit_k}, {per_step} Adam steps an epoch")
+    print("epoch  seconds  s/light  loss")
+    for i, (s, loss) in enumerate(zip(r.epoch_seconds, r.loss)):
+        print(f"{i + 1:5d}  {s:7.2f}  {s / len(lights):7.4f}  {loss:.5f}")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    est = fit.estimate_bytes(args.size, args.size, args.spp, len(lights))
+    print(f"truth {r.seconds['truth']:.1f} s, fit {r.seconds['fit']:.1f} s ({r.epochs} epochs, "
+          f"{'converged' if r.converged else 'not converged'}), evaluate {r.seconds['evaluate']:.1f} s, "
+          f"total {total:.1f} s; k {r.k:.3g}")
+    print(f"memory: estimate {est / 2**30:.2f} GiB, peak RSS {peak / 2**30:.2f} GiB")
+    for w, m in r.mae.items():
+        print(f"{w}: |F-V| baked {m['baked']:.4f}, fitted {m['fitted']:.4f} ({m['fitted'] / m['baked']:.2f}x)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
