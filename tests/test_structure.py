@@ -107,3 +107,26 @@ def test_no_module_but_a_techniques_own_names_it():
     for path in sorted((PACKAGE / "templates").iterdir()):
         text = path.read_text()
         assert not [n for n in names if f"'{n}'" in text or f'"{n}"' in text], path
+
+
+def test_version_is_the_installed_packages(capsys):
+    """``hzval --version`` prints the version of pyproject.toml, read from the installed metadata."""
+    import tomllib
+
+    from hzval import cli
+
+    want = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]["version"]
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"hzval {want}"
+
+
+def test_importing_hzval_changes_no_environment():
+    """``import hzval`` leaves DRJIT_LIBLLVM_PATH alone: the LLVM is chosen by hzval.init or the CLI."""
+    import subprocess
+    import sys
+
+    code = "import os; before = dict(os.environ); import hzval; print(before == dict(os.environ))"
+    env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert out.stdout.strip() == "True"
