@@ -103,12 +103,12 @@ def channel_share(i, j, channel, angles=32):
 # The displaced mesh's exact horizon (float64 ray caster)
 # --------------------------------------------------------------------------
 
-def mesh_triangles(h_texels, boundary, margin=None):
-    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds."""
+def mesh_triangles(h_texels, boundary, margin=None, tolerance=M.DEFAULT_TOLERANCE):
+    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds (the bilinear
+    surface's tessellation at the truth's default tolerance)."""
     g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
-    X, Y = np.meshgrid(g.x, g.y)
-    V = np.stack([X, Y, g.z.astype(np.float64)], axis=-1).reshape(-1, 3)
-    return V[M.triangles(len(g.y), len(g.x)).astype(np.int64)]
+    P, F, _ = M.tessellate(g, tolerance)
+    return P.astype(np.float64)[F.astype(np.int64)]
 
 
 def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):

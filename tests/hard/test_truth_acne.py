@@ -54,7 +54,7 @@ def test_no_acne_and_no_leaks_at_grazing_light(noise, boundary, elevation, where
         xs, ys = S.sample_positions(N, N, S.Camera(), 4, 0)
     if where == "vertices":
         assert t.moved_off_edges == xs.size
-    mx, my, _ = _off_edge_lines(xs, ys, N, N)
+    mx, my, _ = _off_edge_lines(xs, ys, N, N, t.edge_level)
     # the truth's mesh carries a margin for 10 degrees and hops beyond it; the reference
     # sees its own margin only, so it gets one wide enough for the ray to clear the top
     ref_margin = math.ceil((1.0 + 1e-3) / math.tan(math.radians(elevation))) + 2
@@ -82,7 +82,7 @@ def test_soft_light_of_tiny_radius_converges_to_the_hard_one(noise, radius):
     hard = truth(h, depth, "open", elevation=e, spp=4)
     soft = truth(h, depth, "open", elevation=e, spp=4, kind="soft", radius=radius)
     xs, ys = S.sample_positions(N, N, S.Camera(), 4, 0)
-    mx, my, _ = _off_edge_lines(xs, ys, N, N)
+    mx, my, _ = _off_edge_lines(xs, ys, N, N, hard.edge_level)
     tris = mesh_triangles(cv.heights_in_texels(h, depth), "open")
     diffs = []
     for az in (0.0, 37.0, 200.0):
