@@ -103,12 +103,13 @@ def channel_share(i, j, channel, angles=32):
 # The displaced mesh's exact horizon (float64 ray caster)
 # --------------------------------------------------------------------------
 
-def mesh_triangles(h_texels, boundary, margin=None, tolerance=M.DEFAULT_TOLERANCE):
-    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds (the bilinear
-    surface's tessellation at the truth's default tolerance)."""
+def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
+    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds: the tessellation of
+    the bilinear surface at ``tolerance`` (default :data:`hzval.mesh.DEFAULT_TOLERANCE`, the truth's).
+    The references below trace these triangles in float64, independently of Mitsuba."""
     g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
-    P, F, _ = M.tessellate(g, tolerance)
-    return P.astype(np.float64)[F.astype(np.int64)]
+    pos, faces, _ = M.tessellate(g, M.DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    return pos.astype(np.float64)[faces.astype(np.int64)]
 
 
 def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):
@@ -219,15 +220,11 @@ def exact_weights(d):
 
 
 def gpu_weights(d):
-    """Listing 5.1's 8 channel factors from the 8-bit cube map at ``d`` (bilinear within the face)."""
-    d = np.asarray(d, np.float32).astype(np.float64)
-    face, s, t = cv.cube_lookup(d)
-    n = CUBE_SIZE
-    ps, pt = np.clip(s * n - 0.5, 0, n - 1), np.clip(t * n - 0.5, 0, n - 1)
-    c0, r0 = min(int(ps), n - 2), min(int(pt), n - 2)
-    fs, ft = ps - c0, pt - r0
-    c = _CUBE[int(face)]
-    f = (1 - ft) * ((1 - fs) * c[r0, c0] + fs * c[r0, c0 + 1]) + ft * ((1 - fs) * c[r0 + 1, c0] + fs * c[r0 + 1, c0 + 1])
+    """Listing 5.1's 8 channel factors from the 8-bit cube map at ``d``, filtered seamlessly across
+    the faces as OpenGL does (tests/cube_reference.py)."""
+    from cube_reference import seamless_bilinear
+
+    f = seamless_bilinear(_CUBE, np.asarray(d, np.float32).astype(np.float64))
     return np.concatenate([np.clip(2 * f - 1, 0, 1), np.clip(1 - 2 * f, 0, 1)])
 
 

@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pytest
 
+from hzval import camera as hz_camera
 from hzval import conventions as cv
 from hzval import scene as S
 from hzval.truth import _off_edge_lines
@@ -51,7 +52,7 @@ def test_no_acne_and_no_leaks_at_grazing_light(noise, boundary, elevation, where
         t = truth(h, depth, boundary, positions=(xs, ys), elevation=elevation, spp=1)
     else:
         t = truth(h, depth, boundary, elevation=elevation, spp=4)
-        xs, ys = S.sample_positions(N, N, S.Camera(), 4, 0)
+        xs, ys = hz_camera.sample_positions(N, N, S.Camera(), 4, 0)
     if where == "vertices":
         assert t.moved_off_edges == xs.size
     mx, my, _ = _off_edge_lines(xs, ys, N, N, t.edge_level)
@@ -81,7 +82,7 @@ def test_soft_light_of_tiny_radius_converges_to_the_hard_one(noise, radius):
     e = 5.0
     hard = truth(h, depth, "open", elevation=e, spp=4)
     soft = truth(h, depth, "open", elevation=e, spp=4, kind="soft", radius=radius)
-    xs, ys = S.sample_positions(N, N, S.Camera(), 4, 0)
+    xs, ys = hz_camera.sample_positions(N, N, S.Camera(), 4, 0)
     mx, my, _ = _off_edge_lines(xs, ys, N, N, hard.edge_level)
     tris = mesh_triangles(cv.heights_in_texels(h, depth), "open")
     diffs = []
