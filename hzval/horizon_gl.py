@@ -163,20 +163,8 @@ class PomGL(_GLTechnique):
 
     def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = pom.DEFAULT_STEPS, variant=None,
                  softness=None, bake=None, albedo=None, unshadowed=None, samples=None):
-        variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
-        if softness is None:
-            softness = (1.0 / math.tan(math.radians(scene.light.radius_deg)) if scene.light.kind == "soft"
-                        else pom.DEFAULT_SOFTNESS)
-        pom._validate(steps, variant, softness)
-        self.scene, self.steps, self.variant, self.softness = scene, int(steps), variant, float(softness)
-        height = np.asarray(height, np.float32)
-        self.rows, self.cols = height.shape
-        self.shape = image_shape(self.rows, self.cols, scene.camera)
-        self.simulated = self.simulates(scene)
-        h = cv.heights_in_texels(height, scene.material.depth)
-        self.h_max = float(h.max())
-        samples = samples if samples is not None else lookup.samples_for(scene, self.rows, self.cols, height)
-        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed, samples)
+        h, samples = pom.set_up_march(self, scene, height, steps, variant, softness, bake, albedo, unshadowed,
+                                      samples)
         self.gl = gl.info()
         self._pass = gl.SamplePass("pom_shadow.glsl", "POM", samples, self.shape)
         ctx = gl.context()

@@ -82,6 +82,31 @@ EPSILON_PER_HEIGHT = 2.0 ** -18
 TRADEOFF_STEPS: tuple[int, ...] = (4, 8, 16, 32, 64)
 
 
+def set_up_march(tech, scene: Scene, height: np.ndarray, steps: int, variant: str | None, softness,
+                 bake, albedo, unshadowed, samples):
+    """What every ray march of the height map sets up (this module's, and a GL shader's): its settings
+    checked and kept on ``tech`` (``variant``: soft for a soft light by default, ``softness``: then
+    ``1 / tan(radius)``), the image's shape, the heights in texels and their maximum, and the
+    unshadowed shading it multiplies. Returns ``(heights in texels, samples)``."""
+    variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
+    if softness is None:
+        softness = (1.0 / math.tan(math.radians(scene.light.radius_deg)) if scene.light.kind == "soft"
+                    else DEFAULT_SOFTNESS)
+    _validate(steps, variant, softness)
+    height = np.asarray(height, dtype=np.float32)
+    if height.ndim != 2:
+        raise InputError("height", f"expected a (rows, cols) height map, got shape {height.shape}")
+    tech.scene, tech.steps, tech.variant, tech.softness = scene, int(steps), variant, float(softness)
+    tech.rows, tech.cols = height.shape
+    tech.shape = image_shape(tech.rows, tech.cols, scene.camera)
+    tech.simulated = tech.simulates(scene)
+    h = cv.heights_in_texels(height, scene.material.depth)
+    tech.h_max = float(h.max())
+    samples = samples if samples is not None else lookup.samples_for(scene, tech.rows, tech.cols, height)
+    tech._unshadowed = tech.shading_for(scene, height, bake, albedo, unshadowed, samples)
+    return h, samples
+
+
 class RayMarchShadow(surface.HeightFieldShadow):
     """Per-pixel height-field ray marching toward the light, frame by frame: the ``pom`` technique.
 
@@ -103,22 +128,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
                  softness: float | None = None, bake=None, albedo: np.ndarray | None = None,
                  unshadowed: surface.Unshadowed | None = None, samples=None):
         backend.variant()
-        variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
-        if softness is None:
-            softness = (1.0 / math.tan(math.radians(scene.light.radius_deg)) if scene.light.kind == "soft"
-                        else DEFAULT_SOFTNESS)
-        _validate(steps, variant, softness)
-        height = np.asarray(height, dtype=np.float32)
-        if height.ndim != 2:
-            raise InputError("height", f"expected a (rows, cols) height map, got shape {height.shape}")
-        self.scene, self.steps, self.variant, self.softness = scene, int(steps), variant, float(softness)
-        self.rows, self.cols = height.shape
-        self.shape = image_shape(self.rows, self.cols, scene.camera)
-        self.simulated = self.simulates(scene)
-        h = cv.heights_in_texels(height, scene.material.depth)
-        self.h_max = float(h.max())
-        samples = samples if samples is not None else lookup.samples_for(scene, self.rows, self.cols, height)
-        self._unshadowed = self.shading_for(scene, height, bake, albedo, unshadowed, samples)
+        h, samples = set_up_march(self, scene, height, steps, variant, softness, bake, albedo, unshadowed, samples)
         self._upload(h, samples)
 
     def _upload(self, h: np.ndarray, samples) -> None:
