@@ -222,148 +222,10 @@ _REFLECTION_STREAM = 0x5EF1
 _NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
 
 
-class Truth:
-    """Ground-truth renderer of one scene and height map.
-
-    ``height``: the normalised height map ``H[row, col]`` (float32); the
-    scene's ``material`` gives depth and boundary. ``positions``: optional
-    ``(x, y)`` sample positions in texel units replacing
-    :func:`hzval.camera.sample_positions` (same length and pixel-major order,
-    ``pixels * spp``); tests use it to put samples exactly on mesh vertices.
-    ``band_samples`` (samples per band) and ``keep`` (whether the camera hits
-    are kept between frames) override :func:`_bands` and :func:`keeps_samples`
-    (module docstring, "Memory"); tests use them to check that every way gives
-    the same pixels.
-    ``albedo``: optional linear ``(rows, cols, 3)`` albedo replacing
-    :func:`hzval.scene.load_albedo`; read only if an effect needs it.
-
-    Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
-    ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
-    ``lift`` (ray origin lift, texels), ``tolerance`` (texels: how far the mesh may be from the
-    bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.mesh.edge_level`), ``moved_off_edges`` (samples moved
-    off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
-    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
-    camera, :class:`hzval.camera.View`). A view other than ``top`` also sets
-    ``seen`` (``(H, W)`` bool: pixels whose rays hit the surface) and, when one
-    band holds the image, ``hits`` (float32 ``(x, y)`` of each sample's hit,
-    in the tile) and ``seen_samples`` (which samples' rays hit).
-    """
-
-    def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
-                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None):
-        backend.variant()
-        self.scene = scene.validate()
-        h = np.asarray(height, dtype=np.float32)
-        if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
-            # any size the loader and the bake take (1xN and Nx1 included): the mesh handles them
-            raise InputError("height", f"expected a finite 2-D height map of at least 2 pixels, got shape {h.shape}")
-        self.rows, self.cols = rows, cols = h.shape
-        self.shape = image_shape(rows, cols, scene.camera)
-        self.spp = scene.spp
-        if scene.declares("interreflection") and not (scene.declares("diffuse") or scene.declares("specular")):
-            raise InputError(scene.source or "scene", "interreflection needs a surface that reflects: "
-                             "declare diffuse and/or specular as well")
-        self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
-        self.timings: dict[str, float] = {}
-
-        self._build_surface(h)
-        self.view = scene.camera.view(rows, cols, (self.z_min, self.z_max))
-        self._albedo_texels = self._load_albedo(albedo)
-        self._positions = self._check_positions(positions)
-        self.count = self.shape[0] * self.shape[1] * self.spp
-        self.keeps = keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
-        self.bands = _bands(self.shape, self.spp, band_samples)
-        self._trace_camera_rays()
-
-    def _build_surface(self, h: np.ndarray) -> None:
-        """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
-        import drjit as dr
-        import mitsuba as mi
-
-        rows, cols = self.rows, self.cols
-        mat, light = self.scene.material, self.scene.light
-        t0 = time.perf_counter()
-        h_tex = cv.heights_in_texels(h, mat.depth)
-        self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
-        self.relief = self.z_max - self.z_min
-        lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
-        self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
-        if mat.boundary == "wrap":
-            # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
-            # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
-            # relief / tan(e), quadratically in memory
-            self.margin = meshes.wrap_margin(h_tex, self._margin_elevation_deg(lowest), capped=True)
-        else:
-            self.margin = 0
-        info: dict = {}
-        self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                          texcoords=False, tolerance=mat.truth_tolerance, info=info,
-                                          budget_bytes=bake.available_bytes(),
-                                          margin=self.margin if mat.boundary == "wrap" else None)
-        # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
-        self.edge_level = meshes.edge_level(info["levels"])
-        self.tolerance = info["tolerance"]
-        del info
-        self._normals = None
-        if mat.shading == "smooth":
-            # the vertex normals, bilinearly between texel centres (module docstring, "Shading")
-            wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
-            self._normals = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
-                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
-                                         wrap_mode=wrap)
-        self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
-        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
-        # a hop may run this far horizontally from any point of the tile and
-        # stay over the margin (texel centres start half a texel inside)
-        self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
-        # toward the camera: the top view's +z, an orthographic camera's direction (a perspective
-        # one's differs per pixel: the effects that read it are refused with it, hzval.scene)
-        self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
-        self._c = {  # scene-dependent numbers, opaque so that kernels are shared
-            "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
-            "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
-            "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
-            # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
-            "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
-                           if light.kind == "soft" else float(light.irradiance)),
-            "E_sky": dr.opaque(mi.Float, float(light.irradiance)),
-        }
-        backend.sync()
-        self.timings["mesh_s"] = time.perf_counter() - t0
-
-    def _margin_elevation_deg(self, lowest: float) -> float:
-        """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
-        lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
-        in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
-        never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
-        instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
-        memory with it)."""
-        everywhere = any(self.scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
-        if everywhere:
-            return meshes.MIN_ELEVATION_DEG
-        return max(meshes.MIN_ELEVATION_DEG, lowest)
-
-    def _load_albedo(self, albedo):
-        """The linear albedo texels as one flat ``mi.Float`` array, or ``None`` when no effect reads it."""
-        import mitsuba as mi
-
-        scene, rows, cols = self.scene, self.rows, self.cols
-        if not any(scene.declares(e) for e in _NEEDS_ALBEDO):
-            return None
-        a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
-        if a.shape != (rows, cols, 3):
-            raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
-        return mi.Float(np.ascontiguousarray(a, dtype=np.float32).ravel())
-
-    def _check_positions(self, positions):
-        """The tests' own sample positions, flat float32, or ``None`` for the scene's."""
-        if positions is None:
-            return None
-        xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
-        need = self.shape[0] * self.shape[1] * self.spp
-        if xs.shape != (need,) or ys.shape != (need,):
-            raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
-        return xs, ys
+class _CameraRays:
+    """The truth's camera rays (a part of :class:`Truth`): where each sample of the view meets the
+    displaced mesh, kept between frames or traced again band by band (module docstring, "Memory"),
+    with the albedo and shading normal there."""
 
     def _trace_camera_rays(self) -> None:
         """Where every sample's camera ray meets the surface, once, and what does not depend on the
@@ -519,63 +381,11 @@ class Truth:
             st.ambient = self._ambient_bands[i] if self._ambient_bands else None
             yield st
 
-    def _trace_ambient(self, st: "_Samples"):
-        """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
-        import drjit as dr
-        import mitsuba as mi
 
-        t0 = time.perf_counter()
-        rng = self._rng(_AMBIENT_STREAM, st)
-        # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
-        d = mi.Frame3f(st.ns).to_world(
-            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
-        blocked = (dr.dot(st.n, d) <= 0.0) | self._occluded(
-            st.o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
-        ambient = dr.select(blocked, 0.0, 1.0)
-        dr.eval(ambient)
-        backend.sync()
-        self.timings["ambient_s"] += time.perf_counter() - t0
-        return ambient
-
-    def _trace_reflection(self, st: "_Samples") -> tuple[np.ndarray, np.ndarray]:
-        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that escapes
-        (independent of the light, once).
-
-        Directions come from the lobe's half-vector distribution about the
-        shading normal (:func:`_lobe_direction`), so each carries the
-        estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
-        (Walter et al. 2007; ``f cos = ks (n.h)^alpha [n.wo > 0]``, ``pdf =
-        (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``): ``R = sum w V / sum w``
-        with ``w = wo.h`` where ``n.wo > 0`` (else 0), ``V`` = 1 where the
-        direction escapes. Variance: the ratio estimator's, ``sum w^2 (V -
-        R)^2 / (sum w)^2``.
-        """
-        import drjit as dr
-        import mitsuba as mi
-
-        t0 = time.perf_counter()
-        rng = self._rng(_REFLECTION_STREAM, st)
-        wo, h = _lobe_direction(st.ns, self._toward_eye,
-                                mi.Point2f(rng.next_float32(), rng.next_float32()))
-        w = dr.select(dr.dot(st.ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
-        blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
-            st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
-        V = dr.select(blocked, 0.0, 1.0)
-        sums = [dr.block_sum(x, self.spp) for x in (w * V, w, w * w * V, w * w)]
-        dr.eval(sums)
-        backend.sync()
-        wv, ws, w2v, w2 = (np.asarray(x, np.float64) for x in sums)
-        R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
-        var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
-        if self.spp < 2:
-            var[:] = np.nan
-        self.timings["reflection_s"] += time.perf_counter() - t0
-        return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
-
-    # ------------------------------------------------------------------
-    # Ray queries
-    # ------------------------------------------------------------------
-
+class _RayQueries:
+    """The truth's ray queries against the displaced mesh (a part of :class:`Truth`): where a ray from
+    above meets the surface, whether a shadow ray is blocked, across a ``wrap`` tile's hops, and
+    the per-sample random streams. They read the Truth's Mitsuba scene and its tile geometry."""
     def _rng(self, stream: int, st: "_Samples"):
         """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
         in the whole image: deterministic, and the same in a band as in one piece."""
@@ -735,6 +545,303 @@ class Truth:
             if not bool(dr.any(active)):
                 break
         return x, y, hit, start & ~hit & ~active & (d.z > 0.0)
+
+
+class _PathTracing:
+    """The truth's interreflection (a part of :class:`Truth`): paths up to the scene's declared depth,
+    as Mitsuba's ``path`` integrator would trace them on the displaced mesh."""
+
+    def _path_trace(self, st: "_Samples", L1, vis1, azimuth_deg: float):
+        """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
+
+        As in Mitsuba's ``path`` integrator, ``max_depth`` counts path
+        segments from the camera: 2 is direct light only, 3 adds one
+        interreflection, and so on. At each surface vertex the light is
+        sampled (next-event estimation: the first vertex uses the samples'
+        own light directions ``L1`` and their visibility ``vis1``, later ones
+        draw from the light's cone), its visibility tested only if
+        ``shadow`` is declared; the BSDF then samples the next direction,
+        which collects the sky if ``ambient`` is declared and it escapes, or
+        continues from the surface it meets. The light is reached by
+        next-event estimation only and the sky by BSDF sampling only, so
+        neither is counted twice and no MIS is needed. The first bounce
+        reuses the ambient layer's cosine-weighted directions, so with
+        ``max_depth = 2`` and a diffuse surface the result is the direct
+        render's, sample for sample (with ``specular``, the sky's glossy
+        reflection, which the direct render leaves out, is added).
+
+        This is written here rather than run through Mitsuba's own ``path``
+        integrator because its rays start at ``spawn_ray`` offsets, which
+        show false shadows at mesh vertices and near valley edges of the
+        displaced mesh and leak light where shadows begin (module
+        docstring), and its rays see only the wrap margin, not the endless
+        tiling; every ray here takes the same robust origins and hops as the
+        shadow rays.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        sc = self.scene
+        light = sc.light
+        E_sky = self._c["E_sky"]
+        max_depth = int(sc.interreflection_depth)
+        rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF), st)
+        first = self._rng(_AMBIENT_STREAM, st)    # the ambient layer's directions at the first vertex
+        centre = light.direction(azimuth_deg)
+        centre_v = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in centre))
+        cos_max = dr.opaque(mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0)
+        cap = self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG))
+        rho = light.radius_deg if light.kind == "soft" else 0.0
+        lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
+
+        o, n, ns, albedo = st.o, st.n, st.ns, st.albedo
+        v = self._toward_eye                      # toward the previous vertex (the camera)
+        beta = mi.Color3f(1.0)                    # path throughput
+        result = mi.Color3f(0.0)
+        active = mi.Bool(True)
+        p_spec = _specular_sampling_share(sc)
+        for depth in range(1, max_depth):
+            # next-event estimation toward the light
+            L = L1 if depth == 1 else self._light_sample(rng, centre_v, cos_max)
+            contrib = self._direct(ns, L, v, albedo)
+            if sc.declares("shadow"):
+                contrib = contrib * (vis1 if depth == 1 else self._visible(o, n, L, lowest, highest))
+            result += dr.select(active, beta * contrib, 0.0)
+            if depth + 1 >= max_depth and not sc.declares("ambient"):
+                break
+            # sample the BSDF for the next segment: the sky if it escapes, else the next vertex
+            u_lobe = rng.next_float32()
+            u = mi.Point2f(rng.next_float32(), rng.next_float32())
+            if depth == 1:
+                u = mi.Point2f(first.next_float32(), first.next_float32())
+            wo, weight = _sample_bsdf(sc, ns, v, albedo, p_spec, u_lobe, u)
+            weight = dr.select(dr.dot(n, wo) > 0.0, weight, 0.0)     # not into the triangle hit
+            active &= dr.any(weight > 0.0)
+            beta *= weight
+            x, y, hit, escaped = self._next_surface(o, wo, active, cap)
+            if sc.declares("ambient"):
+                result += dr.select(escaped, beta * (E_sky * SKY_RADIANCE_PER_IRRADIANCE), 0.0)
+            if depth + 1 >= max_depth:
+                break
+            active &= hit
+            o_next, n_next, ns_next, valid = self._surface_at(x, y, active)
+            active &= valid
+            o = dr.select(active, o_next, o)
+            n = dr.select(active, n_next, n)
+            ns = dr.select(active, ns_next, ns)
+            v = -wo
+            if albedo is not None:
+                albedo = self._albedo_at(x, y, active)
+            dr.eval(o, n, ns, v, beta, result, active, albedo)
+        return result
+
+    def _light_sample(self, rng, centre, cos_max):
+        """A direction toward the light for a later path vertex: the centre of a hard light, or a
+        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius)."""
+        import mitsuba as mi
+
+        if self.scene.light.kind != "soft":
+            return centre
+        return mi.Frame3f(centre).to_world(mi.warp.square_to_uniform_cone(
+            mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
+
+
+class Truth(_CameraRays, _RayQueries, _PathTracing):
+    """Ground-truth renderer of one scene and height map.
+
+    ``height``: the normalised height map ``H[row, col]`` (float32); the
+    scene's ``material`` gives depth and boundary. ``positions``: optional
+    ``(x, y)`` sample positions in texel units replacing
+    :func:`hzval.camera.sample_positions` (same length and pixel-major order,
+    ``pixels * spp``); tests use it to put samples exactly on mesh vertices.
+    ``band_samples`` (samples per band) and ``keep`` (whether the camera hits
+    are kept between frames) override :func:`_bands` and :func:`keeps_samples`
+    (module docstring, "Memory"); tests use them to check that every way gives
+    the same pixels.
+    ``albedo``: optional linear ``(rows, cols, 3)`` albedo replacing
+    :func:`hzval.scene.load_albedo`; read only if an effect needs it.
+
+    Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
+    ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
+    ``lift`` (ray origin lift, texels), ``tolerance`` (texels: how far the mesh may be from the
+    bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.mesh.edge_level`), ``moved_off_edges`` (samples moved
+    off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
+    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
+    camera, :class:`hzval.camera.View`). A view other than ``top`` also sets
+    ``seen`` (``(H, W)`` bool: pixels whose rays hit the surface) and, when one
+    band holds the image, ``hits`` (float32 ``(x, y)`` of each sample's hit,
+    in the tile) and ``seen_samples`` (which samples' rays hit).
+    """
+
+    def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
+                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None):
+        backend.variant()
+        self.scene = scene.validate()
+        h = np.asarray(height, dtype=np.float32)
+        if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
+            # any size the loader and the bake take (1xN and Nx1 included): the mesh handles them
+            raise InputError("height", f"expected a finite 2-D height map of at least 2 pixels, got shape {h.shape}")
+        self.rows, self.cols = rows, cols = h.shape
+        self.shape = image_shape(rows, cols, scene.camera)
+        self.spp = scene.spp
+        if scene.declares("interreflection") and not (scene.declares("diffuse") or scene.declares("specular")):
+            raise InputError(scene.source or "scene", "interreflection needs a surface that reflects: "
+                             "declare diffuse and/or specular as well")
+        self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
+        self.timings: dict[str, float] = {}
+
+        self._build_surface(h)
+        self.view = scene.camera.view(rows, cols, (self.z_min, self.z_max))
+        self._albedo_texels = self._load_albedo(albedo)
+        self._positions = self._check_positions(positions)
+        self.count = self.shape[0] * self.shape[1] * self.spp
+        self.keeps = keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
+        self.bands = _bands(self.shape, self.spp, band_samples)
+        self._trace_camera_rays()
+
+    def _build_surface(self, h: np.ndarray) -> None:
+        """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
+        import drjit as dr
+        import mitsuba as mi
+
+        rows, cols = self.rows, self.cols
+        mat, light = self.scene.material, self.scene.light
+        t0 = time.perf_counter()
+        h_tex = cv.heights_in_texels(h, mat.depth)
+        self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
+        self.relief = self.z_max - self.z_min
+        lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
+        self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
+        if mat.boundary == "wrap":
+            # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
+            # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
+            # relief / tan(e), quadratically in memory
+            self.margin = meshes.wrap_margin(h_tex, self._margin_elevation_deg(lowest), capped=True)
+        else:
+            self.margin = 0
+        info: dict = {}
+        self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
+                                          texcoords=False, tolerance=mat.truth_tolerance, info=info,
+                                          budget_bytes=bake.available_bytes(),
+                                          margin=self.margin if mat.boundary == "wrap" else None)
+        # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
+        self.edge_level = meshes.edge_level(info["levels"])
+        self.tolerance = info["tolerance"]
+        del info
+        self._normals = None
+        if mat.shading == "smooth":
+            # the vertex normals, bilinearly between texel centres (module docstring, "Shading")
+            wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
+            self._normals = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
+                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
+                                         wrap_mode=wrap)
+        self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
+        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
+        # a hop may run this far horizontally from any point of the tile and
+        # stay over the margin (texel centres start half a texel inside)
+        self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
+        # toward the camera: the top view's +z, an orthographic camera's direction (a perspective
+        # one's differs per pixel: the effects that read it are refused with it, hzval.scene)
+        self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
+        self._c = {  # scene-dependent numbers, opaque so that kernels are shared
+            "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
+            "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
+            "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
+            # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
+            "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
+                           if light.kind == "soft" else float(light.irradiance)),
+            "E_sky": dr.opaque(mi.Float, float(light.irradiance)),
+        }
+        backend.sync()
+        self.timings["mesh_s"] = time.perf_counter() - t0
+
+    def _margin_elevation_deg(self, lowest: float) -> float:
+        """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
+        lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
+        in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
+        never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
+        instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
+        memory with it)."""
+        everywhere = any(self.scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
+        if everywhere:
+            return meshes.MIN_ELEVATION_DEG
+        return max(meshes.MIN_ELEVATION_DEG, lowest)
+
+    def _load_albedo(self, albedo):
+        """The linear albedo texels as one flat ``mi.Float`` array, or ``None`` when no effect reads it."""
+        import mitsuba as mi
+
+        scene, rows, cols = self.scene, self.rows, self.cols
+        if not any(scene.declares(e) for e in _NEEDS_ALBEDO):
+            return None
+        a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
+        if a.shape != (rows, cols, 3):
+            raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+        return mi.Float(np.ascontiguousarray(a, dtype=np.float32).ravel())
+
+    def _check_positions(self, positions):
+        """The tests' own sample positions, flat float32, or ``None`` for the scene's."""
+        if positions is None:
+            return None
+        xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
+        need = self.shape[0] * self.shape[1] * self.spp
+        if xs.shape != (need,) or ys.shape != (need,):
+            raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
+        return xs, ys
+
+    def _trace_ambient(self, st: "_Samples"):
+        """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        t0 = time.perf_counter()
+        rng = self._rng(_AMBIENT_STREAM, st)
+        # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
+        d = mi.Frame3f(st.ns).to_world(
+            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+        blocked = (dr.dot(st.n, d) <= 0.0) | self._occluded(
+            st.o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+        ambient = dr.select(blocked, 0.0, 1.0)
+        dr.eval(ambient)
+        backend.sync()
+        self.timings["ambient_s"] += time.perf_counter() - t0
+        return ambient
+
+    def _trace_reflection(self, st: "_Samples") -> tuple[np.ndarray, np.ndarray]:
+        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that escapes
+        (independent of the light, once).
+
+        Directions come from the lobe's half-vector distribution about the
+        shading normal (:func:`_lobe_direction`), so each carries the
+        estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
+        (Walter et al. 2007; ``f cos = ks (n.h)^alpha [n.wo > 0]``, ``pdf =
+        (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``): ``R = sum w V / sum w``
+        with ``w = wo.h`` where ``n.wo > 0`` (else 0), ``V`` = 1 where the
+        direction escapes. Variance: the ratio estimator's, ``sum w^2 (V -
+        R)^2 / (sum w)^2``.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        t0 = time.perf_counter()
+        rng = self._rng(_REFLECTION_STREAM, st)
+        wo, h = _lobe_direction(st.ns, self._toward_eye,
+                                mi.Point2f(rng.next_float32(), rng.next_float32()))
+        w = dr.select(dr.dot(st.ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
+        blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
+            st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+        V = dr.select(blocked, 0.0, 1.0)
+        sums = [dr.block_sum(x, self.spp) for x in (w * V, w, w * w * V, w * w)]
+        dr.eval(sums)
+        backend.sync()
+        wv, ws, w2v, w2 = (np.asarray(x, np.float64) for x in sums)
+        R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
+        var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
+        if self.spp < 2:
+            var[:] = np.nan
+        self.timings["reflection_s"] += time.perf_counter() - t0
+        return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
+
 
     # ------------------------------------------------------------------
     # Frames
@@ -906,104 +1013,6 @@ class Truth:
             else:
                 out[k] = (np.asarray(mean, dtype=np.float32), np.asarray(var, dtype=np.float32))
         return out
-
-    # ------------------------------------------------------------------
-    # Interreflection
-    # ------------------------------------------------------------------
-
-    def _path_trace(self, st: "_Samples", L1, vis1, azimuth_deg: float):
-        """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
-
-        As in Mitsuba's ``path`` integrator, ``max_depth`` counts path
-        segments from the camera: 2 is direct light only, 3 adds one
-        interreflection, and so on. At each surface vertex the light is
-        sampled (next-event estimation: the first vertex uses the samples'
-        own light directions ``L1`` and their visibility ``vis1``, later ones
-        draw from the light's cone), its visibility tested only if
-        ``shadow`` is declared; the BSDF then samples the next direction,
-        which collects the sky if ``ambient`` is declared and it escapes, or
-        continues from the surface it meets. The light is reached by
-        next-event estimation only and the sky by BSDF sampling only, so
-        neither is counted twice and no MIS is needed. The first bounce
-        reuses the ambient layer's cosine-weighted directions, so with
-        ``max_depth = 2`` and a diffuse surface the result is the direct
-        render's, sample for sample (with ``specular``, the sky's glossy
-        reflection, which the direct render leaves out, is added).
-
-        This is written here rather than run through Mitsuba's own ``path``
-        integrator because its rays start at ``spawn_ray`` offsets, which
-        show false shadows at mesh vertices and near valley edges of the
-        displaced mesh and leak light where shadows begin (module
-        docstring), and its rays see only the wrap margin, not the endless
-        tiling; every ray here takes the same robust origins and hops as the
-        shadow rays.
-        """
-        import drjit as dr
-        import mitsuba as mi
-
-        sc = self.scene
-        light = sc.light
-        E_sky = self._c["E_sky"]
-        max_depth = int(sc.interreflection_depth)
-        rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF), st)
-        first = self._rng(_AMBIENT_STREAM, st)    # the ambient layer's directions at the first vertex
-        centre = light.direction(azimuth_deg)
-        centre_v = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in centre))
-        cos_max = dr.opaque(mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0)
-        cap = self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG))
-        rho = light.radius_deg if light.kind == "soft" else 0.0
-        lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
-
-        o, n, ns, albedo = st.o, st.n, st.ns, st.albedo
-        v = self._toward_eye                      # toward the previous vertex (the camera)
-        beta = mi.Color3f(1.0)                    # path throughput
-        result = mi.Color3f(0.0)
-        active = mi.Bool(True)
-        p_spec = _specular_sampling_share(sc)
-        for depth in range(1, max_depth):
-            # next-event estimation toward the light
-            L = L1 if depth == 1 else self._light_sample(rng, centre_v, cos_max)
-            contrib = self._direct(ns, L, v, albedo)
-            if sc.declares("shadow"):
-                contrib = contrib * (vis1 if depth == 1 else self._visible(o, n, L, lowest, highest))
-            result += dr.select(active, beta * contrib, 0.0)
-            if depth + 1 >= max_depth and not sc.declares("ambient"):
-                break
-            # sample the BSDF for the next segment: the sky if it escapes, else the next vertex
-            u_lobe = rng.next_float32()
-            u = mi.Point2f(rng.next_float32(), rng.next_float32())
-            if depth == 1:
-                u = mi.Point2f(first.next_float32(), first.next_float32())
-            wo, weight = _sample_bsdf(sc, ns, v, albedo, p_spec, u_lobe, u)
-            weight = dr.select(dr.dot(n, wo) > 0.0, weight, 0.0)     # not into the triangle hit
-            active &= dr.any(weight > 0.0)
-            beta *= weight
-            x, y, hit, escaped = self._next_surface(o, wo, active, cap)
-            if sc.declares("ambient"):
-                result += dr.select(escaped, beta * (E_sky * SKY_RADIANCE_PER_IRRADIANCE), 0.0)
-            if depth + 1 >= max_depth:
-                break
-            active &= hit
-            o_next, n_next, ns_next, valid = self._surface_at(x, y, active)
-            active &= valid
-            o = dr.select(active, o_next, o)
-            n = dr.select(active, n_next, n)
-            ns = dr.select(active, ns_next, ns)
-            v = -wo
-            if albedo is not None:
-                albedo = self._albedo_at(x, y, active)
-            dr.eval(o, n, ns, v, beta, result, active, albedo)
-        return result
-
-    def _light_sample(self, rng, centre, cos_max):
-        """A direction toward the light for a later path vertex: the centre of a hard light, or a
-        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius)."""
-        import mitsuba as mi
-
-        if self.scene.light.kind != "soft":
-            return centre
-        return mi.Frame3f(centre).to_world(mi.warp.square_to_uniform_cone(
-            mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
 
 
 #: Up to this many samples (2048 x 2048 at 32 spp) the truth keeps every sample's camera hit
