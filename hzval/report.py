@@ -24,12 +24,10 @@ through ``|tojson`` only, and file paths are URL-quoted
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
 from urllib.parse import quote
-
-import dataclasses
 
 from hzval import files, images, technique
 
@@ -216,7 +214,7 @@ def _lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
             continue
         # the headline scores carry the technique's name, as every other technique's columns do
         label = f"{v.name} {m.label}" if m.key in ("visibility_mae", "flip_mean") else m.label
-        shown.append(dataclasses.replace(m, key=key, label=label))
+        shown.append(replace(m, key=key, label=label))
     return tuple(shown)
 
 
