@@ -744,7 +744,7 @@ def cmd_fit(args) -> int:
     """Bake, fit, write; one line of figures."""
     import math
 
-    from hzval import backend, bake, files, fit, sweep
+    from hzval import bake, files, fit, sweep
     from hzval import scene as sc
 
     if not (math.isfinite(args.k) and args.k > 0):
@@ -761,7 +761,6 @@ def cmd_fit(args) -> int:
     fit.check_fits(what, rows, cols, scene.spp, len(lights) + len(held_out), scene)
     with files.output_folder(args.out, force=args.force):
         height, info = load_material(args)
-        backend.variant(args.variant)
         baked = bake.bake(height, params)
         result = _fitted(args, fit, height, baked, scene, params, info, lights, held_out)
     _print_fit(args, info, rows, cols, result)
