@@ -217,7 +217,34 @@ def _add_sweep(sub) -> None:
     _add_sweep_flags(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_gate_flags(p)
     p.set_defaults(run=cmd_sweep)
+
+
+def _add_gate_flags(p: argparse.ArgumentParser) -> None:
+    """``--fail-if`` and ``--baseline`` (:mod:`hzval.gates`, docs/ci.md)."""
+    g = p.add_argument_group("gates", "fail the run (exit 1) on a threshold or a regression (docs/ci.md)")
+    g.add_argument("--fail-if", dest="fail_if", action="append", default=None, metavar="EXPR",
+                   help="exit 1 when EXPR holds, e.g. 'horizon.flip_mean>0.1' (every frame), "
+                        "'mean(pom.visibility_mae)>mean(horizon.visibility_mae)' (the sweep's means; max(...) "
+                        "too); any metric name of metrics.json's frames; repeatable")
+    g.add_argument("--baseline", type=Path, default=None, metavar="DIR",
+                   help="an earlier run of the same settings: exit 1 on a significant regression of any "
+                        "technique's metric (the noise-aware test of hzval check)")
+
+
+def _gates(args):
+    """The :class:`hzval.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
+    from hzval import gates
+
+    return gates.Gates(getattr(args, "fail_if", None), getattr(args, "baseline", None))
+
+
+def _gate_exit(failed: list[str]) -> int:
+    """Print each gate failure on one line; exit 1 if there is any."""
+    for line in failed:
+        print(f"hzval: gate failed: {line}", file=sys.stderr)
+    return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 
 def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
@@ -544,7 +571,9 @@ def cmd_sweep(args) -> int:
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet, force=args.force)
+    gates = _gates(args)
+    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet, force=args.force,
+                       gates=gates)
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(sweep.summary_table(result))
@@ -555,7 +584,7 @@ def cmd_sweep(args) -> int:
               for name, info in result["techniques"].items()]
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
-    return errors.EXIT_OK
+    return _gate_exit(result.get("gates", {}).get("failed", []))
 
 
 def _truth_tolerance(args):

@@ -63,6 +63,7 @@ import numpy as np
 
 from hzval import backend, bake, camera, compare, files, heightmap, images, lookup, materials, report, shading
 from hzval import interrupts, surface, technique, truth
+from hzval import facing as hzfacing
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
@@ -169,6 +170,7 @@ class _Setup:
     perfect: list = dataclasses.field(default_factory=list)    # the techniques at the truth's hits
     view: dict = dataclasses.field(default_factory=dict)       # metrics.json's "view" (_view_errors)
     view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
+    normal: np.ndarray | None = None    # the top view's normal map: which pixels face the light (hzval.facing)
 
 
 #: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
@@ -286,7 +288,7 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     built = _build_techniques(ctx, chosen, options, timings, notices)
     chosen = [type(t) for t in built]
     setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
-                   retained=retained)
+                   retained=retained, normal=baked.normal if scene.camera.kind == "top" else None)
     if the_truth.hits is not None:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
@@ -380,7 +382,7 @@ def _spread(values: np.ndarray) -> dict:
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True,
-        force: bool = False) -> dict:
+        force: bool = False, gates=None) -> dict:
     """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content.
 
     All or nothing: the report (frames, plots, ``index.html``, ``metrics.json``,
@@ -390,14 +392,15 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     ``out`` must be new, empty or hzval's (:func:`hzval.files.output_folder`;
     ``force`` writes beside other files, which are kept); the run holds it: a
     second run into it fails at once. Signals are held from the swap on
-    (:func:`hzval.interrupts.held`).
+    (:func:`hzval.interrupts.held`). ``gates`` (:class:`hzval.gates.Gates`): tested on the result
+    before the report is written, which lists their failures first (``metrics.json``'s ``gates``).
     """
     out = Path(out)
     reset_peak_rss()                    # this sweep's own peak, even after others in this process
     try:
         with interrupts.held() as hold, files.output_folder(out, force=force):
             with files.Staging(out) as stage:
-                result = _run(scene, out, stage.dir, options, command, progress)
+                result = _run(scene, out, stage.dir, options, command, progress, gates)
                 hold.start()            # the last signal check: from here the run completes
                 stage.swap()
     finally:
@@ -405,7 +408,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     return result
 
 
-def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool) -> dict:
+def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None) -> dict:
     """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
     from tqdm import tqdm
 
@@ -425,6 +428,8 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     for t in setup.techniques:
         timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
     result = _result(scene, options, setup, timings, frames)
+    if gates:
+        gates.apply(result)             # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
     report.write_report(report_dir, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
@@ -548,8 +553,28 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
         per[name]["perfect_parallax_mae"] = value
     for t in setup.techniques:
         per[t.name].update(type(t).frame_extras(per))
+    _shadow_statistics(scene, setup, r, frame, per)
     frame.update(files=rel, techniques=per)
     return frame
+
+
+def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:
+    """The truth's shadowed and attached fractions (``frame["truth"]``) and each technique's visibility
+    metrics over the pixels that face the light (:mod:`hzval.facing`)."""
+    V = r.truth.layers.get("visibility")
+    if V is None:
+        return
+    facing = None
+    if setup.normal is not None:
+        facing = hzfacing.facing_mask(setup.normal, scene.light.direction(r.azimuth_deg),
+                                      scene.camera.supersampling)
+    frame["truth"] = hzfacing.truth_statistics(V, facing, scene.spp, r.truth.mask)
+    if facing is None:
+        return
+    for t, f in r.techniques:
+        F = f.layers.get("factor")
+        if F is not None:
+            per[t.name].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
 
 
 #: The display (sRGB) colour of pixels that see no surface (a view's sky, or off an ``open`` tile).
@@ -627,7 +652,8 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
         "simulated": simulated,
         "techniques": techniques,
         **{k: v for t in setup.techniques for k, v in t.extras.items()},
-        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings],
+        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings]
+                    + [w for w in (hzfacing.few_shadows_warning(frames),) if w],
         "frames": frames,
     }
 
