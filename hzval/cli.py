@@ -221,7 +221,7 @@ def _add_sweep(sub) -> None:
     p.set_defaults(run=cmd_sweep)
 
 
-def _add_gate_flags(p: argparse.ArgumentParser) -> None:
+def _add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
     """``--fail-if`` and ``--baseline`` (:mod:`hzval.gates`, docs/ci.md)."""
     g = p.add_argument_group("gates", "fail the run (exit 1) on a threshold or a regression (docs/ci.md)")
     g.add_argument("--fail-if", dest="fail_if", action="append", default=None, metavar="EXPR",
@@ -231,13 +231,18 @@ def _add_gate_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--baseline", type=Path, default=None, metavar="DIR",
                    help="an earlier run of the same settings: exit 1 on a significant regression of any "
                         "technique's metric (the noise-aware test of hzval check)")
+    if strict:
+        g.add_argument("--strict", action="store_true",
+                       help="exit 1 on any warning about an external horizon map (--horizon-map): a convention "
+                            "that fits better, a map that does not describe the height map")
 
 
 def _gates(args):
     """The :class:`hzval.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
     from hzval import gates
 
-    return gates.Gates(getattr(args, "fail_if", None), getattr(args, "baseline", None))
+    return gates.Gates(getattr(args, "fail_if", None), getattr(args, "baseline", None),
+                       strict=getattr(args, "strict", False))
 
 
 def _gate_exit(failed: list[str]) -> int:

@@ -1,4 +1,6 @@
-"""Gates that fail a build: ``--fail-if EXPR`` and ``--baseline DIR`` (``sweep``, ``score``, ``suite``).
+"""Gates that fail a build: ``--fail-if EXPR``, ``--baseline DIR`` (``sweep``, ``score``, ``suite``) and
+``--strict`` (``sweep``, ``suite``: every warning about an external horizon map, :mod:`hzval.external`,
+fails the run).
 
 A condition (:func:`parse`) compares a metric of ``metrics.json`` with a number
 or with another metric::
@@ -318,18 +320,23 @@ class Gates:
     """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run; :meth:`apply`
     tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists)."""
 
-    def __init__(self, conditions: list[str] | None = None, baseline: str | Path | None = None):
+    def __init__(self, conditions: list[str] | None = None, baseline: str | Path | None = None,
+                 strict: bool = False):
         self.conditions = [parse(c) for c in conditions or []]
+        self.strict = bool(strict)
         self.baseline_path = None if baseline is None else Path(baseline)
         self.baseline = None if baseline is None else read_baseline(baseline)
 
     def __bool__(self) -> bool:
-        return bool(self.conditions) or self.baseline is not None
+        return bool(self.conditions) or self.baseline is not None or self.strict
 
     def failures(self, metrics: dict, baseline: dict | None = None, where: str = "") -> tuple[list, list]:
         """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
         (default: :attr:`baseline`); a baseline of other settings is an InputError."""
         out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
+        if self.strict:     # every warning about an external bake (hzval.external.warnings) fails the run
+            prefix = f"{where}: " if where else ""
+            out += [f"{prefix}--strict: {w}" for w in (metrics.get("external_bake") or {}).get("warnings", [])]
         baseline = self.baseline if baseline is None else baseline
         tests = []
         if baseline is not None:
@@ -346,6 +353,6 @@ class Gates:
         return metrics["gates"]
 
     def record(self, failed: list[str], tests: list[dict]) -> dict:
-        return {"failed": failed, "conditions": [c.text for c in self.conditions],
+        return {"failed": failed, "conditions": [c.text for c in self.conditions], "strict": self.strict,
                 "baseline": None if self.baseline_path is None else str(self.baseline_path),
                 "alpha": ALPHA, "tests": tests}

@@ -13,7 +13,7 @@ from hzval import cli, files, sweep, technique
 
 # docs/ARCHITECTURE.md, "metrics.json".
 TOP_KEYS = {"schema_version", "material", "parameters", "versions", "timings", "simulated", "techniques", "frames"}
-FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques"}
+FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques", "truth"}
 SCORES = {"visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse", "psnr_db",
           "delta_e2000_mean", "seconds", "files"}
 FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
