@@ -484,11 +484,14 @@ def _add_score(sub) -> None:
     p = sub.add_parser("score", help="score your engine's frames of a sweep against its truth",
                        description="Read one image per light of SWEEP_DIR (named after its frame folders: "
                                    "az+0.exr linear, or az+0.png sRGB; SWEEP_DIR/frames.json says how to render "
-                                   "them), score each against the sweep's truth with the sweep's image metrics, "
-                                   "and write metrics.json and a report.")
+                                   "them; f_az+0.exr, the shadow factor F, optional), score each against the "
+                                   "sweep's truth with every metric of the sweep, beside the sweep's own "
+                                   "techniques, and write metrics.json and a report (FRAMES_DIR/engine.toml: "
+                                   "your engine's label and parameters).")
     p.add_argument("frames", type=Path, metavar="FRAMES_DIR", help="folder of your renderer's frames")
     p.add_argument("--against", required=True, type=Path, metavar="SWEEP_DIR", help="a folder hzval sweep wrote")
     p.add_argument("--out", type=Path, default=None, help="output folder (default FRAMES_DIR/score)")
+    _add_gate_flags(p, strict=False)
     p.set_defaults(run=cmd_score)
 
 
@@ -723,20 +726,18 @@ def cmd_export_scene(args) -> int:
 def cmd_score(args) -> int:
     import shlex
 
-    from hzval import score
+    from hzval import score, sweep
 
+    gates = _gates(args)
     result, maps = score.score(args.frames, args.against)
     out = args.out or args.frames / "score"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    index = score.write(result, maps, out, command=command, force=args.force)
-    print("azimuth     FLIP   dE2000    RMSE  PSNR dB  floor FLIP")
-    for f in result["frames"]:
-        floor = (f.get("floor") or {}).get("flip_mean")
-        psnr = "inf" if f["psnr_db"] is None else f"{f['psnr_db']:.2f}"
-        print(f"{f['azimuth_deg']:+7g}  {f['flip_mean']:.4f}  {f['delta_e2000_mean']:7.3f}  {f['rmse']:.4f}  "
-              f"{psnr:>7}  {'-' if floor is None else f'{floor:.4f}':>10}")
+    index = score.write(result, maps, out, command=command, force=args.force, gates=gates)
+    for w in result.get("warnings", []):
+        print(f"hzval: warning: {w}", file=sys.stderr)
+    print(sweep.summary_table(result))
     print(f"report: {index}")
-    return errors.EXIT_OK
+    return _gate_exit(result.get("gates", {}).get("failed", []))
 
 
 def _add_fit(sub) -> None:

@@ -171,6 +171,7 @@ class _Setup:
     view: dict = dataclasses.field(default_factory=dict)       # metrics.json's "view" (_view_errors)
     view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
     normal: np.ndarray | None = None    # the top view's normal map: which pixels face the light (hzval.facing)
+    albedo_constant: float | None = None    # the linear albedo where it is one grey value (frames.json)
 
 
 #: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
@@ -288,7 +289,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     built = _build_techniques(ctx, chosen, options, timings, notices)
     chosen = [type(t) for t in built]
     setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
-                   retained=retained, normal=baked.normal if scene.camera.kind == "top" else None)
+                   retained=retained, normal=baked.normal if scene.camera.kind == "top" else None,
+                   albedo_constant=_constant(ctx.albedo))
     if the_truth.hits is not None:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
@@ -297,6 +299,13 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     lookup.forget()
     backend.release_memory()
     return setup
+
+
+def _constant(values: np.ndarray) -> float | None:
+    """The one value of ``values`` if they are all equal, else ``None``."""
+    v = np.asarray(values)
+    first = float(v.flat[0]) if v.size else None
+    return first if first is not None and bool(np.all(v == v.flat[0])) else None
 
 
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
@@ -436,28 +445,30 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate,
                         "retains_freed": setup.retained}
-    files.write_json(report_dir / "frames.json", engine_frames(scene, result))
+    files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result
 
 
-def engine_frames(scene, result: dict) -> dict:
+def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> dict:
     """``frames.json``: what an engine needs to render the sweep's frames itself, for ``hzval score``.
 
     Per light: the frame's name (``az+0``: the file ``hzval score`` looks for, ``az+0.exr`` linear
-    or ``az+0.png`` sRGB), azimuth and elevation, and ``L`` in tangent space (toward the light);
-    for all: the camera, the light's irradiance and kind, the display exposure (``display =
-    srgb(clip(exposure * radiance))``), the image size and the material."""
+    or ``az+0.png`` sRGB, and ``f_az+0.exr`` its shadow factor F), azimuth and elevation, and ``L``
+    in tangent space (toward the light); for all: the camera, the light's kind, irradiance and
+    radiance, the albedo, the samples per pixel and the rule that places them, the display exposure
+    and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`)."""
     m = result["material"]
     return {
-        "format": "hzval engine frames 1",
+        "format": "hzval engine frames 2",
         "material": m,
         "image_size": result["camera"]["resolution"],
         "camera": result["camera"],
         "light": {"kind": scene.light.kind, "radius_deg": scene.light.radius_deg,
-                  "irradiance": scene.light.irradiance},
+                  "irradiance": scene.light.irradiance, **_light_radiance(scene.light)},
         "exposure": result["exposure"]["scale"],
         "effects": list(scene.effects),
+        **_engine_notes(scene, albedo_constant),
         "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
                        "azimuth counterclockwise from +x; L points toward the light",
         "frames": [{"name": frame_folder(f["azimuth_deg"]), "azimuth_deg": f["azimuth_deg"],
@@ -465,6 +476,47 @@ def engine_frames(scene, result: dict) -> dict:
                     "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])]}
                    for f in result["frames"]],
     }
+
+
+def _light_radiance(light) -> dict:
+    """The light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
+    irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
+    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading")."""
+    if light.kind != "soft" or not light.radius_deg:
+        return {"radiance": None, "radiance_note": "a directional light: irradiance E on a surface facing it, "
+                                                   "E cos(theta) on one at theta"}
+    rho = math.radians(light.radius_deg)
+    return {"radiance": light.irradiance / (math.pi * math.sin(rho) ** 2),
+            "radiance_note": "a disk of uniform radiance L = E / (pi sin^2 rho): a surface facing it receives E"}
+
+
+def _engine_notes(scene, albedo_constant) -> dict:
+    """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
+    besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
+    too bright, FLIP 0.68)."""
+    if isinstance(albedo_constant, float):
+        albedo = {"kind": "constant", "linear": albedo_constant}
+    elif isinstance(scene.material.albedo, str):
+        albedo = {"kind": "image", "path": scene.material.albedo, "encoding": "sRGB, decoded to linear"}
+    else:
+        albedo = {"kind": "image", "note": "the built-in material's own albedo image"}
+    albedo["brdf"] = "Lambert: radiance = albedo / pi * E * max(N.L, 0) (with diffuse)"
+    spp = scene.spp
+    n = int(round(math.sqrt(spp)))
+    rule = ("sample s of pixel p = row * width + col at (u, v) in the pixel, u = (s mod n + U) / n, "
+            f"v = (floor(s / n) + V) / n with n = {n} (jittered {n}x{n} strata)" if n * n == spp else
+            "sample s of pixel p at (u, v) = (U, V) in the pixel (uniform)")
+    rule += ("; U, V: doubles of numpy's PCG64(SeedSequence([seed, 0x5A3F])), all U of the image in order "
+             "p * spp + s, then all V; texel space x = (col + u) / supersampling, y = rows - (row + v) / "
+             "supersampling; a pixel is the mean of its samples (hzval.camera.sample_positions)")
+    return {"albedo": albedo,
+            "samples": {"spp": spp, "seed": scene.seed, "supersampling": scene.camera.supersampling,
+                        "layout": "stratified" if n * n == spp else "uniform", "rule": rule},
+            "exposure_meaning": {
+                "exr": "linear radiance as rendered, before the exposure (hzval score reads it as it is)",
+                "png": "display values: srgb_encode(clip(exposure * radiance, 0, 1)), 8 or 16 bits (hzval score "
+                       "decodes sRGB and divides by the exposure)",
+                "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)"}}
 
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
