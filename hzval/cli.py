@@ -413,6 +413,7 @@ def _add_suite(sub) -> None:
     p.add_argument("--out", type=Path, default=Path("reports") / "suite", metavar="DIR",
                    help="output folder (default reports/suite)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_gate_flags(p)
     p.set_defaults(run=cmd_suite)
 
 
@@ -630,13 +631,16 @@ def cmd_suite(args) -> int:
     items = suite.entries(args.inputs, **_scene_overrides(args))
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    gates = _gates(args)
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
-                       variant=args.variant, command=command, progress=not args.quiet, force=args.force)
+                       variant=args.variant, command=command, progress=not args.quiet, force=args.force,
+                       gates=gates)
     print(suite.summary_table(result))
     s = result["suite"]
     print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
           f"overview: {args.out / 'index.html'}")
-    return errors.EXIT_OK if not s["failed"] else errors.EXIT_CHECK_FAILED
+    gated = _gate_exit(result.get("gates", {}).get("failed", []))
+    return errors.EXIT_OK if not s["failed"] and not gated else errors.EXIT_CHECK_FAILED
 
 
 def cmd_materials(args) -> int:

@@ -180,8 +180,8 @@ def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
     prefix = f"{where}: " if where else ""
     if not cond.per_frame:
         _, a, b = bad[0]
-        return [f"{prefix}--fail-if {cond.text}: the sweep's {cond.left.text()} = {_g(a)}, {cond.right.text()} "
-                f"= {_g(b)}"]
+        other = "" if cond.right.path is None else f", {cond.right.text()} = {_g(b)}"
+        return [f"{prefix}--fail-if {cond.text}: the sweep's {cond.left.text()} = {_g(a)}{other}"]
     listed = ", ".join(f"{_frame_name(f)} {_g(a)}" + ("" if cond.right.path is None else f" vs {_g(b)}")
                        for f, a, b in bad)
     return [f"{prefix}--fail-if {cond.text}: {len(bad)} of {len(frames)} frames ({listed})"]
@@ -325,19 +325,31 @@ class Gates:
         self.conditions = [parse(c) for c in conditions or []]
         self.strict = bool(strict)
         self.baseline_path = None if baseline is None else Path(baseline)
-        self.baseline = None if baseline is None else read_baseline(baseline)
+        self.baseline = None
+        if baseline is not None:
+            if not self.baseline_path.is_dir() and not self.baseline_path.is_file():
+                raise InputError("--baseline", f"{baseline}: no such folder (an earlier run's --out)")
+            if (self.baseline_path / "metrics.json").is_file() or self.baseline_path.is_file():
+                self.baseline = read_baseline(baseline)
+            elif not (self.baseline_path / "suite.json").is_file():
+                raise InputError("--baseline", f"{baseline}: neither a run's folder (metrics.json) nor a suite's "
+                                               "(suite.json)")
 
     def __bool__(self) -> bool:
-        return bool(self.conditions) or self.baseline is not None or self.strict
+        return bool(self.conditions) or self.baseline_path is not None or self.strict
 
-    def failures(self, metrics: dict, baseline: dict | None = None, where: str = "") -> tuple[list, list]:
+    def failures(self, metrics: dict, baseline: dict | None = None, where: str = "",
+                 use_baseline: bool = True) -> tuple[list, list]:
         """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
-        (default: :attr:`baseline`); a baseline of other settings is an InputError."""
+        (default: :attr:`baseline`; none with ``use_baseline`` false); a baseline of other settings is
+        an InputError."""
         out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
         if self.strict:     # every warning about an external bake (hzval.external.warnings) fails the run
             prefix = f"{where}: " if where else ""
             out += [f"{prefix}--strict: {w}" for w in (metrics.get("external_bake") or {}).get("warnings", [])]
-        baseline = self.baseline if baseline is None else baseline
+        baseline = (self.baseline if baseline is None else baseline) if use_baseline else None
+        if use_baseline and baseline is None and self.baseline_path is not None:
+            raise InputError("--baseline", f"{self.baseline_path}: a suite's folder; give a run's folder (metrics.json)")
         tests = []
         if baseline is not None:
             check_same_settings(metrics, baseline, f"{self.baseline_path}" + (f" ({where})" if where else ""))

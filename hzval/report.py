@@ -1028,5 +1028,6 @@ def render_suite(result: dict) -> str:
                "seconds": fmt_seconds(s["seconds"]), "versions": s.get("versions") or {},
                "command": s["command"],
                "techniques": [{"name": n, **result["techniques"][n]} for n in names],
-               "rows": [_suite_row(r, names) for r in result["materials"]]}
+               "rows": [_suite_row(r, names) for r in result["materials"]],
+               "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None}
     return _environment().get_template("suite.html.j2").render(**context)
