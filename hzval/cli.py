@@ -24,7 +24,7 @@ def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = No
         default_size = materials.DEFAULT_SIZE
     p.add_argument("height", nargs="?", metavar="HEIGHT",
                    help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall")
-    p.add_argument("--material", choices=materials.names(), default=None, metavar="NAME",
+    p.add_argument("--material", default=None, metavar="NAME",
                    help=f"a built-in material instead of HEIGHT: {', '.join(materials.names())} "
                         "(`hzval materials` describes them)")
     p.add_argument("--depth", type=float, default=None,
@@ -33,7 +33,14 @@ def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = No
                    help="wrap: the texture tiles; open: a terrain with nothing outside (default: the "
                         "material's, wrap for a file)")
     p.add_argument("--size", type=int, default=None, metavar="N",
-                   help=f"size in texels of a built-in material (default {default_size}); ignored with HEIGHT")
+                   help=f"size in texels of a built-in material (default {default_size}); an error with HEIGHT, "
+                        "which has its own size")
+
+
+def _builtin(name: str) -> bool:
+    from hzval import materials
+
+    return materials.is_builtin(name)
 
 
 def _scene_module():
@@ -48,10 +55,42 @@ def _light_default():
 
 
 def _material_of(args) -> str | None:
-    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``."""
+    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
+    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size)."""
     if args.height is not None and args.material is not None:
         raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
+    if args.material is not None:
+        _check_material_name(args.material)
+    if args.height is not None and getattr(args, "size", None) is not None:
+        _refuse_size(args.size, str(args.height))
     return str(args.height) if args.height is not None else args.material
+
+
+def _check_material_name(name: str) -> None:
+    """Refuse an unknown built-in material's name in one line, with the nearest names."""
+    import difflib
+
+    from hzval import materials
+
+    if materials.is_builtin(name):
+        return
+    near = difflib.get_close_matches(name, materials.names(), n=2, cutoff=0.6)
+    hint = f"did you mean {' or '.join(near)}? " if near else ""
+    raise errors.InputError("--material", f"unknown material {name!r}; {hint}(known: {', '.join(materials.names())}; "
+                                          "`hzval materials` describes them)")
+
+
+def _refuse_size(size: int, height: str) -> None:
+    """``--size`` names a built-in material's size; a height map file has its own (nothing resamples it)."""
+    from hzval import heightmap
+
+    try:
+        rows, cols = heightmap.probe_shape(height)
+        own = f" ({cols}x{rows})"
+    except errors.HzvalError:
+        own = ""
+    raise errors.InputError("--size", f"{size} applies to built-in materials only; {height} has its own size{own}: "
+                                      "resize the file, or leave --size out")
 
 
 def _scene_name(args, scene) -> str:
@@ -576,6 +615,8 @@ def cmd_sweep(args) -> int:
         base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
     scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
+    if args.size is not None and not _builtin(scene.material.height):      # a --scene's own height map
+        _refuse_size(args.size, scene.material.height)
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
@@ -629,6 +670,14 @@ def cmd_suite(args) -> int:
     from hzval import suite
 
     items = suite.entries(args.inputs, **_scene_overrides(args))
+    if args.size is not None:
+        files_ = [e for e in items if not _builtin(e.scene.material.height)]
+        if files_ and len(files_) == len(items):
+            _refuse_size(args.size, files_[0].scene.material.height)
+        if files_:
+            print(f"hzval: note: --size {args.size} applies to the built-in materials only; "
+                  f"{', '.join(e.name for e in files_[:4])}{' ...' if len(files_) > 4 else ''} keep their own size",
+                  file=sys.stderr)
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     gates = _gates(args)

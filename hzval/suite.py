@@ -162,8 +162,11 @@ def _entries_of(item) -> list[Entry]:
     if materials.is_builtin(str(item)):
         scene = sc.override(sc.Scene(), height=str(item))
         return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
-    raise InputError(item, "no such file, folder or built-in material "
-                           f"({', '.join(materials.names())})")
+    import difflib
+
+    near = difflib.get_close_matches(str(item), materials.names(), n=2, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(near)}?" if near else ""
+    raise InputError(item, f"no such file, folder or built-in material{hint} ({', '.join(materials.names())})")
 
 
 def _scene_entry(path: Path) -> Entry:
