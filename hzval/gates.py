@@ -129,12 +129,18 @@ def parse(expr: str) -> Condition:
     return Condition(expr.strip(), left, op, right)
 
 
-def _lookup(frame: dict, path: str):
+def _table(frame: dict, path: str) -> tuple[dict | None, str]:
+    """The table of ``frame`` that holds ``path``'s value, and its key there."""
     head, _, key = path.partition(".")
     if not key:
-        return frame.get(head)
+        return frame, head
     table = frame.get(head) if head in ("floor", "truth") else (frame.get("techniques") or {}).get(head)
-    return None if not isinstance(table, dict) else table.get(key)
+    return (table if isinstance(table, dict) else None), key
+
+
+def _lookup(frame: dict, path: str):
+    table, key = _table(frame, path)
+    return None if table is None else table.get(key)
 
 
 def _known(frames: list[dict]) -> list[str]:
@@ -153,13 +159,15 @@ def _values(frames: list[dict], op: Operand, expr: str) -> list:
     if op.path is None:
         return [op.number] * len(frames)
     vals = [_lookup(f, op.path) for f in frames]
-    if all(v is None for v in vals):
+    if not any(key in table for table, key in (_table(f, op.path) for f in frames) if table is not None):
         near = difflib.get_close_matches(op.path, _known(frames), n=3, cutoff=0.5)
         hint = f"; did you mean {', '.join(near)}?" if near else ""
         raise InputError("--fail-if", f"{expr!r}: no frame has a value of {op.path}{hint}")
     if op.aggregate is None:
         return vals
     nums = [float(v) for v in vals if isinstance(v, (int, float))]
+    if not nums:
+        return [None] * len(frames)
     agg = {"mean": np.mean, "max": np.max, "min": np.min}[op.aggregate](nums)
     return [float(agg)] * len(frames)
 
