@@ -74,7 +74,7 @@ def _check_material_name(name: str) -> None:
 
     if materials.is_builtin(name):
         return
-    near = difflib.get_close_matches(name, materials.names(), n=2, cutoff=0.6)
+    near = difflib.get_close_matches(name, materials.names(), n=1, cutoff=0.6)
     hint = f"did you mean {' or '.join(near)}? " if near else ""
     raise errors.InputError("--material", f"unknown material {name!r}; {hint}(known: {', '.join(materials.names())}; "
                                           "`hzval materials` describes them)")

@@ -164,7 +164,7 @@ def _entries_of(item) -> list[Entry]:
         return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
     import difflib
 
-    near = difflib.get_close_matches(str(item), materials.names(), n=2, cutoff=0.6)
+    near = difflib.get_close_matches(str(item), materials.names(), n=1, cutoff=0.6)
     hint = f"; did you mean {' or '.join(near)}?" if near else ""
     raise InputError(item, f"no such file, folder or built-in material{hint} ({', '.join(materials.names())})")
 
