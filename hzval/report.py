@@ -672,12 +672,16 @@ def _worst_frame(out: Path, frames: list[dict], frame_views: list[dict], views: 
     i = max(range(len(frames)), key=lambda k: -math.inf if vals[k] is None else vals[k])
     p = frame_views[i]["panels"]
     diff = p["visdiff_png"] if p["visdiff_png"]["file"] and p["visdiff_png"]["file"].get("src") else p["flip_png"]
+    panels = [{"title": "truth", "subtitle": "ray-traced", "file": p["truth_png"]["file"], "visdiff": False},
+              {"title": lead.label, "subtitle": "", "file": p["lead_png"]["file"], "visdiff": False}]
+    rows = frame_views[i]["technique_rows"]
+    if lead.name == "engine" and rows:       # hzval score: the sweep's first technique beside the engine
+        panels.append({"title": rows[0]["label"], "subtitle": "hzval, the same sweep",
+                       "file": rows[0]["panels"][0]["file"], "visdiff": False})
+    panels.append({"title": f"{lead.label}: {diff['title']}", "subtitle": diff["subtitle"], "file": diff["file"],
+                   "visdiff": diff is p["visdiff_png"]})
     return {"index": i, "id": frame_views[i]["id"], "azimuth": frame_views[i]["azimuth"], "metric": label,
-            "value": _fixed(4)(vals[i]), "lead": lead.label,
-            "panels": [{"title": "truth", "subtitle": "ray-traced", "file": p["truth_png"]["file"], "visdiff": False},
-                       {"title": lead.label, "subtitle": "", "file": p["lead_png"]["file"], "visdiff": False},
-                       {"title": diff["title"], "subtitle": diff["subtitle"], "file": diff["file"],
-                        "visdiff": diff is p["visdiff_png"]}]}
+            "value": _fixed(4)(vals[i]), "lead": lead.label, "panels": panels}
 
 
 def _visibility_scope(metrics: dict) -> str | None:

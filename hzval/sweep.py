@@ -832,8 +832,14 @@ def _write_png_of(path: Path, make, *args) -> None:
 
 def summary_table(result: dict) -> str:
     """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
-    scores and time, then each other technique's |F-V|, FLIP and frame time."""
+    scores and time, then each other technique's |F-V|, FLIP and frame time. The visibility columns
+    are over the pixels that face the light where measured (:mod:`hzval.facing`), as the report's,
+    and a last line says so."""
     names = list(result.get("techniques", {}))
+    facing = any("visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values())
+
+    def vis(t: dict, key: str):
+        return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
     lead, others = (names[0], names[1:]) if names else (None, [])
     head = ("azimuth",)
     if lead:
@@ -854,14 +860,16 @@ def summary_table(result: dict) -> str:
         row = (f"{f['azimuth_deg']:+g}",)
         if lead:
             t = per.get(lead, {})
-            row += (num(t.get("visibility_mae"), 4), pct(t.get("leak_fraction")), pct(t.get("false_shadow_fraction")),
+            row += (num(vis(t, "visibility_mae"), 4), pct(vis(t, "leak_fraction")), pct(vis(t, "false_shadow_fraction")),
                     num(t.get("flip_mean"), 4), num(t.get("delta_e2000_mean"), 3),
                     "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}")
-        row += (f"{f['truth_s']:.3f}",) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
+        row += (num(f.get("truth_s"), 3),) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
         for n in others:
             te = per.get(n, {})
-            row += (num(te.get("visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
+            row += (num(vis(te, "visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows)])
+    note = ["|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
+            "visibility_mae for the whole image)"] if facing else []
+    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows), *note])
