@@ -220,7 +220,8 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
                     if facing in m:
                         g[f"{v.name}_{whole}_whole"] = m.get(whole)
                         g[f"{v.name}_{whole}"] = m[facing]
-                g[f"{v.name}_s"] = m.get("seconds")
+                if "seconds" in m:         # hzval score's engine has no render time: no column
+                    g[f"{v.name}_s"] = m["seconds"]
         out.append(g)
     return out
 
@@ -612,7 +613,9 @@ def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metr
         shown += FLOOR_METRICS
     for v in views[1:]:
         shown += _technique_metrics(v)
-    return shown
+    # a column no frame has at all (hzval score's engine without F images or times) is left out; one
+    # that frames have as null stays, "not measured" (or, for PSNR, infinite)
+    return tuple(m for m in shown if any(m.key in f for f in frames))
 
 
 def _technique_files(f: dict, v: TechniqueView) -> dict:
