@@ -44,8 +44,8 @@ FACING_KEYS = ("visibility_mae_facing", "leak_fraction_facing", "false_shadow_fr
 def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
     """``(H, W)`` bool: the pixels whose texel's normal ``(rows, cols, 3)`` faces ``L`` (toward the
     light), each texel repeated ``supersampling`` times along both axes."""
-    cos = np.asarray(normal, np.float64) @ np.asarray(L, np.float64)
-    mask = cos > 0.0
+    # float32, as the normal map is stored: a 4096 map's normals in float64 would be 400 MB a frame
+    mask = (np.asarray(normal, np.float32) @ np.asarray(L, np.float32)) > 0.0
     s = int(supersampling)
     return np.repeat(np.repeat(mask, s, axis=0), s, axis=1) if s > 1 else mask
 
@@ -53,12 +53,14 @@ def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
 def truth_statistics(V: np.ndarray, facing: np.ndarray | None, spp: int, seen: np.ndarray | None = None) -> dict:
     """``frames[i].truth`` of a frame (module docstring) from its visibility ``V`` ``(H, W)``; over
     the pixels a view sees (``seen``; ``None``: all)."""
-    V = np.asarray(V, np.float64)
+    V = np.asarray(V, np.float32)
     seen = np.ones(V.shape, bool) if seen is None else np.asarray(seen, bool)
     n = max(int(seen.sum()), 1)
     shadowed = (V < compare.LIT_THRESHOLD) & seen
+    spread = V * (1.0 - V)                  # float32 per pixel, summed in float64
+    spread[~seen] = 0.0
     out = {"shadowed_fraction": float(shadowed.sum()) / n,
-           "visibility_se": float(np.sqrt(np.sum(np.where(seen, V * (1.0 - V), 0.0)) / max(spp, 1)) / n),
+           "visibility_se": float(np.sqrt(np.sum(spread, dtype=np.float64) / max(spp, 1))) / n,
            "partial_fraction": float(np.sum(seen & (V > 0.0) & (V < 1.0))) / n}
     if facing is not None:
         out["attached_fraction"] = float(np.sum(seen & ~facing)) / n

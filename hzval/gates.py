@@ -360,8 +360,13 @@ class Gates:
             raise InputError("--baseline", f"{self.baseline_path}: a suite's folder; give a run's folder (metrics.json)")
         tests = []
         if baseline is not None:
-            check_same_settings(metrics, baseline, f"{self.baseline_path}" + (f" ({where})" if where else ""))
+            label = f"{self.baseline_path}" + (f" ({where})" if where else "")
+            check_same_settings(metrics, baseline, label)
             tests = baseline_tests(metrics, baseline)
+            if not tests:
+                raise InputError("--baseline", f"{label}: no technique and metric in common with this run (another "
+                                               f"hzval's metrics.json, or other techniques: "
+                                               f"{', '.join(baseline.get('techniques') or {}) or 'none'})")
             out += regressions(tests, where)
         return out, tests
 
