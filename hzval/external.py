@@ -227,6 +227,9 @@ CLEARLY_BETTER = 0.15
 #: 0.29 (median 0.00). The mean |s - s_exact| cannot tell them apart: a right map of the deep spikes
 #: scores up to 0.16, a wrong map of the flat panels as low as 0.055.
 DESCRIBES_CORRELATION = 0.4
+#: The spread (standard deviation about each channel's mean) of the exact horizons below which a
+#: surface is too flat for :func:`detect` to judge whether a map describes it.
+MIN_SPREAD = 0.005
 
 
 def rings(D: int) -> list[tuple[str, str, float]]:
@@ -286,8 +289,10 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
         if e not in seen and len(rows) < keep:
             seen.add(e)
             rows.append({**e.record(), "mae": m})
-    corr = correlation(raw, exact, best)
-    describes = corr >= DESCRIBES_CORRELATION
+    # a surface with next to no horizons (flat, or a tiny depth) leaves nothing to correlate: not judged
+    judged = float(np.std(exact - exact.mean(axis=(0, 1)))) > MIN_SPREAD
+    corr = correlation(raw, exact, best) if judged else None
+    describes = corr is None or corr >= DESCRIBES_CORRELATION
     fits = suggested == declared
     return {"declared": {**declared.record(), "mae": declared_mae}, "best_match": {**best.record(), "mae": best_mae},
             "suggested": {**suggested.record(), "mae": suggested_mae},

@@ -200,3 +200,11 @@ def test_strict_fails_a_sweep_on_a_map_that_does_not_describe_it(variant, tmp_pa
     assert "gate failed: --strict: horizon map" in err and "g0.png" in err and "bricks.npy" in err
     m = json.loads((tmp_path / "strict" / "metrics.json").read_text())
     assert m["gates"]["strict"] and m["external_bake"]["warnings"] and not m["external_bake"]["describes"]
+
+
+def test_a_flat_surface_is_not_judged():
+    """Flat: every exact horizon is 0, nothing to correlate; no map is said not to describe it."""
+    exact = np.zeros((16, 16, 8))
+    for raw in (np.zeros((16, 16, 8), np.float32), some_sines().repeat(3, 0).repeat(4, 1)[:16, :16]):
+        found = external.detect(raw, exact, Encoding())
+        assert found["describes"] and found["correlation"] is None
