@@ -20,7 +20,7 @@ naming them; with them, once for the sweep. A frame where a side has no
 value (an infinite PSNR is ``null``) is not tested. Operators: ``>``,
 ``>=``, ``<``, ``<=``.
 
-A baseline (:func:`regressions`) is an earlier run of the same settings
+A baseline (:func:`baseline_tests`, :func:`regressions`) is an earlier run of the same settings
 (material digest, scene parameters: :func:`check_same_settings`); each
 technique's settings may differ, which is what a baseline is for. Per
 technique and metric of :data:`DIRECTION` the worsening ``d_i`` of each
@@ -29,7 +29,7 @@ z-test of ``hzval check`` (:func:`hzval.check.p_value`, one-sided here, and
 the Sidak correction :func:`hzval.check.sidak_level` over the run's tests at
 :data:`ALPHA`): ``z = sum d_i / sqrt(sum sigma_i^2)``, ``sigma_i`` the noise
 the truth's Monte Carlo estimate puts on frame ``i``'s difference
-(:func:`_noise_squared`). Two runs of the same seed render the same truth:
+(:func:`_variance`). Two runs of the same seed render the same truth:
 ``sigma_i = 0`` and any worsening is the technique's. Runs of different
 seeds: a visibility metric's ``sigma_i`` is each run's standard error
 (:mod:`hzval.facing`: ``visibility_se``, ``partial_fraction``); an image
@@ -56,7 +56,8 @@ import numpy as np
 from hzval import files
 from hzval.errors import InputError
 
-__all__ = ["Operand", "Condition", "parse", "evaluate", "read_baseline", "check_same_settings", "regressions",
+__all__ = ["Operand", "Condition", "parse", "evaluate", "read_baseline", "check_same_settings", "baseline_tests",
+           "frame_noise", "regressions",
            "Gates", "DIRECTION", "ALPHA", "ABS_TOLERANCE", "REL_TOLERANCE"]
 
 #: The metrics a baseline tests and which way is worse: +1 larger is worse, -1 smaller is worse.
