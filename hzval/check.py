@@ -79,7 +79,7 @@ from hzval.errors import InputError
 from hzval.sweep import frame_folder
 
 __all__ = ["Tiers", "DEFAULT_TIERS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
-           "render_references", "compare_image", "run", "write_report", "repository_path"]
+           "render_references", "compare_image", "run", "write_report", "repository_path", "p_value", "sidak_level"]
 
 #: Side of the pixel blocks whose means the truth's test also compares.
 BLOCK = 8
@@ -306,7 +306,7 @@ def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int,
     nb = blocks_d.shape[0] * blocks_d.shape[1]
     p_blk = _p_value(np.abs(blocks_d) / np.sqrt(blocks_v)).min(-1)
     n_tests = (diff.shape[0] * diff.shape[1] + nb) * len(names)
-    alpha = -math.expm1(math.log1p(-tiers.fail) / n_tests)       # Sidak, without cancellation
+    alpha = sidak_level(tiers.fail, n_tests)
     bad_blocks = int((p_blk < alpha).sum())
     bias = np.abs(diff.mean(axis=(0, 1)))
     numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
@@ -327,6 +327,19 @@ def _p_value(z: np.ndarray) -> np.ndarray:
     from scipy.special import erfc
 
     return erfc(z / math.sqrt(2.0))
+
+
+def p_value(z, *, one_sided: bool = False):
+    """The p-value of a z-score: two-sided ``erfc(z / sqrt 2)`` (the truth's test), or one-sided,
+    half of it (a test of one direction only, e.g. a regression: :mod:`hzval.gates`)."""
+    p = _p_value(np.asarray(z, np.float64))
+    return p / 2.0 if one_sided else p
+
+
+def sidak_level(alpha: float, n_tests: int) -> float:
+    """The per-test level of ``n_tests`` tests at family-wise level ``alpha`` (Sidak:
+    ``1 - (1 - alpha)^(1/n)``, computed without cancellation)."""
+    return -math.expm1(math.log1p(-alpha) / max(int(n_tests), 1))
 
 
 def _block_sums(x: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = No
         default_size = materials.DEFAULT_SIZE
     p.add_argument("height", nargs="?", metavar="HEIGHT",
                    help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall")
-    p.add_argument("--material", choices=materials.names(), default=None, metavar="NAME",
+    p.add_argument("--material", default=None, metavar="NAME",
                    help=f"a built-in material instead of HEIGHT: {', '.join(materials.names())} "
                         "(`hzval materials` describes them)")
     p.add_argument("--depth", type=float, default=None,
@@ -33,7 +33,14 @@ def _add_material_args(p: argparse.ArgumentParser, default_size: int | None = No
                    help="wrap: the texture tiles; open: a terrain with nothing outside (default: the "
                         "material's, wrap for a file)")
     p.add_argument("--size", type=int, default=None, metavar="N",
-                   help=f"size in texels of a built-in material (default {default_size}); ignored with HEIGHT")
+                   help=f"size in texels of a built-in material (default {default_size}); an error with HEIGHT, "
+                        "which has its own size")
+
+
+def _builtin(name: str) -> bool:
+    from hzval import materials
+
+    return materials.is_builtin(name)
 
 
 def _scene_module():
@@ -48,10 +55,42 @@ def _light_default():
 
 
 def _material_of(args) -> str | None:
-    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``."""
+    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
+    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size)."""
     if args.height is not None and args.material is not None:
         raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
+    if args.material is not None:
+        _check_material_name(args.material)
+    if args.height is not None and getattr(args, "size", None) is not None:
+        _refuse_size(args.size, str(args.height))
     return str(args.height) if args.height is not None else args.material
+
+
+def _check_material_name(name: str) -> None:
+    """Refuse an unknown built-in material's name in one line, with the nearest names."""
+    import difflib
+
+    from hzval import materials
+
+    if materials.is_builtin(name):
+        return
+    near = difflib.get_close_matches(name, materials.names(), n=1, cutoff=0.6)
+    hint = f"did you mean {' or '.join(near)}? " if near else ""
+    raise errors.InputError("--material", f"unknown material {name!r}; {hint}(known: {', '.join(materials.names())}; "
+                                          "`hzval materials` describes them)")
+
+
+def _refuse_size(size: int, height: str) -> None:
+    """``--size`` names a built-in material's size; a height map file has its own (nothing resamples it)."""
+    from hzval import heightmap
+
+    try:
+        rows, cols = heightmap.probe_shape(height)
+        own = f" ({cols}x{rows})"
+    except errors.HzvalError:
+        own = ""
+    raise errors.InputError("--size", f"{size} applies to built-in materials only; {height} has its own size{own}: "
+                                      "resize the file, or leave --size out")
 
 
 def _scene_name(args, scene) -> str:
@@ -217,7 +256,39 @@ def _add_sweep(sub) -> None:
     _add_sweep_flags(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/<scene name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_gate_flags(p)
     p.set_defaults(run=cmd_sweep)
+
+
+def _add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
+    """``--fail-if`` and ``--baseline`` (:mod:`hzval.gates`, docs/ci.md)."""
+    g = p.add_argument_group("gates", "fail the run (exit 1) on a threshold or a regression (docs/ci.md)")
+    g.add_argument("--fail-if", dest="fail_if", action="append", default=None, metavar="EXPR",
+                   help="exit 1 when EXPR holds, e.g. 'horizon.flip_mean>0.1' (every frame), "
+                        "'mean(pom.visibility_mae)>mean(horizon.visibility_mae)' (the sweep's means; max(...) "
+                        "too); any metric name of metrics.json's frames; repeatable")
+    g.add_argument("--baseline", type=Path, default=None, metavar="DIR",
+                   help="an earlier run of the same settings: exit 1 on a significant regression of any "
+                        "technique's metric (the noise-aware test of hzval check)")
+    if strict:
+        g.add_argument("--strict", action="store_true",
+                       help="exit 1 on any warning about an external horizon map (--horizon-map): a convention "
+                            "that fits better, a map that does not describe the height map")
+
+
+def _gates(args):
+    """The :class:`hzval.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
+    from hzval import gates
+
+    return gates.Gates(getattr(args, "fail_if", None), getattr(args, "baseline", None),
+                       strict=getattr(args, "strict", False))
+
+
+def _gate_exit(failed: list[str]) -> int:
+    """Print each gate failure on one line; exit 1 if there is any."""
+    for line in failed:
+        print(f"hzval: gate failed: {line}", file=sys.stderr)
+    return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 
 def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
@@ -381,6 +452,7 @@ def _add_suite(sub) -> None:
     p.add_argument("--out", type=Path, default=Path("reports") / "suite", metavar="DIR",
                    help="output folder (default reports/suite)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_gate_flags(p)
     p.set_defaults(run=cmd_suite)
 
 
@@ -452,11 +524,14 @@ def _add_score(sub) -> None:
     p = sub.add_parser("score", help="score your engine's frames of a sweep against its truth",
                        description="Read one image per light of SWEEP_DIR (named after its frame folders: "
                                    "az+0.exr linear, or az+0.png sRGB; SWEEP_DIR/frames.json says how to render "
-                                   "them), score each against the sweep's truth with the sweep's image metrics, "
-                                   "and write metrics.json and a report.")
+                                   "them; f_az+0.exr, the shadow factor F, optional), score each against the "
+                                   "sweep's truth with every metric of the sweep, beside the sweep's own "
+                                   "techniques, and write metrics.json and a report (FRAMES_DIR/engine.toml: "
+                                   "your engine's label and parameters).")
     p.add_argument("frames", type=Path, metavar="FRAMES_DIR", help="folder of your renderer's frames")
     p.add_argument("--against", required=True, type=Path, metavar="SWEEP_DIR", help="a folder hzval sweep wrote")
     p.add_argument("--out", type=Path, default=None, help="output folder (default FRAMES_DIR/score)")
+    _add_gate_flags(p, strict=False)
     p.set_defaults(run=cmd_score)
 
 
@@ -540,11 +615,15 @@ def cmd_sweep(args) -> int:
         base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
     scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
+    if args.size is not None and not _builtin(scene.material.height):      # a --scene's own height map
+        _refuse_size(args.size, scene.material.height)
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet, force=args.force)
+    gates = _gates(args)
+    result = sweep.run(scene, out, options=options, command=command, progress=not args.quiet, force=args.force,
+                       gates=gates)
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(sweep.summary_table(result))
@@ -555,7 +634,7 @@ def cmd_sweep(args) -> int:
               for name, info in result["techniques"].items()]
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
-    return errors.EXIT_OK
+    return _gate_exit(result.get("gates", {}).get("failed", []))
 
 
 def _truth_tolerance(args):
@@ -591,15 +670,26 @@ def cmd_suite(args) -> int:
     from hzval import suite
 
     items = suite.entries(args.inputs, **_scene_overrides(args))
+    if args.size is not None:
+        files_ = [e for e in items if not _builtin(e.scene.material.height)]
+        if files_ and len(files_) == len(items):
+            _refuse_size(args.size, files_[0].scene.material.height)
+        if files_:
+            print(f"hzval: note: --size {args.size} applies to the built-in materials only; "
+                  f"{', '.join(e.name for e in files_[:4])}{' ...' if len(files_) > 4 else ''} keep their own size",
+                  file=sys.stderr)
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    gates = _gates(args)
     result = suite.run(items, args.out, options=sweep_options(args), workers=workers, cluster=args.cluster,
-                       variant=args.variant, command=command, progress=not args.quiet, force=args.force)
+                       variant=args.variant, command=command, progress=not args.quiet, force=args.force,
+                       gates=gates)
     print(suite.summary_table(result))
     s = result["suite"]
     print(f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
           f"overview: {args.out / 'index.html'}")
-    return errors.EXIT_OK if not s["failed"] else errors.EXIT_CHECK_FAILED
+    gated = _gate_exit(result.get("gates", {}).get("failed", []))
+    return errors.EXIT_OK if not s["failed"] and not gated else errors.EXIT_CHECK_FAILED
 
 
 def cmd_materials(args) -> int:
@@ -689,20 +779,18 @@ def cmd_export_scene(args) -> int:
 def cmd_score(args) -> int:
     import shlex
 
-    from hzval import score
+    from hzval import score, sweep
 
+    gates = _gates(args)
     result, maps = score.score(args.frames, args.against)
     out = args.out or args.frames / "score"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
-    index = score.write(result, maps, out, command=command, force=args.force)
-    print("azimuth     FLIP   dE2000    RMSE  PSNR dB  floor FLIP")
-    for f in result["frames"]:
-        floor = (f.get("floor") or {}).get("flip_mean")
-        psnr = "inf" if f["psnr_db"] is None else f"{f['psnr_db']:.2f}"
-        print(f"{f['azimuth_deg']:+7g}  {f['flip_mean']:.4f}  {f['delta_e2000_mean']:7.3f}  {f['rmse']:.4f}  "
-              f"{psnr:>7}  {'-' if floor is None else f'{floor:.4f}':>10}")
+    index = score.write(result, maps, out, command=command, force=args.force, gates=gates)
+    for w in result.get("warnings", []):
+        print(f"hzval: warning: {w}", file=sys.stderr)
+    print(sweep.summary_table(result))
     print(f"report: {index}")
-    return errors.EXIT_OK
+    return _gate_exit(result.get("gates", {}).get("failed", []))
 
 
 def _add_fit(sub) -> None:

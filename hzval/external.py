@@ -56,7 +56,8 @@ from hzval import conventions as cv
 from hzval import files
 from hzval.errors import InputError
 
-__all__ = ["Encoding", "VALUES", "CLEARLY_BETTER", "load", "read_layers", "to_hzval", "rings", "detect", "advice"]
+__all__ = ["Encoding", "VALUES", "CLEARLY_BETTER", "DESCRIBES_CORRELATION", "load", "read_layers", "to_hzval",
+           "rings", "detect", "correlation", "advice", "warnings"]
 
 #: The value encodings a channel may hold (module docstring).
 VALUES: tuple[str, ...] = ("sine", "cosine", "angle", "tangent", "sqrt")
@@ -219,6 +220,17 @@ def load(paths: list[str | Path], enc: Encoding) -> np.ndarray:
 #: than the exact one differs from it anyway.
 CLEARLY_BETTER = 0.15
 
+#: A horizon map "does not describe" the height map when its best convention's :func:`correlation`
+#: with hzval's exact horizons is below this. Measured (``benchmarks/external_bound.py``, docs/ci.md):
+#: hzval's seed bakes of the 8 built-in materials at 64 and 128 texels, 8-bit, against the exact bake
+#: of the same material correlate 0.57 to 0.98 (radius 4 included), against another material's at most
+#: 0.29 (median 0.00). The mean |s - s_exact| cannot tell them apart: a right map of the deep spikes
+#: scores up to 0.16, a wrong map of the flat panels as low as 0.055.
+DESCRIBES_CORRELATION = 0.4
+#: The spread (standard deviation about each channel's mean) of the exact horizons below which a
+#: surface is too flat for :func:`detect` to judge whether a map describes it.
+MIN_SPREAD = 0.005
+
 
 def rings(D: int) -> list[tuple[str, str, float]]:
     """The 2 D rotations and reflections of a ring of ``D`` channels, as ``(y, direction,
@@ -231,12 +243,28 @@ def _score(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
     return float(np.mean(np.abs(to_hzval(raw, enc).astype(np.float64) - exact)))
 
 
+def correlation(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
+    """The Pearson correlation over texels and channels between ``raw`` decoded under ``enc`` and
+    hzval's exact horizons, each channel's mean removed first (a map of the right surface baked at a
+    short radius is lower everywhere, yet correlated; one of another surface is not)."""
+    a = to_hzval(raw, enc).astype(np.float64)
+    b = np.asarray(exact, np.float64)
+    a, b = a - a.mean(axis=(0, 1)), b - b.mean(axis=(0, 1))
+    den = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
+    return float((a * b).sum()) / den if den > 0 else 0.0
+
+
 def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8) -> dict:
-    """``{declared, best_match, scores, matches}``, each convention with its mean |s - s_exact|.
+    """``{declared, best_match, scores, matches, correlation, describes}``, each convention with its
+    mean |s - s_exact|.
 
     In two stages: the ring (which channel points where) under the declared value encoding, then
-    the value encoding on that ring; at each stage the declared choice stands unless another's error
-    is at least :data:`CLEARLY_BETTER` lower. ``scores``: the ``keep`` best of every candidate.
+    the value encoding on the best ring. ``best_match`` is the lowest of every candidate;
+    ``suggested`` what a warning proposes: at each stage the declared choice unless another's error
+    is :data:`CLEARLY_BETTER` lower;
+    ``matches``: the map describes the height map (``correlation`` of the best match at least
+    :data:`DESCRIBES_CORRELATION`) and no candidate's error is :data:`CLEARLY_BETTER` lower than
+    the declared convention's. ``scores``: the ``keep`` best of every candidate.
     """
     exact = np.asarray(exact, np.float64)
     D = declared.channels
@@ -245,28 +273,40 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
                    for y, d, a in rings(D)]
     ring_scores = [(e, _score(raw, exact, e)) for e, _ in ring_scores]
     ring, ring_mae = min(ring_scores, key=lambda es: es[1])
-    if ring_mae > declared_mae * (1 - CLEARLY_BETTER):
+    # what the warning suggests: at each stage the declared choice stands unless another is clearly better
+    # (sine, tangent and angle nearly agree on low horizons: a tangent 3% lower is no reason to switch)
+    if ring_mae >= declared_mae * (1 - CLEARLY_BETTER):
         ring, ring_mae = declared, declared_mae
     value_scores = [(dataclasses.replace(ring, values=v), None) for v in VALUES]
     value_scores = [(e, _score(raw, exact, e)) for e, _ in value_scores]
-    best, best_mae = min(value_scores, key=lambda es: es[1])
-    if best_mae > ring_mae * (1 - CLEARLY_BETTER):
-        best, best_mae = ring, ring_mae
-    everything = sorted(ring_scores + value_scores, key=lambda es: es[1])
+    suggested, suggested_mae = min(value_scores, key=lambda es: es[1])
+    if suggested_mae >= ring_mae * (1 - CLEARLY_BETTER):
+        suggested, suggested_mae = ring, ring_mae
+    everything = sorted(ring_scores + value_scores + [(declared, declared_mae)], key=lambda es: es[1])
+    best, best_mae = everything[0]
     seen, rows = set(), []
     for e, m in everything:
         if e not in seen and len(rows) < keep:
             seen.add(e)
             rows.append({**e.record(), "mae": m})
+    # a surface with next to no horizons (flat, or a tiny depth) leaves nothing to correlate: not judged
+    judged = float(np.std(exact - exact.mean(axis=(0, 1)))) > MIN_SPREAD
+    corr = correlation(raw, exact, best) if judged else None
+    describes = corr is None or corr >= DESCRIBES_CORRELATION
+    fits = suggested == declared
     return {"declared": {**declared.record(), "mae": declared_mae}, "best_match": {**best.record(), "mae": best_mae},
-            "scores": rows, "matches": best == declared}
+            "suggested": {**suggested.record(), "mae": suggested_mae},
+            "scores": rows, "matches": bool(fits and describes), "convention_fits": bool(fits),
+            "correlation": corr, "describes": bool(describes), "describes_bound": DESCRIBES_CORRELATION}
 
 
 def advice(result: dict) -> str | None:
-    """One line on what looks wrong when the best match is not the declared convention, else ``None``."""
-    if result["matches"]:
+    """One line on what looks wrong when another convention fits clearly better than the declared
+    one, each fix named by its flag, else ``None`` (also when the map does not describe the height
+    map at all: :func:`warnings` says that instead)."""
+    if result.get("convention_fits", result["matches"]) or not result.get("describes", True):
         return None
-    d, b = result["declared"], result["best_match"]
+    d, b = result["declared"], result.get("suggested", result["best_match"])
     what = []
     mirrored = (d["y"] != b["y"]) != (d["direction"] != b["direction"])
     if mirrored:
@@ -276,7 +316,24 @@ def advice(result: dict) -> str | None:
         what.append(f"the channels look rotated: does channel 0 point to {b['azimuth0']:g} degrees?")
     if d["values"] != b["values"]:
         what.append(f"the values look like {b['values']}, not {d['values']}")
+    # the flags that turn the declared convention into the best match, each one that differs
+    flags = [f"--horizon-{key} {b[key]:g}" if key == "azimuth0" else f"--horizon-{key} {b[key]}"
+             for key in ("y", "direction", "azimuth0", "values") if d[key] != b[key]]
     detail = "; ".join(what) or "another convention fits better"
+    fix = f"; try {' '.join(flags)}" if flags else ""
     return (f"horizon map: {detail} (declared {d['channels']} channels at {d['azimuth0']:g} degrees "
-            f"{d['direction']}, +y {d['y']}, {d['values']}: |s - exact| {d['mae']:.4f}; best "
-            f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f})")
+            f"{d['direction']}, +y {d['y']}, {d['values']}: |s - exact| {d['mae']:.4f}; better "
+            f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f}){fix}")
+
+
+def warnings(result: dict, layers, height) -> list[str]:
+    """Every warning of a detection (:func:`detect`), each naming the flag that fixes it: the map
+    does not describe the height map (naming both files), or :func:`advice`'s convention."""
+    if not result.get("describes", True):
+        names = ",".join(str(p) for p in layers)
+        return [f"horizon map {names} does not describe this height map {height}: under its best convention "
+                f"it correlates {result['correlation']:.2f} with hzval's exact horizons (a map of this surface: "
+                f"at least {result['describes_bound']:g}; |s - exact| {result['best_match']['mae']:.3f}); was it "
+                "baked from another height map, or at another --depth? (--horizon-map)"]
+    line = advice(result)
+    return [line] if line else []

@@ -320,8 +320,8 @@ class Horizon(FlatShading, Technique):
         own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, samples=ctx.samples(),
                   **settings)
         own.external = [str(p) for p in horizon_map]
-        own.extras = {"external_bake": {**found, "paths": own.external}}
-        own.warnings = tuple(w for w in (external.advice(found),) if w)
+        own.warnings = tuple(external.warnings(found, own.external, ctx.scene.material.height))
+        own.extras = {"external_bake": {**found, "paths": own.external, "warnings": list(own.warnings)}}
         return own
 
     #: The command line's flag of each setting (errors name the flag, :func:`hzval.technique.flag_errors`).

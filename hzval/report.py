@@ -116,6 +116,7 @@ class Metric:
     bar: bool = True    # draw a data bar (share of the column's largest value)
     group: str = ""     # the table's column group
     floor: str | None = None   # the flattened key of its perfect-shadows floor, shown beside it
+    error: bool = True  # an error (marked "worst" where largest); times and the truth's statistics are not
 
 
 #: A technique's scores (keys of ``frames[i].techniques[name]``); the lead technique's are the summary
@@ -147,7 +148,19 @@ TECHNIQUE_METRICS: tuple[Metric, ...] = (
 OPTIONAL_METRICS = ("reflection_mae", "perfect_parallax_mae")
 
 TRUTH_TIME = Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels "
-                    "synchronised)", fmt_seconds, group="render time")
+                    "synchronised)", fmt_seconds, group="render time", error=False)
+
+#: What the truth has to shadow (``frames[i].truth``, flattened to ``truth_<key>``, :mod:`hzval.facing`).
+TRUTH_METRICS: tuple[Metric, ...] = (
+    Metric("truth_shadowed_fraction", "shadowed", "%", "The truth's shadowed pixels (V < 0.5), as a share of "
+           "all pixels", _percent, group="truth", error=False),
+    Metric("truth_attached_fraction", "facing away", "%", "Attached shadows: pixels whose surface faces away "
+           "from the light (N·L ≤ 0), black in every image; the visibility columns leave them out",
+           _percent, group="truth", error=False),
+)
+#: The visibility metrics the report shows over the pixels that face the light, when a frame has them.
+FACING = {"visibility_mae": "visibility_mae_facing", "leak_fraction": "leak_fraction_facing",
+          "false_shadow_fraction": "false_shadow_fraction_facing"}
 
 #: The perfect-shadows floor (``frames[i]["floor"]``, flattened to ``floor_<key>``): the
 #: techniques' unshadowed shading times the truth's visibility, scored against the truth.
@@ -196,11 +209,19 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
         g = dict(f)
         if isinstance(f.get("floor"), dict):
             g.update({f"floor_{k}": val for k, val in f["floor"].items()})
+        if isinstance(f.get("truth"), dict):
+            g.update({f"truth_{k}": val for k, val in f["truth"].items()})
         for v in views:
             m = per.get(v.name)
             if isinstance(m, dict):
                 g.update({f"{v.name}_{k}": val for k, val in m.items() if k not in ("files", "seconds")})
-                g[f"{v.name}_s"] = m.get("seconds")
+                # the report's visibility columns: over the pixels that face the light, where measured
+                for whole, facing in FACING.items():
+                    if facing in m:
+                        g[f"{v.name}_{whole}_whole"] = m.get(whole)
+                        g[f"{v.name}_{whole}"] = m[facing]
+                if "seconds" in m:         # hzval score's engine has no render time: no column
+                    g[f"{v.name}_s"] = m["seconds"]
         out.append(g)
     return out
 
@@ -214,7 +235,7 @@ def _lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
             continue
         # the headline scores carry the technique's name, as every other technique's columns do
         label = f"{v.name} {m.label}" if m.key in ("visibility_mae", "flip_mean") else m.label
-        shown.append(replace(m, key=key, label=label))
+        shown.append(replace(m, key=key, label=label, group=f"{v.name} · {m.group}"))
     return tuple(shown)
 
 
@@ -229,7 +250,7 @@ def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
                   "its textures read at the truth's own hit points (perfect parallax)", _fixed(4), group=v.name),)
           if v.parallax else ()),
         Metric(f"{v.name}_s", v.name, "time", f"{v.label}: frame time, the unshadowed shading it multiplies "
-               "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name),
+               "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name, error=False),
     )
 
 
@@ -361,7 +382,7 @@ def _columns(frames: list[dict], metrics: tuple[Metric, ...]) -> list[dict]:
             worst = max(measured) if m.worse == "max" else min(measured)
             best = min(measured) if m.worse == "max" else max(measured)
             # a column with no spread (e.g. no leaks anywhere) has no worst frame to point at
-            if len(measured) >= 2 and worst != best:
+            if len(measured) >= 2 and worst != best and m.error:
                 worst_idx = {i for i, v in enumerate(vals) if v == worst}
         top = max((abs(v) for v in measured if math.isfinite(v)), default=0.0)
         finite = [v for v in measured if math.isfinite(v)]
@@ -404,7 +425,7 @@ def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
     tiles = []
     for col in cols:
         m: Metric = col["metric"]
-        if m.unit == "time" or m.key == "rmse":
+        if m.unit == "time" or m.key == "rmse" or not m.error:
             continue
         if not col["measured"]:
             tiles.append({"label": m.label, "value": "not measured", "where": "", "href": None,
@@ -585,13 +606,16 @@ def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metr
         return (TRUTH_TIME,)
     lead = views[0]
     times = (TRUTH_TIME, Metric(f"{lead.name}_s", lead.name, "time", f"{lead.label}: frame time (Dr.Jit, "
-                                "kernels synchronised)", fmt_seconds, group="render time"))
-    shown = _lead_metrics(lead, frames) + times
+                                "kernels synchronised)", fmt_seconds, group="render time", error=False))
+    truth = tuple(m for m in TRUTH_METRICS if any(_num(f.get(m.key)) is not None for f in frames))
+    shown = _lead_metrics(lead, frames) + truth + times
     if any(_num(f.get("floor_flip_mean")) is not None for f in frames):
         shown += FLOOR_METRICS
     for v in views[1:]:
         shown += _technique_metrics(v)
-    return shown
+    # a column no frame has at all (hzval score's engine without F images or times) is left out; one
+    # that frames have as null stays, "not measured" (or, for PSNR, infinite)
+    return tuple(m for m in shown if any(m.key in f for f in frames))
 
 
 def _technique_files(f: dict, v: TechniqueView) -> dict:
@@ -636,6 +660,48 @@ def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
             "cells": [_cell(c, i, f, starts) for c in cols], "panels": {p["key"]: p for p in panels}, "raw": raw}
 
 
+def _worst_frame(out: Path, frames: list[dict], frame_views: list[dict], views: list[TechniqueView]) -> dict | None:
+    """The report's first screen: the frame where the lead technique's |F - V| (over the pixels that
+    face the light, where measured; else its FLIP) is largest, as truth | technique | difference."""
+    if not views or not frames:
+        return None
+    lead = views[0]
+    for key, label in ((f"{lead.name}_visibility_mae", "|F−V|"), (f"{lead.name}_flip_mean", "FLIP")):
+        vals = [_num(f.get(key)) for f in frames]
+        if any(v is not None for v in vals):
+            break
+    else:
+        return None
+    i = max(range(len(frames)), key=lambda k: -math.inf if vals[k] is None else vals[k])
+    p = frame_views[i]["panels"]
+    diff = p["visdiff_png"] if p["visdiff_png"]["file"] and p["visdiff_png"]["file"].get("src") else p["flip_png"]
+    panels = [{"title": "truth", "subtitle": "ray-traced", "file": p["truth_png"]["file"], "visdiff": False},
+              {"title": lead.label, "subtitle": "", "file": p["lead_png"]["file"], "visdiff": False}]
+    rows = frame_views[i]["technique_rows"]
+    if lead.name == "engine" and rows:       # hzval score: the sweep's first technique beside the engine
+        panels.append({"title": rows[0]["label"], "subtitle": "hzval, the same sweep",
+                       "file": rows[0]["panels"][0]["file"], "visdiff": False})
+    panels.append({"title": f"{lead.label}: {diff['title']}", "subtitle": diff["subtitle"], "file": diff["file"],
+                   "visdiff": diff is p["visdiff_png"]})
+    return {"index": i, "id": frame_views[i]["id"], "azimuth": frame_views[i]["azimuth"], "metric": label,
+            "value": _fixed(4)(vals[i]), "lead": lead.label, "panels": panels}
+
+
+def _visibility_scope(metrics: dict) -> str | None:
+    """What the report's visibility columns are measured over (:data:`FACING`), in words."""
+    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    facing = any(isinstance(t, dict) and "visibility_mae_facing" in t for f in frames
+                 for t in (f.get("techniques") or {}).values())
+    if not facing:
+        return None
+    away = [_num((f.get("truth") or {}).get("attached_fraction")) for f in frames]
+    away = [a for a in away if a is not None]
+    share = f" ({100 * (1 - sum(away) / len(away)):.0f}% of them on average)" if away else ""
+    return (f"|F−V|, leaks and false shadows are over the pixels that face the light{share}: those facing away "
+            "(attached shadows) are black in every image whatever F and V. metrics.json has both: "
+            "visibility_mae (the whole image) and visibility_mae_facing.")
+
+
 def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str | None]) -> dict:
     """Everything the template needs, formatted; no markup."""
     out = Path(out)
@@ -671,6 +737,9 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "column_groups": _column_groups(shown),
         "glance": _glance(cols, frames),
         "frames": frame_views,
+        "first": _worst_frame(out, frames, frame_views, views),
+        "visibility_scope": _visibility_scope(metrics),
+        "gates": metrics.get("gates") if isinstance(metrics.get("gates"), dict) else None,
         "techniques": [{"name": v.name, "label": v.label, "colour": v.colour} for v in views],
         "warnings": [str(w) for w in (metrics.get("warnings") or [])],
         "technique_parameters": _technique_parameters(metrics, views),
@@ -966,5 +1035,6 @@ def render_suite(result: dict) -> str:
                "seconds": fmt_seconds(s["seconds"]), "versions": s.get("versions") or {},
                "command": s["command"],
                "techniques": [{"name": n, **result["techniques"][n]} for n in names],
-               "rows": [_suite_row(r, names) for r in result["materials"]]}
+               "rows": [_suite_row(r, names) for r in result["materials"]],
+               "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None}
     return _environment().get_template("suite.html.j2").render(**context)

@@ -339,6 +339,9 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         mat = dict(data.get("material", {}))
         if "height" not in mat:
             mat["height"] = str(height) if height is not None else (_height_beside(path) or materials.DEFAULT)
+        if "size" in mat and not materials.is_builtin(mat["height"]):
+            raise InputError(path, f"material.size applies to built-in materials only; the height map "
+                                   f"{mat['height']} has its own size (resize the file, or leave size out)")
         mat = {**material_defaults(mat["height"]), **mat}
         if not materials.is_builtin(mat["height"]):
             mat["height"] = str((path.parent / mat["height"]).resolve())

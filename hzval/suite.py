@@ -162,8 +162,11 @@ def _entries_of(item) -> list[Entry]:
     if materials.is_builtin(str(item)):
         scene = sc.override(sc.Scene(), height=str(item))
         return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
-    raise InputError(item, "no such file, folder or built-in material "
-                           f"({', '.join(materials.names())})")
+    import difflib
+
+    near = difflib.get_close_matches(str(item), materials.names(), n=1, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(near)}?" if near else ""
+    raise InputError(item, f"no such file, folder or built-in material{hint} ({', '.join(materials.names())})")
 
 
 def _scene_entry(path: Path) -> Entry:
@@ -319,7 +322,8 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
 # --------------------------------------------------------------------------
 
 def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, cluster: str | None = None,
-        variant: str | None = None, command: str = "", progress: bool = True, force: bool = False) -> dict:
+        variant: str | None = None, command: str = "", progress: bool = True, force: bool = False,
+        gates=None) -> dict:
     """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
 
     ``workers``: worker processes on this machine, each sweeping one material at a time (see
@@ -331,7 +335,10 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
     folder. With more than one
     worker, worker processes are spawned: a script that calls this must do so under
     ``if __name__ == "__main__":``. Ctrl-C stops the run with an overview of what finished (the rest
-    marked "not run"), each finished material's report whole."""
+    marked "not run"), each finished material's report whole. ``gates`` (:class:`hzval.gates.Gates`):
+    tested on each finished material's ``metrics.json`` (a ``--baseline`` is an earlier suite's folder,
+    whose ``<name>/metrics.json`` each material is compared with), their failures in ``suite.json``'s
+    ``gates`` and at the top of the overview (:func:`gate_failures`)."""
     if workers < 0:
         raise InputError("--workers", f"must be 0 (this process) or more, got {workers}")
     if cluster is not None:
@@ -351,7 +358,8 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
     def overview(interrupted: bool = False) -> dict:
         done = [r if r is not None else _not_run(t.entry) for t, r in zip(tasks, rows)]
         return write_overview(out, done, command=command, engine=engine["name"], workers=workers if local else None,
-                              cluster=cluster, seconds=time.perf_counter() - t0, interrupted=interrupted)
+                              cluster=cluster, seconds=time.perf_counter() - t0, interrupted=interrupted,
+                              gates=None if interrupted or not gates else gate_failures(gates, out, done))
 
     with files.output_folder(out, force=force, keep_on_interrupt=True):
         try:
@@ -516,9 +524,37 @@ def _sort_key(row: dict) -> tuple:
     return (1, -(v if v is not None else -1.0), row["name"])
 
 
+def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
+    """``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``
+    (:class:`hzval.gates.Gates`), its baseline the same material's in the baseline suite's folder;
+    each failure line names the material. A material missing from the baseline is a failure too."""
+    import json
+
+    failed = []
+    for row in rows:
+        if row["status"] != "ok":
+            continue
+        name = row["name"]
+        metrics = json.loads((out / name / "metrics.json").read_text(encoding="utf-8"))
+        baseline = None
+        if gates.baseline_path is not None:
+            path = gates.baseline_path / name / "metrics.json"
+            if not path.is_file():
+                failed.append(f"{name}: --baseline: {path} is missing (no such material in the baseline suite)")
+                continue
+            baseline = json.loads(path.read_text(encoding="utf-8"))
+        try:
+            lines, _ = gates.failures(metrics, baseline=baseline, where=name, use_baseline=baseline is not None)
+        except InputError as exc:           # another material's settings, a metric it lacks: its own line
+            lines = [f"{name}: {exc}"]
+        failed += lines
+    return gates.record(failed, [])
+
+
 def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, workers: int | None,
-                   cluster: str | None, seconds: float, interrupted: bool = False) -> dict:
-    """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material."""
+                   cluster: str | None, seconds: float, interrupted: bool = False, gates: dict | None = None) -> dict:
+    """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
+    record of :func:`gate_failures`, listed first)."""
     rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
     command = files.portable_command(command, out)
     for row in rows:
@@ -535,7 +571,7 @@ def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, wo
                         "not_run": sum(r["status"] == "not run" for r in rows),
                         "versions": {**backend.versions(),
                                      "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")}))}},
-              "techniques": techniques, "materials": rows}
+              "techniques": techniques, "materials": rows, **({"gates": gates} if gates else {})}
     files.write_json(out / "suite.json", result)
     html = report.render_suite(result)
     with files.atomic_path(out / "index.html") as tmp:

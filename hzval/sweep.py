@@ -63,6 +63,7 @@ import numpy as np
 
 from hzval import backend, bake, camera, compare, files, heightmap, images, lookup, materials, report, shading
 from hzval import interrupts, surface, technique, truth
+from hzval import facing as hzfacing
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval.bake import BakeParams
@@ -169,6 +170,8 @@ class _Setup:
     perfect: list = dataclasses.field(default_factory=list)    # the techniques at the truth's hits
     view: dict = dataclasses.field(default_factory=dict)       # metrics.json's "view" (_view_errors)
     view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
+    normal: np.ndarray | None = None    # the top view's normal map: which pixels face the light (hzval.facing)
+    albedo_constant: float | None = None    # the linear albedo where it is one grey value (frames.json)
 
 
 #: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
@@ -286,7 +289,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     built = _build_techniques(ctx, chosen, options, timings, notices)
     chosen = [type(t) for t in built]
     setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
-                   retained=retained)
+                   retained=retained, normal=baked.normal if scene.camera.kind == "top" else None,
+                   albedo_constant=_constant(ctx.albedo))
     if the_truth.hits is not None:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
@@ -295,6 +299,13 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     lookup.forget()
     backend.release_memory()
     return setup
+
+
+def _constant(values: np.ndarray) -> float | None:
+    """The one value of ``values`` if they are all equal, else ``None``."""
+    v = np.asarray(values)
+    first = float(v.flat[0]) if v.size else None
+    return first if first is not None and bool(np.all(v == v.flat[0])) else None
 
 
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
@@ -380,7 +391,7 @@ def _spread(values: np.ndarray) -> dict:
 
 
 def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True,
-        force: bool = False) -> dict:
+        force: bool = False, gates=None) -> dict:
     """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content.
 
     All or nothing: the report (frames, plots, ``index.html``, ``metrics.json``,
@@ -390,14 +401,15 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     ``out`` must be new, empty or hzval's (:func:`hzval.files.output_folder`;
     ``force`` writes beside other files, which are kept); the run holds it: a
     second run into it fails at once. Signals are held from the swap on
-    (:func:`hzval.interrupts.held`).
+    (:func:`hzval.interrupts.held`). ``gates`` (:class:`hzval.gates.Gates`): tested on the result
+    before the report is written, which lists their failures first (``metrics.json``'s ``gates``).
     """
     out = Path(out)
     reset_peak_rss()                    # this sweep's own peak, even after others in this process
     try:
         with interrupts.held() as hold, files.output_folder(out, force=force):
             with files.Staging(out) as stage:
-                result = _run(scene, out, stage.dir, options, command, progress)
+                result = _run(scene, out, stage.dir, options, command, progress, gates)
                 hold.start()            # the last signal check: from here the run completes
                 stage.swap()
     finally:
@@ -405,7 +417,7 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     return result
 
 
-def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool) -> dict:
+def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None) -> dict:
     """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
     from tqdm import tqdm
 
@@ -425,34 +437,38 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     for t in setup.techniques:
         timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
     result = _result(scene, options, setup, timings, frames)
+    if gates:
+        gates.apply(result)             # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
     report.write_report(report_dir, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate,
                         "retains_freed": setup.retained}
-    files.write_json(report_dir / "frames.json", engine_frames(scene, result))
+    files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result
 
 
-def engine_frames(scene, result: dict) -> dict:
+def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> dict:
     """``frames.json``: what an engine needs to render the sweep's frames itself, for ``hzval score``.
 
     Per light: the frame's name (``az+0``: the file ``hzval score`` looks for, ``az+0.exr`` linear
-    or ``az+0.png`` sRGB), azimuth and elevation, and ``L`` in tangent space (toward the light);
-    for all: the camera, the light's irradiance and kind, the display exposure (``display =
-    srgb(clip(exposure * radiance))``), the image size and the material."""
+    or ``az+0.png`` sRGB, and ``f_az+0.exr`` its shadow factor F), azimuth and elevation, and ``L``
+    in tangent space (toward the light); for all: the camera, the light's kind, irradiance and
+    radiance, the albedo, the samples per pixel and the rule that places them, the display exposure
+    and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`)."""
     m = result["material"]
     return {
-        "format": "hzval engine frames 1",
+        "format": "hzval engine frames 2",
         "material": m,
         "image_size": result["camera"]["resolution"],
         "camera": result["camera"],
         "light": {"kind": scene.light.kind, "radius_deg": scene.light.radius_deg,
-                  "irradiance": scene.light.irradiance},
+                  "irradiance": scene.light.irradiance, **_light_radiance(scene.light)},
         "exposure": result["exposure"]["scale"],
         "effects": list(scene.effects),
+        **_engine_notes(scene, albedo_constant),
         "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
                        "azimuth counterclockwise from +x; L points toward the light",
         "frames": [{"name": frame_folder(f["azimuth_deg"]), "azimuth_deg": f["azimuth_deg"],
@@ -460,6 +476,47 @@ def engine_frames(scene, result: dict) -> dict:
                     "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])]}
                    for f in result["frames"]],
     }
+
+
+def _light_radiance(light) -> dict:
+    """The light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
+    irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
+    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading")."""
+    if light.kind != "soft" or not light.radius_deg:
+        return {"radiance": None, "radiance_note": "a directional light: irradiance E on a surface facing it, "
+                                                   "E cos(theta) on one at theta"}
+    rho = math.radians(light.radius_deg)
+    return {"radiance": light.irradiance / (math.pi * math.sin(rho) ** 2),
+            "radiance_note": "a disk of uniform radiance L = E / (pi sin^2 rho): a surface facing it receives E"}
+
+
+def _engine_notes(scene, albedo_constant) -> dict:
+    """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
+    besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
+    too bright, FLIP 0.68)."""
+    if isinstance(albedo_constant, float):
+        albedo = {"kind": "constant", "linear": albedo_constant}
+    elif isinstance(scene.material.albedo, str):
+        albedo = {"kind": "image", "path": scene.material.albedo, "encoding": "sRGB, decoded to linear"}
+    else:
+        albedo = {"kind": "image", "note": "the built-in material's own albedo image"}
+    albedo["brdf"] = "Lambert: radiance = albedo / pi * E * max(N.L, 0) (with diffuse)"
+    spp = scene.spp
+    n = int(round(math.sqrt(spp)))
+    rule = ("sample s of pixel p = row * width + col at (u, v) in the pixel, u = (s mod n + U) / n, "
+            f"v = (floor(s / n) + V) / n with n = {n} (jittered {n}x{n} strata)" if n * n == spp else
+            "sample s of pixel p at (u, v) = (U, V) in the pixel (uniform)")
+    rule += ("; U, V: doubles of numpy's PCG64(SeedSequence([seed, 0x5A3F])), all U of the image in order "
+             "p * spp + s, then all V; texel space x = (col + u) / supersampling, y = rows - (row + v) / "
+             "supersampling; a pixel is the mean of its samples (hzval.camera.sample_positions)")
+    return {"albedo": albedo,
+            "samples": {"spp": spp, "seed": scene.seed, "supersampling": scene.camera.supersampling,
+                        "layout": "stratified" if n * n == spp else "uniform", "rule": rule},
+            "exposure_meaning": {
+                "exr": "linear radiance as rendered, before the exposure (hzval score reads it as it is)",
+                "png": "display values: srgb_encode(clip(exposure * radiance, 0, 1)), 8 or 16 bits (hzval score "
+                       "decodes sRGB and divides by the exposure)",
+                "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)"}}
 
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
@@ -548,8 +605,28 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
         per[name]["perfect_parallax_mae"] = value
     for t in setup.techniques:
         per[t.name].update(type(t).frame_extras(per))
+    _shadow_statistics(scene, setup, r, frame, per)
     frame.update(files=rel, techniques=per)
     return frame
+
+
+def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:
+    """The truth's shadowed and attached fractions (``frame["truth"]``) and each technique's visibility
+    metrics over the pixels that face the light (:mod:`hzval.facing`)."""
+    V = r.truth.layers.get("visibility")
+    if V is None:
+        return
+    facing = None
+    if setup.normal is not None:
+        facing = hzfacing.facing_mask(setup.normal, scene.light.direction(r.azimuth_deg),
+                                      scene.camera.supersampling)
+    frame["truth"] = hzfacing.truth_statistics(V, facing, scene.spp, r.truth.mask)
+    if facing is None:
+        return
+    for t, f in r.techniques:
+        F = f.layers.get("factor")
+        if F is not None:
+            per[t.name].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
 
 
 #: The display (sRGB) colour of pixels that see no surface (a view's sky, or off an ``open`` tile).
@@ -627,7 +704,8 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
         "simulated": simulated,
         "techniques": techniques,
         **{k: v for t in setup.techniques for k, v in t.extras.items()},
-        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings],
+        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings]
+                    + [w for w in (hzfacing.few_shadows_warning(frames),) if w],
         "frames": frames,
     }
 
@@ -754,8 +832,14 @@ def _write_png_of(path: Path, make, *args) -> None:
 
 def summary_table(result: dict) -> str:
     """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
-    scores and time, then each other technique's |F-V|, FLIP and frame time."""
+    scores and time, then each other technique's |F-V|, FLIP and frame time. The visibility columns
+    are over the pixels that face the light where measured (:mod:`hzval.facing`), as the report's,
+    and a last line says so."""
     names = list(result.get("techniques", {}))
+    facing = any("visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values())
+
+    def vis(t: dict, key: str):
+        return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
     lead, others = (names[0], names[1:]) if names else (None, [])
     head = ("azimuth",)
     if lead:
@@ -776,14 +860,16 @@ def summary_table(result: dict) -> str:
         row = (f"{f['azimuth_deg']:+g}",)
         if lead:
             t = per.get(lead, {})
-            row += (num(t.get("visibility_mae"), 4), pct(t.get("leak_fraction")), pct(t.get("false_shadow_fraction")),
+            row += (num(vis(t, "visibility_mae"), 4), pct(vis(t, "leak_fraction")), pct(vis(t, "false_shadow_fraction")),
                     num(t.get("flip_mean"), 4), num(t.get("delta_e2000_mean"), 3),
                     "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}")
-        row += (f"{f['truth_s']:.3f}",) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
+        row += (num(f.get("truth_s"), 3),) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
         for n in others:
             te = per.get(n, {})
-            row += (num(te.get("visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
+            row += (num(vis(te, "visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows)])
+    note = ["|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
+            "visibility_mae for the whole image)"] if facing else []
+    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows), *note])

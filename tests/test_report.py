@@ -197,7 +197,9 @@ def test_every_image_and_link_resolves(report_dir):
     out, index, _ = report_dir
     parser = _Refs()
     parser.feed(index.read_text(encoding="utf-8"))
-    assert len(parser.imgs) == 2 + 3 * 7      # plots; per frame: swipe 2, flip 2, plain, FLIP, visdiff
+    # plots; the first screen's worst frame (truth, technique, difference); per frame: swipe 2, flip 2,
+    # plain, FLIP, visdiff
+    assert len(parser.imgs) == 2 + 3 + 3 * 7
     for src in parser.imgs:
         assert src and _local(out, src).is_file(), src
     assert any("%20%231/" in s for s in parser.imgs), "the folder with ' ' and '#' must be URL-quoted"
@@ -300,8 +302,17 @@ def test_report_in_a_browser(tmp_path):
         # every image loaded
         images = page.eval_on_selector_all(
             "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])")
-        assert len(images) == 2 + 5 * 7
+        assert len(images) == 2 + 3 + 5 * 7
         assert [i for i in images if not (i[1] and i[2] > 0)] == []
+
+        # the first screen (1400 x 900) shows the worst frame's truth | technique | difference, whole
+        page.set_viewport_size({"width": 1400, "height": 900})
+        boxes = page.eval_on_selector_all(".first-img img", "els => els.map(e => { const r = "
+                                          "e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; })")
+        assert len(boxes) == 3
+        assert all(0 <= left and right <= 1400 and 0 < top and bottom <= 900 and right - left > 200
+                   for left, top, right, bottom in boxes), boxes
+        page.set_viewport_size({"width": 1440, "height": 900})
 
         # flip: hover shows the other side, in place and labelled; leaving restores it
         fig = page.locator("#frame-2 .flip[data-own='truth']")

@@ -63,7 +63,7 @@ def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
             if source == "truth":
                 assert mine["rmse"] == 0 and mine["psnr_db"] is None
         html = (out / "index.html").read_text(encoding="utf-8")
-        assert "your renderer" in html and (out / "frames" / "az+0" / "external_flip.png").is_file()
+        assert "your renderer" in html and (out / "frames" / "az+0" / "engine_flip.png").is_file()
 
 
 def test_bad_frames_are_one_line_errors(sweep_dir, tmp_path, capsys):

@@ -171,8 +171,12 @@ def test_cli_suite_exit_status_and_table(variant, tmp_path, capsys):
     assert "stones" in out and "planks" in out and "overview" in out
     rows = json.loads((tmp_path / "o" / "suite.json").read_text())["materials"]
     assert all(set(r["techniques"]) == {"horizon", "terrain"} for r in rows)
-    assert cli.main(["suite", str(d), "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
+    assert cli.main(["suite", str(d), "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
                      "--workers", "1", "--out", str(tmp_path / "p"), "--quiet"]) == 1    # broken.png failed, in a pool
+    # --size names the built-in materials' size: with height map files only it changes nothing, and says so
+    assert cli.main(["suite", str(d), "--size", "24", "--out", str(tmp_path / "s"), "--quiet"]) == 2
+    assert "--size: 24 applies to built-in materials only" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
     assert cli.main(["suite", str(tmp_path / "missing"), "--out", str(tmp_path / "q")]) == 2
     assert not (tmp_path / "q").exists()
 

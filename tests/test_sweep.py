@@ -13,7 +13,7 @@ from hzval import cli, files, sweep, technique
 
 # docs/ARCHITECTURE.md, "metrics.json".
 TOP_KEYS = {"schema_version", "material", "parameters", "versions", "timings", "simulated", "techniques", "frames"}
-FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques"}
+FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques", "truth"}
 SCORES = {"visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse", "psnr_db",
           "delta_e2000_mean", "seconds", "files"}
 FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
@@ -99,8 +99,11 @@ def test_second_run_reuses_the_bake(variant, bricks_sweep):
 def test_summary_table_lists_every_frame(bricks_sweep):
     _, m, _ = bricks_sweep
     table = sweep.summary_table(m).splitlines()
-    assert len(table) == 2 + len(m["frames"])
-    assert table[2].split()[0] == "-15" and table[-1].split()[0] == "+15"
+    assert len(table) == 2 + len(m["frames"]) + 1           # and the line that says what |F-V| is over
+    assert table[2].split()[0] == "-15" and table[-2].split()[0] == "+15"
+    assert table[-1].startswith("|F-V|, leaks and false shadows over the pixels that face the light")
+    lead = m["frames"][0]["techniques"]["horizon"]
+    assert f"{lead['visibility_mae_facing']:.4f}" in table[2]
 
 
 def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path):
