@@ -246,12 +246,25 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
     _add_truth_tolerance_flag(p)
+    _add_mesh_flags(p)
     _add_view_flags(p)
     _add_bake_flags(p)
     p.add_argument("--all-files", action="store_true",
                    help="also write each frame's files that the others determine: the unshadowed render and "
                         "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
     _add_technique_args(p)
+
+
+def _add_mesh_flags(p: argparse.ArgumentParser) -> None:
+    """The surface the material is on (:mod:`hzval.model`)."""
+    g = p.add_argument_group("mesh", "the surface the material is on (docs/meshes.md)")
+    g.add_argument("--mesh", default=None, metavar="SHAPE",
+                   help="plane (the tile, the default), cube, sphere, cylinder, torus, or a .obj, .ply, .gltf "
+                        "or .glb file with texture coordinates")
+    g.add_argument("--uv-scale", type=float, default=None, metavar="N",
+                   help="how often the texture repeats across the mesh's UVs (default 1)")
+    g.add_argument("--up", choices=("y", "z"), default=None,
+                   help="the mesh file's up axis (default: y for glTF, as its spec says; see docs/meshes.md)")
 
 
 def _add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
@@ -574,7 +587,8 @@ def _scene_overrides(args) -> dict:
                 truth_tolerance=_truth_tolerance(args), camera=args.camera,
                 view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
                 fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
-                filter=args.filter, mips=args.mips, parallax=args.parallax)
+                filter=args.filter, mips=args.mips, parallax=args.parallax,
+                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None))
 
 
 def sweep_options(args):

@@ -277,9 +277,10 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
                                      horizon=horizon, write_to=None if report_dir is None else report_dir / "bake")
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
-    the_truth = truth.Truth(scene, hm.height)
+    albedo = sc.load_albedo(scene.material, rows, cols)
+    the_truth, points = _truth_of(scene, hm.height, albedo)
     timings["truth_setup_s"] = time.perf_counter() - t0
-    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), cache=out / "fit")
+    ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
     plain = surface.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
@@ -297,11 +298,28 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     return setup
 
 
+def _truth_of(scene, height: np.ndarray, albedo: np.ndarray):
+    """``(truth, points)``: the plane's :class:`hzval.truth.Truth` (the techniques read where the
+    camera's rays meet their plane: ``points`` None), or on a model (``[mesh]``) its
+    :class:`hzval.model_truth.ModelTruth` and the techniques' samples at its hits, with their frames."""
+    if scene.mesh.is_plane:
+        return truth.Truth(scene, height), None
+    from hzval import model, model_truth
+
+    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    the_truth = model_truth.ModelTruth(scene, height, base, albedo=albedo)
+    return the_truth, the_truth.samples()
+
+
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
     """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
     (:class:`hzval.technique.Unavailable`) is skipped with its one-line notice."""
     built = []
+    on_model = ctx.points is not None and ctx.points.frames is not None
     for t in chosen:
+        if on_model and t.not_on_models:
+            notices.append(f"{t.name}: not on a model: {t.not_on_models}")
+            continue
         t0 = time.perf_counter()
         try:
             built.append(t.build(ctx, **options.settings.get(t.name, {})))
@@ -598,6 +616,13 @@ def _view_parameters(scene) -> dict:
     return out
 
 
+def _mesh_parameters(scene) -> dict:
+    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before)."""
+    if scene.mesh.is_plane:
+        return {}
+    return {"mesh": scene.mesh.shape, "uv_scale": scene.mesh.uv_scale, "up": scene.mesh.up}
+
+
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
     techniques = {t.name: {"label": t.label, "summary": t.summary, "file_stem": t.file_stem,
@@ -614,11 +639,12 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling,
                        "truth_tolerance": scene.material.truth_tolerance,
-                       **_view_parameters(scene),
+                       **_view_parameters(scene), **_mesh_parameters(scene),
                        "techniques": [t.name for t in setup.techniques]},
         "bake": {"contents": list(setup.bake_contents)},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
         "camera": setup.truth.view.record(),
+        **({"mesh": setup.truth.record()} if hasattr(setup.truth, "model") else {}),
         **({"view": setup.view} if setup.view else {}),
         "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
                      "note": "display = clip(scale * radiance); the largest radiance the declared effects "

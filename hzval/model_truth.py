@@ -1,0 +1,347 @@
+"""The ground truth on a model: Mitsuba 3 traces the displaced model, and the techniques' samples.
+
+On the plane (:mod:`hzval.truth`) the tangent frame is the world's. On a
+model (:mod:`hzval.model`: a built-in shape or the user's UV-mapped mesh)
+every point has its own: the interpolated vertex normal ``n`` and tangent
+``t`` of the base mesh, re-orthonormalised, and ``b = w (n x t)``
+(:mod:`hzval.tangents`). This module builds what both sides of a model's
+sweep read:
+
+The truth
+    The base mesh tessellated in UV space to the texel scale and displaced
+    along its interpolated normals by ``H(uv) * depth * world_per_uv``, welded
+    across UV seams (:mod:`hzval.displace`), in a ``mi.Scene`` with nothing
+    else in it. Camera rays (:func:`model_view`) are traced once; each hit
+    keeps its point, the displaced triangle's normal ``n_g``, and the base
+    mesh's ``uv``, point, normal and tangent there, interpolated over the
+    displaced triangle with its barycentric coordinates (the displaced mesh's
+    vertices carry their base values). Shading as on the plane
+    (:mod:`hzval.shading`): the shading normal is the normal map at ``uv``
+    carried into the world by the frame, the very normal the techniques
+    shade with, so lit pixels of the truth equal the unshadowed render.
+    ``V`` = 1 where the ray toward ``L`` escapes the displaced mesh; 0 where
+    ``n_g.L <= 0`` or ``n.L <= 0`` (the base surface's own horizon, as the
+    plane's ``L.z <= 0``). Rays start at the hit lifted along ``n`` by
+    :data:`hzval.truth.LIFT_TEXELS` texels (the displaced surface is a height
+    field over the base surface along ``n``).
+The techniques' samples
+    :class:`hzval.lookup.Samples` at the truth's hits (perfect parallax, as a
+    view's second set of scores on the plane): the texel position of each
+    hit's ``uv``, its frame and its direction toward the camera, and
+    ``macro(L)``, the base mesh's own visibility of the light (a shadow ray
+    against the *undisplaced* mesh, which stands in for an engine's shadow
+    map), which every technique's factor is multiplied by: the score is then
+    the technique's, not the macro shadow's.
+
+Pixels: a pixel is seen when every one of its samples hits the model; the
+others (the background, the silhouette's partly covered pixels) are left out
+of every score (``Frame.mask``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from hzval import backend, lookup, shading
+from hzval import conventions as cv
+from hzval.backend import dr, mi
+from hzval.bake import normal_map
+from hzval.camera import Camera, View, pixel_jitter
+from hzval.errors import InputError
+from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
+from hzval.truth import LIFT_PER_HEIGHT, LIFT_TEXELS, _mean_and_variance
+
+__all__ = ["ModelTruth", "model_view", "SIMULATES"]
+
+#: Effects the truth on a model simulates (interreflection and reflection occlusion: not yet).
+SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient")
+_AMBIENT_STREAM = 0xA3B1
+#: Bytes a sample keeps between frames (hit, normals, frame, uv, base point: 22 floats) and what the
+#: techniques keep of it (their frames, texel positions), and a displaced triangle with its BVH.
+BYTES_PER_SAMPLE = 4 * 22 + 4 * 14
+BYTES_PER_TRIANGLE = 120
+
+
+def model_view(camera: Camera, centre, radius: float, shape: tuple[int, int]) -> View:
+    """The camera framing a model's bounding sphere (``centre``, ``radius``, world units), looking
+    from elevation/azimuth about the world's up axis (+z), as :meth:`hzval.camera.Camera.view` looks
+    at a tile. ``top`` looks straight down, orthographic; an orthographic film spans the sphere;
+    a perspective eye sits at ``distance`` sphere diameters, or farther where the field of view
+    needs it to hold the sphere."""
+    H, W = shape
+    e = 90.0 if camera.kind == "top" else camera.elevation_deg
+    a = -90.0 if camera.kind == "top" else camera.azimuth_deg
+    er, ar = math.radians(e), math.radians(a)
+    w = np.array([math.cos(er) * math.cos(ar), math.cos(er) * math.sin(ar), math.sin(er)])
+    up = (0.0, 0.0, 1.0) if e < 90.0 - 1e-9 else (-math.cos(ar), -math.sin(ar), 0.0)
+    c = np.asarray(centre, float)
+    R = max(float(radius), 1e-12)
+    if camera.kind == "perspective":
+        half = math.atan(math.tan(math.radians(camera.fov_deg) / 2.0) * min(1.0, H / W))
+        dist = max(camera.distance * 2.0 * R, 1.02 * R / math.sin(half))
+        return View("perspective", tuple(c + dist * w), tuple(c), up, float(camera.fov_deg), None, (W, H),
+                    0, 0, 0.0, 0.0, 1)
+    film = (2.0 * R * max(1.0, W / H), 2.0 * R * max(1.0, H / W))
+    return View("orthographic", tuple(c + 2.0 * R * w), tuple(c), up, None, film, (W, H), 0, 0, 0.0, 0.0, 1)
+
+
+def _mesh(name: str, positions: np.ndarray, faces: np.ndarray):
+    """A Mitsuba triangle mesh of ``positions`` ``(V, 3)`` and ``faces`` ``(F, 3)``."""
+    m = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(m)
+    params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, np.float32).ravel())
+    params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+    params.update()
+    return m
+
+
+class ModelTruth:
+    """The truth of one scene, height map and model (module docstring); the plane's
+    :class:`hzval.truth.Truth` interface: :meth:`render`, ``shape``, ``seen``, ``view``,
+    ``simulated``, ``timings``, ``hits`` (``None``: the techniques' samples are
+    :meth:`samples`), plus ``model`` (the base mesh) and ``triangles`` (the displaced mesh's)."""
+
+    hits = None
+
+    def __init__(self, scene: Scene, height: np.ndarray, model, *, albedo: np.ndarray | None = None):
+        from hzval import displace
+
+        backend.variant()
+        self.scene, self.model = scene.validate(), model
+        h = np.asarray(height, dtype=np.float32)
+        self.rows, self.cols = rows, cols = h.shape
+        self.shape = image_shape(rows, cols, scene.camera)
+        self.spp = scene.spp
+        unsupported = [e for e in scene.effects if e not in SIMULATES]
+        if unsupported:
+            raise InputError(scene.source or "scene", f"{', '.join(unsupported)} on a model: not simulated yet "
+                             f"(a model's truth simulates {', '.join(SIMULATES)})")
+        self.simulated = tuple(e for e in EFFECTS if e in scene.effects)
+        self.timings: dict[str, float] = {}
+        t0 = time.perf_counter()
+        mat = scene.material
+        refined = displace.refine(model, (rows, cols))
+        positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
+        self.triangles = int(len(faces))
+        self._texel = model.world_per_uv / cols                 # world units per texel
+        h_tex = cv.heights_in_texels(h, mat.depth)
+        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * float(np.abs(h_tex).max())) * self._texel
+        self._vertex = self._vertex_attributes(refined)
+        self._displaced = mi.load_dict({"type": "scene", "surface": _mesh("displaced", positions, faces)})
+        self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+        del positions, faces, refined
+        self._base = mi.load_dict({"type": "scene", "surface": _mesh("base", model.positions, model.faces)})
+        wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
+        self._normal_map = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
+                                        use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
+                                        wrap_mode=wrap)
+        self._albedo = self._load_albedo(albedo)
+        self.view = model_view(scene.camera, *model.bounding_sphere(), self.shape)
+        self.timings["mesh_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        self._trace_camera()
+        self.timings["primary_s"] = time.perf_counter() - t0
+        self._macro_key, self._macro_value = None, None
+
+    def _vertex_attributes(self, refined) -> dict:
+        """The base mesh's values at the displaced mesh's vertices, flat ``mi.Float`` each."""
+        t = np.asarray(refined.tangents, np.float32)
+        return {"uv": mi.Float(np.ascontiguousarray(refined.uvs, np.float32).ravel()),
+                "p": mi.Float(np.ascontiguousarray(refined.positions, np.float32).ravel()),
+                "n": mi.Float(np.ascontiguousarray(refined.normals, np.float32).ravel()),
+                "t": mi.Float(np.ascontiguousarray(t[:, :3]).ravel()),
+                "w": mi.Float(np.ascontiguousarray(t[:, 3]))}
+
+    def _load_albedo(self, albedo):
+        if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):
+            return None
+        rows, cols = self.rows, self.cols
+        a = load_albedo(self.scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
+        if a.shape != (rows, cols, 3):
+            raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
+        return mi.Float(np.ascontiguousarray(a, np.float32).ravel())
+
+    # -- camera rays, once ----------------------------------------------------------------------
+
+    def _interpolate(self, key: str, size: int, prim, b1, b2):
+        """The vertex attribute ``key`` (``size`` floats a vertex) at barycentrics ``(b1, b2)`` of
+        the displaced triangles ``prim`` (Mitsuba's convention: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``)."""
+        kind = {1: mi.Float, 2: mi.Point2f, 3: mi.Vector3f}[size]
+        ids = [dr.gather(mi.UInt32, self._faces, prim * 3 + k) for k in range(3)]
+        a = [dr.gather(kind, self._vertex[key], i) for i in ids]
+        return a[0] * (1.0 - b1 - b2) + a[1] * b1 + a[2] * b2
+
+    def _trace_camera(self) -> None:
+        """Every sample's camera ray against the displaced model: what the frames and the techniques
+        read there (module docstring), kept; :attr:`seen` the pixels all of whose samples hit."""
+        H, W = self.shape
+        spp = self.spp
+        o, d = self.view.rays(spp, self.scene.seed, 0, H * W)
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[:, k].astype(np.float32)) for k in range(3))),
+                       mi.Vector3f(*(mi.Float(d[:, k].astype(np.float32)) for k in range(3))))
+        del o, d
+        pi = self._displaced.ray_intersect_preliminary(ray, coherent=True)
+        hit = pi.is_valid()
+        prim = dr.select(hit, pi.prim_index, 0)
+        b1, b2 = pi.prim_uv.x, pi.prim_uv.y
+        si = pi.compute_surface_interaction(ray)
+        # a sample that misses keeps the world's frame at the texture's centre: traced, counted for nothing
+        n = dr.select(hit, dr.normalize(self._interpolate("n", 3, prim, b1, b2)), mi.Vector3f(0, 0, 1))
+        t = self._interpolate("t", 3, prim, b1, b2)
+        t = dr.select(hit, dr.normalize(t - n * dr.dot(n, t)), mi.Vector3f(1, 0, 0))   # Gram-Schmidt (hzval.tangents)
+        w = dr.select(self._interpolate("w", 1, prim, b1, b2) < 0.0, -1.0, 1.0)
+        b = w * dr.cross(n, t)
+        uv = dr.select(hit, self._interpolate("uv", 2, prim, b1, b2), mi.Point2f(0.5, 0.5))
+        ng = dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n)    # the side the base normal is on
+        x, y = uv.x * self.cols, uv.y * self.rows              # texels, y up the image (hzval.conventions)
+        if self.scene.material.boundary == "wrap":
+            x, y = x - dr.floor(x / self.cols) * self.cols, y - dr.floor(y / self.rows) * self.rows
+        tex = mi.Point2f(x / self.cols, (self.rows - y) / self.rows)
+        nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(tex)))
+        ns = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
+        self._st = {"p": si.p, "ng": ng, "n": n, "ns": ns, "hit": hit, "x": x, "y": y,
+                    "pb": self._interpolate("p", 3, prim, b1, b2), "v": -ray.d}
+        frames = [t, b, n, -ray.d]
+        if self._albedo is not None:
+            self._st["albedo"] = self._albedo_at(x, y)
+        dr.eval(self._st, frames)
+        backend.sync()
+        seen = np.asarray(hit, bool).reshape(H * W, spp)
+        self.seen = seen.all(axis=1).reshape(H, W)
+        self.seen_samples = seen.ravel()
+        self._frames = np.stack([np.asarray(c, np.float32) for vec in frames for c in vec], axis=-1)
+        self._ambient = self._trace_ambient() if self.scene.declares("ambient") else None
+
+    def _albedo_at(self, x, y):
+        """The linear albedo of the texel that holds ``(x, y)`` (nearest, as on the plane)."""
+        col = dr.clip(mi.Int32(dr.floor(x)), 0, self.cols - 1)
+        row = dr.clip(mi.Int32(self.rows - dr.ceil(y)), 0, self.rows - 1)
+        return dr.gather(mi.Color3f, self._albedo, mi.UInt32(row * self.cols + col))
+
+    def _origin(self, p, n):
+        """A ray's start: ``p`` lifted along the base normal ``n`` (module docstring)."""
+        return p + n * self.lift
+
+    def _trace_ambient(self):
+        """``A`` per sample: a cosine-weighted direction about the shading normal escapes (once)."""
+        t0 = time.perf_counter()
+        st = self._st
+        count = dr.width(st["hit"])
+        rng = mi.PCG32(size=count, initstate=dr.arange(mi.UInt64, count),
+                       initseq=mi.UInt64(self.scene.seed) ^ _AMBIENT_STREAM)
+        d = mi.Frame3f(st["ns"]).to_world(
+            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+        into = (dr.dot(st["ng"], d) <= 0.0) | (dr.dot(st["n"], d) <= 0.0)
+        ray = mi.Ray3f(self._origin(st["p"], st["n"]), d)
+        blocked = into | self._displaced.ray_test(ray, active=st["hit"] & ~into)
+        A = dr.select(blocked, 0.0, 1.0)
+        dr.eval(A)
+        self.timings["ambient_s"] = time.perf_counter() - t0
+        return A
+
+    # -- frames ---------------------------------------------------------------------------------
+
+    def _light(self, azimuth_deg: float):
+        """Every sample's direction toward the light (world), and whether any is above the horizon."""
+        light = self.scene.light
+        if light.kind == "hard":
+            return dr.opaque(mi.Vector3f, [float(c) for c in light.direction(azimuth_deg)])
+        count = dr.width(self._st["hit"])
+        s = np.ascontiguousarray(light_samples(light, azimuth_deg, count, self.scene.seed), np.float32)
+        return dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, count))
+
+    def render(self, azimuth_deg: float) -> Frame:
+        """The frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation
+        the scene's): :meth:`hzval.truth.Truth.render`'s layers, ``mask`` the seen pixels."""
+        t0 = time.perf_counter()
+        sc, st, spp = self.scene, self._st, self.spp
+        L = self._light(azimuth_deg)
+        sums = {}
+        vis = None
+        if sc.declares("shadow"):
+            away = (dr.dot(st["ng"], L) <= 0.0) | (dr.dot(st["n"], L) <= 0.0)
+            ray = mi.Ray3f(self._origin(st["p"], st["n"]), L)
+            vis = dr.select(away | self._displaced.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
+            sums["visibility"] = vis
+        img = None
+        if any(sc.declares(e) for e in ("diffuse", "specular", "ambient")):
+            E = float(sc.light.irradiance)
+            if sc.light.kind == "soft":
+                E = shading.disk_sample_irradiance(E, sc.light.radius_deg)
+            img = shading.direct(st["ns"], L, st["v"], st.get("albedo"), dr.opaque(mi.Float, E),
+                                 diffuse=sc.declares("diffuse"), specular=sc.declares("specular"))
+            img = dr.select(dr.dot(st["n"], L) > 0.0, img, 0.0)     # the base surface's horizon
+            if vis is not None:
+                img = img * vis
+            if self._ambient is not None:
+                img = img + shading.sky(st["albedo"], self._ambient, dr.opaque(mi.Float, float(sc.light.irradiance)))
+        if self._ambient is not None:
+            sums["ambient"] = self._ambient
+        layers, variance = self._reduce(sums, img)
+        H, W = self.shape
+        image = layers.pop("image", None)
+        if image is None:
+            v = layers.get("visibility", np.ones((H, W), np.float32))
+            image = np.repeat((float(sc.light.irradiance) * v)[..., None], 3, axis=-1).astype(np.float32)
+            var = variance.get("visibility", np.zeros((H, W), np.float32))
+            variance["image"] = np.repeat((float(sc.light.irradiance) ** 2 * var)[..., None], 3, axis=-1)
+        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
+                     layers=layers, variance=variance, seconds=time.perf_counter() - t0, mask=self.seen)
+
+    def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
+        """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
+        (:func:`hzval.truth._mean_and_variance`), ``(H, W[, 3])`` float32 each."""
+        spp, (H, W) = self.spp, self.shape
+        reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
+        if img is not None:
+            img_sum = dr.block_sum(img, spp)
+            pixel = dr.arange(mi.UInt32, dr.width(self._st["hit"])) // spp
+            dev = img - dr.gather(mi.Color3f, img_sum, pixel) * (1.0 / spp)
+            reduced["image"], reduced["image_ss"] = img_sum, dr.block_sum(dev * dev, spp)
+        dr.eval(reduced)
+        layers, variance = {}, {}
+        for k in sums:
+            s1 = mi.Float64(reduced[k])
+            mean, var = _mean_and_variance(s1, s1 * (1.0 - s1 / spp), spp)
+            layers[k], variance[k] = (np.asarray(a, np.float32).reshape(H, W) for a in (mean, var))
+        if img is not None:
+            parts = [_mean_and_variance(mi.Float64(c), mi.Float64(q), spp)
+                     for c, q in zip(reduced["image"], reduced["image_ss"])]
+            layers["image"] = np.stack([np.asarray(m, np.float32) for m, _ in parts], -1).reshape(H, W, 3)
+            variance["image"] = np.stack([np.asarray(v, np.float32) for _, v in parts], -1).reshape(H, W, 3)
+        backend.sync()
+        return layers, variance
+
+    # -- what the techniques read ---------------------------------------------------------------
+
+    def macro(self, direction) -> object:
+        """The base mesh's own visibility of the world direction ``direction`` per sample (``mi.Float``,
+        0 or 1): a shadow ray from the base point against the undisplaced model, which an engine's
+        shadow map answers. The last direction's is kept: every technique of a frame reads it."""
+        key = tuple(float(c) for c in direction)
+        if self._macro_key != key:
+            st = self._st
+            L = dr.opaque(mi.Vector3f, list(key))
+            away = dr.dot(st["n"], L) <= 0.0
+            ray = mi.Ray3f(self._origin(st["pb"], st["n"]), L)
+            M = dr.select(away | self._base.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
+            dr.eval(M)
+            self._macro_key, self._macro_value = key, M
+        return self._macro_value
+
+    def samples(self) -> lookup.Samples:
+        """The techniques' :class:`hzval.lookup.Samples`: at the truth's hits, with their frames."""
+        x = np.asarray(self._st["x"], np.float32)
+        y = np.asarray(self._st["y"], np.float32)
+        if self.scene.material.boundary == "open":
+            x, y = np.clip(x, 0.0, self.cols), np.clip(y, 0.0, self.rows)
+        return lookup.Samples(x, y, self.rows, self.cols, int(self.spp), source="truth",
+                              frames=self._frames, macro=self.macro)
+
+    def record(self) -> dict:
+        """``metrics.json``'s ``mesh``: the base mesh's record and the displaced mesh's size."""
+        return {**self.model.record(), "displaced_triangles": self.triangles,
+                "seen_fraction": float(self.seen.mean())}
