@@ -105,6 +105,7 @@ class ModelTruth:
     :meth:`samples`), plus ``model`` (the base mesh) and ``triangles`` (the displaced mesh's)."""
 
     hits = None
+    keeps = True        # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
 
     def __init__(self, scene: Scene, height: np.ndarray, model, *, albedo: np.ndarray | None = None):
         from hzval import displace
@@ -120,6 +121,10 @@ class ModelTruth:
             raise InputError(scene.source or "scene", f"{', '.join(unsupported)} on a model: not simulated yet "
                              f"(a model's truth simulates {', '.join(SIMULATES)})")
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects)
+        if scene.lookup.mipmapped or scene.lookup.parallax != "none":
+            raise InputError(scene.source or "--filter", "on a model the techniques read their textures at the "
+                             "truth's hits with bilinear filtering; mip-maps and parallax mapping are the "
+                             "plane's for now (--filter bilinear --parallax none)")
         self.timings: dict[str, float] = {}
         t0 = time.perf_counter()
         mat = scene.material
@@ -331,6 +336,17 @@ class ModelTruth:
             dr.eval(M)
             self._macro_key, self._macro_value = key, M
         return self._macro_value
+
+    def macro_shadowed(self, azimuth_deg: float) -> float:
+        """The share of the seen pixels' samples that face the light (``n.L > 0``) but that the base
+        mesh shadows: what the engine's shadow map, not the technique, decides (``metrics.json``)."""
+        direction = self.scene.light.direction(azimuth_deg)
+        M = self.macro(direction)
+        L = mi.Vector3f(*(float(c) for c in direction))
+        dark = dr.select((dr.dot(self._st["n"], L) > 0.0) & (M < 0.5), 1.0, 0.0)
+        per_sample = np.asarray(dark, np.float32).reshape(-1, self.spp)
+        seen = self.seen.ravel()
+        return float(per_sample[seen].mean()) if seen.any() else 0.0
 
     def samples(self) -> lookup.Samples:
         """The techniques' :class:`hzval.lookup.Samples`: at the truth's hits, with their frames."""

@@ -31,7 +31,7 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
-    [check]     size, azimuths, spp, depth: how the regression check renders it (hzval.check)
+    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it (hzval.check)
     [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn (hzval.check)
 """
 
@@ -331,7 +331,8 @@ def _schema() -> dict:
             "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
             "effects": {"list": tuple[str, ...], "interreflection_depth": int},
             "samples": {"spp": int, "seed": int},
-            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float},
+            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float,
+                      "resolution": tuple[int, int]},
             # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
             # names the registry knows: hzval.check checks them (scene imports no technique)
             "tolerances": {"*": tiers}}

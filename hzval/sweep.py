@@ -210,6 +210,18 @@ def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
                + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
 
 
+def _model_peak_bytes(scene, rows: int, cols: int) -> int:
+    """The peak of a sweep on a model (:mod:`hzval.model_truth`): the displaced mesh's triangles
+    (:func:`hzval.displace.estimate`), every sample's kept hit and frame, and the images."""
+    from hzval import displace, model, model_truth
+
+    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    triangles, mesh_bytes = displace.estimate(base, (rows, cols))
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    return int(PEAK_BASE_BYTES + mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
+               + model_truth.BYTES_PER_SAMPLE * H * W * scene.spp + PEAK_BYTES_PER_PIXEL * H * W)
+
+
 def material_shape(scene) -> tuple[int, int]:
     """``(rows, cols)`` of the scene's height map, without generating or decoding it."""
     spec = scene.material
@@ -245,6 +257,8 @@ def check_fits(scene, params: BakeParams) -> int:
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
     need, have = estimate_peak_bytes(scene, rows, cols), bake.available_bytes()
+    if not scene.mesh.is_plane:
+        need = _model_peak_bytes(scene, rows, cols)
     if need > have:
         raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
@@ -278,7 +292,7 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     albedo = sc.load_albedo(scene.material, rows, cols)
-    the_truth, points = _truth_of(scene, hm.height, albedo)
+    the_truth, points = truth_of(scene, hm.height, albedo)
     timings["truth_setup_s"] = time.perf_counter() - t0
     ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
@@ -298,7 +312,7 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     return setup
 
 
-def _truth_of(scene, height: np.ndarray, albedo: np.ndarray):
+def truth_of(scene, height: np.ndarray, albedo: np.ndarray):
     """``(truth, points)``: the plane's :class:`hzval.truth.Truth` (the techniques read where the
     camera's rays meet their plane: ``points`` None), or on a model (``[mesh]``) its
     :class:`hzval.model_truth.ModelTruth` and the techniques' samples at its hits, with their frames."""
@@ -559,6 +573,8 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
                                             truth_shown=truth_shown, all_files=all_files, mask=t_frame.mask)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
+    if hasattr(setup.truth, "macro_shadowed"):
+        frame["macro_shadowed"] = setup.truth.macro_shadowed(az)    # a model: the base mesh's own shadow
     if floor is not None:
         frame["floor"] = floor
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
