@@ -150,7 +150,8 @@ def frame_of(frames, index):
 
 
 def to_tangent(frame, d):
-    """The world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``."""
+    """The world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
+    ``(t, b, n)`` being :func:`hzval.tangents.orthonormal`'s (FGED2's TBN product)."""
     import drjit as dr
     import mitsuba as mi
 

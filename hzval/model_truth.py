@@ -45,7 +45,7 @@ import time
 
 import numpy as np
 
-from hzval import backend, lookup, shading
+from hzval import backend, lookup, shading, tangents
 from hzval import conventions as cv
 from hzval.backend import dr, mi
 from hzval.bake import normal_map
@@ -88,21 +88,53 @@ def model_view(camera: Camera, centre, radius: float, shape: tuple[int, int]) ->
     return View("orthographic", tuple(c + 2.0 * R * w), tuple(c), up, None, film, (W, H), 0, 0, 0.0, 0.0, 1)
 
 
-def _mesh(name: str, positions: np.ndarray, faces: np.ndarray):
-    """A Mitsuba triangle mesh of ``positions`` ``(V, 3)`` and ``faces`` ``(F, 3)``."""
-    m = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
-    params = mi.traverse(m)
-    params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, np.float32).ravel())
-    params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
-    params.update()
-    return m
+def _welded_normals(model) -> np.ndarray:
+    """``(V, 3)``: each vertex's normal averaged over the vertices at its position (``model.weld``),
+    so that a surface offset along them stays closed where the normals split (a cube's edges)."""
+    ids = model.weld
+    sums = np.zeros((int(ids.max()) + 1, 3))
+    np.add.at(sums, ids, model.normals)
+    sums /= np.maximum(np.linalg.norm(sums, axis=1, keepdims=True), 1e-300)
+    return sums[ids]
+
+
+class _Traced:
+    """A triangle mesh in its own ``mi.Scene`` and the base mesh's values at its vertices (``uvs``,
+    ``normals``, ``tangents`` of ``frames``; ``p`` the base point, ``base_positions`` where the mesh
+    is the base mesh displaced), interpolated at a hit by :meth:`at`."""
+
+    def __init__(self, name: str, positions: np.ndarray, faces: np.ndarray, frames):
+        m = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
+        params = mi.traverse(m)
+        params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, np.float32).ravel())
+        params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+        params.update()
+        self.scene = mi.load_dict({"type": "scene", "surface": m})
+        self.triangles = int(len(faces))
+        self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+        flat = lambda a: mi.Float(np.ascontiguousarray(a, np.float32).ravel())
+        t = np.asarray(frames.tangents, np.float32)
+        self._vertex = {"uv": flat(frames.uvs), "p": flat(frames.positions), "n": flat(frames.normals),
+                        "t": flat(t[:, :3]), "w": flat(t[:, 3])}
+
+    def at(self, prim, b1, b2):
+        """``f(key, size)``: the vertex values ``key`` (``size`` floats a vertex) at barycentrics
+        ``(b1, b2)`` of the triangles ``prim`` (Mitsuba's: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``)."""
+        ids = [dr.gather(mi.UInt32, self._faces, prim * 3 + k) for k in range(3)]
+
+        def value(key: str, size: int):
+            kind = {1: mi.Float, 2: mi.Point2f, 3: mi.Vector3f}[size]
+            a = [dr.gather(kind, self._vertex[key], i) for i in ids]
+            return a[0] * (1.0 - b1 - b2) + a[1] * b1 + a[2] * b2
+        return value
 
 
 class ModelTruth:
     """The truth of one scene, height map and model (module docstring); the plane's
     :class:`hzval.truth.Truth` interface: :meth:`render`, ``shape``, ``seen``, ``view``,
     ``simulated``, ``timings``, ``hits`` (``None``: the techniques' samples are
-    :meth:`samples`), plus ``model`` (the base mesh) and ``triangles`` (the displaced mesh's)."""
+    :meth:`samples`), plus ``model`` (the base mesh) and ``plane_offset`` (world units along the
+    normals from the base mesh to the techniques' surface, the lookup's plane)."""
 
     hits = None
     keeps = True        # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
@@ -130,15 +162,17 @@ class ModelTruth:
         mat = scene.material
         refined = displace.refine(model, (rows, cols))
         positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
-        self.triangles = int(len(faces))
         self._texel = model.world_per_uv / cols                 # world units per texel
         h_tex = cv.heights_in_texels(h, mat.depth)
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * float(np.abs(h_tex).max())) * self._texel
-        self._vertex = self._vertex_attributes(refined)
-        self._displaced = mi.load_dict({"type": "scene", "surface": _mesh("displaced", positions, faces)})
-        self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+        self._displaced = _Traced("displaced", positions, faces, refined)
         del positions, faces, refined
-        self._base = mi.load_dict({"type": "scene", "surface": _mesh("base", model.positions, model.faces)})
+        # the techniques' surface: the base mesh at the lookup's plane (bottom: H = 0, as the truth's
+        # base; mean; top), offset along its vertex normals as the plane sits at that height
+        z0 = lookup.plane_height(scene.lookup, float(h_tex.min()), float(h_tex.max()), float(h_tex.mean()))
+        self.plane_offset = z0 * self._texel
+        self._surface = _Traced("base", model.positions + _welded_normals(model) * self.plane_offset, model.faces,
+                                model)
         wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
         self._normal_map = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
@@ -151,15 +185,6 @@ class ModelTruth:
         self.timings["primary_s"] = time.perf_counter() - t0
         self._macro_key, self._macro_value = None, None
 
-    def _vertex_attributes(self, refined) -> dict:
-        """The base mesh's values at the displaced mesh's vertices, flat ``mi.Float`` each."""
-        t = np.asarray(refined.tangents, np.float32)
-        return {"uv": mi.Float(np.ascontiguousarray(refined.uvs, np.float32).ravel()),
-                "p": mi.Float(np.ascontiguousarray(refined.positions, np.float32).ravel()),
-                "n": mi.Float(np.ascontiguousarray(refined.normals, np.float32).ravel()),
-                "t": mi.Float(np.ascontiguousarray(t[:, :3]).ravel()),
-                "w": mi.Float(np.ascontiguousarray(t[:, 3]))}
-
     def _load_albedo(self, albedo):
         if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):
             return None
@@ -171,54 +196,52 @@ class ModelTruth:
 
     # -- camera rays, once ----------------------------------------------------------------------
 
-    def _interpolate(self, key: str, size: int, prim, b1, b2):
-        """The vertex attribute ``key`` (``size`` floats a vertex) at barycentrics ``(b1, b2)`` of
-        the displaced triangles ``prim`` (Mitsuba's convention: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``)."""
-        kind = {1: mi.Float, 2: mi.Point2f, 3: mi.Vector3f}[size]
-        ids = [dr.gather(mi.UInt32, self._faces, prim * 3 + k) for k in range(3)]
-        a = [dr.gather(kind, self._vertex[key], i) for i in ids]
-        return a[0] * (1.0 - b1 - b2) + a[1] * b1 + a[2] * b2
-
     def _trace_camera(self) -> None:
-        """Every sample's camera ray against the displaced model: what the frames and the techniques
-        read there (module docstring), kept; :attr:`seen` the pixels all of whose samples hit."""
+        """Every sample's camera ray against the displaced model (the truth's hit) and against the
+        techniques' surface (theirs: where an engine shades), once; what the frames read there, kept.
+        :attr:`seen`: the pixels all of whose samples hit both."""
         H, W = self.shape
         spp = self.spp
         o, d = self.view.rays(spp, self.scene.seed, 0, H * W)
         ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[:, k].astype(np.float32)) for k in range(3))),
                        mi.Vector3f(*(mi.Float(d[:, k].astype(np.float32)) for k in range(3))))
         del o, d
-        pi = self._displaced.ray_intersect_preliminary(ray, coherent=True)
+        self._st = self._hits(self._displaced, ray, shade=True)
+        self._own = self._hits(self._surface, ray, shade=False)
+        both = self._st["hit"] & self._own["hit"]
+        dr.eval(both)
+        backend.sync()
+        seen = np.asarray(both, bool).reshape(H * W, spp)
+        self.seen = seen.all(axis=1).reshape(H, W)
+        self.seen_samples = seen.ravel()
+        self._ambient = self._trace_ambient() if self.scene.declares("ambient") else None
+
+    def _hits(self, mesh: "_Traced", ray, *, shade: bool) -> dict:
+        """Where ``ray`` meets ``mesh``: the point, its triangle's normal ``ng`` (on the side of the
+        base normal), the frame (:func:`hzval.tangents.orthonormal`), the texel position ``(x, y)`` of
+        its ``uv``, the base point ``pb`` and ``v`` toward the camera; ``shade``: also the shading
+        normal (the normal map at ``uv`` carried into the world) and the albedo there. A sample that
+        misses keeps the world's frame at the texture's centre: traced, and counted for nothing."""
+        pi = mesh.scene.ray_intersect_preliminary(ray, coherent=True)
         hit = pi.is_valid()
         prim = dr.select(hit, pi.prim_index, 0)
-        b1, b2 = pi.prim_uv.x, pi.prim_uv.y
+        at = mesh.at(prim, pi.prim_uv.x, pi.prim_uv.y)
         si = pi.compute_surface_interaction(ray)
-        # a sample that misses keeps the world's frame at the texture's centre: traced, counted for nothing
-        n = dr.select(hit, dr.normalize(self._interpolate("n", 3, prim, b1, b2)), mi.Vector3f(0, 0, 1))
-        t = self._interpolate("t", 3, prim, b1, b2)
-        t = dr.select(hit, dr.normalize(t - n * dr.dot(n, t)), mi.Vector3f(1, 0, 0))   # Gram-Schmidt (hzval.tangents)
-        w = dr.select(self._interpolate("w", 1, prim, b1, b2) < 0.0, -1.0, 1.0)
-        b = w * dr.cross(n, t)
-        uv = dr.select(hit, self._interpolate("uv", 2, prim, b1, b2), mi.Point2f(0.5, 0.5))
-        ng = dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n)    # the side the base normal is on
+        t, b, n = tangents.orthonormal(at("n", 3), at("t", 3), at("w", 1))
+        t, b, n = (dr.select(hit, a, mi.Vector3f(*e)) for a, e in ((t, (1, 0, 0)), (b, (0, 1, 0)), (n, (0, 0, 1))))
+        uv = dr.select(hit, at("uv", 2), mi.Point2f(0.5, 0.5))
         x, y = uv.x * self.cols, uv.y * self.rows              # texels, y up the image (hzval.conventions)
         if self.scene.material.boundary == "wrap":
             x, y = x - dr.floor(x / self.cols) * self.cols, y - dr.floor(y / self.rows) * self.rows
-        tex = mi.Point2f(x / self.cols, (self.rows - y) / self.rows)
-        nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(tex)))
-        ns = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
-        self._st = {"p": si.p, "ng": ng, "n": n, "ns": ns, "hit": hit, "x": x, "y": y,
-                    "pb": self._interpolate("p", 3, prim, b1, b2), "v": -ray.d}
-        frames = [t, b, n, -ray.d]
-        if self._albedo is not None:
-            self._st["albedo"] = self._albedo_at(x, y)
-        dr.eval(self._st, frames)
-        backend.sync()
-        seen = np.asarray(hit, bool).reshape(H * W, spp)
-        self.seen = seen.all(axis=1).reshape(H, W)
-        self.seen_samples = seen.ravel()
-        self._frames = np.stack([np.asarray(c, np.float32) for vec in frames for c in vec], axis=-1)
-        self._ambient = self._trace_ambient() if self.scene.declares("ambient") else None
+        out = {"p": si.p, "ng": dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n), "n": n, "t": t, "b": b,
+               "hit": hit, "x": x, "y": y, "pb": at("p", 3), "v": -ray.d}
+        if shade:
+            nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(mi.Point2f(x / self.cols, (self.rows - y) / self.rows))))
+            out["ns"] = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
+            if self._albedo is not None:
+                out["albedo"] = self._albedo_at(x, y)
+        dr.eval(out)
+        return out
 
     def _albedo_at(self, x, y):
         """The linear albedo of the texel that holds ``(x, y)`` (nearest, as on the plane)."""
@@ -241,7 +264,7 @@ class ModelTruth:
             mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
         into = (dr.dot(st["ng"], d) <= 0.0) | (dr.dot(st["n"], d) <= 0.0)
         ray = mi.Ray3f(self._origin(st["p"], st["n"]), d)
-        blocked = into | self._displaced.ray_test(ray, active=st["hit"] & ~into)
+        blocked = into | self._displaced.scene.ray_test(ray, active=st["hit"] & ~into)
         A = dr.select(blocked, 0.0, 1.0)
         dr.eval(A)
         self.timings["ambient_s"] = time.perf_counter() - t0
@@ -269,7 +292,7 @@ class ModelTruth:
         if sc.declares("shadow"):
             away = (dr.dot(st["ng"], L) <= 0.0) | (dr.dot(st["n"], L) <= 0.0)
             ray = mi.Ray3f(self._origin(st["p"], st["n"]), L)
-            vis = dr.select(away | self._displaced.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
+            vis = dr.select(away | self._displaced.scene.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
             sums["visibility"] = vis
         img = None
         if any(sc.declares(e) for e in ("diffuse", "specular", "ambient")):
@@ -328,11 +351,11 @@ class ModelTruth:
         shadow map answers. The last direction's is kept: every technique of a frame reads it."""
         key = tuple(float(c) for c in direction)
         if self._macro_key != key:
-            st = self._st
+            st = self._own
             L = dr.opaque(mi.Vector3f, list(key))
             away = dr.dot(st["n"], L) <= 0.0
-            ray = mi.Ray3f(self._origin(st["pb"], st["n"]), L)
-            M = dr.select(away | self._base.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
+            ray = mi.Ray3f(self._origin(st["p"], st["n"]), L)
+            M = dr.select(away | self._surface.scene.ray_test(ray, active=st["hit"] & ~away), 0.0, 1.0)
             dr.eval(M)
             self._macro_key, self._macro_value = key, M
         return self._macro_value
@@ -343,21 +366,24 @@ class ModelTruth:
         direction = self.scene.light.direction(azimuth_deg)
         M = self.macro(direction)
         L = mi.Vector3f(*(float(c) for c in direction))
-        dark = dr.select((dr.dot(self._st["n"], L) > 0.0) & (M < 0.5), 1.0, 0.0)
+        dark = dr.select((dr.dot(self._own["n"], L) > 0.0) & (M < 0.5), 1.0, 0.0)
         per_sample = np.asarray(dark, np.float32).reshape(-1, self.spp)
         seen = self.seen.ravel()
         return float(per_sample[seen].mean()) if seen.any() else 0.0
 
-    def samples(self) -> lookup.Samples:
-        """The techniques' :class:`hzval.lookup.Samples`: at the truth's hits, with their frames."""
-        x = np.asarray(self._st["x"], np.float32)
-        y = np.asarray(self._st["y"], np.float32)
+    def samples(self, at: str = "camera") -> lookup.Samples:
+        """The techniques' :class:`hzval.lookup.Samples`, with their frames: where the camera's rays
+        meet their surface (``"camera"``, as an engine shades), or at the truth's own hits
+        (``"truth"``: perfect parallax, a view's second set of scores)."""
+        st = self._own if at == "camera" else self._st
+        x, y = np.asarray(st["x"], np.float32), np.asarray(st["y"], np.float32)
         if self.scene.material.boundary == "open":
             x, y = np.clip(x, 0.0, self.cols), np.clip(y, 0.0, self.rows)
-        return lookup.Samples(x, y, self.rows, self.cols, int(self.spp), source="truth",
-                              frames=self._frames, macro=self.macro)
+        frames = np.stack([np.asarray(c, np.float32) for k in ("t", "b", "n", "v") for c in st[k]], axis=-1)
+        return lookup.Samples(x, y, self.rows, self.cols, int(self.spp), source=at, frames=frames,
+                              macro=self.macro)
 
     def record(self) -> dict:
         """``metrics.json``'s ``mesh``: the base mesh's record and the displaced mesh's size."""
-        return {**self.model.record(), "displaced_triangles": self.triangles,
+        return {**self.model.record(), "displaced_triangles": self._displaced.triangles,
                 "seen_fraction": float(self.seen.mean())}

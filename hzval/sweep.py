@@ -306,6 +306,10 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
         timings["view_setup_s"] = time.perf_counter() - t0
+    elif points is not None:
+        # a model: every technique again at the truth's own hits (perfect parallax), as for a view
+        perfect_ctx = dataclasses.replace(ctx, points=the_truth.samples("truth"), _shared={})
+        setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     camera.forget_sample_positions()
     lookup.forget()
     backend.release_memory()
