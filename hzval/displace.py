@@ -35,9 +35,11 @@ from hzval import conventions as cv
 from hzval import tangents as tg
 from hzval.model import BaseMesh, edge_table
 
-#: Resident bytes per refined triangle: the truth's mesh and BVH (:data:`hzval.mesh.BYTES_PER_TRIANGLE`,
-#: 140) plus the refinement's own float64 vertex arrays while it runs (measured, docs/meshes.md).
-BYTES_PER_TRIANGLE = 140 + 160
+#: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 330-390 bytes a
+#: triangle over their start (a 20k-triangle torus and model, the plane, 512^2 and 1024^2,
+#: benchmarks/bench_meshes.py) and keep 130-250 (the refined arrays and the displaced positions),
+#: to which Mitsuba's mesh and Embree's BVH add 140 (:data:`hzval.mesh.BYTES_PER_TRIANGLE`).
+BYTES_PER_TRIANGLE = 420
 
 
 @dataclass(frozen=True)
