@@ -349,27 +349,49 @@ def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides:
                  _grid_faces(sides, segments), normals=n.reshape(-1, 3), uv_scale=uv_scale)
 
 
-def cylinder(*, radius: float = 0.5, height: float = 1.0, segments: int = 64, caps: bool = True,
-             uv_scale: float = 1.0) -> BaseMesh:
-    """A cylinder about the z axis from ``-height/2`` to ``height/2``: the side's ``u`` around the
-    axis (counterclockwise from +x seen from +z, seam at +x), ``v`` up; ``caps``: two disks
-    (closed), each the texture's inscribed circle seen from outside (top: u along +x, v along +y;
-    bottom: u along +x, v along -y; neither mirrored)."""
-    uu, vv = np.meshgrid(np.arange(segments + 1) / segments, [0.0, 1.0])
-    phi = 2 * np.pi * uu
-    n = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], -1).reshape(-1, 3)
-    p = radius * n + np.stack([0 * uu, 0 * uu, (vv - 0.5) * height], -1).reshape(-1, 3)
-    parts = [(p, np.stack([uu, vv], -1).reshape(-1, 2), n, _grid_faces(1, segments))]
-    if caps:
-        ang = 2 * np.pi * np.arange(segments) / segments
-        for s in (1.0, -1.0):
-            rim = np.stack([np.cos(ang), np.sin(ang)], -1)
-            xy = np.concatenate([[[0.0, 0.0]], rim])
-            cp = np.concatenate([radius * xy, np.full((segments + 1, 1), s * height / 2)], axis=1)
-            cuv = 0.5 + 0.5 * xy * [1.0, s]
-            k = np.arange(segments)
-            fan = np.stack([np.zeros_like(k), 1 + k, 1 + (k + 1) % segments], -1)
-            parts.append((cp, cuv, np.tile([0.0, 0.0, s], (segments + 1, 1)), fan if s > 0 else fan[:, ::-1]))
+def _disk_grid(k: int):
+    """A ``k x k`` quad grid of the unit square mapped onto the unit disk (the elliptical grid
+    mapping ``(x sqrt(1 - y^2/2), y sqrt(1 - x^2/2))``, no singular centre): ``(xy (V, 2), faces,
+    rim)``, ``rim`` the ``4 k`` boundary vertices counterclockwise from ``(1, 0)`` (``k`` even).
+    Cells split along the diagonal that avoids the square's corners (no sliver there)."""
+    s = np.linspace(-1.0, 1.0, k + 1)
+    x, y = np.meshgrid(s, s)  # vertex (i, j) = row i (y), column j (x), index i (k + 1) + j
+    xy = np.stack([x * np.sqrt(1 - y * y / 2), y * np.sqrt(1 - x * x / 2)], -1).reshape(-1, 2)
+    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    a = i * (k + 1) + j
+    b, c, d = a + 1, a + k + 2, a + k + 1
+    same = ((i < k // 2) == (j < k // 2)).ravel()[:, None, None]  # quadrants whose corner is a or c
+    ac = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 2, 3)
+    bd = np.stack([np.stack([a, b, d], -1), np.stack([b, c, d], -1)], 2).reshape(-1, 2, 3)
+    faces = np.where(same, bd, ac).reshape(-1, 3)
+    edge = [(r, k) for r in range(k // 2, k)] + [(k, c) for c in range(k, 0, -1)] + \
+           [(r, 0) for r in range(k, 0, -1)] + [(0, c) for c in range(k)] + [(r, k) for r in range(k // 2)]
+    rim = np.array([r * (k + 1) + c for r, c in edge])
+    return xy, faces, rim
+
+
+def cylinder(*, radius: float = 0.5, height: float = 1.0, segments: int = 64, stacks: int = 32,
+             caps: bool = True, uv_scale: float = 1.0) -> BaseMesh:
+    """A cylinder about the z axis from ``-height/2`` to ``height/2``, ``segments`` (a multiple of
+    4) around and ``stacks`` up: the side's ``u`` the angle / 2 pi (counterclockwise from +x seen
+    from +z, seam at +x), ``v`` up; ``caps``: two disks (closed), each the texture's inscribed
+    circle seen from outside (top: u along +x, v along +y; bottom: u along +x, v along -y; neither
+    mirrored), a square grid mapped onto the disk (:func:`_disk_grid`) whose rim is the side's."""
+    if segments % 4 or segments < 8:
+        raise ValueError(f"segments must be a multiple of 4 (at least 8), got {segments}")
+    xy, disk, rim = _disk_grid(segments // 4)
+    ang = np.arctan2(xy[rim, 1], xy[rim, 0]) % (2 * np.pi)
+    u = np.concatenate([ang, [2 * np.pi]]) / (2 * np.pi)
+    uu, vv = np.meshgrid(u, np.arange(stacks + 1) / stacks)
+    ring = np.concatenate([xy[rim], xy[rim[:1]]])
+    n = np.broadcast_to(np.concatenate([ring, np.zeros((len(ring), 1))], 1), uu.shape + (3,))
+    p = radius * n + np.stack([0 * uu, 0 * uu, (vv - 0.5) * height], -1)
+    parts = [(p.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2), n.reshape(-1, 3),
+              _grid_faces(stacks, segments))]
+    for s in (1.0, -1.0) if caps else ():
+        cp = np.concatenate([radius * xy, np.full((len(xy), 1), s * height / 2)], axis=1)
+        parts.append((cp, 0.5 + 0.5 * xy * [1.0, s], np.tile([0.0, 0.0, s], (len(xy), 1)),
+                      disk if s > 0 else disk[:, ::-1]))
     return _join("cylinder", parts, uv_scale)
 
 

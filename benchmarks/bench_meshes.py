@@ -1,0 +1,82 @@
+"""Benchmark: the geometry of the truth on a model (hzval.model, hzval.displace), no rendering.
+
+Loads (or builds) a base mesh, estimates its texel-scale refinement, refines it, displaces it
+by a random height map, and prints where the time and the memory go and whether the result is
+watertight (every welded edge shared by two triangles, on a closed mesh). The default model is
+a 20,480-triangle torus (160 x 64, UVs wrapping both ways) at a 512 x 512 map: the issue's
+"20k-triangle model".
+
+Usage::
+
+    python benchmarks/bench_meshes.py [MESH] [--size 512] [--depth 0.05] [--max-edge 1.0]
+                                      [--powers-of-two] [--uv-scale 1] [--up y|z]
+
+MESH: a shape name, a .obj/.ply/.gltf/.glb path, or ``torus20k`` (the default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+import numpy as np
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 2 ** 20
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("mesh", nargs="?", default="torus20k")
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--depth", type=float, default=0.05)
+    ap.add_argument("--max-edge", type=float, default=1.0)
+    ap.add_argument("--powers-of-two", action="store_true")
+    ap.add_argument("--uv-scale", type=float, default=1.0)
+    ap.add_argument("--up", choices=("y", "z"), default=None)
+    a = ap.parse_args()
+
+    from hzval import displace as dp
+    from hzval import model
+
+    t0 = time.perf_counter()
+    base = (model.torus(segments=160, sides=64, uv_scale=a.uv_scale) if a.mesh == "torus20k"
+            else model.load(a.mesh, uv_scale=a.uv_scale, up=a.up))
+    t1 = time.perf_counter()
+    rec = base.record()
+    print(f"base: {rec['source']}, {rec['triangles']} triangles, world_per_uv {rec['world_per_uv']:.4f}, "
+          f"tangents {rec['tangents']}, mirrored {rec['mirrored_fraction']:.3f}, seam edges {rec['seam_edges']}"
+          f"  [{t1 - t0:.2f} s]")
+    texels = (a.size, a.size)
+    kw = dict(max_edge_texels=a.max_edge, powers_of_two=a.powers_of_two)
+    tris, size = dp.estimate(base, texels, **kw)
+    t2 = time.perf_counter()
+    print(f"estimate: {tris} triangles, {size / 2**20:.0f} MiB  [{t2 - t1:.3f} s]")
+    start_rss, start_peak = _rss_mb(), _peak_mb()
+    r = dp.refine(base, texels, **kw)
+    t3 = time.perf_counter()
+    print(f"refine: {len(r.faces)} triangles, {len(r.weld)} vertices ({r.weld.max() + 1} welded), "
+          f"levels {int(r.levels.min())}..{int(r.levels.max())}  [{t3 - t2:.2f} s]")
+    h = np.random.default_rng(0).random(texels).astype(np.float32)
+    p, f = dp.displace(r, h, a.depth, base.world_per_uv, "wrap")
+    t4 = time.perf_counter()
+    print(f"displace: {len(p)} positions  [{t4 - t3:.2f} s]")
+    w = r.weld[f]
+    edges = np.sort(np.stack([w, np.roll(w, -1, 1)], -1).reshape(-1, 2), 1)
+    counts = np.unique(edges, axis=0, return_counts=True)[1]
+    print(f"edges: {dict(zip(*np.unique(counts, return_counts=True)))} (triangles per welded edge: count)")
+    peak = _peak_mb() - max(start_rss, start_peak)
+    print(f"memory: peak {_peak_mb():.0f} MiB, {peak * 2**20 / len(f):.0f} bytes per triangle over the "
+          f"start; estimate {dp.BYTES_PER_TRIANGLE}")
+    print(f"total: {t4 - t0:.2f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,156 @@
+"""The displaced surface on a base mesh (hzval.displace): the refinement covers every base
+triangle once, is watertight across UV seams on closed shapes, reproduces the plane's heights at
+texel centres, and turns with the UVs."""
+
+import numpy as np
+import pytest
+from scipy.spatial import Delaunay
+
+from hzval import displace as dp
+from hzval import model
+
+
+def edge_counts(weld, faces):
+    f = weld[faces]
+    e = np.sort(np.stack([f, np.roll(f, -1, 1)], -1).reshape(-1, 2), 1)
+    return np.unique(e, axis=0, return_counts=True)[1]
+
+
+def uv_area(uv, faces):
+    t = uv[faces]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return 0.5 * (d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1])
+
+
+def scattered_plane(seed=0, points=40):
+    """A unit quad cut into triangles of very different sizes (Delaunay of random points), UVs = xy:
+    neighbouring triangles get different levels, so the edges' nodes are snapped."""
+    rng = np.random.default_rng(seed)
+    xy = np.concatenate([[[0, 0], [1, 0], [1, 1], [0, 1]], rng.random((points, 2)) ** 3])
+    tri = Delaunay(xy).simplices
+    a = uv_area(xy, tri)
+    tri[a < 0] = tri[a < 0][:, ::-1]
+    p = np.concatenate([xy, np.zeros((len(xy), 1))], 1)
+    return model.build("scattered", p, xy, tri, normals=np.tile([0.0, 0, 1], (len(xy), 1)))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8])
+def test_lattice_has_n_squared_counterclockwise_triangles(n):
+    lat = dp.lattice(n)
+    assert len(lat.faces) == n * n and len(lat.ab) == (n + 1) * (n + 2) // 2
+    assert np.all(uv_area(lat.ab.astype(float), lat.faces) > 0)
+
+
+@pytest.mark.parametrize("mesh", ["scattered", "cylinder", "cube", "sphere"])
+@pytest.mark.parametrize("pow2", [False, True])
+def test_refinement_covers_each_base_triangle_once(mesh, pow2):
+    base = scattered_plane() if mesh == "scattered" else model.load(mesh)
+    r = dp.refine(base, (24, 24), powers_of_two=pow2)
+    a = uv_area(r.uvs, r.faces) * np.sign(base.uv_areas[r.base_face])
+    assert a.min() > -1e-12                       # nothing folds over
+    total = np.bincount(r.base_face, a, minlength=len(base.faces))
+    np.testing.assert_allclose(total, np.abs(base.uv_areas), rtol=1e-9, atol=1e-15)
+    assert len(np.unique(r.levels)) > 1 or mesh in ("cube", "sphere")
+    # edges about a texel: the lattice's are at most one; a node snapped to a coarser edge's piece
+    # (at most a texel) reaches the next row of the lattice within two
+    uv = r.uvs[r.faces] * 24
+    assert np.linalg.norm(np.roll(uv, -1, 1) - uv, axis=-1).max() <= 2.0
+
+
+def test_open_mesh_is_watertight_inside():
+    r = dp.refine(scattered_plane(1), (32, 32))
+    c = edge_counts(r.weld, r.faces)
+    assert set(np.unique(c)) == {1, 2}
+    # the boundary is the quad's four sides, cut into the pieces of their own levels
+    base = scattered_plane(1)
+    key, _, inverse, counts = model.edge_table(base.faces, base.weld)
+    outer = counts[inverse] == 1
+    assert np.sum(c == 1) == dp.edge_levels(base, (32, 32))[outer].sum()
+
+
+@pytest.mark.parametrize("name", ["cube", "sphere", "cylinder", "torus"])
+def test_closed_shapes_stay_closed(name):
+    base = model.load(name)
+    r = dp.refine(base, (16, 16))
+    assert np.all(edge_counts(r.weld, r.faces) == 2)
+    # each position has one weld id and each weld id one position
+    assert len(np.unique(r.positions, axis=0)) == r.weld.max() + 1
+    h = np.random.default_rng(2).random((16, 16)).astype(np.float32)
+    p, f = dp.displace(r, h, 0.1, base.world_per_uv, "wrap")
+    assert len(np.unique(p, axis=0)) == r.weld.max() + 1   # the seams' sides share their positions
+    v = p.astype(np.float64)[f]
+    volume = np.sum(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2]))) / 6
+    b = base.positions[base.faces]
+    assert volume > np.sum(np.einsum("ij,ij->i", b[:, 0], np.cross(b[:, 1], b[:, 2]))) / 6
+
+
+def test_displaced_cube_has_no_crack():
+    base = model.cube()
+    r = dp.refine(base, (8, 8))
+    p, f = dp.displace(r, np.ones((8, 8), np.float32), 0.25, base.world_per_uv, "open")
+    # welded vertices on the cube's edges share one point: the mean normal's direction
+    seam = np.flatnonzero(np.bincount(r.weld)[r.weld] > 1)
+    for w in np.unique(r.weld[seam])[:50]:
+        assert len(np.unique(p[r.weld == w], axis=0)) == 1
+    assert np.all(edge_counts(r.weld, f) == 2)
+    # a corner moves along the diagonal by the full height: (0.5, 0.5, 0.5) + 0.25 (1, 1, 1) / sqrt(3)
+    corner = np.flatnonzero(np.all(np.isclose(r.positions, 0.5), axis=1))
+    np.testing.assert_allclose(p[corner], 0.5 + 0.25 / np.sqrt(3), rtol=1e-6)
+
+
+@pytest.mark.parametrize("shape,pow2,tol", [((16, 16), False, 0.7072), ((8, 16), True, 1.0)])
+def test_plane_heights_at_texel_centres(shape, pow2, tol):
+    rows, cols = shape
+    h = np.random.default_rng(3).random(shape).astype(np.float32)
+    base = model.plane()
+    r = dp.refine(base, shape, max_edge_texels=tol, powers_of_two=pow2)
+    p, _ = dp.displace(r, h, 0.05, base.world_per_uv, "wrap")
+    x = (np.arange(cols) + 0.5) / cols
+    y = 1 - (np.arange(rows) + 0.5) / rows
+    key = {(round(a * 4 * cols), round(b * 4 * rows)): i for i, (a, b) in enumerate(r.positions[:, :2])}
+    idx = np.array([[key[(round(a * 4 * cols), round(b * 4 * rows))] for a in x] for b in y])
+    np.testing.assert_allclose(p[idx, 2], h * 0.05, atol=1e-8)
+    np.testing.assert_array_equal(p[:, :2], r.positions[:, :2].astype(np.float32))
+
+
+@pytest.mark.parametrize("turn", ["mirror_u", "rotate_90"])
+@pytest.mark.parametrize("boundary", ["wrap", "open"])
+def test_surface_turns_with_the_uvs(turn, boundary):
+    """A quad whose UVs are mirrored or turned, carrying the image mirrored or turned back, is the
+    same surface (the issue's three quads)."""
+    h = np.random.default_rng(4).random((12, 12)).astype(np.float32)
+    a = model.plane()
+    if turn == "mirror_u":
+        uv, hb = a.positions[:, :2] * [-1, 1] + [1, 0], h[:, ::-1]
+    else:
+        uv, hb = np.stack([a.positions[:, 1], 1 - a.positions[:, 0]], -1), np.rot90(h, -1)
+    b = model.build("turned", a.positions, uv, a.faces, normals=a.normals)
+    pa, _ = dp.displace(dp.refine(a, h.shape), h, 0.1, 1.0, boundary)
+    pb, _ = dp.displace(dp.refine(b, hb.shape), hb, 0.1, 1.0, boundary)
+    sa, sb = pa[np.lexsort(pa[:, :2].T)], pb[np.lexsort(pb[:, :2].T)]
+    np.testing.assert_allclose(sa, sb, atol=2e-7)
+
+
+def test_refined_frames_keep_handedness_and_are_orthonormal():
+    base = model.cube()
+    r = dp.refine(base, (6, 6))
+    np.testing.assert_allclose(np.sum(r.normals * r.tangents[:, :3], -1), 0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(r.tangents[:, :3], axis=-1), 1, atol=1e-12)
+    np.testing.assert_array_equal(r.tangents[r.faces, 3].min(1), r.tangents[r.faces, 3].max(1))
+    np.testing.assert_array_equal(r.tangents[r.faces[:, 0], 3], base.tangents[base.faces[r.base_face, 0], 3])
+
+
+def test_estimate_bounds_the_refinement():
+    for base in (model.sphere(), scattered_plane(5)):
+        tris, size = dp.estimate(base, (64, 64))
+        r = dp.refine(base, (64, 64))
+        assert len(r.faces) <= tris == int(np.sum(r.levels ** 2))
+        assert size == tris * dp.BYTES_PER_TRIANGLE
+
+
+def test_sample_height_between_texel_centres():
+    h = np.arange(12, dtype=np.float32).reshape(3, 4)
+    uv = np.array([[0.5 / 4, 1 - 0.5 / 3], [1.5 / 4, 1 - 2.5 / 3], [1.0 / 4, 1 - 1.0 / 3], [0.0, 0.5]])
+    np.testing.assert_allclose(dp.sample_height(h, uv, "open")[:3], [0, 9, 2.5])
+    assert dp.sample_height(h, uv[3:], "wrap")[0] == pytest.approx(0.5 * (4 + 7))   # wraps to col 3
+    assert dp.sample_height(h, uv[3:], "open")[0] == pytest.approx(4.0)            # clamps to col 0
