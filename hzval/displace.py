@@ -314,6 +314,8 @@ def displace(refined: Refined, height: np.ndarray, depth: float, world_per_uv: f
     (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld
     id (a seam's sides) share one position, bit for bit: their mean height along the mean of their
     normals (their first normal where those cancel), so the mesh is as closed as the base."""
+    if np.ndim(height) != 2 or not np.all(np.isfinite(height)):
+        raise ValueError("height must be a finite (rows, cols) array")
     h = sample_height(height, refined.uvs, boundary) * (float(depth) * float(world_per_uv))
     w = refined.weld
     n = weld_means(w, refined.normals)

@@ -214,3 +214,17 @@ def test_unknown_shape_and_flags():
         model.load("plane", uv_scale=0)
     with pytest.raises(InputError, match="--up"):
         model.load("plane", up="x")
+
+
+def test_shape_arguments():
+    assert model.load("sphere", shape_args={"radius": 2.0}).bounding_sphere()[1] == pytest.approx(2.0)
+    assert len(model.load("torus", shape_args={"segments": 8, "sides": 4}).faces) == 64
+    with pytest.raises(InputError, match="no argument 'radius'") as e:
+        model.load("torus", shape_args={"radius": 1})
+    assert "major" in str(e.value)
+    with pytest.raises(InputError, match="positive"):
+        model.load("sphere", shape_args={"radius": -1})
+    with pytest.raises(InputError, match="whole number"):
+        model.load("sphere", shape_args={"segments": 8.5})
+    with pytest.raises(InputError, match="multiple of 4"):
+        model.load("cylinder", shape_args={"segments": 6})
