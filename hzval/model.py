@@ -175,13 +175,17 @@ def count_seams(mesh: BaseMesh, tolerance: float = 1e-9) -> int:
 # ----------------------------------------------------------------------------------------------
 
 def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals summed over each welded position, so both sides of a UV seam
-    get the same normal (a file without normals)."""
+    """Angle-weighted vertex normals (each triangle's unit normal times its angle at the vertex,
+    Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
+    the same normal and a quad's triangulation does not change it (a file without normals)."""
     p = positions[faces]
-    face_n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # length = twice the area
+    face_n = tg._normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     acc = np.zeros((int(weld.max(initial=0)) + 1, 3))
     for k in range(3):
-        np.add.at(acc, weld[faces[:, k]], face_n)
+        a = tg._normalize(p[:, (k + 1) % 3] - p[:, k])
+        b = tg._normalize(p[:, (k + 2) % 3] - p[:, k])
+        angle = np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
+        np.add.at(acc, weld[faces[:, k]], face_n * angle[:, None])
     return tg._normalize(acc[weld])
 
 
