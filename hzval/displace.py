@@ -275,28 +275,46 @@ def refine(base: BaseMesh, texels: tuple[int, int], *, max_edge_texels: float = 
 # Displacement
 # ----------------------------------------------------------------------------------------------
 
-def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
-    """``(V,)`` float64: ``H`` read bilinearly between texel centres at hzval UVs (u right, v up
-    the image, :mod:`hzval.model`), as the plane reads it: texel ``(row, col)``'s centre is at
-    ``x = col + 0.5``, ``y = rows - row - 0.5`` (:func:`hzval.conventions.texel_centres`) with
-    ``x = u cols``, ``y = v rows``; ``wrap`` repeats the image, ``open`` clamps to its border."""
+def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
+    """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres at
+    hzval UVs (u right, v up the image, :mod:`hzval.model`), as the plane reads it: texel
+    ``(row, col)``'s centre is at ``x = col + 0.5``, ``y = rows - row - 0.5``
+    (:func:`hzval.conventions.texel_centres`) with ``x = u cols``, ``y = v rows``; ``wrap``
+    repeats the image, ``open`` clamps to its border. Returns ``(V,)`` or ``(V, k)`` float64."""
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
-    h = np.asarray(height, np.float64)
-    rows, cols = h.shape
+    img = np.asarray(image, np.float64)
+    rows, cols = img.shape[:2]
     fx = np.asarray(uvs[:, 0], np.float64) * cols - 0.5          # column coordinate of the centres
     fy = rows - np.asarray(uvs[:, 1], np.float64) * rows - 0.5   # row coordinate
     c0, r0 = np.floor(fx), np.floor(fy)
     a, b = fx - c0, fy - r0
+    if img.ndim == 3:
+        a, b = a[:, None], b[:, None]
     c0, r0 = c0.astype(np.int64), r0.astype(np.int64)
 
     def at(r, c):
         if boundary == "wrap":
-            return h[r % rows, c % cols]
-        return h[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
+            return img[r % rows, c % cols]
+        return img[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
 
     return ((1 - b) * ((1 - a) * at(r0, c0) + a * at(r0, c0 + 1))
             + b * ((1 - a) * at(r0 + 1, c0) + a * at(r0 + 1, c0 + 1)))
+
+
+def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
+    """``(V,)`` float64: the height map ``H`` at ``uvs`` (:func:`bilinear`)."""
+    return bilinear(height, uvs, boundary)
+
+
+def shading_normals(refined: Refined, normal_map: np.ndarray, boundary: str) -> np.ndarray:
+    """``(V, 3)`` float32 unit world normals of the refined vertices: the tangent-space normal map
+    (``(rows, cols, 3)``, :func:`hzval.bake.normal_map`: x along +u, y along +v, z out) read at
+    each vertex (:func:`bilinear`) and carried to the world by the vertex's frame
+    (:func:`hzval.tangents.to_world`), as the techniques carry it at their hit points."""
+    m = bilinear(normal_map, refined.uvs, boundary)
+    n = tg.to_world(m, refined.normals, refined.tangents[:, :3], refined.tangents[:, 3])
+    return tg._normalize(n).astype(np.float32)
 
 
 def weld_means(weld: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -314,6 +332,8 @@ def displace(refined: Refined, height: np.ndarray, depth: float, world_per_uv: f
     (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld
     id (a seam's sides) share one position, bit for bit: their mean height along the mean of their
     normals (their first normal where those cancel), so the mesh is as closed as the base."""
+    if np.ndim(height) != 2 or not np.all(np.isfinite(height)):
+        raise ValueError("height must be a finite (rows, cols) array")
     h = sample_height(height, refined.uvs, boundary) * (float(depth) * float(world_per_uv))
     w = refined.weld
     n = weld_means(w, refined.normals)

@@ -54,7 +54,7 @@ UP_AXES: tuple[str, ...] = ("y", "z")
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BaseMesh:
     """A triangle mesh with UVs and tangent frames, in hzval's world (z up).
 
@@ -175,13 +175,17 @@ def count_seams(mesh: BaseMesh, tolerance: float = 1e-9) -> int:
 # ----------------------------------------------------------------------------------------------
 
 def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals summed over each welded position, so both sides of a UV seam
-    get the same normal (a file without normals)."""
+    """Angle-weighted vertex normals (each triangle's unit normal times its angle at the vertex,
+    Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
+    the same normal and a quad's triangulation does not change it (a file without normals)."""
     p = positions[faces]
-    face_n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # length = twice the area
+    face_n = tg._normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     acc = np.zeros((int(weld.max(initial=0)) + 1, 3))
     for k in range(3):
-        np.add.at(acc, weld[faces[:, k]], face_n)
+        a = tg._normalize(p[:, (k + 1) % 3] - p[:, k])
+        b = tg._normalize(p[:, (k + 2) % 3] - p[:, k])
+        angle = np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
+        np.add.at(acc, weld[faces[:, k]], face_n * angle[:, None])
     return tg._normalize(acc[weld])
 
 
@@ -556,18 +560,43 @@ READERS: dict[str, Callable[..., BaseMesh]] = {".obj": read_trimesh, ".ply": rea
                                                   ".gltf": read_gltf, ".glb": read_gltf}
 
 
-def load(spec: str, *, uv_scale: float = 1.0, up: str | None = None) -> BaseMesh:
-    """The base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, ``up`` ignored: they are z
-    up) or a file by its extension (:data:`READERS`), read with the up axis ``up`` (None: y,
-    the module's "Up axis of files"). ``uv_scale`` > 0 repeats the texture. Anything wrong is one
-    :class:`InputError` naming the file or the flag."""
+def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
+    """``SHAPES[name](**args)``, a bad keyword or value as one line naming the shape's argument."""
+    import inspect
+
+    params = {k: p.default for k, p in inspect.signature(SHAPES[name]).parameters.items() if k != "uv_scale"}
+    for key, value in args.items():
+        if key not in params:
+            raise InputError(f"[mesh] {key}", f"{name} has no argument {key!r} (it has: {', '.join(params)})")
+        kind = type(params[key])  # the default's type: bool, int (counts) or float (lengths)
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if kind is bool and not isinstance(value, bool):
+            raise InputError(f"[mesh] {key}", f"must be true or false, got {value!r}")
+        if kind is int and not (number and value == int(value) and value > 0):
+            raise InputError(f"[mesh] {key}", f"must be a positive whole number, got {value!r}")
+        if kind is float and not (number and math.isfinite(value) and value > 0):
+            raise InputError(f"[mesh] {key}", f"must be a positive number, got {value!r}")
+        args[key] = int(value) if kind is int else value
+    try:
+        return SHAPES[name](uv_scale=uv_scale, **args)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"[mesh] {name}", str(exc)) from None
+
+
+def load(spec: str, *, uv_scale: float = 1.0, up: str | None = None,
+         shape_args: dict | None = None) -> BaseMesh:
+    """The base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, with ``shape_args``, e.g.
+    ``{"radius": 2}``; ``up`` ignored: they are z up) or a file by its extension
+    (:data:`READERS`), read with the up axis ``up`` (None: y, the module's "Up axis of files").
+    ``uv_scale`` > 0 repeats the texture. Anything wrong is one :class:`InputError` naming the
+    file or the flag."""
     if not (isinstance(uv_scale, (int, float)) and math.isfinite(uv_scale) and uv_scale > 0):
         raise InputError("--uv-scale", f"must be a positive number, got {uv_scale!r}")
     if up is not None and up not in UP_AXES:
         raise InputError("--up", f"must be one of {', '.join(UP_AXES)}, got {up!r}")
     spec = os.fspath(spec)
     if spec in SHAPES:
-        return SHAPES[spec](uv_scale=float(uv_scale))
+        return _shape(spec, float(uv_scale), dict(shape_args or {}))
     ext = os.path.splitext(spec)[1].lower()
     if not ext:
         near = difflib.get_close_matches(spec, list(SHAPES), n=3)

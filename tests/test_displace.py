@@ -154,3 +154,33 @@ def test_sample_height_between_texel_centres():
     np.testing.assert_allclose(dp.sample_height(h, uv, "open")[:3], [0, 9, 2.5])
     assert dp.sample_height(h, uv[3:], "wrap")[0] == pytest.approx(0.5 * (4 + 7))   # wraps to col 3
     assert dp.sample_height(h, uv[3:], "open")[0] == pytest.approx(4.0)            # clamps to col 0
+
+
+def test_shading_normals_on_the_plane_are_the_normal_map():
+    from hzval.bake import normal_map
+
+    h = np.random.default_rng(6).random((8, 8)).astype(np.float32)
+    nmap = normal_map(h * 0.05 * 8, "wrap")
+    base = model.plane()
+    r = dp.refine(base, h.shape, max_edge_texels=0.7072)
+    n = dp.shading_normals(r, nmap, "wrap")
+    x = (np.arange(8) + 0.5) / 8
+    key = {(round(a * 32), round(b * 32)): i for i, (a, b) in enumerate(r.positions[:, :2])}
+    idx = np.array([[key[(round(a * 32), round(b * 32))] for a in x] for b in x[::-1]])
+    np.testing.assert_allclose(n[idx], nmap / np.linalg.norm(nmap, axis=-1, keepdims=True), atol=1e-6)
+
+
+def test_shading_normals_follow_the_mirrored_frame():
+    """On the cube's mirrored face -x the map's +x (toward +u) points along the face's +u axis."""
+    base = model.cube()
+    r = dp.refine(base, (4, 4))
+    tilted = np.broadcast_to(np.array([0.6, 0.0, 0.8]), (4, 4, 3))
+    n = dp.shading_normals(r, tilted, "wrap")
+    for k, (name, normal, u_axis, _) in enumerate(model.CUBE_FACES):
+        on = np.isin(r.base_face, [2 * k, 2 * k + 1])
+        v = np.unique(r.faces[on])
+        inner = v[np.abs(r.positions[v] @ np.array(normal, float) - 0.5) < 1e-9]
+        inner = inner[np.all(np.abs(r.positions[inner] @ np.abs(np.array([u_axis, _], float)).T) < 0.49, axis=1)]
+        assert len(inner) >= 9
+        np.testing.assert_allclose(n[inner], np.tile(0.6 * np.array(u_axis) + 0.8 * np.array(normal), (len(inner), 1)),
+                                   atol=1e-6, err_msg=name)

@@ -214,3 +214,59 @@ def test_unknown_shape_and_flags():
         model.load("plane", uv_scale=0)
     with pytest.raises(InputError, match="--up"):
         model.load("plane", up="x")
+
+
+def test_shape_arguments():
+    assert model.load("sphere", shape_args={"radius": 2.0}).bounding_sphere()[1] == pytest.approx(2.0)
+    assert len(model.load("torus", shape_args={"segments": 8, "sides": 4}).faces) == 64
+    with pytest.raises(InputError, match="no argument 'radius'") as e:
+        model.load("torus", shape_args={"radius": 1})
+    assert "major" in str(e.value)
+    with pytest.raises(InputError, match="positive"):
+        model.load("sphere", shape_args={"radius": -1})
+    with pytest.raises(InputError, match="whole number"):
+        model.load("sphere", shape_args={"segments": 8.5})
+    with pytest.raises(InputError, match="multiple of 4"):
+        model.load("cylinder", shape_args={"segments": 6})
+
+
+def _cube_corners():
+    """The cube as 8 shared corners, each face's UVs in its own cell of a 3 x 2 atlas (mirrored
+    where :data:`hzval.model.CUBE_FACES` mirrors), so no two faces share a UV at a corner."""
+    c = model.cube()
+    cell = np.repeat(np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]]), 4, axis=0)
+    uv = (c.uvs * 0.3 + 0.01 + cell * 0.33)
+    corners, idx = np.unique(np.round(c.positions, 9), axis=0, return_inverse=True)
+    return c, uv, corners, idx.ravel()
+
+
+def test_ply_with_per_face_texcoords(tmp_path):
+    """A scanner's PLY: shared vertices, UVs per face corner (``property list uchar float texcoord``)."""
+    c, uv, corners, idx = _cube_corners()
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(corners)}", "property float x",
+             "property float y", "property float z", f"element face {len(c.faces)}",
+             "property list uchar int vertex_indices", "property list uchar float texcoord", "end_header"]
+    lines += [" ".join(map(str, p)) for p in corners]
+    for f in c.faces:
+        lines.append("3 " + " ".join(map(str, idx[f])) + " 6 " + " ".join(f"{u} {v}" for u, v in uv[f]))
+    (tmp_path / "wedge.ply").write_text("\n".join(lines) + "\n")
+    m = model.load(str(tmp_path / "wedge.ply"), up="z")
+    assert m.mirrored_fraction == pytest.approx(1 / 3) and m.seam_edges == 12
+    assert np.all(_edge_counts(m) == 2)
+    assert m.world_per_uv == pytest.approx(1 / 0.3)
+
+
+def test_obj_with_quads_and_shared_positions(tmp_path):
+    c, uv, corners, idx = _cube_corners()
+    lines = [f"v {x} {y} {z}" for x, y, z in corners] + [f"vt {u} {v}" for u, v in uv]
+    for k in range(6):  # each face one quad, counterclockwise seen from outside
+        quad = list(range(4 * k, 4 * k + 4))
+        quad = quad if c.faces[2 * k][0] == 4 * k else quad[::-1]
+        lines.append("f " + " ".join(f"{idx[v] + 1}/{v + 1}" for v in quad))
+    (tmp_path / "quads.obj").write_text("\n".join(lines) + "\n")
+    m = model.load(str(tmp_path / "quads.obj"), up="z")
+    assert len(m.faces) == 12 and m.seam_edges == 12
+    assert m.mirrored_fraction == pytest.approx(1 / 3)
+    # no normals in the file: each corner's is the mean of its three faces' (one per position)
+    corner = np.abs(m.normals).min(axis=1)
+    np.testing.assert_allclose(corner, 1 / np.sqrt(3), rtol=1e-9)
