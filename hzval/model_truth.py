@@ -65,27 +65,41 @@ BYTES_PER_SAMPLE = 4 * 22 + 4 * 14
 BYTES_PER_TRIANGLE = 120
 
 
-def model_view(camera: Camera, centre, radius: float, shape: tuple[int, int]) -> View:
-    """The camera framing a model's bounding sphere (``centre``, ``radius``, world units), looking
-    from elevation/azimuth about the world's up axis (+z), as :meth:`hzval.camera.Camera.view` looks
-    at a tile. ``top`` looks straight down, orthographic; an orthographic film spans the sphere;
-    a perspective eye sits at ``distance`` sphere diameters, or farther where the field of view
-    needs it to hold the sphere."""
+def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> View:
+    """The camera over a model whose displaced surface lies within ``points`` ``(N, 3)`` (world
+    units), looking from elevation/azimuth about the world's up axis (+z) as
+    :meth:`hzval.camera.Camera.view` looks at a tile (``top``: straight down).
+
+    A perspective eye frames the points' bounding sphere: ``distance`` sphere diameters from its
+    centre, or farther where the field of view needs it to hold the sphere. An orthographic film
+    spans the points' projection, at the image's aspect, centred on it: on a unit quad whose UVs
+    are its ``(x, y)`` these are the plane's own rays (its film is the tile), so the two agree
+    pixel for pixel (``tests/test_model_truth.py``)."""
     H, W = shape
     e = 90.0 if camera.kind == "top" else camera.elevation_deg
     a = -90.0 if camera.kind == "top" else camera.azimuth_deg
     er, ar = math.radians(e), math.radians(a)
     w = np.array([math.cos(er) * math.cos(ar), math.cos(er) * math.sin(ar), math.sin(er)])
     up = (0.0, 0.0, 1.0) if e < 90.0 - 1e-9 else (-math.cos(ar), -math.sin(ar), 0.0)
-    c = np.asarray(centre, float)
-    R = max(float(radius), 1e-12)
+    pts = np.asarray(points, float)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    R = max(float(np.linalg.norm(pts - centre, axis=1).max()), 1e-12)
     if camera.kind == "perspective":
         half = math.atan(math.tan(math.radians(camera.fov_deg) / 2.0) * min(1.0, H / W))
         dist = max(camera.distance * 2.0 * R, 1.02 * R / math.sin(half))
-        return View("perspective", tuple(c + dist * w), tuple(c), up, float(camera.fov_deg), None, (W, H),
-                    0, 0, 0.0, 0.0, 1)
-    film = (2.0 * R * max(1.0, W / H), 2.0 * R * max(1.0, H / W))
-    return View("orthographic", tuple(c + 2.0 * R * w), tuple(c), up, None, film, (W, H), 0, 0, 0.0, 0.0, 1)
+        return View("perspective", tuple(centre + dist * w), tuple(centre), up, float(camera.fov_deg), None,
+                    (W, H), 0, 0, 0.0, 0.0, 1)
+    f = -w
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    t = np.cross(r, f)
+    pr, pt = pts @ r, pts @ t
+    fw, fh = float(pr.max() - pr.min()), float(pt.max() - pt.min())
+    film = (max(fw, fh * W / H, 1e-12), max(fh, fw * H / W, 1e-12))
+    target = r * (0.5 * (pr.max() + pr.min())) + t * (0.5 * (pt.max() + pt.min())) + f * float(centre @ f)
+    return View("orthographic", tuple(target + (2.0 * R + 1.0) * w), tuple(target), up, None, film, (W, H),
+                0, 0, 0.0, 0.0, 1)
 
 
 def _welded_normals(model) -> np.ndarray:
@@ -160,7 +174,8 @@ class ModelTruth:
         self.timings: dict[str, float] = {}
         t0 = time.perf_counter()
         mat = scene.material
-        refined = displace.refine(model, (rows, cols))
+        refined = displace.refine(model, (rows, cols), mat.boundary, height=h, depth=mat.depth,
+                                  tolerance=mat.truth_tolerance)
         positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
         self._texel = model.world_per_uv / cols                 # world units per texel
         h_tex = cv.heights_in_texels(h, mat.depth)
@@ -178,7 +193,10 @@ class ModelTruth:
                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
                                         wrap_mode=wrap)
         self._albedo = self._load_albedo(albedo)
-        self.view = model_view(scene.camera, *model.bounding_sphere(), self.shape)
+        # the displaced surface lies within the base mesh moved along its normals by the relief
+        n_w = _welded_normals(model)
+        extent = [model.positions + n_w * (float(z) * self._texel) for z in (h_tex.min(), h_tex.max())]
+        self.view = model_view(scene.camera, np.concatenate(extent), self.shape)
         self.timings["mesh_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         self._trace_camera()

@@ -1,7 +1,7 @@
 """The truth on a model and the techniques on it (hzval.model_truth), against what must hold.
 
-- A unit quad whose UVs are its (x, y) carries the plane's surface: the same mean visibility and
-  the same horizon-map error as the tile (statistically: the views differ in framing).
+- A unit quad whose UVs are its (x, y) is the plane: its camera is the tile's, its techniques'
+  factors the plane's pixel for pixel, its truth the plane's to the noise.
 - The same surface on a quad mirrored in u (the photo mirrored back) or with its UVs turned 90
   degrees (the photo turned back) renders the same truth and the same factors, pixel by pixel:
   the tangent frames, not the world, carry the light into the texture's space.
@@ -74,22 +74,25 @@ def test_quads_carrying_one_surface_agree_pixel_by_pixel(variant):
             assert abs(e - e0) <= 0.03 * e0 + 1e-3, name
 
 
-def test_the_xy_quad_scores_as_the_plane(variant):
+def test_the_xy_quad_is_the_plane(variant):
+    """The unit quad with UVs = (x, y), orthographic at 60 degrees: the camera frames it as the plane
+    frames the tile, so the techniques' factors are the plane's pixel for pixel, and the truth's
+    surface (cut along the texel grid, a fan about every cell's centre) is the plane's: the same
+    mean V and |F - V| to the noise of the few samples that land differently."""
     scene = _scene(n=64)
     h = _height(scene)
     mt, frames = _render_quad(scene, h, "xy")
     plane = truth.Truth(scene, h)
-    ctx = _context(scene, h, None)
-    at_hits = _context(scene, h, None)
-    tech = technique.get("horizon").build(ctx)
+    tech = technique.get("horizon").build(_context(scene, h, None))
     for az, (t, f) in zip(scene.light.azimuths_deg, frames):
         p = plane.render(az)
-        m = p.mask if p.mask is not None else np.ones(p.image.shape[:2], bool)
-        Vp, Fp = p.layers["visibility"][m], tech.render(az).layers["factor"][m]
-        V, F = t.layers["visibility"][mt.seen], f.layers["factor"][mt.seen]
-        assert abs(V.mean() - Vp.mean()) < 0.02
-        assert abs(np.abs(F - V).mean() - np.abs(Fp - Vp).mean()) <= 0.1 * np.abs(Fp - Vp).mean() + 2e-3
-    del at_hits
+        m = mt.seen & (p.mask if p.mask is not None else True)
+        assert m.mean() > 0.8
+        Fp, F = tech.render(az).layers["factor"][m], f.layers["factor"][m]
+        np.testing.assert_allclose(F, Fp, atol=1e-4)
+        Vp, V = p.layers["visibility"][m], t.layers["visibility"][m]
+        assert abs(V.mean() - Vp.mean()) < 0.002
+        assert abs(np.abs(F - V).mean() - np.abs(Fp - Vp).mean()) <= 0.02 * np.abs(Fp - Vp).mean()
 
 
 def test_lit_truth_is_the_unshadowed_shading_at_its_hits(variant):
