@@ -49,7 +49,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         n = write_torus(tmp / "torus.obj", args.triangles)
-        cmd = [sys.executable, "-m", "hzval.cli", "sweep", "--material", args.material, "--size", str(args.size),
+        cmd = [sys.executable, "-m", "hzval", "sweep", "--material", args.material, "--size", str(args.size),
                "--mesh", str(tmp / "torus.obj"), "--up", "z", "--camera", "perspective", "--view-elevation", "35",
                "--resolution", f"{args.resolution}x{args.resolution}", "--spp", str(args.spp),
                "--azimuths", "-60:60:30", "--out", str(tmp / "out"), "--quiet"]

@@ -554,6 +554,9 @@ def cmd_sweep(args) -> int:
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
     scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
+    if not scene.mesh.is_plane and scene.camera == base.camera == sc.Camera():
+        # a model seen from straight above shows one face: its default view shows three
+        scene = dataclasses.replace(scene, camera=sc.MODEL_CAMERA).validate()
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))

@@ -108,6 +108,10 @@ class MeshSpec:
         return self.shape == "plane" and self.uv_scale == 1.0
 
 
+#: The camera of a sweep on a model that names none: in perspective from 35 degrees up, so that a
+#: cube shows three faces (the plane's default, ``top``, would show one).
+MODEL_CAMERA = Camera(kind="perspective", elevation_deg=35.0, azimuth_deg=-30.0)
+
 #: Suffixes of the mesh files a scene may name (hzval.model reads them).
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".gltf", ".glb")
 
