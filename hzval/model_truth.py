@@ -174,6 +174,7 @@ class ModelTruth:
         self.timings: dict[str, float] = {}
         t0 = time.perf_counter()
         mat = scene.material
+        self._check_fits(model, h)
         refined = displace.refine(model, (rows, cols), mat.boundary, height=h, depth=mat.depth,
                                   tolerance=mat.truth_tolerance)
         positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
@@ -202,6 +203,21 @@ class ModelTruth:
         self._trace_camera()
         self.timings["primary_s"] = time.perf_counter() - t0
         self._macro_key, self._macro_value = None, None
+
+    def _check_fits(self, model, h: np.ndarray) -> None:
+        """Refuse, before it is built, a displaced mesh (its twisted cells' rings counted) and camera
+        hits that would not fit in the memory available: one line naming the tolerance."""
+        from hzval import bake, displace
+
+        mat = self.scene.material
+        triangles, mesh_bytes = displace.estimate(model, (self.rows, self.cols), mat.boundary, height=h,
+                                                  depth=mat.depth, tolerance=mat.truth_tolerance)
+        need = mesh_bytes + BYTES_PER_TRIANGLE * triangles + BYTES_PER_SAMPLE * self.shape[0] * self.shape[1] * self.spp
+        have = bake.available_bytes()
+        if need > have:
+            raise InputError("--truth-tolerance", f"the displaced {model.source} would be about {triangles:.3g} "
+                             f"triangles, {need / 2**30:.1f} GiB with its camera hits; {have / 2**30:.1f} GiB are "
+                             "available (a larger tolerance, a smaller map or fewer --spp)")
 
     def _load_albedo(self, albedo):
         if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):

@@ -294,6 +294,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     albedo = sc.load_albedo(scene.material, rows, cols)
     the_truth, points = truth_of(scene, hm.height, albedo)
     timings["truth_setup_s"] = time.perf_counter() - t0
+    if points is not None:          # a model: its mesh (cut, displaced, its BVH) and camera rays
+        timings.update({f"truth_{k}": v for k, v in the_truth.timings.items()})
     ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
     plain = surface.unshadowed(ctx)
