@@ -93,9 +93,15 @@ def test_displaced_cube_has_no_crack():
     for w in np.unique(r.weld[seam])[:50]:
         assert len(np.unique(p[r.weld == w], axis=0)) == 1
     assert np.all(edge_counts(r.weld, f) == 2)
-    # a corner moves along the diagonal by the full height: (0.5, 0.5, 0.5) + 0.25 (1, 1, 1) / sqrt(3)
+    # miter: a constant height grows the cube into the cube of edge 1.5, faces flat to the edges
+    np.testing.assert_allclose(np.abs(p).max(axis=1), 0.75, rtol=1e-6)
     corner = np.flatnonzero(np.all(np.isclose(r.positions, 0.5), axis=1))
-    np.testing.assert_allclose(p[corner], 0.5 + 0.25 / np.sqrt(3), rtol=1e-6)
+    np.testing.assert_allclose(p[corner], 0.75, rtol=1e-6)
+    # mean: the corner moves along the diagonal by the height, (0.5, 0.5, 0.5) + 0.25 (1, 1, 1) / sqrt(3)
+    q, _ = dp.displace(r, np.ones((8, 8), np.float32), 0.25, base.world_per_uv, "open", weld="mean")
+    np.testing.assert_allclose(q[corner], 0.5 + 0.25 / np.sqrt(3), rtol=1e-6)
+    face = np.flatnonzero(np.isin(r.weld, np.flatnonzero(np.bincount(r.weld) == 1)))
+    np.testing.assert_allclose(np.abs(q[face]).max(axis=1), 0.75, rtol=1e-6)  # inside a face, both alike
 
 
 @pytest.mark.parametrize("shape,pow2,tol", [((16, 16), False, 0.7072), ((8, 16), True, 1.0)])
