@@ -7,20 +7,23 @@ interpolated normal by the bilinear height there (:func:`displace`):
 ``p + n * H(uv) * depth * world_per_uv``, ``depth`` in texture widths as on the plane.
 
 Watertight
-    Every base triangle is cut into ``n x n`` sub-triangles (``n`` a power of two, its *level*),
-    enough that its longest edge is cut into pieces of at most ``max_edge_texels`` texels (UV length
-    times the image's size). An edge's level is the largest its triangles ask for, on both sides of
-    a UV seam (edges are keyed by their welded end points, :func:`hzval.model.edge_table`); a
-    triangle's level is the largest of its edges'. A triangle finer than one of its edges snaps its
-    nodes on that edge to the edge's own ``m + 1`` nodes (rounded along the edge in the order of the
-    welded ids, so both sides round alike), which leaves zero-area triangles (harmless to a ray
-    tracer) and no T-junction. The node ``k / m`` of an edge is one point, computed by one float64
-    expression from the welded end points; it has one weld id on both sides of a seam, and
-    :func:`displace` gives every welded vertex the same displaced position (the mean height along
-    the mean of the normals, mitred at hard edges), so no light leaks through a crack.
+    Every base triangle is cut at a *level* ``n``: an inner lattice of its barycentric nodes
+    ``(n - a - b, a, b) / n`` with ``a, b >= 1``, stitched to its three sides. A side's level ``m``
+    is the number of pieces that leaves none longer than ``max_edge_texels`` texels (UV length
+    times the image's size), the largest that any triangle on it asks for, on both sides of a UV
+    seam (edges are keyed by their welded end points, :func:`hzval.model.edge_table`); a triangle's
+    ``n`` is the largest of its sides'. Each side is cut into exactly its ``m`` pieces and joined to
+    the row of lattice nodes next to it by a strip merged in order along the side (:func:`strip`,
+    the way a GPU tessellator joins its inner ring to its outer edges): no T-junction, no
+    zero-area triangle, nothing folds over. The node ``k / m`` of a side is one point, computed by
+    one float64 expression from the welded end points; it has one weld id on both sides of a seam,
+    and :func:`displace` gives every welded vertex the same displaced position (the mean height
+    along the mean of the normals, mitred at hard edges), so no light leaks through a crack. Long
+    thin triangles, whose ``n`` their longest side sets, are bisected first (:mod:`hzval.slivers`).
 The plane
-    The unit quad at ``n = 2 cols`` has a node at every texel centre, displaced by exactly
-    ``H * depth``: the plane's surface up to the tessellation (tests/test_displace.py).
+    The unit quad at ``n = 2 cols`` (``max_edge_texels = 0.7072``) has a node at every texel
+    centre, displaced by exactly ``H * depth``: the plane's surface up to the tessellation
+    (tests/test_displace.py).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import numpy as np
 from hzval import conventions as cv
 from hzval import tangents as tg
 from hzval.model import BaseMesh, edge_table
+from hzval.slivers import split
 
 #: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 330-390 bytes a
 #: triangle over their start (a 20k-triangle torus and model, the plane, 512^2 and 1024^2,
@@ -48,7 +52,8 @@ class Refined:
     ``normals (V, 3)`` (interpolated, normalised), ``tangents (V, 4)`` (interpolated,
     re-orthonormalised against the normal, ``w`` kept), ``uvs (V, 2)``, ``weld (V,)`` (one id per
     position, equal across a seam); ``faces (F, 3)`` int64 counterclockwise as the base's,
-    ``base_face (F,)`` the base triangle each came from, ``levels`` the base triangles' ``n``."""
+    ``base_face (F,)`` the base triangle each came from, ``levels`` the ``n`` of each piece that was
+    cut (the base triangles, or their halves where slivers were bisected, :mod:`hzval.slivers`)."""
 
     positions: np.ndarray
     normals: np.ndarray
@@ -94,124 +99,164 @@ def edge_levels(base: BaseMesh, texels: tuple[int, int], max_edge_texels: float 
 
 
 def estimate(base: BaseMesh, texels: tuple[int, int], max_edge_texels: float = 1.0, *,
-             powers_of_two: bool = False) -> tuple[int, int]:
-    """``(triangles, bytes)`` of :func:`refine` before it runs: ``sum n^2`` over the base
-    triangles (the zero-area ones that snapping removes included, an upper bound) and
-    :data:`BYTES_PER_TRIANGLE` each."""
-    n = edge_levels(base, texels, max_edge_texels, powers_of_two=powers_of_two).max(axis=1)
-    triangles = int(np.sum(n * n))
+             powers_of_two: bool = False, split_slivers: bool = True) -> tuple[int, int]:
+    """``(triangles, bytes)`` of :func:`refine` before it runs (its exact count,
+    :func:`triangles_of`) and :data:`BYTES_PER_TRIANGLE` each."""
+    if split_slivers:
+        base = split(base, texels, max_edge_texels)[0]
+    elev = edge_levels(base, texels, max_edge_texels, powers_of_two=powers_of_two)
+    triangles = int(np.sum(triangles_of(elev.max(axis=1), elev)))
     return triangles, triangles * BYTES_PER_TRIANGLE
 
 
 # ----------------------------------------------------------------------------------------------
-# The lattice of one triangle
+# One triangle's tessellation: an inner lattice and three stitched strips
 # ----------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class _Lattice:
-    """The nodes ``(a, b)``, ``a + b <= n``, of a triangle at level ``n``: barycentric weights
-    ``((n - a - b) / n, a / n, b / n)`` of corners 0, 1, 2. ``corner`` (P,) the corner a node is
-    (-1 if none), ``edge`` (P,) the edge it lies inside (0: corner 0 to 1, 1: 1 to 2, 2: 2 to 0;
-    -1 if none) and ``step`` (P,) its index along that edge from the edge's first corner;
-    ``faces (n^2, 3)`` the sub-triangles in node indices, counterclockwise as the triangle."""
+    """The inside of a triangle at level ``n``: its interior nodes, barycentric ``bary (I, 3)``
+    over corners 0, 1, 2 (the lattice nodes ``(n - a - b, a, b) / n`` with ``a, b >= 1``,
+    ``a + b <= n - 1``; for ``n = 2`` the centroid), ``inner (T, 3)`` the lattice's triangles
+    among them (``(n - 3)^2``), ``chains (3, L)`` the interior nodes next to each side ``e`` (corner
+    ``e`` to ``e + 1``) in order along it and ``params (L,)`` where they project onto the side
+    (``(j + 1.5) / n``, the same for each side by symmetry)."""
 
     n: int
-    ab: np.ndarray
-    corner: np.ndarray
-    edge: np.ndarray
-    step: np.ndarray
-    faces: np.ndarray
+    bary: np.ndarray
+    inner: np.ndarray
+    chains: np.ndarray
+    params: np.ndarray
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=64)
 def lattice(n: int) -> _Lattice:
     """The :class:`_Lattice` of level ``n`` (cached)."""
+    if n <= 2:
+        bary = np.full((n - 1, 3), 1.0 / 3.0)
+        return _Lattice(n, bary, np.zeros((0, 3), np.int64), np.zeros((3, n - 1), np.int64), np.full(n - 1, 0.5))
     b, a = np.divmod(np.arange((n + 1) ** 2), n + 1)
-    keep = a + b <= n
+    keep = (a >= 1) & (b >= 1) & (a + b <= n - 1)
     a, b = a[keep], b[keep]
     index = np.full((n + 1, n + 1), -1, np.int64)
     index[a, b] = np.arange(len(a))
-    corner = np.full(len(a), -1)
-    corner[index[0, 0]], corner[index[n, 0]], corner[index[0, n]] = 0, 1, 2
-    edge = np.full(len(a), -1)
-    step = np.zeros(len(a), np.int64)
-    inside = corner < 0
-    for e, on, s in ((0, b == 0, a), (1, a + b == n, b), (2, a == 0, n - b)):
-        edge[on & inside], step[on & inside] = e, s[on & inside]
-    ua, ub = np.nonzero(np.add.outer(np.arange(n + 1), np.arange(n + 1)) <= n - 1)
-    up = np.stack([index[ua, ub], index[ua + 1, ub], index[ua, ub + 1]], -1)
-    da, db = np.nonzero(np.add.outer(np.arange(n + 1), np.arange(n + 1)) <= n - 2)
-    down = np.stack([index[da + 1, db], index[da + 1, db + 1], index[da, db + 1]], -1)
-    return _Lattice(n, np.stack([a, b], -1), corner, edge, step, np.concatenate([up, down]))
+    up = (a + b <= n - 2)
+    down = (a + b <= n - 3)
+    inner = np.concatenate([np.stack([index[a[up], b[up]], index[a[up] + 1, b[up]], index[a[up], b[up] + 1]], -1),
+                            np.stack([index[a[down] + 1, b[down]], index[a[down] + 1, b[down] + 1],
+                                      index[a[down], b[down] + 1]], -1)])
+    j = np.arange(1, n - 1)
+    chains = np.stack([index[j, 1], index[n - 1 - j, j], index[1, j[::-1]]])
+    bary = np.stack([n - a - b, a, b], -1) / n
+    return _Lattice(n, bary, inner, chains, (np.arange(n - 2) + 1.5) / n)
 
 
-# ----------------------------------------------------------------------------------------------
-# Refinement
-# ----------------------------------------------------------------------------------------------
+@lru_cache(maxsize=4096)
+def strip(n: int, m: int) -> np.ndarray:
+    """``(m + L - 1, 3)`` int64: the triangles between a side cut into ``m`` pieces (its nodes
+    ``k = 0 .. m`` at ``k / m``) and the ``L`` interior nodes next to it (:func:`lattice`), merged
+    in order along the side (each triangle joins the next node of the chain whose next node comes
+    first), counterclockwise; entries ``k >= 0`` are side nodes, ``-(j + 1)`` chain node ``j``.
+    Both chains lie on parallel lines, so no triangle folds over."""
+    params = lattice(n).params
+    last = len(params) - 1
+    i = j = 0
+    tris = []
+    while i < m or j < last:
+        if j == last or (i < m and (i + 1) / m <= params[j + 1]):
+            tris.append((i, i + 1, -(j + 1)))
+            i += 1
+        else:
+            tris.append((i, -(j + 2), -(j + 1)))
+            j += 1
+    return np.array(tris, np.int64).reshape(-1, 3)
+
+
+def triangles_of(n: np.ndarray, elev: np.ndarray) -> np.ndarray:
+    """Triangles of each base triangle at level ``n`` with edge levels ``elev (F, 3)``:
+    ``(n - 3)^2 + sum_e (m_e + n - 3)`` (``n >= 3``), ``sum_e m_e`` (``n = 2``), 1 (``n = 1``)."""
+    m = elev.sum(axis=1)
+    return np.where(n >= 3, (n - 3) ** 2 + m + 3 * (n - 3), np.where(n == 2, m, 1))
+
 
 @dataclass
 class _Nodes:
-    """The nodes of a group of triangles, one row per (triangle, lattice node): ``kind`` 0 (a base
-    vertex, ``node`` its id), 1 (inside a base edge: ``key`` its base ids and ``k``, ``wkey`` its
-    welded ids and ``k``) or 2 (inside the triangle); ``weights (K, 3)`` over ``corners (K, 3)``."""
+    """The nodes of a group of triangles at one level, one row per (triangle, node): ``kind`` 0 (a
+    base vertex, ``node`` its id), 1 (inside a base edge) or 2 (inside the triangle); ``weights
+    (K, 3)`` over ``corners (K, 3)``; the edge nodes' rows ``edge`` with ``key`` (their base ids and
+    ``k``) and ``wkey`` (their welded ids and ``k``); ``faces`` in rows, ``base_face`` per face."""
 
     kind: np.ndarray
     node: np.ndarray
-    key: np.ndarray
-    wkey: np.ndarray
     weights: np.ndarray
     corners: np.ndarray
+    edge: np.ndarray
+    key: np.ndarray
+    wkey: np.ndarray
     faces: np.ndarray
     base_face: np.ndarray
 
 
-def _snap_edge(lat: _Lattice, e: int, c: np.ndarray, w: np.ndarray, m: np.ndarray):
-    """The nodes of edge ``e`` of triangles with corners ``c`` (welded ``w``) snapped to the edge's
-    ``m + 1`` nodes: ``(cols, k, lo_slot, hi_slot, lo, hi)`` with ``k`` counted from the end point
-    of the smaller welded id (``lo``, in corner slot ``lo_slot``), rounded half up."""
-    cols = np.flatnonzero(lat.edge == e)
+def _side_nodes(base: BaseMesh, c: np.ndarray, e: int, m: int):
+    """The ``m - 1`` nodes inside side ``e`` of triangles with corners ``c``: ``(key, wkey,
+    weights)``, ``(N, m - 1, 3)`` each, node ``k`` of the side (from corner ``e``) being node
+    ``k_can`` from the end of the smaller welded id, at ``k_can / m`` (one float64 expression for
+    both sides of a seam)."""
     f = (e + 1) % 3
+    w = base.weld[c]
     flip = w[:, e] > w[:, f]
-    a = np.where(flip[:, None], lat.n - lat.step[cols][None, :], lat.step[cols][None, :])
-    k = (2 * a * m[:, None] + lat.n) // (2 * lat.n)
+    k = np.arange(1, m)[None, :]
+    k_can = np.where(flip[:, None], m - k, k)
     lo_slot, hi_slot = np.where(flip, f, e), np.where(flip, e, f)
     rows = np.arange(len(c))
-    return cols, k, lo_slot, hi_slot, c[rows, lo_slot], c[rows, hi_slot]
+    lo, hi = c[rows, lo_slot], c[rows, hi_slot]
+    t = k_can / m
+    weights = np.zeros(k_can.shape + (3,))
+    np.put_along_axis(weights, lo_slot[:, None, None], (1.0 - t)[..., None], axis=2)
+    np.put_along_axis(weights, hi_slot[:, None, None], t[..., None], axis=2)
+    pair = lambda x, y: np.broadcast_to(np.sort(np.stack([x, y], 1), axis=1)[:, None], k_can.shape + (2,))
+    key = np.concatenate([pair(lo, hi), k_can[..., None]], -1)
+    wkey = np.concatenate([pair(base.weld[lo], base.weld[hi]), k_can[..., None]], -1)
+    return key, wkey, weights
 
 
 def _group_nodes(base: BaseMesh, tris: np.ndarray, n: int, elev: np.ndarray) -> _Nodes:
-    """The :class:`_Nodes` of base triangles ``tris``, all at level ``n`` (``elev`` their edge levels)."""
+    """The :class:`_Nodes` of base triangles ``tris``, all at level ``n`` (``elev`` their edge
+    levels): corners, the inner lattice (:func:`lattice`) and each side's nodes, stitched to the
+    lattice by :func:`strip`."""
     lat = lattice(n)
     c = base.faces[tris]
-    w = base.weld[c]
-    N, P = len(tris), len(lat.ab)
-    bary = np.concatenate([(n - lat.ab.sum(1))[:, None], lat.ab], axis=1) / n
-    weights = np.broadcast_to(bary, (N, P, 3)).copy()
-    kind = np.broadcast_to(np.where(lat.corner >= 0, 0, 2), (N, P)).copy()
-    node = np.zeros((N, P), np.int64)
-    key = np.zeros((N, P, 3), np.int64)
-    wkey = np.zeros((N, P, 3), np.int64)
-    for corner in range(3):
-        node[:, lat.corner == corner] = c[:, corner:corner + 1]
+    N, I = len(tris), len(lat.bary)
+    rows = [(np.zeros(3 * N, np.int64), c.ravel(), np.tile(np.eye(3), (N, 1)), np.repeat(c, 3, axis=0)),
+            (np.full(N * I, 2), np.full(N * I, -1), np.tile(lat.bary, (N, 1)), np.repeat(c, I, axis=0))]
+    corner_row = np.arange(3 * N).reshape(N, 3)
+    inner_row = 3 * N + np.arange(N * I).reshape(N, I)
+    size = 3 * N + N * I
+    faces = [corner_row] if n == 1 else [inner_row[:, lat.inner].reshape(-1, 3)]
+    owner = [np.arange(N)] if n == 1 else [np.repeat(np.arange(N), len(lat.inner))]
+    edge, keys, wkeys = [], [], []
     for e in range(3):
-        cols, k, lo_slot, hi_slot, lo, hi = _snap_edge(lat, e, c, w, elev[:, e])
-        if not cols.size:
-            continue
-        t = k / elev[:, e:e + 1]
-        wt = np.zeros((N, len(cols), 3))
-        np.put_along_axis(wt, lo_slot[:, None, None], (1.0 - t)[..., None], axis=2)
-        np.put_along_axis(wt, hi_slot[:, None, None], t[..., None], axis=2)
-        weights[:, cols] = wt
-        end = (k == 0) | (k == elev[:, e:e + 1])
-        kind[:, cols] = np.where(end, 0, 1)
-        node[:, cols] = np.where(k == 0, lo[:, None], hi[:, None])
-        pq = np.sort(np.stack([lo, hi], 1), axis=1)
-        key[:, cols] = np.concatenate([np.broadcast_to(pq[:, None], (N, len(cols), 2)), k[..., None]], -1)
-        wpq = np.sort(base.weld[np.stack([lo, hi], 1)], axis=1)
-        wkey[:, cols] = np.concatenate([np.broadcast_to(wpq[:, None], (N, len(cols), 2)), k[..., None]], -1)
-    faces = (lat.faces[None] + P * np.arange(N)[:, None, None]).reshape(-1, 3)
-    return _Nodes(kind.ravel(), node.ravel(), key.reshape(-1, 3), wkey.reshape(-1, 3),
-                  weights.reshape(-1, 3), np.repeat(c, P, axis=0), faces, np.repeat(tris, n * n))
+        for m in (np.unique(elev[:, e]) if n > 1 else ()):
+            sel = np.flatnonzero(elev[:, e] == m)
+            key, wkey, weights = _side_nodes(base, c[sel], e, int(m))
+            here = size + np.arange(len(sel) * (m - 1)).reshape(len(sel), m - 1)
+            rows.append((np.ones(here.size, np.int64), np.full(here.size, -1), weights.reshape(-1, 3),
+                         np.repeat(c[sel], m - 1, axis=0)))
+            edge.append(here.ravel())
+            keys.append(key.reshape(-1, 3))
+            wkeys.append(wkey.reshape(-1, 3))
+            size += here.size
+            table = np.concatenate([corner_row[sel, e:e + 1], here, corner_row[sel, (e + 1) % 3:(e + 1) % 3 + 1],
+                                    inner_row[sel][:, lat.chains[e]]], axis=1)
+            t = strip(n, int(m))
+            faces.append(table[:, np.where(t >= 0, t, m + 1 - t - 1)].reshape(-1, 3))
+            owner.append(np.repeat(sel, len(t)))
+    cat = lambda parts, k: np.concatenate([p[k] for p in parts])
+    empty = np.zeros((0, 3), np.int64)
+    return _Nodes(cat(rows, 0), cat(rows, 1), cat(rows, 2), cat(rows, 3),
+                  np.concatenate(edge) if edge else np.zeros(0, np.int64),
+                  np.concatenate(keys) if keys else empty, np.concatenate(wkeys) if wkeys else empty,
+                  np.concatenate(faces), tris[np.concatenate(owner)])
 
 
 def _unique_rows(rows: np.ndarray):
@@ -232,16 +277,22 @@ def _interpolate(base: BaseMesh, weld_pos: np.ndarray, weights: np.ndarray, corn
     def mix(values):
         return np.einsum("kc,kcd->kd", weights, values[corners])
 
-    n = tg._normalize(mix(base.normals))
-    t4 = mix(base.tangents)
-    t = tg.reject(t4[:, :3], n)
-    return mix(weld_pos[base.weld]), n, np.concatenate([t, tg._sign(t4[:, 3])[:, None]], 1), mix(base.uvs)
+    return (mix(weld_pos[base.weld]),) + _unit_frame(mix(base.normals), mix(base.tangents)) + (mix(base.uvs),)
+
+
+def _unit_frame(n: np.ndarray, t4: np.ndarray):
+    """``(n, t4)`` interpolated (or a sliver's midpoint's means) as a unit frame: ``n`` normalised,
+    ``t`` rejected from it, ``w`` its sign."""
+    n = tg._normalize(n)
+    return n, np.concatenate([tg.reject(t4[:, :3], n), tg._sign(t4[:, 3])[:, None]], 1)
 
 
 def refine(base: BaseMesh, texels: tuple[int, int], *, max_edge_texels: float = 1.0,
-           powers_of_two: bool = False) -> Refined:
+           powers_of_two: bool = False, split_slivers: bool = True) -> Refined:
     """``base`` cut in UV space until every edge is at most about ``max_edge_texels`` texels of a
-    ``texels = (rows, cols)`` image, watertight across UV seams (the module's "Watertight")."""
+    ``texels = (rows, cols)`` image, watertight across UV seams (the module's "Watertight");
+    ``split_slivers``: long thin triangles bisected first (:func:`hzval.slivers.split`)."""
+    base, parent = split(base, texels, max_edge_texels) if split_slivers else (base, None)
     elev = edge_levels(base, texels, max_edge_texels, powers_of_two=powers_of_two)
     levels = elev.max(axis=1)
     first_of_weld = np.zeros(int(base.weld.max()) + 1, np.int64)
@@ -253,22 +304,23 @@ def refine(base: BaseMesh, texels: tuple[int, int], *, max_edge_texels: float = 
     kind, node = cat("kind"), cat("node")
     offsets = np.cumsum([0] + [len(g.kind) for g in groups])
     faces = np.concatenate([g.faces + o for g, o in zip(groups, offsets)])
+    on_edge = np.concatenate([g.edge + o for g, o in zip(groups, offsets)])
     V, W = len(base.positions), int(base.weld.max()) + 1
-    vid, weld = node.copy(), base.weld[np.minimum(node, V - 1)]
-    on_edge, inside = np.flatnonzero(kind == 1), np.flatnonzero(kind == 2)
-    first_e, inv_e = _unique_rows(cat("key")[on_edge])
-    wfirst, winv = _unique_rows(cat("wkey")[on_edge])
+    vid, weld = node.copy(), base.weld[np.maximum(node, 0)]
+    inside = np.flatnonzero(kind == 2)
+    first_e, inv_e = _unique_rows(cat("key"))
+    wfirst, winv = _unique_rows(cat("wkey"))
     vid[on_edge], weld[on_edge] = V + inv_e, W + winv
     vid[inside] = V + len(first_e) + np.arange(len(inside))
     weld[inside] = W + len(wfirst) + np.arange(len(inside))
     new = np.concatenate([on_edge[first_e], inside])  # one node for each new vertex, in id order
     p, n, t, uv = _interpolate(base, weld_pos, cat("weights")[new], cat("corners")[new])
     out_weld = np.concatenate([base.weld, weld[new]])
-    f = vid[faces]
-    ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
-    return Refined(np.concatenate([weld_pos[base.weld], p]), np.concatenate([base.normals, n]),
-                   np.concatenate([base.tangents, t]), np.concatenate([base.uvs, uv]), f[ok],
-                   out_weld, cat("base_face")[ok], levels)
+    n0, t0 = _unit_frame(base.normals, base.tangents)
+    piece = cat("base_face")
+    return Refined(np.concatenate([weld_pos[base.weld], p]), np.concatenate([n0, n]), np.concatenate([t0, t]),
+                   np.concatenate([base.uvs, uv]), vid[faces], out_weld,
+                   piece if parent is None else parent[piece], levels)
 
 
 # ----------------------------------------------------------------------------------------------
