@@ -200,6 +200,8 @@ def _sorted_distinct(px, py, kind, vid, t, valid):
         # of two close points, the successor is kept when it is better (lower kind, then lower t)
         succ_better = (g(kind, succ) < kind) | ((g(kind, succ) == kind) & (g(t, succ) <= t))
         drop = (close & succ_better) | (g(close, pred) & ~g(succ_better, pred) & (slot <= last))
+        if not drop.any():
+            break
         arrays[5] = valid & ~drop
         arrays = reorder(np.argsort(~arrays[5], axis=1, kind="stable"))
     px, py, kind, vid, t, valid = arrays

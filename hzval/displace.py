@@ -12,7 +12,7 @@ Watertight
     of its triangles; where a UV seam cuts the two sides at different points, each side gets the
     other's (:func:`hzval.cells._stitch`), and the points at one place share one weld id.
     :func:`displace` gives every welded vertex one displaced position (the mean height along the
-    mean of the normals), so no light leaks through a crack.
+    mean of the normals, mitred at hard edges), so no light leaks through a crack.
 The plane
     The unit quad whose UVs are its ``(x, y)`` has a vertex at every texel centre and a fan in
     every cell about its centre: the plane's surface (:func:`hzval.mesh.tessellate`) at one ring,
@@ -21,6 +21,7 @@ The plane
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,21 +149,38 @@ def weld_means(weld: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.stack([np.bincount(weld, values[:, j]) for j in range(values.shape[1])], -1) / count[:, None]
 
 
+#: Welds :func:`displace` knows: ``miter`` (the default) or ``mean``.
+WELDS: tuple[str, ...] = ("miter", "mean")
+#: The miter's longest push, in heights: a cube's corner (three normals at right angles, ``|m| =
+#: 1/sqrt(3)``); sharper corners are pushed no further.
+MAX_MITER = math.sqrt(3.0)
+
+
 def displace(refined: Refined, height: np.ndarray, depth: float, world_per_uv: float,
-             boundary: str) -> tuple[np.ndarray, np.ndarray]:
+             boundary: str, *, weld: str = "miter") -> tuple[np.ndarray, np.ndarray]:
     """The truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``, one position per
     refined vertex, ``p + n H(uv) depth world_per_uv`` with ``H`` from :func:`sample_height`
     (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld
-    id (a seam's sides) share one position, bit for bit: their mean height along the mean of their
-    normals (their first normal where those cancel), so the mesh is as closed as the base."""
+    id (a seam's sides, a hard edge's) share one position, bit for bit, pushed by their mean height
+    ``h`` along the mean ``m`` of their unit normals (their first normal where those cancel):
+    ``mean`` by ``h m / |m|``; ``miter`` by ``h m / |m|^2`` (at most :data:`MAX_MITER` ``h``), which
+    moves the point by ``h`` along each of two normals, or three at right angles, so that a hard
+    edge's faces stay flat up to it (a constant height grows a cube into a cube). Along a smooth
+    seam (equal normals) the two are the same."""
     if np.ndim(height) != 2 or not np.all(np.isfinite(height)):
         raise ValueError("height must be a finite (rows, cols) array")
+    if weld not in WELDS:
+        raise ValueError(f"unknown weld {weld!r}; known: {', '.join(WELDS)}")
     h = sample_height(height, refined.uvs, boundary) * (float(depth) * float(world_per_uv))
     w = refined.weld
-    n = weld_means(w, refined.normals)
-    length = np.linalg.norm(n, axis=-1, keepdims=True)
-    first = np.zeros(len(n), np.int64)
+    m = weld_means(w, refined.normals)
+    length = np.linalg.norm(m, axis=-1, keepdims=True)
+    first = np.zeros(len(m), np.int64)
     first[w[::-1]] = np.arange(len(w))[::-1]
-    n = np.where(length > 1e-6, n / np.maximum(length, 1e-300), refined.normals[first])
-    p = refined.positions[first] + n * weld_means(w, h)[:, None]
+    cancel = length < 1e-6
+    m = np.where(cancel, refined.normals[first], m / np.maximum(length, 1e-300))
+    push = weld_means(w, h)[:, None]
+    if weld == "miter":
+        push = push * np.where(cancel, 1.0, np.minimum(1.0 / np.maximum(length, 1e-300), MAX_MITER))
+    p = refined.positions[first] + m * push
     return p[w].astype(np.float32), refined.faces.astype(np.uint32)

@@ -527,6 +527,19 @@ def _gltf_part(g, blob, prim, m):
     return p @ m[:3, :3].T + m[:3, 3], uv, n, t, faces.astype(np.int64)
 
 
+def _gltf_check(g, blob: bytes) -> None:
+    """``ValueError`` for what the reader cannot decode: required extensions (Draco, meshopt
+    compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
+    the ``.gltf``)."""
+    if g.extensionsRequired:
+        raise ValueError(f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
+                         "read (export without compression)")
+    need = sum(b.byteLength or 0 for b in g.buffers)
+    if len(blob) < need:
+        raise ValueError(f"its buffer data is missing or short ({len(blob)} of {need} bytes; is its .bin "
+                         "file beside it?)")
+
+
 def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
     """A glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``) by pygltflib: every triangle
     primitive of the default scene with its node transforms; ``TEXCOORD_0`` (``v -> 1 - v``),
@@ -541,6 +554,7 @@ def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
             g = pygltflib.GLTF2().load(path)
             g.convert_buffers(pygltflib.BufferFormat.BINARYBLOB)
         blob = g.binary_blob() or b""
+        _gltf_check(g, blob)
         parts = [_gltf_part(g, blob, prim, m) for prim, m in _gltf_primitives(g)
                  if prim.mode in (None, pygltflib.TRIANGLES)]
     except ValueError as exc:

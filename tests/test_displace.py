@@ -103,9 +103,15 @@ def test_displaced_cube_has_no_crack():
     for w in np.unique(r.weld[seam])[:50]:
         assert len(np.unique(p[r.weld == w], axis=0)) == 1
     assert np.all(edge_counts(r.weld, f) == 2)
-    # a corner moves along the diagonal by the full height: (0.5, 0.5, 0.5) + 0.25 (1, 1, 1) / sqrt(3)
+    # miter: a constant height grows the cube into the cube of edge 1.5, faces flat to the edges
+    np.testing.assert_allclose(np.abs(p).max(axis=1), 0.75, rtol=1e-6)
     corner = np.flatnonzero(np.all(np.isclose(r.positions, 0.5), axis=1))
-    np.testing.assert_allclose(p[corner], 0.5 + 0.25 / np.sqrt(3), rtol=1e-6)
+    np.testing.assert_allclose(p[corner], 0.75, rtol=1e-6)
+    # mean: the corner moves along the diagonal by the height, (0.5, 0.5, 0.5) + 0.25 (1, 1, 1) / sqrt(3)
+    q, _ = dp.displace(r, np.ones((8, 8), np.float32), 0.25, base.world_per_uv, "open", weld="mean")
+    np.testing.assert_allclose(q[corner], 0.5 + 0.25 / np.sqrt(3), rtol=1e-6)
+    face = np.flatnonzero(np.isin(r.weld, np.flatnonzero(np.bincount(r.weld) == 1)))
+    np.testing.assert_allclose(np.abs(q[face]).max(axis=1), 0.75, rtol=1e-6)  # inside a face, both alike
 
 
 @pytest.mark.parametrize("shape", [(16, 16), (8, 16)])
@@ -209,3 +215,24 @@ def test_shading_normals_follow_the_mirrored_frame():
         assert len(inner) >= 9
         np.testing.assert_allclose(n[inner], np.tile(0.6 * np.array(u_axis) + 0.8 * np.array(normal), (len(inner), 1)),
                                    atol=1e-6, err_msg=name)
+
+
+def test_long_thin_triangles_are_cut_cell_by_cell():
+    """A cylinder of one stack has 16 x 1 long thin triangles on its side: the cut covers the base,
+    stays closed along its seam (open at the rims) and every vertex's frame is the base triangle's
+    own interpolation at that point."""
+    base = model.cylinder(stacks=1, caps=False, segments=16)
+    tex = (64, 64)
+    r = dp.refine(base, tex)
+    a = uv_area(r.uvs, r.faces) * np.sign(base.uv_areas[r.base_face])
+    assert a.min() > -1e-15
+    np.testing.assert_allclose(np.bincount(r.base_face, a), np.abs(base.uv_areas), rtol=1e-9)
+    assert set(np.unique(edge_counts(r.weld, r.faces))) == {1, 2}
+    f = base.faces[r.base_face]
+    v = r.faces[:, 0]
+    t = base.uvs[f]
+    m = np.stack([t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]], -1)
+    l12 = np.linalg.solve(m, (r.uvs[v] - t[:, 0])[..., None])[..., 0]
+    bary = np.concatenate([1 - l12.sum(1, keepdims=True), l12], 1)
+    n = np.einsum("kc,kcd->kd", bary, base.normals[f])
+    np.testing.assert_allclose(r.normals[v], n / np.linalg.norm(n, axis=1, keepdims=True), atol=1e-9)

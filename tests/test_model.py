@@ -206,6 +206,21 @@ def test_bad_meshes_name_the_file(tmp_path):
                         np.tile([0.0, 0, 1, 1], (4, 1))), "TANGENT")
 
 
+def test_gltf_without_its_buffer_or_with_compression(tmp_path):
+    import json
+
+    path = write_gltf(tmp_path / "q.gltf", QUAD_P, QUAD_UV, QUAD_F)
+    doc = json.loads((tmp_path / "q.gltf").read_text())
+    (tmp_path / "q.bin").unlink(missing_ok=True)
+    for b in doc["buffers"]:
+        b["uri"] = "gone.bin"
+    (tmp_path / "q.gltf").write_text(json.dumps(doc))
+    _refused(path, "buffer data is missing")
+    doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    (tmp_path / "q.gltf").write_text(json.dumps(doc))
+    _refused(path, "KHR_draco_mesh_compression")
+
+
 def test_unknown_shape_and_flags():
     with pytest.raises(InputError, match="did you mean cube") as e:
         model.load("cubes")
