@@ -552,11 +552,8 @@ def cmd_sweep(args) -> int:
     elif args.height is not None and sc.sidecar_of(args.height) is not None:
         base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
-    scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
+    scene = sc.override(base, **_model_view(base, _scene_overrides(args)), height=_material_of(args))
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
-    if not scene.mesh.is_plane and scene.camera == base.camera == sc.Camera():
-        # a model seen from straight above shows one face: its default view shows three
-        scene = dataclasses.replace(scene, camera=sc.MODEL_CAMERA).validate()
     options = sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
@@ -572,6 +569,21 @@ def cmd_sweep(args) -> int:
     print(f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
           f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}")
     return errors.EXIT_OK
+
+
+def _model_view(base, overrides: dict) -> dict:
+    """``overrides`` with :data:`hzval.scene.MODEL_CAMERA`'s view where the sweep is on a model and
+    neither the scene nor the flags place a camera: a model seen from straight above shows one face."""
+    from hzval import scene as sc
+
+    shape = overrides.get("mesh") or base.mesh.shape
+    uv_scale = overrides.get("uv_scale") or base.mesh.uv_scale
+    if sc.MeshSpec(shape, uv_scale).is_plane or base.camera != sc.Camera() or overrides.get("camera"):
+        return overrides
+    cam = sc.MODEL_CAMERA
+    return {**overrides, "camera": cam.kind,
+            "view_elevation": overrides.get("view_elevation") or cam.elevation_deg,
+            "view_azimuth": overrides.get("view_azimuth") or cam.azimuth_deg}
 
 
 def _truth_tolerance(args):
