@@ -167,10 +167,6 @@ class ModelTruth:
             raise InputError(scene.source or "scene", f"{', '.join(unsupported)} on a model: not simulated yet "
                              f"(a model's truth simulates {', '.join(SIMULATES)})")
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects)
-        if scene.lookup.mipmapped or scene.lookup.parallax != "none":
-            raise InputError(scene.source or "--filter", "on a model the techniques read their textures at the "
-                             "truth's hits with bilinear filtering; mip-maps and parallax mapping are the "
-                             "plane's for now (--filter bilinear --parallax none)")
         self.timings: dict[str, float] = {}
         t0 = time.perf_counter()
         mat = scene.material
@@ -180,6 +176,7 @@ class ModelTruth:
         positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
         self._texel = model.world_per_uv / cols                 # world units per texel
         h_tex = cv.heights_in_texels(h, mat.depth)
+        self._h_tex = h_tex
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * float(np.abs(h_tex).max())) * self._texel
         self._displaced = _Traced("displaced", positions, faces, refined)
         del positions, faces, refined
@@ -407,15 +404,52 @@ class ModelTruth:
 
     def samples(self, at: str = "camera") -> lookup.Samples:
         """The techniques' :class:`hzval.lookup.Samples`, with their frames: where the camera's rays
-        meet their surface (``"camera"``, as an engine shades), or at the truth's own hits
-        (``"truth"``: perfect parallax, a view's second set of scores)."""
+        meet their surface (``"camera"``, as an engine shades: moved by the lookup's parallax mapping
+        along each ray in its sample's tangent frame, with each pixel's footprint for a mip filter),
+        or at the truth's own hits (``"truth"``: perfect parallax, a view's second set of scores)."""
         st = self._own if at == "camera" else self._st
-        x, y = np.asarray(st["x"], np.float32), np.asarray(st["y"], np.float32)
-        if self.scene.material.boundary == "open":
-            x, y = np.clip(x, 0.0, self.cols), np.clip(y, 0.0, self.rows)
+        xy = np.stack([np.asarray(st["x"], np.float64), np.asarray(st["y"], np.float64)], -1)
         frames = np.stack([np.asarray(c, np.float32) for k in ("t", "b", "n", "v") for c in st[k]], axis=-1)
-        return lookup.Samples(x, y, self.rows, self.cols, int(self.spp), source=at, frames=frames,
-                              macro=self.macro)
+        lk, h = self.scene.lookup, self._h_tex
+        z0 = lookup.plane_height(lk, float(h.min()), float(h.max()), float(h.mean()))
+        if at == "camera" and lk.parallax != "none":
+            d = -frames[:, 9:12].astype(np.float64)                    # the camera's ray, world
+            d_t = np.stack([np.sum(frames[:, 3 * k:3 * k + 3] * d, axis=1) for k in range(3)], -1)
+            tex = lookup._height_texture(h, self.scene.material.boundary)
+            xy = lookup._parallax(lk, tex, xy, d_t, z0, float(h.min()), float(h.max()))
+        if self.scene.material.boundary == "wrap":
+            xy = np.mod(xy, [self.cols, self.rows])
+        else:
+            xy = np.clip(xy, 0.0, [self.cols, self.rows])
+        footprint = self._footprints() if lk.mipmapped else None
+        return lookup.Samples(xy[:, 0].astype(np.float32), xy[:, 1].astype(np.float32), self.rows, self.cols,
+                              int(self.spp), footprint, z0, source=at, frames=frames, macro=self.macro)
+
+    def _footprints(self) -> np.ndarray:
+        """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the
+        next: ``(H * W, 4)`` float32 ``(dx/dcol, dy/dcol, dx/drow, dy/drow)`` texels, the pixel
+        centre's rays half a pixel either side (as :meth:`hzval.camera.View.footprints` on the
+        plane); ``wrap`` across the tile the short way; NaN where a ray misses."""
+        H, W = self.shape
+        pixels = np.arange(H * W)
+        half = np.full((H * W, 1), 0.5)
+        out = np.empty((H * W, 4), np.float64)
+        for k, (du, dv) in enumerate(((0.5, 0.0), (0.0, 0.5))):
+            ends = []
+            for sign in (1.0, -1.0):
+                o, d = self.view.rays_at(*self.view.film_coordinates(pixels, half + sign * du, half + sign * dv))
+                ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
+                               mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))))
+                hit = self._hits(self._surface, ray, shade=False)
+                xy = np.stack([np.asarray(hit["x"], np.float64), np.asarray(hit["y"], np.float64)], -1)
+                xy[~np.asarray(hit["hit"], bool)] = np.nan
+                ends.append(xy)
+            diff = ends[0] - ends[1]
+            if self.scene.material.boundary == "wrap":
+                size = np.array([self.cols, self.rows], float)
+                diff = (diff + size / 2) % size - size / 2
+            out[:, 2 * k:2 * k + 2] = diff
+        return out.astype(np.float32)
 
     def record(self) -> dict:
         """``metrics.json``'s ``mesh``: the base mesh's record and the displaced mesh's size."""
