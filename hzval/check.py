@@ -73,9 +73,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import bake, compare, files, images, materials, shading, technique, truth
+from hzval import bake, compare, files, images, materials, shading, technique
 from hzval import scene as sc
 from hzval.errors import InputError
+from hzval import sweep
 from hzval.sweep import frame_folder
 
 __all__ = ["Tiers", "DEFAULT_TIERS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
@@ -175,21 +176,26 @@ def check_scene(scene):
     size = c.get("size")
     if size is not None and not materials.is_builtin(scene.material.height):
         raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
-    unknown = set(c) - {"size", "azimuths", "spp", "depth"}
+    unknown = set(c) - {"size", "azimuths", "spp", "depth", "resolution"}
     if unknown:
         raise InputError(scene.source or scene.name, f"unknown check setting {sorted(unknown)[0]!r}; "
-                                                      "use size, azimuths, spp, depth")
-    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"), depth=c.get("depth"))
+                                                      "use size, azimuths, spp, depth, resolution")
+    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"), depth=c.get("depth"),
+                       resolution=c.get("resolution"))
 
 
-def renderers(scene, height: np.ndarray) -> dict:
+def renderers(scene, height: np.ndarray, points=None) -> dict:
     """``{kind: (variant, technique class, built technique)}``: every check variant of every
-    technique that applies to ``scene``."""
+    technique that applies to ``scene`` (on a model, ``points``: the truth's samples, and only the
+    techniques that render on models)."""
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
-    ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols))
+    ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols),
+                            points=points)
     out = {}
     for t in technique.select(None, scene):
+        if points is not None and t.not_on_models:
+            continue
         for v in t.check_variants():
             out[v.name] = (v, t, t.build(ctx, **v.settings))
     return out
@@ -206,8 +212,11 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
     if max(rows, cols) > MAX_CHECK_SIZE:
         raise InputError(scene.source or scene.name,
                          f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)")
-    the_truth = truth.Truth(truth_scene, hm.height)
-    kinds = renderers(scene, hm.height)
+    the_truth, points = sweep.truth_of(truth_scene, hm.height, sc.load_albedo(scene.material, rows, cols))
+    if points is not None and seed is not None:
+        # the techniques read at the truth's hits: at the scene's own seed, whatever the truth's
+        points = sweep.truth_of(scene, hm.height, sc.load_albedo(scene.material, rows, cols))[1]
+    kinds = renderers(scene, hm.height, points)
     out = {}
     for az in scene.light.azimuths_deg:
         name = frame_folder(az)

@@ -317,12 +317,25 @@ def _add_sweep_flags(p: argparse.ArgumentParser) -> None:
                    help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
                         "or faceted (each triangle's own) (default smooth)")
     _add_truth_tolerance_flag(p)
+    _add_mesh_flags(p)
     _add_view_flags(p)
     _add_bake_flags(p)
     p.add_argument("--all-files", action="store_true",
                    help="also write each frame's files that the others determine: the unshadowed render and "
                         "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)")
     _add_technique_args(p)
+
+
+def _add_mesh_flags(p: argparse.ArgumentParser) -> None:
+    """The surface the material is on (:mod:`hzval.model`)."""
+    g = p.add_argument_group("mesh", "the surface the material is on (docs/meshes.md)")
+    g.add_argument("--mesh", default=None, metavar="SHAPE",
+                   help="plane (the tile, the default), cube, sphere, cylinder, torus, or a .obj, .ply, .gltf "
+                        "or .glb file with texture coordinates")
+    g.add_argument("--uv-scale", type=float, default=None, metavar="N",
+                   help="how often the texture repeats across the mesh's UVs (default 1)")
+    g.add_argument("--up", choices=("y", "z"), default=None,
+                   help="the mesh file's up axis (default: y for glTF, as its spec says; see docs/meshes.md)")
 
 
 def _add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
@@ -614,7 +627,7 @@ def cmd_sweep(args) -> int:
     elif args.height is not None and sc.sidecar_of(args.height) is not None:
         base = sc.load_sidecar(sc.sidecar_of(args.height), args.height)
         print(f"hzval: using the sidecar scene {sc.sidecar_of(args.height)}", file=sys.stderr)
-    scene = sc.override(base, **_scene_overrides(args), height=_material_of(args))
+    scene = sc.override(base, **_model_view(base, _scene_overrides(args)), height=_material_of(args))
     if args.size is not None and not _builtin(scene.material.height):      # a --scene's own height map
         _refuse_size(args.size, scene.material.height)
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
@@ -637,6 +650,21 @@ def cmd_sweep(args) -> int:
     return _gate_exit(result.get("gates", {}).get("failed", []))
 
 
+def _model_view(base, overrides: dict) -> dict:
+    """``overrides`` with :data:`hzval.scene.MODEL_CAMERA`'s view where the sweep is on a model and
+    neither the scene nor the flags place a camera: a model seen from straight above shows one face."""
+    from hzval import scene as sc
+
+    shape = overrides.get("mesh") or base.mesh.shape
+    uv_scale = overrides.get("uv_scale") or base.mesh.uv_scale
+    if sc.MeshSpec(shape, uv_scale).is_plane or base.camera != sc.Camera() or overrides.get("camera"):
+        return overrides
+    cam = sc.MODEL_CAMERA
+    return {**overrides, "camera": cam.kind,
+            "view_elevation": overrides.get("view_elevation") or cam.elevation_deg,
+            "view_azimuth": overrides.get("view_azimuth") or cam.azimuth_deg}
+
+
 def _truth_tolerance(args):
     """``--truth-tolerance`` checked: a positive, finite number of texels, or None."""
     t = getattr(args, "truth_tolerance", None)
@@ -653,7 +681,8 @@ def _scene_overrides(args) -> dict:
                 truth_tolerance=_truth_tolerance(args), camera=args.camera,
                 view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
                 fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
-                filter=args.filter, mips=args.mips, parallax=args.parallax)
+                filter=args.filter, mips=args.mips, parallax=args.parallax,
+                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None))
 
 
 def sweep_options(args):

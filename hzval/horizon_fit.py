@@ -38,6 +38,7 @@ class FittedHorizon(Horizon):
     file_stem = "horizon_fit"
     needs = ("shadow",)
     by_default = False
+    not_on_models = "the fit trains on the plane's top view (docs/fit.md)"
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
 
     @classmethod

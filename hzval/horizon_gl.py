@@ -67,6 +67,7 @@ class _GLTechnique(surface.HeightFieldShadow):
     """What the GL techniques share: opt-in, the GL record, the skip when there is no context."""
 
     by_default = False
+    not_on_models = "the OpenGL pipeline draws the tile alone (no mesh's tangent frames yet)"
     not_modelled = ("interreflection", "reflection_occlusion")
 
     @classmethod

@@ -93,6 +93,14 @@ class Samples:
     dx/drow, dy/drow)`` texels, float32 ``(pixels, 4)``, or ``None`` where no
     filter needs it; ``plane_z``: the base plane's height, texels (:func:`plane_height`);
     ``source``: ``"camera"`` or ``"truth"`` (the truth's own hit points: perfect parallax).
+
+    On a model (:mod:`hzval.model_truth`) each sample also has its own tangent frame: ``frames``,
+    float32 ``(pixels * spp, 12)``, the world's unit tangent ``t`` (along +u), bitangent ``b`` (along
+    +v), normal ``n`` of the base mesh at the sample, then ``v`` toward the camera
+    (:mod:`hzval.tangents`), so that a technique carries the world's light into the sample's tangent
+    space, ``L_t = (t.L, b.L, n.L)``; ``macro(L)``: the base mesh's own visibility of the world
+    direction ``L`` per sample (``mi.Float``, 0 or 1), the engine's shadow map, which every
+    technique's factor is multiplied by. Both ``None`` on the plane, whose frame is the world's.
     """
 
     x: np.ndarray
@@ -103,7 +111,10 @@ class Samples:
     footprint: np.ndarray | None = None
     plane_z: float = 0.0
     source: str = "camera"
+    frames: np.ndarray | None = None
+    macro: object = None
     _uv: object = dataclasses.field(default=None, repr=False)
+    _frames: object = dataclasses.field(default=None, repr=False)
 
     def uv(self):
         """The positions as texture coordinates, interleaved ``u0, v0, u1, ...`` in one aligned
@@ -112,6 +123,40 @@ class Samples:
             rows, cols = self.rows, self.cols
             self._uv = interleaved(self.x, self.y, lambda a, b: cv.tangent_to_uv(a, b, rows, cols))
         return self._uv
+
+    def frame_array(self):
+        """:attr:`frames` as one aligned flat ``mi.Float`` (12 floats a sample), made once and shared
+        by every technique; ``None`` on the plane."""
+        if self.frames is None:
+            return None
+        if self._frames is None:
+            import mitsuba as mi
+
+            self._frames = mi.Float(aligned(np.ascontiguousarray(self.frames, np.float32).ravel()))
+        return self._frames
+
+
+#: Floats a sample's frame takes in :attr:`Samples.frames`: ``t``, ``b``, ``n``, ``v``.
+FRAME_FLOATS = 12
+
+
+def frame_of(frames, index):
+    """``(t, b, n, v)`` of the samples ``index`` (``mi.UInt32``) from :meth:`Samples.frame_array`."""
+    import drjit as dr
+    import mitsuba as mi
+
+    # a Vector3f gather reads floats 3 i .. 3 i + 2: a sample's four vectors are i = 4 index + k
+    return tuple(dr.gather(mi.Vector3f, frames, index * (FRAME_FLOATS // 3) + k) for k in range(4))
+
+
+def to_tangent(frame, d):
+    """The world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
+    ``(t, b, n)`` being :func:`hzval.tangents.orthonormal`'s (FGED2's TBN product)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    t, b, n = frame[:3]
+    return mi.Vector3f(dr.dot(t, d), dr.dot(b, d), dr.dot(n, d))
 
 
 _CACHE: dict = {}

@@ -144,6 +144,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
                                     wrap_mode=wrap)
         self.spp = int(scene.spp)
         self._uv = samples.uv()   # shared
+        self._frames, self._macro = samples.frame_array(), samples.macro   # a model's (lookup.Samples)
         self._c = {"steps": dr.opaque(mi.UInt32, self.steps), "w": dr.opaque(mi.Float, self.softness),
                    "h_max": dr.opaque(mi.Float, self.h_max),
                    "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)))}
@@ -210,6 +211,8 @@ class RayMarchShadow(surface.HeightFieldShadow):
         import drjit as dr
         import mitsuba as mi
 
+        if self._frames is not None:
+            return self._factor_on_model(azimuth_deg, elevation_deg)
         if elevation_deg >= 90.0:
             return np.ones(self.shape, np.float32)
         if elevation_deg <= 0.0:
@@ -225,6 +228,40 @@ class RayMarchShadow(surface.HeightFieldShadow):
         def body(k, acc):
             uv = dr.gather(mi.Point2f, self._uv, pixel * spp + k)
             return k + 1, acc + self._march(uv, du, dv, tan_e)
+
+        _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
+                               cond=lambda k, acc: k < spp, body=body)
+        F = acc * (1.0 / spp)
+        dr.eval(F)
+        backend.sync()
+        return np.asarray(F, dtype=np.float32).reshape(self.shape)
+
+    def _factor_on_model(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+        """Pixel means of ``F`` on a model: each sample marches toward the world's light in its own
+        tangent frame (:class:`hzval.lookup.Samples`), times the base mesh's shadow. A light below a
+        sample's tangent plane gives 0, one along its normal 1, as on the plane."""
+        import drjit as dr
+        import mitsuba as mi
+
+        direction = cv.light_direction(azimuth_deg, elevation_deg)
+        Lw = dr.opaque(mi.Vector3f, [float(c) for c in direction])
+        M = self._macro(direction) if self._macro is not None else None
+        P, spp = self.shape[0] * self.shape[1], self.spp
+        pixel = dr.arange(mi.UInt32, P)
+        cols, rows = dr.opaque(mi.Float, float(self.cols)), dr.opaque(mi.Float, float(self.rows))
+
+        def body(k, acc):
+            index = pixel * spp + k
+            uv = dr.gather(mi.Point2f, self._uv, index)
+            L = lookup.to_tangent(lookup.frame_of(self._frames, index), Lw)
+            run = dr.sqrt(dr.fma(L.x, L.x, L.y * L.y))
+            across = dr.maximum(run, 1e-12)
+            # one texel toward the light in texture coordinates (v runs down the image)
+            F = self._march(uv, L.x / across / cols, -L.y / across / rows, dr.maximum(L.z / across, 1e-6))
+            F = dr.select(L.z <= 0.0, 0.0, dr.select(run < 1e-6, 1.0, F))
+            if M is not None:
+                F = F * dr.gather(mi.Float, M, index)
+            return k + 1, acc + F
 
         _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
                                cond=lambda k, acc: k < spp, body=body)

@@ -24,10 +24,14 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [lookup]    plane = "bottom" | "mean" | "top", filter = "nearest" | "bilinear" | "trilinear" |
                 "anisotropic", mips = "average" | "max", max_anisotropy, parallax = "none" | "offset" |
                 "occlusion", parallax_steps: how the techniques find and read their textures (hzval.lookup)
+    [mesh]      shape = "plane" (the tile, the default) | "cube" | "sphere" | "cylinder" | "torus" |
+                "path/relative/to/scene.obj" (.obj, .ply, .gltf, .glb with texture coordinates), uv_scale
+                (the texture repeats), up = "y" | "z" (the file's up axis): the surface the material is on
+                (hzval.model; docs/meshes.md)
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
-    [check]     size, azimuths, spp, depth: how the regression check renders it (hzval.check)
+    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it (hzval.check)
     [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn (hzval.check)
 """
 
@@ -89,6 +93,30 @@ class MaterialSpec:
 
 
 @dataclass(frozen=True)
+class MeshSpec:
+    """The surface the material is on (:mod:`hzval.model`): ``shape`` a built-in shape or a mesh
+    file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
+    axis (``None``: the format's default)."""
+
+    shape: str = "plane"
+    uv_scale: float = 1.0
+    up: str | None = None
+
+    @property
+    def is_plane(self) -> bool:
+        """Today's tile: the plane the techniques' textures lie on, traced as a height field."""
+        return self.shape == "plane" and self.uv_scale == 1.0
+
+
+#: The camera of a sweep on a model that names none: in perspective from 35 degrees up, so that a
+#: cube shows three faces (the plane's default, ``top``, would show one).
+MODEL_CAMERA = Camera(kind="perspective", elevation_deg=35.0, azimuth_deg=-30.0)
+
+#: Suffixes of the mesh files a scene may name (hzval.model reads them).
+MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".gltf", ".glb")
+
+
+@dataclass(frozen=True)
 class Light:
     """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``)."""
 
@@ -118,6 +146,7 @@ class Scene:
     name: str = "bricks"
     material: MaterialSpec = MaterialSpec()
     camera: Camera = Camera()
+    mesh: MeshSpec = MeshSpec()
     lookup: Lookup = Lookup()
     light: Light = Light()
     effects: tuple[str, ...] = DEFAULT_EFFECTS
@@ -181,6 +210,7 @@ class Scene:
             raise InputError(what, "samples.spp must be at least 1")
         self.camera.validate(what)
         self.lookup.validate(what)
+        self._validate_mesh(what)
         if self.camera.kind == "perspective":
             needs_v = [e for e in ("specular", "reflection_occlusion") if self.declares(e)]
             if needs_v:
@@ -190,6 +220,17 @@ class Scene:
 
     def declares(self, effect: str) -> bool:
         return effect in self.effects
+
+    def _validate_mesh(self, what: str) -> None:
+        ms = self.mesh
+        if not isinstance(ms.shape, str) or not ms.shape:
+            raise InputError(what, f"mesh.shape must be a shape name or a mesh file, got {ms.shape!r}")
+        if isinstance(ms.uv_scale, bool) or not isinstance(ms.uv_scale, (int, float)) \
+                or not math.isfinite(ms.uv_scale) or ms.uv_scale <= 0:
+            raise InputError(what if self.source else "--uv-scale",
+                             f"the UV scale must be a positive number, got {ms.uv_scale!r}")
+        if ms.up not in (None, "y", "z"):
+            raise InputError(what if self.source else "--up", f"the up axis must be y or z, got {ms.up!r}")
 
 
 # --------------------------------------------------------------------------
@@ -290,11 +331,12 @@ def _schema() -> dict:
     azimuths = str | tuple[float, ...]
     tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
     return {"material": strict.schema_of(MaterialSpec), "camera": strict.schema_of(Camera),
-            "lookup": strict.schema_of(Lookup),
+            "lookup": strict.schema_of(Lookup), "mesh": strict.schema_of(MeshSpec),
             "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
             "effects": {"list": tuple[str, ...], "interreflection_depth": int},
             "samples": {"spp": int, "seed": int},
-            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float},
+            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float,
+                      "resolution": tuple[int, int]},
             # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
             # names the registry knows: hzval.check checks them (scene imports no technique)
             "tolerances": {"*": tiers}}
@@ -352,10 +394,14 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
             light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
         effects = data.get("effects", {})
         samples = data.get("samples", {})
+        mesh = dict(data.get("mesh", {}))
+        if Path(str(mesh.get("shape", ""))).suffix.lower() in MESH_SUFFIXES:
+            mesh["shape"] = str((path.parent / mesh["shape"]).resolve())
         scene = Scene(
             name=data.get("name", path.stem),
             material=MaterialSpec(**mat),
             camera=Camera(**_pairs(data.get("camera", {}), ("resolution", "film_size"))),
+            mesh=MeshSpec(**mesh),
             lookup=Lookup(**data.get("lookup", {})),
             light=Light(**light),
             effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
@@ -379,7 +425,8 @@ def override(scene: Scene, **changes) -> Scene:
     Keys: ``height, size, depth, boundary, shading, truth_tolerance, elevation, azimuths, light, light_radius,
     effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
     ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
-    lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``.
+    lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``; the mesh's ``mesh``
+    (its shape), ``uv_scale``, ``up``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
     mat = scene.material
@@ -413,7 +460,10 @@ def override(scene: Scene, **changes) -> Scene:
                                                             "orthographic or perspective (top is straight down)")
     lookup = dataclasses.replace(scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax",
                                                                     "parallax_steps") if k in c})
+    mesh = dataclasses.replace(scene.mesh, **{k: c[m] for m, k in (("mesh", "shape"), ("uv_scale", "uv_scale"),
+                                                                   ("up", "up")) if m in c})
     return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera, lookup=lookup,
+                               mesh=mesh,
                                spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()
 
 

@@ -203,21 +203,27 @@ class FlatShading:
         else:
             self._u = self._v = None
             self._uv = samples.uv()
-        dr.eval(self._u, self._v, self._uv, self._albedo_const)
+        # on a model: each sample's tangent frame and the base mesh's shadow (lookup.Samples)
+        self._frames, self._macro = samples.frame_array(), samples.macro
+        dr.eval(self._u, self._v, self._uv, self._albedo_const, self._frames)
 
     # -- frames ---------------------------------------------------------------------------------
 
     def render(self, azimuth_deg: float, *, shadows: bool = True, elevation_deg: float | None = None,
-               **overrides) -> Frame:
+               dark: bool = False, **overrides) -> Frame:
         """The frame of the light at ``azimuth_deg`` (degrees); ``elevation_deg`` defaults to the
         scene light's. ``shadows=False`` leaves out a technique's factor; ``overrides``: a
-        technique's per-frame settings (:meth:`_extra_uniforms`). ``seconds`` is the frame's wall
+        technique's per-frame settings (:meth:`_extra_uniforms`); ``dark``: no direct light at all (the
+        ambient term alone; on a model a light below the world's horizon still lights the samples
+        that face down). ``seconds`` is the frame's wall
         time, kernels synchronised and images read back."""
         t0 = time.perf_counter()
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, overrides)
+        uni["dark"] = bool(dark)
         if self.spp == 1:
-            out = self._shade(self._u, self._v, uni, shadows, pixel=dr.arange(mi.UInt32, self.pixels))
+            pixel = dr.arange(mi.UInt32, self.pixels)
+            out = self._shade(self._u, self._v, uni, shadows, pixel=pixel, index=pixel)
         else:
             out = self._shade_samples(uni, shadows)
         dr.eval(out)
@@ -239,7 +245,7 @@ class FlatShading:
 
         def body(i, *acc):
             uv = dr.gather(mi.Point2f, self._uv, pixel * spp + i)
-            o = self._shade(uv.x, uv.y, uni, shadows, pixel=pixel)
+            o = self._shade(uv.x, uv.y, uni, shadows, pixel=pixel, index=pixel * spp + i)
             return (i + 1, *[a + b for a, b in zip(acc, _flatten(o, names))])
 
         state = dr.while_loop(state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
@@ -252,6 +258,8 @@ class FlatShading:
         """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging: keys as
         :meth:`render`'s layers, plus ``image`` ``(n, 3)`` (at ``x = col + 0.5``, ``y = rows - row -
         0.5`` the bilinear filter returns that texel exactly)."""
+        if self._frames is not None:
+            raise NotImplementedError("per-point probes are of the plane; a model's samples have their own frames")
         u, v = (mi.Float(c.ravel()) for c in cv.tangent_to_uv(x, y, self.rows, self.cols))
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, overrides)
@@ -269,6 +277,13 @@ class FlatShading:
         for every sample (the half vector, a technique's light weights) is computed once a frame."""
         L = dr.opaque(mi.Vector3f, [float(c) for c in cv.light_direction(azimuth_deg, elevation_deg)])
         uni = {"L": L}
+        if self._frames is not None:
+            # a model: L is the world's; each sample turns it into its own frame (_lane_uniforms)
+            self._lane = (shadows, dict(overrides))
+            if self._macro is not None and self._shadow and shadows:
+                uni["M"] = self._macro(cv.light_direction(azimuth_deg, elevation_deg))
+            dr.eval(uni)
+            return uni
         self._extra_uniforms(uni, shadows, dict(overrides))
         if self._specular:
             uni["h"] = dr.normalize(L + self._view)
@@ -283,9 +298,26 @@ class FlatShading:
         vals = self._texture.eval(mi.Point2f(u, v), pixel)
         return {name: vals[s] for name, s in self._slots.items()}
 
-    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None) -> dict:
-        """Per-sample outputs: ``image`` (Color3f) and the declared layers."""
+    def _lane_uniforms(self, uni: dict, index) -> tuple[dict, object]:
+        """On a model, the uniforms of the samples ``index``: the world's light in each sample's
+        tangent frame (:func:`hzval.lookup.to_tangent`), what a technique derives from it, the half
+        vector toward the sample's own view, and the base mesh's shadow ``M`` (``None``: none)."""
+        frame = lookup.frame_of(self._frames, index)
+        shadows, overrides = self._lane
+        lane = {"L": lookup.to_tangent(frame, uni["L"]), "dark": uni.get("dark", False)}
+        self._extra_uniforms(lane, shadows, dict(overrides))
+        if self._specular:
+            lane["h"] = dr.normalize(lane["L"] + lookup.to_tangent(frame, frame[3]))
+        M = dr.gather(mi.Float, uni["M"], index) if "M" in uni else None
+        return lane, M
+
+    def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None, index=None) -> dict:
+        """Per-sample outputs: ``image`` (Color3f) and the declared layers; ``index``: the samples'
+        place in the image's samples (on a model, where their frames are)."""
         tex = self._fetch(u, v, pixel)
+        M = None
+        if self._frames is not None:
+            uni, M = self._lane_uniforms(uni, index)
         L, E = uni["L"], self._E
         out = {}
         lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
@@ -297,7 +329,13 @@ class FlatShading:
         direct = shading.direct(n, L, None, albedo, E, diffuse=self._diffuse, specular=self._specular,
                                 h=uni.get("h"))
         direct = dr.select(lit, direct, 0.0)
+        if uni.get("dark"):
+            direct = mi.Color3f(0.0)
+        if M is not None:
+            direct = direct * M       # the base mesh's shadow, part of the technique's factor
         image = self._shadowed(direct, tex, uni, out, shadows, probe)
+        if M is not None and "factor" in out:
+            out["factor"] = out["factor"] * M
         if self._ambient:
             A = tex["ambient"][0]
             image = image + shading.sky(albedo, A, E)
@@ -355,13 +393,14 @@ class Unshadowed:
                  samples: lookup.Samples | None = None):
         effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
         self.scene = scene
-        self._grey = not effects            # shadows alone: the direct term is E, grey
+        # shadows alone: the direct term is E, grey (on a model, where each sample's plane faces the light)
+        self._grey = not effects and (samples is None or samples.frames is None)
         self._plain = None if self._grey else FlatShading(replace_effects(scene, effects), bake, albedo,
                                                           ambient=ambient, samples=samples)
         self.ambient_image = None
         if "ambient" in effects:
             self.ambient_image = FlatShading(replace_effects(scene, ("ambient",)), bake, albedo, ambient=ambient,
-                                             samples=samples).render(0.0, elevation_deg=-90.0).image
+                                             samples=samples).render(0.0, elevation_deg=-90.0, dark=True).image
         self.shape = image_shape(*bake.normal.shape[:2], scene.camera)
         self._last: tuple | None = None
 

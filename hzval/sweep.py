@@ -213,6 +213,18 @@ def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
                + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
 
 
+def _model_peak_bytes(scene, rows: int, cols: int) -> int:
+    """The peak of a sweep on a model (:mod:`hzval.model_truth`): the displaced mesh's triangles
+    (:func:`hzval.displace.estimate`), every sample's kept hit and frame, and the images."""
+    from hzval import displace, model, model_truth
+
+    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    triangles, mesh_bytes = displace.estimate(base, (rows, cols))
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    return int(PEAK_BASE_BYTES + mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
+               + model_truth.BYTES_PER_SAMPLE * H * W * scene.spp + PEAK_BYTES_PER_PIXEL * H * W)
+
+
 def material_shape(scene) -> tuple[int, int]:
     """``(rows, cols)`` of the scene's height map, without generating or decoding it."""
     spec = scene.material
@@ -248,6 +260,8 @@ def check_fits(scene, params: BakeParams) -> int:
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
     need, have = estimate_peak_bytes(scene, rows, cols), bake.available_bytes()
+    if not scene.mesh.is_plane:
+        need = _model_peak_bytes(scene, rows, cols)
     if need > have:
         raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
@@ -280,9 +294,12 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
                                      horizon=horizon, write_to=None if report_dir is None else report_dir / "bake")
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
-    the_truth = truth.Truth(scene, hm.height)
+    albedo = sc.load_albedo(scene.material, rows, cols)
+    the_truth, points = truth_of(scene, hm.height, albedo)
     timings["truth_setup_s"] = time.perf_counter() - t0
-    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), cache=out / "fit")
+    if points is not None:          # a model: its mesh (cut, displaced, its BVH) and camera rays
+        timings.update({f"truth_{k}": v for k, v in the_truth.timings.items()})
+    ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
     plain = surface.unshadowed(ctx)
     timings["plain_setup_s"] = time.perf_counter() - t0
@@ -295,6 +312,10 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
         timings["view_setup_s"] = time.perf_counter() - t0
+    elif points is not None:
+        # a model: every technique again at the truth's own hits (perfect parallax), as for a view
+        perfect_ctx = dataclasses.replace(ctx, points=the_truth.samples("truth"), _shared={})
+        setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     camera.forget_sample_positions()
     lookup.forget()
     backend.release_memory()
@@ -308,11 +329,28 @@ def _constant(values: np.ndarray) -> float | None:
     return first if first is not None and bool(np.all(v == v.flat[0])) else None
 
 
+def truth_of(scene, height: np.ndarray, albedo: np.ndarray):
+    """``(truth, points)``: the plane's :class:`hzval.truth.Truth` (the techniques read where the
+    camera's rays meet their plane: ``points`` None), or on a model (``[mesh]``) its
+    :class:`hzval.model_truth.ModelTruth` and the techniques' samples at its hits, with their frames."""
+    if scene.mesh.is_plane:
+        return truth.Truth(scene, height), None
+    from hzval import model, model_truth
+
+    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    the_truth = model_truth.ModelTruth(scene, height, base, albedo=albedo)
+    return the_truth, the_truth.samples()
+
+
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
     """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
     (:class:`hzval.technique.Unavailable`) is skipped with its one-line notice."""
     built = []
+    on_model = ctx.points is not None and ctx.points.frames is not None
     for t in chosen:
+        if on_model and t.not_on_models:
+            notices.append(f"{t.name}: not on a model: {t.not_on_models}")
+            continue
         t0 = time.perf_counter()
         try:
             built.append(t.build(ctx, **options.settings.get(t.name, {})))
@@ -598,6 +636,8 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
                                             truth_shown=truth_shown, all_files=all_files, mask=t_frame.mask)
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
+    if hasattr(setup.truth, "macro_shadowed"):
+        frame["macro_shadowed"] = setup.truth.macro_shadowed(az)    # a model: the base mesh's own shadow
     if floor is not None:
         frame["floor"] = floor
     per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
@@ -675,6 +715,13 @@ def _view_parameters(scene) -> dict:
     return out
 
 
+def _mesh_parameters(scene) -> dict:
+    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before)."""
+    if scene.mesh.is_plane:
+        return {}
+    return {"mesh": scene.mesh.shape, "uv_scale": scene.mesh.uv_scale, "up": scene.mesh.up}
+
+
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
     techniques = {t.name: {"label": t.label, "summary": t.summary, "file_stem": t.file_stem,
@@ -691,11 +738,12 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
                        "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
                        "supersampling": scene.camera.supersampling,
                        "truth_tolerance": scene.material.truth_tolerance,
-                       **_view_parameters(scene),
+                       **_view_parameters(scene), **_mesh_parameters(scene),
                        "techniques": [t.name for t in setup.techniques]},
         "bake": {"contents": list(setup.bake_contents)},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
         "camera": setup.truth.view.record(),
+        **({"mesh": setup.truth.record()} if hasattr(setup.truth, "model") else {}),
         **({"view": setup.view} if setup.view else {}),
         "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
                      "note": "display = clip(scale * radiance); the largest radiance the declared effects "

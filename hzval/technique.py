@@ -128,6 +128,9 @@ class Technique:
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
     #: Whether a sweep without ``--techniques`` renders it (the GL techniques are opt-in).
     by_default: ClassVar[bool] = True
+    #: Why the technique does not render on a model (``[mesh]``, :mod:`hzval.model_truth`), in one
+    #: line; empty: it does, reading each sample's own tangent frame (:class:`hzval.lookup.Samples`).
+    not_on_models: ClassVar[str] = ""
 
     simulated: tuple[str, ...] = ()
     #: The command-line flag of each :meth:`build` setting (``{"steps": "--pom-steps"}``), which an

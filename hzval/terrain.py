@@ -350,6 +350,8 @@ class TerrainShadow(surface.HeightFieldShadow):
     summary = "Raudins' terrain shadows: a per-light sweep of the shadow-boundary height"
     file_stem = "terrain"
     not_modelled = NOT_MODELLED
+    not_on_models = ("Raudins' sweep runs along lines of one light direction across the whole map (a terrain "
+                     "under the sun); on a model every sample's tangent-space light is its own")
 
     def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo: np.ndarray | None = None,
                  ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: surface.Unshadowed | None = None,
