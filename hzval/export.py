@@ -63,6 +63,9 @@ def check_fits(scene: Scene) -> int:
 
     from hzval import bake, sweep
 
+    if not scene.mesh.is_plane:
+        raise InputError(scene.source or "--scene", f"export-scene writes the tile's displaced mesh; a model's "
+                                                     f"({scene.mesh.shape}) is not exported yet")
     one = dataclasses.replace(scene, spp=1)
     rows, cols = sweep.material_shape(one)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height

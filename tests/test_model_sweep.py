@@ -6,6 +6,7 @@ not; a bad mesh is one line naming the file and the problem, exit 2, and no outp
 """
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -69,3 +70,12 @@ def test_parallax_and_mips_work_on_a_model(tmp_path):
     floor = err(runs["plain"], "perfect_parallax_mae")
     assert occl < plain and occl - floor < 0.5 * (plain - floor)
     assert runs["mips"]["parameters"]["filter"] == "trilinear"
+
+
+def test_export_scene_refuses_a_model(tmp_path, capsys):
+    out = tmp_path / "x"
+    cube = Path(__file__).resolve().parent.parent / "scenes" / "cube.toml"
+    assert cli.main(["export-scene", "--scene", str(cube), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cube.toml" in err[0] and "not exported" in err[0]
+    assert not out.exists()
