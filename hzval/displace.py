@@ -39,7 +39,7 @@ from hzval import tangents as tg
 from hzval.model import BaseMesh, edge_table
 from hzval.slivers import split
 
-#: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 330-390 bytes a
+#: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 280-390 bytes a
 #: triangle over their start (a 20k-triangle torus and model, the plane, 512^2 and 1024^2,
 #: benchmarks/bench_meshes.py) and keep 130-250 (the refined arrays and the displaced positions),
 #: to which Mitsuba's mesh and Embree's BVH add 140 (:data:`hzval.mesh.BYTES_PER_TRIANGLE`).
