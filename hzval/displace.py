@@ -53,7 +53,7 @@ class Refined:
     re-orthonormalised against the normal, ``w`` kept), ``uvs (V, 2)``, ``weld (V,)`` (one id per
     position, equal across a seam); ``faces (F, 3)`` int64 counterclockwise as the base's,
     ``base_face (F,)`` the base triangle each came from, ``levels`` the ``n`` of each piece that was
-    cut (the base triangles, or their halves where slivers were bisected, :mod:`hzval.slivers`)."""
+    cut (the base triangles, or their pieces where slivers were bisected, :mod:`hzval.slivers`)."""
 
     positions: np.ndarray
     normals: np.ndarray
@@ -81,11 +81,9 @@ def _levels_for(length: np.ndarray, max_edge_texels: float, powers_of_two: bool)
 def edge_levels(base: BaseMesh, texels: tuple[int, int], max_edge_texels: float = 1.0, *,
                 powers_of_two: bool = False):
     """``(F, 3)`` int64: the level ``m`` of each triangle's edge ``e`` (corner ``e`` to ``e + 1``),
-    the same for every triangle on one welded edge: the power of two that cuts the edge into
-    pieces of at most ``max_edge_texels`` texels on every side (``texels = (rows, cols)``): any
-    count (the default: a fifth to a half of the triangles that powers of two give, docs/meshes.md)
-    or, ``powers_of_two``, the next power of two (an edge's nodes are then a subset of its finer
-    triangle's)."""
+    the same for every triangle on one welded edge: the number of pieces that leaves none longer
+    than ``max_edge_texels`` texels on any side of it (``texels = (rows, cols)``), or with
+    ``powers_of_two`` the next power of two (a third more triangles on a torus, docs/meshes.md)."""
     if not (isinstance(max_edge_texels, (int, float)) and max_edge_texels > 0):
         raise ValueError(f"max_edge_texels must be positive, got {max_edge_texels!r}")
     rows, cols = texels
@@ -318,7 +316,11 @@ def refine(base: BaseMesh, texels: tuple[int, int], *, max_edge_texels: float = 
     out_weld = np.concatenate([base.weld, weld[new]])
     n0, t0 = _unit_frame(base.normals, base.tangents)
     piece = cat("base_face")
-    return Refined(np.concatenate([weld_pos[base.weld], p]), np.concatenate([n0, n]), np.concatenate([t0, t]),
+    positions = np.concatenate([weld_pos[base.weld], p])
+    one = np.zeros(int(out_weld.max()) + 1, np.int64)
+    one[out_weld[::-1]] = np.arange(len(out_weld))[::-1]
+    positions = positions[one][out_weld]  # a seam's sides: one point, whatever the sum's rounding
+    return Refined(positions, np.concatenate([n0, n]), np.concatenate([t0, t]),
                    np.concatenate([base.uvs, uv]), vid[faces], out_weld,
                    piece if parent is None else parent[piece], levels)
 
