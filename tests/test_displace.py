@@ -216,10 +216,10 @@ def test_slivers_are_bisected_and_keep_the_surface():
     refinement needs a fraction of the triangles, stays closed and covers the base, and every
     vertex's frame is the base triangle's own interpolation at that point."""
     base = model.cylinder(stacks=1, caps=False, segments=16)
-    tex = (256, 256)
+    tex = (128, 128)
     whole = dp.estimate(base, tex, split_slivers=False)[0]
     cut = dp.estimate(base, tex)[0]
-    assert cut < 0.3 * whole
+    assert cut < 0.4 * whole
     r = dp.refine(base, tex)
     assert len(r.faces) == cut
     a = uv_area(r.uvs, r.faces) * np.sign(base.uv_areas[r.base_face])
