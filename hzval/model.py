@@ -281,8 +281,8 @@ def plane(*, uv_scale: float = 1.0) -> BaseMesh:
 #: The cube's faces as a real unwrap lays them out: ``(name, normal, +u axis, +v axis)``. Each face
 #: carries the whole texture. -y (the front), +x and +y read as the texture seen from outside
 #: (the sides' +v up); +z (the top) is turned 90 degrees (+u along +y); -x and -z are *mirrored*
-#: (w = -1: -x reuses +x's layout, -z is the top's mirror image seen from below), as an artist's
-#: mirrored islands are. mirrored_fraction = 1/3.
+#: (w = -1: -x reuses +x's layout; -z, the bottom, has u along +x and v along +y, the texture as
+#: seen from above through the cube), as an artist's mirrored islands are. mirrored_fraction = 1/3.
 CUBE_FACES = (
     ("+x", (1, 0, 0), (0, 1, 0), (0, 0, 1)),
     ("-x", (-1, 0, 0), (0, 1, 0), (0, 0, 1)),
