@@ -646,6 +646,48 @@ class _PathTracing:
             mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
 
 
+
+def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
+    """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
+    lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
+    in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
+    never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
+    instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
+    memory with it)."""
+    everywhere = any(scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
+    if everywhere:
+        return meshes.MIN_ELEVATION_DEG
+    return max(meshes.MIN_ELEVATION_DEG, lowest)
+
+
+def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
+    """``(min_elevation_deg, margin)`` of the truth's mesh of heights ``h_texels`` (texels): the lowest
+    elevation its rays are traced toward (the light's lowest direction, at most
+    :data:`hzval.mesh.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``)."""
+    light = scene.light
+    lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
+    min_elevation = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
+    if scene.material.boundary != "wrap":
+        return min_elevation, 0
+    # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
+    # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
+    # relief / tan(e), quadratically in memory
+    return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
+
+
+def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
+    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
+    included (:func:`hzval.mesh.cell_levels` at ``material.truth_tolerance``), counted without
+    building it: what :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+    mat = scene.material
+    h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
+    min_elevation, margin = surface_margin(scene, h_tex)
+    g = meshes.grid(h_tex, mat.boundary, min_elevation_deg=min_elevation,
+                    margin=margin if mat.boundary == "wrap" else None)
+    tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
+    return meshes.triangle_count(meshes.cell_levels(g.z, tolerance))
+
+
 class Truth(_CameraRays, _RayQueries, _PathTracing):
     """Ground-truth renderer of one scene and height map.
 
@@ -710,15 +752,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         h_tex = cv.heights_in_texels(h, mat.depth)
         self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
         self.relief = self.z_max - self.z_min
-        lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
-        self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
-        if mat.boundary == "wrap":
-            # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
-            # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
-            # relief / tan(e), quadratically in memory
-            self.margin = meshes.wrap_margin(h_tex, self._margin_elevation_deg(lowest), capped=True)
-        else:
-            self.margin = 0
+        self.min_elevation_deg, self.margin = surface_margin(self.scene, h_tex)
         info: dict = {}
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
                                           texcoords=False, tolerance=mat.truth_tolerance, info=info,
@@ -754,18 +788,6 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         }
         backend.sync()
         self.timings["mesh_s"] = time.perf_counter() - t0
-
-    def _margin_elevation_deg(self, lowest: float) -> float:
-        """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
-        lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
-        in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
-        never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
-        instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
-        memory with it)."""
-        everywhere = any(self.scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
-        if everywhere:
-            return meshes.MIN_ELEVATION_DEG
-        return max(meshes.MIN_ELEVATION_DEG, lowest)
 
     def _load_albedo(self, albedo):
         """The linear albedo texels as one flat ``mi.Float`` array, or ``None`` when no effect reads it."""

@@ -240,3 +240,32 @@ def test_the_truth_tolerance_is_recorded_and_read(variant, tmp_path):
     h = np.random.default_rng(5).random((16, 16)).astype(np.float32)
     coarse, fine = (Truth(sc.override(scene, truth_tolerance=t), h) for t in (0.5, 0.005))
     assert coarse.tolerance == 0.5 and fine.mesh.face_count() > 2 * coarse.mesh.face_count()
+
+
+def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_refused(variant, tmp_path, capsys,
+                                                                                        monkeypatch):
+    """Once the map is read the sweep's estimate charges the truth's own triangles (hzval.truth.mesh_triangles,
+    the count hzval.mesh.tessellate makes): a finer tolerance costs more, and a mesh over the memory
+    available is refused before the bake or the mesh, one line naming --truth-tolerance, exit 2, no files."""
+    from hzval import bake, cli, materials, scene as sc, sweep, truth
+
+    scene = sc.override(sc.Scene(), size=64, azimuths="0", spp=2).validate()
+    h = materials.generate("bricks", 64).height
+    g = M.grid(cv.heights_in_texels(h, scene.material.depth), "wrap",
+               margin=truth.surface_margin(scene, cv.heights_in_texels(h, scene.material.depth))[1])
+    _, faces, _ = M.tessellate(g, scene.material.truth_tolerance)
+    assert truth.mesh_triangles(scene, h) == len(faces)
+    fine = sc.override(scene, truth_tolerance=0.0005)
+    extra = truth.mesh_triangles(fine, h) - len(faces)
+    assert extra > len(faces)
+    assert (sweep.estimate_peak_bytes(fine, 64, 64, truth.mesh_triangles(fine, h))
+            - sweep.estimate_peak_bytes(scene, 64, 64, len(faces))) == pytest.approx(
+        sweep.PEAK_BYTES_PER_TRIANGLE * extra, abs=2)
+    before_the_map = sweep.estimate_peak_bytes(fine, 64, 64)
+    monkeypatch.setattr(bake, "available_bytes", lambda: before_the_map + sweep.PEAK_BYTES_PER_TRIANGLE * extra // 2)
+    out = tmp_path / "o"
+    assert cli.main(["sweep", "--size", "64", "--azimuths", "0", "--spp", "2", "--truth-tolerance", "0.0005",
+                     "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--truth-tolerance" in err and "triangles" in err and "estimated" in err
+    assert not out.exists()
