@@ -457,11 +457,19 @@ class _RayQueries:
         return mi.Point3f(p.x - c["cols"] * dr.floor(p.x / c["cols"]),
                           p.y - c["rows"] * dr.floor(p.y / c["rows"]), p.z)
 
-    def _hop_length(self, d):
+    def _hop_length(self, o, d):
+        """Per ray, how far ``o + t d`` (``o`` in the tile) runs over the mesh before its end, wrapped
+        back into the tile, could be off it: ``t`` to the nearer of the box ``[-e, cols + e] x [-e, rows
+        + e]`` (``e`` = margin - 0.75: the mesh ends at margin - 0.5, a quarter texel kept for float32's
+        rounding) in the ray's horizontal direction. At least :attr:`_hop` texels horizontally; a ray
+        from inside the tile runs the tile's width or more, so a narrow margin costs hops only to the
+        rays that leave near the tile's edge."""
         import drjit as dr
 
-        dxy = dr.sqrt(dr.fma(d.x, d.x, d.y * d.y))
-        return self._c["hop"] / dr.maximum(dxy, 1e-12)
+        c = self._c
+        run_x = dr.select(d.x >= 0.0, c["cols"] + c["edge"] - o.x, o.x + c["edge"])
+        run_y = dr.select(d.y >= 0.0, c["rows"] + c["edge"] - o.y, o.y + c["edge"])
+        return dr.minimum(run_x / dr.maximum(dr.abs(d.x), 1e-12), run_y / dr.maximum(dr.abs(d.y), 1e-12))
 
     def _occluded(self, o, d, hops: int, dynamic: bool = False, coherent: bool = False, skip=None):
         """Whether the rays ``o + t d`` (``t > 0``) hit the surface; ``d`` unit.
@@ -490,8 +498,8 @@ class _RayQueries:
             ray.maxt = dr.maximum((top - o.z) / d.z, 0.0)
             return (d.z <= 0.0) | self.mi_scene.ray_test(ray, coherent, active)
         blocked = d.z <= 0.0
-        maxt = self._hop_length(d)
         for i in range(hops):
+            maxt = self._hop_length(o, d)
             ray = mi.Ray3f(o, d)
             ray.maxt = dr.minimum(maxt, dr.maximum((top - o.z) / d.z, 0.0))
             hit = self.mi_scene.ray_test(ray, coherent, active)
@@ -529,8 +537,8 @@ class _RayQueries:
         active = mi.Bool(active)                 # a copy: &= below must not touch the caller's mask
         hit = mi.Bool(False)
         x, y = mi.Float(0.0), mi.Float(0.0)
-        maxt = self._hop_length(d)
         for _ in range(hops):
+            maxt = self._hop_length(o, d)
             ray = mi.Ray3f(o, d)
             ray.maxt = maxt
             si = self.mi_scene.ray_intersect(ray, active)
@@ -771,15 +779,15 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                                          wrap_mode=wrap)
         self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
-        # a hop may run this far horizontally from any point of the tile and
-        # stay over the margin (texel centres start half a texel inside)
-        self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
+        # a hop runs at least this far horizontally from any point of the tile and stays over the
+        # margin (texel centres start half a texel inside; a quarter texel kept, _hop_length)
+        self._hop = max(self.margin - 0.75, 0.25)
         # toward the camera: the top view's +z, an orthographic camera's direction (a perspective
         # one's differs per pixel: the effects that read it are refused with it, hzval.scene)
         self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._c = {  # scene-dependent numbers, opaque so that kernels are shared
             "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
-            "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
+            "edge": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
             "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
             # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
             "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
