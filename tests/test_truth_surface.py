@@ -6,7 +6,9 @@ transposed triangles), and the truth's and the techniques' answers on turned map
 lights turned to match.
 """
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,7 +156,7 @@ def turned_scores(tmp_path_factory):
 # noise alone moves |F - V| between two seeds by 0.6% (terrain, 0.0321-0.0323) and 5% (pom, 0.0041-0.0043,
 # a score made of a few pixels) on this crop at 32 spp, as much as between turns; horizon's larger score
 # keeps its noise under 1%. test_every_technique_is_the_same_on_a_turned_map_at_the_turned_samples
-# removes the noise and holds every technique to 1e-4.
+# removes the noise (benchmarks/turned_techniques.py).
 @pytest.mark.slow
 def test_horizons_score_on_a_turned_map_agrees_to_one_percent(variant, turned_scores):
     for (boundary, turn), scores in turned_scores.items():
@@ -162,41 +164,10 @@ def test_horizons_score_on_a_turned_map_agrees_to_one_percent(variant, turned_sc
         assert scores["horizon"] == pytest.approx(base, rel=0.01), (boundary, turn)
 
 
-#: Where a turn of the map takes a tangent-space point of a rows x cols tile (TURNS' order).
-POINT_TURNS = {"mirror": lambda x, y, r, c: (c - x, y), "rot90": lambda x, y, r, c: (r - y, x),
-               "rot180": lambda x, y, r, c: (c - x, r - y), "transpose": lambda x, y, r, c: (r - y, c - x)}
-
-
-def _turned_frames(h, boundary, azimuth, spp, turn=None):
-    """V and every default technique's factor on ``h`` turned by ``turn`` (a TURNS entry, or None),
-    lit from the turned light, each sample at the turned position of the as-is map's sample; returned
-    in the as-is map's pixel order."""
-    from hzval import bake, lookup, technique
-    from hzval import scene as sc
-    from hzval.camera import sample_positions
-    from hzval.truth import Truth
-
-    name, f, az = turn or ("as-is", lambda a: a, lambda a: a)
-    rows, cols = h.shape
-    ht = np.ascontiguousarray(f(h))
-    perm = f(np.arange(rows * cols).reshape(rows, cols)).ravel()    # turned pixel -> as-is pixel
-    scene = sc.override(sc.Scene(), depth=0.05, boundary=boundary, elevation=30.0, spp=spp, effects="shadow",
-                        azimuths=str(az(azimuth) % 360.0)).validate()
-    x, y = (np.asarray(a, np.float64).reshape(rows * cols, spp)[perm]
-            for a in sample_positions(rows, cols, scene.camera, spp, 1))
-    if turn is not None:
-        x, y = POINT_TURNS[name](x, y, rows, cols)
-    x, y = x.astype(np.float32).ravel(), y.astype(np.float32).ravel()
-    light = az(azimuth) % 360.0
-    out = {"V": Truth(scene, ht, positions=(x, y)).render(light).layers["visibility"]}
-    baked = bake.bake(ht, bake.BakeParams(depth=0.05, boundary=boundary).validate())
-    like = lookup.Samples(np.zeros(1, np.float32), np.zeros(1, np.float32), *ht.shape, spp)
-    ctx = technique.Context(scene, ht, baked, None, points=lookup.from_points(x, y, like))
-    for t in technique.select(None, scene):
-        out[t.name] = t.build(ctx).render(light).layers["factor"]
-    inverse = np.empty_like(perm)
-    inverse[perm] = np.arange(perm.size)
-    return {k: v.ravel()[inverse] for k, v in out.items()}
+_SPEC = importlib.util.spec_from_file_location(
+    "turned_techniques", Path(__file__).resolve().parent.parent / "benchmarks" / "turned_techniques.py")
+turned = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(turned)
 
 
 @pytest.mark.parametrize("boundary", ["open", "wrap"])
@@ -207,10 +178,10 @@ def test_every_technique_is_the_same_on_a_turned_map_at_the_turned_samples(varia
     from hzval import materials
 
     h = materials.generate("bricks", 128, seed=6).height[10:74, 20:84]
-    ref = _turned_frames(h, boundary, 20.0, 4)
+    ref = turned.turned_frames(h, boundary, 20.0, 4)
     assert 0.5 < ref["V"].mean() < 0.97 and set(ref) >= {"V", "horizon", "terrain", "pom"}
-    for turn in TURNS:
-        got = _turned_frames(h, boundary, 20.0, 4, turn)
+    for turn in turned.TURNS:
+        got = turned.turned_frames(h, boundary, 20.0, 4, turn)
         for name in ref:
             assert np.abs(got[name] - ref[name]).max() <= 1e-3, (turn[0], name)
             if name != "V":
