@@ -498,23 +498,45 @@ class _RayQueries:
             ray.maxt = dr.maximum((top - o.z) / d.z, 0.0)
             return (d.z <= 0.0) | self.mi_scene.ray_test(ray, coherent, active)
         blocked = d.z <= 0.0
+        hit, active, o = self._hop_loop(o, d, active, 1, coherent, False)     # every ray's first hop
+        blocked |= hit
+        if hops == 1:
+            return blocked | active
+        # the rays that leave the mesh before they clear the surface, those that start near the
+        # tile's edge: traced on by themselves, so that their hops cost no more than they are
+        dr.eval(blocked, active, o)
+        idx = dr.compress(active)
+        if dr.width(idx) == 0:
+            return blocked
+        o_left = dr.gather(mi.Point3f, o, idx)
+        d_left = d if dr.width(d) == 1 else dr.gather(mi.Vector3f, d, idx)
+        hit, left, _ = self._hop_loop(o_left, d_left, dr.full(mi.Bool, True, dr.width(idx)), hops - 1, coherent,
+                                      dynamic)
+        dr.scatter(blocked, True, idx, hit | left)
+        return blocked
+
+    def _hop_loop(self, o, d, active, hops: int, coherent, dynamic: bool):
+        """``hops`` hops of the rays ``o + t d`` (``wrap``; ``o`` in the tile): ``(blocked, active, o)``,
+        the rays that met the surface, those still under its top after the last hop, and where they
+        are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved."""
+        import drjit as dr
+        import mitsuba as mi
+
+        top = self._c["top"]
+        blocked = mi.Bool(False)
         for i in range(hops):
             maxt = self._hop_length(o, d)
             ray = mi.Ray3f(o, d)
             ray.maxt = dr.minimum(maxt, dr.maximum((top - o.z) / d.z, 0.0))
             hit = self.mi_scene.ray_test(ray, coherent, active)
             blocked |= hit & active
-            if i + 1 == hops:
-                o_next = o + d * maxt
-                active &= ~hit & (o_next.z < self._c["top"])
-                break
             o = self._advance(o, d, maxt)
-            active &= ~hit & (o.z < self._c["top"])
-            if dynamic:
+            active &= ~hit & (o.z < top)
+            if dynamic and i + 1 < hops:
                 dr.eval(o, active, blocked)
                 if not bool(dr.any(active)):
-                    return blocked
-        return blocked | active
+                    break
+        return blocked, active, o
 
     def _next_surface(self, o, d, active, hops: int):
         """Where the rays ``o + t d`` first meet the surface, wrapped into the tile.
