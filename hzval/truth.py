@@ -139,13 +139,14 @@ Boundaries
     of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for the
     light's lowest direction when shadow rays are the only rays, for 10 degrees
     when rays leave in every direction (ambient, reflection, paths), never
-    below 10 degrees, and at most half a tile wide: a margin
+    below 10 degrees, and at most :data:`hzval.mesh.MIN_MARGIN_CAP` (32) texels wide: a margin
     for a grazing light or a deep relief grows as ``relief / tan(e)`` and the
     mesh with its square (the bricks at 1 degree: 2.4 GB; a 512 x 512 photo at
     depth 5: 30,000 x 30,000 vertices). Rays that need more - lights below
     10 degrees, ambient and path rays near the horizon, soft lights that dip
     low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends before the ray can leave
-    the margin, its end point is wrapped back into the tile, and the next hop
+    the margin (as far as the mesh reaches from where it starts, the tile's width from most points),
+    its end point is wrapped back into the tile, and the next hop
     continues from there, until the ray is above the highest point of the
     surface. So the surface tiles without end for every ray, not only within
     the margin.
@@ -699,7 +700,7 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
     min_elevation = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
     if scene.material.boundary != "wrap":
         return min_elevation, 0
-    # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
+    # never wider than the margin for 10 degrees, nor than 32 texels: longer rays hop (see
     # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
     # relief / tan(e), quadratically in memory
     return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
