@@ -13,15 +13,17 @@ the bytes under ``frames/``):
 
 ``side-by-side``
     The same sweep on this tree and on ``--baseline REV`` (a detached ``git worktree`` of it,
-    run with this virtualenv), one after the other in one run: wall time, peak memory and frame
-    bytes of each, and the ratios. Options after ``--`` go to this tree's sweep only (e.g. ``--
-    --techniques horizon,terrain`` for the techniques an older tree ran, which had no such flag).
+    run with this virtualenv), one after the other in one run: wall time, CPU time (user + sys of
+    the child, less sensitive to a shared machine's load), peak memory and frame bytes of each, and
+    the ratios. Options after ``--`` go to this tree's sweep only (e.g. ``-- --techniques
+    horizon,terrain`` for the techniques an older tree ran, which had no such flag), or with
+    ``--both`` to the baseline's as well.
 
 Usage::
 
     python benchmarks/bench_production.py stages [--sizes 512,1024,2048,4096] [--azimuths=-60:60:120]
     python benchmarks/bench_production.py side-by-side --baseline 9219ded [--size 2048]
-                                          [--azimuths=-60:60:30] [-- SWEEP OPTIONS]
+                                          [--azimuths=-60:60:30] [--both] [-- SWEEP OPTIONS]
 """
 
 from __future__ import annotations
@@ -65,7 +67,8 @@ def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
         raise SystemExit(f"{' '.join(cmd)} (in {tree}) failed: {err[-1] if err else status}")
     metrics = json.loads((out / "metrics.json").read_text())
     frames = sum(p.stat().st_size for p in (out / "frames").rglob("*") if p.is_file())
-    return {"wall_s": wall, "peak_bytes": usage.ru_maxrss * 1024, "metrics": metrics, "frame_bytes": frames}
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_bytes": usage.ru_maxrss * 1024,
+            "metrics": metrics, "frame_bytes": frames}
 
 
 def stage_seconds(timings: dict) -> dict:
@@ -98,14 +101,15 @@ def stages(sizes: list[int], azimuths: str, extra: list[str], scratch: Path) -> 
     _print_table(head, rows)
 
 
-def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path) -> None:
+def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path,
+                 both: bool = False) -> None:
     tree = scratch / "baseline"
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
                    check=True, capture_output=True)
     try:
         args = ["--size", str(size), f"--azimuths={azimuths}"]
         print(f"{baseline} ...", file=sys.stderr, flush=True)
-        old = run_sweep(tree, scratch / "old", args)
+        old = run_sweep(tree, scratch / "old", args + (extra if both else []))
         print("this tree ...", file=sys.stderr, flush=True)
         new = run_sweep(ROOT, scratch / "new", args + extra)
     finally:
@@ -114,11 +118,13 @@ def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scra
     rows = [[label, f"{so[label]:.1f} s", f"{sn[label]:.1f} s", _ratio(sn[label], so[label])] for label, _ in STAGES]
     rows.append(["wall (whole run)", f"{old['wall_s']:.1f} s", f"{new['wall_s']:.1f} s",
                  _ratio(new["wall_s"], old["wall_s"])])
+    rows.append(["CPU user + sys", f"{old['cpu_s']:.1f} s", f"{new['cpu_s']:.1f} s", _ratio(new["cpu_s"], old["cpu_s"])])
     rows.append(["peak memory", gib(old["peak_bytes"]), gib(new["peak_bytes"]),
                  _ratio(new["peak_bytes"], old["peak_bytes"])])
     rows.append(["frame files", f"{old['frame_bytes'] / 1e6:.0f} MB", f"{new['frame_bytes'] / 1e6:.0f} MB",
                  _ratio(new["frame_bytes"], old["frame_bytes"])])
-    print(f"hzval sweep {' '.join(args)}   (this tree: + {' '.join(extra) or 'nothing'}; techniques: {baseline}: "
+    print(f"hzval sweep {' '.join(args)}   ({'both' if both else 'this tree'}: + {' '.join(extra) or 'nothing'}; "
+          f"techniques: {baseline}: "
           f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
           f"{', '.join(new['metrics'].get('techniques', {}))})")
     _print_table(["stage", baseline, "this tree", "ratio"], rows)
@@ -147,12 +153,13 @@ def main(argv=None) -> None:
     b.add_argument("--baseline", default="9219ded")
     b.add_argument("--size", type=int, default=2048)
     b.add_argument("--azimuths", default="-60:60:30")
+    b.add_argument("--both", action="store_true", help="the options after -- go to the baseline's sweep too")
     a = p.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="hzval-bench-") as scratch:
         if a.mode == "stages":
             stages([int(x) for x in a.sizes.split(",")], a.azimuths, extra, Path(scratch))
         else:
-            side_by_side(a.baseline, a.size, a.azimuths, extra, Path(scratch))
+            side_by_side(a.baseline, a.size, a.azimuths, extra, Path(scratch), both=a.both)
 
 
 if __name__ == "__main__":

@@ -57,8 +57,8 @@ FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
 
 def check_fits(scene: Scene) -> int:
     """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
-    sweep's estimate (:func:`hzval.sweep.estimate_peak_bytes`, whose per-pixel term holds the mesh)
-    at one sample a pixel, since nothing is rendered; return it in bytes."""
+    sweep's estimate (:func:`hzval.sweep.estimate_peak_bytes`, its mesh at four triangles a texel until the
+    map is read; :func:`hzval.mesh.tessellate` refuses a larger one) at one sample a pixel, since nothing is rendered; return it in bytes."""
     import dataclasses
 
     from hzval import bake, sweep

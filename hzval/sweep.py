@@ -174,17 +174,23 @@ class _Setup:
     albedo_constant: float | None = None    # the linear albedo where it is one grey value (frames.json)
 
 
-#: A sweep's peak memory: a base, a cost per pixel (the mesh and its BVH, images, comparisons), one
-#: per sample for the techniques (the shared uv, terrain's xy, the positions while they are set up)
-#: and one per sample the truth keeps between frames (its hits: every sample up to
-#: hzval.truth.KEEP_SAMPLES, one band's beyond). Fitted to the peaks measured on this machine
-#: (``python benchmarks/bench_production.py stages``, the default sweep, two lights; benchmarks/README.md).
+#: A sweep's peak memory: a base, a cost per pixel (images, comparisons), one per triangle of the
+#: truth's mesh (its faces, vertices and Embree's BVH), one per sample for the techniques (the shared
+#: uv, terrain's xy, the positions while they are set up) and one per sample the truth keeps between
+#: frames (its hits: every sample up to hzval.truth.KEEP_SAMPLES, one band's beyond). Fitted to the
+#: peaks measured on this machine (``python benchmarks/bench_production.py``; docs/truth-surface.md, "Cost").
 PEAK_BASE_BYTES = 0.3 * 2 ** 30
-#: The truth's bilinear surface (docs/truth-surface.md) adds its fans' triangles to the pixel's share:
-#: the 2048 bricks' 37.5M triangles against 11.5M, a peak of 8.79 GiB against 6.79 (5 lights,
-#: horizon and terrain), 2.0 GiB more, 500 bytes a pixel; a map of more twisted cells has more
-#: (hzval.mesh.tessellate refuses a mesh that cannot fit, before it is built).
-PEAK_BYTES_PER_PIXEL = 600 + 500
+PEAK_BYTES_PER_PIXEL = 325
+#: The mesh's share of the peak, per triangle (hzval.truth.mesh_triangles): the 2048 bricks' peak
+#: grew by 2.0 GiB with 26M triangles more (37.5M against bd627d5's 11.5M); Embree holds about 94
+#: bytes a triangle once built, 133 while it builds (hzval.mesh.BYTES_PER_TRIANGLE), part of which the
+#: peak, later, does not see.
+PEAK_BYTES_PER_TRIANGLE = 83
+#: Triangles a pixel before the map is known (:func:`estimate_peak_bytes` without ``triangles``): a
+#: symmetric tessellation's fewest for a map of twisted cells (four a cell, hzval.mesh.cell_levels), so
+#: that the check before the map is generated refuses only what cannot fit; the sweep checks again with
+#: the mesh's own count once the map is read (:func:`check_fits`).
+TRIANGLES_PER_PIXEL_BEFORE_THE_MAP = 4
 PEAK_BYTES_PER_SAMPLE = 24
 PEAK_BYTES_PER_KEPT_SAMPLE = 52
 #: What a view other than ``top`` adds per sample of a band (rays on the host, the hits).
@@ -195,12 +201,15 @@ PEAK_BYTES_PER_VIEW_SAMPLE = 64
 RETAIN_BELOW_SHARE = 0.5
 
 
-def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
+def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = None) -> int:
     """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
-    in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``metrics.json`` records it beside the
-    measured peak."""
+    in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
+    (:func:`hzval.truth.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
+    ``metrics.json`` records it beside the measured peak."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
+    if triangles is None:
+        triangles = TRIANGLES_PER_PIXEL_BEFORE_THE_MAP * rows * cols
     if truth.keeps_samples(H, W, scene.spp):
         kept = samples
     else:
@@ -209,8 +218,8 @@ def estimate_peak_bytes(scene, rows: int, cols: int) -> int:
     if scene.camera.kind != "top":
         # a band's rays in float64 on the host, the truth's hits, the techniques built twice
         view = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples
-    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_SAMPLE * samples
-               + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
+    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_TRIANGLE * triangles
+               + PEAK_BYTES_PER_SAMPLE * samples + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
 
 
 def _model_peak_bytes(scene, rows: int, cols: int) -> int:
@@ -252,20 +261,29 @@ def check_frame_pixels(scene, rows: int, cols: int) -> int:
     return n
 
 
-def check_fits(scene, params: BakeParams) -> int:
+def check_fits(scene, params: BakeParams, height: np.ndarray | None = None) -> int:
     """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
     bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
-    now; return the estimate."""
-    rows, cols = material_shape(scene)
+    now; return the estimate. ``height``: the normalised map, once read: the estimate then counts the
+    truth's own triangles (:func:`hzval.truth.mesh_triangles`), and a refusal names
+    ``--truth-tolerance`` as well."""
+    rows, cols = material_shape(scene) if height is None else np.shape(height)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
-    need, have = estimate_peak_bytes(scene, rows, cols), bake.available_bytes()
+    triangles = None
     if not scene.mesh.is_plane:
-        need = _model_peak_bytes(scene, rows, cols)
+        need = _model_peak_bytes(scene, rows, cols)     # the model's truth counts its rings itself
+    else:
+        triangles = None if height is None else truth.mesh_triangles(scene, height)
+        need = estimate_peak_bytes(scene, rows, cols, triangles)
+    have = bake.available_bytes()
     if need > have:
-        raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp needs about "
+        mesh = "" if triangles is None else (f" with the truth's {triangles / 1e6:.0f}M triangles at "
+                                             f"--truth-tolerance {scene.material.truth_tolerance:g}")
+        raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp{mesh} needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
-                               "are available (fewer --spp, a smaller map or a larger machine)")
+                               "are available (fewer --spp, a smaller map"
+                               f"{'' if triangles is None else ', a larger --truth-tolerance'} or a larger machine)")
     check_frame_pixels(scene, rows, cols)
     return need
 
@@ -279,10 +297,11 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     params = options.bake_params(scene)
     for t in chosen:                            # settings are checked before anything is written
         t.check_settings(params, options.settings.get(t.name, {}))
-    estimate = check_fits(scene, params)       # before the map is generated or decoded
+    check_fits(scene, params)                  # before the map is generated or decoded
+    hm = sc.load_material_height(scene.material)
+    estimate = check_fits(scene, params, hm.height)     # the truth's own triangles, before they are made
     # from here on: the frames then reuse what the set-up frees, besides what they free themselves
     retained = estimate <= RETAIN_BELOW_SHARE * bake.available_bytes() and backend.retain_freed_memory()
-    hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     material = {"name": scene.name, "source": hm.source, "digest": hm.digest, "rows": rows, "cols": cols,
                 "path": files.report_path(hm.path, out)}

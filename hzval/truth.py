@@ -139,13 +139,14 @@ Boundaries
     of neighbouring tiles (:func:`hzval.mesh.wrap_margin`) sized for the
     light's lowest direction when shadow rays are the only rays, for 10 degrees
     when rays leave in every direction (ambient, reflection, paths), never
-    below 10 degrees, and at most half a tile wide: a margin
+    below 10 degrees, and at most :data:`hzval.mesh.MIN_MARGIN_CAP` (32) texels wide: a margin
     for a grazing light or a deep relief grows as ``relief / tan(e)`` and the
     mesh with its square (the bricks at 1 degree: 2.4 GB; a 512 x 512 photo at
     depth 5: 30,000 x 30,000 vertices). Rays that need more - lights below
     10 degrees, ambient and path rays near the horizon, soft lights that dip
     low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends before the ray can leave
-    the margin, its end point is wrapped back into the tile, and the next hop
+    the margin (as far as the mesh reaches from where it starts, the tile's width from most points),
+    its end point is wrapped back into the tile, and the next hop
     continues from there, until the ray is above the highest point of the
     surface. So the surface tiles without end for every ray, not only within
     the margin.
@@ -457,11 +458,19 @@ class _RayQueries:
         return mi.Point3f(p.x - c["cols"] * dr.floor(p.x / c["cols"]),
                           p.y - c["rows"] * dr.floor(p.y / c["rows"]), p.z)
 
-    def _hop_length(self, d):
+    def _hop_length(self, o, d):
+        """Per ray, how far ``o + t d`` (``o`` in the tile) runs over the mesh before its end, wrapped
+        back into the tile, could be off it: ``t`` to the nearer of the box ``[-e, cols + e] x [-e, rows
+        + e]`` (``e`` = margin - 0.75: the mesh ends at margin - 0.5, a quarter texel kept for float32's
+        rounding) in the ray's horizontal direction. At least :attr:`_hop` texels horizontally; a ray
+        from inside the tile runs the tile's width or more, so a narrow margin costs hops only to the
+        rays that leave near the tile's edge."""
         import drjit as dr
 
-        dxy = dr.sqrt(dr.fma(d.x, d.x, d.y * d.y))
-        return self._c["hop"] / dr.maximum(dxy, 1e-12)
+        c = self._c
+        run_x = dr.select(d.x >= 0.0, c["cols"] + c["edge"] - o.x, o.x + c["edge"])
+        run_y = dr.select(d.y >= 0.0, c["rows"] + c["edge"] - o.y, o.y + c["edge"])
+        return dr.minimum(run_x / dr.maximum(dr.abs(d.x), 1e-12), run_y / dr.maximum(dr.abs(d.y), 1e-12))
 
     def _occluded(self, o, d, hops: int, dynamic: bool = False, coherent: bool = False, skip=None):
         """Whether the rays ``o + t d`` (``t > 0``) hit the surface; ``d`` unit.
@@ -490,23 +499,45 @@ class _RayQueries:
             ray.maxt = dr.maximum((top - o.z) / d.z, 0.0)
             return (d.z <= 0.0) | self.mi_scene.ray_test(ray, coherent, active)
         blocked = d.z <= 0.0
-        maxt = self._hop_length(d)
+        hit, active, o = self._hop_loop(o, d, active, 1, coherent, False)     # every ray's first hop
+        blocked |= hit
+        if hops == 1:
+            return blocked | active
+        # the rays that leave the mesh before they clear the surface, those that start near the
+        # tile's edge: traced on by themselves, so that their hops cost no more than they are
+        dr.eval(blocked, active, o)
+        idx = dr.compress(active)
+        if dr.width(idx) == 0:
+            return blocked
+        o_left = dr.gather(mi.Point3f, o, idx)
+        d_left = d if dr.width(d) == 1 else dr.gather(mi.Vector3f, d, idx)
+        hit, left, _ = self._hop_loop(o_left, d_left, dr.full(mi.Bool, True, dr.width(idx)), hops - 1, coherent,
+                                      dynamic)
+        dr.scatter(blocked, True, idx, hit | left)
+        return blocked
+
+    def _hop_loop(self, o, d, active, hops: int, coherent, dynamic: bool):
+        """``hops`` hops of the rays ``o + t d`` (``wrap``; ``o`` in the tile): ``(blocked, active, o)``,
+        the rays that met the surface, those still under its top after the last hop, and where they
+        are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved."""
+        import drjit as dr
+        import mitsuba as mi
+
+        top = self._c["top"]
+        blocked = mi.Bool(False)
         for i in range(hops):
+            maxt = self._hop_length(o, d)
             ray = mi.Ray3f(o, d)
             ray.maxt = dr.minimum(maxt, dr.maximum((top - o.z) / d.z, 0.0))
             hit = self.mi_scene.ray_test(ray, coherent, active)
             blocked |= hit & active
-            if i + 1 == hops:
-                o_next = o + d * maxt
-                active &= ~hit & (o_next.z < self._c["top"])
-                break
             o = self._advance(o, d, maxt)
-            active &= ~hit & (o.z < self._c["top"])
-            if dynamic:
+            active &= ~hit & (o.z < top)
+            if dynamic and i + 1 < hops:
                 dr.eval(o, active, blocked)
                 if not bool(dr.any(active)):
-                    return blocked
-        return blocked | active
+                    break
+        return blocked, active, o
 
     def _next_surface(self, o, d, active, hops: int):
         """Where the rays ``o + t d`` first meet the surface, wrapped into the tile.
@@ -529,8 +560,8 @@ class _RayQueries:
         active = mi.Bool(active)                 # a copy: &= below must not touch the caller's mask
         hit = mi.Bool(False)
         x, y = mi.Float(0.0), mi.Float(0.0)
-        maxt = self._hop_length(d)
         for _ in range(hops):
+            maxt = self._hop_length(o, d)
             ray = mi.Ray3f(o, d)
             ray.maxt = maxt
             si = self.mi_scene.ray_intersect(ray, active)
@@ -646,6 +677,48 @@ class _PathTracing:
             mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
 
 
+
+def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
+    """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
+    lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
+    in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
+    never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
+    instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
+    memory with it)."""
+    everywhere = any(scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
+    if everywhere:
+        return meshes.MIN_ELEVATION_DEG
+    return max(meshes.MIN_ELEVATION_DEG, lowest)
+
+
+def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
+    """``(min_elevation_deg, margin)`` of the truth's mesh of heights ``h_texels`` (texels): the lowest
+    elevation its rays are traced toward (the light's lowest direction, at most
+    :data:`hzval.mesh.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``)."""
+    light = scene.light
+    lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
+    min_elevation = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
+    if scene.material.boundary != "wrap":
+        return min_elevation, 0
+    # never wider than the margin for 10 degrees, nor than 32 texels: longer rays hop (see
+    # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
+    # relief / tan(e), quadratically in memory
+    return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
+
+
+def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
+    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
+    included (:func:`hzval.mesh.cell_levels` at ``material.truth_tolerance``), counted without
+    building it: what :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+    mat = scene.material
+    h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
+    min_elevation, margin = surface_margin(scene, h_tex)
+    g = meshes.grid(h_tex, mat.boundary, min_elevation_deg=min_elevation,
+                    margin=margin if mat.boundary == "wrap" else None)
+    tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
+    return meshes.triangle_count(meshes.cell_levels(g.z, tolerance))
+
+
 class Truth(_CameraRays, _RayQueries, _PathTracing):
     """Ground-truth renderer of one scene and height map.
 
@@ -710,15 +783,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         h_tex = cv.heights_in_texels(h, mat.depth)
         self.z_min, self.z_max = float(h_tex.min()), float(h_tex.max())
         self.relief = self.z_max - self.z_min
-        lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
-        self.min_elevation_deg = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
-        if mat.boundary == "wrap":
-            # never wider than the margin for 10 degrees, nor than half a tile: longer rays hop (see
-            # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
-            # relief / tan(e), quadratically in memory
-            self.margin = meshes.wrap_margin(h_tex, self._margin_elevation_deg(lowest), capped=True)
-        else:
-            self.margin = 0
+        self.min_elevation_deg, self.margin = surface_margin(self.scene, h_tex)
         info: dict = {}
         self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
                                           texcoords=False, tolerance=mat.truth_tolerance, info=info,
@@ -737,15 +802,15 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                                          wrap_mode=wrap)
         self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
-        # a hop may run this far horizontally from any point of the tile and
-        # stay over the margin (texel centres start half a texel inside)
-        self._hop = max(self.margin - 0.5, 0.5) * (1.0 - 1e-6)
+        # a hop runs at least this far horizontally from any point of the tile and stays over the
+        # margin (texel centres start half a texel inside; a quarter texel kept, _hop_length)
+        self._hop = max(self.margin - 0.75, 0.25)
         # toward the camera: the top view's +z, an orthographic camera's direction (a perspective
         # one's differs per pixel: the effects that read it are refused with it, hzval.scene)
         self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._c = {  # scene-dependent numbers, opaque so that kernels are shared
             "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
-            "hop": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
+            "edge": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
             "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
             # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
             "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
@@ -754,18 +819,6 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         }
         backend.sync()
         self.timings["mesh_s"] = time.perf_counter() - t0
-
-    def _margin_elevation_deg(self, lowest: float) -> float:
-        """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
-        lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
-        in every direction: ambient, reflection, paths) :data:`hzval.mesh.MIN_ELEVATION_DEG`;
-        never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
-        instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
-        memory with it)."""
-        everywhere = any(self.scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
-        if everywhere:
-            return meshes.MIN_ELEVATION_DEG
-        return max(meshes.MIN_ELEVATION_DEG, lowest)
 
     def _load_albedo(self, albedo):
         """The linear albedo texels as one flat ``mi.Float`` array, or ``None`` when no effect reads it."""
