@@ -39,6 +39,9 @@ class FittedHorizon(Horizon):
     needs = ("shadow",)
     by_default = False
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
+    #: A frame's ``split`` of the baked map's mean |F - V|, from the bottom up (:meth:`frame_extras`).
+    split_parts = (("representation", "what eight directions cannot hold (fitted |F−V|)"),
+                   ("bake_loss", "what the bake loses (baked − fitted |F−V|)"))
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
