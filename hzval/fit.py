@@ -69,7 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import backend, horizon, lookup
+from hzval import backend, fit_guard, horizon, lookup
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval import storage as hz_storage
@@ -84,6 +84,10 @@ TRAINING_LIGHTS = "10,20,40,60@0:345:15"
 HELD_OUT_LIGHTS = "25@-52.5:52.5:15"
 #: ``eps`` of the Charbonnier loss (module docstring): a sixteenth of the 16-spp truth's V step.
 CHARBONNIER_EPS = 1.0 / 256.0
+#: Samples per pixel of the training lights (truth and forward model), at most the scene's: a fit's time
+#: is its samples' (the truth's shadow rays, the kernel's lanes); 4 stratified samples a pixel cover a
+#: texel's bilinear footprint, and the held-out lights are scored at the scene's own samples.
+TRAINING_SPP = 4
 #: Lights per Adam step.
 BATCH_LIGHTS = 8
 #: Adam's learning rate on the sines (and on log k).
@@ -113,7 +117,7 @@ FIT_BYTES_PER_SAMPLE = 8
 FIT_BYTES_PER_TEXEL = 8 * 4 * 8
 FIT_BYTES_PER_BAND_SAMPLE = 160
 #: Bumped when the fit changes what it finds: a cached fit of another version is made anew.
-FIT_VERSION = 1
+FIT_VERSION = 2
 
 
 def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
@@ -316,6 +320,20 @@ class _Model:
                                     straight_through=True)
         return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
 
+    def errors(self, sines: np.ndarray, k: float, lights, V_list):
+        """``|F - V|`` (rows, cols) float32 per light of ``lights`` (and the V they were given in) of
+        ``sines`` as stored, at shadow hardness ``k``, without gradients (:mod:`hzval.fit_guard`)."""
+        dr, mi = self._dr, self._mi
+        with dr.suspend_grad():
+            self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(sines, np.float32))))
+            self.k = k
+            for first in range(0, len(lights), self.group):
+                group = lights[first:first + self.group]
+                F = np.concatenate([np.asarray(self.factor(group, a, b), np.float32).reshape(len(group), b - a)
+                                    for a, b in self.bands], axis=1)
+                for i, f in enumerate(F):
+                    yield np.abs(f.reshape(self.rows, self.cols) - V_list[first + i])
+
     def backward(self, indices, lights, scale: float) -> float:
         """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
         and the V they were given in); return that loss (a float)."""
@@ -339,11 +357,15 @@ class _Model:
 def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HELD_OUT_LIGHTS, fit_k: bool = False,
         storage: str = "float", k: float = horizon.DEFAULT_K, tolerance: float = TOLERANCE,
         max_epochs: int = MAX_EPOCHS, learning_rate: float = LEARNING_RATE, prior: float = PRIOR,
+        guard: float | None = fit_guard.TOLERANCE, train_spp: int | None = TRAINING_SPP,
         progress: bool = True) -> FitResult:
     """Fit ``bake``'s horizon map to the truth of ``scene`` on ``height`` (module docstring).
 
     ``lights``/``held_out``: specs (:func:`parse_lights`) or ``(elevation, azimuth)`` tuples; ``k``:
-    the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored.
+    the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored;
+    ``guard``: the tolerance of :func:`hzval.fit_guard.guard` (``None``: the optimiser's map as it is);
+    ``train_spp``: samples per pixel of the training lights' truth and forward model, at most the
+    scene's (``None``: the scene's); the held-out lights are scored at the scene's own samples.
     """
     backend.variant()
     lights = parse_lights(lights) if isinstance(lights, str) else tuple(lights)
@@ -355,37 +377,56 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
     check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    train = dataclasses.replace(scene, spp=min(scene.spp, int(train_spp))) if train_spp else scene
     t0 = time.perf_counter()
-    V_train, V_held = _truth(scene, height, lights, held_out, progress)
+    V_train, V_held = _truth(train, scene, height, lights, held_out, progress)
     t_truth = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    fitted, k_fit, curve, times, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage,
+    fitted, k_fit, curve, times, steps, converged = _optimise(train, bake, V_train, lights, k, fit_k, storage,
                                                               tolerance, max_epochs, learning_rate, progress,
                                                               prior)
+    guarded = None
+    if guard is not None:
+        fitted, guarded = _guarded(train, bake, stored, V_train, lights, fitted, k, k_fit, guard)
     t_fit = time.perf_counter() - t0
     baked_stored = stored.roundtrip(bake.horizon)
     mae = {}
-    for name, ls, V in (("training", lights, V_train), ("held_out", held_out, V_held)):
+    for name, s, ls, V in (("training", train, lights, V_train), ("held_out", scene, held_out, V_held)):
         if ls:
-            mae[name] = {"baked": mean_error(scene, bake, baked_stored, ls, V, k),
-                         "fitted": mean_error(scene, bake, fitted, ls, V, k_fit)}
+            mae[name] = {"baked": mean_error(s, bake, baked_stored, ls, V, k),
+                         "fitted": mean_error(s, bake, fitted, ls, V, k_fit)}
     settings = {"tolerance": tolerance, "max_epochs": max_epochs, "learning_rate": learning_rate, "prior": prior,
-                "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "seed": scene.seed,
+                "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "train_spp": train.spp,
+                "seed": scene.seed, "guard": guarded,
                 "k_baked": k, "optimiser": "Adam (mitsuba.ad.Adam)"}
     return FitResult(fitted, k_fit, storage, fit_k, lights, held_out, mae, curve, times, len(curve), steps, converged,
                      {"truth": t_truth, "fit": t_fit, "evaluate": time.perf_counter() - t0 - t_fit}, settings)
 
 
-def _truth(scene, height, lights, held_out, progress: bool):
-    """The truth's V for the training and the held-out lights, with a progress bar."""
+def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
+    """:func:`hzval.fit_guard.guard` of the optimiser's map against the baked map stored alike, on the
+    training lights, through the fit's forward model; a block format guards whole blocks."""
+    model = _Model(scene, bake, k, "float", [])
+    blocks = bool(stored.block_bytes)
+
+    def errors(sines, baked):
+        return model.errors(sines, k if baked else k_fit, lights, V)
+
+    return fit_guard.guard(stored.roundtrip(bake.horizon), fitted, errors, bake.params.boundary,
+                           cell=4 if blocks else 1, tolerance=tolerance, finish=stored.roundtrip if blocks else None)
+
+
+def _truth(train, scene, height, lights, held_out, progress: bool):
+    """The truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
+    with a progress bar."""
     import sys
 
     from tqdm import tqdm
 
     with tqdm(total=len(lights) + len(held_out), desc="truth", unit="light", disable=not progress,
               file=sys.stderr, leave=False) as bar:
-        return visibility(scene, height, lights, bar), visibility(scene, height, held_out, bar) if held_out else []
+        return visibility(train, height, lights, bar), visibility(scene, height, held_out, bar) if held_out else []
 
 
 def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, tolerance: float,
