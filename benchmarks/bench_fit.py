@@ -16,7 +16,7 @@ allowed, CPU time what the fit cost. The issue's bar: the whole fit of a
 Usage::
 
     .venv/bin/python benchmarks/bench_fit.py [--size 512] [--material bricks] [--storage float] [--fit-k]
-        [--spp 16] [--train-spp 4] [--lights SPEC]
+        [--spp 16] [--train-spp N] [--lights SPEC]
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--storage", default="float")
     ap.add_argument("--fit-k", action="store_true")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--train-spp", type=int, default=None, help="default: hzval.fit.TRAINING_SPP")
+    ap.add_argument("--train-spp", type=int, default=None, help="default: hzval.fit.training_spp")
     ap.add_argument("--lights", default=None, help="training lights (default: hzval.fit.TRAINING_LIGHTS)")
     args = ap.parse_args(argv)
 
@@ -51,9 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     baked = bake.bake(hm.height, bake.BakeParams(depth=scene.material.depth,
                                                  boundary=scene.material.boundary).validate())
     lights = fit.parse_lights(args.lights or fit.TRAINING_LIGHTS)
-    train_spp = args.train_spp or fit.TRAINING_SPP
     t0, c0 = time.perf_counter(), _cpu()
-    r = fit.fit(hm.height, baked, scene, lights=lights, storage=args.storage, fit_k=args.fit_k, train_spp=train_spp,
+    r = fit.fit(hm.height, baked, scene, lights=lights, storage=args.storage, fit_k=args.fit_k, train_spp=args.train_spp,
                 progress=False)
     total, cpu = time.perf_counter() - t0, _cpu() - c0
     per_step = max(1, r.steps // max(1, r.epochs))
@@ -68,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"truth {r.seconds['truth']:.1f} s, fit {r.seconds['fit']:.1f} s ({r.epochs} epochs, "
           f"{'converged' if r.converged else 'not converged'}), evaluate {r.seconds['evaluate']:.1f} s, "
           f"total {total:.1f} s wall, {cpu:.1f} s CPU (user + sys); k {r.k:.3g}")
+    c = r.seconds["cpu"]
+    print(f"CPU (user + sys): truth {c['truth']:.1f} s, fit {c['fit']:.1f} s, evaluate {c['evaluate']:.1f} s")
     g = r.settings.get("guard")
     if g:
         print(f"guard: {100 * g['kept_fitted']:.1f} % of texels kept fitted, {g['rounds']} rounds")

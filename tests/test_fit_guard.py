@@ -82,7 +82,7 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
     h = bricks(n)
     b = bake.bake(h, bake.BakeParams(depth=0.1).validate())
     lights = "20,40@0:270:90"
-    r = fit.fit(h, b, scene, lights=lights, held_out="", progress=False)
+    r = fit.fit(h, b, scene, lights=lights, held_out="", guard=fit_guard.TOLERANCE, progress=False)
     g = r.settings["guard"]
     assert g["verified"] and 0 < g["kept_fitted"] < 1
     kept = np.any(r.horizon != b.horizon, axis=-1)
@@ -96,3 +96,19 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
         worst = fit_guard.neighbourhood_sum(d.astype(np.float32), "wrap")
         assert worst[kept].max() <= fit_guard.TOLERANCE + 1e-5
     assert r.mae["training"]["fitted"] < r.mae["training"]["baked"]
+
+
+def test_cli_guard_is_recorded_and_a_bad_one_refused(variant, tmp_path, capsys):
+    import json
+
+    from hzval import cli
+
+    out = tmp_path / "fit"
+    assert cli.main(["fit", "--material", "bricks", "--size", "16", "--guard", "-1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--guard" in err[0] and not out.exists()
+    assert cli.main(["fit", "--material", "bricks", "--size", "16", "--lights", "20,40@0:270:90", "--held-out", "",
+                     "--guard", "0.1", "--quiet", "--out", str(out)]) == 0
+    record = json.loads((out / "fit.json").read_text())
+    assert record["settings"]["guard"]["tolerance"] == 0.1 and record["settings"]["guard"]["verified"]
+    assert record["mae"]["training"]["lights_worse"] >= 0 and "cpu" in record["seconds"]
