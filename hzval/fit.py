@@ -14,6 +14,9 @@ Training data
     ones. None is at the default sweep's elevation, 30 degrees, so a sweep
     scores the fit on lights it did not see. :data:`HELD_OUT_LIGHTS` (25
     degrees, azimuths -52.5 to 52.5 by 15) are scored, never trained on.
+    The training lights are rendered at :func:`training_spp` samples a pixel
+    (a budget of :data:`TRAINING_SAMPLES` a light), the held-out ones at the
+    scene's; one truth set-up serves every elevation (:func:`visibility`).
 
 The forward model
     The horizon technique's own kernel (:class:`hzval.horizon.Horizon`):
@@ -45,7 +48,12 @@ Optimisation
     halved; the fit has converged at the :data:`HALVINGS`-th such plateau (or
     stops after ``max_epochs``). A pull toward the baked map, ``prior * mean
     |p - p_baked|`` (:data:`PRIOR`), keeps the sines that the training lights
-    leave free where the bake put them.
+    leave free where the bake put them. Each light's loss is weighted by
+    ``1 + lambda``, its multiplier raised after each epoch by its relative
+    excess over the baked map's loss (:func:`_reweight`, :data:`CONSTRAIN`):
+    dual ascent on "no training light worse than the bake". With ``guard``,
+    :func:`hzval.fit_guard.guard` gives the bake back to the texels that
+    still do worse nearby on some training light.
 
 Storage
     ``float``: the sines as they are. ``u8`` and the block formats
