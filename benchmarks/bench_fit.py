@@ -52,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:
                                                  boundary=scene.material.boundary).validate())
     lights = fit.parse_lights(args.lights or fit.TRAINING_LIGHTS)
     t0, c0 = time.perf_counter(), _cpu()
-    r = fit.fit(hm.height, baked, scene, lights=lights, storage=args.storage, fit_k=args.fit_k, train_spp=args.train_spp,
+    r = fit.fit(hm.height, baked, scene, lights=lights, storage=args.storage, fit_k=args.fit_k,
+                train_spp=args.train_spp,
                 progress=False)
     total, cpu = time.perf_counter() - t0, _cpu() - c0
     per_step = max(1, r.steps // max(1, r.epochs))

@@ -764,7 +764,7 @@ def cmd_fit(args) -> int:
     rows, cols = sweep.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
-    fit.check_fits(what, rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    fit.check_fits(what, rows, cols, scene.spp, len(lights) * (1 if args.guard is None else 2) + len(held_out), scene)
     with files.output_folder(args.out, force=args.force):
         height, info = load_material(args)
         baked = bake.bake(height, params)

@@ -425,7 +425,8 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
-    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    # the guard holds the bake's |F - V| per pixel and training light beside V: as much again
+    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene)
     train = dataclasses.replace(scene, spp=min(scene.spp, int(train_spp or training_spp(scene.spp, rows * cols))))
     t0, c0 = time.perf_counter(), time.process_time()
     V_train, V_held = _truth(train, scene, height, lights, held_out, progress)

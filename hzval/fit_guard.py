@@ -14,8 +14,8 @@ that of the baked map. A texel whose worst regression over the training lights e
 ``tolerance`` (pixels' worth of ``|F - V|``) gets its baked sines back (all eight channels;
 with a block format, the whole 4 x 4 block, which is encoded as one); this is repeated, since a
 texel's regression may be its neighbour's doing, until no kept texel regresses or ``rounds`` have
-passed (``verified`` says which). What is left is, on every training light and every neighbourhood, at most ``tolerance``
-worse than the bake: a texel is fitted only where the fit wins without trading.
+passed (``verified`` says which). What is left is, on every training light and every neighbourhood,
+at most ``tolerance`` worse than the bake: a texel is fitted only where the fit wins without trading.
 
 Opt-in (``hzval fit --guard TOL``; :func:`hzval.fit.fit`'s ``guard``). Measured on the one photo
 whose frames got worse (docs/fit.md, colour-science's CVG_Background, 256, depth 0.05, wrap; trained

@@ -943,7 +943,8 @@ def _split_context(frames: list[dict], sv: SplitView) -> dict:
     rows = []
     for f, row in zip(frames, vals):
         total = float(row.sum()) if all(map(math.isfinite, row)) else None
-        rows.append({"azimuth": fmt_deg(f.get("azimuth_deg")), "total": _fixed(4)(total) if total is not None else "—",
+        rows.append({"azimuth": fmt_deg(f.get("azimuth_deg")),
+                     "total": _fixed(4)(total) if total is not None else "—",
                      "cells": [{"text": "—" if not math.isfinite(x) else f"{x:.4f}",
                                 "share": f"{100 * x / total:.0f} %" if total and math.isfinite(x) else "",
                                 "negative": bool(math.isfinite(x) and x < 0)} for x in row]})
