@@ -824,7 +824,7 @@ def cmd_score(args) -> int:
 
 def _add_fit(sub) -> None:
     """``hzval fit``: the best horizon map (:mod:`hzval.fit`)."""
-    from hzval import bake, fit, storage
+    from hzval import bake, fit, fit_guard, storage
     from hzval.horizon import DEFAULT_K
 
     d = bake.BakeParams()
@@ -844,6 +844,10 @@ def _add_fit(sub) -> None:
                                                             f"(default {DEFAULT_K:g})")
     p.add_argument("--storage", choices=storage.names(), default="float",
                    help="how the map is stored; the fit is quantisation-aware for all but float (default float)")
+    p.add_argument("--guard", type=float, default=None, metavar="TOL",
+                   help="give a texel back its baked sines where its neighbourhood does worse than the bake on "
+                        "some training light by more than TOL pixels' |F-V| (hzval.fit_guard; e.g. "
+                        f"{fit_guard.TOLERANCE:g}; default: no guard)")
     p.add_argument("--spp", type=int, default=None,
                    help=f"samples per pixel, as the sweep's (default {_scene_module().Scene().spp})")
     p.add_argument("--seed", type=int, default=None,
@@ -866,6 +870,8 @@ def cmd_fit(args) -> int:
 
     if not (math.isfinite(args.k) and args.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {args.k}")
+    if args.guard is not None and not (math.isfinite(args.guard) and args.guard >= 0):
+        raise errors.InputError("--guard", f"must be a number >= 0, got {args.guard}")
     lights = fit.parse_lights(args.lights, "--lights")
     held_out = fit.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
     scene = sc.override(sc.Scene(), size=args.size, depth=args.depth, boundary=args.boundary, spp=args.spp,
@@ -875,7 +881,7 @@ def cmd_fit(args) -> int:
     rows, cols = sweep.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
-    fit.check_fits(what, rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    fit.check_fits(what, rows, cols, scene.spp, len(lights) * (1 if args.guard is None else 2) + len(held_out), scene)
     with files.output_folder(args.out, force=args.force):
         height, info = load_material(args)
         baked = bake.bake(height, params)
@@ -887,10 +893,11 @@ def cmd_fit(args) -> int:
 def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
     """The fit of ``baked`` to the truth, written to ``args.out`` with the sweep's cache key."""
     result = fit.fit(height, baked, scene, lights=lights, held_out=held_out, fit_k=args.fit_k,
-                     storage=args.storage, k=args.k, progress=not args.quiet)
+                     storage=args.storage, k=args.k, guard=args.guard, progress=not args.quiet)
     # the key of the sweep's cache (hzval.horizon_fit): a fit written into a sweep's out/fit is reused there
     key = fit.cache_key(height, baked, scene, {"k": float(args.k), "storage": args.storage, "fit_k": bool(args.fit_k),
-                                               "lights": args.lights, "held_out": args.held_out})
+                                               "lights": args.lights, "held_out": args.held_out,
+                                               **({"guard": args.guard} if args.guard is not None else {})})
     fit.write_fit(result, args.out, input_info={**info, "depth": params.depth, "boundary": params.boundary,
                                                 "bake": params.record(), "key": key})
     return result

@@ -14,6 +14,9 @@ Training data
     ones. None is at the default sweep's elevation, 30 degrees, so a sweep
     scores the fit on lights it did not see. :data:`HELD_OUT_LIGHTS` (25
     degrees, azimuths -52.5 to 52.5 by 15) are scored, never trained on.
+    The training lights are rendered at :func:`training_spp` samples a pixel
+    (a budget of :data:`TRAINING_SAMPLES` a light), the held-out ones at the
+    scene's; one truth set-up serves every elevation (:func:`visibility`).
 
 The forward model
     The horizon technique's own kernel (:class:`hzval.horizon.Horizon`):
@@ -45,7 +48,12 @@ Optimisation
     halved; the fit has converged at the :data:`HALVINGS`-th such plateau (or
     stops after ``max_epochs``). A pull toward the baked map, ``prior * mean
     |p - p_baked|`` (:data:`PRIOR`), keeps the sines that the training lights
-    leave free where the bake put them.
+    leave free where the bake put them. Each light's loss is weighted by
+    ``1 + lambda``, its multiplier raised after each epoch by its relative
+    excess over the baked map's loss (:func:`_reweight`, :data:`CONSTRAIN`):
+    dual ascent on "no training light worse than the bake". With ``guard``,
+    :func:`hzval.fit_guard.guard` gives the bake back to the texels that
+    still do worse nearby on some training light.
 
 Storage
     ``float``: the sines as they are. ``u8`` and the block formats
@@ -69,14 +77,14 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval import backend, horizon, lookup
+from hzval import backend, fit_guard, horizon, lookup
 from hzval import conventions as cv
 from hzval import scene as sc
 from hzval import storage as hz_storage
 from hzval.errors import InputError
 
 __all__ = ["TRAINING_LIGHTS", "HELD_OUT_LIGHTS", "FitResult", "parse_lights", "fit", "write_fit", "read_fit",
-           "estimate_bytes", "check_fits", "visibility", "mean_error"]
+           "estimate_bytes", "check_fits", "visibility", "mean_error", "light_errors", "training_spp"]
 
 #: The default training lights, ``ELEVATIONS@AZIMUTHS`` (:func:`parse_lights`).
 TRAINING_LIGHTS = "10,20,40,60@0:345:15"
@@ -84,6 +92,12 @@ TRAINING_LIGHTS = "10,20,40,60@0:345:15"
 HELD_OUT_LIGHTS = "25@-52.5:52.5:15"
 #: ``eps`` of the Charbonnier loss (module docstring): a sixteenth of the 16-spp truth's V step.
 CHARBONNIER_EPS = 1.0 / 256.0
+#: Samples per training light (truth and forward model): a fit's time is its samples' (the truth's
+#: shadow rays, the kernel's lanes), so the training lights get ``TRAINING_SAMPLES / pixels`` samples a
+#: pixel, at most the scene's and at least 1 (:func:`training_spp`): 16 at 256 x 256, 4 at 512 x 512.
+#: 4 stratified samples a pixel still cover a texel's bilinear footprint; the held-out lights are
+#: scored at the scene's own samples.
+TRAINING_SAMPLES = 1 << 20
 #: Lights per Adam step.
 BATCH_LIGHTS = 8
 #: Adam's learning rate on the sines (and on log k).
@@ -112,8 +126,13 @@ FIT_BYTES_PER_PIXEL_LIGHT = 4
 FIT_BYTES_PER_SAMPLE = 8
 FIT_BYTES_PER_TEXEL = 8 * 4 * 8
 FIT_BYTES_PER_BAND_SAMPLE = 160
+#: The step of the per-light weights (:func:`_reweight`): a light 10 % worse than the bake gains 0.1 x this
+#: weight an epoch (0: the plain mean over lights).
+CONSTRAIN = 2.0
+#: The smallest baked loss a light's excess is relative to (a light the bake gets all but exactly right).
+CONSTRAINT_FLOOR = 1e-4
 #: Bumped when the fit changes what it finds: a cached fit of another version is made anew.
-FIT_VERSION = 1
+FIT_VERSION = 2
 
 
 def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
@@ -142,6 +161,12 @@ def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float]
     return tuple(dict.fromkeys(lights))
 
 
+def training_spp(spp: int, pixels: int) -> int:
+    """Samples per pixel of the training lights: :data:`TRAINING_SAMPLES` over ``pixels``, at most the
+    scene's ``spp``, at least 1."""
+    return max(1, min(int(spp), TRAINING_SAMPLES // max(1, int(pixels))))
+
+
 def fit_scene(scene) -> "sc.Scene":
     """The scene the fit renders: shadows only (``V`` and ``F`` are all it compares), a hard light, the
     ``top`` view with the default lookup (a pixel a texel, bilinear), whatever view the scene's sweep
@@ -154,21 +179,34 @@ def fit_scene(scene) -> "sc.Scene":
 
 
 def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
-    """The truth's ``V`` ``(H, W)`` float32 for each ``(elevation, azimuth)`` of ``lights``, in order:
-    one :class:`hzval.truth.Truth` per elevation (its light's elevation is the scene's)."""
+    """The truth's ``V`` ``(H, W)`` float32 for each ``(elevation, azimuth)`` of ``lights``, in order.
+
+    One :class:`hzval.truth.Truth`, set up for the lowest elevation of ``lights``, renders them all:
+    its mesh's tolerance and its wrap margin are those of the lowest light, which serve every higher
+    one (a higher ray clears the relief sooner; each frame takes the hops its own elevation needs),
+    and a hard light's direction is read from its scene per frame. A set-up (the mesh, its BVH) costs
+    as much as 20 renders at 512 x 512; ``tests/test_fit.py`` checks that the V of a shared set-up
+    is a fresh one's bit for bit."""
     from hzval import truth
 
     base = fit_scene(scene)
+    elevations = sorted(dict.fromkeys(e for e, _ in lights))
+    if not elevations:
+        return []
+
+    def at(e):
+        return dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e))
+
+    t = truth.Truth(at(elevations[0]), height)
     out: dict[tuple[float, float], np.ndarray] = {}
-    for e in dict.fromkeys(e for e, _ in lights):
-        s = dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e))
-        t = truth.Truth(s, height)
+    for e in elevations:
+        t.scene = at(e).validate()
         for el, az in lights:
             if el == e:
                 out[(el, az)] = t.render(az).layers["visibility"]
                 if bar is not None:
                     bar.update(1)
-        del t
+    del t
     return [out[light] for light in lights]
 
 
@@ -201,12 +239,18 @@ def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=Non
     return need
 
 
-def mean_error(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> float:
-    """Mean ``|F - V|`` over ``lights`` of the horizon technique rendering ``sines`` as stored (float):
-    the sweep's own ``visibility_mae`` (:func:`hzval.compare.visibility_metrics`, every pixel seen)."""
+def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> list[float]:
+    """Mean ``|F - V|`` of each light of ``lights`` of the horizon technique rendering ``sines`` as stored
+    (float): the sweep's own ``visibility_mae`` (:func:`hzval.compare.visibility_metrics`, every pixel
+    seen)."""
     ap = horizon.Horizon(fit_scene(scene), dataclasses.replace(bake, horizon=sines), None, k=k)
-    return float(np.mean([np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v))
-                          for (e, az), v in zip(lights, V)]))
+    return [float(np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
+            for (e, az), v in zip(lights, V)]
+
+
+def mean_error(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> float:
+    """Mean ``|F - V|`` over ``lights`` (:func:`light_errors`)."""
+    return float(np.mean(light_errors(scene, bake, sines, lights, V, k)))
 
 
 @dataclass
@@ -216,7 +260,8 @@ class FitResult:
     ``horizon``: ``(rows, cols, D)`` float32 sines as the GPU samples them (the stored map, decoded);
     ``k``: the shadow hardness it was fitted for; ``mae``: mean ``|F - V|`` of the baked and the
     fitted map, each stored the same way, on the ``training`` and ``held_out`` lights;
-    ``loss``: the Charbonnier loss per epoch; ``seconds``: ``truth`` (its renders) and ``fit``.
+    ``loss``: the Charbonnier loss per epoch; ``seconds``: wall seconds of the ``truth`` (its renders),
+    the ``fit`` and the ``evaluate`` step, and under ``cpu`` the process's CPU seconds of each.
     """
 
     horizon: np.ndarray
@@ -316,9 +361,24 @@ class _Model:
                                     straight_through=True)
         return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
 
-    def backward(self, indices, lights, scale: float) -> float:
+    def errors(self, sines: np.ndarray, k: float, lights, V_list):
+        """``|F - V|`` (rows, cols) float32 per light of ``lights`` (and the V they were given in) of
+        ``sines`` as stored, at shadow hardness ``k``, without gradients (:mod:`hzval.fit_guard`)."""
+        dr, mi = self._dr, self._mi
+        with dr.suspend_grad():
+            self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(sines, np.float32))))
+            self.k = k
+            for first in range(0, len(lights), self.group):
+                group = lights[first:first + self.group]
+                F = np.concatenate([np.asarray(self.factor(group, a, b), np.float32).reshape(len(group), b - a)
+                                    for a, b in self.bands], axis=1)
+                for i, f in enumerate(F):
+                    yield np.abs(f.reshape(self.rows, self.cols) - V_list[first + i])
+
+    def backward(self, indices, lights, scale: float, weights=None, per_light=None) -> float:
         """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
-        and the V they were given in); return that loss (a float)."""
+        and the V they were given in), each light's loss times ``weights[i]`` if given; return the
+        unweighted loss (a float) and put each light's into ``per_light[i]`` if given."""
         dr, mi = self._dr, self._mi
         total = 0.0
         for first in range(0, len(indices), self.group):
@@ -330,20 +390,31 @@ class _Model:
                 li = lane // m
                 at = dr.gather(mi.UInt32, mi.UInt32(np.array(group, np.uint32)), li) * self.P + (lane - li * m + a)
                 diff = F - dr.gather(mi.Float, self.V, at)
-                loss = dr.sum(dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS ** 2)) - CHARBONNIER_EPS)
-                dr.backward(loss * scale)
-                total += float(loss[0] if hasattr(loss, "__len__") else loss)
+                pixel = dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS ** 2)) - CHARBONNIER_EPS
+                dr.eval(pixel)
+                sums = np.asarray(dr.block_sum(dr.detach(pixel), m), np.float64)   # one per light of the group
+                if per_light is not None:
+                    per_light[group] += sums
+                if weights is not None:
+                    pixel = pixel * dr.gather(mi.Float, mi.Float(np.asarray(weights, np.float32)[group]), li)
+                dr.backward(dr.sum(pixel) * scale)
+                total += float(sums.sum())
         return total
 
 
 def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HELD_OUT_LIGHTS, fit_k: bool = False,
         storage: str = "float", k: float = horizon.DEFAULT_K, tolerance: float = TOLERANCE,
         max_epochs: int = MAX_EPOCHS, learning_rate: float = LEARNING_RATE, prior: float = PRIOR,
+        guard: float | None = None, train_spp: int | None = None, constrain: float = CONSTRAIN,
         progress: bool = True) -> FitResult:
     """Fit ``bake``'s horizon map to the truth of ``scene`` on ``height`` (module docstring).
 
     ``lights``/``held_out``: specs (:func:`parse_lights`) or ``(elevation, azimuth)`` tuples; ``k``:
-    the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored.
+    the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored;
+    ``guard``: the tolerance of :func:`hzval.fit_guard.guard` (``None``: the optimiser's map as it is);
+    ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: the plain mean);
+    ``train_spp``: samples per pixel of the training lights' truth and forward model, at most the
+    scene's (``None``: :func:`training_spp`); the held-out lights are scored at the scene's own samples.
     """
     backend.variant()
     lights = parse_lights(lights) if isinstance(lights, str) else tuple(lights)
@@ -354,44 +425,69 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
-    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
-    t0 = time.perf_counter()
-    V_train, V_held = _truth(scene, height, lights, held_out, progress)
-    t_truth = time.perf_counter() - t0
+    # the guard holds the bake's |F - V| per pixel and training light beside V: as much again
+    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene)
+    train = dataclasses.replace(scene, spp=min(scene.spp, int(train_spp or training_spp(scene.spp, rows * cols))))
+    t0, c0 = time.perf_counter(), time.process_time()
+    V_train, V_held = _truth(train, scene, height, lights, held_out, progress)
+    t_truth, c_truth = time.perf_counter() - t0, time.process_time() - c0
 
-    t0 = time.perf_counter()
-    fitted, k_fit, curve, times, steps, converged = _optimise(scene, bake, V_train, lights, k, fit_k, storage,
+    t0, c0 = time.perf_counter(), time.process_time()
+    fitted, k_fit, curve, times, steps, converged = _optimise(train, bake, V_train, lights, k, fit_k, storage,
                                                               tolerance, max_epochs, learning_rate, progress,
-                                                              prior)
-    t_fit = time.perf_counter() - t0
+                                                              prior, constrain)
+    guarded = None
+    if guard is not None:
+        fitted, guarded = _guarded(train, bake, stored, V_train, lights, fitted, k, k_fit, guard)
+    t_fit, c_fit = time.perf_counter() - t0, time.process_time() - c0
     baked_stored = stored.roundtrip(bake.horizon)
     mae = {}
-    for name, ls, V in (("training", lights, V_train), ("held_out", held_out, V_held)):
+    for name, s, ls, V in (("training", train, lights, V_train), ("held_out", scene, held_out, V_held)):
         if ls:
-            mae[name] = {"baked": mean_error(scene, bake, baked_stored, ls, V, k),
-                         "fitted": mean_error(scene, bake, fitted, ls, V, k_fit)}
+            before, after = (light_errors(s, bake, baked_stored, ls, V, k), light_errors(s, bake, fitted, ls, V, k_fit))
+            mae[name] = {"baked": float(np.mean(before)), "fitted": float(np.mean(after)),
+                         "lights_worse": int(sum(a > b for a, b in zip(after, before)))}
     settings = {"tolerance": tolerance, "max_epochs": max_epochs, "learning_rate": learning_rate, "prior": prior,
-                "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "seed": scene.seed,
+                "constrain": constrain, "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "train_spp": train.spp,
+                "seed": scene.seed, "guard": guarded,
                 "k_baked": k, "optimiser": "Adam (mitsuba.ad.Adam)"}
     return FitResult(fitted, k_fit, storage, fit_k, lights, held_out, mae, curve, times, len(curve), steps, converged,
-                     {"truth": t_truth, "fit": t_fit, "evaluate": time.perf_counter() - t0 - t_fit}, settings)
+                     {"truth": t_truth, "fit": t_fit, "evaluate": time.perf_counter() - t0 - t_fit,
+                      # the process's CPU seconds (user + sys, every thread): on a shared machine the wall
+                      # time is what the load allowed, this what the stage cost
+                      "cpu": {"truth": c_truth, "fit": c_fit, "evaluate": time.process_time() - c0 - c_fit}},
+                     settings)
 
 
-def _truth(scene, height, lights, held_out, progress: bool):
-    """The truth's V for the training and the held-out lights, with a progress bar."""
+def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
+    """:func:`hzval.fit_guard.guard` of the optimiser's map against the baked map stored alike, on the
+    training lights, through the fit's forward model; a block format guards whole blocks."""
+    model = _Model(scene, bake, k, "float", [])
+    blocks = bool(stored.block_bytes)
+
+    def errors(sines, baked):
+        return model.errors(sines, k if baked else k_fit, lights, V)
+
+    return fit_guard.guard(stored.roundtrip(bake.horizon), fitted, errors, bake.params.boundary,
+                           cell=4 if blocks else 1, tolerance=tolerance, finish=stored.roundtrip if blocks else None)
+
+
+def _truth(train, scene, height, lights, held_out, progress: bool):
+    """The truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
+    with a progress bar."""
     import sys
 
     from tqdm import tqdm
 
     with tqdm(total=len(lights) + len(held_out), desc="truth", unit="light", disable=not progress,
               file=sys.stderr, leave=False) as bar:
-        return visibility(scene, height, lights, bar), visibility(scene, height, held_out, bar) if held_out else []
+        return visibility(train, height, lights, bar), visibility(scene, height, held_out, bar) if held_out else []
 
 
 def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, tolerance: float,
-              max_epochs: int, lr: float, progress: bool, prior: float = 0.0):
+              max_epochs: int, lr: float, progress: bool, prior: float = 0.0, constrain: float = 0.0):
     """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
-    converged)``."""
+    converged)``. ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: none)."""
     import sys
 
     import drjit as dr
@@ -407,13 +503,16 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
     rng = np.random.default_rng(scene.seed)
     norm = 1.0 / (model.P * len(lights))
     curve, times, steps, calm, converged = [], [], 0, 0, False
+    weights = np.ones(len(lights), np.float32) if constrain > 0 else None
+    if weights is not None:
+        baked = _light_losses(model, hz_storage.get(storage).roundtrip(bake.horizon), k, lights, V_list)
     bar = tqdm(range(max_epochs), desc="fit", unit="epoch", disable=not progress, file=sys.stderr, leave=False)
     for _ in bar:
-        t0, total = time.perf_counter(), 0.0
+        t0, total, per = time.perf_counter(), 0.0, np.zeros(len(lights))
         order = rng.permutation(len(lights))
         for first in range(0, len(order), BATCH_LIGHTS):
             model.set_parameters(opt["h"], opt["logk"] if fit_k else None)
-            total += model.backward(order[first:first + BATCH_LIGHTS], lights, norm) * norm
+            total += model.backward(order[first:first + BATCH_LIGHTS], lights, norm, weights, per) * norm
             if prior > 0:
                 # where the training lights leave a sine free, it stays the bake's (docs/fit.md, "Limits")
                 pull = prior * dr.mean(dr.abs(opt["h"].array - start.array), axis=None)
@@ -425,6 +524,8 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
             if fit_k:
                 opt["logk"] = dr.clip(opt["logk"], 0.0, math.log(MAX_K))
             steps += 1
+        if weights is not None:
+            weights = _reweight(weights, per / model.P, baked, constrain)
         curve.append(total)
         times.append(time.perf_counter() - t0)
         bar.set_postfix_str(f"loss {total:.5f}")
@@ -439,6 +540,21 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
     h = np.asarray(opt["h"], np.float32).reshape(model.rows, model.cols, -1)
     k_fit = float(np.exp(np.asarray(opt["logk"])[0])) if fit_k else float(k)
     return hz_storage.get(storage).roundtrip(h), k_fit, curve, times, steps, converged
+
+
+def _light_losses(model: _Model, sines: np.ndarray, k: float, lights, V_list) -> np.ndarray:
+    """The Charbonnier loss of each light (its pixels' mean) of ``sines`` as stored."""
+    eps = CHARBONNIER_EPS
+    return np.array([float(np.mean(np.sqrt(e.astype(np.float64) ** 2 + eps ** 2) - eps))
+                     for e in model.errors(sines, k, lights, V_list)])
+
+
+def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: float) -> np.ndarray:
+    """The per-light weights after an epoch: ``1 + lambda``, each light's multiplier ``lambda`` raised by
+    ``step`` times its relative excess over the baked map's loss (clipped to [-1, 1]; its floor
+    :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light worse than the bake")."""
+    excess = np.clip((losses - baked) / np.maximum(baked, CONSTRAINT_FLOOR), -1.0, 1.0)
+    return (1.0 + np.maximum(0.0, weights - 1.0 + step * excess)).astype(np.float32)
 
 
 def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[Path]:

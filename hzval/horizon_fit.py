@@ -40,6 +40,9 @@ class FittedHorizon(Horizon):
     by_default = False
     not_on_models = "the fit trains on the plane's top view (docs/fit.md)"
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
+    #: A frame's ``split`` of the baked map's mean |F - V|, from the bottom up (:meth:`frame_extras`).
+    split_parts = (("representation", "what eight directions cannot hold (fitted |F−V|)"),
+                   ("bake_loss", "what the bake loses (baked − fitted |F−V|)"))
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:

@@ -745,6 +745,7 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "technique_parameters": _technique_parameters(metrics, views),
         "view": _view(out, metrics),
         "plots": plots,
+        "splits": [_split_context(frames, sv) for sv in split_views(metrics, views)],
         "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
         "truth_colour": TRUTH_COLOUR, "lead_colour": views[0].colour if views else TECHNIQUE_COLOURS[0],
         # the script's data: labels of the two sides, and the zoom steps
@@ -954,6 +955,112 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
 
 
 # --------------------------------------------------------------------------
+# Splits: a technique whose frames divide an error into parts (Technique.split_parts)
+# --------------------------------------------------------------------------
+
+#: The colours of a split's parts, from the bottom up; a negative part is drawn in :data:`_WORST`.
+SPLIT_COLOURS = ("#6cc3ff", "#f2c14e", "#c7e36b", "#ff8fa3")
+
+
+@dataclass(frozen=True)
+class SplitView:
+    """A technique's ``split`` of each frame as the report shows it: ``parts`` ``(key, label)`` from the
+    bottom up (``metrics.json``'s ``techniques.NAME.split_parts``), its plot's path under the sweep."""
+
+    view: TechniqueView
+    parts: tuple[tuple[str, str], ...]
+    plot: str
+
+
+def _split_of(f: dict, name: str) -> dict | None:
+    """``frames[i].techniques[name].split``, or ``None``."""
+    per = f.get("techniques")
+    m = per.get(name) if isinstance(per, dict) else None
+    s = m.get("split") if isinstance(m, dict) else None
+    return s if isinstance(s, dict) else None
+
+
+def split_views(metrics: dict, views: list[TechniqueView]) -> list[SplitView]:
+    """The techniques that declare ``split_parts`` and split at least one frame, in their order."""
+    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    out = []
+    for v in views:
+        t = info.get(v.name) if isinstance(info.get(v.name), dict) else {}
+        parts = tuple((str(p["key"]), str(p.get("label") or p["key"])) for p in (t.get("split_parts") or [])
+                      if isinstance(p, dict) and p.get("key"))
+        if parts and any(_split_of(f, v.name) is not None for f in frames):
+            out.append(SplitView(v, parts, f"plots/{v.stem}_split.png"))
+    return out
+
+
+def _split_values(frames: list[dict], sv: SplitView):
+    """``(azimuths, values)``: the frames' azimuths and each part's value per frame (NaN: missing)."""
+    import numpy as np
+
+    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
+                   for f in frames], dtype=float)
+    vals = np.array([[np.nan if _num((_split_of(f, sv.view.name) or {}).get(k)) is None
+                      else _num(_split_of(f, sv.view.name)[k]) for k, _ in sv.parts] for f in frames], dtype=float)
+    return az, vals.reshape(len(frames), len(sv.parts))
+
+
+def _split_context(frames: list[dict], sv: SplitView) -> dict:
+    """The split's table: per frame its parts, their sum and each part's share of it; a negative part
+    (the fit worse than the bake on that frame) flagged."""
+    _, vals = _split_values(frames, sv)
+    rows = []
+    for f, row in zip(frames, vals):
+        total = float(row.sum()) if all(map(math.isfinite, row)) else None
+        rows.append({"azimuth": fmt_deg(f.get("azimuth_deg")),
+                     "total": _fixed(4)(total) if total is not None else "—",
+                     "cells": [{"text": "—" if not math.isfinite(x) else f"{x:.4f}",
+                                "share": f"{100 * x / total:.0f} %" if total and math.isfinite(x) else "",
+                                "negative": bool(math.isfinite(x) and x < 0)} for x in row]})
+    return {"name": sv.view.name, "label": sv.view.label, "plot": sv.plot, "parts": [lb for _, lb in sv.parts],
+            "rows": rows, "negative": sum(any(c["negative"] for c in r["cells"]) for r in rows)}
+
+
+def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
+    """A stacked bar per frame against azimuth: the split's parts from the bottom up, their sum the whole
+    error; a negative part is drawn hatched down from the top of the others, in :data:`_WORST`."""
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter
+
+    az, vals = _split_values(frames, sv)
+    fig = _figure(13.0, 3.4)
+    ax = fig.subplots()
+    fig.subplots_adjust(left=0.06, right=0.99, top=0.8, bottom=0.15)
+    _style_axes(ax, f"{sv.view.label}: the split of the error per frame  (mean |F − V|)")
+    ax.set_title(ax.get_title(loc="left"), color=_TEXT, fontsize=10, loc="left", pad=22)   # above the legend
+    ok = np.isfinite(az)
+    steps = np.diff(np.unique(az[ok]))
+    width = 0.7 * (steps.min() if steps.size else 10.0)
+    base = np.zeros(len(frames))
+    for j, (_, label) in enumerate(sv.parts):
+        v = np.nan_to_num(vals[:, j])
+        pos = np.where(v > 0, v, 0.0)
+        ax.bar(az[ok], pos[ok], width, bottom=base[ok], color=SPLIT_COLOURS[j % len(SPLIT_COLOURS)],
+               label=label, zorder=3)
+        down = ok & (v < 0)
+        if down.any():
+            ax.bar(az[down], -v[down], width, bottom=(base + v)[down], color="none", edgecolor=_WORST,
+                   hatch="///", linewidth=1.0, label=f"{label} < 0", zorder=4)
+        base = base + pos
+    if not ok.any():
+        ax.text(0.5, 0.5, "no frames", transform=ax.transAxes, ha="center", color=_MUTED)
+    ax.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.01),
+              ncol=len(sv.parts) + 1, borderaxespad=0.0)
+    ax.set_xlabel("light azimuth (degrees)", color=_MUTED, fontsize=8)
+    if 0 < ok.sum() <= 25:
+        ax.set_xticks(az[ok])
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: fmt_deg(x)))
+    ax.set_ylim(bottom=min(0.0, float(np.nanmin(vals)) if np.isfinite(vals).any() else 0.0))
+    ax.grid(False, axis="x")
+    _save(fig, path)
+
+
+# --------------------------------------------------------------------------
 # The page
 # --------------------------------------------------------------------------
 
@@ -988,6 +1095,8 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     plot_metrics(out / "plots" / "metrics.png", frames, views)
     plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames, views)
     plots = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
+    for sv in split_views(metrics, views):
+        plot_split(out / sv.plot, frames, sv)
     html = render_html(build_context(out, metrics, files.portable_command(command, out), plots))
     index = out / "index.html"
     with files.atomic_path(index) as tmp:

@@ -744,7 +744,9 @@ def _mesh_parameters(scene) -> dict:
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
     techniques = {t.name: {"label": t.label, "summary": t.summary, "file_stem": t.file_stem,
-                           "parameters": t.parameters, "simulated": list(t.simulated)}
+                           "parameters": t.parameters, "simulated": list(t.simulated),
+                           **({"split_parts": [{"key": k, "label": lb} for k, lb in t.split_parts]}
+                              if t.split_parts else {})}
                   for t in setup.techniques}
     simulated = {"truth": list(setup.truth.simulated), **{n: v["simulated"] for n, v in techniques.items()}}
     return {
@@ -899,9 +901,10 @@ def _write_png_of(path: Path, make, *args) -> None:
 
 def summary_table(result: dict) -> str:
     """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
-    scores and time, then each other technique's |F-V|, FLIP and frame time. The visibility columns
-    are over the pixels that face the light where measured (:mod:`hzval.facing`), as the report's,
-    and a last line says so."""
+    scores and time, then each other technique's |F-V|, FLIP and frame time, then the parts of each
+    technique's split of the error (``split_parts``, e.g. horizon-fit's bake_loss and representation).
+    The visibility columns are over the pixels that face the light where measured (:mod:`hzval.facing`),
+    as the report's, and a last line says so."""
     names = list(result.get("techniques", {}))
     facing = any("visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values())
 
@@ -914,6 +917,10 @@ def summary_table(result: dict) -> str:
     head += ("truth s",) + ((f"{lead} s",) if lead else ())
     for n in others:
         head += (f"{n} |F-V|", f"{n} FLIP", f"{n} s")
+    # a technique's split of the error (Technique.split_parts), a column per part
+    splits = [(n, p["key"]) for n in names for p in result["techniques"][n].get("split_parts") or []
+              if any("split" in f.get("techniques", {}).get(n, {}) for f in result["frames"])]
+    head += tuple(f"{n} {key}" for n, key in splits)
 
     def num(v, digits):
         return "-" if v is None else f"{v:.{digits}f}"
@@ -934,6 +941,7 @@ def summary_table(result: dict) -> str:
         for n in others:
             te = per.get(n, {})
             row += (num(vis(te, "visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
+        row += tuple(num(per.get(n, {}).get("split", {}).get(key), 4) for n, key in splits)
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731

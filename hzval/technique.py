@@ -140,6 +140,10 @@ class Technique:
     warnings: tuple[str, ...] = ()
     #: Entries the technique adds to the top level of ``metrics.json`` (e.g. ``external_bake``).
     extras: dict = {}
+    #: The parts that a frame's ``split`` (:meth:`frame_extras`) divides an error into, ``(key, label)``
+    #: from the bottom up as the report stacks them (``metrics.json``'s ``techniques.NAME.split_parts``);
+    #: none by default.
+    split_parts: ClassVar[tuple[tuple[str, str], ...]] = ()
 
     @classmethod
     def applies(cls, scene: Scene) -> bool:

@@ -150,7 +150,7 @@ def test_flat_surface_has_nothing_to_fit(variant):
     scene, h, b = _setup(n=16, height=np.zeros((16, 16), np.float32))
     r = fit.fit(h, b, scene, lights=FEW, held_out=HELD, progress=False)
     assert np.array_equal(r.horizon, b.horizon) and np.all(r.horizon == 0.0)
-    assert r.mae["training"] == {"baked": 0.0, "fitted": 0.0} and r.loss[0] == 0.0 and r.converged
+    assert r.mae["training"] == {"baked": 0.0, "fitted": 0.0, "lights_worse": 0} and r.loss[0] == 0.0 and r.converged
 
 
 def test_fit_lowers_the_error_and_keeps_the_range(variant):
@@ -242,3 +242,22 @@ def test_the_pull_toward_the_bake_keeps_the_map_nearer_it(variant):
     assert held.settings["prior"] == 1.0 and free.settings["prior"] == 0.0
     assert np.mean(np.abs(held.horizon - b.horizon)) < 0.5 * np.mean(np.abs(free.horizon - b.horizon))
     assert free.mae["training"]["fitted"] <= held.mae["training"]["fitted"]
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "open"])
+def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, boundary):
+    """fit.visibility sets the truth up once, for its lowest elevation: each higher elevation's V is
+    the V of a truth set up for that elevation, bit for bit."""
+    import dataclasses
+
+    from hzval import truth
+
+    scene, h, _ = _setup(n=20, spp=2)
+    scene = S.override(scene, boundary=boundary)
+    lights = ((12.0, 30.0), (35.0, 200.0), (35.0, 10.0), (70.0, -45.0))
+    shared = fit.visibility(scene, h, lights)
+    base = fit.fit_scene(scene)
+    for (e, az), v in zip(lights, shared):
+        fresh = truth.Truth(dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e)), h)
+        assert np.array_equal(fresh.render(az).layers["visibility"], v)
+    assert not all(np.array_equal(shared[0], v) for v in shared[1:])     # the lights differ
