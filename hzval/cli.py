@@ -336,6 +336,10 @@ def _add_mesh_flags(p: argparse.ArgumentParser) -> None:
                    help="how often the texture repeats across the mesh's UVs (default 1)")
     g.add_argument("--up", choices=("y", "z"), default=None,
                    help="the mesh file's up axis (default: y for glTF, as its spec says; see docs/meshes.md)")
+    g.add_argument("--tangent-bug", default=None, metavar="BUG",
+                   help="render the techniques with an engine's tangent-frame bug: none (default), "
+                        "ignore-handedness, swap-uv, flip-green, per-face; the truth never changes "
+                        "(docs/meshes.md, 'Tangent bugs')")
 
 
 def _add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
@@ -682,7 +686,8 @@ def _scene_overrides(args) -> dict:
                 view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
                 fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
                 filter=args.filter, mips=args.mips, parallax=args.parallax,
-                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None))
+                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None),
+                tangent_bug=getattr(args, "tangent_bug", None))
 
 
 def sweep_options(args):
