@@ -155,3 +155,37 @@ def test_a_bad_bug_is_one_line(tmp_path, capsys, extra, needle):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and "--tangent-bug" in err[0]
     assert not out.exists()
+
+
+def _engine_frames(sweep, folder):
+    """An engine's frames made of a sweep's own: its truth as the image, its horizon F (0 where the
+    sweep saw nothing) as ``f_<name>.exr``."""
+    import json
+
+    from hzval import files
+
+    folder.mkdir()
+    for f in json.loads((sweep / "metrics.json").read_text())["frames"]:
+        name = f["files"]["truth"].split("/")[-2]
+        ch = files.read_exr(sweep / f["techniques"]["horizon"]["files"]["factor"])
+        files.write_exr(folder / f"f_{name}.exr", {"Y": np.nan_to_num(next(iter(ch.values())), nan=0.0)})
+        files.write_exr(folder / f"{name}.exr", files.read_exr(sweep / f["files"]["truth"]))
+    return folder
+
+
+@pytest.mark.parametrize("bug", ["ignore-handedness", "swap-uv", "none"])
+def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
+    """The cube seen from -x (its mirrored face) and +y: frames hzval renders with a bug, scored
+    against the correct sweep, are named after that bug; the correct frames name none."""
+    from hzval import cli, score
+
+    args = ["sweep", "--size", "32", "--depth", "0.1", "--spp", "1", "--azimuths", "135,225", "--quiet",
+            "--resolution", "40x40", "--technique", "horizon", "--mesh", "cube", "--view-azimuth", "150",
+            "--view-elevation", "20"]
+    assert cli.main(args + ["--out", str(tmp_path / "ref")]) == 0
+    assert cli.main(args + ["--tangent-bug", bug, "--out", str(tmp_path / "bugged")]) == 0
+    result, _ = score.score(_engine_frames(tmp_path / "bugged", tmp_path / "engine"), tmp_path / "ref")
+    match = result["tangent_bug"]
+    assert match["best"] == bug
+    assert match["named"] == (bug != "none")
+    assert any(bug in w for w in result["warnings"]) == (bug != "none")
