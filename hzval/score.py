@@ -273,7 +273,8 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     if F is not None and vis:
         V = files.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
         own.update(zip(("visibility_mae", "leak_fraction", "false_shadow_fraction"),
-                       (float(v) for v in compare.visibility_metrics(V, F))))
+                       (float(v) for v in compare.visibility_metrics(V, F, np.isfinite(V)))))   # a model's
+        # sweep leaves the pixels that see no surface NaN in V: scored over the seen ones, as the sweep did
         if normal is not None:
             ss = int((metrics.get("parameters") or {}).get("supersampling") or 1)
             own.update(facing.facing_metrics(V, F, facing.facing_mask(normal, f["light_direction"], ss)))

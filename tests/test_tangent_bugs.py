@@ -189,3 +189,5 @@ def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
     assert match["best"] == bug
     assert match["named"] == (bug != "none")
     assert any(bug in w for w in result["warnings"]) == (bug != "none")
+    for f in result["frames"]:                      # V is NaN off the model: scored over the seen pixels
+        assert 0.0 <= f["techniques"]["engine"]["visibility_mae"] <= 1.0
