@@ -202,6 +202,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_check(sub)
     _add_tradeoff(sub)
     _add_views(sub)
+    _add_models(sub)
     _add_export_scene(sub)
     _add_score(sub)
     _add_suite(sub)
@@ -371,6 +372,47 @@ def _add_views(sub) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/views-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=cmd_views)
+
+
+def _add_models(sub) -> None:
+    p = sub.add_parser("models", help="what curvature costs: the light sweep on spheres, bowls and the cube",
+                       description="Sweep one material on convex caps of spheres of radius 0.5, 1, 2, 4 and 8 "
+                                   "texture widths, concave bowls of radius 1 and 2, a flat patch and the cube; "
+                                   "write DIR/<case>/ (sweep reports), DIR/models.json and DIR/index.html, which "
+                                   "plots each technique's error against the signed curvature 1/R "
+                                   "(docs/models.md).")
+    _add_material_args(p, default_size=128)
+    p.add_argument("--azimuths", default="0,72,144,216,288", help="light azimuths in degrees (default %(default)s)")
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--spp", type=int, default=2, help="samples per pixel (default %(default)s)")
+    p.add_argument("--resolution", default="128x128", help="pixels WxH of every case (default %(default)s)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/models-<name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=cmd_models)
+
+
+def cmd_models(args) -> int:
+    import shlex
+
+    from hzval import models_study, scene as sc
+
+    size = args.size if args.size is not None else (None if args.height else 128)
+    scene = sc.override(sc.Scene(), height=_material_of(args), size=size, depth=args.depth, boundary=args.boundary,
+                        elevation=args.elevation, azimuths=args.azimuths, spp=args.spp, camera="orthographic",
+                        resolution=_resolution(args.resolution))
+    scene = dataclasses.replace(scene, name=_scene_name(args, scene))
+    out = args.out or Path("reports") / f"models-{scene.name}"
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    data = models_study.run(scene, out, progress=not args.quiet, command=command, force=args.force)
+    names = list(dict.fromkeys(t for r in data["rows"] for t in r["techniques"]))
+    print(f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names))
+    for r in data["rows"]:
+        k = float("nan") if r["curvature"] is None else r["curvature"]
+        vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f} {r['techniques'][n]['perfect_parallax_mae'] or float('nan'):7.4f}"
+                         for n in names if n in r["techniques"])
+        print(f"{r['case']:10} {k:+7.3f}  {vals}")
+    print(f"report: {out / 'index.html'}")
+    return 0
 
 
 def cmd_views(args) -> int:
