@@ -191,3 +191,18 @@ def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
     assert any(bug in w for w in result["warnings"]) == (bug != "none")
     for f in result["frames"]:                      # V is NaN off the model: scored over the seen pixels
         assert 0.0 <= f["techniques"]["engine"]["visibility_mae"] <= 1.0
+
+
+def test_per_face_is_faceted_on_a_curved_model(variant):
+    """On the sphere the per-face frame is each triangle's own: constant over the triangle (as few
+    distinct normals as triangles seen) and off the interpolated frame, which varies smoothly."""
+    sc = _scene(16, "per-face", mesh="sphere", boundary="wrap", camera="perspective", resolution=(32, 32))
+    h = np.zeros((16, 16), np.float32)
+    sphere = model.load("sphere", shape_args={"segments": 12, "rings": 6})
+    mt = ModelTruth(sc, h, sphere)
+    face = mt.samples().frames[mt.seen_samples]
+    none = ModelTruth(dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none")), h,
+                      sphere).samples().frames[mt.seen_samples]
+    assert len(np.unique(np.round(face[:, 6:9], 5), axis=0)) <= len(sphere.faces)
+    assert len(np.unique(np.round(none[:, 6:9], 5), axis=0)) > 4 * len(sphere.faces)
+    assert np.degrees(np.arccos(np.clip(np.sum(face[:, 6:9] * none[:, 6:9], axis=1), -1, 1))).max() > 5.0
