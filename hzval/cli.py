@@ -202,6 +202,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_check(sub)
     _add_tradeoff(sub)
     _add_views(sub)
+    _add_models(sub)
     _add_export_scene(sub)
     _add_score(sub)
     _add_suite(sub)
@@ -336,6 +337,10 @@ def _add_mesh_flags(p: argparse.ArgumentParser) -> None:
                    help="how often the texture repeats across the mesh's UVs (default 1)")
     g.add_argument("--up", choices=("y", "z"), default=None,
                    help="the mesh file's up axis (default: y for glTF, as its spec says; see docs/meshes.md)")
+    g.add_argument("--tangent-bug", default=None, metavar="BUG",
+                   help="render the techniques with an engine's tangent-frame bug: none (default), "
+                        "ignore-handedness, swap-uv, flip-green, per-face; the truth never changes "
+                        "(docs/meshes.md, 'Tangent bugs')")
 
 
 def _add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
@@ -367,6 +372,47 @@ def _add_views(sub) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/views-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=cmd_views)
+
+
+def _add_models(sub) -> None:
+    p = sub.add_parser("models", help="what curvature costs: the light sweep on spheres, bowls and the cube",
+                       description="Sweep one material on convex caps of spheres of radius 0.5, 1, 2, 4 and 8 "
+                                   "texture widths, concave bowls of radius 1 and 2, a flat patch and the cube; "
+                                   "write DIR/<case>/ (sweep reports), DIR/models.json and DIR/index.html, which "
+                                   "plots each technique's error against the signed curvature 1/R "
+                                   "(docs/models.md).")
+    _add_material_args(p, default_size=128)
+    p.add_argument("--azimuths", default="0,72,144,216,288", help="light azimuths in degrees (default %(default)s)")
+    p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
+    p.add_argument("--spp", type=int, default=2, help="samples per pixel (default %(default)s)")
+    p.add_argument("--resolution", default="128x128", help="pixels WxH of every case (default %(default)s)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default reports/models-<name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=cmd_models)
+
+
+def cmd_models(args) -> int:
+    import shlex
+
+    from hzval import models_study, scene as sc
+
+    size = args.size if args.size is not None else (None if args.height else 128)
+    scene = sc.override(sc.Scene(), height=_material_of(args), size=size, depth=args.depth, boundary=args.boundary,
+                        elevation=args.elevation, azimuths=args.azimuths, spp=args.spp, camera="orthographic",
+                        resolution=_resolution(args.resolution))
+    scene = dataclasses.replace(scene, name=_scene_name(args, scene))
+    out = args.out or Path("reports") / f"models-{scene.name}"
+    command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
+    data = models_study.run(scene, out, progress=not args.quiet, command=command, force=args.force)
+    names = list(dict.fromkeys(t for r in data["rows"] for t in r["techniques"]))
+    print(f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names))
+    for r in data["rows"]:
+        k = float("nan") if r["curvature"] is None else r["curvature"]
+        vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f} {r['techniques'][n]['perfect_parallax_mae'] or float('nan'):7.4f}"
+                         for n in names if n in r["techniques"])
+        print(f"{r['case']:10} {k:+7.3f}  {vals}")
+    print(f"report: {out / 'index.html'}")
+    return 0
 
 
 def cmd_views(args) -> int:
@@ -682,7 +728,8 @@ def _scene_overrides(args) -> dict:
                 view_elevation=args.view_elevation, view_azimuth=args.view_azimuth,
                 fov=args.fov, distance=args.distance, resolution=_resolution(args.resolution), plane=args.plane,
                 filter=args.filter, mips=args.mips, parallax=args.parallax,
-                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None))
+                mesh=getattr(args, "mesh", None), uv_scale=getattr(args, "uv_scale", None), up=getattr(args, "up", None),
+                tangent_bug=getattr(args, "tangent_bug", None))
 
 
 def sweep_options(args):

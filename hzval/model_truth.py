@@ -47,7 +47,7 @@ import time
 
 import numpy as np
 
-from hzval import backend, lookup, shading, tangents
+from hzval import backend, lookup, shading, tangent_bugs, tangents
 from hzval import conventions as cv
 from hzval.backend import dr, mi
 from hzval.bake import normal_map
@@ -61,9 +61,9 @@ __all__ = ["ModelTruth", "model_view", "SIMULATES"]
 #: Effects the truth on a model simulates (interreflection and reflection occlusion: not yet).
 SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient")
 _AMBIENT_STREAM = 0xA3B1
-#: Bytes a sample keeps between frames (hit, normals, frame, uv, base point: 22 floats) and what the
+#: Bytes a sample keeps between frames (hit, normals, frame, uv, base point, triangle: 23 floats) and what the
 #: techniques keep of it (their frames, texel positions), and a displaced triangle with its BVH.
-BYTES_PER_SAMPLE = 4 * 22 + 4 * 14
+BYTES_PER_SAMPLE = 4 * 23 + 4 * 14
 BYTES_PER_TRIANGLE = 120
 
 
@@ -267,7 +267,7 @@ class ModelTruth:
         if self.scene.material.boundary == "wrap":
             x, y = x - dr.floor(x / self.cols) * self.cols, y - dr.floor(y / self.rows) * self.rows
         out = {"p": si.p, "ng": dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n), "n": n, "t": t, "b": b,
-               "hit": hit, "x": x, "y": y, "pb": at("p", 3), "v": -ray.d}
+               "hit": hit, "x": x, "y": y, "pb": at("p", 3), "v": -ray.d, "prim": prim}
         if shade:
             nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(mi.Point2f(x / self.cols, (self.rows - y) / self.rows))))
             out["ns"] = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
@@ -412,6 +412,7 @@ class ModelTruth:
         st = self._own if at == "camera" else self._st
         xy = np.stack([np.asarray(st["x"], np.float64), np.asarray(st["y"], np.float64)], -1)
         frames = np.stack([np.asarray(c, np.float32) for k in ("t", "b", "n", "v") for c in st[k]], axis=-1)
+        frames = self._engine_frames(frames)
         lk, h = self.scene.lookup, self._h_tex
         z0 = lookup.plane_height(lk, float(h.min()), float(h.max()), float(h.mean()))
         if at == "camera" and lk.parallax != "none":
@@ -426,6 +427,16 @@ class ModelTruth:
         footprint = self._footprints() if lk.mipmapped else None
         return lookup.Samples(xy[:, 0].astype(np.float32), xy[:, 1].astype(np.float32), self.rows, self.cols,
                               int(self.spp), footprint, z0, source=at, frames=frames, macro=self.macro)
+
+    def _engine_frames(self, frames: np.ndarray) -> np.ndarray:
+        """The techniques' frames with the scene's tangent bug (:mod:`hzval.tangent_bugs`; ``none``:
+        ``frames`` themselves). ``per-face`` takes the base triangle the camera's ray meets on the
+        techniques' surface, for the truth's hits too (the same ray's, which differs from the
+        displaced hit's base triangle only within the relief's height of an edge)."""
+        bug = self.scene.mesh.tangent_bug
+        prim = self._own["prim"]
+        return tangent_bugs.apply(bug, frames, lambda: tangent_bugs.face_frames_at(
+            self.model, np.asarray(prim, np.int64)))
 
     def _footprints(self) -> np.ndarray:
         """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the

@@ -96,11 +96,13 @@ class MaterialSpec:
 class MeshSpec:
     """The surface the material is on (:mod:`hzval.model`): ``shape`` a built-in shape or a mesh
     file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
-    axis (``None``: the format's default)."""
+    axis (``None``: the format's default); ``tangent_bug``: the engine bug the techniques' frames
+    are built with (:data:`hzval.tangent_bugs.BUGS`; the truth's never change)."""
 
     shape: str = "plane"
     uv_scale: float = 1.0
     up: str | None = None
+    tangent_bug: str = "none"
 
     @property
     def is_plane(self) -> bool:
@@ -231,6 +233,9 @@ class Scene:
                              f"the UV scale must be a positive number, got {ms.uv_scale!r}")
         if ms.up not in (None, "y", "z"):
             raise InputError(what if self.source else "--up", f"the up axis must be y or z, got {ms.up!r}")
+        from hzval import tangent_bugs
+
+        tangent_bugs.check(ms.tangent_bug, what if self.source else "--tangent-bug")
 
 
 # --------------------------------------------------------------------------
@@ -426,7 +431,7 @@ def override(scene: Scene, **changes) -> Scene:
     effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
     ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
     lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``; the mesh's ``mesh``
-    (its shape), ``uv_scale``, ``up``.
+    (its shape), ``uv_scale``, ``up``, ``tangent_bug``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
     mat = scene.material
@@ -461,7 +466,8 @@ def override(scene: Scene, **changes) -> Scene:
     lookup = dataclasses.replace(scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax",
                                                                     "parallax_steps") if k in c})
     mesh = dataclasses.replace(scene.mesh, **{k: c[m] for m, k in (("mesh", "shape"), ("uv_scale", "uv_scale"),
-                                                                   ("up", "up")) if m in c})
+                                                                   ("up", "up"), ("tangent_bug", "tangent_bug"))
+                                                if m in c})
     return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera, lookup=lookup,
                                mesh=mesh,
                                spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()

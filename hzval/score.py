@@ -235,6 +235,7 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
         frames.append(frame)
         maps.append((f["name"], swept, image_maps))
         warnings += [warning] if warning else []
+    match = _tangent_bug(metrics, sweep_dir, [F for _, _, _, F, _ in loaded]) if given else None
     techniques = {NAME: {"label": sidecar["label"], "summary": sidecar["summary"], "file_stem": NAME,
                          "parameters": sidecar["parameters"], "parameters_from": sidecar["path"],
                          "simulated": list((metrics.get("parameters") or {}).get("effects", []))},
@@ -245,7 +246,17 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
               "timings": {"score_s": time.perf_counter() - t0},
               "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
               "techniques": techniques, "warnings": _brightness_summary(warnings), "frames": frames}
+    if match is not None:
+        result["tangent_bug"] = match
+        result["warnings"] += [match["line"]] if match["named"] else []
     return result, maps
+
+
+def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
+    """On a model's sweep, which tangent-frame bug the engine's F matches (:mod:`hzval.bug_match`)."""
+    from hzval import bug_match
+
+    return bug_match.diagnose(metrics, sweep_dir, factors)
 
 
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
@@ -262,7 +273,8 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     if F is not None and vis:
         V = files.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
         own.update(zip(("visibility_mae", "leak_fraction", "false_shadow_fraction"),
-                       (float(v) for v in compare.visibility_metrics(V, F))))
+                       (float(v) for v in compare.visibility_metrics(V, F, np.isfinite(V)))))   # a model's
+        # sweep leaves the pixels that see no surface NaN in V: scored over the seen ones, as the sweep did
         if normal is not None:
             ss = int((metrics.get("parameters") or {}).get("supersampling") or 1)
             own.update(facing.facing_metrics(V, F, facing.facing_mask(normal, f["light_direction"], ss)))

@@ -353,6 +353,9 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray):
     camera's rays meet their plane: ``points`` None), or on a model (``[mesh]``) its
     :class:`hzval.model_truth.ModelTruth` and the techniques' samples at its hits, with their frames."""
     if scene.mesh.is_plane:
+        if scene.mesh.tangent_bug != "none":
+            raise InputError(scene.source or "--tangent-bug", "a tangent bug needs a model's frames: add --mesh "
+                             "(the plane's frame is the world's)")
         return truth.Truth(scene, height), None
     from hzval import model, model_truth
 
@@ -738,7 +741,8 @@ def _mesh_parameters(scene) -> dict:
     """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before)."""
     if scene.mesh.is_plane:
         return {}
-    return {"mesh": scene.mesh.shape, "uv_scale": scene.mesh.uv_scale, "up": scene.mesh.up}
+    return {"mesh": scene.mesh.shape, "uv_scale": scene.mesh.uv_scale, "up": scene.mesh.up,
+            "tangent_bug": scene.mesh.tangent_bug}
 
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:

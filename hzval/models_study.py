@@ -1,0 +1,190 @@
+"""``hzval models [HEIGHT] --out DIR``: what curvature costs each technique (issue 29, docs/models.md).
+
+The flat bake sees a tile; on a sphere of radius ``R`` a horizon at distance ``d`` along the surface
+lies ``d^2 / (2R)`` below the tangent plane (convex) or above it (concave). The study sweeps one
+material on caps of spheres and bowls whose texture has a fixed world width ``W = 1`` (the caps'
+``world_per_uv`` is 1, so ``depth`` and the relief in texels are the same on every cap), and on
+the cube (Figure 5.1, its edges and seams):
+
+``cap+R``
+    A convex spherical cap of radius ``R`` texture widths (:data:`RADII`), ``2 A`` wide along the
+    surface, laid out by geodesic polar coordinates: a grid point ``(x, y)`` at ``r = |(x, y)|``
+    goes to ``R (sin(r/R) (x, y)/r, cos(r/R) - 1)``, its UV ``(x, y) + 1/2``: the UVs keep the radial
+    distances exactly and the tangential ones to ``sin(r/R)/(r/R)`` (at least 0.90 here).
+``bowl+R``
+    The same cap mirrored in z with its normals turned inward: concave, signed curvature ``-1/R``.
+``flat``
+    ``R = infinity``: the same grid, a plane (curvature 0), the reference.
+``cube``
+    The built-in cube: its edges (the frame's normals bend through 90 degrees) and its seams.
+
+Each case is one sweep (:func:`hzval.sweep.run`, its report in ``DIR/<case>/``) of every technique
+that renders on a model; ``DIR/models.json`` has per case the curvature ``1/R`` (signed, texture
+widths^-1) and each technique's mean |F - V|, leaks, false shadows and perfect-parallax floor
+(``perfect_parallax_mae``, the technique at the truth's own hits) over the lights; ``DIR/index.html``
+plots the error against ``1/R``. The caps are written as OBJ files (z up) in ``DIR/meshes/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hzval import files
+
+__all__ = ["run", "RADII", "BOWLS", "cap_obj"]
+
+#: Convex caps' radii and the bowls', in texture widths (issue 29).
+RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
+BOWLS: tuple[float, ...] = (1.0, 2.0)
+#: The caps' half width along the surface, texture widths (smaller than the smallest radius).
+A = 0.4
+#: Grid cells of a cap along each side (its base mesh; the truth refines it to the texel scale).
+CELLS = 32
+
+
+def cap_obj(path: Path, radius: float, sign: int) -> None:
+    """Write the cap (``sign`` +1), bowl (-1) or plane (``radius`` inf) of the module docstring as
+    an OBJ at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side."""
+    g = np.linspace(-A, A, CELLS + 1)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    r = np.hypot(x, y)
+    if math.isinf(radius):
+        p, n = np.stack([x, y, 0 * x], -1), np.tile([0.0, 0.0, 1.0], (len(x), 1))
+    else:
+        th = r / radius
+        ex, ey = np.divide(x, r, out=np.zeros_like(x), where=r > 0), np.divide(y, r, out=np.zeros_like(y), where=r > 0)
+        s = np.sin(th)
+        p = np.stack([radius * s * ex, radius * s * ey, sign * radius * (np.cos(th) - 1.0)], -1)
+        n = np.stack([sign * s * ex, sign * s * ey, np.cos(th)], -1)
+    uv = np.stack([x, y], -1) + 0.5
+    k = CELLS + 1
+    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
+    a = (j * k + i).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
+    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
+    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
+    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _cases() -> list[tuple[str, float, str | None]]:
+    """``(name, signed curvature 1/R, mesh radius spec)``."""
+    out = [(f"cap+{R:g}", 1.0 / R, ("cap", R, 1)) for R in RADII]
+    out += [(f"bowl+{R:g}", -1.0 / R, ("cap", R, -1)) for R in BOWLS]
+    return out + [("flat", 0.0, ("cap", math.inf, 1)), ("cube", None, ("shape", "cube", 0))]
+
+
+def run(scene, out: str | Path, *, progress: bool = True, command: str = "", force: bool = False) -> dict:
+    """Sweep ``scene`` (its material, lights, spp) on every case into ``out``; write ``models.json``
+    and ``index.html``; return the ``models.json`` content. A run that fails leaves no folder it made."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _run(scene, out, progress, command, force)
+
+
+def _case_scene(scene, out: Path, name: str, spec):
+    from hzval import scene as S
+
+    kind, value, sign = spec
+    if kind == "cap":
+        obj = out / "meshes" / f"{name}.obj"
+        cap_obj(obj, value, sign)
+        mesh = dataclasses.replace(scene.mesh, shape=str(obj.resolve()), up="z", uv_scale=1.0)
+        cam = dataclasses.replace(scene.camera, kind="orthographic", elevation_deg=60.0, azimuth_deg=-90.0)
+    else:
+        mesh = dataclasses.replace(scene.mesh, shape=value, uv_scale=1.0)
+        cam = dataclasses.replace(S.MODEL_CAMERA, resolution=scene.camera.resolution)
+    return dataclasses.replace(scene, mesh=mesh, camera=cam, name=f"{scene.name} {name}").validate()
+
+
+def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
+    from hzval import sweep
+
+    rows = []
+    cases = _cases()
+    for i, (name, curvature, spec) in enumerate(cases):
+        if progress:
+            print(f"hzval models: {i + 1}/{len(cases)}: {name}", flush=True)
+        sc = _case_scene(scene, out, name, spec)
+        result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
+                           command=f"{command} # case {name}".strip(), force=force)
+        rows.append(_row(name, curvature, result))
+    data = {"format": "hzval models 1", "material": result["material"],
+            "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+    files.write_json(out / "models.json", data)
+    _write_page(out, data)
+    return data
+
+
+def _mean(values) -> float | None:
+    vals = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    return float(np.mean(vals)) if vals else None
+
+
+def _row(name: str, curvature, result: dict) -> dict:
+    """One case's means over its lights."""
+    techniques = {}
+    for t in result["techniques"]:
+        per = [f["techniques"][t] for f in result["frames"]]
+        techniques[t] = {k: _mean([p.get(k) for p in per]) for k in
+                         ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")}
+    return {"case": name, "curvature": curvature, "radius": None if not curvature else 1.0 / abs(curvature),
+            "mesh": {k: result.get("mesh", {}).get(k) for k in ("source", "world_per_uv", "mirrored_fraction")},
+            "report": f"{name}/index.html", "techniques": techniques}
+
+
+def _write_page(out: Path, data: dict) -> None:
+    rows = data["rows"]
+    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    _plot(out / "plots" / "models.png", rows, names)
+    head = "".join(f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names)
+    body = []
+    for r in rows:
+        cells = []
+        for n in names:
+            t = r["techniques"].get(n, {})
+            cells += [f"<td>{t.get(k):.4f}</td>" if t.get(k) is not None else "<td>-</td>"
+                      for k in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")]
+        k = "-" if r["curvature"] is None else f"{r['curvature']:+.3g}"
+        body.append(f"<tr><td><a href='{html.escape(r['report'])}'>{html.escape(r['case'])}</a></td><td>{k}</td>"
+                    + "".join(cells) + "</tr>")
+    page = ("<!doctype html><meta charset='utf-8'><title>hzval models</title>"
+            f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
+            f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
+            f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
+            "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
+            "truth's own hits (perfect parallax). docs/models.md.</p>")
+    with files.atomic_path(out / "index.html") as tmp:
+        tmp.write_text(page, encoding="utf-8")
+
+
+def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
+    """Each technique's mean |F - V| (and its floor, dashed) against signed curvature 1/R."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    for n in names:
+        err = [(r["curvature"], r["techniques"][n]["visibility_mae"]) for r in pts
+               if r["techniques"].get(n, {}).get("visibility_mae") is not None]
+        if err:
+            ax.plot(*zip(*err), marker="o", label=n)
+        fl = [(r["curvature"], r["techniques"][n]["perfect_parallax_mae"]) for r in pts
+              if r["techniques"].get(n, {}).get("perfect_parallax_mae") is not None]
+        if fl:
+            ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |F − V|",
+           title="error against curvature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
