@@ -44,8 +44,8 @@ def scene_of(metrics: dict, sweep_dir: Path):
     return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none"))
 
 
-def bug_factors(scene, height: np.ndarray, truth, bug: str) -> list[np.ndarray]:
-    """hzval's horizon map's ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
+def bug_factors(scene, height: np.ndarray, truth, bug: str, name: str) -> list[np.ndarray]:
+    """The technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
     the model ``truth`` (:class:`hzval.model_truth.ModelTruth`) traced."""
     from hzval import scene as S, technique
     from hzval.bake import BakeParams, bake
@@ -54,26 +54,28 @@ def bug_factors(scene, height: np.ndarray, truth, bug: str) -> list[np.ndarray]:
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     ctx = technique.Context(truth.scene, height, b, S.load_albedo(scene.material, *height.shape),
                             points=truth.samples())
-    tech = technique.get("horizon").build(ctx)
+    tech = technique.get(name).build(ctx)
     return [tech.render(az).layers["factor"] for az in scene.light.azimuths_deg]
 
 
 def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict | None:
     """``{"errors": {bug: mean |F - F_bug|}, "best", "named", "line"}`` for the engine's ``factors``
-    (one ``(H, W)`` per light of the sweep), or ``None`` where the sweep is not on a model."""
+    (one ``(H, W)`` per light of the sweep), against the sweep's lead technique (its first: the
+    horizon map by default), or ``None`` where the sweep is not on a model."""
     if "mesh" not in metrics or not (metrics.get("parameters") or {}).get("mesh"):
         return None
     from hzval import model, scene as S
     from hzval.model_truth import ModelTruth
 
     scene = scene_of(metrics, sweep_dir)
+    lead = metrics["parameters"]["techniques"][0]
     h = S.load_material_height(scene.material).height
     base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
     mt = ModelTruth(scene, h, base)
     seen = mt.seen
     errors = {}
     for bug in tangent_bugs.NAMES:
-        ours = bug_factors(scene, h, mt, bug)
+        ours = bug_factors(scene, h, mt, bug, lead)
         errors[bug] = float(np.mean([np.abs(f - g)[seen].mean() for f, g in zip(factors, ours)]))
     best = min(errors, key=errors.get)
     named = best != "none" and errors[best] <= MARGIN * errors["none"]

@@ -607,9 +607,11 @@ def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed
 
 
 def unit_to_u8(values: np.ndarray) -> np.ndarray:
-    """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does)."""
+    """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does); NaN (a pixel
+    that sees no surface) is 0."""
     # the float32 product, then rounded and clipped in place: one temporary, not four
     out = np.multiply(values, np.float32(255.0), dtype=np.float32)
+    np.nan_to_num(out, copy=False, nan=0.0)
     np.rint(out, out=out)
     np.clip(out, 0, 255, out=out)
     return out.astype(np.uint8)
