@@ -10,7 +10,8 @@ the first order). So each base triangle is cut, in UV space, into its pieces in 
 convex polygon where the triangle and the cell overlap: :func:`_polygons`), and each piece is a fan
 around its centroid, so that no diagonal is preferred: a cell inside a triangle is the plane's four
 triangles around its centre (:func:`hzval.mesh.cell_levels`). A twisted cell's fans are cut into
-``n`` rings (``n`` the plane's level for the cell's twist and the truth's tolerance), whose edges
+``n`` rings (``n`` the plane's level for the cell's twist and the truth's tolerance,
+:func:`hzval.mesh.cell_levels`), whose edges
 run parallel to the cell's sides where the patch is straight: no point of them is more than about
 ``|d| / (16 n^2)`` texels off the patch. On the unit quad whose UVs are its ``(x, y)`` the surface
 is the plane's.
@@ -29,40 +30,24 @@ Seams
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from hzval import tangents as tg
+from hzval.mesh import cell_levels
 
 #: Pairs of (triangle, cell) clipped at a time: about 19 candidate points each, 40 floats a point.
 CHUNK_PAIRS = 1 << 18
-#: The finest ring level of a twisted cell (the plane's hzval.mesh.MAX_LEVEL is of the same order).
-MAX_RINGS = 8
-
-
-def twists(height_texels: np.ndarray, boundary: str) -> np.ndarray:
-    """``(rows, cols)`` float64: the twist ``d = h00 - h10 - h01 + h11`` (texels) of the cell whose
-    lower-left texel centre is texel ``(row, col)`` in tangent space: cell ``(ky, kx)`` spans
-    ``x`` in ``[kx + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]``; row ``rows - 1 - ky``.
-    ``wrap`` wraps the last cells around; ``open`` clamps (the border's cells are flat across)."""
-    h = np.asarray(height_texels, np.float64)[::-1]          # row 0 = y's first texel centre
-    if boundary == "wrap":
-        right, up = np.roll(h, -1, axis=1), np.roll(h, -1, axis=0)
-        diag = np.roll(up, -1, axis=1)
-    else:
-        right = np.concatenate([h[:, 1:], h[:, -1:]], axis=1)
-        up = np.concatenate([h[1:], h[-1:]], axis=0)
-        diag = np.concatenate([right[1:], right[-1:]], axis=0)
-    return h - right - up + diag
 
 
 def ring_levels(height_texels: np.ndarray, boundary: str, tolerance: float) -> np.ndarray:
-    """``(rows, cols)`` int: the rings of each cell's fans (module docstring): the smallest power of
-    two ``n`` with ``|d| / (16 n^2) <= tolerance``, at most :data:`MAX_RINGS`."""
-    need = np.sqrt(np.abs(twists(height_texels, boundary)) / (16.0 * float(tolerance)))
-    level = np.where(need <= 1.0, 1.0, 2.0 ** np.ceil(np.log2(np.maximum(need, 1.0))))
-    return np.minimum(level, MAX_RINGS).astype(np.int64)
+    """``(rows, cols)`` int: the rings of each cell's fans (module docstring), the plane's own level
+    for the cell's twist and the tolerance (:func:`hzval.mesh.cell_levels`; a planar cell one ring).
+    Cell ``(ky, kx)`` spans ``x`` in ``[kx + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]``
+    (texel row ``rows - 1 - ky``); ``wrap`` wraps the last cells around, ``open`` clamps them flat."""
+    h = np.asarray(height_texels, np.float64)[::-1]           # row 0: the first texel centre along y
+    z = np.pad(h, ((0, 1), (0, 1)), mode="wrap" if boundary == "wrap" else "edge")
+    return np.maximum(cell_levels(z, float(tolerance)), 1).astype(np.int64)
 
 
 # ----------------------------------------------------------------------------------------------
