@@ -128,9 +128,8 @@ class Camera:
         if self.kind == "top":
             return View("top", (cols / 2.0, rows / 2.0, 1.0e6), (cols / 2.0, rows / 2.0, 0.0), (0.0, 1.0, 0.0),
                         None, (float(cols), float(rows)), (W, H), rows, cols, z_lo, z_hi, self.supersampling)
-        e, a = math.radians(self.elevation_deg), math.radians(self.azimuth_deg)
-        w = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
-        up = (0.0, 0.0, 1.0) if self.elevation_deg < 90.0 - 1e-9 else (-math.cos(a), -math.sin(a), 0.0)
+        e = math.radians(self.elevation_deg)
+        w, up = view_axes(self.elevation_deg, self.azimuth_deg)
         target = np.array([cols / 2.0, rows / 2.0, (z_lo + z_hi) / 2.0])
         if self.kind == "perspective":
             eye = target + self.distance * cols * w
@@ -141,6 +140,16 @@ class Camera:
         reach = 0.5 * math.hypot(*film) + (z_hi - z_lo) + 1.0
         eye = target + (reach / max(math.sin(e), 1e-6) + reach) * w
         return View("orthographic", tuple(eye), tuple(target), up, None, film, (W, H), rows, cols, z_lo, z_hi, 1)
+
+
+def view_axes(elevation_deg: float, azimuth_deg: float) -> tuple[np.ndarray, tuple]:
+    """``(w, up)``: the unit direction from the surface toward a camera at ``elevation_deg`` and
+    ``azimuth_deg`` (the light's convention), ``w = (cos e cos a, cos e sin a, sin e)``, and its up
+    vector, ``+z``, or for a view straight down ``-(cos a, sin a, 0)`` (module docstring)."""
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    w = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+    up = (0.0, 0.0, 1.0) if elevation_deg < 90.0 - 1e-9 else (-math.cos(a), -math.sin(a), 0.0)
+    return w, up
 
 
 @dataclass(frozen=True)
@@ -224,11 +233,14 @@ class View:
         xy[~hit] = (self.cols / 2.0, self.rows / 2.0)
         return xy, hit
 
-    def footprints(self, z0: float) -> np.ndarray:
+    def footprints(self, z0: float | None = None, points=None, period=None) -> np.ndarray:
         """Per pixel, how far the point seen on the plane ``z = z0`` moves from one pixel to the next:
         ``(H * W, 4)`` float32 ``(dx/dcol, dy/dcol, dx/drow, dy/drow)`` in texels (the ray
         differentials of the pixel centres, differenced half a pixel either side), NaN where the
-        pixel's centre ray misses the plane."""
+        pixel's centre ray misses the plane. ``points(o, d) -> (xy, hit)`` replaces the plane (a
+        model's surface, :mod:`hzval.model_truth`); ``period`` ``(cols, rows)``: differences taken
+        the short way across a wrapping tile."""
+        points = points or (lambda o, d: self.plane_points(o, d, z0))
         W, H = self.resolution
         pixels = np.arange(H * W)
         half = np.full((H * W, 1), 0.5)
@@ -237,10 +249,14 @@ class View:
             ends = []
             for sign in (1.0, -1.0):
                 u, v = self.film_coordinates(pixels, half + sign * du, half + sign * dv)
-                xy, hit = self.plane_points(*self.rays_at(u, v), z0)
+                xy, hit = points(*self.rays_at(u, v))
                 xy[~hit] = np.nan
                 ends.append(xy)
-            out[:, 2 * k:2 * k + 2] = ends[0] - ends[1]
+            diff = ends[0] - ends[1]
+            if period is not None:
+                size = np.asarray(period, float)
+                diff = (diff + size / 2) % size - size / 2
+            out[:, 2 * k:2 * k + 2] = diff
         return out.astype(np.float32)
 
 

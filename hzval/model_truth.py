@@ -51,7 +51,7 @@ from hzval import backend, lookup, shading, tangent_bugs, tangents
 from hzval import conventions as cv
 from hzval.backend import dr, mi
 from hzval.bake import normal_map
-from hzval.camera import Camera, View, pixel_jitter
+from hzval.camera import Camera, View, view_axes
 from hzval.errors import InputError
 from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
 from hzval.truth import LIFT_PER_HEIGHT, LIFT_TEXELS, _mean_and_variance
@@ -80,9 +80,7 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     H, W = shape
     e = 90.0 if camera.kind == "top" else camera.elevation_deg
     a = -90.0 if camera.kind == "top" else camera.azimuth_deg
-    er, ar = math.radians(e), math.radians(a)
-    w = np.array([math.cos(er) * math.cos(ar), math.cos(er) * math.sin(ar), math.sin(er)])
-    up = (0.0, 0.0, 1.0) if e < 90.0 - 1e-9 else (-math.cos(ar), -math.sin(ar), 0.0)
+    w, up = view_axes(e, a)
     pts = np.asarray(points, float)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = 0.5 * (lo + hi)
@@ -102,6 +100,12 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     target = r * (0.5 * (pr.max() + pr.min())) + t * (0.5 * (pt.max() + pt.min())) + f * float(centre @ f)
     return View("orthographic", tuple(target + (2.0 * R + 1.0) * w), tuple(target), up, None, film, (W, H),
                 0, 0, 0.0, 0.0, 1)
+
+
+def _rays(o: np.ndarray, d: np.ndarray):
+    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64, :meth:`hzval.camera.View.rays`)."""
+    return mi.Ray3f(mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
+                    mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))))
 
 
 def _welded_normals(model) -> np.ndarray:
@@ -236,8 +240,7 @@ class ModelTruth:
         H, W = self.shape
         spp = self.spp
         o, d = self.view.rays(spp, self.scene.seed, 0, H * W)
-        ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[:, k].astype(np.float32)) for k in range(3))),
-                       mi.Vector3f(*(mi.Float(d[:, k].astype(np.float32)) for k in range(3))))
+        ray = _rays(o, d)
         del o, d
         self._st = self._hits(self._displaced, ray, shade=True)
         self._own = self._hits(self._surface, ray, shade=False)
@@ -440,29 +443,16 @@ class ModelTruth:
 
     def _footprints(self) -> np.ndarray:
         """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the
-        next: ``(H * W, 4)`` float32 ``(dx/dcol, dy/dcol, dx/drow, dy/drow)`` texels, the pixel
-        centre's rays half a pixel either side (as :meth:`hzval.camera.View.footprints` on the
-        plane); ``wrap`` across the tile the short way; NaN where a ray misses."""
-        H, W = self.shape
-        pixels = np.arange(H * W)
-        half = np.full((H * W, 1), 0.5)
-        out = np.empty((H * W, 4), np.float64)
-        for k, (du, dv) in enumerate(((0.5, 0.0), (0.0, 0.5))):
-            ends = []
-            for sign in (1.0, -1.0):
-                o, d = self.view.rays_at(*self.view.film_coordinates(pixels, half + sign * du, half + sign * dv))
-                ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
-                               mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))))
-                hit = self._hits(self._surface, ray, shade=False)
-                xy = np.stack([np.asarray(hit["x"], np.float64), np.asarray(hit["y"], np.float64)], -1)
-                xy[~np.asarray(hit["hit"], bool)] = np.nan
-                ends.append(xy)
-            diff = ends[0] - ends[1]
-            if self.scene.material.boundary == "wrap":
-                size = np.array([self.cols, self.rows], float)
-                diff = (diff + size / 2) % size - size / 2
-            out[:, 2 * k:2 * k + 2] = diff
-        return out.astype(np.float32)
+        next (:meth:`hzval.camera.View.footprints` with the surface's hits for the plane's points;
+        ``wrap`` across the tile the short way; NaN where a ray misses)."""
+        def points(o, d):
+            ray = _rays(o, d)
+            hit = self._hits(self._surface, ray, shade=False)
+            xy = np.stack([np.asarray(hit["x"], np.float64), np.asarray(hit["y"], np.float64)], -1)
+            return xy, np.asarray(hit["hit"], bool)
+
+        wrap = self.scene.material.boundary == "wrap"
+        return self.view.footprints(points=points, period=(self.cols, self.rows) if wrap else None)
 
     def record(self) -> dict:
         """``metrics.json``'s ``mesh``: the base mesh's record and the displaced mesh's size."""
