@@ -97,6 +97,31 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(col, (rows, cols)), np.broadcast_to(y[:, None], (rows, cols))
 
 
+
+def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
+    """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres
+    (:func:`texel_centres`) at tangent-space points ``(x, y)`` in texels, float64 (NumPy): ``wrap``
+    repeats the image, ``open`` clamps to its border. Returns ``(n,)`` or ``(n, k)``; at a texel
+    centre, that texel exactly. The truth's vertex normals (:func:`hzval.mesh.vertex_normals`) and a
+    model's displacement (:func:`hzval.displace.bilinear`) read through it."""
+    img = np.asarray(image, np.float64)
+    rows, cols = img.shape[:2]
+    fx = np.asarray(x, np.float64) - 0.5            # column coordinate of the centres
+    fy = rows - np.asarray(y, np.float64) - 0.5     # row coordinate
+    c0, r0 = np.floor(fx), np.floor(fy)
+    a, b = fx - c0, fy - r0
+    if img.ndim == 3:
+        a, b = a[:, None], b[:, None]
+    c0, r0 = c0.astype(np.int64), r0.astype(np.int64)
+
+    def at(r, c):
+        if boundary == "wrap":
+            return img[r % rows, c % cols]
+        return img[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
+
+    return ((1 - b) * ((1 - a) * at(r0, c0) + a * at(r0, c0 + 1))
+            + b * ((1 - a) * at(r0 + 1, c0) + a * at(r0 + 1, c0 + 1)))
+
 def is_drjit(values) -> bool:
     """Whether ``values`` is a Dr.Jit array (a kernel's operand) rather than NumPy or Python values."""
     return not isinstance(values, (np.ndarray, np.generic, float, int, list, tuple))

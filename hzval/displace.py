@@ -101,30 +101,14 @@ def estimate(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
 
 def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres at
-    hzval UVs (u right, v up the image, :mod:`hzval.model`), as the plane reads it: texel
-    ``(row, col)``'s centre is at ``x = col + 0.5``, ``y = rows - row - 0.5``
-    (:func:`hzval.conventions.texel_centres`) with ``x = u cols``, ``y = v rows``; ``wrap``
-    repeats the image, ``open`` clamps to its border. Returns ``(V,)`` or ``(V, k)`` float64."""
+    hzval UVs (u right, v up the image, :mod:`hzval.model`), as the plane reads it
+    (:func:`hzval.conventions.bilinear_at` at ``x = u cols``, ``y = v rows``). Returns ``(V,)``
+    or ``(V, k)`` float64."""
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
-    img = np.asarray(image, np.float64)
-    rows, cols = img.shape[:2]
-    fx = np.asarray(uvs[:, 0], np.float64) * cols - 0.5          # column coordinate of the centres
-    fy = rows - np.asarray(uvs[:, 1], np.float64) * rows - 0.5   # row coordinate
-    c0, r0 = np.floor(fx), np.floor(fy)
-    a, b = fx - c0, fy - r0
-    if img.ndim == 3:
-        a, b = a[:, None], b[:, None]
-    c0, r0 = c0.astype(np.int64), r0.astype(np.int64)
-
-    def at(r, c):
-        if boundary == "wrap":
-            return img[r % rows, c % cols]
-        return img[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
-
-    return ((1 - b) * ((1 - a) * at(r0, c0) + a * at(r0, c0 + 1))
-            + b * ((1 - a) * at(r0 + 1, c0) + a * at(r0 + 1, c0 + 1)))
-
+    rows, cols = np.shape(image)[:2]
+    uvs = np.asarray(uvs, np.float64)
+    return cv.bilinear_at(image, uvs[:, 0] * cols, uvs[:, 1] * rows, boundary)
 
 def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     """``(V,)`` float64: the height map ``H`` at ``uvs`` (:func:`bilinear`)."""

@@ -107,21 +107,8 @@ def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -
     clamped)."""
     from hzval.bake import normal_map
 
-    rows, cols = h_texels.shape
-    nmap = normal_map(np.asarray(h_texels, np.float32), boundary).astype(np.float64)
-    fx = np.asarray(positions[:, 0], np.float64) - 0.5          # column coordinate of texel centres
-    fy = rows - np.asarray(positions[:, 1], np.float64) - 0.5   # row coordinate
-    c0, r0 = np.floor(fx), np.floor(fy)
-    u, v = (fx - c0)[:, None], (fy - r0)[:, None]
-    c0, r0 = c0.astype(np.int64), r0.astype(np.int64)
-
-    def at(r, c):
-        if boundary == "wrap":
-            return nmap[r % rows, c % cols]
-        return nmap[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
-
-    n = ((1 - v) * ((1 - u) * at(r0, c0) + u * at(r0, c0 + 1))
-         + v * ((1 - u) * at(r0 + 1, c0) + u * at(r0 + 1, c0 + 1)))
+    nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
+    n = cv.bilinear_at(nmap, positions[:, 0], positions[:, 1], boundary)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     return np.ascontiguousarray(n, dtype=np.float32)
 
