@@ -272,7 +272,8 @@ class ModelTruth:
         out = {"p": si.p, "ng": dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n), "n": n, "t": t, "b": b,
                "hit": hit, "x": x, "y": y, "pb": at("p", 3), "v": -ray.d, "prim": prim}
         if shade:
-            nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(mi.Point2f(x / self.cols, (self.rows - y) / self.rows))))
+            # the texture's coordinates of the point (hzval.conventions owns the turn of y)
+            nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(mi.Point2f(*cv.tangent_to_uv(x, y, self.rows, self.cols)))))
             out["ns"] = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
             if self._albedo is not None:
                 out["albedo"] = self._albedo_at(x, y)
@@ -321,7 +322,7 @@ class ModelTruth:
         """The frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation
         the scene's): :meth:`hzval.truth.Truth.render`'s layers, ``mask`` the seen pixels."""
         t0 = time.perf_counter()
-        sc, st, spp = self.scene, self._st, self.spp
+        sc, st = self.scene, self._st
         L = self._light(azimuth_deg)
         sums = {}
         vis = None
