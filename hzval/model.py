@@ -320,22 +320,47 @@ def _grid_faces(rows: int, cols: int, skip=None) -> np.ndarray:
     return tri[~skip] if skip is not None else tri.reshape(-1, 3)
 
 
+def _sphere_grid(radius: float, segments: int, rings: int, phi: tuple[float, float], u_of):
+    """One ``(positions, uvs, normals, faces)`` part of a UV sphere about the z axis: longitudes
+    ``phi[0]..phi[1]`` (counterclockwise from +x seen from +z) in ``segments`` columns, ``rings``
+    rows from the south pole to the north, ``u = u_of(f)`` of the share ``f`` (0 to 1) of the span,
+    ``v`` the latitude (0 south, 1 north); each pole's vertices at the middle of their column (its
+    collapsed triangle dropped)."""
+    v = np.arange(rings + 1) / rings
+    s = np.arange(segments + 1, dtype=float)
+    ss, vv = np.meshgrid(s, v)
+    ss[0, :] = ss[-1, :] = s + 0.5  # poles at the mid-span
+    f = ss / segments
+    theta, lon = np.pi * vv, phi[0] + (phi[1] - phi[0]) * f
+    n = np.stack([np.sin(theta) * np.cos(lon), np.sin(theta) * np.sin(lon), -np.cos(theta)], -1)
+    skip = np.zeros((rings, segments, 2), bool)
+    skip[0, :, 0] = skip[-1, :, 1] = True
+    return (radius * n.reshape(-1, 3), np.stack([u_of(f), vv], -1).reshape(-1, 2), n.reshape(-1, 3),
+            _grid_faces(rings, segments, skip))
+
+
 def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0) -> BaseMesh:
     """A UV sphere about the z axis: ``u`` the longitude / 2 pi (counterclockwise from +x seen
     from +z), ``v`` the latitude from the south pole (0) to the north (1); the seam at
     ``u = 0 / 1`` (the +x half-plane) and each pole's vertices (one per segment, at the middle of
     its ``u`` span). World area ``4 pi r^2`` as ``segments, rings`` grow (``world_per_uv`` ->
     ``r sqrt(4 pi)``)."""
-    v = np.arange(rings + 1) / rings
-    u = np.arange(segments + 1) / segments
-    uu, vv = np.meshgrid(u, v)
-    uu[0, :] = uu[-1, :] = (np.arange(segments + 1) + 0.5) / segments  # poles at the mid-span
-    theta, phi = np.pi * vv, 2 * np.pi * uu
-    n = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), -np.cos(theta)], -1)
-    skip = np.zeros((rings, segments, 2), bool)
-    skip[0, :, 0] = skip[-1, :, 1] = True  # the collapsed triangle at each pole
-    return build("sphere", radius * n.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2),
-                 _grid_faces(rings, segments, skip), normals=n.reshape(-1, 3), uv_scale=uv_scale)
+    p, uv, n, f = _sphere_grid(radius, segments, rings, (0.0, 2 * np.pi), lambda f: f)
+    return build("sphere", p, uv, f, normals=n, uv_scale=uv_scale)
+
+
+def mirrored_sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32,
+                    uv_scale: float = 1.0) -> BaseMesh:
+    """The UV sphere unwrapped as an artist mirrors a symmetric model: the +y half (longitudes 0 to
+    pi) has ``u = longitude / pi``, the -y half the same UVs mirrored (``u = (2 pi - longitude) /
+    pi``), so a point and its mirror image in the xz plane read the same texel and the -y half has
+    handedness ``w = -1`` (``mirrored_fraction`` 1/2). The halves keep their own vertices along the
+    two mirror meridians, as exporters split them (their tangents point opposite ways), which makes
+    those meridians seams of equal UVs. ``world_per_uv`` -> ``r sqrt(2 pi)``."""
+    segments = max(2, segments // 2)
+    parts = [_sphere_grid(radius, segments, rings, (0.0, np.pi), lambda f: f),
+             _sphere_grid(radius, segments, rings, (np.pi, 2 * np.pi), lambda f: 1.0 - f)]
+    return _join("mirrored-sphere", parts, uv_scale)
 
 
 def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides: int = 32,
@@ -409,6 +434,7 @@ def _join(source: str, parts, uv_scale: float) -> BaseMesh:
 
 SHAPES: dict[str, Callable[..., BaseMesh]] = {
     "plane": plane, "cube": cube, "sphere": sphere, "cylinder": cylinder, "torus": torus,
+    "mirrored-sphere": mirrored_sphere,
 }
 
 

@@ -116,10 +116,19 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
                            command=f"{command} # case {name}".strip(), force=force)
         rows.append(_row(name, curvature, result))
     data = {"format": "hzval models 1", "material": result["material"],
-            "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+            "command": files.portable_command(command, out), "half_width": A, "rows": rows,
+            "bugs": _bug_signatures(scene, out, result["techniques"], progress)}
     files.write_json(out / "models.json", data)
     _write_page(out, data)
     return data
+
+
+def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
+    """Each tangent bug's signature with the lead technique (:mod:`hzval.bug_signatures`)."""
+    from hzval import bug_signatures, scene as S
+
+    height = S.load_material_height(scene.material).height
+    return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
 
 
 def _mean(values) -> float | None:
@@ -140,6 +149,8 @@ def _row(name: str, curvature, result: dict) -> dict:
 
 
 def _write_page(out: Path, data: dict) -> None:
+    from hzval import bug_signatures
+
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
     _plot(out / "plots" / "models.png", rows, names)
@@ -159,7 +170,8 @@ def _write_page(out: Path, data: dict) -> None:
             f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
             f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
             "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
-            "truth's own hits (perfect parallax). docs/models.md.</p>")
+            "truth's own hits (perfect parallax). docs/models.md.</p>"
+            + bug_signatures.page_section(data["bugs"]))
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 

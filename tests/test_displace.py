@@ -78,7 +78,7 @@ def test_plane_is_the_planes_tessellation():
     assert len(r.faces) == 4 * (inner + border + corners) + 2 * diagonal
 
 
-@pytest.mark.parametrize("name", ["cube", "sphere", "cylinder", "torus"])
+@pytest.mark.parametrize("name", ["cube", "sphere", "cylinder", "torus", "mirrored-sphere"])
 def test_closed_shapes_stay_closed(name):
     base = model.load(name)
     r = dp.refine(base, (16, 16))

@@ -98,7 +98,7 @@ def test_cube_unwrap():
     assert np.all(np.sum(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) * c.normals[c.faces[:, 0]], -1) > 0)
 
 
-@pytest.mark.parametrize("name", ["cube", "sphere", "cylinder", "torus"])
+@pytest.mark.parametrize("name", ["cube", "sphere", "cylinder", "torus", "mirrored-sphere"])
 def test_closed_shapes_are_closed_and_outward(name):
     m = model.SHAPES[name]()
     assert np.all(_edge_counts(m) == 2)

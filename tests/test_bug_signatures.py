@@ -1,0 +1,49 @@
+"""Tangent-bug signatures on models with mirrored UVs (hzval.bug_signatures, the built-in
+mirrored sphere): a bug of the handedness touches only the mirrored half, pixel for pixel."""
+
+import numpy as np
+
+from hzval import bug_signatures as B, model, scene as S, tangent_bugs
+
+
+def test_mirrored_sphere_mirrors_the_minus_y_half():
+    m = model.load("mirrored-sphere", shape_args={"segments": 16, "rings": 8})
+    assert abs(m.mirrored_fraction - 0.5) < 1e-12
+    y, w = m.positions[:, 1], m.tangents[:, 3]
+    assert (w[y > 1e-9] == 1).all() and (w[y < -1e-9] == -1).all()
+    # a point and its mirror image in the xz plane read the same texel
+    # a point and its mirror image in the xz plane read the same texel (the poles' vertices aside:
+    # one position, one UV per column)
+    body = np.abs(m.positions[:, 2]) < 1 - 1e-9
+    key = {tuple(np.round(p * [1, -1, 1], 9)): uv for p, uv in zip(m.positions[body], m.uvs[body])}
+    hits = [np.allclose(key[tuple(np.round(p, 9))], uv) for p, uv in zip(m.positions[body], m.uvs[body])
+            if tuple(np.round(p, 9)) in key]
+    assert len(hits) == body.sum() and all(hits)
+    assert np.allclose(np.linalg.norm(m.tangents[:, :3], axis=1), 1)
+
+
+def test_handedness_is_the_frames_sign():
+    rng = np.random.default_rng(0)
+    t, n = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    w = rng.choice([-1.0, 1.0], 50)
+    b = w[:, None] * np.cross(n, t)
+    f = np.concatenate([t, b, n, np.zeros((50, 3))], axis=1).astype(np.float32)
+    assert (B.handedness(f) == w).all()
+
+
+def test_a_handedness_bug_moves_only_the_mirrored_half():
+    sc = S.override(S.Scene(), height="spikes", size=32, spp=1, azimuths="-40,40", camera="orthographic",
+                    resolution=(32, 32))
+    h = S.load_material_height(sc.material).height
+    rec, maps = B.measure(sc, h, "horizon", "mirrored-sphere", 0.0, uv_scale=2.0)
+    bugs = rec["bugs"]
+    assert rec["mirrored_pixels"] > 50 and rec["unmirrored_pixels"] > 50
+    assert set(bugs) == set(tangent_bugs.NAMES)
+    # ignore-handedness: the unmirrored half is the correct render, bit for bit; the mirrored one is not
+    assert bugs["ignore-handedness"]["unmirrored"] == bugs["none"]["unmirrored"]
+    assert bugs["ignore-handedness"]["mirrored"] != bugs["none"]["mirrored"]
+    # on the mirrored half flip-green is ignore-handedness (both give b = n x t there)
+    assert bugs["flip-green"]["mirrored"] == bugs["ignore-handedness"]["mirrored"]
+    assert bugs["none"]["mirrored_ratio"] == 1.0
+    seen = ~np.isnan(maps["none"])
+    assert seen.any() and np.nanmax(np.abs(maps["swap-uv"])) <= 1.0
