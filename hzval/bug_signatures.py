@@ -30,7 +30,7 @@ import numpy as np
 
 from hzval import files, tangent_bugs
 
-__all__ = ["CASES", "run", "page_section"]
+__all__ = ["CASES", "measure", "run", "page_section"]
 
 #: Case name -> (built-in shape, the camera's azimuth in degrees (the light's convention), uv_scale:
 #: the sphere repeats the texture three times a half, about a texture width per radius).
@@ -49,20 +49,6 @@ def _case_scene(scene, shape: str, view_azimuth: float, uv_scale: float):
     return dataclasses.replace(scene, mesh=mesh, camera=cam, light=light).validate()
 
 
-def handedness(frames: np.ndarray) -> np.ndarray:
-    """``(N,)`` the sign of each sample's frame, ``w = sign(dot(cross(n, t), b))`` (+1: UVs as
-    drawn, -1: mirrored; :mod:`hzval.tangents`' convention ``b = w cross(n, t)``)."""
-    t, b, n = (frames[:, 3 * k:3 * k + 3].astype(np.float64) for k in range(3))
-    return np.sign(np.einsum("ij,ij->i", np.cross(n, t), b))
-
-
-def _regions(truth) -> tuple[np.ndarray, np.ndarray]:
-    """``(mirrored, unmirrored)`` ``(H, W)`` bool: seen pixels all of whose samples have ``w`` -1 / +1."""
-    w = handedness(truth.samples().frames).reshape(truth.seen.size, -1)
-    shape = truth.seen.shape
-    return ((w < 0).all(axis=1).reshape(shape) & truth.seen, (w > 0).all(axis=1).reshape(shape) & truth.seen)
-
-
 def _mean(e: np.ndarray, mask: np.ndarray) -> float | None:
     return float(e[mask].mean()) if mask.any() else None
 
@@ -77,7 +63,7 @@ def measure(scene, height: np.ndarray, lead: str, shape: str, view_azimuth: floa
     sc = _case_scene(scene, shape, view_azimuth, uv_scale)
     truth = ModelTruth(sc, height, model.load(shape, uv_scale=uv_scale))
     vis = [truth.render(az).layers["visibility"] for az in sc.light.azimuths_deg]
-    mirrored, plain = _regions(truth)
+    mirrored, plain = truth.handedness < 0, truth.handedness > 0
     factors = {bug: bug_match.bug_factors(sc, height, truth, bug, lead) for bug in tangent_bugs.NAMES}
     moved = [np.mean([np.abs(factors[b][i] - factors["none"][i])[truth.seen].mean() for b in factors])
              for i in range(len(vis))]

@@ -42,6 +42,8 @@ of every score (``Frame.mask``).
 
 from __future__ import annotations
 
+import functools
+
 import math
 import time
 
@@ -407,6 +409,16 @@ class ModelTruth:
         per_sample = np.asarray(dark, np.float32).reshape(-1, self.spp)
         seen = self.seen.ravel()
         return float(per_sample[seen].mean()) if seen.any() else 0.0
+
+    @functools.cached_property
+    def handedness(self) -> np.ndarray:
+        """``(H, W)`` int8: the sign ``w`` of the correct frames (:func:`hzval.tangents.handedness`:
+        -1 where the UVs are mirrored) where every sample of a seen pixel has it, 0 elsewhere (a
+        pixel across a mirror seam, or unseen). A tangent bug does not change it."""
+        t, b, n = (np.stack([np.asarray(c, np.float64) for c in self._own[k]], -1) for k in ("t", "b", "n"))
+        w = tangents.handedness(t, b, n).reshape(-1, self.spp)
+        sign = np.where((w < 0).all(axis=1), -1, np.where((w > 0).all(axis=1), 1, 0)).reshape(self.shape)
+        return np.where(self.seen, sign, 0).astype(np.int8)
 
     def samples(self, at: str = "camera") -> lookup.Samples:
         """The techniques' :class:`hzval.lookup.Samples`, with their frames: where the camera's rays

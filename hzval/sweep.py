@@ -668,6 +668,8 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     for t in setup.techniques:
         per[t.name].update(type(t).frame_extras(per))
     _shadow_statistics(scene, setup, r, frame, per)
+    if hasattr(setup.truth, "handedness"):
+        _handedness_statistics(setup.truth.handedness, r, per)
     frame.update(files=rel, techniques=per)
     return frame
 
@@ -689,6 +691,20 @@ def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dic
         F = f.layers.get("factor")
         if F is not None:
             per[t.name].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
+
+
+def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
+    """On a model with mirrored UVs, each technique's |F - V| over the pixels whose UVs are mirrored
+    (``visibility_mae_mirrored``) and over those as drawn (``visibility_mae_unmirrored``): where a
+    tangent bug of the handedness would show (:mod:`hzval.tangent_bugs`)."""
+    V = r.truth.layers.get("visibility")
+    if V is None or not (sign < 0).any():
+        return
+    for t, f in r.techniques:
+        F = f.layers.get("factor")
+        if F is not None:
+            for key, mask in (("visibility_mae_mirrored", sign < 0), ("visibility_mae_unmirrored", sign > 0)):
+                per[t.name][key] = float(compare.visibility_metrics(V, F, mask)[0]) if mask.any() else None
 
 
 #: The display (sRGB) colour of pixels that see no surface (a view's sky, or off an ``open`` tile).

@@ -209,6 +209,13 @@ class Frames:
     tangent: np.ndarray
 
 
+def handedness(t, b, n) -> np.ndarray:
+    """``(N,)`` the sign ``w`` of frames given as ``(N, 3)`` arrays: ``sign(dot(cross(n, t), b))``
+    (+1: the UVs as drawn, -1: mirrored; this module's ``b = w cross(n, t)``), 0 for a degenerate one."""
+    t, b, n = (np.asarray(a, np.float64) for a in (t, b, n))
+    return np.sign(_dot(np.cross(n, t), b))
+
+
 def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
     """Per triangle ``(normal (F, 3), tangent (F, 4))``: the geometric normal (counterclockwise
     winding), ``dP/du`` rejected from it, ``w`` the sign of ``dot(cross(dP/du, dP/dv), n)``, the

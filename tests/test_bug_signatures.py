@@ -3,7 +3,7 @@ mirrored sphere): a bug of the handedness touches only the mirrored half, pixel 
 
 import numpy as np
 
-from hzval import bug_signatures as B, model, scene as S, tangent_bugs
+from hzval import bug_signatures as B, model, scene as S, tangent_bugs, tangents
 
 
 def test_mirrored_sphere_mirrors_the_minus_y_half():
@@ -26,9 +26,7 @@ def test_handedness_is_the_frames_sign():
     rng = np.random.default_rng(0)
     t, n = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     w = rng.choice([-1.0, 1.0], 50)
-    b = w[:, None] * np.cross(n, t)
-    f = np.concatenate([t, b, n, np.zeros((50, 3))], axis=1).astype(np.float32)
-    assert (B.handedness(f) == w).all()
+    assert (tangents.handedness(t, w[:, None] * np.cross(n, t), n) == w).all()
 
 
 def test_a_handedness_bug_moves_only_the_mirrored_half():
@@ -47,3 +45,23 @@ def test_a_handedness_bug_moves_only_the_mirrored_half():
     assert bugs["none"]["mirrored_ratio"] == 1.0
     seen = ~np.isnan(maps["none"])
     assert seen.any() and np.nanmax(np.abs(maps["swap-uv"])) <= 1.0
+
+
+def test_a_sweep_splits_the_error_by_handedness(tmp_path):
+    """metrics.json's visibility_mae_mirrored / _unmirrored: a handedness bug moves only the first."""
+    import json
+
+    from hzval import cli
+
+    small = ["sweep", "--material", "spikes", "--size", "24", "--spp", "1", "--azimuths", "150,210",
+             "--resolution", "32x32", "--mesh", "cube", "--view-azimuth", "150", "--techniques", "horizon"]
+    got = {}
+    for bug in ("none", "ignore-handedness"):
+        out = tmp_path / bug
+        assert cli.main(small + ["--tangent-bug", bug, "--out", str(out), "--quiet"]) == 0
+        got[bug] = [f["techniques"]["horizon"] for f in json.loads((out / "metrics.json").read_text())["frames"]]
+    for a, b in zip(got["none"], got["ignore-handedness"]):
+        assert a["visibility_mae_unmirrored"] == b["visibility_mae_unmirrored"]
+        assert 0.0 <= a["visibility_mae_mirrored"] <= 1.0
+    assert [a["visibility_mae_mirrored"] for a in got["none"]] != \
+        [b["visibility_mae_mirrored"] for b in got["ignore-handedness"]]
