@@ -1,53 +1,43 @@
-"""Each tangent bug's horizon |F - V| on the cube, on its mirrored (-x, w = -1) and unmirrored faces.
+"""Each tangent bug's |F - V| on models with mirrored UVs, on their mirrored and unmirrored pixels
+(:mod:`hzval.bug_signatures`: the cube from azimuth 150, the mirrored sphere from +x; the scene's
+lights turned to the camera's side). docs/models.md and docs/meshes.md quote its output.
 
-    PYTHONPATH=. python benchmarks/tangent_bugs.py [--height bricks] [--size 48] [--spp 2]
+    PYTHONPATH=. python benchmarks/tangent_bugs.py [HEIGHT ...] [--size 128] [--spp 2] [--resolution 128]
 
-The cube in perspective from azimuth 150 (it shows the mirrored -x face), six lights at 30 degrees;
-the truth is the same for every bug (hzval.tangent_bugs), only the techniques' frames change.
+HEIGHT: built-in materials or image files (default: bricks spikes).
 """
 
 import argparse
+import time
 
-import numpy as np
-
-from hzval import model, scene as S, tangent_bugs, technique
-from hzval.bake import BakeParams, bake
-from hzval.model_truth import ModelTruth
-
-
-def errors(height: str, bug: str, n: int, spp: int, res: int):
-    """``(|F - V| per pixel, mean over the lights; w per sample; seen)`` for one bug."""
-    sc = S.override(S.Scene(), height=height, size=n, depth=0.08, spp=spp, azimuths="0,60,120,180,240,300",
-                    boundary="wrap", mesh="cube", camera="perspective", view_elevation=35, view_azimuth=150,
-                    resolution=(res, res), tangent_bug=bug)
-    h = S.load_material_height(sc.material).height
-    mt = ModelTruth(sc, h, model.load("cube"))
-    pts = mt.samples()
-    f = pts.frames
-    w = np.sign(np.sum(np.cross(f[:, 6:9], f[:, 0:3]) * f[:, 3:6], axis=1))
-    b = bake(h, BakeParams(depth=sc.material.depth, boundary=sc.material.boundary))
-    tech = technique.get("horizon").build(technique.Context(sc, h, b, S.load_albedo(sc.material, *h.shape),
-                                                            points=pts))
-    e = [np.abs(tech.render(az).layers["factor"] - mt.render(az).layers["visibility"])
-         for az in sc.light.azimuths_deg]
-    return np.mean(e, axis=0), w.reshape(-1, spp), mt.seen
+from hzval import bug_signatures, scene as S
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--height", default="bricks")
-    ap.add_argument("--size", type=int, default=48)
+    ap.add_argument("heights", nargs="*", default=["bricks", "spikes"])
+    ap.add_argument("--size", type=int, default=128, help="a built-in material's size")
     ap.add_argument("--spp", type=int, default=2)
-    ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--azimuths", default=None, help="the lights before they are turned (default the sweep's)")
     a = ap.parse_args()
-    _, w, seen = errors(a.height, "none", a.size, a.spp, a.resolution)
-    mirrored = (w < 0).all(axis=1).reshape(seen.shape) & seen
-    plain = (w > 0).all(axis=1).reshape(seen.shape) & seen
-    print(f"{a.height} {a.size}^2, {mirrored.sum()} mirrored and {plain.sum()} unmirrored pixels")
-    print(f"{'bug':18s} {'mirrored':>9s} {'unmirrored':>11s}")
-    for bug in tangent_bugs.NAMES:
-        e, _, _ = errors(a.height, bug, a.size, a.spp, a.resolution)
-        print(f"{bug:18s} {e[mirrored].mean():9.4f} {e[plain].mean():11.4f}")
+    print(f"{'height':16s} {'case':16s} {'bug':18s} {'mirrored':>9s} {'unmirrored':>10s} {'ratio':>6s} {'perfect':>8s} {'ratio':>6s}  mirrored per light")
+    for height in a.heights:
+        is_file = "." in height
+        sc = S.override(S.Scene(), height=height, size=None if is_file else a.size, spp=a.spp,
+                        camera="orthographic", resolution=(a.resolution, a.resolution), azimuths=a.azimuths)
+        h = S.load_material_height(sc.material).height
+        for case, (shape, az, light_az, uv_scale) in bug_signatures.CASES.items():
+            t0 = time.perf_counter()
+            rec, _ = bug_signatures.measure(sc, h, "horizon", shape, az, light_az, uv_scale)
+            for bug, r in rec["bugs"].items():
+                fmt = lambda v, k=4: "-" if v is None else f"{v:.{k}f}"
+                print(f"{height[-16:]:16s} {case:16s} {bug:18s} {fmt(r['mirrored']):>9s} {fmt(r['unmirrored']):>10s} "
+                      f"{fmt(r['mirrored_ratio'], 2):>6s} {fmt(r['mirrored_perfect_parallax']):>8s} "
+                      f"{fmt(r['mirrored_perfect_parallax_ratio'], 2):>6s}  " + " ".join(fmt(v, 3) for v in r["mirrored_per_light"]))
+            print(f"# {case}: lights {rec['azimuths_deg'][0]:g}..{rec['azimuths_deg'][-1]:g} at "
+                  f"{rec['elevation_deg']:g} deg, {rec['mirrored_pixels']} mirrored / {rec['unmirrored_pixels']} "
+                  f"unmirrored pixels, {time.perf_counter() - t0:.1f} s")
 
 
 if __name__ == "__main__":

@@ -44,16 +44,17 @@ def scene_of(metrics: dict, sweep_dir: Path):
     return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none"))
 
 
-def bug_factors(scene, height: np.ndarray, truth, bug: str, name: str) -> list[np.ndarray]:
+def bug_factors(scene, height: np.ndarray, truth, bug: str, name: str, at: str = "camera") -> list[np.ndarray]:
     """The technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
-    the model ``truth`` (:class:`hzval.model_truth.ModelTruth`) traced."""
+    the model ``truth`` (:class:`hzval.model_truth.ModelTruth`) traced, at its samples ``at``
+    (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`)."""
     from hzval import scene as S, technique
     from hzval.bake import BakeParams, bake
 
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     ctx = technique.Context(truth.scene, height, b, S.load_albedo(scene.material, *height.shape),
-                            points=truth.samples())
+                            points=truth.samples(at=at))
     tech = technique.get(name).build(ctx)
     return [tech.render(az).layers["factor"] for az in scene.light.azimuths_deg]
 

@@ -33,7 +33,7 @@ def test_a_handedness_bug_moves_only_the_mirrored_half():
     sc = S.override(S.Scene(), height="spikes", size=32, spp=1, azimuths="-40,40", camera="orthographic",
                     resolution=(32, 32))
     h = S.load_material_height(sc.material).height
-    rec, maps = B.measure(sc, h, "horizon", "mirrored-sphere", 0.0, uv_scale=2.0)
+    rec, maps = B.measure(sc, h, "horizon", "mirrored-sphere", 0.0, -90.0, uv_scale=2.0)
     bugs = rec["bugs"]
     assert rec["mirrored_pixels"] > 50 and rec["unmirrored_pixels"] > 50
     assert set(bugs) == set(tangent_bugs.NAMES)
@@ -53,7 +53,7 @@ def test_a_sweep_splits_the_error_by_handedness(tmp_path):
 
     from hzval import cli
 
-    small = ["sweep", "--material", "spikes", "--size", "24", "--spp", "1", "--azimuths", "150,210",
+    small = ["sweep", "--material", "spikes", "--size", "24", "--spp", "1", "--azimuths", "210,270",
              "--resolution", "32x32", "--mesh", "cube", "--view-azimuth", "150", "--techniques", "horizon"]
     got = {}
     for bug in ("none", "ignore-handedness"):
