@@ -166,3 +166,45 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
     ModelTruth(plain, h, sphere)
     with pytest.raises(InputError, match="truth-tolerance"):
         ModelTruth(lobe, h, sphere)
+
+
+def test_specular_in_perspective_on_a_model_is_each_samples_own_view(variant):
+    """The per-sample view that the fade reads also serves ``specular`` in perspective on a model:
+    where the truth sees the light, its Blinn-Phong shading is the techniques' at its own hits."""
+    from hzval import surface
+
+    scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
+                   view_azimuth=-30, resolution=(64, 64), spp=2, effects="shadow,diffuse,specular")
+    h = S.load_material_height(scene.material).height
+    mt = ModelTruth(scene, h, model.load("sphere"))
+    plain = surface.unshadowed(_context(scene, h, mt.samples("truth")))
+    t = mt.render(30.0)
+    lit = mt.seen & (t.layers["visibility"] == 1.0)
+    assert lit.mean() > 0.2
+    img = plain.render(30.0)[0].image
+    assert np.abs(t.image - img)[lit].max() < 1e-4
+    assert img[lit].max() > 1.2 * np.percentile(img[lit], 50)          # a highlight, not diffuse alone
+
+
+def test_the_plane_still_refuses_a_perspective_reflection():
+    with pytest.raises(InputError, match="perspective camera"):
+        _scene(camera="perspective", view_elevation=35, view_azimuth=-30).validate()
+    _scene(mesh="sphere", camera="perspective", view_elevation=35, view_azimuth=-30).validate()
+
+
+def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(variant):
+    """A flat map on a sphere: a convex surface with no relief, so the lobe (exponent 64, about 10
+    degrees wide) is blocked only where it dips below the base surface's horizon, near the
+    silhouette: ``R = 1`` exactly where the vertex normal faces the camera within 25 degrees (the
+    lobe would need a half vector 32 degrees off the normal, a share of 2e-5, to reach the
+    horizon), below 1 where it grazes."""
+    scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
+                   view_azimuth=-30, resolution=(64, 64), spp=4, effects="shadow,reflection_occlusion")
+    mt = ModelTruth(scene, np.zeros((32, 32), np.float32), model.load("sphere"))
+    R = mt.render(30.0).layers["reflection_occlusion"].ravel()
+    f = mt.samples("truth").frames
+    nv = np.sum(f[:, 6:9] * f[:, 9:12], axis=1).reshape(-1, scene.spp).min(axis=1)
+    facing, grazing = mt.seen.ravel() & (nv > 0.9), mt.seen.ravel() & (nv < 0.3)
+    assert facing.sum() > 300 and grazing.sum() > 20
+    assert R[facing].min() == 1.0
+    assert R[grazing].min() < 0.95                # the lobe's lower edge goes below the horizon there
