@@ -37,9 +37,13 @@ repeats, ``open`` clamps to the edge):
     and we measure it against the *baked* horizon instead of the tangent
     plane: ``o = saturate(1 + fade * (r_z - s_r))^2``, ``s_r`` the
     interpolated horizon sine toward ``r``'s azimuth. With no occluders
-    (``s_r = 0``) this is exactly Toolbag's term. The scene has no
-    environment map to reflect, so ``o`` is output as its own layer and does
-    not change the image.
+    (``s_r = 0``) this is exactly Toolbag's term. On a model (docs/meshes.md,
+    "What a model simulates") the tile's constant z becomes each sample's
+    interpolated vertex normal: ``r`` reflects the sample's own view (per
+    pixel in perspective) about the normal map's normal in the sample's
+    tangent frame ``(t, b, n_vertex)``, so ``r_z = dot(r, n_vertex)``. The
+    scene has no environment map to reflect, so ``o`` is output as its own
+    layer and does not change the image.
 ``interreflection``
     Not modelled; it never appears in :attr:`Horizon.simulated`.
 
