@@ -386,6 +386,9 @@ def _add_models(sub) -> None:
     p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
     p.add_argument("--spp", type=int, default=2, help="samples per pixel (default %(default)s)")
     p.add_argument("--resolution", default="128x128", help="pixels WxH of every case (default %(default)s)")
+    p.add_argument("--effects", default="shadow,diffuse,reflection_occlusion",
+                   help="effects of every case: reflection_occlusion scores Toolbag's fade against the traced "
+                        "glossy lobe (default %(default)s)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/models-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=cmd_models)
@@ -399,7 +402,7 @@ def cmd_models(args) -> int:
     size = args.size if args.size is not None else (None if args.height else 128)
     scene = sc.override(sc.Scene(), height=_material_of(args), size=size, depth=args.depth, boundary=args.boundary,
                         elevation=args.elevation, azimuths=args.azimuths, spp=args.spp, camera="orthographic",
-                        resolution=_resolution(args.resolution))
+                        resolution=_resolution(args.resolution), effects=args.effects)
     scene = dataclasses.replace(scene, name=_scene_name(args, scene))
     out = args.out or Path("reports") / f"models-{scene.name}"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))

@@ -37,9 +37,13 @@ repeats, ``open`` clamps to the edge):
     and we measure it against the *baked* horizon instead of the tangent
     plane: ``o = saturate(1 + fade * (r_z - s_r))^2``, ``s_r`` the
     interpolated horizon sine toward ``r``'s azimuth. With no occluders
-    (``s_r = 0``) this is exactly Toolbag's term. The scene has no
-    environment map to reflect, so ``o`` is output as its own layer and does
-    not change the image.
+    (``s_r = 0``) this is exactly Toolbag's term. On a model (docs/meshes.md,
+    "What a model simulates") the tile's constant z becomes each sample's
+    interpolated vertex normal: ``r`` reflects the sample's own view (per
+    pixel in perspective) about the normal map's normal in the sample's
+    tangent frame ``(t, b, n_vertex)``, so ``r_z = dot(r, n_vertex)``. The
+    scene has no environment map to reflect, so ``o`` is output as its own
+    layer and does not change the image.
 ``interreflection``
     Not modelled; it never appears in :attr:`Horizon.simulated`.
 
@@ -275,12 +279,19 @@ class Horizon(FlatShading, Technique):
             out["horizon_sine"] = s
         return direct * F
 
-    def _extra_layers(self, tex: dict, n, out: dict) -> None:
-        """Toolbag's reflection fade ``o`` against the baked horizon toward ``r`` (module docstring)."""
+    def _extra_layers(self, tex: dict, n, out: dict, uni: dict) -> None:
+        """Toolbag's reflection fade ``o`` against the baked horizon toward ``r`` (module docstring).
+
+        On a model ``uni["v"]`` is the sample's own view in its tangent frame ``(t, b, n_vertex)``
+        (:meth:`hzval.surface.FlatShading._lane_uniforms`; ``n_vertex`` the base mesh's interpolated
+        vertex normal), so ``r`` is the world's reflection about the shading normal in that frame:
+        ``r.z = dot(r, n_vertex)``, Toolbag's own dot product, and ``r``'s azimuth the horizon lookup's."""
         if not self._reflection:
             return
         # r = reflect(-v, n) = 2 (n.v) n - v (the top view's v = +z: (2 nz nx, 2 nz ny, 2 nz^2 - 1))
-        if self.scene.camera.kind == "top":
+        if "v" in uni:
+            r = 2.0 * dr.dot(n, uni["v"]) * n - uni["v"]
+        elif self.scene.camera.kind == "top":
             r = mi.Vector3f(2.0 * n.z * n.x, 2.0 * n.z * n.y, dr.fma(2.0 * n.z, n.z, -1.0))
         else:
             r = 2.0 * dr.dot(n, self._view) * n - self._view

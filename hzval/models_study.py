@@ -142,7 +142,8 @@ def _row(name: str, curvature, result: dict) -> dict:
     for t in result["techniques"]:
         per = [f["techniques"][t] for f in result["frames"]]
         techniques[t] = {k: _mean([p.get(k) for p in per]) for k in
-                         ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")}
+                         ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae",
+                          "reflection_mae")}
     return {"case": name, "curvature": curvature, "radius": None if not curvature else 1.0 / abs(curvature),
             "mesh": {k: result.get("mesh", {}).get(k) for k in ("source", "world_per_uv", "mirrored_fraction")},
             "report": f"{name}/index.html", "techniques": techniques}
@@ -154,6 +155,7 @@ def _write_page(out: Path, data: dict) -> None:
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
     _plot(out / "plots" / "models.png", rows, names)
+    reflection = _plot_reflection(out / "plots" / "reflection.png", rows, names)
     head = "".join(f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names)
     body = []
     for r in rows:
@@ -168,12 +170,46 @@ def _write_page(out: Path, data: dict) -> None:
     page = ("<!doctype html><meta charset='utf-8'><title>hzval models</title>"
             f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
             f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
+            + (reflection or "") +
             f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
             "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
             "truth's own hits (perfect parallax). docs/models.md.</p>"
             + bug_signatures.page_section(data["bugs"]))
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
+
+
+def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | None:
+    """Each technique's reflection-occlusion error, mean |o - R| (``reflection_mae``: Toolbag's fade
+    with the interpolated vertex normal against the traced glossy lobe), against signed curvature
+    1/R, where the study declares ``reflection_occlusion``; the page's ``<img>`` and its table
+    (``None``: no case has it)."""
+    from matplotlib.figure import Figure
+
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    series = {n: [(r["curvature"], r["techniques"][n]["reflection_mae"]) for r in pts
+                  if r["techniques"].get(n, {}).get("reflection_mae") is not None] for n in names}
+    series = {n: s for n, s in series.items() if s}
+    if not series:
+        return None
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    for n, s in series.items():
+        ax.plot(*zip(*s), marker="o", label=n)
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |o − R|",
+           title="reflection occlusion against curvature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    cells = "".join(f"<tr><td>{html.escape(r['case'])}</td>" + "".join(
+        f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>" if r["techniques"].get(n, {}).get("reflection_mae")
+        is not None else "<td>-</td>" for n in series) + "</tr>" for r in rows)
+    head = "".join(f"<th>{html.escape(n)} |o&minus;R|</th>" for n in series)
+    return (f"<h2>Reflection occlusion</h2><img src='plots/{path.name}' alt='reflection error against 1/R'>"
+            f"<table border=1 cellpadding=3><tr><th>case</th>{head}</tr>{cells}</table>")
 
 
 def _plot(path: Path, rows: list[dict], names: list[str]) -> None:

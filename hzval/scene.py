@@ -213,11 +213,13 @@ class Scene:
         self.camera.validate(what)
         self.lookup.validate(what)
         self._validate_mesh(what)
-        if self.camera.kind == "perspective":
+        if self.camera.kind == "perspective" and self.mesh.is_plane:
+            # on a model every sample carries its own view (lookup.Samples.frames); the tile's do not
             needs_v = [e for e in ("specular", "reflection_occlusion") if self.declares(e)]
             if needs_v:
                 raise InputError(what, f"{' and '.join(needs_v)} with a perspective camera need the view direction "
-                                       "per pixel, which the techniques do not take yet: use an orthographic camera")
+                                       "per pixel, which the tile's techniques do not take yet: use an orthographic "
+                                       "camera (or --mesh, whose samples carry their own)")
         return self
 
     def declares(self, effect: str) -> bool:

@@ -139,8 +139,9 @@ class FlatShading:
         """The direct term times the technique's factor (none here), its layers into ``out``."""
         return direct
 
-    def _extra_layers(self, tex: dict, n, out: dict) -> None:
-        """A technique's layers after the ambient term (``n``: the normal map's normal)."""
+    def _extra_layers(self, tex: dict, n, out: dict, uni: dict) -> None:
+        """A technique's layers after the ambient term (``n``: the normal map's normal; ``uni``: the
+        frame's uniforms, on a model the sample's own, :meth:`_lane_uniforms`)."""
 
     def _extra_layout(self, shadows: bool) -> tuple[list, list]:
         """The technique's layers of :meth:`_shade`, ``(name, channels)``: those before the ambient
@@ -300,14 +301,17 @@ class FlatShading:
 
     def _lane_uniforms(self, uni: dict, index) -> tuple[dict, object]:
         """On a model, the uniforms of the samples ``index``: the world's light in each sample's
-        tangent frame (:func:`hzval.lookup.to_tangent`), what a technique derives from it, the half
-        vector toward the sample's own view, and the base mesh's shadow ``M`` (``None``: none)."""
+        tangent frame (:func:`hzval.lookup.to_tangent`), what a technique derives from it, the
+        sample's own view ``v`` toward the camera in that frame and the half vector toward it, and
+        the base mesh's shadow ``M`` (``None``: none)."""
         frame = lookup.frame_of(self._frames, index)
         shadows, overrides = self._lane
         lane = {"L": lookup.to_tangent(frame, uni["L"]), "dark": uni.get("dark", False)}
         self._extra_uniforms(lane, shadows, dict(overrides))
+        if self._specular or self._reflection:
+            lane["v"] = lookup.to_tangent(frame, frame[3])
         if self._specular:
-            lane["h"] = dr.normalize(lane["L"] + lookup.to_tangent(frame, frame[3]))
+            lane["h"] = dr.normalize(lane["L"] + lane["v"])
         M = dr.gather(mi.Float, uni["M"], index) if "M" in uni else None
         return lane, M
 
@@ -340,7 +344,7 @@ class FlatShading:
             A = tex["ambient"][0]
             image = image + shading.sky(albedo, A, E)
             out["ambient"] = A
-        self._extra_layers(tex, n, out)
+        self._extra_layers(tex, n, out, uni)
         out["image"] = image
         return out
 

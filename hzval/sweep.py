@@ -231,7 +231,7 @@ def _model_peak_bytes(scene, rows: int, cols: int) -> int:
     triangles, mesh_bytes = displace.estimate(base, (rows, cols))
     H, W = sc.image_shape(rows, cols, scene.camera)
     return int(PEAK_BASE_BYTES + mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
-               + model_truth.BYTES_PER_SAMPLE * H * W * scene.spp + PEAK_BYTES_PER_PIXEL * H * W)
+               + model_truth.bytes_per_sample(scene) * H * W * scene.spp + PEAK_BYTES_PER_PIXEL * H * W)
 
 
 def material_shape(scene) -> tuple[int, int]:

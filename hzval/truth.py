@@ -390,15 +390,7 @@ class _RayQueries:
     def _rng(self, stream: int, st: "_Samples"):
         """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
         in the whole image: deterministic, and the same in a band as in one piece."""
-        import drjit as dr
-        import mitsuba as mi
-
-        state = (int(self.scene.seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
-        # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
-        # sample k of one piece starts from initstate + k with the sequence 2k, so lane j of a
-        # band starting at sample s takes initstate + s and initseq j + 2 s
-        return mi.PCG32(size=st.count, initstate=(state + st.start) & 0xFFFFFFFFFFFFFFFF,
-                        initseq=dr.arange(mi.UInt64, st.count) + 2 * st.start)
+        return stream_rng(self.scene.seed, stream, st.start, st.count)
 
     def _surface_at(self, x, y, active=True, coherent: bool = False):
         """Lifted ray origin, geometric normal and shading normal of the surface above ``(x, y)``.
@@ -864,36 +856,21 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that escapes
         (independent of the light, once).
 
-        Directions come from the lobe's half-vector distribution about the
-        shading normal (:func:`_lobe_direction`), so each carries the
-        estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
-        (Walter et al. 2007; ``f cos = ks (n.h)^alpha [n.wo > 0]``, ``pdf =
-        (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``): ``R = sum w V / sum w``
-        with ``w = wo.h`` where ``n.wo > 0`` (else 0), ``V`` = 1 where the
-        direction escapes. Variance: the ratio estimator's, ``sum w^2 (V -
-        R)^2 / (sum w)^2``.
+        Directions and weights: :func:`lobe_sample`; ``V`` = 1 where the
+        direction escapes; ``R`` and its variance: :func:`reflection_estimate`
+        (a model's truth, :mod:`hzval.model_truth`, calls the same two).
         """
         import drjit as dr
         import mitsuba as mi
 
         t0 = time.perf_counter()
         rng = self._rng(_REFLECTION_STREAM, st)
-        wo, h = _lobe_direction(st.ns, self._toward_eye,
-                                mi.Point2f(rng.next_float32(), rng.next_float32()))
-        w = dr.select(dr.dot(st.ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
+        wo, w = lobe_sample(st.ns, self._toward_eye, mi.Point2f(rng.next_float32(), rng.next_float32()))
         blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
             st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
-        V = dr.select(blocked, 0.0, 1.0)
-        sums = [dr.block_sum(x, self.spp) for x in (w * V, w, w * w * V, w * w)]
-        dr.eval(sums)
-        backend.sync()
-        wv, ws, w2v, w2 = (np.asarray(x, np.float64) for x in sums)
-        R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
-        var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
-        if self.spp < 2:
-            var[:] = np.nan
+        out = reflection_estimate(w, dr.select(blocked, 0.0, 1.0), self.spp)
         self.timings["reflection_s"] += time.perf_counter() - t0
-        return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
+        return out
 
 
     # ------------------------------------------------------------------
@@ -1225,6 +1202,56 @@ def _sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
         pdf += p_spec * pdf_h / dr.maximum(4.0 * dr.abs(dr.dot(wo, hv)), 1e-12)
     ok = (cos_o > 0.0) & (pdf > 0.0)
     return wo, dr.select(ok, f_cos / dr.maximum(pdf, 1e-30), 0.0)
+
+
+def stream_rng(seed: int, stream: int, start: int, count: int):
+    """A PCG32 per sample ``start <= k < start + count`` of the image, seeded by the scene's ``seed``
+    and a ``stream`` tag: deterministic, and the same in a band as in one piece (the plane's truth
+    in bands, a model's in one piece, :mod:`hzval.model_truth`)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    state = (int(seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
+    # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
+    # sample k of one piece starts from initstate + k with the sequence 2k, so lane j of a
+    # band starting at sample s takes initstate + s and initseq j + 2 s
+    return mi.PCG32(size=count, initstate=(state + start) & 0xFFFFFFFFFFFFFFFF,
+                    initseq=dr.arange(mi.UInt64, count) + 2 * start)
+
+
+def lobe_sample(ns, v, u):
+    """``(wo, w)``: a direction of the glossy lobe about the shading normal ``ns`` seen from ``v``
+    (toward the camera, unit), from ``u`` in [0, 1)^2 (:func:`_lobe_direction`), and its weight in
+    the estimate of ``R`` (the ``reflection_occlusion`` layer, module docstring).
+
+    Drawn from the lobe's half-vector distribution, each direction carries the
+    estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
+    (Walter et al. 2007; ``f cos = ks (n.h)^alpha [n.wo > 0]``, ``pdf =
+    (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``); the constant cancels in
+    the ratio, so ``w = wo.h`` where ``ns.wo > 0``, else 0.
+    """
+    import drjit as dr
+
+    wo, h = _lobe_direction(ns, v, u)
+    return wo, dr.select(dr.dot(ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
+
+
+def reflection_estimate(w, V, spp: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, variance)`` per pixel (flat float32) from per-sample weights ``w`` (:func:`lobe_sample`)
+    and escapes ``V`` (0/1) of ``spp`` consecutive samples a pixel: ``R = sum w V / sum w`` (0
+    where ``sum w = 0``) and the ratio estimator's variance ``sum w^2 (V - R)^2 / (sum w)^2``
+    (NaN for one sample a pixel, which has none)."""
+    import drjit as dr
+
+    sums = [dr.block_sum(x, spp) for x in (w * V, w, w * w * V, w * w)]
+    dr.eval(sums)
+    backend.sync()
+    wv, ws, w2v, w2 = (np.asarray(x, np.float64) for x in sums)
+    R = np.divide(wv, ws, out=np.zeros_like(ws), where=ws > 0)
+    var = np.divide(w2v * (1.0 - 2.0 * R) + R * R * w2, ws * ws, out=np.zeros_like(ws), where=ws > 0)
+    if spp < 2:
+        var[:] = np.nan
+    return R.astype(np.float32), np.maximum(var, 0.0).astype(np.float32)
 
 
 def _lobe_direction(n, v, u):

@@ -40,4 +40,7 @@ def test_the_study_end_to_end(tmp_path):
         + ["flat", "cube"]
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
+        assert 0.0 < r["techniques"]["horizon"]["reflection_mae"] < 1.0      # reflection occlusion by default
+        assert r["techniques"]["pom"]["reflection_mae"] is None               # pom has no fade
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
+    assert (out / "plots" / "reflection.png").is_file()
