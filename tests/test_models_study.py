@@ -44,3 +44,7 @@ def test_the_study_end_to_end(tmp_path):
         assert r["techniques"]["pom"]["reflection_mae"] is None               # pom has no fade
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
     assert (out / "plots" / "reflection.png").is_file()
+    bugs = d["bugs"]["cases"]
+    assert set(bugs) == {"cube", "mirrored-sphere"} and (out / "plots" / "bugs.png").is_file()
+    assert all(c["bugs"]["none"]["mirrored_ratio"] == 1.0 for c in bugs.values())
+    assert "Tangent-bug signatures" in (out / "index.html").read_text()
