@@ -106,7 +106,7 @@ def _case_scene(scene, out: Path, name: str, spec):
 def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
     from hzval import sweep
 
-    rows = []
+    rows, bands = [], {}
     cases = _cases()
     for i, (name, curvature, spec) in enumerate(cases):
         if progress:
@@ -115,8 +115,11 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
                            command=f"{command} # case {name}".strip(), force=force)
         rows.append(_row(name, curvature, result))
+        if curvature is not None:
+            bands[name] = _band_maps(sc, out / name)
     data = {"format": "hzval models 1", "material": result["material"],
             "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+    _add_bands(data, bands)
     files.write_json(out / "models.json", data)
     _write_page(out, data)
     return data
@@ -188,3 +191,36 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with files.atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
+
+
+# -- the band: curvature and nothing else (hzval.curvature_band) --------------------------------
+
+
+def _band_maps(case_scene, case_dir: Path) -> dict:
+    """The case's band texel maps (:func:`hzval.curvature_band.measure`, its own camera and lights)."""
+    from hzval import curvature_band as cb
+
+    return cb.measure(cb.band_scene(case_scene), case_dir)
+
+
+def _add_bands(data: dict, bands: dict) -> None:
+    """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
+    study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
+    rise from the flat patch through the caps as R shrinks (:func:`hzval.curvature_band.trend`)."""
+    from hzval import curvature_band as cb
+
+    flat = bands.get("flat")
+    for r in data["rows"]:
+        if r["case"] in bands:
+            r["band"] = cb.paired(bands[r["case"]], None if r["case"] == "flat" else flat)
+    convex = [r for r in data["rows"] if "band" in r and r["curvature"] is not None and r["curvature"] >= 0]
+    names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
+    data["band"] = {"half_deg": cb.BAND_DEG, "window": cb.WINDOW, "azimuths": list(cb.AZIMUTHS),
+                    "resolution": list(cb.RESOLUTION)}
+    data["trend"] = {}
+    for n in names:
+        have = [r for r in convex if n in r["band"]["techniques"]]
+        mae = [(r["curvature"], r["band"]["techniques"][n]["per_frame"]) for r in have]
+        exc = [(r["curvature"], r["band"]["techniques"][n].get("per_frame_excess")
+                or [0.0] * len(r["band"]["techniques"][n]["per_frame"])) for r in have]
+        data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
