@@ -39,6 +39,8 @@ import math
 
 import numpy as np
 
+from hzval import seam_share
+
 __all__ = ["BAND_DEG", "WINDOW", "AZIMUTHS", "RESOLUTION", "band_scene", "measure", "paired", "trend",
            "texel_means", "in_band"]
 
@@ -102,24 +104,36 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
     setup = sweep._set_up(scene, case_dir, sweep.Options())
     try:
         texel, n, keep, size = _pixel_geometry(setup.truth, window)
-        out = {t.name: {"mae": [], "floor": []} for t in setup.techniques}
-        texels = []
+        near, seen = _near_seams(setup.truth)
+        out = {t.name: {"mae": [], "floor": [], "seam": []} for t in setup.techniques}
+        texels, lit = [], []
         perfect = {t.name: t for t in setup.perfect}
         for az in scene.light.azimuths_deg:
             frame = setup.truth.render(az)
             V = frame.layers["visibility"].ravel()
             band = keep & in_band(n, scene.light.direction(az), scene.light.elevation_deg, half_deg)
-            texels.append(int(np.isfinite(texel_means(V, texel, band, size)).sum()))
+            lit.append(texel_means(V, texel, band, size))
+            texels.append(int(np.isfinite(lit[-1]).sum()))
             for t in setup.techniques:
                 F = t.render(az).layers["factor"].ravel()
                 out[t.name]["mae"].append(texel_means(np.abs(F - V), texel, band, size))
+                out[t.name]["seam"].append(seam_share.shares(np.abs(F - V), near, seen))
                 p = perfect.get(t.name)
                 Fp = p.render(az).layers["factor"].ravel() if p is not None else np.full_like(F, np.nan)
                 out[t.name]["floor"].append(texel_means(np.abs(Fp - V), texel, band, size))
     finally:
         backend.hand_back_freed_memory()
-    return {"techniques": {k: {m: np.stack(v) for m, v in d.items()} for k, d in out.items()},
-            "texels": texels}
+    return {"techniques": {k: {m: (v if m == "seam" else np.stack(v)) for m, v in d.items()} for k, d in out.items()},
+            "texels": texels, "lit": np.stack(lit), "seam_edges": int(setup.truth.model.seam_edges)}
+
+
+def _near_seams(truth):
+    """Per pixel: whether its first sample's base point lies within :data:`hzval.seam_share.SEAM_TEXELS`
+    of a seam edge, and whether it is seen."""
+    m = truth.model
+    spp = truth.spp
+    d = seam_share.seam_distance_texels(m, truth.base_points()[::spp], m.world_per_uv / truth.cols)
+    return np.nan_to_num(d, nan=np.inf) <= seam_share.SEAM_TEXELS, truth.seen.ravel()
 
 
 def _frame_means(maps: np.ndarray, on: np.ndarray) -> np.ndarray:
@@ -145,7 +159,13 @@ def paired(case: dict, flat: dict | None) -> dict:
     (``mae``), its floor, the flat patch's on the same texels of each frame (``flat``) and the
     difference (``excess``), each ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
     :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame."""
-    row = {"texels": float(np.mean(case["texels"])) if case["texels"] else 0.0, "techniques": {}}
+    row = {"texels": float(np.mean(case["texels"])) if case["texels"] else 0.0, "techniques": {},
+           "seam_edges": case.get("seam_edges", 0)}
+    if "lit" in case:           # the truth's lit share in the band, and what curvature changes of it
+        on = np.isfinite(case["lit"]) & (np.isfinite(flat["lit"]) if flat is not None else True)
+        row["lit"] = _stat(_frame_means(case["lit"], on))
+        if flat is not None:
+            row["lit_excess"] = _stat(_frame_means(case["lit"], on) - _frame_means(flat["lit"], on))
     for name, maps in case["techniques"].items():
         on = np.isfinite(maps["mae"])
         other = None if flat is None else flat["techniques"].get(name)
@@ -158,8 +178,18 @@ def paired(case: dict, flat: dict | None) -> dict:
             ref = _frame_means(other["mae"], on)
             entry["flat"], entry["excess"] = _stat(ref), _stat(mae - ref)
             entry["per_frame_excess"] = [None if not math.isfinite(v) else float(v) for v in mae - ref]
+        if maps.get("seam") and row["seam_edges"]:
+            entry["seam"] = _seam_stat(maps["seam"])
         row["techniques"][name] = entry
     return row
+
+
+def _seam_stat(per_frame: list[dict]) -> dict:
+    """The frames' error share near seams (mean, standard error) and the pixel share there."""
+    err = np.array([np.nan if f["error_share"] is None else f["error_share"] for f in per_frame])
+    pix = [f["pixel_share"] for f in per_frame if f["pixel_share"] is not None]
+    return {"within_texels": seam_share.SEAM_TEXELS, "error_share": _stat(err),
+            "pixel_share": float(np.mean(pix)) if pix else None}
 
 
 def trend(points: list[tuple[float, list]], noise_z: float = NOISE_Z) -> dict:

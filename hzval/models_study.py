@@ -36,13 +36,16 @@ import numpy as np
 
 from hzval import files
 
-__all__ = ["run", "RADII", "BOWLS", "cap_obj"]
+__all__ = ["run", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
 #: Convex caps' radii and the bowls', in texture widths (issue 29).
 RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
 BOWLS: tuple[float, ...] = (1.0, 2.0)
 #: The caps' half width along the surface, texture widths (smaller than the smallest radius).
 A = 0.4
+#: The torus of the ``ring`` case, texture widths: tube radius ``m`` (convex across the tube,
+#: ``+1/m``) and the inner equator's radius about the axis ``rho`` (concave along the ring, ``-1/rho``).
+RING: tuple[float, float] = (1.0, 2.0)
 #: Grid cells of a cap along each side (its base mesh; the truth refines it to the texel scale).
 CELLS = 32
 
@@ -61,22 +64,14 @@ def cap_obj(path: Path, radius: float, sign: int) -> None:
         s = np.sin(th)
         p = np.stack([radius * s * ex, radius * s * ey, sign * radius * (np.cos(th) - 1.0)], -1)
         n = np.stack([sign * s * ex, sign * s * ey, np.cos(th)], -1)
-    uv = np.stack([x, y], -1) + 0.5
-    k = CELLS + 1
-    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
-    a = (j * k + i).ravel()
-    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
-    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
-    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
-    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
 
 
 def _cases() -> list[tuple[str, float, str | None]]:
     """``(name, signed curvature 1/R, mesh radius spec)``."""
     out = [(f"cap+{R:g}", 1.0 / R, ("cap", R, 1)) for R in RADII]
     out += [(f"bowl+{R:g}", -1.0 / R, ("cap", R, -1)) for R in BOWLS]
+    out += [("ring", None, ("ring", RING, 0))]
     return out + [("flat", 0.0, ("cap", math.inf, 1)), ("cube", None, ("shape", "cube", 0))]
 
 
@@ -92,9 +87,9 @@ def _case_scene(scene, out: Path, name: str, spec):
     from hzval import scene as S
 
     kind, value, sign = spec
-    if kind == "cap":
+    if kind in ("cap", "ring"):
         obj = out / "meshes" / f"{name}.obj"
-        cap_obj(obj, value, sign)
+        cap_obj(obj, value, sign) if kind == "cap" else ring_obj(obj, *value)
         mesh = dataclasses.replace(scene.mesh, shape=str(obj.resolve()), up="z", uv_scale=1.0)
         cam = dataclasses.replace(scene.camera, kind="orthographic", elevation_deg=60.0, azimuth_deg=-90.0)
     else:
@@ -115,8 +110,8 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
                            command=f"{command} # case {name}".strip(), force=force)
         rows.append(_row(name, curvature, result))
-        if curvature is not None:
-            bands[name] = _band_maps(sc, out / name)
+        _ring_row(rows[-1], spec)
+        bands[name] = _band_maps(sc, out / name)
     data = {"format": "hzval models 1", "material": result["material"],
             "command": files.portable_command(command, out), "half_width": A, "rows": rows}
     _add_bands(data, bands)
@@ -212,8 +207,11 @@ def _add_bands(data: dict, bands: dict) -> None:
     flat = bands.get("flat")
     for r in data["rows"]:
         if r["case"] in bands:
-            r["band"] = cb.paired(bands[r["case"]], None if r["case"] == "flat" else flat)
-    convex = [r for r in data["rows"] if "band" in r and r["curvature"] is not None and r["curvature"] >= 0]
+            patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")   # the patch's UVs
+            r["band"] = cb.paired(bands[r["case"]], flat if patch else None)
+        if "principal_curvatures" in r and "band" in r:
+            r["band"]["by_azimuth"] = _by_azimuth(r, cb.AZIMUTHS)
+    convex = [r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")]
     names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
     data["band"] = {"half_deg": cb.BAND_DEG, "window": cb.WINDOW, "azimuths": list(cb.AZIMUTHS),
                     "resolution": list(cb.RESOLUTION)}
@@ -224,3 +222,63 @@ def _add_bands(data: dict, bands: dict) -> None:
         exc = [(r["curvature"], r["band"]["techniques"][n].get("per_frame_excess")
                 or [0.0] * len(r["band"]["techniques"][n]["per_frame"])) for r in have]
         data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
+
+
+# -- the inside of a torus's ring -----------------------------------------------------------
+
+
+def ring_obj(path: Path, tube: float, rho: float) -> None:
+    """Write a ``2 A`` square patch of a torus about its inner equator as an OBJ at ``path`` (z up,
+    the patch's centre at the origin, its normal +z): tube radius ``tube``, the inner equator a
+    circle of radius ``rho`` about the torus's axis, which runs along y at height ``rho``.
+
+    A grid point ``(x, y)`` goes to ring angle ``phi = x / rho`` and tube angle ``tau = y / tube``
+    (from the inner equator): ``p = C + (rho + tube (1 - cos tau)) e(phi) + tube sin tau y``,
+    ``e(phi) = (sin phi, 0, -cos phi)``, ``C = (0, 0, rho)``, its normal ``-cos tau e + sin tau y``;
+    UV ``(x, y) + 1/2``. Lengths along the tube are the UVs' exactly, along the ring to
+    ``1 + tube (1 - cos tau) / rho`` (1.04 at the rim, 1.008 inside the band's window). Along x the
+    surface bends toward its normal (concave, normal curvature ``-1/rho``), along y away from it
+    (convex, ``+1/tube``): the inside of a torus's ring, with one texture per world unit (the
+    built-in torus's UVs are stretched 3:1 there, around the ring against around the tube)."""
+    g = np.linspace(-A, A, CELLS + 1)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    phi, tau = x / rho, y / tube
+    e = np.stack([np.sin(phi), 0 * phi, -np.cos(phi)], -1)
+    yy = np.array([0.0, 1.0, 0.0])
+    p = np.array([0.0, 0.0, rho]) + (rho + tube * (1 - np.cos(tau)))[:, None] * e + (tube * np.sin(tau))[:, None] * yy
+    n = -np.cos(tau)[:, None] * e + np.sin(tau)[:, None] * yy
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
+
+
+def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) -> None:
+    """A ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
+    seen from the normals' side."""
+    k = CELLS + 1
+    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
+    a = (j * k + i).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
+    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
+    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
+    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _ring_row(row: dict, spec) -> None:
+    """The ring case's principal curvatures (texture widths^-1, + convex) and their directions."""
+    if spec[0] == "ring":
+        tube, rho = spec[1]
+        row["principal_curvatures"] = {"along_ring_x": -1.0 / rho, "across_tube_y": 1.0 / tube}
+
+
+def _by_azimuth(row: dict, azimuths) -> list[dict]:
+    """Per light of the band: its azimuth, the normal curvature along its direction (Euler:
+    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch."""
+    kx, ky = row["principal_curvatures"]["along_ring_x"], row["principal_curvatures"]["across_tube_y"]
+    out = []
+    for i, az in enumerate(azimuths):
+        c, s = math.cos(math.radians(az)), math.sin(math.radians(az))
+        out.append({"azimuth_deg": float(az), "normal_curvature": kx * c * c + ky * s * s,
+                    "excess": {n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
+                               for n, t in row["band"]["techniques"].items()}})
+    return out

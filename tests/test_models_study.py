@@ -41,3 +41,26 @@ def test_the_study_end_to_end(tmp_path):
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
+
+
+def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path):
+    tube, rho = models_study.RING
+    path = tmp_path / "ring.obj"
+    models_study.ring_obj(path, tube, rho)
+    m = model.load(str(path), up="z")
+    p, n = m.positions, m.normals
+    assert np.allclose(p[np.argmin(np.linalg.norm(p, axis=1))], 0.0) and n[:, 2].min() > 0
+    on_x, on_y = np.abs(p[:, 1]) < 1e-12, np.abs(p[:, 0]) < 1e-12
+    x, zx = p[on_x, 0], p[on_x, 2]
+    y, zy = p[on_y, 1], p[on_y, 2]
+    # the normal curvature is the height's second derivative at the centre: z ~ k_n s^2 / 2 toward n
+    kx = np.polyfit(x, zx, 4)[2] * 2
+    ky = np.polyfit(y, zy, 4)[2] * 2
+    assert kx == pytest.approx(1.0 / rho, rel=0.02)          # bends toward +n (up): concave along x
+    assert ky == pytest.approx(-1.0 / tube, rel=0.02)        # bends away: convex across the tube
+    # every point lies on the torus: distance to the tube's centre circle is the tube radius
+    c = np.array([0.0, 0.0, rho])
+    q = p - c
+    radial = np.hypot(q[:, 0], q[:, 2])
+    np.testing.assert_allclose(np.hypot(radial - (rho + tube), q[:, 1]), tube, rtol=1e-6)
+    assert abs(m.world_per_uv - 1.0) < 0.03
