@@ -411,6 +411,8 @@ def cmd_models(args) -> int:
         vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f} {r['techniques'][n]['perfect_parallax_mae'] or float('nan'):7.4f}"
                          for n in names if n in r["techniques"])
         print(f"{r['case']:10} {k:+7.3f}  {vals}")
+    for n, t in data.get("trend", {}).items():
+        print(f"{n}: band |F-V| {models_study._says(t['mae'])}; excess over flat {models_study._says(t['excess'])}")
     print(f"report: {out / 'index.html'}")
     return 0
 

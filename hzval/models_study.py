@@ -157,7 +157,7 @@ def _write_page(out: Path, data: dict) -> None:
             f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
             f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
             "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
-            "truth's own hits (perfect parallax). docs/models.md.</p>")
+            "truth's own hits (perfect parallax). docs/models.md.</p>" + _band_html(out, data))
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
@@ -282,3 +282,96 @@ def _by_azimuth(row: dict, azimuths) -> list[dict]:
                     "excess": {n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
                                for n, t in row["band"]["techniques"].items()}})
     return out
+
+
+# -- the band's table, trend and plot on the page ------------------------------------------------
+
+
+def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
+    """``mean ± se`` of a ``{mean, se}`` statistic, or ``-``."""
+    if not stat or stat.get("mean") is None:
+        return "-"
+    m, se = f"{stat['mean']:{'+' if signed else ''}.{digits}f}", stat.get("se")
+    return f"{m} &plusmn; {se:.{digits}f}" if se is not None else m
+
+
+def _band_html(out: Path, data: dict) -> str:
+    """The band's table (per case and technique: |F - V|, the flat patch's on the same texels, the
+    excess, the floor, the seams' share), the trend's verdicts and the excess plot."""
+    rows = [r for r in data["rows"] if "band" in r]
+    if not rows:
+        return ""
+    b = data["band"]
+    names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
+    _band_plot(out / "plots" / "band.png", rows, names)
+    head = "".join(f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
+                   f"<th>floor</th><th>seams: error / pixels</th>" for n in names)
+    body = []
+    for r in rows:
+        cells = []
+        for n in names:
+            t = r["band"]["techniques"].get(n, {})
+            seam = t.get("seam")
+            sh = "-" if not seam or seam["error_share"]["mean"] is None else \
+                f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
+            cells += [f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")]
+            cells.append(f"<td>{sh}</td>")
+        k = r.get("principal_curvatures")
+        k = (f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)" if k else
+             "-" if r["curvature"] is None else f"{r['curvature']:+.3g}")
+        body.append(f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
+                    f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>")
+    verdicts = "".join(f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
+                       f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
+                       for n, t in data.get("trend", {}).items())
+    return (f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
+            f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
+            f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
+            f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
+            "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
+            "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
+            f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
+            "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
+            f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
+            f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>")
+
+
+def _seam_texels() -> str:
+    from hzval import seam_share
+
+    return f"{seam_share.SEAM_TEXELS:g}"
+
+
+def _says(t: dict) -> str:
+    """A trend as one phrase: its verdict, the whole change with its z, and any falls' z."""
+    o = t.get("overall") or {}
+    if o.get("change") is None:
+        return t["verdict"]
+    falls = ", ".join(f"{f['from']:+g}->{f['to']:+g} by {-f['z']:.1f} SE" for f in t["falls"])
+    return (f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
+            + (f"; falls {falls}" if falls else "") + ")")
+
+
+def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
+    """Each technique's band excess over the flat patch, with one standard error, against 1/R."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    for n in names:
+        have = [(r["curvature"], r["band"]["techniques"][n].get("excess")) for r in pts
+                if n in r["band"]["techniques"]]
+        have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
+        if have:
+            k, m, se = zip(*have)
+            ax.errorbar(k, m, yerr=se, marker="o", capsize=3, label=n)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="band |F − V| − flat's, same texels",
+           title="what curvature alone costs (± 1 SE)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")

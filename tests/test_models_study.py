@@ -37,9 +37,18 @@ def test_the_study_end_to_end(tmp_path):
     d = json.loads((out / "models.json").read_text())
     cases = [r["case"] for r in d["rows"]]
     assert cases == [f"cap+{r:g}" for r in models_study.RADII] + [f"bowl+{r:g}" for r in models_study.BOWLS] \
-        + ["flat", "cube"]
+        + ["ring", "flat", "cube"]
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
+        band = r["band"]["techniques"]["horizon"]
+        assert 0.0 <= band["mae"]["mean"] <= 1.0 and band["mae"]["se"] >= 0.0
+        assert ("excess" in band) == (r["case"] not in ("flat", "cube"))
+        assert ("seam" in band) == (r["case"] == "cube")       # the cube alone has seams
+    rows = {r["case"]: r for r in d["rows"]}
+    # the truth is more lit on a convex cap than on the flat patch's same texels, less in a bowl
+    assert rows["cap+0.5"]["band"]["lit_excess"]["mean"] > 0 > rows["bowl+1"]["band"]["lit_excess"]["mean"]
+    assert d["trend"]["horizon"]["mae"]["verdict"] in ("rises monotonically", "rises within noise", "does not rise")
+    assert rows["ring"]["principal_curvatures"] == {"along_ring_x": -0.5, "across_tube_y": 1.0}
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
 
 
