@@ -94,33 +94,36 @@ def _pixel_geometry(truth, window: float):
     return row * cols + col, n, keep, rows * cols
 
 
-def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_DEG) -> dict:
+def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_DEG, extra=None) -> dict:
     """Render ``scene`` (a case's, :func:`band_scene`) once more, in memory, from the bake that
     the case's sweep cached in ``case_dir``: per technique and frame the texel maps of |F - V| at
     the camera's hits (``mae``) and at the truth's (``floor``) over the band's pixels, ``(frames,
-    texels)`` float64 each, and how many texels each frame's band holds."""
+    texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more
+    techniques to measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
+    (benchmarks/curved_horizon.py)."""
     from hzval import backend, sweep
 
     setup = sweep._set_up(scene, case_dir, sweep.Options())
     try:
         texel, n, keep, size = _pixel_geometry(setup.truth, window)
         near, seen = _near_seams(setup.truth)
-        out = {t.name: {"mae": [], "floor": [], "seam": []} for t in setup.techniques}
-        texels, lit = [], []
         perfect = {t.name: t for t in setup.perfect}
+        techs = {t.name: (t, perfect.get(t.name)) for t in setup.techniques}
+        techs.update(extra(setup) if extra else {})
+        out = {name: {"mae": [], "floor": [], "seam": []} for name in techs}
+        texels, lit = [], []
         for az in scene.light.azimuths_deg:
             frame = setup.truth.render(az)
             V = frame.layers["visibility"].ravel()
             band = keep & in_band(n, scene.light.direction(az), scene.light.elevation_deg, half_deg)
             lit.append(texel_means(V, texel, band, size))
             texels.append(int(np.isfinite(lit[-1]).sum()))
-            for t in setup.techniques:
+            for name, (t, p) in techs.items():
                 F = t.render(az).layers["factor"].ravel()
-                out[t.name]["mae"].append(texel_means(np.abs(F - V), texel, band, size))
-                out[t.name]["seam"].append(seam_share.shares(np.abs(F - V), near, seen))
-                p = perfect.get(t.name)
+                out[name]["mae"].append(texel_means(np.abs(F - V), texel, band, size))
+                out[name]["seam"].append(seam_share.shares(np.abs(F - V), near, seen))
                 Fp = p.render(az).layers["factor"].ravel() if p is not None else np.full_like(F, np.nan)
-                out[t.name]["floor"].append(texel_means(np.abs(Fp - V), texel, band, size))
+                out[name]["floor"].append(texel_means(np.abs(Fp - V), texel, band, size))
     finally:
         backend.hand_back_freed_memory()
     return {"techniques": {k: {m: (v if m == "seam" else np.stack(v)) for m, v in d.items()} for k, d in out.items()},
@@ -136,7 +139,7 @@ def _near_seams(truth):
     return np.nan_to_num(d, nan=np.inf) <= seam_share.SEAM_TEXELS, truth.seen.ravel()
 
 
-def _frame_means(maps: np.ndarray, on: np.ndarray) -> np.ndarray:
+def frame_means(maps: np.ndarray, on: np.ndarray) -> np.ndarray:
     """Per frame the mean of ``maps[f]`` over the texels ``on[f]`` (NaN where a frame has none)."""
     out = np.full(maps.shape[0], np.nan)
     for f in range(maps.shape[0]):
@@ -145,7 +148,7 @@ def _frame_means(maps: np.ndarray, on: np.ndarray) -> np.ndarray:
     return out
 
 
-def _stat(per_frame: np.ndarray) -> dict:
+def summary(per_frame: np.ndarray) -> dict:
     """The mean over the frames, its standard error from their spread and the frames counted."""
     v = per_frame[np.isfinite(per_frame)]
     if len(v) == 0:
@@ -163,20 +166,20 @@ def paired(case: dict, flat: dict | None) -> dict:
            "seam_edges": case.get("seam_edges", 0)}
     if "lit" in case:           # the truth's lit share in the band, and what curvature changes of it
         on = np.isfinite(case["lit"]) & (np.isfinite(flat["lit"]) if flat is not None else True)
-        row["lit"] = _stat(_frame_means(case["lit"], on))
+        row["lit"] = summary(frame_means(case["lit"], on))
         if flat is not None:
-            row["lit_excess"] = _stat(_frame_means(case["lit"], on) - _frame_means(flat["lit"], on))
+            row["lit_excess"] = summary(frame_means(case["lit"], on) - frame_means(flat["lit"], on))
     for name, maps in case["techniques"].items():
         on = np.isfinite(maps["mae"])
         other = None if flat is None else flat["techniques"].get(name)
         if other is not None:
             on &= np.isfinite(other["mae"])
-        mae = _frame_means(maps["mae"], on)
-        entry = {"mae": _stat(mae), "floor": _stat(_frame_means(maps["floor"], on & np.isfinite(maps["floor"]))),
+        mae = frame_means(maps["mae"], on)
+        entry = {"mae": summary(mae), "floor": summary(frame_means(maps["floor"], on & np.isfinite(maps["floor"]))),
                  "per_frame": [None if not math.isfinite(v) else float(v) for v in mae]}
         if other is not None:
-            ref = _frame_means(other["mae"], on)
-            entry["flat"], entry["excess"] = _stat(ref), _stat(mae - ref)
+            ref = frame_means(other["mae"], on)
+            entry["flat"], entry["excess"] = summary(ref), summary(mae - ref)
             entry["per_frame_excess"] = [None if not math.isfinite(v) else float(v) for v in mae - ref]
         if maps.get("seam") and row["seam_edges"]:
             entry["seam"] = _seam_stat(maps["seam"])
@@ -188,7 +191,7 @@ def _seam_stat(per_frame: list[dict]) -> dict:
     """The frames' error share near seams (mean, standard error) and the pixel share there."""
     err = np.array([np.nan if f["error_share"] is None else f["error_share"] for f in per_frame])
     pix = [f["pixel_share"] for f in per_frame if f["pixel_share"] is not None]
-    return {"within_texels": seam_share.SEAM_TEXELS, "error_share": _stat(err),
+    return {"within_texels": seam_share.SEAM_TEXELS, "error_share": summary(err),
             "pixel_share": float(np.mean(pix)) if pix else None}
 
 

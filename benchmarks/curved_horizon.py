@@ -1,0 +1,108 @@
+"""Does a curvature correction of the horizon map help? (issue 29, item 2; docs/models.md).
+
+On the study's caps and bowls the curvature is one number, ``1/R`` (+ convex), along every
+direction, so the correction of :mod:`hzval.horizon_curved` (the stored sines' change on a surface
+of that normal curvature, searched again over the bake's radius) is a corrected horizon map: the
+``horizon`` technique renders it unchanged. Each case is measured in the band of local light
+elevations (:mod:`hzval.curvature_band`: 16 lights, per texel, one standard error from the lights'
+spread), the corrected map beside the baked one on the same pixels and lights, at the camera's hits
+(|F - V|) and at the truth's (the floor); ``gain`` = baked - corrected, paired per light.
+
+    python benchmarks/curved_horizon.py [HEIGHT.png] [--material bricks] [--size 128] [--depth 0.1]
+                                        [--cases cap+0.5,cap+1,cap+2,bowl+1,bowl+2,flat] [--control 2,-1]
+                                        [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+
+def corrected(setup, kappa_texel: float) -> dict:
+    """``{"horizon-curved": (camera, truth)}``: the horizon technique on the sweep's bake with the
+    sines corrected for ``kappa_texel`` (texels^-1), at the camera's hits and at the truth's."""
+    from hzval import conventions as cv
+    from hzval import horizon, horizon_curved
+
+    base = next(t for t in setup.techniques if t.name == "horizon")
+    sc, bake = base.scene, base.bake
+    h = cv.heights_in_texels(_height(sc), sc.material.depth)
+    p = setup.params
+    ds = horizon_curved.sine_change(h, kappa_texel, radius=p.radius, angles=p.angles,
+                                    directions=bake.horizon.shape[-1], boundary=sc.material.boundary)
+    fixed = dataclasses.replace(bake, horizon=np.clip(bake.horizon + ds, -1.0, 1.0).astype(np.float32))
+    make = lambda at: horizon.Horizon(sc, fixed, None, samples=setup.truth.samples(at))
+    return {"horizon-curved": (make("camera"), make("truth"))}
+
+
+def _height(scene) -> np.ndarray:
+    from hzval import scene as S
+
+    return S.load_material_height(scene.material).height
+
+
+def gain(case: dict) -> dict:
+    """Baked minus corrected band |F - V| and floor, per light, as ``{mean, se}``."""
+    from hzval import curvature_band as cb
+
+    t = case["techniques"]
+    out = {}
+    for key in ("mae", "floor"):
+        on = np.isfinite(t["horizon"][key]) & np.isfinite(t["horizon-curved"][key])
+        a, b = (cb.frame_means(t[n][key], on) for n in ("horizon", "horizon-curved"))
+        out[key] = {"horizon": cb.summary(a), "horizon-curved": cb.summary(b), "gain": cb.summary(a - b)}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("height", nargs="?", default=None)
+    ap.add_argument("--material", default="bricks")
+    ap.add_argument("--size", type=int, default=None)
+    ap.add_argument("--depth", type=float, default=None)
+    ap.add_argument("--cases", default="cap+0.5,cap+1,cap+2,bowl+1,bowl+2,flat")
+    ap.add_argument("--control", default="2,-1", help="1/R values whose correction is also tried on the flat patch")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args()
+    from hzval import curvature_band as cb, models_study as ms, scene as S
+
+    size = args.size if args.size is not None else (None if args.height else 128)
+    scene = S.override(S.Scene(), height=args.height or args.material, size=size, depth=args.depth,
+                       camera="orthographic", resolution=(128, 128))
+    wanted = args.cases.split(",")
+    cases = {name: (curvature, spec) for name, curvature, spec in ms._cases()}
+    runs = [(n, cases[n][0], cases[n][1], cases[n][0]) for n in wanted if n in cases]
+    for c in (args.control.split(",") if args.control else []):
+        # the control: the correction of 1/R = c on the flat patch, where it is wrong
+        runs.append((f"flat@{float(c):+g}", 0.0, cases["flat"][1], float(c)))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, curvature, spec, corrected_for in runs:
+            sc = cb.band_scene(ms._case_scene(scene, Path(tmp), name.split("@")[0], spec))
+            cols = S.load_material_height(sc.material).height.shape[1]
+            kappa = corrected_for / cols                   # texture widths^-1 -> texels^-1
+            case = cb.measure(sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, kappa))
+            g = gain(case)
+            rows.append({"case": name, "curvature": curvature, "corrected_for": corrected_for, **g})
+            m, f = g["mae"], g["floor"]
+            print(f"{name:8} 1/R {curvature:+.3f}  |F-V| {m['horizon']['mean']:.4f} -> {m['horizon-curved']['mean']:.4f} "
+                  f"gain {m['gain']['mean']:+.4f} ± {m['gain']['se']:.4f}   floor {f['horizon']['mean']:.4f} -> "
+                  f"{f['horizon-curved']['mean']:.4f} gain {f['gain']['mean']:+.4f} ± {f['gain']['se']:.4f}", flush=True)
+    if args.json:
+        args.json.write_text(json.dumps({"height": args.height or args.material, "depth": args.depth,
+                                         "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
