@@ -1,9 +1,9 @@
 """Does a curvature correction of the horizon map help? (issue 29, item 2; docs/models.md).
 
 On the study's caps and bowls the curvature is one number, ``1/R`` (+ convex), along every
-direction, so the correction of :mod:`hzval.horizon_curved` (the stored sines' change on a surface
-of that normal curvature, searched again over the bake's radius) is a corrected horizon map: the
-``horizon`` technique renders it unchanged. Each case is measured in the band of local light
+direction: the ``horizon-curved`` technique (:mod:`hzval.horizon_curved`: the stored sines plus
+their change on a surface of that normal curvature, searched again over the bake's radius) is given
+each case's ``1/R``. Each case is measured in the band of local light
 elevations (:mod:`hzval.curvature_band`: 16 lights, per texel, one standard error from the lights'
 spread), the corrected map beside the baked one on the same pixels and lights, at the camera's hits
 (|F - V|) and at the truth's (the floor); ``gain`` = baked - corrected, paired per light.
@@ -16,9 +16,7 @@ spread), the corrected map beside the baked one on the same pixels and lights, a
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
-import math
 import sys
 import tempfile
 from pathlib import Path
@@ -29,27 +27,19 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def corrected(setup, kappa_texel: float) -> dict:
-    """``{"horizon-curved": (camera, truth)}``: the horizon technique on the sweep's bake with the
-    sines corrected for ``kappa_texel`` (texels^-1), at the camera's hits and at the truth's."""
-    from hzval import conventions as cv
-    from hzval import horizon, horizon_curved
+def corrected(setup, curvature: float) -> dict:
+    """``{"horizon-curved": (camera, truth)}``: the ``horizon-curved`` technique (the registry's) for
+    the case's ``curvature`` (texture widths^-1) on the sweep's bake, at the camera's hits and at
+    the truth's."""
+    from hzval import scene as S, technique
 
     base = next(t for t in setup.techniques if t.name == "horizon")
-    sc, bake = base.scene, base.bake
-    h = cv.heights_in_texels(_height(sc), sc.material.depth)
-    p = setup.params
-    ds = horizon_curved.sine_change(h, kappa_texel, radius=p.radius, angles=p.angles,
-                                    directions=bake.horizon.shape[-1], boundary=sc.material.boundary)
-    fixed = dataclasses.replace(bake, horizon=np.clip(bake.horizon + ds, -1.0, 1.0).astype(np.float32))
-    make = lambda at: horizon.Horizon(sc, fixed, None, samples=setup.truth.samples(at))
+    sc = base.scene
+    height = S.load_material_height(sc.material).height
+    albedo = S.load_albedo(sc.material, *height.shape)
+    make = lambda at: technique.get("horizon-curved").build(
+        technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at)), curvature=curvature)
     return {"horizon-curved": (make("camera"), make("truth"))}
-
-
-def _height(scene) -> np.ndarray:
-    from hzval import scene as S
-
-    return S.load_material_height(scene.material).height
 
 
 def gain(case: dict) -> dict:
@@ -79,7 +69,7 @@ def main() -> None:
 
     size = args.size if args.size is not None else (None if args.height else 128)
     scene = S.override(S.Scene(), height=args.height or args.material, size=size, depth=args.depth,
-                       camera="orthographic", resolution=(128, 128))
+                       camera="orthographic", resolution=(128, 128), spp=2)     # hzval models' defaults
     wanted = args.cases.split(",")
     cases = {name: (curvature, spec) for name, curvature, spec in ms._cases()}
     runs = [(n, cases[n][0], cases[n][1], cases[n][0]) for n in wanted if n in cases]
@@ -90,9 +80,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for name, curvature, spec, corrected_for in runs:
             sc = cb.band_scene(ms._case_scene(scene, Path(tmp), name.split("@")[0], spec))
-            cols = S.load_material_height(sc.material).height.shape[1]
-            kappa = corrected_for / cols                   # texture widths^-1 -> texels^-1
-            case = cb.measure(sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, kappa))
+            case = cb.measure(sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, corrected_for))
             g = gain(case)
             rows.append({"case": name, "curvature": curvature, "corrected_for": corrected_for, **g})
             m, f = g["mae"], g["floor"]

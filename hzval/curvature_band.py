@@ -110,7 +110,7 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
         perfect = {t.name: t for t in setup.perfect}
         techs = {t.name: (t, perfect.get(t.name)) for t in setup.techniques}
         techs.update(extra(setup) if extra else {})
-        out = {name: {"mae": [], "floor": [], "seam": []} for name in techs}
+        out = {name: {"mae": [], "bias": [], "floor": [], "seam": []} for name in techs}
         texels, lit = [], []
         for az in scene.light.azimuths_deg:
             frame = setup.truth.render(az)
@@ -121,6 +121,7 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
             for name, (t, p) in techs.items():
                 F = t.render(az).layers["factor"].ravel()
                 out[name]["mae"].append(texel_means(np.abs(F - V), texel, band, size))
+                out[name]["bias"].append(texel_means(F - V, texel, band, size))
                 out[name]["seam"].append(seam_share.shares(np.abs(F - V), near, seen))
                 Fp = p.render(az).layers["factor"].ravel() if p is not None else np.full_like(F, np.nan)
                 out[name]["floor"].append(texel_means(np.abs(Fp - V), texel, band, size))
@@ -160,7 +161,9 @@ def summary(per_frame: np.ndarray) -> dict:
 def paired(case: dict, flat: dict | None) -> dict:
     """One case's band row from :func:`measure`'s maps: per technique the band's mean |F - V|
     (``mae``), its floor, the flat patch's on the same texels of each frame (``flat``) and the
-    difference (``excess``), each ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
+    difference (``excess``), the signed ``F - V`` (``bias``, and the flat patch's ``flat_bias``: + where the
+    technique leaks, so that a convex surface, whose truth is more lit, lowers its error), each
+    ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
     :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame."""
     row = {"texels": float(np.mean(case["texels"])) if case["texels"] else 0.0, "techniques": {},
            "seam_edges": case.get("seam_edges", 0)}
@@ -176,10 +179,13 @@ def paired(case: dict, flat: dict | None) -> dict:
             on &= np.isfinite(other["mae"])
         mae = frame_means(maps["mae"], on)
         entry = {"mae": summary(mae), "floor": summary(frame_means(maps["floor"], on & np.isfinite(maps["floor"]))),
+                 "bias": summary(frame_means(maps["bias"], on)) if "bias" in maps else None,
                  "per_frame": [None if not math.isfinite(v) else float(v) for v in mae]}
         if other is not None:
             ref = frame_means(other["mae"], on)
             entry["flat"], entry["excess"] = summary(ref), summary(mae - ref)
+            if "bias" in other:     # the flat bake's own F - V on the same texels: leaks (+) or false shadows (-)
+                entry["flat_bias"] = summary(frame_means(other["bias"], on))
             entry["per_frame_excess"] = [None if not math.isfinite(v) else float(v) for v in mae - ref]
         if maps.get("seam") and row["seam_edges"]:
             entry["seam"] = _seam_stat(maps["seam"])

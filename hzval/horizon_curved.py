@@ -1,5 +1,6 @@
-"""The horizon map's stored sines corrected for the surface's normal curvature: the derivation, and
-the correction for a constant curvature (issue 29, item 2; measured in benchmarks/curved_horizon.py).
+"""The horizon map's stored sines corrected for the surface's normal curvature: the derivation, the
+correction for a constant curvature and the ``horizon-curved`` technique that renders it (issue 29,
+item 2; measured in benchmarks/curved_horizon.py, docs/models.md).
 
 Derivation. Let a point ``p`` of the base surface have the tangent plane ``z = 0``, heights ``h`` in
 texels, and the surface's normal curvature along the azimuth ``phi`` be ``kappa`` (texels^-1, + convex:
@@ -32,11 +33,18 @@ this ``k``), not curvature.
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
 from hzval import conventions as cv
+from hzval.errors import InputError
+from hzval.horizon import Horizon
+from hzval.scene import Scene
+from hzval.technique import Context
 
-__all__ = ["sine_change", "bin_tangents"]
+__all__ = ["sine_change", "bin_tangents", "CurvedHorizon"]
 
 
 def bin_tangents(h_texels: np.ndarray, kappa: float, radius: int, angles: int, boundary: str) -> np.ndarray:
@@ -79,3 +87,72 @@ def sine_change(h_texels: np.ndarray, kappa: float, *, radius: int = 16, angles:
         idx = [(centre + d) % angles for d in range(-half, half + 1)]
         chans.append(diff[idx].mean(axis=0))
     return np.stack(chans, -1).astype(np.float32)
+
+
+class CurvedHorizon(Horizon):
+    """The ``horizon-curved`` technique: :class:`hzval.horizon.Horizon` rendering the bake's sines
+    plus :func:`sine_change` for the model's normal curvature ``curvature`` (``--horizon-curvature``,
+    texture widths^-1, + convex: ``world_per_uv / R`` for a sphere of radius ``R``), the same along
+    every direction. ``curvature = 0`` renders the bake itself, bit for bit as ``horizon``. Opt-in
+    (``--techniques horizon,horizon-curved``): one number per model is what it knows of the shape;
+    a per-vertex curvature (the shape operator of the base mesh's normals along each light) is not
+    built (docs/models.md)."""
+
+    name = "horizon-curved"
+    label = "curvature-corrected horizon map"
+    summary = ("the horizon map's sines corrected for the model's normal curvature 1/R "
+               "(--horizon-curvature): tan drops by kappa d / 2 at occluder distance d, re-searched")
+    file_stem = "horizon_curved"
+    needs = ("shadow",)
+    by_default = False
+    flags = {"k": "--horizon-k", "storage": "--horizon-storage", "curvature": "--horizon-curvature"}
+
+    @classmethod
+    def bake_needs(cls, scene: Scene) -> frozenset[str]:
+        """The horizon map it corrects, and the height map the correction searches again."""
+        return super().bake_needs(scene) | {"height"}
+
+    @classmethod
+    def build(cls, ctx: Context, *, curvature: float = 0.0, **settings) -> "CurvedHorizon":
+        curvature = float(curvature)
+        if not math.isfinite(curvature):
+            raise InputError("curvature", f"the normal curvature must be a finite number, got {curvature}")
+        bake = ctx.bake
+        if curvature != 0.0:
+            h = cv.heights_in_texels(ctx.height, ctx.scene.material.depth)
+            p = bake.params
+            ds = sine_change(h, curvature / h.shape[1], radius=p.radius, angles=p.angles,
+                             directions=int(bake.horizon.shape[-1]), boundary=ctx.scene.material.boundary)
+            # the bake stores no horizon below the tangent plane (its tangents start at 0)
+            bake = dataclasses.replace(bake, horizon=np.clip(bake.horizon + ds, 0.0, 1.0).astype(np.float32))
+        own = cls(ctx.scene, bake, ctx.albedo, samples=ctx.samples(), **settings)
+        own.curvature = curvature
+        return own
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        parser.add_argument("--horizon-curvature", type=float, default=0.0, metavar="K",
+                            help="curvature-corrected horizon map: the model's normal curvature 1/R in texture "
+                                 "widths^-1, + convex, - concave (default 0: the bake itself)")
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        return {"k": args.horizon_k, "curvature": args.horizon_curvature,
+                **({"storage": args.horizon_storage} if args.horizon_storage else {})}
+
+    @classmethod
+    def check_variants(cls) -> list:
+        return []           # the regression check guards the bake's technique
+
+    @classmethod
+    def tradeoff_variants(cls) -> list:
+        return []
+
+    @classmethod
+    def fit(cls, ctx, settings, visibility, azimuths) -> dict:
+        return settings
+
+    @property
+    def parameters(self) -> dict:
+        return {**super().parameters, "curvature": self.curvature,
+                "correction": "sines + hzval.horizon_curved.sine_change(1/R per texel)"}
