@@ -133,7 +133,9 @@ class CurvedHorizon(Horizon):
     def add_arguments(cls, parser) -> None:
         parser.add_argument("--horizon-curvature", type=float, default=0.0, metavar="K",
                             help="curvature-corrected horizon map: the model's normal curvature 1/R in texture "
-                                 "widths^-1, + convex, - concave (default 0: the bake itself)")
+                                 "widths^-1, + convex, - concave (default 0: the bake itself; measured to help on "
+                                 "convex surfaces, to cost on concave ones for three of five materials: "
+                                 "docs/models.md)")
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
