@@ -134,7 +134,7 @@ class CurvedHorizon(Horizon):
         parser.add_argument("--horizon-curvature", type=float, default=0.0, metavar="K",
                             help="curvature-corrected horizon map: the model's normal curvature 1/R in texture "
                                  "widths^-1, + convex, - concave (default 0: the bake itself; measured to help on "
-                                 "convex surfaces, to cost on concave ones for three of five materials: "
+                                 "convex surfaces, to cost on concave ones for three of six materials: "
                                  "docs/models.md)")
 
     @classmethod
