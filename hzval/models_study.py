@@ -15,6 +15,9 @@ the cube (Figure 5.1, its edges and seams):
     The same cap mirrored in z with its normals turned inward: concave, signed curvature ``-1/R``.
 ``flat``
     ``R = infinity``: the same grid, a plane (curvature 0), the reference.
+``ring``
+    The inside of a torus's ring (:func:`ring_obj`): normal curvature ``-1/2`` along the ring (x,
+    concave) and ``+1`` across the tube (y, convex); ``principal_curvatures`` in its row.
 ``cube``
     The built-in cube: its edges (the frame's normals bend through 90 degrees) and its seams.
 
@@ -23,6 +26,12 @@ that renders on a model; ``DIR/models.json`` has per case the curvature ``1/R`` 
 widths^-1) and each technique's mean |F - V|, leaks, false shadows and perfect-parallax floor
 (``perfect_parallax_mae``, the technique at the truth's own hits) over the lights; ``DIR/index.html``
 plots the error against ``1/R``. The caps are written as OBJ files (z up) in ``DIR/meshes/``.
+
+Each case is then rendered once more for the band (:mod:`hzval.curvature_band`: the pixels whose
+base normal sees the light at the scene's elevation, per texel, 16 lights, standard errors), paired
+with the flat patch on the same texels: each row's ``band`` (its ``excess``: what curvature alone
+costs; the cube's ``seam`` shares, :mod:`hzval.seam_share`) and the study's ``trend`` (whether the
+band's |F - V| and its excess rise as the caps' radius shrinks, within noise).
 """
 
 from __future__ import annotations

@@ -73,3 +73,11 @@ def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path)
     radial = np.hypot(q[:, 0], q[:, 2])
     np.testing.assert_allclose(np.hypot(radial - (rho + tube), q[:, 1]), tube, rtol=1e-6)
     assert abs(m.world_per_uv - 1.0) < 0.03
+
+
+def test_the_rings_normal_curvature_along_each_light_is_eulers():
+    row = {"principal_curvatures": {"along_ring_x": -0.5, "across_tube_y": 1.0},
+           "band": {"techniques": {"horizon": {"per_frame_excess": [0.1, 0.2, 0.3]}}}}
+    by = models_study._by_azimuth(row, (0.0, 45.0, 90.0))
+    assert [round(b["normal_curvature"], 12) for b in by] == [-0.5, 0.25, 1.0]
+    assert [b["excess"]["horizon"] for b in by] == [0.1, 0.2, 0.3]
