@@ -377,10 +377,11 @@ def _add_views(sub) -> None:
 def _add_models(sub) -> None:
     p = sub.add_parser("models", help="what curvature costs: the light sweep on spheres, bowls and the cube",
                        description="Sweep one material on convex caps of spheres of radius 0.5, 1, 2, 4 and 8 "
-                                   "texture widths, concave bowls of radius 1 and 2, a flat patch and the cube; "
-                                   "write DIR/<case>/ (sweep reports), DIR/models.json and DIR/index.html, which "
-                                   "plots each technique's error against the signed curvature 1/R "
-                                   "(docs/models.md).")
+                                   "texture widths, concave bowls of radius 1 and 2, the inside of a torus's ring, "
+                                   "a flat patch and the cube; measure each in a band of local light elevations "
+                                   "against the flat patch on the same texels, with standard errors; write "
+                                   "DIR/<case>/ (sweep reports), DIR/models.json and DIR/index.html, which plots "
+                                   "each technique's error against the signed curvature 1/R (docs/models.md).")
     _add_material_args(p, default_size=128)
     p.add_argument("--azimuths", default="0,72,144,216,288", help="light azimuths in degrees (default %(default)s)")
     p.add_argument("--elevation", type=float, default=None, help="light elevation in degrees (default 30)")
@@ -414,6 +415,8 @@ def cmd_models(args) -> int:
         vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f} {r['techniques'][n]['perfect_parallax_mae'] or float('nan'):7.4f}"
                          for n in names if n in r["techniques"])
         print(f"{r['case']:10} {k:+7.3f}  {vals}")
+    for n, t in data.get("trend", {}).items():
+        print(f"{n}: band |F-V| {models_study._says(t['mae'])}; excess over flat {models_study._says(t['excess'])}")
     print(f"report: {out / 'index.html'}")
     return 0
 

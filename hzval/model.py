@@ -155,6 +155,11 @@ def edge_table(faces: np.ndarray, weld: np.ndarray):
 
 def count_seams(mesh: BaseMesh, tolerance: float = 1e-9) -> int:
     """Edges shared by two triangles whose ends carry different UVs or tangents on each side."""
+    return len(seam_edge_ends(mesh, tolerance))
+
+
+def seam_edge_ends(mesh: BaseMesh, tolerance: float = 1e-9) -> np.ndarray:
+    """``(E, 2)`` int64: one side's two vertices of each seam edge (:func:`count_seams`'s edges)."""
     key, _, inverse, counts = edge_table(mesh.faces, mesh.weld)
     f = mesh.faces
     ends = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
@@ -167,7 +172,7 @@ def count_seams(mesh: BaseMesh, tolerance: float = 1e-9) -> int:
     one, two = ends[order[starts]], ends[order[starts + 1]]
     attrs = np.concatenate([mesh.uvs, mesh.tangents], axis=1)
     differ = np.abs(attrs[one] - attrs[two]).max(axis=(1, 2)) > tolerance
-    return int(differ.sum())
+    return one[differ].astype(np.int64)
 
 
 # ----------------------------------------------------------------------------------------------

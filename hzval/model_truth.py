@@ -485,6 +485,13 @@ class ModelTruth:
         return lookup.Samples(xy[:, 0].astype(np.float32), xy[:, 1].astype(np.float32), self.rows, self.cols,
                               int(self.spp), footprint, z0, source=at, frames=frames, macro=self.macro)
 
+    def base_points(self) -> np.ndarray:
+        """``(pixels * spp, 3)`` float64: the base mesh's point (world) under every sample's truth
+        hit, the point whose uv and frame the hit keeps (NaN where the sample misses)."""
+        p = np.stack([np.asarray(c, np.float64) for c in self._st["pb"]], -1)
+        p[~np.asarray(self._st["hit"], bool)] = np.nan
+        return p
+
     def _engine_frames(self, frames: np.ndarray) -> np.ndarray:
         """The techniques' frames with the scene's tangent bug (:mod:`hzval.tangent_bugs`; ``none``:
         ``frames`` themselves). ``per-face`` takes the base triangle the camera's ray meets on the

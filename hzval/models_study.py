@@ -15,6 +15,9 @@ the cube (Figure 5.1, its edges and seams):
     The same cap mirrored in z with its normals turned inward: concave, signed curvature ``-1/R``.
 ``flat``
     ``R = infinity``: the same grid, a plane (curvature 0), the reference.
+``ring``
+    The inside of a torus's ring (:func:`ring_obj`): normal curvature ``-1/2`` along the ring (x,
+    concave) and ``+1`` across the tube (y, convex); ``principal_curvatures`` in its row.
 ``cube``
     The built-in cube: its edges (the frame's normals bend through 90 degrees) and its seams.
 
@@ -23,6 +26,12 @@ that renders on a model; ``DIR/models.json`` has per case the curvature ``1/R`` 
 widths^-1) and each technique's mean |F - V|, leaks, false shadows and perfect-parallax floor
 (``perfect_parallax_mae``, the technique at the truth's own hits) over the lights; ``DIR/index.html``
 plots the error against ``1/R``. The caps are written as OBJ files (z up) in ``DIR/meshes/``.
+
+Each case is then rendered once more for the band (:mod:`hzval.curvature_band`: the pixels whose
+base normal sees the light at the scene's elevation, per texel, 16 lights, standard errors), paired
+with the flat patch on the same texels: each row's ``band`` (its ``excess``: what curvature alone
+costs; the cube's ``seam`` shares, :mod:`hzval.seam_share`) and the study's ``trend`` (whether the
+band's |F - V| and its excess rise as the caps' radius shrinks, within noise).
 """
 
 from __future__ import annotations
@@ -36,13 +45,16 @@ import numpy as np
 
 from hzval import files
 
-__all__ = ["run", "RADII", "BOWLS", "cap_obj"]
+__all__ = ["run", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
 #: Convex caps' radii and the bowls', in texture widths (issue 29).
 RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
 BOWLS: tuple[float, ...] = (1.0, 2.0)
 #: The caps' half width along the surface, texture widths (smaller than the smallest radius).
 A = 0.4
+#: The torus of the ``ring`` case, texture widths: tube radius ``m`` (convex across the tube,
+#: ``+1/m``) and the inner equator's radius about the axis ``rho`` (concave along the ring, ``-1/rho``).
+RING: tuple[float, float] = (1.0, 2.0)
 #: Grid cells of a cap along each side (its base mesh; the truth refines it to the texel scale).
 CELLS = 32
 
@@ -61,22 +73,14 @@ def cap_obj(path: Path, radius: float, sign: int) -> None:
         s = np.sin(th)
         p = np.stack([radius * s * ex, radius * s * ey, sign * radius * (np.cos(th) - 1.0)], -1)
         n = np.stack([sign * s * ex, sign * s * ey, np.cos(th)], -1)
-    uv = np.stack([x, y], -1) + 0.5
-    k = CELLS + 1
-    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
-    a = (j * k + i).ravel()
-    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
-    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
-    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
-    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
 
 
 def _cases() -> list[tuple[str, float, str | None]]:
     """``(name, signed curvature 1/R, mesh radius spec)``."""
     out = [(f"cap+{R:g}", 1.0 / R, ("cap", R, 1)) for R in RADII]
     out += [(f"bowl+{R:g}", -1.0 / R, ("cap", R, -1)) for R in BOWLS]
+    out += [("ring", None, ("ring", RING, 0))]
     return out + [("flat", 0.0, ("cap", math.inf, 1)), ("cube", None, ("shape", "cube", 0))]
 
 
@@ -92,9 +96,9 @@ def _case_scene(scene, out: Path, name: str, spec):
     from hzval import scene as S
 
     kind, value, sign = spec
-    if kind == "cap":
+    if kind in ("cap", "ring"):
         obj = out / "meshes" / f"{name}.obj"
-        cap_obj(obj, value, sign)
+        cap_obj(obj, value, sign) if kind == "cap" else ring_obj(obj, *value)
         mesh = dataclasses.replace(scene.mesh, shape=str(obj.resolve()), up="z", uv_scale=1.0)
         cam = dataclasses.replace(scene.camera, kind="orthographic", elevation_deg=60.0, azimuth_deg=-90.0)
     else:
@@ -106,7 +110,7 @@ def _case_scene(scene, out: Path, name: str, spec):
 def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
     from hzval import sweep
 
-    rows = []
+    rows, bands = [], {}
     cases = _cases()
     for i, (name, curvature, spec) in enumerate(cases):
         if progress:
@@ -115,9 +119,12 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
                            command=f"{command} # case {name}".strip(), force=force)
         rows.append(_row(name, curvature, result))
+        _ring_row(rows[-1], spec)
+        bands[name] = _band_maps(sc, out / name)
     data = {"format": "hzval models 1", "material": result["material"],
-            "command": files.portable_command(command, out), "half_width": A, "rows": rows,
-            "bugs": _bug_signatures(scene, out, result["techniques"], progress)}
+            "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+    _add_bands(data, bands)
+    data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
     files.write_json(out / "models.json", data)
     _write_page(out, data)
     return data
@@ -173,7 +180,7 @@ def _write_page(out: Path, data: dict) -> None:
             + (reflection or "") +
             f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
             "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
-            "truth's own hits (perfect parallax). docs/models.md.</p>"
+            "truth's own hits (perfect parallax). docs/models.md.</p>" + _band_html(out, data)
             + bug_signatures.page_section(data["bugs"]))
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
@@ -230,6 +237,195 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
             ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
     ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |F − V|",
            title="error against curvature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+
+
+# -- the band: curvature and nothing else (hzval.curvature_band) --------------------------------
+
+
+def _band_maps(case_scene, case_dir: Path) -> dict:
+    """The case's band texel maps (:func:`hzval.curvature_band.measure`, its own camera and lights)."""
+    from hzval import curvature_band as cb
+
+    return cb.measure(cb.band_scene(case_scene), case_dir)
+
+
+def _add_bands(data: dict, bands: dict) -> None:
+    """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
+    study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
+    rise from the flat patch through the caps as R shrinks (:func:`hzval.curvature_band.trend`)."""
+    from hzval import curvature_band as cb
+
+    flat = bands.get("flat")
+    for r in data["rows"]:
+        if r["case"] in bands:
+            patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")   # the patch's UVs
+            r["band"] = cb.paired(bands[r["case"]], flat if patch else None)
+        if "principal_curvatures" in r and "band" in r:
+            r["band"]["by_azimuth"] = _by_azimuth(r, cb.AZIMUTHS)
+    convex = [r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")]
+    names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
+    data["band"] = {"half_deg": cb.BAND_DEG, "window": cb.WINDOW, "azimuths": list(cb.AZIMUTHS),
+                    "resolution": list(cb.RESOLUTION)}
+    data["trend"] = {}
+    for n in names:
+        have = [r for r in convex if n in r["band"]["techniques"]]
+        mae = [(r["curvature"], r["band"]["techniques"][n]["per_frame"]) for r in have]
+        exc = [(r["curvature"], r["band"]["techniques"][n].get("per_frame_excess")
+                or [0.0] * len(r["band"]["techniques"][n]["per_frame"])) for r in have]
+        data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
+
+
+# -- the inside of a torus's ring -----------------------------------------------------------
+
+
+def ring_obj(path: Path, tube: float, rho: float) -> None:
+    """Write a ``2 A`` square patch of a torus about its inner equator as an OBJ at ``path`` (z up,
+    the patch's centre at the origin, its normal +z): tube radius ``tube``, the inner equator a
+    circle of radius ``rho`` about the torus's axis, which runs along y at height ``rho``.
+
+    A grid point ``(x, y)`` goes to ring angle ``phi = x / rho`` and tube angle ``tau = y / tube``
+    (from the inner equator): ``p = C + (rho + tube (1 - cos tau)) e(phi) + tube sin tau y``,
+    ``e(phi) = (sin phi, 0, -cos phi)``, ``C = (0, 0, rho)``, its normal ``-cos tau e + sin tau y``;
+    UV ``(x, y) + 1/2``. Lengths along the tube are the UVs' exactly, along the ring to
+    ``1 + tube (1 - cos tau) / rho`` (1.04 at the rim, 1.008 inside the band's window). Along x the
+    surface bends toward its normal (concave, normal curvature ``-1/rho``), along y away from it
+    (convex, ``+1/tube``): the inside of a torus's ring, with one texture per world unit (the
+    built-in torus's UVs are stretched 3:1 there, around the ring against around the tube)."""
+    g = np.linspace(-A, A, CELLS + 1)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    phi, tau = x / rho, y / tube
+    e = np.stack([np.sin(phi), 0 * phi, -np.cos(phi)], -1)
+    yy = np.array([0.0, 1.0, 0.0])
+    p = np.array([0.0, 0.0, rho]) + (rho + tube * (1 - np.cos(tau)))[:, None] * e + (tube * np.sin(tau))[:, None] * yy
+    n = -np.cos(tau)[:, None] * e + np.sin(tau)[:, None] * yy
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
+
+
+def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) -> None:
+    """A ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
+    seen from the normals' side."""
+    k = CELLS + 1
+    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
+    a = (j * k + i).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
+    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
+    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
+    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _ring_row(row: dict, spec) -> None:
+    """The ring case's principal curvatures (texture widths^-1, + convex) and their directions."""
+    if spec[0] == "ring":
+        tube, rho = spec[1]
+        row["principal_curvatures"] = {"along_ring_x": -1.0 / rho, "across_tube_y": 1.0 / tube}
+
+
+def _by_azimuth(row: dict, azimuths) -> list[dict]:
+    """Per light of the band: its azimuth, the normal curvature along its direction (Euler:
+    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch."""
+    kx, ky = row["principal_curvatures"]["along_ring_x"], row["principal_curvatures"]["across_tube_y"]
+    out = []
+    for i, az in enumerate(azimuths):
+        c, s = math.cos(math.radians(az)), math.sin(math.radians(az))
+        out.append({"azimuth_deg": float(az), "normal_curvature": kx * c * c + ky * s * s,
+                    "excess": {n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
+                               for n, t in row["band"]["techniques"].items()}})
+    return out
+
+
+# -- the band's table, trend and plot on the page ------------------------------------------------
+
+
+def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
+    """``mean ± se`` of a ``{mean, se}`` statistic, or ``-``."""
+    if not stat or stat.get("mean") is None:
+        return "-"
+    m, se = f"{stat['mean']:{'+' if signed else ''}.{digits}f}", stat.get("se")
+    return f"{m} &plusmn; {se:.{digits}f}" if se is not None else m
+
+
+def _band_html(out: Path, data: dict) -> str:
+    """The band's table (per case and technique: |F - V|, the flat patch's on the same texels, the
+    excess, the floor, the seams' share), the trend's verdicts and the excess plot."""
+    rows = [r for r in data["rows"] if "band" in r]
+    if not rows:
+        return ""
+    b = data["band"]
+    names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
+    _band_plot(out / "plots" / "band.png", rows, names)
+    head = "".join(f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
+                   f"<th>floor</th><th>seams: error / pixels</th>" for n in names)
+    body = []
+    for r in rows:
+        cells = []
+        for n in names:
+            t = r["band"]["techniques"].get(n, {})
+            seam = t.get("seam")
+            sh = "-" if not seam or seam["error_share"]["mean"] is None else \
+                f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
+            cells += [f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")]
+            cells.append(f"<td>{sh}</td>")
+        k = r.get("principal_curvatures")
+        k = (f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)" if k else
+             "-" if r["curvature"] is None else f"{r['curvature']:+.3g}")
+        body.append(f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
+                    f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>")
+    verdicts = "".join(f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
+                       f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
+                       for n, t in data.get("trend", {}).items())
+    return (f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
+            f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
+            f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
+            f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
+            "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
+            "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
+            f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
+            "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
+            f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
+            f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>")
+
+
+def _seam_texels() -> str:
+    from hzval import seam_share
+
+    return f"{seam_share.SEAM_TEXELS:g}"
+
+
+def _says(t: dict) -> str:
+    """A trend as one phrase: its verdict, the whole change with its z, and any falls' z."""
+    o = t.get("overall") or {}
+    if o.get("change") is None:
+        return t["verdict"]
+    falls = ", ".join(f"{f['from']:+g}->{f['to']:+g} by {-f['z']:.1f} SE" for f in t["falls"])
+    return (f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
+            + (f"; falls {falls}" if falls else "") + ")")
+
+
+def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
+    """Each technique's band excess over the flat patch, with one standard error, against 1/R."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    for n in names:
+        have = [(r["curvature"], r["band"]["techniques"][n].get("excess")) for r in pts
+                if n in r["band"]["techniques"]]
+        have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
+        if have:
+            k, m, se = zip(*have)
+            ax.errorbar(k, m, yerr=se, marker="o", capsize=3, label=n)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="band |F − V| − flat's, same texels",
+           title="what curvature alone costs (± 1 SE)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -55,6 +55,7 @@ REGISTRY: dict[str, str] = {
     "horizon-gl": "hzval.horizon_gl:HorizonGL",
     "pom-gl": "hzval.horizon_gl:PomGL",
     "horizon-fit": "hzval.horizon_fit:FittedHorizon",
+    "horizon-curved": "hzval.horizon_curved:CurvedHorizon",
 }
 
 

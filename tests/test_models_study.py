@@ -37,14 +37,54 @@ def test_the_study_end_to_end(tmp_path):
     d = json.loads((out / "models.json").read_text())
     cases = [r["case"] for r in d["rows"]]
     assert cases == [f"cap+{r:g}" for r in models_study.RADII] + [f"bowl+{r:g}" for r in models_study.BOWLS] \
-        + ["flat", "cube"]
+        + ["ring", "flat", "cube"]
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
         assert 0.0 < r["techniques"]["horizon"]["reflection_mae"] < 1.0      # reflection occlusion by default
         assert r["techniques"]["pom"]["reflection_mae"] is None               # pom has no fade
+        band = r["band"]["techniques"]["horizon"]
+        assert 0.0 <= band["mae"]["mean"] <= 1.0 and band["mae"]["se"] >= 0.0
+        assert ("excess" in band) == (r["case"] not in ("flat", "cube"))
+        assert ("seam" in band) == (r["case"] == "cube")       # the cube alone has seams
+    rows = {r["case"]: r for r in d["rows"]}
+    # the truth is more lit on a convex cap than on the flat patch's same texels, less in a bowl
+    assert rows["cap+0.5"]["band"]["lit_excess"]["mean"] > 0 > rows["bowl+1"]["band"]["lit_excess"]["mean"]
+    assert d["trend"]["horizon"]["mae"]["verdict"] in ("rises monotonically", "rises within noise", "does not rise")
+    assert rows["ring"]["principal_curvatures"] == {"along_ring_x": -0.5, "across_tube_y": 1.0}
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
     assert (out / "plots" / "reflection.png").is_file()
     bugs = d["bugs"]["cases"]
     assert set(bugs) == {"cube", "mirrored-sphere"} and (out / "plots" / "bugs.png").is_file()
     assert all(c["bugs"]["none"]["mirrored_ratio"] == 1.0 for c in bugs.values())
     assert "Tangent-bug signatures" in (out / "index.html").read_text()
+
+
+def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path):
+    tube, rho = models_study.RING
+    path = tmp_path / "ring.obj"
+    models_study.ring_obj(path, tube, rho)
+    m = model.load(str(path), up="z")
+    p, n = m.positions, m.normals
+    assert np.allclose(p[np.argmin(np.linalg.norm(p, axis=1))], 0.0) and n[:, 2].min() > 0
+    on_x, on_y = np.abs(p[:, 1]) < 1e-12, np.abs(p[:, 0]) < 1e-12
+    x, zx = p[on_x, 0], p[on_x, 2]
+    y, zy = p[on_y, 1], p[on_y, 2]
+    # the normal curvature is the height's second derivative at the centre: z ~ k_n s^2 / 2 toward n
+    kx = np.polyfit(x, zx, 4)[2] * 2
+    ky = np.polyfit(y, zy, 4)[2] * 2
+    assert kx == pytest.approx(1.0 / rho, rel=0.02)          # bends toward +n (up): concave along x
+    assert ky == pytest.approx(-1.0 / tube, rel=0.02)        # bends away: convex across the tube
+    # every point lies on the torus: distance to the tube's centre circle is the tube radius
+    c = np.array([0.0, 0.0, rho])
+    q = p - c
+    radial = np.hypot(q[:, 0], q[:, 2])
+    np.testing.assert_allclose(np.hypot(radial - (rho + tube), q[:, 1]), tube, rtol=1e-6)
+    assert abs(m.world_per_uv - 1.0) < 0.03
+
+
+def test_the_rings_normal_curvature_along_each_light_is_eulers():
+    row = {"principal_curvatures": {"along_ring_x": -0.5, "across_tube_y": 1.0},
+           "band": {"techniques": {"horizon": {"per_frame_excess": [0.1, 0.2, 0.3]}}}}
+    by = models_study._by_azimuth(row, (0.0, 45.0, 90.0))
+    assert [round(b["normal_curvature"], 12) for b in by] == [-0.5, 0.25, 1.0]
+    assert [b["excess"]["horizon"] for b in by] == [0.1, 0.2, 0.3]
