@@ -52,7 +52,8 @@ def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
     cam = dataclasses.replace(S.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
     light = dataclasses.replace(scene.light, azimuths_deg=tuple(a + light_azimuth for a in scene.light.azimuths_deg))
-    return dataclasses.replace(scene, mesh=mesh, camera=cam, light=light).validate()
+    effects = tuple(e for e in scene.effects if e != "reflection_occlusion")   # only F and V are compared
+    return dataclasses.replace(scene, mesh=mesh, camera=cam, light=light, effects=effects).validate()
 
 
 def _mean(e: np.ndarray, mask: np.ndarray) -> float | None:
