@@ -121,7 +121,7 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         rows.append(_row(name, curvature, result))
         _ring_row(rows[-1], spec)
         bands[name] = _band_maps(sc, out / name)
-    data = {"format": "hzval models 1", "material": result["material"],
+    data = {"format": "hzval models 1", "material": {**result["material"], "name": scene.name},
             "command": files.portable_command(command, out), "half_width": A, "rows": rows}
     _add_bands(data, bands)
     data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
