@@ -130,3 +130,13 @@ def test_importing_hzval_changes_no_environment():
     env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "True"
+
+
+def test_the_package_map_names_every_module():
+    """``hzval/__init__``'s docstring is the map a newcomer reads (README, "Layout"): a new module
+    is listed there."""
+    doc = ast.get_docstring(ast.parse((PACKAGE / "__init__.py").read_text()))
+    missing = [p.stem for p in PACKAGE.glob("*.py") if p.stem not in ("__init__", "__main__")
+               and f"``{p.stem}``" not in doc]
+    missing += [p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file() and f"``{p.name}``" not in doc]
+    assert not missing, f"hzval/__init__.py's module map lacks {missing}"
