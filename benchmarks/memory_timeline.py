@@ -83,6 +83,8 @@ class Timeline:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--keep-samples", type=int, default=None)
+    ap.add_argument("--peak-target", type=float, default=None,
+                    help="GiB: override hzval.truth_bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)")
     ap.add_argument("sweep", nargs=argparse.REMAINDER)
     args = ap.parse_args(argv)
     sweep_args = [a for a in args.sweep if a != "--"]
@@ -90,6 +92,10 @@ def main(argv=None) -> None:
     from hzval import bake, cli, mesh, sweep, truth, surface
     import mitsuba as mi
 
+    if args.peak_target is not None:
+        from hzval import truth_bands
+
+        truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2 ** 30)
     if args.keep_samples is not None:
         truth.KEEP_SAMPLES = args.keep_samples
     tl = Timeline()
@@ -99,6 +105,9 @@ def main(argv=None) -> None:
     tl.wrap(mesh, "tessellate")
     tl.wrap(mesh, "displaced_mesh")
     tl.wrap(mi, "load_dict", "mi.load_dict (Embree BVH)")
+    from hzval import truth_bands
+
+    tl.wrap(truth_bands, "band_pass")
     tl.wrap(truth.Truth, "_trace_camera_rays")
     tl.wrap(truth.Truth, "render")
     tl.wrap(surface, "unshadowed")
@@ -116,6 +125,9 @@ def main(argv=None) -> None:
         tl.stop = True
         tl.print()
         print(f"wall {time.perf_counter() - t0:.1f} s")
+        import resource
+
+        print(f"maxrss {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GiB")
 
 
 if __name__ == "__main__":

@@ -747,17 +747,30 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
     return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
 
 
-def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
-    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
-    included (:func:`hzval.mesh.cell_levels` at ``material.truth_tolerance``), counted without
-    building it: what :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+def mesh_grid(scene: Scene, height: np.ndarray):
+    """``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised ``height`` map
+    for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.mesh.cell_levels` at
+    ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle."""
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
     min_elevation, margin = surface_margin(scene, h_tex)
     g = meshes.grid(h_tex, mat.boundary, min_elevation_deg=min_elevation,
                     margin=margin if mat.boundary == "wrap" else None)
     tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
-    return meshes.triangle_count(meshes.cell_levels(g.z, tolerance))
+    return g, meshes.cell_levels(g.z, tolerance), h_tex
+
+
+def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
+    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
+    included (:func:`mesh_grid`), counted without building it: what
+    :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+    return meshes.triangle_count(mesh_grid(scene, height)[1])
+
+
+def lift_for(z_min: float, z_max: float) -> float:
+    """The ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``
+    (module docstring, "Self-intersection")."""
+    return max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(z_min), abs(z_max)))
 
 
 class Truth(_CameraRays, _RayQueries, _PathTracing):
@@ -862,7 +875,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                                          use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
                                          wrap_mode=wrap)
         self.mi_scene = None if self.mesh is None else mi.load_dict({"type": "scene", "surface": self.mesh})
-        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
+        self.lift = lift_for(self.z_min, self.z_max)
         # a hop runs at least this far horizontally from any point of the tile and stays over the
         # margin (texel centres start half a texel inside; a quarter texel kept, _hop_length)
         self._hop = max(self.margin - 0.75, 0.25)

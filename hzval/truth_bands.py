@@ -155,12 +155,13 @@ def band_pass(t, azimuths) -> dict[float, list[np.ndarray]]:
     wrap = t.scene.material.boundary == "wrap"
     up, down = reach(t.scene, t.relief, t.lift, azimuths)
     out: dict[float, list] = {float(az): [None] * len(t.bands) for az in azimuths}
-    triangles = 0
+    triangles = largest = 0
     for group in t.mesh_bands:
         y_lo, y_hi = band_y(t.rows, H, t.bands[group[0]][0] // W, t.bands[group[-1]][1] // W, up, down)
         runs = cover_runs(t._grid, t.rows, y_lo, y_hi, wrap)
         t.mi_scene = band_scene(t._grid, t._levels, runs)
-        triangles += sum(int(meshes.row_triangles(t._levels[a:b]).sum()) for a, b in runs)
+        n = sum(int(meshes.row_triangles(t._levels[a:b]).sum()) for a, b in runs)
+        triangles, largest = triangles + n, max(largest, n)
         for i in group:
             st = t._camera_samples(*t.bands[i])
             for az in out:
@@ -170,5 +171,5 @@ def band_pass(t, azimuths) -> dict[float, list[np.ndarray]]:
             del st
         t.mi_scene = None
         backend.release_memory()
-    t.band_triangles_built = triangles
+    t.band_triangles_built, t.band_triangles_largest = triangles, largest
     return out
