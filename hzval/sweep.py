@@ -417,6 +417,16 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     return setup
 
 
+def _band_record(the_truth) -> dict:
+    """``metrics.json`` ``memory.truth_bands`` of a truth whose mesh was built in bands
+    (:mod:`hzval.truth_bands`): pixel rows a band, bands, triangles of the largest and of them all."""
+    if getattr(the_truth, "mesh_bands", None) is None:
+        return {}
+    return {"truth_bands": {"band_rows": the_truth.mesh_band_rows, "bands": len(the_truth.mesh_bands),
+                            "largest_triangles": getattr(the_truth, "band_triangles_largest", None),
+                            "triangles_built": getattr(the_truth, "band_triangles_built", None)}}
+
+
 def _constant(values: np.ndarray) -> float | None:
     """The one value of ``values`` if they are all equal, else ``None``."""
     v = np.asarray(values)
@@ -582,7 +592,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate,
-                        "retains_freed": setup.retained}
+                        "retains_freed": setup.retained, **_band_record(setup.truth)}
     files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result

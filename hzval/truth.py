@@ -165,6 +165,13 @@ Memory
     random streams and light samples are indexed by the sample's place in
     the whole image, so a band gives bit for bit the pixels of one piece
     (``tests/test_truth.py``).
+    A mesh too large to hold beside the rest of a sweep (the 4096 bricks: 187M
+    triangles) is built a band of rows at a time (``mesh_band_rows``,
+    :mod:`hzval.truth_bands`, chosen by :func:`hzval.sweep.truth_plan`): each
+    band's mesh holds the cells its samples' rays can reach, every light's
+    shadow rays are traced in it when the truth is built, and the frames
+    shade from one visibility bit a sample a light, bit for bit the single
+    mesh's answers (``tests/test_truth_bands.py``).
 
 Kernels
     Everything that changes between frames (the light direction) and every

@@ -111,3 +111,21 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
         sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
     text = str(err.value)
     assert "--truth-tolerance" in text and "in bands of" in text and "\n" not in text
+
+
+def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
+    from hzval import bake, sweep
+    from hzval.errors import InputError
+    from hzval.scene import load_material_height
+
+    sc = _scene(np.zeros((64, 64), np.float32), "wrap")
+    sc = dataclasses.replace(sc, material=dataclasses.replace(sc.material, height="bricks", size=64),
+                             effects=("shadow", "ambient"))
+    height = load_material_height(sc.material).height
+    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2 ** 20)
+    plan = sweep.truth_plan(sc, height)
+    assert plan.band_rows is None and "ambient" in plan.why_single
+    monkeypatch.setattr(bake, "available_bytes", lambda: 2 ** 20)
+    monkeypatch.setattr(bake, "check_fits", lambda *a: None)
+    with pytest.raises(InputError, match="--truth-tolerance.*not in bands: ambient"):
+        sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
