@@ -225,14 +225,13 @@ def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = Non
 
 
 #: The truth's peak while it builds its mesh in bands (:mod:`hzval.truth_bands`), before the techniques
-#: are built: a base, the bake and the albedo per pixel, a band's triangles while Embree builds them,
-#: a band of samples and the visibility bits (one a sample a light). Fitted to the 2048 bricks in bands
-#: and the 4096 bricks (docs/truth-surface.md, "Cost").
-PEAK_BAND_BYTES_PER_PIXEL = 115
-PEAK_BYTES_PER_BAND_TRIANGLE = 150
-#: The share of the peak target (or of the memory available) that the bands' phase may take: room for
-#: the estimate's own error.
-BAND_SHARE = 0.85
+#: are built: a base, the bake and the albedo per pixel, a band's triangles while Embree builds them
+#: (their positions and faces, Embree's BVH and its build's own buffers; a band's samples come after,
+#: once those are freed) and the visibility bits (one a sample a light). Fitted to the 4096 bricks
+#: (docs/truth-surface.md, "Cost": 2.37 GiB before the first band, 11.57 GiB at its build's peak with
+#: 75M triangles).
+PEAK_BAND_BYTES_PER_PIXEL = 130
+PEAK_BYTES_PER_BAND_TRIANGLE = 130
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,10 +249,9 @@ class TruthPlan:
 def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
     """The peak of the truth's phase in bands (:data:`PEAK_BAND_BYTES_PER_PIXEL` and the rest)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
-    band = max(b - a for a, b in truth.bands(H, W, scene.spp)) * scene.spp
     bits = H * W * scene.spp * len(scene.light.azimuths_deg) / 8
     return int(PEAK_BASE_BYTES + PEAK_BAND_BYTES_PER_PIXEL * rows * cols
-               + PEAK_BYTES_PER_BAND_TRIANGLE * band_triangles + PEAK_BYTES_PER_KEPT_SAMPLE * band + bits)
+               + PEAK_BYTES_PER_BAND_TRIANGLE * band_triangles + bits)
 
 
 def truth_plan(scene, height: np.ndarray) -> TruthPlan:
@@ -261,7 +259,9 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
     (:mod:`hzval.truth_bands`), and the bands' rows: at once when the sweep's estimate with the whole
     mesh fits within :data:`hzval.truth_bands.PEAK_TARGET_BYTES` and the memory available, or where
     a ray could leave a band (:func:`hzval.truth_bands.why_not`); else in the largest bands of whole
-    sample bands whose phase (:func:`band_peak_bytes`) stays within :data:`BAND_SHARE` of that."""
+    sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the sweep's estimate
+    (so that the bands do not raise its peak; within that target and the memory available, if
+    lower): fewer, larger bands build fewer triangles twice (their covers overlap)."""
     from hzval import truth_bands
 
     rows, cols = np.shape(height)
@@ -277,11 +277,12 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
     z_min, z_max = float(h_tex.min()), float(h_tex.max())
     up, down = truth_bands.reach(scene, z_max - z_min, truth.lift_for(z_min, z_max), scene.light.azimuths_deg)
     wrap = scene.material.boundary == "wrap"
+    room = min(limit, estimate_peak_bytes(scene, rows, cols, 0, keeps=False))
     best = None
     for band_rows in range(H - H % step if H > step else step, 0, -step):
         most = max(truth_bands.band_triangles(g, levels, rows, H, W, bands, band_rows, up, down, wrap))
         best = (band_rows, most)
-        if band_peak_bytes(scene, rows, cols, most) <= BAND_SHARE * limit:
+        if band_peak_bytes(scene, rows, cols, most) <= room:
             break
     return TruthPlan(full, band_rows=best[0], band_triangles=best[1])
 
