@@ -129,3 +129,19 @@ def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
     monkeypatch.setattr(bake, "check_fits", lambda *a: None)
     with pytest.raises(InputError, match="--truth-tolerance.*not in bands: ambient"):
         sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
+
+
+def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant, bricks):
+    from hzval.truth import Truth
+
+    h = bricks[:64, :64]
+    sc = _scene(h, "open", kind="soft", radius=8.0, supersampling=2)          # 128 x 128 pixels
+    one = Truth(sc, h)
+    bands = Truth(sc, h, mesh_band_rows=16, band_samples=8 * 128 * 4)
+    assert len(bands.mesh_bands) == 8
+    up, down = TB.reach(sc, bands.relief, bands.lift, AZIMUTHS)
+    assert up == down and up > 2 * TB.PAD_TEXELS       # a soft light's directions: the whole run
+    for az in (90.0, -60.0, 180.0):
+        a, b = one.render(az), bands.render(az)
+        np.testing.assert_array_equal(a.layers["visibility"], b.layers["visibility"])
+        np.testing.assert_array_equal(a.image, b.image)
