@@ -288,7 +288,8 @@ def triangle_count(levels: np.ndarray) -> int:
     return int(2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:]))
 
 
-def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int | None = None):
+def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int | None = None,
+               levels: np.ndarray | None = None):
     """The triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
 
     Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
@@ -296,12 +297,15 @@ def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int 
     the cells' levels. ``budget_bytes``: refuse (:class:`hzval.errors.InputError`), before allocating
     them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned cells share is made by each (the same bits);
     where levels differ, the finer cell's nodes lie on the coarser one's straight edge.
+    ``levels``: the cells' levels as given (``tolerance`` unused), for a piece of a larger grid
+    (:func:`piece`) whose levels were decided on the whole, so that its triangles are the whole's own
+    (:func:`cell_levels`' planar rule reads the grid's largest height).
     """
     ny, nx = g.z.shape
     X, Y = np.meshgrid(g.x.astype(np.float32), g.y.astype(np.float32))
     parts = [np.stack([X, Y, g.z.astype(np.float32)], axis=-1).reshape(-1, 3)]
     del X, Y
-    levels = cell_levels(g.z, tolerance)
+    levels = cell_levels(g.z, tolerance) if levels is None else np.asarray(levels, np.uint8)
     if budget_bytes is not None and triangle_count(levels) * BYTES_PER_TRIANGLE > budget_bytes:
         from hzval.errors import InputError
 
@@ -336,6 +340,37 @@ def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int 
     if base >= 2 ** 32:
         raise ValueError("the tessellation has more than 2^32 vertices")
     return np.concatenate(parts), np.concatenate(faces), levels
+
+
+def piece(g: Grid, first: int, stop: int) -> Grid:
+    """The vertex rows ``first <= r <= stop`` of ``g``: its cell rows ``first <= i < stop`` (the same
+    coordinates and heights, so a piece tessellated with the whole's levels, :func:`tessellate`, is
+    made of the whole's own triangles, bit for bit)."""
+    return Grid(g.x, g.y[first:stop + 1], g.z[first:stop + 1], g.margin)
+
+
+def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "band"):
+    """The cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh`` of positions and faces
+    only (what the truth reads), tessellated with the whole grid's ``levels`` (:func:`piece`,
+    :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth_bands`)."""
+    import mitsuba as mi
+
+    positions, faces, _ = tessellate(piece(g, first, stop), levels=levels[first:stop])
+    mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(positions.ravel())
+    del positions
+    params["faces"] = mi.UInt32(faces.ravel())
+    del faces
+    params.update()
+    return mesh
+
+
+def row_triangles(levels: np.ndarray) -> np.ndarray:
+    """``(ny-1,)`` int64: the triangles of each cell row of a tessellation of these levels
+    (:func:`triangle_count`, row by row)."""
+    lv = np.asarray(levels, np.int64)
+    return np.where(lv == 0, 2, 4 * lv * lv).sum(axis=1)
 
 
 def edge_level(levels: np.ndarray) -> int:

@@ -63,6 +63,7 @@ import numpy as np
 
 from hzval import backend, bake, camera, compare, files, heightmap, images, lookup, materials, report, shading
 from hzval import interrupts, surface, technique, truth
+from hzval import mesh as meshes
 from hzval import facing as hzfacing
 from hzval import conventions as cv
 from hzval import scene as sc
@@ -201,16 +202,17 @@ PEAK_BYTES_PER_VIEW_SAMPLE = 64
 RETAIN_BELOW_SHARE = 0.5
 
 
-def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = None) -> int:
+def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = None, keeps: bool | None = None) -> int:
     """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
     in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
     (:func:`hzval.truth.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
-    ``metrics.json`` records it beside the measured peak."""
+    ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
+    samples' camera hits (default :func:`hzval.truth.keeps_samples`; a mesh in bands keeps none)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
     if triangles is None:
         triangles = TRIANGLES_PER_PIXEL_BEFORE_THE_MAP * rows * cols
-    if truth.keeps_samples(H, W, scene.spp):
+    if truth.keeps_samples(H, W, scene.spp) if keeps is None else keeps:
         kept = samples
     else:
         kept = max(b - a for a, b in truth.bands(H, W, scene.spp)) * scene.spp
@@ -220,6 +222,69 @@ def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = Non
         view = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples
     return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_TRIANGLE * triangles
                + PEAK_BYTES_PER_SAMPLE * samples + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
+
+
+#: The truth's peak while it builds its mesh in bands (:mod:`hzval.truth_bands`), before the techniques
+#: are built: a base, the bake and the albedo per pixel, a band's triangles while Embree builds them
+#: (their positions and faces, Embree's BVH and its build's own buffers; a band's samples come after,
+#: once those are freed) and the visibility bits (one a sample a light). Fitted to the 4096 bricks
+#: (docs/truth-surface.md, "Cost": 2.37 GiB before the first band, 11.57 GiB at its build's peak with
+#: 75M triangles).
+PEAK_BAND_BYTES_PER_PIXEL = 130
+PEAK_BYTES_PER_BAND_TRIANGLE = 130
+
+
+@dataclasses.dataclass(frozen=True)
+class TruthPlan:
+    """How the truth of a sweep holds its mesh (:func:`truth_plan`): ``triangles`` of the whole mesh;
+    ``band_rows`` (pixel rows a band) and ``band_triangles`` (the largest band's) where it is built in
+    bands, else ``None`` and 0; ``why_single``: why it cannot be built in bands (``None`` where it can)."""
+
+    triangles: int
+    band_rows: int | None = None
+    band_triangles: int = 0
+    why_single: str | None = None
+
+
+def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
+    """The peak of the truth's phase in bands (:data:`PEAK_BAND_BYTES_PER_PIXEL` and the rest)."""
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    bits = H * W * scene.spp * len(scene.light.azimuths_deg) / 8
+    return int(PEAK_BASE_BYTES + PEAK_BAND_BYTES_PER_PIXEL * rows * cols
+               + PEAK_BYTES_PER_BAND_TRIANGLE * band_triangles + bits)
+
+
+def truth_plan(scene, height: np.ndarray) -> TruthPlan:
+    """Whether the truth of ``scene`` on the normalised ``height`` map builds its mesh at once or in bands
+    (:mod:`hzval.truth_bands`), and the bands' rows: at once when the sweep's estimate with the whole
+    mesh fits within :data:`hzval.truth_bands.PEAK_TARGET_BYTES` and the memory available, or where
+    a ray could leave a band (:func:`hzval.truth_bands.why_not`); else in the largest bands of whole
+    sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the sweep's estimate
+    (so that the bands do not raise its peak; within that target and the memory available, if
+    lower): fewer, larger bands build fewer triangles twice (their covers overlap)."""
+    from hzval import truth_bands
+
+    rows, cols = np.shape(height)
+    g, levels, h_tex = truth.mesh_grid(scene, height)
+    full = meshes.triangle_count(levels)
+    limit = min(bake.available_bytes(), truth_bands.PEAK_TARGET_BYTES)
+    why = truth_bands.why_not(scene)
+    if why is not None or estimate_peak_bytes(scene, rows, cols, full) <= limit:
+        return TruthPlan(full, why_single=why)
+    H, W = sc.image_shape(rows, cols, scene.camera)
+    bands = truth.bands(H, W, scene.spp)
+    step = bands[0][1] // W - bands[0][0] // W
+    z_min, z_max = float(h_tex.min()), float(h_tex.max())
+    up, down = truth_bands.reach(scene, z_max - z_min, truth.lift_for(z_min, z_max), scene.light.azimuths_deg)
+    wrap = scene.material.boundary == "wrap"
+    room = min(limit, estimate_peak_bytes(scene, rows, cols, 0, keeps=False))
+    best = None
+    for band_rows in range(H - H % step if H > step else step, 0, -step):
+        most = max(truth_bands.band_triangles(g, levels, rows, H, W, bands, band_rows, up, down, wrap))
+        best = (band_rows, most)
+        if band_peak_bytes(scene, rows, cols, most) <= room:
+            break
+    return TruthPlan(full, band_rows=best[0], band_triangles=best[1])
 
 
 def _model_peak_bytes(scene, rows: int, cols: int) -> int:
@@ -261,12 +326,14 @@ def check_frame_pixels(scene, rows: int, cols: int) -> int:
     return n
 
 
-def check_fits(scene, params: BakeParams, height: np.ndarray | None = None) -> int:
+def check_fits(scene, params: BakeParams, height: np.ndarray | None = None, plan: TruthPlan | None = None) -> int:
     """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
     bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
     now; return the estimate. ``height``: the normalised map, once read: the estimate then counts the
     truth's own triangles (:func:`hzval.truth.mesh_triangles`), and a refusal names
-    ``--truth-tolerance`` as well."""
+    ``--truth-tolerance`` as well. ``plan``: the truth's (:func:`truth_plan`, made here if not given): a
+    mesh in bands is charged by its largest band, at the larger of the bands' phase and the rest of
+    the sweep."""
     rows, cols = material_shape(scene) if height is None else np.shape(height)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
@@ -274,12 +341,21 @@ def check_fits(scene, params: BakeParams, height: np.ndarray | None = None) -> i
     if not scene.mesh.is_plane:
         need = _model_peak_bytes(scene, rows, cols)     # the model's truth counts its rings itself
     else:
-        triangles = None if height is None else truth.mesh_triangles(scene, height)
+        if height is not None and plan is None:
+            plan = truth_plan(scene, height)
+        triangles = None if plan is None else plan.triangles
         need = estimate_peak_bytes(scene, rows, cols, triangles)
+        if plan is not None and plan.band_rows is not None:
+            need = max(estimate_peak_bytes(scene, rows, cols, 0, keeps=False),
+                       band_peak_bytes(scene, rows, cols, plan.band_triangles))
     have = bake.available_bytes()
     if need > have:
         mesh = "" if triangles is None else (f" with the truth's {triangles / 1e6:.0f}M triangles at "
                                              f"--truth-tolerance {scene.material.truth_tolerance:g}")
+        if plan is not None and plan.band_rows is not None:
+            mesh += f" (built in bands of {plan.band_rows} rows, {plan.band_triangles / 1e6:.0f}M triangles)"
+        elif plan is not None and plan.why_single is not None:
+            mesh += f" (at once, not in bands: {plan.why_single})"
         raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp{mesh} needs about "
                                f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
                                "are available (fewer --spp, a smaller map"
@@ -299,7 +375,8 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
         t.check_settings(params, options.settings.get(t.name, {}))
     check_fits(scene, params)                  # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
-    estimate = check_fits(scene, params, hm.height)     # the truth's own triangles, before they are made
+    plan = truth_plan(scene, hm.height) if scene.mesh.is_plane else None
+    estimate = check_fits(scene, params, hm.height, plan)     # the truth's own triangles, before they are made
     # from here on: the frames then reuse what the set-up frees, besides what they free themselves
     retained = estimate <= RETAIN_BELOW_SHARE * bake.available_bytes() and backend.retain_freed_memory()
     rows, cols = hm.height.shape
@@ -314,7 +391,7 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     albedo = sc.load_albedo(scene.material, rows, cols)
-    the_truth, points = truth_of(scene, hm.height, albedo)
+    the_truth, points = truth_of(scene, hm.height, albedo, plan)
     timings["truth_setup_s"] = time.perf_counter() - t0
     if points is not None:          # a model: its mesh (cut, displaced, its BVH) and camera rays
         timings.update({f"truth_{k}": v for k, v in the_truth.timings.items()})
@@ -341,6 +418,16 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     return setup
 
 
+def _band_record(the_truth) -> dict:
+    """``metrics.json`` ``memory.truth_bands`` of a truth whose mesh was built in bands
+    (:mod:`hzval.truth_bands`): pixel rows a band, bands, triangles of the largest and of them all."""
+    if getattr(the_truth, "mesh_bands", None) is None:
+        return {}
+    return {"truth_bands": {"band_rows": the_truth.mesh_band_rows, "bands": len(the_truth.mesh_bands),
+                            "largest_triangles": getattr(the_truth, "band_triangles_largest", None),
+                            "triangles_built": getattr(the_truth, "band_triangles_built", None)}}
+
+
 def _constant(values: np.ndarray) -> float | None:
     """The one value of ``values`` if they are all equal, else ``None``."""
     v = np.asarray(values)
@@ -348,15 +435,17 @@ def _constant(values: np.ndarray) -> float | None:
     return first if first is not None and bool(np.all(v == v.flat[0])) else None
 
 
-def truth_of(scene, height: np.ndarray, albedo: np.ndarray):
+def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | None = None):
     """``(truth, points)``: the plane's :class:`hzval.truth.Truth` (the techniques read where the
-    camera's rays meet their plane: ``points`` None), or on a model (``[mesh]``) its
+    camera's rays meet their plane: ``points`` None; its mesh at once or in bands, as ``plan`` or
+    :func:`truth_plan` says), or on a model (``[mesh]``) its
     :class:`hzval.model_truth.ModelTruth` and the techniques' samples at its hits, with their frames."""
     if scene.mesh.is_plane:
         if scene.mesh.tangent_bug != "none":
             raise InputError(scene.source or "--tangent-bug", "a tangent bug needs a model's frames: add --mesh "
                              "(the plane's frame is the world's)")
-        return truth.Truth(scene, height), None
+        plan = truth_plan(scene, height) if plan is None else plan
+        return truth.Truth(scene, height, mesh_band_rows=plan.band_rows), None
     from hzval import model, model_truth
 
     base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
@@ -504,7 +593,7 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate,
-                        "retains_freed": setup.retained}
+                        "retains_freed": setup.retained, **_band_record(setup.truth)}
     files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result

@@ -165,6 +165,13 @@ Memory
     random streams and light samples are indexed by the sample's place in
     the whole image, so a band gives bit for bit the pixels of one piece
     (``tests/test_truth.py``).
+    A mesh too large to hold beside the rest of a sweep (the 4096 bricks: 187M
+    triangles) is built a band of rows at a time (``mesh_band_rows``,
+    :mod:`hzval.truth_bands`, chosen by :func:`hzval.sweep.truth_plan`): each
+    band's mesh holds the cells its samples' rays can reach, every light's
+    shadow rays are traced in it when the truth is built, and the frames
+    shade from one visibility bit a sample a light, bit for bit the single
+    mesh's answers (``tests/test_truth_bands.py``).
 
 Kernels
     Everything that changes between frames (the light direction) and every
@@ -194,6 +201,7 @@ from hzval import mesh as meshes
 from hzval.errors import InputError
 from hzval import shading
 from hzval import bake
+from hzval import truth_bands
 from hzval.bake import normal_map
 from hzval.camera import sample_positions
 from hzval.scene import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
@@ -267,6 +275,11 @@ class _CameraRays:
             self._reflection = tuple(np.concatenate(parts).reshape(self.shape) for parts in zip(*reflection))
         self.timings["primary_s"] = (time.perf_counter() - t0 - self.timings.get("ambient_s", 0.0)
                                      - self.timings.get("reflection_s", 0.0))
+        if self.mesh_bands is not None and self.scene.declares("shadow"):
+            # the mesh a band at a time: every light's shadow rays now, before the techniques are built
+            t0 = time.perf_counter()
+            self._vis = truth_bands.band_pass(self, self.scene.light.azimuths_deg)
+            self.timings["bands_s"] = time.perf_counter() - t0
 
     def _camera_samples(self, first: int, stop: int) -> "_Samples":
         """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
@@ -372,12 +385,40 @@ class _CameraRays:
             xs, ys = np.clip(xs, 0.0, self.cols), np.clip(ys, 0.0, self.rows)
         return xs, ys, seen
 
+    def _shading_samples(self, first: int, stop: int) -> "_Samples":
+        """The samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
+        shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their visibility is
+        :meth:`_band_visibility`'s)."""
+        import mitsuba as mi
+
+        xs, ys, _ = self._band_positions(first, stop)
+        xs, ys, moved = _off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
+        x, y = mi.Float(xs), mi.Float(ys)
+        albedo = self._albedo_at(x, y) if self._albedo_texels is not None else None
+        return _Samples(first, stop, first * self.spp, (stop - first) * self.spp, None, None,
+                        self._shading_normal(x, y), albedo, moved)
+
+    def _band_visibility(self, azimuth_deg: float, st: "_Samples"):
+        """``V`` per sample of ``st`` from the bits of :func:`hzval.truth_bands.band_pass` (a light not
+        of the scene's sweep gets its own pass)."""
+        import mitsuba as mi
+
+        az = float(azimuth_deg)
+        if az not in self._vis:
+            self._vis.update(truth_bands.band_pass(self, [az]))
+        band = next(i for i, (first, _) in enumerate(self.bands) if first == st.first)
+        bits = np.unpackbits(self._vis[az][band], count=st.count)
+        return mi.Float(bits.astype(np.float32))
+
     def _frame_samples(self):
         """The samples of every band for a frame: the kept ones, or each band's traced again."""
         if self._kept is not None:
             yield from self._kept
             return
         for i, (first, stop) in enumerate(self.bands):
+            if self.mesh_bands is not None:
+                yield self._shading_samples(first, stop)
+                continue
             st = self._camera_samples(first, stop)
             st.ambient = self._ambient_bands[i] if self._ambient_bands else None
             yield st
@@ -420,12 +461,19 @@ class _RayQueries:
         si = self.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
                                          mi.RayFlags.Minimal, coherent, active)
         n = mi.Vector3f(si.n)
-        ns = n
-        if self._normals is not None:
-            # u, v of hzval.conventions.tangent_to_uv, in the kernel
-            uv = mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"])
-            ns = dr.normalize(mi.Vector3f(*self._normals.eval(uv)))
+        ns = n if self._normals is None else self._shading_normal(x, y)
         return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
+
+    def _shading_normal(self, x, y):
+        """The ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation
+        (module docstring, "Shading")."""
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self._c
+        # u, v of hzval.conventions.tangent_to_uv, in the kernel
+        uv = mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"])
+        return dr.normalize(mi.Vector3f(*self._normals.eval(uv)))
 
     def _hops_for(self, elevation: float) -> int:
         """Hops that a ray rising at ``elevation`` (radians) needs to clear the surface.
@@ -698,17 +746,30 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
     return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
 
 
-def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
-    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
-    included (:func:`hzval.mesh.cell_levels` at ``material.truth_tolerance``), counted without
-    building it: what :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+def mesh_grid(scene: Scene, height: np.ndarray):
+    """``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised ``height`` map
+    for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.mesh.cell_levels` at
+    ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle."""
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
     min_elevation, margin = surface_margin(scene, h_tex)
     g = meshes.grid(h_tex, mat.boundary, min_elevation_deg=min_elevation,
                     margin=margin if mat.boundary == "wrap" else None)
     tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
-    return meshes.triangle_count(meshes.cell_levels(g.z, tolerance))
+    return g, meshes.cell_levels(g.z, tolerance), h_tex
+
+
+def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
+    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
+    included (:func:`mesh_grid`), counted without building it: what
+    :func:`hzval.sweep.estimate_peak_bytes` charges for the mesh."""
+    return meshes.triangle_count(mesh_grid(scene, height)[1])
+
+
+def lift_for(z_min: float, z_max: float) -> float:
+    """The ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``
+    (module docstring, "Self-intersection")."""
+    return max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(z_min), abs(z_max)))
 
 
 class Truth(_CameraRays, _RayQueries, _PathTracing):
@@ -725,6 +786,9 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
     the same pixels.
     ``albedo``: optional linear ``(rows, cols, 3)`` albedo replacing
     :func:`hzval.scene.load_albedo`; read only if an effect needs it.
+    ``mesh_band_rows``: build the mesh in bands of at most this many pixel rows
+    (:mod:`hzval.truth_bands`; whole sample bands, at least one) instead of at once; refused
+    (``ValueError``) where a ray could leave a band (:func:`hzval.truth_bands.why_not`).
 
     Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
     ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
@@ -739,7 +803,8 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
     """
 
     def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
-                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None):
+                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None,
+                 mesh_band_rows: int | None = None):
         backend.variant()
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
@@ -754,6 +819,9 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                              "declare diffuse and/or specular as well")
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
         self.timings: dict[str, float] = {}
+        self.mesh_band_rows = None if mesh_band_rows is None else max(1, int(mesh_band_rows))
+        if self.mesh_band_rows is not None and truth_bands.why_not(scene) is not None:
+            raise ValueError(f"the truth's mesh cannot be built in bands: {truth_bands.why_not(scene)}")
 
         self._build_surface(h)
         self.view = scene.camera.view(rows, cols, (self.z_min, self.z_max))
@@ -762,6 +830,11 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         self.count = self.shape[0] * self.shape[1] * self.spp
         self.keeps = keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
         self.bands = _bands(self.shape, self.spp, band_samples)
+        self.mesh_bands, self._vis = None, {}
+        if self.mesh_band_rows is not None:
+            # the frames shade from each sample's visibility bit: nothing of the camera rays is kept
+            self.keeps = False
+            self.mesh_bands = truth_bands.group_bands(self.bands, self.shape[1], self.mesh_band_rows)
         self._trace_camera_rays()
 
     def _build_surface(self, h: np.ndarray) -> None:
@@ -777,10 +850,18 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         self.relief = self.z_max - self.z_min
         self.min_elevation_deg, self.margin = surface_margin(self.scene, h_tex)
         info: dict = {}
-        self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                          texcoords=False, tolerance=mat.truth_tolerance, info=info,
-                                          budget_bytes=bake.available_bytes(),
-                                          margin=self.margin if mat.boundary == "wrap" else None)
+        margin = self.margin if mat.boundary == "wrap" else None
+        if self.mesh_band_rows is None:
+            self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
+                                              texcoords=False, tolerance=mat.truth_tolerance, info=info,
+                                              budget_bytes=bake.available_bytes(), margin=margin)
+        else:
+            # in bands (hzval.truth_bands): the whole grid and its levels, as displaced_mesh makes them
+            self.mesh = None
+            self._grid = meshes.grid(h_tex, mat.boundary, min_elevation_deg=self.min_elevation_deg, margin=margin)
+            tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else float(mat.truth_tolerance)
+            self._levels = meshes.cell_levels(self._grid.z, tolerance)
+            info.update(levels=self._levels, tolerance=tolerance)
         # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
         self.edge_level = meshes.edge_level(info["levels"])
         self.tolerance = info["tolerance"]
@@ -792,8 +873,8 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
             self._normals = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
                                          use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
                                          wrap_mode=wrap)
-        self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
-        self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(self.z_min), abs(self.z_max)))
+        self.mi_scene = None if self.mesh is None else mi.load_dict({"type": "scene", "surface": self.mesh})
+        self.lift = lift_for(self.z_min, self.z_max)
         # a hop runs at least this far horizontally from any point of the tile and stays over the
         # margin (texel centres start half a texel inside; a quarter texel kept, _hop_length)
         self._hop = max(self.margin - 0.75, 0.25)
@@ -987,7 +1068,8 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         sums: dict[str, object] = {}
         vis = None
         if sc.declares("shadow"):
-            vis = self._visible(st.o, st.n, L, lowest, highest)
+            vis = (self._visible(st.o, st.n, L, lowest, highest) if self.mesh_bands is None
+                   else self._band_visibility(azimuth_deg, st))
             sums["visibility"] = vis
         grey = not any(sc.declares(e) for e in ("diffuse", "specular", "ambient", "interreflection"))
         if grey:
