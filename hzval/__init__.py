@@ -19,6 +19,7 @@ The package follows the data flow of docs/ARCHITECTURE.md, one module per stage:
 ``camera``       the view: rays, footprints, its record
 ``shading``      how a point turns light into radiance, for the truth and every technique
 ``truth``        the ground truth: Mitsuba traces the displaced mesh
+``truth_bands``  the truth's mesh built a band of rows at a time, when it would not fit whole
 ``model_truth``  the ground truth on a model, and the techniques' samples there
 ``lookup``       where a technique reads its textures, and how
 ``surface``      the flat surface's shading in Dr.Jit, which every technique builds on
