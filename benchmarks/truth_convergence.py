@@ -60,6 +60,7 @@ def main(argv=None) -> int:
     p.add_argument("--tolerances", default="0.08,0.04,0.02,0.01,0.005")
     p.add_argument("--materials", default="all", help="comma-separated built-ins and/or files, or all")
     p.add_argument("--size", type=int, default=256)
+    p.add_argument("--depth", type=float, default=0.05, help="a file's depth (default 0.05)")
     args = p.parse_args(argv)
     tols = [float(t) for t in args.tolerances.split(",")]
     names = materials.names() + [str(q) for q in make_photos(args.out / "photos")] \
@@ -69,7 +70,7 @@ def main(argv=None) -> int:
     for name in names:
         builtin = materials.is_builtin(name)
         scene = sc.override(sc.Scene(), height=name, size=args.size if builtin else None,
-                            depth=None if builtin else 0.05, boundary=None if builtin else "open",
+                            depth=None if builtin else args.depth, boundary=None if builtin else "open",
                             elevation=30.0, azimuths="-60:60:30", light="hard", spp=16)
         height = sc.load_material_height(scene.material).height
         label = Path(name).stem if not builtin else name

@@ -198,8 +198,10 @@ def write_ply(m, path) -> None:
 # ----------------------------------------------------------------------
 
 #: Default :func:`cell_levels` tolerance, texels of height: the largest vertical distance allowed
-#: between the triangles and the bilinear surface (docs/truth-surface.md, the convergence study).
-DEFAULT_TOLERANCE = 0.04
+#: between the triangles and the bilinear surface (docs/truth-surface.md, the convergence study:
+#: halving it moves mean V by at most 0.0016 and horizon's |F - V| by at most 0.7% on every map
+#: measured, the 2048 bricks' relief included).
+DEFAULT_TOLERANCE = 0.08
 #: A cell whose twist is at most this share of the largest height (and of 1 texel) is planar: the
 #: rounding of float32 heights (2^-24 of them) leaves twists of a few of their ulps.
 PLANAR_TWIST = 2.0 ** -20
