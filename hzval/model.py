@@ -372,8 +372,9 @@ def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides:
           uv_scale: float = 1.0) -> BaseMesh:
     """A torus about the z axis, tube centre ``major`` from the axis, tube radius ``minor``:
     ``u`` around the axis (counterclockwise from +x seen from +z), ``v`` around the tube from the
-    outer equator (0) over the top; seams where each wraps. The inner ring (``v = 1/2``) is
-    concave across the tube's direction."""
+    outer equator (0) over the top; seams where each wraps. The inner ring (``v = 1/2``) is a
+    saddle: convex across the tube (normal curvature ``1 / minor``), concave around the axis
+    (``-1 / (major - minor)``; ``hzval models``' ``ring`` case)."""
     uu, vv = np.meshgrid(np.arange(segments + 1) / segments, np.arange(sides + 1) / sides)
     phi, psi = 2 * np.pi * uu, 2 * np.pi * vv
     n = np.stack([np.cos(psi) * np.cos(phi), np.cos(psi) * np.sin(phi), np.sin(psi)], -1)
