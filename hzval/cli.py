@@ -408,15 +408,7 @@ def cmd_models(args) -> int:
     out = args.out or Path("reports") / f"models-{scene.name}"
     command = "hzval " + " ".join(shlex.quote(a) for a in (args.argv or []))
     data = models_study.run(scene, out, progress=not args.quiet, command=command, force=args.force)
-    names = list(dict.fromkeys(t for r in data["rows"] for t in r["techniques"]))
-    print(f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names))
-    for r in data["rows"]:
-        k = float("nan") if r["curvature"] is None else r["curvature"]
-        vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f} {r['techniques'][n]['perfect_parallax_mae'] or float('nan'):7.4f}"
-                         for n in names if n in r["techniques"])
-        print(f"{r['case']:10} {k:+7.3f}  {vals}")
-    for n, t in data.get("trend", {}).items():
-        print(f"{n}: band |F-V| {models_study._says(t['mae'])}; excess over flat {models_study._says(t['excess'])}")
+    print(models_study.summary_table(data))
     print(f"report: {out / 'index.html'}")
     return 0
 

@@ -45,7 +45,7 @@ import numpy as np
 
 from hzval import files
 
-__all__ = ["run", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
+__all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
 #: Convex caps' radii and the bowls', in texture widths (issue 29).
 RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
@@ -432,3 +432,30 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with files.atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
+
+
+def summary_table(data: dict) -> str:
+    """``models.json``'s content as the terminal's table: per case each technique's mean |F - V|
+    and floor (and its reflection error where measured), the trends' verdicts and each tangent
+    bug's mirrored |F - V| against the correct frames'."""
+    num = lambda v, w=7: f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
+    rows = data["rows"]
+    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    refl = [n for n in names if any(r["techniques"].get(n, {}).get("reflection_mae") is not None for r in rows)]
+    lines = [f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names)
+             + "".join(f"  {n + ' |o-R|':>14}" for n in refl)]
+    for r in rows:
+        k = float("nan") if r["curvature"] is None else r["curvature"]
+        t = r["techniques"]
+        vals = "  ".join(f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t)
+        lines.append(f"{r['case']:10} {k:+7.3f}  {vals}" + "".join(f"  {num(t.get(n, {}).get('reflection_mae'), 14)}"
+                                                               for n in refl))
+    for n, t in data.get("trend", {}).items():
+        lines.append(f"{n}: band |F-V| {_says(t['mae'])}; excess over flat {_says(t['excess'])}")
+    bugs = data.get("bugs")
+    if bugs:
+        for case, rec in bugs["cases"].items():
+            ratios = ", ".join(f"{b} {r['mirrored_ratio']:.2f}x" for b, r in rec["bugs"].items()
+                               if b != "none" and r.get("mirrored_ratio") is not None)
+            lines.append(f"tangent bugs on {case} ({bugs['technique']} mirrored |F-V| / correct): {ratios}")
+    return "\n".join(lines)

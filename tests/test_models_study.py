@@ -88,3 +88,14 @@ def test_the_rings_normal_curvature_along_each_light_is_eulers():
     by = models_study._by_azimuth(row, (0.0, 45.0, 90.0))
     assert [round(b["normal_curvature"], 12) for b in by] == [-0.5, 0.25, 1.0]
     assert [b["excess"]["horizon"] for b in by] == [0.1, 0.2, 0.3]
+
+
+def test_the_terminal_table_shows_reflection_and_the_bugs():
+    t = {"visibility_mae": 0.1, "perfect_parallax_mae": 0.05, "reflection_mae": 0.2}
+    data = {"rows": [{"case": "flat", "curvature": 0.0, "techniques": {"horizon": t}},
+                     {"case": "cube", "curvature": None, "techniques": {"horizon": {**t, "reflection_mae": None}}}],
+            "bugs": {"technique": "horizon", "cases": {"cube": {"bugs": {"none": {"mirrored_ratio": 1.0},
+                                                                         "swap-uv": {"mirrored_ratio": 1.5}}}}}}
+    text = models_study.summary_table(data).splitlines()
+    assert "horizon |o-R|" in text[0] and text[1].split()[-1] == "0.2000" and text[2].split()[-1] == "-"
+    assert text[-1].endswith("swap-uv 1.50x") and "none" not in text[-1].split(":")[-1]
