@@ -131,9 +131,7 @@ def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
             if j == 0:
                 ax.set_ylabel(bug, fontsize=9)
     fig.colorbar(im, ax=axes, shrink=0.4, label=f"{lead} F - V (blue: lit too much)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    files.write_figure(path, fig)
 
 
 def page_section(bugs: dict) -> str:

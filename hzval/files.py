@@ -579,6 +579,13 @@ PREVIEW_ABOVE_PX = 2048
 PREVIEW_PX = 1024
 
 
+def write_figure(path: str | os.PathLike, fig, **savefig) -> None:
+    """A matplotlib figure as a PNG at ``path``, atomically (:func:`atomic_path`, which makes the
+    folder); ``savefig``: matplotlib's own options (``dpi``, ``facecolor``, ...)."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", **savefig)
+
+
 def preview_of(rel: str) -> str:
     """Where the preview of the PNG ``rel`` lives: ``frames/az+0/truth.png`` ->
     ``frames/az+0/previews/truth.png`` (the writer's and the report's one convention)."""

@@ -208,9 +208,7 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | No
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    files.write_figure(path, fig)
     cells = "".join(f"<tr><td>{html.escape(r['case'])}</td>" + "".join(
         f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>" if r["techniques"].get(n, {}).get("reflection_mae")
         is not None else "<td>-</td>" for n in series) + "</tr>" for r in rows)
@@ -240,9 +238,7 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    files.write_figure(path, fig)
 
 
 # -- the band: curvature and nothing else (hzval.curvature_band) --------------------------------
@@ -429,9 +425,7 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    files.write_figure(path, fig)
 
 
 def summary_table(data: dict) -> str:

@@ -781,8 +781,7 @@ def _style_axes(ax, title: str) -> None:
 
 
 def _save(fig, path: Path) -> None:
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
+    files.write_figure(path, fig, dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
 
 
 #: The perfect-shadows floor's line in the plots.

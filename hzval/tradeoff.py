@@ -368,8 +368,7 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
     fig.suptitle("what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory",
                  fontsize=10)
     fig.tight_layout()
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+    files.write_figure(path, fig, dpi=110)
     plt.close(fig)
 
 

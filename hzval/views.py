@@ -177,6 +177,4 @@ def _plot(path: Path, rows: list[dict]) -> None:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    files.write_figure(path, fig)
