@@ -16,7 +16,7 @@ brick wall (:func:`hzval.materials.bricks.bricks`), baked at depth 0.05, radius 
    it, then the best of ``--repeat``;
 3. the same with an empty Dr.Jit kernel cache (``DRJIT_CACHE_DIR`` pointed at
    a new empty folder for every run): what a first run on a machine pays;
-4. :func:`hzval.bake.horizon_map` alone, in this process, kernel warm.
+4. :func:`hzval.bake.maps.horizon_map` alone, in this process, kernel warm.
 
 It also checks that the two C variants agree bit for bit and that the peer
 and ``hzval bake`` computed the same thing:
@@ -91,7 +91,7 @@ def _input_map(size: int) -> tuple[np.ndarray, str]:
 
 def _peer_vs_bake(peer: np.ndarray, out: Path) -> dict[str, float]:
     """Max abs differences between the peer's output and a bake folder's EXRs."""
-    from hzval import files
+    from hzval.io import files
 
     h0, h1, amb = (files.read_exr(out / name) for name in ("horizon0.exr", "horizon1.exr", "ambient.exr"))
     horizon = np.stack([h0[c] for c in "RGBA"] + [h1[c] for c in "RGBA"], axis=-1)
@@ -118,8 +118,11 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("bench_bake: gcc is not installed; it is needed to build the C peer")
     hzval = _hzval_script()
 
-    from hzval import backend, bake, files, heightmap
-    from hzval import conventions as cv
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.io import files
+    from hzval.io import heightmap
+    from hzval.core import conventions as cv
 
     work = Path(tempfile.mkdtemp(prefix="hzval-bench-")) if args.keep is None else args.keep
     work.mkdir(parents=True, exist_ok=True)
@@ -175,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
                            dict(os.environ, DRJIT_CACHE_DIR=str(cold_cache)))
             hz_cold.append(wall)
 
-        # -- (4) hzval.bake.horizon_map in this process, kernel warm
+        # -- (4) hzval.bake.maps.horizon_map in this process, kernel warm
         variant = backend.variant()
         h = cv.heights_in_texels(decoded, DEPTH)
         bake.horizon_map(h, RADIUS, ANGLES, BOUNDARY)  # compile (or load) the kernel
@@ -213,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{'(2) hzval bake (process), Dr.Jit kernel cache warm':<58} {w:8.3f} "
             f"{stages.get('horizon_s', float('nan')):8.3f}",
             f"{'(3) hzval bake (process), Dr.Jit kernel cache EMPTY':<58} {c:8.3f} {'':>8}",
-            f"{'(4) hzval.bake.horizon_map in-process, kernel warm':<58} {'':>8} {kern:8.3f}",
+            f"{'(4) hzval.bake.maps.horizon_map in-process, kernel warm':<58} {'':>8} {kern:8.3f}",
             "",
             f"(1a), (1b): gcc {flags}, OMP_NUM_THREADS={THREADS}; outputs bit-identical: "
             f"{'yes' if c_identical else 'NO'}.",

@@ -1,18 +1,18 @@
-"""Benchmark: a frame's image comparisons, flip-evaluator + colour-science against hzval.flip + the Dr.Jit CIEDE2000.
+"""Benchmark: a frame's image comparisons, flip-evaluator + colour-science against hzval.metrics.flip + the Dr.Jit CIEDE2000.
 
 One truth and ``--tests`` test images per size, as a sweep's frame compares
-them (:class:`hzval.compare.Reference` once, then every test image): the
+them (:class:`hzval.metrics.compare.Reference` once, then every test image): the
 built-in bricks (:func:`hzval.materials.generate`) Lambert-shaded in a brick
 colour, the truth with 5% noise as a path tracer's, the tests under lights
 2-8 degrees away, one with a darkened patch (a shadow), all as display values
-(:func:`hzval.compare.display`, not timed: both paths take the same display
+(:func:`hzval.metrics.compare.display`, not timed: both paths take the same display
 values). Timed, side by side in one process, alternating old and new:
 
 * old: flip-evaluator (``compare.flip_evaluator_flip``) per test; colour-science's
   Lab of the truth once, and per test its Lab and ``delta_E(method="CIE 2000")``
   (in row blocks on a thread per core, as ``compare`` did);
-* new: ``hzval.flip.FlipReference`` and ``compare.LabImage`` of the truth once,
-  and per test ``hzval.flip.flip_error`` and ``compare.delta_e2000``.
+* new: ``hzval.metrics.flip.FlipReference`` and ``compare.LabImage`` of the truth once,
+  and per test ``hzval.metrics.flip.flip_error`` and ``compare.delta_e2000``.
 
 It prints the seconds of each (FLIP's and CIEDE2000's, the truth's part and
 the tests', the total), old over new (the total, and FLIP's and CIEDE2000's), and the largest and mean differences of the values (FLIP map and
@@ -35,7 +35,7 @@ import numpy as np
 
 
 def _images(size: int, tests: int, seed: int = 0):
-    from hzval import compare as C
+    from hzval.metrics import compare as C
     from hzval import materials
 
     h = materials.generate("bricks", size, 0).height.astype(np.float64)
@@ -63,7 +63,7 @@ def _images(size: int, tests: int, seed: int = 0):
 def _old(ref, tests):
     import colour
 
-    from hzval import compare as C
+    from hzval.metrics import compare as C
 
     def lab_of(rgb):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(rgb, apply_cctf_decoding=True))
@@ -85,8 +85,8 @@ def _old(ref, tests):
 
 
 def _new(ref, tests):
-    from hzval import compare as C
-    from hzval import flip as F
+    from hzval.metrics import compare as C
+    from hzval.metrics import flip as F
 
     clock = dict.fromkeys(("flip_ref", "de_ref", "flip", "de"), 0.0)
     t0 = time.perf_counter()
@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=1, help="runs of each path per size; the best is shown")
     args = ap.parse_args(argv)
 
-    from hzval import backend
+    from hzval.core import backend
 
     variant = backend.variant()
     t0 = time.perf_counter()

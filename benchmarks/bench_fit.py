@@ -1,4 +1,4 @@
-"""Benchmark: fitting the horizon map to the truth (hzval.fit) at 512 x 512, epoch by epoch.
+"""Benchmark: fitting the horizon map to the truth (hzval.techniques.fitted.fit) at 512 x 512, epoch by epoch.
 
 Builds a built-in material (``--material``, default the brick wall) at
 ``--size`` (default 512), bakes it (seed method, radius 16), renders the
@@ -7,7 +7,7 @@ truth's V for the default training lights (elevations 10/20/40/60, azimuths
 epoch (a pass over every light, ``steps`` Adam steps) its seconds, seconds
 per light (one forward and backward pass of the horizon technique's kernel)
 and the loss; then the truth's, the fit's and the evaluation's seconds, the
-memory estimate (:func:`hzval.fit.estimate_bytes`) beside the peak RSS, and
+memory estimate (:func:`hzval.techniques.fitted.fit.estimate_bytes`) beside the peak RSS, and
 |F - V| baked against fitted. Wall time and the process's user + sys CPU time
 are both printed: on a machine shared with others, wall time is what the load
 allowed, CPU time what the fit cost. The issue's bar: the whole fit of a
@@ -39,11 +39,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--storage", default="float")
     ap.add_argument("--fit-k", action="store_true")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--train-spp", type=int, default=None, help="default: hzval.fit.training_spp")
-    ap.add_argument("--lights", default=None, help="training lights (default: hzval.fit.TRAINING_LIGHTS)")
+    ap.add_argument("--train-spp", type=int, default=None, help="default: hzval.techniques.fitted.fit.training_spp")
+    ap.add_argument("--lights", default=None, help="training lights (default: hzval.techniques.fitted.fit.TRAINING_LIGHTS)")
     args = ap.parse_args(argv)
 
-    from hzval import backend, bake, fit, scene as sc
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.techniques.fitted import fit
+    from hzval.scene import spec as sc
 
     backend.variant()
     scene = sc.override(sc.Scene(), height=args.material, size=args.size, spp=args.spp)

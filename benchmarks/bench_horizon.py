@@ -1,8 +1,8 @@
-"""Benchmark: horizon-map shading frames (hzval.horizon), once compiled.
+"""Benchmark: horizon-map shading frames (hzval.techniques.horizon), once compiled.
 
 Bakes ``hzval.materials.bricks.bricks(SIZE)`` at depth 0.05 (radius 16, 32 bins,
 wrap) once, then for every effect set, sample count and path builds an
-:class:`hzval.horizon.Horizon` of a ``SIZE x SIZE`` frame, renders one
+:class:`hzval.techniques.horizon.Horizon` of a ``SIZE x SIZE`` frame, renders one
 frame (compiles its kernels, or loads them from Dr.Jit's disk cache), and
 times ``--frames`` more at different azimuths (-60..+60 degrees, the sweep of
 Lengyel's Figure 5.3, elevation 30). Per row it prints the mean, min and max
@@ -61,11 +61,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=20)
     args = ap.parse_args(argv)
 
-    from hzval import backend
-    from hzval import bake as B
+    from hzval.core import backend
+    from hzval.bake import maps as B
     from hzval.materials.bricks import bricks
-    from hzval import scene as S
-    from hzval.horizon import Horizon
+    from hzval.scene import spec as S
+    from hzval.techniques.horizon import Horizon
 
     variant = backend.variant()
     import drjit as dr

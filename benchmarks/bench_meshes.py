@@ -1,6 +1,6 @@
-"""Benchmark: the geometry of the truth on a model (hzval.model, hzval.displace), no rendering.
+"""Benchmark: the geometry of the truth on a model (hzval.geometry.model, hzval.geometry.displace), no rendering.
 
-Loads (or builds) a base mesh, estimates its cut along the texel grid (hzval.cells), cuts it for
+Loads (or builds) a base mesh, estimates its cut along the texel grid (hzval.geometry.cells), cuts it for
 a height map (smoothed noise: its twisted cells get rings), displaces it, and prints where the time
 and the memory go and whether the result is watertight (every welded edge shared by two
 triangles, on a closed mesh). The default model is
@@ -43,8 +43,8 @@ def main() -> None:
     ap.add_argument("--up", choices=("y", "z"), default=None)
     a = ap.parse_args()
 
-    from hzval import displace as dp
-    from hzval import model
+    from hzval.geometry import displace as dp
+    from hzval.geometry import model
 
     t0 = time.perf_counter()
     base = (model.torus(segments=160, sides=64, uv_scale=a.uv_scale) if a.mesh == "torus20k"

@@ -24,10 +24,10 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def write_torus(path: Path, triangles: int) -> int:
-    """A torus of about ``triangles`` triangles, as OBJ (z up), with :func:`hzval.model.torus`'s UVs."""
+    """A torus of about ``triangles`` triangles, as OBJ (z up), with :func:`hzval.geometry.model.torus`'s UVs."""
     import trimesh
 
-    from hzval import model
+    from hzval.geometry import model
 
     sides = max(8, int(round(math.sqrt(triangles / 2 / 2))))
     segments = max(8, int(round(triangles / 2 / sides)))

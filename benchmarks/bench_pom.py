@@ -1,4 +1,4 @@
-"""Benchmark: ray-marched height-field shadows (hzval.pom) against the steps, beside horizon mapping.
+"""Benchmark: ray-marched height-field shadows (hzval.techniques.pom) against the steps, beside horizon mapping.
 
 Builds the built-in brick wall (``hzval.materials.bricks.bricks(SIZE)``, depth 0.05,
 wrap, shadow + diffuse, elevation 30, ``--spp`` samples per pixel) and its
@@ -37,7 +37,13 @@ def main(argv: list[str] | None = None) -> int:
 
     import dataclasses
 
-    from hzval import horizon, surface, backend, bake, pom, scene as sc, truth
+    from hzval.techniques import horizon
+    from hzval.techniques import surface
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.techniques import pom
+    from hzval.scene import spec as sc
+    from hzval.truth import plane as truth
 
     variant = backend.variant()
     import drjit as dr

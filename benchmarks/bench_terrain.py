@@ -1,4 +1,4 @@
-"""Benchmark: Raudins' terrain shadows (hzval.terrain) against horizon-map shading, per frame.
+"""Benchmark: Raudins' terrain shadows (hzval.techniques.terrain) against horizon-map shading, per frame.
 
 Builds the built-in brick wall (``hzval.materials.bricks.bricks(SIZE)``, depth 0.05,
 wrap, the default sweep's scene: shadow + diffuse, 16 samples per pixel,
@@ -9,7 +9,7 @@ elevation 30), bakes it once, renders one warm-up frame per technique
 * terrain, Dr.Jit: the factor alone (sweep + texel + sample kernels), and the
   whole frame (factor + the unshadowed normal-mapped render it multiplies);
 * terrain, NumPy: the factor alone (the reference implementation);
-* horizon map (``hzval.horizon``, exact path): the whole shaded frame.
+* horizon map (``hzval.techniques.horizon``, exact path): the whole shaded frame.
 
 Times are wall times with kernels synchronised and images read back into
 NumPy (mean and min over the frames, ms). Kernels compiled after the warm-up
@@ -37,7 +37,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=16)
     args = ap.parse_args(argv)
 
-    from hzval import horizon, surface, backend, bake, scene as sc, terrain
+    from hzval.techniques import horizon
+    from hzval.techniques import surface
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.scene import spec as sc
+    from hzval.techniques import terrain
 
     variant = backend.variant()
     import drjit as dr
@@ -74,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         ("terrain factor, Dr.Jit", lambda az: ts.factor(az)),
         ("terrain factor, NumPy", lambda az: ref.factor(az)),
         ("terrain frame, Dr.Jit (factor + unshadowed render)", lambda az: ts.render(az)),
-        ("horizon-map frame (hzval.horizon, exact)", lambda az: ap_.render(az)),
+        ("horizon-map frame (hzval.techniques.horizon, exact)", lambda az: ap_.render(az)),
         ("unshadowed normal-mapped frame", lambda az: ap_.render(az, shadows=False)),
     ]
     cmd = ".venv/bin/python benchmarks/bench_terrain.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))

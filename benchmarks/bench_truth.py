@@ -49,10 +49,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--radius", type=float, default=2.0, help="soft light's angular radius, degrees")
     args = ap.parse_args(argv)
 
-    from hzval import backend
+    from hzval.core import backend
     from hzval.materials.bricks import bricks
-    from hzval import scene as S
-    from hzval.truth import Truth
+    from hzval.scene import spec as S
+    from hzval.truth.plane import Truth
 
     variant = backend.variant()
     import drjit as dr

@@ -1,10 +1,10 @@
 """Does a curvature correction of the horizon map help? (issue 29, item 2; docs/models.md).
 
 On the study's caps and bowls the curvature is one number, ``1/R`` (+ convex), along every
-direction: the ``horizon-curved`` technique (:mod:`hzval.horizon_curved`: the stored sines plus
+direction: the ``horizon-curved`` technique (:mod:`hzval.techniques.horizon_curved`: the stored sines plus
 their change on a surface of that normal curvature, searched again over the bake's radius) is given
 each case's ``1/R``. Each case is measured in the band of local light
-elevations (:mod:`hzval.curvature_band`: 16 lights, per texel, one standard error from the lights'
+elevations (:mod:`hzval.studies.curvature_band`: 16 lights, per texel, one standard error from the lights'
 spread), the corrected map beside the baked one on the same pixels and lights, at the camera's hits
 (|F - V|) and at the truth's (the floor); ``gain`` = baked - corrected, paired per light.
 
@@ -31,7 +31,8 @@ def corrected(setup, curvature: float) -> dict:
     """``{"horizon-curved": (camera, truth)}``: the ``horizon-curved`` technique (the registry's) for
     the case's ``curvature`` (texture widths^-1) on the sweep's bake, at the camera's hits and at
     the truth's."""
-    from hzval import scene as S, technique
+    from hzval.scene import spec as S
+    from hzval.techniques import registry as technique
 
     base = next(t for t in setup.techniques if t.name == "horizon")
     sc = base.scene
@@ -44,7 +45,7 @@ def corrected(setup, curvature: float) -> dict:
 
 def gain(case: dict) -> dict:
     """Baked minus corrected band |F - V| and floor, per light, as ``{mean, se}``."""
-    from hzval import curvature_band as cb
+    from hzval.studies import curvature_band as cb
 
     t = case["techniques"]
     out = {}
@@ -65,7 +66,9 @@ def main() -> None:
     ap.add_argument("--control", default="2,-1", help="1/R values whose correction is also tried on the flat patch")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
-    from hzval import curvature_band as cb, models_study as ms, scene as S
+    from hzval.studies import curvature_band as cb
+    from hzval.studies import models as ms
+    from hzval.scene import spec as S
 
     size = args.size if args.size is not None else (None if args.height else 128)
     scene = S.override(S.Scene(), height=args.height or args.material, size=size, depth=args.depth,

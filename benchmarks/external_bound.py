@@ -1,8 +1,8 @@
-"""Measure the bound of hzval.external.DESCRIBES_CORRELATION: |s - exact| and the correlation with the
+"""Measure the bound of hzval.io.external.DESCRIBES_CORRELATION: |s - exact| and the correlation with the
 exact horizons of the best convention, for a horizon map of the right height map and of a different one.
 
 For every pair of built-in materials (A, B) at one size: hzval's seed bake of B (and of A), stored
-as 8-bit sines as an engine would, detected against hzval's exact bake of A (hzval.external.detect,
+as 8-bit sines as an engine would, detected against hzval's exact bake of A (hzval.io.external.detect,
 every convention tried). The right map (B = A) must correlate above the bound, every wrong one below; the |s - exact|
 column shows why an absolute bound on it cannot tell them apart.
 Also a map of A in another convention (+y down) and a map of A with a radius of 4 texels, which are
@@ -18,8 +18,10 @@ import dataclasses
 
 import numpy as np
 
-from hzval import bake, external, materials
-from hzval import scene as sc
+from hzval import materials
+from hzval.bake import maps as bake
+from hzval.io import external
+from hzval.scene import spec as sc
 
 
 def _height(name: str, size: int) -> tuple[np.ndarray, float, str]:

@@ -1,13 +1,13 @@
 """Study: is the fitted horizon map worse than the baked one on any frame? (docs/fit.md)
 
 Fits a height map (a photo: 16-bit grey PNG or any image hzval reads) at ``--depth`` and
-``--boundary`` with :func:`hzval.fit.fit` (its options as JSON, e.g. ``'{"guard": 0.25}'``,
+``--boundary`` with :func:`hzval.techniques.fitted.fit.fit` (its options as JSON, e.g. ``'{"guard": 0.25}'``,
 ``'{"constrain": 0}'``, ``'{"train_spp": 4}'``), then renders the baked and the fitted map with the
 horizon technique at each held-out light set (default: the issue's, 25 degrees at -52.5..52.5 by
 15, and the default sweep's, 30 degrees at -60..60 by 15) against the truth at the scene's samples,
 and prints per set the fitted/baked ratio of mean |F - V|, how many frames got worse, the smallest
 margin and each frame's pair; with ``--guards`` also the map guarded at each tolerance
-(:func:`hzval.fit_guard.guard`) from the same fit.
+(:func:`hzval.techniques.fitted.guard.guard`) from the same fit.
 
 Usage::
 
@@ -25,7 +25,7 @@ import time
 def _frames(fs, bake, sines, k, held):
     import numpy as np
 
-    from hzval import horizon
+    from hzval.techniques import horizon
 
     ap = horizon.Horizon(fs, dataclasses.replace(bake, horizon=sines), None, k=k)
     return {spec: [float(np.mean(np.abs(ap.render(a, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
@@ -37,13 +37,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("height")
     ap.add_argument("--depth", type=float, default=0.05)
     ap.add_argument("--boundary", default="wrap")
-    ap.add_argument("--lights", default=None, help="training lights (default hzval.fit.TRAINING_LIGHTS)")
+    ap.add_argument("--lights", default=None, help="training lights (default hzval.techniques.fitted.fit.TRAINING_LIGHTS)")
     ap.add_argument("--held", default="25@-52.5:52.5:15;30@-60:60:15", help="held-out light sets, ';'-separated")
-    ap.add_argument("--options", default="{}", help="more keyword arguments of hzval.fit.fit, as JSON")
+    ap.add_argument("--options", default="{}", help="more keyword arguments of hzval.techniques.fitted.fit.fit, as JSON")
     ap.add_argument("--guards", default="", help="guard tolerances to try on the same fit")
     args = ap.parse_args(argv)
 
-    from hzval import backend, bake, fit, storage, scene as sc
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.techniques.fitted import fit
+    from hzval.io import storage
+    from hzval.scene import spec as sc
 
     backend.variant()
     scene = sc.override(sc.Scene(), height=args.height, depth=args.depth, boundary=args.boundary)

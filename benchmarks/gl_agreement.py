@@ -1,7 +1,7 @@
 """Agreement of ``horizon --path gpu`` (Dr.Jit emulation) with ``horizon-gl`` (the shipped GLSL on OpenGL).
 
 Bakes a height map (a built-in material or an image file; ``--size`` resamples a
-built-in one), builds both techniques from one :class:`hzval.technique.Context`,
+built-in one), builds both techniques from one :class:`hzval.techniques.registry.Context`,
 so that they read the same sample positions, and prints per light the mean and
 max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``). Lights: the default
 sweep's azimuths at the scene's elevation plus the ``--extra`` ``AZ/EL`` pairs
@@ -25,7 +25,7 @@ import numpy as np
 
 
 def _scene(args):
-    from hzval import scene as S
+    from hzval.scene import spec as S
 
     base = S.Scene()
     scene = S.override(base, height=args.height, size=args.size, boundary=args.boundary, depth=args.depth,
@@ -36,8 +36,10 @@ def _scene(args):
 
 
 def _context(scene, texel_centres: bool):
-    from hzval import bake, lookup, technique
-    from hzval import scene as S
+    from hzval.bake import maps as bake
+    from hzval.scene import lookup
+    from hzval.techniques import registry as technique
+    from hzval.scene import spec as S
 
     hm = S.load_material_height(scene.material)
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
@@ -57,7 +59,7 @@ def _from_sweep(args) -> int:
     import json
     from pathlib import Path
 
-    from hzval import files
+    from hzval.io import files
 
     out = Path(args.from_sweep)
     m = json.loads((out / "metrics.json").read_text())
@@ -102,14 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.from_sweep:
         return _from_sweep(args)
     from hzval.approx import Approximation
-    from hzval.horizon_gl import HorizonGL
+    from hzval.techniques.gl.horizon_gl import HorizonGL
 
     scene = _scene(args)
     ctx = _context(scene, args.texel_centres)
     scene = ctx.scene
     if args.pom:
-        from hzval.horizon_gl import PomGL
-        from hzval.pom import RayMarchShadow
+        from hzval.techniques.gl.horizon_gl import PomGL
+        from hzval.techniques.pom import RayMarchShadow
 
         emu, real = RayMarchShadow.build(ctx, variant=args.pom), PomGL.build(ctx, variant=args.pom)
     else:

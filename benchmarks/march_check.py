@@ -67,14 +67,14 @@ surface), the pixels where this march sees no surface with any sample, and the p
 sees the surface with only some of its samples (a silhouette) are left out and counted, and the
 pixels where the two sides disagree on seen/unseen are counted.
 
-What it does not share with hzval: it imports none of ``hzval.truth``, ``hzval.camera``,
-``hzval.scene``, ``hzval.lookup``, ``hzval.mesh`` or ``hzval.horizon``; the camera model, the
+What it does not share with hzval: it imports none of ``hzval.truth.plane``, ``hzval.scene.camera``,
+``hzval.scene.spec``, ``hzval.scene.lookup``, ``hzval.geometry.tile`` or ``hzval.techniques.horizon``; the camera model, the
 sample positions (its own jitter and seed, so it differs from hzval's samples by sampling noise),
 the surface evaluation, the ray traversal and intersection (hzval's is Mitsuba's BVH on a float32
 mesh, with a wrap margin and hops), the shadow-ray offset and the light direction are computed
 here from the report's numbers alone. It shares the normalised height map (read with
-``hzval.heightmap``, a built-in regenerated with ``hzval.materials`` and its digest checked
-against the report's) and ``hzval.files.read_exr``.
+``hzval.io.heightmap``, a built-in regenerated with ``hzval.materials`` and its digest checked
+against the report's) and ``hzval.io.files.read_exr``.
 """
 
 from __future__ import annotations
@@ -506,7 +506,7 @@ def _read_json(path: Path) -> dict:
 
 
 def _digest_of_array(height: np.ndarray) -> str:
-    from hzval import heightmap
+    from hzval.io import heightmap
 
     return heightmap.from_array(height).digest
 
@@ -519,7 +519,8 @@ def load_material(metrics: dict, sweep_dir: Path, override: str | None = None) -
     one among ``material.builtin``, ``material.name`` and the built-ins whose label the
     ``source`` names whose regenerated digest matches the report's.
     """
-    from hzval import heightmap, materials
+    from hzval import materials
+    from hzval.io import heightmap
 
     mat = metrics.get("material") or {}
     notes: list[str] = []
@@ -575,7 +576,7 @@ def load_material(metrics: dict, sweep_dir: Path, override: str | None = None) -
 
 
 def _read_visibility(path: Path) -> np.ndarray:
-    from hzval import files
+    from hzval.io import files
 
     if not path.exists():
         raise CheckError(f"missing {path}")

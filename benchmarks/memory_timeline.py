@@ -6,7 +6,7 @@ truth's camera rays, each technique's set-up, each frame's truth, techniques, co
 
     python benchmarks/memory_timeline.py [--keep-samples N] -- SWEEP ARGS
 
-``--keep-samples``: override :data:`hzval.truth.KEEP_SAMPLES` (e.g. 0, so that a 2048 sweep works in
+``--keep-samples``: override :data:`hzval.truth.plane.KEEP_SAMPLES` (e.g. 0, so that a 2048 sweep works in
 bands as a 4096 one does, to scale its figures by 4). Prints one line a stage: its start and end
 RSS and the highest RSS seen during it (GiB), and its seconds.
 """
@@ -84,16 +84,21 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--keep-samples", type=int, default=None)
     ap.add_argument("--peak-target", type=float, default=None,
-                    help="GiB: override hzval.truth_bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)")
+                    help="GiB: override hzval.truth.bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)")
     ap.add_argument("sweep", nargs=argparse.REMAINDER)
     args = ap.parse_args(argv)
     sweep_args = [a for a in args.sweep if a != "--"]
 
-    from hzval import bake, cli, mesh, sweep, truth, surface
+    from hzval.bake import maps as bake
+    from hzval.cli import main as cli
+    from hzval.geometry import tile as mesh
+    from hzval.pipeline import sweep
+    from hzval.truth import plane as truth
+    from hzval.techniques import surface
     import mitsuba as mi
 
     if args.peak_target is not None:
-        from hzval import truth_bands
+        from hzval.truth import bands as truth_bands
 
         truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2 ** 30)
     if args.keep_samples is not None:
@@ -105,7 +110,7 @@ def main(argv=None) -> None:
     tl.wrap(mesh, "tessellate")
     tl.wrap(mesh, "displaced_mesh")
     tl.wrap(mi, "load_dict", "mi.load_dict (Embree BVH)")
-    from hzval import truth_bands
+    from hzval.truth import bands as truth_bands
 
     tl.wrap(truth_bands, "band_pass")
     tl.wrap(truth.Truth, "_trace_camera_rays")

@@ -64,7 +64,7 @@ def sweep(height: Path, out: Path, mesh: str | None, args) -> dict:
 
 
 def factors(out: Path, m: dict, name: str) -> list[np.ndarray]:
-    from hzval import files
+    from hzval.io import files
 
     return [files.read_exr(out / f["techniques"][name]["files"]["factor"])["Y"] for f in m["frames"]]
 

@@ -39,7 +39,8 @@ ORIENTATIONS = (("as-is", 20.0, lambda h: h), ("mirrored", 160.0, lambda h: h[:,
 
 def make_photos(out: Path) -> list[Path]:
     """Two photo-like 8-bit height maps, ``gravel.png`` and ``bricks.png`` (module docstring)."""
-    from hzval import files, materials
+    from hzval import materials
+    from hzval.io import files
 
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(3)
@@ -69,8 +70,11 @@ def march_mean_v(h_texels: np.ndarray, boundary: str, azimuth: float, elevation:
 
 def run_case(height_path: Path, boundary: str, orientation, out: Path, spp: int, tolerance: float | None) -> dict:
     """One sweep of a turned map: its truth's mean V and horizon's mean |F - V|."""
-    from hzval import files, scene as sc, sweep
-    from hzval import conventions as cv, heightmap
+    from hzval.io import files
+    from hzval.scene import spec as sc
+    from hzval.pipeline import sweep
+    from hzval.core import conventions as cv
+    from hzval.io import heightmap
 
     name, azimuth, turn = orientation
     h = np.ascontiguousarray(turn(heightmap.load_height(height_path).height), np.float32)

@@ -1,7 +1,7 @@
 """Study: the fitted horizon map on every built-in material (docs/fit.md).
 
 For each material at ``--size`` (default 256; its own depth and boundary), ``hzval fit``'s
-:func:`hzval.fit.fit` with the default training lights and, as held-out lights, the default sweep's
+:func:`hzval.techniques.fitted.fit.fit` with the default training lights and, as held-out lights, the default sweep's
 (elevation 30, azimuths -60..60 by 15: the same samples and the same metric as the sweep's
 ``visibility_mae``), for each variant: float (every material) and, for the ``--more`` materials,
 ``--fit-k``, ``--storage u8`` and ``--storage bc7`` (each stored map against the bake stored alike). Prints one table row per material and variant and writes the records as JSON.
@@ -27,7 +27,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="study_fit.json")
     args = ap.parse_args(argv)
 
-    from hzval import backend, bake, fit, materials, scene as sc
+    from hzval import materials
+    from hzval.core import backend
+    from hzval.bake import maps as bake
+    from hzval.techniques.fitted import fit
+    from hzval.scene import spec as sc
 
     backend.variant()
     names = args.materials.split(",") if args.materials else materials.names()

@@ -1,5 +1,5 @@
 """Each tangent bug's |F - V| on models with mirrored UVs, on their mirrored and unmirrored pixels
-(:mod:`hzval.bug_signatures`: the cube from azimuth 150, the mirrored sphere from +x; the scene's
+(:mod:`hzval.studies.bug_signatures`: the cube from azimuth 150, the mirrored sphere from +x; the scene's
 lights turned to the camera's side). docs/models.md and docs/meshes.md quote its output.
 
     PYTHONPATH=. python benchmarks/tangent_bugs.py [HEIGHT ...] [--size 128] [--spp 2] [--resolution 128]
@@ -10,7 +10,8 @@ HEIGHT: built-in materials or image files (default: bricks spikes).
 import argparse
 import time
 
-from hzval import bug_signatures, scene as S
+from hzval.studies import bug_signatures
+from hzval.scene import spec as S
 
 
 def main() -> None:

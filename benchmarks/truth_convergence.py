@@ -31,7 +31,8 @@ def sweep_at(scene, tolerance: float, out: Path) -> dict:
     """Mean V over the frames and horizon's mean |F - V| of one sweep at ``tolerance``."""
     import dataclasses
 
-    from hzval import files, sweep
+    from hzval.io import files
+    from hzval.pipeline import sweep
 
     scene = dataclasses.replace(scene, material=dataclasses.replace(scene.material, truth_tolerance=tolerance))
     m = sweep.run(scene, out, options=sweep.Options(techniques=("horizon",)), progress=False)
@@ -46,14 +47,16 @@ def sweep_at(scene, tolerance: float, out: Path) -> dict:
 
 def triangles_per_cell(height: np.ndarray, scene, tolerance: float) -> float:
     """Triangles per cell of the tile's vertex grid (margin and skirt aside)."""
-    from hzval import conventions as cv, mesh
+    from hzval.core import conventions as cv
+    from hzval.geometry import tile as mesh
 
     lv = mesh.cell_levels(cv.heights_in_texels(height, scene.material.depth), tolerance)
     return float(np.mean(np.where(lv == 0, 2.0, 4.0 * lv.astype(np.float64) ** 2)))
 
 
 def main(argv=None) -> int:
-    from hzval import materials, scene as sc
+    from hzval import materials
+    from hzval.scene import spec as sc
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("/tmp/truth-convergence"))

@@ -41,11 +41,13 @@ def crop():
 def turned_frames(h, boundary: str, azimuth: float, spp: int, turn=AS_IS, depth: float = 0.05) -> dict:
     """``{"V": truth's visibility, technique: factor}`` of ``h`` turned by ``turn`` (a :data:`TURNS`
     entry), lit from the turned light, each sample at the turned position of the as-is map's sample
-    (:func:`hzval.camera.sample_positions`, seed 1); each image in the as-is map's pixel order."""
-    from hzval import bake, lookup, technique
-    from hzval import scene as sc
-    from hzval.camera import sample_positions
-    from hzval.truth import Truth
+    (:func:`hzval.scene.camera.sample_positions`, seed 1); each image in the as-is map's pixel order."""
+    from hzval.bake import maps as bake
+    from hzval.scene import lookup
+    from hzval.techniques import registry as technique
+    from hzval.scene import spec as sc
+    from hzval.scene.camera import sample_positions
+    from hzval.truth.plane import Truth
 
     _, f, az, point = turn
     rows, cols = h.shape
@@ -71,7 +73,8 @@ def turned_frames(h, boundary: str, azimuth: float, spp: int, turn=AS_IS, depth:
 
 def sweep_scores(h, boundary: str, turn, seed: int, out: Path) -> dict:
     """Every technique's |F - V| from a whole sweep (32 spp) of ``h`` turned by ``turn``."""
-    from hzval import scene as sc, sweep
+    from hzval.scene import spec as sc
+    from hzval.pipeline import sweep
 
     name, f, az, _ = turn
     path = out / f"{boundary}-{name}.npy"

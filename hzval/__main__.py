@@ -1,7 +1,7 @@
-"""``python -m hzval``: the ``hzval`` command (:func:`hzval.cli.main`)."""
+"""``python -m hzval``: the ``hzval`` command (:func:`hzval.cli.main.main`)."""
 
 import sys
 
-from hzval.cli import main
+from hzval.cli.main import main
 
 sys.exit(main())

@@ -6,8 +6,8 @@ import pytest
 os.environ.setdefault("HZVAL_VARIANT", "llvm_ad_rgb")
 
 # Dr.Jit reads DRJIT_LIBLLVM_PATH when it is first imported, which the test modules do: point it at a
-# working LLVM first, as hzval.cli.main does (hzval.init)
-from hzval import backend as _backend  # noqa: E402
+# working LLVM first, as hzval.cli.main.main does (hzval.init)
+from hzval.core import backend as _backend  # noqa: E402
 
 _backend.prefer_working_llvm()
 
@@ -15,6 +15,6 @@ _backend.prefer_working_llvm()
 @pytest.fixture(scope="session")
 def variant():
     """Select hzval's Mitsuba variant once for the whole session."""
-    from hzval import backend
+    from hzval.core import backend
 
     return backend.variant()

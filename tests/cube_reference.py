@@ -1,4 +1,4 @@
-"""A NumPy reference of OpenGL's seamless cube-map filtering, built differently from hzval.cubemap.
+"""A NumPy reference of OpenGL's seamless cube-map filtering, built differently from hzval.techniques.cubemap.
 
 Each face is padded by one texel all round; a border texel is the texel of
 another face whose centre direction is nearest in angle to the border
@@ -12,7 +12,7 @@ import functools
 
 import numpy as np
 
-from hzval import conventions as cv
+from hzval.core import conventions as cv
 
 
 @functools.lru_cache(maxsize=4)

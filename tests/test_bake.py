@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake as B
-from hzval import conventions as cv
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
 
 DEFAULT = B.BakeParams()
 
@@ -144,7 +144,7 @@ def test_weight_cube_decodes_to_the_exact_weights():
     ({"radius": 1}, "--radius"), ({"angles": 24}, "--angles"), ({"boundary": "mirror"}, "--boundary"),
 ])
 def test_bad_parameters_are_input_errors(kw, what):
-    from hzval.errors import InputError
+    from hzval.core.errors import InputError
 
     with pytest.raises(InputError) as e:
         B.BakeParams(**kw).validate()
@@ -152,7 +152,7 @@ def test_bad_parameters_are_input_errors(kw, what):
 
 
 def test_memory_estimate_refuses_a_map_that_cannot_fit():
-    from hzval.errors import InputError
+    from hzval.core.errors import InputError
 
     with pytest.raises(InputError, match="GiB"):
         B.check_fits("huge.png", 1_000_000, 1_000_000, DEFAULT)

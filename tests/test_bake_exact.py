@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake as B
-from hzval import cli
-from hzval import conventions as cv
+from hzval.bake import maps as B
+from hzval.cli import main as cli
+from hzval.core import conventions as cv
 
 SQRT1_2 = 1 / math.sqrt(2)     # sin 45 deg: slope 1 along an axis
 SQRT1_3 = 1 / math.sqrt(3)     # sin atan(1 / sqrt 2) = sin 35.264 deg: slope 1 seen along a diagonal
@@ -252,7 +252,7 @@ def test_cli_bake_method_exact(variant, tmp_path, capsys):
 
 
 def test_sweep_options_pass_the_method_to_the_bake():
-    from hzval import sweep
+    from hzval.pipeline import sweep
 
     assert sweep.Options(method="exact").method == "exact"
     assert sweep.Options().method == "seed"

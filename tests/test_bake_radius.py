@@ -1,4 +1,4 @@
-"""The seed bake's two kernel forms (``hzval.bake.horizon_map(kernel=...)``) and its radius.
+"""The seed bake's two kernel forms (``hzval.bake.maps.horizon_map(kernel=...)``) and its radius.
 
 The unrolled kernel has one block of code per neighbour offset; the looped
 one walks the offset table in a symbolic Dr.Jit loop. Both compute the same
@@ -14,8 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake as B
-from hzval import conventions as cv
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
 
 ANGLES = 32
 

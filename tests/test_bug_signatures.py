@@ -1,9 +1,13 @@
-"""Tangent-bug signatures on models with mirrored UVs (hzval.bug_signatures, the built-in
+"""Tangent-bug signatures on models with mirrored UVs (hzval.studies.bug_signatures, the built-in
 mirrored sphere): a bug of the handedness touches only the mirrored half, pixel for pixel."""
 
 import numpy as np
 
-from hzval import bug_signatures as B, model, scene as S, tangent_bugs, tangents
+from hzval.studies import bug_signatures as B
+from hzval.geometry import model
+from hzval.scene import spec as S
+from hzval.geometry import tangent_bugs
+from hzval.geometry import tangents
 
 
 def test_mirrored_sphere_mirrors_the_minus_y_half():
@@ -51,7 +55,7 @@ def test_a_sweep_splits_the_error_by_handedness(tmp_path):
     """metrics.json's visibility_mae_mirrored / _unmirrored: a handedness bug moves only the first."""
     import json
 
-    from hzval import cli
+    from hzval.cli import main as cli
 
     small = ["sweep", "--material", "spikes", "--size", "24", "--spp", "1", "--azimuths", "210,270",
              "--resolution", "32x32", "--mesh", "cube", "--view-azimuth", "150", "--techniques", "horizon"]

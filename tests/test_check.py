@@ -8,7 +8,13 @@ import shutil
 import numpy as np
 import pytest
 
-from hzval import horizon, surface, check, cli, files, materials, technique
+from hzval import materials
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.commands import check
+from hzval.cli import main as cli
+from hzval.io import files
+from hzval.techniques import registry as technique
 
 SHIPPED = check.repository_path("reference")
 
@@ -122,7 +128,7 @@ def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatc
 
 def test_a_softer_terrain_ramp_fails_the_terrain_images_only(variant, refs, monkeypatch):
     """The terrain technique is guarded too: a ramp 25x wider changes its penumbrae."""
-    from hzval import terrain
+    from hzval.techniques import terrain
 
     class Softer(terrain.TerrainShadow):
         def __init__(self, *args, **kw):
@@ -216,8 +222,8 @@ def test_shape_mismatch_fails_with_a_reason():
 
 
 def test_unknown_tolerance_is_an_input_error(variant):
-    from hzval.errors import InputError
-    from hzval.scene import Scene
+    from hzval.core.errors import InputError
+    from hzval.scene.spec import Scene
 
     s = dataclasses.replace(Scene(), tolerances={"truth": {"fial": 0.1}})
     with pytest.raises(InputError, match="fial"):

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval import cli, files
+from hzval.cli import main as cli
+from hzval.io import files
 
 BAKE_FILES = {"horizon0.exr", "horizon1.exr", "horizon0.png", "horizon1.png", "normal.exr",
               "normal.png", "ambient.exr", "bake.json"} | {f"cube/{f}.png" for f in

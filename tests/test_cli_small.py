@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hzval import cli, files, materials
+from hzval import materials
+from hzval.cli import main as cli
+from hzval.io import files
 
 
 def _err(capsys) -> str:

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import compare as C
-from hzval import conventions as cv
-from hzval.errors import HzvalError
-from hzval.scene import Frame
+from hzval.metrics import compare as C
+from hzval.core import conventions as cv
+from hzval.core.errors import HzvalError
+from hzval.scene.spec import Frame
 
 
 def frame(img, **layers):
@@ -74,7 +74,7 @@ def test_colour_science_in_row_blocks_is_bit_for_bit_one_call(monkeypatch):
 
     rng = np.random.default_rng(3)
     a, b = rng.random((2, 3 * C.PARALLEL_MIN_ROWS + 5, 40, 3))
-    from hzval import backend
+    from hzval.core import backend
 
     monkeypatch.setattr(backend, "host_cores", lambda: 3)      # three blocks, on three threads
 
@@ -85,7 +85,7 @@ def test_colour_science_in_row_blocks_is_bit_for_bit_one_call(monkeypatch):
 
 
 def test_image_metrics_match_flip_evaluator_and_colour_science():
-    """The sweep's FLIP (hzval.flip) and CIEDE2000 (the Dr.Jit kernel) against the packages they
+    """The sweep's FLIP (hzval.metrics.flip) and CIEDE2000 (the Dr.Jit kernel) against the packages they
     replaced, through a Reference reused for two images (tests/test_flip.py checks them in depth)."""
     rng = np.random.default_rng(5)
     truth = rng.random((40, 70, 3)) * 0.4

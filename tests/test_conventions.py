@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import conventions as cv
+from hzval.core import conventions as cv
 
 
 def test_texel_centres_row_zero_is_top():

@@ -1,4 +1,4 @@
-"""hzval.cubemap (issue 31): OpenGL's seamless cube-map filtering in Dr.Jit, against a NumPy
+"""hzval.techniques.cubemap (issue 31): OpenGL's seamless cube-map filtering in Dr.Jit, against a NumPy
 reference built another way (tests/cube_reference.py)."""
 
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from cube_reference import seamless_bilinear
-from hzval import conventions as cv
-from hzval.bake import CUBE_SIZE, weight_cube
+from hzval.core import conventions as cv
+from hzval.bake.maps import CUBE_SIZE, weight_cube
 
 CUBE = weight_cube(CUBE_SIZE).astype(np.float64) / 255.0
 
@@ -31,7 +31,7 @@ def evaluate(d: np.ndarray, seamless: bool = True) -> np.ndarray:
     import drjit as dr
     import mitsuba as mi
 
-    from hzval import cubemap
+    from hzval.techniques import cubemap
 
     cube = mi.Float(CUBE.astype(np.float32).ravel())
     v = mi.Vector3f(*(mi.Float(np.ascontiguousarray(d[:, i])) for i in range(3)))

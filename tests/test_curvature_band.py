@@ -1,4 +1,4 @@
-"""The band measurement (hzval.curvature_band): which pixels count, texel means, the pairing with the
+"""The band measurement (hzval.studies.curvature_band): which pixels count, texel means, the pairing with the
 flat patch and the trend's verdict on synthetic rows whose answer is known."""
 
 import math
@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval import conventions as cv
-from hzval import curvature_band as cb
+from hzval.core import conventions as cv
+from hzval.studies import curvature_band as cb
 
 
 def test_the_band_holds_the_normals_that_see_the_light_at_its_elevation():

@@ -1,7 +1,7 @@
 """8 vs 16 stored horizon directions (``BakeParams.directions``), against known answers.
 
 With ``D`` directions channel ``c`` looks toward azimuth ``360 c / D``
-(:func:`hzval.conventions.channel_azimuth_deg`) and averages the
+(:func:`hzval.core.conventions.channel_azimuth_deg`) and averages the
 ``angles / D + 1`` bins centred on it: with 32 bins, channel ``2c`` of a
 16-direction map is the mean of the 3 central bins of the 5 that channel
 ``c`` of the 8-direction map averages. So the two are equal where those 5
@@ -17,12 +17,12 @@ import math
 import numpy as np
 import pytest
 
-from hzval import horizon as A
+from hzval.techniques import horizon as A
 from hzval.materials.bricks import bricks
-from hzval import bake as B
-from hzval import conventions as cv
-from hzval.errors import InputError
-from hzval.scene import MaterialSpec, Scene
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.scene.spec import MaterialSpec, Scene
 
 from hard._ref import horizon_f64   # tests/ is on sys.path (rootdir-relative test modules)
 
@@ -165,8 +165,8 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
 
 def test_bricks_16_directions_against_the_truth(variant, capsys):
     """|F - V| over the default sweep on the built-in bricks at 64 px: measured and printed."""
-    from hzval import truth
-    from hzval.scene import load_albedo
+    from hzval.truth import plane as truth
+    from hzval.scene.spec import load_albedo
 
     scene = Scene(material=MaterialSpec(size=64), spp=4)
     h = bricks(64)

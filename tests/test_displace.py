@@ -1,4 +1,4 @@
-"""The displaced surface on a base mesh (hzval.displace, hzval.cells): the cut covers every base
+"""The displaced surface on a base mesh (hzval.geometry.displace, hzval.geometry.cells): the cut covers every base
 triangle once and keeps every piece inside one cell between texel centres, is watertight across UV
 seams on closed shapes, reproduces the plane's heights at texel centres and the plane's own
 tessellation (a fan of four about each cell's centre), and turns with the UVs."""
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from hzval import displace as dp
-from hzval import model
+from hzval.geometry import displace as dp
+from hzval.geometry import model
 
 
 def edge_counts(weld, faces):
@@ -188,7 +188,7 @@ def test_sample_height_between_texel_centres():
 
 
 def test_shading_normals_on_the_plane_are_the_normal_map():
-    from hzval.bake import normal_map
+    from hzval.bake.maps import normal_map
 
     h = np.random.default_rng(6).random((8, 8)).astype(np.float32)
     nmap = normal_map(h * 0.05 * 8, "wrap")

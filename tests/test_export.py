@@ -3,7 +3,7 @@
 Mitsuba's ``direct`` integrator renders the exported scene (its own sensor,
 emitter, BSDF and shadow rays from ``spawn_ray``); it must agree with
 hzval's truth within the noise and the self-intersection leak that
-hzval.truth documents. Measured here (64 spp each): mean difference
+hzval.truth.plane documents. Measured here (64 spp each): mean difference
 1e-4 to 2e-4 and mean |difference| 0.0008 to 0.0032 of white, on a wall
 and on the bricks, lit from two sides.
 """
@@ -15,9 +15,12 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from hzval import cli, export, shading, truth
+from hzval.cli import main as cli
+from hzval.commands import export
+from hzval.core import shading
+from hzval.truth import plane as truth
 from hzval.materials.bricks import bricks
-from hzval import scene as S
+from hzval.scene import spec as S
 from test_truth import column_wall, make_scene
 
 CASES = {

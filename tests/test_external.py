@@ -1,4 +1,4 @@
-"""Your own horizon map (hzval.external): conventions converted, conventions detected, and an
+"""Your own horizon map (hzval.io.external): conventions converted, conventions detected, and an
 independent bake driving the horizon technique."""
 
 from __future__ import annotations
@@ -9,10 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake, cli, external, files
+from hzval.bake import maps as bake
+from hzval.cli import main as cli
+from hzval.io import external
+from hzval.io import files
 from hzval.materials.bricks import bricks
-from hzval.errors import InputError
-from hzval.external import Encoding
+from hzval.core.errors import InputError
+from hzval.io.external import Encoding
 from test_seed_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
 
 
@@ -112,7 +115,9 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed
     assert m["techniques"]["horizon"]["parameters"]["bake"].startswith("external: ")
     assert "external: " in (out / "index.html").read_text(encoding="utf-8")
     # F follows the external map: it is the factor of the peer's sines, not of hzval's radius-16 bake
-    from hzval import horizon, surface, scene as S
+    from hzval.techniques import horizon
+    from hzval.techniques import surface
+    from hzval.scene import spec as S
 
     sc = S.override(S.Scene(), height=str(tmp_path / "bricks.npy"), depth=depth, azimuths="0", spp=4)
     own_bake = bake.bake(h, bake.BakeParams(depth=depth))

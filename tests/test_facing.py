@@ -1,4 +1,4 @@
-"""What a frame's truth has to shadow (hzval.facing) and hzval.brightness's slips, on analytic cases."""
+"""What a frame's truth has to shadow (hzval.metrics.facing) and hzval.metrics.brightness's slips, on analytic cases."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from hzval import brightness, facing
-from hzval import conventions as cv
+from hzval.metrics import brightness
+from hzval.metrics import facing
+from hzval.core import conventions as cv
 
 
 def _tilted(rows=8, cols=12, degrees=40.0):

@@ -21,10 +21,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import cli, files, materials
-from hzval import conventions as cv
-from hzval import scene as S
-from hzval.errors import InputError
+from hzval import materials
+from hzval.cli import main as cli
+from hzval.io import files
+from hzval.core import conventions as cv
+from hzval.scene import spec as S
+from hzval.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon", "--quiet"]
@@ -72,7 +74,7 @@ def test_the_light_count_is_computed_not_listed():
 
 
 def test_frames_times_pixels_is_bounded_before_anything_is_allocated():
-    from hzval import sweep
+    from hzval.pipeline import sweep
 
     scene = S.override(S.Scene(), size=4096, azimuths="0:360:2")            # 181 lights of 16.8M pixels
     with pytest.raises(InputError, match="frame pixels"):
@@ -96,7 +98,7 @@ def _listening(pids: set[int]) -> set[str]:
 def test_a_local_cluster_listens_on_loopback_only(tmp_path, variant):
     psutil = pytest.importorskip("psutil")
     pytest.importorskip("distributed")
-    from hzval import suite
+    from hzval.commands import suite
 
     items = suite.entries(["planks", "gravel"], size=24, azimuths="-30,0,30", spp=4)
     seen: set[str] = set()
@@ -122,9 +124,9 @@ def test_a_local_cluster_listens_on_loopback_only(tmp_path, variant):
 
 
 def test_the_local_cluster_is_asked_for_loopback_and_no_dashboard(monkeypatch):
-    """Without starting one: what :func:`hzval.suite._run_dask` asks of ``LocalCluster``."""
+    """Without starting one: what :func:`hzval.commands.suite._run_dask` asks of ``LocalCluster``."""
     distributed = pytest.importorskip("distributed")
-    from hzval import suite
+    from hzval.commands import suite
 
     asked = {}
 
@@ -246,7 +248,7 @@ def test_a_nan_horizon_map_is_refused(tmp_path, capsys, variant):
 def test_external_layers_must_be_rgba_of_the_declared_count_and_range(tmp_path):
     from PIL import Image
 
-    from hzval import external
+    from hzval.io import external
 
     grey = tmp_path / "grey.png"
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(grey)
@@ -334,7 +336,7 @@ def test_a_read_only_full_or_forbidden_out_is_one_line(tmp_path, capsys, monkeyp
 
 def test_a_mesh_on_a_full_disk_is_one_line(tmp_path):
     """Mitsuba's PLY writer raises a RuntimeError of its own text on a full disk."""
-    from hzval import mesh
+    from hzval.geometry import tile as mesh
 
     class Full:
         def write_ply(self, path):
@@ -365,7 +367,7 @@ def test_a_malformed_cluster_address_is_one_line_and_leaves_nothing(tmp_path, ca
 
 def test_an_unreachable_scheduler_leaves_no_folder_and_no_lock(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
-    from hzval import suite
+    from hzval.commands import suite
 
     monkeypatch.setattr(suite, "CONNECT_TIMEOUT_S", 1)
     new, old = tmp_path / "new", tmp_path / "old"
@@ -380,7 +382,7 @@ def test_an_unreachable_scheduler_leaves_no_folder_and_no_lock(tmp_path, capsys,
                                           ("channels = 8.0", "channels must be an integer"),
                                           ("chanels = 8", "did you mean 'channels'")])
 def test_a_bad_horizon_encoding_is_one_line(tmp_path, toml, needle):
-    from hzval import external
+    from hzval.io import external
 
     p = tmp_path / "enc.toml"
     p.write_text(toml + "\n")
@@ -417,7 +419,8 @@ def test_a_held_folder_is_refused_by_every_command(tmp_path, capsys, argv):
 
 def test_cluster_failures_are_told_apart(tmp_path, variant):
     distributed = pytest.importorskip("distributed")
-    from hzval import suite, sweep
+    from hzval.commands import suite
+    from hzval.pipeline import sweep
 
     (entry,) = suite.entries(["planks"], size=24, azimuths="0", spp=4)
     task = suite.Task(entry, str(tmp_path / "planks"), sweep.Options(), None, "", None, topic="t")
@@ -439,7 +442,7 @@ def test_cluster_failures_are_told_apart(tmp_path, variant):
 # 10. the folder left as it was ------------------------------------------------------------------
 
 def test_an_error_after_the_bake_leaves_no_new_folder(tmp_path, capsys, monkeypatch, variant):
-    from hzval import truth
+    from hzval.truth import plane as truth
 
     def broken(*a, **kw):
         raise InputError("truth", "injected failure after the bake")
@@ -453,7 +456,7 @@ def test_an_error_after_the_bake_leaves_no_new_folder(tmp_path, capsys, monkeypa
 @pytest.mark.parametrize("fault", [KeyboardInterrupt, signal.SIGTERM])
 def test_an_interrupted_sweep_of_another_map_keeps_the_old_report_bake_included(tmp_path, monkeypatch, fault,
                                                                                variant):
-    from hzval import truth
+    from hzval.truth import plane as truth
 
     out = tmp_path / "o"
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 0
@@ -506,7 +509,8 @@ def test_sigterm_in_a_real_process_leaves_no_staging(tmp_path):
 
 
 def test_views_leaves_no_empty_view_folder(tmp_path, monkeypatch, variant):
-    from hzval import sweep, views
+    from hzval.pipeline import sweep
+    from hzval.commands import views
 
     out = tmp_path / "v"
     out.mkdir()
@@ -552,7 +556,7 @@ def test_bake_and_export_read_the_sidecar_as_the_sweep_does(tmp_path, height_npy
 
 
 def test_a_broken_sidecar_is_one_failed_row(tmp_path, variant):
-    from hzval import suite
+    from hzval.commands import suite
 
     maps = tmp_path / "maps"
     maps.mkdir()
@@ -576,7 +580,7 @@ def test_reports_hold_paths_relative_to_their_folder(tmp_path, height_npy, varia
     assert metrics["material"]["path"] == "../../maps/h.npy"
     page = (out / "index.html").read_text()
     assert str(tmp_path) not in page and "../../maps/h.npy" in page
-    from hzval import suite
+    from hzval.commands import suite
 
     result = suite.run(suite.entries([height_npy.parent], size=24, azimuths="0", spp=4), tmp_path / "s",
                        workers=0, progress=False, command=f"hzval suite {height_npy.parent}")

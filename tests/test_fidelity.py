@@ -17,8 +17,13 @@ import math
 import numpy as np
 import pytest
 
-from hzval import horizon, surface, bake, cli, shading, truth
-from hzval import scene as S
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.bake import maps as bake
+from hzval.cli import main as cli
+from hzval.core import shading
+from hzval.truth import plane as truth
+from hzval.scene import spec as S
 from test_truth import make_scene
 
 
@@ -106,7 +111,7 @@ def _tilted_reflection_reference(tilt_deg: float, n: int = 2_000_000, seed: int 
     by an independent quadrature: half vectors from pdf(h) = (alpha + 1) / (2 pi) cos^alpha,
     weighted by f cos / pdf ~ wo.h; a direction below the horizontal is blocked (the tilted plane
     itself never blocks a direction above it). Returns (weighted, unweighted)."""
-    from hzval.shading import SPECULAR_EXPONENT
+    from hzval.core.shading import SPECULAR_EXPONENT
 
     rng = np.random.default_rng(seed)
     b = math.radians(tilt_deg)

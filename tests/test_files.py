@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hzval import files
+from hzval.io import files
 
 
 def test_staging_commits_all_files_together(tmp_path):

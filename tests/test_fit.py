@@ -1,4 +1,4 @@
-"""The fitted horizon map (hzval.fit, hzval.horizon_fit, ``hzval fit``).
+"""The fitted horizon map (hzval.techniques.fitted.fit, hzval.techniques.fitted.horizon_fit, ``hzval fit``).
 
 The forward model is the horizon technique's own kernel, bit for bit; its
 gradient is the finite difference's; a flat surface (V = 1, s = 0) has
@@ -15,10 +15,18 @@ import json
 import numpy as np
 import pytest
 
-from hzval import bake, cli, external, fit, horizon, horizon_fit, lookup, sweep, technique
-from hzval import conventions as cv
-from hzval import scene as S
-from hzval.errors import InputError
+from hzval.bake import maps as bake
+from hzval.cli import main as cli
+from hzval.io import external
+from hzval.techniques.fitted import fit
+from hzval.techniques import horizon
+from hzval.techniques.fitted import horizon_fit
+from hzval.scene import lookup
+from hzval.pipeline import sweep
+from hzval.techniques import registry as technique
+from hzval.core import conventions as cv
+from hzval.scene import spec as S
+from hzval.core.errors import InputError
 
 FEW = "20,40@0:270:90"            # 8 training lights: fast fits for the tests
 HELD = "30@45:225:180"
@@ -250,7 +258,7 @@ def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, bounda
     the V of a truth set up for that elevation, bit for bit."""
     import dataclasses
 
-    from hzval import truth
+    from hzval.truth import plane as truth
 
     scene, h, _ = _setup(n=20, spp=2)
     scene = S.override(scene, boundary=boundary)

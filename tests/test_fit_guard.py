@@ -1,4 +1,4 @@
-"""The fit's guard (hzval.fit_guard): a texel keeps its fitted sines only where no training light
+"""The fit's guard (hzval.techniques.fitted.guard): a texel keeps its fitted sines only where no training light
 nearby does worse than with the bake.
 
 Synthetic error maps check the neighbourhood (wrap and open), the reverting, the rounds and the
@@ -13,8 +13,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hzval import bake, fit, fit_guard, horizon
-from hzval import scene as S
+from hzval.bake import maps as bake
+from hzval.techniques.fitted import fit
+from hzval.techniques.fitted import guard as fit_guard
+from hzval.techniques import horizon
+from hzval.scene import spec as S
 
 
 def test_neighbourhood_sum_wraps_or_cuts():
@@ -101,7 +104,7 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
 def test_cli_guard_is_recorded_and_a_bad_one_refused(variant, tmp_path, capsys):
     import json
 
-    from hzval import cli
+    from hzval.cli import main as cli
 
     out = tmp_path / "fit"
     assert cli.main(["fit", "--material", "bricks", "--size", "16", "--guard", "-1", "--out", str(out)]) == 2

@@ -12,8 +12,9 @@ import copy
 
 import pytest
 
-from hzval import report, sweep
-from hzval import scene as S
+from hzval.report import pages as report
+from hzval.pipeline import sweep
+from hzval.scene import spec as S
 
 FEW = "20,40@0:270:90"
 

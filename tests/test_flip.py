@@ -1,8 +1,8 @@
-"""hzval.flip against NVIDIA's flip-evaluator, and the CIEDE2000 kernel against colour-science.
+"""hzval.metrics.flip against NVIDIA's flip-evaluator, and the CIEDE2000 kernel against colour-science.
 
 FLIP: both are float32; they differ by rounding (scipy sums the x-direction
 convolutions in float64, FLIP's C++ in float32, and NumPy's ``pow``/``exp``
-are not glibc's). Measured (hzval.flip against flip-evaluator 1.7): the means
+are not glibc's). Measured (hzval.metrics.flip against flip-evaluator 1.7): the means
 agree to 2e-7 on every image here but the hard edge (1.3e-5); per pixel, to
 7e-6 on noise, gradients, constant, tiny and non-square images, 3e-4 on the
 shaded bricks and 1.5e-3 on the hard edge. The larger ones are in flat
@@ -16,9 +16,9 @@ CIEDE2000: float64 both; the kernel agrees with colour-science to 1e-12.
 import numpy as np
 import pytest
 
-from hzval import compare as C
-from hzval import flip as F
-from hzval.errors import HzvalError
+from hzval.metrics import compare as C
+from hzval.metrics import flip as F
+from hzval.core.errors import HzvalError
 
 PPD = C.FLIP_PPD
 

@@ -15,8 +15,12 @@ import OpenEXR
 import pytest
 from PIL import Image
 
-from hzval import cli, compare, files, images, sweep
-from hzval.errors import InputError
+from hzval.cli import main as cli
+from hzval.metrics import compare
+from hzval.io import files
+from hzval.report import images
+from hzval.pipeline import sweep
+from hzval.core.errors import InputError
 
 RNG = np.random.default_rng(7)
 

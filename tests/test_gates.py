@@ -1,4 +1,4 @@
-"""Gates (hzval.gates): --fail-if conditions, the --baseline test, and both on real sweeps."""
+"""Gates (hzval.commands.gates): --fail-if conditions, the --baseline test, and both on real sweeps."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import json
 
 import pytest
 
-from hzval import cli, gates
-from hzval.errors import InputError
+from hzval.cli import main as cli
+from hzval.commands import gates
+from hzval.core.errors import InputError
 
 
 def _frame(az, **techniques):

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from hzval import lookup
-from hzval import scene as S
-from hzval import storage as hz_storage
-from hzval.horizon import Horizon
-from hzval.bake import BakeParams, bake
+from hzval.scene import lookup
+from hzval.scene import spec as S
+from hzval.io import storage as hz_storage
+from hzval.techniques.horizon import Horizon
+from hzval.bake.maps import BakeParams, bake
 
 
 def test_each_level_is_made_from_the_stored_one_below_and_stored_again():

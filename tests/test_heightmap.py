@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from PIL import Image, ImageFile
 
-from hzval.conventions import luminance_weights
-from hzval.errors import InputError
-from hzval.files import write_exr, write_png
-from hzval.heightmap import HeightMap, from_array, load_height, probe_shape
+from hzval.core.conventions import luminance_weights
+from hzval.core.errors import InputError
+from hzval.io.files import write_exr, write_png
+from hzval.io.heightmap import HeightMap, from_array, load_height, probe_shape
 
 RNG = np.random.default_rng(20240607)
 

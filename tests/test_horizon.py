@@ -1,8 +1,8 @@
-"""The approximation (hzval.horizon, issue 4) against answers known in advance.
+"""The approximation (hzval.techniques.horizon, issue 4) against answers known in advance.
 
 Every expected value here is computed independently of the kernels: with
 NumPy from the conventions (bilinear filtering between texel centres, the
-weight cube map through hzval.conventions.cube_lookup) or from geometry whose
+weight cube map through hzval.core.conventions.cube_lookup) or from geometry whose
 horizon is known in closed form.
 """
 
@@ -12,13 +12,13 @@ import drjit as dr
 import numpy as np
 import pytest
 
-from hzval import camera as hz_camera
-from hzval import bake as B
-from hzval import conventions as cv
+from hzval.scene import camera as hz_camera
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
 from hzval.materials import bricks as brick_wall
-from hzval import scene as S
-from hzval.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
-from hzval.errors import InputError
+from hzval.scene import spec as S
+from hzval.techniques.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
+from hzval.core.errors import InputError
 
 from cube_reference import seamless_bilinear
 
@@ -51,7 +51,7 @@ def gpu_weights(d):
 
     Bilinear and seamless across the faces, as OpenGL filters a cube map with
     GL_TEXTURE_CUBE_MAP_SEAMLESS (tests/cube_reference.py, built independently
-    of hzval.cubemap), then f0 = clamp(2f - 1), f1 = clamp(1 - 2f).
+    of hzval.techniques.cubemap), then f0 = clamp(2f - 1), f1 = clamp(1 - 2f).
     """
     d = np.asarray(d, np.float32).astype(np.float64)
     f = seamless_bilinear(_CUBE, d)
@@ -188,7 +188,7 @@ def test_factor_never_decreases_with_elevation(grid, path):
     # gpu: on the cube's side faces the weights depend on the azimuth only;
     # between the listed elevations Lz rises by more than the +z face changes
     # them. (Densely sampled, F_gpu does drop where L crosses onto the +z
-    # face, at 35-45 degrees: see hzval.horizon.)
+    # face, at 35-45 degrees: see hzval.techniques.horizon.)
     for az in AZIMUTHS:
         F = np.stack([grid[1][path, az, el].layers["factor"] for el in ELEVATIONS])
         assert np.all(np.diff(F, axis=0) >= 0), az
@@ -261,7 +261,7 @@ def test_horizon_sine_uses_the_paths_weights(channel_blocks, path, reference):
 
 
 def test_cube_weight_error_is_what_hzval_approx_documents():
-    # The numbers quoted in hzval.horizon: over all directions the decoded
+    # The numbers quoted in hzval.techniques.horizon: over all directions the decoded
     # weights sum to at most 1 + 3/255 (three zero-weight leaks on layer 0);
     # on the side faces (elevation <= 45 deg) sum |w^ - w| <= 0.173, largest
     # at the channel azimuths, whose tent peak falls between cube texels.
@@ -421,7 +421,7 @@ def test_with_one_sample_the_image_is_direct_light_times_factor(bricks):
 
 
 def test_specular_is_blinn_phong(variant):
-    from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
+    from hzval.core.shading import SPECULAR_EXPONENT, SPECULAR_KS
 
     n = np.array([0.2, -0.1, 1.0])
     bake = uniform_bake(np.zeros(8), n)

@@ -1,10 +1,10 @@
-"""The curvature correction of the horizon map's sines (hzval.horizon_curved): exact on a ridge,
+"""The curvature correction of the horizon map's sines (hzval.techniques.horizon_curved): exact on a ridge,
 zero (bit for bit) on a flat surface, down on a convex surface and up on a concave one."""
 
 import numpy as np
 import pytest
 
-from hzval import horizon_curved as hc
+from hzval.techniques import horizon_curved as hc
 
 
 def _ridge(rows=16, cols=32, col=20, height=6.0):
@@ -41,8 +41,9 @@ def test_convex_lowers_every_horizon_and_concave_raises_it():
 
 
 def _context(size=32):
-    from hzval import scene as S, technique
-    from hzval.bake import BakeParams, bake
+    from hzval.scene import spec as S
+    from hzval.techniques import registry as technique
+    from hzval.bake.maps import BakeParams, bake
 
     scene = S.override(S.Scene(), height="bricks", size=size, effects="shadow", spp=1).validate()
     hm = S.load_material_height(scene.material)
@@ -51,7 +52,7 @@ def _context(size=32):
 
 
 def test_the_technique_is_a_plug_in_that_is_horizon_at_zero_curvature_and_brighter_when_convex():
-    from hzval import technique
+    from hzval.techniques import registry as technique
 
     cls = technique.get("horizon-curved")
     assert cls.name == "horizon-curved" and "horizon-curved" not in technique.defaults()   # opt-in
@@ -68,8 +69,8 @@ def test_the_technique_is_a_plug_in_that_is_horizon_at_zero_curvature_and_bright
 
 
 def test_a_curvature_that_is_not_a_number_is_refused():
-    from hzval import technique
-    from hzval.errors import InputError
+    from hzval.techniques import registry as technique
+    from hzval.core.errors import InputError
 
     with pytest.raises(InputError, match="curvature"):
         technique.get("horizon-curved").build(_context(16), curvature=float("nan"))

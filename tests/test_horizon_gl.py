@@ -1,4 +1,4 @@
-"""The shipped GLSL on OpenGL (hzval.horizon_gl, issue 31) against hzval's GPU emulation (--path gpu).
+"""The shipped GLSL on OpenGL (hzval.techniques.gl.horizon_gl, issue 31) against hzval's GPU emulation (--path gpu).
 
 Both read the same samples of one Context. At texel centres the horizon map
 is read exactly, so what is compared is the weight cube map's filtering
@@ -20,11 +20,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import cli, gl, lookup, technique
-from hzval import scene as S
-from hzval.horizon import Horizon
-from hzval.bake import BakeParams, bake
-from hzval.errors import InputError
+from hzval.cli import main as cli
+from hzval.techniques.gl import context as gl
+from hzval.scene import lookup
+from hzval.techniques import registry as technique
+from hzval.scene import spec as S
+from hzval.techniques.horizon import Horizon
+from hzval.bake.maps import BakeParams, bake
+from hzval.core.errors import InputError
 
 try:
     gl.context()
@@ -74,7 +77,7 @@ def minified_context(size: int = 32, boundary: str = "wrap") -> technique.Contex
 
 def differences(ctx: technique.Context, lights, storage: str = "u8") -> tuple[float, float]:
     """(worst mean, worst max) of |F_gpu - F_gl| over the lights' frames."""
-    from hzval.horizon_gl import HorizonGL
+    from hzval.techniques.gl.horizon_gl import HorizonGL
 
     emu, real = Horizon.build(ctx, path="gpu", storage=storage), HorizonGL.build(ctx, storage=storage)
     means, maxes = [0.0], [0.0]
@@ -124,7 +127,7 @@ def test_default_sampling_of_a_minified_trilinear_view_agrees(storage):
 def test_bc7_is_uploaded_as_bptc_blocks_at_every_level():
     import ctypes
 
-    from hzval import horizon_gl as hg
+    from hzval.techniques.gl import horizon_gl as hg
 
     ctx = minified_context(16)
     tex = hg._horizon_texture(gl.context(), ctx.bake.horizon, "bc7", ctx.scene)
@@ -148,7 +151,7 @@ def test_default_sampling_agrees_to_2_255ths_on_every_cube_edge_and_corner():
 @needs_gl
 def test_without_seamless_filtering_the_edges_disagree(monkeypatch):
     # the check can fail: the old clamp-to-face filter is far from the real pipeline at the seams
-    from hzval import cubemap
+    from hzval.techniques import cubemap
 
     seamless = cubemap.bilinear
     monkeypatch.setattr(cubemap, "bilinear", lambda c, n, d, seamless_=True: seamless(c, n, d, False))
@@ -164,7 +167,7 @@ def test_jittered_samples_of_a_sweep_agree(boundary):
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
     ctx = technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, 32, 32))
     lights = [(a, 30.0) for a in scene.light.azimuths_deg] + [(45.0, 35.26)]
-    from hzval.horizon_gl import HorizonGL
+    from hzval.techniques.gl.horizon_gl import HorizonGL
 
     emu, real = Horizon.build(ctx, path="gpu"), HorizonGL.build(ctx)
     for az, el in lights:
@@ -174,7 +177,7 @@ def test_jittered_samples_of_a_sweep_agree(boundary):
 
 @needs_gl
 def test_the_frame_is_the_unshadowed_shading_times_the_shaders_factor():
-    from hzval.horizon_gl import HorizonGL
+    from hzval.techniques.gl.horizon_gl import HorizonGL
 
     ctx = texel_centre_context(32)
     real = HorizonGL.build(ctx)
@@ -185,7 +188,7 @@ def test_the_frame_is_the_unshadowed_shading_times_the_shaders_factor():
     assert np.allclose(frame.image, F[..., None] * ctx.scene.light.irradiance, atol=1e-6)
     p = real.parameters
     assert p["gl"]["renderer"] and p["gl"]["version"] and p["gl"]["vendor"]
-    assert p["shader"] == "hzval/shaders/horizon_shadow.glsl" and p["cube_filter"] == "seamless bilinear"
+    assert p["shader"] == "hzval/techniques/gl/shaders/horizon_shadow.glsl" and p["cube_filter"] == "seamless bilinear"
 
 
 def test_gl_techniques_are_opt_in():
@@ -244,8 +247,8 @@ def test_square_root_storage_is_refused_before_anything_is_written(variant, tmp_
 
 @needs_gl
 def test_pom_gl_marches_as_pom():
-    from hzval.horizon_gl import PomGL
-    from hzval.pom import RayMarchShadow
+    from hzval.techniques.gl.horizon_gl import PomGL
+    from hzval.techniques.pom import RayMarchShadow
 
     scene = S.override(S.Scene(), size=32, effects="shadow", spp=4).validate()
     hm = S.load_material_height(scene.material)

@@ -163,7 +163,7 @@ def test_wrap_shadow_from_the_next_tile():
 
 
 def _write_sweep(tmp_path, H, depth, record, V, boundary="open"):
-    from hzval import files
+    from hzval.io import files
 
     np.save(tmp_path / "height.npy", H.astype(np.float32))
     rel = "frames/f0/visibility.exr"
@@ -220,7 +220,7 @@ def test_cli_missing_metrics(tmp_path, capsys):
 def test_surface_is_the_bilinear_field_hzvals_mesh_approximates(boundary):
     """The checker's own surface is the bilinear interpolation of the centres, and hzval's mesh
     (read here, in the test, never by the checker) is within its tolerance of it."""
-    from hzval import mesh
+    from hzval.geometry import tile as mesh
 
     rng = np.random.default_rng(2)
     h = rng.random((6, 7)) * 4.0

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from hzval import cli, materials
-from hzval import conventions as cv
-from hzval import scene as S
+from hzval import materials
+from hzval.cli import main as cli
+from hzval.core import conventions as cv
+from hzval.scene import spec as S
 from hzval.materials import cobblestones, fabric, noise, panels, planks, spikes
 
 NAMES = materials.names()
@@ -216,7 +217,7 @@ def test_sweep_of_a_built_in_material(variant, tmp_path, capsys):
 
 
 def test_export_writes_a_built_in_materials_albedo(variant, tmp_path):
-    from hzval import export
+    from hzval.commands import export
 
     s = S.override(S.Scene(), height="planks", size=16)
     written = export.write_scene(s, materials.generate("planks", 16).height, tmp_path)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval import mesh as M
+from hzval.geometry import tile as M
 
 
 def ray_down(scene, x, y):
@@ -71,7 +71,8 @@ def test_triangles_face_up():
 
 
 def test_vertex_normals_match_the_normal_map(variant):
-    from hzval import bake, conventions as cv
+    from hzval.bake import maps as bake
+    from hzval.core import conventions as cv
 
     h = np.tile(np.arange(8, dtype=np.float32) / 8, (5, 1))
     m = M.displaced_mesh(h, 0.25, "wrap", margin=2, normals=True)

@@ -1,4 +1,4 @@
-"""The base mesh (hzval.model): the built-in shapes' analytic properties, the readers' UV and
+"""The base mesh (hzval.geometry.model): the built-in shapes' analytic properties, the readers' UV and
 up-axis conventions, glTF TANGENT round trips, and bad files as one InputError naming the file."""
 
 import math
@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from hzval import model
-from hzval.errors import InputError
+from hzval.geometry import model
+from hzval.core.errors import InputError
 
 QUAD_P = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
 QUAD_UV = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
@@ -250,7 +250,7 @@ def test_shape_arguments():
 
 def _cube_corners():
     """The cube as 8 shared corners, each face's UVs in its own cell of a 3 x 2 atlas (mirrored
-    where :data:`hzval.model.CUBE_FACES` mirrors), so no two faces share a UV at a corner."""
+    where :data:`hzval.geometry.model.CUBE_FACES` mirrors), so no two faces share a UV at a corner."""
     c = model.cube()
     cell = np.repeat(np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]]), 4, axis=0)
     uv = (c.uvs * 0.3 + 0.01 + cell * 0.33)

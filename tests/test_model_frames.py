@@ -1,4 +1,4 @@
-"""The techniques with a tangent frame per sample (hzval.lookup.Samples.frames), as on a model.
+"""The techniques with a tangent frame per sample (hzval.scene.lookup.Samples.frames), as on a model.
 
 Two invariances pin the per-sample path down without a model: where every
 sample's frame is the world's, the horizon map, the ray march and the plain
@@ -14,9 +14,12 @@ import math
 import numpy as np
 import pytest
 
-from hzval import lookup, scene as S, surface, technique
-from hzval import conventions as cv
-from hzval.bake import BakeParams, bake
+from hzval.scene import lookup
+from hzval.scene import spec as S
+from hzval.techniques import surface
+from hzval.techniques import registry as technique
+from hzval.core import conventions as cv
+from hzval.bake.maps import BakeParams, bake
 
 
 def _scene(n=24, effects="shadow,diffuse", spp=2):
@@ -79,7 +82,7 @@ def test_the_base_meshs_shadow_multiplies_the_factor(variant, name):
     dark[:, : n // 2] = 0.0
 
     def macro(direction):
-        from hzval.backend import mi
+        from hzval.core.backend import mi
         return mi.Float(dark.ravel())
 
     plane, framed = _contexts(scene, macro=macro)

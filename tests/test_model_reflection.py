@@ -20,12 +20,18 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake as hz_bake, cli, model, model_truth, scene as S, technique, truth
-from hzval import conventions as cv
-from hzval.bake import BakeParams, bake
-from hzval.errors import InputError
-from hzval.horizon import DEFAULT_FADE
-from hzval.model_truth import ModelTruth
+from hzval.bake import maps as hz_bake
+from hzval.cli import main as cli
+from hzval.geometry import model
+from hzval.truth import model as model_truth
+from hzval.scene import spec as S
+from hzval.techniques import registry as technique
+from hzval.truth import plane as truth
+from hzval.core import conventions as cv
+from hzval.bake.maps import BakeParams, bake
+from hzval.core.errors import InputError
+from hzval.techniques.horizon import DEFAULT_FADE
+from hzval.truth.model import ModelTruth
 
 EFFECTS = "shadow,diffuse,reflection_occlusion"
 
@@ -156,7 +162,7 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
     assert model_truth.bytes_per_sample(lobe) > model_truth.bytes_per_sample(plain)
     h = S.load_material_height(plain.material).height
     sphere = model.load("sphere")
-    from hzval import displace
+    from hzval.geometry import displace
     triangles, mesh_bytes = displace.estimate(sphere, h.shape, "wrap", height=h, depth=plain.material.depth,
                                               tolerance=plain.material.truth_tolerance)
     base = mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
@@ -171,7 +177,7 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
 def test_specular_in_perspective_on_a_model_is_each_samples_own_view(variant):
     """The per-sample view that the fade reads also serves ``specular`` in perspective on a model:
     where the truth sees the light, its Blinn-Phong shading is the techniques' at its own hits."""
-    from hzval import surface
+    from hzval.techniques import surface
 
     scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
                    view_azimuth=-30, resolution=(64, 64), spp=2, effects="shadow,diffuse,specular")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from hzval import cli
+from hzval.cli import main as cli
 
 SMALL = ["sweep", "--size", "24", "--depth", "0.1", "--spp", "1", "--azimuths", "-30,30", "--quiet",
          "--resolution", "40x40"]

@@ -1,4 +1,4 @@
-"""The truth on a model and the techniques on it (hzval.model_truth), against what must hold.
+"""The truth on a model and the techniques on it (hzval.truth.model), against what must hold.
 
 - A unit quad whose UVs are its (x, y) is the plane: its camera is the tile's, its techniques'
   factors the plane's pixel for pixel, its truth the plane's to the noise.
@@ -15,9 +15,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hzval import model, scene as S, surface, technique, truth
-from hzval.bake import BakeParams, bake
-from hzval.model_truth import ModelTruth
+from hzval.geometry import model
+from hzval.scene import spec as S
+from hzval.techniques import surface
+from hzval.techniques import registry as technique
+from hzval.truth import plane as truth
+from hzval.bake.maps import BakeParams, bake
+from hzval.truth.model import ModelTruth
 
 
 def _scene(n=48, **kw):

@@ -1,4 +1,4 @@
-"""The curvature study's meshes (hzval.models_study): caps on their sphere, UVs at one texture per
+"""The curvature study's meshes (hzval.studies.models): caps on their sphere, UVs at one texture per
 world unit, a bowl the cap's mirror; ``hzval models`` end to end (slow)."""
 
 import json
@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval import model, models_study
+from hzval.geometry import model
+from hzval.studies import models as models_study
 
 
 @pytest.mark.parametrize("radius,sign", [(0.5, 1), (2.0, 1), (1.0, -1), (math.inf, 1)])
@@ -29,7 +30,7 @@ def test_a_cap_lies_on_its_sphere(tmp_path, radius, sign):
 
 @pytest.mark.slow
 def test_the_study_end_to_end(tmp_path):
-    from hzval import cli
+    from hzval.cli import main as cli
 
     out = tmp_path / "m"
     assert cli.main(["models", "--material", "spikes", "--size", "24", "--resolution", "24x24", "--spp", "1",

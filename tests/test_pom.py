@@ -1,4 +1,4 @@
-"""Ray-marched height-field shadows (hzval.pom) against answers known in advance.
+"""Ray-marched height-field shadows (hzval.techniques.pom) against answers known in advance.
 
 A flat plane is fully lit; a plateau wall of height h casts a hard shadow
 h / tan(e) long behind its far edge, to within one step of the march; a thin
@@ -14,8 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import cli, pom, truth
-from hzval.errors import InputError
+from hzval.cli import main as cli
+from hzval.techniques import pom
+from hzval.truth import plane as truth
+from hzval.core.errors import InputError
 from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
@@ -119,7 +121,7 @@ def test_converges_to_the_truths_visibility_on_the_bricks(variant):
     from about 0.013 at 4 steps to about 0.005 at 64 (spp 4; the rest is the bilinear height field
     against the mesh's triangles and the truth's noise)."""
     from hzval.materials.bricks import bricks
-    from hzval import scene as S
+    from hzval.scene import spec as S
 
     h = bricks(64)
     scene = S.override(S.Scene(), size=64, effects="shadow", spp=4)

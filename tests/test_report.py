@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval import files, report
+from hzval.io import files
+from hzval.report import pages as report
 
 NASTY_NAME = "<b>x.png"
 COMMAND = "hzval sweep '<b>x.png' --azimuths -15:15:15 --out 'a&b' && echo \"<script>alert(1)</script>\""

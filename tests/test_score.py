@@ -8,7 +8,8 @@ import shutil
 import numpy as np
 import pytest
 
-from hzval import cli, files
+from hzval.cli import main as cli
+from hzval.io import files
 
 
 @pytest.fixture(scope="module")

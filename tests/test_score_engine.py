@@ -9,7 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from hzval import cli, files, materials
+from hzval import materials
+from hzval.cli import main as cli
+from hzval.io import files
 
 SIZE, DEPTH = 32, 0.1
 

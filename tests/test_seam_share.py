@@ -1,11 +1,12 @@
-"""The share of error near UV seams (hzval.seam_share) on a model whose seams are known: the cube's
+"""The share of error near UV seams (hzval.studies.seam_share) on a model whose seams are known: the cube's
 twelve edges are seams (its faces are rotated and mirrored as an unwrap does), its faces' diagonals
 are not; the plane has none."""
 
 import numpy as np
 import pytest
 
-from hzval import model, seam_share
+from hzval.geometry import model
+from hzval.studies import seam_share
 
 
 def test_distances_to_the_cubes_seams():

@@ -4,7 +4,7 @@
 algorithm) kept as close to the listing as possible, with only the changes
 that hzval's conventions call for (any size, wrap/open, +y up the image,
 heights in texel units, averaged ambient terms). It is compiled once per
-session; :func:`hzval.bake.horizon_map` must reproduce it texel for texel up
+session; :func:`hzval.bake.maps.horizon_map` must reproduce it texel for texel up
 to float rounding, on odd, tiny, degenerate and power-of-two sizes, both
 boundaries and several radii and bin counts. The peer's ``-DHOISTED_TABLE``
 variant (its offset table computed once: the benchmark's speed peer) must
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import bake
-from hzval import conventions as cv
+from hzval.bake import maps as bake
+from hzval.core import conventions as cv
 
 GCC = shutil.which("gcc")
 SOURCE = Path(__file__).resolve().parents[1] / "benchmarks" / "seed_bake.c"
@@ -121,14 +121,14 @@ def test_horizon_map_matches_seed_peer(variant, seed_peer, tmp_path,
         idx = np.unravel_index(np.argmax(np.abs(ours - theirs)), ours.shape)
         where[name] = f"at {tuple(int(i) for i in idx)}: hzval {ours[idx]:.7g}, seed {theirs[idx]:.7g}"
     bad = {k: v for k, v in diffs.items() if not v <= TOLERANCE}
-    assert not bad, (f"hzval.bake.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
+    assert not bad, (f"hzval.bake.maps.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
                      + "; ".join(f"{k}: max |diff| {v:.3g} {where[k]}" for k, v in bad.items())
                      + f" (all: {diffs})")
 
 
 @pytest.mark.parametrize("radius, angles", [(16, 32), (5, 16), (16, 64), (3, 48), (24, 128)])
 def test_offset_table_matches_libm(radius, angles):
-    """Every offset of :func:`hzval.bake.horizon_table` covers the seed's bins.
+    """Every offset of :func:`hzval.bake.maps.horizon_table` covers the seed's bins.
 
     The random maps above exercise an offset only where it sets a maximum;
     this checks all of them, with the C library functions that the peer calls

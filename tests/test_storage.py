@@ -1,4 +1,4 @@
-"""Storage of the horizon map (hzval.storage): bytes, round trips through real block codecs, and
+"""Storage of the horizon map (hzval.io.storage): bytes, round trips through real block codecs, and
 what the approximation reads from them."""
 
 from __future__ import annotations
@@ -6,8 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hzval import horizon, surface, bake, storage
-from hzval.files import unit_to_u8
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.bake import maps as bake
+from hzval.io import storage
+from hzval.io.files import unit_to_u8
 from test_truth import make_scene
 
 

@@ -9,9 +9,13 @@ from urllib.parse import quote
 import numpy as np
 import pytest
 
-from hzval import cli, files, materials, suite, sweep
-from hzval import scene as S
-from hzval.errors import InputError
+from hzval import materials
+from hzval.cli import main as cli
+from hzval.io import files
+from hzval.commands import suite
+from hzval.pipeline import sweep
+from hzval.scene import spec as S
+from hzval.core.errors import InputError
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
 #: Scores a suite row must reproduce from a standalone sweep (times differ run to run).
@@ -57,7 +61,7 @@ def test_entries_read_folders_sidecars_scene_files_and_names(tmp_path):
 
 def test_a_folder_of_scene_files_is_a_suite_of_them():
     """`hzval suite scenes/`: the shipped scenes, each by its own name; wall.toml is wall.png's sidecar."""
-    from hzval import check
+    from hzval.commands import check
 
     items = {e.name: e for e in suite.entries([check.repository_path("scenes")])}
     assert set(materials.names()) | {"wall", "wall-soft"} <= set(items)
@@ -354,7 +358,7 @@ def test_ctrl_c_writes_the_overview_of_what_finished(tmp_path, monkeypatch, vari
 
 def test_each_sweep_reports_its_own_peak_memory():
     """In one process, a small sweep after a larger one reports its own peak, not the process's."""
-    from hzval.sweep import peak_rss_bytes, reset_peak_rss
+    from hzval.pipeline.sweep import peak_rss_bytes, reset_peak_rss
 
     reset_peak_rss()
     base = peak_rss_bytes()

@@ -9,7 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import cli, files, sweep, technique
+from hzval.cli import main as cli
+from hzval.io import files
+from hzval.pipeline import sweep
+from hzval.techniques import registry as technique
 
 # docs/ARCHITECTURE.md, "metrics.json".
 TOP_KEYS = {"schema_version", "material", "parameters", "versions", "timings", "simulated", "techniques", "frames"}
@@ -306,7 +309,7 @@ def test_sixteen_directions_sweep_records_them(variant, tmp_path):
 def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_path, capsys):
     """A sweep into a folder whose cached bake was cut short rebakes it, with one warning line, and
     exits 0 (it used to fail with exit 2 on every later run)."""
-    from hzval import cli
+    from hzval.cli import main as cli
 
     argv = ["sweep", "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
             "--out", str(tmp_path), "--quiet"]
@@ -334,7 +337,9 @@ def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypat
     """Interrupted at its second light, a sweep into a folder with an earlier report leaves every file of
     that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130.
     ``render``: the truth's; ``_finish``: while the light is compared and its files written."""
-    from hzval import cli, sweep as sw, truth
+    from hzval.cli import main as cli
+    from hzval.pipeline import sweep as sw
+    from hzval.truth import plane as truth
 
     owner = truth.Truth if stage == "render" else sw
 
@@ -361,7 +366,7 @@ def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypat
 
 
 def test_a_finished_sweep_replaces_the_old_report_whole(variant, tmp_path):
-    from hzval import cli
+    from hzval.cli import main as cli
 
     out = tmp_path / "out"
     assert cli.main(SMALL_SWEEP + ["--azimuths", "-30,0,30,60", "--out", str(out)]) == 0
@@ -372,7 +377,8 @@ def test_a_finished_sweep_replaces_the_old_report_whole(variant, tmp_path):
 
 
 def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, capsys):
-    from hzval import cli, files
+    from hzval.cli import main as cli
+    from hzval.io import files
 
     out = tmp_path / "out"
     with files.folder_lock(out, "hzval sweep (the first run)"):
@@ -385,9 +391,12 @@ def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, ca
 
 
 def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_path, capsys, monkeypatch):
-    """The estimate (hzval.sweep.estimate_peak_bytes) against the memory available: over it, one line
+    """The estimate (hzval.pipeline.sweep.estimate_peak_bytes) against the memory available: over it, one line
     naming the input and the estimate, exit 2, nothing written; under it, recorded beside the peak."""
-    from hzval import bake, cli, scene as S, sweep as sw
+    from hzval.bake import maps as bake
+    from hzval.cli import main as cli
+    from hzval.scene import spec as S
+    from hzval.pipeline import sweep as sw
 
     scene = S.override(S.Scene(), size=1024)
     need = sw.estimate_peak_bytes(scene, 1024, 1024)
@@ -419,7 +428,8 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
     import threading
     import time as _time
 
-    from hzval import cli, sweep as sw
+    from hzval.cli import main as cli
+    from hzval.pipeline import sweep as sw
 
     out = tmp_path / "out"
     real_png, real_result = sw._write_png_of, concurrent.futures.Future.result
@@ -449,10 +459,10 @@ def _rss_bytes() -> int:
 
 
 def test_freed_memory_is_kept_while_retained_and_handed_back_after():
-    """hzval.backend.retain_freed_memory: a freed 256 MB array stays with the process (its pages are
+    """hzval.core.backend.retain_freed_memory: a freed 256 MB array stays with the process (its pages are
     the next allocation's); hand_back_freed_memory gives them back, and a later one is unmapped
     again as glibc does."""
-    from hzval import backend
+    from hzval.core import backend
 
     if not backend.retain_freed_memory():
         pytest.skip("not glibc: nothing to retain")
@@ -474,7 +484,8 @@ def test_freed_memory_is_kept_while_retained_and_handed_back_after():
 def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_path, monkeypatch):
     """A sweep far below the memory available retains what it frees (metrics.json says so) and hands
     it back when it ends; one near the limit does not retain."""
-    from hzval import backend, bake
+    from hzval.core import backend
+    from hzval.bake import maps as bake
 
     calls = []
     real = backend.hand_back_freed_memory

@@ -1,4 +1,4 @@
-"""Engine tangent-frame bugs on purpose (hzval.tangent_bugs): the techniques' frames change, the
+"""Engine tangent-frame bugs on purpose (hzval.geometry.tangent_bugs): the techniques' frames change, the
 truth's never do.
 
 - ``none`` is today's render, bit for bit.
@@ -16,10 +16,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hzval import model, scene as S, tangent_bugs, technique
-from hzval.bake import BakeParams, bake
-from hzval.errors import InputError
-from hzval.model_truth import ModelTruth
+from hzval.geometry import model
+from hzval.scene import spec as S
+from hzval.geometry import tangent_bugs
+from hzval.techniques import registry as technique
+from hzval.bake.maps import BakeParams, bake
+from hzval.core.errors import InputError
+from hzval.truth.model import ModelTruth
 
 
 def _scene(n=32, bug="none", **kw):
@@ -134,7 +137,7 @@ SMALL = ["sweep", "--size", "24", "--depth", "0.1", "--spp", "1", "--azimuths", 
 
 
 def test_a_sweep_records_its_bug(tmp_path):
-    from hzval import cli
+    from hzval.cli import main as cli
     import json
 
     out = tmp_path / "bug"
@@ -148,7 +151,7 @@ def test_a_sweep_records_its_bug(tmp_path):
                                           (["--camera", "orthographic", "--tangent-bug", "swap-uv"],
                                            "needs a model")])
 def test_a_bad_bug_is_one_line(tmp_path, capsys, extra, needle):
-    from hzval import cli
+    from hzval.cli import main as cli
 
     out = tmp_path / "out"
     assert cli.main(SMALL + extra + ["--out", str(out)]) == 2
@@ -162,7 +165,7 @@ def _engine_frames(sweep, folder):
     sweep saw nothing) as ``f_<name>.exr``."""
     import json
 
-    from hzval import files
+    from hzval.io import files
 
     folder.mkdir()
     for f in json.loads((sweep / "metrics.json").read_text())["frames"]:
@@ -177,7 +180,8 @@ def _engine_frames(sweep, folder):
 def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
     """The cube seen from -x (its mirrored face) and +y: frames hzval renders with a bug, scored
     against the correct sweep, are named after that bug; the correct frames name none."""
-    from hzval import cli, score
+    from hzval.cli import main as cli
+    from hzval.commands import score
 
     args = ["sweep", "--size", "32", "--depth", "0.1", "--spp", "1", "--azimuths", "135,225", "--quiet",
             "--resolution", "40x40", "--technique", "horizon", "--mesh", "cube", "--view-azimuth", "150",

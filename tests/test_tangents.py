@@ -1,10 +1,11 @@
-"""Tangent frames (hzval.tangents): FGED2's CalculateTangents on analytic meshes, the invariances
+"""Tangent frames (hzval.geometry.tangents): FGED2's CalculateTangents on analytic meshes, the invariances
 a frame must have (rotation, mirroring), and tangent space <-> world."""
 
 import numpy as np
 import pytest
 
-from hzval import model, tangents as tg
+from hzval.geometry import model
+from hzval.geometry import tangents as tg
 
 
 def _rotation(seed=0):
@@ -81,7 +82,7 @@ def test_to_world_and_back():
 
 
 def test_to_world_on_drjit_matches_numpy(variant):
-    from hzval.backend import mi
+    from hzval.core.backend import mi
 
     n, t, v = np.array([[0.1, 0.2, 1.0]]), np.array([[1.0, 0.3, 0.0]]), np.array([[0.3, -0.5, 0.8]])
     got = tg.to_world(mi.Vector3f(v.T), mi.Vector3f(n.T), mi.Vector3f(t.T), mi.Float(-1.0))

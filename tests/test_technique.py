@@ -1,4 +1,4 @@
-"""The Technique interface and its registry (hzval.technique).
+"""The Technique interface and its registry (hzval.techniques.registry).
 
 Every registered technique builds from a Context and renders frames of the
 documented form; selection follows the declared effects; and a technique
@@ -15,10 +15,17 @@ import json
 import numpy as np
 import pytest
 
-from hzval import horizon, surface, bake, check, cli, sweep, technique, tradeoff
-from hzval import scene as S
-from hzval.errors import InputError
-from hzval.scene import Frame
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.bake import maps as bake
+from hzval.commands import check
+from hzval.cli import main as cli
+from hzval.pipeline import sweep
+from hzval.techniques import registry as technique
+from hzval.commands import tradeoff
+from hzval.scene import spec as S
+from hzval.core.errors import InputError
+from hzval.scene.spec import Frame
 
 
 class NeverShadow(technique.Technique):
@@ -95,7 +102,7 @@ def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_pa
     table = capsys.readouterr().out
     m = json.loads((out / "metrics.json").read_text())
     assert "never" in m["techniques"] and m["simulated"]["never"] == ["shadow", "diffuse"]
-    from hzval import files
+    from hzval.io import files
 
     for f in m["frames"]:
         own = f["techniques"]["never"]

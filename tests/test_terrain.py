@@ -1,4 +1,4 @@
-"""Raudins' terrain shadows (hzval.terrain) against answers known in advance.
+"""Raudins' terrain shadows (hzval.techniques.terrain) against answers known in advance.
 
 Flat ground is lit; a wall of height h casts a shadow h / tan(e) long on
 the side away from the light (as the truth's test in tests/test_truth.py
@@ -13,9 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import horizon, surface
-from hzval import terrain as T
-from hzval.errors import InputError
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.techniques import terrain as T
+from hzval.core.errors import InputError
 from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
@@ -132,7 +133,11 @@ def test_bad_ramp_and_impl_are_refused(variant):
 
 @pytest.fixture(scope="module")
 def bricks64(variant):
-    from hzval import horizon, surface, bake, scene as S, truth
+    from hzval.techniques import horizon
+    from hzval.techniques import surface
+    from hzval.bake import maps as bake
+    from hzval.scene import spec as S
+    from hzval.truth import plane as truth
 
     sc = S.Scene(material=S.MaterialSpec(size=64), effects=("shadow", "diffuse")).validate()
     height = S.load_material_height(sc.material).height
@@ -142,7 +147,7 @@ def bricks64(variant):
 
 def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
     """Mean |F - V| over Figure 5.3's sweep at 64 px: terrain 0.012, horizon map 0.021 (measured)."""
-    from hzval import compare
+    from hzval.metrics import compare
 
     sc, height, bk, tr, ap = bricks64
     shared = surface.Unshadowed(sc, bk)
@@ -174,8 +179,8 @@ def test_without_a_bake_it_shades_with_its_own_normal_map(bricks64):
 def test_ambient_is_not_shadowed(variant):
     """With ambient declared, image = direct F + ambient: a fully shadowed
     pixel keeps its sky, albedo * A * E / pi (A its ambient-map layer, uniform albedo)."""
-    from hzval import bake
-    from hzval.shading import SKY_RADIANCE_PER_IRRADIANCE
+    from hzval.bake import maps as bake
+    from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE
 
     h = column_wall(16, 32, 20)
     sc = make_scene(h.shape, 4 / 32, "open", effects=("shadow", "diffuse", "ambient"), spp=4, albedo=0.5,

@@ -8,9 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from hzval import horizon, surface, cli, tradeoff
-from hzval.scene import MaterialSpec, Scene
-from hzval.tradeoff import Point
+from hzval.techniques import horizon
+from hzval.techniques import surface
+from hzval.cli import main as cli
+from hzval.commands import tradeoff
+from hzval.scene.spec import MaterialSpec, Scene
+from hzval.commands.tradeoff import Point
 
 POINT_KEYS = {"name", "kind", "time_s", "storage_bytes", "visibility_mae", "flip_mean", "pareto"}
 

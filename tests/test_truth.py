@@ -1,6 +1,6 @@
 """The ground truth against answers known in advance (docs/ARCHITECTURE.md "Effects", issue 3).
 
-Every number hzval reports is measured against :mod:`hzval.truth`, so these
+Every number hzval reports is measured against :mod:`hzval.truth.plane`, so these
 tests pin it to geometry and radiometry that can be worked out by hand:
 flat ground, straight walls (whose shadow along the light's azimuth is
 ``h / tan(e)`` long, which pins the handedness of the whole pipeline),
@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import camera as hz_camera
-from hzval import scene as S
-from hzval.errors import InputError
+from hzval.scene import camera as hz_camera
+from hzval.scene import spec as S
+from hzval.core.errors import InputError
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -37,7 +37,7 @@ def make_scene(shape, depth, boundary="open", *, effects=("shadow",), elevation=
 
 
 def truth(h, depth, boundary="open", **kw):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     positions = kw.pop("positions", None)
     albedo = kw.pop("albedo_map", None)
@@ -186,7 +186,7 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
 
 
 def test_the_shipped_wall_scene_casts_its_documented_shadow(variant):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     sc = S.load_scene(SCENES / "wall.toml")
     t = Truth(sc, S.load_material_height(sc.material).height)
@@ -208,7 +208,7 @@ def _disk_visible_fraction(t):
 
 @pytest.fixture(scope="module")
 def soft_wall(variant):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     sc = S.load_scene(SCENES / "wall-soft.toml")
     height = S.load_material_height(sc.material).height
@@ -271,7 +271,7 @@ def test_soft_light_of_vanishing_radius_converges_to_the_hard_light(variant):
 
 
 def test_fixed_seed_is_deterministic_and_another_seed_differs(soft_wall):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     sc, height, t = soft_wall
     a = t.render(45.0)
@@ -340,7 +340,7 @@ def test_lambert_on_a_ramp_uses_the_normal_of_the_displaced_surface(variant, azi
 
 
 def test_blinn_phong_specular_on_a_flat_plane(variant):
-    from hzval.shading import SPECULAR_EXPONENT, SPECULAR_KS
+    from hzval.core.shading import SPECULAR_EXPONENT, SPECULAR_KS
 
     E, e, a = 1.2, 70.0, 0.3
     flat = np.full((4, 4), 0.2)
@@ -417,7 +417,7 @@ def test_a_low_soft_light_sees_past_endless_walls_traced_in_hops(variant):
     samples and light directions the truth draws. Directions under 0.25
     degrees count as occluded (``MIN_TRACED_ELEVATION_DEG``).
     """
-    from hzval.truth import MIN_TRACED_ELEVATION_DEG, _off_edge_lines
+    from hzval.truth.plane import MIN_TRACED_ELEVATION_DEG, _off_edge_lines
 
     rows, cols, wall, h = 8, 16, 8, 2.0
     t = truth(column_wall(rows, cols, wall), h / cols, "wrap", kind="soft", elevation=1.5, radius=2.0, spp=16)
@@ -588,7 +588,7 @@ def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
     so a direction is blocked iff its run across x rises slower than the profile ahead of
     it. Half vectors drawn from ``pdf(h)`` weigh ``f cos / pdf``, proportional to ``wo.h``
     (``= h_z`` seen from ``v = +z``), where the lobe is above the facet."""
-    from hzval.shading import SPECULAR_EXPONENT
+    from hzval.core.shading import SPECULAR_EXPONENT
 
     rng = np.random.default_rng(seed)
     b = math.radians(slope_deg)
@@ -699,8 +699,8 @@ def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, mon
     """Depth 2 on 48 x 48 bricks (80 texels of relief) at 10 degrees would want a margin of 457 texels
     (a mesh 20 times the tile a side); the capped margin is 32 texels, and its rays hop to the same
     visibility, sample for sample, as the full margin's."""
-    from hzval import conventions as cv
-    from hzval import mesh as meshes
+    from hzval.core import conventions as cv
+    from hzval.geometry import tile as meshes
     from hzval.materials.bricks import bricks
 
     h = bricks(48)
@@ -720,7 +720,7 @@ def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
     """Issue 16's case at a small size: depth 5 at 10 degrees was killed for memory at 512 x 512."""
     import json
 
-    from hzval import cli
+    from hzval.cli import main as cli
 
     np.save(tmp_path / "deep.npy", np.random.default_rng(3).random((40, 40)).astype(np.float32))
     out = tmp_path / "o"
@@ -747,7 +747,7 @@ def test_bands_give_the_pixels_of_one_piece(kw):
     """Bands of 3 and of 7 pixel rows (the last one short) against one band, their camera hits
     traced again in each frame or kept: every layer, the image and the variances are equal, not
     close; the samples moved off edge lines are counted once."""
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     h = np.random.default_rng(8).random((17, 13)).astype(np.float32)
     sc = make_scene(h.shape, 0.15, **kw)
@@ -770,7 +770,7 @@ def test_bands_give_the_pixels_of_one_piece(kw):
 
 
 def test_large_images_are_banded_by_default():
-    from hzval.truth import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, _bands, keeps_samples
+    from hzval.truth.plane import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, _bands, keeps_samples
 
     kept = _bands((2048, 2048), 16)                                  # 67M samples: kept, in bands
     assert keeps_samples(2048, 2048, 16) and not keeps_samples(4096, 4096, 16)

@@ -1,4 +1,4 @@
-"""The truth's mesh in bands (hzval.truth_bands) gives the single mesh's answers, bit for bit.
+"""The truth's mesh in bands (hzval.truth.bands) gives the single mesh's answers, bit for bit.
 
 A band's mesh holds only the cells its samples' rays can reach; the test compares whole frames of a
 truth in bands with the single mesh's, ``open`` and ``wrap``, at azimuths along +-x, +-y and between,
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from hzval import materials
-from hzval import mesh as M
-from hzval import truth_bands as TB
+from hzval.geometry import tile as M
+from hzval.truth import bands as TB
 
 from test_truth import make_scene
 
@@ -31,7 +31,7 @@ def bricks():
 
 
 def _same_frames(h, boundary, n_bands):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     sc = _scene(h, boundary)
     one = Truth(sc, h)
@@ -64,7 +64,7 @@ def test_bands_give_the_single_mesh_frames_bit_for_bit_at_512(variant, boundary)
 
 
 def test_a_cover_without_the_reach_differs(variant, bricks, monkeypatch):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     sc = _scene(bricks, "wrap")
     one = Truth(sc, bricks)
@@ -95,9 +95,10 @@ def test_why_not_names_the_rays_that_leave_a_band():
 
 
 def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
-    from hzval import bake, sweep
-    from hzval.errors import InputError
-    from hzval.scene import load_material_height
+    from hzval.bake import maps as bake
+    from hzval.pipeline import sweep
+    from hzval.core.errors import InputError
+    from hzval.scene.spec import load_material_height
 
     sc = _scene(np.zeros((1024, 1024), np.float32), "wrap")        # 4 sample bands of 256 rows
     sc = dataclasses.replace(sc, material=dataclasses.replace(sc.material, height="bricks", size=1024), spp=16)
@@ -114,9 +115,10 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
 
 
 def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
-    from hzval import bake, sweep
-    from hzval.errors import InputError
-    from hzval.scene import load_material_height
+    from hzval.bake import maps as bake
+    from hzval.pipeline import sweep
+    from hzval.core.errors import InputError
+    from hzval.scene.spec import load_material_height
 
     sc = _scene(np.zeros((64, 64), np.float32), "wrap")
     sc = dataclasses.replace(sc, material=dataclasses.replace(sc.material, height="bricks", size=64),
@@ -132,7 +134,7 @@ def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
 
 
 def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant, bricks):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     h = bricks[:64, :64]
     sc = _scene(h, "open", kind="soft", radius=8.0, supersampling=2)          # 128 x 128 pixels

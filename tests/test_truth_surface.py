@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import conventions as cv
-from hzval import mesh as M
+from hzval.core import conventions as cv
+from hzval.geometry import tile as M
 
 #: (name, the map turned, the light's azimuth turned): the tangent frame has x along the columns
 #: and y up the rows, so np.rot90 turns it counterclockwise and a transpose swaps x and -y
@@ -110,8 +110,8 @@ def test_a_turned_map_is_the_turned_surface(variant, boundary, turn):
 
 
 def _mean_v(h, boundary, azimuth, spp=16):
-    from hzval import scene as sc
-    from hzval.truth import Truth
+    from hzval.scene import spec as sc
+    from hzval.truth.plane import Truth
 
     scene = sc.override(sc.Scene(), depth=0.06, boundary=boundary, elevation=30.0, azimuths=str(azimuth),
                         spp=spp, effects="shadow")
@@ -135,7 +135,10 @@ def test_the_truth_of_a_turned_map_lit_from_the_turned_light_is_the_same(variant
 @pytest.fixture(scope="module")
 def turned_scores(tmp_path_factory):
     """Every technique's |F - V| on a 128 x 128 crop of bricks and on its four turns, lit to match."""
-    from hzval import backend, materials, scene as sc, sweep
+    from hzval import materials
+    from hzval.core import backend
+    from hzval.scene import spec as sc
+    from hzval.pipeline import sweep
 
     backend.variant()
     tmp = tmp_path_factory.mktemp("turned")
@@ -191,7 +194,7 @@ def test_every_technique_is_the_same_on_a_turned_map_at_the_turned_samples(varia
 
 @pytest.mark.parametrize("value", ["0", "-0.1", "nan", "inf"])
 def test_a_bad_truth_tolerance_is_one_line_exit_2_and_no_files(tmp_path, capsys, value):
-    from hzval import cli
+    from hzval.cli import main as cli
 
     out = tmp_path / "out"
     assert cli.main(["sweep", "--size", "32", "--azimuths", "0", f"--truth-tolerance={value}",
@@ -202,8 +205,9 @@ def test_a_bad_truth_tolerance_is_one_line_exit_2_and_no_files(tmp_path, capsys,
 
 
 def test_the_truth_tolerance_is_recorded_and_read(variant, tmp_path):
-    from hzval import scene as sc, sweep
-    from hzval.truth import Truth
+    from hzval.scene import spec as sc
+    from hzval.pipeline import sweep
+    from hzval.truth.plane import Truth
 
     scene = sc.override(sc.Scene(), size=32, azimuths="0", spp=1, truth_tolerance=0.5)
     m = sweep.run(scene, tmp_path / "s", options=sweep.Options(techniques=("horizon",)), progress=False)
@@ -215,10 +219,15 @@ def test_the_truth_tolerance_is_recorded_and_read(variant, tmp_path):
 
 def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_refused(variant, tmp_path, capsys,
                                                                                         monkeypatch):
-    """Once the map is read the sweep's estimate charges the truth's own triangles (hzval.truth.mesh_triangles,
-    the count hzval.mesh.tessellate makes): a finer tolerance costs more, and a mesh over the memory
+    """Once the map is read the sweep's estimate charges the truth's own triangles (hzval.truth.plane.mesh_triangles,
+    the count hzval.geometry.tile.tessellate makes): a finer tolerance costs more, and a mesh over the memory
     available is refused before the bake or the mesh, one line naming --truth-tolerance, exit 2, no files."""
-    from hzval import bake, cli, materials, scene as sc, sweep, truth
+    from hzval import materials
+    from hzval.bake import maps as bake
+    from hzval.cli import main as cli
+    from hzval.scene import spec as sc
+    from hzval.pipeline import sweep
+    from hzval.truth import plane as truth
 
     scene = sc.override(sc.Scene(), size=64, azimuths="0", spp=2).validate()
     h = materials.generate("bricks", 64).height

@@ -18,10 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval import camera as hz_camera
-from hzval import bake, camera, files, lookup, technique, truth
-from hzval import scene as sc
-from hzval.errors import InputError
+from hzval.scene import camera as hz_camera
+from hzval.bake import maps as bake
+from hzval.scene import camera
+from hzval.io import files
+from hzval.scene import lookup
+from hzval.techniques import registry as technique
+from hzval.truth import plane as truth
+from hzval.scene import spec as sc
+from hzval.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -171,7 +176,7 @@ def _march_check():
                                                            ("perspective", "open", "none")])
 def test_an_independent_march_of_the_recorded_rays_agrees_with_the_truth(tmp_path, camera_kind, boundary,
                                                                          parallax):
-    from hzval import sweep
+    from hzval.pipeline import sweep
 
     cam = camera.Camera(kind=camera_kind, elevation_deg=45 if camera_kind == "orthographic" else 35)
     scene = sc.override(sc.Scene(), height="gravel", size=64, boundary=boundary, azimuths="-45,30", spp=4,
@@ -233,7 +238,7 @@ def test_a_scene_file_places_the_camera(tmp_path):
 
 
 def test_hzval_views_sweeps_each_view_and_plots_the_errors(tmp_path):
-    from hzval import views
+    from hzval.commands import views
 
     scene = sc.override(sc.Scene(), height="gravel", size=32, azimuths="0", spp=1)
     data = views.run(scene, tmp_path / "v", views=["top", "ortho-45"], lookups=["bilinear", "parallax"],

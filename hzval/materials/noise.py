@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval import conventions as cv
+from hzval.core import conventions as cv
 
 __all__ = ["periodic_noise", "smoothstep", "Cells", "cells", "count", "grid", "finish", "tint", "shape_of"]
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hzval import conventions as cv
+from hzval.core import conventions as cv
 from hzval.materials import Material
 from hzval.materials.noise import finish, periodic_noise, shape_of, smoothstep, tint
 

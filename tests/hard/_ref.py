@@ -3,7 +3,7 @@
 * :func:`horizon_f64`: the seed bake in float64 NumPy, texel by texel, from
   the definition (max ``tan = dh / r`` per bin, ``sin = t / sqrt(1 + t^2)``,
   each channel the mean of its ``angles/8 + 1`` bins). It shares only the
-  offset-to-bins table with :mod:`hzval.bake` (``horizon_table``, which
+  offset-to-bins table with :mod:`hzval.bake.maps` (``horizon_table``, which
   ``tests/test_seed_peer.py`` pins against libm and the seed's C code).
 * :func:`mesh_horizon_tan`: the exact horizon of the displaced mesh along a
   direction, in float64: the ray's horizontal line is clipped against every
@@ -13,7 +13,7 @@
   ``e`` iff that tangent is >= ``tan e``; the triangle under the point
   counts too, so a triangle facing away from the light shadows its points.
 * :func:`gpu_weights`, :func:`exact_weights`: the channel weights of the two
-  approximation paths, from :mod:`hzval.conventions` (as in tests/test_approx.py).
+  approximation paths, from :mod:`hzval.core.conventions` (as in tests/test_approx.py).
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ import math
 
 import numpy as np
 
-from hzval import bake as B
-from hzval import conventions as cv
-from hzval import mesh as M
-from hzval import scene as S
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
+from hzval.geometry import tile as M
+from hzval.scene import spec as S
 
 
 # --------------------------------------------------------------------------
@@ -104,8 +104,8 @@ def channel_share(i, j, channel, angles=32):
 # --------------------------------------------------------------------------
 
 def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
-    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.mesh` builds: the tessellation of
-    the bilinear surface at ``tolerance`` (default :data:`hzval.mesh.DEFAULT_TOLERANCE`, the truth's).
+    """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.geometry.tile` builds: the tessellation of
+    the bilinear surface at ``tolerance`` (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`, the truth's).
     The references below trace these triangles in float64, independently of Mitsuba."""
     g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
     pos, faces, _ = M.tessellate(g, M.DEFAULT_TOLERANCE if tolerance is None else tolerance)
@@ -201,7 +201,7 @@ def make_scene(shape, depth, boundary="open", *, effects=("shadow",), elevation=
 
 
 def truth(h, depth, boundary="open", positions=None, **kw):
-    from hzval.truth import Truth
+    from hzval.truth.plane import Truth
 
     return Truth(make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), positions=positions)
 

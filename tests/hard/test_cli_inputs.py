@@ -1,5 +1,5 @@
 """Every bad input a clear error: one line on stderr naming the culprit, exit status 2, no files,
-never a traceback; through hzval.cli.main and once through the installed console script.
+never a traceback; through hzval.cli.main.main and once through the installed console script.
 
 (tests/test_cli.py and tests/test_sweep.py check a few of these for one command each; here every
 case runs against both commands where it applies.)
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval import cli
+from hzval.cli import main as cli
 
 pytestmark = pytest.mark.hard
 

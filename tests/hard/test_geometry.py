@@ -13,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import bake as B
-from hzval import conventions as cv
-from hzval.horizon import Horizon
-from hzval.errors import InputError
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
+from hzval.techniques.horizon import Horizon
+from hzval.core.errors import InputError
 
 from ._ref import (assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, texel_centres_flat,
                    truth)
@@ -169,7 +169,7 @@ def test_pyramid_exact_bake_gives_35_264_degrees(pyramid):
     try:
         params = B.BakeParams(depth=pyramid[1], boundary="open", method="exact").validate()
     except (InputError, TypeError, ValueError):
-        pytest.skip("hzval.bake has no exact method (yet)")
+        pytest.skip("hzval.bake.maps has no exact method (yet)")
     h, depth, n = pyramid
     r = B.bake(h, params)
     rows, cols = zip(*WEST_FACE)

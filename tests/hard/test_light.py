@@ -1,5 +1,5 @@
 """Light at the hard angles: grazing, zenith, below the horizon; azimuths on channel directions,
-bin edges, 360 and -0. For the truth (hzval.truth.Truth) and the approximation on both paths.
+bin edges, 360 and -0. For the truth (hzval.truth.plane.Truth) and the approximation on both paths.
 
 What each must give, known in advance:
 * every value finite; V, F in [0, 1]; images >= 0;
@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from hzval import bake as B
-from hzval.horizon import Horizon
+from hzval.bake import maps as B
+from hzval.techniques.horizon import Horizon
 
 from ._ref import assert_unit, make_scene, truth
 

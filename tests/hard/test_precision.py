@@ -9,9 +9,9 @@ import time
 import numpy as np
 import pytest
 
-from hzval import bake as B
-from hzval import conventions as cv
-from hzval.horizon import Horizon
+from hzval.bake import maps as B
+from hzval.core import conventions as cv
+from hzval.techniques.horizon import Horizon
 
 from ._ref import (assert_bake_sane, exact_weights, gpu_weights, horizon_f64, light32, make_scene,
                    uniform_bake)

@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval import bake as B
-from hzval import cli, files
-from hzval import conventions as cv
-from hzval import heightmap
-from hzval.horizon import Horizon
+from hzval.bake import maps as B
+from hzval.cli import main as cli
+from hzval.io import files
+from hzval.core import conventions as cv
+from hzval.io import heightmap
+from hzval.techniques.horizon import Horizon
 
 from ._ref import assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, truth, uniform_bake
 

@@ -16,10 +16,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval import camera as hz_camera
-from hzval import conventions as cv
-from hzval import scene as S
-from hzval.truth import _off_edge_lines
+from hzval.scene import camera as hz_camera
+from hzval.core import conventions as cv
+from hzval.scene import spec as S
+from hzval.truth.plane import _off_edge_lines
 
 from ._ref import classify, mesh_horizon_tan, mesh_triangles, texel_centres_flat, truth
 

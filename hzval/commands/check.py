@@ -1,0 +1,526 @@
+"""The regression check: the shipped scenes, rendered small, against the references in ``reference/``.
+
+:func:`run` renders every scene of ``scenes/*.toml`` at the small size its
+``[check]`` section asks for (64-128 px) with the truth (:mod:`hzval.truth.plane`)
+and every technique of the registry that applies to the scene
+(:mod:`hzval.techniques.registry`), each in the variants it asks to be guarded
+(:meth:`hzval.techniques.registry.Technique.check_variants`: the horizon map's
+``exact`` and ``gpu`` paths, the others as built), and compares each image
+with its reference::
+
+    reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
+    reference/<scene>/az<azimuth>/<variant>.exr    R, G, B, F   (horizon, horizon_gpu, terrain, pom, ...)
+
+(linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
+technique's shadow factor, ``var.*`` the variance of each pixel's mean).
+The techniques are deterministic and share the ``technique`` tiers, which a
+scene may set per technique or variant. Values are
+compared after the sweep's exposure (:func:`hzval.core.shading.exposure`), so a
+difference of 1 is the difference between black and a white Lambertian
+surface facing the light.
+
+Two kinds of image, two tests
+    A technique is deterministic: a pixel's score is its largest
+    absolute difference over the channels, and tolerances are tight (what
+    float rounding on another CPU or on a GPU may change, no more).
+
+    The truth is Monte Carlo: a new render with another seed differs from
+    the reference by noise alone, which the check must not mistake for a
+    regression. Each pixel is z-tested: ``z = |new - ref| / sqrt(var_new +
+    var_ref)``, two-sided p-value ``erfc(z / sqrt 2)``, as Mitsuba 3's own
+    render tests do (``src/render/tests/test_renders.py``: a z-test against
+    the reference's variance, with the Sidak correction ``alpha' = 1 - (1 -
+    alpha)^(1/n)`` for ``n`` tests). A per-pixel test at 16 samples cannot
+    see a change that stays within one pixel's noise yet covers many pixels
+    (a patch 20% darker), so the means of 8 x 8 blocks of pixels are tested
+    too (Jung, Hanika and Dachsbacher 2020, "Detecting Bias in Monte Carlo
+    Renderers using Welch's t-test", test pixel regions for the same
+    reason), all ``n`` pixel and block tests under one Sidak correction.
+
+    A pixel whose samples all agree has a sample variance of 0, though its
+    mean is uncertain: the variance of each mean is floored at
+    ``s^2 q (1 - q) / spp`` with ``q = 1 / (spp + 2)`` (Laplace's rule of
+    succession: after ``spp`` agreeing samples of a 0/1 event the other
+    outcome still has a probability of about ``1 / (spp + 2)``), ``s`` the
+    larger of the two values. Stratified sampling makes the estimated
+    variance an upper bound: the test errs toward passing noise.
+
+Tiers, per scene (``[tolerances.truth]``, ``[tolerances.technique]`` for every
+technique, then ``[tolerances.<technique>]`` and ``[tolerances.<variant>]``,
+each overriding the one before; ``[tolerances.approx]``, schema 1's name, is
+read as ``technique``; the defaults are :data:`DEFAULT_TIERS`)
+    ``fail``: when a pixel fails - technique: its difference exceeds ``fail``;
+    truth: its p-value is below the Sidak-corrected level ``fail``.
+    ``fail_percent``: the image fails when more than this percentage of its
+    pixels fail; a failing 8 x 8 block (truth) always fails it.
+    ``hard_fail``: the image fails outright - technique: any pixel differs by
+    more than ``hard_fail``; truth: the image means differ by more than
+    ``hard_fail`` (a bias no per-pixel allowance may hide).
+    ``warn``: a passing image is flagged when more than this percentage of
+    its pixels fail.
+
+``--update`` rewrites only the references that are missing or failing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hzval import materials
+from hzval.bake import maps as bake
+from hzval.metrics import compare
+from hzval.io import files
+from hzval.report import images
+from hzval.core import shading
+from hzval.techniques import registry as technique
+from hzval.scene import spec as sc
+from hzval.core.errors import InputError
+from hzval.pipeline import sweep
+from hzval.pipeline.sweep import frame_folder
+
+__all__ = ["Tiers", "DEFAULT_TIERS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
+           "render_references", "compare_image", "run", "write_report", "repository_path", "p_value", "sidak_level"]
+
+#: Side of the pixel blocks whose means the truth's test also compares.
+BLOCK = 8
+#: Largest side of a check render, in texels (references stay small).
+MAX_CHECK_SIZE = 128
+
+
+@dataclass(frozen=True)
+class Tiers:
+    """Thresholds of one kind of image (see the module docstring for their meaning)."""
+
+    fail: float
+    fail_percent: float
+    hard_fail: float
+    warn: float
+
+    @classmethod
+    def of(cls, scene, kind: str, technique_name: str | None = None) -> "Tiers":
+        """The tiers of image ``kind`` (``truth`` or a technique's check variant) of ``scene``."""
+        base = DEFAULT_TIERS["truth" if kind == "truth" else "technique"]
+        tables = ("truth",) if kind == "truth" else ("approx", "technique", technique_name, kind)
+        given = {}
+        for table in dict.fromkeys(t for t in tables if t):
+            given.update(scene.tolerances.get(table, {}))
+        unknown = set(given) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise InputError(scene.source or scene.name, f"unknown tolerance {sorted(unknown)[0]!r}; "
+                                                          "use fail, fail_percent, hard_fail, warn")
+        return dataclasses.replace(base, **{k: float(v) for k, v in given.items()})
+
+
+#: Default tiers. technique: absolute differences in exposed linear units (1 =
+#: white); 1e-4 is about 1/40 of an 8-bit step in the darks and far above
+#: float32 rounding. truth: significance level 0.01 (Sidak-corrected), an
+#: allowance of 0.2% of pixels, and a bias of 0.01 in the image mean.
+DEFAULT_TIERS = {
+    "technique": Tiers(fail=1e-4, fail_percent=0.0, hard_fail=0.01, warn=0.0),
+    "truth": Tiers(fail=0.01, fail_percent=0.2, hard_fail=0.01, warn=0.05),
+}
+
+
+@dataclass
+class ImageResult:
+    """The comparison of one image with its reference."""
+
+    scene: str
+    frame: str
+    kind: str
+    status: str                      # "pass", "warn", "fail" or "new"
+    reasons: list[str] = field(default_factory=list)
+    tiers: Tiers | None = None
+    numbers: dict = field(default_factory=dict)
+    maps: dict = field(default_factory=dict)          # "score": per-pixel map for the report
+    new: dict | None = None
+    reference: dict | None = None
+    scale: float = 1.0
+
+    @property
+    def name(self) -> str:
+        return f"{self.scene}/{self.frame}/{self.kind}"
+
+
+@dataclass
+class CheckResult:
+    images: list[ImageResult]
+    updated: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def passed(self) -> bool:
+        return all(r.status in ("pass", "warn") for r in self.images)
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.images)
+
+
+def repository_path(name: str) -> Path:
+    """``scenes/`` or ``reference/`` of the source tree hzval runs from."""
+    return Path(__file__).resolve().parents[2] / name
+
+
+# --------------------------------------------------------------------------
+# Rendering
+# --------------------------------------------------------------------------
+
+def check_scene(scene):
+    """``scene`` as the check renders it: the ``[check]`` section's size, azimuths, spp and depth.
+
+    ``depth``: a material whose relief is a few texels at 512 has next to none at a check size of
+    64-96 texels (its depth is in image widths); a deeper check keeps its shadows there to guard.
+    """
+    c = scene.check
+    size = c.get("size")
+    if size is not None and not materials.is_builtin(scene.material.height):
+        raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
+    unknown = set(c) - {"size", "azimuths", "spp", "depth", "resolution"}
+    if unknown:
+        raise InputError(scene.source or scene.name, f"unknown check setting {sorted(unknown)[0]!r}; "
+                                                      "use size, azimuths, spp, depth, resolution")
+    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"), depth=c.get("depth"),
+                       resolution=c.get("resolution"))
+
+
+def renderers(scene, height: np.ndarray, points=None) -> dict:
+    """``{kind: (variant, technique class, built technique)}``: every check variant of every
+    technique that applies to ``scene`` (on a model, ``points``: the truth's samples, and only the
+    techniques that render on models)."""
+    params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
+    rows, cols = height.shape
+    ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols),
+                            points=points)
+    out = {}
+    for t in technique.select(None, scene):
+        if points is not None and t.not_on_models:
+            continue
+        for v in t.check_variants():
+            out[v.name] = (v, t, t.build(ctx, **v.settings))
+    return out
+
+
+def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
+    ``seed`` replaces the scene's seed for the truth."""
+    # another seed moves the samples: only the truth takes it (the techniques are
+    # deterministic, and their references hold their images at the scene's own positions)
+    truth_scene = scene if seed is None else dataclasses.replace(scene, seed=int(seed))
+    hm = sc.load_material_height(scene.material)
+    rows, cols = hm.height.shape
+    if max(rows, cols) > MAX_CHECK_SIZE:
+        raise InputError(scene.source or scene.name,
+                         f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)")
+    the_truth, points = sweep.truth_of(truth_scene, hm.height, sc.load_albedo(scene.material, rows, cols))
+    if points is not None and seed is not None:
+        # the techniques read at the truth's hits: at the scene's own seed, whatever the truth's
+        points = sweep.truth_of(scene, hm.height, sc.load_albedo(scene.material, rows, cols))[1]
+    kinds = renderers(scene, hm.height, points)
+    out = {}
+    for az in scene.light.azimuths_deg:
+        name = frame_folder(az)
+        t = the_truth.render(az)
+        ch = _rgb(t.image)
+        ch["V"] = t.layers["visibility"]
+        var = _rgb(t.variance["image"])
+        ch.update({f"var.{k}": v for k, v in var.items()})
+        ch["var.V"] = t.variance["visibility"]
+        out[(name, "truth")] = ch
+        for kind, (_, _, r) in kinds.items():
+            a = r.render(az)
+            ch = _rgb(a.image)
+            ch["F"] = a.layers["factor"]
+            out[(name, kind)] = ch
+    return out
+
+
+def _rgb(image: np.ndarray) -> dict[str, np.ndarray]:
+    return {c: np.asarray(image[..., k], np.float32) for k, c in enumerate("RGB")}
+
+
+# --------------------------------------------------------------------------
+# Comparing
+# --------------------------------------------------------------------------
+
+def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
+    """The value channels (not ``var.*``) stacked last, in the order of ``names`` if given
+    (an EXR file lists its channels sorted by name)."""
+    names = names or [k for k in ch if not k.startswith("var.")]
+    return names, np.stack([np.asarray(ch[k], np.float64) for k in names], axis=-1)
+
+
+def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: str, tiers: Tiers,
+                  scale: float, spp: int) -> tuple[str, list[str], dict, dict]:
+    """``(status, reasons, numbers, maps)`` of one image against its reference.
+
+    ``scale`` multiplies the RGB channels (the exposure); ``V`` and ``F`` are
+    already in [0, 1].
+    """
+    names, a = _values(new)
+    ref_names = sorted(k for k in ref if not k.startswith("var."))
+    shapes = {np.shape(v) for v in ref.values()}
+    if ref_names != sorted(names) or (kind == "truth" and any(f"var.{n}" not in ref for n in names)) \
+            or shapes != {a.shape[:2]}:
+        return "fail", [f"reference has channels {sorted(ref)} of shape {sorted(shapes)}, the new render "
+                        f"{sorted(new)} of shape {a.shape[:2]}: render it again with --update"], {}, {}
+    _, b = _values(ref, names)
+    s = np.array([scale if n in "RGB" else 1.0 for n in names])
+    a, b = a * s, b * s
+    diff = a - b
+    absdiff = np.abs(diff)
+    n_pix = diff.shape[0] * diff.shape[1]
+    numbers = {"max_abs": float(absdiff.max()), "mean_abs": float(absdiff.mean()),
+               "mean_diff": float(diff.mean()), "pixels": n_pix}
+    reasons: list[str] = []
+    if not np.isfinite(a).all():
+        return "fail", ["the new render has non-finite values"], numbers, {"score": absdiff.max(-1)}
+    if kind != "truth":
+        failing, maps = _technique_test(absdiff, tiers, reasons)
+    else:
+        failing, maps = _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers, spp, numbers, reasons)
+    percent = 100.0 * float(failing.mean())
+    numbers.update(failing_pixels=int(failing.sum()), failing_percent=percent)
+    if percent > tiers.fail_percent:
+        what = f"|diff| > {tiers.fail:g}" if kind != "truth" else f"p < {numbers['alpha']:.2g}"
+        reasons.append(f"{percent:.3g}% of pixels fail ({what}) > fail_percent {tiers.fail_percent:g}%")
+    if reasons:
+        return "fail", reasons, numbers, maps
+    if percent > tiers.warn:
+        return "warn", [f"{percent:.3g}% of pixels fail > warn {tiers.warn:g}% (allowed up to "
+                        f"{tiers.fail_percent:g}%)"], numbers, maps
+    return "pass", [], numbers, maps
+
+
+def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[np.ndarray, dict]:
+    """A deterministic image: a pixel's score is its largest absolute difference over the channels."""
+    score = absdiff.max(-1)
+    if (score > tiers.hard_fail).any():
+        reasons.append(f"a pixel differs by {score.max():.3g} > hard_fail {tiers.hard_fail:g}")
+    return score > tiers.fail, {"score": score}
+
+
+def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict,
+                reasons: list) -> tuple[np.ndarray, dict]:
+    """A Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
+    bound on the bias of the image mean (module docstring)."""
+    var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
+    var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
+    q = 1.0 / (spp + 2)
+    floor = np.maximum(np.abs(a), np.abs(b)) ** 2 * q * (1 - q) / spp
+    var = np.maximum(np.nan_to_num(var_a), floor) + np.maximum(np.nan_to_num(var_b), floor)
+    var = np.maximum(var, 1e-12)           # two exact zeros: any difference is significant
+    p_pix = _p_value(absdiff / np.sqrt(var)).min(-1)
+    blocks_d, blocks_v = _block_sums(diff), _block_sums(var)
+    nb = blocks_d.shape[0] * blocks_d.shape[1]
+    p_blk = _p_value(np.abs(blocks_d) / np.sqrt(blocks_v)).min(-1)
+    n_tests = (diff.shape[0] * diff.shape[1] + nb) * len(names)
+    alpha = sidak_level(tiers.fail, n_tests)
+    bad_blocks = int((p_blk < alpha).sum())
+    bias = np.abs(diff.mean(axis=(0, 1)))
+    numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
+                   bias=float(bias.max()))
+    # the map shows the stronger evidence at each pixel: its own test or its block's
+    p_map = p_pix.copy()
+    hb, wb = p_blk.shape
+    p_map[:hb * BLOCK, :wb * BLOCK] = np.minimum(
+        p_map[:hb * BLOCK, :wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK))))
+    if (bias > tiers.hard_fail).any():
+        reasons.append(f"the image mean differs by {bias.max():.3g} > hard_fail {tiers.hard_fail:g}")
+    if bad_blocks:
+        reasons.append(f"{bad_blocks} of {nb} blocks of {BLOCK}x{BLOCK} pixels differ (p < {alpha:.2g})")
+    return p_pix < alpha, {"score": np.minimum(-np.log10(np.maximum(p_map, 1e-300)), 300.0), "alpha": alpha}
+
+
+def _p_value(z: np.ndarray) -> np.ndarray:
+    from scipy.special import erfc
+
+    return erfc(z / math.sqrt(2.0))
+
+
+def p_value(z, *, one_sided: bool = False):
+    """The p-value of a z-score: two-sided ``erfc(z / sqrt 2)`` (the truth's test), or one-sided,
+    half of it (a test of one direction only, e.g. a regression: :mod:`hzval.commands.gates`)."""
+    p = _p_value(np.asarray(z, np.float64))
+    return p / 2.0 if one_sided else p
+
+
+def sidak_level(alpha: float, n_tests: int) -> float:
+    """The per-test level of ``n_tests`` tests at family-wise level ``alpha`` (Sidak:
+    ``1 - (1 - alpha)^(1/n)``, computed without cancellation)."""
+    return -math.expm1(math.log1p(-alpha) / max(int(n_tests), 1))
+
+
+def _block_sums(x: np.ndarray) -> np.ndarray:
+    """Means of ``BLOCK x BLOCK`` blocks (for differences) are sums / BLOCK^2; variances of
+    means are sums / BLOCK^4: the ratio tested is the same, so sums are enough."""
+    h, w = x.shape[0] // BLOCK * BLOCK, x.shape[1] // BLOCK * BLOCK
+    x = x[:h, :w]
+    return x.reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK, -1).sum(axis=(1, 3))
+
+
+# --------------------------------------------------------------------------
+# The run
+# --------------------------------------------------------------------------
+
+def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
+    return Path(references) / scene / frame / f"{kind}.exr"
+
+
+def _variants(scene) -> dict:
+    """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``; a
+    ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line."""
+    out = {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
+    known = {"truth", "technique", "approx", *technique.names(),
+             *(v.name for n in technique.names() for v in technique.get(n).check_variants())}
+    for table in scene.tolerances:
+        if table not in known:
+            near = difflib.get_close_matches(table, sorted(known), n=1)
+            raise InputError(scene.source or scene.name, f"unknown table [tolerances.{table}]"
+                                                          + (f"; did you mean [tolerances.{near[0]}]?" if near else ""))
+    return out
+
+
+def _former_reference(references: Path, scene: str, frame: str, entry) -> Path | None:
+    """The reference a variant had under its former name (:attr:`hzval.techniques.registry.Variant.formerly`),
+    if there is one and none under its name: a reference folder of an earlier release."""
+    if entry is None or not entry[0].formerly:
+        return None
+    old = reference_file(references, scene, frame, entry[0].formerly)
+    return old if old.is_file() else None
+
+
+def load_scenes(scenes_dir: str | Path) -> list:
+    from hzval.scene import spec as sc
+
+    paths = sorted(Path(scenes_dir).glob("*.toml"))
+    if not paths:
+        raise InputError(scenes_dir, "no scene files (*.toml)")
+    return [sc.load_scene(p) for p in paths]
+
+
+def run(*, scenes_dir: str | Path | None = None, references: str | Path | None = None,
+        update: bool = False, seed: int | None = None, progress: bool = False,
+        only: list[str] | None = None) -> CheckResult:
+    """Render the shipped scenes and compare them with ``references``; with ``update``,
+    rewrite the references that are missing or failing."""
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
+    references = Path(references) if references else repository_path("reference")
+    scenes = [check_scene(s) for s in load_scenes(scenes_dir) if not only or s.name in only]
+    result = CheckResult(images=[])
+    for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):
+        scale = shading.exposure(scene)
+        rendered = render_references(scene, seed=seed)
+        variants = _variants(scene)
+        for (frame, kind), new in rendered.items():
+            path = reference_file(references, scene.name, frame, kind)
+            old = _former_reference(references, scene.name, frame, variants.get(kind))
+            tiers = Tiers.of(scene, kind, variants[kind][1] if kind in variants else None)
+            if old is not None and not path.is_file():
+                path = old
+            r = ImageResult(scene.name, frame, kind, "new", tiers=tiers, new=new, scale=scale)
+            if path.is_file():
+                try:
+                    ref = files.read_exr(path)
+                except Exception as exc:   # a corrupt reference fails its image, not the run
+                    r.status, r.reasons = "fail", [f"{path}: unreadable reference ({files.first_line(exc)})"]
+                else:
+                    r.reference = ref
+                    r.status, r.reasons, r.numbers, r.maps = compare_image(new, ref, kind, tiers, scale, scene.spp)
+            else:
+                r.reasons = [f"no reference at {path}"]
+            if update and (r.status in ("new", "fail") or path == old):
+                target = reference_file(references, scene.name, frame, kind)
+                files.write_exr(target, new)
+                if path == old:
+                    old.unlink()            # renamed: the reference now has its variant's name
+                result.updated.append(str(target))
+            result.images.append(r)
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def summary(result: CheckResult) -> str:
+    """Failures first, then warnings and new images; a last line with the counts."""
+    lines = []
+    order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
+    for r in sorted(result.images, key=lambda r: order[r.status]):
+        if r.status == "pass":
+            continue
+        lines.append(f"{r.status.upper():4}  {r.name}: {'; '.join(r.reasons)}")
+    lines.append(f"{len(result.images)} images: {result.count('pass')} pass, {result.count('warn')} warn, "
+                 f"{result.count('fail')} fail, {result.count('new')} new ({result.seconds:.1f} s)")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------
+# The failure report
+# --------------------------------------------------------------------------
+
+def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
+    """``out/index.html``: reference | new | difference for every image, failures first; the folder
+    held while it is written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write_report(result, out, files.portable_command(command, out))
+
+
+def _write_report(result: CheckResult, out: Path, command: str) -> Path:
+    from hzval.core import backend
+    from hzval.report import pages as report
+
+    order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
+    items = []
+    for i, r in enumerate(sorted(result.images, key=lambda r: (order[r.status], r.name))):
+        stem = f"img/{i:03d}"
+        entry = {"name": r.name, "status": r.status, "reasons": r.reasons, "kind": r.kind,
+                 "numbers": _fmt_numbers(r.numbers), "tiers": dataclasses.asdict(r.tiers) if r.tiers else {},
+                 "ref": None, "new": None, "diff": None, "diff_caption": ""}
+        if r.new is not None:
+            entry["new"] = _write_preview(out, f"{stem}-new.png", r.new, r.scale)
+        if r.reference is not None:
+            entry["ref"] = _write_preview(out, f"{stem}-ref.png", r.reference, r.scale)
+        score = r.maps.get("score")
+        if score is not None:
+            if r.kind == "truth":
+                top = max(-math.log10(r.maps["alpha"]), 1e-9)
+                entry["diff_caption"] = (f"-log10 p of each pixel or of its 8x8 block, whichever is smaller; "
+                                         f"white at the failing level p = {r.maps['alpha']:.2g}")
+            else:
+                top = r.tiers.hard_fail
+                entry["diff_caption"] = f"largest |new - ref| per pixel; white at hard_fail = {top:g}"
+            files.write_png(out / f"{stem}-diff.png", images.magma(score / top))
+            entry["diff"] = f"{stem}-diff.png"
+        items.append(entry)
+    html = report._environment().get_template("check.html.j2").render(
+        items=items, passed=result.passed, counts={s: result.count(s) for s in order},
+        updated=result.updated, seconds=result.seconds, command=command, versions=backend.versions())
+    index = out / "index.html"
+    with files.atomic_path(index) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return index
+
+
+def _write_preview(out: Path, rel: str, ch: dict, scale: float) -> str:
+    rgb = np.stack([ch["R"], ch["G"], ch["B"]], -1)
+    files.write_png(out / rel, files.unit_to_u8(compare.display(rgb, scale)))
+    return rel
+
+
+def _fmt_numbers(n: dict) -> list[tuple[str, str]]:
+    def g(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+    labels = {"failing_percent": "failing pixels %", "failing_pixels": "failing pixels", "max_abs": "max |diff|",
+              "mean_abs": "mean |diff|", "mean_diff": "mean diff", "bias": "largest channel bias",
+              "min_p": "smallest p", "alpha": "failing level (Sidak)", "failing_blocks": "failing blocks",
+              "blocks": "blocks", "pixels": "pixels"}
+    return [(labels.get(k, k), g(v)) for k, v in n.items()]

@@ -1,0 +1,206 @@
+"""The truth as a Mitsuba 3 scene file: open hzval's ground truth in Mitsuba itself.
+
+:func:`write_scene` writes, for one light of a scene, what
+:class:`hzval.truth.plane.Truth` traces, in Mitsuba's own terms::
+
+    DIR/scene.xml     the scene: integrator, sensor, emitter, shape
+    DIR/mesh.ply      the displaced mesh with its vertex normals (smooth shading) and texture
+                      coordinates, its wrap margin included (hzval.geometry.tile)
+    DIR/albedo.png    the albedo image, when the material has one
+
+so that ``mitsuba DIR/scene.xml`` renders it (``-o out.exr``), with
+
+``direct``
+    Mitsuba's direct-illumination integrator, one emitter sample per
+    camera sample (``shadow``: shadow rays; without ``shadow`` declared,
+    Mitsuba still tests visibility: there is no way to ask it not to).
+``orthographic``
+    sensor straight down over the tile: ``to_world`` = scale by half the
+    tile (texels) then look from above its centre to it, up = +y, so that
+    image x runs along +x and row 0 is at the top (docs/ARCHITECTURE.md,
+    "Conventions"); a ``box`` pixel filter: each pixel is the mean of its
+    samples, as the truth's is.
+``directional``
+    emitter toward ``-L`` with the light's ``irradiance`` (a ``soft`` light
+    is written as its centre direction: Mitsuba has no distant disk light).
+``diffuse``
+    BSDF with the material's linear albedo (constant), or its sRGB image
+    read as a bitmap with nearest filtering (the truth reads the texel that
+    holds a sample).
+
+What differs from hzval's truth is how shadow rays start: Mitsuba's
+``spawn_ray`` offsets leak light where shadows begin and self-shadow near
+valley edges (:mod:`hzval.truth.plane`, "Self-intersection": 0.15-0.35% of the
+samples in shadow lit on the bricks at 30 degrees), and its rays see the
+wrap margin only, not the endless tiling (exact for lights at or above
+:data:`hzval.geometry.tile.MIN_ELEVATION_DEG`). ``tests/test_export.py`` renders an
+exported scene with Mitsuba and compares it with the truth.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from hzval import materials
+from hzval.core import backend
+from hzval.io import files
+from hzval.geometry import tile as mesh
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape
+
+__all__ = ["write_scene", "mitsuba_render", "FILES"]
+
+#: What :func:`write_scene` writes (``albedo.png`` only for an albedo image or a built-in material's own).
+FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
+
+
+def check_fits(scene: Scene) -> int:
+    """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
+    sweep's estimate (:func:`hzval.pipeline.sweep.estimate_peak_bytes`, its mesh at four triangles a texel until the
+    map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since nothing is rendered; return it in bytes."""
+    import dataclasses
+
+    from hzval.bake import maps as bake
+    from hzval.pipeline import sweep
+
+    if not scene.mesh.is_plane:
+        raise InputError(scene.source or "--scene", f"export-scene writes the tile's displaced mesh; a model's "
+                                                     f"({scene.mesh.shape}) is not exported yet")
+    one = dataclasses.replace(scene, spp=1)
+    rows, cols = sweep.material_shape(one)
+    what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
+    need, have = sweep.estimate_peak_bytes(one, rows, cols), bake.available_bytes()
+    if need > have:
+        raise InputError(what, f"the mesh of {cols}x{rows} texels needs about {need / 2**30:.1f} GiB of memory "
+                               f"(estimated); {have / 2**30:.1f} GiB are available (a smaller map)")
+    return need
+
+
+def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_deg: float = 0.0,
+                force: bool = False) -> list[Path]:
+    """Write the Mitsuba 3 scene of ``scene``'s truth for the light at ``azimuth_deg`` into ``out``.
+
+    ``height``: the normalised height map ``(rows, cols)``. Returns the paths
+    written; every file is written under a temporary name and renamed, in a folder held as
+    :func:`hzval.io.files.output_folder` holds it (``force`` as there).
+    """
+    with files.output_folder(out, force=force):
+        return _write_scene(scene, height, Path(out), azimuth_deg)
+
+
+def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
+    backend.variant()
+    scene = scene.validate()
+    if scene.declares("interreflection") or scene.declares("specular") or scene.declares("ambient") \
+            or scene.declares("reflection_occlusion"):
+        raise InputError(scene.source or "--effects", "export-scene writes the diffuse, shadowed scene of "
+                         "Mitsuba's direct integrator: declare shadow and/or diffuse only")
+    h = np.asarray(height, np.float32)
+    rows, cols = h.shape
+    mat, light = scene.material, scene.light
+    margin = None
+    if mat.boundary == "wrap":
+        margin = mesh.wrap_margin(np.asarray(h, np.float64) * mat.depth * cols,
+                                  min(mesh.MIN_ELEVATION_DEG, max(light.elevation_deg, 1.0)))
+    m = mesh.displaced_mesh(h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth",
+                            name="surface")
+    written = []
+    mesh.write_ply(m, out / "mesh.ply")
+    written.append(out / "mesh.ply")
+    reflectance = _reflectance(scene, out, written)
+    xml = _scene_xml(scene, rows, cols, float(h.max()) * mat.depth * cols, azimuth_deg, reflectance)
+    with files.atomic_path(out / "scene.xml") as tmp:
+        Path(tmp).write_text(xml, encoding="utf-8")
+    written.append(out / "scene.xml")
+    return written
+
+
+def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
+    """The diffuse BSDF's ``reflectance`` element; copies an albedo image beside the scene."""
+    albedo = scene.material.albedo
+    own = None
+    if albedo is None and materials.is_builtin(scene.material.height):
+        own = materials.generate(scene.material.height, scene.material.size).albedo
+    if not isinstance(albedo, str) and own is None:
+        a = DEFAULT_ALBEDO if albedo is None else float(albedo)
+        return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
+    if own is not None:     # a built-in material's linear albedo, stored as sRGB as a bitmap expects
+        rgb = files.unit_to_u8(cv.srgb_encode(own))
+    else:
+        from PIL import Image
+
+        try:
+            with Image.open(albedo) as img:
+                rgb = np.asarray(img.convert("RGB"))
+        except OSError as exc:
+            raise InputError(albedo, f"not a readable albedo image ({files.first_line(exc)})") from None
+    files.write_png(out / "albedo.png", rgb)
+    written.append(out / "albedo.png")
+    return ('<texture type="bitmap" name="reflectance"><string name="filename" value="albedo.png"/>'
+            '<string name="filter_type" value="nearest"/></texture>')
+
+
+def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: float, reflectance: str) -> str:
+    light = scene.light
+    L = light.direction(azimuth_deg)
+    height, width = image_shape(rows, cols, scene.camera)
+    cx, cy = cols / 2.0, rows / 2.0
+    eye = top + 1.0 + 0.05 * max(rows, cols)
+
+    def v(*xs):
+        return quoteattr(", ".join(f"{x:.9g}" for x in xs))
+
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export):
+     {scene.name}, depth {scene.material.depth:g}, {scene.material.boundary}, {scene.material.shading} shading,
+     light azimuth {azimuth_deg:g}, elevation {light.elevation_deg:g} degrees; tangent space in texels,
+     +x right, +y up the image. Render: mitsuba scene.xml -o out.exr -->
+<scene version="3.0.0">
+    <integrator type="direct">
+        <integer name="emitter_samples" value="1"/>
+        <integer name="bsdf_samples" value="0"/>
+    </integrator>
+    <sensor type="orthographic">
+        <transform name="to_world">
+            <scale x="{cx:.9g}" y="{cy:.9g}"/>
+            <lookat origin={v(cx, cy, eye)} target={v(cx, cy, 0.0)} up="0, 1, 0"/>
+        </transform>
+        <float name="near_clip" value="0.01"/>
+        <float name="far_clip" value="{eye + 10.0 * max(rows, cols):.9g}"/>
+        <sampler type="independent">
+            <integer name="sample_count" value="{int(scene.spp)}"/>
+            <integer name="seed" value="{int(scene.seed)}"/>
+        </sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="{width}"/>
+            <integer name="height" value="{height}"/>
+            <string name="pixel_format" value="rgb"/>
+            <rfilter type="box"/>
+        </film>
+    </sensor>
+    <emitter type="directional">
+        <vector name="direction" value={v(-L[0], -L[1], -L[2])}/>
+        <rgb name="irradiance" value={v(light.irradiance, light.irradiance, light.irradiance)}/>
+    </emitter>
+    <shape type="ply">
+        <string name="filename" value="mesh.ply"/>
+        <bsdf type="diffuse">
+            {reflectance}
+        </bsdf>
+    </shape>
+</scene>
+"""
+
+
+def mitsuba_render(path: str | Path, spp: int | None = None) -> np.ndarray:
+    """Render an exported ``scene.xml`` with Mitsuba: ``(rows, cols, 3)`` float32 linear radiance."""
+    backend.variant()
+    import mitsuba as mi
+
+    scene = mi.load_file(str(path))
+    return np.asarray(mi.render(scene, spp=spp or 0), dtype=np.float32)
+

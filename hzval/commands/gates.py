@@ -1,0 +1,384 @@
+"""Gates that fail a build: ``--fail-if EXPR``, ``--baseline DIR`` (``sweep``, ``score``, ``suite``) and
+``--strict`` (``sweep``, ``suite``: every warning about an external horizon map, :mod:`hzval.io.external`,
+fails the run).
+
+A condition (:func:`parse`) compares a metric of ``metrics.json`` with a number
+or with another metric::
+
+    horizon.flip_mean>0.1                          every frame: its horizon FLIP
+    pom.visibility_mae>horizon.visibility_mae      every frame: pom's |F-V| against horizon's
+    mean(horizon.flip_mean)>0.05                   the sweep's mean over its frames
+    max(terrain.leak_fraction)>=0.01               the sweep's largest
+    floor.flip_mean>0.02   truth.shadowed_fraction<0.01   truth_s>1
+
+A name is ``TECHNIQUE.METRIC`` (``frames[i].techniques.TECHNIQUE.METRIC``:
+``horizon``, ``terrain``, ``pom``, ``engine`` in ``hzval score``, ...),
+``floor.METRIC`` and ``truth.METRIC`` (``frames[i].floor``, ``frames[i].truth``),
+or a frame's own key (``truth_s``). Without ``mean(...)``/``max(...)`` a
+condition is tested per frame and fails on every frame where it holds,
+naming them; with them, once for the sweep. A frame where a side has no
+value (an infinite PSNR is ``null``) is not tested. Operators: ``>``,
+``>=``, ``<``, ``<=``.
+
+A baseline (:func:`baseline_tests`, :func:`regressions`) is an earlier run of the same settings
+(material digest, scene parameters: :func:`check_same_settings`); each
+technique's settings may differ, which is what a baseline is for. Per
+technique and metric of :data:`DIRECTION` the worsening ``d_i`` of each
+frame (``new - old``; for PSNR ``old - new``) is tested with the noise-aware
+z-test of ``hzval check`` (:func:`hzval.commands.check.p_value`, one-sided here, and
+the Sidak correction :func:`hzval.commands.check.sidak_level` over the run's tests at
+:data:`ALPHA`): ``z = sum d_i / sqrt(sum sigma_i^2)``, ``sigma_i`` the noise
+the truth's Monte Carlo estimate puts on frame ``i``'s difference
+(:func:`_variance`). Two runs of the same seed render the same truth:
+``sigma_i = 0`` and any worsening is the technique's. Runs of different
+seeds: a visibility metric's ``sigma_i`` is each run's standard error
+(:mod:`hzval.metrics.facing`: ``visibility_se``, ``partial_fraction``); an image
+metric's (FLIP, RMSE, ...) has no such formula: the frames' scatter of ``d``
+estimates it (``sum sigma_i^2 = n var(d)``, 3 frames at least, else the
+test is recorded untested, ``p`` null). ``tau``
+(:data:`ABS_TOLERANCE` + :data:`REL_TOLERANCE` of the baseline's mean) is
+the least worsening worth failing a build on, however significant (float
+rounding on another machine): a test fails when ``p < alpha'`` and
+``mean(d) > tau``. Timings are not tested (another machine, another load).
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hzval.io import files
+from hzval.core.errors import InputError
+
+__all__ = ["Operand", "Condition", "parse", "evaluate", "read_baseline", "check_same_settings", "baseline_tests",
+           "frame_noise", "regressions",
+           "Gates", "DIRECTION", "ALPHA", "ABS_TOLERANCE", "REL_TOLERANCE"]
+
+#: The metrics a baseline tests and which way is worse: +1 larger is worse, -1 smaller is worse.
+DIRECTION = {"visibility_mae": 1, "leak_fraction": 1, "false_shadow_fraction": 1, "flip_mean": 1, "rmse": 1,
+             "delta_e2000_mean": 1, "psnr_db": -1, "reflection_mae": 1, "perfect_parallax_mae": 1,
+             "visibility_mae_facing": 1, "leak_fraction_facing": 1, "false_shadow_fraction_facing": 1}
+#: The family-wise significance level of a baseline comparison (``hzval check``'s ``fail`` default).
+ALPHA = 0.01
+#: A change smaller than this is never a regression: ABS_TOLERANCE + REL_TOLERANCE * |baseline mean|.
+ABS_TOLERANCE = 1e-5
+REL_TOLERANCE = 0.01
+#: The parameters of ``metrics.json`` that a baseline must share (the techniques' own may differ).
+SAME = ("depth", "boundary", "elevation_deg", "azimuths_deg", "light", "light_radius_deg", "effects", "spp",
+        "supersampling", "truth_tolerance", "camera")
+
+_OPS = {">": lambda a, b: a > b, ">=": lambda a, b: a >= b, "<": lambda a, b: a < b, "<=": lambda a, b: a <= b}
+_NAME = r"[A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?"
+_OPERAND = re.compile(rf"^\s*(?:(mean|max|min)\(\s*({_NAME})\s*\)|({_NAME})|([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*$")
+_SPLIT = re.compile(r"(>=|<=|>|<)")
+
+
+@dataclass(frozen=True)
+class Operand:
+    """One side of a condition: a number, or a metric's path with an optional aggregate."""
+
+    number: float | None = None
+    path: str | None = None          # "horizon.flip_mean", "floor.flip_mean", "truth_s"
+    aggregate: str | None = None     # None (per frame), "mean", "max", "min"
+
+    def text(self) -> str:
+        if self.path is None:
+            return f"{self.number:g}"
+        return f"{self.aggregate}({self.path})" if self.aggregate else self.path
+
+
+@dataclass(frozen=True)
+class Condition:
+    """``left OP right`` (:func:`parse`)."""
+
+    text: str
+    left: Operand
+    op: str
+    right: Operand
+
+    @property
+    def per_frame(self) -> bool:
+        return any(o.path is not None and o.aggregate is None for o in (self.left, self.right))
+
+
+def _operand(text: str, expr: str) -> Operand:
+    m = _OPERAND.match(text)
+    if not m:
+        raise InputError("--fail-if", f"{expr!r}: {text.strip()!r} is neither a number nor a metric name "
+                                      "(TECHNIQUE.METRIC, mean(...), max(...))")
+    if m.group(4) is not None:
+        return Operand(number=float(m.group(4)))
+    return Operand(path=m.group(2) or m.group(3), aggregate=m.group(1))
+
+
+def parse(expr: str) -> Condition:
+    """A ``--fail-if`` expression as a :class:`Condition` (module docstring); one line naming
+    ``--fail-if`` for anything else."""
+    parts = _SPLIT.split(expr)
+    if len(parts) != 3:
+        raise InputError("--fail-if", f"{expr!r}: expected one comparison, e.g. horizon.flip_mean>0.1 "
+                                      f"(operators {', '.join(_OPS)})")
+    left, op, right = _operand(parts[0], expr), parts[1], _operand(parts[2], expr)
+    if left.path is None and right.path is None:
+        raise InputError("--fail-if", f"{expr!r}: compares two numbers; name a metric, e.g. horizon.flip_mean")
+    return Condition(expr.strip(), left, op, right)
+
+
+def _table(frame: dict, path: str) -> tuple[dict | None, str]:
+    """The table of ``frame`` that holds ``path``'s value, and its key there."""
+    head, _, key = path.partition(".")
+    if not key:
+        return frame, head
+    table = frame.get(head) if head in ("floor", "truth") else (frame.get("techniques") or {}).get(head)
+    return (table if isinstance(table, dict) else None), key
+
+
+def _lookup(frame: dict, path: str):
+    table, key = _table(frame, path)
+    return None if table is None else table.get(key)
+
+
+def _known(frames: list[dict]) -> list[str]:
+    names = set()
+    for f in frames:
+        names |= {k for k, v in f.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        for head in ("floor", "truth"):
+            names |= {f"{head}.{k}" for k, v in (f.get(head) or {}).items() if not isinstance(v, dict)}
+        for t, per in (f.get("techniques") or {}).items():
+            names |= {f"{t}.{k}" for k, v in per.items() if not isinstance(v, (dict, str))}
+    return sorted(names)
+
+
+def _values(frames: list[dict], op: Operand, expr: str) -> list:
+    """Per frame the operand's value (``None`` where it has none); an aggregate once for all."""
+    if op.path is None:
+        return [op.number] * len(frames)
+    vals = [_lookup(f, op.path) for f in frames]
+    if not any(key in table for table, key in (_table(f, op.path) for f in frames) if table is not None):
+        near = difflib.get_close_matches(op.path, _known(frames), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(near)}?" if near else ""
+        raise InputError("--fail-if", f"{expr!r}: no frame has a value of {op.path}{hint}")
+    if op.aggregate is None:
+        return vals
+    nums = [float(v) for v in vals if isinstance(v, (int, float))]
+    if not nums:
+        return [None] * len(frames)
+    agg = {"mean": np.mean, "max": np.max, "min": np.min}[op.aggregate](nums)
+    return [float(agg)] * len(frames)
+
+
+def _frame_name(f: dict) -> str:
+    return f.get("name") or f"az{f['azimuth_deg']:+g}"
+
+
+def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
+    """The failures of ``cond`` on ``metrics.json``'s content: one line per condition that fails,
+    naming its frames and their values (none: the gate passes)."""
+    frames = metrics.get("frames") or []
+    left, right = _values(frames, cond.left, cond.text), _values(frames, cond.right, cond.text)
+    test = _OPS[cond.op]
+    bad = [(f, a, b) for f, a, b in zip(frames, left, right) if a is not None and b is not None and test(a, b)]
+    if not bad:
+        return []
+    prefix = f"{where}: " if where else ""
+    if not cond.per_frame:
+        _, a, b = bad[0]
+        other = "" if cond.right.path is None else f", {cond.right.text()} = {_g(b)}"
+        return [f"{prefix}--fail-if {cond.text}: the sweep's {cond.left.text()} = {_g(a)}{other}"]
+    listed = ", ".join(f"{_frame_name(f)} {_g(a)}" + ("" if cond.right.path is None else f" vs {_g(b)}")
+                       for f, a, b in bad)
+    return [f"{prefix}--fail-if {cond.text}: {len(bad)} of {len(frames)} frames ({listed})"]
+
+
+def _g(v) -> str:
+    return f"{v:.4g}"
+
+
+# --------------------------------------------------------------------------
+# Baselines
+# --------------------------------------------------------------------------
+
+def read_baseline(path: str | Path) -> dict:
+    """The ``metrics.json`` of an earlier run (its folder, or the file); one line naming
+    ``--baseline`` if there is none or it cannot be read."""
+    path = Path(path)
+    file = path / "metrics.json" if path.is_dir() else path
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("--baseline", f"{path}: no metrics.json (give the folder of an earlier run)") from None
+    except (OSError, ValueError) as exc:
+        raise InputError("--baseline", f"{file}: unreadable ({files.first_line(exc)})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
+        raise InputError("--baseline", f"{file}: not the metrics.json of a sweep or a score (no frames)")
+    return data
+
+
+def check_same_settings(new: dict, old: dict, where: str) -> None:
+    """Refuse (one line naming ``--baseline``) a baseline of another material or other scene
+    parameters (:data:`SAME`); the techniques' own settings may differ."""
+    a, b = (new.get("material") or {}).get("digest"), (old.get("material") or {}).get("digest")
+    if a and b and a != b:
+        raise InputError("--baseline", f"{where}: another height map (digest {b[:19]}, this run's {a[:19]})")
+    pa, pb = new.get("parameters") or {}, old.get("parameters") or {}
+    for key in SAME:
+        if pa.get(key) != pb.get(key):
+            raise InputError("--baseline", f"{where}: another run's settings: {key} {pb.get(key)!r}, this run's "
+                                           f"{pa.get(key)!r} (a baseline must have the same scene)")
+
+
+def _frames_by_azimuth(metrics: dict) -> dict:
+    return {round(float(f["azimuth_deg"]), 6): f for f in metrics.get("frames", [])}
+
+
+def _same_truth(new: dict, old: dict) -> bool:
+    """Whether both runs rendered the same truth: the same scene (:func:`check_same_settings`) and seed."""
+    return (new.get("parameters") or {}).get("seed") == (old.get("parameters") or {}).get("seed")
+
+
+def _pixels(metrics: dict) -> int:
+    m, p = metrics.get("material") or {}, metrics.get("parameters") or {}
+    res = (metrics.get("camera") or {}).get("resolution")
+    if isinstance(res, list) and len(res) == 2:
+        return max(int(res[0]) * int(res[1]), 1)
+    s = int(p.get("supersampling") or 1)
+    return max(int(m.get("rows") or 1) * int(m.get("cols") or 1) * s * s, 1)
+
+
+def frame_noise(frame: dict, metric: str, pixels: int) -> float | None:
+    """The standard error the truth's Monte Carlo noise puts on one frame's ``metric`` (module
+    docstring), from the frame's truth statistics (:mod:`hzval.metrics.facing`); ``None`` if unknown."""
+    t = frame.get("truth") or {}
+    facing = metric.endswith("_facing")
+    share = max(1.0 - float(t.get("attached_fraction") or 0.0), 1e-9) if facing else 1.0
+    base = metric.removesuffix("_facing")
+    if base in ("visibility_mae", "reflection_mae", "perfect_parallax_mae") and "visibility_se" in t:
+        return float(t["visibility_se"]) / share
+    if base in ("leak_fraction", "false_shadow_fraction") and "partial_fraction" in t:
+        return 0.5 * math.sqrt(float(t["partial_fraction"]) / pixels) / share
+    return None
+
+
+def _variance(d: np.ndarray, fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: int):
+    """``sum sigma_i^2`` of a test's worsenings ``d`` (module docstring), or ``None`` when it cannot be
+    estimated (an image metric of runs of different seeds over fewer than 3 frames)."""
+    if same:
+        return 0.0
+    noise = [(frame_noise(a, metric, pixels), frame_noise(b, metric, pixels)) for a, b in zip(fn, fo)]
+    if all(na is not None and nb is not None for na, nb in noise):
+        return float(sum(na * na + nb * nb for na, nb in noise))
+    if len(d) < 3:
+        return None
+    return float(len(d) * d.var(ddof=1))
+
+
+def baseline_tests(new: dict, old: dict) -> list[dict]:
+    """Per technique (in both runs) and metric of :data:`DIRECTION`: the frames' worsenings ``d_i``,
+    ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring)."""
+    from hzval.commands import check
+
+    fn, fo = _frames_by_azimuth(new), _frames_by_azimuth(old)
+    shared = [az for az in fn if az in fo]
+    names = [n for n in (new.get("techniques") or {}) if n in (old.get("techniques") or {})]
+    same, pixels = _same_truth(new, old), _pixels(new)
+    tests = []
+    for name in names:
+        for metric, sign in DIRECTION.items():
+            rows = [(_lookup(fn[az], f"{name}.{metric}"), _lookup(fo[az], f"{name}.{metric}"), az) for az in shared]
+            rows = [(a, b, az) for a, b, az in rows if isinstance(a, (int, float)) and isinstance(b, (int, float))]
+            if not rows:
+                continue
+            d = np.array([sign * (a - b) for a, b, _ in rows], np.float64)
+            var = _variance(d, [fn[az] for *_, az in rows], [fo[az] for *_, az in rows], metric, same, pixels)
+            base = float(np.mean([b for _, b, _ in rows]))
+            test = {"technique": name, "metric": metric, "frames": len(d), "baseline": base,
+                    "new": float(np.mean([a for a, _, _ in rows])), "worse_by": float(d.mean()),
+                    "tau": ABS_TOLERANCE + REL_TOLERANCE * abs(base), "same_truth": same, "z": None, "p": None}
+            if var is not None:
+                total = float(d.sum())
+                z = total / math.sqrt(var) if var > 0 else (math.inf if total > 0 else -math.inf if total < 0 else 0.0)
+                # JSON has no infinity: an infinite z (the same truth, any change) is written as null
+                test.update(z=z if math.isfinite(z) else None, p=float(check.p_value(z, one_sided=True)))
+            tests.append(test)
+    return tests
+
+
+def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) -> list[str]:
+    """The lines of the tests that are significant regressions at :data:`ALPHA`, Sidak-corrected over
+    ``n_tests`` (default: these tests)."""
+    from hzval.commands import check
+
+    level = check.sidak_level(ALPHA, n_tests or len(tests))
+    prefix = f"{where}: " if where else ""
+    return [f"{prefix}--baseline: {t['technique']}.{t['metric']} regressed: mean {_g(t['new'])} against "
+            f"{_g(t['baseline'])} over {t['frames']} frames (p {t['p']:.2g} < {level:.2g})"
+            for t in tests if t["p"] is not None and t["p"] < level and t["worse_by"] > t["tau"]]
+
+
+# --------------------------------------------------------------------------
+# The command line's gates
+# --------------------------------------------------------------------------
+
+class Gates:
+    """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run; :meth:`apply`
+    tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists)."""
+
+    def __init__(self, conditions: list[str] | None = None, baseline: str | Path | None = None,
+                 strict: bool = False):
+        self.conditions = [parse(c) for c in conditions or []]
+        self.strict = bool(strict)
+        self.baseline_path = None if baseline is None else Path(baseline)
+        self.baseline = None
+        if baseline is not None:
+            if not self.baseline_path.is_dir() and not self.baseline_path.is_file():
+                raise InputError("--baseline", f"{baseline}: no such folder (an earlier run's --out)")
+            if (self.baseline_path / "metrics.json").is_file() or self.baseline_path.is_file():
+                self.baseline = read_baseline(baseline)
+            elif not (self.baseline_path / "suite.json").is_file():
+                raise InputError("--baseline", f"{baseline}: neither a run's folder (metrics.json) nor a suite's "
+                                               "(suite.json)")
+
+    def __bool__(self) -> bool:
+        return bool(self.conditions) or self.baseline_path is not None or self.strict
+
+    def failures(self, metrics: dict, baseline: dict | None = None, where: str = "",
+                 use_baseline: bool = True) -> tuple[list, list]:
+        """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
+        (default: :attr:`baseline`; none with ``use_baseline`` false); a baseline of other settings is
+        an InputError."""
+        out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
+        if self.strict:     # every warning about an external bake (hzval.io.external.warnings) fails the run
+            prefix = f"{where}: " if where else ""
+            out += [f"{prefix}--strict: {w}" for w in (metrics.get("external_bake") or {}).get("warnings", [])]
+        baseline = (self.baseline if baseline is None else baseline) if use_baseline else None
+        if use_baseline and baseline is None and self.baseline_path is not None:
+            raise InputError("--baseline", f"{self.baseline_path}: a suite's folder; give a run's folder (metrics.json)")
+        tests = []
+        if baseline is not None:
+            label = f"{self.baseline_path}" + (f" ({where})" if where else "")
+            check_same_settings(metrics, baseline, label)
+            tests = baseline_tests(metrics, baseline)
+            if not tests:
+                raise InputError("--baseline", f"{label}: no technique and metric in common with this run (another "
+                                               f"hzval's metrics.json, or other techniques: "
+                                               f"{', '.join(baseline.get('techniques') or {}) or 'none'})")
+            out += regressions(tests, where)
+        return out, tests
+
+    def apply(self, metrics: dict) -> dict:
+        """Test ``metrics`` (one sweep's or score's) and store ``metrics["gates"]``: ``{failed,
+        conditions, baseline, tests}``; returns it."""
+        failed, tests = self.failures(metrics)
+        metrics["gates"] = self.record(failed, tests)
+        return metrics["gates"]
+
+    def record(self, failed: list[str], tests: list[dict]) -> dict:
+        return {"failed": failed, "conditions": [c.text for c in self.conditions], "strict": self.strict,
+                "baseline": None if self.baseline_path is None else str(self.baseline_path),
+                "alpha": ALPHA, "tests": tests}

@@ -1,0 +1,364 @@
+"""Score an engine's own frames against a sweep's truth, beside hzval's techniques on the same sweep:
+``hzval score FRAMES_DIR --against SWEEP_DIR``.
+
+An engineer renders the sweep's frames with their own baker and shader,
+from what ``SWEEP_DIR/frames.json`` says (camera, light directions in
+tangent space, irradiance, exposure, image size; :func:`hzval.pipeline.sweep.engine_frames`),
+one image per light named after the frame folders: ``az+0.exr`` (linear
+radiance, RGB or Y) or ``az-60.png`` (8- or 16-bit sRGB display values,
+``display = srgb(clip(exposure * radiance))``, decoded back to radiance
+here). :func:`score` scores each against the sweep's truth with the very
+image metrics the sweep uses (:func:`hzval.metrics.compare.image_metrics`: FLIP,
+RMSE, PSNR, CIEDE2000), beside that frame's perfect-shadows floor, and
+:func:`write` writes ``OUT/metrics.json`` (``frames[i].azimuth_deg``,
+``flip_mean``, ``rmse``, ``psnr_db``, ``delta_e2000_mean``) and a report
+in which the external images are a technique beside the truth.
+
+The truth is the sweep's ``truth.exr``, which holds it in half float
+(2^-11 relative; the sweep scored its techniques in float32 before writing
+it). So a sweep's own EXR images, themselves half, scored here come within
+2e-5 of the sweep's FLIP and RMSE and 1e-4 of its CIEDE2000 (measured at
+most 6e-6 FLIP, 1.3e-6 RMSE and 1.4e-5 CIEDE2000 at 48 x 48 texels, 8e-7
+FLIP at 256 x 256), a thousandth of what its 8-bit PNG previews'
+quantisation adds (2e-3 to 4e-3 FLIP, 0.07 CIEDE2000);
+``tests/test_score.py`` holds it to that.
+
+A real comparison (:func:`score`): the engine (``engine`` in
+``metrics.json``, the report's lead) sits beside every technique the sweep
+scored, whose metrics, parameters and images are the sweep's own, with every
+metric the sweep has. Its shadow factor ``F`` per light (``f_az+0.exr``, one
+channel, or a grey 8/16-bit ``f_az+0.png``, values in [0, 1] as they are)
+gives ``|F - V|``, leaks and false shadows against the sweep's ``V``, over
+the whole image and over the pixels that face the light (:mod:`hzval.metrics.facing`,
+from the sweep's ``bake/normal.exr``). Its parameters are only what
+``FRAMES_DIR/engine.toml`` says (:func:`read_sidecar`): ``[engine]`` ``label``
+and ``summary``, ``[parameters]`` any values; none otherwise. A frame off the
+truth's brightness as a whole (pi, gamma 2.2, sRGB twice) gets one warning
+naming the likely cause (:mod:`hzval.metrics.brightness`).
+
+Bad input is one line naming the file: a folder that is not a sweep's, a
+missing frame, a wrong size, a non-finite value, an unreadable image, an F
+for some lights only, a sidecar key that is not known.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hzval.metrics import compare
+from hzval.io import files
+from hzval.report import images
+from hzval.report import pages as report
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.scene.spec import Frame
+
+__all__ = ["score", "write", "read_frame", "read_factor", "read_sidecar", "LABEL", "NAME", "SIDECAR"]
+
+#: What the report calls the scored images, unless the sidecar names them.
+LABEL = "your renderer"
+#: The engine's name in metrics.json (``techniques.engine``, ``frames[i].techniques.engine``) and ``--fail-if``.
+NAME = "engine"
+#: The engine's sidecar in FRAMES_DIR: its label and its own parameters.
+SIDECAR = "engine.toml"
+
+
+def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
+    """The sweep's ``metrics.json`` and ``frames.json``."""
+    out = []
+    for name in ("metrics.json", "frames.json"):
+        path = sweep_dir / name
+        try:
+            out.append(json.loads(path.read_text(encoding="utf-8")))
+        except FileNotFoundError:
+            raise InputError(sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(path, f"unreadable ({files.first_line(exc)})") from None
+    return out[0], out[1]
+
+
+def _check_shape(metrics, engine, sweep_dir: Path) -> None:
+    """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
+    ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score` reads)."""
+    def need(ok: bool, name: str, key: str, what: str) -> None:
+        if not ok:
+            raise InputError(sweep_dir / name, f"not a sweep's {name}: {key} must be {what}")
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    need(isinstance(engine, dict), "frames.json", "the file", "a JSON object")
+    need(number(engine.get("exposure")), "frames.json", "exposure", "a number")
+    size = engine.get("image_size")
+    need(isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
+         "frames.json", "image_size", "[width, height]")
+    frames = engine.get("frames")
+    need(isinstance(frames, list) and frames and all(
+        isinstance(f, dict) and isinstance(f.get("name"), str) and number(f.get("azimuth_deg"))
+        and number(f.get("elevation_deg")) for f in frames), "frames.json", "frames",
+        "a list of {name, azimuth_deg, elevation_deg}")
+    need(isinstance(metrics, dict), "metrics.json", "the file", "a JSON object")
+    swept = metrics.get("frames")
+    need(isinstance(swept, list) and len(swept) == len(frames) and all(
+        isinstance(f, dict) and isinstance(f.get("files"), dict) and isinstance(f["files"].get("truth"), str)
+        for f in swept), "metrics.json", "frames", f"a list of {len(frames)} frames, each with files.truth")
+    for key in ("material", "parameters", "exposure", "versions", "simulated"):
+        need(isinstance(metrics.get(key, {}), dict), "metrics.json", key, "an object")
+
+
+def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
+    """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
+    PNG decoded from sRGB and divided by the exposure."""
+    if path.suffix.lower() == ".exr":
+        img = files.read_rgb_exr(path)
+    else:
+        from PIL import Image
+
+        try:
+            with Image.open(path) as im:
+                depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
+                arr = np.asarray(im.convert("RGB") if depth == 255.0 else im, dtype=np.float64) / depth
+        except OSError as exc:
+            raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
+        arr = np.repeat(arr[..., None], 3, axis=-1) if arr.ndim == 2 else arr[..., :3]
+        img = cv.srgb_decode(arr) / exposure
+    img = np.asarray(img, np.float32)
+    if img.shape[:2] != tuple(shape):
+        raise InputError(path, f"is {img.shape[1]}x{img.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}")
+    if not np.isfinite(img).all():
+        raise InputError(path, f"has {int((~np.isfinite(img)).sum())} non-finite values (NaN or infinity)")
+    return img
+
+
+def _find(frames_dir: Path, name: str, prefix: str = "", required: bool = True) -> Path | None:
+    for ext in (".exr", ".png"):
+        if (frames_dir / f"{prefix}{name}{ext}").is_file():
+            return frames_dir / f"{prefix}{name}{ext}"
+    if not required:
+        return None
+    raise InputError(frames_dir / f"{prefix}{name}.exr", f"missing: the frame for light {name} (an .exr or .png)")
+
+
+def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """An engine's shadow factor ``F`` ``(H, W)`` float32 in [0, 1]: an EXR's one channel (Y, R or
+    the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB decoding)."""
+    if path.suffix.lower() == ".exr":
+        ch = files.read_exr(path)
+        key = next((k for k in ("Y", "R", "F", "V") if k in ch), next(iter(ch)) if len(ch) == 1 else None)
+        if key is None:
+            raise InputError(path, f"a shadow factor needs one channel (Y), has {', '.join(sorted(ch))}")
+        F = np.asarray(ch[key], np.float32)
+    else:
+        from PIL import Image
+
+        try:
+            with Image.open(path) as im:
+                depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
+                F = np.asarray(im if depth != 255.0 else im.convert("L"), np.float64) / depth
+        except OSError as exc:
+            raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
+        F = F.astype(np.float32)
+    if F.shape != tuple(shape):
+        raise InputError(path, f"is {F.shape[1]}x{F.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}")
+    if not np.isfinite(F).all() or F.min() < -1e-6 or F.max() > 1 + 1e-6:
+        raise InputError(path, "a shadow factor must be finite and in [0, 1]")
+    return np.clip(F, 0.0, 1.0)
+
+
+def read_sidecar(frames_dir: Path) -> dict:
+    """``FRAMES_DIR/engine.toml``: ``{label, summary, parameters, path}`` (module docstring); the
+    defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`)."""
+    import tomllib
+
+    from hzval.core import strict
+
+    path = frames_dir / SIDECAR
+    out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}
+    if not path.is_file():
+        return out
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(path, f"not a readable TOML file ({files.first_line(exc)})") from None
+    strict.check_keys(data, {"engine", "parameters"}, path)
+    engine = strict.check_table(data.get("engine", {}), {"label": str, "summary": str}, path, "engine")
+    params = data.get("parameters", {})
+    if not isinstance(params, dict):
+        raise InputError(path, f"parameters must be a table ([parameters]), got {params!r}")
+    return {**out, **engine, "parameters": params, "path": str(path)}
+
+
+def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
+    """The sweep's normal map (``bake/normal.exr``, ``(rows, cols, 3)``) for the facing pixels, if
+    the sweep kept its bake and its view is ``top``."""
+    if (metrics.get("camera") or {}).get("kind", "top") != "top":
+        return None
+    path = sweep_dir / "bake" / "normal.exr"
+    if not path.is_file():
+        return None
+    ch = files.read_exr(path)
+    keys = [k for k in ("X", "Y", "Z") if k in ch] or [k for k in ("R", "G", "B") if k in ch]
+    return np.stack([ch[k] for k in keys], axis=-1) if len(keys) == 3 else None
+
+
+def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tuple[str, dict, dict]]]:
+    """Score every frame of ``frames_dir`` against ``sweep_dir``'s truth, beside the sweep's techniques.
+
+    Returns ``(result, maps)``: the ``metrics.json`` content (without the
+    report) and, per frame, ``(name, the sweep's frame, maps)`` for
+    :func:`write`. Every frame is read and checked before any is scored.
+    """
+    frames_dir, sweep_dir = Path(frames_dir), Path(sweep_dir)
+    if not frames_dir.is_dir():
+        raise InputError(frames_dir, "no such folder of frames")
+    metrics, engine = _sweep(sweep_dir)
+    _check_shape(metrics, engine, sweep_dir)
+    sidecar = read_sidecar(frames_dir)
+    exposure = float(engine["exposure"])
+    W, H = engine["image_size"]
+    todo = [(f, _find(frames_dir, f["name"]), _find(frames_dir, f["name"], "f_", required=False))
+            for f in engine["frames"]]
+    given = [t for t in todo if t[2] is not None]
+    if given and len(given) < len(todo):
+        missing = next(f["name"] for f, _, fp in todo if fp is None)
+        raise InputError(frames_dir / f"f_{missing}.exr", f"missing: F is given for {len(given)} of {len(todo)} "
+                                                          "lights (give f_<name>.exr for every light, or none)")
+    loaded = [(f, p, read_frame(p, exposure, (H, W)), None if fp is None else read_factor(fp, (H, W)), fp)
+              for f, p, fp in todo]
+    normal = _normal(sweep_dir, metrics) if given else None
+    t0 = time.perf_counter()
+    frames, maps, warnings = [], [], []
+    for (f, path, img, F, fpath), swept in zip(loaded, metrics["frames"]):
+        frame, image_maps, warning = _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal)
+        frames.append(frame)
+        maps.append((f["name"], swept, image_maps))
+        warnings += [warning] if warning else []
+    match = _tangent_bug(metrics, sweep_dir, [F for _, _, _, F, _ in loaded]) if given else None
+    techniques = {NAME: {"label": sidecar["label"], "summary": sidecar["summary"], "file_stem": NAME,
+                         "parameters": sidecar["parameters"], "parameters_from": sidecar["path"],
+                         "simulated": list((metrics.get("parameters") or {}).get("effects", []))},
+                  **{k: v for k, v in (metrics.get("techniques") or {}).items() if k != NAME}}
+    result = {"material": metrics.get("material", {}), "against": str(sweep_dir), "frames_dir": str(frames_dir),
+              "parameters": metrics.get("parameters", {}), "exposure": metrics.get("exposure", {}),
+              "camera": metrics.get("camera", {}), "versions": metrics.get("versions", {}),
+              "timings": {"score_s": time.perf_counter() - t0},
+              "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
+              "techniques": techniques, "warnings": _brightness_summary(warnings), "frames": frames}
+    if match is not None:
+        result["tangent_bug"] = match
+        result["warnings"] += [match["line"]] if match["named"] else []
+    return result, maps
+
+
+def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
+    """On a model's sweep, which tangent-frame bug the engine's F matches (:mod:`hzval.studies.bug_match`)."""
+    from hzval.studies import bug_match
+
+    return bug_match.diagnose(metrics, sweep_dir, factors)
+
+
+def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
+    """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
+    sweep's techniques' own; ``(frame, maps, brightness warning or None)``."""
+    from hzval.metrics import brightness
+    from hzval.metrics import facing
+
+    exposure = float(engine["exposure"])
+    # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
+    truth = Frame(f["azimuth_deg"], f["elevation_deg"], files.read_rgb_exr(sweep_dir / swept["files"]["truth"]))
+    scores, image_maps = compare.image_metrics(compare.Reference(truth, exposure), img)
+    own = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
+    vis = swept["files"].get("visibility")
+    if F is not None and vis:
+        V = files.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
+        own.update(zip(("visibility_mae", "leak_fraction", "false_shadow_fraction"),
+                       (float(v) for v in compare.visibility_metrics(V, F, np.isfinite(V)))))   # a model's
+        # sweep leaves the pixels that see no surface NaN in V: scored over the seen ones, as the sweep did
+        if normal is not None:
+            ss = int((metrics.get("parameters") or {}).get("supersampling") or 1)
+            own.update(facing.facing_metrics(V, F, facing.facing_mask(normal, f["light_direction"], ss)))
+        image_maps = {**image_maps, "V": V, "F": F}
+    own["files"] = {}
+    per = {NAME: own, **{k: {kk: vv for kk, vv in v.items()}
+                         for k, v in (swept.get("techniques") or {}).items() if k != NAME}}
+    frame = {"name": f["name"], "azimuth_deg": f["azimuth_deg"], "elevation_deg": f["elevation_deg"],
+             **{k: own[k] for k in compare.IMAGE_METRICS}, "file": str(path),
+             **({"factor_file": str(fpath)} if fpath is not None else {}),
+             "truth_s": swept.get("truth_s"),
+             **({"floor": swept["floor"]} if "floor" in swept else {}),
+             **({"truth": swept["truth"]} if "truth" in swept else {}), "techniques": per}
+    slip = brightness.diagnose(img, truth.image, exposure, png=path.suffix.lower() == ".png")
+    if slip:
+        frame["brightness"] = slip
+    return frame, image_maps, None if slip is None else (f["name"], slip)
+
+
+def _brightness_summary(found: list) -> list[str]:
+    """One line per cause of the frames off the truth's brightness (:mod:`hzval.metrics.brightness`)."""
+    lines = []
+    for slip in dict.fromkeys(s["slip"] for _, s in found):
+        names = [n for n, s in found if s["slip"] == slip]
+        first = next(s for _, s in found if s["slip"] == slip)
+        lines.append(f"{len(names)} frame(s) ({', '.join(names[:4])}{' ...' if len(names) > 4 else ''}) "
+                     f"{first['line']} (mean brightness {first['ratio']:.3g}x the truth's)")
+    return lines
+
+
+def write(result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False,
+          gates=None) -> Path:
+    """``out/metrics.json`` and ``out/index.html``: the engine's images as the lead technique beside the
+    sweep's truth and the sweep's techniques (whose images are copied in, so the report stands
+    alone). Returns the index. The folder is held while they are written
+    (:func:`hzval.io.files.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first and
+    listed at the top of the report."""
+    out = Path(out)
+    if gates:
+        gates.apply(result)
+    with files.output_folder(out, force=force):
+        return _write(result, maps, out, command)
+
+
+def _copy(sweep_dir: Path, out: Path, name: str, rel: str | None) -> str | None:
+    """A sweep's file copied to ``out/frames/<name>/``; its new path relative to ``out``."""
+    if not rel or not (sweep_dir / rel).is_file():
+        return None
+    dst = f"frames/{name}/{Path(rel).name}"
+    (out / dst).parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(sweep_dir / rel, out / dst)
+    return dst
+
+
+def _write(result: dict, maps: list, out: Path, command: str) -> Path:
+    sweep_dir = Path(result["against"])
+    for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
+        frame["files"] = {k: d for k in ("truth_png", "plain_png", "visibility_png")
+                          if (d := _copy(sweep_dir, out, name, swept_frame["files"].get(k)))}
+        own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
+        files.write_png(out / own["png"], files.unit_to_u8(image_maps["display"]))
+        files.write_png(out / own["flip_png"], images.flip_image(image_maps["flip"]))
+        if "F" in image_maps:
+            own["visdiff_png"] = f"frames/{name}/{NAME}_visdiff.png"
+            files.write_png(out / own["visdiff_png"],
+                            images.visibility_diff_image(image_maps["V"], image_maps["F"]))
+        frame["techniques"][NAME]["files"] = own
+        for tname, per in frame["techniques"].items():
+            if tname != NAME:
+                theirs = (swept_frame.get("techniques") or {}).get(tname, {}).get("files") or {}
+                per["files"] = {k: d for k in ("png", "flip_png", "visdiff_png")
+                                if (d := _copy(sweep_dir, out, name, theirs.get(k)))}
+    index = report.write_report(out, result, command=command)
+    # the paths relative to the report's folder: a shared report carries no absolute folders
+    portable = {**result, "against": files.report_path(result["against"], out),
+                "frames_dir": files.report_path(result["frames_dir"], out),
+                "frames": [{**f, "file": files.report_path(f["file"], out),
+                            **({"factor_file": files.report_path(f["factor_file"], out)} if "factor_file" in f else {})}
+                           for f in result["frames"]]}
+    if "gates" in portable and portable["gates"].get("baseline"):
+        portable["gates"] = {**portable["gates"], "baseline": files.report_path(portable["gates"]["baseline"], out)}
+    files.write_json(out / "metrics.json", portable)
+    return index

@@ -1,0 +1,427 @@
+"""What accuracy costs: settings of the bake, the techniques and the truth, measured on one material.
+
+:func:`measure` renders a converged ground truth once for the scene's sweep
+(:mod:`hzval.truth.plane` at ``truth_spp`` samples per pixel), then measures every
+setting of :func:`settings` against it, each with
+
+``time_s``
+    what the setting costs in time: for a bake setting (``kind = "bake"``)
+    the bake (normal and horizon maps, in process, kernels warm, best of
+    two; in the kernel form :func:`hzval.bake.maps.kernel_for` chooses, which
+    for a large radius is the looped one, fast to compile and slower to
+    run: ``params["kernel"]``); for a technique setting
+    (``"technique"``) a frame's render, mean over the sweep,
+    best of three sweeps (a bake setting's frame time is
+    ``params["frame_s"]``); for a truth setting (``"truth"``) a frame of the
+    truth at that many shadow rays, mean over the sweep.
+``storage_bytes``
+    the texture memory the setting needs at run time: the horizon map
+    (channels x texels x 1 byte for 8-bit storage, 4 for float; 8 channels,
+    or 16 for the "16 directions" bake settings), plus the
+    weight cube map (6 faces x 16 x 16 texels x 2 RGBA layers, 8-bit) where
+    it is sampled; each technique's own
+    (:meth:`hzval.techniques.registry.Technique.storage_bytes`: the 16-bit height map
+    for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of uint32 indices
+    per texel, margin excluded) for the truth.
+``visibility_mae``
+    mean over the sweep of the mean ``|F - V|`` against the converged
+    truth's visibility ``V`` (for truth settings: ``|V_n - V|``).
+``flip_mean``
+    mean over the sweep of the mean FLIP error of the image against the
+    converged truth's image (display values, :func:`hzval.metrics.compare.flip`).
+
+Technique settings come from the registry
+(:meth:`hzval.techniques.registry.Technique.tradeoff_variants`), every technique's
+own (``"technique"``: the horizon map's storage, weights and k, pom at 4 to
+64 steps, ...), each point's ``params`` naming its technique and setting
+(``technique``, ``steps``, ``storage``, ...). Bake settings vary the horizon
+bake and are rendered with the first technique that reads it
+(:func:`baked_technique`).
+
+and marks the Pareto front (no other setting of the same kind is at least
+as good in time, storage and visibility error and better in one) within each
+kind, since a bake's seconds and a frame's milliseconds do not trade against
+each other. Every setting but the one it varies is the default
+(:class:`hzval.bake.maps.BakeParams`, ``k = 8``, float storage, analytic
+weights); the techniques sample each pixel at the scene's ``spp``
+positions, the converged truth at ``truth_spp`` others.
+
+A technique may fit a setting to the converged truth
+(:meth:`hzval.techniques.registry.Technique.fit`): the horizon map fits ``k``, the k
+whose ramp ``F = clamp(k (Lz - s) + 1, 0, 1)`` best matches the truth's
+penumbrae.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hzval.bake import maps as bake
+from hzval.metrics import compare
+from hzval.io import files
+from hzval.core import shading
+from hzval.techniques import registry as technique
+from hzval.truth import plane as truth
+from hzval.scene import spec as sc
+
+__all__ = ["Point", "Setting", "settings", "measure", "mark_pareto", "recommend", "write_tradeoff",
+           "DEFAULT_TRUTH_SPP", "DEFAULT_SIZE"]
+
+#: Samples per pixel of the converged truth everything is measured against.
+DEFAULT_TRUTH_SPP = 256
+#: Size of the built-in material for a tradeoff (FLIP and 256 spp make 512 slow).
+DEFAULT_SIZE = 256
+KINDS = ("bake", "technique", "truth")
+
+
+@dataclass
+class Point:
+    """One measured setting (a row of ``tradeoff.json``)."""
+
+    name: str
+    kind: str
+    time_s: float
+    storage_bytes: int
+    visibility_mae: float
+    flip_mean: float
+    pareto: bool = False
+    params: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @property
+    def label(self) -> str:
+        """The name, with what this run found out about the setting (``params["note"]``)."""
+        note = self.params.get("note")
+        return f"{self.name} ({note})" if note else self.name
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A setting to measure: its name, kind, and what it changes from the defaults.
+
+    ``bake``: :class:`hzval.bake.maps.BakeParams` fields; ``technique``: the
+    registry name of the technique it renders (``None``: the truth);
+    ``settings``: that technique's build keywords (a
+    :class:`hzval.techniques.registry.Variant`'s); ``params``: what the point records.
+    """
+
+    name: str
+    kind: str
+    bake: dict = field(default_factory=dict)
+    technique: str | None = None
+    settings: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    truth_spp: int | None = None
+
+
+def baked_technique(scene=None) -> str | None:
+    """The technique the bake settings are rendered with: the first in the registry that reads the
+    horizon bake (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``."""
+    from hzval.scene.spec import Scene
+
+    sc_ = scene if scene is not None else Scene()
+    return next((n for n in technique.names() if "horizon_map" in technique.get(n).bake_needs(sc_)
+                 and (scene is None or technique.get(n).applies(scene))), None)
+
+
+def settings(scene=None) -> list[Setting]:
+    """Every setting :func:`measure` measures, defaults first: the bake's (rendered with
+    :func:`baked_technique`), every technique's own from the registry (those that apply to
+    ``scene``, when given), and the truth's ray counts."""
+    s: list[Setting] = []
+    baked = baked_technique(scene)
+    if baked is not None:
+        s.append(Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32}, technique=baked))
+        s += [Setting(f"seed r{r}", "bake", {"radius": r}, technique=baked) for r in (4, 8, 32, 64)]
+        s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}, technique=baked))
+        s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}, technique=baked) for a in (16, 64)]
+        # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
+        # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
+        s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16},
+                      technique=baked) for a in (32, 64)]
+    for name in technique.names():
+        t = technique.get(name)
+        if scene is not None and not t.applies(scene):
+            continue
+        s += [Setting(v.name, "technique", technique=name, settings=dict(v.settings),
+                      params={"technique": name, **v.params})
+              for v in t.tradeoff_variants()]
+    s += [Setting(f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", technique=None, truth_spp=n)
+          for n in (1, 4, 16, 64)]
+    return s
+
+
+# --------------------------------------------------------------------------
+# Measuring
+# --------------------------------------------------------------------------
+
+@dataclass
+class _Reference:
+    scene: object
+    height: np.ndarray
+    albedo: np.ndarray
+    visibility: list[np.ndarray]
+    display: list[np.ndarray]
+    scale: float
+    seconds: float
+
+
+def _reference(scene, height, truth_spp: int) -> _Reference:
+    t0 = time.perf_counter()
+    conv = dataclasses.replace(scene, spp=int(truth_spp), seed=scene.seed + 1)
+    tr = truth.Truth(conv, height)
+    scale = shading.exposure(scene)
+    vis, disp = [], []
+    for az in scene.light.azimuths_deg:
+        f = tr.render(az)
+        vis.append(f.layers["visibility"])
+        disp.append(compare.display(f.image, scale))
+    rows, cols = height.shape
+    return _Reference(scene, height, sc.load_albedo(scene.material, rows, cols), vis, disp, scale,
+                      time.perf_counter() - t0)
+
+
+def _errors(ref: _Reference, frames) -> tuple[float, float]:
+    mae, flip = [], []
+    for f, V, d in zip(frames, ref.visibility, ref.display):
+        F = f.layers.get("factor", f.layers.get("visibility"))
+        mae.append(float(np.mean(np.abs(np.asarray(F, np.float64) - V))))
+        flip.append(compare.flip(d, compare.display(f.image, ref.scale))[1])
+    return float(np.mean(mae)), float(np.mean(flip))
+
+
+def _render_all(renderer, azimuths, repeat: int = 3, **kw):
+    """The sweep's frames and a frame's time: the mean over the sweep, the best of ``repeat`` sweeps
+    (settings that share a kernel differ by about 10% from one sweep to the next otherwise)."""
+    renderer.render(azimuths[0], **kw)       # compile (or load) the kernels: time warm frames only
+    frames = [renderer.render(az, **kw) for az in azimuths]
+    best = float(np.mean([f.seconds for f in frames]))
+    for _ in range(repeat - 1):
+        best = min(best, float(np.mean([renderer.render(az, **kw).seconds for az in azimuths])))
+    return frames, best
+
+
+def _timed_bake(height, params):
+    bake.bake(height, params)                       # compile (or load) the kernels
+    best = None
+    for _ in range(2):
+        bk = bake.bake(height, params)
+        t = bk.timings.get("normal_s", 0.0) + bk.timings.get("horizon_s", 0.0)
+        best = t if best is None else min(best, t)
+    return bk, best
+
+
+def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
+    """Refuse, before the map is generated or decoded, a tradeoff that would not fit in memory: the
+    sweep's estimate (:func:`hzval.pipeline.sweep.check_fits`) at the converged truth's ``truth_spp``, the
+    most samples it holds; return the estimate in bytes."""
+    from hzval.pipeline import sweep
+
+    spp = max(int(scene.spp), int(truth_spp))
+    return sweep.check_fits(dataclasses.replace(scene, spp=spp),
+                            bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
+
+
+def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, only: list[str] | None = None,
+            progress: bool = False) -> tuple[list[Point], dict]:
+    """Measure every setting of :func:`settings` (or those whose names contain one of ``only``)."""
+    from tqdm import tqdm
+
+    ref = _reference(scene, height, truth_spp)
+    base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
+    todo = [s for s in settings(scene) if not only or any(o in s.name for o in only)]
+    bakes: dict = {}
+    points = []
+    for s in tqdm(todo, desc="tradeoff", unit="setting", disable=not progress, leave=False):
+        params = dataclasses.replace(base, **s.bake)
+        key = dataclasses.astuple(params)
+        if key not in bakes:
+            bakes[key] = _timed_bake(height, params)
+        points.append(_measure_one(s, ref, *bakes[key], params))
+    mark_pareto(points)
+    rows, cols = height.shape
+    info = {"truth_spp": truth_spp, "truth_s": ref.seconds, "rows": rows, "cols": cols,
+            "azimuths_deg": list(scene.light.azimuths_deg), "elevation_deg": scene.light.elevation_deg,
+            "spp": scene.spp, "effects": list(scene.effects)}
+    return points, info
+
+
+def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Point:
+    """One setting's point: its time (a bake's for bake settings, else a frame's), storage and errors."""
+    scene, height, az = ref.scene, ref.height, ref.scene.light.azimuths_deg
+    rows, cols = height.shape
+    if s.kind == "truth":
+        tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
+        frames, t = _render_all(tr, az, repeat=1)     # seconds a frame: timing noise is small here
+        mae, flip = _errors(ref, frames)
+        return Point(s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp})
+    cls = technique.get(s.technique)
+    ctx = technique.Context(scene, height, bk, ref.albedo)
+    kw = cls.fit(ctx, dict(s.settings), ref.visibility, az)
+    tech = cls.build(ctx, **kw)
+    frames, frame_s = _render_all(tech, az)
+    p = {**s.params, **{k: v for k, v in tech.parameters.items() if k != "simulated"}, "frame_s": frame_s,
+         "bake": dataclasses.asdict(params), **({"technique": s.technique} if s.technique else {})}
+    if s.kind == "bake" and params.method == "seed":
+        # a large radius may take the looped kernel (hzval.bake.maps.choose_kernel): say so
+        p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
+        if p["kernel"] != "unrolled":
+            p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
+    if kw != s.settings:
+        p["note"] = ", ".join(f"{k} = {v:.3g}" for k, v in kw.items() if s.settings.get(k) != v)
+    mae, flip = _errors(ref, frames)
+    return Point(s.name, s.kind, float(bake_s if s.kind == "bake" else frame_s), int(tech.storage_bytes()),
+                 mae, flip, params=p)
+
+
+def mark_pareto(points: list[Point]) -> None:
+    """Set ``pareto`` on the points no other point of the same kind dominates in
+    (time_s, storage_bytes, visibility_mae)."""
+    for p in points:
+        obj = (p.time_s, p.storage_bytes, p.visibility_mae)
+        p.pareto = not any(
+            q is not p and q.kind == p.kind
+            and all(a <= b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
+            and any(a < b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
+            for q in points)
+
+
+def _pick(cand: list[Point], tolerance: float) -> tuple[Point, Point]:
+    """``(pick, best)``: the least storage, then time, within ``tolerance`` of the best."""
+    best = min(cand, key=lambda p: p.visibility_mae)
+    limit = best.visibility_mae * (1 + tolerance) + 1e-4
+    good = [p for p in cand if p.visibility_mae <= limit]
+    return min(good, key=lambda p: (p.storage_bytes, p.time_s, p.visibility_mae)), best
+
+
+def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
+    """The setting to use: among the techniques' settings (bake and technique), the one of least
+    storage, then least time, whose visibility error is within ``tolerance`` (relative) of the best;
+    the same among the settings of the technique whose bake is varied (its bake and its own), under
+    ``own`` with that technique's name, since another technique (terrain shadows) has another
+    cost, a sweep per light; and the fewest truth rays whose own error is below a tenth of the best."""
+    cand = [p for p in points if p.kind != "truth"]
+    if not cand:
+        return {}
+    pick, best = _pick(cand, tolerance)
+    default = next((p for p in points if "(default)" in p.name), None)
+    out = {"setting": pick.name, "visibility_mae": pick.visibility_mae, "best": best.name,
+           "best_visibility_mae": best.visibility_mae, "tolerance": tolerance,
+           "default": default.name if default else None,
+           "default_visibility_mae": default.visibility_mae if default else None}
+    baked = next((p.params.get("technique") for p in cand if p.kind == "bake"), None)
+    own = [p for p in cand if p.kind == "bake" or p.params.get("technique", "") == baked]
+    if own and pick not in own:
+        hpick, hbest = _pick(own, tolerance)
+        out["own"] = {"technique": baked, "setting": hpick.name, "visibility_mae": hpick.visibility_mae,
+                      "best": hbest.name, "best_visibility_mae": hbest.visibility_mae}
+    truths = sorted((p for p in points if p.kind == "truth"), key=lambda p: p.params.get("spp", 0))
+    enough = next((p for p in truths if p.visibility_mae <= best.visibility_mae / 10), None)
+    if enough:
+        out["truth"] = enough.name
+    return out
+
+
+# --------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------
+
+def plot_tradeoff(path: Path, points: list[Point]) -> None:
+    """Time against visibility error, one panel per kind; marker area ~ storage; Pareto front ringed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator, NullFormatter
+
+    kinds = [k for k in KINDS if any(p.kind == k for p in points)]
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4.6 * len(kinds), 4.2), squeeze=False)
+    labels = {"bake": "bake time (s)", "technique": "frame time (s)",
+              "truth": "truth frame time (s)"}
+    smax = max(p.storage_bytes for p in points) or 1
+    for ax, kind in zip(axes[0], kinds):
+        pts = [p for p in points if p.kind == kind]
+        for p in pts:
+            area = 30 + 270 * p.storage_bytes / smax
+            ax.scatter(p.time_s, p.visibility_mae, s=area, alpha=0.75,
+                       color="#d62728" if p.pareto else "#1f77b4", edgecolors="black", linewidths=0.5)
+            ax.annotate(p.label, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4),
+                        textcoords="offset points")
+        front = sorted((p for p in pts if p.pareto), key=lambda p: p.time_s)
+        if len(front) > 1:
+            ax.plot([p.time_s for p in front], [p.visibility_mae for p in front], color="#d62728", lw=1)
+        times = [p.time_s for p in pts if p.time_s > 0]
+        if times and max(times) > 10 * min(times):
+            # decades only, in engineering units: finer log ticks crowd the axis
+            ax.set_xscale("log")
+            ax.xaxis.set_major_locator(LogLocator(numticks=6))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        else:
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+        ax.xaxis.set_major_formatter(EngFormatter(unit="s", places=None, sep=" "))
+        ax.set_xlabel(labels[kind])
+        ax.set_ylabel("visibility mean |F - V|")
+        ax.set_title(kind)
+        ax.grid(True, alpha=0.3)
+    fig.suptitle("what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory",
+                 fontsize=10)
+    fig.tight_layout()
+    files.write_figure(path, fig, dpi=110)
+    plt.close(fig)
+
+
+def write_tradeoff(out: str | Path, points: list[Point], info: dict, *, material: dict, command: str,
+                   force: bool = False) -> Path:
+    """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path. The
+    folder is held while they are written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _write_tradeoff(out, points, info, material, files.portable_command(command, out))
+
+
+def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, command: str) -> Path:
+    from hzval.core import backend
+    from hzval.report import pages as report
+
+    rec = recommend(points)
+    data = {"material": material, "measurement": info, "recommendation": rec,
+            "versions": backend.versions(), "command": command,
+            "points": [{k: v for k, v in p.as_dict().items()
+                        if k in ("name", "kind", "time_s", "storage_bytes", "visibility_mae", "flip_mean",
+                                 "pareto", "params")} for p in points]}
+    plot_tradeoff(out / "pareto.png", points)
+    files.write_json(out / "tradeoff.json", data)
+    html = report._environment().get_template("tradeoff.html.j2").render(
+        points=points, rec=rec, info=info, material=material, command=command, versions=data["versions"])
+    index = out / "index.html"
+    with files.atomic_path(index) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return index
+
+
+def table(points: list[Point]) -> str:
+    """The points as a plain-text table for the terminal."""
+    head = ("setting", "kind", "time", "storage", "|F-V|", "FLIP", "pareto")
+    rows = [(p.label, p.kind, _fmt_s(p.time_s), _fmt_bytes(p.storage_bytes), f"{p.visibility_mae:.4f}",
+             f"{p.flip_mean:.4f}", "*" if p.pareto else "") for p in points]
+    w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    line = lambda c: "  ".join(x.ljust(w[0]) if i == 0 else x.rjust(w[i]) for i, x in enumerate(c))  # noqa: E731
+    return "\n".join([line(head), line(["-" * x for x in w]), *map(line, rows)])
+
+
+def _fmt_s(s: float) -> str:
+    return f"{s * 1000:.1f} ms" if s < 1 else f"{s:.2f} s"
+
+
+def _fmt_bytes(n: int) -> str:
+    for unit, size in (("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} B"

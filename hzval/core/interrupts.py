@@ -1,0 +1,83 @@
+"""Signals: SIGTERM unwinds like Ctrl-C, and a run's last step is not cut short.
+
+:func:`terminate_as_interrupt` makes SIGTERM (``kill``, a batch system's
+stop) raise :class:`hzval.core.errors.Interrupted`, a ``KeyboardInterrupt``, so that
+a run stopped either way removes its staging folder, its lock, and any folder
+it created (:func:`hzval.io.files.output_folder`); by default SIGTERM ends the
+process at once and leaves them behind.
+
+:func:`held` holds SIGINT and SIGTERM from the moment a run's output is complete
+(the last signal check is the moment it is entered: a signal before it raised
+there and then) until the run has left its folder: the swap of the new report
+into place (:meth:`hzval.io.files.Staging.swap`) and the lock's removal are not
+interrupted, and a signal that comes during them does not make a finished run
+exit 130 over a report already in place. Python runs signal handlers in the
+main thread only; elsewhere (a Dask worker's thread) nothing is held.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+import threading
+from typing import Iterator
+
+from hzval.core import errors
+
+__all__ = ["HELD", "terminate_as_interrupt", "held"]
+
+#: The signals :func:`held` holds.
+HELD = (signal.SIGINT, signal.SIGTERM)
+
+
+def _raise_interrupted(signum, frame) -> None:
+    raise errors.Interrupted(signum)
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`hzval.core.errors.Interrupted` (main thread only; the
+    previous handler is put back at its end, for a caller that runs commands in its own process)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class _Hold:
+    """What :func:`held` yields: :meth:`start` begins holding; ``caught`` the signals held since."""
+
+    def __init__(self) -> None:
+        self.caught: list[int] = []
+        self._saved: dict = {}
+
+    def start(self) -> None:
+        """From now until :func:`held` ends, SIGINT and SIGTERM are recorded, not raised."""
+        if self._saved or threading.current_thread() is not threading.main_thread():
+            return
+        for s in HELD:
+            self._saved[s] = signal.signal(s, lambda signum, frame: self.caught.append(signum))
+
+    def restore(self) -> None:
+        for s, handler in self._saved.items():
+            signal.signal(s, handler)
+        self._saved.clear()
+
+
+@contextlib.contextmanager
+def held() -> Iterator[_Hold]:
+    """A region whose signals, once :meth:`_Hold.start` is called, wait for its end and are then
+    dropped with one line on stderr: the run they would have stopped had finished."""
+    hold = _Hold()
+    try:
+        yield hold
+    finally:
+        hold.restore()
+        if hold.caught:
+            print(f"hzval: {signal.Signals(hold.caught[0]).name} came after the output was complete; "
+                  "it is kept", file=sys.stderr)

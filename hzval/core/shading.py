@@ -1,0 +1,150 @@
+"""Shading: the one place that defines how a surface point turns light into radiance.
+
+The truth (:mod:`hzval.truth.plane`), every technique (:mod:`hzval.techniques.surface`,
+:mod:`hzval.techniques.terrain`, :mod:`hzval.techniques.pom`) and the display exposure
+(:mod:`hzval.metrics.compare`) use these formulas and constants, so that the two
+sides of a comparison cannot drift apart: whatever differs between them is
+the surface, never the shading (docs/ARCHITECTURE.md, "Shading").
+
+Units: radiance is linear; ``E`` is the light's irradiance on a surface
+facing it (:attr:`hzval.scene.spec.Light.irradiance`); a Lambertian surface of
+albedo ``a`` lit at angle ``theta`` shows ``a / pi * E * cos(theta)``.
+
+Terms, per sample (``n`` the shading normal, ``L`` toward the light, ``v``
+toward the viewer, all unit vectors in tangent space):
+
+``diffuse``
+    ``albedo / pi * E * max(0, n.L)`` (Lambert; FGED2 ch. 7).
+``specular``
+    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]`` with ``h = normalize(L + v)``
+    (Blinn-Phong with FGED2's ``float(nl > 0.0)`` gate), ``KS`` =
+    :data:`SPECULAR_KS`, ``ALPHA`` = :data:`SPECULAR_EXPONENT`.
+``direct``
+    ``D`` = diffuse + specular, whichever are declared; ``E`` (grey) when
+    neither is: a scene of shadows alone shows ``E`` times the visibility.
+``ambient``
+    ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE``: a uniform sky over
+    the upper hemisphere seen through the unoccluded cosine-weighted
+    fraction ``A``.
+
+A frame's image is ``D * S + ambient``, ``S`` the shadow term (the truth's
+visibility ``V`` or a technique's factor ``F``).
+
+Soft light
+    A disk of angular radius ``rho`` is sampled uniformly in solid angle
+    (:func:`hzval.scene.spec.light_samples`), one direction per sample. Over the
+    cone the mean of ``cos`` of the angle to its axis is ``(1 + cos rho) /
+    2`` (``int cos dw = pi sin^2 rho`` over ``Omega = 2 pi (1 - cos rho)``),
+    so a surface facing the disk's centre receives ``E`` when each direction
+    carries :func:`disk_sample_irradiance` ``= 2 E / (1 + cos rho)``; a
+    technique, which sees the centre direction alone, uses ``E``.
+Exposure
+    :func:`exposure` maps the largest radiance the declared effects can
+    produce (:func:`max_radiance`: a white surface facing the light, specular
+    peak and unoccluded sky included) to display value 1, so that nothing a
+    display metric sees is clipped.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["SPECULAR_KS", "SPECULAR_EXPONENT", "SKY_RADIANCE_PER_IRRADIANCE", "exposure", "max_radiance",
+           "disk_sample_irradiance", "direct", "sky", "compose", "ipow"]
+
+#: Blinn-Phong specular colour ``ks`` (grey; a dielectric's normal-incidence
+#: reflectance), FGED2 ch. 7's ``C_specular``.
+SPECULAR_KS = 0.04
+#: Blinn-Phong exponent ``alpha`` (FGED2 ch. 7).
+SPECULAR_EXPONENT = 64
+#: Radiance of the uniform sky of ``ambient`` per unit of the light's
+#: irradiance E: ``1/pi`` gives an unoccluded horizontal plane an irradiance
+#: E from the sky.
+SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
+
+
+def max_radiance(scene) -> float:
+    """The largest radiance the scene's declared direct and sky terms can produce, per the formulas
+    above with a white albedo: ``E / pi`` (diffuse, facing the light) ``+ KS E`` (specular, at its
+    peak ``n.h = 1``), or ``E`` (grey, neither declared), ``+ E * SKY_RADIANCE_PER_IRRADIANCE``
+    (ambient, the whole sky seen). Interreflection can add more; it is not counted."""
+    E = float(scene.light.irradiance)
+    diffuse, specular = scene.declares("diffuse"), scene.declares("specular")
+    peak = E if not (diffuse or specular) else E / math.pi * diffuse + SPECULAR_KS * E * specular
+    if scene.declares("ambient"):
+        peak += E * SKY_RADIANCE_PER_IRRADIANCE
+    return peak
+
+
+def exposure(scene) -> float:
+    """Scale from radiance to display values: :func:`max_radiance` shows as 1."""
+    return 1.0 / max_radiance(scene)
+
+
+def disk_sample_irradiance(E: float, radius_deg: float) -> float:
+    """The irradiance each sampled direction of a soft light carries: ``2 E / (1 + cos rho)``
+    (module docstring, "Soft light"), so that a surface facing the disk's centre receives ``E``."""
+    return 2.0 * float(E) / (1.0 + math.cos(math.radians(radius_deg)))
+
+
+def ipow(x, n: int):
+    """``x ** n`` for a positive integer ``n`` by repeated squaring (no exp/log): the same
+    rounding on every backend, and cheaper than ``dr.power`` in a kernel."""
+    result = None
+    base = x
+    while n:
+        if n & 1:
+            result = base if result is None else result * base
+        n >>= 1
+        if n:
+            base = base * base
+    return result
+
+
+def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
+    """``D`` of the module docstring per sample, as a ``mi.Color3f`` (Dr.Jit arrays in and out).
+
+    ``albedo``: linear ``Color3f`` (read only with ``diffuse``); ``E`` the
+    irradiance (a Dr.Jit Float, opaque in callers so that kernels are
+    shared); ``h``: the half vector when the caller has it already (uniform
+    over a frame for a hard light and a fixed view), else computed from
+    ``L`` and ``v``.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    if not (diffuse or specular):
+        return mi.Color3f(E)
+    nl = dr.dot(n, L)
+    D = mi.Color3f(0.0)
+    if diffuse:
+        D += albedo * (E * dr.maximum(nl, 0.0) * (1.0 / math.pi))
+    if specular:
+        h = dr.normalize(L + v) if h is None else h
+        nh = dr.maximum(dr.dot(n, h), 0.0)
+        D += mi.Color3f(dr.select(nl > 0.0, SPECULAR_KS * E * ipow(nh, SPECULAR_EXPONENT), 0.0))
+    return D
+
+
+def sky(albedo, A, E):
+    """The ambient term ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE`` (Dr.Jit or NumPy)."""
+    return albedo * (A * E * SKY_RADIANCE_PER_IRRADIANCE)
+
+
+def compose(direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndarray | None = None) -> np.ndarray:
+    """``D * F + ambient`` per pixel: an unshadowed render's direct part shadowed by a
+    per-pixel factor ``F`` ``(H, W)``; ``(H, W, 3)`` float32.
+
+    Techniques whose factor is computed per pixel (terrain, pom) shade with
+    it here; the horizon map multiplies per sample in its kernel. The two
+    differ only where the direct term varies inside a pixel that a shadow
+    edge crosses (a covariance within one pixel).
+    """
+    # one new image, the sum made in it (each full-size temporary is pages new to the process)
+    out = np.multiply(np.asarray(direct_image, np.float32), np.asarray(factor, np.float32)[..., None],
+                      dtype=np.float32)
+    if ambient_image is not None:
+        np.add(out, ambient_image, out=out)     # in float64 first if the ambient is, as before
+    return out

@@ -1,0 +1,12 @@
+"""Meshes: the tile's displaced triangle mesh (tile), a model's base mesh from the built-in shapes or
+OBJ/PLY/glTF files (model), tangent frames (tangents, their one owner), a base mesh cut along the
+texel grid (cells), the displaced model the truth traces (displace), and the engine tangent-frame
+bugs reproduced on purpose (tangent_bugs).
+"""
+
+from hzval.core.exports import exports
+
+__getattr__, __dir__ = exports(
+    __name__,
+    ("cells", "displace", "model", "tangent_bugs", "tangents", "tile"),
+)

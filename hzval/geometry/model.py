@@ -1,0 +1,661 @@
+"""The base mesh a material is mapped onto: a built-in shape or the user's UV-mapped model
+(docs/meshes.md).
+
+Conventions (each one pinned by tests/test_model.py):
+
+World
+    **z up**, as hzval's tangent space and its plane (+z out of the surface). A file whose up
+    axis is y is turned to z up by a rotation of +90 degrees about x: ``(x, y, z) -> (x, -z, y)``
+    (x stays, y becomes z, z becomes -y), so that glTF's "front" (+z) faces -y.
+Up axis of files
+    ``up=None`` means **y for every format**: glTF by its spec, and OBJ/PLY because that is what
+    the tools that make them write by default (Blender's and Maya's OBJ exporters, photogrammetry
+    and sculpting packages: Meshroom, RealityCapture, ZBrush); a z-up file (3ds Max, some CAD) is
+    read with ``up="z"`` (``--up z``). The built-in shapes are z up.
+UVs
+    ``u`` along the image's columns (0 at the left, 1 at the right), ``v`` up the image (0 at the
+    bottom row, 1 at the top): OBJ's and PLY's own convention. glTF puts ``v = 0`` at the top row
+    (glTF 2.0 spec, "Images": the first pixel is the upper left corner), so its ``v`` is read as
+    ``1 - v``. ``uv_scale`` multiplies them (the texture repeats ``uv_scale`` times).
+Texture width in the world
+    ``world_per_uv = sqrt(world area / UV area)`` over the mesh: the world length of one texture
+    width, which turns ``depth`` (in texture widths) into world units. The plane is 1.
+Tangent frames
+    :mod:`hzval.geometry.tangents`: glTF's ``TANGENT`` when the file has it, else FGED2's
+    ``CalculateTangents``.
+
+Readers: OBJ and PLY by trimesh (which splits a vertex where its UVs differ and keeps the file's
+normals); glTF and GLB by pygltflib, because trimesh 4-5 drops ``TANGENT`` and keeps
+``TEXCOORD_0`` only for primitives that have a material (docs/meshes.md, "Readers").
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from hzval.geometry import tangents as tg
+from hzval.core.errors import InputError
+
+__all__ = ["WELD_TOLERANCE", "MAX_DEGENERATE_UV_AREA", "UP_AXES", "Y_UP_TO_Z_UP", "BaseMesh",
+    "weld_ids", "edge_table", "count_seams", "seam_edge_ends", "smooth_normals", "build", "to_z_up",
+    "plane", "CUBE_FACES", "cube", "sphere", "mirrored_sphere", "torus", "cylinder", "SHAPES",
+    "read_trimesh", "read_gltf", "READERS", "load"]
+
+#: Weld tolerance: positions closer than this share of the mesh's bounding-box diagonal are one
+#: point (a seam's two copies of a vertex, written from the same float or from sin(2 pi) ~ 1e-16).
+WELD_TOLERANCE = 1e-7
+#: Degenerate UV triangles (:data:`hzval.geometry.tangents.DEGENERATE_UV`) are tolerated up to this share of
+#: the world area (a scan's slivers); more is refused.
+MAX_DEGENERATE_UV_AREA = 0.01
+UP_AXES: tuple[str, ...] = ("y", "z")
+#: The rotation that turns a y-up file z up: (x, y, z) -> (x, -z, y).
+Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+@dataclass(frozen=True, eq=False)
+class BaseMesh:
+    """A triangle mesh with UVs and tangent frames, in hzval's world (z up).
+
+    ``positions (V, 3)``, ``normals (V, 3)`` unit, ``uvs (V, 2)`` (u right, v up the image,
+    ``uv_scale`` applied), ``faces (F, 3)`` int64 counterclockwise seen from outside,
+    ``tangents (V, 4)`` (xyz unit along +u, w = +1/-1: bitangent ``w cross(n, t)`` along +v),
+    all float64. ``tangent_source``: ``"file"`` or ``"computed"``; ``up``: the file's up axis as
+    read (``"z"`` for the shapes); ``source``: a shape name or the file's path.
+    """
+
+    source: str
+    positions: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    faces: np.ndarray
+    tangents: np.ndarray
+    tangent_source: str = "computed"
+    up: str = "z"
+    uv_scale: float = field(default=1.0)
+
+    @cached_property
+    def weld(self) -> np.ndarray:
+        """``(V,)`` int64: the id of each vertex's position (:func:`weld_ids`), equal across a seam."""
+        return weld_ids(self.positions)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """``(F,)`` world area of each triangle."""
+        p = self.positions[self.faces]
+        return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=-1)
+
+    @cached_property
+    def uv_areas(self) -> np.ndarray:
+        """``(F,)`` signed UV area of each triangle (positive: counterclockwise in UV)."""
+        return 0.5 * tg.uv_derivatives(self.positions, self.uvs, self.faces)[2]
+
+    @property
+    def world_per_uv(self) -> float:
+        """``sqrt(world area / UV area)``: the world length of one texture width."""
+        return math.sqrt(float(self.face_areas.sum()) / float(np.abs(self.uv_areas).sum()))
+
+    @property
+    def mirrored_fraction(self) -> float:
+        """Share of the UV area on triangles whose handedness is -1 (the sign of their vertices'
+        summed ``w``): mirrored UV islands."""
+        w = self.tangents[self.faces, 3].sum(axis=1)
+        a = np.abs(self.uv_areas)
+        return float(a[w < 0].sum() / a.sum())
+
+    @cached_property
+    def seam_edges(self) -> int:
+        """Edges whose two triangles meet at the same positions with different UVs or tangents."""
+        return count_seams(self)
+
+    def bounding_sphere(self) -> tuple[np.ndarray, float]:
+        """``(centre (3,), radius)``: the bounding box's centre and the farthest vertex from it."""
+        lo, hi = self.positions.min(axis=0), self.positions.max(axis=0)
+        centre = 0.5 * (lo + hi)
+        return centre, float(np.linalg.norm(self.positions - centre, axis=-1).max())
+
+    def record(self) -> dict:
+        """``metrics.json``'s ``mesh``: ``{source, triangles, world_per_uv, tangents,
+        mirrored_fraction, seam_edges}``."""
+        return {"source": self.source, "triangles": int(len(self.faces)),
+                "world_per_uv": self.world_per_uv, "tangents": self.tangent_source,
+                "mirrored_fraction": self.mirrored_fraction, "seam_edges": int(self.seam_edges)}
+
+
+# ----------------------------------------------------------------------------------------------
+# Welding and edges
+# ----------------------------------------------------------------------------------------------
+
+def weld_ids(positions: np.ndarray, tolerance: float = WELD_TOLERANCE) -> np.ndarray:
+    """``(V,)`` int64: one id per distinct position (to ``tolerance`` of the bounding-box
+    diagonal), numbered in the order of first appearance, so vertex 0's id is 0."""
+    p = np.asarray(positions, np.float64)
+    if len(p) == 0:
+        return np.zeros(0, np.int64)
+    q = max(float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) * tolerance, 1e-300)
+    _, first, inverse = np.unique(np.round(p / q).astype(np.int64), axis=0, return_index=True,
+                                  return_inverse=True)
+    order = np.argsort(np.argsort(first))  # renumber the groups by their first vertex
+    return order[inverse.ravel()].astype(np.int64)
+
+
+def edge_table(faces: np.ndarray, weld: np.ndarray):
+    """The edges of a mesh on welded ids: ``(key (F, 3), unique, inverse, counts)``; face
+    ``f``'s edge ``e`` runs from corner ``e`` to ``(e + 1) % 3`` and its key is
+    ``lo * W + hi`` of the two welded ids (``W`` their count); ``unique`` the distinct keys,
+    ``inverse (F, 3)`` each edge's row in it and ``counts`` the triangles on each."""
+    w = weld[faces]
+    a, b = w, np.roll(w, -1, axis=1)
+    n = int(weld.max(initial=0)) + 1
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    unique, inverse, counts = np.unique(key.ravel(), return_inverse=True, return_counts=True)
+    return key, unique, inverse.reshape(key.shape), counts
+
+
+def count_seams(mesh: BaseMesh, tolerance: float = 1e-9) -> int:
+    """Edges shared by two triangles whose ends carry different UVs or tangents on each side."""
+    return len(seam_edge_ends(mesh, tolerance))
+
+
+def seam_edge_ends(mesh: BaseMesh, tolerance: float = 1e-9) -> np.ndarray:
+    """``(E, 2)`` int64: one side's two vertices of each seam edge (:func:`count_seams`'s edges)."""
+    key, _, inverse, counts = edge_table(mesh.faces, mesh.weld)
+    f = mesh.faces
+    ends = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
+    flip = mesh.weld[ends[:, 0]] > mesh.weld[ends[:, 1]]
+    ends[flip] = ends[flip][:, ::-1]  # both sides' ends in the order of the welded ids
+    row = inverse.ravel()
+    pair = np.flatnonzero(counts == 2)
+    order = np.argsort(row, kind="stable")
+    starts = np.searchsorted(row[order], pair)
+    one, two = ends[order[starts]], ends[order[starts + 1]]
+    attrs = np.concatenate([mesh.uvs, mesh.tangents], axis=1)
+    differ = np.abs(attrs[one] - attrs[two]).max(axis=(1, 2)) > tolerance
+    return one[differ].astype(np.int64)
+
+
+# ----------------------------------------------------------------------------------------------
+# Building and checking a mesh
+# ----------------------------------------------------------------------------------------------
+
+def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
+    """Angle-weighted vertex normals (each triangle's unit normal times its angle at the vertex,
+    Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
+    the same normal and a quad's triangulation does not change it (a file without normals)."""
+    p = positions[faces]
+    face_n = tg._normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    acc = np.zeros((int(weld.max(initial=0)) + 1, 3))
+    for k in range(3):
+        a = tg._normalize(p[:, (k + 1) % 3] - p[:, k])
+        b = tg._normalize(p[:, (k + 2) % 3] - p[:, k])
+        angle = np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
+        np.add.at(acc, weld[faces[:, k]], face_n * angle[:, None])
+    return tg._normalize(acc[weld])
+
+
+def _check_finite(source: str, **arrays) -> None:
+    for name, a in arrays.items():
+        bad = ~np.isfinite(a).all(axis=-1)
+        if np.any(bad):
+            raise InputError(source, f"{int(bad.sum())} vertices have NaN or infinite {name}")
+
+
+def _check_uvs(source: str, mesh: BaseMesh) -> None:
+    """Zero UV area, or degenerate UV triangles on more than :data:`MAX_DEGENERATE_UV_AREA` of the
+    world area, is refused: the texture has no size there, no frame, no displacement."""
+    area = np.abs(mesh.uv_areas)
+    if not area.sum() > 0:
+        raise InputError(source, "the UVs have zero area (every triangle's UVs are degenerate)")
+    flat = area <= tg.DEGENERATE_UV * np.maximum(np.ptp(mesh.uvs[mesh.faces], axis=1).max(axis=1), 1e-300) ** 2
+    if mesh.face_areas[flat].sum() > MAX_DEGENERATE_UV_AREA * mesh.face_areas.sum():
+        raise InputError(source, f"{int(flat.sum())} of {len(flat)} triangles have degenerate "
+                                 "(zero-area) UVs")
+
+
+def _check_manifold(source: str, mesh: BaseMesh) -> None:
+    _, _, _, counts = edge_table(mesh.faces, mesh.weld)
+    bad = int(np.sum(counts > 2))
+    if bad:
+        raise InputError(source, f"{bad} edges are shared by 3 or more triangles (non-manifold): the "
+                                 "displaced surface cannot be welded there")
+
+
+def build(source: str, positions, uvs, faces, *, normals=None, tangents=None, uv_scale: float = 1.0,
+          up: str = "z") -> BaseMesh:
+    """A checked :class:`BaseMesh` from z-up arrays: ``normals`` (None: :func:`smooth_normals`),
+    ``tangents`` (the file's, None: :func:`hzval.geometry.tangents.compute`); ``uvs`` get ``uv_scale``.
+    Bad meshes raise :class:`InputError` naming ``source``."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    if len(f) == 0 or len(p) == 0:
+        raise InputError(source, "the mesh is empty (no triangles)")
+    if f.min() < 0 or f.max() >= len(p):
+        raise InputError(source, f"faces index vertices outside 0..{len(p) - 1}")
+    w = np.asarray(uvs, np.float64).reshape(-1, 2) * float(uv_scale)
+    used = np.zeros(len(p), bool)
+    used[f.ravel()] = True
+    if not used.all():  # vertices no triangle uses (a UV sphere's spare pole copy) have no frame
+        keep = np.flatnonzero(used)
+        remap = np.cumsum(used) - 1
+        p, w, f = p[keep], w[keep], remap[f]
+        normals = None if normals is None else np.asarray(normals, np.float64).reshape(-1, 3)[keep]
+        tangents = None if tangents is None else np.asarray(tangents, np.float64).reshape(-1, 4)[keep]
+    _check_finite(source, positions=p, UVs=w)
+    weld = weld_ids(p)
+    n = smooth_normals(p, f, weld) if normals is None else np.asarray(normals, np.float64).reshape(-1, 3)
+    _check_finite(source, normals=n)
+    n = tg._normalize(n)
+    zero = np.linalg.norm(n, axis=-1) == 0
+    n[zero] = smooth_normals(p, f, weld)[zero]
+    if tangents is None:
+        t, t_source = tg.compute(p, n, w, f), "computed"
+    else:
+        try:
+            t, t_source = tg.from_file(tangents, n), "file"
+        except ValueError as exc:
+            raise InputError(source, str(exc)) from None
+    mesh = BaseMesh(source, p, n, w, f, t, t_source, up, float(uv_scale))
+    mesh.__dict__["weld"] = weld  # computed once above (a cached_property on a frozen dataclass)
+    _check_uvs(source, mesh)
+    _check_manifold(source, mesh)
+    return mesh
+
+
+def to_z_up(up: str, positions, normals=None, tangents=None):
+    """Arrays of a file whose up axis is ``up`` in hzval's z-up world (:data:`Y_UP_TO_Z_UP`)."""
+    if up == "z":
+        return positions, normals, tangents
+    m = Y_UP_TO_Z_UP
+    return (positions @ m.T, None if normals is None else normals @ m.T,
+            None if tangents is None else tg.rotate(tangents, m))
+
+
+# ----------------------------------------------------------------------------------------------
+# Built-in shapes (z up)
+# ----------------------------------------------------------------------------------------------
+
+def plane(*, uv_scale: float = 1.0) -> BaseMesh:
+    """The unit quad ``[0, 1]^2`` at ``z = 0``, UVs ``(x, y)``, normal +z: today's tile
+    (``world_per_uv`` = 1, frame ``(x, y, z)``), two triangles along the (0, 0)-(1, 1) diagonal."""
+    p = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    return build("plane", p, p[:, :2], [[0, 1, 2], [0, 2, 3]], normals=np.tile([0.0, 0, 1], (4, 1)),
+                 uv_scale=uv_scale)
+
+
+#: The cube's faces as a real unwrap lays them out: ``(name, normal, +u axis, +v axis)``. Each face
+#: carries the whole texture. -y (the front), +x and +y read as the texture seen from outside
+#: (the sides' +v up); +z (the top) is turned 90 degrees (+u along +y); -x and -z are *mirrored*
+#: (w = -1: -x reuses +x's layout; -z, the bottom, has u along +x and v along +y, the texture as
+#: seen from above through the cube), as an artist's mirrored islands are. mirrored_fraction = 1/3.
+CUBE_FACES = (
+    ("+x", (1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    ("-x", (-1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    ("+y", (0, 1, 0), (-1, 0, 0), (0, 0, 1)),
+    ("-y", (0, -1, 0), (1, 0, 0), (0, 0, 1)),
+    ("+z", (0, 0, 1), (0, 1, 0), (-1, 0, 0)),
+    ("-z", (0, 0, -1), (1, 0, 0), (0, 1, 0)),
+)
+
+
+def cube(*, size: float = 1.0, uv_scale: float = 1.0) -> BaseMesh:
+    """The cube of edge ``size`` centred at the origin, each face the whole texture
+    (:data:`CUBE_FACES`), four vertices and two triangles a face, flat normals."""
+    uv = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
+    p, n, w, f = [], [], [], []
+    for k, (_, normal, t, b) in enumerate(CUBE_FACES):
+        normal, t, b = (np.asarray(a, np.float64) for a in (normal, t, b))
+        p.append(size * (0.5 * normal + (uv[:, :1] - 0.5) * t + (uv[:, 1:] - 0.5) * b))
+        n.append(np.tile(normal, (4, 1)))
+        w.append(uv)
+        tri = np.array([[0, 1, 2], [0, 2, 3]])
+        f.append(4 * k + (tri if np.dot(np.cross(t, b), normal) > 0 else tri[:, ::-1]))
+    return build("cube", np.concatenate(p), np.concatenate(w), np.concatenate(f),
+                 normals=np.concatenate(n), uv_scale=uv_scale)
+
+
+def _grid_faces(rows: int, cols: int, skip=None) -> np.ndarray:
+    """Triangles of a ``(rows + 1) x (cols + 1)`` vertex grid (index ``i * (cols + 1) + j``, ``i``
+    along +v, ``j`` along +u), each cell ``(a, b, c), (a, c, d)`` counterclockwise in UV; ``skip``
+    ``(rows, cols, 2)`` bool drops triangles (a pole's collapsed ones)."""
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    a = i * (cols + 1) + j
+    b, c, d = a + 1, a + cols + 2, a + cols + 1
+    tri = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], axis=2)
+    return tri[~skip] if skip is not None else tri.reshape(-1, 3)
+
+
+def _sphere_grid(radius: float, segments: int, rings: int, phi: tuple[float, float], u_of):
+    """One ``(positions, uvs, normals, faces)`` part of a UV sphere about the z axis: longitudes
+    ``phi[0]..phi[1]`` (counterclockwise from +x seen from +z) in ``segments`` columns, ``rings``
+    rows from the south pole to the north, ``u = u_of(f)`` of the share ``f`` (0 to 1) of the span,
+    ``v`` the latitude (0 south, 1 north); each pole's vertices at the middle of their column (its
+    collapsed triangle dropped)."""
+    v = np.arange(rings + 1) / rings
+    s = np.arange(segments + 1, dtype=float)
+    ss, vv = np.meshgrid(s, v)
+    ss[0, :] = ss[-1, :] = s + 0.5  # poles at the mid-span
+    f = ss / segments
+    theta, lon = np.pi * vv, phi[0] + (phi[1] - phi[0]) * f
+    n = np.stack([np.sin(theta) * np.cos(lon), np.sin(theta) * np.sin(lon), -np.cos(theta)], -1)
+    skip = np.zeros((rings, segments, 2), bool)
+    skip[0, :, 0] = skip[-1, :, 1] = True
+    return (radius * n.reshape(-1, 3), np.stack([u_of(f), vv], -1).reshape(-1, 2), n.reshape(-1, 3),
+            _grid_faces(rings, segments, skip))
+
+
+def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0) -> BaseMesh:
+    """A UV sphere about the z axis: ``u`` the longitude / 2 pi (counterclockwise from +x seen
+    from +z), ``v`` the latitude from the south pole (0) to the north (1); the seam at
+    ``u = 0 / 1`` (the +x half-plane) and each pole's vertices (one per segment, at the middle of
+    its ``u`` span). World area ``4 pi r^2`` as ``segments, rings`` grow (``world_per_uv`` ->
+    ``r sqrt(4 pi)``)."""
+    p, uv, n, f = _sphere_grid(radius, segments, rings, (0.0, 2 * np.pi), lambda f: f)
+    return build("sphere", p, uv, f, normals=n, uv_scale=uv_scale)
+
+
+def mirrored_sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32,
+                    uv_scale: float = 1.0) -> BaseMesh:
+    """The UV sphere unwrapped as an artist mirrors a symmetric model: the +y half (longitudes 0 to
+    pi) has ``u = longitude / pi``, the -y half the same UVs mirrored (``u = (2 pi - longitude) /
+    pi``), so a point and its mirror image in the xz plane read the same texel and the -y half has
+    handedness ``w = -1`` (``mirrored_fraction`` 1/2). The halves keep their own vertices along the
+    two mirror meridians, as exporters split them (their tangents point opposite ways), which makes
+    those meridians seams of equal UVs. ``world_per_uv`` -> ``r sqrt(2 pi)``."""
+    segments = max(2, segments // 2)
+    parts = [_sphere_grid(radius, segments, rings, (0.0, np.pi), lambda f: f),
+             _sphere_grid(radius, segments, rings, (np.pi, 2 * np.pi), lambda f: 1.0 - f)]
+    return _join("mirrored-sphere", parts, uv_scale)
+
+
+def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides: int = 32,
+          uv_scale: float = 1.0) -> BaseMesh:
+    """A torus about the z axis, tube centre ``major`` from the axis, tube radius ``minor``:
+    ``u`` around the axis (counterclockwise from +x seen from +z), ``v`` around the tube from the
+    outer equator (0) over the top; seams where each wraps. The inner ring (``v = 1/2``) is a
+    saddle: convex across the tube (normal curvature ``1 / minor``), concave around the axis
+    (``-1 / (major - minor)``; ``hzval models``' ``ring`` case)."""
+    uu, vv = np.meshgrid(np.arange(segments + 1) / segments, np.arange(sides + 1) / sides)
+    phi, psi = 2 * np.pi * uu, 2 * np.pi * vv
+    n = np.stack([np.cos(psi) * np.cos(phi), np.cos(psi) * np.sin(phi), np.sin(psi)], -1)
+    ring = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], -1)
+    p = major * ring + minor * n
+    return build("torus", p.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2),
+                 _grid_faces(sides, segments), normals=n.reshape(-1, 3), uv_scale=uv_scale)
+
+
+def _disk_grid(k: int):
+    """A ``k x k`` quad grid of the unit square mapped onto the unit disk (the elliptical grid
+    mapping ``(x sqrt(1 - y^2/2), y sqrt(1 - x^2/2))``, no singular centre): ``(xy (V, 2), faces,
+    rim)``, ``rim`` the ``4 k`` boundary vertices counterclockwise from ``(1, 0)`` (``k`` even).
+    Cells split along the diagonal that avoids the square's corners (no sliver there)."""
+    s = np.linspace(-1.0, 1.0, k + 1)
+    x, y = np.meshgrid(s, s)  # vertex (i, j) = row i (y), column j (x), index i (k + 1) + j
+    xy = np.stack([x * np.sqrt(1 - y * y / 2), y * np.sqrt(1 - x * x / 2)], -1).reshape(-1, 2)
+    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    a = i * (k + 1) + j
+    b, c, d = a + 1, a + k + 2, a + k + 1
+    same = ((i < k // 2) == (j < k // 2)).ravel()[:, None, None]  # quadrants whose corner is a or c
+    ac = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 2, 3)
+    bd = np.stack([np.stack([a, b, d], -1), np.stack([b, c, d], -1)], 2).reshape(-1, 2, 3)
+    faces = np.where(same, bd, ac).reshape(-1, 3)
+    edge = [(r, k) for r in range(k // 2, k)] + [(k, c) for c in range(k, 0, -1)] + \
+           [(r, 0) for r in range(k, 0, -1)] + [(0, c) for c in range(k)] + [(r, k) for r in range(k // 2)]
+    rim = np.array([r * (k + 1) + c for r, c in edge])
+    return xy, faces, rim
+
+
+def cylinder(*, radius: float = 0.5, height: float = 1.0, segments: int = 64, stacks: int = 32,
+             caps: bool = True, uv_scale: float = 1.0) -> BaseMesh:
+    """A cylinder about the z axis from ``-height/2`` to ``height/2``, ``segments`` (a multiple of
+    4) around and ``stacks`` up: the side's ``u`` the angle / 2 pi (counterclockwise from +x seen
+    from +z, seam at +x), ``v`` up; ``caps``: two disks (closed), each the texture's inscribed
+    circle seen from outside (top: u along +x, v along +y; bottom: u along +x, v along -y; neither
+    mirrored), a square grid mapped onto the disk (:func:`_disk_grid`) whose rim is the side's."""
+    if segments % 4 or segments < 8:
+        raise ValueError(f"segments must be a multiple of 4 (at least 8), got {segments}")
+    xy, disk, rim = _disk_grid(segments // 4)
+    ang = np.arctan2(xy[rim, 1], xy[rim, 0]) % (2 * np.pi)
+    u = np.concatenate([ang, [2 * np.pi]]) / (2 * np.pi)
+    uu, vv = np.meshgrid(u, np.arange(stacks + 1) / stacks)
+    ring = np.concatenate([xy[rim], xy[rim[:1]]])
+    n = np.broadcast_to(np.concatenate([ring, np.zeros((len(ring), 1))], 1), uu.shape + (3,))
+    p = radius * n + np.stack([0 * uu, 0 * uu, (vv - 0.5) * height], -1)
+    parts = [(p.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2), n.reshape(-1, 3),
+              _grid_faces(stacks, segments))]
+    for s in (1.0, -1.0) if caps else ():
+        cp = np.concatenate([radius * xy, np.full((len(xy), 1), s * height / 2)], axis=1)
+        parts.append((cp, 0.5 + 0.5 * xy * [1.0, s], np.tile([0.0, 0.0, s], (len(xy), 1)),
+                      disk if s > 0 else disk[:, ::-1]))
+    return _join("cylinder", parts, uv_scale)
+
+
+def _join(source: str, parts, uv_scale: float) -> BaseMesh:
+    """One mesh of ``(positions, uvs, normals, faces)`` parts."""
+    offsets = np.cumsum([0] + [len(q[0]) for q in parts])
+    return build(source, np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
+                 np.concatenate([q[3] + o for q, o in zip(parts, offsets)]),
+                 normals=np.concatenate([q[2] for q in parts]), uv_scale=uv_scale)
+
+
+SHAPES: dict[str, Callable[..., BaseMesh]] = {
+    "plane": plane, "cube": cube, "sphere": sphere, "cylinder": cylinder, "torus": torus,
+    "mirrored-sphere": mirrored_sphere,
+}
+
+
+# ----------------------------------------------------------------------------------------------
+# Files
+# ----------------------------------------------------------------------------------------------
+
+def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
+    """An OBJ or PLY by trimesh, every triangle mesh of the file (with its node transform) in one:
+    trimesh splits a vertex where its UVs differ (OBJ's ``f v/vt``) and keeps the file's ``vn`` /
+    PLY normals, which it holds in each geometry's cache; a file without them gets
+    :func:`smooth_normals`. Its UVs are OBJ's: ``v = 0`` at the bottom row."""
+    import trimesh
+
+    try:
+        scene = trimesh.load(path, force="scene", process=False)
+    except Exception as exc:  # trimesh raises many kinds for a broken file
+        raise InputError(path, f"cannot be read as a mesh ({type(exc).__name__}: {exc})") from None
+    parts, with_normals = [], True
+    for node in scene.graph.nodes_geometry:
+        matrix, name = scene.graph[node]
+        g = scene.geometry[name]
+        if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
+            continue
+        uv = getattr(g.visual, "uv", None)
+        if uv is None or len(uv) != len(g.vertices):
+            raise InputError(path, f"has no texture coordinates (UVs) on {name!r}")
+        normals = g._cache.cache.get("vertex_normals")  # the file's own, when it has them
+        with_normals &= normals is not None
+        m = np.asarray(matrix, np.float64)
+        p = np.asarray(g.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
+        n = None if normals is None else np.asarray(normals, np.float64) @ np.linalg.inv(m[:3, :3])
+        parts.append((p, np.asarray(uv, np.float64), n, np.asarray(g.faces, np.int64)))
+    if not parts:
+        raise InputError(path, "the mesh is empty (no triangles)")
+    offsets = np.cumsum([0] + [len(q[0]) for q in parts])
+    p = np.concatenate([q[0] for q in parts])
+    n = np.concatenate([q[2] for q in parts]) if with_normals else None
+    p, n, _ = to_z_up(up, p, n)
+    return build(path, p, np.concatenate([q[1] for q in parts]),
+                 np.concatenate([q[3] + o for q, o in zip(parts, offsets)]), normals=n,
+                 uv_scale=uv_scale, up=up)
+
+
+#: glTF accessor component types (glTF 2.0, "Accessor Data Types") and the range a normalized one
+#: maps to [0, 1] / [-1, 1] by.
+_GLTF_COMPONENTS = {5120: (np.int8, 127.0), 5121: (np.uint8, 255.0), 5122: (np.int16, 32767.0),
+                    5123: (np.uint16, 65535.0), 5125: (np.uint32, None), 5126: (np.float32, None)}
+_GLTF_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def _gltf_accessor(g, blob: bytes, index: int) -> np.ndarray:
+    """Accessor ``index`` of the glTF ``g`` as a ``(count, width)`` float64 array (indices as
+    integers), honouring ``byteStride`` and ``normalized``. Sparse accessors: ``ValueError``."""
+    a = g.accessors[index]
+    if a.sparse is not None:
+        raise ValueError(f"accessor {index} is sparse, which hzval does not read")
+    dtype, scale = _GLTF_COMPONENTS[a.componentType]
+    width = _GLTF_WIDTH[a.type]
+    view = g.bufferViews[a.bufferView]
+    item = np.dtype(dtype).itemsize * width
+    stride = view.byteStride or item
+    start = (view.byteOffset or 0) + (a.byteOffset or 0)
+    raw = np.frombuffer(blob, np.uint8, count=stride * (a.count - 1) + item, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, (a.count, item), (stride, 1))
+    out = np.ascontiguousarray(rows).view(dtype).reshape(a.count, width)
+    if a.normalized and scale is not None:
+        return np.maximum(out / scale, -1.0)
+    return out.astype(np.int64 if scale is None and dtype == np.uint32 else np.float64)
+
+
+def _gltf_node_matrix(node) -> np.ndarray:
+    """A node's local 4 x 4 transform: its ``matrix`` (column-major) or ``T R S``."""
+    if node.matrix is not None:
+        return np.asarray(node.matrix, np.float64).reshape(4, 4).T
+    x, y, z, w = node.rotation or (0.0, 0.0, 0.0, 1.0)
+    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    m = np.eye(4)
+    m[:3, :3] = r * np.asarray(node.scale or (1.0, 1.0, 1.0))[None, :]
+    m[:3, 3] = node.translation or (0.0, 0.0, 0.0)
+    return m
+
+
+def _gltf_primitives(g):
+    """``(primitive, world matrix)`` of every mesh primitive the default scene (or, without
+    scenes, every root node) instances, walking the node tree."""
+    roots = (g.scenes[g.scene or 0].nodes if g.scenes else
+             sorted(set(range(len(g.nodes))) - {c for n in g.nodes for c in (n.children or [])}))
+    stack = [(i, np.eye(4)) for i in roots]
+    while stack:
+        i, parent = stack.pop()
+        node = g.nodes[i]
+        m = parent @ _gltf_node_matrix(node)
+        if node.mesh is not None:
+            for prim in g.meshes[node.mesh].primitives:
+                yield prim, m
+        stack.extend((c, m) for c in node.children or [])
+
+
+def _gltf_part(g, blob, prim, m):
+    """One triangle primitive as ``(positions, uvs, normals, tangents, faces)`` in the file's
+    axes with its node's transform applied; glTF's ``v`` flipped to hzval's (``1 - v``)."""
+    at = prim.attributes
+    if at.TEXCOORD_0 is None:
+        raise ValueError("has no texture coordinates (TEXCOORD_0)")
+    p = _gltf_accessor(g, blob, at.POSITION)
+    faces = (_gltf_accessor(g, blob, prim.indices).reshape(-1, 3) if prim.indices is not None
+             else np.arange(len(p)).reshape(-1, 3))
+    uv = _gltf_accessor(g, blob, at.TEXCOORD_0) * [1.0, -1.0] + [0.0, 1.0]
+    n = None if at.NORMAL is None else _gltf_accessor(g, blob, at.NORMAL) @ np.linalg.inv(m[:3, :3])
+    t = None if at.TANGENT is None else tg.rotate(_gltf_accessor(g, blob, at.TANGENT), m[:3, :3])
+    if np.linalg.det(m[:3, :3]) < 0:  # a mirroring node turns the winding over (glTF 2.0, "Transformations")
+        faces = faces[:, ::-1]
+    return p @ m[:3, :3].T + m[:3, 3], uv, n, t, faces.astype(np.int64)
+
+
+def _gltf_check(g, blob: bytes) -> None:
+    """``ValueError`` for what the reader cannot decode: required extensions (Draco, meshopt
+    compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
+    the ``.gltf``)."""
+    if g.extensionsRequired:
+        raise ValueError(f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
+                         "read (export without compression)")
+    need = sum(b.byteLength or 0 for b in g.buffers)
+    if len(blob) < need:
+        raise ValueError(f"its buffer data is missing or short ({len(blob)} of {need} bytes; is its .bin "
+                         "file beside it?)")
+
+
+def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
+    """A glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``) by pygltflib: every triangle
+    primitive of the default scene with its node transforms; ``TEXCOORD_0`` (``v -> 1 - v``),
+    ``NORMAL`` and ``TANGENT`` (used when every primitive has one, else all are computed)."""
+    import warnings
+
+    import pygltflib
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            g = pygltflib.GLTF2().load(path)
+            g.convert_buffers(pygltflib.BufferFormat.BINARYBLOB)
+        blob = g.binary_blob() or b""
+        _gltf_check(g, blob)
+        parts = [_gltf_part(g, blob, prim, m) for prim, m in _gltf_primitives(g)
+                 if prim.mode in (None, pygltflib.TRIANGLES)]
+    except ValueError as exc:
+        raise InputError(path, str(exc)) from None
+    except Exception as exc:  # a broken file: pygltflib raises many kinds
+        raise InputError(path, f"cannot be read as glTF ({type(exc).__name__}: {exc})") from None
+    if not parts:
+        raise InputError(path, "the mesh is empty (no triangles)")
+    offsets = np.cumsum([0] + [len(q[0]) for q in parts])
+    cat = lambda k: None if any(q[k] is None for q in parts) else np.concatenate([q[k] for q in parts])
+    p, n, t = to_z_up(up, cat(0), cat(2), cat(3))
+    return build(path, p, cat(1), np.concatenate([q[4] + o for q, o in zip(parts, offsets)]),
+                 normals=n, tangents=t if n is not None else None, uv_scale=uv_scale, up=up)
+
+
+READERS: dict[str, Callable[..., BaseMesh]] = {".obj": read_trimesh, ".ply": read_trimesh,
+                                                  ".gltf": read_gltf, ".glb": read_gltf}
+
+
+def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
+    """``SHAPES[name](**args)``, a bad keyword or value as one line naming the shape's argument."""
+    import inspect
+
+    params = {k: p.default for k, p in inspect.signature(SHAPES[name]).parameters.items() if k != "uv_scale"}
+    for key, value in args.items():
+        if key not in params:
+            raise InputError(f"[mesh] {key}", f"{name} has no argument {key!r} (it has: {', '.join(params)})")
+        kind = type(params[key])  # the default's type: bool, int (counts) or float (lengths)
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if kind is bool and not isinstance(value, bool):
+            raise InputError(f"[mesh] {key}", f"must be true or false, got {value!r}")
+        if kind is int and not (number and value == int(value) and value > 0):
+            raise InputError(f"[mesh] {key}", f"must be a positive whole number, got {value!r}")
+        if kind is float and not (number and math.isfinite(value) and value > 0):
+            raise InputError(f"[mesh] {key}", f"must be a positive number, got {value!r}")
+        args[key] = int(value) if kind is int else value
+    try:
+        return SHAPES[name](uv_scale=uv_scale, **args)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"[mesh] {name}", str(exc)) from None
+
+
+def load(spec: str, *, uv_scale: float = 1.0, up: str | None = None,
+         shape_args: dict | None = None) -> BaseMesh:
+    """The base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, with ``shape_args``, e.g.
+    ``{"radius": 2}``; ``up`` ignored: they are z up) or a file by its extension
+    (:data:`READERS`), read with the up axis ``up`` (None: y, the module's "Up axis of files").
+    ``uv_scale`` > 0 repeats the texture. Anything wrong is one :class:`InputError` naming the
+    file or the flag."""
+    if not (isinstance(uv_scale, (int, float)) and math.isfinite(uv_scale) and uv_scale > 0):
+        raise InputError("--uv-scale", f"must be a positive number, got {uv_scale!r}")
+    if up is not None and up not in UP_AXES:
+        raise InputError("--up", f"must be one of {', '.join(UP_AXES)}, got {up!r}")
+    spec = os.fspath(spec)
+    if spec in SHAPES:
+        return _shape(spec, float(uv_scale), dict(shape_args or {}))
+    ext = os.path.splitext(spec)[1].lower()
+    if not ext:
+        near = difflib.get_close_matches(spec, list(SHAPES), n=3)
+        hint = f"; did you mean {' or '.join(near)}?" if near else ""
+        raise InputError("--mesh", f"unknown shape {spec!r}{hint} (shapes: {', '.join(SHAPES)}; "
+                                   f"or a {', '.join(READERS)} file)")
+    if ext not in READERS:
+        raise InputError(spec, f"unknown mesh format {ext!r} (known: {', '.join(READERS)})")
+    if not os.path.isfile(spec):
+        raise InputError(spec, "no such file")
+    return READERS[ext](spec, uv_scale=float(uv_scale), up=up or "y")

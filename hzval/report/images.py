@@ -1,0 +1,119 @@
+"""The visualisations of a comparison: visibility-difference and FLIP maps, and their colours.
+
+One module owns them, so that the sweep that paints them, the report that
+explains them (legends, plot lines) and the check that shows its own
+difference maps agree on every colour. Images out are 8-bit sRGB
+``(H, W, 3)`` arrays ready for :func:`hzval.io.files.write_png`, or the same
+pixels as :class:`hzval.io.files.Indexed` palette images (``*_indexed``: the
+sweep's frame files, a third of the bytes).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from hzval.io import files
+from hzval.metrics.compare import LIT_THRESHOLD
+
+__all__ = ["LEAK_RGB", "FALSE_SHADOW_RGB", "hex_colour", "visibility_diff_image", "visibility_diff_indexed",
+           "magma", "magma_palette", "magma_index", "flip_image", "flip_indexed"]
+
+#: Where the technique lights what the truth shadows (a light leak), sRGB 8-bit.
+LEAK_RGB = (255, 127, 14)
+#: Where the technique shadows what the truth lights (a false shadow), sRGB 8-bit.
+FALSE_SHADOW_RGB = (31, 119, 180)
+
+
+def hex_colour(rgb) -> str:
+    """``(255, 127, 14)`` -> ``"#ff7f0e"``."""
+    return "#" + "".join(f"{int(c):02x}" for c in rgb)
+
+
+def visibility_diff_image(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """8-bit RGB map of a factor ``F`` against the truth's visibility ``V`` (both ``(H, W)`` in [0, 1]).
+
+    Grey where they agree (``0.25 + 0.5 V``: darker in shadow), :data:`LEAK_RGB`
+    where ``F`` is lit and ``V`` is not, :data:`FALSE_SHADOW_RGB` the other way
+    round; lit means at least :data:`hzval.metrics.compare.LIT_THRESHOLD`, as the
+    metrics count them.
+    """
+    grey, leak, false_shadow = _visibility_diff_parts(V, F)
+    img = np.repeat(grey[..., None], 3, axis=-1)
+    img[leak] = LEAK_RGB
+    img[false_shadow] = FALSE_SHADOW_RGB
+    return img
+
+
+def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> files.Indexed | np.ndarray:
+    """:func:`visibility_diff_image` as a palette image, pixel for pixel: its grey levels (at most
+    128 for ``V`` in [0, 1]) and the two colours, a third of the RGB bytes. RGB in the case
+    (non-finite ``V``) where more than 256 colours would be needed."""
+    grey, leak, false_shadow = _visibility_diff_parts(V, F)
+    levels = np.flatnonzero(np.bincount(grey[~(leak | false_shadow)].ravel(), minlength=256))
+    if len(levels) > 254:
+        return visibility_diff_image(V, F)
+    slot = np.zeros(256, np.uint8)
+    slot[levels] = np.arange(len(levels))
+    index = slot[grey]
+    index[leak] = len(levels)
+    index[false_shadow] = len(levels) + 1
+    palette = np.concatenate([np.repeat(levels[:, None], 3, axis=1), [LEAK_RGB, FALSE_SHADOW_RGB]])
+    return files.Indexed(index, palette.astype(np.uint8))
+
+
+def _visibility_diff_parts(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(grey uint8, leak mask, false-shadow mask)`` of the visibility-difference map."""
+    grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
+    lit_truth, lit_test = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
+    return grey, lit_test & ~lit_truth, ~lit_test & lit_truth
+
+
+def magma(values: np.ndarray) -> np.ndarray:
+    """Values in [0, 1] (clipped) as 8-bit RGB through matplotlib's magma, FLIP's own colour map
+    (NaN black, as matplotlib's "bad" colour without its alpha)."""
+    values = _as_float(values)
+    rgb = magma_palette()[magma_index(values)]
+    rgb[np.isnan(values)] = 0
+    return rgb
+
+
+@functools.cache
+def magma_palette() -> np.ndarray:
+    """matplotlib's magma as 256 8-bit sRGB colours ``(256, 3)``, rounded to nearest."""
+    from matplotlib import colormaps
+
+    palette = (colormaps["magma"](np.arange(256))[..., :3] * 255 + 0.5).astype(np.uint8)
+    palette.flags.writeable = False
+    return palette
+
+
+def magma_index(values: np.ndarray) -> np.ndarray:
+    """The magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
+    matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma` paints it
+    black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each."""
+    x = np.clip(_as_float(values), 0, 1) * 256
+    x = np.where(np.isnan(x), 0, np.minimum(x, 255))
+    return x.astype(np.uint8)
+
+
+def _as_float(values) -> np.ndarray:
+    """An array of a float type as it is (its own precision decides the index), others as float64."""
+    values = np.asarray(values)
+    return values if np.issubdtype(values.dtype, np.floating) else values.astype(np.float64)
+
+
+def flip_image(error: np.ndarray) -> np.ndarray:
+    """A FLIP error map (``(H, W)`` in [0, 1]) as 8-bit RGB, as FLIP shows it."""
+    return magma(error)
+
+
+def flip_indexed(error: np.ndarray) -> files.Indexed | np.ndarray:
+    """:func:`flip_image` as a palette image of magma's 256 colours, pixel for pixel (the index is
+    the colour map's, so nothing is lost), a third of the RGB bytes; RGB if ``error`` has a NaN
+    (whose black is no magma colour)."""
+    error = _as_float(error)
+    if np.isnan(error).any():
+        return flip_image(error)
+    return files.Indexed(magma_index(error), magma_palette())

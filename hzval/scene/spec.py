@@ -1,0 +1,580 @@
+"""The scene: one description that both the truth and the approximation render.
+
+A scene names a material, a camera, a light with its sweep, the effects it
+calls for, and sample counts. It is read from TOML (``scenes/*.toml``) and
+the command line overrides it. Only the surface differs between the two
+renderers; everything here (camera, sample positions, light directions,
+units) is shared, so that any error that is not the technique's shows up as
+a bug rather than as error.
+
+Units and conventions: positions in texel units of the tangent space of
+:mod:`hzval.core.conventions`; the light's ``irradiance`` is the irradiance E on
+a surface facing it (so a Lambertian surface of albedo a shows radiance
+``a / pi * E * cos(theta)``); angles in degrees.
+
+TOML layout (every key optional; see ``scenes/bricks.toml``)::
+
+    name = "bricks"
+    [material]  height = "bricks" (a built-in material: ``hzval materials``) | "path/relative/to/scene.png",
+                size, depth, boundary (default: the material's), albedo (default: the material's),
+                shading = "smooth" | "faceted", truth_tolerance (texels; hzval.geometry.tile.cell_levels)
+    [camera]    kind = "top" | "orthographic" | "perspective", supersampling = 1 (top), elevation_deg,
+                azimuth_deg, fov_deg, distance (tile widths), resolution = [W, H], film_size = [w, h]
+                (hzval.scene.camera)
+    [lookup]    plane = "bottom" | "mean" | "top", filter = "nearest" | "bilinear" | "trilinear" |
+                "anisotropic", mips = "average" | "max", max_anisotropy, parallax = "none" | "offset" |
+                "occlusion", parallax_steps: how the techniques find and read their textures (hzval.scene.lookup)
+    [mesh]      shape = "plane" (the tile, the default) | "cube" | "sphere" | "cylinder" | "torus" |
+                "path/relative/to/scene.obj" (.obj, .ply, .gltf, .glb with texture coordinates), uv_scale
+                (the texture repeats), up = "y" | "z" (the file's up axis): the surface the material is on
+                (hzval.geometry.model; docs/meshes.md)
+    [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
+    [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
+    [samples]   spp = 16, seed = 0
+    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it (hzval.commands.check)
+    [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn (hzval.commands.check)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hzval.core import conventions as cv
+from hzval import materials
+from hzval.io import heightmap
+from hzval.scene.camera import Camera, stream
+from hzval.scene.lookup import Lookup
+from hzval.core.errors import InputError
+from hzval.geometry.tile import DEFAULT_TOLERANCE
+
+__all__ = ["EFFECTS", "SHADINGS", "DEFAULT_AZIMUTHS_TEXT", "DEFAULT_AZIMUTHS",
+    "DEFAULT_TRUTH_TOLERANCE", "DEFAULT_ALBEDO", "MaterialSpec", "MeshSpec", "MODEL_CAMERA",
+    "MESH_SUFFIXES", "Light", "DEFAULT_EFFECTS", "DEFAULT_INTERREFLECTION_DEPTH", "Scene",
+    "MAX_LIGHTS", "check_light_count", "parse_azimuths", "material_defaults", "sidecar_of",
+    "load_sidecar", "check_file", "load_scene", "override", "image_shape", "light_samples",
+    "load_material_height", "load_albedo", "Frame"]
+
+#: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
+EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
+                            "interreflection")
+#: How the truth shades the displaced mesh (:mod:`hzval.truth.plane`, "Shading"): with
+#: the normal interpolated from vertex normals, as a displaced mesh is shaded
+#: and as the techniques' normal map is, or with each triangle's flat normal.
+SHADINGS: tuple[str, ...] = ("smooth", "faceted")
+#: The default sweep (Lengyel's Figure 5.3), as ``--azimuths`` spells it and as degrees.
+DEFAULT_AZIMUTHS_TEXT = "-60:60:15"
+DEFAULT_AZIMUTHS = tuple(float(a) for a in range(-60, 61, 15))
+
+
+#: The truth's default tolerance, texels (:data:`hzval.geometry.tile.DEFAULT_TOLERANCE`).
+DEFAULT_TRUTH_TOLERANCE = DEFAULT_TOLERANCE
+
+#: The albedo of a height map that comes without one.
+DEFAULT_ALBEDO = 0.8
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    """Which height map, at which depth and boundary.
+
+    ``height`` names a built-in material (:data:`hzval.materials.REGISTRY`,
+    generated at ``size``) or a height map file. ``albedo``: an sRGB image
+    path, a constant linear albedo, or ``None`` for the material's own (a
+    built-in material's albedo; :data:`DEFAULT_ALBEDO` for a file).
+    """
+
+    height: str = materials.DEFAULT
+    size: int = materials.DEFAULT_SIZE
+    depth: float = 0.05
+    boundary: str = "wrap"
+    albedo: str | float | None = None
+    shading: str = "smooth"         # the truth's shading normal: "smooth" (vertex normals) or "faceted"
+    #: how far, in texels of height, the truth's triangles may be from the bilinear surface
+    #: (hzval.geometry.tile.cell_levels; the default from docs/truth-surface.md's convergence study)
+    truth_tolerance: float = DEFAULT_TRUTH_TOLERANCE
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """The surface the material is on (:mod:`hzval.geometry.model`): ``shape`` a built-in shape or a mesh
+    file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
+    axis (``None``: the format's default); ``tangent_bug``: the engine bug the techniques' frames
+    are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change)."""
+
+    shape: str = "plane"
+    uv_scale: float = 1.0
+    up: str | None = None
+    tangent_bug: str = "none"
+
+    @property
+    def is_plane(self) -> bool:
+        """Today's tile: the plane the techniques' textures lie on, traced as a height field."""
+        return self.shape == "plane" and self.uv_scale == 1.0
+
+
+#: The camera of a sweep on a model that names none: in perspective from 35 degrees up, so that a
+#: cube shows three faces (the plane's default, ``top``, would show one).
+MODEL_CAMERA = Camera(kind="perspective", elevation_deg=35.0, azimuth_deg=-30.0)
+
+#: Suffixes of the mesh files a scene may name (hzval.geometry.model reads them).
+MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".gltf", ".glb")
+
+
+@dataclass(frozen=True)
+class Light:
+    """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``)."""
+
+    kind: str = "hard"
+    radius_deg: float = 0.0
+    elevation_deg: float = 30.0
+    azimuths_deg: tuple[float, ...] = DEFAULT_AZIMUTHS
+    irradiance: float = 1.0
+
+    def direction(self, azimuth_deg: float) -> np.ndarray:
+        """Unit vector toward the light's centre at ``azimuth_deg``."""
+        return cv.light_direction(azimuth_deg, self.elevation_deg)
+
+
+#: What a scene simulates when it does not say: Lengyel's Figure 5.3 - a
+#: normal-mapped (Lambertian) surface with horizon-mapped shadows - so that
+#: the report's plain normal mapping differs from the horizon-mapped image
+#: by exactly the shadows.
+DEFAULT_EFFECTS = ("shadow", "diffuse")
+
+#: Mitsuba's ``max_depth`` convention: 2 is direct light only, 3 adds one bounce.
+DEFAULT_INTERREFLECTION_DEPTH = 3
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str = "bricks"
+    material: MaterialSpec = MaterialSpec()
+    camera: Camera = Camera()
+    mesh: MeshSpec = MeshSpec()
+    lookup: Lookup = Lookup()
+    light: Light = Light()
+    effects: tuple[str, ...] = DEFAULT_EFFECTS
+    interreflection_depth: int = DEFAULT_INTERREFLECTION_DEPTH
+    spp: int = 16
+    seed: int = 0
+    tolerances: dict = field(default_factory=dict)
+    check: dict = field(default_factory=dict)   # how `hzval check` renders it (hzval.commands.check)
+    source: str | None = None       # the TOML file it came from
+
+    def validate(self) -> "Scene":
+        what = self.source or "scene"
+        m, lt = self.material, self.light
+        cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth", m.boundary)
+        # values from TOML may be of any type: every number must be one (and finite) before it is compared
+        for name, value in (("material.depth", m.depth), ("material.size", m.size),
+                            ("material.truth_tolerance", m.truth_tolerance),
+                            ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
+                            ("light.irradiance", lt.irradiance), ("samples.spp", self.spp),
+                            ("samples.seed", self.seed),
+                            ("effects.interreflection_depth", self.interreflection_depth),
+                            *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg))):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise InputError(what, f"{name} must be a number, got {value!r}")
+            if name == "light.radius_deg" and lt.kind != "soft":
+                continue
+            if not math.isfinite(value):
+                raise InputError(what, f"{name} must be a finite number, got {value}")
+        if m.truth_tolerance <= 0:
+            raise InputError(what, f"material.truth_tolerance must be a positive number of texels, got "
+                                   f"{m.truth_tolerance}")
+        if m.shading not in SHADINGS:
+            raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
+        if m.boundary not in cv.BOUNDARIES:
+            raise InputError(what, f"material.boundary must be wrap or open, got {m.boundary!r}")
+        if m.size < 2:
+            raise InputError(what, f"material.size must be at least 2, got {m.size}")
+        if materials.is_builtin(m.height) and m.size < materials.get(m.height).min_size:
+            raise InputError(what, f"material.size of the built-in {m.height} must be at least "
+                                   f"{materials.get(m.height).min_size}, got {m.size}")
+        if lt.irradiance <= 0:
+            raise InputError(what, f"light.irradiance must be positive, got {lt.irradiance}")
+        if int(self.seed) != self.seed or self.seed < 0:
+            raise InputError(what, f"samples.seed must be a non-negative integer, got {self.seed}")
+        if self.interreflection_depth < 2:
+            raise InputError(what, "effects.interreflection_depth counts path segments as Mitsuba's max_depth: "
+                                   f"at least 2 (direct light), got {self.interreflection_depth}")
+        if lt.kind not in ("hard", "soft"):
+            raise InputError(what, f"light.kind must be hard or soft, got {lt.kind!r}")
+        if lt.kind == "soft" and not 0 < lt.radius_deg < 90:
+            raise InputError(what, f"a soft light needs 0 < light.radius_deg < 90, got {lt.radius_deg}")
+        if not -90 <= lt.elevation_deg <= 90:
+            raise InputError(what, f"light.elevation_deg must be in [-90, 90], got {lt.elevation_deg}")
+        if not lt.azimuths_deg:
+            raise InputError(what, "light.azimuths is empty")
+        check_light_count(len(lt.azimuths_deg), what if self.source else "--azimuths")
+        unknown = [e for e in self.effects if e not in EFFECTS]
+        if unknown or not self.effects:
+            raise InputError(what, f"unknown or no effects {unknown}; choose from {', '.join(EFFECTS)}")
+        if self.spp < 1:
+            raise InputError(what, "samples.spp must be at least 1")
+        self.camera.validate(what)
+        self.lookup.validate(what)
+        self._validate_mesh(what)
+        if self.camera.kind == "perspective" and self.mesh.is_plane:
+            # on a model every sample carries its own view (lookup.Samples.frames); the tile's do not
+            needs_v = [e for e in ("specular", "reflection_occlusion") if self.declares(e)]
+            if needs_v:
+                raise InputError(what, f"{' and '.join(needs_v)} with a perspective camera need the view direction "
+                                       "per pixel, which the tile's techniques do not take yet: use an orthographic "
+                                       "camera (or --mesh, whose samples carry their own)")
+        return self
+
+    def declares(self, effect: str) -> bool:
+        return effect in self.effects
+
+    def _validate_mesh(self, what: str) -> None:
+        ms = self.mesh
+        if not isinstance(ms.shape, str) or not ms.shape:
+            raise InputError(what, f"mesh.shape must be a shape name or a mesh file, got {ms.shape!r}")
+        if isinstance(ms.uv_scale, bool) or not isinstance(ms.uv_scale, (int, float)) \
+                or not math.isfinite(ms.uv_scale) or ms.uv_scale <= 0:
+            raise InputError(what if self.source else "--uv-scale",
+                             f"the UV scale must be a positive number, got {ms.uv_scale!r}")
+        if ms.up not in (None, "y", "z"):
+            raise InputError(what if self.source else "--up", f"the up axis must be y or z, got {ms.up!r}")
+        from hzval.geometry import tangent_bugs
+
+        tangent_bugs.check(ms.tangent_bug, what if self.source else "--tangent-bug")
+
+
+# --------------------------------------------------------------------------
+# Reading and overriding
+# --------------------------------------------------------------------------
+
+#: The most lights a sweep renders: one-degree steps around the whole circle, both ends included.
+#: Each light is a frame (the truth, every technique, their comparisons and about ten files: 1 s and
+#: 5 MB at 512 x 512, 70 MB at 2048); beyond one degree apart, neighbouring frames differ by less
+#: than their own noise. The count is computed from START:STOP:STEP before any list is made.
+MAX_LIGHTS = 361
+
+
+def check_light_count(n: int, what: str = "--azimuths") -> int:
+    """``n`` if it is at most :data:`MAX_LIGHTS`, else one line naming ``what``."""
+    if n > MAX_LIGHTS:
+        count = f"{int(n)}" if n < 1e12 else f"{n:.3g}"
+        raise InputError(what, f"{count} lights; at most {MAX_LIGHTS} (one-degree steps around the circle)")
+    return n
+
+
+def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
+    """``"-60:60:15"`` (start:stop:step, stop included), ``"0,45,90"`` or a list, in degrees; finite,
+    at most :data:`MAX_LIGHTS` of them (counted before the list is made)."""
+    bad = InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}")
+    if isinstance(text, (list, tuple)):
+        check_light_count(len(text), what)
+        if any(isinstance(a, bool) or not isinstance(a, (int, float)) for a in text):
+            raise InputError(what, f"expected a list of numbers of degrees, got {list(text)!r}")
+        values = tuple(float(a) for a in text)
+    elif not isinstance(text, str):
+        raise bad
+    elif ":" in text:
+        try:
+            start, stop, step = (float(v) for v in text.split(":"))
+        except ValueError:
+            raise bad from None
+        if not all(map(math.isfinite, (start, stop, step))) or step <= 0 or stop < start:
+            raise bad
+        count = math.floor((stop - start) / step + 1e-9) + 1
+        check_light_count(count, what)
+        values = tuple(start + i * step for i in range(int(count)))
+    else:
+        try:
+            values = tuple(float(v) for v in text.split(",") if v.strip())
+        except ValueError:
+            raise bad from None
+        check_light_count(len(values), what)
+    if not all(map(math.isfinite, values)):
+        raise bad
+    return values
+
+
+def _pairs(section: dict, keys) -> dict:
+    """A TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
+    return {k: (tuple(v) if k in keys and isinstance(v, list) else v) for k, v in section.items()}
+
+
+def material_defaults(height: str) -> dict:
+    """``depth`` and ``boundary`` of a scene of ``height`` that does not set them: a built-in
+    material's own, else 0.05 and ``wrap``."""
+    if materials.is_builtin(height):
+        m = materials.get(height)
+        return {"depth": m.depth, "boundary": m.boundary}
+    return {"depth": MaterialSpec.depth, "boundary": MaterialSpec.boundary}
+
+
+def sidecar_of(height: str | Path) -> Path | None:
+    """The sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
+    p = Path(height).with_suffix(".toml")
+    return p if p.is_file() else None
+
+
+def load_sidecar(path: str | Path, height: str | Path) -> Scene:
+    """The sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
+    file says; a sidecar that names another height map is an error (it would sweep another material
+    under this map's name)."""
+    path, height = Path(path), Path(height).resolve()
+    scene = load_scene(path, height=height)
+    if scene.material.height != str(height):
+        raise InputError(path, f"names the material {scene.material.height!r}, but it is the sidecar scene of "
+                               f"{height.name}: remove its material.height")
+    return scene
+
+
+def _height_beside(path: Path) -> str | None:
+    """The height map a sidecar scene ``path`` (naming no height) sits beside: the one file of its stem
+    with a height map suffix, if there is exactly one."""
+    found = [path.with_suffix(s) for s in heightmap.SUFFIXES if path.with_suffix(s).is_file()]
+    return str(found[0]) if len(found) == 1 else None
+
+
+def _schema() -> dict:
+    """What a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
+    dataclasses each table fills (:func:`hzval.core.strict.schema_of`), and the top-level ``name``."""
+    from hzval.core import strict
+
+    azimuths = str | tuple[float, ...]
+    tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
+    return {"material": strict.schema_of(MaterialSpec), "camera": strict.schema_of(Camera),
+            "lookup": strict.schema_of(Lookup), "mesh": strict.schema_of(MeshSpec),
+            "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
+            "effects": {"list": tuple[str, ...], "interreflection_depth": int},
+            "samples": {"spp": int, "seed": int},
+            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float,
+                      "resolution": tuple[int, int]},
+            # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
+            # names the registry knows: hzval.commands.check checks them (scene imports no technique)
+            "tolerances": {"*": tiers}}
+
+
+def check_file(data: dict, path: str | Path) -> None:
+    """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
+    a value of the wrong type: types are checked, not coerced (:mod:`hzval.core.strict`)."""
+    from hzval.core import strict
+
+    schema = _schema()
+    strict.check_keys(data, {"name": None, **schema}, path)
+    if "name" in data:
+        strict.check_value(data["name"], str | int, path, "name")
+    for table, keys in schema.items():
+        if table not in data:
+            continue
+        if table == "tolerances":
+            strict.check_table(data[table], {k: dict for k in data[table]}, path, table)
+            for kind, tiers in data[table].items():
+                strict.check_table(tiers, keys["*"], path, f"{table}.{kind}")
+        else:
+            strict.check_table(data[table], keys, path, table)
+
+
+def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
+    """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
+
+    When the file names no height map, the material is ``height`` if given, else the height map of
+    the same stem beside the file (the file is its sidecar: ``gravel.toml`` for ``gravel.png``), else
+    the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "no such scene file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
+    check_file(data, path)
+    try:
+        mat = dict(data.get("material", {}))
+        if "height" not in mat:
+            mat["height"] = str(height) if height is not None else (_height_beside(path) or materials.DEFAULT)
+        if "size" in mat and not materials.is_builtin(mat["height"]):
+            raise InputError(path, f"material.size applies to built-in materials only; the height map "
+                                   f"{mat['height']} has its own size (resize the file, or leave size out)")
+        mat = {**material_defaults(mat["height"]), **mat}
+        if not materials.is_builtin(mat["height"]):
+            mat["height"] = str((path.parent / mat["height"]).resolve())
+        if isinstance(mat.get("albedo"), str):
+            mat["albedo"] = str((path.parent / mat["albedo"]).resolve())
+        light = dict(data.get("light", {}))
+        if "azimuths" in light:
+            light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
+        effects = data.get("effects", {})
+        samples = data.get("samples", {})
+        mesh = dict(data.get("mesh", {}))
+        if Path(str(mesh.get("shape", ""))).suffix.lower() in MESH_SUFFIXES:
+            mesh["shape"] = str((path.parent / mesh["shape"]).resolve())
+        scene = Scene(
+            name=data.get("name", path.stem),
+            material=MaterialSpec(**mat),
+            camera=Camera(**_pairs(data.get("camera", {}), ("resolution", "film_size"))),
+            mesh=MeshSpec(**mesh),
+            lookup=Lookup(**data.get("lookup", {})),
+            light=Light(**light),
+            effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
+            interreflection_depth=effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH),
+            spp=samples.get("spp", 16),
+            seed=samples.get("seed", 0),
+            tolerances=dict(data.get("tolerances", {})),
+            check=dict(data.get("check", {})),
+            source=str(path),
+        )
+    except TypeError as exc:   # check_file has refused unknown keys: what is left is a value's
+        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
+    except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
+        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
+    return scene.validate()
+
+
+def override(scene: Scene, **changes) -> Scene:
+    """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
+
+    Keys: ``height, size, depth, boundary, shading, truth_tolerance, elevation, azimuths, light, light_radius,
+    effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
+    ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
+    lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``; the mesh's ``mesh``
+    (its shape), ``uv_scale``, ``up``, ``tangent_bug``.
+    """
+    c = {k: v for k, v in changes.items() if v is not None}
+    mat = scene.material
+    if "height" in c and c["height"] != mat.height:
+        # another material: a depth or boundary that was the old material's default becomes the new one's
+        old, new = material_defaults(mat.height), material_defaults(c["height"])
+        mat = dataclasses.replace(mat, **{k: new[k] for k in new if getattr(mat, k) == old[k]})
+    mat = dataclasses.replace(mat, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading",
+                                                        "truth_tolerance") if k in c})
+    light = scene.light
+    if "elevation" in c:
+        light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))
+    if "azimuths" in c:
+        light = dataclasses.replace(light, azimuths_deg=parse_azimuths(c["azimuths"]))
+    if "light" in c:
+        light = dataclasses.replace(light, kind=c["light"])
+    if "light_radius" in c:
+        light = dataclasses.replace(light, radius_deg=float(c["light_radius"]))
+    effects = scene.effects
+    if "effects" in c:
+        effects = tuple(e.strip() for e in c["effects"].split(",") if e.strip()) \
+            if isinstance(c["effects"], str) else tuple(c["effects"])
+    camera_keys = {"camera": "kind", "supersampling": "supersampling", "view_elevation": "elevation_deg",
+                   "view_azimuth": "azimuth_deg", "fov": "fov_deg", "distance": "distance",
+                   "resolution": "resolution", "film_size": "film_size"}
+    camera = dataclasses.replace(scene.camera, **{camera_keys[k]: (tuple(v) if isinstance(v, list) else v)
+                                                  for k, v in c.items() if k in camera_keys})
+    placed = [k for k in ("view_elevation", "view_azimuth", "fov", "distance", "resolution", "film_size") if k in c]
+    if camera.kind == "top" and placed:
+        raise InputError("--" + placed[0].replace("_", "-"), "places a camera: choose one with --camera "
+                                                            "orthographic or perspective (top is straight down)")
+    lookup = dataclasses.replace(scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax",
+                                                                    "parallax_steps") if k in c})
+    mesh = dataclasses.replace(scene.mesh, **{k: c[m] for m, k in (("mesh", "shape"), ("uv_scale", "uv_scale"),
+                                                                   ("up", "up"), ("tangent_bug", "tangent_bug"))
+                                                if m in c})
+    return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera, lookup=lookup,
+                               mesh=mesh,
+                               spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()
+
+
+# --------------------------------------------------------------------------
+# Where each pixel is sampled, and toward where its light is
+# --------------------------------------------------------------------------
+
+def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
+    """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map (:meth:`hzval.scene.camera.Camera.image_shape`)."""
+    return camera.image_shape(rows, cols)
+
+
+def light_samples(light: Light, azimuth_deg: float, count: int, seed: int,
+                  samples: tuple[int, int] | None = None) -> np.ndarray:
+    """``(count, 3)`` unit directions toward the light, one per sample.
+
+    A hard light gives its direction every time; a soft light samples the
+    cone of half-angle ``radius_deg`` about its centre uniformly in solid
+    angle (a disk light of that angular radius, uniformly bright).
+    ``samples``: ``(first, stop)``, only those of the ``count`` (a band), bit for bit.
+    """
+    first, stop = (0, count) if samples is None else (int(samples[0]), int(samples[1]))
+    centre = light.direction(azimuth_deg)
+    if light.kind == "hard":
+        return np.broadcast_to(centre, (stop - first, 3)).astype(np.float32)
+    cos_max = math.cos(math.radians(light.radius_deg))
+    # one PCG64 stream: all u1, then all u2 (as default_rng([seed, 0x11647]).random twice)
+    u1 = stream([seed, 0x11647], first).random(stop - first)
+    u2 = stream([seed, 0x11647], count + first).random(stop - first)
+    cos_t = 1.0 - u1 * (1.0 - cos_max)
+    sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0, None))
+    phi = 2 * math.pi * u2
+    local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
+    # an orthonormal frame around the centre (Duff et al. 2017)
+    z = centre
+    sign = math.copysign(1.0, z[2])
+    a = -1.0 / (sign + z[2])
+    b = z[0] * z[1] * a
+    t = np.array([1 + sign * z[0] * z[0] * a, sign * b, -sign * z[0]])
+    s = np.array([b, sign + z[1] * z[1] * a, -z[1]])
+    return (local[:, :1] * t + local[:, 1:2] * s + local[:, 2:] * z).astype(np.float32)
+
+
+def load_material_height(spec: MaterialSpec):
+    """The scene's height map as a :class:`hzval.io.heightmap.HeightMap`."""
+    if materials.is_builtin(spec.height):
+        m = materials.get(spec.height)
+        return heightmap.from_array(materials.generate(spec.height, spec.size).height,
+                                    source=f"built-in {m.label}, {spec.size}x{spec.size}")
+    return heightmap.load_height(spec.height)
+
+
+def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
+    """Linear albedo ``(rows, cols, 3)`` float32: a constant, an sRGB image decoded to linear, or
+    (``albedo = None``) a built-in material's own."""
+    if spec.albedo is None and materials.is_builtin(spec.height):
+        own = materials.generate(spec.height, spec.size).albedo
+        if own is not None:
+            return np.array(own)
+    if not isinstance(spec.albedo, str):
+        a = DEFAULT_ALBEDO if spec.albedo is None else float(spec.albedo)
+        if not 0 <= a <= 1:
+            raise InputError("material.albedo", f"must be in [0, 1], got {a}")
+        return np.full((rows, cols, 3), a, np.float32)
+    from PIL import Image
+
+    try:
+        with Image.open(spec.albedo) as img:
+            rgb = np.asarray(img.convert("RGB"), dtype=np.float64) / 255.0
+    except (OSError, ValueError) as exc:
+        raise InputError(spec.albedo, f"not a readable albedo image ({str(exc).splitlines()[0]})") from None
+    if rgb.shape[:2] != (rows, cols):
+        raise InputError(spec.albedo, f"albedo is {rgb.shape[1]}x{rgb.shape[0]}, the height map {cols}x{rows}")
+    return cv.srgb_decode(rgb).astype(np.float32)
+
+
+@dataclass
+class Frame:
+    """One render of one light of the sweep, by the truth or the approximation.
+
+    ``image``: the shaded result, linear radiance, float32 ``(H, W, 3)``.
+    ``layers``: named one-channel ``(H, W)`` images: the truth's
+    ``visibility`` (V) and the approximation's ``factor`` (F), in [0, 1],
+    and any other per-effect term (e.g. ``ambient``). ``variance``: for Monte
+    Carlo images, the per-pixel variance of the pixel's mean (squared
+    standard error), keyed like ``layers`` (``"image"`` for the image).
+    ``seconds``: render time, kernels synchronised. ``mask``: ``(H, W)`` bool, the
+    pixels whose camera rays see the surface (a view other than ``top``; ``None``: all);
+    the others are left out of every metric.
+    """
+
+    azimuth_deg: float
+    elevation_deg: float
+    image: np.ndarray
+    layers: dict[str, np.ndarray] = field(default_factory=dict)
+    variance: dict[str, np.ndarray] = field(default_factory=dict)
+    seconds: float = 0.0
+    mask: np.ndarray | None = None

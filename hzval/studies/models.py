@@ -1,0 +1,456 @@
+"""``hzval models [HEIGHT] --out DIR``: what curvature costs each technique (issue 29, docs/models.md).
+
+The flat bake sees a tile; on a sphere of radius ``R`` a horizon at distance ``d`` along the surface
+lies ``d^2 / (2R)`` below the tangent plane (convex) or above it (concave). The study sweeps one
+material on caps of spheres and bowls whose texture has a fixed world width ``W = 1`` (the caps'
+``world_per_uv`` is 1, so ``depth`` and the relief in texels are the same on every cap), and on
+the cube (Figure 5.1, its edges and seams):
+
+``cap+R``
+    A convex spherical cap of radius ``R`` texture widths (:data:`RADII`), ``2 A`` wide along the
+    surface, laid out by geodesic polar coordinates: a grid point ``(x, y)`` at ``r = |(x, y)|``
+    goes to ``R (sin(r/R) (x, y)/r, cos(r/R) - 1)``, its UV ``(x, y) + 1/2``: the UVs keep the radial
+    distances exactly and the tangential ones to ``sin(r/R)/(r/R)`` (at least 0.90 here).
+``bowl+R``
+    The same cap mirrored in z with its normals turned inward: concave, signed curvature ``-1/R``.
+``flat``
+    ``R = infinity``: the same grid, a plane (curvature 0), the reference.
+``ring``
+    The inside of a torus's ring (:func:`ring_obj`): normal curvature ``-1/2`` along the ring (x,
+    concave) and ``+1`` across the tube (y, convex); ``principal_curvatures`` in its row.
+``cube``
+    The built-in cube: its edges (the frame's normals bend through 90 degrees) and its seams.
+
+Each case is one sweep (:func:`hzval.pipeline.sweep.run`, its report in ``DIR/<case>/``) of every technique
+that renders on a model; ``DIR/models.json`` has per case the curvature ``1/R`` (signed, texture
+widths^-1) and each technique's mean |F - V|, leaks, false shadows and perfect-parallax floor
+(``perfect_parallax_mae``, the technique at the truth's own hits) over the lights; ``DIR/index.html``
+plots the error against ``1/R``. The caps are written as OBJ files (z up) in ``DIR/meshes/``.
+
+Each case is then rendered once more for the band (:mod:`hzval.studies.curvature_band`: the pixels whose
+base normal sees the light at the scene's elevation, per texel, 16 lights, standard errors), paired
+with the flat patch on the same texels: each row's ``band`` (its ``excess``: what curvature alone
+costs; the cube's ``seam`` shares, :mod:`hzval.studies.seam_share`) and the study's ``trend`` (whether the
+band's |F - V| and its excess rise as the caps' radius shrinks, within noise).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hzval.io import files
+
+__all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
+
+#: Convex caps' radii and the bowls', in texture widths (issue 29).
+RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
+BOWLS: tuple[float, ...] = (1.0, 2.0)
+#: The caps' half width along the surface, texture widths (smaller than the smallest radius).
+A = 0.4
+#: The torus of the ``ring`` case, texture widths: tube radius ``m`` (convex across the tube,
+#: ``+1/m``) and the inner equator's radius about the axis ``rho`` (concave along the ring, ``-1/rho``).
+RING: tuple[float, float] = (1.0, 2.0)
+#: Grid cells of a cap along each side (its base mesh; the truth refines it to the texel scale).
+CELLS = 32
+
+
+def cap_obj(path: Path, radius: float, sign: int) -> None:
+    """Write the cap (``sign`` +1), bowl (-1) or plane (``radius`` inf) of the module docstring as
+    an OBJ at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side."""
+    g = np.linspace(-A, A, CELLS + 1)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    r = np.hypot(x, y)
+    if math.isinf(radius):
+        p, n = np.stack([x, y, 0 * x], -1), np.tile([0.0, 0.0, 1.0], (len(x), 1))
+    else:
+        th = r / radius
+        ex, ey = np.divide(x, r, out=np.zeros_like(x), where=r > 0), np.divide(y, r, out=np.zeros_like(y), where=r > 0)
+        s = np.sin(th)
+        p = np.stack([radius * s * ex, radius * s * ey, sign * radius * (np.cos(th) - 1.0)], -1)
+        n = np.stack([sign * s * ex, sign * s * ey, np.cos(th)], -1)
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
+
+
+def _cases() -> list[tuple[str, float, str | None]]:
+    """``(name, signed curvature 1/R, mesh radius spec)``."""
+    out = [(f"cap+{R:g}", 1.0 / R, ("cap", R, 1)) for R in RADII]
+    out += [(f"bowl+{R:g}", -1.0 / R, ("cap", R, -1)) for R in BOWLS]
+    out += [("ring", None, ("ring", RING, 0))]
+    return out + [("flat", 0.0, ("cap", math.inf, 1)), ("cube", None, ("shape", "cube", 0))]
+
+
+def run(scene, out: str | Path, *, progress: bool = True, command: str = "", force: bool = False) -> dict:
+    """Sweep ``scene`` (its material, lights, spp) on every case into ``out``; write ``models.json``
+    and ``index.html``; return the ``models.json`` content. A run that fails leaves no folder it made."""
+    out = Path(out)
+    with files.output_folder(out, force=force):
+        return _run(scene, out, progress, command, force)
+
+
+def _case_scene(scene, out: Path, name: str, spec):
+    from hzval.scene import spec as S
+
+    kind, value, sign = spec
+    if kind in ("cap", "ring"):
+        obj = out / "meshes" / f"{name}.obj"
+        cap_obj(obj, value, sign) if kind == "cap" else ring_obj(obj, *value)
+        mesh = dataclasses.replace(scene.mesh, shape=str(obj.resolve()), up="z", uv_scale=1.0)
+        cam = dataclasses.replace(scene.camera, kind="orthographic", elevation_deg=60.0, azimuth_deg=-90.0)
+    else:
+        mesh = dataclasses.replace(scene.mesh, shape=value, uv_scale=1.0)
+        cam = dataclasses.replace(S.MODEL_CAMERA, resolution=scene.camera.resolution)
+    return dataclasses.replace(scene, mesh=mesh, camera=cam, name=f"{scene.name} {name}").validate()
+
+
+def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
+    from hzval.pipeline import sweep
+
+    rows, bands = [], {}
+    cases = _cases()
+    for i, (name, curvature, spec) in enumerate(cases):
+        if progress:
+            print(f"hzval models: {i + 1}/{len(cases)}: {name}", flush=True)
+        sc = _case_scene(scene, out, name, spec)
+        result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
+                           command=f"{command} # case {name}".strip(), force=force)
+        rows.append(_row(name, curvature, result))
+        _ring_row(rows[-1], spec)
+        bands[name] = _band_maps(sc, out / name)
+    data = {"format": "hzval models 1", "material": {**result["material"], "name": scene.name},
+            "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+    _add_bands(data, bands)
+    data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
+    files.write_json(out / "models.json", data)
+    _write_page(out, data)
+    return data
+
+
+def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
+    """Each tangent bug's signature with the lead technique (:mod:`hzval.studies.bug_signatures`)."""
+    from hzval.studies import bug_signatures
+    from hzval.scene import spec as S
+
+    height = S.load_material_height(scene.material).height
+    return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
+
+
+def _mean(values) -> float | None:
+    vals = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    return float(np.mean(vals)) if vals else None
+
+
+def _row(name: str, curvature, result: dict) -> dict:
+    """One case's means over its lights."""
+    techniques = {}
+    for t in result["techniques"]:
+        per = [f["techniques"][t] for f in result["frames"]]
+        techniques[t] = {k: _mean([p.get(k) for p in per]) for k in
+                         ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae",
+                          "reflection_mae")}
+    return {"case": name, "curvature": curvature, "radius": None if not curvature else 1.0 / abs(curvature),
+            "mesh": {k: result.get("mesh", {}).get(k) for k in ("source", "world_per_uv", "mirrored_fraction")},
+            "report": f"{name}/index.html", "techniques": techniques}
+
+
+def _write_page(out: Path, data: dict) -> None:
+    from hzval.studies import bug_signatures
+
+    rows = data["rows"]
+    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    _plot(out / "plots" / "models.png", rows, names)
+    reflection = _plot_reflection(out / "plots" / "reflection.png", rows, names)
+    head = "".join(f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names)
+    body = []
+    for r in rows:
+        cells = []
+        for n in names:
+            t = r["techniques"].get(n, {})
+            cells += [f"<td>{t.get(k):.4f}</td>" if t.get(k) is not None else "<td>-</td>"
+                      for k in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")]
+        k = "-" if r["curvature"] is None else f"{r['curvature']:+.3g}"
+        body.append(f"<tr><td><a href='{html.escape(r['report'])}'>{html.escape(r['case'])}</a></td><td>{k}</td>"
+                    + "".join(cells) + "</tr>")
+    page = ("<!doctype html><meta charset='utf-8'><title>hzval models</title>"
+            f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
+            f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
+            + (reflection or "") +
+            f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
+            "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
+            "truth's own hits (perfect parallax). docs/models.md.</p>" + _band_html(out, data)
+            + bug_signatures.page_section(data["bugs"]))
+    with files.atomic_path(out / "index.html") as tmp:
+        tmp.write_text(page, encoding="utf-8")
+
+
+def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | None:
+    """Each technique's reflection-occlusion error, mean |o - R| (``reflection_mae``: Toolbag's fade
+    with the interpolated vertex normal against the traced glossy lobe), against signed curvature
+    1/R, where the study declares ``reflection_occlusion``; the page's ``<img>`` and its table
+    (``None``: no case has it)."""
+    from matplotlib.figure import Figure
+
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    series = {n: [(r["curvature"], r["techniques"][n]["reflection_mae"]) for r in pts
+                  if r["techniques"].get(n, {}).get("reflection_mae") is not None] for n in names}
+    series = {n: s for n, s in series.items() if s}
+    if not series:
+        return None
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    for n, s in series.items():
+        ax.plot(*zip(*s), marker="o", label=n)
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |o − R|",
+           title="reflection occlusion against curvature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files.write_figure(path, fig)
+    cells = "".join(f"<tr><td>{html.escape(r['case'])}</td>" + "".join(
+        f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>" if r["techniques"].get(n, {}).get("reflection_mae")
+        is not None else "<td>-</td>" for n in series) + "</tr>" for r in rows)
+    head = "".join(f"<th>{html.escape(n)} |o&minus;R|</th>" for n in series)
+    return (f"<h2>Reflection occlusion</h2><img src='plots/{path.name}' alt='reflection error against 1/R'>"
+            f"<table border=1 cellpadding=3><tr><th>case</th>{head}</tr>{cells}</table>")
+
+
+def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
+    """Each technique's mean |F - V| (and its floor, dashed) against signed curvature 1/R."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    for n in names:
+        err = [(r["curvature"], r["techniques"][n]["visibility_mae"]) for r in pts
+               if r["techniques"].get(n, {}).get("visibility_mae") is not None]
+        if err:
+            ax.plot(*zip(*err), marker="o", label=n)
+        fl = [(r["curvature"], r["techniques"][n]["perfect_parallax_mae"]) for r in pts
+              if r["techniques"].get(n, {}).get("perfect_parallax_mae") is not None]
+        if fl:
+            ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |F − V|",
+           title="error against curvature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files.write_figure(path, fig)
+
+
+# -- the band: curvature and nothing else (hzval.studies.curvature_band) --------------------------------
+
+
+def _band_maps(case_scene, case_dir: Path) -> dict:
+    """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and lights)."""
+    from hzval.studies import curvature_band as cb
+
+    return cb.measure(cb.band_scene(case_scene), case_dir)
+
+
+def _add_bands(data: dict, bands: dict) -> None:
+    """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
+    study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
+    rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`)."""
+    from hzval.studies import curvature_band as cb
+
+    flat = bands.get("flat")
+    for r in data["rows"]:
+        if r["case"] in bands:
+            patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")   # the patch's UVs
+            r["band"] = cb.paired(bands[r["case"]], flat if patch else None)
+        if "principal_curvatures" in r and "band" in r:
+            r["band"]["by_azimuth"] = _by_azimuth(r, cb.AZIMUTHS)
+    convex = [r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")]
+    names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
+    data["band"] = {"half_deg": cb.BAND_DEG, "window": cb.WINDOW, "azimuths": list(cb.AZIMUTHS),
+                    "resolution": list(cb.RESOLUTION)}
+    data["trend"] = {}
+    for n in names:
+        have = [r for r in convex if n in r["band"]["techniques"]]
+        mae = [(r["curvature"], r["band"]["techniques"][n]["per_frame"]) for r in have]
+        exc = [(r["curvature"], r["band"]["techniques"][n].get("per_frame_excess")
+                or [0.0] * len(r["band"]["techniques"][n]["per_frame"])) for r in have]
+        data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
+
+
+# -- the inside of a torus's ring -----------------------------------------------------------
+
+
+def ring_obj(path: Path, tube: float, rho: float) -> None:
+    """Write a ``2 A`` square patch of a torus about its inner equator as an OBJ at ``path`` (z up,
+    the patch's centre at the origin, its normal +z): tube radius ``tube``, the inner equator a
+    circle of radius ``rho`` about the torus's axis, which runs along y at height ``rho``.
+
+    A grid point ``(x, y)`` goes to ring angle ``phi = x / rho`` and tube angle ``tau = y / tube``
+    (from the inner equator): ``p = C + (rho + tube (1 - cos tau)) e(phi) + tube sin tau y``,
+    ``e(phi) = (sin phi, 0, -cos phi)``, ``C = (0, 0, rho)``, its normal ``-cos tau e + sin tau y``;
+    UV ``(x, y) + 1/2``. Lengths along the tube are the UVs' exactly, along the ring to
+    ``1 + tube (1 - cos tau) / rho`` (1.04 at the rim, 1.008 inside the band's window). Along x the
+    surface bends toward its normal (concave, normal curvature ``-1/rho``), along y away from it
+    (convex, ``+1/tube``): the inside of a torus's ring, with one texture per world unit (the
+    built-in torus's UVs are stretched 3:1 there, around the ring against around the tube)."""
+    g = np.linspace(-A, A, CELLS + 1)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    phi, tau = x / rho, y / tube
+    e = np.stack([np.sin(phi), 0 * phi, -np.cos(phi)], -1)
+    yy = np.array([0.0, 1.0, 0.0])
+    p = np.array([0.0, 0.0, rho]) + (rho + tube * (1 - np.cos(tau)))[:, None] * e + (tube * np.sin(tau))[:, None] * yy
+    n = -np.cos(tau)[:, None] * e + np.sin(tau)[:, None] * yy
+    _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
+
+
+def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) -> None:
+    """A ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
+    seen from the normals' side."""
+    k = CELLS + 1
+    i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
+    a = (j * k + i).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + k + 1], -1), np.stack([a, a + k + 1, a + k], -1)])
+    lines = [f"v {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in p] + [f"vt {q[0]:.9g} {q[1]:.9g}" for q in uv]
+    lines += [f"vn {q[0]:.9g} {q[1]:.9g} {q[2]:.9g}" for q in n]
+    lines += ["f " + " ".join(f"{v + 1}/{v + 1}/{v + 1}" for v in f) for f in faces]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _ring_row(row: dict, spec) -> None:
+    """The ring case's principal curvatures (texture widths^-1, + convex) and their directions."""
+    if spec[0] == "ring":
+        tube, rho = spec[1]
+        row["principal_curvatures"] = {"along_ring_x": -1.0 / rho, "across_tube_y": 1.0 / tube}
+
+
+def _by_azimuth(row: dict, azimuths) -> list[dict]:
+    """Per light of the band: its azimuth, the normal curvature along its direction (Euler:
+    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch."""
+    kx, ky = row["principal_curvatures"]["along_ring_x"], row["principal_curvatures"]["across_tube_y"]
+    out = []
+    for i, az in enumerate(azimuths):
+        c, s = math.cos(math.radians(az)), math.sin(math.radians(az))
+        out.append({"azimuth_deg": float(az), "normal_curvature": kx * c * c + ky * s * s,
+                    "excess": {n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
+                               for n, t in row["band"]["techniques"].items()}})
+    return out
+
+
+# -- the band's table, trend and plot on the page ------------------------------------------------
+
+
+def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
+    """``mean ± se`` of a ``{mean, se}`` statistic, or ``-``."""
+    if not stat or stat.get("mean") is None:
+        return "-"
+    m, se = f"{stat['mean']:{'+' if signed else ''}.{digits}f}", stat.get("se")
+    return f"{m} &plusmn; {se:.{digits}f}" if se is not None else m
+
+
+def _band_html(out: Path, data: dict) -> str:
+    """The band's table (per case and technique: |F - V|, the flat patch's on the same texels, the
+    excess, the floor, the seams' share), the trend's verdicts and the excess plot."""
+    rows = [r for r in data["rows"] if "band" in r]
+    if not rows:
+        return ""
+    b = data["band"]
+    names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
+    _band_plot(out / "plots" / "band.png", rows, names)
+    head = "".join(f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
+                   f"<th>floor</th><th>seams: error / pixels</th>" for n in names)
+    body = []
+    for r in rows:
+        cells = []
+        for n in names:
+            t = r["band"]["techniques"].get(n, {})
+            seam = t.get("seam")
+            sh = "-" if not seam or seam["error_share"]["mean"] is None else \
+                f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
+            cells += [f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")]
+            cells.append(f"<td>{sh}</td>")
+        k = r.get("principal_curvatures")
+        k = (f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)" if k else
+             "-" if r["curvature"] is None else f"{r['curvature']:+.3g}")
+        body.append(f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
+                    f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>")
+    verdicts = "".join(f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
+                       f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
+                       for n, t in data.get("trend", {}).items())
+    return (f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
+            f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
+            f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
+            f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
+            "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
+            "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
+            f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
+            "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
+            f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
+            f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>")
+
+
+def _seam_texels() -> str:
+    from hzval.studies import seam_share
+
+    return f"{seam_share.SEAM_TEXELS:g}"
+
+
+def _says(t: dict) -> str:
+    """A trend as one phrase: its verdict, the whole change with its z, and any falls' z."""
+    o = t.get("overall") or {}
+    if o.get("change") is None:
+        return t["verdict"]
+    falls = ", ".join(f"{f['from']:+g}->{f['to']:+g} by {-f['z']:.1f} SE" for f in t["falls"])
+    return (f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
+            + (f"; falls {falls}" if falls else "") + ")")
+
+
+def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
+    """Each technique's band excess over the flat patch, with one standard error, against 1/R."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4), dpi=110)
+    ax = fig.subplots()
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    for n in names:
+        have = [(r["curvature"], r["band"]["techniques"][n].get("excess")) for r in pts
+                if n in r["band"]["techniques"]]
+        have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
+        if have:
+            k, m, se = zip(*have)
+            ax.errorbar(k, m, yerr=se, marker="o", capsize=3, label=n)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="band |F − V| − flat's, same texels",
+           title="what curvature alone costs (± 1 SE)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files.write_figure(path, fig)
+
+
+def summary_table(data: dict) -> str:
+    """``models.json``'s content as the terminal's table: per case each technique's mean |F - V|
+    and floor (and its reflection error where measured), the trends' verdicts and each tangent
+    bug's mirrored |F - V| against the correct frames'."""
+    num = lambda v, w=7: f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
+    rows = data["rows"]
+    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    refl = [n for n in names if any(r["techniques"].get(n, {}).get("reflection_mae") is not None for r in rows)]
+    lines = [f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names)
+             + "".join(f"  {n + ' |o-R|':>14}" for n in refl)]
+    for r in rows:
+        k = float("nan") if r["curvature"] is None else r["curvature"]
+        t = r["techniques"]
+        vals = "  ".join(f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t)
+        lines.append(f"{r['case']:10} {k:+7.3f}  {vals}" + "".join(f"  {num(t.get(n, {}).get('reflection_mae'), 14)}"
+                                                               for n in refl))
+    for n, t in data.get("trend", {}).items():
+        lines.append(f"{n}: band |F-V| {_says(t['mae'])}; excess over flat {_says(t['excess'])}")
+    bugs = data.get("bugs")
+    if bugs:
+        for case, rec in bugs["cases"].items():
+            ratios = ", ".join(f"{b} {r['mirrored_ratio']:.2f}x" for b, r in rec["bugs"].items()
+                               if b != "none" and r.get("mirrored_ratio") is not None)
+            lines.append(f"tangent bugs on {case} ({bugs['technique']} mirrored |F-V| / correct): {ratios}")
+    return "\n".join(lines)

@@ -1,0 +1,314 @@
+"""Ray-marched height-field shadows, as parallax occlusion mapping casts them: the ``pom`` technique.
+
+The fourth technique on the sweep, and the one engines weigh horizon
+mapping against: instead of a baked horizon, each shaded point marches the
+height map toward the light (Tatarchuk 2006, "Dynamic parallax occlusion
+mapping with approximate soft shadows", ACM I3D; engines' screen-space
+contact shadows march the depth buffer the same way). It needs only the
+height map, like the terrain technique, but it is evaluated per pixel and
+per light with no per-light precomputation, so its cost is its step count.
+
+Per sample (tangent space in texel units, :mod:`hzval.core.conventions`; heights
+``h`` in texels; light at azimuth ``phi``, elevation ``e``):
+
+March
+    From the shaded point ``p`` at height ``h0 = H(p)`` the ray rises
+    ``tan(e)`` per texel toward ``d = (cos phi, sin phi)``. It leaves the
+    height range at ``t_max = (h_max - h0) / tan(e)`` texels, so ``N`` linear
+    steps sample ``t_i = i t_max / N``, ``i = 1..N``, at ray height ``z_i =
+    h0 + t_i tan(e)`` against the height map ``H_i = H(p + t_i d)``
+    (bilinear between texel centres; ``wrap`` repeats, ``open`` has nothing
+    beyond the tile's border, as the truth's open mesh).
+Hard (``variant="hard"``)
+    ``F = 0`` if any ``H_i > z_i`` (by more than a few float32 ulps,
+    :data:`EPSILON_PER_HEIGHT`), else 1: the point sees the light unless a
+    sample lies above the ray. A blocker narrower than a step can be
+    stepped over (light leaks), which more steps cure; the shadow's far edge
+    is found to within one step, ``t_max / N``.
+Soft (``variant="soft"``; Tatarchuk's approximate soft shadows)
+    ``F = clamp(1 - w max(0, max_i (H_i - z_i) / t_i), 0, 1)``: ``(H_i - z_i)
+    / t_i`` is the tangent of how far the sample rises above the ray, seen
+    from the point, so the shadow darkens as a blocker rises into the light
+    and grows softer with the blocker's distance, as a penumbra does. The
+    softness ``w`` (:data:`DEFAULT_SOFTNESS` for a hard light; for a disk
+    light of angular radius ``rho``, ``1 / tan(rho)``: dark once the blocker
+    covers the disk's upper half) is the technique's only constant. As in
+    Tatarchuk's form, a blocker just below the ray does not lighten or darken
+    anything: the penumbra lies inside the geometric shadow.
+
+Lights at or above the zenith light everything, at or below the horizon
+nothing (as :mod:`hzval.techniques.surface`). The shading is the other techniques':
+:class:`hzval.techniques.surface.Unshadowed` times the pixel mean of ``F``
+(:func:`hzval.core.shading.compose`).
+
+Dr.Jit: one kernel for every step count, light and material (the step count,
+the light's direction, ``tan(e)``, ``h_max`` and ``w`` are opaque), one per
+variant; a per-pixel loop over the pixel's samples, each marching in a
+symbolic loop, so that no per-sample value goes through memory.
+``benchmarks/bench_pom.py`` measures its frame time against the steps.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from hzval.core import backend
+from hzval.scene import lookup
+from hzval.techniques import surface
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.scene.spec import Frame, Scene, image_shape
+from hzval.techniques.registry import Variant
+
+__all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS"]
+
+#: The two shadow tests (module docstring).
+VARIANTS: tuple[str, ...] = ("hard", "soft")
+#: Linear steps of the march in a sweep. On the 512 x 512 bricks (hard light
+#: at 30 degrees, 16 spp) |F - V| is 0.0465, 0.0255, 0.0159, 0.0119 and
+#: 0.0104 at 4, 8, 16, 32 and 64 steps, for 2.0x, 2.7x, 6.1x, 9.2x and 18x the
+#: horizon map's frame time: 32 is within 15% of 64's error at half its cost
+#: (``benchmarks/bench_pom.py``).
+DEFAULT_STEPS = 32
+#: Tatarchuk's softness ``w`` for a hard light: a blocker 1/8 radian (7
+#: degrees) above the ray casts full shadow.
+DEFAULT_SOFTNESS = 8.0
+#: How far, per texel of height, a sample must rise above the ray to block it:
+#: bilinear filtering of a flat patch returns its height to a few float32 ulps
+#: either side, which must not shadow it (32 ulps of the heights).
+EPSILON_PER_HEIGHT = 2.0 ** -18
+#: The step counts ``hzval tradeoff`` measures.
+TRADEOFF_STEPS: tuple[int, ...] = (4, 8, 16, 32, 64)
+
+
+def set_up_march(tech, scene: Scene, height: np.ndarray, steps: int, variant: str | None, softness,
+                 bake, albedo, unshadowed, samples):
+    """What every ray march of the height map sets up (this module's, and a GL shader's): its settings
+    checked and kept on ``tech`` (``variant``: soft for a soft light by default, ``softness``: then
+    ``1 / tan(radius)``), the image's shape, the heights in texels and their maximum, and the
+    unshadowed shading it multiplies. Returns ``(heights in texels, samples)``."""
+    variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
+    if softness is None:
+        softness = (1.0 / math.tan(math.radians(scene.light.radius_deg)) if scene.light.kind == "soft"
+                    else DEFAULT_SOFTNESS)
+    _validate(steps, variant, softness)
+    height = np.asarray(height, dtype=np.float32)
+    if height.ndim != 2:
+        raise InputError("height", f"expected a (rows, cols) height map, got shape {height.shape}")
+    tech.scene, tech.steps, tech.variant, tech.softness = scene, int(steps), variant, float(softness)
+    tech.rows, tech.cols = height.shape
+    tech.shape = image_shape(tech.rows, tech.cols, scene.camera)
+    tech.simulated = tech.simulates(scene)
+    h = cv.heights_in_texels(height, scene.material.depth)
+    tech.h_max = float(h.max())
+    samples = samples if samples is not None else lookup.samples_for(scene, tech.rows, tech.cols, height)
+    tech._unshadowed = tech.shading_for(scene, height, bake, albedo, unshadowed, samples)
+    return h, samples
+
+
+class RayMarchShadow(surface.HeightFieldShadow):
+    """Per-pixel height-field ray marching toward the light, frame by frame: the ``pom`` technique.
+
+    Parameters: ``scene`` and ``height`` (normalised ``(rows, cols)``) as
+    :class:`hzval.techniques.terrain.TerrainShadow`; ``steps`` (``N``, >= 1);
+    ``variant`` (``"hard"`` or ``"soft"``; default ``"soft"`` for a soft
+    light, else ``"hard"``); ``softness`` (``w`` of the soft variant, > 0;
+    default from the light, module docstring); ``bake``, ``albedo``,
+    ``unshadowed`` for the shading, as the terrain technique takes them.
+    """
+
+    name = "pom"
+    label = "ray-marched shadows"
+    summary = "parallax occlusion mapping's shadows: N linear steps through the height map toward the light"
+    file_stem = "pom"
+    not_modelled = ("interreflection", "reflection_occlusion")
+
+    def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = DEFAULT_STEPS, variant: str | None = None,
+                 softness: float | None = None, bake=None, albedo: np.ndarray | None = None,
+                 unshadowed: surface.Unshadowed | None = None, samples=None):
+        backend.variant()
+        h, samples = set_up_march(self, scene, height, steps, variant, softness, bake, albedo, unshadowed, samples)
+        self._upload(h, samples)
+
+    def _upload(self, h: np.ndarray, samples) -> None:
+        """The height texture (texel units) and the samples' texture coordinates, once."""
+        import drjit as dr
+        import mitsuba as mi
+
+        scene = self.scene
+        wrap = dr.WrapMode.Repeat if scene.material.boundary == "wrap" else dr.WrapMode.Clamp
+        # float32 filtering on every backend (CUDA's texture units resolve a texel to 1/256)
+        self._height = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(h[..., None], np.float32)),
+                                    use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
+                                    wrap_mode=wrap)
+        self.spp = int(scene.spp)
+        self._uv = samples.uv()   # shared
+        self._frames, self._macro = samples.frame_array(), samples.macro   # a model's (lookup.Samples)
+        self._c = {"steps": dr.opaque(mi.UInt32, self.steps), "w": dr.opaque(mi.Float, self.softness),
+                   "h_max": dr.opaque(mi.Float, self.h_max),
+                   "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)))}
+        dr.eval(self._uv)
+
+    # -- the Technique interface (hzval.techniques.registry) --------------------------
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        parser.add_argument("--pom-steps", type=int, default=DEFAULT_STEPS, metavar="N",
+                            help=f"ray-marched shadows: linear steps toward the light (default {DEFAULT_STEPS})")
+        parser.add_argument("--pom-variant", choices=VARIANTS, default=None,
+                            help="ray-marched shadows: hard test, or Tatarchuk's soft penumbra "
+                                 "(default: soft for a soft light, else hard)")
+        parser.add_argument("--pom-softness", type=float, default=None, metavar="W",
+                            help=f"ray-marched shadows: softness w of the soft variant (default {DEFAULT_SOFTNESS:g}, "
+                                 "or 1 / tan(light radius) for a soft light)")
+
+    #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
+    flags = {"steps": "--pom-steps", "variant": "--pom-variant", "softness": "--pom-softness"}
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        return {"steps": args.pom_steps, "variant": args.pom_variant, "softness": args.pom_softness}
+
+    @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        _validate(settings.get("steps", DEFAULT_STEPS), settings.get("variant") or VARIANTS[0],
+                  DEFAULT_SOFTNESS if settings.get("softness") is None else settings["softness"])
+
+    @classmethod
+    def tradeoff_variants(cls) -> list[Variant]:
+        v = [Variant(f"pom, {n} steps", {"steps": n, "variant": "hard"}, {"steps": n, "variant": "hard"})
+             for n in TRADEOFF_STEPS]
+        v += [Variant(f"pom soft (w = {DEFAULT_SOFTNESS:g}), {n} steps", {"steps": n, "variant": "soft"},
+                      {"steps": n, "variant": "soft", "softness": DEFAULT_SOFTNESS}) for n in (16, 64)]
+        return v
+
+    def storage_bytes(self) -> int:
+        """The height map alone, 16-bit."""
+        return self.rows * self.cols * 2
+
+    @property
+    def parameters(self) -> dict:
+        out = {"technique": "height-field ray march (parallax occlusion mapping's shadows)", "steps": self.steps,
+               "variant": self.variant, "simulated": list(self.simulated)}
+        if self.variant == "soft":
+            out["softness"] = self.softness
+        return out
+
+    # -- rendering -------------------------------------------------------------
+
+    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
+        """The frame for the light at ``azimuth_deg`` (degrees): the unshadowed shading times
+        the pixel mean of ``F`` (``layers["factor"]``); ``seconds`` its wall time, the
+        unshadowed shading's included."""
+        t0 = time.perf_counter()
+        e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
+        F = self.factor(azimuth_deg, e)
+        return self._unshadowed.shade(azimuth_deg, e, F, time.perf_counter() - t0)
+
+    def factor(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+        """Pixel means of ``F``, ``shape`` float32 in [0, 1]."""
+        import drjit as dr
+        import mitsuba as mi
+
+        if self._frames is not None:
+            return self._factor_on_model(azimuth_deg, elevation_deg)
+        if elevation_deg >= 90.0:
+            return np.ones(self.shape, np.float32)
+        if elevation_deg <= 0.0:
+            return np.zeros(self.shape, np.float32)
+        phi, e = math.radians(azimuth_deg), math.radians(elevation_deg)
+        # one texel toward the light in texture coordinates (v runs down the image)
+        du = dr.opaque(mi.Float, math.cos(phi) / self.cols)
+        dv = dr.opaque(mi.Float, -math.sin(phi) / self.rows)
+        tan_e = dr.opaque(mi.Float, math.tan(e))
+        P, spp = self.shape[0] * self.shape[1], self.spp
+        pixel = dr.arange(mi.UInt32, P)
+
+        def body(k, acc):
+            uv = dr.gather(mi.Point2f, self._uv, pixel * spp + k)
+            return k + 1, acc + self._march(uv, du, dv, tan_e)
+
+        _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
+                               cond=lambda k, acc: k < spp, body=body)
+        F = acc * (1.0 / spp)
+        dr.eval(F)
+        backend.sync()
+        return np.asarray(F, dtype=np.float32).reshape(self.shape)
+
+    def _factor_on_model(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+        """Pixel means of ``F`` on a model: each sample marches toward the world's light in its own
+        tangent frame (:class:`hzval.scene.lookup.Samples`), times the base mesh's shadow. A light below a
+        sample's tangent plane gives 0, one along its normal 1, as on the plane."""
+        import drjit as dr
+        import mitsuba as mi
+
+        direction = cv.light_direction(azimuth_deg, elevation_deg)
+        Lw = dr.opaque(mi.Vector3f, [float(c) for c in direction])
+        M = self._macro(direction) if self._macro is not None else None
+        P, spp = self.shape[0] * self.shape[1], self.spp
+        pixel = dr.arange(mi.UInt32, P)
+        cols, rows = dr.opaque(mi.Float, float(self.cols)), dr.opaque(mi.Float, float(self.rows))
+
+        def body(k, acc):
+            index = pixel * spp + k
+            uv = dr.gather(mi.Point2f, self._uv, index)
+            L = lookup.to_tangent(lookup.frame_of(self._frames, index), Lw)
+            run = dr.sqrt(dr.fma(L.x, L.x, L.y * L.y))
+            across = dr.maximum(run, 1e-12)
+            # one texel toward the light in texture coordinates (v runs down the image)
+            F = self._march(uv, L.x / across / cols, -L.y / across / rows, dr.maximum(L.z / across, 1e-6))
+            F = dr.select(L.z <= 0.0, 0.0, dr.select(run < 1e-6, 1.0, F))
+            if M is not None:
+                F = F * dr.gather(mi.Float, M, index)
+            return k + 1, acc + F
+
+        _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
+                               cond=lambda k, acc: k < spp, body=body)
+        F = acc * (1.0 / spp)
+        dr.eval(F)
+        backend.sync()
+        return np.asarray(F, dtype=np.float32).reshape(self.shape)
+
+    def _march(self, uv, du, dv, tan_e):
+        """``F`` of the samples at texture coordinates ``uv`` (module docstring, "March")."""
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self._c
+        open_tile = self.scene.material.boundary == "open"
+        h0 = self._height.eval(uv)[0]
+        t_max = dr.maximum(c["h_max"] - h0, 0.0) / tan_e
+        dt = t_max / mi.Float(c["steps"])
+        soft = self.variant == "soft"
+
+        def body(i, blocked, rise):
+            t = dt * mi.Float(i)
+            p = mi.Point2f(dr.fma(du, t, uv.x), dr.fma(dv, t, uv.y))
+            above = self._height.eval(p)[0] - dr.fma(t, tan_e, h0) - c["eps"]      # H_i - z_i
+            if open_tile:
+                outside = (p.x < 0.0) | (p.x > 1.0) | (p.y < 0.0) | (p.y > 1.0)
+                above = dr.select(outside, -1.0, above)                 # nothing beyond the border
+            if soft:
+                rise = dr.maximum(rise, above / t)
+            else:
+                blocked |= above > 0.0
+            return i + 1, blocked, rise
+
+        _, blocked, rise = dr.while_loop(
+            state=(mi.UInt32(1), mi.Bool(False), mi.Float(0.0)),
+            cond=lambda i, blocked, rise: (i <= c["steps"]) & ~blocked, body=body)
+        if soft:
+            return dr.clip(1.0 - c["w"] * rise, 0.0, 1.0)
+        return dr.select(blocked, 0.0, 1.0)
+
+
+def _validate(steps, variant: str, softness: float) -> None:
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise InputError("steps", f"the ray march needs at least 1 step, got {steps!r}")
+    if variant not in VARIANTS:
+        raise InputError("variant", f"must be one of {', '.join(VARIANTS)}, got {variant!r}")
+    if not (isinstance(softness, (int, float)) and math.isfinite(softness) and softness > 0):
+        raise InputError("softness", f"must be a positive number, got {softness!r}")

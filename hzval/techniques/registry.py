@@ -1,0 +1,292 @@
+"""Techniques as plug-ins: the interface every self-shadowing technique implements, and its registry.
+
+A *technique* renders the flat surface's frame for one light from what a
+real-time renderer would have (the bake's textures, the height map), and
+hzval scores that frame against the truth. The sweep, the comparison, the
+report, the regression check, the tradeoff and the command line all loop
+over :data:`REGISTRY`; none of them names a technique. Adding one is a
+module with a :class:`Technique` subclass and one line here, as Mitsuba
+registers its plugins by name and colour-science maps method names to
+functions (``colour.DELTA_E_METHODS``). docs/ARCHITECTURE.md, "Adding a
+technique", walks through ``pom`` as the example.
+
+The interface
+    Class attributes: ``name`` (the registry key, also ``--techniques``),
+    ``label`` and ``summary`` (for the report), ``file_stem`` (its files in a
+    frame folder: ``<stem>.exr``, ``<stem>_factor.exr``, ``<stem>_flip.png``,
+    ...), ``needs`` (effects a scene must declare for the technique to apply:
+    every shadowing technique needs ``shadow``), ``not_modelled`` (declarable
+    effects it leaves out). :meth:`Technique.build` makes one from a
+    :class:`Context`; :meth:`Technique.render` returns a
+    :class:`hzval.scene.spec.Frame` whose ``layers["factor"]`` is the pixel mean of
+    its shadow factor ``F`` in [0, 1]; ``simulated`` and ``parameters`` go to
+    ``metrics.json``. Optional hooks: command-line options
+    (:meth:`Technique.add_arguments`, :meth:`Technique.settings_from_args`),
+    the images the check guards (:meth:`Technique.check_variants`) and the
+    settings the tradeoff measures (:meth:`Technique.tradeoff_variants`,
+    :meth:`Technique.storage_bytes`).
+
+The registry maps names to ``"module:Class"`` and imports a technique only
+when it is asked for, so this module imports none of them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from hzval.scene import lookup
+from hzval.core.errors import InputError
+from hzval.scene.spec import EFFECTS, Frame, Scene
+
+__all__ = ["REGISTRY", "Technique", "Context", "Variant", "Unavailable", "get", "names", "defaults",
+           "select", "bake_needs"]
+
+#: Every technique, by name, in the order the report shows them.
+REGISTRY: dict[str, str] = {
+    "horizon": "hzval.techniques.horizon:Horizon",
+    "terrain": "hzval.techniques.terrain:TerrainShadow",
+    "pom": "hzval.techniques.pom:RayMarchShadow",
+    "horizon-gl": "hzval.techniques.gl.horizon_gl:HorizonGL",
+    "pom-gl": "hzval.techniques.gl.horizon_gl:PomGL",
+    "horizon-fit": "hzval.techniques.fitted.horizon_fit:FittedHorizon",
+    "horizon-curved": "hzval.techniques.horizon_curved:CurvedHorizon",
+}
+
+
+class Unavailable(Exception):
+    """Raised by :meth:`Technique.build` when this machine cannot run the technique (no OpenGL
+    context for the GL techniques): the message is one line saying what to install; the sweep
+    skips the technique with it and goes on."""
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A named setting of a technique: keywords for :meth:`Technique.build`, and what to record.
+
+    ``kind`` sorts tradeoff settings (``"technique"``: a setting of the
+    technique itself; ``"bake"``: of the bake it reads); ``params`` is what
+    ``tradeoff.json`` records of it (``steps`` for pom, ``storage`` for the
+    horizon map's textures, ...); ``formerly``: the name its ``hzval check``
+    reference had in an earlier release.
+    """
+
+    name: str
+    settings: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    kind: str = "technique"
+    #: A name the variant's check reference had before (read when there is none under ``name``).
+    formerly: str | None = None
+
+
+@dataclass
+class Context:
+    """What a technique is built from: the scene, the material and its bake.
+
+    ``height``: the normalised height map ``(rows, cols)`` float32;
+    ``bake``: its :class:`hzval.bake.maps.Bake`; ``albedo``: linear ``(rows,
+    cols, 3)``. :meth:`shared` lets techniques share what they would each
+    build (the unshadowed shading of :func:`hzval.techniques.surface.unshadowed`).
+    ``points``: where the techniques read their textures, when not where the
+    camera's rays meet their plane (:meth:`samples`): the truth's own hit
+    points, for the factor at perfect parallax.
+    """
+
+    scene: Scene
+    height: np.ndarray
+    bake: Any
+    albedo: np.ndarray
+    points: lookup.Samples | None = None
+    cache: Any = None           # a folder where a technique may keep what it fits (hzval.techniques.fitted.horizon_fit)
+    _shared: dict = field(default_factory=dict, repr=False)
+
+    def samples(self) -> lookup.Samples:
+        """Where every technique of the context reads its textures (:func:`hzval.scene.lookup.samples_for`)."""
+        if self.points is not None:
+            return self.points
+        return lookup.samples_for(self.scene, *self.height.shape, self.height)
+
+    def shared(self, key: str, make: Callable[[], Any]) -> Any:
+        """The object stored under ``key``, made by ``make()`` the first time."""
+        if key not in self._shared:
+            self._shared[key] = make()
+        return self._shared[key]
+
+
+class Technique:
+    """Base class of the techniques (module docstring). Subclasses set the class attributes."""
+
+    name: ClassVar[str]
+    label: ClassVar[str]
+    summary: ClassVar[str] = ""
+    file_stem: ClassVar[str]
+    needs: ClassVar[tuple[str, ...]] = ("shadow",)
+    not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
+    #: Whether a sweep without ``--techniques`` renders it (the GL techniques are opt-in).
+    by_default: ClassVar[bool] = True
+    #: Why the technique does not render on a model (``[mesh]``, :mod:`hzval.truth.model`), in one
+    #: line; empty: it does, reading each sample's own tangent frame (:class:`hzval.scene.lookup.Samples`).
+    not_on_models: ClassVar[str] = ""
+
+    simulated: tuple[str, ...] = ()
+    #: The command-line flag of each :meth:`build` setting (``{"steps": "--pom-steps"}``), which an
+    #: error about that setting names (:func:`flag_errors`).
+    flags: ClassVar[dict[str, str]] = {}
+    #: One-line warnings the sweep prints and the report shows (e.g. a suspicious external bake).
+    warnings: tuple[str, ...] = ()
+    #: Entries the technique adds to the top level of ``metrics.json`` (e.g. ``external_bake``).
+    extras: dict = {}
+    #: The parts that a frame's ``split`` (:meth:`frame_extras`) divides an error into, ``(key, label)``
+    #: from the bottom up as the report stacks them (``metrics.json``'s ``techniques.NAME.split_parts``);
+    #: none by default.
+    split_parts: ClassVar[tuple[tuple[str, str], ...]] = ()
+
+    @classmethod
+    def applies(cls, scene: Scene) -> bool:
+        """Whether the technique has something to render for ``scene``."""
+        return all(scene.declares(e) for e in cls.needs)
+
+    @classmethod
+    def simulates(cls, scene: Scene) -> tuple[str, ...]:
+        """The declared effects less those it does not model, in :data:`hzval.scene.spec.EFFECTS` order."""
+        return tuple(e for e in EFFECTS if scene.declares(e) and e not in cls.not_modelled)
+
+    @classmethod
+    def bake_needs(cls, scene: Scene) -> frozenset[str]:
+        """What the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
+        ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
+        its techniques need; by default everything."""
+        return frozenset({"normal", "horizon_map", "ambient", "height"})
+
+    @classmethod
+    def build(cls, ctx: Context, **settings) -> "Technique":
+        raise NotImplementedError
+
+    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
+        raise NotImplementedError
+
+    @property
+    def parameters(self) -> dict:
+        """Its settings, for ``metrics.json``."""
+        return {}
+
+    # -- optional hooks --------------------------------------------------------
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        """Add the technique's own ``hzval sweep`` options to an argparse parser."""
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        """The :meth:`build` keywords of the options :meth:`add_arguments` added."""
+        return {}
+
+    @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        """Refuse settings that cannot work with this bake, before anything is written
+        (raise :class:`hzval.core.errors.InputError`)."""
+
+    @classmethod
+    def check_variants(cls) -> list[Variant]:
+        """The images ``hzval check`` guards: one reference per variant, named after it."""
+        return [Variant(cls.file_stem)]
+
+    @classmethod
+    def tradeoff_variants(cls) -> list[Variant]:
+        """The settings ``hzval tradeoff`` measures; by default the technique as built."""
+        return [Variant(cls.label)]
+
+    @classmethod
+    def fit(cls, ctx: Context, settings: dict, visibility: list, azimuths) -> dict:
+        """``settings`` with any value the technique fits to a converged truth filled in
+        (``visibility``: the truth's V per azimuth); by default unchanged."""
+        return settings
+
+    def storage_bytes(self) -> int:
+        """Texture memory the technique reads at run time, bytes."""
+        return 0
+
+    @classmethod
+    def frame_extras(cls, scores: dict) -> dict:
+        """Entries the technique adds to its own record of a frame (``frames[i].techniques.NAME``)
+        from every technique's scores of that frame, ``{name: metrics}`` (e.g. how its error
+        splits against another's); by default none."""
+        return {}
+
+
+def names() -> list[str]:
+    """The registered technique names, in registry order."""
+    return list(REGISTRY)
+
+
+def defaults() -> list[str]:
+    """The names a sweep renders when none are asked for: the registry less the techniques that are
+    not on by default (:attr:`Technique.by_default`)."""
+    return [n for n in REGISTRY if get(n).by_default]
+
+
+def get(name: str) -> type[Technique]:
+    """The technique class registered as ``name``."""
+    try:
+        module, cls = REGISTRY[name].split(":")
+    except KeyError:
+        raise InputError("--techniques", f"unknown technique {name!r}; choose from {', '.join(REGISTRY)}") from None
+    return getattr(importlib.import_module(module), cls)
+
+
+def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
+    """The techniques to render for ``scene``: ``requested`` (names, in registry order),
+    or every one that applies and is on by default (:attr:`Technique.by_default`); ``exclude``
+    leaves some out.
+
+    A requested technique that does not apply (``pom`` on a scene without
+    ``shadow``) is an :class:`InputError`, not silently dropped.
+    """
+    if requested is None:
+        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.by_default and t.applies(scene)]
+        if not chosen:
+            raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
+                                             "effects the scene does not declare")
+        return chosen
+    wanted = list(dict.fromkeys(requested))
+    if not wanted:
+        raise InputError("--techniques", "name at least one technique")
+    classes = [get(n) for n in wanted]          # unknown names fail here
+    for t in classes:
+        if not t.applies(scene):
+            raise InputError("--techniques", f"{t.name} needs the scene to declare {', '.join(t.needs)}")
+    order = list(REGISTRY)
+    return sorted((t for t in classes if t.name not in exclude), key=lambda t: order.index(t.name))
+
+
+def replace_effects(scene: Scene, effects) -> Scene:
+    """``scene`` with another effect list (for the shading a technique builds on)."""
+    return dataclasses.replace(scene, effects=tuple(effects))
+
+
+def bake_needs(techniques, scene: Scene) -> frozenset[str]:
+    """What a sweep must bake for ``techniques`` (classes) on ``scene``: their
+    :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
+    ambient map) that the unshadowed shading reads (:class:`hzval.techniques.surface.Unshadowed`)."""
+    needs = {"normal"} | ({"ambient"} if scene.declares("ambient") else set())
+    for t in techniques:
+        needs |= t.bake_needs(scene)
+    return frozenset(needs)
+
+
+@contextlib.contextmanager
+def flag_errors(cls: type[Technique], typed: dict[str, str] | None = None):
+    """Errors about one of ``cls``'s settings name its command-line flag (:attr:`Technique.flags`),
+    or the spelling of it the user typed (``typed``: canonical flag -> as typed, e.g. an alias)."""
+    try:
+        yield
+    except InputError as exc:
+        flag = cls.flags.get(exc.what)
+        if flag is None:
+            raise
+        raise InputError((typed or {}).get(flag, flag), exc.problem) from None
