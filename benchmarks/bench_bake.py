@@ -16,7 +16,7 @@ brick wall (:func:`hzval.materials.bricks.bricks`), baked at depth 0.05, radius 
    it, then the best of ``--repeat``;
 3. the same with an empty Dr.Jit kernel cache (``DRJIT_CACHE_DIR`` pointed at
    a new empty folder for every run): what a first run on a machine pays;
-4. :func:`hzval.bake.maps.horizon_map` alone, in this process, kernel warm.
+4. :func:`hzval.bake.horizon.horizon_map` alone, in this process, kernel warm.
 
 It also checks that the two C variants agree bit for bit and that the peer
 and ``hzval bake`` computed the same thing:
@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     hzval = _hzval_script()
 
     from hzval.core import backend
-    from hzval.bake import maps as bake
+    from hzval.bake import horizon as bake_horizon
     from hzval.io import files
     from hzval.io import heightmap
     from hzval.core import conventions as cv
@@ -178,14 +178,14 @@ def main(argv: list[str] | None = None) -> int:
                            dict(os.environ, DRJIT_CACHE_DIR=str(cold_cache)))
             hz_cold.append(wall)
 
-        # -- (4) hzval.bake.maps.horizon_map in this process, kernel warm
+        # -- (4) hzval.bake.horizon.horizon_map in this process, kernel warm
         variant = backend.variant()
         h = cv.heights_in_texels(decoded, DEPTH)
-        bake.horizon_map(h, RADIUS, ANGLES, BOUNDARY)  # compile (or load) the kernel
+        bake_horizon.horizon_map(h, RADIUS, ANGLES, BOUNDARY)  # compile (or load) the kernel
         kernel = []
         for _ in range(args.repeat):
             t0 = time.perf_counter()
-            bake.horizon_map(h, RADIUS, ANGLES, BOUNDARY)  # returns NumPy arrays: synchronous
+            bake_horizon.horizon_map(h, RADIUS, ANGLES, BOUNDARY)  # returns NumPy arrays: synchronous
             backend.sync()
             kernel.append(time.perf_counter() - t0)
 
@@ -216,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{'(2) hzval bake (process), Dr.Jit kernel cache warm':<58} {w:8.3f} "
             f"{stages.get('horizon_s', float('nan')):8.3f}",
             f"{'(3) hzval bake (process), Dr.Jit kernel cache EMPTY':<58} {c:8.3f} {'':>8}",
-            f"{'(4) hzval.bake.maps.horizon_map in-process, kernel warm':<58} {'':>8} {kern:8.3f}",
+            f"{'(4) hzval.bake.horizon.horizon_map in-process, kernel warm':<58} {'':>8} {kern:8.3f}",
             "",
             f"(1a), (1b): gcc {flags}, OMP_NUM_THREADS={THREADS}; outputs bit-identical: "
             f"{'yes' if c_identical else 'NO'}.",

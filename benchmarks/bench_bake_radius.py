@@ -1,6 +1,6 @@
 """Benchmark: what the seed horizon bake's search radius costs in compile and run time.
 
-The seed bake (:func:`hzval.bake.maps.horizon_map`) is one Dr.Jit kernel. Its
+The seed bake (:func:`hzval.bake.horizon.horizon_map`) is one Dr.Jit kernel. Its
 unrolled form has one block of code per neighbour offset (radius 16: 797
 offsets; 32: 3,204; 64: 12,848), so its compile time grows faster than the
 square of the radius; the looped form (symbolic loops over the offset table,
@@ -11,7 +11,7 @@ for each radius and kernel form, on a ``SIZE x SIZE`` brick map
 (:func:`hzval.materials.bricks.bricks`, depth 0.05, 32 bins, wrap):
 
 ``cold``
-    the first :func:`~hzval.bake.maps.horizon_map` call of a fresh process with an
+    the first :func:`~hzval.bake.horizon.horizon_map` call of a fresh process with an
     **empty** Dr.Jit kernel cache (``DRJIT_CACHE_DIR`` set to a new empty
     folder): compile + run, what a first bake on a machine pays;
 ``disk``
@@ -32,9 +32,9 @@ Usage::
     python benchmarks/bench_bake_radius.py [--size 512] [--radii 16,32,64]
         [--kernels unrolled,loop,auto] [--repeat 3]
 
-``--kernels`` takes ``auto`` (what :func:`~hzval.bake.maps.horizon_map` picks:
-:func:`hzval.bake.maps.choose_kernel`, unrolled up to
-:data:`hzval.bake.maps.UNROLL_MAX_OFFSETS` offsets, above it the form with the
+``--kernels`` takes ``auto`` (what :func:`~hzval.bake.horizon.horizon_map` picks:
+:func:`hzval.bake.horizon.choose_kernel`, unrolled up to
+:data:`hzval.bake.horizon.UNROLL_MAX_OFFSETS` offsets, above it the form with the
 faster first bake by a cost model fitted to this script's figures; the
 table shows ``auto=FORM``), ``unrolled`` and ``loop``.
 
@@ -68,7 +68,7 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     import drjit as dr
 
     from hzval.core import backend
-    from hzval.bake import maps as bake
+    from hzval.bake import horizon as bake
     from hzval.materials.bricks import bricks
     from hzval.core import conventions as cv
 

@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from hzval.core import backend
-    from hzval.bake import maps as B
+    import hzval.bake as B
     from hzval.materials.bricks import bricks
     from hzval.scene import spec as S
     from hzval.techniques.horizon import Horizon

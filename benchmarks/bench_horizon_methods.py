@@ -5,8 +5,8 @@ For each size (default 512 and 2048) this bakes ``hzval.materials.bricks.bricks(
 run each first), alternating seed and exact, and prints the best of
 ``--repeat`` of each, with their ratio:
 
-* ``seed``: :func:`hzval.bake.maps.horizon_map` (radius 16, 32 bins, Lengyel);
-* ``exact``: :func:`hzval.bake.maps.exact_horizon_map` (unlimited radius, line
+* ``seed``: :func:`hzval.bake.horizon.horizon_map` (radius 16, 32 bins, Lengyel);
+* ``exact``: :func:`hzval.bake.exact.exact_horizon_map` (unlimited radius, line
   sweeps with a convex-hull stack, Timonen and Westerholm 2010), Dr.Jit
   engine, and, at the smallest size only, its NumPy engine.
 
@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hzval.core import backend  # noqa: E402
 from hzval.materials.bricks import bricks
-from hzval.bake import maps as B  # noqa: E402
+import hzval.bake as B  # noqa: E402
 from hzval.core import conventions as cv  # noqa: E402
 
 

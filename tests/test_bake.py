@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 
 DEFAULT = B.BakeParams()

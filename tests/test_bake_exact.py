@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
 

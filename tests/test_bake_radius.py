@@ -1,4 +1,4 @@
-"""The seed bake's two kernel forms (``hzval.bake.maps.horizon_map(kernel=...)``) and its radius.
+"""The seed bake's two kernel forms (``hzval.bake.horizon.horizon_map(kernel=...)``) and its radius.
 
 The unrolled kernel has one block of code per neighbour offset; the looped
 one walks the offset table in a symbolic Dr.Jit loop. Both compute the same
@@ -14,7 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+from hzval.bake import horizon as B
+from hzval.bake import maps
 from hzval.core import conventions as cv
 
 ANGLES = 32
@@ -109,7 +110,7 @@ def test_the_default_bake_takes_the_unrolled_kernel(variant, monkeypatch):
     def fail(*args, **kwargs):
         raise AssertionError("the default radius must not take the loop")
     monkeypatch.setattr(B, "_max_tan_loop", fail)
-    B.bake(np.zeros((8, 8), np.float32), B.BakeParams())
+    maps.bake(np.zeros((8, 8), np.float32), maps.BakeParams())
 
 
 def test_auto_takes_the_loop_for_a_large_radius_on_a_small_map(variant, monkeypatch):

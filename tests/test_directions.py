@@ -19,7 +19,7 @@ import pytest
 
 from hzval.techniques import horizon as A
 from hzval.materials.bricks import bricks
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.scene.spec import MaterialSpec, Scene

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hzval.scene import camera as hz_camera
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.materials import bricks as brick_wall
 from hzval.scene import spec as S

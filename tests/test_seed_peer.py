@@ -4,7 +4,7 @@
 algorithm) kept as close to the listing as possible, with only the changes
 that hzval's conventions call for (any size, wrap/open, +y up the image,
 heights in texel units, averaged ambient terms). It is compiled once per
-session; :func:`hzval.bake.maps.horizon_map` must reproduce it texel for texel up
+session; :func:`hzval.bake.horizon.horizon_map` must reproduce it texel for texel up
 to float rounding, on odd, tiny, degenerate and power-of-two sizes, both
 boundaries and several radii and bin counts. The peer's ``-DHOISTED_TABLE``
 variant (its offset table computed once: the benchmark's speed peer) must
@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 
@@ -100,7 +101,7 @@ def test_horizon_map_matches_seed_peer(variant, seed_peer, tmp_path,
     height = rng.random((rows, cols), dtype=np.float32)
 
     peer = run_peer(seed_peer, height, depth, radius, angles, boundary, tmp_path)
-    horizon, mean_cos, mean_cos2 = bake.horizon_map(
+    horizon, mean_cos, mean_cos2 = bake_horizon.horizon_map(
         cv.heights_in_texels(height, depth), radius, angles, boundary)
 
     assert horizon.shape == (rows, cols, 8)
@@ -121,14 +122,14 @@ def test_horizon_map_matches_seed_peer(variant, seed_peer, tmp_path,
         idx = np.unravel_index(np.argmax(np.abs(ours - theirs)), ours.shape)
         where[name] = f"at {tuple(int(i) for i in idx)}: hzval {ours[idx]:.7g}, seed {theirs[idx]:.7g}"
     bad = {k: v for k, v in diffs.items() if not v <= TOLERANCE}
-    assert not bad, (f"hzval.bake.maps.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
+    assert not bad, (f"hzval.bake.horizon.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
                      + "; ".join(f"{k}: max |diff| {v:.3g} {where[k]}" for k, v in bad.items())
                      + f" (all: {diffs})")
 
 
 @pytest.mark.parametrize("radius, angles", [(16, 32), (5, 16), (16, 64), (3, 48), (24, 128)])
 def test_offset_table_matches_libm(radius, angles):
-    """Every offset of :func:`hzval.bake.maps.horizon_table` covers the seed's bins.
+    """Every offset of :func:`hzval.bake.horizon.horizon_table` covers the seed's bins.
 
     The random maps above exercise an offset only where it sets a maximum;
     this checks all of them, with the C library functions that the peer calls
@@ -145,7 +146,7 @@ def test_offset_table_matches_libm(radius, angles):
         fn.restype, fn.argtypes = ctypes.c_float, [ctypes.c_float] * nargs
     k_index = f32(angles) / f32(6.2831855)
 
-    ours = {off: g.bins for g in bake.horizon_table(radius, angles) for off in g.offsets}
+    ours = {off: g.bins for g in bake_horizon.horizon_table(radius, angles) for off in g.offsets}
     expected = {}
     for j in range(-radius + 1, radius):
         for i in range(-radius + 1, radius):

@@ -7,7 +7,7 @@ setting of :func:`settings` against it, each with
 ``time_s``
     what the setting costs in time: for a bake setting (``kind = "bake"``)
     the bake (normal and horizon maps, in process, kernels warm, best of
-    two; in the kernel form :func:`hzval.bake.maps.kernel_for` chooses, which
+    two; in the kernel form :func:`hzval.bake.horizon.kernel_for` chooses, which
     for a large radius is the looped one, fast to compile and slower to
     run: ``params["kernel"]``); for a technique setting
     (``"technique"``) a frame's render, mean over the sweep,
@@ -61,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
 from hzval.metrics import compare
 from hzval.io import files
@@ -270,8 +271,8 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
     p = {**s.params, **{k: v for k, v in tech.parameters.items() if k != "simulated"}, "frame_s": frame_s,
          "bake": dataclasses.asdict(params), **({"technique": s.technique} if s.technique else {})}
     if s.kind == "bake" and params.method == "seed":
-        # a large radius may take the looped kernel (hzval.bake.maps.choose_kernel): say so
-        p["kernel"] = bake.kernel_for(rows, cols, params.radius, params.angles)
+        # a large radius may take the looped kernel (hzval.bake.horizon.choose_kernel): say so
+        p["kernel"] = bake_horizon.kernel_for(rows, cols, params.radius, params.angles)
         if p["kernel"] != "unrolled":
             p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
     if kw != s.settings:

@@ -31,6 +31,8 @@ def exports(package: str, modules: Sequence[str]) -> tuple[Callable, Callable]:
         ``(__getattr__, __dir__)`` for the package's namespace (PEP 562). ``__all__`` is answered
         by ``__getattr__`` too: every module's ``__all__``, in order, each name once.
     """
+    if isinstance(modules, str):
+        raise TypeError("modules: a sequence of module names, not one string")
     table: dict[str, str] = {}
 
     def load() -> dict[str, str]:

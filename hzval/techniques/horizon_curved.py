@@ -20,7 +20,7 @@ order in the small relief ``h / d``). The flat bake stores, per bin of azimuths,
 which for small ``kappa`` is ``t_0 - kappa d* / 2`` (envelope theorem), ``d*`` the distance of the
 flat horizon's occluder: the bake does not store it, and the first-order form cannot raise a horizon
 that the flat search found empty (a bowl's rim). :func:`sine_change` therefore searches again with
-the curvature (the same bins, radius and channel means as :func:`hzval.bake.maps.horizon_map`'s seed
+the curvature (the same bins, radius and channel means as :func:`hzval.bake.horizon.horizon_map`'s seed
 bake) and returns the change of each channel's sine, ``s_kappa - s_0``, which a shader adds to the
 stored sine. A convex surface (``kappa > 0``) lowers every horizon (``change <= 0``), a concave one
 raises it; ``kappa = 0`` changes nothing, bit for bit.

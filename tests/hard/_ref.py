@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.geometry import tile as M
 from hzval.scene import spec as S

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.techniques.horizon import Horizon
 from hzval.core.errors import InputError

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.techniques.horizon import Horizon
 
 from ._ref import assert_unit, make_scene, truth

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.techniques.horizon import Horizon
 

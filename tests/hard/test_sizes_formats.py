@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval.bake import maps as B
+import hzval.bake as B
 from hzval.cli import main as cli
 from hzval.io import files
 from hzval.core import conventions as cv
