@@ -98,7 +98,8 @@ def test_no_module_but_a_techniques_own_names_it():
     names = set(technique.names())
     for path in sorted(PACKAGE.rglob("*.py")):
         rel = path.relative_to(PACKAGE.parent).as_posix()
-        if rel in own or rel in ("hzval/techniques/registry.py", "hzval/techniques/__init__.py"):
+        # A package's __init__ lists its modules by name, and a module may share a technique's name.
+        if rel in own or rel == "hzval/techniques/registry.py" or path.name == "__init__.py":
             continue
         docstrings = {ast.get_docstring(n, clean=False) for n in ast.walk(ast.parse(path.read_text()))
                       if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef))}
