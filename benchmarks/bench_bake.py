@@ -60,8 +60,9 @@ def _run(cmd: list[str], env: dict | None = None) -> tuple[float, subprocess.Com
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
-        raise SystemExit(f"bench_bake: {shlex.join(cmd)} failed ({proc.returncode}):\n"
-                         f"{proc.stdout}{proc.stderr}")
+        raise SystemExit(
+            f"bench_bake: {shlex.join(cmd)} failed ({proc.returncode}):\n{proc.stdout}{proc.stderr}"
+        )
     return wall, proc
 
 
@@ -69,8 +70,10 @@ def _hzval_script() -> str:
     """The ``hzval`` console script of the environment that runs this script."""
     script = Path(sys.executable).parent / "hzval"
     if not script.exists():
-        raise SystemExit(f"bench_bake: no hzval console script next to {sys.executable}; "
-                         "install hzval into this environment (pip install -e .)")
+        raise SystemExit(
+            f"bench_bake: no hzval console script next to {sys.executable}; "
+            "install hzval into this environment (pip install -e .)"
+        )
     return str(script)
 
 
@@ -105,9 +108,15 @@ def _peer_vs_bake(peer: np.ndarray, out: Path) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", type=int, default=2048, help="the map is SIZE x SIZE texels (default 2048)")
-    parser.add_argument("--repeat", type=int, default=3, help="timed runs per row; the best is shown (default 3)")
-    parser.add_argument("--keep", type=Path, default=None,
-                        help="work in this folder and keep it (default: a temporary folder, removed)")
+    parser.add_argument(
+        "--repeat", type=int, default=3, help="timed runs per row; the best is shown (default 3)"
+    )
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        help="work in this folder and keep it (default: a temporary folder, removed)",
+    )
     args = parser.parse_args(argv)
     if args.size < 8 or args.repeat < 1:
         parser.error("--size must be at least 8 and --repeat at least 1")
@@ -118,11 +127,10 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("bench_bake: gcc is not installed; it is needed to build the C peer")
     hzval = _hzval_script()
 
-    from hzval.core import backend
     from hzval.bake import horizon as bake_horizon
-    from hzval.io import files
-    from hzval.io import heightmap
+    from hzval.core import backend
     from hzval.core import conventions as cv
+    from hzval.io import files, heightmap
 
     work = Path(tempfile.mkdtemp(prefix="hzval-bench-")) if args.keep is None else args.keep
     work.mkdir(parents=True, exist_ok=True)
@@ -143,8 +151,17 @@ def main(argv: list[str] | None = None) -> int:
             exe = work / f"seed_bake_{name}"
             _run([gcc, *C_FLAGS, *defines, "-o", str(exe), str(SOURCE), "-lm"])
             c_out[name] = work / f"peer_{name}.f32"
-            c_cmd[name] = [str(exe), str(raw), str(rows), str(cols), repr(DEPTH), str(RADIUS),
-                           str(ANGLES), BOUNDARY, str(c_out[name])]
+            c_cmd[name] = [
+                str(exe),
+                str(raw),
+                str(rows),
+                str(cols),
+                repr(DEPTH),
+                str(RADIUS),
+                str(ANGLES),
+                BOUNDARY,
+                str(c_out[name]),
+            ]
             c_wall[name], c_loop[name] = [], []
         for _ in range(args.repeat):  # the variants alternate, so that both see the same machine
             for name in C_VARIANTS:
@@ -156,8 +173,19 @@ def main(argv: list[str] | None = None) -> int:
         c_identical = peer.tobytes() == literal.tobytes()
 
         # -- (2) hzval bake, warm kernel cache (a private cache, warmed by one run)
-        base = [hzval, "bake", str(png), "--depth", repr(DEPTH), "--radius", str(RADIUS),
-                "--angles", str(ANGLES), "--boundary", BOUNDARY]
+        base = [
+            hzval,
+            "bake",
+            str(png),
+            "--depth",
+            repr(DEPTH),
+            "--radius",
+            str(RADIUS),
+            "--angles",
+            str(ANGLES),
+            "--boundary",
+            BOUNDARY,
+        ]
         warm_cache = work / "drjit-cache-warm"
         warm_cache.mkdir()
         env_warm = dict(os.environ, DRJIT_CACHE_DIR=str(warm_cache))
@@ -174,8 +202,10 @@ def main(argv: list[str] | None = None) -> int:
         for k in range(args.repeat):
             cold_cache = work / f"drjit-cache-cold{k}"
             cold_cache.mkdir()
-            wall, _ = _run(base + ["--out", str(work / f"bake-cold{k}")],
-                           dict(os.environ, DRJIT_CACHE_DIR=str(cold_cache)))
+            wall, _ = _run(
+                base + ["--out", str(work / f"bake-cold{k}")],
+                dict(os.environ, DRJIT_CACHE_DIR=str(cold_cache)),
+            )
             hz_cold.append(wall)
 
         # -- (4) hzval.bake.horizon.horizon_map in this process, kernel warm
@@ -242,8 +272,9 @@ def main(argv: list[str] | None = None) -> int:
             f"bake alone (4)/(1b loop): {kern / lit_l:.2f}",
             "",
             "same output: max |peer - hzval bake| "
-            + "; ".join(f"{name}: " + ", ".join(f"{k} {v:.2g}" for k, v in d.items())
-                        for name, d in diffs.items()),
+            + "; ".join(
+                f"{name}: " + ", ".join(f"{k} {v:.2g}" for k, v in d.items()) for name, d in diffs.items()
+            ),
             "",
             f"reproduce: {shlex.join([sys.executable, str(Path(__file__).resolve())] + (argv if argv is not None else sys.argv[1:]))}",
         ]

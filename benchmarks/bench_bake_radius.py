@@ -67,10 +67,10 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     """Runs in a fresh process: one cold (or disk-cached) call, then warm calls; prints JSON."""
     import drjit as dr
 
-    from hzval.core import backend
     from hzval.bake import horizon as bake
-    from hzval.materials.bricks import bricks
+    from hzval.core import backend
     from hzval.core import conventions as cv
+    from hzval.materials.bricks import bricks
 
     backend.variant()
     h = cv.heights_in_texels(bricks(size), DEPTH)
@@ -78,7 +78,7 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         dr.kernel_history()
         t0 = time.perf_counter()
-        first = bake.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)   # returns NumPy: synchronous
+        first = bake.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)  # returns NumPy: synchronous
         first_s = time.perf_counter() - t0
         hist = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
     warm = []
@@ -90,22 +90,40 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
         np.save(save, np.concatenate([first[0], first[1][..., None], first[2][..., None]], axis=-1))
     offsets = sum(len(g.offsets) for g in bake.horizon_table(radius, ANGLES))
     lanes = size * (size + 2 * (radius - 1))
-    print(json.dumps({
-        "form": bake.choose_kernel(offsets, lanes) if kernel == "auto" else kernel,
-        "first_s": first_s, "warm_s": warm,
-        "codegen_s": sum(k["codegen_time"] for k in hist) / 1e3,
-        "backend_s": sum(k["backend_time"] for k in hist) / 1e3,
-        "execution_s": sum(k["execution_time"] for k in hist) / 1e3,
-        "compiled": sum(not k["cache_hit"] for k in hist),
-        "from_disk": sum(bool(k["cache_disk"]) for k in hist),
-        "offsets": offsets,
-    }))
+    print(
+        json.dumps(
+            {
+                "form": bake.choose_kernel(offsets, lanes) if kernel == "auto" else kernel,
+                "first_s": first_s,
+                "warm_s": warm,
+                "codegen_s": sum(k["codegen_time"] for k in hist) / 1e3,
+                "backend_s": sum(k["backend_time"] for k in hist) / 1e3,
+                "execution_s": sum(k["execution_time"] for k in hist) / 1e3,
+                "compiled": sum(not k["cache_hit"] for k in hist),
+                "from_disk": sum(bool(k["cache_disk"]) for k in hist),
+                "offsets": offsets,
+            }
+        )
+    )
 
 
 def _run_child(args, radius: int, kernel: str, cache: Path, save: Path | None) -> dict:
-    cmd = [sys.executable, __file__, "--child", "--size", str(args.size), "--radii", str(radius),
-           "--kernels", kernel, "--repeat", str(args.repeat)] + (["--save", str(save)] if save else [])
-    proc = subprocess.run(cmd, env=dict(os.environ, DRJIT_CACHE_DIR=str(cache)), capture_output=True, text=True)
+    cmd = [
+        sys.executable,
+        __file__,
+        "--child",
+        "--size",
+        str(args.size),
+        "--radii",
+        str(radius),
+        "--kernels",
+        kernel,
+        "--repeat",
+        str(args.repeat),
+    ] + (["--save", str(save)] if save else [])
+    proc = subprocess.run(
+        cmd, env=dict(os.environ, DRJIT_CACHE_DIR=str(cache)), capture_output=True, text=True
+    )
     if proc.returncode != 0:
         raise SystemExit(f"bench_bake_radius: {shlex.join(cmd)} failed:\n{proc.stdout}{proc.stderr}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -114,9 +132,14 @@ def _run_child(args, radius: int, kernel: str, cache: Path, save: Path | None) -
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", type=int, default=512, help="the map is SIZE x SIZE texels (default 512)")
-    parser.add_argument("--radii", default="16,32,64", help="search radii, comma-separated (default 16,32,64)")
-    parser.add_argument("--kernels", default="unrolled,loop",
-                        help="kernel forms: auto, unrolled, loop, comma-separated (default unrolled,loop)")
+    parser.add_argument(
+        "--radii", default="16,32,64", help="search radii, comma-separated (default 16,32,64)"
+    )
+    parser.add_argument(
+        "--kernels",
+        default="unrolled,loop",
+        help="kernel forms: auto, unrolled, loop, comma-separated (default unrolled,loop)",
+    )
     parser.add_argument("--repeat", type=int, default=3, help="warm calls; the best is shown (default 3)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--save", default=None, help=argparse.SUPPRESS)
@@ -141,28 +164,44 @@ def main(argv: list[str] | None = None) -> int:
                 disk = _run_child(args, radius, kernel, cache, None)
                 outputs[kernel] = np.load(save)
                 rows.append((radius, kernel, cold, disk))
-                print(f"  r={radius} {kernel}: cold {cold['first_s']:.2f} s, disk {disk['first_s']:.2f} s, "
-                      f"warm {min(cold['warm_s'] + disk['warm_s']):.3f} s", file=sys.stderr, flush=True)
+                print(
+                    f"  r={radius} {kernel}: cold {cold['first_s']:.2f} s, disk {disk['first_s']:.2f} s, "
+                    f"warm {min(cold['warm_s'] + disk['warm_s']):.3f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
             ref = next(iter(outputs.values()))
             for kernel, out in outputs.items():
                 same = out.tobytes() == ref.tobytes()
                 rows[-len(kernels) + list(outputs).index(kernel)][2]["identical"] = same
 
-    print(f"seed horizon bake: hzval.materials.bricks.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, {BOUNDARY}; "
-          f"{os.cpu_count()} CPUs, load average {load:.2f} at start")
-    print(f"{'radius':>6} {'offsets':>7} {'kernel':<15} {'cold s':>8} {'codegen':>8} {'backend':>8} "
-          f"{'disk s':>7} {'warm s':>7} {'same':>5}")
+    print(
+        f"seed horizon bake: hzval.materials.bricks.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, {BOUNDARY}; "
+        f"{os.cpu_count()} CPUs, load average {load:.2f} at start"
+    )
+    print(
+        f"{'radius':>6} {'offsets':>7} {'kernel':<15} {'cold s':>8} {'codegen':>8} {'backend':>8} "
+        f"{'disk s':>7} {'warm s':>7} {'same':>5}"
+    )
     for radius, kernel, cold, disk in rows:
         warm = min(cold["warm_s"] + disk["warm_s"])
         name = kernel if kernel != "auto" else f"auto={cold['form']}"
-        print(f"{radius:>6} {cold['offsets']:>7} {name:<15} {cold['first_s']:>8.2f} {cold['codegen_s']:>8.2f} "
-              f"{cold['backend_s']:>8.2f} {disk['first_s']:>7.2f} {warm:>7.3f} "
-              f"{'yes' if cold.get('identical', True) else 'NO':>5}")
-    print("cold: first call, empty kernel cache (compile + run); codegen/backend: of it, IR generation and "
-          "LLVM compilation; disk: first call of a new process with the cache filled; warm: kernel in memory, "
-          f"best of {2 * args.repeat}; same: output bit-identical to the first kernel form's")
-    print("reproduce: " + shlex.join([sys.executable, str(Path(__file__).resolve())]
-                                     + (argv if argv is not None else sys.argv[1:])))
+        print(
+            f"{radius:>6} {cold['offsets']:>7} {name:<15} {cold['first_s']:>8.2f} {cold['codegen_s']:>8.2f} "
+            f"{cold['backend_s']:>8.2f} {disk['first_s']:>7.2f} {warm:>7.3f} "
+            f"{'yes' if cold.get('identical', True) else 'NO':>5}"
+        )
+    print(
+        "cold: first call, empty kernel cache (compile + run); codegen/backend: of it, IR generation and "
+        "LLVM compilation; disk: first call of a new process with the cache filled; warm: kernel in memory, "
+        f"best of {2 * args.repeat}; same: output bit-identical to the first kernel form's"
+    )
+    print(
+        "reproduce: "
+        + shlex.join(
+            [sys.executable, str(Path(__file__).resolve())] + (argv if argv is not None else sys.argv[1:])
+        )
+    )
     return 0 if all(cold.get("identical", True) for _, _, cold, _ in rows) else 1
 
 

@@ -35,8 +35,8 @@ import numpy as np
 
 
 def _images(size: int, tests: int, seed: int = 0):
-    from hzval.metrics import compare as C
     from hzval import materials
+    from hzval.metrics import compare as C
 
     h = materials.generate("bricks", size, 0).height.astype(np.float64)
     gy, gx = np.gradient(h * 0.05 * size)
@@ -55,7 +55,7 @@ def _images(size: int, tests: int, seed: int = 0):
     for i in range(tests):
         img = shade(2.0 * (i + 1))
         if i == 1:
-            img[size // 4:size // 2, size // 5:size // 2] *= 0.3
+            img[size // 4 : size // 2, size // 5 : size // 2] *= 0.3
         out.append(C.display(img, 1.5))
     return C.display(truth, 1.5), out
 
@@ -118,13 +118,17 @@ def main(argv: list[str] | None = None) -> int:
     variant = backend.variant()
     t0 = time.perf_counter()
     small_ref, small = _images(64, 1)
-    _new(small_ref, small)                 # compile or load the Dr.Jit kernels
+    _new(small_ref, small)  # compile or load the Dr.Jit kernels
     warm = time.perf_counter() - t0
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"{platform.processor() or platform.machine()}, {backend.host_cores()} cores, variant {variant}, "
-          f"load average {load:.2f}; kernels ready in {warm:.2f} s")
+    print(
+        f"{platform.processor() or platform.machine()}, {backend.host_cores()} cores, variant {variant}, "
+        f"load average {load:.2f}; kernels ready in {warm:.2f} s"
+    )
     print(f"1 truth + {args.tests} test images per size; seconds (best of {args.repeat})")
-    print(f"{'size':>9} {'path':>4} {'FLIP':>7} {'CIEDE2000':>9} {'truth':>7} {'tests':>7} {'total':>7} {'old/new':>8}")
+    print(
+        f"{'size':>9} {'path':>4} {'FLIP':>7} {'CIEDE2000':>9} {'truth':>7} {'tests':>7} {'total':>7} {'old/new':>8}"
+    )
     diffs = []
     for size in (int(s) for s in args.sizes.split(",")):
         ref, tests = _images(size, args.tests)
@@ -138,11 +142,15 @@ def main(argv: list[str] | None = None) -> int:
             c = best[name][0]
             total = sum(c.values())
             ratio = f" {sum(best['old'][0].values()) / total:8.2f}" if name == "new" else ""
-            print(f"{size:>4}x{size:<4} {name:>4} {c['flip_ref'] + c['flip']:7.3f} {c['de_ref'] + c['de']:9.3f} "
-                  f"{c['flip_ref'] + c['de_ref']:7.3f} {c['flip'] + c['de']:7.3f} {total:7.3f}{ratio}")
+            print(
+                f"{size:>4}x{size:<4} {name:>4} {c['flip_ref'] + c['flip']:7.3f} {c['de_ref'] + c['de']:9.3f} "
+                f"{c['flip_ref'] + c['de_ref']:7.3f} {c['flip'] + c['de']:7.3f} {total:7.3f}{ratio}"
+            )
         c_old, c_new = best["old"][0], best["new"][0]
-        print(f"{'':>9} {'':>4} {(c_old['flip_ref'] + c_old['flip']) / (c_new['flip_ref'] + c_new['flip']):6.1f}x "
-              f"{(c_old['de_ref'] + c_old['de']) / (c_new['de_ref'] + c_new['de']):8.1f}x")
+        print(
+            f"{'':>9} {'':>4} {(c_old['flip_ref'] + c_old['flip']) / (c_new['flip_ref'] + c_new['flip']):6.1f}x "
+            f"{(c_old['de_ref'] + c_old['de']) / (c_new['de_ref'] + c_new['de']):8.1f}x"
+        )
         old, new = best["old"][1], best["new"][1]
         d_map = max(float(np.max(np.abs(o[0] - n[0]))) for o, n in zip(old, new))
         d_pix = float(np.mean([np.mean(np.abs(o[0] - n[0])) for o, n in zip(old, new)]))
@@ -150,8 +158,10 @@ def main(argv: list[str] | None = None) -> int:
         d_de = max(float(np.max(np.abs(o[2] - n[2]))) for o, n in zip(old, new))
         d_de_mean = float(np.mean([np.mean(np.abs(o[2] - n[2])) for o, n in zip(old, new)]))
         means = ", ".join(f"{o[1]:.5f}" for o in old)
-        diffs.append(f"{size:>5}: FLIP mean |d| <= {d_mean:.1e} (old means {means}); FLIP map max |d| {d_map:.1e}, "
-                     f"mean |d| {d_pix:.1e}; CIEDE2000 max |d| {d_de:.1e}, mean |d| {d_de_mean:.1e}")
+        diffs.append(
+            f"{size:>5}: FLIP mean |d| <= {d_mean:.1e} (old means {means}); FLIP map max |d| {d_map:.1e}, "
+            f"mean |d| {d_pix:.1e}; CIEDE2000 max |d| {d_de:.1e}, mean |d| {d_de_mean:.1e}"
+        )
     print("differences, new - old:")
     for line in diffs:
         print("  " + line)

@@ -39,38 +39,56 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--storage", default="float")
     ap.add_argument("--fit-k", action="store_true")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--train-spp", type=int, default=None, help="default: hzval.techniques.fitted.fit.training_spp")
-    ap.add_argument("--lights", default=None, help="training lights (default: hzval.techniques.fitted.fit.TRAINING_LIGHTS)")
+    ap.add_argument(
+        "--train-spp", type=int, default=None, help="default: hzval.techniques.fitted.fit.training_spp"
+    )
+    ap.add_argument(
+        "--lights",
+        default=None,
+        help="training lights (default: hzval.techniques.fitted.fit.TRAINING_LIGHTS)",
+    )
     args = ap.parse_args(argv)
 
-    from hzval.core import backend
     from hzval.bake import maps as bake
-    from hzval.techniques.fitted import fit
+    from hzval.core import backend
     from hzval.scene import spec as sc
+    from hzval.techniques.fitted import fit
 
     backend.variant()
     scene = sc.override(sc.Scene(), height=args.material, size=args.size, spp=args.spp)
     hm = sc.load_material_height(scene.material)
-    baked = bake.bake(hm.height, bake.BakeParams(depth=scene.material.depth,
-                                                 boundary=scene.material.boundary).validate())
+    baked = bake.bake(
+        hm.height, bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
+    )
     lights = fit.parse_lights(args.lights or fit.TRAINING_LIGHTS)
     t0, c0 = time.perf_counter(), _cpu()
-    r = fit.fit(hm.height, baked, scene, lights=lights, storage=args.storage, fit_k=args.fit_k,
-                train_spp=args.train_spp,
-                progress=False)
+    r = fit.fit(
+        hm.height,
+        baked,
+        scene,
+        lights=lights,
+        storage=args.storage,
+        fit_k=args.fit_k,
+        train_spp=args.train_spp,
+        progress=False,
+    )
     total, cpu = time.perf_counter() - t0, _cpu() - c0
     per_step = max(1, r.steps // max(1, r.epochs))
-    print(f"{args.material} {args.size}x{args.size}, {args.spp} spp (training {r.settings['train_spp']}), "
-          f"{len(lights)} training lights, "
-          f"storage {args.storage}, fit_k {args.fit_k}, {per_step} Adam steps an epoch")
+    print(
+        f"{args.material} {args.size}x{args.size}, {args.spp} spp (training {r.settings['train_spp']}), "
+        f"{len(lights)} training lights, "
+        f"storage {args.storage}, fit_k {args.fit_k}, {per_step} Adam steps an epoch"
+    )
     print("epoch  seconds  s/light  loss")
     for i, (s, loss) in enumerate(zip(r.epoch_seconds, r.loss)):
         print(f"{i + 1:5d}  {s:7.2f}  {s / len(lights):7.4f}  {loss:.5f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     est = fit.estimate_bytes(args.size, args.size, args.spp, len(lights))
-    print(f"truth {r.seconds['truth']:.1f} s, fit {r.seconds['fit']:.1f} s ({r.epochs} epochs, "
-          f"{'converged' if r.converged else 'not converged'}), evaluate {r.seconds['evaluate']:.1f} s, "
-          f"total {total:.1f} s wall, {cpu:.1f} s CPU (user + sys); k {r.k:.3g}")
+    print(
+        f"truth {r.seconds['truth']:.1f} s, fit {r.seconds['fit']:.1f} s ({r.epochs} epochs, "
+        f"{'converged' if r.converged else 'not converged'}), evaluate {r.seconds['evaluate']:.1f} s, "
+        f"total {total:.1f} s wall, {cpu:.1f} s CPU (user + sys); k {r.k:.3g}"
+    )
     c = r.seconds["cpu"]
     print(f"CPU (user + sys): truth {c['truth']:.1f} s, fit {c['fit']:.1f} s, evaluate {c['evaluate']:.1f} s")
     g = r.settings.get("guard")
@@ -78,7 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"guard: {100 * g['kept_fitted']:.1f} % of texels kept fitted, {g['rounds']} rounds")
     print(f"memory: estimate {est / 2**30:.2f} GiB, peak RSS {peak / 2**30:.2f} GiB")
     for w, m in r.mae.items():
-        print(f"{w}: |F-V| baked {m['baked']:.4f}, fitted {m['fitted']:.4f} ({m['fitted'] / m['baked']:.2f}x)")
+        print(
+            f"{w}: |F-V| baked {m['baked']:.4f}, fitted {m['fitted']:.4f} ({m['fitted'] / m['baked']:.2f}x)"
+        )
     return 0
 
 

@@ -61,8 +61,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=20)
     args = ap.parse_args(argv)
 
-    from hzval.core import backend
     import hzval.bake as B
+    from hzval.core import backend
     from hzval.materials.bricks import bricks
     from hzval.scene import spec as S
     from hzval.techniques.horizon import Horizon
@@ -76,22 +76,32 @@ def main(argv: list[str] | None = None) -> int:
     bake_s = time.perf_counter() - t0
     azimuths = np.linspace(-60.0, 60.0, args.frames)
 
-    print(f"hzval approximation benchmark: {args.size}x{args.size} bricks, depth {DEPTH}, "
-          f"elevation {ELEVATION}, {args.frames} frames at azimuths -60..60 after one warm-up frame")
-    print(f"machine: {_cpu()}, {os.cpu_count()} cores, load average {load:.2f} at start; "
-          f"variant {variant}; " + ", ".join(f"{k} {v}" for k, v in backend.versions().items()
-                                             if k != "variant"))
+    print(
+        f"hzval approximation benchmark: {args.size}x{args.size} bricks, depth {DEPTH}, "
+        f"elevation {ELEVATION}, {args.frames} frames at azimuths -60..60 after one warm-up frame"
+    )
+    print(
+        f"machine: {_cpu()}, {os.cpu_count()} cores, load average {load:.2f} at start; "
+        f"variant {variant}; "
+        + ", ".join(f"{k} {v}" for k, v in backend.versions().items() if k != "variant")
+    )
     print(f"bake (not timed below): {bake_s:.2f} s")
-    header = (f"{'effects':<52} {'spp':>3} {'path':<5} {'first ms':>8} {'mean ms':>8} {'median':>7} "
-              f"{'min ms':>7} {'max ms':>7} {'kernel ms':>9} {'compiled':>8}")
+    header = (
+        f"{'effects':<52} {'spp':>3} {'path':<5} {'first ms':>8} {'mean ms':>8} {'median':>7} "
+        f"{'min ms':>7} {'max ms':>7} {'kernel ms':>9} {'compiled':>8}"
+    )
     print(header)
     print("-" * len(header))
     failed = False
     for effects in [tuple(e.strip() for e in s.split(",") if e.strip()) for s in args.effects.split(";")]:
         for spp in (int(s) for s in args.spp.split(",")):
             for path in args.paths.split(","):
-                scene = S.Scene(material=S.MaterialSpec(size=args.size, depth=DEPTH),
-                                light=S.Light(elevation_deg=ELEVATION), effects=effects, spp=spp).validate()
+                scene = S.Scene(
+                    material=S.MaterialSpec(size=args.size, depth=DEPTH),
+                    light=S.Light(elevation_deg=ELEVATION),
+                    effects=effects,
+                    spp=spp,
+                ).validate()
                 approx = Horizon(scene, bake, path=path)
                 first = approx.render(float(azimuths[0]) - 7.0).seconds
                 seconds, kernel_ms, compiled = [], [], 0
@@ -104,17 +114,32 @@ def main(argv: list[str] | None = None) -> int:
                         kernel_ms.append(sum(h["execution_time"] for h in jit))
                 ms = np.array(seconds) * 1e3
                 failed |= compiled > 0
-                print(f"{','.join(effects):<52} {spp:>3} {path:<5} {first * 1e3:>8.1f} {ms.mean():>8.2f} "
-                      f"{np.median(ms):>7.2f} {ms.min():>7.2f} {ms.max():>7.2f} {np.mean(kernel_ms):>9.2f} "
-                      f"{compiled:>8}")
+                print(
+                    f"{','.join(effects):<52} {spp:>3} {path:<5} {first * 1e3:>8.1f} {ms.mean():>8.2f} "
+                    f"{np.median(ms):>7.2f} {ms.min():>7.2f} {ms.max():>7.2f} {np.mean(kernel_ms):>9.2f} "
+                    f"{compiled:>8}"
+                )
                 del approx
                 gc.collect()
-                dr.flush_malloc_cache()   # the next row starts from fresh allocations
-    print(f"target: a {args.size}x{args.size} frame at 1 spp in under {TARGET_MS:.0f} ms, "
-          "0 kernels compiled after the first frame")
-    cmd = [os.path.relpath(sys.executable, REPO) if sys.executable.startswith(str(REPO)) else sys.executable,
-           "benchmarks/bench_horizon.py", "--size", str(args.size), "--spp", args.spp, "--paths", args.paths,
-           "--effects", args.effects, "--frames", str(args.frames)]
+                dr.flush_malloc_cache()  # the next row starts from fresh allocations
+    print(
+        f"target: a {args.size}x{args.size} frame at 1 spp in under {TARGET_MS:.0f} ms, "
+        "0 kernels compiled after the first frame"
+    )
+    cmd = [
+        os.path.relpath(sys.executable, REPO) if sys.executable.startswith(str(REPO)) else sys.executable,
+        "benchmarks/bench_horizon.py",
+        "--size",
+        str(args.size),
+        "--spp",
+        args.spp,
+        "--paths",
+        args.paths,
+        "--effects",
+        args.effects,
+        "--frames",
+        str(args.frames),
+    ]
     print(f"reproduce: cd {shlex.quote(str(REPO))} && {shlex.join(cmd)}")
     return 1 if failed else 0
 

@@ -34,10 +34,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hzval.core import backend  # noqa: E402
-from hzval.materials.bricks import bricks
 import hzval.bake as B  # noqa: E402
+from hzval.core import backend  # noqa: E402
 from hzval.core import conventions as cv  # noqa: E402
+from hzval.materials.bricks import bricks
 
 
 def timed(fn):
@@ -57,9 +57,11 @@ def main(argv=None) -> int:
 
     variant = backend.variant()
     load = os.getloadavg()[0]
-    print(f"seed vs exact horizon bake: hzval.materials.bricks.bricks(N), depth {args.depth:g}, {args.boundary}; "
-          f"variant {variant}; {os.cpu_count()} CPUs, load average {load:.2f} at start; best of {args.repeat}, "
-          f"kernels warm, in-process")
+    print(
+        f"seed vs exact horizon bake: hzval.materials.bricks.bricks(N), depth {args.depth:g}, {args.boundary}; "
+        f"variant {variant}; {os.cpu_count()} CPUs, load average {load:.2f} at start; best of {args.repeat}, "
+        f"kernels warm, in-process"
+    )
     print()
     print(f"{'size':>5} {'method':<32} {'best s':>8}  all runs, s")
     accuracy = {}
@@ -71,10 +73,10 @@ def main(argv=None) -> int:
         }
         if n == min(sizes):
             runs["exact (NumPy)"] = lambda: B.exact_horizon_map(h, args.boundary, engine="numpy")
-        results = {name: fn() for name, fn in runs.items()}          # warm the kernels
+        results = {name: fn() for name, fn in runs.items()}  # warm the kernels
         times = {name: [] for name in runs}
         for _ in range(args.repeat):
-            for name, fn in runs.items():                              # alternate: same conditions
+            for name, fn in runs.items():  # alternate: same conditions
                 times[name].append(timed(fn)[0])
         for name, ts in times.items():
             print(f"{n:>5} {name:<32} {min(ts):8.3f}  {' '.join(f'{t:.3f}' for t in ts)}")
@@ -86,24 +88,34 @@ def main(argv=None) -> int:
         accuracy[n] = (seed, ex)
 
     for n, (seed, ex) in accuracy.items():
-        diff = seed[0].astype(np.float64) - ex[0].astype(np.float64)   # > 0: seed over-reports
+        diff = seed[0].astype(np.float64) - ex[0].astype(np.float64)  # > 0: seed over-reports
         print()
         print(f"accuracy at {n}x{n}, sine of the horizon angle, seed - exact (exact = truth):")
-        print(f"{'channel':>8} {'azimuth':>8} {'mean|d|':>8} {'max|d|':>8} {'mean d':>8} "
-              f"{'under>0.05':>11} {'over>0.05':>10} {'exact mean':>11}")
+        print(
+            f"{'channel':>8} {'azimuth':>8} {'mean|d|':>8} {'max|d|':>8} {'mean d':>8} "
+            f"{'under>0.05':>11} {'over>0.05':>10} {'exact mean':>11}"
+        )
         for k in range(cv.CHANNEL_COUNT):
             d = diff[..., k]
-            print(f"{k:>8} {45 * k:>8} {np.abs(d).mean():8.4f} {np.abs(d).max():8.4f} {d.mean():+8.4f} "
-                  f"{(d < -0.05).mean():11.2%} {(d > 0.05).mean():10.2%} {ex[0][..., k].mean():11.4f}")
-        print(f"{'all':>8} {'':>8} {np.abs(diff).mean():8.4f} {np.abs(diff).max():8.4f} {diff.mean():+8.4f} "
-              f"{(diff < -0.05).mean():11.2%} {(diff > 0.05).mean():10.2%} {ex[0].mean():11.4f}")
+            print(
+                f"{k:>8} {45 * k:>8} {np.abs(d).mean():8.4f} {np.abs(d).max():8.4f} {d.mean():+8.4f} "
+                f"{(d < -0.05).mean():11.2%} {(d > 0.05).mean():10.2%} {ex[0][..., k].mean():11.4f}"
+            )
+        print(
+            f"{'all':>8} {'':>8} {np.abs(diff).mean():8.4f} {np.abs(diff).max():8.4f} {diff.mean():+8.4f} "
+            f"{(diff < -0.05).mean():11.2%} {(diff > 0.05).mean():10.2%} {ex[0].mean():11.4f}"
+        )
         for name, i in (("mean_cos", 1), ("mean_cos2", 2)):
             d = seed[i].astype(np.float64) - ex[i].astype(np.float64)
-            print(f"ambient {name}: seed (32 bins) - exact (8 directions): mean {d.mean():+.4f}, "
-                  f"max |d| {np.abs(d).max():.4f}")
+            print(
+                f"ambient {name}: seed (32 bins) - exact (8 directions): mean {d.mean():+.4f}, "
+                f"max |d| {np.abs(d).max():.4f}"
+            )
     print()
-    print(f"reproduce: .venv/bin/python benchmarks/bench_horizon_methods.py --sizes {args.sizes} "
-          f"--repeat {args.repeat}")
+    print(
+        f"reproduce: .venv/bin/python benchmarks/bench_horizon_methods.py --sizes {args.sizes} "
+        f"--repeat {args.repeat}"
+    )
     return 0
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 def _rss_mb() -> float:
     with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * resource.getpagesize() / 2 ** 20
+        return int(f.read().split()[1]) * resource.getpagesize() / 2**20
 
 
 def _peak_mb() -> float:
@@ -47,13 +47,18 @@ def main() -> None:
     from hzval.geometry import model
 
     t0 = time.perf_counter()
-    base = (model.torus(segments=160, sides=64, uv_scale=a.uv_scale) if a.mesh == "torus20k"
-            else model.load(a.mesh, uv_scale=a.uv_scale, up=a.up))
+    base = (
+        model.torus(segments=160, sides=64, uv_scale=a.uv_scale)
+        if a.mesh == "torus20k"
+        else model.load(a.mesh, uv_scale=a.uv_scale, up=a.up)
+    )
     t1 = time.perf_counter()
     rec = base.record()
-    print(f"base: {rec['source']}, {rec['triangles']} triangles, world_per_uv {rec['world_per_uv']:.4f}, "
-          f"tangents {rec['tangents']}, mirrored {rec['mirrored_fraction']:.3f}, seam edges {rec['seam_edges']}"
-          f"  [{t1 - t0:.2f} s]")
+    print(
+        f"base: {rec['source']}, {rec['triangles']} triangles, world_per_uv {rec['world_per_uv']:.4f}, "
+        f"tangents {rec['tangents']}, mirrored {rec['mirrored_fraction']:.3f}, seam edges {rec['seam_edges']}"
+        f"  [{t1 - t0:.2f} s]"
+    )
     texels = (a.size, a.size)
     from scipy.ndimage import gaussian_filter
 
@@ -66,7 +71,9 @@ def main() -> None:
     start_rss, start_peak = _rss_mb(), _peak_mb()
     r = dp.refine(base, texels, "wrap", **kw)
     t3 = time.perf_counter()
-    print(f"refine: {len(r.faces)} triangles, {len(r.weld)} vertices ({r.weld.max() + 1} welded)  [{t3 - t2:.2f} s]")
+    print(
+        f"refine: {len(r.faces)} triangles, {len(r.weld)} vertices ({r.weld.max() + 1} welded)  [{t3 - t2:.2f} s]"
+    )
     p, f = dp.displace(r, h, a.depth, base.world_per_uv, "wrap")
     t4 = time.perf_counter()
     print(f"displace: {len(p)} positions  [{t4 - t3:.2f} s]")
@@ -75,8 +82,10 @@ def main() -> None:
     counts = np.unique(edges, axis=0, return_counts=True)[1]
     print(f"edges: {dict(zip(*np.unique(counts, return_counts=True)))} (triangles per welded edge: count)")
     peak = _peak_mb() - max(start_rss, start_peak)
-    print(f"memory: peak {_peak_mb():.0f} MiB, {peak * 2**20 / len(f):.0f} bytes per triangle over the "
-          f"start; estimate {dp.BYTES_PER_TRIANGLE}")
+    print(
+        f"memory: peak {_peak_mb():.0f} MiB, {peak * 2**20 / len(f):.0f} bytes per triangle over the "
+        f"start; estimate {dp.BYTES_PER_TRIANGLE}"
+    )
     print(f"total: {t4 - t0:.2f} s")
 
 

@@ -32,8 +32,13 @@ def write_torus(path: Path, triangles: int) -> int:
     sides = max(8, int(round(math.sqrt(triangles / 2 / 2))))
     segments = max(8, int(round(triangles / 2 / sides)))
     t = model.torus(segments=segments, sides=sides)
-    mesh = trimesh.Trimesh(t.positions, t.faces, vertex_normals=t.normals, process=False,
-                           visual=trimesh.visual.TextureVisuals(uv=t.uvs))
+    mesh = trimesh.Trimesh(
+        t.positions,
+        t.faces,
+        vertex_normals=t.normals,
+        process=False,
+        visual=trimesh.visual.TextureVisuals(uv=t.uvs),
+    )
     mesh.export(path)
     return len(t.faces)
 
@@ -49,27 +54,63 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         n = write_torus(tmp / "torus.obj", args.triangles)
-        cmd = [sys.executable, "-m", "hzval", "sweep", "--material", args.material, "--size", str(args.size),
-               "--mesh", str(tmp / "torus.obj"), "--up", "z", "--camera", "perspective", "--view-elevation", "35",
-               "--resolution", f"{args.resolution}x{args.resolution}", "--spp", str(args.spp),
-               "--azimuths", "-60:60:30", "--out", str(tmp / "out"), "--quiet"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "hzval",
+            "sweep",
+            "--material",
+            args.material,
+            "--size",
+            str(args.size),
+            "--mesh",
+            str(tmp / "torus.obj"),
+            "--up",
+            "z",
+            "--camera",
+            "perspective",
+            "--view-elevation",
+            "35",
+            "--resolution",
+            f"{args.resolution}x{args.resolution}",
+            "--spp",
+            str(args.spp),
+            "--azimuths",
+            "-60:60:30",
+            "--out",
+            str(tmp / "out"),
+            "--quiet",
+        ]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
         m = json.loads((tmp / "out" / "metrics.json").read_text())
     t = m["timings"]
-    print(f"{args.material} {args.size}^2 on a {n}-triangle torus (OBJ), {args.resolution}^2 px, {args.spp} spp, "
-          f"{len(m['frames'])} lights, techniques {', '.join(m['techniques'])}")
-    print(f"  wall {wall:.1f} s (budget 60 s), of which the sweep's own {t.get('total_s', float('nan')):.1f} s")
+    print(
+        f"{args.material} {args.size}^2 on a {n}-triangle torus (OBJ), {args.resolution}^2 px, {args.spp} spp, "
+        f"{len(m['frames'])} lights, techniques {', '.join(m['techniques'])}"
+    )
+    print(
+        f"  wall {wall:.1f} s (budget 60 s), of which the sweep's own {t.get('total_s', float('nan')):.1f} s"
+    )
     for key in sorted(k for k in t if k.endswith("_s")):
         print(f"  {key:24} {t[key]:8.2f} s")
-    print(f"  displaced mesh {m['mesh']['displaced_triangles']:,} triangles; seen {m['mesh']['seen_fraction']:.2f}")
+    print(
+        f"  displaced mesh {m['mesh']['displaced_triangles']:,} triangles; seen {m['mesh']['seen_fraction']:.2f}"
+    )
     mem = m.get("memory", {})
     if mem:
-        print(f"  peak {mem.get('peak_rss_bytes', 0) / 2**30:.2f} GiB, estimated {mem.get('estimate_bytes', 0) / 2**30:.2f} GiB")
+        print(
+            f"  peak {mem.get('peak_rss_bytes', 0) / 2**30:.2f} GiB, estimated {mem.get('estimate_bytes', 0) / 2**30:.2f} GiB"
+        )
     for f in m["frames"]:
-        print(f"  az {f['azimuth_deg']:+5.0f}: truth {f['truth_s']:.2f} s, macro-shadowed {f.get('macro_shadowed', 0):.3f}, "
-              + ", ".join(f"{k} {v['seconds']:.2f} s |F-V| {v['visibility_mae']:.4f}" for k, v in f["techniques"].items()))
+        print(
+            f"  az {f['azimuth_deg']:+5.0f}: truth {f['truth_s']:.2f} s, macro-shadowed {f.get('macro_shadowed', 0):.3f}, "
+            + ", ".join(
+                f"{k} {v['seconds']:.2f} s |F-V| {v['visibility_mae']:.4f}"
+                for k, v in f["techniques"].items()
+            )
+        )
 
 
 if __name__ == "__main__":

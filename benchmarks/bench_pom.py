@@ -37,12 +37,10 @@ def main(argv: list[str] | None = None) -> int:
 
     import dataclasses
 
-    from hzval.techniques import horizon
-    from hzval.techniques import surface
-    from hzval.core import backend
     from hzval.bake import maps as bake
-    from hzval.techniques import pom
+    from hzval.core import backend
     from hzval.scene import spec as sc
+    from hzval.techniques import horizon, pom, surface
     from hzval.truth import plane as truth
 
     variant = backend.variant()
@@ -59,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     dr.set_flag(dr.JitFlag.KernelHistory, True)
 
     def timed(fn):
-        dr.kernel_history()            # clear
+        dr.kernel_history()  # clear
         out, maes = [], []
         for az in azimuths:
             dr.sync_thread()
@@ -74,25 +72,33 @@ def main(argv: list[str] | None = None) -> int:
 
     horizon.render(-60.0)
     h_ms, h_mae, _ = timed(lambda az: horizon.render(az).layers["factor"])
-    cmd = ".venv/bin/python benchmarks/bench_pom.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    cmd = ".venv/bin/python benchmarks/bench_pom.py " + " ".join(
+        shlex.quote(a) for a in (argv or sys.argv[1:])
+    )
     print(f"# {cmd.strip()}")
-    print(f"# {args.size}x{args.size} bricks, wrap, elevation 30, {args.spp} spp, {args.frames} frames, "
-          f"truth {args.truth_spp} spp, variant {variant}")
-    print(f"{'technique':<28} {'factor ms':>10} {'frame ms':>10} {'x horizon':>10} {'|F-V|':>8} {'compiled':>9}")
+    print(
+        f"# {args.size}x{args.size} bricks, wrap, elevation 30, {args.spp} spp, {args.frames} frames, "
+        f"truth {args.truth_spp} spp, variant {variant}"
+    )
+    print(
+        f"{'technique':<28} {'factor ms':>10} {'frame ms':>10} {'x horizon':>10} {'|F-V|':>8} {'compiled':>9}"
+    )
     print(f"{'horizon map (exact)':<28} {'':>10} {h_ms:10.2f} {1.0:10.2f} {h_mae:8.4f} {'':>9}")
     bad = False
     for v in pom.VARIANTS:
-        first = True                   # each variant is a kernel of its own
+        first = True  # each variant is a kernel of its own
         for steps in (int(s) for s in args.steps.split(",")):
             m = pom.RayMarchShadow(scene, height, steps=steps, variant=v, unshadowed=plain)
             if first:
-                m.render(-60.0)        # compile (or load) the kernels once: later step counts reuse them
+                m.render(-60.0)  # compile (or load) the kernels once: later step counts reuse them
             f_ms, mae, compiled = timed(lambda az: m.factor(az, scene.light.elevation_deg))
             r_ms, _, compiled2 = timed(lambda az: m.render(az).layers["factor"])
             bad |= (compiled + compiled2 > 0) and not first
             first = False
-            print(f"{f'pom {v}, {steps} steps':<28} {f_ms:10.2f} {r_ms:10.2f} {r_ms / h_ms:10.2f} {mae:8.4f} "
-                  f"{compiled + compiled2:9d}")
+            print(
+                f"{f'pom {v}, {steps} steps':<28} {f_ms:10.2f} {r_ms:10.2f} {r_ms / h_ms:10.2f} {mae:8.4f} "
+                f"{compiled + compiled2:9d}"
+            )
     return 1 if bad else 0
 
 

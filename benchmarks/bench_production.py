@@ -67,8 +67,13 @@ def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
         raise SystemExit(f"{' '.join(cmd)} (in {tree}) failed: {err[-1] if err else status}")
     metrics = json.loads((out / "metrics.json").read_text())
     frames = sum(p.stat().st_size for p in (out / "frames").rglob("*") if p.is_file())
-    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_bytes": usage.ru_maxrss * 1024,
-            "metrics": metrics, "frame_bytes": frames}
+    return {
+        "wall_s": wall,
+        "cpu_s": usage.ru_utime + usage.ru_stime,
+        "peak_bytes": usage.ru_maxrss * 1024,
+        "metrics": metrics,
+        "frame_bytes": frames,
+    }
 
 
 def stage_seconds(timings: dict) -> dict:
@@ -91,21 +96,31 @@ def stages(sizes: list[int], azimuths: str, extra: list[str], scratch: Path) -> 
         vals = [secs[n][label] for n in sizes]
         rows.append([label] + [f"{v:.1f} s" for v in vals] + [_ratio(b, a) for a, b in zip(vals, vals[1:])])
     total = [runs[n]["wall_s"] for n in sizes]
-    rows.append(["wall (whole run)"] + [f"{v:.1f} s" for v in total] + [_ratio(b, a) for a, b in zip(total, total[1:])])
+    rows.append(
+        ["wall (whole run)"]
+        + [f"{v:.1f} s" for v in total]
+        + [_ratio(b, a) for a, b in zip(total, total[1:])]
+    )
     peak = [runs[n]["peak_bytes"] for n in sizes]
     rows.append(["peak memory"] + [gib(v) for v in peak] + [_ratio(b, a) for a, b in zip(peak, peak[1:])])
     est = [runs[n]["metrics"].get("memory", {}).get("estimate_bytes", 0) for n in sizes]
     rows.append(["  estimate"] + [gib(v) for v in est] + [""] * (len(sizes) - 1))
     fb = [runs[n]["frame_bytes"] for n in sizes]
-    rows.append(["frame files"] + [f"{v / 1e6:.0f} MB" for v in fb] + [_ratio(b, a) for a, b in zip(fb, fb[1:])])
+    rows.append(
+        ["frame files"] + [f"{v / 1e6:.0f} MB" for v in fb] + [_ratio(b, a) for a, b in zip(fb, fb[1:])]
+    )
     _print_table(head, rows)
 
 
-def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path,
-                 both: bool = False) -> None:
+def side_by_side(
+    baseline: str, size: int, azimuths: str, extra: list[str], scratch: Path, both: bool = False
+) -> None:
     tree = scratch / "baseline"
-    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
-                   check=True, capture_output=True)
+    subprocess.run(
+        ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
+        check=True,
+        capture_output=True,
+    )
     try:
         args = ["--size", str(size), f"--azimuths={azimuths}"]
         print(f"{baseline} ...", file=sys.stderr, flush=True)
@@ -113,20 +128,52 @@ def side_by_side(baseline: str, size: int, azimuths: str, extra: list[str], scra
         print("this tree ...", file=sys.stderr, flush=True)
         new = run_sweep(ROOT, scratch / "new", args + extra)
     finally:
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True
+        )
     so, sn = stage_seconds(old["metrics"]["timings"]), stage_seconds(new["metrics"]["timings"])
-    rows = [[label, f"{so[label]:.1f} s", f"{sn[label]:.1f} s", _ratio(sn[label], so[label])] for label, _ in STAGES]
-    rows.append(["wall (whole run)", f"{old['wall_s']:.1f} s", f"{new['wall_s']:.1f} s",
-                 _ratio(new["wall_s"], old["wall_s"])])
-    rows.append(["CPU user + sys", f"{old['cpu_s']:.1f} s", f"{new['cpu_s']:.1f} s", _ratio(new["cpu_s"], old["cpu_s"])])
-    rows.append(["peak memory", gib(old["peak_bytes"]), gib(new["peak_bytes"]),
-                 _ratio(new["peak_bytes"], old["peak_bytes"])])
-    rows.append(["frame files", f"{old['frame_bytes'] / 1e6:.0f} MB", f"{new['frame_bytes'] / 1e6:.0f} MB",
-                 _ratio(new["frame_bytes"], old["frame_bytes"])])
-    print(f"hzval sweep {' '.join(args)}   ({'both' if both else 'this tree'}: + {' '.join(extra) or 'nothing'}; "
-          f"techniques: {baseline}: "
-          f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
-          f"{', '.join(new['metrics'].get('techniques', {}))})")
+    rows = [
+        [label, f"{so[label]:.1f} s", f"{sn[label]:.1f} s", _ratio(sn[label], so[label])]
+        for label, _ in STAGES
+    ]
+    rows.append(
+        [
+            "wall (whole run)",
+            f"{old['wall_s']:.1f} s",
+            f"{new['wall_s']:.1f} s",
+            _ratio(new["wall_s"], old["wall_s"]),
+        ]
+    )
+    rows.append(
+        [
+            "CPU user + sys",
+            f"{old['cpu_s']:.1f} s",
+            f"{new['cpu_s']:.1f} s",
+            _ratio(new["cpu_s"], old["cpu_s"]),
+        ]
+    )
+    rows.append(
+        [
+            "peak memory",
+            gib(old["peak_bytes"]),
+            gib(new["peak_bytes"]),
+            _ratio(new["peak_bytes"], old["peak_bytes"]),
+        ]
+    )
+    rows.append(
+        [
+            "frame files",
+            f"{old['frame_bytes'] / 1e6:.0f} MB",
+            f"{new['frame_bytes'] / 1e6:.0f} MB",
+            _ratio(new["frame_bytes"], old["frame_bytes"]),
+        ]
+    )
+    print(
+        f"hzval sweep {' '.join(args)}   ({'both' if both else 'this tree'}: + {' '.join(extra) or 'nothing'}; "
+        f"techniques: {baseline}: "
+        f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
+        f"{', '.join(new['metrics'].get('techniques', {}))})"
+    )
     _print_table(["stage", baseline, "this tree", "ratio"], rows)
 
 
@@ -137,13 +184,17 @@ def _ratio(new: float, old: float) -> str:
 def _print_table(head: list[str], rows: list[list[str]]) -> None:
     widths = [max(len(str(r[i])) for r in [head] + rows) for i in range(len(head))]
     for r in [head, ["-" * w for w in widths]] + rows:
-        print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+        print(
+            "  ".join(
+                str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))
+            )
+        )
 
 
 def main(argv=None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
-    extra = argv[argv.index("--") + 1:] if "--" in argv else []
-    argv = argv[:argv.index("--")] if "--" in argv else argv
+    extra = argv[argv.index("--") + 1 :] if "--" in argv else []
+    argv = argv[: argv.index("--")] if "--" in argv else argv
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="mode", required=True)
     s = sub.add_parser("stages")

@@ -14,7 +14,13 @@ import sys
 import time
 from pathlib import Path
 
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-networking",
+]
 
 
 def main(index: str) -> None:
@@ -29,19 +35,33 @@ def main(index: str) -> None:
         t0 = time.perf_counter()
         page.goto(Path(index).as_uri(), wait_until="load")
         t_load = time.perf_counter() - t0
-        imgs = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])")
+        imgs = page.eval_on_selector_all(
+            "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])"
+        )
         loaded = [i for i in imgs if i[1] and i[2] > 0]
-        print(f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths {sorted(set(i[2] for i in loaded))}")
+        print(
+            f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths {sorted(set(i[2] for i in loaded))}"
+        )
         target = page.locator("#frame-0 .flip[data-own='approx'] img")
         t0 = time.perf_counter()
         target.scroll_into_view_if_needed()
-        page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle(), timeout=60000)
-        shown = page.eval_on_selector_all("#frame-0 img", "els => els.filter(e => e.complete && e.naturalWidth > 0).length")
-        print(f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} decoded, width {target.evaluate('e => e.naturalWidth')})")
+        page.wait_for_function(
+            "e => e.complete && e.naturalWidth > 0", arg=target.element_handle(), timeout=60000
+        )
+        shown = page.eval_on_selector_all(
+            "#frame-0 img", "els => els.filter(e => e.complete && e.naturalWidth > 0).length"
+        )
+        print(
+            f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} decoded, width {target.evaluate('e => e.naturalWidth')})"
+        )
         t0 = time.perf_counter()
         page.locator("button[data-zoom='1']").click()
-        page.wait_for_function("e => e.complete && e.naturalWidth > 2000", arg=target.element_handle(), timeout=60000)
-        print(f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in {time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}")
+        page.wait_for_function(
+            "e => e.complete && e.naturalWidth > 2000", arg=target.element_handle(), timeout=60000
+        )
+        print(
+            f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in {time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}"
+        )
         page.keyboard.press("0")
         print("errors", errors)
         b.close()

@@ -31,8 +31,9 @@ def _dask(workers: int, tasks: int) -> dict:
     import distributed
 
     t_import = time.perf_counter() - t0
-    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0")
+    cluster = distributed.LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+    )
     client = distributed.Client(cluster)
     t_up = time.perf_counter() - t0 - t_import
     t1 = time.perf_counter()
@@ -64,7 +65,7 @@ def _installed_mb(packages: tuple[str, ...]) -> float:
     for package in packages:
         root = Path(importlib.util.find_spec(package).origin).parent
         total += sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
-    return total / 2 ** 20
+    return total / 2**20
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tasks", type=int, default=16)
     p.add_argument("--engine", choices=["dask", "ray"], help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    if args.engine:                                 # one engine in a fresh process: imports are cold
+    if args.engine:  # one engine in a fresh process: imports are cold
         r = {"dask": _dask, "ray": _ray}[args.engine](args.workers, args.tasks)
         print(r["import"], r["up"], r["tasks"], _installed_mb(r["package"]))
         return 0
@@ -81,11 +82,29 @@ def main(argv: list[str] | None = None) -> int:
     for engine, package in (("dask", "distributed"), ("ray", "ray")):
         if importlib.util.find_spec(package) is None:
             continue
-        out = subprocess.run([sys.executable, __file__, "--engine", engine, "--workers", str(args.workers),
-                              "--tasks", str(args.tasks)], capture_output=True, text=True, check=True,
-                             env={**os.environ, "PYTHONWARNINGS": "ignore"})
+        out = subprocess.run(
+            [
+                sys.executable,
+                __file__,
+                "--engine",
+                engine,
+                "--workers",
+                str(args.workers),
+                "--tasks",
+                str(args.tasks),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+            env={**os.environ, "PYTHONWARNINGS": "ignore"},
+        )
         rows[engine] = [float(v) for v in out.stdout.split()[-4:]]
-    labels = ("import, s", f"local cluster of {args.workers} up, s", f"{args.tasks} tasks, s", "installed, MB")
+    labels = (
+        "import, s",
+        f"local cluster of {args.workers} up, s",
+        f"{args.tasks} tasks, s",
+        "installed, MB",
+    )
     print(f"{os.cpu_count()} CPUs; {args.workers} workers, {args.tasks} tasks")
     print(f"{'':28s} {'dask':>8s} {'ray':>8s} {'ray/dask':>9s}")
     for i, label in enumerate(labels):

@@ -37,12 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=16)
     args = ap.parse_args(argv)
 
-    from hzval.techniques import horizon
-    from hzval.techniques import surface
-    from hzval.core import backend
     from hzval.bake import maps as bake
+    from hzval.core import backend
     from hzval.scene import spec as sc
-    from hzval.techniques import terrain
+    from hzval.techniques import horizon, surface, terrain
 
     variant = backend.variant()
     import drjit as dr
@@ -57,11 +55,11 @@ def main(argv: list[str] | None = None) -> int:
     azimuths = np.linspace(-60, 60, args.frames)
 
     def timed(fn):
-        fn(-60.0)                     # warm-up: compile or load from the kernel cache
+        fn(-60.0)  # warm-up: compile or load from the kernel cache
         dr.sync_thread()
         before = len(dr.kernel_history()) if hasattr(dr, "kernel_history") else None
         dr.set_flag(dr.JitFlag.KernelHistory, True)
-        dr.kernel_history()           # clear
+        dr.kernel_history()  # clear
         out = []
         for az in azimuths:
             dr.sync_thread()
@@ -82,10 +80,14 @@ def main(argv: list[str] | None = None) -> int:
         ("horizon-map frame (hzval.techniques.horizon, exact)", lambda az: ap_.render(az)),
         ("unshadowed normal-mapped frame", lambda az: ap_.render(az, shadows=False)),
     ]
-    cmd = ".venv/bin/python benchmarks/bench_terrain.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    cmd = ".venv/bin/python benchmarks/bench_terrain.py " + " ".join(
+        shlex.quote(a) for a in (argv or sys.argv[1:])
+    )
     print(f"# {cmd.strip()}")
-    print(f"# {args.size}x{args.size} bricks, wrap, elevation 30, {args.spp} spp, {args.frames} frames, "
-          f"variant {variant}")
+    print(
+        f"# {args.size}x{args.size} bricks, wrap, elevation 30, {args.spp} spp, {args.frames} frames, "
+        f"variant {variant}"
+    )
     print(f"{'what':<52} {'mean ms':>9} {'min ms':>9} {'compiled':>9}")
     bad = False
     for name, fn in rows:
@@ -93,8 +95,10 @@ def main(argv: list[str] | None = None) -> int:
         bad |= compiled > 0 and "NumPy" not in name
         print(f"{name:<52} {ms.mean():9.2f} {ms.min():9.2f} {compiled:9d}")
     a, b = ts.factor(15.0), ref.factor(15.0)
-    print(f"Dr.Jit vs NumPy factor at +15: max |diff| {np.abs(a - b).max():.2e}, "
-          f"mean {np.abs(a - b).mean():.2e}")
+    print(
+        f"Dr.Jit vs NumPy factor at +15: max |diff| {np.abs(a - b).max():.2e}, "
+        f"mean {np.abs(a - b).mean():.2e}"
+    )
     return 1 if bad else 0
 
 

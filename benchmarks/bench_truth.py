@@ -60,10 +60,18 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     height = bricks(args.size)
     t_material = time.perf_counter() - t0
-    sc = S.Scene(name="bricks", material=S.MaterialSpec(height="bricks", size=args.size, depth=0.05, boundary="wrap"),
-                 light=S.Light(kind=args.light, radius_deg=args.radius if args.light == "soft" else 0.0,
-                               elevation_deg=args.elevation),
-                 effects=("shadow",), spp=args.spp, seed=0).validate()
+    sc = S.Scene(
+        name="bricks",
+        material=S.MaterialSpec(height="bricks", size=args.size, depth=0.05, boundary="wrap"),
+        light=S.Light(
+            kind=args.light,
+            radius_deg=args.radius if args.light == "soft" else 0.0,
+            elevation_deg=args.elevation,
+        ),
+        effects=("shadow",),
+        spp=args.spp,
+        seed=0,
+    ).validate()
     t0 = time.perf_counter()
     truth = Truth(sc, height)
     t_init = time.perf_counter() - t0
@@ -74,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for az in azimuths:
         dr.set_flag(dr.JitFlag.KernelHistory, True)
-        dr.kernel_history()                      # clear
+        dr.kernel_history()  # clear
         frame = truth.render(az)
         hist = dr.kernel_history()
         dr.set_flag(dr.JitFlag.KernelHistory, False)
@@ -83,33 +91,53 @@ def main(argv: list[str] | None = None) -> int:
 
     warm = [r[1] for r in rows[1:]]
     rays = args.size * args.size * args.spp
-    print(f"hzval truth benchmark  ({variant}, Dr.Jit {dr.__version__}, {platform.machine()}, "
-          f"{os.cpu_count()} CPUs)")
-    print(f"load      {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min): other work on "
-          "the machine slows every figure")
+    print(
+        f"hzval truth benchmark  ({variant}, Dr.Jit {dr.__version__}, {platform.machine()}, "
+        f"{os.cpu_count()} CPUs)"
+    )
+    print(
+        f"load      {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min): other work on "
+        "the machine slows every figure"
+    )
     print(f"material  bricks({args.size}) depth 0.05 wrap: {t_material:.3f} s to generate")
-    print(f"mesh      {verts} vertices, {faces} triangles, wrap margin {truth.margin} texels "
-          f"(min elevation {truth.min_elevation_deg:g} deg): built and loaded in {truth.timings['mesh_s']:.3f} s")
-    print(f"camera    {rays} rays ({args.spp} spp), traced once: {truth.timings['primary_s']:.3f} s "
-          f"(Truth() in all: {t_init:.3f} s)")
-    print(f"light     {args.light}{f' radius {args.radius:g} deg' if args.light == 'soft' else ''}, "
-          f"elevation {args.elevation:g} deg, {rays} shadow rays per frame")
+    print(
+        f"mesh      {verts} vertices, {faces} triangles, wrap margin {truth.margin} texels "
+        f"(min elevation {truth.min_elevation_deg:g} deg): built and loaded in {truth.timings['mesh_s']:.3f} s"
+    )
+    print(
+        f"camera    {rays} rays ({args.spp} spp), traced once: {truth.timings['primary_s']:.3f} s "
+        f"(Truth() in all: {t_init:.3f} s)"
+    )
+    print(
+        f"light     {args.light}{f' radius {args.radius:g} deg' if args.light == 'soft' else ''}, "
+        f"elevation {args.elevation:g} deg, {rays} shadow rays per frame"
+    )
     print()
-    print(f"{'frame':>5} {'azimuth':>8} {'seconds':>8} {'Mrays/s':>8} {'kernels':>8} {'compiled':>8} "
-          f"{'from disk':>9} {'mean V':>7}")
+    print(
+        f"{'frame':>5} {'azimuth':>8} {'seconds':>8} {'Mrays/s':>8} {'kernels':>8} {'compiled':>8} "
+        f"{'from disk':>9} {'mean V':>7}"
+    )
     for i, (az, s, launched, compiled, disk, lit) in enumerate(rows, 1):
-        print(f"{i:>5} {az:>8.1f} {s:>8.3f} {rays / s / 1e6:>8.1f} {launched:>8} {compiled:>8} {disk:>9} {lit:>7.4f}")
+        print(
+            f"{i:>5} {az:>8.1f} {s:>8.3f} {rays / s / 1e6:>8.1f} {launched:>8} {compiled:>8} {disk:>9} {lit:>7.4f}"
+        )
     print()
     if warm:
         med = statistics.median(warm)
-        print(f"warm frames 2..{len(rows)}: median {med:.3f} s, min {min(warm):.3f} s, max {max(warm):.3f} s "
-              f"({rays / med / 1e6:.1f} M shadow rays/s); recompiled in frames 2..n: "
-              f"{sum(r[3] + r[4] for r in rows[1:])} kernels")
+        print(
+            f"warm frames 2..{len(rows)}: median {med:.3f} s, min {min(warm):.3f} s, max {max(warm):.3f} s "
+            f"({rays / med / 1e6:.1f} M shadow rays/s); recompiled in frames 2..n: "
+            f"{sum(r[3] + r[4] for r in rows[1:])} kernels"
+        )
         print("the original design notes reports 0.26 s for this case measured elsewhere on this machine")
-    cmd = [os.path.relpath(sys.executable) if not os.path.isabs(sys.executable) else sys.executable,
-           "benchmarks/bench_truth.py"] + (argv if argv is not None else sys.argv[1:])
-    print(f"reproduce: cd {os.path.dirname(os.path.dirname(os.path.abspath(__file__)))} && "
-          f"HZVAL_VARIANT={variant} {shlex.join(cmd)}")
+    cmd = [
+        os.path.relpath(sys.executable) if not os.path.isabs(sys.executable) else sys.executable,
+        "benchmarks/bench_truth.py",
+    ] + (argv if argv is not None else sys.argv[1:])
+    print(
+        f"reproduce: cd {os.path.dirname(os.path.dirname(os.path.abspath(__file__)))} && "
+        f"HZVAL_VARIANT={variant} {shlex.join(cmd)}"
+    )
     return 0
 
 

@@ -39,7 +39,8 @@ def corrected(setup, curvature: float) -> dict:
     height = S.load_material_height(sc.material).height
     albedo = S.load_albedo(sc.material, *height.shape)
     make = lambda at: technique.get("horizon-curved").build(
-        technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at)), curvature=curvature)
+        technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at)), curvature=curvature
+    )
     return {"horizon-curved": (make("camera"), make("truth"))}
 
 
@@ -63,36 +64,51 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=None)
     ap.add_argument("--depth", type=float, default=None)
     ap.add_argument("--cases", default="cap+0.5,cap+1,cap+2,bowl+1,bowl+2,flat")
-    ap.add_argument("--control", default="2,-1", help="1/R values whose correction is also tried on the flat patch")
+    ap.add_argument(
+        "--control", default="2,-1", help="1/R values whose correction is also tried on the flat patch"
+    )
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
+    from hzval.scene import spec as S
     from hzval.studies import curvature_band as cb
     from hzval.studies import models as ms
-    from hzval.scene import spec as S
 
     size = args.size if args.size is not None else (None if args.height else 128)
-    scene = S.override(S.Scene(), height=args.height or args.material, size=size, depth=args.depth,
-                       camera="orthographic", resolution=(128, 128), spp=2)     # hzval models' defaults
+    scene = S.override(
+        S.Scene(),
+        height=args.height or args.material,
+        size=size,
+        depth=args.depth,
+        camera="orthographic",
+        resolution=(128, 128),
+        spp=2,
+    )  # hzval models' defaults
     wanted = args.cases.split(",")
     cases = {name: (curvature, spec) for name, curvature, spec in ms._cases()}
     runs = [(n, cases[n][0], cases[n][1], cases[n][0]) for n in wanted if n in cases]
-    for c in (args.control.split(",") if args.control else []):
+    for c in args.control.split(",") if args.control else []:
         # the control: the correction of 1/R = c on the flat patch, where it is wrong
         runs.append((f"flat@{float(c):+g}", 0.0, cases["flat"][1], float(c)))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, curvature, spec, corrected_for in runs:
             sc = cb.band_scene(ms._case_scene(scene, Path(tmp), name.split("@")[0], spec))
-            case = cb.measure(sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, corrected_for))
+            case = cb.measure(
+                sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, corrected_for)
+            )
             g = gain(case)
             rows.append({"case": name, "curvature": curvature, "corrected_for": corrected_for, **g})
             m, f = g["mae"], g["floor"]
-            print(f"{name:8} 1/R {curvature:+.3f}  |F-V| {m['horizon']['mean']:.4f} -> {m['horizon-curved']['mean']:.4f} "
-                  f"gain {m['gain']['mean']:+.4f} ± {m['gain']['se']:.4f}   floor {f['horizon']['mean']:.4f} -> "
-                  f"{f['horizon-curved']['mean']:.4f} gain {f['gain']['mean']:+.4f} ± {f['gain']['se']:.4f}", flush=True)
+            print(
+                f"{name:8} 1/R {curvature:+.3f}  |F-V| {m['horizon']['mean']:.4f} -> {m['horizon-curved']['mean']:.4f} "
+                f"gain {m['gain']['mean']:+.4f} ± {m['gain']['se']:.4f}   floor {f['horizon']['mean']:.4f} -> "
+                f"{f['horizon-curved']['mean']:.4f} gain {f['gain']['mean']:+.4f} ± {f['gain']['se']:.4f}",
+                flush=True,
+            )
     if args.json:
-        args.json.write_text(json.dumps({"height": args.height or args.material, "depth": args.depth,
-                                         "rows": rows}, indent=1))
+        args.json.write_text(
+            json.dumps({"height": args.height or args.material, "depth": args.depth, "rows": rows}, indent=1)
+        )
 
 
 if __name__ == "__main__":

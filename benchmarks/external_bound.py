@@ -41,9 +41,14 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     names = materials.names()
     maps = {n: _height(n, args.size) for n in names}
-    exact = {n: bake.bake(h, bake.BakeParams(depth=d, boundary=b, method="exact").validate()).horizon
-             for n, (h, d, b) in maps.items()}
-    seed = {n: bake.bake(h, bake.BakeParams(depth=d, boundary=b).validate()).horizon for n, (h, d, b) in maps.items()}
+    exact = {
+        n: bake.bake(h, bake.BakeParams(depth=d, boundary=b, method="exact").validate()).horizon
+        for n, (h, d, b) in maps.items()
+    }
+    seed = {
+        n: bake.bake(h, bake.BakeParams(depth=d, boundary=b).validate()).horizon
+        for n, (h, d, b) in maps.items()
+    }
     right, wrong = [], []
     print(f"{'height map':13s} {'horizon map of':15s} best |s - exact|  correlation")
     for a in names:
@@ -63,8 +68,10 @@ def main(argv=None) -> int:
             rel = found["correlation"]
             right.append(rel)
             print(f"{a:13s} {a + ', ' + label:15s} {best:.4f}  {rel:.3f}  (right)")
-    print(f"\ncorrelation: right maps at least {min(right):.3f}; wrong maps at most {max(wrong):.3f} "
-          f"(median {np.median(wrong):.3f}); bound {external.DESCRIBES_CORRELATION}")
+    print(
+        f"\ncorrelation: right maps at least {min(right):.3f}; wrong maps at most {max(wrong):.3f} "
+        f"(median {np.median(wrong):.3f}); bound {external.DESCRIBES_CORRELATION}"
+    )
     return 0
 
 

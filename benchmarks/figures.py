@@ -30,10 +30,15 @@ HZVAL = [sys.executable, "-m", "hzval"]
 
 def _commit() -> str:
     try:
-        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                             text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "hzval"],
-                               capture_output=True, text=True).stdout.strip()
+        out = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(ROOT), "status", "--porcelain", "--", "hzval"], capture_output=True, text=True
+        ).stdout.strip()
         return out + (" + uncommitted changes" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
@@ -46,8 +51,9 @@ def _machine() -> str:
 def _sweep(*argv: str) -> dict:
     """``hzval sweep ARGV`` into a fresh folder; its metrics.json."""
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([*HZVAL, "sweep", *argv, "--quiet", "--out", tmp], check=True, cwd=ROOT,
-                       stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [*HZVAL, "sweep", *argv, "--quiet", "--out", tmp], check=True, cwd=ROOT, stdout=subprocess.DEVNULL
+        )
         return json.loads((Path(tmp) / "metrics.json").read_text())
 
 
@@ -67,19 +73,27 @@ def default_sweep() -> str:
     """README's headline table: every technique on the default sweep, and the perfect-shadows floor."""
     m = _sweep()
     frames = m["frames"]
-    rows = ["| technique | mean \\|F - V\\| (range over the sweep) | mean FLIP (range) | frame time |",
-            "|---|---|---|---|"]
+    rows = [
+        "| technique | mean \\|F - V\\| (range over the sweep) | mean FLIP (range) | frame time |",
+        "|---|---|---|---|",
+    ]
     for name, info in m["techniques"].items():
         per = [f["techniques"][name] for f in frames]
         ms = 1000 * sum(t["seconds"] for t in per) / len(per)
-        rows.append(f"| `{name}`: {info['label']} | {_spread([t['visibility_mae'] for t in per])} | "
-                    f"{_spread([t['flip_mean'] for t in per])} | {ms:.0f} ms |")
+        rows.append(
+            f"| `{name}`: {info['label']} | {_spread([t['visibility_mae'] for t in per])} | "
+            f"{_spread([t['flip_mean'] for t in per])} | {ms:.0f} ms |"
+        )
     floor = [f["floor"]["flip_mean"] for f in frames if "floor" in f]
-    rows.append(f"| perfect shadows (the floor: unshadowed shading times the truth's V) | 0 | {_spread(floor)} | — |")
+    rows.append(
+        f"| perfect shadows (the floor: unshadowed shading times the truth's V) | 0 | {_spread(floor)} | — |"
+    )
     p = m["parameters"]
-    what = (f"{m['material']['name']}, {m['material']['cols']} x {m['material']['rows']}, depth {p['depth']:g}, "
-            f"{p['light']} light at {p['elevation_deg']:g} degrees, azimuths {p['azimuths_deg'][0]:g} to "
-            f"{p['azimuths_deg'][-1]:+g}, {p['spp']} spp")
+    what = (
+        f"{m['material']['name']}, {m['material']['cols']} x {m['material']['rows']}, depth {p['depth']:g}, "
+        f"{p['light']} light at {p['elevation_deg']:g} degrees, azimuths {p['azimuths_deg'][0]:g} to "
+        f"{p['azimuths_deg'][-1]:+g}, {p['spp']} spp"
+    )
     return "\n".join(rows) + f"\n\n*{what}.* " + _provenance("hzval sweep")
 
 
@@ -93,8 +107,13 @@ def reflection() -> str:
 
 def pom_steps() -> str:
     """The ray march's error and cost against its step count (benchmarks/bench_pom.py)."""
-    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_pom.py"), "--frames", "5"],
-                         capture_output=True, text=True, check=True, cwd=ROOT).stdout
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench_pom.py"), "--frames", "5"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    ).stdout
     table = [line for line in out.splitlines() if not line.startswith("#")]
     return "```\n" + "\n".join(table) + "\n```\n\n" + _provenance("python benchmarks/bench_pom.py --frames 5")
 
@@ -108,7 +127,9 @@ FIGURES = {
 
 
 def _pattern(name: str) -> re.Pattern:
-    return re.compile(rf"(<!-- figure:{re.escape(name)} -->\n)(.*?)(\n<!-- /figure:{re.escape(name)} -->)", re.S)
+    return re.compile(
+        rf"(<!-- figure:{re.escape(name)} -->\n)(.*?)(\n<!-- /figure:{re.escape(name)} -->)", re.S
+    )
 
 
 def used_figures(text: str) -> list[str]:
@@ -126,14 +147,24 @@ def replace(text: str, name: str, block: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("names", nargs="*", help=f"figures to rerun (default: the quick ones): {', '.join(FIGURES)}")
+    ap.add_argument(
+        "names", nargs="*", help=f"figures to rerun (default: the quick ones): {', '.join(FIGURES)}"
+    )
     ap.add_argument("--check", action="store_true", help="check the documents' markers only")
     args = ap.parse_args(argv)
     docs = {p: p.read_text(encoding="utf-8") for p in DOCUMENTS}
-    problems = [f"{p.name}: figure {n} is made by no function" for p, t in docs.items()
-                for n in used_figures(t) if n not in FIGURES]
-    problems += [f"{p.name}: figure {n} has no end marker" for p, t in docs.items()
-                 for n in used_figures(t) if n in FIGURES and not _pattern(n).search(t)]
+    problems = [
+        f"{p.name}: figure {n} is made by no function"
+        for p, t in docs.items()
+        for n in used_figures(t)
+        if n not in FIGURES
+    ]
+    problems += [
+        f"{p.name}: figure {n} has no end marker"
+        for p, t in docs.items()
+        for n in used_figures(t)
+        if n in FIGURES and not _pattern(n).search(t)
+    ]
     if args.check or problems:
         print("\n".join(problems) or "every figure marker is known and closed")
         return 1 if problems else 0

@@ -28,8 +28,13 @@ def _frames(fs, bake, sines, k, held):
     from hzval.techniques import horizon
 
     ap = horizon.Horizon(fs, dataclasses.replace(bake, horizon=sines), None, k=k)
-    return {spec: [float(np.mean(np.abs(ap.render(a, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
-                   for (e, a), v in zip(ls, V)] for spec, (ls, V) in held.items()}
+    return {
+        spec: [
+            float(np.mean(np.abs(ap.render(a, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
+            for (e, a), v in zip(ls, V)
+        ]
+        for spec, (ls, V) in held.items()
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,28 +42,45 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("height")
     ap.add_argument("--depth", type=float, default=0.05)
     ap.add_argument("--boundary", default="wrap")
-    ap.add_argument("--lights", default=None, help="training lights (default hzval.techniques.fitted.fit.TRAINING_LIGHTS)")
-    ap.add_argument("--held", default="25@-52.5:52.5:15;30@-60:60:15", help="held-out light sets, ';'-separated")
-    ap.add_argument("--options", default="{}", help="more keyword arguments of hzval.techniques.fitted.fit.fit, as JSON")
+    ap.add_argument(
+        "--lights", default=None, help="training lights (default hzval.techniques.fitted.fit.TRAINING_LIGHTS)"
+    )
+    ap.add_argument(
+        "--held", default="25@-52.5:52.5:15;30@-60:60:15", help="held-out light sets, ';'-separated"
+    )
+    ap.add_argument(
+        "--options", default="{}", help="more keyword arguments of hzval.techniques.fitted.fit.fit, as JSON"
+    )
     ap.add_argument("--guards", default="", help="guard tolerances to try on the same fit")
     args = ap.parse_args(argv)
 
-    from hzval.core import backend
     from hzval.bake import maps as bake
-    from hzval.techniques.fitted import fit
+    from hzval.core import backend
     from hzval.io import storage
     from hzval.scene import spec as sc
+    from hzval.techniques.fitted import fit
 
     backend.variant()
     scene = sc.override(sc.Scene(), height=args.height, depth=args.depth, boundary=args.boundary)
     hm = sc.load_material_height(scene.material)
     baked = bake.bake(hm.height, bake.BakeParams(depth=args.depth, boundary=args.boundary).validate())
     t0 = time.perf_counter()
-    r = fit.fit(hm.height, baked, scene, lights=args.lights or fit.TRAINING_LIGHTS, held_out="", progress=False,
-                **json.loads(args.options))
-    print(f"{args.height}: fit {time.perf_counter() - t0:.1f} s, {r.epochs} epochs, training {r.mae['training']}")
-    held = {spec: (fit.parse_lights(spec), fit.visibility(scene, hm.height, fit.parse_lights(spec)))
-            for spec in args.held.split(";")}
+    r = fit.fit(
+        hm.height,
+        baked,
+        scene,
+        lights=args.lights or fit.TRAINING_LIGHTS,
+        held_out="",
+        progress=False,
+        **json.loads(args.options),
+    )
+    print(
+        f"{args.height}: fit {time.perf_counter() - t0:.1f} s, {r.epochs} epochs, training {r.mae['training']}"
+    )
+    held = {
+        spec: (fit.parse_lights(spec), fit.visibility(scene, hm.height, fit.parse_lights(spec)))
+        for spec in args.held.split(";")
+    }
     fs = fit.fit_scene(scene)
     base = _frames(fs, baked, baked.horizon, r.k, held)
     maps = [("fitted", r.horizon, None)]
@@ -73,8 +95,11 @@ def main(argv: list[str] | None = None) -> int:
         for spec, b in base.items():
             f = got[spec]
             worse = sum(x > y for x, y in zip(f, b))
-            print(f"  {label} {spec}: fitted/baked {sum(f) / sum(b):.3f}, worse on {worse}/{len(b)}, smallest margin "
-                  f"{min(y - x for x, y in zip(f, b)):+.6f}; " + " ".join(f"{y:.4f}/{x:.4f}" for x, y in zip(f, b)))
+            print(
+                f"  {label} {spec}: fitted/baked {sum(f) / sum(b):.3f}, worse on {worse}/{len(b)}, smallest margin "
+                f"{min(y - x for x, y in zip(f, b)):+.6f}; "
+                + " ".join(f"{y:.4f}/{x:.4f}" for x, y in zip(f, b))
+            )
         if rec:
             print(f"    guard: {rec}")
     return 0

@@ -109,6 +109,7 @@ class CheckError(Exception):
 # Camera
 # --------------------------------------------------------------------------
 
+
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
     n = np.linalg.norm(v, axis=-1, keepdims=True)
@@ -200,6 +201,7 @@ def camera_rays(record: dict, spp: int = 4, seed: int = 0) -> tuple[np.ndarray, 
 # G[j, i] = h[rows - 1 - j, i] is the height at lattice point (i, j). The quad (cell) (i, j)
 # covers [i, i+1] x [j, j+1]; its diagonal runs from (i, j) to (i+1, j+1).
 
+
 class _Field:
     """Heights on the lattice of texel centres, with the boundary's index rule."""
 
@@ -226,7 +228,7 @@ class _Field:
         if self.wrap:
             i0, j0 = i % nx, j % ny
             i1, j1 = (i0 + 1) % nx, (j0 + 1) % ny
-        else:   # the flat skirt: clamped indices repeat the edge heights
+        else:  # the flat skirt: clamped indices repeat the edge heights
             i0, i1 = np.clip(i, 0, nx - 1), np.clip(i + 1, 0, nx - 1)
             j0, j1 = np.clip(j, 0, ny - 1), np.clip(j + 1, 0, ny - 1)
         r0, r1 = j0 * nx, j1 * nx
@@ -273,8 +275,7 @@ def _crossings(o: np.ndarray, d: np.ndarray, t: np.ndarray):
     return k, s, tn
 
 
-def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.ndarray,
-           first: bool):
+def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.ndarray, first: bool):
     """March lattice-coordinate rays ``O + t D`` over ``t0 <= t <= t1``.
 
     ``first``: return ``(t_hit, underside)``, the first ``t`` at which the ray passes through the
@@ -293,7 +294,7 @@ def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.n
     tc, tend = t0[idx].astype(np.float64), t1[idx].astype(np.float64)
     kx, sx, tx = _crossings(ox, dx, tc)
     ky, sy, ty = _crossings(oy, dy, tc)
-    sign0 = np.zeros(len(idx))          # the side of the surface the ray starts on (first mode)
+    sign0 = np.zeros(len(idx))  # the side of the surface the ray starts on (first mode)
     state = [idx, ox, oy, oz, dx, dy, dz, tc, tend, kx, sx, tx, ky, sy, ty, sign0]
     fresh = True
     while len(state[0]):
@@ -323,7 +324,7 @@ def _march(field: _Field, O: np.ndarray, D: np.ndarray, t0: np.ndarray, t1: np.n
             done = crossed | (tn >= tend)
         else:
             with np.errstate(divide="ignore", invalid="ignore"):
-                sv = np.where(c2 > 0, -c1 / (2.0 * c2), -1.0)       # the parabola's lowest point
+                sv = np.where(c2 > 0, -c1 / (2.0 * c2), -1.0)  # the parabola's lowest point
             inner = (sv > 0) & (sv < span)
             fv = np.where(inner, c0 + sv * (c1 + sv * c2), np.inf)
             below = (fn < 0) | (fc < 0) | (fv < 0)
@@ -382,8 +383,14 @@ def _to_lattice(P: np.ndarray) -> np.ndarray:
     return Q
 
 
-def march_hits(height_texels: np.ndarray, boundary: str, origins: np.ndarray, dirs: np.ndarray,
-               *, return_underside: bool = False):
+def march_hits(
+    height_texels: np.ndarray,
+    boundary: str,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    *,
+    return_underside: bool = False,
+):
     """First intersections of rays with the height field: ``(points (N, 3), hit (N,) bool)``.
 
     ``height_texels``: ``(rows, cols)`` heights in texels (row 0 at the top); ``origins`` and
@@ -399,18 +406,18 @@ def march_hits(height_texels: np.ndarray, boundary: str, origins: np.ndarray, di
     underside = np.zeros(n, bool)
     reach = MAX_TILES * max(field.nx, field.ny)
     for s in range(0, n, CHUNK):
-        O, D = O_all[s:s + CHUNK], D_all[s:s + CHUNK]
+        O, D = O_all[s : s + CHUNK], D_all[s : s + CHUNK]
         oz, dz = O[:, 2], D[:, 2]
         horiz = np.hypot(D[:, 0], D[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             t_top = (field.zmax - oz) / dz
-            t_bottom = (field.zmin - BELOW - oz) / dz     # a little below: f < 0 there, for sure
+            t_bottom = (field.zmin - BELOW - oz) / dz  # a little below: f < 0 there, for sure
             t_far = np.where(horiz > 0, reach / horiz, np.inf)
         down = dz < 0
         t0 = np.where(down & (oz > field.zmax), t_top, 0.0)
         # descending: to z_min (there it has hit); otherwise until it rises above z_max
         t1 = np.where(down, t_bottom, np.where(dz > 0, np.minimum(t_top, t_far), t_far))
-        t1 = np.where((oz > field.zmax) & ~down, -1.0, t1)     # above the relief, not descending
+        t1 = np.where((oz > field.zmax) & ~down, -1.0, t1)  # above the relief, not descending
         if not field.wrap:
             lo, hi = field.box_span(O, D)
             t0, t1 = np.maximum(t0, lo), np.minimum(t1, hi)
@@ -419,9 +426,9 @@ def march_hits(height_texels: np.ndarray, boundary: str, origins: np.ndarray, di
         ok = np.isfinite(t_hit)
         P = O[ok] + t_hit[ok, None] * D[ok]
         P[:, :2] += 0.5
-        points[s:s + CHUNK][ok] = P
-        hit[s:s + CHUNK] = ok
-        underside[s:s + CHUNK] = under & ok
+        points[s : s + CHUNK][ok] = P
+        hit[s : s + CHUNK] = ok
+        underside[s : s + CHUNK] = under & ok
     if return_underside:
         return points, hit, underside
     return points, hit
@@ -445,8 +452,9 @@ def _surface(field: _Field, X: np.ndarray, Y: np.ndarray):
     return z, n
 
 
-def visible(height_texels: np.ndarray, boundary: str, points: np.ndarray, L,
-            lift: float = LIFT) -> np.ndarray:
+def visible(
+    height_texels: np.ndarray, boundary: str, points: np.ndarray, L, lift: float = LIFT
+) -> np.ndarray:
     """``(N,)`` float: 1 where the light ``L`` (toward the light) reaches surface points, else 0.
 
     Only the points' ``x, y`` are used: each shadow ray starts at the surface height there plus
@@ -460,7 +468,7 @@ def visible(height_texels: np.ndarray, boundary: str, points: np.ndarray, L,
     n = len(P_all)
     out = np.full(n, np.nan)
     for s in range(0, n, CHUNK):
-        P = P_all[s:s + CHUNK]
+        P = P_all[s : s + CHUNK]
         seen = np.isfinite(P).all(axis=1)
         V = np.full(len(P), np.nan)
         X, Y = P[seen, 0] - 0.5, P[seen, 1] - 0.5
@@ -481,7 +489,7 @@ def visible(height_texels: np.ndarray, boundary: str, points: np.ndarray, L,
             blocked = _march(field, O, D, t0, t1, first=False)
             v[k] = np.where(blocked, 0.0, 1.0)
         V[seen] = v
-        out[s:s + CHUNK] = V
+        out[s : s + CHUNK] = V
     return out
 
 
@@ -494,6 +502,7 @@ def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
 # --------------------------------------------------------------------------
 # A sweep folder
 # --------------------------------------------------------------------------
+
 
 def _read_json(path: Path) -> dict:
     try:
@@ -511,7 +520,9 @@ def _digest_of_array(height: np.ndarray) -> str:
     return heightmap.from_array(height).digest
 
 
-def load_material(metrics: dict, sweep_dir: Path, override: str | None = None) -> tuple[np.ndarray, list[str]]:
+def load_material(
+    metrics: dict, sweep_dir: Path, override: str | None = None
+) -> tuple[np.ndarray, list[str]]:
     """The normalised height map ``(rows, cols)`` float32 of a sweep, and notes about it.
 
     ``override``: a height-map path or a built-in name. Otherwise the report's
@@ -559,8 +570,9 @@ def load_material(metrics: dict, sweep_dir: Path, override: str | None = None) -
                 if n not in names and getattr(materials.get(n), "label", None) == m.group(1):
                     names.append(n)
         if not names:
-            raise CheckError(f"material: {mat.get('name')!r} is no built-in and the report has no path "
-                             "(pass --height)")
+            raise CheckError(
+                f"material: {mat.get('name')!r} is no built-in and the report has no path (pass --height)"
+            )
         h = None
         for n in names:
             cand = builtin(n)
@@ -592,8 +604,16 @@ def _read_visibility(path: Path) -> np.ndarray:
     raise CheckError(f"{path}: no single visibility channel (has {', '.join(sorted(ch))})")
 
 
-def check(sweep_dir, spp: int = 4, *, frames: str = "all", height: str | None = None, seed: int = 0,
-          lift: float = LIFT, progress=None) -> dict:
+def check(
+    sweep_dir,
+    spp: int = 4,
+    *,
+    frames: str = "all",
+    height: str | None = None,
+    seed: int = 0,
+    lift: float = LIFT,
+    progress=None,
+) -> dict:
     """March a sweep folder's camera and lights; compare with its ``visibility.exr`` files.
 
     Returns ``{"frames": [per-frame dicts], "mean_abs_diff": pooled mean |dV|, "compared": pixel
@@ -620,8 +640,10 @@ def check(sweep_dir, spp: int = 4, *, frames: str = "all", height: str | None = 
     notes: list[str] = []
     light = params.get("light", "hard")
     if light != "hard":
-        notes.append(f"light is {light!r} (radius {params.get('light_radius_deg')} deg): "
-                     "using its centre direction, a hard light")
+        notes.append(
+            f"light is {light!r} (radius {params.get('light_radius_deg')} deg): "
+            "using its centre direction, a hard light"
+        )
     H, more = load_material(metrics, sweep_dir, height)
     notes += more
     h = (H.astype(np.float32) * np.float32(depth * H.shape[1])).astype(np.float64)
@@ -639,7 +661,9 @@ def check(sweep_dir, spp: int = 4, *, frames: str = "all", height: str | None = 
     if frames_json:
         for fr in frames_json.get("frames", []):
             if "light_direction" in fr:
-                lights[(fr.get("azimuth_deg"), fr.get("elevation_deg"))] = np.asarray(fr["light_direction"], float)
+                lights[(fr.get("azimuth_deg"), fr.get("elevation_deg"))] = np.asarray(
+                    fr["light_direction"], float
+                )
     todo = list(metrics.get("frames") or [])
     if not todo:
         raise CheckError("metrics.json lists no frames")
@@ -657,8 +681,10 @@ def check(sweep_dir, spp: int = 4, *, frames: str = "all", height: str | None = 
         L = light_direction(az, el)
         given = lights.get((fr.get("azimuth_deg"), fr.get("elevation_deg")))
         if given is not None and np.abs(given - L).max() > 1e-6:
-            notes.append(f"frame {name}: frames.json light_direction {given.tolist()} differs from "
-                         f"(az, el) ({L.tolist()}); using (az, el)")
+            notes.append(
+                f"frame {name}: frames.json light_direction {given.tolist()} differs from "
+                f"(az, el) ({L.tolist()}); using (az, el)"
+            )
         clock = time.perf_counter()
         v = visible(h, boundary, points, L, lift=lift)
         t_shadow += time.perf_counter() - clock
@@ -672,36 +698,48 @@ def check(sweep_dir, spp: int = 4, *, frames: str = "all", height: str | None = 
         both = hz_seen & all_seen
         d = np.abs(v_hz[both] - v_march[both])
         diffs.append(d)
-        out_frames.append({
-            "name": name, "azimuth_deg": az, "elevation_deg": el,
-            "mean_abs_diff": float(d.mean()) if d.size else float("nan"),
-            "max_abs_diff": float(d.max()) if d.size else float("nan"),
-            "compared": int(both.sum()),
-            "hzval_unseen": int((~hz_seen).sum()),
-            "march_unseen": int(none_seen.sum()),
-            "march_partial": int(partial.sum()),
-            "disagree_seen": int((hz_seen & none_seen).sum() + (~hz_seen & all_seen).sum()),
-            "underside": int(under.sum()),
-            "mean_v_hzval": float(v_hz[both].mean()) if d.size else float("nan"),
-            "mean_v_march": float(v_march[both].mean()) if d.size else float("nan"),
-        })
+        out_frames.append(
+            {
+                "name": name,
+                "azimuth_deg": az,
+                "elevation_deg": el,
+                "mean_abs_diff": float(d.mean()) if d.size else float("nan"),
+                "max_abs_diff": float(d.max()) if d.size else float("nan"),
+                "compared": int(both.sum()),
+                "hzval_unseen": int((~hz_seen).sum()),
+                "march_unseen": int(none_seen.sum()),
+                "march_partial": int(partial.sum()),
+                "disagree_seen": int((hz_seen & none_seen).sum() + (~hz_seen & all_seen).sum()),
+                "underside": int(under.sum()),
+                "mean_v_hzval": float(v_hz[both].mean()) if d.size else float("nan"),
+                "mean_v_march": float(v_march[both].mean()) if d.size else float("nan"),
+            }
+        )
         if progress:
             progress(out_frames[-1])
     if not out_frames:
         raise CheckError("no frame has a visibility file")
     pooled = np.concatenate(diffs)
-    return {"frames": out_frames,
-            "mean_abs_diff": float(pooled.mean()) if pooled.size else float("nan"),
-            "compared": int(pooled.size), "notes": notes, "boundary": boundary,
-            "camera": record.get("kind"), "image": [cols, rows], "spp": spp,
-            "seconds": {"camera": t_camera, "shadow": t_shadow}}
+    return {
+        "frames": out_frames,
+        "mean_abs_diff": float(pooled.mean()) if pooled.size else float("nan"),
+        "compared": int(pooled.size),
+        "notes": notes,
+        "boundary": boundary,
+        "camera": record.get("kind"),
+        "image": [cols, rows],
+        "spp": spp,
+        "seconds": {"camera": t_camera, "shadow": t_shadow},
+    }
 
 
 def _frame_line(fr: dict) -> str:
-    return (f"{fr['name']:>10}  az {fr['azimuth_deg']:7.2f} el {fr['elevation_deg']:6.2f}  "
-            f"|dV| {fr['mean_abs_diff']:.4f}  V hzval {fr['mean_v_hzval']:.4f} march {fr['mean_v_march']:.4f}  "
-            f"compared {fr['compared']}  unseen hzval {fr['hzval_unseen']} march {fr['march_unseen']}  "
-            f"partial {fr['march_partial']}  disagree {fr['disagree_seen']}")
+    return (
+        f"{fr['name']:>10}  az {fr['azimuth_deg']:7.2f} el {fr['elevation_deg']:6.2f}  "
+        f"|dV| {fr['mean_abs_diff']:.4f}  V hzval {fr['mean_v_hzval']:.4f} march {fr['mean_v_march']:.4f}  "
+        f"compared {fr['compared']}  unseen hzval {fr['hzval_unseen']} march {fr['march_unseen']}  "
+        f"partial {fr['march_partial']}  disagree {fr['disagree_seen']}"
+    )
 
 
 def main(argv=None) -> int:
@@ -710,7 +748,9 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=4, help="camera samples per pixel (default 4)")
     ap.add_argument("--tolerance", type=float, default=0.035, help="largest overall mean |dV| (0.035)")
     ap.add_argument("--frames", choices=("all", "first"), default="all")
-    ap.add_argument("--height", default=None, help="height map file or built-in name (overrides the report's)")
+    ap.add_argument(
+        "--height", default=None, help="height map file or built-in name (overrides the report's)"
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--lift", type=float, default=LIFT, help=f"shadow-ray offset in texels ({LIFT:g})")
     args = ap.parse_args(argv)
@@ -718,25 +758,38 @@ def main(argv=None) -> int:
         print("march_check: --spp must be at least 1", file=sys.stderr)
         return 1
     try:
-        res = check(args.sweep_dir, args.spp, frames=args.frames, height=args.height, seed=args.seed,
-                    lift=args.lift, progress=lambda fr: print(_frame_line(fr), flush=True))
+        res = check(
+            args.sweep_dir,
+            args.spp,
+            frames=args.frames,
+            height=args.height,
+            seed=args.seed,
+            lift=args.lift,
+            progress=lambda fr: print(_frame_line(fr), flush=True),
+        )
     except CheckError as exc:
         print(f"march_check: {exc}", file=sys.stderr)
         return 1
-    except Exception as exc:    # hzval's InputError and the like: one line, not a traceback
-        print(f"march_check: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
-              file=sys.stderr)
+    except Exception as exc:  # hzval's InputError and the like: one line, not a traceback
+        print(
+            f"march_check: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
+            file=sys.stderr,
+        )
         return 1
     for note in res["notes"]:
         print(f"note: {note}")
     s = res["seconds"]
-    print(f"{res['camera']} camera, {res['image'][0]}x{res['image'][1]} px, {res['spp']} spp, "
-          f"{res['boundary']}: camera march {s['camera']:.1f} s, shadow march {s['shadow']:.1f} s")
+    print(
+        f"{res['camera']} camera, {res['image'][0]}x{res['image'][1]} px, {res['spp']} spp, "
+        f"{res['boundary']}: camera march {s['camera']:.1f} s, shadow march {s['shadow']:.1f} s"
+    )
     mean = res["mean_abs_diff"]
     print(f"overall |dV| {mean:.4f} over {res['compared']} pixel-frames (tolerance {args.tolerance:g})")
     if not mean <= args.tolerance:
-        print(f"march_check: overall mean |V_hzval - V_march| {mean:.4f} exceeds {args.tolerance:g}",
-              file=sys.stderr)
+        print(
+            f"march_check: overall mean |V_hzval - V_march| {mean:.4f} exceeds {args.tolerance:g}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

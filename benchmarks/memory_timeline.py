@@ -34,7 +34,7 @@ class Timeline:
 
     def __init__(self, period: float = 0.05):
         self.stack: list[str] = []
-        self.rows: list[list] = []          # [name, start rss, peak rss, end rss, start t, end t]
+        self.rows: list[list] = []  # [name, start rss, peak rss, end rss, start t, end t]
         self.open: list[list] = []
         self.period, self.stop = period, False
         self.thread = threading.Thread(target=self._sample, daemon=True)
@@ -71,10 +71,11 @@ class Timeline:
                 label = f"{owner.__name__}.render({a[1]:g})"
             with self.stage(label):
                 return fn(*a, **k)
+
         setattr(owner, attr, inner)
 
     def print(self):
-        g = 2 ** 30
+        g = 2**30
         print(f"{'stage':48s} {'start':>7s} {'peak':>7s} {'end':>7s} {'s':>7s}")
         for name, r0, rp, r1, t0, t1 in self.rows:
             print(f"{name:48s} {r0 / g:7.2f} {rp / g:7.2f} {r1 / g:7.2f} {t1 - t0:7.1f}")
@@ -83,24 +84,29 @@ class Timeline:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--keep-samples", type=int, default=None)
-    ap.add_argument("--peak-target", type=float, default=None,
-                    help="GiB: override hzval.truth.bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)")
+    ap.add_argument(
+        "--peak-target",
+        type=float,
+        default=None,
+        help="GiB: override hzval.truth.bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)",
+    )
     ap.add_argument("sweep", nargs=argparse.REMAINDER)
     args = ap.parse_args(argv)
     sweep_args = [a for a in args.sweep if a != "--"]
+
+    import mitsuba as mi
 
     from hzval.bake import maps as bake
     from hzval.cli import main as cli
     from hzval.geometry import tile as mesh
     from hzval.pipeline import sweep
-    from hzval.truth import plane as truth
     from hzval.techniques import surface
-    import mitsuba as mi
+    from hzval.truth import plane as truth
 
     if args.peak_target is not None:
         from hzval.truth import bands as truth_bands
 
-        truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2 ** 30)
+        truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2**30)
     if args.keep_samples is not None:
         truth.KEEP_SAMPLES = args.keep_samples
     tl = Timeline()

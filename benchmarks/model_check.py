@@ -38,22 +38,52 @@ def main() -> None:
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = a.out or Path(tmp) / "run"
-        subprocess.run([sys.executable, "-m", "hzval", "sweep", a.height, "--mesh", a.mesh, "--up", a.up,
-                        "--depth", str(a.depth), "--camera", "perspective", "--resolution",
-                        f"{a.resolution}x{a.resolution}", "--spp", str(a.spp), "--azimuths", a.azimuths,
-                        "--all-files", "--out", str(out), "--quiet", "--force"],
-                       check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "hzval",
+                "sweep",
+                a.height,
+                "--mesh",
+                a.mesh,
+                "--up",
+                a.up,
+                "--depth",
+                str(a.depth),
+                "--camera",
+                "perspective",
+                "--resolution",
+                f"{a.resolution}x{a.resolution}",
+                "--spp",
+                str(a.spp),
+                "--azimuths",
+                a.azimuths,
+                "--all-files",
+                "--out",
+                str(out),
+                "--quiet",
+                "--force",
+            ],
+            check=True,
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+        )
         m = json.loads((out / "metrics.json").read_text())
-        print(f"{m['mesh']['source']}: {m['mesh']['triangles']} triangles, {m['mesh']['seam_edges']} seam edges, "
-              f"mirrored {m['mesh']['mirrored_fraction']:.2f}, displaced {m['mesh']['displaced_triangles']:,}")
+        print(
+            f"{m['mesh']['source']}: {m['mesh']['triangles']} triangles, {m['mesh']['seam_edges']} seam edges, "
+            f"mirrored {m['mesh']['mirrored_fraction']:.2f}, displaced {m['mesh']['displaced_triangles']:,}"
+        )
         for f in m["frames"]:
             rgb = lambda key: np.stack([files.read_exr(out / f["files"][key])[c] for c in "RGB"], -1)
             V = files.read_exr(out / f["files"]["visibility"])["Y"]
             lit = np.isfinite(V) & (V == 1.0)
             d = np.abs(rgb("truth") - rgb("plain"))[lit]
             scores = ", ".join(f"{k} |F-V| {v['visibility_mae']:.4f}" for k, v in f["techniques"].items())
-            print(f"az {f['azimuth_deg']:+5.0f}: lit {lit.mean():.3f}, |truth - unshadowed| where lit: mean "
-                  f"{d.mean():.5f} max {d.max():.4f}; macro-shadowed {f['macro_shadowed']:.4f}; {scores}")
+            print(
+                f"az {f['azimuth_deg']:+5.0f}: lit {lit.mean():.3f}, |truth - unshadowed| where lit: mean "
+                f"{d.mean():.5f} max {d.max():.4f}; macro-shadowed {f['macro_shadowed']:.4f}; {scores}"
+            )
         for w in m["warnings"]:
             print("warning:", w)
 

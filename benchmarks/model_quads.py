@@ -26,13 +26,23 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-PHOTO = Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / \
-    "site-packages" / "matplotlib" / "mpl-data" / "sample_data" / "grace_hopper.jpg"
+PHOTO = (
+    Path(sys.prefix)
+    / "lib"
+    / f"python{sys.version_info.major}.{sys.version_info.minor}"
+    / "site-packages"
+    / "matplotlib"
+    / "mpl-data"
+    / "sample_data"
+    / "grace_hopper.jpg"
+)
 
 #: (name, UVs of the corners (0,0), (1,0), (1,1), (0,1), the photo turned to match)
-QUADS = (("xy", [(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
-         ("mirrored-u", [(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
-         ("turned-90", [(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90))
+QUADS = (
+    ("xy", [(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
+    ("mirrored-u", [(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
+    ("turned-90", [(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90),
+)
 
 
 def write_quad(path: Path, uvs) -> None:
@@ -53,10 +63,32 @@ def photo_height(path: Path, size: int) -> np.ndarray:
 
 
 def sweep(height: Path, out: Path, mesh: str | None, args) -> dict:
-    cmd = [sys.executable, "-m", "hzval", "sweep", str(height), "--out", str(out), "--quiet",
-           "--depth", str(args.depth), "--boundary", "open", "--spp", str(args.spp), "--azimuths", "-45,30",
-           "--camera", "orthographic", "--view-elevation", "60", "--resolution", f"{args.size}x{args.size}",
-           "--techniques", "horizon,pom"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "hzval",
+        "sweep",
+        str(height),
+        "--out",
+        str(out),
+        "--quiet",
+        "--depth",
+        str(args.depth),
+        "--boundary",
+        "open",
+        "--spp",
+        str(args.spp),
+        "--azimuths",
+        "-45,30",
+        "--camera",
+        "orthographic",
+        "--view-elevation",
+        "60",
+        "--resolution",
+        f"{args.size}x{args.size}",
+        "--techniques",
+        "horizon,pom",
+    ]
     if mesh:
         cmd += ["--mesh", mesh, "--up", "z"]
     subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
@@ -84,17 +116,23 @@ def main() -> None:
         runs = {}
         for name, uvs, turn in QUADS:
             write_quad(tmp / f"{name}.obj", uvs)
-            Image.fromarray((np.ascontiguousarray(turn(h)) * 255).round().astype(np.uint8)).save(tmp / f"{name}.png")
+            Image.fromarray((np.ascontiguousarray(turn(h)) * 255).round().astype(np.uint8)).save(
+                tmp / f"{name}.png"
+            )
             runs[name] = (tmp / name, sweep(tmp / f"{name}.png", tmp / name, str(tmp / f"{name}.obj"), args))
         runs["plane"] = (tmp / "plane", sweep(tmp / "xy.png", tmp / "plane", None, args))
         first_out, first = runs["xy"]
-        print(f"photo {args.photo.name}, {args.size}^2, depth {args.depth}, open, orthographic 60, lights -45, 30")
+        print(
+            f"photo {args.photo.name}, {args.size}^2, depth {args.depth}, open, orthographic 60, lights -45, 30"
+        )
         for tech in ("horizon", "pom"):
             ref = factors(first_out, first, tech)
             for name, (out, m) in runs.items():
                 mae = [f["techniques"][tech]["visibility_mae"] for f in m["frames"]]
                 perfect = [f["techniques"][tech].get("perfect_parallax_mae") for f in m["frames"]]
-                line = f"{tech:8} {name:11} |F-V| {np.mean(mae):.4f} (perfect parallax {np.mean(perfect):.4f})"
+                line = (
+                    f"{tech:8} {name:11} |F-V| {np.mean(mae):.4f} (perfect parallax {np.mean(perfect):.4f})"
+                )
                 if name != "plane":
                     dF = np.mean([np.nanmean(np.abs(a - b)) for a, b in zip(factors(out, m, tech), ref)])
                     line += f"  mean |F - F(xy)| {dF:.4f}"

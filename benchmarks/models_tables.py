@@ -23,24 +23,32 @@ def pm(s, d=4, signed=False):
 
 
 def study(name: str, d: dict, tech: str = "horizon") -> list[str]:
-    out = [f"**{name}** (`{d['command']}`)", "",
-           "| case | 1/R | texels | band \\|F-V\\| | flat, same texels | **excess** | flat's F - V | lit: cap - flat |",
-           "|---|---|---|---|---|---|---|---|"]
+    out = [
+        f"**{name}** (`{d['command']}`)",
+        "",
+        "| case | 1/R | texels | band \\|F-V\\| | flat, same texels | **excess** | flat's F - V | lit: cap - flat |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in d["rows"]:
         if "band" not in r or r["case"] == "cube":
             continue
         t = r["band"]["techniques"][tech]
         k = r.get("principal_curvatures")
         k = f"{k['along_ring_x']:+g} x, {k['across_tube_y']:+g} y" if k else f"{r['curvature']:+g}"
-        out.append(f"| {r['case']} | {k} | {r['band']['texels']:.0f} | {pm(t['mae'])} | {pm(t.get('flat'))} | "
-                   f"{pm(t.get('excess'), signed=True)} | {pm(t.get('flat_bias'), signed=True)} | "
-                   f"{pm(r['band'].get('lit_excess'), 3, True)} |")
+        out.append(
+            f"| {r['case']} | {k} | {r['band']['texels']:.0f} | {pm(t['mae'])} | {pm(t.get('flat'))} | "
+            f"{pm(t.get('excess'), signed=True)} | {pm(t.get('flat_bias'), signed=True)} | "
+            f"{pm(r['band'].get('lit_excess'), 3, True)} |"
+        )
     tr = d["trend"][tech]
     for key, label in (("mae", "band |F-V|"), ("excess", "excess")):
         o = tr[key]["overall"]
         falls = ", ".join(f"{f['from']:+g}→{f['to']:+g} {f['z']:+.1f} SE" for f in tr[key]["falls"])
-        out.append(f"\n{label}: **{tr[key]['verdict']}** (flat → 1/R = 2: {o['change']:+.4f}, {o['z']:+.1f} SE"
-                   + (f"; falls {falls}" if falls else "") + ")")
+        out.append(
+            f"\n{label}: **{tr[key]['verdict']}** (flat → 1/R = 2: {o['change']:+.4f}, {o['z']:+.1f} SE"
+            + (f"; falls {falls}" if falls else "")
+            + ")"
+        )
     return out
 
 
@@ -55,22 +63,28 @@ def seams(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
 
 
 def ring(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
-    out = ["| material | ring excess, all lights | lights along the ring (k_n < 0) | across the tube (k_n > 0) |",
-           "|---|---|---|---|"]
+    out = [
+        "| material | ring excess, all lights | lights along the ring (k_n < 0) | across the tube (k_n > 0) |",
+        "|---|---|---|---|",
+    ]
     for name, d in named:
         r = next(r for r in d["rows"] if r["case"] == "ring")
         by = r["band"]["by_azimuth"]
         neg = [a["excess"][tech] for a in by if a["normal_curvature"] < 0 and a["excess"][tech] is not None]
         pos = [a["excess"][tech] for a in by if a["normal_curvature"] > 0 and a["excess"][tech] is not None]
         mean = lambda v: sum(v) / len(v) if v else float("nan")
-        out.append(f"| {name} | {pm(r['band']['techniques'][tech].get('excess'), signed=True)} | "
-                   f"{mean(neg):+.4f} ({len(neg)}) | {mean(pos):+.4f} ({len(pos)}) |")
+        out.append(
+            f"| {name} | {pm(r['band']['techniques'][tech].get('excess'), signed=True)} | "
+            f"{mean(neg):+.4f} ({len(neg)}) | {mean(pos):+.4f} ({len(pos)}) |"
+        )
     return out
 
 
 def main() -> None:
-    named = [(a.split("=", 1)[0], json.loads((Path(a.split("=", 1)[1]) / "models.json").read_text()))
-             for a in sys.argv[1:]]
+    named = [
+        (a.split("=", 1)[0], json.loads((Path(a.split("=", 1)[1]) / "models.json").read_text()))
+        for a in sys.argv[1:]
+    ]
     for name, d in named:
         print("\n".join(study(name, d)), end="\n\n")
     print("\n".join(seams(named)), end="\n\n")

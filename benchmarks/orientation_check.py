@@ -33,8 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import march_check as mc  # noqa: E402
 
 #: (name, azimuth in degrees, the map turned): the issue's three orientations.
-ORIENTATIONS = (("as-is", 20.0, lambda h: h), ("mirrored", 160.0, lambda h: h[:, ::-1]),
-                ("rot90", 110.0, lambda h: np.rot90(h)))
+ORIENTATIONS = (
+    ("as-is", 20.0, lambda h: h),
+    ("mirrored", 160.0, lambda h: h[:, ::-1]),
+    ("rot90", 110.0, lambda h: np.rot90(h)),
+)
 
 
 def make_photos(out: Path) -> list[Path]:
@@ -46,7 +49,7 @@ def make_photos(out: Path) -> list[Path]:
     rng = np.random.default_rng(3)
     paths = []
     for name, size, seed, (r, c) in (("gravel", 384, 11, (61, 97)), ("bricks", 512, 5, (131, 203))):
-        h = materials.generate(name, size, seed=seed).height[r:r + 256, c:c + 256].astype(np.float64)
+        h = materials.generate(name, size, seed=seed).height[r : r + 256, c : c + 256].astype(np.float64)
         h = (h - h.min()) / (h.max() - h.min())
         h = np.clip(h + rng.normal(0.0, 0.01, h.shape), 0.0, 1.0)
         path = out / f"{name}.png"
@@ -55,8 +58,9 @@ def make_photos(out: Path) -> list[Path]:
     return paths
 
 
-def march_mean_v(h_texels: np.ndarray, boundary: str, azimuth: float, elevation: float, spp: int,
-                 seed: int = 0) -> float:
+def march_mean_v(
+    h_texels: np.ndarray, boundary: str, azimuth: float, elevation: float, spp: int, seed: int = 0
+) -> float:
     """Mean visibility of the bilinear height field from above, by benchmarks/march_check.py's own
     march (its own jittered positions, ``spp`` a pixel)."""
     rows, cols = h_texels.shape
@@ -68,30 +72,46 @@ def march_mean_v(h_texels: np.ndarray, boundary: str, azimuth: float, elevation:
     return float(np.mean(mc.visible(h_texels, boundary, P, mc.light_direction(azimuth, elevation))))
 
 
-def run_case(height_path: Path, boundary: str, orientation, out: Path, spp: int, tolerance: float | None) -> dict:
+def run_case(
+    height_path: Path, boundary: str, orientation, out: Path, spp: int, tolerance: float | None
+) -> dict:
     """One sweep of a turned map: its truth's mean V and horizon's mean |F - V|."""
-    from hzval.io import files
-    from hzval.scene import spec as sc
-    from hzval.pipeline import sweep
     from hzval.core import conventions as cv
-    from hzval.io import heightmap
+    from hzval.io import files, heightmap
+    from hzval.pipeline import sweep
+    from hzval.scene import spec as sc
 
     name, azimuth, turn = orientation
     h = np.ascontiguousarray(turn(heightmap.load_height(height_path).height), np.float32)
     turned = out / f"{height_path.stem}-{name}.npy"
     turned.parent.mkdir(parents=True, exist_ok=True)
     np.save(turned, h)
-    scene = sc.override(sc.Scene(), height=str(turned), depth=0.05, boundary=boundary, elevation=30.0,
-                        azimuths=str(azimuth), light="hard", spp=spp, truth_tolerance=tolerance)
+    scene = sc.override(
+        sc.Scene(),
+        height=str(turned),
+        depth=0.05,
+        boundary=boundary,
+        elevation=30.0,
+        azimuths=str(azimuth),
+        light="hard",
+        spp=spp,
+        truth_tolerance=tolerance,
+    )
     folder = out / f"{height_path.stem}-{boundary}-{name}"
     m = sweep.run(scene, folder, options=sweep.Options(techniques=("horizon",)), progress=False)
     fr = m["frames"][0]
     V = files.read_exr(folder / fr["files"]["visibility"])
     V = next(iter(V.values())) if isinstance(V, dict) else V
     h_tex = cv.heights_in_texels(h, 0.05).astype(np.float64)
-    return {"photo": height_path.stem, "boundary": boundary, "orientation": name, "azimuth": azimuth,
-            "mean_v": float(np.mean(V)), "horizon_fv": float(fr["techniques"]["horizon"]["visibility_mae"]),
-            "h_tex": h_tex}
+    return {
+        "photo": height_path.stem,
+        "boundary": boundary,
+        "orientation": name,
+        "azimuth": azimuth,
+        "mean_v": float(np.mean(V)),
+        "horizon_fv": float(fr["techniques"]["horizon"]["visibility_mae"]),
+        "h_tex": h_tex,
+    }
 
 
 def main(argv=None) -> int:
@@ -112,13 +132,17 @@ def main(argv=None) -> int:
                 r = run_case(photo, boundary, o, args.out, args.spp, args.truth_tolerance)
                 r["march_v"] = march_mean_v(r.pop("h_tex"), boundary, r["azimuth"], 30.0, args.march_spp)
                 group.append(r)
-                print(f"{photo.stem:8} {boundary:5} {r['orientation']:9} az {r['azimuth']:5.0f}  mean V "
-                      f"{r['mean_v']:.4f}  horizon |F-V| {r['horizon_fv']:.4f}  march V {r['march_v']:.4f}",
-                      flush=True)
+                print(
+                    f"{photo.stem:8} {boundary:5} {r['orientation']:9} az {r['azimuth']:5.0f}  mean V "
+                    f"{r['mean_v']:.4f}  horizon |F-V| {r['horizon_fv']:.4f}  march V {r['march_v']:.4f}",
+                    flush=True,
+                )
             v, fv = [g["mean_v"] for g in group], [g["horizon_fv"] for g in group]
             gap = max(abs(g["mean_v"] - g["march_v"]) for g in group)
-            print(f"{'':8} {boundary:5} spread: mean V {max(v) - min(v):.4f} (<= 0.004), |F-V| "
-                  f"{(max(fv) - min(fv)) / np.mean(fv) * 100:.2f}% (<= 3%), truth - march {gap:.4f} (<= 0.006)")
+            print(
+                f"{'':8} {boundary:5} spread: mean V {max(v) - min(v):.4f} (<= 0.004), |F-V| "
+                f"{(max(fv) - min(fv)) / np.mean(fv) * 100:.2f}% (<= 3%), truth - march {gap:.4f} (<= 0.006)"
+            )
             rows += group
     (args.out / "orientation.json").write_text(json.dumps(rows, indent=1))
     return 0

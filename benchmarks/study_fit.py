@@ -22,37 +22,65 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--materials", default=None)
     ap.add_argument("--variants", default="float", help="variants of every material")
-    ap.add_argument("--more", default="bricks,gravel,spikes", help="materials also fitted with --more-variants")
+    ap.add_argument(
+        "--more", default="bricks,gravel,spikes", help="materials also fitted with --more-variants"
+    )
     ap.add_argument("--more-variants", default="fit-k,u8,bc7")
     ap.add_argument("--out", default="study_fit.json")
     args = ap.parse_args(argv)
 
     from hzval import materials
-    from hzval.core import backend
     from hzval.bake import maps as bake
-    from hzval.techniques.fitted import fit
+    from hzval.core import backend
     from hzval.scene import spec as sc
+    from hzval.techniques.fitted import fit
 
     backend.variant()
     names = args.materials.split(",") if args.materials else materials.names()
     rows = []
-    print("material      variant  k      sweep |F-V| baked  fitted  ratio  | training baked  fitted  | epochs  fit s")
+    print(
+        "material      variant  k      sweep |F-V| baked  fitted  ratio  | training baked  fitted  | epochs  fit s"
+    )
     for name in names:
         scene = sc.override(sc.Scene(), height=name, size=args.size)
         hm = sc.load_material_height(scene.material)
-        baked = bake.bake(hm.height, bake.BakeParams(depth=scene.material.depth,
-                                                     boundary=scene.material.boundary).validate())
-        variants = args.variants.split(",") + (args.more_variants.split(",") if name in args.more.split(",") else [])
+        baked = bake.bake(
+            hm.height,
+            bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate(),
+        )
+        variants = args.variants.split(",") + (
+            args.more_variants.split(",") if name in args.more.split(",") else []
+        )
         for v in variants:
             storage = v if v in ("u8", "bc7") else "float"
-            r = fit.fit(hm.height, baked, scene, held_out="30@-60:60:15", storage=storage, fit_k=v == "fit-k",
-                        progress=False)
+            r = fit.fit(
+                hm.height,
+                baked,
+                scene,
+                held_out="30@-60:60:15",
+                storage=storage,
+                fit_k=v == "fit-k",
+                progress=False,
+            )
             m, t = r.mae["held_out"], r.mae["training"]
-            rows.append({"material": name, "variant": v, "k": r.k, "sweep": m, "training": t, "epochs": r.epochs,
-                         "converged": r.converged, "seconds": r.seconds})
-            print(f"{name:12s}  {v:7s}  {r.k:5.2f}  {m['baked']:.4f}             {m['fitted']:.4f}  "
-                  f"{m['fitted'] / m['baked']:.2f}   | {t['baked']:.4f}          {t['fitted']:.4f}  | "
-                  f"{r.epochs:6d}  {r.seconds['fit']:.0f}", flush=True)
+            rows.append(
+                {
+                    "material": name,
+                    "variant": v,
+                    "k": r.k,
+                    "sweep": m,
+                    "training": t,
+                    "epochs": r.epochs,
+                    "converged": r.converged,
+                    "seconds": r.seconds,
+                }
+            )
+            print(
+                f"{name:12s}  {v:7s}  {r.k:5.2f}  {m['baked']:.4f}             {m['fitted']:.4f}  "
+                f"{m['fitted'] / m['baked']:.2f}   | {t['baked']:.4f}          {t['fitted']:.4f}  | "
+                f"{r.epochs:6d}  {r.seconds['fit']:.0f}",
+                flush=True,
+            )
             with open(args.out, "w") as fh:
                 json.dump({"size": args.size, "rows": rows}, fh, indent=1)
     return 0

@@ -34,15 +34,20 @@ def sweep_at(scene, tolerance: float, out: Path) -> dict:
     from hzval.io import files
     from hzval.pipeline import sweep
 
-    scene = dataclasses.replace(scene, material=dataclasses.replace(scene.material, truth_tolerance=tolerance))
+    scene = dataclasses.replace(
+        scene, material=dataclasses.replace(scene.material, truth_tolerance=tolerance)
+    )
     m = sweep.run(scene, out, options=sweep.Options(techniques=("horizon",)), progress=False)
     vs, fvs = [], []
     for fr in m["frames"]:
         V = files.read_exr(out / fr["files"]["visibility"])
         vs.append(float(np.mean(next(iter(V.values())) if isinstance(V, dict) else V)))
         fvs.append(float(fr["techniques"]["horizon"]["visibility_mae"]))
-    return {"mean_v": float(np.mean(vs)), "horizon_fv": float(np.mean(fvs)),
-            "truth_setup_s": m["timings"]["truth_setup_s"]}
+    return {
+        "mean_v": float(np.mean(vs)),
+        "horizon_fv": float(np.mean(fvs)),
+        "truth_setup_s": m["timings"]["truth_setup_s"],
+    }
 
 
 def triangles_per_cell(height: np.ndarray, scene, tolerance: float) -> float:
@@ -66,15 +71,26 @@ def main(argv=None) -> int:
     p.add_argument("--depth", type=float, default=0.05, help="a file's depth (default 0.05)")
     args = p.parse_args(argv)
     tols = [float(t) for t in args.tolerances.split(",")]
-    names = materials.names() + [str(q) for q in make_photos(args.out / "photos")] \
-        if args.materials == "all" else args.materials.split(",")
+    names = (
+        materials.names() + [str(q) for q in make_photos(args.out / "photos")]
+        if args.materials == "all"
+        else args.materials.split(",")
+    )
     rows = []
     print(f"{'map':13} {'tolerance':>9} {'tri/cell':>8} {'mean V':>7} {'dV':>7} {'|F-V|':>7} {'d|F-V|':>7}")
     for name in names:
         builtin = materials.is_builtin(name)
-        scene = sc.override(sc.Scene(), height=name, size=args.size if builtin else None,
-                            depth=None if builtin else args.depth, boundary=None if builtin else "open",
-                            elevation=30.0, azimuths="-60:60:30", light="hard", spp=16)
+        scene = sc.override(
+            sc.Scene(),
+            height=name,
+            size=args.size if builtin else None,
+            depth=None if builtin else args.depth,
+            boundary=None if builtin else "open",
+            elevation=30.0,
+            azimuths="-60:60:30",
+            light="hard",
+            spp=16,
+        )
         height = sc.load_material_height(scene.material).height
         label = Path(name).stem if not builtin else name
         prev = None
@@ -83,8 +99,11 @@ def main(argv=None) -> int:
             r.update(map=label, tolerance=t, tri_per_cell=triangles_per_cell(height, scene, t))
             dv = "" if prev is None else f"{r['mean_v'] - prev['mean_v']:+7.4f}"
             dfv = "" if prev is None else f"{(r['horizon_fv'] / prev['horizon_fv'] - 1) * 100:+6.2f}%"
-            print(f"{label:13} {t:9.4g} {r['tri_per_cell']:8.2f} {r['mean_v']:7.4f} {dv:>7} "
-                  f"{r['horizon_fv']:7.4f} {dfv:>7}", flush=True)
+            print(
+                f"{label:13} {t:9.4g} {r['tri_per_cell']:8.2f} {r['mean_v']:7.4f} {dv:>7} "
+                f"{r['horizon_fv']:7.4f} {dfv:>7}",
+                flush=True,
+            )
             rows.append(r)
             prev = r
     (args.out / "convergence.json").write_text(json.dumps(rows, indent=1))

@@ -25,10 +25,12 @@ import numpy as np
 
 #: (name, the map turned, the light's azimuth turned, where a tangent-space point (x, y) of a rows x
 #: cols tile goes): x runs along the columns and y up the rows, so np.rot90 turns counterclockwise.
-TURNS = (("mirror", lambda h: h[:, ::-1], lambda a: 180.0 - a, lambda x, y, r, c: (c - x, y)),
-         ("rot90", lambda h: np.rot90(h), lambda a: a + 90.0, lambda x, y, r, c: (r - y, x)),
-         ("rot180", lambda h: np.rot90(h, 2), lambda a: a + 180.0, lambda x, y, r, c: (c - x, r - y)),
-         ("transpose", lambda h: h.T, lambda a: -90.0 - a, lambda x, y, r, c: (r - y, c - x)))
+TURNS = (
+    ("mirror", lambda h: h[:, ::-1], lambda a: 180.0 - a, lambda x, y, r, c: (c - x, y)),
+    ("rot90", lambda h: np.rot90(h), lambda a: a + 90.0, lambda x, y, r, c: (r - y, x)),
+    ("rot180", lambda h: np.rot90(h, 2), lambda a: a + 180.0, lambda x, y, r, c: (c - x, r - y)),
+    ("transpose", lambda h: h.T, lambda a: -90.0 - a, lambda x, y, r, c: (r - y, c - x)),
+)
 AS_IS = ("as-is", lambda h: h, lambda a: a, lambda x, y, r, c: (x, y))
 
 
@@ -44,20 +46,29 @@ def turned_frames(h, boundary: str, azimuth: float, spp: int, turn=AS_IS, depth:
     (:func:`hzval.scene.camera.sample_positions`, seed 1); each image in the as-is map's pixel order."""
     from hzval.bake import maps as bake
     from hzval.scene import lookup
-    from hzval.techniques import registry as technique
     from hzval.scene import spec as sc
     from hzval.scene.camera import sample_positions
+    from hzval.techniques import registry as technique
     from hzval.truth.plane import Truth
 
     _, f, az, point = turn
     rows, cols = h.shape
     ht = np.ascontiguousarray(f(h))
-    perm = f(np.arange(rows * cols).reshape(rows, cols)).ravel()    # turned pixel -> as-is pixel
+    perm = f(np.arange(rows * cols).reshape(rows, cols)).ravel()  # turned pixel -> as-is pixel
     light = az(azimuth) % 360.0
-    scene = sc.override(sc.Scene(), depth=depth, boundary=boundary, elevation=30.0, spp=spp, effects="shadow",
-                        azimuths=str(light)).validate()
-    x, y = (np.asarray(a, np.float64).reshape(rows * cols, spp)[perm]
-            for a in sample_positions(rows, cols, scene.camera, spp, 1))
+    scene = sc.override(
+        sc.Scene(),
+        depth=depth,
+        boundary=boundary,
+        elevation=30.0,
+        spp=spp,
+        effects="shadow",
+        azimuths=str(light),
+    ).validate()
+    x, y = (
+        np.asarray(a, np.float64).reshape(rows * cols, spp)[perm]
+        for a in sample_positions(rows, cols, scene.camera, spp, 1)
+    )
     x, y = point(x, y, rows, cols)
     x, y = x.astype(np.float32).ravel(), y.astype(np.float32).ravel()
     out = {"V": Truth(scene, ht, positions=(x, y)).render(light).layers["visibility"]}
@@ -73,14 +84,22 @@ def turned_frames(h, boundary: str, azimuth: float, spp: int, turn=AS_IS, depth:
 
 def sweep_scores(h, boundary: str, turn, seed: int, out: Path) -> dict:
     """Every technique's |F - V| from a whole sweep (32 spp) of ``h`` turned by ``turn``."""
-    from hzval.scene import spec as sc
     from hzval.pipeline import sweep
+    from hzval.scene import spec as sc
 
     name, f, az, _ = turn
     path = out / f"{boundary}-{name}.npy"
     np.save(path, np.ascontiguousarray(f(h)))
-    scene = sc.override(sc.Scene(), height=str(path), depth=0.05, boundary=boundary, elevation=30.0,
-                        azimuths=str(az(20.0) % 360.0), spp=32, seed=seed)
+    scene = sc.override(
+        sc.Scene(),
+        height=str(path),
+        depth=0.05,
+        boundary=boundary,
+        elevation=30.0,
+        azimuths=str(az(20.0) % 360.0),
+        spp=32,
+        seed=seed,
+    )
     m = sweep.run(scene, out / f"{boundary}-{name}-{seed}", progress=False)
     return {k: v["visibility_mae"] for k, v in m["frames"][0]["techniques"].items()}
 
@@ -100,7 +119,9 @@ def main(argv=None) -> int:
             got = ref if turn is AS_IS else turned_frames(h, boundary, 20.0, args.spp, turn)
             cells = [f"V {got['V'].mean():.5f}"] + [
                 f"{k} {np.abs(got[k] - got['V']).mean():.5f} (max pixel diff {np.abs(got[k] - ref[k]).max():.1e})"
-                for k in got if k != "V"]
+                for k in got
+                if k != "V"
+            ]
             print(f"{boundary} {turn[0]:9}", "  ".join(cells), flush=True)
     if args.sweeps:
         with tempfile.TemporaryDirectory() as tmp:
@@ -108,8 +129,11 @@ def main(argv=None) -> int:
                 runs = [(AS_IS, s) for s in (1, 2, 3, 4)] + [(t, 1) for t in TURNS]
                 for turn, seed in runs:
                     scores = sweep_scores(h, boundary, turn, seed, Path(tmp))
-                    print(f"sweep {boundary} {turn[0]:9} seed {seed}",
-                          "  ".join(f"{k} {v:.5f}" for k, v in scores.items()), flush=True)
+                    print(
+                        f"sweep {boundary} {turn[0]:9} seed {seed}",
+                        "  ".join(f"{k} {v:.5f}" for k, v in scores.items()),
+                        flush=True,
+                    )
     return 0
 
 

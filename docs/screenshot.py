@@ -32,21 +32,24 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from", dest="source", type=Path, default=None, help="an existing sweep folder")
     ap.add_argument("--suite", type=Path, default=None, help="a folder hzval suite wrote: shoot its overview")
-    ap.add_argument("--out", type=Path, default=None, help="the PNG (default docs/report.png or docs/suite.png)")
+    ap.add_argument(
+        "--out", type=Path, default=None, help="the PNG (default docs/report.png or docs/suite.png)"
+    )
     args = ap.parse_args(argv)
     if args.suite is not None:
         return _suite(args.suite, args.out or Path(__file__).with_name("suite.png"))
     args.out = args.out or Path(__file__).with_name("report.png")
 
-    from playwright.sync_api import sync_playwright
     from PIL import Image
+    from playwright.sync_api import sync_playwright
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.source
         if folder is None:
             root = Path(__file__).resolve().parent.parent
-            subprocess.run([sys.executable, "-m", "hzval", "sweep"], check=True, cwd=root,
-                           stdout=subprocess.DEVNULL)
+            subprocess.run(
+                [sys.executable, "-m", "hzval", "sweep"], check=True, cwd=root, stdout=subprocess.DEVNULL
+            )
             folder = root / "reports" / "bricks"
         shots = []
         with sync_playwright() as p:
@@ -58,13 +61,23 @@ def main(argv: list[str] | None = None) -> int:
             frame = Path(tmp) / "frame.png"
             card = page.locator("#frame-4")
             card.scroll_into_view_if_needed()
-            page.wait_for_function("id => [...document.querySelectorAll('#' + id + ' img')]"
-                                   ".every(i => i.complete && i.naturalWidth > 0)", arg="frame-4")
+            page.wait_for_function(
+                "id => [...document.querySelectorAll('#' + id + ' img')]"
+                ".every(i => i.complete && i.naturalWidth > 0)",
+                arg="frame-4",
+            )
             card.evaluate("e => e.scrollIntoView({block: 'start'})")
-            page.wait_for_timeout(500)           # let the panels lay out and paint
-            box = card.bounding_box()            # viewport coordinates, once scrolled to the top
-            page.screenshot(path=str(frame), clip={"x": box["x"], "y": max(box["y"], 0), "width": box["width"],
-                                                   "height": min(box["height"], 900 - max(box["y"], 0))})
+            page.wait_for_timeout(500)  # let the panels lay out and paint
+            box = card.bounding_box()  # viewport coordinates, once scrolled to the top
+            page.screenshot(
+                path=str(frame),
+                clip={
+                    "x": box["x"],
+                    "y": max(box["y"], 0),
+                    "width": box["width"],
+                    "height": min(box["height"], 900 - max(box["y"], 0)),
+                },
+            )
             browser.close()
             shots = [Image.open(top), Image.open(frame)]
         width = max(s.width for s in shots)
@@ -89,7 +102,9 @@ def _suite(folder: Path, out: Path) -> int:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": 1440, "height": 1000}, device_scale_factor=1)
         page.goto((folder / "index.html").resolve().as_uri(), wait_until="load")
-        page.wait_for_function("[...document.images].slice(0, 12).every(i => i.complete && i.naturalWidth > 0)")
+        page.wait_for_function(
+            "[...document.images].slice(0, 12).every(i => i.complete && i.naturalWidth > 0)"
+        )
         tmp_out = out.with_suffix(".tmp.png")
         page.screenshot(path=str(tmp_out))
         browser.close()

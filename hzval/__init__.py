@@ -26,11 +26,12 @@ hzval's rendering modules; the ``hzval`` command chooses the LLVM first thing in
 :func:`hzval.cli.main.main`. Importing the package changes nothing in the environment.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 try:
-    __version__ = _version("hzval")          # the installed package's, i.e. pyproject.toml's
-except PackageNotFoundError:                 # run from a source tree that was never installed
+    __version__ = _version("hzval")  # the installed package's, i.e. pyproject.toml's
+except PackageNotFoundError:  # run from a source tree that was never installed
     __version__ = "0+unknown"
 
 

@@ -25,7 +25,14 @@ def padded_faces(cube_bytes: bytes, n: int) -> np.ndarray:
     c = (np.arange(-1, n + 1) + 0.5) / n * 2.0 - 1.0
     tc, sc = np.meshgrid(c, c, indexing="ij")
     one = np.ones_like(sc)
-    axes = [(one, -tc, -sc), (-one, -tc, sc), (sc, one, tc), (sc, -one, -tc), (sc, -tc, one), (-sc, -tc, -one)]
+    axes = [
+        (one, -tc, -sc),
+        (-one, -tc, sc),
+        (sc, one, tc),
+        (sc, -one, -tc),
+        (sc, -tc, one),
+        (-sc, -tc, -one),
+    ]
     out = np.zeros((6, n + 2, n + 2, 4))
     for f, (x, y, z) in enumerate(axes):
         d = np.stack([x, y, z], axis=-1).reshape(-1, 3)
@@ -43,7 +50,7 @@ def seamless_bilinear(cube: np.ndarray, d) -> np.ndarray:
     n = cube.shape[1]
     pad = padded_faces(np.ascontiguousarray(cube, np.float64).tobytes(), n)
     face, s, t = cv.cube_lookup(np.asarray(d, np.float64))
-    u, v = float(s) * n - 0.5 + 1.0, float(t) * n - 0.5 + 1.0     # in the padded face
+    u, v = float(s) * n - 0.5 + 1.0, float(t) * n - 0.5 + 1.0  # in the padded face
     i, j = min(int(np.floor(u)), n), min(int(np.floor(v)), n)
     a, b = u - i, v - j
     p = pad[int(face)]

@@ -38,8 +38,8 @@ def test_wall_gives_its_sine_toward_it_and_none_away(variant, d):
     r = bake(h, depth=0.125, boundary="open")
     expect = 4.0 / math.hypot(4.0, d)
     left, right = r.horizon[4, 20 - d], r.horizon[4, 20 + d]
-    assert left[0] == pytest.approx(expect, abs=1e-6)      # facing the wall (0 deg)
-    assert left[4] == 0.0                                  # away from it (180 deg)
+    assert left[0] == pytest.approx(expect, abs=1e-6)  # facing the wall (0 deg)
+    assert left[4] == 0.0  # away from it (180 deg)
     assert right[4] == pytest.approx(expect, abs=1e-6)
     assert right[0] == 0.0
 
@@ -54,14 +54,14 @@ def test_pit_sees_the_same_horizon_in_every_direction(variant):
     sin_a, cos_a = 3 / math.sqrt(10), 1 / math.sqrt(10)
     assert r.horizon[3, 3] == pytest.approx([sin_a] * 8, abs=1e-6)
     assert r.mean_cos[3, 3] == pytest.approx(cos_a, abs=1e-6)
-    assert r.mean_cos2[3, 3] == pytest.approx(cos_a ** 2, abs=1e-6)
+    assert r.mean_cos2[3, 3] == pytest.approx(cos_a**2, abs=1e-6)
 
 
 def test_rotating_the_map_by_90_degrees_permutes_channels_by_two(variant):
     rng = np.random.default_rng(7)
     h = rng.random((24, 24)).astype(np.float32)
     a = bake(h, depth=0.2)
-    b = bake(np.rot90(h), depth=0.2)     # content turns 90 deg counterclockwise
+    b = bake(np.rot90(h), depth=0.2)  # content turns 90 deg counterclockwise
     for k in range(8):
         assert np.allclose(b.horizon[..., (k + 2) % 8], np.rot90(a.horizon[..., k]), atol=1e-6), k
     # the normals turn with it: (nx, ny) -> (-ny, nx)
@@ -72,7 +72,7 @@ def test_rotating_the_map_by_90_degrees_permutes_channels_by_two(variant):
 
 def test_wrap_finds_an_occluder_across_the_edge_and_open_does_not(variant):
     h = np.zeros((8, 16), np.float32)
-    h[:, 0] = 1.0                         # wall 4 texels high on the left edge
+    h[:, 0] = 1.0  # wall 4 texels high on the left edge
     wrap = bake(h, depth=0.25, boundary="wrap")
     open_ = bake(h, depth=0.25, boundary="open")
     assert wrap.horizon[3, 15, 0] == pytest.approx(4 / math.sqrt(17), abs=1e-6)
@@ -130,7 +130,7 @@ def test_weight_cube_decodes_to_the_exact_weights():
     cube = B.weight_cube(16)
     assert cube.shape == (6, 16, 16, 4) and cube.dtype == np.uint8
     f = cube / 255.0
-    w0 = np.clip(2 * f - 1, 0, 1)     # Lengyel eq. 5.3
+    w0 = np.clip(2 * f - 1, 0, 1)  # Lengyel eq. 5.3
     w1 = np.clip(1 - 2 * f, 0, 1)
     d = cv.cube_texel_directions(16)
     exact = cv.channel_weights(d[..., 0], d[..., 1])
@@ -139,10 +139,17 @@ def test_weight_cube_decodes_to_the_exact_weights():
     assert np.allclose(decoded.sum(-1), 1.0, atol=3 / 255)
 
 
-@pytest.mark.parametrize("kw,what", [
-    ({"depth": 0.0}, "--depth"), ({"depth": -1.0}, "--depth"), ({"depth": float("nan")}, "--depth"),
-    ({"radius": 1}, "--radius"), ({"angles": 24}, "--angles"), ({"boundary": "mirror"}, "--boundary"),
-])
+@pytest.mark.parametrize(
+    "kw,what",
+    [
+        ({"depth": 0.0}, "--depth"),
+        ({"depth": -1.0}, "--depth"),
+        ({"depth": float("nan")}, "--depth"),
+        ({"radius": 1}, "--radius"),
+        ({"angles": 24}, "--angles"),
+        ({"boundary": "mirror"}, "--boundary"),
+    ],
+)
 def test_bad_parameters_are_input_errors(kw, what):
     from hzval.core.errors import InputError
 
@@ -167,7 +174,9 @@ def test_cached_bake_reads_back_exactly_and_rebakes_on_change(variant, tmp_path)
     first, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info)
     assert not cached
     again, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info)
-    assert cached and np.array_equal(again.horizon, first.horizon) and np.array_equal(again.normal, first.normal)
+    assert (
+        cached and np.array_equal(again.horizon, first.horizon) and np.array_equal(again.normal, first.normal)
+    )
     assert np.array_equal(again.mean_cos2, first.mean_cos2)
     _, cached = B.cached_bake(h, "sha256:abc", B.BakeParams(radius=5, angles=16, depth=0.1), tmp_path, info)
     assert not cached

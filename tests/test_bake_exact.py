@@ -16,8 +16,8 @@ import hzval.bake as B
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
 
-SQRT1_2 = 1 / math.sqrt(2)     # sin 45 deg: slope 1 along an axis
-SQRT1_3 = 1 / math.sqrt(3)     # sin atan(1 / sqrt 2) = sin 35.264 deg: slope 1 seen along a diagonal
+SQRT1_2 = 1 / math.sqrt(2)  # sin 45 deg: slope 1 along an axis
+SQRT1_3 = 1 / math.sqrt(3)  # sin atan(1 / sqrt 2) = sin 35.264 deg: slope 1 seen along a diagonal
 ENGINES = ["drjit", "numpy"]
 
 
@@ -68,13 +68,13 @@ SHAPES = [(7, 5), (6, 9), (12, 18), (9, 9), (13, 4), (1, 6), (6, 1), (2, 1), (1,
 def test_matches_the_brute_force_reference(variant, engine, boundary, shape):
     rng = np.random.default_rng(hash(shape) % 2**32)
     smooth = (rng.random(shape) * 6.0).astype(np.float32)
-    ties = rng.integers(0, 4, shape).astype(np.float32)   # plateaus and collinear texels
+    ties = rng.integers(0, 4, shape).astype(np.float32)  # plateaus and collinear texels
     for h in (smooth, ties):
         got, mean_cos, mean_cos2 = B.exact_horizon_map(h, boundary, engine=engine)
         want = brute_force(h, boundary)
         assert got.shape == (*shape, 8) and got.dtype == np.float32
         assert np.abs(got - want).max() <= 1e-6
-        cos2 = 1 - want ** 2
+        cos2 = 1 - want**2
         assert np.abs(mean_cos - np.sqrt(cos2).mean(-1)).max() <= 1e-6
         assert np.abs(mean_cos2 - cos2.mean(-1)).max() <= 1e-6
 
@@ -100,6 +100,7 @@ def test_the_engines_agree_on_a_material(variant):
 # --------------------------------------------------------------------------
 # Answers known in advance
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_flat_map_has_no_horizon(variant, boundary):
@@ -157,12 +158,12 @@ def test_a_wall_far_beyond_the_seed_radius_gives_its_exact_sine(variant):
     # A wall 10 texels high, 40 texels to the right: sin = 10 / sqrt(10^2 + 40^2).
     h = np.zeros((8, 128), np.float32)
     h[:, 100] = 1.0
-    depth = 10 / 128                          # H = 1 is 10 texels high
+    depth = 10 / 128  # H = 1 is 10 texels high
     exact_bake = B.bake(h, B.BakeParams(depth=depth, boundary="open", method="exact"))
     seed_bake = B.bake(h, B.BakeParams(depth=depth, boundary="open"))
     assert exact_bake.horizon[4, 60, 0] == pytest.approx(10 / math.hypot(10, 40), abs=1e-6)
     assert exact_bake.horizon[4, 60, 4] == 0.0
-    assert seed_bake.horizon[4, 60, 0] == 0.0          # radius 16 does not reach it
+    assert seed_bake.horizon[4, 60, 0] == 0.0  # radius 16 does not reach it
     # toward 45 deg from (4, 96) the ray meets the wall at (0, 100), 4 diagonal
     # steps of sqrt 2 away
     assert exact_bake.horizon[4, 96, 1] == pytest.approx(10 / math.hypot(10, 4 * math.sqrt(2)), abs=1e-6)
@@ -184,7 +185,7 @@ def test_rotating_the_map_by_90_degrees_permutes_channels_by_two(variant):
     rng = np.random.default_rng(7)
     h = (rng.random((24, 17)) * 5).astype(np.float32)
     for boundary in ("wrap", "open"):
-        a, b = exact(h, boundary), exact(np.rot90(h), boundary)   # content turns 90 deg counterclockwise
+        a, b = exact(h, boundary), exact(np.rot90(h), boundary)  # content turns 90 deg counterclockwise
         for k in range(8):
             assert np.abs(b[..., (k + 2) % 8] - np.rot90(a[..., k])).max() <= 1e-6, (boundary, k)
 
@@ -213,12 +214,19 @@ def test_outputs_are_finite_and_in_range(variant):
 # Parameters, record, cache, command line
 # --------------------------------------------------------------------------
 
+
 def test_params_record_radius_and_angles_as_unused(variant):
     p = B.BakeParams(radius=7, angles=48, method="exact").validate()
-    assert p.record() == {"depth": 0.05, "radius": None, "angles": None, "boundary": "wrap", "method": "exact",
-                          "directions": 8}
+    assert p.record() == {
+        "depth": 0.05,
+        "radius": None,
+        "angles": None,
+        "boundary": "wrap",
+        "method": "exact",
+        "directions": 8,
+    }
     assert B.BakeParams.from_record(p.record()).method == "exact"
-    assert B.BakeParams(radius=1, angles=3, method="exact").validate()   # ignored, so not checked
+    assert B.BakeParams(radius=1, angles=3, method="exact").validate()  # ignored, so not checked
     with pytest.raises(Exception, match="--method"):
         B.BakeParams(method="fast").validate()
 
@@ -233,8 +241,13 @@ def test_cache_key_includes_the_method(variant, tmp_path):
     assert not cached and a.horizon[4, 20, 0] == 0.0
     b, cached = B.cached_bake(h, "sha256:test", exact_params, tmp_path, info)
     assert not cached and b.horizon[4, 20, 0] == pytest.approx(8 / math.hypot(8, 30), abs=1e-6)
-    c, cached = B.cached_bake(h, "sha256:test", B.BakeParams(depth=0.125, boundary="open", method="exact",
-                                                             radius=30), tmp_path, info)
+    c, cached = B.cached_bake(
+        h,
+        "sha256:test",
+        B.BakeParams(depth=0.125, boundary="open", method="exact", radius=30),
+        tmp_path,
+        info,
+    )
     assert cached and np.array_equal(c.horizon, b.horizon) and c.params.method == "exact"
     record = json.loads((tmp_path / "bake.json").read_text())
     assert record["parameters"]["method"] == "exact" and record["parameters"]["radius"] is None
@@ -242,12 +255,20 @@ def test_cache_key_includes_the_method(variant, tmp_path):
 
 
 def test_cli_bake_method_exact(variant, tmp_path, capsys):
-    assert cli.main(["bake", "--size", "32", "--method", "exact", "--radius", "4", "--out", str(tmp_path)]) == 0
+    assert (
+        cli.main(["bake", "--size", "32", "--method", "exact", "--radius", "4", "--out", str(tmp_path)]) == 0
+    )
     record = json.loads((tmp_path / "bake.json").read_text())
-    assert record["parameters"] == {"depth": 0.05, "radius": None, "angles": None, "boundary": "wrap",
-                                    "method": "exact", "directions": 8}
+    assert record["parameters"] == {
+        "depth": 0.05,
+        "radius": None,
+        "angles": None,
+        "boundary": "wrap",
+        "method": "exact",
+        "directions": 8,
+    }
     assert "unlimited radius" in capsys.readouterr().out
-    with pytest.raises(SystemExit):   # argparse rejects an unknown method
+    with pytest.raises(SystemExit):  # argparse rejects an unknown method
         cli.main(["bake", "--size", "32", "--method", "nope", "--out", str(tmp_path / "x")])
 
 

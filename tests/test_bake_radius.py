@@ -76,7 +76,7 @@ def test_an_occluder_counts_just_inside_the_radius_and_not_at_it(variant, kernel
     height = 5.0
     inside = [(radius - 1, 0), (7, 7) if radius == 10 else (16, 17)]
     outside = [(radius, 0), (6, 8) if radius == 10 else (0, 24)]
-    for (i, j) in inside:
+    for i, j in inside:
         assert i * i + j * j < radius * radius
         h, (row, col) = occluder_map(radius, i, j, height)
         hz = B.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
@@ -88,7 +88,7 @@ def test_an_occluder_counts_just_inside_the_radius_and_not_at_it(variant, kernel
             expect = sine * len(mine & set(covered)) / len(mine)
             assert hz[c] == pytest.approx(expect, rel=1e-5, abs=1e-7), (i, j, c)
         assert hz.max() > 0
-    for (i, j) in outside:
+    for i, j in outside:
         assert i * i + j * j >= radius * radius
         h, (row, col) = occluder_map(radius, i, j, height)
         hz = B.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
@@ -96,8 +96,8 @@ def test_an_occluder_counts_just_inside_the_radius_and_not_at_it(variant, kernel
 
 
 def test_auto_unrolls_the_default_radius_and_loops_large_radii_on_small_maps():
-    assert B.choose_kernel(792, 1) == "unrolled"                # radius 16
-    assert B.choose_kernel(792, 4096 * 4126) == "unrolled"      # ... at every size
+    assert B.choose_kernel(792, 1) == "unrolled"  # radius 16
+    assert B.choose_kernel(792, 4096 * 4126) == "unrolled"  # ... at every size
     assert B.choose_kernel(B.UNROLL_MAX_OFFSETS, 1) == "unrolled"
     r32, r64 = 3204, 12848
     assert B.choose_kernel(r32, 512 * 574) == "loop"
@@ -109,6 +109,7 @@ def test_auto_unrolls_the_default_radius_and_loops_large_radii_on_small_maps():
 def test_the_default_bake_takes_the_unrolled_kernel(variant, monkeypatch):
     def fail(*args, **kwargs):
         raise AssertionError("the default radius must not take the loop")
+
     monkeypatch.setattr(B, "_max_tan_loop", fail)
     maps.bake(np.zeros((8, 8), np.float32), maps.BakeParams())
 

@@ -3,11 +3,9 @@ mirrored sphere): a bug of the handedness touches only the mirrored half, pixel 
 
 import numpy as np
 
-from hzval.studies import bug_signatures as B
-from hzval.geometry import model
+from hzval.geometry import model, tangent_bugs, tangents
 from hzval.scene import spec as S
-from hzval.geometry import tangent_bugs
-from hzval.geometry import tangents
+from hzval.studies import bug_signatures as B
 
 
 def test_mirrored_sphere_mirrors_the_minus_y_half():
@@ -20,8 +18,11 @@ def test_mirrored_sphere_mirrors_the_minus_y_half():
     # one position, one UV per column)
     body = np.abs(m.positions[:, 2]) < 1 - 1e-9
     key = {tuple(np.round(p * [1, -1, 1], 9)): uv for p, uv in zip(m.positions[body], m.uvs[body])}
-    hits = [np.allclose(key[tuple(np.round(p, 9))], uv) for p, uv in zip(m.positions[body], m.uvs[body])
-            if tuple(np.round(p, 9)) in key]
+    hits = [
+        np.allclose(key[tuple(np.round(p, 9))], uv)
+        for p, uv in zip(m.positions[body], m.uvs[body])
+        if tuple(np.round(p, 9)) in key
+    ]
     assert len(hits) == body.sum() and all(hits)
     assert np.allclose(np.linalg.norm(m.tangents[:, :3], axis=1), 1)
 
@@ -34,8 +35,15 @@ def test_handedness_is_the_frames_sign():
 
 
 def test_a_handedness_bug_moves_only_the_mirrored_half():
-    sc = S.override(S.Scene(), height="spikes", size=32, spp=1, azimuths="-40,40", camera="orthographic",
-                    resolution=(32, 32))
+    sc = S.override(
+        S.Scene(),
+        height="spikes",
+        size=32,
+        spp=1,
+        azimuths="-40,40",
+        camera="orthographic",
+        resolution=(32, 32),
+    )
     h = S.load_material_height(sc.material).height
     rec, maps = B.measure(sc, h, "horizon", "mirrored-sphere", 0.0, -90.0, uv_scale=2.0)
     bugs = rec["bugs"]
@@ -57,15 +65,35 @@ def test_a_sweep_splits_the_error_by_handedness(tmp_path):
 
     from hzval.cli import main as cli
 
-    small = ["sweep", "--material", "spikes", "--size", "24", "--spp", "1", "--azimuths", "210,270",
-             "--resolution", "32x32", "--mesh", "cube", "--view-azimuth", "150", "--techniques", "horizon"]
+    small = [
+        "sweep",
+        "--material",
+        "spikes",
+        "--size",
+        "24",
+        "--spp",
+        "1",
+        "--azimuths",
+        "210,270",
+        "--resolution",
+        "32x32",
+        "--mesh",
+        "cube",
+        "--view-azimuth",
+        "150",
+        "--techniques",
+        "horizon",
+    ]
     got = {}
     for bug in ("none", "ignore-handedness"):
         out = tmp_path / bug
         assert cli.main(small + ["--tangent-bug", bug, "--out", str(out), "--quiet"]) == 0
-        got[bug] = [f["techniques"]["horizon"] for f in json.loads((out / "metrics.json").read_text())["frames"]]
+        got[bug] = [
+            f["techniques"]["horizon"] for f in json.loads((out / "metrics.json").read_text())["frames"]
+        ]
     for a, b in zip(got["none"], got["ignore-handedness"]):
         assert a["visibility_mae_unmirrored"] == b["visibility_mae_unmirrored"]
         assert 0.0 <= a["visibility_mae_mirrored"] <= 1.0
-    assert [a["visibility_mae_mirrored"] for a in got["none"]] != \
-        [b["visibility_mae_mirrored"] for b in got["ignore-handedness"]]
+    assert [a["visibility_mae_mirrored"] for a in got["none"]] != [
+        b["visibility_mae_mirrored"] for b in got["ignore-handedness"]
+    ]

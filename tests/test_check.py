@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from hzval import materials
-from hzval.techniques import horizon
-from hzval.techniques import surface
-from hzval.commands import check
 from hzval.cli import main as cli
+from hzval.commands import check
 from hzval.io import files
+from hzval.techniques import horizon
 from hzval.techniques import registry as technique
 
 SHIPPED = check.repository_path("reference")
@@ -45,7 +44,7 @@ def test_shipped_references_pass(variant):
     failing = [f"{r.name}: {'; '.join(r.reasons)}" for r in result.images if r.status not in ("pass", "warn")]
     assert not failing, "\n".join(failing)
     scenes = {r.scene for r in result.images}
-    assert {"bricks", "wall", "wall-soft"} | set(materials.names()) <= scenes    # every built-in material
+    assert {"bricks", "wall", "wall-soft"} | set(materials.names()) <= scenes  # every built-in material
     assert {r.kind for r in result.images} == KINDS
 
 
@@ -60,6 +59,7 @@ def test_references_are_small():
 # No wolf: Monte Carlo noise passes
 # --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("seed", [5, 123])
 def test_truth_rendered_with_another_seed_passes(variant, refs, seed):
     result = check.run(references=refs, seed=seed)
@@ -73,6 +73,7 @@ def test_truth_rendered_with_another_seed_passes(variant, refs, seed):
 # Teeth
 # --------------------------------------------------------------------------
 
+
 def _edit(path, fn):
     ch = files.read_exr(path)
     fn(ch)
@@ -82,16 +83,17 @@ def _edit(path, fn):
 def test_a_visibly_darker_patch_in_a_truth_reference_fails(variant, refs, tmp_path):
     target = check.reference_file(refs, "bricks", "az+0", "truth")
 
-    def darken(ch):   # a 24x24 patch 15% darker: visible, and within each pixel's noise at 16 spp
+    def darken(ch):  # a 24x24 patch 15% darker: visible, and within each pixel's noise at 16 spp
         for c in "RGB":
             ch[c][30:54, 30:54] *= 0.85
+
     _edit(target, darken)
     result = check.run(references=refs, only=["bricks"])
     st = statuses(result)
     assert st["bricks/az+0/truth"] == "fail"
     assert all(s == "pass" for n, s in st.items() if n != "bricks/az+0/truth"), st
     r = next(r for r in result.images if r.name == "bricks/az+0/truth")
-    assert r.numbers["failing_blocks"] > 0       # the block test sees what single pixels cannot
+    assert r.numbers["failing_blocks"] > 0  # the block test sees what single pixels cannot
 
     index = check.write_report(result, tmp_path / "report", command="hzval check")
     html = index.read_text()
@@ -104,8 +106,9 @@ def test_a_visibly_darker_patch_in_a_truth_reference_fails(variant, refs, tmp_pa
 def test_a_changed_approximation_reference_fails(variant, refs):
     target = check.reference_file(refs, "wall", "az+135", "horizon")
 
-    def nudge(ch):     # one pixel 0.01 brighter: invisible, but the approximation is deterministic
+    def nudge(ch):  # one pixel 0.01 brighter: invisible, but the approximation is deterministic
         ch["R"][10, 10] += 0.01
+
     _edit(target, nudge)
     st = statuses(check.run(references=refs, only=["wall"]))
     assert st["wall/az+135/horizon"] == "fail"
@@ -119,11 +122,12 @@ def test_flipping_the_sign_of_one_channel_weight_fails(variant, refs, monkeypatc
     def flipped(d, *directions):
         w = original(d, *directions)
         return [-w[0], *w[1:]]
+
     monkeypatch.setattr(horizon.Horizon, "_exact_weights", staticmethod(flipped))
     st = statuses(check.run(references=refs, only=["bricks", "wall"]))
     assert st["bricks/az+0/horizon"] == "fail" and st["wall/az+0/horizon"] == "fail"
     assert st["bricks/az+45/horizon"] == "pass" and st["wall/az+135/horizon"] == "pass"
-    assert st["bricks/az+0/horizon_gpu"] == "pass"       # the GPU path reads the cube map instead
+    assert st["bricks/az+0/horizon_gpu"] == "pass"  # the GPU path reads the cube map instead
 
 
 def test_a_softer_terrain_ramp_fails_the_terrain_images_only(variant, refs, monkeypatch):
@@ -133,6 +137,7 @@ def test_a_softer_terrain_ramp_fails_the_terrain_images_only(variant, refs, monk
     class Softer(terrain.TerrainShadow):
         def __init__(self, *args, **kw):
             super().__init__(*args, **{**kw, "ramp": 25 * terrain.DEFAULT_RAMP})
+
     monkeypatch.setattr(terrain, "TerrainShadow", Softer)
     st = statuses(check.run(references=refs, only=["bricks", "wall"]))
     assert all(v == "fail" for k, v in st.items() if k.endswith("/terrain") and k.startswith("bricks"))
@@ -145,6 +150,7 @@ def test_a_biased_truth_fails_even_within_each_pixels_noise(variant, refs):
     def brighten(ch):  # everything 3% brighter: below one pixel's noise, a bias of the whole image
         for c in "RGBV":
             ch[c] *= 1.03
+
     _edit(target, brighten)
     result = check.run(references=refs, only=["wall-soft"])
     r = next(r for r in result.images if r.name == "wall-soft/az+0/truth")
@@ -154,6 +160,7 @@ def test_a_biased_truth_fails_even_within_each_pixels_noise(variant, refs):
 # --------------------------------------------------------------------------
 # --update and the command line
 # --------------------------------------------------------------------------
+
 
 def test_update_rewrites_only_missing_and_failing_references(variant, refs):
     missing = check.reference_file(refs, "wall", "az+0", "horizon_gpu")
@@ -173,22 +180,28 @@ def test_cli_exit_codes_and_report(variant, refs, tmp_path, capsys):
     capsys.readouterr()
     _edit(check.reference_file(refs, "wall", "az+0", "horizon"), lambda ch: ch["F"].__iadd__(0.2))
     report = tmp_path / "rep"
-    assert cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall", "--report", str(report)]) == 1
+    assert (
+        cli.main(["check", "--quiet", "--references", str(refs), "--scene", "wall", "--report", str(report)])
+        == 1
+    )
     out = capsys.readouterr().out
     assert out.splitlines()[0].startswith("FAIL  wall/az+0/horizon")
     assert (report / "index.html").is_file()
     # a folder without references: every image is new, which fails until --update writes them
     empty = tmp_path / "empty"
-    assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall",
-                     "--report", str(report)]) == 1
+    assert (
+        cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall", "--report", str(report)])
+        == 1
+    )
     assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall", "--update"]) == 0
-    assert len(list(empty.rglob("*.exr"))) == 2 * len(KINDS)      # two lights
+    assert len(list(empty.rglob("*.exr"))) == 2 * len(KINDS)  # two lights
     assert cli.main(["check", "--quiet", "--references", str(empty), "--scene", "wall"]) == 0
 
 
 # --------------------------------------------------------------------------
 # The comparison itself, on synthetic images
 # --------------------------------------------------------------------------
+
 
 def _truth_channels(rng, mean, var, spp=16):
     noise = rng.standard_normal(mean.shape) * np.sqrt(var)
@@ -203,14 +216,16 @@ def test_pure_noise_passes_and_a_shift_of_a_few_sigma_over_a_block_fails():
     tiers = check.DEFAULT_TIERS["truth"]
     fails = 0
     for _ in range(20):
-        status, *_ = check.compare_image(_truth_channels(rng, mean, var), _truth_channels(rng, mean, var),
-                                         "truth", tiers, 1.0, 16)
+        status, *_ = check.compare_image(
+            _truth_channels(rng, mean, var), _truth_channels(rng, mean, var), "truth", tiers, 1.0, 16
+        )
         fails += status == "fail"
     assert fails == 0
     shifted = mean.copy()
-    shifted[:8, :8] += 0.15          # 1.5 sigma per pixel, 8.5 sigma for the block mean
-    status, reasons, numbers, _ = check.compare_image(_truth_channels(rng, shifted, var),
-                                                      _truth_channels(rng, mean, var), "truth", tiers, 1.0, 16)
+    shifted[:8, :8] += 0.15  # 1.5 sigma per pixel, 8.5 sigma for the block mean
+    status, reasons, numbers, _ = check.compare_image(
+        _truth_channels(rng, shifted, var), _truth_channels(rng, mean, var), "truth", tiers, 1.0, 16
+    )
     assert status == "fail" and numbers["failing_blocks"] >= 1, reasons
 
 
@@ -229,12 +244,15 @@ def test_unknown_tolerance_is_an_input_error(variant):
     with pytest.raises(InputError, match="fial"):
         check.Tiers.of(s, "truth")
     # every technique's tiers, then its own, then its variant's; schema 1's [tolerances.approx] still read
-    s = dataclasses.replace(Scene(), tolerances={"technique": {"fail": 0.5}, "pom": {"fail": 0.25},
-                                                 "horizon_gpu": {"hard_fail": 0.125}})
+    s = dataclasses.replace(
+        Scene(),
+        tolerances={"technique": {"fail": 0.5}, "pom": {"fail": 0.25}, "horizon_gpu": {"hard_fail": 0.125}},
+    )
     assert check.Tiers.of(s, "horizon", "horizon").fail == 0.5
     assert check.Tiers.of(s, "pom", "pom").fail == 0.25
     assert check.Tiers.of(s, "horizon_gpu", "horizon") == dataclasses.replace(
-        check.DEFAULT_TIERS["technique"], fail=0.5, hard_fail=0.125)
+        check.DEFAULT_TIERS["technique"], fail=0.5, hard_fail=0.125
+    )
     legacy = dataclasses.replace(Scene(), tolerances={"approx": {"fail": 0.5}})
     assert check.Tiers.of(legacy, "terrain", "terrain").fail == 0.5
 

@@ -34,8 +34,9 @@ def test_the_recipe_is_a_github_actions_workflow():
 
 def _shell(script: str, cwd: Path, bin_dir: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "PYTHONPATH": str(ROOT)}
-    return subprocess.run(["bash", "-e", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run(
+        ["bash", "-e", "-c", script], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
+    )
 
 
 @pytest.mark.slow
@@ -45,20 +46,26 @@ def test_the_recipe_runs(tmp_path, variant):
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
     shim = bin_dir / "hzval"
-    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -m hzval \"$@\"\n")
+    shim.write_text(f'#!/bin/sh\nexec {sys.executable} -m hzval "$@"\n')
     shim.chmod(0o755)
     work = tmp_path / "repo"
     work.mkdir()
     gated = None
     for step in recipe_steps():
         script = step.get("run")
-        if script is None or script.strip().startswith("pip install") or "github.ref" in str(step.get("if", "")):
+        if (
+            script is None
+            or script.strip().startswith("pip install")
+            or "github.ref" in str(step.get("if", ""))
+        ):
             continue
         done = _shell(script, work, bin_dir)
         assert done.returncode == 0, (step.get("name"), done.stderr[-2000:])
         if "--fail-if" in script:
             gated = script
-    assert (work / "baseline" / "bricks" / "metrics.json").is_file() and (work / "reports" / "bricks" / "index.html").is_file()
+    assert (work / "baseline" / "bricks" / "metrics.json").is_file() and (
+        work / "reports" / "bricks" / "index.html"
+    ).is_file()
     worse = _shell(gated.strip() + " --horizon-k 2 --out reports/soft", work, bin_dir)
     assert worse.returncode == 1, worse.stderr[-2000:]
     assert "gate failed: --baseline: horizon." in worse.stderr

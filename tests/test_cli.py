@@ -12,9 +12,16 @@ from PIL import Image
 from hzval.cli import main as cli
 from hzval.io import files
 
-BAKE_FILES = {"horizon0.exr", "horizon1.exr", "horizon0.png", "horizon1.png", "normal.exr",
-              "normal.png", "ambient.exr", "bake.json"} | {f"cube/{f}.png" for f in
-                                                          ("posx", "negx", "posy", "negy", "posz", "negz")}
+BAKE_FILES = {
+    "horizon0.exr",
+    "horizon1.exr",
+    "horizon0.png",
+    "horizon1.png",
+    "normal.exr",
+    "normal.png",
+    "ambient.exr",
+    "bake.json",
+} | {f"cube/{f}.png" for f in ("posx", "negx", "posy", "negy", "posz", "negz")}
 
 
 def listing(folder):
@@ -38,12 +45,33 @@ def run(*argv):
 
 def test_bake_writes_every_file_and_a_record(variant, height_png, tmp_path):
     out = tmp_path / "out"
-    assert run("bake", height_png / "h16.png", "--depth", "0.1", "--radius", "5", "--angles", "16",
-               "--boundary", "open", "--out", out) == 0
+    assert (
+        run(
+            "bake",
+            height_png / "h16.png",
+            "--depth",
+            "0.1",
+            "--radius",
+            "5",
+            "--angles",
+            "16",
+            "--boundary",
+            "open",
+            "--out",
+            out,
+        )
+        == 0
+    )
     assert listing(out) == BAKE_FILES
     record = json.loads((out / "bake.json").read_text())
-    assert record["parameters"] == {"depth": 0.1, "radius": 5, "angles": 16, "boundary": "open", "method": "seed",
-                                    "directions": 8}
+    assert record["parameters"] == {
+        "depth": 0.1,
+        "radius": 5,
+        "angles": 16,
+        "boundary": "open",
+        "method": "seed",
+        "directions": 8,
+    }
     assert record["input"]["digest"].startswith("sha256:")
     assert record["input"]["rows"] == 24 and record["input"]["cols"] == 40
     assert "horizon_s" in record["timings_s"] and record["versions"]["mitsuba"]
@@ -56,13 +84,24 @@ def test_bake_writes_every_file_and_a_record(variant, height_png, tmp_path):
     assert set(amb) == {"mean_cos", "mean_cos2"}
     n = files.read_exr(out / "normal.exr")
     assert np.allclose(n["R"] ** 2 + n["G"] ** 2 + n["B"] ** 2, 1.0, atol=1e-5)
-    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == [".hzval"]   # no staging or lock left
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == [".hzval"]  # no staging or lock left
 
 
 def test_8_and_16_bit_png_of_the_same_data_bake_the_same(variant, height_png, tmp_path):
     for name in ("h8", "h16"):
-        assert run("bake", height_png / f"{name}.png", "--radius", "5", "--angles", "16",
-                   "--out", tmp_path / name) == 0
+        assert (
+            run(
+                "bake",
+                height_png / f"{name}.png",
+                "--radius",
+                "5",
+                "--angles",
+                "16",
+                "--out",
+                tmp_path / name,
+            )
+            == 0
+        )
     for f in ("horizon0.exr", "horizon1.exr", "normal.exr", "ambient.exr"):
         a, b = files.read_exr(tmp_path / "h8" / f), files.read_exr(tmp_path / "h16" / f)
         for ch in a:
@@ -86,6 +125,7 @@ def _huge_png(path):
     # a valid PNG header claiming 200000 x 200000 pixels, and no pixel data
     def chunk(kind, body):
         return len(body).to_bytes(4, "big") + kind + body + zlib.crc32(kind + body).to_bytes(4, "big")
+
     ihdr = (200000).to_bytes(4, "big") * 2 + bytes([16, 0, 0, 0, 0])
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b""))
 
@@ -115,11 +155,18 @@ def test_bad_input_is_one_line_exit_2_and_no_files(case, tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("flags,what", [(["--depth", "0"], "--depth"), (["--depth", "-0.5"], "--depth"),
-                                        (["--angles", "20"], "--angles"), (["--size", "1"], "--size"),
-                                        (["--directions", "12"], "--directions"),
-                                        (["--directions", "16", "--angles", "48"], "--angles"),
-                                        (["--directions", "16", "--method", "exact"], "--directions")])
+@pytest.mark.parametrize(
+    "flags,what",
+    [
+        (["--depth", "0"], "--depth"),
+        (["--depth", "-0.5"], "--depth"),
+        (["--angles", "20"], "--angles"),
+        (["--size", "1"], "--size"),
+        (["--directions", "12"], "--directions"),
+        (["--directions", "16", "--angles", "48"], "--angles"),
+        (["--directions", "16", "--method", "exact"], "--directions"),
+    ],
+)
 def test_bad_parameter_is_one_line_exit_2_and_no_files(flags, what, tmp_path, capsys):
     out = tmp_path / "out"
     assert run("bake", *flags, "--out", out) == 2
@@ -131,15 +178,18 @@ def test_bad_parameter_is_one_line_exit_2_and_no_files(flags, what, tmp_path, ca
 def test_the_console_script_exits_2_without_a_traceback(tmp_path):
     bad = tmp_path / "bad.png"
     bad.write_bytes(b"")
-    proc = subprocess.run([sys.executable, "-m", "hzval", "bake", str(bad), "--out", str(tmp_path / "o")],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "hzval", "bake", str(bad), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and proc.stderr.strip() == f"hzval: error: {bad}: file is empty"
 
 
 def test_usage_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as e:
-        cli.main(["bake"])          # --out is required
+        cli.main(["bake"])  # --out is required
     assert e.value.code == 2
 
 

@@ -18,8 +18,11 @@ def _err(capsys) -> str:
 
 
 def test_variant_before_or_after_the_command():
-    for argv in (["--variant", "llvm_ad_rgb", "sweep"], ["sweep", "--variant", "llvm_ad_rgb"],
-                 ["score", "f", "--against", "s", "--variant", "llvm_ad_rgb"]):
+    for argv in (
+        ["--variant", "llvm_ad_rgb", "sweep"],
+        ["sweep", "--variant", "llvm_ad_rgb"],
+        ["score", "f", "--against", "s", "--variant", "llvm_ad_rgb"],
+    ):
         assert cli._parser().parse_args(argv).variant == "llvm_ad_rgb", argv
 
 
@@ -48,7 +51,7 @@ def test_size_with_a_height_map_file_is_an_error(height_file, tmp_path, capsys):
     scene.write_text(f'[material]\nheight = "{height_file.name}"\n')
     assert cli.main(["sweep", "--scene", str(scene), "--size", "64", "--out", str(tmp_path / "o")]) == 2
     assert "--size: 64 applies to built-in materials only" in _err(capsys)
-    height_file.with_suffix(".toml").write_text("[material]\nsize = 64\n")          # a sidecar
+    height_file.with_suffix(".toml").write_text("[material]\nsize = 64\n")  # a sidecar
     assert cli.main(["sweep", str(height_file), "--out", str(tmp_path / "o")]) == 2
     assert "stones.toml: material.size applies to built-in materials only" in _err(capsys)
     assert not (tmp_path / "o").exists()
@@ -66,7 +69,25 @@ def test_a_failed_run_into_a_new_folder_leaves_no_folder(height_file, tmp_path, 
     layer = tmp_path / "h0.png"
     files.write_png(layer, np.zeros((24, 24, 4), np.uint8))
     out = tmp_path / "new" / "deeper"
-    assert cli.main(["sweep", str(height_file), "--azimuths", "0", "--spp", "1", "--quiet", "--techniques",
-                     "horizon", "--horizon-map", str(layer), "--out", str(out)]) == 2
+    assert (
+        cli.main(
+            [
+                "sweep",
+                str(height_file),
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--quiet",
+                "--techniques",
+                "horizon",
+                "--horizon-map",
+                str(layer),
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert "h0.png" in _err(capsys)
     assert not (tmp_path / "new").exists()

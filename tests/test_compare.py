@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from hzval.metrics import compare as C
 from hzval.core import conventions as cv
 from hzval.core.errors import HzvalError
+from hzval.metrics import compare as C
 from hzval.scene.spec import Frame
 
 
@@ -17,7 +17,7 @@ def frame(img, **layers):
 
 def test_visibility_metrics_count_leaks_and_false_shadows():
     V = np.array([[1, 1, 0, 0]], np.float32)
-    F = np.array([[1, 0.2, 0.9, 0]], np.float32)   # one false shadow, one leak
+    F = np.array([[1, 0.2, 0.9, 0]], np.float32)  # one false shadow, one leak
     mae, leak, false_shadow = C.visibility_metrics(V, F)
     assert mae == pytest.approx((0 + 0.8 + 0.9 + 0) / 4)
     assert leak == 0.25 and false_shadow == 0.25
@@ -34,7 +34,7 @@ def test_black_against_white():
     black, white = np.zeros((8, 8, 3)), np.ones((8, 8, 3))
     m, maps = C.compare(frame(white), frame(black), 1.0)
     assert m.rmse == pytest.approx(1.0) and m.psnr_db == pytest.approx(0.0)
-    assert m.delta_e2000_mean == pytest.approx(100.0, abs=0.01)   # L* 100 -> 0
+    assert m.delta_e2000_mean == pytest.approx(100.0, abs=0.01)  # L* 100 -> 0
     assert m.flip_mean > 0.5 and m.visibility_mae is None
 
 
@@ -61,7 +61,11 @@ def test_display_is_colour_sciences_encoding_of_the_exposed_values(dtype):
     assert got.shape == a.shape and got.dtype == np.float64
     assert np.max(np.abs(got - want)) <= 4e-16
     grey = C.display(a[..., 1], 0.7)
-    assert grey.shape == a.shape and np.array_equal(grey[..., 0], got[..., 1]) and np.array_equal(grey[..., 2], got[..., 1])
+    assert (
+        grey.shape == a.shape
+        and np.array_equal(grey[..., 0], got[..., 1])
+        and np.array_equal(grey[..., 2], got[..., 1])
+    )
 
 
 def test_flip_refusal_is_an_error_not_an_exit():
@@ -76,12 +80,14 @@ def test_colour_science_in_row_blocks_is_bit_for_bit_one_call(monkeypatch):
     a, b = rng.random((2, 3 * C.PARALLEL_MIN_ROWS + 5, 40, 3))
     from hzval.core import backend
 
-    monkeypatch.setattr(backend, "host_cores", lambda: 3)      # three blocks, on three threads
+    monkeypatch.setattr(backend, "host_cores", lambda: 3)  # three blocks, on three threads
 
     def lab(x):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(x, apply_cctf_decoding=True))
 
-    np.testing.assert_array_equal(C.delta_e2000_colour(a, b), colour.delta_E(lab(a), lab(b), method="CIE 2000"))
+    np.testing.assert_array_equal(
+        C.delta_e2000_colour(a, b), colour.delta_E(lab(a), lab(b), method="CIE 2000")
+    )
 
 
 def test_image_metrics_match_flip_evaluator_and_colour_science():

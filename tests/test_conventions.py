@@ -11,13 +11,13 @@ from hzval.core import conventions as cv
 def test_texel_centres_row_zero_is_top():
     x, y = cv.texel_centres(rows=4, cols=3)
     assert x[0, 0] == 0.5 and x[0, 2] == 2.5
-    assert y[0, 0] == 3.5      # top row is highest y
+    assert y[0, 0] == 3.5  # top row is highest y
     assert y[3, 0] == 0.5
 
 
 def test_pixel_and_tangent_offsets_are_inverse():
-    assert cv.tangent_to_pixel_offset(1, 0) == (0, 1)    # +x is one column right
-    assert cv.tangent_to_pixel_offset(0, 1) == (-1, 0)   # +y is one row up
+    assert cv.tangent_to_pixel_offset(1, 0) == (0, 1)  # +x is one column right
+    assert cv.tangent_to_pixel_offset(0, 1) == (-1, 0)  # +y is one row up
     for dx, dy in [(3, -2), (-1, 5), (0, 0)]:
         assert cv.pixel_to_tangent_offset(*cv.tangent_to_pixel_offset(dx, dy)) == (dx, dy)
 
@@ -56,7 +56,7 @@ def test_channel_weights_on_a_channel_direction_pick_that_channel(az):
 
 
 def test_channel_weights_interpolate_linearly_in_azimuth():
-    L = cv.light_direction(100.0, 10)   # between channel 2 (90) and 3 (135)
+    L = cv.light_direction(100.0, 10)  # between channel 2 (90) and 3 (135)
     w = cv.channel_weights(L[0], L[1])
     assert w[2] == pytest.approx(35 / 45) and w[3] == pytest.approx(10 / 45)
     assert np.count_nonzero(w) == 2
@@ -86,7 +86,7 @@ def test_signed_weight_encoding():
 
 def test_height_gradient_signs():
     rows, cols = 6, 8
-    ramp_x = np.tile(np.arange(cols, dtype=np.float32), (rows, 1))           # rises to the right
+    ramp_x = np.tile(np.arange(cols, dtype=np.float32), (rows, 1))  # rises to the right
     gx, gy = cv.height_gradient(ramp_x, "open")
     assert np.allclose(gx, 1.0) and np.allclose(gy, 0.0)
     ramp_up = np.tile(np.arange(rows, 0, -1, dtype=np.float32)[:, None], (1, cols))  # rises up the image
@@ -98,7 +98,7 @@ def test_height_gradient_wrap_sees_across_the_edge():
     h = np.zeros((3, 5), np.float32)
     h[:, 0] = 2.0
     gx, _ = cv.height_gradient(h, "wrap")
-    assert gx[0, 4] == pytest.approx(1.0)   # right neighbour of the last column is column 0
+    assert gx[0, 4] == pytest.approx(1.0)  # right neighbour of the last column is column 0
     gx, _ = cv.height_gradient(h, "open")
     assert gx[0, 4] == 0.0
 

@@ -5,10 +5,10 @@ import math
 
 import numpy as np
 import pytest
-
 from cube_reference import seamless_bilinear
-from hzval.core import conventions as cv
+
 from hzval.bake.maps import CUBE_SIZE, weight_cube
+from hzval.core import conventions as cv
 
 CUBE = weight_cube(CUBE_SIZE).astype(np.float64) / 255.0
 
@@ -20,10 +20,13 @@ def directions() -> np.ndarray:
     for sx in (-1, 1):
         for sy in (-1, 1):
             for sz in (-1, 1):
-                d.append(np.array([sx, sy, sz], float))                        # corners
+                d.append(np.array([sx, sy, sz], float))  # corners
                 for eps in (0.0, 1e-3, -1e-3, 0.03, -0.03):
-                    d += [np.array([sx, sy, sz * (0.3 + eps)]), np.array([sx * (0.6 + eps), sy, sz]),
-                          np.array([sx, sy * (1 + eps), sz * (1 - eps)])]      # edges and near them
+                    d += [
+                        np.array([sx, sy, sz * (0.3 + eps)]),
+                        np.array([sx * (0.6 + eps), sy, sz]),
+                        np.array([sx, sy * (1 + eps), sz * (1 - eps)]),
+                    ]  # edges and near them
     return np.array(d, np.float32)
 
 
@@ -65,7 +68,7 @@ def test_the_filter_is_continuous_across_every_seam(variant):
     # the clamped (non-seamless) filter jumps there: the test can fail
     d = np.array([[1, 1 - 1e-4, 0.3], [1 - 1e-4, 1, 0.3]], np.float32)
     f = evaluate(d, seamless=False)
-    assert np.abs(f[0] - f[1]).max() > 0.015         # 5/255: 0.039 in a factor, 0.3 in F at k = 8
+    assert np.abs(f[0] - f[1]).max() > 0.015  # 5/255: 0.039 in a factor, 0.3 in F at k = 8
 
 
 def test_inside_a_face_it_is_plain_bilinear(variant):
@@ -75,7 +78,9 @@ def test_inside_a_face_it_is_plain_bilinear(variant):
     got = evaluate(d.reshape(-1, 3).astype(np.float32))
     assert np.abs(got - CUBE.reshape(-1, 4)).max() <= 1e-6
     mid = (d[4, 3, 5] + d[4, 3, 6]) / 2
-    assert evaluate(mid[None].astype(np.float32))[0] == pytest.approx((CUBE[4, 3, 5] + CUBE[4, 3, 6]) / 2, abs=1e-6)
+    assert evaluate(mid[None].astype(np.float32))[0] == pytest.approx(
+        (CUBE[4, 3, 5] + CUBE[4, 3, 6]) / 2, abs=1e-6
+    )
 
 
 def test_a_corner_is_the_mean_of_its_three_texels(variant):

@@ -17,7 +17,7 @@ def test_the_band_holds_the_normals_that_see_the_light_at_its_elevation():
     assert cb.in_band(n, L, 30.0, 3.0).tolist() == [True, True, True, False, False]
     # turned about the light's azimuth's normal (across the light) the local elevation barely moves
     side = np.array([[0.0, math.sin(0.2), math.cos(0.2)]])
-    assert cb.in_band(side, L, 30.0, 1.0)[0]              # cos(0.2) lowers sin(elevation) by 2%: 0.65 degrees
+    assert cb.in_band(side, L, 30.0, 1.0)[0]  # cos(0.2) lowers sin(elevation) by 2%: 0.65 degrees
     assert not cb.in_band(side, L, 30.0, 0.5)[0]
 
 
@@ -35,10 +35,13 @@ def _maps(values):
 
 
 def test_the_excess_is_the_case_minus_the_flat_patch_on_the_same_texels():
-    flat = {"techniques": {"h": {"mae": _maps([0.1, 0.2, 0.3]), "floor": _maps([0, 0, 0])}}, "texels": [6, 6, 6]}
+    flat = {
+        "techniques": {"h": {"mae": _maps([0.1, 0.2, 0.3]), "floor": _maps([0, 0, 0])}},
+        "texels": [6, 6, 6],
+    }
     case_mae = _maps([0.15, 0.22, 0.33])
-    case_mae[:, :3] = np.nan                               # the band holds half the texels
-    flat["techniques"]["h"]["mae"][:, 3] = 9.0             # a texel outside... inside the band, read on both
+    case_mae[:, :3] = np.nan  # the band holds half the texels
+    flat["techniques"]["h"]["mae"][:, 3] = 9.0  # a texel outside... inside the band, read on both
     case = {"techniques": {"h": {"mae": case_mae, "floor": _maps([0, 0, 0])}}, "texels": [3, 3, 3]}
     row = cb.paired(case, flat)
     h = row["techniques"]["h"]
@@ -77,7 +80,7 @@ def test_a_small_fall_is_noise_a_large_one_is_not():
 
 def test_flat_within_noise_does_not_rise():
     rows = [(0.0, [0.10, 0.12, 0.11, 0.13]), (0.5, [0.12, 0.11, 0.12, 0.12]), (1.0, [0.11, 0.13, 0.11, 0.13])]
-    t = cb.trend(rows)                                  # every step up, by less than its noise
+    t = cb.trend(rows)  # every step up, by less than its noise
     assert all(s["change"] > 0 for s in t["steps"]) and t["overall"]["z"] < cb.NOISE_Z
     assert t["verdict"] == "does not rise"
     falling = cb.trend(_rows([(0.0, 0.20), (1.0, 0.15), (2.0, 0.10)], spread=0.001))

@@ -16,15 +16,14 @@ import math
 
 import numpy as np
 import pytest
+from hard._ref import horizon_f64  # tests/ is on sys.path (rootdir-relative test modules)
 
-from hzval.techniques import horizon as A
-from hzval.materials.bricks import bricks
 import hzval.bake as B
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.materials.bricks import bricks
 from hzval.scene.spec import MaterialSpec, Scene
-
-from hard._ref import horizon_f64   # tests/ is on sys.path (rootdir-relative test modules)
+from hzval.techniques import horizon as A
 
 
 def bake(h, **kw):
@@ -35,7 +34,7 @@ def test_direction_geometry_lives_in_conventions():
     assert cv.channel_azimuths_deg(8) == cv.CHANNEL_AZIMUTHS_DEG
     assert cv.channel_azimuths_deg(16) == tuple(22.5 * c for c in range(16))
     assert cv.layer_count(8) == 2 and cv.layer_count(16) == 4
-    assert cv.channels_per_radian(8) == 4.0 / math.pi      # the 8-channel kernels' constant, exactly
+    assert cv.channels_per_radian(8) == 4.0 / math.pi  # the 8-channel kernels' constant, exactly
 
 
 def test_validation():
@@ -71,7 +70,7 @@ def test_wall_channel_2c_of_16_equals_channel_c_of_8_where_their_bins_agree(vari
     assert left16[0] == pytest.approx(expect, rel=1e-6)
     # facing the wall: 22.5 degrees either side see it, symmetrically (row 4 is the middle row)
     assert left16[1] > 0 and left16[15] > 0 and left16[1] == left16[15]
-    assert left16[1] <= left16[0]        # equal at d = 1: the nearest texel covers +-35 degrees
+    assert left16[1] <= left16[0]  # equal at d = 1: the nearest texel covers +-35 degrees
     # facing away (112.5 .. 247.5 degrees): nothing
     assert np.all(left16[5:12] == 0.0)
     # the relation in the module docstring, on every texel and channel
@@ -96,8 +95,8 @@ def test_rotating_the_map_90_degrees_permutes_16_channels_by_4(variant):
     rng = np.random.default_rng(5)
     h = rng.random((24, 24)).astype(np.float32)
     r = bake(h, depth=0.1, directions=16).horizon
-    rot = bake(np.rot90(h), depth=0.1, directions=16).horizon    # counterclockwise on screen
-    expect = np.roll(np.rot90(r, axes=(0, 1)), 4, axis=-1)        # azimuth + 90 = channel + 4
+    rot = bake(np.rot90(h), depth=0.1, directions=16).horizon  # counterclockwise on screen
+    expect = np.roll(np.rot90(r, axes=(0, 1)), 4, axis=-1)  # azimuth + 90 = channel + 4
     # exact: the radius-16, 32-bin float32 offset table maps (i, j) -> (-j, i) onto bins + 8, and
     # each channel sums the same bins' sines in the same order
     assert np.array_equal(rot, expect)
@@ -130,7 +129,7 @@ def test_old_bake_json_without_directions_reads_as_8_and_stays_cached(variant, t
     first, cached = B.cached_bake(h, "d", params, tmp_path, {"digest": "d"})
     assert not cached
     record = json.loads((tmp_path / "bake.json").read_text())
-    del record["parameters"]["directions"]                # as written before it existed
+    del record["parameters"]["directions"]  # as written before it existed
     (tmp_path / "bake.json").write_text(json.dumps(record))
     again, cached = B.cached_bake(h, "d", params, tmp_path, {"digest": "d"})
     assert cached and again.params.directions == 8
@@ -144,7 +143,7 @@ def test_cube_weights_and_the_gpu_path_need_8_directions(variant):
     for kw in ({"path": "gpu"}, {"weights": "cube"}):
         with pytest.raises(InputError, match="8"):
             A.Horizon(scene, r, **kw)
-    A.Horizon(scene, r, storage="u8")                     # 8-bit storage works for any D
+    A.Horizon(scene, r, storage="u8")  # 8-bit storage works for any D
 
 
 @pytest.mark.parametrize("c", [0, 1, 3, 5, 10, 15])
@@ -165,8 +164,8 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
 
 def test_bricks_16_directions_against_the_truth(variant, capsys):
     """|F - V| over the default sweep on the built-in bricks at 64 px: measured and printed."""
-    from hzval.truth import plane as truth
     from hzval.scene.spec import load_albedo
+    from hzval.truth import plane as truth
 
     scene = Scene(material=MaterialSpec(size=64), spp=4)
     h = bricks(64)
@@ -179,7 +178,9 @@ def test_bricks_16_directions_against_the_truth(variant, capsys):
         assert all(np.isfinite(f).all() and (f >= 0).all() and (f <= 1).all() for f in F)
         mae[d] = float(np.mean([np.mean(np.abs(f.astype(np.float64) - v)) for f, v in zip(F, V)]))
     with capsys.disabled():
-        print(f"\nbricks 64 px, default sweep: mean |F - V| 8 directions {mae[8]:.5f}, "
-              f"16 directions {mae[16]:.5f}")
+        print(
+            f"\nbricks 64 px, default sweep: mean |F - V| 8 directions {mae[8]:.5f}, "
+            f"16 directions {mae[16]:.5f}"
+        )
     assert 0 < mae[16] < 1
     assert mae[16] <= mae[8] + 0.005

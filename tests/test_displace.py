@@ -40,7 +40,7 @@ def test_refinement_covers_each_base_triangle_once_cell_by_cell(mesh):
     base = scattered_plane() if mesh == "scattered" else model.load(mesh)
     r = dp.refine(base, (24, 24))
     a = uv_area(r.uvs, r.faces) * np.sign(base.uv_areas[r.base_face])
-    assert a.min() > -1e-12                       # nothing folds over
+    assert a.min() > -1e-12  # nothing folds over
     total = np.bincount(r.base_face, a, minlength=len(base.faces))
     np.testing.assert_allclose(total, np.abs(base.uv_areas), rtol=1e-9, atol=1e-15)
     # every triangle inside one cell between texel centres: the bilinear surface's creases are edges
@@ -60,7 +60,7 @@ def test_open_mesh_is_watertight_inside():
     keys, counts = np.unique(e, axis=0, return_counts=True)
     first = np.zeros(r.weld.max() + 1, np.int64)
     first[r.weld] = np.arange(len(r.weld))
-    ends = r.positions[first[keys[counts == 1]]][..., :2]           # (E, 2, 2)
+    ends = r.positions[first[keys[counts == 1]]][..., :2]  # (E, 2, 2)
     on_side = np.any(np.all((np.abs(ends) < 1e-12) | (np.abs(ends - 1) < 1e-12), axis=1), axis=-1)
     assert on_side.all()
 
@@ -71,7 +71,7 @@ def test_plane_is_the_planes_tessellation():
     on the quad's own diagonal (its two base triangles meet there) in two fans of three."""
     n = 8
     r = dp.refine(model.plane(), (n, n), "open")
-    centres = (np.arange(n - 1) + 1.0) / n                        # inner cells' centres: texel corners
+    centres = (np.arange(n - 1) + 1.0) / n  # inner cells' centres: texel corners
     key = {(round(a * 2 * n), round(b * 2 * n)) for a, b in r.positions[:, :2]}
     assert all((round(a * 2 * n), round(b * 2 * n)) in key for a in centres for b in centres)
     inner, border, corners, diagonal = (n - 1) ** 2, 4 * (n - 1), 4, n + 1
@@ -87,7 +87,7 @@ def test_closed_shapes_stay_closed(name):
     assert len(np.unique(r.positions, axis=0)) == r.weld.max() + 1
     h = np.random.default_rng(2).random((16, 16)).astype(np.float32)
     p, f = dp.displace(r, h, 0.1, base.world_per_uv, "wrap")
-    assert len(np.unique(p, axis=0)) == r.weld.max() + 1   # the seams' sides share their positions
+    assert len(np.unique(p, axis=0)) == r.weld.max() + 1  # the seams' sides share their positions
     v = p.astype(np.float64)[f]
     volume = np.sum(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2]))) / 6
     b = base.positions[base.faces]
@@ -183,8 +183,8 @@ def test_sample_height_between_texel_centres():
     h = np.arange(12, dtype=np.float32).reshape(3, 4)
     uv = np.array([[0.5 / 4, 1 - 0.5 / 3], [1.5 / 4, 1 - 2.5 / 3], [1.0 / 4, 1 - 1.0 / 3], [0.0, 0.5]])
     np.testing.assert_allclose(dp.sample_height(h, uv, "open")[:3], [0, 9, 2.5])
-    assert dp.sample_height(h, uv[3:], "wrap")[0] == pytest.approx(0.5 * (4 + 7))   # wraps to col 3
-    assert dp.sample_height(h, uv[3:], "open")[0] == pytest.approx(4.0)            # clamps to col 0
+    assert dp.sample_height(h, uv[3:], "wrap")[0] == pytest.approx(0.5 * (4 + 7))  # wraps to col 3
+    assert dp.sample_height(h, uv[3:], "open")[0] == pytest.approx(4.0)  # clamps to col 0
 
 
 def test_shading_normals_on_the_plane_are_the_normal_map():
@@ -211,10 +211,16 @@ def test_shading_normals_follow_the_mirrored_frame():
         on = np.isin(r.base_face, [2 * k, 2 * k + 1])
         v = np.unique(r.faces[on])
         inner = v[np.abs(r.positions[v] @ np.array(normal, float) - 0.5) < 1e-9]
-        inner = inner[np.all(np.abs(r.positions[inner] @ np.abs(np.array([u_axis, _], float)).T) < 0.49, axis=1)]
+        inner = inner[
+            np.all(np.abs(r.positions[inner] @ np.abs(np.array([u_axis, _], float)).T) < 0.49, axis=1)
+        ]
         assert len(inner) >= 9
-        np.testing.assert_allclose(n[inner], np.tile(0.6 * np.array(u_axis) + 0.8 * np.array(normal), (len(inner), 1)),
-                                   atol=1e-6, err_msg=name)
+        np.testing.assert_allclose(
+            n[inner],
+            np.tile(0.6 * np.array(u_axis) + 0.8 * np.array(normal), (len(inner), 1)),
+            atol=1e-6,
+            err_msg=name,
+        )
 
 
 def test_long_thin_triangles_are_cut_cell_by_cell():

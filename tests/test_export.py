@@ -14,18 +14,20 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from test_truth import column_wall, make_scene
 
 from hzval.cli import main as cli
 from hzval.commands import export
 from hzval.core import shading
-from hzval.truth import plane as truth
 from hzval.materials.bricks import bricks
 from hzval.scene import spec as S
-from test_truth import column_wall, make_scene
+from hzval.truth import plane as truth
 
 CASES = {
-    "wall": lambda: (column_wall(40, 40, 20),
-                     make_scene((40, 40), 4 / 40, "open", effects=("shadow", "diffuse"), spp=64, elevation=30.0)),
+    "wall": lambda: (
+        column_wall(40, 40, 20),
+        make_scene((40, 40), 4 / 40, "open", effects=("shadow", "diffuse"), spp=64, elevation=30.0),
+    ),
     "bricks": lambda: (bricks(48), S.override(S.Scene(), size=48, spp=64, depth=0.1)),
 }
 
@@ -39,8 +41,8 @@ def test_mitsubas_direct_integrator_agrees_with_the_truth(variant, tmp_path, cas
     theirs = export.mitsuba_render(tmp_path / "scene.xml")
     assert theirs.shape == mine.image.shape
     d = (theirs - mine.image)[..., 0] * shading.exposure(sc)
-    assert abs(d.mean()) < 0.002                   # no bias beyond the leak
-    assert np.abs(d).mean() < 0.006                # noise of two 64-spp renders
+    assert abs(d.mean()) < 0.002  # no bias beyond the leak
+    assert np.abs(d).mean() < 0.006  # noise of two 64-spp renders
     # the shadows are where the truth has them: pixels the truth sees in full shadow stay dark
     dark = mine.layers["visibility"] == 0
     assert dark.mean() > 0.02
@@ -59,7 +61,7 @@ def test_the_scene_file_names_what_the_truth_traces(variant, tmp_path):
     L = sc.light.direction(90.0)
     np.testing.assert_allclose(d, -L, atol=1e-8)
     assert root.find("shape/bsdf").get("type") == "diffuse"
-    assert [p.name for p in tmp_path.glob(".*")] == [".hzval"]     # the marker; no temporary files left
+    assert [p.name for p in tmp_path.glob(".*")] == [".hzval"]  # the marker; no temporary files left
 
 
 def test_cli_writes_it_and_refuses_what_the_direct_integrator_cannot_do(variant, tmp_path, capsys):

@@ -8,15 +8,14 @@ import math
 
 import numpy as np
 import pytest
+from test_seed_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
 
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
-from hzval.io import external
-from hzval.io import files
-from hzval.materials.bricks import bricks
 from hzval.core.errors import InputError
+from hzval.io import external, files
 from hzval.io.external import Encoding
-from test_seed_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
+from hzval.materials.bricks import bricks
 
 
 def encode(sines: np.ndarray, enc: Encoding) -> np.ndarray:
@@ -29,21 +28,36 @@ def encode(sines: np.ndarray, enc: Encoding) -> np.ndarray:
         phi = sy * (enc.azimuth0 + sd * 360.0 / D * j)
         out[..., j] = sines[..., int(round(phi / (360.0 / D))) % D]
     a = np.arcsin(np.clip(out, 0, 1))
-    return {"sine": out, "cosine": np.cos(a), "angle": a / (math.pi / 2), "tangent": np.tan(a),
-            "sqrt": np.sqrt(out)}[enc.values].astype(np.float32)
+    return {
+        "sine": out,
+        "cosine": np.cos(a),
+        "angle": a / (math.pi / 2),
+        "tangent": np.tan(a),
+        "sqrt": np.sqrt(out),
+    }[enc.values].astype(np.float32)
 
 
 def some_sines(seed=1):
     return (np.random.default_rng(seed).random((6, 5, 8)) * 0.7).astype(np.float32)
 
 
-@pytest.mark.parametrize("enc", [Encoding(), Encoding(azimuth0=90.0), Encoding(direction="cw"),
-                                 Encoding(y="down"), Encoding(y="down", direction="cw", azimuth0=135.0),
-                                 Encoding(values="cosine"), Encoding(values="angle"), Encoding(values="tangent"),
-                                 Encoding(values="sqrt", azimuth0=315.0)])
+@pytest.mark.parametrize(
+    "enc",
+    [
+        Encoding(),
+        Encoding(azimuth0=90.0),
+        Encoding(direction="cw"),
+        Encoding(y="down"),
+        Encoding(y="down", direction="cw", azimuth0=135.0),
+        Encoding(values="cosine"),
+        Encoding(values="angle"),
+        Encoding(values="tangent"),
+        Encoding(values="sqrt", azimuth0=315.0),
+    ],
+)
 def test_every_declared_convention_converts_back_to_hzvals(enc):
     s = some_sines()
-    np.testing.assert_allclose(external.to_hzval(encode(s, enc), enc), s, atol=1e-5)   # float32 sqrt, squared
+    np.testing.assert_allclose(external.to_hzval(encode(s, enc), enc), s, atol=1e-5)  # float32 sqrt, squared
 
 
 def test_an_azimuth_between_channels_interpolates_around_the_ring():
@@ -62,13 +76,16 @@ def bricks64():
     return h, exact, seed4
 
 
-@pytest.mark.parametrize("stored, declared, expect", [
-    (Encoding(), Encoding(), None),
-    (Encoding(y="down"), Encoding(), "mirrored: is +y down?"),
-    (Encoding(azimuth0=90.0), Encoding(), "rotated: does channel 0 point to 90 degrees?"),
-    (Encoding(values="sqrt"), Encoding(), "the values look like sqrt"),
-    (Encoding(y="down", values="angle"), Encoding(y="down", values="angle"), None),
-])
+@pytest.mark.parametrize(
+    "stored, declared, expect",
+    [
+        (Encoding(), Encoding(), None),
+        (Encoding(y="down"), Encoding(), "mirrored: is +y down?"),
+        (Encoding(azimuth0=90.0), Encoding(), "rotated: does channel 0 point to 90 degrees?"),
+        (Encoding(values="sqrt"), Encoding(), "the values look like sqrt"),
+        (Encoding(y="down", values="angle"), Encoding(y="down", values="angle"), None),
+    ],
+)
 def test_detection_names_what_looks_wrong(variant, bricks64, stored, declared, expect):
     """A radius-4 bake (not the exact bake's unlimited radius) stored in one convention and declared
     in another: the best match is the stored one, and the advice says how the two differ."""
@@ -81,8 +98,11 @@ def test_detection_names_what_looks_wrong(variant, bricks64, stored, declared, e
         assert not found["matches"] and expect in line, line
         assert found["suggested"]["mae"] < found["declared"]["mae"] * 0.85
         raw = encode(seed4, stored)
-        np.testing.assert_allclose(external.to_hzval(raw, Encoding(**{k: v for k, v in found["suggested"].items()
-                                                                      if k != "mae"})), seed4, atol=1e-5)
+        np.testing.assert_allclose(
+            external.to_hzval(raw, Encoding(**{k: v for k, v in found["suggested"].items() if k != "mae"})),
+            seed4,
+            atol=1e-5,
+        )
     # best_match is the lowest score of all (issue 32), whatever is declared or suggested
     assert found["best_match"]["mae"] == min(r["mae"] for r in found["scores"]) <= found["suggested"]["mae"]
     assert found["describes"] and found["correlation"] > external.DESCRIBES_CORRELATION
@@ -95,7 +115,7 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed
     (F follows it: mirrored it shadows elsewhere), its convention is confirmed, and the same map
     mirrored (+y down) is reported as a different convention, in metrics.json and a warning line."""
     h = bricks(64)
-    depth = 0.2                   # 12.8 texels of relief: a radius of 4 sees less than 16 does
+    depth = 0.2  # 12.8 texels of relief: a radius of 4 sees less than 16 does
     peer = run_peer(seed_peer, h, depth, 4, 32, "wrap", tmp_path)[..., :8]
     u8 = files.unit_to_u8(peer)
     mirrored = u8[..., [(8 - k) % 8 for k in range(8)]]
@@ -105,39 +125,72 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed
         files.write_png(tmp_path / f"{name}0.png", layers[..., :4])
         files.write_png(tmp_path / f"{name}1.png", layers[..., 4:])
         out = tmp_path / name
-        assert cli.main(["sweep", str(tmp_path / "bricks.npy"), "--depth", str(depth), "--azimuths", "0,45",
-                         "--spp", "4", "--quiet",
-                         "--techniques", "horizon", "--horizon-map",
-                         f"{tmp_path / (name + '0.png')},{tmp_path / (name + '1.png')}", "--out", str(out)]) == 0
+        assert (
+            cli.main(
+                [
+                    "sweep",
+                    str(tmp_path / "bricks.npy"),
+                    "--depth",
+                    str(depth),
+                    "--azimuths",
+                    "0,45",
+                    "--spp",
+                    "4",
+                    "--quiet",
+                    "--techniques",
+                    "horizon",
+                    "--horizon-map",
+                    f"{tmp_path / (name + '0.png')},{tmp_path / (name + '1.png')}",
+                    "--out",
+                    str(out),
+                ]
+            )
+            == 0
+        )
         results[name] = (json.loads((out / "metrics.json").read_text()), capsys.readouterr().err, out)
     m, err, out = results["own"]
     assert m["external_bake"]["matches"] and "warning" not in err
     assert m["techniques"]["horizon"]["parameters"]["bake"].startswith("external: ")
     assert "external: " in (out / "index.html").read_text(encoding="utf-8")
     # F follows the external map: it is the factor of the peer's sines, not of hzval's radius-16 bake
-    from hzval.techniques import horizon
-    from hzval.techniques import surface
     from hzval.scene import spec as S
+    from hzval.techniques import horizon
 
     sc = S.override(S.Scene(), height=str(tmp_path / "bricks.npy"), depth=depth, azimuths="0", spp=4)
     own_bake = bake.bake(h, bake.BakeParams(depth=depth))
-    theirs = horizon.Horizon(sc, bake.Bake(own_bake.params, u8.astype(np.float32) / 255, own_bake.normal,
-                                                own_bake.mean_cos, own_bake.mean_cos2)).render(0.0).layers["factor"]
+    theirs = (
+        horizon.Horizon(
+            sc,
+            bake.Bake(
+                own_bake.params,
+                u8.astype(np.float32) / 255,
+                own_bake.normal,
+                own_bake.mean_cos,
+                own_bake.mean_cos2,
+            ),
+        )
+        .render(0.0)
+        .layers["factor"]
+    )
     F = files.read_exr(out / m["frames"][0]["techniques"]["horizon"]["files"]["factor"])["Y"]
-    np.testing.assert_allclose(F, theirs, atol=2**-12 + 1e-6)     # the file is half float: 2^-12 in [0, 1]
+    np.testing.assert_allclose(F, theirs, atol=2**-12 + 1e-6)  # the file is half float: 2^-12 in [0, 1]
     assert np.abs(F - horizon.Horizon(sc, own_bake).render(0.0).layers["factor"]).mean() > 1e-3
     m2, err2, _ = results["mirrored"]
     assert not m2["external_bake"]["matches"] and m2["external_bake"]["best_match"]["y"] == "down"
     assert err2.startswith("hzval: warning: horizon map: the channels look mirrored: is +y down?")
-    assert m2["warnings"] and (m2["frames"][1]["techniques"]["horizon"]["visibility_mae"]
-                               > m["frames"][1]["techniques"]["horizon"]["visibility_mae"])
+    assert m2["warnings"] and (
+        m2["frames"][1]["techniques"]["horizon"]["visibility_mae"]
+        > m["frames"][1]["techniques"]["horizon"]["visibility_mae"]
+    )
 
 
 def test_encoding_from_toml_and_bad_layers(tmp_path):
-    (tmp_path / "enc.toml").write_text('[encoding]\nchannels = 8\nazimuth0 = 90\ny = "down"\nvalues = "angle"\n')
+    (tmp_path / "enc.toml").write_text(
+        '[encoding]\nchannels = 8\nazimuth0 = 90\ny = "down"\nvalues = "angle"\n'
+    )
     enc = Encoding.from_toml(tmp_path / "enc.toml")
     assert enc == Encoding(azimuth0=90.0, y="down", values="angle")
-    (tmp_path / "bad.toml").write_text('[encoding]\nchanels = 8\n')
+    (tmp_path / "bad.toml").write_text("[encoding]\nchanels = 8\n")
     with pytest.raises(InputError, match="unknown key 'chanels' in \\[encoding\\]; did you mean 'channels'"):
         Encoding.from_toml(tmp_path / "bad.toml")
     with pytest.raises(InputError, match="values"):
@@ -154,8 +207,25 @@ def test_a_map_of_another_size_is_refused_before_anything_is_written(variant, tm
     files.write_png(tmp_path / "h0.png", np.zeros((8, 8, 4), np.uint8))
     files.write_png(tmp_path / "h1.png", np.zeros((8, 8, 4), np.uint8))
     out = tmp_path / "out"
-    assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "1", "--quiet", "--horizon-map",
-                     f"{tmp_path / 'h0.png'},{tmp_path / 'h1.png'}", "--out", str(out)]) == 2
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "24",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--quiet",
+                "--horizon-map",
+                f"{tmp_path / 'h0.png'},{tmp_path / 'h1.png'}",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip()
     assert "h0.png" in err and "8x8" in err and "\n" not in err
 
@@ -169,11 +239,20 @@ def test_a_map_of_another_surface_does_not_describe_it(variant, bricks64, other)
 
     h, exact, seed4 = bricks64
     m = materials.get(other)
-    theirs = bake.bake(materials.generate(other, 64).height, bake.BakeParams(depth=m.depth, boundary=m.boundary)).horizon
+    theirs = bake.bake(
+        materials.generate(other, 64).height, bake.BakeParams(depth=m.depth, boundary=m.boundary)
+    ).horizon
     found = external.detect(np.round(np.clip(theirs, 0, 1) * 255) / 255, exact, Encoding())
-    assert not found["describes"] and not found["matches"] and found["correlation"] < external.DESCRIBES_CORRELATION
+    assert (
+        not found["describes"]
+        and not found["matches"]
+        and found["correlation"] < external.DESCRIBES_CORRELATION
+    )
     (line,) = external.warnings(found, ["a0.png", "a1.png"], "bricks.png")
-    assert line.startswith("horizon map a0.png,a1.png does not describe this height map bricks.png") and "--horizon-map" in line
+    assert (
+        line.startswith("horizon map a0.png,a1.png does not describe this height map bricks.png")
+        and "--horizon-map" in line
+    )
     for raw in (seed4, encode(seed4, Encoding(y="down"))):
         own = external.detect(raw, exact, Encoding())
         assert own["describes"] and own["correlation"] > 0.7
@@ -181,10 +260,14 @@ def test_a_map_of_another_surface_does_not_describe_it(variant, bricks64, other)
 
 def test_each_convention_warning_names_its_flags(bricks64):
     _, exact, seed4 = bricks64
-    for stored, flags in ((Encoding(y="down"), "try --horizon-y down"),
-                          (Encoding(azimuth0=90.0), "try --horizon-azimuth0 90"),
-                          (Encoding(values="sqrt"), "try --horizon-values sqrt")):
-        (line,) = external.warnings(external.detect(encode(seed4, stored), exact, Encoding()), ["m.png"], "h.png")
+    for stored, flags in (
+        (Encoding(y="down"), "try --horizon-y down"),
+        (Encoding(azimuth0=90.0), "try --horizon-azimuth0 90"),
+        (Encoding(values="sqrt"), "try --horizon-values sqrt"),
+    ):
+        (line,) = external.warnings(
+            external.detect(encode(seed4, stored), exact, Encoding()), ["m.png"], "h.png"
+        )
         assert line.endswith(flags), line
 
 
@@ -196,8 +279,19 @@ def test_strict_fails_a_sweep_on_a_map_that_does_not_describe_it(variant, tmp_pa
     u8 = files.unit_to_u8(np.clip(other, 0, 1))
     files.write_png(tmp_path / "g0.png", u8[..., :4])
     files.write_png(tmp_path / "g1.png", u8[..., 4:])
-    argv = ["sweep", str(tmp_path / "bricks.npy"), "--azimuths", "0", "--spp", "1", "--quiet", "--techniques",
-            "horizon", "--horizon-map", f"{tmp_path / 'g0.png'},{tmp_path / 'g1.png'}"]
+    argv = [
+        "sweep",
+        str(tmp_path / "bricks.npy"),
+        "--azimuths",
+        "0",
+        "--spp",
+        "1",
+        "--quiet",
+        "--techniques",
+        "horizon",
+        "--horizon-map",
+        f"{tmp_path / 'g0.png'},{tmp_path / 'g1.png'}",
+    ]
     assert cli.main([*argv, "--out", str(tmp_path / "loose")]) == 0
     assert "does not describe this height map" in capsys.readouterr().err
     assert cli.main([*argv, "--out", str(tmp_path / "strict"), "--strict"]) == 1

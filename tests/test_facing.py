@@ -7,9 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval.metrics import brightness
-from hzval.metrics import facing
 from hzval.core import conventions as cv
+from hzval.metrics import brightness, facing
 
 
 def _tilted(rows=8, cols=12, degrees=40.0):
@@ -17,18 +16,20 @@ def _tilted(rows=8, cols=12, degrees=40.0):
     a = math.radians(degrees)
     n = np.zeros((rows, cols, 3))
     n[:, : cols // 2] = (math.sin(a), 0.0, math.cos(a))
-    n[:, cols // 2:] = (-math.sin(a), 0.0, math.cos(a))
+    n[:, cols // 2 :] = (-math.sin(a), 0.0, math.cos(a))
     return n
 
 
 def test_facing_mask_is_the_sign_of_n_dot_l():
     n = _tilted()
-    L = cv.light_direction(180.0, 30.0)          # from -x, 30 degrees up: the half tilted 40 degrees to +x faces away
+    L = cv.light_direction(180.0, 30.0)  # from -x, 30 degrees up: the half tilted 40 degrees to +x faces away
     mask = facing.facing_mask(n, L)
     assert not mask[:, :6].any() and mask[:, 6:].all()
     mirrored = facing.facing_mask(n[:, ::-1] * np.array([-1, 1, 1]), cv.light_direction(0.0, 30.0))
-    np.testing.assert_array_equal(mirrored, mask[:, ::-1])                 # mirror x: the same mask, mirrored
-    assert facing.facing_mask(n, cv.light_direction(180.0, 60.0)).all()   # above the slope: everything faces it
+    np.testing.assert_array_equal(mirrored, mask[:, ::-1])  # mirror x: the same mask, mirrored
+    assert facing.facing_mask(
+        n, cv.light_direction(180.0, 60.0)
+    ).all()  # above the slope: everything faces it
     big = facing.facing_mask(n, L, supersampling=3)
     assert big.shape == (24, 36) and np.array_equal(big[::3, ::3], mask)
 
@@ -36,8 +37,8 @@ def test_facing_mask_is_the_sign_of_n_dot_l():
 def test_truth_statistics_and_facing_metrics():
     V = np.zeros((8, 12))
     V[:, 6:] = 1.0
-    V[0, 6:9] = 0.0                              # a cast shadow on the lit side: 3 pixels
-    V[1, 6] = 0.5                                # a penumbra pixel
+    V[0, 6:9] = 0.0  # a cast shadow on the lit side: 3 pixels
+    V[1, 6] = 0.5  # a penumbra pixel
     mask = facing.facing_mask(_tilted(), cv.light_direction(180.0, 30.0))
     t = facing.truth_statistics(V, mask, spp=4)
     assert t["attached_fraction"] == pytest.approx(0.5)
@@ -55,7 +56,9 @@ def test_truth_statistics_and_facing_metrics():
 
 
 def test_few_shadows_are_said_once():
-    frames = [{"azimuth_deg": a, "truth": {"cast_fraction": c}} for a, c in ((-30, 0.001), (0, 0.2), (30, 0.0))]
+    frames = [
+        {"azimuth_deg": a, "truth": {"cast_fraction": c}} for a, c in ((-30, 0.001), (0, 0.2), (30, 0.0))
+    ]
     line = facing.few_shadows_warning(frames)
     assert "2 of 3 frames" in line and "az-30 0.10%" in line and "az+30 0.00%" in line and "--depth" in line
     assert facing.few_shadows_warning(frames[1:2]) is None
@@ -65,17 +68,20 @@ def test_few_shadows_are_said_once():
 def truth_image():
     rng = np.random.default_rng(3)
     T = rng.uniform(0.05, 0.3, (24, 24, 3))
-    T[:8] = 0.0                                                   # shadows
+    T[:8] = 0.0  # shadows
     return T
 
 
-@pytest.mark.parametrize("slip, make, png", [
-    ("pi", lambda T, e: np.pi * T, False),
-    ("1/pi", lambda T, e: T / np.pi, False),
-    ("srgb", lambda T, e: cv.srgb_encode(np.clip(T * e, 0, 1)) / e, False),
-    ("linear", lambda T, e: cv.srgb_decode(np.clip(T * e, 0, 1)) / e, True),
-    ("degamma", lambda T, e: np.clip(T * e, 0, 1) ** 2.2 / e, False),
-])
+@pytest.mark.parametrize(
+    "slip, make, png",
+    [
+        ("pi", lambda T, e: np.pi * T, False),
+        ("1/pi", lambda T, e: T / np.pi, False),
+        ("srgb", lambda T, e: cv.srgb_encode(np.clip(T * e, 0, 1)) / e, False),
+        ("linear", lambda T, e: cv.srgb_decode(np.clip(T * e, 0, 1)) / e, True),
+        ("degamma", lambda T, e: np.clip(T * e, 0, 1) ** 2.2 / e, False),
+    ],
+)
 def test_brightness_slips_are_named(truth_image, slip, make, png):
     e = math.pi
     found = brightness.diagnose(make(truth_image, e), truth_image, e, png=png)
@@ -88,6 +94,6 @@ def test_brightness_slips_are_named(truth_image, slip, make, png):
 
 def test_a_frame_that_differs_in_its_shadows_only_is_no_slip(truth_image):
     other = truth_image.copy()
-    other[:8] = 0.2                                               # leaks everywhere the truth is shadowed
+    other[:8] = 0.2  # leaks everywhere the truth is shadowed
     assert brightness.diagnose(other, truth_image, math.pi) is None
     assert brightness.diagnose(truth_image, truth_image, math.pi) is None

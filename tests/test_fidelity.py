@@ -16,15 +16,14 @@ import math
 
 import numpy as np
 import pytest
+from test_truth import make_scene
 
-from hzval.techniques import horizon
-from hzval.techniques import surface
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
 from hzval.core import shading
-from hzval.truth import plane as truth
 from hzval.scene import spec as S
-from test_truth import make_scene
+from hzval.techniques import horizon, surface
+from hzval.truth import plane as truth
 
 
 def rough(n=48, sigma=1.2, seed=5):
@@ -36,10 +35,13 @@ def rough(n=48, sigma=1.2, seed=5):
 
 def lit_difference(h, depth, shading_, azimuth, boundary="wrap"):
     """Mean exposed |truth - unshadowed shading| over the pixels the truth sees fully lit."""
-    sc = make_scene(h.shape, depth, boundary, effects=("shadow", "diffuse"), spp=16, shading=shading_,
-                    elevation=40.0)
+    sc = make_scene(
+        h.shape, depth, boundary, effects=("shadow", "diffuse"), spp=16, shading=shading_, elevation=40.0
+    )
     fr = truth.Truth(sc, h).render(azimuth)
-    plain, _ = surface.Unshadowed(sc, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(azimuth)
+    plain, _ = surface.Unshadowed(sc, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(
+        azimuth
+    )
     lit = fr.layers["visibility"] == 1.0
     assert lit.mean() > 0.3
     return float((np.abs(fr.image - plain.image).mean(-1)[lit]).mean() * shading.exposure(sc))
@@ -66,7 +68,11 @@ def test_open_border_is_shaded_as_the_normal_map_shades_it(variant):
     for shade in ("smooth", "faceted"):
         sc = make_scene(h.shape, 0.2, "open", effects=("diffuse",), spp=16, elevation=40.0, shading=shade)
         T = truth.Truth(sc, h).render(180.0).image[..., 0]
-        A = horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open"))).render(180.0).image[..., 0]
+        A = (
+            horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open")))
+            .render(180.0)
+            .image[..., 0]
+        )
         border = np.zeros(h.shape, bool)
         border[:, [0, -1]] = border[[0, -1], :] = True
         out[shade] = np.abs(T - A)[border].mean() * shading.exposure(sc)
@@ -78,8 +84,18 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
     so the plane shows albedo / pi * E * sin(e), as the technique computes from the disk's centre."""
     h = np.full((16, 16), 0.5, np.float32)
     for elevation in (40.0, 90.0):
-        sc = make_scene(h.shape, 0.1, "wrap", effects=("diffuse",), kind="soft", radius=20.0,
-                        elevation=elevation, spp=64, albedo=0.7, irradiance=2.0)
+        sc = make_scene(
+            h.shape,
+            0.1,
+            "wrap",
+            effects=("diffuse",),
+            kind="soft",
+            radius=20.0,
+            elevation=elevation,
+            spp=64,
+            albedo=0.7,
+            irradiance=2.0,
+        )
         t = truth.Truth(sc, h).render(30.0).image
         a = horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.1))).render(30.0).image
         expect = 0.7 / math.pi * 2.0 * math.sin(math.radians(elevation))
@@ -88,8 +104,10 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
     assert shading.disk_sample_irradiance(1.0, 20.0) == pytest.approx(2 / (1 + math.cos(math.radians(20))))
 
 
-@pytest.mark.parametrize("effects", [("shadow", "diffuse", "ambient"), ("shadow", "ambient"),
-                                     ("shadow", "diffuse", "specular", "ambient")])
+@pytest.mark.parametrize(
+    "effects",
+    [("shadow", "diffuse", "ambient"), ("shadow", "ambient"), ("shadow", "diffuse", "specular", "ambient")],
+)
 def test_the_exposure_never_clips_what_the_declared_effects_can_produce(variant, effects):
     """The exposure maps the largest radiance of the declared effects to 1: no truth pixel of an
     ambient scene reaches the clip, yet the brightest are within a factor 2 of it."""
@@ -119,7 +137,7 @@ def _tilted_reflection_reference(tilt_deg: float, n: int = 2_000_000, seed: int 
     t1 = np.array([math.cos(b), 0.0, -math.sin(b)])
     t2 = np.array([0.0, 1.0, 0.0])
     cos_h = rng.random(n) ** (1.0 / (SPECULAR_EXPONENT + 1))
-    sin_h, phi = np.sqrt(1 - cos_h ** 2), 2 * math.pi * rng.random(n)
+    sin_h, phi = np.sqrt(1 - cos_h**2), 2 * math.pi * rng.random(n)
     hv = (sin_h * np.cos(phi))[:, None] * t1 + (sin_h * np.sin(phi))[:, None] * t2 + cos_h[:, None] * nrm
     v = np.array([0.0, 0.0, 1.0])
     wo = 2 * (hv @ v)[:, None] * hv - v
@@ -137,7 +155,7 @@ def test_reflection_fraction_on_a_tilted_plane_carries_the_estimators_weight(var
     and 0.036 off."""
     n = 24
     x = np.tile(np.arange(n, dtype=np.float32), (n, 1))
-    depth = math.tan(math.radians(tilt)) * (n - 1) / n          # H * depth * cols rises tan(tilt) a texel
+    depth = math.tan(math.radians(tilt)) * (n - 1) / n  # H * depth * cols rises tan(tilt) a texel
     h = x / (n - 1)
     sc = make_scene(h.shape, depth, "open", effects=("reflection_occlusion",), spp=256, shading="faceted")
     R = truth.Truth(sc, h).render(0.0).layers["reflection_occlusion"][2:-2, 2:-2]
@@ -153,13 +171,31 @@ def test_every_frame_records_its_perfect_shadows_floor(variant, tmp_path):
     the horizon map's false shadows dominate, and the report shows it beside the scores."""
     np.save(tmp_path / "flat.npy", np.full((16, 16), 0.5, np.float32))
     out = tmp_path / "flat"
-    assert cli.main(["sweep", str(tmp_path / "flat.npy"), "--azimuths", "0", "--spp", "2", "--quiet",
-                     "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                str(tmp_path / "flat.npy"),
+                "--azimuths",
+                "0",
+                "--spp",
+                "2",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     f = json.loads((out / "metrics.json").read_text())["frames"][0]
-    assert f["floor"]["rmse"] == pytest.approx(0, abs=1e-6) and f["floor"]["flip_mean"] == pytest.approx(0, abs=1e-6)
+    assert f["floor"]["rmse"] == pytest.approx(0, abs=1e-6) and f["floor"]["flip_mean"] == pytest.approx(
+        0, abs=1e-6
+    )
     out = tmp_path / "bricks"
-    assert cli.main(["sweep", "--size", "64", "--azimuths", "0,45", "--spp", "4", "--quiet",
-                     "--out", str(out)]) == 0
+    assert (
+        cli.main(["sweep", "--size", "64", "--azimuths", "0,45", "--spp", "4", "--quiet", "--out", str(out)])
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert m["exposure"]["scale"] == pytest.approx(math.pi)
     f0 = m["frames"][0]

@@ -11,7 +11,7 @@ def test_staging_commits_all_files_together(tmp_path):
     with files.Staging(out) as stage:
         files.write_json(stage.path("a.json"), {"x": 1}, atomic=False)
         files.write_png(stage.path("sub/b.png"), np.zeros((2, 2), np.uint8), atomic=False)
-        assert not (out / "a.json").exists()           # nothing visible before commit
+        assert not (out / "a.json").exists()  # nothing visible before commit
         stage.commit()
     assert sorted(p.name for p in out.rglob("*") if p.is_file()) == ["a.json", "b.png"]
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []

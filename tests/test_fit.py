@@ -17,18 +17,17 @@ import pytest
 
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
-from hzval.io import external
-from hzval.techniques.fitted import fit
-from hzval.techniques import horizon
-from hzval.techniques.fitted import horizon_fit
-from hzval.scene import lookup
-from hzval.pipeline import sweep
-from hzval.techniques import registry as technique
 from hzval.core import conventions as cv
-from hzval.scene import spec as S
 from hzval.core.errors import InputError
+from hzval.io import external
+from hzval.pipeline import sweep
+from hzval.scene import lookup
+from hzval.scene import spec as S
+from hzval.techniques import horizon
+from hzval.techniques import registry as technique
+from hzval.techniques.fitted import fit, horizon_fit
 
-FEW = "20,40@0:270:90"            # 8 training lights: fast fits for the tests
+FEW = "20,40@0:270:90"  # 8 training lights: fast fits for the tests
 HELD = "30@45:225:180"
 
 
@@ -43,7 +42,7 @@ def _setup(n=24, spp=1, depth=0.1, height=None):
 def test_parse_lights():
     lights = fit.parse_lights(fit.TRAINING_LIGHTS)
     assert len(lights) == 96 and {e for e, _ in lights} == {10.0, 20.0, 40.0, 60.0}
-    assert all(e != 30.0 for e, _ in lights)          # none is a light of the default sweep
+    assert all(e != 30.0 for e, _ in lights)  # none is a light of the default sweep
     held = fit.parse_lights(fit.HELD_OUT_LIGHTS)
     assert [a for _, a in held] == [-52.5 + 15 * i for i in range(8)] and {e for e, _ in held} == {25.0}
     assert fit.parse_lights("10@0;20@0,90") == ((10.0, 0.0), (20.0, 0.0), (20.0, 90.0))
@@ -70,7 +69,7 @@ def test_forward_model_is_the_techniques_own_bit_for_bit(variant, spp):
         want = ref.render(az, elevation_deg=e).layers["factor"]
         if spp == 1:
             assert np.array_equal(F[i], want)
-        else:       # a pixel's mean: block_sum against the render's loop, the same sum in another order
+        else:  # a pixel's mean: block_sum against the render's loop, the same sum in another order
             np.testing.assert_allclose(F[i], want, rtol=0, atol=2e-7)
 
 
@@ -102,12 +101,19 @@ def test_straight_through_factor_keeps_the_values(variant):
     w = [mi.Float(0.25) if c in (1, 2) else mi.Float(0.0) for c in range(8)]
     plain, s0 = horizon.shadow_factor(h, w, mi.Float(0.3), mi.Float(8.0))
     st, s1 = horizon.shadow_factor(h, w, mi.Float(0.3), mi.Float(8.0), straight_through=True)
-    assert np.array_equal(np.asarray(plain), np.asarray(st)) and np.array_equal(np.asarray(s0), np.asarray(s1))
+    assert np.array_equal(np.asarray(plain), np.asarray(st)) and np.array_equal(
+        np.asarray(s0), np.asarray(s1)
+    )
     # the gradient passes a saturated clamp (s = 0.45: F = 0 below, 8 (0.3 - 0.45) + 1 = -0.2)
     x = mi.Float(0.9)
     dr.enable_grad(x)
-    F, _ = horizon.shadow_factor([x] + [mi.Float(0.0)] * 7, [mi.Float(0.5)] + [mi.Float(0.0)] * 7, mi.Float(0.3),
-                                mi.Float(8.0), straight_through=True)
+    F, _ = horizon.shadow_factor(
+        [x] + [mi.Float(0.0)] * 7,
+        [mi.Float(0.5)] + [mi.Float(0.0)] * 7,
+        mi.Float(0.3),
+        mi.Float(8.0),
+        straight_through=True,
+    )
     dr.backward(F)
     assert float(np.asarray(F)[0]) == 0.0 and float(np.asarray(dr.grad(x))[0]) == pytest.approx(-4.0)
 
@@ -122,7 +128,7 @@ def test_gradient_matches_finite_differences(variant):
     scene, h, b = _setup(spp=1, height=ridges, depth=0.1)
     lights = ((5.0, 30.0),)
     V = [np.full(h.shape, 0.5, np.float32)]
-    model = fit._Model(scene, b, 1.0, "float", V)      # k = 1 and a low light: few saturated pixels
+    model = fit._Model(scene, b, 1.0, "float", V)  # k = 1 and a low light: few saturated pixels
     base = b.horizon.astype(np.float64)
 
     def loss_of(hz):
@@ -137,13 +143,13 @@ def test_gradient_matches_finite_differences(variant):
     inner = (F > 0.05) & (F < 0.95)
     ok = inner & np.roll(inner, 1, 0) & np.roll(inner, -1, 0) & np.roll(inner, 1, 1) & np.roll(inner, -1, 1)
     r, c = (int(i[0]) for i in np.nonzero(ok))
-    ch = 0                  # channels 0 and 1 carry this light's weights (30 deg)
+    ch = 0  # channels 0 and 1 carry this light's weights (30 deg)
     eps = 1e-3
     up, _ = loss_of(_bump(base, r, c, ch, eps))
     down, _ = loss_of(_bump(base, r, c, ch, -eps))
     assert grad[r, c, ch] != 0.0
     assert grad[r, c, ch] == pytest.approx((up - down) / (2 * eps), rel=0.05)
-    assert np.all(grad[..., 3:7] == 0.0)      # channels 90..270 deg carry no weight toward 30 deg
+    assert np.all(grad[..., 3:7] == 0.0)  # channels 90..270 deg carry no weight toward 30 deg
 
 
 def _bump(hz, r, c, ch, eps):
@@ -158,7 +164,11 @@ def test_flat_surface_has_nothing_to_fit(variant):
     scene, h, b = _setup(n=16, height=np.zeros((16, 16), np.float32))
     r = fit.fit(h, b, scene, lights=FEW, held_out=HELD, progress=False)
     assert np.array_equal(r.horizon, b.horizon) and np.all(r.horizon == 0.0)
-    assert r.mae["training"] == {"baked": 0.0, "fitted": 0.0, "lights_worse": 0} and r.loss[0] == 0.0 and r.converged
+    assert (
+        r.mae["training"] == {"baked": 0.0, "fitted": 0.0, "lights_worse": 0}
+        and r.loss[0] == 0.0
+        and r.converged
+    )
 
 
 def test_fit_lowers_the_error_and_keeps_the_range(variant):
@@ -178,10 +188,12 @@ def test_u8_fit_is_stored_in_8_bits_and_beats_the_8_bit_bake(variant):
     scene, h, b = _setup(n=24, spp=2)
     r = fit.fit(h, b, scene, lights=FEW, held_out=HELD, storage="u8", progress=False)
     q = r.horizon * 255.0
-    assert np.array_equal(q, np.rint(q))                  # what the 8-bit texture holds
+    assert np.array_equal(q, np.rint(q))  # what the 8-bit texture holds
     assert r.mae["training"]["fitted"] < r.mae["training"]["baked"]
     V = fit.visibility(scene, h, r.lights)
-    u8 = fit.mean_error(scene, b, bake_u8 := horizon.hz_storage.get("u8").roundtrip(b.horizon), r.lights, V, 8.0)
+    u8 = fit.mean_error(
+        scene, b, bake_u8 := horizon.hz_storage.get("u8").roundtrip(b.horizon), r.lights, V, 8.0
+    )
     assert r.mae["training"]["baked"] == pytest.approx(u8) and bake_u8.dtype == np.float32
 
 
@@ -195,8 +207,13 @@ def test_files_are_the_bakes_layout_and_read_back_exactly(variant, tmp_path):
     scene, h, b = _setup(n=16)
     r = fit.fit(h, b, scene, lights=FEW, held_out="", progress=False)
     fit.write_fit(r, tmp_path, input_info={"test": True})
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.json", "horizon0.exr", "horizon0.png",
-                                                          "horizon1.exr", "horizon1.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "fit.json",
+        "horizon0.exr",
+        "horizon0.png",
+        "horizon1.exr",
+        "horizon1.png",
+    ]
     raw = external.read_layers([tmp_path / "horizon0.exr", tmp_path / "horizon1.exr"])
     assert np.array_equal(external.to_hzval(raw, external.Encoding()), r.horizon)
     sines, record = fit.read_fit(tmp_path)
@@ -207,19 +224,40 @@ def test_files_are_the_bakes_layout_and_read_back_exactly(variant, tmp_path):
 
 def test_memory_estimate_refuses_what_cannot_fit(monkeypatch):
     assert fit.estimate_bytes(2048, 2048, 16, 96) > fit.estimate_bytes(512, 512, 16, 96) > 0
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2 * 2 ** 30)
+    monkeypatch.setattr(bake, "available_bytes", lambda: 2 * 2**30)
     with pytest.raises(InputError, match="GiB"):
         fit.check_fits("x.png", 2048, 2048, 16, 96)
-    assert fit.check_fits("x.png", 64, 64, 16, 96) < 2 * 2 ** 30
+    assert fit.check_fits("x.png", 64, 64, 16, 96) < 2 * 2**30
 
 
 def test_cli_fit_writes_the_map_and_refuses_bad_lights(variant, tmp_path, capsys):
     out = tmp_path / "fit"
-    assert cli.main(["fit", "--material", "bricks", "--size", "16", "--lights", "x@0", "--out", str(out)]) == 2
+    assert (
+        cli.main(["fit", "--material", "bricks", "--size", "16", "--lights", "x@0", "--out", str(out)]) == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--lights" in err[0] and not out.exists()
-    assert cli.main(["fit", "--material", "bricks", "--size", "16", "--lights", FEW, "--held-out", HELD,
-                     "--storage", "u8", "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "fit",
+                "--material",
+                "bricks",
+                "--size",
+                "16",
+                "--lights",
+                FEW,
+                "--held-out",
+                HELD,
+                "--storage",
+                "u8",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     record = json.loads((out / "fit.json").read_text())
     assert record["storage"] == "u8" and record["input"]["builtin"] == "bricks" and record["epochs"] >= 1
     assert set(record["mae"]) == {"training", "held_out"}
@@ -228,18 +266,22 @@ def test_cli_fit_writes_the_map_and_refuses_bad_lights(variant, tmp_path, capsys
 def test_horizon_fit_is_opt_in_cached_and_splits_the_error(variant, tmp_path):
     scene = S.override(S.Scene(), size=16, depth=0.1, spp=2, azimuths="0,90")
     assert "horizon-fit" not in [t.name for t in technique.select(None, scene)]
-    opts = sweep.Options(techniques=("horizon", "horizon-fit"),
-                         settings={"horizon-fit": {"lights": FEW, "held_out": ""}})
+    opts = sweep.Options(
+        techniques=("horizon", "horizon-fit"), settings={"horizon-fit": {"lights": FEW, "held_out": ""}}
+    )
     m = sweep.run(scene, tmp_path, options=opts, progress=False)
     assert m["techniques"]["horizon-fit"]["parameters"]["fit"]["cached"] is False
     for f in m["frames"]:
         base, fitted = f["techniques"]["horizon"], f["techniques"]["horizon-fit"]
-        assert fitted["split"]["bake_loss"] == pytest.approx(base["visibility_mae"] - fitted["visibility_mae"])
+        assert fitted["split"]["bake_loss"] == pytest.approx(
+            base["visibility_mae"] - fitted["visibility_mae"]
+        )
         assert fitted["split"]["representation"] == fitted["visibility_mae"]
     again = sweep.run(scene, tmp_path, options=opts, progress=False)
     assert again["techniques"]["horizon-fit"]["parameters"]["fit"]["cached"] is True
-    assert [f["techniques"]["horizon-fit"]["visibility_mae"] for f in again["frames"]] == \
-           [f["techniques"]["horizon-fit"]["visibility_mae"] for f in m["frames"]]
+    assert [f["techniques"]["horizon-fit"]["visibility_mae"] for f in again["frames"]] == [
+        f["techniques"]["horizon-fit"]["visibility_mae"] for f in m["frames"]
+    ]
     assert horizon_fit.FittedHorizon.frame_extras({"horizon": {"visibility_mae": 0.1}}) == {}
 
 
@@ -266,6 +308,8 @@ def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, bounda
     shared = fit.visibility(scene, h, lights)
     base = fit.fit_scene(scene)
     for (e, az), v in zip(lights, shared):
-        fresh = truth.Truth(dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e)), h)
+        fresh = truth.Truth(
+            dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e)), h
+        )
         assert np.array_equal(fresh.render(az).layers["visibility"], v)
-    assert not all(np.array_equal(shared[0], v) for v in shared[1:])     # the lights differ
+    assert not all(np.array_equal(shared[0], v) for v in shared[1:])  # the lights differ

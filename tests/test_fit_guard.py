@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from hzval.bake import maps as bake
+from hzval.scene import spec as S
+from hzval.techniques import horizon
 from hzval.techniques.fitted import fit
 from hzval.techniques.fitted import guard as fit_guard
-from hzval.techniques import horizon
-from hzval.scene import spec as S
 
 
 def test_neighbourhood_sum_wraps_or_cuts():
@@ -29,14 +29,17 @@ def test_neighbourhood_sum_wraps_or_cuts():
     assert cut.sum() == 4 and cut[4, 5] == 0 and cut[1, 1] == 1
     y = np.arange(30, dtype=np.float32).reshape(5, 6)
     # the transpose's neighbourhood sum is the neighbourhood sum's transpose
-    np.testing.assert_array_equal(fit_guard.neighbourhood_sum(y.T.copy(), "wrap"),
-                                  fit_guard.neighbourhood_sum(y, "wrap").T)
+    np.testing.assert_array_equal(
+        fit_guard.neighbourhood_sum(y.T.copy(), "wrap"), fit_guard.neighbourhood_sum(y, "wrap").T
+    )
 
 
 def _errors_from(maps):
     """An ``errors`` callable: per light, |F - V| of a map is ``maps[light](sines)``."""
+
     def errors(sines, baked):
         return [m(sines) for m in maps]
+
     return errors
 
 
@@ -44,6 +47,7 @@ def test_a_regressing_texel_and_its_neighbours_go_back_to_the_bake():
     n = 12
     baked = np.zeros((n, n, 8), np.float32)
     fitted = np.full((n, n, 8), 0.5, np.float32)
+
     # light 0: the fit is better everywhere; light 1: worse at texel (6, 6) only, by 0.3
     def light0(s):
         return np.where(s[..., 0] > 0, 0.0, 0.1).astype(np.float32)
@@ -55,8 +59,8 @@ def test_a_regressing_texel_and_its_neighbours_go_back_to_the_bake():
 
     out, rec = fit_guard.guard(baked, fitted, _errors_from([light0, light1]), "wrap", tolerance=0.05)
     reverted = out[..., 0] == 0
-    assert reverted[5:8, 5:8].all() and reverted.sum() == 9          # the 3 x 3 whose pixels read it
-    assert (out[~reverted] == 0.5).all() and rec["kept_fitted"] == pytest.approx(1 - 9 / n ** 2)
+    assert reverted[5:8, 5:8].all() and reverted.sum() == 9  # the 3 x 3 whose pixels read it
+    assert (out[~reverted] == 0.5).all() and rec["kept_fitted"] == pytest.approx(1 - 9 / n**2)
     assert rec["verified"] and rec["worst_regression_kept"] <= 0.05
     # within the tolerance nothing goes back
     out, rec = fit_guard.guard(baked, fitted, _errors_from([light0, light1]), "wrap", tolerance=0.5)
@@ -74,7 +78,7 @@ def test_a_block_format_reverts_whole_blocks():
 
     out, _ = fit_guard.guard(baked, fitted, _errors_from([light]), "open", cell=4)
     reverted = out[..., 0] == 0
-    assert reverted[4:8, 4:8].all() and reverted.sum() == 16        # the 3 x 3 lies in one 4 x 4 block
+    assert reverted[4:8, 4:8].all() and reverted.sum() == 16  # the 3 x 3 lies in one 4 x 4 block
 
 
 def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
@@ -94,8 +98,9 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
     base = horizon.Horizon(fs, b, None)
     own = horizon.Horizon(fs, dataclasses.replace(b, horizon=r.horizon), None)
     for (e, az), v in zip(r.lights, V):
-        d = np.abs(own.render(az, elevation_deg=e).layers["factor"] - v) - \
-            np.abs(base.render(az, elevation_deg=e).layers["factor"] - v)
+        d = np.abs(own.render(az, elevation_deg=e).layers["factor"] - v) - np.abs(
+            base.render(az, elevation_deg=e).layers["factor"] - v
+        )
         worst = fit_guard.neighbourhood_sum(d.astype(np.float32), "wrap")
         assert worst[kept].max() <= fit_guard.TOLERANCE + 1e-5
     assert r.mae["training"]["fitted"] < r.mae["training"]["baked"]
@@ -110,8 +115,27 @@ def test_cli_guard_is_recorded_and_a_bad_one_refused(variant, tmp_path, capsys):
     assert cli.main(["fit", "--material", "bricks", "--size", "16", "--guard", "-1", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--guard" in err[0] and not out.exists()
-    assert cli.main(["fit", "--material", "bricks", "--size", "16", "--lights", "20,40@0:270:90", "--held-out", "",
-                     "--guard", "0.1", "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "fit",
+                "--material",
+                "bricks",
+                "--size",
+                "16",
+                "--lights",
+                "20,40@0:270:90",
+                "--held-out",
+                "",
+                "--guard",
+                "0.1",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     record = json.loads((out / "fit.json").read_text())
     assert record["settings"]["guard"]["tolerance"] == 0.1 and record["settings"]["guard"]["verified"]
     assert record["mae"]["training"]["lights_worse"] >= 0 and "cpu" in record["seconds"]

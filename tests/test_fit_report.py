@@ -12,8 +12,8 @@ import copy
 
 import pytest
 
-from hzval.report import pages as report
 from hzval.pipeline import sweep
+from hzval.report import pages as report
 from hzval.scene import spec as S
 
 FEW = "20,40@0:270:90"
@@ -24,8 +24,9 @@ def split_sweep(tmp_path_factory, request):
     request.getfixturevalue("variant")
     out = tmp_path_factory.mktemp("split")
     scene = S.override(S.Scene(), size=16, depth=0.1, spp=2, azimuths="0,45,90")
-    opts = sweep.Options(techniques=("horizon", "horizon-fit"),
-                         settings={"horizon-fit": {"lights": FEW, "held_out": ""}})
+    opts = sweep.Options(
+        techniques=("horizon", "horizon-fit"), settings={"horizon-fit": {"lights": FEW, "held_out": ""}}
+    )
     return out, sweep.run(scene, out, options=opts, progress=False)
 
 
@@ -49,11 +50,12 @@ def test_the_terminal_table_has_the_split(split_sweep):
     text = sweep.summary_table(m)
     head, _, *rows = text.splitlines()
     assert "horizon-fit bake_loss" in head and "horizon-fit representation" in head
-    rows = [r for r in rows if r.strip()[:1] in "+-0123456789"]      # the frames, not the table's note
+    rows = [r for r in rows if r.strip()[:1] in "+-0123456789"]  # the frames, not the table's note
     assert len(rows) == len(m["frames"])
     for f, row in zip(m["frames"], rows):
-        assert row.split()[-2:] == [f"{f['techniques']['horizon-fit']['split'][k]:.4f}"
-                                    for k in ("representation", "bake_loss")]
+        assert row.split()[-2:] == [
+            f"{f['techniques']['horizon-fit']['split'][k]:.4f}" for k in ("representation", "bake_loss")
+        ]
 
 
 def _captured_bars(monkeypatch, metrics):
@@ -64,8 +66,10 @@ def _captured_bars(monkeypatch, metrics):
     (sv,) = report.split_views(metrics, views)
     report.plot_split(None, metrics["frames"], sv)
     ax = figs[0].axes[0]
-    return [(round(p.get_x() + p.get_width() / 2, 6), p.get_y(), p.get_height(), bool(p.get_hatch()))
-            for p in ax.patches]
+    return [
+        (round(p.get_x() + p.get_width() / 2, 6), p.get_y(), p.get_height(), bool(p.get_hatch()))
+        for p in ax.patches
+    ]
 
 
 def test_the_bars_are_the_parts_and_a_negative_part_is_hatched(split_sweep, monkeypatch):
@@ -80,7 +84,11 @@ def test_the_bars_are_the_parts_and_a_negative_part_is_hatched(split_sweep, monk
     hatched = [(x, b, h) for x, b, h, hatch in bars if hatch]
     assert hatched == [(90.0, pytest.approx(0.006), pytest.approx(0.004))]
     ctx = report._split_context(frames, report.split_views(m, report.technique_views(m))[0])
-    assert ctx["negative"] == 1 and ctx["rows"][2]["cells"][1]["negative"] and ctx["rows"][2]["total"] == "0.0060"
+    assert (
+        ctx["negative"] == 1
+        and ctx["rows"][2]["cells"][1]["negative"]
+        and ctx["rows"][2]["total"] == "0.0060"
+    )
 
 
 def test_no_split_without_its_parts(split_sweep):

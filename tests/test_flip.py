@@ -16,9 +16,9 @@ CIEDE2000: float64 both; the kernel agrees with colour-science to 1e-12.
 import numpy as np
 import pytest
 
+from hzval.core.errors import HzvalError
 from hzval.metrics import compare as C
 from hzval.metrics import flip as F
-from hzval.core.errors import HzvalError
 
 PPD = C.FLIP_PPD
 
@@ -26,9 +26,15 @@ PPD = C.FLIP_PPD
 def reference_flip(ref, test, ppd=PPD):
     import flip_evaluator
 
-    err, mean, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32), np.ascontiguousarray(test, np.float32),
-                                           "LDR", inputsRGB=True, applyMagma=False, computeMeanError=True,
-                                           parameters={"ppd": float(ppd)})
+    err, mean, _ = flip_evaluator.evaluate(
+        np.ascontiguousarray(ref, np.float32),
+        np.ascontiguousarray(test, np.float32),
+        "LDR",
+        inputsRGB=True,
+        applyMagma=False,
+        computeMeanError=True,
+        parameters={"ppd": float(ppd)},
+    )
     err = np.asarray(err)
     return err.reshape(err.shape[:2]), float(mean)
 
@@ -72,6 +78,7 @@ def bricks_renders():
 
 
 # -- FLIP ------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("shape", [(64, 64), (100, 37), (37, 150)])
 def test_noise(shape):
@@ -156,7 +163,7 @@ def test_a_crop_away_from_its_border_is_the_whole_images():
     crop = (slice(7, 83), slice(20, 111))
     part, _ = F.flip(a[crop], b[crop], PPD)
     np.testing.assert_array_equal(part[m:-m, m:-m], whole[crop][m:-m, m:-m])
-    assert not np.array_equal(part[:2], whole[crop][:2])       # the border itself differs: clamped
+    assert not np.array_equal(part[:2], whole[crop][:2])  # the border itself differs: clamped
 
 
 def test_mean_is_flips_float32_running_sum():
@@ -169,12 +176,14 @@ def test_mean_is_flips_float32_running_sum():
 
 def test_filters_are_flips():
     f = F.filters(PPD)
-    assert f.spatial_radius == 10 and f.feature_radius == 9      # at 67 ppd
+    assert f.spatial_radius == 10 and f.feature_radius == 9  # at 67 ppd
     for w in (f.y, f.cx, f.g):
         assert w.sum() == pytest.approx(1.0, abs=1e-6)
     assert np.hypot(f.cz1.sum(), f.cz2.sum()) == pytest.approx(1.0, abs=1e-6)
     for w in (f.dg, f.ddg):
-        assert w[w > 0].sum() == pytest.approx(1.0, abs=1e-6) and w[w < 0].sum() == pytest.approx(-1.0, abs=1e-6)
+        assert w[w > 0].sum() == pytest.approx(1.0, abs=1e-6) and w[w < 0].sum() == pytest.approx(
+            -1.0, abs=1e-6
+        )
     assert f.cmax == pytest.approx(41.0, abs=1.0)
 
 
@@ -196,6 +205,7 @@ def test_compare_uses_it():
 
 # -- CIEDE2000 -------------------------------------------------------------------------------------
 
+
 def colour_lab(rgb):
     import colour
 
@@ -214,8 +224,12 @@ def grey_against_colour():
     g = np.linspace(0, 1, 64)
     grey = np.stack([g, g, g], axis=-1)[None].repeat(8, axis=0)
     sat = noise((8, 64)) ** 3
-    opposite = np.concatenate([np.stack([g, 1 - g, 0.5 + 0 * g], -1)[None], np.stack([1 - g, g, 0.5 + 0 * g], -1)[None]])
-    return np.concatenate([grey, grey, opposite[:1]]), np.concatenate([sat, grey[::-1, ::-1] * 0.5 + 0.25, opposite[1:]])
+    opposite = np.concatenate(
+        [np.stack([g, 1 - g, 0.5 + 0 * g], -1)[None], np.stack([1 - g, g, 0.5 + 0 * g], -1)[None]]
+    )
+    return np.concatenate([grey, grey, opposite[:1]]), np.concatenate(
+        [sat, grey[::-1, ::-1] * 0.5 + 0.25, opposite[1:]]
+    )
 
 
 @pytest.mark.parametrize("case", ["noise", "renders", "grey", "tiny", "row"])
@@ -245,7 +259,7 @@ def test_delta_e2000_with_the_reference_lab_given():
     fresh = C.delta_e2000(a, b)
     np.testing.assert_array_equal(C.delta_e2000(a, b, reference_lab=lab), fresh)
     np.testing.assert_allclose(C.delta_e2000(a, b, reference_lab=colour_lab(a)), fresh, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(C.delta_e2000(a, c, reference_lab=lab), C.delta_e2000(a, c))      # reused
+    np.testing.assert_array_equal(C.delta_e2000(a, c, reference_lab=lab), C.delta_e2000(a, c))  # reused
     np.testing.assert_allclose(lab.numpy(), colour_lab(a), rtol=0, atol=1e-9)
 
 

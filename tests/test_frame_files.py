@@ -16,11 +16,11 @@ import pytest
 from PIL import Image
 
 from hzval.cli import main as cli
-from hzval.metrics import compare
-from hzval.io import files
-from hzval.report import images
-from hzval.pipeline import sweep
 from hzval.core.errors import InputError
+from hzval.io import files
+from hzval.metrics import compare
+from hzval.pipeline import sweep
+from hzval.report import images
 
 RNG = np.random.default_rng(7)
 
@@ -40,6 +40,7 @@ def png_mode_and_rgb(path) -> tuple[str, np.ndarray]:
 
 # -- EXR ---------------------------------------------------------------------------------------
 
+
 def test_half_exr_holds_the_values_rounded_to_half(tmp_path):
     y = np.concatenate([RNG.random(1000), [0.0, 1.0, 1e-7, 3.0e4, -2.5]]).astype(np.float32).reshape(5, 201)
     files.write_exr(tmp_path / "h.exr", {"Y": y}, half=True)
@@ -56,7 +57,7 @@ def test_exr_is_float32_by_default_and_where_half_would_overflow(tmp_path):
     assert exr_layout(tmp_path / "f.exr")["Y"] == "FLOAT"
     assert np.array_equal(files.read_exr(tmp_path / "f.exr")["Y"], y)
     big = y * 1e5
-    inf = np.where(y > 0.5, np.inf, y).astype(np.float32)      # infinite already: half holds that
+    inf = np.where(y > 0.5, np.inf, y).astype(np.float32)  # infinite already: half holds that
     files.write_exr(tmp_path / "b.exr", {"big": big, "inf": inf}, half=True)
     assert exr_layout(tmp_path / "b.exr") == {"big": "FLOAT", "inf": "HALF", "compression": "ZIP_COMPRESSION"}
     assert np.array_equal(files.read_exr(tmp_path / "b.exr")["big"], big)
@@ -80,13 +81,13 @@ def test_a_grey_rgb_exr_is_one_y_channel_read_back_as_rgb(tmp_path):
     assert back.shape == (6, 5, 3) and np.array_equal(back.view(np.uint32), rgb.view(np.uint32))
     files.write_exr(tmp_path / "ga.exr", {"RGBA": np.concatenate([rgb, g[..., None] * 0 + 1], -1)}, grey=True)
     assert set(files.read_exr(tmp_path / "ga.exr")) == {"Y", "A"}
-    files.write_exr(tmp_path / "kept.exr", {"RGB": rgb})                   # grey is asked for, not assumed
+    files.write_exr(tmp_path / "kept.exr", {"RGB": rgb})  # grey is asked for, not assumed
     assert set(files.read_exr(tmp_path / "kept.exr")) == {"R", "G", "B"}
 
 
 def test_an_rgb_exr_that_is_not_quite_grey_keeps_its_channels(tmp_path):
     rgb = np.repeat(RNG.random((6, 5, 1)).astype(np.float32), 3, axis=-1)
-    rgb[3, 2, 1] = np.nextafter(rgb[3, 2, 1], 2)                          # one bit of one pixel
+    rgb[3, 2, 1] = np.nextafter(rgb[3, 2, 1], 2)  # one bit of one pixel
     files.write_exr(tmp_path / "c.exr", {"RGB": rgb}, grey=True, half=False)
     assert set(files.read_exr(tmp_path / "c.exr")) == {"R", "G", "B"}
     assert np.array_equal(files.read_rgb_exr(tmp_path / "c.exr"), rgb)
@@ -100,6 +101,7 @@ def test_read_rgb_exr_names_the_file_without_colour_channels(tmp_path):
 
 
 # -- PNG ---------------------------------------------------------------------------------------
+
 
 def test_a_grey_rgb_png_is_8_bit_grey_and_decodes_to_the_same_rgb(tmp_path):
     rgb = np.repeat(RNG.integers(0, 256, (9, 7, 1), dtype=np.uint8), 3, axis=-1)
@@ -148,13 +150,15 @@ def visdiff_as_before(V, F):
     return img
 
 
-@pytest.mark.parametrize("levels", [4, None])       # V = k/4 as spp 4 gives it; any value in [0, 1]
+@pytest.mark.parametrize("levels", [4, None])  # V = k/4 as spp 4 gives it; any value in [0, 1]
 def test_the_visibility_difference_palette_png_decodes_to_the_rgb_map(tmp_path, levels):
     V = RNG.random((40, 50))
     V = (np.round(V * levels) / levels if levels else V).astype(np.float32)
     F = np.clip(V + RNG.normal(0, 0.3, V.shape), 0, 1).astype(np.float32)
     expected = visdiff_as_before(V, F)
-    assert {tuple(images.LEAK_RGB), tuple(images.FALSE_SHADOW_RGB)} <= {tuple(p) for p in expected.reshape(-1, 3)}
+    assert {tuple(images.LEAK_RGB), tuple(images.FALSE_SHADOW_RGB)} <= {
+        tuple(p) for p in expected.reshape(-1, 3)
+    }
     assert np.array_equal(images.visibility_diff_image(V, F), expected)
     made = images.visibility_diff_indexed(V, F)
     assert isinstance(made, files.Indexed) and len(made.palette) <= (levels or 128) + 3
@@ -164,6 +168,7 @@ def test_the_visibility_difference_palette_png_decodes_to_the_rgb_map(tmp_path, 
 
 
 # -- the sweep's frame -------------------------------------------------------------------------
+
 
 def synthetic_frame(size=32, grey=True):
     """What sweep._write_frame is given: truth and unshadowed frames, one technique's, compared."""
@@ -195,13 +200,18 @@ def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
     for key, img in (("truth", truth.image), ("plain", plain.image)):
         back = files.read_rgb_exr(tmp_path / rel[key])
         assert np.array_equal(back, img.astype(np.float16).astype(np.float32)), key
-    for key, img in (("truth_png", compare.display(truth.image, 4.0)), ("plain_png", compare.display(plain.image, 4.0))):
+    for key, img in (
+        ("truth_png", compare.display(truth.image, 4.0)),
+        ("plain_png", compare.display(plain.image, 4.0)),
+    ):
         mode, back = png_mode_and_rgb(tmp_path / rel[key])
         assert mode == ("L" if grey else "RGB") and np.array_equal(back, files.unit_to_u8(img)), key
     V, F = truth.layers["visibility"], frame.layers["factor"]
-    for key, want_mode, expected in (("flip_png", "P", magma_as_before(maps["flip"])),
-                                     ("visdiff_png", "P", visdiff_as_before(V, F)),
-                                     ("png", "L" if grey else "RGB", files.unit_to_u8(maps["display"]))):
+    for key, want_mode, expected in (
+        ("flip_png", "P", magma_as_before(maps["flip"])),
+        ("visdiff_png", "P", visdiff_as_before(V, F)),
+        ("png", "L" if grey else "RGB", files.unit_to_u8(maps["display"])),
+    ):
         mode, back = png_mode_and_rgb(tmp_path / per["horizon"][key])
         assert mode == want_mode and np.array_equal(back, expected), key
 
@@ -209,16 +219,39 @@ def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
 def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, tmp_path):
     """The default scene (grey bricks, white light): every render is R == G == B, so one channel."""
     out = tmp_path / "sweep"
-    assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "2", "--techniques", "horizon",
-                     "--quiet", "--all-files", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "24",
+                "--azimuths",
+                "0",
+                "--spp",
+                "2",
+                "--techniques",
+                "horizon",
+                "--quiet",
+                "--all-files",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     (f,) = json.loads((out / "metrics.json").read_text())["frames"]
     own = f["techniques"]["horizon"]["files"]
     for path in (f["files"]["truth"], f["files"]["plain"], own["image"], f["files"]["truth_variance"]):
         assert set(files.read_exr(out / path)) == {"Y"}, path
     assert exr_layout(out / f["files"]["truth"])["Y"] == "HALF"
-    modes = {key: png_mode_and_rgb(out / path)[0]
-             for key, path in (("truth_png", f["files"]["truth_png"]), ("plain_png", f["files"]["plain_png"]),
-                               *((k, own[k]) for k in ("png", "flip_png", "visdiff_png")))}
+    modes = {
+        key: png_mode_and_rgb(out / path)[0]
+        for key, path in (
+            ("truth_png", f["files"]["truth_png"]),
+            ("plain_png", f["files"]["plain_png"]),
+            *((k, own[k]) for k in ("png", "flip_png", "visdiff_png")),
+        )
+    }
     assert modes == {"truth_png": "L", "plain_png": "L", "png": "L", "flip_png": "P", "visdiff_png": "P"}
 
 
@@ -229,5 +262,14 @@ def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
     assert set(rel) == {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
     assert set(per["horizon"]) == {"png", "flip_png", "factor", "visdiff_png"}
     written = {p.name for p in (tmp_path / "frames" / "az+0").iterdir()}
-    assert written == {"truth.exr", "truth_variance.exr", "visibility.exr", "truth.png", "plain.png",
-                       "horizon.png", "horizon_flip.png", "horizon_factor.exr", "horizon_visdiff.png"}
+    assert written == {
+        "truth.exr",
+        "truth_variance.exr",
+        "visibility.exr",
+        "truth.png",
+        "plain.png",
+        "horizon.png",
+        "horizon_flip.png",
+        "horizon_factor.exr",
+        "horizon_visdiff.png",
+    }

@@ -27,8 +27,12 @@ def _write_png_by_hand(path, samples, colour_type, bit_depth=16):
     lines = samples.astype(">u2" if bit_depth == 16 else "u1").reshape(rows, -1)
     raw = b"".join(b"\0" + line.tobytes() for line in lines)
     ihdr = struct.pack(">IIBBBBB", cols, rows, bit_depth, colour_type, 0, 0, 0)
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", zlib.compress(raw))
-                     + _chunk(b"IEND", b""))
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + _chunk(b"IHDR", ihdr)
+        + _chunk(b"IDAT", zlib.compress(raw))
+        + _chunk(b"IEND", b"")
+    )
     return path
 
 
@@ -49,6 +53,7 @@ def _assert_input_error(path, call=load_height, **kwargs) -> str:
 # --------------------------------------------------------------------------
 # PNG modes
 # --------------------------------------------------------------------------
+
 
 def test_8_and_16_bit_grey_agree(tmp_path):
     data = RNG.integers(0, 65536, (6, 9), dtype=np.uint16)
@@ -96,7 +101,9 @@ def test_rgb_is_reduced_to_luminance_of_the_stored_values(tmp_path):
     pure = np.zeros((1, 3, 3), np.uint8)
     pure[0, np.arange(3), np.arange(3)] = 255  # red, green, blue
     write_png(tmp_path / "primaries.png", pure)
-    np.testing.assert_allclose(load_height(tmp_path / "primaries.png").height[0], luminance_weights(), atol=1e-7)
+    np.testing.assert_allclose(
+        load_height(tmp_path / "primaries.png").height[0], luminance_weights(), atol=1e-7
+    )
 
 
 def test_rgba_ignores_alpha(tmp_path):
@@ -139,6 +146,7 @@ def test_one_bit(tmp_path):
 # EXR and .npy
 # --------------------------------------------------------------------------
 
+
 def test_exr_channel_y(tmp_path):
     y = RNG.normal(size=(6, 5)).astype(np.float32) * 3.0  # values as they are, not clipped
     write_exr(tmp_path / "y.exr", {"Y": y, "A": np.ones_like(y)})
@@ -166,7 +174,8 @@ def test_exr_single_channel(tmp_path):
 def test_exr_without_a_height_channel(tmp_path):
     write_exr(tmp_path / "uv.exr", {"U": np.zeros((3, 3)), "V": np.zeros((3, 3))})
     assert _assert_input_error(tmp_path / "uv.exr").endswith(
-        "EXR has channels U, V; a height map needs Y, or R, G and B, or a single channel")
+        "EXR has channels U, V; a height map needs Y, or R, G and B, or a single channel"
+    )
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.uint16])
@@ -192,6 +201,7 @@ def test_npy_3d_with_one_channel_and_fortran_order(tmp_path):
 # --------------------------------------------------------------------------
 # Sizes and orientation
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("rows,cols", [(3, 7), (1, 5), (5, 1), (17, 2)])
 def test_any_shape_row_zero_is_top(tmp_path, rows, cols):
@@ -223,9 +233,10 @@ def test_format_comes_from_content_not_name(tmp_path):
 # probe_shape reads headers only
 # --------------------------------------------------------------------------
 
+
 def test_probe_shape_does_not_decode(tmp_path):
     data = _grey_png(tmp_path / "full.png", 40, 30).read_bytes()
-    (tmp_path / "cut.png").write_bytes(data[:len(data) // 2])
+    (tmp_path / "cut.png").write_bytes(data[: len(data) // 2])
     assert probe_shape(tmp_path / "cut.png") == (40, 30)
     _assert_input_error(tmp_path / "cut.png")  # decoding it fails
 
@@ -237,7 +248,7 @@ def test_probe_shape_does_not_decode(tmp_path):
 
 def test_max_pixels_is_checked_before_decoding(tmp_path):
     data = _grey_png(tmp_path / "full.png", 40, 30).read_bytes()
-    (tmp_path / "cut.png").write_bytes(data[:len(data) // 2])
+    (tmp_path / "cut.png").write_bytes(data[: len(data) // 2])
     message = _assert_input_error(tmp_path / "cut.png", max_pixels=1000)
     assert message.endswith("image is 40x30 pixels (rows x columns, 1,200 in all); the limit here is 1,000")
     assert load_height(tmp_path / "full.png", max_pixels=1200).height.shape == (40, 30)
@@ -247,9 +258,10 @@ def test_max_pixels_is_checked_before_decoding(tmp_path):
 # Bad input: one InputError, one line, naming the file
 # --------------------------------------------------------------------------
 
+
 def _truncated_png(tmp_path):
     data = _grey_png(tmp_path / "src.png", 32, 32).read_bytes()
-    (tmp_path / "t.png").write_bytes(data[:len(data) // 2])
+    (tmp_path / "t.png").write_bytes(data[: len(data) // 2])
     return tmp_path / "t.png"
 
 
@@ -275,7 +287,7 @@ def _bad_crc_png(tmp_path):
 def _truncated_png16_rgb(tmp_path):
     samples = RNG.integers(0, 65536, (16, 16, 3)).astype(np.uint16)
     data = _write_png_by_hand(tmp_path / "src.png", samples, 2).read_bytes()
-    (tmp_path / "t16.png").write_bytes(data[:len(data) // 2])
+    (tmp_path / "t16.png").write_bytes(data[: len(data) // 2])
     return tmp_path / "t16.png"
 
 
@@ -293,7 +305,7 @@ def _truncated_npy(tmp_path):
 def _truncated_exr(tmp_path):
     write_exr(tmp_path / "src.exr", {"Y": RNG.random((32, 32))})
     data = (tmp_path / "src.exr").read_bytes()
-    (tmp_path / "t.exr").write_bytes(data[:len(data) // 2])
+    (tmp_path / "t.exr").write_bytes(data[: len(data) // 2])
     return tmp_path / "t.exr"
 
 
@@ -322,31 +334,46 @@ BAD_INPUTS = {
     "empty": (lambda p: _write(p, "empty.png", b""), "file is empty"),
     "text": (lambda p: _write(p, "notes.txt", b"hello, world"), "not a PNG, EXR or .npy file"),
     "jpeg": (lambda p: _write(p, "photo.jpg", b"\xff\xd8\xff\xe0\0\x10JFIF"), "not a PNG, EXR or .npy file"),
-    "not a png": (lambda p: _write(p, "x.png", b"GIF89a....."), "not a PNG file (no PNG signature at its start)"),
+    "not a png": (
+        lambda p: _write(p, "x.png", b"GIF89a....."),
+        "not a PNG file (no PNG signature at its start)",
+    ),
     "short png": (lambda p: _write(p, "x.png", b"\x89PNG"), "truncated PNG file (4 bytes)"),
     "truncated png": (_truncated_png, "truncated or corrupt PNG (image file is truncated"),
     "corrupt png": (_corrupt_png, "truncated or corrupt PNG ("),
     "bad crc png": (_bad_crc_png, "truncated or corrupt PNG (broken PNG file (bad header checksum"),
     "truncated 16-bit rgb png": (_truncated_png16_rgb, "truncated or corrupt PNG ("),
-    "png header only": (lambda p: _write(p, "h.png", _grey_png(p / "s.png", 4, 4).read_bytes()[:33]),
-                        "truncated or corrupt PNG (unreadable header chunks)"),
-    "1x1 png": (lambda p: _grey_png(p / "one.png", 1, 1),
-                "image is 1x1 pixels (rows x columns); a height map needs at least 2"),
-    "0x5 npy": (lambda p: _npy(p, np.zeros((0, 5))),
-                "image is 0x5 pixels (rows x columns); a height map needs at least 2"),
+    "png header only": (
+        lambda p: _write(p, "h.png", _grey_png(p / "s.png", 4, 4).read_bytes()[:33]),
+        "truncated or corrupt PNG (unreadable header chunks)",
+    ),
+    "1x1 png": (
+        lambda p: _grey_png(p / "one.png", 1, 1),
+        "image is 1x1 pixels (rows x columns); a height map needs at least 2",
+    ),
+    "0x5 npy": (
+        lambda p: _npy(p, np.zeros((0, 5))),
+        "image is 0x5 pixels (rows x columns); a height map needs at least 2",
+    ),
     "nan npy": (_nan_npy, "contains 3 NaN and 0 infinite values"),
     "nan exr": (_nan_exr, "contains 2 NaN and 1 infinite values"),
-    "float32 overflow": (lambda p: _npy(p, np.array([[1e300, 0.0]])),
-                         "contains 0 NaN and 1 infinite values (1 of them finite but beyond float32's range)"),
-    "npy rgb": (lambda p: _npy(p, np.zeros((4, 4, 3))),
-                "array has shape (4, 4, 3); a height map needs (rows, cols) or (rows, cols, 1)"),
+    "float32 overflow": (
+        lambda p: _npy(p, np.array([[1e300, 0.0]])),
+        "contains 0 NaN and 1 infinite values (1 of them finite but beyond float32's range)",
+    ),
+    "npy rgb": (
+        lambda p: _npy(p, np.zeros((4, 4, 3))),
+        "array has shape (4, 4, 3); a height map needs (rows, cols) or (rows, cols, 1)",
+    ),
     "npy 1-d": (lambda p: _npy(p, np.zeros(6)), "array has shape (6,)"),
     "npy complex": (lambda p: _npy(p, np.zeros((3, 3), complex)), "array has dtype complex128"),
     "npy bool": (lambda p: _npy(p, np.zeros((3, 3), bool)), "array has dtype bool"),
     "npy object": (lambda p: _npy(p, np.array([[None, 1]], dtype=object)), "array has dtype object"),
     "truncated npy": (_truncated_npy, "truncated or corrupt .npy file ("),
-    "corrupt npy header": (lambda p: _write(p, "h.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': <?? }\n"),
-                           "unreadable .npy header ("),
+    "corrupt npy header": (
+        lambda p: _write(p, "h.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': <?? }\n"),
+        "unreadable .npy header (",
+    ),
     "truncated exr": (_truncated_exr, "truncated or corrupt EXR file: (EXR_ERR_BAD_CHUNK_LEADER)"),
     "exr header only": (lambda p: _write(p, "h.exr", b"v/1\x01\x02\0\0\0"), "not a readable EXR file ("),
 }
@@ -359,7 +386,9 @@ def test_bad_input_is_one_line_input_error(tmp_path, case):
     assert problem in _assert_input_error(path)
 
 
-@pytest.mark.parametrize("case", ["missing", "directory", "empty", "text", "short png", "npy rgb", "exr header only"])
+@pytest.mark.parametrize(
+    "case", ["missing", "directory", "empty", "text", "short png", "npy rgb", "exr header only"]
+)
 def test_probe_shape_reports_bad_input_too(tmp_path, case):
     make, problem = BAD_INPUTS[case]
     assert problem in _assert_input_error(make(tmp_path), call=probe_shape)
@@ -369,13 +398,17 @@ def test_pillow_settings_are_forced_and_restored(tmp_path, monkeypatch):
     monkeypatch.setattr(ImageFile, "LOAD_TRUNCATED_IMAGES", True)
     monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 10)
     assert "image file is truncated" in _assert_input_error(_truncated_png(tmp_path))  # not zero-filled
-    assert load_height(_grey_png(tmp_path / "big.png", 8, 8)).height.shape == (8, 8)  # our limit, not Pillow's
+    assert load_height(_grey_png(tmp_path / "big.png", 8, 8)).height.shape == (
+        8,
+        8,
+    )  # our limit, not Pillow's
     assert ImageFile.LOAD_TRUNCATED_IMAGES is True and Image.MAX_IMAGE_PIXELS == 10
 
 
 # --------------------------------------------------------------------------
 # Generated maps
 # --------------------------------------------------------------------------
+
 
 def test_from_array():
     data = RNG.random((4, 3))
@@ -384,17 +417,20 @@ def test_from_array():
     assert hm.height.dtype == np.float32 and hm.height.flags.c_contiguous
     np.testing.assert_allclose(hm.height, data, rtol=1e-7)
     assert hm.digest.startswith("sha256:") and len(hm.digest) == 7 + 64
-    assert from_array(data.astype(np.float32)).digest == hm.digest           # digest of float32 values
-    assert from_array(hm.height.reshape(3, 4)).digest != hm.digest           # and of the shape
+    assert from_array(data.astype(np.float32)).digest == hm.digest  # digest of float32 values
+    assert from_array(hm.height.reshape(3, 4)).digest != hm.digest  # and of the shape
     assert from_array(np.asfortranarray(data)).digest == hm.digest
 
 
-@pytest.mark.parametrize("array,problem", [
-    (np.full((2, 2), np.inf), "array: contains 0 NaN and 4 infinite values"),
-    (np.zeros((1, 1)), "array: image is 1x1 pixels (rows x columns); a height map needs at least 2"),
-    (np.zeros((2, 2), bool), "array: array has dtype bool; a height map needs real numbers"),
-    (np.zeros((2, 2, 2)), "array: array has shape (2, 2, 2)"),
-])
+@pytest.mark.parametrize(
+    "array,problem",
+    [
+        (np.full((2, 2), np.inf), "array: contains 0 NaN and 4 infinite values"),
+        (np.zeros((1, 1)), "array: image is 1x1 pixels (rows x columns); a height map needs at least 2"),
+        (np.zeros((2, 2), bool), "array: array has dtype bool; a height map needs real numbers"),
+        (np.zeros((2, 2, 2)), "array: array has shape (2, 2, 2)"),
+    ],
+)
 def test_from_array_rejects(array, problem):
     with pytest.raises(InputError) as info:
         from_array(array)

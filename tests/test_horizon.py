@@ -11,16 +11,15 @@ import math
 import drjit as dr
 import numpy as np
 import pytest
+from cube_reference import seamless_bilinear
 
-from hzval.scene import camera as hz_camera
 import hzval.bake as B
 from hzval.core import conventions as cv
+from hzval.core.errors import InputError
 from hzval.materials import bricks as brick_wall
+from hzval.scene import camera as hz_camera
 from hzval.scene import spec as S
 from hzval.techniques.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
-from hzval.core.errors import InputError
-
-from cube_reference import seamless_bilinear
 
 K = 8.0
 #: Every azimuth the issue names, the channel directions exactly, both ways
@@ -31,12 +30,13 @@ ELEVATIONS = (-30.0, -1.0, 0.0, 0.5, 1.0, 2.0, 45.0, 89.9, 90.0)
 #: Float32 slack for comparing the two paths: each computes
 #: s = sum of 8 products of numbers <= 1 and k (Lz - s) + 1, so each F
 #: carries at most ~16 ulp(1) of rounding, times k, on either side.
-F32_SLACK = 2 * K * 16 * 2.0 ** -23
+F32_SLACK = 2 * K * 16 * 2.0**-23
 
 
 # --------------------------------------------------------------------------
 # NumPy references
 # --------------------------------------------------------------------------
+
 
 def light32(azimuth, elevation):
     """The light direction as the kernels get it (float32)."""
@@ -66,7 +66,7 @@ def exact_weights(d):
 def bilerp(tex, x, y, boundary):
     """Bilinear filtering between texel centres at tangent-space (x, y) (docs/ARCHITECTURE.md)."""
     rows, cols = tex.shape[:2]
-    fx, fy = x.astype(np.float64) - 0.5, rows - y.astype(np.float64) - 0.5   # fy: row coordinate
+    fx, fy = x.astype(np.float64) - 0.5, rows - y.astype(np.float64) - 0.5  # fy: row coordinate
     c0, r0 = np.floor(fx).astype(int), np.floor(fy).astype(int)
     ax, ay = fx - c0, fy - r0
     if tex.ndim == 3:
@@ -77,8 +77,9 @@ def bilerp(tex, x, y, boundary):
             return tex[r % rows, c % cols]
         return tex[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
 
-    return ((1 - ay) * ((1 - ax) * at(r0, c0) + ax * at(r0, c0 + 1))
-            + ay * ((1 - ax) * at(r0 + 1, c0) + ax * at(r0 + 1, c0 + 1)))
+    return (1 - ay) * ((1 - ax) * at(r0, c0) + ax * at(r0, c0 + 1)) + ay * (
+        (1 - ax) * at(r0 + 1, c0) + ax * at(r0 + 1, c0 + 1)
+    )
 
 
 def pixel_mean(values, scene, rows, cols):
@@ -90,15 +91,22 @@ def uniform_bake(horizon, normal=(0.0, 0.0, 1.0), rows=8, cols=8, boundary="wrap
     """A synthetic bake with the same horizon and normal in every texel."""
     n = np.asarray(normal, np.float64)
     n = n / np.linalg.norm(n)
-    return B.Bake(B.BakeParams(boundary=boundary),
-                  np.broadcast_to(np.asarray(horizon, np.float32), (rows, cols, 8)).copy(),
-                  np.broadcast_to(n.astype(np.float32), (rows, cols, 3)).copy(),
-                  np.ones((rows, cols), np.float32), np.ones((rows, cols), np.float32))
+    return B.Bake(
+        B.BakeParams(boundary=boundary),
+        np.broadcast_to(np.asarray(horizon, np.float32), (rows, cols, 8)).copy(),
+        np.broadcast_to(n.astype(np.float32), (rows, cols, 3)).copy(),
+        np.ones((rows, cols), np.float32),
+        np.ones((rows, cols), np.float32),
+    )
 
 
 def scene(size=32, effects=("shadow",), spp=4, elevation=30.0, **kw):
-    mat = S.MaterialSpec(size=size, depth=kw.pop("depth", 0.1), boundary=kw.pop("boundary", "wrap"),
-                         albedo=kw.pop("albedo", 0.8))
+    mat = S.MaterialSpec(
+        size=size,
+        depth=kw.pop("depth", 0.1),
+        boundary=kw.pop("boundary", "wrap"),
+        albedo=kw.pop("albedo", 0.8),
+    )
     light = S.Light(elevation_deg=elevation, irradiance=kw.pop("irradiance", 1.0))
     return S.Scene(material=mat, light=light, effects=tuple(effects), spp=spp, **kw).validate()
 
@@ -106,6 +114,7 @@ def scene(size=32, effects=("shadow",), spp=4, elevation=30.0, **kw):
 # --------------------------------------------------------------------------
 # Fixtures: one bake, one object per path, every light of the grid rendered once
 # --------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def bricks(variant):
@@ -117,14 +126,19 @@ def grid(bricks):
     """Frames of both paths for every (azimuth, elevation) of the grid."""
     sc = scene(effects=("shadow", "diffuse", "specular"))
     apps = {p: Horizon(sc, bricks, path=p) for p in ("exact", "gpu")}
-    frames = {(p, az, el): a.render(az, elevation_deg=el)
-              for p, a in apps.items() for az in AZIMUTHS for el in ELEVATIONS}
+    frames = {
+        (p, az, el): a.render(az, elevation_deg=el)
+        for p, a in apps.items()
+        for az in AZIMUTHS
+        for el in ELEVATIONS
+    }
     return apps, frames
 
 
 # --------------------------------------------------------------------------
 # Effects and interface
 # --------------------------------------------------------------------------
+
 
 def test_simulated_lists_exactly_the_declared_effects(bricks):
     every = S.EFFECTS
@@ -155,6 +169,7 @@ def test_frames_have_the_scene_shape(bricks):
 # Numerical stability over the light grid
 # --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 def test_factor_is_finite_and_in_unit_range_everywhere(grid, path):
     _, frames = grid
@@ -168,7 +183,7 @@ def test_factor_is_finite_and_in_unit_range_everywhere(grid, path):
 
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 def test_zenith_light_is_unshadowed(grid, bricks, path):
-    assert bricks.horizon.max() < 0.9   # s <= max h < 1 = Lz: eq. 5.4 gives F >= 1
+    assert bricks.horizon.max() < 0.9  # s <= max h < 1 = Lz: eq. 5.4 gives F >= 1
     for az in AZIMUTHS:
         assert np.all(grid[1][path, az, 90.0].layers["factor"] == 1.0), az
 
@@ -219,8 +234,10 @@ def test_exact_and_gpu_paths_agree_within_the_8_bit_bound(grid, bricks):
             L = light32(az, el)
             w, wg = exact_weights(L), gpu_weights(L)
             bound = K * (0.5 / 255 * wg.sum() + np.abs(wg - w) @ hmax) + F32_SLACK
-            diff = np.abs(frames["exact", az, el].layers["factor"].astype(np.float64)
-                          - frames["gpu", az, el].layers["factor"])
+            diff = np.abs(
+                frames["exact", az, el].layers["factor"].astype(np.float64)
+                - frames["gpu", az, el].layers["factor"]
+            )
             assert diff.max() <= bound, (az, el, diff.max(), bound)
             worst = max(worst, diff.max())
     print(f"largest |F_exact - F_gpu| over the grid: {worst:.5f}")
@@ -229,6 +246,7 @@ def test_exact_and_gpu_paths_agree_within_the_8_bit_bound(grid, bricks):
 # --------------------------------------------------------------------------
 # Channel weights, and the cube map's zero-weight leak, measured
 # --------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def channel_blocks(variant):
@@ -239,17 +257,25 @@ def channel_blocks(variant):
     """
     h = np.zeros((4, 32, 8), np.float32)
     for c in range(8):
-        h[:, 4 * c:4 * c + 4, c] = 1.0
-    bake = B.Bake(B.BakeParams(), h, np.broadcast_to(np.float32([0, 0, 1]), (4, 32, 3)).copy(),
-                  np.ones((4, 32), np.float32), np.ones((4, 32), np.float32))
+        h[:, 4 * c : 4 * c + 4, c] = 1.0
+    bake = B.Bake(
+        B.BakeParams(),
+        h,
+        np.broadcast_to(np.float32([0, 0, 1]), (4, 32, 3)).copy(),
+        np.ones((4, 32), np.float32),
+        np.ones((4, 32), np.float32),
+    )
     sc = scene(size=32)
-    x = np.array([4 * c + 1.5 for c in range(8)])   # column 4c + 1, texel centre
-    y = np.full(8, 4 - 1 - 0.5)                     # row 1
+    x = np.array([4 * c + 1.5 for c in range(8)])  # column 4c + 1, texel centre
+    y = np.full(8, 4 - 1 - 0.5)  # row 1
     return {p: Horizon(sc, bake, path=p) for p in ("exact", "gpu")}, x, y
 
 
-LIGHTS = [(az, el) for az in (*AZIMUTHS, 22.5, 67.4, 191.0, 300.0, -135.0)
-          for el in (0.0, 10.0, 33.0, 50.0, 70.0, 89.9)]
+LIGHTS = [
+    (az, el)
+    for az in (*AZIMUTHS, 22.5, 67.4, 191.0, 300.0, -135.0)
+    for el in (0.0, 10.0, 33.0, 50.0, 70.0, 89.9)
+]
 
 
 @pytest.mark.parametrize("path,reference", [("exact", exact_weights), ("gpu", gpu_weights)])
@@ -275,7 +301,7 @@ def test_cube_weight_error_is_what_hzval_approx_documents():
     assert worst_sum == pytest.approx(1 + 3 / 255, abs=1e-9)
     # 0.169 below 45 degrees; at 45 the seamless filter blends in the +z face's texels: 0.173
     assert 0.16 < worst_err <= 0.173
-    L = light32(0.0, 30.0)   # channel 0: 0.92 = 235/255 instead of 1
+    L = light32(0.0, 30.0)  # channel 0: 0.92 = 235/255 instead of 1
     assert gpu_weights(L)[0] == pytest.approx(235 / 255, abs=1e-9)
 
 
@@ -303,6 +329,7 @@ def test_zero_weight_leaks_one_255th_on_layer_0_only(channel_blocks):
 # Known geometry
 # --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 def test_flat_plane_is_lambert_and_unshadowed(variant, path):
     flat = B.bake(np.full((16, 16), 0.3, np.float32), B.BakeParams(depth=0.1))
@@ -325,7 +352,7 @@ def test_shadow_only_scene_shades_grey_irradiance_times_factor(bricks):
     assert f.image[..., 1] == pytest.approx(3.0 * f.layers["factor"], rel=1e-6)
 
 
-WALL_H, WALL_COL = 4.0, 20   # a wall 4 texels high (as in test_bake)
+WALL_H, WALL_COL = 4.0, 20  # a wall 4 texels high (as in test_bake)
 
 
 @pytest.fixture(scope="module")
@@ -353,7 +380,7 @@ def test_wall_casts_the_shadow_of_its_baked_sine(wall, path):
             L = light32(0.0, el)
             if path == "exact":
                 s_path = s
-            else:   # 8-bit horizon and the cube's weights at L
+            else:  # 8-bit horizon and the cube's weights at L
                 s_path = float(gpu_weights(L) @ (np.rint(wall.horizon[4, WALL_COL - d] * 255) / 255))
             F = a.sample(x, y, 0.0, el)["factor"][0]
             assert F == pytest.approx(np.clip(K * (L[2] - s_path) + 1, 0, 1), abs=1e-5), (d, lz)
@@ -370,7 +397,7 @@ def test_wall_pixel_averages_its_samples(wall):
         s_col[WALL_COL - d] = wall_sine(d)
     x, y = hz_camera.sample_positions(8, 32, sc.camera, sc.spp, sc.seed)
     p = 4 * 32 + 18
-    xs = x[p * sc.spp:(p + 1) * sc.spp].astype(np.float64) - 0.5
+    xs = x[p * sc.spp : (p + 1) * sc.spp].astype(np.float64) - 0.5
     c0 = np.floor(xs).astype(int)
     s = (1 - (xs - c0)) * s_col[c0] + (xs - c0) * s_col[c0 + 1]
     for el in (40.0, 45.0, 50.0, 60.0):
@@ -394,6 +421,7 @@ def test_k_per_frame_is_eq_5_4s_k(wall):
 # Shading terms against NumPy
 # --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
     bake = B.bake(brick_wall.bricks(24), B.BakeParams(depth=0.1, boundary=boundary))
@@ -411,7 +439,7 @@ def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
         f = a.render(az, shadows=False, elevation_deg=el)
         assert "factor" not in f.layers
         assert f.image == pytest.approx(expect, rel=1e-5, abs=1e-7)
-        assert np.all(a.render(az, elevation_deg=el).image <= f.image + 1e-7)   # F <= 1
+        assert np.all(a.render(az, elevation_deg=el).image <= f.image + 1e-7)  # F <= 1
 
 
 def test_with_one_sample_the_image_is_direct_light_times_factor(bricks):
@@ -431,13 +459,15 @@ def test_specular_is_blinn_phong(variant):
         L = light32(az, el).astype(np.float64)
         h = (L + [0, 0, 1]) / np.linalg.norm(L + [0, 0, 1])
         expect = SPECULAR_KS * 2.0 * max(n @ h, 0) ** SPECULAR_EXPONENT * (n @ L > 0)
-        assert a.render(az, elevation_deg=el).image == pytest.approx(np.full((8, 8, 3), expect), rel=1e-4, abs=1e-9)
+        assert a.render(az, elevation_deg=el).image == pytest.approx(
+            np.full((8, 8, 3), expect), rel=1e-4, abs=1e-9
+        )
 
 
 @pytest.mark.parametrize("term", ["mean_cos2", "mean_cos"])
 def test_ambient_map_is_sampled_and_added(bricks, term):
     sc = scene(effects=("ambient",), irradiance=2.0, albedo=0.6)
-    f = Horizon(sc, bricks, ambient=term).render(0.0, elevation_deg=-5.0)   # no direct light
+    f = Horizon(sc, bricks, ambient=term).render(0.0, elevation_deg=-5.0)  # no direct light
     x, y = hz_camera.sample_positions(32, 32, sc.camera, sc.spp, sc.seed)
     A = pixel_mean(bilerp(getattr(bricks, term), x, y, "wrap"), sc, 32, 32)
     assert f.layers["ambient"] == pytest.approx(A, rel=1e-5)
@@ -464,6 +494,7 @@ def test_reflection_occlusion_is_toolbags_fade_against_the_horizon(variant, path
 # --------------------------------------------------------------------------
 # Speed: no recompilation per light
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 @pytest.mark.parametrize("spp", [1, 4])

@@ -17,7 +17,7 @@ def _ridge(rows=16, cols=32, col=20, height=6.0):
 def test_a_ridge_ahead_is_seen_at_its_tangent_less_the_drop(kappa):
     h = _ridge()
     t = hc.bin_tangents(h, kappa, radius=16, angles=32, boundary="open")
-    D = 8                                                   # the texel D columns left of the ridge
+    D = 8  # the texel D columns left of the ridge
     # only d = D meets the ridge (heights 0 elsewhere, read exactly at whole steps); at d != D the
     # flat floor is at -kappa d / 2, below the tangent plane on a convex surface, above on a concave one
     others = max(-0.5 * kappa * d for d in range(1, 17))
@@ -41,9 +41,9 @@ def test_convex_lowers_every_horizon_and_concave_raises_it():
 
 
 def _context(size=32):
+    from hzval.bake.maps import BakeParams, bake
     from hzval.scene import spec as S
     from hzval.techniques import registry as technique
-    from hzval.bake.maps import BakeParams, bake
 
     scene = S.override(S.Scene(), height="bricks", size=size, effects="shadow", spp=1).validate()
     hm = S.load_material_height(scene.material)
@@ -55,22 +55,22 @@ def test_the_technique_is_a_plug_in_that_is_horizon_at_zero_curvature_and_bright
     from hzval.techniques import registry as technique
 
     cls = technique.get("horizon-curved")
-    assert cls.name == "horizon-curved" and "horizon-curved" not in technique.defaults()   # opt-in
+    assert cls.name == "horizon-curved" and "horizon-curved" not in technique.defaults()  # opt-in
     ctx = _context()
     base = technique.get("horizon").build(ctx)
     F = {k: cls.build(ctx, curvature=k) for k in (0.0, 2.0, -2.0)}
     for az in (0.0, 135.0):
         f0 = base.render(az, elevation_deg=12.0).layers["factor"]
-        assert np.array_equal(F[0.0].render(az, elevation_deg=12.0).layers["factor"], f0)       # bit for bit
+        assert np.array_equal(F[0.0].render(az, elevation_deg=12.0).layers["factor"], f0)  # bit for bit
         convex, concave = (F[k].render(az, elevation_deg=12.0).layers["factor"] for k in (2.0, -2.0))
-        assert np.all(convex >= f0 - 1e-6) and convex.mean() > f0.mean() + 1e-3     # lower horizons: more light
+        assert np.all(convex >= f0 - 1e-6) and convex.mean() > f0.mean() + 1e-3  # lower horizons: more light
         assert np.all(concave <= f0 + 1e-6) and concave.mean() < f0.mean() - 1e-3
     assert F[2.0].parameters["curvature"] == 2.0
 
 
 def test_a_curvature_that_is_not_a_number_is_refused():
-    from hzval.techniques import registry as technique
     from hzval.core.errors import InputError
+    from hzval.techniques import registry as technique
 
     with pytest.raises(InputError, match="curvature"):
         technique.get("horizon-curved").build(_context(16), curvature=float("nan"))

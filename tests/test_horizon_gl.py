@@ -20,14 +20,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval.cli import main as cli
-from hzval.techniques.gl import context as gl
-from hzval.scene import lookup
-from hzval.techniques import registry as technique
-from hzval.scene import spec as S
-from hzval.techniques.horizon import Horizon
 from hzval.bake.maps import BakeParams, bake
+from hzval.cli import main as cli
 from hzval.core.errors import InputError
+from hzval.scene import lookup
+from hzval.scene import spec as S
+from hzval.techniques import registry as technique
+from hzval.techniques.gl import context as gl
+from hzval.techniques.horizon import Horizon
 
 try:
     gl.context()
@@ -45,31 +45,44 @@ def edge_lights() -> list[tuple[float, float]]:
     """Lights on every edge and corner of the cube in the upper hemisphere, and just off them."""
     out = []
     for k in range(4):
-        side = 45.0 + 90.0 * k                      # vertical edges between side faces
+        side = 45.0 + 90.0 * k  # vertical edges between side faces
         out += [(side, e) for e in (0.0, 10.0, 30.0, 35.0)]
         out += [(side, CORNER_EL), (side, 35.26), (side + 0.3, 30.0), (side - 0.3, 30.0)]
-        mid = 90.0 * k                              # edges between a side face and +z
+        mid = 90.0 * k  # edges between a side face and +z
         out += [(mid, 45.0), (mid, 44.9), (mid, 45.1)]
-        off = mid + 20.0                            # the top edge away from its middle: tan e = cos 20
+        off = mid + 20.0  # the top edge away from its middle: tan e = cos 20
         out.append((off, math.degrees(math.atan(math.cos(math.radians(20.0))))))
     return out
 
 
 def texel_centre_context(size: int = 32, height: str = "bricks", boundary: str = "wrap") -> technique.Context:
-    scene = S.override(S.Scene(), height=height, size=size, boundary=boundary, effects="shadow", spp=1).validate()
+    scene = S.override(
+        S.Scene(), height=height, size=size, boundary=boundary, effects="shadow", spp=1
+    ).validate()
     hm = S.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
     rows, cols = hm.height.shape
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     like = lookup.Samples(np.zeros(1, np.float32), np.zeros(1, np.float32), rows, cols, 1)
     points = lookup.from_points((c + 0.5).ravel(), (rows - r - 0.5).ravel(), like, "texel centres")
-    return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points)
+    return technique.Context(
+        scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points
+    )
 
 
 def minified_context(size: int = 32, boundary: str = "wrap") -> technique.Context:
     """The orthographic view from straight above at half the map's resolution (lambda = 1), trilinear."""
-    scene = S.override(S.Scene(), size=size, boundary=boundary, effects="shadow", spp=4, camera="orthographic",
-                       view_elevation=90.0, resolution=(size // 2, size // 2), filter="trilinear").validate()
+    scene = S.override(
+        S.Scene(),
+        size=size,
+        boundary=boundary,
+        effects="shadow",
+        spp=4,
+        camera="orthographic",
+        view_elevation=90.0,
+        resolution=(size // 2, size // 2),
+        filter="trilinear",
+    ).validate()
     hm = S.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
     return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, size, size))
@@ -96,18 +109,32 @@ def worst_difference(ctx: technique.Context, lights) -> float:
 def _float_path_main() -> None:
     """Run in a subprocess with GALLIVM_PERF=no_aos_sampling: prints the worst differences as JSON."""
     lights = [(-45.0, 30.0), (0.0, 30.0), (45.0, 30.0), (45.0, CORNER_EL), (90.0, 45.0)]
-    print(json.dumps({"worst": worst_difference(texel_centre_context(), edge_lights()),
-                      "trilinear_u8": differences(minified_context(), lights, "u8")[1],
-                      "trilinear_bc7": differences(minified_context(), lights, "bc7")[1],
-                      "gl": gl.info()}))
+    print(
+        json.dumps(
+            {
+                "worst": worst_difference(texel_centre_context(), edge_lights()),
+                "trilinear_u8": differences(minified_context(), lights, "u8")[1],
+                "trilinear_bc7": differences(minified_context(), lights, "bc7")[1],
+                "gl": gl.info(),
+            }
+        )
+    )
 
 
 @needs_gl
 def test_float_sampling_agrees_to_1e_5_on_every_cube_edge_and_corner():
-    env = {**os.environ, "GALLIVM_PERF": "no_aos_sampling",
-           "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
-    done = subprocess.run([sys.executable, "-c", "import test_horizon_gl as t; t._float_path_main()"],
-                          env=env, capture_output=True, text=True, timeout=300)
+    env = {
+        **os.environ,
+        "GALLIVM_PERF": "no_aos_sampling",
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path]),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", "import test_horizon_gl as t; t._float_path_main()"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     res = json.loads(done.stdout.strip().splitlines()[-1])
     assert res["gl"]["gallivm_perf"] == "no_aos_sampling"
@@ -136,9 +163,9 @@ def test_bc7_is_uploaded_as_bptc_blocks_at_every_level():
     hg._gl_function("glBindTexture", u, u)(0x8C1A, tex.glo)
     value = (i * 1)()
     for level, width in enumerate((16, 8, 4, 2, 1)):
-        query(0x8C1A, level, 0x1003, value)             # GL_TEXTURE_INTERNAL_FORMAT
-        assert value[0] == 0x8E8C                       # GL_COMPRESSED_RGBA_BPTC_UNORM
-        query(0x8C1A, level, 0x1000, value)             # GL_TEXTURE_WIDTH
+        query(0x8C1A, level, 0x1003, value)  # GL_TEXTURE_INTERNAL_FORMAT
+        assert value[0] == 0x8E8C  # GL_COMPRESSED_RGBA_BPTC_UNORM
+        query(0x8C1A, level, 0x1000, value)  # GL_TEXTURE_WIDTH
         assert value[0] == width
     tex.release()
 
@@ -188,7 +215,10 @@ def test_the_frame_is_the_unshadowed_shading_times_the_shaders_factor():
     assert np.allclose(frame.image, F[..., None] * ctx.scene.light.irradiance, atol=1e-6)
     p = real.parameters
     assert p["gl"]["renderer"] and p["gl"]["version"] and p["gl"]["vendor"]
-    assert p["shader"] == "hzval/techniques/gl/shaders/horizon_shadow.glsl" and p["cube_filter"] == "seamless bilinear"
+    assert (
+        p["shader"] == "hzval/techniques/gl/shaders/horizon_shadow.glsl"
+        and p["cube_filter"] == "seamless bilinear"
+    )
 
 
 def test_gl_techniques_are_opt_in():
@@ -212,24 +242,77 @@ def test_without_a_context_the_sweep_skips_it_with_one_line(variant, tmp_path, m
 
     monkeypatch.setattr(gl, "context", no_context)
     out = tmp_path / "out"
-    assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon,horizon-gl",
-                     "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "16",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--techniques",
+                "horizon,horizon-gl",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert list(m["techniques"]) == ["horizon"]
     skipped = [w for w in m["warnings"] if w.startswith("horizon-gl: skipped")]
     assert len(skipped) == 1 and "pip install moderngl" in skipped[0] and "\n" not in skipped[0]
     assert "hzval: warning: horizon-gl: skipped" in capsys.readouterr().err
     # nothing else to score: one line, exit 2
-    assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon-gl",
-                     "--quiet", "--out", str(tmp_path / "none")]) == 2
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "16",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--techniques",
+                "horizon-gl",
+                "--quiet",
+                "--out",
+                str(tmp_path / "none"),
+            ]
+        )
+        == 2
+    )
     assert "no technique is left" in capsys.readouterr().err
 
 
 @needs_gl
 def test_sweep_records_the_gl_pipeline(variant, tmp_path):
     out = tmp_path / "out"
-    assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon,horizon-gl",
-                     "--horizon-path", "gpu", "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "16",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--techniques",
+                "horizon,horizon-gl",
+                "--horizon-path",
+                "gpu",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     g = m["techniques"]["horizon-gl"]["parameters"]["gl"]
     assert set(g) >= {"version", "renderer", "vendor"}
@@ -239,8 +322,25 @@ def test_sweep_records_the_gl_pipeline(variant, tmp_path):
 
 def test_square_root_storage_is_refused_before_anything_is_written(variant, tmp_path, capsys):
     bad = tmp_path / "bad"
-    assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--techniques", "horizon-gl", "--horizon-storage",
-                     "u8-sqrt", "--quiet", "--out", str(bad)]) == 2
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "16",
+                "--azimuths",
+                "0",
+                "--techniques",
+                "horizon-gl",
+                "--horizon-storage",
+                "u8-sqrt",
+                "--quiet",
+                "--out",
+                str(bad),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip()
     assert err.startswith("hzval: error: --horizon-storage") and "\n" not in err and not bad.exists()
 
@@ -255,7 +355,10 @@ def test_pom_gl_marches_as_pom():
     baked = bake(hm.height, BakeParams(depth=scene.material.depth).validate())
     ctx = technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, 32, 32))
     for variant_ in ("hard", "soft"):
-        a, b = RayMarchShadow.build(ctx, variant=variant_, steps=16), PomGL.build(ctx, variant=variant_, steps=16)
+        a, b = (
+            RayMarchShadow.build(ctx, variant=variant_, steps=16),
+            PomGL.build(ctx, variant=variant_, steps=16),
+        )
         for az in (-45.0, 0.0, 60.0):
             d = np.abs(a.factor(az, 30.0) - b.factor(az, 30.0))
             assert d.mean() <= 0.002, (variant_, az, d.mean())

@@ -17,9 +17,15 @@ _spec.loader.exec_module(mc)
 
 
 def _top(rows, cols):
-    return {"kind": "top", "eye": [cols / 2, rows / 2, 1e6], "target": [cols / 2, rows / 2, 0.0],
-            "up": [0.0, 1.0, 0.0], "fov_deg": None, "film_size": [float(cols), float(rows)],
-            "resolution": [cols, rows]}
+    return {
+        "kind": "top",
+        "eye": [cols / 2, rows / 2, 1e6],
+        "target": [cols / 2, rows / 2, 0.0],
+        "up": [0.0, 1.0, 0.0],
+        "fov_deg": None,
+        "film_size": [float(cols), float(rows)],
+        "resolution": [cols, rows],
+    }
 
 
 def _angle(a, b):
@@ -65,8 +71,15 @@ def test_top_camera_jitter_stays_in_its_pixel():
 def test_perspective_rays():
     rows, cols, fov = 7, 9, 60.0
     eye, target = np.array([8.0, -20.0, 30.0]), np.array([8.0, 8.0, 0.0])
-    rec = {"kind": "perspective", "eye": eye.tolist(), "target": target.tolist(), "up": [0.0, 0.0, 1.0],
-           "fov_deg": fov, "film_size": None, "resolution": [cols, rows]}
+    rec = {
+        "kind": "perspective",
+        "eye": eye.tolist(),
+        "target": target.tolist(),
+        "up": [0.0, 0.0, 1.0],
+        "fov_deg": fov,
+        "film_size": None,
+        "resolution": [cols, rows],
+    }
     o, d = mc.camera_rays(rec, spp=1)
     np.testing.assert_allclose(o, np.tile(eye, (rows * cols, 1)))
     np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
@@ -75,7 +88,7 @@ def test_perspective_rays():
     r /= np.linalg.norm(r)
     t = np.cross(r, f)
     at = lambda row, col: d[row * cols + col]
-    np.testing.assert_allclose(at(3, 4), f, atol=1e-12)            # the centre pixel looks at the target
+    np.testing.assert_allclose(at(3, 4), f, atol=1e-12)  # the centre pixel looks at the target
     half_px = fov / cols / 2
     left, right = at(3, 0), at(3, cols - 1)
     assert abs(_angle(left, f) - fov / 2) <= half_px
@@ -92,8 +105,15 @@ def test_flat_plane_oblique_orthographic(boundary):
     n, z = 16, 3.0
     h = np.full((n, n), z)
     eye = np.array([8.0, 8.0 - 100.0, z + 100.0])
-    rec = {"kind": "orthographic", "eye": eye.tolist(), "target": [8.0, 8.0, z], "up": [0.0, 0.0, 1.0],
-           "fov_deg": None, "film_size": [8.0, 8.0], "resolution": [8, 8]}
+    rec = {
+        "kind": "orthographic",
+        "eye": eye.tolist(),
+        "target": [8.0, 8.0, z],
+        "up": [0.0, 0.0, 1.0],
+        "fov_deg": None,
+        "film_size": [8.0, 8.0],
+        "resolution": [8, 8],
+    }
     o, d = mc.camera_rays(rec, spp=4, seed=1)
     np.testing.assert_allclose(d, np.tile([0.0, math.sqrt(0.5), -math.sqrt(0.5)], (len(d), 1)), atol=1e-12)
     p, hit = mc.march_hits(h, boundary, o, d)
@@ -111,8 +131,8 @@ def test_flat_plane_oblique_orthographic(boundary):
 def test_wall_shadow_length(boundary):
     rows, cols, c0, hw = 8, 32, 10, 5.0
     h = np.zeros((rows, cols))
-    h[:, :c0] = hw                          # high on the left: the wall's top edge at x = c0 - 0.5
-    L = mc.light_direction(180.0, 45.0)     # the light toward -x
+    h[:, :c0] = hw  # high on the left: the wall's top edge at x = c0 - 0.5
+    L = mc.light_direction(180.0, 45.0)  # the light toward -x
     x = np.linspace(c0 + 0.55, 28.0, 500)
     pts = np.stack([x, np.full_like(x, 4.3), np.zeros_like(x)], axis=1)
     v = mc.visible(h, boundary, pts, L)
@@ -120,7 +140,7 @@ def test_wall_shadow_length(boundary):
     shadowed = x[v == 0]
     lit = x[v == 1]
     assert len(shadowed) and len(lit) and len(shadowed) + len(lit) == len(x)
-    assert shadowed.max() < lit.min()        # one shadow, then light
+    assert shadowed.max() < lit.min()  # one shadow, then light
     assert abs(shadowed.max() - edge) < 1.0 and abs(lit.min() - edge) < 1.0
     # the ramp down from the wall faces away from the light: self-shadowed
     ramp = np.array([[c0 - 0.2, 4.3, 0.0], [c0 + 0.3, 2.1, 0.0]])
@@ -131,14 +151,17 @@ def test_wall_shadow_length(boundary):
 
 def _ridge_column(n=16, col=2, height=10.0):
     h = np.zeros((n, n))
-    h[:, col] = height                       # a tent from x = col - 0.5 to col + 1.5, peak at col + 0.5
+    h[:, col] = height  # a tent from x = col - 0.5 to col + 1.5, peak at col + 0.5
     return h
 
 
-@pytest.mark.parametrize("origin, direction, expect", [
-    ((12.0, 8.3, 10.0), (1.0, 0.0, -1.0), 197.0 / 11.0),               # into the next tile, +x
-    ((1.0, 8.3, 10.0), (-1.0, 0.0, -0.3), -134.7 / 10.3),              # into the previous tile, -x
-])
+@pytest.mark.parametrize(
+    "origin, direction, expect",
+    [
+        ((12.0, 8.3, 10.0), (1.0, 0.0, -1.0), 197.0 / 11.0),  # into the next tile, +x
+        ((1.0, 8.3, 10.0), (-1.0, 0.0, -0.3), -134.7 / 10.3),  # into the previous tile, -x
+    ],
+)
 def test_wrap_ray_continues_into_the_next_tile(origin, direction, expect):
     h = _ridge_column()
     o = np.array([origin])
@@ -154,7 +177,7 @@ def test_wrap_ray_continues_into_the_next_tile(origin, direction, expect):
 
 
 def test_wrap_ray_continues_along_y():
-    h = _ridge_column().T.copy()             # a ridge along row 2: y from 12.5 to 14.5, peak 13.5
+    h = _ridge_column().T.copy()  # a ridge along row 2: y from 12.5 to 14.5, peak 13.5
     o = np.array([[8.3, 15.0, 10.0]])
     d = np.array([[0.0, 1.0, -0.3]]) / math.hypot(1.0, 0.3)
     p, hit = mc.march_hits(h, "wrap", o, d)
@@ -164,7 +187,7 @@ def test_wrap_ray_continues_along_y():
 def test_wrap_shadow_from_the_next_tile():
     h = _ridge_column()
     pts = np.array([[14.2, 8.3, 0.0]])
-    L = mc.light_direction(0.0, 30.0)        # toward +x: the ridge of the next tile blocks it
+    L = mc.light_direction(0.0, 30.0)  # toward +x: the ridge of the next tile blocks it
     assert mc.visible(h, "wrap", pts, L)[0] == 0.0
     assert mc.visible(h, "open", pts, L)[0] == 1.0
     assert mc.visible(h, "wrap", pts, mc.light_direction(0.0, 70.0))[0] == 1.0
@@ -177,11 +200,19 @@ def _write_sweep(tmp_path, H, depth, record, V, boundary="open"):
     rel = "frames/f0/visibility.exr"
     (tmp_path / "frames" / "f0").mkdir(parents=True)
     files.write_exr(tmp_path / rel, {"Y": V.astype(np.float32)})
-    metrics = {"material": {"name": "t", "path": str(tmp_path / "height.npy"), "rows": H.shape[0],
-                            "cols": H.shape[1], "digest": None, "source": ".npy float32"},
-               "parameters": {"depth": depth, "boundary": boundary, "light": "hard"},
-               "camera": record,
-               "frames": [{"azimuth_deg": 30.0, "elevation_deg": 40.0, "files": {"visibility": rel}}]}
+    metrics = {
+        "material": {
+            "name": "t",
+            "path": str(tmp_path / "height.npy"),
+            "rows": H.shape[0],
+            "cols": H.shape[1],
+            "digest": None,
+            "source": ".npy float32",
+        },
+        "parameters": {"depth": depth, "boundary": boundary, "light": "hard"},
+        "camera": record,
+        "frames": [{"azimuth_deg": 30.0, "elevation_deg": 40.0, "files": {"visibility": rel}}],
+    }
     (tmp_path / "metrics.json").write_text(json.dumps(metrics))
 
 
@@ -199,16 +230,16 @@ def test_check_counts_and_compares(tmp_path):
     assert seen.sum() == 64 and not (hit.reshape(144, spp).any(axis=1).reshape(12, 12) & ~seen).any()
     V = np.where(seen, np.nan_to_num(v).reshape(144, spp).mean(axis=1).reshape(12, 12), np.nan)
     assert 0 < np.nanmean(V) < 1
-    V[5, 5] = 1.0 - V[5, 5]                  # one seen pixel off by |1 - 2V|
+    V[5, 5] = 1.0 - V[5, 5]  # one seen pixel off by |1 - 2V|
     off = abs(1.0 - 2.0 * (1.0 - V[5, 5]))
-    V[6, 6] = np.nan                         # one seen pixel hzval does not see
-    V[0, 0] = 0.3                            # one unseen pixel hzval claims to see
+    V[6, 6] = np.nan  # one seen pixel hzval does not see
+    V[0, 0] = 0.3  # one unseen pixel hzval claims to see
     _write_sweep(tmp_path, H, depth, rec, V)
     res = mc.check(tmp_path, spp=spp, seed=0)
     fr = res["frames"][0]
     assert fr["compared"] == 63
     assert fr["march_unseen"] == 144 - 64 and fr["march_partial"] == 0
-    assert fr["hzval_unseen"] == 80          # the 80 unseen, less [0, 0], plus [6, 6]
+    assert fr["hzval_unseen"] == 80  # the 80 unseen, less [0, 0], plus [6, 6]
     assert fr["disagree_seen"] == 2
     assert fr["mean_abs_diff"] == pytest.approx(off / 63, abs=1e-6)
     assert res["mean_abs_diff"] == pytest.approx(off / 63, abs=1e-6)
@@ -240,7 +271,7 @@ def test_surface_is_the_bilinear_field_hzvals_mesh_approximates(boundary):
     tol = 0.01
     g = mesh.grid(h.astype(np.float32), boundary, margin=1)
     P, F, _ = mesh.tessellate(g, tol)
-    tri = P.astype(np.float64)[F.astype(np.int64)]                   # (F, 3 vertices, 3)
+    tri = P.astype(np.float64)[F.astype(np.int64)]  # (F, 3 vertices, 3)
     x, y = rng.uniform(0.0, 7.0, 300), rng.uniform(0.0, 6.0, 300)
     a, b, c = tri[:, 0, :2], tri[:, 1, :2], tri[:, 2, :2]
     p = np.stack([x, y], axis=1)[:, None, :]
@@ -252,10 +283,10 @@ def test_surface_is_the_bilinear_field_hzvals_mesh_approximates(boundary):
     f = inside.argmax(axis=1)
     assert inside.any(axis=1).all()
     k = np.arange(len(x))
-    z_mesh = (w0[k, f] * tri[f, 0, 2] + w1[k, f] * tri[f, 1, 2] + w2[k, f] * tri[f, 2, 2])
+    z_mesh = w0[k, f] * tri[f, 0, 2] + w1[k, f] * tri[f, 1, 2] + w2[k, f] * tri[f, 2, 2]
     z, n = mc.surface(h, boundary, x, y)
-    assert np.abs(z - z_mesh).max() <= tol + 1e-5                    # float32 mesh heights
-    assert np.abs(z - z_mesh).max() > tol / 50                        # a surface of its own, not the mesh
+    assert np.abs(z - z_mesh).max() <= tol + 1e-5  # float32 mesh heights
+    assert np.abs(z - z_mesh).max() > tol / 50  # a surface of its own, not the mesh
     assert (n[:, 2] > 0).all()
 
 
@@ -298,12 +329,17 @@ def test_exact_traversal_agrees_with_small_steps(boundary):
             assert not hit[i] or boundary == "wrap"
             continue
         z_q, _ = mc.surface(h, boundary, np.array([q[0]]), np.array([q[1]]))
-        if boundary == "open" and (min(q[0], q[1]) < 1e-9 or q[0] > 12 - 1e-9 or q[1] > 12 - 1e-9) \
-                and q[2] < z_q[0] - 1e-3:
-            continue    # entered the open tile's side below the surface: an underside hit, if it comes back up
+        if (
+            boundary == "open"
+            and (min(q[0], q[1]) < 1e-9 or q[0] > 12 - 1e-9 or q[1] > 12 - 1e-9)
+            and q[2] < z_q[0] - 1e-3
+        ):
+            continue  # entered the open tile's side below the surface: an underside hit, if it comes back up
         assert hit[i]
         agree += np.abs(p[i] - q).max() < 1e-6
-    assert hit.sum() >= n // 2 and agree >= hit.sum() - 2      # small steps may skip a sliver of a peak the exact march finds
+    assert (
+        hit.sum() >= n // 2 and agree >= hit.sum() - 2
+    )  # small steps may skip a sliver of a peak the exact march finds
     # and the shadow rays from those points, against small steps toward the light
     L = mc.light_direction(40.0, 25.0)
     v = mc.visible(h, boundary, p[hit], L)

@@ -13,8 +13,7 @@ SHAPES = [(32, 32), (64, 64), (128, 128), (96, 160), (128, 48)]
 def _wrap_and_interior_jumps(h: np.ndarray) -> tuple[float, np.ndarray]:
     """Largest jump across the wrap edges, and all interior neighbour jumps."""
     wrap = max(np.abs(h[-1, :] - h[0, :]).max(), np.abs(h[:, -1] - h[:, 0]).max())
-    interior = np.concatenate([np.abs(np.diff(h, axis=0)).ravel(),
-                               np.abs(np.diff(h, axis=1)).ravel()])
+    interior = np.concatenate([np.abs(np.diff(h, axis=0)).ravel(), np.abs(np.diff(h, axis=1)).ravel()])
     return float(wrap), interior
 
 

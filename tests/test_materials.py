@@ -11,15 +11,24 @@ from scipy import ndimage
 from hzval import materials
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
-from hzval.scene import spec as S
 from hzval.materials import cobblestones, fabric, noise, panels, planks, spikes
+from hzval.scene import spec as S
 
 NAMES = materials.names()
 WRAPPING = [n for n in NAMES if materials.get(n).boundary == "wrap"]
 
 
 def test_registry_lists_the_figure_5_2_variety():
-    assert set(NAMES) >= {"bricks", "cobblestones", "gravel", "fabric", "panels", "planks", "ridges", "spikes"}
+    assert set(NAMES) >= {
+        "bricks",
+        "cobblestones",
+        "gravel",
+        "fabric",
+        "panels",
+        "planks",
+        "ridges",
+        "spikes",
+    }
     for name in NAMES:
         m = materials.get(name)
         assert m.name == name and m.label and m.summary and m.depth > 0 and m.boundary in ("wrap", "open")
@@ -34,10 +43,10 @@ def test_height_and_albedo_are_in_range(name, shape):
     g = materials.generate(name, shape)
     assert g.height.shape == shape and g.height.dtype == np.float32
     assert np.isfinite(g.height).all() and 0.0 <= g.height.min() and g.height.max() <= 1.0
-    if name != "bricks":                        # the bricks keep the scene's constant albedo
+    if name != "bricks":  # the bricks keep the scene's constant albedo
         assert g.albedo.shape == (*shape, 3) and g.albedo.dtype == np.float32
         assert 0.0 < g.albedo.min() and g.albedo.max() < 1.0
-    assert not g.height.flags.writeable         # cached arrays cannot be changed under a later caller
+    assert not g.height.flags.writeable  # cached arrays cannot be changed under a later caller
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -73,7 +82,7 @@ def test_the_seam_statistic_sees_a_seam(name):
     the panels and spikes: a cut through their flat plates and ground is too gentle for it to see.)"""
     h = materials.generate(name, 128).height
     broken = np.concatenate([h[:, :64], np.roll(h, 29, axis=0)[:, 64:]], axis=1)
-    wrap, inner = _seam_statistic(np.roll(broken, -64, axis=1))     # the cut now on the wrap edge
+    wrap, inner = _seam_statistic(np.roll(broken, -64, axis=1))  # the cut now on the wrap edge
     assert wrap > _seam_statistic(h)[1]
 
 
@@ -89,6 +98,7 @@ def test_materials_are_distinct_shapes():
 # --------------------------------------------------------------------------
 # Each shape is the one it says it is
 # --------------------------------------------------------------------------
+
 
 def _blobs(mask: np.ndarray) -> int:
     """Connected components of ``mask`` on the torus (labels that meet across an edge are merged)."""
@@ -112,13 +122,13 @@ def test_spikes_are_one_thin_cone_per_cell():
     assert _blobs(h > 0.3) == n * n
     # thin: each cone's footprint is a disk of 14% of a cell in radius; tall: its top is at least 0.6
     r = spikes._RADIUS * 512 / n
-    assert (h > 0.1).mean() < n * n * np.pi * r * r / 512 ** 2
+    assert (h > 0.1).mean() < n * n * np.pi * r * r / 512**2
     labels, count = ndimage.label(h > 0.05)
     index = np.arange(1, count + 1)
     tops = np.asarray(ndimage.maximum(h, labels, index))
     assert np.min(tops[tops > 0.3]) > 0.5 * 0.6
     # at the default depth the tallest cone stands more than twice as tall as its footprint is wide
-    width = 2 * np.sqrt(np.asarray(ndimage.sum(np.ones_like(h), labels, index)) / np.pi)   # texels
+    width = 2 * np.sqrt(np.asarray(ndimage.sum(np.ones_like(h), labels, index)) / np.pi)  # texels
     tall = cv.heights_in_texels(h, spikes.MATERIAL.depth).max()
     assert tall > 2 * width[np.argmax(tops)]
 
@@ -128,7 +138,7 @@ def test_cobblestones_are_one_dome_per_cell_in_sand():
     n = noise.count(256, cobblestones._ACROSS, cobblestones._MIN_PX)
     assert _blobs(h > cobblestones._SAND + 0.2) == n * n
     sand = h < cobblestones._SAND + 0.05
-    assert 0.02 < sand.mean() < 0.3                   # joints between the stones
+    assert 0.02 < sand.mean() < 0.3  # joints between the stones
     # rounded: a stone's height rises all the way from its edge to its middle (a dome, not a block)
     c = noise.cells(np.random.default_rng(1), (256, 256), (n, n), jitter=0.7)
     inner = c.edge > 0.3 * c.cell_w
@@ -145,7 +155,7 @@ def test_fabric_warp_passes_over_where_its_parity_says():
     pitch = size / n
     for i in range(n):
         for j in range(n):
-            x, y = int((i + 0.5) * pitch), int((j + 0.5) * pitch)     # crossing of warp i and weft j
+            x, y = int((i + 0.5) * pitch), int((j + 0.5) * pitch)  # crossing of warp i and weft j
             r, _, b = albedo[y, x]
             assert (b > r) == ((i + j) % 2 == 0), (i, j)
             assert h[y, x] > 0.8
@@ -156,10 +166,10 @@ def test_fabric_warp_passes_over_where_its_parity_says():
 def test_panels_have_four_rows_of_rivets_per_panel_and_seams():
     h, _ = panels.panels(512)
     g = noise.count(512, panels._ACROSS, panels._MIN_PX)
-    rivets = h > panels._PLATE + 0.05 + 0.12        # well above the plate, its bulge and dents
-    per_panel = 4 * panels._RIVETS                  # corners are shared by two rows
+    rivets = h > panels._PLATE + 0.05 + 0.12  # well above the plate, its bulge and dents
+    per_panel = 4 * panels._RIVETS  # corners are shared by two rows
     assert _blobs(rivets) == g * g * per_panel
-    assert np.isclose(h[0, 256 + 64], panels._SEAM, atol=0.02)   # a seam runs along the tile's edge
+    assert np.isclose(h[0, 256 + 64], panels._SEAM, atol=0.02)  # a seam runs along the tile's edge
 
 
 def test_planks_have_grooves_between_rows():
@@ -174,6 +184,7 @@ def test_planks_have_grooves_between_rows():
 # --------------------------------------------------------------------------
 # Scenes, the command line
 # --------------------------------------------------------------------------
+
 
 def test_a_scene_takes_its_materials_depth_boundary_and_albedo():
     s = S.override(S.Scene(), height="ridges", size=32)
@@ -206,8 +217,25 @@ def test_hzval_materials_lists_them(capsys):
 
 def test_sweep_of_a_built_in_material(variant, tmp_path, capsys):
     out = tmp_path / "o"
-    assert cli.main(["sweep", "--material", "gravel", "--size", "24", "--azimuths", "0", "--techniques", "horizon",
-                     "--out", str(out), "--quiet"]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--material",
+                "gravel",
+                "--size",
+                "24",
+                "--azimuths",
+                "0",
+                "--techniques",
+                "horizon",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     import json
 
     m = json.loads((out / "metrics.json").read_text())
@@ -223,5 +251,6 @@ def test_export_writes_a_built_in_materials_albedo(variant, tmp_path):
     written = export.write_scene(s, materials.generate("planks", 16).height, tmp_path)
     assert tmp_path / "albedo.png" in written
     s2 = dataclasses.replace(s, material=dataclasses.replace(s.material, albedo=0.5))
-    assert tmp_path / "albedo.png" not in export.write_scene(s2, materials.generate("planks", 16).height,
-                                                               tmp_path / "b")
+    assert tmp_path / "albedo.png" not in export.write_scene(
+        s2, materials.generate("planks", 16).height, tmp_path / "b"
+    )

@@ -77,6 +77,6 @@ def test_vertex_normals_match_the_normal_map(variant):
     h = np.tile(np.arange(8, dtype=np.float32) / 8, (5, 1))
     m = M.displaced_mesh(h, 0.25, "wrap", margin=2, normals=True)
     scene = scene_of(m)
-    si = ray_down(scene, 3.5, 2.5)   # texel centre (row 2, col 3) is a vertex
+    si = ray_down(scene, 3.5, 2.5)  # texel centre (row 2, col 3) is a vertex
     n_map = bake.normal_map(cv.heights_in_texels(h, 0.25), "wrap")[2, 3]
     assert [si.sh_frame.n.x[0], si.sh_frame.n.y[0], si.sh_frame.n.z[0]] == pytest.approx(n_map, abs=1e-4)

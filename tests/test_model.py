@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from hzval.geometry import model
 from hzval.core.errors import InputError
+from hzval.geometry import model
 
 QUAD_P = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
 QUAD_UV = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
@@ -32,8 +32,11 @@ def write_gltf(path, p, uv, f, normals=None, tangents=None):
     """A glTF 2.0 file written by pygltflib, UVs given in hzval's convention (written as 1 - v)."""
     import pygltflib
 
-    arrays = [np.asarray(f, np.uint32).ravel(), np.asarray(p, np.float32),
-              (np.asarray(uv, np.float64) * [1, -1] + [0, 1]).astype(np.float32)]
+    arrays = [
+        np.asarray(f, np.uint32).ravel(),
+        np.asarray(p, np.float32),
+        (np.asarray(uv, np.float64) * [1, -1] + [0, 1]).astype(np.float32),
+    ]
     kinds = [("SCALAR", pygltflib.UNSIGNED_INT), ("VEC3", pygltflib.FLOAT), ("VEC2", pygltflib.FLOAT)]
     names = ["POSITION", "TEXCOORD_0"]
     for name, a, kind in (("NORMAL", normals, "VEC3"), ("TANGENT", tangents, "VEC4")):
@@ -45,13 +48,21 @@ def write_gltf(path, p, uv, f, normals=None, tangents=None):
     for i, (a, (kind, ct)) in enumerate(zip(arrays, kinds)):
         views.append(pygltflib.BufferView(buffer=0, byteOffset=len(blob), byteLength=a.nbytes))
         extra = dict(max=a.max(0).tolist(), min=a.min(0).tolist()) if i == 1 else {}
-        accessors.append(pygltflib.Accessor(bufferView=i, componentType=ct, type=kind,
-                                            count=len(a) if a.ndim > 1 else a.size, **extra))
+        accessors.append(
+            pygltflib.Accessor(
+                bufferView=i, componentType=ct, type=kind, count=len(a) if a.ndim > 1 else a.size, **extra
+            )
+        )
         blob += a.tobytes()
     attrs = pygltflib.Attributes(**{n: i + 1 for i, n in enumerate(names)})
-    g = pygltflib.GLTF2(scenes=[pygltflib.Scene(nodes=[0])], nodes=[pygltflib.Node(mesh=0)],
-                        meshes=[pygltflib.Mesh(primitives=[pygltflib.Primitive(attributes=attrs, indices=0)])],
-                        accessors=accessors, bufferViews=views, buffers=[pygltflib.Buffer(byteLength=len(blob))])
+    g = pygltflib.GLTF2(
+        scenes=[pygltflib.Scene(nodes=[0])],
+        nodes=[pygltflib.Node(mesh=0)],
+        meshes=[pygltflib.Mesh(primitives=[pygltflib.Primitive(attributes=attrs, indices=0)])],
+        accessors=accessors,
+        bufferViews=views,
+        buffers=[pygltflib.Buffer(byteLength=len(blob))],
+    )
     g.set_binary_blob(blob)
     with warnings.catch_warnings():  # a .gltf gets its blob as a .bin beside it, which pygltflib says
         warnings.simplefilter("ignore")
@@ -63,11 +74,18 @@ def write_gltf(path, p, uv, f, normals=None, tangents=None):
 # Shapes
 # ------------------------------------------------------------------------------------------
 
+
 def test_plane_is_todays_tile():
     m = model.load("plane")
     assert m.world_per_uv == 1.0
-    assert m.record() == {"source": "plane", "triangles": 2, "world_per_uv": 1.0, "tangents": "computed",
-                          "mirrored_fraction": 0.0, "seam_edges": 0}
+    assert m.record() == {
+        "source": "plane",
+        "triangles": 2,
+        "world_per_uv": 1.0,
+        "tangents": "computed",
+        "mirrored_fraction": 0.0,
+        "seam_edges": 0,
+    }
     np.testing.assert_array_equal(m.uvs, m.positions[:, :2])
 
 
@@ -90,7 +108,7 @@ def test_sphere_world_per_uv_is_its_analytic_area(radius):
 def test_cube_unwrap():
     c = model.cube()
     assert c.mirrored_fraction == pytest.approx(1 / 3)
-    assert c.seam_edges == 12          # every edge of the cube joins two faces' different UVs
+    assert c.seam_edges == 12  # every edge of the cube joins two faces' different UVs
     assert c.world_per_uv == pytest.approx(1.0)
     assert c.bounding_sphere()[1] == pytest.approx(math.sqrt(3) / 2)
     # outward winding
@@ -110,12 +128,13 @@ def test_closed_shapes_are_closed_and_outward(name):
 
 def test_torus_radius_keywords():
     m = model.torus(major=2.0, minor=0.5, segments=128, sides=64)
-    assert m.world_per_uv == pytest.approx(math.sqrt(4 * math.pi ** 2 * 2.0 * 0.5), rel=1e-3)
+    assert m.world_per_uv == pytest.approx(math.sqrt(4 * math.pi**2 * 2.0 * 0.5), rel=1e-3)
 
 
 # ------------------------------------------------------------------------------------------
 # Files
 # ------------------------------------------------------------------------------------------
+
 
 def test_obj_and_gltf_agree_on_uvs(tmp_path):
     uv = np.array([[0.1, 0.2], [0.9, 0.1], [0.8, 0.7], [0.2, 0.95]])
@@ -142,8 +161,14 @@ def test_y_up_file_turns_z_up(tmp_path):
     # the quad standing in the file's x-z floor, normal +y (up): in hzval's world it lies at z = 0
     p = QUAD_P[:, [0, 2, 1]] * [1, 1, -1]
     path = tmp_path / "y.obj"
-    path.write_text("\n".join([f"v {x} {y} {z}" for x, y, z in p] + [f"vt {u} {v}" for u, v in QUAD_UV]
-                              + ["vn 0 1 0", "f 1/1/1 2/2/1 3/3/1", "f 1/1/1 3/3/1 4/4/1"]) + "\n")
+    path.write_text(
+        "\n".join(
+            [f"v {x} {y} {z}" for x, y, z in p]
+            + [f"vt {u} {v}" for u, v in QUAD_UV]
+            + ["vn 0 1 0", "f 1/1/1 2/2/1 3/3/1", "f 1/1/1 3/3/1 4/4/1"]
+        )
+        + "\n"
+    )
     m = model.load(str(path))
     assert m.up == "y"
     np.testing.assert_allclose(m.positions, QUAD_P, atol=1e-12)
@@ -182,6 +207,7 @@ def test_ply_with_uvs(tmp_path):
 # Bad meshes
 # ------------------------------------------------------------------------------------------
 
+
 def _refused(path, match, **kw):
     with pytest.raises(InputError, match=match) as e:
         model.load(str(path), **kw)
@@ -199,14 +225,30 @@ def test_bad_meshes_name_the_file(tmp_path):
     half[3] = half[2]  # the second triangle's UVs collapse to a segment
     _refused(write_obj(tmp_path / "deg.obj", QUAD_P, half, QUAD_F), "1 of 2 triangles have degenerate")
     fan = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]])
-    _refused(write_obj(tmp_path / "fin.obj", fan, fan[:, :2] * 0.3 + 0.4 + fan[:, 2:] * 0.1,
-                       [[0, 1, 2], [1, 0, 3], [0, 1, 4]]), "non-manifold")
+    _refused(
+        write_obj(
+            tmp_path / "fin.obj",
+            fan,
+            fan[:, :2] * 0.3 + 0.4 + fan[:, 2:] * 0.1,
+            [[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+        ),
+        "non-manifold",
+    )
     _refused(tmp_path / "x.stl", "unknown mesh format")
     _refused(tmp_path / "missing.glb", "no such file")
     (tmp_path / "junk.glb").write_bytes(b"not a glb at all")
     _refused(tmp_path / "junk.glb", "cannot be read")
-    _refused(write_gltf(tmp_path / "badt.glb", QUAD_P, QUAD_UV, QUAD_F, np.tile([0.0, 0, 1], (4, 1)),
-                        np.tile([0.0, 0, 1, 1], (4, 1))), "TANGENT")
+    _refused(
+        write_gltf(
+            tmp_path / "badt.glb",
+            QUAD_P,
+            QUAD_UV,
+            QUAD_F,
+            np.tile([0.0, 0, 1], (4, 1)),
+            np.tile([0.0, 0, 1, 1], (4, 1)),
+        ),
+        "TANGENT",
+    )
 
 
 def test_gltf_without_its_buffer_or_with_compression(tmp_path):
@@ -253,7 +295,7 @@ def _cube_corners():
     where :data:`hzval.geometry.model.CUBE_FACES` mirrors), so no two faces share a UV at a corner."""
     c = model.cube()
     cell = np.repeat(np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]]), 4, axis=0)
-    uv = (c.uvs * 0.3 + 0.01 + cell * 0.33)
+    uv = c.uvs * 0.3 + 0.01 + cell * 0.33
     corners, idx = np.unique(np.round(c.positions, 9), axis=0, return_inverse=True)
     return c, uv, corners, idx.ravel()
 
@@ -261,9 +303,18 @@ def _cube_corners():
 def test_ply_with_per_face_texcoords(tmp_path):
     """A scanner's PLY: shared vertices, UVs per face corner (``property list uchar float texcoord``)."""
     c, uv, corners, idx = _cube_corners()
-    lines = ["ply", "format ascii 1.0", f"element vertex {len(corners)}", "property float x",
-             "property float y", "property float z", f"element face {len(c.faces)}",
-             "property list uchar int vertex_indices", "property list uchar float texcoord", "end_header"]
+    lines = [
+        "ply",
+        "format ascii 1.0",
+        f"element vertex {len(corners)}",
+        "property float x",
+        "property float y",
+        "property float z",
+        f"element face {len(c.faces)}",
+        "property list uchar int vertex_indices",
+        "property list uchar float texcoord",
+        "end_header",
+    ]
     lines += [" ".join(map(str, p)) for p in corners]
     for f in c.faces:
         lines.append("3 " + " ".join(map(str, idx[f])) + " 6 " + " ".join(f"{u} {v}" for u, v in uv[f]))

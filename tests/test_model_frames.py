@@ -14,12 +14,11 @@ import math
 import numpy as np
 import pytest
 
+from hzval.bake.maps import BakeParams, bake
 from hzval.scene import lookup
 from hzval.scene import spec as S
-from hzval.techniques import surface
 from hzval.techniques import registry as technique
-from hzval.core import conventions as cv
-from hzval.bake.maps import BakeParams, bake
+from hzval.techniques import surface
 
 
 def _scene(n=24, effects="shadow,diffuse", spp=2):
@@ -68,8 +67,9 @@ def test_a_turned_frame_sees_the_light_turned_back(variant, name):
     T = technique.get(name)
     a, b = T.build(plane), T.build(framed)
     for az in (0.0, 110.0):
-        np.testing.assert_allclose(b.render(az + 40.0).layers["factor"], a.render(az).layers["factor"],
-                                   atol=2e-4)
+        np.testing.assert_allclose(
+            b.render(az + 40.0).layers["factor"], a.render(az).layers["factor"], atol=2e-4
+        )
 
 
 @pytest.mark.parametrize("name", ["horizon", "pom"])
@@ -83,6 +83,7 @@ def test_the_base_meshs_shadow_multiplies_the_factor(variant, name):
 
     def macro(direction):
         from hzval.core.backend import mi
+
         return mi.Float(dark.ravel())
 
     plane, framed = _contexts(scene, macro=macro)
@@ -92,4 +93,4 @@ def test_the_base_meshs_shadow_multiplies_the_factor(variant, name):
     np.testing.assert_allclose(fb.layers["factor"], fa.layers["factor"] * dark, atol=1e-5)
     lit = dark > 0
     np.testing.assert_allclose(fb.image[lit], fa.image[lit], atol=1e-5)
-    assert np.all(fb.image[~lit] == 0.0)      # diffuse and shadow only: no ambient term
+    assert np.all(fb.image[~lit] == 0.0)  # diffuse and shadow only: no ambient term

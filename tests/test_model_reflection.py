@@ -21,24 +21,34 @@ import numpy as np
 import pytest
 
 from hzval.bake import maps as hz_bake
+from hzval.bake.maps import BakeParams, bake
 from hzval.cli import main as cli
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
 from hzval.geometry import model
-from hzval.truth import model as model_truth
 from hzval.scene import spec as S
 from hzval.techniques import registry as technique
-from hzval.truth import plane as truth
-from hzval.core import conventions as cv
-from hzval.bake.maps import BakeParams, bake
-from hzval.core.errors import InputError
 from hzval.techniques.horizon import DEFAULT_FADE
+from hzval.truth import model as model_truth
+from hzval.truth import plane as truth
 from hzval.truth.model import ModelTruth
 
 EFFECTS = "shadow,diffuse,reflection_occlusion"
 
 
 def _scene(n=48, **kw):
-    base = dict(size=n, depth=0.08, spp=4, azimuths="30", boundary="open", camera="orthographic",
-                view_elevation=60, view_azimuth=-90, resolution=(n, n), effects=EFFECTS)
+    base = dict(
+        size=n,
+        depth=0.08,
+        spp=4,
+        azimuths="30",
+        boundary="open",
+        camera="orthographic",
+        view_elevation=60,
+        view_azimuth=-90,
+        resolution=(n, n),
+        effects=EFFECTS,
+    )
     base.update(kw)
     return S.override(S.Scene(), **base)
 
@@ -56,9 +66,11 @@ def _quad(uvs):
     return model.build("quad", p, np.array(uvs, float), np.array([(0, 1, 2), (0, 2, 3)]))
 
 
-QUADS = {"xy": ([(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
-         "mirrored-u": ([(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
-         "turned-90": ([(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90)}
+QUADS = {
+    "xy": ([(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
+    "mirrored-u": ([(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
+    "turned-90": ([(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90),
+}
 
 
 def _quad_run(scene, h, name):
@@ -68,7 +80,11 @@ def _quad_run(scene, h, name):
     mt = ModelTruth(scene, hq, _quad(uvs))
     tech = technique.get("horizon").build(_context(scene, hq, mt.samples()))
     az = scene.light.azimuths_deg[0]
-    return mt.seen, mt.render(az).layers["reflection_occlusion"], tech.render(az).layers["reflection_occlusion"]
+    return (
+        mt.seen,
+        mt.render(az).layers["reflection_occlusion"],
+        tech.render(az).layers["reflection_occlusion"],
+    )
 
 
 def test_the_xy_quads_reflection_is_the_planes(variant):
@@ -82,8 +98,8 @@ def test_the_xy_quads_reflection_is_the_planes(variant):
     Rp = p.layers["reflection_occlusion"]
     m = seen & (p.mask if p.mask is not None else True)
     assert m.mean() > 0.8
-    assert 0.3 < Rp[m].mean() < 0.99                     # the relief blocks part of the lobe
-    assert np.abs(R - Rp)[m].mean() < 1e-4               # the same rays and streams
+    assert 0.3 < Rp[m].mean() < 0.99  # the relief blocks part of the lobe
+    assert np.abs(R - Rp)[m].mean() < 1e-4  # the same rays and streams
     assert abs(R[m].mean() - Rp[m].mean()) < 1e-4
     np.testing.assert_allclose(o[m], op[m], atol=1e-4)
     mae, mae_p = np.abs(o - R)[m].mean(), np.abs(op - Rp)[m].mean()
@@ -108,7 +124,7 @@ def _sphere_fade(frames, xy, normal_map, spp, up):
     """Per pixel, Toolbag's fade with the horizon at 0: ``saturate(1 + fade dot(r, up))^2``, ``r`` the
     view reflected about the normal map carried into the world by each sample's frame, ``up`` each
     sample's vertex normal (``(N, 3)``) or one vector for all (NumPy, from the seed's formula)."""
-    t, b, n, v = (frames[:, 3 * k:3 * k + 3].astype(np.float64) for k in range(4))
+    t, b, n, v = (frames[:, 3 * k : 3 * k + 3].astype(np.float64) for k in range(4))
     nt = cv.bilinear_at(normal_map, xy[:, 0], xy[:, 1], "wrap")
     nt /= np.linalg.norm(nt, axis=1, keepdims=True)
     ns = t * nt[:, :1] + b * nt[:, 1:2] + n * nt[:, 2:]
@@ -121,8 +137,16 @@ def test_the_fade_uses_the_interpolated_vertex_normal(variant):
     """A sphere in perspective, the horizon map zeroed (``s_r = 0``: Toolbag's own term): the
     technique's ``o`` is the seed's formula with each sample's interpolated vertex normal, pixel for
     pixel, and far from the same formula with the tile's constant z."""
-    scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
-                   view_azimuth=-30, resolution=(64, 64), spp=2)
+    scene = _scene(
+        n=32,
+        boundary="wrap",
+        mesh="sphere",
+        camera="perspective",
+        view_elevation=35,
+        view_azimuth=-30,
+        resolution=(64, 64),
+        spp=2,
+    )
     h = S.load_material_height(scene.material).height
     mt = ModelTruth(scene, h, model.load("sphere"))
     samples = mt.samples()
@@ -140,8 +164,24 @@ def test_the_fade_uses_the_interpolated_vertex_normal(variant):
 
 def test_a_sweep_on_the_sphere_scores_reflection_every_frame(tmp_path):
     out = tmp_path / "sphere"
-    args = ["sweep", "--size", "32", "--spp", "2", "--azimuths", "-30,30,90", "--quiet", "--resolution", "64x64",
-            "--mesh", "sphere", "--effects", EFFECTS, "--out", str(out)]
+    args = [
+        "sweep",
+        "--size",
+        "32",
+        "--spp",
+        "2",
+        "--azimuths",
+        "-30,30,90",
+        "--quiet",
+        "--resolution",
+        "64x64",
+        "--mesh",
+        "sphere",
+        "--effects",
+        EFFECTS,
+        "--out",
+        str(out),
+    ]
     assert cli.main(args) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert m["camera"]["kind"] == "perspective"
@@ -156,19 +196,36 @@ def test_a_sweep_on_the_sphere_scores_reflection_every_frame(tmp_path):
 def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
     """The estimate before allocating counts the reflection's rays: a budget that holds the sphere
     without them refuses it with them, in one line naming the tolerance."""
-    plain = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
-                   view_azimuth=-30, resolution=(64, 64), spp=2, effects="shadow,diffuse")
+    plain = _scene(
+        n=32,
+        boundary="wrap",
+        mesh="sphere",
+        camera="perspective",
+        view_elevation=35,
+        view_azimuth=-30,
+        resolution=(64, 64),
+        spp=2,
+        effects="shadow,diffuse",
+    )
     lobe = dataclasses.replace(plain, effects=tuple(EFFECTS.split(",")))
     assert model_truth.bytes_per_sample(lobe) > model_truth.bytes_per_sample(plain)
     h = S.load_material_height(plain.material).height
     sphere = model.load("sphere")
     from hzval.geometry import displace
-    triangles, mesh_bytes = displace.estimate(sphere, h.shape, "wrap", height=h, depth=plain.material.depth,
-                                              tolerance=plain.material.truth_tolerance)
+
+    triangles, mesh_bytes = displace.estimate(
+        sphere,
+        h.shape,
+        "wrap",
+        height=h,
+        depth=plain.material.depth,
+        tolerance=plain.material.truth_tolerance,
+    )
     base = mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
     pixels = 64 * 64 * plain.spp
-    monkeypatch.setattr(hz_bake, "available_bytes",
-                        lambda: base + model_truth.bytes_per_sample(plain) * pixels + 1)
+    monkeypatch.setattr(
+        hz_bake, "available_bytes", lambda: base + model_truth.bytes_per_sample(plain) * pixels + 1
+    )
     ModelTruth(plain, h, sphere)
     with pytest.raises(InputError, match="truth-tolerance"):
         ModelTruth(lobe, h, sphere)
@@ -179,8 +236,17 @@ def test_specular_in_perspective_on_a_model_is_each_samples_own_view(variant):
     where the truth sees the light, its Blinn-Phong shading is the techniques' at its own hits."""
     from hzval.techniques import surface
 
-    scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
-                   view_azimuth=-30, resolution=(64, 64), spp=2, effects="shadow,diffuse,specular")
+    scene = _scene(
+        n=32,
+        boundary="wrap",
+        mesh="sphere",
+        camera="perspective",
+        view_elevation=35,
+        view_azimuth=-30,
+        resolution=(64, 64),
+        spp=2,
+        effects="shadow,diffuse,specular",
+    )
     h = S.load_material_height(scene.material).height
     mt = ModelTruth(scene, h, model.load("sphere"))
     plain = surface.unshadowed(_context(scene, h, mt.samples("truth")))
@@ -189,7 +255,7 @@ def test_specular_in_perspective_on_a_model_is_each_samples_own_view(variant):
     assert lit.mean() > 0.2
     img = plain.render(30.0)[0].image
     assert np.abs(t.image - img)[lit].max() < 1e-4
-    assert img[lit].max() > 1.2 * np.percentile(img[lit], 50)          # a highlight, not diffuse alone
+    assert img[lit].max() > 1.2 * np.percentile(img[lit], 50)  # a highlight, not diffuse alone
 
 
 def test_the_plane_still_refuses_a_perspective_reflection():
@@ -204,8 +270,17 @@ def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(varian
     silhouette: ``R = 1`` exactly where the vertex normal faces the camera within 25 degrees (the
     lobe would need a half vector 32 degrees off the normal, a share of 2e-5, to reach the
     horizon), below 1 where it grazes."""
-    scene = _scene(n=32, boundary="wrap", mesh="sphere", camera="perspective", view_elevation=35,
-                   view_azimuth=-30, resolution=(64, 64), spp=4, effects="shadow,reflection_occlusion")
+    scene = _scene(
+        n=32,
+        boundary="wrap",
+        mesh="sphere",
+        camera="perspective",
+        view_elevation=35,
+        view_azimuth=-30,
+        resolution=(64, 64),
+        spp=4,
+        effects="shadow,reflection_occlusion",
+    )
     mt = ModelTruth(scene, np.zeros((32, 32), np.float32), model.load("sphere"))
     R = mt.render(30.0).layers["reflection_occlusion"].ravel()
     f = mt.samples("truth").frames
@@ -213,4 +288,4 @@ def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(varian
     facing, grazing = mt.seen.ravel() & (nv > 0.9), mt.seen.ravel() & (nv < 0.3)
     assert facing.sum() > 300 and grazing.sum() > 20
     assert R[facing].min() == 1.0
-    assert R[grazing].min() < 0.95                # the lobe's lower edge goes below the horizon there
+    assert R[grazing].min() < 0.95  # the lobe's lower edge goes below the horizon there

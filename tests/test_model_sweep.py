@@ -12,8 +12,20 @@ import pytest
 
 from hzval.cli import main as cli
 
-SMALL = ["sweep", "--size", "24", "--depth", "0.1", "--spp", "1", "--azimuths", "-30,30", "--quiet",
-         "--resolution", "40x40"]
+SMALL = [
+    "sweep",
+    "--size",
+    "24",
+    "--depth",
+    "0.1",
+    "--spp",
+    "1",
+    "--azimuths",
+    "-30,30",
+    "--quiet",
+    "--resolution",
+    "40x40",
+]
 
 
 def test_a_sweep_on_the_cube(tmp_path, capsys):
@@ -23,7 +35,7 @@ def test_a_sweep_on_the_cube(tmp_path, capsys):
     assert m["mesh"]["source"] == "cube" and m["mesh"]["triangles"] == 12
     assert m["mesh"]["mirrored_fraction"] > 0 and m["mesh"]["seam_edges"] == 12
     assert m["parameters"]["mesh"] == "cube"
-    assert m["camera"]["kind"] == "perspective"              # the models' default view: three faces
+    assert m["camera"]["kind"] == "perspective"  # the models' default view: three faces
     assert set(m["techniques"]) == {"horizon", "pom"}
     assert any(w.startswith("terrain: not on a model") for w in m["warnings"])
     for f in m["frames"]:
@@ -35,8 +47,10 @@ def test_a_sweep_on_the_cube(tmp_path, capsys):
     assert "terrain: not on a model" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("spec,needle", [("cubee", "did you mean cube"), ("nosuch.obj", "no such file"),
-                                         ("mesh.stl", "unknown mesh format")])
+@pytest.mark.parametrize(
+    "spec,needle",
+    [("cubee", "did you mean cube"), ("nosuch.obj", "no such file"), ("mesh.stl", "unknown mesh format")],
+)
 def test_a_bad_mesh_is_one_line(tmp_path, capsys, spec, needle):
     out = tmp_path / "out"
     assert cli.main(SMALL + ["--mesh", spec, "--out", str(out)]) == 2
@@ -61,9 +75,15 @@ def test_parallax_and_mips_work_on_a_model(tmp_path):
     own tangent frame toward the truth's hit: the horizon map's error comes down toward its perfect-
     parallax floor; a mip filter reads the pixels' footprints on the model."""
     runs = {}
-    for name, flags in (("plain", []), ("pom", ["--parallax", "occlusion"]), ("mips", ["--filter", "trilinear"])):
+    for name, flags in (
+        ("plain", []),
+        ("pom", ["--parallax", "occlusion"]),
+        ("mips", ["--filter", "trilinear"]),
+    ):
         out = tmp_path / name
-        assert cli.main(SMALL + ["--size", "48", "--spp", "2", "--mesh", "cube", "--out", str(out)] + flags) == 0
+        assert (
+            cli.main(SMALL + ["--size", "48", "--spp", "2", "--mesh", "cube", "--out", str(out)] + flags) == 0
+        )
         runs[name] = json.loads((out / "metrics.json").read_text())
     err = lambda m, key: sum(f["techniques"]["horizon"][key] for f in m["frames"]) / len(m["frames"])
     plain, occl = err(runs["plain"], "visibility_mae"), err(runs["pom"], "visibility_mae")

@@ -10,23 +10,29 @@
 - The base mesh's shadow (a torus under a low light) is the truth's shadow too.
 """
 
-import dataclasses
-
 import numpy as np
-import pytest
 
+from hzval.bake.maps import BakeParams, bake
 from hzval.geometry import model
 from hzval.scene import spec as S
-from hzval.techniques import surface
 from hzval.techniques import registry as technique
+from hzval.techniques import surface
 from hzval.truth import plane as truth
-from hzval.bake.maps import BakeParams, bake
 from hzval.truth.model import ModelTruth
 
 
 def _scene(n=48, **kw):
-    base = dict(size=n, depth=0.08, spp=4, azimuths="-45,30", boundary="open", camera="orthographic",
-                view_elevation=60, view_azimuth=-90, resolution=(n, n))
+    base = dict(
+        size=n,
+        depth=0.08,
+        spp=4,
+        azimuths="-45,30",
+        boundary="open",
+        camera="orthographic",
+        view_elevation=60,
+        view_azimuth=-90,
+        resolution=(n, n),
+    )
     base.update(kw)
     return S.override(S.Scene(), **base)
 
@@ -47,9 +53,11 @@ def _quad(uvs):
     return model.build("quad", p, np.array(uvs, float), np.array([(0, 1, 2), (0, 2, 3)]))
 
 
-QUADS = {"xy": ([(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
-         "mirrored-u": ([(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
-         "turned-90": ([(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90)}
+QUADS = {
+    "xy": ([(0, 0), (1, 0), (1, 1), (0, 1)], lambda a: a),
+    "mirrored-u": ([(1, 0), (0, 0), (0, 1), (1, 1)], lambda a: a[:, ::-1]),
+    "turned-90": ([(1, 0), (1, 1), (0, 1), (0, 0)], np.rot90),
+}
 
 
 def _render_quad(scene, h, name):
@@ -100,8 +108,15 @@ def test_the_xy_quad_is_the_plane(variant):
 
 
 def test_lit_truth_is_the_unshadowed_shading_at_its_hits(variant):
-    scene = _scene(n=48, mesh="cube", camera="perspective", view_elevation=35, view_azimuth=-30, boundary="wrap",
-                   effects="shadow,diffuse")
+    scene = _scene(
+        n=48,
+        mesh="cube",
+        camera="perspective",
+        view_elevation=35,
+        view_azimuth=-30,
+        boundary="wrap",
+        effects="shadow,diffuse",
+    )
     h = _height(scene)
     mt = ModelTruth(scene, h, model.load("cube"))
     plain = surface.unshadowed(_context(scene, h, mt.samples("truth")))
@@ -117,13 +132,21 @@ def test_the_displaced_cube_is_closed(variant):
     """From straight above (orthographic, top), every pixel whose centre lies over the cube's top
     face sees the cube: a crack at a welded seam would let a camera ray through."""
     n = 64
-    scene = _scene(n=n, mesh="cube", camera="top", boundary="wrap", depth=0.1, view_elevation=None,
-                   view_azimuth=None, resolution=None)
+    scene = _scene(
+        n=n,
+        mesh="cube",
+        camera="top",
+        boundary="wrap",
+        depth=0.1,
+        view_elevation=None,
+        view_azimuth=None,
+        resolution=None,
+    )
     mt = ModelTruth(scene, _height(scene), model.load("cube"))
     v = mt.view
-    c = (np.arange(n) + 0.5) / n * 2 - 1                         # film coordinates of pixel centres
+    c = (np.arange(n) + 0.5) / n * 2 - 1  # film coordinates of pixel centres
     half = v.film_size[0] / 2
-    inside = (np.abs(c * half) < 0.45)                           # the top face spans [-0.5, 0.5]
+    inside = np.abs(c * half) < 0.45  # the top face spans [-0.5, 0.5]
     over = inside[None, :] & inside[:, None]
     assert over.sum() > 0.3 * n * n
     assert mt.seen[over].all()
@@ -131,8 +154,17 @@ def test_the_displaced_cube_is_closed(variant):
 
 def test_the_base_meshs_shadow_is_the_truths(variant):
     """A torus under a low light shadows itself: the truth is dark where the base mesh is."""
-    scene = _scene(n=32, mesh="torus", camera="perspective", view_elevation=50, view_azimuth=-90,
-                   boundary="wrap", elevation=12, azimuths="0", resolution=(64, 64))
+    scene = _scene(
+        n=32,
+        mesh="torus",
+        camera="perspective",
+        view_elevation=50,
+        view_azimuth=-90,
+        boundary="wrap",
+        elevation=12,
+        azimuths="0",
+        resolution=(64, 64),
+    )
     mt = ModelTruth(scene, _height(scene), model.load("torus"))
     assert mt.macro_shadowed(0.0) > 0.02
     t = mt.render(0.0)

@@ -22,9 +22,11 @@ def test_a_cap_lies_on_its_sphere(tmp_path, radius, sign):
     else:
         centre = np.array([0.0, 0.0, -sign * radius])
         np.testing.assert_allclose(np.linalg.norm(p - centre, axis=1), radius, rtol=1e-6)
-        np.testing.assert_allclose(n, sign * (p - centre) / radius, atol=1e-6)   # outward, or inward for a bowl
-    assert n[:, 2].min() > 0                                                     # every normal faces up
-    assert abs(m.world_per_uv - 1.0) < 0.06                                      # one texture per world unit
+        np.testing.assert_allclose(
+            n, sign * (p - centre) / radius, atol=1e-6
+        )  # outward, or inward for a bowl
+    assert n[:, 2].min() > 0  # every normal faces up
+    assert abs(m.world_per_uv - 1.0) < 0.06  # one texture per world unit
     assert m.mirrored_fraction == 0.0
 
 
@@ -33,24 +35,48 @@ def test_the_study_end_to_end(tmp_path):
     from hzval.cli import main as cli
 
     out = tmp_path / "m"
-    assert cli.main(["models", "--material", "spikes", "--size", "24", "--resolution", "24x24", "--spp", "1",
-                     "--azimuths", "0,180", "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "models",
+                "--material",
+                "spikes",
+                "--size",
+                "24",
+                "--resolution",
+                "24x24",
+                "--spp",
+                "1",
+                "--azimuths",
+                "0,180",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     d = json.loads((out / "models.json").read_text())
     cases = [r["case"] for r in d["rows"]]
-    assert cases == [f"cap+{r:g}" for r in models_study.RADII] + [f"bowl+{r:g}" for r in models_study.BOWLS] \
-        + ["ring", "flat", "cube"]
+    assert cases == [f"cap+{r:g}" for r in models_study.RADII] + [
+        f"bowl+{r:g}" for r in models_study.BOWLS
+    ] + ["ring", "flat", "cube"]
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
-        assert 0.0 < r["techniques"]["horizon"]["reflection_mae"] < 1.0      # reflection occlusion by default
-        assert r["techniques"]["pom"]["reflection_mae"] is None               # pom has no fade
+        assert 0.0 < r["techniques"]["horizon"]["reflection_mae"] < 1.0  # reflection occlusion by default
+        assert r["techniques"]["pom"]["reflection_mae"] is None  # pom has no fade
         band = r["band"]["techniques"]["horizon"]
         assert 0.0 <= band["mae"]["mean"] <= 1.0 and band["mae"]["se"] >= 0.0
         assert ("excess" in band) == (r["case"] not in ("flat", "cube"))
-        assert ("seam" in band) == (r["case"] == "cube")       # the cube alone has seams
+        assert ("seam" in band) == (r["case"] == "cube")  # the cube alone has seams
     rows = {r["case"]: r for r in d["rows"]}
     # the truth is more lit on a convex cap than on the flat patch's same texels, less in a bowl
     assert rows["cap+0.5"]["band"]["lit_excess"]["mean"] > 0 > rows["bowl+1"]["band"]["lit_excess"]["mean"]
-    assert d["trend"]["horizon"]["mae"]["verdict"] in ("rises monotonically", "rises within noise", "does not rise")
+    assert d["trend"]["horizon"]["mae"]["verdict"] in (
+        "rises monotonically",
+        "rises within noise",
+        "does not rise",
+    )
     assert rows["ring"]["principal_curvatures"] == {"along_ring_x": -0.5, "across_tube_y": 1.0}
     assert (out / "index.html").is_file() and (out / "plots" / "models.png").is_file()
     assert (out / "plots" / "reflection.png").is_file()
@@ -73,8 +99,8 @@ def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path)
     # the normal curvature is the height's second derivative at the centre: z ~ k_n s^2 / 2 toward n
     kx = np.polyfit(x, zx, 4)[2] * 2
     ky = np.polyfit(y, zy, 4)[2] * 2
-    assert kx == pytest.approx(1.0 / rho, rel=0.02)          # bends toward +n (up): concave along x
-    assert ky == pytest.approx(-1.0 / tube, rel=0.02)        # bends away: convex across the tube
+    assert kx == pytest.approx(1.0 / rho, rel=0.02)  # bends toward +n (up): concave along x
+    assert ky == pytest.approx(-1.0 / tube, rel=0.02)  # bends away: convex across the tube
     # every point lies on the torus: distance to the tube's centre circle is the tube radius
     c = np.array([0.0, 0.0, rho])
     q = p - c
@@ -84,8 +110,10 @@ def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path)
 
 
 def test_the_rings_normal_curvature_along_each_light_is_eulers():
-    row = {"principal_curvatures": {"along_ring_x": -0.5, "across_tube_y": 1.0},
-           "band": {"techniques": {"horizon": {"per_frame_excess": [0.1, 0.2, 0.3]}}}}
+    row = {
+        "principal_curvatures": {"along_ring_x": -0.5, "across_tube_y": 1.0},
+        "band": {"techniques": {"horizon": {"per_frame_excess": [0.1, 0.2, 0.3]}}},
+    }
     by = models_study._by_azimuth(row, (0.0, 45.0, 90.0))
     assert [round(b["normal_curvature"], 12) for b in by] == [-0.5, 0.25, 1.0]
     assert [b["excess"]["horizon"] for b in by] == [0.1, 0.2, 0.3]
@@ -93,10 +121,18 @@ def test_the_rings_normal_curvature_along_each_light_is_eulers():
 
 def test_the_terminal_table_shows_reflection_and_the_bugs():
     t = {"visibility_mae": 0.1, "perfect_parallax_mae": 0.05, "reflection_mae": 0.2}
-    data = {"rows": [{"case": "flat", "curvature": 0.0, "techniques": {"horizon": t}},
-                     {"case": "cube", "curvature": None, "techniques": {"horizon": {**t, "reflection_mae": None}}}],
-            "bugs": {"technique": "horizon", "cases": {"cube": {"bugs": {"none": {"mirrored_ratio": 1.0},
-                                                                         "swap-uv": {"mirrored_ratio": 1.5}}}}}}
+    data = {
+        "rows": [
+            {"case": "flat", "curvature": 0.0, "techniques": {"horizon": t}},
+            {"case": "cube", "curvature": None, "techniques": {"horizon": {**t, "reflection_mae": None}}},
+        ],
+        "bugs": {
+            "technique": "horizon",
+            "cases": {
+                "cube": {"bugs": {"none": {"mirrored_ratio": 1.0}, "swap-uv": {"mirrored_ratio": 1.5}}}
+            },
+        },
+    }
     text = models_study.summary_table(data).splitlines()
     assert "horizon |o-R|" in text[0] and text[1].split()[-1] == "0.2000" and text[2].split()[-1] == "-"
     assert text[-1].endswith("swap-uv 1.50x") and "none" not in text[-1].split(":")[-1]

@@ -13,17 +13,19 @@ import math
 
 import numpy as np
 import pytest
+from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 from hzval.cli import main as cli
+from hzval.core.errors import InputError
 from hzval.techniques import pom
 from hzval.truth import plane as truth
-from hzval.core.errors import InputError
-from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
 def march(h, depth, boundary="open", **kw):
     settings = {k: kw.pop(k) for k in ("steps", "variant", "softness") if k in kw}
-    return pom.RayMarchShadow(make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), **settings)
+    return pom.RayMarchShadow(
+        make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), **settings
+    )
 
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
@@ -33,15 +35,15 @@ def test_flat_plane_is_fully_lit(variant, boundary, variant_):
     for azimuth in (0.0, 77.0, 200.0, -45.0):
         f = m.render(azimuth)
         assert np.all(f.layers["factor"] == 1.0)
-        assert np.all(f.image == 1.0)          # shadow only: E times the factor
+        assert np.all(f.image == 1.0)  # shadow only: E times the factor
 
 
 def plateau_wall(width: int = 4, first: int = 16, n: int = 40, axis: str = "col") -> np.ndarray:
     h = np.zeros((n, n), np.float32)
     if axis == "col":
-        h[:, first:first + width] = 1.0
+        h[:, first : first + width] = 1.0
     else:
-        h[first:first + width, :] = 1.0
+        h[first : first + width, :] = 1.0
     return h
 
 
@@ -57,7 +59,7 @@ def test_plateau_wall_shadow_is_h_over_tan_e_long_within_one_step(variant, steps
     F = m.render(azimuth).layers["factor"]
     length = WALL_H / math.tan(math.radians(elevation))
     step = length / steps
-    lines = F[10:30] if axis == "col" else F[:, 10:30].T     # lines across the wall, texels along the light
+    lines = F[10:30] if axis == "col" else F[:, 10:30].T  # lines across the wall, texels along the light
     # light from -x (180) or from +y, up the image (90): the shadow runs toward larger columns / rows
     behind = lines[:, 20:] if azimuth in (180.0, 90.0) else lines[:, :16][:, ::-1]
     in_front = lines[:, :16] if azimuth in (180.0, 90.0) else lines[:, 20:]
@@ -78,9 +80,10 @@ def test_thin_wall_shadow_converges_to_h_over_tan_e(variant, elevation):
         row = march(row_wall(40, 40, WALL_AT), WALL_H / 40, elevation=elevation, steps=steps)
         worst = 0.0
         for az in (0.0, 45.0, 180.0):
-            for across, c in wall_shadow_extents(lambda: col.render(az).layers["factor"],
-                                                 lambda: row.render(az).layers["factor"], az):
-                assert across <= expected * c + 0.05                  # never longer than the geometry's
+            for across, c in wall_shadow_extents(
+                lambda: col.render(az).layers["factor"], lambda: row.render(az).layers["factor"], az
+            ):
+                assert across <= expected * c + 0.05  # never longer than the geometry's
                 worst = max(worst, (expected * c - across) / c)
         assert worst <= 2.0 * expected / steps + 0.1, (steps, worst)
         errors.append(worst)
@@ -93,16 +96,21 @@ def test_soft_variant_follows_tatarchuks_formula_behind_a_wall(variant):
     while that is positive, 1 beyond; and the soft factor is never below the hard one."""
     e, w = 30.0, 2.0
     hard = march(plateau_wall(), WALL_H / 40, elevation=e, steps=256, spp=16).render(180.0).layers["factor"]
-    soft = march(plateau_wall(), WALL_H / 40, elevation=e, steps=256, spp=16, variant="soft",
-                 softness=w).render(180.0).layers["factor"]
+    soft = (
+        march(plateau_wall(), WALL_H / 40, elevation=e, steps=256, spp=16, variant="soft", softness=w)
+        .render(180.0)
+        .layers["factor"]
+    )
     assert np.all(soft >= hard - 1e-6)
     tan_e = math.tan(math.radians(e))
-    d = np.arange(20, 40) + 0.5 - 19.5                       # pixel centres behind the far edge at x = 19.5
+    d = np.arange(20, 40) + 0.5 - 19.5  # pixel centres behind the far edge at x = 19.5
     expect = np.clip(1.0 - w * (WALL_H / d - tan_e), 0.0, 1.0)
     got = soft[10:30, 20:].mean(axis=0)
     # a pixel spans d +- 0.5, over which the formula is curved: compare within that spread
-    spread = np.abs(np.clip(1.0 - w * (WALL_H / np.maximum(d - 0.5, 0.3) - tan_e), 0, 1) -
-                    np.clip(1.0 - w * (WALL_H / (d + 0.5) - tan_e), 0, 1))
+    spread = np.abs(
+        np.clip(1.0 - w * (WALL_H / np.maximum(d - 0.5, 0.3) - tan_e), 0, 1)
+        - np.clip(1.0 - w * (WALL_H / (d + 0.5) - tan_e), 0, 1)
+    )
     assert np.all(np.abs(got - expect) <= spread + 0.02), np.c_[d, got, expect]
 
 
@@ -131,14 +139,23 @@ def test_converges_to_the_truths_visibility_on_the_bricks(variant):
     maes = []
     for steps in (4, 16, 64):
         m = pom.RayMarchShadow(scene, h, steps=steps)
-        maes.append(float(np.mean([np.abs(m.render(az).layers["factor"] - v).mean() for az, v in zip(azimuths, V)])))
+        maes.append(
+            float(np.mean([np.abs(m.render(az).layers["factor"] - v).mean() for az, v in zip(azimuths, V)]))
+        )
     assert maes[0] > maes[1] > maes[2], maes
     assert maes[2] < 0.008 and maes[0] < 0.03, maes
 
 
-@pytest.mark.parametrize("kw, needle", [({"steps": 0}, "steps"), ({"steps": 2.5}, "steps"),
-                                        ({"variant": "fuzzy"}, "variant"), ({"softness": -1.0}, "softness"),
-                                        ({"softness": float("nan")}, "softness")])
+@pytest.mark.parametrize(
+    "kw, needle",
+    [
+        ({"steps": 0}, "steps"),
+        ({"steps": 2.5}, "steps"),
+        ({"variant": "fuzzy"}, "variant"),
+        ({"softness": -1.0}, "softness"),
+        ({"softness": float("nan")}, "softness"),
+    ],
+)
 def test_bad_settings_are_input_errors(variant, kw, needle):
     with pytest.raises(InputError, match=needle):
         march(np.zeros((4, 4)), 0.1, **kw)
@@ -146,13 +163,38 @@ def test_bad_settings_are_input_errors(variant, kw, needle):
 
 def test_sweep_scores_it_with_its_own_options(variant, tmp_path, capsys):
     out = tmp_path / "out"
-    assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "1", "--techniques", "pom,horizon",
-                     "--pom-steps", "8", "--pom-variant", "soft", "--quiet", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "24",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--techniques",
+                "pom,horizon",
+                "--pom-steps",
+                "8",
+                "--pom-variant",
+                "soft",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
-    assert list(m["techniques"]) == ["horizon", "pom"]            # registry order
+    assert list(m["techniques"]) == ["horizon", "pom"]  # registry order
     assert m["techniques"]["pom"]["parameters"] == {
-        "technique": "height-field ray march (parallax occlusion mapping's shadows)", "steps": 8,
-        "variant": "soft", "softness": pom.DEFAULT_SOFTNESS, "simulated": ["shadow", "diffuse"]}
+        "technique": "height-field ray march (parallax occlusion mapping's shadows)",
+        "steps": 8,
+        "variant": "soft",
+        "softness": pom.DEFAULT_SOFTNESS,
+        "simulated": ["shadow", "diffuse"],
+    }
     assert 0 <= m["frames"][0]["techniques"]["pom"]["visibility_mae"] <= 1
     # bad steps: one line, exit 2, nothing written
     bad = tmp_path / "bad"

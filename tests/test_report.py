@@ -20,13 +20,14 @@ from hzval.report import pages as report
 
 NASTY_NAME = "<b>x.png"
 COMMAND = "hzval sweep '<b>x.png' --azimuths -15:15:15 --out 'a&b' && echo \"<script>alert(1)</script>\""
-WEIRD_FOLDER = "frames/az +0 #1"    # a frame folder with a space and a '#'
+WEIRD_FOLDER = "frames/az +0 #1"  # a frame folder with a space and a '#'
 LEAK_RGB, FALSE_SHADOW_RGB = (255, 127, 14), (31, 119, 180)
 
 
 # --------------------------------------------------------------------------
 # A fake sweep output: PNG previews with some structure, and its metrics
 # --------------------------------------------------------------------------
+
 
 def _bricks(n: int) -> np.ndarray:
     """Height in [0, 1]: a running-bond brick wall with bevelled edges, ``n x n``."""
@@ -69,12 +70,17 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
     gy, gx = np.gradient(h * depth)
     nrm = np.stack([-gx, gy, np.ones_like(h)], axis=-1)
     nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
-    L = np.array([math.cos(math.radians(el)) * math.cos(math.radians(az)),
-                  math.cos(math.radians(el)) * math.sin(math.radians(az)), math.sin(math.radians(el))])
+    L = np.array(
+        [
+            math.cos(math.radians(el)) * math.cos(math.radians(az)),
+            math.cos(math.radians(el)) * math.sin(math.radians(az)),
+            math.sin(math.radians(el)),
+        ]
+    )
     albedo = np.where(h > 0.05, 0.65, 0.35)[..., None] * np.array([1.0, 0.62, 0.48])
     ndl = np.clip(nrm @ L, 0, None)[..., None]
     V = _shadow(h, az, el, depth, 0.5)
-    F = _shadow(h, az, el + 6.0 + az / 10, depth, 2.0)     # a coarser, biased horizon: leaks
+    F = _shadow(h, az, el + 6.0 + az / 10, depth, 2.0)  # a coarser, biased horizon: leaks
     F = np.minimum(F, _shadow(h, az - 12.0, el, depth, 1.0))  # and some false shadows
     truth, approx, plain = (albedo * (0.08 + 1.4 * ndl * s[..., None]) for s in (V, F, np.ones_like(V)))
     err = np.abs(truth - approx).mean(axis=-1)
@@ -82,53 +88,116 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
     vis = np.repeat(files.unit_to_u8(0.25 + 0.5 * V)[..., None], 3, axis=-1)
     vis[(F >= 0.5) & (V < 0.5)] = LEAK_RGB
     vis[(F < 0.5) & (V >= 0.5)] = FALSE_SHADOW_RGB
-    return {"truth_png": _srgb_u8(truth), "horizon_png": _srgb_u8(approx), "plain_png": _srgb_u8(plain),
-            "flip_png": flip, "visdiff_png": vis,
-            "visibility_png": files.unit_to_u8(V), "factor_png": files.unit_to_u8(F)}
+    return {
+        "truth_png": _srgb_u8(truth),
+        "horizon_png": _srgb_u8(approx),
+        "plain_png": _srgb_u8(plain),
+        "flip_png": flip,
+        "visdiff_png": vis,
+        "visibility_png": files.unit_to_u8(V),
+        "factor_png": files.unit_to_u8(F),
+    }
 
 
 def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dict:
     """Write a sweep's previews under ``out`` and return its metrics (docs/ARCHITECTURE.md's structure,
     schema 2: the one technique's scores and files under ``frames[i].techniques.horizon``)."""
     frames = []
-    own_keys = {"horizon_png": "png", "flip_png": "flip_png", "visdiff_png": "visdiff_png",
-                "factor_png": "factor_png"}
+    own_keys = {
+        "horizon_png": "png",
+        "flip_png": "flip_png",
+        "visdiff_png": "visdiff_png",
+        "factor_png": "factor_png",
+    }
     for i, az in enumerate(azimuths):
         folder = WEIRD_FOLDER if az == 0 else f"frames/az{az:+g}"
         imgs = fake_frame_images(size, az)
         rel, own = {}, {}
         for key, img in imgs.items():
             name = key.removesuffix("_png") + ".png"
-            files.write_png_with_preview(out / folder / name, img)     # as the sweep: previews if large
+            files.write_png_with_preview(out / folder / name, img)  # as the sweep: previews if large
             (own if key in own_keys else rel)[own_keys.get(key, key)] = f"{folder}/{name}"
         for key in ("truth", "visibility"):
-            rel[key] = f"{folder}/{key}.exr"    # not written: the report only links files that exist
+            rel[key] = f"{folder}/{key}.exr"  # not written: the report only links files that exist
         own.update(image=f"{folder}/horizon.exr", factor=f"{folder}/factor.exr")
-        frames.append({
-            "azimuth_deg": az, "elevation_deg": 30.0, "truth_s": 0.25 + 0.01 * i, "files": rel,
-            "techniques": {"horizon": {
-                "visibility_mae": 0.02 + 0.01 * i, "leak_fraction": 0.01 * (i + 1), "false_shadow_fraction": 0.004,
-                "flip_mean": 0.05 + 0.02 * abs(az) / 15, "rmse": 0.01 + 0.001 * i,
-                "psnr_db": None if az == 0 else 38.0 - i, "delta_e2000_mean": 1.2 + 0.3 * i,
-                "seconds": 0.004, "files": own}}})
+        frames.append(
+            {
+                "azimuth_deg": az,
+                "elevation_deg": 30.0,
+                "truth_s": 0.25 + 0.01 * i,
+                "files": rel,
+                "techniques": {
+                    "horizon": {
+                        "visibility_mae": 0.02 + 0.01 * i,
+                        "leak_fraction": 0.01 * (i + 1),
+                        "false_shadow_fraction": 0.004,
+                        "flip_mean": 0.05 + 0.02 * abs(az) / 15,
+                        "rmse": 0.01 + 0.001 * i,
+                        "psnr_db": None if az == 0 else 38.0 - i,
+                        "delta_e2000_mean": 1.2 + 0.3 * i,
+                        "seconds": 0.004,
+                        "files": own,
+                    }
+                },
+            }
+        )
     metrics = {
-        "material": {"name": NASTY_NAME, "source": "a <i>test</i> height map", "digest": "sha256:" + "ab12" * 16,
-                     "rows": size, "cols": size, "path": "/tmp/<b>x.png"},
+        "material": {
+            "name": NASTY_NAME,
+            "source": "a <i>test</i> height map",
+            "digest": "sha256:" + "ab12" * 16,
+            "rows": size,
+            "cols": size,
+            "path": "/tmp/<b>x.png",
+        },
         "schema_version": 2,
-        "parameters": {"depth": 0.05, "boundary": "wrap", "elevation_deg": 30.0,
-                       "azimuths_deg": list(azimuths), "light": "hard", "light_radius_deg": 0.0,
-                       "effects": ["shadow", "diffuse", "interreflection"], "spp": 16, "seed": 0,
-                       "supersampling": 1},
-        "versions": {"hzval": "0.1.0", "mitsuba": "3.7.1", "drjit": "1.2.0", "llvm": "19.1.7",
-                     "variant": "llvm_ad_rgb", "python": "3.11.2", "machine": "Linux x86_64, 2 CPUs <cpu>"},
-        "timings": {"bake_s": 0.41, "bake_cached": False, "truth_setup_s": 0.8, "horizon_setup_s": 0.2,
-                    "truth_s": sum(f["truth_s"] for f in frames), "horizon_s": 0.004 * len(frames),
-                    "compare_s": 0.3, "write_s": 0.15},
+        "parameters": {
+            "depth": 0.05,
+            "boundary": "wrap",
+            "elevation_deg": 30.0,
+            "azimuths_deg": list(azimuths),
+            "light": "hard",
+            "light_radius_deg": 0.0,
+            "effects": ["shadow", "diffuse", "interreflection"],
+            "spp": 16,
+            "seed": 0,
+            "supersampling": 1,
+        },
+        "versions": {
+            "hzval": "0.1.0",
+            "mitsuba": "3.7.1",
+            "drjit": "1.2.0",
+            "llvm": "19.1.7",
+            "variant": "llvm_ad_rgb",
+            "python": "3.11.2",
+            "machine": "Linux x86_64, 2 CPUs <cpu>",
+        },
+        "timings": {
+            "bake_s": 0.41,
+            "bake_cached": False,
+            "truth_setup_s": 0.8,
+            "horizon_setup_s": 0.2,
+            "truth_s": sum(f["truth_s"] for f in frames),
+            "horizon_s": 0.004 * len(frames),
+            "compare_s": 0.3,
+            "write_s": 0.15,
+        },
         "simulated": {"truth": ["shadow", "diffuse", "interreflection"], "horizon": ["shadow", "diffuse"]},
-        "techniques": {"horizon": {"label": "horizon map", "file_stem": "horizon", "summary": "Lengyel's",
-                                   "parameters": {"k": 8.0, "path": "exact", "ambient": "mean_cos2",
-                                                  "bake_radius": 16, "bake_angles": 32},
-                                   "simulated": ["shadow", "diffuse"]}},
+        "techniques": {
+            "horizon": {
+                "label": "horizon map",
+                "file_stem": "horizon",
+                "summary": "Lengyel's",
+                "parameters": {
+                    "k": 8.0,
+                    "path": "exact",
+                    "ambient": "mean_cos2",
+                    "bake_radius": 16,
+                    "bake_angles": 32,
+                },
+                "simulated": ["shadow", "diffuse"],
+            }
+        },
         "frames": frames,
     }
     files.write_json(out / "metrics.json", metrics)
@@ -169,6 +238,7 @@ def report_dir(tmp_path_factory):
 # Fast tests
 # --------------------------------------------------------------------------
 
+
 def test_report_is_written_with_its_plots(report_dir):
     out, index, _ = report_dir
     assert index == out / "index.html" and index.is_file()
@@ -176,6 +246,7 @@ def test_report_is_written_with_its_plots(report_dir):
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name
     from PIL import Image
+
     with Image.open(out / "plots" / "metrics.png") as img:
         assert img.width > 600
     assert not [p for p in out.rglob(".*")], "temporary files left behind"
@@ -188,7 +259,9 @@ def test_names_and_command_are_escaped(report_dir):
     assert "&lt;b&gt;x.png" in html
     assert "<script>alert" not in html
     # the reproduce command, escaped, in a <code> block
-    assert re.search(r'<code id="command">hzval sweep &#39;&lt;b&gt;x.png&#39; .*--out &#39;a&amp;b&#39;', html)
+    assert re.search(
+        r'<code id="command">hzval sweep &#39;&lt;b&gt;x.png&#39; .*--out &#39;a&amp;b&#39;', html
+    )
     parser = _Refs()
     parser.feed(html)
     assert "b" not in parser.tags and "i" not in parser.tags
@@ -216,18 +289,30 @@ def test_every_image_and_link_resolves(report_dir):
 def test_header_summary_and_frames(report_dir):
     _, index, metrics = report_dir
     html = index.read_text(encoding="utf-8")
-    for text in ("3.7.1", "1.2.0", "19.1.7", "llvm_ad_rgb", "3.11.2", "sha256:ab12ab12ab12",
-                 "interreflection: not modelled by horizon map",
-                 "leak (F lit, V shadowed)", "false shadow", "−15° … +15°, step 15° (3 lights)"):
+    for text in (
+        "3.7.1",
+        "1.2.0",
+        "19.1.7",
+        "llvm_ad_rgb",
+        "3.11.2",
+        "sha256:ab12ab12ab12",
+        "interreflection: not modelled by horizon map",
+        "leak (F lit, V shadowed)",
+        "false shadow",
+        "−15° … +15°, step 15° (3 lights)",
+    ):
         assert text in html, text
     for key in metrics["parameters"]:
         assert f">{report._value_text(key, metrics['parameters'][key])}<" in html or key in (
-            "depth", "supersampling", "effects"), key
+            "depth",
+            "supersampling",
+            "effects",
+        ), key
     # one summary row per frame; the worst of each varying column highlighted
     body = html.split("<tbody>")[1].split("</tbody>")[0]
     assert body.count("<tr>") == 3
     assert body.count("worst") >= 6
-    assert "∞" in body                           # the infinite PSNR
+    assert "∞" in body  # the infinite PSNR
     assert html.count('class="frame"') == 3
 
 
@@ -261,8 +346,16 @@ def test_template_never_marks_data_safe():
 # --------------------------------------------------------------------------
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 @contextlib.contextmanager
@@ -293,26 +386,36 @@ def test_report_in_a_browser(tmp_path):
     index = report.write_report(out, metrics, command=COMMAND)
     problems: list[str] = []
     with chromium_page(problems) as page:
-        page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}")
-                if m.type in ("error", "warning") else None)
+        page.on(
+            "console",
+            lambda m: (
+                problems.append(f"console {m.type}: {m.text}") if m.type in ("error", "warning") else None
+            ),
+        )
         page.goto(index.as_uri(), wait_until="load")
-        shot = os.environ.get("HZVAL_REPORT_SCREENSHOT")   # a path: keep a full-page picture to look at
+        shot = os.environ.get("HZVAL_REPORT_SCREENSHOT")  # a path: keep a full-page picture to look at
         if shot:
             page.screenshot(path=shot, full_page=True)
 
         # every image loaded
         images = page.eval_on_selector_all(
-            "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])")
+            "img", "els => els.map(e => [e.getAttribute('src'), e.complete, e.naturalWidth])"
+        )
         assert len(images) == 2 + 3 + 5 * 7
         assert [i for i in images if not (i[1] and i[2] > 0)] == []
 
         # the first screen (1400 x 900) shows the worst frame's truth | technique | difference, whole
         page.set_viewport_size({"width": 1400, "height": 900})
-        boxes = page.eval_on_selector_all(".first-img img", "els => els.map(e => { const r = "
-                                          "e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; })")
+        boxes = page.eval_on_selector_all(
+            ".first-img img",
+            "els => els.map(e => { const r = "
+            "e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; })",
+        )
         assert len(boxes) == 3
-        assert all(0 <= left and right <= 1400 and 0 < top and bottom <= 900 and right - left > 200
-                   for left, top, right, bottom in boxes), boxes
+        assert all(
+            0 <= left and right <= 1400 and 0 < top and bottom <= 900 and right - left > 200
+            for left, top, right, bottom in boxes
+        ), boxes
         page.set_viewport_size({"width": 1440, "height": 900})
 
         # flip: hover shows the other side, in place and labelled; leaving restores it
@@ -373,15 +476,15 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
     assert not files.write_png_with_preview(tmp_path / "small.png", small)
     assert not (tmp_path / "previews").exists()
     rng = np.random.default_rng(2)
-    big = rng.integers(0, 256, (files.PREVIEW_ABOVE_PX + 5, 30, 3), dtype=np.uint8)   # 2053 x 30
+    big = rng.integers(0, 256, (files.PREVIEW_ABOVE_PX + 5, 30, 3), dtype=np.uint8)  # 2053 x 30
     assert files.write_png_with_preview(tmp_path / "big.png", big)
     with Image.open(tmp_path / files.preview_of("big.png")) as im:
         prev = np.asarray(im.convert("RGB"))
-    f = 3                                              # the smallest whole factor down to 1024 rows
+    f = 3  # the smallest whole factor down to 1024 rows
     assert prev.shape == (-(-big.shape[0] // f), -(-30 // f), 3)
-    block = big[3 * 5:3 * 6, 3 * 2:3 * 3].astype(np.float64).mean(axis=(0, 1))
+    block = big[3 * 5 : 3 * 6, 3 * 2 : 3 * 3].astype(np.float64).mean(axis=(0, 1))
     assert np.array_equal(prev[5, 2], np.rint(block).astype(np.uint8))
-    left = big.shape[0] % f                            # 2053 = 3 x 684 + 1: the last row, repeated
+    left = big.shape[0] % f  # 2053 = 3 x 684 + 1: the last row, repeated
     last = big[-left:, :3].astype(np.float64)
     last = np.concatenate([last] + [last[-1:]] * (f - left))
     assert np.array_equal(prev[-1, 0], np.rint(last.mean(axis=(0, 1))).astype(np.uint8))
@@ -392,11 +495,11 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
 def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
     """Images above files.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
     files of the views on screen, scaled by the full width; the page's load time is printed."""
-    n = files.PREVIEW_ABOVE_PX + 52                    # 2100: previews of 1050
+    n = files.PREVIEW_ABOVE_PX + 52  # 2100: previews of 1050
     out = tmp_path / "big"
     metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
     metrics["material"].update(rows=n, cols=n)
-    for f in metrics["frames"]:                        # each small PNG blown up to n x n, nearest
+    for f in metrics["frames"]:  # each small PNG blown up to n x n, nearest
         for key, rel in (*f["files"].items(), *f["techniques"]["horizon"]["files"].items()):
             if rel.endswith(".png"):
                 with Image.open(out / rel) as im:
@@ -416,7 +519,7 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
         assert target.evaluate("e => e.naturalWidth") == -(-n // 3)
         page.locator("button[data-zoom='1']").click()
         assert "/previews/" not in target.get_attribute("src")
-        assert target.bounding_box()["width"] == pytest.approx(n, abs=1)    # the full width, 1:1
+        assert target.bounding_box()["width"] == pytest.approx(n, abs=1)  # the full width, 1:1
         page.wait_for_function("e => e.complete && e.naturalWidth > 0", arg=target.element_handle())
         assert target.evaluate("e => e.naturalWidth") == n
         # a flip shows the other side's full image while zoomed

@@ -15,8 +15,24 @@ from hzval.io import files
 @pytest.fixture(scope="module")
 def sweep_dir(tmp_path_factory, variant):
     out = tmp_path_factory.mktemp("score") / "sweep"
-    assert cli.main(["sweep", "--size", "48", "--azimuths", "-30,0,30", "--spp", "4", "--quiet", "--all-files",
-                     "--out", str(out)]) == 0      # the technique's own EXRs are scored as an engine's
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "48",
+                "--azimuths",
+                "-30,0,30",
+                "--spp",
+                "4",
+                "--quiet",
+                "--all-files",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )  # the technique's own EXRs are scored as an engine's
     return out
 
 
@@ -38,7 +54,7 @@ def test_frames_json_says_how_to_render_the_frames(sweep_dir):
     assert [f["name"] for f in e["frames"]] == ["az-30", "az+0", "az+30"]
     L = np.array(e["frames"][0]["light_direction"])
     assert np.linalg.norm(L) == pytest.approx(1) and L[2] == pytest.approx(np.sin(np.radians(30)))
-    assert L[1] < 0                                # azimuth -30: counterclockwise from +x, so below the x axis
+    assert L[1] < 0  # azimuth -30: counterclockwise from +x, so below the x axis
 
 
 def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
@@ -50,15 +66,26 @@ def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
     # measured at most 6e-6 FLIP at this size, a thousandth of what 8-bit quantisation adds (4e-3)
     for source, ext, tol in (("horizon", "exr", 2e-5), ("truth", "exr", 0), ("horizon", "png", 0.01)):
         out = tmp_path / f"out_{source}_{ext}"
-        assert cli.main(["score", str(engine(tmp_path, sweep_dir, source, ext)), "--against", str(sweep_dir),
-                         "--out", str(out)]) == 0
+        assert (
+            cli.main(
+                [
+                    "score",
+                    str(engine(tmp_path, sweep_dir, source, ext)),
+                    "--against",
+                    str(sweep_dir),
+                    "--out",
+                    str(out),
+                ]
+            )
+            == 0
+        )
         s = json.loads((out / "metrics.json").read_text())
         for mine, swept in zip(s["frames"], m["frames"]):
             assert mine["azimuth_deg"] == swept["azimuth_deg"]
             theirs = swept["techniques"]["horizon"]
             expect = 0.0 if source == "truth" else theirs["flip_mean"]
             assert mine["flip_mean"] == pytest.approx(expect, abs=tol + 1e-12)
-            if (source, ext) == ("horizon", "exr"):        # the other scores: measured 1.4e-5, 1.3e-6
+            if (source, ext) == ("horizon", "exr"):  # the other scores: measured 1.4e-5, 1.3e-6
                 assert mine["delta_e2000_mean"] == pytest.approx(theirs["delta_e2000_mean"], abs=1e-4)
                 assert mine["rmse"] == pytest.approx(theirs["rmse"], abs=tol)
             if source == "truth":

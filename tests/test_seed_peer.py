@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 from hzval.bake import horizon as bake_horizon
-from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 
 GCC = shutil.which("gcc")
@@ -31,8 +30,9 @@ TOLERANCE = 2e-6
 
 pytestmark = [
     pytest.mark.gcc,
-    pytest.mark.skipif(GCC is None, reason="gcc is not installed: cannot compile the seed peer "
-                                           "benchmarks/seed_bake.c"),
+    pytest.mark.skipif(
+        GCC is None, reason="gcc is not installed: cannot compile the seed peer benchmarks/seed_bake.c"
+    ),
 ]
 
 
@@ -56,14 +56,24 @@ def seed_peer_hoisted(tmp_path_factory) -> Path:
     return exe
 
 
-def run_peer(exe: Path, height: np.ndarray, depth: float, radius: int, angles: int,
-             boundary: str, workdir: Path) -> np.ndarray:
+def run_peer(
+    exe: Path, height: np.ndarray, depth: float, radius: int, angles: int, boundary: str, workdir: Path
+) -> np.ndarray:
     """The peer's ``(rows, cols, 10)`` output: 8 channel sines, mean_cos, mean_cos2."""
     rows, cols = height.shape
     src, dst = workdir / "height.f32", workdir / "peer.f32"
     np.ascontiguousarray(height, dtype="<f4").tofile(src)
-    cmd = [str(exe), str(src), str(rows), str(cols), repr(float(depth)), str(radius), str(angles),
-           boundary, str(dst)]
+    cmd = [
+        str(exe),
+        str(src),
+        str(rows),
+        str(cols),
+        repr(float(depth)),
+        str(radius),
+        str(angles),
+        boundary,
+        str(dst),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
     return np.fromfile(dst, dtype="<f4").reshape(rows, cols, 10)
@@ -93,16 +103,20 @@ CASES = [
 
 
 @pytest.mark.parametrize(
-    "rows, cols, depth, boundary, radius, angles", CASES,
-    ids=[f"{r}x{c}-d{d}-{b}-R{R}-N{n}" for r, c, d, b, R, n in CASES])
-def test_horizon_map_matches_seed_peer(variant, seed_peer, tmp_path,
-                                       rows, cols, depth, boundary, radius, angles):
+    "rows, cols, depth, boundary, radius, angles",
+    CASES,
+    ids=[f"{r}x{c}-d{d}-{b}-R{R}-N{n}" for r, c, d, b, R, n in CASES],
+)
+def test_horizon_map_matches_seed_peer(
+    variant, seed_peer, tmp_path, rows, cols, depth, boundary, radius, angles
+):
     rng = np.random.default_rng(rows * 1000 + cols * 10 + angles + radius)
     height = rng.random((rows, cols), dtype=np.float32)
 
     peer = run_peer(seed_peer, height, depth, radius, angles, boundary, tmp_path)
     horizon, mean_cos, mean_cos2 = bake_horizon.horizon_map(
-        cv.heights_in_texels(height, depth), radius, angles, boundary)
+        cv.heights_in_texels(height, depth), radius, angles, boundary
+    )
 
     assert horizon.shape == (rows, cols, 8)
     assert mean_cos.shape == mean_cos2.shape == (rows, cols)
@@ -116,15 +130,19 @@ def test_horizon_map_matches_seed_peer(variant, seed_peer, tmp_path,
         "mean_cos2": float(np.abs(mean_cos2 - peer[..., 9]).max()),
     }
     where = {}
-    for name, ours, theirs in [("horizon sines", horizon, peer[..., :8]),
-                               ("mean_cos", mean_cos, peer[..., 8]),
-                               ("mean_cos2", mean_cos2, peer[..., 9])]:
+    for name, ours, theirs in [
+        ("horizon sines", horizon, peer[..., :8]),
+        ("mean_cos", mean_cos, peer[..., 8]),
+        ("mean_cos2", mean_cos2, peer[..., 9]),
+    ]:
         idx = np.unravel_index(np.argmax(np.abs(ours - theirs)), ours.shape)
         where[name] = f"at {tuple(int(i) for i in idx)}: hzval {ours[idx]:.7g}, seed {theirs[idx]:.7g}"
     bad = {k: v for k, v in diffs.items() if not v <= TOLERANCE}
-    assert not bad, (f"hzval.bake.horizon.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
-                     + "; ".join(f"{k}: max |diff| {v:.3g} {where[k]}" for k, v in bad.items())
-                     + f" (all: {diffs})")
+    assert not bad, (
+        f"hzval.bake.horizon.horizon_map differs from the seed peer by more than {TOLERANCE:g}: "
+        + "; ".join(f"{k}: max |diff| {v:.3g} {where[k]}" for k, v in bad.items())
+        + f" (all: {diffs})"
+    )
 
 
 @pytest.mark.parametrize("radius, angles", [(16, 32), (5, 16), (16, 64), (3, 48), (24, 128)])
@@ -160,7 +178,9 @@ def test_offset_table_matches_libm(radius, angles):
             expected[(i, j)] = tuple(sorted({n % angles for n in range(lo, hi + 1)}))
     wrong = {off: (ours.get(off), bins) for off, bins in expected.items() if ours.get(off) != bins}
     assert set(ours) == set(expected), "hzval's table and the seed's loop visit different offsets"
-    assert not wrong, f"{len(wrong)} offsets cover other bins than the seed's (hzval, seed): {dict(list(wrong.items())[:5])}"
+    assert not wrong, (
+        f"{len(wrong)} offsets cover other bins than the seed's (hzval, seed): {dict(list(wrong.items())[:5])}"
+    )
 
 
 # (rows, cols, depth, boundary, radius, angles): odd sizes, both boundaries, and
@@ -174,10 +194,13 @@ HOISTED_CASES = [
 
 
 @pytest.mark.parametrize(
-    "rows, cols, depth, boundary, radius, angles", HOISTED_CASES,
-    ids=[f"{r}x{c}-d{d}-{b}-R{R}-N{n}" for r, c, d, b, R, n in HOISTED_CASES])
-def test_hoisted_table_variant_is_bit_identical(seed_peer, seed_peer_hoisted, tmp_path,
-                                                rows, cols, depth, boundary, radius, angles):
+    "rows, cols, depth, boundary, radius, angles",
+    HOISTED_CASES,
+    ids=[f"{r}x{c}-d{d}-{b}-R{R}-N{n}" for r, c, d, b, R, n in HOISTED_CASES],
+)
+def test_hoisted_table_variant_is_bit_identical(
+    seed_peer, seed_peer_hoisted, tmp_path, rows, cols, depth, boundary, radius, angles
+):
     """seed_bake.c -DHOISTED_TABLE (the benchmark's speed peer) computes the
     literal seed loop's output bit for bit: only where the offset table is
     computed changes, not a single float operation."""
@@ -189,5 +212,7 @@ def test_hoisted_table_variant_is_bit_identical(seed_peer, seed_peer_hoisted, tm
     hoisted = run_peer(seed_peer_hoisted, height, depth, radius, angles, boundary, tmp_path / "hoisted")
     assert literal[..., :8].max() > 0.0  # something is occluded: the comparison means something
     differ = literal.view(np.uint32) != hoisted.view(np.uint32)
-    assert not differ.any(), (f"{int(differ.sum())} of {differ.size} floats differ, first at "
-                              f"{tuple(int(i) for i in np.argwhere(differ)[0])}")
+    assert not differ.any(), (
+        f"{int(differ.sum())} of {differ.size} floats differ, first at "
+        f"{tuple(int(i) for i in np.argwhere(differ)[0])}"
+    )

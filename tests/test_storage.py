@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_truth import make_scene
 
-from hzval.techniques import horizon
-from hzval.techniques import surface
 from hzval.bake import maps as bake
 from hzval.io import storage
 from hzval.io.files import unit_to_u8
-from test_truth import make_scene
+from hzval.techniques import horizon
 
 
 def smooth_sines(rows=64, cols=64, D=8, seed=3):
@@ -19,7 +18,9 @@ def smooth_sines(rows=64, cols=64, D=8, seed=3):
 
     g = gaussian_filter(np.random.default_rng(seed).random((rows, cols, D)), (3, 3, 0), mode="wrap")
     g = (g - g.min()) / (g.max() - g.min())
-    return (0.6 * g * g).astype(np.float32)   # sines up to 0.6 (37 degrees), most of them low, as in baked maps
+    return (0.6 * g * g).astype(
+        np.float32
+    )  # sines up to 0.6 (37 degrees), most of them low, as in baked maps
 
 
 def test_bytes_of_each_format():
@@ -31,7 +32,7 @@ def test_bytes_of_each_format():
     assert b["bc7"] == b["bc3"] == 2 * blocks * 16 == b["u8"] // 4
     assert b["bc1"] == 3 * blocks * 8 and b["bc4"] == 8 * blocks * 8
     assert b["bc7-sqrt"] == b["bc7"]
-    assert storage.get("bc7").bytes(10, 7, 8) == 2 * 3 * 2 * 16       # partial blocks count whole
+    assert storage.get("bc7").bytes(10, 7, 8) == 2 * 3 * 2 * 16  # partial blocks count whole
 
 
 def test_float_is_exact_and_u8_is_the_engines_quantisation():
@@ -53,7 +54,7 @@ def test_block_formats_round_trip_through_real_codecs(name):
     assert back.shape == s.shape and back.dtype == np.float32
     err = np.abs(back - s).mean()
     assert err < {"bc7": 4.0, "bc3": 6.5, "bc1": 7.5, "bc4": 2.0}[name] / 255, err
-    assert err > 0                               # it is lossy: the codec really ran
+    assert err > 0  # it is lossy: the codec really ran
 
 
 def test_bc7_beats_bc1_and_square_roots_help_low_horizons():
@@ -77,7 +78,9 @@ def test_approximation_reads_the_stored_map(variant):
     bk = bake.bake(h, bake.BakeParams(depth=0.1))
     F = {n: horizon.Horizon(sc, bk, storage=n) for n in ("float", "bc7", "bc1")}
     f = {n: a.render(30.0).layers["factor"] for n, a in F.items()}
-    assert F["bc7"].storage_bytes() == storage.get("bc7").bytes(64, 64, 8) < F["float"].storage_bytes() // 4 + 1
+    assert (
+        F["bc7"].storage_bytes() == storage.get("bc7").bytes(64, 64, 8) < F["float"].storage_bytes() // 4 + 1
+    )
     assert 0 < np.abs(f["bc7"] - f["float"]).mean() < 0.02
     assert F["bc7"].parameters["storage"] == "bc7"
     with pytest.raises(Exception, match="storage"):

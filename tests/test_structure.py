@@ -33,7 +33,9 @@ def import_graph() -> dict[str, set[str]]:
             elif isinstance(node, ast.ImportFrom):
                 base = node.module or ""
                 if node.level:
-                    base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + [base]).strip(".")
+                    base = ".".join(
+                        package.split(".")[: len(package.split(".")) - node.level + 1] + [base]
+                    ).strip(".")
                 targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
             else:
                 continue
@@ -53,7 +55,7 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
         stack.append(n)
         for d in sorted(graph.get(n, ())):
             if colour.get(d) == 1:
-                return stack[stack.index(d):] + [d]
+                return stack[stack.index(d) :] + [d]
             if d not in colour and (found := visit(d)):
                 return found
         stack.pop()
@@ -85,8 +87,11 @@ def _string_constants(path: Path) -> set[str]:
     """The module's whole string literals (the pieces of an f-string, ``f"horizon{i}.exr"``, are not)."""
     tree = ast.parse(path.read_text(), str(path))
     pieces = {id(v) for n in ast.walk(tree) if isinstance(n, ast.JoinedStr) for v in n.values}
-    return {n.value for n in ast.walk(tree)
-            if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in pieces}
+    return {
+        n.value
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in pieces
+    }
 
 
 def test_no_module_but_a_techniques_own_names_it():
@@ -101,8 +106,11 @@ def test_no_module_but_a_techniques_own_names_it():
         # A package's __init__ lists its modules by name, and a module may share a technique's name.
         if rel in own or rel == "hzval/techniques/registry.py" or path.name == "__init__.py":
             continue
-        docstrings = {ast.get_docstring(n, clean=False) for n in ast.walk(ast.parse(path.read_text()))
-                      if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef))}
+        docstrings = {
+            ast.get_docstring(n, clean=False)
+            for n in ast.walk(ast.parse(path.read_text()))
+            if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef))
+        }
         named = (_string_constants(path) - docstrings) & names
         assert not named, f"{rel} names {sorted(named)}"
     for path in sorted((PACKAGE / "report" / "templates").iterdir()):
@@ -137,7 +145,12 @@ def test_the_package_map_names_every_module():
     """``hzval/__init__``'s docstring is the map a newcomer reads (README, "Layout"): a new module
     is listed there."""
     doc = ast.get_docstring(ast.parse((PACKAGE / "__init__.py").read_text()))
-    missing = [p.stem for p in PACKAGE.glob("*.py") if p.stem not in ("__init__", "__main__")
-               and f"``{p.stem}``" not in doc]
-    missing += [p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file() and f"``{p.name}``" not in doc]
+    missing = [
+        p.stem
+        for p in PACKAGE.glob("*.py")
+        if p.stem not in ("__init__", "__main__") and f"``{p.stem}``" not in doc
+    ]
+    missing += [
+        p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file() and f"``{p.name}``" not in doc
+    ]
     assert not missing, f"hzval/__init__.py's module map lacks {missing}"

@@ -11,11 +11,11 @@ import pytest
 
 from hzval import materials
 from hzval.cli import main as cli
-from hzval.io import files
 from hzval.commands import suite
+from hzval.core.errors import InputError
+from hzval.io import files
 from hzval.pipeline import sweep
 from hzval.scene import spec as S
-from hzval.core.errors import InputError
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
 #: Scores a suite row must reproduce from a standalone sweep (times differ run to run).
@@ -28,7 +28,9 @@ def _folder(tmp_path):
     d.mkdir()
     h = materials.generate("cobblestones", 32).height
     files.write_png(d / "stones.png", np.round(h * 65535).astype(np.uint16))
-    (d / "stones.toml").write_text('[material]\ndepth = 0.3\nboundary = "open"\n[light]\nelevation_deg = 40\n')
+    (d / "stones.toml").write_text(
+        '[material]\ndepth = 0.3\nboundary = "open"\n[light]\nelevation_deg = 40\n'
+    )
     np.save(d / "dome.npy", materials.generate("gravel", 24).height)
     (d / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
     (d / "notes.txt").write_text("not a height map")
@@ -48,8 +50,8 @@ def test_entries_read_folders_sidecars_scene_files_and_names(tmp_path):
     names = [e.name for e in items]
     assert names == ["broken", "dome", "stones", "spikes", "spikes-2"]
     stones = items[2].scene
-    assert (stones.material.depth, stones.material.boundary) == (0.3, "open")     # the sidecar's
-    assert stones.light.elevation_deg == 20                                        # the flags win
+    assert (stones.material.depth, stones.material.boundary) == (0.3, "open")  # the sidecar's
+    assert stones.light.elevation_deg == 20  # the flags win
     assert items[1].scene.material.depth == 0.05 and items[1].scene.material.boundary == "wrap"
     assert all(e.scene.name == e.name for e in items)
     with pytest.raises(InputError, match="no such file"):
@@ -82,7 +84,7 @@ def test_a_failed_material_is_reported_and_the_others_are_not_lost(in_process):
     rows = {r["name"]: r for r in result["materials"]}
     assert set(rows) == {e.name for e in items}
     assert rows["broken"]["status"] == "failed" and "broken.png" in rows["broken"]["error"]
-    assert result["materials"][0]["name"] == "broken"                 # worst first: failures lead
+    assert result["materials"][0]["name"] == "broken"  # worst first: failures lead
     for name in ("dome", "stones", "planks"):
         assert rows[name]["status"] == "ok"
         assert (out / name / "index.html").is_file() and (out / name / "metrics.json").is_file()
@@ -110,14 +112,29 @@ def test_a_material_equals_its_standalone_sweep(in_process, tmp_path, capsys):
     items, out, _ = in_process
     stones = next(e for e in items if e.name == "stones")
     path = stones.scene.material.height
-    assert cli.main(["sweep", path, "--azimuths", SMALL["azimuths"], "--spp", str(SMALL["spp"]),
-                     "--out", str(tmp_path / "alone"), "--quiet"]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                path,
+                "--azimuths",
+                SMALL["azimuths"],
+                "--spp",
+                str(SMALL["spp"]),
+                "--out",
+                str(tmp_path / "alone"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     alone = json.loads((tmp_path / "alone" / "metrics.json").read_text())
     suite_metrics = json.loads((out / "stones" / "metrics.json").read_text())
-    settings = ("k", "path", "ambient")     # the CLI states the horizon map's default settings, Options() not
-    assert {k: v for k, v in alone["parameters"].items() if k not in settings} == \
-        {k: v for k, v in suite_metrics["parameters"].items() if k not in settings}
-    assert max(f["techniques"]["horizon"]["visibility_mae"] for f in alone["frames"]) > 0.01   # not trivial
+    settings = ("k", "path", "ambient")  # the CLI states the horizon map's default settings, Options() not
+    assert {k: v for k, v in alone["parameters"].items() if k not in settings} == {
+        k: v for k, v in suite_metrics["parameters"].items() if k not in settings
+    }
+    assert max(f["techniques"]["horizon"]["visibility_mae"] for f in alone["frames"]) > 0.01  # not trivial
     for a, b in zip(alone["frames"], suite_metrics["frames"]):
         for name in alone["techniques"]:
             for key in SCORES:
@@ -131,7 +148,7 @@ def test_the_overview_page_links_every_report_and_shows_thumbnails(in_process):
     for r in result["materials"]:
         if r["status"] == "ok":
             assert f'href="{r["name"]}/index.html"' in html
-            assert len(r["thumbs"]) == 3                          # three lights
+            assert len(r["thumbs"]) == 3  # three lights
             for az, images in r["thumbs"].items():
                 assert set(images) == {"truth", *r["techniques"]}
                 for rel in images.values():
@@ -147,7 +164,9 @@ def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path, monkey
     distributed = pytest.importorskip("distributed")
     items, out, result = in_process
     monkeypatch.chdir(tmp_path)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as c:
         remote = suite.run(items, "cluster", cluster=c.scheduler_address, progress=False)
     assert remote["suite"]["cluster"] == c.scheduler_address and "dask" in remote["suite"]["engine"]
     here = {r["name"]: r for r in result["materials"]}
@@ -168,15 +187,51 @@ def test_a_cluster_that_is_not_there_is_one_line(tmp_path, monkeypatch):
 
 def test_cli_suite_exit_status_and_table(variant, tmp_path, capsys):
     d = _folder(tmp_path)
-    code = cli.main(["suite", str(d / "stones.png"), "planks", "--size", "24", "--azimuths", "0", "--spp", "4",
-                     "--techniques", "horizon,terrain", "--workers", "0", "--out", str(tmp_path / "o"), "--quiet"])
+    code = cli.main(
+        [
+            "suite",
+            str(d / "stones.png"),
+            "planks",
+            "--size",
+            "24",
+            "--azimuths",
+            "0",
+            "--spp",
+            "4",
+            "--techniques",
+            "horizon,terrain",
+            "--workers",
+            "0",
+            "--out",
+            str(tmp_path / "o"),
+            "--quiet",
+        ]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert "stones" in out and "planks" in out and "overview" in out
     rows = json.loads((tmp_path / "o" / "suite.json").read_text())["materials"]
     assert all(set(r["techniques"]) == {"horizon", "terrain"} for r in rows)
-    assert cli.main(["suite", str(d), "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
-                     "--workers", "1", "--out", str(tmp_path / "p"), "--quiet"]) == 1    # broken.png failed, in a pool
+    assert (
+        cli.main(
+            [
+                "suite",
+                str(d),
+                "--azimuths",
+                "0",
+                "--spp",
+                "4",
+                "--techniques",
+                "horizon",
+                "--workers",
+                "1",
+                "--out",
+                str(tmp_path / "p"),
+                "--quiet",
+            ]
+        )
+        == 1
+    )  # broken.png failed, in a pool
     # --size names the built-in materials' size: with height map files only it changes nothing, and says so
     assert cli.main(["suite", str(d), "--size", "24", "--out", str(tmp_path / "s"), "--quiet"]) == 2
     assert "--size: 24 applies to built-in materials only" in capsys.readouterr().err
@@ -195,14 +250,14 @@ def test_suite_json_has_no_nan(in_process):
 
 def test_default_workers_follow_cores_materials_and_memory():
     items = suite.entries(["planks", "gravel", "fabric", "panels"], size=512)
-    gib = 2 ** 30
+    gib = 2**30
     assert suite.default_workers(items, cores=2, available=64 * gib) == 2
     assert suite.default_workers(items, cores=1, available=64 * gib) == 1
-    assert suite.default_workers(items, cores=16, available=64 * gib) == 4           # four materials
+    assert suite.default_workers(items, cores=16, available=64 * gib) == 4  # four materials
     assert suite.default_workers(items[:4], cores=64, available=64 * gib) == 4
     big = suite.entries(["planks", "gravel", "fabric", "panels"], size=2048)
     per = suite.estimate_peak_bytes(big[0])
-    assert 7 * gib < per < 10 * gib                  # about the 8.5 GiB measured (benchmarks/README.md)
+    assert 7 * gib < per < 10 * gib  # about the 8.5 GiB measured (benchmarks/README.md)
     assert suite.default_workers(big, cores=16, available=24 * gib) == 2
     assert suite.default_workers(big, cores=16, available=16 * gib) == 1
 
@@ -226,7 +281,7 @@ class _KillsItsWorker:
     def __getattr__(self, name):
         import os
 
-        pid = self.__dict__.get("pid")           # absent while being unpickled
+        pid = self.__dict__.get("pid")  # absent while being unpickled
         if pid is not None and os.getpid() != pid:
             os._exit(3)
         raise AttributeError(name)
@@ -236,8 +291,10 @@ def test_a_worker_that_dies_is_one_failed_material(tmp_path):
     pytest.importorskip("distributed")
     good = suite.entries(["planks"], **SMALL)[0]
     bad = suite.entries(["gravel"], **SMALL)[0]
-    tasks = [suite.Task(good, str(tmp_path / "planks"), sweep.Options(), None, "", 1),
-             suite.Task(bad, str(tmp_path / "gravel"), _KillsItsWorker(), None, "", 1)]
+    tasks = [
+        suite.Task(good, str(tmp_path / "planks"), sweep.Options(), None, "", 1),
+        suite.Task(bad, str(tmp_path / "gravel"), _KillsItsWorker(), None, "", 1),
+    ]
     rows, engine = [None, None], {}
     suite._run_dask(tasks, rows, engine, 2, None, progress=False)
     assert "dask" in engine["name"]
@@ -252,12 +309,31 @@ def test_a_sidecar_scene_serves_sweep_as_it_serves_suite(tmp_path, capsys, varia
     assert s.material.height == str((d / "stones.png").resolve()) and s.material.depth == 0.3
     # `hzval sweep stones.png` reads stones.toml and says so
     out = tmp_path / "o"
-    assert cli.main(["sweep", str(d / "stones.png"), "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
-                     "--out", str(out), "--quiet"]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                str(d / "stones.png"),
+                "--azimuths",
+                "0",
+                "--spp",
+                "4",
+                "--techniques",
+                "horizon",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert "sidecar scene" in capsys.readouterr().err
     m = json.loads((out / "metrics.json").read_text())
-    assert (m["parameters"]["depth"], m["parameters"]["boundary"], m["parameters"]["elevation_deg"]) == \
-        (0.3, "open", 40)
+    assert (m["parameters"]["depth"], m["parameters"]["boundary"], m["parameters"]["elevation_deg"]) == (
+        0.3,
+        "open",
+        40,
+    )
 
 
 @pytest.mark.browser
@@ -288,18 +364,21 @@ def test_the_overview_sorts_in_a_browser(in_process):
             assert all(c and w > 0 for c, w in images)
 
             def names():
-                return page.eval_on_selector_all("#scores tbody tr", "rs => rs.map(r => r.cells[0].textContent.trim())")
+                return page.eval_on_selector_all(
+                    "#scores tbody tr", "rs => rs.map(r => r.cells[0].textContent.trim())"
+                )
 
-            assert names()[0] == "broken"                       # worst first: the failure leads
+            assert names()[0] == "broken"  # worst first: the failure leads
             material = page.locator("#scores thead tr:nth-child(2) th").nth(0)
-            material.click()                                    # descending by name
+            material.click()  # descending by name
             assert names() == sorted(names(), reverse=True)
-            material.click()                                    # and ascending
+            material.click()  # and ascending
             assert names() == sorted(names())
             flip = page.locator("#scores thead tr:nth-child(2) th", has_text="FLIP").first
             flip.click()
             values = page.eval_on_selector_all(
-                "#scores tbody tr.ok", "rs => rs.map(r => parseFloat(r.cells[6].dataset.v))")
+                "#scores tbody tr.ok", "rs => rs.map(r => parseFloat(r.cells[6].dataset.v))"
+            )
             assert values == sorted(values, reverse=True) and len(values) == len(ok)
         finally:
             browser.close()
@@ -319,9 +398,19 @@ def test_names_are_safe_folders_and_unique(tmp_path):
     (tmp_path / "odd.toml").write_text('name = "../escape me#"\n[material]\nheight = "planks"\nsize = 16\n')
     (tmp_path / "num.toml").write_text('name = 5\n[material]\nheight = "planks"\nsize = 16\n')
     (tmp_path / "thumbs.toml").write_text('[material]\nheight = "planks"\nsize = 16\n')
-    names = [e.name for e in suite.entries([tmp_path / "a.npy", tmp_path / "a.npy", tmp_path / "a-2.npy",
-                                            tmp_path / "odd.toml", tmp_path / "num.toml",
-                                            tmp_path / "thumbs.toml"])]
+    names = [
+        e.name
+        for e in suite.entries(
+            [
+                tmp_path / "a.npy",
+                tmp_path / "a.npy",
+                tmp_path / "a-2.npy",
+                tmp_path / "odd.toml",
+                tmp_path / "num.toml",
+                tmp_path / "thumbs.toml",
+            ]
+        )
+    ]
     assert names == ["a", "a-2", "a-2-2", "_escape_me_", "5", "thumbs-2"]
     assert len(set(names)) == len(names)
 
@@ -329,7 +418,7 @@ def test_names_are_safe_folders_and_unique(tmp_path):
 def test_a_sidecar_that_names_another_material_is_refused(tmp_path):
     np.save(tmp_path / "x.npy", materials.generate("gravel", 16).height)
     (tmp_path / "x.toml").write_text('[material]\nheight = "spikes"\n')
-    (entry,) = suite.entries([tmp_path])           # a broken sidecar is that material's failed row
+    (entry,) = suite.entries([tmp_path])  # a broken sidecar is that material's failed row
     assert "sidecar scene of x.npy" in entry.error
     row = suite.sweep_material(suite.Task(entry, str(tmp_path / "o"), sweep.Options(), None, "", None))
     assert row["status"] == "failed" and "sidecar scene of x.npy" in row["error"]
@@ -362,8 +451,8 @@ def test_each_sweep_reports_its_own_peak_memory():
 
     reset_peak_rss()
     base = peak_rss_bytes()
-    big = np.ones(300 * 2 ** 20, np.uint8)          # 300 MiB, touched
+    big = np.ones(300 * 2**20, np.uint8)  # 300 MiB, touched
     assert peak_rss_bytes() > base + 0.9 * big.nbytes
     del big
     reset_peak_rss()
-    assert peak_rss_bytes() < base + 0.5 * 300 * 2 ** 20      # forgotten after the reset
+    assert peak_rss_bytes() < base + 0.5 * 300 * 2**20  # forgotten after the reset

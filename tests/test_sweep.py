@@ -15,10 +15,28 @@ from hzval.pipeline import sweep
 from hzval.techniques import registry as technique
 
 # docs/ARCHITECTURE.md, "metrics.json".
-TOP_KEYS = {"schema_version", "material", "parameters", "versions", "timings", "simulated", "techniques", "frames"}
+TOP_KEYS = {
+    "schema_version",
+    "material",
+    "parameters",
+    "versions",
+    "timings",
+    "simulated",
+    "techniques",
+    "frames",
+}
 FRAME_KEYS = {"azimuth_deg", "elevation_deg", "truth_s", "files", "techniques", "truth"}
-SCORES = {"visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "rmse", "psnr_db",
-          "delta_e2000_mean", "seconds", "files"}
+SCORES = {
+    "visibility_mae",
+    "leak_fraction",
+    "false_shadow_fraction",
+    "flip_mean",
+    "rmse",
+    "psnr_db",
+    "delta_e2000_mean",
+    "seconds",
+    "files",
+}
 FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
 #: What only --all-files adds (sweep._write_frame): files the others determine.
 DERIVED_FILES = {"plain", "visibility_png"}
@@ -59,9 +77,11 @@ def test_metrics_json_has_the_documented_shape(variant, bricks_sweep):
                 assert 0.0 <= te[key] <= 1.0, key
             assert te["seconds"] > 0
     # the default scene: Figure 5.3's Lambertian wall with shadows, and only that
-    assert m["simulated"] == {"truth": ["shadow", "diffuse"],
-                              **{name: ["shadow", "diffuse"] for name in DEFAULT_TECHNIQUES}}
-    assert list(m["techniques"]) == DEFAULT_TECHNIQUES          # every technique applies, in registry order
+    assert m["simulated"] == {
+        "truth": ["shadow", "diffuse"],
+        **{name: ["shadow", "diffuse"] for name in DEFAULT_TECHNIQUES},
+    }
+    assert list(m["techniques"]) == DEFAULT_TECHNIQUES  # every technique applies, in registry order
     assert m["parameters"]["azimuths_deg"] == [-15.0, 0.0, 15.0]
     assert m["parameters"]["spp"] == 4
     assert m["memory"]["peak_rss_bytes"] > 2**20
@@ -75,14 +95,15 @@ def test_frame_files_exist_and_hold_what_they_say(variant, bricks_sweep):
             assert not rel.startswith("/") and (out / rel).is_file(), rel
         V = files.read_exr(out / f["files"]["visibility"])
         F = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])
-        assert list(V) == ["Y"] and list(F) == ["Y"]        # one-channel
-        assert V["Y"].shape == F["Y"].shape == (48, 48)       # one pixel per texel
+        assert list(V) == ["Y"] and list(F) == ["Y"]  # one-channel
+        assert V["Y"].shape == F["Y"].shape == (48, 48)  # one pixel per texel
         for layer in (V["Y"], F["Y"]):
             assert np.isfinite(layer).all() and layer.min() >= 0 and layer.max() <= 1
         # the metrics are those of the stored layers, which are half floats (the metrics were computed
         # in float32): each F within 2^-12 of its value in [0, 1] (V = k/4 is exact); measured 9e-7
         assert f["techniques"]["horizon"]["visibility_mae"] == pytest.approx(
-            float(np.mean(np.abs(F["Y"] - V["Y"]))), abs=2**-12)
+            float(np.mean(np.abs(F["Y"] - V["Y"]))), abs=2**-12
+        )
         # the bricks (2.4 texels of relief at this size) cast some shadows at 30 degrees
         assert 0.005 < (V["Y"] < 0.5).mean() < 0.5
     assert (out / "index.html").is_file()
@@ -102,7 +123,7 @@ def test_second_run_reuses_the_bake(variant, bricks_sweep):
 def test_summary_table_lists_every_frame(bricks_sweep):
     _, m, _ = bricks_sweep
     table = sweep.summary_table(m).splitlines()
-    assert len(table) == 2 + len(m["frames"]) + 1           # and the line that says what |F-V| is over
+    assert len(table) == 2 + len(m["frames"]) + 1  # and the line that says what |F-V| is over
     assert table[2].split()[0] == "-15" and table[-2].split()[0] == "+15"
     assert table[-1].startswith("|F-V|, leaks and false shadows over the pixels that face the light")
     lead = m["frames"][0]["techniques"]["horizon"]
@@ -113,15 +134,17 @@ def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path):
     """A flat plane is fully lit, and normal mapping a flat plane is exact: no error at all."""
     np.save(tmp_path / "flat.npy", np.full((32, 32), 0.5, np.float32))
     out = tmp_path / "out"
-    assert run("sweep", tmp_path / "flat.npy", "--azimuths", "-60,0,45", "--spp", 2, "--quiet",
-               "--out", out) == 0
+    assert (
+        run("sweep", tmp_path / "flat.npy", "--azimuths", "-60,0,45", "--spp", 2, "--quiet", "--out", out)
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert m["material"]["name"] == "flat" or m["material"].get("path", "").endswith("flat.npy")
     for f in m["frames"]:
         for name, te in f["techniques"].items():
             assert te["visibility_mae"] == 0 and te["leak_fraction"] == 0 and te["false_shadow_fraction"] == 0
             assert te["rmse"] == pytest.approx(0, abs=1e-6), name
-            assert te["psnr_db"] is None or te["psnr_db"] > 100        # infinite PSNR is written as null
+            assert te["psnr_db"] is None or te["psnr_db"] > 100  # infinite PSNR is written as null
             assert te["flip_mean"] == pytest.approx(0, abs=1e-6), name
 
 
@@ -133,8 +156,26 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     np.save(tmp_path / "wall.npy", h)
     out = tmp_path / "out"
     # depth in image widths: 8 texels / 48 texels
-    assert run("sweep", tmp_path / "wall.npy", "--depth", 8 / 48, "--boundary", "open",
-               "--azimuths", "180", "--effects", "shadow", "--spp", 4, "--quiet", "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            tmp_path / "wall.npy",
+            "--depth",
+            8 / 48,
+            "--boundary",
+            "open",
+            "--azimuths",
+            "180",
+            "--effects",
+            "shadow",
+            "--spp",
+            4,
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     (f,) = m["frames"]
     V = files.read_exr(out / f["files"]["visibility"])["Y"]
@@ -142,23 +183,26 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     length = 8 / math.tan(math.radians(30))
     # light from -x (azimuth 180): the shadow falls on +x of the wall, columns 11 .. 10 + length
     row = 16
-    assert V[row, 11:10 + int(length)].max() < 0.5
-    assert V[row, 10 + int(length) + 2:].min() > 0.5
+    assert V[row, 11 : 10 + int(length)].max() < 0.5
+    assert V[row, 10 + int(length) + 2 :].min() > 0.5
     assert V[row, :10].min() > 0.5
-    assert F[row, 11:16].max() < 0.5        # the horizon map sees the wall right behind it
+    assert F[row, 11:16].max() < 0.5  # the horizon map sees the wall right behind it
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (("sweep", "MISSING.png"), "MISSING.png"),
-    (("sweep", "--size", "24", "--azimuths", "a:b"), "azimuths"),
-    (("sweep", "--size", "24", "--depth", "-1"), "depth"),
-    (("sweep", "--size", "24", "--k", "0"), "--k"),
-    (("sweep", "--size", "24", "--effects", "glitter"), "effects"),
-    (("sweep", "--size", "200000"), "GiB"),          # estimated before the map is generated
-    (("sweep", "--size", "24", "--directions", "12"), "--directions"),
-    (("sweep", "--size", "24", "--directions", "16", "--path", "gpu"), "--path"),
-    (("sweep", "--size", "24", "--directions", "16", "--method", "exact"), "--directions"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (("sweep", "MISSING.png"), "MISSING.png"),
+        (("sweep", "--size", "24", "--azimuths", "a:b"), "azimuths"),
+        (("sweep", "--size", "24", "--depth", "-1"), "depth"),
+        (("sweep", "--size", "24", "--k", "0"), "--k"),
+        (("sweep", "--size", "24", "--effects", "glitter"), "effects"),
+        (("sweep", "--size", "200000"), "GiB"),  # estimated before the map is generated
+        (("sweep", "--size", "24", "--directions", "12"), "--directions"),
+        (("sweep", "--size", "24", "--directions", "16", "--path", "gpu"), "--path"),
+        (("sweep", "--size", "24", "--directions", "16", "--method", "exact"), "--directions"),
+    ],
+)
 def test_bad_input_is_one_line_exit_2_and_no_output(argv, needle, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"
@@ -171,8 +215,23 @@ def test_bad_input_is_one_line_exit_2_and_no_output(argv, needle, tmp_path, caps
 def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
     """``--azimuths -30:30:30`` (a value that starts with '-') is taken as the option's value."""
     out = tmp_path / "out"
-    assert run("sweep", "--size", 24, "--azimuths", "-30:30:30", "--effects", "shadow", "--spp", 1,
-               "--quiet", "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            "--size",
+            24,
+            "--azimuths",
+            "-30:30:30",
+            "--effects",
+            "shadow",
+            "--spp",
+            1,
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert [f["azimuth_deg"] for f in m["frames"]] == [-30.0, 0.0, 30.0]
 
@@ -192,13 +251,13 @@ def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, na
             assert 0.0 <= te[key] <= 1.0, key
         assert math.isfinite(te["rmse"]) and math.isfinite(te["delta_e2000_mean"]) and te["seconds"] > 0
         assert {"png", "factor", "visdiff_png", "flip_png"} <= set(te["files"])
-        assert not {"image", "factor_png"} & set(te["files"])         # --all-files only
+        assert not {"image", "factor_png"} & set(te["files"])  # --all-files only
         for rel in te["files"].values():
             assert (out / rel).is_file(), rel
         V = files.read_exr(out / f["files"]["visibility"])["Y"]
         TF = files.read_exr(out / te["files"]["factor"])["Y"]
         assert TF.shape == (48, 48) and np.isfinite(TF).all() and 0 <= TF.min() and TF.max() <= 1
-        assert te["visibility_mae"] == pytest.approx(float(np.mean(np.abs(TF - V))), abs=2**-12)   # half files
+        assert te["visibility_mae"] == pytest.approx(float(np.mean(np.abs(TF - V))), abs=2**-12)  # half files
         with Image.open(out / te["files"]["png"]) as img:
             assert img.size == (48, 48)
     html = (out / "index.html").read_text()
@@ -229,13 +288,39 @@ def test_no_key_or_file_is_named_approx(bricks_sweep):
 def test_a_sweep_without_the_horizon_map_bakes_none_and_records_none(variant, tmp_path):
     """--techniques terrain: the bake holds the normal map alone, and no horizon setting is recorded."""
     out = tmp_path / "out"
-    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain", "--quiet",
-               "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            "--size",
+            24,
+            "--azimuths",
+            "0",
+            "--spp",
+            1,
+            "--techniques",
+            "terrain",
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert sorted(p.name for p in (out / "bake").iterdir()) == ["bake.json", "normal.exr", "normal.png"]
     assert m["bake"]["contents"] == ["normal"] and list(m["techniques"]) == ["terrain"]
-    text = json.dumps({k: v for k, v in m.items() if k not in ("versions", "material")})   # material.path: the file
-    for setting in ('"k"', '"path"', '"ambient"', '"radius"', '"angles"', '"method"', '"directions"', "horizon"):
+    text = json.dumps(
+        {k: v for k, v in m.items() if k not in ("versions", "material")}
+    )  # material.path: the file
+    for setting in (
+        '"k"',
+        '"path"',
+        '"ambient"',
+        '"radius"',
+        '"angles"',
+        '"method"',
+        '"directions"',
+        "horizon",
+    ):
         assert setting not in text, setting
     # a later sweep that needs the horizon map bakes it then, into the same cache
     assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--quiet", "--out", out) == 0
@@ -243,14 +328,32 @@ def test_a_sweep_without_the_horizon_map_bakes_none_and_records_none(variant, tm
     assert m["timings"]["bake_cached"] is False and "horizon_map" in m["bake"]["contents"]
     assert (out / "bake" / "horizon0.exr").is_file()
     # and one that does not reuses it
-    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain", "--quiet",
-               "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            "--size",
+            24,
+            "--azimuths",
+            "0",
+            "--spp",
+            1,
+            "--techniques",
+            "terrain",
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     assert json.loads((out / "metrics.json").read_text())["timings"]["bake_cached"] is True
 
 
 def test_no_terrain_leaves_it_out(variant, tmp_path):
     out = tmp_path / "out"
-    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--no-terrain", "--quiet", "--out", out) == 0
+    assert (
+        run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--no-terrain", "--quiet", "--out", out)
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert "terrain" not in m["frames"][0]["techniques"] and "terrain" not in m["simulated"]
     assert not (out / "frames" / "az+0" / "terrain.png").exists()
@@ -259,19 +362,39 @@ def test_no_terrain_leaves_it_out(variant, tmp_path):
 
 def test_techniques_selects_and_orders(variant, tmp_path):
     out = tmp_path / "out"
-    assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, "--techniques", "terrain,horizon",
-               "--terrain-ramp", 0.5, "--quiet", "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            "--size",
+            24,
+            "--azimuths",
+            "0",
+            "--spp",
+            1,
+            "--techniques",
+            "terrain,horizon",
+            "--terrain-ramp",
+            0.5,
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
-    assert list(m["techniques"]) == ["horizon", "terrain"]            # registry order
+    assert list(m["techniques"]) == ["horizon", "terrain"]  # registry order
     assert m["techniques"]["terrain"]["parameters"]["ramp_texels"] == 0.5
     assert set(m["frames"][0]["techniques"]) == {"horizon", "terrain"}
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (("--techniques", "nope"), "nope"),
-    (("--techniques", "terrain", "--effects", "diffuse"), "shadow"),
-    (("--terrain-ramp", "0"), "ramp"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (("--techniques", "nope"), "nope"),
+        (("--techniques", "terrain", "--effects", "diffuse"), "shadow"),
+        (("--terrain-ramp", "0"), "ramp"),
+    ],
+)
 def test_bad_technique_choices_are_one_line_errors(argv, needle, tmp_path, capsys):
     out = tmp_path / "out"
     assert run("sweep", "--size", 24, "--azimuths", "0", "--spp", 1, *argv, "--quiet", "--out", out) == 2
@@ -285,10 +408,28 @@ def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, brick
     bricks: a number in [0, 1] and a report column; absent where undeclared."""
     np.save(tmp_path / "flat.npy", np.full((16, 16), 0.5, np.float32))
     for height, out in ((tmp_path / "flat.npy", tmp_path / "flat"), ("--size=24", tmp_path / "bricks")):
-        assert run("sweep", height, "--azimuths", "0", "--spp", 2, "--effects", "shadow,diffuse,reflection_occlusion",
-                   "--no-terrain", "--quiet", "--out", out) == 0
+        assert (
+            run(
+                "sweep",
+                height,
+                "--azimuths",
+                "0",
+                "--spp",
+                2,
+                "--effects",
+                "shadow,diffuse,reflection_occlusion",
+                "--no-terrain",
+                "--quiet",
+                "--out",
+                out,
+            )
+            == 0
+        )
         m = json.loads((out / "metrics.json").read_text())
-        assert "reflection_occlusion" in m["simulated"]["truth"] and "reflection_occlusion" in m["simulated"]["horizon"]
+        assert (
+            "reflection_occlusion" in m["simulated"]["truth"]
+            and "reflection_occlusion" in m["simulated"]["horizon"]
+        )
         r = m["frames"][0]["techniques"]["horizon"]["reflection_mae"]
         assert r == 0.0 if out.name == "flat" else 0.0 < r < 1.0
         assert "|o−R|" in (out / "index.html").read_text(encoding="utf-8")
@@ -298,11 +439,29 @@ def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, brick
 
 def test_sixteen_directions_sweep_records_them(variant, tmp_path):
     out = tmp_path / "out"
-    assert run("sweep", "--size", 32, "--azimuths", "0,22.5", "--spp", 2, "--directions", 16, "--no-terrain",
-               "--quiet", "--out", out) == 0
+    assert (
+        run(
+            "sweep",
+            "--size",
+            32,
+            "--azimuths",
+            "0,22.5",
+            "--spp",
+            2,
+            "--directions",
+            16,
+            "--no-terrain",
+            "--quiet",
+            "--out",
+            out,
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert m["techniques"]["horizon"]["parameters"]["directions"] == 16
-    assert sorted(p.name for p in (out / "bake").glob("horizon*.exr")) == [f"horizon{i}.exr" for i in range(4)]
+    assert sorted(p.name for p in (out / "bake").glob("horizon*.exr")) == [
+        f"horizon{i}.exr" for i in range(4)
+    ]
     assert all(0 <= f["techniques"]["horizon"]["visibility_mae"] < 0.2 for f in m["frames"])
 
 
@@ -311,8 +470,20 @@ def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_pa
     exits 0 (it used to fail with exit 2 on every later run)."""
     from hzval.cli import main as cli
 
-    argv = ["sweep", "--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon",
-            "--out", str(tmp_path), "--quiet"]
+    argv = [
+        "sweep",
+        "--size",
+        "24",
+        "--azimuths",
+        "0",
+        "--spp",
+        "4",
+        "--techniques",
+        "horizon",
+        "--out",
+        str(tmp_path),
+        "--quiet",
+    ]
     assert cli.main(argv) == 0
     victim = tmp_path / "bake" / "horizon1.exr"
     victim.write_bytes(victim.read_bytes()[:100])
@@ -323,13 +494,27 @@ def test_a_truncated_bake_cache_is_rebaked_and_the_sweep_says_so(variant, tmp_pa
     assert len(warnings) == 1 and "horizon1.exr" in warnings[0] and warnings[0].startswith("hzval: warning:")
 
 
-SMALL_SWEEP = ["sweep", "--size", "24", "--azimuths", "-30,0,30", "--spp", "4", "--techniques", "horizon", "--quiet"]
+SMALL_SWEEP = [
+    "sweep",
+    "--size",
+    "24",
+    "--azimuths",
+    "-30,0,30",
+    "--spp",
+    "4",
+    "--techniques",
+    "horizon",
+    "--quiet",
+]
 
 
 def _tree(folder):
     """Every file under ``folder`` with its bytes (the lock file aside)."""
-    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and p.name != ".hzval-lock"}
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != ".hzval-lock"
+    }
 
 
 @pytest.mark.parametrize("stage", ["render", "_finish"])
@@ -360,8 +545,9 @@ def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypat
     assert cli.main(SMALL_SWEEP + ["--elevation", "20", "--out", str(out)]) == 130
     assert capsys.readouterr().err.strip() == "hzval: interrupted"
     after = _tree(out)
-    assert {k: v for k, v in after.items() if not k.startswith("bake/")} == \
-        {k: v for k, v in before.items() if not k.startswith("bake/")}
+    assert {k: v for k, v in after.items() if not k.startswith("bake/")} == {
+        k: v for k, v in before.items() if not k.startswith("bake/")
+    }
     assert not [p for p in out.iterdir() if p.name.startswith(".hzval-") and p.name != ".hzval-lock"]
 
 
@@ -372,7 +558,7 @@ def test_a_finished_sweep_replaces_the_old_report_whole(variant, tmp_path):
     assert cli.main(SMALL_SWEEP + ["--azimuths", "-30,0,30,60", "--out", str(out)]) == 0
     assert (out / "frames" / "az+60").is_dir()
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
-    assert not (out / "frames" / "az+60").exists()           # no frame of the old run survives
+    assert not (out / "frames" / "az+60").exists()  # no frame of the old run survives
     assert sorted(p.name for p in (out / "frames").iterdir()) == ["az+0", "az+30", "az-30"]
 
 
@@ -385,9 +571,14 @@ def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, ca
         assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     # the holder's pid, not its command line (which may hold private paths: issue 33)
-    assert "\n" not in err and "in use by another hzval run" in err and "pid" in err and "the first run" not in err
+    assert (
+        "\n" not in err
+        and "in use by another hzval run" in err
+        and "pid" in err
+        and "the first run" not in err
+    )
     assert not (out / "index.html").exists()
-    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0            # free again once it is done
+    assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0  # free again once it is done
 
 
 def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_path, capsys, monkeypatch):
@@ -395,12 +586,12 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
     naming the input and the estimate, exit 2, nothing written; under it, recorded beside the peak."""
     from hzval.bake import maps as bake
     from hzval.cli import main as cli
-    from hzval.scene import spec as S
     from hzval.pipeline import sweep as sw
+    from hzval.scene import spec as S
 
     scene = S.override(S.Scene(), size=1024)
     need = sw.estimate_peak_bytes(scene, 1024, 1024)
-    assert 2.0 * 2 ** 30 < need < 3.0 * 2 ** 30               # measured: 2.35 GiB (benchmarks/README.md)
+    assert 2.0 * 2**30 < need < 3.0 * 2**30  # measured: 2.35 GiB (benchmarks/README.md)
     monkeypatch.setattr(bake, "available_bytes", lambda: need - 1)
     out = tmp_path / "o"
     assert cli.main(["sweep", "--size", "1024", "--out", str(out), "--quiet"]) == 2
@@ -413,8 +604,9 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
     import subprocess
     import sys
 
-    subprocess.run([sys.executable, "-m", "hzval", *SMALL_SWEEP, "--out", str(out)], check=True,
-                   capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "hzval", *SMALL_SWEEP, "--out", str(out)], check=True, capture_output=True
+    )
     memory = json.loads((out / "metrics.json").read_text())["memory"]
     assert 0.5 < memory["estimate_bytes"] / memory["peak_rss_bytes"] < 2.0
 
@@ -436,20 +628,20 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
     fired = threading.Event()
 
     def slow_png(path, make, *args):
-        _time.sleep(0.2)                             # the writers are still at work ...
+        _time.sleep(0.2)  # the writers are still at work ...
         real_png(path, make, *args)
 
     def result(self, timeout=None):
         if threading.current_thread() is threading.main_thread() and not fired.is_set():
             fired.set()
-            raise KeyboardInterrupt                  # ... when Ctrl-C reaches the main thread
+            raise KeyboardInterrupt  # ... when Ctrl-C reaches the main thread
         return real_result(self, timeout)
 
     monkeypatch.setattr(sw, "_write_png_of", slow_png)
     monkeypatch.setattr(concurrent.futures.Future, "result", result)
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 130
     assert fired.is_set()
-    _time.sleep(0.5)                                 # a straggler would have written by now
+    _time.sleep(0.5)  # a straggler would have written by now
     assert [p for p in out.rglob("*") if p.is_file() and ".hzval-staging" in str(p)] == []
 
 
@@ -468,24 +660,24 @@ def test_freed_memory_is_kept_while_retained_and_handed_back_after():
         pytest.skip("not glibc: nothing to retain")
     try:
         base = _rss_bytes()
-        big = np.ones(256 * 2 ** 20, np.uint8)
+        big = np.ones(256 * 2**20, np.uint8)
         del big
-        assert _rss_bytes() > base + 200 * 2 ** 20            # kept
+        assert _rss_bytes() > base + 200 * 2**20  # kept
     finally:
         backend.hand_back_freed_memory()
-    assert _rss_bytes() < base + 64 * 2 ** 20                 # handed back
+    assert _rss_bytes() < base + 64 * 2**20  # handed back
     after = _rss_bytes()
-    big = np.ones(256 * 2 ** 20, np.uint8)
+    big = np.ones(256 * 2**20, np.uint8)
     del big
-    assert _rss_bytes() < after + 64 * 2 ** 20                # glibc's own way again
-    backend.hand_back_freed_memory()                          # a second call does nothing
+    assert _rss_bytes() < after + 64 * 2**20  # glibc's own way again
+    backend.hand_back_freed_memory()  # a second call does nothing
 
 
 def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_path, monkeypatch):
     """A sweep far below the memory available retains what it frees (metrics.json says so) and hands
     it back when it ends; one near the limit does not retain."""
-    from hzval.core import backend
     from hzval.bake import maps as bake
+    from hzval.core import backend
 
     calls = []
     real = backend.hand_back_freed_memory
@@ -494,7 +686,12 @@ def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_pat
     assert run("sweep", "--size", 24, "--azimuths", 0, "--spp", 2, "--quiet", "--out", out) == 0
     retains = json.loads((out / "metrics.json").read_text())["memory"]["retains_freed"]
     assert retains is (backend._mallopt() is not None) and calls == [retains] and not backend._retaining
-    monkeypatch.setattr(bake, "available_bytes", lambda: int(1.5 * sweep.estimate_peak_bytes(
-        sweep.sc.override(sweep.sc.Scene(), size=24, spp=2), 24, 24)))
+    monkeypatch.setattr(
+        bake,
+        "available_bytes",
+        lambda: int(
+            1.5 * sweep.estimate_peak_bytes(sweep.sc.override(sweep.sc.Scene(), size=24, spp=2), 24, 24)
+        ),
+    )
     assert run("sweep", "--size", 24, "--azimuths", 0, "--spp", 2, "--quiet", "--out", tmp_path / "p") == 0
     assert json.loads((tmp_path / "p" / "metrics.json").read_text())["memory"]["retains_freed"] is False

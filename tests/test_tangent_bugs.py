@@ -16,18 +16,26 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hzval.geometry import model
-from hzval.scene import spec as S
-from hzval.geometry import tangent_bugs
-from hzval.techniques import registry as technique
 from hzval.bake.maps import BakeParams, bake
 from hzval.core.errors import InputError
+from hzval.geometry import model, tangent_bugs
+from hzval.scene import spec as S
+from hzval.techniques import registry as technique
 from hzval.truth.model import ModelTruth
 
 
 def _scene(n=32, bug="none", **kw):
-    base = dict(size=n, depth=0.08, spp=2, azimuths="-45,30", boundary="open", camera="orthographic",
-                view_elevation=60, view_azimuth=-90, resolution=(n, n))
+    base = dict(
+        size=n,
+        depth=0.08,
+        spp=2,
+        azimuths="-45,30",
+        boundary="open",
+        camera="orthographic",
+        view_elevation=60,
+        view_azimuth=-90,
+        resolution=(n, n),
+    )
     base.update(kw)
     sc = S.override(S.Scene(), **base)
     return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug=bug))
@@ -46,7 +54,7 @@ def _frames(uvs, bug, n=16):
     sc = _scene(n, bug)
     h = np.zeros((n, n), np.float32)
     mt = ModelTruth(sc, h, _quad(uvs))
-    return mt.samples().frames[mt.seen_samples]           # a missed sample keeps the world's frame
+    return mt.samples().frames[mt.seen_samples]  # a missed sample keeps the world's frame
 
 
 def _horizon(mt, sc, h):
@@ -65,9 +73,23 @@ def test_none_is_the_frames_themselves():
 def test_none_renders_as_before(variant):
     sc = _scene(24, mesh="cube", boundary="wrap", camera="perspective", view_azimuth=150)
     h = S.load_material_height(sc.material).height
-    a = ModelTruth(S.override(S.Scene(), size=24, depth=0.08, spp=2, azimuths="-45,30", boundary="wrap",
-                              camera="perspective", view_elevation=60, view_azimuth=150, resolution=(24, 24),
-                              mesh="cube"), h, model.load("cube")).samples()
+    a = ModelTruth(
+        S.override(
+            S.Scene(),
+            size=24,
+            depth=0.08,
+            spp=2,
+            azimuths="-45,30",
+            boundary="wrap",
+            camera="perspective",
+            view_elevation=60,
+            view_azimuth=150,
+            resolution=(24, 24),
+            mesh="cube",
+        ),
+        h,
+        model.load("cube"),
+    ).samples()
     b = ModelTruth(sc, h, model.load("cube")).samples()
     np.testing.assert_array_equal(a.frames, b.frames)
     np.testing.assert_array_equal(a.x, b.x)
@@ -77,14 +99,14 @@ def test_which_bug_shows_on_which_quad(variant):
     xy = {bug: _frames(XY, bug) for bug in tangent_bugs.NAMES}
     np.testing.assert_allclose(xy["ignore-handedness"], xy["none"], atol=1e-6)
     np.testing.assert_allclose(xy["per-face"], xy["none"], atol=1e-5)
-    assert np.abs(xy["flip-green"] - xy["none"]).max() > 1.5          # b turned over
+    assert np.abs(xy["flip-green"] - xy["none"]).max() > 1.5  # b turned over
     np.testing.assert_array_equal(xy["swap-uv"][:, 0:3], xy["none"][:, 3:6])
     np.testing.assert_array_equal(xy["swap-uv"][:, 3:6], xy["none"][:, 0:3])
     mu = {bug: _frames(MIRRORED_U, bug) for bug in ("none", "ignore-handedness", "flip-green", "per-face")}
     np.testing.assert_allclose(mu["ignore-handedness"], mu["flip-green"], atol=1e-6)
     np.testing.assert_allclose(mu["per-face"], mu["none"], atol=1e-5)
     assert np.abs(mu["ignore-handedness"] - mu["none"]).max() > 1.5
-    for f in list(xy.values()) + list(mu.values()):                    # every bug's frame stays orthonormal
+    for f in list(xy.values()) + list(mu.values()):  # every bug's frame stays orthonormal
         t, b, n = f[:, 0:3], f[:, 3:6], f[:, 6:9]
         for u, v in ((t, b), (t, n), (b, n)):
             assert np.abs(np.sum(u * v, axis=1)).max() < 1e-5
@@ -103,10 +125,12 @@ def test_a_mirror_in_v_is_invisible_on_ridges_along_v(variant, bug):
     for along in ("v", "u"):
         h = _ridges(n, along)
         for b in ("none", bug):
-            sc = _scene(n, b, azimuths="-60,60,150", boundary="wrap")   # no edge to mirror
+            sc = _scene(n, b, azimuths="-60,60,150", boundary="wrap")  # no edge to mirror
             mt = ModelTruth(sc, h, _quad(XY))
             tech = _horizon(mt, sc, h)
-            F[along, b] = np.stack([tech.render(az).layers["factor"][mt.seen] for az in sc.light.azimuths_deg])
+            F[along, b] = np.stack(
+                [tech.render(az).layers["factor"][mt.seen] for az in sc.light.azimuths_deg]
+            )
     np.testing.assert_allclose(F["v", bug], F["v", "none"], atol=2e-3)
     assert np.abs(F["u", bug] - F["u", "none"]).mean() > 0.05
 
@@ -118,8 +142,18 @@ def test_ignore_handedness_doubles_the_error_on_the_cubes_mirrored_face(variant)
     h = _ridges(n, "u")
     err, mirrored = {}, None
     for bug in ("none", "ignore-handedness"):
-        sc = _scene(n, bug, mesh="cube", boundary="wrap", camera="perspective", view_elevation=20,
-                    view_azimuth=180, azimuths="135,225", resolution=(48, 48), elevation=30)
+        sc = _scene(
+            n,
+            bug,
+            mesh="cube",
+            boundary="wrap",
+            camera="perspective",
+            view_elevation=20,
+            view_azimuth=180,
+            azimuths="135,225",
+            resolution=(48, 48),
+            elevation=30,
+        )
         mt = ModelTruth(sc, h, model.load("cube"))
         f = mt.samples().frames
         if mirrored is None:
@@ -127,18 +161,37 @@ def test_ignore_handedness_doubles_the_error_on_the_cubes_mirrored_face(variant)
             mirrored = (w.reshape(-1, sc.spp) < 0).all(axis=1).reshape(mt.shape) & mt.seen
             assert mirrored.sum() > 200
         tech = _horizon(mt, sc, h)
-        err[bug] = np.mean([np.abs(tech.render(az).layers["factor"] - mt.render(az).layers["visibility"])[mirrored]
-                            for az in sc.light.azimuths_deg])
+        err[bug] = np.mean(
+            [
+                np.abs(tech.render(az).layers["factor"] - mt.render(az).layers["visibility"])[mirrored]
+                for az in sc.light.azimuths_deg
+            ]
+        )
     assert err["ignore-handedness"] >= 2.0 * err["none"], err
 
 
-SMALL = ["sweep", "--size", "24", "--depth", "0.1", "--spp", "1", "--azimuths", "-30,30", "--quiet",
-         "--resolution", "32x32", "--technique", "horizon"]
+SMALL = [
+    "sweep",
+    "--size",
+    "24",
+    "--depth",
+    "0.1",
+    "--spp",
+    "1",
+    "--azimuths",
+    "-30,30",
+    "--quiet",
+    "--resolution",
+    "32x32",
+    "--technique",
+    "horizon",
+]
 
 
 def test_a_sweep_records_its_bug(tmp_path):
-    from hzval.cli import main as cli
     import json
+
+    from hzval.cli import main as cli
 
     out = tmp_path / "bug"
     assert cli.main(SMALL + ["--mesh", "cube", "--tangent-bug", "swap-uv", "--out", str(out)]) == 0
@@ -147,9 +200,13 @@ def test_a_sweep_records_its_bug(tmp_path):
     assert all(0.0 <= f["techniques"]["horizon"]["visibility_mae"] <= 1.0 for f in m["frames"])
 
 
-@pytest.mark.parametrize("extra,needle", [(["--mesh", "cube", "--tangent-bug", "upside-down"], "unknown tangent bug"),
-                                          (["--camera", "orthographic", "--tangent-bug", "swap-uv"],
-                                           "needs a model")])
+@pytest.mark.parametrize(
+    "extra,needle",
+    [
+        (["--mesh", "cube", "--tangent-bug", "upside-down"], "unknown tangent bug"),
+        (["--camera", "orthographic", "--tangent-bug", "swap-uv"], "needs a model"),
+    ],
+)
 def test_a_bad_bug_is_one_line(tmp_path, capsys, extra, needle):
     from hzval.cli import main as cli
 
@@ -183,9 +240,28 @@ def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
     from hzval.cli import main as cli
     from hzval.commands import score
 
-    args = ["sweep", "--size", "32", "--depth", "0.1", "--spp", "1", "--azimuths", "135,225", "--quiet",
-            "--resolution", "40x40", "--technique", "horizon", "--mesh", "cube", "--view-azimuth", "150",
-            "--view-elevation", "20"]
+    args = [
+        "sweep",
+        "--size",
+        "32",
+        "--depth",
+        "0.1",
+        "--spp",
+        "1",
+        "--azimuths",
+        "135,225",
+        "--quiet",
+        "--resolution",
+        "40x40",
+        "--technique",
+        "horizon",
+        "--mesh",
+        "cube",
+        "--view-azimuth",
+        "150",
+        "--view-elevation",
+        "20",
+    ]
     assert cli.main(args + ["--out", str(tmp_path / "ref")]) == 0
     assert cli.main(args + ["--tangent-bug", bug, "--out", str(tmp_path / "bugged")]) == 0
     result, _ = score.score(_engine_frames(tmp_path / "bugged", tmp_path / "engine"), tmp_path / "ref")
@@ -193,7 +269,7 @@ def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
     assert match["best"] == bug
     assert match["named"] == (bug != "none")
     assert any(bug in w for w in result["warnings"]) == (bug != "none")
-    for f in result["frames"]:                      # V is NaN off the model: scored over the seen pixels
+    for f in result["frames"]:  # V is NaN off the model: scored over the seen pixels
         assert 0.0 <= f["techniques"]["engine"]["visibility_mae"] <= 1.0
 
 
@@ -205,8 +281,11 @@ def test_per_face_is_faceted_on_a_curved_model(variant):
     sphere = model.load("sphere", shape_args={"segments": 12, "rings": 6})
     mt = ModelTruth(sc, h, sphere)
     face = mt.samples().frames[mt.seen_samples]
-    none = ModelTruth(dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none")), h,
-                      sphere).samples().frames[mt.seen_samples]
+    none = (
+        ModelTruth(dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none")), h, sphere)
+        .samples()
+        .frames[mt.seen_samples]
+    )
     assert len(np.unique(np.round(face[:, 6:9], 5), axis=0)) <= len(sphere.faces)
     assert len(np.unique(np.round(none[:, 6:9], 5), axis=0)) > 4 * len(sphere.faces)
     assert np.degrees(np.arccos(np.clip(np.sum(face[:, 6:9] * none[:, 6:9], axis=1), -1, 1))).max() > 5.0

@@ -65,8 +65,11 @@ def test_mirroring_u_flips_w_and_the_tangent():
     np.testing.assert_allclose(t[:, :3], -s.tangents[:, :3], atol=1e-12)
     np.testing.assert_array_equal(t[:, 3], -s.tangents[:, 3])
     # the bitangent, along +v, is the same vector
-    np.testing.assert_allclose(t[:, 3:] * np.cross(s.normals, t[:, :3]),
-                               s.tangents[:, 3:] * np.cross(s.normals, s.tangents[:, :3]), atol=1e-12)
+    np.testing.assert_allclose(
+        t[:, 3:] * np.cross(s.normals, t[:, :3]),
+        s.tangents[:, 3:] * np.cross(s.normals, s.tangents[:, :3]),
+        atol=1e-12,
+    )
 
 
 def test_to_world_and_back():
@@ -86,7 +89,9 @@ def test_to_world_on_drjit_matches_numpy(variant):
 
     n, t, v = np.array([[0.1, 0.2, 1.0]]), np.array([[1.0, 0.3, 0.0]]), np.array([[0.3, -0.5, 0.8]])
     got = tg.to_world(mi.Vector3f(v.T), mi.Vector3f(n.T), mi.Vector3f(t.T), mi.Float(-1.0))
-    np.testing.assert_allclose(np.array(got).reshape(3, -1).T, tg.to_world(v, n, t, np.array([-1.0])), atol=1e-6)
+    np.testing.assert_allclose(
+        np.array(got).reshape(3, -1).T, tg.to_world(v, n, t, np.array([-1.0])), atol=1e-6
+    )
 
 
 def test_face_frames_of_the_flat_cube_are_its_vertex_frames():

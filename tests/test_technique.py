@@ -15,17 +15,15 @@ import json
 import numpy as np
 import pytest
 
-from hzval.techniques import horizon
-from hzval.techniques import surface
 from hzval.bake import maps as bake
-from hzval.commands import check
 from hzval.cli import main as cli
-from hzval.pipeline import sweep
-from hzval.techniques import registry as technique
-from hzval.commands import tradeoff
-from hzval.scene import spec as S
+from hzval.commands import check, tradeoff
 from hzval.core.errors import InputError
+from hzval.pipeline import sweep
+from hzval.scene import spec as S
 from hzval.scene.spec import Frame
+from hzval.techniques import registry as technique
+from hzval.techniques import surface
 
 
 class NeverShadow(technique.Technique):
@@ -72,23 +70,29 @@ def test_every_technique_renders_a_documented_frame(variant, name):
     f = t.render(30.0)
     assert f.image.shape == (24, 24, 3) and f.image.dtype == np.float32 and np.isfinite(f.image).all()
     F = f.layers["factor"]
-    assert F.shape == (24, 24) and F.min() >= 0 and F.max() <= 1 and F.min() < 1   # the bricks cast shadows
+    assert F.shape == (24, 24) and F.min() >= 0 and F.max() <= 1 and F.min() < 1  # the bricks cast shadows
     assert f.seconds > 0
-    json.dumps(t.parameters)                       # metrics.json can hold it
+    json.dumps(t.parameters)  # metrics.json can hold it
     assert t.storage_bytes() > 0
 
 
 def test_selection_follows_the_declared_effects(variant):
     lit = small_context(("diffuse",)).scene
-    assert [t.name for t in technique.select(None, lit)] == [n for n in technique.names()
-                                                           if not technique.get(n).needs and technique.get(n).by_default]
+    assert [t.name for t in technique.select(None, lit)] == [
+        n for n in technique.names() if not technique.get(n).needs and technique.get(n).by_default
+    ]
     shadowed = small_context().scene
-    assert [t.name for t in technique.select(None, shadowed)] == [n for n in technique.names()
-                                                                if technique.get(n).by_default]
-    assert [t.name for t in technique.select(None, shadowed, exclude=("terrain",))] == \
-        [n for n in technique.names() if n != "terrain" and technique.get(n).by_default]
-    assert "horizon-fit" not in technique.defaults()          # opt-in: only by name
-    assert [t.name for t in technique.select(["horizon-fit", "horizon"], shadowed)] == ["horizon", "horizon-fit"]
+    assert [t.name for t in technique.select(None, shadowed)] == [
+        n for n in technique.names() if technique.get(n).by_default
+    ]
+    assert [t.name for t in technique.select(None, shadowed, exclude=("terrain",))] == [
+        n for n in technique.names() if n != "terrain" and technique.get(n).by_default
+    ]
+    assert "horizon-fit" not in technique.defaults()  # opt-in: only by name
+    assert [t.name for t in technique.select(["horizon-fit", "horizon"], shadowed)] == [
+        "horizon",
+        "horizon-fit",
+    ]
     with pytest.raises(InputError, match="needs the scene to declare shadow"):
         technique.select(["terrain"], lit)
     with pytest.raises(InputError, match="unknown technique 'nope'"):
@@ -97,8 +101,12 @@ def test_selection_follows_the_declared_effects(variant):
 
 def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_path, capsys):
     out = tmp_path / "out"
-    assert cli.main(["sweep", "--size", "24", "--azimuths", "-30,30", "--spp", "2", "--quiet",
-                     "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            ["sweep", "--size", "24", "--azimuths", "-30,30", "--spp", "2", "--quiet", "--out", str(out)]
+        )
+        == 0
+    )
     table = capsys.readouterr().out
     m = json.loads((out / "metrics.json").read_text())
     assert "never" in m["techniques"] and m["simulated"]["never"] == ["shadow", "diffuse"]
@@ -115,8 +123,24 @@ def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_pa
     assert "never shadows" in html and "never |F−V|" in html and "never_flip.png" in html
     assert "never |F-V|" in table.splitlines()[0]
     # the command line knows it too: --no-never leaves it out
-    assert cli.main(["sweep", "--size", "24", "--azimuths", "0", "--spp", "1", "--no-never", "--quiet",
-                     "--out", str(tmp_path / "out2")]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                "--size",
+                "24",
+                "--azimuths",
+                "0",
+                "--spp",
+                "1",
+                "--no-never",
+                "--quiet",
+                "--out",
+                str(tmp_path / "out2"),
+            ]
+        )
+        == 0
+    )
     assert "never" not in json.loads((tmp_path / "out2" / "metrics.json").read_text())["techniques"]
     # the check guards it, and the tradeoff measures it
     scene = check.check_scene(S.override(S.Scene(), size=24, azimuths="0", spp=1))

@@ -12,16 +12,17 @@ import math
 
 import numpy as np
 import pytest
+from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
-from hzval.techniques import horizon
+from hzval.core.errors import InputError
 from hzval.techniques import surface
 from hzval.techniques import terrain as T
-from hzval.core.errors import InputError
-from test_truth import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
 def shadow(h, depth, boundary="open", impl="drjit", **kw):
-    return T.TerrainShadow(make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), impl=impl)
+    return T.TerrainShadow(
+        make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), impl=impl
+    )
 
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
@@ -31,13 +32,14 @@ def test_flat_map_is_fully_lit(variant, boundary, impl):
     for azimuth in (0.0, 77.0, 200.0, -45.0):
         f = ts.render(azimuth)
         assert np.all(f.layers["factor"] == 1.0)
-        assert np.all(f.image == 1.0)          # shadow only: E times the factor
+        assert np.all(f.image == 1.0)  # shadow only: E times the factor
 
 
 @pytest.fixture(scope="module")
 def walls(variant):
-    return {("col", e): shadow(column_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e) for e in (30.0, 50.0)} | \
-           {("row", e): shadow(row_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e) for e in (30.0, 50.0)}
+    return {
+        ("col", e): shadow(column_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e) for e in (30.0, 50.0)
+    } | {("row", e): shadow(row_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e) for e in (30.0, 50.0)}
 
 
 @pytest.mark.parametrize("elevation", [30.0, 50.0])
@@ -52,9 +54,11 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
     long (along a diagonal azimuth that is up to 1.1 texels along the ray).
     """
     expected = WALL_H / math.tan(math.radians(elevation))
-    for across, c in wall_shadow_extents(lambda: walls["col", elevation].render(azimuth).layers["factor"],
-                                         lambda: walls["row", elevation].render(azimuth).layers["factor"],
-                                         azimuth):
+    for across, c in wall_shadow_extents(
+        lambda: walls["col", elevation].render(azimuth).layers["factor"],
+        lambda: walls["row", elevation].render(azimuth).layers["factor"],
+        azimuth,
+    ):
         assert expected * c - 1.0 < across <= expected * c + 0.05
 
 
@@ -63,19 +67,19 @@ def test_wrap_shadow_crosses_the_edge_and_open_does_not(variant, impl):
     """A wall at column 37 of 40 lit from -x (azimuth 180) casts its shadow toward +x, past the right
     edge: wrap brings it back at the left, open does not."""
     h = column_wall(24, 40, 37)
-    depth = WALL_H / 40                     # 4 texels high: 6.9 texels of shadow at 30 degrees
+    depth = WALL_H / 40  # 4 texels high: 6.9 texels of shadow at 30 degrees
     wrapped = shadow(h, depth, "wrap", impl).render(180.0).layers["factor"]
     opened = shadow(h, depth, "open", impl).render(180.0).layers["factor"]
-    assert wrapped[:, :4].max() < 0.5        # columns 0-3: 38.5 .. 43.5 along the tiled ground
-    assert np.all(opened[:, :30] == 1.0)     # nothing beyond the edge
-    assert opened[:, 38:].max() < 0.5        # its own shadow inside the map
+    assert wrapped[:, :4].max() < 0.5  # columns 0-3: 38.5 .. 43.5 along the tiled ground
+    assert np.all(opened[:, :30] == 1.0)  # nothing beyond the edge
+    assert opened[:, 38:].max() < 0.5  # its own shadow inside the map
 
 
 def test_wrap_finds_occluders_several_tiles_away_at_grazing_light(variant):
     """At 1 degree a 4-texel wall shadows 229 texels: more than 11 tiles of 20 away, it still does."""
     h = column_wall(8, 20, 10)
     F = shadow(h, 4.0 / 20, "wrap", elevation=1.0, spp=1).render(180.0).layers["factor"]
-    assert np.all(F[:, np.arange(20) != 10] < 0.5)       # every ground column is in the wall's shadow
+    assert np.all(F[:, np.arange(20) != 10] < 0.5)  # every ground column is in the wall's shadow
 
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
@@ -83,31 +87,40 @@ def test_wrap_finds_occluders_several_tiles_away_at_grazing_light(variant):
 def test_drjit_and_numpy_agree(variant, boundary, kind):
     from hzval.materials.bricks import bricks
 
-    h = bricks(64)[:48, :56]                     # not square: the transposed sweeps differ
+    h = bricks(64)[:48, :56]  # not square: the transposed sweeps differ
     kw = dict(elevation=25.0, kind=kind, radius=4.0 if kind == "soft" else 0.0, spp=4)
     a = shadow(h, 0.05, boundary, "drjit", **kw)
     b = shadow(h, 0.05, boundary, "numpy", **kw)
     for az in (0.0, 33.0, 90.0, 135.0, 200.0, -60.0):
         Fa, Fb = a.factor(az), b.factor(az)
         assert np.abs(Fa - Fb).mean() < 1e-4
-        assert np.abs(Fa - Fb).max() < 0.02         # float32 against float64 at a ramp of 0.02 texel
+        assert np.abs(Fa - Fb).max() < 0.02  # float32 against float64 at a ramp of 0.02 texel
 
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
-@pytest.mark.parametrize("elevation, expect", [(0.5, None), (90.0, 1.0), (89.99, None), (0.0, 0.0), (-5.0, 0.0)])
+@pytest.mark.parametrize(
+    "elevation, expect", [(0.5, None), (90.0, 1.0), (89.99, None), (0.0, 0.0), (-5.0, 0.0)]
+)
 def test_factor_is_finite_in_unit_range_at_extreme_lights(variant, boundary, elevation, expect):
     from hzval.materials.bricks import bricks
 
     for kind in ("hard", "soft"):
-        ts = shadow(bricks(32), 0.05, boundary, elevation=elevation, kind=kind,
-                    radius=2.0 if kind == "soft" else 0.0, spp=2)
+        ts = shadow(
+            bricks(32),
+            0.05,
+            boundary,
+            elevation=elevation,
+            kind=kind,
+            radius=2.0 if kind == "soft" else 0.0,
+            spp=2,
+        )
         for az in (0.0, 45.0, 170.0):
             F = ts.render(az).layers["factor"]
             assert np.isfinite(F).all() and F.min() >= 0 and F.max() <= 1
             if expect is not None:
                 assert np.all(F == expect)
         if elevation == 0.5:
-            assert F.mean() < 0.9            # grazing light: mostly shadowed bricks
+            assert F.mean() < 0.9  # grazing light: mostly shadowed bricks
 
 
 def test_soft_light_widens_the_penumbra_with_distance(variant):
@@ -116,7 +129,7 @@ def test_soft_light_widens_the_penumbra_with_distance(variant):
     ts = shadow(column_wall(16, 64, 40), h / 64, elevation=e, kind="soft", radius=rho, spp=16)
     F = ts.render(0.0).layers["factor"].mean(axis=0)
     top = 40.5
-    d_lo, d_hi = h / math.tan(math.radians(e + rho)), h / math.tan(math.radians(e - rho))   # 11.4, 17.2
+    d_lo, d_hi = h / math.tan(math.radians(e + rho)), h / math.tan(math.radians(e - rho))  # 11.4, 17.2
     x = np.arange(64) + 0.5
     assert np.all(F[(top - x > d_hi + 1) & (x < 40)] == 1.0)
     assert np.all(F[(top - x < d_lo - 1) & (top - x > 1.5)] == 0.0)
@@ -133,10 +146,9 @@ def test_bad_ramp_and_impl_are_refused(variant):
 
 @pytest.fixture(scope="module")
 def bricks64(variant):
-    from hzval.techniques import horizon
-    from hzval.techniques import surface
     from hzval.bake import maps as bake
     from hzval.scene import spec as S
+    from hzval.techniques import horizon
     from hzval.truth import plane as truth
 
     sc = S.Scene(material=S.MaterialSpec(size=64), effects=("shadow", "diffuse")).validate()
@@ -161,7 +173,7 @@ def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
         horizon_mae.append(compare.visibility_metrics(V, ap.render(az).layers["factor"])[0])
         # the image is the plain render times the factor (shadow and diffuse, no ambient)
         np.testing.assert_allclose(f.image, plain.image * f.layers["factor"][..., None], rtol=1e-6)
-        assert f.seconds >= shared.render(az)[0].seconds > 0     # the shared unshadowed render counts
+        assert f.seconds >= shared.render(az)[0].seconds > 0  # the shared unshadowed render counts
     assert np.mean(terrain_mae) < 0.016
     assert np.mean(terrain_mae) < np.mean(horizon_mae)
     assert max(terrain_mae) < 0.03
@@ -183,12 +195,13 @@ def test_ambient_is_not_shadowed(variant):
     from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE
 
     h = column_wall(16, 32, 20)
-    sc = make_scene(h.shape, 4 / 32, "open", effects=("shadow", "diffuse", "ambient"), spp=4, albedo=0.5,
-                    irradiance=2.0)
+    sc = make_scene(
+        h.shape, 4 / 32, "open", effects=("shadow", "diffuse", "ambient"), spp=4, albedo=0.5, irradiance=2.0
+    )
     bk = bake.bake(h, bake.BakeParams(depth=4 / 32, boundary="open"))
     f = T.TerrainShadow(sc, h, bake=bk).render(0.0)
     dark = f.layers["factor"] == 0
     assert dark.sum() > 16
     sky = 0.5 * 2.0 * SKY_RADIANCE_PER_IRRADIANCE * f.layers["ambient"][dark]
-    assert np.all(sky > 0.05)                                     # the sky is there, and not tiny
+    assert np.all(sky > 0.05)  # the sky is there, and not tiny
     np.testing.assert_allclose(f.image[dark], np.repeat(sky[:, None], 3, axis=1), rtol=1e-5)

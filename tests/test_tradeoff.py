@@ -8,12 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from hzval.techniques import horizon
-from hzval.techniques import surface
 from hzval.cli import main as cli
 from hzval.commands import tradeoff
-from hzval.scene.spec import MaterialSpec, Scene
 from hzval.commands.tradeoff import Point
+from hzval.scene.spec import MaterialSpec, Scene
+from hzval.techniques import horizon
 
 POINT_KEYS = {"name", "kind", "time_s", "storage_bytes", "visibility_mae", "flip_mean", "pareto"}
 
@@ -23,9 +22,11 @@ def wall_scene_and_height():
     longer than a radius-4 or radius-8 search sees."""
     h = np.zeros((32, 64), np.float32)
     h[:, ::32] = 1.0
-    scene = Scene(name="walls", material=MaterialSpec(height="walls.npy", size=64, depth=12 / 64,
-                                                      boundary="wrap"),
-                  spp=4)
+    scene = Scene(
+        name="walls",
+        material=MaterialSpec(height="walls.npy", size=64, depth=12 / 64, boundary="wrap"),
+        spp=4,
+    )
     scene = dataclasses.replace(scene, light=dataclasses.replace(scene.light, azimuths_deg=(0.0, 180.0)))
     return scene, h
 
@@ -33,8 +34,19 @@ def wall_scene_and_height():
 @pytest.fixture(scope="module")
 def wall_points(variant):
     scene, h = wall_scene_and_height()
-    only = ["(default)", "seed r4", "seed r8", "seed r32", "8-bit", "GPU path", "k = 2", "k = 32", "fitted",
-            "truth, 1 ", "truth, 16"]
+    only = [
+        "(default)",
+        "seed r4",
+        "seed r8",
+        "seed r32",
+        "8-bit",
+        "GPU path",
+        "k = 2",
+        "k = 32",
+        "fitted",
+        "truth, 1 ",
+        "truth, 16",
+    ]
     points, info = tradeoff.measure(scene, h, truth_spp=64, only=only)
     return {p.name: p for p in points}, info
 
@@ -53,9 +65,10 @@ def test_at_least_ten_points_with_every_field(wall_points):
 
 def test_a_short_radius_misses_long_shadows(wall_points):
     points, _ = wall_points
-    r4, r8, r16, r32 = (points[n].visibility_mae for n in
-                        ("seed r4", "seed r8", "seed r16, 32 bins (default)", "seed r32"))
-    assert r4 > r8 > r16 + 0.01          # shadows 20.8 texels long
+    r4, r8, r16, r32 = (
+        points[n].visibility_mae for n in ("seed r4", "seed r8", "seed r16, 32 bins (default)", "seed r32")
+    )
+    assert r4 > r8 > r16 + 0.01  # shadows 20.8 texels long
     assert r32 <= r16 + 1e-6
 
 
@@ -84,37 +97,69 @@ def test_the_truth_converges(wall_points):
 
 
 def test_pareto_front_within_each_kind():
-    pts = [Point("a", "bake", 1.0, 10, 0.1, 0), Point("b", "bake", 2.0, 10, 0.05, 0),
-           Point("c", "bake", 2.0, 10, 0.2, 0),      # dominated by a and b
-           Point("d", "technique", 9.0, 99, 0.9, 0)]     # alone in its kind
+    pts = [
+        Point("a", "bake", 1.0, 10, 0.1, 0),
+        Point("b", "bake", 2.0, 10, 0.05, 0),
+        Point("c", "bake", 2.0, 10, 0.2, 0),  # dominated by a and b
+        Point("d", "technique", 9.0, 99, 0.9, 0),
+    ]  # alone in its kind
     tradeoff.mark_pareto(pts)
     assert [p.pareto for p in pts] == [True, True, False, True]
 
 
 def test_recommendation_takes_the_cheapest_within_tolerance():
     own = {"technique": "horizon"}
-    pts = [Point("big (default)", "bake", 1.0, 1000, 0.100, 0, params=own),
-           Point("small", "technique", 1.0, 100, 0.105, 0, params=own),
-           Point("tiny but bad", "technique", 1.0, 10, 0.3, 0, params=own),
-           Point("truth, 64", "truth", 1.0, 5, 0.005, 0, params={"spp": 64})]
+    pts = [
+        Point("big (default)", "bake", 1.0, 1000, 0.100, 0, params=own),
+        Point("small", "technique", 1.0, 100, 0.105, 0, params=own),
+        Point("tiny but bad", "technique", 1.0, 10, 0.3, 0, params=own),
+        Point("truth, 64", "truth", 1.0, 5, 0.005, 0, params={"spp": 64}),
+    ]
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "small" and rec["best"] == "big (default)"
     assert rec["truth"] == "truth, 64"
-    assert "own" not in rec                # the pick is a setting of the baked technique already
+    assert "own" not in rec  # the pick is a setting of the baked technique already
     pts.append(Point("terrain", "technique", 1.0, 50, 0.02, 0, params={"technique": "terrain"}))
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "terrain"
-    assert rec["own"] == {"technique": "horizon", "setting": "small", "visibility_mae": 0.105,
-                          "best": "big (default)", "best_visibility_mae": 0.100}
+    assert rec["own"] == {
+        "technique": "horizon",
+        "setting": "small",
+        "visibility_mae": 0.105,
+        "best": "big (default)",
+        "best_visibility_mae": 0.100,
+    }
 
 
 def test_cli_writes_json_plot_and_page(variant, tmp_path, capsys):
     out = tmp_path / "t"
-    argv = ["tradeoff", "--size", "32", "--azimuths", "0,90", "--truth-spp", "16", "--spp", "4",
-            "--only", "seed r4", "--only", "(default)", "--only", "8-bit horizon", "--quiet", "--out", str(out)]
+    argv = [
+        "tradeoff",
+        "--size",
+        "32",
+        "--azimuths",
+        "0,90",
+        "--truth-spp",
+        "16",
+        "--spp",
+        "4",
+        "--only",
+        "seed r4",
+        "--only",
+        "(default)",
+        "--only",
+        "8-bit horizon",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
     assert cli.main(argv) == 0
     data = json.loads((out / "tradeoff.json").read_text())
-    assert {p["name"] for p in data["points"]} == {"seed r4", "seed r16, 32 bins (default)", "8-bit horizon map"}
+    assert {p["name"] for p in data["points"]} == {
+        "seed r4",
+        "seed r16, 32 bins (default)",
+        "8-bit horizon map",
+    }
     for p in data["points"]:
         assert POINT_KEYS <= set(p)
     assert (out / "pareto.png").stat().st_size > 1000
@@ -124,8 +169,25 @@ def test_cli_writes_json_plot_and_page(variant, tmp_path, capsys):
 
 
 def test_cli_rejects_an_empty_selection(variant, tmp_path, capsys):
-    assert cli.main(["tradeoff", "--size", "16", "--azimuths", "0", "--truth-spp", "4", "--only", "nothing",
-                     "--quiet", "--out", str(tmp_path / "x")]) == 2
+    assert (
+        cli.main(
+            [
+                "tradeoff",
+                "--size",
+                "16",
+                "--azimuths",
+                "0",
+                "--truth-spp",
+                "4",
+                "--only",
+                "nothing",
+                "--quiet",
+                "--out",
+                str(tmp_path / "x"),
+            ]
+        )
+        == 2
+    )
     assert "no setting matches" in capsys.readouterr().err
 
 

@@ -17,23 +17,42 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hzval.core.errors import InputError
 from hzval.scene import camera as hz_camera
 from hzval.scene import spec as S
-from hzval.core.errors import InputError
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
-def make_scene(shape, depth, boundary="open", *, effects=("shadow",), elevation=30.0, kind="hard",
-               radius=0.0, spp=16, seed=0, irradiance=1.0, albedo=0.5, supersampling=1, depth_ir=2,
-               shading="smooth"):
+def make_scene(
+    shape,
+    depth,
+    boundary="open",
+    *,
+    effects=("shadow",),
+    elevation=30.0,
+    kind="hard",
+    radius=0.0,
+    spp=16,
+    seed=0,
+    irradiance=1.0,
+    albedo=0.5,
+    supersampling=1,
+    depth_ir=2,
+    shading="smooth",
+):
     return S.Scene(
         name="test",
-        material=S.MaterialSpec(height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo,
-                                shading=shading),
+        material=S.MaterialSpec(
+            height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo, shading=shading
+        ),
         camera=S.Camera(supersampling=supersampling),
         light=S.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
-        effects=tuple(effects), interreflection_depth=depth_ir, spp=spp, seed=seed).validate()
+        effects=tuple(effects),
+        interreflection_depth=depth_ir,
+        spp=spp,
+        seed=seed,
+    ).validate()
 
 
 def truth(h, depth, boundary="open", **kw):
@@ -41,8 +60,12 @@ def truth(h, depth, boundary="open", **kw):
 
     positions = kw.pop("positions", None)
     albedo = kw.pop("albedo_map", None)
-    return Truth(make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32),
-                 positions=positions, albedo=albedo)
+    return Truth(
+        make_scene(np.shape(h), depth, boundary, **kw),
+        np.asarray(h, np.float32),
+        positions=positions,
+        albedo=albedo,
+    )
 
 
 def column_wall(rows, cols, col):
@@ -75,18 +98,25 @@ def on_mesh_edges(rows, cols):
 # Declared effects
 # --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("effects", [
-    ("shadow",), ("diffuse",), ("shadow", "diffuse"), ("shadow", "specular", "ambient"),
-    ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion"),
-    ("shadow", "diffuse", "interreflection"),
-])
+
+@pytest.mark.parametrize(
+    "effects",
+    [
+        ("shadow",),
+        ("diffuse",),
+        ("shadow", "diffuse"),
+        ("shadow", "specular", "ambient"),
+        ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion"),
+        ("shadow", "diffuse", "interreflection"),
+    ],
+)
 def test_simulated_lists_exactly_the_declared_effects(variant, effects):
     t = truth(np.zeros((4, 5)), 0.1, effects=effects, spp=1)
     assert t.simulated == tuple(e for e in S.EFFECTS if e in effects)
     f = t.render(0.0)
-    assert set(f.layers) == ({"visibility"} if "shadow" in effects else set()) | \
-        ({"ambient"} if "ambient" in effects else set()) | \
-        ({"reflection_occlusion"} if "reflection_occlusion" in effects else set())
+    assert set(f.layers) == ({"visibility"} if "shadow" in effects else set()) | (
+        {"ambient"} if "ambient" in effects else set()
+    ) | ({"reflection_occlusion"} if "reflection_occlusion" in effects else set())
     assert set(f.variance) == set(f.layers) | {"image"}
     assert f.image.shape == (4, 5, 3) and f.image.dtype == np.float32
     assert "ambient_s" in t.timings if "ambient" in effects else "ambient_s" not in t.timings
@@ -100,6 +130,7 @@ def test_interreflection_without_a_reflecting_surface_is_refused(variant):
 # --------------------------------------------------------------------------
 # Flat ground, walls: the geometry of shadows
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 @pytest.mark.parametrize("elevation", [0.5, 10.0, 45.0, 89.9, 90.0])
@@ -119,7 +150,7 @@ def test_light_below_the_horizon_lights_nothing(variant, elevation):
         assert np.all(t.render(30.0).layers["visibility"] == 0.0)
 
 
-WALL_H = 4.0          # texels: H = 1 at depth 4 / 40 on a 40-wide map
+WALL_H = 4.0  # texels: H = 1 at depth 4 / 40 on a 40-wide map
 WALL_AT = 20
 
 
@@ -148,11 +179,11 @@ def wall_shadow_extents(column, row, azimuth):
     out = []
     if abs(cx) > 0.1:
         lit = column()
-        middle = lit[8:-2] if cy > 0 else lit[2:-8]      # rows whose casters are inside the map
+        middle = lit[8:-2] if cy > 0 else lit[2:-8]  # rows whose casters are inside the map
         x = np.arange(40) + 0.5
         centroid = ((1.0 - middle).sum(axis=0) * x).sum() / (1.0 - middle).sum()
         assert (centroid < top) if cx > 0 else (centroid > top)
-        assert np.all((lit[:, WALL_AT + 1:] if cx > 0 else lit[:, :WALL_AT]) == 1.0)
+        assert np.all((lit[:, WALL_AT + 1 :] if cx > 0 else lit[:, :WALL_AT]) == 1.0)
         out.append(((1.0 - middle).sum(axis=1).mean(), abs(cx)))
     if abs(cy) > 0.1:
         lit = row()
@@ -160,7 +191,7 @@ def wall_shadow_extents(column, row, azimuth):
         r = np.arange(40) + 0.5
         centroid = ((1.0 - middle).sum(axis=1) * r).sum() / (1.0 - middle).sum()
         assert (centroid > top) if cy > 0 else (centroid < top)
-        assert np.all((lit[:WALL_AT] if cy > 0 else lit[WALL_AT + 1:]) == 1.0)
+        assert np.all((lit[:WALL_AT] if cy > 0 else lit[WALL_AT + 1 :]) == 1.0)
         out.append(((1.0 - middle).sum(axis=0).mean(), abs(cy)))
     assert out
     return out
@@ -179,9 +210,11 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
     extent; which side the shadow falls on pins +x right and +y up.
     """
     expected = WALL_H / math.tan(math.radians(elevation))
-    for across, c in wall_shadow_extents(lambda: walls["col", elevation].render(azimuth).layers["visibility"],
-                                         lambda: walls["row", elevation].render(azimuth).layers["visibility"],
-                                         azimuth):
+    for across, c in wall_shadow_extents(
+        lambda: walls["col", elevation].render(azimuth).layers["visibility"],
+        lambda: walls["row", elevation].render(azimuth).layers["visibility"],
+        azimuth,
+    ):
         assert across / c == pytest.approx(expected, abs=0.2)
 
 
@@ -199,6 +232,7 @@ def test_the_shipped_wall_scene_casts_its_documented_shadow(variant):
 # --------------------------------------------------------------------------
 # Soft light
 # --------------------------------------------------------------------------
+
 
 def _disk_visible_fraction(t):
     """Fraction of a uniform disk above a straight edge ``t`` radii above its centre."""
@@ -227,16 +261,16 @@ def test_soft_penumbra_has_the_width_the_geometry_predicts(soft_wall):
     h, e, rho = 8.0, math.radians(sc.light.elevation_deg), math.radians(sc.light.radius_deg)
     top = 40.5
     V = t.render(0.0).layers["visibility"][8:-8].mean(axis=0)
-    d_lo, d_hi = h / math.tan(e + rho), h / math.tan(e - rho)        # 11.43, 17.16
+    d_lo, d_hi = h / math.tan(e + rho), h / math.tan(e - rho)  # 11.43, 17.16
     x = np.arange(64)
-    d_near, d_far = top - (x + 1), top - x                            # a pixel's distances to the top
+    d_near, d_far = top - (x + 1), top - x  # a pixel's distances to the top
     umbra, lit = (d_far < d_lo - 0.05) & (x < 40), (d_near > d_hi + 0.05) & (x < 40)
     penumbra = (d_near > d_lo + 0.05) & (d_far < d_hi - 0.05)
     assert np.all(V[umbra] == 0.0) and np.all(V[lit] == 1.0)
     assert np.all((V[penumbra] > 0.0) & (V[penumbra] < 1.0))
     partial = np.flatnonzero((V > 0) & (V < 1) & (x < 40))
     assert top - (partial.max() + 1) == pytest.approx(d_lo, abs=1.0)  # its near end
-    assert top - partial.min() == pytest.approx(d_hi, abs=1.0)        # its far end
+    assert top - partial.min() == pytest.approx(d_hi, abs=1.0)  # its far end
     # and the profile itself, pixel by pixel
     u = (np.arange(64) + 0.5) / 64
     for col in np.flatnonzero(penumbra):
@@ -306,19 +340,28 @@ def test_a_new_azimuth_reuses_the_compiled_kernels(soft_wall, walls):
 # Shading
 # --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("effects", [("diffuse",), ("shadow", "diffuse")])
 def test_lambertian_flat_plane_gives_albedo_over_pi_E_cos_theta(variant, effects):
     rows, cols, ss = 6, 7, 2
     albedo = np.random.default_rng(4).random((rows, cols, 3)).astype(np.float32)
     E, e = 2.5, 35.0
-    t = truth(np.full((rows, cols), 0.5), 0.1, effects=effects, elevation=e, irradiance=E, spp=4,
-              supersampling=ss, albedo_map=albedo)
+    t = truth(
+        np.full((rows, cols), 0.5),
+        0.1,
+        effects=effects,
+        elevation=e,
+        irradiance=E,
+        spp=4,
+        supersampling=ss,
+        albedo_map=albedo,
+    )
     f = t.render(123.0)
     # supersampled pixel (r, c) shows texel (r // ss, c // ss)
     expected = np.repeat(np.repeat(albedo, ss, 0), ss, 1) / np.pi * E * math.cos(math.radians(90.0 - e))
     assert f.image.shape == (rows * ss, cols * ss, 3)
     np.testing.assert_allclose(f.image, expected, rtol=2e-6)
-    assert np.all(f.variance["image"] <= 1e-12)        # only float rounding of the filtered normal
+    assert np.all(f.variance["image"] <= 1e-12)  # only float rounding of the filtered normal
 
 
 def ramp(rows, cols, slope_deg):
@@ -331,9 +374,11 @@ def ramp(rows, cols, slope_deg):
 def test_lambert_on_a_ramp_uses_the_normal_of_the_displaced_surface(variant, azimuth):
     h, depth = ramp(6, 16, 20.0)
     E, a, e = 1.5, 0.6, 40.0
-    f = truth(h, depth, effects=("shadow", "diffuse"), elevation=e, irradiance=E, albedo=a, spp=4).render(azimuth)
+    f = truth(h, depth, effects=("shadow", "diffuse"), elevation=e, irradiance=E, albedo=a, spp=4).render(
+        azimuth
+    )
     b, el, phi = math.radians(20.0), math.radians(e), math.radians(azimuth)
-    n = np.array([-math.sin(b), 0.0, math.cos(b)])                  # the ramp faces -x
+    n = np.array([-math.sin(b), 0.0, math.cos(b)])  # the ramp faces -x
     L = np.array([math.cos(el) * math.cos(phi), math.cos(el) * math.sin(phi), math.sin(el)])
     expected = a / math.pi * E * max(0.0, float(n @ L))
     np.testing.assert_allclose(f.image[:, 1:-1], expected, rtol=1e-5)  # the border half-texels are flat
@@ -348,10 +393,12 @@ def test_blinn_phong_specular_on_a_flat_plane(variant):
     # h = normalize(L + z) lies halfway between the zenith and the light
     expected = SPECULAR_KS * E * math.cos(math.radians((90.0 - e) / 2)) ** SPECULAR_EXPONENT
     np.testing.assert_allclose(spec, expected, rtol=1e-5)
-    both = truth(flat, 0.1, effects=("diffuse", "specular"), elevation=e, irradiance=E, albedo=a,
-                 spp=4).render(10.0).image
+    both = (
+        truth(flat, 0.1, effects=("diffuse", "specular"), elevation=e, irradiance=E, albedo=a, spp=4)
+        .render(10.0)
+        .image
+    )
     np.testing.assert_allclose(both, expected + a / math.pi * E * math.sin(math.radians(e)), rtol=1e-5)
-
 
 
 @pytest.mark.parametrize("shading", S.SHADINGS)
@@ -365,27 +412,31 @@ def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bum
 
     h, depth = bumps
     E, a, az, e = 1.7, 0.45, 30.0, 35.0
-    t = truth(h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4, shading=shading)
+    t = truth(
+        h, depth, "wrap", effects=("diffuse",), elevation=e, irradiance=E, albedo=a, spp=4, shading=shading
+    )
     image = t.render(az).image
     xs, ys = hz_camera.sample_positions(*h.shape, t.scene.camera, t.spp, t.scene.seed)
-    si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0),
-                                           mi.Vector3f(0.0, 0.0, -1.0)))
+    si = t.mi_scene.ray_intersect(
+        mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 100.0), mi.Vector3f(0.0, 0.0, -1.0))
+    )
     assert bool(dr.all(si.is_valid()))
     # the truth's shading frame: the facet's own normal, or the vertex normals' bilinear interpolation
     si.sh_frame = mi.Frame3f(si.n if shading == "faceted" else t._surface_at(mi.Float(xs), mi.Float(ys))[2])
     si.wi = si.to_local(mi.Vector3f(0.0, 0.0, 1.0))
     bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [a, a, a]}})
     L = mi.Vector3f(*(float(c) for c in t.scene.light.direction(az)))
-    f_cos = bsdf.eval(mi.BSDFContext(), si, si.to_local(L))        # f * cos(theta_o)
+    f_cos = bsdf.eval(mi.BSDFContext(), si, si.to_local(L))  # f * cos(theta_o)
     per_sample = np.asarray(f_cos.x, np.float64) * E
     expected = per_sample.reshape(-1, t.spp).mean(axis=1).reshape(h.shape)
-    assert expected.std() > 0.01                                   # the bumps do vary the shading
+    assert expected.std() > 0.01  # the bumps do vary the shading
     np.testing.assert_allclose(image[..., 0], expected, rtol=1e-4, atol=1e-6)
 
 
 # --------------------------------------------------------------------------
 # Boundaries
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("azimuth", [0.0, 270.0])
 def test_wrap_carries_a_shadow_across_the_tile_edge_and_open_does_not(variant, azimuth):
@@ -394,12 +445,12 @@ def test_wrap_carries_a_shadow_across_the_tile_edge_and_open_does_not(variant, a
     # from -y (270 deg, below) shadows toward +y, across the top edge
     rows = cols = 32
     h = column_wall(rows, cols, 2) if azimuth == 0.0 else row_wall(rows, cols, 2)
-    L = WALL_H / math.tan(math.radians(30.0))                          # 6.93 texels
+    L = WALL_H / math.tan(math.radians(30.0))  # 6.93 texels
     wrap = truth(h, WALL_H / cols, "wrap").render(azimuth).layers["visibility"]
     open_ = truth(h, WALL_H / cols, "open").render(azimuth).layers["visibility"]
-    if azimuth == 270.0:                                                  # make rows the x axis
+    if azimuth == 270.0:  # make rows the x axis
         wrap, open_ = wrap.T, open_.T
-    far = slice(cols - 4, cols)                                           # 4.4 texels of it wrap around
+    far = slice(cols - 4, cols)  # 4.4 texels of it wrap around
     assert np.all(wrap[:, far] == 0.0)
     assert np.all(open_[:, far] == 1.0)
     assert (1.0 - wrap).sum(axis=1).mean() == pytest.approx(L, abs=0.2)
@@ -421,7 +472,7 @@ def test_a_low_soft_light_sees_past_endless_walls_traced_in_hops(variant):
 
     rows, cols, wall, h = 8, 16, 8, 2.0
     t = truth(column_wall(rows, cols, wall), h / cols, "wrap", kind="soft", elevation=1.5, radius=2.0, spp=16)
-    assert t.margin < 40                                     # sized for 10 degrees: the rays need hops
+    assert t.margin < 40  # sized for 10 degrees: the rays need hops
     azimuth = 80.0
     V = t.render(azimuth).layers["visibility"]
     xs, ys = hz_camera.sample_positions(rows, cols, t.scene.camera, 16, 0)
@@ -474,10 +525,11 @@ def test_no_false_shadows_on_vertices_and_edges_with_the_light_at_the_zenith(noi
         up = mi.Vector3f(0.0, 0.0, 1.0)
         assert dr.all(valid) and dr.none(t._occluded(o, up, 1))
         # Mitsuba's own offset, from the same hits
-        si = t.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 10.0),
-                                               mi.Vector3f(0.0, 0.0, -1.0)))
+        si = t.mi_scene.ray_intersect(
+            mi.Ray3f(mi.Point3f(mi.Float(xs), mi.Float(ys), 10.0), mi.Vector3f(0.0, 0.0, -1.0))
+        )
         naive = np.asarray(t.mi_scene.ray_test(si.spawn_ray(up)), dtype=bool).reshape(-1, 4)
-        assert naive[:, 0].mean() > 0.1                                   # from vertices: about 30%
+        assert naive[:, 0].mean() > 0.1  # from vertices: about 30%
     jittered = truth(h, depth, "wrap", elevation=90.0, spp=16)
     assert np.all(jittered.render(0.0).layers["visibility"] == 1.0)
 
@@ -496,23 +548,40 @@ def test_grazing_light_on_a_smooth_ramp_has_no_false_shadows(variant, slope, lit
                 # the border rows and columns see past the tile's edge (open): nothing is there
                 assert np.all(V[1:-1, 1:-1] == 0.0)
         if lit:
-            assert np.all(t.render(180.0).layers["visibility"] == 1.0)   # from behind, at 5 + slope
+            assert np.all(t.render(180.0).layers["visibility"] == 1.0)  # from behind, at 5 + slope
 
 
 # --------------------------------------------------------------------------
 # Ambient: the cosine-weighted sky
 # --------------------------------------------------------------------------
 
+
 def test_ambient_of_a_flat_plane_is_one_and_adds_the_sky(variant):
     # with neither diffuse nor specular declared the direct term is E (grey), as for shadow-only scenes
     E, a, e = 2.0, 0.7, 40.0
     for boundary in ("wrap", "open"):
-        f = truth(np.full((6, 6), 0.4), 0.1, boundary, effects=("ambient",), elevation=e, irradiance=E,
-                  albedo=a, spp=4).render(0.0)
+        f = truth(
+            np.full((6, 6), 0.4),
+            0.1,
+            boundary,
+            effects=("ambient",),
+            elevation=e,
+            irradiance=E,
+            albedo=a,
+            spp=4,
+        ).render(0.0)
         assert np.all(f.layers["ambient"] == 1.0)
         np.testing.assert_allclose(f.image, E + a * E / math.pi, rtol=1e-6)
-        f = truth(np.full((6, 6), 0.4), 0.1, boundary, effects=("diffuse", "ambient"), elevation=e,
-                  irradiance=E, albedo=a, spp=4).render(0.0)
+        f = truth(
+            np.full((6, 6), 0.4),
+            0.1,
+            boundary,
+            effects=("diffuse", "ambient"),
+            elevation=e,
+            irradiance=E,
+            albedo=a,
+            spp=4,
+        ).render(0.0)
         np.testing.assert_allclose(f.image, a / math.pi * E * (math.sin(math.radians(e)) + 1.0), rtol=1e-6)
 
 
@@ -534,7 +603,7 @@ def test_ambient_of_a_periodic_grating_matches_the_cosine_weighted_horizon(varia
     for col in range(cols):
         x = col + u
         if np.any(np.abs(x - top) < 1.0) or np.any(np.abs(x + cols - top) < 1.0):
-            continue                                                       # on the wall's faces
+            continue  # on the wall's faces
         d_right = (top - x) % cols
         d_left = cols - d_right
         predicted = (0.5 / np.sqrt(1 + (h / d_right) ** 2) + 0.5 / np.sqrt(1 + (h / d_left) ** 2)).mean()
@@ -549,10 +618,11 @@ def test_ambient_of_a_periodic_grating_matches_the_cosine_weighted_horizon(varia
 # Reflection occlusion: the glossy lobe about the mirror direction
 # --------------------------------------------------------------------------
 
+
 def sawtooth(rows, cols, period, slope_deg):
     """V-grooves along y: heights falling then rising at ``slope`` (texels per texel), period in texels."""
     x = np.arange(cols)
-    tri = np.abs((x % period) - period / 2) / (period / 2)          # 1 at the ridges, 0 in the valleys
+    tri = np.abs((x % period) - period / 2) / (period / 2)  # 1 at the ridges, 0 in the valleys
     depth = math.tan(math.radians(slope_deg)) * (period / 2) / cols
     return np.tile(tri.astype(np.float32), (rows, 1)), depth
 
@@ -568,14 +638,20 @@ def test_reflection_of_a_flat_plane_escapes_and_leaves_the_image_alone(variant):
         assert t.timings["reflection_s"] > 0
 
 
-@pytest.mark.parametrize("slope, lo, hi", [
-    (10.0, 0.99, 1.0),      # the mirror ray leaves at 70 degrees, far above the 10-degree facing facet
-    (50.0, 0.0, 0.02),      # it leaves at -10 degrees: below the horizontal, into the groove
-])
+@pytest.mark.parametrize(
+    "slope, lo, hi",
+    [
+        (10.0, 0.99, 1.0),  # the mirror ray leaves at 70 degrees, far above the 10-degree facing facet
+        (50.0, 0.0, 0.02),  # it leaves at -10 degrees: below the horizontal, into the groove
+    ],
+)
 def test_reflection_in_v_grooves_escapes_shallow_facets_and_not_steep_ones(variant, slope, lo, hi):
     h, depth = sawtooth(4, 32, 16, slope)
-    R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=16,
-              shading="faceted").render(0.0).layers["reflection_occlusion"]
+    R = (
+        truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=16, shading="faceted")
+        .render(0.0)
+        .layers["reflection_occlusion"]
+    )
     # the ridge and valley columns sit on a crease: leave them out, and the lobe's upper
     # edge clears the facing ridge from the top quarter of a steep facet: leave that out too
     facets = np.r_[3:8, 9:14, 19:24, 25:30]
@@ -594,23 +670,23 @@ def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
     b = math.radians(slope_deg)
     half = period / 2
 
-    def profile(x):                        # mesh vertices at texel centres: x = col + 0.5
+    def profile(x):  # mesh vertices at texel centres: x = col + 0.5
         return np.abs(((x - 0.5) % period) - half) * math.tan(b)
 
     out = np.empty(cols)
     for c in range(cols):
         x0 = c + rng.random(n)
         z0 = profile(x0)
-        falling = ((x0 - 0.5) % period) < half           # the profile falls toward +x here
-        nx = np.where(falling, 1.0, -1.0) * math.sin(b)     # n = normalize(-dh/dx, 0, 1)
+        falling = ((x0 - 0.5) % period) < half  # the profile falls toward +x here
+        nx = np.where(falling, 1.0, -1.0) * math.sin(b)  # n = normalize(-dh/dx, 0, 1)
         nz = math.cos(b)
         cos_h = rng.random(n) ** (1.0 / (SPECULAR_EXPONENT + 1))
-        sin_h, phi = np.sqrt(1 - cos_h ** 2), 2 * math.pi * rng.random(n)
+        sin_h, phi = np.sqrt(1 - cos_h**2), 2 * math.pi * rng.random(n)
         # frame about n: t1 in the xz plane, t2 = +y
         hx = sin_h * np.cos(phi) * nz + cos_h * nx
         hy = sin_h * np.sin(phi)
         hz = -sin_h * np.cos(phi) * nx + cos_h * nz
-        wx, wz = 2 * hz * hx, 2 * hz * hz - 1                # v = +z reflected about h
+        wx, wz = 2 * hz * hx, 2 * hz * hz - 1  # v = +z reflected about h
         ok = (nx * wx + nz * wz > 0) & (wz > 0)
         run = np.abs(wx) + 1e-12
         # march one period across x: a rising ray that clears the first ridge it meets clears all
@@ -630,7 +706,7 @@ def test_reflection_in_v_grooves_matches_an_independent_2d_calculation(variant):
     R = truth(h, depth, "wrap", effects=("reflection_occlusion",), spp=256, shading="faceted").render(0.0)
     r = R.layers["reflection_occlusion"].mean(axis=0)
     ref = _grooves_reflection_reference(P, P, slope)
-    assert ref.max() - ref.min() > 0.5                              # the case does discriminate
+    assert ref.max() - ref.min() > 0.5  # the case does discriminate
     # per column: 4 rows x 256 samples, standard error <= 0.016; the reference's <= 0.008
     np.testing.assert_allclose(r, ref, atol=0.06)
 
@@ -638,6 +714,7 @@ def test_reflection_in_v_grooves_matches_an_independent_2d_calculation(variant):
 # --------------------------------------------------------------------------
 # Interreflection
 # --------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def bumps(variant):
@@ -652,10 +729,14 @@ def test_path_tracer_to_depth_2_is_the_direct_render(bumps):
     h, depth = bumps
     kw = dict(elevation=20.0, albedo=0.6, spp=4)
     direct = truth(h, depth, "wrap", effects=("shadow", "diffuse"), **kw).render(30.0)
-    path = truth(h, depth, "wrap", effects=("shadow", "diffuse", "interreflection"), depth_ir=2, **kw).render(30.0)
+    path = truth(h, depth, "wrap", effects=("shadow", "diffuse", "interreflection"), depth_ir=2, **kw).render(
+        30.0
+    )
     np.testing.assert_array_equal(path.image, direct.image)
-    more = truth(h, depth, "wrap", effects=("shadow", "diffuse", "interreflection"), depth_ir=4, **kw).render(30.0)
-    assert more.image.mean() > direct.image.mean() * 1.005                  # light bounces between bumps
+    more = truth(h, depth, "wrap", effects=("shadow", "diffuse", "interreflection"), depth_ir=4, **kw).render(
+        30.0
+    )
+    assert more.image.mean() > direct.image.mean() * 1.005  # light bounces between bumps
 
 
 def test_white_furnace_a_white_surface_under_a_uniform_sky_is_as_bright_as_the_sky(bumps):
@@ -667,8 +748,14 @@ def test_white_furnace_a_white_surface_under_a_uniform_sky_is_as_bright_as_the_s
     h, depth = bumps
     E = 1.0
     # faceted: interpolated shading normals do not conserve energy (directions below the facet are lost)
-    kw = dict(effects=("shadow", "diffuse", "ambient", "interreflection"), elevation=-90.0, albedo=1.0,
-              irradiance=E, spp=4, shading="faceted")
+    kw = dict(
+        effects=("shadow", "diffuse", "ambient", "interreflection"),
+        elevation=-90.0,
+        albedo=1.0,
+        irradiance=E,
+        spp=4,
+        shading="faceted",
+    )
     sky = E / math.pi
     deep = truth(h, depth, "wrap", depth_ir=8, **kw).render(0.0)
     assert deep.image.mean() == pytest.approx(sky, rel=1e-3)
@@ -681,8 +768,14 @@ def test_white_furnace_a_white_surface_under_a_uniform_sky_is_as_bright_as_the_s
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_path_tracer_handles_soft_light_specular_and_sky_together(bumps, boundary):
     h, depth = bumps
-    kw = dict(effects=("shadow", "diffuse", "specular", "ambient", "interreflection"), kind="soft", radius=3.0,
-              elevation=25.0, albedo=0.7, spp=4)
+    kw = dict(
+        effects=("shadow", "diffuse", "specular", "ambient", "interreflection"),
+        kind="soft",
+        radius=3.0,
+        elevation=25.0,
+        albedo=0.7,
+        spp=4,
+    )
     two = truth(h, depth, boundary, depth_ir=2, **kw).render(20.0)
     four = truth(h, depth, boundary, depth_ir=4, **kw).render(20.0)
     for f in (two, four):
@@ -694,6 +787,7 @@ def test_path_tracer_handles_soft_light_specular_and_sky_together(bumps, boundar
 # --------------------------------------------------------------------------
 # Deep relief under a grazing light: a bounded margin, the endless tiling by hops
 # --------------------------------------------------------------------------
+
 
 def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, monkeypatch):
     """Depth 2 on 48 x 48 bricks (80 texels of relief) at 10 degrees would want a margin of 457 texels
@@ -712,8 +806,8 @@ def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, mon
     assert full.margin > 400
     for az in (0.0, 37.0, -120.0):
         a, b = capped.render(az).layers["visibility"], full.render(az).layers["visibility"]
-        assert 0.05 < a.mean() < 0.95                       # real shadows, long ones
-        assert np.abs(a - b).max() <= 1 / 4 + 1e-6 and np.mean(a != b) < 0.002   # at most a sample of four
+        assert 0.05 < a.mean() < 0.95  # real shadows, long ones
+        assert np.abs(a - b).max() <= 1 / 4 + 1e-6 and np.mean(a != b) < 0.002  # at most a sample of four
 
 
 def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
@@ -724,8 +818,26 @@ def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
 
     np.save(tmp_path / "deep.npy", np.random.default_rng(3).random((40, 40)).astype(np.float32))
     out = tmp_path / "o"
-    assert cli.main(["sweep", str(tmp_path / "deep.npy"), "--depth", "5", "--elevation", "10", "--azimuths", "0,90",
-                     "--spp", "4", "--out", str(out), "--quiet"]) == 0
+    assert (
+        cli.main(
+            [
+                "sweep",
+                str(tmp_path / "deep.npy"),
+                "--depth",
+                "5",
+                "--elevation",
+                "10",
+                "--azimuths",
+                "0,90",
+                "--spp",
+                "4",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     m = json.loads((out / "metrics.json").read_text())
     assert m["parameters"]["depth"] == 5 and len(m["frames"]) == 2
     assert all(0 < f["techniques"]["horizon"]["visibility_mae"] < 1 for f in m["frames"])
@@ -735,14 +847,29 @@ def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
 # Bands (module docstring, "Memory"): a large image is rendered band by band, bit for bit
 # ----------------------------------------------------------------------
 
-@pytest.mark.parametrize("kw", [
-    dict(boundary="wrap", effects=("shadow", "diffuse"), spp=16),
-    dict(boundary="open", effects=("shadow", "diffuse", "specular", "ambient"), kind="soft", radius=8.0, spp=5),
-    dict(boundary="wrap", effects=("shadow", "diffuse", "reflection_occlusion"), spp=4, supersampling=2),
-    dict(boundary="wrap", effects=("shadow", "diffuse", "ambient", "interreflection"), spp=4, depth_ir=3,
-         elevation=12.0),
-    dict(boundary="open", effects=("shadow",), spp=1),
-])
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(boundary="wrap", effects=("shadow", "diffuse"), spp=16),
+        dict(
+            boundary="open",
+            effects=("shadow", "diffuse", "specular", "ambient"),
+            kind="soft",
+            radius=8.0,
+            spp=5,
+        ),
+        dict(boundary="wrap", effects=("shadow", "diffuse", "reflection_occlusion"), spp=4, supersampling=2),
+        dict(
+            boundary="wrap",
+            effects=("shadow", "diffuse", "ambient", "interreflection"),
+            spp=4,
+            depth_ir=3,
+            elevation=12.0,
+        ),
+        dict(boundary="open", effects=("shadow",), spp=1),
+    ],
+)
 def test_bands_give_the_pixels_of_one_piece(kw):
     """Bands of 3 and of 7 pixel rows (the last one short) against one band, their camera hits
     traced again in each frame or kept: every layer, the image and the variances are equal, not
@@ -772,11 +899,11 @@ def test_bands_give_the_pixels_of_one_piece(kw):
 def test_large_images_are_banded_by_default():
     from hzval.truth.plane import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, _bands, keeps_samples
 
-    kept = _bands((2048, 2048), 16)                                  # 67M samples: kept, in bands
+    kept = _bands((2048, 2048), 16)  # 67M samples: kept, in bands
     assert keeps_samples(2048, 2048, 16) and not keeps_samples(4096, 4096, 16)
     assert len(kept) == 2048 * 2048 * 16 // KEPT_BAND_SAMPLES and kept[-1][1] == 2048 * 2048
-    assert _bands((64, 64), 16) == [(0, 64 * 64)]                   # a small image: one band
-    bands = _bands((4096, 4096), 16)                                 # 268M: bands of whole rows
+    assert _bands((64, 64), 16) == [(0, 64 * 64)]  # a small image: one band
+    bands = _bands((4096, 4096), 16)  # 268M: bands of whole rows
     assert 4096 * 4096 * 16 > KEEP_SAMPLES and len(bands) == 4096 * 4096 * 16 // BAND_SAMPLES
     assert bands[0] == (0, 256 * 4096) and bands[-1][1] == 4096 * 4096
     assert all(a % 4096 == 0 and b % 4096 == 0 for a, b in bands)

@@ -10,12 +10,11 @@ import dataclasses
 
 import numpy as np
 import pytest
+from test_truth import make_scene
 
 from hzval import materials
 from hzval.geometry import tile as M
 from hzval.truth import bands as TB
-
-from test_truth import make_scene
 
 AZIMUTHS = (-60.0, 0.0, 90.0, -90.0, 20.0, 135.0, 180.0)
 
@@ -42,8 +41,10 @@ def _same_frames(h, boundary, n_bands):
     up, down = TB.reach(sc, bands.relief, bands.lift, AZIMUTHS)
     assert rows // n_bands < up - TB.PAD_TEXELS < rows / 2 and up == down
     total = M.triangle_count(bands._levels)
-    assert bands.band_triangles_largest < total < bands.band_triangles_built     # each band a part, and its cover
-    for az in AZIMUTHS + (250.0,):                                     # 250: a light of its own pass
+    assert (
+        bands.band_triangles_largest < total < bands.band_triangles_built
+    )  # each band a part, and its cover
+    for az in AZIMUTHS + (250.0,):  # 250: a light of its own pass
         a, b = one.render(az), bands.render(az)
         assert set(a.layers) == set(b.layers)
         for k in a.layers:
@@ -96,18 +97,20 @@ def test_why_not_names_the_rays_that_leave_a_band():
 
 def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
     from hzval.bake import maps as bake
-    from hzval.pipeline import sweep
     from hzval.core.errors import InputError
+    from hzval.pipeline import sweep
     from hzval.scene.spec import load_material_height
 
-    sc = _scene(np.zeros((1024, 1024), np.float32), "wrap")        # 4 sample bands of 256 rows
-    sc = dataclasses.replace(sc, material=dataclasses.replace(sc.material, height="bricks", size=1024), spp=16)
+    sc = _scene(np.zeros((1024, 1024), np.float32), "wrap")  # 4 sample bands of 256 rows
+    sc = dataclasses.replace(
+        sc, material=dataclasses.replace(sc.material, height="bricks", size=1024), spp=16
+    )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2 ** 20)      # a mesh in bands, whatever the map
+    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
     plan = sweep.truth_plan(sc, height)
     assert plan.band_rows is not None and 0 < plan.band_triangles < plan.triangles
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2 ** 20)
-    monkeypatch.setattr(bake, "check_fits", lambda *a: None)     # the bake's own check would refuse first
+    monkeypatch.setattr(bake, "available_bytes", lambda: 2**20)
+    monkeypatch.setattr(bake, "check_fits", lambda *a: None)  # the bake's own check would refuse first
     with pytest.raises(InputError) as err:
         sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
     text = str(err.value)
@@ -116,18 +119,19 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
 
 def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
     from hzval.bake import maps as bake
-    from hzval.pipeline import sweep
     from hzval.core.errors import InputError
+    from hzval.pipeline import sweep
     from hzval.scene.spec import load_material_height
 
     sc = _scene(np.zeros((64, 64), np.float32), "wrap")
-    sc = dataclasses.replace(sc, material=dataclasses.replace(sc.material, height="bricks", size=64),
-                             effects=("shadow", "ambient"))
+    sc = dataclasses.replace(
+        sc, material=dataclasses.replace(sc.material, height="bricks", size=64), effects=("shadow", "ambient")
+    )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2 ** 20)
+    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)
     plan = sweep.truth_plan(sc, height)
     assert plan.band_rows is None and "ambient" in plan.why_single
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2 ** 20)
+    monkeypatch.setattr(bake, "available_bytes", lambda: 2**20)
     monkeypatch.setattr(bake, "check_fits", lambda *a: None)
     with pytest.raises(InputError, match="--truth-tolerance.*not in bands: ambient"):
         sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
@@ -137,12 +141,12 @@ def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant
     from hzval.truth.plane import Truth
 
     h = bricks[:64, :64]
-    sc = _scene(h, "open", kind="soft", radius=8.0, supersampling=2)          # 128 x 128 pixels
+    sc = _scene(h, "open", kind="soft", radius=8.0, supersampling=2)  # 128 x 128 pixels
     one = Truth(sc, h)
     bands = Truth(sc, h, mesh_band_rows=16, band_samples=8 * 128 * 4)
     assert len(bands.mesh_bands) == 8
     up, down = TB.reach(sc, bands.relief, bands.lift, AZIMUTHS)
-    assert up == down and up > 2 * TB.PAD_TEXELS       # a soft light's directions: the whole run
+    assert up == down and up > 2 * TB.PAD_TEXELS  # a soft light's directions: the whole run
     for az in (90.0, -60.0, 180.0):
         a, b = one.render(az), bands.render(az)
         np.testing.assert_array_equal(a.layers["visibility"], b.layers["visibility"])

@@ -18,15 +18,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hzval.scene import camera as hz_camera
 from hzval.bake import maps as bake
-from hzval.scene import camera
+from hzval.core.errors import InputError
 from hzval.io import files
-from hzval.scene import lookup
+from hzval.scene import camera, lookup
+from hzval.scene import camera as hz_camera
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import plane as truth
-from hzval.scene import spec as sc
-from hzval.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,10 +49,14 @@ def _record_rays(rec: dict, rows_px: int, cols_px: int):
     return o, np.broadcast_to(f, o.shape)
 
 
-@pytest.mark.parametrize("cam", [camera.Camera(kind="orthographic", elevation_deg=30, azimuth_deg=20),
-                                 camera.Camera(kind="perspective", elevation_deg=35, fov_deg=50,
-                                               resolution=(40, 30)),
-                                 camera.Camera()])
+@pytest.mark.parametrize(
+    "cam",
+    [
+        camera.Camera(kind="orthographic", elevation_deg=30, azimuth_deg=20),
+        camera.Camera(kind="perspective", elevation_deg=35, fov_deg=50, resolution=(40, 30)),
+        camera.Camera(),
+    ],
+)
 def test_the_record_rebuilds_the_rays(cam):
     view = cam.view(24, 32, (1.0, 5.0))
     rec = json.loads(json.dumps(view.record()))
@@ -72,21 +75,24 @@ def test_the_top_record_is_the_top_views_positions():
     view = cam.view(8, 12)
     assert view.record()["resolution"] == [24, 16]
     o, d = _record_rays(view.record(), 16, 24)
-    x, y = hz_camera.sample_positions(8, 12, cam, 1, 0)      # one jittered sample a pixel
+    x, y = hz_camera.sample_positions(8, 12, cam, 1, 0)  # one jittered sample a pixel
     assert np.all(np.abs(o[:, 0] - x) <= 0.25 + 1e-6) and np.all(np.abs(o[:, 1] - y) <= 0.25 + 1e-6)
     np.testing.assert_allclose(d, [[0, 0, -1]] * len(d))
 
 
 def _flat_scene(cam, **kw):
-    return dataclasses.replace(sc.Scene(material=sc.MaterialSpec(depth=0.05, boundary="wrap")), camera=cam,
-                               spp=4, **kw).validate()
+    return dataclasses.replace(
+        sc.Scene(material=sc.MaterialSpec(depth=0.05, boundary="wrap")), camera=cam, spp=4, **kw
+    ).validate()
 
 
 def test_a_plane_seen_obliquely_is_fully_lit_and_read_at_the_exact_point():
     h = np.full((32, 32), 0.5, np.float32)
     z0 = 0.5 * 0.05 * 32
-    for cam in (camera.Camera(kind="orthographic", elevation_deg=25, azimuth_deg=-70),
-                camera.Camera(kind="perspective", elevation_deg=35)):
+    for cam in (
+        camera.Camera(kind="orthographic", elevation_deg=25, azimuth_deg=-70),
+        camera.Camera(kind="perspective", elevation_deg=35),
+    ):
         scene = _flat_scene(cam)
         T = truth.Truth(scene, h)
         frame = T.render(15.0)
@@ -114,8 +120,9 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     """scenes/wall.png: a ridge of texel centres at x = 40.5, 8 texels high, on flat ground; the
     light from +x at 30 degrees throws its shadow to x = 40.5 - 8 / tan(30) = 26.64."""
     base = sc.load_scene(ROOT / "scenes" / "wall.toml")
-    scene = dataclasses.replace(base, camera=camera.Camera(kind="orthographic", elevation_deg=45, azimuth_deg=-120),
-                                spp=4).validate()
+    scene = dataclasses.replace(
+        base, camera=camera.Camera(kind="orthographic", elevation_deg=45, azimuth_deg=-120), spp=4
+    ).validate()
     h = sc.load_material_height(scene.material).height
     T = truth.Truth(scene, h)
     T.render(0.0)
@@ -147,22 +154,26 @@ def test_trilinear_picks_the_level_a_plane_at_a_known_distance_calls_for():
     rng = np.random.default_rng(3)
     data = rng.random((64, 64, 2)).astype(np.float32)
     exact = np.full((64 * 64, 4), 0.0, np.float32)
-    exact[:, 0], exact[:, 3] = 4.0, -4.0                 # 4 texels a pixel, both axes
+    exact[:, 0], exact[:, 3] = 4.0, -4.0  # 4 texels a pixel, both axes
     samples = lookup.Samples(np.zeros(1, np.float32), np.zeros(1, np.float32), 64, 64, 1, exact)
     tex = lookup.Filtered(data, "wrap", lookup.Lookup(filter="trilinear"), samples)
-    level2 = lookup.mip_chain(data)[2]                  # 16 x 16
+    level2 = lookup.mip_chain(data)[2]  # 16 x 16
     import drjit as dr
     import mitsuba as mi
 
     r, c = np.divmod(np.arange(16 * 16), 16)
-    uv = mi.Point2f(mi.Float(((c + 0.5) / 16).astype(np.float32)), mi.Float(((r + 0.5) / 16).astype(np.float32)))
+    uv = mi.Point2f(
+        mi.Float(((c + 0.5) / 16).astype(np.float32)), mi.Float(((r + 0.5) / 16).astype(np.float32))
+    )
     vals = tex.eval(uv, dr.zeros(mi.UInt32, 16 * 16))
     got = np.stack([np.asarray(v) for v in vals], axis=-1)
     np.testing.assert_allclose(got, level2.reshape(-1, 2), atol=1e-6)
     # the max chain of the horizon channels is never below the average
     avg, mx = lookup.mip_chain(data), lookup.mip_chain(data, slice(0, 1))
-    assert all(np.all(m[..., 0] >= a[..., 0] - 1e-7) and np.array_equal(m[..., 1], a[..., 1])
-               for a, m in zip(avg, mx))
+    assert all(
+        np.all(m[..., 0] >= a[..., 0] - 1e-7) and np.array_equal(m[..., 1], a[..., 1])
+        for a, m in zip(avg, mx)
+    )
 
 
 def _march_check():
@@ -172,15 +183,18 @@ def _march_check():
     return mod
 
 
-@pytest.mark.parametrize("camera_kind,boundary,parallax", [("orthographic", "wrap", "occlusion"),
-                                                           ("perspective", "open", "none")])
-def test_an_independent_march_of_the_recorded_rays_agrees_with_the_truth(tmp_path, camera_kind, boundary,
-                                                                         parallax):
+@pytest.mark.parametrize(
+    "camera_kind,boundary,parallax", [("orthographic", "wrap", "occlusion"), ("perspective", "open", "none")]
+)
+def test_an_independent_march_of_the_recorded_rays_agrees_with_the_truth(
+    tmp_path, camera_kind, boundary, parallax
+):
     from hzval.pipeline import sweep
 
     cam = camera.Camera(kind=camera_kind, elevation_deg=45 if camera_kind == "orthographic" else 35)
-    scene = sc.override(sc.Scene(), height="gravel", size=64, boundary=boundary, azimuths="-45,30", spp=4,
-                        parallax=parallax)
+    scene = sc.override(
+        sc.Scene(), height="gravel", size=64, boundary=boundary, azimuths="-45,30", spp=4, parallax=parallax
+    )
     scene = dataclasses.replace(scene, camera=cam).validate()
     result = sweep.run(scene, tmp_path / "s", progress=False)
     assert result["camera"]["kind"] == camera_kind
@@ -205,8 +219,9 @@ def test_parallax_mapping_brings_the_lookup_toward_the_truths_point():
     h = sc.load_material_height(sc.MaterialSpec(height="bricks", size=64)).height
     errors = {}
     for p in ("none", "offset", "occlusion"):
-        scene = _flat_scene(camera.Camera(kind="orthographic", elevation_deg=40),
-                            lookup=lookup.Lookup(parallax=p))
+        scene = _flat_scene(
+            camera.Camera(kind="orthographic", elevation_deg=40), lookup=lookup.Lookup(parallax=p)
+        )
         T = truth.Truth(scene, h)
         s = lookup.samples_for(scene, 64, 64, h)
         d = np.hypot((s.x - T.hits[0] + 32) % 64 - 32, (s.y - T.hits[1] + 32) % 64 - 32)
@@ -221,16 +236,19 @@ def test_view_settings_are_checked():
     with pytest.raises(InputError, match="--view-elevation"):
         sc.override(sc.Scene(), view_elevation=30.0)
     with pytest.raises(InputError, match="perspective"):
-        dataclasses.replace(sc.Scene(effects=("shadow", "specular")),
-                            camera=camera.Camera(kind="perspective")).validate()
+        dataclasses.replace(
+            sc.Scene(effects=("shadow", "specular")), camera=camera.Camera(kind="perspective")
+        ).validate()
     with pytest.raises(InputError, match="lookup.filter"):
         lookup.Lookup(filter="cubic").validate("x")
 
 
 def test_a_scene_file_places_the_camera(tmp_path):
     p = tmp_path / "s.toml"
-    p.write_text('[camera]\nkind = "perspective"\nelevation_deg = 35\nresolution = [40, 30]\n'
-                 '[lookup]\nfilter = "anisotropic"\nparallax = "offset"\n')
+    p.write_text(
+        '[camera]\nkind = "perspective"\nelevation_deg = 35\nresolution = [40, 30]\n'
+        '[lookup]\nfilter = "anisotropic"\nparallax = "offset"\n'
+    )
     s = sc.load_scene(p)
     assert s.camera.kind == "perspective" and s.camera.resolution == (40, 30)
     assert s.camera.image_shape(64, 64) == (30, 40)
@@ -241,12 +259,16 @@ def test_hzval_views_sweeps_each_view_and_plots_the_errors(tmp_path):
     from hzval.commands import views
 
     scene = sc.override(sc.Scene(), height="gravel", size=32, azimuths="0", spp=1)
-    data = views.run(scene, tmp_path / "v", views=["top", "ortho-45"], lookups=["bilinear", "parallax"],
-                     progress=False)
+    data = views.run(
+        scene, tmp_path / "v", views=["top", "ortho-45"], lookups=["bilinear", "parallax"], progress=False
+    )
     got = [(r["view"], r["lookup"]) for r in data["rows"]]
     assert got == [("top", "bilinear"), ("ortho-45", "bilinear"), ("ortho-45", "parallax")]
     oblique = {r["lookup"]: r for r in data["rows"] if r["view"] == "ortho-45"}
-    assert oblique["parallax"]["parallax_error_texels"]["mean"] < oblique["bilinear"]["parallax_error_texels"]["mean"]
+    assert (
+        oblique["parallax"]["parallax_error_texels"]["mean"]
+        < oblique["bilinear"]["parallax_error_texels"]["mean"]
+    )
     assert oblique["bilinear"]["footprint_texels"]["p50"] == pytest.approx(math.sqrt(2), rel=1e-3)
     for name in ("views.json", "index.html", "plots/views.png", "ortho-45/parallax/index.html"):
         assert (tmp_path / "v" / name).is_file(), name

@@ -21,7 +21,15 @@ __all__ = ["CHANNEL_STEPS", "SweepLines", "sweep_lines", "ambient_from_sines", "
 #: Tangent-space steps ``(dx, dy)`` from a texel centre to the next texel
 #: centre toward each channel's azimuth ``45 k`` degrees (+y up the image).
 CHANNEL_STEPS: tuple[tuple[int, int], ...] = (
-    (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1))
+    (1, 0),
+    (1, 1),
+    (0, 1),
+    (-1, 1),
+    (-1, 0),
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+)
 
 
 @dataclass(frozen=True)
@@ -73,11 +81,11 @@ def sweep_lines(rows: int, cols: int, channel: int, boundary: str) -> SweepLines
     dx, dy = CHANNEL_STEPS[channel]
     drow, dcol = cv.tangent_to_pixel_offset(dx, dy)
     if boundary == "wrap":
-        if drow == 0:        # along the rows
+        if drow == 0:  # along the rows
             r0, c0, period = np.arange(rows), np.zeros(rows, np.int64), cols
-        elif dcol == 0:      # along the columns
+        elif dcol == 0:  # along the columns
             r0, c0, period = np.zeros(cols, np.int64), np.arange(cols), rows
-        else:                # diagonal: texels (r0 + i drow, i dcol), r0 < gcd, are distinct cycles
+        else:  # diagonal: texels (r0 + i drow, i dcol), r0 < gcd, are distinct cycles
             g = math.gcd(rows, cols)
             r0, c0, period = np.arange(g), np.zeros(g, np.int64), rows * cols // g
         length = np.full(r0.shape, period, np.int64)
@@ -99,9 +107,18 @@ def sweep_lines(rows: int, cols: int, channel: int, boundary: str) -> SweepLines
     order = np.argsort(-count, kind="stable")
     r0, c0, length, count = r0[order], c0[order], length[order], count[order]
     offset = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-    return SweepLines(drow, dcol, math.hypot(dx, dy), r0, c0,
-                      (r0 + (count - 1) * drow) % rows, (c0 + (count - 1) * dcol) % cols,
-                      length, count, offset)
+    return SweepLines(
+        drow,
+        dcol,
+        math.hypot(dx, dy),
+        r0,
+        c0,
+        (r0 + (count - 1) * drow) % rows,
+        (c0 + (count - 1) * dcol) % cols,
+        length,
+        count,
+        offset,
+    )
 
 
 def _sweep_numpy(h: np.ndarray, lines: SweepLines) -> np.ndarray:
@@ -117,8 +134,8 @@ def _sweep_numpy(h: np.ndarray, lines: SweepLines) -> np.ndarray:
     flat = h.ravel()
     count, length = lines.count, lines.length
     n_lines, most = len(count), int(count.max())
-    nxt_of = np.empty((n_lines, most), np.int32)   # the stack, as links: position -> next hull vertex
-    h_at = np.empty((n_lines, most), np.float32)   # height at each position
+    nxt_of = np.empty((n_lines, most), np.int32)  # the stack, as links: position -> next hull vertex
+    h_at = np.empty((n_lines, most), np.float32)  # height at each position
     r, c = lines.far_row.copy(), lines.far_col.copy()
     out = np.zeros(rows * cols, np.float32)
     neg_count = -count
@@ -156,8 +173,9 @@ def _sweep_numpy(h: np.ndarray, lines: SweepLines) -> np.ndarray:
     return out
 
 
-def _sweep_drjit(h, shape: tuple[int, int], lines: SweepLines, channel: int, out,
-                 nxt_np: np.ndarray, h_np: np.ndarray) -> None:
+def _sweep_drjit(
+    h, shape: tuple[int, int], lines: SweepLines, channel: int, out, nxt_np: np.ndarray, h_np: np.ndarray
+) -> None:
     """Schedule one channel's sweep as a Dr.Jit LLVM kernel; it scatters into ``out``.
 
     ``h``: the heights (``drjit.llvm.Float``, row-major) of a map of
@@ -257,8 +275,9 @@ def ambient_from_sines(sines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return sum_cos * scale, sum_cos2 * scale
 
 
-def exact_horizon_map(h_texels: np.ndarray, boundary: str = "wrap", *,
-                      engine: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def exact_horizon_map(
+    h_texels: np.ndarray, boundary: str = "wrap", *, engine: str = "auto"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact horizon bake of heights in texel units, unlimited radius.
 
     Returns ``(horizon, mean_cos, mean_cos2)`` like :func:`horizon_map`:
@@ -342,8 +361,10 @@ def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray
         dr.sync_thread()
         # every line wrote the height of its position 0 into its first slot
         if not np.array_equal(h_np[lines.offset], h[lines.near_row, lines.near_col]):
-            raise RuntimeError("exact horizon bake: Dr.Jit did not write into the NumPy scratch buffer "
-                               "(zero-copy mapping unavailable); use engine='numpy'")
+            raise RuntimeError(
+                "exact horizon bake: Dr.Jit did not write into the NumPy scratch buffer "
+                "(zero-copy mapping unavailable); use engine='numpy'"
+            )
     del nxt_np, h_np  # the kernels are done (synchronised above)
     first = dr.arange(UInt32, rows * cols) * cv.CHANNEL_COUNT
     sum_cos, sum_cos2 = Float(0.0), Float(0.0)
@@ -355,5 +376,8 @@ def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray
     dr.eval(mean_cos, mean_cos2)
     # .numpy() views Dr.Jit's memory without a copy and keeps it alive (writable)
     horizon = np.asarray(out.numpy(), dtype=np.float32).reshape(rows, cols, cv.CHANNEL_COUNT)
-    return (horizon, np.asarray(mean_cos.numpy(), np.float32).reshape(rows, cols),
-            np.asarray(mean_cos2.numpy(), np.float32).reshape(rows, cols))
+    return (
+        horizon,
+        np.asarray(mean_cos.numpy(), np.float32).reshape(rows, cols),
+        np.asarray(mean_cos2.numpy(), np.float32).reshape(rows, cols),
+    )

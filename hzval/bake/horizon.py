@@ -29,15 +29,27 @@ import numpy as np
 
 from hzval.core import conventions as cv
 
-__all__ = ["TEXEL_HALF_EXTENT", "OffsetGroup", "horizon_table", "KERNELS", "UNROLL_MAX_OFFSETS",
-    "UNROLL_COMPILE_S", "UNROLL_COMPILE_POWER", "UNROLL_RUN_NS", "LOOP_RUN_NS", "choose_kernel",
-    "kernel_for", "horizon_map"]
+__all__ = [
+    "TEXEL_HALF_EXTENT",
+    "OffsetGroup",
+    "horizon_table",
+    "KERNELS",
+    "UNROLL_MAX_OFFSETS",
+    "UNROLL_COMPILE_S",
+    "UNROLL_COMPILE_POWER",
+    "UNROLL_RUN_NS",
+    "LOOP_RUN_NS",
+    "choose_kernel",
+    "kernel_for",
+    "horizon_map",
+]
 
 #: Angular half-width factor of a texel seen from distance r: atan(0.7071 / r),
 #: the seed's constant for a texel's half diagonal (sqrt(2)/2, rounded).
 TEXEL_HALF_EXTENT = np.float32(0.7071)
 #: The seed's ``two_pi`` as a float32 constant.
 _TWO_PI_F32 = np.float32(6.2831855)
+
 
 @dataclass(frozen=True)
 class OffsetGroup:
@@ -72,8 +84,10 @@ def horizon_table(radius: int, angles: int) -> list[OffsetGroup]:
             hi = int(np.ceil((direction + delta) * k_index))
             bins = tuple(sorted({n % angles for n in range(lo, hi + 1)}))
             groups.setdefault(bins, []).append((i, j, 1.0 / np.sqrt(r2)))
-    return [OffsetGroup(bins, tuple((i, j) for i, j, _ in v), tuple(r for _, _, r in v))
-            for bins, v in groups.items()]
+    return [
+        OffsetGroup(bins, tuple((i, j) for i, j, _ in v), tuple(r for _, _, r in v))
+        for bins, v in groups.items()
+    ]
 
 
 #: Horizon-bake kernel forms (:func:`horizon_map`'s ``kernel``).
@@ -132,9 +146,15 @@ def kernel_for(rows: int, cols: int, radius: int, angles: int) -> str:
     return choose_kernel(offsets, rows * (cols + 2 * (radius - 1)))
 
 
-def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
-                boundary: str = "wrap", *, kernel: str = "auto",
-                directions: int = cv.CHANNEL_COUNT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def horizon_map(
+    h_texels: np.ndarray,
+    radius: int = 16,
+    angles: int = 32,
+    boundary: str = "wrap",
+    *,
+    kernel: str = "auto",
+    directions: int = cv.CHANNEL_COUNT,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Seed horizon bake of heights in texel units.
 
     Returns ``(horizon, mean_cos, mean_cos2)``: the ``(rows, cols, D)`` channel
@@ -195,7 +215,7 @@ def horizon_map(h_texels: np.ndarray, radius: int = 16, angles: int = 32,
     dr.eval(*channels, mean_cos, mean_cos2)
 
     def image(v) -> np.ndarray:
-        return np.asarray(v, dtype=np.float32).reshape(rows, pcols)[:, pad:pad + cols]
+        return np.asarray(v, dtype=np.float32).reshape(rows, pcols)[:, pad : pad + cols]
 
     horizon = np.stack([image(c) for c in channels], axis=-1)
     result = horizon, image(mean_cos).copy(), image(mean_cos2).copy()
@@ -211,9 +231,10 @@ def _max_tan_unrolled(flat: np.ndarray, start: int, lanes: int, table, angles: i
     import mitsuba as mi
 
     if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
+
         def neighbour(shift: int):
             # zero-copy view: the kernel reads it with contiguous loads
-            return mi.Float(flat[start + shift:start + shift + lanes])
+            return mi.Float(flat[start + shift : start + shift + lanes])
     else:
         source = mi.Float(flat)
         lane = dr.arange(mi.Int32, lanes) + start
@@ -241,9 +262,9 @@ def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object
     ambient terms' means over all bins."""
     import drjit as dr
 
-    cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]     # 1 / (1 + tan^2)
+    cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]  # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))
-    half = angles // (2 * directions)   # each channel: 2 half + 1 = angles / D + 1 bins
+    half = angles // (2 * directions)  # each channel: 2 half + 1 = angles / D + 1 bins
     channels = []
     for k in range(directions):
         centre = k * angles // directions
@@ -291,8 +312,9 @@ def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angl
         bins += group.bins
         bin_end.append(len(bins))
     pairs_f = mi.Float(np.asarray(pairs, dtype=np.float32).ravel())
-    g_first, g_end, b_first, b_end, bin_of = (mi.UInt32(np.asarray(a, dtype=np.uint32))
-                                              for a in (group_first, group_end, bin_first, bin_end, bins))
+    g_first, g_end, b_first, b_end, bin_of = (
+        mi.UInt32(np.asarray(a, dtype=np.uint32)) for a in (group_first, group_end, bin_first, bin_end, bins)
+    )
     # opaque: the radius and the map's width change these, and must not change the kernel
     lane = dr.arange(mi.Int32, lanes) + dr.opaque(mi.Int32, start)
     h0 = dr.gather(mi.Float, source, mi.UInt32(lane))
@@ -300,22 +322,31 @@ def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angl
 
     def group_body(gi, best):
         def offset_body(o, g):
-            inv_r, shift = dr.gather(mi.Vector2f, pairs_f, o)     # one 2-float packet
+            inv_r, shift = dr.gather(mi.Vector2f, pairs_f, o)  # one 2-float packet
             t = (dr.gather(mi.Float, source, mi.UInt32(lane + mi.Int32(shift))) - h0) * inv_r
             return o + 1, dr.maximum(g, t)
 
-        _, g = dr.while_loop((dr.gather(mi.UInt32, g_first, gi), mi.Float(-np.inf)),
-                             lambda o, g: o < dr.gather(mi.UInt32, g_end, gi), offset_body)
+        _, g = dr.while_loop(
+            (dr.gather(mi.UInt32, g_first, gi), mi.Float(-np.inf)),
+            lambda o, g: o < dr.gather(mi.UInt32, g_end, gi),
+            offset_body,
+        )
 
         def bin_body(k, best):
             b = dr.gather(mi.UInt32, bin_of, k)
             best[b] = dr.maximum(best[b], g)
             return k + 1, best
 
-        _, best = dr.while_loop((dr.gather(mi.UInt32, b_first, gi), best),
-                                lambda k, best: k < dr.gather(mi.UInt32, b_end, gi), bin_body)
+        _, best = dr.while_loop(
+            (dr.gather(mi.UInt32, b_first, gi), best),
+            lambda k, best: k < dr.gather(mi.UInt32, b_end, gi),
+            bin_body,
+        )
         return gi + 1, best
 
-    _, best = dr.while_loop((mi.UInt32(0), dr.alloc_local(mi.Float, angles, mi.Float(0.0))),
-                            lambda gi, best: gi < n_groups, group_body)
+    _, best = dr.while_loop(
+        (mi.UInt32(0), dr.alloc_local(mi.Float, angles, mi.Float(0.0))),
+        lambda gi, best: gi < n_groups,
+        group_body,
+    )
     return [best[b] for b in range(angles)]

@@ -19,15 +19,32 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.core import conventions as cv
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
+from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 
-__all__ = ["CUBE_SIZE", "BAKE_BYTES_PER_TEXEL", "BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION",
-    "BakeParams", "METHODS", "Bake", "normals_only", "normal_map", "weight_cube", "estimate_bytes",
-    "available_bytes", "check_fits", "METHOD_NOTES", "CONTENTS", "needs_horizon", "bake",
-    "write_bake", "read_bake", "cached_bake"]
+__all__ = [
+    "CUBE_SIZE",
+    "BAKE_BYTES_PER_TEXEL",
+    "BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION",
+    "BakeParams",
+    "METHODS",
+    "Bake",
+    "normals_only",
+    "normal_map",
+    "weight_cube",
+    "estimate_bytes",
+    "available_bytes",
+    "check_fits",
+    "METHOD_NOTES",
+    "CONTENTS",
+    "needs_horizon",
+    "bake",
+    "write_bake",
+    "read_bake",
+    "cached_bake",
+]
 
 
 #: Edge length in texels of a face of the weight cube map (Lengyel: 16 x 16
@@ -77,24 +94,39 @@ class BakeParams:
     def validate(self) -> "BakeParams":
         cv.check_depth(self.depth, "--depth", self.boundary)
         if self.method not in METHODS:
-            raise InputError("--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}")
-        if (isinstance(self.directions, bool) or not isinstance(self.directions, (int, np.integer))
-                or self.directions not in cv.DIRECTION_COUNTS):
-            raise InputError("--directions", f"must be one of {', '.join(map(str, cv.DIRECTION_COUNTS))}, "
-                                             f"got {self.directions}")
+            raise InputError(
+                "--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}"
+            )
+        if (
+            isinstance(self.directions, bool)
+            or not isinstance(self.directions, (int, np.integer))
+            or self.directions not in cv.DIRECTION_COUNTS
+        ):
+            raise InputError(
+                "--directions",
+                f"must be one of {', '.join(map(str, cv.DIRECTION_COUNTS))}, got {self.directions}",
+            )
         if self.method == "exact" and self.directions != cv.CHANNEL_COUNT:
-            raise InputError("--directions", f"the exact method stores {cv.CHANNEL_COUNT} directions only: along "
-                                             "22.5-degree directions a ray meets no texel centres, and the exact "
-                                             "sweeps do not interpolate heights; use --method seed")
+            raise InputError(
+                "--directions",
+                f"the exact method stores {cv.CHANNEL_COUNT} directions only: along "
+                "22.5-degree directions a ray meets no texel centres, and the exact "
+                "sweeps do not interpolate heights; use --method seed",
+            )
         if self.method == "seed":
             if self.radius is None or int(self.radius) != self.radius or self.radius < 2:
                 raise InputError("--radius", f"must be an integer of at least 2 texels, got {self.radius}")
             m = 2 * int(self.directions)
             if self.angles is None or int(self.angles) != self.angles or self.angles < m or self.angles % m:
-                raise InputError("--angles", f"must be a multiple of {m} ({m}, {2 * m}, {3 * m}, ...) with "
-                                             f"{self.directions} directions, got {self.angles}")
+                raise InputError(
+                    "--angles",
+                    f"must be a multiple of {m} ({m}, {2 * m}, {3 * m}, ...) with "
+                    f"{self.directions} directions, got {self.angles}",
+                )
         if self.boundary not in cv.BOUNDARIES:
-            raise InputError("--boundary", f"must be one of {', '.join(cv.BOUNDARIES)}, got {self.boundary!r}")
+            raise InputError(
+                "--boundary", f"must be one of {', '.join(cv.BOUNDARIES)}, got {self.boundary!r}"
+            )
         return self
 
     def record(self) -> dict:
@@ -161,7 +193,7 @@ class Bake:
     def layers(self) -> tuple[np.ndarray, ...]:
         """The ``D / 4`` RGBA layers: layer ``l`` holds channels ``4 l .. 4 l + 3``."""
         n = cv.CHANNELS_PER_LAYER
-        return tuple(self.horizon[..., n * i:n * (i + 1)] for i in range(cv.layer_count(self.directions)))
+        return tuple(self.horizon[..., n * i : n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
 
 def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
@@ -169,13 +201,19 @@ def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
     the unshadowed shading of a technique that reads no horizon map, built
     without the horizon bake's cost. ``height`` normalised, ``(rows, cols)``."""
     h = cv.heights_in_texels(height, depth)
-    return Bake(params=BakeParams(depth=depth, boundary=boundary), horizon=None,
-                normal=normal_map(h, boundary), mean_cos=None, mean_cos2=None)
+    return Bake(
+        params=BakeParams(depth=depth, boundary=boundary),
+        horizon=None,
+        normal=normal_map(h, boundary),
+        mean_cos=None,
+        mean_cos2=None,
+    )
 
 
 # --------------------------------------------------------------------------
 # Normal map
 # --------------------------------------------------------------------------
+
 
 def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
     """Unit tangent-space normals ``normalize(-dh/dx, -dh/dy, 1)``, ``(rows, cols, 3)``.
@@ -192,6 +230,7 @@ def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
 # --------------------------------------------------------------------------
 # Weight cube map
 # --------------------------------------------------------------------------
+
 
 def weight_cube(size: int | None = None) -> np.ndarray:
     """The 8-bit channel-weight cube map, ``(6, size, size, 4)`` uint8, OpenGL face order.
@@ -214,6 +253,7 @@ def weight_cube(size: int | None = None) -> np.ndarray:
 # The whole bake
 # --------------------------------------------------------------------------
 
+
 def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     """Peak memory in bytes that baking a ``rows x cols`` map needs (an estimate).
 
@@ -222,7 +262,9 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     seed's ten kernel outputs, so the seed's figure per texel bounds it.
     """
     pad = params.radius - 1 if params.method == "seed" else 0
-    per_texel = BAKE_BYTES_PER_TEXEL + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (params.directions - cv.CHANNEL_COUNT)
+    per_texel = BAKE_BYTES_PER_TEXEL + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (
+        params.directions - cv.CHANNEL_COUNT
+    )
     return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
 
 
@@ -244,18 +286,21 @@ def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
     """Raise :class:`InputError` naming ``what`` if the bake would not fit in memory."""
     need, have = estimate_bytes(rows, cols, params), available_bytes()
     if need > have:
-        raise InputError(what, f"a {cols}x{rows} bake needs about {need / 2**30:.1f} GiB of memory; "
-                               f"{have / 2**30:.1f} GiB are available")
+        raise InputError(
+            what,
+            f"a {cols}x{rows} bake needs about {need / 2**30:.1f} GiB of memory; "
+            f"{have / 2**30:.1f} GiB are available",
+        )
 
 
 #: What each method's horizon and ambient maps are, for ``bake.json``.
 METHOD_NOTES: dict[str, str] = {
     "seed": "seed (Lengyel): max tan over neighbours with r < radius in `angles` bins; "
-            "each channel the mean sine of its angles/directions + 1 nearest bins; ambient over the bins",
+    "each channel the mean sine of its angles/directions + 1 nearest bins; ambient over the bins",
     "exact": "exact: horizon toward each channel's azimuth with unlimited radius (wrap: one period "
-             "along the line, which is exact; open: to the edge), by line sweeps with a convex-hull "
-             "stack (Timonen and Westerholm 2010); radius and angles unused (null); ambient over "
-             "the 8 channel directions",
+    "along the line, which is exact; open: to the edge), by line sweeps with a convex-hull "
+    "stack (Timonen and Westerholm 2010); radius and angles unused (null); ambient over "
+    "the 8 channel directions",
 }
 
 
@@ -291,8 +336,9 @@ def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool
     if params.method == "exact":
         horizon, mean_cos, mean_cos2 = exact_horizon_map(h, params.boundary)
     else:
-        horizon, mean_cos, mean_cos2 = horizon_map(h, params.radius, params.angles, params.boundary,
-                                                   directions=params.directions)
+        horizon, mean_cos, mean_cos2 = horizon_map(
+            h, params.radius, params.angles, params.boundary, directions=params.directions
+        )
     timings["horizon_s"] = time.perf_counter() - t1
     return Bake(params, horizon, normal, mean_cos, mean_cos2, timings)
 
@@ -343,25 +389,35 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
                 png(f"cube/{face}.png", np.asarray, cube[i])
         files.run_writers(jobs)
         timings = dict(result.timings, write_s=time.perf_counter() - t0)
-        digests = {p.relative_to(stage.dir).as_posix(): files.file_digest(p)
-                   for p in sorted(stage.dir.rglob("*")) if p.is_file()}
-        files.write_json(stage.path("bake.json"), {
-            "input": input_info,
-            "contents": list(result.contents),
-            "parameters": result.params.record() if full else _normal_record(result.params),
-            **({"method": METHOD_NOTES[result.params.method]} if full else {}),
-            "outputs": _output_notes(result.directions, full),
-            "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, azimuth counterclockwise from +x; "
-                           "heights in texel units are H * depth * cols",
-            "timings_s": {k: round(v, 4) for k, v in timings.items()},
-            "versions": backend.versions(),
-            "files": digests,           # what cached_bake checks before it trusts the cache
-        }, atomic=False)
+        digests = {
+            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            for p in sorted(stage.dir.rglob("*"))
+            if p.is_file()
+        }
+        files.write_json(
+            stage.path("bake.json"),
+            {
+                "input": input_info,
+                "contents": list(result.contents),
+                "parameters": result.params.record() if full else _normal_record(result.params),
+                **({"method": METHOD_NOTES[result.params.method]} if full else {}),
+                "outputs": _output_notes(result.directions, full),
+                "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, azimuth counterclockwise from +x; "
+                "heights in texel units are H * depth * cols",
+                "timings_s": {k: round(v, 4) for k, v in timings.items()},
+                "versions": backend.versions(),
+                "files": digests,  # what cached_bake checks before it trusts the cache
+            },
+            atomic=False,
+        )
         written = stage.commit()
     # a folder that held a bake with another number of directions keeps no
     # files of it that this bake.json does not describe (extra layers, a cube)
-    stale = [f"horizon{i}.{ext}" for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
-             for ext in ("exr", "png")] + ([] if full else ["ambient.exr"])
+    stale = [
+        f"horizon{i}.{ext}"
+        for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
+        for ext in ("exr", "png")
+    ] + ([] if full else ["ambient.exr"])
     if cube is None:
         stale += [f"cube/{face}.png" for face in cv.CUBE_FACES]
     for name in stale:
@@ -385,16 +441,20 @@ def _output_notes(directions: int, full: bool = True) -> dict:
         return {"normal": "tangent-space unit normal (PNG: 0.5 + 0.5 n)"}
     for i in range(cv.layer_count(directions)):
         az = ", ".join(f"{cv.channel_azimuth_deg(c, directions):g}" for c in range(n * i, n * i + n))
-        notes[f"horizon{i}"] = (f"channels {n * i}-{n * i + n - 1} (azimuth {az} deg) as RGBA"
-                                + (": sine of the horizon angle" if i == 0 else ""))
+        notes[f"horizon{i}"] = f"channels {n * i}-{n * i + n - 1} (azimuth {az} deg) as RGBA" + (
+            ": sine of the horizon angle" if i == 0 else ""
+        )
     notes["normal"] = "tangent-space unit normal (PNG: 0.5 + 0.5 n)"
     notes["ambient"] = "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)"
     if directions == cv.CHANNEL_COUNT:
-        notes["cube"] = (f"channel weights, {CUBE_SIZE}x{CUBE_SIZE} per face, OpenGL face order, "
-                         "8-bit (w + 1) * 127.5")
+        notes["cube"] = (
+            f"channel weights, {CUBE_SIZE}x{CUBE_SIZE} per face, OpenGL face order, 8-bit (w + 1) * 127.5"
+        )
     else:
-        notes["cube"] = (f"not written: the weight cube map holds {cv.CHANNEL_COUNT} channel weights; "
-                         f"{directions} directions use the analytic weights")
+        notes["cube"] = (
+            f"not written: the weight cube map holds {cv.CHANNEL_COUNT} channel weights; "
+            f"{directions} directions use the analytic weights"
+        )
     return notes
 
 
@@ -412,8 +472,9 @@ def read_bake(folder: str | Path) -> Bake:
     params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
     if "horizon_map" not in record.get("contents", CONTENTS):
         n = files.read_exr(folder / "normal.exr")
-        return Bake(params, None, np.stack([n[c] for c in "RGB"], axis=-1), None, None,
-                    dict(record["timings_s"]))
+        return Bake(
+            params, None, np.stack([n[c] for c in "RGB"], axis=-1), None, None, dict(record["timings_s"])
+        )
     layers = [files.read_exr(folder / f"horizon{i}.exr") for i in range(cv.layer_count(params.directions))]
     n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
     horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
@@ -421,9 +482,17 @@ def read_bake(folder: str | Path) -> Bake:
     return Bake(params, horizon, normal, amb["mean_cos"], amb["mean_cos2"], dict(record["timings_s"]))
 
 
-def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str | Path,
-                input_info: dict, notices: list[str] | None = None, *, horizon: bool = True,
-                write_to: str | Path | None = None) -> tuple[Bake, bool]:
+def cached_bake(
+    height: np.ndarray,
+    digest: str,
+    params: BakeParams,
+    folder: str | Path,
+    input_info: dict,
+    notices: list[str] | None = None,
+    *,
+    horizon: bool = True,
+    write_to: str | Path | None = None,
+) -> tuple[Bake, bool]:
     """Bake into ``folder``, or read the bake already there if it was made from the
     same input (``digest``) with the same parameters, holds what is asked for (``horizon``:
     the horizon and ambient maps, else the normal map alone) and its files are intact.
@@ -444,12 +513,14 @@ def cached_bake(height: np.ndarray, digest: str, params: BakeParams, folder: str
         record = json.loads((folder / "bake.json").read_text())
         held = record.get("contents", CONTENTS)
         if horizon:
-            same = "horizon_map" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
-        else:           # any bake of the same surface holds its normal map
+            same = (
+                "horizon_map" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
+            )
+        else:  # any bake of the same surface holds its normal map
             same = {k: record["parameters"][k] for k in ("depth", "boundary")} == _normal_record(params)
         same = same and record["input"]["digest"] == digest
     except (OSError, ValueError, KeyError, TypeError):
-        same = False   # no usable cache: bake anew
+        same = False  # no usable cache: bake anew
     if same:
         damaged = _damaged_file(folder, record.get("files"), files.file_digest)
         if damaged is None:

@@ -1,5 +1,4 @@
-"""The ``hzval`` command: a thin layer that turns flags into the dataclasses the commands take.
-"""
+"""The ``hzval`` command: a thin layer that turns flags into the dataclasses the commands take."""
 
 from hzval.core.exports import exports
 

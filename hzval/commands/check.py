@@ -75,18 +75,31 @@ import numpy as np
 
 from hzval import materials
 from hzval.bake import maps as bake
-from hzval.metrics import compare
-from hzval.io import files
-from hzval.report import images
 from hzval.core import shading
-from hzval.techniques import registry as technique
-from hzval.scene import spec as sc
 from hzval.core.errors import InputError
+from hzval.io import files
+from hzval.metrics import compare
 from hzval.pipeline import sweep
 from hzval.pipeline.sweep import frame_folder
+from hzval.report import images
+from hzval.scene import spec as sc
+from hzval.techniques import registry as technique
 
-__all__ = ["Tiers", "DEFAULT_TIERS", "BLOCK", "ImageResult", "CheckResult", "check_scene",
-           "render_references", "compare_image", "run", "write_report", "repository_path", "p_value", "sidak_level"]
+__all__ = [
+    "Tiers",
+    "DEFAULT_TIERS",
+    "BLOCK",
+    "ImageResult",
+    "CheckResult",
+    "check_scene",
+    "render_references",
+    "compare_image",
+    "run",
+    "write_report",
+    "repository_path",
+    "p_value",
+    "sidak_level",
+]
 
 #: Side of the pixel blocks whose means the truth's test also compares.
 BLOCK = 8
@@ -113,8 +126,10 @@ class Tiers:
             given.update(scene.tolerances.get(table, {}))
         unknown = set(given) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
-            raise InputError(scene.source or scene.name, f"unknown tolerance {sorted(unknown)[0]!r}; "
-                                                          "use fail, fail_percent, hard_fail, warn")
+            raise InputError(
+                scene.source or scene.name,
+                f"unknown tolerance {sorted(unknown)[0]!r}; use fail, fail_percent, hard_fail, warn",
+            )
         return dataclasses.replace(base, **{k: float(v) for k, v in given.items()})
 
 
@@ -135,11 +150,11 @@ class ImageResult:
     scene: str
     frame: str
     kind: str
-    status: str                      # "pass", "warn", "fail" or "new"
+    status: str  # "pass", "warn", "fail" or "new"
     reasons: list[str] = field(default_factory=list)
     tiers: Tiers | None = None
     numbers: dict = field(default_factory=dict)
-    maps: dict = field(default_factory=dict)          # "score": per-pixel map for the report
+    maps: dict = field(default_factory=dict)  # "score": per-pixel map for the report
     new: dict | None = None
     reference: dict | None = None
     scale: float = 1.0
@@ -172,6 +187,7 @@ def repository_path(name: str) -> Path:
 # Rendering
 # --------------------------------------------------------------------------
 
+
 def check_scene(scene):
     """``scene`` as the check renders it: the ``[check]`` section's size, azimuths, spp and depth.
 
@@ -184,10 +200,18 @@ def check_scene(scene):
         raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
     unknown = set(c) - {"size", "azimuths", "spp", "depth", "resolution"}
     if unknown:
-        raise InputError(scene.source or scene.name, f"unknown check setting {sorted(unknown)[0]!r}; "
-                                                      "use size, azimuths, spp, depth, resolution")
-    return sc.override(scene, size=size, azimuths=c.get("azimuths"), spp=c.get("spp"), depth=c.get("depth"),
-                       resolution=c.get("resolution"))
+        raise InputError(
+            scene.source or scene.name,
+            f"unknown check setting {sorted(unknown)[0]!r}; use size, azimuths, spp, depth, resolution",
+        )
+    return sc.override(
+        scene,
+        size=size,
+        azimuths=c.get("azimuths"),
+        spp=c.get("spp"),
+        depth=c.get("depth"),
+        resolution=c.get("resolution"),
+    )
 
 
 def renderers(scene, height: np.ndarray, points=None) -> dict:
@@ -196,8 +220,9 @@ def renderers(scene, height: np.ndarray, points=None) -> dict:
     techniques that render on models)."""
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
-    ctx = technique.Context(scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols),
-                            points=points)
+    ctx = technique.Context(
+        scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols), points=points
+    )
     out = {}
     for t in technique.select(None, scene):
         if points is not None and t.not_on_models:
@@ -216,8 +241,10 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
     hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     if max(rows, cols) > MAX_CHECK_SIZE:
-        raise InputError(scene.source or scene.name,
-                         f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)")
+        raise InputError(
+            scene.source or scene.name,
+            f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)",
+        )
     the_truth, points = sweep.truth_of(truth_scene, hm.height, sc.load_albedo(scene.material, rows, cols))
     if points is not None and seed is not None:
         # the techniques read at the truth's hits: at the scene's own seed, whatever the truth's
@@ -249,6 +276,7 @@ def _rgb(image: np.ndarray) -> dict[str, np.ndarray]:
 # Comparing
 # --------------------------------------------------------------------------
 
+
 def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
     """The value channels (not ``var.*``) stacked last, in the order of ``names`` if given
     (an EXR file lists its channels sorted by name)."""
@@ -256,8 +284,9 @@ def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[
     return names, np.stack([np.asarray(ch[k], np.float64) for k in names], axis=-1)
 
 
-def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: str, tiers: Tiers,
-                  scale: float, spp: int) -> tuple[str, list[str], dict, dict]:
+def compare_image(
+    new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: str, tiers: Tiers, scale: float, spp: int
+) -> tuple[str, list[str], dict, dict]:
     """``(status, reasons, numbers, maps)`` of one image against its reference.
 
     ``scale`` multiplies the RGB channels (the exposure); ``V`` and ``F`` are
@@ -266,18 +295,32 @@ def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: 
     names, a = _values(new)
     ref_names = sorted(k for k in ref if not k.startswith("var."))
     shapes = {np.shape(v) for v in ref.values()}
-    if ref_names != sorted(names) or (kind == "truth" and any(f"var.{n}" not in ref for n in names)) \
-            or shapes != {a.shape[:2]}:
-        return "fail", [f"reference has channels {sorted(ref)} of shape {sorted(shapes)}, the new render "
-                        f"{sorted(new)} of shape {a.shape[:2]}: render it again with --update"], {}, {}
+    if (
+        ref_names != sorted(names)
+        or (kind == "truth" and any(f"var.{n}" not in ref for n in names))
+        or shapes != {a.shape[:2]}
+    ):
+        return (
+            "fail",
+            [
+                f"reference has channels {sorted(ref)} of shape {sorted(shapes)}, the new render "
+                f"{sorted(new)} of shape {a.shape[:2]}: render it again with --update"
+            ],
+            {},
+            {},
+        )
     _, b = _values(ref, names)
     s = np.array([scale if n in "RGB" else 1.0 for n in names])
     a, b = a * s, b * s
     diff = a - b
     absdiff = np.abs(diff)
     n_pix = diff.shape[0] * diff.shape[1]
-    numbers = {"max_abs": float(absdiff.max()), "mean_abs": float(absdiff.mean()),
-               "mean_diff": float(diff.mean()), "pixels": n_pix}
+    numbers = {
+        "max_abs": float(absdiff.max()),
+        "mean_abs": float(absdiff.mean()),
+        "mean_diff": float(diff.mean()),
+        "pixels": n_pix,
+    }
     reasons: list[str] = []
     if not np.isfinite(a).all():
         return "fail", ["the new render has non-finite values"], numbers, {"score": absdiff.max(-1)}
@@ -293,8 +336,12 @@ def compare_image(new: dict[str, np.ndarray], ref: dict[str, np.ndarray], kind: 
     if reasons:
         return "fail", reasons, numbers, maps
     if percent > tiers.warn:
-        return "warn", [f"{percent:.3g}% of pixels fail > warn {tiers.warn:g}% (allowed up to "
-                        f"{tiers.fail_percent:g}%)"], numbers, maps
+        return (
+            "warn",
+            [f"{percent:.3g}% of pixels fail > warn {tiers.warn:g}% (allowed up to {tiers.fail_percent:g}%)"],
+            numbers,
+            maps,
+        )
     return "pass", [], numbers, maps
 
 
@@ -306,8 +353,9 @@ def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[n
     return score > tiers.fail, {"score": score}
 
 
-def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict,
-                reasons: list) -> tuple[np.ndarray, dict]:
+def _truth_test(
+    new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict, reasons: list
+) -> tuple[np.ndarray, dict]:
     """A Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
     bound on the bias of the image mean (module docstring)."""
     var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
@@ -315,7 +363,7 @@ def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int,
     q = 1.0 / (spp + 2)
     floor = np.maximum(np.abs(a), np.abs(b)) ** 2 * q * (1 - q) / spp
     var = np.maximum(np.nan_to_num(var_a), floor) + np.maximum(np.nan_to_num(var_b), floor)
-    var = np.maximum(var, 1e-12)           # two exact zeros: any difference is significant
+    var = np.maximum(var, 1e-12)  # two exact zeros: any difference is significant
     p_pix = _p_value(absdiff / np.sqrt(var)).min(-1)
     blocks_d, blocks_v = _block_sums(diff), _block_sums(var)
     nb = blocks_d.shape[0] * blocks_d.shape[1]
@@ -324,13 +372,15 @@ def _truth_test(new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int,
     alpha = sidak_level(tiers.fail, n_tests)
     bad_blocks = int((p_blk < alpha).sum())
     bias = np.abs(diff.mean(axis=(0, 1)))
-    numbers.update(alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb,
-                   bias=float(bias.max()))
+    numbers.update(
+        alpha=alpha, min_p=float(p_pix.min()), failing_blocks=bad_blocks, blocks=nb, bias=float(bias.max())
+    )
     # the map shows the stronger evidence at each pixel: its own test or its block's
     p_map = p_pix.copy()
     hb, wb = p_blk.shape
-    p_map[:hb * BLOCK, :wb * BLOCK] = np.minimum(
-        p_map[:hb * BLOCK, :wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK))))
+    p_map[: hb * BLOCK, : wb * BLOCK] = np.minimum(
+        p_map[: hb * BLOCK, : wb * BLOCK], np.kron(p_blk, np.ones((BLOCK, BLOCK)))
+    )
     if (bias > tiers.hard_fail).any():
         reasons.append(f"the image mean differs by {bias.max():.3g} > hard_fail {tiers.hard_fail:g}")
     if bad_blocks:
@@ -369,6 +419,7 @@ def _block_sums(x: np.ndarray) -> np.ndarray:
 # The run
 # --------------------------------------------------------------------------
 
+
 def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
     return Path(references) / scene / frame / f"{kind}.exr"
 
@@ -377,13 +428,21 @@ def _variants(scene) -> dict:
     """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``; a
     ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line."""
     out = {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
-    known = {"truth", "technique", "approx", *technique.names(),
-             *(v.name for n in technique.names() for v in technique.get(n).check_variants())}
+    known = {
+        "truth",
+        "technique",
+        "approx",
+        *technique.names(),
+        *(v.name for n in technique.names() for v in technique.get(n).check_variants()),
+    }
     for table in scene.tolerances:
         if table not in known:
             near = difflib.get_close_matches(table, sorted(known), n=1)
-            raise InputError(scene.source or scene.name, f"unknown table [tolerances.{table}]"
-                                                          + (f"; did you mean [tolerances.{near[0]}]?" if near else ""))
+            raise InputError(
+                scene.source or scene.name,
+                f"unknown table [tolerances.{table}]"
+                + (f"; did you mean [tolerances.{near[0]}]?" if near else ""),
+            )
     return out
 
 
@@ -405,9 +464,15 @@ def load_scenes(scenes_dir: str | Path) -> list:
     return [sc.load_scene(p) for p in paths]
 
 
-def run(*, scenes_dir: str | Path | None = None, references: str | Path | None = None,
-        update: bool = False, seed: int | None = None, progress: bool = False,
-        only: list[str] | None = None) -> CheckResult:
+def run(
+    *,
+    scenes_dir: str | Path | None = None,
+    references: str | Path | None = None,
+    update: bool = False,
+    seed: int | None = None,
+    progress: bool = False,
+    only: list[str] | None = None,
+) -> CheckResult:
     """Render the shipped scenes and compare them with ``references``; with ``update``,
     rewrite the references that are missing or failing."""
     from tqdm import tqdm
@@ -431,18 +496,20 @@ def run(*, scenes_dir: str | Path | None = None, references: str | Path | None =
             if path.is_file():
                 try:
                     ref = files.read_exr(path)
-                except Exception as exc:   # a corrupt reference fails its image, not the run
+                except Exception as exc:  # a corrupt reference fails its image, not the run
                     r.status, r.reasons = "fail", [f"{path}: unreadable reference ({files.first_line(exc)})"]
                 else:
                     r.reference = ref
-                    r.status, r.reasons, r.numbers, r.maps = compare_image(new, ref, kind, tiers, scale, scene.spp)
+                    r.status, r.reasons, r.numbers, r.maps = compare_image(
+                        new, ref, kind, tiers, scale, scene.spp
+                    )
             else:
                 r.reasons = [f"no reference at {path}"]
             if update and (r.status in ("new", "fail") or path == old):
                 target = reference_file(references, scene.name, frame, kind)
                 files.write_exr(target, new)
                 if path == old:
-                    old.unlink()            # renamed: the reference now has its variant's name
+                    old.unlink()  # renamed: the reference now has its variant's name
                 result.updated.append(str(target))
             result.images.append(r)
     result.seconds = time.perf_counter() - t0
@@ -457,14 +524,17 @@ def summary(result: CheckResult) -> str:
         if r.status == "pass":
             continue
         lines.append(f"{r.status.upper():4}  {r.name}: {'; '.join(r.reasons)}")
-    lines.append(f"{len(result.images)} images: {result.count('pass')} pass, {result.count('warn')} warn, "
-                 f"{result.count('fail')} fail, {result.count('new')} new ({result.seconds:.1f} s)")
+    lines.append(
+        f"{len(result.images)} images: {result.count('pass')} pass, {result.count('warn')} warn, "
+        f"{result.count('fail')} fail, {result.count('new')} new ({result.seconds:.1f} s)"
+    )
     return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------
 # The failure report
 # --------------------------------------------------------------------------
+
 
 def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
     """``out/index.html``: reference | new | difference for every image, failures first; the folder
@@ -482,9 +552,18 @@ def _write_report(result: CheckResult, out: Path, command: str) -> Path:
     items = []
     for i, r in enumerate(sorted(result.images, key=lambda r: (order[r.status], r.name))):
         stem = f"img/{i:03d}"
-        entry = {"name": r.name, "status": r.status, "reasons": r.reasons, "kind": r.kind,
-                 "numbers": _fmt_numbers(r.numbers), "tiers": dataclasses.asdict(r.tiers) if r.tiers else {},
-                 "ref": None, "new": None, "diff": None, "diff_caption": ""}
+        entry = {
+            "name": r.name,
+            "status": r.status,
+            "reasons": r.reasons,
+            "kind": r.kind,
+            "numbers": _fmt_numbers(r.numbers),
+            "tiers": dataclasses.asdict(r.tiers) if r.tiers else {},
+            "ref": None,
+            "new": None,
+            "diff": None,
+            "diff_caption": "",
+        }
         if r.new is not None:
             entry["new"] = _write_preview(out, f"{stem}-new.png", r.new, r.scale)
         if r.reference is not None:
@@ -493,17 +572,29 @@ def _write_report(result: CheckResult, out: Path, command: str) -> Path:
         if score is not None:
             if r.kind == "truth":
                 top = max(-math.log10(r.maps["alpha"]), 1e-9)
-                entry["diff_caption"] = (f"-log10 p of each pixel or of its 8x8 block, whichever is smaller; "
-                                         f"white at the failing level p = {r.maps['alpha']:.2g}")
+                entry["diff_caption"] = (
+                    f"-log10 p of each pixel or of its 8x8 block, whichever is smaller; "
+                    f"white at the failing level p = {r.maps['alpha']:.2g}"
+                )
             else:
                 top = r.tiers.hard_fail
                 entry["diff_caption"] = f"largest |new - ref| per pixel; white at hard_fail = {top:g}"
             files.write_png(out / f"{stem}-diff.png", images.magma(score / top))
             entry["diff"] = f"{stem}-diff.png"
         items.append(entry)
-    html = report._environment().get_template("check.html.j2").render(
-        items=items, passed=result.passed, counts={s: result.count(s) for s in order},
-        updated=result.updated, seconds=result.seconds, command=command, versions=backend.versions())
+    html = (
+        report._environment()
+        .get_template("check.html.j2")
+        .render(
+            items=items,
+            passed=result.passed,
+            counts={s: result.count(s) for s in order},
+            updated=result.updated,
+            seconds=result.seconds,
+            command=command,
+            versions=backend.versions(),
+        )
+    )
     index = out / "index.html"
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
@@ -519,8 +610,18 @@ def _write_preview(out: Path, rel: str, ch: dict, scale: float) -> str:
 def _fmt_numbers(n: dict) -> list[tuple[str, str]]:
     def g(v):
         return f"{v:.4g}" if isinstance(v, float) else str(v)
-    labels = {"failing_percent": "failing pixels %", "failing_pixels": "failing pixels", "max_abs": "max |diff|",
-              "mean_abs": "mean |diff|", "mean_diff": "mean diff", "bias": "largest channel bias",
-              "min_p": "smallest p", "alpha": "failing level (Sidak)", "failing_blocks": "failing blocks",
-              "blocks": "blocks", "pixels": "pixels"}
+
+    labels = {
+        "failing_percent": "failing pixels %",
+        "failing_pixels": "failing pixels",
+        "max_abs": "max |diff|",
+        "mean_abs": "mean |diff|",
+        "mean_diff": "mean diff",
+        "bias": "largest channel bias",
+        "min_p": "smallest p",
+        "alpha": "failing level (Sidak)",
+        "failing_blocks": "failing blocks",
+        "blocks": "blocks",
+        "pixels": "pixels",
+    }
     return [(labels.get(k, k), g(v)) for k, v in n.items()]

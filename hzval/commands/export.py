@@ -46,10 +46,10 @@ import numpy as np
 
 from hzval import materials
 from hzval.core import backend
-from hzval.io import files
-from hzval.geometry import tile as mesh
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.geometry import tile as mesh
+from hzval.io import files
 from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape
 
 __all__ = ["write_scene", "mitsuba_render", "FILES"]
@@ -68,20 +68,27 @@ def check_fits(scene: Scene) -> int:
     from hzval.pipeline import sweep
 
     if not scene.mesh.is_plane:
-        raise InputError(scene.source or "--scene", f"export-scene writes the tile's displaced mesh; a model's "
-                                                     f"({scene.mesh.shape}) is not exported yet")
+        raise InputError(
+            scene.source or "--scene",
+            f"export-scene writes the tile's displaced mesh; a model's "
+            f"({scene.mesh.shape}) is not exported yet",
+        )
     one = dataclasses.replace(scene, spp=1)
     rows, cols = sweep.material_shape(one)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     need, have = sweep.estimate_peak_bytes(one, rows, cols), bake.available_bytes()
     if need > have:
-        raise InputError(what, f"the mesh of {cols}x{rows} texels needs about {need / 2**30:.1f} GiB of memory "
-                               f"(estimated); {have / 2**30:.1f} GiB are available (a smaller map)")
+        raise InputError(
+            what,
+            f"the mesh of {cols}x{rows} texels needs about {need / 2**30:.1f} GiB of memory "
+            f"(estimated); {have / 2**30:.1f} GiB are available (a smaller map)",
+        )
     return need
 
 
-def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_deg: float = 0.0,
-                force: bool = False) -> list[Path]:
+def write_scene(
+    scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_deg: float = 0.0, force: bool = False
+) -> list[Path]:
     """Write the Mitsuba 3 scene of ``scene``'s truth for the light at ``azimuth_deg`` into ``out``.
 
     ``height``: the normalised height map ``(rows, cols)``. Returns the paths
@@ -95,19 +102,29 @@ def write_scene(scene: Scene, height: np.ndarray, out: str | Path, *, azimuth_de
 def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
     backend.variant()
     scene = scene.validate()
-    if scene.declares("interreflection") or scene.declares("specular") or scene.declares("ambient") \
-            or scene.declares("reflection_occlusion"):
-        raise InputError(scene.source or "--effects", "export-scene writes the diffuse, shadowed scene of "
-                         "Mitsuba's direct integrator: declare shadow and/or diffuse only")
+    if (
+        scene.declares("interreflection")
+        or scene.declares("specular")
+        or scene.declares("ambient")
+        or scene.declares("reflection_occlusion")
+    ):
+        raise InputError(
+            scene.source or "--effects",
+            "export-scene writes the diffuse, shadowed scene of "
+            "Mitsuba's direct integrator: declare shadow and/or diffuse only",
+        )
     h = np.asarray(height, np.float32)
     rows, cols = h.shape
     mat, light = scene.material, scene.light
     margin = None
     if mat.boundary == "wrap":
-        margin = mesh.wrap_margin(np.asarray(h, np.float64) * mat.depth * cols,
-                                  min(mesh.MIN_ELEVATION_DEG, max(light.elevation_deg, 1.0)))
-    m = mesh.displaced_mesh(h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth",
-                            name="surface")
+        margin = mesh.wrap_margin(
+            np.asarray(h, np.float64) * mat.depth * cols,
+            min(mesh.MIN_ELEVATION_DEG, max(light.elevation_deg, 1.0)),
+        )
+    m = mesh.displaced_mesh(
+        h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth", name="surface"
+    )
     written = []
     mesh.write_ply(m, out / "mesh.ply")
     written.append(out / "mesh.ply")
@@ -128,7 +145,7 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
     if not isinstance(albedo, str) and own is None:
         a = DEFAULT_ALBEDO if albedo is None else float(albedo)
         return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
-    if own is not None:     # a built-in material's linear albedo, stored as sRGB as a bitmap expects
+    if own is not None:  # a built-in material's linear albedo, stored as sRGB as a bitmap expects
         rgb = files.unit_to_u8(cv.srgb_encode(own))
     else:
         from PIL import Image
@@ -140,8 +157,10 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
             raise InputError(albedo, f"not a readable albedo image ({files.first_line(exc)})") from None
     files.write_png(out / "albedo.png", rgb)
     written.append(out / "albedo.png")
-    return ('<texture type="bitmap" name="reflectance"><string name="filename" value="albedo.png"/>'
-            '<string name="filter_type" value="nearest"/></texture>')
+    return (
+        '<texture type="bitmap" name="reflectance"><string name="filename" value="albedo.png"/>'
+        '<string name="filter_type" value="nearest"/></texture>'
+    )
 
 
 def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: float, reflectance: str) -> str:
@@ -203,4 +222,3 @@ def mitsuba_render(path: str | Path, spp: int | None = None) -> np.ndarray:
 
     scene = mi.load_file(str(path))
     return np.asarray(mi.render(scene, spp=spp or 0), dtype=np.float32)
-

@@ -53,29 +53,71 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.io import files
 from hzval.core.errors import InputError
+from hzval.io import files
 
-__all__ = ["Operand", "Condition", "parse", "evaluate", "read_baseline", "check_same_settings", "baseline_tests",
-           "frame_noise", "regressions",
-           "Gates", "DIRECTION", "ALPHA", "ABS_TOLERANCE", "REL_TOLERANCE"]
+__all__ = [
+    "Operand",
+    "Condition",
+    "parse",
+    "evaluate",
+    "read_baseline",
+    "check_same_settings",
+    "baseline_tests",
+    "frame_noise",
+    "regressions",
+    "Gates",
+    "DIRECTION",
+    "ALPHA",
+    "ABS_TOLERANCE",
+    "REL_TOLERANCE",
+]
 
 #: The metrics a baseline tests and which way is worse: +1 larger is worse, -1 smaller is worse.
-DIRECTION = {"visibility_mae": 1, "leak_fraction": 1, "false_shadow_fraction": 1, "flip_mean": 1, "rmse": 1,
-             "delta_e2000_mean": 1, "psnr_db": -1, "reflection_mae": 1, "perfect_parallax_mae": 1,
-             "visibility_mae_facing": 1, "leak_fraction_facing": 1, "false_shadow_fraction_facing": 1}
+DIRECTION = {
+    "visibility_mae": 1,
+    "leak_fraction": 1,
+    "false_shadow_fraction": 1,
+    "flip_mean": 1,
+    "rmse": 1,
+    "delta_e2000_mean": 1,
+    "psnr_db": -1,
+    "reflection_mae": 1,
+    "perfect_parallax_mae": 1,
+    "visibility_mae_facing": 1,
+    "leak_fraction_facing": 1,
+    "false_shadow_fraction_facing": 1,
+}
 #: The family-wise significance level of a baseline comparison (``hzval check``'s ``fail`` default).
 ALPHA = 0.01
 #: A change smaller than this is never a regression: ABS_TOLERANCE + REL_TOLERANCE * |baseline mean|.
 ABS_TOLERANCE = 1e-5
 REL_TOLERANCE = 0.01
 #: The parameters of ``metrics.json`` that a baseline must share (the techniques' own may differ).
-SAME = ("depth", "boundary", "elevation_deg", "azimuths_deg", "light", "light_radius_deg", "effects", "spp",
-        "supersampling", "truth_tolerance", "camera")
+SAME = (
+    "depth",
+    "boundary",
+    "elevation_deg",
+    "azimuths_deg",
+    "light",
+    "light_radius_deg",
+    "effects",
+    "spp",
+    "supersampling",
+    "truth_tolerance",
+    "camera",
+)
 
-_OPS = {">": lambda a, b: a > b, ">=": lambda a, b: a >= b, "<": lambda a, b: a < b, "<=": lambda a, b: a <= b}
+_OPS = {
+    ">": lambda a, b: a > b,
+    ">=": lambda a, b: a >= b,
+    "<": lambda a, b: a < b,
+    "<=": lambda a, b: a <= b,
+}
 _NAME = r"[A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?"
-_OPERAND = re.compile(rf"^\s*(?:(mean|max|min)\(\s*({_NAME})\s*\)|({_NAME})|([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*$")
+_OPERAND = re.compile(
+    rf"^\s*(?:(mean|max|min)\(\s*({_NAME})\s*\)|({_NAME})|([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*$"
+)
 _SPLIT = re.compile(r"(>=|<=|>|<)")
 
 
@@ -84,8 +126,8 @@ class Operand:
     """One side of a condition: a number, or a metric's path with an optional aggregate."""
 
     number: float | None = None
-    path: str | None = None          # "horizon.flip_mean", "floor.flip_mean", "truth_s"
-    aggregate: str | None = None     # None (per frame), "mean", "max", "min"
+    path: str | None = None  # "horizon.flip_mean", "floor.flip_mean", "truth_s"
+    aggregate: str | None = None  # None (per frame), "mean", "max", "min"
 
     def text(self) -> str:
         if self.path is None:
@@ -110,8 +152,11 @@ class Condition:
 def _operand(text: str, expr: str) -> Operand:
     m = _OPERAND.match(text)
     if not m:
-        raise InputError("--fail-if", f"{expr!r}: {text.strip()!r} is neither a number nor a metric name "
-                                      "(TECHNIQUE.METRIC, mean(...), max(...))")
+        raise InputError(
+            "--fail-if",
+            f"{expr!r}: {text.strip()!r} is neither a number nor a metric name "
+            "(TECHNIQUE.METRIC, mean(...), max(...))",
+        )
     if m.group(4) is not None:
         return Operand(number=float(m.group(4)))
     return Operand(path=m.group(2) or m.group(3), aggregate=m.group(1))
@@ -122,11 +167,15 @@ def parse(expr: str) -> Condition:
     ``--fail-if`` for anything else."""
     parts = _SPLIT.split(expr)
     if len(parts) != 3:
-        raise InputError("--fail-if", f"{expr!r}: expected one comparison, e.g. horizon.flip_mean>0.1 "
-                                      f"(operators {', '.join(_OPS)})")
+        raise InputError(
+            "--fail-if",
+            f"{expr!r}: expected one comparison, e.g. horizon.flip_mean>0.1 (operators {', '.join(_OPS)})",
+        )
     left, op, right = _operand(parts[0], expr), parts[1], _operand(parts[2], expr)
     if left.path is None and right.path is None:
-        raise InputError("--fail-if", f"{expr!r}: compares two numbers; name a metric, e.g. horizon.flip_mean")
+        raise InputError(
+            "--fail-if", f"{expr!r}: compares two numbers; name a metric, e.g. horizon.flip_mean"
+        )
     return Condition(expr.strip(), left, op, right)
 
 
@@ -183,7 +232,9 @@ def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
     frames = metrics.get("frames") or []
     left, right = _values(frames, cond.left, cond.text), _values(frames, cond.right, cond.text)
     test = _OPS[cond.op]
-    bad = [(f, a, b) for f, a, b in zip(frames, left, right) if a is not None and b is not None and test(a, b)]
+    bad = [
+        (f, a, b) for f, a, b in zip(frames, left, right) if a is not None and b is not None and test(a, b)
+    ]
     if not bad:
         return []
     prefix = f"{where}: " if where else ""
@@ -191,8 +242,9 @@ def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
         _, a, b = bad[0]
         other = "" if cond.right.path is None else f", {cond.right.text()} = {_g(b)}"
         return [f"{prefix}--fail-if {cond.text}: the sweep's {cond.left.text()} = {_g(a)}{other}"]
-    listed = ", ".join(f"{_frame_name(f)} {_g(a)}" + ("" if cond.right.path is None else f" vs {_g(b)}")
-                       for f, a, b in bad)
+    listed = ", ".join(
+        f"{_frame_name(f)} {_g(a)}" + ("" if cond.right.path is None else f" vs {_g(b)}") for f, a, b in bad
+    )
     return [f"{prefix}--fail-if {cond.text}: {len(bad)} of {len(frames)} frames ({listed})"]
 
 
@@ -204,6 +256,7 @@ def _g(v) -> str:
 # Baselines
 # --------------------------------------------------------------------------
 
+
 def read_baseline(path: str | Path) -> dict:
     """The ``metrics.json`` of an earlier run (its folder, or the file); one line naming
     ``--baseline`` if there is none or it cannot be read."""
@@ -212,7 +265,9 @@ def read_baseline(path: str | Path) -> dict:
     try:
         data = json.loads(file.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InputError("--baseline", f"{path}: no metrics.json (give the folder of an earlier run)") from None
+        raise InputError(
+            "--baseline", f"{path}: no metrics.json (give the folder of an earlier run)"
+        ) from None
     except (OSError, ValueError) as exc:
         raise InputError("--baseline", f"{file}: unreadable ({files.first_line(exc)})") from None
     if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
@@ -229,8 +284,11 @@ def check_same_settings(new: dict, old: dict, where: str) -> None:
     pa, pb = new.get("parameters") or {}, old.get("parameters") or {}
     for key in SAME:
         if pa.get(key) != pb.get(key):
-            raise InputError("--baseline", f"{where}: another run's settings: {key} {pb.get(key)!r}, this run's "
-                                           f"{pa.get(key)!r} (a baseline must have the same scene)")
+            raise InputError(
+                "--baseline",
+                f"{where}: another run's settings: {key} {pb.get(key)!r}, this run's "
+                f"{pa.get(key)!r} (a baseline must have the same scene)",
+            )
 
 
 def _frames_by_azimuth(metrics: dict) -> dict:
@@ -290,19 +348,37 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
     tests = []
     for name in names:
         for metric, sign in DIRECTION.items():
-            rows = [(_lookup(fn[az], f"{name}.{metric}"), _lookup(fo[az], f"{name}.{metric}"), az) for az in shared]
-            rows = [(a, b, az) for a, b, az in rows if isinstance(a, (int, float)) and isinstance(b, (int, float))]
+            rows = [
+                (_lookup(fn[az], f"{name}.{metric}"), _lookup(fo[az], f"{name}.{metric}"), az)
+                for az in shared
+            ]
+            rows = [
+                (a, b, az) for a, b, az in rows if isinstance(a, (int, float)) and isinstance(b, (int, float))
+            ]
             if not rows:
                 continue
             d = np.array([sign * (a - b) for a, b, _ in rows], np.float64)
             var = _variance(d, [fn[az] for *_, az in rows], [fo[az] for *_, az in rows], metric, same, pixels)
             base = float(np.mean([b for _, b, _ in rows]))
-            test = {"technique": name, "metric": metric, "frames": len(d), "baseline": base,
-                    "new": float(np.mean([a for a, _, _ in rows])), "worse_by": float(d.mean()),
-                    "tau": ABS_TOLERANCE + REL_TOLERANCE * abs(base), "same_truth": same, "z": None, "p": None}
+            test = {
+                "technique": name,
+                "metric": metric,
+                "frames": len(d),
+                "baseline": base,
+                "new": float(np.mean([a for a, _, _ in rows])),
+                "worse_by": float(d.mean()),
+                "tau": ABS_TOLERANCE + REL_TOLERANCE * abs(base),
+                "same_truth": same,
+                "z": None,
+                "p": None,
+            }
             if var is not None:
                 total = float(d.sum())
-                z = total / math.sqrt(var) if var > 0 else (math.inf if total > 0 else -math.inf if total < 0 else 0.0)
+                z = (
+                    total / math.sqrt(var)
+                    if var > 0
+                    else (math.inf if total > 0 else -math.inf if total < 0 else 0.0)
+                )
                 # JSON has no infinity: an infinite z (the same truth, any change) is written as null
                 test.update(z=z if math.isfinite(z) else None, p=float(check.p_value(z, one_sided=True)))
             tests.append(test)
@@ -316,21 +392,26 @@ def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) 
 
     level = check.sidak_level(ALPHA, n_tests or len(tests))
     prefix = f"{where}: " if where else ""
-    return [f"{prefix}--baseline: {t['technique']}.{t['metric']} regressed: mean {_g(t['new'])} against "
-            f"{_g(t['baseline'])} over {t['frames']} frames (p {t['p']:.2g} < {level:.2g})"
-            for t in tests if t["p"] is not None and t["p"] < level and t["worse_by"] > t["tau"]]
+    return [
+        f"{prefix}--baseline: {t['technique']}.{t['metric']} regressed: mean {_g(t['new'])} against "
+        f"{_g(t['baseline'])} over {t['frames']} frames (p {t['p']:.2g} < {level:.2g})"
+        for t in tests
+        if t["p"] is not None and t["p"] < level and t["worse_by"] > t["tau"]
+    ]
 
 
 # --------------------------------------------------------------------------
 # The command line's gates
 # --------------------------------------------------------------------------
 
+
 class Gates:
     """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run; :meth:`apply`
     tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists)."""
 
-    def __init__(self, conditions: list[str] | None = None, baseline: str | Path | None = None,
-                 strict: bool = False):
+    def __init__(
+        self, conditions: list[str] | None = None, baseline: str | Path | None = None, strict: bool = False
+    ):
         self.conditions = [parse(c) for c in conditions or []]
         self.strict = bool(strict)
         self.baseline_path = None if baseline is None else Path(baseline)
@@ -341,33 +422,43 @@ class Gates:
             if (self.baseline_path / "metrics.json").is_file() or self.baseline_path.is_file():
                 self.baseline = read_baseline(baseline)
             elif not (self.baseline_path / "suite.json").is_file():
-                raise InputError("--baseline", f"{baseline}: neither a run's folder (metrics.json) nor a suite's "
-                                               "(suite.json)")
+                raise InputError(
+                    "--baseline",
+                    f"{baseline}: neither a run's folder (metrics.json) nor a suite's (suite.json)",
+                )
 
     def __bool__(self) -> bool:
         return bool(self.conditions) or self.baseline_path is not None or self.strict
 
-    def failures(self, metrics: dict, baseline: dict | None = None, where: str = "",
-                 use_baseline: bool = True) -> tuple[list, list]:
+    def failures(
+        self, metrics: dict, baseline: dict | None = None, where: str = "", use_baseline: bool = True
+    ) -> tuple[list, list]:
         """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
         (default: :attr:`baseline`; none with ``use_baseline`` false); a baseline of other settings is
         an InputError."""
         out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
-        if self.strict:     # every warning about an external bake (hzval.io.external.warnings) fails the run
+        if self.strict:  # every warning about an external bake (hzval.io.external.warnings) fails the run
             prefix = f"{where}: " if where else ""
-            out += [f"{prefix}--strict: {w}" for w in (metrics.get("external_bake") or {}).get("warnings", [])]
+            out += [
+                f"{prefix}--strict: {w}" for w in (metrics.get("external_bake") or {}).get("warnings", [])
+            ]
         baseline = (self.baseline if baseline is None else baseline) if use_baseline else None
         if use_baseline and baseline is None and self.baseline_path is not None:
-            raise InputError("--baseline", f"{self.baseline_path}: a suite's folder; give a run's folder (metrics.json)")
+            raise InputError(
+                "--baseline", f"{self.baseline_path}: a suite's folder; give a run's folder (metrics.json)"
+            )
         tests = []
         if baseline is not None:
             label = f"{self.baseline_path}" + (f" ({where})" if where else "")
             check_same_settings(metrics, baseline, label)
             tests = baseline_tests(metrics, baseline)
             if not tests:
-                raise InputError("--baseline", f"{label}: no technique and metric in common with this run (another "
-                                               f"hzval's metrics.json, or other techniques: "
-                                               f"{', '.join(baseline.get('techniques') or {}) or 'none'})")
+                raise InputError(
+                    "--baseline",
+                    f"{label}: no technique and metric in common with this run (another "
+                    f"hzval's metrics.json, or other techniques: "
+                    f"{', '.join(baseline.get('techniques') or {}) or 'none'})",
+                )
             out += regressions(tests, where)
         return out, tests
 
@@ -379,6 +470,11 @@ class Gates:
         return metrics["gates"]
 
     def record(self, failed: list[str], tests: list[dict]) -> dict:
-        return {"failed": failed, "conditions": [c.text for c in self.conditions], "strict": self.strict,
-                "baseline": None if self.baseline_path is None else str(self.baseline_path),
-                "alpha": ALPHA, "tests": tests}
+        return {
+            "failed": failed,
+            "conditions": [c.text for c in self.conditions],
+            "strict": self.strict,
+            "baseline": None if self.baseline_path is None else str(self.baseline_path),
+            "alpha": ALPHA,
+            "tests": tests,
+        }

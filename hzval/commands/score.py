@@ -50,12 +50,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.metrics import compare
-from hzval.io import files
-from hzval.report import images
-from hzval.report import pages as report
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.io import files
+from hzval.metrics import compare
+from hzval.report import images
+from hzval.report import pages as report
 from hzval.scene.spec import Frame
 
 __all__ = ["score", "write", "read_frame", "read_factor", "read_sidecar", "LABEL", "NAME", "SIDECAR"]
@@ -76,7 +76,9 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
         try:
             out.append(json.loads(path.read_text(encoding="utf-8")))
         except FileNotFoundError:
-            raise InputError(sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}") from None
+            raise InputError(
+                sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}"
+            ) from None
         except (OSError, ValueError) as exc:
             raise InputError(path, f"unreadable ({files.first_line(exc)})") from None
     return out[0], out[1]
@@ -85,6 +87,7 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
 def _check_shape(metrics, engine, sweep_dir: Path) -> None:
     """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
     ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score` reads)."""
+
     def need(ok: bool, name: str, key: str, what: str) -> None:
         if not ok:
             raise InputError(sweep_dir / name, f"not a sweep's {name}: {key} must be {what}")
@@ -95,18 +98,42 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
     need(isinstance(engine, dict), "frames.json", "the file", "a JSON object")
     need(number(engine.get("exposure")), "frames.json", "exposure", "a number")
     size = engine.get("image_size")
-    need(isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
-         "frames.json", "image_size", "[width, height]")
+    need(
+        isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
+        "frames.json",
+        "image_size",
+        "[width, height]",
+    )
     frames = engine.get("frames")
-    need(isinstance(frames, list) and frames and all(
-        isinstance(f, dict) and isinstance(f.get("name"), str) and number(f.get("azimuth_deg"))
-        and number(f.get("elevation_deg")) for f in frames), "frames.json", "frames",
-        "a list of {name, azimuth_deg, elevation_deg}")
+    need(
+        isinstance(frames, list)
+        and frames
+        and all(
+            isinstance(f, dict)
+            and isinstance(f.get("name"), str)
+            and number(f.get("azimuth_deg"))
+            and number(f.get("elevation_deg"))
+            for f in frames
+        ),
+        "frames.json",
+        "frames",
+        "a list of {name, azimuth_deg, elevation_deg}",
+    )
     need(isinstance(metrics, dict), "metrics.json", "the file", "a JSON object")
     swept = metrics.get("frames")
-    need(isinstance(swept, list) and len(swept) == len(frames) and all(
-        isinstance(f, dict) and isinstance(f.get("files"), dict) and isinstance(f["files"].get("truth"), str)
-        for f in swept), "metrics.json", "frames", f"a list of {len(frames)} frames, each with files.truth")
+    need(
+        isinstance(swept, list)
+        and len(swept) == len(frames)
+        and all(
+            isinstance(f, dict)
+            and isinstance(f.get("files"), dict)
+            and isinstance(f["files"].get("truth"), str)
+            for f in swept
+        ),
+        "metrics.json",
+        "frames",
+        f"a list of {len(frames)} frames, each with files.truth",
+    )
     for key in ("material", "parameters", "exposure", "versions", "simulated"):
         need(isinstance(metrics.get(key, {}), dict), "metrics.json", key, "an object")
 
@@ -129,7 +156,9 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
         img = cv.srgb_decode(arr) / exposure
     img = np.asarray(img, np.float32)
     if img.shape[:2] != tuple(shape):
-        raise InputError(path, f"is {img.shape[1]}x{img.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}")
+        raise InputError(
+            path, f"is {img.shape[1]}x{img.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}"
+        )
     if not np.isfinite(img).all():
         raise InputError(path, f"has {int((~np.isfinite(img)).sum())} non-finite values (NaN or infinity)")
     return img
@@ -141,7 +170,9 @@ def _find(frames_dir: Path, name: str, prefix: str = "", required: bool = True) 
             return frames_dir / f"{prefix}{name}{ext}"
     if not required:
         return None
-    raise InputError(frames_dir / f"{prefix}{name}.exr", f"missing: the frame for light {name} (an .exr or .png)")
+    raise InputError(
+        frames_dir / f"{prefix}{name}.exr", f"missing: the frame for light {name} (an .exr or .png)"
+    )
 
 
 def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
@@ -221,34 +252,58 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     sidecar = read_sidecar(frames_dir)
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
-    todo = [(f, _find(frames_dir, f["name"]), _find(frames_dir, f["name"], "f_", required=False))
-            for f in engine["frames"]]
+    todo = [
+        (f, _find(frames_dir, f["name"]), _find(frames_dir, f["name"], "f_", required=False))
+        for f in engine["frames"]
+    ]
     given = [t for t in todo if t[2] is not None]
     if given and len(given) < len(todo):
         missing = next(f["name"] for f, _, fp in todo if fp is None)
-        raise InputError(frames_dir / f"f_{missing}.exr", f"missing: F is given for {len(given)} of {len(todo)} "
-                                                          "lights (give f_<name>.exr for every light, or none)")
-    loaded = [(f, p, read_frame(p, exposure, (H, W)), None if fp is None else read_factor(fp, (H, W)), fp)
-              for f, p, fp in todo]
+        raise InputError(
+            frames_dir / f"f_{missing}.exr",
+            f"missing: F is given for {len(given)} of {len(todo)} "
+            "lights (give f_<name>.exr for every light, or none)",
+        )
+    loaded = [
+        (f, p, read_frame(p, exposure, (H, W)), None if fp is None else read_factor(fp, (H, W)), fp)
+        for f, p, fp in todo
+    ]
     normal = _normal(sweep_dir, metrics) if given else None
     t0 = time.perf_counter()
     frames, maps, warnings = [], [], []
     for (f, path, img, F, fpath), swept in zip(loaded, metrics["frames"]):
-        frame, image_maps, warning = _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal)
+        frame, image_maps, warning = _score_frame(
+            sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal
+        )
         frames.append(frame)
         maps.append((f["name"], swept, image_maps))
         warnings += [warning] if warning else []
     match = _tangent_bug(metrics, sweep_dir, [F for _, _, _, F, _ in loaded]) if given else None
-    techniques = {NAME: {"label": sidecar["label"], "summary": sidecar["summary"], "file_stem": NAME,
-                         "parameters": sidecar["parameters"], "parameters_from": sidecar["path"],
-                         "simulated": list((metrics.get("parameters") or {}).get("effects", []))},
-                  **{k: v for k, v in (metrics.get("techniques") or {}).items() if k != NAME}}
-    result = {"material": metrics.get("material", {}), "against": str(sweep_dir), "frames_dir": str(frames_dir),
-              "parameters": metrics.get("parameters", {}), "exposure": metrics.get("exposure", {}),
-              "camera": metrics.get("camera", {}), "versions": metrics.get("versions", {}),
-              "timings": {"score_s": time.perf_counter() - t0},
-              "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
-              "techniques": techniques, "warnings": _brightness_summary(warnings), "frames": frames}
+    techniques = {
+        NAME: {
+            "label": sidecar["label"],
+            "summary": sidecar["summary"],
+            "file_stem": NAME,
+            "parameters": sidecar["parameters"],
+            "parameters_from": sidecar["path"],
+            "simulated": list((metrics.get("parameters") or {}).get("effects", [])),
+        },
+        **{k: v for k, v in (metrics.get("techniques") or {}).items() if k != NAME},
+    }
+    result = {
+        "material": metrics.get("material", {}),
+        "against": str(sweep_dir),
+        "frames_dir": str(frames_dir),
+        "parameters": metrics.get("parameters", {}),
+        "exposure": metrics.get("exposure", {}),
+        "camera": metrics.get("camera", {}),
+        "versions": metrics.get("versions", {}),
+        "timings": {"score_s": time.perf_counter() - t0},
+        "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
+        "techniques": techniques,
+        "warnings": _brightness_summary(warnings),
+        "frames": frames,
+    }
     if match is not None:
         result["tangent_bug"] = match
         result["warnings"] += [match["line"]] if match["named"] else []
@@ -265,33 +320,50 @@ def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
     """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
     sweep's techniques' own; ``(frame, maps, brightness warning or None)``."""
-    from hzval.metrics import brightness
-    from hzval.metrics import facing
+    from hzval.metrics import brightness, facing
 
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
-    truth = Frame(f["azimuth_deg"], f["elevation_deg"], files.read_rgb_exr(sweep_dir / swept["files"]["truth"]))
+    truth = Frame(
+        f["azimuth_deg"], f["elevation_deg"], files.read_rgb_exr(sweep_dir / swept["files"]["truth"])
+    )
     scores, image_maps = compare.image_metrics(compare.Reference(truth, exposure), img)
     own = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
     vis = swept["files"].get("visibility")
     if F is not None and vis:
         V = files.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
-        own.update(zip(("visibility_mae", "leak_fraction", "false_shadow_fraction"),
-                       (float(v) for v in compare.visibility_metrics(V, F, np.isfinite(V)))))   # a model's
+        own.update(
+            zip(
+                ("visibility_mae", "leak_fraction", "false_shadow_fraction"),
+                (float(v) for v in compare.visibility_metrics(V, F, np.isfinite(V))),
+            )
+        )  # a model's
         # sweep leaves the pixels that see no surface NaN in V: scored over the seen ones, as the sweep did
         if normal is not None:
             ss = int((metrics.get("parameters") or {}).get("supersampling") or 1)
             own.update(facing.facing_metrics(V, F, facing.facing_mask(normal, f["light_direction"], ss)))
         image_maps = {**image_maps, "V": V, "F": F}
     own["files"] = {}
-    per = {NAME: own, **{k: {kk: vv for kk, vv in v.items()}
-                         for k, v in (swept.get("techniques") or {}).items() if k != NAME}}
-    frame = {"name": f["name"], "azimuth_deg": f["azimuth_deg"], "elevation_deg": f["elevation_deg"],
-             **{k: own[k] for k in compare.IMAGE_METRICS}, "file": str(path),
-             **({"factor_file": str(fpath)} if fpath is not None else {}),
-             "truth_s": swept.get("truth_s"),
-             **({"floor": swept["floor"]} if "floor" in swept else {}),
-             **({"truth": swept["truth"]} if "truth" in swept else {}), "techniques": per}
+    per = {
+        NAME: own,
+        **{
+            k: {kk: vv for kk, vv in v.items()}
+            for k, v in (swept.get("techniques") or {}).items()
+            if k != NAME
+        },
+    }
+    frame = {
+        "name": f["name"],
+        "azimuth_deg": f["azimuth_deg"],
+        "elevation_deg": f["elevation_deg"],
+        **{k: own[k] for k in compare.IMAGE_METRICS},
+        "file": str(path),
+        **({"factor_file": str(fpath)} if fpath is not None else {}),
+        "truth_s": swept.get("truth_s"),
+        **({"floor": swept["floor"]} if "floor" in swept else {}),
+        **({"truth": swept["truth"]} if "truth" in swept else {}),
+        "techniques": per,
+    }
     slip = brightness.diagnose(img, truth.image, exposure, png=path.suffix.lower() == ".png")
     if slip:
         frame["brightness"] = slip
@@ -304,13 +376,16 @@ def _brightness_summary(found: list) -> list[str]:
     for slip in dict.fromkeys(s["slip"] for _, s in found):
         names = [n for n, s in found if s["slip"] == slip]
         first = next(s for _, s in found if s["slip"] == slip)
-        lines.append(f"{len(names)} frame(s) ({', '.join(names[:4])}{' ...' if len(names) > 4 else ''}) "
-                     f"{first['line']} (mean brightness {first['ratio']:.3g}x the truth's)")
+        lines.append(
+            f"{len(names)} frame(s) ({', '.join(names[:4])}{' ...' if len(names) > 4 else ''}) "
+            f"{first['line']} (mean brightness {first['ratio']:.3g}x the truth's)"
+        )
     return lines
 
 
-def write(result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False,
-          gates=None) -> Path:
+def write(
+    result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False, gates=None
+) -> Path:
     """``out/metrics.json`` and ``out/index.html``: the engine's images as the lead technique beside the
     sweep's truth and the sweep's techniques (whose images are copied in, so the report stands
     alone). Returns the index. The folder is held while they are written
@@ -336,29 +411,47 @@ def _copy(sweep_dir: Path, out: Path, name: str, rel: str | None) -> str | None:
 def _write(result: dict, maps: list, out: Path, command: str) -> Path:
     sweep_dir = Path(result["against"])
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
-        frame["files"] = {k: d for k in ("truth_png", "plain_png", "visibility_png")
-                          if (d := _copy(sweep_dir, out, name, swept_frame["files"].get(k)))}
+        frame["files"] = {
+            k: d
+            for k in ("truth_png", "plain_png", "visibility_png")
+            if (d := _copy(sweep_dir, out, name, swept_frame["files"].get(k)))
+        }
         own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
         files.write_png(out / own["png"], files.unit_to_u8(image_maps["display"]))
         files.write_png(out / own["flip_png"], images.flip_image(image_maps["flip"]))
         if "F" in image_maps:
             own["visdiff_png"] = f"frames/{name}/{NAME}_visdiff.png"
-            files.write_png(out / own["visdiff_png"],
-                            images.visibility_diff_image(image_maps["V"], image_maps["F"]))
+            files.write_png(
+                out / own["visdiff_png"], images.visibility_diff_image(image_maps["V"], image_maps["F"])
+            )
         frame["techniques"][NAME]["files"] = own
         for tname, per in frame["techniques"].items():
             if tname != NAME:
                 theirs = (swept_frame.get("techniques") or {}).get(tname, {}).get("files") or {}
-                per["files"] = {k: d for k in ("png", "flip_png", "visdiff_png")
-                                if (d := _copy(sweep_dir, out, name, theirs.get(k)))}
+                per["files"] = {
+                    k: d
+                    for k in ("png", "flip_png", "visdiff_png")
+                    if (d := _copy(sweep_dir, out, name, theirs.get(k)))
+                }
     index = report.write_report(out, result, command=command)
     # the paths relative to the report's folder: a shared report carries no absolute folders
-    portable = {**result, "against": files.report_path(result["against"], out),
-                "frames_dir": files.report_path(result["frames_dir"], out),
-                "frames": [{**f, "file": files.report_path(f["file"], out),
-                            **({"factor_file": files.report_path(f["factor_file"], out)} if "factor_file" in f else {})}
-                           for f in result["frames"]]}
+    portable = {
+        **result,
+        "against": files.report_path(result["against"], out),
+        "frames_dir": files.report_path(result["frames_dir"], out),
+        "frames": [
+            {
+                **f,
+                "file": files.report_path(f["file"], out),
+                **({"factor_file": files.report_path(f["factor_file"], out)} if "factor_file" in f else {}),
+            }
+            for f in result["frames"]
+        ],
+    }
     if "gates" in portable and portable["gates"].get("baseline"):
-        portable["gates"] = {**portable["gates"], "baseline": files.report_path(portable["gates"]["baseline"], out)}
+        portable["gates"] = {
+            **portable["gates"],
+            "baseline": files.report_path(portable["gates"]["baseline"], out),
+        }
     files.write_json(out / "metrics.json", portable)
     return index

@@ -63,19 +63,27 @@ from pathlib import Path
 import numpy as np
 
 from hzval import materials
-from hzval.core import backend
 from hzval.bake import maps as bake
-from hzval.core import errors
-from hzval.io import files
-from hzval.io import heightmap
-from hzval.report import pages as report
-from hzval.pipeline import sweep
-from hzval.techniques import registry as technique
-from hzval.scene import spec as sc
+from hzval.core import backend, errors
 from hzval.core.errors import InputError
+from hzval.io import files, heightmap
+from hzval.pipeline import sweep
+from hzval.report import pages as report
+from hzval.scene import spec as sc
+from hzval.techniques import registry as technique
 
-__all__ = ["Entry", "Task", "entries", "run", "sweep_material", "summarise", "write_overview", "summary_table",
-           "HEIGHT_SUFFIXES", "LIGHTS_SHOWN"]
+__all__ = [
+    "Entry",
+    "Task",
+    "entries",
+    "run",
+    "sweep_material",
+    "summarise",
+    "write_overview",
+    "summary_table",
+    "HEIGHT_SUFFIXES",
+    "LIGHTS_SHOWN",
+]
 
 #: File suffixes a folder's height maps have (:mod:`hzval.io.heightmap` reads them by content).
 HEIGHT_SUFFIXES = heightmap.SUFFIXES
@@ -90,8 +98,15 @@ TOKEN_FILE = ".hzval-suite"
 #: How long to keep trying a ``--cluster`` scheduler that does not answer, in seconds.
 CONNECT_TIMEOUT_S = 15
 #: The per-frame metrics a material's row averages over its sweep.
-MEANS = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "flip_mean", "delta_e2000_mean", "rmse",
-         "seconds")
+MEANS = (
+    "visibility_mae",
+    "leak_fraction",
+    "false_shadow_fraction",
+    "flip_mean",
+    "delta_e2000_mean",
+    "rmse",
+    "seconds",
+)
 
 
 @dataclass(frozen=True)
@@ -102,7 +117,7 @@ class Entry:
     name: str
     scene: sc.Scene
     origin: str
-    error: str | None = None    # why it cannot be swept (a broken sidecar): its failed row, one line
+    error: str | None = None  # why it cannot be swept (a broken sidecar): its failed row, one line
 
 
 @dataclass(frozen=True)
@@ -110,19 +125,20 @@ class Task:
     """What a worker needs to sweep one material (picklable: it travels to other processes)."""
 
     entry: Entry
-    out: str                    # the material's folder, DIR/<name>
-    options: object             # hzval.pipeline.sweep.Options
+    out: str  # the material's folder, DIR/<name>
+    options: object  # hzval.pipeline.sweep.Options
     variant: str | None
     command: str
-    threads: int | None         # Dr.Jit threads in the worker; None leaves them alone
-    token: str = ""             # what DIR/.hzval-suite holds: a worker that reads it sees the caller's DIR
-    force: bool = False         # write beside files hzval did not write (hzval.io.files.output_folder)
-    topic: str = ""             # the Dask event topic of started tasks (_log_start); "" in this process
+    threads: int | None  # Dr.Jit threads in the worker; None leaves them alone
+    token: str = ""  # what DIR/.hzval-suite holds: a worker that reads it sees the caller's DIR
+    force: bool = False  # write beside files hzval did not write (hzval.io.files.output_folder)
+    topic: str = ""  # the Dask event topic of started tasks (_log_start); "" in this process
 
 
 # --------------------------------------------------------------------------
 # Inputs
 # --------------------------------------------------------------------------
+
 
 def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
     """The suite's materials: one :class:`Entry` per input (each built-in material when there is
@@ -159,12 +175,19 @@ def _entries_of(item) -> list[Entry]:
     if path.is_dir():
         maps = [p for p in path.iterdir() if p.is_file() and p.suffix.lower() in HEIGHT_SUFFIXES]
         stems = {p.stem for p in maps}
-        scenes = [p for p in path.iterdir()                 # scene files that are no map's sidecar
-                  if p.is_file() and p.suffix.lower() == ".toml" and p.stem not in stems]
+        scenes = [
+            p
+            for p in path.iterdir()  # scene files that are no map's sidecar
+            if p.is_file() and p.suffix.lower() == ".toml" and p.stem not in stems
+        ]
         if not maps and not scenes:
-            raise InputError(path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) or scene files in this folder")
-        return [_height_entry(p) if p.suffix.lower() != ".toml" else _scene_entry(p)
-                for p in sorted(maps + scenes, key=lambda p: (p.stem, p.suffix))]
+            raise InputError(
+                path, f"no height maps ({', '.join(HEIGHT_SUFFIXES)}) or scene files in this folder"
+            )
+        return [
+            _height_entry(p) if p.suffix.lower() != ".toml" else _scene_entry(p)
+            for p in sorted(maps + scenes, key=lambda p: (p.stem, p.suffix))
+        ]
     if path.is_file():
         return [_scene_entry(path) if path.suffix.lower() == ".toml" else _height_entry(path)]
     if materials.is_builtin(str(item)):
@@ -174,7 +197,9 @@ def _entries_of(item) -> list[Entry]:
 
     near = difflib.get_close_matches(str(item), materials.names(), n=1, cutoff=0.6)
     hint = f"; did you mean {' or '.join(near)}?" if near else ""
-    raise InputError(item, f"no such file, folder or built-in material{hint} ({', '.join(materials.names())})")
+    raise InputError(
+        item, f"no such file, folder or built-in material{hint} ({', '.join(materials.names())})"
+    )
 
 
 def _scene_entry(path: Path) -> Entry:
@@ -190,8 +215,12 @@ def _height_entry(path: Path) -> Entry:
         try:
             return Entry(path.stem, sc.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
         except InputError as exc:
-            return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())),
-                         f"{path} + {sidecar.name}", error=str(exc))
+            return Entry(
+                path.stem,
+                sc.override(sc.Scene(), height=str(path.resolve())),
+                f"{path} + {sidecar.name}",
+                error=str(exc),
+            )
     return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
 
 
@@ -221,6 +250,7 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
 # One material, in a worker
 # --------------------------------------------------------------------------
 
+
 def sweep_material(task: Task) -> dict:
     """Sweep one material into ``task.out``; its row of ``suite.json`` (:func:`summarise`), or
     ``{"status": "failed", "error": <one line>}``. Runs in a worker process; never raises for a
@@ -232,26 +262,39 @@ def sweep_material(task: Task) -> dict:
     _log_start(task)
     try:
         if task.token and _read(out.parent / TOKEN_FILE) != task.token:
-            raise InputError(out.parent, f"this worker ({socket.gethostname()}) cannot see the suite's folder: "
-                                         "--cluster needs it on a filesystem the workers share")
+            raise InputError(
+                out.parent,
+                f"this worker ({socket.gethostname()}) cannot see the suite's folder: "
+                "--cluster needs it on a filesystem the workers share",
+            )
         backend.variant(task.variant)
         if task.threads:
             import drjit as dr
 
             dr.set_thread_count(task.threads)
-        result = sweep.run(entry.scene, out, options=task.options, command=task.command, progress=False,
-                           force=task.force)
+        result = sweep.run(
+            entry.scene, out, options=task.options, command=task.command, progress=False, force=task.force
+        )
         return summarise(entry, result)
     except errors.HzvalError as exc:
         return _failed(entry, str(exc), time.perf_counter() - t0)
-    except Exception as exc:                  # a material's crash is its own row, not the suite's end
-        return _failed(entry, f"{type(exc).__name__}: {files.first_line(exc)}", time.perf_counter() - t0,
-                       traceback.format_exc())
+    except Exception as exc:  # a material's crash is its own row, not the suite's end
+        return _failed(
+            entry,
+            f"{type(exc).__name__}: {files.first_line(exc)}",
+            time.perf_counter() - t0,
+            traceback.format_exc(),
+        )
 
 
 def _not_run(entry: Entry, why: str = "the suite was interrupted first") -> dict:
-    return {"name": entry.name, "origin": entry.origin, "status": "not run", "error": f"not run: {why}",
-            "seconds": None}
+    return {
+        "name": entry.name,
+        "origin": entry.origin,
+        "status": "not run",
+        "error": f"not run: {why}",
+        "seconds": None,
+    }
 
 
 #: The Dask event topic on which a task says it has started (:func:`_log_start`), by the suite's pid.
@@ -267,7 +310,7 @@ def _log_start(task: Task) -> None:
         import distributed
 
         distributed.get_worker().log_event(task.topic, {"name": task.entry.name})
-    except Exception:               # not on a worker, or the scheduler is gone: nothing to tell
+    except Exception:  # not on a worker, or the scheduler is gone: nothing to tell
         pass
 
 
@@ -279,8 +322,7 @@ def _read(path: Path) -> str | None:
 
 
 def _failed(entry: Entry, error: str, seconds: float | None, trace: str | None = None) -> dict:
-    row = {"name": entry.name, "origin": entry.origin, "status": "failed", "error": error,
-           "seconds": seconds}
+    row = {"name": entry.name, "origin": entry.origin, "status": "failed", "error": error, "seconds": seconds}
     if trace:
         row["traceback"] = trace
     return row
@@ -296,20 +338,31 @@ def summarise(entry: Entry, metrics: dict) -> dict:
     mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
     FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
     frames = metrics["frames"]
-    techniques = {name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
-                  for name in metrics["techniques"]}
+    techniques = {
+        name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
+        for name in metrics["techniques"]
+    }
     m, p = metrics["material"], metrics["parameters"]
-    return {"name": entry.name, "origin": entry.origin, "status": "ok", "report": f"{entry.name}/index.html",
-            "source": m.get("source"), "digest": m.get("digest"), "rows": m.get("rows"), "cols": m.get("cols"),
-            "depth": p["depth"], "boundary": p["boundary"],
-            "azimuths_deg": [f["azimuth_deg"] for f in frames],
-            "techniques": techniques,
-            "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
-            "truth_s": _mean(f.get("truth_s") for f in frames),
-            "seconds": metrics["timings"]["total_s"],
-            "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
-            "variant": metrics["versions"].get("variant"),       # the Mitsuba variant its worker ran
-            "files": _thumbnail_sources(frames, metrics["techniques"])}
+    return {
+        "name": entry.name,
+        "origin": entry.origin,
+        "status": "ok",
+        "report": f"{entry.name}/index.html",
+        "source": m.get("source"),
+        "digest": m.get("digest"),
+        "rows": m.get("rows"),
+        "cols": m.get("cols"),
+        "depth": p["depth"],
+        "boundary": p["boundary"],
+        "azimuths_deg": [f["azimuth_deg"] for f in frames],
+        "techniques": techniques,
+        "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
+        "truth_s": _mean(f.get("truth_s") for f in frames),
+        "seconds": metrics["timings"]["total_s"],
+        "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
+        "variant": metrics["versions"].get("variant"),  # the Mitsuba variant its worker ran
+        "files": _thumbnail_sources(frames, metrics["techniques"]),
+    }
 
 
 def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
@@ -320,8 +373,10 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
     out = {}
     for i in picks:
         f = frames[i]
-        out[f"{f['azimuth_deg']:+g}"] = {"truth": f["files"]["truth_png"],
-                                         **{name: f["techniques"][name]["files"]["png"] for name in techniques}}
+        out[f"{f['azimuth_deg']:+g}"] = {
+            "truth": f["files"]["truth_png"],
+            **{name: f["techniques"][name]["files"]["png"] for name in techniques},
+        }
     return out
 
 
@@ -329,9 +384,20 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
 # Running them all
 # --------------------------------------------------------------------------
 
-def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, cluster: str | None = None,
-        variant: str | None = None, command: str = "", progress: bool = True, force: bool = False,
-        gates=None) -> dict:
+
+def run(
+    items: list[Entry],
+    out: str | Path,
+    *,
+    options=None,
+    workers: int = 1,
+    cluster: str | None = None,
+    variant: str | None = None,
+    command: str = "",
+    progress: bool = True,
+    force: bool = False,
+    gates=None,
+) -> dict:
     """Sweep every entry into ``out/<name>``, then write the overview; return ``suite.json``'s content.
 
     ``workers``: worker processes on this machine, each sweeping one material at a time (see
@@ -351,23 +417,43 @@ def run(items: list[Entry], out: str | Path, *, options=None, workers: int = 1, 
         raise InputError("--workers", f"must be 0 (this process) or more, got {workers}")
     if cluster is not None:
         check_address(cluster)
-    out = Path(out).resolve()           # the tasks' paths must mean the same on every worker
+    out = Path(out).resolve()  # the tasks' paths must mean the same on every worker
     options = options or sweep.Options()
     local = cluster is None
     threads = max(1, (os.cpu_count() or 1) // workers) if local and workers > 0 else None
     token = "" if local else f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
     topic = "" if local and workers == 0 else START_TOPIC.format(pid=os.getpid())
-    tasks = [Task(e, str(out / e.name), options, variant, f"{command}  # material {e.name}", threads, token,
-                  force, topic) for e in items]
+    tasks = [
+        Task(
+            e,
+            str(out / e.name),
+            options,
+            variant,
+            f"{command}  # material {e.name}",
+            threads,
+            token,
+            force,
+            topic,
+        )
+        for e in items
+    ]
     t0 = time.perf_counter()
     rows: list[dict | None] = [None] * len(tasks)
     engine = {"name": "in-process", "started": time.time()}
 
     def overview(interrupted: bool = False) -> dict:
         done = [r if r is not None else _not_run(t.entry) for t, r in zip(tasks, rows)]
-        return write_overview(out, done, command=command, engine=engine["name"], workers=workers if local else None,
-                              cluster=cluster, seconds=time.perf_counter() - t0, interrupted=interrupted,
-                              gates=None if interrupted or not gates else gate_failures(gates, out, done))
+        return write_overview(
+            out,
+            done,
+            command=command,
+            engine=engine["name"],
+            workers=workers if local else None,
+            cluster=cluster,
+            seconds=time.perf_counter() - t0,
+            interrupted=interrupted,
+            gates=None if interrupted or not gates else gate_failures(gates, out, done),
+        )
 
     with files.output_folder(out, force=force, keep_on_interrupt=True):
         try:
@@ -394,15 +480,20 @@ def check_address(address: str) -> str:
     naming ``--cluster`` and the value."""
     m = ADDRESS.fullmatch(str(address))
     if m is None or not 0 < int(m.group(2)) < 65536:
-        raise InputError("--cluster", f"{address!r} is not a Dask scheduler address: give tcp://HOST:PORT "
-                                      "(e.g. tcp://10.0.0.5:8786, the address dask scheduler prints)")
+        raise InputError(
+            "--cluster",
+            f"{address!r} is not a Dask scheduler address: give tcp://HOST:PORT "
+            "(e.g. tcp://10.0.0.5:8786, the address dask scheduler prints)",
+        )
     return address
 
 
 def _bar(total: int, progress: bool):
     from tqdm import tqdm
 
-    return tqdm(total=total, desc="suite", unit="material", disable=not progress, file=sys.stderr, leave=False)
+    return tqdm(
+        total=total, desc="suite", unit="material", disable=not progress, file=sys.stderr, leave=False
+    )
 
 
 def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
@@ -414,14 +505,15 @@ def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
             bar.update()
 
 
-def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, address: str | None,
-              progress: bool) -> None:
+def _run_dask(
+    tasks: list[Task], rows: list, engine: dict, workers: int | None, address: str | None, progress: bool
+) -> None:
     """Each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish: a
     ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``. ``engine["name"]``
     says which."""
     import logging
 
-    import dask                 # imported here: 0.5 s that a suite in this process does not need
+    import dask  # imported here: 0.5 s that a suite in this process does not need
     import distributed
 
     cluster = None
@@ -430,39 +522,53 @@ def _run_dask(tasks: list[Task], rows: list, engine: dict, workers: int | None, 
     # comparisons and writing ran 1.4x slower (NumPy arithmetic 1.6x; the built-in suite took 434 s on
     # one worker against 262 s in this process). Unset it, and give OpenMP the worker's threads.
     threads = tasks[0].threads if tasks and tasks[0].threads else 1
-    environ = {f"distributed.nanny.pre-spawn-environ.{k}": threads
-               for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
+    environ = {
+        f"distributed.nanny.pre-spawn-environ.{k}": threads
+        for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+    }
     environ["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, **environ}):
         if address is None:
             # on loopback only, and no dashboard: nothing of a local cluster is served to the network
-            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               host=LOOPBACK, dashboard_address=None,
-                                               worker_dashboard_address=None, silence_logs=logging.ERROR)
+            cluster = distributed.LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOOPBACK,
+                dashboard_address=None,
+                worker_dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
             address = cluster.scheduler_address
         try:
             client = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
         except (OSError, ValueError, TypeError) as exc:
             if cluster is not None:
                 cluster.close()
-            raise InputError("--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})") from None
+            raise InputError(
+                "--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})"
+            ) from None
     engine["name"] = f"dask.distributed {distributed.__version__} at {address}"
     futures: dict = {}
     try:
-        futures = {client.submit(sweep_material, t, key=f"hzval-suite-{t.entry.name}-{os.getpid()}-{i}",
-                                 pure=False, retries=0): i for i, t in enumerate(tasks)}
+        futures = {
+            client.submit(
+                sweep_material, t, key=f"hzval-suite-{t.entry.name}-{os.getpid()}-{i}", pure=False, retries=0
+            ): i
+            for i, t in enumerate(tasks)
+        }
         with _bar(len(tasks), progress) as bar:
             for future in distributed.as_completed(futures):
                 i = futures[future]
                 try:
                     rows[i] = future.result()
-                except Exception as exc:     # the worker died (KilledWorker), the scheduler was lost, ...
+                except Exception as exc:  # the worker died (KilledWorker), the scheduler was lost, ...
                     started = _started(client, tasks[i].topic) if tasks[i].topic else None
                     rows[i] = _classify(tasks[i], exc, started, engine.get("started", time.time()))
                 bar.set_postfix_str(tasks[i].entry.name)
                 bar.update()
     finally:
-        client.cancel(list(futures))        # an interrupted suite leaves nothing running on the cluster
+        client.cancel(list(futures))  # an interrupted suite leaves nothing running on the cluster
         client.close()
         if cluster is not None:
             cluster.close()
@@ -497,7 +603,10 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
         if ran is False:
             return _not_run(task.entry, "the workers it was given died before it started")
         return _failed(task.entry, "its worker died while sweeping it (killed, or out of memory)", None)
-    lost = isinstance(exc, (OSError, distributed.CancelledError, TimeoutError)) or "cancel" in type(exc).__name__.lower()
+    lost = (
+        isinstance(exc, (OSError, distributed.CancelledError, TimeoutError))
+        or "cancel" in type(exc).__name__.lower()
+    )
     if lost:
         if ran is False or (started is None and not Path(task.out).exists()):
             return _not_run(task.entry, f"the scheduler was lost before it started ({type(exc).__name__})")
@@ -522,6 +631,7 @@ def _completed(task: Task, since: float) -> dict | None:
 # --------------------------------------------------------------------------
 # The overview
 # --------------------------------------------------------------------------
+
 
 def _sort_key(row: dict) -> tuple:
     """Worst first: failed materials, then the first technique's mean |F - V|."""
@@ -548,19 +658,33 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
         if gates.baseline_path is not None:
             path = gates.baseline_path / name / "metrics.json"
             if not path.is_file():
-                failed.append(f"{name}: --baseline: {path} is missing (no such material in the baseline suite)")
+                failed.append(
+                    f"{name}: --baseline: {path} is missing (no such material in the baseline suite)"
+                )
                 continue
             baseline = json.loads(path.read_text(encoding="utf-8"))
         try:
-            lines, _ = gates.failures(metrics, baseline=baseline, where=name, use_baseline=baseline is not None)
-        except InputError as exc:           # another material's settings, a metric it lacks: its own line
+            lines, _ = gates.failures(
+                metrics, baseline=baseline, where=name, use_baseline=baseline is not None
+            )
+        except InputError as exc:  # another material's settings, a metric it lacks: its own line
             lines = [f"{name}: {exc}"]
         failed += lines
     return gates.record(failed, [])
 
 
-def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, workers: int | None,
-                   cluster: str | None, seconds: float, interrupted: bool = False, gates: dict | None = None) -> dict:
+def write_overview(
+    out: Path,
+    rows: list[dict],
+    *,
+    command: str,
+    engine: str,
+    workers: int | None,
+    cluster: str | None,
+    seconds: float,
+    interrupted: bool = False,
+    gates: dict | None = None,
+) -> dict:
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
     record of :func:`gate_failures`, listed first)."""
     rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
@@ -571,15 +695,31 @@ def write_overview(out: Path, rows: list[dict], *, command: str, engine: str, wo
     names = []
     for row in rows:
         names += [n for n in row.get("techniques", {}) if n not in names]
-    techniques = {n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
-                  for n in names if n in technique.REGISTRY}
-    result = {"suite": {"command": command, "engine": engine, "workers": workers, "cluster": cluster,
-                        "seconds": seconds, "materials": len(rows), "interrupted": interrupted,
-                        "failed": sum(r["status"] == "failed" for r in rows),
-                        "not_run": sum(r["status"] == "not run" for r in rows),
-                        "versions": {**backend.versions(),
-                                     "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")}))}},
-              "techniques": techniques, "materials": rows, **({"gates": gates} if gates else {})}
+    techniques = {
+        n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
+        for n in names
+        if n in technique.REGISTRY
+    }
+    result = {
+        "suite": {
+            "command": command,
+            "engine": engine,
+            "workers": workers,
+            "cluster": cluster,
+            "seconds": seconds,
+            "materials": len(rows),
+            "interrupted": interrupted,
+            "failed": sum(r["status"] == "failed" for r in rows),
+            "not_run": sum(r["status"] == "not run" for r in rows),
+            "versions": {
+                **backend.versions(),
+                "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")})),
+            },
+        },
+        "techniques": techniques,
+        "materials": rows,
+        **({"gates": gates} if gates else {}),
+    }
     files.write_json(out / "suite.json", result)
     html = report.render_suite(result)
     with files.atomic_path(out / "index.html") as tmp:

@@ -63,15 +63,24 @@ import numpy as np
 
 from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
-from hzval.metrics import compare
-from hzval.io import files
 from hzval.core import shading
+from hzval.io import files
+from hzval.metrics import compare
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import plane as truth
-from hzval.scene import spec as sc
 
-__all__ = ["Point", "Setting", "settings", "measure", "mark_pareto", "recommend", "write_tradeoff",
-           "DEFAULT_TRUTH_SPP", "DEFAULT_SIZE"]
+__all__ = [
+    "Point",
+    "Setting",
+    "settings",
+    "measure",
+    "mark_pareto",
+    "recommend",
+    "write_tradeoff",
+    "DEFAULT_TRUTH_SPP",
+    "DEFAULT_SIZE",
+]
 
 #: Samples per pixel of the converged truth everything is measured against.
 DEFAULT_TRUTH_SPP = 256
@@ -128,8 +137,15 @@ def baked_technique(scene=None) -> str | None:
     from hzval.scene.spec import Scene
 
     sc_ = scene if scene is not None else Scene()
-    return next((n for n in technique.names() if "horizon_map" in technique.get(n).bake_needs(sc_)
-                 and (scene is None or technique.get(n).applies(scene))), None)
+    return next(
+        (
+            n
+            for n in technique.names()
+            if "horizon_map" in technique.get(n).bake_needs(sc_)
+            and (scene is None or technique.get(n).applies(scene))
+        ),
+        None,
+    )
 
 
 def settings(scene=None) -> list[Setting]:
@@ -139,29 +155,47 @@ def settings(scene=None) -> list[Setting]:
     s: list[Setting] = []
     baked = baked_technique(scene)
     if baked is not None:
-        s.append(Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32}, technique=baked))
+        s.append(
+            Setting("seed r16, 32 bins (default)", "bake", {"radius": 16, "angles": 32}, technique=baked)
+        )
         s += [Setting(f"seed r{r}", "bake", {"radius": r}, technique=baked) for r in (4, 8, 32, 64)]
         s.append(Setting("exact, unlimited radius", "bake", {"method": "exact"}, technique=baked))
         s += [Setting(f"seed r16, {a} bins", "bake", {"angles": a}, technique=baked) for a in (16, 64)]
         # 16 stored directions (22.5 degrees apart) against the seed's 8: twice
         # the texture memory (4 RGBA layers); each channel averages angles/16 + 1 bins
-        s += [Setting(f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16},
-                      technique=baked) for a in (32, 64)]
+        s += [
+            Setting(
+                f"seed r16, {a} bins, 16 directions", "bake", {"angles": a, "directions": 16}, technique=baked
+            )
+            for a in (32, 64)
+        ]
     for name in technique.names():
         t = technique.get(name)
         if scene is not None and not t.applies(scene):
             continue
-        s += [Setting(v.name, "technique", technique=name, settings=dict(v.settings),
-                      params={"technique": name, **v.params})
-              for v in t.tradeoff_variants()]
-    s += [Setting(f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", technique=None, truth_spp=n)
-          for n in (1, 4, 16, 64)]
+        s += [
+            Setting(
+                v.name,
+                "technique",
+                technique=name,
+                settings=dict(v.settings),
+                params={"technique": name, **v.params},
+            )
+            for v in t.tradeoff_variants()
+        ]
+    s += [
+        Setting(
+            f"truth, {n} shadow ray{'s' if n > 1 else ''} per pixel", "truth", technique=None, truth_spp=n
+        )
+        for n in (1, 4, 16, 64)
+    ]
     return s
 
 
 # --------------------------------------------------------------------------
 # Measuring
 # --------------------------------------------------------------------------
+
 
 @dataclass
 class _Reference:
@@ -185,8 +219,9 @@ def _reference(scene, height, truth_spp: int) -> _Reference:
         vis.append(f.layers["visibility"])
         disp.append(compare.display(f.image, scale))
     rows, cols = height.shape
-    return _Reference(scene, height, sc.load_albedo(scene.material, rows, cols), vis, disp, scale,
-                      time.perf_counter() - t0)
+    return _Reference(
+        scene, height, sc.load_albedo(scene.material, rows, cols), vis, disp, scale, time.perf_counter() - t0
+    )
 
 
 def _errors(ref: _Reference, frames) -> tuple[float, float]:
@@ -201,7 +236,7 @@ def _errors(ref: _Reference, frames) -> tuple[float, float]:
 def _render_all(renderer, azimuths, repeat: int = 3, **kw):
     """The sweep's frames and a frame's time: the mean over the sweep, the best of ``repeat`` sweeps
     (settings that share a kernel differ by about 10% from one sweep to the next otherwise)."""
-    renderer.render(azimuths[0], **kw)       # compile (or load) the kernels: time warm frames only
+    renderer.render(azimuths[0], **kw)  # compile (or load) the kernels: time warm frames only
     frames = [renderer.render(az, **kw) for az in azimuths]
     best = float(np.mean([f.seconds for f in frames]))
     for _ in range(repeat - 1):
@@ -210,7 +245,7 @@ def _render_all(renderer, azimuths, repeat: int = 3, **kw):
 
 
 def _timed_bake(height, params):
-    bake.bake(height, params)                       # compile (or load) the kernels
+    bake.bake(height, params)  # compile (or load) the kernels
     best = None
     for _ in range(2):
         bk = bake.bake(height, params)
@@ -226,12 +261,20 @@ def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
     from hzval.pipeline import sweep
 
     spp = max(int(scene.spp), int(truth_spp))
-    return sweep.check_fits(dataclasses.replace(scene, spp=spp),
-                            bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
+    return sweep.check_fits(
+        dataclasses.replace(scene, spp=spp),
+        bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary),
+    )
 
 
-def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, only: list[str] | None = None,
-            progress: bool = False) -> tuple[list[Point], dict]:
+def measure(
+    scene,
+    height: np.ndarray,
+    *,
+    truth_spp: int = DEFAULT_TRUTH_SPP,
+    only: list[str] | None = None,
+    progress: bool = False,
+) -> tuple[list[Point], dict]:
     """Measure every setting of :func:`settings` (or those whose names contain one of ``only``)."""
     from tqdm import tqdm
 
@@ -248,9 +291,16 @@ def measure(scene, height: np.ndarray, *, truth_spp: int = DEFAULT_TRUTH_SPP, on
         points.append(_measure_one(s, ref, *bakes[key], params))
     mark_pareto(points)
     rows, cols = height.shape
-    info = {"truth_spp": truth_spp, "truth_s": ref.seconds, "rows": rows, "cols": cols,
-            "azimuths_deg": list(scene.light.azimuths_deg), "elevation_deg": scene.light.elevation_deg,
-            "spp": scene.spp, "effects": list(scene.effects)}
+    info = {
+        "truth_spp": truth_spp,
+        "truth_s": ref.seconds,
+        "rows": rows,
+        "cols": cols,
+        "azimuths_deg": list(scene.light.azimuths_deg),
+        "elevation_deg": scene.light.elevation_deg,
+        "spp": scene.spp,
+        "effects": list(scene.effects),
+    }
     return points, info
 
 
@@ -260,16 +310,23 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
     rows, cols = height.shape
     if s.kind == "truth":
         tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
-        frames, t = _render_all(tr, az, repeat=1)     # seconds a frame: timing noise is small here
+        frames, t = _render_all(tr, az, repeat=1)  # seconds a frame: timing noise is small here
         mae, flip = _errors(ref, frames)
-        return Point(s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp})
+        return Point(
+            s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp}
+        )
     cls = technique.get(s.technique)
     ctx = technique.Context(scene, height, bk, ref.albedo)
     kw = cls.fit(ctx, dict(s.settings), ref.visibility, az)
     tech = cls.build(ctx, **kw)
     frames, frame_s = _render_all(tech, az)
-    p = {**s.params, **{k: v for k, v in tech.parameters.items() if k != "simulated"}, "frame_s": frame_s,
-         "bake": dataclasses.asdict(params), **({"technique": s.technique} if s.technique else {})}
+    p = {
+        **s.params,
+        **{k: v for k, v in tech.parameters.items() if k != "simulated"},
+        "frame_s": frame_s,
+        "bake": dataclasses.asdict(params),
+        **({"technique": s.technique} if s.technique else {}),
+    }
     if s.kind == "bake" and params.method == "seed":
         # a large radius may take the looped kernel (hzval.bake.horizon.choose_kernel): say so
         p["kernel"] = bake_horizon.kernel_for(rows, cols, params.radius, params.angles)
@@ -278,8 +335,15 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
     if kw != s.settings:
         p["note"] = ", ".join(f"{k} = {v:.3g}" for k, v in kw.items() if s.settings.get(k) != v)
     mae, flip = _errors(ref, frames)
-    return Point(s.name, s.kind, float(bake_s if s.kind == "bake" else frame_s), int(tech.storage_bytes()),
-                 mae, flip, params=p)
+    return Point(
+        s.name,
+        s.kind,
+        float(bake_s if s.kind == "bake" else frame_s),
+        int(tech.storage_bytes()),
+        mae,
+        flip,
+        params=p,
+    )
 
 
 def mark_pareto(points: list[Point]) -> None:
@@ -288,10 +352,12 @@ def mark_pareto(points: list[Point]) -> None:
     for p in points:
         obj = (p.time_s, p.storage_bytes, p.visibility_mae)
         p.pareto = not any(
-            q is not p and q.kind == p.kind
+            q is not p
+            and q.kind == p.kind
             and all(a <= b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
             and any(a < b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
-            for q in points)
+            for q in points
+        )
 
 
 def _pick(cand: list[Point], tolerance: float) -> tuple[Point, Point]:
@@ -313,16 +379,26 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
         return {}
     pick, best = _pick(cand, tolerance)
     default = next((p for p in points if "(default)" in p.name), None)
-    out = {"setting": pick.name, "visibility_mae": pick.visibility_mae, "best": best.name,
-           "best_visibility_mae": best.visibility_mae, "tolerance": tolerance,
-           "default": default.name if default else None,
-           "default_visibility_mae": default.visibility_mae if default else None}
+    out = {
+        "setting": pick.name,
+        "visibility_mae": pick.visibility_mae,
+        "best": best.name,
+        "best_visibility_mae": best.visibility_mae,
+        "tolerance": tolerance,
+        "default": default.name if default else None,
+        "default_visibility_mae": default.visibility_mae if default else None,
+    }
     baked = next((p.params.get("technique") for p in cand if p.kind == "bake"), None)
     own = [p for p in cand if p.kind == "bake" or p.params.get("technique", "") == baked]
     if own and pick not in own:
         hpick, hbest = _pick(own, tolerance)
-        out["own"] = {"technique": baked, "setting": hpick.name, "visibility_mae": hpick.visibility_mae,
-                      "best": hbest.name, "best_visibility_mae": hbest.visibility_mae}
+        out["own"] = {
+            "technique": baked,
+            "setting": hpick.name,
+            "visibility_mae": hpick.visibility_mae,
+            "best": hbest.name,
+            "best_visibility_mae": hbest.visibility_mae,
+        }
     truths = sorted((p for p in points if p.kind == "truth"), key=lambda p: p.params.get("spp", 0))
     enough = next((p for p in truths if p.visibility_mae <= best.visibility_mae / 10), None)
     if enough:
@@ -334,6 +410,7 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
 # Writing
 # --------------------------------------------------------------------------
 
+
 def plot_tradeoff(path: Path, points: list[Point]) -> None:
     """Time against visibility error, one panel per kind; marker area ~ storage; Pareto front ringed."""
     import matplotlib
@@ -344,17 +421,24 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
 
     kinds = [k for k in KINDS if any(p.kind == k for p in points)]
     fig, axes = plt.subplots(1, len(kinds), figsize=(4.6 * len(kinds), 4.2), squeeze=False)
-    labels = {"bake": "bake time (s)", "technique": "frame time (s)",
-              "truth": "truth frame time (s)"}
+    labels = {"bake": "bake time (s)", "technique": "frame time (s)", "truth": "truth frame time (s)"}
     smax = max(p.storage_bytes for p in points) or 1
     for ax, kind in zip(axes[0], kinds):
         pts = [p for p in points if p.kind == kind]
         for p in pts:
             area = 30 + 270 * p.storage_bytes / smax
-            ax.scatter(p.time_s, p.visibility_mae, s=area, alpha=0.75,
-                       color="#d62728" if p.pareto else "#1f77b4", edgecolors="black", linewidths=0.5)
-            ax.annotate(p.label, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4),
-                        textcoords="offset points")
+            ax.scatter(
+                p.time_s,
+                p.visibility_mae,
+                s=area,
+                alpha=0.75,
+                color="#d62728" if p.pareto else "#1f77b4",
+                edgecolors="black",
+                linewidths=0.5,
+            )
+            ax.annotate(
+                p.label, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4), textcoords="offset points"
+            )
         front = sorted((p for p in pts if p.pareto), key=lambda p: p.time_s)
         if len(front) > 1:
             ax.plot([p.time_s for p in front], [p.visibility_mae for p in front], color="#d62728", lw=1)
@@ -371,15 +455,17 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
         ax.set_ylabel("visibility mean |F - V|")
         ax.set_title(kind)
         ax.grid(True, alpha=0.3)
-    fig.suptitle("what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory",
-                 fontsize=10)
+    fig.suptitle(
+        "what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory", fontsize=10
+    )
     fig.tight_layout()
     files.write_figure(path, fig, dpi=110)
     plt.close(fig)
 
 
-def write_tradeoff(out: str | Path, points: list[Point], info: dict, *, material: dict, command: str,
-                   force: bool = False) -> Path:
+def write_tradeoff(
+    out: str | Path, points: list[Point], info: dict, *, material: dict, command: str, force: bool = False
+) -> Path:
     """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path. The
     folder is held while they are written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
     out = Path(out)
@@ -392,15 +478,40 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
     from hzval.report import pages as report
 
     rec = recommend(points)
-    data = {"material": material, "measurement": info, "recommendation": rec,
-            "versions": backend.versions(), "command": command,
-            "points": [{k: v for k, v in p.as_dict().items()
-                        if k in ("name", "kind", "time_s", "storage_bytes", "visibility_mae", "flip_mean",
-                                 "pareto", "params")} for p in points]}
+    data = {
+        "material": material,
+        "measurement": info,
+        "recommendation": rec,
+        "versions": backend.versions(),
+        "command": command,
+        "points": [
+            {
+                k: v
+                for k, v in p.as_dict().items()
+                if k
+                in (
+                    "name",
+                    "kind",
+                    "time_s",
+                    "storage_bytes",
+                    "visibility_mae",
+                    "flip_mean",
+                    "pareto",
+                    "params",
+                )
+            }
+            for p in points
+        ],
+    }
     plot_tradeoff(out / "pareto.png", points)
     files.write_json(out / "tradeoff.json", data)
-    html = report._environment().get_template("tradeoff.html.j2").render(
-        points=points, rec=rec, info=info, material=material, command=command, versions=data["versions"])
+    html = (
+        report._environment()
+        .get_template("tradeoff.html.j2")
+        .render(
+            points=points, rec=rec, info=info, material=material, command=command, versions=data["versions"]
+        )
+    )
     index = out / "index.html"
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
@@ -410,8 +521,18 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
 def table(points: list[Point]) -> str:
     """The points as a plain-text table for the terminal."""
     head = ("setting", "kind", "time", "storage", "|F-V|", "FLIP", "pareto")
-    rows = [(p.label, p.kind, _fmt_s(p.time_s), _fmt_bytes(p.storage_bytes), f"{p.visibility_mae:.4f}",
-             f"{p.flip_mean:.4f}", "*" if p.pareto else "") for p in points]
+    rows = [
+        (
+            p.label,
+            p.kind,
+            _fmt_s(p.time_s),
+            _fmt_bytes(p.storage_bytes),
+            f"{p.visibility_mae:.4f}",
+            f"{p.flip_mean:.4f}",
+            "*" if p.pareto else "",
+        )
+        for p in points
+    ]
     w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda c: "  ".join(x.ljust(w[0]) if i == 0 else x.rjust(w[i]) for i, x in enumerate(c))  # noqa: E731
     return "\n".join([line(head), line(["-" * x for x in w]), *map(line, rows)])

@@ -28,10 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.scene import camera
-from hzval.io import files
-from hzval.scene import lookup
 from hzval.core.errors import InputError
+from hzval.io import files
+from hzval.scene import camera, lookup
 
 __all__ = ["VIEWS", "LOOKUPS", "run"]
 
@@ -54,8 +53,17 @@ LOOKUPS: dict[str, lookup.Lookup] = {
 }
 
 
-def run(scene, out: str | Path, *, views: list[str] | None = None, lookups: list[str] | None = None,
-        options=None, progress: bool = True, command: str = "", force: bool = False) -> dict:
+def run(
+    scene,
+    out: str | Path,
+    *,
+    views: list[str] | None = None,
+    lookups: list[str] | None = None,
+    options=None,
+    progress: bool = True,
+    command: str = "",
+    force: bool = False,
+) -> dict:
     """Sweep ``scene`` from every view with every lookup into ``out``; write ``views.json`` and
     ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
     lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
@@ -76,19 +84,30 @@ def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str,
     rows = []
     runs = [(v, k) for v in chosen for k in kinds if not (v == "top" and k != kinds[0])]
     for i, (v, k) in enumerate(runs):
-        sc_v = dataclasses.replace(scene, camera=VIEWS[v], lookup=LOOKUPS[k],
-                                   name=f"{scene.name} {v} {k}").validate()
+        sc_v = dataclasses.replace(
+            scene, camera=VIEWS[v], lookup=LOOKUPS[k], name=f"{scene.name} {v} {k}"
+        ).validate()
         folder = out / v / k
         if progress:
             print(f"hzval views: {i + 1}/{len(runs)}: {v}, {k}", flush=True)
-        result = sweep.run(sc_v, folder, options=options or sweep.Options(), progress=False,
-                           command=f"{command} # view {v}, lookup {k}".strip(), force=force)
+        result = sweep.run(
+            sc_v,
+            folder,
+            options=options or sweep.Options(),
+            progress=False,
+            command=f"{command} # view {v}, lookup {k}".strip(),
+            force=force,
+        )
         rows.append(_row(v, k, result, folder.relative_to(out) / "index.html"))
     material = rows[0]["material"] if rows else {}
     for r in rows:
         r.pop("material")
-    data = {"format": "hzval views 1", "material": material, "command": files.portable_command(command, out),
-            "rows": rows}
+    data = {
+        "format": "hzval views 1",
+        "material": material,
+        "command": files.portable_command(command, out),
+        "rows": rows,
+    }
     files.write_json(out / "views.json", data)
     _write_page(out, data)
     return data
@@ -109,18 +128,29 @@ def _row(view: str, kind: str, result: dict, report: Path) -> dict:
     techniques = {}
     for name in result["techniques"]:
         per = [f["techniques"][name] for f in frames]
-        techniques[name] = {k: _mean([p.get(k) for p in per])
-                            for k in ("visibility_mae", "perfect_parallax_mae", "flip_mean")}
+        techniques[name] = {
+            k: _mean([p.get(k) for p in per]) for k in ("visibility_mae", "perfect_parallax_mae", "flip_mean")
+        }
     v = result.get("view") or {}
     cam = VIEWS[view]
     shape = result["camera"]["resolution"]
     top_footprint = {"p50": 1.0 / cam.supersampling, "mean": 1.0 / cam.supersampling}
-    return {"view": view, "lookup": kind, "material": result["material"],
-            "camera": {"kind": cam.kind, "elevation_deg": 90.0 if cam.kind == "top" else cam.elevation_deg,
-                       "distance": cam.distance if cam.kind == "perspective" else None, "resolution": shape},
-            "footprint_texels": v.get("footprint_texels", top_footprint),
-            "parallax_error_texels": v.get("parallax_error_texels", {"mean": 0.0}),
-            "seen_fraction": v.get("seen_fraction", 1.0), "report": str(report), "techniques": techniques}
+    return {
+        "view": view,
+        "lookup": kind,
+        "material": result["material"],
+        "camera": {
+            "kind": cam.kind,
+            "elevation_deg": 90.0 if cam.kind == "top" else cam.elevation_deg,
+            "distance": cam.distance if cam.kind == "perspective" else None,
+            "resolution": shape,
+        },
+        "footprint_texels": v.get("footprint_texels", top_footprint),
+        "parallax_error_texels": v.get("parallax_error_texels", {"mean": 0.0}),
+        "seen_fraction": v.get("seen_fraction", 1.0),
+        "report": str(report),
+        "techniques": techniques,
+    }
 
 
 def _mean(values) -> float | None:
@@ -132,14 +162,23 @@ def _mean(values) -> float | None:
 # The page
 # --------------------------------------------------------------------------
 
+
 def _write_page(out: Path, data: dict) -> None:
     from hzval.report import pages as report
 
     plots = out / "plots"
     _plot(plots / "views.png", data["rows"])
-    page = report._environment().get_template("views.html.j2").render(
-        material=data["material"], rows=data["rows"], command=data["command"],
-        techniques=_technique_names(data["rows"]), plot="plots/views.png")
+    page = (
+        report._environment()
+        .get_template("views.html.j2")
+        .render(
+            material=data["material"],
+            rows=data["rows"],
+            command=data["command"],
+            techniques=_technique_names(data["rows"]),
+            plot="plots/views.png",
+        )
+    )
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
@@ -163,20 +202,33 @@ def _plot(path: Path, rows: list[dict]) -> None:
     for i, name in enumerate(names):
         for k in kinds:
             pts = [r for r in rows if r["lookup"] == k or r["view"] == "top"]
-            ortho = sorted((r["camera"]["elevation_deg"], r["techniques"][name]["visibility_mae"])
-                           for r in pts if r["camera"]["kind"] != "perspective"
-                           and r["techniques"].get(name, {}).get("visibility_mae") is not None)
+            ortho = sorted(
+                (r["camera"]["elevation_deg"], r["techniques"][name]["visibility_mae"])
+                for r in pts
+                if r["camera"]["kind"] != "perspective"
+                and r["techniques"].get(name, {}).get("visibility_mae") is not None
+            )
             if ortho:
                 axes[i][0].plot(*zip(*ortho), marker="o", label=k)
-            foot = sorted((r["footprint_texels"]["p50"], r["techniques"][name]["visibility_mae"])
-                          for r in pts if r["techniques"].get(name, {}).get("visibility_mae") is not None
-                          and r["footprint_texels"].get("p50") is not None)
+            foot = sorted(
+                (r["footprint_texels"]["p50"], r["techniques"][name]["visibility_mae"])
+                for r in pts
+                if r["techniques"].get(name, {}).get("visibility_mae") is not None
+                and r["footprint_texels"].get("p50") is not None
+            )
             if foot:
                 axes[i][1].plot(*zip(*foot), marker="o", label=k)
-        axes[i][0].set(title=f"{name}: error against view elevation", xlabel="view elevation (degrees)",
-                       ylabel="mean |F − V|")
-        axes[i][1].set(title=f"{name}: error against pixel footprint", xlabel="texels a pixel covers (median)",
-                       ylabel="mean |F − V|", xscale="log")
+        axes[i][0].set(
+            title=f"{name}: error against view elevation",
+            xlabel="view elevation (degrees)",
+            ylabel="mean |F − V|",
+        )
+        axes[i][1].set(
+            title=f"{name}: error against pixel footprint",
+            xlabel="texels a pixel covers (median)",
+            ylabel="mean |F − V|",
+            xscale="log",
+        )
         for ax in axes[i]:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)

@@ -22,9 +22,22 @@ import os
 
 from hzval.core.errors import EnvironmentProblem
 
-__all__ = ["dr", "mi", "MIN_LLVM_MAJOR", "request", "prefer_working_llvm", "check_llvm", "variant",
-    "sync", "release_memory", "retain_freed_memory", "hand_back_freed_memory", "versions",
-    "host_cores", "host_pool"]
+__all__ = [
+    "dr",
+    "mi",
+    "MIN_LLVM_MAJOR",
+    "request",
+    "prefer_working_llvm",
+    "check_llvm",
+    "variant",
+    "sync",
+    "release_memory",
+    "retain_freed_memory",
+    "hand_back_freed_memory",
+    "versions",
+    "host_cores",
+    "host_pool",
+]
 
 
 class _Module:
@@ -58,8 +71,10 @@ mi = _Module("mitsuba", fixed=False)
 #: The oldest LLVM major version known to work with Dr.Jit's LLVM backend here.
 MIN_LLVM_MAJOR = 16
 
-_FIX = ("install Debian's libllvm19 (apt-get install libllvm19) or point "
-        "DRJIT_LIBLLVM_PATH at a libLLVM.so of version 16 or newer")
+_FIX = (
+    "install Debian's libllvm19 (apt-get install libllvm19) or point "
+    "DRJIT_LIBLLVM_PATH at a libLLVM.so of version 16 or newer"
+)
 
 _chosen: str | None = None
 _requested: str | None = None
@@ -86,7 +101,9 @@ def prefer_working_llvm() -> None:
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return
     found = []
-    for path in glob.glob("/usr/lib/*-linux-gnu/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"):
+    for path in glob.glob("/usr/lib/*-linux-gnu/libLLVM*.so*") + glob.glob(
+        "/usr/lib/llvm-*/lib/libLLVM*.so*"
+    ):
         m = re.search(r"libLLVM[-.](?:so\.)?(\d+)", os.path.basename(path))
         if m and int(m.group(1)) >= MIN_LLVM_MAJOR:
             found.append((int(m.group(1)), path))
@@ -104,7 +121,8 @@ def check_llvm() -> tuple[int, int, int]:
     if version[0] < MIN_LLVM_MAJOR:
         raise EnvironmentProblem(
             f"Dr.Jit loaded LLVM {'.'.join(map(str, version))}, whose code generator "
-            f"crashes on Dr.Jit's min/max kernels: {_FIX}")
+            f"crashes on Dr.Jit's min/max kernels: {_FIX}"
+        )
     return version  # type: ignore[return-value]
 
 
@@ -125,7 +143,8 @@ def variant(requested: str | None = None) -> str:
         name = "cuda_ad_rgb" if dr.has_backend(dr.JitBackend.CUDA) else "llvm_ad_rgb"
     if name not in mi.variants():
         raise EnvironmentProblem(
-            f"Mitsuba variant {name!r} is not available; this build has {', '.join(mi.variants())}")
+            f"Mitsuba variant {name!r} is not available; this build has {', '.join(mi.variants())}"
+        )
     if name.startswith("llvm"):
         check_llvm()
     mi.set_variant(name)
@@ -155,7 +174,7 @@ def release_memory() -> None:
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_MMAP_MAX = -1, -3, -4
 #: What :func:`hand_back_freed_memory` restores: glibc's mapped-chunk limit, and its threshold and trim
 #: size as its own adjustment leaves them after large arrays have been freed (32 MB, twice that).
-_GLIBC_MMAP_MAX, _GLIBC_MMAP_THRESHOLD_MAX = 65536, 32 * 2 ** 20
+_GLIBC_MMAP_MAX, _GLIBC_MMAP_THRESHOLD_MAX = 65536, 32 * 2**20
 
 _retaining = False
 
@@ -192,7 +211,7 @@ def retain_freed_memory() -> bool:
     if fns is None:
         return False
     mallopt, _ = fns
-    _retaining = bool(mallopt(_M_MMAP_MAX, 0)) and bool(mallopt(_M_TRIM_THRESHOLD, 2 ** 31 - 1))
+    _retaining = bool(mallopt(_M_MMAP_MAX, 0)) and bool(mallopt(_M_TRIM_THRESHOLD, 2**31 - 1))
     return _retaining
 
 
@@ -231,7 +250,7 @@ def host_cores() -> int:
     """CPU cores this process may run on (its affinity where the OS says, else the count)."""
     try:
         return len(os.sched_getaffinity(0))
-    except AttributeError:                  # macOS, Windows
+    except AttributeError:  # macOS, Windows
         return os.cpu_count() or 1
 
 

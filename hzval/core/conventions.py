@@ -44,14 +44,42 @@ import numpy as np
 
 from hzval.core.errors import InputError
 
-__all__ = ["Boundary", "BOUNDARIES", "CHANNEL_COUNT", "CHANNEL_AZIMUTHS_DEG", "CHANNELS_PER_LAYER",
-    "DIRECTION_COUNTS", "channel_azimuth_deg", "channel_azimuths_deg", "channels_per_radian",
-    "layer_count", "texel_centres", "bilinear_at", "is_drjit", "tangent_to_uv",
-    "tangent_to_pixel_offset", "pixel_to_tangent_offset", "MAX_DEPTH", "MAX_DEPTH_OPEN",
-    "check_depth", "height_scale", "heights_in_texels", "pad_heights", "height_gradient",
-    "light_direction", "azimuth_of", "channel_layer", "channel_weights", "CUBE_FACES",
-    "cube_texel_directions", "cube_lookup", "encode_signed_weight", "srgb_decode", "srgb_encode",
-    "luminance_weights"]
+__all__ = [
+    "Boundary",
+    "BOUNDARIES",
+    "CHANNEL_COUNT",
+    "CHANNEL_AZIMUTHS_DEG",
+    "CHANNELS_PER_LAYER",
+    "DIRECTION_COUNTS",
+    "channel_azimuth_deg",
+    "channel_azimuths_deg",
+    "channels_per_radian",
+    "layer_count",
+    "texel_centres",
+    "bilinear_at",
+    "is_drjit",
+    "tangent_to_uv",
+    "tangent_to_pixel_offset",
+    "pixel_to_tangent_offset",
+    "MAX_DEPTH",
+    "MAX_DEPTH_OPEN",
+    "check_depth",
+    "height_scale",
+    "heights_in_texels",
+    "pad_heights",
+    "height_gradient",
+    "light_direction",
+    "azimuth_of",
+    "channel_layer",
+    "channel_weights",
+    "CUBE_FACES",
+    "cube_texel_directions",
+    "cube_lookup",
+    "encode_signed_weight",
+    "srgb_decode",
+    "srgb_encode",
+    "luminance_weights",
+]
 
 Boundary = Literal["wrap", "open"]
 BOUNDARIES: tuple[str, ...] = ("wrap", "open")
@@ -96,6 +124,7 @@ def layer_count(directions: int = CHANNEL_COUNT) -> int:
 # Axes and height scale
 # --------------------------------------------------------------------------
 
+
 def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     """Tangent-space ``(x, y)`` of every texel centre, each of shape (rows, cols).
 
@@ -106,7 +135,6 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(col, (rows, cols)), np.broadcast_to(y[:, None], (rows, cols))
 
 
-
 def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
     """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres
     (:func:`texel_centres`) at tangent-space points ``(x, y)`` in texels, float64 (NumPy): ``wrap``
@@ -115,8 +143,8 @@ def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
     model's displacement (:func:`hzval.geometry.displace.bilinear`) read through it."""
     img = np.asarray(image, np.float64)
     rows, cols = img.shape[:2]
-    fx = np.asarray(x, np.float64) - 0.5            # column coordinate of the centres
-    fy = rows - np.asarray(y, np.float64) - 0.5     # row coordinate
+    fx = np.asarray(x, np.float64) - 0.5  # column coordinate of the centres
+    fy = rows - np.asarray(y, np.float64) - 0.5  # row coordinate
     c0, r0 = np.floor(fx), np.floor(fy)
     a, b = fx - c0, fy - r0
     if img.ndim == 3:
@@ -128,8 +156,10 @@ def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
             return img[r % rows, c % cols]
         return img[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)]
 
-    return ((1 - b) * ((1 - a) * at(r0, c0) + a * at(r0, c0 + 1))
-            + b * ((1 - a) * at(r0 + 1, c0) + a * at(r0 + 1, c0 + 1)))
+    return (1 - b) * ((1 - a) * at(r0, c0) + a * at(r0, c0 + 1)) + b * (
+        (1 - a) * at(r0 + 1, c0) + a * at(r0 + 1, c0 + 1)
+    )
+
 
 def is_drjit(values) -> bool:
     """Whether ``values`` is a Dr.Jit array (a kernel's operand) rather than NumPy or Python values."""
@@ -187,8 +217,12 @@ def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
         raise InputError(what, f"must be a number of image widths, got {depth!r}")
     top = MAX_DEPTH_OPEN if boundary == "open" else MAX_DEPTH
     if not math.isfinite(depth) or not 0 < depth <= top:
-        why = ("the relief against the tile; deeper, the truth's shadow rays would cross a wrap tile in ever "
-               "more hops" if boundary != "open" else "deeper, the relief outgrows float32's precision")
+        why = (
+            "the relief against the tile; deeper, the truth's shadow rays would cross a wrap tile in ever "
+            "more hops"
+            if boundary != "open"
+            else "deeper, the relief outgrows float32's precision"
+        )
         tile = "an open tile" if boundary == "open" else f"a {boundary} tile"
         raise InputError(what, f"must be in (0, {top:g}] image widths for {tile} ({why}), got {depth:g}")
     return float(depth)
@@ -242,6 +276,7 @@ def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarra
 # --------------------------------------------------------------------------
 # Directions
 # --------------------------------------------------------------------------
+
 
 def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     """Unit tangent-space vector toward a light at ``(azimuth, elevation)``.
@@ -322,11 +357,11 @@ def cube_texel_directions(size: int) -> np.ndarray:
     tc, sc = np.meshgrid(c, c, indexing="ij")  # tc varies along rows
     one = np.ones_like(sc)
     faces = [
-        (one, -tc, -sc),   # +x: sc = -rz, tc = -ry
-        (-one, -tc, sc),   # -x: sc = +rz, tc = -ry
-        (sc, one, tc),     # +y: sc = +rx, tc = +rz
-        (sc, -one, -tc),   # -y: sc = +rx, tc = -rz
-        (sc, -tc, one),    # +z: sc = +rx, tc = -ry
+        (one, -tc, -sc),  # +x: sc = -rz, tc = -ry
+        (-one, -tc, sc),  # -x: sc = +rz, tc = -ry
+        (sc, one, tc),  # +y: sc = +rx, tc = +rz
+        (sc, -one, -tc),  # -y: sc = +rx, tc = -rz
+        (sc, -tc, one),  # +z: sc = +rx, tc = -ry
         (-sc, -tc, -one),  # -z: sc = -rx, tc = -ry
     ]
     return np.stack([np.stack(f, axis=-1) for f in faces])
@@ -343,8 +378,9 @@ def cube_lookup(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
     use_x = (ax >= ay) & (ax >= az)
     use_y = ~use_x & (ay >= az)
-    face = np.where(use_x, np.where(x >= 0, 0, 1),
-                    np.where(use_y, np.where(y >= 0, 2, 3), np.where(z >= 0, 4, 5)))
+    face = np.where(
+        use_x, np.where(x >= 0, 0, 1), np.where(use_y, np.where(y >= 0, 2, 3), np.where(z >= 0, 4, 5))
+    )
     ma = np.where(use_x, ax, np.where(use_y, ay, az))
     sc = np.choose(face, [-z, z, x, x, x, -x])
     tc = np.choose(face, [-y, -y, z, -z, -y, -y])
@@ -364,6 +400,7 @@ def encode_signed_weight(w: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------
 # Colour
 # --------------------------------------------------------------------------
+
 
 def srgb_decode(values: np.ndarray) -> np.ndarray:
     """sRGB-encoded values in [0, 1] to linear (IEC 61966-2-1, via colour-science)."""

@@ -4,8 +4,16 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "EXIT_ENVIRONMENT", "HzvalError",
-    "InputError", "EnvironmentProblem", "Interrupted"]
+__all__ = [
+    "EXIT_OK",
+    "EXIT_CHECK_FAILED",
+    "EXIT_BAD_INPUT",
+    "EXIT_ENVIRONMENT",
+    "HzvalError",
+    "InputError",
+    "EnvironmentProblem",
+    "Interrupted",
+]
 
 #: Exit status for a finished job or a passed check.
 EXIT_OK = 0

@@ -79,5 +79,8 @@ def held() -> Iterator[_Hold]:
     finally:
         hold.restore()
         if hold.caught:
-            print(f"hzval: {signal.Signals(hold.caught[0]).name} came after the output was complete; "
-                  "it is kept", file=sys.stderr)
+            print(
+                f"hzval: {signal.Signals(hold.caught[0]).name} came after the output was complete; "
+                "it is kept",
+                file=sys.stderr,
+            )

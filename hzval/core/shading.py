@@ -51,8 +51,18 @@ import math
 
 import numpy as np
 
-__all__ = ["SPECULAR_KS", "SPECULAR_EXPONENT", "SKY_RADIANCE_PER_IRRADIANCE", "exposure", "max_radiance",
-           "disk_sample_irradiance", "direct", "sky", "compose", "ipow"]
+__all__ = [
+    "SPECULAR_KS",
+    "SPECULAR_EXPONENT",
+    "SKY_RADIANCE_PER_IRRADIANCE",
+    "exposure",
+    "max_radiance",
+    "disk_sample_irradiance",
+    "direct",
+    "sky",
+    "compose",
+    "ipow",
+]
 
 #: Blinn-Phong specular colour ``ks`` (grey; a dielectric's normal-incidence
 #: reflectance), FGED2 ch. 7's ``C_specular``.
@@ -133,7 +143,9 @@ def sky(albedo, A, E):
     return albedo * (A * E * SKY_RADIANCE_PER_IRRADIANCE)
 
 
-def compose(direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndarray | None = None) -> np.ndarray:
+def compose(
+    direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndarray | None = None
+) -> np.ndarray:
     """``D * F + ambient`` per pixel: an unshadowed render's direct part shadowed by a
     per-pixel factor ``F`` ``(H, W)``; ``(H, W, 3)`` float32.
 
@@ -143,8 +155,9 @@ def compose(direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndar
     edge crosses (a covariance within one pixel).
     """
     # one new image, the sum made in it (each full-size temporary is pages new to the process)
-    out = np.multiply(np.asarray(direct_image, np.float32), np.asarray(factor, np.float32)[..., None],
-                      dtype=np.float32)
+    out = np.multiply(
+        np.asarray(direct_image, np.float32), np.asarray(factor, np.float32)[..., None], dtype=np.float32
+    )
     if ambient_image is not None:
-        np.add(out, ambient_image, out=out)     # in float64 first if the ambient is, as before
+        np.add(out, ambient_image, out=out)  # in float64 first if the ambient is, as before
     return out

@@ -42,7 +42,9 @@ def check_keys(table: Mapping, known, path: str | os.PathLike, where: str = "") 
         if not where and isinstance(value, dict):
             tables = [k for k in known if k != "name"]
             near = difflib.get_close_matches(str(key), tables, n=1, cutoff=0.6)
-            hint = f"; did you mean [{near[0]}]?" if near else f" (known: {', '.join(f'[{t}]' for t in tables)})"
+            hint = (
+                f"; did you mean [{near[0]}]?" if near else f" (known: {', '.join(f'[{t}]' for t in tables)})"
+            )
             raise InputError(path, f"unknown table [{key}]{hint}")
         place = f" in [{where}]" if where else ""
         raise InputError(path, f"unknown key {key!r}{place}{_nearest(key, known)}")
@@ -57,8 +59,13 @@ def describe(hint) -> str:
         if len(args) == 2 and args[1] is Ellipsis:
             return f"a list of {describe(args[0]).split(' ', 1)[1]}s"
         return f"a list of {len(args)} {describe(args[0]).split(' ', 1)[1]}s"
-    return {int: "an integer", float: "a number", str: "a string", bool: "a boolean (true or false)",
-            dict: "a table"}.get(hint, f"a {getattr(hint, '__name__', hint)}")
+    return {
+        int: "an integer",
+        float: "a number",
+        str: "a string",
+        bool: "a boolean (true or false)",
+        dict: "a table",
+    }.get(hint, f"a {getattr(hint, '__name__', hint)}")
 
 
 def _matches(value, hint) -> bool:
@@ -83,7 +90,7 @@ def _matches(value, hint) -> bool:
         if len(args) == 2 and args[1] is Ellipsis:
             return all(_matches(v, args[0]) for v in value)
         return len(value) == len(args) and all(_matches(v, a) for v, a in zip(value, args))
-    return True                 # a hint this does not know (Any): the dataclass checks it
+    return True  # a hint this does not know (Any): the dataclass checks it
 
 
 def check_value(value, hint, path: str | os.PathLike, name: str) -> None:

@@ -30,7 +30,6 @@ Seams
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from hzval.geometry import tangents as tg
@@ -47,7 +46,7 @@ def ring_levels(height_texels: np.ndarray, boundary: str, tolerance: float) -> n
     for the cell's twist and the tolerance (:func:`hzval.geometry.tile.cell_levels`; a planar cell one ring).
     Cell ``(ky, kx)`` spans ``x`` in ``[kx + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]``
     (texel row ``rows - 1 - ky``); ``wrap`` wraps the last cells around, ``open`` clamps them flat."""
-    h = np.asarray(height_texels, np.float64)[::-1]           # row 0: the first texel centre along y
+    h = np.asarray(height_texels, np.float64)[::-1]  # row 0: the first texel centre along y
     z = np.pad(h, ((0, 1), (0, 1)), mode="wrap" if boundary == "wrap" else "edge")
     return np.maximum(cell_levels(z, float(tolerance)), 1).astype(np.int64)
 
@@ -74,8 +73,9 @@ def _pair_chunks(X: np.ndarray, Y: np.ndarray, faces: np.ndarray, usable: np.nda
         stop = int(np.searchsorted(ends, ends[first] - count[first] + CHUNK_PAIRS, side="right"))
         stop = max(stop, first + 1)
         f = np.repeat(np.arange(first, stop), count[first:stop])
-        local = np.arange(len(f)) - np.repeat(ends[first:stop] - count[first:stop] - (ends[first] - count[first]),
-                                              count[first:stop])
+        local = np.arange(len(f)) - np.repeat(
+            ends[first:stop] - count[first:stop] - (ends[first] - count[first]), count[first:stop]
+        )
         yield f, kx0[f] + local % nx[f], ky0[f] + local // nx[f]
         first = stop
 
@@ -84,7 +84,7 @@ def _where(X, Y, faces, f, kx, ky) -> np.ndarray:
     """Per pair: 1 where the cell lies wholly inside its triangle, -1 wholly outside, 0 near one of
     its edges (the cell's centre within half a diagonal of the edge's line: cut it)."""
     cx, cy = X[faces[f]], Y[faces[f]]
-    mx, my = kx + 1.0, ky + 1.0                                  # the cell's centre
+    mx, my = kx + 1.0, ky + 1.0  # the cell's centre
     inside = np.ones(len(f), bool)
     outside = np.zeros(len(f), bool)
     for e in range(3):
@@ -93,7 +93,7 @@ def _where(X, Y, faces, f, kx, ky) -> np.ndarray:
         length = np.hypot(bx - ax, by - ay)
         side = np.sign((bx - ax) * (oy - ay) - (by - ay) * (ox - ax))
         d = ((bx - ax) * (my - ay) - (by - ay) * (mx - ax)) * side / np.maximum(length, 1e-300)
-        inside &= d > 0.71                                       # half the diagonal, 0.7071
+        inside &= d > 0.71  # half the diagonal, 0.7071
         outside |= d < -0.71
     return np.where(inside, 1, np.where(outside, -1, 0))
 
@@ -104,8 +104,14 @@ def _square(kx, ky):
     px = np.stack([x0, x0 + 1.0, x0 + 1.0, x0], 1)
     py = np.stack([y0, y0, y0 + 1.0, y0 + 1.0], 1)
     P = len(kx)
-    return (px, py, np.full((P, 4), INSIDE), np.full((P, 4), -1, np.int64), np.zeros((P, 4)),
-            np.full(P, 4, np.int64))
+    return (
+        px,
+        py,
+        np.full((P, 4), INSIDE),
+        np.full((P, 4), -1, np.int64),
+        np.zeros((P, 4)),
+        np.full(P, 4, np.int64),
+    )
 
 
 def _polygons(X, Y, faces, f, kx, ky):
@@ -114,7 +120,7 @@ def _polygons(X, Y, faces, f, kx, ky):
     the distinct vertices (< 3: no piece). ``kind``: :data:`CORNER` (``vid`` the base vertex),
     :data:`EDGE` (``vid`` the edge's corner index ``e``, ``t`` along it from its lower vertex id),
     :data:`INSIDE`."""
-    tri = faces[f]                                               # (P, 3) vertex ids
+    tri = faces[f]  # (P, 3) vertex ids
     cx, cy = X[tri], Y[tri]
     x0, y0 = kx + 0.5, ky + 0.5
     x1, y1 = x0 + 1.0, y0 + 1.0
@@ -137,14 +143,19 @@ def _polygons(X, Y, faces, f, kx, ky):
             good &= ((bx - ax) * (qy - ay) - (by - ay) * (qx - ax)) * side > 0.0
         return good
 
-    for qx, qy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):       # cell corners strictly inside
+    for qx, qy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):  # cell corners strictly inside
         xs.append(qx), ys.append(qy), kinds.append(INSIDE), vids.append(-1), ts.append(0.0)
         ok.append(inside(qx, qy))
-    for c in range(3):                                          # triangle corners in the closed cell
+    for c in range(3):  # triangle corners in the closed cell
         xs.append(cx[:, c]), ys.append(cy[:, c]), kinds.append(CORNER), vids.append(tri[:, c]), ts.append(0.0)
         ok.append((cx[:, c] >= x0) & (cx[:, c] <= x1) & (cy[:, c] >= y0) & (cy[:, c] <= y1))
-    for e, (ax, ay, bx, by, _) in enumerate(edges):             # edges across the cell's sides
-        for vertical, c, lo, hi in ((True, x0, y0, y1), (True, x1, y0, y1), (False, y0, x0, x1), (False, y1, x0, x1)):
+    for e, (ax, ay, bx, by, _) in enumerate(edges):  # edges across the cell's sides
+        for vertical, c, lo, hi in (
+            (True, x0, y0, y1),
+            (True, x1, y0, y1),
+            (False, y0, x0, x1),
+            (False, y1, x0, x1),
+        ):
             pa, pb, qa, qb = (ax, bx, ay, by) if vertical else (ay, by, ax, bx)
             across = (np.minimum(pa, pb) < c) & (c < np.maximum(pa, pb))
             t = np.where(across, (c - pa) / np.where(across, pb - pa, 1.0), 0.0)
@@ -157,7 +168,7 @@ def _polygons(X, Y, faces, f, kx, ky):
     stack = lambda vals: np.stack([np.broadcast_to(np.asarray(v), (P,)) for v in vals], axis=1)
     px, py, kind, vid, t, valid = (stack(v) for v in (xs, ys, kinds, vids, ts, ok))
     # the valid slots first, and no more slots than the most any piece has (about 8 of 19)
-    order = np.argsort(~valid, axis=1, kind="stable")[:, :max(int(valid.sum(1).max(initial=0)), 1)]
+    order = np.argsort(~valid, axis=1, kind="stable")[:, : max(int(valid.sum(1).max(initial=0)), 1)]
     px, py, kind, vid, t, valid = (np.take_along_axis(a, order, 1) for a in (px, py, kind, vid, t, valid))
     return _sorted_distinct(px, py, kind, vid.astype(np.int64), t, valid)
 
@@ -177,10 +188,10 @@ def _sorted_distinct(px, py, kind, vid, t, valid):
 
     arrays = reorder(np.argsort(ang, axis=1, kind="stable"))
     slot = np.arange(S)[None, :]
-    for _ in range(3):                                          # a point may be found three ways
+    for _ in range(3):  # a point may be found three ways
         px, py, kind, vid, t, valid = arrays
         last = valid.sum(1)[:, None] - 1
-        succ = np.where(slot >= last, 0, slot + 1)              # cyclic successor among the valid
+        succ = np.where(slot >= last, 0, slot + 1)  # cyclic successor among the valid
         pred = np.where(slot == 0, last, slot - 1)
         g = lambda a, i: np.take_along_axis(a, np.maximum(i, 0), 1)
         close = valid & (last > 0) & (np.abs(px - g(px, succ)) + np.abs(py - g(py, succ)) < 1e-9)
@@ -220,22 +231,34 @@ def _fans(px, py, kind, vid, t, count, rings, flip):
     pieces = np.flatnonzero(count >= 3)
     # the piece's own vertices: slot s of piece p is record first + row * S + s
     rows = np.arange(len(pieces))
-    first_v = add(px[pieces].ravel(), py[pieces].ravel(), kind[pieces].ravel(), vid[pieces].ravel(),
-                  t[pieces].ravel(), np.repeat(pieces, S))
+    first_v = add(
+        px[pieces].ravel(),
+        py[pieces].ravel(),
+        kind[pieces].ravel(),
+        vid[pieces].ravel(),
+        t[pieces].ravel(),
+        np.repeat(pieces, S),
+    )
     own = lambda r, s: first_v + r * S + s
     for level in np.unique(rings[pieces]):
         sel = rows[rings[pieces] == level]
         p = pieces[sel]
         m = count[p]
         # spoke points: ring j (1..level-1, and the centre as ring 0) on the spoke to slot s
-        frac = np.arange(level) / level                          # 0 = the centre
+        frac = np.arange(level) / level  # 0 = the centre
         sx = cx[p, None, None] + frac[None, :, None] * (px[p][:, None, :] - cx[p, None, None])
         sy = cy[p, None, None] + frac[None, :, None] * (py[p][:, None, :] - cy[p, None, None])
-        sx[:, 0, :], sy[:, 0, :] = cx[p, None], cy[p, None]       # the centre, once per piece
-        first_s = add(sx.ravel(), sy.ravel(), np.full(sx.size, INSIDE), np.full(sx.size, -1),
-                      np.zeros(sx.size), np.repeat(p, level * S), fresh=True)   # one piece's own
-        ring = lambda i, j, s: np.where(j == 0, first_s + (i * level) * S,
-                                        first_s + (i * level + j) * S + s)
+        sx[:, 0, :], sy[:, 0, :] = cx[p, None], cy[p, None]  # the centre, once per piece
+        first_s = add(
+            sx.ravel(),
+            sy.ravel(),
+            np.full(sx.size, INSIDE),
+            np.full(sx.size, -1),
+            np.zeros(sx.size),
+            np.repeat(p, level * S),
+            fresh=True,
+        )  # one piece's own
+        ring = lambda i, j, s: np.where(j == 0, first_s + (i * level) * S, first_s + (i * level + j) * S + s)
         i = np.arange(len(p))[:, None]
         s0 = np.arange(S)[None, :]
         s1 = np.where(s0 + 1 >= m[:, None], 0, s0 + 1)
@@ -262,8 +285,15 @@ def _fans(px, py, kind, vid, t, count, rings, flip):
 # The mesh
 # ----------------------------------------------------------------------------------------------
 
-def cut(base, texels: tuple[int, int], boundary: str, *, height_texels: np.ndarray | None = None,
-        tolerance: float | None = None):
+
+def cut(
+    base,
+    texels: tuple[int, int],
+    boundary: str,
+    *,
+    height_texels: np.ndarray | None = None,
+    tolerance: float | None = None,
+):
     """``base`` cut along the texel grid of a ``texels = (rows, cols)`` image (module docstring):
     ``(vertices, faces, base_face, rings)`` with ``vertices`` a dict of per-vertex arrays (``kind``,
     ``vid``, ``face``, ``t``, ``x``, ``y``) that :func:`attributes` turns into positions and
@@ -271,8 +301,9 @@ def cut(base, texels: tuple[int, int], boundary: str, *, height_texels: np.ndarr
     rows, cols = texels
     X, Y = base.uvs[:, 0] * cols, base.uvs[:, 1] * rows
     faces = base.faces
-    area = (X[faces[:, 1]] - X[faces[:, 0]]) * (Y[faces[:, 2]] - Y[faces[:, 0]]) - \
-           (X[faces[:, 2]] - X[faces[:, 0]]) * (Y[faces[:, 1]] - Y[faces[:, 0]])
+    area = (X[faces[:, 1]] - X[faces[:, 0]]) * (Y[faces[:, 2]] - Y[faces[:, 0]]) - (
+        X[faces[:, 2]] - X[faces[:, 0]]
+    ) * (Y[faces[:, 1]] - Y[faces[:, 0]])
     usable = np.abs(area) > 1e-12
     levels = None if height_texels is None else ring_levels(height_texels, boundary, tolerance)
     parts, tri_parts, face_parts = [], [], []
@@ -302,12 +333,23 @@ def cut(base, texels: tuple[int, int], boundary: str, *, height_texels: np.ndarr
     flat = np.flatnonzero(~usable)
     if len(flat):
         c = faces[flat].ravel()
-        parts.append({"x": X[c], "y": Y[c], "kind": np.full(len(c), CORNER), "vid": c, "t": np.zeros(len(c)),
-                      "pair": np.zeros(len(c), np.int64), "face": np.repeat(flat, 3),
-                      "fresh": np.zeros(len(c), bool)})
+        parts.append(
+            {
+                "x": X[c],
+                "y": Y[c],
+                "kind": np.full(len(c), CORNER),
+                "vid": c,
+                "t": np.zeros(len(c)),
+                "pair": np.zeros(len(c), np.int64),
+                "face": np.repeat(flat, 3),
+                "fresh": np.zeros(len(c), bool),
+            }
+        )
         tri_parts.append(offset + np.arange(len(c)).reshape(-1, 3))
         face_parts.append(flat)
-    vertices = {k: np.concatenate([p[k] for p in parts]) for k in ("x", "y", "kind", "vid", "t", "face", "fresh")}
+    vertices = {
+        k: np.concatenate([p[k] for p in parts]) for k in ("x", "y", "kind", "vid", "t", "face", "fresh")
+    }
     return vertices, np.concatenate(tri_parts), np.concatenate(face_parts)
 
 
@@ -347,9 +389,11 @@ def _unique_vertices(base, v: dict, tris: np.ndarray):
     e = np.flatnonzero((kind == EDGE) & ~fresh)
     i = np.flatnonzero((kind == INSIDE) & ~fresh)
     a, b = _edge_ends(base, v["face"][e], v["vid"][e])
-    keyed = [(c, (v["vid"][c],)),
-             (e, (a, b, np.ascontiguousarray(v["t"][e], np.float64).view(np.int64))),
-             (i, (v["face"][i], np.rint(2 * v["x"][i]).astype(np.int64), np.rint(2 * v["y"][i]).astype(np.int64)))]
+    keyed = [
+        (c, (v["vid"][c],)),
+        (e, (a, b, np.ascontiguousarray(v["t"][e], np.float64).view(np.int64))),
+        (i, (v["face"][i], np.rint(2 * v["x"][i]).astype(np.int64), np.rint(2 * v["y"][i]).astype(np.int64))),
+    ]
     ident[groups[0]] = np.arange(len(groups[0]))
     first_rows.append(groups[0])
     count = len(groups[0])
@@ -417,7 +461,7 @@ def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
     ti, tj = t3[i].copy(), t3[j].copy()
     ee = (ki == EDGE) & (kj == EDGE) & (E[i] == E[j])
     key[ee] = E[i][ee]
-    for a, b, ta, tb in ((i, j, ti, tj), (j, i, tj, ti)):        # an edge point and a corner
+    for a, b, ta, tb in ((i, j, ti, tj), (j, i, tj, ti)):  # an edge point and a corner
         ec = (u["kind"][a] == EDGE) & (u["kind"][b] == CORNER)
         lo, hi = E[a] // W, E[a] % W
         at_lo, at_hi = ec & (w[b] == lo), ec & (w[b] == hi)
@@ -445,7 +489,7 @@ def _stitch(base, u: dict, faces: np.ndarray, base_face: np.ndarray, eps: float 
     for e, t in zip(E[on], t3[on]):
         pts.setdefault(int(e), set()).add(float(t))
     pts = {e: np.array(sorted(ts)) for e, ts in pts.items()}
-    for _ in range(3):                                          # a triangle on two seams: again
+    for _ in range(3):  # a triangle on two seams: again
         new_faces, new_base, added = [], [], {k: [] for k in ("kind", "vid", "face", "t", "x", "y", "t3")}
         count = len(u["kind"])
         changed = np.zeros(len(faces), bool)
@@ -494,15 +538,28 @@ def _new_edge_points(base, u, added: dict, face: int, E: int, ts, W: int, first:
     ids = []
     for t in ts:
         t_side = t if lo_w_is_lo_v else 1.0 - t
-        for key, val in (("kind", EDGE), ("vid", e), ("face", face), ("t", t_side), ("x", 0.0), ("y", 0.0),
-                         ("t3", t)):
+        for key, val in (
+            ("kind", EDGE),
+            ("vid", e),
+            ("face", face),
+            ("t", t_side),
+            ("x", 0.0),
+            ("y", 0.0),
+            ("t3", t),
+        ):
             added[key].append(val)
         ids.append(first + len(ids))
     return ids
 
 
-def mesh(base, texels: tuple[int, int], boundary: str, *, height_texels: np.ndarray | None = None,
-         tolerance: float | None = None) -> dict:
+def mesh(
+    base,
+    texels: tuple[int, int],
+    boundary: str,
+    *,
+    height_texels: np.ndarray | None = None,
+    tolerance: float | None = None,
+) -> dict:
     """The cut base mesh (module docstring): per vertex ``positions`` (on the base mesh),
     ``normals``, ``tangents`` (xyz and ``w``), ``uvs`` and ``weld`` (one id per place, across
     seams); ``faces`` counterclockwise as the base's and ``base_face`` the triangle each came from."""
@@ -512,7 +569,7 @@ def mesh(base, texels: tuple[int, int], boundary: str, *, height_texels: np.ndar
     faces, base_face = faces[ok], base_face[ok]
     u, faces, base_face = _stitch(base, u, faces, base_face)
     used = np.zeros(len(u["kind"]), bool)
-    used[faces.ravel()] = True                                  # a piece's unused slots: no vertex
+    used[faces.ravel()] = True  # a piece's unused slots: no vertex
     u = {k: a[used] for k, a in u.items()}
     faces = (np.cumsum(used) - 1)[faces]
     out = _attributes(base, u, rows, cols)
@@ -527,14 +584,19 @@ def _attributes(base, u: dict, rows: int, cols: int) -> dict:
     n_v = len(u["kind"])
     first_of_weld = np.zeros(int(base.weld.max()) + 1, np.int64)
     first_of_weld[base.weld[::-1]] = np.arange(len(base.weld))[::-1]
-    Pw = base.positions[first_of_weld]                          # one position per weld id
+    Pw = base.positions[first_of_weld]  # one position per weld id
     P, N, T, UV = np.zeros((n_v, 3)), np.zeros((n_v, 3)), np.zeros((n_v, 4)), np.zeros((n_v, 2))
     weld = np.zeros(n_v, np.int64)
     W = len(Pw)
     c = np.flatnonzero(u["kind"] == CORNER)
     vid = u["vid"][c]
-    P[c], N[c], T[c], UV[c], weld[c] = Pw[base.weld[vid]], base.normals[vid], base.tangents[vid], base.uvs[vid], \
-        base.weld[vid]
+    P[c], N[c], T[c], UV[c], weld[c] = (
+        Pw[base.weld[vid]],
+        base.normals[vid],
+        base.tangents[vid],
+        base.uvs[vid],
+        base.weld[vid],
+    )
     e = np.flatnonzero(u["kind"] == EDGE)
     a, b = _edge_ends(base, u["face"][e], u["vid"][e])
     t = u["t"][e][:, None]
@@ -563,7 +625,7 @@ def _attributes(base, u: dict, rows: int, cols: int) -> dict:
 
 def _barycentric(base, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``(n, 3)`` barycentric weights of UV points ``(u, v)`` in their triangles ``face``."""
-    uv = base.uvs[base.faces[face]]                              # (n, 3, 2)
+    uv = base.uvs[base.faces[face]]  # (n, 3, 2)
     e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
     q = np.stack([u, v], 1) - uv[:, 0]
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]

@@ -26,14 +26,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval.geometry import cells
 from hzval.core import conventions as cv
+from hzval.geometry import cells
 from hzval.geometry import tangents as tg
-from hzval.geometry.tile import DEFAULT_TOLERANCE
 from hzval.geometry.model import BaseMesh
+from hzval.geometry.tile import DEFAULT_TOLERANCE
 
-__all__ = ["BYTES_PER_TRIANGLE", "Refined", "refine", "estimate", "bilinear", "sample_height",
-    "shading_normals", "weld_means", "WELDS", "MAX_MITER", "displace"]
+__all__ = [
+    "BYTES_PER_TRIANGLE",
+    "Refined",
+    "refine",
+    "estimate",
+    "bilinear",
+    "sample_height",
+    "shading_normals",
+    "weld_means",
+    "WELDS",
+    "MAX_MITER",
+    "displace",
+]
 
 #: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 330-390 bytes a
 #: triangle over their start (a 20k-triangle torus and model, the plane, 512^2 and 1024^2,
@@ -59,9 +70,15 @@ class Refined:
     base_face: np.ndarray
 
 
-def refine(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
-           height: np.ndarray | None = None, depth: float | None = None,
-           tolerance: float | None = None) -> Refined:
+def refine(
+    base: BaseMesh,
+    texels: tuple[int, int],
+    boundary: str = "wrap",
+    *,
+    height: np.ndarray | None = None,
+    depth: float | None = None,
+    tolerance: float | None = None,
+) -> Refined:
     """``base`` cut in UV space along the texel grid of a ``texels = (rows, cols)`` image, each piece
     a fan, watertight across UV seams (:mod:`hzval.geometry.cells`). With ``height`` (normalised, the map
     itself) and ``depth``, a twisted cell's fans are cut into rings until they are within
@@ -71,13 +88,20 @@ def refine(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
         h_tex = cv.heights_in_texels(np.asarray(height, np.float32), float(depth))
         tolerance = DEFAULT_TOLERANCE if tolerance is None else float(tolerance)
     m = cells.mesh(base, texels, boundary, height_texels=h_tex, tolerance=tolerance)
-    return Refined(m["positions"], m["normals"], m["tangents"], m["uvs"], m["faces"], m["weld"],
-                   m["base_face"])
+    return Refined(
+        m["positions"], m["normals"], m["tangents"], m["uvs"], m["faces"], m["weld"], m["base_face"]
+    )
 
 
-def estimate(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
-             height: np.ndarray | None = None, depth: float | None = None,
-             tolerance: float | None = None) -> tuple[int, int]:
+def estimate(
+    base: BaseMesh,
+    texels: tuple[int, int],
+    boundary: str = "wrap",
+    *,
+    height: np.ndarray | None = None,
+    depth: float | None = None,
+    tolerance: float | None = None,
+) -> tuple[int, int]:
     """``(triangles, bytes)`` of :func:`refine` before it runs, one ring a cell: ``4 A + 2.2 P +
     1.1 F`` triangles for ``A`` texels of UV area, ``P`` texels of the base triangles' edges (the
     cells they cross: ``|du| + |dv|``) and ``F`` base triangles, fitted within 5% to the shapes
@@ -86,8 +110,10 @@ def estimate(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
     rings count too: a fan's edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean)."""
     rows, cols = texels
     uv = base.uvs[base.faces] * [cols, rows]
-    area = 0.5 * np.abs((uv[:, 1, 0] - uv[:, 0, 0]) * (uv[:, 2, 1] - uv[:, 0, 1])
-                        - (uv[:, 2, 0] - uv[:, 0, 0]) * (uv[:, 1, 1] - uv[:, 0, 1]))
+    area = 0.5 * np.abs(
+        (uv[:, 1, 0] - uv[:, 0, 0]) * (uv[:, 2, 1] - uv[:, 0, 1])
+        - (uv[:, 2, 0] - uv[:, 0, 0]) * (uv[:, 1, 1] - uv[:, 0, 1])
+    )
     perimeter = np.abs(np.roll(uv, -1, axis=1) - uv).sum()
     rings = 1.0
     if height is not None:
@@ -102,6 +128,7 @@ def estimate(base: BaseMesh, texels: tuple[int, int], boundary: str = "wrap", *,
 # Displacement
 # ----------------------------------------------------------------------------------------------
 
+
 def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres at
     hzval UVs (u right, v up the image, :mod:`hzval.geometry.model`), as the plane reads it
@@ -112,6 +139,7 @@ def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     rows, cols = np.shape(image)[:2]
     uvs = np.asarray(uvs, np.float64)
     return cv.bilinear_at(image, uvs[:, 0] * cols, uvs[:, 1] * rows, boundary)
+
 
 def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     """``(V,)`` float64: the height map ``H`` at ``uvs`` (:func:`bilinear`)."""
@@ -143,8 +171,15 @@ WELDS: tuple[str, ...] = ("miter", "mean")
 MAX_MITER = math.sqrt(3.0)
 
 
-def displace(refined: Refined, height: np.ndarray, depth: float, world_per_uv: float,
-             boundary: str, *, weld: str = "miter") -> tuple[np.ndarray, np.ndarray]:
+def displace(
+    refined: Refined,
+    height: np.ndarray,
+    depth: float,
+    world_per_uv: float,
+    boundary: str,
+    *,
+    weld: str = "miter",
+) -> tuple[np.ndarray, np.ndarray]:
     """The truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``, one position per
     refined vertex, ``p + n H(uv) depth world_per_uv`` with ``H`` from :func:`sample_height`
     (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld

@@ -40,13 +40,35 @@ from typing import Callable
 
 import numpy as np
 
-from hzval.geometry import tangents as tg
 from hzval.core.errors import InputError
+from hzval.geometry import tangents as tg
 
-__all__ = ["WELD_TOLERANCE", "MAX_DEGENERATE_UV_AREA", "UP_AXES", "Y_UP_TO_Z_UP", "BaseMesh",
-    "weld_ids", "edge_table", "count_seams", "seam_edge_ends", "smooth_normals", "build", "to_z_up",
-    "plane", "CUBE_FACES", "cube", "sphere", "mirrored_sphere", "torus", "cylinder", "SHAPES",
-    "read_trimesh", "read_gltf", "READERS", "load"]
+__all__ = [
+    "WELD_TOLERANCE",
+    "MAX_DEGENERATE_UV_AREA",
+    "UP_AXES",
+    "Y_UP_TO_Z_UP",
+    "BaseMesh",
+    "weld_ids",
+    "edge_table",
+    "count_seams",
+    "seam_edge_ends",
+    "smooth_normals",
+    "build",
+    "to_z_up",
+    "plane",
+    "CUBE_FACES",
+    "cube",
+    "sphere",
+    "mirrored_sphere",
+    "torus",
+    "cylinder",
+    "SHAPES",
+    "read_trimesh",
+    "read_gltf",
+    "READERS",
+    "load",
+]
 
 #: Weld tolerance: positions closer than this share of the mesh's bounding-box diagonal are one
 #: point (a seam's two copies of a vertex, written from the same float or from sin(2 pi) ~ 1e-16).
@@ -123,14 +145,20 @@ class BaseMesh:
     def record(self) -> dict:
         """``metrics.json``'s ``mesh``: ``{source, triangles, world_per_uv, tangents,
         mirrored_fraction, seam_edges}``."""
-        return {"source": self.source, "triangles": int(len(self.faces)),
-                "world_per_uv": self.world_per_uv, "tangents": self.tangent_source,
-                "mirrored_fraction": self.mirrored_fraction, "seam_edges": int(self.seam_edges)}
+        return {
+            "source": self.source,
+            "triangles": int(len(self.faces)),
+            "world_per_uv": self.world_per_uv,
+            "tangents": self.tangent_source,
+            "mirrored_fraction": self.mirrored_fraction,
+            "seam_edges": int(self.seam_edges),
+        }
 
 
 # ----------------------------------------------------------------------------------------------
 # Welding and edges
 # ----------------------------------------------------------------------------------------------
+
 
 def weld_ids(positions: np.ndarray, tolerance: float = WELD_TOLERANCE) -> np.ndarray:
     """``(V,)`` int64: one id per distinct position (to ``tolerance`` of the bounding-box
@@ -139,8 +167,9 @@ def weld_ids(positions: np.ndarray, tolerance: float = WELD_TOLERANCE) -> np.nda
     if len(p) == 0:
         return np.zeros(0, np.int64)
     q = max(float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) * tolerance, 1e-300)
-    _, first, inverse = np.unique(np.round(p / q).astype(np.int64), axis=0, return_index=True,
-                                  return_inverse=True)
+    _, first, inverse = np.unique(
+        np.round(p / q).astype(np.int64), axis=0, return_index=True, return_inverse=True
+    )
     order = np.argsort(np.argsort(first))  # renumber the groups by their first vertex
     return order[inverse.ravel()].astype(np.int64)
 
@@ -184,6 +213,7 @@ def seam_edge_ends(mesh: BaseMesh, tolerance: float = 1e-9) -> np.ndarray:
 # Building and checking a mesh
 # ----------------------------------------------------------------------------------------------
 
+
 def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
     """Angle-weighted vertex normals (each triangle's unit normal times its angle at the vertex,
     Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
@@ -212,22 +242,29 @@ def _check_uvs(source: str, mesh: BaseMesh) -> None:
     area = np.abs(mesh.uv_areas)
     if not area.sum() > 0:
         raise InputError(source, "the UVs have zero area (every triangle's UVs are degenerate)")
-    flat = area <= tg.DEGENERATE_UV * np.maximum(np.ptp(mesh.uvs[mesh.faces], axis=1).max(axis=1), 1e-300) ** 2
+    flat = (
+        area <= tg.DEGENERATE_UV * np.maximum(np.ptp(mesh.uvs[mesh.faces], axis=1).max(axis=1), 1e-300) ** 2
+    )
     if mesh.face_areas[flat].sum() > MAX_DEGENERATE_UV_AREA * mesh.face_areas.sum():
-        raise InputError(source, f"{int(flat.sum())} of {len(flat)} triangles have degenerate "
-                                 "(zero-area) UVs")
+        raise InputError(
+            source, f"{int(flat.sum())} of {len(flat)} triangles have degenerate (zero-area) UVs"
+        )
 
 
 def _check_manifold(source: str, mesh: BaseMesh) -> None:
     _, _, _, counts = edge_table(mesh.faces, mesh.weld)
     bad = int(np.sum(counts > 2))
     if bad:
-        raise InputError(source, f"{bad} edges are shared by 3 or more triangles (non-manifold): the "
-                                 "displaced surface cannot be welded there")
+        raise InputError(
+            source,
+            f"{bad} edges are shared by 3 or more triangles (non-manifold): the "
+            "displaced surface cannot be welded there",
+        )
 
 
-def build(source: str, positions, uvs, faces, *, normals=None, tangents=None, uv_scale: float = 1.0,
-          up: str = "z") -> BaseMesh:
+def build(
+    source: str, positions, uvs, faces, *, normals=None, tangents=None, uv_scale: float = 1.0, up: str = "z"
+) -> BaseMesh:
     """A checked :class:`BaseMesh` from z-up arrays: ``normals`` (None: :func:`smooth_normals`),
     ``tangents`` (the file's, None: :func:`hzval.geometry.tangents.compute`); ``uvs`` get ``uv_scale``.
     Bad meshes raise :class:`InputError` naming ``source``."""
@@ -272,20 +309,25 @@ def to_z_up(up: str, positions, normals=None, tangents=None):
     if up == "z":
         return positions, normals, tangents
     m = Y_UP_TO_Z_UP
-    return (positions @ m.T, None if normals is None else normals @ m.T,
-            None if tangents is None else tg.rotate(tangents, m))
+    return (
+        positions @ m.T,
+        None if normals is None else normals @ m.T,
+        None if tangents is None else tg.rotate(tangents, m),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
 # Built-in shapes (z up)
 # ----------------------------------------------------------------------------------------------
 
+
 def plane(*, uv_scale: float = 1.0) -> BaseMesh:
     """The unit quad ``[0, 1]^2`` at ``z = 0``, UVs ``(x, y)``, normal +z: today's tile
     (``world_per_uv`` = 1, frame ``(x, y, z)``), two triangles along the (0, 0)-(1, 1) diagonal."""
     p = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
-    return build("plane", p, p[:, :2], [[0, 1, 2], [0, 2, 3]], normals=np.tile([0.0, 0, 1], (4, 1)),
-                 uv_scale=uv_scale)
+    return build(
+        "plane", p, p[:, :2], [[0, 1, 2], [0, 2, 3]], normals=np.tile([0.0, 0, 1], (4, 1)), uv_scale=uv_scale
+    )
 
 
 #: The cube's faces as a real unwrap lays them out: ``(name, normal, +u axis, +v axis)``. Each face
@@ -315,8 +357,14 @@ def cube(*, size: float = 1.0, uv_scale: float = 1.0) -> BaseMesh:
         w.append(uv)
         tri = np.array([[0, 1, 2], [0, 2, 3]])
         f.append(4 * k + (tri if np.dot(np.cross(t, b), normal) > 0 else tri[:, ::-1]))
-    return build("cube", np.concatenate(p), np.concatenate(w), np.concatenate(f),
-                 normals=np.concatenate(n), uv_scale=uv_scale)
+    return build(
+        "cube",
+        np.concatenate(p),
+        np.concatenate(w),
+        np.concatenate(f),
+        normals=np.concatenate(n),
+        uv_scale=uv_scale,
+    )
 
 
 def _grid_faces(rows: int, cols: int, skip=None) -> np.ndarray:
@@ -345,8 +393,12 @@ def _sphere_grid(radius: float, segments: int, rings: int, phi: tuple[float, flo
     n = np.stack([np.sin(theta) * np.cos(lon), np.sin(theta) * np.sin(lon), -np.cos(theta)], -1)
     skip = np.zeros((rings, segments, 2), bool)
     skip[0, :, 0] = skip[-1, :, 1] = True
-    return (radius * n.reshape(-1, 3), np.stack([u_of(f), vv], -1).reshape(-1, 2), n.reshape(-1, 3),
-            _grid_faces(rings, segments, skip))
+    return (
+        radius * n.reshape(-1, 3),
+        np.stack([u_of(f), vv], -1).reshape(-1, 2),
+        n.reshape(-1, 3),
+        _grid_faces(rings, segments, skip),
+    )
 
 
 def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0) -> BaseMesh:
@@ -359,8 +411,9 @@ def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale
     return build("sphere", p, uv, f, normals=n, uv_scale=uv_scale)
 
 
-def mirrored_sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32,
-                    uv_scale: float = 1.0) -> BaseMesh:
+def mirrored_sphere(
+    *, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0
+) -> BaseMesh:
     """The UV sphere unwrapped as an artist mirrors a symmetric model: the +y half (longitudes 0 to
     pi) has ``u = longitude / pi``, the -y half the same UVs mirrored (``u = (2 pi - longitude) /
     pi``), so a point and its mirror image in the xz plane read the same texel and the -y half has
@@ -368,13 +421,16 @@ def mirrored_sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32,
     two mirror meridians, as exporters split them (their tangents point opposite ways), which makes
     those meridians seams of equal UVs. ``world_per_uv`` -> ``r sqrt(2 pi)``."""
     segments = max(2, segments // 2)
-    parts = [_sphere_grid(radius, segments, rings, (0.0, np.pi), lambda f: f),
-             _sphere_grid(radius, segments, rings, (np.pi, 2 * np.pi), lambda f: 1.0 - f)]
+    parts = [
+        _sphere_grid(radius, segments, rings, (0.0, np.pi), lambda f: f),
+        _sphere_grid(radius, segments, rings, (np.pi, 2 * np.pi), lambda f: 1.0 - f),
+    ]
     return _join("mirrored-sphere", parts, uv_scale)
 
 
-def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides: int = 32,
-          uv_scale: float = 1.0) -> BaseMesh:
+def torus(
+    *, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides: int = 32, uv_scale: float = 1.0
+) -> BaseMesh:
     """A torus about the z axis, tube centre ``major`` from the axis, tube radius ``minor``:
     ``u`` around the axis (counterclockwise from +x seen from +z), ``v`` around the tube from the
     outer equator (0) over the top; seams where each wraps. The inner ring (``v = 1/2``) is a
@@ -385,8 +441,14 @@ def torus(*, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides:
     n = np.stack([np.cos(psi) * np.cos(phi), np.cos(psi) * np.sin(phi), np.sin(psi)], -1)
     ring = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], -1)
     p = major * ring + minor * n
-    return build("torus", p.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2),
-                 _grid_faces(sides, segments), normals=n.reshape(-1, 3), uv_scale=uv_scale)
+    return build(
+        "torus",
+        p.reshape(-1, 3),
+        np.stack([uu, vv], -1).reshape(-1, 2),
+        _grid_faces(sides, segments),
+        normals=n.reshape(-1, 3),
+        uv_scale=uv_scale,
+    )
 
 
 def _disk_grid(k: int):
@@ -404,14 +466,26 @@ def _disk_grid(k: int):
     ac = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 2, 3)
     bd = np.stack([np.stack([a, b, d], -1), np.stack([b, c, d], -1)], 2).reshape(-1, 2, 3)
     faces = np.where(same, bd, ac).reshape(-1, 3)
-    edge = [(r, k) for r in range(k // 2, k)] + [(k, c) for c in range(k, 0, -1)] + \
-           [(r, 0) for r in range(k, 0, -1)] + [(0, c) for c in range(k)] + [(r, k) for r in range(k // 2)]
+    edge = (
+        [(r, k) for r in range(k // 2, k)]
+        + [(k, c) for c in range(k, 0, -1)]
+        + [(r, 0) for r in range(k, 0, -1)]
+        + [(0, c) for c in range(k)]
+        + [(r, k) for r in range(k // 2)]
+    )
     rim = np.array([r * (k + 1) + c for r, c in edge])
     return xy, faces, rim
 
 
-def cylinder(*, radius: float = 0.5, height: float = 1.0, segments: int = 64, stacks: int = 32,
-             caps: bool = True, uv_scale: float = 1.0) -> BaseMesh:
+def cylinder(
+    *,
+    radius: float = 0.5,
+    height: float = 1.0,
+    segments: int = 64,
+    stacks: int = 32,
+    caps: bool = True,
+    uv_scale: float = 1.0,
+) -> BaseMesh:
     """A cylinder about the z axis from ``-height/2`` to ``height/2``, ``segments`` (a multiple of
     4) around and ``stacks`` up: the side's ``u`` the angle / 2 pi (counterclockwise from +x seen
     from +z, seam at +x), ``v`` up; ``caps``: two disks (closed), each the texture's inscribed
@@ -426,25 +500,46 @@ def cylinder(*, radius: float = 0.5, height: float = 1.0, segments: int = 64, st
     ring = np.concatenate([xy[rim], xy[rim[:1]]])
     n = np.broadcast_to(np.concatenate([ring, np.zeros((len(ring), 1))], 1), uu.shape + (3,))
     p = radius * n + np.stack([0 * uu, 0 * uu, (vv - 0.5) * height], -1)
-    parts = [(p.reshape(-1, 3), np.stack([uu, vv], -1).reshape(-1, 2), n.reshape(-1, 3),
-              _grid_faces(stacks, segments))]
+    parts = [
+        (
+            p.reshape(-1, 3),
+            np.stack([uu, vv], -1).reshape(-1, 2),
+            n.reshape(-1, 3),
+            _grid_faces(stacks, segments),
+        )
+    ]
     for s in (1.0, -1.0) if caps else ():
         cp = np.concatenate([radius * xy, np.full((len(xy), 1), s * height / 2)], axis=1)
-        parts.append((cp, 0.5 + 0.5 * xy * [1.0, s], np.tile([0.0, 0.0, s], (len(xy), 1)),
-                      disk if s > 0 else disk[:, ::-1]))
+        parts.append(
+            (
+                cp,
+                0.5 + 0.5 * xy * [1.0, s],
+                np.tile([0.0, 0.0, s], (len(xy), 1)),
+                disk if s > 0 else disk[:, ::-1],
+            )
+        )
     return _join("cylinder", parts, uv_scale)
 
 
 def _join(source: str, parts, uv_scale: float) -> BaseMesh:
     """One mesh of ``(positions, uvs, normals, faces)`` parts."""
     offsets = np.cumsum([0] + [len(q[0]) for q in parts])
-    return build(source, np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
-                 np.concatenate([q[3] + o for q, o in zip(parts, offsets)]),
-                 normals=np.concatenate([q[2] for q in parts]), uv_scale=uv_scale)
+    return build(
+        source,
+        np.concatenate([q[0] for q in parts]),
+        np.concatenate([q[1] for q in parts]),
+        np.concatenate([q[3] + o for q, o in zip(parts, offsets)]),
+        normals=np.concatenate([q[2] for q in parts]),
+        uv_scale=uv_scale,
+    )
 
 
 SHAPES: dict[str, Callable[..., BaseMesh]] = {
-    "plane": plane, "cube": cube, "sphere": sphere, "cylinder": cylinder, "torus": torus,
+    "plane": plane,
+    "cube": cube,
+    "sphere": sphere,
+    "cylinder": cylinder,
+    "torus": torus,
     "mirrored-sphere": mirrored_sphere,
 }
 
@@ -452,6 +547,7 @@ SHAPES: dict[str, Callable[..., BaseMesh]] = {
 # ----------------------------------------------------------------------------------------------
 # Files
 # ----------------------------------------------------------------------------------------------
+
 
 def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
     """An OBJ or PLY by trimesh, every triangle mesh of the file (with its node transform) in one:
@@ -485,15 +581,27 @@ def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh
     p = np.concatenate([q[0] for q in parts])
     n = np.concatenate([q[2] for q in parts]) if with_normals else None
     p, n, _ = to_z_up(up, p, n)
-    return build(path, p, np.concatenate([q[1] for q in parts]),
-                 np.concatenate([q[3] + o for q, o in zip(parts, offsets)]), normals=n,
-                 uv_scale=uv_scale, up=up)
+    return build(
+        path,
+        p,
+        np.concatenate([q[1] for q in parts]),
+        np.concatenate([q[3] + o for q, o in zip(parts, offsets)]),
+        normals=n,
+        uv_scale=uv_scale,
+        up=up,
+    )
 
 
 #: glTF accessor component types (glTF 2.0, "Accessor Data Types") and the range a normalized one
 #: maps to [0, 1] / [-1, 1] by.
-_GLTF_COMPONENTS = {5120: (np.int8, 127.0), 5121: (np.uint8, 255.0), 5122: (np.int16, 32767.0),
-                    5123: (np.uint16, 65535.0), 5125: (np.uint32, None), 5126: (np.float32, None)}
+_GLTF_COMPONENTS = {
+    5120: (np.int8, 127.0),
+    5121: (np.uint8, 255.0),
+    5122: (np.int16, 32767.0),
+    5123: (np.uint16, 65535.0),
+    5125: (np.uint32, None),
+    5126: (np.float32, None),
+}
 _GLTF_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
@@ -522,9 +630,13 @@ def _gltf_node_matrix(node) -> np.ndarray:
     if node.matrix is not None:
         return np.asarray(node.matrix, np.float64).reshape(4, 4).T
     x, y, z, w = node.rotation or (0.0, 0.0, 0.0, 1.0)
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     m = np.eye(4)
     m[:3, :3] = r * np.asarray(node.scale or (1.0, 1.0, 1.0))[None, :]
     m[:3, 3] = node.translation or (0.0, 0.0, 0.0)
@@ -534,8 +646,11 @@ def _gltf_node_matrix(node) -> np.ndarray:
 def _gltf_primitives(g):
     """``(primitive, world matrix)`` of every mesh primitive the default scene (or, without
     scenes, every root node) instances, walking the node tree."""
-    roots = (g.scenes[g.scene or 0].nodes if g.scenes else
-             sorted(set(range(len(g.nodes))) - {c for n in g.nodes for c in (n.children or [])}))
+    roots = (
+        g.scenes[g.scene or 0].nodes
+        if g.scenes
+        else sorted(set(range(len(g.nodes))) - {c for n in g.nodes for c in (n.children or [])})
+    )
     stack = [(i, np.eye(4)) for i in roots]
     while stack:
         i, parent = stack.pop()
@@ -554,8 +669,11 @@ def _gltf_part(g, blob, prim, m):
     if at.TEXCOORD_0 is None:
         raise ValueError("has no texture coordinates (TEXCOORD_0)")
     p = _gltf_accessor(g, blob, at.POSITION)
-    faces = (_gltf_accessor(g, blob, prim.indices).reshape(-1, 3) if prim.indices is not None
-             else np.arange(len(p)).reshape(-1, 3))
+    faces = (
+        _gltf_accessor(g, blob, prim.indices).reshape(-1, 3)
+        if prim.indices is not None
+        else np.arange(len(p)).reshape(-1, 3)
+    )
     uv = _gltf_accessor(g, blob, at.TEXCOORD_0) * [1.0, -1.0] + [0.0, 1.0]
     n = None if at.NORMAL is None else _gltf_accessor(g, blob, at.NORMAL) @ np.linalg.inv(m[:3, :3])
     t = None if at.TANGENT is None else tg.rotate(_gltf_accessor(g, blob, at.TANGENT), m[:3, :3])
@@ -569,12 +687,15 @@ def _gltf_check(g, blob: bytes) -> None:
     compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
     the ``.gltf``)."""
     if g.extensionsRequired:
-        raise ValueError(f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
-                         "read (export without compression)")
+        raise ValueError(
+            f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
+            "read (export without compression)"
+        )
     need = sum(b.byteLength or 0 for b in g.buffers)
     if len(blob) < need:
-        raise ValueError(f"its buffer data is missing or short ({len(blob)} of {need} bytes; is its .bin "
-                         "file beside it?)")
+        raise ValueError(
+            f"its buffer data is missing or short ({len(blob)} of {need} bytes; is its .bin file beside it?)"
+        )
 
 
 def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
@@ -592,8 +713,11 @@ def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
             g.convert_buffers(pygltflib.BufferFormat.BINARYBLOB)
         blob = g.binary_blob() or b""
         _gltf_check(g, blob)
-        parts = [_gltf_part(g, blob, prim, m) for prim, m in _gltf_primitives(g)
-                 if prim.mode in (None, pygltflib.TRIANGLES)]
+        parts = [
+            _gltf_part(g, blob, prim, m)
+            for prim, m in _gltf_primitives(g)
+            if prim.mode in (None, pygltflib.TRIANGLES)
+        ]
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
     except Exception as exc:  # a broken file: pygltflib raises many kinds
@@ -603,12 +727,24 @@ def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
     offsets = np.cumsum([0] + [len(q[0]) for q in parts])
     cat = lambda k: None if any(q[k] is None for q in parts) else np.concatenate([q[k] for q in parts])
     p, n, t = to_z_up(up, cat(0), cat(2), cat(3))
-    return build(path, p, cat(1), np.concatenate([q[4] + o for q, o in zip(parts, offsets)]),
-                 normals=n, tangents=t if n is not None else None, uv_scale=uv_scale, up=up)
+    return build(
+        path,
+        p,
+        cat(1),
+        np.concatenate([q[4] + o for q, o in zip(parts, offsets)]),
+        normals=n,
+        tangents=t if n is not None else None,
+        uv_scale=uv_scale,
+        up=up,
+    )
 
 
-READERS: dict[str, Callable[..., BaseMesh]] = {".obj": read_trimesh, ".ply": read_trimesh,
-                                                  ".gltf": read_gltf, ".glb": read_gltf}
+READERS: dict[str, Callable[..., BaseMesh]] = {
+    ".obj": read_trimesh,
+    ".ply": read_trimesh,
+    ".gltf": read_gltf,
+    ".glb": read_gltf,
+}
 
 
 def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
@@ -634,8 +770,9 @@ def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
         raise InputError(f"[mesh] {name}", str(exc)) from None
 
 
-def load(spec: str, *, uv_scale: float = 1.0, up: str | None = None,
-         shape_args: dict | None = None) -> BaseMesh:
+def load(
+    spec: str, *, uv_scale: float = 1.0, up: str | None = None, shape_args: dict | None = None
+) -> BaseMesh:
     """The base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, with ``shape_args``, e.g.
     ``{"radius": 2}``; ``up`` ignored: they are z up) or a file by its extension
     (:data:`READERS`), read with the up axis ``up`` (None: y, the module's "Up axis of files").
@@ -652,8 +789,10 @@ def load(spec: str, *, uv_scale: float = 1.0, up: str | None = None,
     if not ext:
         near = difflib.get_close_matches(spec, list(SHAPES), n=3)
         hint = f"; did you mean {' or '.join(near)}?" if near else ""
-        raise InputError("--mesh", f"unknown shape {spec!r}{hint} (shapes: {', '.join(SHAPES)}; "
-                                   f"or a {', '.join(READERS)} file)")
+        raise InputError(
+            "--mesh",
+            f"unknown shape {spec!r}{hint} (shapes: {', '.join(SHAPES)}; or a {', '.join(READERS)} file)",
+        )
     if ext not in READERS:
         raise InputError(spec, f"unknown mesh format {ext!r} (known: {', '.join(READERS)})")
     if not os.path.isfile(spec):

@@ -92,7 +92,7 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
     it). ``none`` returns ``frames`` itself, untouched."""
     if check(name) == "none":
         return frames
-    t, b, n = (frames[:, 3 * k:3 * k + 3] for k in range(3))
+    t, b, n = (frames[:, 3 * k : 3 * k + 3] for k in range(3))
     t, b, n = BUGS[name](t, b, n, face)
     return np.concatenate([t, b, n, frames[:, 9:12]], axis=1).astype(frames.dtype)
 

@@ -27,9 +27,23 @@ import numpy as np
 
 from hzval.core import conventions as cv
 
-__all__ = ["DEGENERATE_UV", "FRAME_MODES", "reject", "orthonormal", "to_world", "to_tangent",
-    "uv_derivatives", "compute", "any_tangent", "from_file", "rotate", "Frames", "handedness",
-    "face_frames", "frames"]
+__all__ = [
+    "DEGENERATE_UV",
+    "FRAME_MODES",
+    "reject",
+    "orthonormal",
+    "to_world",
+    "to_tangent",
+    "uv_derivatives",
+    "compute",
+    "any_tangent",
+    "from_file",
+    "rotate",
+    "Frames",
+    "handedness",
+    "face_frames",
+    "frames",
+]
 
 #: A UV triangle whose ``|du1 dv2 - du2 dv1|`` is at most this share of its UV extent squared has
 #: no UV derivatives (FGED2 divides by it); it adds nothing to its vertices' sums.
@@ -40,6 +54,7 @@ FRAME_MODES: tuple[str, ...] = ("vertex", "face")
 # ----------------------------------------------------------------------------------------------
 # Vector helpers on NumPy (..., 3) arrays or Dr.Jit Array3f
 # ----------------------------------------------------------------------------------------------
+
 
 def _dot(a, b):
     if cv.is_drjit(a):
@@ -88,6 +103,7 @@ def _sign(w):
 # Frames at a point, and vectors between tangent space and the world
 # ----------------------------------------------------------------------------------------------
 
+
 def reject(t, n):
     """Gram-Schmidt: ``normalize(t - n dot(n, t))``, the part of ``t`` orthogonal to the unit ``n``."""
     return _normalize(t - _scale(n, _dot(n, t)))
@@ -127,6 +143,7 @@ def to_tangent(v, n, t, w):
 # Per-vertex frames of a mesh
 # ----------------------------------------------------------------------------------------------
 
+
 def uv_derivatives(positions, uvs, faces):
     """Per triangle ``(dP/du, dP/dv, det)`` (``(F, 3)``, ``(F, 3)``, ``(F,)``), FGED2's
     ``t = (e1 y2 - e2 y1) / det``, ``b = (e2 x1 - e1 x2) / det`` with ``e1, e2`` the edges from
@@ -139,7 +156,7 @@ def uv_derivatives(positions, uvs, faces):
     y1, y2 = w[:, 1, 1] - w[:, 0, 1], w[:, 2, 1] - w[:, 0, 1]
     det = x1 * y2 - x2 * y1
     extent = np.maximum(np.abs(np.stack([x1, x2, y1, y2])).max(axis=0), 1e-300)
-    ok = np.abs(det) > DEGENERATE_UV * extent ** 2
+    ok = np.abs(det) > DEGENERATE_UV * extent**2
     r = np.divide(1.0, det, out=np.zeros_like(det), where=ok)[:, None]
     return (e1 * y2[:, None] - e2 * y1[:, None]) * r, (e2 * x1[:, None] - e1 * x2[:, None]) * r, det
 
@@ -182,7 +199,9 @@ def from_file(tangents, normals) -> np.ndarray:
     if t4.ndim != 2 or t4.shape[1] != 4:
         raise ValueError(f"TANGENT must have 4 components per vertex, got shape {t4.shape}")
     if not np.all(np.isfinite(t4)):
-        raise ValueError(f"TANGENT has {int(np.sum(~np.isfinite(t4).all(axis=1)))} vertices with NaN or infinity")
+        raise ValueError(
+            f"TANGENT has {int(np.sum(~np.isfinite(t4).all(axis=1)))} vertices with NaN or infinity"
+        )
     n = _normalize(normals)
     t = reject(t4[:, :3], n)
     bad = np.linalg.norm(t, axis=-1) == 0
@@ -202,6 +221,7 @@ def rotate(tangents, matrix) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # Frames of a mesh, per vertex or per face
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Frames:

@@ -35,10 +35,30 @@ import numpy as np
 
 from hzval.core import conventions as cv
 
-__all__ = ["MIN_ELEVATION_DEG", "MAX_MARGIN_TILES", "MIN_MARGIN_CAP", "Grid", "wrap_margin", "grid",
-    "vertex_normals", "triangles", "displaced_mesh", "write_ply", "DEFAULT_TOLERANCE",
-    "PLANAR_TWIST", "MAX_LEVEL", "twists", "cell_levels", "BYTES_PER_TRIANGLE", "triangle_count",
-    "tessellate", "piece", "piece_mesh", "row_triangles", "edge_level"]
+__all__ = [
+    "MIN_ELEVATION_DEG",
+    "MAX_MARGIN_TILES",
+    "MIN_MARGIN_CAP",
+    "Grid",
+    "wrap_margin",
+    "grid",
+    "vertex_normals",
+    "triangles",
+    "displaced_mesh",
+    "write_ply",
+    "DEFAULT_TOLERANCE",
+    "PLANAR_TWIST",
+    "MAX_LEVEL",
+    "twists",
+    "cell_levels",
+    "BYTES_PER_TRIANGLE",
+    "triangle_count",
+    "tessellate",
+    "piece",
+    "piece_mesh",
+    "row_triangles",
+    "edge_level",
+]
 
 #: Lowest light elevation, in degrees, whose shadows the wrap margin must hold.
 MIN_ELEVATION_DEG = 10.0
@@ -51,6 +71,7 @@ MIN_ELEVATION_DEG = 10.0
 #: (the 2048 bricks at 30 degrees: 165 texels, 36.7M triangles against 28.9M with 32).
 MAX_MARGIN_TILES = 0.0
 MIN_MARGIN_CAP = 32
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -67,8 +88,9 @@ class Grid:
     margin: int
 
 
-def wrap_margin(h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_DEG, *,
-                capped: bool = False) -> int:
+def wrap_margin(
+    h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_DEG, *, capped: bool = False
+) -> int:
     """Texels of neighbouring tiles that a wrap mesh needs on each side.
 
     A shadow ray toward elevation ``e`` rises ``tan(e)`` per texel, so past
@@ -83,8 +105,13 @@ def wrap_margin(h_texels: np.ndarray, min_elevation_deg: float = MIN_ELEVATION_D
     return min(need, max(MIN_MARGIN_CAP, int(MAX_MARGIN_TILES * min(np.shape(h_texels)))))
 
 
-def grid(h_texels: np.ndarray, boundary: str, *, min_elevation_deg: float = MIN_ELEVATION_DEG,
-         margin: int | None = None) -> Grid:
+def grid(
+    h_texels: np.ndarray,
+    boundary: str,
+    *,
+    min_elevation_deg: float = MIN_ELEVATION_DEG,
+    margin: int | None = None,
+) -> Grid:
     """Vertex grid of the displaced surface for heights in texel units."""
     h = np.asarray(h_texels, dtype=np.float32)
     rows, cols = h.shape
@@ -128,8 +155,10 @@ def triangles(n_rows: int, n_cols: int) -> np.ndarray:
     """
     # written straight into uint32 (a grid of more than 2^32 vertices could not be a mesh anyway):
     # no int64 index grids, a fifth of the time for the 2048 bricks' 11.3M faces
-    a = (np.arange(n_rows - 1, dtype=np.uint32)[:, None] * np.uint32(n_cols)
-         + np.arange(n_cols - 1, dtype=np.uint32)[None, :]).ravel()
+    a = (
+        np.arange(n_rows - 1, dtype=np.uint32)[:, None] * np.uint32(n_cols)
+        + np.arange(n_cols - 1, dtype=np.uint32)[None, :]
+    ).ravel()
     faces = np.empty((a.size, 2, 3), np.uint32)
     b, d = faces[:, 0, 2], faces[:, 0, 1]
     faces[:, 0, 0] = a
@@ -140,11 +169,20 @@ def triangles(n_rows: int, n_cols: int) -> np.ndarray:
     return faces.reshape(-1, 3)
 
 
-def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
-                   min_elevation_deg: float = MIN_ELEVATION_DEG, margin: int | None = None,
-                   normals: bool = False, texcoords: bool = True, name: str = "displaced",
-                   tolerance: float | None = None, info: dict | None = None,
-                   budget_bytes: int | None = None):
+def displaced_mesh(
+    height: np.ndarray,
+    depth: float,
+    boundary: str,
+    *,
+    min_elevation_deg: float = MIN_ELEVATION_DEG,
+    margin: int | None = None,
+    normals: bool = False,
+    texcoords: bool = True,
+    name: str = "displaced",
+    tolerance: float | None = None,
+    info: dict | None = None,
+    budget_bytes: int | None = None,
+):
     """The displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
     interpolation of the texel centres' heights, tessellated to within ``tolerance`` texels
     (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
@@ -165,16 +203,20 @@ def displaced_mesh(height: np.ndarray, depth: float, boundary: str, *,
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     g = grid(h, boundary, min_elevation_deg=min_elevation_deg, margin=margin)
-    positions, faces, levels = tessellate(g, DEFAULT_TOLERANCE if tolerance is None else tolerance,
-                                          budget_bytes=budget_bytes)
-    mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=normals, has_vertex_texcoords=texcoords)
+    positions, faces, levels = tessellate(
+        g, DEFAULT_TOLERANCE if tolerance is None else tolerance, budget_bytes=budget_bytes
+    )
+    mesh = mi.Mesh(
+        name, len(positions), len(faces), has_vertex_normals=normals, has_vertex_texcoords=texcoords
+    )
     params = mi.traverse(mesh)
     params["vertex_positions"] = mi.Float(positions.ravel())
     params["faces"] = mi.UInt32(faces.ravel())
     del faces
     if texcoords:
-        params["vertex_texcoords"] = mi.Float(np.stack(cv.tangent_to_uv(positions[:, 0], positions[:, 1],
-                                                                        rows, cols), axis=-1).ravel())
+        params["vertex_texcoords"] = mi.Float(
+            np.stack(cv.tangent_to_uv(positions[:, 0], positions[:, 1], rows, cols), axis=-1).ravel()
+        )
     if normals:
         params["vertex_normals"] = mi.Float(vertex_normals(h, positions, boundary).ravel())
     params.update()
@@ -187,8 +229,8 @@ def write_ply(m, path) -> None:
     """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.files.atomic_path`).
     Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
     line naming the file here (:class:`hzval.core.errors.InputError`)."""
-    from hzval.io import files
     from hzval.core.errors import InputError
+    from hzval.io import files
 
     with files.atomic_path(path) as tmp:
         try:
@@ -209,7 +251,7 @@ def write_ply(m, path) -> None:
 DEFAULT_TOLERANCE = 0.08
 #: A cell whose twist is at most this share of the largest height (and of 1 texel) is planar: the
 #: rounding of float32 heights (2^-24 of them) leaves twists of a few of their ulps.
-PLANAR_TWIST = 2.0 ** -20
+PLANAR_TWIST = 2.0**-20
 #: Most fans per side of one cell: a cell of twist ``t`` texels is then within ``t / 4096`` texels.
 MAX_LEVEL = 16
 
@@ -259,7 +301,9 @@ def _fan_template(n: int):
     nodes = [(i, j) for i in range(n + 1) for j in range(n + 1) if code[i, j] < 0]
     for k, (i, j) in enumerate(nodes):
         code[i, j] = 4 + k
-    uv = [(j / n, i / n) for i, j in nodes] + [((j + 0.5) / n, (i + 0.5) / n) for i in range(n) for j in range(n)]
+    uv = [(j / n, i / n) for i, j in nodes] + [
+        ((j + 0.5) / n, (i + 0.5) / n) for i in range(n) for j in range(n)
+    ]
     faces = []
     for i in range(n):
         for j in range(n):
@@ -277,8 +321,9 @@ def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarr
     x = (1.0 - u) * g.x[c][:, None] + u * g.x[c + 1][:, None]
     y = (1.0 - v) * g.y[r][:, None] + v * g.y[r + 1][:, None]
     z = g.z.astype(np.float64, copy=False)
-    zz = ((1.0 - v) * ((1.0 - u) * z[r, c][:, None] + u * z[r, c + 1][:, None])
-          + v * ((1.0 - u) * z[r + 1, c][:, None] + u * z[r + 1, c + 1][:, None]))
+    zz = (1.0 - v) * ((1.0 - u) * z[r, c][:, None] + u * z[r, c + 1][:, None]) + v * (
+        (1.0 - u) * z[r + 1, c][:, None] + u * z[r + 1, c + 1][:, None]
+    )
     return np.stack([x, y, zz], axis=-1).astype(np.float32)
 
 
@@ -295,8 +340,12 @@ def triangle_count(levels: np.ndarray) -> int:
     return int(2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:]))
 
 
-def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int | None = None,
-               levels: np.ndarray | None = None):
+def tessellate(
+    g: Grid,
+    tolerance: float = DEFAULT_TOLERANCE,
+    budget_bytes: int | None = None,
+    levels: np.ndarray | None = None,
+):
     """The triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
 
     Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
@@ -317,11 +366,16 @@ def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int 
         from hzval.core.errors import InputError
 
         n = triangle_count(levels)
-        raise InputError("--truth-tolerance", f"the truth's surface at a tolerance of {tolerance:g} texels has "
-                         f"{n / 1e6:.0f}M triangles, about {n * BYTES_PER_TRIANGLE / 2**30:.1f} GiB with its "
-                         f"BVH; {budget_bytes / 2**30:.1f} GiB are available (a larger tolerance or a smaller map)")
-    corner = (np.arange(ny - 1, dtype=np.uint32)[:, None] * np.uint32(nx)
-              + np.arange(nx - 1, dtype=np.uint32)[None, :])
+        raise InputError(
+            "--truth-tolerance",
+            f"the truth's surface at a tolerance of {tolerance:g} texels has "
+            f"{n / 1e6:.0f}M triangles, about {n * BYTES_PER_TRIANGLE / 2**30:.1f} GiB with its "
+            f"BVH; {budget_bytes / 2**30:.1f} GiB are available (a larger tolerance or a smaller map)",
+        )
+    corner = (
+        np.arange(ny - 1, dtype=np.uint32)[:, None] * np.uint32(nx)
+        + np.arange(nx - 1, dtype=np.uint32)[None, :]
+    )
     base, faces = ny * nx, []
     flat = levels.ravel()
     two = np.flatnonzero(flat == 0)
@@ -340,11 +394,12 @@ def tessellate(g: Grid, tolerance: float = DEFAULT_TOLERANCE, budget_bytes: int 
         a = corner.ravel()[cells]
         idx = np.empty((cells.size, 4 + len(uv)), np.uint32)
         idx[:, 0], idx[:, 1], idx[:, 2], idx[:, 3] = a, a + 1, a + nx, a + nx + 1
-        idx[:, 4:] = (base + np.arange(cells.size, dtype=np.int64)[:, None] * len(uv)
-                      + np.arange(len(uv))[None, :]).astype(np.uint32)
+        idx[:, 4:] = (
+            base + np.arange(cells.size, dtype=np.int64)[:, None] * len(uv) + np.arange(len(uv))[None, :]
+        ).astype(np.uint32)
         base += cells.size * len(uv)
         faces.append(idx[:, local].reshape(-1, 3))
-    if base >= 2 ** 32:
+    if base >= 2**32:
         raise ValueError("the tessellation has more than 2^32 vertices")
     return np.concatenate(parts), np.concatenate(faces), levels
 
@@ -353,7 +408,7 @@ def piece(g: Grid, first: int, stop: int) -> Grid:
     """The vertex rows ``first <= r <= stop`` of ``g``: its cell rows ``first <= i < stop`` (the same
     coordinates and heights, so a piece tessellated with the whole's levels, :func:`tessellate`, is
     made of the whole's own triangles, bit for bit)."""
-    return Grid(g.x, g.y[first:stop + 1], g.z[first:stop + 1], g.margin)
+    return Grid(g.x, g.y[first : stop + 1], g.z[first : stop + 1], g.margin)
 
 
 def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "band"):

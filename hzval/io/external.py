@@ -53,11 +53,23 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import conventions as cv
-from hzval.io import files
 from hzval.core.errors import InputError
+from hzval.io import files
 
-__all__ = ["Encoding", "VALUES", "CLEARLY_BETTER", "DESCRIBES_CORRELATION", "load", "read_layers", "to_hzval",
-           "rings", "detect", "correlation", "advice", "warnings"]
+__all__ = [
+    "Encoding",
+    "VALUES",
+    "CLEARLY_BETTER",
+    "DESCRIBES_CORRELATION",
+    "load",
+    "read_layers",
+    "to_hzval",
+    "rings",
+    "detect",
+    "correlation",
+    "advice",
+    "warnings",
+]
 
 #: The value encodings a channel may hold (module docstring).
 VALUES: tuple[str, ...] = ("sine", "cosine", "angle", "tangent", "sqrt")
@@ -76,7 +88,7 @@ class Encoding:
     def validate(self, what: str = "--horizon-map") -> "Encoding":
         from hzval.core import strict
 
-        for f, hint in strict.schema_of(Encoding).items():      # types checked, not coerced
+        for f, hint in strict.schema_of(Encoding).items():  # types checked, not coerced
             strict.check_value(getattr(self, f), hint, what, f)
         if self.channels not in cv.DIRECTION_COUNTS:
             raise InputError(what, f"channels must be one of {cv.DIRECTION_COUNTS}, got {self.channels}")
@@ -94,8 +106,10 @@ class Encoding:
         return dataclasses.asdict(self)
 
     def describe(self) -> str:
-        return (f"{self.channels} channels, channel 0 at {self.azimuth0:g} degrees, {self.direction}, "
-                f"+y {self.y}, {self.values}")
+        return (
+            f"{self.channels} channels, channel 0 at {self.azimuth0:g} degrees, {self.direction}, "
+            f"+y {self.y}, {self.values}"
+        )
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Encoding":
@@ -122,14 +136,19 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
         if p.suffix.lower() == ".exr":
             ch = files.read_exr(p)
             if not all(c in ch for c in "RGBA"):
-                raise InputError(p, f"a horizon layer needs R, G, B and A channels, has {', '.join(sorted(ch))}")
+                raise InputError(
+                    p, f"a horizon layer needs R, G, B and A channels, has {', '.join(sorted(ch))}"
+                )
             out.append(np.stack([ch[c] for c in "RGBA"], axis=-1))
             continue
         try:
             with Image.open(p) as im:
-                if im.mode not in ("RGBA", "RGBa", "RGBA;16B"):     # nothing converted: 4 channels or none
-                    raise InputError(p, f"a horizon layer must be an RGBA image (4 channels), got a PNG of "
-                                        f"mode {im.mode} ({len(im.getbands())} channel(s))")
+                if im.mode not in ("RGBA", "RGBa", "RGBA;16B"):  # nothing converted: 4 channels or none
+                    raise InputError(
+                        p,
+                        f"a horizon layer must be an RGBA image (4 channels), got a PNG of "
+                        f"mode {im.mode} ({len(im.getbands())} channel(s))",
+                    )
                 arr = np.asarray(im)
         except FileNotFoundError:
             raise InputError(p, "no such horizon layer") from None
@@ -148,8 +167,13 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
 #: What a channel may hold under each value encoding (module docstring, "Encoding"): the sine, the
 #: angle over 90 degrees and the signed square root of the sine lie in [-1, 1], the cosine of an
 #: elevation in [0, 1]; a tangent may be any finite number.
-VALUE_RANGES: dict[str, tuple[float, float]] = {"sine": (-1.0, 1.0), "cosine": (0.0, 1.0), "angle": (-1.0, 1.0),
-                                                "tangent": (-np.inf, np.inf), "sqrt": (-1.0, 1.0)}
+VALUE_RANGES: dict[str, tuple[float, float]] = {
+    "sine": (-1.0, 1.0),
+    "cosine": (0.0, 1.0),
+    "angle": (-1.0, 1.0),
+    "tangent": (-np.inf, np.inf),
+    "sqrt": (-1.0, 1.0),
+}
 
 
 def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
@@ -159,17 +183,25 @@ def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
     first = paths[0] if isinstance(paths, (list, tuple)) and paths else paths
     layers = cv.layer_count(enc.channels)
     if raw.shape[-1] != enc.channels:
-        raise InputError(first, f"{enc.channels} channels declared: {layers} RGBA layers, got "
-                                f"{raw.shape[-1] // cv.CHANNELS_PER_LAYER}")
+        raise InputError(
+            first,
+            f"{enc.channels} channels declared: {layers} RGBA layers, got "
+            f"{raw.shape[-1] // cv.CHANNELS_PER_LAYER}",
+        )
     bad = ~np.isfinite(raw)
     if bad.any():
         row, col, ch = (int(i[0]) for i in np.nonzero(bad))
-        raise InputError(first, f"{int(bad.sum())} values are not finite (NaN or infinity), the first at texel "
-                                f"({row}, {col}), channel {ch}")
+        raise InputError(
+            first,
+            f"{int(bad.sum())} values are not finite (NaN or infinity), the first at texel "
+            f"({row}, {col}), channel {ch}",
+        )
     lo, hi = VALUE_RANGES[enc.values]
     vmin, vmax = float(raw.min()), float(raw.max())
     if vmin < lo - 1e-6 or vmax > hi + 1e-6:
-        raise InputError(first, f"values from {vmin:g} to {vmax:g}; {enc.values} values lie in [{lo:g}, {hi:g}]")
+        raise InputError(
+            first, f"values from {vmin:g} to {vmax:g}; {enc.values} values lie in [{lo:g}, {hi:g}]"
+        )
     return raw
 
 
@@ -184,7 +216,7 @@ def _decode_values(v: np.ndarray, values: str) -> np.ndarray:
         return np.sin(np.clip(v, 0.0, 1.0) * (math.pi / 2))
     if values == "tangent":
         return v / np.sqrt(1.0 + v * v)
-    return v * np.abs(v)                                                   # signed square root
+    return v * np.abs(v)  # signed square root
 
 
 def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
@@ -199,7 +231,7 @@ def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
     out = np.empty(s.shape, np.float64)
     for k in range(D):
         # baker channel position j (fractional) whose direction is hzval's 360 k / D
-        phi_baker = sy * k * step                       # the same direction in the baker's frame
+        phi_baker = sy * k * step  # the same direction in the baker's frame
         j = (sd * (phi_baker - enc.azimuth0) / step) % D
         j0 = int(math.floor(j + 1e-9)) % D
         f = j - math.floor(j + 1e-9)
@@ -269,8 +301,9 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
     exact = np.asarray(exact, np.float64)
     D = declared.channels
     declared_mae = _score(raw, exact, declared)
-    ring_scores = [(dataclasses.replace(declared, y=y, direction=d, azimuth0=a), None)
-                   for y, d, a in rings(D)]
+    ring_scores = [
+        (dataclasses.replace(declared, y=y, direction=d, azimuth0=a), None) for y, d, a in rings(D)
+    ]
     ring_scores = [(e, _score(raw, exact, e)) for e, _ in ring_scores]
     ring, ring_mae = min(ring_scores, key=lambda es: es[1])
     # what the warning suggests: at each stage the declared choice stands unless another is clearly better
@@ -294,10 +327,17 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
     corr = correlation(raw, exact, best) if judged else None
     describes = corr is None or corr >= DESCRIBES_CORRELATION
     fits = suggested == declared
-    return {"declared": {**declared.record(), "mae": declared_mae}, "best_match": {**best.record(), "mae": best_mae},
-            "suggested": {**suggested.record(), "mae": suggested_mae},
-            "scores": rows, "matches": bool(fits and describes), "convention_fits": bool(fits),
-            "correlation": corr, "describes": bool(describes), "describes_bound": DESCRIBES_CORRELATION}
+    return {
+        "declared": {**declared.record(), "mae": declared_mae},
+        "best_match": {**best.record(), "mae": best_mae},
+        "suggested": {**suggested.record(), "mae": suggested_mae},
+        "scores": rows,
+        "matches": bool(fits and describes),
+        "convention_fits": bool(fits),
+        "correlation": corr,
+        "describes": bool(describes),
+        "describes_bound": DESCRIBES_CORRELATION,
+    }
 
 
 def advice(result: dict) -> str | None:
@@ -310,20 +350,28 @@ def advice(result: dict) -> str | None:
     what = []
     mirrored = (d["y"] != b["y"]) != (d["direction"] != b["direction"])
     if mirrored:
-        what.append("the channels look mirrored: is +y down?" if d["y"] == "up" else
-                    "the channels look mirrored: is +y up?")
+        what.append(
+            "the channels look mirrored: is +y down?"
+            if d["y"] == "up"
+            else "the channels look mirrored: is +y up?"
+        )
     elif (d["azimuth0"] - b["azimuth0"]) % 360.0 != 0.0 or d["direction"] != b["direction"]:
         what.append(f"the channels look rotated: does channel 0 point to {b['azimuth0']:g} degrees?")
     if d["values"] != b["values"]:
         what.append(f"the values look like {b['values']}, not {d['values']}")
     # the flags that turn the declared convention into the best match, each one that differs
-    flags = [f"--horizon-{key} {b[key]:g}" if key == "azimuth0" else f"--horizon-{key} {b[key]}"
-             for key in ("y", "direction", "azimuth0", "values") if d[key] != b[key]]
+    flags = [
+        f"--horizon-{key} {b[key]:g}" if key == "azimuth0" else f"--horizon-{key} {b[key]}"
+        for key in ("y", "direction", "azimuth0", "values")
+        if d[key] != b[key]
+    ]
     detail = "; ".join(what) or "another convention fits better"
     fix = f"; try {' '.join(flags)}" if flags else ""
-    return (f"horizon map: {detail} (declared {d['channels']} channels at {d['azimuth0']:g} degrees "
-            f"{d['direction']}, +y {d['y']}, {d['values']}: |s - exact| {d['mae']:.4f}; better "
-            f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f}){fix}")
+    return (
+        f"horizon map: {detail} (declared {d['channels']} channels at {d['azimuth0']:g} degrees "
+        f"{d['direction']}, +y {d['y']}, {d['values']}: |s - exact| {d['mae']:.4f}; better "
+        f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f}){fix}"
+    )
 
 
 def warnings(result: dict, layers, height) -> list[str]:
@@ -331,9 +379,11 @@ def warnings(result: dict, layers, height) -> list[str]:
     does not describe the height map (naming both files), or :func:`advice`'s convention."""
     if not result.get("describes", True):
         names = ",".join(str(p) for p in layers)
-        return [f"horizon map {names} does not describe this height map {height}: under its best convention "
-                f"it correlates {result['correlation']:.2f} with hzval's exact horizons (a map of this surface: "
-                f"at least {result['describes_bound']:g}; |s - exact| {result['best_match']['mae']:.3f}); was it "
-                "baked from another height map, or at another --depth? (--horizon-map)"]
+        return [
+            f"horizon map {names} does not describe this height map {height}: under its best convention "
+            f"it correlates {result['correlation']:.2f} with hzval's exact horizons (a map of this surface: "
+            f"at least {result['describes_bound']:g}; |s - exact| {result['best_match']['mae']:.3f}); was it "
+            "baked from another height map, or at another --depth? (--horizon-map)"
+        ]
     line = advice(result)
     return [line] if line else []

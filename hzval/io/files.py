@@ -25,11 +25,37 @@ import numpy as np
 
 from hzval.core.errors import InputError
 
-__all__ = ["atomic_path", "LOCK_NAME", "MARKER_NAME", "folder_lock", "foreign_files", "os_error",
-    "output_folder", "report_path", "portable_command", "file_digest", "Staging", "HALF_MAX",
-    "write_exr", "is_grey", "read_exr", "read_rgb_exr", "rgb_of", "library_output", "run_writers",
-    "Indexed", "write_png", "PREVIEW_ABOVE_PX", "PREVIEW_PX", "write_figure", "preview_of",
-    "write_png_with_preview", "unit_to_u8", "write_json", "first_line"]
+__all__ = [
+    "atomic_path",
+    "LOCK_NAME",
+    "MARKER_NAME",
+    "folder_lock",
+    "foreign_files",
+    "os_error",
+    "output_folder",
+    "report_path",
+    "portable_command",
+    "file_digest",
+    "Staging",
+    "HALF_MAX",
+    "write_exr",
+    "is_grey",
+    "read_exr",
+    "read_rgb_exr",
+    "rgb_of",
+    "library_output",
+    "run_writers",
+    "Indexed",
+    "write_png",
+    "PREVIEW_ABOVE_PX",
+    "PREVIEW_PX",
+    "write_figure",
+    "preview_of",
+    "write_png_with_preview",
+    "unit_to_u8",
+    "write_json",
+    "first_line",
+]
 
 
 @contextlib.contextmanager
@@ -89,15 +115,20 @@ def folder_lock(folder: str | os.PathLike, command: str = "") -> Iterator[Path]:
     fd = _take_lock(path, folder)
     try:
         os.ftruncate(fd, 0)
-        os.pwrite(fd, (f"{socket.gethostname()} pid {os.getpid()}, since "
-                       f"{time.strftime('%Y-%m-%d %H:%M:%S')}").encode(), 0)
+        os.pwrite(
+            fd,
+            (
+                f"{socket.gethostname()} pid {os.getpid()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}"
+            ).encode(),
+            0,
+        )
         yield path
     finally:
-        path.unlink(missing_ok=True)        # before the lock goes: a waiting run then makes a new file
-        os.close(fd)                        # releases the lock
+        path.unlink(missing_ok=True)  # before the lock goes: a waiting run then makes a new file
+        os.close(fd)  # releases the lock
         if created:
             with contextlib.suppress(OSError):
-                folder.rmdir()              # only if empty
+                folder.rmdir()  # only if empty
 
 
 def _take_lock(path: Path, folder: Path) -> int:
@@ -112,8 +143,9 @@ def _take_lock(path: Path, folder: Path) -> int:
         except BlockingIOError:
             holder = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip() or "another run"
             os.close(fd)
-            raise InputError(folder, f"in use by another hzval run ({holder}); wait for it or choose "
-                                     "another --out") from None
+            raise InputError(
+                folder, f"in use by another hzval run ({holder}); wait for it or choose another --out"
+            ) from None
         try:
             if os.fstat(fd).st_ino == os.stat(path).st_ino:
                 return fd
@@ -124,8 +156,7 @@ def _take_lock(path: Path, folder: Path) -> int:
 
 def _is_own(name: str) -> bool:
     """Whether an entry's name is hzval's bookkeeping (lock, marker, staging, an atomic write's temporary)."""
-    return (name in _OWN_NAMES or name.startswith(_OWN_PREFIXES)
-            or (name.startswith(".") and ".tmp" in name))
+    return name in _OWN_NAMES or name.startswith(_OWN_PREFIXES) or (name.startswith(".") and ".tmp" in name)
 
 
 def _listed(folder: Path) -> set[str] | None:
@@ -160,8 +191,14 @@ def foreign_files(folder: str | os.PathLike) -> list[str]:
 def _write_marker(folder: Path, foreign: set[str]) -> None:
     """List every file under ``folder`` but the ``foreign`` ones as hzval's (the folder's marker)."""
     own = [p for p in _walk_files(folder) if p not in foreign]
-    write_json(folder / MARKER_NAME, {"format": "hzval folder 1",
-                                      "note": "the files hzval wrote here; it replaces only these", "files": own})
+    write_json(
+        folder / MARKER_NAME,
+        {
+            "format": "hzval folder 1",
+            "note": "the files hzval wrote here; it replaces only these",
+            "files": own,
+        },
+    )
 
 
 def _first_missing(folder: Path) -> Path | None:
@@ -179,8 +216,9 @@ def _check_folder(folder: Path) -> None:
     for p in [folder, *folder.parents]:
         if p.exists():
             if not p.is_dir():
-                raise InputError(folder, "is a file, not a folder" if p == folder else
-                                 f"cannot be a folder: {p} is a file")
+                raise InputError(
+                    folder, "is a file, not a folder" if p == folder else f"cannot be a folder: {p} is a file"
+                )
             return
 
 
@@ -191,8 +229,9 @@ def os_error(exc: OSError, fallback: str | os.PathLike) -> InputError:
 
 
 @contextlib.contextmanager
-def output_folder(folder: str | os.PathLike, *, force: bool = False,
-                  keep_on_interrupt: bool = False) -> Iterator[Path]:
+def output_folder(
+    folder: str | os.PathLike, *, force: bool = False, keep_on_interrupt: bool = False
+) -> Iterator[Path]:
     """Hold an output folder for one run: refuse one that is not hzval's, lock it, clean up after.
 
     ``folder`` must be new, empty, or hzval's: every file in it listed in its
@@ -217,8 +256,11 @@ def output_folder(folder: str | os.PathLike, *, force: bool = False,
             foreign = foreign_files(folder)
             if foreign and not force:
                 more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
-                raise InputError(folder, f"holds files hzval did not write ({', '.join(foreign[:3])}{more}): "
-                                         "choose a new or empty folder, or --force to write beside them")
+                raise InputError(
+                    folder,
+                    f"holds files hzval did not write ({', '.join(foreign[:3])}{more}): "
+                    "choose a new or empty folder, or --force to write beside them",
+                )
             Staging.remove_leftovers(folder)
             try:
                 yield folder
@@ -259,8 +301,11 @@ def portable_command(command: str, report_dir: str | os.PathLike) -> str:
         return command
     out = []
     for w in words:
-        prefix, value = ("", w) if not (w.startswith("--") and "=" in w) else (w.partition("=")[0] + "=",
-                                                                               w.partition("=")[2])
+        prefix, value = (
+            ("", w)
+            if not (w.startswith("--") and "=" in w)
+            else (w.partition("=")[0] + "=", w.partition("=")[2])
+        )
         if value.startswith("/"):
             value = report_path(value, report_dir)
         out.append(prefix + value)
@@ -362,8 +407,15 @@ class Staging:
 HALF_MAX = 65504.0
 
 
-def write_exr(path: str | os.PathLike, channels: Mapping[str, np.ndarray], *, atomic: bool = True,
-              compression: str = "zip", half: bool = False, grey: bool = False) -> None:
+def write_exr(
+    path: str | os.PathLike,
+    channels: Mapping[str, np.ndarray],
+    *,
+    atomic: bool = True,
+    compression: str = "zip",
+    half: bool = False,
+    grey: bool = False,
+) -> None:
     """Write channels ``{name: (rows, cols)}`` to a scanline EXR, float32 or half.
 
     Channel names ``R, G, B, A`` are written as such; an ``(rows, cols, 3|4)``
@@ -394,8 +446,11 @@ def write_exr(path: str | os.PathLike, channels: Mapping[str, np.ndarray], *, at
             chans[name] = np.ascontiguousarray(arr)
     if half:
         chans = {name: _as_half(arr) for name, arr in chans.items()}
-    codec = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION,
-             "pxr24": OpenEXR.PXR24_COMPRESSION}[compression]
+    codec = {
+        "zip": OpenEXR.ZIP_COMPRESSION,
+        "none": OpenEXR.NO_COMPRESSION,
+        "pxr24": OpenEXR.PXR24_COMPRESSION,
+    }[compression]
     header = {"compression": codec, "type": OpenEXR.scanlineimage}
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
@@ -526,6 +581,7 @@ def run_writers(jobs) -> None:
 # PNG
 # --------------------------------------------------------------------------
 
+
 class Indexed(NamedTuple):
     """An 8-bit palette image: ``index`` uint8 ``(rows, cols)`` into ``palette`` uint8 ``(n, 3)``
     sRGB colours, ``n <= 256``. Exact for an image of at most 256 colours (a colour map's, a
@@ -539,8 +595,14 @@ class Indexed(NamedTuple):
         return self.palette[self.index]
 
 
-def write_png(path: str | os.PathLike, pixels: np.ndarray | Indexed, *, atomic: bool = True,
-              compress_level: int = 6, grey: bool = False) -> None:
+def write_png(
+    path: str | os.PathLike,
+    pixels: np.ndarray | Indexed,
+    *,
+    atomic: bool = True,
+    compress_level: int = 6,
+    grey: bool = False,
+) -> None:
     """Write 8-bit grey/RGB/RGBA, 16-bit grey or palette pixels to a PNG.
 
     ``pixels`` is ``uint8 (rows, cols[, 3|4])``, ``uint16 (rows, cols)`` or an
@@ -565,8 +627,10 @@ def _png_image(pixels: np.ndarray | Indexed, grey: bool):
     if isinstance(pixels, Indexed):
         index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
         if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:
-            raise ValueError(f"an Indexed image needs (rows, cols) indices and 1-256 RGB colours, "
-                             f"got {index.shape} and {palette.shape}")
+            raise ValueError(
+                f"an Indexed image needs (rows, cols) indices and 1-256 RGB colours, "
+                f"got {index.shape} and {palette.shape}"
+            )
         img = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
         img.putpalette(palette.tobytes(), rawmode="RGB")
         return img
@@ -575,7 +639,7 @@ def _png_image(pixels: np.ndarray | Indexed, grey: bool):
         raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
     if grey and pixels.dtype == np.uint8 and pixels.ndim == 3 and pixels.shape[-1] == 3 and is_grey(pixels):
         pixels = np.ascontiguousarray(pixels[..., 0])
-    return Image.fromarray(pixels)      # uint16 (rows, cols): 16-bit grey ("I;16")
+    return Image.fromarray(pixels)  # uint16 (rows, cols): 16-bit grey ("I;16")
 
 
 #: A PNG with more pixels than this on its longer side also gets a preview (:func:`preview_of`)
@@ -634,6 +698,7 @@ def unit_to_u8(values: np.ndarray) -> np.ndarray:
 # JSON
 # --------------------------------------------------------------------------
 
+
 def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
     """Write ``data`` as indented strict JSON, atomically.
 
@@ -644,8 +709,11 @@ def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
     try:
         text = json.dumps(data, indent=2, sort_keys=False, default=_json_default, allow_nan=False) + "\n"
     except ValueError:
-        raise InputError(path, f"{_non_finite_key(data) or 'a value'} is not a finite number; "
-                               "strict JSON has no NaN or infinity, so nothing was written") from None
+        raise InputError(
+            path,
+            f"{_non_finite_key(data) or 'a value'} is not a finite number; "
+            "strict JSON has no NaN or infinity, so nothing was written",
+        ) from None
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
@@ -656,7 +724,9 @@ def _non_finite_key(data, where: str = "") -> str | None:
     """The first key path (``frames[0].flip_mean``) of ``data`` that holds a NaN or infinity."""
     if isinstance(data, (float, np.floating)):
         return None if np.isfinite(data) else (where or "the value")
-    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, (list, tuple)) else ()
+    items = (
+        data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, (list, tuple)) else ()
+    )
     for k, v in items:
         found = _non_finite_key(v, f"{where}[{k}]" if isinstance(k, int) else f"{where}.{k}".lstrip("."))
         if found:

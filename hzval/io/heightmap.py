@@ -114,13 +114,19 @@ def from_array(height: np.ndarray, *, source: str = "array") -> HeightMap:
 # Checks shared by every format
 # --------------------------------------------------------------------------
 
+
 def _check_size(what: _PathLike, rows: int, cols: int, max_pixels: int | None = None) -> None:
     pixels = rows * cols
     if pixels < 2:
-        raise InputError(what, f"image is {rows}x{cols} pixels (rows x columns); a height map needs at least 2")
+        raise InputError(
+            what, f"image is {rows}x{cols} pixels (rows x columns); a height map needs at least 2"
+        )
     if max_pixels is not None and pixels > max_pixels:
-        raise InputError(what, f"image is {rows}x{cols} pixels (rows x columns, {pixels:,} in all); "
-                               f"the limit here is {max_pixels:,}")
+        raise InputError(
+            what,
+            f"image is {rows}x{cols} pixels (rows x columns, {pixels:,} in all); "
+            f"the limit here is {max_pixels:,}",
+        )
 
 
 def _check_dtype(what: _PathLike, dtype: np.dtype) -> None:
@@ -154,6 +160,7 @@ def _validated(what: _PathLike, height: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------
 # Files: what they are, and their headers
 # --------------------------------------------------------------------------
+
 
 def _open(path: _PathLike):
     try:
@@ -189,7 +196,9 @@ def _kind(path: _PathLike) -> str:
             raise InputError(path, f"truncated {_KIND_NAME[kind]} file ({len(head)} bytes)")
     named = _KIND_BY_EXTENSION.get(Path(path).suffix.lower())
     if named is not None:
-        raise InputError(path, f"not a {_KIND_NAME[named]} file (no {_KIND_NAME[named]} signature at its start)")
+        raise InputError(
+            path, f"not a {_KIND_NAME[named]} file (no {_KIND_NAME[named]} signature at its start)"
+        )
     raise InputError(path, "not a PNG, EXR or .npy file")
 
 
@@ -222,6 +231,7 @@ def _pillow_strict() -> Iterator[None]:
 # --------------------------------------------------------------------------
 # PNG
 # --------------------------------------------------------------------------
+
 
 def _png_corrupt(path: _PathLike, exc: BaseException) -> InputError:
     return InputError(path, f"truncated or corrupt PNG ({first_line(exc)})")
@@ -305,10 +315,11 @@ def _decode_png_pypng(path: _PathLike) -> tuple[np.ndarray, bool]:
 # EXR
 # --------------------------------------------------------------------------
 
+
 def _probe_exr(path: _PathLike) -> tuple[int, int]:
     import OpenEXR
 
-    with library_output():   # the C library prints its complaints; we raise ours
+    with library_output():  # the C library prints its complaints; we raise ours
         try:
             with OpenEXR.File(os.fspath(path), header_only=True) as f:
                 (xmin, ymin), (xmax, ymax) = f.header()["dataWindow"]
@@ -325,13 +336,18 @@ def _load_exr(path: _PathLike) -> tuple[np.ndarray, str]:
         return channels["Y"], f"EXR channel Y{alpha}"
     if {"R", "G", "B"} <= channels.keys():
         if len({channels[c].shape for c in "RGB"}) != 1:
-            raise InputError(path, "EXR channels R, G, B differ in size (subsampled); a height map needs them equal")
+            raise InputError(
+                path, "EXR channels R, G, B differ in size (subsampled); a height map needs them equal"
+            )
         rgb = np.stack([channels[c] for c in "RGB"], axis=-1)
         return rgb @ luminance_weights(), f"EXR channels R, G, B -> {_LUMINANCE}{alpha}"
     others = [name for name in channels if name != "A"]
     if len(others) != 1:
-        raise InputError(path, f"EXR has channels {', '.join(sorted(channels)) or '(none)'}; "
-                               "a height map needs Y, or R, G and B, or a single channel")
+        raise InputError(
+            path,
+            f"EXR has channels {', '.join(sorted(channels)) or '(none)'}; "
+            "a height map needs Y, or R, G and B, or a single channel",
+        )
     return channels[others[0]], f"EXR channel {others[0]}{alpha}"
 
 
@@ -372,8 +388,12 @@ def _load_npy(path: _PathLike) -> tuple[np.ndarray, str]:
 
 
 _PROBES: dict[str, Callable[[_PathLike], tuple[int, int]]] = {
-    "png": _probe_png, "exr": _probe_exr, "npy": _probe_npy,
+    "png": _probe_png,
+    "exr": _probe_exr,
+    "npy": _probe_npy,
 }
 _LOADERS: dict[str, Callable[[_PathLike], tuple[np.ndarray, str]]] = {
-    "png": _load_png, "exr": _load_exr, "npy": _load_npy,
+    "png": _load_png,
+    "exr": _load_exr,
+    "npy": _load_npy,
 }

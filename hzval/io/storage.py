@@ -95,12 +95,14 @@ def _encode_blocks(v: np.ndarray, per_texture: int, encode) -> tuple[list[tuple[
         chans = list(range(first, min(first + per_texture, D)))
         rgba = np.zeros((H, W, 4), np.uint8)
         rgba[..., 3] = 255
-        rgba[..., :len(chans)] = unit_to_u8(padded[..., chans])
+        rgba[..., : len(chans)] = unit_to_u8(padded[..., chans])
         out.append((chans, encode(np.ascontiguousarray(rgba).tobytes(), W, H)))
     return out, W, H
 
 
-def _block_roundtrip(v: np.ndarray, per_texture: int, encode, decode, blocks_out: list | None = None) -> np.ndarray:
+def _block_roundtrip(
+    v: np.ndarray, per_texture: int, encode, decode, blocks_out: list | None = None
+) -> np.ndarray:
     """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack;
     ``blocks_out`` (a list) receives each texture's encoded blocks."""
     rows, cols, D = v.shape
@@ -109,7 +111,7 @@ def _block_roundtrip(v: np.ndarray, per_texture: int, encode, decode, blocks_out
     for chans, blocks in textures:
         bgra = np.frombuffer(decode(blocks, W, H), np.uint8).reshape(H, W, 4)
         rgba_back = bgra[..., [2, 1, 0, 3]]
-        out[..., chans] = rgba_back[..., :len(chans)].astype(np.float32) / np.float32(255.0)
+        out[..., chans] = rgba_back[..., : len(chans)].astype(np.float32) / np.float32(255.0)
     if blocks_out is not None:
         blocks_out.extend(blocks for _, blocks in textures)
     return out[:rows, :cols]
@@ -117,21 +119,37 @@ def _block_roundtrip(v: np.ndarray, per_texture: int, encode, decode, blocks_out
 
 def _codecs() -> dict[str, tuple[Callable, Callable]]:
     t2d = texture2ddecoder
-    return {"bc7": (etcpak.compress_bc7, t2d.decode_bc7), "bc3": (etcpak.compress_bc3, t2d.decode_bc3),
-            "bc1": (etcpak.compress_bc1, t2d.decode_bc1), "bc4": (etcpak.compress_bc4, t2d.decode_bc4)}
+    return {
+        "bc7": (etcpak.compress_bc7, t2d.decode_bc7),
+        "bc3": (etcpak.compress_bc3, t2d.decode_bc3),
+        "bc1": (etcpak.compress_bc1, t2d.decode_bc1),
+        "bc4": (etcpak.compress_bc4, t2d.decode_bc4),
+    }
 
 
 def _table() -> dict[str, Storage]:
-    out = {"float": Storage("float", "float32", 1, texel_bytes=4.0),
-           "u8": Storage("u8", "8-bit RGBA", 4, texel_bytes=1.0),
-           "u8-sqrt": Storage("u8-sqrt", "8-bit RGBA, square-root sines", 4, texel_bytes=1.0, sqrt=True)}
-    layout = {"bc7": ("BC7 RGBA", 4, 16), "bc3": ("BC3 (DXT5) RGBA", 4, 16),
-              "bc1": ("BC1 (DXT1) RGB, 3 channels a texture", 3, 8), "bc4": ("BC4, a texture a channel", 1, 8)}
+    out = {
+        "float": Storage("float", "float32", 1, texel_bytes=4.0),
+        "u8": Storage("u8", "8-bit RGBA", 4, texel_bytes=1.0),
+        "u8-sqrt": Storage("u8-sqrt", "8-bit RGBA, square-root sines", 4, texel_bytes=1.0, sqrt=True),
+    }
+    layout = {
+        "bc7": ("BC7 RGBA", 4, 16),
+        "bc3": ("BC3 (DXT5) RGBA", 4, 16),
+        "bc1": ("BC1 (DXT1) RGB, 3 channels a texture", 3, 8),
+        "bc4": ("BC4, a texture a channel", 1, 8),
+    }
     codecs = _codecs()
     for name, (label, channels, block) in layout.items():
         out[name] = Storage(name, label, channels, block_bytes=block, codec=codecs[name])
-        out[f"{name}-sqrt"] = Storage(f"{name}-sqrt", f"{label}, square-root sines", channels,
-                                      block_bytes=block, codec=codecs[name], sqrt=True)
+        out[f"{name}-sqrt"] = Storage(
+            f"{name}-sqrt",
+            f"{label}, square-root sines",
+            channels,
+            block_bytes=block,
+            codec=codecs[name],
+            sqrt=True,
+        )
     return out
 
 

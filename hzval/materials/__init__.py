@@ -34,8 +34,17 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Material", "Generated", "REGISTRY", "DEFAULT", "DEFAULT_SIZE", "names", "get", "is_builtin",
-           "generate"]
+__all__ = [
+    "Material",
+    "Generated",
+    "REGISTRY",
+    "DEFAULT",
+    "DEFAULT_SIZE",
+    "names",
+    "get",
+    "is_builtin",
+    "generate",
+]
 
 #: Side of a built-in material in texels unless a size is asked for.
 DEFAULT_SIZE = 512
@@ -101,7 +110,7 @@ def get(name: str) -> Material:
     return getattr(importlib.import_module(module), attribute)
 
 
-@functools.lru_cache(maxsize=2)   # one scene's height and albedo, and one more
+@functools.lru_cache(maxsize=2)  # one scene's height and albedo, and one more
 def _generate(name: str, shape: tuple[int, int], seed: int) -> Generated:
     height, albedo = get(name).make(shape, seed)
     height = np.ascontiguousarray(height, np.float32)
@@ -118,5 +127,7 @@ def generate(name: str, size: int | tuple[int, int] = DEFAULT_SIZE, seed: int = 
     shape = (int(size), int(size)) if np.ndim(size) == 0 else tuple(int(s) for s in size)
     m = get(name)
     if min(shape) < m.min_size:
-        raise ValueError(f"{name}: size must be at least {m.min_size}x{m.min_size} texels, got {shape[1]}x{shape[0]}")
+        raise ValueError(
+            f"{name}: size must be at least {m.min_size}x{m.min_size} texels, got {shape[1]}x{shape[0]}"
+        )
     return _generate(name, shape, int(seed))

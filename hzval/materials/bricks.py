@@ -33,24 +33,25 @@ MIN_SIZE = 8
 DEFAULT_DEPTH = 0.05
 
 # Height levels of the profile (fractions of the [0, 1] range).
-_MORTAR_LEVEL = 0.14      # mean height of the mortar bed
-_TOP_LEVEL = 0.82         # mean height of a brick face
-_TOP_SPREAD = 0.05        # per-brick height offset, +- (uniform)
-_TILT = 0.05              # per-brick tilt: height change across a brick, +-
+_MORTAR_LEVEL = 0.14  # mean height of the mortar bed
+_TOP_LEVEL = 0.82  # mean height of a brick face
+_TOP_SPREAD = 0.05  # per-brick height offset, +- (uniform)
+_TILT = 0.05  # per-brick tilt: height change across a brick, +-
 # Geometry, as fractions of the brick height (in texels).
-_MORTAR_FRACTION = 0.03   # width of the mortar joint
-_MORTAR_MIN_PX = 1.5      # ... but at least this many texels
-_BEVEL_FRACTION = 0.13    # width of the rounded brick edge
+_MORTAR_FRACTION = 0.03  # width of the mortar joint
+_MORTAR_MIN_PX = 1.5  # ... but at least this many texels
+_BEVEL_FRACTION = 0.13  # width of the rounded brick edge
 # Chips: fracture surface slope (height per brick height of inset), its
 # drop per unit of chip noise, and the noise level where chips begin.
 _CHIP_SLOPE = 6.0
 _CHIP_DEPTH = 0.25
 _CHIP_THRESHOLD = 1.0
-_MIN_BRICK_PX = 48        # narrowest brick, in texels (fewer bricks on small maps)
+_MIN_BRICK_PX = 48  # narrowest brick, in texels (fewer bricks on small maps)
 
 
-def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
-           bricks_across: int = 4) -> np.ndarray:
+def bricks(
+    size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1, bricks_across: int = 4
+) -> np.ndarray:
     """A seamlessly tiling height map of a brick wall in running bond.
 
     Parameters
@@ -90,7 +91,7 @@ def bricks(size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1,
         raise ValueError(f"bricks: bricks_across must be at least 1, got {bricks_across}")
     rng = np.random.default_rng(seed)
     bond = _bond(rows, cols, int(bricks_across))
-    per_brick = _brick_properties(rng, bond.courses * bond.n)        # drawn first, then the noise
+    per_brick = _brick_properties(rng, bond.courses * bond.n)  # drawn first, then the noise
     fields = _noise_fields(rng, (rows, cols), bond.brick_h)
     return _relief(bond, per_brick, fields)
 
@@ -115,41 +116,44 @@ def _bond(rows: int, cols: int, bricks_across: int) -> _Bond:
     (the seam is then a real test of tiling, not hidden in a joint)."""
     f32 = np.float32
     n = max(1, min(bricks_across, cols // _MIN_BRICK_PX))
-    n = max(n, -(-cols // rows))          # two courses of half-width bricks fit
+    n = max(n, -(-cols // rows))  # two courses of half-width bricks fit
     brick_w = cols / n
     courses = max(2, 2 * int(round(rows / (brick_w / 2.0) / 2.0)))
     brick_h = rows / courses
-    v = (np.arange(rows) + 0.5) / rows * courses + 0.5          # courses, downwards
-    u = (np.arange(cols) + 0.5) / cols * n + 0.25               # bricks, rightwards
+    v = (np.arange(rows) + 0.5) / rows * courses + 0.5  # courses, downwards
+    u = (np.arange(cols) + 0.5) / cols * n + 0.25  # bricks, rightwards
     course = np.floor(v).astype(np.int64)
-    fv = (v - course).astype(f32)[:, None]                      # [0, 1) in the course
-    shifted = u[None, :] + 0.5 * (course % 2)[:, None]          # running bond
+    fv = (v - course).astype(f32)[:, None]  # [0, 1) in the course
+    shifted = u[None, :] + 0.5 * (course % 2)[:, None]  # running bond
     column = np.floor(shifted)
-    fu = (shifted - column).astype(f32)                         # [0, 1) in the brick
-    brick_id = ((course % courses)[:, None] * n
-                + column.astype(np.int64) % n).astype(np.intp)  # (rows, cols)
+    fu = (shifted - column).astype(f32)  # [0, 1) in the brick
+    brick_id = ((course % courses)[:, None] * n + column.astype(np.int64) % n).astype(np.intp)  # (rows, cols)
     return _Bond(n, courses, brick_w, brick_h, fu, fv, brick_id)
 
 
 def _brick_properties(rng, count: int) -> dict[str, np.ndarray]:
     """Per-brick random properties, drawn in a fixed order."""
     f32 = np.float32
-    return {"top": (_TOP_LEVEL + _TOP_SPREAD * rng.uniform(-1.0, 1.0, count)).astype(f32),
-            "tilt_u": (_TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
-            "tilt_v": (0.5 * _TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
-            "bevel_scale": rng.uniform(0.8, 1.25, count).astype(f32),
-            "rough_scale": rng.uniform(0.6, 1.4, count).astype(f32)}
+    return {
+        "top": (_TOP_LEVEL + _TOP_SPREAD * rng.uniform(-1.0, 1.0, count)).astype(f32),
+        "tilt_u": (_TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
+        "tilt_v": (0.5 * _TILT * rng.uniform(-1.0, 1.0, count)).astype(f32),
+        "bevel_scale": rng.uniform(0.8, 1.25, count).astype(f32),
+        "rough_scale": rng.uniform(0.6, 1.4, count).astype(f32),
+    }
 
 
 def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.ndarray]:
     """Noise fields, all exactly periodic, drawn in a fixed order. Scales are in texels, tied to the
     brick height so the look does not depend on the resolution."""
     s = brick_h / 64.0
-    return {"chip": periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
-            "face": periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2)),
-            "pit": periodic_noise(rng, shape, (2.5 * s,), (1.0,)),
-            "grain": periodic_noise(rng, shape, (0.6,), (1.0,)),
-            "edge": periodic_noise(rng, shape, (10.0 * s,), (1.0,))}
+    return {
+        "chip": periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
+        "face": periodic_noise(rng, shape, (12.0 * s, 3.0 * s, 1.0 * s), (1.0, 0.45, 0.2)),
+        "pit": periodic_noise(rng, shape, (2.5 * s,), (1.0,)),
+        "grain": periodic_noise(rng, shape, (0.6,), (1.0,)),
+        "edge": periodic_noise(rng, shape, (10.0 * s,), (1.0,)),
+    }
 
 
 def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
@@ -187,9 +191,12 @@ def _relief(bond: _Bond, b: dict[str, np.ndarray], fields: dict[str, np.ndarray]
     # Chips: a fracture surface that rises gently from the joint and sinks
     # where the chip field is high; the brick is cut down to it (min), never
     # below the mortar (max). Both are continuous, so chips add no steps.
-    fracture = (mortar_height + f32(_CHIP_SLOPE / brick_h) * inset
-                + f32(_CHIP_DEPTH) * (f32(_CHIP_THRESHOLD) - fields["chip"])
-                + f32(0.03) * fields["face"])
+    fracture = (
+        mortar_height
+        + f32(_CHIP_SLOPE / brick_h) * inset
+        + f32(_CHIP_DEPTH) * (f32(_CHIP_THRESHOLD) - fields["chip"])
+        + f32(0.03) * fields["face"]
+    )
     height = np.minimum(height, np.maximum(fracture, mortar_height))
     height += f32(0.005) * fields["grain"]
     return np.clip(height, 0.0, 1.0).astype(np.float32)
@@ -200,6 +207,10 @@ def _make(shape: tuple[int, int], seed: int):
 
 
 MATERIAL = Material(
-    name="bricks", label="brick wall",
+    name="bricks",
+    label="brick wall",
     summary="bevelled bricks in running bond, proud of recessed mortar: steep walls, long straight joints",
-    depth=DEFAULT_DEPTH, make=_make, min_size=MIN_SIZE)
+    depth=DEFAULT_DEPTH,
+    make=_make,
+    min_size=MIN_SIZE,
+)

@@ -15,10 +15,10 @@ from hzval.materials import Material
 from hzval.materials.noise import cells, finish, grid, periodic_noise, shape_of, smoothstep, tint
 
 MIN_SIZE = 8
-_ACROSS = 7            # stones per period across
-_MIN_PX = 10           # narrowest stone, texels
-_SAND = 0.12           # sand level
-_GAP = 0.05            # half-width of the joint, fraction of a stone
+_ACROSS = 7  # stones per period across
+_MIN_PX = 10  # narrowest stone, texels
+_SAND = 0.12  # sand level
+_GAP = 0.05  # half-width of the joint, fraction of a stone
 _STONES_SRGB = ((0.55, 0.53, 0.50), (0.47, 0.45, 0.44), (0.60, 0.55, 0.47), (0.40, 0.40, 0.42))
 _SAND_SRGB = (0.66, 0.58, 0.44)
 
@@ -51,6 +51,10 @@ def cobblestones(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="cobblestones", label="cobblestones",
+    name="cobblestones",
+    label="cobblestones",
     summary="rounded stone domes in sand: smooth curved relief, short soft-edged shadows",
-    depth=0.04, make=lambda shape, seed: cobblestones(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.04,
+    make=lambda shape, seed: cobblestones(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

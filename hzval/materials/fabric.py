@@ -18,11 +18,11 @@ from hzval.materials import Material
 from hzval.materials.noise import count, finish, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
-_ACROSS = 12           # threads per period across (even)
-_MIN_PX = 6            # narrowest thread pitch, texels
-_HALF_WIDTH = 0.42     # thread half-width, in pitches
-_SWING = 0.22          # over/under swing of a thread's centre line
-_RADIUS = 0.25         # thread height above its centre line
+_ACROSS = 12  # threads per period across (even)
+_MIN_PX = 6  # narrowest thread pitch, texels
+_HALF_WIDTH = 0.42  # thread half-width, in pitches
+_SWING = 0.22  # over/under swing of a thread's centre line
+_RADIUS = 0.25  # thread height above its centre line
 _WARP_SRGB = (0.20, 0.26, 0.48)
 _WEFT_SRGB = (0.80, 0.64, 0.30)
 
@@ -34,8 +34,8 @@ def fabric(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     n = count(cols, _ACROSS, _MIN_PX, even=True)
     m = count(rows, max(2, round(n * rows / cols)), _MIN_PX, even=True)
     fuzz = periodic_noise(rng, (rows, cols), (0.8,), (1.0,))
-    t = ((np.arange(cols) + 0.5) / (cols / n) - 0.5)[None, :]    # warp i's centre at t = i
-    s = ((np.arange(rows) + 0.5) / (rows / m) - 0.5)[:, None]    # weft j's centre at s = j
+    t = ((np.arange(cols) + 0.5) / (cols / n) - 0.5)[None, :]  # warp i's centre at t = i
+    s = ((np.arange(rows) + 0.5) / (rows / m) - 0.5)[:, None]  # weft j's centre at s = j
     i, j = np.round(t), np.round(s)
     across_warp, across_weft = t - i, s - j
     warp_profile = np.sqrt(np.clip(1.0 - (across_warp / _HALF_WIDTH) ** 2, 0.0, None))
@@ -53,6 +53,10 @@ def fabric(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="fabric", label="woven fabric",
+    name="fabric",
+    label="woven fabric",
     summary="a plain weave of round threads over and under: a regular grid of saddles and holes",
-    depth=0.03, make=lambda shape, seed: fabric(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.03,
+    make=lambda shape, seed: fabric(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

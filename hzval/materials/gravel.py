@@ -16,11 +16,16 @@ from hzval.materials import Material
 from hzval.materials.noise import finish, grid, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
-_ACROSS = 14           # pebbles per period across
-_MIN_PX = 6            # smallest cell, texels
-_BASE = 0.05           # the grit between pebbles
-_PEBBLES_SRGB = ((0.70, 0.66, 0.58), (0.52, 0.50, 0.48), (0.60, 0.48, 0.36), (0.34, 0.33, 0.32),
-                 (0.78, 0.76, 0.72))
+_ACROSS = 14  # pebbles per period across
+_MIN_PX = 6  # smallest cell, texels
+_BASE = 0.05  # the grit between pebbles
+_PEBBLES_SRGB = (
+    (0.70, 0.66, 0.58),
+    (0.52, 0.50, 0.48),
+    (0.60, 0.48, 0.36),
+    (0.34, 0.33, 0.32),
+    (0.78, 0.76, 0.72),
+)
 _GRIT_SRGB = (0.30, 0.27, 0.23)
 
 
@@ -31,8 +36,8 @@ def gravel(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     gy, gx = grid((rows, cols), _ACROSS, _MIN_PX)
     cw, ch = cols / gx, rows / gy
     n = gx * gy
-    centre = 0.15 + 0.7 * rng.random((n, 2))                   # (y, x) within the cell
-    radius = min(cw, ch) * (0.5 + 0.35 * rng.random(n))        # semi-major axis, texels
+    centre = 0.15 + 0.7 * rng.random((n, 2))  # (y, x) within the cell
+    radius = min(cw, ch) * (0.5 + 0.35 * rng.random(n))  # semi-major axis, texels
     aspect = 0.55 + 0.45 * rng.random(n)
     angle = np.pi * rng.random(n)
     top = (0.45 + 0.5 * rng.random(n)) * radius / radius.max()  # small pebbles sit lower
@@ -64,6 +69,10 @@ def gravel(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="gravel", label="gravel",
+    name="gravel",
+    label="gravel",
     summary="small overlapping pebbles: many short fragmented shadows under near-vertical rims",
-    depth=0.03, make=lambda shape, seed: gravel(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.03,
+    make=lambda shape, seed: gravel(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

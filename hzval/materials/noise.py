@@ -51,8 +51,14 @@ def count(length: int, wanted: int, min_px: float, *, even: bool = False) -> int
     return n
 
 
-def periodic_noise(rng: np.random.Generator, shape: tuple[int, int], sigmas: tuple[float, ...],
-                   weights: tuple[float, ...], *, stretch: float = 1.0) -> np.ndarray:
+def periodic_noise(
+    rng: np.random.Generator,
+    shape: tuple[int, int],
+    sigmas: tuple[float, ...],
+    weights: tuple[float, ...],
+    *,
+    stretch: float = 1.0,
+) -> np.ndarray:
     """Exactly periodic noise of zero mean and unit variance, float32 ``shape``.
 
     White Gaussian noise is drawn directly as Fourier coefficients and
@@ -68,18 +74,18 @@ def periodic_noise(rng: np.random.Generator, shape: tuple[int, int], sigmas: tup
     f_max_x = f_max_y / stretch
     ky = min(rows // 2, int(np.ceil(f_max_y * rows)))
     kx = min(cols // 2, int(np.ceil(f_max_x * cols)))
-    iy = np.r_[0:ky + 1, rows - ky:rows] if 2 * ky + 1 < rows else np.arange(rows)
+    iy = np.r_[0 : ky + 1, rows - ky : rows] if 2 * ky + 1 < rows else np.arange(rows)
     fy = np.where(iy <= rows // 2, iy, iy - rows) / rows
     fx = np.arange(kx + 1) / cols
     kernel = np.zeros((fy.size, fx.size))
     for sigma, weight in zip(sigmas, weights):
-        c = 2.0 * np.pi ** 2 * sigma ** 2        # the Gaussian is separable
-        kernel += weight * np.outer(np.exp(-c * fy * fy), np.exp(-c * stretch ** 2 * fx * fx))
-    kernel[0, 0] = 0.0                           # zero mean
+        c = 2.0 * np.pi**2 * sigma**2  # the Gaussian is separable
+        kernel += weight * np.outer(np.exp(-c * fy * fy), np.exp(-c * stretch**2 * fx * fx))
+    kernel[0, 0] = 0.0  # zero mean
     white = rng.standard_normal((fy.size, fx.size, 2), dtype=np.float32)
     band = (white[..., 0] + 1j * white[..., 1]) * kernel.astype(np.float32)
     spectrum = np.zeros((rows, cols // 2 + 1), dtype=np.complex64)
-    spectrum[iy, :kx + 1] = band
+    spectrum[iy, : kx + 1] = band
     field = np.fft.irfft2(spectrum, s=shape).astype(np.float32)
     std = field.std()
     return field / std if std > 0 else field
@@ -109,8 +115,9 @@ class Cells:
     cell_h: float
 
 
-def cells(rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, int],
-          jitter: float = 0.8) -> Cells:
+def cells(
+    rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, int], jitter: float = 0.8
+) -> Cells:
     """One feature point per cell of a ``counts = (gy, gx)`` grid over the period, placed uniformly
     in the middle ``jitter`` of its cell; distances wrap, so the diagram tiles. The edge distance is
     exact for the 3 x 3 neighbourhood searched (Worley 1996's cellular texture basis, with the
@@ -118,23 +125,22 @@ def cells(rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, i
     rows, cols = shape
     gy, gx = counts
     cw, ch = cols / gx, rows / gy
-    pts = (0.5 - jitter / 2 + jitter * rng.random((gy, gx, 2))).astype(np.float32)   # (y, x) in the cell
-    y = ((np.arange(rows) + 0.5) / ch).astype(np.float32)[:, None]     # texel centres in cell units
+    pts = (0.5 - jitter / 2 + jitter * rng.random((gy, gx, 2))).astype(np.float32)  # (y, x) in the cell
+    y = ((np.arange(rows) + 0.5) / ch).astype(np.float32)[:, None]  # texel centres in cell units
     x = ((np.arange(cols) + 0.5) / cw).astype(np.float32)[None, :]
     cy, cx = np.floor(y).astype(np.int64), np.floor(x).astype(np.int64)
 
     def neighbour(oy, ox):
         ny, nx = cy + oy, cx + ox
-        p = pts[ny % gy, nx % gx]                                       # (rows, cols, 2)
-        return ((x - (nx + p[..., 1])) * cw, (y - (ny + p[..., 0])) * ch,
-                (ny % gy) * gx + nx % gx)
+        p = pts[ny % gy, nx % gx]  # (rows, cols, 2)
+        return ((x - (nx + p[..., 1])) * cw, (y - (ny + p[..., 0])) * ch, (ny % gy) * gx + nx % gx)
 
     offsets = [(oy, ox) for oy in (-1, 0, 1) for ox in (-1, 0, 1)]
     best = np.full((rows, cols), np.inf, np.float32)
     dx1 = np.zeros((rows, cols), np.float32)
     dy1 = np.zeros((rows, cols), np.float32)
     idx = np.zeros((rows, cols), np.int64)
-    which = np.zeros((rows, cols), np.int64)          # the nearest point's offset, 0..8
+    which = np.zeros((rows, cols), np.int64)  # the nearest point's offset, 0..8
     for k, (oy, ox) in enumerate(offsets):
         dx, dy, i = neighbour(oy, ox)
         d2 = dx * dx + dy * dy
@@ -147,7 +153,7 @@ def cells(rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, i
         # every other point bounds the cell, a periodic copy of the nearest one too (1 or 2 cells
         # per period along an axis): skip the nearest point itself by its offset, not by its index
         dx, dy, _ = neighbour(oy, ox)
-        bx, by = dx1 - dx, dy1 - dy                                     # b - a, in texels
+        bx, by = dx1 - dx, dy1 - dy  # b - a, in texels
         sep = np.sqrt(bx * bx + by * by)
         e = (dx * dx + dy * dy - best) / np.maximum(2.0 * sep, 1e-6)
         edge = np.where(which != k, np.minimum(edge, e), edge)

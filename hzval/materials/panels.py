@@ -15,12 +15,12 @@ from hzval.materials import Material
 from hzval.materials.noise import count, finish, periodic_noise, shape_of, smoothstep, tint
 
 MIN_SIZE = 8
-_ACROSS = 2             # panels per period across
-_MIN_PX = 16            # narrowest panel, texels
-_RIVETS = 8             # rivet spacings per panel edge: 9 rivets on it, 32 per panel (corners shared)
-_SEAM = 0.2             # seam floor
-_PLATE = 0.45           # plate level
-_RIVET_HEIGHT = 0.25    # above the plate
+_ACROSS = 2  # panels per period across
+_MIN_PX = 16  # narrowest panel, texels
+_RIVETS = 8  # rivet spacings per panel edge: 9 rivets on it, 32 per panel (corners shared)
+_SEAM = 0.2  # seam floor
+_PLATE = 0.45  # plate level
+_RIVET_HEIGHT = 0.25  # above the plate
 _METAL_SRGB = (0.58, 0.59, 0.61)
 _RIVET_SRGB = (0.46, 0.45, 0.43)
 _SEAM_SRGB = (0.18, 0.18, 0.19)
@@ -29,8 +29,12 @@ _SEAM_SRGB = (0.18, 0.18, 0.19)
 def _rivet_distance(lx, ly, w, h, inset, step_x, step_y):
     """Distance (texels) from panel-local ``(lx, ly)`` to the nearest rivet on the inset rectangle."""
     best = np.full(np.broadcast(lx, ly).shape, np.inf)
-    for fixed, along, length, step, horizontal in ((inset, lx, w, step_x, True), (h - inset, lx, w, step_x, True),
-                                                   (inset, ly, h, step_y, False), (w - inset, ly, h, step_y, False)):
+    for fixed, along, length, step, horizontal in (
+        (inset, lx, w, step_x, True),
+        (h - inset, lx, w, step_x, True),
+        (inset, ly, h, step_y, False),
+        (w - inset, ly, h, step_y, False),
+    ):
         k = np.clip(np.round((along - inset) / step), 0, round((length - 2 * inset) / step))
         nearest = inset + k * step
         d = np.hypot(lx - nearest, ly - fixed) if horizontal else np.hypot(lx - fixed, ly - nearest)
@@ -53,7 +57,7 @@ def panels(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     y = (np.arange(rows) + 0.5)[:, None]
     x = (np.arange(cols) + 0.5)[None, :]
     py, px = np.floor(y / ph), np.floor(x / pw)
-    ly, lx = y - py * ph, x - px * pw                                  # texels within the panel
+    ly, lx = y - py * ph, x - px * pw  # texels within the panel
     ids = ((py % gy) * gx + px % gx).astype(np.int64)
     border = np.minimum(np.minimum(lx, pw - lx), np.minimum(ly, ph - ly))
     half_seam, bevel = max(1.0, 0.012 * side), max(1.0, 0.02 * side)
@@ -72,6 +76,10 @@ def panels(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="panels", label="riveted metal panels",
+    name="panels",
+    label="riveted metal panels",
     summary="flat plates, narrow seams and rows of small rivet domes: small isolated occluders",
-    depth=0.02, make=lambda shape, seed: panels(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.02,
+    make=lambda shape, seed: panels(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

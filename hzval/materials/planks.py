@@ -16,12 +16,12 @@ from hzval.materials import Material
 from hzval.materials.noise import count, finish, periodic_noise, shape_of, tint
 
 MIN_SIZE = 8
-_ROWS = 6              # rows of boards per period
+_ROWS = 6  # rows of boards per period
 _MIN_ROW_PX = 8
-_BOARDS = 2            # boards per row
+_BOARDS = 2  # boards per row
 _MIN_BOARD_PX = 16
-_GROOVE = 0.15         # groove floor
-_BOARD = 0.75          # board level
+_GROOVE = 0.15  # groove floor
+_BOARD = 0.75  # board level
 _WOOD_SRGB = (0.58, 0.40, 0.24)
 _GROOVE_SRGB = (0.16, 0.11, 0.07)
 
@@ -47,7 +47,7 @@ def planks(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     ids = (row % nr) * nb + board % nb
     across_groove = np.clip(np.minimum(fv, 1.0 - fv) * bh / max(1.5, 0.06 * bh), 0.0, 1.0)
     end_groove = np.clip(np.minimum(fu, 1.0 - fu) * bl / max(1.0, 0.03 * bh), 0.0, 1.0)
-    profile = np.minimum(across_groove, end_groove)          # V: linear walls
+    profile = np.minimum(across_groove, end_groove)  # V: linear walls
     rings = 0.012 * np.sin(2 * np.pi * (fv * bh / max(3.0, 0.08 * bh) + 1.5 * figure))
     surface = level[ids] - 0.04 * (2.0 * fv - 1.0) ** 2 + 0.012 * grain + rings
     height = _GROOVE + profile * (surface - _GROOVE)
@@ -58,6 +58,10 @@ def planks(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="planks", label="wood planks",
+    name="planks",
+    label="wood planks",
     summary="boards with V grooves and staggered ends, grain along them: long straight grooves",
-    depth=0.03, make=lambda shape, seed: planks(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.03,
+    make=lambda shape, seed: planks(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

@@ -21,8 +21,8 @@ from hzval.materials.noise import finish, periodic_noise, shape_of, smoothstep, 
 MIN_SIZE = 8
 DEPTH = 0.08
 _OCTAVES = 5
-_GAIN = 1.6            # how strongly an octave's ridges gate the next one
-_SHARPNESS = 0.5       # |n| that takes a crest down to its valley floor, inverted
+_GAIN = 1.6  # how strongly an octave's ridges gate the next one
+_SHARPNESS = 0.5  # |n| that takes a crest down to its valley floor, inverted
 _GRASS_SRGB = (0.33, 0.42, 0.22)
 _ROCK_SRGB = (0.48, 0.45, 0.41)
 _SNOW_SRGB = (0.90, 0.91, 0.93)
@@ -35,16 +35,16 @@ def ridges(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     height = np.zeros((rows, cols), np.float32)
     weight = np.ones((rows, cols), np.float32)
     for o in range(_OCTAVES):
-        sigma = max(0.7, cols / 12.0 / 2 ** o)
+        sigma = max(0.7, cols / 12.0 / 2**o)
         n = periodic_noise(rng, (rows, cols), (sigma,), (1.0,))
         signal = np.clip(1.0 - _SHARPNESS * np.abs(n), 0.0, 1.0) ** 2
-        height += 0.5 ** o * signal * weight
+        height += 0.5**o * signal * weight
         weight = np.clip(signal * _GAIN, 0.0, 1.0)
     # the massifs: a broad, smooth swell that lifts some ridge systems and sinks others
     height *= 0.8 + 0.2 * np.tanh(periodic_noise(rng, (rows, cols), (cols / 6.0,), (1.0,)))
     lo, hi = float(height.min()), float(height.max())
     height = (height - lo) / (hi - lo if hi > lo else 1.0)
-    gy, gx = np.gradient(cv.heights_in_texels(height, DEPTH))        # slope, texel units
+    gy, gx = np.gradient(cv.heights_in_texels(height, DEPTH))  # slope, texel units
     slope = np.hypot(gx, gy)
     rock = smoothstep(0.35, 0.9, slope)[..., None]
     snow = (smoothstep(0.62, 0.75, height) * (1.0 - smoothstep(0.5, 1.2, slope)))[..., None]
@@ -54,6 +54,11 @@ def ridges(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 MATERIAL = Material(
-    name="ridges", label="ridged terrain",
+    name="ridges",
+    label="ridged terrain",
     summary="ridged multifractal mountains, open boundary: sharp crests, long shadows into valleys",
-    depth=DEPTH, boundary="open", make=lambda shape, seed: ridges(shape, seed=seed), min_size=MIN_SIZE)
+    depth=DEPTH,
+    boundary="open",
+    make=lambda shape, seed: ridges(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

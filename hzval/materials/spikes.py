@@ -21,7 +21,7 @@ from hzval.materials.noise import cells, finish, grid, periodic_noise, shape_of,
 MIN_SIZE = 8
 _ACROSS = 12
 _MIN_PX = 6
-_RADIUS = 0.14         # cone radius, fraction of a cell
+_RADIUS = 0.14  # cone radius, fraction of a cell
 _GROUND = 0.03
 _GROUND_SRGB = (0.24, 0.20, 0.16)
 _SPIKE_SRGB = (0.82, 0.80, 0.72)
@@ -39,11 +39,17 @@ def spikes(size=512, *, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     cone = np.clip(1.0 - c.dist / r, 0.0, None) ** 1.3
     height = _GROUND + 0.01 * ground + cone * (top[c.index] - _GROUND)
     m = np.clip(cone * 3.0, 0.0, 1.0)[..., None]
-    albedo = tint(_GROUND_SRGB, 0.15 * ground) * (1.0 - m) + tint(_SPIKE_SRGB) * (0.6 + 0.4 * cone[..., None]) * m
+    albedo = (
+        tint(_GROUND_SRGB, 0.15 * ground) * (1.0 - m) + tint(_SPIKE_SRGB) * (0.6 + 0.4 * cone[..., None]) * m
+    )
     return finish(height, albedo)
 
 
 MATERIAL = Material(
-    name="spikes", label="spike field",
+    name="spikes",
+    label="spike field",
     summary="thin cones up to five times as tall as wide: shadows far beyond the bake radius (a hard case)",
-    depth=0.12, make=lambda shape, seed: spikes(shape, seed=seed), min_size=MIN_SIZE)
+    depth=0.12,
+    make=lambda shape, seed: spikes(shape, seed=seed),
+    min_size=MIN_SIZE,
+)

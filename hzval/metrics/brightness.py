@@ -34,8 +34,14 @@ NOTICEABLE = 0.02
 
 def _slips(x: np.ndarray) -> dict:
     """Each slip's ``exposure * E`` from the display-scaled truth ``x`` in [0, 1]."""
-    return {"pi": np.pi * x, "1/pi": x / np.pi, "gamma": x ** (1 / 2.2), "degamma": x ** 2.2,
-            "srgb": cv.srgb_encode(x), "linear": cv.srgb_decode(x)}
+    return {
+        "pi": np.pi * x,
+        "1/pi": x / np.pi,
+        "gamma": x ** (1 / 2.2),
+        "degamma": x**2.2,
+        "srgb": cv.srgb_encode(x),
+        "linear": cv.srgb_decode(x),
+    }
 
 
 #: What each slip says, the likely cause (``{png}``: whether the frame was a PNG).
@@ -61,10 +67,21 @@ def diagnose(engine: np.ndarray, truth: np.ndarray, exposure: float, png: bool =
     slip = min(errors, key=errors.get)
     if errors[slip] > BETTER * own:
         return None
-    srgb = ("the PNG sRGB-encoded twice?" if png else
-            "display (sRGB) values in an EXR, which hzval reads as linear radiance (frames.json exposure_meaning)?")
-    linear = ("linear values written to the PNG without sRGB encoding (frames.json exposure_meaning)?" if png else
-              "sRGB decoding applied to linear radiance?")
+    srgb = (
+        "the PNG sRGB-encoded twice?"
+        if png
+        else "display (sRGB) values in an EXR, which hzval reads as linear radiance (frames.json exposure_meaning)?"
+    )
+    linear = (
+        "linear values written to the PNG without sRGB encoding (frames.json exposure_meaning)?"
+        if png
+        else "sRGB decoding applied to linear radiance?"
+    )
     ratio = float(e.mean() / max(x.mean(), 1e-12))
-    return {"slip": slip, "line": SLIPS[slip].format(srgb=srgb, linear=linear), "error": errors[slip],
-            "own_error": own, "ratio": ratio}
+    return {
+        "slip": slip,
+        "line": SLIPS[slip].format(srgb=srgb, linear=linear),
+        "error": errors[slip],
+        "own_error": own,
+        "ratio": ratio,
+    }

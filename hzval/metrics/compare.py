@@ -40,13 +40,29 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from hzval.core import conventions as cv
-from hzval.io import files
 from hzval.core.errors import HzvalError
 
-__all__ = ["LIT_THRESHOLD", "FLIP_PPD", "FrameMetrics", "display", "visibility_metrics", "flip",
-    "flip_evaluator_flip", "PARALLEL_MIN_ROWS", "SRGB_TO_XYZ", "D65_XYZ", "LabImage", "lab",
-    "delta_e2000", "delta_e2000_colour", "Reference", "compare", "IMAGE_METRICS", "flip_error",
-    "image_metrics"]
+__all__ = [
+    "LIT_THRESHOLD",
+    "FLIP_PPD",
+    "FrameMetrics",
+    "display",
+    "visibility_metrics",
+    "flip",
+    "flip_evaluator_flip",
+    "PARALLEL_MIN_ROWS",
+    "SRGB_TO_XYZ",
+    "D65_XYZ",
+    "LabImage",
+    "lab",
+    "delta_e2000",
+    "delta_e2000_colour",
+    "Reference",
+    "compare",
+    "IMAGE_METRICS",
+    "flip_error",
+    "image_metrics",
+]
 
 #: A layer value at or above this counts as lit (``V`` and ``F`` alike): the
 #: leak and false-shadow counts here and the maps of :mod:`hzval.report.images`.
@@ -71,7 +87,7 @@ class FrameMetrics:
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        if d["reflection_mae"] is None:       # only scenes that declare reflection_occlusion have it
+        if d["reflection_mae"] is None:  # only scenes that declare reflection_occlusion have it
             del d["reflection_mae"]
         return d
 
@@ -94,7 +110,9 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     return np.repeat(shown[..., None], 3, axis=-1) if grey else shown
 
 
-def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None) -> tuple[float, float, float]:
+def visibility_metrics(
+    V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None
+) -> tuple[float, float, float]:
     """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers, over the
     pixels of ``mask`` (those that see the surface; ``None``: all): one float64 Dr.Jit kernel and its
     sums (the counts exact; the mean as NumPy's to 1e-15)."""
@@ -108,7 +126,11 @@ def visibility_metrics(V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = N
         raise HzvalError(f"visibility layers of different shapes: {np.shape(V)} and {np.shape(F)}")
     v, f = mi.Float64(_flat_values(V)), mi.Float64(_flat_values(F))
     lit_truth, lit_test = v >= LIT_THRESHOLD, f >= LIT_THRESHOLD
-    terms = [dr.abs(f - v), dr.select(lit_test & ~lit_truth, 1.0, 0.0), dr.select(~lit_test & lit_truth, 1.0, 0.0)]
+    terms = [
+        dr.abs(f - v),
+        dr.select(lit_test & ~lit_truth, 1.0, 0.0),
+        dr.select(~lit_test & lit_truth, 1.0, 0.0),
+    ]
     count = np.size(V)
     if mask is not None:
         seen = mi.Bool(np.ascontiguousarray(mask, bool).ravel())
@@ -150,8 +172,12 @@ def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray)
         err, mean, _ = flip_evaluator.evaluate(
             np.ascontiguousarray(reference_display, dtype=np.float32),
             np.ascontiguousarray(test_display, dtype=np.float32),
-            "LDR", inputsRGB=True, applyMagma=False, computeMeanError=True,
-            parameters={"ppd": FLIP_PPD})
+            "LDR",
+            inputsRGB=True,
+            applyMagma=False,
+            computeMeanError=True,
+            parameters={"ppd": FLIP_PPD},
+        )
     except SystemExit as exc:
         raise HzvalError(f"flip-evaluator refused its input (exit {exc.code})") from None
     except (RuntimeError, ValueError) as exc:
@@ -181,7 +207,9 @@ def _by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
     if n < 2:
         return fn(*arrays)
     bounds = np.linspace(0, rows, n + 1).astype(int)
-    parts = list(backend.host_pool(n).map(lambda a, b: fn(*(x[a:b] for x in arrays)), bounds[:-1], bounds[1:]))
+    parts = list(
+        backend.host_pool(n).map(lambda a, b: fn(*(x[a:b] for x in arrays)), bounds[:-1], bounds[1:])
+    )
     return np.concatenate(parts, axis=0)
 
 
@@ -223,11 +251,11 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     rad, deg = math.pi / 180, 180 / math.pi
     C1, C2 = dr.sqrt(a1 * a1 + b1 * b1), dr.sqrt(a2 * a2 + b2 * b2)
     Cb7 = dr.power((C1 + C2) / 2, 7)
-    G = 0.5 * (1 - dr.sqrt(Cb7 / (Cb7 + 25 ** 7)))
+    G = 0.5 * (1 - dr.sqrt(Cb7 / (Cb7 + 25**7)))
     ap1, ap2 = (1 + G) * a1, (1 + G) * a2
     Cp1, Cp2 = dr.sqrt(ap1 * ap1 + b1 * b1), dr.sqrt(ap2 * ap2 + b2 * b2)
 
-    def hue(b, ap):                     # degrees in [0, 360), 0 where a' = b = 0
+    def hue(b, ap):  # degrees in [0, 360), 0 where a' = b = 0
         h = dr.atan2(b, ap) * deg
         return dr.select((b == 0) & (ap == 0), 0, dr.select(h < 0, h + 360, h))
 
@@ -237,15 +265,23 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     dh = dr.select(C12 == 0, 0, dr.select(dr.abs(d) <= 180, d, dr.select(d > 180, d - 360, d + 360)))
     dH = 2 * dr.sqrt(C12) * dr.sin(dh / 2 * rad)
     s = h1 + h2
-    hb = dr.select(C12 == 0, s, dr.select(dr.abs(h1 - h2) <= 180, s / 2,
-                                          dr.select(s < 360, (s + 360) / 2, (s - 360) / 2)))
-    T = (1 - 0.17 * dr.cos((hb - 30) * rad) + 0.24 * dr.cos((2 * hb) * rad)
-         + 0.32 * dr.cos((3 * hb + 6) * rad) - 0.20 * dr.cos((4 * hb - 63) * rad))
+    hb = dr.select(
+        C12 == 0,
+        s,
+        dr.select(dr.abs(h1 - h2) <= 180, s / 2, dr.select(s < 360, (s + 360) / 2, (s - 360) / 2)),
+    )
+    T = (
+        1
+        - 0.17 * dr.cos((hb - 30) * rad)
+        + 0.24 * dr.cos((2 * hb) * rad)
+        + 0.32 * dr.cos((3 * hb + 6) * rad)
+        - 0.20 * dr.cos((4 * hb - 63) * rad)
+    )
     q = (hb - 275) / 25
     d_theta = 30 * dr.exp(-(q * q))
     Cbp = (Cp1 + Cp2) / 2
     Cbp7 = dr.power(Cbp, 7)
-    RT = -dr.sin((2 * d_theta) * rad) * (2 * dr.sqrt(Cbp7 / (Cbp7 + 25 ** 7)))
+    RT = -dr.sin((2 * d_theta) * rad) * (2 * dr.sqrt(Cbp7 / (Cbp7 + 25**7)))
     Lb2 = ((L1 + L2) / 2 - 50) * ((L1 + L2) / 2 - 50)
     SL = 1 + (0.015 * Lb2) / dr.sqrt(20 + Lb2)
     SC = 1 + 0.045 * Cbp
@@ -295,13 +331,17 @@ class LabImage:
         lab = np.asarray(lab, dtype=np.float64)
         self = cls.__new__(cls)
         self.shape = lab.shape[:2]
-        self.L, self.a, self.b = (mi.Float64(np.array(lab[..., c], dtype=np.float64).ravel()) for c in range(3))
+        self.L, self.a, self.b = (
+            mi.Float64(np.array(lab[..., c], dtype=np.float64).ravel()) for c in range(3)
+        )
         dr.eval(self.L, self.a, self.b)
         return self
 
     def numpy(self) -> np.ndarray:
         """``(H, W, 3)`` float64 CIELAB."""
-        return np.stack([np.asarray(c, dtype=np.float64).reshape(self.shape) for c in (self.L, self.a, self.b)], axis=-1)
+        return np.stack(
+            [np.asarray(c, dtype=np.float64).reshape(self.shape) for c in (self.L, self.a, self.b)], axis=-1
+        )
 
 
 def lab(display_rgb: np.ndarray) -> np.ndarray:
@@ -310,8 +350,12 @@ def lab(display_rgb: np.ndarray) -> np.ndarray:
     return LabImage(display_rgb).numpy()
 
 
-def delta_e2000(reference_display: np.ndarray, test_display: np.ndarray, *,
-                reference_lab: "LabImage | np.ndarray | None" = None) -> np.ndarray:
+def delta_e2000(
+    reference_display: np.ndarray,
+    test_display: np.ndarray,
+    *,
+    reference_lab: "LabImage | np.ndarray | None" = None,
+) -> np.ndarray:
     """Per-pixel CIEDE2000 ``(H, W)`` float64 between two sRGB display images (D65).
 
     ``reference_lab``: the reference's Lab when the caller has it already (a
@@ -341,7 +385,9 @@ def delta_e2000(reference_display: np.ndarray, test_display: np.ndarray, *,
         ref = LabImage.from_array(reference_lab)
     rgb = _rgb_planes(test_display)
     if tuple(np.shape(test_display)[:2]) != tuple(ref.shape):
-        raise HzvalError(f"CIEDE2000 of images of different sizes: {ref.shape} and {np.shape(test_display)[:2]}")
+        raise HzvalError(
+            f"CIEDE2000 of images of different sizes: {ref.shape} and {np.shape(test_display)[:2]}"
+        )
     out = _delta_e2000_kernel(ref.L, ref.a, ref.b, *_lab_kernel(*rgb))
     dr.eval(out)
     return np.asarray(out, dtype=np.float64).reshape(ref.shape)
@@ -380,8 +426,9 @@ class Reference:
         self.flip = FlipReference(self.display, FLIP_PPD)
 
 
-def compare(truth, test, scale: float, *, reference: Reference | None = None
-            ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
+def compare(
+    truth, test, scale: float, *, reference: Reference | None = None
+) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
     """Metrics of one frame and the maps behind them (``flip``, ``delta_e``,
     ``visibility_diff``, and ``display``, the technique's display values).
 
@@ -401,11 +448,21 @@ def compare(truth, test, scale: float, *, reference: Reference | None = None
     O, R = test.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
     reflection = None
     if O is not None and R is not None:
-        reflection = float(np.mean(_seen(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64)), mask)))
+        reflection = float(
+            np.mean(_seen(np.abs(np.asarray(O, np.float64) - np.asarray(R, np.float64)), mask))
+        )
     scores, image_maps = image_metrics(ref, test.image)
     maps.update(image_maps)
-    return FrameMetrics(mae, leak, false_shadow, scores["flip_mean"], scores["rmse"], scores["psnr_db"],
-                        scores["delta_e2000_mean"], reflection), maps
+    return FrameMetrics(
+        mae,
+        leak,
+        false_shadow,
+        scores["flip_mean"],
+        scores["rmse"],
+        scores["psnr_db"],
+        scores["delta_e2000_mean"],
+        reflection,
+    ), maps
 
 
 #: The image metrics of a frame, the keys of :func:`image_metrics` (and of a frame's ``floor``).
@@ -435,8 +492,12 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     if mask is not None:
         flip_mean = float(np.mean(maps["flip"][mask]))
     maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab)
-    return {"flip_mean": flip_mean, "rmse": math.sqrt(mse), "psnr_db": psnr,
-            "delta_e2000_mean": float(np.mean(_seen(maps["delta_e"], mask)))}, maps
+    return {
+        "flip_mean": flip_mean,
+        "rmse": math.sqrt(mse),
+        "psnr_db": psnr,
+        "delta_e2000_mean": float(np.mean(_seen(maps["delta_e"], mask))),
+    }, maps
 
 
 def _flat_values(image: np.ndarray):

@@ -32,8 +32,14 @@ import numpy as np
 
 from hzval.metrics import compare
 
-__all__ = ["facing_mask", "truth_statistics", "facing_metrics", "few_shadows_warning", "FEW_SHADOWS",
-           "FACING_KEYS"]
+__all__ = [
+    "facing_mask",
+    "truth_statistics",
+    "facing_metrics",
+    "few_shadows_warning",
+    "FEW_SHADOWS",
+    "FACING_KEYS",
+]
 
 #: Below this share of shadowed facing pixels a frame's visibility metrics test next to nothing.
 FEW_SHADOWS = 0.01
@@ -50,18 +56,22 @@ def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
     return np.repeat(np.repeat(mask, s, axis=0), s, axis=1) if s > 1 else mask
 
 
-def truth_statistics(V: np.ndarray, facing: np.ndarray | None, spp: int, seen: np.ndarray | None = None) -> dict:
+def truth_statistics(
+    V: np.ndarray, facing: np.ndarray | None, spp: int, seen: np.ndarray | None = None
+) -> dict:
     """``frames[i].truth`` of a frame (module docstring) from its visibility ``V`` ``(H, W)``; over
     the pixels a view sees (``seen``; ``None``: all)."""
     V = np.asarray(V, np.float32)
     seen = np.ones(V.shape, bool) if seen is None else np.asarray(seen, bool)
     n = max(int(seen.sum()), 1)
     shadowed = (V < compare.LIT_THRESHOLD) & seen
-    spread = V * (1.0 - V)                  # float32 per pixel, summed in float64
+    spread = V * (1.0 - V)  # float32 per pixel, summed in float64
     spread[~seen] = 0.0
-    out = {"shadowed_fraction": float(shadowed.sum()) / n,
-           "visibility_se": float(np.sqrt(np.sum(spread, dtype=np.float64) / max(spp, 1))) / n,
-           "partial_fraction": float(np.sum(seen & (V > 0.0) & (V < 1.0))) / n}
+    out = {
+        "shadowed_fraction": float(shadowed.sum()) / n,
+        "visibility_se": float(np.sqrt(np.sum(spread, dtype=np.float64) / max(spp, 1))) / n,
+        "partial_fraction": float(np.sum(seen & (V > 0.0) & (V < 1.0))) / n,
+    }
     if facing is not None:
         out["attached_fraction"] = float(np.sum(seen & ~facing)) / n
         out["cast_fraction"] = float(np.sum(shadowed & facing)) / n
@@ -88,6 +98,8 @@ def few_shadows_warning(frames: list[dict]) -> str | None:
     if not few:
         return None
     listed = ", ".join(f"az{a:+g} {100 * s:.2f}%" for a, s in few[:6]) + (" ..." if len(few) > 6 else "")
-    return (f"few shadows to test: under {100 * FEW_SHADOWS:g}% of the pixels that face the light are shadowed in "
-            f"{len(few)} of {len(frames)} frames ({listed}); every visibility error is then near 0 "
-            "(a larger --depth or a lower --elevation casts more)")
+    return (
+        f"few shadows to test: under {100 * FEW_SHADOWS:g}% of the pixels that face the light are shadowed in "
+        f"{len(few)} of {len(frames)} frames ({listed}); every visibility error is then near 0 "
+        "(a larger --depth or a lower --elevation casts more)"
+    )

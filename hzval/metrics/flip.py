@@ -83,10 +83,36 @@ import numpy as np
 
 from hzval.core import conventions as cv
 
-__all__ = ["f32", "QC", "PC", "PT", "W", "QF", "GAUSS_A1", "GAUSS_B1", "GAUSS_A2", "GAUSS_B2", "PI",
-    "DEFAULT_PPD", "srgb_to_linear", "linear_rgb_to_xyz", "xyz_to_linear_rgb", "xyz_to_ycxcz",
-    "ycxcz_to_xyz", "xyz_to_cielab", "hunt", "hyab", "max_distance", "spatial_filter_radius",
-    "Filters", "filters", "FlipReference", "flip_error", "mean_error", "flip"]
+__all__ = [
+    "f32",
+    "QC",
+    "PC",
+    "PT",
+    "W",
+    "QF",
+    "GAUSS_A1",
+    "GAUSS_B1",
+    "GAUSS_A2",
+    "GAUSS_B2",
+    "PI",
+    "DEFAULT_PPD",
+    "srgb_to_linear",
+    "linear_rgb_to_xyz",
+    "xyz_to_linear_rgb",
+    "xyz_to_ycxcz",
+    "ycxcz_to_xyz",
+    "xyz_to_cielab",
+    "hunt",
+    "hyab",
+    "max_distance",
+    "spatial_filter_radius",
+    "Filters",
+    "filters",
+    "FlipReference",
+    "flip_error",
+    "mean_error",
+    "flip",
+]
 
 f32 = np.float32
 
@@ -122,20 +148,34 @@ def _K(v):
     return float(f32(v))
 
 
-_ILLUMINANT = (_K(0.950428545), 1.0, _K(1.088900371))        # DEFAULT_ILLUMINANT (D65)
-_INV_ILLUMINANT = (_K(1.052156925), 1.0, _K(0.918357670))    # INV_DEFAULT_ILLUMINANT
+_ILLUMINANT = (_K(0.950428545), 1.0, _K(1.088900371))  # DEFAULT_ILLUMINANT (D65)
+_INV_ILLUMINANT = (_K(1.052156925), 1.0, _K(0.918357670))  # INV_DEFAULT_ILLUMINANT
 
-_RGB_TO_XYZ = ((_K(f32(10135552.0) / f32(24577794.0)), _K(f32(8788810.0) / f32(24577794.0)),
-                _K(f32(4435075.0) / f32(24577794.0))),
-               (_K(f32(2613072.0) / f32(12288897.0)), _K(f32(8788810.0) / f32(12288897.0)),
-                _K(f32(887015.0) / f32(12288897.0))),
-               (_K(f32(1425312.0) / f32(73733382.0)), _K(f32(8788810.0) / f32(73733382.0)),
-                _K(f32(70074185.0) / f32(73733382.0))))
-_XYZ_TO_RGB = ((_K(3.241003275), _K(-1.537398934), _K(-0.498615861)),
-               (_K(-0.969224334), _K(1.875930071), _K(0.041554224)),
-               (_K(0.055639423), _K(-0.204011202), _K(1.057148933)))
+_RGB_TO_XYZ = (
+    (
+        _K(f32(10135552.0) / f32(24577794.0)),
+        _K(f32(8788810.0) / f32(24577794.0)),
+        _K(f32(4435075.0) / f32(24577794.0)),
+    ),
+    (
+        _K(f32(2613072.0) / f32(12288897.0)),
+        _K(f32(8788810.0) / f32(12288897.0)),
+        _K(f32(887015.0) / f32(12288897.0)),
+    ),
+    (
+        _K(f32(1425312.0) / f32(73733382.0)),
+        _K(f32(8788810.0) / f32(73733382.0)),
+        _K(f32(70074185.0) / f32(73733382.0)),
+    ),
+)
+_XYZ_TO_RGB = (
+    (_K(3.241003275), _K(-1.537398934), _K(-0.498615861)),
+    (_K(-0.969224334), _K(1.875930071), _K(0.041554224)),
+    (_K(0.055639423), _K(-0.204011202), _K(1.057148933)),
+)
 
 # -- FLIP.h's color3 conversions, on planes ------------------------------------------------------
+
 
 def _numpy(v) -> bool:
     """Whether ``v`` is a NumPy value (the filters' constants) rather than a Dr.Jit array (the images)."""
@@ -182,7 +222,7 @@ def _clamp(v):
         return np.fmin(np.fmax(v, f32(0.0)), f32(1.0))
     import drjit as dr
 
-    return dr.select(v > 0.0, dr.minimum(v, 1.0), 0.0)      # NaN > 0 is false: 0
+    return dr.select(v > 0.0, dr.minimum(v, 1.0), 0.0)  # NaN > 0 is false: 0
 
 
 def srgb_to_linear(c):
@@ -192,9 +232,11 @@ def srgb_to_linear(c):
 
 
 def _mat(m, x, y, z):
-    return (m[0][0] * x + m[0][1] * y + m[0][2] * z,
-            m[1][0] * x + m[1][1] * y + m[1][2] * z,
-            m[2][0] * x + m[2][1] * y + m[2][2] * z)
+    return (
+        m[0][0] * x + m[0][1] * y + m[0][2] * z,
+        m[1][0] * x + m[1][1] * y + m[1][2] * z,
+        m[2][0] * x + m[2][1] * y + m[2][2] * z,
+    )
 
 
 def linear_rgb_to_xyz(r, g, b):
@@ -233,7 +275,11 @@ def _lab_f(t):
 
 def xyz_to_cielab(x, y, z):
     """``color3::XYZToCIELab`` (D65; ``powf(t, 1.0f / 3.0f)`` as FLIP has it, not ``cbrtf``)."""
-    fx, fy, fz = _lab_f(x * _INV_ILLUMINANT[0]), _lab_f(y * _INV_ILLUMINANT[1]), _lab_f(z * _INV_ILLUMINANT[2])
+    fx, fy, fz = (
+        _lab_f(x * _INV_ILLUMINANT[0]),
+        _lab_f(y * _INV_ILLUMINANT[1]),
+        _lab_f(z * _INV_ILLUMINANT[2]),
+    )
     return 116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)
 
 
@@ -307,11 +353,15 @@ def _spatial_filters(ppd: np.float32, radius: int):
     for i in range(n):
         ix = f32(i - radius) * delta_x
         ix2 = ix * ix
-        vals = (_gaussian(ix2, GAUSS_A1[0], GAUSS_B1[0]), _gaussian(ix2, GAUSS_A1[1], GAUSS_B1[1]),
-                _gaussian_sqrt(ix2, GAUSS_A1[2], GAUSS_B1[2]), _gaussian_sqrt(ix2, GAUSS_A2[2], GAUSS_B2[2]))
+        vals = (
+            _gaussian(ix2, GAUSS_A1[0], GAUSS_B1[0]),
+            _gaussian(ix2, GAUSS_A1[1], GAUSS_B1[1]),
+            _gaussian_sqrt(ix2, GAUSS_A1[2], GAUSS_B1[2]),
+            _gaussian_sqrt(ix2, GAUSS_A2[2], GAUSS_B2[2]),
+        )
         for arr, k, v in zip((y, cx, cz1, cz2), range(4), vals):
             arr[i] = v
-            sums[k] = f32(sums[k] + v)          # FLIP's float running sums
+            sums[k] = f32(sums[k] + v)  # FLIP's float running sums
     norm_cz = f32(1.0) / np.sqrt(sums[2] * sums[2] + sums[3] * sums[3])
     return (y * (f32(1.0) / sums[0]), cx * (f32(1.0) / sums[1]), cz1 * norm_cz, cz2 * norm_cz)
 
@@ -363,6 +413,7 @@ def filters(ppd: float = DEFAULT_PPD) -> Filters:
 
 # -- the pipeline, in Dr.Jit ------------------------------------------------------------------------
 
+
 class _Grid:
     """Pixel indices of an ``h x w`` image, row-major, for FLIP's two passes. The x-direction pass
     runs over the image with ``pad`` rows above and below it, each a copy of the nearest edge row
@@ -377,11 +428,11 @@ class _Grid:
         self.h, self.w, self.pad = h, w, pad
         self.W = dr.opaque(mi.Int32, w)
         H = dr.opaque(mi.Int32, h)
-        j = dr.arange(mi.Int32, (h + 2 * pad) * w)         # a padded plane's index
+        j = dr.arange(mi.Int32, (h + 2 * pad) * w)  # a padded plane's index
         row = j // self.W
         self.x = j - row * self.W
         self.source_row = dr.clip(row - pad, 0, H - 1)
-        self.i = dr.arange(mi.Int32, h * w)                # a pixel's index
+        self.i = dr.arange(mi.Int32, h * w)  # a pixel's index
 
     def along_x(self, offset: int):
         """Where the padded planes' x pass reads its tap ``offset``: the column clamped to the image."""
@@ -442,10 +493,12 @@ class _Side:
         self.grid = g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
         r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(display, g))
         yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
-        yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))      # oneOver116, sixteenOver116
+        yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
         dr.eval(yy, cx, cz, yn)
         # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
-        x_pass = _correlate((yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)), g.along_x)
+        x_pass = _correlate(
+            (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)), g.along_x
+        )
         dr.eval(x_pass)
         sp0, sp1, sp2, sp3, ft0, ft1, ft2 = x_pass
         # the y-direction passes, and what follows them
@@ -500,8 +553,10 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
 
     disp = _check_image(test_display, "test")
     if disp.shape[:2] != ref.shape:
-        raise ValueError(f"reference and test image resolutions differ: {ref.shape[0]} x {ref.shape[1]} "
-                         f"against {disp.shape[0]} x {disp.shape[1]}")
+        raise ValueError(
+            f"reference and test image resolutions differ: {ref.shape[0]} x {ref.shape[1]} "
+            f"against {disp.shape[0]} x {disp.shape[1]}"
+        )
     f = ref.filters
     t = _Side(disp, f)
     cd = _powf(hyab(ref.L, ref.A, ref.B, t.L, t.A, t.B), _K(QC))
@@ -522,8 +577,9 @@ def mean_error(err: np.ndarray) -> float:
     return float(total / f32(err.size))
 
 
-def flip(reference_display: np.ndarray, test_display: np.ndarray, ppd: float = DEFAULT_PPD
-         ) -> tuple[np.ndarray, float]:
+def flip(
+    reference_display: np.ndarray, test_display: np.ndarray, ppd: float = DEFAULT_PPD
+) -> tuple[np.ndarray, float]:
     """LDR-FLIP of two display images, the error map ``(H, W)`` and its mean (one reference, one test:
     ``flip_error(FlipReference(reference_display, ppd), test_display)``)."""
     return flip_error(FlipReference(reference_display, ppd), test_display)

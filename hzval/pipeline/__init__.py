@@ -1,5 +1,4 @@
-"""The sweep: the truth and every technique for every light of a scene, compared, written and reported.
-"""
+"""The sweep: the truth and every technique for every light of a scene, compared, written and reported."""
 
 from hzval.core.exports import exports
 

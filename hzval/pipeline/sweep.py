@@ -62,26 +62,22 @@ from pathlib import Path
 import numpy as np
 
 from hzval import materials
-from hzval.core import backend
 from hzval.bake import maps as bake
-from hzval.scene import camera
-from hzval.metrics import compare
-from hzval.io import files
-from hzval.io import heightmap
-from hzval.report import images
-from hzval.scene import lookup
-from hzval.report import pages as report
-from hzval.core import shading
-from hzval.core import interrupts
-from hzval.techniques import surface
-from hzval.techniques import registry as technique
-from hzval.truth import plane as truth
-from hzval.geometry import tile as meshes
-from hzval.metrics import facing as hzfacing
-from hzval.core import conventions as cv
-from hzval.scene import spec as sc
 from hzval.bake.maps import BakeParams
+from hzval.core import backend, interrupts, shading
+from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.geometry import tile as meshes
+from hzval.io import files, heightmap
+from hzval.metrics import compare
+from hzval.metrics import facing as hzfacing
+from hzval.report import images
+from hzval.report import pages as report
+from hzval.scene import camera, lookup
+from hzval.scene import spec as sc
+from hzval.techniques import registry as technique
+from hzval.techniques import surface
+from hzval.truth import plane as truth
 
 __all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "reset_peak_rss", "PNG_LEVEL"]
 
@@ -107,17 +103,22 @@ class Options:
 
     radius: int = _BAKE_DEFAULTS.radius
     angles: int = _BAKE_DEFAULTS.angles
-    method: str = _BAKE_DEFAULTS.method       # horizon bake method: "seed" or "exact"
+    method: str = _BAKE_DEFAULTS.method  # horizon bake method: "seed" or "exact"
     directions: int = _BAKE_DEFAULTS.directions
     techniques: tuple[str, ...] | None = None
     exclude: tuple[str, ...] = ()
     settings: dict = dataclasses.field(default_factory=dict)
-    all_files: bool = False     # also the frame files that the others determine (_write_frame)
+    all_files: bool = False  # also the frame files that the others determine (_write_frame)
 
     def bake_params(self, scene) -> BakeParams:
-        return BakeParams(depth=scene.material.depth, radius=self.radius, angles=self.angles,
-                          boundary=scene.material.boundary, method=self.method,
-                          directions=self.directions).validate()
+        return BakeParams(
+            depth=scene.material.depth,
+            radius=self.radius,
+            angles=self.angles,
+            boundary=scene.material.boundary,
+            method=self.method,
+            directions=self.directions,
+        ).validate()
 
 
 def frame_folder(azimuth_deg: float) -> str:
@@ -175,17 +176,19 @@ class _Setup:
     params: BakeParams
     truth: truth.Truth
     unshadowed: surface.Unshadowed
-    techniques: list            # built Technique objects, registry order
+    techniques: list  # built Technique objects, registry order
     timings: dict
-    bake_contents: tuple = ()   # what was baked (hzval.bake.maps.CONTENTS)
-    notices: list = dataclasses.field(default_factory=list)   # one-line warnings of the set-up
-    estimate: int = 0                                           # estimated peak memory, bytes
-    retained: bool = False      # freed memory kept (RETAIN_BELOW_SHARE, backend.retain_freed_memory)
-    perfect: list = dataclasses.field(default_factory=list)    # the techniques at the truth's hits
-    view: dict = dataclasses.field(default_factory=dict)       # metrics.json's "view" (_view_errors)
+    bake_contents: tuple = ()  # what was baked (hzval.bake.maps.CONTENTS)
+    notices: list = dataclasses.field(default_factory=list)  # one-line warnings of the set-up
+    estimate: int = 0  # estimated peak memory, bytes
+    retained: bool = False  # freed memory kept (RETAIN_BELOW_SHARE, backend.retain_freed_memory)
+    perfect: list = dataclasses.field(default_factory=list)  # the techniques at the truth's hits
+    view: dict = dataclasses.field(default_factory=dict)  # metrics.json's "view" (_view_errors)
     view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
-    normal: np.ndarray | None = None    # the top view's normal map: which pixels face the light (hzval.metrics.facing)
-    albedo_constant: float | None = None    # the linear albedo where it is one grey value (frames.json)
+    normal: np.ndarray | None = (
+        None  # the top view's normal map: which pixels face the light (hzval.metrics.facing)
+    )
+    albedo_constant: float | None = None  # the linear albedo where it is one grey value (frames.json)
 
 
 #: A sweep's peak memory: a base, a cost per pixel (images, comparisons), one per triangle of the
@@ -193,7 +196,7 @@ class _Setup:
 #: uv, terrain's xy, the positions while they are set up) and one per sample the truth keeps between
 #: frames (its hits: every sample up to hzval.truth.plane.KEEP_SAMPLES, one band's beyond). Fitted to the
 #: peaks measured on this machine (``python benchmarks/bench_production.py``; docs/truth-surface.md, "Cost").
-PEAK_BASE_BYTES = 0.3 * 2 ** 30
+PEAK_BASE_BYTES = 0.3 * 2**30
 PEAK_BYTES_PER_PIXEL = 325
 #: The mesh's share of the peak, per triangle (hzval.truth.plane.mesh_triangles): the 2048 bricks' peak
 #: grew by 2.0 GiB with 26M triangles more (37.5M against bd627d5's 11.5M); Embree holds about 94
@@ -215,7 +218,9 @@ PEAK_BYTES_PER_VIEW_SAMPLE = 64
 RETAIN_BELOW_SHARE = 0.5
 
 
-def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = None, keeps: bool | None = None) -> int:
+def estimate_peak_bytes(
+    scene, rows: int, cols: int, triangles: int | None = None, keeps: bool | None = None
+) -> int:
     """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
     in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
     (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
@@ -233,8 +238,14 @@ def estimate_peak_bytes(scene, rows: int, cols: int, triangles: int | None = Non
     if scene.camera.kind != "top":
         # a band's rays in float64 on the host, the truth's hits, the techniques built twice
         view = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples
-    return int(PEAK_BASE_BYTES + PEAK_BYTES_PER_PIXEL * H * W + PEAK_BYTES_PER_TRIANGLE * triangles
-               + PEAK_BYTES_PER_SAMPLE * samples + PEAK_BYTES_PER_KEPT_SAMPLE * kept + view)
+    return int(
+        PEAK_BASE_BYTES
+        + PEAK_BYTES_PER_PIXEL * H * W
+        + PEAK_BYTES_PER_TRIANGLE * triangles
+        + PEAK_BYTES_PER_SAMPLE * samples
+        + PEAK_BYTES_PER_KEPT_SAMPLE * kept
+        + view
+    )
 
 
 #: The truth's peak while it builds its mesh in bands (:mod:`hzval.truth.bands`), before the techniques
@@ -263,8 +274,12 @@ def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
     """The peak of the truth's phase in bands (:data:`PEAK_BAND_BYTES_PER_PIXEL` and the rest)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     bits = H * W * scene.spp * len(scene.light.azimuths_deg) / 8
-    return int(PEAK_BASE_BYTES + PEAK_BAND_BYTES_PER_PIXEL * rows * cols
-               + PEAK_BYTES_PER_BAND_TRIANGLE * band_triangles + bits)
+    return int(
+        PEAK_BASE_BYTES
+        + PEAK_BAND_BYTES_PER_PIXEL * rows * cols
+        + PEAK_BYTES_PER_BAND_TRIANGLE * band_triangles
+        + bits
+    )
 
 
 def truth_plan(scene, height: np.ndarray) -> TruthPlan:
@@ -303,15 +318,19 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
 def _model_peak_bytes(scene, rows: int, cols: int) -> int:
     """The peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
     (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images."""
-    from hzval.geometry import displace
-    from hzval.geometry import model
+    from hzval.geometry import displace, model
     from hzval.truth import model as model_truth
 
     base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
     triangles, mesh_bytes = displace.estimate(base, (rows, cols))
     H, W = sc.image_shape(rows, cols, scene.camera)
-    return int(PEAK_BASE_BYTES + mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
-               + model_truth.bytes_per_sample(scene) * H * W * scene.spp + PEAK_BYTES_PER_PIXEL * H * W)
+    return int(
+        PEAK_BASE_BYTES
+        + mesh_bytes
+        + model_truth.BYTES_PER_TRIANGLE * triangles
+        + model_truth.bytes_per_sample(scene) * H * W * scene.spp
+        + PEAK_BYTES_PER_PIXEL * H * W
+    )
 
 
 def material_shape(scene) -> tuple[int, int]:
@@ -326,7 +345,7 @@ def material_shape(scene) -> tuple[int, int]:
 #: 4096 x 4096 or the 361 lights of MAX_LIGHTS at 2400 x 2400. A frame's files take about 17 bytes a
 #: pixel (72 MB at 2048 x 2048) and its renders about 0.5 us a pixel here: 2^31 is 36 GB of files and
 #: a quarter of an hour to hours of rendering, the most a report is worth waiting for.
-MAX_FRAME_PIXELS = 2 ** 31
+MAX_FRAME_PIXELS = 2**31
 
 
 def check_frame_pixels(scene, rows: int, cols: int) -> int:
@@ -335,13 +354,18 @@ def check_frame_pixels(scene, rows: int, cols: int) -> int:
     H, W = sc.image_shape(rows, cols, scene.camera)
     n = len(scene.light.azimuths_deg) * H * W
     if n > MAX_FRAME_PIXELS:
-        raise InputError("--azimuths", f"{len(scene.light.azimuths_deg)} lights of {W}x{H} pixels are {n:.3g} "
-                                       f"frame pixels; at most {MAX_FRAME_PIXELS:.3g} (fewer lights or a "
-                                       "smaller image)")
+        raise InputError(
+            "--azimuths",
+            f"{len(scene.light.azimuths_deg)} lights of {W}x{H} pixels are {n:.3g} "
+            f"frame pixels; at most {MAX_FRAME_PIXELS:.3g} (fewer lights or a "
+            "smaller image)",
+        )
     return n
 
 
-def check_fits(scene, params: BakeParams, height: np.ndarray | None = None, plan: TruthPlan | None = None) -> int:
+def check_fits(
+    scene, params: BakeParams, height: np.ndarray | None = None, plan: TruthPlan | None = None
+) -> int:
     """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
     bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
     now; return the estimate. ``height``: the normalised map, once read: the estimate then counts the
@@ -354,27 +378,38 @@ def check_fits(scene, params: BakeParams, height: np.ndarray | None = None, plan
     bake.check_fits(what, rows, cols, params)
     triangles = None
     if not scene.mesh.is_plane:
-        need = _model_peak_bytes(scene, rows, cols)     # the model's truth counts its rings itself
+        need = _model_peak_bytes(scene, rows, cols)  # the model's truth counts its rings itself
     else:
         if height is not None and plan is None:
             plan = truth_plan(scene, height)
         triangles = None if plan is None else plan.triangles
         need = estimate_peak_bytes(scene, rows, cols, triangles)
         if plan is not None and plan.band_rows is not None:
-            need = max(estimate_peak_bytes(scene, rows, cols, 0, keeps=False),
-                       band_peak_bytes(scene, rows, cols, plan.band_triangles))
+            need = max(
+                estimate_peak_bytes(scene, rows, cols, 0, keeps=False),
+                band_peak_bytes(scene, rows, cols, plan.band_triangles),
+            )
     have = bake.available_bytes()
     if need > have:
-        mesh = "" if triangles is None else (f" with the truth's {triangles / 1e6:.0f}M triangles at "
-                                             f"--truth-tolerance {scene.material.truth_tolerance:g}")
+        mesh = (
+            ""
+            if triangles is None
+            else (
+                f" with the truth's {triangles / 1e6:.0f}M triangles at "
+                f"--truth-tolerance {scene.material.truth_tolerance:g}"
+            )
+        )
         if plan is not None and plan.band_rows is not None:
             mesh += f" (built in bands of {plan.band_rows} rows, {plan.band_triangles / 1e6:.0f}M triangles)"
         elif plan is not None and plan.why_single is not None:
             mesh += f" (at once, not in bands: {plan.why_single})"
-        raise InputError(what, f"a sweep of {cols}x{rows} texels at {scene.spp} spp{mesh} needs about "
-                               f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
-                               "are available (fewer --spp, a smaller map"
-                               f"{'' if triangles is None else ', a larger --truth-tolerance'} or a larger machine)")
+        raise InputError(
+            what,
+            f"a sweep of {cols}x{rows} texels at {scene.spp} spp{mesh} needs about "
+            f"{need / 2**30:.1f} GiB of memory at its peak (estimated); {have / 2**30:.1f} GiB "
+            "are available (fewer --spp, a smaller map"
+            f"{'' if triangles is None else ', a larger --truth-tolerance'} or a larger machine)",
+        )
     check_frame_pixels(scene, rows, cols)
     return need
 
@@ -383,32 +418,47 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
     with the report), build the truth and every selected technique; timed."""
     backend.variant()
-    chosen = technique.select(list(options.techniques) if options.techniques is not None else None, scene,
-                              exclude=options.exclude)
+    chosen = technique.select(
+        list(options.techniques) if options.techniques is not None else None, scene, exclude=options.exclude
+    )
     params = options.bake_params(scene)
-    for t in chosen:                            # settings are checked before anything is written
+    for t in chosen:  # settings are checked before anything is written
         t.check_settings(params, options.settings.get(t.name, {}))
-    check_fits(scene, params)                  # before the map is generated or decoded
+    check_fits(scene, params)  # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
     plan = truth_plan(scene, hm.height) if scene.mesh.is_plane else None
-    estimate = check_fits(scene, params, hm.height, plan)     # the truth's own triangles, before they are made
+    estimate = check_fits(scene, params, hm.height, plan)  # the truth's own triangles, before they are made
     # from here on: the frames then reuse what the set-up frees, besides what they free themselves
     retained = estimate <= RETAIN_BELOW_SHARE * bake.available_bytes() and backend.retain_freed_memory()
     rows, cols = hm.height.shape
-    material = {"name": scene.name, "source": hm.source, "digest": hm.digest, "rows": rows, "cols": cols,
-                "path": files.report_path(hm.path, out)}
+    material = {
+        "name": scene.name,
+        "source": hm.source,
+        "digest": hm.digest,
+        "rows": rows,
+        "cols": cols,
+        "path": files.report_path(hm.path, out),
+    }
     t0 = time.perf_counter()
     notices: list[str] = []
     horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
-    record = {**material, "path": files.report_path(hm.path, out / "bake")}    # relative to bake.json's folder
-    baked, cached = bake.cached_bake(hm.height, hm.digest, params, out / "bake", record, notices,
-                                     horizon=horizon, write_to=None if report_dir is None else report_dir / "bake")
+    record = {**material, "path": files.report_path(hm.path, out / "bake")}  # relative to bake.json's folder
+    baked, cached = bake.cached_bake(
+        hm.height,
+        hm.digest,
+        params,
+        out / "bake",
+        record,
+        notices,
+        horizon=horizon,
+        write_to=None if report_dir is None else report_dir / "bake",
+    )
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
     t0 = time.perf_counter()
     albedo = sc.load_albedo(scene.material, rows, cols)
     the_truth, points = truth_of(scene, hm.height, albedo, plan)
     timings["truth_setup_s"] = time.perf_counter() - t0
-    if points is not None:          # a model: its mesh (cut, displaced, its BVH) and camera rays
+    if points is not None:  # a model: its mesh (cut, displaced, its BVH) and camera rays
         timings.update({f"truth_{k}": v for k, v in the_truth.timings.items()})
     ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
@@ -416,9 +466,20 @@ def _set_up(scene, out: Path, options: Options, report_dir: Path | None = None) 
     timings["plain_setup_s"] = time.perf_counter() - t0
     built = _build_techniques(ctx, chosen, options, timings, notices)
     chosen = [type(t) for t in built]
-    setup = _Setup(material, params, the_truth, plain, built, timings, baked.contents, notices, estimate,
-                   retained=retained, normal=baked.normal if scene.camera.kind == "top" else None,
-                   albedo_constant=_constant(ctx.albedo))
+    setup = _Setup(
+        material,
+        params,
+        the_truth,
+        plain,
+        built,
+        timings,
+        baked.contents,
+        notices,
+        estimate,
+        retained=retained,
+        normal=baked.normal if scene.camera.kind == "top" else None,
+        albedo_constant=_constant(ctx.albedo),
+    )
     if the_truth.hits is not None:
         t0 = time.perf_counter()
         _set_up_view(setup, ctx, chosen, options)
@@ -438,9 +499,14 @@ def _band_record(the_truth) -> dict:
     (:mod:`hzval.truth.bands`): pixel rows a band, bands, triangles of the largest and of them all."""
     if getattr(the_truth, "mesh_bands", None) is None:
         return {}
-    return {"truth_bands": {"band_rows": the_truth.mesh_band_rows, "bands": len(the_truth.mesh_bands),
-                            "largest_triangles": getattr(the_truth, "band_triangles_largest", None),
-                            "triangles_built": getattr(the_truth, "band_triangles_built", None)}}
+    return {
+        "truth_bands": {
+            "band_rows": the_truth.mesh_band_rows,
+            "bands": len(the_truth.mesh_bands),
+            "largest_triangles": getattr(the_truth, "band_triangles_largest", None),
+            "triangles_built": getattr(the_truth, "band_triangles_built", None),
+        }
+    }
 
 
 def _constant(values: np.ndarray) -> float | None:
@@ -457,8 +523,10 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
     :class:`hzval.truth.model.ModelTruth` and the techniques' samples at its hits, with their frames."""
     if scene.mesh.is_plane:
         if scene.mesh.tangent_bug != "none":
-            raise InputError(scene.source or "--tangent-bug", "a tangent bug needs a model's frames: add --mesh "
-                             "(the plane's frame is the world's)")
+            raise InputError(
+                scene.source or "--tangent-bug",
+                "a tangent bug needs a model's frames: add --mesh (the plane's frame is the world's)",
+            )
         plan = truth_plan(scene, height) if plan is None else plan
         return truth.Truth(scene, height, mesh_band_rows=plan.band_rows), None
     from hzval.geometry import model
@@ -482,11 +550,13 @@ def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: lis
         try:
             built.append(t.build(ctx, **options.settings.get(t.name, {})))
         except technique.Unavailable as e:
-            notices.append(str(e))             # metrics.json's warnings; the command line prints them
+            notices.append(str(e))  # metrics.json's warnings; the command line prints them
             continue
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
     if not built:
-        raise InputError("--techniques", "no technique is left to score: " + "; ".join(notices[-len(chosen):]))
+        raise InputError(
+            "--techniques", "no technique is left to score: " + "; ".join(notices[-len(chosen) :])
+        )
     return built
 
 
@@ -496,7 +566,9 @@ def _set_up_view(setup: _Setup, ctx, chosen, options: Options) -> None:
     hits = setup.truth.hits
     own = ctx.samples()
     at_truth = lookup.from_points(hits[0], hits[1], own)
-    perfect_ctx = technique.Context(ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth, cache=ctx.cache)
+    perfect_ctx = technique.Context(
+        ctx.scene, ctx.height, ctx.bake, ctx.albedo, points=at_truth, cache=ctx.cache
+    )
     setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     setup.view, setup.view_maps = view_errors(setup.truth, own)
 
@@ -555,8 +627,16 @@ def _spread(values: np.ndarray) -> dict:
     return {"mean": float(values.mean()), "p50": float(q[0]), "p95": float(q[1]), "max": float(values.max())}
 
 
-def run(scene, out: str | Path, *, options: Options = Options(), command: str = "", progress: bool = True,
-        force: bool = False, gates=None) -> dict:
+def run(
+    scene,
+    out: str | Path,
+    *,
+    options: Options = Options(),
+    command: str = "",
+    progress: bool = True,
+    force: bool = False,
+    gates=None,
+) -> dict:
     """Run the sweep of ``scene`` into ``out``; return the ``metrics.json`` content.
 
     All or nothing: the report (frames, plots, ``index.html``, ``metrics.json``,
@@ -570,19 +650,21 @@ def run(scene, out: str | Path, *, options: Options = Options(), command: str = 
     before the report is written, which lists their failures first (``metrics.json``'s ``gates``).
     """
     out = Path(out)
-    reset_peak_rss()                    # this sweep's own peak, even after others in this process
+    reset_peak_rss()  # this sweep's own peak, even after others in this process
     try:
         with interrupts.held() as hold, files.output_folder(out, force=force):
             with files.Staging(out) as stage:
                 result = _run(scene, out, stage.dir, options, command, progress, gates)
-                hold.start()            # the last signal check: from here the run completes
+                hold.start()  # the last signal check: from here the run completes
                 stage.swap()
     finally:
-        backend.hand_back_freed_memory()    # what the sweep kept (RETAIN_BELOW_SHARE), for what follows
+        backend.hand_back_freed_memory()  # what the sweep kept (RETAIN_BELOW_SHARE), for what follows
     return result
 
 
-def _run(scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None) -> dict:
+def _run(
+    scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None
+) -> dict:
     """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
     from tqdm import tqdm
 
@@ -592,8 +674,14 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
         setup.view["files"] = _write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)
     clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
-    bar = tqdm(scene.light.azimuths_deg, desc="sweep", unit="frame", disable=not progress,
-               file=sys.stderr, leave=False)
+    bar = tqdm(
+        scene.light.azimuths_deg,
+        desc="sweep",
+        unit="frame",
+        disable=not progress,
+        file=sys.stderr,
+        leave=False,
+    )
     try:
         frames = _frames(report_dir, scene, setup, scale, clock, options.all_files, bar)
     finally:
@@ -603,13 +691,17 @@ def _run(scene, out: Path, report_dir: Path, options: Options, command: str, pro
         timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
     result = _result(scene, options, setup, timings, frames)
     if gates:
-        gates.apply(result)             # a baseline of other settings raises here: nothing is swapped in
+        gates.apply(result)  # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
     report.write_report(report_dir, result, command=command)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
-    result["memory"] = {"peak_rss_bytes": peak_rss_bytes(), "estimate_bytes": setup.estimate,
-                        "retains_freed": setup.retained, **_band_record(setup.truth)}
+    result["memory"] = {
+        "peak_rss_bytes": peak_rss_bytes(),
+        "estimate_bytes": setup.estimate,
+        "retains_freed": setup.retained,
+        **_band_record(setup.truth),
+    }
     files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result
@@ -629,17 +721,26 @@ def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> 
         "material": m,
         "image_size": result["camera"]["resolution"],
         "camera": result["camera"],
-        "light": {"kind": scene.light.kind, "radius_deg": scene.light.radius_deg,
-                  "irradiance": scene.light.irradiance, **_light_radiance(scene.light)},
+        "light": {
+            "kind": scene.light.kind,
+            "radius_deg": scene.light.radius_deg,
+            "irradiance": scene.light.irradiance,
+            **_light_radiance(scene.light),
+        },
         "exposure": result["exposure"]["scale"],
         "effects": list(scene.effects),
         **_engine_notes(scene, albedo_constant),
         "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
-                       "azimuth counterclockwise from +x; L points toward the light",
-        "frames": [{"name": frame_folder(f["azimuth_deg"]), "azimuth_deg": f["azimuth_deg"],
-                    "elevation_deg": f["elevation_deg"],
-                    "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])]}
-                   for f in result["frames"]],
+        "azimuth counterclockwise from +x; L points toward the light",
+        "frames": [
+            {
+                "name": frame_folder(f["azimuth_deg"]),
+                "azimuth_deg": f["azimuth_deg"],
+                "elevation_deg": f["elevation_deg"],
+                "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])],
+            }
+            for f in result["frames"]
+        ],
     }
 
 
@@ -648,11 +749,16 @@ def _light_radiance(light) -> dict:
     irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
     facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading")."""
     if light.kind != "soft" or not light.radius_deg:
-        return {"radiance": None, "radiance_note": "a directional light: irradiance E on a surface facing it, "
-                                                   "E cos(theta) on one at theta"}
+        return {
+            "radiance": None,
+            "radiance_note": "a directional light: irradiance E on a surface facing it, "
+            "E cos(theta) on one at theta",
+        }
     rho = math.radians(light.radius_deg)
-    return {"radiance": light.irradiance / (math.pi * math.sin(rho) ** 2),
-            "radiance_note": "a disk of uniform radiance L = E / (pi sin^2 rho): a surface facing it receives E"}
+    return {
+        "radiance": light.irradiance / (math.pi * math.sin(rho) ** 2),
+        "radiance_note": "a disk of uniform radiance L = E / (pi sin^2 rho): a surface facing it receives E",
+    }
 
 
 def _engine_notes(scene, albedo_constant) -> dict:
@@ -668,20 +774,33 @@ def _engine_notes(scene, albedo_constant) -> dict:
     albedo["brdf"] = "Lambert: radiance = albedo / pi * E * max(N.L, 0) (with diffuse)"
     spp = scene.spp
     n = int(round(math.sqrt(spp)))
-    rule = ("sample s of pixel p = row * width + col at (u, v) in the pixel, u = (s mod n + U) / n, "
-            f"v = (floor(s / n) + V) / n with n = {n} (jittered {n}x{n} strata)" if n * n == spp else
-            "sample s of pixel p at (u, v) = (U, V) in the pixel (uniform)")
-    rule += ("; U, V: doubles of numpy's PCG64(SeedSequence([seed, 0x5A3F])), all U of the image in order "
-             "p * spp + s, then all V; texel space x = (col + u) / supersampling, y = rows - (row + v) / "
-             "supersampling; a pixel is the mean of its samples (hzval.scene.camera.sample_positions)")
-    return {"albedo": albedo,
-            "samples": {"spp": spp, "seed": scene.seed, "supersampling": scene.camera.supersampling,
-                        "layout": "stratified" if n * n == spp else "uniform", "rule": rule},
-            "exposure_meaning": {
-                "exr": "linear radiance as rendered, before the exposure (hzval score reads it as it is)",
-                "png": "display values: srgb_encode(clip(exposure * radiance, 0, 1)), 8 or 16 bits (hzval score "
-                       "decodes sRGB and divides by the exposure)",
-                "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)"}}
+    rule = (
+        "sample s of pixel p = row * width + col at (u, v) in the pixel, u = (s mod n + U) / n, "
+        f"v = (floor(s / n) + V) / n with n = {n} (jittered {n}x{n} strata)"
+        if n * n == spp
+        else "sample s of pixel p at (u, v) = (U, V) in the pixel (uniform)"
+    )
+    rule += (
+        "; U, V: doubles of numpy's PCG64(SeedSequence([seed, 0x5A3F])), all U of the image in order "
+        "p * spp + s, then all V; texel space x = (col + u) / supersampling, y = rows - (row + v) / "
+        "supersampling; a pixel is the mean of its samples (hzval.scene.camera.sample_positions)"
+    )
+    return {
+        "albedo": albedo,
+        "samples": {
+            "spp": spp,
+            "seed": scene.seed,
+            "supersampling": scene.camera.supersampling,
+            "layout": "stratified" if n * n == spp else "uniform",
+            "rule": rule,
+        },
+        "exposure_meaning": {
+            "exr": "linear radiance as rendered, before the exposure (hzval score reads it as it is)",
+            "png": "display values: srgb_encode(clip(exposure * radiance, 0, 1)), 8 or 16 bits (hzval score "
+            "decodes sRGB and divides by the exposure)",
+            "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)",
+        },
+    }
 
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
@@ -696,8 +815,17 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
         bar.set_postfix_str(f"azimuth {az:+g} deg")
         # no name holds a frame's renders past its _finish: the next frame's renders would
         # otherwise be made beside them (1.8 GB at 4096 x 4096)
-        frames.append(_finish(out, scene, setup, _render(setup, setup.truth.render(az), az, scale, clock), scale,
-                              clock, all_files))
+        frames.append(
+            _finish(
+                out,
+                scene,
+                setup,
+                _render(setup, setup.truth.render(az), az, scale, clock),
+                scale,
+                clock,
+                all_files,
+            )
+        )
     return frames
 
 
@@ -735,7 +863,9 @@ def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Re
     return _Rendered(az, t_frame, plain, direct, rendered, perfect)
 
 
-def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool) -> dict:
+def _finish(
+    out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool
+) -> dict:
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
@@ -759,15 +889,26 @@ def _finish(out: Path, scene, setup: _Setup, r: _Rendered, scale: float, clock: 
     truth_shown = _shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
-    rel, tech_files, seconds = _write_frame(out, frame_folder(az), t_frame, r.plain, compared, scale,
-                                            truth_shown=truth_shown, all_files=all_files, mask=t_frame.mask)
+    rel, tech_files, seconds = _write_frame(
+        out,
+        frame_folder(az),
+        t_frame,
+        r.plain,
+        compared,
+        scale,
+        truth_shown=truth_shown,
+        all_files=all_files,
+        mask=t_frame.mask,
+    )
     clock["write_s"] += seconds
     frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
     if hasattr(setup.truth, "macro_shadowed"):
-        frame["macro_shadowed"] = setup.truth.macro_shadowed(az)    # a model: the base mesh's own shadow
+        frame["macro_shadowed"] = setup.truth.macro_shadowed(az)  # a model: the base mesh's own shadow
     if floor is not None:
         frame["floor"] = floor
-    per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared}
+    per = {
+        t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared
+    }
     for name, value in r.perfect.items():
         per[name]["perfect_parallax_mae"] = value
     for t in setup.techniques:
@@ -787,8 +928,9 @@ def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dic
         return
     facing = None
     if setup.normal is not None:
-        facing = hzfacing.facing_mask(setup.normal, scene.light.direction(r.azimuth_deg),
-                                      scene.camera.supersampling)
+        facing = hzfacing.facing_mask(
+            setup.normal, scene.light.direction(r.azimuth_deg), scene.camera.supersampling
+        )
     frame["truth"] = hzfacing.truth_statistics(V, facing, scene.spp, r.truth.mask)
     if facing is None:
         return
@@ -862,44 +1004,67 @@ def _mesh_parameters(scene) -> dict:
     """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before)."""
     if scene.mesh.is_plane:
         return {}
-    return {"mesh": scene.mesh.shape, "uv_scale": scene.mesh.uv_scale, "up": scene.mesh.up,
-            "tangent_bug": scene.mesh.tangent_bug}
+    return {
+        "mesh": scene.mesh.shape,
+        "uv_scale": scene.mesh.uv_scale,
+        "up": scene.mesh.up,
+        "tangent_bug": scene.mesh.tangent_bug,
+    }
 
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
-    techniques = {t.name: {"label": t.label, "summary": t.summary, "file_stem": t.file_stem,
-                           "parameters": t.parameters, "simulated": list(t.simulated),
-                           **({"split_parts": [{"key": k, "label": lb} for k, lb in t.split_parts]}
-                              if t.split_parts else {})}
-                  for t in setup.techniques}
+    techniques = {
+        t.name: {
+            "label": t.label,
+            "summary": t.summary,
+            "file_stem": t.file_stem,
+            "parameters": t.parameters,
+            "simulated": list(t.simulated),
+            **(
+                {"split_parts": [{"key": k, "label": lb} for k, lb in t.split_parts]} if t.split_parts else {}
+            ),
+        }
+        for t in setup.techniques
+    }
     simulated = {"truth": list(setup.truth.simulated), **{n: v["simulated"] for n, v in techniques.items()}}
     return {
         "schema_version": SCHEMA_VERSION,
         "material": setup.material,
-        "parameters": {"depth": scene.material.depth, "boundary": scene.material.boundary,
-                       "elevation_deg": scene.light.elevation_deg,
-                       "azimuths_deg": list(scene.light.azimuths_deg),
-                       "light": scene.light.kind, "light_radius_deg": scene.light.radius_deg,
-                       "effects": list(scene.effects), "spp": scene.spp, "seed": scene.seed,
-                       "supersampling": scene.camera.supersampling,
-                       "truth_tolerance": scene.material.truth_tolerance,
-                       **_view_parameters(scene), **_mesh_parameters(scene),
-                       "techniques": [t.name for t in setup.techniques]},
+        "parameters": {
+            "depth": scene.material.depth,
+            "boundary": scene.material.boundary,
+            "elevation_deg": scene.light.elevation_deg,
+            "azimuths_deg": list(scene.light.azimuths_deg),
+            "light": scene.light.kind,
+            "light_radius_deg": scene.light.radius_deg,
+            "effects": list(scene.effects),
+            "spp": scene.spp,
+            "seed": scene.seed,
+            "supersampling": scene.camera.supersampling,
+            "truth_tolerance": scene.material.truth_tolerance,
+            **_view_parameters(scene),
+            **_mesh_parameters(scene),
+            "techniques": [t.name for t in setup.techniques],
+        },
         "bake": {"contents": list(setup.bake_contents)},
         "versions": {**backend.versions(), "python": platform.python_version(), "machine": _machine()},
         "camera": setup.truth.view.record(),
         **({"mesh": setup.truth.record()} if hasattr(setup.truth, "model") else {}),
         **({"view": setup.view} if setup.view else {}),
-        "exposure": {"scale": shading.exposure(scene), "max_radiance": shading.max_radiance(scene),
-                     "note": "display = clip(scale * radiance); the largest radiance the declared effects "
-                             "can produce shows as 1"},
+        "exposure": {
+            "scale": shading.exposure(scene),
+            "max_radiance": shading.max_radiance(scene),
+            "note": "display = clip(scale * radiance); the largest radiance the declared effects "
+            "can produce shows as 1",
+        },
         "timings": timings,
         "simulated": simulated,
         "techniques": techniques,
         **{k: v for t in setup.techniques for k, v in t.extras.items()},
-        "warnings": setup.notices + [w for t in setup.techniques for w in t.warnings]
-                    + [w for w in (hzfacing.few_shadows_warning(frames),) if w],
+        "warnings": setup.notices
+        + [w for t in setup.techniques for w in t.warnings]
+        + [w for w in (hzfacing.few_shadows_warning(frames),) if w],
         "frames": frames,
     }
 
@@ -919,9 +1084,17 @@ def _shown(display: np.ndarray) -> np.ndarray:
     return files.unit_to_u8(display[..., 0] if files.is_grey(display) else display)
 
 
-def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale: float,
-                 truth_shown: np.ndarray | None = None, all_files: bool = False,
-                 mask: np.ndarray | None = None) -> tuple[dict, dict, float]:
+def _write_frame(
+    out: Path,
+    name: str,
+    truth_frame,
+    plain,
+    compared: list,
+    scale: float,
+    truth_shown: np.ndarray | None = None,
+    all_files: bool = False,
+    mask: np.ndarray | None = None,
+) -> tuple[dict, dict, float]:
     """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
     ``{key: path relative to out}`` (``metrics.json``'s ``files``).
 
@@ -949,7 +1122,9 @@ def _write_frame(out: Path, name: str, truth_frame, plain, compared: list, scale
     w = _FrameWriter(out / "frames" / name, f"frames/{name}", scale, mask)
     rel = w.truth_files(truth_frame, plain, truth_shown, all_files)
     V = truth_frame.layers.get("visibility")
-    per = {t.name: w.technique_files(t.file_stem, frame, maps, V, all_files) for t, frame, _, maps in compared}
+    per = {
+        t.name: w.technique_files(t.file_stem, frame, maps, V, all_files) for t, frame, _, maps in compared
+    }
     # Ctrl-C (or a writer's error): no writer outlives this frame to put a file into the staging
     # folder after run() has removed it
     files.run_writers(w.jobs)
@@ -978,7 +1153,11 @@ class _FrameWriter:
         return _shown(compare.display(img, self.scale)) if values is None else values
 
     def layer(self, values):
-        return values if self.mask is None else np.where(self.mask, values, np.float32(np.nan)).astype(np.float32)
+        return (
+            values
+            if self.mask is None
+            else np.where(self.mask, values, np.float32(np.nan)).astype(np.float32)
+        )
 
     def truth_files(self, truth_frame, plain, truth_shown, all_files: bool) -> dict:
         """The truth's and the unshadowed render's files."""
@@ -1031,10 +1210,13 @@ def summary_table(result: dict) -> str:
     The visibility columns are over the pixels that face the light where measured (:mod:`hzval.metrics.facing`),
     as the report's, and a last line says so."""
     names = list(result.get("techniques", {}))
-    facing = any("visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values())
+    facing = any(
+        "visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values()
+    )
 
     def vis(t: dict, key: str):
         return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
+
     lead, others = (names[0], names[1:]) if names else (None, [])
     head = ("azimuth",)
     if lead:
@@ -1043,8 +1225,12 @@ def summary_table(result: dict) -> str:
     for n in others:
         head += (f"{n} |F-V|", f"{n} FLIP", f"{n} s")
     # a technique's split of the error (Technique.split_parts), a column per part
-    splits = [(n, p["key"]) for n in names for p in result["techniques"][n].get("split_parts") or []
-              if any("split" in f.get("techniques", {}).get(n, {}) for f in result["frames"])]
+    splits = [
+        (n, p["key"])
+        for n in names
+        for p in result["techniques"][n].get("split_parts") or []
+        if any("split" in f.get("techniques", {}).get(n, {}) for f in result["frames"])
+    ]
     head += tuple(f"{n} {key}" for n, key in splits)
 
     def num(v, digits):
@@ -1059,9 +1245,14 @@ def summary_table(result: dict) -> str:
         row = (f"{f['azimuth_deg']:+g}",)
         if lead:
             t = per.get(lead, {})
-            row += (num(vis(t, "visibility_mae"), 4), pct(vis(t, "leak_fraction")), pct(vis(t, "false_shadow_fraction")),
-                    num(t.get("flip_mean"), 4), num(t.get("delta_e2000_mean"), 3),
-                    "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}")
+            row += (
+                num(vis(t, "visibility_mae"), 4),
+                pct(vis(t, "leak_fraction")),
+                pct(vis(t, "false_shadow_fraction")),
+                num(t.get("flip_mean"), 4),
+                num(t.get("delta_e2000_mean"), 3),
+                "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}",
+            )
         row += (num(f.get("truth_s"), 3),) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
         for n in others:
             te = per.get(n, {})
@@ -1070,6 +1261,12 @@ def summary_table(result: dict) -> str:
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    note = ["|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
-            "visibility_mae for the whole image)"] if facing else []
+    note = (
+        [
+            "|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
+            "visibility_mae for the whole image)"
+        ]
+        if facing
+        else []
+    )
     return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows), *note])

@@ -17,8 +17,18 @@ import numpy as np
 from hzval.io import files
 from hzval.metrics.compare import LIT_THRESHOLD
 
-__all__ = ["LEAK_RGB", "FALSE_SHADOW_RGB", "hex_colour", "visibility_diff_image", "visibility_diff_indexed",
-           "magma", "magma_palette", "magma_index", "flip_image", "flip_indexed"]
+__all__ = [
+    "LEAK_RGB",
+    "FALSE_SHADOW_RGB",
+    "hex_colour",
+    "visibility_diff_image",
+    "visibility_diff_indexed",
+    "magma",
+    "magma_palette",
+    "magma_index",
+    "flip_image",
+    "flip_indexed",
+]
 
 #: Where the technique lights what the truth shadows (a light leak), sRGB 8-bit.
 LEAK_RGB = (255, 127, 14)

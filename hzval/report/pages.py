@@ -33,12 +33,38 @@ from hzval.io import files
 from hzval.report import images
 from hzval.techniques import registry as technique
 
-__all__ = ["TRUTH_COLOUR", "TECHNIQUE_COLOURS", "TECHNIQUE_STYLES", "TEMPLATES", "fmt_deg",
-    "fmt_seconds", "Metric", "TECHNIQUE_METRICS", "OPTIONAL_METRICS", "TRUTH_TIME", "TRUTH_METRICS",
-    "FACING", "FLOOR_METRICS", "TechniqueView", "technique_views", "PANELS", "TECHNIQUE_PANELS",
-    "RAW_FILES", "TECHNIQUE_RAW_FILES", "build_context", "FLOOR_COLOUR", "plot_metrics",
-    "plot_timings", "SPLIT_COLOURS", "SplitView", "split_views", "plot_split", "render_html",
-    "write_report", "render_suite"]
+__all__ = [
+    "TRUTH_COLOUR",
+    "TECHNIQUE_COLOURS",
+    "TECHNIQUE_STYLES",
+    "TEMPLATES",
+    "fmt_deg",
+    "fmt_seconds",
+    "Metric",
+    "TECHNIQUE_METRICS",
+    "OPTIONAL_METRICS",
+    "TRUTH_TIME",
+    "TRUTH_METRICS",
+    "FACING",
+    "FLOOR_METRICS",
+    "TechniqueView",
+    "technique_views",
+    "PANELS",
+    "TECHNIQUE_PANELS",
+    "RAW_FILES",
+    "TECHNIQUE_RAW_FILES",
+    "build_context",
+    "FLOOR_COLOUR",
+    "plot_metrics",
+    "plot_timings",
+    "SPLIT_COLOURS",
+    "SplitView",
+    "split_views",
+    "plot_split",
+    "render_html",
+    "write_report",
+    "render_suite",
+]
 
 #: The truth's colour, on the page and in the plots.
 TRUTH_COLOUR = "#7fd1ae"
@@ -50,7 +76,14 @@ TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
 #: Plot palette (matches the page's dark neutral theme).
 _BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
-    "#1f1f22", "#1f1f22", "#e4e4e7", "#9b9ba3", "#34343a", "#e8e8ec", "#ff6b6b")
+    "#1f1f22",
+    "#1f1f22",
+    "#e4e4e7",
+    "#9b9ba3",
+    "#34343a",
+    "#e8e8ec",
+    "#ff6b6b",
+)
 
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -58,6 +91,7 @@ TEMPLATES = Path(__file__).parent / "templates"
 # --------------------------------------------------------------------------
 # Formatting
 # --------------------------------------------------------------------------
+
 
 def _num(x) -> float | None:
     """A finite float, or ``None`` (missing, null, NaN, not a number)."""
@@ -116,69 +150,172 @@ class Metric:
     """A column of the summary table and a chip of each frame."""
 
     key: str
-    label: str          # short, for the table head and chips
-    unit: str           # shown after the label in the table head, or ""
-    title: str          # tooltip: what it is and how it was computed
+    label: str  # short, for the table head and chips
+    unit: str  # shown after the label in the table head, or ""
+    title: str  # tooltip: what it is and how it was computed
     fmt: Callable[[Any], str]
     worse: str = "max"  # "max": larger is worse; "min": smaller is worse
-    null_is: float | None = None   # the value ``null`` stands for (PSNR: +inf), else "not measured"
-    bar: bool = True    # draw a data bar (share of the column's largest value)
-    group: str = ""     # the table's column group
-    floor: str | None = None   # the flattened key of its perfect-shadows floor, shown beside it
+    null_is: float | None = None  # the value ``null`` stands for (PSNR: +inf), else "not measured"
+    bar: bool = True  # draw a data bar (share of the column's largest value)
+    group: str = ""  # the table's column group
+    floor: str | None = None  # the flattened key of its perfect-shadows floor, shown beside it
     error: bool = True  # an error (marked "worst" where largest); times and the truth's statistics are not
 
 
 #: A technique's scores (keys of ``frames[i].techniques[name]``); the lead technique's are the summary
 #: table's first columns (:func:`_lead_metrics`).
 TECHNIQUE_METRICS: tuple[Metric, ...] = (
-    Metric("visibility_mae", "|F−V|", "", "Visibility: mean |F − V| over pixels, the technique's factor F against "
-           "ray-traced visibility V, both in [0, 1]", _fixed(4), group="visibility"),
-    Metric("leak_fraction", "leaks", "%", "Light leaks: pixels the technique lights (F ≥ 0.5) that the truth "
-           "shadows (V < 0.5), as a share of all pixels", _percent, group="visibility"),
-    Metric("false_shadow_fraction", "false shadows", "%", "False shadows: pixels the technique shadows "
-           "(F < 0.5) that the truth lights (V ≥ 0.5), as a share of all pixels", _percent, group="visibility"),
-    Metric("flip_mean", "FLIP", "", "Mean FLIP error (NVIDIA, LDR, 67 pixels per degree) on display "
-           "values: 0 = identical, 1 = maximally different", _fixed(4), group="image", floor="floor_flip_mean"),
-    Metric("delta_e2000_mean", "ΔE2000", "", "Mean CIEDE2000 colour difference on display (sRGB) values; "
-           "about 1 is just noticeable", _fixed(3), group="image", floor="floor_delta_e2000_mean"),
-    Metric("rmse", "RMSE", "", "Root mean square error on linear values (the largest radiance the declared "
-           "effects can produce = 1)", _fixed(4), group="image", floor="floor_rmse"),
-    Metric("psnr_db", "PSNR", "dB", "Peak signal-to-noise ratio on linear values, peak 1; ∞ = identical. "
-           "Lower is worse", _psnr, worse="min", null_is=math.inf, bar=False, group="image"),
-    Metric("reflection_mae", "|o−R|", "", "Reflection occlusion: mean |o − R| over pixels, the technique's "
-           "reflection fade o against the ray-traced unoccluded fraction R of the glossy lobe about the mirror "
-           "direction", _fixed(4), group="reflection"),
-    Metric("perfect_parallax_mae", "|F−V| at hit", "", "At perfect parallax: mean |F − V| with the textures "
-           "read at the truth's own hit point of each sample rather than where the camera ray meets the flat "
-           "plane; the difference from |F−V| is the parallax error's share", _fixed(4), group="parallax"),
+    Metric(
+        "visibility_mae",
+        "|F−V|",
+        "",
+        "Visibility: mean |F − V| over pixels, the technique's factor F against "
+        "ray-traced visibility V, both in [0, 1]",
+        _fixed(4),
+        group="visibility",
+    ),
+    Metric(
+        "leak_fraction",
+        "leaks",
+        "%",
+        "Light leaks: pixels the technique lights (F ≥ 0.5) that the truth "
+        "shadows (V < 0.5), as a share of all pixels",
+        _percent,
+        group="visibility",
+    ),
+    Metric(
+        "false_shadow_fraction",
+        "false shadows",
+        "%",
+        "False shadows: pixels the technique shadows "
+        "(F < 0.5) that the truth lights (V ≥ 0.5), as a share of all pixels",
+        _percent,
+        group="visibility",
+    ),
+    Metric(
+        "flip_mean",
+        "FLIP",
+        "",
+        "Mean FLIP error (NVIDIA, LDR, 67 pixels per degree) on display "
+        "values: 0 = identical, 1 = maximally different",
+        _fixed(4),
+        group="image",
+        floor="floor_flip_mean",
+    ),
+    Metric(
+        "delta_e2000_mean",
+        "ΔE2000",
+        "",
+        "Mean CIEDE2000 colour difference on display (sRGB) values; about 1 is just noticeable",
+        _fixed(3),
+        group="image",
+        floor="floor_delta_e2000_mean",
+    ),
+    Metric(
+        "rmse",
+        "RMSE",
+        "",
+        "Root mean square error on linear values (the largest radiance the declared effects can produce = 1)",
+        _fixed(4),
+        group="image",
+        floor="floor_rmse",
+    ),
+    Metric(
+        "psnr_db",
+        "PSNR",
+        "dB",
+        "Peak signal-to-noise ratio on linear values, peak 1; ∞ = identical. Lower is worse",
+        _psnr,
+        worse="min",
+        null_is=math.inf,
+        bar=False,
+        group="image",
+    ),
+    Metric(
+        "reflection_mae",
+        "|o−R|",
+        "",
+        "Reflection occlusion: mean |o − R| over pixels, the technique's "
+        "reflection fade o against the ray-traced unoccluded fraction R of the glossy lobe about the mirror "
+        "direction",
+        _fixed(4),
+        group="reflection",
+    ),
+    Metric(
+        "perfect_parallax_mae",
+        "|F−V| at hit",
+        "",
+        "At perfect parallax: mean |F − V| with the textures "
+        "read at the truth's own hit point of each sample rather than where the camera ray meets the flat "
+        "plane; the difference from |F−V| is the parallax error's share",
+        _fixed(4),
+        group="parallax",
+    ),
 )
 #: Shown only where a frame has them: the reflection fade (scenes that declare
 #: ``reflection_occlusion``), and the factor at the truth's own hit points (a view other than ``top``).
 OPTIONAL_METRICS = ("reflection_mae", "perfect_parallax_mae")
 
-TRUTH_TIME = Metric("truth_s", "truth", "time", "Ground-truth render time of the frame (Mitsuba, kernels "
-                    "synchronised)", fmt_seconds, group="render time", error=False)
+TRUTH_TIME = Metric(
+    "truth_s",
+    "truth",
+    "time",
+    "Ground-truth render time of the frame (Mitsuba, kernels synchronised)",
+    fmt_seconds,
+    group="render time",
+    error=False,
+)
 
 #: What the truth has to shadow (``frames[i].truth``, flattened to ``truth_<key>``, :mod:`hzval.metrics.facing`).
 TRUTH_METRICS: tuple[Metric, ...] = (
-    Metric("truth_shadowed_fraction", "shadowed", "%", "The truth's shadowed pixels (V < 0.5), as a share of "
-           "all pixels", _percent, group="truth", error=False),
-    Metric("truth_attached_fraction", "facing away", "%", "Attached shadows: pixels whose surface faces away "
-           "from the light (N·L ≤ 0), black in every image; the visibility columns leave them out",
-           _percent, group="truth", error=False),
+    Metric(
+        "truth_shadowed_fraction",
+        "shadowed",
+        "%",
+        "The truth's shadowed pixels (V < 0.5), as a share of all pixels",
+        _percent,
+        group="truth",
+        error=False,
+    ),
+    Metric(
+        "truth_attached_fraction",
+        "facing away",
+        "%",
+        "Attached shadows: pixels whose surface faces away "
+        "from the light (N·L ≤ 0), black in every image; the visibility columns leave them out",
+        _percent,
+        group="truth",
+        error=False,
+    ),
 )
 #: The visibility metrics the report shows over the pixels that face the light, when a frame has them.
-FACING = {"visibility_mae": "visibility_mae_facing", "leak_fraction": "leak_fraction_facing",
-          "false_shadow_fraction": "false_shadow_fraction_facing"}
+FACING = {
+    "visibility_mae": "visibility_mae_facing",
+    "leak_fraction": "leak_fraction_facing",
+    "false_shadow_fraction": "false_shadow_fraction_facing",
+}
 
 #: The perfect-shadows floor (``frames[i]["floor"]``, flattened to ``floor_<key>``): the
 #: techniques' unshadowed shading times the truth's visibility, scored against the truth.
 FLOOR_METRICS: tuple[Metric, ...] = (
-    Metric("floor_flip_mean", "floor FLIP", "", "Perfect-shadows floor: FLIP of the techniques' unshadowed "
-           "shading times the truth's own visibility V, against the truth. The part of every technique's FLIP "
-           "that is shading and noise, not shadows", _fixed(4), group="floor"),
-    Metric("floor_rmse", "floor RMSE", "", "Perfect-shadows floor: RMSE (linear) of the unshadowed shading "
-           "times V against the truth", _fixed(4), group="floor"),
+    Metric(
+        "floor_flip_mean",
+        "floor FLIP",
+        "",
+        "Perfect-shadows floor: FLIP of the techniques' unshadowed "
+        "shading times the truth's own visibility V, against the truth. The part of every technique's FLIP "
+        "that is shading and noise, not shadows",
+        _fixed(4),
+        group="floor",
+    ),
+    Metric(
+        "floor_rmse",
+        "floor RMSE",
+        "",
+        "Perfect-shadows floor: RMSE (linear) of the unshadowed shading times V against the truth",
+        _fixed(4),
+        group="floor",
+    ),
 )
 
 
@@ -191,7 +328,7 @@ class TechniqueView:
     stem: str
     colour: str
     style: object
-    parallax: bool = False      # a view measured its factor at the truth's hit points
+    parallax: bool = False  # a view measured its factor at the truth's hit points
 
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
@@ -202,11 +339,21 @@ def technique_views(metrics: dict) -> list[TechniqueView]:
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     for i, (name, t) in enumerate(info.items()):
         t = t if isinstance(t, dict) else {}
-        parallax = any(isinstance((f.get("techniques") or {}).get(name), dict)
-                       and "perfect_parallax_mae" in f["techniques"][name] for f in frames)
-        views.append(TechniqueView(str(name), str(t.get("label") or name), str(t.get("file_stem") or name),
-                                   TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
-                                   TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)], parallax))
+        parallax = any(
+            isinstance((f.get("techniques") or {}).get(name), dict)
+            and "perfect_parallax_mae" in f["techniques"][name]
+            for f in frames
+        )
+        views.append(
+            TechniqueView(
+                str(name),
+                str(t.get("label") or name),
+                str(t.get("file_stem") or name),
+                TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
+                TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)],
+                parallax,
+            )
+        )
     return views
 
 
@@ -229,7 +376,7 @@ def _flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
                     if facing in m:
                         g[f"{v.name}_{whole}_whole"] = m.get(whole)
                         g[f"{v.name}_{whole}"] = m[facing]
-                if "seconds" in m:         # hzval score's engine has no render time: no column
+                if "seconds" in m:  # hzval score's engine has no render time: no column
                     g[f"{v.name}_s"] = m["seconds"]
         out.append(g)
     return out
@@ -251,15 +398,48 @@ def _lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
 def _technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
     """The summary table's columns of a technique after the lead."""
     return (
-        Metric(f"{v.name}_visibility_mae", f"{v.name} |F−V|", "", f"{v.label}: mean |F − V| over pixels against "
-               "the same ray-traced visibility", _fixed(4), group=v.name),
-        Metric(f"{v.name}_flip_mean", f"{v.name} FLIP", "", f"{v.label}: mean FLIP error against the truth "
-               "(display values)", _fixed(4), group=v.name, floor="floor_flip_mean"),
-        *((Metric(f"{v.name}_perfect_parallax_mae", f"{v.name} at hit", "", f"{v.label}: mean |F − V| with "
-                  "its textures read at the truth's own hit points (perfect parallax)", _fixed(4), group=v.name),)
-          if v.parallax else ()),
-        Metric(f"{v.name}_s", v.name, "time", f"{v.label}: frame time, the unshadowed shading it multiplies "
-               "included (Dr.Jit, kernels synchronised)", fmt_seconds, group=v.name, error=False),
+        Metric(
+            f"{v.name}_visibility_mae",
+            f"{v.name} |F−V|",
+            "",
+            f"{v.label}: mean |F − V| over pixels against the same ray-traced visibility",
+            _fixed(4),
+            group=v.name,
+        ),
+        Metric(
+            f"{v.name}_flip_mean",
+            f"{v.name} FLIP",
+            "",
+            f"{v.label}: mean FLIP error against the truth (display values)",
+            _fixed(4),
+            group=v.name,
+            floor="floor_flip_mean",
+        ),
+        *(
+            (
+                Metric(
+                    f"{v.name}_perfect_parallax_mae",
+                    f"{v.name} at hit",
+                    "",
+                    f"{v.label}: mean |F − V| with "
+                    "its textures read at the truth's own hit points (perfect parallax)",
+                    _fixed(4),
+                    group=v.name,
+                ),
+            )
+            if v.parallax
+            else ()
+        ),
+        Metric(
+            f"{v.name}_s",
+            v.name,
+            "time",
+            f"{v.label}: frame time, the unshadowed shading it multiplies "
+            "included (Dr.Jit, kernels synchronised)",
+            fmt_seconds,
+            group=v.name,
+            error=False,
+        ),
     )
 
 
@@ -285,37 +465,73 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 )
 
 #: A technique's raw files (keys of ``frames[i]["techniques"][name]["files"]``).
-TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (("image", "image"), ("factor", "F"), ("factor_png", "F png"))
+TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (
+    ("image", "image"),
+    ("factor", "F"),
+    ("factor_png", "F png"),
+)
 
 _PARAMETER_GROUPS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("surface", (("depth", "depth"), ("boundary", "boundary"), ("truth_tolerance", "truth tolerance"))),
-    ("light", (("light", "light"), ("light_radius_deg", "light radius"), ("elevation_deg", "elevation"),
-               ("azimuths_deg", "azimuths"))),
+    (
+        "light",
+        (
+            ("light", "light"),
+            ("light_radius_deg", "light radius"),
+            ("elevation_deg", "elevation"),
+            ("azimuths_deg", "azimuths"),
+        ),
+    ),
     ("sampling", (("spp", "samples per pixel"), ("supersampling", "pixels per texel"), ("seed", "seed"))),
-    ("view", (("camera", "camera"), ("view_elevation_deg", "view elevation"), ("view_azimuth_deg", "view azimuth"),
-              ("fov_deg", "field of view"), ("distance_tiles", "distance (tile widths)"),
-              ("plane", "techniques' plane"), ("filter", "texture filter"), ("mips", "mip-maps"),
-              ("max_anisotropy", "max anisotropy"), ("parallax", "parallax mapping"),
-              ("parallax_steps", "parallax steps"))),
+    (
+        "view",
+        (
+            ("camera", "camera"),
+            ("view_elevation_deg", "view elevation"),
+            ("view_azimuth_deg", "view azimuth"),
+            ("fov_deg", "field of view"),
+            ("distance_tiles", "distance (tile widths)"),
+            ("plane", "techniques' plane"),
+            ("filter", "texture filter"),
+            ("mips", "mip-maps"),
+            ("max_anisotropy", "max anisotropy"),
+            ("parallax", "parallax mapping"),
+            ("parallax_steps", "parallax steps"),
+        ),
+    ),
 )
 
 _TIMING_LABELS: tuple[tuple[str, str], ...] = (
-    ("bake_s", "bake"), ("truth_setup_s", "truth set-up"), ("truth_s", "truth renders"),
-    ("plain_setup_s", "normal mapping set-up"), ("plain_s", "normal mapping renders"),
-    ("compare_s", "compare"), ("write_s", "write frames"), ("report_s", "report"),
+    ("bake_s", "bake"),
+    ("truth_setup_s", "truth set-up"),
+    ("truth_s", "truth renders"),
+    ("plain_setup_s", "normal mapping set-up"),
+    ("plain_s", "normal mapping renders"),
+    ("compare_s", "compare"),
+    ("write_s", "write frames"),
+    ("report_s", "report"),
 )
 
 
 def _timing_labels(views: list[TechniqueView]) -> tuple[tuple[str, str], ...]:
     """The stages of a sweep's timings: the fixed ones, then each technique's set-up and renders."""
     fixed = _TIMING_LABELS[:5]
-    own = tuple(pair for v in views for pair in ((f"{v.stem}_setup_s", f"{v.label} set-up"),
-                                                  (f"{v.stem}_s", f"{v.label} renders")))
+    own = tuple(
+        pair
+        for v in views
+        for pair in ((f"{v.stem}_setup_s", f"{v.label} set-up"), (f"{v.stem}_s", f"{v.label} renders"))
+    )
     return fixed + own + _TIMING_LABELS[5:]
 
+
 _VERSION_LABELS: tuple[tuple[str, str], ...] = (
-    ("hzval", "hzval"), ("mitsuba", "Mitsuba"), ("drjit", "Dr.Jit"), ("llvm", "LLVM"),
-    ("variant", "variant"), ("python", "Python"), ("machine", "machine"),
+    ("hzval", "hzval"),
+    ("mitsuba", "Mitsuba"),
+    ("drjit", "Dr.Jit"),
+    ("llvm", "LLVM"),
+    ("variant", "variant"),
+    ("python", "Python"),
+    ("machine", "machine"),
 )
 
 
@@ -353,6 +569,7 @@ def _azimuth_text(values) -> str:
 # The view model: everything the template shows, formatted
 # --------------------------------------------------------------------------
 
+
 def _src(out: Path, rel) -> dict | None:
     """A file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
     ``None`` if absent. A large PNG with a preview (:func:`hzval.io.files.preview_of`) is shown by
@@ -367,7 +584,7 @@ def _src(out: Path, rel) -> dict | None:
     if rel.endswith(".png") and (out / preview).is_file():
         from PIL import Image
 
-        with Image.open(out / rel) as img:            # reads the header only
+        with Image.open(out / rel) as img:  # reads the header only
             width = img.size[0]
         return {"src": quote(preview, safe="/"), "path": rel, "full": url, "width": width}
     return {"src": url, "path": rel, "full": None, "width": None}
@@ -399,11 +616,19 @@ def _columns(frames: list[dict], metrics: tuple[Metric, ...]) -> list[dict]:
         mean_title = f"mean over {len(finite)} frame{'s' if len(finite) != 1 else ''}"
         if len(finite) < len(measured):
             mean_title += f" (without the {len(measured) - len(finite)} infinite)"
-        cols.append({"metric": m, "vals": vals, "worst_idx": worst_idx, "worst": worst, "top": top,
-                     # all infinite (identical images): shown as the null value, "∞"
-                     "mean_text": m.fmt(mean) if mean is not None else (m.fmt(None) if measured else "—"),
-                     "mean_title": mean_title if measured else "not measured",
-                     "measured": bool(measured)})
+        cols.append(
+            {
+                "metric": m,
+                "vals": vals,
+                "worst_idx": worst_idx,
+                "worst": worst,
+                "top": top,
+                # all infinite (identical images): shown as the null value, "∞"
+                "mean_text": m.fmt(mean) if mean is not None else (m.fmt(None) if measured else "—"),
+                "mean_title": mean_title if measured else "not measured",
+                "measured": bool(measured),
+            }
+        )
     return cols
 
 
@@ -424,9 +649,17 @@ def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
     if m.floor and _num(frame.get(m.floor)) is not None and v is not None:
         floor = m.fmt(frame[m.floor])
         title += f" (perfect-shadows floor: {floor}, the part that is shading and noise)"
-    return {"key": m.key, "label": m.label, "text": text, "worst": i in col["worst_idx"], "bar": bar,
-            "gstart": m.key in starts, "floor": floor,
-            "title": title, "unit": m.unit if m.unit not in ("time", "%") else ""}
+    return {
+        "key": m.key,
+        "label": m.label,
+        "text": text,
+        "worst": i in col["worst_idx"],
+        "bar": bar,
+        "gstart": m.key in starts,
+        "floor": floor,
+        "title": title,
+        "unit": m.unit if m.unit not in ("time", "%") else "",
+    }
 
 
 def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
@@ -437,20 +670,38 @@ def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
         if m.unit == "time" or m.key == "rmse" or not m.error:
             continue
         if not col["measured"]:
-            tiles.append({"label": m.label, "value": "not measured", "where": "", "href": None,
-                          "title": m.title, "dim": True})
+            tiles.append(
+                {
+                    "label": m.label,
+                    "value": "not measured",
+                    "where": "",
+                    "href": None,
+                    "title": m.title,
+                    "dim": True,
+                }
+            )
             continue
         idx = [i for i, v in enumerate(col["vals"]) if v == col["worst"]]
         i = idx[0]
         value = m.fmt(frames[i].get(m.key))
         if m.unit == "dB" and value != "∞":
             value += " dB"
-        where = "every frame" if len(idx) == len(frames) and len(frames) > 1 else \
-            f"at {fmt_deg(frames[i].get('azimuth_deg'))}"
+        where = (
+            "every frame"
+            if len(idx) == len(frames) and len(frames) > 1
+            else f"at {fmt_deg(frames[i].get('azimuth_deg'))}"
+        )
         kind = "lowest" if m.worse == "min" else "worst"
-        tiles.append({"label": f"{kind} {m.label}", "value": value, "where": where,
-                      "href": None if len(idx) == len(frames) and len(frames) > 1 else f"#frame-{i}",
-                      "title": m.title, "dim": False})
+        tiles.append(
+            {
+                "label": f"{kind} {m.label}",
+                "value": value,
+                "where": where,
+                "href": None if len(idx) == len(frames) and len(frames) > 1 else f"#frame-{i}",
+                "title": m.title,
+                "dim": False,
+            }
+        )
     return tiles
 
 
@@ -468,19 +719,29 @@ def _timings(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
         elif key in per_frame and n_frames:
             note = f"{fmt_seconds(v / n_frames)} per frame"
         rows.append({"label": label, "seconds": v, "text": fmt_seconds(v), "note": note})
-    for key, value in t.items():   # anything else the sweep timed
+    for key, value in t.items():  # anything else the sweep timed
         if key in known or key in ("total_s", "bake_cached"):
             continue
         v = _num(value)
         if v is not None:
-            rows.append({"label": key.removesuffix("_s").replace("_", " "), "seconds": v,
-                         "text": fmt_seconds(v), "note": ""})
+            rows.append(
+                {
+                    "label": key.removesuffix("_s").replace("_", " "),
+                    "seconds": v,
+                    "text": fmt_seconds(v),
+                    "note": "",
+                }
+            )
     stages = sum(r["seconds"] for r in rows)
     total = _num(t.get("total_s"))
     for r in rows:
         r["share"] = f"{100 * r['seconds'] / stages:.0f} %" if stages > 0 else ""
-    return {"rows": rows, "total_text": fmt_seconds(total if total is not None else stages),
-            "total_is_sum": total is None, "stages": stages}
+    return {
+        "rows": rows,
+        "total_text": fmt_seconds(total if total is not None else stages),
+        "total_is_sum": total is None,
+        "stages": stages,
+    }
 
 
 def _effects(parameters: dict, simulated: dict, views: list[TechniqueView]) -> dict:
@@ -508,13 +769,19 @@ def _parameters(p: dict) -> list[dict]:
                 if key == "depth" and _num(value) is not None:
                     text = f"{value:g} × image width"
                 elif key == "supersampling" and _num(value) is not None:
-                    text = f"{value:g} × {value:g} (a magnification: image scores depend on it)" if value != 1 \
+                    text = (
+                        f"{value:g} × {value:g} (a magnification: image scores depend on it)"
+                        if value != 1
                         else "1 (one pixel per texel)"
+                    )
                 rows.append({"label": label, "text": text, "key": key})
         if rows:
             groups.append({"title": title, "rows": rows})
-    other = [{"label": k, "text": _value_text(k, v), "key": k} for k, v in p.items() if k not in seen
-             and k != "effects"]
+    other = [
+        {"label": k, "text": _value_text(k, v), "key": k}
+        for k, v in p.items()
+        if k not in seen and k != "effects"
+    ]
     if other:
         groups.append({"title": "other", "rows": other})
     return groups
@@ -548,10 +815,15 @@ def _material(m: dict, camera: dict | None = None) -> dict:
     short = f"{algo}:{hexpart[:12]}" if hexpart else digest[:19]
     rows, cols = m.get("rows"), m.get("cols")
     size = f"{cols} × {rows} texels" if rows is not None and cols is not None else "—"
-    return {"name": str(m.get("name") or "unnamed material"), "source": str(m.get("source") or "—"),
-            "digest": digest, "digest_short": short or "—", "size": size,
-            "path": None if m.get("path") is None else str(m.get("path")),
-            "aspect": _aspect(cols, rows, camera or {})}
+    return {
+        "name": str(m.get("name") or "unnamed material"),
+        "source": str(m.get("source") or "—"),
+        "digest": digest,
+        "digest_short": short or "—",
+        "size": size,
+        "path": None if m.get("path") is None else str(m.get("path")),
+        "aspect": _aspect(cols, rows, camera or {}),
+    }
 
 
 def _aspect(cols, rows, camera: dict) -> str:
@@ -578,19 +850,29 @@ def _view(out: Path, metrics: dict) -> dict | None:
     def vec(v):
         return "(" + ", ".join(f"{c:.1f}" for c in v) + ")" if isinstance(v, list) else "—"
 
-    rows = [("camera", str(cam.get("kind"))), ("eye", vec(cam.get("eye"))), ("target", vec(cam.get("target"))),
-            ("resolution", " × ".join(str(c) for c in cam.get("resolution") or [])),
-            ("pixels that see the surface", f"{100 * view['seen_fraction']:.1f}%"
-             if _num(view.get("seen_fraction")) is not None else "—"),
-            ("parallax error (texels)", spread(view.get("parallax_error_texels"))),
-            ("pixel footprint (texels)", spread(view.get("footprint_texels")))]
+    rows = [
+        ("camera", str(cam.get("kind"))),
+        ("eye", vec(cam.get("eye"))),
+        ("target", vec(cam.get("target"))),
+        ("resolution", " × ".join(str(c) for c in cam.get("resolution") or [])),
+        (
+            "pixels that see the surface",
+            f"{100 * view['seen_fraction']:.1f}%" if _num(view.get("seen_fraction")) is not None else "—",
+        ),
+        ("parallax error (texels)", spread(view.get("parallax_error_texels"))),
+        ("pixel footprint (texels)", spread(view.get("footprint_texels"))),
+    ]
     if _num(cam.get("fov_deg")) is not None:
         rows.insert(3, ("field of view", f"{cam['fov_deg']:g}°"))
     maps = view.get("files") or {}
-    return {"rows": [{"label": a, "text": b} for a, b in rows],
-            "maps": [{"title": t, "file": _src(out, maps.get(k))} for k, t in
-                     (("parallax_error_png", "parallax error"), ("footprint_png", "pixel footprint"))
-                     if maps.get(k)]}
+    return {
+        "rows": [{"label": a, "text": b} for a, b in rows],
+        "maps": [
+            {"title": t, "file": _src(out, maps.get(k))}
+            for k, t in (("parallax_error_png", "parallax error"), ("footprint_png", "pixel footprint"))
+            if maps.get(k)
+        ],
+    }
 
 
 def _group_starts(metrics: tuple[Metric, ...]) -> set[str]:
@@ -614,8 +896,18 @@ def _shown_metrics(frames: list[dict], views: list[TechniqueView]) -> tuple[Metr
     if not views:
         return (TRUTH_TIME,)
     lead = views[0]
-    times = (TRUTH_TIME, Metric(f"{lead.name}_s", lead.name, "time", f"{lead.label}: frame time (Dr.Jit, "
-                                "kernels synchronised)", fmt_seconds, group="render time", error=False))
+    times = (
+        TRUTH_TIME,
+        Metric(
+            f"{lead.name}_s",
+            lead.name,
+            "time",
+            f"{lead.label}: frame time (Dr.Jit, kernels synchronised)",
+            fmt_seconds,
+            group="render time",
+            error=False,
+        ),
+    )
     truth = tuple(m for m in TRUTH_METRICS if any(_num(f.get(m.key)) is not None for f in frames))
     shown = _lead_metrics(lead, frames) + truth + times
     if any(_num(f.get("floor_flip_mean")) is not None for f in frames):
@@ -634,13 +926,19 @@ def _technique_files(f: dict, v: TechniqueView) -> dict:
     return own if isinstance(own, dict) else {}
 
 
-def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
-                views: list[TechniqueView]) -> dict:
+def _frame_view(
+    out: Path, i: int, f: dict, cols: list[dict], starts: set[str], views: list[TechniqueView]
+) -> dict:
     """One frame's card: its chips, the lead technique's panels beside the truth, the others' rows."""
     fl = f.get("files") or {}
     lead_files = _technique_files(f, views[0]) if views else {}
-    own = {"truth_png": fl.get("truth_png"), "plain_png": fl.get("plain_png"), "lead_png": lead_files.get("png"),
-           "flip_png": lead_files.get("flip_png"), "visdiff_png": lead_files.get("visdiff_png")}
+    own = {
+        "truth_png": fl.get("truth_png"),
+        "plain_png": fl.get("plain_png"),
+        "lead_png": lead_files.get("png"),
+        "flip_png": lead_files.get("flip_png"),
+        "visdiff_png": lead_files.get("visdiff_png"),
+    }
     panels = []
     for key, title, subtitle in PANELS:
         if key == "lead_png":
@@ -660,16 +958,37 @@ def _frame_view(out: Path, i: int, f: dict, cols: list[dict], starts: set[str],
         if links:
             raw.append({"group": f"{v.name} EXR", "links": links})
         if v is not views[0]:
-            rows.append({"name": v.name, "label": v.label, "colour": v.colour,
-                         "panels": [{"key": key, "title": f"{v.name} {title}" if title else v.label,
-                                     "subtitle": subtitle, "file": _src(out, tf.get(key))}
-                                    for key, title, subtitle in TECHNIQUE_PANELS]})
-    return {"index": i, "id": f"frame-{i}", "technique_rows": rows,
-            "azimuth": fmt_deg(f.get("azimuth_deg")), "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
-            "cells": [_cell(c, i, f, starts) for c in cols], "panels": {p["key"]: p for p in panels}, "raw": raw}
+            rows.append(
+                {
+                    "name": v.name,
+                    "label": v.label,
+                    "colour": v.colour,
+                    "panels": [
+                        {
+                            "key": key,
+                            "title": f"{v.name} {title}" if title else v.label,
+                            "subtitle": subtitle,
+                            "file": _src(out, tf.get(key)),
+                        }
+                        for key, title, subtitle in TECHNIQUE_PANELS
+                    ],
+                }
+            )
+    return {
+        "index": i,
+        "id": f"frame-{i}",
+        "technique_rows": rows,
+        "azimuth": fmt_deg(f.get("azimuth_deg")),
+        "elevation": fmt_deg(f.get("elevation_deg")).lstrip("+"),
+        "cells": [_cell(c, i, f, starts) for c in cols],
+        "panels": {p["key"]: p for p in panels},
+        "raw": raw,
+    }
 
 
-def _worst_frame(out: Path, frames: list[dict], frame_views: list[dict], views: list[TechniqueView]) -> dict | None:
+def _worst_frame(
+    out: Path, frames: list[dict], frame_views: list[dict], views: list[TechniqueView]
+) -> dict | None:
     """The report's first screen: the frame where the lead technique's |F - V| (over the pixels that
     face the light, where measured; else its FLIP) is largest, as truth | technique | difference."""
     if not views or not frames:
@@ -683,32 +1002,62 @@ def _worst_frame(out: Path, frames: list[dict], frame_views: list[dict], views: 
         return None
     i = max(range(len(frames)), key=lambda k: -math.inf if vals[k] is None else vals[k])
     p = frame_views[i]["panels"]
-    diff = p["visdiff_png"] if p["visdiff_png"]["file"] and p["visdiff_png"]["file"].get("src") else p["flip_png"]
-    panels = [{"title": "truth", "subtitle": "ray-traced", "file": p["truth_png"]["file"], "visdiff": False},
-              {"title": lead.label, "subtitle": "", "file": p["lead_png"]["file"], "visdiff": False}]
+    diff = (
+        p["visdiff_png"]
+        if p["visdiff_png"]["file"] and p["visdiff_png"]["file"].get("src")
+        else p["flip_png"]
+    )
+    panels = [
+        {"title": "truth", "subtitle": "ray-traced", "file": p["truth_png"]["file"], "visdiff": False},
+        {"title": lead.label, "subtitle": "", "file": p["lead_png"]["file"], "visdiff": False},
+    ]
     rows = frame_views[i]["technique_rows"]
-    if lead.name == "engine" and rows:       # hzval score: the sweep's first technique beside the engine
-        panels.append({"title": rows[0]["label"], "subtitle": "hzval, the same sweep",
-                       "file": rows[0]["panels"][0]["file"], "visdiff": False})
-    panels.append({"title": f"{lead.label}: {diff['title']}", "subtitle": diff["subtitle"], "file": diff["file"],
-                   "visdiff": diff is p["visdiff_png"]})
-    return {"index": i, "id": frame_views[i]["id"], "azimuth": frame_views[i]["azimuth"], "metric": label,
-            "value": _fixed(4)(vals[i]), "lead": lead.label, "panels": panels}
+    if lead.name == "engine" and rows:  # hzval score: the sweep's first technique beside the engine
+        panels.append(
+            {
+                "title": rows[0]["label"],
+                "subtitle": "hzval, the same sweep",
+                "file": rows[0]["panels"][0]["file"],
+                "visdiff": False,
+            }
+        )
+    panels.append(
+        {
+            "title": f"{lead.label}: {diff['title']}",
+            "subtitle": diff["subtitle"],
+            "file": diff["file"],
+            "visdiff": diff is p["visdiff_png"],
+        }
+    )
+    return {
+        "index": i,
+        "id": frame_views[i]["id"],
+        "azimuth": frame_views[i]["azimuth"],
+        "metric": label,
+        "value": _fixed(4)(vals[i]),
+        "lead": lead.label,
+        "panels": panels,
+    }
 
 
 def _visibility_scope(metrics: dict) -> str | None:
     """What the report's visibility columns are measured over (:data:`FACING`), in words."""
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
-    facing = any(isinstance(t, dict) and "visibility_mae_facing" in t for f in frames
-                 for t in (f.get("techniques") or {}).values())
+    facing = any(
+        isinstance(t, dict) and "visibility_mae_facing" in t
+        for f in frames
+        for t in (f.get("techniques") or {}).values()
+    )
     if not facing:
         return None
     away = [_num((f.get("truth") or {}).get("attached_fraction")) for f in frames]
     away = [a for a in away if a is not None]
     share = f" ({100 * (1 - sum(away) / len(away)):.0f}% of them on average)" if away else ""
-    return (f"|F−V|, leaks and false shadows are over the pixels that face the light{share}: those facing away "
-            "(attached shadows) are black in every image whatever F and V. metrics.json has both: "
-            "visibility_mae (the whole image) and visibility_mae_facing.")
+    return (
+        f"|F−V|, leaks and false shadows are over the pixels that face the light{share}: those facing away "
+        "(attached shadows) are black in every image whatever F and V. metrics.json has both: "
+        "visibility_mae (the whole image) and visibility_mae_facing."
+    )
 
 
 def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str | None]) -> dict:
@@ -728,8 +1077,10 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
     light = str(parameters.get("light", "—"))
     if light == "soft" and _num(parameters.get("light_radius_deg")) is not None:
         light = f"soft, radius {fmt_deg(parameters['light_radius_deg']).lstrip('+')}"
-    subtitle = (f"{len(frames)} frame{'s' if len(frames) != 1 else ''} · azimuth {_azimuth_text(azimuths)} · "
-                f"elevation {fmt_deg(elevation).lstrip('+')} · {light} light")
+    subtitle = (
+        f"{len(frames)} frame{'s' if len(frames) != 1 else ''} · azimuth {_azimuth_text(azimuths)} · "
+        f"elevation {fmt_deg(elevation).lstrip('+')} · {light} light"
+    )
 
     return {
         "material": material,
@@ -739,10 +1090,18 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "effects": _effects(parameters, metrics.get("simulated") or {}, views),
         "versions": _versions(metrics.get("versions") or {}),
         "timings": _timings(metrics.get("timings") or {}, len(frames), views),
-        "columns": [{"label": c["metric"].label, "unit": c["metric"].unit, "title": c["metric"].title,
-                     "key": c["metric"].key, "mean_text": c["mean_text"], "mean_title": c["mean_title"],
-                     "gstart": c["metric"].key in starts}
-                    for c in cols],
+        "columns": [
+            {
+                "label": c["metric"].label,
+                "unit": c["metric"].unit,
+                "title": c["metric"].title,
+                "key": c["metric"].key,
+                "mean_text": c["mean_text"],
+                "mean_title": c["mean_title"],
+                "gstart": c["metric"].key in starts,
+            }
+            for c in cols
+        ],
         "column_groups": _column_groups(shown),
         "glance": _glance(cols, frames),
         "frames": frame_views,
@@ -755,17 +1114,22 @@ def build_context(out: Path, metrics: dict, command: str, plots: dict[str, str |
         "view": _view(out, metrics),
         "plots": plots,
         "splits": [_split_context(frames, sv) for sv in split_views(metrics, views)],
-        "leak_hex": images.hex_colour(images.LEAK_RGB), "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
-        "truth_colour": TRUTH_COLOUR, "lead_colour": views[0].colour if views else TECHNIQUE_COLOURS[0],
+        "leak_hex": images.hex_colour(images.LEAK_RGB),
+        "false_shadow_hex": images.hex_colour(images.FALSE_SHADOW_RGB),
+        "truth_colour": TRUTH_COLOUR,
+        "lead_colour": views[0].colour if views else TECHNIQUE_COLOURS[0],
         # the script's data: labels of the two sides, and the zoom steps
-        "js": {"labels": {"truth": "truth", "lead": views[0].label if views else "technique"},
-               "zooms": [0, 1, 2, 4, 8]},
+        "js": {
+            "labels": {"truth": "truth", "lead": views[0].label if views else "technique"},
+            "zooms": [0, 1, 2, 4, 8],
+        },
     }
 
 
 # --------------------------------------------------------------------------
 # Plots (matplotlib, Agg, no pyplot state)
 # --------------------------------------------------------------------------
+
 
 def _figure(width: float, height: float):
     """A figure on an Agg canvas. Margins are set by hand: constrained layout
@@ -812,8 +1176,10 @@ def _metric_panels(views: list[TechniqueView], leak_hex: str, false_shadow_hex: 
     leaks = []
     for v in views:
         prefix = f"{v.name} " if many else ""
-        leaks += [(f"{v.name}_leak_fraction", f"{prefix}leak (F lit, V shadowed)", leak_hex, 100.0, v.style),
-                  (f"{v.name}_false_shadow_fraction", f"{prefix}false shadow", false_shadow_hex, 100.0, v.style)]
+        leaks += [
+            (f"{v.name}_leak_fraction", f"{prefix}leak (F lit, V shadowed)", leak_hex, 100.0, v.style),
+            (f"{v.name}_false_shadow_fraction", f"{prefix}false shadow", false_shadow_hex, 100.0, v.style),
+        ]
     return (
         ("visibility  mean |F − V|", one("visibility_mae"), "max", ""),
         ("leaks & false shadows  (% of pixels)", leaks, "max", "%"),
@@ -829,16 +1195,19 @@ def plot_metrics(path: Path, frames: list[dict], views: list[TechniqueView]) -> 
     import numpy as np
     from matplotlib.ticker import FuncFormatter
 
-    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
-                   for f in frames], dtype=float)
+    az = np.array(
+        [_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan for f in frames],
+        dtype=float,
+    )
     frames = _flatten(frames, views)
 
     def series(key, scale=1.0):
         return np.array([np.nan if _num(f.get(key)) is None else _num(f.get(key)) * scale for f in frames])
 
     floor = any(_num(f.get("floor_flip_mean")) is not None for f in frames)
-    panels = _metric_panels(views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB),
-                            floor)
+    panels = _metric_panels(
+        views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB), floor
+    )
     fig = _figure(13.0, 5.4)
     axes = fig.subplots(2, 3, sharex=True)
     fig.subplots_adjust(left=0.045, right=0.99, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)
@@ -854,23 +1223,60 @@ def plot_metrics(path: Path, frames: list[dict], views: list[TechniqueView]) -> 
                 continue
             any_data = True
             order = np.argsort(az[ok])
-            ax.plot(az[ok][order], y[ok][order], color=colour, linewidth=1.6, marker="o", markersize=3.5,
-                    label=label or None, zorder=3, linestyle=style)
-            w = int(np.nanargmax(np.where(ok, y, -np.inf)) if worse == "max"
-                    else np.nanargmin(np.where(ok, y, np.inf)))
+            ax.plot(
+                az[ok][order],
+                y[ok][order],
+                color=colour,
+                linewidth=1.6,
+                marker="o",
+                markersize=3.5,
+                label=label or None,
+                zorder=3,
+                linestyle=style,
+            )
+            w = int(
+                np.nanargmax(np.where(ok, y, -np.inf))
+                if worse == "max"
+                else np.nanargmin(np.where(ok, y, np.inf))
+            )
             if np.nanmax(y[ok]) != np.nanmin(y[ok]):
-                ax.plot([az[w]], [y[w]], marker="o", markersize=10, markerfacecolor="none",
-                        markeredgecolor=_WORST, markeredgewidth=1.4, zorder=4, clip_on=False)
+                ax.plot(
+                    [az[w]],
+                    [y[w]],
+                    marker="o",
+                    markersize=10,
+                    markerfacecolor="none",
+                    markeredgecolor=_WORST,
+                    markeredgewidth=1.4,
+                    zorder=4,
+                    clip_on=False,
+                )
         psnr = [k for k in keys if k.endswith("_psnr_db")]
         if psnr:
             inf = np.array([f.get(psnr[0]) is None and psnr[0] in f for f in frames]) & np.isfinite(az)
             if inf.any():
                 any_data = True
-                ax.plot(az[inf], np.full(inf.sum(), 0.96), linestyle="none", marker="^", color=_MUTED,
-                        transform=ax.get_xaxis_transform(), label="∞ (identical)", zorder=3)
+                ax.plot(
+                    az[inf],
+                    np.full(inf.sum(), 0.96),
+                    linestyle="none",
+                    marker="^",
+                    color=_MUTED,
+                    transform=ax.get_xaxis_transform(),
+                    label="∞ (identical)",
+                    zorder=3,
+                )
         if not any_data:
-            ax.text(0.5, 0.5, "not measured", transform=ax.transAxes, ha="center", va="center",
-                    color=_MUTED, fontsize=9)
+            ax.text(
+                0.5,
+                0.5,
+                "not measured",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                color=_MUTED,
+                fontsize=9,
+            )
             ax.set_yticks([])
         if len(lines) > 1 or psnr:
             handles, _ = ax.get_legend_handles_labels()
@@ -906,14 +1312,18 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
     height = max(2.8, 0.9 + 0.2 * legend_rows + 0.3 * max(len(t["rows"]), len(frames)))
     fig = _figure(13.0, height)
     ax1, ax2 = fig.subplots(1, 2, width_ratios=(1.25, 1))
-    fig.subplots_adjust(left=left_in / 13.0, right=0.99, top=1 - top_in / height, bottom=0.42 / height,
-                        wspace=0.1)
+    fig.subplots_adjust(
+        left=left_in / 13.0, right=0.99, top=1 - top_in / height, bottom=0.42 / height, wspace=0.1
+    )
 
     _style_axes(ax1, "where the time goes  (seconds)")
     labels = [r["label"] + (f" ({r['note']})" if r["note"] == "cached" else "") for r in t["rows"]]
     secs = np.array([r["seconds"] for r in t["rows"]], dtype=float)
-    palette = {"truth renders": TRUTH_COLOUR, "truth set-up": TRUTH_COLOUR,
-               **{f"{v.label} {what}": v.colour for v in views for what in ("renders", "set-up")}}
+    palette = {
+        "truth renders": TRUTH_COLOUR,
+        "truth set-up": TRUTH_COLOUR,
+        **{f"{v.label} {what}": v.colour for v in views for what in ("renders", "set-up")},
+    }
     colours = [palette.get(r["label"], "#8d8d96") for r in t["rows"]]
     y = np.arange(len(secs))
     if len(secs):
@@ -922,8 +1332,14 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
         ax1.invert_yaxis()
         top = secs.max() if secs.max() > 0 else 1.0
         for yi, r in zip(y, t["rows"]):
-            ax1.text(r["seconds"] + top * 0.01, yi, f"{r['text']}  {r['share']}", va="center",
-                     color=_TEXT, fontsize=8)
+            ax1.text(
+                r["seconds"] + top * 0.01,
+                yi,
+                f"{r['text']}  {r['share']}",
+                va="center",
+                color=_TEXT,
+                fontsize=8,
+            )
         ax1.set_xlim(0, top * 1.22)
         ax1.grid(False, axis="y")
     else:
@@ -932,16 +1348,26 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
 
     _style_axes(ax2, "")
     flat = _flatten(frames, views)
-    series = [(np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float), TRUTH_COLOUR, "truth")]
-    series += [(np.array([_num(f.get(f"{v.name}_s")) or np.nan for f in flat], dtype=float), v.colour, v.label)
-               for v in views]
+    series = [
+        (np.array([_num(f.get("truth_s")) or np.nan for f in frames], dtype=float), TRUTH_COLOUR, "truth")
+    ]
+    series += [
+        (np.array([_num(f.get(f"{v.name}_s")) or np.nan for f in flat], dtype=float), v.colour, v.label)
+        for v in views
+    ]
     ax2.set_title("per frame  (log scale)", color=_TEXT, fontsize=10, loc="right", pad=6 + 13 * legend_rows)
     y = np.arange(len(frames))
     if len(frames) and any(np.isfinite(v).any() for v, _, _ in series):
         h = 0.8 / len(series)
         for i, (v, colour, label) in enumerate(series):
-            ax2.barh(y + (i - (len(series) - 1) / 2) * h, np.nan_to_num(v), height=h, color=colour,
-                     label=label, zorder=3)
+            ax2.barh(
+                y + (i - (len(series) - 1) / 2) * h,
+                np.nan_to_num(v),
+                height=h,
+                color=colour,
+                label=label,
+                zorder=3,
+            )
         ax2.set_yticks(y, [fmt_deg(f.get("azimuth_deg")) for f in frames])
         ax2.invert_yaxis()
         positive = np.concatenate([v[v > 0] for v, _, _ in series])
@@ -953,8 +1379,16 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[Tech
             ax2.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
             ax2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt_seconds(v)))
             ax2.xaxis.set_minor_formatter(NullFormatter())
-        ax2.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-                   ncol=legend_cols, borderaxespad=0.2, handlelength=1.2)
+        ax2.legend(
+            fontsize=8,
+            frameon=False,
+            labelcolor=_TEXT,
+            loc="lower left",
+            bbox_to_anchor=(0.0, 1.0),
+            ncol=legend_cols,
+            borderaxespad=0.2,
+            handlelength=1.2,
+        )
         ax2.grid(False, axis="y")
     else:
         ax2.text(0.5, 0.5, "no frames", transform=ax2.transAxes, ha="center", color=_MUTED)
@@ -995,8 +1429,11 @@ def split_views(metrics: dict, views: list[TechniqueView]) -> list[SplitView]:
     out = []
     for v in views:
         t = info.get(v.name) if isinstance(info.get(v.name), dict) else {}
-        parts = tuple((str(p["key"]), str(p.get("label") or p["key"])) for p in (t.get("split_parts") or [])
-                      if isinstance(p, dict) and p.get("key"))
+        parts = tuple(
+            (str(p["key"]), str(p.get("label") or p["key"]))
+            for p in (t.get("split_parts") or [])
+            if isinstance(p, dict) and p.get("key")
+        )
         if parts and any(_split_of(f, v.name) is not None for f in frames):
             out.append(SplitView(v, parts, f"plots/{v.stem}_split.png"))
     return out
@@ -1006,10 +1443,22 @@ def _split_values(frames: list[dict], sv: SplitView):
     """``(azimuths, values)``: the frames' azimuths and each part's value per frame (NaN: missing)."""
     import numpy as np
 
-    az = np.array([_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan
-                   for f in frames], dtype=float)
-    vals = np.array([[np.nan if _num((_split_of(f, sv.view.name) or {}).get(k)) is None
-                      else _num(_split_of(f, sv.view.name)[k]) for k, _ in sv.parts] for f in frames], dtype=float)
+    az = np.array(
+        [_num(f.get("azimuth_deg")) if _num(f.get("azimuth_deg")) is not None else np.nan for f in frames],
+        dtype=float,
+    )
+    vals = np.array(
+        [
+            [
+                np.nan
+                if _num((_split_of(f, sv.view.name) or {}).get(k)) is None
+                else _num(_split_of(f, sv.view.name)[k])
+                for k, _ in sv.parts
+            ]
+            for f in frames
+        ],
+        dtype=float,
+    )
     return az, vals.reshape(len(frames), len(sv.parts))
 
 
@@ -1020,13 +1469,28 @@ def _split_context(frames: list[dict], sv: SplitView) -> dict:
     rows = []
     for f, row in zip(frames, vals):
         total = float(row.sum()) if all(map(math.isfinite, row)) else None
-        rows.append({"azimuth": fmt_deg(f.get("azimuth_deg")),
-                     "total": _fixed(4)(total) if total is not None else "—",
-                     "cells": [{"text": "—" if not math.isfinite(x) else f"{x:.4f}",
-                                "share": f"{100 * x / total:.0f} %" if total and math.isfinite(x) else "",
-                                "negative": bool(math.isfinite(x) and x < 0)} for x in row]})
-    return {"name": sv.view.name, "label": sv.view.label, "plot": sv.plot, "parts": [lb for _, lb in sv.parts],
-            "rows": rows, "negative": sum(any(c["negative"] for c in r["cells"]) for r in rows)}
+        rows.append(
+            {
+                "azimuth": fmt_deg(f.get("azimuth_deg")),
+                "total": _fixed(4)(total) if total is not None else "—",
+                "cells": [
+                    {
+                        "text": "—" if not math.isfinite(x) else f"{x:.4f}",
+                        "share": f"{100 * x / total:.0f} %" if total and math.isfinite(x) else "",
+                        "negative": bool(math.isfinite(x) and x < 0),
+                    }
+                    for x in row
+                ],
+            }
+        )
+    return {
+        "name": sv.view.name,
+        "label": sv.view.label,
+        "plot": sv.plot,
+        "parts": [lb for _, lb in sv.parts],
+        "rows": rows,
+        "negative": sum(any(c["negative"] for c in r["cells"]) for r in rows),
+    }
 
 
 def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
@@ -1040,7 +1504,7 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
     ax = fig.subplots()
     fig.subplots_adjust(left=0.06, right=0.99, top=0.8, bottom=0.15)
     _style_axes(ax, f"{sv.view.label}: the split of the error per frame  (mean |F − V|)")
-    ax.set_title(ax.get_title(loc="left"), color=_TEXT, fontsize=10, loc="left", pad=22)   # above the legend
+    ax.set_title(ax.get_title(loc="left"), color=_TEXT, fontsize=10, loc="left", pad=22)  # above the legend
     ok = np.isfinite(az)
     steps = np.diff(np.unique(az[ok]))
     width = 0.7 * (steps.min() if steps.size else 10.0)
@@ -1048,17 +1512,41 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
     for j, (_, label) in enumerate(sv.parts):
         v = np.nan_to_num(vals[:, j])
         pos = np.where(v > 0, v, 0.0)
-        ax.bar(az[ok], pos[ok], width, bottom=base[ok], color=SPLIT_COLOURS[j % len(SPLIT_COLOURS)],
-               label=label, zorder=3)
+        ax.bar(
+            az[ok],
+            pos[ok],
+            width,
+            bottom=base[ok],
+            color=SPLIT_COLOURS[j % len(SPLIT_COLOURS)],
+            label=label,
+            zorder=3,
+        )
         down = ok & (v < 0)
         if down.any():
-            ax.bar(az[down], -v[down], width, bottom=(base + v)[down], color="none", edgecolor=_WORST,
-                   hatch="///", linewidth=1.0, label=f"{label} < 0", zorder=4)
+            ax.bar(
+                az[down],
+                -v[down],
+                width,
+                bottom=(base + v)[down],
+                color="none",
+                edgecolor=_WORST,
+                hatch="///",
+                linewidth=1.0,
+                label=f"{label} < 0",
+                zorder=4,
+            )
         base = base + pos
     if not ok.any():
         ax.text(0.5, 0.5, "no frames", transform=ax.transAxes, ha="center", color=_MUTED)
-    ax.legend(fontsize=8, frameon=False, labelcolor=_TEXT, loc="lower left", bbox_to_anchor=(0.0, 1.01),
-              ncol=len(sv.parts) + 1, borderaxespad=0.0)
+    ax.legend(
+        fontsize=8,
+        frameon=False,
+        labelcolor=_TEXT,
+        loc="lower left",
+        bbox_to_anchor=(0.0, 1.01),
+        ncol=len(sv.parts) + 1,
+        borderaxespad=0.0,
+    )
     ax.set_xlabel("light azimuth (degrees)", color=_MUTED, fontsize=8)
     if 0 < ok.sum() <= 25:
         ax.set_xticks(az[ok])
@@ -1072,15 +1560,19 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
 # The page
 # --------------------------------------------------------------------------
 
+
 def _environment():
     import jinja2
 
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(TEMPLATES)),
-        autoescape=jinja2.select_autoescape(enabled_extensions=("html", "htm", "xml", "j2"),
-                                            default_for_string=True, default=True),
+        autoescape=jinja2.select_autoescape(
+            enabled_extensions=("html", "htm", "xml", "j2"), default_for_string=True, default=True
+        ),
         undefined=jinja2.StrictUndefined,
-        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
     )
     return env
 
@@ -1116,30 +1608,47 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
 # The suite's overview (hzval.commands.suite)
 # --------------------------------------------------------------------------
 
+
 def _cell_of(value, fmt: Callable[[Any], str]) -> dict:
     return {"v": "" if value is None else f"{value:.6g}", "text": "—" if value is None else fmt(value)}
 
 
 def _suite_row(r: dict, names: list[str]) -> dict:
     """A material's row and card, formatted."""
-    row = {"name": r["name"], "origin": r.get("origin", ""), "status": r["status"], "report": r.get("report"),
-           "error": r.get("error", "")}
+    row = {
+        "name": r["name"],
+        "origin": r.get("origin", ""),
+        "status": r["status"],
+        "report": r.get("report"),
+        "error": r.get("error", ""),
+    }
     if r["status"] != "ok":
         return row
     cells = []
     for n in names:
         t = r["techniques"].get(n, {})
-        cells += [_cell_of(t.get("visibility_mae"), _fixed(4)), _cell_of(t.get("flip_mean"), _fixed(4)),
-                  _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], _fixed(0))]
-    kinds = [{"name": "truth", "label": "truth"}] + [{"name": n, "label": technique.get(n).label.split(" (")[0]}
-                                                     for n in names if n in r["techniques"]]
-    row.update(size=f"{r['cols']} × {r['rows']}", texels=r["cols"] * r["rows"], depth=f"{r['depth']:g}",
-               boundary=r["boundary"], cells=cells,
-               floor=_cell_of(r["floor"].get("flip_mean"), _fixed(4)),
-               truth=_cell_of(None if r.get("truth_s") is None else 1000 * r["truth_s"], _fixed(0)),
-               sweep=_cell_of(r.get("seconds"), _fixed(1)),
-               peak=_cell_of(r["peak_rss_bytes"] / 2 ** 30, _fixed(2)),
-               lights=list(r.get("thumbs", {})), thumbs=r.get("thumbs", {}), kinds=kinds)
+        cells += [
+            _cell_of(t.get("visibility_mae"), _fixed(4)),
+            _cell_of(t.get("flip_mean"), _fixed(4)),
+            _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], _fixed(0)),
+        ]
+    kinds = [{"name": "truth", "label": "truth"}] + [
+        {"name": n, "label": technique.get(n).label.split(" (")[0]} for n in names if n in r["techniques"]
+    ]
+    row.update(
+        size=f"{r['cols']} × {r['rows']}",
+        texels=r["cols"] * r["rows"],
+        depth=f"{r['depth']:g}",
+        boundary=r["boundary"],
+        cells=cells,
+        floor=_cell_of(r["floor"].get("flip_mean"), _fixed(4)),
+        truth=_cell_of(None if r.get("truth_s") is None else 1000 * r["truth_s"], _fixed(0)),
+        sweep=_cell_of(r.get("seconds"), _fixed(1)),
+        peak=_cell_of(r["peak_rss_bytes"] / 2**30, _fixed(2)),
+        lights=list(r.get("thumbs", {})),
+        thumbs=r.get("thumbs", {}),
+        kinds=kinds,
+    )
     return row
 
 
@@ -1147,11 +1656,18 @@ def render_suite(result: dict) -> str:
     """The suite's ``index.html`` for :func:`hzval.commands.suite.write_overview`'s ``result``."""
     names = list(result["techniques"])
     s = result["suite"]
-    context = {"count": s["materials"], "failed": s["failed"], "not_run": s.get("not_run", 0),
-               "interrupted": s.get("interrupted", False), "engine": s["engine"], "workers": s["workers"],
-               "seconds": fmt_seconds(s["seconds"]), "versions": s.get("versions") or {},
-               "command": s["command"],
-               "techniques": [{"name": n, **result["techniques"][n]} for n in names],
-               "rows": [_suite_row(r, names) for r in result["materials"]],
-               "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None}
+    context = {
+        "count": s["materials"],
+        "failed": s["failed"],
+        "not_run": s.get("not_run", 0),
+        "interrupted": s.get("interrupted", False),
+        "engine": s["engine"],
+        "workers": s["workers"],
+        "seconds": fmt_seconds(s["seconds"]),
+        "versions": s.get("versions") or {},
+        "command": s["command"],
+        "techniques": [{"name": n, **result["techniques"][n]} for n in names],
+        "rows": [_suite_row(r, names) for r in result["materials"]],
+        "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,
+    }
     return _environment().get_template("suite.html.j2").render(**context)

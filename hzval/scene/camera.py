@@ -50,8 +50,17 @@ import numpy as np
 from hzval.core.backend import host_pool
 from hzval.core.errors import InputError
 
-__all__ = ["KINDS", "Camera", "view_axes", "View", "pixel_jitter", "stream", "sample_positions",
-    "forget_sample_positions", "SAMPLE_CHUNK_PIXELS"]
+__all__ = [
+    "KINDS",
+    "Camera",
+    "view_axes",
+    "View",
+    "pixel_jitter",
+    "stream",
+    "sample_positions",
+    "forget_sample_positions",
+    "SAMPLE_CHUNK_PIXELS",
+]
 
 #: The camera kinds (module docstring).
 KINDS: tuple[str, ...] = ("top", "orthographic", "perspective")
@@ -86,9 +95,14 @@ class Camera:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise InputError(what, f"camera.{name} must be a finite number, got {value!r}")
-        if isinstance(self.supersampling, bool) or int(self.supersampling) != self.supersampling \
-                or self.supersampling < 1:
-            raise InputError(what, f"camera.supersampling must be a positive integer, got {self.supersampling!r}")
+        if (
+            isinstance(self.supersampling, bool)
+            or int(self.supersampling) != self.supersampling
+            or self.supersampling < 1
+        ):
+            raise InputError(
+                what, f"camera.supersampling must be a positive integer, got {self.supersampling!r}"
+            )
         if self.kind == "top":
             return self
         if not 0 < self.elevation_deg <= 90:
@@ -101,11 +115,19 @@ class Camera:
         for name, value, kind in (("resolution", self.resolution, int), ("film_size", self.film_size, float)):
             if value is None:
                 continue
-            if len(value) != 2 or any(isinstance(c, bool) or not isinstance(c, (int, float))
-                                      or not math.isfinite(c) or c <= 0 for c in value) \
-                    or (kind is int and any(int(c) != c for c in value)):
-                raise InputError(what, f"camera.{name} must be two positive {'integers' if kind is int else 'numbers'} "
-                                       f"[width, height], got {value!r}")
+            if (
+                len(value) != 2
+                or any(
+                    isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or c <= 0
+                    for c in value
+                )
+                or (kind is int and any(int(c) != c for c in value))
+            ):
+                raise InputError(
+                    what,
+                    f"camera.{name} must be two positive {'integers' if kind is int else 'numbers'} "
+                    f"[width, height], got {value!r}",
+                )
         return self
 
     def image_shape(self, rows: int, cols: int) -> tuple[int, int]:
@@ -129,20 +151,50 @@ class Camera:
         H, W = self.image_shape(rows, cols)
         z_lo, z_hi = float(z_range[0]), float(z_range[1])
         if self.kind == "top":
-            return View("top", (cols / 2.0, rows / 2.0, 1.0e6), (cols / 2.0, rows / 2.0, 0.0), (0.0, 1.0, 0.0),
-                        None, (float(cols), float(rows)), (W, H), rows, cols, z_lo, z_hi, self.supersampling)
+            return View(
+                "top",
+                (cols / 2.0, rows / 2.0, 1.0e6),
+                (cols / 2.0, rows / 2.0, 0.0),
+                (0.0, 1.0, 0.0),
+                None,
+                (float(cols), float(rows)),
+                (W, H),
+                rows,
+                cols,
+                z_lo,
+                z_hi,
+                self.supersampling,
+            )
         e = math.radians(self.elevation_deg)
         w, up = view_axes(self.elevation_deg, self.azimuth_deg)
         target = np.array([cols / 2.0, rows / 2.0, (z_lo + z_hi) / 2.0])
         if self.kind == "perspective":
             eye = target + self.distance * cols * w
-            return View("perspective", tuple(eye), tuple(target), up, float(self.fov_deg), None, (W, H),
-                        rows, cols, z_lo, z_hi, 1)
-        film = tuple(float(c) for c in self.film_size) if self.film_size is not None else (float(cols), float(rows))
+            return View(
+                "perspective",
+                tuple(eye),
+                tuple(target),
+                up,
+                float(self.fov_deg),
+                None,
+                (W, H),
+                rows,
+                cols,
+                z_lo,
+                z_hi,
+                1,
+            )
+        film = (
+            tuple(float(c) for c in self.film_size)
+            if self.film_size is not None
+            else (float(cols), float(rows))
+        )
         # far enough along w that the film's lowest edge is above the relief, with room to spare
         reach = 0.5 * math.hypot(*film) + (z_hi - z_lo) + 1.0
         eye = target + (reach / max(math.sin(e), 1e-6) + reach) * w
-        return View("orthographic", tuple(eye), tuple(target), up, None, film, (W, H), rows, cols, z_lo, z_hi, 1)
+        return View(
+            "orthographic", tuple(eye), tuple(target), up, None, film, (W, H), rows, cols, z_lo, z_hi, 1
+        )
 
 
 def view_axes(elevation_deg: float, azimuth_deg: float) -> tuple[np.ndarray, tuple]:
@@ -184,10 +236,15 @@ class View:
 
     def record(self) -> dict:
         """``metrics.json``'s ``camera``: ``{kind, eye, target, up, fov_deg, film_size, resolution}``."""
-        return {"kind": self.kind, "eye": [float(c) for c in self.eye], "target": [float(c) for c in self.target],
-                "up": [float(c) for c in self.up], "fov_deg": self.fov_deg,
-                "film_size": None if self.film_size is None else [float(c) for c in self.film_size],
-                "resolution": [int(c) for c in self.resolution]}
+        return {
+            "kind": self.kind,
+            "eye": [float(c) for c in self.eye],
+            "target": [float(c) for c in self.target],
+            "up": [float(c) for c in self.up],
+            "fov_deg": self.fov_deg,
+            "film_size": None if self.film_size is None else [float(c) for c in self.film_size],
+            "resolution": [int(c) for c in self.resolution],
+        }
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(f, r, t)``: forward, right and the film's up, unit vectors (module docstring)."""
@@ -259,11 +316,13 @@ class View:
             if period is not None:
                 size = np.asarray(period, float)
                 diff = (diff + size / 2) % size - size / 2
-            out[:, 2 * k:2 * k + 2] = diff
+            out[:, 2 * k : 2 * k + 2] = diff
         return out.astype(np.float32)
 
 
-def pixel_jitter(shape: tuple[int, int], spp: int, seed: int, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+def pixel_jitter(
+    shape: tuple[int, int], spp: int, seed: int, a: int, b: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Where in its pixel each sample of the pixels ``a <= p < b`` lies: ``(ju, jv)``, ``(b - a, spp)``
     float64 in [0, 1).
 
@@ -300,8 +359,10 @@ def stream(entropy, offset: int) -> np.random.Generator:
 # Where each pixel of the top view is sampled
 # --------------------------------------------------------------------------
 
-def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int,
-                     pixels: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+
+def sample_positions(
+    rows: int, cols: int, camera: Camera, spp: int, seed: int, pixels: tuple[int, int] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels * spp,)``.
 
     Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``,
@@ -318,7 +379,9 @@ def sample_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int,
     per core, in bounded memory.
     """
     if camera.kind != "top":
-        raise ValueError(f"sample_positions is the top view's; a {camera.kind} camera's samples come from its rays")
+        raise ValueError(
+            f"sample_positions is the top view's; a {camera.kind} camera's samples come from its rays"
+        )
     height, width = camera.image_shape(rows, cols)
     if pixels is None or tuple(pixels) == (0, height * width):
         return _all_positions(rows, cols, camera, spp, seed)
@@ -352,7 +415,7 @@ def _positions(rows: int, cols: int, camera: Camera, spp: int, seed: int, first:
 
     def chunk(a: int, b: int) -> None:
         x, y = _jittered_chunk(rows, cols, camera, spp, seed, a, b)
-        xs[(a - first) * spp:(b - first) * spp], ys[(a - first) * spp:(b - first) * spp] = x, y
+        xs[(a - first) * spp : (b - first) * spp], ys[(a - first) * spp : (b - first) * spp] = x, y
 
     list(host_pool().map(chunk, bounds[:-1], bounds[1:]))
     return xs, ys

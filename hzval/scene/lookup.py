@@ -47,9 +47,26 @@ import numpy as np
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 
-__all__ = ["PLANES", "FILTERS", "MIPS", "PARALLAX", "Lookup", "plane_height", "Samples",
-    "FRAME_FLOATS", "frame_of", "to_tangent", "forget", "samples_for", "from_points", "mip_chain",
-    "Filtered", "interleaved", "aligned_empty", "aligned"]
+__all__ = [
+    "PLANES",
+    "FILTERS",
+    "MIPS",
+    "PARALLAX",
+    "Lookup",
+    "plane_height",
+    "Samples",
+    "FRAME_FLOATS",
+    "frame_of",
+    "to_tangent",
+    "forget",
+    "samples_for",
+    "from_points",
+    "mip_chain",
+    "Filtered",
+    "interleaved",
+    "aligned_empty",
+    "aligned",
+]
 
 PLANES: tuple[str, ...] = ("bottom", "mean", "top")
 FILTERS: tuple[str, ...] = ("nearest", "bilinear", "trilinear", "anisotropic")
@@ -71,7 +88,9 @@ class Lookup:
     def validate(self, what: str) -> "Lookup":
         for name, allowed in (("plane", PLANES), ("filter", FILTERS), ("mips", MIPS), ("parallax", PARALLAX)):
             if getattr(self, name) not in allowed:
-                raise InputError(what, f"lookup.{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}")
+                raise InputError(
+                    what, f"lookup.{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}"
+                )
         for name in ("max_anisotropy", "parallax_steps"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -183,14 +202,25 @@ def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -
 
     cam, lk = scene.camera, scene.lookup
     mat = scene.material
-    key = (rows, cols, cam, lk, scene.spp, scene.seed, mat.depth, mat.boundary,
-           # the top view's samples and footprints do not depend on the heights
-           None if height is None or cam.kind == "top" else hash(np.asarray(height, np.float32).tobytes()))
+    key = (
+        rows,
+        cols,
+        cam,
+        lk,
+        scene.spp,
+        scene.seed,
+        mat.depth,
+        mat.boundary,
+        # the top view's samples and footprints do not depend on the heights
+        None if height is None or cam.kind == "top" else hash(np.asarray(height, np.float32).tobytes()),
+    )
     if key in _CACHE:
         return _CACHE[key]
     _CACHE.clear()
     if cam.kind != "top" and height is None:
-        raise InputError("camera", f"a {cam.kind} view needs the height map to place the techniques' base plane")
+        raise InputError(
+            "camera", f"a {cam.kind} view needs the height map to place the techniques' base plane"
+        )
     h = None if height is None else cv.heights_in_texels(height, mat.depth)
     z = (0.0, 0.0, 0.0) if h is None else (float(h.min()), float(h.max()), float(h.mean()))
     view = cam.view(rows, cols, z[:2])
@@ -207,8 +237,16 @@ def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -
 
 def from_points(x: np.ndarray, y: np.ndarray, like: Samples, source: str = "truth") -> Samples:
     """:class:`Samples` at given points (the truth's hits), with ``like``'s footprints."""
-    return Samples(np.asarray(x, np.float32), np.asarray(y, np.float32), like.rows, like.cols, like.spp,
-                   like.footprint, like.plane_z, source)
+    return Samples(
+        np.asarray(x, np.float32),
+        np.asarray(y, np.float32),
+        like.rows,
+        like.cols,
+        like.spp,
+        like.footprint,
+        like.plane_z,
+        source,
+    )
 
 
 #: Pixels per chunk of the plane and parallax computations.
@@ -235,7 +273,7 @@ def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, 
         if scene.material.boundary == "wrap":
             xy[:, 0] %= cols
             xy[:, 1] %= rows
-        xs[a * spp:b * spp], ys[a * spp:b * spp] = xy[:, 0], xy[:, 1]
+        xs[a * spp : b * spp], ys[a * spp : b * spp] = xy[:, 0], xy[:, 1]
     return xs, ys
 
 
@@ -244,11 +282,18 @@ def _height_texture(h: np.ndarray, boundary: str):
     import mitsuba as mi
 
     wrap = dr.WrapMode.Repeat if boundary == "wrap" else dr.WrapMode.Clamp
-    return mi.Texture2f(mi.TensorXf(np.ascontiguousarray(h[..., None], np.float32)), use_accel=False,
-                        migrate=False, filter_mode=dr.FilterMode.Linear, wrap_mode=wrap)
+    return mi.Texture2f(
+        mi.TensorXf(np.ascontiguousarray(h[..., None], np.float32)),
+        use_accel=False,
+        migrate=False,
+        filter_mode=dr.FilterMode.Linear,
+        wrap_mode=wrap,
+    )
 
 
-def _parallax(lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: float, z_hi: float) -> np.ndarray:
+def _parallax(
+    lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: float, z_hi: float
+) -> np.ndarray:
     """The plane points ``xy`` moved by the parallax mapping ``lk.parallax`` along the rays ``d``.
 
     The ray through ``p0 = xy`` at the plane is at ``p(z) = p0 + d_xy (z0 - z) / -d_z`` at
@@ -262,7 +307,7 @@ def _parallax(lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: f
     rows, cols = tex.shape[0], tex.shape[1]
     px, py = mi.Float(xy[:, 0].astype(np.float32)), mi.Float(xy[:, 1].astype(np.float32))
     dx, dy = mi.Float(d[:, 0].astype(np.float32)), mi.Float(d[:, 1].astype(np.float32))
-    run = 1.0 / dr.maximum(-mi.Float(d[:, 2].astype(np.float32)), 1e-6)   # texels across per texel down
+    run = 1.0 / dr.maximum(-mi.Float(d[:, 2].astype(np.float32)), 1e-6)  # texels across per texel down
 
     def height(x, y):
         return tex.eval(mi.Point2f(x / cols, (rows - y) / rows))[0]
@@ -279,7 +324,7 @@ def _parallax(lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: f
         for i in range(n + 1):
             z = mi.Float(z_hi - i * step)
             t = (z0 - z) * run
-            a = z - height(px + dx * t, py + dy * t)          # the ray's height above the surface
+            a = z - height(px + dx * t, py + dy * t)  # the ray's height above the surface
             now = ~found & (a <= 0.0)
             s = dr.select(a_prev - a > 0.0, a_prev / (a_prev - a), 0.0) if i else mi.Float(0.0)
             qz = dr.select(now, z_prev + s * (z - z_prev), qz)
@@ -295,8 +340,10 @@ def _parallax(lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: f
 # Filtering: textures read as a GPU reads them
 # --------------------------------------------------------------------------
 
-def mip_chain(data: np.ndarray, max_channels: slice | None = None, *, stored: slice | None = None,
-              quantise=None) -> list[np.ndarray]:
+
+def mip_chain(
+    data: np.ndarray, max_channels: slice | None = None, *, stored: slice | None = None, quantise=None
+) -> list[np.ndarray]:
     """Levels 0.. of ``data`` ``(rows, cols, C)`` float32 down to 1x1: each the 2x2 average of the
     one below (``max_channels``: those channels by the 2x2 maximum); an odd size drops its last
     row or column.
@@ -306,6 +353,7 @@ def mip_chain(data: np.ndarray, max_channels: slice | None = None, *, stored: sl
     is RGBA8 (``glGenerateMipmap`` filters the stored level below and stores the result in the
     texture's format), so each level is quantised before the next is made from it; a float chain
     of an 8-bit map is 0.016-0.027 in F from the GPU's at lambda 1-2 (docs/gpu-pipeline.md)."""
+
     def halve(a: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
         m = a.shape[axis] // 2
         if m == 0:
@@ -336,8 +384,17 @@ class Filtered:
     :meth:`eval` takes the lanes' texture coordinates and their pixel indices.
     """
 
-    def __init__(self, data: np.ndarray, boundary: str, lookup: Lookup, samples: Samples | None = None, *,
-                 max_channels: slice | None = None, aligned=None, quantise=None):
+    def __init__(
+        self,
+        data: np.ndarray,
+        boundary: str,
+        lookup: Lookup,
+        samples: Samples | None = None,
+        *,
+        max_channels: slice | None = None,
+        aligned=None,
+        quantise=None,
+    ):
         import drjit as dr
         import mitsuba as mi
 
@@ -345,10 +402,19 @@ class Filtered:
         wrap = dr.WrapMode.Repeat if boundary == "wrap" else dr.WrapMode.Clamp
         prep = aligned if aligned is not None else (lambda a: np.ascontiguousarray(a, np.float32))
         mode = dr.FilterMode.Nearest if lookup.filter == "nearest" else dr.FilterMode.Linear
-        chain = (mip_chain(data, max_channels if lookup.mips == "max" else None, stored=max_channels,
-                           quantise=quantise) if lookup.mipmapped else [data])
-        self.levels = [mi.Texture2f(mi.TensorXf(prep(a)), use_accel=False, migrate=False, filter_mode=mode,
-                                    wrap_mode=wrap) for a in chain]
+        chain = (
+            mip_chain(
+                data, max_channels if lookup.mips == "max" else None, stored=max_channels, quantise=quantise
+            )
+            if lookup.mipmapped
+            else [data]
+        )
+        self.levels = [
+            mi.Texture2f(
+                mi.TensorXf(prep(a)), use_accel=False, migrate=False, filter_mode=mode, wrap_mode=wrap
+            )
+            for a in chain
+        ]
         self.rows, self.cols = data.shape[0], data.shape[1]
         self._footprint = None
         if lookup.mipmapped:
@@ -458,7 +524,7 @@ def aligned_empty(size: int, alignment: int = 64) -> np.ndarray:
     """An uninitialised float32 array of ``size`` that starts on an ``alignment``-byte boundary."""
     buf = np.empty(size + alignment // 4, dtype=np.float32)
     start = (-buf.ctypes.data % alignment) // 4
-    return buf[start:start + size]
+    return buf[start : start + size]
 
 
 def aligned(a, alignment: int = 64) -> np.ndarray:

@@ -45,24 +45,54 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.core import conventions as cv
 from hzval import materials
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.geometry.tile import DEFAULT_TOLERANCE
 from hzval.io import heightmap
 from hzval.scene.camera import Camera, stream
 from hzval.scene.lookup import Lookup
-from hzval.core.errors import InputError
-from hzval.geometry.tile import DEFAULT_TOLERANCE
 
-__all__ = ["EFFECTS", "SHADINGS", "DEFAULT_AZIMUTHS_TEXT", "DEFAULT_AZIMUTHS",
-    "DEFAULT_TRUTH_TOLERANCE", "DEFAULT_ALBEDO", "MaterialSpec", "MeshSpec", "MODEL_CAMERA",
-    "MESH_SUFFIXES", "Light", "DEFAULT_EFFECTS", "DEFAULT_INTERREFLECTION_DEPTH", "Scene",
-    "MAX_LIGHTS", "check_light_count", "parse_azimuths", "material_defaults", "sidecar_of",
-    "load_sidecar", "check_file", "load_scene", "override", "image_shape", "light_samples",
-    "load_material_height", "load_albedo", "Frame"]
+__all__ = [
+    "EFFECTS",
+    "SHADINGS",
+    "DEFAULT_AZIMUTHS_TEXT",
+    "DEFAULT_AZIMUTHS",
+    "DEFAULT_TRUTH_TOLERANCE",
+    "DEFAULT_ALBEDO",
+    "MaterialSpec",
+    "MeshSpec",
+    "MODEL_CAMERA",
+    "MESH_SUFFIXES",
+    "Light",
+    "DEFAULT_EFFECTS",
+    "DEFAULT_INTERREFLECTION_DEPTH",
+    "Scene",
+    "MAX_LIGHTS",
+    "check_light_count",
+    "parse_azimuths",
+    "material_defaults",
+    "sidecar_of",
+    "load_sidecar",
+    "check_file",
+    "load_scene",
+    "override",
+    "image_shape",
+    "light_samples",
+    "load_material_height",
+    "load_albedo",
+    "Frame",
+]
 
 #: Effects a scene can call for (docs/ARCHITECTURE.md, "Effects"), in rendering order.
-EFFECTS: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
-                            "interreflection")
+EFFECTS: tuple[str, ...] = (
+    "shadow",
+    "diffuse",
+    "specular",
+    "ambient",
+    "reflection_occlusion",
+    "interreflection",
+)
 #: How the truth shades the displaced mesh (:mod:`hzval.truth.plane`, "Shading"): with
 #: the normal interpolated from vertex normals, as a displaced mesh is shaded
 #: and as the techniques' normal map is, or with each triangle's flat normal.
@@ -94,7 +124,7 @@ class MaterialSpec:
     depth: float = 0.05
     boundary: str = "wrap"
     albedo: str | float | None = None
-    shading: str = "smooth"         # the truth's shading normal: "smooth" (vertex normals) or "faceted"
+    shading: str = "smooth"  # the truth's shading normal: "smooth" (vertex normals) or "faceted"
     #: how far, in texels of height, the truth's triangles may be from the bilinear surface
     #: (hzval.geometry.tile.cell_levels; the default from docs/truth-surface.md's convergence study)
     truth_tolerance: float = DEFAULT_TRUTH_TOLERANCE
@@ -164,21 +194,26 @@ class Scene:
     spp: int = 16
     seed: int = 0
     tolerances: dict = field(default_factory=dict)
-    check: dict = field(default_factory=dict)   # how `hzval check` renders it (hzval.commands.check)
-    source: str | None = None       # the TOML file it came from
+    check: dict = field(default_factory=dict)  # how `hzval check` renders it (hzval.commands.check)
+    source: str | None = None  # the TOML file it came from
 
     def validate(self) -> "Scene":
         what = self.source or "scene"
         m, lt = self.material, self.light
         cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth", m.boundary)
         # values from TOML may be of any type: every number must be one (and finite) before it is compared
-        for name, value in (("material.depth", m.depth), ("material.size", m.size),
-                            ("material.truth_tolerance", m.truth_tolerance),
-                            ("light.radius_deg", lt.radius_deg), ("light.elevation_deg", lt.elevation_deg),
-                            ("light.irradiance", lt.irradiance), ("samples.spp", self.spp),
-                            ("samples.seed", self.seed),
-                            ("effects.interreflection_depth", self.interreflection_depth),
-                            *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg))):
+        for name, value in (
+            ("material.depth", m.depth),
+            ("material.size", m.size),
+            ("material.truth_tolerance", m.truth_tolerance),
+            ("light.radius_deg", lt.radius_deg),
+            ("light.elevation_deg", lt.elevation_deg),
+            ("light.irradiance", lt.irradiance),
+            ("samples.spp", self.spp),
+            ("samples.seed", self.seed),
+            ("effects.interreflection_depth", self.interreflection_depth),
+            *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg)),
+        ):
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise InputError(what, f"{name} must be a number, got {value!r}")
             if name == "light.radius_deg" and lt.kind != "soft":
@@ -186,8 +221,9 @@ class Scene:
             if not math.isfinite(value):
                 raise InputError(what, f"{name} must be a finite number, got {value}")
         if m.truth_tolerance <= 0:
-            raise InputError(what, f"material.truth_tolerance must be a positive number of texels, got "
-                                   f"{m.truth_tolerance}")
+            raise InputError(
+                what, f"material.truth_tolerance must be a positive number of texels, got {m.truth_tolerance}"
+            )
         if m.shading not in SHADINGS:
             raise InputError(what, f"material.shading must be smooth or faceted, got {m.shading!r}")
         if m.boundary not in cv.BOUNDARIES:
@@ -195,15 +231,21 @@ class Scene:
         if m.size < 2:
             raise InputError(what, f"material.size must be at least 2, got {m.size}")
         if materials.is_builtin(m.height) and m.size < materials.get(m.height).min_size:
-            raise InputError(what, f"material.size of the built-in {m.height} must be at least "
-                                   f"{materials.get(m.height).min_size}, got {m.size}")
+            raise InputError(
+                what,
+                f"material.size of the built-in {m.height} must be at least "
+                f"{materials.get(m.height).min_size}, got {m.size}",
+            )
         if lt.irradiance <= 0:
             raise InputError(what, f"light.irradiance must be positive, got {lt.irradiance}")
         if int(self.seed) != self.seed or self.seed < 0:
             raise InputError(what, f"samples.seed must be a non-negative integer, got {self.seed}")
         if self.interreflection_depth < 2:
-            raise InputError(what, "effects.interreflection_depth counts path segments as Mitsuba's max_depth: "
-                                   f"at least 2 (direct light), got {self.interreflection_depth}")
+            raise InputError(
+                what,
+                "effects.interreflection_depth counts path segments as Mitsuba's max_depth: "
+                f"at least 2 (direct light), got {self.interreflection_depth}",
+            )
         if lt.kind not in ("hard", "soft"):
             raise InputError(what, f"light.kind must be hard or soft, got {lt.kind!r}")
         if lt.kind == "soft" and not 0 < lt.radius_deg < 90:
@@ -225,9 +267,12 @@ class Scene:
             # on a model every sample carries its own view (lookup.Samples.frames); the tile's do not
             needs_v = [e for e in ("specular", "reflection_occlusion") if self.declares(e)]
             if needs_v:
-                raise InputError(what, f"{' and '.join(needs_v)} with a perspective camera need the view direction "
-                                       "per pixel, which the tile's techniques do not take yet: use an orthographic "
-                                       "camera (or --mesh, whose samples carry their own)")
+                raise InputError(
+                    what,
+                    f"{' and '.join(needs_v)} with a perspective camera need the view direction "
+                    "per pixel, which the tile's techniques do not take yet: use an orthographic "
+                    "camera (or --mesh, whose samples carry their own)",
+                )
         return self
 
     def declares(self, effect: str) -> bool:
@@ -237,10 +282,16 @@ class Scene:
         ms = self.mesh
         if not isinstance(ms.shape, str) or not ms.shape:
             raise InputError(what, f"mesh.shape must be a shape name or a mesh file, got {ms.shape!r}")
-        if isinstance(ms.uv_scale, bool) or not isinstance(ms.uv_scale, (int, float)) \
-                or not math.isfinite(ms.uv_scale) or ms.uv_scale <= 0:
-            raise InputError(what if self.source else "--uv-scale",
-                             f"the UV scale must be a positive number, got {ms.uv_scale!r}")
+        if (
+            isinstance(ms.uv_scale, bool)
+            or not isinstance(ms.uv_scale, (int, float))
+            or not math.isfinite(ms.uv_scale)
+            or ms.uv_scale <= 0
+        ):
+            raise InputError(
+                what if self.source else "--uv-scale",
+                f"the UV scale must be a positive number, got {ms.uv_scale!r}",
+            )
         if ms.up not in (None, "y", "z"):
             raise InputError(what if self.source else "--up", f"the up axis must be y or z, got {ms.up!r}")
         from hzval.geometry import tangent_bugs
@@ -326,8 +377,11 @@ def load_sidecar(path: str | Path, height: str | Path) -> Scene:
     path, height = Path(path), Path(height).resolve()
     scene = load_scene(path, height=height)
     if scene.material.height != str(height):
-        raise InputError(path, f"names the material {scene.material.height!r}, but it is the sidecar scene of "
-                               f"{height.name}: remove its material.height")
+        raise InputError(
+            path,
+            f"names the material {scene.material.height!r}, but it is the sidecar scene of "
+            f"{height.name}: remove its material.height",
+        )
     return scene
 
 
@@ -345,16 +399,25 @@ def _schema() -> dict:
 
     azimuths = str | tuple[float, ...]
     tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
-    return {"material": strict.schema_of(MaterialSpec), "camera": strict.schema_of(Camera),
-            "lookup": strict.schema_of(Lookup), "mesh": strict.schema_of(MeshSpec),
-            "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
-            "effects": {"list": tuple[str, ...], "interreflection_depth": int},
-            "samples": {"spp": int, "seed": int},
-            "check": {"size": int, "azimuths": azimuths, "spp": int, "depth": float,
-                      "resolution": tuple[int, int]},
-            # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
-            # names the registry knows: hzval.commands.check checks them (scene imports no technique)
-            "tolerances": {"*": tiers}}
+    return {
+        "material": strict.schema_of(MaterialSpec),
+        "camera": strict.schema_of(Camera),
+        "lookup": strict.schema_of(Lookup),
+        "mesh": strict.schema_of(MeshSpec),
+        "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
+        "effects": {"list": tuple[str, ...], "interreflection_depth": int},
+        "samples": {"spp": int, "seed": int},
+        "check": {
+            "size": int,
+            "azimuths": azimuths,
+            "spp": int,
+            "depth": float,
+            "resolution": tuple[int, int],
+        },
+        # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
+        # names the registry knows: hzval.commands.check checks them (scene imports no technique)
+        "tolerances": {"*": tiers},
+    }
 
 
 def check_file(data: dict, path: str | Path) -> None:
@@ -397,8 +460,11 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         if "height" not in mat:
             mat["height"] = str(height) if height is not None else (_height_beside(path) or materials.DEFAULT)
         if "size" in mat and not materials.is_builtin(mat["height"]):
-            raise InputError(path, f"material.size applies to built-in materials only; the height map "
-                                   f"{mat['height']} has its own size (resize the file, or leave size out)")
+            raise InputError(
+                path,
+                f"material.size applies to built-in materials only; the height map "
+                f"{mat['height']} has its own size (resize the file, or leave size out)",
+            )
         mat = {**material_defaults(mat["height"]), **mat}
         if not materials.is_builtin(mat["height"]):
             mat["height"] = str((path.parent / mat["height"]).resolve())
@@ -427,7 +493,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
             check=dict(data.get("check", {})),
             source=str(path),
         )
-    except TypeError as exc:   # check_file has refused unknown keys: what is left is a value's
+    except TypeError as exc:  # check_file has refused unknown keys: what is left is a value's
         raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
     except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
         raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
@@ -449,8 +515,10 @@ def override(scene: Scene, **changes) -> Scene:
         # another material: a depth or boundary that was the old material's default becomes the new one's
         old, new = material_defaults(mat.height), material_defaults(c["height"])
         mat = dataclasses.replace(mat, **{k: new[k] for k in new if getattr(mat, k) == old[k]})
-    mat = dataclasses.replace(mat, **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading",
-                                                        "truth_tolerance") if k in c})
+    mat = dataclasses.replace(
+        mat,
+        **{k: c[k] for k in ("height", "size", "depth", "boundary", "shading", "truth_tolerance") if k in c},
+    )
     light = scene.light
     if "elevation" in c:
         light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))
@@ -462,38 +530,77 @@ def override(scene: Scene, **changes) -> Scene:
         light = dataclasses.replace(light, radius_deg=float(c["light_radius"]))
     effects = scene.effects
     if "effects" in c:
-        effects = tuple(e.strip() for e in c["effects"].split(",") if e.strip()) \
-            if isinstance(c["effects"], str) else tuple(c["effects"])
-    camera_keys = {"camera": "kind", "supersampling": "supersampling", "view_elevation": "elevation_deg",
-                   "view_azimuth": "azimuth_deg", "fov": "fov_deg", "distance": "distance",
-                   "resolution": "resolution", "film_size": "film_size"}
-    camera = dataclasses.replace(scene.camera, **{camera_keys[k]: (tuple(v) if isinstance(v, list) else v)
-                                                  for k, v in c.items() if k in camera_keys})
-    placed = [k for k in ("view_elevation", "view_azimuth", "fov", "distance", "resolution", "film_size") if k in c]
+        effects = (
+            tuple(e.strip() for e in c["effects"].split(",") if e.strip())
+            if isinstance(c["effects"], str)
+            else tuple(c["effects"])
+        )
+    camera_keys = {
+        "camera": "kind",
+        "supersampling": "supersampling",
+        "view_elevation": "elevation_deg",
+        "view_azimuth": "azimuth_deg",
+        "fov": "fov_deg",
+        "distance": "distance",
+        "resolution": "resolution",
+        "film_size": "film_size",
+    }
+    camera = dataclasses.replace(
+        scene.camera,
+        **{
+            camera_keys[k]: (tuple(v) if isinstance(v, list) else v) for k, v in c.items() if k in camera_keys
+        },
+    )
+    placed = [
+        k for k in ("view_elevation", "view_azimuth", "fov", "distance", "resolution", "film_size") if k in c
+    ]
     if camera.kind == "top" and placed:
-        raise InputError("--" + placed[0].replace("_", "-"), "places a camera: choose one with --camera "
-                                                            "orthographic or perspective (top is straight down)")
-    lookup = dataclasses.replace(scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax",
-                                                                    "parallax_steps") if k in c})
-    mesh = dataclasses.replace(scene.mesh, **{k: c[m] for m, k in (("mesh", "shape"), ("uv_scale", "uv_scale"),
-                                                                   ("up", "up"), ("tangent_bug", "tangent_bug"))
-                                                if m in c})
-    return dataclasses.replace(scene, material=mat, light=light, effects=effects, camera=camera, lookup=lookup,
-                               mesh=mesh,
-                               spp=c.get("spp", scene.spp), seed=c.get("seed", scene.seed)).validate()
+        raise InputError(
+            "--" + placed[0].replace("_", "-"),
+            "places a camera: choose one with --camera orthographic or perspective (top is straight down)",
+        )
+    lookup = dataclasses.replace(
+        scene.lookup, **{k: c[k] for k in ("plane", "filter", "mips", "parallax", "parallax_steps") if k in c}
+    )
+    mesh = dataclasses.replace(
+        scene.mesh,
+        **{
+            k: c[m]
+            for m, k in (
+                ("mesh", "shape"),
+                ("uv_scale", "uv_scale"),
+                ("up", "up"),
+                ("tangent_bug", "tangent_bug"),
+            )
+            if m in c
+        },
+    )
+    return dataclasses.replace(
+        scene,
+        material=mat,
+        light=light,
+        effects=effects,
+        camera=camera,
+        lookup=lookup,
+        mesh=mesh,
+        spp=c.get("spp", scene.spp),
+        seed=c.get("seed", scene.seed),
+    ).validate()
 
 
 # --------------------------------------------------------------------------
 # Where each pixel is sampled, and toward where its light is
 # --------------------------------------------------------------------------
 
+
 def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
     """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map (:meth:`hzval.scene.camera.Camera.image_shape`)."""
     return camera.image_shape(rows, cols)
 
 
-def light_samples(light: Light, azimuth_deg: float, count: int, seed: int,
-                  samples: tuple[int, int] | None = None) -> np.ndarray:
+def light_samples(
+    light: Light, azimuth_deg: float, count: int, seed: int, samples: tuple[int, int] | None = None
+) -> np.ndarray:
     """``(count, 3)`` unit directions toward the light, one per sample.
 
     A hard light gives its direction every time; a soft light samples the
@@ -527,8 +634,10 @@ def load_material_height(spec: MaterialSpec):
     """The scene's height map as a :class:`hzval.io.heightmap.HeightMap`."""
     if materials.is_builtin(spec.height):
         m = materials.get(spec.height)
-        return heightmap.from_array(materials.generate(spec.height, spec.size).height,
-                                    source=f"built-in {m.label}, {spec.size}x{spec.size}")
+        return heightmap.from_array(
+            materials.generate(spec.height, spec.size).height,
+            source=f"built-in {m.label}, {spec.size}x{spec.size}",
+        )
     return heightmap.load_height(spec.height)
 
 
@@ -552,7 +661,9 @@ def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
     except (OSError, ValueError) as exc:
         raise InputError(spec.albedo, f"not a readable albedo image ({str(exc).splitlines()[0]})") from None
     if rgb.shape[:2] != (rows, cols):
-        raise InputError(spec.albedo, f"albedo is {rgb.shape[1]}x{rgb.shape[0]}, the height map {cols}x{rows}")
+        raise InputError(
+            spec.albedo, f"albedo is {rgb.shape[1]}x{rgb.shape[0]}, the height map {cols}x{rows}"
+        )
     return cv.srgb_decode(rgb).astype(np.float32)
 
 

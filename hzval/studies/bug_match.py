@@ -34,30 +34,51 @@ def scene_of(metrics: dict, sweep_dir: Path):
 
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
     height = m.get("path") or m["name"]
-    sc = S.override(S.Scene(), height=height, size=int(m["cols"]), depth=p["depth"], boundary=p["boundary"],
-                    elevation=p["elevation_deg"], azimuths=",".join(f"{a:g}" for a in p["azimuths_deg"]),
-                    light=p["light"], light_radius=p.get("light_radius_deg"), effects=",".join(p["effects"]),
-                    spp=p["spp"], seed=p["seed"], truth_tolerance=p.get("truth_tolerance"),
-                    camera=p["camera"], view_elevation=p.get("view_elevation_deg"),
-                    view_azimuth=p.get("view_azimuth_deg"), fov=p.get("fov_deg"),
-                    distance=p.get("distance_tiles"), resolution=tuple(cam["resolution"]),
-                    plane=p.get("plane"), filter=p.get("filter"), parallax=p.get("parallax"),
-                    mesh=p["mesh"], uv_scale=p.get("uv_scale"), up=p.get("up"))
+    sc = S.override(
+        S.Scene(),
+        height=height,
+        size=int(m["cols"]),
+        depth=p["depth"],
+        boundary=p["boundary"],
+        elevation=p["elevation_deg"],
+        azimuths=",".join(f"{a:g}" for a in p["azimuths_deg"]),
+        light=p["light"],
+        light_radius=p.get("light_radius_deg"),
+        effects=",".join(p["effects"]),
+        spp=p["spp"],
+        seed=p["seed"],
+        truth_tolerance=p.get("truth_tolerance"),
+        camera=p["camera"],
+        view_elevation=p.get("view_elevation_deg"),
+        view_azimuth=p.get("view_azimuth_deg"),
+        fov=p.get("fov_deg"),
+        distance=p.get("distance_tiles"),
+        resolution=tuple(cam["resolution"]),
+        plane=p.get("plane"),
+        filter=p.get("filter"),
+        parallax=p.get("parallax"),
+        mesh=p["mesh"],
+        uv_scale=p.get("uv_scale"),
+        up=p.get("up"),
+    )
     return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none"))
 
 
-def bug_factors(scene, height: np.ndarray, truth, bug: str, name: str, at: str = "camera") -> list[np.ndarray]:
+def bug_factors(
+    scene, height: np.ndarray, truth, bug: str, name: str, at: str = "camera"
+) -> list[np.ndarray]:
     """The technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
     the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples ``at``
     (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`)."""
+    from hzval.bake.maps import BakeParams, bake
     from hzval.scene import spec as S
     from hzval.techniques import registry as technique
-    from hzval.bake.maps import BakeParams, bake
 
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
-    ctx = technique.Context(truth.scene, height, b, S.load_albedo(scene.material, *height.shape),
-                            points=truth.samples(at=at))
+    ctx = technique.Context(
+        truth.scene, height, b, S.load_albedo(scene.material, *height.shape), points=truth.samples(at=at)
+    )
     tech = technique.get(name).build(ctx)
     return [tech.render(az).layers["factor"] for az in scene.light.azimuths_deg]
 
@@ -84,6 +105,12 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
         errors[bug] = float(np.mean([np.abs(f - g)[seen].mean() for f, g in zip(factors, ours)]))
     best = min(errors, key=errors.get)
     named = best != "none" and errors[best] <= MARGIN * errors["none"]
-    line = (f"the engine's shadow factors are consistent with {best} (mean |F - F_bug| {errors[best]:.4f} "
-            f"against {errors['none']:.4f} for the correct frames)") if named else None
+    line = (
+        (
+            f"the engine's shadow factors are consistent with {best} (mean |F - F_bug| {errors[best]:.4f} "
+            f"against {errors['none']:.4f} for the correct frames)"
+        )
+        if named
+        else None
+    )
     return {"errors": errors, "best": best, "named": bool(named), "line": line}

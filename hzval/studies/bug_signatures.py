@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.io import files
 from hzval.geometry import tangent_bugs
+from hzval.io import files
 
 __all__ = ["CASES", "measure", "run", "page_section"]
 
@@ -41,8 +41,10 @@ __all__ = ["CASES", "measure", "run", "page_section"]
 #: texture width per radius). The lights come from 90 degrees beside the camera, onto the mirrored
 #: part: lights near the camera hide the shadows behind their casters (the camera sees the lit
 #: faces), which makes every frame look right.
-CASES: dict[str, tuple[str, float, float, float]] = {"cube": ("cube", 150.0, 240.0, 1.0),
-                                                     "mirrored-sphere": ("mirrored-sphere", 0.0, -90.0, 3.0)}
+CASES: dict[str, tuple[str, float, float, float]] = {
+    "cube": ("cube", 150.0, 240.0, 1.0),
+    "mirrored-sphere": ("mirrored-sphere", 0.0, -90.0, 3.0),
+}
 
 
 def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv_scale: float):
@@ -52,8 +54,10 @@ def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv
 
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
     cam = dataclasses.replace(S.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
-    light = dataclasses.replace(scene.light, azimuths_deg=tuple(a + light_azimuth for a in scene.light.azimuths_deg))
-    effects = tuple(e for e in scene.effects if e != "reflection_occlusion")   # only F and V are compared
+    light = dataclasses.replace(
+        scene.light, azimuths_deg=tuple(a + light_azimuth for a in scene.light.azimuths_deg)
+    )
+    effects = tuple(e for e in scene.effects if e != "reflection_occlusion")  # only F and V are compared
     return dataclasses.replace(scene, mesh=mesh, camera=cam, light=light, effects=effects).validate()
 
 
@@ -61,12 +65,19 @@ def _mean(e: np.ndarray, mask: np.ndarray) -> float | None:
     return float(e[mask].mean()) if mask.any() else None
 
 
-def measure(scene, height: np.ndarray, lead: str, shape: str, view_azimuth: float, light_azimuth: float,
-            uv_scale: float = 1.0) -> tuple[dict, dict]:
+def measure(
+    scene,
+    height: np.ndarray,
+    lead: str,
+    shape: str,
+    view_azimuth: float,
+    light_azimuth: float,
+    uv_scale: float = 1.0,
+) -> tuple[dict, dict]:
     """One case: ``(record, maps)``; ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the
     signature light (module docstring)."""
-    from hzval.studies import bug_match
     from hzval.geometry import model
+    from hzval.studies import bug_match
     from hzval.truth.model import ModelTruth
 
     sc = _case_scene(scene, shape, view_azimuth, light_azimuth, uv_scale)
@@ -74,28 +85,42 @@ def measure(scene, height: np.ndarray, lead: str, shape: str, view_azimuth: floa
     vis = [truth.render(az).layers["visibility"] for az in sc.light.azimuths_deg]
     mirrored, plain = truth.handedness < 0, truth.handedness > 0
     factors = {bug: bug_match.bug_factors(sc, height, truth, bug, lead) for bug in tangent_bugs.NAMES}
-    perfect = {bug: bug_match.bug_factors(sc, height, truth, bug, lead, at="truth") for bug in tangent_bugs.NAMES}
-    moved = [np.mean([np.abs(factors[b][i] - factors["none"][i])[truth.seen].mean() for b in factors])
-             for i in range(len(vis))]
+    perfect = {
+        bug: bug_match.bug_factors(sc, height, truth, bug, lead, at="truth") for bug in tangent_bugs.NAMES
+    }
+    moved = [
+        np.mean([np.abs(factors[b][i] - factors["none"][i])[truth.seen].mean() for b in factors])
+        for i in range(len(vis))
+    ]
     k = int(np.argmax(moved))
     bugs = {}
     for bug, fs in factors.items():
         err = [np.abs(f - v) for f, v in zip(fs, vis)]
         at_hits = np.mean([np.abs(f - v) for f, v in zip(perfect[bug], vis)], axis=0)
-        bugs[bug] = {"mirrored": _mean(np.mean(err, axis=0), mirrored),
-                     "mirrored_perfect_parallax": _mean(at_hits, mirrored),
-                     "unmirrored": _mean(np.mean(err, axis=0), plain),
-                     "mirrored_per_light": [_mean(e, mirrored) for e in err],
-                     "unmirrored_per_light": [_mean(e, plain) for e in err]}
+        bugs[bug] = {
+            "mirrored": _mean(np.mean(err, axis=0), mirrored),
+            "mirrored_perfect_parallax": _mean(at_hits, mirrored),
+            "unmirrored": _mean(np.mean(err, axis=0), plain),
+            "mirrored_per_light": [_mean(e, mirrored) for e in err],
+            "unmirrored_per_light": [_mean(e, plain) for e in err],
+        }
     for key in ("mirrored", "mirrored_perfect_parallax"):
         base = bugs["none"][key]
         for rec in bugs.values():
             rec[f"{key}_ratio"] = rec[key] / base if base and rec[key] is not None else None
     maps = {bug: np.where(truth.seen, fs[k] - vis[k], np.nan) for bug, fs in factors.items()}
-    record = {"shape": shape, "uv_scale": uv_scale, "view_azimuth_deg": view_azimuth,
-              "light_azimuth_deg": light_azimuth, "azimuths_deg": list(sc.light.azimuths_deg),
-              "elevation_deg": sc.light.elevation_deg, "signature_azimuth_deg": sc.light.azimuths_deg[k],
-              "mirrored_pixels": int(mirrored.sum()), "unmirrored_pixels": int(plain.sum()), "bugs": bugs}
+    record = {
+        "shape": shape,
+        "uv_scale": uv_scale,
+        "view_azimuth_deg": view_azimuth,
+        "light_azimuth_deg": light_azimuth,
+        "azimuths_deg": list(sc.light.azimuths_deg),
+        "elevation_deg": sc.light.elevation_deg,
+        "signature_azimuth_deg": sc.light.azimuths_deg[k],
+        "mirrored_pixels": int(mirrored.sum()),
+        "unmirrored_pixels": int(plain.sum()),
+        "bugs": bugs,
+    }
     return record, maps
 
 
@@ -113,9 +138,8 @@ def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = Tru
 
 def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
     """Rows: the bugs; columns: the cases; each ``F - V`` at its case's signature light."""
-    from matplotlib.figure import Figure
-
     import matplotlib
+    from matplotlib.figure import Figure
 
     names = list(cases)
     cmap = matplotlib.colormaps["RdBu"].with_extremes(bad="0.8")
@@ -141,14 +165,24 @@ def page_section(bugs: dict) -> str:
     rows = []
     for case, rec in bugs["cases"].items():
         for bug, r in rec["bugs"].items():
-            cells = [r["mirrored"], r["unmirrored"], r["mirrored_ratio"], r["mirrored_perfect_parallax"],
-                     r["mirrored_perfect_parallax_ratio"]]
-            rows.append(f"<tr><td>{html.escape(case)}</td><td>{html.escape(bug)}</td>"
-                        + "".join(f"<td>{c:.4f}</td>" if c is not None else "<td>-</td>" for c in cells) + "</tr>")
+            cells = [
+                r["mirrored"],
+                r["unmirrored"],
+                r["mirrored_ratio"],
+                r["mirrored_perfect_parallax"],
+                r["mirrored_perfect_parallax_ratio"],
+            ]
+            rows.append(
+                f"<tr><td>{html.escape(case)}</td><td>{html.escape(bug)}</td>"
+                + "".join(f"<td>{c:.4f}</td>" if c is not None else "<td>-</td>" for c in cells)
+                + "</tr>"
+            )
     lead = html.escape(bugs["technique"])
-    return (f"<h2>Tangent-bug signatures ({lead})</h2><img src='{html.escape(bugs['figure'])}' "
-            f"alt='F - V with each tangent bug'><table border=1 cellpadding=3><tr><th>case</th><th>bug</th>"
-            f"<th>mirrored |F&minus;V|</th><th>unmirrored</th><th>mirrored / correct</th>"
-            f"<th>mirrored, perfect parallax</th><th>/ correct</th></tr>{''.join(rows)}"
-            "</table><p>Each picture: F &minus; V at the light where the bugs move F most; the means are over "
-            "all the case's lights (turned to light the mirrored part from beside the camera). docs/models.md.</p>")
+    return (
+        f"<h2>Tangent-bug signatures ({lead})</h2><img src='{html.escape(bugs['figure'])}' "
+        f"alt='F - V with each tangent bug'><table border=1 cellpadding=3><tr><th>case</th><th>bug</th>"
+        f"<th>mirrored |F&minus;V|</th><th>unmirrored</th><th>mirrored / correct</th>"
+        f"<th>mirrored, perfect parallax</th><th>/ correct</th></tr>{''.join(rows)}"
+        "</table><p>Each picture: F &minus; V at the light where the bugs move F most; the means are over "
+        "all the case's lights (turned to light the mirrored part from beside the camera). docs/models.md.</p>"
+    )

@@ -41,8 +41,18 @@ import numpy as np
 
 from hzval.studies import seam_share
 
-__all__ = ["BAND_DEG", "WINDOW", "AZIMUTHS", "RESOLUTION", "band_scene", "measure", "paired", "trend",
-           "texel_means", "in_band"]
+__all__ = [
+    "BAND_DEG",
+    "WINDOW",
+    "AZIMUTHS",
+    "RESOLUTION",
+    "band_scene",
+    "measure",
+    "paired",
+    "trend",
+    "texel_means",
+    "in_band",
+]
 
 #: The band's half width, degrees of local light elevation about the scene's.
 BAND_DEG = 3.0
@@ -88,8 +98,11 @@ def _pixel_geometry(truth, window: float):
     x, y = s.x[::spp].astype(np.float64), s.y[::spp].astype(np.float64)
     n = s.frames[:, 6:9].astype(np.float64).reshape(-1, spp, 3).mean(axis=1)
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    col, row = np.clip(np.floor(x), 0, cols - 1).astype(np.int64), np.clip(np.floor(y), 0, rows - 1).astype(np.int64)
-    r = np.hypot(x / cols - 0.5, y / rows - 0.5)          # texture widths from the centre (uv)
+    col, row = (
+        np.clip(np.floor(x), 0, cols - 1).astype(np.int64),
+        np.clip(np.floor(y), 0, rows - 1).astype(np.int64),
+    )
+    r = np.hypot(x / cols - 0.5, y / rows - 0.5)  # texture widths from the centre (uv)
     keep = truth.seen.ravel() & (r <= window)
     return row * cols + col, n, keep, rows * cols
 
@@ -128,8 +141,14 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
                 out[name]["floor"].append(texel_means(np.abs(Fp - V), texel, band, size))
     finally:
         backend.hand_back_freed_memory()
-    return {"techniques": {k: {m: (v if m == "seam" else np.stack(v)) for m, v in d.items()} for k, d in out.items()},
-            "texels": texels, "lit": np.stack(lit), "seam_edges": int(setup.truth.model.seam_edges)}
+    return {
+        "techniques": {
+            k: {m: (v if m == "seam" else np.stack(v)) for m, v in d.items()} for k, d in out.items()
+        },
+        "texels": texels,
+        "lit": np.stack(lit),
+        "seam_edges": int(setup.truth.model.seam_edges),
+    }
 
 
 def _near_seams(truth):
@@ -166,9 +185,12 @@ def paired(case: dict, flat: dict | None) -> dict:
     technique leaks, so that a convex surface, whose truth is more lit, lowers its error), each
     ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
     :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame."""
-    row = {"texels": float(np.mean(case["texels"])) if case["texels"] else 0.0, "techniques": {},
-           "seam_edges": case.get("seam_edges", 0)}
-    if "lit" in case:           # the truth's lit share in the band, and what curvature changes of it
+    row = {
+        "texels": float(np.mean(case["texels"])) if case["texels"] else 0.0,
+        "techniques": {},
+        "seam_edges": case.get("seam_edges", 0),
+    }
+    if "lit" in case:  # the truth's lit share in the band, and what curvature changes of it
         on = np.isfinite(case["lit"]) & (np.isfinite(flat["lit"]) if flat is not None else True)
         row["lit"] = summary(frame_means(case["lit"], on))
         if flat is not None:
@@ -179,13 +201,18 @@ def paired(case: dict, flat: dict | None) -> dict:
         if other is not None:
             on &= np.isfinite(other["mae"])
         mae = frame_means(maps["mae"], on)
-        entry = {"mae": summary(mae), "floor": summary(frame_means(maps["floor"], on & np.isfinite(maps["floor"]))),
-                 "bias": summary(frame_means(maps["bias"], on)) if "bias" in maps else None,
-                 "per_frame": [None if not math.isfinite(v) else float(v) for v in mae]}
+        entry = {
+            "mae": summary(mae),
+            "floor": summary(frame_means(maps["floor"], on & np.isfinite(maps["floor"]))),
+            "bias": summary(frame_means(maps["bias"], on)) if "bias" in maps else None,
+            "per_frame": [None if not math.isfinite(v) else float(v) for v in mae],
+        }
         if other is not None:
             ref = frame_means(other["mae"], on)
             entry["flat"], entry["excess"] = summary(ref), summary(mae - ref)
-            if "bias" in other:     # the flat bake's own F - V on the same texels: leaks (+) or false shadows (-)
+            if (
+                "bias" in other
+            ):  # the flat bake's own F - V on the same texels: leaks (+) or false shadows (-)
                 entry["flat_bias"] = summary(frame_means(other["bias"], on))
             entry["per_frame_excess"] = [None if not math.isfinite(v) else float(v) for v in mae - ref]
         if maps.get("seam") and row["seam_edges"]:
@@ -198,8 +225,11 @@ def _seam_stat(per_frame: list[dict]) -> dict:
     """The frames' error share near seams (mean, standard error) and the pixel share there."""
     err = np.array([np.nan if f["error_share"] is None else f["error_share"] for f in per_frame])
     pix = [f["pixel_share"] for f in per_frame if f["pixel_share"] is not None]
-    return {"within_texels": seam_share.SEAM_TEXELS, "error_share": summary(err),
-            "pixel_share": float(np.mean(pix)) if pix else None}
+    return {
+        "within_texels": seam_share.SEAM_TEXELS,
+        "error_share": summary(err),
+        "pixel_share": float(np.mean(pix)) if pix else None,
+    }
 
 
 def trend(points: list[tuple[float, list]], noise_z: float = NOISE_Z) -> dict:
@@ -226,8 +256,13 @@ def trend(points: list[tuple[float, list]], noise_z: float = NOISE_Z) -> dict:
         verdict = "rises within noise"
     else:
         verdict = "does not rise"
-    return {"verdict": verdict, "noise_z": noise_z, "steps": steps, "overall": overall,
-            "falls": [{"from": s["from"], "to": s["to"], "z": s["z"]} for s in falls]}
+    return {
+        "verdict": verdict,
+        "noise_z": noise_z,
+        "steps": steps,
+        "overall": overall,
+        "falls": [{"from": s["from"], "to": s["to"], "z": s["z"]} for s in falls],
+    }
 
 
 def _step(a: tuple[float, list], b: tuple[float, list]) -> dict:

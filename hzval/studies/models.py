@@ -69,7 +69,10 @@ def cap_obj(path: Path, radius: float, sign: int) -> None:
         p, n = np.stack([x, y, 0 * x], -1), np.tile([0.0, 0.0, 1.0], (len(x), 1))
     else:
         th = r / radius
-        ex, ey = np.divide(x, r, out=np.zeros_like(x), where=r > 0), np.divide(y, r, out=np.zeros_like(y), where=r > 0)
+        ex, ey = (
+            np.divide(x, r, out=np.zeros_like(x), where=r > 0),
+            np.divide(y, r, out=np.zeros_like(y), where=r > 0),
+        )
         s = np.sin(th)
         p = np.stack([radius * s * ex, radius * s * ey, sign * radius * (np.cos(th) - 1.0)], -1)
         n = np.stack([sign * s * ex, sign * s * ey, np.cos(th)], -1)
@@ -116,13 +119,24 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         if progress:
             print(f"hzval models: {i + 1}/{len(cases)}: {name}", flush=True)
         sc = _case_scene(scene, out, name, spec)
-        result = sweep.run(sc, out / name, options=sweep.Options(), progress=False,
-                           command=f"{command} # case {name}".strip(), force=force)
+        result = sweep.run(
+            sc,
+            out / name,
+            options=sweep.Options(),
+            progress=False,
+            command=f"{command} # case {name}".strip(),
+            force=force,
+        )
         rows.append(_row(name, curvature, result))
         _ring_row(rows[-1], spec)
         bands[name] = _band_maps(sc, out / name)
-    data = {"format": "hzval models 1", "material": {**result["material"], "name": scene.name},
-            "command": files.portable_command(command, out), "half_width": A, "rows": rows}
+    data = {
+        "format": "hzval models 1",
+        "material": {**result["material"], "name": scene.name},
+        "command": files.portable_command(command, out),
+        "half_width": A,
+        "rows": rows,
+    }
     _add_bands(data, bands)
     data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
     files.write_json(out / "models.json", data)
@@ -132,8 +146,8 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
 
 def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
     """Each tangent bug's signature with the lead technique (:mod:`hzval.studies.bug_signatures`)."""
-    from hzval.studies import bug_signatures
     from hzval.scene import spec as S
+    from hzval.studies import bug_signatures
 
     height = S.load_material_height(scene.material).height
     return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
@@ -149,12 +163,24 @@ def _row(name: str, curvature, result: dict) -> dict:
     techniques = {}
     for t in result["techniques"]:
         per = [f["techniques"][t] for f in result["frames"]]
-        techniques[t] = {k: _mean([p.get(k) for p in per]) for k in
-                         ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae",
-                          "reflection_mae")}
-    return {"case": name, "curvature": curvature, "radius": None if not curvature else 1.0 / abs(curvature),
-            "mesh": {k: result.get("mesh", {}).get(k) for k in ("source", "world_per_uv", "mirrored_fraction")},
-            "report": f"{name}/index.html", "techniques": techniques}
+        techniques[t] = {
+            k: _mean([p.get(k) for p in per])
+            for k in (
+                "visibility_mae",
+                "leak_fraction",
+                "false_shadow_fraction",
+                "perfect_parallax_mae",
+                "reflection_mae",
+            )
+        }
+    return {
+        "case": name,
+        "curvature": curvature,
+        "radius": None if not curvature else 1.0 / abs(curvature),
+        "mesh": {k: result.get("mesh", {}).get(k) for k in ("source", "world_per_uv", "mirrored_fraction")},
+        "report": f"{name}/index.html",
+        "techniques": techniques,
+    }
 
 
 def _write_page(out: Path, data: dict) -> None:
@@ -164,25 +190,35 @@ def _write_page(out: Path, data: dict) -> None:
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
     _plot(out / "plots" / "models.png", rows, names)
     reflection = _plot_reflection(out / "plots" / "reflection.png", rows, names)
-    head = "".join(f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names)
+    head = "".join(
+        f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names
+    )
     body = []
     for r in rows:
         cells = []
         for n in names:
             t = r["techniques"].get(n, {})
-            cells += [f"<td>{t.get(k):.4f}</td>" if t.get(k) is not None else "<td>-</td>"
-                      for k in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")]
+            cells += [
+                f"<td>{t.get(k):.4f}</td>" if t.get(k) is not None else "<td>-</td>"
+                for k in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")
+            ]
         k = "-" if r["curvature"] is None else f"{r['curvature']:+.3g}"
-        body.append(f"<tr><td><a href='{html.escape(r['report'])}'>{html.escape(r['case'])}</a></td><td>{k}</td>"
-                    + "".join(cells) + "</tr>")
-    page = ("<!doctype html><meta charset='utf-8'><title>hzval models</title>"
-            f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
-            f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
-            + (reflection or "") +
-            f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
-            "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
-            "truth's own hits (perfect parallax). docs/models.md.</p>" + _band_html(out, data)
-            + bug_signatures.page_section(data["bugs"]))
+        body.append(
+            f"<tr><td><a href='{html.escape(r['report'])}'>{html.escape(r['case'])}</a></td><td>{k}</td>"
+            + "".join(cells)
+            + "</tr>"
+        )
+    page = (
+        "<!doctype html><meta charset='utf-8'><title>hzval models</title>"
+        f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
+        f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
+        + (reflection or "")
+        + f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
+        "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
+        "truth's own hits (perfect parallax). docs/models.md.</p>"
+        + _band_html(out, data)
+        + bug_signatures.page_section(data["bugs"])
+    )
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
@@ -195,8 +231,14 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | No
     from matplotlib.figure import Figure
 
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
-    series = {n: [(r["curvature"], r["techniques"][n]["reflection_mae"]) for r in pts
-                  if r["techniques"].get(n, {}).get("reflection_mae") is not None] for n in names}
+    series = {
+        n: [
+            (r["curvature"], r["techniques"][n]["reflection_mae"])
+            for r in pts
+            if r["techniques"].get(n, {}).get("reflection_mae") is not None
+        ]
+        for n in names
+    }
     series = {n: s for n, s in series.items() if s}
     if not series:
         return None
@@ -204,18 +246,31 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | No
     ax = fig.subplots()
     for n, s in series.items():
         ax.plot(*zip(*s), marker="o", label=n)
-    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |o − R|",
-           title="reflection occlusion against curvature")
+    ax.set(
+        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
+        ylabel="mean |o − R|",
+        title="reflection occlusion against curvature",
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
     files.write_figure(path, fig)
-    cells = "".join(f"<tr><td>{html.escape(r['case'])}</td>" + "".join(
-        f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>" if r["techniques"].get(n, {}).get("reflection_mae")
-        is not None else "<td>-</td>" for n in series) + "</tr>" for r in rows)
+    cells = "".join(
+        f"<tr><td>{html.escape(r['case'])}</td>"
+        + "".join(
+            f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>"
+            if r["techniques"].get(n, {}).get("reflection_mae") is not None
+            else "<td>-</td>"
+            for n in series
+        )
+        + "</tr>"
+        for r in rows
+    )
     head = "".join(f"<th>{html.escape(n)} |o&minus;R|</th>" for n in series)
-    return (f"<h2>Reflection occlusion</h2><img src='plots/{path.name}' alt='reflection error against 1/R'>"
-            f"<table border=1 cellpadding=3><tr><th>case</th>{head}</tr>{cells}</table>")
+    return (
+        f"<h2>Reflection occlusion</h2><img src='plots/{path.name}' alt='reflection error against 1/R'>"
+        f"<table border=1 cellpadding=3><tr><th>case</th>{head}</tr>{cells}</table>"
+    )
 
 
 def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
@@ -226,16 +281,25 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     ax = fig.subplots()
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
     for n in names:
-        err = [(r["curvature"], r["techniques"][n]["visibility_mae"]) for r in pts
-               if r["techniques"].get(n, {}).get("visibility_mae") is not None]
+        err = [
+            (r["curvature"], r["techniques"][n]["visibility_mae"])
+            for r in pts
+            if r["techniques"].get(n, {}).get("visibility_mae") is not None
+        ]
         if err:
             ax.plot(*zip(*err), marker="o", label=n)
-        fl = [(r["curvature"], r["techniques"][n]["perfect_parallax_mae"]) for r in pts
-              if r["techniques"].get(n, {}).get("perfect_parallax_mae") is not None]
+        fl = [
+            (r["curvature"], r["techniques"][n]["perfect_parallax_mae"])
+            for r in pts
+            if r["techniques"].get(n, {}).get("perfect_parallax_mae") is not None
+        ]
         if fl:
             ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
-    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="mean |F − V|",
-           title="error against curvature")
+    ax.set(
+        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
+        ylabel="mean |F − V|",
+        title="error against curvature",
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -261,20 +325,32 @@ def _add_bands(data: dict, bands: dict) -> None:
     flat = bands.get("flat")
     for r in data["rows"]:
         if r["case"] in bands:
-            patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")   # the patch's UVs
+            patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")  # the patch's UVs
             r["band"] = cb.paired(bands[r["case"]], flat if patch else None)
         if "principal_curvatures" in r and "band" in r:
             r["band"]["by_azimuth"] = _by_azimuth(r, cb.AZIMUTHS)
-    convex = [r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")]
+    convex = [
+        r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")
+    ]
     names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
-    data["band"] = {"half_deg": cb.BAND_DEG, "window": cb.WINDOW, "azimuths": list(cb.AZIMUTHS),
-                    "resolution": list(cb.RESOLUTION)}
+    data["band"] = {
+        "half_deg": cb.BAND_DEG,
+        "window": cb.WINDOW,
+        "azimuths": list(cb.AZIMUTHS),
+        "resolution": list(cb.RESOLUTION),
+    }
     data["trend"] = {}
     for n in names:
         have = [r for r in convex if n in r["band"]["techniques"]]
         mae = [(r["curvature"], r["band"]["techniques"][n]["per_frame"]) for r in have]
-        exc = [(r["curvature"], r["band"]["techniques"][n].get("per_frame_excess")
-                or [0.0] * len(r["band"]["techniques"][n]["per_frame"])) for r in have]
+        exc = [
+            (
+                r["curvature"],
+                r["band"]["techniques"][n].get("per_frame_excess")
+                or [0.0] * len(r["band"]["techniques"][n]["per_frame"]),
+            )
+            for r in have
+        ]
         data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
 
 
@@ -299,7 +375,11 @@ def ring_obj(path: Path, tube: float, rho: float) -> None:
     phi, tau = x / rho, y / tube
     e = np.stack([np.sin(phi), 0 * phi, -np.cos(phi)], -1)
     yy = np.array([0.0, 1.0, 0.0])
-    p = np.array([0.0, 0.0, rho]) + (rho + tube * (1 - np.cos(tau)))[:, None] * e + (tube * np.sin(tau))[:, None] * yy
+    p = (
+        np.array([0.0, 0.0, rho])
+        + (rho + tube * (1 - np.cos(tau)))[:, None] * e
+        + (tube * np.sin(tau))[:, None] * yy
+    )
     n = -np.cos(tau)[:, None] * e + np.sin(tau)[:, None] * yy
     _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
 
@@ -332,9 +412,16 @@ def _by_azimuth(row: dict, azimuths) -> list[dict]:
     out = []
     for i, az in enumerate(azimuths):
         c, s = math.cos(math.radians(az)), math.sin(math.radians(az))
-        out.append({"azimuth_deg": float(az), "normal_curvature": kx * c * c + ky * s * s,
-                    "excess": {n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
-                               for n, t in row["band"]["techniques"].items()}})
+        out.append(
+            {
+                "azimuth_deg": float(az),
+                "normal_curvature": kx * c * c + ky * s * s,
+                "excess": {
+                    n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
+                    for n, t in row["band"]["techniques"].items()
+                },
+            }
+        )
     return out
 
 
@@ -358,36 +445,55 @@ def _band_html(out: Path, data: dict) -> str:
     b = data["band"]
     names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
     _band_plot(out / "plots" / "band.png", rows, names)
-    head = "".join(f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
-                   f"<th>floor</th><th>seams: error / pixels</th>" for n in names)
+    head = "".join(
+        f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
+        f"<th>floor</th><th>seams: error / pixels</th>"
+        for n in names
+    )
     body = []
     for r in rows:
         cells = []
         for n in names:
             t = r["band"]["techniques"].get(n, {})
             seam = t.get("seam")
-            sh = "-" if not seam or seam["error_share"]["mean"] is None else \
-                f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
-            cells += [f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")]
+            sh = (
+                "-"
+                if not seam or seam["error_share"]["mean"] is None
+                else f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
+            )
+            cells += [
+                f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")
+            ]
             cells.append(f"<td>{sh}</td>")
         k = r.get("principal_curvatures")
-        k = (f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)" if k else
-             "-" if r["curvature"] is None else f"{r['curvature']:+.3g}")
-        body.append(f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
-                    f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>")
-    verdicts = "".join(f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
-                       f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
-                       for n, t in data.get("trend", {}).items())
-    return (f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
-            f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
-            f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
-            f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
-            "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
-            "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
-            f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
-            "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
-            f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
-            f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>")
+        k = (
+            f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)"
+            if k
+            else "-"
+            if r["curvature"] is None
+            else f"{r['curvature']:+.3g}"
+        )
+        body.append(
+            f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
+            f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>"
+        )
+    verdicts = "".join(
+        f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
+        f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
+        for n, t in data.get("trend", {}).items()
+    )
+    return (
+        f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
+        f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
+        f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
+        f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
+        "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
+        "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
+        f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
+        "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
+        f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
+        f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>"
+    )
 
 
 def _seam_texels() -> str:
@@ -402,8 +508,11 @@ def _says(t: dict) -> str:
     if o.get("change") is None:
         return t["verdict"]
     falls = ", ".join(f"{f['from']:+g}->{f['to']:+g} by {-f['z']:.1f} SE" for f in t["falls"])
-    return (f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
-            + (f"; falls {falls}" if falls else "") + ")")
+    return (
+        f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
+        + (f"; falls {falls}" if falls else "")
+        + ")"
+    )
 
 
 def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
@@ -414,15 +523,21 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     ax = fig.subplots()
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
     for n in names:
-        have = [(r["curvature"], r["band"]["techniques"][n].get("excess")) for r in pts
-                if n in r["band"]["techniques"]]
+        have = [
+            (r["curvature"], r["band"]["techniques"][n].get("excess"))
+            for r in pts
+            if n in r["band"]["techniques"]
+        ]
         have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
         if have:
             k, m, se = zip(*have)
             ax.errorbar(k, m, yerr=se, marker="o", capsize=3, label=n)
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set(xlabel="signed curvature 1/R (texture widths⁻¹; + convex)", ylabel="band |F − V| − flat's, same texels",
-           title="what curvature alone costs (± 1 SE)")
+    ax.set(
+        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
+        ylabel="band |F − V| − flat's, same texels",
+        title="what curvature alone costs (± 1 SE)",
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -436,21 +551,33 @@ def summary_table(data: dict) -> str:
     num = lambda v, w=7: f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
-    refl = [n for n in names if any(r["techniques"].get(n, {}).get("reflection_mae") is not None for r in rows)]
-    lines = [f"{'case':10} {'1/R':>7}  " + "  ".join(f"{n:>9} {'floor':>7}" for n in names)
-             + "".join(f"  {n + ' |o-R|':>14}" for n in refl)]
+    refl = [
+        n for n in names if any(r["techniques"].get(n, {}).get("reflection_mae") is not None for r in rows)
+    ]
+    lines = [
+        f"{'case':10} {'1/R':>7}  "
+        + "  ".join(f"{n:>9} {'floor':>7}" for n in names)
+        + "".join(f"  {n + ' |o-R|':>14}" for n in refl)
+    ]
     for r in rows:
         k = float("nan") if r["curvature"] is None else r["curvature"]
         t = r["techniques"]
-        vals = "  ".join(f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t)
-        lines.append(f"{r['case']:10} {k:+7.3f}  {vals}" + "".join(f"  {num(t.get(n, {}).get('reflection_mae'), 14)}"
-                                                               for n in refl))
+        vals = "  ".join(
+            f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t
+        )
+        lines.append(
+            f"{r['case']:10} {k:+7.3f}  {vals}"
+            + "".join(f"  {num(t.get(n, {}).get('reflection_mae'), 14)}" for n in refl)
+        )
     for n, t in data.get("trend", {}).items():
         lines.append(f"{n}: band |F-V| {_says(t['mae'])}; excess over flat {_says(t['excess'])}")
     bugs = data.get("bugs")
     if bugs:
         for case, rec in bugs["cases"].items():
-            ratios = ", ".join(f"{b} {r['mirrored_ratio']:.2f}x" for b, r in rec["bugs"].items()
-                               if b != "none" and r.get("mirrored_ratio") is not None)
+            ratios = ", ".join(
+                f"{b} {r['mirrored_ratio']:.2f}x"
+                for b, r in rec["bugs"].items()
+                if b != "none" and r.get("mirrored_ratio") is not None
+            )
             lines.append(f"tangent bugs on {case} ({bugs['technique']} mirrored |F-V| / correct): {ratios}")
     return "\n".join(lines)

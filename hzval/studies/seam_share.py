@@ -36,8 +36,9 @@ def seam_distance_texels(model, points: np.ndarray, texel_world: float) -> np.nd
         return out
     a, b = model.positions[ends[:, 0]], model.positions[ends[:, 1]]
     steps = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / texel_world * _STEPS_PER_TEXEL)).astype(int)
-    samples = np.concatenate([a[i] + np.linspace(0.0, 1.0, k + 1)[:, None] * (b[i] - a[i])
-                              for i, k in enumerate(steps)])
+    samples = np.concatenate(
+        [a[i] + np.linspace(0.0, 1.0, k + 1)[:, None] * (b[i] - a[i]) for i, k in enumerate(steps)]
+    )
     ok = np.isfinite(points).all(axis=1)
     out[~ok] = np.nan
     out[ok] = cKDTree(samples).query(points[ok])[0] / texel_world
@@ -50,5 +51,7 @@ def shares(error: np.ndarray, near: np.ndarray, keep: np.ndarray) -> dict:
     is kept or no error."""
     e, n = np.asarray(error, np.float64)[keep], np.asarray(near, bool)[keep]
     total = float(e.sum())
-    return {"error_share": float(e[n].sum() / total) if total > 0 else None,
-            "pixel_share": float(n.mean()) if len(n) else None}
+    return {
+        "error_share": float(e[n].sum() / total) if total > 0 else None,
+        "pixel_share": float(n.mean()) if len(n) else None,
+    }

@@ -37,12 +37,12 @@ __all__ = ["FACE_AXES", "face_coordinates", "bilinear"]
 #: as ``(major, s axis, t axis)``, each ``(component, sign)``: ``r = major + sc * s_axis + tc * t_axis``
 #: (the inverse of table 8.19; :func:`hzval.core.conventions.cube_texel_directions`).
 FACE_AXES: tuple = (
-    ((0, 1.0), (2, -1.0), (1, -1.0)),    # +x: sc = -rz, tc = -ry
-    ((0, -1.0), (2, 1.0), (1, -1.0)),    # -x: sc = +rz, tc = -ry
-    ((1, 1.0), (0, 1.0), (2, 1.0)),      # +y: sc = +rx, tc = +rz
-    ((1, -1.0), (0, 1.0), (2, -1.0)),    # -y: sc = +rx, tc = -rz
-    ((2, 1.0), (0, 1.0), (1, -1.0)),     # +z: sc = +rx, tc = -ry
-    ((2, -1.0), (0, -1.0), (1, -1.0)),   # -z: sc = -rx, tc = -ry
+    ((0, 1.0), (2, -1.0), (1, -1.0)),  # +x: sc = -rz, tc = -ry
+    ((0, -1.0), (2, 1.0), (1, -1.0)),  # -x: sc = +rz, tc = -ry
+    ((1, 1.0), (0, 1.0), (2, 1.0)),  # +y: sc = +rx, tc = +rz
+    ((1, -1.0), (0, 1.0), (2, -1.0)),  # -y: sc = +rx, tc = -rz
+    ((2, 1.0), (0, 1.0), (1, -1.0)),  # +z: sc = +rx, tc = -ry
+    ((2, -1.0), (0, -1.0), (1, -1.0)),  # -z: sc = -rx, tc = -ry
 )
 
 
@@ -54,9 +54,15 @@ def face_coordinates(x, y, z):
     ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
     use_x = (ax >= ay) & (ax >= az)
     use_y = ~use_x & (ay >= az)
-    face = dr.select(use_x, dr.select(x >= 0, mi.UInt32(0), mi.UInt32(1)),
-                     dr.select(use_y, dr.select(y >= 0, mi.UInt32(2), mi.UInt32(3)),
-                               dr.select(z >= 0, mi.UInt32(4), mi.UInt32(5))))
+    face = dr.select(
+        use_x,
+        dr.select(x >= 0, mi.UInt32(0), mi.UInt32(1)),
+        dr.select(
+            use_y,
+            dr.select(y >= 0, mi.UInt32(2), mi.UInt32(3)),
+            dr.select(z >= 0, mi.UInt32(4), mi.UInt32(5)),
+        ),
+    )
     ma = dr.select(use_x, ax, dr.select(use_y, ay, az))
     sc = dr.select(use_x, dr.select(x >= 0, -z, z), dr.select(use_y | (z >= 0), x, -x))
     tc = dr.select(use_y, dr.select(y >= 0, z, -z), -y)
@@ -115,6 +121,7 @@ def bilinear(cube, n: int, d, seamless: bool = True):
         # a corner of the cube: the fourth texel is the mean of the three that are there
         def off(k):
             return (k < 0) | (k >= n)
+
         corner = off(i0) | off(i0 + 1), off(j0) | off(j0 + 1)
         at_corner = corner[0] & corner[1]
         third = 1.0 / 3.0

@@ -121,21 +121,30 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.techniques import cubemap
-from hzval.io import external
-from hzval.scene import lookup
-from hzval.core.backend import dr, mi
-from hzval.io import storage as hz_storage
-from hzval.core import conventions as cv
 from hzval.bake.maps import CUBE_SIZE, weight_cube
+from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
-from hzval.scene.spec import Frame, Scene
 from hzval.core.shading import SPECULAR_EXPONENT, SPECULAR_KS
-from hzval.techniques.surface import NOT_MODELLED, FlatShading
+from hzval.io import external
+from hzval.io import storage as hz_storage
+from hzval.scene import lookup
+from hzval.scene.spec import Frame, Scene
+from hzval.techniques import cubemap
 from hzval.techniques.registry import Context, Technique, Variant
+from hzval.techniques.surface import NOT_MODELLED, FlatShading
 
-__all__ = ["Horizon", "PATHS", "STORAGES", "WEIGHTS", "AMBIENT_TERMS", "DEFAULT_K", "DEFAULT_FADE", "CUBE_SIZE",
-           "CUBE_BYTES"]
+__all__ = [
+    "Horizon",
+    "PATHS",
+    "STORAGES",
+    "WEIGHTS",
+    "AMBIENT_TERMS",
+    "DEFAULT_K",
+    "DEFAULT_FADE",
+    "CUBE_SIZE",
+    "CUBE_BYTES",
+]
 
 #: The two ways of evaluating the technique (module docstring).
 PATHS: tuple[str, ...] = ("exact", "gpu")
@@ -157,7 +166,6 @@ DEFAULT_FADE = 1.3
 HORIZON_SLOT = "horizon"
 #: The weight cube map's texture memory: 6 faces of two 8-bit RGBA layers.
 CUBE_BYTES = 6 * CUBE_SIZE * CUBE_SIZE * 4 * 2
-
 
 
 class Horizon(FlatShading, Technique):
@@ -209,13 +217,24 @@ class Horizon(FlatShading, Technique):
     label = "horizon map"
     summary = "Lengyel's horizon mapping: 8 horizon sines in two RGBA textures, F = clamp(k (Lz - s) + 1)"
     file_stem = "horizon"
-    needs = ()                      # it also shades (and fades reflections) without shadows
+    needs = ()  # it also shades (and fades reflections) without shadows
     not_modelled = NOT_MODELLED
 
-    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *,
-                 path: str = "exact", k: float = DEFAULT_K, ambient: str = "mean_cos2",
-                 fade: float = DEFAULT_FADE, storage: str | None = None, weights: str | None = None,
-                 height: np.ndarray | None = None, samples: lookup.Samples | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        bake,
+        albedo: np.ndarray | None = None,
+        *,
+        path: str = "exact",
+        k: float = DEFAULT_K,
+        ambient: str = "mean_cos2",
+        fade: float = DEFAULT_FADE,
+        storage: str | None = None,
+        weights: str | None = None,
+        height: np.ndarray | None = None,
+        samples: lookup.Samples | None = None,
+    ):
         storage = storage or ("u8" if path == "gpu" else "float")
         weights = weights or ("cube" if path == "gpu" else "analytic")
         directions = int(bake.horizon.shape[-1]) if bake.horizon is not None else cv.CHANNEL_COUNT
@@ -223,7 +242,7 @@ class Horizon(FlatShading, Technique):
         self.path, self.k, self.fade = path, float(k), float(fade)
         self.storage, self.weights = storage, weights
         self.directions = directions
-        self.external: list[str] | None = None       # the external bake's layers, when one is used
+        self.external: list[str] | None = None  # the external bake's layers, when one is used
         super().__init__(scene, bake, albedo, ambient=ambient, height=height, samples=samples)
 
     # -- the hooks of the flat shading (hzval.techniques.surface.FlatShading) ----------------------------
@@ -234,7 +253,11 @@ class Horizon(FlatShading, Technique):
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
         """The horizon map as stored (:mod:`hzval.io.storage`), first in the packed texture."""
-        return [(HORIZON_SLOT, hz_storage.get(self.storage).roundtrip(self.bake.horizon))] if self._needs_horizon else []
+        return (
+            [(HORIZON_SLOT, hz_storage.get(self.storage).roundtrip(self.bake.horizon))]
+            if self._needs_horizon
+            else []
+        )
 
     def _max_channels(self) -> slice | None:
         return self._slots.get(HORIZON_SLOT)
@@ -326,94 +349,187 @@ class Horizon(FlatShading, Technique):
         enc = (encoding or external.Encoding()).validate()
         external.check_layers(raw, enc, horizon_map)
         if raw.shape[:2] != ctx.height.shape:
-            raise InputError(horizon_map[0], f"is {raw.shape[1]}x{raw.shape[0]}, the height map "
-                                             f"{ctx.height.shape[1]}x{ctx.height.shape[0]}")
+            raise InputError(
+                horizon_map[0],
+                f"is {raw.shape[1]}x{raw.shape[0]}, the height map "
+                f"{ctx.height.shape[1]}x{ctx.height.shape[0]}",
+            )
         sines = external.to_hzval(raw, enc)
         found = external.detect(raw, _reference_horizons(ctx, enc.channels), enc)
-        own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, samples=ctx.samples(),
-                  **settings)
+        own = cls(
+            ctx.scene,
+            dataclasses.replace(ctx.bake, horizon=sines),
+            ctx.albedo,
+            samples=ctx.samples(),
+            **settings,
+        )
         own.external = [str(p) for p in horizon_map]
         own.warnings = tuple(external.warnings(found, own.external, ctx.scene.material.height))
         own.extras = {"external_bake": {**found, "paths": own.external, "warnings": list(own.warnings)}}
         return own
 
     #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
-    flags = {"k": "--horizon-k", "path": "--horizon-path", "ambient": "--horizon-ambient",
-             "storage": "--horizon-storage", "weights": "--horizon-path", "fade": "--horizon-k"}
+    flags = {
+        "k": "--horizon-k",
+        "path": "--horizon-path",
+        "ambient": "--horizon-ambient",
+        "storage": "--horizon-storage",
+        "weights": "--horizon-path",
+        "fade": "--horizon-k",
+    }
     #: The flags' names before they had the technique's prefix, hidden aliases for one release.
-    FORMER_FLAGS = {"--horizon-k": "--k", "--horizon-path": "--path", "--horizon-ambient": "--ambient",
-                    "--horizon-storage": "--storage"}
+    FORMER_FLAGS = {
+        "--horizon-k": "--k",
+        "--horizon-path": "--path",
+        "--horizon-ambient": "--ambient",
+        "--horizon-storage": "--storage",
+    }
 
     @classmethod
     def add_arguments(cls, parser) -> None:
         def add(flag: str, **kw) -> None:
             parser.add_argument(flag, **kw)
             hidden = {k: v for k, v in kw.items() if k not in ("help", "metavar")}
-            parser.add_argument(cls.FORMER_FLAGS[flag], dest=flag[2:].replace("-", "_"),
-                                **{**hidden, "default": argparse.SUPPRESS},
-                                help=argparse.SUPPRESS)
+            parser.add_argument(
+                cls.FORMER_FLAGS[flag],
+                dest=flag[2:].replace("-", "_"),
+                **{**hidden, "default": argparse.SUPPRESS},
+                help=argparse.SUPPRESS,
+            )
 
-        add("--horizon-k", type=float, default=DEFAULT_K,
-            help=f"horizon map: shadow hardness k of F = clamp(k (Lz - s) + 1) (default {DEFAULT_K:g})")
-        add("--horizon-path", choices=PATHS, default=PATHS[0],
+        add(
+            "--horizon-k",
+            type=float,
+            default=DEFAULT_K,
+            help=f"horizon map: shadow hardness k of F = clamp(k (Lz - s) + 1) (default {DEFAULT_K:g})",
+        )
+        add(
+            "--horizon-path",
+            choices=PATHS,
+            default=PATHS[0],
             help=f"horizon map: exact float math, or emulate the GPU's 8-bit textures and weight cube map "
-                 f"(default {PATHS[0]})")
-        add("--horizon-ambient", choices=AMBIENT_TERMS, default=AMBIENT_TERMS[0],
-            help=f"horizon map: which ambient-map definition to shade with (default {AMBIENT_TERMS[0]})")
-        parser.add_argument("--horizon-map", default=None, metavar="P0,P1",
-                            help="horizon map: your own bake's RGBA layers (8/16-bit PNG or EXR), in place of "
-                                 "hzval's; its encoding from --horizon-encoding or the --horizon-* options "
-                                 "(default: hzval's layout)")
-        parser.add_argument("--horizon-encoding", type=Path, default=None, metavar="FILE.toml",
-                            help="horizon map: a TOML file of channels, azimuth0, direction, y, values")
+            f"(default {PATHS[0]})",
+        )
+        add(
+            "--horizon-ambient",
+            choices=AMBIENT_TERMS,
+            default=AMBIENT_TERMS[0],
+            help=f"horizon map: which ambient-map definition to shade with (default {AMBIENT_TERMS[0]})",
+        )
+        parser.add_argument(
+            "--horizon-map",
+            default=None,
+            metavar="P0,P1",
+            help="horizon map: your own bake's RGBA layers (8/16-bit PNG or EXR), in place of "
+            "hzval's; its encoding from --horizon-encoding or the --horizon-* options "
+            "(default: hzval's layout)",
+        )
+        parser.add_argument(
+            "--horizon-encoding",
+            type=Path,
+            default=None,
+            metavar="FILE.toml",
+            help="horizon map: a TOML file of channels, azimuth0, direction, y, values",
+        )
         d = external.Encoding()
         parser.add_argument("--horizon-channels", type=int, default=None, help=f"(default {d.channels})")
-        parser.add_argument("--horizon-azimuth0", type=float, default=None, metavar="DEG",
-                            help=f"azimuth of channel 0 (default {d.azimuth0:g})")
-        parser.add_argument("--horizon-direction", choices=["ccw", "cw"], default=None,
-                            help=f"which way channels turn (default {d.direction})")
-        parser.add_argument("--horizon-y", choices=["up", "down"], default=None,
-                            help=f"the baker's +y on screen (default {d.y})")
-        parser.add_argument("--horizon-values", choices=external.VALUES, default=None,
-                            help=f"what a channel holds (default {d.values})")
-        add("--horizon-storage", choices=STORAGES, default=None,
+        parser.add_argument(
+            "--horizon-azimuth0",
+            type=float,
+            default=None,
+            metavar="DEG",
+            help=f"azimuth of channel 0 (default {d.azimuth0:g})",
+        )
+        parser.add_argument(
+            "--horizon-direction",
+            choices=["ccw", "cw"],
+            default=None,
+            help=f"which way channels turn (default {d.direction})",
+        )
+        parser.add_argument(
+            "--horizon-y",
+            choices=["up", "down"],
+            default=None,
+            help=f"the baker's +y on screen (default {d.y})",
+        )
+        parser.add_argument(
+            "--horizon-values",
+            choices=external.VALUES,
+            default=None,
+            help=f"what a channel holds (default {d.values})",
+        )
+        add(
+            "--horizon-storage",
+            choices=STORAGES,
+            default=None,
             help="horizon map: how its textures are stored: float, 8-bit or block-compressed (BC7, BC3, BC1, "
-                 "BC4; -sqrt stores square-root sines) (default float, u8 with --horizon-path gpu)")
+            "BC4; -sqrt stores square-root sines) (default float, u8 with --horizon-path gpu)",
+        )
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        out = {"k": args.horizon_k, "path": args.horizon_path, "ambient": args.horizon_ambient,
-               **({"storage": args.horizon_storage} if args.horizon_storage else {})}
-        _validate(out["path"], out.get("storage", "float"), "analytic", cv.CHANNEL_COUNT, out["ambient"],
-                  out["k"], DEFAULT_FADE)
+        out = {
+            "k": args.horizon_k,
+            "path": args.horizon_path,
+            "ambient": args.horizon_ambient,
+            **({"storage": args.horizon_storage} if args.horizon_storage else {}),
+        }
+        _validate(
+            out["path"],
+            out.get("storage", "float"),
+            "analytic",
+            cv.CHANNEL_COUNT,
+            out["ambient"],
+            out["k"],
+            DEFAULT_FADE,
+        )
         if args.horizon_map:
-            enc = external.Encoding.from_toml(args.horizon_encoding) if args.horizon_encoding else external.Encoding()
-            given = {"channels": args.horizon_channels, "azimuth0": args.horizon_azimuth0,
-                     "direction": args.horizon_direction, "y": args.horizon_y, "values": args.horizon_values}
+            enc = (
+                external.Encoding.from_toml(args.horizon_encoding)
+                if args.horizon_encoding
+                else external.Encoding()
+            )
+            given = {
+                "channels": args.horizon_channels,
+                "azimuth0": args.horizon_azimuth0,
+                "direction": args.horizon_direction,
+                "y": args.horizon_y,
+                "values": args.horizon_values,
+            }
             enc = dataclasses.replace(enc, **{k: v for k, v in given.items() if v is not None}).validate()
-            out.update(horizon_map=tuple(p.strip() for p in args.horizon_map.split(",") if p.strip()),
-                       encoding=enc)
+            out.update(
+                horizon_map=tuple(p.strip() for p in args.horizon_map.split(",") if p.strip()), encoding=enc
+            )
         return out
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         if settings.get("path") == "gpu" and bake_params.directions != cv.CHANNEL_COUNT:
-            raise InputError("path", f"the gpu path emulates Lengyel's {cv.CHANNEL_COUNT}-channel weight cube map; "
-                                     f"a bake of {bake_params.directions} directions needs the exact path")
+            raise InputError(
+                "path",
+                f"the gpu path emulates Lengyel's {cv.CHANNEL_COUNT}-channel weight cube map; "
+                f"a bake of {bake_params.directions} directions needs the exact path",
+            )
 
     @classmethod
     def check_variants(cls) -> list[Variant]:
         # the references of hzval 0.1 (metrics.json schema 1) were named after "the approximation"
-        return [Variant("horizon", {"path": "exact"}, formerly="approx"),
-                Variant("horizon_gpu", {"path": "gpu"}, formerly="approx_gpu")]
+        return [
+            Variant("horizon", {"path": "exact"}, formerly="approx"),
+            Variant("horizon_gpu", {"path": "gpu"}, formerly="approx_gpu"),
+        ]
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
         v = [Variant("8-bit horizon map", {"storage": "u8"})]
-        v += [Variant(f"{name} horizon map ({hz_storage.get(name).label})", {"storage": name})
-              for name in ("u8-sqrt", "bc7", "bc7-sqrt", "bc3", "bc1", "bc4")]
-        v += [Variant("cube-map weights", {"weights": "cube"}),
-              Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"})]
+        v += [
+            Variant(f"{name} horizon map ({hz_storage.get(name).label})", {"storage": name})
+            for name in ("u8-sqrt", "bc7", "bc7-sqrt", "bc3", "bc1", "bc4")
+        ]
+        v += [
+            Variant("cube-map weights", {"weights": "cube"}),
+            Variant("GPU path: 8-bit map + cube weights", {"storage": "u8", "weights": "cube"}),
+        ]
         v += [Variant(f"k = {k:g}", {"k": float(k)}) for k in (2, 4, 16, 32)]
         v.append(Variant("k fitted to the truth", {"k": "fit"}))
         return v
@@ -428,15 +544,23 @@ class Horizon(FlatShading, Technique):
 
         def cost(logk: float) -> float:
             k = math.exp(logk)
-            return float(np.mean([np.mean(np.abs(ap.render(az, k=k).layers["factor"] - V))
-                                  for az, V in zip(azimuths, visibility)]))
+            return float(
+                np.mean(
+                    [
+                        np.mean(np.abs(ap.render(az, k=k).layers["factor"] - V))
+                        for az, V in zip(azimuths, visibility)
+                    ]
+                )
+            )
 
         return {**settings, "k": _golden_section(cost, math.log(1.0), math.log(128.0))}
 
     def storage_bytes(self) -> int:
         """The horizon map as stored (:meth:`hzval.io.storage.Storage.bytes`) and the weight cube map."""
         rows, cols, ch = self.bake.horizon.shape
-        return hz_storage.get(self.storage).bytes(rows, cols, ch) + (CUBE_BYTES if self.weights == "cube" else 0)
+        return hz_storage.get(self.storage).bytes(rows, cols, ch) + (
+            CUBE_BYTES if self.weights == "cube" else 0
+        )
 
     # ------------------------------------------------------------------
     # Public
@@ -445,12 +569,19 @@ class Horizon(FlatShading, Technique):
     @property
     def parameters(self) -> dict:
         """The technique's settings, for ``metrics.json``."""
-        out = {"path": self.path, "storage": self.storage, "weights": self.weights, "k": self.k,
-               "bake": "external: " + ", ".join(self.external) if self.external else "hzval",
-               "simulated": list(self.simulated)}
+        out = {
+            "path": self.path,
+            "storage": self.storage,
+            "weights": self.weights,
+            "k": self.k,
+            "bake": "external: " + ", ".join(self.external) if self.external else "hzval",
+            "simulated": list(self.simulated),
+        }
         if not self.external:
             record = self.bake.params.record()
-            out.update(bake_method=record["method"], bake_radius=record["radius"], bake_angles=record["angles"])
+            out.update(
+                bake_method=record["method"], bake_radius=record["radius"], bake_angles=record["angles"]
+            )
         out["directions"] = self.directions
         if self._ambient:
             out["ambient"] = self.ambient
@@ -461,12 +592,17 @@ class Horizon(FlatShading, Technique):
         if self.storage != "float":
             out.update(storage_bytes=self.storage_bytes())
         if self.weights == "cube":
-            out.update(cube_size=CUBE_SIZE, cube_bits=8,
-                       cube_filter="seamless bilinear")
+            out.update(cube_size=CUBE_SIZE, cube_bits=8, cube_filter="seamless bilinear")
         return out
 
-    def render(self, azimuth_deg: float, *, shadows: bool = True,
-               elevation_deg: float | None = None, k: float | None = None) -> Frame:
+    def render(
+        self,
+        azimuth_deg: float,
+        *,
+        shadows: bool = True,
+        elevation_deg: float | None = None,
+        k: float | None = None,
+    ) -> Frame:
         """The frame of the light at ``azimuth_deg`` (degrees) (:meth:`hzval.techniques.surface.FlatShading.render`).
 
         ``k`` defaults to the object's. ``shadows=False`` leaves out the
@@ -474,14 +610,25 @@ class Horizon(FlatShading, Technique):
         Layers: ``factor`` (pixel mean of F, when shadowing), ``ambient`` (A)
         and ``reflection_occlusion`` (o), each where declared.
         """
-        return super().render(azimuth_deg, shadows=shadows, elevation_deg=elevation_deg,
-                              **({} if k is None else {"k": k}))
+        return super().render(
+            azimuth_deg, shadows=shadows, elevation_deg=elevation_deg, **({} if k is None else {"k": k})
+        )
 
-    def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None, *,
-               shadows: bool = True, k: float | None = None) -> dict[str, np.ndarray]:
+    def sample(
+        self,
+        x,
+        y,
+        azimuth_deg: float,
+        elevation_deg: float | None = None,
+        *,
+        shadows: bool = True,
+        k: float | None = None,
+    ) -> dict[str, np.ndarray]:
         """Per-point values (:meth:`hzval.techniques.surface.FlatShading.sample`); when shadowing, also
         ``horizon_sine`` (``s`` of eq. 5.3/5.4)."""
-        return super().sample(x, y, azimuth_deg, elevation_deg, shadows=shadows, **({} if k is None else {"k": k}))
+        return super().sample(
+            x, y, azimuth_deg, elevation_deg, shadows=shadows, **({} if k is None else {"k": k})
+        )
 
     # ------------------------------------------------------------------
     # Kernels
@@ -489,7 +636,9 @@ class Horizon(FlatShading, Technique):
 
     def _channel_weights(self, d) -> list:
         """The ``D`` channel weights toward the azimuth of directions ``d`` (path-specific)."""
-        return self._exact_weights(d, self.directions) if self.weights == "analytic" else self._cube_weights(d)
+        return (
+            self._exact_weights(d, self.directions) if self.weights == "analytic" else self._cube_weights(d)
+        )
 
     @staticmethod
     def _exact_weights(d, directions: int = cv.CHANNEL_COUNT) -> list:
@@ -559,21 +708,33 @@ def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
     from hzval.bake.maps import BakeParams, bake
 
     p = ctx.bake.params
-    params = BakeParams(depth=p.depth, boundary=p.boundary, method="exact") if directions == cv.CHANNEL_COUNT \
+    params = (
+        BakeParams(depth=p.depth, boundary=p.boundary, method="exact")
+        if directions == cv.CHANNEL_COUNT
         else BakeParams(depth=p.depth, boundary=p.boundary, radius=32, angles=64, directions=directions)
+    )
     return bake(ctx.height, params.validate()).horizon
 
 
-def _validate(path: str, storage: str, weights: str, directions: int, ambient: str, k: float, fade: float) -> None:
+def _validate(
+    path: str, storage: str, weights: str, directions: int, ambient: str, k: float, fade: float
+) -> None:
     """Every setting of :class:`Horizon`, checked before anything is uploaded."""
-    for what, value, allowed in (("path", path, PATHS), ("storage", storage, STORAGES),
-                                 ("weights", weights, WEIGHTS), ("ambient", ambient, AMBIENT_TERMS)):
+    for what, value, allowed in (
+        ("path", path, PATHS),
+        ("storage", storage, STORAGES),
+        ("weights", weights, WEIGHTS),
+        ("ambient", ambient, AMBIENT_TERMS),
+    ):
         if value not in allowed:
             raise InputError(what, f"must be one of {', '.join(allowed)}, got {value!r}")
     if weights == "cube" and directions != cv.CHANNEL_COUNT:
-        raise InputError("weights", f"the weight cube map (and so the gpu path) holds {cv.CHANNEL_COUNT} "
-                                    f"channel weights; this bake stores {directions} directions: use "
-                                    "path='exact' / weights='analytic'")
+        raise InputError(
+            "weights",
+            f"the weight cube map (and so the gpu path) holds {cv.CHANNEL_COUNT} "
+            f"channel weights; this bake stores {directions} directions: use "
+            "path='exact' / weights='analytic'",
+        )
     if not (math.isfinite(k) and k > 0):
         raise InputError("k", f"the shadow hardness must be a positive number, got {k}")
     if not (math.isfinite(fade) and fade >= 0):

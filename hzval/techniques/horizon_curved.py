@@ -40,8 +40,8 @@ import numpy as np
 
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.techniques.horizon import Horizon
 from hzval.scene.spec import Scene
+from hzval.techniques.horizon import Horizon
 from hzval.techniques.registry import Context
 
 __all__ = ["sine_change", "bin_tangents", "CurvedHorizon"]
@@ -55,7 +55,7 @@ def bin_tangents(h_texels: np.ndarray, kappa: float, radius: int, angles: int, b
     rows, cols = h.shape
     xc, yc = cv.texel_centres(rows, cols)
     x, y = xc.ravel(), yc.ravel()
-    h0 = h.ravel()                                  # row-major, as texel_centres lays them out
+    h0 = h.ravel()  # row-major, as texel_centres lays them out
     out = np.zeros((angles, rows * cols))
     for b in range(angles):
         a = 2.0 * np.pi * b / angles
@@ -68,8 +68,15 @@ def bin_tangents(h_texels: np.ndarray, kappa: float, radius: int, angles: int, b
     return out.reshape(angles, rows, cols)
 
 
-def sine_change(h_texels: np.ndarray, kappa: float, *, radius: int = 16, angles: int = 32,
-                directions: int = cv.CHANNEL_COUNT, boundary: str = "wrap") -> np.ndarray:
+def sine_change(
+    h_texels: np.ndarray,
+    kappa: float,
+    *,
+    radius: int = 16,
+    angles: int = 32,
+    directions: int = cv.CHANNEL_COUNT,
+    boundary: str = "wrap",
+) -> np.ndarray:
     """``(rows, cols, directions)``: each channel's horizon sine on a surface of normal curvature
     ``kappa`` (texels^-1, + convex, the same along every azimuth) minus the flat one's, both by
     :func:`bin_tangents` and the seed bake's channel means (``angles / directions + 1`` bins centred
@@ -100,8 +107,10 @@ class CurvedHorizon(Horizon):
 
     name = "horizon-curved"
     label = "curvature-corrected horizon map"
-    summary = ("the horizon map's sines corrected for the model's normal curvature 1/R "
-               "(--horizon-curvature): tan drops by kappa d / 2 at occluder distance d, re-searched")
+    summary = (
+        "the horizon map's sines corrected for the model's normal curvature 1/R "
+        "(--horizon-curvature): tan drops by kappa d / 2 at occluder distance d, re-searched"
+    )
     file_stem = "horizon_curved"
     needs = ("shadow",)
     by_default = False
@@ -121,8 +130,14 @@ class CurvedHorizon(Horizon):
         if curvature != 0.0:
             h = cv.heights_in_texels(ctx.height, ctx.scene.material.depth)
             p = bake.params
-            ds = sine_change(h, curvature / h.shape[1], radius=p.radius, angles=p.angles,
-                             directions=int(bake.horizon.shape[-1]), boundary=ctx.scene.material.boundary)
+            ds = sine_change(
+                h,
+                curvature / h.shape[1],
+                radius=p.radius,
+                angles=p.angles,
+                directions=int(bake.horizon.shape[-1]),
+                boundary=ctx.scene.material.boundary,
+            )
             # the bake stores no horizon below the tangent plane (its tangents start at 0)
             bake = dataclasses.replace(bake, horizon=np.clip(bake.horizon + ds, 0.0, 1.0).astype(np.float32))
         own = cls(ctx.scene, bake, ctx.albedo, samples=ctx.samples(), **settings)
@@ -131,20 +146,28 @@ class CurvedHorizon(Horizon):
 
     @classmethod
     def add_arguments(cls, parser) -> None:
-        parser.add_argument("--horizon-curvature", type=float, default=0.0, metavar="K",
-                            help="curvature-corrected horizon map: the model's normal curvature 1/R in texture "
-                                 "widths^-1, + convex, - concave (default 0: the bake itself; measured to help on "
-                                 "convex surfaces, to cost on concave ones for three of six materials: "
-                                 "docs/models.md)")
+        parser.add_argument(
+            "--horizon-curvature",
+            type=float,
+            default=0.0,
+            metavar="K",
+            help="curvature-corrected horizon map: the model's normal curvature 1/R in texture "
+            "widths^-1, + convex, - concave (default 0: the bake itself; measured to help on "
+            "convex surfaces, to cost on concave ones for three of six materials: "
+            "docs/models.md)",
+        )
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        return {"k": args.horizon_k, "curvature": args.horizon_curvature,
-                **({"storage": args.horizon_storage} if args.horizon_storage else {})}
+        return {
+            "k": args.horizon_k,
+            "curvature": args.horizon_curvature,
+            **({"storage": args.horizon_storage} if args.horizon_storage else {}),
+        }
 
     @classmethod
     def check_variants(cls) -> list:
-        return []           # the regression check guards the bake's technique
+        return []  # the regression check guards the bake's technique
 
     @classmethod
     def tradeoff_variants(cls) -> list:
@@ -156,5 +179,8 @@ class CurvedHorizon(Horizon):
 
     @property
     def parameters(self) -> dict:
-        return {**super().parameters, "curvature": self.curvature,
-                "correction": "sines + hzval.techniques.horizon_curved.sine_change(1/R per texel)"}
+        return {
+            **super().parameters,
+            "curvature": self.curvature,
+            "correction": "sines + hzval.techniques.horizon_curved.sine_change(1/R per texel)",
+        }

@@ -56,11 +56,11 @@ import time
 import numpy as np
 
 from hzval.core import backend
-from hzval.scene import lookup
-from hzval.techniques import surface
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.scene import lookup
 from hzval.scene.spec import Frame, Scene, image_shape
+from hzval.techniques import surface
 from hzval.techniques.registry import Variant
 
 __all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS"]
@@ -79,21 +79,34 @@ DEFAULT_SOFTNESS = 8.0
 #: How far, per texel of height, a sample must rise above the ray to block it:
 #: bilinear filtering of a flat patch returns its height to a few float32 ulps
 #: either side, which must not shadow it (32 ulps of the heights).
-EPSILON_PER_HEIGHT = 2.0 ** -18
+EPSILON_PER_HEIGHT = 2.0**-18
 #: The step counts ``hzval tradeoff`` measures.
 TRADEOFF_STEPS: tuple[int, ...] = (4, 8, 16, 32, 64)
 
 
-def set_up_march(tech, scene: Scene, height: np.ndarray, steps: int, variant: str | None, softness,
-                 bake, albedo, unshadowed, samples):
+def set_up_march(
+    tech,
+    scene: Scene,
+    height: np.ndarray,
+    steps: int,
+    variant: str | None,
+    softness,
+    bake,
+    albedo,
+    unshadowed,
+    samples,
+):
     """What every ray march of the height map sets up (this module's, and a GL shader's): its settings
     checked and kept on ``tech`` (``variant``: soft for a soft light by default, ``softness``: then
     ``1 / tan(radius)``), the image's shape, the heights in texels and their maximum, and the
     unshadowed shading it multiplies. Returns ``(heights in texels, samples)``."""
     variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
     if softness is None:
-        softness = (1.0 / math.tan(math.radians(scene.light.radius_deg)) if scene.light.kind == "soft"
-                    else DEFAULT_SOFTNESS)
+        softness = (
+            1.0 / math.tan(math.radians(scene.light.radius_deg))
+            if scene.light.kind == "soft"
+            else DEFAULT_SOFTNESS
+        )
     _validate(steps, variant, softness)
     height = np.asarray(height, dtype=np.float32)
     if height.ndim != 2:
@@ -126,11 +139,23 @@ class RayMarchShadow(surface.HeightFieldShadow):
     file_stem = "pom"
     not_modelled = ("interreflection", "reflection_occlusion")
 
-    def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = DEFAULT_STEPS, variant: str | None = None,
-                 softness: float | None = None, bake=None, albedo: np.ndarray | None = None,
-                 unshadowed: surface.Unshadowed | None = None, samples=None):
+    def __init__(
+        self,
+        scene: Scene,
+        height: np.ndarray,
+        *,
+        steps: int = DEFAULT_STEPS,
+        variant: str | None = None,
+        softness: float | None = None,
+        bake=None,
+        albedo: np.ndarray | None = None,
+        unshadowed: surface.Unshadowed | None = None,
+        samples=None,
+    ):
         backend.variant()
-        h, samples = set_up_march(self, scene, height, steps, variant, softness, bake, albedo, unshadowed, samples)
+        h, samples = set_up_march(
+            self, scene, height, steps, variant, softness, bake, albedo, unshadowed, samples
+        )
         self._upload(h, samples)
 
     def _upload(self, h: np.ndarray, samples) -> None:
@@ -141,29 +166,50 @@ class RayMarchShadow(surface.HeightFieldShadow):
         scene = self.scene
         wrap = dr.WrapMode.Repeat if scene.material.boundary == "wrap" else dr.WrapMode.Clamp
         # float32 filtering on every backend (CUDA's texture units resolve a texel to 1/256)
-        self._height = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(h[..., None], np.float32)),
-                                    use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
-                                    wrap_mode=wrap)
+        self._height = mi.Texture2f(
+            mi.TensorXf(np.ascontiguousarray(h[..., None], np.float32)),
+            use_accel=False,
+            migrate=False,
+            filter_mode=dr.FilterMode.Linear,
+            wrap_mode=wrap,
+        )
         self.spp = int(scene.spp)
-        self._uv = samples.uv()   # shared
-        self._frames, self._macro = samples.frame_array(), samples.macro   # a model's (lookup.Samples)
-        self._c = {"steps": dr.opaque(mi.UInt32, self.steps), "w": dr.opaque(mi.Float, self.softness),
-                   "h_max": dr.opaque(mi.Float, self.h_max),
-                   "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)))}
+        self._uv = samples.uv()  # shared
+        self._frames, self._macro = samples.frame_array(), samples.macro  # a model's (lookup.Samples)
+        self._c = {
+            "steps": dr.opaque(mi.UInt32, self.steps),
+            "w": dr.opaque(mi.Float, self.softness),
+            "h_max": dr.opaque(mi.Float, self.h_max),
+            "eps": dr.opaque(mi.Float, EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max))),
+        }
         dr.eval(self._uv)
 
     # -- the Technique interface (hzval.techniques.registry) --------------------------
 
     @classmethod
     def add_arguments(cls, parser) -> None:
-        parser.add_argument("--pom-steps", type=int, default=DEFAULT_STEPS, metavar="N",
-                            help=f"ray-marched shadows: linear steps toward the light (default {DEFAULT_STEPS})")
-        parser.add_argument("--pom-variant", choices=VARIANTS, default=None,
-                            help="ray-marched shadows: hard test, or Tatarchuk's soft penumbra "
-                                 "(default: soft for a soft light, else hard)")
-        parser.add_argument("--pom-softness", type=float, default=None, metavar="W",
-                            help=f"ray-marched shadows: softness w of the soft variant (default {DEFAULT_SOFTNESS:g}, "
-                                 "or 1 / tan(light radius) for a soft light)")
+        parser.add_argument(
+            "--pom-steps",
+            type=int,
+            default=DEFAULT_STEPS,
+            metavar="N",
+            help=f"ray-marched shadows: linear steps toward the light (default {DEFAULT_STEPS})",
+        )
+        parser.add_argument(
+            "--pom-variant",
+            choices=VARIANTS,
+            default=None,
+            help="ray-marched shadows: hard test, or Tatarchuk's soft penumbra "
+            "(default: soft for a soft light, else hard)",
+        )
+        parser.add_argument(
+            "--pom-softness",
+            type=float,
+            default=None,
+            metavar="W",
+            help=f"ray-marched shadows: softness w of the soft variant (default {DEFAULT_SOFTNESS:g}, "
+            "or 1 / tan(light radius) for a soft light)",
+        )
 
     #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
     flags = {"steps": "--pom-steps", "variant": "--pom-variant", "softness": "--pom-softness"}
@@ -174,15 +220,26 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
-        _validate(settings.get("steps", DEFAULT_STEPS), settings.get("variant") or VARIANTS[0],
-                  DEFAULT_SOFTNESS if settings.get("softness") is None else settings["softness"])
+        _validate(
+            settings.get("steps", DEFAULT_STEPS),
+            settings.get("variant") or VARIANTS[0],
+            DEFAULT_SOFTNESS if settings.get("softness") is None else settings["softness"],
+        )
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
-        v = [Variant(f"pom, {n} steps", {"steps": n, "variant": "hard"}, {"steps": n, "variant": "hard"})
-             for n in TRADEOFF_STEPS]
-        v += [Variant(f"pom soft (w = {DEFAULT_SOFTNESS:g}), {n} steps", {"steps": n, "variant": "soft"},
-                      {"steps": n, "variant": "soft", "softness": DEFAULT_SOFTNESS}) for n in (16, 64)]
+        v = [
+            Variant(f"pom, {n} steps", {"steps": n, "variant": "hard"}, {"steps": n, "variant": "hard"})
+            for n in TRADEOFF_STEPS
+        ]
+        v += [
+            Variant(
+                f"pom soft (w = {DEFAULT_SOFTNESS:g}), {n} steps",
+                {"steps": n, "variant": "soft"},
+                {"steps": n, "variant": "soft", "softness": DEFAULT_SOFTNESS},
+            )
+            for n in (16, 64)
+        ]
         return v
 
     def storage_bytes(self) -> int:
@@ -191,8 +248,12 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     @property
     def parameters(self) -> dict:
-        out = {"technique": "height-field ray march (parallax occlusion mapping's shadows)", "steps": self.steps,
-               "variant": self.variant, "simulated": list(self.simulated)}
+        out = {
+            "technique": "height-field ray march (parallax occlusion mapping's shadows)",
+            "steps": self.steps,
+            "variant": self.variant,
+            "simulated": list(self.simulated),
+        }
         if self.variant == "soft":
             out["softness"] = self.softness
         return out
@@ -231,8 +292,9 @@ class RayMarchShadow(surface.HeightFieldShadow):
             uv = dr.gather(mi.Point2f, self._uv, pixel * spp + k)
             return k + 1, acc + self._march(uv, du, dv, tan_e)
 
-        _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
-                               cond=lambda k, acc: k < spp, body=body)
+        _, acc = dr.while_loop(
+            state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)), cond=lambda k, acc: k < spp, body=body
+        )
         F = acc * (1.0 / spp)
         dr.eval(F)
         backend.sync()
@@ -265,8 +327,9 @@ class RayMarchShadow(surface.HeightFieldShadow):
                 F = F * dr.gather(mi.Float, M, index)
             return k + 1, acc + F
 
-        _, acc = dr.while_loop(state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)),
-                               cond=lambda k, acc: k < spp, body=body)
+        _, acc = dr.while_loop(
+            state=(dr.zeros(mi.UInt32, P), dr.zeros(mi.Float, P)), cond=lambda k, acc: k < spp, body=body
+        )
         F = acc * (1.0 / spp)
         dr.eval(F)
         backend.sync()
@@ -287,10 +350,10 @@ class RayMarchShadow(surface.HeightFieldShadow):
         def body(i, blocked, rise):
             t = dt * mi.Float(i)
             p = mi.Point2f(dr.fma(du, t, uv.x), dr.fma(dv, t, uv.y))
-            above = self._height.eval(p)[0] - dr.fma(t, tan_e, h0) - c["eps"]      # H_i - z_i
+            above = self._height.eval(p)[0] - dr.fma(t, tan_e, h0) - c["eps"]  # H_i - z_i
             if open_tile:
                 outside = (p.x < 0.0) | (p.x > 1.0) | (p.y < 0.0) | (p.y > 1.0)
-                above = dr.select(outside, -1.0, above)                 # nothing beyond the border
+                above = dr.select(outside, -1.0, above)  # nothing beyond the border
             if soft:
                 rise = dr.maximum(rise, above / t)
             else:
@@ -299,7 +362,9 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
         _, blocked, rise = dr.while_loop(
             state=(mi.UInt32(1), mi.Bool(False), mi.Float(0.0)),
-            cond=lambda i, blocked, rise: (i <= c["steps"]) & ~blocked, body=body)
+            cond=lambda i, blocked, rise: (i <= c["steps"]) & ~blocked,
+            body=body,
+        )
         if soft:
             return dr.clip(1.0 - c["w"] * rise, 0.0, 1.0)
         return dr.select(blocked, 0.0, 1.0)

@@ -40,12 +40,22 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from hzval.scene import lookup
 from hzval.core.errors import InputError
+from hzval.scene import lookup
 from hzval.scene.spec import EFFECTS, Frame, Scene
 
-__all__ = ["REGISTRY", "Technique", "Context", "Variant", "Unavailable", "get", "names", "defaults",
-           "select", "bake_needs"]
+__all__ = [
+    "REGISTRY",
+    "Technique",
+    "Context",
+    "Variant",
+    "Unavailable",
+    "get",
+    "names",
+    "defaults",
+    "select",
+    "bake_needs",
+]
 
 #: Every technique, by name, in the order the report shows them.
 REGISTRY: dict[str, str] = {
@@ -102,7 +112,9 @@ class Context:
     bake: Any
     albedo: np.ndarray
     points: lookup.Samples | None = None
-    cache: Any = None           # a folder where a technique may keep what it fits (hzval.techniques.fitted.horizon_fit)
+    cache: Any = (
+        None  # a folder where a technique may keep what it fits (hzval.techniques.fitted.horizon_fit)
+    )
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:
@@ -235,7 +247,9 @@ def get(name: str) -> type[Technique]:
     try:
         module, cls = REGISTRY[name].split(":")
     except KeyError:
-        raise InputError("--techniques", f"unknown technique {name!r}; choose from {', '.join(REGISTRY)}") from None
+        raise InputError(
+            "--techniques", f"unknown technique {name!r}; choose from {', '.join(REGISTRY)}"
+        ) from None
     return getattr(importlib.import_module(module), cls)
 
 
@@ -248,15 +262,20 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
     ``shadow``) is an :class:`InputError`, not silently dropped.
     """
     if requested is None:
-        chosen = [t for t in (get(n) for n in REGISTRY if n not in exclude) if t.by_default and t.applies(scene)]
+        chosen = [
+            t for t in (get(n) for n in REGISTRY if n not in exclude) if t.by_default and t.applies(scene)
+        ]
         if not chosen:
-            raise InputError("--techniques", "no technique is left to score: every one is left out or needs "
-                                             "effects the scene does not declare")
+            raise InputError(
+                "--techniques",
+                "no technique is left to score: every one is left out or needs "
+                "effects the scene does not declare",
+            )
         return chosen
     wanted = list(dict.fromkeys(requested))
     if not wanted:
         raise InputError("--techniques", "name at least one technique")
-    classes = [get(n) for n in wanted]          # unknown names fail here
+    classes = [get(n) for n in wanted]  # unknown names fail here
     for t in classes:
         if not t.applies(scene):
             raise InputError("--techniques", f"{t.name} needs the scene to declare {', '.join(t.needs)}")

@@ -65,13 +65,12 @@ import time
 
 import numpy as np
 
-from hzval.core import backend
-from hzval.scene import lookup
-from hzval.core import shading
-from hzval.core.backend import dr, mi
-from hzval.core import conventions as cv
 from hzval.bake.maps import normals_only
+from hzval.core import backend, shading
+from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
+from hzval.scene import lookup
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, load_albedo
 from hzval.techniques.registry import Context, Technique, replace_effects
 
@@ -98,8 +97,16 @@ class FlatShading:
 
     not_modelled: tuple[str, ...] = NOT_MODELLED
 
-    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2",
-                 height: np.ndarray | None = None, samples: lookup.Samples | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        bake,
+        albedo: np.ndarray | None = None,
+        *,
+        ambient: str = "mean_cos2",
+        height: np.ndarray | None = None,
+        samples: lookup.Samples | None = None,
+    ):
         backend.variant()
         self.scene, self.bake, self.ambient = scene, bake, ambient
         rows, cols = bake.normal.shape[:2]
@@ -172,7 +179,11 @@ class FlatShading:
             add("normal", bake.normal)
         self._albedo_const = None
         if self._diffuse or self._ambient:
-            a = load_albedo(self.scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
+            a = (
+                load_albedo(self.scene.material, rows, cols)
+                if albedo is None
+                else np.asarray(albedo, np.float32)
+            )
             if a.shape != (rows, cols, 3):
                 raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
             if np.all(a == a[:1, :1]):
@@ -183,9 +194,15 @@ class FlatShading:
             add("ambient", getattr(bake, self.ambient))
         self._texture = None
         if planes:
-            self._texture = lookup.Filtered(np.concatenate(planes, axis=-1), bake.params.boundary,
-                                            self.scene.lookup, samples, max_channels=self._max_channels(),
-                                            aligned=lookup.aligned, quantise=self._mip_quantise())
+            self._texture = lookup.Filtered(
+                np.concatenate(planes, axis=-1),
+                bake.params.boundary,
+                self.scene.lookup,
+                samples,
+                max_channels=self._max_channels(),
+                aligned=lookup.aligned,
+                quantise=self._mip_quantise(),
+            )
 
     def _upload_constants(self) -> None:
         """Per-object constants, opaque so that objects share kernels."""
@@ -212,8 +229,15 @@ class FlatShading:
 
     # -- frames ---------------------------------------------------------------------------------
 
-    def render(self, azimuth_deg: float, *, shadows: bool = True, elevation_deg: float | None = None,
-               dark: bool = False, **overrides) -> Frame:
+    def render(
+        self,
+        azimuth_deg: float,
+        *,
+        shadows: bool = True,
+        elevation_deg: float | None = None,
+        dark: bool = False,
+        **overrides,
+    ) -> Frame:
         """The frame of the light at ``azimuth_deg`` (degrees); ``elevation_deg`` defaults to the
         scene light's. ``shadows=False`` leaves out a technique's factor; ``overrides``: a
         technique's per-frame settings (:meth:`_extra_uniforms`); ``dark``: no direct light at all (the
@@ -251,18 +275,31 @@ class FlatShading:
             o = self._shade(uv.x, uv.y, uni, shadows, pixel=pixel, index=pixel * spp + i)
             return (i + 1, *[a + b for a, b in zip(acc, _flatten(o, names))])
 
-        state = dr.while_loop(state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
-                              cond=lambda i, *acc: i < spp, body=body)
+        state = dr.while_loop(
+            state=(dr.zeros(mi.UInt32, P), *[dr.zeros(mi.Float, P) for _ in range(zeros)]),
+            cond=lambda i, *acc: i < spp,
+            body=body,
+        )
         inv = 1.0 / spp
         return _unflatten([a * inv for a in state[1:]], names)
 
-    def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None, *,
-               shadows: bool = True, **overrides) -> dict[str, np.ndarray]:
+    def sample(
+        self,
+        x,
+        y,
+        azimuth_deg: float,
+        elevation_deg: float | None = None,
+        *,
+        shadows: bool = True,
+        **overrides,
+    ) -> dict[str, np.ndarray]:
         """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging: keys as
         :meth:`render`'s layers, plus ``image`` ``(n, 3)`` (at ``x = col + 0.5``, ``y = rows - row -
         0.5`` the bilinear filter returns that texel exactly)."""
         if self._frames is not None:
-            raise NotImplementedError("per-point probes are of the plane; a model's samples have their own frames")
+            raise NotImplementedError(
+                "per-point probes are of the plane; a model's samples have their own frames"
+            )
         u, v = (mi.Float(c.ravel()) for c in cv.tangent_to_uv(x, y, self.rows, self.cols))
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, overrides)
@@ -326,19 +363,20 @@ class FlatShading:
             uni, M = self._lane_uniforms(uni, index)
         L, E = uni["L"], self._E
         out = {}
-        lit = L.z > 0.0   # the flat surface's tangent plane (module docstring)
+        lit = L.z > 0.0  # the flat surface's tangent plane (module docstring)
 
         n = dr.normalize(mi.Vector3f(*tex["normal"])) if "normal" in tex else None
         albedo = None
         if self._diffuse or self._ambient:
             albedo = self._albedo_const if self._albedo_const is not None else mi.Color3f(*tex["albedo"])
-        direct = shading.direct(n, L, None, albedo, E, diffuse=self._diffuse, specular=self._specular,
-                                h=uni.get("h"))
+        direct = shading.direct(
+            n, L, None, albedo, E, diffuse=self._diffuse, specular=self._specular, h=uni.get("h")
+        )
         direct = dr.select(lit, direct, 0.0)
         if uni.get("dark"):
             direct = mi.Color3f(0.0)
         if M is not None:
-            direct = direct * M       # the base mesh's shadow, part of the technique's factor
+            direct = direct * M  # the base mesh's shadow, part of the technique's factor
         image = self._shadowed(direct, tex, uni, out, shadows, probe)
         if M is not None and "factor" in out:
             out["factor"] = out["factor"] * M
@@ -373,7 +411,7 @@ def _flatten(out: dict, names) -> list:
 def _unflatten(flat: list, names) -> dict:
     out, i = {}, 0
     for name, n in names:
-        out[name] = mi.Color3f(*flat[i:i + 3]) if n == 3 else flat[i]
+        out[name] = mi.Color3f(*flat[i : i + 3]) if n == 3 else flat[i]
         i += n
     return out
 
@@ -381,6 +419,7 @@ def _unflatten(flat: list, names) -> dict:
 # --------------------------------------------------------------------------
 # The unshadowed shading that per-pixel techniques build on
 # --------------------------------------------------------------------------
+
 
 class Unshadowed:
     """The flat surface's shading without any technique's shadow, split as a factor needs it.
@@ -395,18 +434,33 @@ class Unshadowed:
     frame is kept: every technique of a sweep frame shares one render.
     """
 
-    def __init__(self, scene: Scene, bake, albedo: np.ndarray | None = None, *, ambient: str = "mean_cos2",
-                 samples: lookup.Samples | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        bake,
+        albedo: np.ndarray | None = None,
+        *,
+        ambient: str = "mean_cos2",
+        samples: lookup.Samples | None = None,
+    ):
         effects = tuple(e for e in scene.effects if e not in ("shadow", "reflection_occlusion"))
         self.scene = scene
         # shadows alone: the direct term is E, grey (on a model, where each sample's plane faces the light)
         self._grey = not effects and (samples is None or samples.frames is None)
-        self._plain = None if self._grey else FlatShading(replace_effects(scene, effects), bake, albedo,
-                                                          ambient=ambient, samples=samples)
+        self._plain = (
+            None
+            if self._grey
+            else FlatShading(replace_effects(scene, effects), bake, albedo, ambient=ambient, samples=samples)
+        )
         self.ambient_image = None
         if "ambient" in effects:
-            self.ambient_image = FlatShading(replace_effects(scene, ("ambient",)), bake, albedo, ambient=ambient,
-                                             samples=samples).render(0.0, elevation_deg=-90.0, dark=True).image
+            self.ambient_image = (
+                FlatShading(
+                    replace_effects(scene, ("ambient",)), bake, albedo, ambient=ambient, samples=samples
+                )
+                .render(0.0, elevation_deg=-90.0, dark=True)
+                .image
+            )
         self.shape = image_shape(*bake.normal.shape[:2], scene.camera)
         self._last: tuple | None = None
 
@@ -418,16 +472,26 @@ class Unshadowed:
             if self._grey:
                 t0 = time.perf_counter()
                 E = float(self.scene.light.irradiance) if e > 0 else 0.0
-                frame = Frame(float(azimuth_deg), e, np.full((*self.shape, 3), E, np.float32),
-                              seconds=time.perf_counter() - t0)
+                frame = Frame(
+                    float(azimuth_deg),
+                    e,
+                    np.full((*self.shape, 3), E, np.float32),
+                    seconds=time.perf_counter() - t0,
+                )
             else:
                 frame = self._plain.render(azimuth_deg, shadows=False, elevation_deg=e)
             direct = frame.image if self.ambient_image is None else frame.image - self.ambient_image
             self._last = (key, frame, direct)
         return self._last[1], self._last[2]
 
-    def shade(self, azimuth_deg: float, elevation_deg: float | None, factor: np.ndarray, seconds: float,
-              layers: dict | None = None) -> Frame:
+    def shade(
+        self,
+        azimuth_deg: float,
+        elevation_deg: float | None,
+        factor: np.ndarray,
+        seconds: float,
+        layers: dict | None = None,
+    ) -> Frame:
         """The frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
         the unshadowed render's time counts toward it, as an engine would pay it."""
         frame, direct = self.render(azimuth_deg, elevation_deg)
@@ -439,7 +503,9 @@ class Unshadowed:
 
 def unshadowed(ctx: Context) -> Unshadowed:
     """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
-    return ctx.shared("unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples()))
+    return ctx.shared(
+        "unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples())
+    )
 
 
 class HeightFieldShadow(Technique):
@@ -454,12 +520,25 @@ class HeightFieldShadow(Technique):
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "HeightFieldShadow":
-        return cls(ctx.scene, ctx.height, bake=ctx.bake, albedo=ctx.albedo, unshadowed=unshadowed(ctx),
-                   samples=ctx.samples(), **settings)
+        return cls(
+            ctx.scene,
+            ctx.height,
+            bake=ctx.bake,
+            albedo=ctx.albedo,
+            unshadowed=unshadowed(ctx),
+            samples=ctx.samples(),
+            **settings,
+        )
 
     @staticmethod
-    def shading_for(scene: Scene, height: np.ndarray, bake, albedo, shared: Unshadowed | None,
-                    samples: lookup.Samples | None = None) -> Unshadowed:
+    def shading_for(
+        scene: Scene,
+        height: np.ndarray,
+        bake,
+        albedo,
+        shared: Unshadowed | None,
+        samples: lookup.Samples | None = None,
+    ) -> Unshadowed:
         """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
         without one from the normal map alone (:func:`hzval.bake.maps.normals_only`), which serves
         ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map."""

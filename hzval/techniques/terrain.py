@@ -102,15 +102,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from hzval.core import backend
-from hzval.scene import lookup
-from hzval.techniques import surface
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.scene import lookup
 from hzval.scene.spec import Frame, Scene, image_shape
+from hzval.techniques import surface
 from hzval.techniques.registry import Variant
 
-__all__ = ["TerrainShadow", "SweepPlan", "plan_sweep", "boundaries_numpy", "factor_numpy",
-           "DEFAULT_RAMP", "FLOOR_ELEVATION_DEG", "MAX_ELEVATION_DEG", "MAX_PRIME_TILES", "IMPLS"]
+__all__ = [
+    "TerrainShadow",
+    "SweepPlan",
+    "plan_sweep",
+    "boundaries_numpy",
+    "factor_numpy",
+    "DEFAULT_RAMP",
+    "FLOOR_ELEVATION_DEG",
+    "MAX_ELEVATION_DEG",
+    "MAX_PRIME_TILES",
+    "IMPLS",
+]
 
 #: Extra ramp width ``r`` in texel height units (module docstring).
 DEFAULT_RAMP = 0.02
@@ -135,6 +145,7 @@ NOT_MODELLED: tuple[str, ...] = ("interreflection", "reflection_occlusion")
 # --------------------------------------------------------------------------
 # Geometry of one light's sweep
 # --------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class SweepPlan:
@@ -174,8 +185,9 @@ class SweepPlan:
         return r0 + np.mod(c - r0, self.m)
 
 
-def plan_sweep(rows: int, cols: int, azimuth_deg: float, boundary: str, *,
-               relief: float = 0.0, tan_low: float = 1.0) -> SweepPlan:
+def plan_sweep(
+    rows: int, cols: int, azimuth_deg: float, boundary: str, *, relief: float = 0.0, tan_low: float = 1.0
+) -> SweepPlan:
     """The :class:`SweepPlan` of a ``rows x cols`` map for a light at ``azimuth_deg``.
 
     ``relief``: ``max h - min h`` in texels; ``tan_low``: tangent of the
@@ -186,7 +198,7 @@ def plan_sweep(rows: int, cols: int, azimuth_deg: float, boundary: str, *,
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
     phi = math.radians(azimuth_deg)
-    drow, dcol = cv.tangent_to_pixel_offset(math.cos(phi), math.sin(phi))   # toward the light, per texel
+    drow, dcol = cv.tangent_to_pixel_offset(math.cos(phi), math.sin(phi))  # toward the light, per texel
     if abs(dcol) >= abs(drow):
         n, m, major, minor = rows, cols, dcol, drow
         si = cols
@@ -219,6 +231,7 @@ def plan_sweep(rows: int, cols: int, azimuth_deg: float, boundary: str, *,
 # NumPy reference
 # --------------------------------------------------------------------------
 
+
 def _line_heights_numpy(A: np.ndarray, y: np.ndarray, col: int, wrap: bool) -> np.ndarray:
     """Heights of ``A``'s column ``col`` at fractional scanline positions ``y`` (linear)."""
     n = A.shape[0]
@@ -233,12 +246,13 @@ def _line_heights_numpy(A: np.ndarray, y: np.ndarray, col: int, wrap: bool) -> n
     f = yc - r0
     r1 = np.minimum(r0 + 1, n - 1)
     h = A[r0, col] * (1 - f) + A[r1, col] * f
-    inside = (y >= -0.5) & (y <= n - 0.5)     # the open mesh's half-texel skirt
+    inside = (y >= -0.5) & (y <= n - 0.5)  # the open mesh's half-texel skirt
     return np.where(inside, h, NOTHING)
 
 
-def boundaries_numpy(h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el: float
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def boundaries_numpy(
+    h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Per texel ``(B_hi, B_hi - B_lo)``, each ``(rows, cols)`` float64, in NumPy.
 
     ``h``: heights in texels; ``tan_hi_el`` the tangent of the elevation of
@@ -246,7 +260,7 @@ def boundaries_numpy(h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el
     """
     h = np.asarray(h, dtype=np.float64)
     flat = h.ravel()
-    i, c = np.mgrid[0:plan.n, 0:plan.m]
+    i, c = np.mgrid[0 : plan.n, 0 : plan.m]
     A = flat[plan.off + i * plan.si + c * plan.sj]
     lane = np.arange(plan.lanes, dtype=np.float64) + plan.first
     drop_hi, drop_lo = tan_hi_el * plan.step, tan_lo_el * plan.step
@@ -283,8 +297,15 @@ def boundaries_numpy(h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el
     return B.reshape(h.shape), W.reshape(h.shape)
 
 
-def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray, boundary: str,
-                 spp: int, shape: tuple[int, int]) -> np.ndarray:
+def factor_numpy(
+    gap: np.ndarray,
+    ramp: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    boundary: str,
+    spp: int,
+    shape: tuple[int, int],
+) -> np.ndarray:
     """Pixel means of ``F = clamp(gap / ramp + 1, 0, 1)`` at samples ``(x, y)``.
 
     ``gap = h - B_hi`` and ``ramp`` per texel ``(rows, cols)``, filtered
@@ -316,6 +337,7 @@ def factor_numpy(gap: np.ndarray, ramp: np.ndarray, x: np.ndarray, y: np.ndarray
 # --------------------------------------------------------------------------
 # The technique
 # --------------------------------------------------------------------------
+
 
 class TerrainShadow(surface.HeightFieldShadow):
     """Raudins' per-light terrain shadows of one material, frame by frame: the ``terrain`` technique.
@@ -352,12 +374,23 @@ class TerrainShadow(surface.HeightFieldShadow):
     summary = "Raudins' terrain shadows: a per-light sweep of the shadow-boundary height"
     file_stem = "terrain"
     not_modelled = NOT_MODELLED
-    not_on_models = ("Raudins' sweep runs along lines of one light direction across the whole map (a terrain "
-                     "under the sun); on a model every sample's tangent-space light is its own")
+    not_on_models = (
+        "Raudins' sweep runs along lines of one light direction across the whole map (a terrain "
+        "under the sun); on a model every sample's tangent-space light is its own"
+    )
 
-    def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo: np.ndarray | None = None,
-                 ramp: float = DEFAULT_RAMP, impl: str = "drjit", unshadowed: surface.Unshadowed | None = None,
-                 samples=None):
+    def __init__(
+        self,
+        scene: Scene,
+        height: np.ndarray,
+        *,
+        bake=None,
+        albedo: np.ndarray | None = None,
+        ramp: float = DEFAULT_RAMP,
+        impl: str = "drjit",
+        unshadowed: surface.Unshadowed | None = None,
+        samples=None,
+    ):
         backend.variant()
         if impl not in IMPLS:
             raise InputError("impl", f"must be one of {', '.join(IMPLS)}, got {impl!r}")
@@ -400,8 +433,13 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     @classmethod
     def add_arguments(cls, parser) -> None:
-        parser.add_argument("--terrain-ramp", type=float, default=DEFAULT_RAMP, metavar="TEXELS",
-                            help=f"terrain shadows: extra ramp width in texel heights (default {DEFAULT_RAMP:g})")
+        parser.add_argument(
+            "--terrain-ramp",
+            type=float,
+            default=DEFAULT_RAMP,
+            metavar="TEXELS",
+            help=f"terrain shadows: extra ramp width in texel heights (default {DEFAULT_RAMP:g})",
+        )
 
     #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
     flags = {"ramp": "--terrain-ramp"}
@@ -413,7 +451,9 @@ class TerrainShadow(surface.HeightFieldShadow):
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         ramp = settings.get("ramp", DEFAULT_RAMP)
-        if isinstance(ramp, bool) or not (isinstance(ramp, (int, float)) and math.isfinite(ramp) and ramp > 0):
+        if isinstance(ramp, bool) or not (
+            isinstance(ramp, (int, float)) and math.isfinite(ramp) and ramp > 0
+        ):
             raise InputError("ramp", f"the terrain ramp must be a positive number of texels, got {ramp}")
 
     @classmethod
@@ -427,8 +467,13 @@ class TerrainShadow(surface.HeightFieldShadow):
     @property
     def parameters(self) -> dict:
         """The technique's settings, for ``metrics.json``."""
-        return {"technique": "terrain shadow boundary (Raudins)", "ramp_texels": self.ramp, "impl": self.impl,
-                "light": self.scene.light.kind, "simulated": list(self.simulated)}
+        return {
+            "technique": "terrain shadow boundary (Raudins)",
+            "ramp_texels": self.ramp,
+            "impl": self.impl,
+            "light": self.scene.light.kind,
+            "simulated": list(self.simulated),
+        }
 
     # ------------------------------------------------------------------
 
@@ -441,8 +486,14 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     def plan(self, azimuth_deg: float, elevation_deg: float) -> SweepPlan:
         low, _ = self.elevations(elevation_deg)
-        return plan_sweep(self.rows, self.cols, azimuth_deg, self.boundary, relief=self.relief,
-                          tan_low=math.tan(math.radians(low)))
+        return plan_sweep(
+            self.rows,
+            self.cols,
+            azimuth_deg,
+            self.boundary,
+            relief=self.relief,
+            tan_low=math.tan(math.radians(low)),
+        )
 
     def factor(self, azimuth_deg: float, elevation_deg: float | None = None) -> np.ndarray:
         """The pixel means of the terrain factor ``F``, ``shape`` float32 in [0, 1]."""
@@ -456,7 +507,9 @@ class TerrainShadow(surface.HeightFieldShadow):
         t_hi, t_lo = math.tan(math.radians(el_hi)), math.tan(math.radians(el_lo))
         if self.impl == "numpy":
             B, W = boundaries_numpy(self.h, plan, t_hi, t_lo)
-            return factor_numpy(self.h - B, W + self.ramp, self._x, self._y, self.boundary, self.spp, self.shape)
+            return factor_numpy(
+                self.h - B, W + self.ramp, self._x, self._y, self.boundary, self.spp, self.shape
+            )
         return self._factor_drjit(plan, t_hi, t_lo)
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
@@ -494,10 +547,18 @@ class TerrainShadow(surface.HeightFieldShadow):
         import mitsuba as mi
 
         op, Float, Int32 = dr.opaque, mi.Float, mi.Int32
-        return {"n": op(Int32, plan.n), "m": op(Int32, plan.m), "off": op(Int32, plan.off),
-                "si": op(Int32, plan.si), "sj": op(Int32, plan.sj), "slope": op(Float, plan.slope),
-                "first": op(Int32, plan.first), "steps": op(Int32, plan.steps),
-                "rec0": op(Int32, plan.record_from), "n_lanes": op(Int32, plan.lanes)}
+        return {
+            "n": op(Int32, plan.n),
+            "m": op(Int32, plan.m),
+            "off": op(Int32, plan.off),
+            "si": op(Int32, plan.si),
+            "sj": op(Int32, plan.sj),
+            "slope": op(Float, plan.slope),
+            "first": op(Int32, plan.first),
+            "steps": op(Int32, plan.steps),
+            "rec0": op(Int32, plan.record_from),
+            "n_lanes": op(Int32, plan.lanes),
+        }
 
     def _sweep_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float):
         """The sweep: per line and recorded column, ``(B_hi, B_hi - B_lo)`` pairs."""
@@ -549,8 +610,11 @@ class TerrainShadow(surface.HeightFieldShadow):
             return j + 1, col, dr.maximum(hv, b_hi), dr.maximum(hv, b_lo)
 
         zero = dr.zeros(Int32, nl)
-        dr.while_loop(state=(zero, Int32(zero), dr.full(Float, NOTHING, nl), dr.full(Float, NOTHING, nl)),
-                      cond=lambda j, col, a, b: j < steps, body=body)
+        dr.while_loop(
+            state=(zero, Int32(zero), dr.full(Float, NOTHING, nl), dr.full(Float, NOTHING, nl)),
+            cond=lambda j, col, a, b: j < steps,
+            body=body,
+        )
         dr.eval(rec)
         return rec
 
@@ -571,8 +635,11 @@ class TerrainShadow(surface.HeightFieldShadow):
         t = dr.arange(Int32, N)
         i = Int32(dr.floor((Float(t) + 0.5) / Float(m)))
         c = t - i * m
-        i, c = dr.select(c < 0, i - 1, dr.select(c >= m, i + 1, i)), dr.select(c < 0, c + m, dr.select(c >= m, c - m, c))
-        if wrap:   # the recording step of column c: rec0 + ((c - rec0) mod m)
+        i, c = (
+            dr.select(c < 0, i - 1, dr.select(c >= m, i + 1, i)),
+            dr.select(c < 0, c + m, dr.select(c >= m, c - m, c)),
+        )
+        if wrap:  # the recording step of column c: rec0 + ((c - rec0) mod m)
             k0 = op(Int32, plan.record_from % plan.m)
             jr = rec0 + (c - k0) + dr.select(c < k0, m, 0)
         else:
@@ -639,6 +706,7 @@ class TerrainShadow(surface.HeightFieldShadow):
             v = dr.lerp(top, bottom, fy)
             return k + 1, acc + dr.clip(v.x / v.y + 1.0, 0.0, 1.0)
 
-        _, acc = dr.while_loop(state=(dr.zeros(UInt32, P), dr.zeros(Float, P)),
-                               cond=lambda k, acc: k < spp, body=body)
+        _, acc = dr.while_loop(
+            state=(dr.zeros(UInt32, P), dr.zeros(Float, P)), cond=lambda k, acc: k < spp, body=body
+        )
         return acc * (1.0 / spp)

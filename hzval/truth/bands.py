@@ -37,12 +37,22 @@ import numpy as np
 from hzval.core import backend
 from hzval.geometry import tile as meshes
 
-__all__ = ["PEAK_TARGET_BYTES", "PAD_TEXELS", "why_not", "reach", "cover_runs", "group_bands",
-    "band_y", "band_triangles", "band_scene", "band_pass"]
+__all__ = [
+    "PEAK_TARGET_BYTES",
+    "PAD_TEXELS",
+    "why_not",
+    "reach",
+    "cover_runs",
+    "group_bands",
+    "band_y",
+    "band_triangles",
+    "band_scene",
+    "band_pass",
+]
 
 #: The peak a sweep aims to stay within (issue 27: a 4096 x 4096 sweep within 16 GiB): past it, or past
 #: the memory available, the truth builds its mesh in bands (:func:`hzval.pipeline.sweep.truth_plan`).
-PEAK_TARGET_BYTES = 16 * 2 ** 30
+PEAK_TARGET_BYTES = 16 * 2**30
 #: Texels added to each side of a band's cover: the cell that holds a sample on the band's edge, the
 #: samples moved off edge lines (:func:`hzval.truth.plane._off_edge_lines`, ulps) and float32's rounding.
 PAD_TEXELS = 2.0
@@ -74,7 +84,7 @@ def reach(scene, relief: float, lift: float, azimuths) -> tuple[float, float]:
     rho = math.radians(light.radius_deg) if light.kind == "soft" else 0.0
     e = math.radians(light.elevation_deg)
     if not scene.declares("shadow") or e + rho <= 0.0:
-        return pad, pad                                # no shadow rays: the camera's only
+        return pad, pad  # no shadow rays: the camera's only
     # the traced run: from the lowest origin (z_min + lift) to the top (z_max + 2 lift), widened by a
     # thousandth for float32's rounding of the ray's steps
     run = (relief + 4.0 * lift) / math.tan(e - rho) * 1.001
@@ -99,7 +109,7 @@ def cover_runs(g: meshes.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) 
     meet ``y_lo <= y <= y_hi`` (texels; beyond the tile for a band near its edge): ``wrap``, the cells
     of the tile and its margin whose ``y`` is in it modulo the tile's ``rows``, since hops wrap a ray
     back into the tile."""
-    top, bottom = g.y[:-1], g.y[1:]                    # cell i spans bottom[i] <= y <= top[i]
+    top, bottom = g.y[:-1], g.y[1:]  # cell i spans bottom[i] <= y <= top[i]
     need = np.zeros(top.shape, bool)
     k_max = int(math.ceil((max(abs(y_lo), abs(y_hi)) + g.margin + 1.0) / rows)) + 1 if wrap else 0
     for k in range(-k_max, k_max + 1):
@@ -129,8 +139,18 @@ def band_y(rows: int, H: int, p0: int, p1: int, up: float, down: float) -> tuple
     return rows - p1 * rows / H - down, rows - p0 * rows / H + up
 
 
-def band_triangles(g: meshes.Grid, levels: np.ndarray, rows: int, H: int, W: int, bands, band_rows: int,
-                   up: float, down: float, wrap: bool) -> list[int]:
+def band_triangles(
+    g: meshes.Grid,
+    levels: np.ndarray,
+    rows: int,
+    H: int,
+    W: int,
+    bands,
+    band_rows: int,
+    up: float,
+    down: float,
+    wrap: bool,
+) -> list[int]:
     """Triangles of each band's mesh (:func:`group_bands`, :func:`cover_runs`), counted without building
     them: what :func:`hzval.pipeline.sweep.truth_plan` weighs."""
     per_row = np.concatenate([[0], np.cumsum(meshes.row_triangles(levels))])
@@ -145,8 +165,12 @@ def band_scene(g: meshes.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
     """A Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run, :func:`hzval.geometry.tile.piece_mesh`)."""
     import mitsuba as mi
 
-    return mi.load_dict({"type": "scene", **{f"band{k}": meshes.piece_mesh(g, levels, a, b, f"band{k}")
-                                             for k, (a, b) in enumerate(runs)}})
+    return mi.load_dict(
+        {
+            "type": "scene",
+            **{f"band{k}": meshes.piece_mesh(g, levels, a, b, f"band{k}") for k, (a, b) in enumerate(runs)},
+        }
+    )
 
 
 def band_pass(t, azimuths) -> dict[float, list[np.ndarray]]:

@@ -50,25 +50,29 @@ of every score (``Frame.mask``).
 from __future__ import annotations
 
 import functools
-
 import math
 import time
 
 import numpy as np
 
-from hzval.core import backend
-from hzval.scene import lookup
-from hzval.core import shading
-from hzval.geometry import tangent_bugs
-from hzval.geometry import tangents
+from hzval.bake.maps import normal_map
+from hzval.core import backend, shading
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
-from hzval.bake.maps import normal_map
-from hzval.scene.camera import Camera, View, view_axes
 from hzval.core.errors import InputError
+from hzval.geometry import tangent_bugs, tangents
+from hzval.scene import lookup
+from hzval.scene.camera import Camera, View, view_axes
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
-from hzval.truth.plane import (LIFT_PER_HEIGHT, LIFT_TEXELS, _REFLECTION_STREAM, _mean_and_variance, lobe_sample,
-                         reflection_estimate, stream_rng)
+from hzval.truth.plane import (
+    _REFLECTION_STREAM,
+    LIFT_PER_HEIGHT,
+    LIFT_TEXELS,
+    _mean_and_variance,
+    lobe_sample,
+    reflection_estimate,
+    stream_rng,
+)
 
 __all__ = ["ModelTruth", "model_view", "SIMULATES", "bytes_per_sample"]
 
@@ -114,8 +118,20 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     if camera.kind == "perspective":
         half = math.atan(math.tan(math.radians(camera.fov_deg) / 2.0) * min(1.0, H / W))
         dist = max(camera.distance * 2.0 * R, 1.02 * R / math.sin(half))
-        return View("perspective", tuple(centre + dist * w), tuple(centre), up, float(camera.fov_deg), None,
-                    (W, H), 0, 0, 0.0, 0.0, 1)
+        return View(
+            "perspective",
+            tuple(centre + dist * w),
+            tuple(centre),
+            up,
+            float(camera.fov_deg),
+            None,
+            (W, H),
+            0,
+            0,
+            0.0,
+            0.0,
+            1,
+        )
     f = -w
     r = np.cross(f, up)
     r /= np.linalg.norm(r)
@@ -124,14 +140,28 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     fw, fh = float(pr.max() - pr.min()), float(pt.max() - pt.min())
     film = (max(fw, fh * W / H, 1e-12), max(fh, fw * H / W, 1e-12))
     target = r * (0.5 * (pr.max() + pr.min())) + t * (0.5 * (pt.max() + pt.min())) + f * float(centre @ f)
-    return View("orthographic", tuple(target + (2.0 * R + 1.0) * w), tuple(target), up, None, film, (W, H),
-                0, 0, 0.0, 0.0, 1)
+    return View(
+        "orthographic",
+        tuple(target + (2.0 * R + 1.0) * w),
+        tuple(target),
+        up,
+        None,
+        film,
+        (W, H),
+        0,
+        0,
+        0.0,
+        0.0,
+        1,
+    )
 
 
 def _rays(o: np.ndarray, d: np.ndarray):
     """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64, :meth:`hzval.scene.camera.View.rays`)."""
-    return mi.Ray3f(mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
-                    mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))))
+    return mi.Ray3f(
+        mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
+        mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))),
+    )
 
 
 def _welded_normals(model) -> np.ndarray:
@@ -160,8 +190,13 @@ class _Traced:
         self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
         flat = lambda a: mi.Float(np.ascontiguousarray(a, np.float32).ravel())
         t = np.asarray(frames.tangents, np.float32)
-        self._vertex = {"uv": flat(frames.uvs), "p": flat(frames.positions), "n": flat(frames.normals),
-                        "t": flat(t[:, :3]), "w": flat(t[:, 3])}
+        self._vertex = {
+            "uv": flat(frames.uvs),
+            "p": flat(frames.positions),
+            "n": flat(frames.normals),
+            "t": flat(t[:, :3]),
+            "w": flat(t[:, 3]),
+        }
 
     def at(self, prim, b1, b2):
         """``f(key, size)``: the vertex values ``key`` (``size`` floats a vertex) at barycentrics
@@ -172,6 +207,7 @@ class _Traced:
             kind = {1: mi.Float, 2: mi.Point2f, 3: mi.Vector3f}[size]
             a = [dr.gather(kind, self._vertex[key], i) for i in ids]
             return a[0] * (1.0 - b1 - b2) + a[1] * b1 + a[2] * b2
+
         return value
 
 
@@ -183,7 +219,7 @@ class ModelTruth:
     normals from the base mesh to the techniques' surface, the lookup's plane)."""
 
     hits = None
-    keeps = True        # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
+    keeps = True  # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
 
     def __init__(self, scene: Scene, height: np.ndarray, model, *, albedo: np.ndarray | None = None):
         from hzval.geometry import displace
@@ -196,17 +232,21 @@ class ModelTruth:
         self.spp = scene.spp
         unsupported = [e for e in scene.effects if e not in SIMULATES]
         if unsupported:
-            raise InputError(scene.source or "scene", f"{', '.join(unsupported)} on a model: not simulated yet "
-                             f"(a model's truth simulates {', '.join(SIMULATES)})")
+            raise InputError(
+                scene.source or "scene",
+                f"{', '.join(unsupported)} on a model: not simulated yet "
+                f"(a model's truth simulates {', '.join(SIMULATES)})",
+            )
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects)
         self.timings: dict[str, float] = {}
         t0 = time.perf_counter()
         mat = scene.material
         self._check_fits(model, h)
-        refined = displace.refine(model, (rows, cols), mat.boundary, height=h, depth=mat.depth,
-                                  tolerance=mat.truth_tolerance)
+        refined = displace.refine(
+            model, (rows, cols), mat.boundary, height=h, depth=mat.depth, tolerance=mat.truth_tolerance
+        )
         positions, faces = displace.displace(refined, h, mat.depth, model.world_per_uv, mat.boundary)
-        self._texel = model.world_per_uv / cols                 # world units per texel
+        self._texel = model.world_per_uv / cols  # world units per texel
         h_tex = cv.heights_in_texels(h, mat.depth)
         self._h_tex = h_tex
         self.lift = max(LIFT_TEXELS, LIFT_PER_HEIGHT * float(np.abs(h_tex).max())) * self._texel
@@ -216,12 +256,17 @@ class ModelTruth:
         # base; mean; top), offset along its vertex normals as the plane sits at that height
         z0 = lookup.plane_height(scene.lookup, float(h_tex.min()), float(h_tex.max()), float(h_tex.mean()))
         self.plane_offset = z0 * self._texel
-        self._surface = _Traced("base", model.positions + _welded_normals(model) * self.plane_offset, model.faces,
-                                model)
+        self._surface = _Traced(
+            "base", model.positions + _welded_normals(model) * self.plane_offset, model.faces, model
+        )
         wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
-        self._normal_map = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
-                                        use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
-                                        wrap_mode=wrap)
+        self._normal_map = mi.Texture2f(
+            mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
+            use_accel=False,
+            migrate=False,
+            filter_mode=dr.FilterMode.Linear,
+            wrap_mode=wrap,
+        )
         self._albedo = self._load_albedo(albedo)
         # the displaced surface lies within the base mesh moved along its normals by the relief
         n_w = _welded_normals(model)
@@ -230,8 +275,12 @@ class ModelTruth:
         self.timings["mesh_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         self._trace_camera()
-        self.timings["primary_s"] = (time.perf_counter() - t0 - self.timings.get("ambient_s", 0.0)
-                                     - self.timings.get("reflection_s", 0.0))
+        self.timings["primary_s"] = (
+            time.perf_counter()
+            - t0
+            - self.timings.get("ambient_s", 0.0)
+            - self.timings.get("reflection_s", 0.0)
+        )
         self._macro_key, self._macro_value = None, None
 
     def _check_fits(self, model, h: np.ndarray) -> None:
@@ -241,15 +290,27 @@ class ModelTruth:
         from hzval.geometry import displace
 
         mat = self.scene.material
-        triangles, mesh_bytes = displace.estimate(model, (self.rows, self.cols), mat.boundary, height=h,
-                                                  depth=mat.depth, tolerance=mat.truth_tolerance)
-        need = (mesh_bytes + BYTES_PER_TRIANGLE * triangles
-                + bytes_per_sample(self.scene) * self.shape[0] * self.shape[1] * self.spp)
+        triangles, mesh_bytes = displace.estimate(
+            model,
+            (self.rows, self.cols),
+            mat.boundary,
+            height=h,
+            depth=mat.depth,
+            tolerance=mat.truth_tolerance,
+        )
+        need = (
+            mesh_bytes
+            + BYTES_PER_TRIANGLE * triangles
+            + bytes_per_sample(self.scene) * self.shape[0] * self.shape[1] * self.spp
+        )
         have = bake.available_bytes()
         if need > have:
-            raise InputError("--truth-tolerance", f"the displaced {model.source} would be about {triangles:.3g} "
-                             f"triangles, {need / 2**30:.1f} GiB with its camera hits; {have / 2**30:.1f} GiB are "
-                             "available (a larger tolerance, a smaller map or fewer --spp)")
+            raise InputError(
+                "--truth-tolerance",
+                f"the displaced {model.source} would be about {triangles:.3g} "
+                f"triangles, {need / 2**30:.1f} GiB with its camera hits; {have / 2**30:.1f} GiB are "
+                "available (a larger tolerance, a smaller map or fewer --spp)",
+            )
 
     def _load_albedo(self, albedo):
         if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):
@@ -294,16 +355,31 @@ class ModelTruth:
         at = mesh.at(prim, pi.prim_uv.x, pi.prim_uv.y)
         si = pi.compute_surface_interaction(ray)
         t, b, n = tangents.orthonormal(at("n", 3), at("t", 3), at("w", 1))
-        t, b, n = (dr.select(hit, a, mi.Vector3f(*e)) for a, e in ((t, (1, 0, 0)), (b, (0, 1, 0)), (n, (0, 0, 1))))
+        t, b, n = (
+            dr.select(hit, a, mi.Vector3f(*e)) for a, e in ((t, (1, 0, 0)), (b, (0, 1, 0)), (n, (0, 0, 1)))
+        )
         uv = dr.select(hit, at("uv", 2), mi.Point2f(0.5, 0.5))
-        x, y = uv.x * self.cols, uv.y * self.rows              # texels, y up the image (hzval.core.conventions)
+        x, y = uv.x * self.cols, uv.y * self.rows  # texels, y up the image (hzval.core.conventions)
         if self.scene.material.boundary == "wrap":
             x, y = x - dr.floor(x / self.cols) * self.cols, y - dr.floor(y / self.rows) * self.rows
-        out = {"p": si.p, "ng": dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n), "n": n, "t": t, "b": b,
-               "hit": hit, "x": x, "y": y, "pb": at("p", 3), "v": -ray.d, "prim": prim}
+        out = {
+            "p": si.p,
+            "ng": dr.select(dr.dot(si.n, n) < 0.0, -si.n, si.n),
+            "n": n,
+            "t": t,
+            "b": b,
+            "hit": hit,
+            "x": x,
+            "y": y,
+            "pb": at("p", 3),
+            "v": -ray.d,
+            "prim": prim,
+        }
         if shade:
             # the texture's coordinates of the point (hzval.core.conventions owns the turn of y)
-            nt = dr.normalize(mi.Vector3f(*self._normal_map.eval(mi.Point2f(*cv.tangent_to_uv(x, y, self.rows, self.cols)))))
+            nt = dr.normalize(
+                mi.Vector3f(*self._normal_map.eval(mi.Point2f(*cv.tangent_to_uv(x, y, self.rows, self.cols))))
+            )
             out["ns"] = dr.normalize(t * nt.x + b * nt.y + n * nt.z)
             if self._albedo is not None:
                 out["albedo"] = self._albedo_at(x, y)
@@ -325,10 +401,14 @@ class ModelTruth:
         t0 = time.perf_counter()
         st = self._st
         count = dr.width(st["hit"])
-        rng = mi.PCG32(size=count, initstate=dr.arange(mi.UInt64, count),
-                       initseq=mi.UInt64(self.scene.seed) ^ _AMBIENT_STREAM)
+        rng = mi.PCG32(
+            size=count,
+            initstate=dr.arange(mi.UInt64, count),
+            initseq=mi.UInt64(self.scene.seed) ^ _AMBIENT_STREAM,
+        )
         d = mi.Frame3f(st["ns"]).to_world(
-            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
+        )
         into = (dr.dot(st["ng"], d) <= 0.0) | (dr.dot(st["n"], d) <= 0.0)
         ray = mi.Ray3f(self._origin(st["p"], st["n"]), d)
         blocked = into | self._displaced.scene.ray_test(ray, active=st["hit"] & ~into)
@@ -382,13 +462,22 @@ class ModelTruth:
             E = float(sc.light.irradiance)
             if sc.light.kind == "soft":
                 E = shading.disk_sample_irradiance(E, sc.light.radius_deg)
-            img = shading.direct(st["ns"], L, st["v"], st.get("albedo"), dr.opaque(mi.Float, E),
-                                 diffuse=sc.declares("diffuse"), specular=sc.declares("specular"))
-            img = dr.select(dr.dot(st["n"], L) > 0.0, img, 0.0)     # the base surface's horizon
+            img = shading.direct(
+                st["ns"],
+                L,
+                st["v"],
+                st.get("albedo"),
+                dr.opaque(mi.Float, E),
+                diffuse=sc.declares("diffuse"),
+                specular=sc.declares("specular"),
+            )
+            img = dr.select(dr.dot(st["n"], L) > 0.0, img, 0.0)  # the base surface's horizon
             if vis is not None:
                 img = img * vis
             if self._ambient is not None:
-                img = img + shading.sky(st["albedo"], self._ambient, dr.opaque(mi.Float, float(sc.light.irradiance)))
+                img = img + shading.sky(
+                    st["albedo"], self._ambient, dr.opaque(mi.Float, float(sc.light.irradiance))
+                )
         if self._ambient is not None:
             sums["ambient"] = self._ambient
         layers, variance = self._reduce(sums, img)
@@ -401,8 +490,15 @@ class ModelTruth:
             image = np.repeat((float(sc.light.irradiance) * v)[..., None], 3, axis=-1).astype(np.float32)
             var = variance.get("visibility", np.zeros((H, W), np.float32))
             variance["image"] = np.repeat((float(sc.light.irradiance) ** 2 * var)[..., None], 3, axis=-1)
-        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
-                     layers=layers, variance=variance, seconds=time.perf_counter() - t0, mask=self.seen)
+        return Frame(
+            azimuth_deg=float(azimuth_deg),
+            elevation_deg=float(sc.light.elevation_deg),
+            image=image,
+            layers=layers,
+            variance=variance,
+            seconds=time.perf_counter() - t0,
+            mask=self.seen,
+        )
 
     def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
         """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
@@ -421,8 +517,10 @@ class ModelTruth:
             mean, var = _mean_and_variance(s1, s1 * (1.0 - s1 / spp), spp)
             layers[k], variance[k] = (np.asarray(a, np.float32).reshape(H, W) for a in (mean, var))
         if img is not None:
-            parts = [_mean_and_variance(mi.Float64(c), mi.Float64(q), spp)
-                     for c, q in zip(reduced["image"], reduced["image_ss"])]
+            parts = [
+                _mean_and_variance(mi.Float64(c), mi.Float64(q), spp)
+                for c, q in zip(reduced["image"], reduced["image_ss"])
+            ]
             layers["image"] = np.stack([np.asarray(m, np.float32) for m, _ in parts], -1).reshape(H, W, 3)
             variance["image"] = np.stack([np.asarray(v, np.float32) for _, v in parts], -1).reshape(H, W, 3)
         backend.sync()
@@ -478,8 +576,8 @@ class ModelTruth:
         lk, h = self.scene.lookup, self._h_tex
         z0 = lookup.plane_height(lk, float(h.min()), float(h.max()), float(h.mean()))
         if at == "camera" and lk.parallax != "none":
-            d = -frames[:, 9:12].astype(np.float64)                    # the camera's ray, world
-            d_t = np.stack([np.sum(frames[:, 3 * k:3 * k + 3] * d, axis=1) for k in range(3)], -1)
+            d = -frames[:, 9:12].astype(np.float64)  # the camera's ray, world
+            d_t = np.stack([np.sum(frames[:, 3 * k : 3 * k + 3] * d, axis=1) for k in range(3)], -1)
             tex = lookup._height_texture(h, self.scene.material.boundary)
             xy = lookup._parallax(lk, tex, xy, d_t, z0, float(h.min()), float(h.max()))
         if self.scene.material.boundary == "wrap":
@@ -487,8 +585,18 @@ class ModelTruth:
         else:
             xy = np.clip(xy, 0.0, [self.cols, self.rows])
         footprint = self._footprints() if lk.mipmapped else None
-        return lookup.Samples(xy[:, 0].astype(np.float32), xy[:, 1].astype(np.float32), self.rows, self.cols,
-                              int(self.spp), footprint, z0, source=at, frames=frames, macro=self.macro)
+        return lookup.Samples(
+            xy[:, 0].astype(np.float32),
+            xy[:, 1].astype(np.float32),
+            self.rows,
+            self.cols,
+            int(self.spp),
+            footprint,
+            z0,
+            source=at,
+            frames=frames,
+            macro=self.macro,
+        )
 
     def base_points(self) -> np.ndarray:
         """``(pixels * spp, 3)`` float64: the base mesh's point (world) under every sample's truth
@@ -504,13 +612,15 @@ class ModelTruth:
         displaced hit's base triangle only within the relief's height of an edge)."""
         bug = self.scene.mesh.tangent_bug
         prim = self._own["prim"]
-        return tangent_bugs.apply(bug, frames, lambda: tangent_bugs.face_frames_at(
-            self.model, np.asarray(prim, np.int64)))
+        return tangent_bugs.apply(
+            bug, frames, lambda: tangent_bugs.face_frames_at(self.model, np.asarray(prim, np.int64))
+        )
 
     def _footprints(self) -> np.ndarray:
         """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the
         next (:meth:`hzval.scene.camera.View.footprints` with the surface's hits for the plane's points;
         ``wrap`` across the tile the short way; NaN where a ray misses)."""
+
         def points(o, d):
             ray = _rays(o, d)
             hit = self._hits(self._surface, ray, shade=False)
@@ -522,5 +632,8 @@ class ModelTruth:
 
     def record(self) -> dict:
         """``metrics.json``'s ``mesh``: the base mesh's record and the displaced mesh's size."""
-        return {**self.model.record(), "displaced_triangles": self._displaced.triangles,
-                "seen_fraction": float(self.seen.mean())}
+        return {
+            **self.model.record(),
+            "displaced_triangles": self._displaced.triangles,
+            "seen_fraction": float(self.seen.mean()),
+        }

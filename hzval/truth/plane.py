@@ -195,29 +195,44 @@ import time
 
 import numpy as np
 
-from hzval.core import backend
-from hzval.core import conventions as cv
-from hzval.geometry import tile as meshes
-from hzval.core.errors import InputError
-from hzval.core import shading
 from hzval.bake import maps as bake
-from hzval.truth import bands as truth_bands
 from hzval.bake.maps import normal_map
+from hzval.core import backend, shading
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
+from hzval.geometry import tile as meshes
 from hzval.scene.camera import sample_positions
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
-from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
+from hzval.truth import bands as truth_bands
 
-__all__ = ["LIFT_TEXELS", "LIFT_PER_HEIGHT", "MIN_TRACED_ELEVATION_DEG", "SIMULATES",
-    "surface_margin", "mesh_grid", "mesh_triangles", "lift_for", "Truth", "KEEP_SAMPLES",
-    "BAND_SAMPLES", "KEPT_BAND_SAMPLES", "STATE_BYTES_PER_SAMPLE", "bands", "keeps_samples",
-    "stream_rng", "lobe_sample", "reflection_estimate"]
+__all__ = [
+    "LIFT_TEXELS",
+    "LIFT_PER_HEIGHT",
+    "MIN_TRACED_ELEVATION_DEG",
+    "SIMULATES",
+    "surface_margin",
+    "mesh_grid",
+    "mesh_triangles",
+    "lift_for",
+    "Truth",
+    "KEEP_SAMPLES",
+    "BAND_SAMPLES",
+    "KEPT_BAND_SAMPLES",
+    "STATE_BYTES_PER_SAMPLE",
+    "bands",
+    "keeps_samples",
+    "stream_rng",
+    "lobe_sample",
+    "reflection_estimate",
+]
 
 #: Smallest lift of ray origins above the surface, in texels.
-LIFT_TEXELS = 2.0 ** -13
+LIFT_TEXELS = 2.0**-13
 #: Lift per texel of height magnitude: 32 float32 ulps of the heights.
-LIFT_PER_HEIGHT = 2.0 ** -18
+LIFT_PER_HEIGHT = 2.0**-18
 #: How far inside an ``open`` tile's border its height is probed, texels.
-_EDGE = 2.0 ** -10
+_EDGE = 2.0**-10
 #: Rays lower than this above the horizontal (ambient and path rays, soft
 #: lights reaching the horizon; ``wrap`` only) are not traced in more hops
 #: than it takes to clear the surface at this elevation; the few still below
@@ -226,8 +241,14 @@ _EDGE = 2.0 ** -10
 MIN_TRACED_ELEVATION_DEG = 0.25
 
 #: Effects that this truth simulates, in the order of ``hzval.scene.spec.EFFECTS``.
-SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion",
-                               "interreflection")
+SIMULATES: tuple[str, ...] = (
+    "shadow",
+    "diffuse",
+    "specular",
+    "ambient",
+    "reflection_occlusion",
+    "interreflection",
+)
 #: Random stream of the ambient directions; the path tracer's first bounce
 #: reuses it, so that its cosine-weighted directions are the ambient layer's.
 _AMBIENT_STREAM = 0xA3B1
@@ -262,8 +283,9 @@ class _CameraRays:
             if not self.keeps and not (ambient or reflects):
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
-                self.moved_off_edges += _off_edge_lines(*self._band_positions(first, stop)[:2],
-                                                        self.rows, self.cols, self.edge_level)[2]
+                self.moved_off_edges += _off_edge_lines(
+                    *self._band_positions(first, stop)[:2], self.rows, self.cols, self.edge_level
+                )[2]
                 continue
             st = self._camera_samples(first, stop)
             self.moved_off_edges += st.moved
@@ -278,8 +300,12 @@ class _CameraRays:
         self._reflection = None
         if reflection:
             self._reflection = tuple(np.concatenate(parts).reshape(self.shape) for parts in zip(*reflection))
-        self.timings["primary_s"] = (time.perf_counter() - t0 - self.timings.get("ambient_s", 0.0)
-                                     - self.timings.get("reflection_s", 0.0))
+        self.timings["primary_s"] = (
+            time.perf_counter()
+            - t0
+            - self.timings.get("ambient_s", 0.0)
+            - self.timings.get("reflection_s", 0.0)
+        )
         if self.mesh_bands is not None and self.scene.declares("shadow"):
             # the mesh a band at a time: every light's shadow rays now, before the techniques are built
             t0 = time.perf_counter()
@@ -306,8 +332,18 @@ class _CameraRays:
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
-        return _Samples(first, stop, first * spp, (stop - first) * spp, o, n, ns, albedo, moved,
-                        seen=None if seen is None else mi.Bool(seen))
+        return _Samples(
+            first,
+            stop,
+            first * spp,
+            (stop - first) * spp,
+            o,
+            n,
+            ns,
+            albedo,
+            moved,
+            seen=None if seen is None else mi.Bool(seen),
+        )
 
     def _albedo_at(self, x, y, active=True):
         """The linear albedo of the texel that holds ``(x, y)`` (nearest, as the techniques read it)."""
@@ -333,13 +369,15 @@ class _CameraRays:
         if scene.camera.kind != "top":
             return self._view_hits(first, stop)
         if self._positions is None and not self.keeps:
-            return (*sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed, pixels=(first, stop)),
-                    None)
+            return (
+                *sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed, pixels=(first, stop)),
+                None,
+            )
         if self._positions is None:
             # the whole image's positions, made once and shared with the techniques (hzval.scene.spec)
             whole = sample_positions(self.rows, self.cols, scene.camera, spp, scene.seed)
-            return (*(p[first * spp:stop * spp] for p in whole), None)
-        return (*(p[first * spp:stop * spp] for p in self._positions), None)
+            return (*(p[first * spp : stop * spp] for p in whole), None)
+        return (*(p[first * spp : stop * spp] for p in self._positions), None)
 
     def _trace_view(self) -> None:
         """Trace every camera ray once (a view other than ``top``): :attr:`seen`, the pixels whose
@@ -354,7 +392,7 @@ class _CameraRays:
                 hx.append(xs), hy.append(ys), hs.append(seen)
         self.seen = np.concatenate(seen_px).reshape(H, W)
         if self.keeps:
-            one = len(hx) == 1          # one band: its arrays as they are, no copy
+            one = len(hx) == 1  # one band: its arrays as they are, no copy
             self.hits = (hx[0], hy[0]) if one else (np.concatenate(hx), np.concatenate(hy))
             self.seen_samples = hs[0] if one else np.concatenate(hs)
 
@@ -400,8 +438,17 @@ class _CameraRays:
         xs, ys, moved = _off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
         x, y = mi.Float(xs), mi.Float(ys)
         albedo = self._albedo_at(x, y) if self._albedo_texels is not None else None
-        return _Samples(first, stop, first * self.spp, (stop - first) * self.spp, None, None,
-                        self._shading_normal(x, y), albedo, moved)
+        return _Samples(
+            first,
+            stop,
+            first * self.spp,
+            (stop - first) * self.spp,
+            None,
+            None,
+            self._shading_normal(x, y),
+            albedo,
+            moved,
+        )
 
     def _band_visibility(self, azimuth_deg: float, st: "_Samples"):
         """``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass` (a light not
@@ -433,6 +480,7 @@ class _RayQueries:
     """The truth's ray queries against the displaced mesh (a part of :class:`Truth`): where a ray from
     above meets the surface, whether a shadow ray is blocked, across a ``wrap`` tile's hops, and
     the per-sample random streams. They read the Truth's Mitsuba scene and its tile geometry."""
+
     def _rng(self, stream: int, st: "_Samples"):
         """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
         in the whole image: deterministic, and the same in a band as in one piece."""
@@ -463,8 +511,12 @@ class _RayQueries:
             py = dr.clip(y, _EDGE, c["rows"] - _EDGE)
         # only the hit's position and geometric normal are read (RayFlags.Minimal); ``coherent``:
         # neighbouring rays run side by side (the camera's): together 2.0x faster, same hits
-        si = self.mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
-                                         mi.RayFlags.Minimal, coherent, active)
+        si = self.mi_scene.ray_intersect(
+            mi.Ray3f(mi.Point3f(px, py, c["probe"]), mi.Vector3f(0.0, 0.0, -1.0)),
+            mi.RayFlags.Minimal,
+            coherent,
+            active,
+        )
         n = mi.Vector3f(si.n)
         ns = n if self._normals is None else self._shading_normal(x, y)
         return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
@@ -500,8 +552,9 @@ class _RayQueries:
 
         c = self._c
         p = o + d * maxt
-        return mi.Point3f(p.x - c["cols"] * dr.floor(p.x / c["cols"]),
-                          p.y - c["rows"] * dr.floor(p.y / c["rows"]), p.z)
+        return mi.Point3f(
+            p.x - c["cols"] * dr.floor(p.x / c["cols"]), p.y - c["rows"] * dr.floor(p.y / c["rows"]), p.z
+        )
 
     def _hop_length(self, o, d):
         """Per ray, how far ``o + t d`` (``o`` in the tile) runs over the mesh before its end, wrapped
@@ -544,7 +597,7 @@ class _RayQueries:
             ray.maxt = dr.maximum((top - o.z) / d.z, 0.0)
             return (d.z <= 0.0) | self.mi_scene.ray_test(ray, coherent, active)
         blocked = d.z <= 0.0
-        hit, active, o = self._hop_loop(o, d, active, 1, coherent, False)     # every ray's first hop
+        hit, active, o = self._hop_loop(o, d, active, 1, coherent, False)  # every ray's first hop
         blocked |= hit
         if hops == 1:
             return blocked | active
@@ -556,8 +609,9 @@ class _RayQueries:
             return blocked
         o_left = dr.gather(mi.Point3f, o, idx)
         d_left = d if dr.width(d) == 1 else dr.gather(mi.Vector3f, d, idx)
-        hit, left, _ = self._hop_loop(o_left, d_left, dr.full(mi.Bool, True, dr.width(idx)), hops - 1, coherent,
-                                      dynamic)
+        hit, left, _ = self._hop_loop(
+            o_left, d_left, dr.full(mi.Bool, True, dr.width(idx)), hops - 1, coherent, dynamic
+        )
         dr.scatter(blocked, True, idx, hit | left)
         return blocked
 
@@ -602,7 +656,7 @@ class _RayQueries:
             hit = active & si.is_valid()
             return si.p.x, si.p.y, hit, active & ~hit & (d.z > 0.0)
         start = active
-        active = mi.Bool(active)                 # a copy: &= below must not touch the caller's mask
+        active = mi.Bool(active)  # a copy: &= below must not touch the caller's mask
         hit = mi.Bool(False)
         x, y = mi.Float(0.0), mi.Float(0.0)
         for _ in range(hops):
@@ -662,17 +716,19 @@ class _PathTracing:
         E_sky = self._c["E_sky"]
         max_depth = int(sc.interreflection_depth)
         rng = self._rng(0x9A7 + 0x1000 * (int(round(azimuth_deg * 1000)) & 0xFFFF), st)
-        first = self._rng(_AMBIENT_STREAM, st)    # the ambient layer's directions at the first vertex
+        first = self._rng(_AMBIENT_STREAM, st)  # the ambient layer's directions at the first vertex
         centre = light.direction(azimuth_deg)
         centre_v = mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in centre))
-        cos_max = dr.opaque(mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0)
+        cos_max = dr.opaque(
+            mi.Float, math.cos(math.radians(light.radius_deg)) if light.kind == "soft" else 1.0
+        )
         cap = self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG))
         rho = light.radius_deg if light.kind == "soft" else 0.0
         lowest, highest = math.radians(light.elevation_deg - rho), math.radians(light.elevation_deg + rho)
 
         o, n, ns, albedo = st.o, st.n, st.ns, st.albedo
-        v = self._toward_eye                      # toward the previous vertex (the camera)
-        beta = mi.Color3f(1.0)                    # path throughput
+        v = self._toward_eye  # toward the previous vertex (the camera)
+        beta = mi.Color3f(1.0)  # path throughput
         result = mi.Color3f(0.0)
         active = mi.Bool(True)
         p_spec = _specular_sampling_share(sc)
@@ -691,7 +747,7 @@ class _PathTracing:
             if depth == 1:
                 u = mi.Point2f(first.next_float32(), first.next_float32())
             wo, weight = _sample_bsdf(sc, ns, v, albedo, p_spec, u_lobe, u)
-            weight = dr.select(dr.dot(n, wo) > 0.0, weight, 0.0)     # not into the triangle hit
+            weight = dr.select(dr.dot(n, wo) > 0.0, weight, 0.0)  # not into the triangle hit
             active &= dr.any(weight > 0.0)
             beta *= weight
             x, y, hit, escaped = self._next_surface(o, wo, active, cap)
@@ -718,9 +774,9 @@ class _PathTracing:
 
         if self.scene.light.kind != "soft":
             return centre
-        return mi.Frame3f(centre).to_world(mi.warp.square_to_uniform_cone(
-            mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max))
-
+        return mi.Frame3f(centre).to_world(
+            mi.warp.square_to_uniform_cone(mi.Point2f(rng.next_float32(), rng.next_float32()), cos_max)
+        )
 
 
 def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
@@ -758,8 +814,12 @@ def mesh_grid(scene: Scene, height: np.ndarray):
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
     min_elevation, margin = surface_margin(scene, h_tex)
-    g = meshes.grid(h_tex, mat.boundary, min_elevation_deg=min_elevation,
-                    margin=margin if mat.boundary == "wrap" else None)
+    g = meshes.grid(
+        h_tex,
+        mat.boundary,
+        min_elevation_deg=min_elevation,
+        margin=margin if mat.boundary == "wrap" else None,
+    )
     tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
     return g, meshes.cell_levels(g.z, tolerance), h_tex
 
@@ -807,21 +867,35 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
     in the tile) and ``seen_samples`` (which samples' rays hit).
     """
 
-    def __init__(self, scene: Scene, height: np.ndarray, *, positions: tuple | None = None,
-                 albedo: np.ndarray | None = None, band_samples: int | None = None, keep: bool | None = None,
-                 mesh_band_rows: int | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        height: np.ndarray,
+        *,
+        positions: tuple | None = None,
+        albedo: np.ndarray | None = None,
+        band_samples: int | None = None,
+        keep: bool | None = None,
+        mesh_band_rows: int | None = None,
+    ):
         backend.variant()
         self.scene = scene.validate()
         h = np.asarray(height, dtype=np.float32)
         if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
             # any size the loader and the bake take (1xN and Nx1 included): the mesh handles them
-            raise InputError("height", f"expected a finite 2-D height map of at least 2 pixels, got shape {h.shape}")
+            raise InputError(
+                "height", f"expected a finite 2-D height map of at least 2 pixels, got shape {h.shape}"
+            )
         self.rows, self.cols = rows, cols = h.shape
         self.shape = image_shape(rows, cols, scene.camera)
         self.spp = scene.spp
-        if scene.declares("interreflection") and not (scene.declares("diffuse") or scene.declares("specular")):
-            raise InputError(scene.source or "scene", "interreflection needs a surface that reflects: "
-                             "declare diffuse and/or specular as well")
+        if scene.declares("interreflection") and not (
+            scene.declares("diffuse") or scene.declares("specular")
+        ):
+            raise InputError(
+                scene.source or "scene",
+                "interreflection needs a surface that reflects: declare diffuse and/or specular as well",
+            )
         self.simulated = tuple(e for e in EFFECTS if e in scene.effects and e in SIMULATES)
         self.timings: dict[str, float] = {}
         self.mesh_band_rows = None if mesh_band_rows is None else max(1, int(mesh_band_rows))
@@ -857,14 +931,26 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         info: dict = {}
         margin = self.margin if mat.boundary == "wrap" else None
         if self.mesh_band_rows is None:
-            self.mesh = meshes.displaced_mesh(h, mat.depth, mat.boundary, min_elevation_deg=self.min_elevation_deg,
-                                              texcoords=False, tolerance=mat.truth_tolerance, info=info,
-                                              budget_bytes=bake.available_bytes(), margin=margin)
+            self.mesh = meshes.displaced_mesh(
+                h,
+                mat.depth,
+                mat.boundary,
+                min_elevation_deg=self.min_elevation_deg,
+                texcoords=False,
+                tolerance=mat.truth_tolerance,
+                info=info,
+                budget_bytes=bake.available_bytes(),
+                margin=margin,
+            )
         else:
             # in bands (hzval.truth.bands): the whole grid and its levels, as displaced_mesh makes them
             self.mesh = None
-            self._grid = meshes.grid(h_tex, mat.boundary, min_elevation_deg=self.min_elevation_deg, margin=margin)
-            tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else float(mat.truth_tolerance)
+            self._grid = meshes.grid(
+                h_tex, mat.boundary, min_elevation_deg=self.min_elevation_deg, margin=margin
+            )
+            tolerance = (
+                meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else float(mat.truth_tolerance)
+            )
             self._levels = meshes.cell_levels(self._grid.z, tolerance)
             info.update(levels=self._levels, tolerance=tolerance)
         # the finest sub-cell grid: every edge of the mesh is on one of its lines (_off_edge_lines)
@@ -875,9 +961,13 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         if mat.shading == "smooth":
             # the vertex normals, bilinearly between texel centres (module docstring, "Shading")
             wrap = dr.WrapMode.Repeat if mat.boundary == "wrap" else dr.WrapMode.Clamp
-            self._normals = mi.Texture2f(mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
-                                         use_accel=False, migrate=False, filter_mode=dr.FilterMode.Linear,
-                                         wrap_mode=wrap)
+            self._normals = mi.Texture2f(
+                mi.TensorXf(np.ascontiguousarray(normal_map(h_tex, mat.boundary))),
+                use_accel=False,
+                migrate=False,
+                filter_mode=dr.FilterMode.Linear,
+                wrap_mode=wrap,
+            )
         self.mi_scene = None if self.mesh is None else mi.load_dict({"type": "scene", "surface": self.mesh})
         self.lift = lift_for(self.z_min, self.z_max)
         # a hop runs at least this far horizontally from any point of the tile and stays over the
@@ -887,12 +977,19 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         # one's differs per pixel: the effects that read it are refused with it, hzval.scene.spec)
         self._toward_eye = mi.Vector3f(*(self.scene.camera.toward_eye() or (0.0, 0.0, 1.0)))
         self._c = {  # scene-dependent numbers, opaque so that kernels are shared
-            "rows": dr.opaque(mi.Float, float(rows)), "cols": dr.opaque(mi.Float, float(cols)),
-            "edge": dr.opaque(mi.Float, self._hop), "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
-            "lift": dr.opaque(mi.Float, self.lift), "probe": dr.opaque(mi.Float, self.z_max + 1.0),
+            "rows": dr.opaque(mi.Float, float(rows)),
+            "cols": dr.opaque(mi.Float, float(cols)),
+            "edge": dr.opaque(mi.Float, self._hop),
+            "top": dr.opaque(mi.Float, self.z_max + 2 * self.lift),
+            "lift": dr.opaque(mi.Float, self.lift),
+            "probe": dr.opaque(mi.Float, self.z_max + 1.0),
             # irradiance of each sampled light direction (shading, "Soft light"), and the sky's
-            "E": dr.opaque(mi.Float, shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
-                           if light.kind == "soft" else float(light.irradiance)),
+            "E": dr.opaque(
+                mi.Float,
+                shading.disk_sample_irradiance(light.irradiance, light.radius_deg)
+                if light.kind == "soft"
+                else float(light.irradiance),
+            ),
             "E_sky": dr.opaque(mi.Float, float(light.irradiance)),
         }
         backend.sync()
@@ -905,7 +1002,11 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         scene, rows, cols = self.scene, self.rows, self.cols
         if not any(scene.declares(e) for e in _NEEDS_ALBEDO):
             return None
-        a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, dtype=np.float32)
+        a = (
+            load_albedo(scene.material, rows, cols)
+            if albedo is None
+            else np.asarray(albedo, dtype=np.float32)
+        )
         if a.shape != (rows, cols, 3):
             raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
         return mi.Float(np.ascontiguousarray(a, dtype=np.float32).ravel())
@@ -917,7 +1018,9 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
         need = self.shape[0] * self.shape[1] * self.spp
         if xs.shape != (need,) or ys.shape != (need,):
-            raise InputError("positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}")
+            raise InputError(
+                "positions", f"expected {need} samples (pixels x spp), got {xs.size} and {ys.size}"
+            )
         return xs, ys
 
     def _trace_ambient(self, st: "_Samples"):
@@ -929,9 +1032,11 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         rng = self._rng(_AMBIENT_STREAM, st)
         # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
         d = mi.Frame3f(st.ns).to_world(
-            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32())))
+            mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
+        )
         blocked = (dr.dot(st.n, d) <= 0.0) | self._occluded(
-            st.o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+            st.o, d, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True
+        )
         ambient = dr.select(blocked, 0.0, 1.0)
         dr.eval(ambient)
         backend.sync()
@@ -953,11 +1058,11 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         rng = self._rng(_REFLECTION_STREAM, st)
         wo, w = lobe_sample(st.ns, self._toward_eye, mi.Point2f(rng.next_float32(), rng.next_float32()))
         blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
-            st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True)
+            st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True
+        )
         out = reflection_estimate(w, dr.select(blocked, 0.0, 1.0), self.spp)
         self.timings["reflection_s"] += time.perf_counter() - t0
         return out
-
 
     # ------------------------------------------------------------------
     # Frames
@@ -983,8 +1088,10 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
             e = math.asin(max(-1.0, min(1.0, float(v[2]))))
             return L, e, e
         first, count = (0, self.count) if st is None else (st.start, st.count)
-        s = np.ascontiguousarray(light_samples(light, azimuth_deg, self.count, self.scene.seed,
-                                               samples=(first, first + count)), dtype=np.float32)
+        s = np.ascontiguousarray(
+            light_samples(light, azimuth_deg, self.count, self.scene.seed, samples=(first, first + count)),
+            dtype=np.float32,
+        )
         # a gather, not three column arrays: Dr.Jit maps NumPy memory as it
         # is, and a contiguous load would compile one kernel per alignment
         L = dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, count))
@@ -1015,8 +1122,9 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
     def _direct(self, n, L, v, albedo):
         """Direct radiance per unit visibility: ``D`` of :mod:`hzval.core.shading`."""
         sc = self.scene
-        return shading.direct(n, L, v, albedo, self._c["E"], diffuse=sc.declares("diffuse"),
-                              specular=sc.declares("specular"))
+        return shading.direct(
+            n, L, v, albedo, self._c["E"], diffuse=sc.declares("diffuse"), specular=sc.declares("specular")
+        )
 
     def render(self, azimuth_deg: float) -> Frame:
         """Render the light at ``azimuth_deg`` (degrees; elevation from the scene).
@@ -1058,8 +1166,15 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
             image = np.repeat((E * v)[..., None], 3, axis=-1).astype(np.float32)
             variance["image"] = np.repeat((E * E * var)[..., None], 3, axis=-1).astype(np.float32)
         seconds = time.perf_counter() - t0
-        return Frame(azimuth_deg=float(azimuth_deg), elevation_deg=float(sc.light.elevation_deg), image=image,
-                     layers=layers, variance=variance, seconds=seconds, mask=self.seen)
+        return Frame(
+            azimuth_deg=float(azimuth_deg),
+            elevation_deg=float(sc.light.elevation_deg),
+            image=image,
+            layers=layers,
+            variance=variance,
+            seconds=seconds,
+            mask=self.seen,
+        )
 
     def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Pixel means and variances of the mean (:func:`_mean_and_variance`) over the samples of the
@@ -1073,12 +1188,15 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         sums: dict[str, object] = {}
         vis = None
         if sc.declares("shadow"):
-            vis = (self._visible(st.o, st.n, L, lowest, highest) if self.mesh_bands is None
-                   else self._band_visibility(azimuth_deg, st))
+            vis = (
+                self._visible(st.o, st.n, L, lowest, highest)
+                if self.mesh_bands is None
+                else self._band_visibility(azimuth_deg, st)
+            )
             sums["visibility"] = vis
         grey = not any(sc.declares(e) for e in ("diffuse", "specular", "ambient", "interreflection"))
         if grey:
-            img = None                           # E * V or E: derived from the layers
+            img = None  # E * V or E: derived from the layers
         elif sc.declares("interreflection"):
             img = self._path_trace(st, L, vis, azimuth_deg)
         else:
@@ -1110,7 +1228,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                 dev = dr.select(st.seen, img - dr.gather(mi.Color3f, img_sum, pixel) / n, 0.0)
             reduced["image"], reduced["image_ss"] = img_sum, dr.block_sum(dev * dev, spp)
         dr.eval(reduced)
-        n = reduced.pop("seen", spp)                # samples per pixel that see the surface
+        n = reduced.pop("seen", spp)  # samples per pixel that see the surface
         stats = {}
         for k in ("visibility", "ambient"):
             if k in reduced:
@@ -1119,14 +1237,22 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                 nn = n if isinstance(n, int) else dr.maximum(mi.Float64(n), 1.0)
                 stats[k] = _mean_and_variance(s1, s1 * (1.0 - s1 / nn), n)
         if "image" in reduced:
-            stats["image"] = tuple(zip(*(_mean_and_variance(mi.Float64(c), mi.Float64(q), n)
-                                         for c, q in zip(reduced["image"], reduced["image_ss"]))))
+            stats["image"] = tuple(
+                zip(
+                    *(
+                        _mean_and_variance(mi.Float64(c), mi.Float64(q), n)
+                        for c, q in zip(reduced["image"], reduced["image_ss"])
+                    )
+                )
+            )
         dr.eval(stats)
         backend.sync()
         out = {}
         for k, (mean, var) in stats.items():
             if k == "image":
-                out[k] = tuple(np.stack([np.asarray(c, dtype=np.float32) for c in v], axis=-1) for v in (mean, var))
+                out[k] = tuple(
+                    np.stack([np.asarray(c, dtype=np.float32) for c in v], axis=-1) for v in (mean, var)
+                )
             else:
                 out[k] = (np.asarray(mean, dtype=np.float32), np.asarray(var, dtype=np.float32))
         return out
@@ -1187,8 +1313,9 @@ class _Samples:
     seen: object = None
 
 
-def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int,
-                    level: int = 1) -> tuple[np.ndarray, np.ndarray, int]:
+def _off_edge_lines(
+    xs: np.ndarray, ys: np.ndarray, rows: int, cols: int, level: int = 1
+) -> tuple[np.ndarray, np.ndarray, int]:
     """Move samples that lie exactly on a line of mesh edges a few ulps off it.
 
     The mesh's edges (:func:`hzval.geometry.tile.tessellate`) run along the lines of
@@ -1221,7 +1348,7 @@ def _off_edge_lines(xs: np.ndarray, ys: np.ndarray, rows: int, cols: int,
     idx = _on_edge_lines_index(xs, ys, level)
     moved = int(idx.size)
     if not moved:
-        return xs, ys, 0            # as they are (the shared positions are read-only: no copy)
+        return xs, ys, 0  # as they are (the shared positions are read-only: no copy)
     xs, ys = np.array(xs, dtype=np.float32), np.array(ys, dtype=np.float32)
     for _ in range(3):
         if not idx.size:
@@ -1302,8 +1429,11 @@ def stream_rng(seed: int, stream: int, start: int, count: int):
     # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
     # sample k of one piece starts from initstate + k with the sequence 2k, so lane j of a
     # band starting at sample s takes initstate + s and initseq j + 2 s
-    return mi.PCG32(size=count, initstate=(state + start) & 0xFFFFFFFFFFFFFFFF,
-                    initseq=dr.arange(mi.UInt64, count) + 2 * start)
+    return mi.PCG32(
+        size=count,
+        initstate=(state + start) & 0xFFFFFFFFFFFFFFFF,
+        initseq=dr.arange(mi.UInt64, count) + 2 * start,
+    )
 
 
 def lobe_sample(ns, v, u):
@@ -1372,7 +1502,11 @@ def _mean_and_variance(s1, ss, spp):
 
     if isinstance(spp, int):
         mean = s1 / spp
-        var = dr.full(mi.Float64, math.nan, dr.width(mean)) if spp < 2 else dr.maximum(ss, 0.0) / (spp - 1) / spp
+        var = (
+            dr.full(mi.Float64, math.nan, dr.width(mean))
+            if spp < 2
+            else dr.maximum(ss, 0.0) / (spp - 1) / spp
+        )
         return mi.Float(mean), mi.Float(var)
     n = mi.Float64(spp)
     mean = s1 / dr.maximum(n, 1.0)

@@ -27,10 +27,10 @@ from hzval.core import conventions as cv
 from hzval.geometry import tile as M
 from hzval.scene import spec as S
 
-
 # --------------------------------------------------------------------------
 # Checks every output must pass
 # --------------------------------------------------------------------------
+
 
 def assert_bake_sane(r, *, normal_tol=1e-5):
     """Every texture finite and in range: sines in [0, 1], unit normals facing up,
@@ -52,6 +52,7 @@ def assert_unit(x, what=""):
 # The seed bake in float64
 # --------------------------------------------------------------------------
 
+
 def horizon_f64(h_texels, radius=16, angles=32, boundary="wrap", points=None, directions=8):
     """``(horizon (n, D), mean_cos (n,), mean_cos2 (n,))`` at texels ``points`` ((rows, cols) index
     arrays; all texels, row-major, if None), in float64; ``D = directions`` channels, channel
@@ -68,19 +69,19 @@ def horizon_f64(h_texels, radius=16, angles=32, boundary="wrap", points=None, di
     max_tan = np.zeros((rr.size, angles))
     for g in B.horizon_table(radius, angles):
         best = np.full(rr.size, -np.inf)
-        for (i, j) in g.offsets:
+        for i, j in g.offsets:
             drow, dcol = cv.tangent_to_pixel_offset(i, j)
             with np.errstate(invalid="ignore"):
                 best = np.maximum(best, (P[rr + pad + drow, cc + pad + dcol] - h0) / math.hypot(i, j))
         for b in g.bins:
             max_tan[:, b] = np.maximum(max_tan[:, b], best)
-    sines = max_tan / np.sqrt(1.0 + max_tan ** 2)
+    sines = max_tan / np.sqrt(1.0 + max_tan**2)
     half = angles // (2 * directions)
     channels = []
     for k in range(directions):
         centre = k * angles // directions
         channels.append(np.mean([sines[:, (centre + d) % angles] for d in range(-half, half + 1)], axis=0))
-    cos2 = 1.0 / (1.0 + max_tan ** 2)
+    cos2 = 1.0 / (1.0 + max_tan**2)
     return np.stack(channels, axis=-1), np.sqrt(cos2).mean(axis=1), cos2.mean(axis=1)
 
 
@@ -102,6 +103,7 @@ def channel_share(i, j, channel, angles=32):
 # --------------------------------------------------------------------------
 # The displaced mesh's exact horizon (float64 ray caster)
 # --------------------------------------------------------------------------
+
 
 def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
     """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.geometry.tile` builds: the tessellation of
@@ -126,23 +128,25 @@ def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):
     y0 = np.asarray(y0, np.float64).ravel()
     phi = math.radians(azimuth_deg)
     d = np.array([math.cos(phi), math.sin(phi)])
-    v = tris[:, :, :2]                                     # (T, 3, 2), counterclockwise
-    e = np.roll(v, -1, axis=1) - v                         # edges v_i -> v_i+1
-    den = e[..., 0] * d[1] - e[..., 1] * d[0]              # cross(e, d): (T, 3)
+    v = tris[:, :, :2]  # (T, 3, 2), counterclockwise
+    e = np.roll(v, -1, axis=1) - v  # edges v_i -> v_i+1
+    den = e[..., 0] * d[1] - e[..., 1] * d[0]  # cross(e, d): (T, 3)
     # plane z = a x + b y + c of each triangle
     A = np.concatenate([tris[:, :, :2], np.ones(tris.shape[:2] + (1,))], axis=-1)
-    abc = np.linalg.solve(A, tris[:, :, 2:])[..., 0]       # (T, 3)
-    along = abc[:, 0] * d[0] + abc[:, 1] * d[1]            # rise per unit run along d
+    abc = np.linalg.solve(A, tris[:, :, 2:])[..., 0]  # (T, 3)
+    along = abc[:, 0] * d[0] + abc[:, 1] * d[1]  # rise per unit run along d
     out = {k: np.full(x0.size, -np.inf) for k in ("slope", "far", "close", "z0")}
     for s in range(0, x0.size, chunk):
-        px, py = x0[s:s + chunk, None], y0[s:s + chunk, None]
-        num = e[None, ..., 0] * (py[..., None] - v[None, ..., 1]) - e[None, ..., 1] * (px[..., None] - v[None, ..., 0])
+        px, py = x0[s : s + chunk, None], y0[s : s + chunk, None]
+        num = e[None, ..., 0] * (py[..., None] - v[None, ..., 1]) - e[None, ..., 1] * (
+            px[..., None] - v[None, ..., 0]
+        )
         with np.errstate(divide="ignore", invalid="ignore"):
             tt = -num / den[None]
-        lower = np.where(den[None] > 0, tt, -np.inf).max(axis=-1)          # (S, T)
+        lower = np.where(den[None] > 0, tt, -np.inf).max(axis=-1)  # (S, T)
         upper = np.where(den[None] < 0, tt, np.inf).min(axis=-1)
         ok = (lower <= upper) & ~((den[None] == 0) & (num < 0)).any(axis=-1)
-        under = ok & (lower <= 0) & (upper >= 0)                            # triangles under the point
+        under = ok & (lower <= 0) & (upper >= 0)  # triangles under the point
         zp = abc[None, :, 0] * px + abc[None, :, 1] * py + abc[None, :, 2]
         z0 = np.where(under, zp, -np.inf).max(axis=1)
         sl = np.where(under, along[None], -np.inf).max(axis=1)
@@ -157,10 +161,12 @@ def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):
         far_ok = ok & (upper > near)
         far = np.maximum(ratio(np.maximum(t0, near), far_ok), ratio(upper, far_ok))
         close_ok = ok & (upper > 1e-12) & (t0 < near)
-        close = np.maximum(ratio(np.where(t0 > 1e-12, t0, np.minimum(upper, near)), close_ok),
-                           ratio(np.minimum(upper, near), close_ok))
+        close = np.maximum(
+            ratio(np.where(t0 > 1e-12, t0, np.minimum(upper, near)), close_ok),
+            ratio(np.minimum(upper, near), close_ok),
+        )
         for k, val in (("slope", sl), ("far", far), ("close", close), ("z0", z0)):
-            out[k][s:s + chunk] = val
+            out[k][s : s + chunk] = val
     return out
 
 
@@ -190,20 +196,39 @@ def texel_centres_flat(rows, cols):
 # Scenes and the approximation's weights
 # --------------------------------------------------------------------------
 
-def make_scene(shape, depth, boundary="open", *, effects=("shadow",), elevation=30.0, kind="hard",
-               radius=0.0, spp=4, seed=0, irradiance=1.0, albedo=0.5):
+
+def make_scene(
+    shape,
+    depth,
+    boundary="open",
+    *,
+    effects=("shadow",),
+    elevation=30.0,
+    kind="hard",
+    radius=0.0,
+    spp=4,
+    seed=0,
+    irradiance=1.0,
+    albedo=0.5,
+):
     return S.Scene(
         name="hard",
-        material=S.MaterialSpec(height="hard", size=max(shape[1], 2), depth=depth, boundary=boundary,
-                                albedo=albedo),
+        material=S.MaterialSpec(
+            height="hard", size=max(shape[1], 2), depth=depth, boundary=boundary, albedo=albedo
+        ),
         light=S.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
-        effects=tuple(effects), spp=spp, seed=seed).validate()
+        effects=tuple(effects),
+        spp=spp,
+        seed=seed,
+    ).validate()
 
 
 def truth(h, depth, boundary="open", positions=None, **kw):
     from hzval.truth.plane import Truth
 
-    return Truth(make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), positions=positions)
+    return Truth(
+        make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), positions=positions
+    )
 
 
 CUBE_SIZE = 16
@@ -232,7 +257,10 @@ def uniform_bake(horizon, normal=(0.0, 0.0, 1.0), rows=4, cols=4, boundary="wrap
     """A synthetic bake with the same horizon sines and normal in every texel."""
     n = np.asarray(normal, np.float64)
     n = n / np.linalg.norm(n)
-    return B.Bake(B.BakeParams(boundary=boundary),
-                  np.broadcast_to(np.asarray(horizon, np.float32), (rows, cols, 8)).copy(),
-                  np.broadcast_to(n.astype(np.float32), (rows, cols, 3)).copy(),
-                  np.ones((rows, cols), np.float32), np.ones((rows, cols), np.float32))
+    return B.Bake(
+        B.BakeParams(boundary=boundary),
+        np.broadcast_to(np.asarray(horizon, np.float32), (rows, cols, 8)).copy(),
+        np.broadcast_to(n.astype(np.float32), (rows, cols, 3)).copy(),
+        np.ones((rows, cols), np.float32),
+        np.ones((rows, cols), np.float32),
+    )

@@ -22,14 +22,18 @@ pytestmark = pytest.mark.hard
 def _truncated_png(p):
     Image.fromarray(np.arange(64 * 64, dtype=np.uint16).reshape(64, 64)).save(p)
     data = p.read_bytes()
-    p.write_bytes(data[:len(data) // 2])
+    p.write_bytes(data[: len(data) // 2])
 
 
 def _huge_png(p):
     def chunk(kind, body):
         return len(body).to_bytes(4, "big") + kind + body + zlib.crc32(kind + body).to_bytes(4, "big")
-    p.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", (200000).to_bytes(4, "big") * 2 + bytes([16, 0, 0, 0, 0]))
-                  + chunk(b"IEND", b""))
+
+    p.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", (200000).to_bytes(4, "big") * 2 + bytes([16, 0, 0, 0, 0]))
+        + chunk(b"IEND", b"")
+    )
 
 
 FILES = {
@@ -75,9 +79,14 @@ def test_bad_height_file(case, command, tmp_path, capsys):
 
 
 BAKE_FLAGS = [
-    (["--depth", "0"], "--depth"), (["--depth", "-1"], "--depth"), (["--depth", "nan"], "--depth"),
-    (["--depth", "inf"], "--depth"), (["--radius", "1"], "--radius"), (["--radius", "100000"], "GiB"),
-    (["--angles", "20"], "--angles"), (["--angles", "0"], "--angles"),
+    (["--depth", "0"], "--depth"),
+    (["--depth", "-1"], "--depth"),
+    (["--depth", "nan"], "--depth"),
+    (["--depth", "inf"], "--depth"),
+    (["--radius", "1"], "--radius"),
+    (["--radius", "100000"], "GiB"),
+    (["--angles", "20"], "--angles"),
+    (["--angles", "0"], "--angles"),
 ]
 
 
@@ -92,13 +101,26 @@ def test_bad_bake_parameter(flags, needle, tmp_path, capsys):
 
 
 SWEEP_FLAGS = [
-    (["--depth", "0"], "depth"), (["--depth", "nan"], "depth"), (["--elevation", "91"], "elevation"),
-    (["--elevation", "nan"], "elevation"), (["--azimuths", "a:b"], "azimuths"), (["--azimuths", "0:1:0"], "azimuths"),
-    (["--azimuths", "nan"], "azimuths"), (["--azimuths", "0,inf"], "azimuths"), (["--k", "0"], "--k"),
-    (["--k", "inf"], "--k"), (["--effects", "glitter"], "effects"), (["--effects", ","], "effects"),
-    (["--light", "soft", "--light-radius", "0"], "radius"), (["--light", "soft", "--light-radius", "nan"], "radius"),
-    (["--spp", "0"], "spp"), (["--supersampling", "0"], "supersampling"), (["--seed", "-1"], "seed"),
-    (["--radius", "1"], "--radius"), (["--angles", "24"], "--angles"), (["--size", "4"], "size"),
+    (["--depth", "0"], "depth"),
+    (["--depth", "nan"], "depth"),
+    (["--elevation", "91"], "elevation"),
+    (["--elevation", "nan"], "elevation"),
+    (["--azimuths", "a:b"], "azimuths"),
+    (["--azimuths", "0:1:0"], "azimuths"),
+    (["--azimuths", "nan"], "azimuths"),
+    (["--azimuths", "0,inf"], "azimuths"),
+    (["--k", "0"], "--k"),
+    (["--k", "inf"], "--k"),
+    (["--effects", "glitter"], "effects"),
+    (["--effects", ","], "effects"),
+    (["--light", "soft", "--light-radius", "0"], "radius"),
+    (["--light", "soft", "--light-radius", "nan"], "radius"),
+    (["--spp", "0"], "spp"),
+    (["--supersampling", "0"], "supersampling"),
+    (["--seed", "-1"], "seed"),
+    (["--radius", "1"], "--radius"),
+    (["--angles", "24"], "--angles"),
+    (["--size", "4"], "size"),
     (["--size", "1"], "size"),
 ]
 
@@ -132,8 +154,10 @@ def test_bad_scene_file(case, tmp_path, capsys, monkeypatch):
     scene = tmp_path / "s.toml"
     scene.write_text(SCENES[case])
     out = tmp_path / "out"
-    code, err = run(["sweep", "--scene", scene, "--size", "16", "--azimuths", "0", "--spp", "1", "--quiet",
-                     "--out", out], capsys)
+    code, err = run(
+        ["sweep", "--scene", scene, "--size", "16", "--azimuths", "0", "--spp", "1", "--quiet", "--out", out],
+        capsys,
+    )
     assert code == 2
     assert_one_line(err, str(scene))
     assert not out.exists()
@@ -144,8 +168,9 @@ def test_a_1xN_map_sweeps_and_a_missing_scene_is_refused(tmp_path, capsys):
     had written its bake: exit 2 with files left behind)."""
     np.save(tmp_path / "row.npy", np.random.default_rng(0).random((1, 16)).astype(np.float32))
     out = tmp_path / "out"
-    code, _ = run(["sweep", tmp_path / "row.npy", "--azimuths", "0,90", "--spp", "1", "--quiet", "--out", out],
-                  capsys)
+    code, _ = run(
+        ["sweep", tmp_path / "row.npy", "--azimuths", "0,90", "--spp", "1", "--quiet", "--out", out], capsys
+    )
     assert code == 0 and (out / "metrics.json").exists()
     code, err = run(["sweep", "--scene", tmp_path / "none.toml", "--out", tmp_path / "o2"], capsys)
     assert code == 2
@@ -153,8 +178,17 @@ def test_a_1xN_map_sweeps_and_a_missing_scene_is_refused(tmp_path, capsys):
     assert not (tmp_path / "o2").exists()
 
 
-@pytest.mark.parametrize("argv", [["bake"], ["bake", "--out"], ["sweep", "--boundary", "mirror"], ["frobnicate"],
-                                  ["sweep", "--spp", "many"], []])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["bake"],
+        ["bake", "--out"],
+        ["sweep", "--boundary", "mirror"],
+        ["frobnicate"],
+        ["sweep", "--spp", "many"],
+        [],
+    ],
+)
 def test_usage_errors_exit_2_without_a_traceback(argv, capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(argv)
@@ -180,10 +214,17 @@ def test_the_console_script_prints_one_line_and_no_traceback(tmp_path):
     assert script.exists(), script
     bad = tmp_path / "nan.npy"
     np.save(bad, np.array([[0.0, np.nan], [1.0, 0.5]]))
-    for argv in (["bake", str(bad), "--out", str(tmp_path / "o1")],
-                 ["sweep", "--size", "16", "--azimuths", "nan", "--quiet", "--out", str(tmp_path / "o2")]):
-        proc = subprocess.run([str(script), *argv], capture_output=True, text=True, timeout=300,
-                              env={"HZVAL_VARIANT": "llvm_ad_rgb", "PATH": "/usr/bin:/bin"})
+    for argv in (
+        ["bake", str(bad), "--out", str(tmp_path / "o1")],
+        ["sweep", "--size", "16", "--azimuths", "nan", "--quiet", "--out", str(tmp_path / "o2")],
+    ):
+        proc = subprocess.run(
+            [str(script), *argv],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={"HZVAL_VARIANT": "llvm_ad_rgb", "PATH": "/usr/bin:/bin"},
+        )
         assert proc.returncode == 2, proc.stderr
         assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
         assert proc.stderr.startswith("hzval: error: ")

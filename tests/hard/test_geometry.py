@@ -15,11 +15,18 @@ import pytest
 
 import hzval.bake as B
 from hzval.core import conventions as cv
-from hzval.techniques.horizon import Horizon
 from hzval.core.errors import InputError
+from hzval.techniques.horizon import Horizon
 
-from ._ref import (assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, texel_centres_flat,
-                   truth)
+from ._ref import (
+    assert_bake_sane,
+    assert_unit,
+    channel_share,
+    horizon_f64,
+    make_scene,
+    texel_centres_flat,
+    truth,
+)
 
 pytestmark = pytest.mark.hard
 
@@ -31,6 +38,7 @@ def sine(h, r):
 # --------------------------------------------------------------------------
 # A one-texel spike next to the receiver
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("spike", [2.0, 1000.0])
 def test_spike_next_to_the_receiver_fills_the_bins_it_covers(variant, spike):
@@ -67,7 +75,7 @@ def test_spike_shadows_a_receiver_at_distance_d_iff_tan_e_below_height_over_d(va
             if abs(th - e) < 0.005:
                 continue
             assert V[8, 9 - d] == (1.0 if e > th else 0.0), (spike, e, d)
-        assert np.all(V[:, 11:] == 1.0)                       # on the far side of the spike
+        assert np.all(V[:, 11:] == 1.0)  # on the far side of the spike
         # (the spike's own vertex is no test: its sample sits a few ulps down one of its faces)
 
 
@@ -90,7 +98,7 @@ def test_cliff_bake_is_finite_and_gives_its_sine(cliff):
     h, depth = cliff
     r = B.bake(h, B.BakeParams(depth=depth, boundary="open"))
     assert_bake_sane(r)
-    for d in (1, 2, 3):                       # (d, 0) covers all five bins of channel 0 for d <= 3
+    for d in (1, 2, 3):  # (d, 0) covers all five bins of channel 0 for d <= 3
         assert r.horizon[6, 16 - d, 0] == pytest.approx(sine(CLIFF, d), abs=1e-6)
         assert r.horizon[6, 16 - d, 4] == 0.0
     ref, mc, mc2 = horizon_f64(cv.heights_in_texels(h, depth), boundary="open")
@@ -111,7 +119,7 @@ def test_cliff_shadows_its_foot_up_to_height_over_tan_e(cliff):
         for d in range(1, 17):
             expect = 1.0 if d * math.tan(math.radians(e)) > CLIFF or e == 90.0 else 0.0
             assert np.all(V[1:-1, 16 - d] == expect), (e, d)
-        assert np.all(V[:, 17:] == 1.0)     # on top of it (the top edge's samples sit a few ulps down its face)
+        assert np.all(V[:, 17:] == 1.0)  # on top of it (the top edge's samples sit a few ulps down its face)
         assert np.all(t.render(180.0).layers["visibility"][1:-1, :15] == 1.0), e
 
 
@@ -119,8 +127,8 @@ def test_cliff_shadows_its_foot_up_to_height_over_tan_e(cliff):
 # A 45-degree pyramid: the horizon toward a diagonal is atan(1/sqrt 2) = 35.264 degrees
 # --------------------------------------------------------------------------
 
-DIAGONAL_DEG = math.degrees(math.atan(1 / math.sqrt(2)))     # 35.2644
-APEX = 20                                                     # texels, at the map's centre
+DIAGONAL_DEG = math.degrees(math.atan(1 / math.sqrt(2)))  # 35.2644
+APEX = 20  # texels, at the map's centre
 
 
 @pytest.fixture(scope="module")
@@ -158,8 +166,10 @@ def test_pyramid_seed_horizon_toward_a_diagonal(pyramid):
     s = r.horizon[list(rows), list(cols), 1]
     assert np.all(s >= lo - 1e-6) and np.all(s <= hi + 1e-6)
     assert s == pytest.approx(np.full(s.shape, derived), abs=1e-6)
-    print(f"seed horizon toward 45 deg on the west face: sin {s.mean():.5f} = "
-          f"{math.degrees(math.asin(s.mean())):.3f} deg (exact {DIAGONAL_DEG:.3f} deg)")
+    print(
+        f"seed horizon toward 45 deg on the west face: sin {s.mean():.5f} = "
+        f"{math.degrees(math.asin(s.mean())):.3f} deg (exact {DIAGONAL_DEG:.3f} deg)"
+    )
     # by symmetry the south face toward 45 deg (channel 1) sees the same
     south = r.horizon[24 + 6, 24 + 1, 1]
     assert south == pytest.approx(derived, abs=1e-6)
@@ -190,6 +200,7 @@ def test_pyramid_face_is_shadowed_below_35_264_degrees_toward_the_diagonal(pyram
 # --------------------------------------------------------------------------
 # A constant map, and depths of 1e-6 and 10
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("value,depth", [(0.0, 0.05), (1.0, 1e-6), (0.7, 10.0), (0.37, 0.05)])
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
@@ -254,16 +265,30 @@ def test_depth_10_stays_finite_and_in_range(variant):
 # Occluders just inside and just outside the radius: 0 < i^2 + j^2 < R^2
 # --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("radius,offset,inside", [
-    (16, (15, 0), True), (16, (15, 5), True), (16, (11, 11), True), (16, (-8, -13), True),
-    (16, (16, 0), False), (16, (15, 6), False), (16, (12, 11), False), (16, (0, -16), False),
-    (5, (4, 2), True), (5, (3, 4), False), (5, (4, 3), False), (5, (5, 0), False), (5, (-2, 4), True),
-])
+
+@pytest.mark.parametrize(
+    "radius,offset,inside",
+    [
+        (16, (15, 0), True),
+        (16, (15, 5), True),
+        (16, (11, 11), True),
+        (16, (-8, -13), True),
+        (16, (16, 0), False),
+        (16, (15, 6), False),
+        (16, (12, 11), False),
+        (16, (0, -16), False),
+        (5, (4, 2), True),
+        (5, (3, 4), False),
+        (5, (4, 3), False),
+        (5, (5, 0), False),
+        (5, (-2, 4), True),
+    ],
+)
 def test_occluder_counts_only_strictly_inside_the_radius(variant, radius, offset, inside):
     n = 40
     i, j = offset
     h = np.zeros((n, n), np.float32)
-    rc = (20, 20)                                           # the receiver
+    rc = (20, 20)  # the receiver
     drow, dcol = cv.tangent_to_pixel_offset(i, j)
     h[rc[0] + drow, rc[1] + dcol] = 1.0
     height = 8.0

@@ -30,7 +30,7 @@ from ._ref import assert_unit, make_scene, truth
 pytestmark = pytest.mark.hard
 
 CHANNELS = tuple(45.0 * c for c in range(8))
-BIN_EDGES = (11.25, 33.75, 348.75, -11.25, 191.25)   # 32 bins of 11.25 degrees
+BIN_EDGES = (11.25, 33.75, 348.75, -11.25, 191.25)  # 32 bins of 11.25 degrees
 AZIMUTHS = CHANNELS + BIN_EDGES + (22.5, 360.0, 720.0, -0.0, -360.0)
 GRAZING = (0.0, 0.5, 1.0, 2.0)
 BELOW = (-90.0, -30.0, -0.5)
@@ -96,8 +96,9 @@ def test_truth_never_darkens_as_the_light_rises(truth_frames):
 @pytest.mark.parametrize("same", [360.0, 720.0, -0.0, -360.0])
 def test_truth_azimuth_0_360_and_minus_0_are_one_light(truth_frames, same):
     for el in GRAZING + (30.0,):
-        assert np.array_equal(truth_frames[same, el].layers["visibility"],
-                              truth_frames[0.0, el].layers["visibility"]), el
+        assert np.array_equal(
+            truth_frames[same, el].layers["visibility"], truth_frames[0.0, el].layers["visibility"]
+        ), el
 
 
 @pytest.mark.parametrize("path", ["exact", "gpu"])
@@ -112,7 +113,7 @@ def test_approximation_is_finite_in_range_dark_below_and_lit_at_the_zenith(appro
             if el <= 0:
                 assert np.all(f.image == 0.0), (az, el)
             if el <= -30:
-                assert np.all(F == 0.0), (az, el)          # Lz <= -1/k
+                assert np.all(F == 0.0), (az, el)  # Lz <= -1/k
             if el == 90.0:
                 assert np.all(F == 1.0), az
             if path == "exact" and 0 < el:

@@ -10,11 +10,9 @@ import numpy as np
 import pytest
 
 import hzval.bake as B
-from hzval.core import conventions as cv
 from hzval.techniques.horizon import Horizon
 
-from ._ref import (assert_bake_sane, exact_weights, gpu_weights, horizon_f64, light32, make_scene,
-                   uniform_bake)
+from ._ref import assert_bake_sane, exact_weights, gpu_weights, horizon_f64, light32, make_scene, uniform_bake
 
 pytestmark = pytest.mark.hard
 K = 8.0
@@ -71,14 +69,22 @@ def test_8_bit_horizon_near_the_horizon_on_a_bake(variant):
         assert np.all(F_exact == 1.0)
         L = light32(az, 0.5)
         wg = gpu_weights(L)
-        bound = K * (0.5 / 255 * wg.sum() + np.abs(wg - exact_weights(L)).sum() * b.horizon.max()
-                     + (wg.sum() - 1) * b.horizon.max()) + 1e-5
+        bound = (
+            K
+            * (
+                0.5 / 255 * wg.sum()
+                + np.abs(wg - exact_weights(L)).sum() * b.horizon.max()
+                + (wg.sum() - 1) * b.horizon.max()
+            )
+            + 1e-5
+        )
         assert np.abs(F_gpu - F_exact).max() <= bound, az
 
 
 # --------------------------------------------------------------------------
 # The cube map's zero weight: 127.5 cannot be stored
 # --------------------------------------------------------------------------
+
 
 def test_cube_zero_weight_leaks_exactly_one_255th_on_layer_0(variant):
     """Measured: for every channel whose weight is 0 over the whole bilinear footprint (more than
@@ -92,8 +98,12 @@ def test_cube_zero_weight_leaks_exactly_one_255th_on_layer_0(variant):
         for el in (0.0, 20.0, 44.0):
             L = light32(az, el)
             w, wg = exact_weights(L), gpu_weights(L)
-            far = np.array([min(abs((az - 45 * c + 180) % 360 - 180), abs((az - 45 * c) % 360 - 180)) > 45 + 6
-                            for c in range(8)])
+            far = np.array(
+                [
+                    min(abs((az - 45 * c + 180) % 360 - 180), abs((az - 45 * c) % 360 - 180)) > 45 + 6
+                    for c in range(8)
+                ]
+            )
             # a channel is 'far' when neither it nor its opposite is within 51 degrees
             for c in range(8):
                 if far[c] and far[(c + 4) % 8]:
@@ -103,7 +113,9 @@ def test_cube_zero_weight_leaks_exactly_one_255th_on_layer_0(variant):
             worst_total = max(worst_total, float(wg[zero].sum()))
     assert leak0 == pytest.approx(1 / 255, abs=1e-15)
     assert worst_total <= 3 / 255 + 1e-12
-    print(f"zero-weight leak per layer-0 channel 1/255 = {leak0:.5f}; worst total {worst_total * 255:.2f}/255")
+    print(
+        f"zero-weight leak per layer-0 channel 1/255 = {leak0:.5f}; worst total {worst_total * 255:.2f}/255"
+    )
 
 
 def test_cube_leak_darkens_a_grazing_light_by_k_times_the_leak(variant):
@@ -126,24 +138,25 @@ def test_cube_leak_darkens_a_grazing_light_by_k_times_the_leak(variant):
         assert g["factor"][0] == pytest.approx(min(1.0, 1 + K * (lz - 2 * h8 / 255)), abs=1e-5)
         assert exact.sample([1.5], [1.5], az, el)["factor"][0] == 1.0
         assert 1.0 - g["factor"][0] <= K * 3 / 255 * 0.9 + 1e-6
-    assert gpu.sample([1.5], [1.5], az, 0.1)["factor"][0] < 0.96      # the leak is visible there: 0.957
+    assert gpu.sample([1.5], [1.5], az, 0.1)["factor"][0] < 0.96  # the leak is visible there: 0.957
 
 
 # --------------------------------------------------------------------------
 # float32 accumulation on wide maps
 # --------------------------------------------------------------------------
 
+
 def f32_bound(h_tex):
     """|s_f32 - s_f64| for heights of at most hmax texels: the float32 heights are rounded by
     2^-24 hmax each, so dh = h' - h0 by 2^-23 hmax (r >= 1 keeps tan within that); the float32
     difference, 1/r, product, sqrt and mean add a few ulps of their results (<= 1 each after
     the sine): 2^-22 (hmax + 2) in all."""
-    return 2.0 ** -22 * (float(np.abs(h_tex).max()) + 2.0)
+    return 2.0**-22 * (float(np.abs(h_tex).max()) + 2.0)
 
 
 def _compare_with_f64(h, depth, points=None):
     r = B.bake(h, B.BakeParams(depth=depth))
-    exact_heights = h.astype(np.float64) * depth * h.shape[1]     # float64, never rounded to float32
+    exact_heights = h.astype(np.float64) * depth * h.shape[1]  # float64, never rounded to float32
     ref, mc, mc2 = horizon_f64(exact_heights, points=points)
     got = r.horizon.reshape(-1, 8) if points is None else r.horizon[points[0], points[1]]
     err = np.abs(got - ref).max()
@@ -170,11 +183,16 @@ def test_float32_bake_of_a_4096_square_map_matches_float64(variant):
     rng = np.random.default_rng(13)
     n = 4096
     x = np.arange(n) / n
-    h = (0.5 + 0.2 * np.sin(2 * np.pi * x)[None, :] * np.cos(2 * np.pi * x)[:, None]
-         + 0.01 * rng.random((n, n), dtype=np.float32)).astype(np.float32)
+    h = (
+        0.5
+        + 0.2 * np.sin(2 * np.pi * x)[None, :] * np.cos(2 * np.pi * x)[:, None]
+        + 0.01 * rng.random((n, n), dtype=np.float32)
+    ).astype(np.float32)
     t0 = time.perf_counter()
     points = (rng.integers(0, n, 4096), rng.integers(0, n, 4096))
     r, err, bound = _compare_with_f64(h, 0.05, points)
     assert_bake_sane(r)
-    print(f"4096 x 4096: max |s_f32 - s_f64| = {err:.2e} (bound {bound:.2e}), {time.perf_counter() - t0:.1f} s")
+    print(
+        f"4096 x 4096: max |s_f32 - s_f64| = {err:.2e} (bound {bound:.2e}), {time.perf_counter() - t0:.1f} s"
+    )
     assert err <= bound

@@ -15,9 +15,8 @@ from PIL import Image
 
 import hzval.bake as B
 from hzval.cli import main as cli
-from hzval.io import files
 from hzval.core import conventions as cv
-from hzval.io import heightmap
+from hzval.io import files, heightmap
 from hzval.techniques.horizon import Horizon
 
 from ._ref import assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, truth, uniform_bake
@@ -26,7 +25,7 @@ pytestmark = pytest.mark.hard
 
 
 def f32_bound(h_tex):
-    return 2.0 ** -21 * (float(np.abs(h_tex).max()) + 2.0)
+    return 2.0**-21 * (float(np.abs(h_tex).max()) + 2.0)
 
 
 def check_against_reference(h, params):
@@ -72,7 +71,7 @@ def test_1xN_and_Nx1_wrap_are_their_rows_and_columns_repeated(variant):
     assert np.array_equal(many.horizon, np.repeat(one.horizon, 5, axis=0))
     assert np.array_equal(many.normal, np.repeat(one.normal, 5, axis=0))
     col = rng.random((19, 1)).astype(np.float32)
-    p = B.BakeParams(depth=2.0)                       # depth is per image width: 1 texel here
+    p = B.BakeParams(depth=2.0)  # depth is per image width: 1 texel here
     one = B.bake(col, p)
     # the same heights in texels on a 19x4 map need a quarter of the depth
     many = B.bake(np.repeat(col, 4, axis=1), B.BakeParams(depth=0.5))
@@ -88,7 +87,7 @@ def test_truth_and_approximation_take_1xN_and_Nx1(variant, shape, boundary):
     h = np.zeros(shape, np.float32)
     h.flat[8] = 1.0
     depth = 2.0 / cols
-    along = 0.0 if rows == 1 else 90.0            # the strip's direction; light from its + end
+    along = 0.0 if rows == 1 else 90.0  # the strip's direction; light from its + end
     centres = truth(h, depth, boundary, spp=1, positions=_centres(rows, cols))
     V = centres.render(along).layers["visibility"].ravel()
     # the wall is at index 8; the light from + puts its shadow at smaller x (row: larger index)
@@ -100,8 +99,8 @@ def test_truth_and_approximation_take_1xN_and_Nx1(variant, shape, boundary):
     f = a.render(along)
     assert_unit(f.layers["factor"])
     F = f.layers["factor"].ravel()
-    assert F[behind[0]] < 0.5                         # right behind the wall: s = sin(atan 2) = 0.89
-    assert F[12 if rows == 1 else 4] == 1.0           # on the light's side: nothing toward it
+    assert F[behind[0]] < 0.5  # right behind the wall: s = sin(atan 2) = 0.89
+    assert F[12 if rows == 1 else 4] == 1.0  # on the light's side: nothing toward it
 
 
 def _centres(rows, cols):
@@ -131,6 +130,7 @@ def test_2x2_map_renders_finite_on_both_sides(variant, boundary):
 # Formats: the same data as 8- and 16-bit PNG, EXR and .npy
 # --------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def same_data(tmp_path_factory):
     """A 17x29 map whose values v/255 are exact in all four formats (16-bit: v * 257)."""
@@ -155,9 +155,12 @@ def test_every_format_of_the_same_data_bakes_the_same(variant, same_data, tmp_pa
     outs = {}
     for name in ("h8.png", "h16.png", "h.exr", "h.npy"):
         out = tmp_path / name.replace(".", "_")
-        assert cli.main(["bake", str(d / name), "--depth", "0.2", "--boundary", "open", "--out", str(out)]) == 0
-        outs[name] = {f: files.read_exr(out / f) for f in ("horizon0.exr", "horizon1.exr", "normal.exr",
-                                                           "ambient.exr")}
+        assert (
+            cli.main(["bake", str(d / name), "--depth", "0.2", "--boundary", "open", "--out", str(out)]) == 0
+        )
+        outs[name] = {
+            f: files.read_exr(out / f) for f in ("horizon0.exr", "horizon1.exr", "normal.exr", "ambient.exr")
+        }
     first = outs["h8.png"]
     for name, got in outs.items():
         for f, channels in got.items():
@@ -187,7 +190,7 @@ def test_bake_sees_across_every_edge_and_corner_with_wrap_only(variant, corner):
         r, c = r % n, c % n
         if (r, c) == (sr, sc):
             continue
-        drow = ((sr - r + n // 2) % n) - n // 2            # the spike's nearest copy
+        drow = ((sr - r + n // 2) % n) - n // 2  # the spike's nearest copy
         dcol = ((sc - c + n // 2) % n) - n // 2
         i, j = cv.pixel_to_tangent_offset(drow, dcol)
         s = height / math.hypot(height, math.hypot(i, j))
@@ -207,7 +210,7 @@ def test_truth_shadows_cross_every_edge_and_corner_with_wrap_only(variant, azimu
     h[10:14, 10:14] = 1.0
     depth = 3.0 / n
     # identical sample offsets in every pixel, so that rolling moves samples onto samples
-    fx, fy = np.meshgrid([0.3, 0.8], [0.15, 0.65])        # on no line of mesh edges (x, y, x - y)
+    fx, fy = np.meshgrid([0.3, 0.8], [0.15, 0.65])  # on no line of mesh edges (x, y, x - y)
     row, col = np.divmod(np.arange(n * n), n)
     xs = (col[:, None] + fx.ravel()[None]).astype(np.float32).ravel()
     ys = ((n - row)[:, None] - fy.ravel()[None]).astype(np.float32).ravel()
@@ -236,12 +239,12 @@ def test_approximation_filters_across_edges_with_wrap_and_clamps_with_open(varia
     rng = np.random.default_rng(8)
     hz = rng.uniform(0.0, 0.8, (rows, cols)).astype(np.float32)
     b = uniform_bake(np.zeros(8), rows=rows, cols=cols, boundary=boundary)
-    b.horizon[..., 0] = hz                             # channel 0: azimuth 0 reads it exactly
+    b.horizon[..., 0] = hz  # channel 0: azimuth 0 reads it exactly
     a = Horizon(make_scene((rows, cols), 0.1, boundary), b)
     xs = np.array([0.1, cols / 2, cols - 0.1, 0.1, cols - 0.1, 0.1, cols / 2, cols - 0.1])
     ys = np.array([0.1, 0.1, 0.1, rows / 2, rows / 2, rows - 0.1, rows - 0.1, rows - 0.1])
     s = a.sample(xs, ys, 0.0, 10.0)["horizon_sine"]
-    fx, fr = xs - 0.5, rows - ys - 0.5                 # column and row coordinates of texel centres
+    fx, fr = xs - 0.5, rows - ys - 0.5  # column and row coordinates of texel centres
     c0, r0 = np.floor(fx).astype(int), np.floor(fr).astype(int)
     ax, ay = fx - c0, fr - r0
 
@@ -250,5 +253,7 @@ def test_approximation_filters_across_edges_with_wrap_and_clamps_with_open(varia
             return hz[r % rows, c % cols].astype(np.float64)
         return hz[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)].astype(np.float64)
 
-    expect = (1 - ay) * ((1 - ax) * at(r0, c0) + ax * at(r0, c0 + 1)) + ay * ((1 - ax) * at(r0 + 1, c0) + ax * at(r0 + 1, c0 + 1))
+    expect = (1 - ay) * ((1 - ax) * at(r0, c0) + ax * at(r0, c0 + 1)) + ay * (
+        (1 - ax) * at(r0 + 1, c0) + ax * at(r0 + 1, c0 + 1)
+    )
     assert s == pytest.approx(expect, abs=2e-6)

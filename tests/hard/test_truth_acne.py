@@ -16,8 +16,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval.scene import camera as hz_camera
 from hzval.core import conventions as cv
+from hzval.scene import camera as hz_camera
 from hzval.scene import spec as S
 from hzval.truth.plane import _off_edge_lines
 
@@ -38,13 +38,19 @@ def noise(variant):
 
 
 def per_sample_visibility(t, azimuth):
-    (st,) = t._kept                                # a small image: one band, kept between frames
+    (st,) = t._kept  # a small image: one band, kept between frames
     return np.asarray(t._visible(st.o, st.n, *t.light_directions(azimuth, st)))
 
 
-@pytest.mark.parametrize("boundary,elevation,where", [
-    ("open", 2.0, "vertices"), ("open", 2.0, "jittered"), ("wrap", 5.0, "vertices"), ("open", 0.5, "vertices"),
-])
+@pytest.mark.parametrize(
+    "boundary,elevation,where",
+    [
+        ("open", 2.0, "vertices"),
+        ("open", 2.0, "jittered"),
+        ("wrap", 5.0, "vertices"),
+        ("open", 0.5, "vertices"),
+    ],
+)
 def test_no_acne_and_no_leaks_at_grazing_light(noise, boundary, elevation, where):
     h, depth = noise
     if where == "vertices":
@@ -59,13 +65,15 @@ def test_no_acne_and_no_leaks_at_grazing_light(noise, boundary, elevation, where
     # the truth's mesh carries a margin for 10 degrees and hops beyond it; the reference
     # sees its own margin only, so it gets one wide enough for the ray to clear the top
     ref_margin = math.ceil((1.0 + 1e-3) / math.tan(math.radians(elevation))) + 2
-    tris = mesh_triangles(cv.heights_in_texels(h, depth), boundary, margin=ref_margin if boundary == "wrap" else None)
+    tris = mesh_triangles(
+        cv.heights_in_texels(h, depth), boundary, margin=ref_margin if boundary == "wrap" else None
+    )
     left_out = 0
     for az in AZIMUTHS:
         V = per_sample_visibility(t, az)
         ref = mesh_horizon_tan(tris, mx, my, az)
         lit, shadowed = classify(ref, elevation, MARGIN)
-        assert lit.sum() >= 0.02 * V.size and shadowed.sum() >= 0.02 * V.size, az     # both occur
+        assert lit.sum() >= 0.02 * V.size and shadowed.sum() >= 0.02 * V.size, az  # both occur
         assert np.all(V[lit] == 1.0), (az, "false shadows (acne)", np.flatnonzero(lit & (V == 0)))
         assert np.all(V[shadowed] == 0.0), (az, "light leaks", np.flatnonzero(shadowed & (V == 1)))
         left_out += int((~(lit | shadowed)).sum())

@@ -78,16 +78,29 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import backend
-from hzval.techniques.fitted import guard as fit_guard
-from hzval.techniques import horizon
-from hzval.scene import lookup
 from hzval.core import conventions as cv
-from hzval.scene import spec as sc
-from hzval.io import storage as hz_storage
 from hzval.core.errors import InputError
+from hzval.io import storage as hz_storage
+from hzval.scene import lookup
+from hzval.scene import spec as sc
+from hzval.techniques import horizon
+from hzval.techniques.fitted import guard as fit_guard
 
-__all__ = ["TRAINING_LIGHTS", "HELD_OUT_LIGHTS", "FitResult", "parse_lights", "fit", "write_fit", "read_fit",
-           "estimate_bytes", "check_fits", "visibility", "mean_error", "light_errors", "training_spp"]
+__all__ = [
+    "TRAINING_LIGHTS",
+    "HELD_OUT_LIGHTS",
+    "FitResult",
+    "parse_lights",
+    "fit",
+    "write_fit",
+    "read_fit",
+    "estimate_bytes",
+    "check_fits",
+    "visibility",
+    "mean_error",
+    "light_errors",
+    "training_spp",
+]
 
 #: The default training lights, ``ELEVATIONS@AZIMUTHS`` (:func:`parse_lights`).
 TRAINING_LIGHTS = "10,20,40,60@0:345:15"
@@ -124,7 +137,7 @@ PRIOR = 0.1
 #: Memory of a fit (:func:`estimate_bytes`): a base, bytes per pixel and light (V), per sample (uv),
 #: per texel (parameters, gradient, Adam's two moments, the stored copy, the bake) and per sample of
 #: a band (the AD graph of the forward model).
-FIT_BASE_BYTES = 0.4 * 2 ** 30
+FIT_BASE_BYTES = 0.4 * 2**30
 FIT_BYTES_PER_PIXEL_LIGHT = 4
 FIT_BYTES_PER_SAMPLE = 8
 FIT_BYTES_PER_TEXEL = 8 * 4 * 8
@@ -177,8 +190,9 @@ def fit_scene(scene) -> "sc.Scene":
     from hzval.scene.camera import Camera
 
     light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
-    return dataclasses.replace(scene, effects=("shadow",), light=light, camera=Camera(),
-                               lookup=lookup.Lookup())
+    return dataclasses.replace(
+        scene, effects=("shadow",), light=light, camera=Camera(), lookup=lookup.Lookup()
+    )
 
 
 def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
@@ -219,8 +233,12 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
     is given) and the optimisation's (:data:`FIT_BASE_BYTES` and the rest)."""
     P = rows * cols
     band = min(P * spp, BAND_SAMPLES)
-    optimise = (FIT_BASE_BYTES + FIT_BYTES_PER_SAMPLE * P * spp + FIT_BYTES_PER_TEXEL * P
-                + FIT_BYTES_PER_BAND_SAMPLE * band)
+    optimise = (
+        FIT_BASE_BYTES
+        + FIT_BYTES_PER_SAMPLE * P * spp
+        + FIT_BYTES_PER_TEXEL * P
+        + FIT_BYTES_PER_BAND_SAMPLE * band
+    )
     render = 0
     if scene is not None:
         from hzval.pipeline import sweep
@@ -236,9 +254,12 @@ def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=Non
 
     need, have = estimate_bytes(rows, cols, spp, lights, scene), available_bytes()
     if need > have:
-        raise InputError(what, f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights needs about "
-                               f"{need / 2**30:.1f} GiB (estimated); {have / 2**30:.1f} GiB are available "
-                               "(fewer --spp or --lights, or a smaller map)")
+        raise InputError(
+            what,
+            f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights needs about "
+            f"{need / 2**30:.1f} GiB (estimated); {have / 2**30:.1f} GiB are available "
+            "(fewer --spp or --lights, or a smaller map)",
+        )
     return need
 
 
@@ -247,8 +268,10 @@ def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k:
     (float): the sweep's own ``visibility_mae`` (:func:`hzval.metrics.compare.visibility_metrics`, every pixel
     seen)."""
     ap = horizon.Horizon(fit_scene(scene), dataclasses.replace(bake, horizon=sines), None, k=k)
-    return [float(np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
-            for (e, az), v in zip(lights, V)]
+    return [
+        float(np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
+        for (e, az), v in zip(lights, V)
+    ]
 
 
 def mean_error(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> float:
@@ -287,19 +310,30 @@ class FitResult:
         m = self.mae
         return {
             "format": "hzval fit 1",
-            "k": self.k, "fit_k": self.fit_k, "storage": self.storage,
+            "k": self.k,
+            "fit_k": self.fit_k,
+            "storage": self.storage,
             "mae": m,
-            "fitted_over_baked": {w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None)
-                                  for w in m},
-            "loss": {"kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {CHARBONNIER_EPS:g}; "
-                             "straight-through clamp", "per_epoch": self.loss,
-                     "epoch_seconds": self.epoch_seconds},
-            "epochs": self.epochs, "steps": self.steps, "converged": self.converged,
-            "seconds": self.seconds, "settings": self.settings,
-            "lights": {"training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.lights],
-                       "held_out": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.held_out]},
+            "fitted_over_baked": {
+                w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None) for w in m
+            },
+            "loss": {
+                "kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {CHARBONNIER_EPS:g}; "
+                "straight-through clamp",
+                "per_epoch": self.loss,
+                "epoch_seconds": self.epoch_seconds,
+            },
+            "epochs": self.epochs,
+            "steps": self.steps,
+            "converged": self.converged,
+            "seconds": self.seconds,
+            "settings": self.settings,
+            "lights": {
+                "training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.lights],
+                "held_out": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.held_out],
+            },
             "conventions": "horizon0/1 as hzval bake writes them: channel c (azimuth 45 c deg, "
-                           "counterclockwise from +x) in layer c // 4; sines in [0, 1]",
+            "counterclockwise from +x) in layer c // 4; sines in [0, 1]",
         }
 
 
@@ -328,8 +362,8 @@ class _Model:
         band = max(1, BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
         V = lookup.aligned_empty(len(V_list) * self.P)
-        for i, v in enumerate(V_list):          # one copy, not a stack and then an aligned copy
-            V[i * self.P:(i + 1) * self.P] = np.asarray(v, np.float32).ravel()
+        for i, v in enumerate(V_list):  # one copy, not a stack and then an aligned copy
+            V[i * self.P : (i + 1) * self.P] = np.asarray(v, np.float32).ravel()
         self.V = mi.Float(V)
         self._mi, self._dr = mi, dr
 
@@ -360,8 +394,13 @@ class _Model:
             uv = dr.gather(mi.Point2f, self.ap._uv, sample)
             u, v = uv.x, uv.y
         h = self.ap._fetch(u, v)[horizon.HORIZON_SLOT]
-        F, _ = horizon.shadow_factor(h, [dr.gather(mi.Float, c, li) for c in w], dr.gather(mi.Float, L.z, li), self.k,
-                                    straight_through=True)
+        F, _ = horizon.shadow_factor(
+            h,
+            [dr.gather(mi.Float, c, li) for c in w],
+            dr.gather(mi.Float, L.z, li),
+            self.k,
+            straight_through=True,
+        )
         return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
 
     def errors(self, sines: np.ndarray, k: float, lights, V_list):
@@ -372,9 +411,14 @@ class _Model:
             self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(sines, np.float32))))
             self.k = k
             for first in range(0, len(lights), self.group):
-                group = lights[first:first + self.group]
-                F = np.concatenate([np.asarray(self.factor(group, a, b), np.float32).reshape(len(group), b - a)
-                                    for a, b in self.bands], axis=1)
+                group = lights[first : first + self.group]
+                F = np.concatenate(
+                    [
+                        np.asarray(self.factor(group, a, b), np.float32).reshape(len(group), b - a)
+                        for a, b in self.bands
+                    ],
+                    axis=1,
+                )
                 for i, f in enumerate(F):
                     yield np.abs(f.reshape(self.rows, self.cols) - V_list[first + i])
 
@@ -385,17 +429,19 @@ class _Model:
         dr, mi = self._dr, self._mi
         total = 0.0
         for first in range(0, len(indices), self.group):
-            group = [int(i) for i in indices[first:first + self.group]]
+            group = [int(i) for i in indices[first : first + self.group]]
             for a, b in self.bands:
                 F = self.factor([lights[i] for i in group], a, b)
                 m = b - a
                 lane = dr.arange(mi.UInt32, len(group) * m)
                 li = lane // m
-                at = dr.gather(mi.UInt32, mi.UInt32(np.array(group, np.uint32)), li) * self.P + (lane - li * m + a)
+                at = dr.gather(mi.UInt32, mi.UInt32(np.array(group, np.uint32)), li) * self.P + (
+                    lane - li * m + a
+                )
                 diff = F - dr.gather(mi.Float, self.V, at)
-                pixel = dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS ** 2)) - CHARBONNIER_EPS
+                pixel = dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS**2)) - CHARBONNIER_EPS
                 dr.eval(pixel)
-                sums = np.asarray(dr.block_sum(dr.detach(pixel), m), np.float64)   # one per light of the group
+                sums = np.asarray(dr.block_sum(dr.detach(pixel), m), np.float64)  # one per light of the group
                 if per_light is not None:
                     per_light[group] += sums
                 if weights is not None:
@@ -405,11 +451,25 @@ class _Model:
         return total
 
 
-def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HELD_OUT_LIGHTS, fit_k: bool = False,
-        storage: str = "float", k: float = horizon.DEFAULT_K, tolerance: float = TOLERANCE,
-        max_epochs: int = MAX_EPOCHS, learning_rate: float = LEARNING_RATE, prior: float = PRIOR,
-        guard: float | None = None, train_spp: int | None = None, constrain: float = CONSTRAIN,
-        progress: bool = True) -> FitResult:
+def fit(
+    height: np.ndarray,
+    bake,
+    scene,
+    *,
+    lights=TRAINING_LIGHTS,
+    held_out=HELD_OUT_LIGHTS,
+    fit_k: bool = False,
+    storage: str = "float",
+    k: float = horizon.DEFAULT_K,
+    tolerance: float = TOLERANCE,
+    max_epochs: int = MAX_EPOCHS,
+    learning_rate: float = LEARNING_RATE,
+    prior: float = PRIOR,
+    guard: float | None = None,
+    train_spp: int | None = None,
+    constrain: float = CONSTRAIN,
+    progress: bool = True,
+) -> FitResult:
     """Fit ``bake``'s horizon map to the truth of ``scene`` on ``height`` (module docstring).
 
     ``lights``/``held_out``: specs (:func:`parse_lights`) or ``(elevation, azimuth)`` tuples; ``k``:
@@ -429,16 +489,32 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
     # the guard holds the bake's |F - V| per pixel and training light beside V: as much again
-    check_fits("HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene)
-    train = dataclasses.replace(scene, spp=min(scene.spp, int(train_spp or training_spp(scene.spp, rows * cols))))
+    check_fits(
+        "HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene
+    )
+    train = dataclasses.replace(
+        scene, spp=min(scene.spp, int(train_spp or training_spp(scene.spp, rows * cols)))
+    )
     t0, c0 = time.perf_counter(), time.process_time()
     V_train, V_held = _truth(train, scene, height, lights, held_out, progress)
     t_truth, c_truth = time.perf_counter() - t0, time.process_time() - c0
 
     t0, c0 = time.perf_counter(), time.process_time()
-    fitted, k_fit, curve, times, steps, converged = _optimise(train, bake, V_train, lights, k, fit_k, storage,
-                                                              tolerance, max_epochs, learning_rate, progress,
-                                                              prior, constrain)
+    fitted, k_fit, curve, times, steps, converged = _optimise(
+        train,
+        bake,
+        V_train,
+        lights,
+        k,
+        fit_k,
+        storage,
+        tolerance,
+        max_epochs,
+        learning_rate,
+        progress,
+        prior,
+        constrain,
+    )
     guarded = None
     if guard is not None:
         fitted, guarded = _guarded(train, bake, stored, V_train, lights, fitted, k, k_fit, guard)
@@ -447,19 +523,52 @@ def fit(height: np.ndarray, bake, scene, *, lights=TRAINING_LIGHTS, held_out=HEL
     mae = {}
     for name, s, ls, V in (("training", train, lights, V_train), ("held_out", scene, held_out, V_held)):
         if ls:
-            before, after = (light_errors(s, bake, baked_stored, ls, V, k), light_errors(s, bake, fitted, ls, V, k_fit))
-            mae[name] = {"baked": float(np.mean(before)), "fitted": float(np.mean(after)),
-                         "lights_worse": int(sum(a > b for a, b in zip(after, before)))}
-    settings = {"tolerance": tolerance, "max_epochs": max_epochs, "learning_rate": learning_rate, "prior": prior,
-                "constrain": constrain, "batch_lights": BATCH_LIGHTS, "spp": scene.spp, "train_spp": train.spp,
-                "seed": scene.seed, "guard": guarded,
-                "k_baked": k, "optimiser": "Adam (mitsuba.ad.Adam)"}
-    return FitResult(fitted, k_fit, storage, fit_k, lights, held_out, mae, curve, times, len(curve), steps, converged,
-                     {"truth": t_truth, "fit": t_fit, "evaluate": time.perf_counter() - t0 - t_fit,
-                      # the process's CPU seconds (user + sys, every thread): on a shared machine the wall
-                      # time is what the load allowed, this what the stage cost
-                      "cpu": {"truth": c_truth, "fit": c_fit, "evaluate": time.process_time() - c0 - c_fit}},
-                     settings)
+            before, after = (
+                light_errors(s, bake, baked_stored, ls, V, k),
+                light_errors(s, bake, fitted, ls, V, k_fit),
+            )
+            mae[name] = {
+                "baked": float(np.mean(before)),
+                "fitted": float(np.mean(after)),
+                "lights_worse": int(sum(a > b for a, b in zip(after, before))),
+            }
+    settings = {
+        "tolerance": tolerance,
+        "max_epochs": max_epochs,
+        "learning_rate": learning_rate,
+        "prior": prior,
+        "constrain": constrain,
+        "batch_lights": BATCH_LIGHTS,
+        "spp": scene.spp,
+        "train_spp": train.spp,
+        "seed": scene.seed,
+        "guard": guarded,
+        "k_baked": k,
+        "optimiser": "Adam (mitsuba.ad.Adam)",
+    }
+    return FitResult(
+        fitted,
+        k_fit,
+        storage,
+        fit_k,
+        lights,
+        held_out,
+        mae,
+        curve,
+        times,
+        len(curve),
+        steps,
+        converged,
+        {
+            "truth": t_truth,
+            "fit": t_fit,
+            "evaluate": time.perf_counter() - t0 - t_fit,
+            # the process's CPU seconds (user + sys, every thread): on a shared machine the wall
+            # time is what the load allowed, this what the stage cost
+            "cpu": {"truth": c_truth, "fit": c_fit, "evaluate": time.process_time() - c0 - c_fit},
+        },
+        settings,
+    )
 
 
 def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
@@ -471,8 +580,15 @@ def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tol
     def errors(sines, baked):
         return model.errors(sines, k if baked else k_fit, lights, V)
 
-    return fit_guard.guard(stored.roundtrip(bake.horizon), fitted, errors, bake.params.boundary,
-                           cell=4 if blocks else 1, tolerance=tolerance, finish=stored.roundtrip if blocks else None)
+    return fit_guard.guard(
+        stored.roundtrip(bake.horizon),
+        fitted,
+        errors,
+        bake.params.boundary,
+        cell=4 if blocks else 1,
+        tolerance=tolerance,
+        finish=stored.roundtrip if blocks else None,
+    )
 
 
 def _truth(train, scene, height, lights, held_out, progress: bool):
@@ -482,13 +598,34 @@ def _truth(train, scene, height, lights, held_out, progress: bool):
 
     from tqdm import tqdm
 
-    with tqdm(total=len(lights) + len(held_out), desc="truth", unit="light", disable=not progress,
-              file=sys.stderr, leave=False) as bar:
-        return visibility(train, height, lights, bar), visibility(scene, height, held_out, bar) if held_out else []
+    with tqdm(
+        total=len(lights) + len(held_out),
+        desc="truth",
+        unit="light",
+        disable=not progress,
+        file=sys.stderr,
+        leave=False,
+    ) as bar:
+        return visibility(train, height, lights, bar), visibility(
+            scene, height, held_out, bar
+        ) if held_out else []
 
 
-def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, tolerance: float,
-              max_epochs: int, lr: float, progress: bool, prior: float = 0.0, constrain: float = 0.0):
+def _optimise(
+    scene,
+    bake,
+    V_list,
+    lights,
+    k: float,
+    fit_k: bool,
+    storage: str,
+    tolerance: float,
+    max_epochs: int,
+    lr: float,
+    progress: bool,
+    prior: float = 0.0,
+    constrain: float = 0.0,
+):
     """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
     converged)``. ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: none)."""
     import sys
@@ -509,19 +646,24 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
     weights = np.ones(len(lights), np.float32) if constrain > 0 else None
     if weights is not None:
         baked = _light_losses(model, hz_storage.get(storage).roundtrip(bake.horizon), k, lights, V_list)
-    bar = tqdm(range(max_epochs), desc="fit", unit="epoch", disable=not progress, file=sys.stderr, leave=False)
+    bar = tqdm(
+        range(max_epochs), desc="fit", unit="epoch", disable=not progress, file=sys.stderr, leave=False
+    )
     for _ in bar:
         t0, total, per = time.perf_counter(), 0.0, np.zeros(len(lights))
         order = rng.permutation(len(lights))
         for first in range(0, len(order), BATCH_LIGHTS):
             model.set_parameters(opt["h"], opt["logk"] if fit_k else None)
-            total += model.backward(order[first:first + BATCH_LIGHTS], lights, norm, weights, per) * norm
+            total += model.backward(order[first : first + BATCH_LIGHTS], lights, norm, weights, per) * norm
             if prior > 0:
                 # where the training lights leave a sine free, it stays the bake's (docs/fit.md, "Limits")
                 pull = prior * dr.mean(dr.abs(opt["h"].array - start.array), axis=None)
                 dr.backward(pull)
-                total += float(np.asarray(dr.detach(pull)).ravel()[0]) * len(order[first:first + BATCH_LIGHTS]) \
+                total += (
+                    float(np.asarray(dr.detach(pull)).ravel()[0])
+                    * len(order[first : first + BATCH_LIGHTS])
                     / len(lights)
+                )
             opt.step()
             opt["h"] = dr.clip(opt["h"], 0.0, 1.0)
             if fit_k:
@@ -538,7 +680,7 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
             if calm >= HALVINGS:
                 converged = True
                 break
-            opt.set_learning_rate(lr * 0.5 ** calm)
+            opt.set_learning_rate(lr * 0.5**calm)
     bar.close()
     h = np.asarray(opt["h"], np.float32).reshape(model.rows, model.cols, -1)
     k_fit = float(np.exp(np.asarray(opt["logk"])[0])) if fit_k else float(k)
@@ -548,8 +690,12 @@ def _optimise(scene, bake, V_list, lights, k: float, fit_k: bool, storage: str, 
 def _light_losses(model: _Model, sines: np.ndarray, k: float, lights, V_list) -> np.ndarray:
     """The Charbonnier loss of each light (its pixels' mean) of ``sines`` as stored."""
     eps = CHARBONNIER_EPS
-    return np.array([float(np.mean(np.sqrt(e.astype(np.float64) ** 2 + eps ** 2) - eps))
-                     for e in model.errors(sines, k, lights, V_list)])
+    return np.array(
+        [
+            float(np.mean(np.sqrt(e.astype(np.float64) ** 2 + eps**2) - eps))
+            for e in model.errors(sines, k, lights, V_list)
+        ]
+    )
 
 
 def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: float) -> np.ndarray:
@@ -565,16 +711,24 @@ def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[P
     and ``fit.json``, all or nothing."""
     from hzval.io import files
 
-    layers = [result.horizon[..., c:c + cv.CHANNELS_PER_LAYER]
-              for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)]
+    layers = [
+        result.horizon[..., c : c + cv.CHANNELS_PER_LAYER]
+        for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)
+    ]
     with files.Staging(out) as stage:
         for i, layer in enumerate(layers):
             files.write_exr(stage.path(f"horizon{i}.exr"), {"RGBA": layer}, atomic=False, compression="none")
             files.write_png(stage.path(f"horizon{i}.png"), files.unit_to_u8(layer), atomic=False)
-        digests = {p.relative_to(stage.dir).as_posix(): files.file_digest(p)
-                   for p in sorted(stage.dir.rglob("*")) if p.is_file()}
-        files.write_json(stage.path("fit.json"), {"input": input_info, **result.record(),
-                                                  "versions": backend.versions(), "files": digests}, atomic=False)
+        digests = {
+            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            for p in sorted(stage.dir.rglob("*"))
+            if p.is_file()
+        }
+        files.write_json(
+            stage.path("fit.json"),
+            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
+            atomic=False,
+        )
         return stage.commit()
 
 
@@ -584,8 +738,10 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
 
     folder = Path(folder)
     record = json.loads((folder / "fit.json").read_text())
-    layers = [files.read_exr(folder / f"horizon{i}.exr") for i in range(len([n for n in record["files"]
-                                                                              if n.endswith(".exr")]))]
+    layers = [
+        files.read_exr(folder / f"horizon{i}.exr")
+        for i in range(len([n for n in record["files"] if n.endswith(".exr")]))
+    ]
     return np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1), record
 
 
@@ -593,14 +749,22 @@ def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
     """The digest a cached fit is reused by: the height map, the bake's parameters, the scene's samples
     and depth/boundary, and the fit's settings."""
     h = hashlib.sha256(np.ascontiguousarray(height, np.float32).tobytes())
-    meta = {"bake": bake.params.record(), "spp": scene.spp, "seed": scene.seed, "lookup": repr(scene.lookup),
-            "supersampling": scene.camera.supersampling, "fit": settings, "version": FIT_VERSION}
+    meta = {
+        "bake": bake.params.record(),
+        "spp": scene.spp,
+        "seed": scene.seed,
+        "lookup": repr(scene.lookup),
+        "supersampling": scene.camera.supersampling,
+        "fit": settings,
+        "version": FIT_VERSION,
+    }
     h.update(json.dumps(meta, sort_keys=True, default=str).encode())
     return h.hexdigest()
 
 
-def cached_fit(height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False,
-               **settings) -> tuple[FitResult | None, np.ndarray, dict, bool]:
+def cached_fit(
+    height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False, **settings
+) -> tuple[FitResult | None, np.ndarray, dict, bool]:
     """``(result or None, sines, record, cached)``: the fit in ``folder`` if its key
     (:func:`cache_key`) and file digests match, else a new :func:`fit` written there."""
     from hzval.io import files
@@ -610,8 +774,9 @@ def cached_fit(height: np.ndarray, bake, scene, folder: str | Path | None, *, pr
         folder = Path(folder)
         try:
             record = json.loads((folder / "fit.json").read_text())
-            if record["input"]["key"] == key and all(files.file_digest(folder / n) == d
-                                                     for n, d in record["files"].items()):
+            if record["input"]["key"] == key and all(
+                files.file_digest(folder / n) == d for n, d in record["files"].items()
+            ):
                 sines, record = read_fit(folder)
                 return None, sines, record, True
         except (OSError, ValueError, KeyError, TypeError):

@@ -50,7 +50,7 @@ def neighbourhood_sum(x: np.ndarray, boundary: str, radius: int = 1) -> np.ndarr
     out = np.zeros_like(x)
     for dr in range(2 * radius + 1):
         for dc in range(2 * radius + 1):
-            out += pad[dr:dr + rows, dc:dc + cols]
+            out += pad[dr : dr + rows, dc : dc + cols]
     return out
 
 
@@ -66,9 +66,17 @@ def _cells(mask: np.ndarray, cell: int) -> np.ndarray:
     return np.repeat(np.repeat(blocks, cell, 0), cell, 1)[:rows, :cols]
 
 
-def guard(baked: np.ndarray, fitted: np.ndarray, errors: Callable[[np.ndarray, bool], Iterable[np.ndarray]],
-          boundary: str, *, cell: int = 1, tolerance: float = TOLERANCE, rounds: int = ROUNDS,
-          finish: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
+def guard(
+    baked: np.ndarray,
+    fitted: np.ndarray,
+    errors: Callable[[np.ndarray, bool], Iterable[np.ndarray]],
+    boundary: str,
+    *,
+    cell: int = 1,
+    tolerance: float = TOLERANCE,
+    rounds: int = ROUNDS,
+    finish: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> tuple[np.ndarray, dict]:
     """``(sines, record)``: ``fitted`` (rows, cols, D) with the texels that regress reverted to ``baked``
     (module docstring).
 
@@ -96,5 +104,10 @@ def guard(baked: np.ndarray, fitted: np.ndarray, errors: Callable[[np.ndarray, b
         if finish is not None:
             current = finish(current)
     left = float(worst[keep].max()) if verified and keep.any() else None
-    return current, {"tolerance": tolerance, "rounds": done, "verified": verified,
-                     "kept_fitted": float(keep.mean()), "worst_regression_kept": left}
+    return current, {
+        "tolerance": tolerance,
+        "rounds": done,
+        "verified": verified,
+        "kept_fitted": float(keep.mean()),
+        "worst_regression_kept": left,
+    }

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import dataclasses
 
+from hzval.scene.spec import Scene
 from hzval.techniques.fitted import fit
 from hzval.techniques.horizon import DEFAULT_K, Horizon
-from hzval.scene.spec import Scene
 from hzval.techniques.registry import Context
 
 __all__ = ["FittedHorizon"]
@@ -33,16 +33,20 @@ class FittedHorizon(Horizon):
 
     name = "horizon-fit"
     label = "fitted horizon map"
-    summary = ("the horizon map fitted to the truth with Dr.Jit's AD (hzval fit): the representation's floor, "
-               "beside the bake")
+    summary = (
+        "the horizon map fitted to the truth with Dr.Jit's AD (hzval fit): the representation's floor, "
+        "beside the bake"
+    )
     file_stem = "horizon_fit"
     needs = ("shadow",)
     by_default = False
     not_on_models = "the fit trains on the plane's top view (docs/fit.md)"
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
     #: A frame's ``split`` of the baked map's mean |F - V|, from the bottom up (:meth:`frame_extras`).
-    split_parts = (("representation", "what eight directions cannot hold (fitted |F−V|)"),
-                   ("bake_loss", "what the bake loses (baked − fitted |F−V|)"))
+    split_parts = (
+        ("representation", "what eight directions cannot hold (fitted |F−V|)"),
+        ("bake_loss", "what the bake loses (baked − fitted |F−V|)"),
+    )
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
@@ -50,30 +54,67 @@ class FittedHorizon(Horizon):
         return super().bake_needs(scene) | {"height"}
 
     @classmethod
-    def build(cls, ctx: Context, *, k: float = DEFAULT_K, storage: str | None = None, fit_k: bool = False,
-              lights: str = fit.TRAINING_LIGHTS, held_out: str = fit.HELD_OUT_LIGHTS, **settings) -> "FittedHorizon":
+    def build(
+        cls,
+        ctx: Context,
+        *,
+        k: float = DEFAULT_K,
+        storage: str | None = None,
+        fit_k: bool = False,
+        lights: str = fit.TRAINING_LIGHTS,
+        held_out: str = fit.HELD_OUT_LIGHTS,
+        **settings,
+    ) -> "FittedHorizon":
         """``lights``/``held_out``: the fit's training and held-out lights (:func:`hzval.techniques.fitted.fit.parse_lights`)."""
         storage = storage or "float"
-        _, sines, record, cached = fit.cached_fit(ctx.height, ctx.bake, ctx.scene, ctx.cache, k=float(k),
-                                                  storage=storage, fit_k=bool(fit_k), lights=lights,
-                                                  held_out=held_out)
+        _, sines, record, cached = fit.cached_fit(
+            ctx.height,
+            ctx.bake,
+            ctx.scene,
+            ctx.cache,
+            k=float(k),
+            storage=storage,
+            fit_k=bool(fit_k),
+            lights=lights,
+            held_out=held_out,
+        )
         # the sines are the stored map, decoded: uploaded as they are
-        own = cls(ctx.scene, dataclasses.replace(ctx.bake, horizon=sines), ctx.albedo, samples=ctx.samples(),
-                  k=float(record["k"]), storage="float", **settings)
-        own.storage = storage           # what parameters and storage_bytes report
-        own.fit_record = {"cached": cached, "k": record["k"], "fit_k": record["fit_k"], "mae": record["mae"],
-                   "epochs": record["epochs"], "converged": record["converged"], "seconds": record["seconds"]}
+        own = cls(
+            ctx.scene,
+            dataclasses.replace(ctx.bake, horizon=sines),
+            ctx.albedo,
+            samples=ctx.samples(),
+            k=float(record["k"]),
+            storage="float",
+            **settings,
+        )
+        own.storage = storage  # what parameters and storage_bytes report
+        own.fit_record = {
+            "cached": cached,
+            "k": record["k"],
+            "fit_k": record["fit_k"],
+            "mae": record["mae"],
+            "epochs": record["epochs"],
+            "converged": record["converged"],
+            "seconds": record["seconds"],
+        }
         return own
 
     @classmethod
     def add_arguments(cls, parser) -> None:
-        parser.add_argument("--horizon-fit-k", action="store_true",
-                            help="fitted horizon map: fit the shadow hardness k too (default: the horizon map's --horizon-k)")
+        parser.add_argument(
+            "--horizon-fit-k",
+            action="store_true",
+            help="fitted horizon map: fit the shadow hardness k too (default: the horizon map's --horizon-k)",
+        )
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        return {"k": args.horizon_k, "fit_k": bool(args.horizon_fit_k),
-                **({"storage": args.horizon_storage} if args.horizon_storage else {})}
+        return {
+            "k": args.horizon_k,
+            "fit_k": bool(args.horizon_fit_k),
+            **({"storage": args.horizon_storage} if args.horizon_storage else {}),
+        }
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
@@ -81,7 +122,7 @@ class FittedHorizon(Horizon):
 
     @classmethod
     def check_variants(cls) -> list:
-        return []           # the regression check guards the bake's technique; a fit is its study
+        return []  # the regression check guards the bake's technique; a fit is its study
 
     @classmethod
     def tradeoff_variants(cls) -> list:
@@ -93,7 +134,11 @@ class FittedHorizon(Horizon):
 
     @property
     def parameters(self) -> dict:
-        return {**super().parameters, "bake": "fitted to the truth (hzval.techniques.fitted.fit)", "fit": self.fit_record}
+        return {
+            **super().parameters,
+            "bake": "fitted to the truth (hzval.techniques.fitted.fit)",
+            "fit": self.fit_record,
+        }
 
     @classmethod
     def frame_extras(cls, scores: dict) -> dict:
@@ -101,7 +146,16 @@ class FittedHorizon(Horizon):
         fitted: what a better baker could win back) and ``representation`` (the fitted map's: what
         eight interpolated directions and one ``k`` ramp cannot hold); nothing without both."""
         baked, fitted = scores.get(Horizon.name), scores.get(cls.name)
-        if not baked or not fitted or baked.get("visibility_mae") is None or fitted.get("visibility_mae") is None:
+        if (
+            not baked
+            or not fitted
+            or baked.get("visibility_mae") is None
+            or fitted.get("visibility_mae") is None
+        ):
             return {}
-        return {"split": {"bake_loss": baked["visibility_mae"] - fitted["visibility_mae"],
-                          "representation": fitted["visibility_mae"]}}
+        return {
+            "split": {
+                "bake_loss": baked["visibility_mae"] - fitted["visibility_mae"],
+                "representation": fitted["visibility_mae"],
+            }
+        }

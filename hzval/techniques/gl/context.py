@@ -41,8 +41,10 @@ BAND_WIDTH = 4096
 #: Rows per band: 4M samples a draw (16 MB of float results).
 BAND_ROWS = 1024
 #: What to install when no context can be made.
-INSTALL = ("pip install moderngl (with glcontext) and Mesa's EGL: apt-get install libegl1 libegl-mesa0 "
-           "libgl1-mesa-dri")
+INSTALL = (
+    "pip install moderngl (with glcontext) and Mesa's EGL: apt-get install libegl1 libegl-mesa0 "
+    "libgl1-mesa-dri"
+)
 
 _context = None
 
@@ -65,12 +67,12 @@ def context():
         kwargs["device_index"] = int(os.environ["HZVAL_GL_DEVICE"])
     try:
         _context = moderngl.create_context(**kwargs)
-    except Exception as e:          # glcontext raises plain Exceptions for a missing libEGL or driver
+    except Exception as e:  # glcontext raises plain Exceptions for a missing libEGL or driver
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise Unavailable(f"no OpenGL 3.3 context through EGL ({first}): {INSTALL}") from None
-    _context.gc_mode = "auto"               # GL objects are freed with their Python objects
+    _context.gc_mode = "auto"  # GL objects are freed with their Python objects
     # filter the cube map across its faces (ARB_seamless_cube_map; core since 3.2, off by default)
-    _context.enable_direct(0x884F)          # GL_TEXTURE_CUBE_MAP_SEAMLESS
+    _context.enable_direct(0x884F)  # GL_TEXTURE_CUBE_MAP_SEAMLESS
     return _context
 
 
@@ -97,7 +99,7 @@ def _band_texture(ctx, values: np.ndarray, components: int):
     data = np.zeros((rows * width, components), np.float32)
     data[:n] = values
     tex = ctx.texture((width, rows), components, data.tobytes(), dtype="f4")
-    tex.filter = (0x2600, 0x2600)           # GL_NEAREST: texelFetch ignores it; completeness needs one level
+    tex.filter = (0x2600, 0x2600)  # GL_NEAREST: texelFetch ignores it; completeness needs one level
     return tex, width
 
 
@@ -113,18 +115,19 @@ class SamplePass:
         from hzval.core import conventions as cv
 
         ctx = self.ctx = context()
-        source = "\n".join(["#version 330 core", f"#define {define}", shader_source(library),
-                            shader_source("samples.frag")])
+        source = "\n".join(
+            ["#version 330 core", f"#define {define}", shader_source(library), shader_source("samples.frag")]
+        )
         self.program = ctx.program(vertex_shader=_VERTEX, fragment_shader=source)
         self.vao = ctx.vertex_array(self.program, [])
         self.shape, self.spp = shape, int(samples.spp)
         u, v = cv.tangent_to_uv(samples.x, samples.y, samples.rows, samples.cols)
         uv = np.stack([np.asarray(u, np.float32), np.asarray(v, np.float32)], axis=-1)
         self.count = uv.shape[0]
-        self.bands = []                         # (first sample, texture, rows, target)
+        self.bands = []  # (first sample, texture, rows, target)
         per_band = BAND_WIDTH * BAND_ROWS
         for first in range(0, self.count, per_band):
-            tex, width = _band_texture(ctx, uv[first:first + per_band], 2)
+            tex, width = _band_texture(ctx, uv[first : first + per_band], 2)
             fbo = ctx.framebuffer(color_attachments=[ctx.texture(tex.size, 1, dtype="f4")])
             self.bands.append((first, tex, width, fbo))
         self.footprints, self.footprint_width = self._footprints(samples)
@@ -165,7 +168,7 @@ class SamplePass:
             self.vao.render(mode=self.ctx.TRIANGLES, vertices=3)
             n = min(self.count - first, width * fbo.size[1])
             band = np.frombuffer(fbo.read(components=1, dtype="f4"), np.float32)
-            out[first:first + n] = band[:n]
+            out[first : first + n] = band[:n]
         per_pixel = out.reshape(-1, self.spp).mean(axis=1, dtype=np.float64) if self.spp > 1 else out
         return np.asarray(per_pixel, np.float32).reshape(self.shape)
 

@@ -45,17 +45,15 @@ import time
 
 import numpy as np
 
-from hzval.techniques.gl import context as gl
-from hzval.techniques import horizon
-from hzval.scene import lookup
-from hzval.techniques import pom
-from hzval.techniques import surface
-from hzval.core import conventions as cv
-from hzval.io import storage as hz_storage
 from hzval.bake.maps import CUBE_SIZE, weight_cube
+from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.io import storage as hz_storage
 from hzval.io.files import unit_to_u8
+from hzval.scene import lookup
 from hzval.scene.spec import Frame, Scene, image_shape
+from hzval.techniques import horizon, pom, surface
+from hzval.techniques.gl import context as gl
 from hzval.techniques.registry import Unavailable, Variant
 
 __all__ = ["HorizonGL", "PomGL"]
@@ -84,7 +82,7 @@ class _GLTechnique(surface.HeightFieldShadow):
 
     @classmethod
     def check_variants(cls) -> list[Variant]:
-        return []           # ``hzval check`` guards the Dr.Jit techniques; these need a GL driver
+        return []  # ``hzval check`` guards the Dr.Jit techniques; these need a GL driver
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
@@ -113,8 +111,18 @@ class HorizonGL(_GLTechnique):
         """The horizon map, and what the unshadowed shading reads (:class:`hzval.techniques.surface.HeightFieldShadow`)."""
         return super().bake_needs(scene) | {"horizon_map"}
 
-    def __init__(self, scene: Scene, height: np.ndarray, *, bake=None, albedo=None, unshadowed=None,
-                 samples=None, k: float = horizon.DEFAULT_K, storage: str = "u8"):
+    def __init__(
+        self,
+        scene: Scene,
+        height: np.ndarray,
+        *,
+        bake=None,
+        albedo=None,
+        unshadowed=None,
+        samples=None,
+        k: float = horizon.DEFAULT_K,
+        storage: str = "u8",
+    ):
         _validate(bake, k, storage)
         self.scene, self.bake, self.k, self.storage = scene, bake, float(k), storage
         self.rows, self.cols = bake.horizon.shape[:2]
@@ -134,17 +142,27 @@ class HorizonGL(_GLTechnique):
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         if bake_params.directions != cv.CHANNEL_COUNT:
-            raise InputError("--techniques", f"horizon-gl runs Listing 5.1's {cv.CHANNEL_COUNT}-channel map; "
-                                             f"this bake stores {bake_params.directions} directions")
+            raise InputError(
+                "--techniques",
+                f"horizon-gl runs Listing 5.1's {cv.CHANNEL_COUNT}-channel map; "
+                f"this bake stores {bake_params.directions} directions",
+            )
         storage = settings.get("storage", "u8")
         if storage.endswith("-sqrt"):
             raise InputError("storage", f"horizon-gl samples sines; {storage} stores square roots")
 
     @property
     def parameters(self) -> dict:
-        return {"technique": "Listing 5.1 in GLSL on OpenGL", "shader": "hzval/techniques/gl/shaders/horizon_shadow.glsl",
-                "k": self.k, "storage": self.storage, "cube_size": CUBE_SIZE, "cube_filter": "seamless bilinear",
-                "gl": self.gl, "simulated": list(self.simulated)}
+        return {
+            "technique": "Listing 5.1 in GLSL on OpenGL",
+            "shader": "hzval/techniques/gl/shaders/horizon_shadow.glsl",
+            "k": self.k,
+            "storage": self.storage,
+            "cube_size": CUBE_SIZE,
+            "cube_filter": "seamless bilinear",
+            "gl": self.gl,
+            "simulated": list(self.simulated),
+        }
 
     def storage_bytes(self) -> int:
         rows, cols, ch = self.bake.horizon.shape
@@ -163,18 +181,33 @@ class PomGL(_GLTechnique):
 
     name = "pom-gl"
     label = "ray-marched shadows on OpenGL"
-    summary = "the pom ray march in GLSL (hzval/techniques/gl/shaders/pom_shadow.glsl) on a real OpenGL pipeline"
+    summary = (
+        "the pom ray march in GLSL (hzval/techniques/gl/shaders/pom_shadow.glsl) on a real OpenGL pipeline"
+    )
     file_stem = "pom_gl"
 
-    def __init__(self, scene: Scene, height: np.ndarray, *, steps: int = pom.DEFAULT_STEPS, variant=None,
-                 softness=None, bake=None, albedo=None, unshadowed=None, samples=None):
-        h, samples = pom.set_up_march(self, scene, height, steps, variant, softness, bake, albedo, unshadowed,
-                                      samples)
+    def __init__(
+        self,
+        scene: Scene,
+        height: np.ndarray,
+        *,
+        steps: int = pom.DEFAULT_STEPS,
+        variant=None,
+        softness=None,
+        bake=None,
+        albedo=None,
+        unshadowed=None,
+        samples=None,
+    ):
+        h, samples = pom.set_up_march(
+            self, scene, height, steps, variant, softness, bake, albedo, unshadowed, samples
+        )
         self.gl = gl.info()
         self._pass = gl.SamplePass("pom_shadow.glsl", "POM", samples, self.shape)
         ctx = gl.context()
-        self._height = ctx.texture((self.cols, self.rows), 1, np.ascontiguousarray(h, np.float32).tobytes(),
-                                   dtype="f4")
+        self._height = ctx.texture(
+            (self.cols, self.rows), 1, np.ascontiguousarray(h, np.float32).tobytes(), dtype="f4"
+        )
         self._height.filter = (_GL_LINEAR, _GL_LINEAR)
         wrap = scene.material.boundary == "wrap"
         self._height.repeat_x = self._height.repeat_y = wrap
@@ -184,8 +217,14 @@ class PomGL(_GLTechnique):
 
     @property
     def parameters(self) -> dict:
-        out = {"technique": "the pom ray march in GLSL on OpenGL", "shader": "hzval/techniques/gl/shaders/pom_shadow.glsl",
-               "steps": self.steps, "variant": self.variant, "gl": self.gl, "simulated": list(self.simulated)}
+        out = {
+            "technique": "the pom ray march in GLSL on OpenGL",
+            "shader": "hzval/techniques/gl/shaders/pom_shadow.glsl",
+            "steps": self.steps,
+            "variant": self.variant,
+            "gl": self.gl,
+            "simulated": list(self.simulated),
+        }
         if self.variant == "soft":
             out["softness"] = self.softness
         return out
@@ -201,10 +240,15 @@ class PomGL(_GLTechnique):
         if elevation_deg <= 0.0:
             return np.zeros(self.shape, np.float32)
         phi, e = math.radians(azimuth_deg), math.radians(elevation_deg)
-        self._pass.set(uvStep=(math.cos(phi) / self.cols, -math.sin(phi) / self.rows), tanE=math.tan(e),
-                       hMax=self.h_max, steps=self.steps, eps=pom.EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)),
-                       softness=self.softness if self.variant == "soft" else 0.0,
-                       openTile=self.scene.material.boundary == "open")
+        self._pass.set(
+            uvStep=(math.cos(phi) / self.cols, -math.sin(phi) / self.rows),
+            tanE=math.tan(e),
+            hMax=self.h_max,
+            steps=self.steps,
+            eps=pom.EPSILON_PER_HEIGHT * max(1.0, abs(self.h_max)),
+            softness=self.softness if self.variant == "soft" else 0.0,
+            openTile=self.scene.material.boundary == "open",
+        )
         return self._pass.run({"heightMap": self._height})
 
 
@@ -212,8 +256,11 @@ def _validate(bake, k: float, storage: str) -> None:
     if bake is None or bake.horizon is None:
         raise InputError("bake", "horizon-gl needs the bake's horizon map")
     if bake.horizon.shape[-1] != cv.CHANNEL_COUNT:
-        raise InputError("bake", f"horizon-gl runs Listing 5.1's {cv.CHANNEL_COUNT}-channel map; this bake "
-                                 f"stores {bake.horizon.shape[-1]} directions")
+        raise InputError(
+            "bake",
+            f"horizon-gl runs Listing 5.1's {cv.CHANNEL_COUNT}-channel map; this bake "
+            f"stores {bake.horizon.shape[-1]} directions",
+        )
     hz_storage.get(storage)
     if storage.endswith("-sqrt"):
         raise InputError("storage", f"horizon-gl samples sines; {storage} stores square roots")
@@ -224,7 +271,7 @@ def _validate(bake, k: float, storage: str) -> None:
 def _layers(level: np.ndarray, u8: bool) -> bytes:
     """A level ``(rows, cols, 8)`` as the array texture's two RGBA layers, layer-major."""
     n = cv.CHANNELS_PER_LAYER
-    layers = np.stack([level[..., :n], level[..., n:2 * n]])
+    layers = np.stack([level[..., :n], level[..., n : 2 * n]])
     return np.ascontiguousarray(unit_to_u8(layers) if u8 else layers.astype(np.float32)).tobytes()
 
 
@@ -235,15 +282,16 @@ def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
     u8 = storage != "float"
     rows, cols = chain[0].shape[:2]
     tex = ctx.texture_array((cols, rows, 2), 4, _layers(chain[0], u8), dtype="f1" if u8 else "f4")
-    if blocks:                                                 # BPTC: the encoder's blocks, as an engine ships them
+    if blocks:  # BPTC: the encoder's blocks, as an engine ships them
         for level, (data, layer_blocks) in enumerate(zip(chain, blocks)):
             _compressed_image_3d(tex.glo, level, data.shape[1], data.shape[0], b"".join(layer_blocks))
     elif len(chain) > 1:
-        tex.build_mipmaps(0, len(chain) - 1)                   # allocates the levels; overwritten below
+        tex.build_mipmaps(0, len(chain) - 1)  # allocates the levels; overwritten below
         for level, data in enumerate(chain[1:], start=1):
             _sub_image_3d(tex.glo, level, data.shape[1], data.shape[0], _layers(data, u8), u8)
     _gl_function("glTexParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)(
-        _GL_TEXTURE_2D_ARRAY, 0x813D, len(chain) - 1)          # GL_TEXTURE_MAX_LEVEL
+        _GL_TEXTURE_2D_ARRAY, 0x813D, len(chain) - 1
+    )  # GL_TEXTURE_MAX_LEVEL
     if lk.filter == "nearest":
         tex.filter = (_GL_NEAREST, _GL_NEAREST)
     elif lk.mipmapped:
@@ -276,14 +324,18 @@ def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarra
     if not lk.mipmapped:
         return [stored], blocks
     everything = slice(None)
-    chain = lookup.mip_chain(stored, everything if lk.mips == "max" else None, stored=everything, quantise=quantise)
+    chain = lookup.mip_chain(
+        stored, everything if lk.mips == "max" else None, stored=everything, quantise=quantise
+    )
     return chain, blocks
 
 
 def _cube_texture(ctx):
     """The 16 x 16 RGBA8 weight cube map, faces +x, -x, +y, -y, +z, -z; bilinear, level 0 only."""
     faces = weight_cube(CUBE_SIZE)
-    tex = ctx.texture_cube((CUBE_SIZE, CUBE_SIZE), 4, b"".join(np.ascontiguousarray(f).tobytes() for f in faces))
+    tex = ctx.texture_cube(
+        (CUBE_SIZE, CUBE_SIZE), 4, b"".join(np.ascontiguousarray(f).tobytes() for f in faces)
+    )
     tex.filter = (_GL_LINEAR, _GL_LINEAR)
     return tex
 
@@ -310,8 +362,16 @@ def _compressed_image_3d(glo: int, level: int, width: int, height: int, data: by
     _gl_function("glBindTexture", u, u)(_GL_TEXTURE_2D_ARRAY, glo)
     buf = ctypes.create_string_buffer(data, len(data))
     _gl_function("glCompressedTexImage3D", u, i, u, i, i, i, i, i, ctypes.c_void_p)(
-        _GL_TEXTURE_2D_ARRAY, level, _GL_COMPRESSED_RGBA_BPTC_UNORM, width, height, 2, 0, len(data),
-        ctypes.cast(buf, ctypes.c_void_p))
+        _GL_TEXTURE_2D_ARRAY,
+        level,
+        _GL_COMPRESSED_RGBA_BPTC_UNORM,
+        width,
+        height,
+        2,
+        0,
+        len(data),
+        ctypes.cast(buf, ctypes.c_void_p),
+    )
 
 
 def _sub_image_3d(glo: int, level: int, width: int, height: int, data: bytes, u8: bool) -> None:
@@ -319,8 +379,18 @@ def _sub_image_3d(glo: int, level: int, width: int, height: int, data: bytes, u8
     u = ctypes.c_uint
     i = ctypes.c_int
     _gl_function("glBindTexture", u, u)(_GL_TEXTURE_2D_ARRAY, glo)
-    _gl_function("glPixelStorei", u, i)(0x0CF5, 1)            # GL_UNPACK_ALIGNMENT
+    _gl_function("glPixelStorei", u, i)(0x0CF5, 1)  # GL_UNPACK_ALIGNMENT
     buf = ctypes.create_string_buffer(data, len(data))
     _gl_function("glTexSubImage3D", u, i, i, i, i, i, i, i, u, u, ctypes.c_void_p)(
-        _GL_TEXTURE_2D_ARRAY, level, 0, 0, 0, width, height, 2, _GL_RGBA,
-        _GL_UNSIGNED_BYTE if u8 else _GL_FLOAT, ctypes.cast(buf, ctypes.c_void_p))
+        _GL_TEXTURE_2D_ARRAY,
+        level,
+        0,
+        0,
+        0,
+        width,
+        height,
+        2,
+        _GL_RGBA,
+        _GL_UNSIGNED_BYTE if u8 else _GL_FLOAT,
+        ctypes.cast(buf, ctypes.c_void_p),
+    )
