@@ -40,7 +40,8 @@ def main(index: str) -> None:
         )
         loaded = [i for i in imgs if i[1] and i[2] > 0]
         print(
-            f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths {sorted(set(i[2] for i in loaded))}"
+            f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths "
+            f"{sorted(set(i[2] for i in loaded))}"
         )
         target = page.locator("#frame-0 .flip[data-own='approx'] img")
         t0 = time.perf_counter()
@@ -52,7 +53,8 @@ def main(index: str) -> None:
             "#frame-0 img", "els => els.filter(e => e.complete && e.naturalWidth > 0).length"
         )
         print(
-            f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} decoded, width {target.evaluate('e => e.naturalWidth')})"
+            f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} "
+            f"decoded, width {target.evaluate('e => e.naturalWidth')})"
         )
         t0 = time.perf_counter()
         page.locator("button[data-zoom='1']").click()
@@ -60,7 +62,8 @@ def main(index: str) -> None:
             "e => e.complete && e.naturalWidth > 2000", arg=target.element_handle(), timeout=60000
         )
         print(
-            f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in {time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}"
+            f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in "
+            f"{time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}"
         )
         page.keyboard.press("0")
         print("errors", errors)

@@ -3,7 +3,8 @@
 Bakes a height map (a built-in material or an image file; ``--size`` resamples a
 built-in one), builds both techniques from one :class:`hzval.techniques.registry.Context`,
 so that they read the same sample positions, and prints per light the mean and
-max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``). Lights: the default
+max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``). Lights:
+the default
 sweep's azimuths at the scene's elevation plus the ``--extra`` ``AZ/EL`` pairs
 (default the cube's corner, 45/35.26). ``--texel-centres`` reads one sample at
 each texel centre instead of the sweep's jittered ones. Exits 1 when a bound
@@ -11,8 +12,10 @@ given with ``--max-mean`` / ``--max-max`` is exceeded.
 
 Usage::
 
-    GALLIVM_PERF=no_aos_sampling .venv/bin/python benchmarks/gl_agreement.py --height photo.png --boundary wrap
-    .venv/bin/python benchmarks/gl_agreement.py --height photo.png --camera orthographic --view-elevation 90 \\
+    GALLIVM_PERF=no_aos_sampling .venv/bin/python benchmarks/gl_agreement.py --height photo.png --boundary
+    wrap
+    .venv/bin/python benchmarks/gl_agreement.py --height photo.png --camera orthographic --view-elevation 90
+    \\
         --resolution 128 128 --filter trilinear --spp 4
 """
 
@@ -67,7 +70,8 @@ def _context(scene, texel_centres: bool):
 
 
 def _from_sweep(args) -> int:
-    """Per frame of a sweep's output folder: |F| of ``approx_factor.exr`` against ``horizon_gl_factor.exr``."""
+    """Per frame of a sweep's output folder: |F| of ``approx_factor.exr`` against
+    ``horizon_gl_factor.exr``."""
     import json
     from pathlib import Path
 
@@ -86,7 +90,8 @@ def _from_sweep(args) -> int:
         d = np.abs(a - b)
         worst_mean, worst_max = max(worst_mean, d.mean()), max(worst_max, d.max())
         print(
-            f"  az {f['azimuth_deg']:7.2f} el {f['elevation_deg']:6.2f}: mean |dF| {d.mean():.2e}  max {d.max():.2e}"
+            f"  az {f['azimuth_deg']:7.2f} el {f['elevation_deg']:6.2f}: mean |dF| {d.mean():.2e}  max "
+            f"{d.max():.2e}"
         )
     print(f"worst: mean {worst_mean:.2e}, max {worst_max:.2e}")
     bad = (args.max_mean is not None and worst_mean > args.max_mean) or (

@@ -118,7 +118,8 @@ def main(argv=None) -> int:
         for turn in (AS_IS,) + TURNS:
             got = ref if turn is AS_IS else turned_frames(h, boundary, 20.0, args.spp, turn)
             cells = [f"V {got['V'].mean():.5f}"] + [
-                f"{k} {np.abs(got[k] - got['V']).mean():.5f} (max pixel diff {np.abs(got[k] - ref[k]).max():.1e})"
+                f"{k} {np.abs(got[k] - got['V']).mean():.5f} (max pixel diff "
+                f"{np.abs(got[k] - ref[k]).max():.1e})"
                 for k in got
                 if k != "V"
             ]

@@ -1,4 +1,5 @@
-"""What a frame's truth has to shadow (hzval.metrics.facing) and hzval.metrics.brightness's slips, on analytic cases."""
+"""What a frame's truth has to shadow (hzval.metrics.facing) and hzval.metrics.brightness's slips, on
+analytic cases."""
 
 from __future__ import annotations
 
