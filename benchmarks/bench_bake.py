@@ -4,7 +4,7 @@ One run, one input, one table. The input is a 16-bit PNG of the built-in
 brick wall (:func:`hzval.materials.bricks.bricks`), baked at depth 0.05, radius 16,
 32 bins, wrap. Rows of the table:
 
-1. the C peer (``benchmarks/seed_bake.c``) compiled with
+1. the C peer (``tests/oracles/seed_bake.c``) compiled with
    ``gcc -O3 -march=native -fopenmp`` on two threads, in both variants:
    (1a) ``-DHOISTED_TABLE``, the seed loop with its offset-to-bins table
    computed once (the original design notes: "compute it once") -- the peer that the speed
@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SOURCE = HERE / "seed_bake.c"
+SOURCE = HERE.parent / "tests" / "oracles" / "seed_bake.c"
 DEPTH, RADIUS, ANGLES, BOUNDARY = 0.05, 16, 32, "wrap"
 THREADS = 2
 C_FLAGS = ["-O3", "-march=native", "-fopenmp"]

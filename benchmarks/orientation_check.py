@@ -5,7 +5,7 @@ each boundary, three orientations with their light turned to match: as is with t
 azimuth 20 degrees, mirrored left-right at 160, rotated 90 degrees counterclockwise at 110; depth
 0.05, a hard light at 30 degrees. Each is swept (the truth and ``horizon``), and its truth's
 visibility is checked against an independent march of the bilinear height field
-(``benchmarks/march_check.py``: its own sample positions, NumPy, no Mitsuba)::
+(``tests/oracles/march_check.py``: its own sample positions, NumPy, no Mitsuba)::
 
     python benchmarks/orientation_check.py [--out /tmp/orient] [--spp 16] [--march-spp 4]
                                            [--truth-tolerance T] [--photos a.png,b.png]
@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import march_check as mc  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: tests.oracles
+from tests.oracles import march_check as mc  # noqa: E402
 
 #: (name, azimuth in degrees, the map turned): the issue's three orientations.
 ORIENTATIONS = (
@@ -61,7 +61,7 @@ def make_photos(out: Path) -> list[Path]:
 def march_mean_v(
     h_texels: np.ndarray, boundary: str, azimuth: float, elevation: float, spp: int, seed: int = 0
 ) -> float:
-    """Mean visibility of the bilinear height field from above, by benchmarks/march_check.py's own
+    """Mean visibility of the bilinear height field from above, by tests/oracles/march_check.py's own
     march (its own jittered positions, ``spp`` a pixel)."""
     rows, cols = h_texels.shape
     rng = np.random.default_rng(seed)

@@ -166,7 +166,7 @@ def horizon_map(
 
     ``kernel`` chooses how the offset table (:func:`horizon_table`) becomes
     code; both forms compute the same float32 operations on the same values
-    and agree bit for bit (``tests/test_bake_radius.py``):
+    and agree bit for bit (``tests/bake/test_horizon.py``):
 
     ``unrolled``
         one block of code per offset, neighbours read as shifted views

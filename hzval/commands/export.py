@@ -33,7 +33,7 @@ What differs from hzval's truth is how shadow rays start: Mitsuba's
 valley edges (:mod:`hzval.truth.plane`, "Self-intersection": 0.15-0.35% of the
 samples in shadow lit on the bricks at 30 degrees), and its rays see the
 wrap margin only, not the endless tiling (exact for lights at or above
-:data:`hzval.geometry.tile.MIN_ELEVATION_DEG`). ``tests/test_export.py`` renders an
+:data:`hzval.geometry.tile.MIN_ELEVATION_DEG`). ``tests/commands/test_export.py`` renders an
 exported scene with Mitsuba and compares it with the truth.
 """
 

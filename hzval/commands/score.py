@@ -21,7 +21,7 @@ it). So a sweep's own EXR images, themselves half, scored here come within
 most 6e-6 FLIP, 1.3e-6 RMSE and 1.4e-5 CIEDE2000 at 48 x 48 texels, 8e-7
 FLIP at 256 x 256), a thousandth of what its 8-bit PNG previews'
 quantisation adds (2e-3 to 4e-3 FLIP, 0.07 CIEDE2000);
-``tests/test_score.py`` holds it to that.
+``tests/commands/test_score.py`` holds it to that.
 
 A real comparison (:func:`score`): the engine (``engine`` in
 ``metrics.json``, the report's lead) sits beside every technique the sweep

@@ -2,7 +2,7 @@
 
 This module is the only place that defines them (docs/ARCHITECTURE.md,
 "Conventions"); every other module asks it. Tests in
-``tests/test_conventions.py`` pin each one.
+``tests/core/test_conventions.py`` pin each one.
 
 Height map
     ``H[row, col]``, row 0 at the top of the image as displayed. PNG values are
@@ -418,7 +418,7 @@ def srgb_encode(values):
     kernel by the formula colour-science's ``eotf_inverse_sRGB`` evaluates,
     ``12.92 L`` at or below ``L = 0.0031308``, else ``1.055 L^(1/2.4) - 0.055``:
     within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's), 25x faster on
-    12M values on this 2-core machine (``tests/test_compare.py``).
+    12M values on this 2-core machine (``tests/metrics/test_compare.py``).
     """
     if is_drjit(values):
         import drjit as dr

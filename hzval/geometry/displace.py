@@ -16,7 +16,7 @@ Watertight
 The plane
     The unit quad whose UVs are its ``(x, y)`` has a vertex at every texel centre and a fan in
     every cell about its centre: the plane's surface (:func:`hzval.geometry.tile.tessellate`) at one ring,
-    ``H * depth`` at the texel centres (tests/test_displace.py).
+    ``H * depth`` at the texel centres (tests/geometry/test_displace.py).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The base mesh a material is mapped onto: a built-in shape or the user's UV-mapped model
 (docs/meshes.md).
 
-Conventions (each one pinned by tests/test_model.py):
+Conventions (each one pinned by tests/geometry/test_model.py):
 
 World
     **z up**, as hzval's tangent space and its plane (+z out of the surface). A file whose up

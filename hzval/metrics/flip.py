@@ -50,7 +50,7 @@ pixel count (``FLIP::evaluate``), which at 2048 x 2048 differs from the
 float64 mean of the same map by about 1e-6.
 
 Validated against ``flip-evaluator`` (NVlabs/flip's nanobind build, 1.7) by
-``tests/test_flip.py``: the means agree to 1e-4 (in practice a few 1e-7; 1.3e-5
+``tests/metrics/test_flip.py``: the means agree to 1e-4 (in practice a few 1e-7; 1.3e-5
 on a hard black-white edge) on noise, gradients, constant, tiny (1 x 1 to 5 x
 40), non-square and shaded-bricks images, and per pixel to 2e-5 on all but
 the renders (1e-3) and the hard edge (5e-3). The larger ones are in flat

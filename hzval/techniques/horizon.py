@@ -74,7 +74,7 @@ Two paths:
     (127.5): it stores 128, which decodes to a weight of ``1/255`` on layer 0
     and to 0 on layer 1 (:func:`hzval.core.conventions.encode_signed_weight`).
 
-    What the GPU path costs (``tests/test_horizon.py`` derives and asserts it
+    What the GPU path costs (``tests/techniques/test_horizon.py`` derives and asserts it
     per light): ``s_gpu - s_exact = sum w^ (h^ - h) + sum (w^ - w) h``, so
     ``|F_gpu - F_exact| <= k (0.5/255 * sum(w^) + sum |w^_c - w_c| max h_c)``.
     Over all directions ``sum(w^) <= 1 + 3/255`` (the leaks); for elevations

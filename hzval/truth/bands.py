@@ -20,7 +20,7 @@ band's camera rays and every light's shadow rays in it, keeps one bit a sample a
 visibility, 34 MB a light at 4096 x 4096 x 16), and frees the mesh before the next band. The frames
 then shade from those bits and the shading normals, which need no mesh. Since a shadow ray's answer is
 whether it meets *any* triangle within ``[0, maxt]``, and every triangle it could meet is in its band's
-mesh, the answers are the single mesh's (``tests/test_truth_bands.py``).
+mesh, the answers are the single mesh's (``tests/truth/test_bands.py``).
 
 Where a ray could leave every band's cover, the single mesh is used (:func:`why_not`): views other
 than ``top`` (camera rays that cross rows), ``ambient``, ``reflection_occlusion`` and

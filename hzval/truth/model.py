@@ -106,7 +106,7 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     centre, or farther where the field of view needs it to hold the sphere. An orthographic film
     spans the points' projection, at the image's aspect, centred on it: on a unit quad whose UVs
     are its ``(x, y)`` these are the plane's own rays (its film is the tile), so the two agree
-    pixel for pixel (``tests/test_model_truth.py``)."""
+    pixel for pixel (``tests/truth/test_model.py``)."""
     H, W = shape
     e = 90.0 if camera.kind == "top" else camera.elevation_deg
     a = -90.0 if camera.kind == "top" else camera.azimuth_deg

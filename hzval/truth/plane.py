@@ -23,7 +23,7 @@ Shading (``[material] shading``)
     bilinear interpolation at the sample's ``(x, y)``, the interpolation the
     techniques' texture filtering applies, so that where the light is seen
     the truth's shading *is* the techniques' and every remaining difference
-    is the shadows (``tests/test_fidelity.py``). Mitsuba's own renderer
+    is the shadows (``tests/truth/test_plane_fidelity.py``). Mitsuba's own renderer
     interpolates vertex normals over each triangle instead
     (:mod:`hzval.commands.export` writes them to the PLY); the two differ by a few
     thousandths of white on rough maps. ``faceted``: each triangle's own
@@ -69,7 +69,7 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     the linear albedo of the texel that holds the sample (nearest: the
     approximation reads the same texel). It equals Mitsuba's own ``diffuse``
     plugin evaluated at the same surface interactions and shading frame to
-    1e-4 (``tests/test_truth.py``). A ``soft`` light's sampled directions
+    1e-4 (``tests/truth/test_plane.py``). A ``soft`` light's sampled directions
     each carry ``2 E / (1 + cos rho)`` (:func:`hzval.core.shading.disk_sample_irradiance`),
     so that a surface facing the disk receives ``E``.
 ``specular``
@@ -120,7 +120,7 @@ Self-intersection
     start at the sample's exact ``(x, y)``, at the surface height plus
     :attr:`Truth.lift` (1.2e-4 texels for heights up to 32 texels; 1e-6 is
     too little for float32 heights of tens of texels, 1e-5 is enough). No
-    false shadow remains (``tests/test_truth.py``). The lift has one side
+    false shadow remains (``tests/truth/test_plane.py``). The lift has one side
     effect, which a rule removes: on a triangle facing away from a light
     that grazes it, the lifted ray can run above the triangle's plane to its
     far edge and escape, so ``n.L <= 0`` counts as shadowed without a ray (on
@@ -164,14 +164,14 @@ Memory
     again in every frame; only ``A`` is kept per band. Sample positions,
     random streams and light samples are indexed by the sample's place in
     the whole image, so a band gives bit for bit the pixels of one piece
-    (``tests/test_truth.py``).
+    (``tests/truth/test_plane.py``).
     A mesh too large to hold beside the rest of a sweep (the 4096 bricks: 187M
     triangles) is built a band of rows at a time (``mesh_band_rows``,
     :mod:`hzval.truth.bands`, chosen by :func:`hzval.pipeline.sweep.truth_plan`): each
     band's mesh holds the cells its samples' rays can reach, every light's
     shadow rays are traced in it when the truth is built, and the frames
     shade from one visibility bit a sample a light, bit for bit the single
-    mesh's answers (``tests/test_truth_bands.py``).
+    mesh's answers (``tests/truth/test_bands.py``).
 
 Kernels
     Everything that changes between frames (the light direction) and every

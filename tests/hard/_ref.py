@@ -4,7 +4,7 @@
   the definition (max ``tan = dh / r`` per bin, ``sin = t / sqrt(1 + t^2)``,
   each channel the mean of its ``angles/8 + 1`` bins). It shares only the
   offset-to-bins table with :mod:`hzval.bake.maps` (``horizon_table``, which
-  ``tests/test_seed_peer.py`` pins against libm and the seed's C code).
+  ``tests/bake/test_horizon_peer.py`` pins against libm and the seed's C code).
 * :func:`mesh_horizon_tan`: the exact horizon of the displaced mesh along a
   direction, in float64: the ray's horizontal line is clipped against every
   triangle (Cyrus-Beck) and the largest ``(z - z0) / t`` at the clip points is
@@ -247,8 +247,8 @@ def exact_weights(d):
 
 def gpu_weights(d):
     """Listing 5.1's 8 channel factors from the 8-bit cube map at ``d``, filtered seamlessly across
-    the faces as OpenGL does (tests/cube_reference.py)."""
-    from cube_reference import seamless_bilinear
+    the faces as OpenGL does (tests/oracles/cube_reference.py)."""
+    from tests.oracles.cube_reference import seamless_bilinear
 
     f = seamless_bilinear(_CUBE, np.asarray(d, np.float32).astype(np.float64))
     return np.concatenate([np.clip(2 * f - 1, 0, 1), np.clip(1 - 2 * f, 0, 1)])

@@ -2,7 +2,7 @@
 // Listing 5.1, corrected and split so that an engine can call it.
 //
 // Validated by hzval: the `horizon-gl` technique runs this file on OpenGL
-// (hzval/horizon_gl.py) and tests/test_horizon_gl.py checks it against hzval's
+// (hzval/horizon_gl.py) and tests/techniques/gl/test_horizon_gl.py checks it against hzval's
 // own emulation of the GPU (`hzval sweep --path gpu`), which is itself scored
 // against Mitsuba's ray-traced truth.
 //

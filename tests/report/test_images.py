@@ -1,0 +1,67 @@
+"""The palette PNGs of hzval.report.images: a FLIP map and a visibility difference decode to exactly
+the RGB image the colour code paints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hzval.io import files
+from hzval.metrics import compare
+from hzval.report import images
+from tests.io.test_files_frames import png_mode_and_rgb
+
+RNG = np.random.default_rng(7)
+
+
+def magma_as_before(values):
+    """The FLIP map as the sweep painted it before palettes: matplotlib's magma, 8-bit RGB."""
+    from matplotlib import colormaps
+
+    return (colormaps["magma"](np.clip(values, 0, 1))[..., :3] * 255 + 0.5).astype(np.uint8)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_flip_palette_png_decodes_to_the_rgb_map(tmp_path, dtype):
+    edges = np.concatenate([np.arange(257) / 256, np.nextafter(np.arange(257) / 256, 0), [-1, 2, np.inf]])
+    error = np.concatenate([edges, RNG.random(64 * 64 - edges.size)]).astype(dtype).reshape(64, 64)
+    expected = magma_as_before(error)
+    assert np.array_equal(images.flip_image(error), expected)
+    files.write_png(tmp_path / "flip.png", images.flip_indexed(error))
+    mode, back = png_mode_and_rgb(tmp_path / "flip.png")
+    assert mode == "P" and np.array_equal(back, expected)
+
+
+def test_a_flip_map_with_nan_is_rgb_with_nan_black_as_before(tmp_path):
+    error = RNG.random((8, 8)).astype(np.float32)
+    error[2, 3] = np.nan
+    made = images.flip_indexed(error)
+    assert isinstance(made, np.ndarray) and np.array_equal(made, magma_as_before(error))
+    assert made[2, 3].tolist() == [0, 0, 0]
+
+
+def visdiff_as_before(V, F):
+    """The visibility-difference map as the sweep painted it before palettes."""
+    grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
+    img = np.repeat(grey[..., None], 3, axis=-1)
+    lit_v, lit_f = V >= compare.LIT_THRESHOLD, F >= compare.LIT_THRESHOLD
+    img[lit_f & ~lit_v] = images.LEAK_RGB
+    img[~lit_f & lit_v] = images.FALSE_SHADOW_RGB
+    return img
+
+
+@pytest.mark.parametrize("levels", [4, None])  # V = k/4 as spp 4 gives it; any value in [0, 1]
+def test_the_visibility_difference_palette_png_decodes_to_the_rgb_map(tmp_path, levels):
+    V = RNG.random((40, 50))
+    V = (np.round(V * levels) / levels if levels else V).astype(np.float32)
+    F = np.clip(V + RNG.normal(0, 0.3, V.shape), 0, 1).astype(np.float32)
+    expected = visdiff_as_before(V, F)
+    assert {tuple(images.LEAK_RGB), tuple(images.FALSE_SHADOW_RGB)} <= {
+        tuple(p) for p in expected.reshape(-1, 3)
+    }
+    assert np.array_equal(images.visibility_diff_image(V, F), expected)
+    made = images.visibility_diff_indexed(V, F)
+    assert isinstance(made, files.Indexed) and len(made.palette) <= (levels or 128) + 3
+    files.write_png(tmp_path / "vd.png", made)
+    mode, back = png_mode_and_rgb(tmp_path / "vd.png")
+    assert mode == "P" and np.array_equal(back, expected)
