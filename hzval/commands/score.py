@@ -43,7 +43,7 @@ for some lights only, a sidecar key that is not known.
 
 from __future__ import annotations
 
-import json
+import math
 import shutil
 import time
 from pathlib import Path
@@ -51,8 +51,9 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core import interrupts
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import documents, files, paths
 from hzval.metrics import compare
 from hzval.report import images
 from hzval.report import pages as report
@@ -74,14 +75,9 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
     out = []
     for name in ("metrics.json", "frames.json"):
         path = sweep_dir / name
-        try:
-            out.append(json.loads(path.read_text(encoding="utf-8")))
-        except FileNotFoundError:
-            raise InputError(
-                sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}"
-            ) from None
-        except (OSError, ValueError) as exc:
-            raise InputError(path, f"unreadable ({files.first_line(exc)})") from None
+        if not path.is_file():
+            raise InputError(sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}")
+        out.append(documents.read_json(path))
     return out[0], out[1]
 
 
@@ -98,7 +94,13 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
         return isinstance(v, (int, float)) and not isinstance(v, bool)
 
     need(isinstance(engine, dict), "frames.json", "the file", "a JSON object")
-    need(number(engine.get("exposure")), "frames.json", "exposure", "a number")
+    # the exposure scales the engine's frames: zero, negative or infinite would make any frame pass
+    need(
+        number(engine.get("exposure")) and math.isfinite(engine["exposure"]) and engine["exposure"] > 0,
+        "frames.json",
+        "exposure",
+        "a finite number > 0",
+    )
     size = engine.get("image_size")
     need(
         isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size),
@@ -136,8 +138,30 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
         "frames",
         f"a list of {len(frames)} frames, each with files.truth",
     )
-    for key in ("material", "parameters", "exposure", "versions", "simulated"):
+    for key in ("material", "parameters", "exposure", "versions", "simulated", "camera", "techniques"):
         need(isinstance(metrics.get(key, {}), dict), "metrics.json", key, "an object")
+    for i, f in enumerate(frames):
+        paths.file_name(f["name"], sweep_dir / "frames.json", f"frames[{i}].name")
+    for i, f in enumerate(swept):
+        _check_stored_paths(f, sweep_dir, f"frames[{i}]")
+
+
+def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
+    """Every file a sweep's frame names (its own and its techniques') resolves inside the sweep folder
+    (:func:`hzval.io.paths.inside`), before anything is read or copied."""
+    where = sweep_dir / "metrics.json"
+    tables = [(f"{key}.files", frame["files"])]
+    techniques = frame.get("techniques") or {}
+    if not isinstance(techniques, dict):
+        raise InputError(where, f"not a sweep's metrics.json: {key}.techniques must be an object")
+    for name, per in techniques.items():
+        if not isinstance(per, dict) or not isinstance(per.get("files") or {}, dict):
+            raise InputError(where, f"not a sweep's metrics.json: {key}.techniques.{name} must be an object")
+        tables.append((f"{key}.techniques.{name}.files", per.get("files") or {}))
+    for prefix, table in tables:
+        for k, rel in table.items():
+            if rel is not None:
+                paths.inside(sweep_dir, rel, where, f"{prefix}.{k}")
 
 
 def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
@@ -206,18 +230,13 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
 def read_sidecar(frames_dir: Path) -> dict:
     """``FRAMES_DIR/engine.toml``: ``{label, summary, parameters, path}`` (module docstring); the
     defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`)."""
-    import tomllib
-
     from hzval.core import strict
 
     path = frames_dir / SIDECAR
     out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}
     if not path.is_file():
         return out
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise InputError(path, f"not a readable TOML file ({files.first_line(exc)})") from None
+    data = documents.read_toml(path)
     strict.check_keys(data, {"engine", "parameters"}, path)
     engine = strict.check_table(data.get("engine", {}), {"label": str, "summary": str}, path, "engine")
     params = data.get("parameters", {})
@@ -397,35 +416,43 @@ def write(
     out = Path(out)
     if gates:
         gates.apply(result)
-    with files.output_folder(out, force=force):
-        return _write(result, maps, out, command)
+    # all or nothing, as the sweep: written into a staging folder inside out and swapped in whole, so
+    # a failure or an interrupt leaves an earlier report byte for byte, and no link in out is followed
+    with interrupts.held() as hold, files.output_folder(out, force=force):
+        with files.Staging(out) as stage:
+            _write(result, maps, out, stage.dir, command)
+            hold.start()
+            stage.swap()
+    return out / "index.html"
 
 
-def _copy(sweep_dir: Path, out: Path, name: str, rel: str | None) -> str | None:
-    """A sweep's file copied to ``out/frames/<name>/``; its new path relative to ``out``."""
+def _copy(sweep_dir: Path, stage: Path, name: str, rel: str | None) -> str | None:
+    """A sweep's file (checked inside it by :func:`score`) copied to ``frames/<name>/`` of the staged
+    report; its path relative to the report."""
     if not rel or not (sweep_dir / rel).is_file():
         return None
     dst = f"frames/{name}/{Path(rel).name}"
-    (out / dst).parent.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(sweep_dir / rel, out / dst)
+    (stage / dst).parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(sweep_dir / rel, stage / dst)
     return dst
 
 
-def _write(result: dict, maps: list, out: Path, command: str) -> Path:
+def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Path:
+    """The report's files into ``stage``, their recorded paths relative to ``out`` (where they land)."""
     sweep_dir = Path(result["against"])
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
         frame["files"] = {
             k: d
             for k in ("truth_png", "plain_png", "visibility_png")
-            if (d := _copy(sweep_dir, out, name, swept_frame["files"].get(k)))
+            if (d := _copy(sweep_dir, stage, name, swept_frame["files"].get(k)))
         }
         own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
-        files.write_png(out / own["png"], files.unit_to_u8(image_maps["display"]))
-        files.write_png(out / own["flip_png"], images.flip_image(image_maps["flip"]))
+        files.write_png(stage / own["png"], files.unit_to_u8(image_maps["display"]))
+        files.write_png(stage / own["flip_png"], images.flip_image(image_maps["flip"]))
         if "F" in image_maps:
             own["visdiff_png"] = f"frames/{name}/{NAME}_visdiff.png"
             files.write_png(
-                out / own["visdiff_png"], images.visibility_diff_image(image_maps["V"], image_maps["F"])
+                stage / own["visdiff_png"], images.visibility_diff_image(image_maps["V"], image_maps["F"])
             )
         frame["techniques"][NAME]["files"] = own
         for tname, per in frame["techniques"].items():
@@ -434,9 +461,9 @@ def _write(result: dict, maps: list, out: Path, command: str) -> Path:
                 per["files"] = {
                     k: d
                     for k in ("png", "flip_png", "visdiff_png")
-                    if (d := _copy(sweep_dir, out, name, theirs.get(k)))
+                    if (d := _copy(sweep_dir, stage, name, theirs.get(k)))
                 }
-    index = report.write_report(out, result, command=command)
+    index = report.write_report(stage, result, command=command)
     # the paths relative to the report's folder: a shared report carries no absolute folders
     portable = {
         **result,
@@ -456,5 +483,5 @@ def _write(result: dict, maps: list, out: Path, command: str) -> Path:
             **portable["gates"],
             "baseline": files.report_path(portable["gates"]["baseline"], out),
         }
-    files.write_json(out / "metrics.json", portable)
+    files.write_json(stage / "metrics.json", portable)
     return index

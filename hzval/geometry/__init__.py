@@ -1,5 +1,6 @@
 """Meshes: the tile's displaced triangle mesh (tile), a model's base mesh from the built-in shapes or
-OBJ/PLY/glTF files (model), tangent frames (tangents, their one owner), a base mesh cut along the
+OBJ/PLY/glTF files (model; glTF through gltf), tangent frames (tangents, their one owner), a base mesh cut
+along the
 texel grid (cells), the displaced model the truth traces (displace), and the engine tangent-frame
 bugs reproduced on purpose (tangent_bugs).
 """
@@ -8,5 +9,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("cells", "displace", "model", "tangent_bugs", "tangents", "tile"),
+    ("cells", "displace", "gltf", "model", "tangent_bugs", "tangents", "tile"),
 )

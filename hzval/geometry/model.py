@@ -41,6 +41,7 @@ from typing import Callable
 import numpy as np
 
 from hzval.core.errors import InputError
+from hzval.geometry import gltf
 from hzval.geometry import tangents as tg
 
 __all__ = [
@@ -592,149 +593,17 @@ def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh
     )
 
 
-#: glTF accessor component types (glTF 2.0, "Accessor Data Types") and the range a normalized one
-#: maps to [0, 1] / [-1, 1] by.
-_GLTF_COMPONENTS = {
-    5120: (np.int8, 127.0),
-    5121: (np.uint8, 255.0),
-    5122: (np.int16, 32767.0),
-    5123: (np.uint16, 65535.0),
-    5125: (np.uint32, None),
-    5126: (np.float32, None),
-}
-_GLTF_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def _gltf_accessor(g, blob: bytes, index: int) -> np.ndarray:
-    """Accessor ``index`` of the glTF ``g`` as a ``(count, width)`` float64 array (indices as
-    integers), honouring ``byteStride`` and ``normalized``. Sparse accessors: ``ValueError``."""
-    a = g.accessors[index]
-    if a.sparse is not None:
-        raise ValueError(f"accessor {index} is sparse, which hzval does not read")
-    dtype, scale = _GLTF_COMPONENTS[a.componentType]
-    width = _GLTF_WIDTH[a.type]
-    view = g.bufferViews[a.bufferView]
-    item = np.dtype(dtype).itemsize * width
-    stride = view.byteStride or item
-    start = (view.byteOffset or 0) + (a.byteOffset or 0)
-    raw = np.frombuffer(blob, np.uint8, count=stride * (a.count - 1) + item, offset=start)
-    rows = np.lib.stride_tricks.as_strided(raw, (a.count, item), (stride, 1))
-    out = np.ascontiguousarray(rows).view(dtype).reshape(a.count, width)
-    if a.normalized and scale is not None:
-        return np.maximum(out / scale, -1.0)
-    return out.astype(np.int64 if scale is None and dtype == np.uint32 else np.float64)
-
-
-def _gltf_node_matrix(node) -> np.ndarray:
-    """A node's local 4 x 4 transform: its ``matrix`` (column-major) or ``T R S``."""
-    if node.matrix is not None:
-        return np.asarray(node.matrix, np.float64).reshape(4, 4).T
-    x, y, z, w = node.rotation or (0.0, 0.0, 0.0, 1.0)
-    r = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    m = np.eye(4)
-    m[:3, :3] = r * np.asarray(node.scale or (1.0, 1.0, 1.0))[None, :]
-    m[:3, 3] = node.translation or (0.0, 0.0, 0.0)
-    return m
-
-
-def _gltf_primitives(g):
-    """``(primitive, world matrix)`` of every mesh primitive the default scene (or, without
-    scenes, every root node) instances, walking the node tree."""
-    roots = (
-        g.scenes[g.scene or 0].nodes
-        if g.scenes
-        else sorted(set(range(len(g.nodes))) - {c for n in g.nodes for c in (n.children or [])})
-    )
-    stack = [(i, np.eye(4)) for i in roots]
-    while stack:
-        i, parent = stack.pop()
-        node = g.nodes[i]
-        m = parent @ _gltf_node_matrix(node)
-        if node.mesh is not None:
-            for prim in g.meshes[node.mesh].primitives:
-                yield prim, m
-        stack.extend((c, m) for c in node.children or [])
-
-
-def _gltf_part(g, blob, prim, m):
-    """One triangle primitive as ``(positions, uvs, normals, tangents, faces)`` in the file's
-    axes with its node's transform applied; glTF's ``v`` flipped to hzval's (``1 - v``)."""
-    at = prim.attributes
-    if at.TEXCOORD_0 is None:
-        raise ValueError("has no texture coordinates (TEXCOORD_0)")
-    p = _gltf_accessor(g, blob, at.POSITION)
-    faces = (
-        _gltf_accessor(g, blob, prim.indices).reshape(-1, 3)
-        if prim.indices is not None
-        else np.arange(len(p)).reshape(-1, 3)
-    )
-    uv = _gltf_accessor(g, blob, at.TEXCOORD_0) * [1.0, -1.0] + [0.0, 1.0]
-    n = None if at.NORMAL is None else _gltf_accessor(g, blob, at.NORMAL) @ np.linalg.inv(m[:3, :3])
-    t = None if at.TANGENT is None else tg.rotate(_gltf_accessor(g, blob, at.TANGENT), m[:3, :3])
-    if np.linalg.det(m[:3, :3]) < 0:  # a mirroring node turns the winding over (glTF 2.0, "Transformations")
-        faces = faces[:, ::-1]
-    return p @ m[:3, :3].T + m[:3, 3], uv, n, t, faces.astype(np.int64)
-
-
-def _gltf_check(g, blob: bytes) -> None:
-    """``ValueError`` for what the reader cannot decode: required extensions (Draco, meshopt
-    compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
-    the ``.gltf``)."""
-    if g.extensionsRequired:
-        raise ValueError(
-            f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
-            "read (export without compression)"
-        )
-    need = sum(b.byteLength or 0 for b in g.buffers)
-    if len(blob) < need:
-        raise ValueError(
-            f"its buffer data is missing or short ({len(blob)} of {need} bytes; is its .bin file beside it?)"
-        )
-
-
 def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
-    """A glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``) by pygltflib: every triangle
-    primitive of the default scene with its node transforms; ``TEXCOORD_0`` (``v -> 1 - v``),
-    ``NORMAL`` and ``TANGENT`` (used when every primitive has one, else all are computed)."""
-    import warnings
-
-    import pygltflib
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            g = pygltflib.GLTF2().load(path)
-            g.convert_buffers(pygltflib.BufferFormat.BINARYBLOB)
-        blob = g.binary_blob() or b""
-        _gltf_check(g, blob)
-        parts = [
-            _gltf_part(g, blob, prim, m)
-            for prim, m in _gltf_primitives(g)
-            if prim.mode in (None, pygltflib.TRIANGLES)
-        ]
-    except ValueError as exc:
-        raise InputError(path, str(exc)) from None
-    except Exception as exc:  # a broken file: pygltflib raises many kinds
-        raise InputError(path, f"cannot be read as glTF ({type(exc).__name__}: {exc})") from None
-    if not parts:
-        raise InputError(path, "the mesh is empty (no triangles)")
-    offsets = np.cumsum([0] + [len(q[0]) for q in parts])
-
-    def cat(k):
-        return None if any(q[k] is None for q in parts) else np.concatenate([q[k] for q in parts])
-
-    p, n, t = to_z_up(up, cat(0), cat(2), cat(3))
+    """A glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``): the triangles of its default scene
+    (:func:`hzval.geometry.gltf.read_parts`), turned z-up; its ``TANGENT`` used when every primitive
+    has one, else all are computed."""
+    p, uv, n, t, faces = gltf.read_parts(path)
+    p, n, t = to_z_up(up, p, n, t)
     return build(
         path,
         p,
-        cat(1),
-        np.concatenate([q[4] + o for q, o in zip(parts, offsets)]),
+        uv,
+        faces,
         normals=n,
         tangents=t if n is not None else None,
         uv_scale=uv_scale,
