@@ -1,0 +1,262 @@
+"""The second audit (issue 42): nothing read or written outside the user's folders, one line and exit 2
+for bad structure, and all-or-nothing reports. One test (or a few) per defect."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hzval.cli import main as cli
+from hzval.core.errors import InputError
+from hzval.geometry import model
+from tests.geometry.test_model import QUAD_F, QUAD_P, QUAD_UV, write_gltf
+from tests.integration.test_faults import one_line
+
+
+@pytest.fixture(scope="module")
+def sweep_dir(tmp_path_factory, variant):
+    out = tmp_path_factory.mktemp("audit2") / "sweep"
+    argv = ["sweep", "--size", "32", "--azimuths", "0,90", "--spp", "2", "--techniques", "horizon"]
+    assert cli.main([*argv, "--quiet", "--all-files", "--out", str(out)]) == 0
+    return out
+
+
+def engine_frames(tmp: Path, sweep_dir: Path) -> Path:
+    """An engine's frames: the sweep's own horizon renders, one EXR per light."""
+    d = tmp / "engine"
+    d.mkdir()
+    for f in json.loads((sweep_dir / "frames.json").read_text())["frames"]:
+        shutil.copyfile(sweep_dir / "frames" / f["name"] / "horizon.exr", d / f"{f['name']}.exr")
+    return d
+
+
+def tampered(tmp: Path, sweep_dir: Path, name: str, edit) -> Path:
+    """A copy of the sweep folder with ``edit(data)`` applied to its ``name`` JSON file."""
+    copy = tmp / "tampered"
+    shutil.copytree(sweep_dir, copy)
+    data = json.loads((copy / name).read_text())
+    edit(data)
+    (copy / name).write_text(json.dumps(data))
+    return copy
+
+
+def snapshot(folder: Path) -> dict:
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def score(frames: Path, sweep: Path, out: Path, *extra) -> int:
+    return cli.main(["score", str(frames), "--against", str(sweep), "--out", str(out), *extra])
+
+
+# 1. score reads and writes only inside its folders -----------------------------------------------
+
+
+def test_a_frame_name_that_climbs_out_is_refused(tmp_path, sweep_dir, capsys):
+    victim = tmp_path / "userdir"
+    victim.mkdir()
+    (victim / "truth.png").write_bytes(b"mine")
+    frames = engine_frames(tmp_path, sweep_dir)
+    shutil.copyfile(frames / "az+0.exr", frames / "..%2f..%2fuserdir.exr")
+
+    def edit(d):
+        d["frames"][0]["name"] = "../../../userdir"
+
+    sweep = tampered(tmp_path, sweep_dir, "frames.json", edit)
+    assert score(frames, sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "frames.json", "frames[0].name")
+    assert (victim / "truth.png").read_bytes() == b"mine" and sorted(victim.iterdir()) == [
+        victim / "truth.png"
+    ]
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("stored", ["/etc/hostname", "../../secret.txt", "frames/../../secret.txt"])
+def test_a_stored_file_outside_the_sweep_is_refused(tmp_path, sweep_dir, capsys, stored):
+    (tmp_path / "secret.txt").write_text("secret")
+
+    def edit(d):
+        d["frames"][1]["files"]["truth_png"] = stored
+
+    sweep = tampered(tmp_path, sweep_dir, "metrics.json", edit)
+    assert score(engine_frames(tmp_path, sweep_dir), sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "metrics.json", "frames[1].files.truth_png")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_techniques_stored_file_outside_the_sweep_is_refused(tmp_path, sweep_dir, capsys):
+    def edit(d):
+        d["frames"][0]["techniques"]["horizon"]["files"]["png"] = "../../secret.txt"
+
+    sweep = tampered(tmp_path, sweep_dir, "metrics.json", edit)
+    assert score(engine_frames(tmp_path, sweep_dir), sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "metrics.json", "frames[0].techniques.horizon.files.png")
+
+
+def test_a_link_in_the_report_is_not_followed(tmp_path, sweep_dir):
+    frames, out = engine_frames(tmp_path, sweep_dir), tmp_path / "o"
+    assert score(frames, sweep_dir, out) == 0
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "engine.png").write_bytes(b"mine")
+    shutil.rmtree(out / "frames" / "az+0")
+    (out / "frames" / "az+0").symlink_to(victim, target_is_directory=True)
+    score(frames, sweep_dir, out, "--force")
+    assert snapshot(victim) == {"engine.png": b"mine"}
+
+
+# 4. every value that scales an image is checked --------------------------------------------------
+
+
+@pytest.mark.parametrize("exposure", [-3.14, 0, 1e309])
+def test_an_exposure_that_is_not_positive_and_finite_is_refused(tmp_path, sweep_dir, capsys, exposure):
+    def edit(d):
+        d["exposure"] = exposure
+
+    sweep = tampered(tmp_path, sweep_dir, "frames.json", edit)
+    assert score(engine_frames(tmp_path, sweep_dir), sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "frames.json", "exposure")
+
+
+# 5. score is all or nothing over an existing report ----------------------------------------------
+
+
+def test_a_late_failure_leaves_the_earlier_report_byte_for_byte(tmp_path, sweep_dir, monkeypatch, capsys):
+    frames, out = engine_frames(tmp_path, sweep_dir), tmp_path / "o"
+    assert score(frames, sweep_dir, out) == 0
+    before = snapshot(out)
+    from hzval.report import pages
+
+    def fail(*a, **k):
+        raise InputError(out / "index.html", "a late failure")
+
+    monkeypatch.setattr(pages, "render_html", fail)
+    assert score(frames, sweep_dir, out) == 2
+    assert snapshot(out) == before
+
+
+# 6. bad structure is one line and exit 2, never a traceback --------------------------------------
+
+
+@pytest.mark.parametrize("name", ["frames.json", "metrics.json"])
+def test_deeply_nested_json_is_one_line(tmp_path, sweep_dir, capsys, name):
+    sweep = tmp_path / "s"
+    shutil.copytree(sweep_dir, sweep)
+    (sweep / name).write_text("[" * 100_000 + "]" * 100_000)
+    assert score(engine_frames(tmp_path, sweep_dir), sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, name, "nests deeper")
+
+
+def test_a_deeply_nested_engine_toml_is_one_line(tmp_path, sweep_dir, capsys):
+    frames = engine_frames(tmp_path, sweep_dir)
+    (frames / "engine.toml").write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert score(frames, sweep_dir, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "engine.toml")
+
+
+@pytest.mark.parametrize("key, value", [("camera", [1, 2]), ("techniques", ["horizon"]), ("frames", [1, 2])])
+def test_a_malformed_metrics_json_is_one_line(tmp_path, sweep_dir, capsys, key, value):
+    def edit(d):
+        d[key] = value
+
+    sweep = tampered(tmp_path, sweep_dir, "metrics.json", edit)
+    assert score(engine_frames(tmp_path, sweep_dir), sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "metrics.json", key)
+
+
+# 2. and 3. glTF: buffers inside the model's folder, node trees walked once -----------------------
+
+
+def gltf_with(tmp_path: Path, edit) -> Path:
+    folder = tmp_path / "model"
+    folder.mkdir()
+    path = Path(write_gltf(folder / "q.gltf", QUAD_P, QUAD_UV, QUAD_F))
+    data = json.loads(path.read_text())
+    edit(data, folder)
+    path.write_text(json.dumps(data))
+    return path
+
+
+@pytest.mark.parametrize("where", ["parent", "absolute", "scheme"])
+def test_a_gltf_buffer_outside_the_models_folder_is_refused(tmp_path, where):
+    def edit(d, folder):
+        outside = tmp_path / "secret.bin"
+        shutil.copyfile(folder / d["buffers"][0]["uri"], outside)
+        d["buffers"][0]["uri"] = {
+            "parent": "../secret.bin",
+            "absolute": str(outside),
+            "scheme": outside.as_uri(),
+        }[where]
+
+    path = gltf_with(tmp_path, edit)
+    with pytest.raises(InputError, match=r"buffers\[0\]\.uri") as e:
+        model.load(str(path), up="z")
+    assert str(path) in str(e.value) and "bytes" not in str(e.value)
+
+
+def test_an_embedded_gltf_buffer_still_reads(tmp_path):
+    import base64
+
+    def edit(d, folder):
+        blob = (folder / d["buffers"][0]["uri"]).read_bytes()
+        d["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
+
+    mesh = model.load(str(gltf_with(tmp_path, edit)), up="z")
+    assert len(mesh.faces) == len(QUAD_F)
+
+
+@pytest.mark.parametrize(
+    "nodes", [[{"mesh": 0, "children": [0]}], [{"mesh": 0, "children": [1, 1]}, {"mesh": 0}]]
+)
+def test_a_gltf_node_reached_twice_is_refused_at_once(tmp_path, nodes):
+    def edit(d, folder):
+        d["nodes"] = nodes
+
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match="twice"):
+        model.load(str(gltf_with(tmp_path, edit)), up="z")
+    assert time.perf_counter() - t0 < 5
+
+
+def test_the_cli_refuses_a_gltf_buffer_outside_in_one_line(tmp_path, variant, capsys):
+    def edit(d, folder):
+        shutil.copyfile(folder / d["buffers"][0]["uri"], tmp_path / "secret.bin")
+        d["buffers"][0]["uri"] = "../secret.bin"
+
+    path = gltf_with(tmp_path, edit)
+    argv = [
+        "sweep",
+        "--mesh",
+        str(path),
+        "--size",
+        "16",
+        "--azimuths",
+        "0",
+        "--quiet",
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    assert cli.main(argv) == 2
+    one_line(capsys.readouterr().err, "q.gltf", "buffers[0].uri")
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_path_rule_in_isolation(tmp_path):
+    from hzval.io import paths
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "link").symlink_to(tmp_path)
+    assert paths.inside(tmp_path / "in", "a/b.png", "f.json", "k") == tmp_path / "in" / "a" / "b.png"
+    for bad in ("link/x", "..", "/x", "", "a/../../x"):
+        with pytest.raises(InputError, match="f.json"):
+            paths.inside(tmp_path / "in", bad, "f.json", "k")
+    for bad in ("..", ".", "a/b", "a\\b", "-x", "x\x00", 3):
+        with pytest.raises(InputError, match="not a file name"):
+            paths.file_name(bad, "f.json", "k")
+    assert np.all([paths.file_name(n, "f", "k") == n for n in ("az+0", "el30_az-45", "a.b")])
