@@ -10,6 +10,7 @@ Usage::
     python benchmarks/bench_report.py REPORT_DIR/index.html
 """
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -60,12 +61,25 @@ def main(index: str) -> None:
             "e => e.complete && e.naturalWidth > 2000", arg=target.element_handle(), timeout=60000
         )
         print(
-            f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in {time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}"
+            f"zoom 1x: full image {target.evaluate('e => e.naturalWidth')} px in "
+            f"{time.perf_counter() - t0:.2f} s; width on screen {target.bounding_box()['width']:.0f}"
         )
         page.keyboard.press("0")
         print("errors", errors)
         b.close()
 
 
+def cli(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("index", metavar="REPORT_DIR/index.html", help="the report page a sweep wrote")
+    args = ap.parse_args(argv)
+    index = Path(args.index).resolve()
+    if not index.is_file():
+        print(f"bench_report: {args.index}: no such file", file=sys.stderr)
+        return 2
+    main(str(index))
+    return 0
+
+
 if __name__ == "__main__":
-    main(str(Path(sys.argv[1]).resolve()))
+    sys.exit(cli())
