@@ -1,5 +1,5 @@
 """Every script under benchmarks/ and studies/ (and the oracles' command lines) answers ``--help``, and
-runs at a smoke size (slow: each one is a whole measurement, made small).
+runs at a smoke size (most of them slow: each one is a whole measurement, made small).
 
 The scripts run as a user runs them, ``python benchmarks/NAME.py ...`` from a folder of their own, in a
 process of their own; hzval is found through ``PYTHONPATH`` as the suite's own process finds it.
@@ -168,8 +168,20 @@ NO_SMOKE = {
 }
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(SMOKE))
+#: The smoke runs that take a second or two: the default run keeps them, so that a renamed API breaks a
+#: test at once; the others are slow.
+FAST = {
+    "benchmarks/bench_horizon.py",
+    "benchmarks/bench_horizon_methods.py",
+    "benchmarks/bench_pom.py",
+    "benchmarks/bench_terrain.py",
+    "benchmarks/bench_truth.py",
+    "studies/figures.py",
+}
+_SLOW = pytest.mark.slow(reason="a whole measurement at a smoke size: several seconds to half a minute")
+
+
+@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=_SLOW) for n in sorted(SMOKE)])
 def test_smoke(name, tmp_path):
     """A small run ends with exit 0 and prints something: the script still works against the package."""
     from PIL import Image
