@@ -8,7 +8,8 @@ For each material at ``--size`` (default 256; its own depth and boundary), ``hzv
 
 Usage::
 
-    .venv/bin/python studies/study_fit.py [--size 256] [--materials a,b] [--more bricks,gravel,spikes] [--out study.json]
+    .venv/bin/python studies/study_fit.py [--size 256] [--materials a,b] [--more bricks,gravel,spikes]
+                                          [--out study.json]
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ degrees (azimuths -60:60:30, 16 spp, the truth and ``horizon``) at each toleranc
 tolerance (the default is chosen where halving moves mean V by at most 0.002 and |F - V| by at
 most 1% everywhere; docs/truth-surface.md)::
 
-    python studies/truth_convergence.py [--out /tmp/truth-convergence] [--tolerances 0.08,0.04,0.02,0.01,0.005]
+    python studies/truth_convergence.py [--out /tmp/truth-convergence]
+                                        [--tolerances 0.08,0.04,0.02,0.01,0.005]
                                            [--materials all] [--size 256]
 
 The sweeps of one map share one bake (the same folder's cache); only the truth changes.

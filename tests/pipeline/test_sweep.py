@@ -42,7 +42,8 @@ FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"
 DERIVED_FILES = {"plain", "visibility_png"}
 
 
-#: The techniques a sweep renders without --techniques (the GL ones are opt-in: tests/techniques/gl/test_horizon_gl.py).
+#: The techniques a sweep renders without --techniques (the GL ones are opt-in:
+#: tests/techniques/gl/test_horizon_gl.py).
 DEFAULT_TECHNIQUES = [n for n in technique.names() if technique.get(n).by_default]
 
 

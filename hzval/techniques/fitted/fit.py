@@ -202,8 +202,8 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
     its mesh's tolerance and its wrap margin are those of the lowest light, which serve every higher
     one (a higher ray clears the relief sooner; each frame takes the hops its own elevation needs),
     and a hard light's direction is read from its scene per frame. A set-up (the mesh, its BVH) costs
-    as much as 20 renders at 512 x 512; ``tests/techniques/fitted/test_fit.py`` checks that the V of a shared set-up
-    is a fresh one's bit for bit."""
+    as much as 20 renders at 512 x 512; ``tests/techniques/fitted/test_fit.py`` checks that the V of a
+    shared set-up is a fresh one's bit for bit."""
     from hzval.truth import plane as truth
 
     base = fit_scene(scene)
