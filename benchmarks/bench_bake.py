@@ -236,7 +236,8 @@ def main(argv: list[str] | None = None) -> int:
         lines = [
             f"hzval horizon bake vs the seed loop in C: {what}, {cols}x{rows}, 16-bit PNG,",
             f"depth {DEPTH}, radius {RADIUS}, {ANGLES} bins, {BOUNDARY}; {os.cpu_count()} CPUs, "
-            f"load average {load_start[0]:.2f} at start ({load_end[0]:.2f} at end, with this run's own load);",
+            f"load average {load_start[0]:.2f} at start ({load_end[0]:.2f} at end, with this run's own "
+            "load);",
             f"best of {args.repeat}; hzval variant {variant}",
             "",
             f"{'what':<58} {'whole s':>8} {'bake s':>8}",
@@ -276,7 +277,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"{name}: " + ", ".join(f"{k} {v:.2g}" for k, v in d.items()) for name, d in diffs.items()
             ),
             "",
-            f"reproduce: {shlex.join([sys.executable, str(Path(__file__).resolve())] + (argv if argv is not None else sys.argv[1:]))}",
+            "reproduce: "
+            + shlex.join(
+                [sys.executable, str(Path(__file__).resolve())] + (argv if argv is not None else sys.argv[1:])
+            ),
         ]
         print("\n".join(lines))
         if not c_identical:

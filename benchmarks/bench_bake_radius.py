@@ -176,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
                 rows[-len(kernels) + list(outputs).index(kernel)][2]["identical"] = same
 
     print(
-        f"seed horizon bake: hzval.materials.bricks.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, {BOUNDARY}; "
+        f"seed horizon bake: hzval.materials.bricks.bricks({args.size}), depth {DEPTH}, {ANGLES} bins, "
+        f"{BOUNDARY}; "
         f"{os.cpu_count()} CPUs, load average {load:.2f} at start"
     )
     print(

@@ -1,4 +1,5 @@
-"""Benchmark: a frame's image comparisons, flip-evaluator + colour-science against hzval.metrics.flip + the Dr.Jit CIEDE2000.
+"""Benchmark: a frame's image comparisons, flip-evaluator + colour-science against hzval.metrics.flip + the
+Dr.Jit CIEDE2000.
 
 One truth and ``--tests`` test images per size, as a sweep's frame compares
 them (:class:`hzval.metrics.compare.Reference` once, then every test image): the
@@ -15,7 +16,8 @@ values). Timed, side by side in one process, alternating old and new:
   and per test ``hzval.metrics.flip.flip_error`` and ``compare.delta_e2000``.
 
 It prints the seconds of each (FLIP's and CIEDE2000's, the truth's part and
-the tests', the total), old over new (the total, and FLIP's and CIEDE2000's), and the largest and mean differences of the values (FLIP map and
+the tests', the total), old over new (the total, and FLIP's and CIEDE2000's), and the largest and mean
+differences of the values (FLIP map and
 mean, CIEDE2000 map) between old and new. The Dr.Jit kernels are compiled (or
 loaded from Dr.Jit's cache) before timing.
 
@@ -127,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(f"1 truth + {args.tests} test images per size; seconds (best of {args.repeat})")
     print(
-        f"{'size':>9} {'path':>4} {'FLIP':>7} {'CIEDE2000':>9} {'truth':>7} {'tests':>7} {'total':>7} {'old/new':>8}"
+        f"{'size':>9} {'path':>4} {'FLIP':>7} {'CIEDE2000':>9} {'truth':>7} {'tests':>7} {'total':>7} "
+        f"{'old/new':>8}"
     )
     diffs = []
     for size in (int(s) for s in args.sizes.split(",")):
@@ -143,12 +146,14 @@ def main(argv: list[str] | None = None) -> int:
             total = sum(c.values())
             ratio = f" {sum(best['old'][0].values()) / total:8.2f}" if name == "new" else ""
             print(
-                f"{size:>4}x{size:<4} {name:>4} {c['flip_ref'] + c['flip']:7.3f} {c['de_ref'] + c['de']:9.3f} "
+                f"{size:>4}x{size:<4} {name:>4} {c['flip_ref'] + c['flip']:7.3f} "
+                f"{c['de_ref'] + c['de']:9.3f} "
                 f"{c['flip_ref'] + c['de_ref']:7.3f} {c['flip'] + c['de']:7.3f} {total:7.3f}{ratio}"
             )
         c_old, c_new = best["old"][0], best["new"][0]
         print(
-            f"{'':>9} {'':>4} {(c_old['flip_ref'] + c_old['flip']) / (c_new['flip_ref'] + c_new['flip']):6.1f}x "
+            f"{'':>9} {'':>4} "
+            f"{(c_old['flip_ref'] + c_old['flip']) / (c_new['flip_ref'] + c_new['flip']):6.1f}x "
             f"{(c_old['de_ref'] + c_old['de']) / (c_new['de_ref'] + c_new['de']):8.1f}x"
         )
         old, new = best["old"][1], best["new"][1]

@@ -16,7 +16,8 @@ The issue's target: a 512 x 512 frame at 1 sample per pixel in under 10 ms.
 Usage::
 
     python benchmarks/bench_horizon.py [--size 512] [--spp 1,16] [--paths exact,gpu]
-                                      [--effects "shadow;shadow,diffuse;shadow,diffuse,specular,ambient,reflection_occlusion"]
+                                      [--effects
+                                      "shadow;shadow,diffuse;shadow,diffuse,specular,ambient,reflection_occlusion"]
                                       [--frames 20]
 
 Exit status 1 if any row compiled a kernel after its first frame.

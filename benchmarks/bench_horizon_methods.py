@@ -58,7 +58,8 @@ def main(argv=None) -> int:
     variant = backend.variant()
     load = os.getloadavg()[0]
     print(
-        f"seed vs exact horizon bake: hzval.materials.bricks.bricks(N), depth {args.depth:g}, {args.boundary}; "
+        f"seed vs exact horizon bake: hzval.materials.bricks.bricks(N), depth {args.depth:g}, "
+        f"{args.boundary}; "
         f"variant {variant}; {os.cpu_count()} CPUs, load average {load:.2f} at start; best of {args.repeat}, "
         f"kernels warm, in-process"
     )
@@ -68,11 +69,11 @@ def main(argv=None) -> int:
     for n in sizes:
         h = cv.heights_in_texels(bricks(n), args.depth)
         runs = {
-            "seed (radius 16, 32 bins)": lambda: B.horizon_map(h, 16, 32, args.boundary),
-            "exact (Dr.Jit)": lambda: B.exact_horizon_map(h, args.boundary, engine="drjit"),
+            "seed (radius 16, 32 bins)": lambda h=h: B.horizon_map(h, 16, 32, args.boundary),
+            "exact (Dr.Jit)": lambda h=h: B.exact_horizon_map(h, args.boundary, engine="drjit"),
         }
         if n == min(sizes):
-            runs["exact (NumPy)"] = lambda: B.exact_horizon_map(h, args.boundary, engine="numpy")
+            runs["exact (NumPy)"] = lambda h=h: B.exact_horizon_map(h, args.boundary, engine="numpy")
         results = {name: fn() for name, fn in runs.items()}  # warm the kernels
         times = {name: [] for name in runs}
         for _ in range(args.repeat):

@@ -1,4 +1,5 @@
-"""Benchmark: the geometry of the truth on a model (hzval.geometry.model, hzval.geometry.displace), no rendering.
+"""Benchmark: the geometry of the truth on a model (hzval.geometry.model, hzval.geometry.displace), no
+rendering.
 
 Loads (or builds) a base mesh, estimates its cut along the texel grid (hzval.geometry.cells), cuts it for
 a height map (smoothed noise: its twisted cells get rings), displaces it, and prints where the time
@@ -72,7 +73,8 @@ def main() -> None:
     r = dp.refine(base, texels, "wrap", **kw)
     t3 = time.perf_counter()
     print(
-        f"refine: {len(r.faces)} triangles, {len(r.weld)} vertices ({r.weld.max() + 1} welded)  [{t3 - t2:.2f} s]"
+        f"refine: {len(r.faces)} triangles, {len(r.weld)} vertices ({r.weld.max() + 1} welded)  "
+        f"[{t3 - t2:.2f} s]"
     )
     p, f = dp.displace(r, h, a.depth, base.world_per_uv, "wrap")
     t4 = time.perf_counter()

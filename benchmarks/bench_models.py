@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def write_torus(path: Path, triangles: int) -> int:
-    """A torus of about ``triangles`` triangles, as OBJ (z up), with :func:`hzval.geometry.model.torus`'s UVs."""
+    """A torus of about ``triangles`` triangles, as OBJ (z up), with :func:`hzval.geometry.model.torus`'s
+    UVs."""
     import trimesh
 
     from hzval.geometry import model
@@ -87,7 +88,8 @@ def main() -> None:
         m = json.loads((tmp / "out" / "metrics.json").read_text())
     t = m["timings"]
     print(
-        f"{args.material} {args.size}^2 on a {n}-triangle torus (OBJ), {args.resolution}^2 px, {args.spp} spp, "
+        f"{args.material} {args.size}^2 on a {n}-triangle torus (OBJ), {args.resolution}^2 px, {args.spp} "
+        "spp, "
         f"{len(m['frames'])} lights, techniques {', '.join(m['techniques'])}"
     )
     print(
@@ -96,16 +98,19 @@ def main() -> None:
     for key in sorted(k for k in t if k.endswith("_s")):
         print(f"  {key:24} {t[key]:8.2f} s")
     print(
-        f"  displaced mesh {m['mesh']['displaced_triangles']:,} triangles; seen {m['mesh']['seen_fraction']:.2f}"
+        f"  displaced mesh {m['mesh']['displaced_triangles']:,} triangles; seen "
+        f"{m['mesh']['seen_fraction']:.2f}"
     )
     mem = m.get("memory", {})
     if mem:
         print(
-            f"  peak {mem.get('peak_rss_bytes', 0) / 2**30:.2f} GiB, estimated {mem.get('estimate_bytes', 0) / 2**30:.2f} GiB"
+            f"  peak {mem.get('peak_rss_bytes', 0) / 2**30:.2f} GiB, estimated "
+            f"{mem.get('estimate_bytes', 0) / 2**30:.2f} GiB"
         )
     for f in m["frames"]:
         print(
-            f"  az {f['azimuth_deg']:+5.0f}: truth {f['truth_s']:.2f} s, macro-shadowed {f.get('macro_shadowed', 0):.3f}, "
+            f"  az {f['azimuth_deg']:+5.0f}: truth {f['truth_s']:.2f} s, macro-shadowed "
+            f"{f.get('macro_shadowed', 0):.3f}, "
             + ", ".join(
                 f"{k} {v['seconds']:.2f} s |F-V| {v['visibility_mae']:.4f}"
                 for k, v in f["techniques"].items()

@@ -169,7 +169,8 @@ def side_by_side(
         ]
     )
     print(
-        f"hzval sweep {' '.join(args)}   ({'both' if both else 'this tree'}: + {' '.join(extra) or 'nothing'}; "
+        f"hzval sweep {' '.join(args)}   ({'both' if both else 'this tree'}: + "
+        f"{' '.join(extra) or 'nothing'}; "
         f"techniques: {baseline}: "
         f"{', '.join(old['metrics'].get('techniques', {})) or 'horizon, terrain'}; this tree: "
         f"{', '.join(new['metrics'].get('techniques', {}))})"

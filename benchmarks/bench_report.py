@@ -41,7 +41,8 @@ def main(index: str) -> None:
         )
         loaded = [i for i in imgs if i[1] and i[2] > 0]
         print(
-            f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths {sorted(set(i[2] for i in loaded))}"
+            f"load event {t_load:.2f} s; {len(imgs)} images, {len(loaded)} decoded at load; widths "
+            f"{sorted(set(i[2] for i in loaded))}"
         )
         target = page.locator("#frame-0 .flip[data-own='approx'] img")
         t0 = time.perf_counter()
@@ -53,7 +54,8 @@ def main(index: str) -> None:
             "#frame-0 img", "els => els.filter(e => e.complete && e.naturalWidth > 0).length"
         )
         print(
-            f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} decoded, width {target.evaluate('e => e.naturalWidth')})"
+            f"first frame's previews in {time.perf_counter() - t0:.2f} s after scrolling to it ({shown} "
+            f"decoded, width {target.evaluate('e => e.naturalWidth')})"
         )
         t0 = time.perf_counter()
         page.locator("button[data-zoom='1']").click()

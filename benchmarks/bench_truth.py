@@ -102,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"material  bricks({args.size}) depth 0.05 wrap: {t_material:.3f} s to generate")
     print(
         f"mesh      {verts} vertices, {faces} triangles, wrap margin {truth.margin} texels "
-        f"(min elevation {truth.min_elevation_deg:g} deg): built and loaded in {truth.timings['mesh_s']:.3f} s"
+        f"(min elevation {truth.min_elevation_deg:g} deg): built and loaded in "
+        f"{truth.timings['mesh_s']:.3f} s"
     )
     print(
         f"camera    {rays} rays ({args.spp} spp), traced once: {truth.timings['primary_s']:.3f} s "
@@ -119,7 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     for i, (az, s, launched, compiled, disk, lit) in enumerate(rows, 1):
         print(
-            f"{i:>5} {az:>8.1f} {s:>8.3f} {rays / s / 1e6:>8.1f} {launched:>8} {compiled:>8} {disk:>9} {lit:>7.4f}"
+            f"{i:>5} {az:>8.1f} {s:>8.3f} {rays / s / 1e6:>8.1f} {launched:>8} {compiled:>8} {disk:>9} "
+            f"{lit:>7.4f}"
         )
     print()
     if warm:

@@ -38,9 +38,11 @@ def corrected(setup, curvature: float) -> dict:
     sc = base.scene
     height = S.load_material_height(sc.material).height
     albedo = S.load_albedo(sc.material, *height.shape)
-    make = lambda at: technique.get("horizon-curved").build(
-        technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at)), curvature=curvature
-    )
+
+    def make(at):
+        context = technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at))
+        return technique.get("horizon-curved").build(context, curvature=curvature)
+
     return {"horizon-curved": (make("camera"), make("truth"))}
 
 
@@ -94,14 +96,18 @@ def main() -> None:
         for name, curvature, spec, corrected_for in runs:
             sc = cb.band_scene(ms._case_scene(scene, Path(tmp), name.split("@")[0], spec))
             case = cb.measure(
-                sc, Path(tmp) / name.split("@")[0], extra=lambda setup: corrected(setup, corrected_for)
+                sc,
+                Path(tmp) / name.split("@")[0],
+                extra=lambda setup: corrected(setup, corrected_for),  # noqa: B023 - called within this iteration
             )
             g = gain(case)
             rows.append({"case": name, "curvature": curvature, "corrected_for": corrected_for, **g})
             m, f = g["mae"], g["floor"]
             print(
-                f"{name:8} 1/R {curvature:+.3f}  |F-V| {m['horizon']['mean']:.4f} -> {m['horizon-curved']['mean']:.4f} "
-                f"gain {m['gain']['mean']:+.4f} ± {m['gain']['se']:.4f}   floor {f['horizon']['mean']:.4f} -> "
+                f"{name:8} 1/R {curvature:+.3f}  |F-V| {m['horizon']['mean']:.4f} -> "
+                f"{m['horizon-curved']['mean']:.4f} "
+                f"gain {m['gain']['mean']:+.4f} ± {m['gain']['se']:.4f}   floor {f['horizon']['mean']:.4f} "
+                "-> "
                 f"{f['horizon-curved']['mean']:.4f} gain {f['gain']['mean']:+.4f} ± {f['gain']['se']:.4f}",
                 flush=True,
             )

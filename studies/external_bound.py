@@ -3,7 +3,8 @@ exact horizons of the best convention, for a horizon map of the right height map
 
 For every pair of built-in materials (A, B) at one size: hzval's seed bake of B (and of A), stored
 as 8-bit sines as an engine would, detected against hzval's exact bake of A (hzval.io.external.detect,
-every convention tried). The right map (B = A) must correlate above the bound, every wrong one below; the |s - exact|
+every convention tried). The right map (B = A) must correlate above the bound, every wrong one below; the |s
+- exact|
 column shows why an absolute bound on it cannot tell them apart.
 Also a map of A in another convention (+y down) and a map of A with a radius of 4 texels, which are
 right maps.

@@ -75,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
         **json.loads(args.options),
     )
     print(
-        f"{args.height}: fit {time.perf_counter() - t0:.1f} s, {r.epochs} epochs, training {r.mae['training']}"
+        f"{args.height}: fit {time.perf_counter() - t0:.1f} s, {r.epochs} epochs, training "
+        f"{r.mae['training']}"
     )
     held = {
         spec: (fit.parse_lights(spec), fit.visibility(scene, hm.height, fit.parse_lights(spec)))
@@ -96,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
             f = got[spec]
             worse = sum(x > y for x, y in zip(f, b))
             print(
-                f"  {label} {spec}: fitted/baked {sum(f) / sum(b):.3f}, worse on {worse}/{len(b)}, smallest margin "
+                f"  {label} {spec}: fitted/baked {sum(f) / sum(b):.3f}, worse on {worse}/{len(b)}, smallest "
+                "margin "
                 f"{min(y - x for x, y in zip(f, b)):+.6f}; "
                 + " ".join(f"{y:.4f}/{x:.4f}" for x, y in zip(f, b))
             )

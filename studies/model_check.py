@@ -71,11 +71,15 @@ def main() -> None:
         )
         m = json.loads((out / "metrics.json").read_text())
         print(
-            f"{m['mesh']['source']}: {m['mesh']['triangles']} triangles, {m['mesh']['seam_edges']} seam edges, "
+            f"{m['mesh']['source']}: {m['mesh']['triangles']} triangles, {m['mesh']['seam_edges']} seam "
+            "edges, "
             f"mirrored {m['mesh']['mirrored_fraction']:.2f}, displaced {m['mesh']['displaced_triangles']:,}"
         )
         for f in m["frames"]:
-            rgb = lambda key: np.stack([files.read_exr(out / f["files"][key])[c] for c in "RGB"], -1)
+
+            def rgb(key):
+                return np.stack([files.read_exr(out / f["files"][key])[c] for c in "RGB"], -1)  # noqa: B023 - called within this iteration
+
             V = files.read_exr(out / f["files"]["visibility"])["Y"]
             lit = np.isfinite(V) & (V == 1.0)
             d = np.abs(rgb("truth") - rgb("plain"))[lit]

@@ -123,7 +123,8 @@ def main() -> None:
         runs["plane"] = (tmp / "plane", sweep(tmp / "xy.png", tmp / "plane", None, args))
         first_out, first = runs["xy"]
         print(
-            f"photo {args.photo.name}, {args.size}^2, depth {args.depth}, open, orthographic 60, lights -45, 30"
+            f"photo {args.photo.name}, {args.size}^2, depth {args.depth}, open, orthographic 60, lights "
+            "-45, 30"
         )
         for tech in ("horizon", "pom"):
             ref = factors(first_out, first, tech)

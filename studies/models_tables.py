@@ -27,7 +27,8 @@ def study(name: str, d: dict, tech: str = "horizon") -> list[str]:
     out = [
         f"**{name}** (`{d['command']}`)",
         "",
-        "| case | 1/R | texels | band \\|F-V\\| | flat, same texels | **excess** | flat's F - V | lit: cap - flat |",
+        "| case | 1/R | texels | band \\|F-V\\| | flat, same texels | **excess** | flat's F - V | lit: cap "
+        "- flat |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in d["rows"]:
@@ -65,7 +66,8 @@ def seams(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
 
 def ring(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
     out = [
-        "| material | ring excess, all lights | lights along the ring (k_n < 0) | across the tube (k_n > 0) |",
+        "| material | ring excess, all lights | lights along the ring (k_n < 0) | across the tube (k_n > 0) "
+        "|",
         "|---|---|---|---|",
     ]
     for name, d in named:
@@ -73,7 +75,10 @@ def ring(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
         by = r["band"]["by_azimuth"]
         neg = [a["excess"][tech] for a in by if a["normal_curvature"] < 0 and a["excess"][tech] is not None]
         pos = [a["excess"][tech] for a in by if a["normal_curvature"] > 0 and a["excess"][tech] is not None]
-        mean = lambda v: sum(v) / len(v) if v else float("nan")
+
+        def mean(v):
+            return sum(v) / len(v) if v else float("nan")
+
         out.append(
             f"| {name} | {pm(r['band']['techniques'][tech].get('excess'), signed=True)} | "
             f"{mean(neg):+.4f} ({len(neg)}) | {mean(pos):+.4f} ({len(pos)}) |"

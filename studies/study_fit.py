@@ -1,10 +1,12 @@
 """Study: the fitted horizon map on every built-in material (docs/fit.md).
 
 For each material at ``--size`` (default 256; its own depth and boundary), ``hzval fit``'s
-:func:`hzval.techniques.fitted.fit.fit` with the default training lights and, as held-out lights, the default sweep's
+:func:`hzval.techniques.fitted.fit.fit` with the default training lights and, as held-out lights, the
+default sweep's
 (elevation 30, azimuths -60..60 by 15: the same samples and the same metric as the sweep's
 ``visibility_mae``), for each variant: float (every material) and, for the ``--more`` materials,
-``--fit-k``, ``--storage u8`` and ``--storage bc7`` (each stored map against the bake stored alike). Prints one table row per material and variant and writes the records as JSON.
+``--fit-k``, ``--storage u8`` and ``--storage bc7`` (each stored map against the bake stored alike). Prints
+one table row per material and variant and writes the records as JSON.
 
 Usage::
 
@@ -40,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     names = args.materials.split(",") if args.materials else materials.names()
     rows = []
     print(
-        "material      variant  k      sweep |F-V| baked  fitted  ratio  | training baked  fitted  | epochs  fit s"
+        "material      variant  k      sweep |F-V| baked  fitted  ratio  | training baked  fitted  | epochs "
+        " fit s"
     )
     for name in names:
         scene = sc.override(sc.Scene(), height=name, size=args.size)

@@ -25,7 +25,8 @@ def main() -> None:
     )
     a = ap.parse_args()
     print(
-        f"{'height':16s} {'case':16s} {'bug':18s} {'mirrored':>9s} {'unmirrored':>10s} {'ratio':>6s} {'perfect':>8s} {'ratio':>6s}  mirrored per light"
+        f"{'height':16s} {'case':16s} {'bug':18s} {'mirrored':>9s} {'unmirrored':>10s} {'ratio':>6s} "
+        f"{'perfect':>8s} {'ratio':>6s}  mirrored per light"
     )
     for height in a.heights:
         is_file = "." in height
@@ -43,16 +44,21 @@ def main() -> None:
             t0 = time.perf_counter()
             rec, _ = bug_signatures.measure(sc, h, "horizon", shape, az, light_az, uv_scale)
             for bug, r in rec["bugs"].items():
-                fmt = lambda v, k=4: "-" if v is None else f"{v:.{k}f}"
+
+                def fmt(v, k=4):
+                    return "-" if v is None else f"{v:.{k}f}"
+
                 print(
-                    f"{height[-16:]:16s} {case:16s} {bug:18s} {fmt(r['mirrored']):>9s} {fmt(r['unmirrored']):>10s} "
+                    f"{height[-16:]:16s} {case:16s} {bug:18s} {fmt(r['mirrored']):>9s} "
+                    f"{fmt(r['unmirrored']):>10s} "
                     f"{fmt(r['mirrored_ratio'], 2):>6s} {fmt(r['mirrored_perfect_parallax']):>8s} "
                     f"{fmt(r['mirrored_perfect_parallax_ratio'], 2):>6s}  "
                     + " ".join(fmt(v, 3) for v in r["mirrored_per_light"])
                 )
             print(
                 f"# {case}: lights {rec['azimuths_deg'][0]:g}..{rec['azimuths_deg'][-1]:g} at "
-                f"{rec['elevation_deg']:g} deg, {rec['mirrored_pixels']} mirrored / {rec['unmirrored_pixels']} "
+                f"{rec['elevation_deg']:g} deg, {rec['mirrored_pixels']} mirrored / "
+                f"{rec['unmirrored_pixels']} "
                 f"unmirrored pixels, {time.perf_counter() - t0:.1f} s"
             )
 

@@ -167,7 +167,8 @@ class Bake:
     """The textures of the technique, as float32 arrays indexed ``[row, col]``.
 
     ``horizon``: ``(rows, cols, D)`` sines of the horizon angle, channel ``k``
-    toward azimuth ``360 k / D`` degrees (``D = params.directions``, 8 or 16). ``normal``: ``(rows, cols, 3)`` unit
+    toward azimuth ``360 k / D`` degrees (``D = params.directions``, 8 or 16). ``normal``: ``(rows, cols,
+    3)`` unit
     tangent-space normals. ``mean_cos``, ``mean_cos2``: ``(rows, cols)``
     ambient terms. ``timings``: seconds per stage.
     """
@@ -402,7 +403,8 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
                 "parameters": result.params.record() if full else _normal_record(result.params),
                 **({"method": METHOD_NOTES[result.params.method]} if full else {}),
                 "outputs": _output_notes(result.directions, full),
-                "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, azimuth counterclockwise from +x; "
+                "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, "
+                "azimuth counterclockwise from +x; "
                 "heights in texel units are H * depth * cols",
                 "timings_s": {k: round(v, 4) for k, v in timings.items()},
                 "versions": backend.versions(),

@@ -60,8 +60,10 @@ FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
 
 def check_fits(scene: Scene) -> int:
     """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
-    sweep's estimate (:func:`hzval.pipeline.sweep.estimate_peak_bytes`, its mesh at four triangles a texel until the
-    map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since nothing is rendered; return it in bytes."""
+    sweep's estimate (:func:`hzval.pipeline.sweep.estimate_peak_bytes`, its mesh at four triangles a texel
+    until the
+    map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
+    nothing is rendered; return it in bytes."""
     import dataclasses
 
     from hzval.bake import maps as bake
@@ -175,7 +177,8 @@ def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: floa
 
     return f"""<?xml version="1.0" encoding="utf-8"?>
 <!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export):
-     {scene.name}, depth {scene.material.depth:g}, {scene.material.boundary}, {scene.material.shading} shading,
+     {scene.name}, depth {scene.material.depth:g}, {scene.material.boundary}, \
+{scene.material.shading} shading,
      light azimuth {azimuth_deg:g}, elevation {light.elevation_deg:g} degrees; tangent space in texels,
      +x right, +y up the image. Render: mitsuba scene.xml -o out.exr -->
 <scene version="3.0.0">

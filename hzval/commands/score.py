@@ -62,7 +62,8 @@ __all__ = ["score", "write", "read_frame", "read_factor", "read_sidecar", "LABEL
 
 #: What the report calls the scored images, unless the sidecar names them.
 LABEL = "your renderer"
-#: The engine's name in metrics.json (``techniques.engine``, ``frames[i].techniques.engine``) and ``--fail-if``.
+#: The engine's name in metrics.json (``techniques.engine``, ``frames[i].techniques.engine``) and
+# ``--fail-if``.
 NAME = "engine"
 #: The engine's sidecar in FRAMES_DIR: its label and its own parameters.
 SIDECAR = "engine.toml"
@@ -86,7 +87,8 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
 
 def _check_shape(metrics, engine, sweep_dir: Path) -> None:
     """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
-    ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score` reads)."""
+    ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score`
+    reads)."""
 
     def need(ok: bool, name: str, key: str, what: str) -> None:
         if not ok:
@@ -389,7 +391,8 @@ def write(
     """``out/metrics.json`` and ``out/index.html``: the engine's images as the lead technique beside the
     sweep's truth and the sweep's techniques (whose images are copied in, so the report stands
     alone). Returns the index. The folder is held while they are written
-    (:func:`hzval.io.files.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first and
+    (:func:`hzval.io.files.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first
+    and
     listed at the top of the report."""
     out = Path(out)
     if gates:

@@ -21,7 +21,8 @@ setting of :func:`settings` against it, each with
     weight cube map (6 faces x 16 x 16 texels x 2 RGBA layers, 8-bit) where
     it is sampled; each technique's own
     (:meth:`hzval.techniques.registry.Technique.storage_bytes`: the 16-bit height map
-    for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of uint32 indices
+    for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of
+    uint32 indices
     per texel, margin excluded) for the truth.
 ``visibility_mae``
     mean over the sweep of the mean ``|F - V|`` against the converged
@@ -534,7 +535,10 @@ def table(points: list[Point]) -> str:
         for p in points
     ]
     w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    line = lambda c: "  ".join(x.ljust(w[0]) if i == 0 else x.rjust(w[i]) for i, x in enumerate(c))  # noqa: E731
+
+    def line(c):
+        return "  ".join(x.ljust(w[0]) if i == 0 else x.rjust(w[i]) for i, x in enumerate(c))
+
     return "\n".join([line(head), line(["-" * x for x in w]), *map(line, rows)])
 
 

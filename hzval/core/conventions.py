@@ -96,25 +96,96 @@ DIRECTION_COUNTS: tuple[int, ...] = (8, 16)
 
 
 def channel_azimuth_deg(channel: int, directions: int = CHANNEL_COUNT) -> float:
-    """Azimuth in degrees of horizon channel ``channel`` of a ``directions``-channel map: ``360 c / D``."""
+    """Azimuth of a horizon channel: ``360 c / D`` degrees, counterclockwise from +x.
+
+    Parameters
+    ----------
+    channel : int
+        The channel ``c``, 0 to ``directions - 1``.
+    directions : int
+        ``D``, the map's number of stored directions (8 or 16).
+
+    Returns
+    -------
+    float
+        The azimuth in degrees.
+
+    Examples
+    --------
+    >>> channel_azimuth_deg(3)
+    135.0
+    >>> channel_azimuth_deg(3, 16)
+    67.5
+    """
     return 360.0 * int(channel) / int(directions)
 
 
 def channel_azimuths_deg(directions: int = CHANNEL_COUNT) -> tuple[float, ...]:
-    """Azimuths in degrees of all channels of a ``directions``-channel map, channel order."""
+    """Azimuths of every channel of a ``D``-channel horizon map, in channel order.
+
+    Parameters
+    ----------
+    directions : int
+        ``D``, the map's number of stored directions.
+
+    Returns
+    -------
+    tuple of float
+        ``360 c / D`` degrees for ``c = 0 .. D - 1``.
+
+    Examples
+    --------
+    >>> channel_azimuths_deg(8)
+    (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
+    """
     return tuple(channel_azimuth_deg(c, directions) for c in range(int(directions)))
 
 
 def channels_per_radian(directions: int = CHANNEL_COUNT) -> float:
-    """``D / (2 pi)``: channel ``c`` of a ``D``-channel map sits at ``c * 2 pi / D`` radians.
+    """Channels per radian of azimuth, ``D / (2 pi)``: channel ``c`` sits at ``c 2 pi / D`` radians.
 
-    For 8 channels this is ``4 / pi`` exactly (a power-of-two scaling of
-    ``1 / (2 pi)``)."""
+    Parameters
+    ----------
+    directions : int
+        ``D``, the map's number of stored directions. For 8 the result is ``4 / pi`` exactly (a
+        power-of-two scaling of ``1 / (2 pi)``).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import math
+    >>> channels_per_radian(8) == 4 / math.pi
+    True
+    """
     return int(directions) / (2.0 * math.pi)
 
 
 def layer_count(directions: int = CHANNEL_COUNT) -> int:
-    """RGBA layers that hold ``directions`` channels (``directions / 4``)."""
+    """RGBA layers that hold a horizon map's channels, four channels a layer.
+
+    Parameters
+    ----------
+    directions : int
+        ``D``, a multiple of 4.
+
+    Returns
+    -------
+    int
+        ``D / 4``.
+
+    Raises
+    ------
+    ValueError
+        If ``D`` does not fill whole layers.
+
+    Examples
+    --------
+    >>> layer_count(8), layer_count(16)
+    (2, 4)
+    """
     if directions % CHANNELS_PER_LAYER:
         raise ValueError(f"the directions must fill whole RGBA layers, got {directions}")
     return int(directions) // CHANNELS_PER_LAYER
@@ -126,9 +197,24 @@ def layer_count(directions: int = CHANNEL_COUNT) -> int:
 
 
 def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space ``(x, y)`` of every texel centre, each of shape (rows, cols).
+    """Tangent-space coordinates of every texel centre.
 
-    Units are texels; ``x = col + 0.5`` and ``y = rows - row - 0.5``.
+    Parameters
+    ----------
+    rows, cols : int
+        The height map's shape.
+
+    Returns
+    -------
+    x, y : numpy.ndarray
+        float64 arrays of shape ``(rows, cols)``, in texels: ``x = col + 0.5``, ``y = rows - row - 0.5``
+        (+y up the image).
+
+    Examples
+    --------
+    >>> x, y = texel_centres(2, 3)
+    >>> x[0].tolist(), y[:, 0].tolist()
+    ([0.5, 1.5, 2.5], [1.5, 0.5])
     """
     col = np.arange(cols, dtype=np.float64) + 0.5
     y = rows - np.arange(rows, dtype=np.float64) - 0.5
@@ -136,11 +222,32 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
-    """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres
-    (:func:`texel_centres`) at tangent-space points ``(x, y)`` in texels, float64 (NumPy): ``wrap``
-    repeats the image, ``open`` clamps to its border. Returns ``(n,)`` or ``(n, k)``; at a texel
-    centre, that texel exactly. The truth's vertex normals (:func:`hzval.geometry.tile.vertex_normals`) and a
-    model's displacement (:func:`hzval.geometry.displace.bilinear`) read through it."""
+    """An image read bilinearly between texel centres at tangent-space points (NumPy, float64).
+
+    The truth's vertex normals (:func:`hzval.geometry.tile.vertex_normals`) and a model's displacement
+    (:func:`hzval.geometry.displace.bilinear`) read through it.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(rows, cols)`` or ``(rows, cols, k)``, texel centres as :func:`texel_centres` places them.
+    x, y : array_like
+        Points in texels, tangent space, shape ``(n,)``.
+    boundary : {"wrap", "open"}
+        ``wrap`` repeats the image, ``open`` clamps to its border.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` or ``(n, k)`` float64; at a texel centre, that texel exactly.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> img = np.array([[0.0, 1.0], [2.0, 3.0]])
+    >>> bilinear_at(img, np.array([1.0]), np.array([1.0]), "open").tolist()
+    [1.5]
+    """
     img = np.asarray(image, np.float64)
     rows, cols = img.shape[:2]
     fx = np.asarray(x, np.float64) - 0.5  # column coordinate of the centres
@@ -162,18 +269,48 @@ def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
 
 
 def is_drjit(values) -> bool:
-    """Whether ``values`` is a Dr.Jit array (a kernel's operand) rather than NumPy or Python values."""
+    """Whether ``values`` is a Dr.Jit array (a kernel's operand) rather than NumPy or Python values.
+
+    Parameters
+    ----------
+    values : object
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> is_drjit(1.0), is_drjit([1.0])
+    (False, False)
+    """
     return not isinstance(values, (np.ndarray, np.generic, float, int, list, tuple))
 
 
 def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space points ``(x, y)`` in texels as texture coordinates ``(u, v)``, float32.
+    """Tangent-space points as texture coordinates ``(u, v)``, float32.
 
-    ``u = x / cols`` runs right, ``v = (rows - y) / rows`` runs down the
-    image (row 0 at ``v = 0``), as Dr.Jit's and Mitsuba's textures index a
-    ``(rows, cols)`` array; texel ``(row, col)``'s centre is at ``u = (col +
-    0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64 and rounded once:
-    NumPy values, or Dr.Jit arrays (``mi.Float64`` in a kernel: the same bits).
+    ``u = x / cols`` runs right, ``v = (rows - y) / rows`` runs down the image (row 0 at ``v = 0``), as
+    Dr.Jit's and Mitsuba's textures index a ``(rows, cols)`` array; texel ``(row, col)``'s centre is at
+    ``u = (col + 0.5) / cols``, ``v = (row + 0.5) / rows``. Computed in float64 and rounded once.
+
+    Parameters
+    ----------
+    x, y : array_like or Dr.Jit array
+        Points in texels. NumPy values, or Dr.Jit arrays (``mi.Float64`` in a kernel: the same bits).
+    rows, cols : int
+        The texture's shape.
+
+    Returns
+    -------
+    u, v : numpy.ndarray or mitsuba.Float
+        float32 texture coordinates.
+
+    Examples
+    --------
+    >>> u, v = tangent_to_uv(0.5, 3.5, 4, 4)
+    >>> float(u), float(v)
+    (0.125, 0.125)
     """
     if is_drjit(x):
         import mitsuba as mi
@@ -185,12 +322,44 @@ def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
-    """A tangent-space offset ``(dx, dy)`` in texels as ``(drow, dcol)``."""
+    """A tangent-space offset as an offset in the image's rows and columns.
+
+    Parameters
+    ----------
+    dx, dy : int
+        Texels along +x (right) and +y (up).
+
+    Returns
+    -------
+    tuple of int
+        ``(drow, dcol) = (-dy, dx)``: +y is up, rows run down.
+
+    Examples
+    --------
+    >>> tangent_to_pixel_offset(1, 2)
+    (-2, 1)
+    """
     return -dy, dx
 
 
 def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
-    """A pixel offset ``(drow, dcol)`` as a tangent-space ``(dx, dy)`` in texels."""
+    """An offset in rows and columns as a tangent-space one; :func:`tangent_to_pixel_offset` inverted.
+
+    Parameters
+    ----------
+    drow, dcol : int
+        Rows down and columns right.
+
+    Returns
+    -------
+    tuple of int
+        ``(dx, dy) = (dcol, -drow)`` in texels.
+
+    Examples
+    --------
+    >>> pixel_to_tangent_offset(*tangent_to_pixel_offset(3, -5))
+    (3, -5)
+    """
     return dcol, -drow
 
 
@@ -211,8 +380,32 @@ MAX_DEPTH_OPEN = 1000.0
 
 
 def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
-    """``depth`` if it is a number in ``(0, MAX_DEPTH]`` (``open``: ``MAX_DEPTH_OPEN``), else one line
-    naming ``what`` and why."""
+    """A relief depth, checked against what the truth can render.
+
+    Parameters
+    ----------
+    depth : float
+        The world height of ``H = 1``, in image widths.
+    what : str
+        The flag or file key named in the error.
+    boundary : {"wrap", "open"}
+        ``open`` tiles allow :data:`MAX_DEPTH_OPEN`, ``wrap`` tiles :data:`MAX_DEPTH`.
+
+    Returns
+    -------
+    float
+        ``depth``.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        One line naming ``what`` and why, when ``depth`` is not a number in ``(0, max]``.
+
+    Examples
+    --------
+    >>> check_depth(0.05)
+    0.05
+    """
     if isinstance(depth, bool) or not isinstance(depth, (int, float, np.integer, np.floating)):
         raise InputError(what, f"must be a number of image widths, got {depth!r}")
     top = MAX_DEPTH_OPEN if boundary == "open" else MAX_DEPTH
@@ -229,22 +422,75 @@ def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
 
 
 def height_scale(depth: float, cols: int) -> float:
-    """Factor from a normalised height ``H`` to texel units: ``depth * cols``."""
+    """The factor from a normalised height ``H`` to texel units.
+
+    Parameters
+    ----------
+    depth : float
+        World height of ``H = 1``, in image widths.
+    cols : int
+        The height map's width in texels.
+
+    Returns
+    -------
+    float
+        ``depth * cols``.
+
+    Examples
+    --------
+    >>> height_scale(0.05, 512)
+    25.6
+    """
     return float(depth) * int(cols)
 
 
 def heights_in_texels(height: np.ndarray, depth: float) -> np.ndarray:
-    """``H * depth * cols`` as float32: the heights that every stage reads."""
+    """The heights every stage reads: ``H * depth * cols`` in texel units.
+
+    Parameters
+    ----------
+    height : numpy.ndarray
+        ``H[row, col]``, normalised to [0, 1].
+    depth : float
+        World height of ``H = 1``, in image widths.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, the shape of ``height``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> heights_in_texels(np.array([[0.0, 1.0]]), 0.5).tolist()
+    [[0.0, 1.0]]
+    """
     height = np.asarray(height, dtype=np.float32)
     return height * np.float32(height_scale(depth, height.shape[1]))
 
 
 def pad_heights(h: np.ndarray, pad: int | tuple, boundary: str) -> np.ndarray:
-    """Extend a height map beyond its edges as the boundary prescribes.
+    """A height map extended beyond its edges as the boundary prescribes.
 
-    ``wrap`` repeats the tile (any size, also pads wider than the image);
-    ``open`` fills with ``-inf``: nothing is there, so nothing outside the
-    image can occlude, and ``-inf`` loses every ``max``.
+    Parameters
+    ----------
+    h : numpy.ndarray
+        Heights ``(rows, cols)``.
+    pad : int or tuple
+        Widths as :func:`numpy.pad` takes them.
+    boundary : {"wrap", "open"}
+        ``wrap`` repeats the tile (any size, also pads wider than the image); ``open`` fills with
+        ``-inf``: nothing is there, nothing outside the image occludes, and ``-inf`` loses every ``max``.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pad_heights(np.array([[1.0, 2.0]]), ((0, 0), (1, 1)), "wrap").tolist()
+    [[2.0, 1.0, 2.0, 1.0]]
     """
     if boundary == "wrap":
         return np.pad(h, pad, mode="wrap")
@@ -254,12 +500,29 @@ def pad_heights(h: np.ndarray, pad: int | tuple, boundary: str) -> np.ndarray:
 
 
 def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space slopes ``(dh/dx, dh/dy)`` of heights ``h`` by central differences.
+    """Tangent-space slopes of heights, by central differences.
 
-    ``h`` and the slopes are in texel units. +y is *up* the image, so
-    ``dh/dy`` at row ``r`` is ``(h[r-1] - h[r+1]) / 2``. ``wrap`` takes the
-    neighbours across the edge; ``open`` uses one-sided differences at the
-    border (there is no neighbour), and zero slope along an axis of length 1.
+    +y is *up* the image, so ``dh/dy`` at row ``r`` is ``(h[r-1] - h[r+1]) / 2``.
+
+    Parameters
+    ----------
+    h : numpy.ndarray
+        Heights ``(rows, cols)`` in texel units.
+    boundary : {"wrap", "open"}
+        ``wrap`` takes the neighbours across the edge; ``open`` uses one-sided differences at the border,
+        and zero slope along an axis of length 1.
+
+    Returns
+    -------
+    dhdx, dhdy : numpy.ndarray
+        float32 slopes, the shape of ``h``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> gx, gy = height_gradient(np.array([[0.0, 1.0, 2.0, 3.0]]), "open")
+    >>> gx.tolist(), bool((gy == 0).all())
+    ([[1.0, 1.0, 1.0, 1.0]], True)
     """
     h = np.asarray(h, dtype=np.float32)
 
@@ -279,9 +542,24 @@ def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarra
 
 
 def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
-    """Unit tangent-space vector toward a light at ``(azimuth, elevation)``.
+    """The unit tangent-space vector toward a light: ``L = (cos e cos phi, cos e sin phi, sin e)``.
 
-    ``L = (cos e cos phi, cos e sin phi, sin e)``, angles in degrees.
+    Parameters
+    ----------
+    azimuth_deg : float
+        ``phi``, degrees counterclockwise from +x as seen on screen.
+    elevation_deg : float
+        ``e``, degrees above the surface.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(3,)`` float64, pointing *toward* the light.
+
+    Examples
+    --------
+    >>> light_direction(90.0, 0.0).round(12).tolist()
+    [0.0, 1.0, 0.0]
     """
     phi = math.radians(azimuth_deg)
     e = math.radians(elevation_deg)
@@ -289,9 +567,23 @@ def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
 
 
 def azimuth_of(x, y):
-    """Azimuth in radians, in (-pi, pi], of the tangent-space direction ``(x, y)``.
+    """The azimuth of a tangent-space direction, on NumPy and Dr.Jit arrays alike.
 
-    Works on NumPy and Dr.Jit arrays alike.
+    Parameters
+    ----------
+    x, y : array_like or Dr.Jit array
+        The direction's tangent-space components.
+
+    Returns
+    -------
+    array
+        ``atan2(y, x)`` in radians, in (-pi, pi].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> float(azimuth_of(0.0, 1.0)) == np.pi / 2
+    True
     """
     try:
         import drjit as dr
@@ -304,19 +596,53 @@ def azimuth_of(x, y):
 
 
 def channel_layer(channel: int) -> tuple[int, int]:
-    """``(layer, component)`` that store horizon channel ``channel`` (0..D-1)."""
+    """Where a horizon channel is stored: its RGBA layer and component.
+
+    Parameters
+    ----------
+    channel : int
+        The channel, 0 to ``D - 1``.
+
+    Returns
+    -------
+    tuple of int
+        ``(layer, component) = divmod(channel, 4)``.
+
+    Examples
+    --------
+    >>> channel_layer(5)
+    (1, 1)
+    """
     return divmod(int(channel), CHANNELS_PER_LAYER)
 
 
 def channel_weights(lx, ly, directions: int = CHANNEL_COUNT) -> np.ndarray:
-    """Exact weights of the ``directions`` horizon channels for a light direction ``(lx, ly)``.
+    """Exact weights of the horizon channels for a light direction (Lengyel, *Smooth Horizon Mapping*, 5.3).
 
-    The horizon sine toward azimuth ``phi`` is the linear interpolation
-    between the two channels adjacent to ``phi = atan2(ly, lx)`` (Lengyel,
-    section 5.3, for 8; the same tent in ``360 / D``-degree steps for ``D``
-    channels); the weights sum to 1. Returns shape ``(..., directions)``. A
-    light straight above (``lx = ly = 0``) takes ``phi = 0``: its elevation
-    is 90 degrees, above every horizon, so the choice does not matter.
+    The horizon sine toward ``phi = atan2(ly, lx)`` is the linear interpolation between the two channels
+    adjacent to ``phi``: a tent in ``360 / D``-degree steps. A light straight above (``lx = ly = 0``)
+    takes ``phi = 0``: its elevation is 90 degrees, above every horizon, so the choice does not matter.
+
+    Parameters
+    ----------
+    lx, ly : array_like
+        The light's tangent-space x and y (any scale).
+    directions : int
+        ``D``, the map's number of stored directions.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 ``(..., D)``; each row sums to 1.
+
+    Examples
+    --------
+    >>> channel_weights(1.0, 1.0).tolist()
+    [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    >>> import numpy as np
+    >>> w = channel_weights(np.cos(np.radians(22.5)), np.sin(np.radians(22.5)))
+    >>> np.round(w[:2], 12).tolist()
+    [0.5, 0.5]
     """
     n = int(directions)
     phi = np.arctan2(np.asarray(ly, dtype=np.float64), np.asarray(lx, dtype=np.float64))
@@ -343,15 +669,27 @@ CUBE_FACES: tuple[str, ...] = ("posx", "negx", "posy", "negy", "posz", "negz")
 
 
 def cube_texel_directions(size: int) -> np.ndarray:
-    """Unnormalised direction through the centre of every cube-map texel.
+    """The unnormalised direction through the centre of every texel of a cube map.
 
-    Shape ``(6, size, size, 3)``, indexed ``[face, row, col]``, with the face
-    layout of the OpenGL specification (4.6, table 8.19): a direction ``r``
-    with major axis ``ma`` is looked up at ``s = (sc/|ma| + 1)/2`` (column)
-    and ``t = (tc/|ma| + 1)/2`` (row, row 0 first in memory). The cube is
-    indexed with tangent-space vectors, so its x, y, z are tangent space's.
-    The seed generators use two different layouts (docs/ARCHITECTURE.md); this one is
-    the GPU's.
+    The face layout is the OpenGL specification's (4.6, table 8.19): a direction ``r`` with major axis
+    ``ma`` is looked up at ``s = (sc / |ma| + 1) / 2`` (column) and ``t = (tc / |ma| + 1) / 2`` (row, row 0
+    first in memory). The cube is indexed with tangent-space vectors, so its x, y, z are tangent space's.
+    The seed generators use two other layouts (docs/ARCHITECTURE.md); this one is the GPU's.
+
+    Parameters
+    ----------
+    size : int
+        Texels along a face's edge.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(6, size, size, 3)`` float64, indexed ``[face, row, col]``, faces in :data:`CUBE_FACES` order.
+
+    Examples
+    --------
+    >>> cube_texel_directions(1)[:, 0, 0].tolist()[0]
+    [1.0, -0.0, -0.0]
     """
     c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
     tc, sc = np.meshgrid(c, c, indexing="ij")  # tc varies along rows
@@ -368,10 +706,26 @@ def cube_texel_directions(size: int) -> np.ndarray:
 
 
 def cube_lookup(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Face index and face coordinates ``(s, t)`` in [0, 1] of directions ``(..., 3)``.
+    """The face and face coordinates of directions; the inverse of :func:`cube_texel_directions`.
 
-    The inverse of :func:`cube_texel_directions` (OpenGL table 8.19). Ties
-    between axes go to x, then y, then z.
+    Parameters
+    ----------
+    direction : array_like
+        ``(..., 3)`` tangent-space directions (any length). Ties between axes go to x, then y, then z.
+
+    Returns
+    -------
+    face : numpy.ndarray
+        Face indices, :data:`CUBE_FACES` order (OpenGL table 8.19).
+    s, t : numpy.ndarray
+        Face coordinates in [0, 1], column and row.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> face, s, t = cube_lookup(np.array([0.0, 0.0, 1.0]))
+    >>> int(face), float(s), float(t)
+    (4, 0.5, 0.5)
     """
     d = np.asarray(direction, dtype=np.float64)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
@@ -388,11 +742,25 @@ def cube_lookup(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def encode_signed_weight(w: np.ndarray) -> np.ndarray:
-    """Store weights in [-1, 1] as 8-bit values, ``round((w + 1) * 127.5)``.
+    """Weights in [-1, 1] stored as 8-bit values: ``round((w + 1) 127.5)`` (Lengyel's remap).
 
-    Lengyel remaps [-1, 1] to [0, 255]; a zero weight (127.5) cannot be stored
-    exactly and rounds (half to even) to 128, which decodes to a weight of
-    ``2 * 128 / 255 - 1 = 1/255`` on layer 0.
+    A zero weight (127.5) cannot be stored exactly and rounds (half to even) to 128, which decodes to
+    ``2 * 128 / 255 - 1 = 1/255``.
+
+    Parameters
+    ----------
+    w : array_like
+        Weights in [-1, 1]; values outside are clamped.
+
+    Returns
+    -------
+    numpy.ndarray
+        uint8.
+
+    Examples
+    --------
+    >>> encode_signed_weight([-1.0, 0.0, 1.0]).tolist()
+    [0, 128, 255]
     """
     return np.clip(np.round((np.asarray(w, dtype=np.float64) + 1.0) * 127.5), 0, 255).astype(np.uint8)
 
@@ -403,7 +771,23 @@ def encode_signed_weight(w: np.ndarray) -> np.ndarray:
 
 
 def srgb_decode(values: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] to linear (IEC 61966-2-1, via colour-science)."""
+    """sRGB-encoded values to linear (IEC 61966-2-1, colour-science's ``cctf_decoding``).
+
+    Parameters
+    ----------
+    values : array_like
+        Encoded values in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 linear values.
+
+    Examples
+    --------
+    >>> round(float(srgb_decode(0.5)), 6)
+    0.214041
+    """
     import colour
 
     return np.asarray(colour.cctf_decoding(np.asarray(values, dtype=np.float64), function="sRGB"))
@@ -412,13 +796,25 @@ def srgb_decode(values: np.ndarray) -> np.ndarray:
 def srgb_encode(values):
     """Linear values to sRGB-encoded values (IEC 61966-2-1), negatives as 0.
 
-    NumPy values (or anything array-like) go through colour-science's
-    ``cctf_encoding(function="sRGB")``. A Dr.Jit array (``mi.Float64``: the
-    comparison's display values, :func:`hzval.metrics.compare.display`) is encoded in a
-    kernel by the formula colour-science's ``eotf_inverse_sRGB`` evaluates,
-    ``12.92 L`` at or below ``L = 0.0031308``, else ``1.055 L^(1/2.4) - 0.055``:
-    within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's), 25x faster on
-    12M values on this 2-core machine (``tests/metrics/test_compare.py``).
+    NumPy values go through colour-science's ``cctf_encoding(function="sRGB")``. A Dr.Jit array
+    (``mi.Float64``: the comparison's display values, :func:`hzval.metrics.compare.display`) is encoded in a
+    kernel by the formula colour-science evaluates, ``12.92 L`` at or below ``L = 0.0031308``, else
+    ``1.055 L^(1/2.4) - 0.055``: within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's).
+
+    Parameters
+    ----------
+    values : array_like or Dr.Jit array
+        Linear values.
+
+    Returns
+    -------
+    numpy.ndarray or Dr.Jit array
+        Encoded values, the type of ``values``.
+
+    Examples
+    --------
+    >>> round(float(srgb_encode(0.214041)), 4), float(srgb_encode(-1.0))
+    (0.5, 0.0)
     """
     if is_drjit(values):
         import drjit as dr
@@ -434,8 +830,19 @@ def srgb_encode(values):
 def luminance_weights() -> np.ndarray:
     """Weights of R, G, B in the luminance Y of the sRGB / Rec. 709 primaries.
 
-    Taken from colour-science's sRGB RGB-to-XYZ matrix (its Y row), so that
-    RGB height maps are reduced as ``Y = w . rgb`` on their data values.
+    Taken from colour-science's sRGB RGB-to-XYZ matrix (its Y row), so that RGB height maps are reduced as
+    ``Y = w . rgb`` on their data values.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(3,)`` float64, summing to 1.
+
+    Examples
+    --------
+    >>> w = luminance_weights()
+    >>> round(float(w.sum()), 6), round(float(w[1]), 4)
+    (1.0, 0.7152)
     """
     import colour
 

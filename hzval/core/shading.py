@@ -76,10 +76,22 @@ SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
 
 
 def max_radiance(scene) -> float:
-    """The largest radiance the scene's declared direct and sky terms can produce, per the formulas
-    above with a white albedo: ``E / pi`` (diffuse, facing the light) ``+ KS E`` (specular, at its
-    peak ``n.h = 1``), or ``E`` (grey, neither declared), ``+ E * SKY_RADIANCE_PER_IRRADIANCE``
-    (ambient, the whole sky seen). Interreflection can add more; it is not counted."""
+    """The largest radiance a scene's declared direct and sky terms can produce, with a white albedo.
+
+    ``E / pi`` (diffuse, facing the light) ``+ KS E`` (specular, at its peak ``n.h = 1``), or ``E`` (grey,
+    neither declared), ``+ E * SKY_RADIANCE_PER_IRRADIANCE`` (ambient, the whole sky seen). Interreflection
+    can add more; it is not counted.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+        Its light's irradiance ``E`` and its declared effects.
+
+    Returns
+    -------
+    float
+        Linear radiance.
+    """
     E = float(scene.light.irradiance)
     diffuse, specular = scene.declares("diffuse"), scene.declares("specular")
     peak = E if not (diffuse or specular) else E / math.pi * diffuse + SPECULAR_KS * E * specular
@@ -89,19 +101,69 @@ def max_radiance(scene) -> float:
 
 
 def exposure(scene) -> float:
-    """Scale from radiance to display values: :func:`max_radiance` shows as 1."""
+    """The scale from radiance to display values, so that :func:`max_radiance` shows as 1.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+
+    Returns
+    -------
+    float
+        ``1 / max_radiance(scene)``.
+    """
     return 1.0 / max_radiance(scene)
 
 
 def disk_sample_irradiance(E: float, radius_deg: float) -> float:
-    """The irradiance each sampled direction of a soft light carries: ``2 E / (1 + cos rho)``
-    (module docstring, "Soft light"), so that a surface facing the disk's centre receives ``E``."""
+    """The irradiance each sampled direction of a soft light carries (module docstring, "Soft light").
+
+    A disk of angular radius ``rho`` sampled uniformly in solid angle delivers ``E (1 + cos rho) / 2`` to a
+    surface facing its centre when each direction carries ``E``; scaling by ``2 / (1 + cos rho)`` makes it
+    ``E``.
+
+    Parameters
+    ----------
+    E : float
+        The light's irradiance on a surface facing it.
+    radius_deg : float
+        ``rho``, the disk's angular radius in degrees.
+
+    Returns
+    -------
+    float
+        ``2 E / (1 + cos rho)``.
+
+    Examples
+    --------
+    >>> disk_sample_irradiance(1.0, 0.0)
+    1.0
+    >>> round(disk_sample_irradiance(1.0, 90.0), 12)
+    2.0
+    """
     return 2.0 * float(E) / (1.0 + math.cos(math.radians(radius_deg)))
 
 
 def ipow(x, n: int):
-    """``x ** n`` for a positive integer ``n`` by repeated squaring (no exp/log): the same
-    rounding on every backend, and cheaper than ``dr.power`` in a kernel."""
+    """``x ** n`` for a positive integer ``n`` by repeated squaring, without exp or log.
+
+    The same rounding on every backend, and cheaper than ``dr.power`` in a kernel.
+
+    Parameters
+    ----------
+    x : float, numpy.ndarray or Dr.Jit array
+    n : int
+        The exponent, at least 1.
+
+    Returns
+    -------
+    The type of ``x``.
+
+    Examples
+    --------
+    >>> ipow(2.0, 10), ipow(3, 1)
+    (1024.0, 3)
+    """
     result = None
     base = x
     while n:
@@ -114,13 +176,29 @@ def ipow(x, n: int):
 
 
 def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
-    """``D`` of the module docstring per sample, as a ``mi.Color3f`` (Dr.Jit arrays in and out).
+    """The direct term ``D`` of the module docstring, per sample (Dr.Jit arrays in and out).
 
-    ``albedo``: linear ``Color3f`` (read only with ``diffuse``); ``E`` the
-    irradiance (a Dr.Jit Float, opaque in callers so that kernels are
-    shared); ``h``: the half vector when the caller has it already (uniform
-    over a frame for a hard light and a fixed view), else computed from
-    ``L`` and ``v``.
+    Lambert (FGED2 ch. 7) ``albedo / pi * E * max(0, n.L)`` plus Blinn-Phong
+    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]``, whichever are declared; ``E`` (grey) when neither is.
+
+    Parameters
+    ----------
+    n, L, v : mitsuba.Vector3f
+        Unit shading normal, direction toward the light and toward the viewer, tangent space.
+    albedo : mitsuba.Color3f
+        Linear albedo (read only with ``diffuse``).
+    E : mitsuba.Float
+        The light's irradiance (opaque in callers, so that kernels are shared).
+    diffuse, specular : bool
+        The declared terms.
+    h : mitsuba.Vector3f, optional
+        The half vector when the caller has it already (uniform over a frame for a hard light and a fixed
+        view); else ``normalize(L + v)``.
+
+    Returns
+    -------
+    mitsuba.Color3f
+        Linear radiance.
     """
     import drjit as dr
     import mitsuba as mi
@@ -139,20 +217,59 @@ def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
 
 
 def sky(albedo, A, E):
-    """The ambient term ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE`` (Dr.Jit or NumPy)."""
+    """The ambient term: ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE``.
+
+    Parameters
+    ----------
+    albedo : array
+        Linear albedo (Dr.Jit or NumPy).
+    A : array
+        The unoccluded cosine-weighted fraction of the sky.
+    E : float or array
+        The light's irradiance.
+
+    Returns
+    -------
+    array
+        Linear radiance, the type of the operands.
+
+    Examples
+    --------
+    >>> import math
+    >>> math.isclose(sky(1.0, 1.0, math.pi), 1.0)
+    True
+    """
     return albedo * (A * E * SKY_RADIANCE_PER_IRRADIANCE)
 
 
 def compose(
     direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndarray | None = None
 ) -> np.ndarray:
-    """``D * F + ambient`` per pixel: an unshadowed render's direct part shadowed by a
-    per-pixel factor ``F`` ``(H, W)``; ``(H, W, 3)`` float32.
+    """A frame's image ``D * F + ambient`` per pixel.
 
-    Techniques whose factor is computed per pixel (terrain, pom) shade with
-    it here; the horizon map multiplies per sample in its kernel. The two
-    differ only where the direct term varies inside a pixel that a shadow
-    edge crosses (a covariance within one pixel).
+    Techniques whose factor is computed per pixel (terrain, pom) shade with it here; the horizon map
+    multiplies per sample in its kernel. The two differ only where the direct term varies inside a pixel
+    that a shadow edge crosses (a covariance within one pixel).
+
+    Parameters
+    ----------
+    direct_image : numpy.ndarray
+        ``(H, W, 3)``: the unshadowed render's direct part ``D``, linear.
+    factor : numpy.ndarray
+        ``(H, W)``: the shadow factor ``F`` in [0, 1].
+    ambient_image : numpy.ndarray, optional
+        ``(H, W, 3)``: the ambient term, added unshadowed.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W, 3)`` float32.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> compose(np.ones((1, 1, 3)), np.full((1, 1), 0.5), np.full((1, 1, 3), 0.25)).tolist()
+    [[[0.75, 0.75, 0.75]]]
     """
     # one new image, the sum made in it (each full-size temporary is pages new to the process)
     out = np.multiply(

@@ -165,7 +165,10 @@ def _polygons(X, Y, faces, f, kx, ky):
             kinds.append(EDGE), vids.append(e), ts.append(t)
             ok.append(across & (q >= lo) & (q <= hi))
     P = len(f)
-    stack = lambda vals: np.stack([np.broadcast_to(np.asarray(v), (P,)) for v in vals], axis=1)
+
+    def stack(vals):
+        return np.stack([np.broadcast_to(np.asarray(v), (P,)) for v in vals], axis=1)
+
     px, py, kind, vid, t, valid = (stack(v) for v in (xs, ys, kinds, vids, ts, ok))
     # the valid slots first, and no more slots than the most any piece has (about 8 of 19)
     order = np.argsort(~valid, axis=1, kind="stable")[:, : max(int(valid.sum(1).max(initial=0)), 1)]
@@ -193,7 +196,10 @@ def _sorted_distinct(px, py, kind, vid, t, valid):
         last = valid.sum(1)[:, None] - 1
         succ = np.where(slot >= last, 0, slot + 1)  # cyclic successor among the valid
         pred = np.where(slot == 0, last, slot - 1)
-        g = lambda a, i: np.take_along_axis(a, np.maximum(i, 0), 1)
+
+        def g(a, i):
+            return np.take_along_axis(a, np.maximum(i, 0), 1)
+
         close = valid & (last > 0) & (np.abs(px - g(px, succ)) + np.abs(py - g(py, succ)) < 1e-9)
         # of two close points, the successor is kept when it is better (lower kind, then lower t)
         succ_better = (g(kind, succ) < kind) | ((g(kind, succ) == kind) & (g(t, succ) <= t))
@@ -239,7 +245,10 @@ def _fans(px, py, kind, vid, t, count, rings, flip):
         t[pieces].ravel(),
         np.repeat(pieces, S),
     )
-    own = lambda r, s: first_v + r * S + s
+
+    def own(r, s):
+        return first_v + r * S + s
+
     for level in np.unique(rings[pieces]):
         sel = rows[rings[pieces] == level]
         p = pieces[sel]
@@ -258,7 +267,10 @@ def _fans(px, py, kind, vid, t, count, rings, flip):
             np.repeat(p, level * S),
             fresh=True,
         )  # one piece's own
-        ring = lambda i, j, s: np.where(j == 0, first_s + (i * level) * S, first_s + (i * level + j) * S + s)
+
+        def ring(i, j, s):
+            return np.where(j == 0, first_s + (i * level) * S, first_s + (i * level + j) * S + s)  # noqa: B023 - called within this iteration
+
         i = np.arange(len(p))[:, None]
         s0 = np.arange(S)[None, :]
         s1 = np.where(s0 + 1 >= m[:, None], 0, s0 + 1)
@@ -461,7 +473,7 @@ def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
     ti, tj = t3[i].copy(), t3[j].copy()
     ee = (ki == EDGE) & (kj == EDGE) & (E[i] == E[j])
     key[ee] = E[i][ee]
-    for a, b, ta, tb in ((i, j, ti, tj), (j, i, tj, ti)):  # an edge point and a corner
+    for a, b, _ta, tb in ((i, j, ti, tj), (j, i, tj, ti)):  # an edge point and a corner
         ec = (u["kind"][a] == EDGE) & (u["kind"][b] == CORNER)
         lo, hi = E[a] // W, E[a] % W
         at_lo, at_hi = ec & (w[b] == lo), ec & (w[b] == hi)
@@ -614,7 +626,10 @@ def _attributes(base, u: dict, rows: int, cols: int) -> dict:
     i = np.flatnonzero(u["kind"] == INSIDE)
     bary = _barycentric(base, u["face"][i], u["x"][i] / cols, u["y"][i] / rows)
     corners = base.faces[u["face"][i]]
-    mix = lambda values: np.einsum("kc,kcd->kd", bary, values[corners])
+
+    def mix(values):
+        return np.einsum("kc,kcd->kd", bary, values[corners])
+
     P[i], N[i], T[i] = mix(Pw[base.weld]), mix(base.normals), mix(base.tangents)
     UV[i] = np.stack([u["x"][i] / cols, u["y"][i] / rows], 1)
     weld[i] = W + np.arange(len(i))

@@ -725,7 +725,10 @@ def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
     if not parts:
         raise InputError(path, "the mesh is empty (no triangles)")
     offsets = np.cumsum([0] + [len(q[0]) for q in parts])
-    cat = lambda k: None if any(q[k] is None for q in parts) else np.concatenate([q[k] for q in parts])
+
+    def cat(k):
+        return None if any(q[k] is None for q in parts) else np.concatenate([q[k] for q in parts])
+
     p, n, t = to_z_up(up, cat(0), cat(2), cat(3))
     return build(
         path,

@@ -195,7 +195,8 @@ def displaced_mesh(
     (:func:`vertex_normals`), as the truth shades. Mitsuba interpolates them over each triangle for
     its shading frame (``si.sh_frame.n``); without them it shades with the
     triangles' own normals. Needs a Mitsuba variant to be set
-    (:func:`hzval.core.backend.variant`). ``budget_bytes``: as :func:`tessellate`'s. ``info``: a dict that receives the cells' ``levels``
+    (:func:`hzval.core.backend.variant`). ``budget_bytes``: as :func:`tessellate`'s. ``info``: a dict that
+    receives the cells' ``levels``
     (:func:`cell_levels`) and the ``tolerance`` used.
     """
     import mitsuba as mi
@@ -269,7 +270,8 @@ def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
     surface of its four corners.
 
     0: a planar cell (twist ``d`` = 0 to the heights' rounding, :func:`twists`,
-    :data:`PLANAR_TWIST`), two triangles, either way round: they are the bilinear patch. ``n >= 1`` (a power of two up to :data:`MAX_LEVEL`): ``n x n`` sub-cells, each four
+    :data:`PLANAR_TWIST`), two triangles, either way round: they are the bilinear patch. ``n >= 1`` (a power
+    of two up to :data:`MAX_LEVEL`): ``n x n`` sub-cells, each four
     triangles around its centre, a point of the bilinear surface (the mean of its corners), so that no
     diagonal is preferred; the patch minus its fan is ``d' (uv - v/2)`` on a sub-cell's lower triangle
     (``d' = d / n^2``), at most ``|d| / (16 n^2)`` (at ``u = v = 1/4``), zero-mean, and 0 along the
@@ -351,7 +353,8 @@ def tessellate(
     Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
     first, then each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and
     the cells' levels. ``budget_bytes``: refuse (:class:`hzval.core.errors.InputError`), before allocating
-    them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned cells share is made by each (the same bits);
+    them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned
+    cells share is made by each (the same bits);
     where levels differ, the finer cell's nodes lie on the coarser one's straight edge.
     ``levels``: the cells' levels as given (``tolerance`` unused), for a piece of a larger grid
     (:func:`piece`) whose levels were decided on the whole, so that its triangles are the whole's own

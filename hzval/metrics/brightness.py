@@ -48,7 +48,8 @@ def _slips(x: np.ndarray) -> dict:
 SLIPS = {
     "pi": "about pi times too bright: is the Lambert BRDF's 1/pi missing (radiance = albedo / pi * E * N.L)?",
     "1/pi": "about pi times too dark: is 1/pi applied twice (or the irradiance divided by pi)?",
-    "gamma": "brighter in the darks as a gamma of 1/2.2 makes it: display values where linear radiance is expected?",
+    "gamma": "brighter in the darks as a gamma of 1/2.2 makes it: "
+    "display values where linear radiance is expected?",
     "degamma": "darker in the darks as a gamma of 2.2 makes it: a gamma applied to linear values?",
     "srgb": "brighter in the darks as sRGB encoding makes it: {srgb}",
     "linear": "darker in the darks as sRGB decoding makes it: {linear}",
@@ -70,7 +71,8 @@ def diagnose(engine: np.ndarray, truth: np.ndarray, exposure: float, png: bool =
     srgb = (
         "the PNG sRGB-encoded twice?"
         if png
-        else "display (sRGB) values in an EXR, which hzval reads as linear radiance (frames.json exposure_meaning)?"
+        else "display (sRGB) values in an EXR, which hzval reads as linear radiance "
+        "(frames.json exposure_meaning)?"
     )
     linear = (
         "linear values written to the PNG without sRGB encoding (frames.json exposure_meaning)?"

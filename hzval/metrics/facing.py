@@ -8,7 +8,8 @@ whole image's visibility metrics, the same metrics over the pixels that face the
 (``visibility_mae_facing``, ``leak_fraction_facing``, ``false_shadow_fraction_facing``), and the
 truth's own statistics (``frames[i].truth``):
 
-    ``shadowed_fraction``   pixels the truth shadows (``V < 0.5``, :data:`hzval.metrics.compare.LIT_THRESHOLD`)
+    ``shadowed_fraction``   pixels the truth shadows (``V < 0.5``,
+    :data:`hzval.metrics.compare.LIT_THRESHOLD`)
     ``attached_fraction``   pixels facing away from the light
     ``cast_fraction``       pixels that face the light and are shadowed: what the facing metrics test
     ``visibility_se``       the standard error that the truth's Monte Carlo noise puts on a frame's
@@ -99,7 +100,8 @@ def few_shadows_warning(frames: list[dict]) -> str | None:
         return None
     listed = ", ".join(f"az{a:+g} {100 * s:.2f}%" for a, s in few[:6]) + (" ..." if len(few) > 6 else "")
     return (
-        f"few shadows to test: under {100 * FEW_SHADOWS:g}% of the pixels that face the light are shadowed in "
+        f"few shadows to test: under {100 * FEW_SHADOWS:g}% of the pixels that face the light are shadowed "
+        "in "
         f"{len(few)} of {len(frames)} frames ({listed}); every visibility error is then near 0 "
         "(a larger --depth or a lower --elevation casts more)"
     )

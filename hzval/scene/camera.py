@@ -255,7 +255,8 @@ class View:
         return f, r, np.cross(r, f)
 
     def rays_at(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Origins and unit directions ``(n, 3)`` float64 of the rays at film coordinates ``u, v`` in [-1, 1]."""
+        """Origins and unit directions ``(n, 3)`` float64 of the rays at film coordinates ``u, v`` in [-1,
+        1]."""
         f, r, t = self.basis()
         eye = np.asarray(self.eye, float)
         u, v = np.asarray(u, float)[:, None], np.asarray(v, float)[:, None]
@@ -270,7 +271,8 @@ class View:
         return o, np.broadcast_to(f, o.shape).copy()
 
     def film_coordinates(self, pixels: np.ndarray, ju: np.ndarray, jv: np.ndarray):
-        """``(u, v)`` of samples at jitters ``ju, jv`` ``(n, spp)`` in the pixels ``pixels`` (flat indices)."""
+        """``(u, v)`` of samples at jitters ``ju, jv`` ``(n, spp)`` in the pixels ``pixels`` (flat
+        indices)."""
         W, H = self.resolution
         prow, pcol = np.divmod(np.asarray(pixels), W)
         u = 2.0 * (pcol[:, None] + ju) / W - 1.0
@@ -363,7 +365,8 @@ def stream(entropy, offset: int) -> np.random.Generator:
 def sample_positions(
     rows: int, cols: int, camera: Camera, spp: int, seed: int, pixels: tuple[int, int] | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels * spp,)``.
+    """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels *
+    spp,)``.
 
     Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``,
     at the jitter of :func:`hzval.scene.camera.pixel_jitter` in its pixel. Both

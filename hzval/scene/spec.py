@@ -23,7 +23,8 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
                 (hzval.scene.camera)
     [lookup]    plane = "bottom" | "mean" | "top", filter = "nearest" | "bilinear" | "trilinear" |
                 "anisotropic", mips = "average" | "max", max_anisotropy, parallax = "none" | "offset" |
-                "occlusion", parallax_steps: how the techniques find and read their textures (hzval.scene.lookup)
+                "occlusion", parallax_steps: how the techniques find and read their textures
+                (hzval.scene.lookup)
     [mesh]      shape = "plane" (the tile, the default) | "cube" | "sphere" | "cylinder" | "torus" |
                 "path/relative/to/scene.obj" (.obj, .ply, .gltf, .glb with texture coordinates), uv_scale
                 (the texture repeats), up = "y" | "z" (the file's up axis): the surface the material is on
@@ -31,8 +32,10 @@ TOML layout (every key optional; see ``scenes/bricks.toml``)::
     [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
     [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
     [samples]   spp = 16, seed = 0
-    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it (hzval.commands.check)
-    [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn (hzval.commands.check)
+    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it
+    (hzval.commands.check)
+    [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn
+    (hzval.commands.check)
 """
 
 from __future__ import annotations
@@ -594,7 +597,8 @@ def override(scene: Scene, **changes) -> Scene:
 
 
 def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
-    """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map (:meth:`hzval.scene.camera.Camera.image_shape`)."""
+    """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map
+    (:meth:`hzval.scene.camera.Camera.image_shape`)."""
     return camera.image_shape(rows, cols)
 
 

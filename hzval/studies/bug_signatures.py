@@ -12,10 +12,12 @@ Each case is a model with both handedness signs, seen so that both show:
     the mirror meridian down the middle, the mirrored half on the right.
 
 The truth is traced once per case (it never depends on the bug); the lead technique's ``F`` is
-rendered with every bug of :data:`hzval.geometry.tangent_bugs.BUGS` (:func:`hzval.studies.bug_match.bug_factors`:
+rendered with every bug of :data:`hzval.geometry.tangent_bugs.BUGS`
+(:func:`hzval.studies.bug_match.bug_factors`:
 only the techniques' frames change), at the camera's samples (the flat surface, as an engine without
 parallax mapping reads it) and at the truth's own hits (perfect parallax: what the bug does to the
-lookup itself, without the parallax error that hides it on a steep relief). The scene's lights are turned to come from beside the camera
+lookup itself, without the parallax error that hides it on a steep relief). The scene's lights are turned to
+come from beside the camera
 onto the mirrored part (:data:`CASES`). Per case and bug: the mean ``|F - V|`` over the seen pixels
 whose samples are all mirrored (``w = -1``) and all unmirrored, per light and over the lights, and
 the ratio of the mirrored mean to the correct frames' (``mirrored_ratio``; at the truth's hits
@@ -184,5 +186,6 @@ def page_section(bugs: dict) -> str:
         f"<th>mirrored |F&minus;V|</th><th>unmirrored</th><th>mirrored / correct</th>"
         f"<th>mirrored, perfect parallax</th><th>/ correct</th></tr>{''.join(rows)}"
         "</table><p>Each picture: F &minus; V at the light where the bugs move F most; the means are over "
-        "all the case's lights (turned to light the mirrored part from beside the camera). docs/models.md.</p>"
+        "all the case's lights (turned to light the mirrored part from beside the camera). "
+        "docs/models.md.</p>"
     )

@@ -152,7 +152,8 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
 
 
 def _near_seams(truth):
-    """Per pixel: whether its first sample's base point lies within :data:`hzval.studies.seam_share.SEAM_TEXELS`
+    """Per pixel: whether its first sample's base point lies within
+    :data:`hzval.studies.seam_share.SEAM_TEXELS`
     of a seam edge, and whether it is seen."""
     m = truth.model
     spp = truth.spp

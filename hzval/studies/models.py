@@ -211,7 +211,8 @@ def _write_page(out: Path, data: dict) -> None:
     page = (
         "<!doctype html><meta charset='utf-8'><title>hzval models</title>"
         f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
-        f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against 1/R'>"
+        f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against "
+        "1/R'>"
         + (reflection or "")
         + f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
         "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
@@ -310,7 +311,8 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 
 
 def _band_maps(case_scene, case_dir: Path) -> dict:
-    """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and lights)."""
+    """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
+    lights)."""
     from hzval.studies import curvature_band as cb
 
     return cb.measure(cb.band_scene(case_scene), case_dir)
@@ -484,9 +486,11 @@ def _band_html(out: Path, data: dict) -> str:
     )
     return (
         f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
-        f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; {b['half_deg']:g}&deg;, "
+        f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; "
+        f"{b['half_deg']:g}&deg;, "
         f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
-        f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one standard "
+        f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one "
+        "standard "
         "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
         "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
         f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
@@ -548,7 +552,10 @@ def summary_table(data: dict) -> str:
     """``models.json``'s content as the terminal's table: per case each technique's mean |F - V|
     and floor (and its reflection error where measured), the trends' verdicts and each tangent
     bug's mirrored |F - V| against the correct frames'."""
-    num = lambda v, w=7: f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
+
+    def num(v, w=7):
+        return f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
+
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
     refl = [

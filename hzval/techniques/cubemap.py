@@ -71,14 +71,15 @@ def face_coordinates(x, y, z):
 
 
 def _texel_direction(face, sc, tc):
-    """The direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face`` (:data:`FACE_AXES`)."""
+    """The direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face``
+    (:data:`FACE_AXES`)."""
     import drjit as dr
     import mitsuba as mi
 
     comps = []
     for axis in range(3):
         value = mi.Float(0.0)
-        for f, ((m, ms), (s, ss), (t, ts)) in enumerate(FACE_AXES):
+        for f, ((m, ms), (s, ss), (_t, ts)) in enumerate(FACE_AXES):
             here = ms if m == axis else (ss * sc if s == axis else ts * tc)
             value = dr.select(face == f, here, value)
         comps.append(value)

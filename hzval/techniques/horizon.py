@@ -308,7 +308,8 @@ class Horizon(FlatShading, Technique):
         """Toolbag's reflection fade ``o`` against the baked horizon toward ``r`` (module docstring).
 
         On a model ``uni["v"]`` is the sample's own view in its tangent frame ``(t, b, n_vertex)``
-        (:meth:`hzval.techniques.surface.FlatShading._lane_uniforms`; ``n_vertex`` the base mesh's interpolated
+        (:meth:`hzval.techniques.surface.FlatShading._lane_uniforms`; ``n_vertex`` the base mesh's
+        interpolated
         vertex normal), so ``r`` is the world's reflection about the shading normal in that frame:
         ``r.z = dot(r, n_vertex)``, Toolbag's own dot product, and ``r``'s azimuth the horizon lookup's."""
         if not self._reflection:
@@ -368,7 +369,8 @@ class Horizon(FlatShading, Technique):
         own.extras = {"external_bake": {**found, "paths": own.external, "warnings": list(own.warnings)}}
         return own
 
-    #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
+    #: The command line's flag of each setting (errors name the flag,
+    # :func:`hzval.techniques.registry.flag_errors`).
     flags = {
         "k": "--horizon-k",
         "path": "--horizon-path",
@@ -603,7 +605,8 @@ class Horizon(FlatShading, Technique):
         elevation_deg: float | None = None,
         k: float | None = None,
     ) -> Frame:
-        """The frame of the light at ``azimuth_deg`` (degrees) (:meth:`hzval.techniques.surface.FlatShading.render`).
+        """The frame of the light at ``azimuth_deg`` (degrees)
+        (:meth:`hzval.techniques.surface.FlatShading.render`).
 
         ``k`` defaults to the object's. ``shadows=False`` leaves out the
         horizon factor (plain normal mapping); the other declared effects stay.
@@ -693,7 +696,8 @@ def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
     """``(F, s)``: eq. 5.4's ``F = clamp(k (Lz - s) + 1, 0, 1)`` of the filtered channels ``h`` and the
     channel weights ``w`` (``s = sum_c w_c h_c``, :func:`_dot`); the shading kernel's own arithmetic.
 
-    ``straight_through``: for the fit (:mod:`hzval.techniques.fitted.fit`), ``F``'s value is the same but its gradient
+    ``straight_through``: for the fit (:mod:`hzval.techniques.fitted.fit`), ``F``'s value is the same but
+    its gradient
     is that of the unclamped ``k (Lz - s) + 1`` (a straight-through clamp), so that a texel whose
     factor is saturated on the wrong side (0 where the truth is lit) still learns which way to move."""
     s = _dot(h, w)

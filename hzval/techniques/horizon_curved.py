@@ -84,7 +84,10 @@ def sine_change(
     if kappa == 0.0:
         rows, cols = np.shape(h_texels)
         return np.zeros((rows, cols, directions), np.float32)
-    sine = lambda t: t / np.sqrt(1.0 + t * t)
+
+    def sine(t):
+        return t / np.sqrt(1.0 + t * t)
+
     flat, curved = (sine(bin_tangents(h_texels, k, radius, angles, boundary)) for k in (0.0, kappa))
     diff = curved - flat
     half = angles // (2 * directions)

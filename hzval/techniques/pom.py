@@ -211,7 +211,8 @@ class RayMarchShadow(surface.HeightFieldShadow):
             "or 1 / tan(light radius) for a soft light)",
         )
 
-    #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
+    #: The command line's flag of each setting (errors name the flag,
+    # :func:`hzval.techniques.registry.flag_errors`).
     flags = {"steps": "--pom-steps", "variant": "--pom-variant", "softness": "--pom-softness"}
 
     @classmethod

@@ -118,7 +118,8 @@ class Context:
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:
-        """Where every technique of the context reads its textures (:func:`hzval.scene.lookup.samples_for`)."""
+        """Where every technique of the context reads its textures
+        (:func:`hzval.scene.lookup.samples_for`)."""
         if self.points is not None:
             return self.points
         return lookup.samples_for(self.scene, *self.height.shape, self.height)

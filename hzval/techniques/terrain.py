@@ -441,7 +441,8 @@ class TerrainShadow(surface.HeightFieldShadow):
             help=f"terrain shadows: extra ramp width in texel heights (default {DEFAULT_RAMP:g})",
         )
 
-    #: The command line's flag of each setting (errors name the flag, :func:`hzval.techniques.registry.flag_errors`).
+    #: The command line's flag of each setting (errors name the flag,
+    # :func:`hzval.techniques.registry.flag_errors`).
     flags = {"ramp": "--terrain-ramp"}
 
     @classmethod

@@ -162,7 +162,8 @@ def band_triangles(
 
 
 def band_scene(g: meshes.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
-    """A Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run, :func:`hzval.geometry.tile.piece_mesh`)."""
+    """A Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run,
+    :func:`hzval.geometry.tile.piece_mesh`)."""
     import mitsuba as mi
 
     return mi.load_dict(

@@ -179,7 +179,8 @@ def test_offset_table_matches_libm(radius, angles):
     wrong = {off: (ours.get(off), bins) for off, bins in expected.items() if ours.get(off) != bins}
     assert set(ours) == set(expected), "hzval's table and the seed's loop visit different offsets"
     assert not wrong, (
-        f"{len(wrong)} offsets cover other bins than the seed's (hzval, seed): {dict(list(wrong.items())[:5])}"
+        f"{len(wrong)} offsets cover other bins than the seed's (hzval, seed): "
+        f"{dict(list(wrong.items())[:5])}"
     )
 
 

@@ -149,7 +149,7 @@ def test_the_overview_page_links_every_report_and_shows_thumbnails(in_process):
         if r["status"] == "ok":
             assert f'href="{r["name"]}/index.html"' in html
             assert len(r["thumbs"]) == 3  # three lights
-            for az, images in r["thumbs"].items():
+            for _az, images in r["thumbs"].items():
                 assert set(images) == {"truth", *r["techniques"]}
                 for rel in images.values():
                     assert (out / rel).is_file() and f'src="{quote(rel)}"' in html

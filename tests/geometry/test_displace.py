@@ -1,4 +1,5 @@
-"""The displaced surface on a base mesh (hzval.geometry.displace, hzval.geometry.cells): the cut covers every base
+"""The displaced surface on a base mesh (hzval.geometry.displace, hzval.geometry.cells): the cut covers
+every base
 triangle once and keeps every piece inside one cell between texel centres, is watertight across UV
 seams on closed shapes, reproduces the plane's heights at texel centres and the plane's own
 tessellation (a fan of four about each cell's centre), and turns with the UVs."""

@@ -27,7 +27,10 @@ def test_affine_uv_map_gives_its_derivatives():
     uv = np.random.default_rng(1).random((5, 2))
     p = uv @ a.T
     f = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 4]])
-    d = lambda tri: np.linalg.det(uv[tri[1:]] - uv[tri[0]])
+
+    def d(tri):
+        return np.linalg.det(uv[tri[1:]] - uv[tri[0]])
+
     f = np.array([tri if d(tri) > 0 else tri[::-1] for tri in f])
     t = tg.compute(p, np.tile([0.0, 0, 1], (5, 1)), uv, f)
     np.testing.assert_allclose(t[:, :3], np.tile(a[:, 0] / np.linalg.norm(a[:, 0]), (5, 1)), atol=1e-12)

@@ -107,7 +107,8 @@ def channel_share(i, j, channel, angles=32):
 
 def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
     """``(T, 3, 3)`` float64 triangles of the mesh that :mod:`hzval.geometry.tile` builds: the tessellation of
-    the bilinear surface at ``tolerance`` (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`, the truth's).
+    the bilinear surface at ``tolerance`` (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`, the
+    truth's).
     The references below trace these triangles in float64, independently of Mitsuba."""
     g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
     pos, faces, _ = M.tessellate(g, M.DEFAULT_TOLERANCE if tolerance is None else tolerance)
@@ -153,8 +154,8 @@ def mesh_horizon_tan(tris, x0, y0, azimuth_deg, near=0.05, chunk=48):
 
         def ratio(t, valid):
             with np.errstate(invalid="ignore", divide="ignore"):
-                z = abc[None, :, 0] * (px + t * d[0]) + abc[None, :, 1] * (py + t * d[1]) + abc[None, :, 2]
-                r = (z - z0[:, None]) / t
+                z = abc[None, :, 0] * (px + t * d[0]) + abc[None, :, 1] * (py + t * d[1]) + abc[None, :, 2]  # noqa: B023 - called within this iteration
+                r = (z - z0[:, None]) / t  # noqa: B023 - called within this iteration
             return np.where(valid & np.isfinite(r), r, -np.inf).max(axis=1)
 
         t0 = np.maximum(lower, 0.0)

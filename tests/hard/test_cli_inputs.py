@@ -141,7 +141,8 @@ SCENES = {
     "irradiance 0": "[light]\nirradiance = 0\n",
     "irradiance negative": "[light]\nirradiance = -1.0\n",
     "spp is text": '[samples]\nspp = "x"\n',
-    "interreflection depth 1": '[effects]\nlist = ["shadow", "diffuse", "interreflection"]\ninterreflection_depth = 1\n',
+    "interreflection depth "
+    "1": '[effects]\nlist = ["shadow", "diffuse", "interreflection"]\ninterreflection_depth = 1\n',
     "unknown key": "[light]\ncolour = 3\n",
     "not toml": "[light\n",
     "azimuth text": '[light]\nazimuths = ["a"]\n',

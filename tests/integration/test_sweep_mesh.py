@@ -85,7 +85,10 @@ def test_parallax_and_mips_work_on_a_model(tmp_path):
             cli.main(SMALL + ["--size", "48", "--spp", "2", "--mesh", "cube", "--out", str(out)] + flags) == 0
         )
         runs[name] = json.loads((out / "metrics.json").read_text())
-    err = lambda m, key: sum(f["techniques"]["horizon"][key] for f in m["frames"]) / len(m["frames"])
+
+    def err(m, key):
+        return sum(f["techniques"]["horizon"][key] for f in m["frames"]) / len(m["frames"])
+
     plain, occl = err(runs["plain"], "visibility_mae"), err(runs["pom"], "visibility_mae")
     floor = err(runs["plain"], "perfect_parallax_mae")
     assert occl < plain and occl - floor < 0.5 * (plain - floor)

@@ -110,7 +110,12 @@ def test_detection_names_what_looks_wrong(variant, bricks64, stored, declared, e
 
 @pytest.mark.gcc
 @pytest.mark.skipif(GCC is None, reason="gcc is not installed: cannot compile the seed peer")
-def test_an_independent_radius_4_bake_drives_the_horizon_technique(variant, seed_peer, tmp_path, capsys):
+def test_an_independent_radius_4_bake_drives_the_horizon_technique(
+    variant,
+    seed_peer,  # noqa: F811 - the fixture imported above
+    tmp_path,
+    capsys,
+):
     """The C seed peer bakes at radius 4; as 8-bit PNGs in hzval's layout it replaces hzval's bake
     (F follows it: mirrored it shadows elsewhere), its convention is confirmed, and the same map
     mirrored (+y down) is reported as a different convention, in metrics.json and a warning line."""

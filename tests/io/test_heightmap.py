@@ -273,7 +273,8 @@ def _corrupt_png(tmp_path):
 
 
 def _bad_crc_png(tmp_path):
-    """A sample changed after the IDAT checksum was computed, in a valid zlib stream: only the CRC can tell."""
+    """A sample changed after the IDAT checksum was computed, in a valid zlib stream: only the CRC can
+    tell."""
     raw = b"".join(b"\0" + bytes(range(16)) for _ in range(4))
     idat = _chunk(b"IDAT", zlib.compress(raw))
     bad = bytearray(raw)

@@ -68,7 +68,8 @@ sees the surface with only some of its samples (a silhouette) are left out and c
 pixels where the two sides disagree on seen/unseen are counted.
 
 What it does not share with hzval: it imports none of ``hzval.truth.plane``, ``hzval.scene.camera``,
-``hzval.scene.spec``, ``hzval.scene.lookup``, ``hzval.geometry.tile`` or ``hzval.techniques.horizon``; the camera model, the
+``hzval.scene.spec``, ``hzval.scene.lookup``, ``hzval.geometry.tile`` or ``hzval.techniques.horizon``; the
+camera model, the
 sample positions (its own jitter and seed, so it differs from hzval's samples by sampling noise),
 the surface evaluation, the ray traversal and intersection (hzval's is Mitsuba's BVH on a float32
 mesh, with a wrap margin and hops), the shadow-ray offset and the light direction are computed
@@ -371,7 +372,10 @@ def _first_root(c0, c1, c2, span):
         r2 = np.where(quad, c0 / q, np.nan)
         # a root a rounding's width before the piece's start is at its start
         slack = 1e-12 * (1.0 + span)
-        ok = lambda r: (disc >= 0) & np.isfinite(r) & (r >= -slack) & (r <= span)
+
+        def ok(r):
+            return (disc >= 0) & np.isfinite(r) & (r >= -slack) & (r <= span)
+
         r1, r2 = np.where(ok(r1), r1, np.inf), np.where(ok(r2), r2, np.inf)
     r = np.clip(np.minimum(r1, r2), 0.0, None)
     return np.where(np.isfinite(r), r, np.nan)

@@ -83,7 +83,10 @@ def test_perspective_rays():
     r = np.cross(f, [0, 0, 1.0])
     r /= np.linalg.norm(r)
     t = np.cross(r, f)
-    at = lambda row, col: d[row * cols + col]
+
+    def at(row, col):
+        return d[row * cols + col]
+
     np.testing.assert_allclose(at(3, 4), f, atol=1e-12)  # the centre pixel looks at the target
     half_px = fov / cols / 2
     left, right = at(3, 0), at(3, cols - 1)
@@ -271,7 +274,10 @@ def test_surface_is_the_bilinear_field_hzvals_mesh_approximates(boundary):
     x, y = rng.uniform(0.0, 7.0, 300), rng.uniform(0.0, 6.0, 300)
     a, b, c = tri[:, 0, :2], tri[:, 1, :2], tri[:, 2, :2]
     p = np.stack([x, y], axis=1)[:, None, :]
-    cross = lambda u, v: u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    def cross(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
     area = cross(b - a, c - a)
     w1, w2 = cross(p - a, c - a) / area, cross(b - a, p - a) / area
     w0 = 1 - w1 - w2

@@ -240,7 +240,8 @@ def test_negative_azimuth_ranges_parse_as_values(variant, tmp_path):
 @pytest.mark.parametrize("name", DEFAULT_TECHNIQUES)
 def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, name):
     """Each technique of the registry: its metrics under frames[i]["techniques"][name], its images beside
-    the others', the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the table."""
+    the others', the docs/ARCHITECTURE.md keys of a frame unchanged, and its columns in the report and the
+    table."""
     from PIL import Image
 
     out, m, _ = bricks_sweep

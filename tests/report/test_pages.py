@@ -503,7 +503,7 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
     metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
     metrics["material"].update(rows=n, cols=n)
     for f in metrics["frames"]:  # each small PNG blown up to n x n, nearest
-        for key, rel in (*f["files"].items(), *f["techniques"]["horizon"]["files"].items()):
+        for _key, rel in (*f["files"].items(), *f["techniques"]["horizon"]["files"].items()):
             if rel.endswith(".png"):
                 with Image.open(out / rel) as im:
                     small = np.asarray(im)

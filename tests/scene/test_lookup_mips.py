@@ -1,4 +1,5 @@
-"""Mip levels quantised to the horizon map's storage (issue 31): a GPU's chain of an RGBA8 texture is RGBA8."""
+"""Mip levels quantised to the horizon map's storage (issue 31): a GPU's chain of an RGBA8 texture is
+RGBA8."""
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ def test_each_level_is_made_from_the_stored_one_below_and_stored_again():
     chain = lookup.mip_chain(data, stored=slice(0, 2), quantise=u8)
     plain = lookup.mip_chain(data)
     assert [c.shape for c in chain] == [(8, 8, 3), (4, 4, 3), (2, 2, 3), (1, 1, 3)]
-    for below, level, p in zip(chain, chain[1:], plain[1:]):
+    for below, level, _p in zip(chain, chain[1:], plain[1:]):
         quads = below[0::2, 0::2] + below[0::2, 1::2] + below[1::2, 0::2] + below[1::2, 1::2]
         mean = quads[..., :2].astype(np.float64) / 4
         assert np.abs(level[..., :2] - mean).max() <= 0.5 / 255 + 1e-6  # rounded to the nearest 8-bit value

@@ -12,7 +12,10 @@ from hzval.studies import curvature_band as cb
 
 def test_the_band_holds_the_normals_that_see_the_light_at_its_elevation():
     L = cv.light_direction(0.0, 30.0)
-    tilt = lambda deg: np.array([math.sin(math.radians(deg)), 0.0, math.cos(math.radians(deg))])
+
+    def tilt(deg):
+        return np.array([math.sin(math.radians(deg)), 0.0, math.cos(math.radians(deg))])
+
     n = np.stack([tilt(0.0), tilt(2.9), tilt(-2.9), tilt(3.5), tilt(-10.0)])
     assert cb.in_band(n, L, 30.0, 3.0).tolist() == [True, True, True, False, False]
     # turned about the light's azimuth's normal (across the light) the local elevation barely moves

@@ -81,7 +81,9 @@ def test_thin_wall_shadow_converges_to_h_over_tan_e(variant, elevation):
         worst = 0.0
         for az in (0.0, 45.0, 180.0):
             for across, c in wall_shadow_extents(
-                lambda: col.render(az).layers["factor"], lambda: row.render(az).layers["factor"], az
+                lambda az=az, m=col: m.render(az).layers["factor"],
+                lambda az=az, m=row: m.render(az).layers["factor"],
+                az,
             ):
                 assert across <= expected * c + 0.05  # never longer than the geometry's
                 worst = max(worst, (expected * c - across) / c)

@@ -684,7 +684,7 @@ def _grooves_reflection_reference(cols, period, slope_deg, n=4000, seed=1):
         sin_h, phi = np.sqrt(1 - cos_h**2), 2 * math.pi * rng.random(n)
         # frame about n: t1 in the xz plane, t2 = +y
         hx = sin_h * np.cos(phi) * nz + cos_h * nx
-        hy = sin_h * np.sin(phi)
+        sin_h * np.sin(phi)
         hz = -sin_h * np.cos(phi) * nx + cos_h * nz
         wx, wz = 2 * hz * hx, 2 * hz * hz - 1  # v = +z reflected about h
         ok = (nx * wx + nz * wz > 0) & (wz > 0)

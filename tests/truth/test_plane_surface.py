@@ -32,7 +32,10 @@ def bilinear(h_tex, x, y):
     fx, fy = np.asarray(x) - 0.5, rows - np.asarray(y) - 0.5
     c0, r0 = np.floor(fx).astype(int), np.floor(fy).astype(int)
     u, v = fx - c0, fy - r0
-    at = lambda r, c: h_tex[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)].astype(np.float64)
+
+    def at(r, c):
+        return h_tex[np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)].astype(np.float64)
+
     return (1 - v) * ((1 - u) * at(r0, c0) + u * at(r0, c0 + 1)) + v * (
         (1 - u) * at(r0 + 1, c0) + u * at(r0 + 1, c0 + 1)
     )
@@ -253,7 +256,8 @@ def test_the_truth_tolerance_is_recorded_and_read(variant, tmp_path):
 def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_refused(
     variant, tmp_path, capsys, monkeypatch
 ):
-    """Once the map is read the sweep's estimate charges the truth's own triangles (hzval.truth.plane.mesh_triangles,
+    """Once the map is read the sweep's estimate charges the truth's own triangles
+    (hzval.truth.plane.mesh_triangles,
     the count hzval.geometry.tile.tessellate makes): a finer tolerance costs more, and a mesh over the memory
     available is refused before the bake or the mesh, one line naming --truth-tolerance, exit 2, no files."""
     from hzval import materials

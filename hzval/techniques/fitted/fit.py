@@ -405,7 +405,8 @@ class _Model:
 
     def errors(self, sines: np.ndarray, k: float, lights, V_list):
         """``|F - V|`` (rows, cols) float32 per light of ``lights`` (and the V they were given in) of
-        ``sines`` as stored, at shadow hardness ``k``, without gradients (:mod:`hzval.techniques.fitted.guard`)."""
+        ``sines`` as stored, at shadow hardness ``k``, without gradients
+        (:mod:`hzval.techniques.fitted.guard`)."""
         dr, mi = self._dr, self._mi
         with dr.suspend_grad():
             self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(sines, np.float32))))
@@ -474,7 +475,8 @@ def fit(
 
     ``lights``/``held_out``: specs (:func:`parse_lights`) or ``(elevation, azimuth)`` tuples; ``k``:
     the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored;
-    ``guard``: the tolerance of :func:`hzval.techniques.fitted.guard.guard` (``None``: the optimiser's map as it is);
+    ``guard``: the tolerance of :func:`hzval.techniques.fitted.guard.guard` (``None``: the optimiser's map
+    as it is);
     ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: the plain mean);
     ``train_spp``: samples per pixel of the training lights' truth and forward model, at most the
     scene's (``None``: :func:`training_spp`); the held-out lights are scored at the scene's own samples.
@@ -572,7 +574,8 @@ def fit(
 
 
 def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
-    """:func:`hzval.techniques.fitted.guard.guard` of the optimiser's map against the baked map stored alike, on the
+    """:func:`hzval.techniques.fitted.guard.guard` of the optimiser's map against the baked map stored
+    alike, on the
     training lights, through the fit's forward model; a block format guards whole blocks."""
     model = _Model(scene, bake, k, "float", [])
     blocks = bool(stored.block_bytes)
@@ -707,7 +710,8 @@ def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: 
 
 
 def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
-    """``out/horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs), in :func:`hzval.bake.maps.write_bake`'s layout,
+    """``out/horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs), in :func:`hzval.bake.maps.write_bake`'s
+    layout,
     and ``fit.json``, all or nothing."""
     from hzval.io import files
 

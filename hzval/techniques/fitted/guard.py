@@ -1,6 +1,7 @@
 """The fit's guard: keep the baked map where the fitted one is worse on some training light nearby.
 
-The optimiser (:mod:`hzval.techniques.fitted.fit`) minimises the *mean* error over the training lights, so it may
+The optimiser (:mod:`hzval.techniques.fitted.fit`) minimises the *mean* error over the training lights, so
+it may
 trade: raise a texel's sine toward a direction to win at one elevation and lose at another. On
 the training lights the trade pays; on a light between the training elevations it may not, and on
 a frame where the bake is nearly exact (little shadow toward that azimuth) every such trade is a
@@ -17,7 +18,8 @@ texel's regression may be its neighbour's doing, until no kept texel regresses o
 passed (``verified`` says which). What is left is, on every training light and every neighbourhood,
 at most ``tolerance`` worse than the bake: a texel is fitted only where the fit wins without trading.
 
-Opt-in (``hzval fit --guard TOL``; :func:`hzval.techniques.fitted.fit.fit`'s ``guard``). Measured on the one photo
+Opt-in (``hzval fit --guard TOL``; :func:`hzval.techniques.fitted.fit.fit`'s ``guard``). Measured on the one
+photo
 whose frames got worse (docs/fit.md, colour-science's CVG_Background, 256, depth 0.05, wrap; trained
 on 8 elevations 12.5..60, 4 spp): it did not help. The fit's gains there sit in few texels (the wrap
 seam's cliff), whose trades the guard undoes: tolerance 0.25 reverted 1.2 % of the texels and took
@@ -91,7 +93,7 @@ def guard(
     keep = np.ones(fitted.shape[:2], bool)
     current, verified, done = fitted, False, 0
     worst = np.zeros(keep.shape, np.float32)
-    for done in range(1, rounds + 1):
+    for done in range(1, rounds + 1):  # noqa: B007 - the count is reported after the loop
         worst = np.full(keep.shape, -np.inf, np.float32)
         for e, b in zip(errors(current, False), base):
             np.maximum(worst, neighbourhood_sum(np.asarray(e, np.float32) - b, boundary), out=worst)

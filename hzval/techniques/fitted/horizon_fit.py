@@ -1,4 +1,5 @@
-"""The ``horizon-fit`` technique: the horizon technique with the map fitted to the truth (:mod:`hzval.techniques.fitted.fit`).
+"""The ``horizon-fit`` technique: the horizon technique with the map fitted to the truth
+(:mod:`hzval.techniques.fitted.fit`).
 
 Beside ``horizon`` in a sweep it splits the horizon map's error per frame:
 ``baked - fitted`` is what the bake loses (a better baker could win it
@@ -65,7 +66,8 @@ class FittedHorizon(Horizon):
         held_out: str = fit.HELD_OUT_LIGHTS,
         **settings,
     ) -> "FittedHorizon":
-        """``lights``/``held_out``: the fit's training and held-out lights (:func:`hzval.techniques.fitted.fit.parse_lights`)."""
+        """``lights``/``held_out``: the fit's training and held-out lights
+        (:func:`hzval.techniques.fitted.fit.parse_lights`)."""
         storage = storage or "float"
         _, sines, record, cached = fit.cached_fit(
             ctx.height,

@@ -160,7 +160,7 @@ class SamplePass:
         self.set(samplesPerPixel=self.spp, footprintWidth=self.footprint_width)
         out = np.empty(self.count, np.float32)
         for first, tex, width, fbo in self.bands:
-            for unit, (name, t) in enumerate(units.items()):
+            for unit, t in enumerate(units.values()):
                 (tex if t is None else t).use(unit)
             self.set(firstSample=first, bandWidth=width)
             fbo.use()

@@ -102,13 +102,17 @@ class HorizonGL(_GLTechnique):
 
     name = "horizon-gl"
     label = "horizon map on OpenGL"
-    summary = "Lengyel's Listing 5.1 in GLSL (hzval/techniques/gl/shaders/horizon_shadow.glsl) on a real OpenGL pipeline"
+    summary = (
+        "Lengyel's Listing 5.1 in GLSL (hzval/techniques/gl/shaders/horizon_shadow.glsl) "
+        "on a real OpenGL pipeline"
+    )
     file_stem = "horizon_gl"
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The horizon map, and what the unshadowed shading reads (:class:`hzval.techniques.surface.HeightFieldShadow`)."""
+        """The horizon map, and what the unshadowed shading reads
+        (:class:`hzval.techniques.surface.HeightFieldShadow`)."""
         return super().bake_needs(scene) | {"horizon_map"}
 
     def __init__(

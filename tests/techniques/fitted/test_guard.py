@@ -1,4 +1,5 @@
-"""The fit's guard (hzval.techniques.fitted.guard): a texel keeps its fitted sines only where no training light
+"""The fit's guard (hzval.techniques.fitted.guard): a texel keeps its fitted sines only where no training
+light
 nearby does worse than with the bake.
 
 Synthetic error maps check the neighbourhood (wrap and open), the reverting, the rounds and the

@@ -1,4 +1,5 @@
-"""The shipped GLSL on OpenGL (hzval.techniques.gl.horizon_gl, issue 31) against hzval's GPU emulation (--path gpu).
+"""The shipped GLSL on OpenGL (hzval.techniques.gl.horizon_gl, issue 31) against hzval's GPU emulation
+(--path gpu).
 
 Both read the same samples of one Context. At texel centres the horizon map
 is read exactly, so what is compared is the weight cube map's filtering
