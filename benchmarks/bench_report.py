@@ -10,6 +10,7 @@ Usage::
     python benchmarks/bench_report.py REPORT_DIR/index.html
 """
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -70,5 +71,17 @@ def main(index: str) -> None:
         b.close()
 
 
+def cli(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("index", metavar="REPORT_DIR/index.html", help="the report page a sweep wrote")
+    args = ap.parse_args(argv)
+    index = Path(args.index).resolve()
+    if not index.is_file():
+        print(f"bench_report: {args.index}: no such file", file=sys.stderr)
+        return 2
+    main(str(index))
+    return 0
+
+
 if __name__ == "__main__":
-    main(str(Path(sys.argv[1]).resolve()))
+    sys.exit(cli())

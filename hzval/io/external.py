@@ -253,7 +253,7 @@ def load(paths: list[str | Path], enc: Encoding) -> np.ndarray:
 CLEARLY_BETTER = 0.15
 
 #: A horizon map "does not describe" the height map when its best convention's :func:`correlation`
-#: with hzval's exact horizons is below this. Measured (``benchmarks/external_bound.py``, docs/ci.md):
+#: with hzval's exact horizons is below this. Measured (``studies/external_bound.py``, docs/ci.md):
 #: hzval's seed bakes of the 8 built-in materials at 64 and 128 texels, 8-bit, against the exact bake
 #: of the same material correlate 0.57 to 0.98 (radius 4 included), against another material's at most
 #: 0.29 (median 0.00). The mean |s - s_exact| cannot tell them apart: a right map of the deep spikes

@@ -113,7 +113,7 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
     the camera's hits (``mae``) and at the truth's (``floor``) over the band's pixels, ``(frames,
     texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more
     techniques to measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
-    (benchmarks/curved_horizon.py)."""
+    (studies/curved_horizon.py)."""
     from hzval.core import backend
     from hzval.pipeline import sweep
 

@@ -1,6 +1,6 @@
 """The horizon map's stored sines corrected for the surface's normal curvature: the derivation, the
 correction for a constant curvature and the ``horizon-curved`` technique that renders it (issue 29,
-item 2; measured in benchmarks/curved_horizon.py, docs/models.md).
+item 2; measured in studies/curved_horizon.py, docs/models.md).
 
 Derivation. Let a point ``p`` of the base surface have the tangent plane ``z = 0``, heights ``h`` in
 texels, and the surface's normal curvature along the azimuth ``phi`` be ``kappa`` (texels^-1, + convex:
@@ -25,7 +25,7 @@ bake) and returns the change of each channel's sine, ``s_kappa - s_0``, which a 
 stored sine. A convex surface (``kappa > 0``) lowers every horizon (``change <= 0``), a concave one
 raises it; ``kappa = 0`` changes nothing, bit for bit.
 
-What it gains is measured in benchmarks/curved_horizon.py (docs/models.md): the band's |F - V| with
+What it gains is measured in studies/curved_horizon.py (docs/models.md): the band's |F - V| with
 the corrected sines against the baked ones, and, as a control, the same correction on the flat
 patch, where it is wrong: a gain there too is the flat bake's own bias (its horizons too high for
 this ``k``), not curvature.

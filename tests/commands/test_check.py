@@ -60,7 +60,9 @@ def test_references_are_small():
 # --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("seed", [5, 123])
+@pytest.mark.parametrize(
+    "seed", [5, pytest.param(123, marks=pytest.mark.slow(reason="a second seed, as the first but for noise"))]
+)
 def test_truth_rendered_with_another_seed_passes(variant, refs, seed):
     result = check.run(references=refs, seed=seed)
     assert result.passed, check.summary(result)

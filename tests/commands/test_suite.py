@@ -158,6 +158,9 @@ def test_the_overview_page_links_every_report_and_shows_thumbnails(in_process):
     assert "sort" in html and "worst first" in html
 
 
+@pytest.mark.slow(
+    reason="starts a two-process Dask cluster; test_cli_suite_exit_status_and_table keeps a pool fast"
+)
 def test_workers_on_a_cluster_give_the_same_numbers(in_process, tmp_path, monkeypatch):
     """A Dask cluster the test starts itself (two worker processes), addressed like a remote one; the
     output folder given relative to this process's directory, which the workers do not share."""
@@ -287,6 +290,9 @@ class _KillsItsWorker:
         raise AttributeError(name)
 
 
+@pytest.mark.slow(
+    reason="starts a Dask cluster and kills a worker; test_faults.py classifies the failure fast"
+)
 def test_a_worker_that_dies_is_one_failed_material(tmp_path):
     pytest.importorskip("distributed")
     good = suite.entries(["planks"], **SMALL)[0]
@@ -341,7 +347,7 @@ def test_the_overview_sorts_in_a_browser(in_process):
     """Chromium: every thumbnail loads, no console errors, and a click on a column sorts the rows."""
     import os
 
-    from test_report import CHROMIUM, CHROMIUM_ARGS
+    from tests.report.test_pages import CHROMIUM, CHROMIUM_ARGS
 
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")

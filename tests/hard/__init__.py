@@ -2,5 +2,5 @@
 
 Every module here is marked ``hard`` and runs in the default test run. The
 shared references (a float64 horizon bake, a float64 ray caster over the
-displaced mesh, the GPU path's channel weights) live in :mod:`hard._ref`.
+displaced mesh, the GPU path's channel weights) live in :mod:`tests.hard._ref`.
 """

@@ -13,7 +13,7 @@
   ``e`` iff that tangent is >= ``tan e``; the triangle under the point
   counts too, so a triangle facing away from the light shadows its points.
 * :func:`gpu_weights`, :func:`exact_weights`: the channel weights of the two
-  approximation paths, from :mod:`hzval.core.conventions` (as in tests/test_approx.py).
+  approximation paths, from :mod:`hzval.core.conventions` (as in tests/techniques/test_horizon.py).
 """
 
 from __future__ import annotations

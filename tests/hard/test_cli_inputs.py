@@ -1,9 +1,8 @@
 """Every bad input a clear error: one line on stderr naming the culprit, exit status 2, no files,
 never a traceback; through hzval.cli.main.main and once through the installed console script.
 
-(tests/integration/test_bake.py and tests/pipeline/test_sweep.py check a few of these for one command each;
-here every
-case runs against both commands where it applies.)
+(tests/integration/test_bake.py and tests/pipeline/test_sweep.py check a few of these for one command
+each; here every case runs against both commands where it applies.)
 """
 
 import subprocess

@@ -5,7 +5,7 @@ Bake values are checked against closed forms where the seed's bins give one
 (an offset at distance r covers the bins within atan(0.7071 / r) of its
 direction, so a neighbour at r = 1 fills channel 0's five bins and three of
 channels 1's and 7's), else against the float64 reference bake of
-:mod:`hard._ref`. Truth values against the shadow geometry of the mesh.
+:mod:`tests.hard._ref`. Truth values against the shadow geometry of the mesh.
 """
 
 import math

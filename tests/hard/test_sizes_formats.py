@@ -1,7 +1,7 @@
 """Sizes and formats: 1xN, Nx1, 2x2, prime and non-square maps; 8- and 16-bit PNG, EXR and .npy
 inputs of the same data; ``wrap`` against ``open`` at every edge and corner.
 
-Bakes are compared with the float64 reference of :mod:`hard._ref` to within
+Bakes are compared with the float64 reference of :mod:`tests.hard._ref` to within
 float32 arithmetic on heights of at most ``hmax`` texels: each ``dh`` is a
 float32 difference (exact, heights are float32) times a float32 ``1/r``,
 each sine and mean a few roundings, so ``|s - s_ref| <= 2^-21 (hmax + 2)``.

@@ -1,7 +1,7 @@
 """The truth on noisy maps: no shadow acne at grazing light, on mesh vertices (samples exactly on
 texel centres) or at jittered samples; and a soft light of tiny radius converges to the hard one.
 
-The reference is the displaced mesh's exact horizon in float64 (:func:`hard._ref.mesh_horizon_tan`).
+The reference is the displaced mesh's exact horizon in float64 (:func:`tests.hard._ref.mesh_horizon_tan`).
 A sample is certainly in shadow when its own triangle faces away from the light or the surface
 at least 0.05 texel away rises above the ray, by more than 3e-3 in tangent (0.17 degrees at
 grazing: the truth's ray starts 1.2e-4 texels above the surface, which hides at most

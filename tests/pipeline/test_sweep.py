@@ -43,7 +43,7 @@ DERIVED_FILES = {"plain", "visibility_png"}
 
 
 #: The techniques a sweep renders without --techniques (the GL ones are opt-in:
-# tests/techniques/gl/test_horizon_gl.py).
+#: tests/techniques/gl/test_horizon_gl.py).
 DEFAULT_TECHNIQUES = [n for n in technique.names() if technique.get(n).by_default]
 
 

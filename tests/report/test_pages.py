@@ -492,6 +492,9 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
 
 
 @pytest.mark.browser
+@pytest.mark.slow(
+    reason="a browser on a report of large images; test_report_in_a_browser keeps the browser fast"
+)
 def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
     """Images above files.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
     files of the views on screen, scaled by the full width; the page's load time is printed."""

@@ -789,6 +789,9 @@ def test_path_tracer_handles_soft_light_specular_and_sky_together(bumps, boundar
 # --------------------------------------------------------------------------
 
 
+@pytest.mark.slow(
+    reason="the full margin's mesh is 20 tiles a side; test_a_low_soft_light_... keeps hops fast"
+)
 def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, monkeypatch):
     """Depth 2 on 48 x 48 bricks (80 texels of relief) at 10 degrees would want a margin of 457 texels
     (a mesh 20 times the tile a side); the capped margin is 32 texels, and its rays hop to the same
@@ -810,6 +813,9 @@ def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, mon
         assert np.abs(a - b).max() <= 1 / 4 + 1e-6 and np.mean(a != b) < 0.002  # at most a sample of four
 
 
+@pytest.mark.slow(
+    reason="a sweep of deep relief at a grazing light; tests/hard/test_geometry.py keeps depth 10 fast"
+)
 def test_the_depth_5_grazing_sweep_runs(variant, tmp_path):
     """Issue 16's case at a small size: depth 5 at 10 degrees was killed for memory at 512 x 512."""
     import json

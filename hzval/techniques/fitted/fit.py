@@ -203,8 +203,7 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
     one (a higher ray clears the relief sooner; each frame takes the hops its own elevation needs),
     and a hard light's direction is read from its scene per frame. A set-up (the mesh, its BVH) costs
     as much as 20 renders at 512 x 512; ``tests/techniques/fitted/test_fit.py`` checks that the V of a
-    shared set-up
-    is a fresh one's bit for bit."""
+    shared set-up is a fresh one's bit for bit."""
     from hzval.truth import plane as truth
 
     base = fit_scene(scene)

@@ -5,7 +5,7 @@ the mean and largest ``|truth - unshadowed|`` where the truth is lit (0 up to th
 rounding when the truth shades as the techniques do: the same normal map carried by the same
 tangent frames), the base mesh's macro-shadowed share, and each technique's mean ``|F - V|``.
 
-    python benchmarks/model_check.py MESH HEIGHT [--depth 0.003] [--up y] [--resolution 384]
+    python studies/model_check.py MESH HEIGHT [--depth 0.003] [--up y] [--resolution 384]
                                      [--spp 4] [--azimuths -60:60:30] [--out DIR]
 """
 

@@ -8,7 +8,7 @@ elevations (:mod:`hzval.studies.curvature_band`: 16 lights, per texel, one stand
 spread), the corrected map beside the baked one on the same pixels and lights, at the camera's hits
 (|F - V|) and at the truth's (the floor); ``gain`` = baked - corrected, paired per light.
 
-    python benchmarks/curved_horizon.py [HEIGHT.png] [--material bricks] [--size 128] [--depth 0.1]
+    python studies/curved_horizon.py [HEIGHT.png] [--material bricks] [--size 128] [--depth 0.1]
                                         [--cases cap+0.5,cap+1,cap+2,bowl+1,bowl+2,flat] [--control 2,-1]
                                         [--json OUT]
 """

@@ -7,7 +7,7 @@ azimuth 20 degrees, mirrored left-right at 160, rotated 90 degrees counterclockw
 visibility is checked against an independent march of the bilinear height field
 (``tests/oracles/march_check.py``: its own sample positions, NumPy, no Mitsuba)::
 
-    python benchmarks/orientation_check.py [--out /tmp/orient] [--spp 16] [--march-spp 4]
+    python studies/orientation_check.py [--out /tmp/orient] [--spp 16] [--march-spp 4]
                                            [--truth-tolerance T] [--photos a.png,b.png]
 
 It prints one line per case: mean V, horizon mean |F - V|, the march's mean V, and per photo and

@@ -10,8 +10,8 @@ one table row per material and variant and writes the records as JSON.
 
 Usage::
 
-    .venv/bin/python benchmarks/study_fit.py [--size 256] [--materials a,b] [--more bricks,gravel,spikes]
-    [--out study.json]
+    .venv/bin/python studies/study_fit.py [--size 256] [--materials a,b] [--more bricks,gravel,spikes]
+                                          [--out study.json]
 """
 
 from __future__ import annotations

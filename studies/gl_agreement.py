@@ -3,19 +3,16 @@
 Bakes a height map (a built-in material or an image file; ``--size`` resamples a
 built-in one), builds both techniques from one :class:`hzval.techniques.registry.Context`,
 so that they read the same sample positions, and prints per light the mean and
-max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``). Lights:
-the default
-sweep's azimuths at the scene's elevation plus the ``--extra`` ``AZ/EL`` pairs
+max of ``|F_gpu - F_gl|`` per pixel, and the GL renderer (``--pom``: ``pom`` against ``pom-gl``).
+Lights: the default sweep's azimuths at the scene's elevation plus the ``--extra`` ``AZ/EL`` pairs
 (default the cube's corner, 45/35.26). ``--texel-centres`` reads one sample at
 each texel centre instead of the sweep's jittered ones. Exits 1 when a bound
 given with ``--max-mean`` / ``--max-max`` is exceeded.
 
 Usage::
 
-    GALLIVM_PERF=no_aos_sampling .venv/bin/python benchmarks/gl_agreement.py --height photo.png --boundary
-    wrap
-    .venv/bin/python benchmarks/gl_agreement.py --height photo.png --camera orthographic --view-elevation 90
-    \\
+    GALLIVM_PERF=no_aos_sampling .venv/bin/python studies/gl_agreement.py --height photo.png --boundary wrap
+    .venv/bin/python studies/gl_agreement.py --height photo.png --camera orthographic --view-elevation 90 \\
         --resolution 128 128 --filter trilinear --spp 4
 """
 
@@ -70,8 +67,7 @@ def _context(scene, texel_centres: bool):
 
 
 def _from_sweep(args) -> int:
-    """Per frame of a sweep's output folder: |F| of ``approx_factor.exr`` against
-    ``horizon_gl_factor.exr``."""
+    """Per frame of a sweep's output folder: |F| of horizon's factor EXR against horizon-gl's."""
     import json
     from pathlib import Path
 
@@ -85,13 +81,13 @@ def _from_sweep(args) -> int:
     )
     worst_mean = worst_max = 0.0
     for f in m["frames"]:
-        a = files.read_exr(out / f["files"]["factor"])["Y"].astype(np.float64)
+        a = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"].astype(np.float64)
         b = files.read_exr(out / f["techniques"]["horizon-gl"]["files"]["factor"])["Y"].astype(np.float64)
         d = np.abs(a - b)
         worst_mean, worst_max = max(worst_mean, d.mean()), max(worst_max, d.max())
         print(
-            f"  az {f['azimuth_deg']:7.2f} el {f['elevation_deg']:6.2f}: mean |dF| {d.mean():.2e}  max "
-            f"{d.max():.2e}"
+            f"  az {f['azimuth_deg']:7.2f} el {f['elevation_deg']:6.2f}: "
+            f"mean |dF| {d.mean():.2e}  max {d.max():.2e}"
         )
     print(f"worst: mean {worst_mean:.2e}, max {worst_max:.2e}")
     bad = (args.max_mean is not None and worst_mean > args.max_mean) or (
@@ -135,8 +131,8 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.from_sweep:
         return _from_sweep(args)
-    from hzval.approx import Approximation
     from hzval.techniques.gl.horizon_gl import HorizonGL
+    from hzval.techniques.horizon import Horizon
 
     scene = _scene(args)
     ctx = _context(scene, args.texel_centres)
@@ -147,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
 
         emu, real = RayMarchShadow.build(ctx, variant=args.pom), PomGL.build(ctx, variant=args.pom)
     else:
-        emu = Approximation.build(ctx, path="gpu", storage=args.storage)
+        emu = Horizon.build(ctx, path="gpu", storage=args.storage)
         real = HorizonGL.build(ctx, storage=args.storage)
     print(
         f"{scene.material.height} {ctx.height.shape[1]}x{ctx.height.shape[0]} {scene.material.boundary}, "

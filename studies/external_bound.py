@@ -9,7 +9,7 @@ column shows why an absolute bound on it cannot tell them apart.
 Also a map of A in another convention (+y down) and a map of A with a radius of 4 texels, which are
 right maps.
 
-    python benchmarks/external_bound.py [--size 64]
+    python studies/external_bound.py [--size 64]
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ margin and each frame's pair; with ``--guards`` also the map guarded at each tol
 
 Usage::
 
-    .venv/bin/python benchmarks/frames_fit.py PHOTO.png [--lights SPEC] [--options JSON] [--guards 0.25,1]
+    .venv/bin/python studies/frames_fit.py PHOTO.png [--lights SPEC] [--options JSON] [--guards 0.25,1]
 """
 
 from __future__ import annotations

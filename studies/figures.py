@@ -5,9 +5,9 @@ markdown block; in a document it stands between ``<!-- figure:NAME -->`` and
 ``<!-- /figure:NAME -->``, and the block says the command that made it, the
 commit and the machine. Figures that take minutes are run only when named.
 
-    .venv/bin/python benchmarks/figures.py                  # every quick figure, every document
-    .venv/bin/python benchmarks/figures.py default-sweep    # one figure
-    .venv/bin/python benchmarks/figures.py --check          # exit 1 if a document has a figure no
+    .venv/bin/python studies/figures.py                  # every quick figure, every document
+    .venv/bin/python studies/figures.py default-sweep    # one figure
+    .venv/bin/python studies/figures.py --check          # exit 1 if a document has a figure no
                                                             # function makes, or lacks its end marker
 """
 
@@ -66,7 +66,7 @@ def _spread(values: list[float], digits: int = 3) -> str:
 
 
 def _provenance(command: str) -> str:
-    return f"*`{command}` at {_commit()}, {_machine()}; written by `benchmarks/figures.py`.*"
+    return f"*`{command}` at {_commit()}, {_machine()}; written by `studies/figures.py`.*"
 
 
 def default_sweep() -> str:

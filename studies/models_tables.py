@@ -1,6 +1,6 @@
 """The band tables of docs/models.md from ``hzval models`` outputs (issue 29).
 
-    python benchmarks/models_tables.py NAME=DIR [NAME=DIR ...]
+    python studies/models_tables.py NAME=DIR [NAME=DIR ...]
 
 Per study (``DIR/models.json``): per case the horizon map's band |F - V| (± one standard error over
 the lights), the flat patch's on the same texels, the excess, the flat bake's signed F - V there
@@ -10,6 +10,7 @@ seam shares and the ring's excess by the light's normal curvature.
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -85,16 +86,32 @@ def ring(named: list[tuple[str, dict]], tech: str = "horizon") -> list[str]:
     return out
 
 
-def main() -> None:
-    named = [
-        (a.split("=", 1)[0], json.loads((Path(a.split("=", 1)[1]) / "models.json").read_text()))
-        for a in sys.argv[1:]
-    ]
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "studies", nargs="+", metavar="NAME=DIR", help="a study's name and its `hzval models` folder"
+    )
+    args = ap.parse_args(argv)
+    named = []
+    for a in args.studies:
+        name, sep, folder = a.partition("=")
+        path = Path(folder) / "models.json"
+        if not sep or not name:
+            print(f"models_tables: {a}: expected NAME=DIR", file=sys.stderr)
+            return 2
+        if not path.is_file():
+            print(
+                f"models_tables: {path}: no such file (run `hzval models --out {folder}` first)",
+                file=sys.stderr,
+            )
+            return 2
+        named.append((name, json.loads(path.read_text())))
     for name, d in named:
         print("\n".join(study(name, d)), end="\n\n")
     print("\n".join(seams(named)), end="\n\n")
     print("\n".join(ring(named)))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -7,7 +7,7 @@ mirrored one, the tangent along world y on the turned one), must agree; and the 
 ``--mesh plane``, the tile hzval measured before it had meshes. Orthographic view at 60 degrees, two
 lights, ``open`` (the quads have no neighbours).
 
-    python benchmarks/model_quads.py [--photo PATH] [--size 256] [--depth 0.05] [--spp 4]
+    python studies/model_quads.py [--photo PATH] [--size 256] [--depth 0.05] [--spp 4]
 
 Prints each run's horizon (and pom) mean |F - V| over the seen pixels, the per-pixel mean |F - F1|
 between each quad and the first (over the pixels both see), and the plane's scores.

@@ -1,15 +1,15 @@
 """The truth's tolerance: how mean V and horizon's |F - V| move as the tolerance halves (issue 27).
 
 For every built-in material (256 x 256, its own depth and boundary) and the two photo-like maps of
-``benchmarks/orientation_check.py`` (depth 0.05, ``open``), a sweep of five hard lights at 30
+``studies/orientation_check.py`` (depth 0.05, ``open``), a sweep of five hard lights at 30
 degrees (azimuths -60:60:30, 16 spp, the truth and ``horizon``) at each tolerance of
 ``--tolerances``; it prints, per map and tolerance, the mean V over the frames, horizon's mean
 |F - V|, the triangles per cell of the wrap/open mesh, and the change of both from the next larger
 tolerance (the default is chosen where halving moves mean V by at most 0.002 and |F - V| by at
 most 1% everywhere; docs/truth-surface.md)::
 
-    python benchmarks/truth_convergence.py [--out /tmp/truth-convergence] [--tolerances
-    0.08,0.04,0.02,0.01,0.005]
+    python studies/truth_convergence.py [--out /tmp/truth-convergence]
+                                        [--tolerances 0.08,0.04,0.02,0.01,0.005]
                                            [--materials all] [--size 256]
 
 The sweeps of one map share one bake (the same folder's cache); only the truth changes.

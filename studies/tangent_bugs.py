@@ -2,7 +2,7 @@
 (:mod:`hzval.studies.bug_signatures`: the cube from azimuth 150, the mirrored sphere from +x; the scene's
 lights turned to the camera's side). docs/models.md and docs/meshes.md quote its output.
 
-    PYTHONPATH=. python benchmarks/tangent_bugs.py [HEIGHT ...] [--size 128] [--spp 2] [--resolution 128]
+    PYTHONPATH=. python studies/tangent_bugs.py [HEIGHT ...] [--size 128] [--spp 2] [--resolution 128]
 
 HEIGHT: built-in materials or image files (default: bricks spikes).
 """
