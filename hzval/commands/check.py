@@ -77,7 +77,7 @@ from hzval import materials
 from hzval.bake import maps as bake
 from hzval.core import shading
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import files, paths
 from hzval.metrics import compare
 from hzval.pipeline import sweep
 from hzval.pipeline.sweep import frame_folder
@@ -458,10 +458,10 @@ def _former_reference(references: Path, scene: str, frame: str, entry) -> Path |
 def load_scenes(scenes_dir: str | Path) -> list:
     from hzval.scene import spec as sc
 
-    paths = sorted(Path(scenes_dir).glob("*.toml"))
-    if not paths:
+    found = sorted(Path(scenes_dir).glob("*.toml"))
+    if not found:
         raise InputError(scenes_dir, "no scene files (*.toml)")
-    return [sc.load_scene(p) for p in paths]
+    return [sc.load_scene(p) for p in found]
 
 
 def run(
@@ -481,6 +481,8 @@ def run(
     scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
     references = Path(references) if references else repository_path("reference")
     scenes = [check_scene(s) for s in load_scenes(scenes_dir) if not only or s.name in only]
+    for s in scenes:  # each name is a folder of reference/, which --update writes
+        paths.file_name(s.name, s.source or s.name, "name")
     result = CheckResult(images=[])
     for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):
         scale = shading.exposure(scene)

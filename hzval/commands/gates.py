@@ -45,7 +45,6 @@ rounding on another machine): a test fails when ``p < alpha'`` and
 from __future__ import annotations
 
 import difflib
-import json
 import math
 import re
 from dataclasses import dataclass
@@ -54,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import documents
 
 __all__ = [
     "Operand",
@@ -116,9 +115,11 @@ _OPS = {
 }
 _NAME = r"[A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?"
 _OPERAND = re.compile(
-    rf"^\s*(?:(mean|max|min)\(\s*({_NAME})\s*\)|({_NAME})|([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*$"
+    rf"^\s*(?:(mean|max|min)\(\s*({_NAME})\s*\)|({_NAME})|([-+]?(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?\d++)?+))\s*$"
 )
 _SPLIT = re.compile(r"(>=|<=|>|<)")
+#: The longest ``--fail-if`` expression read; a condition is a line of a CI script, not data.
+MAX_EXPRESSION = 400
 
 
 @dataclass(frozen=True)
@@ -164,7 +165,10 @@ def _operand(text: str, expr: str) -> Operand:
 
 def parse(expr: str) -> Condition:
     """A ``--fail-if`` expression as a :class:`Condition` (module docstring); one line naming
-    ``--fail-if`` for anything else."""
+    ``--fail-if`` for anything else. Parsing is linear in the text's length (possessive
+    quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first."""
+    if len(expr) > MAX_EXPRESSION:
+        raise InputError("--fail-if", f"{expr[:40]!r}...: longer than {MAX_EXPRESSION} characters")
     parts = _SPLIT.split(expr)
     if len(parts) != 3:
         raise InputError(
@@ -262,14 +266,12 @@ def read_baseline(path: str | Path) -> dict:
     ``--baseline`` if there is none or it cannot be read."""
     path = Path(path)
     file = path / "metrics.json" if path.is_dir() else path
+    if not file.is_file():
+        raise InputError("--baseline", f"{path}: no metrics.json (give the folder of an earlier run)")
     try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            "--baseline", f"{path}: no metrics.json (give the folder of an earlier run)"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise InputError("--baseline", f"{file}: unreadable ({files.first_line(exc)})") from None
+        data = documents.read_json(file)
+    except InputError as exc:
+        raise InputError("--baseline", str(exc)) from None
     if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
         raise InputError("--baseline", f"{file}: not the metrics.json of a sweep or a score (no frames)")
     return data

@@ -646,14 +646,14 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
     """``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``
     (:class:`hzval.commands.gates.Gates`), its baseline the same material's in the baseline suite's folder;
     each failure line names the material. A material missing from the baseline is a failure too."""
-    import json
+    from hzval.io import documents
 
     failed = []
     for row in rows:
         if row["status"] != "ok":
             continue
         name = row["name"]
-        metrics = json.loads((out / name / "metrics.json").read_text(encoding="utf-8"))
+        metrics = documents.read_json(out / name / "metrics.json")
         baseline = None
         if gates.baseline_path is not None:
             path = gates.baseline_path / name / "metrics.json"
@@ -662,7 +662,14 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
                     f"{name}: --baseline: {path} is missing (no such material in the baseline suite)"
                 )
                 continue
-            baseline = json.loads(path.read_text(encoding="utf-8"))
+            try:
+                baseline = documents.read_json(path)
+            except InputError as exc:
+                failed.append(f"{name}: --baseline: {exc}")
+                continue
+            if not isinstance(baseline, dict) or not isinstance(baseline.get("frames"), list):
+                failed.append(f"{name}: --baseline: {path}: not the metrics.json of a sweep (no frames)")
+                continue
         try:
             lines, _ = gates.failures(
                 metrics, baseline=baseline, where=name, use_baseline=baseline is not None

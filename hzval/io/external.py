@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -113,13 +112,12 @@ class Encoding:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Encoding":
-        try:
-            data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(path, "no such encoding file") from None
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-            raise InputError(path, f"not a readable TOML file ({files.first_line(exc)})") from None
         from hzval.core import strict
+        from hzval.io import documents
+
+        data = documents.read_toml(path)
+        if not isinstance(data, dict):
+            raise InputError(path, "is not a table of encoding keys")
 
         table = data.get("encoding", data) if set(data) <= {"encoding"} else data
         strict.check_keys(table, strict.schema_of(cls), path, "encoding" if "encoding" in data else "")

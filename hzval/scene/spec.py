@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -451,12 +450,9 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
     """
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(path, "no such scene file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise InputError(path, f"not a readable TOML scene ({str(exc).splitlines()[0]})") from None
+    from hzval.io import documents
+
+    data = documents.read_toml(path)
     check_file(data, path)
     try:
         mat = dict(data.get("material", {}))

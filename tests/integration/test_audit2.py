@@ -260,3 +260,76 @@ def test_the_path_rule_in_isolation(tmp_path):
         with pytest.raises(InputError, match="not a file name"):
             paths.file_name(bad, "f.json", "k")
     assert np.all([paths.file_name(n, "f", "k") == n for n in ("az+0", "el30_az-45", "a.b")])
+
+
+# 4. gates, baselines, scene files and check's references ----------------------------------------
+
+
+@pytest.mark.parametrize("operand", ["1" * 5000 + "x", "9" * 32_000])
+def test_a_long_fail_if_is_refused_in_one_line(operand):
+    from hzval.commands import gates
+
+    with pytest.raises(InputError, match="--fail-if"):
+        gates.parse(f"{operand}>horizon.flip_mean")
+
+
+def test_the_fail_if_grammar_still_reads_numbers_and_aggregates():
+    from hzval.commands import gates
+
+    c = gates.parse("mean(horizon.flip_mean) >= 1.5e-3")
+    assert (c.left.aggregate, c.left.path, c.op, c.right.number) == (
+        "mean",
+        "horizon.flip_mean",
+        ">=",
+        0.0015,
+    )
+    assert gates.parse("horizon.visibility_mae<.5").right.number == 0.5
+    assert gates.parse("-2.>floor.flip_mean").left.number == -2.0
+    with pytest.raises(InputError, match="neither a number"):
+        gates.parse("1.2.3>horizon.flip_mean")
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000 + "]" * 100_000, '{"frames": ', '{"frames": 3}'])
+def test_a_malformed_baseline_is_one_line(tmp_path, text):
+    from hzval.commands import gates
+
+    (tmp_path / "metrics.json").write_text(text)
+    with pytest.raises(InputError) as exc:
+        gates.read_baseline(tmp_path)
+    assert str(exc.value).startswith("--baseline") and "\n" not in str(exc.value)
+
+
+def test_a_deeply_nested_scene_is_one_line(tmp_path, capsys):
+    scene = tmp_path / "deep.toml"
+    scene.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert cli.main(["sweep", "--scene", str(scene), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    one_line(capsys.readouterr().err, "deep.toml")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("name", ["../../escaped", "a/b", "..", "-rf"])
+def test_check_refuses_a_scene_name_that_is_not_one_folder(tmp_path, name, capsys):
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "s.toml").write_text(f'name = "{name}"\n')
+    assert cli.main(["check", "--scenes", str(scenes), "--references", str(tmp_path / "r")]) == 2
+    one_line(capsys.readouterr().err, "s.toml", "is not a file name")
+
+
+def test_check_update_never_writes_outside_references(tmp_path, capsys):
+    scenes, refs = tmp_path / "scenes", tmp_path / "refs"
+    scenes.mkdir()
+    (scenes / "evil.toml").write_text('name = "../../escaped"\n')
+    argv = ["check", "--scenes", str(scenes), "--references", str(refs), "--update"]
+    assert cli.main(argv) == 2
+    one_line(capsys.readouterr().err, "evil.toml", "name")
+    assert not (tmp_path / "escaped").exists() and not refs.exists()
+
+
+def test_a_deeply_nested_horizon_encoding_is_one_line(tmp_path):
+    from hzval.io import external
+
+    enc = tmp_path / "enc.toml"
+    enc.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(InputError, match="nests deeper"):
+        external.Encoding.from_toml(enc)
