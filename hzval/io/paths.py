@@ -17,7 +17,15 @@ from urllib.parse import unquote, urlsplit
 
 from hzval.core.errors import InputError
 
-__all__ = ["MAX_NAME_CHARS", "file_name", "inside", "is_data_uri", "uri_path", "no_symlink_below"]
+__all__ = [
+    "MAX_NAME_CHARS",
+    "file_name",
+    "inside",
+    "is_data_uri",
+    "uri_path",
+    "no_symlink_below",
+    "stored_input",
+]
 
 #: The longest name hzval writes as one path component (most file systems allow 255 bytes).
 MAX_NAME_CHARS = 200
@@ -173,3 +181,37 @@ def no_symlink_below(out: str | os.PathLike, rel: str | os.PathLike) -> None:
         path = path / part
         if path.is_symlink():
             raise InputError(path, "is a symbolic link: hzval does not write through links in its output")
+
+
+def stored_input(folder: str | os.PathLike, stored, where: str | os.PathLike, key: str) -> Path:
+    """An input file a run recorded (``material.path``, ``parameters.mesh``), found from any folder.
+
+    A run records its inputs relative to its own folder (:func:`hzval.io.files.report_path`), so
+    the path is resolved against ``folder``, not the current directory. Unlike the run's own files
+    (:func:`inside`), an input may lie outside ``folder``: it is only read, and the caller checks
+    that it is still the file the run read (the material's digest).
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The folder of the file that recorded the path (the run's ``--out``).
+    stored : object
+        The path as recorded: relative to ``folder``, or absolute.
+    where, key : str or path-like, str
+        The file and key named in the error.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        When ``stored`` is not a string or names no file.
+    """
+    if not isinstance(stored, str) or not stored or _CONTROL.search(stored):
+        raise InputError(where, f"{key} must be a file name, got {stored!r}")
+    path = Path(folder) / stored  # an absolute ``stored`` stays itself
+    if not path.is_file():
+        raise InputError(where, f"{key} {stored!r}: no such file beside the run (moved since it ran?)")
+    return path

@@ -689,7 +689,7 @@ def _run(
     timings = {**setup.timings, "truth_s": sum(f["truth_s"] for f in frames), **clock}
     for t in setup.techniques:
         timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
-    result = _result(scene, options, setup, timings, frames)
+    result = _result(scene, options, setup, timings, frames, out)
     if gates:
         gates.apply(result)  # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
@@ -1000,20 +1000,25 @@ def _view_parameters(scene) -> dict:
     return out
 
 
-def _mesh_parameters(scene) -> dict:
-    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before)."""
+def _mesh_parameters(scene, out: Path) -> dict:
+    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
+    file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere."""
+    from hzval.geometry import model
+
     if scene.mesh.is_plane:
         return {}
+    shape = scene.mesh.shape
     return {
-        "mesh": scene.mesh.shape,
+        "mesh": shape if shape in model.SHAPES else files.report_path(shape, out),
         "uv_scale": scene.mesh.uv_scale,
         "up": scene.mesh.up,
         "tangent_bug": scene.mesh.tangent_bug,
     }
 
 
-def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict]) -> dict:
-    """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json")."""
+def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict], out: Path) -> dict:
+    """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"); ``out`` the folder it is
+    written to."""
     techniques = {
         t.name: {
             "label": t.label,
@@ -1044,7 +1049,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
             "supersampling": scene.camera.supersampling,
             "truth_tolerance": scene.material.truth_tolerance,
             **_view_parameters(scene),
-            **_mesh_parameters(scene),
+            **_mesh_parameters(scene, out),
             "techniques": [t.name for t in setup.techniques],
         },
         "bake": {"contents": list(setup.bake_contents)},

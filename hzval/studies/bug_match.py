@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.core.errors import InputError
 from hzval.geometry import tangent_bugs
 
 __all__ = ["MARGIN", "scene_of", "bug_factors", "diagnose"]
@@ -30,10 +31,19 @@ MARGIN = 0.67
 def scene_of(metrics: dict, sweep_dir: Path):
     """The sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json`` (the keys a model's
     sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``."""
+    from hzval.geometry import model
+    from hzval.io import paths
     from hzval.scene import spec as S
 
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
-    height = m.get("path") or m["name"]
+    where = Path(sweep_dir) / "metrics.json"
+    # inputs are recorded relative to the sweep's folder: found from any directory
+    height = (
+        str(paths.stored_input(sweep_dir, m["path"], where, "material.path")) if m.get("path") else m["name"]
+    )
+    mesh = p["mesh"]
+    if mesh not in model.SHAPES:
+        mesh = str(paths.stored_input(sweep_dir, mesh, where, "parameters.mesh"))
     sc = S.override(
         S.Scene(),
         height=height,
@@ -57,7 +67,7 @@ def scene_of(metrics: dict, sweep_dir: Path):
         plane=p.get("plane"),
         filter=p.get("filter"),
         parallax=p.get("parallax"),
-        mesh=p["mesh"],
+        mesh=mesh,
         uv_scale=p.get("uv_scale"),
         up=p.get("up"),
     )
@@ -95,7 +105,13 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
 
     scene = scene_of(metrics, sweep_dir)
     lead = metrics["parameters"]["techniques"][0]
-    h = S.load_material_height(scene.material).height
+    hm = S.load_material_height(scene.material)
+    if hm.digest != metrics["material"].get("digest", hm.digest):
+        raise InputError(
+            Path(sweep_dir) / "metrics.json",
+            f"material.path {hm.path}: not the height map the sweep read (its digest has changed)",
+        )
+    h = hm.height
     base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
     mt = ModelTruth(scene, h, base)
     seen = mt.seen

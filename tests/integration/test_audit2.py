@@ -333,3 +333,48 @@ def test_a_deeply_nested_horizon_encoding_is_one_line(tmp_path):
     enc.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
     with pytest.raises(InputError, match="nests deeper"):
         external.Encoding.from_toml(enc)
+
+
+# 7. stored inputs are found from any folder --------------------------------------------------------
+
+
+def test_score_on_a_model_sweep_runs_from_any_folder(tmp_path, monkeypatch, variant, capsys):
+    """The sweep ran in ``work/`` with relative paths; ``score`` runs in ``elsewhere/`` and still finds
+    the height map and the mesh (recorded relative to the sweep's folder) for its tangent-bug match."""
+    from hzval import materials
+    from hzval.io import files
+    from tests.geometry.test_model import write_obj
+
+    work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
+    work.mkdir(), elsewhere.mkdir()
+    np.save(work / "map.npy", materials.generate("gravel", 24).height)
+    write_obj(work / "quad.obj", QUAD_P, QUAD_UV, QUAD_F)
+    monkeypatch.chdir(work)
+    argv = ["sweep", "map.npy", "--mesh", "quad.obj", "--resolution", "32x24", "--azimuths", "0,90"]
+    assert (
+        cli.main([*argv, "--spp", "1", "--techniques", "horizon", "--all-files", "--quiet", "--out", "s"])
+        == 0
+    )
+    metrics = json.loads((work / "s" / "metrics.json").read_text())
+    assert metrics["parameters"]["mesh"] == "../quad.obj" and metrics["material"]["path"] == "../map.npy"
+    frames = work / "engine"
+    frames.mkdir()
+    for f in json.loads((work / "s" / "frames.json").read_text())["frames"]:
+        d = work / "s" / "frames" / f["name"]
+        shutil.copyfile(d / "horizon.exr", frames / f"{f['name']}.exr")
+        factor = files.read_exr(d / "horizon_factor.exr")["Y"]  # NaN off the model: an engine's 1
+        files.write_exr(frames / f"f_{f['name']}.exr", {"Y": np.nan_to_num(factor, nan=1.0)})
+    monkeypatch.chdir(elsewhere)
+    assert score(Path("../work/engine"), Path("../work/s"), Path("o")) == 0, capsys.readouterr().err
+    result = json.loads((elsewhere / "o" / "metrics.json").read_text())
+    assert result["tangent_bug"]["best"] == "none"
+
+
+def test_a_moved_height_map_is_named(tmp_path, sweep_dir):
+    from hzval.studies import bug_match
+
+    metrics = json.loads((sweep_dir / "metrics.json").read_text())
+    metrics["parameters"]["mesh"] = "sphere"
+    metrics["material"]["path"] = "../gone.png"
+    with pytest.raises(InputError, match="material.path '../gone.png': no such file"):
+        bug_match.scene_of(metrics, sweep_dir)
