@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.core import interrupts
 from hzval.core.errors import InputError
 from hzval.io import files
 from hzval.scene import camera, lookup
@@ -68,17 +69,26 @@ def run(
     ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
     lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
     mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds
-    ``out`` (:func:`hzval.io.files.output_folder`, ``force`` as there): a run that fails leaves no
-    folder it created, an existing report's views that it did not reach as they were."""
+    ``out`` (:func:`hzval.io.files.output_folder`, ``force`` as there) and writes into a staging
+    folder swapped in whole: a failure, or a Ctrl-C (which stops the run between sweeps), leaves an
+    earlier report byte for byte and no folder it created."""
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
     kinds = _pick(lookups, LOOKUPS, "--lookups")
-    with files.output_folder(out, force=force):
-        return _run(scene, out, chosen, kinds, options, progress, command, force)
+    with interrupts.held() as hold, files.output_folder(out, force=force):
+        with files.Staging(out) as stage:  # all or nothing, as a sweep (hzval.studies.models.run)
+            with interrupts.cases():
+                data = _run(scene, stage.dir, chosen, kinds, options, progress, command, force)
+            data["command"] = files.portable_command(command, out)
+            files.write_json(stage.dir / "views.json", data)
+            _write_page(stage.dir, data)
+            hold.start()
+            stage.swap()
+    return data
 
 
 def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str, force: bool) -> dict:
-    """:func:`run`'s sweeps and pages, ``out`` held."""
+    """:func:`run`'s sweeps into ``out`` (the staging folder); the ``views.json`` content."""
     from hzval.pipeline import sweep
 
     rows = []
@@ -105,11 +115,9 @@ def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str,
     data = {
         "format": "hzval views 1",
         "material": material,
-        "command": files.portable_command(command, out),
+        "command": command,
         "rows": rows,
     }
-    files.write_json(out / "views.json", data)
-    _write_page(out, data)
     return data
 
 

@@ -13,6 +13,10 @@ into place (:meth:`hzval.io.files.Staging.swap`) and the lock's removal are not
 interrupted, and a signal that comes during them does not make a finished run
 exit 130 over a report already in place. Python runs signal handlers in the
 main thread only; elsewhere (a Dask worker's thread) nothing is held.
+
+:func:`cases` marks a loop of runs (``models``' cases, ``views``' sweeps): there a
+signal held during one run's swap is raised as it ends, so the loop stops between
+cases instead of going on with a Ctrl-C swallowed.
 """
 
 from __future__ import annotations
@@ -25,10 +29,13 @@ from typing import Iterator
 
 from hzval.core import errors
 
-__all__ = ["HELD", "terminate_as_interrupt", "held"]
+__all__ = ["HELD", "terminate_as_interrupt", "held", "cases"]
 
 #: The signals :func:`held` holds.
 HELD = (signal.SIGINT, signal.SIGTERM)
+
+#: How many :func:`cases` loops enclose the running code.
+_loops = 0
 
 
 def _raise_interrupted(signum, frame) -> None:
@@ -78,9 +85,24 @@ def held() -> Iterator[_Hold]:
         yield hold
     finally:
         hold.restore()
+        if hold.caught and _loops:  # inside a loop of runs: this run is whole, the loop stops here
+            raise errors.Interrupted(hold.caught[0])
         if hold.caught:
             print(
                 f"hzval: {signal.Signals(hold.caught[0]).name} came after the output was complete; "
                 "it is kept",
                 file=sys.stderr,
             )
+
+
+@contextlib.contextmanager
+def cases() -> Iterator[None]:
+    """A loop of runs, each with its own :func:`held` swap: a signal one of them held is raised
+    (:class:`hzval.core.errors.Interrupted`) when that run has finished, so the loop stops between
+    runs; the caller's own staging then leaves the earlier output as it was."""
+    global _loops
+    _loops += 1
+    try:
+        yield
+    finally:
+        _loops -= 1

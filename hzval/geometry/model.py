@@ -77,6 +77,14 @@ WELD_TOLERANCE = 1e-7
 #: Degenerate UV triangles (:data:`hzval.geometry.tangents.DEGENERATE_UV`) are tolerated up to this share of
 #: the world area (a scan's slivers); more is refused.
 MAX_DEGENERATE_UV_AREA = 0.01
+#: The sizes (a bounding box's longest side) a mesh may have, in its file's units: the truth traces
+#: it in float32, whose products of coordinates underflow or overflow far outside this range.
+EXTENT_RANGE = (1e-6, 1e7)
+#: The least world area, as a share of the squared size: below it the vertices are collinear.
+MIN_AREA_SHARE = 1e-9
+#: The least UV area (1 = the whole texture): below it the mesh shows less than a texel of a
+#: 16384-wide map (``--uv-scale`` far too small).
+MIN_UV_AREA = 1e-10
 UP_AXES: tuple[str, ...] = ("y", "z")
 #: The rotation that turns a y-up file z up: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -237,6 +245,32 @@ def _check_finite(source: str, **arrays) -> None:
             raise InputError(source, f"{int(bad.sum())} vertices have NaN or infinite {name}")
 
 
+def _check_extent(source: str, positions: np.ndarray, uvs: np.ndarray, faces: np.ndarray) -> None:
+    """Refuse, before anything is built or rendered, a mesh too small or too large to trace
+    (:data:`EXTENT_RANGE`: a node scale of 0, coordinates of 1e-200 or 1e200), one whose triangles
+    have no area (:data:`MIN_AREA_SHARE` of the squared size: collinear vertices) and UVs that
+    cover almost nothing (:data:`MIN_UV_AREA`)."""
+    low, high = EXTENT_RANGE
+    size = float(np.ptp(positions, axis=0).max())
+    if not low <= size <= high:
+        raise InputError(
+            source,
+            f"the mesh is {size:.3g} units across; hzval traces meshes {low:g} to {high:g} "
+            "units across (scale it in the file)",
+        )
+    p = positions[faces] / size  # scaled first: 1e-200 and 1e200 have no product in float64
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=-1).sum()
+    if not area > MIN_AREA_SHARE:
+        raise InputError(source, "the triangles have no area: their vertices are collinear")
+    t = uvs[faces]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    uv_area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]).sum()
+    if 0 < uv_area < MIN_UV_AREA:  # none at all: _check_uvs says so
+        raise InputError(
+            source, f"the UVs cover {uv_area:.3g} of the texture (less than a texel): check --uv-scale"
+        )
+
+
 def _check_uvs(source: str, mesh: BaseMesh) -> None:
     """Zero UV area, or degenerate UV triangles on more than :data:`MAX_DEGENERATE_UV_AREA` of the
     world area, is refused: the texture has no size there, no frame, no displacement."""
@@ -285,6 +319,7 @@ def build(
         normals = None if normals is None else np.asarray(normals, np.float64).reshape(-1, 3)[keep]
         tangents = None if tangents is None else np.asarray(tangents, np.float64).reshape(-1, 4)[keep]
     _check_finite(source, positions=p, UVs=w)
+    _check_extent(source, p, w, f)
     weld = weld_ids(p)
     n = smooth_normals(p, f, weld) if normals is None else np.asarray(normals, np.float64).reshape(-1, 3)
     _check_finite(source, normals=n)

@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.core import interrupts
 from hzval.io import files
 
 __all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
@@ -89,10 +90,20 @@ def _cases() -> list[tuple[str, float, str | None]]:
 
 def run(scene, out: str | Path, *, progress: bool = True, command: str = "", force: bool = False) -> dict:
     """Sweep ``scene`` (its material, lights, spp) on every case into ``out``; write ``models.json``
-    and ``index.html``; return the ``models.json`` content. A run that fails leaves no folder it made."""
+    and ``index.html``; return the ``models.json`` content. All or nothing, as a sweep: the cases are
+    written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C (which
+    stops the run between cases), leaves an earlier report byte for byte and no folder it made."""
     out = Path(out)
-    with files.output_folder(out, force=force):
-        return _run(scene, out, progress, command, force)
+    with interrupts.held() as hold, files.output_folder(out, force=force):
+        with files.Staging(out) as stage:
+            with interrupts.cases():
+                data = _run(scene, stage.dir, progress, command, force)
+            data["command"] = files.portable_command(command, out)
+            files.write_json(stage.dir / "models.json", data)
+            _write_page(stage.dir, data)
+            hold.start()
+            stage.swap()
+    return data
 
 
 def _case_scene(scene, out: Path, name: str, spec):
@@ -133,14 +144,12 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
     data = {
         "format": "hzval models 1",
         "material": {**result["material"], "name": scene.name},
-        "command": files.portable_command(command, out),
+        "command": command,
         "half_width": A,
         "rows": rows,
     }
     _add_bands(data, bands)
     data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
-    files.write_json(out / "models.json", data)
-    _write_page(out, data)
     return data
 
 

@@ -378,3 +378,108 @@ def test_a_moved_height_map_is_named(tmp_path, sweep_dir):
     metrics["material"]["path"] = "../gone.png"
     with pytest.raises(InputError, match="material.path '../gone.png': no such file"):
         bug_match.scene_of(metrics, sweep_dir)
+
+
+# 5. and 9. views and models: all or nothing, and Ctrl-C stops them between cases -----------------
+
+
+@pytest.fixture(scope="module")
+def views_dir(tmp_path_factory, variant):
+    from hzval.commands import views
+    from hzval.scene import spec as sc
+
+    out = tmp_path_factory.mktemp("views") / "v"
+    scene = sc.override(sc.Scene(), height="gravel", size=16, azimuths="0", spp=1)
+    views.run(scene, out, views=["top", "ortho-45"], lookups=["bilinear"], progress=False)
+    return scene, out
+
+
+def test_a_late_failure_in_views_leaves_the_earlier_report(tmp_path, views_dir, monkeypatch):
+    from hzval.commands import views
+    from hzval.pipeline import sweep
+
+    scene, first = views_dir
+    out = tmp_path / "v"
+    shutil.copytree(first, out)
+    before, real, calls = snapshot(out), sweep.run, []
+
+    def failing(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(sweep, "run", failing)
+    with pytest.raises(KeyboardInterrupt):
+        views.run(scene, out, views=["top", "ortho-45"], lookups=["bilinear"], progress=False)
+    assert snapshot(out) == before
+
+
+def test_ctrl_c_during_a_cases_swap_stops_views_there(tmp_path, views_dir, monkeypatch):
+    """The signal comes while the first sweep swaps its report in (held): that sweep finishes, and the
+    run stops before the second, leaving the earlier report as it was."""
+    import os
+    import signal
+
+    from hzval.commands import views
+    from hzval.core import errors
+    from hzval.io import files
+    from hzval.pipeline import sweep
+
+    scene, first = views_dir
+    out = tmp_path / "v"
+    shutil.copytree(first, out)
+    before, swap, real, calls = snapshot(out), files.Staging.swap, sweep.run, []
+
+    def interrupted_swap(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        swap(self)
+
+    def counted(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(files.Staging, "swap", interrupted_swap)
+    monkeypatch.setattr(sweep, "run", counted)
+    with pytest.raises(errors.Interrupted):
+        views.run(scene, out, views=["top", "ortho-45"], lookups=["bilinear"], progress=False)
+    assert len(calls) == 1 and snapshot(out) == before
+
+
+# 10. degenerate meshes are refused before anything is rendered, naming the mesh --------------------
+
+
+@pytest.mark.parametrize(
+    "positions, uv_scale, message",
+    [
+        (QUAD_P * 1e-200, 1.0, "1e-200 units across"),
+        (QUAD_P * 1e200, 1.0, "1e\\+200 units across"),
+        (QUAD_P * 0.0, 1.0, "0 units across"),  # a glTF node scale of 0
+        (np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float), 1.0, "collinear"),
+        (QUAD_P, 1e-9, "--uv-scale"),
+    ],
+)
+def test_a_degenerate_mesh_is_refused_naming_it(positions, uv_scale, message):
+    with pytest.raises(InputError, match=message) as exc:
+        model.build("m.obj", positions, QUAD_UV, QUAD_F, uv_scale=uv_scale)
+    assert str(exc.value).startswith("m.obj:")
+
+
+def test_a_degenerate_mesh_is_refused_before_the_sweep_writes(tmp_path, variant, capsys):
+    from tests.geometry.test_model import write_obj
+
+    write_obj(tmp_path / "line.obj", [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], QUAD_UV, QUAD_F)
+    argv = ["sweep", "--mesh", str(tmp_path / "line.obj"), "--size", "16", "--resolution", "16x16"]
+    assert cli.main([*argv, "--quiet", "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, "line.obj", "collinear")
+    assert not (tmp_path / "o").exists()
+
+
+def test_small_and_large_meshes_in_range_still_sweep(tmp_path, variant):
+    from tests.geometry.test_model import write_obj
+
+    for scale in (2e-6, 5e6):
+        write_obj(tmp_path / "q.obj", QUAD_P * scale, QUAD_UV, QUAD_F)
+        argv = ["sweep", "--mesh", str(tmp_path / "q.obj"), "--size", "16", "--resolution", "16x16"]
+        argv += ["--azimuths", "0", "--spp", "1", "--techniques", "horizon", "--quiet"]
+        assert cli.main([*argv, "--out", str(tmp_path / f"o{scale:g}")]) == 0
