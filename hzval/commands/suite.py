@@ -53,8 +53,10 @@ import dataclasses
 import math
 import os
 import re
+import shutil
 import socket
 import sys
+import tempfile
 import time
 import traceback
 from dataclasses import dataclass
@@ -527,6 +529,10 @@ def _run_dask(
         for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
     }
     environ["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
+    # a local cluster's scratch space (dask-scratch-space) in a folder of our own, removed at the end
+    scratch = tempfile.mkdtemp(prefix="hzval-dask-") if address is None else None
+    if scratch:
+        environ["temporary-directory"] = scratch
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, **environ}):
         if address is None:
             # on loopback only, and no dashboard: nothing of a local cluster is served to the network
@@ -538,6 +544,7 @@ def _run_dask(
                 dashboard_address=None,
                 worker_dashboard_address=None,
                 silence_logs=logging.ERROR,
+                local_directory=scratch,
             )
             address = cluster.scheduler_address
         try:
@@ -545,6 +552,7 @@ def _run_dask(
         except (OSError, ValueError, TypeError) as exc:
             if cluster is not None:
                 cluster.close()
+            _remove(scratch)
             raise InputError(
                 "--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})"
             ) from None
@@ -572,6 +580,12 @@ def _run_dask(
         client.close()
         if cluster is not None:
             cluster.close()
+        _remove(scratch)
+
+
+def _remove(folder: str | None) -> None:
+    if folder:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 #: Where a local cluster's scheduler, workers and nannies listen.

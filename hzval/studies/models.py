@@ -576,13 +576,13 @@ def summary_table(data: dict) -> str:
         + "".join(f"  {n + ' |o-R|':>14}" for n in refl)
     ]
     for r in rows:
-        k = float("nan") if r["curvature"] is None else r["curvature"]
+        k = f"{'-':>7}" if r["curvature"] is None else f"{r['curvature']:+7.3f}"  # the ring, the cube
         t = r["techniques"]
         vals = "  ".join(
             f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t
         )
         lines.append(
-            f"{r['case']:10} {k:+7.3f}  {vals}"
+            f"{r['case']:10} {k}  {vals}"
             + "".join(f"  {num(t.get(n, {}).get('reflection_mae'), 14)}" for n in refl)
         )
     for n, t in data.get("trend", {}).items():

@@ -483,3 +483,18 @@ def test_small_and_large_meshes_in_range_still_sweep(tmp_path, variant):
         argv = ["sweep", "--mesh", str(tmp_path / "q.obj"), "--size", "16", "--resolution", "16x16"]
         argv += ["--azimuths", "0", "--spp", "1", "--techniques", "horizon", "--quiet"]
         assert cli.main([*argv, "--out", str(tmp_path / f"o{scale:g}")]) == 0
+
+
+# Also seen: a local cluster's scratch space ----------------------------------------------------------
+
+
+def test_a_local_clusters_scratch_space_is_removed(tmp_path, monkeypatch, variant):
+    import tempfile
+
+    system_tmp = tmp_path / "tmp"
+    system_tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(system_tmp))  # the workers' processes read it too
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    argv = ["suite", "planks", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon"]
+    assert cli.main([*argv, "--workers", "1", "--quiet", "--out", str(tmp_path / "o")]) == 0
+    assert sorted(p.name for p in system_tmp.iterdir()) == []

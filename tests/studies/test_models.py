@@ -136,3 +136,4 @@ def test_the_terminal_table_shows_reflection_and_the_bugs():
     text = models_study.summary_table(data).splitlines()
     assert "horizon |o-R|" in text[0] and text[1].split()[-1] == "0.2000" and text[2].split()[-1] == "-"
     assert text[-1].endswith("swap-uv 1.50x") and "none" not in text[-1].split(":")[-1]
+    assert text[2].split()[:2] == ["cube", "-"] and "nan" not in "\n".join(text).lower()  # no 1/R on a cube
