@@ -506,13 +506,14 @@ def cached_bake(
     anew, with one line saying why appended to ``notices``. ``write_to``: where a new bake is
     written (default ``folder``): a sweep stages it, so that a failed run leaves the old bake.
     """
-    import json
 
     from hzval.io import files
 
     folder = Path(folder)
+    from hzval.io import documents
+
     try:
-        record = json.loads((folder / "bake.json").read_text())
+        record = documents.read_json(folder / "bake.json")
         held = record.get("contents", CONTENTS)
         if horizon:
             same = (
@@ -521,12 +522,15 @@ def cached_bake(
         else:  # any bake of the same surface holds its normal map
             same = {k: record["parameters"][k] for k in ("depth", "boundary")} == _normal_record(params)
         same = same and record["input"]["digest"] == digest
-    except (OSError, ValueError, KeyError, TypeError):
-        same = False  # no usable cache: bake anew
+    except (InputError, ValueError, KeyError, TypeError, AttributeError):
+        same = False  # no usable cache (a missing, damaged or hand-edited bake.json): bake anew
     if same:
         damaged = _damaged_file(folder, record.get("files"), files.file_digest)
         if damaged is None:
-            return read_bake(folder), True
+            try:
+                return read_bake(folder), True
+            except (InputError, ValueError, KeyError, TypeError, AttributeError):
+                damaged = str(folder / "bake.json")  # its files agree, its record does not: bake anew
         if notices is not None:
             notices.append(f"{damaged}: the cached bake is damaged; baked it anew")
     result = bake(height, params, horizon=horizon)
@@ -539,11 +543,13 @@ def _damaged_file(folder: Path, digests, digest_of) -> str | None:
     agree. A record without digests names ``bake.json`` itself."""
     if not isinstance(digests, dict) or not digests:
         return str(folder / "bake.json") + " (no file digests)"
+    from hzval.io import paths
+
     for name, want in digests.items():
-        path = folder / name
-        try:
+        try:  # a name that leaves the bake's folder is damage too: nothing outside is read
+            path = paths.inside(folder, name, folder / "bake.json", "files")
             if digest_of(path) != want:
                 return str(path)
-        except OSError:
-            return str(path)
+        except (InputError, OSError, TypeError):
+            return str(folder / str(name))
     return None

@@ -35,7 +35,10 @@ def _nearest(key: str, known) -> str:
 
 def check_keys(table: Mapping, known, path: str | os.PathLike, where: str = "") -> None:
     """Refuse a key of ``table`` not in ``known``: ``unknown key 'x' in [where]; did you mean 'y'?``
-    (``where`` empty: the file's top level, whose keys and tables are named as such)."""
+    (``where`` empty: the file's top level, whose keys and tables are named as such). A ``table``
+    that is not a table at all is refused the same way."""
+    if not isinstance(table, Mapping):
+        raise InputError(path, f"[{where}] must be a table, got {table!r:.40}" if where else "is not a table")
     for key, value in table.items():
         if key in known:
             continue

@@ -161,10 +161,12 @@ def _is_own(name: str) -> bool:
 
 def _listed(folder: Path) -> set[str] | None:
     """The files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
+    from hzval.io import documents
+
     try:
-        data = json.loads((folder / MARKER_NAME).read_text(encoding="utf-8"))
+        data = documents.read_json(folder / MARKER_NAME)
         return {str(p) for p in data["files"]}
-    except (OSError, ValueError, KeyError, TypeError):
+    except (InputError, KeyError, TypeError):
         return None
 
 

@@ -1,4 +1,6 @@
 """Fault injection: the audit's twelve reliability defects (issue 33), one test (or a few) each.
+The second audit's cases are in test_audit2.py, and the fuzz-style test of every JSON and TOML
+reader in test_faults_fuzz.py.
 
 Small maps and bounded times; where memory matters the command runs in a
 process of its own under an address-space limit (``prlimit --as``, via

@@ -738,10 +738,10 @@ def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[P
 
 def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
     """The fitted sines ``(rows, cols, D)`` float32 (from the EXRs) and ``fit.json``'s record."""
-    from hzval.io import files
+    from hzval.io import documents, files
 
     folder = Path(folder)
-    record = json.loads((folder / "fit.json").read_text())
+    record = documents.read_json(folder / "fit.json")
     layers = [
         files.read_exr(folder / f"horizon{i}.exr")
         for i in range(len([n for n in record["files"] if n.endswith(".exr")]))
@@ -771,19 +771,20 @@ def cached_fit(
 ) -> tuple[FitResult | None, np.ndarray, dict, bool]:
     """``(result or None, sines, record, cached)``: the fit in ``folder`` if its key
     (:func:`cache_key`) and file digests match, else a new :func:`fit` written there."""
-    from hzval.io import files
+    from hzval.io import documents, files, paths
 
     key = cache_key(height, bake, scene, settings)
     if folder is not None:
         folder = Path(folder)
-        try:
-            record = json.loads((folder / "fit.json").read_text())
+        try:  # a missing, damaged or hand-edited cache is fitted anew; nothing outside it is read
+            record = documents.read_json(folder / "fit.json")
             if record["input"]["key"] == key and all(
-                files.file_digest(folder / n) == d for n, d in record["files"].items()
+                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
+                for n, d in record["files"].items()
             ):
                 sines, record = read_fit(folder)
                 return None, sines, record, True
-        except (OSError, ValueError, KeyError, TypeError):
+        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
             pass
     result = fit(height, bake, scene, progress=progress, **settings)
     record = result.record()
