@@ -23,7 +23,7 @@ def test_variant_before_or_after_the_command():
         ["sweep", "--variant", "llvm_ad_rgb"],
         ["score", "f", "--against", "s", "--variant", "llvm_ad_rgb"],
     ):
-        assert cli._parser().parse_args(argv).variant == "llvm_ad_rgb", argv
+        assert cli.build_parser().parse_args(argv).variant == "llvm_ad_rgb", argv
 
 
 def test_an_unknown_material_is_one_line_with_the_nearest_names(tmp_path, capsys):

@@ -1,0 +1,425 @@
+"""The flags commands share, and the values they parse to.
+
+Each ``add_*`` function declares a group of flags on a command's parser, with the defaults of
+the dataclass it fills (:class:`hzval.scene.spec.Scene`, :class:`hzval.bake.maps.BakeParams`,
+the technique registry); the functions below them turn the parsed flags into those values,
+each error naming the flag as typed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from hzval.core import errors
+
+
+def add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
+    from hzval import materials
+
+    if default_size is None:
+        default_size = materials.DEFAULT_SIZE
+    p.add_argument(
+        "height",
+        nargs="?",
+        metavar="HEIGHT",
+        help="height map: PNG (8/16-bit), EXR or .npy; default: the built-in brick wall",
+    )
+    p.add_argument(
+        "--material",
+        default=None,
+        metavar="NAME",
+        help=f"a built-in material instead of HEIGHT: {', '.join(materials.names())} "
+        "(`hzval materials` describes them)",
+    )
+    p.add_argument(
+        "--depth",
+        type=float,
+        default=None,
+        help="world height of H = 1 in image widths (default: the material's, 0.05 for a file)",
+    )
+    p.add_argument(
+        "--boundary",
+        choices=["wrap", "open"],
+        default=None,
+        help="wrap: the texture tiles; open: a terrain with nothing outside (default: the "
+        "material's, wrap for a file)",
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"size in texels of a built-in material (default {default_size}); an error with HEIGHT, "
+        "which has its own size",
+    )
+
+
+def add_technique_args(p: argparse.ArgumentParser) -> None:
+    """``--techniques``, a ``--no-NAME`` for each technique, and each technique's
+    own options (:meth:`hzval.techniques.registry.Technique.add_arguments`), from the registry."""
+    from hzval.techniques import registry as technique
+
+    names = technique.names()
+    opt_in = [n for n in names if not technique.get(n).by_default]
+    p.add_argument(
+        "--techniques",
+        default=None,
+        metavar="NAMES",
+        help=f"comma-separated techniques to score: {', '.join(names)} (default: every one that "
+        "applies to the declared effects" + (f", except {', '.join(opt_in)}" if opt_in else "") + ")",
+    )
+    for name in names:
+        t = technique.get(name)
+        p.add_argument(
+            f"--no-{name}",
+            dest="exclude",
+            action="append_const",
+            const=name,
+            default=[],
+            help=f"leave out {t.label} ({t.summary})",
+        )
+    for name in names:
+        technique.get(name).add_arguments(p)
+
+
+def add_bake_flags(p: argparse.ArgumentParser) -> None:
+    """The horizon bake's flags (:class:`hzval.bake.maps.BakeParams`, whose defaults they show)."""
+    from hzval.bake import maps as bake
+
+    d = bake.BakeParams()
+    p.add_argument(
+        "--radius", type=int, default=d.radius, help=f"bake search radius in texels (default {d.radius})"
+    )
+    p.add_argument(
+        "--angles",
+        type=int,
+        default=d.angles,
+        help=f"bake angular bins, a multiple of 2 x --directions (default {d.angles})",
+    )
+    p.add_argument(
+        "--directions",
+        type=int,
+        default=d.directions,
+        help=f"stored horizon directions: 8 (Lengyel's, two RGBA layers) or 16 (22.5 degrees apart, "
+        f"four layers; seed method, --angles a multiple of 32) (default {d.directions})",
+    )
+    p.add_argument(
+        "--method",
+        choices=bake.METHODS,
+        default=d.method,
+        help="horizon bake: seed (Lengyel's bins within --radius) or exact (exact horizons toward "
+        f"the 8 channel directions, unlimited radius; ignores --radius and --angles) "
+        f"(default {d.method})",
+    )
+
+
+def add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
+    """``--fail-if`` and ``--baseline`` (:mod:`hzval.commands.gates`, docs/ci.md)."""
+    g = p.add_argument_group("gates", "fail the run (exit 1) on a threshold or a regression (docs/ci.md)")
+    g.add_argument(
+        "--fail-if",
+        dest="fail_if",
+        action="append",
+        default=None,
+        metavar="EXPR",
+        help="exit 1 when EXPR holds, e.g. 'horizon.flip_mean>0.1' (every frame), "
+        "'mean(pom.visibility_mae)>mean(horizon.visibility_mae)' (the sweep's means; max(...) "
+        "too); any metric name of metrics.json's frames; repeatable",
+    )
+    g.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="an earlier run of the same settings: exit 1 on a significant regression of any "
+        "technique's metric (the noise-aware test of hzval check)",
+    )
+    if strict:
+        g.add_argument(
+            "--strict",
+            action="store_true",
+            help="exit 1 on any warning about an external horizon map (--horizon-map): a convention "
+            "that fits better, a map that does not describe the height map",
+        )
+
+
+def add_sweep_flags(p: argparse.ArgumentParser) -> None:
+    """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
+    defaults those of :class:`hzval.scene.spec.Scene`."""
+    from hzval.scene import spec as sc
+
+    d, light = sc.Scene(), sc.Light()
+    p.add_argument(
+        "--elevation",
+        type=float,
+        default=None,
+        help=f"light elevation in degrees (default {light.elevation_deg:g})",
+    )
+    p.add_argument(
+        "--azimuths",
+        default=None,
+        help=f"light azimuths in degrees, START:STOP:STEP or a list (default {sc.DEFAULT_AZIMUTHS_TEXT})",
+    )
+    p.add_argument("--light", choices=["hard", "soft"], default=None, help="directional or disk light")
+    p.add_argument(
+        "--light-radius",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="angular radius of a soft light in degrees",
+    )
+    p.add_argument(
+        "--effects",
+        default=None,
+        help="comma-separated effects: shadow, diffuse, specular, ambient, "
+        f"reflection_occlusion, interreflection (default {','.join(d.effects)})",
+    )
+    p.add_argument("--spp", type=int, default=None, help=f"samples per pixel (default {d.spp})")
+    p.add_argument("--seed", type=int, default=None, help=f"random seed of the samples (default {d.seed})")
+    p.add_argument(
+        "--supersampling",
+        type=int,
+        default=None,
+        help="pixels per texel along each axis: a magnification, not anti-aliasing (--spp samples "
+        f"each pixel); FLIP and the other image scores depend on it "
+        f"(default {scene_module().Camera().supersampling})",
+    )
+    p.add_argument(
+        "--shading",
+        choices=["smooth", "faceted"],
+        default=None,
+        help="the truth's shading normal: smooth (interpolated vertex normals, as the normal map) "
+        "or faceted (each triangle's own) (default smooth)",
+    )
+    add_truth_tolerance_flag(p)
+    add_mesh_flags(p)
+    add_view_flags(p)
+    add_bake_flags(p)
+    p.add_argument(
+        "--all-files",
+        action="store_true",
+        help="also write each frame's files that the others determine: the unshadowed render and "
+        "each technique's image as EXR, V and F as PNG (about 1.6x the bytes)",
+    )
+    add_technique_args(p)
+
+
+def add_mesh_flags(p: argparse.ArgumentParser) -> None:
+    """The surface the material is on (:mod:`hzval.geometry.model`)."""
+    g = p.add_argument_group("mesh", "the surface the material is on (docs/meshes.md)")
+    g.add_argument(
+        "--mesh",
+        default=None,
+        metavar="SHAPE",
+        help="plane (the tile, the default), cube, sphere, cylinder, torus, or a .obj, .ply, .gltf "
+        "or .glb file with texture coordinates",
+    )
+    g.add_argument(
+        "--uv-scale",
+        type=float,
+        default=None,
+        metavar="N",
+        help="how often the texture repeats across the mesh's UVs (default 1)",
+    )
+    g.add_argument(
+        "--up",
+        choices=("y", "z"),
+        default=None,
+        help="the mesh file's up axis (default: y for glTF, as its spec says; see docs/meshes.md)",
+    )
+    g.add_argument(
+        "--tangent-bug",
+        default=None,
+        metavar="BUG",
+        help="render the techniques with an engine's tangent-frame bug: none (default), "
+        "ignore-handedness, swap-uv, flip-green, per-face; the truth never changes "
+        "(docs/meshes.md, 'Tangent bugs')",
+    )
+
+
+def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
+    """``--truth-tolerance``: how closely the truth's triangles follow the bilinear surface."""
+    from hzval.geometry import tile as mesh
+
+    p.add_argument(
+        "--truth-tolerance",
+        type=float,
+        default=None,
+        metavar="TEXELS",
+        help="the truth's surface: the largest height difference, in texels, between its "
+        "triangles and the bilinear interpolation of the height map (docs/truth-surface.md) "
+        f"(default {mesh.DEFAULT_TOLERANCE:g})",
+    )
+
+
+def add_view_flags(p: argparse.ArgumentParser) -> None:
+    """The camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
+    :mod:`hzval.scene.lookup`)."""
+    from hzval.scene import camera, lookup
+
+    c, lk = camera.Camera(), lookup.Lookup()
+    g = p.add_argument_group("view", "where the camera is, and how the techniques read their textures")
+    g.add_argument(
+        "--camera",
+        choices=camera.KINDS,
+        default=None,
+        help=f"top (straight down, one pixel per texel), orthographic or perspective (default {c.kind})",
+    )
+    g.add_argument(
+        "--view-elevation",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help=f"the camera's elevation above the surface (default {c.elevation_deg:g})",
+    )
+    g.add_argument(
+        "--view-azimuth",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help=f"the direction from the surface toward the camera, as the light's azimuth "
+        f"(default {c.azimuth_deg:g})",
+    )
+    g.add_argument(
+        "--fov",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help=f"perspective: horizontal field of view (default {c.fov_deg:g})",
+    )
+    g.add_argument(
+        "--distance",
+        type=float,
+        default=None,
+        metavar="D",
+        help="perspective: the eye's distance from the tile's centre in tile widths "
+        f"(default {c.distance:g})",
+    )
+    g.add_argument("--resolution", default=None, metavar="WxH", help="image size (default the top view's)")
+    g.add_argument(
+        "--plane",
+        choices=lookup.PLANES,
+        default=None,
+        help=f"the techniques' flat surface at the bottom, mean or top of the relief (default {lk.plane})",
+    )
+    g.add_argument(
+        "--filter",
+        choices=lookup.FILTERS,
+        default=None,
+        help="texture filtering: nearest, bilinear, trilinear from mip-maps, anisotropic "
+        f"(default {lk.filter})",
+    )
+    g.add_argument(
+        "--mips",
+        choices=lookup.MIPS,
+        default=None,
+        help=f"the horizon map's mip-maps by averaging or by the maximum (conservative) (default {lk.mips})",
+    )
+    g.add_argument(
+        "--parallax",
+        choices=lookup.PARALLAX,
+        default=None,
+        help="parallax mapping of the lookup: none, offset (with offset limiting) or occlusion (linear "
+        f"search and refinement) (default {lk.parallax})",
+    )
+
+
+def scene_module():
+    from hzval.scene import spec as scene
+
+    return scene
+
+
+def light_default():
+    """The default light (:class:`hzval.scene.spec.Light`), whose values the help texts show."""
+    return scene_module().Light()
+
+
+def resolution(text: str | None):
+    """``"WxH"`` as ``(W, H)``."""
+    if text is None:
+        return None
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+    except ValueError:
+        raise errors.InputError(
+            "--resolution", f"expected WIDTHxHEIGHT in pixels, e.g. 512x384, got {text!r}"
+        ) from None
+    return (w, h)
+
+
+def truth_tolerance(args):
+    """``--truth-tolerance`` checked: a positive, finite number of texels, or None."""
+    t = getattr(args, "truth_tolerance", None)
+    if t is not None and not (math.isfinite(t) and t > 0):
+        raise errors.InputError("--truth-tolerance", f"must be a positive number of texels, got {t}")
+    return t
+
+
+def technique_options(args) -> dict:
+    """``sweep.Options`` keywords of the technique options, each checked, an error naming the flag
+    as typed (:func:`hzval.techniques.registry.flag_errors`)."""
+    from hzval.bake import maps as bake
+    from hzval.techniques import registry as technique
+
+    requested = None
+    if args.techniques is not None:
+        requested = tuple(n.strip() for n in args.techniques.split(",") if n.strip())
+    params = bake.BakeParams(
+        radius=args.radius, angles=args.angles, method=args.method, directions=args.directions
+    ).validate()
+    settings = {}
+    for n in technique.names():
+        t = technique.get(n)
+        with technique.flag_errors(t, getattr(args, "typed", {})):
+            settings[n] = t.settings_from_args(args)
+            if n in (requested or technique.defaults()):  # the others' settings are never used
+                t.check_settings(params, settings[n])
+    return {"techniques": requested, "exclude": tuple(args.exclude), "settings": settings}
+
+
+def sweep_options(args):
+    """The :class:`hzval.pipeline.sweep.Options` of the sweep flags."""
+    from hzval.pipeline import sweep
+
+    return sweep.Options(
+        radius=args.radius,
+        angles=args.angles,
+        method=args.method,
+        directions=args.directions,
+        all_files=args.all_files,
+        **technique_options(args),
+    )
+
+
+def gates(args):
+    """The :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
+    from hzval.commands import gates
+
+    return gates.Gates(
+        getattr(args, "fail_if", None), getattr(args, "baseline", None), strict=getattr(args, "strict", False)
+    )
+
+
+def gate_exit(failed: list[str]) -> int:
+    """Print each gate failure on one line; exit 1 if there is any."""
+    for line in failed:
+        print(f"hzval: gate failed: {line}", file=sys.stderr)
+    return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
+
+
+def command_line(args) -> str:
+    """The command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
+    import shlex
+
+    return "hzval " + " ".join(shlex.quote(a) for a in (getattr(args, "argv", None) or []))
+
+
+def names(text: str | None) -> list[str] | None:
+    """A comma-separated flag value (``--views top,ortho-45``) as its names; ``None`` if not given."""
+    return None if text is None else [v.strip() for v in text.split(",") if v.strip()]

@@ -1,0 +1,226 @@
+"""One way to build a scene from flags, for every command.
+
+:func:`scene_from_args` starts from ``--scene``'s file, else HEIGHT's sidecar (``m.toml``
+beside ``m.png``), else the built-in scene; then applies the command's own defaults where
+neither a flag nor the file sets the value, and then the flags. The material named on the
+command line (HEIGHT or ``--material``, :func:`material_of`) is checked here, once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+from hzval.cli import flags
+from hzval.core import errors
+
+
+def builtin(name: str) -> bool:
+    from hzval import materials
+
+    return materials.is_builtin(name)
+
+
+def material_of(args) -> str | None:
+    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
+    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size)."""
+    if args.height is not None and args.material is not None:
+        raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
+    if args.material is not None:
+        check_material_name(args.material)
+    if args.height is not None and getattr(args, "size", None) is not None:
+        refuse_size(args.size, str(args.height))
+    return str(args.height) if args.height is not None else args.material
+
+
+def check_material_name(name: str) -> None:
+    """Refuse an unknown built-in material's name in one line, with the nearest names."""
+    import difflib
+
+    from hzval import materials
+
+    if materials.is_builtin(name):
+        return
+    near = difflib.get_close_matches(name, materials.names(), n=1, cutoff=0.6)
+    hint = f"did you mean {' or '.join(near)}? " if near else ""
+    raise errors.InputError(
+        "--material",
+        f"unknown material {name!r}; {hint}(known: {', '.join(materials.names())}; "
+        "`hzval materials` describes them)",
+    )
+
+
+def refuse_size(size: int, height: str) -> None:
+    """``--size`` names a built-in material's size; a height map file has its own (nothing resamples it)."""
+    from hzval.io import heightmap
+
+    try:
+        rows, cols = heightmap.probe_shape(height)
+        own = f" ({cols}x{rows})"
+    except errors.HzvalError:
+        own = ""
+    raise errors.InputError(
+        "--size",
+        f"{size} applies to built-in materials only; {height} has its own size{own}: "
+        "resize the file, or leave --size out",
+    )
+
+
+def scene_name(args, scene) -> str:
+    """A sweep's name: HEIGHT's stem, else the scene's (a built-in material's name unless a scene file
+    names it)."""
+    if args.height is not None:
+        return Path(args.height).stem
+    if getattr(args, "material", None) is not None and not getattr(args, "scene", None):
+        return args.material
+    return scene.name
+
+
+def model_view(base, overrides: dict) -> dict:
+    """``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where the sweep is on a model and
+    neither the scene nor the flags place a camera: a model seen from straight above shows one face."""
+    from hzval.scene import spec as sc
+
+    shape = overrides.get("mesh") or base.mesh.shape
+    uv_scale = overrides.get("uv_scale") or base.mesh.uv_scale
+    if sc.MeshSpec(shape, uv_scale).is_plane or base.camera != sc.Camera() or overrides.get("camera"):
+        return overrides
+    cam = sc.MODEL_CAMERA
+    return {
+        **overrides,
+        "camera": cam.kind,
+        "view_elevation": overrides.get("view_elevation") or cam.elevation_deg,
+        "view_azimuth": overrides.get("view_azimuth") or cam.azimuth_deg,
+    }
+
+
+#: The :func:`hzval.scene.spec.override` keywords a command's flags may set, each the name of its
+#: flag's ``dest``; ``truth_tolerance`` and ``resolution`` are checked and parsed first.
+OVERRIDES = (
+    "size", "depth", "boundary", "shading", "truth_tolerance", "elevation", "azimuths", "light",
+    "light_radius", "effects", "spp", "seed", "supersampling", "camera", "view_elevation",
+    "view_azimuth", "fov", "distance", "resolution", "plane", "filter", "mips", "parallax", "mesh",
+    "uv_scale", "up", "tangent_bug",
+)  # fmt: skip
+
+#: Where a scene file sets the keys a command may default (:func:`scene_from_args`'s ``defaults``).
+FILE_KEYS = {
+    "size": ("material", "size"),
+    "depth": ("material", "depth"),
+    "boundary": ("material", "boundary"),
+    "elevation": ("light", "elevation_deg"),
+    "azimuths": ("light", "azimuths"),
+    "spp": ("samples", "spp"),
+    "effects": ("effects", "list"),
+    "camera": ("camera", "kind"),
+    "resolution": ("camera", "resolution"),
+}
+
+
+def scene_overrides(args) -> dict:
+    """The flags of ``args`` that change a scene (:data:`OVERRIDES`), ``None`` where not given or
+    where the command has no such flag; the material is :func:`material_of`'s."""
+    out = {k: getattr(args, k, None) for k in OVERRIDES}
+    out["truth_tolerance"] = flags.truth_tolerance(args)
+    out["resolution"] = flags.resolution(getattr(args, "resolution", None))
+    return out
+
+
+def base_scene(args, *, quiet: bool = False):
+    """The scene the flags change, and the TOML it was read from (``{}`` for none): ``--scene``'s
+    file where the command has one, else HEIGHT's sidecar (``gravel.toml`` beside ``gravel.png``,
+    said on stderr unless ``quiet``), else the built-in default scene."""
+    from hzval.io import documents
+    from hzval.scene import spec as sc
+
+    if getattr(args, "scene", None):
+        return sc.load_scene(args.scene), documents.read_toml(args.scene)
+    height = getattr(args, "height", None)
+    side = None if height is None else sc.sidecar_of(height)
+    if side is None:
+        return sc.Scene(), {}
+    scene = sc.load_sidecar(side, height)
+    if not quiet:
+        print(f"hzval: using the sidecar scene {side}", file=sys.stderr)
+    return scene, documents.read_toml(side)
+
+
+def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
+    """The scene a command's flags describe: the one way every command builds one.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags; a flag the command does not have counts as not given.
+    defaults : dict, optional
+        The command's own defaults (``views``: 128 texels, 4 samples), as
+        :func:`hzval.scene.spec.override` keywords of :data:`FILE_KEYS`. Each applies where
+        neither a flag nor the scene file (``--scene``, or HEIGHT's sidecar) sets the value;
+        ``size`` only to a built-in material.
+    quiet : bool
+        Leave out the line that names a sidecar.
+
+    Returns
+    -------
+    hzval.scene.spec.Scene
+        Validated, named after HEIGHT's stem, else ``--material``, else the scene file's name.
+    """
+    from hzval.scene import spec as sc
+
+    base, data = base_scene(args, quiet=quiet)
+    given = {k: v for k, v in scene_overrides(args).items() if v is not None}
+    height = material_of(args)
+    material = height or base.material.height
+    own = {}
+    for key, value in (defaults or {}).items():
+        table, name = FILE_KEYS[key]
+        if key in given or name in (data.get(table) or {}):
+            continue
+        if key == "size" and not builtin(material):
+            continue
+        own[key] = value
+    try:
+        scene = sc.override(base, **model_view(base, {**own, **given}), height=height)
+    except errors.InputError as exc:
+        raise _as_flag(exc, given) from None
+    if "size" in given and not builtin(scene.material.height):  # a scene file's own height map
+        refuse_size(given["size"], scene.material.height)
+    return dataclasses.replace(scene, name=scene_name(args, scene))
+
+
+#: The scene keys a flag sets, as :meth:`hzval.scene.spec.Scene.validate` names them.
+KEY_FLAGS = {
+    "material.size": "size",
+    "material.depth": "depth",
+    "material.truth_tolerance": "truth_tolerance",
+    "light.elevation_deg": "elevation",
+    "light.radius_deg": "light_radius",
+    "light.azimuths": "azimuths",
+    "samples.spp": "spp",
+    "samples.seed": "seed",
+}
+
+
+def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
+    """An error about a scene key the flags set, named by its flag (``--size: must be at least 8``);
+    errors about a scene file's own values keep naming the file."""
+    key = next((k for k in KEY_FLAGS if exc.problem.startswith(k + " ")), None)
+    if exc.what != "scene" or key is None or KEY_FLAGS[key] not in given and key != "material.size":
+        return exc
+    rest = exc.problem[len(key) + 1 :]
+    rest = "for " + rest[3:] if rest.startswith("of ") else rest  # "of the built-in bricks must be"
+    return errors.InputError("--" + KEY_FLAGS[key].replace("_", "-"), rest)
+
+
+def load_material(scene) -> tuple["np.ndarray", dict]:  # noqa: F821
+    """The height map of ``scene``'s material (:func:`hzval.scene.spec.load_material_height`, the one
+    loader) and the record ``bake.json`` and ``fit.json`` keep of it."""
+    from hzval.scene import spec as sc
+
+    hm = sc.load_material_height(scene.material)
+    m = scene.material
+    info = {"path": None, "builtin": m.height, "size": m.size} if builtin(m.height) else {"path": hm.path}
+    rows, cols = hm.height.shape
+    info.update(source=hm.source, digest=hm.digest, rows=rows, cols=cols)
+    return hm.height, info
