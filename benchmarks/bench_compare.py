@@ -72,14 +72,14 @@ def _old(ref, tests):
 
     clock = dict.fromkeys(("flip_ref", "de_ref", "flip", "de"), 0.0)
     t0 = time.perf_counter()
-    ref_lab = C._by_rows(lab_of, ref)
+    ref_lab = C.by_rows(lab_of, ref)
     clock["de_ref"] = time.perf_counter() - t0
     res = []
     for t in tests:
         t0 = time.perf_counter()
         fmap, fmean = C.flip_evaluator_flip(ref, t)
         t1 = time.perf_counter()
-        de = C._by_rows(lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref_lab, C._by_rows(lab_of, t))
+        de = C.by_rows(lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref_lab, C.by_rows(lab_of, t))
         clock["flip"] += t1 - t0
         clock["de"] += time.perf_counter() - t1
         res.append((fmap, fmean, de))

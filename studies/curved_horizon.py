@@ -86,7 +86,7 @@ def main() -> None:
         spp=2,
     )  # hzval models' defaults
     wanted = args.cases.split(",")
-    cases = {name: (curvature, spec) for name, curvature, spec in ms._cases()}
+    cases = {name: (curvature, spec) for name, curvature, spec in ms.cases()}
     runs = [(n, cases[n][0], cases[n][1], cases[n][0]) for n in wanted if n in cases]
     for c in args.control.split(",") if args.control else []:
         # the control: the correction of 1/R = c on the flat patch, where it is wrong
@@ -94,7 +94,7 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, curvature, spec, corrected_for in runs:
-            sc = cb.band_scene(ms._case_scene(scene, Path(tmp), name.split("@")[0], spec))
+            sc = cb.band_scene(ms.case_scene(scene, Path(tmp), name.split("@")[0], spec))
             case = cb.measure(
                 sc,
                 Path(tmp) / name.split("@")[0],

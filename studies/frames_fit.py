@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         train = dataclasses.replace(scene, spp=r.settings["train_spp"])
         V = fit.visibility(train, hm.height, r.lights)
         for tol in (float(t) for t in args.guards.split(",")):
-            g, rec = fit._guarded(train, baked, storage.get(r.storage), V, r.lights, r.horizon, r.k, r.k, tol)
+            g, rec = fit.guarded(train, baked, storage.get(r.storage), V, r.lights, r.horizon, r.k, r.k, tol)
             maps.append((f"guard {tol:g}", g, rec))
     for label, sines, rec in maps:
         got = _frames(fs, baked, sines, r.k, held)

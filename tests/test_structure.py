@@ -154,3 +154,83 @@ def test_the_package_map_names_every_module():
         p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file() and f"``{p.name}``" not in doc
     ]
     assert not missing, f"hzval/__init__.py's module map lacks {missing}"
+
+
+#: docs/ARCHITECTURE.md's "Layout": each subpackage's layer. A module imports only layers below its
+#: own, or its own subpackage.
+LAYERS = {
+    "cli": 10,
+    "commands": 9,
+    "studies": 8,
+    "pipeline": 7,
+    "report": 6,
+    "techniques": 5,
+    "truth": 4,
+    "metrics": 4,
+    "bake": 3,
+    "scene": 2,
+    "geometry": 1,
+    "io": 0,
+    "materials": 0,
+    "core": -1,
+}
+
+
+def _subpackage(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in LAYERS) else None
+
+
+def test_every_subpackage_has_a_layer():
+    found = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
+    assert found == set(LAYERS)
+
+
+def test_no_import_climbs_a_layer():
+    climbs = []
+    for module, deps in import_graph().items():
+        a = _subpackage(module)
+        for dep in deps:
+            b = _subpackage(dep)
+            if a and b and a != b and not LAYERS[b] < LAYERS[a]:
+                climbs.append(f"{module} -> {dep}")
+    assert climbs == []
+
+
+def underscore_uses(root: Path) -> list[str]:
+    """Uses of another module's underscore names under ``root``: ``alias._name`` where ``alias`` is an
+    imported hzval module, and ``from hzval.x import _name``."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        tree = ast.parse(path.read_text(), str(path))
+        aliases = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("hzval"):
+                for a in node.names:
+                    if a.name.startswith("_") and not a.name.startswith("__"):
+                        found.append(f"{path.name}:{node.lineno}: from {node.module} import {a.name}")
+                    aliases.add(a.asname or a.name)
+            elif isinstance(node, ast.Import):
+                aliases |= {
+                    a.asname or a.name.split(".")[0] for a in node.names if a.name.startswith("hzval")
+                }
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+                and isinstance(node.value, ast.Name)
+                and node.value.id in aliases
+            ):
+                found.append(f"{path.name}:{node.lineno}: {node.value.id}.{node.attr}")
+    return found
+
+
+@pytest.mark.parametrize("folder", ["hzval", "benchmarks", "studies"])
+def test_nothing_reaches_into_another_modules_underscore_names(folder):
+    assert underscore_uses(PACKAGE.parent / folder) == []
+
+
+def test_the_underscore_check_finds_one(tmp_path):
+    (tmp_path / "m.py").write_text("from hzval.truth import plane\nplane._bands(1, 2, 3)\n")
+    assert underscore_uses(tmp_path) == ["m.py:2: plane._bands"]

@@ -22,6 +22,7 @@ import numpy as np
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
 from hzval.core import conventions as cv
+from hzval.core.conventions import normal_map  # re-exported: the bake's first map
 from hzval.core.errors import InputError
 
 __all__ = [
@@ -35,7 +36,6 @@ __all__ = [
     "normal_map",
     "weight_cube",
     "estimate_bytes",
-    "available_bytes",
     "check_fits",
     "METHOD_NOTES",
     "CONTENTS",
@@ -216,18 +216,6 @@ def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
 # --------------------------------------------------------------------------
 
 
-def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
-    """Unit tangent-space normals ``normalize(-dh/dx, -dh/dy, 1)``, ``(rows, cols, 3)``.
-
-    Central differences of heights in texel units (FGED2 ch. 7, with its
-    listing's use-before-definition fixed, docs/ARCHITECTURE.md).
-    """
-    gx, gy = cv.height_gradient(h_texels, boundary)
-    n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    return n.astype(np.float32)
-
-
 # --------------------------------------------------------------------------
 # Weight cube map
 # --------------------------------------------------------------------------
@@ -269,29 +257,11 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
 
 
-def available_bytes() -> int:
-    """Memory available to this process now (``MemAvailable``), in bytes."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    import os
-
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
 def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
     """Raise :class:`InputError` naming ``what`` if the bake would not fit in memory."""
-    need, have = estimate_bytes(rows, cols, params), available_bytes()
-    if need > have:
-        raise InputError(
-            what,
-            f"a {cols}x{rows} bake needs about {need / 2**30:.1f} GiB of memory; "
-            f"{have / 2**30:.1f} GiB are available",
-        )
+    from hzval.core import resources
+
+    resources.refuse_over(what, estimate_bytes(rows, cols, params), f"a {cols}x{rows} bake", "a smaller map")
 
 
 #: What each method's horizon and ambient maps are, for ``bake.json``.

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from hzval.cli import flags, scenes
 from hzval.core import errors
+from hzval.truth import memory
 
 
 def add_parser(sub) -> None:
@@ -95,7 +96,6 @@ def run(args) -> int:
 
     from hzval.bake import maps as bake
     from hzval.io import files
-    from hzval.pipeline import sweep
     from hzval.techniques.fitted import fit
 
     if not (math.isfinite(args.k) and args.k > 0):
@@ -112,7 +112,7 @@ def run(args) -> int:
         boundary=scene.material.boundary,
         method=args.method,
     ).validate()
-    rows, cols = sweep.material_shape(scene)
+    rows, cols = memory.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
     fit.check_fits(

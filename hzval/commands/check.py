@@ -585,7 +585,7 @@ def _write_report(result: CheckResult, out: Path, command: str) -> Path:
             entry["diff"] = f"{stem}-diff.png"
         items.append(entry)
     html = (
-        report._environment()
+        report.environment()
         .get_template("check.html.j2")
         .render(
             items=items,

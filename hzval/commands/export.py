@@ -45,12 +45,13 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from hzval import materials
-from hzval.core import backend
+from hzval.core import backend, resources
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.geometry import tile as mesh
 from hzval.io import files
 from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape
+from hzval.truth import memory
 
 __all__ = ["write_scene", "mitsuba_render", "FILES"]
 
@@ -60,14 +61,11 @@ FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
 
 def check_fits(scene: Scene) -> int:
     """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
-    sweep's estimate (:func:`hzval.pipeline.sweep.estimate_peak_bytes`, its mesh at four triangles a texel
+    sweep's estimate (:func:`hzval.truth.memory.estimate_peak_bytes`, its mesh at four triangles a texel
     until the
     map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
     nothing is rendered; return it in bytes."""
     import dataclasses
-
-    from hzval.bake import maps as bake
-    from hzval.pipeline import sweep
 
     if not scene.mesh.is_plane:
         raise InputError(
@@ -76,16 +74,10 @@ def check_fits(scene: Scene) -> int:
             f"({scene.mesh.shape}) is not exported yet",
         )
     one = dataclasses.replace(scene, spp=1)
-    rows, cols = sweep.material_shape(one)
+    rows, cols = memory.material_shape(one)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
-    need, have = sweep.estimate_peak_bytes(one, rows, cols), bake.available_bytes()
-    if need > have:
-        raise InputError(
-            what,
-            f"the mesh of {cols}x{rows} texels needs about {need / 2**30:.1f} GiB of memory "
-            f"(estimated); {have / 2**30:.1f} GiB are available (a smaller map)",
-        )
-    return need
+    need = memory.estimate_peak_bytes(one, rows, cols)
+    return resources.refuse_over(what, need, f"the mesh of {cols}x{rows} texels", "a smaller map")
 
 
 def write_scene(

@@ -65,14 +65,14 @@ from pathlib import Path
 import numpy as np
 
 from hzval import materials
-from hzval.bake import maps as bake
-from hzval.core import backend, errors
+from hzval.core import backend, errors, resources
 from hzval.core.errors import InputError
 from hzval.io import files, heightmap
 from hzval.pipeline import sweep
 from hzval.report import pages as report
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
+from hzval.truth import memory
 
 __all__ = [
     "Entry",
@@ -227,14 +227,14 @@ def _height_entry(path: Path) -> Entry:
 
 
 def estimate_peak_bytes(entry: Entry) -> int:
-    """``entry``'s sweep's estimated peak (:func:`hzval.pipeline.sweep.estimate_peak_bytes`), from its size
+    """``entry``'s sweep's estimated peak (:func:`hzval.truth.memory.estimate_peak_bytes`), from its size
     alone (a height map's header, a built-in material's ``size``); a map that cannot be read counts
     as tiny (it will fail on its own)."""
     try:
-        rows, cols = sweep.material_shape(entry.scene)
+        rows, cols = memory.material_shape(entry.scene)
     except InputError:
         rows = cols = 1
-    return sweep.estimate_peak_bytes(entry.scene, rows, cols)
+    return memory.estimate_peak_bytes(entry.scene, rows, cols)
 
 
 def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:
@@ -243,7 +243,7 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
     no more than there are materials, and no more than fit in 80% of the available memory beside
     each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
     cores = (os.cpu_count() or 1) if cores is None else cores
-    available = bake.available_bytes() if available is None else available
+    available = resources.available_bytes() if available is None else available
     largest = max((estimate_peak_bytes(e) for e in items), default=1)
     return max(1, min(len(items), cores, int(0.8 * available // largest)))
 

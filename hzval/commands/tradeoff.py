@@ -69,6 +69,7 @@ from hzval.io import files
 from hzval.metrics import compare
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
+from hzval.truth import memory
 from hzval.truth import plane as truth
 
 __all__ = [
@@ -257,12 +258,11 @@ def _timed_bake(height, params):
 
 def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
     """Refuse, before the map is generated or decoded, a tradeoff that would not fit in memory: the
-    sweep's estimate (:func:`hzval.pipeline.sweep.check_fits`) at the converged truth's ``truth_spp``, the
+    sweep's estimate (:func:`hzval.truth.memory.check_fits`) at the converged truth's ``truth_spp``, the
     most samples it holds; return the estimate in bytes."""
-    from hzval.pipeline import sweep
 
     spp = max(int(scene.spp), int(truth_spp))
-    return sweep.check_fits(
+    return memory.check_fits(
         dataclasses.replace(scene, spp=spp),
         bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary),
     )
@@ -507,7 +507,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
     plot_tradeoff(out / "pareto.png", points)
     files.write_json(out / "tradeoff.json", data)
     html = (
-        report._environment()
+        report.environment()
         .get_template("tradeoff.html.j2")
         .render(
             points=points, rec=rec, info=info, material=material, command=command, versions=data["versions"]

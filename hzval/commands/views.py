@@ -177,7 +177,7 @@ def _write_page(out: Path, data: dict) -> None:
     plots = out / "plots"
     _plot(plots / "views.png", data["rows"])
     page = (
-        report._environment()
+        report.environment()
         .get_template("views.html.j2")
         .render(
             material=data["material"],

@@ -205,7 +205,7 @@ def retain_freed_memory() -> bool:
     sweep of five lights, horizon and terrain, run after run): compare 9.8-9.9 s against 12.3-13.1
     s, the techniques' frames 6.6-7.1 s against 8.9-9.0 s, the whole run 51.5-55.5 s against
     58.4-68.8 s, for 0.7 GB more peak memory. :func:`hzval.pipeline.sweep.run` asks for it where its
-    estimated peak is a small part of what is available (:data:`hzval.pipeline.sweep.RETAIN_BELOW_SHARE`)."""
+    estimated peak is a small part of what is available (:data:`hzval.truth.memory.RETAIN_BELOW_SHARE`)."""
     global _retaining
     fns = _mallopt()
     if fns is None:

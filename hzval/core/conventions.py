@@ -45,6 +45,7 @@ import numpy as np
 from hzval.core.errors import InputError
 
 __all__ = [
+    "normal_map",
     "Boundary",
     "BOUNDARIES",
     "CHANNEL_COUNT",
@@ -534,6 +535,38 @@ def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarra
         return np.gradient(h, axis=axis).astype(np.float32)
 
     return central(1), -central(0)
+
+
+def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
+    """Unit tangent-space normals of a height field: ``normalize(-dh/dx, -dh/dy, 1)``.
+
+    Central differences of heights in texel units (:func:`height_gradient`; FGED2 ch. 7, with its
+    listing's use-before-definition fixed, docs/ARCHITECTURE.md). The bake stores them; the truth's
+    smooth shading and the tile mesh's vertex normals read the same ones.
+
+    Parameters
+    ----------
+    h_texels : numpy.ndarray
+        Heights ``(rows, cols)`` in texel units.
+    boundary : {"wrap", "open"}
+        As :func:`height_gradient`.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 ``(rows, cols, 3)``, +x right, +y up the image, +z out of the surface.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> n = normal_map(np.array([[0.0, 1.0, 2.0]]), "open")  # a 45-degree ramp rising to +x
+    >>> [round(float(c), 4) for c in n[0, 1]]
+    [-0.7071, 0.0, 0.7071]
+    """
+    gx, gy = height_gradient(h_texels, boundary)
+    n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n.astype(np.float32)
 
 
 # --------------------------------------------------------------------------

@@ -633,8 +633,8 @@ def _attributes(base, u: dict, rows: int, cols: int) -> dict:
     P[i], N[i], T[i] = mix(Pw[base.weld]), mix(base.normals), mix(base.tangents)
     UV[i] = np.stack([u["x"][i] / cols, u["y"][i] / rows], 1)
     weld[i] = W + np.arange(len(i))
-    N = tg._normalize(N)
-    T = np.concatenate([tg.reject(T[:, :3], N), tg._sign(T[:, 3])[:, None]], 1)
+    N = tg.normalize(N)
+    T = np.concatenate([tg.reject(T[:, :3], N), tg.sign(T[:, 3])[:, None]], 1)
     return {"positions": P, "normals": N, "tangents": T, "uvs": UV, "weld": weld}
 
 

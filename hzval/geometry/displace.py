@@ -148,12 +148,12 @@ def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndar
 
 def shading_normals(refined: Refined, normal_map: np.ndarray, boundary: str) -> np.ndarray:
     """``(V, 3)`` float32 unit world normals of the refined vertices: the tangent-space normal map
-    (``(rows, cols, 3)``, :func:`hzval.bake.maps.normal_map`: x along +u, y along +v, z out) read at
+    (``(rows, cols, 3)``, :func:`hzval.core.conventions.normal_map`: x along +u, y along +v, z out) read at
     each vertex (:func:`bilinear`) and carried to the world by the vertex's frame
     (:func:`hzval.geometry.tangents.to_world`), as the techniques carry it at their hit points."""
     m = bilinear(normal_map, refined.uvs, boundary)
     n = tg.to_world(m, refined.normals, refined.tangents[:, :3], refined.tangents[:, 3])
-    return tg._normalize(n).astype(np.float32)
+    return tg.normalize(n).astype(np.float32)
 
 
 def weld_means(weld: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -228,14 +228,14 @@ def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -
     Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
     the same normal and a quad's triangulation does not change it (a file without normals)."""
     p = positions[faces]
-    face_n = tg._normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    face_n = tg.normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     acc = np.zeros((int(weld.max(initial=0)) + 1, 3))
     for k in range(3):
-        a = tg._normalize(p[:, (k + 1) % 3] - p[:, k])
-        b = tg._normalize(p[:, (k + 2) % 3] - p[:, k])
+        a = tg.normalize(p[:, (k + 1) % 3] - p[:, k])
+        b = tg.normalize(p[:, (k + 2) % 3] - p[:, k])
         angle = np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
         np.add.at(acc, weld[faces[:, k]], face_n * angle[:, None])
-    return tg._normalize(acc[weld])
+    return tg.normalize(acc[weld])
 
 
 def _check_finite(source: str, **arrays) -> None:
@@ -323,7 +323,7 @@ def build(
     weld = weld_ids(p)
     n = smooth_normals(p, f, weld) if normals is None else np.asarray(normals, np.float64).reshape(-1, 3)
     _check_finite(source, normals=n)
-    n = tg._normalize(n)
+    n = tg.normalize(n)
     zero = np.linalg.norm(n, axis=-1) == 0
     n[zero] = smooth_normals(p, f, weld)[zero]
     if tangents is None:

@@ -72,7 +72,7 @@ def _cross(a, b):
     return np.cross(a, b)
 
 
-def _normalize(a):
+def normalize(a):
     """``a / |a|``; a zero vector stays zero (NumPy) rather than becoming NaN."""
     if cv.is_drjit(a):
         from hzval.core.backend import dr
@@ -90,7 +90,7 @@ def _scale(v, s):
     return np.asarray(v) * np.asarray(s)[..., None]
 
 
-def _sign(w):
+def sign(w):
     """+1 where ``w >= 0``, else -1 (an interpolated handedness is a sign again)."""
     if cv.is_drjit(w):
         from hzval.core.backend import dr
@@ -106,16 +106,16 @@ def _sign(w):
 
 def reject(t, n):
     """Gram-Schmidt: ``normalize(t - n dot(n, t))``, the part of ``t`` orthogonal to the unit ``n``."""
-    return _normalize(t - _scale(n, _dot(n, t)))
+    return normalize(t - _scale(n, _dot(n, t)))
 
 
 def orthonormal(n, t, w):
     """The frame ``(t, b, n)`` at a point from interpolated (not unit, not orthogonal) ``n``, ``t``
     and handedness ``w``: ``n`` normalised, ``t`` rejected from it (FGED2's
     ``FetchObjectNormalVector``), ``b = sign(w) cross(n, t)``. Returns ``(t, b, n)``."""
-    n = _normalize(n)
+    n = normalize(n)
     t = reject(t, n)
-    return t, _scale(_cross(n, t), _sign(w)), n
+    return t, _scale(_cross(n, t), sign(w)), n
 
 
 def to_world(v, n, t, w):
@@ -168,7 +168,7 @@ def compute(positions, normals, uvs, faces) -> np.ndarray:
     the sums for ``t, b``). A vertex whose sum vanishes (only degenerate UVs around it) gets a
     tangent orthogonal to its normal (:func:`any_tangent`) and ``w = +1``."""
     faces = np.asarray(faces, np.int64)
-    n = _normalize(normals)
+    n = normalize(normals)
     dpdu, dpdv, _ = uv_derivatives(positions, uvs, faces)
     t_sum = np.zeros((len(n), 3))
     b_sum = np.zeros((len(n), 3))
@@ -202,19 +202,19 @@ def from_file(tangents, normals) -> np.ndarray:
         raise ValueError(
             f"TANGENT has {int(np.sum(~np.isfinite(t4).all(axis=1)))} vertices with NaN or infinity"
         )
-    n = _normalize(normals)
+    n = normalize(normals)
     t = reject(t4[:, :3], n)
     bad = np.linalg.norm(t, axis=-1) == 0
     if np.any(bad):
         raise ValueError(f"TANGENT is zero or along the normal at {int(bad.sum())} vertices")
-    return np.concatenate([t, _sign(t4[:, 3])[:, None]], axis=-1)
+    return np.concatenate([t, sign(t4[:, 3])[:, None]], axis=-1)
 
 
 def rotate(tangents, matrix) -> np.ndarray:
     """Tangents ``(V, 4)`` under a linear map ``matrix`` (3 x 3, applied as ``M @ t``): xyz mapped
     and normalised, ``w`` times ``sign(det M)`` (a mirror turns the bitangent's side over)."""
     m = np.asarray(matrix, np.float64)
-    t = _normalize(np.asarray(tangents, np.float64)[:, :3] @ m.T)
+    t = normalize(np.asarray(tangents, np.float64)[:, :3] @ m.T)
     return np.concatenate([t, tangents[:, 3:4] * np.sign(np.linalg.det(m))], axis=-1)
 
 
@@ -246,7 +246,7 @@ def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
     same as the sign of the UV area seen from the normal's side. A triangle without UV derivatives
     gets :func:`any_tangent` and ``w = +1``."""
     p = np.asarray(positions, np.float64)[faces]
-    n = _normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    n = normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     dpdu, dpdv, _ = uv_derivatives(positions, uvs, faces)
     t = reject(dpdu, n)
     lost = np.linalg.norm(t, axis=-1) == 0

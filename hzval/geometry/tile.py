@@ -132,12 +132,12 @@ def grid(
 
 
 def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -> np.ndarray:
-    """``(V, 3)`` float32: the normal map's normals (:func:`hzval.bake.maps.normal_map`) interpolated
+    """``(V, 3)`` float32: the normal map's normals (:func:`hzval.core.conventions.normal_map`) interpolated
     bilinearly between texel centres at each vertex's ``(x, y)`` and normalised, as the truth's
     ``smooth`` shading reads them (:mod:`hzval.truth.plane`, "Shading"): a texel centre takes its texel's
     normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
     clamped)."""
-    from hzval.bake.maps import normal_map
+    from hzval.core.conventions import normal_map
 
     nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
     n = cv.bilinear_at(nmap, positions[:, 0], positions[:, 1], boundary)
@@ -190,7 +190,7 @@ def displaced_mesh(
     ``texcoords``: each vertex's texture coordinates (:func:`hzval.core.conventions.tangent_to_uv`), for
     a file that others texture; the truth reads none (``False``: 0.3 s and 0.2 GB less at 2048).
 
-    ``normals=True`` adds vertex normals: the normal map's normals (:func:`hzval.bake.maps.normal_map`,
+    ``normals=True`` adds vertex normals: the normal map's normals (:func:`hzval.core.conventions.normal_map`,
     the very central differences the techniques shade with) interpolated bilinearly at each vertex
     (:func:`vertex_normals`), as the truth shades. Mitsuba interpolates them over each triangle for
     its shading frame (``si.sh_frame.n``); without them it shades with the
@@ -365,15 +365,17 @@ def tessellate(
     parts = [np.stack([X, Y, g.z.astype(np.float32)], axis=-1).reshape(-1, 3)]
     del X, Y
     levels = cell_levels(g.z, tolerance) if levels is None else np.asarray(levels, np.uint8)
-    if budget_bytes is not None and triangle_count(levels) * BYTES_PER_TRIANGLE > budget_bytes:
-        from hzval.core.errors import InputError
+    if budget_bytes is not None:
+        from hzval.core import resources
 
         n = triangle_count(levels)
-        raise InputError(
+        resources.refuse_over(
             "--truth-tolerance",
-            f"the truth's surface at a tolerance of {tolerance:g} texels has "
-            f"{n / 1e6:.0f}M triangles, about {n * BYTES_PER_TRIANGLE / 2**30:.1f} GiB with its "
-            f"BVH; {budget_bytes / 2**30:.1f} GiB are available (a larger tolerance or a smaller map)",
+            n * BYTES_PER_TRIANGLE,
+            f"the truth's surface at a tolerance of {tolerance:g} texels ({n / 1e6:.0f}M triangles, "
+            "with its BVH)",
+            "a larger tolerance or a smaller map",
+            have=budget_bytes,
         )
     corner = (
         np.arange(ny - 1, dtype=np.uint32)[:, None] * np.uint32(nx)

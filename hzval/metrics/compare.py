@@ -187,11 +187,11 @@ def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray)
 
 
 #: Images of at least this many rows are converted in row blocks on a thread
-#: per core (:func:`_by_rows`); smaller ones are not worth the threads.
+#: per core (:func:`by_rows`); smaller ones are not worth the threads.
 PARALLEL_MIN_ROWS = 64
 
 
-def _by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
+def by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
     """``fn(*arrays)`` for a per-pixel ``fn``, computed in row blocks on a thread per core.
 
     NumPy expressions (and colour-science's) release the GIL, on one core
@@ -394,16 +394,16 @@ def delta_e2000(
 
 
 def delta_e2000_colour(reference_display: np.ndarray, test_display: np.ndarray) -> np.ndarray:
-    """:func:`delta_e2000` through colour-science, in row blocks (:func:`_by_rows`): the
+    """:func:`delta_e2000` through colour-science, in row blocks (:func:`by_rows`): the
     implementation the kernel is validated against (the tests, ``benchmarks/bench_compare.py``)."""
     import colour
 
     def lab_of(rgb):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(rgb, apply_cctf_decoding=True))
 
-    ref = _by_rows(lab_of, np.asarray(reference_display, dtype=np.float64))
-    test = _by_rows(lab_of, np.asarray(test_display, dtype=np.float64))
-    return np.asarray(_by_rows(lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref, test))
+    ref = by_rows(lab_of, np.asarray(reference_display, dtype=np.float64))
+    test = by_rows(lab_of, np.asarray(test_display, dtype=np.float64))
+    return np.asarray(by_rows(lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref, test))
 
 
 class Reference:

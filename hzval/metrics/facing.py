@@ -19,7 +19,7 @@ truth's own statistics (``frames[i].truth``):
                             lit / shadowed count can change with the truth's noise
 
 A pixel faces the light when the normal map's normal of its texel (the techniques' shading normal,
-:func:`hzval.bake.maps.normal_map`, at the texel's centre) has ``N . L > 0``; with ``supersampling``
+:func:`hzval.core.conventions.normal_map`, at the texel's centre) has ``N . L > 0``; with ``supersampling``
 ``s`` each texel's normal stands for its ``s x s`` pixels. Only the ``top`` view has pixels on the
 texel grid; another view has no facing mask and no facing metrics.
 

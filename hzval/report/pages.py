@@ -266,7 +266,8 @@ TRUTH_TIME = Metric(
     error=False,
 )
 
-#: What the truth has to shadow (``frames[i].truth``, flattened to ``truth_<key>``, :mod:`hzval.metrics.facing`).
+#: What the truth has to shadow (``frames[i].truth``, flattened to ``truth_<key>``,
+#: :mod:`hzval.metrics.facing`).
 TRUTH_METRICS: tuple[Metric, ...] = (
     Metric(
         "truth_shadowed_fraction",
@@ -645,7 +646,8 @@ def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
     if m.bar and v is not None and col["top"] > 0 and math.isfinite(v):
         bar = round(max(0.0, min(1.0, abs(v) / col["top"])), 4)
     floor = None
-    # beside it, its perfect-shadows floor ("FLIP 0.085, of which 0.004 ..."); PSNR has none (higher is better)
+    # beside it, its perfect-shadows floor ("FLIP 0.085, of which 0.004 ...");
+    # PSNR has none (higher is better)
     if m.floor and _num(frame.get(m.floor)) is not None and v is not None:
         floor = m.fmt(frame[m.floor])
         title += f" (perfect-shadows floor: {floor}, the part that is shading and noise)"
@@ -994,7 +996,8 @@ def _worst_frame(
     if not views or not frames:
         return None
     lead = views[0]
-    for key, label in ((f"{lead.name}_visibility_mae", "|F−V|"), (f"{lead.name}_flip_mean", "FLIP")):
+    pairs = ((f"{lead.name}_visibility_mae", "|F−V|"), (f"{lead.name}_flip_mean", "FLIP"))
+    for key, label in pairs:  # noqa: B007 (the label of the metric found is read after the loop)
         vals = [_num(f.get(key)) for f in frames]
         if any(v is not None for v in vals):
             break
@@ -1561,7 +1564,7 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
 # --------------------------------------------------------------------------
 
 
-def _environment():
+def environment():
     import jinja2
 
     env = jinja2.Environment(
@@ -1579,7 +1582,7 @@ def _environment():
 
 def render_html(context: dict) -> str:
     """The page for a :func:`build_context` result."""
-    return _environment().get_template("report.html.j2").render(**context)
+    return environment().get_template("report.html.j2").render(**context)
 
 
 def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
@@ -1670,4 +1673,4 @@ def render_suite(result: dict) -> str:
         "rows": [_suite_row(r, names) for r in result["materials"]],
         "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,
     }
-    return _environment().get_template("suite.html.j2").render(**context)
+    return environment().get_template("suite.html.j2").render(**context)

@@ -263,13 +263,13 @@ def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, 
     spp = int(scene.spp)
     xs = np.empty(H * W * spp, np.float32)
     ys = np.empty_like(xs)
-    height_tex = _height_texture(h, scene.material.boundary) if lk.parallax != "none" else None
+    height_tex = height_texture(h, scene.material.boundary) if lk.parallax != "none" else None
     for a in range(0, H * W, _CHUNK_PIXELS):
         b = min(H * W, a + _CHUNK_PIXELS)
         o, d = view.rays(spp, scene.seed, a, b)
         xy, _ = view.plane_points(o, d, z0)
         if height_tex is not None:
-            xy = _parallax(lk, height_tex, xy, d, z0, z_lo, z_hi)
+            xy = parallax_lookup(lk, height_tex, xy, d, z0, z_lo, z_hi)
         if scene.material.boundary == "wrap":
             xy[:, 0] %= cols
             xy[:, 1] %= rows
@@ -277,7 +277,7 @@ def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, 
     return xs, ys
 
 
-def _height_texture(h: np.ndarray, boundary: str):
+def height_texture(h: np.ndarray, boundary: str):
     import drjit as dr
     import mitsuba as mi
 
@@ -291,7 +291,7 @@ def _height_texture(h: np.ndarray, boundary: str):
     )
 
 
-def _parallax(
+def parallax_lookup(
     lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: float, z_hi: float
 ) -> np.ndarray:
     """The plane points ``xy`` moved by the parallax mapping ``lk.parallax`` along the rays ``d``.

@@ -117,7 +117,7 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
     from hzval.core import backend
     from hzval.pipeline import sweep
 
-    setup = sweep._set_up(scene, case_dir, sweep.Options())
+    setup = sweep.set_up(scene, case_dir, sweep.Options())
     try:
         texel, n, keep, size = _pixel_geometry(setup.truth, window)
         near, seen = _near_seams(setup.truth)

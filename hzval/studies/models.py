@@ -80,7 +80,7 @@ def cap_obj(path: Path, radius: float, sign: int) -> None:
     _write_grid_obj(path, p, n, np.stack([x, y], -1) + 0.5)
 
 
-def _cases() -> list[tuple[str, float, str | None]]:
+def cases() -> list[tuple[str, float, str | None]]:
     """``(name, signed curvature 1/R, mesh radius spec)``."""
     out = [(f"cap+{R:g}", 1.0 / R, ("cap", R, 1)) for R in RADII]
     out += [(f"bowl+{R:g}", -1.0 / R, ("cap", R, -1)) for R in BOWLS]
@@ -106,7 +106,7 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
     return data
 
 
-def _case_scene(scene, out: Path, name: str, spec):
+def case_scene(scene, out: Path, name: str, spec):
     from hzval.scene import spec as S
 
     kind, value, sign = spec
@@ -125,11 +125,11 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
     from hzval.pipeline import sweep
 
     rows, bands = [], {}
-    cases = _cases()
-    for i, (name, curvature, spec) in enumerate(cases):
+    todo = cases()
+    for i, (name, curvature, spec) in enumerate(todo):
         if progress:
-            print(f"hzval models: {i + 1}/{len(cases)}: {name}", flush=True)
-        sc = _case_scene(scene, out, name, spec)
+            print(f"hzval models: {i + 1}/{len(todo)}: {name}", flush=True)
+        sc = case_scene(scene, out, name, spec)
         result = sweep.run(
             sc,
             out / name,
@@ -319,12 +319,12 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 # -- the band: curvature and nothing else (hzval.studies.curvature_band) --------------------------------
 
 
-def _band_maps(case_scene, case_dir: Path) -> dict:
+def _band_maps(scene, case_dir: Path) -> dict:
     """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
     lights)."""
     from hzval.studies import curvature_band as cb
 
-    return cb.measure(cb.band_scene(case_scene), case_dir)
+    return cb.measure(cb.band_scene(scene), case_dir)
 
 
 def _add_bands(data: dict, bands: dict) -> None:

@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 #: The peak a sweep aims to stay within (issue 27: a 4096 x 4096 sweep within 16 GiB): past it, or past
-#: the memory available, the truth builds its mesh in bands (:func:`hzval.pipeline.sweep.truth_plan`).
+#: the memory available, the truth builds its mesh in bands (:func:`hzval.truth.memory.truth_plan`).
 PEAK_TARGET_BYTES = 16 * 2**30
 #: Texels added to each side of a band's cover: the cell that holds a sample on the band's edge, the
 #: samples moved off edge lines (:func:`hzval.truth.plane._off_edge_lines`, ulps) and float32's rounding.
@@ -152,7 +152,7 @@ def band_triangles(
     wrap: bool,
 ) -> list[int]:
     """Triangles of each band's mesh (:func:`group_bands`, :func:`cover_runs`), counted without building
-    them: what :func:`hzval.pipeline.sweep.truth_plan` weighs."""
+    them: what :func:`hzval.truth.memory.truth_plan` weighs."""
     per_row = np.concatenate([[0], np.cumsum(meshes.row_triangles(levels))])
     counts = []
     for group in group_bands(bands, W, band_rows):

@@ -55,21 +55,21 @@ import time
 
 import numpy as np
 
-from hzval.bake.maps import normal_map
-from hzval.core import backend, shading
+from hzval.core import backend, resources, shading
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
+from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
 from hzval.geometry import tangent_bugs, tangents
 from hzval.scene import lookup
 from hzval.scene.camera import Camera, View, view_axes
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
 from hzval.truth.plane import (
-    _REFLECTION_STREAM,
     LIFT_PER_HEIGHT,
     LIFT_TEXELS,
-    _mean_and_variance,
+    REFLECTION_STREAM,
     lobe_sample,
+    mean_and_variance,
     reflection_estimate,
     stream_rng,
 )
@@ -157,7 +157,8 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
 
 
 def _rays(o: np.ndarray, d: np.ndarray):
-    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64, :meth:`hzval.scene.camera.View.rays`)."""
+    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64,
+    :meth:`hzval.scene.camera.View.rays`)."""
     return mi.Ray3f(
         mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
         mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))),
@@ -188,7 +189,10 @@ class _Traced:
         self.scene = mi.load_dict({"type": "scene", "surface": m})
         self.triangles = int(len(faces))
         self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
-        flat = lambda a: mi.Float(np.ascontiguousarray(a, np.float32).ravel())
+
+        def flat(a):
+            return mi.Float(np.ascontiguousarray(a, np.float32).ravel())
+
         t = np.asarray(frames.tangents, np.float32)
         self._vertex = {
             "uv": flat(frames.uvs),
@@ -286,7 +290,6 @@ class ModelTruth:
     def _check_fits(self, model, h: np.ndarray) -> None:
         """Refuse, before it is built, a displaced mesh (its twisted cells' rings counted) and camera
         hits that would not fit in the memory available: one line naming the tolerance."""
-        from hzval.bake import maps as bake
         from hzval.geometry import displace
 
         mat = self.scene.material
@@ -303,14 +306,12 @@ class ModelTruth:
             + BYTES_PER_TRIANGLE * triangles
             + bytes_per_sample(self.scene) * self.shape[0] * self.shape[1] * self.spp
         )
-        have = bake.available_bytes()
-        if need > have:
-            raise InputError(
-                "--truth-tolerance",
-                f"the displaced {model.source} would be about {triangles:.3g} "
-                f"triangles, {need / 2**30:.1f} GiB with its camera hits; {have / 2**30:.1f} GiB are "
-                "available (a larger tolerance, a smaller map or fewer --spp)",
-            )
+        resources.refuse_over(
+            "--truth-tolerance",
+            need,
+            f"the displaced {model.source} ({triangles:.3g} triangles, with its camera hits)",
+            "a larger tolerance, a smaller map or fewer --spp",
+        )
 
     def _load_albedo(self, albedo):
         if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):
@@ -345,10 +346,11 @@ class ModelTruth:
 
     def _hits(self, mesh: "_Traced", ray, *, shade: bool) -> dict:
         """Where ``ray`` meets ``mesh``: the point, its triangle's normal ``ng`` (on the side of the
-        base normal), the frame (:func:`hzval.geometry.tangents.orthonormal`), the texel position ``(x, y)`` of
-        its ``uv``, the base point ``pb`` and ``v`` toward the camera; ``shade``: also the shading
-        normal (the normal map at ``uv`` carried into the world) and the albedo there. A sample that
-        misses keeps the world's frame at the texture's centre: traced, and counted for nothing."""
+        base normal), the frame (:func:`hzval.geometry.tangents.orthonormal`), the texel position
+        ``(x, y)`` of its ``uv``, the base point ``pb`` and ``v`` toward the camera; ``shade``: also the
+        shading normal (the normal map at ``uv`` carried into the world) and the albedo there. A
+        sample that misses keeps the world's frame at the texture's centre: traced, and counted for
+        nothing."""
         pi = mesh.scene.ray_intersect_preliminary(ray, coherent=True)
         hit = pi.is_valid()
         prim = dr.select(hit, pi.prim_index, 0)
@@ -424,7 +426,7 @@ class ModelTruth:
         t0 = time.perf_counter()
         st = self._st
         count = dr.width(st["hit"])
-        rng = stream_rng(self.scene.seed, _REFLECTION_STREAM, 0, count)
+        rng = stream_rng(self.scene.seed, REFLECTION_STREAM, 0, count)
         wo, w = lobe_sample(st["ns"], st["v"], mi.Point2f(rng.next_float32(), rng.next_float32()))
         into = (dr.dot(st["ng"], wo) <= 0.0) | (dr.dot(st["n"], wo) <= 0.0)
         ray = mi.Ray3f(self._origin(st["p"], st["n"]), wo)
@@ -502,7 +504,7 @@ class ModelTruth:
 
     def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
         """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
-        (:func:`hzval.truth.plane._mean_and_variance`), ``(H, W[, 3])`` float32 each."""
+        (:func:`hzval.truth.plane.mean_and_variance`), ``(H, W[, 3])`` float32 each."""
         spp, (H, W) = self.spp, self.shape
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
         if img is not None:
@@ -514,11 +516,11 @@ class ModelTruth:
         layers, variance = {}, {}
         for k in sums:
             s1 = mi.Float64(reduced[k])
-            mean, var = _mean_and_variance(s1, s1 * (1.0 - s1 / spp), spp)
+            mean, var = mean_and_variance(s1, s1 * (1.0 - s1 / spp), spp)
             layers[k], variance[k] = (np.asarray(a, np.float32).reshape(H, W) for a in (mean, var))
         if img is not None:
             parts = [
-                _mean_and_variance(mi.Float64(c), mi.Float64(q), spp)
+                mean_and_variance(mi.Float64(c), mi.Float64(q), spp)
                 for c, q in zip(reduced["image"], reduced["image_ss"])
             ]
             layers["image"] = np.stack([np.asarray(m, np.float32) for m, _ in parts], -1).reshape(H, W, 3)
@@ -578,8 +580,8 @@ class ModelTruth:
         if at == "camera" and lk.parallax != "none":
             d = -frames[:, 9:12].astype(np.float64)  # the camera's ray, world
             d_t = np.stack([np.sum(frames[:, 3 * k : 3 * k + 3] * d, axis=1) for k in range(3)], -1)
-            tex = lookup._height_texture(h, self.scene.material.boundary)
-            xy = lookup._parallax(lk, tex, xy, d_t, z0, float(h.min()), float(h.max()))
+            tex = lookup.height_texture(h, self.scene.material.boundary)
+            xy = lookup.parallax_lookup(lk, tex, xy, d_t, z0, float(h.min()), float(h.max()))
         if self.scene.material.boundary == "wrap":
             xy = np.mod(xy, [self.cols, self.rows])
         else:

@@ -18,7 +18,7 @@ the sweep :meth:`Truth.render` returns a :class:`hzval.scene.spec.Frame`.
 Shading (``[material] shading``)
     ``smooth`` (the default): the shading normal ``n_s`` is interpolated from
     vertex normals, as a displaced mesh is shaded, and the vertex normals
-    are the normal map's own (:func:`hzval.bake.maps.normal_map`: the same
+    are the normal map's own (:func:`hzval.core.conventions.normal_map`: the same
     central differences, one-sided at an ``open`` border). It is their
     bilinear interpolation at the sample's ``(x, y)``, the interpolation the
     techniques' texture filtering applies, so that where the light is seen
@@ -76,7 +76,8 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     Blinn-Phong as in FGED2 chapter 7: ``ks * E * max(0, n_s.h)^alpha * [n_s.L > 0]``
     with ``h = normalize(L + v)`` and ``v`` toward the camera (``+z`` for
     ``top``; a perspective camera, whose ``v`` differs per pixel, is refused
-    with it), ``ks`` = :data:`hzval.core.shading.SPECULAR_KS`, ``alpha`` = :data:`hzval.core.shading.SPECULAR_EXPONENT`.
+    with it), ``ks`` = :data:`hzval.core.shading.SPECULAR_KS`, ``alpha`` =
+    :data:`hzval.core.shading.SPECULAR_EXPONENT`.
 ``ambient``
     ``A`` = 1 if a cosine-weighted direction about ``n_s`` escapes (one into the
     triangle hit, ``n.d <= 0``, does not), else 0
@@ -93,8 +94,8 @@ Effects (docs/ARCHITECTURE.md, "Effects"), per sample, then averaged per pixel:
     the displaced surface does not block (``layers["reflection_occlusion"]``).
     The lobe is the ``specular`` one, FGED2's Blinn-Phong of exponent
     :data:`hzval.core.shading.SPECULAR_EXPONENT` about ``n_s``, seen from ``v``
-    (the camera's direction, as for ``specular``), sampled by its half-vector distribution (Walter et al. 2007), each
-    direction weighted as that sampling requires (:meth:`Truth._trace_reflection`);
+    (the camera's direction, as for ``specular``), sampled by its half-vector distribution
+    (Walter et al. 2007), each direction weighted as that sampling requires (:meth:`Truth._trace_reflection`);
     a direction below the triangle hit (``n.wo <= 0``) or below the
     horizontal reflects nothing and counts as blocked. It is what the approximation's Toolbag fade ``o``
     estimates. Like ``A`` it does not depend on the light (traced once) and,
@@ -144,9 +145,9 @@ Boundaries
     mesh with its square (the bricks at 1 degree: 2.4 GB; a 512 x 512 photo at
     depth 5: 30,000 x 30,000 vertices). Rays that need more - lights below
     10 degrees, ambient and path rays near the horizon, soft lights that dip
-    low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends before the ray can leave
-    the margin (as far as the mesh reaches from where it starts, the tile's width from most points),
-    its end point is wrapped back into the tile, and the next hop
+    low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends
+    before the ray can leave the margin (as far as the mesh reaches from where it starts, the
+    tile's width from most points), its end point is wrapped back into the tile, and the next hop
     continues from there, until the ray is above the highest point of the
     surface. So the surface tiles without end for every ray, not only within
     the margin.
@@ -158,8 +159,8 @@ Memory
     the rays' own buffers (Embree's inputs and outputs, the shading's terms)
     are then a band's, reused from band to band, not the image's (at 2048 x
     2048 and 16 spp: a peak 1.7 GB lower, and 4-5 s less in a sweep of five
-    lights, most of it the kernel's zeroing of pages new to the process). A larger image (4096 x 4096 at 16 spp:
-    268M samples, 14 GB of such state) is rendered in bands of whole pixel
+    lights, most of it the kernel's zeroing of pages new to the process). A larger image (4096 x
+    4096 at 16 spp: 268M samples, 14 GB of such state) is rendered in bands of whole pixel
     rows, :data:`BAND_SAMPLES` samples each, whose camera rays are traced
     again in every frame; only ``A`` is kept per band. Sample positions,
     random streams and light samples are indexed by the sample's place in
@@ -167,7 +168,7 @@ Memory
     (``tests/truth/test_plane.py``).
     A mesh too large to hold beside the rest of a sweep (the 4096 bricks: 187M
     triangles) is built a band of rows at a time (``mesh_band_rows``,
-    :mod:`hzval.truth.bands`, chosen by :func:`hzval.pipeline.sweep.truth_plan`): each
+    :mod:`hzval.truth.bands`, chosen by :func:`hzval.truth.memory.truth_plan`): each
     band's mesh holds the cells its samples' rays can reach, every light's
     shadow rays are traced in it when the truth is built, and the frames
     shade from one visibility bit a sample a light, bit for bit the single
@@ -195,10 +196,9 @@ import time
 
 import numpy as np
 
-from hzval.bake import maps as bake
-from hzval.bake.maps import normal_map
-from hzval.core import backend, shading
+from hzval.core import backend, resources, shading
 from hzval.core import conventions as cv
+from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
 from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE, SPECULAR_EXPONENT, SPECULAR_KS
 from hzval.geometry import tile as meshes
@@ -252,7 +252,7 @@ SIMULATES: tuple[str, ...] = (
 #: Random stream of the ambient directions; the path tracer's first bounce
 #: reuses it, so that its cosine-weighted directions are the ambient layer's.
 _AMBIENT_STREAM = 0xA3B1
-_REFLECTION_STREAM = 0x5EF1
+REFLECTION_STREAM = 0x5EF1
 #: Declared effects that need the material's albedo.
 _NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
 
@@ -809,7 +809,8 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
 
 def mesh_grid(scene: Scene, height: np.ndarray):
     """``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised ``height`` map
-    for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.geometry.tile.cell_levels` at
+    for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.geometry.tile.cell_levels`
+    at
     ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle."""
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
@@ -827,7 +828,7 @@ def mesh_grid(scene: Scene, height: np.ndarray):
 def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
     """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
     included (:func:`mesh_grid`), counted without building it: what
-    :func:`hzval.pipeline.sweep.estimate_peak_bytes` charges for the mesh."""
+    :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh."""
     return meshes.triangle_count(mesh_grid(scene, height)[1])
 
 
@@ -858,7 +859,8 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
     Attributes: ``simulated`` (the effects simulated, for ``metrics.json``),
     ``shape`` (image rows, columns), ``margin`` (wrap margin, texels),
     ``lift`` (ray origin lift, texels), ``tolerance`` (texels: how far the mesh may be from the
-    bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.geometry.tile.edge_level`), ``moved_off_edges`` (samples moved
+    bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.geometry.tile.edge_level`),
+    ``moved_off_edges`` (samples moved
     off a line of mesh edges, :func:`_off_edge_lines`), ``timings``
     (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
     camera, :class:`hzval.scene.camera.View`). A view other than ``top`` also sets
@@ -939,7 +941,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                 texcoords=False,
                 tolerance=mat.truth_tolerance,
                 info=info,
-                budget_bytes=bake.available_bytes(),
+                budget_bytes=resources.available_bytes(),
                 margin=margin,
             )
         else:
@@ -1044,7 +1046,8 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         return ambient
 
     def _trace_reflection(self, st: "_Samples") -> tuple[np.ndarray, np.ndarray]:
-        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that escapes
+        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that
+        escapes
         (independent of the light, once).
 
         Directions and weights: :func:`lobe_sample`; ``V`` = 1 where the
@@ -1055,7 +1058,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         import mitsuba as mi
 
         t0 = time.perf_counter()
-        rng = self._rng(_REFLECTION_STREAM, st)
+        rng = self._rng(REFLECTION_STREAM, st)
         wo, w = lobe_sample(st.ns, self._toward_eye, mi.Point2f(rng.next_float32(), rng.next_float32()))
         blocked = (dr.dot(st.n, wo) <= 0.0) | self._occluded(
             st.o, wo, self._hops_for(math.radians(MIN_TRACED_ELEVATION_DEG)), dynamic=True
@@ -1139,7 +1142,6 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         t0 = time.perf_counter()
         sc = self.scene
         H, W = self.shape
-        spp = self.spp
         layers, variance = {}, {}
 
         def place(key, rows, mean, var):
@@ -1177,7 +1179,7 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
         )
 
     def _render_band(self, st: "_Samples", azimuth_deg: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Pixel means and variances of the mean (:func:`_mean_and_variance`) over the samples of the
+        """Pixel means and variances of the mean (:func:`mean_and_variance`) over the samples of the
         band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;
         only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``."""
         import drjit as dr
@@ -1235,12 +1237,12 @@ class Truth(_CameraRays, _RayQueries, _PathTracing):
                 # 0/1 samples: the squared deviations sum to s (1 - s / n)
                 s1 = mi.Float64(reduced[k])
                 nn = n if isinstance(n, int) else dr.maximum(mi.Float64(n), 1.0)
-                stats[k] = _mean_and_variance(s1, s1 * (1.0 - s1 / nn), n)
+                stats[k] = mean_and_variance(s1, s1 * (1.0 - s1 / nn), n)
         if "image" in reduced:
             stats["image"] = tuple(
                 zip(
                     *(
-                        _mean_and_variance(mi.Float64(c), mi.Float64(q), n)
+                        mean_and_variance(mi.Float64(c), mi.Float64(q), n)
                         for c, q in zip(reduced["image"], reduced["image_ss"])
                     )
                 )
@@ -1268,7 +1270,7 @@ BAND_SAMPLES = 1 << 24
 KEPT_BAND_SAMPLES = 1 << 22
 #: Bytes per sample of that state: the lifted origin's height (its x and y are the sample positions
 #: themselves), the geometric and shading normals and ``A`` (8 float32; the albedo is gathered
-#: again by each frame's kernel; ``sweep.estimate_peak_bytes`` counts the state).
+#: again by each frame's kernel; ``memory.estimate_peak_bytes`` counts the state).
 STATE_BYTES_PER_SAMPLE = 32
 
 
@@ -1489,7 +1491,7 @@ def _lobe_direction(n, v, u):
     return 2.0 * dr.dot(v, h) * h - v, h
 
 
-def _mean_and_variance(s1, ss, spp):
+def mean_and_variance(s1, ss, spp):
     """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2: float64
     Dr.Jit arrays in, float32 arrays out (rounded once, from float64).
 

@@ -29,6 +29,7 @@ from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import files
 from hzval.scene import spec as S
+from hzval.truth import memory
 
 ROOT = Path(__file__).resolve().parents[2]
 SMALL = ["--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon", "--quiet"]
@@ -85,12 +86,11 @@ def test_the_light_count_is_computed_not_listed():
 
 
 def test_frames_times_pixels_is_bounded_before_anything_is_allocated():
-    from hzval.pipeline import sweep
 
     scene = S.override(S.Scene(), size=4096, azimuths="0:360:2")  # 181 lights of 16.8M pixels
     with pytest.raises(InputError, match="frame pixels"):
-        sweep.check_frame_pixels(scene, 4096, 4096)
-    assert sweep.check_frame_pixels(S.override(S.Scene(), size=4096), 4096, 4096) == 9 * 4096**2
+        memory.check_frame_pixels(scene, 4096, 4096)
+    assert memory.check_frame_pixels(S.override(S.Scene(), size=4096), 4096, 4096) == 9 * 4096**2
 
 
 # 2. the local cluster listens on loopback only -----------------------------------------------

@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 from hzval.cli import main as cli
+from hzval.core import resources
 from hzval.io import files
 from hzval.pipeline import sweep
 from hzval.techniques import registry as technique
+from hzval.truth import memory
 
 # docs/ARCHITECTURE.md, "metrics.json".
 TOP_KEYS = {
@@ -584,17 +586,15 @@ def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, ca
 
 
 def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_path, capsys, monkeypatch):
-    """The estimate (hzval.pipeline.sweep.estimate_peak_bytes) against the memory available: over it, one line
+    """The estimate (hzval.truth.memory.estimate_peak_bytes) against the memory available: over it, one line
     naming the input and the estimate, exit 2, nothing written; under it, recorded beside the peak."""
-    from hzval.bake import maps as bake
     from hzval.cli import main as cli
-    from hzval.pipeline import sweep as sw
     from hzval.scene import spec as S
 
     scene = S.override(S.Scene(), size=1024)
-    need = sw.estimate_peak_bytes(scene, 1024, 1024)
+    need = memory.estimate_peak_bytes(scene, 1024, 1024)
     assert 2.0 * 2**30 < need < 3.0 * 2**30  # measured: 2.35 GiB (benchmarks/README.md)
-    monkeypatch.setattr(bake, "available_bytes", lambda: need - 1)
+    monkeypatch.setattr(resources, "available_bytes", lambda: need - 1)
     out = tmp_path / "o"
     assert cli.main(["sweep", "--size", "1024", "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
@@ -609,8 +609,8 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
     subprocess.run(
         [sys.executable, "-m", "hzval", *SMALL_SWEEP, "--out", str(out)], check=True, capture_output=True
     )
-    memory = json.loads((out / "metrics.json").read_text())["memory"]
-    assert 0.5 < memory["estimate_bytes"] / memory["peak_rss_bytes"] < 2.0
+    recorded = json.loads((out / "metrics.json").read_text())["memory"]
+    assert 0.5 < recorded["estimate_bytes"] / recorded["peak_rss_bytes"] < 2.0
 
 
 def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path, monkeypatch):
@@ -678,7 +678,6 @@ def test_freed_memory_is_kept_while_retained_and_handed_back_after():
 def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_path, monkeypatch):
     """A sweep far below the memory available retains what it frees (metrics.json says so) and hands
     it back when it ends; one near the limit does not retain."""
-    from hzval.bake import maps as bake
     from hzval.core import backend
 
     calls = []
@@ -689,10 +688,10 @@ def test_a_sweep_that_fits_keeps_freed_memory_and_hands_it_back(variant, tmp_pat
     retains = json.loads((out / "metrics.json").read_text())["memory"]["retains_freed"]
     assert retains is (backend._mallopt() is not None) and calls == [retains] and not backend._retaining
     monkeypatch.setattr(
-        bake,
+        resources,
         "available_bytes",
         lambda: int(
-            1.5 * sweep.estimate_peak_bytes(sweep.sc.override(sweep.sc.Scene(), size=24, spp=2), 24, 24)
+            1.5 * memory.estimate_peak_bytes(sweep.sc.override(sweep.sc.Scene(), size=24, spp=2), 24, 24)
         ),
     )
     assert run("sweep", "--size", 24, "--azimuths", 0, "--spp", 2, "--quiet", "--out", tmp_path / "p") == 0

@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from hzval import materials
+from hzval.core import resources
 from hzval.geometry import tile as M
 from hzval.truth import bands as TB
+from hzval.truth import memory
 from tests.truth.test_plane import make_scene
 
 AZIMUTHS = (-60.0, 0.0, 90.0, -90.0, 20.0, 135.0, 180.0)
@@ -107,12 +109,12 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
     )
     height = load_material_height(sc.material).height
     monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
-    plan = sweep.truth_plan(sc, height)
+    plan = memory.truth_plan(sc, height)
     assert plan.band_rows is not None and 0 < plan.band_triangles < plan.triangles
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2**20)
+    monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)
     monkeypatch.setattr(bake, "check_fits", lambda *a: None)  # the bake's own check would refuse first
     with pytest.raises(InputError) as err:
-        sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
+        memory.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
     text = str(err.value)
     assert "--truth-tolerance" in text and "in bands of" in text and "\n" not in text
 
@@ -129,12 +131,12 @@ def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
     )
     height = load_material_height(sc.material).height
     monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)
-    plan = sweep.truth_plan(sc, height)
+    plan = memory.truth_plan(sc, height)
     assert plan.band_rows is None and "ambient" in plan.why_single
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2**20)
+    monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)
     monkeypatch.setattr(bake, "check_fits", lambda *a: None)
     with pytest.raises(InputError, match="--truth-tolerance.*not in bands: ambient"):
-        sweep.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
+        memory.check_fits(sc, sweep.Options().bake_params(sc), height, plan)
 
 
 def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant, bricks):

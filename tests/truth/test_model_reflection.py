@@ -20,10 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as hz_bake
 from hzval.bake.maps import BakeParams, bake
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
+from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.scene import spec as S
@@ -224,7 +224,7 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
     base = mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
     pixels = 64 * 64 * plain.spp
     monkeypatch.setattr(
-        hz_bake, "available_bytes", lambda: base + model_truth.bytes_per_sample(plain) * pixels + 1
+        resources, "available_bytes", lambda: base + model_truth.bytes_per_sample(plain) * pixels + 1
     )
     ModelTruth(plain, h, sphere)
     with pytest.raises(InputError, match="truth-tolerance"):

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from hzval.core import conventions as cv
+from hzval.core import resources
 from hzval.geometry import tile as M
+from hzval.truth import memory
 from tests.oracles import turned_techniques as turned
 
 #: (name, the map turned, the light's azimuth turned): the tangent frame has x along the columns
@@ -261,9 +263,7 @@ def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_
     the count hzval.geometry.tile.tessellate makes): a finer tolerance costs more, and a mesh over the memory
     available is refused before the bake or the mesh, one line naming --truth-tolerance, exit 2, no files."""
     from hzval import materials
-    from hzval.bake import maps as bake
     from hzval.cli import main as cli
-    from hzval.pipeline import sweep
     from hzval.scene import spec as sc
     from hzval.truth import plane as truth
 
@@ -280,12 +280,12 @@ def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_
     extra = truth.mesh_triangles(fine, h) - len(faces)
     assert extra > len(faces)
     assert (
-        sweep.estimate_peak_bytes(fine, 64, 64, truth.mesh_triangles(fine, h))
-        - sweep.estimate_peak_bytes(scene, 64, 64, len(faces))
-    ) == pytest.approx(sweep.PEAK_BYTES_PER_TRIANGLE * extra, abs=2)
-    before_the_map = sweep.estimate_peak_bytes(fine, 64, 64)
+        memory.estimate_peak_bytes(fine, 64, 64, truth.mesh_triangles(fine, h))
+        - memory.estimate_peak_bytes(scene, 64, 64, len(faces))
+    ) == pytest.approx(memory.PEAK_BYTES_PER_TRIANGLE * extra, abs=2)
+    before_the_map = memory.estimate_peak_bytes(fine, 64, 64)
     monkeypatch.setattr(
-        bake, "available_bytes", lambda: before_the_map + sweep.PEAK_BYTES_PER_TRIANGLE * extra // 2
+        resources, "available_bytes", lambda: before_the_map + memory.PEAK_BYTES_PER_TRIANGLE * extra // 2
     )
     out = tmp_path / "o"
     assert (

@@ -229,7 +229,7 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
 
 def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
     """The fit's peak memory, bytes: the truth's V of every light, beside the larger of the truth's own
-    peak while it renders (:func:`hzval.pipeline.sweep.estimate_peak_bytes` of the fit's scene, when ``scene``
+    peak while it renders (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene``
     is given) and the optimisation's (:data:`FIT_BASE_BYTES` and the rest)."""
     P = rows * cols
     band = min(P * spp, BAND_SAMPLES)
@@ -241,26 +241,23 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
     )
     render = 0
     if scene is not None:
-        from hzval.pipeline import sweep
+        from hzval.truth import memory
 
-        render = sweep.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
+        render = memory.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
     return int(FIT_BYTES_PER_PIXEL_LIGHT * P * lights + max(optimise, render))
 
 
 def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
     """Refuse, before anything is allocated, a fit whose estimate (:func:`estimate_bytes`) exceeds the
     memory available now, with one line; return the estimate."""
-    from hzval.bake.maps import available_bytes
+    from hzval.core import resources
 
-    need, have = estimate_bytes(rows, cols, spp, lights, scene), available_bytes()
-    if need > have:
-        raise InputError(
-            what,
-            f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights needs about "
-            f"{need / 2**30:.1f} GiB (estimated); {have / 2**30:.1f} GiB are available "
-            "(fewer --spp or --lights, or a smaller map)",
-        )
-    return need
+    return resources.refuse_over(
+        what,
+        estimate_bytes(rows, cols, spp, lights, scene),
+        f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights",
+        "fewer --spp or --lights, or a smaller map",
+    )
 
 
 def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> list[float]:
@@ -517,9 +514,9 @@ def fit(
         prior,
         constrain,
     )
-    guarded = None
+    guard_record = None
     if guard is not None:
-        fitted, guarded = _guarded(train, bake, stored, V_train, lights, fitted, k, k_fit, guard)
+        fitted, guard_record = guarded(train, bake, stored, V_train, lights, fitted, k, k_fit, guard)
     t_fit, c_fit = time.perf_counter() - t0, time.process_time() - c0
     baked_stored = stored.roundtrip(bake.horizon)
     mae = {}
@@ -544,7 +541,7 @@ def fit(
         "spp": scene.spp,
         "train_spp": train.spp,
         "seed": scene.seed,
-        "guard": guarded,
+        "guard": guard_record,
         "k_baked": k,
         "optimiser": "Adam (mitsuba.ad.Adam)",
     }
@@ -573,7 +570,7 @@ def fit(
     )
 
 
-def _guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
+def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
     """:func:`hzval.techniques.fitted.guard.guard` of the optimiser's map against the baked map stored
     alike, on the
     training lights, through the fit's forward model; a block format guards whole blocks."""

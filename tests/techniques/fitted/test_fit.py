@@ -18,6 +18,7 @@ import pytest
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
+from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.io import external
 from hzval.pipeline import sweep
@@ -224,7 +225,7 @@ def test_files_are_the_bakes_layout_and_read_back_exactly(variant, tmp_path):
 
 def test_memory_estimate_refuses_what_cannot_fit(monkeypatch):
     assert fit.estimate_bytes(2048, 2048, 16, 96) > fit.estimate_bytes(512, 512, 16, 96) > 0
-    monkeypatch.setattr(bake, "available_bytes", lambda: 2 * 2**30)
+    monkeypatch.setattr(resources, "available_bytes", lambda: 2 * 2**30)
     with pytest.raises(InputError, match="GiB"):
         fit.check_fits("x.png", 2048, 2048, 16, 96)
     assert fit.check_fits("x.png", 64, 64, 16, 96) < 2 * 2**30
