@@ -1,10 +1,12 @@
-"""What a person reads: the sweep's HTML report and its plots (pages), the visibility-difference and
-FLIP maps and their colours (images), and the Jinja templates.
+"""What a person reads: the sweep's HTML report (pages), its plots (plots), the vocabulary both use:
+each metric's column, the technique views and the colours of the truth and each technique
+(columns), the visibility-difference and FLIP maps and their colours (images), and the Jinja
+templates.
 """
 
 from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("images", "pages"),
+    ("columns", "images", "pages", "plots"),
 )

@@ -16,6 +16,7 @@ import pytest
 from PIL import Image
 
 from hzval.io import files
+from hzval.report import columns as report_columns
 from hzval.report import pages as report
 
 NASTY_NAME = "<b>x.png"
@@ -303,7 +304,7 @@ def test_header_summary_and_frames(report_dir):
     ):
         assert text in html, text
     for key in metrics["parameters"]:
-        assert f">{report._value_text(key, metrics['parameters'][key])}<" in html or key in (
+        assert f">{report_columns.value_text(key, metrics['parameters'][key])}<" in html or key in (
             "depth",
             "supersampling",
             "effects",

@@ -13,7 +13,8 @@ import copy
 import pytest
 
 from hzval.pipeline import sweep
-from hzval.report import pages as report
+from hzval.report import columns as report_columns
+from hzval.report import plots as report_plots
 from hzval.scene import spec as S
 
 FEW = "20,40@0:270:90"
@@ -61,10 +62,10 @@ def test_the_terminal_table_has_the_split(split_sweep):
 def _captured_bars(monkeypatch, metrics):
     """The bars plot_split draws: ``(x, bottom, height, hatched)`` per bar."""
     figs = []
-    monkeypatch.setattr(report, "_save", lambda fig, path: figs.append(fig))
-    views = report.technique_views(metrics)
-    (sv,) = report.split_views(metrics, views)
-    report.plot_split(None, metrics["frames"], sv)
+    monkeypatch.setattr(report_plots, "_save", lambda fig, path: figs.append(fig))
+    views = report_columns.technique_views(metrics)
+    (sv,) = report_plots.split_views(metrics, views)
+    report_plots.plot_split(None, metrics["frames"], sv)
     ax = figs[0].axes[0]
     return [
         (round(p.get_x() + p.get_width() / 2, 6), p.get_y(), p.get_height(), bool(p.get_hatch()))
@@ -83,7 +84,9 @@ def test_the_bars_are_the_parts_and_a_negative_part_is_hatched(split_sweep, monk
     assert at45 == [(0.0, pytest.approx(0.03)), (pytest.approx(0.03), pytest.approx(0.02))]
     hatched = [(x, b, h) for x, b, h, hatch in bars if hatch]
     assert hatched == [(90.0, pytest.approx(0.006), pytest.approx(0.004))]
-    ctx = report._split_context(frames, report.split_views(m, report.technique_views(m))[0])
+    ctx = report_plots.split_context(
+        frames, report_plots.split_views(m, report_columns.technique_views(m))[0]
+    )
     assert (
         ctx["negative"] == 1
         and ctx["rows"][2]["cells"][1]["negative"]
@@ -94,10 +97,10 @@ def test_the_bars_are_the_parts_and_a_negative_part_is_hatched(split_sweep, monk
 def test_no_split_without_its_parts(split_sweep):
     _, m = split_sweep
     m = copy.deepcopy(m)
-    views = report.technique_views(m)
-    assert [sv.view.name for sv in report.split_views(m, views)] == ["horizon-fit"]
+    views = report_columns.technique_views(m)
+    assert [sv.view.name for sv in report_plots.split_views(m, views)] == ["horizon-fit"]
     del m["techniques"]["horizon-fit"]["split_parts"]
-    assert report.split_views(m, views) == []
+    assert report_plots.split_views(m, views) == []
     for f in m["frames"]:
         f["techniques"].pop("horizon-fit")
     assert "bake_loss" not in sweep.summary_table(m)
