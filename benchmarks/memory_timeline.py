@@ -20,6 +20,8 @@ import sys
 import threading
 import time
 
+from hzval.truth import samples as truth_samples
+
 
 def rss_bytes() -> int:
     with open("/proc/self/status") as f:
@@ -108,7 +110,7 @@ def main(argv=None) -> None:
 
         truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2**30)
     if args.keep_samples is not None:
-        truth.KEEP_SAMPLES = args.keep_samples
+        truth_samples.KEEP_SAMPLES = args.keep_samples
     tl = Timeline()
     tl.wrap(bake, "cached_bake")
     tl.wrap(sweep, "check_fits")

@@ -22,7 +22,9 @@ from hzval.core.errors import InputError
 from hzval.geometry import tile as meshes
 from hzval.io import heightmap
 from hzval.scene import spec as sc
+from hzval.truth import common as truth_common
 from hzval.truth import plane as truth
+from hzval.truth import samples as truth_samples
 
 __all__ = [
     "PEAK_BASE_BYTES",
@@ -85,10 +87,10 @@ def estimate_peak_bytes(
     samples = H * W * scene.spp
     if triangles is None:
         triangles = TRIANGLES_PER_PIXEL_BEFORE_THE_MAP * rows * cols
-    if truth.keeps_samples(H, W, scene.spp) if keeps is None else keeps:
+    if truth_samples.keeps_samples(H, W, scene.spp) if keeps is None else keeps:
         kept = samples
     else:
-        kept = max(b - a for a, b in truth.bands(H, W, scene.spp)) * scene.spp
+        kept = max(b - a for a, b in truth_samples.bands(H, W, scene.spp)) * scene.spp
     view = 0
     if scene.camera.kind != "top":
         # a band's rays in float64 on the host, the truth's hits, the techniques built twice
@@ -155,10 +157,12 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
     if why is not None or estimate_peak_bytes(scene, rows, cols, full) <= limit:
         return TruthPlan(full, why_single=why)
     H, W = sc.image_shape(rows, cols, scene.camera)
-    bands = truth.bands(H, W, scene.spp)
+    bands = truth_samples.bands(H, W, scene.spp)
     step = bands[0][1] // W - bands[0][0] // W
     z_min, z_max = float(h_tex.min()), float(h_tex.max())
-    up, down = truth_bands.reach(scene, z_max - z_min, truth.lift_for(z_min, z_max), scene.light.azimuths_deg)
+    up, down = truth_bands.reach(
+        scene, z_max - z_min, truth_common.lift_for(z_min, z_max), scene.light.azimuths_deg
+    )
     wrap = scene.material.boundary == "wrap"
     room = min(limit, estimate_peak_bytes(scene, rows, cols, 0, keeps=False))
     best = None

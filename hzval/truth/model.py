@@ -63,8 +63,9 @@ from hzval.core.errors import InputError
 from hzval.geometry import tangent_bugs, tangents
 from hzval.scene import lookup
 from hzval.scene.camera import Camera, View, view_axes
-from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples, load_albedo
-from hzval.truth.plane import (
+from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples
+from hzval.truth import common
+from hzval.truth.common import (
     LIFT_PER_HEIGHT,
     LIFT_TEXELS,
     REFLECTION_STREAM,
@@ -271,7 +272,9 @@ class ModelTruth:
             filter_mode=dr.FilterMode.Linear,
             wrap_mode=wrap,
         )
-        self._albedo = self._load_albedo(albedo)
+        self._albedo = common.albedo_texels(scene, self.rows, self.cols, albedo)
+        # the map's size opaque, as the plane's: one kernel for every map
+        self._size = (dr.opaque(mi.Float, float(self.rows)), dr.opaque(mi.Float, float(self.cols)))
         # the displaced surface lies within the base mesh moved along its normals by the relief
         n_w = _welded_normals(model)
         extent = [model.positions + n_w * (float(z) * self._texel) for z in (h_tex.min(), h_tex.max())]
@@ -312,15 +315,6 @@ class ModelTruth:
             f"the displaced {model.source} ({triangles:.3g} triangles, with its camera hits)",
             "a larger tolerance, a smaller map or fewer --spp",
         )
-
-    def _load_albedo(self, albedo):
-        if not any(self.scene.declares(e) for e in ("diffuse", "ambient")):
-            return None
-        rows, cols = self.rows, self.cols
-        a = load_albedo(self.scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
-        if a.shape != (rows, cols, 3):
-            raise InputError("albedo", f"expected shape {(rows, cols, 3)}, got {a.shape}")
-        return mi.Float(np.ascontiguousarray(a, np.float32).ravel())
 
     # -- camera rays, once ----------------------------------------------------------------------
 
@@ -389,10 +383,8 @@ class ModelTruth:
         return out
 
     def _albedo_at(self, x, y):
-        """The linear albedo of the texel that holds ``(x, y)`` (nearest, as on the plane)."""
-        col = dr.clip(mi.Int32(dr.floor(x)), 0, self.cols - 1)
-        row = dr.clip(mi.Int32(self.rows - dr.ceil(y)), 0, self.rows - 1)
-        return dr.gather(mi.Color3f, self._albedo, mi.UInt32(row * self.cols + col))
+        """The albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, nearest, as on the plane)."""
+        return common.albedo_at(self._albedo, *self._size, x, y)
 
     def _origin(self, p, n):
         """A ray's start: ``p`` lifted along the base normal ``n`` (module docstring)."""

@@ -19,7 +19,7 @@ import pytest
 from hzval.core import conventions as cv
 from hzval.scene import camera as hz_camera
 from hzval.scene import spec as S
-from hzval.truth.plane import _off_edge_lines
+from hzval.truth.samples import off_edge_lines as _off_edge_lines
 
 from ._ref import classify, mesh_horizon_tan, mesh_triangles, texel_centres_flat, truth
 

@@ -468,7 +468,8 @@ def test_a_low_soft_light_sees_past_endless_walls_traced_in_hops(variant):
     samples and light directions the truth draws. Directions under 0.25
     degrees count as occluded (``MIN_TRACED_ELEVATION_DEG``).
     """
-    from hzval.truth.plane import MIN_TRACED_ELEVATION_DEG, _off_edge_lines
+    from hzval.truth.rays import MIN_TRACED_ELEVATION_DEG
+    from hzval.truth.samples import off_edge_lines as _off_edge_lines
 
     rows, cols, wall, h = 8, 16, 8, 2.0
     t = truth(column_wall(rows, cols, wall), h / cols, "wrap", kind="soft", elevation=1.5, radius=2.0, spp=16)
@@ -903,14 +904,16 @@ def test_bands_give_the_pixels_of_one_piece(kw):
 
 
 def test_large_images_are_banded_by_default():
-    from hzval.truth.plane import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, _bands, keeps_samples
+    from hzval.truth.samples import BAND_SAMPLES, KEEP_SAMPLES, KEPT_BAND_SAMPLES, band_ranges, keeps_samples
 
-    kept = _bands((2048, 2048), 16)  # 67M samples: kept, in bands
+    kept = band_ranges((2048, 2048), 16)  # 67M samples: kept, in bands
     assert keeps_samples(2048, 2048, 16) and not keeps_samples(4096, 4096, 16)
     assert len(kept) == 2048 * 2048 * 16 // KEPT_BAND_SAMPLES and kept[-1][1] == 2048 * 2048
-    assert _bands((64, 64), 16) == [(0, 64 * 64)]  # a small image: one band
-    bands = _bands((4096, 4096), 16)  # 268M: bands of whole rows
+    assert band_ranges((64, 64), 16) == [(0, 64 * 64)]  # a small image: one band
+    bands = band_ranges((4096, 4096), 16)  # 268M: bands of whole rows
     assert 4096 * 4096 * 16 > KEEP_SAMPLES and len(bands) == 4096 * 4096 * 16 // BAND_SAMPLES
     assert bands[0] == (0, 256 * 4096) and bands[-1][1] == 4096 * 4096
     assert all(a % 4096 == 0 and b % 4096 == 0 for a, b in bands)
-    assert _bands((5, 3), 10**6, band_samples=1) == [(i * 3, i * 3 + 3) for i in range(5)]  # one row at least
+    assert band_ranges((5, 3), 10**6, band_samples=1) == [
+        (i * 3, i * 3 + 3) for i in range(5)
+    ]  # one row at least
