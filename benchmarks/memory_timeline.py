@@ -6,7 +6,7 @@ truth's camera rays, each technique's set-up, each frame's truth, techniques, co
 
     python benchmarks/memory_timeline.py [--keep-samples N] -- SWEEP ARGS
 
-``--keep-samples``: override :data:`hzval.truth.plane.KEEP_SAMPLES` (e.g. 0, so that a 2048 sweep works in
+``--keep-samples``: override :data:`hzval.truth.samples.KEEP_SAMPLES` (e.g. 0, so that a 2048 sweep works in
 bands as a 4096 one does, to scale its figures by 4). Prints one line a stage: its start and end
 RSS and the highest RSS seen during it (GiB), and its seconds.
 """

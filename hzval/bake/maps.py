@@ -22,6 +22,7 @@ import numpy as np
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
 from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 from hzval.core.conventions import normal_map  # re-exported: the bake's first map
 from hzval.core.errors import InputError
 
@@ -231,11 +232,11 @@ def weight_cube(size: int | None = None) -> np.ndarray:
     at each texel's centre direction.
     """
     size = CUBE_SIZE if size is None else int(size)
-    d = cv.cube_texel_directions(size)
+    d = cube_layout.cube_texel_directions(size)
     w = cv.channel_weights(d[..., 0], d[..., 1])
     n = cv.CHANNELS_PER_LAYER
     signed = w[..., :n] - w[..., n:]
-    return cv.encode_signed_weight(signed)
+    return cube_layout.encode_signed_weight(signed)
 
 
 # --------------------------------------------------------------------------
@@ -356,7 +357,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         if full:
             exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
         if cube is not None:
-            for i, face in enumerate(cv.CUBE_FACES):
+            for i, face in enumerate(cube_layout.CUBE_FACES):
                 png(f"cube/{face}.png", np.asarray, cube[i])
         files.run_writers(jobs)
         timings = dict(result.timings, write_s=time.perf_counter() - t0)
@@ -391,7 +392,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         for ext in ("exr", "png")
     ] + ([] if full else ["ambient.exr"])
     if cube is None:
-        stale += [f"cube/{face}.png" for face in cv.CUBE_FACES]
+        stale += [f"cube/{face}.png" for face in cube_layout.CUBE_FACES]
     for name in stale:
         (Path(out) / name).unlink(missing_ok=True)
     if cube is None and (Path(out) / "cube").is_dir() and not any((Path(out) / "cube").iterdir()):

@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from hzval.commands import score
-    from hzval.pipeline import sweep
+    from hzval.pipeline import records
 
     gates = flags.gates(args)
     result, maps = score.score(args.frames, args.against)
@@ -39,6 +39,6 @@ def run(args) -> int:
     index = score.write(result, maps, out, command=command, force=args.force, gates=gates)
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
-    print(sweep.summary_table(result))
+    print(records.summary_table(result))
     print(f"report: {index}")
     return flags.gate_exit(result.get("gates", {}).get("failed", []))

@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep the scene of ``args``; print its table and one line of times. Exit 1 on a failed gate."""
-    from hzval.pipeline import sweep
+    from hzval.pipeline import records, sweep
 
     scene = scenes.scene_from_args(args)
     options = flags.sweep_options(args)
@@ -47,7 +47,7 @@ def run(args) -> int:
     )
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
-    print(sweep.summary_table(result))
+    print(records.summary_table(result))
     t = result["timings"]
     parts = [
         f"bake {t['bake_s']:.2f} s{', cached' if t['bake_cached'] else ''}",

@@ -80,7 +80,7 @@ from hzval.core.errors import InputError
 from hzval.io import files, paths
 from hzval.metrics import compare
 from hzval.pipeline import sweep
-from hzval.pipeline.sweep import frame_folder
+from hzval.pipeline.records import frame_folder
 from hzval.report import images
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique

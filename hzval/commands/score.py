@@ -3,7 +3,7 @@
 
 An engineer renders the sweep's frames with their own baker and shader,
 from what ``SWEEP_DIR/frames.json`` says (camera, light directions in
-tangent space, irradiance, exposure, image size; :func:`hzval.pipeline.sweep.engine_frames`),
+tangent space, irradiance, exposure, image size; :func:`hzval.pipeline.records.engine_frames`),
 one image per light named after the frame folders: ``az+0.exr`` (linear
 radiance, RGB or Y) or ``az-60.png`` (8- or 16-bit sRGB display values,
 ``display = srgb(clip(exposure * radiance))``, decoded back to radiance

@@ -520,9 +520,8 @@ def _run_dask(
 
     cluster = None
     # Dask's nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which turns off glibc's
-    # adaptive mmap threshold: every large NumPy temporary is mapped and unmapped afresh, and the
-    # comparisons and writing ran 1.4x slower (NumPy arithmetic 1.6x; the built-in suite took 434 s on
-    # one worker against 262 s in this process). Unset it, and give OpenMP the worker's threads.
+    # adaptive mmap threshold (every large NumPy temporary mapped afresh; benchmarks/README.md, "The
+    # built-in suite: workers on this machine"): unset it, and give OpenMP the worker's threads.
     threads = tasks[0].threads if tasks and tasks[0].threads else 1
     environ = {
         f"distributed.nanny.pre-spawn-environ.{k}": threads

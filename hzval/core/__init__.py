@@ -8,5 +8,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("backend", "conventions", "errors", "exports", "interrupts", "shading", "strict"),
+    ("backend", "conventions", "cube", "errors", "exports", "interrupts", "resources", "shading", "strict"),
 )

@@ -4,5 +4,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("sweep",),
+    ("records", "sweep", "writing"),
 )

@@ -25,7 +25,7 @@ Output folder::
                                           most 1024 px); with --all-files also plain.exr,
                                           <stem>.exr, visibility.png, <stem>_factor.png
 
-Frame files (:func:`_write_frame`): EXRs in half float, ZIP (2^-11 relative,
+Frame files (:func:`write_frame`): EXRs in half float, ZIP (2^-11 relative,
 below the previews' 8-bit quantisation; the metrics are computed before, in
 float32); an image whose R, G and B are equal (every one of a grey material
 under a white light) as one ``Y`` channel and a grey PNG, losslessly
@@ -56,7 +56,6 @@ import os
 import platform
 import sys
 import time
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +68,7 @@ from hzval.core.errors import InputError
 from hzval.io import files
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
-from hzval.report import images
+from hzval.pipeline import records, writing
 from hzval.report import pages as report
 from hzval.scene import camera, lookup
 from hzval.scene import spec as sc
@@ -83,10 +82,17 @@ from hzval.truth.memory import (
     truth_plan,
 )
 
-__all__ = ["Options", "run", "frame_folder", "summary_table", "peak_rss_bytes", "reset_peak_rss", "PNG_LEVEL"]
-
+__all__ = [
+    "SCHEMA_VERSION",
+    "Options",
+    "peak_rss_bytes",
+    "reset_peak_rss",
+    "set_up",
+    "truth_of",
+    "view_errors",
+    "run",
+]
 _BAKE_DEFAULTS = BakeParams()
-
 #: The layout of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"). 2: every technique's
 #: settings under ``techniques.NAME`` and its scores and files under ``frames[i].techniques.NAME``;
 #: 1 (no ``schema_version``) had the horizon map's at the top level too.
@@ -102,7 +108,7 @@ class Options:
     every technique that applies to the scene's effects; ``exclude`` leaves
     some out; ``settings``: per technique name, the keywords of its
     ``build`` (e.g. ``{"horizon": {"k": 4.0}, "pom": {"steps": 64}}``);
-    ``all_files``: write a frame's derived files too (:func:`_write_frame`).
+    ``all_files``: write a frame's derived files too (:func:`writing.write_frame`).
     """
 
     radius: int = _BAKE_DEFAULTS.radius
@@ -112,7 +118,7 @@ class Options:
     techniques: tuple[str, ...] | None = None
     exclude: tuple[str, ...] = ()
     settings: dict = dataclasses.field(default_factory=dict)
-    all_files: bool = False  # also the frame files that the others determine (_write_frame)
+    all_files: bool = False  # also the frame files that the others determine (writing.write_frame)
 
     def bake_params(self, scene) -> BakeParams:
         return BakeParams(
@@ -123,11 +129,6 @@ class Options:
             method=self.method,
             directions=self.directions,
         ).validate()
-
-
-def frame_folder(azimuth_deg: float) -> str:
-    """Folder name of a frame: ``az-60``, ``az+0``, ``az+7.5``."""
-    return f"az{azimuth_deg:+g}"
 
 
 def peak_rss_bytes() -> int:
@@ -382,24 +383,6 @@ def view_errors(the_truth, samples: lookup.Samples) -> tuple[dict, dict]:
     return record, maps
 
 
-def _write_view_maps(report_dir: Path, maps: dict, seen: np.ndarray) -> dict:
-    """``view/<name>.exr`` (texels, NaN where no surface is seen) and a PNG of each of the view's
-    maps (magma, 0 to the largest seen value, the unseen pixels in the background colour);
-    their paths relative to ``report_dir``."""
-    folder = report_dir / "view"
-    rel = {}
-    for name, values in maps.items():
-        v = np.where(seen, values, np.float32(np.nan)).astype(np.float32)
-        files.write_exr(folder / f"{name}.exr", {"Y": v}, half=False)
-        top = float(np.nanmax(v)) if np.isfinite(v).any() else 1.0
-        rgb = images.magma(np.nan_to_num(v / max(top, 1e-12)))
-        rgb[~seen] = files.unit_to_u8(np.asarray(UNSEEN_DISPLAY))
-        files.write_png(folder / f"{name}.png", rgb)
-        rel[name] = f"view/{name}.exr"
-        rel[f"{name}_png"] = f"view/{name}.png"
-    return rel
-
-
 def _spread(values: np.ndarray) -> dict:
     """Mean and quantiles of ``values`` (empty: nulls)."""
     if values.size == 0:
@@ -452,7 +435,7 @@ def _run(
     t_start = time.perf_counter()
     setup = set_up(scene, out, options, report_dir)
     if setup.view_maps:
-        setup.view["files"] = _write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
+        setup.view["files"] = writing.write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)
     clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(
@@ -483,105 +466,9 @@ def _run(
         "retains_freed": setup.retained,
         **_band_record(setup.truth),
     }
-    files.write_json(report_dir / "frames.json", engine_frames(scene, result, setup.albedo_constant))
+    files.write_json(report_dir / "frames.json", records.engine_frames(scene, result, setup.albedo_constant))
     files.write_json(report_dir / "metrics.json", result)
     return result
-
-
-def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> dict:
-    """``frames.json``: what an engine needs to render the sweep's frames itself, for ``hzval score``.
-
-    Per light: the frame's name (``az+0``: the file ``hzval score`` looks for, ``az+0.exr`` linear
-    or ``az+0.png`` sRGB, and ``f_az+0.exr`` its shadow factor F), azimuth and elevation, and ``L``
-    in tangent space (toward the light); for all: the camera, the light's kind, irradiance and
-    radiance, the albedo, the samples per pixel and the rule that places them, the display exposure
-    and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`)."""
-    m = result["material"]
-    return {
-        "format": "hzval engine frames 2",
-        "material": m,
-        "image_size": result["camera"]["resolution"],
-        "camera": result["camera"],
-        "light": {
-            "kind": scene.light.kind,
-            "radius_deg": scene.light.radius_deg,
-            "irradiance": scene.light.irradiance,
-            **_light_radiance(scene.light),
-        },
-        "exposure": result["exposure"]["scale"],
-        "effects": list(scene.effects),
-        **_engine_notes(scene, albedo_constant),
-        "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
-        "azimuth counterclockwise from +x; L points toward the light",
-        "frames": [
-            {
-                "name": frame_folder(f["azimuth_deg"]),
-                "azimuth_deg": f["azimuth_deg"],
-                "elevation_deg": f["elevation_deg"],
-                "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])],
-            }
-            for f in result["frames"]
-        ],
-    }
-
-
-def _light_radiance(light) -> dict:
-    """The light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
-    irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
-    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading")."""
-    if light.kind != "soft" or not light.radius_deg:
-        return {
-            "radiance": None,
-            "radiance_note": "a directional light: irradiance E on a surface facing it, "
-            "E cos(theta) on one at theta",
-        }
-    rho = math.radians(light.radius_deg)
-    return {
-        "radiance": light.irradiance / (math.pi * math.sin(rho) ** 2),
-        "radiance_note": "a disk of uniform radiance L = E / (pi sin^2 rho): a surface facing it receives E",
-    }
-
-
-def _engine_notes(scene, albedo_constant) -> dict:
-    """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
-    besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
-    too bright, FLIP 0.68)."""
-    if isinstance(albedo_constant, float):
-        albedo = {"kind": "constant", "linear": albedo_constant}
-    elif isinstance(scene.material.albedo, str):
-        albedo = {"kind": "image", "path": scene.material.albedo, "encoding": "sRGB, decoded to linear"}
-    else:
-        albedo = {"kind": "image", "note": "the built-in material's own albedo image"}
-    albedo["brdf"] = "Lambert: radiance = albedo / pi * E * max(N.L, 0) (with diffuse)"
-    spp = scene.spp
-    n = int(round(math.sqrt(spp)))
-    rule = (
-        "sample s of pixel p = row * width + col at (u, v) in the pixel, u = (s mod n + U) / n, "
-        f"v = (floor(s / n) + V) / n with n = {n} (jittered {n}x{n} strata)"
-        if n * n == spp
-        else "sample s of pixel p at (u, v) = (U, V) in the pixel (uniform)"
-    )
-    rule += (
-        "; U, V: doubles of numpy's PCG64(SeedSequence([seed, 0x5A3F])), all U of the image in order "
-        "p * spp + s, then all V; texel space x = (col + u) / supersampling, y = rows - (row + v) / "
-        "supersampling; a pixel is the mean of its samples (hzval.scene.camera.sample_positions)"
-    )
-    return {
-        "albedo": albedo,
-        "samples": {
-            "spp": spp,
-            "seed": scene.seed,
-            "supersampling": scene.camera.supersampling,
-            "layout": "stratified" if n * n == spp else "uniform",
-            "rule": rule,
-        },
-        "exposure_meaning": {
-            "exr": "linear radiance as rendered, before the exposure (hzval score reads it as it is)",
-            "png": "display values: srgb_encode(clip(exposure * radiance, 0, 1)), 8 or 16 bits (hzval score "
-            "decodes sRGB and divides by the exposure)",
-            "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)",
-        },
-    }
 
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
@@ -633,7 +520,7 @@ def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Re
     perfect = {}
     if mask is not None:
         # a view: what no camera ray sees is the background in every image, and left out of the metrics
-        bg = (cv.srgb_decode(np.asarray(UNSEEN_DISPLAY)) / scale).astype(np.float32)
+        bg = (cv.srgb_decode(np.asarray(writing.UNSEEN_DISPLAY)) / scale).astype(np.float32)
         t_frame, plain = _unseen(t_frame, mask, bg), _unseen(plain, mask, bg)
         rendered = [(t, _unseen(f, mask, bg)) for t, f in rendered]
         V = t_frame.layers.get("visibility")
@@ -663,16 +550,16 @@ def _finish(
         metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
         # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
         # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
-        compared.append((t, f, metrics, {"shown": _shown(maps["display"]), "flip": maps["flip"]}))
+        compared.append((t, f, metrics, {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}))
         del maps
     release()
     floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
-    truth_shown = _shown(ref.display)
+    truth_shown = writing.shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
-    rel, tech_files, seconds = _write_frame(
+    rel, tech_files, seconds = writing.write_frame(
         out,
-        frame_folder(az),
+        records.frame_folder(az),
         t_frame,
         r.plain,
         compared,
@@ -735,10 +622,6 @@ def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
                 per[t.name][key] = float(compare.visibility_metrics(V, F, mask)[0]) if mask.any() else None
 
 
-#: The display (sRGB) colour of pixels that see no surface (a view's sky, or off an ``open`` tile).
-UNSEEN_DISPLAY = (0.33, 0.42, 0.55)
-
-
 def _unseen(frame, mask: np.ndarray, background: np.ndarray):
     """``frame`` with ``background`` (linear) where ``mask`` is false and its layers 0 there."""
     image = np.where(mask[..., None], frame.image, background).astype(np.float32)
@@ -758,43 +641,6 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
         return None
     scores, _ = compare.image_metrics(ref, shading.compose(direct, V, ambient))
     return {k: _finite(v) for k, v in scores.items()}
-
-
-def _view_parameters(scene) -> dict:
-    """The camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
-    view with the default lookup, whose parameters are as they always were)."""
-    cam, lk = scene.camera, scene.lookup
-    if cam.kind == "top" and lk == lookup.Lookup():
-        return {}
-    out = {"camera": cam.kind}
-    if cam.kind != "top":
-        out.update(view_elevation_deg=cam.elevation_deg, view_azimuth_deg=cam.azimuth_deg)
-    if cam.kind == "perspective":
-        out.update(fov_deg=cam.fov_deg, distance_tiles=cam.distance)
-    out.update(plane=lk.plane, filter=lk.filter, parallax=lk.parallax)
-    if lk.mipmapped:
-        out["mips"] = lk.mips
-    if lk.filter == "anisotropic":
-        out["max_anisotropy"] = lk.max_anisotropy
-    if lk.parallax == "occlusion":
-        out["parallax_steps"] = lk.parallax_steps
-    return out
-
-
-def _mesh_parameters(scene, out: Path) -> dict:
-    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
-    file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere."""
-    from hzval.geometry import model
-
-    if scene.mesh.is_plane:
-        return {}
-    shape = scene.mesh.shape
-    return {
-        "mesh": shape if shape in model.SHAPES else files.report_path(shape, out),
-        "uv_scale": scene.mesh.uv_scale,
-        "up": scene.mesh.up,
-        "tangent_bug": scene.mesh.tangent_bug,
-    }
 
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict], out: Path) -> dict:
@@ -829,8 +675,8 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
             "seed": scene.seed,
             "supersampling": scene.camera.supersampling,
             "truth_tolerance": scene.material.truth_tolerance,
-            **_view_parameters(scene),
-            **_mesh_parameters(scene, out),
+            **records.view_parameters(scene),
+            **records.mesh_parameters(scene, out),
             "techniques": [t.name for t in setup.techniques],
         },
         "bake": {"contents": list(setup.bake_contents)},
@@ -853,206 +699,3 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
         + [w for w in (hzfacing.few_shadows_warning(frames),) if w],
         "frames": frames,
     }
-
-
-#: The frames' PNGs are written at zlib level 1: the renders' noise leaves zlib little to find, so a
-#: higher level saves under 2% of a frame's bytes for several times the time (commit 'PNGs at
-#: level 1' has the measurements).
-PNG_LEVEL = 1
-
-
-def _shown(display: np.ndarray) -> np.ndarray:
-    """A preview's 8-bit values of display values ``(H, W, 3)``: ``(H, W)`` where they are grey.
-
-    Grey display values are quantised once, not per channel: the same values, a third of the
-    work, and :func:`hzval.io.files.write_png` takes the ``(H, W)`` result as the grey PNG it would
-    have made of them."""
-    return files.unit_to_u8(display[..., 0] if files.is_grey(display) else display)
-
-
-def _write_frame(
-    out: Path,
-    name: str,
-    truth_frame,
-    plain,
-    compared: list,
-    scale: float,
-    truth_shown: np.ndarray | None = None,
-    all_files: bool = False,
-    mask: np.ndarray | None = None,
-) -> tuple[dict, dict, float]:
-    """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
-    ``{key: path relative to out}`` (``metrics.json``'s ``files``).
-
-    ``compared``: ``(technique, frame, metrics, maps)`` per technique; each
-    technique's files are named after its ``file_stem``: ``<stem>.exr``,
-    ``<stem>.png``, ``<stem>_factor.exr`` and ``.png``, ``<stem>_flip.png``,
-    ``<stem>_visdiff.png``. Previews reuse the 8-bit values of the display values
-    :func:`hzval.metrics.compare.compare` computed (``maps["shown"]``, ``truth_shown``: :func:`_shown`).
-
-    What is written: the truth (``truth.exr``, its variance, ``visibility.exr``), each technique's
-    ``F`` (``<stem>_factor.exr``), and the PNGs the report shows. The files that these determine
-    are written only with ``all_files`` (``--all-files``): ``plain.exr`` (the report shows
-    ``plain.png``), each technique's image ``<stem>.exr`` (``plain`` times ``F`` for the
-    techniques that shade through :class:`hzval.techniques.surface.Unshadowed`; ``<stem>.png`` shows it) and
-    the 8-bit PNGs of ``V`` and ``F`` (the EXRs hold them).
-
-    Formats, each chosen to lose nothing a reader needs (the metrics were computed in float32
-    before; docs/ARCHITECTURE.md, "metrics.json"): EXRs in half float, ZIP (2^-11 relative,
-    finer than the previews' 8 bits; the variance's smallest values are rounded far inside the
-    estimate's own relative error, sqrt(2 / (spp - 1))); an image with R == G == B as one ``Y``
-    channel and an 8-bit grey PNG (lossless); FLIP and visibility-difference maps as palette PNGs
-    (exact). ``mask``: the pixels a view's camera rays see; the layers' EXRs are NaN at the others.
-    """
-    t0 = time.perf_counter()
-    w = _FrameWriter(out / "frames" / name, f"frames/{name}", scale, mask)
-    rel = w.truth_files(truth_frame, plain, truth_shown, all_files)
-    V = truth_frame.layers.get("visibility")
-    per = {
-        t.name: w.technique_files(t.file_stem, frame, maps, V, all_files) for t, frame, _, maps in compared
-    }
-    # Ctrl-C (or a writer's error): no writer outlives this frame to put a file into the staging
-    # folder after run() has removed it
-    files.run_writers(w.jobs)
-    return rel, per, time.perf_counter() - t0
-
-
-class _FrameWriter:
-    """The writers of one frame's files (:func:`_write_frame`), queued to run on a thread per core:
-    the encoders release the GIL (2 cores: 0.55x the time)."""
-
-    def __init__(self, folder: Path, prefix: str, scale: float, mask: np.ndarray | None):
-        self.folder, self.prefix, self.scale, self.mask = folder, prefix, scale, mask
-        self.jobs: list = []
-
-    def exr(self, rel: dict, key: str, filename: str, channels) -> None:
-        self.jobs.append(partial(files.write_exr, self.folder / filename, channels, half=True, grey=True))
-        rel[key] = f"{self.prefix}/{filename}"
-
-    def png(self, rel: dict, key: str, filename: str, make, *args) -> None:
-        self.jobs.append(partial(_write_png_of, self.folder / filename, make, *args))
-        rel[key] = f"{self.prefix}/{filename}"
-
-    def shown(self, img, values=None):
-        # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
-        # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
-        return _shown(compare.display(img, self.scale)) if values is None else values
-
-    def layer(self, values):
-        return (
-            values
-            if self.mask is None
-            else np.where(self.mask, values, np.float32(np.nan)).astype(np.float32)
-        )
-
-    def truth_files(self, truth_frame, plain, truth_shown, all_files: bool) -> dict:
-        """The truth's and the unshadowed render's files."""
-        rel: dict = {}
-        self.exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
-        if all_files:
-            self.exr(rel, "plain", "plain.exr", {"RGB": plain.image})
-        if "image" in truth_frame.variance:
-            self.exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
-        self.png(rel, "truth_png", "truth.png", _as_is, self.shown(truth_frame.image, truth_shown))
-        self.png(rel, "plain_png", "plain.png", _as_is, self.shown(plain.image))
-        V = truth_frame.layers.get("visibility")
-        if V is not None:
-            self.exr(rel, "visibility", "visibility.exr", {"Y": self.layer(V)})
-            if all_files:
-                self.png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
-        return rel
-
-    def technique_files(self, stem: str, frame, maps: dict, V, all_files: bool) -> dict:
-        """One technique's files, named after its ``stem``."""
-        own: dict = {}
-        if all_files:
-            self.exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
-        self.png(own, "png", f"{stem}.png", _as_is, self.shown(frame.image, maps.get("shown")))
-        self.png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
-        F = frame.layers.get("factor")
-        if F is not None:
-            self.exr(own, "factor", f"{stem}_factor.exr", {"Y": self.layer(F)})
-            if all_files:
-                self.png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
-            if V is not None:
-                self.png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
-        return own
-
-
-def _as_is(pixels):
-    return pixels
-
-
-def _write_png_of(path: Path, make, *args) -> None:
-    """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
-    with the report's preview if it is large (:func:`hzval.io.files.write_png_with_preview`)."""
-    files.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True)
-
-
-def summary_table(result: dict) -> str:
-    """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
-    scores and time, then each other technique's |F-V|, FLIP and frame time, then the parts of each
-    technique's split of the error (``split_parts``, e.g. horizon-fit's bake_loss and representation).
-    The visibility columns are over the pixels that face the light where measured
-    (:mod:`hzval.metrics.facing`), as the report's, and a last line says so."""
-    names = list(result.get("techniques", {}))
-    facing = any(
-        "visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values()
-    )
-
-    def vis(t: dict, key: str):
-        return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
-
-    lead, others = (names[0], names[1:]) if names else (None, [])
-    head = ("azimuth",)
-    if lead:
-        head += (f"{lead} |F-V|", "leaks", "false sh.", f"{lead} FLIP", "dE2000", "PSNR dB")
-    head += ("truth s",) + ((f"{lead} s",) if lead else ())
-    for n in others:
-        head += (f"{n} |F-V|", f"{n} FLIP", f"{n} s")
-    # a technique's split of the error (Technique.split_parts), a column per part
-    splits = [
-        (n, p["key"])
-        for n in names
-        for p in result["techniques"][n].get("split_parts") or []
-        if any("split" in f.get("techniques", {}).get(n, {}) for f in result["frames"])
-    ]
-    head += tuple(f"{n} {key}" for n, key in splits)
-
-    def num(v, digits):
-        return "-" if v is None else f"{v:.{digits}f}"
-
-    def pct(v):
-        return "-" if v is None else f"{100 * v:.2f}%"
-
-    rows = []
-    for f in result["frames"]:
-        per = f.get("techniques", {})
-        row = (f"{f['azimuth_deg']:+g}",)
-        if lead:
-            t = per.get(lead, {})
-            row += (
-                num(vis(t, "visibility_mae"), 4),
-                pct(vis(t, "leak_fraction")),
-                pct(vis(t, "false_shadow_fraction")),
-                num(t.get("flip_mean"), 4),
-                num(t.get("delta_e2000_mean"), 3),
-                "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}",
-            )
-        row += (num(f.get("truth_s"), 3),) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
-        for n in others:
-            te = per.get(n, {})
-            row += (num(vis(te, "visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
-        row += tuple(num(per.get(n, {}).get("split", {}).get(key), 4) for n, key in splits)
-        rows.append(row)
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    note = (
-        [
-            "|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
-            "visibility_mae for the whole image)"
-        ]
-        if facing
-        else []
-    )
-    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows), *note])

@@ -6,7 +6,7 @@ always on in GL ES 3 and Vulkan). OpenGL 4.6, section 8.13.1 and 8.14.2:
 
 Face selection (table 8.19)
     the major axis ``ma`` of the direction ``r`` picks the face (ties here go
-    to x, then y, then z, as :func:`hzval.core.conventions.cube_lookup`; the spec
+    to x, then y, then z, as :func:`hzval.core.cube.cube_lookup`; the spec
     leaves ties to the implementation); ``s = (sc / |ma| + 1) / 2``, ``t =
     (tc / |ma| + 1) / 2``.
 Bilinear filtering
@@ -35,7 +35,7 @@ __all__ = ["FACE_AXES", "face_coordinates", "bilinear"]
 
 #: Per face (OpenGL order +x, -x, +y, -y, +z, -z): the direction of face coordinates ``(sc, tc)``
 #: as ``(major, s axis, t axis)``, each ``(component, sign)``: ``r = major + sc * s_axis + tc * t_axis``
-#: (the inverse of table 8.19; :func:`hzval.core.conventions.cube_texel_directions`).
+#: (the inverse of table 8.19; :func:`hzval.core.cube.cube_texel_directions`).
 FACE_AXES: tuple = (
     ((0, 1.0), (2, -1.0), (1, -1.0)),  # +x: sc = -rz, tc = -ry
     ((0, -1.0), (2, 1.0), (1, -1.0)),  # -x: sc = +rz, tc = -ry

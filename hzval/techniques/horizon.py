@@ -72,7 +72,7 @@ Two paths:
     Normal and albedo maps stay float on both paths, so the two paths differ
     only in the horizon technique. The 8-bit cube cannot store a zero weight
     (127.5): it stores 128, which decodes to a weight of ``1/255`` on layer 0
-    and to 0 on layer 1 (:func:`hzval.core.conventions.encode_signed_weight`).
+    and to 0 on layer 1 (:func:`hzval.core.cube.encode_signed_weight`).
 
     What the GPU path costs (``tests/techniques/test_horizon.py`` derives and asserts it
     per light): ``s_gpu - s_exact = sum w^ (h^ - h) + sum (w^ - w) h``, so

@@ -54,7 +54,7 @@ __all__ = [
 #: the memory available, the truth builds its mesh in bands (:func:`hzval.truth.memory.truth_plan`).
 PEAK_TARGET_BYTES = 16 * 2**30
 #: Texels added to each side of a band's cover: the cell that holds a sample on the band's edge, the
-#: samples moved off edge lines (:func:`hzval.truth.plane._off_edge_lines`, ulps) and float32's rounding.
+#: samples moved off edge lines (:func:`hzval.truth.samples.off_edge_lines`, ulps) and float32's rounding.
 PAD_TEXELS = 2.0
 
 
@@ -119,7 +119,7 @@ def cover_runs(g: meshes.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) 
 
 
 def group_bands(bands: list[tuple[int, int]], cols: int, band_rows: int) -> list[list[int]]:
-    """The truth's sample bands (:func:`hzval.truth.plane.bands`: pixel index ranges of whole rows, ``cols``
+    """The truth's sample bands (:func:`hzval.truth.samples.bands`: pixel index ranges of whole rows, ``cols``
     pixels a row) in consecutive groups of at most ``band_rows`` pixel rows (at least one band): the
     bands that share a mesh."""
     groups: list[list[int]] = []

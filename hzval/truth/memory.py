@@ -51,7 +51,7 @@ __all__ = [
 #: A sweep's peak memory: a base, a cost per pixel (images, comparisons), one per triangle of the
 #: truth's mesh (its faces, vertices and Embree's BVH), one per sample for the techniques (the shared
 #: uv, terrain's xy, the positions while they are set up) and one per sample the truth keeps between
-#: frames (its hits: every sample up to hzval.truth.plane.KEEP_SAMPLES, one band's beyond). Fitted to the
+#: frames (its hits: every sample up to hzval.truth.samples.KEEP_SAMPLES, one band's beyond). Fitted to the
 #: peaks measured on this machine (``python benchmarks/bench_production.py``; docs/truth-surface.md, "Cost").
 PEAK_BASE_BYTES = 0.3 * 2**30
 PEAK_BYTES_PER_PIXEL = 325
@@ -82,7 +82,7 @@ def estimate_peak_bytes(
     in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
     (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
     ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
-    samples' camera hits (default :func:`hzval.truth.plane.keeps_samples`; a mesh in bands keeps none)."""
+    samples' camera hits (default :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
     if triangles is None:

@@ -22,11 +22,11 @@ The truth
     same point. ``V`` = 1 where the ray toward ``L`` escapes the displaced
     mesh; 0 where ``n_g.L <= 0`` or ``n.L <= 0`` (the base surface's own
     horizon, as the plane's ``L.z <= 0``). Rays start at the hit lifted along
-    ``n`` by :data:`hzval.truth.plane.LIFT_TEXELS` texels (the displaced surface is
+    ``n`` by :data:`hzval.truth.common.LIFT_TEXELS` texels (the displaced surface is
     a height field over the base surface along ``n``). ``reflection_occlusion``
     is the plane's ``R`` (:meth:`hzval.truth.plane.Truth._trace_reflection`, its
-    functions :func:`hzval.truth.plane.lobe_sample` and
-    :func:`hzval.truth.plane.reflection_estimate`) per camera-ray hit: the glossy
+    functions :func:`hzval.truth.common.lobe_sample` and
+    :func:`hzval.truth.common.reflection_estimate`) per camera-ray hit: the glossy
     lobe about the shading normal, seen from the sample's own ``v`` (toward
     the camera: per pixel in perspective), its directions traced against the
     displaced model, blocked where ``n_g.wo <= 0`` or ``n.wo <= 0``; once,
@@ -496,7 +496,7 @@ class ModelTruth:
 
     def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
         """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
-        (:func:`hzval.truth.plane.mean_and_variance`), ``(H, W[, 3])`` float32 each."""
+        (:func:`hzval.truth.common.mean_and_variance`), ``(H, W[, 3])`` float32 each."""
         spp, (H, W) = self.spp, self.shape
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
         if img is not None:

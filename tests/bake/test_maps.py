@@ -11,6 +11,7 @@ import pytest
 
 import hzval.bake as B
 from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 
 DEFAULT = B.BakeParams()
 
@@ -132,7 +133,7 @@ def test_weight_cube_decodes_to_the_exact_weights():
     f = cube / 255.0
     w0 = np.clip(2 * f - 1, 0, 1)  # Lengyel eq. 5.3
     w1 = np.clip(1 - 2 * f, 0, 1)
-    d = cv.cube_texel_directions(16)
+    d = cube_layout.cube_texel_directions(16)
     exact = cv.channel_weights(d[..., 0], d[..., 1])
     decoded = np.concatenate([w0, w1], axis=-1)
     assert np.abs(decoded - exact).max() <= 1 / 255 + 1e-9

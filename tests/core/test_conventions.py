@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 
 
 def test_texel_centres_row_zero_is_top():
@@ -63,8 +64,8 @@ def test_channel_weights_interpolate_linearly_in_azimuth():
 
 
 def test_cube_lookup_inverts_texel_directions():
-    d = cv.cube_texel_directions(16)
-    face, s, t = cv.cube_lookup(d)
+    d = cube_layout.cube_texel_directions(16)
+    face, s, t = cube_layout.cube_lookup(d)
     assert (face == np.arange(6)[:, None, None]).all()
     centres = (np.arange(16) + 0.5) / 16
     assert np.allclose(s, centres[None, None, :]) and np.allclose(t, centres[None, :, None])
@@ -72,13 +73,13 @@ def test_cube_lookup_inverts_texel_directions():
 
 def test_cube_faces_follow_opengl():
     # OpenGL table 8.19: +z face, s grows with +x, t grows with -y
-    face, s, t = cv.cube_lookup(np.array([[0.5, 0.0, 1.0], [0.0, 0.5, 1.0]]))
+    face, s, t = cube_layout.cube_lookup(np.array([[0.5, 0.0, 1.0], [0.0, 0.5, 1.0]]))
     assert list(face) == [4, 4]
     assert s[0] > 0.5 and t[1] < 0.5
 
 
 def test_signed_weight_encoding():
-    enc = cv.encode_signed_weight(np.array([-1.0, 0.0, 1.0]))
+    enc = cube_layout.encode_signed_weight(np.array([-1.0, 0.0, 1.0]))
     assert list(enc) == [0, 128, 255]
     # decoding zero with the shader's max(2f - 1, 0) leaks exactly 1/255 onto layer 0
     assert 2 * int(enc[1]) / 255 - 1 == pytest.approx(1 / 255)

@@ -12,14 +12,14 @@ import functools
 
 import numpy as np
 
-from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 
 
 @functools.lru_cache(maxsize=4)
 def padded_faces(cube_bytes: bytes, n: int) -> np.ndarray:
     """``(6, n + 2, n + 2, 4)`` float64: every face with its one-texel border from its neighbours."""
     cube = np.frombuffer(cube_bytes, np.float64).reshape(6, n, n, 4)
-    centres = cv.cube_texel_directions(n).reshape(-1, 3)
+    centres = cube_layout.cube_texel_directions(n).reshape(-1, 3)
     centres = centres / np.linalg.norm(centres, axis=-1, keepdims=True)
     flat = cube.reshape(-1, 4)
     c = (np.arange(-1, n + 1) + 0.5) / n * 2.0 - 1.0
@@ -49,7 +49,7 @@ def seamless_bilinear(cube: np.ndarray, d) -> np.ndarray:
     """The seamlessly filtered texel ``(4,)`` of ``cube`` ``(6, n, n, 4)`` toward the direction ``d``."""
     n = cube.shape[1]
     pad = padded_faces(np.ascontiguousarray(cube, np.float64).tobytes(), n)
-    face, s, t = cv.cube_lookup(np.asarray(d, np.float64))
+    face, s, t = cube_layout.cube_lookup(np.asarray(d, np.float64))
     u, v = float(s) * n - 0.5 + 1.0, float(t) * n - 0.5 + 1.0  # in the padded face
     i, j = min(int(np.floor(u)), n), min(int(np.floor(v)), n)
     a, b = u - i, v - j

@@ -12,7 +12,9 @@ import pytest
 from hzval.cli import main as cli
 from hzval.core import resources
 from hzval.io import files
+from hzval.pipeline import records as pipeline_records
 from hzval.pipeline import sweep
+from hzval.pipeline import writing as pipeline_writing
 from hzval.techniques import registry as technique
 from hzval.truth import memory
 
@@ -40,7 +42,7 @@ SCORES = {
     "files",
 }
 FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
-#: What only --all-files adds (sweep._write_frame): files the others determine.
+#: What only --all-files adds (pipeline_writing.write_frame): files the others determine.
 DERIVED_FILES = {"plain", "visibility_png"}
 
 
@@ -125,7 +127,7 @@ def test_second_run_reuses_the_bake(variant, bricks_sweep):
 
 def test_summary_table_lists_every_frame(bricks_sweep):
     _, m, _ = bricks_sweep
-    table = sweep.summary_table(m).splitlines()
+    table = pipeline_records.summary_table(m).splitlines()
     assert len(table) == 2 + len(m["frames"]) + 1  # and the line that says what |F-V| is over
     assert table[2].split()[0] == "-15" and table[-2].split()[0] == "+15"
     assert table[-1].startswith("|F-V|, leaks and false shadows over the pixels that face the light")
@@ -267,7 +269,7 @@ def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, na
     html = (out / "index.html").read_text()
     assert f"{name} |F−V|" in html and f"{stem}_visdiff.png" in html and f"{stem}.png" in html
     assert m["techniques"][name]["label"] in html
-    head = sweep.summary_table(m).splitlines()[0]
+    head = pipeline_records.summary_table(m).splitlines()[0]
     assert f"{name} |F-V|" in head
     assert m["timings"][f"{stem}_s"] > 0
 
@@ -361,7 +363,7 @@ def test_no_terrain_leaves_it_out(variant, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert "terrain" not in m["frames"][0]["techniques"] and "terrain" not in m["simulated"]
     assert not (out / "frames" / "az+0" / "terrain.png").exists()
-    assert "terrain |F-V|" not in sweep.summary_table(m)
+    assert "terrain |F-V|" not in pipeline_records.summary_table(m)
 
 
 def test_techniques_selects_and_orders(variant, tmp_path):
@@ -623,10 +625,9 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
     import time as _time
 
     from hzval.cli import main as cli
-    from hzval.pipeline import sweep as sw
 
     out = tmp_path / "out"
-    real_png, real_result = sw._write_png_of, concurrent.futures.Future.result
+    real_png, real_result = pipeline_writing._write_png_of, concurrent.futures.Future.result
     fired = threading.Event()
 
     def slow_png(path, make, *args):
@@ -639,7 +640,7 @@ def test_ctrl_c_while_frames_are_written_leaves_no_staged_file(variant, tmp_path
             raise KeyboardInterrupt  # ... when Ctrl-C reaches the main thread
         return real_result(self, timeout)
 
-    monkeypatch.setattr(sw, "_write_png_of", slow_png)
+    monkeypatch.setattr(pipeline_writing, "_write_png_of", slow_png)
     monkeypatch.setattr(concurrent.futures.Future, "result", result)
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 130
     assert fired.is_set()

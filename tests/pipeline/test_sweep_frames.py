@@ -12,7 +12,7 @@ import pytest
 from hzval.cli import main as cli
 from hzval.io import files
 from hzval.metrics import compare
-from hzval.pipeline import sweep
+from hzval.pipeline import writing as pipeline_writing
 from tests.io.test_files_frames import exr_layout, png_mode_and_rgb
 from tests.report.test_images import magma_as_before, visdiff_as_before
 
@@ -23,7 +23,7 @@ RNG = np.random.default_rng(7)
 
 
 def synthetic_frame(size=32, grey=True):
-    """What sweep._write_frame is given: truth and unshadowed frames, one technique's, compared."""
+    """What pipeline_writing.write_frame is given: truth and unshadowed frames, one technique's, compared."""
     ns = types.SimpleNamespace
 
     def render():
@@ -41,7 +41,9 @@ def synthetic_frame(size=32, grey=True):
 @pytest.mark.parametrize("grey", [True, False])
 def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
     truth, plain, compared = synthetic_frame(grey=grey)
-    rel, per, seconds = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0, all_files=True)
+    rel, per, seconds = pipeline_writing.write_frame(
+        tmp_path, "az+0", truth, plain, compared, 4.0, all_files=True
+    )
     assert seconds > 0 and per["horizon"]["flip_png"] == "frames/az+0/horizon_flip.png"
     layout = {k: exr_layout(tmp_path / p) for k, p in {**rel, **per["horizon"]}.items() if p.endswith(".exr")}
     colour = {"Y"} if grey else {"R", "G", "B"}
@@ -110,7 +112,7 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
 def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
     """Without --all-files: no plain.exr, technique image EXR or V/F PNG; the rest as with it."""
     truth, plain, compared = synthetic_frame(grey=False)
-    rel, per, _ = sweep._write_frame(tmp_path, "az+0", truth, plain, compared, 4.0)
+    rel, per, _ = pipeline_writing.write_frame(tmp_path, "az+0", truth, plain, compared, 4.0)
     assert set(rel) == {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
     assert set(per["horizon"]) == {"png", "flip_png", "factor", "visdiff_png"}
     written = {p.name for p in (tmp_path / "frames" / "az+0").iterdir()}

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hzval.bake.maps import CUBE_SIZE, weight_cube
-from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 from tests.oracles.cube_reference import seamless_bilinear
 
 CUBE = weight_cube(CUBE_SIZE).astype(np.float64) / 255.0
@@ -74,7 +74,7 @@ def test_the_filter_is_continuous_across_every_seam(variant):
 def test_inside_a_face_it_is_plain_bilinear(variant):
     # at a texel centre it returns that texel; midway between two it is their mean
     n = CUBE_SIZE
-    d = cv.cube_texel_directions(n)
+    d = cube_layout.cube_texel_directions(n)
     got = evaluate(d.reshape(-1, 3).astype(np.float32))
     assert np.abs(got - CUBE.reshape(-1, 4)).max() <= 1e-6
     mid = (d[4, 3, 5] + d[4, 3, 6]) / 2

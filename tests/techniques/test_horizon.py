@@ -2,7 +2,7 @@
 
 Every expected value here is computed independently of the kernels: with
 NumPy from the conventions (bilinear filtering between texel centres, the
-weight cube map through hzval.core.conventions.cube_lookup) or from geometry whose
+weight cube map through hzval.core.cube.cube_lookup) or from geometry whose
 horizon is known in closed form.
 """
 
@@ -14,6 +14,7 @@ import pytest
 
 import hzval.bake as B
 from hzval.core import conventions as cv
+from hzval.core import cube as cube_layout
 from hzval.core.errors import InputError
 from hzval.materials import bricks as brick_wall
 from hzval.scene import camera as hz_camera
@@ -310,7 +311,7 @@ def test_zero_weight_leaks_one_255th_on_layer_0_only(channel_blocks):
     # storable; it rounds to 128 = 0x80, which Listing 5.1 decodes as
     # clamp(2 * 128/255 - 1) = 1/255 on layer 0 and clamp(1 - 2 * 128/255) = 0
     # on layer 1.
-    assert int(cv.encode_signed_weight(np.array(0.0))) == 128
+    assert int(cube_layout.encode_signed_weight(np.array(0.0))) == 128
     leak0, leak1 = max(2 * 128 / 255 - 1, 0), max(1 - 2 * 128 / 255, 0)
     assert (leak0, leak1) == (pytest.approx(1 / 255, abs=1e-15), 0)
     apps, x, y = channel_blocks

@@ -12,6 +12,7 @@ import copy
 
 import pytest
 
+from hzval.pipeline import records as pipeline_records
 from hzval.pipeline import sweep
 from hzval.report import columns as report_columns
 from hzval.report import plots as report_plots
@@ -48,7 +49,7 @@ def test_the_report_shows_the_split_per_frame(split_sweep):
 
 def test_the_terminal_table_has_the_split(split_sweep):
     _, m = split_sweep
-    text = sweep.summary_table(m)
+    text = pipeline_records.summary_table(m)
     head, _, *rows = text.splitlines()
     assert "horizon-fit bake_loss" in head and "horizon-fit representation" in head
     rows = [r for r in rows if r.strip()[:1] in "+-0123456789"]  # the frames, not the table's note
@@ -103,4 +104,4 @@ def test_no_split_without_its_parts(split_sweep):
     assert report_plots.split_views(m, views) == []
     for f in m["frames"]:
         f["techniques"].pop("horizon-fit")
-    assert "bake_loss" not in sweep.summary_table(m)
+    assert "bake_loss" not in pipeline_records.summary_table(m)
