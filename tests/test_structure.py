@@ -226,7 +226,17 @@ def underscore_uses(root: Path) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("folder", ["hzval", "benchmarks", "studies"])
+#: Every folder of Python code beside the tests: the package and the scripts that use it.
+CODE_FOLDERS = sorted(
+    p.name for p in PACKAGE.parent.iterdir() if p.is_dir() and p.name != "tests" and any(p.rglob("*.py"))
+)
+
+
+def test_the_code_folders_are_found():
+    assert "hzval" in CODE_FOLDERS and len(CODE_FOLDERS) >= 3
+
+
+@pytest.mark.parametrize("folder", CODE_FOLDERS)
 def test_nothing_reaches_into_another_modules_underscore_names(folder):
     assert underscore_uses(PACKAGE.parent / folder) == []
 
@@ -234,3 +244,15 @@ def test_nothing_reaches_into_another_modules_underscore_names(folder):
 def test_the_underscore_check_finds_one(tmp_path):
     (tmp_path / "m.py").write_text("from hzval.truth import plane\nplane._bands(1, 2, 3)\n")
     assert underscore_uses(tmp_path) == ["m.py:2: plane._bands"]
+
+
+def test_pages_are_rendered_by_jinja_templates_only():
+    """HTML lives in hzval/report/templates; no module writes markup of its own."""
+    markup = ("<!doctype", "<html", "<table", "<tr>", "<td", "<h1", "<h2")
+    found = [
+        f"{p.relative_to(PACKAGE)}: {m}"
+        for p in sorted(PACKAGE.rglob("*.py"))
+        for m in markup
+        if m in p.read_text().lower()
+    ]
+    assert found == []

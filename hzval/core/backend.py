@@ -81,9 +81,15 @@ _requested: str | None = None
 
 
 def request(name: str | None) -> None:
-    """The variant :func:`variant` is to select when it is first called (the command line's
-    ``--variant``), without initialising Dr.Jit now: a command that fails on its input first never
-    starts a backend."""
+    """Name the variant :func:`variant` is to select when it is first called, without starting Dr.Jit.
+
+    A command that fails on its input first then never starts a backend.
+
+    Parameters
+    ----------
+    name : str or None
+        A Mitsuba variant (the command line's ``--variant``), or ``None`` for the default choice.
+    """
     global _requested
     _requested = name
 
@@ -127,10 +133,23 @@ def check_llvm() -> tuple[int, int, int]:
 
 
 def variant(requested: str | None = None) -> str:
-    """Select (once) and return the Mitsuba variant that hzval renders with.
+    """Select (once a process) and return the Mitsuba variant hzval renders with.
 
-    ``requested`` or ``$HZVAL_VARIANT`` picks one explicitly; otherwise CUDA
-    if Dr.Jit sees a device, else LLVM. The LLVM library is checked first.
+    Parameters
+    ----------
+    requested : str, optional
+        A variant to use; else :func:`request`'s, else ``$HZVAL_VARIANT``, else CUDA where Dr.Jit sees
+        a device and LLVM otherwise. The LLVM library is checked first.
+
+    Returns
+    -------
+    str
+        The variant's name (``llvm_ad_rgb``, ``cuda_ad_rgb``, ...).
+
+    Raises
+    ------
+    hzval.core.errors.EnvironmentProblem
+        When the variant cannot be set up on this machine, with what to do.
     """
     global _chosen
     import drjit as dr
@@ -258,8 +277,18 @@ _pools: dict = {}
 
 
 def host_pool(workers: int | None = None):
-    """A ``concurrent.futures.ThreadPoolExecutor`` of ``workers`` threads (default
-    :func:`host_cores`), made once per process and size."""
+    """The process's thread pool for host-side work (NumPy and colour-science release the GIL).
+
+    Parameters
+    ----------
+    workers : int, optional
+        Threads (default :func:`host_cores`).
+
+    Returns
+    -------
+    concurrent.futures.ThreadPoolExecutor
+        Made once per process and size, then reused.
+    """
     from concurrent.futures import ThreadPoolExecutor
 
     n = max(1, int(workers or host_cores()))

@@ -34,9 +34,27 @@ def _nearest(key: str, known) -> str:
 
 
 def check_keys(table: Mapping, known, path: str | os.PathLike, where: str = "") -> None:
-    """Refuse a key of ``table`` not in ``known``: ``unknown key 'x' in [where]; did you mean 'y'?``
-    (``where`` empty: the file's top level, whose keys and tables are named as such). A ``table``
-    that is not a table at all is refused the same way."""
+    """Refuse a key of ``table`` that ``known`` does not hold, with the nearest known name.
+
+    ``unknown key 'dpeth' in [material]; did you mean 'depth'?`` (:func:`difflib.get_close_matches`);
+    at the top level (``where`` empty) an unknown table is named as a table.
+
+    Parameters
+    ----------
+    table : Mapping
+        The TOML table as read.
+    known : Mapping or collection of str
+        Its allowed keys (a schema, :func:`schema_of`).
+    path : str or path-like
+        The file, named first in the error.
+    where : str
+        The table's name (``material``), or empty for the file's top level.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For an unknown key, or a ``table`` that is not a table.
+    """
     if not isinstance(table, Mapping):
         raise InputError(path, f"[{where}] must be a table, got {table!r:.40}" if where else "is not a table")
     for key, value in table.items():
@@ -54,7 +72,23 @@ def check_keys(table: Mapping, known, path: str | os.PathLike, where: str = "") 
 
 
 def describe(hint) -> str:
-    """A type hint in words: ``an integer``, ``a number``, ``a list of 2 integers``, ..."""
+    """A type hint in words, for error messages.
+
+    Parameters
+    ----------
+    hint : type or typing hint
+        ``int``, ``float``, ``str``, ``bool``, ``tuple[T, ...]``, ``tuple[T, T]`` or a union of these.
+
+    Returns
+    -------
+    str
+        ``"an integer"``, ``"a number"``, ``"a list of 2 integers"``, ...
+
+    Examples
+    --------
+    >>> describe(int), describe(tuple[float, ...]), describe(str | None)
+    ('an integer', 'a list of numbers', 'a string')
+    """
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         return " or ".join(describe(a) for a in args if a is not type(None))
@@ -97,20 +131,74 @@ def _matches(value, hint) -> bool:
 
 
 def check_value(value, hint, path: str | os.PathLike, name: str) -> None:
-    """Refuse ``value`` unless it is of type ``hint``: ``name must be <type>, got <value>``."""
+    """Refuse ``value`` unless it is of type ``hint``, nothing coerced (``2.7`` is not an integer).
+
+    Parameters
+    ----------
+    value : object
+        The value as TOML read it.
+    hint : type or typing hint
+        Its field's type (:func:`describe` lists the kinds).
+    path : str or path-like
+        The file, named first in the error.
+    name : str
+        The key, as the error names it (``samples.spp``).
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        ``samples.spp must be an integer, got 2.7``.
+    """
     if not _matches(value, hint):
         raise InputError(path, f"{name} must be {describe(hint)}, got {value!r}")
 
 
 def schema_of(cls, rename: Mapping[str, str] | None = None, drop=()) -> dict:
-    """``{key: type hint}`` of a dataclass's fields (``rename``: a field's key in the file)."""
+    """The keys a TOML table may hold, from the dataclass it fills.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass.
+    rename : Mapping of str to str, optional
+        A field's key in the file, where it differs from the field's name.
+    drop : collection of str
+        Fields the file does not set.
+
+    Returns
+    -------
+    dict
+        ``{key: type hint}``.
+    """
     hints = typing.get_type_hints(cls)
     rename = dict(rename or {})
     return {rename.get(f.name, f.name): hints[f.name] for f in dataclasses.fields(cls) if f.name not in drop}
 
 
 def check_table(table, schema: Mapping, path: str | os.PathLike, where: str) -> dict:
-    """``table`` (a TOML table ``[where]``) if its keys are the schema's and its values of their types."""
+    """Check a TOML table against a schema: only its keys (:func:`check_keys`), each of its type.
+
+    Parameters
+    ----------
+    table : object
+        The table as read.
+    schema : Mapping
+        ``{key: type hint}`` (:func:`schema_of`).
+    path : str or path-like
+        The file, named first in errors.
+    where : str
+        The table's name, or empty for the top level.
+
+    Returns
+    -------
+    dict
+        ``table``, unchanged.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For a table that is not a table, an unknown key or a value of another type.
+    """
     if not isinstance(table, dict):
         raise InputError(path, f"{where} must be a table ([{where}]), got {table!r}")
     check_keys(table, schema, path, where)

@@ -57,8 +57,27 @@ SLIPS = {
 
 
 def diagnose(engine: np.ndarray, truth: np.ndarray, exposure: float, png: bool = False) -> dict | None:
-    """``{slip, line, error, own_error, ratio}`` when a slip of :data:`SLIPS` explains the engine's
-    frame ``(H, W, 3)`` (linear) against the truth's, else ``None`` (module docstring)."""
+    """Which brightness slip of :data:`SLIPS` explains an engine's frame, if one does.
+
+    The engine's and the truth's exposed values are compared as they are and with each slip applied
+    to the truth; a slip is named when it explains the frame at least 1 / :data:`BETTER` times better
+    than no slip, and the frame differs noticeably (:data:`NOTICEABLE`).
+
+    Parameters
+    ----------
+    engine, truth : numpy.ndarray
+        ``(H, W, 3)`` linear radiance of one light.
+    exposure : float
+        The sweep's exposure (:func:`hzval.core.shading.exposure`).
+    png : bool
+        Whether the engine's frame was read from a PNG (the sRGB slips then say so).
+
+    Returns
+    -------
+    dict or None
+        ``{slip, line, error, own_error, ratio}``: the slip, its one-line diagnosis, the mean absolute
+        error with it and without, and their ratio; ``None`` when no slip explains the frame.
+    """
     e = np.clip(np.asarray(engine, np.float64) * exposure, 0.0, None)
     x = np.clip(np.asarray(truth, np.float64) * exposure, 0.0, 1.0)
     own = float(np.mean(np.abs(e - x)))

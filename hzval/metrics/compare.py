@@ -93,10 +93,24 @@ class FrameMetrics:
 
 
 def display(image: np.ndarray, scale: float) -> np.ndarray:
-    """Linear radiance ``(H, W[, 3])`` to sRGB-encoded display values in [0, 1], ``(H, W, 3)`` float64:
-    ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.conventions.srgb_encode`), in one
-    float64 Dr.Jit kernel over every value (0.1 s against 2.5 s through colour-science at 2048 x
-    2048 x 3, within 4e-16 of it)."""
+    """Linear radiance to sRGB-encoded display values, as a viewer shows them.
+
+    ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.conventions.srgb_encode`, IEC
+    61966-2-1), in one float64 Dr.Jit kernel over every value; it matches colour-science's
+    ``cctf_encoding`` to 4e-16 (``benchmarks/bench_compare.py`` has the timings).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        Linear radiance, ``(H, W)`` (grey) or ``(H, W, 3)``.
+    scale : float
+        The exposure (:func:`hzval.core.shading.exposure`): radiance times ``scale`` is 1 at white.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W, 3)`` float64 display values in [0, 1]; a grey image is repeated on the three channels.
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -113,9 +127,30 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
 def visibility_metrics(
     V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None
 ) -> tuple[float, float, float]:
-    """``(mean |F - V|, leak fraction, false-shadow fraction)`` of two ``(H, W)`` layers, over the
-    pixels of ``mask`` (those that see the surface; ``None``: all): one float64 Dr.Jit kernel and its
-    sums (the counts exact; the mean as NumPy's to 1e-15)."""
+    """The visibility scores of a technique's shadow factor against the truth's visibility.
+
+    A pixel is lit where its value is at least :data:`LIT_THRESHOLD`; one float64 Dr.Jit kernel
+    computes the three sums (the counts exact, the mean NumPy's to 1e-15).
+
+    Parameters
+    ----------
+    V, F : numpy.ndarray
+        ``(H, W)`` truth visibility and technique factor, in [0, 1].
+    mask : numpy.ndarray, optional
+        ``(H, W)`` bool, the pixels that see the surface; ``None``: all.
+
+    Returns
+    -------
+    tuple of float
+        ``(mean |F - V|, leak fraction, false-shadow fraction)``: leaks are lit by the technique where
+        the truth is shadowed, false shadows the reverse, each a fraction of the counted pixels; NaN
+        where no pixel is counted.
+
+    Raises
+    ------
+    hzval.core.errors.HzvalError
+        When ``V`` and ``F`` differ in shape.
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -144,11 +179,29 @@ def visibility_metrics(
 
 
 def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:
-    """FLIP error map ``(H, W)`` float32 and its mean, for sRGB display values in [0, 1]
-    (:mod:`hzval.metrics.flip`, LDR, :data:`FLIP_PPD`); :class:`Reference` keeps the reference's half
-    for several test images (:func:`hzval.metrics.flip.flip_error`).
+    """The FLIP error (Andersson et al. 2020, LDR) of a test image against a reference.
 
-    Images of different sizes, or not ``(H, W, 3)``, are an :class:`~hzval.core.errors.HzvalError`.
+    Parameters
+    ----------
+    reference_display, test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1] (:func:`display`).
+
+    Returns
+    -------
+    error : numpy.ndarray
+        ``(H, W)`` float32 per-pixel FLIP, in [0, 1].
+    mean : float
+        Its mean.
+
+    Raises
+    ------
+    hzval.core.errors.HzvalError
+        For images of different sizes or not ``(H, W, 3)``.
+
+    Notes
+    -----
+    :mod:`hzval.metrics.flip` at :data:`FLIP_PPD` pixels per degree; :class:`Reference` keeps the
+    reference's half for several test images (:func:`flip_error`).
     """
     from hzval.metrics import flip as F
 
@@ -160,11 +213,24 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
 
 def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:
     """:func:`flip` through NVIDIA's ``flip-evaluator`` package, the implementation
-    :mod:`hzval.metrics.flip` is validated against (the tests and ``benchmarks/bench_compare.py``).
+    :mod:`hzval.metrics.flip` is validated against (the tests, ``benchmarks/bench_compare.py``).
 
-    ``flip-evaluator``'s Python wrapper calls ``sys.exit`` on some bad
-    arguments and raises ``RuntimeError`` on others; both become an
-    :class:`~hzval.core.errors.HzvalError` here rather than ending the process.
+    Parameters
+    ----------
+    reference_display, test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+
+    Returns
+    -------
+    error : numpy.ndarray
+        ``(H, W)`` float32 per-pixel FLIP.
+    mean : float
+        Its mean, as the package computes it.
+
+    Raises
+    ------
+    hzval.core.errors.HzvalError
+        Where the package's wrapper would exit the process (``sys.exit``) or raises ``RuntimeError``.
     """
     import flip_evaluator
 
@@ -192,13 +258,23 @@ PARALLEL_MIN_ROWS = 64
 
 
 def by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
-    """``fn(*arrays)`` for a per-pixel ``fn``, computed in row blocks on a thread per core.
+    """``fn(*arrays)`` of a per-pixel ``fn``, computed in row blocks on a thread per core.
 
-    NumPy expressions (and colour-science's) release the GIL, on one core
-    each: on the 2-core machine two blocks at once take 0.57x the time of the
-    whole image in one (512 x 512 random images, colour-science's CIEDE2000
-    with both Lab conversions: 0.27 s against 0.47 s). The values are bit for
-    bit those of one call.
+    NumPy's and colour-science's expressions release the GIL, so blocks run at once on the host's
+    cores; the result is bit for bit that of one call (``benchmarks/bench_compare.py`` has the
+    speed-up). Images of fewer than ``2 * PARALLEL_MIN_ROWS`` rows are computed in one call.
+
+    Parameters
+    ----------
+    fn : callable
+        A function of arrays whose first axis is the image's rows, with no dependence between rows.
+    *arrays : numpy.ndarray
+        Its arguments, all with the same number of rows.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``fn``'s result, the blocks concatenated along the rows.
     """
     from hzval.core import backend
 
@@ -345,8 +421,19 @@ class LabImage:
 
 
 def lab(display_rgb: np.ndarray) -> np.ndarray:
-    """CIELAB (D65), ``(H, W, 3)`` float64, of sRGB display values, as :func:`delta_e2000` computes it
-    (colour-science's ``XYZ_to_Lab(sRGB_to_XYZ(rgb))`` to within 1e-12)."""
+    """CIELAB (D65) of sRGB display values, as :func:`delta_e2000` computes it.
+
+    Parameters
+    ----------
+    display_rgb : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W, 3)`` float64 ``L*, a*, b*``: colour-science's ``XYZ_to_Lab(sRGB_to_XYZ(rgb))`` to
+        within 1e-12.
+    """
     return LabImage(display_rgb).numpy()
 
 
@@ -356,24 +443,30 @@ def delta_e2000(
     *,
     reference_lab: "LabImage | np.ndarray | None" = None,
 ) -> np.ndarray:
-    """Per-pixel CIEDE2000 ``(H, W)`` float64 between two sRGB display images (D65).
+    """Per-pixel CIEDE2000 (Sharma, Wu and Dalal 2005) between two sRGB display images, D65.
 
-    ``reference_lab``: the reference's Lab when the caller has it already (a
-    :class:`LabImage`, as :class:`Reference` keeps it, or ``(H, W, 3)`` values); the same
-    values either way.
+    One float64 Dr.Jit kernel takes the test image from sRGB to CIELAB and on to CIEDE2000. It
+    agrees with colour-science (:func:`delta_e2000_colour`) to 1e-11 a pixel, near-grey pixels
+    against saturated ones included; float32 would not (a grey's hue is then rounding noise that
+    ``dH' = 2 sqrt(C1 C2) sin(dh / 2)`` carries). ``benchmarks/bench_compare.py`` measures both.
 
-    One Dr.Jit kernel, in float64 on the current variant's backend, takes the test image
-    from sRGB to CIELAB and on to CIEDE2000. It agrees with colour-science
-    (:func:`delta_e2000_colour`) to 1e-11 per pixel: 1.0e-12 at most on 2048 x 2048 random
-    images, 6.6e-12 on near-grey pixels against saturated ones. On this 2-core machine, at
-    2048 x 2048 and with the reference's Lab cached, the test side took 0.26 s against
-    about 7 s for colour-science's Lab and ``delta_E`` (in row blocks on both cores), under
-    a load average of 1.7. Measured beside it: a float32 Dr.Jit kernel (0.16 s) and
-    float32 NumPy in row blocks (2.2 s) both missed colour-science by up to 1.7e-3, on
-    near-grey pixels against saturated ones (a grey's float32 ``a`` and ``b`` are the
-    rounding of ``500 (f_X - f_Y)``, so its hue is noise, and ``dH' = 2 sqrt(C1 C2)
-    sin(dh / 2)`` carries it), and by 5e-4 on random images. Reproduce the comparison with
-    ``.venv/bin/python benchmarks/bench_compare.py --sizes 2048`` (its CIEDE2000 column).
+    Parameters
+    ----------
+    reference_display, test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+    reference_lab : LabImage or numpy.ndarray, optional
+        The reference's CIELAB when the caller has it (:class:`Reference` keeps it): the same values
+        either way.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float64 CIEDE2000.
+
+    Raises
+    ------
+    hzval.core.errors.HzvalError
+        For images of different sizes.
     """
     import drjit as dr
 
@@ -395,7 +488,18 @@ def delta_e2000(
 
 def delta_e2000_colour(reference_display: np.ndarray, test_display: np.ndarray) -> np.ndarray:
     """:func:`delta_e2000` through colour-science, in row blocks (:func:`by_rows`): the
-    implementation the kernel is validated against (the tests, ``benchmarks/bench_compare.py``)."""
+    implementation the kernel is validated against (the tests, ``benchmarks/bench_compare.py``).
+
+    Parameters
+    ----------
+    reference_display, test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float64 CIEDE2000.
+    """
     import colour
 
     def lab_of(rgb):
@@ -429,12 +533,25 @@ class Reference:
 def compare(
     truth, test, scale: float, *, reference: Reference | None = None
 ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
-    """Metrics of one frame and the maps behind them (``flip``, ``delta_e``,
-    ``visibility_diff``, and ``display``, the technique's display values).
+    """The metrics of one frame of a technique, and the maps behind them.
 
-    ``truth`` and ``test`` (a technique's frame) are :class:`hzval.scene.spec.Frame`; ``scale`` is the
-    sweep's :func:`hzval.core.shading.exposure`; ``reference``: ``Reference(truth, scale)``
-    when several techniques are compared with the same truth.
+    Parameters
+    ----------
+    truth, test : hzval.scene.spec.Frame
+        The truth's frame and the technique's, of one light.
+    scale : float
+        The sweep's exposure (:func:`hzval.core.shading.exposure`).
+    reference : Reference, optional
+        ``Reference(truth, scale)``, when several techniques are compared with the same truth.
+
+    Returns
+    -------
+    metrics : FrameMetrics
+        Visibility scores (where both frames have them, :func:`visibility_metrics`), the reflection
+        error (where both have reflection occlusion), and the image scores (:func:`image_metrics`).
+    maps : dict of numpy.ndarray
+        ``flip``, ``delta_e``, ``display`` (the technique's display values) and, with visibility,
+        ``visibility_diff`` (``F - V``).
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
@@ -470,7 +587,22 @@ IMAGE_METRICS: tuple[str, ...] = ("flip_mean", "rmse", "psnr_db", "delta_e2000_m
 
 
 def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
-    """:func:`flip` of ``test_display`` against a reference's :class:`hzval.metrics.flip.FlipReference`."""
+    """:func:`flip` of a test image against a reference's kept half.
+
+    Parameters
+    ----------
+    ref_flip : hzval.metrics.flip.FlipReference
+        The reference's filtered values (:class:`Reference` keeps them).
+    test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+
+    Returns
+    -------
+    error : numpy.ndarray
+        ``(H, W)`` float32 per-pixel FLIP.
+    mean : float
+        Its mean.
+    """
     from hzval.metrics import flip as F
 
     try:
@@ -480,10 +612,26 @@ def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], dict[str, np.ndarray]]:
-    """``({flip_mean, rmse, psnr_db, delta_e2000_mean}, {display, flip, delta_e})`` of a linear
-    ``(H, W, 3)`` image against the truth of ``ref``: RMSE and PSNR (peak 1) on exposed linear
-    values, FLIP and CIEDE2000 on display values; each a mean over the pixels that see the surface
-    (the truth frame's ``mask``; all of the ``top`` view's)."""
+    """The image scores of a linear image against the truth of ``ref``.
+
+    RMSE and PSNR (peak 1) on exposed linear values, FLIP and CIEDE2000 on display values; each a
+    mean over the pixels that see the surface (the truth frame's ``mask``; all of the ``top``
+    view's).
+
+    Parameters
+    ----------
+    ref : Reference
+        The truth's derived values.
+    image : numpy.ndarray
+        ``(H, W, 3)`` linear radiance.
+
+    Returns
+    -------
+    scores : dict of float
+        ``flip_mean``, ``rmse``, ``psnr_db`` (infinite for a perfect match), ``delta_e2000_mean``.
+    maps : dict of numpy.ndarray
+        ``display``, ``flip`` and ``delta_e``, per pixel.
+    """
     mask = ref.truth.mask
     mse = _mean_squared_error(ref, image)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)

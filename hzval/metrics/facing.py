@@ -49,8 +49,23 @@ FACING_KEYS = ("visibility_mae_facing", "leak_fraction_facing", "false_shadow_fr
 
 
 def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
-    """``(H, W)`` bool: the pixels whose texel's normal ``(rows, cols, 3)`` faces ``L`` (toward the
-    light), each texel repeated ``supersampling`` times along both axes."""
+    """The pixels whose texel faces the light.
+
+    Parameters
+    ----------
+    normal : numpy.ndarray
+        ``(rows, cols, 3)`` the normal map (tangent space, unit).
+    L : array_like
+        ``(3,)`` unit tangent-space vector toward the light (:func:`hzval.core.conventions.light_direction`).
+    supersampling : int
+        Pixels per texel along each axis (the top view's).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows * s, cols * s)`` bool: ``N . L > 0`` at the texel, in float32 as the map is stored,
+        each texel repeated ``supersampling`` times along both axes.
+    """
     # float32, as the normal map is stored: a 4096 map's normals in float64 would be 400 MB a frame
     mask = (np.asarray(normal, np.float32) @ np.asarray(L, np.float32)) > 0.0
     s = int(supersampling)
@@ -60,8 +75,29 @@ def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
 def truth_statistics(
     V: np.ndarray, facing: np.ndarray | None, spp: int, seen: np.ndarray | None = None
 ) -> dict:
-    """``frames[i].truth`` of a frame (module docstring) from its visibility ``V`` ``(H, W)``; over
-    the pixels a view sees (``seen``; ``None``: all)."""
+    """What the truth has to shadow in one frame (``metrics.json``'s ``frames[i].truth``).
+
+    Parameters
+    ----------
+    V : numpy.ndarray
+        ``(H, W)`` the truth's visibility, the mean of ``spp`` 0/1 samples a pixel.
+    facing : numpy.ndarray or None
+        ``(H, W)`` bool, the pixels that face the light (:func:`facing_mask`); ``None``: not known
+        (a view other than the top one).
+    spp : int
+        Samples per pixel, for the standard error.
+    seen : numpy.ndarray, optional
+        ``(H, W)`` bool, the pixels that see the surface; ``None``: all.
+
+    Returns
+    -------
+    dict
+        ``shadowed_fraction`` (``V`` under :data:`hzval.metrics.compare.LIT_THRESHOLD`),
+        ``visibility_se`` (the standard error of the image's mean ``V``, from the per-pixel Bernoulli
+        variance ``V (1 - V) / spp``), ``partial_fraction`` (0 < V < 1); with ``facing``, also
+        ``attached_fraction`` (facing away) and ``cast_fraction`` (facing yet shadowed). Each a share of
+        the seen pixels.
+    """
     V = np.asarray(V, np.float32)
     seen = np.ones(V.shape, bool) if seen is None else np.asarray(seen, bool)
     n = max(int(seen.sum()), 1)
@@ -80,8 +116,23 @@ def truth_statistics(
 
 
 def facing_metrics(V: np.ndarray, F: np.ndarray, facing: np.ndarray, seen: np.ndarray | None = None) -> dict:
-    """The visibility metrics (:func:`hzval.metrics.compare.visibility_metrics`) over the facing pixels (and
-    those a view sees): :data:`FACING_KEYS`; ``None`` each when no pixel faces the light."""
+    """The visibility metrics over the pixels that face the light.
+
+    Parameters
+    ----------
+    V, F : numpy.ndarray
+        ``(H, W)`` truth visibility and technique factor.
+    facing : numpy.ndarray
+        ``(H, W)`` bool (:func:`facing_mask`).
+    seen : numpy.ndarray, optional
+        ``(H, W)`` bool, the pixels that see the surface; ``None``: all.
+
+    Returns
+    -------
+    dict
+        :data:`FACING_KEYS` to :func:`hzval.metrics.compare.visibility_metrics` over ``facing & seen``;
+        ``None`` each where no pixel is counted.
+    """
     mask = facing if seen is None else (facing & seen)
     if not mask.any():
         return dict.fromkeys(FACING_KEYS)
@@ -89,7 +140,19 @@ def facing_metrics(V: np.ndarray, F: np.ndarray, facing: np.ndarray, seen: np.nd
 
 
 def few_shadows_warning(frames: list[dict]) -> str | None:
-    """One line when some frames' facing pixels are less than :data:`FEW_SHADOWS` shadowed, else None."""
+    """One line when some frames have almost nothing to shadow.
+
+    Parameters
+    ----------
+    frames : list of dict
+        ``metrics.json``'s frames, each with its ``truth`` statistics (:func:`truth_statistics`).
+
+    Returns
+    -------
+    str or None
+        The warning, naming the frames whose cast (or, without facing, all) shadows cover less than
+        :data:`FEW_SHADOWS` of the pixels, and what casts more; ``None`` when every frame has enough.
+    """
     few = []
     for f in frames:
         t = f.get("truth") or {}

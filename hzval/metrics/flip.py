@@ -226,7 +226,19 @@ def _clamp(v):
 
 
 def srgb_to_linear(c):
-    """``color3::sRGBToLinearRGB`` of float32 values."""
+    """FLIP's ``color3::sRGBToLinearRGB``: the sRGB transfer function's inverse (IEC 61966-2-1),
+    ``c / 12.92`` up to 0.04045, ``((c + 0.055) / 1.055) ^ 2.4`` above, in float32.
+
+    Parameters
+    ----------
+    c : numpy.ndarray or drjit.Float
+        sRGB-encoded values in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray or drjit.Float
+        Linear values.
+    """
     with np.errstate(invalid="ignore"):
         return _where(c <= _K(0.04045), c / _K(12.92), _powf((c + _K(0.055)) / _K(1.055), _K(2.4)))
 
@@ -240,23 +252,68 @@ def _mat(m, x, y, z):
 
 
 def linear_rgb_to_xyz(r, g, b):
-    """``color3::LinearRGBToXYZ`` (D65)."""
+    """FLIP's ``color3::LinearRGBToXYZ``: linear sRGB primaries to CIE XYZ, D65.
+
+    Parameters
+    ----------
+    r, g, b : numpy.ndarray or drjit.Float
+        Linear RGB, float32.
+
+    Returns
+    -------
+    tuple
+        ``(x, y, z)``.
+    """
     return _mat(_RGB_TO_XYZ, r, g, b)
 
 
 def xyz_to_linear_rgb(x, y, z):
-    """``color3::XYZToLinearRGB`` (D65)."""
+    """FLIP's ``color3::XYZToLinearRGB``: CIE XYZ to linear sRGB primaries, D65.
+
+    Parameters
+    ----------
+    x, y, z : numpy.ndarray or drjit.Float
+        CIE XYZ (D65), float32.
+
+    Returns
+    -------
+    tuple
+        ``(r, g, b)``.
+    """
     return _mat(_XYZ_TO_RGB, x, y, z)
 
 
 def xyz_to_ycxcz(x, y, z):
-    """``color3::XYZToYCxCz``."""
+    """FLIP's ``color3::XYZToYCxCz``: the opponent space FLIP filters in,
+    ``Y = 116 y/yn - 16``, ``Cx = 500 (x/xn - y/yn)``, ``Cz = 200 (y/yn - z/zn)``.
+
+    Parameters
+    ----------
+    x, y, z : numpy.ndarray or drjit.Float
+        CIE XYZ (D65), float32.
+
+    Returns
+    -------
+    tuple
+        ``(Y, Cx, Cz)``.
+    """
     x, y, z = x * _INV_ILLUMINANT[0], y * _INV_ILLUMINANT[1], z * _INV_ILLUMINANT[2]
     return 116.0 * y - 16.0, 500.0 * (x - y), 200.0 * (y - z)
 
 
 def ycxcz_to_xyz(yy, cx, cz):
-    """``color3::YCxCzToXYZ``."""
+    """FLIP's ``color3::YCxCzToXYZ``, the inverse of :func:`xyz_to_ycxcz`.
+
+    Parameters
+    ----------
+    yy, cx, cz : numpy.ndarray or drjit.Float
+        YCxCz values, float32.
+
+    Returns
+    -------
+    tuple
+        ``(x, y, z)``, D65.
+    """
     y = (yy + 16.0) / 116.0
     cx, cz = cx / 500.0, cz / 200.0
     return (y + cx) * _ILLUMINANT[0], y * _ILLUMINANT[1], (y - cz) * _ILLUMINANT[2]
@@ -274,7 +331,18 @@ def _lab_f(t):
 
 
 def xyz_to_cielab(x, y, z):
-    """``color3::XYZToCIELab`` (D65; ``powf(t, 1.0f / 3.0f)`` as FLIP has it, not ``cbrtf``)."""
+    """FLIP's ``color3::XYZToCIELab`` (D65), with ``powf(t, 1/3)`` as FLIP has it, not ``cbrtf``.
+
+    Parameters
+    ----------
+    x, y, z : numpy.ndarray or drjit.Float
+        CIE XYZ (D65), float32.
+
+    Returns
+    -------
+    tuple
+        ``(L*, a*, b*)``.
+    """
     fx, fy, fz = (
         _lab_f(x * _INV_ILLUMINANT[0]),
         _lab_f(y * _INV_ILLUMINANT[1]),
@@ -284,12 +352,35 @@ def xyz_to_cielab(x, y, z):
 
 
 def hunt(luminance, chrominance):
-    """``color3::Hunt``: the Hunt effect's adjustment of a chrominance."""
+    """FLIP's ``color3::Hunt``: the Hunt effect's adjustment of a chrominance, ``0.01 L C``.
+
+    Parameters
+    ----------
+    luminance, chrominance : numpy.ndarray or drjit.Float
+        ``L*`` and ``a*`` (or ``b*``).
+
+    Returns
+    -------
+    numpy.ndarray or drjit.Float
+        The adjusted chrominance.
+    """
     return _K(0.01) * luminance * chrominance
 
 
 def hyab(l1, a1, b1, l2, a2, b2):
-    """``color3::HyAB``: city-block in L, Euclidean in (a, b)."""
+    """FLIP's ``color3::HyAB`` distance: city-block in L, Euclidean in (a, b),
+    ``|L1 - L2| + sqrt((a1 - a2)^2 + (b1 - b2)^2)``.
+
+    Parameters
+    ----------
+    l1, a1, b1, l2, a2, b2 : numpy.ndarray or drjit.Float
+        Two Hunt-adjusted Lab colours.
+
+    Returns
+    -------
+    numpy.ndarray or drjit.Float
+        The distance.
+    """
     da, db = a1 - a2, b1 - b2
     return _abs(l1 - l2) + _sqrt(da * da + db * db)
 
@@ -319,7 +410,19 @@ def _gaussian_sqrt(x2, a, b):
 
 
 def spatial_filter_radius(ppd: float) -> int:
-    """``calculateSpatialFilterRadius``: three standard deviations of the widest CSF Gaussian."""
+    """FLIP's ``calculateSpatialFilterRadius``: three standard deviations of the widest contrast
+    sensitivity Gaussian, in pixels.
+
+    Parameters
+    ----------
+    ppd : float
+        Pixels per degree of visual angle.
+
+    Returns
+    -------
+    int
+        The radius, ``ceil(3 sqrt(b_max / (2 pi^2)) ppd)``.
+    """
     widest = max(*GAUSS_B1, *GAUSS_B2)
     return int(math.ceil(f32(3.0) * np.sqrt(widest / (f32(2.0) * _PI_SQ)) * f32(ppd)))
 
@@ -397,8 +500,23 @@ def _feature_filters(ppd: np.float32):
 
 @functools.lru_cache(maxsize=8)
 def filters(ppd: float = DEFAULT_PPD) -> Filters:
-    """FLIP's filters and colour constants at ``ppd`` pixels per degree (as a float, as
-    flip-evaluator takes it)."""
+    """FLIP's filters and colour constants at ``ppd`` pixels per degree, cached.
+
+    Parameters
+    ----------
+    ppd : float
+        Pixels per degree, as flip-evaluator takes it (a float); positive.
+
+    Returns
+    -------
+    Filters
+        The spatial and feature filters, read-only, and ``cmax``/``pccmax``.
+
+    Raises
+    ------
+    ValueError
+        For ``ppd <= 0``.
+    """
     ppd = f32(ppd)
     if not ppd > 0:
         raise ValueError(f"pixels per degree must be positive, got {ppd}")
@@ -546,9 +664,30 @@ class FlipReference:
 
 
 def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray, float]:
-    """LDR-FLIP of ``test_display`` (``(H, W, 3)`` sRGB display values) against ``ref``:
-    the error map ``(H, W)`` float32 in [0, 1] and its mean (FLIP's: a float32 running sum
-    in row-major order over the pixel count)."""
+    """LDR-FLIP (Andersson et al. 2020) of a test image against a kept reference.
+
+    The colour difference (HyAB of the filtered, Hunt-adjusted Lab values, to the power ``QC`` and
+    remapped to [0, 1]) raised to ``1 - feature difference`` (edges and points, to ``QF``).
+
+    Parameters
+    ----------
+    ref : FlipReference
+        The reference's filtered values.
+    test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+
+    Returns
+    -------
+    error : numpy.ndarray
+        ``(H, W)`` float32 in [0, 1].
+    mean : float
+        :func:`mean_error` of it.
+
+    Raises
+    ------
+    ValueError
+        For images of different sizes.
+    """
     import drjit as dr
 
     disp = _check_image(test_display, "test")
@@ -572,7 +711,18 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
 
 
 def mean_error(err: np.ndarray) -> float:
-    """FLIP's mean of an error map: a float32 running sum, row by row, over the pixel count."""
+    """FLIP's mean of an error map: a float32 running sum, row by row, over the pixel count.
+
+    Parameters
+    ----------
+    err : numpy.ndarray
+        An error map.
+
+    Returns
+    -------
+    float
+        The mean, as flip-evaluator computes it (float32 rounding included).
+    """
     total = np.cumsum(np.asarray(err, f32).ravel(), dtype=f32)[-1]
     return float(total / f32(err.size))
 
@@ -580,6 +730,20 @@ def mean_error(err: np.ndarray) -> float:
 def flip(
     reference_display: np.ndarray, test_display: np.ndarray, ppd: float = DEFAULT_PPD
 ) -> tuple[np.ndarray, float]:
-    """LDR-FLIP of two display images, the error map ``(H, W)`` and its mean (one reference, one test:
-    ``flip_error(FlipReference(reference_display, ppd), test_display)``)."""
+    """LDR-FLIP of two display images: ``flip_error(FlipReference(reference_display, ppd), test_display)``.
+
+    Parameters
+    ----------
+    reference_display, test_display : numpy.ndarray
+        ``(H, W, 3)`` sRGB display values in [0, 1].
+    ppd : float
+        Pixels per degree (default :data:`DEFAULT_PPD`).
+
+    Returns
+    -------
+    error : numpy.ndarray
+        ``(H, W)`` float32 in [0, 1].
+    mean : float
+        Its mean.
+    """
     return flip_error(FlipReference(reference_display, ppd), test_display)

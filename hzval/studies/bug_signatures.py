@@ -28,7 +28,6 @@ the bugs move ``F`` most (the mean over the bugs of ``|F_bug - F_none|``).
 from __future__ import annotations
 
 import dataclasses
-import html
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +35,7 @@ import numpy as np
 from hzval.geometry import tangent_bugs
 from hzval.io import files
 
-__all__ = ["CASES", "measure", "run", "page_section"]
+__all__ = ["CASES", "measure", "run", "page_context"]
 
 #: Case name -> (built-in shape, the camera's azimuth and the lights' centre azimuth in degrees (the
 #: light's convention), uv_scale: the sphere repeats the texture three times a half, about a
@@ -162,30 +161,26 @@ def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
     files.write_figure(path, fig)
 
 
-def page_section(bugs: dict) -> str:
-    """The study page's section: the figure and a table of the mirrored / unmirrored means."""
-    rows = []
-    for case, rec in bugs["cases"].items():
-        for bug, r in rec["bugs"].items():
-            cells = [
-                r["mirrored"],
-                r["unmirrored"],
-                r["mirrored_ratio"],
-                r["mirrored_perfect_parallax"],
-                r["mirrored_perfect_parallax_ratio"],
-            ]
-            rows.append(
-                f"<tr><td>{html.escape(case)}</td><td>{html.escape(bug)}</td>"
-                + "".join(f"<td>{c:.4f}</td>" if c is not None else "<td>-</td>" for c in cells)
-                + "</tr>"
-            )
-    lead = html.escape(bugs["technique"])
-    return (
-        f"<h2>Tangent-bug signatures ({lead})</h2><img src='{html.escape(bugs['figure'])}' "
-        f"alt='F - V with each tangent bug'><table border=1 cellpadding=3><tr><th>case</th><th>bug</th>"
-        f"<th>mirrored |F&minus;V|</th><th>unmirrored</th><th>mirrored / correct</th>"
-        f"<th>mirrored, perfect parallax</th><th>/ correct</th></tr>{''.join(rows)}"
-        "</table><p>Each picture: F &minus; V at the light where the bugs move F most; the means are over "
-        "all the case's lights (turned to light the mirrored part from beside the camera). "
-        "docs/models.md.</p>"
+def page_context(bugs: dict) -> dict:
+    """The study page's section (``models.html.j2``): the figure and the mirrored and unmirrored
+    means of every case and bug, formatted."""
+
+    def f4(c):
+        return "-" if c is None else f"{c:.4f}"
+
+    keys = (
+        "mirrored",
+        "unmirrored",
+        "mirrored_ratio",
+        "mirrored_perfect_parallax",
+        "mirrored_perfect_parallax_ratio",
     )
+    return {
+        "technique": bugs["technique"],
+        "figure": bugs["figure"],
+        "rows": [
+            {"case": case, "bug": bug, "cells": [f4(r[k]) for k in keys]}
+            for case, rec in bugs["cases"].items()
+            for bug, r in rec["bugs"].items()
+        ],
+    }

@@ -37,7 +37,6 @@ band's |F - V| and its excess rise as the caps' radius shrinks, within noise).
 from __future__ import annotations
 
 import dataclasses
-import html
 import math
 from pathlib import Path
 
@@ -193,50 +192,44 @@ def _row(name: str, curvature, result: dict) -> dict:
 
 
 def _write_page(out: Path, data: dict) -> None:
+    """``out/index.html`` from ``models.html.j2`` (:func:`hzval.report.pages.environment`), and its plots."""
+    from hzval.report import pages
     from hzval.studies import bug_signatures
 
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
     _plot(out / "plots" / "models.png", rows, names)
-    reflection = _plot_reflection(out / "plots" / "reflection.png", rows, names)
-    head = "".join(
-        f"<th>{html.escape(n)} |F&minus;V|</th><th>leaks</th><th>false</th><th>floor</th>" for n in names
-    )
-    body = []
-    for r in rows:
-        cells = []
-        for n in names:
-            t = r["techniques"].get(n, {})
-            cells += [
-                f"<td>{t.get(k):.4f}</td>" if t.get(k) is not None else "<td>-</td>"
-                for k in ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")
-            ]
-        k = "-" if r["curvature"] is None else f"{r['curvature']:+.3g}"
-        body.append(
-            f"<tr><td><a href='{html.escape(r['report'])}'>{html.escape(r['case'])}</a></td><td>{k}</td>"
-            + "".join(cells)
-            + "</tr>"
-        )
-    page = (
-        "<!doctype html><meta charset='utf-8'><title>hzval models</title>"
-        f"<h1>What curvature costs: {html.escape(str(data['material'].get('name', '')))}</h1>"
-        f"<p><code>{html.escape(data['command'])}</code></p><img src='plots/models.png' alt='error against "
-        "1/R'>"
-        + (reflection or "")
-        + f"<table border=1 cellpadding=3><tr><th>case</th><th>1/R</th>{head}</tr>{''.join(body)}</table>"
-        "<p>1/R in texture widths<sup>-1</sup>, + convex, &minus; concave; floor: the technique at the "
-        "truth's own hits (perfect parallax). docs/models.md.</p>"
-        + _band_html(out, data)
-        + bug_signatures.page_section(data["bugs"])
-    )
+    keys = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")
+    context = {
+        "material": str(data["material"].get("name", "")),
+        "command": data["command"],
+        "names": names,
+        "rows": [
+            {
+                "case": r["case"],
+                "report": r["report"],
+                "curvature": "-" if r["curvature"] is None else f"{r['curvature']:+.3g}",
+                "cells": [_f4(r["techniques"].get(n, {}).get(k)) for n in names for k in keys],
+            }
+            for r in rows
+        ],
+        "reflection": _plot_reflection(out / "plots" / "reflection.png", rows, names),
+        "band": _band_context(out, data),
+        "bugs": bug_signatures.page_context(data["bugs"]) if data.get("bugs") else None,
+    }
+    page = pages.environment().get_template("models.html.j2").render(**context)
     with files.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
 
-def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | None:
+def _f4(v) -> str:
+    return "-" if v is None else f"{v:.4f}"
+
+
+def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | None:
     """Each technique's reflection-occlusion error, mean |o - R| (``reflection_mae``: Toolbag's fade
     with the interpolated vertex normal against the traced glossy lobe), against signed curvature
-    1/R, where the study declares ``reflection_occlusion``; the page's ``<img>`` and its table
+    1/R, where the study declares ``reflection_occlusion``; the page's figure and table
     (``None``: no case has it)."""
     from matplotlib.figure import Figure
 
@@ -265,22 +258,17 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> str | No
     ax.legend(fontsize=8)
     fig.tight_layout()
     files.write_figure(path, fig)
-    cells = "".join(
-        f"<tr><td>{html.escape(r['case'])}</td>"
-        + "".join(
-            f"<td>{r['techniques'][n]['reflection_mae']:.4f}</td>"
-            if r["techniques"].get(n, {}).get("reflection_mae") is not None
-            else "<td>-</td>"
-            for n in series
-        )
-        + "</tr>"
-        for r in rows
-    )
-    head = "".join(f"<th>{html.escape(n)} |o&minus;R|</th>" for n in series)
-    return (
-        f"<h2>Reflection occlusion</h2><img src='plots/{path.name}' alt='reflection error against 1/R'>"
-        f"<table border=1 cellpadding=3><tr><th>case</th>{head}</tr>{cells}</table>"
-    )
+    return {
+        "plot": f"plots/{path.name}",
+        "names": list(series),
+        "rows": [
+            {
+                "case": r["case"],
+                "cells": [_f4(r["techniques"].get(n, {}).get("reflection_mae")) for n in series],
+            }
+            for r in rows
+        ],
+    }
 
 
 def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
@@ -444,69 +432,57 @@ def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
     if not stat or stat.get("mean") is None:
         return "-"
     m, se = f"{stat['mean']:{'+' if signed else ''}.{digits}f}", stat.get("se")
-    return f"{m} &plusmn; {se:.{digits}f}" if se is not None else m
+    return f"{m} ± {se:.{digits}f}" if se is not None else m
 
 
-def _band_html(out: Path, data: dict) -> str:
-    """The band's table (per case and technique: |F - V|, the flat patch's on the same texels, the
-    excess, the floor, the seams' share), the trend's verdicts and the excess plot."""
+def _band_context(out: Path, data: dict) -> dict | None:
+    """The band's section of the page (per case and technique: |F - V|, the flat patch's on the same
+    texels, the excess, the floor, the seams' share; the trend's verdicts) and its excess plot;
+    ``None`` where no case has a band."""
     rows = [r for r in data["rows"] if "band" in r]
     if not rows:
-        return ""
+        return None
     b = data["band"]
     names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
     _band_plot(out / "plots" / "band.png", rows, names)
-    head = "".join(
-        f"<th>{html.escape(n)} band |F&minus;V|</th><th>flat, same texels</th><th>excess</th>"
-        f"<th>floor</th><th>seams: error / pixels</th>"
-        for n in names
-    )
-    body = []
-    for r in rows:
-        cells = []
-        for n in names:
-            t = r["band"]["techniques"].get(n, {})
-            seam = t.get("seam")
-            sh = (
-                "-"
-                if not seam or seam["error_share"]["mean"] is None
-                else f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
-            )
-            cells += [
-                f"<td>{_pm(t.get(k), signed=k == 'excess')}</td>" for k in ("mae", "flat", "excess", "floor")
-            ]
-            cells.append(f"<td>{sh}</td>")
-        k = r.get("principal_curvatures")
-        k = (
-            f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)"
-            if k
-            else "-"
-            if r["curvature"] is None
-            else f"{r['curvature']:+.3g}"
+    return {
+        "half_deg": f"{b['half_deg']:g}",
+        "window": f"{b['window']:g}",
+        "lights": len(b["azimuths"]),
+        "resolution": f"{b['resolution'][0]}×{b['resolution'][1]}",
+        "seam_texels": _seam_texels(),
+        "names": names,
+        "verdicts": [
+            {"name": n, "mae": _says(t["mae"]), "excess": _says(t["excess"])}
+            for n, t in data.get("trend", {}).items()
+        ],
+        "rows": [_band_row(r, names) for r in rows],
+    }
+
+
+def _band_row(r: dict, names: list[str]) -> dict:
+    cells = []
+    for n in names:
+        t = r["band"]["techniques"].get(n, {})
+        seam = t.get("seam")
+        cells += [_pm(t.get(k), signed=k == "excess") for k in ("mae", "flat", "excess", "floor")]
+        cells.append(
+            "-"
+            if not seam or seam["error_share"]["mean"] is None
+            else f"{seam['error_share']['mean']:.3f} / {seam['pixel_share']:.3f}"
         )
-        body.append(
-            f"<tr><td>{html.escape(r['case'])}</td><td>{k}</td><td>{r['band']['texels']:.0f}</td>"
-            f"<td>{_pm(r['band'].get('lit_excess'), 3, True)}</td>" + "".join(cells) + "</tr>"
-        )
-    verdicts = "".join(
-        f"<li><b>{html.escape(n)}</b>: band |F&minus;V| {html.escape(_says(t['mae']))}; "
-        f"excess over the flat patch {html.escape(_says(t['excess']))}</li>"
-        for n, t in data.get("trend", {}).items()
-    )
-    return (
-        f"<h2>Curvature and nothing else: a band of local light elevations</h2>"
-        f"<p>Pixels whose base normal sees the light at the scene's elevation &plusmn; "
-        f"{b['half_deg']:g}&deg;, "
-        f"within {b['window']:g} texture widths of the texture's centre, averaged per texel, "
-        f"{len(b['azimuths'])} lights, {b['resolution'][0]}&times;{b['resolution'][1]} px; &plusmn; one "
-        "standard "
-        "error from the lights' spread; <i>excess</i>: minus the flat patch on the same texels of each light "
-        "(what curvature alone adds); <i>lit</i>: the truth's lit share, minus the flat patch's; "
-        f"seams: the share of the summed |F&minus;V| and of the pixels within {_seam_texels()} texels "
-        "of a seam edge.</p><img src='plots/band.png' alt='excess against 1/R'>"
-        f"<ul>{verdicts}</ul><table border=1 cellpadding=3><tr><th>case</th><th>curvature</th><th>texels</th>"
-        f"<th>lit excess</th>{head}</tr>{''.join(body)}</table>"
-    )
+    k = r.get("principal_curvatures")
+    if k:
+        curvature = f"{k['along_ring_x']:+g} (x), {k['across_tube_y']:+g} (y)"
+    else:
+        curvature = "-" if r["curvature"] is None else f"{r['curvature']:+.3g}"
+    return {
+        "case": r["case"],
+        "curvature": curvature,
+        "texels": f"{r['band']['texels']:.0f}",
+        "lit": _pm(r["band"].get("lit_excess"), 3, True),
+        "cells": cells,
+    }
 
 
 def _seam_texels() -> str:

@@ -47,7 +47,20 @@ FACE_AXES: tuple = (
 
 
 def face_coordinates(x, y, z):
-    """``(face, s, t)`` of Dr.Jit directions (table 8.19): ``face`` UInt32 0..5, ``s, t`` in [0, 1]."""
+    """The cube-map face and face coordinates of directions (OpenGL 4.6, table 8.19).
+
+    Parameters
+    ----------
+    x, y, z : drjit.Float
+        The directions' components (need not be unit); ties of the major axis go to x, then y, then z.
+
+    Returns
+    -------
+    face : drjit.UInt32
+        0..5 in OpenGL order (:data:`hzval.core.cube.CUBE_FACES`).
+    s, t : drjit.Float
+        ``(sc / |ma| + 1) / 2`` and ``(tc / |ma| + 1) / 2``, in [0, 1].
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -104,8 +117,25 @@ def _texel(cube, n: int, face, i, j, seamless: bool):
 
 
 def bilinear(cube, n: int, d, seamless: bool = True):
-    """The bilinear texel of the cube map ``cube`` (``(6, n, n, 4)`` float32 flattened, ``mi.Float``)
-    toward the Dr.Jit directions ``d`` (module docstring); ``seamless=False`` clamps to the face."""
+    """The bilinearly filtered texel of a cube map toward directions, as a GPU samples it.
+
+    Parameters
+    ----------
+    cube : mitsuba.Float
+        The map, ``(6, n, n, 4)`` float32 flattened.
+    n : int
+        The side of a face, in texels.
+    d : mitsuba.Vector3f
+        Directions (tangent space).
+    seamless : bool
+        Filter across face edges with the neighbouring face's texels (``GL_TEXTURE_CUBE_MAP_SEAMLESS``,
+        the module docstring); ``False`` clamps to the face.
+
+    Returns
+    -------
+    mitsuba.Vector4f
+        The filtered RGBA.
+    """
     import drjit as dr
     import mitsuba as mi
 

@@ -693,13 +693,30 @@ def _dot(h: list, w: list):
 
 
 def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
-    """``(F, s)``: eq. 5.4's ``F = clamp(k (Lz - s) + 1, 0, 1)`` of the filtered channels ``h`` and the
-    channel weights ``w`` (``s = sum_c w_c h_c``, :func:`_dot`); the shading kernel's own arithmetic.
+    """Lengyel's shadow factor (eq. 5.4), ``F = clamp(k (Lz - s) + 1, 0, 1)``.
 
-    ``straight_through``: for the fit (:mod:`hzval.techniques.fitted.fit`), ``F``'s value is the same but
-    its gradient
-    is that of the unclamped ``k (Lz - s) + 1`` (a straight-through clamp), so that a texel whose
-    factor is saturated on the wrong side (0 where the truth is lit) still learns which way to move."""
+    ``s = sum_c w_c h_c`` is the horizon sine toward the light, from the filtered channels and their
+    weights; the shading kernel's own arithmetic.
+
+    Parameters
+    ----------
+    h : list of drjit.Float
+        The filtered horizon channels (sines).
+    w : list of drjit.Float
+        The light's channel weights (:func:`hzval.core.conventions.channel_weights`).
+    Lz : drjit.Float
+        The light's sine of elevation in the tangent frame.
+    k : float or drjit.Float
+        The shadow's hardness.
+    straight_through : bool
+        For the fit: ``F``'s value is the same but its gradient is the unclamped ``k (Lz - s) + 1``'s,
+        so a texel saturated on the wrong side still learns which way to move.
+
+    Returns
+    -------
+    tuple
+        ``(F, s)``.
+    """
     s = _dot(h, w)
     z = dr.fma(Lz - s, k, 1.0)
     F = dr.clip(z, 0.0, 1.0)

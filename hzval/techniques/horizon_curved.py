@@ -48,9 +48,28 @@ __all__ = ["sine_change", "bin_tangents", "CurvedHorizon"]
 
 
 def bin_tangents(h_texels: np.ndarray, kappa: float, radius: int, angles: int, boundary: str) -> np.ndarray:
-    """``(angles, rows, cols)``: per bin (azimuth ``360 b / angles`` degrees) and texel the largest
-    ``Delta h / d - kappa d / 2`` over the steps ``d = 1 .. radius`` texels along the bin's
-    direction (bilinear heights), and 0 (the tangent plane) where every step is below it."""
+    """The largest horizon slope of each bin on a curved surface.
+
+    Per bin (azimuth ``360 b / angles`` degrees) and texel, the largest ``Delta h / d - kappa d / 2``
+    over the steps ``d = 1 .. radius`` texels along the bin's direction (bilinear heights): the
+    height above the tangent plane of a surface of normal curvature ``kappa`` falls by
+    ``kappa d^2 / 2``. 0 (the tangent plane) where every step is below it.
+
+    Parameters
+    ----------
+    h_texels : numpy.ndarray
+        ``(rows, cols)`` heights in texels.
+    kappa : float
+        Normal curvature, texels^-1, + convex.
+    radius, angles : int
+        Steps and bins, as the seed bake's.
+    boundary : {"wrap", "open"}
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(angles, rows, cols)`` tangents.
+    """
     h = np.asarray(h_texels, np.float64)
     rows, cols = h.shape
     xc, yc = cv.texel_centres(rows, cols)
@@ -77,10 +96,26 @@ def sine_change(
     directions: int = cv.CHANNEL_COUNT,
     boundary: str = "wrap",
 ) -> np.ndarray:
-    """``(rows, cols, directions)``: each channel's horizon sine on a surface of normal curvature
-    ``kappa`` (texels^-1, + convex, the same along every azimuth) minus the flat one's, both by
-    :func:`bin_tangents` and the seed bake's channel means (``angles / directions + 1`` bins centred
-    on the channel's azimuth); 0 everywhere when ``kappa == 0``."""
+    """Each channel's horizon sine on a curved surface minus the flat one's.
+
+    Both by :func:`bin_tangents` and the seed bake's channel means (``angles / directions + 1`` bins
+    centred on the channel's azimuth).
+
+    Parameters
+    ----------
+    h_texels : numpy.ndarray
+        ``(rows, cols)`` heights in texels.
+    kappa : float
+        Normal curvature, texels^-1, + convex, the same along every azimuth.
+    radius, angles, directions : int
+        As the seed bake's.
+    boundary : {"wrap", "open"}
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows, cols, directions)``; 0 everywhere when ``kappa == 0``.
+    """
     if kappa == 0.0:
         rows, cols = np.shape(h_texels)
         return np.zeros((rows, cols, directions), np.float32)

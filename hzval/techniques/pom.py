@@ -96,10 +96,33 @@ def set_up_march(
     unshadowed,
     samples,
 ):
-    """What every ray march of the height map sets up (this module's, and a GL shader's): its settings
-    checked and kept on ``tech`` (``variant``: soft for a soft light by default, ``softness``: then
-    ``1 / tan(radius)``), the image's shape, the heights in texels and their maximum, and the
-    unshadowed shading it multiplies. Returns ``(heights in texels, samples)``."""
+    """What every ray march of the height map sets up (this module's, and a GL shader's).
+
+    Its settings are checked and kept on ``tech``; the image's shape, the heights in texels, their
+    maximum and the unshadowed shading it multiplies are made.
+
+    Parameters
+    ----------
+    tech : object
+        The technique being built; the settings are kept on it.
+    scene : hzval.scene.spec.Scene
+        The scene.
+    height : numpy.ndarray
+        ``(rows, cols)`` the normalised height map.
+    steps : int
+        March steps.
+    variant : str or None
+        ``hard`` or ``soft`` (``None``: soft for a soft light).
+    softness : float or None
+        The soft variant's ``1 / tan(radius)`` (``None``: the light's).
+    bake, albedo, unshadowed, samples
+        The context's bake, albedo, shared unshadowed shading and sample positions.
+
+    Returns
+    -------
+    tuple
+        ``(heights in texels, samples)``.
+    """
     variant = variant or ("soft" if scene.light.kind == "soft" else "hard")
     if softness is None:
         softness = (

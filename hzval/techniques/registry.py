@@ -171,9 +171,19 @@ class Technique:
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """What the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
-        ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
-        its techniques need; by default everything."""
+        """What a sweep must bake for its techniques.
+
+        Parameters
+        ----------
+        techniques : iterable of type[Technique]
+        scene : hzval.scene.spec.Scene
+
+        Returns
+        -------
+        frozenset of str
+            Their :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
+            ambient map) that the unshadowed shading reads (:class:`hzval.techniques.surface.Unshadowed`).
+        """
         return frozenset({"normal", "horizon_map", "ambient", "height"})
 
     @classmethod
@@ -244,7 +254,21 @@ def defaults() -> list[str]:
 
 
 def get(name: str) -> type[Technique]:
-    """The technique class registered as ``name``."""
+    """The technique class registered under a name.
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    type[Technique]
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For an unknown name, with the known ones.
+    """
     try:
         module, cls = REGISTRY[name].split(":")
     except KeyError:
@@ -255,12 +279,26 @@ def get(name: str) -> type[Technique]:
 
 
 def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
-    """The techniques to render for ``scene``: ``requested`` (names, in registry order),
-    or every one that applies and is on by default (:attr:`Technique.by_default`); ``exclude``
-    leaves some out.
+    """The techniques to render for a scene.
 
-    A requested technique that does not apply (``pom`` on a scene without
-    ``shadow``) is an :class:`InputError`, not silently dropped.
+    Parameters
+    ----------
+    requested : list of str or None
+        Names (rendered in registry order), or ``None`` for every one that applies and is on by
+        default (:attr:`Technique.by_default`).
+    scene : hzval.scene.spec.Scene
+    exclude : collection of str
+        Names to leave out.
+
+    Returns
+    -------
+    list of type[Technique]
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For a requested technique that does not apply (``pom`` without ``shadow``): never dropped
+        silently.
     """
     if requested is None:
         chosen = [
@@ -285,14 +323,34 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
 
 
 def replace_effects(scene: Scene, effects) -> Scene:
-    """``scene`` with another effect list (for the shading a technique builds on)."""
+    """The scene with another effect list (for the shading a technique builds on).
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+    effects : sequence of str
+
+    Returns
+    -------
+    hzval.scene.spec.Scene
+    """
     return dataclasses.replace(scene, effects=tuple(effects))
 
 
 def bake_needs(techniques, scene: Scene) -> frozenset[str]:
-    """What a sweep must bake for ``techniques`` (classes) on ``scene``: their
-    :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
-    ambient map) that the unshadowed shading reads (:class:`hzval.techniques.surface.Unshadowed`)."""
+    """What a sweep must bake for its techniques.
+
+    Parameters
+    ----------
+    techniques : iterable of type[Technique]
+    scene : hzval.scene.spec.Scene
+
+    Returns
+    -------
+    frozenset of str
+        Their :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
+        ambient map) that the unshadowed shading reads (:class:`hzval.techniques.surface.Unshadowed`).
+    """
     needs = {"normal"} | ({"ambient"} if scene.declares("ambient") else set())
     for t in techniques:
         needs |= t.bake_needs(scene)
@@ -301,8 +359,15 @@ def bake_needs(techniques, scene: Scene) -> frozenset[str]:
 
 @contextlib.contextmanager
 def flag_errors(cls: type[Technique], typed: dict[str, str] | None = None):
-    """Errors about one of ``cls``'s settings name its command-line flag (:attr:`Technique.flags`),
-    or the spelling of it the user typed (``typed``: canonical flag -> as typed, e.g. an alias)."""
+    """A context in which errors about a technique's settings name its command-line flag.
+
+    Parameters
+    ----------
+    cls : type[Technique]
+        The technique (:attr:`Technique.flags` maps settings to flags).
+    typed : dict of str to str, optional
+        Canonical flag to the spelling the user typed (an alias), so the error names what was typed.
+    """
     try:
         yield
     except InputError as exc:

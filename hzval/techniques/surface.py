@@ -502,7 +502,16 @@ class Unshadowed:
 
 
 def unshadowed(ctx: Context) -> Unshadowed:
-    """The :class:`Unshadowed` shading of a context, built once and shared by its techniques."""
+    """The unshadowed shading of a context, built once and shared by its techniques.
+
+    Parameters
+    ----------
+    ctx : Context
+
+    Returns
+    -------
+    Unshadowed
+    """
     return ctx.shared(
         "unshadowed", lambda: Unshadowed(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples())
     )

@@ -188,12 +188,24 @@ class SweepPlan:
 def plan_sweep(
     rows: int, cols: int, azimuth_deg: float, boundary: str, *, relief: float = 0.0, tan_low: float = 1.0
 ) -> SweepPlan:
-    """The :class:`SweepPlan` of a ``rows x cols`` map for a light at ``azimuth_deg``.
+    """How Raudins' sweep crosses a map for one light.
 
-    ``relief``: ``max h - min h`` in texels; ``tan_low``: tangent of the
-    lowest elevation the sweep traces (``wrap`` primes
-    ``ceil(relief / (tan_low * step)) + 1`` steps, at most
-    :data:`MAX_PRIME_TILES` tiles).
+    Parameters
+    ----------
+    rows, cols : int
+        The map's size.
+    azimuth_deg : float
+        The light's azimuth.
+    boundary : {"wrap", "open"}
+    relief : float
+        ``max h - min h`` in texels.
+    tan_low : float
+        Tangent of the lowest elevation the sweep traces: ``wrap`` primes
+        ``ceil(relief / (tan_low * step)) + 1`` steps, at most :data:`MAX_PRIME_TILES` tiles.
+
+    Returns
+    -------
+    SweepPlan
     """
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
@@ -253,10 +265,21 @@ def _line_heights_numpy(A: np.ndarray, y: np.ndarray, col: int, wrap: bool) -> n
 def boundaries_numpy(
     h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per texel ``(B_hi, B_hi - B_lo)``, each ``(rows, cols)`` float64, in NumPy.
+    """The shadow boundaries of every texel, in NumPy (the reference for the Dr.Jit sweep).
 
-    ``h``: heights in texels; ``tan_hi_el`` the tangent of the elevation of
-    ``B_hi`` (the lower one, ``e - rho``), ``tan_lo_el`` of ``B_lo``.
+    Parameters
+    ----------
+    h : numpy.ndarray
+        ``(rows, cols)`` heights in texels.
+    plan : SweepPlan
+        :func:`plan_sweep`'s.
+    tan_hi_el, tan_lo_el : float
+        Tangents of the elevations of ``B_hi`` (the lower one, ``e - rho``) and of ``B_lo``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(B_hi, B_hi - B_lo)``, each ``(rows, cols)`` float64.
     """
     h = np.asarray(h, dtype=np.float64)
     flat = h.ravel()
@@ -306,12 +329,25 @@ def factor_numpy(
     spp: int,
     shape: tuple[int, int],
 ) -> np.ndarray:
-    """Pixel means of ``F = clamp(gap / ramp + 1, 0, 1)`` at samples ``(x, y)``.
+    """Pixel means of the terrain factor ``F = clamp(gap / ramp + 1, 0, 1)`` at samples.
 
-    ``gap = h - B_hi`` and ``ramp`` per texel ``(rows, cols)``, filtered
-    bilinearly between texel centres (``wrap`` repeats, ``open`` clamps);
-    ``x, y`` in tangent texel units, pixel-major with ``spp`` samples per
-    pixel (:func:`hzval.scene.camera.sample_positions`). Returns ``shape`` float32.
+    Parameters
+    ----------
+    gap, ramp : numpy.ndarray
+        ``(rows, cols)`` per texel: ``h - B_hi`` and the ramp, filtered bilinearly between texel
+        centres (``wrap`` repeats, ``open`` clamps).
+    x, y : numpy.ndarray
+        Sample positions in tangent texel units, pixel-major with ``spp`` samples a pixel
+        (:func:`hzval.scene.camera.sample_positions`).
+    boundary : {"wrap", "open"}
+    spp : int
+    shape : tuple of int
+        ``(H, W)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``shape`` float32.
     """
     rows, cols = gap.shape
     cx = np.asarray(x, np.float64) - 0.5

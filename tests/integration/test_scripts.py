@@ -157,6 +157,8 @@ SMOKE = {
 }
 NO_SMOKE = {
     "benchmarks/bench_bake.py": "compiles the C seed peer (tests/bake/test_horizon_peer.py does, marker gcc)",
+    "benchmarks/compare_runs.py": "runs five commands with each of two versions (minutes); its compare "
+    "step is tested on two small sweeps below (test_compare_runs_finds_a_changed_score)",
     "benchmarks/bench_production.py": "sweeps two commits' trees side by side (a baseline checkout)",
     "benchmarks/bench_report.py": "needs Debian's chromium and a report (tests/report/test_pages.py)",
     "benchmarks/bench_suite_engines.py": "starts Dask (and Ray) clusters",
@@ -213,7 +215,8 @@ def test_tests_import_nothing_from_the_scripts():
 
     found = []
     for path in (ROOT / "tests").rglob("*.py"):
-        if path == Path(__file__).resolve():
+        # this file runs the scripts; test_structure names hzval's own subpackage hzval.studies
+        if path in (Path(__file__).resolve(), ROOT / "tests" / "test_structure.py"):
             continue
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             names = []
@@ -233,3 +236,32 @@ def test_tests_import_nothing_from_the_scripts():
                 if n.replace("/", ".").split(".")[0] in ("benchmarks", "studies")
             ]
     assert not found, found
+
+
+def test_compare_runs_finds_a_changed_score(tmp_path):
+    """benchmarks/compare_runs.py's compare: two runs of the same sweep are the same, bit for bit; a
+    score changed in one, or an image's pixel, is found and named."""
+    import json
+
+    from hzval.cli import main as cli
+    from hzval.io import files
+
+    argv = ["sweep", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon", "--quiet"]
+    for run in ("a", "b"):
+        assert cli.main([*argv, "--out", str(tmp_path / run / "sweep")]) == 0
+    script = [sys.executable, str(ROOT / "benchmarks/compare_runs.py"), "compare"]
+    same = subprocess.run([*script, str(tmp_path / "a"), str(tmp_path / "b")], capture_output=True, text=True)
+    assert same.returncode == 0, same.stdout + same.stderr
+    metrics = tmp_path / "b" / "sweep" / "metrics.json"
+    data = json.loads(metrics.read_text())
+    data["frames"][0]["techniques"]["horizon"]["flip_mean"] += 1e-9
+    metrics.write_text(json.dumps(data))
+    truth = tmp_path / "b" / "sweep" / "frames" / "az+0" / "truth.exr"
+    layers = files.read_exr(truth)
+    layers["Y"][0, 0] += 0.5
+    files.write_exr(truth, layers)
+    changed = subprocess.run(
+        [*script, str(tmp_path / "a"), str(tmp_path / "b")], capture_output=True, text=True
+    )
+    assert changed.returncode == 1
+    assert "flip_mean" in changed.stdout and "truth.exr Y: 1 pixels differ" in changed.stdout

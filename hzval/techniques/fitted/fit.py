@@ -152,8 +152,26 @@ FIT_VERSION = 2
 
 
 def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
-    """``(elevation_deg, azimuth_deg)`` of ``"E1,E2@AZIMUTHS[;...]"``: each group's elevations times its
-    azimuths (``START:STOP:STEP`` or a list, :func:`hzval.scene.spec.parse_azimuths`), in order."""
+    """The training (or held-out) lights of a spec.
+
+    Parameters
+    ----------
+    spec : str
+        ``"E1,E2@AZIMUTHS[;...]"``: each group's elevations (degrees) times its azimuths
+        (``START:STOP:STEP`` or a list, :func:`hzval.scene.spec.parse_azimuths`).
+    what : str
+        The flag the errors name.
+
+    Returns
+    -------
+    tuple of (float, float)
+        ``(elevation_deg, azimuth_deg)`` in order.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For a malformed spec, naming ``what``.
+    """
     lights: list[tuple[float, float]] = []
     for group in (g.strip() for g in str(spec).split(";")):
         if not group:
@@ -178,15 +196,39 @@ def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float]
 
 
 def training_spp(spp: int, pixels: int) -> int:
-    """Samples per pixel of the training lights: :data:`TRAINING_SAMPLES` over ``pixels``, at most the
-    scene's ``spp``, at least 1."""
+    """Samples per pixel of the training lights' truth and forward model.
+
+    Parameters
+    ----------
+    spp : int
+        The scene's samples per pixel.
+    pixels : int
+        The image's pixels.
+
+    Returns
+    -------
+    int
+        :data:`TRAINING_SAMPLES` over ``pixels``, at most ``spp``, at least 1.
+    """
     return max(1, min(int(spp), TRAINING_SAMPLES // max(1, int(pixels))))
 
 
 def fit_scene(scene) -> "sc.Scene":
-    """The scene the fit renders: shadows only (``V`` and ``F`` are all it compares), a hard light, the
-    ``top`` view with the default lookup (a pixel a texel, bilinear), whatever view the scene's sweep
-    has: the fitted map is a texture, fitted where a pixel sees its texel."""
+    """The scene the fit renders, from a sweep's.
+
+    Shadows only (``V`` and ``F`` are all it compares), a hard light, the ``top`` view with the
+    default lookup (a pixel a texel, bilinear), whatever view the sweep has: the fitted map is a
+    texture, fitted where a pixel sees its texel.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+        The sweep's scene.
+
+    Returns
+    -------
+    hzval.scene.spec.Scene
+    """
     from hzval.scene.camera import Camera
 
     light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
@@ -196,14 +238,29 @@ def fit_scene(scene) -> "sc.Scene":
 
 
 def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
-    """The truth's ``V`` ``(H, W)`` float32 for each ``(elevation, azimuth)`` of ``lights``, in order.
+    """The truth's visibility of each light, from one set-up.
 
-    One :class:`hzval.truth.plane.Truth`, set up for the lowest elevation of ``lights``, renders them all:
-    its mesh's tolerance and its wrap margin are those of the lowest light, which serve every higher
-    one (a higher ray clears the relief sooner; each frame takes the hops its own elevation needs),
-    and a hard light's direction is read from its scene per frame. A set-up (the mesh, its BVH) costs
-    as much as 20 renders at 512 x 512; ``tests/techniques/fitted/test_fit.py`` checks that the V of a
-    shared set-up is a fresh one's bit for bit."""
+    One :class:`hzval.truth.plane.Truth`, set up for the lowest elevation of ``lights``, renders them
+    all: its mesh's tolerance and wrap margin serve every higher light (a higher ray clears the
+    relief sooner; each frame takes the hops its own elevation needs). The tests check that a
+    shared set-up's ``V`` is a fresh one's bit for bit.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+        The fit's scene (:func:`fit_scene`).
+    height : numpy.ndarray
+        ``(rows, cols)`` the normalised height map.
+    lights : sequence of (float, float)
+        ``(elevation_deg, azimuth_deg)``.
+    bar : tqdm.tqdm, optional
+        A progress bar, advanced a light at a time.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        ``(H, W)`` float32 ``V``, one per light, in order.
+    """
     from hzval.truth import plane as truth
 
     base = fit_scene(scene)
@@ -228,9 +285,28 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
 
 
 def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
-    """The fit's peak memory, bytes: the truth's V of every light, beside the larger of the truth's own
-    peak while it renders (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene``
-    is given) and the optimisation's (:data:`FIT_BASE_BYTES` and the rest)."""
+    """The fit's estimated peak memory.
+
+    The truth's ``V`` of every light, beside the larger of the truth's own peak while it renders
+    (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene`` is given) and
+    the optimisation's (:data:`FIT_BASE_BYTES` and the per-sample, per-texel and per-band terms).
+
+    Parameters
+    ----------
+    rows, cols : int
+        The map's size.
+    spp : int
+        Samples per pixel.
+    lights : int
+        Training and held-out lights, each a ``V`` kept.
+    scene : hzval.scene.spec.Scene, optional
+        The sweep's scene, for the truth's own peak.
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
     P = rows * cols
     band = min(P * spp, BAND_SAMPLES)
     optimise = (
@@ -248,8 +324,25 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
 
 
 def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
-    """Refuse, before anything is allocated, a fit whose estimate (:func:`estimate_bytes`) exceeds the
-    memory available now, with one line; return the estimate."""
+    """Refuse, before anything is allocated, a fit that would not fit in memory.
+
+    Parameters
+    ----------
+    what : str
+        The flag or file the refusal names.
+    rows, cols, spp, lights, scene
+        As :func:`estimate_bytes`.
+
+    Returns
+    -------
+    int
+        The estimate, in bytes, when it fits.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        One line (:func:`hzval.core.resources.refuse_over`).
+    """
     from hzval.core import resources
 
     return resources.refuse_over(
@@ -261,9 +354,30 @@ def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=Non
 
 
 def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> list[float]:
-    """Mean ``|F - V|`` of each light of ``lights`` of the horizon technique rendering ``sines`` as stored
-    (float): the sweep's own ``visibility_mae`` (:func:`hzval.metrics.compare.visibility_metrics`, every pixel
-    seen)."""
+    """Mean ``|F - V|`` of the horizon technique rendering ``sines``, per light.
+
+    The sweep's own ``visibility_mae`` (:func:`hzval.metrics.compare.visibility_metrics`, every pixel
+    seen).
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+        The fit's scene.
+    bake : hzval.bake.maps.Bake
+        The bake the map belongs to (its normal map and parameters).
+    sines : numpy.ndarray
+        ``(rows, cols, D)`` horizon sines, as stored (float).
+    lights : sequence of (float, float)
+        ``(elevation_deg, azimuth_deg)``.
+    V : list of numpy.ndarray
+        The truth's visibility of each light (:func:`visibility`).
+    k : float
+        The technique's hardness.
+
+    Returns
+    -------
+    list of float
+    """
     ap = horizon.Horizon(fit_scene(scene), dataclasses.replace(bake, horizon=sines), None, k=k)
     return [
         float(np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
@@ -272,7 +386,17 @@ def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k:
 
 
 def mean_error(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> float:
-    """Mean ``|F - V|`` over ``lights`` (:func:`light_errors`)."""
+    """Mean ``|F - V|`` over ``lights``: the mean of :func:`light_errors`.
+
+    Parameters
+    ----------
+    scene, bake, sines, lights, V, k
+        As :func:`light_errors`.
+
+    Returns
+    -------
+    float
+    """
     return float(np.mean(light_errors(scene, bake, sines, lights, V, k)))
 
 
@@ -468,15 +592,42 @@ def fit(
     constrain: float = CONSTRAIN,
     progress: bool = True,
 ) -> FitResult:
-    """Fit ``bake``'s horizon map to the truth of ``scene`` on ``height`` (module docstring).
+    """Fit a bake's horizon map to the truth, by Dr.Jit's automatic differentiation through the
+    horizon technique's own lookup and factor (module docstring; docs/fit.md).
 
-    ``lights``/``held_out``: specs (:func:`parse_lights`) or ``(elevation, azimuth)`` tuples; ``k``:
-    the technique's hardness (the start with ``fit_k``); ``storage``: how the map is stored;
-    ``guard``: the tolerance of :func:`hzval.techniques.fitted.guard.guard` (``None``: the optimiser's map
-    as it is);
-    ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: the plain mean);
-    ``train_spp``: samples per pixel of the training lights' truth and forward model, at most the
-    scene's (``None``: :func:`training_spp`); the held-out lights are scored at the scene's own samples.
+    Parameters
+    ----------
+    height : numpy.ndarray
+        ``(rows, cols)`` the normalised height map.
+    bake : hzval.bake.maps.Bake
+        The bake whose map the fit starts from.
+    scene : hzval.scene.spec.Scene
+        The sweep's scene (:func:`fit_scene` makes the fit's).
+    lights, held_out : str or sequence of (float, float)
+        Training and scored-only lights: specs (:func:`parse_lights`) or ``(elevation, azimuth)``.
+    fit_k : bool
+        Fit the hardness too.
+    storage : str
+        How the map is stored (:mod:`hzval.io.storage`); the fit is quantisation-aware for all but float.
+    k : float
+        The technique's hardness (the start with ``fit_k``).
+    tolerance, max_epochs, learning_rate, prior : float, int, float, float
+        When to stop, the Adam step, and the pull toward the baked map.
+    guard : float, optional
+        The tolerance of :func:`hzval.techniques.fitted.guard.guard` (``None``: the optimiser's map
+        as it is).
+    train_spp : int, optional
+        Samples per pixel of the training lights (``None``: :func:`training_spp`); held-out lights are
+        scored at the scene's own.
+    constrain : float
+        The step of the per-light weights (0: the plain mean).
+    progress : bool
+        Show progress bars.
+
+    Returns
+    -------
+    FitResult
+        The fitted sines, ``k``, the errors per light before and after, epochs and times.
     """
     backend.variant()
     lights = parse_lights(lights) if isinstance(lights, str) else tuple(lights)
@@ -571,9 +722,35 @@ def fit(
 
 
 def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
-    """:func:`hzval.techniques.fitted.guard.guard` of the optimiser's map against the baked map stored
-    alike, on the
-    training lights, through the fit's forward model; a block format guards whole blocks."""
+    """The optimiser's map guarded against the baked map, on the training lights.
+
+    :func:`hzval.techniques.fitted.guard.guard` through the fit's forward model, both maps stored
+    alike; a block storage format guards whole blocks.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+        The fit's scene.
+    bake : hzval.bake.maps.Bake
+        The bake.
+    stored : callable
+        The storage's round trip of a map.
+    V : list of numpy.ndarray
+        The truth's visibility of each training light.
+    lights : sequence of (float, float)
+        The training lights.
+    fitted : numpy.ndarray
+        ``(rows, cols, D)`` the optimiser's sines.
+    k, k_fit : float
+        The baked map's hardness and the fitted one's.
+    tolerance : float
+        The regression a texel may show before it reverts.
+
+    Returns
+    -------
+    tuple
+        ``(sines, record)`` as :func:`hzval.techniques.fitted.guard.guard`.
+    """
     model = _Model(scene, bake, k, "float", [])
     blocks = bool(stored.block_bytes)
 
@@ -707,9 +884,23 @@ def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: 
 
 
 def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
-    """``out/horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs), in :func:`hzval.bake.maps.write_bake`'s
-    layout,
-    and ``fit.json``, all or nothing."""
+    """Write a fit, all or nothing: ``horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs) in
+    :func:`hzval.bake.maps.write_bake`'s layout, and ``fit.json``.
+
+    Parameters
+    ----------
+    result : FitResult
+        The fit.
+    out : str or path-like
+        The folder.
+    input_info : dict
+        What ``fit.json`` records of the input (the material, the bake, the cache key).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
     from hzval.io import files
 
     layers = [
@@ -734,7 +925,25 @@ def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[P
 
 
 def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
-    """The fitted sines ``(rows, cols, D)`` float32 (from the EXRs) and ``fit.json``'s record."""
+    """A fit written by :func:`write_fit`.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Its folder.
+
+    Returns
+    -------
+    sines : numpy.ndarray
+        ``(rows, cols, D)`` float32, from the EXRs.
+    record : dict
+        ``fit.json``.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For a missing or malformed ``fit.json``.
+    """
     from hzval.io import documents, files
 
     folder = Path(folder)
@@ -747,8 +956,24 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
 
 
 def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
-    """The digest a cached fit is reused by: the height map, the bake's parameters, the scene's samples
-    and depth/boundary, and the fit's settings."""
+    """The digest a cached fit is reused by.
+
+    Parameters
+    ----------
+    height : numpy.ndarray
+        The normalised height map.
+    bake : hzval.bake.maps.Bake
+        Its bake (its parameters).
+    scene : hzval.scene.spec.Scene
+        The scene (its samples, lookup and supersampling).
+    settings : dict
+        The fit's own settings.
+
+    Returns
+    -------
+    str
+        A SHA-256 hex digest of all of them and :data:`FIT_VERSION`.
+    """
     h = hashlib.sha256(np.ascontiguousarray(height, np.float32).tobytes())
     meta = {
         "bake": bake.params.record(),
@@ -766,8 +991,25 @@ def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
 def cached_fit(
     height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False, **settings
 ) -> tuple[FitResult | None, np.ndarray, dict, bool]:
-    """``(result or None, sines, record, cached)``: the fit in ``folder`` if its key
-    (:func:`cache_key`) and file digests match, else a new :func:`fit` written there."""
+    """The fit in ``folder`` when its key and file digests match, else a new one written there.
+
+    Parameters
+    ----------
+    height, bake, scene
+        As :func:`fit`.
+    folder : str or path-like or None
+        The cache's folder (``None``: fit and keep nothing). A missing, damaged or hand-edited cache is
+        fitted anew; nothing outside the folder is read.
+    progress : bool
+        Show progress bars.
+    **settings
+        :func:`fit`'s keywords.
+
+    Returns
+    -------
+    tuple
+        ``(result or None, sines, record, cached)``: ``result`` is ``None`` for a cached fit.
+    """
     from hzval.io import documents, files, paths
 
     key = cache_key(height, bake, scene, settings)

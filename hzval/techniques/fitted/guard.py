@@ -45,8 +45,22 @@ ROUNDS = 8
 
 
 def neighbourhood_sum(x: np.ndarray, boundary: str, radius: int = 1) -> np.ndarray:
-    """The sum of ``x`` (rows, cols) over each texel's ``(2 radius + 1)^2`` neighbourhood: wrapped
-    around with ``boundary == "wrap"``, cut at the edges with ``"open"`` (nothing outside the image)."""
+    """The sum of ``x`` over each texel's ``(2 radius + 1)^2`` neighbourhood.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        ``(rows, cols)`` values.
+    boundary : {"wrap", "open"}
+        ``wrap`` wraps around; ``open`` cuts at the edges (nothing outside the image).
+    radius : int
+        Texels on each side.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows, cols)`` sums.
+    """
     rows, cols = x.shape
     pad = np.pad(x, radius, mode="wrap" if boundary == "wrap" else "constant")
     out = np.zeros_like(x)
@@ -79,15 +93,33 @@ def guard(
     rounds: int = ROUNDS,
     finish: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, dict]:
-    """``(sines, record)``: ``fitted`` (rows, cols, D) with the texels that regress reverted to ``baked``
-    (module docstring).
+    """Revert the fitted texels whose neighbourhood regresses against the baked map (module docstring).
 
-    ``errors(sines, baked)`` yields ``|F - V|`` (rows, cols) per training light of ``sines`` as stored
-    (``baked``: whether they are the baked map, rendered with its own ``k``); ``cell``: the storage's
-    block side (4 for block formats, else 1); ``finish``: makes a mixed map storable (the block
-    formats' round trip), applied after each round. ``record``: the share of texels kept fitted, the
-    passes, whether the last one found nothing to revert (``verified``: then no kept texel regresses
-    beyond ``tolerance`` on any training light) and the worst regression left (``None`` unverified).
+    Parameters
+    ----------
+    baked, fitted : numpy.ndarray
+        ``(rows, cols, D)`` sines.
+    errors : callable
+        ``errors(sines, baked)`` yields ``|F - V|`` ``(rows, cols)`` per training light of ``sines`` as
+        stored (``baked``: whether they are the baked map, rendered with its own ``k``).
+    boundary : {"wrap", "open"}
+        The map's boundary.
+    cell : int
+        The storage's block side (4 for block formats, else 1).
+    tolerance : float
+        The regression, in pixels' ``|F - V|``, a neighbourhood may show.
+    rounds : int
+        The most passes.
+    finish : callable, optional
+        Makes a mixed map storable (a block format's round trip), after each round.
+
+    Returns
+    -------
+    sines : numpy.ndarray
+        ``fitted`` with the regressing texels reverted to ``baked``.
+    record : dict
+        The share of texels kept fitted, the passes, whether the last found nothing to revert
+        (``verified``) and the worst regression left (``None`` unverified).
     """
     base = [np.asarray(e, np.float32) for e in errors(baked, True)]
     keep = np.ones(fitted.shape[:2], bool)

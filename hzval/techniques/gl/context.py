@@ -86,7 +86,17 @@ def info() -> dict:
 
 
 def shader_source(name: str) -> str:
-    """The text of ``hzval/techniques/gl/shaders/<name>``."""
+    """The text of a shader shipped with hzval.
+
+    Parameters
+    ----------
+    name : str
+        Its file name under ``hzval/techniques/gl/shaders/``.
+
+    Returns
+    -------
+    str
+    """
     return resources.files("hzval.techniques.gl").joinpath("shaders", name).read_text()
 
 
