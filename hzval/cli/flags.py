@@ -238,6 +238,14 @@ def add_mesh_flags(p: argparse.ArgumentParser) -> None:
         "ignore-handedness, swap-uv, flip-green, per-face; the truth never changes "
         "(docs/meshes.md, 'Tangent bugs')",
     )
+    g.add_argument(
+        "--tangents",
+        choices=("auto", "mikktspace", "fged2", "file"),
+        default=None,
+        help="the mesh's tangent frames: mikktspace (what bakers and engines compute), fged2, the "
+        "file's TANGENT, or auto (the file's where it has them, else mikktspace; the built-in "
+        "shapes keep fged2) (default auto; docs/meshes.md, 'Tangent frames')",
+    )
 
 
 def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:

@@ -101,7 +101,7 @@ OVERRIDES = (
     "size", "depth", "boundary", "shading", "truth_tolerance", "elevation", "azimuths", "light",
     "light_radius", "effects", "spp", "seed", "supersampling", "camera", "view_elevation",
     "view_azimuth", "fov", "distance", "resolution", "plane", "filter", "mips", "parallax", "mesh",
-    "uv_scale", "up", "tangent_bug",
+    "uv_scale", "up", "tangent_bug", "tangents",
 )  # fmt: skip
 
 #: Where a scene file sets the keys a command may default (:func:`scene_from_args`'s ``defaults``).

@@ -37,14 +37,9 @@ Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
     that no worker started is "not run", one whose worker died or whose scheduler was lost while
     it ran is failed. A local cluster listens on 127.0.0.1 only and serves no dashboard.
 
-    Dask distributed was chosen over Ray after measuring both on this
-    2-core machine (``benchmarks/bench_suite_engines.py``): a local cluster
-    up in 0.8 s against 3.7 s, 16 small tasks in 0.06 s against 0.12 s,
-    21 MB installed against 225 MB, pure-Python wheels; both take a
-    scheduler address. Each local worker's Dr.Jit runs ``cores / workers``
-    threads. On this 2-core machine the built-in suite took 260 s on two
-    workers, 280 s on one (with both cores) and 262 s in this process, with
-    the same scores.
+    Dask distributed was chosen over Ray after measuring both
+    (``benchmarks/bench_suite_engines.py``; benchmarks/README.md has the figures). Each local
+    worker's Dr.Jit runs ``cores / workers`` threads; the scores are the same in every case.
 """
 
 from __future__ import annotations

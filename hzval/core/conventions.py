@@ -361,7 +361,7 @@ def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
 #: bound: 256 x 256, 4 spp, a light at 2 degrees, 4.8 s a frame of the truth (0.05 s at the
 #: bricks' 0.05). Far past it the relief in texels (``depth * cols``, float32) outgrows the
 #: precision of a camera ray's hit (the audit's 1e30: "a camera ray missed"). Depth 5 is a
-#: supported case (issue 16); the built-in materials use 0.02-0.12. An ``open`` tile has no hops (a
+#: supported case; the built-in materials use 0.02-0.12. An ``open`` tile has no hops (a
 #: ray leaves it once it has crossed it), so its bound is only the precision's: a spike 1000 texels
 #: tall on a 16-texel terrain (depth 62.5) is one of the hard cases (tests/hard/test_geometry.py).
 MAX_DEPTH = 10.0

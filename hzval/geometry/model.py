@@ -31,6 +31,7 @@ normals); glTF and GLB by pygltflib, because trimesh 4-5 drops ``TANGENT`` and k
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import os
@@ -97,7 +98,9 @@ class BaseMesh:
     ``positions (V, 3)``, ``normals (V, 3)`` unit, ``uvs (V, 2)`` (u right, v up the image,
     ``uv_scale`` applied), ``faces (F, 3)`` int64 counterclockwise seen from outside,
     ``tangents (V, 4)`` (xyz unit along +u, w = +1/-1: bitangent ``w cross(n, t)`` along +v),
-    all float64. ``tangent_source``: ``"file"`` or ``"computed"``; ``up``: the file's up axis as
+    all float64. ``tangent_source``: ``"file"`` or ``"computed"``, ``tangent_method`` which frames
+    (:data:`hzval.geometry.tangents.METHODS`: ``mikktspace``, ``fged2`` or ``file``); ``up``: the
+    file's up axis as
     read (``"z"`` for the shapes); ``source``: a shape name or the file's path.
     """
 
@@ -110,6 +113,7 @@ class BaseMesh:
     tangent_source: str = "computed"
     up: str = "z"
     uv_scale: float = field(default=1.0)
+    tangent_method: str = "fged2"
 
     @cached_property
     def weld(self) -> np.ndarray:
@@ -159,6 +163,7 @@ class BaseMesh:
             "triangles": int(len(self.faces)),
             "world_per_uv": self.world_per_uv,
             "tangents": self.tangent_source,
+            "tangent_method": self.tangent_method,
             "mirrored_fraction": self.mirrored_fraction,
             "seam_edges": int(self.seam_edges),
         }
@@ -333,7 +338,8 @@ def build(
             t, t_source = tg.from_file(tangents, n), "file"
         except ValueError as exc:
             raise InputError(source, str(exc)) from None
-    mesh = BaseMesh(source, p, n, w, f, t, t_source, up, float(uv_scale))
+    method = "file" if t_source == "file" else "fged2"
+    mesh = BaseMesh(source, p, n, w, f, t, t_source, up, float(uv_scale), method)
     mesh.__dict__["weld"] = weld  # computed once above (a cached_property on a frozen dataclass)
     _check_uvs(source, mesh)
     _check_manifold(source, mesh)
@@ -677,14 +683,52 @@ def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
         raise InputError(f"[mesh] {name}", str(exc)) from None
 
 
+def with_frames(mesh: BaseMesh, method: str) -> BaseMesh:
+    """``mesh`` with the tangent frames ``method`` names (:func:`hzval.geometry.tangents.resolve`).
+
+    MikkTSpace gives each triangle corner a frame; a vertex whose corners disagree (a mirror line
+    with shared UVs) is split into one vertex per frame (:func:`hzval.geometry.mikktspace.per_vertex`).
+    A corner whose frame has no tangent (a vertex surrounded by degenerate UVs) gets one orthogonal
+    to its normal. One line naming ``--tangents`` for a method the mesh cannot have.
+    """
+    from hzval.geometry import mikktspace
+
+    try:
+        used = tg.resolve(method, mesh.tangent_source == "file", mesh.source in SHAPES)
+    except ValueError as exc:
+        raise InputError("--tangents", f"{mesh.source}: {exc}") from None
+    if used == mesh.tangent_method or (used == "file" and mesh.tangent_source == "file"):
+        return dataclasses.replace(mesh, tangent_method=used)
+    if used == "fged2":
+        t = tg.compute(mesh.positions, mesh.normals, mesh.uvs, mesh.faces)
+        return dataclasses.replace(mesh, tangents=t, tangent_source="computed", tangent_method=used)
+    corners = mikktspace.corner_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces)
+    p, n, w, f, t = mikktspace.per_vertex(mesh.positions, mesh.normals, mesh.uvs, mesh.faces, corners)
+    lost = np.linalg.norm(t[:, :3], axis=-1) == 0
+    t[lost, :3] = tg.any_tangent(n[lost])
+    out = BaseMesh(mesh.source, p, n, w, f, t, "computed", mesh.up, mesh.uv_scale, used)
+    out.__dict__["weld"] = weld_ids(p)
+    return out
+
+
 def load(
-    spec: str, *, uv_scale: float = 1.0, up: str | None = None, shape_args: dict | None = None
+    spec: str,
+    *,
+    uv_scale: float = 1.0,
+    up: str | None = None,
+    shape_args: dict | None = None,
+    tangents: str = "auto",
 ) -> BaseMesh:
     """The base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, with ``shape_args``, e.g.
     ``{"radius": 2}``; ``up`` ignored: they are z up) or a file by its extension
     (:data:`READERS`), read with the up axis ``up`` (None: y, the module's "Up axis of files").
-    ``uv_scale`` > 0 repeats the texture. Anything wrong is one :class:`InputError` naming the
-    file or the flag."""
+    ``uv_scale`` > 0 repeats the texture; ``tangents`` names its frames (:func:`with_frames`).
+    Anything wrong is one :class:`InputError` naming the file or the flag."""
+    return with_frames(_load(spec, uv_scale=uv_scale, up=up, shape_args=shape_args), tangents)
+
+
+def _load(spec: str, *, uv_scale: float, up: str | None, shape_args: dict | None) -> BaseMesh:
+    """:func:`load` with the frames the shape or the file comes with."""
     if not (isinstance(uv_scale, (int, float)) and math.isfinite(uv_scale) and uv_scale > 0):
         raise InputError("--uv-scale", f"must be a positive number, got {uv_scale!r}")
     if up is not None and up not in UP_AXES:

@@ -1,5 +1,5 @@
 """Engine bugs on purpose: the techniques' tangent frames as a careless engine builds them, while
-the truth keeps the correct ones (issue 29; docs/meshes.md, "Tangent bugs").
+the truth keeps the correct ones (docs/meshes.md, "Tangent bugs").
 
 A sample's frame is ``(t, b, n)`` (:mod:`hzval.geometry.tangents`: ``t`` along +u, ``b = w cross(n, t)``
 along +v, ``n`` out). Everything the techniques do on a model goes through it: the light in

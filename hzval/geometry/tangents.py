@@ -28,6 +28,8 @@ import numpy as np
 from hzval.core import conventions as cv
 
 __all__ = [
+    "METHODS",
+    "resolve",
     "DEGENERATE_UV",
     "FRAME_MODES",
     "reject",
@@ -49,6 +51,52 @@ __all__ = [
 #: no UV derivatives (FGED2 divides by it); it adds nothing to its vertices' sums.
 DEGENERATE_UV = 1e-12
 FRAME_MODES: tuple[str, ...] = ("vertex", "face")
+
+#: How a mesh's tangent frames are made (``--tangents``; docs/meshes.md, "Tangent frames"):
+#: ``mikktspace`` (:mod:`hzval.geometry.mikktspace`, what bakers and engines compute), ``fged2``
+#: (:func:`compute`), ``file`` (the file's ``TANGENT``, :func:`from_file`), or ``auto``
+#: (:func:`resolve`).
+METHODS: tuple[str, ...] = ("auto", "mikktspace", "fged2", "file")
+
+
+def resolve(method: str, has_file_tangents: bool, builtin: bool) -> str:
+    """The frames ``method`` stands for on one mesh.
+
+    ``auto`` is the file's ``TANGENT`` where it has one, else MikkTSpace, as glTF 2.0 asks of a
+    client; hzval's built-in shapes, which have no file, keep the FGED2 frames they were measured
+    with (so that their sweeps' scores stay what they were).
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`METHODS`.
+    has_file_tangents : bool
+        Whether the mesh's file holds tangents.
+    builtin : bool
+        Whether the mesh is one of hzval's built-in shapes.
+
+    Returns
+    -------
+    str
+        ``mikktspace``, ``fged2`` or ``file``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown method, or ``file`` on a mesh without tangents.
+
+    Examples
+    --------
+    >>> resolve("auto", True, False), resolve("auto", False, False), resolve("auto", False, True)
+    ('file', 'mikktspace', 'fged2')
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown tangent frames {method!r} (choose from {', '.join(METHODS)})")
+    if method == "file" and not has_file_tangents:
+        raise ValueError("the mesh has no TANGENT of its own: choose auto, mikktspace or fged2")
+    if method != "auto":
+        return method
+    return "file" if has_file_tangents else ("fged2" if builtin else "mikktspace")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -260,7 +308,7 @@ def frames(mesh, mode: str = "vertex") -> Frames:
     """The frames of a :class:`hzval.geometry.model.BaseMesh`: ``"vertex"``, its own per-vertex normals and
     tangents (the file's or :func:`compute`'s), which a renderer interpolates; ``"face"``, each
     triangle's own flat frame (:func:`face_frames`), the faceted frame a careless exporter gives
-    (issue 29 adds deliberate bugs here)."""
+    (:mod:`hzval.geometry.tangent_bugs` has the other bugs)."""
     if mode == "vertex":
         return Frames("vertex", mesh.normals, mesh.tangents)
     if mode == "face":

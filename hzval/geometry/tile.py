@@ -242,7 +242,7 @@ def write_ply(m, path) -> None:
 
 
 # ----------------------------------------------------------------------
-# The bilinear surface (issue 27)
+# The bilinear surface
 # ----------------------------------------------------------------------
 
 #: Default :func:`cell_levels` tolerance, texels of height: the largest vertical distance allowed

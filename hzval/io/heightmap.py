@@ -14,8 +14,7 @@ corrupt or not finite must never become silently wrong heights.
 
 Pillow reduces 16-bit RGB, RGBA and grey+alpha PNGs to 8 bits (Pillow 13
 has no 16-bit colour mode), so those are decoded with pypng, which keeps all
-16 bits; pypng is pure Python (about 3 s per megapixel when the rows use
-Paeth filtering), so every other PNG goes through Pillow.
+16 bits; pypng is pure Python and much slower, so every other PNG goes through Pillow.
 """
 
 from __future__ import annotations

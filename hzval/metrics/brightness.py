@@ -1,6 +1,6 @@
 """Why an engine's frame is off the truth's brightness as a whole: a factor of pi, a gamma of 2.2, sRGB twice.
 
-A frame ``pi`` times too bright scored FLIP 0.68 against the truth with no hint why (issue 32).
+A frame ``pi`` times too bright scores a large FLIP against the truth with no hint why.
 :func:`diagnose` tries the usual slips on the truth ``T`` (linear radiance; ``x = clip(exposure T)``
 its display-scaled value, ``exposure`` from ``frames.json``) and names the one that explains the
 engine's frame ``E`` (as :func:`hzval.commands.score.read_frame` decoded it) far better than ``T`` itself:

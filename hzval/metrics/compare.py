@@ -21,15 +21,11 @@ i.e. exposed, clipped to [0, 1] and sRGB-encoded. The truth's half of both
 (FLIP's filtered reference, its CIELAB) is computed once per frame
 (:class:`Reference`) and reused for every technique compared with it.
 
-``flip_evaluator_flip`` and ``delta_e2000_colour`` are the implementations
-these replaced (flip-evaluator, colour-science), kept as the tests' and
-``benchmarks/bench_compare.py``'s references: at 2048 x 2048, one truth and
-four test images, FLIP and CIEDE2000 took 2.0 s against 34.1 s for them (17x;
-FLIP 16.6x, CIEDE2000 18.6x; this 2-core machine, load average 2.1), with
-FLIP means within 2e-7 and CIEDE2000 within 1e-12 of theirs
-(benchmarks/README.md). Display values, the MSE and the visibility metrics
-are Dr.Jit kernels too, so that an image crosses into NumPy only for the
-files.
+``flip_evaluator_flip`` and ``delta_e2000_colour`` run the same metrics through flip-evaluator
+and colour-science: the references the tests and ``benchmarks/bench_compare.py`` hold the
+kernels to (FLIP means within 2e-7, CIEDE2000 within 1e-12; benchmarks/README.md has the
+timings). Display values, the MSE and the visibility metrics are Dr.Jit kernels too, so that an
+image crosses into NumPy only for the files.
 """
 
 from __future__ import annotations

@@ -37,7 +37,7 @@ colour conversion to YCxCz; the x-direction passes, one gather of each
 plane per tap shared by the filters that read it (Cz by two, the feature
 luminance by three), over the image with its edge rows repeated above and
 below it; and the y-direction passes, whose taps are then plain offsets of
-a pixel's index (0.6x the time of clamping each), fused with everything that
+a pixel's index (cheaper than clamping each), fused with everything that
 follows them. Both passes are correlations, the filter index running with
 the image index, summed in float32 in FLIP's tap order. Image sizes enter
 the kernels as opaque values, so one compiled kernel serves every size.
@@ -57,10 +57,7 @@ the renders (1e-3) and the hard edge (5e-3). The larger ones are in flat
 regions near a difference, where the two images' filtered colours agree to
 float32 rounding: FLIP's error there is that rounding (``|dLab| ** 0.7``)
 raised to ``1 - feature_difference``, in either implementation.
-``benchmarks/bench_compare.py`` compares the two at 512-2048 pixels: at 2048 x
-2048, one reference and four test images took 1.45 s against 23.9 s for
-flip-evaluator (16.6x; the NumPy implementation this replaced took 3.1 s
-against its 21.8 s), with means within 1.2e-7.
+``benchmarks/bench_compare.py`` times the two side by side (benchmarks/README.md).
 
 Images are ``(H, W, 3)`` sRGB-encoded display values, nominally in [0, 1]
 (any float dtype; computed in float32); rows are y (row 0 first, as FLIP's

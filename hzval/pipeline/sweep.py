@@ -314,7 +314,9 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
     from hzval.geometry import model
     from hzval.truth import model as model_truth
 
-    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    base = model.load(
+        scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
+    )
     the_truth = model_truth.ModelTruth(scene, height, base, albedo=albedo)
     return the_truth, the_truth.samples()
 

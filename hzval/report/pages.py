@@ -1,4 +1,4 @@
-"""The HTML comparison report of a sweep (docs/ARCHITECTURE.md; issue 5).
+"""The HTML comparison report of a sweep (docs/ARCHITECTURE.md).
 
 :func:`write_report` turns the content of ``metrics.json`` into
 ``out/index.html`` and ``out/plots/*.png``. The page is self-contained: no

@@ -137,12 +137,14 @@ class MeshSpec:
     """The surface the material is on (:mod:`hzval.geometry.model`): ``shape`` a built-in shape or a mesh
     file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
     axis (``None``: the format's default); ``tangent_bug``: the engine bug the techniques' frames
-    are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change)."""
+    are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change);
+    ``tangents``: which frames the mesh uses (:data:`hzval.geometry.tangents.METHODS`)."""
 
     shape: str = "plane"
     uv_scale: float = 1.0
     up: str | None = None
     tangent_bug: str = "none"
+    tangents: str = "auto"
 
     @property
     def is_plane(self) -> bool:
@@ -299,6 +301,13 @@ class Scene:
         from hzval.geometry import tangent_bugs
 
         tangent_bugs.check(ms.tangent_bug, what if self.source else "--tangent-bug")
+        from hzval.geometry import tangents as tg
+
+        if ms.tangents not in tg.METHODS:
+            raise InputError(
+                what if self.source else "--tangents",
+                f"mesh.tangents must be one of {', '.join(tg.METHODS)}, got {ms.tangents!r}",
+            )
 
 
 # --------------------------------------------------------------------------
@@ -506,7 +515,7 @@ def override(scene: Scene, **changes) -> Scene:
     effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
     ``view_azimuth``, ``fov``, ``distance``, ``resolution`` (``(W, H)``), ``film_size``; the
     lookup's ``plane``, ``filter``, ``mips``, ``parallax``, ``parallax_steps``; the mesh's ``mesh``
-    (its shape), ``uv_scale``, ``up``, ``tangent_bug``.
+    (its shape), ``uv_scale``, ``up``, ``tangent_bug``, ``tangents``.
     """
     c = {k: v for k, v in changes.items() if v is not None}
     mat = scene.material
@@ -570,6 +579,7 @@ def override(scene: Scene, **changes) -> Scene:
                 ("uv_scale", "uv_scale"),
                 ("up", "up"),
                 ("tangent_bug", "tangent_bug"),
+                ("tangents", "tangents"),
             )
             if m in c
         },

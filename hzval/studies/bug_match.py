@@ -112,7 +112,9 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
             f"material.path {hm.path}: not the height map the sweep read (its digest has changed)",
         )
     h = hm.height
-    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    base = model.load(
+        scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
+    )
     mt = ModelTruth(scene, h, base)
     seen = mt.seen
     errors = {}

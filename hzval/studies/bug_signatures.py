@@ -1,4 +1,4 @@
-"""What each tangent-frame bug looks like on a model with mirrored UVs (issue 29; docs/models.md,
+"""What each tangent-frame bug looks like on a model with mirrored UVs (docs/models.md,
 "Tangent-bug signatures"), for ``hzval models``.
 
 A user whose own engine shows a visibility-difference picture like one of these can name the cause.

@@ -1,5 +1,5 @@
 """Curvature and nothing else: each technique's |F - V| in a band of local light elevations, on a fixed
-window of the texture, per texel, beside the flat patch's on the same texels (issue 29, docs/models.md).
+window of the texture, per texel, beside the flat patch's on the same texels (docs/models.md).
 
 Why a band. On a cap of radius ``R`` the base normal turns by ``r / R`` at geodesic distance ``r``
 from the centre, so one world light meets the surface at a different local elevation on every pixel:

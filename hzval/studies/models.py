@@ -1,4 +1,4 @@
-"""``hzval models [HEIGHT] --out DIR``: what curvature costs each technique (issue 29, docs/models.md).
+"""``hzval models [HEIGHT] --out DIR``: what curvature costs each technique (docs/models.md).
 
 The flat bake sees a tile; on a sphere of radius ``R`` a horizon at distance ``d`` along the surface
 lies ``d^2 / (2R)`` below the tangent plane (convex) or above it (concave). The study sweeps one
@@ -47,7 +47,7 @@ from hzval.io import files
 
 __all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
-#: Convex caps' radii and the bowls', in texture widths (issue 29).
+#: Convex caps' radii and the bowls', in texture widths.
 RADII: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0)
 BOWLS: tuple[float, ...] = (1.0, 2.0)
 #: The caps' half width along the surface, texture widths (smaller than the smallest radius).

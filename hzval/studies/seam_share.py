@@ -1,4 +1,4 @@
-"""How much of a technique's error lies within a few texels of a UV seam (issue 29, docs/models.md).
+"""How much of a technique's error lies within a few texels of a UV seam (docs/models.md).
 
 A seam edge (:func:`hzval.geometry.model.seam_edge_ends`: two triangles meet at the same positions with
 different UVs or tangents) is where a tangent-space technique reads two charts of the texture and

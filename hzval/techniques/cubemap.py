@@ -24,9 +24,8 @@ Seamless
     recommends the average of the three texels that are there, which is
     what this does.
 
-Without seamless filtering a GPU clamps to the face's edge texels, which
-is what hzval's ``--path gpu`` did before issue 31 (:func:`bilinear`
-``seamless=False``).
+Without seamless filtering a GPU clamps to the face's edge texels
+(:func:`bilinear` ``seamless=False``).
 """
 
 from __future__ import annotations

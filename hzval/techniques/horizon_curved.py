@@ -1,5 +1,5 @@
 """The horizon map's stored sines corrected for the surface's normal curvature: the derivation, the
-correction for a constant curvature and the ``horizon-curved`` technique that renders it (issue 29,
+correction for a constant curvature and the ``horizon-curved`` technique that renders it (
 item 2; measured in studies/curved_horizon.py, docs/models.md).
 
 Derivation. Let a point ``p`` of the base surface have the tangent plane ``z = 0``, heights ``h`` in

@@ -1,6 +1,6 @@
 """Raudins' terrain shadows: a per-light sweep of the shadow-boundary height.
 
-The third technique on the sweep (issue 7, item 3). Source:
+The third technique on the sweep. Source:
 ``shared/seeds/raudins-terrain-horizon-mapping.txt`` (Glenn Raudins,
 "Horizon Mapping: Fast Terrain Lighting"): for the current sun position, one
 sweep across the height map "maintains a horizon contour" and stores, per

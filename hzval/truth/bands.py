@@ -50,7 +50,7 @@ __all__ = [
     "band_pass",
 ]
 
-#: The peak a sweep aims to stay within (issue 27: a 4096 x 4096 sweep within 16 GiB): past it, or past
+#: The peak a sweep aims to stay within (a 4096 x 4096 sweep within 16 GiB): past it, or past
 #: the memory available, the truth builds its mesh in bands (:func:`hzval.truth.memory.truth_plan`).
 PEAK_TARGET_BYTES = 16 * 2**30
 #: Texels added to each side of a band's cover: the cell that holds a sample on the band's edge, the

@@ -180,7 +180,9 @@ def _model_peak_bytes(scene, rows: int, cols: int) -> int:
     from hzval.geometry import displace, model
     from hzval.truth import model as model_truth
 
-    base = model.load(scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up)
+    base = model.load(
+        scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
+    )
     triangles, mesh_bytes = displace.estimate(base, (rows, cols))
     H, W = sc.image_shape(rows, cols, scene.camera)
     return int(

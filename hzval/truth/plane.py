@@ -142,8 +142,7 @@ Boundaries
     when rays leave in every direction (ambient, reflection, paths), never
     below 10 degrees, and at most :data:`hzval.geometry.tile.MIN_MARGIN_CAP` (32) texels wide: a margin
     for a grazing light or a deep relief grows as ``relief / tan(e)`` and the
-    mesh with its square (the bricks at 1 degree: 2.4 GB; a 512 x 512 photo at
-    depth 5: 30,000 x 30,000 vertices). Rays that need more - lights below
+    mesh with its square. Rays that need more - lights below
     10 degrees, ambient and path rays near the horizon, soft lights that dip
     low, any ray over a relief deeper than the margin holds - are traced in hops: a hop ends
     before the ray can leave the margin (as far as the mesh reaches from where it starts, the
@@ -157,11 +156,9 @@ Memory
     the normals: :data:`STATE_BYTES_PER_SAMPLE` bytes) is kept for the frames, up
     to :data:`KEEP_SAMPLES` samples, in bands of :data:`KEPT_BAND_SAMPLES`:
     the rays' own buffers (Embree's inputs and outputs, the shading's terms)
-    are then a band's, reused from band to band, not the image's (at 2048 x
-    2048 and 16 spp: a peak 1.7 GB lower, and 4-5 s less in a sweep of five
-    lights, most of it the kernel's zeroing of pages new to the process). A larger image (4096 x
-    4096 at 16 spp: 268M samples, 14 GB of such state) is rendered in bands of whole pixel
-    rows, :data:`BAND_SAMPLES` samples each, whose camera rays are traced
+    are then a band's, reused from band to band, not the image's
+    (docs/truth-surface.md, "Cost", has what that saves). A larger image is rendered in bands of
+    whole pixel rows, :data:`BAND_SAMPLES` samples each, whose camera rays are traced
     again in every frame; only ``A`` is kept per band. Sample positions,
     random streams and light samples are indexed by the sample's place in
     the whole image, so a band gives bit for bit the pixels of one piece

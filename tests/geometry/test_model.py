@@ -83,6 +83,7 @@ def test_plane_is_todays_tile():
         "triangles": 2,
         "world_per_uv": 1.0,
         "tangents": "computed",
+        "tangent_method": "fged2",  # a built-in shape keeps the frames it was measured with
         "mirrored_fraction": 0.0,
         "seam_edges": 0,
     }

@@ -5,7 +5,7 @@ it may
 trade: raise a texel's sine toward a direction to win at one elevation and lose at another. On
 the training lights the trade pays; on a light between the training elevations it may not, and on
 a frame where the bake is nearly exact (little shadow toward that azimuth) every such trade is a
-loss, which makes a held-out frame worse than the bake's (issue 30: ``horizon-fit`` must never
+loss, which makes a held-out frame worse than the bake's (``horizon-fit`` must never
 be worse than ``horizon`` on a frame).
 
 The guard undoes the trades texel by texel. A texel's *regression* at a light is the sum, over
