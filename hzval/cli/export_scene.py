@@ -43,6 +43,7 @@ def add_parser(sub) -> None:
         help="vertex normals in the PLY (smooth, default) or none (faceted)",
     )
     flags.add_truth_tolerance_flag(p)
+    flags.add_mesh_flags(p)
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.set_defaults(run=run)
 

@@ -8,7 +8,10 @@
                       coordinates, its wrap margin included (hzval.geometry.tile)
     DIR/albedo.png    the albedo image, when the material has one
 
-so that ``mitsuba DIR/scene.xml`` renders it (``-o out.exr``), with
+so that ``mitsuba DIR/scene.xml`` renders it (``-o out.exr``). On a model (``--mesh``) it writes
+``DIR/base.glb``, the base mesh as hzval used it with its tangent frames (``TANGENT``, glTF's
+conventions: a user diffs them against their engine's), ``DIR/mesh.ply``, the displaced model
+the truth traces, and ``DIR/scene.xml`` seen from the truth's camera. The scene has
 
 ``direct``
     Mitsuba's direct-illumination integrator, one emitter sample per
@@ -45,6 +48,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from hzval import materials
+from hzval.bake.maps import BakeParams
 from hzval.core import backend, resources
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
@@ -55,8 +59,9 @@ from hzval.truth import memory
 
 __all__ = ["write_scene", "mitsuba_render", "FILES"]
 
-#: What :func:`write_scene` writes (``albedo.png`` only for an albedo image or a built-in material's own).
-FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png")
+#: What :func:`write_scene` writes (``albedo.png`` only for an albedo image or a built-in material's own;
+#: ``base.glb`` only on a model).
+FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png", "base.glb")
 
 
 def check_fits(scene: Scene) -> int:
@@ -64,18 +69,15 @@ def check_fits(scene: Scene) -> int:
     sweep's estimate (:func:`hzval.truth.memory.estimate_peak_bytes`, its mesh at four triangles a texel
     until the
     map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
-    nothing is rendered; return it in bytes."""
+    nothing is rendered (on a model: :func:`hzval.truth.memory.check_fits`'s model estimate);
+    return it in bytes."""
     import dataclasses
 
-    if not scene.mesh.is_plane:
-        raise InputError(
-            scene.source or "--scene",
-            f"export-scene writes the tile's displaced mesh; a model's "
-            f"({scene.mesh.shape}) is not exported yet",
-        )
     one = dataclasses.replace(scene, spp=1)
     rows, cols = memory.material_shape(one)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
+    if not scene.mesh.is_plane:
+        return memory.check_fits(one, BakeParams(depth=scene.material.depth))
     need = memory.estimate_peak_bytes(one, rows, cols)
     return resources.refuse_over(what, need, f"the mesh of {cols}x{rows} texels", "a smaller map")
 
@@ -90,23 +92,27 @@ def write_scene(
     :func:`hzval.io.files.output_folder` holds it (``force`` as there).
     """
     with files.output_folder(out, force=force):
+        if not scene.mesh.is_plane:
+            return _write_model(scene, height, Path(out), azimuth_deg)
         return _write_scene(scene, height, Path(out), azimuth_deg)
 
 
-def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
-    backend.variant()
+def _direct_only(scene: Scene) -> Scene:
+    """``scene`` validated, refused in one line where it declares what Mitsuba's direct integrator
+    does not render."""
     scene = scene.validate()
-    if (
-        scene.declares("interreflection")
-        or scene.declares("specular")
-        or scene.declares("ambient")
-        or scene.declares("reflection_occlusion")
-    ):
+    if any(scene.declares(e) for e in ("interreflection", "specular", "ambient", "reflection_occlusion")):
         raise InputError(
             scene.source or "--effects",
             "export-scene writes the diffuse, shadowed scene of "
             "Mitsuba's direct integrator: declare shadow and/or diffuse only",
         )
+    return scene
+
+
+def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
+    backend.variant()
+    scene = _direct_only(scene)
     h = np.asarray(height, np.float32)
     rows, cols = h.shape
     mat, light = scene.material, scene.light
@@ -123,7 +129,8 @@ def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
     mesh.write_ply(m, out / "mesh.ply")
     written.append(out / "mesh.ply")
     reflectance = _reflectance(scene, out, written)
-    xml = _scene_xml(scene, rows, cols, float(h.max()) * mat.depth * cols, azimuth_deg, reflectance)
+    sensor = _top_sensor(scene, rows, cols, float(h.max()) * mat.depth * cols)
+    xml = _scene_xml(scene, sensor, azimuth_deg, reflectance)
     with files.atomic_path(out / "scene.xml") as tmp:
         Path(tmp).write_text(xml, encoding="utf-8")
     written.append(out / "scene.xml")
@@ -157,35 +164,12 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
     )
 
 
-def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: float, reflectance: str) -> str:
-    light = scene.light
-    L = light.direction(azimuth_deg)
-    height, width = image_shape(rows, cols, scene.camera)
-    cx, cy = cols / 2.0, rows / 2.0
-    eye = top + 1.0 + 0.05 * max(rows, cols)
+def _v(*xs) -> str:
+    return quoteattr(", ".join(f"{x:.9g}" for x in xs))
 
-    def v(*xs):
-        return quoteattr(", ".join(f"{x:.9g}" for x in xs))
 
-    return f"""<?xml version="1.0" encoding="utf-8"?>
-<!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export):
-     {scene.name}, depth {scene.material.depth:g}, {scene.material.boundary}, \
-{scene.material.shading} shading,
-     light azimuth {azimuth_deg:g}, elevation {light.elevation_deg:g} degrees; tangent space in texels,
-     +x right, +y up the image. Render: mitsuba scene.xml -o out.exr -->
-<scene version="3.0.0">
-    <integrator type="direct">
-        <integer name="emitter_samples" value="1"/>
-        <integer name="bsdf_samples" value="0"/>
-    </integrator>
-    <sensor type="orthographic">
-        <transform name="to_world">
-            <scale x="{cx:.9g}" y="{cy:.9g}"/>
-            <lookat origin={v(cx, cy, eye)} target={v(cx, cy, 0.0)} up="0, 1, 0"/>
-        </transform>
-        <float name="near_clip" value="0.01"/>
-        <float name="far_clip" value="{eye + 10.0 * max(rows, cols):.9g}"/>
-        <sampler type="independent">
+def _film(scene: Scene, width: int, height: int) -> str:
+    return f"""<sampler type="independent">
             <integer name="sample_count" value="{int(scene.spp)}"/>
             <integer name="seed" value="{int(scene.seed)}"/>
         </sampler>
@@ -194,11 +178,60 @@ def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: floa
             <integer name="height" value="{height}"/>
             <string name="pixel_format" value="rgb"/>
             <rfilter type="box"/>
-        </film>
-    </sensor>
+        </film>"""
+
+
+def _top_sensor(scene: Scene, rows: int, cols: int, top: float) -> str:
+    """The orthographic sensor straight down over the tile (module docstring)."""
+    height, width = image_shape(rows, cols, scene.camera)
+    cx, cy = cols / 2.0, rows / 2.0
+    eye = top + 1.0 + 0.05 * max(rows, cols)
+    return f"""<sensor type="orthographic">
+        <transform name="to_world">
+            <scale x="{cx:.9g}" y="{cy:.9g}"/>
+            <lookat origin={_v(cx, cy, eye)} target={_v(cx, cy, 0.0)} up="0, 1, 0"/>
+        </transform>
+        <float name="near_clip" value="0.01"/>
+        <float name="far_clip" value="{eye + 10.0 * max(rows, cols):.9g}"/>
+        {_film(scene, width, height)}
+    </sensor>"""
+
+
+def _view_sensor(scene: Scene, view) -> str:
+    """A perspective sensor at a model truth's view (:func:`hzval.truth.model.model_view`)."""
+    eye, target = np.asarray(view.eye, float), np.asarray(view.target, float)
+    far = 10.0 * float(np.linalg.norm(eye - target)) + 1.0
+    return f"""<sensor type="perspective">
+        <string name="fov_axis" value="x"/>
+        <float name="fov" value="{view.fov_deg:.9g}"/>
+        <transform name="to_world">
+            <lookat origin={_v(*eye)} target={_v(*target)} up={_v(*view.up)}/>
+        </transform>
+        <float name="near_clip" value="{far * 1e-5:.9g}"/>
+        <float name="far_clip" value="{far:.9g}"/>
+        {_film(scene, int(view.resolution[0]), int(view.resolution[1]))}
+    </sensor>"""
+
+
+def _scene_xml(scene: Scene, sensor: str, azimuth_deg: float, reflectance: str) -> str:
+    light = scene.light
+    L = light.direction(azimuth_deg)
+    on = "the tile" if scene.mesh.is_plane else f"{scene.mesh.shape}, world units, z up"
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export):
+     {scene.name} on {on}, depth {scene.material.depth:g}, {scene.material.boundary}, \
+{scene.material.shading} shading,
+     light azimuth {azimuth_deg:g}, elevation {light.elevation_deg:g} degrees; tangent space in texels,
+     +x right, +y up the image. Render: mitsuba scene.xml -o out.exr -->
+<scene version="3.0.0">
+    <integrator type="direct">
+        <integer name="emitter_samples" value="1"/>
+        <integer name="bsdf_samples" value="0"/>
+    </integrator>
+    {sensor}
     <emitter type="directional">
-        <vector name="direction" value={v(-L[0], -L[1], -L[2])}/>
-        <rgb name="irradiance" value={v(light.irradiance, light.irradiance, light.irradiance)}/>
+        <vector name="direction" value={_v(-L[0], -L[1], -L[2])}/>
+        <rgb name="irradiance" value={_v(light.irradiance, light.irradiance, light.irradiance)}/>
     </emitter>
     <shape type="ply">
         <string name="filename" value="mesh.ply"/>
@@ -208,6 +241,35 @@ def _scene_xml(scene: Scene, rows: int, cols: int, top: float, azimuth_deg: floa
     </shape>
 </scene>
 """
+
+
+def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
+    """A model's export: ``base.glb``, the base mesh as hzval used it (its frames included:
+    ``--tangents``), ``mesh.ply``, the displaced model the truth traces, and ``scene.xml`` seen
+    from the truth's camera. The displaced mesh carries no texture coordinates, so the diffuse
+    reflectance is the albedo's mean."""
+    import dataclasses
+
+    from hzval.geometry import gltf, model
+    from hzval.scene.spec import load_albedo
+    from hzval.truth.model import ModelTruth
+
+    backend.variant()
+    scene = _direct_only(dataclasses.replace(scene, spp=1))
+    base = model.load(
+        scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
+    )
+    written = [out / "base.glb", out / "mesh.ply", out / "scene.xml"]
+    gltf.write_glb(written[0], base.positions, base.normals, base.uvs, base.tangents, base.faces)
+    h = np.asarray(height, np.float32)
+    truth = ModelTruth(scene, h, base)
+    mesh.write_ply(truth.displaced_mesh, written[1])
+    a = np.mean(load_albedo(scene.material, *h.shape), axis=(0, 1))
+    reflectance = f'<rgb name="reflectance" value={_v(*a)}/>'
+    xml = _scene_xml(scene, _view_sensor(scene, truth.view), azimuth_deg, reflectance)
+    with files.atomic_path(written[2]) as tmp:
+        Path(tmp).write_text(xml, encoding="utf-8")
+    return written
 
 
 def mitsuba_render(path: str | Path, spp: int | None = None) -> np.ndarray:

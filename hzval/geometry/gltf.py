@@ -16,7 +16,7 @@ import numpy as np
 from hzval.core.errors import InputError
 from hzval.geometry import tangents as tg
 
-__all__ = ["read_parts"]
+__all__ = ["read_parts", "write_glb"]
 
 #: glTF accessor component types (glTF 2.0, "Accessor Data Types") and the range a normalized one
 #: maps to [0, 1] / [-1, 1] by.
@@ -202,3 +202,79 @@ def read_parts(path: str) -> tuple:
 
     faces = np.concatenate([q[4] + o for q, o in zip(parts, offsets)])
     return cat(0), cat(1), cat(2), cat(3), faces
+
+
+def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") -> None:
+    """A mesh as a binary glTF 2.0 file: ``POSITION``, ``NORMAL``, ``TEXCOORD_0`` and ``TANGENT``.
+
+    The inverse of :func:`read_parts` with hzval's model reader: hzval's z-up world turned to
+    glTF's y up (``up="y"``, the spec's; ``"z"`` keeps the axes), ``v`` flipped back to glTF's
+    (``1 - v``: glTF's origin is the image's top left), ``TANGENT.w`` the handedness as glTF
+    defines it (the bitangent is ``w * cross(normal, tangent)``, toward hzval's +v), which is
+    hzval's own.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.glb`` to write (atomically).
+    positions, normals : numpy.ndarray
+        ``(V, 3)`` in hzval's world (z up).
+    uvs : numpy.ndarray
+        ``(V, 2)`` hzval's texture coordinates (``v`` up).
+    tangents : numpy.ndarray
+        ``(V, 4)`` unit tangents along +u and their handedness.
+    faces : numpy.ndarray
+        ``(F, 3)`` vertex indices, counterclockwise from outside.
+    up : {"y", "z"}
+        The written file's up axis.
+    """
+    import pygltflib
+
+    from hzval.geometry import model
+    from hzval.io import files
+
+    rot = model.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
+    arrays = [
+        ("POSITION", np.asarray(positions, np.float64) @ rot.T, "VEC3"),
+        ("NORMAL", np.asarray(normals, np.float64) @ rot.T, "VEC3"),
+        ("TEXCOORD_0", np.asarray(uvs, np.float64) * [1.0, -1.0] + [0.0, 1.0], "VEC2"),
+        (
+            "TANGENT",
+            np.concatenate([np.asarray(tangents)[:, :3] @ rot.T, np.asarray(tangents)[:, 3:]], 1),
+            "VEC4",
+        ),
+    ]
+    index = np.ascontiguousarray(faces, np.uint32).ravel()
+    blobs, views, accessors = [index.tobytes()], [], []
+    views.append(pygltflib.BufferView(buffer=0, byteOffset=0, byteLength=len(blobs[0]), target=34963))
+    accessors.append(pygltflib.Accessor(bufferView=0, componentType=5125, count=len(index), type="SCALAR"))
+    offset = len(blobs[0])
+    attributes = {}
+    for name, values, kind in arrays:
+        data = np.ascontiguousarray(values, np.float32)
+        blobs.append(data.tobytes())
+        views.append(pygltflib.BufferView(buffer=0, byteOffset=offset, byteLength=data.nbytes, target=34962))
+        bounds = {"min": data.min(0).tolist(), "max": data.max(0).tolist()} if name == "POSITION" else {}
+        accessors.append(
+            pygltflib.Accessor(
+                bufferView=len(views) - 1, componentType=5126, count=len(data), type=kind, **bounds
+            )
+        )
+        attributes[name] = len(accessors) - 1
+        offset += data.nbytes
+    g = pygltflib.GLTF2(
+        scene=0,
+        scenes=[pygltflib.Scene(nodes=[0])],
+        nodes=[pygltflib.Node(mesh=0)],
+        meshes=[
+            pygltflib.Mesh(
+                primitives=[pygltflib.Primitive(attributes=pygltflib.Attributes(**attributes), indices=0)]
+            )
+        ],
+        accessors=accessors,
+        bufferViews=views,
+        buffers=[pygltflib.Buffer(byteLength=offset)],
+    )
+    g.set_binary_blob(b"".join(blobs))
+    with files.atomic_path(path) as tmp:
+        g.save_binary(str(tmp))

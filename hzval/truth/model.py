@@ -187,6 +187,7 @@ class _Traced:
         params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, np.float32).ravel())
         params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
         params.update()
+        self.mesh = m
         self.scene = mi.load_dict({"type": "scene", "surface": m})
         self.triangles = int(len(faces))
         self._faces = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
@@ -381,6 +382,11 @@ class ModelTruth:
                 out["albedo"] = self._albedo_at(x, y)
         dr.eval(out)
         return out
+
+    @property
+    def displaced_mesh(self):
+        """The displaced model the truth traces, as a Mitsuba mesh (``export-scene`` writes it)."""
+        return self._displaced.mesh
 
     def _albedo_at(self, x, y):
         """The albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, nearest, as on the plane)."""

@@ -153,3 +153,74 @@ def test_the_reference_agrees_on_a_degenerate_and_frameless_mix(reference, tmp_p
     f = np.array([[0, 1, 2], [0, 2, 3], [3, 2, 4], [1, 5, 2]])  # no UV area; two equal positions
     ours, theirs = mk.corner_tangents(p, n, uv, f), reference(p, n, uv, f, tmp_path)
     np.testing.assert_allclose(ours, theirs, atol=1e-6)
+
+
+# Which frames a loaded mesh uses (--tangents) -----------------------------------------------------
+
+
+def test_auto_uses_a_files_tangents_unchanged_and_mikktspace_without(tmp_path):
+    from hzval.geometry import tangents as tg
+    from tests.geometry.test_model import QUAD_F as F
+    from tests.geometry.test_model import QUAD_P as P
+    from tests.geometry.test_model import QUAD_UV as UV
+    from tests.geometry.test_model import write_gltf
+
+    # orthonormal file tangents that MikkTSpace would not give (turned 30 degrees in the plane)
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    own = np.tile([c, s, 0.0, -1.0], (4, 1))
+    with_t = write_gltf(tmp_path / "t.gltf", P, UV, F, normals=np.tile([0.0, 0, 1], (4, 1)), tangents=own)
+    for method in ("auto", "file"):
+        m = model.load(str(with_t), up="z", tangents=method)
+        np.testing.assert_allclose(m.tangents, own, atol=1e-7)
+        assert m.tangent_method == "file"
+    bare = model.load(str(write_gltf(tmp_path / "b.gltf", P, UV, F)), up="z")
+    assert bare.tangent_method == "mikktspace"
+    np.testing.assert_allclose(bare.tangents, np.tile([1.0, 0, 0, 1], (4, 1)), atol=1e-12)
+    fged2 = model.load(str(with_t), up="z", tangents="fged2")
+    np.testing.assert_array_equal(
+        fged2.tangents, tg.compute(fged2.positions, fged2.normals, fged2.uvs, fged2.faces)
+    )
+
+
+def test_fged2_gives_the_frames_the_shapes_always_had():
+    from hzval.geometry import tangents as tg
+
+    for shape in ("sphere", "mirrored-sphere", "torus"):
+        m = model.load(shape, tangents="fged2")
+        assert m.tangent_method == "fged2" and model.load(shape).tangent_method == "fged2"  # auto
+        np.testing.assert_array_equal(m.tangents, tg.compute(m.positions, m.normals, m.uvs, m.faces))
+
+
+def test_file_frames_on_a_mesh_without_them_is_one_line_naming_the_flag():
+    from hzval.core.errors import InputError
+
+    with pytest.raises(InputError, match="--tangents: sphere: the mesh has no TANGENT"):
+        model.load("sphere", tangents="file")
+
+
+def test_mikktspace_splits_the_mirror_line_of_a_mirrored_sphere():
+    m = model.load("mirrored-sphere", tangents="mikktspace")
+    assert m.tangent_method == "mikktspace" and np.isfinite(m.tangents).all()
+    corners = mk.corner_tangents(m.positions, m.normals, m.uvs, m.faces)
+    np.testing.assert_allclose(m.tangents[m.faces], corners, atol=1e-12)  # one frame a vertex
+    assert set(np.unique(m.tangents[:, 3])) == {-1.0, 1.0}
+
+
+@pytest.mark.gcc
+def test_export_scene_writes_the_references_frames_of_a_users_model(reference, tmp_path, variant):
+    """The Done-when of issue 40: a glTF with seams and mirrored islands and no TANGENT, exported by
+    ``hzval export-scene``; base.glb's tangents, corner by corner, against the reference's."""
+    from hzval.cli import main as cli
+    from tests.geometry.test_model import write_gltf
+
+    p, n, uv, f = seams_and_mirrors()
+    src = write_gltf(tmp_path / "user.gltf", p, uv, f, normals=n)
+    out = tmp_path / "export"
+    argv = ["export-scene", "--material", "gravel", "--size", "16", "--mesh", str(src), "--up", "z"]
+    assert cli.main([*argv, "--out", str(out)]) == 0
+    written = model.load(str(out / "base.glb"), up="y")
+    read = model.load(str(src), up="z", tangents="fged2")  # the arrays hzval read, before any frames
+    theirs = reference(read.positions, read.normals, read.uvs, read.faces, tmp_path)
+    ours = written.tangents[written.faces]
+    close = (angle_deg(ours[..., :3], theirs[..., :3]) < 1.0) & (ours[..., 3] == theirs[..., 3])
+    assert close.mean() >= 0.99, close.mean()

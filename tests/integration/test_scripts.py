@@ -154,6 +154,7 @@ SMOKE = {
         "{tmp}/h.png",
     ],
     "studies/turned_techniques.py": ["--spp", "1"],
+    "benchmarks/bench_mikktspace.py": ["--segments", "16", "--size", "32", "--repeat", "1"],
 }
 NO_SMOKE = {
     "benchmarks/bench_bake.py": "compiles the C seed peer (tests/bake/test_horizon_peer.py does, marker gcc)",
