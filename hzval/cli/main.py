@@ -46,13 +46,21 @@ def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, s
 
 def _common() -> argparse.ArgumentParser:
     """The flags every command takes, before or after its name (argparse ``parents=``)."""
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     common.add_argument(
         "--variant",
         default=argparse.SUPPRESS,
         help="Mitsuba variant (default: cuda_ad_rgb with a GPU, else llvm_ad_rgb; or $HZVAL_VARIANT)",
     )
     return common
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument error is one line naming the flag as typed, and where to read more: argparse's
+    usage block is left out (it buried the error under 35 lines)."""
+
+    def error(self, message: str):
+        self.exit(errors.EXIT_BAD_INPUT, f"hzval: error: {message}; see '{self.prog} --help'\n")
 
 
 class _Subcommands(argparse._SubParsersAction):
@@ -69,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     ``--force`` for every command that writes a folder."""
     import hzval
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hzval",
         parents=[_common()],
         description="Validate horizon mapping and the self-shadowing techniques it competes with "

@@ -170,6 +170,10 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 
     base, data = base_scene(args, quiet=quiet)
     given = {k: v for k, v in scene_overrides(args).items() if v is not None}
+    if "elevation" in given and not 0.0 < given["elevation"] <= 90.0:  # math.nan fails too
+        raise errors.InputError(
+            "--elevation", f"the light's elevation must be in (0, 90] degrees, got {given['elevation']:g}"
+        )
     height = material_of(args)
     material = height or base.material.height
     own = {}

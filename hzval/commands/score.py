@@ -76,7 +76,11 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
     for name in ("metrics.json", "frames.json"):
         path = sweep_dir / name
         if not path.is_file():
-            raise InputError(sweep_dir, f"not a sweep folder (no {name}): run hzval sweep --out {sweep_dir}")
+            raise InputError(
+                "--against",
+                f"{sweep_dir} is not a sweep's folder (no {name}): give the --out of an hzval sweep "
+                "(FRAMES_DIR holds your frames; --against the sweep they render)",
+            )
         out.append(documents.read_json(path))
     return out[0], out[1]
 

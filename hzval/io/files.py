@@ -137,7 +137,10 @@ def _take_lock(path: Path, folder: Path) -> int:
     import fcntl
 
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:  # a read-only folder: name it, not the lock file inside it
+            raise InputError(folder, f"cannot be written ({exc.strerror or first_line(exc)})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -111,7 +111,7 @@ def test_bad_frames_are_one_line_errors(sweep_dir, tmp_path, capsys):
     img[3, 4] = np.nan
     files.write_exr(nan / "az+0.exr", {"RGB": img})
     cases.append((nan, sweep_dir, "non-finite"))
-    cases.append((good, tmp_path, "not a sweep folder"))
+    cases.append((good, tmp_path, "is not a sweep's folder"))
     for frames, against, needle in cases:
         out = tmp_path / f"o_{frames.name}_{against.name}"
         assert cli.main(["score", str(frames), "--against", str(against), "--out", str(out)]) == 2

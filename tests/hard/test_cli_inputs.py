@@ -195,7 +195,9 @@ def test_usage_errors_exit_2_without_a_traceback(argv, capsys):
         cli.main(argv)
     assert e.value.code == 2
     err = capsys.readouterr().err
-    assert "usage: hzval" in err and "Traceback" not in err
+    # one line and where to read more; the usage block buried the error (issue 41)
+    assert err.startswith("hzval: error: ") and err.count("\n") == 1 and "--help'" in err
+    assert "usage:" not in err and "Traceback" not in err
 
 
 def test_bake_builtin_size_below_8_is_a_clear_error(tmp_path, capsys):

@@ -1,0 +1,72 @@
+"""What a new user trips on (issue 41), one test (or a few) for each reproduction fixed so far."""
+
+from __future__ import annotations
+
+import errno
+import os
+
+import numpy as np
+import pytest
+
+from hzval.cli import main as cli
+
+
+def one_line_naming(err: str, *needles: str) -> None:
+    assert err.startswith("hzval: error: ") and err.count("\n") == 1, err
+    assert "usage:" not in err and "Traceback" not in err
+    for n in needles:
+        assert n in err, (n, err)
+
+
+# 7. Errors that name the flag ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["sweep", "--light", "medium"], "--light"),
+        (["sweep", "--spp", "x"], "--spp"),
+        (["views", "--size", "1.5"], "--size"),
+        (["score", "frames"], "--against"),
+    ],
+)
+def test_an_argument_error_is_one_line_naming_the_flag_and_the_help(argv, flag, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    one_line_naming(capsys.readouterr().err, flag, f"see 'hzval {argv[0]} --help'")
+
+
+@pytest.mark.parametrize("elevation", ["95", "-5", "0", "nan"])
+def test_a_light_elevation_outside_0_to_90_is_refused_naming_the_flag(elevation, tmp_path, capsys):
+    assert cli.main(["sweep", "--elevation", elevation, "--out", str(tmp_path / "o")]) == 2
+    one_line_naming(capsys.readouterr().err, "--elevation", "(0, 90]")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_folder_that_cannot_be_written_is_named_not_its_lock_file(tmp_path, monkeypatch, capsys):
+    from hzval.io import files
+
+    real = os.open
+
+    def read_only(path, *a, **k):
+        if str(path).endswith(files.LOCK_NAME):
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return real(path, *a, **k)
+
+    monkeypatch.setattr(os, "open", read_only)
+    out = tmp_path / "ro"
+    assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    one_line_naming(err, str(out), "cannot be written")
+    assert files.LOCK_NAME not in err
+
+
+def test_score_against_a_frames_folder_never_advises_writing_into_it(tmp_path, capsys):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    np.save(frames / "note.npy", np.zeros(1))
+    assert cli.main(["score", str(frames), "--against", str(frames)]) == 2
+    err = capsys.readouterr().err
+    one_line_naming(err, "--against", "is not a sweep's folder")
+    assert f"--out {frames}" not in err
