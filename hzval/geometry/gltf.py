@@ -230,10 +230,9 @@ def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") 
     """
     import pygltflib
 
-    from hzval.geometry import model
     from hzval.io import files
 
-    rot = model.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
+    rot = tg.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
     arrays = [
         ("POSITION", np.asarray(positions, np.float64) @ rot.T, "VEC3"),
         ("NORMAL", np.asarray(normals, np.float64) @ rot.T, "VEC3"),

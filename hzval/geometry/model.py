@@ -87,8 +87,8 @@ MIN_AREA_SHARE = 1e-9
 #: 16384-wide map (``--uv-scale`` far too small).
 MIN_UV_AREA = 1e-10
 UP_AXES: tuple[str, ...] = ("y", "z")
-#: The rotation that turns a y-up file z up: (x, y, z) -> (x, -z, y).
-Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+#: The rotation that turns a y-up file z up (:data:`hzval.geometry.tangents.Y_UP_TO_Z_UP`).
+Y_UP_TO_Z_UP = tg.Y_UP_TO_Z_UP
 
 
 @dataclass(frozen=True, eq=False)

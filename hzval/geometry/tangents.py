@@ -28,6 +28,7 @@ import numpy as np
 from hzval.core import conventions as cv
 
 __all__ = [
+    "Y_UP_TO_Z_UP",
     "METHODS",
     "resolve",
     "DEGENERATE_UV",
@@ -51,6 +52,9 @@ __all__ = [
 #: no UV derivatives (FGED2 divides by it); it adds nothing to its vertices' sums.
 DEGENERATE_UV = 1e-12
 FRAME_MODES: tuple[str, ...] = ("vertex", "face")
+#: The rotation that turns a y-up file's vectors into hzval's z-up world: (x, y, z) -> (x, -z, y)
+#: (glTF 2.0 is y up; a frame turns with its mesh, :func:`rotate`).
+Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 #: How a mesh's tangent frames are made (``--tangents``; docs/meshes.md, "Tangent frames"):
 #: ``mikktspace`` (:mod:`hzval.geometry.mikktspace`, what bakers and engines compute), ``fged2``

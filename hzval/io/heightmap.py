@@ -34,7 +34,7 @@ from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError
 from hzval.io.files import first_line, library_output, read_exr
 
-__all__ = ["SUFFIXES", "HeightMap", "probe_shape", "load_height", "from_array"]
+__all__ = ["SUFFIXES", "MIN_SIDE", "HeightMap", "probe_shape", "load_height", "check_usable", "from_array"]
 
 _PathLike = str | os.PathLike
 
@@ -42,9 +42,13 @@ _LUMINANCE = "luminance (Rec. 709 weights)"
 
 _MAGIC = {b"\x89PNG\r\n\x1a\n": "png", b"v/1\x01": "exr", b"\x93NUMPY": "npy"}
 _KIND_BY_EXTENSION = {".png": "png", ".exr": "exr", ".npy": "npy"}
-#: The suffixes height map files have (a file is read by its content, whatever its name).
-SUFFIXES: tuple[str, ...] = tuple(_KIND_BY_EXTENSION)
-_KIND_NAME = {"png": "PNG", "exr": "EXR", "npy": ".npy"}
+#: The suffixes height map files have (a file is read by its content, whatever its name): hzval's
+#: own formats, then the images Pillow reads that a height map comes as.
+SUFFIXES: tuple[str, ...] = (*_KIND_BY_EXTENSION, ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+_KIND_NAME = {"png": "PNG", "exr": "EXR", "npy": ".npy", "pillow": "image"}
+#: The smallest height map a file may hold: a smaller one has hardly a shadow to cast, and every
+#: score of it is noise.
+MIN_SIDE = 8
 
 #: PNG colour types (IHDR) by name, and those that carry RGB.
 _PNG_COLOUR_TYPES = {0: "grey", 2: "RGB", 3: "palette", 4: "grey+alpha", 6: "RGBA"}
@@ -71,6 +75,11 @@ class HeightMap:
     source: str
     digest: str
 
+    @property
+    def colour(self) -> bool:
+        """Whether the file held colour, reduced to its luminance (the caller says so)."""
+        return _LUMINANCE in self.source
+
 
 def probe_shape(path: _PathLike) -> tuple[int, int]:
     """``(rows, cols)`` of a height map file, read from its header alone.
@@ -92,7 +101,35 @@ def load_height(path: _PathLike, *, max_pixels: int | None = None) -> HeightMap:
     kind, (rows, cols) = _probe(path)
     _check_size(path, rows, cols, max_pixels)
     height, source = _LOADERS[kind](path)
-    return HeightMap(_validated(path, height), os.fspath(path), source, _file_digest(path))
+    height = _validated(path, height)
+    return HeightMap(height, os.fspath(path), source, _file_digest(path))
+
+
+def check_usable(hm: HeightMap) -> HeightMap:
+    """Refuse, in one line naming the file, a height map a sweep cannot learn from: smaller than
+    :data:`MIN_SIDE` texels a side, or with no height variation (nothing casts a shadow).
+
+    Parameters
+    ----------
+    hm : HeightMap
+
+    Returns
+    -------
+    HeightMap
+        ``hm``, when it is usable.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+    """
+    rows, cols = hm.height.shape
+    what = hm.path or hm.source
+    if rows < MIN_SIDE or cols < MIN_SIDE:
+        raise InputError(what, f"is {cols}x{rows} texels; a height map needs at least {MIN_SIDE}x{MIN_SIDE}")
+    lo, hi = float(hm.height.min()), float(hm.height.max())
+    if lo == hi:
+        raise InputError(what, f"has no height variation (every value is {lo:g}): nothing casts a shadow")
+    return hm
 
 
 def from_array(height: np.ndarray, *, source: str = "array") -> HeightMap:
@@ -194,11 +231,15 @@ def _kind(path: _PathLike) -> str:
         if magic.startswith(head):
             raise InputError(path, f"truncated {_KIND_NAME[kind]} file ({len(head)} bytes)")
     named = _KIND_BY_EXTENSION.get(Path(path).suffix.lower())
+    if named is None and _pillow_reads(path):
+        return "pillow"  # JPEG, TIFF, BMP, WebP, ...: whatever Pillow reads, as a grey or colour image
     if named is not None:
         raise InputError(
             path, f"not a {_KIND_NAME[named]} file (no {_KIND_NAME[named]} signature at its start)"
         )
-    raise InputError(path, "not a PNG, EXR or .npy file")
+    raise InputError(
+        path, "not an image hzval reads: PNG, EXR, .npy, or any image Pillow opens (JPEG, TIFF, ...)"
+    )
 
 
 def _probe(path: _PathLike) -> tuple[str, tuple[int, int]]:
@@ -386,13 +427,52 @@ def _load_npy(path: _PathLike) -> tuple[np.ndarray, str]:
     return height, f".npy {dtype.name}"
 
 
+# --------------------------------------------------------------------------
+# Any other image Pillow reads
+# --------------------------------------------------------------------------
+
+
+def _pillow_reads(path: _PathLike) -> bool:
+    try:
+        with _pillow_strict(), Image.open(path) as img:
+            return img.size[0] > 0
+    except Exception:  # not an image Pillow knows
+        return False
+
+
+def _probe_pillow(path: _PathLike) -> tuple[int, int]:
+    with _pillow_strict(), Image.open(path) as img:
+        return img.size[1], img.size[0]
+
+
+#: Pillow's grey modes and the value of their white.
+_PILLOW_GREY = {"L": 255.0, "I;16": 65535.0, "I;16B": 65535.0, "I": 1.0, "F": 1.0}
+
+
+def _load_pillow(path: _PathLike) -> tuple[np.ndarray, str]:
+    """A grey image's samples over its white (8 and 16 bits: data in [0, 1]; 32-bit integer and
+    float: as stored), or a colour image's 8-bit luminance, Pillow's conversion to RGB first."""
+    try:
+        with _pillow_strict(), Image.open(path) as img:
+            img.load()
+            fmt, mode = img.format or "image", img.mode
+            if mode in _PILLOW_GREY:
+                return np.asarray(img, np.float64) / _PILLOW_GREY[mode], f"{fmt} {mode}"
+            rgb = np.asarray(img.convert("RGB"), np.float64) / 255.0
+    except (OSError, ValueError, SyntaxError) as exc:
+        raise InputError(path, f"truncated or corrupt image ({first_line(exc)})") from None
+    return rgb @ luminance_weights(), f"{fmt} {mode} -> {_LUMINANCE}"
+
+
 _PROBES: dict[str, Callable[[_PathLike], tuple[int, int]]] = {
     "png": _probe_png,
     "exr": _probe_exr,
     "npy": _probe_npy,
+    "pillow": _probe_pillow,
 }
 _LOADERS: dict[str, Callable[[_PathLike], tuple[np.ndarray, str]]] = {
     "png": _load_png,
     "exr": _load_exr,
     "npy": _load_npy,
+    "pillow": _load_pillow,
 }

@@ -223,6 +223,8 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
     }
     t0 = time.perf_counter()
     notices: list[str] = []
+    if hm.colour:  # said on the terminal, not only in metrics.json: the user may not expect it
+        notices.append(f"{hm.path}: a colour image, read as heights by its {hm.source.split('-> ')[-1]}")
     horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
     record = {**material, "path": files.report_path(hm.path, out / "bake")}  # relative to bake.json's folder
     baked, cached = bake.cached_bake(

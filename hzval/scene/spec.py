@@ -648,7 +648,7 @@ def load_material_height(spec: MaterialSpec):
             materials.generate(spec.height, spec.size).height,
             source=f"built-in {m.label}, {spec.size}x{spec.size}",
         )
-    return heightmap.load_height(spec.height)
+    return heightmap.check_usable(heightmap.load_height(spec.height))
 
 
 def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:

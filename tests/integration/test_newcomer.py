@@ -70,3 +70,57 @@ def test_score_against_a_frames_folder_never_advises_writing_into_it(tmp_path, c
     err = capsys.readouterr().err
     one_line_naming(err, "--against", "is not a sweep's folder")
     assert f"--out {frames}" not in err
+
+
+# 3. One rule for inputs --------------------------------------------------------------------------
+
+
+def _photo(tmp_path, name: str, colour: bool, size: int = 24):
+    from PIL import Image
+
+    from hzval import materials
+
+    h = materials.generate("gravel", size).height
+    h = (h - h.min()) / (h.max() - h.min())
+    pixels = np.stack([h, 0.8 * h, 0.3 * h], -1) if colour else h
+    Image.fromarray((pixels * 255).astype(np.uint8)).save(tmp_path / name)
+    return tmp_path / name
+
+
+@pytest.mark.parametrize(
+    "name, colour", [("c.png", True), ("c.jpg", True), ("g.jpg", False), ("g.tif", False)]
+)
+def test_any_image_pillow_reads_is_a_height_map_and_colour_says_so(tmp_path, capsys, name, colour):
+    path = _photo(tmp_path, name, colour)
+    argv = ["sweep", str(path), "--azimuths", "0", "--spp", "1", "--techniques", "horizon", "--quiet"]
+    assert cli.main([*argv, "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    said = [line for line in err.splitlines() if "a colour image, read as heights by its luminance" in line]
+    assert len(said) == (1 if colour else 0), err
+
+
+def test_a_jpeg_is_read_as_its_luminance():
+    import tempfile
+    from pathlib import Path
+
+    from PIL import Image
+
+    from hzval.core.conventions import luminance_weights
+    from hzval.io import heightmap
+
+    with tempfile.TemporaryDirectory() as d:
+        rgb = np.random.default_rng(2).integers(0, 256, (9, 11, 3)).astype(np.uint8)
+        Image.fromarray(rgb).save(Path(d) / "a.bmp")  # lossless, so the samples are known
+        hm = heightmap.load_height(Path(d) / "a.bmp")
+    np.testing.assert_allclose(hm.height, (rgb / 255.0) @ luminance_weights(), atol=1e-6)
+    assert hm.colour and hm.height.shape == (9, 11)
+
+
+@pytest.mark.parametrize(
+    "pixels, why", [(np.zeros((7, 30)), "at least 8x8"), (np.full((16, 16), 0.5), "no height variation")]
+)
+def test_a_tiny_or_flat_map_is_refused_in_one_line(tmp_path, capsys, pixels, why):
+    np.save(tmp_path / "m.npy", pixels)
+    assert cli.main(["sweep", str(tmp_path / "m.npy"), "--out", str(tmp_path / "o")]) == 2
+    one_line_naming(capsys.readouterr().err, "m.npy", why)
+    assert not (tmp_path / "o").exists()

@@ -333,8 +333,11 @@ BAD_INPUTS = {
     "missing": (lambda p: p / "nothing.png", "no such file"),
     "directory": (lambda p: p, "is a directory, not a file"),
     "empty": (lambda p: _write(p, "empty.png", b""), "file is empty"),
-    "text": (lambda p: _write(p, "notes.txt", b"hello, world"), "not a PNG, EXR or .npy file"),
-    "jpeg": (lambda p: _write(p, "photo.jpg", b"\xff\xd8\xff\xe0\0\x10JFIF"), "not a PNG, EXR or .npy file"),
+    "text": (lambda p: _write(p, "notes.txt", b"hello, world"), "not an image hzval reads"),
+    "truncated jpeg": (
+        lambda p: _write(p, "photo.jpg", b"\xff\xd8\xff\xe0\0\x10JFIF"),
+        "not an image hzval reads",
+    ),
     "not a png": (
         lambda p: _write(p, "x.png", b"GIF89a....."),
         "not a PNG file (no PNG signature at its start)",
