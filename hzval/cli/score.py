@@ -25,6 +25,11 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--out", type=Path, default=None, help="output folder (default FRAMES_DIR/score)")
     flags.add_gate_flags(p, strict=False)
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 2 on a file in FRAMES_DIR that matches no frame's name (default: a warning naming it)",
+    )
     p.set_defaults(run=run)
 
 
@@ -33,7 +38,7 @@ def run(args) -> int:
     from hzval.pipeline import records
 
     gates = flags.gates(args)
-    result, maps = score.score(args.frames, args.against)
+    result, maps = score.score(args.frames, args.against, strict=args.strict)
     out = args.out or args.frames / "score"
     command = flags.command_line(args)
     index = score.write(result, maps, out, command=command, force=args.force, gates=gates)

@@ -262,12 +262,48 @@ def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
     return np.stack([ch[k] for k in keys], axis=-1) if len(keys) == 3 else None
 
 
-def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tuple[str, dict, dict]]]:
+def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
+    """The files of ``frames_dir`` that ``score`` would ignore: none of ``<name>.exr|png``,
+    ``f_<name>.exr|png`` (``names``: the sweep's frames) or :data:`SIDECAR`; hidden files and
+    folders (a report inside it) aside.
+
+    Parameters
+    ----------
+    frames_dir : pathlib.Path
+    names : list of str
+        The frame names of the sweep's ``frames.json``.
+
+    Returns
+    -------
+    list of str
+        Their names, sorted.
+    """
+    expected = {SIDECAR} | {f"{p}{n}{e}" for n in names for p in ("", "f_") for e in (".exr", ".png")}
+    return sorted(
+        p.name
+        for p in frames_dir.iterdir()
+        if p.is_file() and not p.name.startswith(".") and p.name not in expected
+    )
+
+
+def _ignored_line(frames_dir: Path, ignored: list[str], names: list[str]) -> str:
+    shown = ", ".join(ignored[:4]) + (" ..." if len(ignored) > 4 else "")
+    return (
+        f"{frames_dir}: {len(ignored)} files match no frame and are ignored ({shown}); expected "
+        f"<name>.exr or .png and, for F, f_<name>.exr per light, with the names of frames.json "
+        f"({', '.join(names[:3])}{' ...' if len(names) > 3 else ''})"
+    )
+
+
+def score(
+    frames_dir: str | Path, sweep_dir: str | Path, *, strict: bool = False
+) -> tuple[dict, list[tuple[str, dict, dict]]]:
     """Score every frame of ``frames_dir`` against ``sweep_dir``'s truth, beside the sweep's techniques.
 
     Returns ``(result, maps)``: the ``metrics.json`` content (without the
     report) and, per frame, ``(name, the sweep's frame, maps)`` for
-    :func:`write`. Every frame is read and checked before any is scored.
+    :func:`write`. Every frame is read and checked before any is scored. Files that match no
+    frame (:func:`unexpected_files`) are a warning naming them, or with ``strict`` an error.
     """
     frames_dir, sweep_dir = Path(frames_dir), Path(sweep_dir)
     if not frames_dir.is_dir():
@@ -275,6 +311,10 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
     metrics, engine = _sweep(sweep_dir)
     _check_shape(metrics, engine, sweep_dir)
     sidecar = read_sidecar(frames_dir)
+    names = [f["name"] for f in engine["frames"]]
+    ignored = unexpected_files(frames_dir, names)
+    if ignored and strict:
+        raise InputError("--strict", _ignored_line(frames_dir, ignored, names))
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
     todo = [
@@ -326,7 +366,8 @@ def score(frames_dir: str | Path, sweep_dir: str | Path) -> tuple[dict, list[tup
         "timings": {"score_s": time.perf_counter() - t0},
         "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
         "techniques": techniques,
-        "warnings": _brightness_summary(warnings),
+        "warnings": ([_ignored_line(frames_dir, ignored, names)] if ignored else [])
+        + _brightness_summary(warnings),
         "frames": frames,
     }
     if match is not None:

@@ -124,3 +124,50 @@ def test_a_tiny_or_flat_map_is_refused_in_one_line(tmp_path, capsys, pixels, why
     assert cli.main(["sweep", str(tmp_path / "m.npy"), "--out", str(tmp_path / "o")]) == 2
     one_line_naming(capsys.readouterr().err, "m.npy", why)
     assert not (tmp_path / "o").exists()
+
+
+# 6. Misnamed files are named, not ignored in silence ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_sweep(tmp_path_factory, variant):
+    out = tmp_path_factory.mktemp("newcomer") / "sweep"
+    argv = ["sweep", "--size", "16", "--azimuths", "0,90", "--spp", "1", "--techniques", "horizon"]
+    assert cli.main([*argv, "--quiet", "--all-files", "--out", str(out)]) == 0
+    return out
+
+
+def engine_frames_named(tmp_path, sweep, pattern: str):
+    import json
+    import shutil
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for f in json.loads((sweep / "frames.json").read_text())["frames"]:
+        shutil.copyfile(sweep / "frames" / f["name"] / "horizon.exr", frames / f"{f['name']}.exr")
+        shutil.copyfile(
+            sweep / "frames" / f["name"] / "horizon_factor.exr", frames / pattern.format(f["name"])
+        )
+    return frames
+
+
+def test_misnamed_factor_files_are_named_in_a_warning(small_sweep, tmp_path, capsys):
+    frames = engine_frames_named(tmp_path, small_sweep, "{}_F.exr")  # instead of f_az+0.exr
+    assert cli.main(["score", str(frames), "--against", str(small_sweep), "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    line = next(w for w in err.splitlines() if "match no frame" in w)
+    assert "az+0_F.exr" in line and "f_<name>.exr" in line and "az+0" in line
+
+
+def test_strict_makes_them_an_error(small_sweep, tmp_path, capsys):
+    frames = engine_frames_named(tmp_path, small_sweep, "{}_F.exr")
+    argv = ["score", str(frames), "--against", str(small_sweep), "--strict", "--out", str(tmp_path / "o")]
+    assert cli.main(argv) == 2
+    one_line_naming(capsys.readouterr().err, "--strict", "az+0_F.exr")
+    assert not (tmp_path / "o").exists()
+
+
+def test_well_named_frames_get_no_warning(small_sweep, tmp_path, capsys):
+    frames = engine_frames_named(tmp_path, small_sweep, "f_{}.exr")
+    assert cli.main(["score", str(frames), "--against", str(small_sweep), "--out", str(tmp_path / "o")]) == 0
+    assert "match no frame" not in capsys.readouterr().err
