@@ -543,7 +543,7 @@ def write_report(result: CheckResult, out: str | Path, *, command: str = "", for
     held while it is written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
     out = Path(out)
     with files.output_folder(out, force=force):
-        return _write_report(result, out, files.portable_command(command, out))
+        return _write_report(result, out, files.portable_command(command))
 
 
 def _write_report(result: CheckResult, out: Path, command: str) -> Path:

@@ -703,7 +703,7 @@ def write_overview(
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
     record of :func:`gate_failures`, listed first)."""
     rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
-    command = files.portable_command(command, out)
+    command = files.portable_command(command)
     for row in rows:
         if row["status"] == "ok":
             row["thumbs"] = _thumbnails(out, row)

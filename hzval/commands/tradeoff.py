@@ -471,7 +471,7 @@ def write_tradeoff(
     folder is held while they are written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
     out = Path(out)
     with files.output_folder(out, force=force):
-        return _write_tradeoff(out, points, info, material, files.portable_command(command, out))
+        return _write_tradeoff(out, points, info, material, files.portable_command(command))
 
 
 def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, command: str) -> Path:

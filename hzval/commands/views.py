@@ -79,7 +79,7 @@ def run(
         with files.Staging(out) as stage:  # all or nothing, as a sweep (hzval.studies.models.run)
             with interrupts.cases():
                 data = _run(scene, stage.dir, chosen, kinds, options, progress, command, force)
-            data["command"] = files.portable_command(command, out)
+            data["command"] = files.portable_command(command)
             files.write_json(stage.dir / "views.json", data)
             _write_page(stage.dir, data)
             hold.start()

@@ -295,9 +295,23 @@ def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -
         return os.fspath(path)
 
 
-def portable_command(command: str, report_dir: str | os.PathLike) -> str:
-    """A command line with each absolute path in it (``/home/me/x.png``, ``--out=/home/me/r``) made
-    relative to ``report_dir`` (:func:`report_path`), for the reports that show it."""
+def portable_command(command: str) -> str:
+    """A command line as a report shows it: one that runs from the folder it was run in.
+
+    Each absolute path in it (``/home/me/x.png``, ``--out=/home/me/r``) is made relative to the
+    current directory (``../maps/x.png``), so the line carries no home folder's name and still
+    names the same files from there; relative paths stay as typed.
+
+    Parameters
+    ----------
+    command : str
+        The command line, shell-quoted.
+
+    Returns
+    -------
+    str
+        The command line, shell-quoted; as given where it does not split into words.
+    """
     import shlex
 
     try:
@@ -312,7 +326,7 @@ def portable_command(command: str, report_dir: str | os.PathLike) -> str:
             else (w.partition("=")[0] + "=", w.partition("=")[2])
         )
         if value.startswith("/"):
-            value = report_path(value, report_dir)
+            value = report_path(value, os.getcwd())
         out.append(prefix + value)
     return " ".join(shlex.quote(w) if w != "#" else w for w in out)
 

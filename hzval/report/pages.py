@@ -606,7 +606,7 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
     plot_files = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
     for sv in plots.split_views(metrics, views):
         plots.plot_split(out / sv.plot, frames, sv)
-    html = render_html(build_context(out, metrics, files.portable_command(command, out), plot_files))
+    html = render_html(build_context(out, metrics, files.portable_command(command), plot_files))
     index = out / "index.html"
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")

@@ -97,7 +97,7 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
         with files.Staging(out) as stage:
             with interrupts.cases():
                 data = _run(scene, stage.dir, progress, command, force)
-            data["command"] = files.portable_command(command, out)
+            data["command"] = files.portable_command(command)
             files.write_json(stage.dir / "models.json", data)
             _write_page(stage.dir, data)
             hold.start()

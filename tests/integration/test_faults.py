@@ -657,7 +657,8 @@ def test_a_broken_sidecar_is_one_failed_row(tmp_path, variant):
 
 
 @pytest.mark.slow
-def test_reports_hold_paths_relative_to_their_folder(tmp_path, height_npy, variant):
+def test_reports_hold_paths_relative_to_their_folder(tmp_path, height_npy, variant, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # where the user works: command lines are shown relative to it
     out = tmp_path / "reports" / "r"
     assert cli.main(["sweep", str(height_npy), *SMALL[2:], "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
@@ -678,7 +679,12 @@ def test_reports_hold_paths_relative_to_their_folder(tmp_path, height_npy, varia
     assert result["materials"][0]["origin"] == "../maps/h.npy"
 
 
-def test_portable_command_rewrites_absolute_paths_only(tmp_path):
-    report = tmp_path / "r"
+def test_portable_command_rewrites_absolute_paths_only(tmp_path, monkeypatch):
+    """Absolute paths become relative to where the command ran (no home folder in a report, and the
+    line still runs from there); relative ones stay as typed."""
+    monkeypatch.chdir(tmp_path / "..")
+    here = tmp_path.name
     cmd = f"hzval sweep {tmp_path}/maps/x.png --out={tmp_path}/r --depth 0.1 rel/y.png"
-    assert files.portable_command(cmd, report) == "hzval sweep ../maps/x.png --out=. --depth 0.1 rel/y.png"
+    assert (
+        files.portable_command(cmd) == f"hzval sweep {here}/maps/x.png --out={here}/r --depth 0.1 rel/y.png"
+    )

@@ -171,3 +171,38 @@ def test_well_named_frames_get_no_warning(small_sweep, tmp_path, capsys):
     frames = engine_frames_named(tmp_path, small_sweep, "f_{}.exr")
     assert cli.main(["score", str(frames), "--against", str(small_sweep), "--out", str(tmp_path / "o")]) == 0
     assert "match no frame" not in capsys.readouterr().err
+
+
+# 2. The Reproduce line runs -------------------------------------------------------------------------
+
+
+def test_the_reproduce_line_runs_from_where_the_sweep_ran_and_gives_the_same_scores(
+    tmp_path, monkeypatch, variant
+):
+    import html
+    import json
+    import re
+    import shlex
+
+    from hzval import materials
+
+    work = tmp_path / "work"
+    (work / "maps").mkdir(parents=True)
+    np.save(work / "maps" / "mymap.npy", materials.generate("gravel", 16).height)
+    monkeypatch.chdir(work)
+    argv = ["sweep", "maps/mymap.npy", "--azimuths", "0", "--spp", "1", "--techniques", "horizon"]
+    assert cli.main([*argv, "--quiet", "--out", str(work / "runs" / "s1")]) == 0  # an absolute --out
+    page = (work / "runs" / "s1" / "index.html").read_text()
+    shown = next(c for c in re.findall(r"hzval sweep [^<]*", html.unescape(page)) if "--out" in c)
+    assert "--out runs/s1" in shown and str(tmp_path) not in shown
+    words = shlex.split(shown)
+    words[words.index("--out") + 1] = "runs/s2"  # the same command into a second folder
+    monkeypatch.chdir(tmp_path)  # from elsewhere it would not find maps/mymap.npy ...
+    assert cli.main(words[1:]) == 2
+    monkeypatch.chdir(work)  # ... from where it ran, it runs
+    assert cli.main(words[1:]) == 0
+    first, second = (json.loads((work / "runs" / s / "metrics.json").read_text()) for s in ("s1", "s2"))
+    for k in ("visibility_mae", "flip_mean", "rmse"):
+        assert (
+            first["frames"][0]["techniques"]["horizon"][k] == second["frames"][0]["techniques"]["horizon"][k]
+        )
