@@ -206,3 +206,25 @@ def test_the_reproduce_line_runs_from_where_the_sweep_ran_and_gives_the_same_sco
         assert (
             first["frames"][0]["techniques"]["horizon"][k] == second["frames"][0]["techniques"]["horizon"][k]
         )
+
+
+# 9. docs/outputs.md's recipe runs ---------------------------------------------------------------------
+
+
+def test_the_outputs_page_recipe_writes_frames_score_reads(tmp_path, monkeypatch, variant, capsys):
+    import re
+    from pathlib import Path
+
+    from hzval import materials
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "outputs.md").read_text()
+    recipe = re.search(r"```python\n(.*?)```", page, re.S).group(1)
+    assert len([line for line in recipe.splitlines() if line.strip()]) <= 14
+    monkeypatch.chdir(tmp_path)
+    np.save(tmp_path / "mymap.npy", materials.generate("gravel", 16).height)
+    argv = ["sweep", "mymap.npy", "--azimuths", "0,90", "--spp", "1", "--techniques", "horizon"]
+    assert cli.main([*argv, "--quiet", "--out", "runs/s1"]) == 0
+    exec(compile(recipe, "docs/outputs.md", "exec"), {})
+    assert cli.main(["score", "myframes", "--against", "runs/s1"]) == 0
+    assert "match no frame" not in capsys.readouterr().err
+    assert (tmp_path / "myframes" / "score" / "index.html").is_file()
