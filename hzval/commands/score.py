@@ -68,6 +68,11 @@ LABEL = "your renderer"
 NAME = "engine"
 #: The engine's sidecar in FRAMES_DIR: its label and its own parameters.
 SIDECAR = "engine.toml"
+#: Said when a frames folder holds the shadow factors and no images.
+F_ONLY_LINE = (
+    "scored the visibility alone: the frames folder holds each light's shadow factor f_<name> and no "
+    "image (add <name>.exr or .png for the image scores)"
+)
 
 
 def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
@@ -317,9 +322,11 @@ def score(
         raise InputError("--strict", _ignored_line(frames_dir, ignored, names))
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
+    factors = [_find(frames_dir, f["name"], "f_", required=False) for f in engine["frames"]]
+    # F alone (no image for any light, F for every one): the visibility scores only
+    f_only = all(factors) and not any(_find(frames_dir, n, required=False) for n in names)
     todo = [
-        (f, _find(frames_dir, f["name"]), _find(frames_dir, f["name"], "f_", required=False))
-        for f in engine["frames"]
+        (f, None if f_only else _find(frames_dir, f["name"]), fp) for f, fp in zip(engine["frames"], factors)
     ]
     given = [t for t in todo if t[2] is not None]
     if given and len(given) < len(todo):
@@ -330,7 +337,13 @@ def score(
             "lights (give f_<name>.exr for every light, or none)",
         )
     loaded = [
-        (f, p, read_frame(p, exposure, (H, W)), None if fp is None else read_factor(fp, (H, W)), fp)
+        (
+            f,
+            p,
+            None if p is None else read_frame(p, exposure, (H, W)),
+            None if fp is None else read_factor(fp, (H, W)),
+            fp,
+        )
         for f, p, fp in todo
     ]
     normal = _normal(sweep_dir, metrics) if given else None
@@ -367,6 +380,7 @@ def score(
         "simulated": {**metrics.get("simulated", {}), NAME: techniques[NAME]["simulated"]},
         "techniques": techniques,
         "warnings": ([_ignored_line(frames_dir, ignored, names)] if ignored else [])
+        + ([F_ONLY_LINE] if f_only else [])
         + _brightness_summary(warnings),
         "frames": frames,
     }
@@ -393,7 +407,10 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     truth = Frame(
         f["azimuth_deg"], f["elevation_deg"], files.read_rgb_exr(sweep_dir / swept["files"]["truth"])
     )
-    scores, image_maps = compare.image_metrics(compare.Reference(truth, exposure), img)
+    if img is None:  # F alone: no image to score
+        scores, image_maps = dict.fromkeys(compare.IMAGE_METRICS), {}
+    else:
+        scores, image_maps = compare.image_metrics(compare.Reference(truth, exposure), img)
     own = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
     vis = swept["files"].get("visibility")
     if F is not None and vis:
@@ -423,14 +440,14 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
         "azimuth_deg": f["azimuth_deg"],
         "elevation_deg": f["elevation_deg"],
         **{k: own[k] for k in compare.IMAGE_METRICS},
-        "file": str(path),
+        "file": None if path is None else str(path),
         **({"factor_file": str(fpath)} if fpath is not None else {}),
         "truth_s": swept.get("truth_s"),
         **({"floor": swept["floor"]} if "floor" in swept else {}),
         **({"truth": swept["truth"]} if "truth" in swept else {}),
         "techniques": per,
     }
-    slip = brightness.diagnose(img, truth.image, exposure, png=path.suffix.lower() == ".png")
+    slip = None if img is None else brightness.diagnose(img, truth.image, exposure, png=path.suffix == ".png")
     if slip:
         frame["brightness"] = slip
     return frame, image_maps, None if slip is None else (f["name"], slip)
@@ -491,9 +508,11 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
             for k in ("truth_png", "plain_png", "visibility_png")
             if (d := _copy(sweep_dir, stage, name, swept_frame["files"].get(k)))
         }
-        own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
-        files.write_png(stage / own["png"], files.unit_to_u8(image_maps["display"]))
-        files.write_png(stage / own["flip_png"], images.flip_image(image_maps["flip"]))
+        own = {}
+        if "display" in image_maps:  # not when F alone was given
+            own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
+            files.write_png(stage / own["png"], files.unit_to_u8(image_maps["display"]))
+            files.write_png(stage / own["flip_png"], images.flip_image(image_maps["flip"]))
         if "F" in image_maps:
             own["visdiff_png"] = f"frames/{name}/{NAME}_visdiff.png"
             files.write_png(
@@ -517,7 +536,7 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
         "frames": [
             {
                 **f,
-                "file": files.report_path(f["file"], out),
+                "file": f["file"] and files.report_path(f["file"], out),
                 **({"factor_file": files.report_path(f["factor_file"], out)} if "factor_file" in f else {}),
             }
             for f in result["frames"]

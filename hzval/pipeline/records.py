@@ -24,14 +24,18 @@ def frame_folder(azimuth_deg: float) -> str:
     return f"az{azimuth_deg:+g}"
 
 
-def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> dict:
+def engine_frames(
+    scene, result: dict, albedo_constant: float | None = None, albedo_files: dict | None = None
+) -> dict:
     """``frames.json``: what an engine needs to render the sweep's frames itself, for ``hzval score``.
 
     Per light: the frame's name (``az+0``: the file ``hzval score`` looks for, ``az+0.exr`` linear
     or ``az+0.png`` sRGB, and ``f_az+0.exr`` its shadow factor F), azimuth and elevation, and ``L``
     in tangent space (toward the light); for all: the camera, the light's kind, irradiance and
     radiance, the albedo, the samples per pixel and the rule that places them, the display exposure
-    and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`)."""
+    and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`).
+    ``albedo_files``: where an albedo image was written beside it
+    (:func:`hzval.pipeline.writing.write_albedo`)."""
     m = result["material"]
     return {
         "format": "hzval engine frames 2",
@@ -46,7 +50,7 @@ def engine_frames(scene, result: dict, albedo_constant: float | None = None) -> 
         },
         "exposure": result["exposure"]["scale"],
         "effects": list(scene.effects),
-        **_engine_notes(scene, albedo_constant),
+        **_engine_notes(scene, albedo_constant, albedo_files),
         "conventions": "tangent space in texels: +x right, +y up the image, +z out of the surface; "
         "azimuth counterclockwise from +x; L points toward the light",
         "frames": [
@@ -78,16 +82,19 @@ def _light_radiance(light) -> dict:
     }
 
 
-def _engine_notes(scene, albedo_constant) -> dict:
+def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> dict:
     """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
     besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
     too bright, FLIP 0.68)."""
     if isinstance(albedo_constant, float):
         albedo = {"kind": "constant", "linear": albedo_constant}
-    elif isinstance(scene.material.albedo, str):
-        albedo = {"kind": "image", "path": scene.material.albedo, "encoding": "sRGB, decoded to linear"}
-    else:
-        albedo = {"kind": "image", "note": "the built-in material's own albedo image"}
+    else:  # an image: written beside frames.json, as linear EXR and as sRGB PNG
+        albedo = {"kind": "image", **(albedo_files or {})}
+        albedo["from"] = (
+            "the material's albedo image"
+            if isinstance(scene.material.albedo, str)
+            else "the built-in material's own albedo image"
+        )
     albedo["brdf"] = "Lambert: radiance = albedo / pi * E * max(N.L, 0) (with diffuse)"
     spp = scene.spp
     n = int(round(math.sqrt(spp)))

@@ -194,6 +194,7 @@ class _Setup:
         None  # the top view's normal map: which pixels face the light (hzval.metrics.facing)
     )
     albedo_constant: float | None = None  # the linear albedo where it is one grey value (frames.json)
+    albedo: np.ndarray | None = None  # the albedo image where it is not one value (written for engines)
 
 
 def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> _Setup:
@@ -263,6 +264,7 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         retained=retained,
         normal=baked.normal if scene.camera.kind == "top" else None,
         albedo_constant=_constant(ctx.albedo),
+        albedo=None if _constant(ctx.albedo) is not None else ctx.albedo,
     )
     if the_truth.hits is not None:
         t0 = time.perf_counter()
@@ -470,7 +472,9 @@ def _run(
         "retains_freed": setup.retained,
         **_band_record(setup.truth),
     }
-    files.write_json(report_dir / "frames.json", records.engine_frames(scene, result, setup.albedo_constant))
+    albedo_files = None if setup.albedo is None else writing.write_albedo(report_dir, setup.albedo)
+    frames = records.engine_frames(scene, result, setup.albedo_constant, albedo_files)
+    files.write_json(report_dir / "frames.json", frames)
     files.write_json(report_dir / "metrics.json", result)
     return result
 

@@ -19,6 +19,7 @@ __all__ = [
     "PNG_LEVEL",
     "shown",
     "write_frame",
+    "write_albedo",
 ]
 
 
@@ -174,3 +175,31 @@ def _write_png_of(path: Path, make, *args) -> None:
     """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
     with the report's preview if it is large (:func:`hzval.io.files.write_png_with_preview`)."""
     files.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True)
+
+
+def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
+    """An albedo image where an engine finds it: ``albedo.exr`` (``R, G, B``, linear, as the truth
+    reads it) and ``albedo.png`` (sRGB, as an engine's texture holds it), in ``folder``.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The sweep's folder (its staging folder while it writes).
+    albedo : numpy.ndarray
+        ``(rows, cols, 3)`` linear albedo, row 0 at the top.
+
+    Returns
+    -------
+    dict
+        ``frames.json``'s ``albedo`` paths, relative to ``folder``: ``linear``, ``srgb`` and the
+        ``encoding`` of each.
+    """
+    from hzval.core import conventions as cv
+
+    files.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
+    files.write_png(folder / "albedo.png", files.unit_to_u8(cv.srgb_encode(np.clip(albedo, 0.0, 1.0))))
+    return {
+        "linear": "albedo.exr",
+        "srgb": "albedo.png",
+        "encoding": "albedo.exr: linear R, G, B; albedo.png: the same, sRGB-encoded 8-bit",
+    }

@@ -228,3 +228,40 @@ def test_the_outputs_page_recipe_writes_frames_score_reads(tmp_path, monkeypatch
     assert cli.main(["score", "myframes", "--against", "runs/s1"]) == 0
     assert "match no frame" not in capsys.readouterr().err
     assert (tmp_path / "myframes" / "score" / "index.html").is_file()
+
+
+# 1. frames.json names every input, and F alone can be scored ----------------------------------------
+
+
+def test_a_built_in_albedo_image_is_written_beside_frames_json(tmp_path, variant):
+    import json
+
+    from hzval.io import files
+
+    argv = ["sweep", "--material", "gravel", "--size", "16", "--azimuths", "0", "--spp", "1"]
+    assert cli.main([*argv, "--techniques", "horizon", "--quiet", "--out", str(tmp_path / "s")]) == 0
+    albedo = json.loads((tmp_path / "s" / "frames.json").read_text())["albedo"]
+    assert albedo["kind"] == "image"
+    linear = files.read_exr(tmp_path / "s" / albedo["linear"])
+    assert linear["R"].shape == (16, 16) and (tmp_path / "s" / albedo["srgb"]).is_file()
+    from hzval import materials
+
+    np.testing.assert_allclose(linear["R"], materials.generate("gravel", 16).albedo[..., 0], atol=1e-6)
+
+
+def test_f_alone_is_scored_as_visibility_and_said(small_sweep, tmp_path, capsys):
+    import json
+    import shutil
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for f in json.loads((small_sweep / "frames.json").read_text())["frames"]:
+        shutil.copyfile(
+            small_sweep / "frames" / f["name"] / "horizon_factor.exr", frames / f"f_{f['name']}.exr"
+        )
+    out = tmp_path / "o"
+    assert cli.main(["score", str(frames), "--against", str(small_sweep), "--out", str(out)]) == 0
+    assert "scored the visibility alone" in capsys.readouterr().err
+    scored = json.loads((out / "metrics.json").read_text())["frames"][0]["techniques"]["engine"]
+    theirs = json.loads((small_sweep / "metrics.json").read_text())["frames"][0]["techniques"]["horizon"]
+    assert scored["flip_mean"] is None and scored["visibility_mae"] == pytest.approx(theirs["visibility_mae"])
