@@ -328,11 +328,14 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
     """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
     (:class:`hzval.techniques.registry.Unavailable`) is skipped with its one-line notice."""
-    built = []
+    built, sat_out = [], []
     on_model = ctx.points is not None and ctx.points.frames is not None
     for t in chosen:
         if on_model and t.not_on_models:
-            notices.append(f"{t.name}: not on a model: {t.not_on_models}")
+            if options.techniques is not None and t.name in options.techniques:  # asked for by name
+                notices.append(f"{t.name}: not on a model: {t.not_on_models}")
+            else:
+                sat_out.append(t.name)
             continue
         t0 = time.perf_counter()
         try:
@@ -341,6 +344,8 @@ def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: lis
             notices.append(str(e))  # metrics.json's warnings; the command line prints them
             continue
         timings[f"{t.file_stem}_setup_s"] = time.perf_counter() - t0
+    if sat_out:  # defaults the user never asked for: one line, not a warning each
+        notices.append(f"on a model, the default {', '.join(sat_out)} sit{'s' * (len(sat_out) == 1)} out")
     if not built:
         raise InputError(
             "--techniques", "no technique is left to score: " + "; ".join(notices[-len(chosen) :])

@@ -37,14 +37,21 @@ def test_a_sweep_on_the_cube(tmp_path, capsys):
     assert m["parameters"]["mesh"] == "cube"
     assert m["camera"]["kind"] == "perspective"  # the models' default view: three faces
     assert set(m["techniques"]) == {"horizon", "pom"}
-    assert any(w.startswith("terrain: not on a model") for w in m["warnings"])
+    assert "on a model, the default terrain sits out" in m["warnings"]  # one line, not a warning
     for f in m["frames"]:
         assert 0.0 <= f["macro_shadowed"] <= 1.0
         for name in ("horizon", "pom"):
             t = f["techniques"][name]
             assert 0.0 <= t["visibility_mae"] <= 1.0 and "perfect_parallax_mae" in t
     assert (out / "index.html").is_file()
-    assert "terrain: not on a model" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the default terrain sits out" in err and "terrain: not on a model" not in err
+
+
+def test_a_technique_asked_for_by_name_that_sits_out_on_a_model_says_why(tmp_path, capsys):
+    argv = SMALL + ["--techniques", "horizon,terrain", "--mesh", "cube", "--out", str(tmp_path / "c")]
+    assert cli.main(argv) == 0
+    assert "terrain: not on a model: Raudins' sweep" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
