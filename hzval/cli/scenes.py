@@ -184,8 +184,17 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
         if key == "size" and not builtin(material):
             continue
         own[key] = value
+    placed = model_view(base, {**own, **given})
+    if placed.get("camera") != {**own, **given}.get("camera") and not quiet:
+        cam = sc.MODEL_CAMERA
+        print(
+            f"hzval: note: on a model with no camera given, a perspective view from "
+            f"{cam.elevation_deg:g} degrees up and azimuth {cam.azimuth_deg:g} (a top view shows one face; "
+            "--camera and --view-elevation choose another)",
+            file=sys.stderr,
+        )
     try:
-        scene = sc.override(base, **model_view(base, {**own, **given}), height=height)
+        scene = sc.override(base, **placed, height=height)
     except errors.InputError as exc:
         raise _as_flag(exc, given) from None
     if "size" in given and not builtin(scene.material.height):  # a scene file's own height map

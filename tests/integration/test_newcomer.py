@@ -265,3 +265,25 @@ def test_f_alone_is_scored_as_visibility_and_said(small_sweep, tmp_path, capsys)
     scored = json.loads((out / "metrics.json").read_text())["frames"][0]["techniques"]["engine"]
     theirs = json.loads((small_sweep / "metrics.json").read_text())["frames"][0]["techniques"]["horizon"]
     assert scored["flip_mean"] is None and scored["visibility_mae"] == pytest.approx(theirs["visibility_mae"])
+
+
+# 4. Model sweeps say which camera and separate parallax --------------------------------------------
+
+
+def test_a_model_sweep_says_its_camera_and_shows_the_error_at_the_truths_hits(tmp_path, variant, capsys):
+    import json
+
+    argv = ["sweep", "--mesh", "sphere", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques"]
+    assert cli.main([*argv, "horizon", "--quiet", "--out", str(tmp_path / "m")]) == 0
+    out, err = capsys.readouterr()
+    assert "a perspective view from 35 degrees up" in err
+    head, _, row = out.splitlines()[:3]
+    at = head.split().index("at")  # the column after the lead's |F-V|
+    metrics = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    hits = metrics["frames"][0]["techniques"]["horizon"]["perfect_parallax_mae"]
+    assert float(row.split()[at - 1]) == pytest.approx(hits, abs=5e-5)
+    assert "no parallax" in out
+    assert (
+        cli.main([*argv, "horizon", "--camera", "orthographic", "--quiet", "--out", str(tmp_path / "o")]) == 0
+    )
+    assert "a perspective view" not in capsys.readouterr().err  # a camera given: nothing to say
