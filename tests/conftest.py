@@ -18,3 +18,13 @@ def variant():
     from hzval.core import backend
 
     return backend.variant()
+
+
+@pytest.fixture
+def any_map(monkeypatch):
+    """Lift the command line's input rule (hzval.io.heightmap.check_usable: at least 8 x 8 texels,
+    some height variation) for the tests that sweep a flat or a 1 x N map on purpose: the analytic
+    cases (a flat map has no shadow and no error) and the pipeline's own robustness."""
+    from hzval.io import heightmap
+
+    monkeypatch.setattr(heightmap, "check_usable", lambda hm: hm)

@@ -164,14 +164,20 @@ def test_bad_scene_file(case, tmp_path, capsys, monkeypatch):
     assert not out.exists()
 
 
-def test_a_1xN_map_sweeps_and_a_missing_scene_is_refused(tmp_path, capsys):
-    """1xN maps load and bake; the truth takes them too (it refused them once, after the sweep
-    had written its bake: exit 2 with files left behind)."""
+def test_a_1xN_map_is_refused_and_a_missing_scene_is_refused(tmp_path, capsys, monkeypatch):
+    """A 1xN map is refused in one line before anything is written (the input rule: at least 8 x 8
+    texels); past that rule, the pipeline still takes it (the truth refused one once, after the
+    sweep had written its bake: exit 2 with files left behind)."""
     np.save(tmp_path / "row.npy", np.random.default_rng(0).random((1, 16)).astype(np.float32))
     out = tmp_path / "out"
-    code, _ = run(
-        ["sweep", tmp_path / "row.npy", "--azimuths", "0,90", "--spp", "1", "--quiet", "--out", out], capsys
-    )
+    argv = ["sweep", tmp_path / "row.npy", "--azimuths", "0,90", "--spp", "1", "--quiet", "--out", out]
+    code, err = run(argv, capsys)
+    assert code == 2 and not out.exists()
+    assert_one_line(err, "row.npy")
+    from hzval.io import heightmap
+
+    monkeypatch.setattr(heightmap, "check_usable", lambda hm: hm)
+    code, _ = run(argv, capsys)
     assert code == 0 and (out / "metrics.json").exists()
     code, err = run(["sweep", "--scene", tmp_path / "none.toml", "--out", tmp_path / "o2"], capsys)
     assert code == 2

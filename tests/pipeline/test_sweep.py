@@ -135,7 +135,7 @@ def test_summary_table_lists_every_frame(bricks_sweep):
     assert f"{lead['visibility_mae_facing']:.4f}" in table[2]
 
 
-def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path):
+def test_flat_map_truth_and_approximation_agree_exactly(variant, tmp_path, any_map):
     """A flat plane is fully lit, and normal mapping a flat plane is exact: no error at all."""
     np.save(tmp_path / "flat.npy", np.full((32, 32), 0.5, np.float32))
     out = tmp_path / "out"
@@ -409,7 +409,7 @@ def test_bad_technique_choices_are_one_line_errors(argv, needle, tmp_path, capsy
     assert not out.exists()
 
 
-def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, bricks_sweep):
+def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, bricks_sweep, any_map):
     """Flat: the fade and the truth's lobe both see the whole environment, |o - R| = 0;
     bricks: a number in [0, 1] and a report column; absent where undeclared."""
     np.save(tmp_path / "flat.npy", np.full((16, 16), 0.5, np.float32))

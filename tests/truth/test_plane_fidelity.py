@@ -165,7 +165,7 @@ def test_reflection_fraction_on_a_tilted_plane_carries_the_estimators_weight(var
     assert float(R.mean()) == pytest.approx(weighted, abs=0.006)
 
 
-def test_every_frame_records_its_perfect_shadows_floor(variant, tmp_path):
+def test_every_frame_records_its_perfect_shadows_floor(variant, tmp_path, any_map):
     """frames[i].floor: the unshadowed shading times the truth's V, scored against the truth. On a
     flat map it is exactly 0; on the bricks it is below every technique's score at azimuth 0, where
     the horizon map's false shadows dominate, and the report shows it beside the scores."""
