@@ -421,6 +421,12 @@ def gate_exit(failed: list[str]) -> int:
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 
+def print_notes(args) -> None:
+    """The notes the flags' scene left for the end of a run (:func:`hzval.cli.scenes.scene_from_args`)."""
+    for note in getattr(args, "notes", []):
+        print(f"hzval: note: {note}", file=sys.stderr)
+
+
 def command_line(args) -> str:
     """The command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
     import shlex

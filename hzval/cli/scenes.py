@@ -186,13 +186,13 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
         own[key] = value
     placed = model_view(base, {**own, **given})
     if placed.get("camera") != {**own, **given}.get("camera") and not quiet:
-        cam = sc.MODEL_CAMERA
-        print(
-            f"hzval: note: on a model with no camera given, a perspective view from "
-            f"{cam.elevation_deg:g} degrees up and azimuth {cam.azimuth_deg:g} (a top view shows one face; "
-            "--camera and --view-elevation choose another)",
-            file=sys.stderr,
-        )
+        cam = sc.MODEL_CAMERA  # said once the run is done (flags.print_notes): errors stay one line
+        args.notes = [
+            *getattr(args, "notes", []),
+            f"on a model with no camera given, a perspective view from {cam.elevation_deg:g} degrees "
+            f"up and azimuth {cam.azimuth_deg:g} (a top view shows one face; --camera and "
+            "--view-elevation choose another)",
+        ]
     try:
         scene = sc.override(base, **placed, height=height)
     except errors.InputError as exc:

@@ -45,6 +45,7 @@ def run(args) -> int:
     result = sweep.run(
         scene, out, options=options, command=command, progress=not args.quiet, force=args.force, gates=gates
     )
+    flags.print_notes(args)
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(records.summary_table(result))
