@@ -228,12 +228,18 @@ def underscore_uses(root: Path) -> list[str]:
 
 #: Every folder of Python code beside the tests: the package and the scripts that use it.
 CODE_FOLDERS = sorted(
-    p.name for p in PACKAGE.parent.iterdir() if p.is_dir() and p.name != "tests" and any(p.rglob("*.py"))
-)
+    p.name
+    for p in PACKAGE.parent.iterdir()
+    if p.is_dir() and p.name != "tests" and not p.name.startswith(".") and any(p.glob("*.py"))
+)  # hidden ones (.venv, .git) aside
 
 
 def test_the_code_folders_are_found():
-    assert "hzval" in CODE_FOLDERS and len(CODE_FOLDERS) >= 3
+    assert (
+        "hzval" in CODE_FOLDERS
+        and len(CODE_FOLDERS) >= 3
+        and not any(f.startswith(".") for f in CODE_FOLDERS)
+    )
 
 
 @pytest.mark.parametrize("folder", CODE_FOLDERS)

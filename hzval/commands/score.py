@@ -51,7 +51,6 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import conventions as cv
-from hzval.core import interrupts
 from hzval.core.errors import InputError
 from hzval.io import documents, files, paths
 from hzval.metrics import compare
@@ -480,11 +479,8 @@ def write(
         gates.apply(result)
     # all or nothing, as the sweep: written into a staging folder inside out and swapped in whole, so
     # a failure or an interrupt leaves an earlier report byte for byte, and no link in out is followed
-    with interrupts.held() as hold, files.output_folder(out, force=force):
-        with files.Staging(out) as stage:
-            _write(result, maps, out, stage.dir, command)
-            hold.start()
-            stage.swap()
+    with files.swapped_in(out, force=force) as work:
+        _write(result, maps, out, work, command)
     return out / "index.html"
 
 

@@ -75,15 +75,12 @@ def run(
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
     kinds = _pick(lookups, LOOKUPS, "--lookups")
-    with interrupts.held() as hold, files.output_folder(out, force=force):
-        with files.Staging(out) as stage:  # all or nothing, as a sweep (hzval.studies.models.run)
-            with interrupts.cases():
-                data = _run(scene, stage.dir, chosen, kinds, options, progress, command, force)
-            data["command"] = files.portable_command(command)
-            files.write_json(stage.dir / "views.json", data)
-            _write_page(stage.dir, data)
-            hold.start()
-            stage.swap()
+    with files.swapped_in(out, force=force) as work:  # all or nothing, as a sweep
+        with interrupts.cases():
+            data = _run(scene, work, chosen, kinds, options, progress, command, force)
+        data["command"] = files.portable_command(command)
+        files.write_json(work / "views.json", data)
+        _write_page(work, data)
     return data
 
 

@@ -35,6 +35,7 @@ __all__ = [
     "output_folder",
     "report_path",
     "portable_command",
+    "swapped_in",
     "file_digest",
     "Staging",
     "HALF_MAX",
@@ -335,6 +336,34 @@ def file_digest(path: str | os.PathLike) -> str:
     """``"sha256:<hex>"`` of a file's bytes."""
     with open(path, "rb") as f:
         return "sha256:" + hashlib.file_digest(f, "sha256").hexdigest()
+
+
+@contextlib.contextmanager
+def swapped_in(out: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
+    """A run's output, all or nothing: hold ``out`` (:func:`output_folder`), yield a staging folder
+    inside it to write into, then swap that in whole (:meth:`Staging.swap`) with signals held from
+    the last moment (:func:`hzval.core.interrupts.held`). A failure or an interrupt before the swap
+    leaves an earlier report byte for byte.
+
+    Parameters
+    ----------
+    out : str or path-like
+        The output folder.
+    force : bool
+        As :func:`output_folder`'s.
+
+    Yields
+    ------
+    pathlib.Path
+        The staging folder.
+    """
+    from hzval.core import interrupts
+
+    with interrupts.held() as hold, output_folder(out, force=force):
+        with Staging(out) as stage:
+            yield stage.dir
+            hold.start()
+            stage.swap()
 
 
 class Staging:

@@ -93,15 +93,12 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
     written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C (which
     stops the run between cases), leaves an earlier report byte for byte and no folder it made."""
     out = Path(out)
-    with interrupts.held() as hold, files.output_folder(out, force=force):
-        with files.Staging(out) as stage:
-            with interrupts.cases():
-                data = _run(scene, stage.dir, progress, command, force)
-            data["command"] = files.portable_command(command)
-            files.write_json(stage.dir / "models.json", data)
-            _write_page(stage.dir, data)
-            hold.start()
-            stage.swap()
+    with files.swapped_in(out, force=force) as work:
+        with interrupts.cases():
+            data = _run(scene, work, progress, command, force)
+        data["command"] = files.portable_command(command)
+        files.write_json(work / "models.json", data)
+        _write_page(work, data)
     return data
 
 
