@@ -7,7 +7,7 @@ truth's V for the default training lights (elevations 10/20/40/60, azimuths
 epoch (a pass over every light, ``steps`` Adam steps) its seconds, seconds
 per light (one forward and backward pass of the horizon technique's kernel)
 and the loss; then the truth's, the fit's and the evaluation's seconds, the
-memory estimate (:func:`hzval.techniques.fitted.fit.estimate_bytes`) beside the peak RSS, and
+memory estimate (:func:`hzval.techniques.fitted.training.estimate_bytes`) beside the peak RSS, and
 |F - V| baked against fitted. Wall time and the process's user + sys CPU time
 are both printed: on a machine shared with others, wall time is what the load
 allowed, CPU time what the fit cost. The issue's bar: the whole fit of a
@@ -25,6 +25,8 @@ import argparse
 import resource
 import time
 
+from hzval.techniques.fitted import training as fitted_training
+
 
 def _cpu() -> float:
     """This process's user + sys CPU seconds (its threads included)."""
@@ -40,12 +42,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fit-k", action="store_true")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument(
-        "--train-spp", type=int, default=None, help="default: hzval.techniques.fitted.fit.training_spp"
+        "--train-spp", type=int, default=None, help="default: hzval.techniques.fitted.training.training_spp"
     )
     ap.add_argument(
         "--lights",
         default=None,
-        help="training lights (default: hzval.techniques.fitted.fit.TRAINING_LIGHTS)",
+        help="training lights (default: hzval.techniques.fitted.training.TRAINING_LIGHTS)",
     )
     args = ap.parse_args(argv)
 
@@ -60,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     baked = bake.bake(
         hm.height, bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     )
-    lights = fit.parse_lights(args.lights or fit.TRAINING_LIGHTS)
+    lights = fitted_training.parse_lights(args.lights or fitted_training.TRAINING_LIGHTS)
     t0, c0 = time.perf_counter(), _cpu()
     r = fit.fit(
         hm.height,
@@ -83,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     for i, (s, loss) in enumerate(zip(r.epoch_seconds, r.loss)):
         print(f"{i + 1:5d}  {s:7.2f}  {s / len(lights):7.4f}  {loss:.5f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    est = fit.estimate_bytes(args.size, args.size, args.spp, len(lights))
+    est = fitted_training.estimate_bytes(args.size, args.size, args.spp, len(lights))
     print(
         f"truth {r.seconds['truth']:.1f} s, fit {r.seconds['fit']:.1f} s ({r.epochs} epochs, "
         f"{'converged' if r.converged else 'not converged'}), evaluate {r.seconds['evaluate']:.1f} s, "

@@ -21,6 +21,8 @@ import dataclasses
 import json
 import time
 
+from hzval.techniques.fitted import training as fitted_training
+
 
 def _frames(fs, bake, sines, k, held):
     import numpy as np
@@ -43,7 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--depth", type=float, default=0.05)
     ap.add_argument("--boundary", default="wrap")
     ap.add_argument(
-        "--lights", default=None, help="training lights (default hzval.techniques.fitted.fit.TRAINING_LIGHTS)"
+        "--lights",
+        default=None,
+        help="training lights (default hzval.techniques.fitted.training.TRAINING_LIGHTS)",
     )
     ap.add_argument(
         "--held", default="25@-52.5:52.5:15;30@-60:60:15", help="held-out light sets, ';'-separated"
@@ -69,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         hm.height,
         baked,
         scene,
-        lights=args.lights or fit.TRAINING_LIGHTS,
+        lights=args.lights or fitted_training.TRAINING_LIGHTS,
         held_out="",
         progress=False,
         **json.loads(args.options),
@@ -79,15 +83,18 @@ def main(argv: list[str] | None = None) -> int:
         f"{r.mae['training']}"
     )
     held = {
-        spec: (fit.parse_lights(spec), fit.visibility(scene, hm.height, fit.parse_lights(spec)))
+        spec: (
+            fitted_training.parse_lights(spec),
+            fitted_training.visibility(scene, hm.height, fitted_training.parse_lights(spec)),
+        )
         for spec in args.held.split(";")
     }
-    fs = fit.fit_scene(scene)
+    fs = fitted_training.fit_scene(scene)
     base = _frames(fs, baked, baked.horizon, r.k, held)
     maps = [("fitted", r.horizon, None)]
     if args.guards:
         train = dataclasses.replace(scene, spp=r.settings["train_spp"])
-        V = fit.visibility(train, hm.height, r.lights)
+        V = fitted_training.visibility(train, hm.height, r.lights)
         for tol in (float(t) for t in args.guards.split(",")):
             g, rec = fit.guarded(train, baked, storage.get(r.storage), V, r.lights, r.horizon, r.k, r.k, tol)
             maps.append((f"guard {tol:g}", g, rec))

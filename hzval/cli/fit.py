@@ -8,15 +8,14 @@ from pathlib import Path
 
 from hzval.cli import flags, scenes
 from hzval.core import errors
-from hzval.truth import memory
 
 
 def add_parser(sub) -> None:
     """``hzval fit``: the best horizon map (:mod:`hzval.techniques.fitted.fit`)."""
     from hzval.bake import maps as bake
     from hzval.io import storage
-    from hzval.techniques.fitted import fit
     from hzval.techniques.fitted import guard as fit_guard
+    from hzval.techniques.fitted import training as fitted_training
     from hzval.techniques.horizon import DEFAULT_K
 
     d = bake.BakeParams()
@@ -32,15 +31,16 @@ def add_parser(sub) -> None:
     flags.add_material_args(p)
     p.add_argument(
         "--lights",
-        default=fit.TRAINING_LIGHTS,
+        default=fitted_training.TRAINING_LIGHTS,
         metavar="SPEC",
-        help=f"training lights, ELEVATIONS@AZIMUTHS[;...] in degrees (default {fit.TRAINING_LIGHTS})",
+        help="training lights, ELEVATIONS@AZIMUTHS[;...] in degrees "
+        f"(default {fitted_training.TRAINING_LIGHTS})",
     )
     p.add_argument(
         "--held-out",
-        default=fit.HELD_OUT_LIGHTS,
+        default=fitted_training.HELD_OUT_LIGHTS,
         metavar="SPEC",
-        help=f"lights scored but not trained on (default {fit.HELD_OUT_LIGHTS}; '' for none)",
+        help=f"lights scored but not trained on (default {fitted_training.HELD_OUT_LIGHTS}; '' for none)",
     )
     p.add_argument("--fit-k", action="store_true", help="fit the shadow hardness k too")
     p.add_argument(
@@ -93,17 +93,18 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake, fit, write; one line of figures."""
-
     from hzval.bake import maps as bake
     from hzval.io import files
     from hzval.techniques.fitted import fit
+    from hzval.techniques.fitted import training as fitted_training
+    from hzval.truth import memory
 
     if not (math.isfinite(args.k) and args.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {args.k}")
     if args.guard is not None and not (math.isfinite(args.guard) and args.guard >= 0):
         raise errors.InputError("--guard", f"must be a number >= 0, got {args.guard}")
-    lights = fit.parse_lights(args.lights, "--lights")
-    held_out = fit.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
+    lights = fitted_training.parse_lights(args.lights, "--lights")
+    held_out = fitted_training.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
     params = bake.BakeParams(
         depth=scene.material.depth,
@@ -115,7 +116,7 @@ def run(args) -> int:
     rows, cols = memory.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
-    fit.check_fits(
+    fitted_training.check_fits(
         what, rows, cols, scene.spp, len(lights) * (1 if args.guard is None else 2) + len(held_out), scene
     )
     with files.output_folder(args.out, force=args.force):
@@ -128,6 +129,8 @@ def run(args) -> int:
 
 def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
     """The fit of ``baked`` to the truth, written to ``args.out`` with the sweep's cache key."""
+    from hzval.techniques.fitted import store as fitted_store
+
     result = fit.fit(
         height,
         baked,
@@ -142,7 +145,7 @@ def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
     )
     # the key of the sweep's cache (hzval.techniques.fitted.horizon_fit): a fit written into a
     # sweep's out/fit is reused there
-    key = fit.cache_key(
+    key = fitted_store.cache_key(
         height,
         baked,
         scene,
@@ -155,7 +158,7 @@ def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
             **({"guard": args.guard} if args.guard is not None else {}),
         },
     )
-    fit.write_fit(
+    fitted_store.write_fit(
         result,
         args.out,
         input_info={

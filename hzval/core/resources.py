@@ -1,7 +1,7 @@
 """Memory: what is available, and the one-line refusal of a run that would not fit.
 
 Every command estimates its peak before it allocates (the bake: :func:`hzval.bake.maps.estimate_bytes`;
-a sweep: :mod:`hzval.truth.memory`; a fit: :func:`hzval.techniques.fitted.fit.estimate_bytes`) and
+a sweep: :mod:`hzval.truth.memory`; a fit: :func:`hzval.techniques.fitted.training.estimate_bytes`) and
 hands the estimate to :func:`refuse_over`, which owns the wording users see:
 ``WHAT: TASK needs about X GiB of memory (estimated); Y GiB are available (ADVICE)``.
 """

@@ -14,7 +14,7 @@ from hzval.cli import main as cli
 STAGES = {
     "sweep": ([], "hzval.pipeline.sweep", "run", 0),
     "tradeoff": ([], "hzval.commands.tradeoff", "check_fits", 0),
-    "fit": (["--out", "OUT"], "hzval.techniques.fitted.fit", "check_fits", 5),
+    "fit": (["--out", "OUT"], "hzval.techniques.fitted.training", "check_fits", 5),
     "models": ([], "hzval.studies.models", "run", 0),
     "views": ([], "hzval.commands.views", "run", 0),
     "export-scene": (["--out", "OUT"], "hzval.commands.export", "check_fits", 0),

@@ -6,5 +6,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("fit", "guard", "horizon_fit"),
+    ("fit", "guard", "horizon_fit", "store", "training"),
 )

@@ -68,12 +68,9 @@ Storage
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -82,38 +79,27 @@ from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import storage as hz_storage
 from hzval.scene import lookup
-from hzval.scene import spec as sc
 from hzval.techniques import horizon
 from hzval.techniques.fitted import guard as fit_guard
+from hzval.techniques.fitted import training
 
 __all__ = [
-    "TRAINING_LIGHTS",
-    "HELD_OUT_LIGHTS",
+    "CHARBONNIER_EPS",
+    "BATCH_LIGHTS",
+    "LEARNING_RATE",
+    "TOLERANCE",
+    "MAX_EPOCHS",
+    "HALVINGS",
+    "MAX_K",
+    "PRIOR",
+    "CONSTRAIN",
+    "CONSTRAINT_FLOOR",
     "FitResult",
-    "parse_lights",
     "fit",
-    "write_fit",
-    "read_fit",
-    "estimate_bytes",
-    "check_fits",
-    "visibility",
-    "mean_error",
-    "light_errors",
-    "training_spp",
+    "guarded",
 ]
-
-#: The default training lights, ``ELEVATIONS@AZIMUTHS`` (:func:`parse_lights`).
-TRAINING_LIGHTS = "10,20,40,60@0:345:15"
-#: The default held-out lights: scored, never trained on.
-HELD_OUT_LIGHTS = "25@-52.5:52.5:15"
 #: ``eps`` of the Charbonnier loss (module docstring): a sixteenth of the 16-spp truth's V step.
 CHARBONNIER_EPS = 1.0 / 256.0
-#: Samples per training light (truth and forward model): a fit's time is its samples' (the truth's
-#: shadow rays, the kernel's lanes), so the training lights get ``TRAINING_SAMPLES / pixels`` samples a
-#: pixel, at most the scene's and at least 1 (:func:`training_spp`): 16 at 256 x 256, 4 at 512 x 512.
-#: 4 stratified samples a pixel still cover a texel's bilinear footprint; the held-out lights are
-#: scored at the scene's own samples.
-TRAINING_SAMPLES = 1 << 20
 #: Lights per Adam step.
 BATCH_LIGHTS = 8
 #: Adam's learning rate on the sines (and on log k).
@@ -125,8 +111,6 @@ MAX_EPOCHS = 60
 HALVINGS = 3
 #: The largest k that ``fit_k`` may reach (the tradeoff's golden-section search's bound).
 MAX_K = 128.0
-#: Samples per band of the forward model: bounds the AD graph's memory.
-BAND_SAMPLES = 1 << 23
 #: Weight of the pull toward the baked map, ``PRIOR * mean |p - p_baked|`` over every sine (0: none).
 #: Where the training lights leave a sine free (a horizon between two training elevations), the
 #: Charbonnier term's gradient is 0 or tiny and Adam's momentum carries it off; on lights between
@@ -134,270 +118,11 @@ BAND_SAMPLES = 1 << 23
 #: the pull, fabric's fitted |F - V| was 1.04x the baked map's and ridges' 1.16x; with 0.05 / 0.1
 #: fabric's 0.86x / 0.80x (its training error 0.021 / 0.026 instead of 0.0185).
 PRIOR = 0.1
-#: Memory of a fit (:func:`estimate_bytes`): a base, bytes per pixel and light (V), per sample (uv),
-#: per texel (parameters, gradient, Adam's two moments, the stored copy, the bake) and per sample of
-#: a band (the AD graph of the forward model).
-FIT_BASE_BYTES = 0.4 * 2**30
-FIT_BYTES_PER_PIXEL_LIGHT = 4
-FIT_BYTES_PER_SAMPLE = 8
-FIT_BYTES_PER_TEXEL = 8 * 4 * 8
-FIT_BYTES_PER_BAND_SAMPLE = 160
 #: The step of the per-light weights (:func:`_reweight`): a light 10 % worse than the bake gains 0.1 x this
 #: weight an epoch (0: the plain mean over lights).
 CONSTRAIN = 2.0
 #: The smallest baked loss a light's excess is relative to (a light the bake gets all but exactly right).
 CONSTRAINT_FLOOR = 1e-4
-#: Bumped when the fit changes what it finds: a cached fit of another version is made anew.
-FIT_VERSION = 2
-
-
-def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
-    """The training (or held-out) lights of a spec.
-
-    Parameters
-    ----------
-    spec : str
-        ``"E1,E2@AZIMUTHS[;...]"``: each group's elevations (degrees) times its azimuths
-        (``START:STOP:STEP`` or a list, :func:`hzval.scene.spec.parse_azimuths`).
-    what : str
-        The flag the errors name.
-
-    Returns
-    -------
-    tuple of (float, float)
-        ``(elevation_deg, azimuth_deg)`` in order.
-
-    Raises
-    ------
-    hzval.core.errors.InputError
-        For a malformed spec, naming ``what``.
-    """
-    lights: list[tuple[float, float]] = []
-    for group in (g.strip() for g in str(spec).split(";")):
-        if not group:
-            continue
-        if group.count("@") != 1:
-            raise InputError(what, f"expected ELEVATIONS@AZIMUTHS (e.g. {TRAINING_LIGHTS}), got {group!r}")
-        elev_text, az_text = group.split("@")
-        try:
-            elevations = [float(e) for e in elev_text.split(",") if e.strip()]
-        except ValueError:
-            raise InputError(what, f"elevations must be numbers, got {elev_text!r}") from None
-        azimuths = sc.parse_azimuths(az_text.strip(), what)
-        for e in elevations:
-            if not (math.isfinite(e) and 0.0 < e < 90.0):
-                raise InputError(what, f"an elevation must lie in (0, 90) degrees, got {e:g}")
-        if not azimuths or not elevations:
-            raise InputError(what, f"no lights in {group!r}")
-        lights += [(e, float(a)) for e in elevations for a in azimuths]
-    if not lights:
-        raise InputError(what, "name at least one light")
-    return tuple(dict.fromkeys(lights))
-
-
-def training_spp(spp: int, pixels: int) -> int:
-    """Samples per pixel of the training lights' truth and forward model.
-
-    Parameters
-    ----------
-    spp : int
-        The scene's samples per pixel.
-    pixels : int
-        The image's pixels.
-
-    Returns
-    -------
-    int
-        :data:`TRAINING_SAMPLES` over ``pixels``, at most ``spp``, at least 1.
-    """
-    return max(1, min(int(spp), TRAINING_SAMPLES // max(1, int(pixels))))
-
-
-def fit_scene(scene) -> "sc.Scene":
-    """The scene the fit renders, from a sweep's.
-
-    Shadows only (``V`` and ``F`` are all it compares), a hard light, the ``top`` view with the
-    default lookup (a pixel a texel, bilinear), whatever view the sweep has: the fitted map is a
-    texture, fitted where a pixel sees its texel.
-
-    Parameters
-    ----------
-    scene : hzval.scene.spec.Scene
-        The sweep's scene.
-
-    Returns
-    -------
-    hzval.scene.spec.Scene
-    """
-    from hzval.scene.camera import Camera
-
-    light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
-    return dataclasses.replace(
-        scene, effects=("shadow",), light=light, camera=Camera(), lookup=lookup.Lookup()
-    )
-
-
-def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
-    """The truth's visibility of each light, from one set-up.
-
-    One :class:`hzval.truth.plane.Truth`, set up for the lowest elevation of ``lights``, renders them
-    all: its mesh's tolerance and wrap margin serve every higher light (a higher ray clears the
-    relief sooner; each frame takes the hops its own elevation needs). The tests check that a
-    shared set-up's ``V`` is a fresh one's bit for bit.
-
-    Parameters
-    ----------
-    scene : hzval.scene.spec.Scene
-        The fit's scene (:func:`fit_scene`).
-    height : numpy.ndarray
-        ``(rows, cols)`` the normalised height map.
-    lights : sequence of (float, float)
-        ``(elevation_deg, azimuth_deg)``.
-    bar : tqdm.tqdm, optional
-        A progress bar, advanced a light at a time.
-
-    Returns
-    -------
-    list of numpy.ndarray
-        ``(H, W)`` float32 ``V``, one per light, in order.
-    """
-    from hzval.truth import plane as truth
-
-    base = fit_scene(scene)
-    elevations = sorted(dict.fromkeys(e for e, _ in lights))
-    if not elevations:
-        return []
-
-    def at(e):
-        return dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e))
-
-    t = truth.Truth(at(elevations[0]), height)
-    out: dict[tuple[float, float], np.ndarray] = {}
-    for e in elevations:
-        t.scene = at(e).validate()
-        for el, az in lights:
-            if el == e:
-                out[(el, az)] = t.render(az).layers["visibility"]
-                if bar is not None:
-                    bar.update(1)
-    del t
-    return [out[light] for light in lights]
-
-
-def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
-    """The fit's estimated peak memory.
-
-    The truth's ``V`` of every light, beside the larger of the truth's own peak while it renders
-    (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene`` is given) and
-    the optimisation's (:data:`FIT_BASE_BYTES` and the per-sample, per-texel and per-band terms).
-
-    Parameters
-    ----------
-    rows, cols : int
-        The map's size.
-    spp : int
-        Samples per pixel.
-    lights : int
-        Training and held-out lights, each a ``V`` kept.
-    scene : hzval.scene.spec.Scene, optional
-        The sweep's scene, for the truth's own peak.
-
-    Returns
-    -------
-    int
-        Bytes.
-    """
-    P = rows * cols
-    band = min(P * spp, BAND_SAMPLES)
-    optimise = (
-        FIT_BASE_BYTES
-        + FIT_BYTES_PER_SAMPLE * P * spp
-        + FIT_BYTES_PER_TEXEL * P
-        + FIT_BYTES_PER_BAND_SAMPLE * band
-    )
-    render = 0
-    if scene is not None:
-        from hzval.truth import memory
-
-        render = memory.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
-    return int(FIT_BYTES_PER_PIXEL_LIGHT * P * lights + max(optimise, render))
-
-
-def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
-    """Refuse, before anything is allocated, a fit that would not fit in memory.
-
-    Parameters
-    ----------
-    what : str
-        The flag or file the refusal names.
-    rows, cols, spp, lights, scene
-        As :func:`estimate_bytes`.
-
-    Returns
-    -------
-    int
-        The estimate, in bytes, when it fits.
-
-    Raises
-    ------
-    hzval.core.errors.InputError
-        One line (:func:`hzval.core.resources.refuse_over`).
-    """
-    from hzval.core import resources
-
-    return resources.refuse_over(
-        what,
-        estimate_bytes(rows, cols, spp, lights, scene),
-        f"fitting {cols}x{rows} texels at {spp} spp to {lights} lights",
-        "fewer --spp or --lights, or a smaller map",
-    )
-
-
-def light_errors(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> list[float]:
-    """Mean ``|F - V|`` of the horizon technique rendering ``sines``, per light.
-
-    The sweep's own ``visibility_mae`` (:func:`hzval.metrics.compare.visibility_metrics`, every pixel
-    seen).
-
-    Parameters
-    ----------
-    scene : hzval.scene.spec.Scene
-        The fit's scene.
-    bake : hzval.bake.maps.Bake
-        The bake the map belongs to (its normal map and parameters).
-    sines : numpy.ndarray
-        ``(rows, cols, D)`` horizon sines, as stored (float).
-    lights : sequence of (float, float)
-        ``(elevation_deg, azimuth_deg)``.
-    V : list of numpy.ndarray
-        The truth's visibility of each light (:func:`visibility`).
-    k : float
-        The technique's hardness.
-
-    Returns
-    -------
-    list of float
-    """
-    ap = horizon.Horizon(fit_scene(scene), dataclasses.replace(bake, horizon=sines), None, k=k)
-    return [
-        float(np.mean(np.abs(ap.render(az, elevation_deg=e).layers["factor"].astype(np.float64) - v)))
-        for (e, az), v in zip(lights, V)
-    ]
-
-
-def mean_error(scene, bake, sines: np.ndarray, lights, V: list[np.ndarray], k: float) -> float:
-    """Mean ``|F - V|`` over ``lights``: the mean of :func:`light_errors`.
-
-    Parameters
-    ----------
-    scene, bake, sines, lights, V, k
-        As :func:`light_errors`.
-
-    Returns
-    -------
-    float
-    """
-    return float(np.mean(light_errors(scene, bake, sines, lights, V, k)))
 
 
 @dataclass
@@ -471,7 +196,7 @@ class _Model:
         import drjit as dr
         import mitsuba as mi
 
-        self.scene = fit_scene(scene)
+        self.scene = training.fit_scene(scene)
         self.ap = horizon.Horizon(self.scene, bake, None, k=k)
         if set(self.ap._slots) != {horizon.HORIZON_SLOT}:
             raise AssertionError("the fit's technique must hold the horizon channels alone")
@@ -479,8 +204,8 @@ class _Model:
         self.storage = hz_storage.get(storage)
         self.rows, self.cols = self.ap.rows, self.ap.cols
         self.P, self.spp = self.ap.pixels, self.ap.spp
-        self.group = max(1, BAND_SAMPLES // (self.P * self.spp))
-        band = max(1, BAND_SAMPLES // self.spp)
+        self.group = max(1, training.BAND_SAMPLES // (self.P * self.spp))
+        band = max(1, training.BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
         V = lookup.aligned_empty(len(V_list) * self.P)
         for i, v in enumerate(V_list):  # one copy, not a stack and then an aligned copy
@@ -578,8 +303,8 @@ def fit(
     bake,
     scene,
     *,
-    lights=TRAINING_LIGHTS,
-    held_out=HELD_OUT_LIGHTS,
+    lights=training.TRAINING_LIGHTS,
+    held_out=training.HELD_OUT_LIGHTS,
     fit_k: bool = False,
     storage: str = "float",
     k: float = horizon.DEFAULT_K,
@@ -630,20 +355,20 @@ def fit(
         The fitted sines, ``k``, the errors per light before and after, epochs and times.
     """
     backend.variant()
-    lights = parse_lights(lights) if isinstance(lights, str) else tuple(lights)
+    lights = training.parse_lights(lights) if isinstance(lights, str) else tuple(lights)
     if isinstance(held_out, str):
-        held_out = parse_lights(held_out, "held_out") if held_out.strip() else ()
+        held_out = training.parse_lights(held_out, "held_out") if held_out.strip() else ()
     held_out = tuple(held_out)
     stored = hz_storage.get(storage)
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
     # the guard holds the bake's |F - V| per pixel and training light beside V: as much again
-    check_fits(
+    training.check_fits(
         "HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene
     )
     train = dataclasses.replace(
-        scene, spp=min(scene.spp, int(train_spp or training_spp(scene.spp, rows * cols)))
+        scene, spp=min(scene.spp, int(train_spp or training.training_spp(scene.spp, rows * cols)))
     )
     t0, c0 = time.perf_counter(), time.process_time()
     V_train, V_held = _truth(train, scene, height, lights, held_out, progress)
@@ -674,8 +399,8 @@ def fit(
     for name, s, ls, V in (("training", train, lights, V_train), ("held_out", scene, held_out, V_held)):
         if ls:
             before, after = (
-                light_errors(s, bake, baked_stored, ls, V, k),
-                light_errors(s, bake, fitted, ls, V, k_fit),
+                training.light_errors(s, bake, baked_stored, ls, V, k),
+                training.light_errors(s, bake, fitted, ls, V, k_fit),
             )
             mae[name] = {
                 "baked": float(np.mean(before)),
@@ -783,7 +508,7 @@ def _truth(train, scene, height, lights, held_out, progress: bool):
         file=sys.stderr,
         leave=False,
     ) as bar:
-        return visibility(train, height, lights, bar), visibility(
+        return training.visibility(train, height, lights, bar), training.visibility(
             scene, height, held_out, bar
         ) if held_out else []
 
@@ -881,152 +606,3 @@ def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: 
     :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light worse than the bake")."""
     excess = np.clip((losses - baked) / np.maximum(baked, CONSTRAINT_FLOOR), -1.0, 1.0)
     return (1.0 + np.maximum(0.0, weights - 1.0 + step * excess)).astype(np.float32)
-
-
-def write_fit(result: FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
-    """Write a fit, all or nothing: ``horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs) in
-    :func:`hzval.bake.maps.write_bake`'s layout, and ``fit.json``.
-
-    Parameters
-    ----------
-    result : FitResult
-        The fit.
-    out : str or path-like
-        The folder.
-    input_info : dict
-        What ``fit.json`` records of the input (the material, the bake, the cache key).
-
-    Returns
-    -------
-    list of pathlib.Path
-        The files written.
-    """
-    from hzval.io import files
-
-    layers = [
-        result.horizon[..., c : c + cv.CHANNELS_PER_LAYER]
-        for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)
-    ]
-    with files.Staging(out) as stage:
-        for i, layer in enumerate(layers):
-            files.write_exr(stage.path(f"horizon{i}.exr"), {"RGBA": layer}, atomic=False, compression="none")
-            files.write_png(stage.path(f"horizon{i}.png"), files.unit_to_u8(layer), atomic=False)
-        digests = {
-            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
-            for p in sorted(stage.dir.rglob("*"))
-            if p.is_file()
-        }
-        files.write_json(
-            stage.path("fit.json"),
-            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
-            atomic=False,
-        )
-        return stage.commit()
-
-
-def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
-    """A fit written by :func:`write_fit`.
-
-    Parameters
-    ----------
-    folder : str or path-like
-        Its folder.
-
-    Returns
-    -------
-    sines : numpy.ndarray
-        ``(rows, cols, D)`` float32, from the EXRs.
-    record : dict
-        ``fit.json``.
-
-    Raises
-    ------
-    hzval.core.errors.InputError
-        For a missing or malformed ``fit.json``.
-    """
-    from hzval.io import documents, files
-
-    folder = Path(folder)
-    record = documents.read_json(folder / "fit.json")
-    layers = [
-        files.read_exr(folder / f"horizon{i}.exr")
-        for i in range(len([n for n in record["files"] if n.endswith(".exr")]))
-    ]
-    return np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1), record
-
-
-def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
-    """The digest a cached fit is reused by.
-
-    Parameters
-    ----------
-    height : numpy.ndarray
-        The normalised height map.
-    bake : hzval.bake.maps.Bake
-        Its bake (its parameters).
-    scene : hzval.scene.spec.Scene
-        The scene (its samples, lookup and supersampling).
-    settings : dict
-        The fit's own settings.
-
-    Returns
-    -------
-    str
-        A SHA-256 hex digest of all of them and :data:`FIT_VERSION`.
-    """
-    h = hashlib.sha256(np.ascontiguousarray(height, np.float32).tobytes())
-    meta = {
-        "bake": bake.params.record(),
-        "spp": scene.spp,
-        "seed": scene.seed,
-        "lookup": repr(scene.lookup),
-        "supersampling": scene.camera.supersampling,
-        "fit": settings,
-        "version": FIT_VERSION,
-    }
-    h.update(json.dumps(meta, sort_keys=True, default=str).encode())
-    return h.hexdigest()
-
-
-def cached_fit(
-    height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False, **settings
-) -> tuple[FitResult | None, np.ndarray, dict, bool]:
-    """The fit in ``folder`` when its key and file digests match, else a new one written there.
-
-    Parameters
-    ----------
-    height, bake, scene
-        As :func:`fit`.
-    folder : str or path-like or None
-        The cache's folder (``None``: fit and keep nothing). A missing, damaged or hand-edited cache is
-        fitted anew; nothing outside the folder is read.
-    progress : bool
-        Show progress bars.
-    **settings
-        :func:`fit`'s keywords.
-
-    Returns
-    -------
-    tuple
-        ``(result or None, sines, record, cached)``: ``result`` is ``None`` for a cached fit.
-    """
-    from hzval.io import documents, files, paths
-
-    key = cache_key(height, bake, scene, settings)
-    if folder is not None:
-        folder = Path(folder)
-        try:  # a missing, damaged or hand-edited cache is fitted anew; nothing outside it is read
-            record = documents.read_json(folder / "fit.json")
-            if record["input"]["key"] == key and all(
-                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
-                for n, d in record["files"].items()
-            ):
-                sines, record = read_fit(folder)
-                return None, sines, record, True
-        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
-            pass
-    result = fit(height, bake, scene, progress=progress, **settings)
-    record = result.record()
-    if folder is not None:
-        write_fit(result, folder, input_info={"key": key})
-    return result, result.horizon, record, False

@@ -5,10 +5,10 @@ Beside ``horizon`` in a sweep it splits the horizon map's error per frame:
 ``baked - fitted`` is what the bake loses (a better baker could win it
 back), ``fitted`` what eight interpolated directions and one ``k`` ramp
 cannot hold. The map is fitted in the sweep's set-up on the training lights
-(:data:`hzval.techniques.fitted.fit.TRAINING_LIGHTS`, none at the default sweep's 30 degrees)
+(:data:`hzval.techniques.fitted.training.TRAINING_LIGHTS`, none at the default sweep's 30 degrees)
 at the sweep's own samples, and cached in the sweep's ``fit/`` folder beside
 its ``bake/`` by a digest of the height map, the bake's parameters, the
-samples and the fit's settings (:func:`hzval.techniques.fitted.fit.cache_key`).
+samples and the fit's settings (:func:`hzval.techniques.fitted.store.cache_key`).
 
 It renders as ``horizon`` does on the exact path, with the same ``k`` and
 ``storage`` (``--horizon-k``, ``--horizon-storage``): the fit is quantisation-aware, and the
@@ -22,7 +22,8 @@ from __future__ import annotations
 import dataclasses
 
 from hzval.scene.spec import Scene
-from hzval.techniques.fitted import fit
+from hzval.techniques.fitted import store as fitted_store
+from hzval.techniques.fitted import training as fitted_training
 from hzval.techniques.horizon import DEFAULT_K, Horizon
 from hzval.techniques.registry import Context
 
@@ -62,14 +63,14 @@ class FittedHorizon(Horizon):
         k: float = DEFAULT_K,
         storage: str | None = None,
         fit_k: bool = False,
-        lights: str = fit.TRAINING_LIGHTS,
-        held_out: str = fit.HELD_OUT_LIGHTS,
+        lights: str = fitted_training.TRAINING_LIGHTS,
+        held_out: str = fitted_training.HELD_OUT_LIGHTS,
         **settings,
     ) -> "FittedHorizon":
         """``lights``/``held_out``: the fit's training and held-out lights
-        (:func:`hzval.techniques.fitted.fit.parse_lights`)."""
+        (:func:`hzval.techniques.fitted.training.parse_lights`)."""
         storage = storage or "float"
-        _, sines, record, cached = fit.cached_fit(
+        _, sines, record, cached = fitted_store.cached_fit(
             ctx.height,
             ctx.bake,
             ctx.scene,

@@ -27,6 +27,8 @@ from hzval.scene import spec as S
 from hzval.techniques import horizon
 from hzval.techniques import registry as technique
 from hzval.techniques.fitted import fit, horizon_fit
+from hzval.techniques.fitted import store as fitted_store
+from hzval.techniques.fitted import training as fitted_training
 
 FEW = "20,40@0:270:90"  # 8 training lights: fast fits for the tests
 HELD = "30@45:225:180"
@@ -41,15 +43,15 @@ def _setup(n=24, spp=1, depth=0.1, height=None):
 
 
 def test_parse_lights():
-    lights = fit.parse_lights(fit.TRAINING_LIGHTS)
+    lights = fitted_training.parse_lights(fitted_training.TRAINING_LIGHTS)
     assert len(lights) == 96 and {e for e, _ in lights} == {10.0, 20.0, 40.0, 60.0}
     assert all(e != 30.0 for e, _ in lights)  # none is a light of the default sweep
-    held = fit.parse_lights(fit.HELD_OUT_LIGHTS)
+    held = fitted_training.parse_lights(fitted_training.HELD_OUT_LIGHTS)
     assert [a for _, a in held] == [-52.5 + 15 * i for i in range(8)] and {e for e, _ in held} == {25.0}
-    assert fit.parse_lights("10@0;20@0,90") == ((10.0, 0.0), (20.0, 0.0), (20.0, 90.0))
+    assert fitted_training.parse_lights("10@0;20@0,90") == ((10.0, 0.0), (20.0, 0.0), (20.0, 90.0))
     for bad in ("", "10", "95@0", "x@0", "10@5:0:1"):
         with pytest.raises(InputError):
-            fit.parse_lights(bad)
+            fitted_training.parse_lights(bad)
 
 
 @pytest.mark.parametrize("spp", [1, 3])
@@ -65,7 +67,7 @@ def test_forward_model_is_the_techniques_own_bit_for_bit(variant, spp):
     dr.enable_grad(p)
     model.set_parameters(p)
     F = np.asarray(dr.detach(model.factor(lights, 0, model.P))).reshape(len(lights), *h.shape)
-    ref = horizon.Horizon(fit.fit_scene(scene), b, None)
+    ref = horizon.Horizon(fitted_training.fit_scene(scene), b, None)
     for i, (e, az) in enumerate(lights):
         want = ref.render(az, elevation_deg=e).layers["factor"]
         if spp == 1:
@@ -82,7 +84,7 @@ def test_shadow_factor_is_the_kernels_former_arithmetic(variant, path):
     import mitsuba as mi
 
     scene, h, b = _setup(n=16)
-    ap = horizon.Horizon(fit.fit_scene(scene), b, None, path=path)
+    ap = horizon.Horizon(fitted_training.fit_scene(scene), b, None, path=path)
     y, x = np.mgrid[0:16, 0:16]
     xs, ys = (x + 0.3).ravel().astype(np.float32), (16 - y - 0.6).ravel().astype(np.float32)
     u, v = (mi.Float(c) for c in cv.tangent_to_uv(xs, ys, 16, 16))
@@ -181,8 +183,10 @@ def test_fit_lowers_the_error_and_keeps_the_range(variant):
     record = r.record()
     assert len(record["lights"]["training"]) == 8 and record["storage"] == "float"
     # the reported error is the sweep's: the technique rendering the fitted map
-    V = fit.visibility(scene, h, r.lights)
-    assert fit.mean_error(scene, b, r.horizon, r.lights, V, r.k) == pytest.approx(r.mae["training"]["fitted"])
+    V = fitted_training.visibility(scene, h, r.lights)
+    assert fitted_training.mean_error(scene, b, r.horizon, r.lights, V, r.k) == pytest.approx(
+        r.mae["training"]["fitted"]
+    )
 
 
 def test_u8_fit_is_stored_in_8_bits_and_beats_the_8_bit_bake(variant):
@@ -191,8 +195,8 @@ def test_u8_fit_is_stored_in_8_bits_and_beats_the_8_bit_bake(variant):
     q = r.horizon * 255.0
     assert np.array_equal(q, np.rint(q))  # what the 8-bit texture holds
     assert r.mae["training"]["fitted"] < r.mae["training"]["baked"]
-    V = fit.visibility(scene, h, r.lights)
-    u8 = fit.mean_error(
+    V = fitted_training.visibility(scene, h, r.lights)
+    u8 = fitted_training.mean_error(
         scene, b, bake_u8 := horizon.hz_storage.get("u8").roundtrip(b.horizon), r.lights, V, 8.0
     )
     assert r.mae["training"]["baked"] == pytest.approx(u8) and bake_u8.dtype == np.float32
@@ -207,7 +211,7 @@ def test_fit_k_moves_k_within_its_range(variant):
 def test_files_are_the_bakes_layout_and_read_back_exactly(variant, tmp_path):
     scene, h, b = _setup(n=16)
     r = fit.fit(h, b, scene, lights=FEW, held_out="", progress=False)
-    fit.write_fit(r, tmp_path, input_info={"test": True})
+    fitted_store.write_fit(r, tmp_path, input_info={"test": True})
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "fit.json",
         "horizon0.exr",
@@ -217,18 +221,22 @@ def test_files_are_the_bakes_layout_and_read_back_exactly(variant, tmp_path):
     ]
     raw = external.read_layers([tmp_path / "horizon0.exr", tmp_path / "horizon1.exr"])
     assert np.array_equal(external.to_hzval(raw, external.Encoding()), r.horizon)
-    sines, record = fit.read_fit(tmp_path)
+    sines, record = fitted_store.read_fit(tmp_path)
     assert np.array_equal(sines, r.horizon) and record["mae"] == json.loads(json.dumps(r.mae))
     png = external.read_layers([tmp_path / "horizon0.png", tmp_path / "horizon1.png"])
     assert np.max(np.abs(png - r.horizon)) <= 0.5 / 255 + 1e-7
 
 
 def test_memory_estimate_refuses_what_cannot_fit(monkeypatch):
-    assert fit.estimate_bytes(2048, 2048, 16, 96) > fit.estimate_bytes(512, 512, 16, 96) > 0
+    assert (
+        fitted_training.estimate_bytes(2048, 2048, 16, 96)
+        > fitted_training.estimate_bytes(512, 512, 16, 96)
+        > 0
+    )
     monkeypatch.setattr(resources, "available_bytes", lambda: 2 * 2**30)
     with pytest.raises(InputError, match="GiB"):
-        fit.check_fits("x.png", 2048, 2048, 16, 96)
-    assert fit.check_fits("x.png", 64, 64, 16, 96) < 2 * 2**30
+        fitted_training.check_fits("x.png", 2048, 2048, 16, 96)
+    assert fitted_training.check_fits("x.png", 64, 64, 16, 96) < 2 * 2**30
 
 
 def test_cli_fit_writes_the_map_and_refuses_bad_lights(variant, tmp_path, capsys):
@@ -297,7 +305,8 @@ def test_the_pull_toward_the_bake_keeps_the_map_nearer_it(variant):
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, boundary):
-    """fit.visibility sets the truth up once, for its lowest elevation: each higher elevation's V is
+    """fitted_training.visibility sets the truth up once, for its lowest elevation: each higher elevation's V
+    is
     the V of a truth set up for that elevation, bit for bit."""
     import dataclasses
 
@@ -306,8 +315,8 @@ def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, bounda
     scene, h, _ = _setup(n=20, spp=2)
     scene = S.override(scene, boundary=boundary)
     lights = ((12.0, 30.0), (35.0, 200.0), (35.0, 10.0), (70.0, -45.0))
-    shared = fit.visibility(scene, h, lights)
-    base = fit.fit_scene(scene)
+    shared = fitted_training.visibility(scene, h, lights)
+    base = fitted_training.fit_scene(scene)
     for (e, az), v in zip(lights, shared):
         fresh = truth.Truth(
             dataclasses.replace(base, light=dataclasses.replace(base.light, elevation_deg=e)), h

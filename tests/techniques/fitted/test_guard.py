@@ -19,6 +19,7 @@ from hzval.scene import spec as S
 from hzval.techniques import horizon
 from hzval.techniques.fitted import fit
 from hzval.techniques.fitted import guard as fit_guard
+from hzval.techniques.fitted import training as fitted_training
 
 
 def test_neighbourhood_sum_wraps_or_cuts():
@@ -94,8 +95,8 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
     g = r.settings["guard"]
     assert g["verified"] and 0 < g["kept_fitted"] < 1
     kept = np.any(r.horizon != b.horizon, axis=-1)
-    V = fit.visibility(scene, h, r.lights)
-    fs = fit.fit_scene(scene)
+    V = fitted_training.visibility(scene, h, r.lights)
+    fs = fitted_training.fit_scene(scene)
     base = horizon.Horizon(fs, b, None)
     own = horizon.Horizon(fs, dataclasses.replace(b, horizon=r.horizon), None)
     for (e, az), v in zip(r.lights, V):

@@ -1,0 +1,175 @@
+"""A fit kept on disk: its files in the bake's layout and ``fit.json`` (:func:`write_fit`,
+:func:`read_fit`), and the cache a sweep reuses a fit from (:func:`cache_key`, :func:`cached_fit`)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hzval.core import backend
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.techniques.fitted import fit
+
+__all__ = [
+    "FIT_VERSION",
+    "write_fit",
+    "read_fit",
+    "cache_key",
+    "cached_fit",
+]
+
+#: Bumped when the fit changes what it finds: a cached fit of another version is made anew.
+FIT_VERSION = 2
+
+
+def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
+    """Write a fit, all or nothing: ``horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs) in
+    :func:`hzval.bake.maps.write_bake`'s layout, and ``fit.json``.
+
+    Parameters
+    ----------
+    result : FitResult
+        The fit.
+    out : str or path-like
+        The folder.
+    input_info : dict
+        What ``fit.json`` records of the input (the material, the bake, the cache key).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
+    from hzval.io import files
+
+    layers = [
+        result.horizon[..., c : c + cv.CHANNELS_PER_LAYER]
+        for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)
+    ]
+    with files.Staging(out) as stage:
+        for i, layer in enumerate(layers):
+            files.write_exr(stage.path(f"horizon{i}.exr"), {"RGBA": layer}, atomic=False, compression="none")
+            files.write_png(stage.path(f"horizon{i}.png"), files.unit_to_u8(layer), atomic=False)
+        digests = {
+            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            for p in sorted(stage.dir.rglob("*"))
+            if p.is_file()
+        }
+        files.write_json(
+            stage.path("fit.json"),
+            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
+            atomic=False,
+        )
+        return stage.commit()
+
+
+def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
+    """A fit written by :func:`write_fit`.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Its folder.
+
+    Returns
+    -------
+    sines : numpy.ndarray
+        ``(rows, cols, D)`` float32, from the EXRs.
+    record : dict
+        ``fit.json``.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        For a missing or malformed ``fit.json``.
+    """
+    from hzval.io import documents, files
+
+    folder = Path(folder)
+    record = documents.read_json(folder / "fit.json")
+    layers = [
+        files.read_exr(folder / f"horizon{i}.exr")
+        for i in range(len([n for n in record["files"] if n.endswith(".exr")]))
+    ]
+    return np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1), record
+
+
+def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
+    """The digest a cached fit is reused by.
+
+    Parameters
+    ----------
+    height : numpy.ndarray
+        The normalised height map.
+    bake : hzval.bake.maps.Bake
+        Its bake (its parameters).
+    scene : hzval.scene.spec.Scene
+        The scene (its samples, lookup and supersampling).
+    settings : dict
+        The fit's own settings.
+
+    Returns
+    -------
+    str
+        A SHA-256 hex digest of all of them and :data:`FIT_VERSION`.
+    """
+    h = hashlib.sha256(np.ascontiguousarray(height, np.float32).tobytes())
+    meta = {
+        "bake": bake.params.record(),
+        "spp": scene.spp,
+        "seed": scene.seed,
+        "lookup": repr(scene.lookup),
+        "supersampling": scene.camera.supersampling,
+        "fit": settings,
+        "version": FIT_VERSION,
+    }
+    h.update(json.dumps(meta, sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+def cached_fit(
+    height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False, **settings
+) -> tuple[fit.FitResult | None, np.ndarray, dict, bool]:
+    """The fit in ``folder`` when its key and file digests match, else a new one written there.
+
+    Parameters
+    ----------
+    height, bake, scene
+        As :func:`fit`.
+    folder : str or path-like or None
+        The cache's folder (``None``: fit and keep nothing). A missing, damaged or hand-edited cache is
+        fitted anew; nothing outside the folder is read.
+    progress : bool
+        Show progress bars.
+    **settings
+        :func:`fit`'s keywords.
+
+    Returns
+    -------
+    tuple
+        ``(result or None, sines, record, cached)``: ``result`` is ``None`` for a cached fit.
+    """
+    from hzval.io import documents, files, paths
+
+    key = cache_key(height, bake, scene, settings)
+    if folder is not None:
+        folder = Path(folder)
+        try:  # a missing, damaged or hand-edited cache is fitted anew; nothing outside it is read
+            record = documents.read_json(folder / "fit.json")
+            if record["input"]["key"] == key and all(
+                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
+                for n, d in record["files"].items()
+            ):
+                sines, record = read_fit(folder)
+                return None, sines, record, True
+        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
+            pass
+    result = fit.fit(height, bake, scene, progress=progress, **settings)
+    record = result.record()
+    if folder is not None:
+        write_fit(result, folder, input_info={"key": key})
+    return result, result.horizon, record, False
