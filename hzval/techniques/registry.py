@@ -171,19 +171,9 @@ class Technique:
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """What a sweep must bake for its techniques.
-
-        Parameters
-        ----------
-        techniques : iterable of type[Technique]
-        scene : hzval.scene.spec.Scene
-
-        Returns
-        -------
-        frozenset of str
-            Their :meth:`Technique.bake_needs`, and the normal map (and, where ``ambient`` is declared, the
-            ambient map) that the unshadowed shading reads (:class:`hzval.techniques.surface.Unshadowed`).
-        """
+        """What the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
+        ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
+        its techniques need; by default everything."""
         return frozenset({"normal", "horizon_map", "ambient", "height"})
 
     @classmethod
