@@ -12,6 +12,8 @@ __all__ = [
     "TRUTH_COLOUR",
     "TECHNIQUE_COLOURS",
     "TECHNIQUE_STYLES",
+    "NAMED_COLOURS",
+    "technique_colour",
     "num",
     "fmt_deg",
     "fmt_seconds",
@@ -285,6 +287,39 @@ class TechniqueView:
     parallax: bool = False  # a view measured its factor at the truth's hit points
 
 
+#: The colours of the techniques every page and plot shows, by name: the same on a sweep's report
+#: and a score's, whichever leads. Others take :data:`TECHNIQUE_COLOURS` by their place.
+NAMED_COLOURS = {
+    "horizon": TECHNIQUE_COLOURS[0],
+    "terrain": TECHNIQUE_COLOURS[1],
+    "pom": TECHNIQUE_COLOURS[2],
+    "engine": TECHNIQUE_COLOURS[3],  # hzval score's frames
+}
+
+
+def technique_colour(name: str, place: int) -> str:
+    """A technique's colour: its own (:data:`NAMED_COLOURS`), else by its place in the list.
+
+    Parameters
+    ----------
+    name : str
+        The technique's registry name (or ``engine``).
+    place : int
+        Its index among the techniques shown.
+
+    Returns
+    -------
+    str
+        A CSS hex colour.
+
+    Examples
+    --------
+    >>> technique_colour("horizon", 3) == technique_colour("horizon", 0)
+    True
+    """
+    return NAMED_COLOURS.get(name, TECHNIQUE_COLOURS[place % len(TECHNIQUE_COLOURS)])
+
+
 def technique_views(metrics: dict) -> list[TechniqueView]:
     """The techniques of a sweep's ``metrics`` (``techniques``), in their order; the first leads."""
     info = metrics.get("techniques")
@@ -303,7 +338,7 @@ def technique_views(metrics: dict) -> list[TechniqueView]:
                 str(name),
                 str(t.get("label") or name),
                 str(t.get("file_stem") or name),
-                TECHNIQUE_COLOURS[i % len(TECHNIQUE_COLOURS)],
+                technique_colour(str(name), i),
                 TECHNIQUE_STYLES[i % len(TECHNIQUE_STYLES)],
                 parallax,
             )

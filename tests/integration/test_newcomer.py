@@ -287,3 +287,19 @@ def test_a_model_sweep_says_its_camera_and_shows_the_error_at_the_truths_hits(tm
         cli.main([*argv, "horizon", "--camera", "orthographic", "--quiet", "--out", str(tmp_path / "o")]) == 0
     )
     assert "a perspective view" not in capsys.readouterr().err  # a camera given: nothing to say
+
+
+# 5. One owner of the technique colours ---------------------------------------------------------------
+
+
+def test_a_technique_has_one_colour_on_every_page():
+    """horizon is the same colour on a sweep's report, where it leads, and on a score's, where the
+    engine leads (it was purple on one and yellow on the other)."""
+    from hzval.report import columns
+
+    sweep = {"techniques": {"horizon": {}, "terrain": {}, "pom": {}}, "frames": []}
+    score = {"techniques": {"engine": {}, "horizon": {}, "terrain": {}, "pom": {}}, "frames": []}
+    a = {v.name: v.colour for v in columns.technique_views(sweep)}
+    b = {v.name: v.colour for v in columns.technique_views(score)}
+    assert all(a[n] == b[n] for n in a) and b["engine"] not in a.values()
+    assert len(set(b.values())) == len(b)
