@@ -263,6 +263,7 @@ FLOOR_METRICS: tuple[Metric, ...] = (
         "that is shading and noise, not shadows",
         fixed(4),
         group="floor",
+        error=False,  # a bound, not a technique's error: never marked "worst"
     ),
     Metric(
         "floor_rmse",
@@ -271,6 +272,7 @@ FLOOR_METRICS: tuple[Metric, ...] = (
         "Perfect-shadows floor: RMSE (linear) of the unshadowed shading times V against the truth",
         fixed(4),
         group="floor",
+        error=False,
     ),
 )
 

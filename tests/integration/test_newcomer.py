@@ -303,3 +303,25 @@ def test_a_technique_has_one_colour_on_every_page():
     b = {v.name: v.colour for v in columns.technique_views(score)}
     assert all(a[n] == b[n] for n in a) and b["engine"] not in a.values()
     assert len(set(b.values())) == len(b)
+
+
+# 8. The floor is never "worst" --------------------------------------------------------------------------
+
+
+def test_the_perfect_shadows_floor_is_never_marked_worst(tmp_path, variant):
+    """In the report's table of a sweep with shadows, the floor columns (a bound, not a technique's
+    error) have no cell marked worst, while the technique's error columns have theirs."""
+    import json
+
+    from hzval.report import pages
+
+    out = tmp_path / "s"
+    argv = ["sweep", "--material", "gravel", "--size", "32", "--depth", "0.1", "--elevation", "20"]
+    argv += ["--azimuths", "0,90,180", "--spp", "2", "--techniques", "horizon", "--quiet", "--out", str(out)]
+    assert cli.main(argv) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    ctx = pages.build_context(out, metrics, "", {"metrics": None, "timings": None})
+    cells = [c for f in ctx["frames"] for c in f["cells"]]
+    floor = [c for c in cells if c["key"].startswith("floor_")]
+    assert floor and len({c["text"] for c in floor}) > 1 and not any(c["worst"] for c in floor)
+    assert any(c["worst"] for c in cells if c["key"].startswith("horizon_"))  # errors are marked
