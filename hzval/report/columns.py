@@ -12,7 +12,7 @@ __all__ = [
     "TRUTH_COLOUR",
     "TECHNIQUE_COLOURS",
     "TECHNIQUE_STYLES",
-    "NAMED_COLOURS",
+    "ENGINE_COLOUR",
     "technique_colour",
     "num",
     "fmt_deg",
@@ -46,7 +46,7 @@ __all__ = [
 TRUTH_COLOUR = "#7fd1ae"
 #: The techniques' colours, in the order ``metrics.json`` lists them (the
 #: first is the lead technique's, the page's "lead" side beside the truth).
-TECHNIQUE_COLOURS = ("#b9a3ff", "#f2c14e", "#6cc3ff", "#ff8fa3", "#c7e36b")
+TECHNIQUE_COLOURS = ("#b9a3ff", "#f2c14e", "#6cc3ff", "#ff8fa3", "#c7e36b", "#e39bd3", "#7ee0e0", "#d8b08c")
 #: Line styles of the techniques in the plots, in the same order.
 TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
@@ -289,23 +289,19 @@ class TechniqueView:
     parallax: bool = False  # a view measured its factor at the truth's hit points
 
 
-#: The colours of the techniques every page and plot shows, by name: the same on a sweep's report
-#: and a score's, whichever leads. Others take :data:`TECHNIQUE_COLOURS` by their place.
-NAMED_COLOURS = {
-    "horizon": TECHNIQUE_COLOURS[0],
-    "terrain": TECHNIQUE_COLOURS[1],
-    "pom": TECHNIQUE_COLOURS[2],
-    "engine": TECHNIQUE_COLOURS[3],  # hzval score's frames
-}
+#: The colour of ``hzval score``'s engine, beside the registry's techniques.
+ENGINE_COLOUR = "#ff7a45"
 
 
 def technique_colour(name: str, place: int) -> str:
-    """A technique's colour: its own (:data:`NAMED_COLOURS`), else by its place in the list.
+    """A technique's colour, the same on every page and plot whichever technique leads: the
+    registry's techniques by their place in it (:func:`hzval.techniques.registry.names`),
+    ``score``'s engine its own, any other by its place in the list shown.
 
     Parameters
     ----------
     name : str
-        The technique's registry name (or ``engine``).
+        The technique's registry name, or ``engine``.
     place : int
         Its index among the techniques shown.
 
@@ -316,10 +312,18 @@ def technique_colour(name: str, place: int) -> str:
 
     Examples
     --------
-    >>> technique_colour("horizon", 3) == technique_colour("horizon", 0)
+    >>> names = __import__("hzval.techniques.registry", fromlist=["names"]).names()
+    >>> technique_colour(names[0], 3) == technique_colour(names[0], 0) == TECHNIQUE_COLOURS[0]
     True
     """
-    return NAMED_COLOURS.get(name, TECHNIQUE_COLOURS[place % len(TECHNIQUE_COLOURS)])
+    from hzval.techniques import registry
+
+    known = registry.names()
+    if name in known:
+        return TECHNIQUE_COLOURS[known.index(name) % len(TECHNIQUE_COLOURS)]
+    if name == "engine":
+        return ENGINE_COLOUR
+    return TECHNIQUE_COLOURS[place % len(TECHNIQUE_COLOURS)]
 
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
