@@ -31,19 +31,12 @@ def run(args) -> int:
     """Bake the material of ``args`` into ``--out``; one line of figures."""
     from hzval.bake import maps as bake
     from hzval.geometry import tile as mesh
-    from hzval.io import files, heightmap
+    from hzval.io import files
+    from hzval.truth import memory
 
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
-    params = bake.BakeParams(
-        depth=scene.material.depth,
-        radius=args.radius,
-        angles=args.angles,
-        boundary=scene.material.boundary,
-        method=args.method,
-        directions=args.directions,
-    ).validate()
-    m = scene.material  # estimated before the map is decoded or generated
-    rows, cols = (m.size, m.size) if scenes.builtin(m.height) else heightmap.probe_shape(m.height)
+    params = flags.bake_params(args, scene)
+    rows, cols = memory.material_shape(scene)  # estimated before the map is decoded or generated
     bake.check_fits(args.height or "--size", rows, cols, params)
     t0 = time.perf_counter()
     with files.output_folder(args.out, force=args.force):

@@ -106,13 +106,7 @@ def run(args) -> int:
     lights = fitted_training.parse_lights(args.lights, "--lights")
     held_out = fitted_training.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
-    params = bake.BakeParams(
-        depth=scene.material.depth,
-        radius=args.radius,
-        angles=args.angles,
-        boundary=scene.material.boundary,
-        method=args.method,
-    ).validate()
+    params = flags.bake_params(args, scene)
     rows, cols = memory.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)

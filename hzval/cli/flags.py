@@ -421,6 +421,22 @@ def gate_exit(failed: list[str]) -> int:
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 
+def bake_params(args, scene):
+    """The :class:`hzval.bake.maps.BakeParams` of the bake flags (:func:`add_bake_flags`) on ``scene``'s
+    material (its depth and boundary: HEIGHT's sidecar's where it has one), checked."""
+    from hzval.bake import maps as bake
+
+    d = bake.BakeParams()
+    return bake.BakeParams(
+        depth=scene.material.depth,
+        radius=args.radius,
+        angles=args.angles,
+        boundary=scene.material.boundary,
+        method=args.method,
+        directions=getattr(args, "directions", d.directions),
+    ).validate()
+
+
 def print_notes(args) -> None:
     """The notes the flags' scene left for the end of a run (:func:`hzval.cli.scenes.scene_from_args`)."""
     for note in getattr(args, "notes", []):
