@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.bake import occlusion
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
 from hzval.core import conventions as cv
@@ -171,7 +172,8 @@ class Bake:
     toward azimuth ``360 k / D`` degrees (``D = params.directions``, 8 or 16). ``normal``: ``(rows, cols,
     3)`` unit
     tangent-space normals. ``mean_cos``, ``mean_cos2``: ``(rows, cols)``
-    ambient terms. ``timings``: seconds per stage.
+    ambient terms. ``timings``: seconds per stage. ``bent_normal``, ``ssbump``: ``(rows, cols, 3)``,
+    the directional occlusion of :mod:`hzval.bake.occlusion` (``None`` in a bake without a horizon map).
     """
 
     params: BakeParams
@@ -180,6 +182,8 @@ class Bake:
     mean_cos: np.ndarray
     mean_cos2: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)
+    bent_normal: np.ndarray | None = None
+    ssbump: np.ndarray | None = None
 
     @property
     def directions(self) -> int:
@@ -252,8 +256,10 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     seed's ten kernel outputs, so the seed's figure per texel bounds it.
     """
     pad = params.radius - 1 if params.method == "seed" else 0
-    per_texel = BAKE_BYTES_PER_TEXEL + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (
-        params.directions - cv.CHANNEL_COUNT
+    per_texel = (
+        BAKE_BYTES_PER_TEXEL
+        + occlusion.BYTES_PER_TEXEL
+        + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (params.directions - cv.CHANNEL_COUNT)
     )
     return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
 
@@ -277,15 +283,17 @@ METHOD_NOTES: dict[str, str] = {
 
 
 #: What a bake can hold (:attr:`Bake.contents`): the normal map alone, or with the horizon map and the
-#: ambient maps derived from it. Techniques declare which they read
+#: ambient maps derived from it, and the directional occlusion made from its sines
+#: (:mod:`hzval.bake.occlusion`). Techniques declare which they read
 #: (:meth:`hzval.techniques.registry.Technique.bake_needs`); a sweep bakes what its techniques need.
-CONTENTS: tuple[str, ...] = ("normal", "horizon_map", "ambient")
+CONTENTS: tuple[str, ...] = ("normal", "horizon_map", "ambient", "bent_normal", "ssbump_map")
 
 
 def needs_horizon(needs) -> bool:
     """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
-    bake: the horizon map, and the ambient maps, which are made from its sines."""
-    return bool({"horizon_map", "ambient"} & set(needs))
+    bake: the horizon map, and the ambient maps and directional occlusion, which are made from its
+    sines."""
+    return bool({"horizon_map", "ambient", "bent_normal", "ssbump_map"} & set(needs))
 
 
 def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True) -> Bake:
@@ -311,8 +319,11 @@ def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool
         horizon, mean_cos, mean_cos2 = horizon_map(
             h, params.radius, params.angles, params.boundary, directions=params.directions
         )
-    timings["horizon_s"] = time.perf_counter() - t1
-    return Bake(params, horizon, normal, mean_cos, mean_cos2, timings)
+    t2 = time.perf_counter()
+    timings["horizon_s"] = t2 - t1
+    bent, ss = occlusion.bent_normal(horizon), occlusion.self_shadowed_bump(horizon, normal)
+    timings["occlusion_s"] = time.perf_counter() - t2
+    return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss)
 
 
 def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]:
@@ -356,6 +367,10 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         png("normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.normal)
         if full:
             exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
+            exr("bent_normal.exr", {"RGB": result.bent_normal})
+            png("bent_normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.bent_normal)
+            exr("ssbump.exr", {"RGB": result.ssbump})
+            png("ssbump.png", files.unit_to_u8, result.ssbump)
         if cube is not None:
             for i, face in enumerate(cube_layout.CUBE_FACES):
                 png(f"cube/{face}.png", np.asarray, cube[i])
@@ -390,7 +405,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         f"horizon{i}.{ext}"
         for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
         for ext in ("exr", "png")
-    ] + ([] if full else ["ambient.exr"])
+    ] + ([] if full else ["ambient.exr", "bent_normal.exr", "bent_normal.png", "ssbump.exr", "ssbump.png"])
     if cube is None:
         stale += [f"cube/{face}.png" for face in cube_layout.CUBE_FACES]
     for name in stale:
@@ -419,6 +434,11 @@ def _output_notes(directions: int, full: bool = True) -> dict:
         )
     notes["normal"] = "tangent-space unit normal (PNG: 0.5 + 0.5 n)"
     notes["ambient"] = "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)"
+    notes["bent_normal"] = "cosine-weighted mean unoccluded direction, tangent space (PNG: 0.5 + 0.5 b)"
+    notes["ssbump_map"] = (
+        "Valve's self-shadowed bump map: max(0, n . b_c) times the open share about b_c, "
+        "b_c Half-Life 2's basis (docs/techniques.md)"
+    )
     if directions == cv.CHANNEL_COUNT:
         notes["cube"] = (
             f"channel weights, {CUBE_SIZE}x{CUBE_SIZE} per face, OpenGL face order, 8-bit (w + 1) * 127.5"
@@ -452,7 +472,20 @@ def read_bake(folder: str | Path) -> Bake:
     n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
     horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
     normal = np.stack([n[c] for c in "RGB"], axis=-1)
-    return Bake(params, horizon, normal, amb["mean_cos"], amb["mean_cos2"], dict(record["timings_s"]))
+    bent, ss = (
+        np.stack([files.read_exr(folder / name)[c] for c in "RGB"], axis=-1)
+        for name in ("bent_normal.exr", "ssbump.exr")
+    )
+    return Bake(
+        params,
+        horizon,
+        normal,
+        amb["mean_cos"],
+        amb["mean_cos2"],
+        dict(record["timings_s"]),
+        bent_normal=bent,
+        ssbump=ss,
+    )
 
 
 def cached_bake(
@@ -488,7 +521,8 @@ def cached_bake(
         held = record.get("contents", CONTENTS)
         if horizon:
             same = (
-                "horizon_map" in held and BakeParams.normalise_record(record["parameters"]) == params.record()
+                set(CONTENTS) <= set(held)  # a bake from before a content was added is baked anew
+                and BakeParams.normalise_record(record["parameters"]) == params.record()
             )
         else:  # any bake of the same surface holds its normal map
             same = {k: record["parameters"][k] for k in ("depth", "boundary")} == _normal_record(params)

@@ -1,13 +1,31 @@
 """The self-shadowing techniques, one plug-in per module, registered by name (registry): the flat
 surface's shading they build on (surface), Lengyel's horizon mapping (horizon, horizon_curved),
 Raudins' terrain shadows (terrain), the ray march (pom), the horizon map fitted to the truth
-(fitted/) and the shipped GLSL on OpenGL (gl/). Adding a technique is a module and a line in the
-registry.
+(fitted/), the shipped GLSL on OpenGL (gl/), and what engines ship, each a per-pixel factor
+(perpixel): AO micro-shadowing (microshadow_filament, microshadow_hdrp), bent cones (bent_cone),
+Valve's self-shadowed bump maps (ssbump) and the bump-terminator term (terminator). Adding a
+technique is a module and a line in the registry.
 """
 
 from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("cubemap", "horizon", "horizon_curved", "pom", "registry", "surface", "terrain", "fitted", "gl"),
+    (
+        "cubemap",
+        "horizon",
+        "horizon_curved",
+        "pom",
+        "registry",
+        "surface",
+        "terrain",
+        "fitted",
+        "gl",
+        "perpixel",
+        "microshadow_filament",
+        "microshadow_hdrp",
+        "bent_cone",
+        "ssbump",
+        "terminator",
+    ),
 )

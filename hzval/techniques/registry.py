@@ -66,6 +66,11 @@ REGISTRY: dict[str, str] = {
     "pom-gl": "hzval.techniques.gl.horizon_gl:PomGL",
     "horizon-fit": "hzval.techniques.fitted.horizon_fit:FittedHorizon",
     "horizon-curved": "hzval.techniques.horizon_curved:CurvedHorizon",
+    "microshadow-filament": "hzval.techniques.microshadow_filament:MicroshadowFilament",
+    "microshadow-hdrp": "hzval.techniques.microshadow_hdrp:MicroshadowHDRP",
+    "bent-cone": "hzval.techniques.bent_cone:BentCone",
+    "ssbump": "hzval.techniques.ssbump:SSBump",
+    "terminator": "hzval.techniques.terminator:Terminator",
 }
 
 
@@ -142,6 +147,10 @@ class Technique:
     not_modelled: ClassVar[tuple[str, ...]] = ("interreflection",)
     #: Whether a sweep without ``--techniques`` renders it (the GL techniques are opt-in).
     by_default: ClassVar[bool] = True
+    #: Whether its factor turns with the tile: mirrored, turned a quarter or transposed with its light,
+    #: the map gives the turned factor. False for a technique whose textures hold a basis that is not
+    #: the square's (ssbump's three vectors are symmetric only about the tangent's x axis).
+    square_symmetric: ClassVar[bool] = True
     #: Why the technique does not render on a model (``[mesh]``, :mod:`hzval.truth.model`), in one
     #: line; empty: it does, reading each sample's own tangent frame (:class:`hzval.scene.lookup.Samples`).
     not_on_models: ClassVar[str] = ""

@@ -20,6 +20,10 @@ BAKE_FILES = {
     "normal.exr",
     "normal.png",
     "ambient.exr",
+    "bent_normal.exr",
+    "bent_normal.png",
+    "ssbump.exr",
+    "ssbump.png",
     "bake.json",
 } | {f"cube/{f}.png" for f in ("posx", "negx", "posy", "negy", "posz", "negz")}
 

@@ -73,7 +73,9 @@ def test_every_technique_renders_a_documented_frame(variant, name):
     assert F.shape == (24, 24) and F.min() >= 0 and F.max() <= 1 and F.min() < 1  # the bricks cast shadows
     assert f.seconds > 0
     json.dumps(t.parameters)  # metrics.json can hold it
-    assert t.storage_bytes() > 0
+    # what it reads besides the normal map, which every technique shades with: the terminator term
+    # reads nothing more
+    assert t.storage_bytes() > 0 or getattr(t, "textures", None) == ()
 
 
 def test_selection_follows_the_declared_effects(variant):
@@ -121,7 +123,7 @@ def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_pa
         assert (out / own["files"]["visdiff_png"]).is_file()
     html = (out / "index.html").read_text(encoding="utf-8")
     assert "never shadows" in html and "never |F−V|" in html and "never_flip.png" in html
-    assert "never |F-V|" in table.splitlines()[0]
+    assert any(line.split()[:1] == ["never"] for line in table.splitlines()[2:])
     # the command line knows it too: --no-never leaves it out
     assert (
         cli.main(

@@ -1,0 +1,149 @@
+"""Directional occlusion from the horizon map: the bent normal and Valve's self-shadowed bump map.
+
+Both come from the bake's horizon sines ``s_k = sin(alpha_k)`` toward the ``D`` azimuths
+``phi_k = 360 k / D`` degrees (:func:`hzval.core.conventions.channel_azimuth_deg`), the same sweep
+the ambient map comes from: a direction of elevation ``t`` toward ``phi_k`` is open when
+``t > alpha_k``. Each azimuth stands for a wedge ``2 pi / D`` wide; the integrals over elevation
+are exact. Horizons below the tangent plane count as the plane (``s`` clipped to [0, 1]), as the
+ambient map's do.
+
+``bent_normal``
+    The cosine-weighted mean open direction (about the tangent plane's normal ``+z``, as the ambient
+    map's ``mean_cos2``), normalised. Per azimuth, with ``theta_h = pi/2 - alpha`` the open polar
+    angle: ``int_0^theta_h (sin theta cos phi, sin theta sin phi, cos theta) cos theta sin theta
+    d theta = ((1 - s^2)^(3/2) (cos phi, sin phi), 1 - s^3) / 3``. An open texel gives ``+z``.
+``ssbump``
+    Valve's self-shadowed bump map (Green 2007, "Efficient Self-Shadowed Radiosity Normal
+    Mapping", SIGGRAPH course; Source SDK 2013's ``height2ssbump``): per basis vector ``b_c`` of
+    Half-Life 2's radiosity basis (:data:`HL2_BASIS`), ``max(0, n . b_c) * V_c``, ``n`` the normal
+    map's normal and ``V_c`` the share of the light from the hemisphere about ``b_c`` (weighted by
+    ``b_c . w``, upward directions ``w`` only) that reaches the texel. An open, flat texel stores
+    ``1/sqrt(3)`` in each channel. Per azimuth the elevation integral is
+    ``int max(0, b_c . w) cos t dt`` with ``b_c . w = p cos t + b_z sin t``, ``p`` ``b_c``'s
+    component along ``phi``: ``G(t) = b_z sin^2(t) / 2 + p (t / 2 + sin(2 t) / 4)`` from
+    ``max(alpha, -atan(p / b_z))`` to ``pi / 2``.
+
+What had to be assumed (docs/techniques.md): Valve traces 250 random rays from the mesh's vertices
+and uses a 3 x 3 averaged vertex normal; here the directions are the bake's ``D`` azimuths with
+exact elevation integrals, and ``n`` is hzval's normal map, so that ssbump and the other
+techniques read the same surface.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hzval.core import conventions as cv
+
+__all__ = ["HL2_BASIS", "bent_normal", "self_shadowed_bump", "BYTES_PER_TEXEL"]
+
+#: Half-Life 2's radiosity normal-mapping basis in tangent space (Source SDK's ``g_localBumpBasis``;
+#: McTaggart 2004, "Half-Life 2 / Valve Source Shading"), one unit vector per row, ``+y`` up the image.
+#: It is symmetric about ``y = 0``: an engine whose ``y`` runs down the image swaps rows 1 and 2.
+HL2_BASIS = np.array(
+    [
+        [math.sqrt(2.0 / 3.0), 0.0, 1.0 / math.sqrt(3.0)],
+        [-1.0 / math.sqrt(6.0), 1.0 / math.sqrt(2.0), 1.0 / math.sqrt(3.0)],
+        [-1.0 / math.sqrt(6.0), -1.0 / math.sqrt(2.0), 1.0 / math.sqrt(3.0)],
+    ]
+)
+
+#: Bytes per texel that the two maps add to a bake at its peak: their six float32 channels and
+#: three float32 temporaries (an estimate from the arrays made, not measured separately).
+BYTES_PER_TEXEL = 48
+
+
+def _sines(sines: np.ndarray) -> np.ndarray:
+    return np.clip(np.asarray(sines, np.float32), 0.0, 1.0)
+
+
+def bent_normal(sines: np.ndarray) -> np.ndarray:
+    """The bent normal of each texel (module docstring).
+
+    Parameters
+    ----------
+    sines : numpy.ndarray
+        ``(rows, cols, D)`` horizon sines, channel ``k`` toward ``360 k / D`` degrees.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows, cols, 3)`` float32 unit vectors in tangent space.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bent_normal(np.zeros((1, 1, 8)))[0, 0].round(6).tolist()
+    [0.0, 0.0, 1.0]
+    >>> b = bent_normal(np.array([[[1.0, 0, 0, 0, 0, 0, 0, 0]]]))[0, 0]
+    >>> bool(b[0] < 0 and abs(b[1]) < 1e-6)
+    True
+    """
+    s = _sines(sines)
+    D = s.shape[-1]
+    out = np.zeros((*s.shape[:-1], 3), np.float32)
+    for k in range(D):
+        phi = math.radians(cv.channel_azimuth_deg(k, D))
+        sk = s[..., k]
+        side = np.maximum(1.0 - sk * sk, 0.0) ** 1.5
+        out[..., 0] += side * np.float32(math.cos(phi))
+        out[..., 1] += side * np.float32(math.sin(phi))
+        out[..., 2] += 1.0 - sk * sk * sk
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    return out
+
+
+def _G(p: float, bz: float, t):
+    """``int (p cos t + bz sin t) cos t dt`` (module docstring)."""
+    return bz * np.sin(t) ** 2 / 2.0 + p * (t / 2.0 + np.sin(2.0 * t) / 4.0)
+
+
+def _shares(p: float, bz: float, alpha) -> tuple[float, np.ndarray]:
+    """``(whole, lost)``: the weighted share of one azimuth's upward directions about ``b`` (where
+    ``p cos t + bz sin t > 0``), and the part of it below the horizon ``alpha``; ``lost`` is exactly 0
+    where nothing is, so an open texel's share is exactly whole."""
+    start = max(0.0, -math.atan2(p, bz))  # where the weight turns positive
+    whole = max(float(_G(p, bz, math.pi / 2.0) - _G(p, bz, start)), 0.0)
+    top = np.maximum(alpha, np.float32(start))
+    return whole, np.maximum(_G(p, bz, top) - np.float32(_G(p, bz, start)), 0.0)
+
+
+def self_shadowed_bump(sines: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Valve's self-shadowed bump map of each texel (module docstring).
+
+    Parameters
+    ----------
+    sines : numpy.ndarray
+        ``(rows, cols, D)`` horizon sines.
+    normal : numpy.ndarray
+        ``(rows, cols, 3)`` unit tangent-space normals (the normal map).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows, cols, 3)`` float32 in [0, 1], channel ``c`` for :data:`HL2_BASIS` row ``c``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> flat = self_shadowed_bump(np.zeros((1, 1, 8)), np.array([[[0.0, 0.0, 1.0]]]))[0, 0]
+    >>> bool(np.allclose(flat, 1 / np.sqrt(3)))
+    True
+    """
+    s = _sines(sines)
+    D = s.shape[-1]
+    n = np.asarray(normal, np.float32)
+    out = np.zeros((*s.shape[:-1], 3), np.float32)
+    for c, b in enumerate(HL2_BASIS):
+        lost = np.zeros(s.shape[:-1], np.float32)
+        whole = 0.0
+        for k in range(D):
+            phi = math.radians(cv.channel_azimuth_deg(k, D))
+            w, part = _shares(b[0] * math.cos(phi) + b[1] * math.sin(phi), b[2], np.arcsin(s[..., k]))
+            whole += w
+            lost += part
+        facing = np.maximum(n @ b.astype(np.float32), 0.0)
+        out[..., c] = facing * (1.0 - lost * np.float32(1.0 / whole))
+    return out

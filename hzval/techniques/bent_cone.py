@@ -1,0 +1,139 @@
+"""Bent cones: the ``bent-cone`` technique (ambient aperture lighting applied to the sun).
+
+Oat & Sander 2007, "Ambient Aperture Lighting"; Jimenez et al. 2016, "Practical Real-Time Strategies
+for Accurate Indirect Occlusion". The open directions of a texel are taken to be a cone about the
+bent normal ``B`` (``bent_normal.exr``; 8-bit as a normal map with ``--bent-normal-storage u8``)
+whose cosine-weighted solid angle is the ambient occlusion ``AO`` (``mean_cos2``): a cone of
+half-angle ``theta_v`` holds the cosine-weighted share ``sin^2 theta_v``, so
+``cos theta_v = sqrt(1 - AO)``.
+
+``F`` is the share of the light's disc inside the cone:
+
+- a hard light is the limit of a small disc: ``F = 1`` where ``B.L >= cos theta_v``, else 0;
+- a soft light of angular radius ``r`` (:class:`hzval.scene.spec.Light`) takes the exact solid angle of
+  the intersection of two spherical caps (:func:`cap_intersection`) over the disc's
+  ``2 pi (1 - cos r)``, or with ``--bent-cone-variant filament`` Filament's smooth approximation
+  (``sphericalCapsIntersection``, after Oat & Sander 2007), which Filament and HDRP ship for
+  specular occlusion.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hzval.core.backend import dr, mi
+from hzval.core.errors import InputError
+from hzval.techniques.perpixel import PerPixelFactor
+
+__all__ = ["BentCone", "VARIANTS", "cap_intersection", "cap_intersection_filament"]
+
+#: How a soft light's disc is intersected with the cone.
+VARIANTS: tuple[str, ...] = ("exact", "filament")
+
+
+def cap_intersection(r1, r2, d):
+    """The solid angle of the intersection of two spherical caps.
+
+    Tovchigrechko & Vakser 2001, "How common is the funnel-like energy landscape in protein-protein
+    interactions?" (appendix), as Mazonka 2012, "Solid Angle of Conical Surfaces, Polyhedral Cones,
+    and Intersecting Spherical Caps", eq. 35: for ``|r1 - r2| < d < r1 + r2``,
+    ``2 (pi - acos((cos d - cos r1 cos r2) / (sin r1 sin r2)) - cos r1 acos((cos r2 - cos d cos r1) /
+    (sin d sin r1)) - cos r2 acos((cos r1 - cos d cos r2) / (sin d sin r2)))``; the smaller cap's
+    ``2 pi (1 - cos min(r1, r2))`` when one holds the other, 0 when they are apart.
+
+    Parameters
+    ----------
+    r1, r2 : drjit.Float
+        The caps' angular radii, radians, each in (0, pi / 2].
+    d : drjit.Float
+        The angle between their centres, radians.
+
+    Returns
+    -------
+    drjit.Float
+        Steradians.
+    """
+    c1, c2, cd = dr.cos(r1), dr.cos(r2), dr.cos(d)
+    s1, s2, sd = dr.sin(r1), dr.sin(r2), dr.maximum(dr.sin(d), 1e-12)
+
+    def acos(x):
+        return dr.acos(dr.clip(x, -1.0, 1.0))
+
+    lens = 2.0 * (
+        math.pi
+        - acos((cd - c1 * c2) / (s1 * s2))
+        - c1 * acos((c2 - cd * c1) / (sd * s1))
+        - c2 * acos((c1 - cd * c2) / (sd * s2))
+    )
+    whole = 2.0 * math.pi * (1.0 - dr.maximum(c1, c2))
+    out = dr.select(d >= r1 + r2, 0.0, dr.clip(lens, 0.0, whole))
+    return dr.select(d <= dr.abs(r1 - r2), whole, out)
+
+
+def cap_intersection_filament(r1, r2, d):
+    """Filament's smooth approximation of :func:`cap_intersection` (``sphericalCapsIntersection``,
+    after Oat & Sander 2007): the smaller cap's solid angle times ``smoothstep`` of where ``d`` lies
+    between ``|r1 - r2|`` and ``r1 + r2``. Parameters and result as :func:`cap_intersection`."""
+    whole = 2.0 * math.pi * (1.0 - dr.maximum(dr.cos(r1), dr.cos(r2)))
+    delta = dr.abs(r1 - r2)
+    x = 1.0 - dr.clip((d - delta) / dr.maximum(r1 + r2 - delta, 1e-4), 0.0, 1.0)
+    area = x * x * (3.0 - 2.0 * x)
+    return dr.select(d <= delta, whole, dr.select(d >= r1 + r2, 0.0, area * whole))
+
+
+class BentCone(PerPixelFactor):
+    """The share of the light inside the bent cone (module docstring)."""
+
+    name = "bent-cone"
+    label = "bent cone"
+    summary = (
+        "bent normal + visibility cone cos = sqrt(1 - AO), intersected with the light (Oat & Sander 2007)"
+    )
+    file_stem = "bent_cone"
+    textures = ("bent-normal", "ao")
+    reads_normal = False
+    flags = {
+        "bent-normal-storage": "--bent-normal-storage",
+        "ao-storage": "--ao-storage",
+        "variant": "--bent-cone-variant",
+    }
+
+    @classmethod
+    def validate(cls, settings: dict) -> dict:
+        variant = settings.pop("variant", None) or "exact"
+        super().validate(settings)
+        if variant not in VARIANTS:
+            raise InputError("variant", f"must be one of {', '.join(VARIANTS)}, got {variant!r}")
+        return {"variant": variant}
+
+    def constants(self) -> dict:
+        light = self.scene.light
+        r = math.radians(light.radius_deg) if light.kind == "soft" else 0.0
+        return {"r": r}
+
+    def factor(self, tex: dict, n, L, c: dict):
+        B = dr.normalize(mi.Vector3f(*tex["bent-normal"]))
+        cos_v = dr.sqrt(dr.maximum(1.0 - tex["ao"][0], 0.0))
+        cos_d = dr.dot(B, L)
+        r = c["r"]
+        if r == 0.0:  # a hard light: the disc's limit
+            return dr.select(cos_d >= cos_v, 1.0, 0.0)
+        theta_v = dr.maximum(dr.acos(dr.clip(cos_v, -1.0, 1.0)), 1e-6)
+        d = dr.acos(dr.clip(cos_d, -1.0, 1.0))
+        meet = cap_intersection if self.settings["variant"] == "exact" else cap_intersection_filament
+        return meet(theta_v, r, d) / (2.0 * math.pi * (1.0 - math.cos(r)))
+
+    @classmethod
+    def add_arguments(cls, parser) -> None:
+        super().add_arguments(parser)
+        parser.add_argument(
+            "--bent-cone-variant",
+            choices=VARIANTS,
+            default="exact",
+            help="bent cones: a soft light's disc meets the cone exactly, or by Filament's smooth "
+            "approximation (default exact; a hard light is the same in both)",
+        )
+
+    @classmethod
+    def settings_from_args(cls, args) -> dict:
+        return {**super().settings_from_args(args), "variant": args.bent_cone_variant}

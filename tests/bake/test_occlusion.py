@@ -1,0 +1,88 @@
+"""The bent normal and the self-shadowed bump map from the horizon map, against integrals evaluated
+independently by dense quadrature over the open directions (hzval.bake.occlusion)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hzval.bake import occlusion
+from hzval.core import conventions as cv
+
+
+def _directions(D: int, elevations: int = 4000):
+    """Unit directions of a dense midpoint rule over the upper hemisphere, per horizon azimuth:
+    ``(phi_k, t_j)`` and their weights ``cos t dt dphi``."""
+    t = (np.arange(elevations) + 0.5) * (math.pi / 2) / elevations
+    out = []
+    for k in range(D):
+        phi = math.radians(cv.channel_azimuth_deg(k, D))
+        w = np.stack([np.cos(t) * math.cos(phi), np.cos(t) * math.sin(phi), np.sin(t)], axis=-1)
+        out.append((w, np.cos(t) * (math.pi / 2) / elevations * (2 * math.pi / D)))
+    return t, out
+
+
+def _dense_bent(s: np.ndarray) -> np.ndarray:
+    t, dirs = _directions(len(s))
+    acc = np.zeros(3)
+    for (w, dw), sk in zip(dirs, s):
+        open_ = t > math.asin(min(max(sk, 0.0), 1.0))
+        acc += ((w[:, 2] * dw)[:, None] * w)[open_].sum(axis=0)  # cosine-weighted, about +z
+    return acc / np.linalg.norm(acc)
+
+
+def _dense_ssbump(s: np.ndarray, n: np.ndarray) -> np.ndarray:
+    t, dirs = _directions(len(s))
+    out = []
+    for b in occlusion.HL2_BASIS:
+        seen = whole = 0.0
+        for (w, dw), sk in zip(dirs, s):
+            weight = np.maximum(w @ b, 0.0) * dw
+            whole += weight.sum()
+            seen += weight[t > math.asin(min(max(sk, 0.0), 1.0))].sum()
+        out.append(max(float(n @ b), 0.0) * seen / whole)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("D", [8, 16])
+def test_bent_normal_is_the_cosine_weighted_mean_open_direction(D):
+    rng = np.random.default_rng(D)
+    sines = rng.uniform(0.0, 0.95, size=(5, 1, D)).astype(np.float32)
+    got = occlusion.bent_normal(sines)
+    for i in range(5):
+        np.testing.assert_allclose(got[i, 0], _dense_bent(sines[i, 0]), atol=2e-3)
+
+
+def test_an_open_texel_bends_nothing_and_a_wall_bends_away_from_it():
+    assert np.allclose(occlusion.bent_normal(np.zeros((1, 1, 8)))[0, 0], [0, 0, 1])
+    wall = np.zeros((1, 1, 8))
+    wall[..., 2] = 0.9  # channel 2 looks toward +y (90 degrees)
+    b = occlusion.bent_normal(wall)[0, 0]
+    assert b[1] < -0.05 and abs(b[0]) < 1e-6
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ssbump_is_the_facing_times_the_open_share_about_each_basis_vector(seed):
+    rng = np.random.default_rng(seed)
+    D = 8
+    sines = rng.uniform(0.0, 0.9, size=(4, 1, D)).astype(np.float32)
+    n = rng.normal(size=(4, 1, 3)) * [0.3, 0.3, 0.0] + [0, 0, 1]
+    n = (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
+    got = occlusion.self_shadowed_bump(sines, n)
+    for i in range(4):
+        np.testing.assert_allclose(got[i, 0], _dense_ssbump(sines[i, 0], n[i, 0]), atol=2e-3)
+
+
+def test_ssbump_of_an_open_flat_texel_is_one_over_root_three_and_a_closed_one_zero():
+    flat = np.array([[[0.0, 0.0, 1.0]]], np.float32)
+    assert np.allclose(occlusion.self_shadowed_bump(np.zeros((1, 1, 8)), flat), 1 / math.sqrt(3), atol=1e-6)
+    assert np.allclose(occlusion.self_shadowed_bump(np.ones((1, 1, 8)), flat), 0.0, atol=1e-6)
+
+
+def test_the_basis_is_orthonormal_and_mirrors_onto_itself_in_y():
+    B = occlusion.HL2_BASIS
+    np.testing.assert_allclose(B @ B.T, np.eye(3), atol=1e-12)
+    mirrored = B * [1, -1, 1]
+    np.testing.assert_allclose(mirrored[[0, 2, 1]], B, atol=1e-12)

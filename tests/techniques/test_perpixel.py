@@ -1,0 +1,238 @@
+"""The engines' per-pixel techniques (hzval.techniques.perpixel and its five plug-ins): each factor
+probed at texel centres against its published formula evaluated here in NumPy from the same bake,
+the limits each formula is documented to reach, and the mirror and rotation invariances."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hzval.bake import maps as B
+from hzval.bake import occlusion
+from hzval.core import conventions as cv
+from hzval.core.errors import InputError
+from hzval.techniques import bent_cone, registry
+from hzval.techniques.bent_cone import BentCone
+from hzval.techniques.microshadow_filament import MicroshadowFilament
+from hzval.techniques.microshadow_hdrp import MicroshadowHDRP
+from hzval.techniques.perpixel import stored
+from hzval.techniques.ssbump import SSBump
+from hzval.techniques.terminator import Terminator
+from tests.truth.test_plane import make_scene
+
+N = 32
+ENGINE = ["microshadow-filament", "microshadow-hdrp", "bent-cone", "ssbump", "terminator"]
+
+
+def bumps(n: int = N, seed: int = 3) -> np.ndarray:
+    """A smooth, wrapping height field with hills and pits, normalised to [0, 1]."""
+    y, x = np.mgrid[0:n, 0:n] * (2 * math.pi / n)
+    rng = np.random.default_rng(seed)
+    h = sum(
+        rng.uniform(0.3, 1) * np.sin(kx * x + rng.uniform(0, 6)) * np.cos(ky * y + rng.uniform(0, 6))
+        for kx, ky in [(1, 2), (3, 1), (2, 3)]
+    )
+    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def baked():
+    h = bumps()
+    return h, B.bake(h, B.BakeParams(depth=0.12, boundary="wrap"))
+
+
+def probe(cls, h, bake, az, el, **kw):
+    """``F`` at every texel centre, and the texels' ``(row, col)`` order: row-major."""
+    rows, cols = h.shape
+    r, c = np.mgrid[0:rows, 0:cols]
+    t = cls(make_scene(h.shape, 0.12, "wrap"), bake, **kw)
+    out = t.sample((c + 0.5).ravel(), (rows - r - 0.5).ravel(), az, el)
+    return out["factor"].reshape(rows, cols)
+
+
+def light(az, el):
+    return np.asarray(cv.light_direction(az, el), np.float64)
+
+
+FLOAT = {"storage": {"ao": "float", "bent-normal": "float", "ssbump": "float"}}
+
+
+def _storage(cls):
+    return {"storage": {t: "float" for t in cls.textures}}
+
+
+@pytest.mark.parametrize("az, el", [(0, 15), (130, 30), (250, 60)])
+def test_filament_is_chans_formula(baked, az, el):
+    h, bake = baked
+    n, L, ao = bake.normal.astype(np.float64), light(az, el), bake.mean_cos2.astype(np.float64)
+    nl = n @ L
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = np.where(ao < 1, np.clip(nl / np.sqrt(1 - ao), 0, 1) ** 2, (nl > 0) * 1.0)
+    got = probe(MicroshadowFilament, h, bake, az, el, **_storage(MicroshadowFilament))
+    np.testing.assert_allclose(got, want, atol=2e-5)
+
+
+@pytest.mark.parametrize("opacity", [1.0, 0.4])
+def test_hdrp_is_brinck_and_maximovs_formula(baked, opacity):
+    h, bake = baked
+    n, L, ao = bake.normal.astype(np.float64), light(200, 25), bake.mean_cos2.astype(np.float64)
+    nl = n @ L
+    want = np.where(nl > 0, 1 + opacity * (np.clip(nl + 2 * ao * ao - 1, 0, 1) - 1), 1.0)
+    got = probe(MicroshadowHDRP, h, bake, 200, 25, opacity=opacity, **_storage(MicroshadowHDRP))
+    np.testing.assert_allclose(got, want, atol=2e-5)
+
+
+def test_an_open_flat_surface_is_never_shadowed_by_any_of_them():
+    h = np.zeros((16, 16), np.float32)
+    bake = B.bake(h, B.BakeParams(depth=0.12, boundary="wrap"))
+    assert np.all(bake.mean_cos2 == 1.0)
+    for name in ENGINE:
+        cls = registry.get(name)
+        for el in (1.0, 20.0, 89.0):
+            for storage in ("float", "u8"):
+                kw = {"storage": dict.fromkeys(cls.textures, storage)}
+                F = probe(cls, h, bake, 33.0, el, **kw)
+                # 8 bits store ssbump's open 1/sqrt(3) as 147/255: the one rounding an engine sees
+                tol = {"u8": 0.5 / 255 * math.sqrt(3), "float": 1e-6}[storage] if name == "ssbump" else 0.0
+                assert np.all(np.abs(F - 1.0) <= tol), (name, el, storage, F.min())
+
+
+def test_hdrp_at_zero_opacity_shadows_nothing(baked):
+    h, bake = baked
+    assert np.all(probe(MicroshadowHDRP, h, bake, 10, 10, opacity=0.0) == 1.0)
+
+
+def test_bent_cone_of_a_hard_light_is_the_step_at_the_cones_edge(baked):
+    h, bake = baked
+    L = light(75, 20)
+    Bn, ao = bake.bent_normal.astype(np.float64), bake.mean_cos2.astype(np.float64)
+    margin = Bn @ L - np.sqrt(1 - ao)
+    got = probe(BentCone, h, bake, 75, 20, **_storage(BentCone))
+    decided = np.abs(margin) > 1e-4
+    np.testing.assert_array_equal(got[decided], (margin[decided] >= 0) * 1.0)
+
+
+def _mc_caps(r1, r2, d, n=400_000, seed=0):
+    v = np.random.default_rng(seed).normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    a, b = np.array([0, 0, 1.0]), np.array([math.sin(d), 0, math.cos(d)])
+    return np.mean((v @ a >= math.cos(r1)) & (v @ b >= math.cos(r2))) * 4 * math.pi
+
+
+@pytest.mark.parametrize(
+    "r1, r2, d", [(0.5, 0.3, 0.6), (1.2, 0.2, 1.25), (1.5, 0.8, 1.0), (0.3, 0.3, 0.1), (1.0, 0.1, 0.5)]
+)
+def test_the_exact_cap_intersection_against_monte_carlo(r1, r2, d):
+    from hzval.core.backend import dr, mi
+
+    got = bent_cone.cap_intersection(mi.Float(r1), mi.Float(r2), mi.Float(d))
+    dr.eval(got)
+    assert float(got[0]) == pytest.approx(_mc_caps(r1, r2, d), abs=0.01)
+
+
+def test_filaments_cap_approximation_meets_the_exact_one_at_its_ends():
+    from hzval.core.backend import mi
+
+    d = mi.Float(np.linspace(0.0, 2.0, 41))
+    exact = np.asarray(bent_cone.cap_intersection(mi.Float(0.9), mi.Float(0.2), d))
+    smooth = np.asarray(bent_cone.cap_intersection_filament(mi.Float(0.9), mi.Float(0.2), d))
+    dd = np.linspace(0.0, 2.0, 41)
+    ends = (dd <= 0.7) | (dd >= 1.1)
+    np.testing.assert_allclose(smooth[ends], exact[ends], atol=1e-6)
+    assert np.all(np.diff(smooth) <= 1e-7) and np.abs(smooth - exact).max() < 0.05
+
+
+def test_a_soft_light_inside_a_wide_cone_is_whole_and_outside_it_none():
+    h = np.zeros((8, 8), np.float32)
+    bake = B.bake(h, B.BakeParams(depth=0.1, boundary="wrap"))
+    scene = make_scene(h.shape, 0.1, "wrap", kind="soft", radius=5.0)
+    for variant in bent_cone.VARIANTS:
+        t = BentCone(scene, bake, variant=variant, **_storage(BentCone))
+        assert np.allclose(t.sample([4.5], [4.5], 0.0, 45.0)["factor"], 1.0, atol=1e-5)
+        assert np.allclose(t.sample([4.5], [4.5], 0.0, 0.0)["factor"], 0.5, atol=1e-4)  # half the disc up
+    # the disc's centre 2.5 degrees up: the segment below the plane is 0.195 of a 5-degree disc
+    t = BentCone(scene, bake, variant="exact", **_storage(BentCone))
+    assert np.allclose(t.sample([4.5], [4.5], 0.0, 2.5)["factor"], 0.805, atol=0.005)
+
+
+def test_ssbump_is_greens_projection_onto_the_basis(baked):
+    h, bake = baked
+    L, n, S = light(300, 35), bake.normal.astype(np.float64), bake.ssbump.astype(np.float64)
+    w = np.maximum(occlusion.HL2_BASIS @ L, 0)
+    open_ = np.maximum(n @ occlusion.HL2_BASIS.T, 0) @ w
+    want = np.where(open_ > 0, (S @ w) / np.where(open_ > 0, open_, 1), 0.0)
+    got = probe(SSBump, h, bake, 300, 35, **_storage(SSBump))
+    np.testing.assert_allclose(got, np.clip(want, 0, 1), atol=2e-5)
+
+
+@pytest.mark.parametrize("variant", ["conty", "chiang"])
+def test_terminator_terms_are_the_published_formulas(baked, variant):
+    h, bake = baked
+    n, L = bake.normal.astype(np.float64), light(45, 12)
+    cos_d, cos_i, nl = n[..., 2], L[2], n @ L
+    if variant == "conty":
+        a2 = np.clip((1 / cos_d**2 - 1) / 8, 0, 1)
+        want = 2 / (1 + np.sqrt(1 + a2 * (1 / cos_i**2 - 1)))
+    else:
+        g = cos_i / np.where(nl > 0, nl * cos_d, 1)
+        want = np.where(nl > 0, np.where(g >= 1, 1, np.where(g <= 0, 0, -(g**3) + g**2 + g)), 1.0)
+    got = probe(Terminator, h, bake, 45, 12, variant=variant)
+    np.testing.assert_allclose(got, want, atol=3e-5)
+    assert got.min() < 0.999  # the bumps tilt the normals enough for the term to act
+
+
+@pytest.mark.parametrize("name", ENGINE)
+def test_a_mirrored_map_gives_the_mirrored_factor(name):
+    """Mirror in y (rows reversed) and the light with it (azimuth -phi): F mirrors. The HL2 basis
+    maps onto itself under this mirror, so ssbump must too."""
+    cls = registry.get(name)
+    h = bumps(seed=5)
+    m = h[::-1].copy()
+    p = B.BakeParams(depth=0.12, boundary="wrap")
+    kw = _storage(cls)
+    a = probe(cls, h, B.bake(h, p), 35.0, 25.0, **kw)
+    b = probe(cls, m, B.bake(m, p), -35.0, 25.0, **kw)
+    np.testing.assert_allclose(b[::-1], a, atol=2e-4)
+
+
+@pytest.mark.parametrize("name", ["microshadow-filament", "microshadow-hdrp", "bent-cone", "terminator"])
+def test_a_quarter_turned_map_gives_the_turned_factor(name):
+    cls = registry.get(name)
+    h = bumps(seed=7)
+    t = np.rot90(h).copy()  # counterclockwise on screen: +x goes to +y
+    p = B.BakeParams(depth=0.12, boundary="wrap")
+    kw = _storage(cls)
+    a = probe(cls, h, B.bake(h, p), 20.0, 30.0, **kw)
+    b = probe(cls, t, B.bake(t, p), 110.0, 30.0, **kw)
+    np.testing.assert_allclose(b, np.rot90(a), atol=2e-4)
+
+
+def test_eight_bit_storage_rounds_to_the_nearest_level_and_keeps_unit_vectors():
+    v = np.random.default_rng(0).uniform(0, 1, 1000).astype(np.float32)
+    q = stored(v, "u8")
+    assert np.abs(q - v).max() <= 0.5 / 255 + 1e-7 and len(np.unique(q)) <= 256
+    n = np.random.default_rng(1).normal(size=(100, 3)).astype(np.float32)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.linalg.norm(stored(n, "u8", signed=True), axis=1), 1.0, atol=1e-6)
+
+
+def test_settings_out_of_range_are_refused_naming_the_setting(baked):
+    h, bake = baked
+    scene = make_scene(h.shape, 0.12, "wrap")
+    with pytest.raises(InputError, match="opacity"):
+        MicroshadowHDRP(scene, bake, opacity=1.5)
+    with pytest.raises(InputError, match="variant"):
+        Terminator(scene, bake, variant="blinn")
+    with pytest.raises(InputError, match="ao-storage"):
+        MicroshadowFilament(scene, bake, storage={"ao": "bc7"})
+
+
+def test_every_engine_technique_is_on_by_default_for_shadows_and_renders_on_models():
+    for name in ENGINE:
+        cls = registry.get(name)
+        assert name in registry.defaults() and cls.needs == ("shadow",) and not cls.not_on_models
+        assert {
+            v.settings.get("storage", {}).get(t) for v in cls.tradeoff_variants() for t in cls.textures
+        } >= ({"float", "u8"} if cls.textures else set())
