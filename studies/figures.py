@@ -84,6 +84,11 @@ def default_sweep() -> str:
             f"| `{name}`: {info['label']} | {_spread([t['visibility_mae'] for t in per])} | "
             f"{_spread([t['flip_mean'] for t in per])} | {ms:.0f} ms |"
         )
+    none = [f["no_shadows"] for f in frames if "no_shadows" in f]
+    rows.append(
+        f"| no shadows (F = 1: the unshadowed shading) | {_spread([n['visibility_mae'] for n in none])} | "
+        f"{_spread([n['flip_mean'] for n in none])} | — |"
+    )
     floor = [f["floor"]["flip_mean"] for f in frames if "floor" in f]
     rows.append(
         f"| perfect shadows (the floor: unshadowed shading times the truth's V) | 0 | {_spread(floor)} | — |"
@@ -118,11 +123,72 @@ def pom_steps() -> str:
     return "```\n" + "\n".join(table) + "\n```\n\n" + _provenance("python benchmarks/bench_pom.py --frames 5")
 
 
+def photo_like(seed: int, slope: float, size: int = 128) -> "np.ndarray":  # noqa: F821
+    """A height map with a photograph's power spectrum, ``1 / f^slope`` (natural images and terrain: a
+    slope about 2), exactly periodic, in [0, 1]: the engines' figure's stand-in for a photo."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    fy, fx = np.fft.fftfreq(size)[:, None], np.fft.rfftfreq(size)[None, :]
+    f = np.hypot(fx, fy)
+    f[0, 0] = 1.0
+    spectrum = (rng.normal(size=f.shape) + 1j * rng.normal(size=f.shape)) / f ** (slope / 2)
+    spectrum[0, 0] = 0.0
+    h = np.fft.irfft2(spectrum, s=(size, size))
+    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
+
+
+#: The engines' figure: every built-in material and two photo-like maps, 128 texels, over elevations.
+ENGINE_MAPS = ("bricks", "cobblestones", "fabric", "gravel", "panels", "planks", "ridges", "spikes")
+ENGINE_ARGS = ("--size", "128", "--spp", "4", "--elevation", "15:75:15", "--azimuths", "-60:60:30")
+
+
+def engines() -> str:
+    """docs/techniques.md's table: each technique's mean |F - V| at each light elevation over the
+    built-in materials and two photo-like maps, and on how many of those maps it is worse than no
+    shadows at that elevation."""
+    import numpy as np
+
+    from hzval.report import ranking
+
+    runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, slope in enumerate((1.8, 2.4)):
+            np.save(Path(tmp) / f"photo-like-{slope:g}.npy", photo_like(7 + i, slope))
+        for name in ENGINE_MAPS:
+            runs[name] = _sweep("--material", name, *ENGINE_ARGS)
+        for path in sorted(Path(tmp).glob("*.npy")):
+            runs[path.stem] = _sweep(str(path), *ENGINE_ARGS[2:])
+    tables = {m: ranking.by_elevation(r) for m, r in runs.items()}
+    names = [*next(iter(runs.values()))["techniques"], ranking.NONE]
+    elevations = [r["elevation_deg"] for r in next(iter(tables.values()))[ranking.NONE]]
+    head = "| technique | " + " | ".join(f"{e:g}°" for e in elevations) + " |"
+    rows = [head, "|---" * (len(elevations) + 1) + "|"]
+    for n in names:
+        cells = []
+        for k, e in enumerate(elevations):
+            vals = [t[n][k]["visibility_mae"] for t in tables.values() if n in t]
+            worse = sum(e in ranking.worse_than_none(t, n) for t in tables.values())
+            mark = "" if n == ranking.NONE else f" ({worse}/{len(tables)})"
+            cells.append(f"{np.mean(vals):.3f}{mark}")
+        label = "no shadows (F = 1)" if n == ranking.NONE else f"`{n}`"
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
+    what = (
+        f"mean |F - V| over the pixels facing the light, averaged over {len(tables)} maps ("
+        + ", ".join(tables)
+        + ") and the azimuths; in brackets, on how many maps the technique is worse than no shadows "
+        "at that elevation"
+    )
+    command = "hzval sweep MAP " + " ".join(ENGINE_ARGS)
+    return "\n".join(rows) + f"\n\n*{what}.* " + _provenance(command)
+
+
 #: name -> (function, quick): quick figures run by default, the others only when named.
 FIGURES = {
     "default-sweep": (default_sweep, True),
     "reflection": (reflection, True),
     "pom-steps": (pom_steps, False),
+    "engines": (engines, False),
 }
 
 

@@ -154,9 +154,10 @@ def add_sweep_flags(p: argparse.ArgumentParser) -> None:
     d, light = sc.Scene(), sc.Light()
     p.add_argument(
         "--elevation",
-        type=float,
         default=None,
-        help=f"light elevation in degrees (default {light.elevation_deg:g})",
+        metavar="DEG",
+        help="light elevations in degrees, in (0, 90]: one, START:STOP:STEP or a list, each "
+        f"swept over every azimuth (default {light.elevation_deg:g})",
     )
     p.add_argument(
         "--azimuths",

@@ -170,10 +170,8 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 
     base, data = base_scene(args, quiet=quiet)
     given = {k: v for k, v in scene_overrides(args).items() if v is not None}
-    if "elevation" in given and not 0.0 < given["elevation"] <= 90.0:  # math.nan fails too
-        raise errors.InputError(
-            "--elevation", f"the light's elevation must be in (0, 90] degrees, got {given['elevation']:g}"
-        )
+    if "elevation" in given:
+        check_elevations(given["elevation"])
     height = material_of(args)
     material = height or base.material.height
     own = {}
@@ -202,12 +200,32 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
     return dataclasses.replace(scene, name=scene_name(args, scene))
 
 
+def check_elevations(value) -> tuple[float, ...]:
+    """The light elevations of ``--elevation`` (one number, a list or START:STOP:STEP), each in
+    (0, 90] degrees, else one line naming the flag."""
+    from hzval.scene import spec as sc
+
+    try:
+        values = sc.parse_azimuths(value, "--elevation") if isinstance(value, str) else (float(value),)
+    except errors.InputError:
+        raise errors.InputError(
+            "--elevation", f"expected degrees in (0, 90]: one value, a list or START:STOP:STEP, got {value!r}"
+        ) from None
+    for e in values:
+        if not 0.0 < e <= 90.0:  # math.nan fails too
+            raise errors.InputError(
+                "--elevation", f"the light's elevation must be in (0, 90] degrees, got {e:g}"
+            )
+    return values
+
+
 #: The scene keys a flag sets, as :meth:`hzval.scene.spec.Scene.validate` names them.
 KEY_FLAGS = {
     "material.size": "size",
     "material.depth": "depth",
     "material.truth_tolerance": "truth_tolerance",
     "light.elevation_deg": "elevation",
+    "light.elevations": "elevation",
     "light.radius_deg": "light_radius",
     "light.azimuths": "azimuths",
     "samples.spp": "spp",

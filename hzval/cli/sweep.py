@@ -49,17 +49,28 @@ def run(args) -> int:
     for w in result.get("warnings", []):
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(records.summary_table(result))
+    print(run_line(result, out))
+    return flags.gate_exit(result.get("gates", {}).get("failed", []))
+
+
+def run_line(result: dict, out: Path) -> str:
+    """The line under the table: frames, the run's total time (the report's own) and where it went,
+    the peak memory, and where the report is."""
     t = result["timings"]
+    own = sum(v for k, v in t.items() if k.endswith("_s") and k[:-2] in _stems(result))
+    own += sum(t.get(f"{s}_setup_s", 0.0) for s in _stems(result))
     parts = [
         f"bake {t['bake_s']:.2f} s{', cached' if t['bake_cached'] else ''}",
         f"truth {t['truth_setup_s'] + t['truth_s']:.2f} s",
+        f"techniques {own + t.get('plain_s', 0.0) + t.get('plain_setup_s', 0.0):.2f} s",
+        f"scoring {t.get('compare_s', 0.0):.2f} s",
+        f"writing {t.get('write_s', 0.0) + t.get('report_s', 0.0):.2f} s",
     ]
-    parts += [
-        f"{name} {t.get(info['file_stem'] + '_setup_s', 0) + t[info['file_stem'] + '_s']:.2f} s"
-        for name, info in result["techniques"].items()
-    ]
-    print(
+    return (
         f"\n{len(result['frames'])} frames in {t['total_s']:.1f} s ({', '.join(parts)}; peak memory "
         f"{result['memory']['peak_rss_bytes'] / 2**30:.2f} GiB); report: {out / 'index.html'}"
     )
-    return flags.gate_exit(result.get("gates", {}).get("failed", []))
+
+
+def _stems(result: dict) -> set[str]:
+    return {info["file_stem"] for info in result["techniques"].values()}

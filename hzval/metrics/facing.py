@@ -158,10 +158,10 @@ def few_shadows_warning(frames: list[dict]) -> str | None:
         t = f.get("truth") or {}
         share = t.get("cast_fraction", t.get("shadowed_fraction"))
         if share is not None and share < FEW_SHADOWS:
-            few.append((f["azimuth_deg"], share))
+            few.append((f.get("name") or f"az{f['azimuth_deg']:+g}", share))
     if not few:
         return None
-    listed = ", ".join(f"az{a:+g} {100 * s:.2f}%" for a, s in few[:6]) + (" ..." if len(few) > 6 else "")
+    listed = ", ".join(f"{a} {100 * s:.2f}%" for a, s in few[:6]) + (" ..." if len(few) > 6 else "")
     return (
         f"few shadows to test: under {100 * FEW_SHADOWS:g}% of the pixels that face the light are shadowed "
         "in "

@@ -5,6 +5,7 @@ table (:func:`summary_table`)."""
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 from hzval.io import files
@@ -12,6 +13,7 @@ from hzval.scene import lookup
 
 __all__ = [
     "frame_folder",
+    "frame_name",
     "engine_frames",
     "view_parameters",
     "mesh_parameters",
@@ -19,9 +21,23 @@ __all__ = [
 ]
 
 
-def frame_folder(azimuth_deg: float) -> str:
-    """Folder name of a frame: ``az-60``, ``az+0``, ``az+7.5``."""
-    return f"az{azimuth_deg:+g}"
+def frame_folder(azimuth_deg: float, elevation_deg: float | None = None) -> str:
+    """Folder name of a frame: ``az-60``, ``az+0``, ``az+7.5``; in a sweep over several elevations
+    the elevation first, ``el15_az+0``.
+
+    Examples
+    --------
+    >>> frame_folder(-60.0), frame_folder(7.5, 15.0)
+    ('az-60', 'el15_az+7.5')
+    """
+    name = f"az{azimuth_deg:+g}"
+    return name if elevation_deg is None else f"el{elevation_deg:g}_{name}"
+
+
+def frame_name(frame: dict) -> str:
+    """The name of a ``metrics.json`` or ``frames.json`` frame: its own ``name``, else (a sweep of
+    before the elevation axis) its azimuth's :func:`frame_folder`."""
+    return frame.get("name") or frame_folder(frame["azimuth_deg"])
 
 
 def engine_frames(
@@ -55,10 +71,12 @@ def engine_frames(
         "azimuth counterclockwise from +x; L points toward the light",
         "frames": [
             {
-                "name": frame_folder(f["azimuth_deg"]),
+                "name": frame_name(f),
                 "azimuth_deg": f["azimuth_deg"],
                 "elevation_deg": f["elevation_deg"],
-                "light_direction": [float(c) for c in scene.light.direction(f["azimuth_deg"])],
+                "light_direction": [
+                    float(c) for c in scene.light.direction(f["azimuth_deg"], f["elevation_deg"])
+                ],
             }
             for f in result["frames"]
         ],
@@ -164,83 +182,118 @@ def mesh_parameters(scene, out: Path) -> dict:
     }
 
 
+#: The terminal table's width at most, in characters (its notes are wrapped to it).
+TABLE_WIDTH = 100
+
+
 def summary_table(result: dict) -> str:
-    """The sweep's metrics as a plain-text table for the terminal: the lead (first) technique's
-    scores and time, then each other technique's |F-V|, FLIP and frame time, then the parts of each
-    technique's split of the error (``split_parts``, e.g. horizon-fit's bake_loss and representation).
-    The visibility columns are over the pixels that face the light where measured
-    (:mod:`hzval.metrics.facing`), as the report's, and a last line says so."""
-    names = list(result.get("techniques", {}))
-    facing = any(
-        "visibility_mae_facing" in t for f in result["frames"] for t in f.get("techniques", {}).values()
-    )
+    """The sweep's scores for the terminal, under 100 columns: a row per technique (the means over its
+    frames of its visibility and image scores, and its render time per frame), then no shadows at all
+    (``F = 1``) as the baseline, then notes: each technique's worst frame, the light elevations at which
+    a technique is worse than no shadows (:func:`hzval.report.ranking.worse_than_none`), its split of
+    the error where it has one (``split_parts``), and what ``|F-V|`` is measured over. The report and
+    ``metrics.json`` hold every frame."""
+    from hzval.report import ranking
+
+    frames = [f for f in result.get("frames") or [] if isinstance(f, dict)]
+    names = list(result.get("techniques") or {})
+    facing = any("visibility_mae_facing" in t for f in frames for t in (f.get("techniques") or {}).values())
+    hits = any("perfect_parallax_mae" in t for f in frames for t in (f.get("techniques") or {}).values())
 
     def vis(t: dict, key: str):
         return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
 
-    lead, others = (names[0], names[1:]) if names else (None, [])
-    # on a model: |F - V| at the truth's own hits beside the camera's, so parallax is told apart
-    hits = lead is not None and any(
-        f.get("techniques", {}).get(lead, {}).get("perfect_parallax_mae") is not None
-        for f in result["frames"]
-    )
-    head = ("azimuth",)
-    if lead:
-        head += (f"{lead} |F-V|",) + (("at hits",) if hits else ())
-        head += ("leaks", "false sh.", f"{lead} FLIP", "dE2000", "PSNR dB")
-    head += ("truth s",) + ((f"{lead} s",) if lead else ())
-    for n in others:
-        head += (f"{n} |F-V|", f"{n} FLIP", f"{n} s")
-    # a technique's split of the error (Technique.split_parts), a column per part
-    splits = [
-        (n, p["key"])
-        for n in names
-        for p in result["techniques"][n].get("split_parts") or []
-        if any("split" in f.get("techniques", {}).get(n, {}) for f in result["frames"])
-    ]
-    head += tuple(f"{n} {key}" for n, key in splits)
+    def mean(records, key, pick=None):
+        vals = [(pick or (lambda r, k: r.get(k)))(r, key) for r in records]
+        vals = [float(v) for v in vals if isinstance(v, (int, float)) and math.isfinite(v)]
+        return sum(vals) / len(vals) if vals else None
 
-    def num(v, digits):
-        return "-" if v is None else f"{v:.{digits}f}"
+    def num(v, digits, scale=1.0, suffix=""):
+        return "-" if v is None else f"{v * scale:.{digits}f}{suffix}"
 
-    def pct(v):
-        return "-" if v is None else f"{100 * v:.2f}%"
-
+    head = ("technique", "|F-V|") + (("at hits",) if hits else ()) + ("leaks", "false sh.", "FLIP", "dE2000")
+    head += ("PSNR dB", "ms/frame")
     rows = []
-    for f in result["frames"]:
-        per = f.get("techniques", {})
-        row = (f"{f['azimuth_deg']:+g}",)
-        if lead:
-            t = per.get(lead, {})
-            row += (num(vis(t, "visibility_mae"), 4),) + (
-                (num(t.get("perfect_parallax_mae"), 4),) if hits else ()
-            )
-            row += (
-                pct(vis(t, "leak_fraction")),
-                pct(vis(t, "false_shadow_fraction")),
-                num(t.get("flip_mean"), 4),
-                num(t.get("delta_e2000_mean"), 3),
-                "inf" if t.get("psnr_db") is None else f"{t['psnr_db']:.2f}",
-            )
-        row += (num(f.get("truth_s"), 3),) + ((num(per.get(lead, {}).get("seconds"), 4),) if lead else ())
-        for n in others:
-            te = per.get(n, {})
-            row += (num(vis(te, "visibility_mae"), 4), num(te.get("flip_mean"), 4), num(te.get("seconds"), 4))
-        row += tuple(num(per.get(n, {}).get("split", {}).get(key), 4) for n, key in splits)
+    for n in [*names, ranking.NONE]:
+        recs = [
+            f.get("no_shadows") if n == ranking.NONE else (f.get("techniques") or {}).get(n) for f in frames
+        ]
+        recs = [r for r in recs if isinstance(r, dict)]
+        if not recs:
+            continue
+        psnr = [r.get("psnr_db") for r in recs]
+        row = (f"{n} (F = 1)" if n == ranking.NONE else n, num(mean(recs, "visibility_mae", vis), 4))
+        row += (num(mean(recs, "perfect_parallax_mae"), 4),) if hits else ()
+        row += (
+            num(mean(recs, "leak_fraction", vis), 2, 100, "%"),
+            num(mean(recs, "false_shadow_fraction", vis), 2, 100, "%"),
+            num(mean(recs, "flip_mean"), 4),
+            num(mean(recs, "delta_e2000_mean"), 3),
+            "inf" if psnr and all(p is None for p in psnr) else num(mean(recs, "psnr_db"), 2),
+            num(mean(recs, "seconds"), 1, 1000),
+        )
         rows.append(row)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    line = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    note = (
-        [
-            "|F-V|, leaks and false shadows over the pixels that face the light (metrics.json: *_facing; "
-            "visibility_mae for the whole image)"
-        ]
-        if facing
-        else []
+
+    def line(cells):
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
+    return "\n".join(
+        [line(head), line(["-" * w for w in widths]), *map(line, rows), *_table_notes(result, facing, hits)]
     )
+
+
+def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
+    """:func:`summary_table`'s lines under the table."""
+    from hzval.report import ranking
+
+    frames = [f for f in result.get("frames") or [] if isinstance(f, dict)]
+    notes = []
+    worst = []
+    for n in result.get("techniques") or {}:
+        scored = [
+            (t.get("visibility_mae_facing", t.get("visibility_mae")), frame_name(f))
+            for f in frames
+            if isinstance(t := (f.get("techniques") or {}).get(n), dict)
+        ]
+        scored = [(v, name) for v, name in scored if isinstance(v, (int, float)) and math.isfinite(v)]
+        if len(scored) > 1:
+            v, name = max(scored)
+            worst.append(f"{n} {name} ({v:.4f})")
+    if worst:
+        notes.append("worst frame by |F-V|: " + ", ".join(worst))
+    table = ranking.by_elevation(result)
+    several = len(table.get(ranking.NONE, [])) > 1
+    harm = [(n, ranking.worse_than_none(table, n)) for n in result.get("techniques") or {}]
+    harm = [(n, at) for n, at in harm if at]
+    if harm:
+        notes.append(
+            "worse than no shadows"
+            + (" (mean |F-V| at that elevation): " if several else ": ")
+            + "; ".join(
+                f"{n}" + (" at " + ", ".join(f"{e:g}" for e in at) + " deg" if several else "")
+                for n, at in harm
+            )
+        )
+    for n, t in (result.get("techniques") or {}).items():
+        parts = [p["key"] for p in t.get("split_parts") or []]
+        sums = {
+            k: [((f.get("techniques") or {}).get(n) or {}).get("split", {}).get(k) for f in frames]
+            for k in parts
+        }
+        sums = {k: [v for v in vs if isinstance(v, (int, float))] for k, vs in sums.items()}
+        if parts and any(sums.values()):
+            notes.append(
+                f"{n} split: " + ", ".join(f"{k} {sum(v) / len(v):.4f}" for k, v in sums.items() if v)
+            )
+    if facing:
+        notes.append(
+            "|F-V|, leaks and false shadows: means over the frames, each over the pixels that face the light "
+            "(metrics.json: *_facing; visibility_mae for the whole image)"
+        )
     if hits:
-        note.append(
+        notes.append(
             "at hits: |F-V| with the technique read at the truth's own hits (no parallax); the gap to "
             "|F-V| is the flat surface's parallax, not its shadows"
         )
-    return "\n".join([line(head), line(["-" * w for w in widths]), *map(line, rows), *note])
+    return [textwrap.fill(n, width=TABLE_WIDTH, subsequent_indent="  ") for n in notes]

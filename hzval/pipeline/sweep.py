@@ -450,7 +450,7 @@ def _run(
     scale = shading.exposure(scene)
     clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
     bar = tqdm(
-        scene.light.azimuths_deg,
+        lights(scene),
         desc="sweep",
         unit="frame",
         disable=not progress,
@@ -468,32 +468,46 @@ def _run(
     if gates:
         gates.apply(result)  # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
-    report.write_report(report_dir, result, command=command)
-    timings["report_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_start
+    albedo_files = None if setup.albedo is None else writing.write_albedo(report_dir, setup.albedo)
+    plot_files = report.write_plots(report_dir, result)
     result["memory"] = {
         "peak_rss_bytes": peak_rss_bytes(),
         "estimate_bytes": setup.estimate,
         "retains_freed": setup.retained,
         **_band_record(setup.truth),
     }
-    albedo_files = None if setup.albedo is None else writing.write_albedo(report_dir, setup.albedo)
+    # the clock stops before the page, which shows it (the page and the JSON take milliseconds): the
+    # report's total time and the terminal's are the same
+    timings["report_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_start
+    report.write_page(report_dir, result, plot_files, command=command)
     frames = records.engine_frames(scene, result, setup.albedo_constant, albedo_files)
     files.write_json(report_dir / "frames.json", frames)
     files.write_json(report_dir / "metrics.json", result)
     return result
 
 
+def lights(scene) -> list[tuple[float | None, float]]:
+    """The sweep's lights, ``(elevation, azimuth)`` in degrees: every azimuth at each elevation of
+    :meth:`hzval.scene.spec.Light.elevations` in turn; the elevation ``None`` where there is one (its
+    frames keep their azimuth's name, :func:`hzval.pipeline.records.frame_folder`)."""
+    light = scene.light
+    several = len(light.elevations()) > 1
+    return [(e if several else None, az) for e in light.elevations() for az in light.azimuths_deg]
+
+
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
-    """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of the azimuths) gives them:
-    their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then compared and
+    """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of :func:`lights`) gives
+    them: their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then compared and
     written (:func:`_finish`).
 
     One frame at a time, every stage on all cores: the comparison and the truth are both Dr.Jit
     kernels, so overlapping them gains next to nothing and costs memory and clear stage timings."""
     frames: list[dict] = []
-    for az in bar:
-        bar.set_postfix_str(f"azimuth {az:+g} deg")
+    for el, az in bar:
+        bar.set_postfix_str(f"azimuth {az:+g} deg" + ("" if el is None else f", elevation {el:g}"))
+        if el is not None:
+            setup.truth.light_at(el)
         # no name holds a frame's renders past its _finish: the next frame's renders would
         # otherwise be made beside them (1.8 GB at 4096 x 4096)
         frames.append(
@@ -501,7 +515,7 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
                 out,
                 scene,
                 setup,
-                _render(setup, setup.truth.render(az), az, scale, clock),
+                _render(setup, setup.truth.render(az), az, el, scale, clock),
                 scale,
                 clock,
                 all_files,
@@ -516,6 +530,7 @@ class _Rendered:
     frame, and (a view other than ``top``) each technique's error at the truth's hit points."""
 
     azimuth_deg: float
+    elevation_deg: float | None  # None: the scene's one elevation
     truth: object
     plain: object
     direct: np.ndarray
@@ -523,12 +538,12 @@ class _Rendered:
     perfect: dict
 
 
-def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Rendered:
-    """The techniques' renders of the light at ``az`` beside the truth's ``t_frame`` (a view's unseen
-    pixels made the background in every image)."""
-    plain, direct = setup.unshadowed.render(az)
+def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, clock: dict) -> _Rendered:
+    """The techniques' renders of the light at ``(el, az)`` beside the truth's ``t_frame`` (a view's
+    unseen pixels made the background in every image)."""
+    plain, direct = setup.unshadowed.render(az, el)
     clock["plain_s"] += plain.seconds
-    rendered = [(t, t.render(az)) for t in setup.techniques]
+    rendered = [(t, t.render(az, elevation_deg=el)) for t in setup.techniques]
     mask = t_frame.mask
     perfect = {}
     if mask is not None:
@@ -538,10 +553,10 @@ def _render(setup: _Setup, t_frame, az: float, scale: float, clock: dict) -> _Re
         rendered = [(t, _unseen(f, mask, bg)) for t, f in rendered]
         V = t_frame.layers.get("visibility")
         for t in setup.perfect:
-            F = t.render(az).layers.get("factor")
+            F = t.render(az, elevation_deg=el).layers.get("factor")
             if V is not None and F is not None:
                 perfect[t.name] = compare.visibility_metrics(V, F, mask)[0]
-    return _Rendered(az, t_frame, plain, direct, rendered, perfect)
+    return _Rendered(az, el, t_frame, plain, direct, rendered, perfect)
 
 
 def _finish(
@@ -567,12 +582,13 @@ def _finish(
         del maps
     release()
     floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
+    none = _no_shadows(ref, r.plain.image, t_frame.layers.get("visibility"), t_frame.mask)
     truth_shown = writing.shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
     rel, tech_files, seconds = writing.write_frame(
         out,
-        records.frame_folder(az),
+        records.frame_folder(az, r.elevation_deg),
         t_frame,
         r.plain,
         compared,
@@ -582,11 +598,18 @@ def _finish(
         mask=t_frame.mask,
     )
     clock["write_s"] += seconds
-    frame = {"azimuth_deg": az, "elevation_deg": scene.light.elevation_deg, "truth_s": t_frame.seconds}
+    frame = {
+        "name": records.frame_folder(az, r.elevation_deg),
+        "azimuth_deg": az,
+        "elevation_deg": t_frame.elevation_deg,
+        "truth_s": t_frame.seconds,
+    }
     if hasattr(setup.truth, "macro_shadowed"):
         frame["macro_shadowed"] = setup.truth.macro_shadowed(az)  # a model: the base mesh's own shadow
     if floor is not None:
         frame["floor"] = floor
+    if none is not None:
+        frame["no_shadows"] = none
     per = {
         t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared
     }
@@ -610,7 +633,9 @@ def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dic
     facing = None
     if setup.normal is not None:
         facing = hzfacing.facing_mask(
-            setup.normal, scene.light.direction(r.azimuth_deg), scene.camera.supersampling
+            setup.normal,
+            scene.light.direction(r.azimuth_deg, frame["elevation_deg"]),
+            scene.camera.supersampling,
         )
     frame["truth"] = hzfacing.truth_statistics(V, facing, scene.spp, r.truth.mask)
     if facing is None:
@@ -619,6 +644,8 @@ def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dic
         F = f.layers.get("factor")
         if F is not None:
             per[t.name].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
+    if "no_shadows" in frame:
+        frame["no_shadows"].update(hzfacing.facing_metrics(V, np.ones_like(V), facing, r.truth.mask))
 
 
 def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
@@ -656,6 +683,17 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
     return {k: _finite(v) for k, v in scores.items()}
 
 
+def _no_shadows(ref: compare.Reference, plain: np.ndarray, V: np.ndarray | None, mask) -> dict | None:
+    """The baseline of a frame, no shadows at all (``F = 1``: the unshadowed shading, the report's
+    normal mapping only): its image scores and ``|1 - V|``. A technique worse than it at some light
+    elevation does harm there. ``None`` without ``shadow``."""
+    if V is None:
+        return None
+    scores, _ = compare.image_metrics(ref, plain)
+    mae, leaks, false_shadows = compare.visibility_metrics(V, np.ones_like(V), mask)
+    return {k: _finite(v) for k, v in scores.items()} | {"visibility_mae": mae, "leak_fraction": leaks}
+
+
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict], out: Path) -> dict:
     """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"); ``out`` the folder it is
     written to."""
@@ -666,6 +704,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
             "file_stem": t.file_stem,
             "parameters": t.parameters,
             "simulated": list(t.simulated),
+            "texture_bytes_per_texel": t.storage_bytes() / (setup.material["rows"] * setup.material["cols"]),
             **(
                 {"split_parts": [{"key": k, "label": lb} for k, lb in t.split_parts]} if t.split_parts else {}
             ),
@@ -680,6 +719,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
             "depth": scene.material.depth,
             "boundary": scene.material.boundary,
             "elevation_deg": scene.light.elevation_deg,
+            "elevations_deg": list(scene.light.elevations()),
             "azimuths_deg": list(scene.light.azimuths_deg),
             "light": scene.light.kind,
             "light_radius_deg": scene.light.radius_deg,

@@ -1,12 +1,12 @@
 """What a person reads: the sweep's HTML report (pages), its plots (plots), the vocabulary both use:
 each metric's column, the technique views and the colours of the truth and each technique
-(columns), the visibility-difference and FLIP maps and their colours (images), and the Jinja
-templates.
+(columns), the visibility-difference and FLIP maps and their colours (images), every technique
+ranked and its error against light elevation (ranking), and the Jinja templates.
 """
 
 from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("columns", "images", "pages", "plots"),
+    ("columns", "images", "pages", "plots", "ranking"),
 )

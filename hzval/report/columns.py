@@ -46,7 +46,20 @@ __all__ = [
 TRUTH_COLOUR = "#7fd1ae"
 #: The techniques' colours, in the order ``metrics.json`` lists them (the
 #: first is the lead technique's, the page's "lead" side beside the truth).
-TECHNIQUE_COLOURS = ("#b9a3ff", "#f2c14e", "#6cc3ff", "#ff8fa3", "#c7e36b", "#e39bd3", "#7ee0e0", "#d8b08c")
+TECHNIQUE_COLOURS = (
+    "#b9a3ff",
+    "#f2c14e",
+    "#6cc3ff",
+    "#ff8fa3",
+    "#c7e36b",
+    "#e39bd3",
+    "#7ee0e0",
+    "#d8b08c",
+    "#8fd694",
+    "#ff6b6b",
+    "#c0c0c0",
+    "#4f9dff",
+)
 #: Line styles of the techniques in the plots, in the same order.
 TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 

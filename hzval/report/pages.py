@@ -29,7 +29,7 @@ from typing import Any, Callable
 from urllib.parse import quote
 
 from hzval.io import files
-from hzval.report import columns, images, plots
+from hzval.report import columns, images, plots, ranking
 from hzval.techniques import registry as technique
 
 __all__ = [
@@ -555,6 +555,7 @@ def build_context(out: Path, metrics: dict, command: str, plot_files: dict[str, 
         "techniques": [{"name": v.name, "label": v.label, "colour": v.colour} for v in views],
         "warnings": [str(w) for w in (metrics.get("warnings") or [])],
         "technique_parameters": _technique_parameters(metrics, views),
+        "ranking": _ranking(metrics, views),
         "view": _view(out, metrics),
         "plots": plot_files,
         "splits": [plots.split_context(frames, sv) for sv in plots.split_views(metrics, views)],
@@ -568,6 +569,39 @@ def build_context(out: Path, metrics: dict, command: str, plot_files: dict[str, 
             "zooms": [0, 1, 2, 4, 8],
         },
     }
+
+
+def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
+    """The report's first table (:func:`hzval.report.ranking.ranking`), formatted."""
+    rows = ranking.ranking(metrics)
+    if not rows:
+        return None
+    colours = {v.name: v.colour for v in views}
+    several = len({f.get("elevation_deg") for f in metrics.get("frames") or [] if isinstance(f, dict)}) > 1
+
+    def worse(r):
+        if not r["worse_at"]:
+            return ""
+        if not several:
+            return "worse than no shadows"
+        return "worse than no shadows at " + ", ".join(f"{e:g}°" for e in r["worse_at"])
+
+    out = []
+    for i, r in enumerate(rows):
+        out.append(
+            {
+                "rank": "" if r["baseline"] else str(1 + sum(not x["baseline"] for x in rows[:i])),
+                "label": r["label"],
+                "colour": colours.get(r["name"], plots.NONE_COLOUR),
+                "vis": columns.fixed(4)(r["visibility_mae"]),
+                "flip": columns.fixed(4)(r["flip_mean"]),
+                "bytes": "—" if r["bytes_per_texel"] is None else f"{r['bytes_per_texel']:g}",
+                "ms": "—" if r["ms_per_frame"] is None else f"{r['ms_per_frame']:.1f}",
+                "worse": worse(r),
+                "baseline": r["baseline"],
+            }
+        )
+    return {"rows": out, "several": several}
 
 
 def environment():
@@ -596,16 +630,34 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
 
     ``metrics`` is the content of ``out/metrics.json`` (docs/ARCHITECTURE.md); its file
     paths are relative to ``out``. ``command`` is the command line that
-    reproduces the run. Every file is written atomically.
+    reproduces the run. Every file is written atomically. :func:`write_plots`, then
+    :func:`write_page`: a caller that times the run stops its clock between the two, so that the
+    page shows the run's whole time.
     """
+    return write_page(out, metrics, write_plots(out, metrics), command=command)
+
+
+def write_plots(out: str | Path, metrics: dict) -> dict[str, str | None]:
+    """The report's plots of a sweep's ``metrics`` into ``out/plots``; their paths relative to ``out``
+    (``None``: a plot the sweep has no data for)."""
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     views = columns.technique_views(metrics)
     plots.plot_metrics(out / "plots" / "metrics.png", frames, views)
     plots.plot_timings(out / "plots" / "timings.png", metrics.get("timings") or {}, frames, views)
-    plot_files = {"metrics": "plots/metrics.png", "timings": "plots/timings.png"}
+    plot_files = {"metrics": "plots/metrics.png", "timings": "plots/timings.png", "elevation": None}
+    table = ranking.by_elevation(metrics)
+    if len(next(iter(table.values()), [])) > 1:  # light elevation is a sweep axis
+        plots.plot_elevation(out / "plots" / "elevation.png", table, views)
+        plot_files["elevation"] = "plots/elevation.png"
     for sv in plots.split_views(metrics, views):
         plots.plot_split(out / sv.plot, frames, sv)
+    return plot_files
+
+
+def write_page(out: str | Path, metrics: dict, plot_files: dict, *, command: str) -> Path:
+    """``out/index.html`` of a sweep's ``metrics`` and its :func:`write_plots`; the index path."""
+    out = Path(out)
     html = render_html(build_context(out, metrics, files.portable_command(command), plot_files))
     index = out / "index.html"
     with files.atomic_path(index) as tmp:

@@ -207,6 +207,45 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
     _save(fig, path)
 
 
+#: The no-shadows baseline's line in the elevation plot.
+NONE_COLOUR = "#f5f5f5"
+
+
+def plot_elevation(path: Path, table: dict[str, list[dict]], views: list[columns.TechniqueView]) -> None:
+    """Mean ``|F - V|`` and mean FLIP against the light's elevation, a line per technique and one for
+    no shadows at all (:func:`hzval.report.ranking.by_elevation`'s ``table``); legends outside the axes."""
+    from hzval.report import ranking
+
+    fig = _figure(13.0, 4.2)
+    axes = fig.subplots(1, 2)
+    fig.subplots_adjust(left=0.05, right=0.8, top=0.9, bottom=0.14, wspace=0.2)
+    lines = [(v.name, v.label, v.colour, v.style) for v in views]
+    lines.append((ranking.NONE, "no shadows (F = 1)", NONE_COLOUR, "--"))
+    for ax, (key, title) in zip(
+        axes, (("visibility_mae", "visibility  mean |F − V|"), ("flip_mean", "FLIP  mean"))
+    ):
+        _style_axes(ax, title)
+        for name, label, colour, style in lines:
+            rows = [r for r in table.get(name, []) if r[key] is not None]
+            if rows:
+                ax.plot(
+                    [r["elevation_deg"] for r in rows],
+                    [r[key] for r in rows],
+                    color=colour,
+                    linestyle=style,
+                    linewidth=2.2 if name == ranking.NONE else 1.6,
+                    marker="o",
+                    markersize=3.5,
+                    label=label,
+                    zorder=4 if name == ranking.NONE else 3,
+                )
+        ax.set_xlabel("light elevation (degrees)", color=_MUTED, fontsize=8)
+        ax.set_ylim(bottom=0)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False, labelcolor=_TEXT)
+    _save(fig, path)
+
+
 def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[columns.TechniqueView]) -> None:
     """Where the time goes: the run's stages, and each frame's truth and technique times."""
     import numpy as np

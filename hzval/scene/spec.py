@@ -73,6 +73,7 @@ __all__ = [
     "MAX_LIGHTS",
     "check_light_count",
     "parse_azimuths",
+    "elevation_fields",
     "material_defaults",
     "sidecar_of",
     "load_sidecar",
@@ -162,17 +163,34 @@ MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".gltf", ".glb")
 
 @dataclass(frozen=True)
 class Light:
-    """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``)."""
+    """A directional light (``hard``) or a disk of angular radius ``radius_deg`` (``soft``).
+
+    A sweep lights the surface from every ``(elevation, azimuth)`` pair of :meth:`elevations` and
+    ``azimuths_deg``. ``elevations_deg`` (``[light] elevations``, ``--elevation 15:75:15``) makes
+    light elevation a sweep axis; empty, the one ``elevation_deg``. With several, ``elevation_deg``
+    is the lowest: what the truth is built for (its shadow rays are the longest there).
+    """
 
     kind: str = "hard"
     radius_deg: float = 0.0
     elevation_deg: float = 30.0
     azimuths_deg: tuple[float, ...] = DEFAULT_AZIMUTHS
     irradiance: float = 1.0
+    elevations_deg: tuple[float, ...] = ()
 
-    def direction(self, azimuth_deg: float) -> np.ndarray:
-        """Unit vector toward the light's centre at ``azimuth_deg``."""
-        return cv.light_direction(azimuth_deg, self.elevation_deg)
+    def direction(self, azimuth_deg: float, elevation_deg: float | None = None) -> np.ndarray:
+        """Unit vector toward the light's centre at ``azimuth_deg`` (and ``elevation_deg``, default
+        :attr:`elevation_deg`)."""
+        e = self.elevation_deg if elevation_deg is None else elevation_deg
+        return cv.light_direction(azimuth_deg, e)
+
+    def elevations(self) -> tuple[float, ...]:
+        """The sweep's light elevations, degrees: :attr:`elevations_deg`, else :attr:`elevation_deg`."""
+        return tuple(self.elevations_deg) or (self.elevation_deg,)
+
+    def at(self, elevation_deg: float) -> "Light":
+        """This light at one elevation of the sweep (no elevation axis)."""
+        return dataclasses.replace(self, elevation_deg=float(elevation_deg), elevations_deg=())
 
 
 #: What a scene simulates when it does not say: Lengyel's Figure 5.3 - a
@@ -217,6 +235,7 @@ class Scene:
             ("samples.seed", self.seed),
             ("effects.interreflection_depth", self.interreflection_depth),
             *((f"light.azimuths[{i}]", a) for i, a in enumerate(lt.azimuths_deg)),
+            *((f"light.elevations[{i}]", e) for i, e in enumerate(lt.elevations_deg)),
         ):
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise InputError(what, f"{name} must be a number, got {value!r}")
@@ -259,6 +278,10 @@ class Scene:
         if not lt.azimuths_deg:
             raise InputError(what, "light.azimuths is empty")
         check_light_count(len(lt.azimuths_deg), what if self.source else "--azimuths")
+        for e in lt.elevations_deg:
+            if not 0 < e <= 90:
+                raise InputError(what, f"light.elevations must each be in (0, 90], got {e:g}")
+        check_light_count(len(lt.azimuths_deg) * len(lt.elevations()), what if self.source else "--elevation")
         unknown = [e for e in self.effects if e not in EFFECTS]
         if unknown or not self.effects:
             raise InputError(what, f"unknown or no effects {unknown}; choose from {', '.join(EFFECTS)}")
@@ -361,6 +384,15 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
     return values
 
 
+def elevation_fields(values) -> dict:
+    """:class:`Light`'s ``elevation_deg`` and ``elevations_deg`` of the elevations ``values`` (repeats
+    dropped, order kept): one is the light's elevation, several a sweep axis built at the lowest."""
+    values = tuple(dict.fromkeys(float(v) for v in values))
+    if len(values) == 1:
+        return {"elevation_deg": values[0], "elevations_deg": ()}
+    return {"elevation_deg": min(values), "elevations_deg": values}
+
+
 def _pairs(section: dict, keys) -> dict:
     """A TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
     return {k: (tuple(v) if k in keys and isinstance(v, list) else v) for k, v in section.items()}
@@ -415,7 +447,11 @@ def _schema() -> dict:
         "camera": strict.schema_of(Camera),
         "lookup": strict.schema_of(Lookup),
         "mesh": strict.schema_of(MeshSpec),
-        "light": {**strict.schema_of(Light, drop=("azimuths_deg",)), "azimuths": azimuths},
+        "light": {
+            **strict.schema_of(Light, drop=("azimuths_deg", "elevations_deg")),
+            "azimuths": azimuths,
+            "elevations": azimuths,
+        },
         "effects": {"list": tuple[str, ...], "interreflection_depth": int},
         "samples": {"spp": int, "seed": int},
         "check": {
@@ -481,6 +517,10 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         light = dict(data.get("light", {}))
         if "azimuths" in light:
             light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
+        if "elevations" in light:
+            light.update(
+                elevation_fields(parse_azimuths(light.pop("elevations"), f"{path}: light.elevations"))
+            )
         effects = data.get("effects", {})
         samples = data.get("samples", {})
         mesh = dict(data.get("mesh", {}))
@@ -529,7 +569,9 @@ def override(scene: Scene, **changes) -> Scene:
     )
     light = scene.light
     if "elevation" in c:
-        light = dataclasses.replace(light, elevation_deg=float(c["elevation"]))
+        e = c["elevation"]
+        values = parse_azimuths(e, "--elevation") if isinstance(e, str) else (float(e),)
+        light = dataclasses.replace(light, **elevation_fields(values))
     if "azimuths" in c:
         light = dataclasses.replace(light, azimuths_deg=parse_azimuths(c["azimuths"]))
     if "light" in c:

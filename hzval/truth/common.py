@@ -214,6 +214,10 @@ class TruthLike(Protocol):
         """The frame of the light at ``azimuth_deg``: its layers (``V``, the image, ...) per pixel."""
         ...
 
+    def light_at(self, elevation_deg: float) -> None:
+        """Light the frames that follow from ``elevation_deg``, at least the one it was built for."""
+        ...
+
 
 #: Declared effects that read the material's albedo.
 NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")

@@ -187,6 +187,7 @@ FGED2 chapter 7 (Blinn-Phong); Walter et al. 2007 (half-vector sampling).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -317,6 +318,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     ):
         backend.variant()
         self.scene = scene.validate()
+        self.built_elevation_deg = float(self.scene.light.elevation_deg)  # the lowest of a sweep's
         h = np.asarray(height, dtype=np.float32)
         if h.ndim != 2 or h.size < 2 or not np.all(np.isfinite(h)):
             # any size the loader and the bake take (1xN and Nx1 included): the mesh handles them
@@ -549,6 +551,16 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         return shading.direct(
             n, L, v, albedo, self._c["E"], diffuse=sc.declares("diffuse"), specular=sc.declares("specular")
         )
+
+    def light_at(self, elevation_deg: float) -> None:
+        """Light the frames that follow from ``elevation_deg`` (a sweep's elevation axis,
+        :meth:`hzval.scene.spec.Light.elevations`): at least the elevation it was built for, whose
+        margins and bands hold the longest shadow rays, and so every higher light's."""
+        if float(elevation_deg) < self.built_elevation_deg:
+            raise ValueError(
+                f"a truth built for {self.built_elevation_deg:g} degrees cannot light from {elevation_deg:g}"
+            )
+        self.scene = dataclasses.replace(self.scene, light=self.scene.light.at(elevation_deg))
 
     def render(self, azimuth_deg: float) -> Frame:
         """Render the light at ``azimuth_deg`` (degrees; elevation from the scene).

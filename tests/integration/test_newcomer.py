@@ -278,10 +278,10 @@ def test_a_model_sweep_says_its_camera_and_shows_the_error_at_the_truths_hits(tm
     out, err = capsys.readouterr()
     assert "a perspective view from 35 degrees up" in err
     head, _, row = out.splitlines()[:3]
-    at = head.split().index("at")  # the column after the lead's |F-V|
+    assert head.split()[:4] == ["technique", "|F-V|", "at", "hits"]  # beside the camera's |F-V|
     metrics = json.loads((tmp_path / "m" / "metrics.json").read_text())
     hits = metrics["frames"][0]["techniques"]["horizon"]["perfect_parallax_mae"]
-    assert float(row.split()[at - 1]) == pytest.approx(hits, abs=5e-5)
+    assert row.split()[0] == "horizon" and float(row.split()[2]) == pytest.approx(hits, abs=5e-5)
     assert "no parallax" in out
     assert (
         cli.main([*argv, "horizon", "--camera", "orthographic", "--quiet", "--out", str(tmp_path / "o")]) == 0

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from hzval.cli import main as cli
+from hzval.techniques import registry as technique
 
 SMALL = [
     "sweep",
@@ -36,7 +37,8 @@ def test_a_sweep_on_the_cube(tmp_path, capsys):
     assert m["mesh"]["mirrored_fraction"] > 0 and m["mesh"]["seam_edges"] == 12
     assert m["parameters"]["mesh"] == "cube"
     assert m["camera"]["kind"] == "perspective"  # the models' default view: three faces
-    assert set(m["techniques"]) == {"horizon", "pom"}
+    # every default but terrain, which sits models out
+    assert set(m["techniques"]) == set(technique.defaults()) - {"terrain"}
     assert "on a model, the default terrain sits out" in m["warnings"]  # one line, not a warning
     for f in m["frames"]:
         assert 0.0 <= f["macro_shadowed"] <= 1.0
