@@ -31,9 +31,10 @@ def add_parser(sub) -> None:
     flags.add_material_args(p, default_size=_default_size())
     p.add_argument(
         "--elevation",
-        type=float,
         default=None,
-        help=f"light elevation in degrees (default {flags.light_default().elevation_deg:g})",
+        metavar="DEG",
+        help="light elevations in degrees, in (0, 90]: one, START:STOP:STEP or a list "
+        f"(default {flags.light_default().elevation_deg:g})",
     )
     p.add_argument(
         "--azimuths",

@@ -251,8 +251,10 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
         points = sweep.truth_of(scene, hm.height, sc.load_albedo(scene.material, rows, cols))[1]
     kinds = renderers(scene, hm.height, points)
     out = {}
-    for az in scene.light.azimuths_deg:
-        name = frame_folder(az)
+    for el, az in sweep.lights(scene):  # a scene over several elevations: each (elevation, azimuth)
+        name = frame_folder(az, el)
+        if el is not None:
+            the_truth.light_at(el)
         t = the_truth.render(az)
         ch = _rgb(t.image)
         ch["V"] = t.layers["visibility"]
@@ -261,7 +263,7 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
         ch["var.V"] = t.variance["visibility"]
         out[(name, "truth")] = ch
         for kind, (_, _, r) in kinds.items():
-            a = r.render(az)
+            a = r.render(az, elevation_deg=el)
             ch = _rgb(a.image)
             ch["F"] = a.layers["factor"]
             out[(name, kind)] = ch

@@ -293,8 +293,13 @@ def check_same_settings(new: dict, old: dict, where: str) -> None:
             )
 
 
-def _frames_by_azimuth(metrics: dict) -> dict:
-    return {round(float(f["azimuth_deg"]), 6): f for f in metrics.get("frames", [])}
+def _frames_by_light(metrics: dict) -> dict:
+    """A run's frames by their light, ``(elevation, azimuth)``: a sweep over several elevations has
+    several frames of one azimuth."""
+    return {
+        (round(float(f.get("elevation_deg") or 0.0), 6), round(float(f["azimuth_deg"]), 6)): f
+        for f in metrics.get("frames", [])
+    }
 
 
 def _same_truth(new: dict, old: dict) -> bool:
@@ -343,7 +348,7 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
     ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring)."""
     from hzval.commands import check
 
-    fn, fo = _frames_by_azimuth(new), _frames_by_azimuth(old)
+    fn, fo = _frames_by_light(new), _frames_by_light(old)
     shared = [az for az in fn if az in fo]
     names = [n for n in (new.get("techniques") or {}) if n in (old.get("techniques") or {})]
     same, pixels = _same_truth(new, old), _pixels(new)

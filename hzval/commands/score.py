@@ -443,6 +443,7 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
         **({"factor_file": str(fpath)} if fpath is not None else {}),
         "truth_s": swept.get("truth_s"),
         **({"floor": swept["floor"]} if "floor" in swept else {}),
+        **({"no_shadows": swept["no_shadows"]} if "no_shadows" in swept else {}),
         **({"truth": swept["truth"]} if "truth" in swept else {}),
         "techniques": per,
     }

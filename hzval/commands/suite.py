@@ -65,6 +65,7 @@ from hzval.core.errors import InputError
 from hzval.io import files, heightmap
 from hzval.pipeline import sweep
 from hzval.report import pages as report
+from hzval.report import ranking
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import memory
@@ -335,8 +336,10 @@ def summarise(entry: Entry, metrics: dict) -> dict:
     mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
     FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
     frames = metrics["frames"]
+    table = ranking.by_elevation(metrics)
     techniques = {
         name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
+        | {"worse_at": ranking.worse_than_none(table, name)}
         for name in metrics["techniques"]
     }
     m, p = metrics["material"], metrics["parameters"]
@@ -354,6 +357,10 @@ def summarise(entry: Entry, metrics: dict) -> dict:
         "azimuths_deg": [f["azimuth_deg"] for f in frames],
         "techniques": techniques,
         "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
+        "no_shadows": {
+            key: _mean((f.get("no_shadows") or {}).get(key) for f in frames)
+            for key in ("visibility_mae", "flip_mean")
+        },
         "truth_s": _mean(f.get("truth_s") for f in frames),
         "seconds": metrics["timings"]["total_s"],
         "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
@@ -363,14 +370,14 @@ def summarise(entry: Entry, metrics: dict) -> dict:
 
 
 def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
-    """``{azimuth: {"truth": png, <technique>: png}}`` (relative to the material's folder) for the
+    """``{frame name: {"truth": png, <technique>: png}}`` (relative to the material's folder) for the
     sweep's first, middle and last lights."""
     n = len(frames)
     picks = sorted({0, n // 2, n - 1})[:LIGHTS_SHOWN]
     out = {}
     for i in picks:
         f = frames[i]
-        out[f"{f['azimuth_deg']:+g}"] = {
+        out[f.get("name") or f"az{f['azimuth_deg']:+g}"] = {
             "truth": f["files"]["truth_png"],
             **{name: f["techniques"][name]["files"]["png"] for name in techniques},
         }

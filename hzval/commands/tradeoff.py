@@ -67,6 +67,7 @@ from hzval.bake import maps as bake
 from hzval.core import shading
 from hzval.io import files
 from hzval.metrics import compare
+from hzval.pipeline import sweep
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import memory
@@ -216,8 +217,8 @@ def _reference(scene, height, truth_spp: int) -> _Reference:
     tr = truth.Truth(conv, height)
     scale = shading.exposure(scene)
     vis, disp = [], []
-    for az in scene.light.azimuths_deg:
-        f = tr.render(az)
+    for el, az in sweep.lights(scene):
+        f = _render(tr, el, az)
         vis.append(f.layers["visibility"])
         disp.append(compare.display(f.image, scale))
     rows, cols = height.shape
@@ -235,14 +236,26 @@ def _errors(ref: _Reference, frames) -> tuple[float, float]:
     return float(np.mean(mae)), float(np.mean(flip))
 
 
-def _render_all(renderer, azimuths, repeat: int = 3, **kw):
-    """The sweep's frames and a frame's time: the mean over the sweep, the best of ``repeat`` sweeps
-    (settings that share a kernel differ by about 10% from one sweep to the next otherwise)."""
-    renderer.render(azimuths[0], **kw)  # compile (or load) the kernels: time warm frames only
-    frames = [renderer.render(az, **kw) for az in azimuths]
+def _render(renderer, el: float | None, az: float, **kw):
+    """One light's frame of a truth (lit from ``el`` first, :meth:`hzval.truth.plane.Truth.light_at`)
+    or a technique; ``el`` ``None``: the scene's one elevation."""
+    if el is None:
+        return renderer.render(az, **kw)
+    if hasattr(renderer, "light_at"):
+        renderer.light_at(el)
+        return renderer.render(az, **kw)
+    return renderer.render(az, elevation_deg=el, **kw)
+
+
+def _render_all(renderer, lights, repeat: int = 3, **kw):
+    """The sweep's frames (``lights``: :func:`hzval.pipeline.sweep.lights`) and a frame's time: the
+    mean over the sweep, the best of ``repeat`` sweeps (settings that share a kernel differ by about
+    10% from one sweep to the next otherwise)."""
+    _render(renderer, *lights[0], **kw)  # compile (or load) the kernels: time warm frames only
+    frames = [_render(renderer, el, az, **kw) for el, az in lights]
     best = float(np.mean([f.seconds for f in frames]))
     for _ in range(repeat - 1):
-        best = min(best, float(np.mean([renderer.render(az, **kw).seconds for az in azimuths])))
+        best = min(best, float(np.mean([_render(renderer, el, az, **kw).seconds for el, az in lights])))
     return frames, best
 
 
@@ -299,6 +312,7 @@ def measure(
         "cols": cols,
         "azimuths_deg": list(scene.light.azimuths_deg),
         "elevation_deg": scene.light.elevation_deg,
+        "elevations_deg": list(scene.light.elevations()),
         "spp": scene.spp,
         "effects": list(scene.effects),
     }
@@ -307,20 +321,22 @@ def measure(
 
 def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Point:
     """One setting's point: its time (a bake's for bake settings, else a frame's), storage and errors."""
-    scene, height, az = ref.scene, ref.height, ref.scene.light.azimuths_deg
+    scene, height, lights = ref.scene, ref.height, sweep.lights(ref.scene)
     rows, cols = height.shape
     if s.kind == "truth":
         tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
-        frames, t = _render_all(tr, az, repeat=1)  # seconds a frame: timing noise is small here
+        frames, t = _render_all(tr, lights, repeat=1)  # seconds a frame: timing noise is small here
         mae, flip = _errors(ref, frames)
         return Point(
             s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp}
         )
     cls = technique.get(s.technique)
     ctx = technique.Context(scene, height, bk, ref.albedo)
-    kw = cls.fit(ctx, dict(s.settings), ref.visibility, az)
+    # a setting fitted to the truth (horizon's k = "fit") is fitted at the scene's own (lowest) elevation
+    low = [(V, az) for V, (el, az) in zip(ref.visibility, lights) if el in (None, scene.light.elevation_deg)]
+    kw = cls.fit(ctx, dict(s.settings), [V for V, _ in low], [az for _, az in low])
     tech = cls.build(ctx, **kw)
-    frames, frame_s = _render_all(tech, az)
+    frames, frame_s = _render_all(tech, lights)
     p = {
         **s.params,
         **{k: v for k, v in tech.parameters.items() if k != "simulated"},

@@ -275,6 +275,9 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
                 for n, at in harm
             )
         )
+    floor = ranking.floor_note(result)
+    if floor:
+        notes.append(floor)
     for n, t in (result.get("techniques") or {}).items():
         parts = [p["key"] for p in t.get("split_parts") or []]
         sums = {

@@ -594,6 +594,7 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
                 "label": r["label"],
                 "colour": colours.get(r["name"], plots.NONE_COLOUR),
                 "vis": columns.fixed(4)(r["visibility_mae"]),
+                "hits": columns.fixed(4)(r["at_hits"]),
                 "flip": columns.fixed(4)(r["flip_mean"]),
                 "bytes": "—" if r["bytes_per_texel"] is None else f"{r['bytes_per_texel']:g}",
                 "ms": "—" if r["ms_per_frame"] is None else f"{r['ms_per_frame']:.1f}",
@@ -601,7 +602,8 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
                 "baseline": r["baseline"],
             }
         )
-    return {"rows": out, "several": several}
+    hits = any(r["at_hits"] is not None for r in rows)
+    return {"rows": out, "several": several, "hits": hits, "note": ranking.floor_note(metrics)}
 
 
 def environment():
@@ -708,6 +710,36 @@ def _suite_row(r: dict, names: list[str]) -> dict:
     return row
 
 
+def _suite_ranking(result: dict) -> list[dict]:
+    """The suite's first table: each technique's means over the materials that ran, best first, and on
+    how many of them it is worse than no shadows at some light elevation (no shadows last, the
+    baseline)."""
+    ok = [r for r in result["materials"] if r.get("status") == "ok"]
+    rows = []
+    for n in [*result["techniques"], ranking.NONE]:
+        recs = [r.get("no_shadows") if n == ranking.NONE else r["techniques"].get(n) for r in ok]
+        recs = [t for t in recs if isinstance(t, dict)]
+        if not recs:
+            continue
+        vis = [columns.num(t.get("visibility_mae")) for t in recs]
+        flip = [columns.num(t.get("flip_mean")) for t in recs]
+        vis, flip = [v for v in vis if v is not None], [v for v in flip if v is not None]
+        worse = sum(bool(t.get("worse_at")) for t in recs)
+        rows.append(
+            {
+                "label": "no shadows (F = 1)" if n == ranking.NONE else result["techniques"][n]["label"],
+                "vis": sum(vis) / len(vis) if vis else None,
+                "flip": sum(flip) / len(flip) if flip else None,
+                "worse": "" if n == ranking.NONE else f"{worse} of {len(recs)}",
+                "baseline": n == ranking.NONE,
+            }
+        )
+    rows.sort(key=lambda r: (r["baseline"], r["vis"] is None, r["vis"] or 0.0))
+    for r in rows:
+        r["vis"], r["flip"] = columns.fixed(4)(r["vis"]), columns.fixed(4)(r["flip"])
+    return rows
+
+
 def render_suite(result: dict) -> str:
     """The suite's ``index.html`` for :func:`hzval.commands.suite.write_overview`'s ``result``."""
     names = list(result["techniques"])
@@ -724,6 +756,7 @@ def render_suite(result: dict) -> str:
         "command": s["command"],
         "techniques": [{"name": n, **result["techniques"][n]} for n in names],
         "rows": [_suite_row(r, names) for r in result["materials"]],
+        "ranking": _suite_ranking(result),
         "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,
     }
     return environment().get_template("suite.html.j2").render(**context)

@@ -18,7 +18,7 @@ import numpy as np
 
 from hzval.report import columns
 
-__all__ = ["NONE", "by_elevation", "ranking", "worse_than_none"]
+__all__ = ["NONE", "by_elevation", "ranking", "worse_than_none", "floor_note"]
 
 #: The baseline's name in :func:`by_elevation`: no shadows at all, ``F = 1``.
 NONE = "no shadows"
@@ -101,6 +101,8 @@ def ranking(metrics: dict) -> list[dict]:
     -------
     list of dict
         ``name``, ``label``, ``visibility_mae`` and ``flip_mean`` (means over every frame),
+        ``at_hits`` (on a model or a view: ``|F - V|`` read at the truth's own hits, no parallax;
+        ``None`` where not measured),
         ``bytes_per_texel`` (its textures as stored, the normal map aside; ``None`` for the baseline),
         ``ms_per_frame`` (its mean render time), ``worse_at`` (:func:`worse_than_none`) and
         ``baseline`` (true for :data:`NONE`). Ranked by ``visibility_mae``, then ``flip_mean``;
@@ -124,6 +126,7 @@ def ranking(metrics: dict) -> list[dict]:
                 "name": name,
                 "label": NONE if name == NONE else str(t.get("label") or name),
                 "visibility_mae": _mean([_vis(r) for r in records]),
+                "at_hits": _mean([columns.num(r.get("perfect_parallax_mae")) for r in records]),
                 "flip_mean": _mean([columns.num(r.get("flip_mean")) for r in records]),
                 "bytes_per_texel": None if name == NONE else columns.num(t.get("texture_bytes_per_texel")),
                 "ms_per_frame": None if seconds is None else 1000.0 * seconds,
@@ -138,3 +141,26 @@ def ranking(metrics: dict) -> list[dict]:
         return (v is None, inf if v is None else v, inf if f is None else f)
 
     return sorted(rows, key=key)
+
+
+def floor_note(metrics: dict) -> str | None:
+    """One line where the image scores cannot rank the shadows: the perfect-shadows floor's mean FLIP
+    (exact shadows on the techniques' shading) at or above a technique's, so that FLIP there measures
+    the shading, not the shadows; ``None`` where every technique's FLIP is above the floor's."""
+    frames = [f for f in metrics.get("frames") or [] if isinstance(f, dict)]
+    floor = _mean([columns.num((f.get("floor") or {}).get("flip_mean")) for f in frames])
+    if floor is None:
+        return None
+    below = [
+        (r["label"], r["flip_mean"])
+        for r in ranking(metrics)
+        if not r["baseline"] and r["flip_mean"] is not None and r["flip_mean"] <= floor
+    ]
+    if not below:
+        return None
+    listed = ", ".join(f"{label} {flip:.4f}" for label, flip in below)
+    return (
+        f"image scores cannot rank the shadows here: the perfect-shadows floor's FLIP ({floor:.4f}) is at "
+        f"or above {listed}; the shading's own difference from the truth's dominates, so the table ranks "
+        "by |F - V|"
+    )

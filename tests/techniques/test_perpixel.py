@@ -236,3 +236,58 @@ def test_every_engine_technique_is_on_by_default_for_shadows_and_renders_on_mode
         assert {
             v.settings.get("storage", {}).get(t) for v in cls.tradeoff_variants() for t in cls.textures
         } >= ({"float", "u8"} if cls.textures else set())
+
+
+def _cap_numpy(r1: float, r2: float, d: float) -> float:
+    """The intersection of two caps, written here from Mazonka 2012, eq. 35 (independently of the
+    technique's Dr.Jit code)."""
+    if d <= abs(r1 - r2):
+        return 2 * math.pi * (1 - math.cos(min(r1, r2)))
+    if d >= r1 + r2:
+        return 0.0
+    c1, c2, cd, s1, s2, sd = math.cos(r1), math.cos(r2), math.cos(d), math.sin(r1), math.sin(r2), math.sin(d)
+    return 2 * (
+        math.pi
+        - math.acos((cd - c1 * c2) / (s1 * s2))
+        - c1 * math.acos((c2 - cd * c1) / (sd * s1))
+        - c2 * math.acos((c1 - cd * c2) / (sd * s2))
+    )
+
+
+@pytest.mark.parametrize("wall_deg, az, offset", [(30.0, 0.0, -4.0), (45.0, 60.0, 0.0), (20.0, 90.0, 3.0)])
+def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, offset):
+    """A V-groove along y with walls at ``wall_deg``: toward azimuth phi its horizon rises at
+    ``atan(tan(wall) |cos phi|)``. From those horizons alone, the open fraction and the cosine-weighted
+    mean open direction (dense quadrature) give the cone; a soft light's F is then the caps' intersection
+    over the disc (Mazonka 2012), evaluated here in float64. The light sits ``offset`` degrees from the
+    cone's edge, where the disc straddles it."""
+    D = 16
+    phi = np.radians([cv.channel_azimuth_deg(k, D) for k in range(D)])
+    sines = np.sin(np.arctan(math.tan(math.radians(wall_deg)) * np.abs(np.cos(phi))))
+    sines = np.broadcast_to(sines, (8, 8, D)).astype(np.float32)
+    normal = np.broadcast_to(np.array([0, 0, 1], np.float32), (8, 8, 3))
+    ao = np.mean(1 - sines.astype(np.float64) ** 2, axis=-1)
+    bake = B.Bake(
+        B.BakeParams(depth=0.1, boundary="wrap", directions=D),
+        sines,
+        normal.copy(),
+        ao.astype(np.float32),
+        ao.astype(np.float32),
+        bent_normal=occlusion.bent_normal(sines),
+        ssbump=occlusion.self_shadowed_bump(sines, normal),
+    )
+    from tests.bake.test_occlusion import _dense_bent
+
+    Bn = _dense_bent(sines[0, 0].astype(np.float64))
+    assert abs(Bn[0]) < 1e-9 and abs(Bn[1]) < 1e-9  # the groove is symmetric: B is +z
+    radius = 6.0
+    scene = make_scene((8, 8), 0.1, "wrap", kind="soft", radius=radius)
+    t = BentCone(scene, bake, variant="exact", **_storage(BentCone))
+    theta_v = math.acos(math.sqrt(1 - ao[0, 0]))
+    el = 90.0 - math.degrees(theta_v) + offset
+    got = float(t.sample([4.5], [4.5], az, el)["factor"][0])
+    L = np.asarray(cv.light_direction(az, el), np.float64)
+    d = math.acos(np.clip(Bn @ L, -1, 1))
+    r = math.radians(radius)
+    want = _cap_numpy(theta_v, r, d) / (2 * math.pi * (1 - math.cos(r)))
+    assert 0.05 < want < 0.95 and got == pytest.approx(want, abs=2e-3)
