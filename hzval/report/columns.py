@@ -75,6 +75,16 @@ def num(x) -> float | None:
     return v if math.isfinite(v) else None
 
 
+def frame_label(frame: dict) -> str:
+    """A frame's short label: its azimuth (``+15°``), and in a sweep over several elevations (an
+    ``el`` name) its elevation too (``+15° (elevation 30°)``)."""
+    az = fmt_deg(frame.get("azimuth_deg"))
+    name = frame.get("name")
+    if isinstance(name, str) and name.startswith("el"):
+        return f"{az} (elevation {fmt_deg(frame.get('elevation_deg')).lstrip('+')})"
+    return az
+
+
 def fmt_deg(x) -> str:
     """``-60`` -> ``−60°``, ``0`` -> ``0°``, ``7.5`` -> ``+7.5°``."""
     v = num(x)

@@ -421,7 +421,7 @@ def _frame_view(
         "index": i,
         "id": f"frame-{i}",
         "technique_rows": rows,
-        "azimuth": columns.fmt_deg(f.get("azimuth_deg")),
+        "azimuth": columns.frame_label(f),
         "elevation": columns.fmt_deg(f.get("elevation_deg")).lstrip("+"),
         "cells": [_cell(c, i, f, starts) for c in cols],
         "panels": {p["key"]: p for p in panels},
@@ -518,12 +518,18 @@ def build_context(out: Path, metrics: dict, command: str, plot_files: dict[str, 
 
     azimuths = parameters.get("azimuths_deg") or [f.get("azimuth_deg") for f in frames]
     elevation = parameters.get("elevation_deg", frames[0].get("elevation_deg") if frames else None)
+    elevations = parameters.get("elevations_deg") or [elevation]
     light = str(parameters.get("light", "—"))
     if light == "soft" and columns.num(parameters.get("light_radius_deg")) is not None:
         light = f"soft, radius {columns.fmt_deg(parameters['light_radius_deg']).lstrip('+')}"
     subtitle = (
         f"{len(frames)} frame{'s' if len(frames) != 1 else ''} · azimuth {columns.azimuth_text(azimuths)} · "
-        f"elevation {columns.fmt_deg(elevation).lstrip('+')} · {light} light"
+        + (
+            f"elevation {columns.fmt_deg(elevation).lstrip('+')}"
+            if len(elevations) < 2
+            else "elevations " + ", ".join(columns.fmt_deg(e).lstrip("+") for e in elevations)
+        )
+        + f" · {light} light"
     )
 
     return {

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hzval.io import files
-from hzval.report import columns, images
+from hzval.report import columns
 
 __all__ = [
     "FLOOR_COLOUR",
@@ -64,30 +64,27 @@ def _save(fig, path: Path) -> None:
 FLOOR_COLOUR = "#8d8d96"
 
 
-def _metric_panels(
-    views: list[columns.TechniqueView], leak_hex: str, false_shadow_hex: str, floor: bool
-) -> tuple:
+def _metric_panels(views: list[columns.TechniqueView], floor: bool) -> tuple:
     """``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`; a line is
     ``(key, label, colour, scale, style)`` on the flattened frames (:func:`columns.flatten`).
-    Image metrics get the perfect-shadows floor's line where the sweep has it."""
-    many = len(views) > 1
+    Image metrics get the perfect-shadows floor's line where the sweep has it. Leaks are each
+    technique's solid line, false shadows its dashed one."""
 
     def one(key, floored=False):
-        lines = [(f"{v.name}_{key}", v.label if many or floor else "", v.colour, 1.0, v.style) for v in views]
+        lines = [(f"{v.name}_{key}", v.label, v.colour, 1.0, v.style) for v in views]
         if floored and floor:
             lines.append((f"floor_{key}", "perfect-shadows floor", FLOOR_COLOUR, 1.0, ":"))
         return lines
 
     leaks = []
     for v in views:
-        prefix = f"{v.name} " if many else ""
         leaks += [
-            (f"{v.name}_leak_fraction", f"{prefix}leak (F lit, V shadowed)", leak_hex, 100.0, v.style),
-            (f"{v.name}_false_shadow_fraction", f"{prefix}false shadow", false_shadow_hex, 100.0, v.style),
+            (f"{v.name}_leak_fraction", v.label, v.colour, 100.0, "-"),
+            (f"{v.name}_false_shadow_fraction", v.label, v.colour, 100.0, "--"),
         ]
     return (
         ("visibility  mean |F − V|", one("visibility_mae"), "max", ""),
-        ("leaks & false shadows  (% of pixels)", leaks, "max", "%"),
+        ("leaks (solid) & false shadows (dashed)  % of pixels", leaks, "max", "%"),
         ("FLIP  mean", one("flip_mean", True), "max", ""),
         ("ΔE2000  mean", one("delta_e2000_mean", True), "max", ""),
         ("PSNR  dB (linear; higher is better)", one("psnr_db", True), "min", ""),
@@ -95,11 +92,36 @@ def _metric_panels(
     )
 
 
+def _by_azimuth(frames: list[dict]) -> list[dict]:
+    """Flattened frames merged per azimuth, each number the mean over the azimuth's elevations (a
+    sweep over several elevations: :func:`plot_elevation` shows the elevations); a key whose every
+    value is ``None`` (PSNR of identical images) stays ``None``."""
+    import numpy as np
+
+    groups: dict = {}
+    for f in frames:
+        groups.setdefault(columns.num(f.get("azimuth_deg")), []).append(f)
+    out = []
+    for az, group in groups.items():
+        g = {"azimuth_deg": az}
+        for key in {k for f in group for k in f}:
+            vals = [columns.num(f.get(key)) for f in group]
+            kept = [v for v in vals if v is not None]
+            g[key] = float(np.mean(kept)) if kept else (None if any(key in f for f in group) else np.nan)
+        out.append(g)
+    return out
+
+
 def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueView]) -> None:
-    """Small multiples: every quality metric against azimuth, a line per technique; the worst frame ringed."""
+    """Small multiples: every quality metric against azimuth, a line per technique (over several
+    elevations, its mean over them); the worst frame ringed; one legend, outside the panels."""
     import numpy as np
     from matplotlib.ticker import FuncFormatter
 
+    several = len({columns.num(f.get("elevation_deg")) for f in frames}) > 1
+    frames = columns.flatten(frames, views)
+    if several:
+        frames = _by_azimuth(frames)
     az = np.array(
         [
             columns.num(f.get("azimuth_deg")) if columns.num(f.get("azimuth_deg")) is not None else np.nan
@@ -107,7 +129,6 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
         ],
         dtype=float,
     )
-    frames = columns.flatten(frames, views)
 
     def series(key, scale=1.0):
         return np.array(
@@ -115,13 +136,12 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
         )
 
     floor = any(columns.num(f.get("floor_flip_mean")) is not None for f in frames)
-    panels = _metric_panels(
-        views, images.hex_colour(images.LEAK_RGB), images.hex_colour(images.FALSE_SHADOW_RGB), floor
-    )
-    fig = _figure(13.0, 5.4)
+    panels = _metric_panels(views, floor)
+    fig = _figure(14.5, 5.4)
     axes = fig.subplots(2, 3, sharex=True)
-    fig.subplots_adjust(left=0.045, right=0.99, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)
+    fig.subplots_adjust(left=0.04, right=0.85, top=0.94, bottom=0.1, hspace=0.2, wspace=0.16)
     ticks = [a for a in az if np.isfinite(a)]
+    legend: dict = {}
     for ax, (title, lines, worse, unit) in zip(axes.flat, panels):
         _style_axes(ax, title)
         keys = [line[0] for line in lines]
@@ -133,17 +153,18 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
                 continue
             any_data = True
             order = np.argsort(az[ok])
-            ax.plot(
+            (handle,) = ax.plot(
                 az[ok][order],
                 y[ok][order],
                 color=colour,
                 linewidth=1.6,
                 marker="o",
                 markersize=3.5,
-                label=label or None,
                 zorder=3,
                 linestyle=style,
             )
+            if unit != "%":  # the leaks panel's dashes are its own: the legend shows each technique once
+                legend.setdefault(label, handle)
             w = int(
                 np.nanargmax(np.where(ok, y, -np.inf))
                 if worse == "max"
@@ -166,16 +187,16 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
             inf = np.array([f.get(psnr[0]) is None and psnr[0] in f for f in frames]) & np.isfinite(az)
             if inf.any():
                 any_data = True
-                ax.plot(
+                (handle,) = ax.plot(
                     az[inf],
                     np.full(inf.sum(), 0.96),
                     linestyle="none",
                     marker="^",
                     color=_MUTED,
                     transform=ax.get_xaxis_transform(),
-                    label="∞ (identical)",
                     zorder=3,
                 )
+                legend.setdefault("∞ (identical)", handle)
         if not any_data:
             ax.text(
                 0.5,
@@ -188,19 +209,24 @@ def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueVi
                 fontsize=9,
             )
             ax.set_yticks([])
-        if len(lines) > 1 or psnr:
-            handles, _ = ax.get_legend_handles_labels()
-            if handles:
-                leg = ax.legend(fontsize=8, frameon=False, loc="best", labelcolor=_TEXT)
-                leg.set_zorder(5)
         if unit == "%":
             ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g} %"))
         if any_data:
             ax.margins(x=0.04, y=0.12)
             if worse == "max":
                 ax.set_ylim(bottom=0)
+    if legend:
+        fig.legend(
+            list(legend.values()),
+            list(legend),
+            loc="center right",
+            fontsize=8,
+            frameon=False,
+            labelcolor=_TEXT,
+        )
     for ax in axes[-1]:
-        ax.set_xlabel("light azimuth (degrees)", color=_MUTED, fontsize=8)
+        label = "light azimuth (degrees)" + ("; each point the mean over the elevations" if several else "")
+        ax.set_xlabel(label, color=_MUTED, fontsize=8)
         if 0 < len(ticks) <= 13:
             ax.set_xticks(ticks)
             ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: columns.fmt_deg(v)))
@@ -325,7 +351,7 @@ def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[colu
                 label=label,
                 zorder=3,
             )
-        ax2.set_yticks(y, [columns.fmt_deg(f.get("azimuth_deg")) for f in frames])
+        ax2.set_yticks(y, [columns.frame_label(f) for f in frames])
         ax2.invert_yaxis()
         positive = np.concatenate([v[v > 0] for v, _, _ in series])
         if positive.size:
