@@ -559,6 +559,10 @@ def value_text(key: str, value) -> str:
         return azimuth_text(value)
     if key in ("elevation_deg", "light_radius_deg"):
         return fmt_deg(value).lstrip("+")
+    if key == "elevations_deg" and isinstance(value, (list, tuple)):
+        return ", ".join(fmt_deg(v).lstrip("+") for v in value) or "none"
+    if isinstance(value, dict):  # a setting per texture: "ao u8, bent-normal float"
+        return ", ".join(f"{k} {value_text(k, v)}" for k, v in value.items()) or "none"
     if isinstance(value, (list, tuple)):
         return ", ".join(str(v) for v in value) or "none"
     if isinstance(value, float):

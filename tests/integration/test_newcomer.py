@@ -305,6 +305,65 @@ def test_a_technique_has_one_colour_on_every_page():
     assert len(set(b.values())) == len(b)
 
 
+#: Every technique's colour is distinct on a page, the registry's and score's engine alike.
+def test_every_registered_technique_has_its_own_colour():
+    from hzval.report import columns
+    from hzval.techniques import registry
+
+    score = {"techniques": {"engine": {}, **{n: {} for n in registry.names()}}, "frames": []}
+    colours = [v.colour for v in columns.technique_views(score)]
+    assert len(set(colours)) == len(colours)
+
+
+#: The page script: every card whose box is taller than its content (a row of cards stretched to its
+#: tallest), and every label whose text is wider than its box (clipped).
+LAYOUT_PROBLEMS = """() => {
+  const out = [];
+  for (const card of document.querySelectorAll('.card')) {
+    const box = card.getBoundingClientRect();
+    let bottom = box.top;
+    for (const child of card.children) bottom = Math.max(bottom, child.getBoundingClientRect().bottom);
+    const style = getComputedStyle(card);
+    const pad = parseFloat(style.paddingBottom) + parseFloat(style.borderBottomWidth);
+    if (box.bottom - (bottom + pad) > 24) {
+      const h = card.querySelector('h2');
+      const content = Math.round(bottom + pad - box.top);
+      out.push(`card ${h ? h.textContent : '?'}: ${Math.round(box.height)} px tall, content ${content} px`);
+    }
+  }
+  for (const el of document.querySelectorAll('dt, dd, th, td, .tile-label, .ttl, .bar-name, .fx, caption')) {
+    const scrolls = getComputedStyle(el).overflowX === 'auto';
+    if (el.offsetParent !== null && el.scrollWidth > el.clientWidth + 1 && !scrolls) {
+      const text = el.textContent.trim().slice(0, 40);
+      out.push(`clipped: ${el.tagName.toLowerCase()} "${text}" (${el.scrollWidth} > ${el.clientWidth} px)`);
+    }
+  }
+  return out;
+}"""
+
+
+@pytest.mark.browser
+def test_the_sweep_and_score_pages_lay_out_at_1400_px(tmp_path, variant):
+    """Every page at 1400 px in headless Chromium: no card taller than its content (the score page's
+    effects card stretched its row to 1,300 px) and no clipped label, with every default technique."""
+    from tests.report.test_pages import chromium_page
+
+    sweep, frames = tmp_path / "s", tmp_path / "engine"
+    argv = ["sweep", "--material", "bricks", "--size", "24", "--azimuths", "-30,30", "--spp", "1"]
+    assert cli.main([*argv, "--quiet", "--out", str(sweep)]) == 0
+    frames.mkdir()
+    for folder in (sweep / "frames").iterdir():  # an engine that renders the truth's V as its F
+        (frames / f"f_{folder.name}.exr").write_bytes((folder / "visibility.exr").read_bytes())
+    assert cli.main(["score", str(frames), "--against", str(sweep), "--out", str(tmp_path / "sc")]) == 0
+    problems: list[str] = []
+    with chromium_page(problems) as page:
+        page.set_viewport_size({"width": 1400, "height": 900})
+        for index in (sweep / "index.html", tmp_path / "sc" / "index.html"):
+            page.goto(index.as_uri(), wait_until="load")
+            assert page.evaluate(LAYOUT_PROBLEMS) == [], index
+    assert not problems
+
+
 # 8. The floor is never "worst" --------------------------------------------------------------------------
 
 
