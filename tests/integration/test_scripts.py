@@ -101,6 +101,7 @@ SMOKE = {
         "8",
     ],
     "benchmarks/bench_terrain.py": ["--size", "64", "--frames", "2", "--spp", "1"],
+    "benchmarks/bench_engines.py": ["--repeat", "1", "--size", "32", "--spp", "1", "--azimuths", "0"],
     "benchmarks/bench_truth.py": ["--size", "64", "--spp", "1", "--frames", "2"],
     "benchmarks/memory_timeline.py": [
         "--",
