@@ -236,6 +236,8 @@ def _plot(path: Path, rows: list[dict]) -> None:
         )
         for ax in axes[i]:
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=8)
+            ax.legend(
+                fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
+            )  # outside: it never covers a line
     fig.tight_layout()
     files.write_figure(path, fig)

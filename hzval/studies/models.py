@@ -252,7 +252,9 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
         title="reflection occlusion against curvature",
     )
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(
+        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
+    )  # outside: it never covers a line
     fig.tight_layout()
     files.write_figure(path, fig)
     return {
@@ -296,7 +298,9 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
         title="error against curvature",
     )
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(
+        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
+    )  # outside: it never covers a line
     fig.tight_layout()
     files.write_figure(path, fig)
 
@@ -525,7 +529,9 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
         title="what curvature alone costs (± 1 SE)",
     )
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(
+        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
+    )  # outside: it never covers a line
     fig.tight_layout()
     files.write_figure(path, fig)
 
