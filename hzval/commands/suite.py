@@ -785,18 +785,31 @@ def _thumbnails(out: Path, row: dict) -> dict:
 
 
 def summary_table(result: dict) -> str:
-    """The terminal's table: per material (worst first) each technique's mean |F - V| and FLIP."""
+    """The terminal's tables, under 100 columns: the techniques over every material that ran, best
+    first (their means, and on how many materials each is worse than no shadows at some light
+    elevation: the overview's first table), then a line per material, worst first by the lead
+    technique: its lead |F - V| and FLIP, its best technique and its sweep's time, or why it failed."""
+    ranked = report.suite_ranking(result)
+    width = max([len("technique"), *(len(r["label"]) for r in ranked)])
+    lines = [f"{'technique':{width}s}   |F-V|    FLIP  worse than no shadows on"]
+    lines += [f"{r['label']:{width}s}  {r['vis']:>6s}  {r['flip']:>6s}  {r['worse']}" for r in ranked]
     names = list(result["techniques"])
-    head = f"{'material':16s}" + "".join(f" {n[:10]:>10s} |F-V|   FLIP" for n in names) + "  sweep s"
-    lines = [head]
+    lead = names[0] if names else None
+    lines += ["", f"{'material':20s}  {'lead':>20s}   |F-V|    FLIP  {'best':>20s}   |F-V|  sweep s"]
     for r in result["materials"]:
         if r["status"] != "ok":
-            lines.append(f"{r['name'][:16]:16s} failed: {r['error']}")
+            lines.append(f"{r['name'][:20]:20s}  failed: {r['error']}")
             continue
-        cells = ""
-        for n in names:
-            t = r["techniques"].get(n, {})
-            v, f = t.get("visibility_mae"), t.get("flip_mean")
-            cells += f" {'-' if v is None else f'{v:.4f}':>16s} {'-' if f is None else f'{f:.4f}':>6s}"
-        lines.append(f"{r['name'][:16]:16s}{cells}  {r['seconds']:7.1f}")
+        scores = {n: r["techniques"].get(n, {}).get("visibility_mae") for n in names}
+        scored = [(v, n) for n, v in scores.items() if v is not None]
+        best_v, best = min(scored) if scored else (None, "-")
+        t = r["techniques"].get(lead, {})
+        lines.append(
+            f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(t.get('visibility_mae')):>6s}  "
+            f"{_fixed(t.get('flip_mean')):>6s}  {best[:20]:>20s}  {_fixed(best_v):>6s}  {r['seconds']:7.1f}"
+        )
     return "\n".join(lines)
+
+
+def _fixed(v) -> str:
+    return "-" if v is None else f"{v:.4f}"

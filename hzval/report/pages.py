@@ -38,7 +38,10 @@ __all__ = [
     "environment",
     "render_html",
     "write_report",
+    "write_plots",
+    "write_page",
     "render_suite",
+    "suite_ranking",
 ]
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -716,7 +719,7 @@ def _suite_row(r: dict, names: list[str]) -> dict:
     return row
 
 
-def _suite_ranking(result: dict) -> list[dict]:
+def suite_ranking(result: dict) -> list[dict]:
     """The suite's first table: each technique's means over the materials that ran, best first, and on
     how many of them it is worse than no shadows at some light elevation (no shadows last, the
     baseline)."""
@@ -762,7 +765,7 @@ def render_suite(result: dict) -> str:
         "command": s["command"],
         "techniques": [{"name": n, **result["techniques"][n]} for n in names],
         "rows": [_suite_row(r, names) for r in result["materials"]],
-        "ranking": _suite_ranking(result),
+        "ranking": suite_ranking(result),
         "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,
     }
     return environment().get_template("suite.html.j2").render(**context)

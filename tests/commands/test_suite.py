@@ -213,6 +213,8 @@ def test_cli_suite_exit_status_and_table(variant, tmp_path, capsys):
     assert code == 0
     out = capsys.readouterr().out
     assert "stones" in out and "planks" in out and "overview" in out
+    assert max(len(line) for line in out.splitlines() if "overview" not in line) <= 100
+    assert out.splitlines()[0].split()[:3] == ["technique", "|F-V|", "FLIP"]  # ranked across materials
     rows = json.loads((tmp_path / "o" / "suite.json").read_text())["materials"]
     assert all(set(r["techniques"]) == {"horizon", "terrain"} for r in rows)
     assert (
