@@ -28,11 +28,11 @@ from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
 from hzval.io.files import unit_to_u8
 from hzval.scene import lookup
-from hzval.scene.spec import Frame, Scene
-from hzval.techniques.registry import Context, Technique, Variant
-from hzval.techniques.surface import NOT_MODELLED, FlatShading
+from hzval.scene.spec import EFFECTS, Frame, Scene
+from hzval.techniques.registry import Context, Technique, Variant, replace_effects
+from hzval.techniques.surface import NOT_MODELLED, FlatShading, Unshadowed, unshadowed
 
-__all__ = ["PerPixelFactor", "STORAGES", "Texture", "TEXTURES", "stored", "add_storage_flag"]
+__all__ = ["PerPixelFactor", "FactorKernel", "STORAGES", "Texture", "TEXTURES", "stored", "add_storage_flag"]
 
 #: How a texture of these techniques may be stored: as baked, or 8 bits per channel.
 STORAGES: tuple[str, ...] = ("float", "u8")
@@ -110,9 +110,91 @@ def add_storage_flag(parser, name: str, texture: Texture) -> None:
         pass  # another technique that reads it added it
 
 
-class PerPixelFactor(FlatShading, Technique):
+class FactorKernel(FlatShading):
+    """One kernel for the factors of every per-pixel technique of a context: their textures packed
+    once, the normal fetched once, each technique's ``F`` a layer of the same pass (``factor0``,
+    ``factor1``, ...). Techniques join it (:meth:`add`), its first frame builds it; a
+    frame is kept until the light moves, so that the techniques of a sweep's frame share one render.
+    The shading itself is not computed here: each technique composes its image from the shared
+    unshadowed shading (:class:`hzval.techniques.surface.Unshadowed`), as terrain and pom do."""
+
+    def __init__(self, scene: Scene, bake, samples: lookup.Samples | None = None):
+        self._args = (replace_effects(scene, ("shadow",)), bake)
+        self._samples = samples
+        self.members: list = []
+        self._built = False
+        self._last: tuple | None = None
+
+    def add(self, member) -> str:
+        """Join ``member`` (a :class:`PerPixelFactor`); the name of its factor layer. One that joins
+        after a frame makes the next frame build the kernel again, with every member."""
+        self._built, self._last = False, None
+        self.members.append(member)
+        return f"factor{len(self.members) - 1}"
+
+    def frame(self, azimuth_deg: float, elevation_deg: float | None) -> Frame:
+        """The members' factors for one light (built at the first call; the last one kept)."""
+        key = (float(azimuth_deg), elevation_deg)
+        if self._last is None or self._last[0] != key:
+            self._build()
+            self._last = (key, self.render(azimuth_deg, elevation_deg=elevation_deg))
+        return self._last[1]
+
+    def sample_factors(self, x, y, azimuth_deg: float, elevation_deg: float | None) -> dict:
+        """Per-point factors (:meth:`hzval.techniques.surface.FlatShading.sample`), by layer name."""
+        self._build()
+        return self.sample(x, y, azimuth_deg, elevation_deg)
+
+    def _build(self) -> None:
+        if not self._built:
+            self._built = True
+            FlatShading.__init__(self, *self._args, samples=self._samples)
+
+    # -- the hooks of the flat shading ----------------------------------------------------------
+
+    def _slot(self, member, texture: str) -> str:
+        return f"{texture}:{member.storage[texture]}"
+
+    def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
+        planes: dict[str, np.ndarray] = {}
+        for m in self.members:
+            for t in m.textures:
+                tx = m.texture(t)
+                if self._slot(m, t) not in planes:
+                    planes[self._slot(m, t)] = stored(
+                        getattr(self.bake, tx.field), m.storage[t], signed=tx.signed
+                    )
+        if any(m.reads_normal for m in self.members):
+            planes[NORMAL_SLOT] = self.bake.normal
+        return list(planes.items())
+
+    def _upload_constants(self) -> None:
+        super()._upload_constants()
+        self._constants = [m.constants() for m in self.members]
+        dr.eval(self._constants)
+
+    def _factor_layers(self) -> tuple[str, ...]:
+        return tuple(f"factor{i}" for i in range(len(self.members)))
+
+    def _shadowed(self, direct, tex: dict, uni: dict, out: dict, shadows: bool, probe: bool):
+        n = dr.normalize(mi.Vector3f(*tex[NORMAL_SLOT])) if NORMAL_SLOT in tex else None
+        for i, m in enumerate(self.members):
+            own = {t: tex[self._slot(m, t)] for t in m.textures}
+            F = dr.clip(m.factor(own, n if m.reads_normal else None, uni["L"], self._constants[i]), 0.0, 1.0)
+            # within float32 rounding of 1 is 1: a ratio of two sums that are equal for an open
+            # texel (ssbump) must not shade a flat surface
+            out[f"factor{i}"] = dr.select(F >= 1.0 - 2.0**-20, 1.0, F)
+        return direct
+
+    def _extra_layout(self, shadows: bool) -> tuple[list, list]:
+        return [(name, 1) for name in self._factor_layers()], []
+
+
+class PerPixelFactor(Technique):
     """A technique whose factor is a formula of the sample's textures, normal and light (module
-    docstring). ``storage``: ``{texture: "float" | "u8"}`` for the textures it reads."""
+    docstring). ``storage``: ``{texture: "float" | "u8"}`` for the textures it reads; ``kernel``: the
+    context's :class:`FactorKernel` it joins (default its own); ``plain``: the unshadowed shading its
+    image is composed from (default its own)."""
 
     needs = ("shadow",)
     not_modelled = NOT_MODELLED
@@ -132,14 +214,21 @@ class PerPixelFactor(FlatShading, Technique):
         *,
         storage: dict | None = None,
         samples: lookup.Samples | None = None,
+        kernel: FactorKernel | None = None,
+        plain=None,
         **settings,
     ):
+        self.scene, self.bake = scene, bake
         self.storage = {t: self.texture(t).default for t in self.textures} | dict(storage or {})
         for t, s in self.storage.items():
             if s not in STORAGES:
                 raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {s!r}")
         self.settings = self.validate(settings)
-        super().__init__(scene, bake, albedo, samples=samples)
+        self.simulated = tuple(e for e in EFFECTS if scene.declares(e) and e not in self.not_modelled)
+        self._kernel = kernel if kernel is not None else FactorKernel(scene, bake, samples)
+        self._layer = self._kernel.add(self)
+        self._plain = plain if plain is not None else Unshadowed(scene, bake, albedo, samples=samples)
+        self.shape = self._plain.shape
 
     @classmethod
     def texture(cls, name: str) -> Texture:
@@ -166,41 +255,6 @@ class PerPixelFactor(FlatShading, Technique):
         tangent frame, ``c`` :meth:`constants`."""
         raise NotImplementedError
 
-    # -- the hooks of the flat shading ----------------------------------------------------------
-
-    def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
-        if not self._shadow:
-            return []
-        planes = []
-        for t in self.textures:
-            tx = self.texture(t)
-            planes.append((t, stored(getattr(self.bake, tx.field), self.storage[t], signed=tx.signed)))
-        if self.reads_normal and not (self._diffuse or self._specular or self._reflection):
-            planes.append((NORMAL_SLOT, self.bake.normal))
-        return planes
-
-    def _upload_constants(self) -> None:
-        super()._upload_constants()
-        self._constants = self.constants()
-        dr.eval(self._constants)
-
-    def _shadowed(self, direct, tex: dict, uni: dict, out: dict, shadows: bool, probe: bool):
-        if not (self._shadow and shadows):
-            return direct
-        n = None
-        if self.reads_normal:
-            raw = tex["normal"] if "normal" in tex else tex[NORMAL_SLOT]
-            n = dr.normalize(mi.Vector3f(*raw))
-        F = dr.clip(self.factor(tex, n, uni["L"], self._constants), 0.0, 1.0)
-        # within float32 rounding of 1 is 1: a ratio of two sums that are equal for an open texel
-        # (ssbump) must not shade a flat surface
-        F = dr.select(F >= 1.0 - 2.0**-20, 1.0, F)
-        out["factor"] = F
-        return direct * F
-
-    def _extra_layout(self, shadows: bool) -> tuple[list, list]:
-        return ([("factor", 1)] if self._shadow and shadows else []), []
-
     # -- the Technique interface ----------------------------------------------------------------
 
     @classmethod
@@ -210,7 +264,10 @@ class PerPixelFactor(FlatShading, Technique):
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "PerPixelFactor":
-        return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
+        """From a context: the context's one factor kernel and unshadowed shading, shared with its
+        other per-pixel techniques."""
+        kernel = ctx.shared("perpixel factors", lambda: FactorKernel(ctx.scene, ctx.bake, ctx.samples()))
+        return cls(ctx.scene, ctx.bake, ctx.albedo, kernel=kernel, plain=unshadowed(ctx), **settings)
 
     @classmethod
     def add_arguments(cls, parser) -> None:
@@ -248,9 +305,16 @@ class PerPixelFactor(FlatShading, Technique):
             out["storage_bytes"] = self.storage_bytes()
         return out
 
-    def render(
-        self, azimuth_deg: float, *, shadows: bool = True, elevation_deg: float | None = None
-    ) -> Frame:
-        """The frame of the light at ``azimuth_deg`` (:meth:`hzval.techniques.surface.FlatShading.render`);
-        layers: ``factor`` (pixel mean of F) and the declared effects'."""
-        return super().render(azimuth_deg, shadows=shadows, elevation_deg=elevation_deg)
+    def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
+        """The frame of the light at ``azimuth_deg``: the unshadowed shading's direct term times the
+        pixel mean of ``F`` from the shared kernel (:meth:`FactorKernel.frame`), plus its ambient
+        term; the kernel's time is shared out among the techniques that joined it. Layers:
+        ``factor`` and the declared effects'."""
+        frame = self._kernel.frame(azimuth_deg, elevation_deg)
+        F = frame.layers[self._layer]
+        return self._plain.shade(azimuth_deg, elevation_deg, F, frame.seconds / len(self._kernel.members))
+
+    def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None) -> dict[str, np.ndarray]:
+        """Per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging:
+        ``{"factor": (n,)}``."""
+        return {"factor": self._kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}

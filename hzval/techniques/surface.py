@@ -152,6 +152,10 @@ class FlatShading:
         """A technique's layers after the ambient term (``n``: the normal map's normal; ``uni``: the
         frame's uniforms, on a model the sample's own, :meth:`_lane_uniforms`)."""
 
+    def _factor_layers(self) -> tuple[str, ...]:
+        """The layers that are shadow factors, which the base mesh's shadow ``M`` multiplies on a model."""
+        return ("factor",)
+
     def _extra_layout(self, shadows: bool) -> tuple[list, list]:
         """The technique's layers of :meth:`_shade`, ``(name, channels)``: those before the ambient
         term's layer (its factor) and those after (:meth:`_extra_layers`)."""
@@ -378,8 +382,10 @@ class FlatShading:
         if M is not None:
             direct = direct * M  # the base mesh's shadow, part of the technique's factor
         image = self._shadowed(direct, tex, uni, out, shadows, probe)
-        if M is not None and "factor" in out:
-            out["factor"] = out["factor"] * M
+        if M is not None:
+            for key in self._factor_layers():
+                if key in out:
+                    out[key] = out[key] * M
         if self._ambient:
             A = tex["ambient"][0]
             image = image + shading.sky(albedo, A, E)
