@@ -3,11 +3,13 @@
 Engines ship these where hzval's other techniques march or sweep: AO micro-shadowing
 (:mod:`hzval.techniques.microshadow_filament`, :mod:`hzval.techniques.microshadow_hdrp`), bent cones
 (:mod:`hzval.techniques.bent_cone`), Valve's self-shadowed bump maps (:mod:`hzval.techniques.ssbump`)
-and the bump-terminator term of offline renderers (:mod:`hzval.techniques.terminator`). Each is shaded
-in the flat surface's kernel (:class:`hzval.techniques.surface.FlatShading`): its textures are packed
-beside the shading's, filtered as the scene's lookup says, and its factor ``F`` multiplies the
-direct term, as the horizon map's does. ``F`` reads ``L`` in the sample's own tangent frame, so each
-renders on models too.
+and the bump-terminator term of offline renderers (:mod:`hzval.techniques.terminator`). The factors
+of all of a context's per-pixel techniques are computed in one pass of the flat surface's kernel
+(:class:`FactorKernel`, a :class:`hzval.techniques.surface.FlatShading`): their textures packed once
+and filtered as the scene's lookup says, each ``F`` per sample and its pixel mean a layer. Each
+technique's image is the unshadowed shading's direct term times that mean plus its ambient term
+(:meth:`hzval.techniques.surface.Unshadowed.shade`), as terrain's and pom's are. ``F`` reads ``L`` in
+the sample's own tangent frame, so each renders on models too.
 
 A subclass sets the :class:`hzval.techniques.registry.Technique` attributes, :attr:`textures` (the
 texture planes it reads and how each is stored) and :meth:`PerPixelFactor.factor`. Every texture is
