@@ -188,6 +188,9 @@ class _Setup:
     estimate: int = 0  # estimated peak memory, bytes
     retained: bool = False  # freed memory kept (RETAIN_BELOW_SHARE, backend.retain_freed_memory)
     perfect: list = dataclasses.field(default_factory=list)  # the techniques at the truth's hits
+    base_shadow: object = (
+        None  # a model's no-shadows factor: its base mesh's own shadow (perpixel.BaseShadow)
+    )
     view: dict = dataclasses.field(default_factory=dict)  # metrics.json's "view" (_view_errors)
     view_maps: dict = dataclasses.field(default_factory=dict)  # its per-pixel maps
     normal: np.ndarray | None = (
@@ -274,6 +277,10 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         # a model: every technique again at the truth's own hits (perfect parallax), as for a view
         perfect_ctx = dataclasses.replace(ctx, points=the_truth.samples("truth"), _shared={})
         setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
+    if points is not None and scene.declares("shadow"):
+        from hzval.techniques import perpixel
+
+        setup.base_shadow = perpixel.BaseShadow.build(ctx)  # joins the context's factor kernel
     camera.forget_sample_positions()
     lookup.forget()
     backend.release_memory()
@@ -536,6 +543,7 @@ class _Rendered:
     direct: np.ndarray
     techniques: list
     perfect: dict
+    base: object = None  # a model's no-shadows frame: the base mesh's own shadow alone
 
 
 def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, clock: dict) -> _Rendered:
@@ -544,6 +552,7 @@ def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, c
     plain, direct = setup.unshadowed.render(az, el)
     clock["plain_s"] += plain.seconds
     rendered = [(t, t.render(az, elevation_deg=el)) for t in setup.techniques]
+    base = None if setup.base_shadow is None else setup.base_shadow.render(az, elevation_deg=el)
     mask = t_frame.mask
     perfect = {}
     if mask is not None:
@@ -551,12 +560,13 @@ def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, c
         bg = (cv.srgb_decode(np.asarray(writing.UNSEEN_DISPLAY)) / scale).astype(np.float32)
         t_frame, plain = _unseen(t_frame, mask, bg), _unseen(plain, mask, bg)
         rendered = [(t, _unseen(f, mask, bg)) for t, f in rendered]
+        base = None if base is None else _unseen(base, mask, bg)
         V = t_frame.layers.get("visibility")
         for t in setup.perfect:
             F = t.render(az, elevation_deg=el).layers.get("factor")
             if V is not None and F is not None:
                 perfect[t.name] = compare.visibility_metrics(V, F, mask)[0]
-    return _Rendered(az, el, t_frame, plain, direct, rendered, perfect)
+    return _Rendered(az, el, t_frame, plain, direct, rendered, perfect, base)
 
 
 def _finish(
@@ -582,7 +592,9 @@ def _finish(
         del maps
     release()
     floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
-    none = _no_shadows(ref, r.plain.image, t_frame.layers.get("visibility"), t_frame.mask)
+    none = _no_shadows(
+        ref, r.plain if r.base is None else r.base, t_frame.layers.get("visibility"), t_frame.mask
+    )
     truth_shown = writing.shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
@@ -645,7 +657,8 @@ def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dic
         if F is not None:
             per[t.name].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
     if "no_shadows" in frame:
-        frame["no_shadows"].update(hzfacing.facing_metrics(V, np.ones_like(V), facing, r.truth.mask))
+        F = np.ones_like(V) if r.base is None else r.base.layers["factor"]
+        frame["no_shadows"].update(hzfacing.facing_metrics(V, F, facing, r.truth.mask))
 
 
 def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
@@ -683,15 +696,21 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
     return {k: _finite(v) for k, v in scores.items()}
 
 
-def _no_shadows(ref: compare.Reference, plain: np.ndarray, V: np.ndarray | None, mask) -> dict | None:
-    """The baseline of a frame, no shadows at all (``F = 1``: the unshadowed shading, the report's
-    normal mapping only): its image scores and ``|1 - V|``. A technique worse than it at some light
-    elevation does harm there. ``None`` without ``shadow``."""
+def _no_shadows(ref: compare.Reference, none, V: np.ndarray | None, mask) -> dict | None:
+    """The baseline of a frame, no technique's shadows (``F = 1``: the unshadowed shading, the
+    report's normal mapping only; on a model ``F`` is the base mesh's own shadow, which every
+    technique's factor holds too): its image scores and ``|F - V|``. A technique worse than it at
+    some light elevation does harm there. ``none``: its frame; ``None`` without ``shadow``."""
     if V is None:
         return None
-    scores, _ = compare.image_metrics(ref, plain)
-    mae, leaks, false_shadows = compare.visibility_metrics(V, np.ones_like(V), mask)
-    return {k: _finite(v) for k, v in scores.items()} | {"visibility_mae": mae, "leak_fraction": leaks}
+    scores, _ = compare.image_metrics(ref, none.image)
+    F = none.layers.get("factor", np.ones_like(V))
+    mae, leaks, false_shadows = compare.visibility_metrics(V, F, mask)
+    return {k: _finite(v) for k, v in scores.items()} | {
+        "visibility_mae": mae,
+        "leak_fraction": leaks,
+        "false_shadow_fraction": false_shadows,
+    }
 
 
 def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[dict], out: Path) -> dict:

@@ -34,7 +34,16 @@ from hzval.scene.spec import EFFECTS, Frame, Scene
 from hzval.techniques.registry import Context, Technique, Variant, replace_effects
 from hzval.techniques.surface import NOT_MODELLED, FlatShading, Unshadowed, unshadowed
 
-__all__ = ["PerPixelFactor", "FactorKernel", "STORAGES", "Texture", "TEXTURES", "stored", "add_storage_flag"]
+__all__ = [
+    "PerPixelFactor",
+    "FactorKernel",
+    "BaseShadow",
+    "STORAGES",
+    "Texture",
+    "TEXTURES",
+    "stored",
+    "add_storage_flag",
+]
 
 #: How a texture of these techniques may be stored: as baked, or 8 bits per channel.
 STORAGES: tuple[str, ...] = ("float", "u8")
@@ -320,3 +329,17 @@ class PerPixelFactor(Technique):
         """Per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging:
         ``{"factor": (n,)}``."""
         return {"factor": self._kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}
+
+
+class BaseShadow(PerPixelFactor):
+    """No technique's shadows: ``F = 1``, which on a model is the base mesh's own shadow alone (the
+    kernel multiplies every factor by it). The sweep's no-shadows baseline on a model, where a
+    technique's factor includes that shadow too; not a registered technique."""
+
+    name = "no shadows"
+    label = "no shadows"
+    file_stem = "no_shadows"
+    reads_normal = False
+
+    def factor(self, tex: dict, n, L, c: dict):
+        return dr.full(mi.Float, 1.0, dr.width(L.z))

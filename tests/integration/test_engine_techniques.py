@@ -122,7 +122,7 @@ def test_every_elevation_azimuth_pair_is_a_frame_with_a_no_shadows_baseline(swep
 @pytest.mark.parametrize("mesh", ["--mesh sphere", "--scene scenes/cube.toml"])
 def test_each_renders_on_models(tmp_path, mesh):
     out = tmp_path / "m"
-    argv = ["sweep", *mesh.split(), "--size", "32", "--spp", "1", "--azimuths", "30"]
+    argv = ["sweep", *mesh.split(), "--size", "32", "--spp", "1", "--azimuths", "150"]
     argv += ["--techniques", ",".join(ENGINE), "--out", str(out), "--quiet"]
     if "sphere" in mesh:
         argv += ["--material", "bricks", "--resolution", "48x48"]
@@ -132,3 +132,12 @@ def test_each_renders_on_models(tmp_path, mesh):
     for name in ENGINE:
         F = [f["techniques"][name].get("visibility_mae") for f in m["frames"]]
         assert all(v is not None and math.isfinite(v) for v in F), name
+    # no technique's shadows on a model is the base mesh's own shadow, not F = 1: its error is below
+    # F = 1's wherever the model shadows itself
+    for f in m["frames"]:
+        V = files.read_exr(out / f["files"]["visibility"])["Y"]
+        seen = np.isfinite(V)
+        one = float(np.mean(1 - V[seen]))
+        assert f["no_shadows"]["visibility_mae"] <= one + 1e-9
+        if "sphere" in mesh:  # lit from behind the camera's side: half of what it sees faces away
+            assert one > 0.2 and f["no_shadows"]["visibility_mae"] < 0.5 * one
