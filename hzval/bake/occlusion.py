@@ -55,8 +55,10 @@ HL2_BASIS = np.array(
 BYTES_PER_TEXEL = 48
 
 
-def _sines(sines: np.ndarray) -> np.ndarray:
-    return np.clip(np.asarray(sines, np.float32), 0.0, 1.0)
+def _channel(sines: np.ndarray, k: int) -> np.ndarray:
+    """Channel ``k`` of the horizon sines, clipped to [0, 1] (one channel at a time: no copy of the
+    whole map)."""
+    return np.clip(np.asarray(sines[..., k], np.float32), 0.0, 1.0)
 
 
 def bent_normal(sines: np.ndarray) -> np.ndarray:
@@ -81,12 +83,12 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
     >>> bool(b[0] < 0 and abs(b[1]) < 1e-6)
     True
     """
-    s = _sines(sines)
-    D = s.shape[-1]
-    out = np.zeros((*s.shape[:-1], 3), np.float32)
+    sines = np.asarray(sines)
+    D = sines.shape[-1]
+    out = np.zeros((*sines.shape[:-1], 3), np.float32)
     for k in range(D):
         phi = math.radians(cv.channel_azimuth_deg(k, D))
-        sk = s[..., k]
+        sk = _channel(sines, k)
         side = np.maximum(1.0 - sk * sk, 0.0) ** 1.5
         out[..., 0] += side * np.float32(math.cos(phi))
         out[..., 1] += side * np.float32(math.sin(phi))
@@ -132,16 +134,18 @@ def self_shadowed_bump(sines: np.ndarray, normal: np.ndarray) -> np.ndarray:
     >>> bool(np.allclose(flat, 1 / np.sqrt(3)))
     True
     """
-    s = _sines(sines)
-    D = s.shape[-1]
+    sines = np.asarray(sines)
+    D = sines.shape[-1]
     n = np.asarray(normal, np.float32)
-    out = np.zeros((*s.shape[:-1], 3), np.float32)
+    out = np.zeros((*sines.shape[:-1], 3), np.float32)
     for c, b in enumerate(HL2_BASIS):
-        lost = np.zeros(s.shape[:-1], np.float32)
+        lost = np.zeros(sines.shape[:-1], np.float32)
         whole = 0.0
         for k in range(D):
             phi = math.radians(cv.channel_azimuth_deg(k, D))
-            w, part = _shares(b[0] * math.cos(phi) + b[1] * math.sin(phi), b[2], np.arcsin(s[..., k]))
+            w, part = _shares(
+                b[0] * math.cos(phi) + b[1] * math.sin(phi), b[2], np.arcsin(_channel(sines, k))
+            )
             whole += w
             lost += part
         facing = np.maximum(n @ b.astype(np.float32), 0.0)

@@ -97,6 +97,7 @@ SAME = (
     "depth",
     "boundary",
     "elevation_deg",
+    "elevations_deg",
     "azimuths_deg",
     "light",
     "light_radius_deg",
@@ -285,6 +286,8 @@ def check_same_settings(new: dict, old: dict, where: str) -> None:
         raise InputError("--baseline", f"{where}: another height map (digest {b[:19]}, this run's {a[:19]})")
     pa, pb = new.get("parameters") or {}, old.get("parameters") or {}
     for key in SAME:
+        if key == "elevations_deg" and None in (pa.get(key), pb.get(key)):
+            continue  # a run from before the elevation axis: its one elevation_deg is compared
         if pa.get(key) != pb.get(key):
             raise InputError(
                 "--baseline",

@@ -337,9 +337,13 @@ def summarise(entry: Entry, metrics: dict) -> dict:
     FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
     frames = metrics["frames"]
     table = ranking.by_elevation(metrics)
+    # |F - V| as the sweep's report and its ranking measure it: over the pixels facing the light
     techniques = {
         name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
-        | {"worse_at": ranking.worse_than_none(table, name)}
+        | {
+            "visibility_mae": _mean(ranking.visibility_of(f["techniques"][name]) for f in frames),
+            "worse_at": ranking.worse_than_none(table, name),
+        }
         for name in metrics["techniques"]
     }
     m, p = metrics["material"], metrics["parameters"]
@@ -354,12 +358,13 @@ def summarise(entry: Entry, metrics: dict) -> dict:
         "cols": m.get("cols"),
         "depth": p["depth"],
         "boundary": p["boundary"],
-        "azimuths_deg": [f["azimuth_deg"] for f in frames],
+        "azimuths_deg": list(p.get("azimuths_deg") or dict.fromkeys(f["azimuth_deg"] for f in frames)),
+        "elevations_deg": list(p.get("elevations_deg") or [p.get("elevation_deg")]),
         "techniques": techniques,
         "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
         "no_shadows": {
-            key: _mean((f.get("no_shadows") or {}).get(key) for f in frames)
-            for key in ("visibility_mae", "flip_mean")
+            "visibility_mae": _mean(ranking.visibility_of(f.get("no_shadows") or {}) for f in frames),
+            "flip_mean": _mean((f.get("no_shadows") or {}).get("flip_mean") for f in frames),
         },
         "truth_s": _mean(f.get("truth_s") for f in frames),
         "seconds": metrics["timings"]["total_s"],
@@ -370,14 +375,18 @@ def summarise(entry: Entry, metrics: dict) -> dict:
 
 
 def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
-    """``{frame name: {"truth": png, <technique>: png}}`` (relative to the material's folder) for the
+    """``{light: {"truth": png, <technique>: png}}`` (``light``: ``+15°``, and its elevation in a sweep
+    over several; relative to the material's folder) for the
     sweep's first, middle and last lights."""
     n = len(frames)
     picks = sorted({0, n // 2, n - 1})[:LIGHTS_SHOWN]
     out = {}
     for i in picks:
         f = frames[i]
-        out[f.get("name") or f"az{f['azimuth_deg']:+g}"] = {
+        label = f"{f['azimuth_deg']:+g}°"
+        if str(f.get("name", "")).startswith("el"):  # a sweep over several elevations
+            label += f" (elevation {f['elevation_deg']:g}°)"
+        out[label] = {
             "truth": f["files"]["truth_png"],
             **{name: f["techniques"][name]["files"]["png"] for name in techniques},
         }
@@ -770,7 +779,8 @@ def _thumbnails(out: Path, row: dict) -> dict:
             if rel is None:
                 continue
             src = out / row["name"] / rel
-            dst = Path("thumbs") / row["name"] / f"az{az}_{kind}.png"
+            slug = re.sub(r"[^0-9A-Za-z+.-]+", "_", az).strip("_")
+            dst = Path("thumbs") / row["name"] / f"az{slug}_{kind}.png"
             try:
                 with Image.open(src) as img:
                     img = img.convert("RGB")

@@ -18,14 +18,15 @@ import numpy as np
 
 from hzval.report import columns
 
-__all__ = ["NONE", "by_elevation", "ranking", "worse_than_none", "floor_note"]
+__all__ = ["NONE", "by_elevation", "ranking", "worse_than_none", "floor_note", "visibility_of"]
 
 #: The baseline's name in :func:`by_elevation`: no shadows at all, ``F = 1``.
 NONE = "no shadows"
 
 
-def _vis(record: dict) -> float | None:
-    """A frame record's ``|F - V|``: over the pixels facing the light where measured."""
+def visibility_of(record: dict) -> float | None:
+    """A frame record's ``|F - V|``: over the pixels facing the light where measured (the report's,
+    the ranking's and the suite's), else over the whole image."""
     return columns.num(record.get("visibility_mae_facing", record.get("visibility_mae")))
 
 
@@ -55,7 +56,7 @@ def by_elevation(metrics: dict) -> dict[str, list[dict]]:
             records[NONE] = f["no_shadows"]
         for name, r in records.items():
             if isinstance(r, dict):
-                rows[name][e]["visibility_mae"].append(_vis(r))
+                rows[name][e]["visibility_mae"].append(visibility_of(r))
                 rows[name][e]["flip_mean"].append(columns.num(r.get("flip_mean")))
     out = {}
     for name, per in rows.items():
@@ -125,7 +126,7 @@ def ranking(metrics: dict) -> list[dict]:
             {
                 "name": name,
                 "label": NONE if name == NONE else str(t.get("label") or name),
-                "visibility_mae": _mean([_vis(r) for r in records]),
+                "visibility_mae": _mean([visibility_of(r) for r in records]),
                 "at_hits": _mean([columns.num(r.get("perfect_parallax_mae")) for r in records]),
                 "flip_mean": _mean([columns.num(r.get("flip_mean")) for r in records]),
                 "bytes_per_texel": None if name == NONE else columns.num(t.get("texture_bytes_per_texel")),

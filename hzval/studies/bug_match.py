@@ -50,7 +50,7 @@ def scene_of(metrics: dict, sweep_dir: Path):
         size=int(m["cols"]),
         depth=p["depth"],
         boundary=p["boundary"],
-        elevation=p["elevation_deg"],
+        elevation=",".join(f"{e:g}" for e in p.get("elevations_deg") or [p["elevation_deg"]]),
         azimuths=",".join(f"{a:g}" for a in p["azimuths_deg"]),
         light=p["light"],
         light_radius=p.get("light_radius_deg"),
@@ -90,7 +90,9 @@ def bug_factors(
         truth.scene, height, b, S.load_albedo(scene.material, *height.shape), points=truth.samples(at=at)
     )
     tech = technique.get(name).build(ctx)
-    return [tech.render(az).layers["factor"] for az in scene.light.azimuths_deg]
+    # every light of the sweep, in its order (elevation by elevation, as the engine's frames)
+    lights = [(e, az) for e in scene.light.elevations() for az in scene.light.azimuths_deg]
+    return [tech.render(az, elevation_deg=e).layers["factor"] for e, az in lights]
 
 
 def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict | None:

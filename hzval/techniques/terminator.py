@@ -5,11 +5,12 @@ surface's own plane would leave dark; offline renderers soften that with a shado
 
 ``conty`` (default)
     Conty Estevez et al. 2019, "A Microfacet-Based Shadowing Function to Solve the Bump Terminator
-    Problem" (Ray Tracing Gems, ch. 12; Cycles' ``bump_shadowing_term``): ``cos_d = N . Ng``,
+    Problem" (Ray Tracing Gems, ch. 12): ``cos_d = N . Ng``,
     ``alpha^2 = clamp(tan^2(theta_d) / 8, 0, 1)``, ``cos_i = Ng . L``,
     ``F = 2 / (1 + sqrt(1 + alpha^2 tan^2(theta_i)))``; 0 where ``Ng . L <= 0``.
 ``chiang`` (``--terminator-variant chiang``)
-    Chiang et al. 2019, "Taming the Shadow Terminator" (SIGGRAPH talk):
+    Chiang et al. 2019, "Taming the Shadow Terminator" (SIGGRAPH talk; Blender Cycles'
+    ``bump_shadowing_term``):
     ``g = (Ng . L) / ((N . L)(Ng . N))``, ``F = -g^3 + g^2 + g`` for ``g`` in (0, 1), 1 above and 0
     below; 1 where ``N . L <= 0`` (the limit from the lit side; the direct term is 0 there).
 

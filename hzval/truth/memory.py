@@ -210,14 +210,17 @@ MAX_FRAME_PIXELS = 2**31
 
 
 def check_frame_pixels(scene, rows: int, cols: int) -> int:
-    """Lights times pixels of a sweep of ``scene`` on a ``rows x cols`` map, if at most
-    :data:`MAX_FRAME_PIXELS`; else one line naming ``--azimuths``."""
+    """Lights (azimuths times elevations) times pixels of a sweep of ``scene`` on a ``rows x cols``
+    map, if at most :data:`MAX_FRAME_PIXELS`; else one line naming ``--azimuths`` (``--elevation``
+    over several elevations)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
-    n = len(scene.light.azimuths_deg) * H * W
+    lights = len(scene.light.azimuths_deg) * len(scene.light.elevations())
+    n = lights * H * W
     if n > MAX_FRAME_PIXELS:
+        several = len(scene.light.elevations()) > 1
         raise InputError(
-            "--azimuths",
-            f"{len(scene.light.azimuths_deg)} lights of {W}x{H} pixels are {n:.3g} "
+            "--elevation" if several else "--azimuths",
+            f"{lights} lights of {W}x{H} pixels are {n:.3g} "
             f"frame pixels; at most {MAX_FRAME_PIXELS:.3g} (fewer lights or a "
             "smaller image)",
         )

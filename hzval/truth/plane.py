@@ -560,7 +560,13 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
             raise ValueError(
                 f"a truth built for {self.built_elevation_deg:g} degrees cannot light from {elevation_deg:g}"
             )
+        if float(elevation_deg) == float(self.scene.light.elevation_deg):
+            return
         self.scene = dataclasses.replace(self.scene, light=self.scene.light.at(elevation_deg))
+        if self.mesh_bands is not None and self.scene.declares("shadow"):
+            # a mesh built in bands traced every light's shadow rays at once, for one elevation: trace
+            # this one's (one elevation's bits at a time, as the memory plan counts them)
+            self._vis = truth_bands.band_pass(self, self.scene.light.azimuths_deg)
 
     def render(self, azimuth_deg: float) -> Frame:
         """Render the light at ``azimuth_deg`` (degrees; elevation from the scene).

@@ -153,3 +153,21 @@ def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant
         a, b = one.render(az), bands.render(az)
         np.testing.assert_array_equal(a.layers["visibility"], b.layers["visibility"])
         np.testing.assert_array_equal(a.image, b.image)
+
+
+def test_a_truth_in_bands_lit_from_a_higher_elevation_traces_that_elevation(variant, bricks):
+    """A sweep over several elevations builds one truth at the lowest and lights it from each in turn
+    (``Truth.light_at``); in bands, whose shadow rays are traced for every light at once, the higher
+    elevation must be traced anew: its V is a truth's built for it, not the lowest's."""
+    from hzval.truth.plane import Truth
+
+    h = bricks[:64, :64].copy()
+    low = _scene(h, "wrap", elevation=15.0)
+    high = dataclasses.replace(low, light=low.light.at(55.0))
+    moved = Truth(low, h, mesh_band_rows=16, band_samples=8 * 64 * 4)
+    moved.light_at(55.0)
+    own = Truth(high, h, mesh_band_rows=16, band_samples=8 * 64 * 4)
+    for az in (0.0, 135.0):
+        a, b = moved.render(az).layers["visibility"], own.render(az).layers["visibility"]
+        assert np.mean(np.abs(a - b)) < 1e-3, az
+        assert a.mean() > Truth(low, h).render(az).layers["visibility"].mean() + 0.05  # 55 lights more
