@@ -199,6 +199,7 @@ def _plot(path: Path, rows: list[dict]) -> None:
     """Two panels per technique row: |F - V| against view elevation (the top and orthographic
     views) and against the median pixel footprint (every view), one line per lookup."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     names = _technique_names(rows)
     kinds = list(dict.fromkeys(r["lookup"] for r in rows))
@@ -234,6 +235,10 @@ def _plot(path: Path, rows: list[dict]) -> None:
             ylabel="mean |F − V|",
             xscale="log",
         )
+        # a footprint axis spans under a decade: its minor ticks' labels ran into each other
+        axes[i][1].xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        axes[i][1].xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axes[i][1].xaxis.set_minor_formatter(NullFormatter())
         for ax in axes[i]:
             ax.grid(alpha=0.3)
             ax.legend(
