@@ -256,7 +256,7 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     worst = []
     for n in result.get("techniques") or {}:
         scored = [
-            (t.get("visibility_mae_facing", t.get("visibility_mae")), frame_name(f))
+            (ranking.visibility_of(t), frame_name(f))
             for f in frames
             if isinstance(t := (f.get("techniques") or {}).get(n), dict)
         ]

@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 from hzval.core.backend import dr, mi
-from hzval.core.errors import InputError
 from hzval.techniques.perpixel import PerPixelFactor
 
 __all__ = ["BentCone", "VARIANTS", "cap_intersection", "cap_intersection_filament"]
@@ -100,10 +99,8 @@ class BentCone(PerPixelFactor):
 
     @classmethod
     def validate(cls, settings: dict) -> dict:
-        variant = settings.pop("variant", None) or "exact"
+        variant = cls.choice(settings, "variant", VARIANTS)
         super().validate(settings)
-        if variant not in VARIANTS:
-            raise InputError("variant", f"must be one of {', '.join(VARIANTS)}, got {variant!r}")
         return {"variant": variant}
 
     def constants(self) -> dict:

@@ -256,6 +256,15 @@ class PerPixelFactor(Technique):
             raise TypeError(f"unexpected settings {', '.join(settings)}")
         return {}
 
+    @staticmethod
+    def choice(settings: dict, key: str, choices: tuple[str, ...]) -> str:
+        """``settings[key]`` (popped), one of ``choices`` (the first when unset), else one line naming
+        the setting."""
+        value = settings.pop(key, None) or choices[0]
+        if value not in choices:
+            raise InputError(key, f"must be one of {', '.join(choices)}, got {value!r}")
+        return value
+
     def constants(self) -> dict:
         """Per-object constants the factor reads, as opaque Dr.Jit values (uploaded once)."""
         return {}

@@ -21,7 +21,6 @@ which is ``+z`` in each sample's tangent frame too.
 from __future__ import annotations
 
 from hzval.core.backend import dr
-from hzval.core.errors import InputError
 from hzval.techniques.perpixel import PerPixelFactor
 
 __all__ = ["Terminator", "VARIANTS", "conty", "chiang"]
@@ -59,10 +58,8 @@ class Terminator(PerPixelFactor):
 
     @classmethod
     def validate(cls, settings: dict) -> dict:
-        variant = settings.pop("variant", None) or "conty"
+        variant = cls.choice(settings, "variant", VARIANTS)
         super().validate(settings)
-        if variant not in VARIANTS:
-            raise InputError("variant", f"must be one of {', '.join(VARIANTS)}, got {variant!r}")
         return {"variant": variant}
 
     def factor(self, tex: dict, n, L, c: dict):

@@ -5,6 +5,7 @@ the glossy lobe and its sampling, the reflection estimate and the per-pixel mean
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Protocol, runtime_checkable
 
@@ -16,6 +17,7 @@ from hzval.core.shading import SPECULAR_EXPONENT, SPECULAR_KS
 from hzval.scene.spec import Frame, Scene, load_albedo
 
 __all__ = [
+    "relight",
     "LIFT_TEXELS",
     "LIFT_PER_HEIGHT",
     "AMBIENT_STREAM",
@@ -255,3 +257,24 @@ def albedo_at(texels, rows, cols, x, y, active=True):
     col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)
     row = dr.clip(mi.Int32(rows - dr.ceil(y)), 0, n_rows - 1)
     return dr.gather(mi.Color3f, texels, mi.UInt32(row * n_cols + col), active)
+
+
+def relight(truth, elevation_deg: float) -> bool:
+    """Point ``truth``'s light (``truth.scene``) at ``elevation_deg``, a sweep's elevation axis
+    (:meth:`hzval.scene.spec.Light.elevations`): at least the elevation it was built for
+    (``truth.built_elevation_deg``), whose margins and bands hold the longest shadow rays, and so
+    every higher light's. Whether the light changed (what a truth that traced its lights ahead must
+    trace again).
+
+    Raises
+    ------
+    ValueError
+        For an elevation below the one it was built for.
+    """
+    e = float(elevation_deg)
+    if e < truth.built_elevation_deg:
+        raise ValueError(f"a truth built for {truth.built_elevation_deg:g} degrees cannot light from {e:g}")
+    if e == float(truth.scene.light.elevation_deg):
+        return False
+    truth.scene = dataclasses.replace(truth.scene, light=truth.scene.light.at(e))
+    return True

@@ -49,7 +49,6 @@ of every score (``Frame.mask``).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 import time
@@ -447,14 +446,8 @@ class ModelTruth:
         return dr.gather(mi.Vector3f, mi.Float(s.ravel()), dr.arange(mi.UInt32, count))
 
     def light_at(self, elevation_deg: float) -> None:
-        """Light the frames that follow from ``elevation_deg`` (a sweep's elevation axis,
-        :meth:`hzval.scene.spec.Light.elevations`): at least the elevation it was built for, whose
-        margins and bands hold the longest shadow rays, and so every higher light's."""
-        if float(elevation_deg) < self.built_elevation_deg:
-            raise ValueError(
-                f"a truth built for {self.built_elevation_deg:g} degrees cannot light from {elevation_deg:g}"
-            )
-        self.scene = dataclasses.replace(self.scene, light=self.scene.light.at(elevation_deg))
+        """Light the frames that follow from ``elevation_deg`` (:func:`hzval.truth.common.relight`)."""
+        common.relight(self, elevation_deg)
 
     def render(self, azimuth_deg: float) -> Frame:
         """The frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation

@@ -187,7 +187,6 @@ FGED2 chapter 7 (Blinn-Phong); Walter et al. 2007 (half-vector sampling).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
@@ -553,17 +552,12 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         )
 
     def light_at(self, elevation_deg: float) -> None:
-        """Light the frames that follow from ``elevation_deg`` (a sweep's elevation axis,
-        :meth:`hzval.scene.spec.Light.elevations`): at least the elevation it was built for, whose
-        margins and bands hold the longest shadow rays, and so every higher light's."""
-        if float(elevation_deg) < self.built_elevation_deg:
-            raise ValueError(
-                f"a truth built for {self.built_elevation_deg:g} degrees cannot light from {elevation_deg:g}"
-            )
-        if float(elevation_deg) == float(self.scene.light.elevation_deg):
-            return
-        self.scene = dataclasses.replace(self.scene, light=self.scene.light.at(elevation_deg))
-        if self.mesh_bands is not None and self.scene.declares("shadow"):
+        """Light the frames that follow from ``elevation_deg`` (:func:`hzval.truth.common.relight`)."""
+        if (
+            common.relight(self, elevation_deg)
+            and self.mesh_bands is not None
+            and self.scene.declares("shadow")
+        ):
             # a mesh built in bands traced every light's shadow rays at once, for one elevation: trace
             # this one's (one elevation's bits at a time, as the memory plan counts them)
             self._vis = truth_bands.band_pass(self, self.scene.light.azimuths_deg)
