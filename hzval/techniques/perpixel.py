@@ -290,6 +290,16 @@ class PerPixelFactor(Technique):
         return cls(ctx.scene, ctx.bake, ctx.albedo, kernel=kernel, plain=unshadowed(ctx), **settings)
 
     @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        """Refuse a setting before anything is written (its flag named by the caller,
+        :func:`hzval.techniques.registry.flag_errors`)."""
+        own = dict(settings)
+        for t, value in (own.pop("storage", None) or {}).items():
+            if value not in STORAGES:
+                raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {value!r}")
+        cls.validate(own)
+
+    @classmethod
     def add_arguments(cls, parser) -> None:
         for t in cls.textures:
             add_storage_flag(parser, t, cls.texture(t))

@@ -291,3 +291,23 @@ def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, 
     r = math.radians(radius)
     want = _cap_numpy(theta_v, r, d) / (2 * math.pi * (1 - math.cos(r)))
     assert 0.05 < want < 0.95 and got == pytest.approx(want, abs=2e-3)
+
+
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["--microshadow-hdrp-opacity", "2"], "--microshadow-hdrp-opacity"),
+        (["--ao-storage", "bc7"], "--ao-storage"),
+    ],
+)
+def test_a_bad_setting_is_one_line_naming_its_flag(tmp_path, capsys, argv, flag):
+    from hzval.cli import main as cli
+
+    try:
+        code = cli.main(["sweep", "--size", "16", *argv, "--out", str(tmp_path / "o")])
+    except SystemExit as exc:  # argparse's own refusal of a choice
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"hzval: error: {flag}") or f"argument {flag}" in err
+    assert err.count("\n") == 1 and not (tmp_path / "o").exists()
