@@ -42,6 +42,7 @@ __all__ = [
     "write_exr",
     "is_grey",
     "read_exr",
+    "read_exr_attributes",
     "read_rgb_exr",
     "rgb_of",
     "library_output",
@@ -463,6 +464,7 @@ def write_exr(
     compression: str = "zip",
     half: bool = False,
     grey: bool = False,
+    attributes: Mapping[str, str] | None = None,
 ) -> None:
     """Write channels ``{name: (rows, cols)}`` to a scanline EXR, float32 or half.
 
@@ -482,6 +484,7 @@ def write_exr(
     ``grey``: an ``"RGB"``/``"RGBA"`` array whose R, G and B are bitwise equal
     is written as one ``Y`` channel (and ``A``): lossless, a third of the
     bytes; :func:`read_rgb_exr` reads either back as RGB.
+    ``attributes``: string attributes for the header (:func:`read_exr_attributes` reads them back).
     """
     import OpenEXR
 
@@ -499,7 +502,7 @@ def write_exr(
         "none": OpenEXR.NO_COMPRESSION,
         "pxr24": OpenEXR.PXR24_COMPRESSION,
     }[compression]
-    header = {"compression": codec, "type": OpenEXR.scanlineimage}
+    header = {"compression": codec, "type": OpenEXR.scanlineimage, **dict(attributes or {})}
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
@@ -556,6 +559,19 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     lines = [ln for ln in printed() if "EXR_ERR" in ln] or printed() or [first_line(error)]
     detail = lines[-1].removeprefix(f"{path}: ")
     raise InputError(path, f"truncated or corrupt EXR file: {detail}")
+
+
+def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
+    """The string attributes of an EXR's first header (those :func:`write_exr` was given, and any
+    other writer's); ``{}`` for a file that cannot be read (:func:`read_exr` names its problem)."""
+    import OpenEXR
+
+    with library_output():
+        try:
+            with OpenEXR.File(str(path), header_only=True) as f:
+                return {k: v for k, v in f.header().items() if isinstance(v, str)}
+        except Exception:  # the caller reads the channels too, which reports the damage
+            return {}
 
 
 def read_rgb_exr(path: str | os.PathLike) -> np.ndarray:

@@ -695,6 +695,9 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
         )
     f = ref.filters
     t = _Side(disp, f)
+    # evaluated apart, as the reference's are: in one kernel with what follows, CUDA's compiler may
+    # round them otherwise (FLIP of an image against itself was 6e-7 there, not 0)
+    dr.eval(t.L, t.A, t.B, t.edge, t.point)
     cd = _powf(hyab(ref.L, ref.A, ref.B, t.L, t.A, t.B), _K(QC))
     # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
     pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)

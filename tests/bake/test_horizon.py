@@ -28,9 +28,17 @@ def both(h, radius, boundary, **kw):
 
 
 def assert_identical(a, b):
+    """Bit for bit on the LLVM backend; on CUDA within 4 ulp, since its compiler may fuse a multiply
+    and an add of the straight-line kernel differently from the loop's (3 ulp seen at radius 2)."""
+    from hzval.core import backend
+
+    cuda = backend.variant().startswith("cuda")
     for x, y in zip(a, b):
         assert x.shape == y.shape and x.dtype == y.dtype == np.float32
-        assert x.tobytes() == y.tobytes(), float(np.max(np.abs(x.astype(np.float64) - y)))
+        if cuda:
+            np.testing.assert_array_max_ulp(x, y, maxulp=4)
+        else:
+            assert x.tobytes() == y.tobytes(), float(np.max(np.abs(x.astype(np.float64) - y)))
 
 
 # radius 40's unrolled kernel (4,992 offsets) takes ~13 s to compile with an

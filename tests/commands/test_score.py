@@ -89,7 +89,9 @@ def test_the_sweeps_own_images_reproduce_its_scores(sweep_dir, tmp_path):
                 assert mine["delta_e2000_mean"] == pytest.approx(theirs["delta_e2000_mean"], abs=1e-4)
                 assert mine["rmse"] == pytest.approx(theirs["rmse"], abs=tol)
             if source == "truth":
-                assert mine["rmse"] == 0 and mine["psnr_db"] is None
+                # 0 on LLVM (PSNR infinite, recorded null); on CUDA the compiler fuses the scaled
+                # difference into a multiply-add: 2e-17, PSNR 340 dB
+                assert mine["rmse"] <= 1e-12 and (mine["psnr_db"] is None or mine["psnr_db"] > 200)
         html = (out / "index.html").read_text(encoding="utf-8")
         assert "your renderer" in html and (out / "frames" / "az+0" / "engine_flip.png").is_file()
 

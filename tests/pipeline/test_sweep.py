@@ -441,7 +441,8 @@ def test_reflection_occlusion_is_measured_when_declared(variant, tmp_path, brick
             and "reflection_occlusion" in m["simulated"]["horizon"]
         )
         r = m["frames"][0]["techniques"]["horizon"]["reflection_mae"]
-        assert r == 0.0 if out.name == "flat" else 0.0 < r < 1.0
+        # flat: 0 to float32 rounding (exactly 0 on LLVM; CUDA's division and square root are approximate)
+        assert r <= 1e-6 if out.name == "flat" else 0.0 < r < 1.0
         assert "|o−R|" in (out / "index.html").read_text(encoding="utf-8")
     _, first, _ = bricks_sweep
     assert all("reflection_mae" not in te for f in first["frames"] for te in f["techniques"].values())

@@ -64,7 +64,10 @@ def small_context(effects=("shadow", "diffuse"), n=24):
 @pytest.mark.parametrize("name", technique.names())
 def test_every_technique_renders_a_documented_frame(variant, name):
     ctx = small_context()
-    t = technique.get(name).build(ctx)
+    try:
+        t = technique.get(name).build(ctx)
+    except technique.Unavailable as e:  # the GLSL ones, where no OpenGL 3.3 context can be made
+        pytest.skip(str(e))
     assert t.name == name and technique.get(name).applies(ctx.scene)
     assert set(t.simulated) <= set(ctx.scene.effects)
     f = t.render(30.0)

@@ -267,9 +267,10 @@ def test_the_plane_still_refuses_a_perspective_reflection():
 def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(variant):
     """A flat map on a sphere: a convex surface with no relief, so the lobe (exponent 64, about 10
     degrees wide) is blocked only where it dips below the base surface's horizon, near the
-    silhouette: ``R = 1`` exactly where the vertex normal faces the camera within 25 degrees (the
+    silhouette: ``R = 1`` where the vertex normal faces the camera within 25 degrees (the
     lobe would need a half vector 32 degrees off the normal, a share of 2e-5, to reach the
-    horizon), below 1 where it grazes."""
+    horizon), below 1 where it grazes. "1" to float32 rounding: exactly 1 on the LLVM backend, a few
+    ulp below it on CUDA, whose single-precision division and square root are approximate."""
     scene = _scene(
         n=32,
         boundary="wrap",
@@ -287,5 +288,5 @@ def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(varian
     nv = np.sum(f[:, 6:9] * f[:, 9:12], axis=1).reshape(-1, scene.spp).min(axis=1)
     facing, grazing = mt.seen.ravel() & (nv > 0.9), mt.seen.ravel() & (nv < 0.3)
     assert facing.sum() > 300 and grazing.sum() > 20
-    assert R[facing].min() == 1.0
+    assert R[facing].min() >= 1.0 - 1e-6
     assert R[grazing].min() < 0.95  # the lobe's lower edge goes below the horizon there
