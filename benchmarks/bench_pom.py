@@ -10,11 +10,14 @@ first) and prints, side by side in one run: the factor's time per frame
 the shared unshadowed shading), the horizon map's frame time and their
 ratio, and the mean |F - V| against the truth. Kernels compiled after each
 variant's first warm-up must be 0: the step count and every per-frame value are
-opaque (the script exits 1 otherwise).
+opaque (the script exits 1 otherwise). Then the march's skip table at each reach
+(``--reaches``) against none, side by side: its factor time and whether every F
+is bit for bit the full march's (exit 1 otherwise).
 
 Usage::
 
     .venv/bin/python benchmarks/bench_pom.py [--size 512] [--frames 9] [--spp 16] [--truth-spp 64]
+                                             [--steps 4,8,16,32,64] [--reaches 1,2,3,4,8]
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--truth-spp", type=int, default=64)
     ap.add_argument("--steps", default="4,8,16,32,64")
+    ap.add_argument("--reaches", default="1,2,3,4,8", help="skip-table reaches (texels) to time")
     args = ap.parse_args(argv)
 
     import dataclasses
@@ -100,7 +104,37 @@ def main(argv: list[str] | None = None) -> int:
                 f"{f'pom {v}, {steps} steps':<28} {f_ms:10.2f} {r_ms:10.2f} {r_ms / h_ms:10.2f} {mae:8.4f} "
                 f"{compiled + compiled2:9d}"
             )
+    bad |= _skip_table_table(args, scene, height, plain, azimuths, timed)
     return 1 if bad else 0
+
+
+def _skip_table_table(args, scene, height, plain, azimuths, timed) -> bool:
+    """The march's skip table (``pom.SKIP_RADIUS``) at each reach against none, side by side at the
+    default steps: factor ms, the ratio, and whether every F is bit for bit the full march's."""
+    from hzval.techniques import pom
+
+    default = pom.SKIP_RADIUS
+    print(f"\n# skip table (pom.SKIP_RADIUS, default {default:g}) at {pom.DEFAULT_STEPS} steps")
+    print(f"{'variant':<8} {'reach':>8} {'factor ms':>10} {'x none':>8} {'F as none':>10}")
+    bad = False
+    try:
+        for v in pom.VARIANTS:
+            reference = None
+            for reach in (None, *(float(r) for r in args.reaches.split(","))):
+                pom.SKIP_RADIUS = reach
+                m = pom.RayMarchShadow(scene, height, variant=v, unshadowed=plain)
+                m.factor(-60.0, scene.light.elevation_deg)  # compile or load
+                f_ms, _, _ = timed(lambda az: m.factor(az, scene.light.elevation_deg))  # noqa: B023
+                F = [m.factor(az, scene.light.elevation_deg).tobytes() for az in azimuths]
+                if reference is None:
+                    reference, none_ms = F, f_ms
+                same = F == reference
+                bad |= not same
+                label = "none" if reach is None else f"{reach:g}"
+                print(f"{v:<8} {label:>8} {f_ms:10.2f} {f_ms / none_ms:8.2f} {'same' if same else 'DIFFERS':>10}")
+    finally:
+        pom.SKIP_RADIUS = default
+    return bad
 
 
 if __name__ == "__main__":

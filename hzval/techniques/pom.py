@@ -41,6 +41,12 @@ nothing (as :mod:`hzval.techniques.surface`). The shading is the other technique
 :class:`hzval.techniques.surface.Unshadowed` times the pixel mean of ``F``
 (:func:`hzval.core.shading.compose`).
 
+Skipping
+    Steps that cannot block are passed over: where a sample's ray height is at least the largest
+    height within a few texels (:data:`SKIP_RADIUS`, a one-level maximum mipmap), the samples
+    within that reach along the ray are not read. ``F`` is bit for bit the full march's
+    (:class:`_SkipTable` says why).
+
 Dr.Jit: one kernel for every step count, light and material (the step count,
 the light's direction, ``tan(e)``, ``h_max`` and ``w`` are opaque), one per
 variant; a per-pixel loop over the pixel's samples, each marching in a
@@ -63,7 +69,7 @@ from hzval.scene.spec import Frame, Scene, image_shape
 from hzval.techniques import surface
 from hzval.techniques.registry import Variant
 
-__all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS"]
+__all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS", "SKIP_RADIUS"]
 
 #: The two shadow tests (module docstring).
 VARIANTS: tuple[str, ...] = ("hard", "soft")
@@ -199,6 +205,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
         self.spp = int(scene.spp)
         self._uv = samples.uv()  # shared
         self._frames, self._macro = samples.frame_array(), samples.macro  # a model's (lookup.Samples)
+        self._skip = None if SKIP_RADIUS is None else _SkipTable(h, SKIP_RADIUS, scene.material.boundary)
         self._c = {
             "steps": dr.opaque(mi.UInt32, self.steps),
             "w": dr.opaque(mi.Float, self.softness),
@@ -370,19 +377,26 @@ class RayMarchShadow(surface.HeightFieldShadow):
         t_max = dr.maximum(c["h_max"] - h0, 0.0) / tan_e
         dt = t_max / mi.Float(c["steps"])
         soft = self.variant == "soft"
+        # the steps a sample above its skip table's maximum passes over: those within SKIP_RADIUS
+        # texels of it along the ray, whose heights that maximum bounds (_SkipTable)
+        if self._skip is not None:
+            jump = mi.UInt32(dr.minimum(SKIP_RADIUS / dr.maximum(dt, 1e-30), mi.Float(c["steps"]))) + 1
 
         def body(i, blocked, rise):
             t = dt * mi.Float(i)
             p = mi.Point2f(dr.fma(du, t, uv.x), dr.fma(dv, t, uv.y))
-            above = self._height.eval(p)[0] - dr.fma(t, tan_e, h0) - c["eps"]  # H_i - z_i
+            z = dr.fma(t, tan_e, h0)
+            # this sample and the next jump - 1 cannot block
+            clear = mi.Bool(False) if self._skip is None else self._skip.at(p) <= z
+            above = self._height.eval(p, active=~clear)[0] - z - c["eps"]  # H_i - z_i
             if open_tile:
                 outside = (p.x < 0.0) | (p.x > 1.0) | (p.y < 0.0) | (p.y > 1.0)
                 above = dr.select(outside, -1.0, above)  # nothing beyond the border
             if soft:
-                rise = dr.maximum(rise, above / t)
+                rise = dr.select(clear, rise, dr.maximum(rise, above / t))
             else:
-                blocked |= above > 0.0
-            return i + 1, blocked, rise
+                blocked |= ~clear & (above > 0.0)
+            return (i + 1 if self._skip is None else dr.select(clear, i + jump, i + 1)), blocked, rise
 
         _, blocked, rise = dr.while_loop(
             state=(mi.UInt32(1), mi.Bool(False), mi.Float(0.0)),
@@ -392,6 +406,57 @@ class RayMarchShadow(surface.HeightFieldShadow):
         if soft:
             return dr.clip(1.0 - c["w"] * rise, 0.0, 1.0)
         return dr.select(blocked, 0.0, 1.0)
+
+
+#: The reach of the march's skip table, in texels (:class:`_SkipTable`); ``None`` marches every step.
+#: Short, because a wider window's maximum is a nearby crest the climbing rays have yet to clear
+#: (benchmarks/README.md, ``bench_pom.py``, has the reaches measured).
+SKIP_RADIUS: float | None = 2.0
+
+
+class _SkipTable:
+    """The largest height near each texel, which lets the march pass over samples that cannot block.
+
+    ``M[texel] = max H`` over the texels within ``ceil(radius) + 1`` of it (Chebyshev distance, in
+    whole texels; the tile's boundary as the height texture's: wrapped, or clamped to the border).
+    A sample ``j`` of the march within ``radius`` texels of sample ``i`` (``(j - i) dt <= radius``)
+    reads the texels whose centres lie less than 1 from ``p_j`` on each axis (bilinear), so less
+    than ``radius + 1.5`` from the centre of the texel that holds ``p_i``: at most ``ceil(radius) +
+    1`` whole texels from it. Its height is at most ``M`` there, to a few float32 ulps. Where ``M <= z_i``, the ray's height at
+    ``i``, which only rises, no sample up to ``j`` rises above the ray by more than those ulps, far
+    inside the test's margin (:data:`EPSILON_PER_HEIGHT`): the hard test's ``blocked`` and the soft
+    one's ``rise`` are bit for bit those of the full march. A max-mip of sorts (Tevs et al. 2008,
+    "Maximum mipmaps for fast, accurate, and scalable dynamic height field rendering"), one level.
+    """
+
+    def __init__(self, h: np.ndarray, radius: float, boundary: str):
+        import drjit as dr
+        import mitsuba as mi
+        from scipy import ndimage
+
+        size = 2 * (int(math.ceil(radius)) + 1) + 1
+        mode = "wrap" if boundary == "wrap" else "nearest"
+        table = ndimage.maximum_filter(np.asarray(h, np.float32), size=size, mode=mode)
+        self.rows, self.cols = table.shape
+        self.wrap = boundary == "wrap"
+        self._values = mi.Float(np.ascontiguousarray(table).ravel())
+        self._size = (dr.opaque(mi.Float, float(self.cols)), dr.opaque(mi.Float, float(self.rows)))
+        self._ints = (dr.opaque(mi.Int32, self.cols), dr.opaque(mi.Int32, self.rows))
+
+    def at(self, p):
+        """``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        cols, rows = self._ints
+        x = mi.Int32(dr.floor(p.x * self._size[0]))
+        y = mi.Int32(dr.floor(p.y * self._size[1]))
+        if self.wrap:
+            x, y = x - cols * mi.Int32(dr.floor(mi.Float(x) / self._size[0])), y - rows * mi.Int32(
+                dr.floor(mi.Float(y) / self._size[1])
+            )
+        x, y = dr.clip(x, 0, cols - 1), dr.clip(y, 0, rows - 1)
+        return dr.gather(mi.Float, self._values, mi.UInt32(y * cols + x))
 
 
 def _validate(steps, variant: str, softness: float) -> None:

@@ -204,3 +204,36 @@ def test_sweep_scores_it_with_its_own_options(variant, tmp_path, capsys):
     assert cli.main(["sweep", "--size", "24", "--pom-steps", "0", "--quiet", "--out", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("hzval: error: --pom-steps") and "\n" not in err and not bad.exists()
+
+
+def _adversarial_maps(rng):
+    """Maps where the skip table's bound is tight: plateaus at a few exact levels (a ray's height
+    meets a maximum exactly), white noise, and sparse spikes one texel wide on a flat floor."""
+    levels = rng.integers(0, 4, (6, 6)).astype(np.float32) / 3
+    plateaus = np.kron(levels, np.ones((5, 5), np.float32))
+    spikes = np.where(rng.random((30, 30)) < 0.03, rng.random((30, 30)), 0).astype(np.float32)
+    return {"plateaus": plateaus, "noise": rng.random((30, 30)).astype(np.float32), "spikes": spikes}
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "open"])
+@pytest.mark.parametrize("variant_", pom.VARIANTS)
+def test_the_skip_table_leaves_every_factor_bit_for_bit(variant, monkeypatch, boundary, variant_):
+    """The march that passes over samples below its skip table's maximum (pom.SKIP_RADIUS) gives the
+    full march's F exactly, at low and high suns and every octant, with 1 to 32 steps."""
+    rng, reach = np.random.default_rng(5), pom.SKIP_RADIUS
+    for name, h in _adversarial_maps(rng).items():
+        shadowed = False
+        for steps in (1, 7, 32):
+            factors = {}
+            for table in (reach, None):
+                monkeypatch.setattr(pom, "SKIP_RADIUS", table)
+                factors[table] = [
+                    march(h, 0.2, boundary, elevation=e, spp=4, steps=steps, variant=variant_).factor(az, e)
+                    for e in (3.0, 12.0, 25.0, 70.0)
+                    for az in (0.0, 45.0, 100.0, 163.0, 200.0, 290.0)
+                ]
+            skipped, full = factors.values()
+            for a, b in zip(skipped, full):
+                assert a.tobytes() == b.tobytes(), (name, steps)
+            shadowed |= any((f < 1).any() for f in full)
+        assert shadowed, name  # each map casts shadows
