@@ -131,7 +131,8 @@ def _skip_table_table(args, scene, height, plain, azimuths, timed) -> bool:
                 same = F == reference
                 bad |= not same
                 label = "none" if reach is None else f"{reach:g}"
-                print(f"{v:<8} {label:>8} {f_ms:10.2f} {f_ms / none_ms:8.2f} {'same' if same else 'DIFFERS':>10}")
+                verdict = "same" if same else "DIFFERS"
+                print(f"{v:<8} {label:>8} {f_ms:10.2f} {f_ms / none_ms:8.2f} {verdict:>10}")
     finally:
         pom.SKIP_RADIUS = default
     return bad

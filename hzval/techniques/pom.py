@@ -422,11 +422,12 @@ class _SkipTable:
     A sample ``j`` of the march within ``radius`` texels of sample ``i`` (``(j - i) dt <= radius``)
     reads the texels whose centres lie less than 1 from ``p_j`` on each axis (bilinear), so less
     than ``radius + 1.5`` from the centre of the texel that holds ``p_i``: at most ``ceil(radius) +
-    1`` whole texels from it. Its height is at most ``M`` there, to a few float32 ulps. Where ``M <= z_i``, the ray's height at
-    ``i``, which only rises, no sample up to ``j`` rises above the ray by more than those ulps, far
-    inside the test's margin (:data:`EPSILON_PER_HEIGHT`): the hard test's ``blocked`` and the soft
-    one's ``rise`` are bit for bit those of the full march. A max-mip of sorts (Tevs et al. 2008,
-    "Maximum mipmaps for fast, accurate, and scalable dynamic height field rendering"), one level.
+    1`` whole texels from it. Its height is at most ``M`` there, to a few float32 ulps. Where
+    ``M <= z_i``, the ray's height at ``i``, which only rises, no sample up to ``j`` rises above
+    the ray by more than those ulps, far inside the test's margin (:data:`EPSILON_PER_HEIGHT`): the
+    hard test's ``blocked`` and the soft one's ``rise`` are bit for bit those of the full march.
+    A maximum mipmap of one level (Tevs et al. 2008, "Maximum mipmaps for fast, accurate, and
+    scalable dynamic height field rendering").
     """
 
     def __init__(self, h: np.ndarray, radius: float, boundary: str):
@@ -452,8 +453,9 @@ class _SkipTable:
         x = mi.Int32(dr.floor(p.x * self._size[0]))
         y = mi.Int32(dr.floor(p.y * self._size[1]))
         if self.wrap:
-            x, y = x - cols * mi.Int32(dr.floor(mi.Float(x) / self._size[0])), y - rows * mi.Int32(
-                dr.floor(mi.Float(y) / self._size[1])
+            x, y = (
+                x - cols * mi.Int32(dr.floor(mi.Float(x) / self._size[0])),
+                y - rows * mi.Int32(dr.floor(mi.Float(y) / self._size[1])),
             )
         x, y = dr.clip(x, 0, cols - 1), dr.clip(y, 0, rows - 1)
         return dr.gather(mi.Float, self._values, mi.UInt32(y * cols + x))
