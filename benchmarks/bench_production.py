@@ -7,9 +7,10 @@ the bytes under ``frames/``):
 ``stages``
     The default sweep of the built-in bricks at each size (``--sizes 512,1024,2048,4096``),
     with the lights of ``--azimuths`` (default ``-60:60:120``, two lights), and a table of
-    seconds per stage, peak resident memory (the child's own ``ru_maxrss``, beside the sweep's
-    estimate) and the frame bytes, each with its growth from one size to the next (4x the
-    pixels per step).
+    seconds per stage, wall and CPU (every thread's, ``metrics.json``'s ``timings.cpu_s``; a
+    stage's CPU beyond its wall time is its use of the cores), peak resident memory (the child's
+    own ``ru_maxrss``, beside the sweep's estimate) and the frame bytes, each with its growth from
+    one size to the next (4x the pixels per step).
 
 ``side-by-side``
     The same sweep on this tree and on ``--baseline REV`` (a detached ``git worktree`` of it,
@@ -39,17 +40,21 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: Stages of metrics.json's timings, in the order of a sweep, as (label, keys summed).
+#: Stages of metrics.json's timings, in the order of a sweep, as (label, keys summed, its key in
+#: ``timings.cpu_s``). The techniques' set-up and frames also sum every technique's own
+#: ``<stem>_setup_s`` and ``<stem>_s`` (:func:`stage_seconds`).
 STAGES = (
-    ("bake", ("bake_s",)),
-    ("truth set-up", ("truth_setup_s",)),
-    ("technique set-up", ("plain_setup_s", "approx_setup_s", "terrain_setup_s", "pom_setup_s")),
-    ("truth frames", ("truth_s",)),
-    ("technique frames", ("plain_s", "approx_s", "terrain_s", "pom_s")),
-    ("compare", ("compare_s",)),
-    ("write", ("write_s",)),
-    ("report", ("report_s",)),
+    ("bake", ("bake_s",), "bake"),
+    ("truth set-up", ("truth_setup_s",), "truth_setup"),
+    ("technique set-up", ("plain_setup_s",), "technique_setup"),
+    ("truth frames", ("truth_s",), "truth_frames"),
+    ("technique frames", ("plain_s",), "technique_frames"),
+    ("compare", ("compare_s",), "compare"),
+    ("write", ("write_s",), "write"),
+    ("report", ("report_s",), "report"),
 )
+#: Timings that are not a technique's own.
+_NOT_TECHNIQUES = {k for _, keys, _ in STAGES for k in keys} | {"total_s", "view_setup_s"}
 
 
 def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
@@ -77,7 +82,23 @@ def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
 
 
 def stage_seconds(timings: dict) -> dict:
-    return {label: sum(float(timings.get(k) or 0.0) for k in keys) for label, keys in STAGES}
+    """Wall seconds per stage of :data:`STAGES` from ``metrics.json``'s timings."""
+    own = [k for k, v in timings.items() if k not in _NOT_TECHNIQUES and isinstance(v, (int, float))]
+    own = [k for k in own if k.endswith("_s") and not k.startswith("truth_")]
+    extra = {
+        "technique set-up": [k for k in own if k.endswith("_setup_s")],
+        "technique frames": [k for k in own if not k.endswith("_setup_s")],
+    }
+    return {
+        label: sum(float(timings.get(k) or 0.0) for k in (*keys, *extra.get(label, ())))
+        for label, keys, _ in STAGES
+    }
+
+
+def stage_cpu_seconds(timings: dict) -> dict:
+    """Process CPU seconds per stage (every thread's), where the sweep recorded them (``cpu_s``)."""
+    cpu = timings.get("cpu_s") or {}
+    return {label: cpu.get(key) for label, _, key in STAGES}
 
 
 def gib(n: float) -> str:
@@ -92,14 +113,25 @@ def stages(sizes: list[int], azimuths: str, extra: list[str], scratch: Path) -> 
     head = ["stage"] + [f"{n}" for n in sizes] + [f"x {b}/{a}" for a, b in zip(sizes, sizes[1:])]
     rows = []
     secs = {n: stage_seconds(r["metrics"]["timings"]) for n, r in runs.items()}
-    for label, _ in STAGES:
+    cpus = {n: stage_cpu_seconds(r["metrics"]["timings"]) for n, r in runs.items()}
+    for label, _, _ in STAGES:
         vals = [secs[n][label] for n in sizes]
         rows.append([label] + [f"{v:.1f} s" for v in vals] + [_ratio(b, a) for a, b in zip(vals, vals[1:])])
+        cpu = [cpus[n][label] for n in sizes]
+        rows.append(
+            ["  CPU"]
+            + [f"{v:.1f} s" if v is not None else "-" for v in cpu]
+            + [_ratio(b, a) if a and b else "" for a, b in zip(cpu, cpu[1:])]
+        )
     total = [runs[n]["wall_s"] for n in sizes]
     rows.append(
         ["wall (whole run)"]
         + [f"{v:.1f} s" for v in total]
         + [_ratio(b, a) for a, b in zip(total, total[1:])]
+    )
+    cpu = [runs[n]["cpu_s"] for n in sizes]
+    rows.append(
+        ["  CPU user + sys"] + [f"{v:.1f} s" for v in cpu] + [_ratio(b, a) for a, b in zip(cpu, cpu[1:])]
     )
     peak = [runs[n]["peak_bytes"] for n in sizes]
     rows.append(["peak memory"] + [gib(v) for v in peak] + [_ratio(b, a) for a, b in zip(peak, peak[1:])])
@@ -134,7 +166,7 @@ def side_by_side(
     so, sn = stage_seconds(old["metrics"]["timings"]), stage_seconds(new["metrics"]["timings"])
     rows = [
         [label, f"{so[label]:.1f} s", f"{sn[label]:.1f} s", _ratio(sn[label], so[label])]
-        for label, _ in STAGES
+        for label, _, _ in STAGES
     ]
     rows.append(
         [

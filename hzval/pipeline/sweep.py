@@ -50,6 +50,7 @@ for its next allocations until it ends (:data:`RETAIN_BELOW_SHARE`,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -200,6 +201,17 @@ class _Setup:
     albedo: np.ndarray | None = None  # the albedo image where it is not one value (written for engines)
 
 
+@contextlib.contextmanager
+def _cpu(seconds: dict, stage: str):
+    """Add the process's CPU time (every thread's: Dr.Jit's workers and the writers' too) over the
+    block to ``seconds[stage]``: ``metrics.json``'s ``timings.cpu_s``, beside the stages' wall time."""
+    c0 = time.process_time()
+    try:
+        yield
+    finally:
+        seconds[stage] = seconds.get(stage, 0.0) + time.process_time() - c0
+
+
 def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> _Setup:
     """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
     with the report), build the truth and every selected technique; timed."""
@@ -226,33 +238,37 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         "path": files.report_path(hm.path, out),
     }
     t0 = time.perf_counter()
+    cpu: dict[str, float] = {}
     notices: list[str] = []
     if hm.colour:  # said on the terminal, not only in metrics.json: the user may not expect it
         notices.append(f"{hm.path}: a colour image, read as heights by its {hm.source.split('-> ')[-1]}")
     horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
     record = {**material, "path": files.report_path(hm.path, out / "bake")}  # relative to bake.json's folder
-    baked, cached = bake.cached_bake(
-        hm.height,
-        hm.digest,
-        params,
-        out / "bake",
-        record,
-        notices,
-        horizon=horizon,
-        write_to=None if report_dir is None else report_dir / "bake",
-    )
-    timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached}
+    with _cpu(cpu, "bake"):
+        baked, cached = bake.cached_bake(
+            hm.height,
+            hm.digest,
+            params,
+            out / "bake",
+            record,
+            notices,
+            horizon=horizon,
+            write_to=None if report_dir is None else report_dir / "bake",
+        )
+    timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached, "cpu_s": cpu}
     t0 = time.perf_counter()
-    albedo = sc.load_albedo(scene.material, rows, cols)
-    the_truth, points = truth_of(scene, hm.height, albedo, plan)
+    with _cpu(cpu, "truth_setup"):
+        albedo = sc.load_albedo(scene.material, rows, cols)
+        the_truth, points = truth_of(scene, hm.height, albedo, plan)
     timings["truth_setup_s"] = time.perf_counter() - t0
     if points is not None:  # a model: its mesh (cut, displaced, its BVH) and camera rays
         timings.update({f"truth_{k}": v for k, v in the_truth.timings.items()})
     ctx = technique.Context(scene, hm.height, baked, albedo, points=points, cache=out / "fit")
     t0 = time.perf_counter()
-    plain = surface.unshadowed(ctx)
-    timings["plain_setup_s"] = time.perf_counter() - t0
-    built = _build_techniques(ctx, chosen, options, timings, notices)
+    with _cpu(cpu, "technique_setup"):
+        plain = surface.unshadowed(ctx)
+        timings["plain_setup_s"] = time.perf_counter() - t0
+        built = _build_techniques(ctx, chosen, options, timings, notices)
     chosen = [type(t) for t in built]
     setup = _Setup(
         material,
@@ -455,7 +471,7 @@ def _run(
     if setup.view_maps:
         setup.view["files"] = writing.write_view_maps(report_dir, setup.view_maps, setup.truth.seen)
     scale = shading.exposure(scene)
-    clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0}
+    clock = {"compare_s": 0.0, "write_s": 0.0, "plain_s": 0.0, "cpu_s": setup.timings["cpu_s"]}
     bar = tqdm(
         lights(scene),
         desc="sweep",
@@ -475,8 +491,9 @@ def _run(
     if gates:
         gates.apply(result)  # a baseline of other settings raises here: nothing is swapped in
     t0 = time.perf_counter()
-    albedo_files = None if setup.albedo is None else writing.write_albedo(report_dir, setup.albedo)
-    plot_files = report.write_plots(report_dir, result)
+    with _cpu(clock["cpu_s"], "report"):
+        albedo_files = None if setup.albedo is None else writing.write_albedo(report_dir, setup.albedo)
+        plot_files = report.write_plots(report_dir, result)
     result["memory"] = {
         "peak_rss_bytes": peak_rss_bytes(),
         "estimate_bytes": setup.estimate,
@@ -517,17 +534,13 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
             setup.truth.light_at(el)
         # no name holds a frame's renders past its _finish: the next frame's renders would
         # otherwise be made beside them (1.8 GB at 4096 x 4096)
-        frames.append(
-            _finish(
-                out,
-                scene,
-                setup,
-                _render(setup, setup.truth.render(az), az, el, scale, clock),
-                scale,
-                clock,
-                all_files,
-            )
-        )
+        with _cpu(clock["cpu_s"], "truth_frames"):
+            t_frame = setup.truth.render(az)
+        with _cpu(clock["cpu_s"], "technique_frames"):
+            rendered = _render(setup, t_frame, az, el, scale, clock)
+        del t_frame
+        frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
+        del rendered
     return frames
 
 
@@ -580,7 +593,7 @@ def _finish(
     # every frame's buffers cost 1 s a frame at 2048
     release = backend.release_memory if not setup.truth.keeps else (lambda: None)
     release()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     ref = compare.Reference(t_frame, scale)
     compared = []
     for t, f in r.techniques:
@@ -598,6 +611,8 @@ def _finish(
     truth_shown = writing.shown(ref.display)
     del ref
     clock["compare_s"] += time.perf_counter() - t0
+    clock["cpu_s"]["compare"] = clock["cpu_s"].get("compare", 0.0) + time.process_time() - c0
+    c0 = time.process_time()
     rel, tech_files, seconds = writing.write_frame(
         out,
         records.frame_folder(az, r.elevation_deg),
@@ -610,6 +625,7 @@ def _finish(
         mask=t_frame.mask,
     )
     clock["write_s"] += seconds
+    clock["cpu_s"]["write"] = clock["cpu_s"].get("write", 0.0) + time.process_time() - c0
     frame = {
         "name": records.frame_folder(az, r.elevation_deg),
         "azimuth_deg": az,
