@@ -63,11 +63,12 @@ def run_sweep(tree: Path, out: Path, args: list[str]) -> dict:
     cmd = [sys.executable, "-m", "hzval", "sweep", *args, "--out", str(out)]
     env = {**os.environ, "PYTHONPATH": str(tree)}
     t0 = time.perf_counter()
-    child = subprocess.Popen(cmd, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
-    wall = time.perf_counter() - t0
-    err = child.stderr.read().decode(errors="replace").strip().splitlines()
-    child.stderr.close()
+    with tempfile.TemporaryFile() as stderr:  # a file, not a pipe: a chatty child cannot fill it and stall
+        child = subprocess.Popen(cmd, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=stderr)
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.perf_counter() - t0
+        stderr.seek(0)
+        err = stderr.read().decode(errors="replace").strip().splitlines()
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"{' '.join(cmd)} (in {tree}) failed: {err[-1] if err else status}")
     metrics = json.loads((out / "metrics.json").read_text())

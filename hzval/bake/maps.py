@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.bake import occlusion
+from hzval.bake import occlusion as directional
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
 from hzval.core import conventions as cv
@@ -42,6 +42,7 @@ __all__ = [
     "METHOD_NOTES",
     "CONTENTS",
     "needs_horizon",
+    "needs_occlusion",
     "bake",
     "write_bake",
     "read_bake",
@@ -173,7 +174,8 @@ class Bake:
     3)`` unit
     tangent-space normals. ``mean_cos``, ``mean_cos2``: ``(rows, cols)``
     ambient terms. ``timings``: seconds per stage. ``bent_normal``, ``ssbump``: ``(rows, cols, 3)``,
-    the directional occlusion of :mod:`hzval.bake.occlusion` (``None`` in a bake without a horizon map).
+    the directional occlusion of :mod:`hzval.bake.occlusion` (``None`` in a bake without a horizon map,
+    or one made without them: :func:`bake`'s ``occlusion``).
     """
 
     params: BakeParams
@@ -193,7 +195,9 @@ class Bake:
     @property
     def contents(self) -> tuple[str, ...]:
         """What the bake holds (:data:`CONTENTS`)."""
-        return CONTENTS if self.horizon is not None else ("normal",)
+        if self.horizon is None:
+            return ("normal",)
+        return CONTENTS if self.bent_normal is not None else CONTENTS[:3]
 
     @property
     def layers(self) -> tuple[np.ndarray, ...]:
@@ -258,7 +262,7 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
     pad = params.radius - 1 if params.method == "seed" else 0
     per_texel = (
         BAKE_BYTES_PER_TEXEL
-        + occlusion.BYTES_PER_TEXEL
+        + directional.BYTES_PER_TEXEL
         + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (params.directions - cv.CHANNEL_COUNT)
     )
     return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
@@ -289,6 +293,13 @@ METHOD_NOTES: dict[str, str] = {
 CONTENTS: tuple[str, ...] = ("normal", "horizon_map", "ambient", "bent_normal", "ssbump_map")
 
 
+def needs_occlusion(needs) -> bool:
+    """Whether bake needs ``needs`` call for the directional occlusion (the bent normals and the
+    self-shadowed bump map): at 2048 x 2048 they take 3.5 s of a 4.4 s bake, so a sweep whose
+    techniques read neither bakes without them."""
+    return bool({"bent_normal", "ssbump_map"} & set(needs))
+
+
 def needs_horizon(needs) -> bool:
     """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
     bake: the horizon map, and the ambient maps and directional occlusion, which are made from its
@@ -296,9 +307,12 @@ def needs_horizon(needs) -> bool:
     return bool({"horizon_map", "ambient", "bent_normal", "ssbump_map"} & set(needs))
 
 
-def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True) -> Bake:
+def bake(
+    height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True, occlusion: bool = True
+) -> Bake:
     """Bake a normalised height map ``H[row, col]`` into the technique's textures; ``horizon=False``:
-    the normal map alone (:func:`normals_only`), without the horizon bake's cost."""
+    the normal map alone (:func:`normals_only`), without the horizon bake's cost; ``occlusion=False``:
+    without the directional occlusion (:func:`needs_occlusion`)."""
     from hzval.core import backend
 
     params.validate()
@@ -321,8 +335,10 @@ def bake(height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool
         )
     t2 = time.perf_counter()
     timings["horizon_s"] = t2 - t1
-    bent, ss = occlusion.bent_normal(horizon), occlusion.self_shadowed_bump(horizon, normal)
-    timings["occlusion_s"] = time.perf_counter() - t2
+    bent = ss = None
+    if occlusion:
+        bent, ss = directional.bent_normal(horizon), directional.self_shadowed_bump(horizon, normal)
+        timings["occlusion_s"] = time.perf_counter() - t2
     return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss)
 
 
@@ -367,6 +383,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         png("normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.normal)
         if full:
             exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
+        if result.bent_normal is not None:
             exr("bent_normal.exr", {"RGB": result.bent_normal})
             png("bent_normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.bent_normal)
             exr("ssbump.exr", {"RGB": result.ssbump})
@@ -388,7 +405,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
                 "contents": list(result.contents),
                 "parameters": result.params.record() if full else _normal_record(result.params),
                 **({"method": METHOD_NOTES[result.params.method]} if full else {}),
-                "outputs": _output_notes(result.directions, full),
+                "outputs": _output_notes(result.directions, full, result.bent_normal is not None),
                 "conventions": "docs/ARCHITECTURE.md: +x right, +y up the image, "
                 "azimuth counterclockwise from +x; "
                 "heights in texel units are H * depth * cols",
@@ -405,7 +422,9 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
         f"horizon{i}.{ext}"
         for i in range(len(layers), cv.layer_count(max(cv.DIRECTION_COUNTS)))
         for ext in ("exr", "png")
-    ] + ([] if full else ["ambient.exr", "bent_normal.exr", "bent_normal.png", "ssbump.exr", "ssbump.png"])
+    ] + ([] if full else ["ambient.exr"])
+    if result.bent_normal is None:
+        stale += ["bent_normal.exr", "bent_normal.png", "ssbump.exr", "ssbump.png"]
     if cube is None:
         stale += [f"cube/{face}.png" for face in cube_layout.CUBE_FACES]
     for name in stale:
@@ -420,9 +439,10 @@ def _normal_record(params: BakeParams) -> dict:
     return {"depth": params.depth, "boundary": params.boundary}
 
 
-def _output_notes(directions: int, full: bool = True) -> dict:
+def _output_notes(directions: int, full: bool = True, occluded: bool = True) -> dict:
     """``bake.json``'s description of the files of a ``directions``-channel bake (``full``: with the
-    horizon and ambient maps; else the normal map alone)."""
+    horizon and ambient maps, ``occluded``: and the directional occlusion; else the normal map
+    alone)."""
     n = cv.CHANNELS_PER_LAYER
     notes = {}
     if not full:
@@ -434,11 +454,12 @@ def _output_notes(directions: int, full: bool = True) -> dict:
         )
     notes["normal"] = "tangent-space unit normal (PNG: 0.5 + 0.5 n)"
     notes["ambient"] = "mean_cos (Lengyel) and mean_cos2 (cosine-weighted unoccluded fraction)"
-    notes["bent_normal"] = "cosine-weighted mean unoccluded direction, tangent space (PNG: 0.5 + 0.5 b)"
-    notes["ssbump_map"] = (
-        "Valve's self-shadowed bump map: max(0, n . b_c) times the open share about b_c, "
-        "b_c Half-Life 2's basis (docs/techniques.md)"
-    )
+    if occluded:
+        notes["bent_normal"] = "cosine-weighted mean unoccluded direction, tangent space (PNG: 0.5 + 0.5 b)"
+        notes["ssbump_map"] = (
+            "Valve's self-shadowed bump map: max(0, n . b_c) times the open share about b_c, "
+            "b_c Half-Life 2's basis (docs/techniques.md)"
+        )
     if directions == cv.CHANNEL_COUNT:
         notes["cube"] = (
             f"channel weights, {CUBE_SIZE}x{CUBE_SIZE} per face, OpenGL face order, 8-bit (w + 1) * 127.5"
@@ -472,10 +493,12 @@ def read_bake(folder: str | Path) -> Bake:
     n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
     horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
     normal = np.stack([n[c] for c in "RGB"], axis=-1)
-    bent, ss = (
-        np.stack([files.read_exr(folder / name)[c] for c in "RGB"], axis=-1)
-        for name in ("bent_normal.exr", "ssbump.exr")
-    )
+    bent = ss = None
+    if "bent_normal" in record.get("contents", CONTENTS):
+        bent, ss = (
+            np.stack([files.read_exr(folder / name)[c] for c in "RGB"], axis=-1)
+            for name in ("bent_normal.exr", "ssbump.exr")
+        )
     return Bake(
         params,
         horizon,
@@ -497,12 +520,13 @@ def cached_bake(
     notices: list[str] | None = None,
     *,
     horizon: bool = True,
+    occlusion: bool = True,
     write_to: str | Path | None = None,
 ) -> tuple[Bake, bool]:
     """Bake into ``folder``, or read the bake already there if it was made from the
     same input (``digest``) with the same parameters, holds what is asked for (``horizon``:
-    the horizon and ambient maps, else the normal map alone) and its files are intact.
-    Returns ``(bake, cached)``.
+    the horizon and ambient maps, and with ``occlusion`` the directional occlusion; else the normal
+    map alone) and its files are intact. Returns ``(bake, cached)``.
 
     Every file of the cache must still have the SHA-256 that ``bake.json``
     recorded when it was written (:func:`write_bake`): a truncated or
@@ -520,8 +544,9 @@ def cached_bake(
         record = documents.read_json(folder / "bake.json")
         held = record.get("contents", CONTENTS)
         if horizon:
+            wanted = CONTENTS if occlusion else CONTENTS[:3]
             same = (
-                set(CONTENTS) <= set(held)  # a bake from before a content was added is baked anew
+                set(wanted) <= set(held)  # a bake from before a content was added is baked anew
                 and BakeParams.normalise_record(record["parameters"]) == params.record()
             )
         else:  # any bake of the same surface holds its normal map
@@ -538,7 +563,7 @@ def cached_bake(
                 damaged = str(folder / "bake.json")  # its files agree, its record does not: bake anew
         if notices is not None:
             notices.append(f"{damaged}: the cached bake is damaged; baked it anew")
-    result = bake(height, params, horizon=horizon)
+    result = bake(height, params, horizon=horizon, occlusion=occlusion)
     write_bake(result, folder if write_to is None else write_to, input_info=input_info)
     return result, False
 

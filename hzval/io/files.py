@@ -502,7 +502,7 @@ def write_exr(
         "none": OpenEXR.NO_COMPRESSION,
         "pxr24": OpenEXR.PXR24_COMPRESSION,
     }[compression]
-    header = {"compression": codec, "type": OpenEXR.scanlineimage, **dict(attributes or {})}
+    header = {**dict(attributes or {}), "compression": codec, "type": OpenEXR.scanlineimage}
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:

@@ -242,7 +242,8 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
     notices: list[str] = []
     if hm.colour:  # said on the terminal, not only in metrics.json: the user may not expect it
         notices.append(f"{hm.path}: a colour image, read as heights by its {hm.source.split('-> ')[-1]}")
-    horizon = bake.needs_horizon(technique.bake_needs(chosen, scene))
+    needs = technique.bake_needs(chosen, scene)
+    horizon = bake.needs_horizon(needs)
     record = {**material, "path": files.report_path(hm.path, out / "bake")}  # relative to bake.json's folder
     with _cpu(cpu, "bake"):
         baked, cached = bake.cached_bake(
@@ -253,6 +254,7 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
             record,
             notices,
             horizon=horizon,
+            occlusion=bake.needs_occlusion(needs),
             write_to=None if report_dir is None else report_dir / "bake",
         )
     timings = {"bake_s": time.perf_counter() - t0, "bake_cached": cached, "cpu_s": cpu}

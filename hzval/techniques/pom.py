@@ -45,7 +45,7 @@ Skipping
     Steps that cannot block are passed over: where a sample's ray height is at least the largest
     height within a few texels (:data:`SKIP_RADIUS`, a one-level maximum mipmap), the samples
     within that reach along the ray are not read. ``F`` is bit for bit the full march's
-    (:class:`_SkipTable` says why).
+    (:class:`SkipTable` says why).
 
 Dr.Jit: one kernel for every step count, light and material (the step count,
 the light's direction, ``tan(e)``, ``h_max`` and ``w`` are opaque), one per
@@ -69,7 +69,15 @@ from hzval.scene.spec import Frame, Scene, image_shape
 from hzval.techniques import surface
 from hzval.techniques.registry import Variant
 
-__all__ = ["RayMarchShadow", "VARIANTS", "DEFAULT_STEPS", "DEFAULT_SOFTNESS", "TRADEOFF_STEPS", "SKIP_RADIUS"]
+__all__ = [
+    "RayMarchShadow",
+    "VARIANTS",
+    "DEFAULT_STEPS",
+    "DEFAULT_SOFTNESS",
+    "TRADEOFF_STEPS",
+    "SKIP_RADIUS",
+    "SkipTable",
+]
 
 #: The two shadow tests (module docstring).
 VARIANTS: tuple[str, ...] = ("hard", "soft")
@@ -205,7 +213,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
         self.spp = int(scene.spp)
         self._uv = samples.uv()  # shared
         self._frames, self._macro = samples.frame_array(), samples.macro  # a model's (lookup.Samples)
-        self._skip = None if SKIP_RADIUS is None else _SkipTable(h, SKIP_RADIUS, scene.material.boundary)
+        self._skip = None if SKIP_RADIUS is None else SkipTable(h, SKIP_RADIUS, scene.material.boundary)
         self._c = {
             "steps": dr.opaque(mi.UInt32, self.steps),
             "w": dr.opaque(mi.Float, self.softness),
@@ -274,7 +282,8 @@ class RayMarchShadow(surface.HeightFieldShadow):
         return v
 
     def storage_bytes(self) -> int:
-        """The height map alone, 16-bit."""
+        """The height map alone, 16-bit (the skip table is hzval's acceleration of its march, not a
+        texture the technique needs)."""
         return self.rows * self.cols * 2
 
     @property
@@ -377,10 +386,11 @@ class RayMarchShadow(surface.HeightFieldShadow):
         t_max = dr.maximum(c["h_max"] - h0, 0.0) / tan_e
         dt = t_max / mi.Float(c["steps"])
         soft = self.variant == "soft"
-        # the steps a sample above its skip table's maximum passes over: those within SKIP_RADIUS
-        # texels of it along the ray, whose heights that maximum bounds (_SkipTable)
+        # the steps a sample above its skip table's maximum passes over: those within the table's
+        # reach of it along the ray, whose heights that maximum bounds (SkipTable)
         if self._skip is not None:
-            jump = mi.UInt32(dr.minimum(SKIP_RADIUS / dr.maximum(dt, 1e-30), mi.Float(c["steps"]))) + 1
+            reach = self._skip.radius
+            jump = mi.UInt32(dr.minimum(reach / dr.maximum(dt, 1e-30), mi.Float(c["steps"]))) + 1
 
         def body(i, blocked, rise):
             t = dt * mi.Float(i)
@@ -408,13 +418,13 @@ class RayMarchShadow(surface.HeightFieldShadow):
         return dr.select(blocked, 0.0, 1.0)
 
 
-#: The reach of the march's skip table, in texels (:class:`_SkipTable`); ``None`` marches every step.
+#: The reach of the march's skip table, in texels (:class:`SkipTable`); ``None`` marches every step.
 #: Short, because a wider window's maximum is a nearby crest the climbing rays have yet to clear
 #: (benchmarks/README.md, ``bench_pom.py``, has the reaches measured).
 SKIP_RADIUS: float | None = 2.0
 
 
-class _SkipTable:
+class SkipTable:
     """The largest height near each texel, which lets the march pass over samples that cannot block.
 
     ``M[texel] = max H`` over the texels within ``ceil(radius) + 1`` of it (Chebyshev distance, in
@@ -435,29 +445,31 @@ class _SkipTable:
         import mitsuba as mi
         from scipy import ndimage
 
+        if not (math.isfinite(radius) and radius >= 0):
+            raise ValueError(f"a skip table's reach is a number of texels >= 0, got {radius!r}")
+        self.radius = float(radius)
         size = 2 * (int(math.ceil(radius)) + 1) + 1
         mode = "wrap" if boundary == "wrap" else "nearest"
         table = ndimage.maximum_filter(np.asarray(h, np.float32), size=size, mode=mode)
         self.rows, self.cols = table.shape
         self.wrap = boundary == "wrap"
+        self.table = table
         self._values = mi.Float(np.ascontiguousarray(table).ravel())
         self._size = (dr.opaque(mi.Float, float(self.cols)), dr.opaque(mi.Float, float(self.rows)))
         self._ints = (dr.opaque(mi.Int32, self.cols), dr.opaque(mi.Int32, self.rows))
 
     def at(self, p):
-        """``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``)."""
+        """``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``): wrapped into the
+        tile (``p - floor(p)``, exact in float32: no division, which CUDA approximates), or clamped
+        to its border. Where rounding puts ``p`` in a neighbour of its texel, ``p`` lies within half
+        a texel and an ulp of that neighbour's centre: inside the reach's spare half texel."""
         import drjit as dr
         import mitsuba as mi
 
         cols, rows = self._ints
-        x = mi.Int32(dr.floor(p.x * self._size[0]))
-        y = mi.Int32(dr.floor(p.y * self._size[1]))
-        if self.wrap:
-            x, y = (
-                x - cols * mi.Int32(dr.floor(mi.Float(x) / self._size[0])),
-                y - rows * mi.Int32(dr.floor(mi.Float(y) / self._size[1])),
-            )
-        x, y = dr.clip(x, 0, cols - 1), dr.clip(y, 0, rows - 1)
+        u, v = (p.x - dr.floor(p.x), p.y - dr.floor(p.y)) if self.wrap else (p.x, p.y)
+        x = dr.clip(mi.Int32(dr.floor(u * self._size[0])), 0, cols - 1)
+        y = dr.clip(mi.Int32(dr.floor(v * self._size[1])), 0, rows - 1)
         return dr.gather(mi.Float, self._values, mi.UInt32(y * cols + x))
 
 

@@ -297,7 +297,8 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     bilinear surface), ``edge_level`` (the finest sub-cell grid, :func:`hzval.geometry.tile.edge_level`),
     ``moved_off_edges`` (samples moved
     off a line of mesh edges, :func:`samples.off_edge_lines`), ``timings``
-    (seconds: ``mesh_s``, ``primary_s``, ``ambient_s``), ``view`` (the placed
+    (seconds: ``mesh_s``, of it ``bvh_s`` for the ray-tracing scene, ``primary_s``,
+    ``ambient_s``), ``view`` (the placed
     camera, :class:`hzval.scene.camera.View`). A view other than ``top`` also sets
     ``seen`` (``(H, W)`` bool: pixels whose rays hit the surface) and, when one
     band holds the image, ``hits`` (float32 ``(x, y)`` of each sample's hit,
@@ -406,7 +407,13 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
                 filter_mode=dr.FilterMode.Linear,
                 wrap_mode=wrap,
             )
-        self.mi_scene = None if self.mesh is None else mi.load_dict({"type": "scene", "surface": self.mesh})
+        self.mi_scene = None
+        if self.mesh is not None:  # in bands, each band builds its own (hzval.truth.bands)
+            backend.sync()
+            t1 = time.perf_counter()
+            self.mi_scene = mi.load_dict({"type": "scene", "surface": self.mesh})
+            backend.sync()
+            self.timings["bvh_s"] = time.perf_counter() - t1  # the scene: Embree's BVH, or OptiX's
         self.lift = common.lift_for(self.z_min, self.z_max)
         # a hop runs at least this far horizontally from any point of the tile and stays over the
         # margin (texel centres start half a texel inside; a quarter texel kept, _hop_length)

@@ -185,6 +185,28 @@ def test_cached_bake_reads_back_exactly_and_rebakes_on_change(variant, tmp_path)
     assert not cached
 
 
+def test_the_directional_occlusion_is_baked_only_for_the_techniques_that_read_it(variant, tmp_path):
+    """occlusion=False: no bent normals or ssbump (nor their files); a cache without them serves such a
+    run and is baked anew for one that reads them, whose cache then serves both; the maps it shares
+    with the lighter bake are the same bits."""
+    rng = np.random.default_rng(8)
+    h = rng.random((12, 10)).astype(np.float32)
+    p, info = B.BakeParams(radius=5, angles=16), {"digest": "sha256:abc"}
+    light, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info, occlusion=False)
+    assert not cached and light.bent_normal is None and light.ssbump is None
+    assert light.contents == ("normal", "horizon_map", "ambient")
+    assert not (tmp_path / "bent_normal.exr").exists() and not (tmp_path / "ssbump.exr").exists()
+    again, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info, occlusion=False)
+    assert cached and again.bent_normal is None
+    full, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info)
+    assert not cached and full.contents == B.CONTENTS and (tmp_path / "ssbump.exr").is_file()
+    assert np.array_equal(full.horizon, light.horizon) and np.array_equal(full.mean_cos2, light.mean_cos2)
+    for occlusion in (True, False):
+        back, cached = B.cached_bake(h, "sha256:abc", p, tmp_path, info, occlusion=occlusion)
+        assert cached and np.array_equal(back.ssbump, full.ssbump)
+    assert B.needs_occlusion({"normal", "bent_normal"}) and not B.needs_occlusion({"horizon_map", "ambient"})
+
+
 @pytest.mark.parametrize("damage", ["truncate", "flip a byte", "delete", "no digests"])
 def test_a_damaged_bake_cache_is_baked_anew_with_a_notice(variant, tmp_path, damage):
     """A cache file that no longer has the digest bake.json recorded is never read: it is rebaked."""

@@ -219,17 +219,18 @@ def _adversarial_maps(rng):
 @pytest.mark.parametrize("variant_", pom.VARIANTS)
 def test_the_skip_table_leaves_every_factor_bit_for_bit(variant, monkeypatch, boundary, variant_):
     """The march that passes over samples below its skip table's maximum (pom.SKIP_RADIUS) gives the
-    full march's F exactly, at low and high suns and every octant, with 1 to 32 steps."""
+    full march's F exactly, at low and high suns and every octant, with 1 to 128 steps (many steps a
+    texel: where the table lets the march jump several at once)."""
     rng, reach = np.random.default_rng(5), pom.SKIP_RADIUS
     for name, h in _adversarial_maps(rng).items():
         shadowed = False
-        for steps in (1, 7, 32):
+        for steps in (1, 7, 32, 128):
             factors = {}
             for table in (reach, None):
                 monkeypatch.setattr(pom, "SKIP_RADIUS", table)
                 factors[table] = [
                     march(h, 0.2, boundary, elevation=e, spp=4, steps=steps, variant=variant_).factor(az, e)
-                    for e in (3.0, 12.0, 25.0, 70.0)
+                    for e in (3.0, 12.0, 25.0, 45.0, 70.0)
                     for az in (0.0, 45.0, 100.0, 163.0, 200.0, 290.0)
                 ]
             skipped, full = factors.values()
@@ -237,3 +238,39 @@ def test_the_skip_table_leaves_every_factor_bit_for_bit(variant, monkeypatch, bo
                 assert a.tobytes() == b.tobytes(), (name, steps)
             shadowed |= any((f < 1).any() for f in full)
         assert shadowed, name  # each map casts shadows
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "open"])
+@pytest.mark.parametrize("radius", [0.0, 1.5, 2.0])
+def test_the_skip_table_is_the_windowed_maximum_read_at_the_texel_that_holds_p(variant, boundary, radius):
+    """A 7 x 11 map (no power of two): the table is the maximum over every texel within ceil(r) + 1
+    (wrapped, or clamped at the border), brute force; ``at`` reads the texel holding ``p``, for
+    ``p`` inside, on texel edges, exactly at multiples of the tile and far outside it."""
+    import mitsuba as mi
+
+    rng = np.random.default_rng(3)
+    h = rng.random((7, 11)).astype(np.float32)
+    t = pom.SkipTable(h, radius, boundary)
+    k = int(math.ceil(radius)) + 1
+    rows, cols = h.shape
+    want = np.empty_like(h)
+    for r in range(rows):
+        for c in range(cols):
+            rr, cc = np.arange(r - k, r + k + 1), np.arange(c - k, c + k + 1)
+            rr, cc = (
+                (rr % rows, cc % cols) if boundary == "wrap" else (rr.clip(0, rows - 1), cc.clip(0, cols - 1))
+            )
+            want[r, c] = h[np.ix_(rr, cc)].max()
+    assert np.array_equal(t.table, want)
+    edges = np.array([0.0, 1.0, 2.0, -1.0, -3.0, 5 / 11, 3 / 7, 0.9999999, -0.5 / 11, 1.5 / 11, 7.25, -6.4])
+    px, py = (a.ravel().astype(np.float32) for a in np.meshgrid(edges, edges))
+    got = np.asarray(t.at(mi.Point2f(px, py)))
+    if boundary == "wrap":
+        ux, uy = px - np.floor(px), py - np.floor(py)
+    else:
+        ux, uy = px, py
+    x = np.clip(np.floor(ux * np.float32(cols)), 0, cols - 1).astype(int)  # float32, as the kernel
+    y = np.clip(np.floor(uy * np.float32(rows)), 0, rows - 1).astype(int)
+    assert np.array_equal(got, t.table[y, x])
+    with pytest.raises(ValueError, match="reach"):
+        pom.SkipTable(h, -1.0, boundary)

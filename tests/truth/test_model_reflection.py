@@ -288,5 +288,5 @@ def test_a_smooth_sphere_blocks_nothing_of_the_lobe_that_faces_the_camera(varian
     nv = np.sum(f[:, 6:9] * f[:, 9:12], axis=1).reshape(-1, scene.spp).min(axis=1)
     facing, grazing = mt.seen.ravel() & (nv > 0.9), mt.seen.ravel() & (nv < 0.3)
     assert facing.sum() > 300 and grazing.sum() > 20
-    assert R[facing].min() >= 1.0 - 1e-6
+    assert R[facing].min() >= (1.0 - 1e-6 if variant.startswith("cuda") else 1.0)
     assert R[grazing].min() < 0.95  # the lobe's lower edge goes below the horizon there
