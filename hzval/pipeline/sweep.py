@@ -222,10 +222,11 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
     params = options.bake_params(scene)
     for t in chosen:  # settings are checked before anything is written
         t.check_settings(params, options.settings.get(t.name, {}))
-    check_fits(scene, params)  # before the map is generated or decoded
+    check_fits(scene, params, techniques=len(chosen))  # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
-    plan = truth_plan(scene, hm.height) if scene.mesh.is_plane else None
-    estimate = check_fits(scene, params, hm.height, plan)  # the truth's own triangles, before they are made
+    plan = truth_plan(scene, hm.height, len(chosen)) if scene.mesh.is_plane else None
+    # the truth's own triangles, before they are made
+    estimate = check_fits(scene, params, hm.height, plan, techniques=len(chosen))
     # from here on: the frames then reuse what the set-up frees, besides what they free themselves
     retained = estimate <= RETAIN_BELOW_SHARE * resources.available_bytes() and backend.retain_freed_memory()
     rows, cols = hm.height.shape

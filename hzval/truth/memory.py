@@ -29,6 +29,8 @@ from hzval.truth import samples as truth_samples
 __all__ = [
     "PEAK_BASE_BYTES",
     "PEAK_BYTES_PER_PIXEL",
+    "PEAK_BYTES_PER_TECHNIQUE_PIXEL",
+    "TECHNIQUES_BY_DEFAULT",
     "PEAK_BYTES_PER_TRIANGLE",
     "PEAK_BYTES_PER_SAMPLE",
     "PEAK_BYTES_PER_KEPT_SAMPLE",
@@ -54,7 +56,14 @@ __all__ = [
 #: frames (its hits: every sample up to hzval.truth.samples.KEEP_SAMPLES, one band's beyond). Fitted to the
 #: peaks measured on this machine (``python benchmarks/bench_production.py``; docs/truth-surface.md, "Cost").
 PEAK_BASE_BYTES = 0.3 * 2**30
-PEAK_BYTES_PER_PIXEL = 325
+PEAK_BYTES_PER_PIXEL = 190
+#: What each technique adds per pixel at the peak: its frame (image and factor, float32) and what its
+#: comparison keeps for the writers, held together until the frame is written. Fitted to the 2048
+#: bricks: 8.16 GiB with the eight default techniques against 7.35 GiB with three.
+PEAK_BYTES_PER_TECHNIQUE_PIXEL = 45
+#: The techniques a sweep runs when none are named (``hzval.techniques.registry.defaults``; a test
+#: keeps the two equal): what an estimate made before they are chosen charges.
+TECHNIQUES_BY_DEFAULT = 8
 #: The mesh's share of the peak, per triangle (hzval.truth.plane.mesh_triangles): the 2048 bricks' peak
 #: grew by 2.0 GiB with 26M triangles more (37.5M against bd627d5's 11.5M); Embree holds about 94
 #: bytes a triangle once built, 133 while it builds (hzval.geometry.tile.BYTES_PER_TRIANGLE), part
@@ -76,13 +85,19 @@ RETAIN_BELOW_SHARE = 0.5
 
 
 def estimate_peak_bytes(
-    scene, rows: int, cols: int, triangles: int | None = None, keeps: bool | None = None
+    scene,
+    rows: int,
+    cols: int,
+    triangles: int | None = None,
+    keeps: bool | None = None,
+    techniques: int = TECHNIQUES_BY_DEFAULT,
 ) -> int:
     """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
     in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
     (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
     ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
-    samples' camera hits (default :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none)."""
+    samples' camera hits (default :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none).
+    ``techniques``: how many the sweep runs (:data:`PEAK_BYTES_PER_TECHNIQUE_PIXEL` each)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
     if triangles is None:
@@ -97,7 +112,7 @@ def estimate_peak_bytes(
         view = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples
     return int(
         PEAK_BASE_BYTES
-        + PEAK_BYTES_PER_PIXEL * H * W
+        + (PEAK_BYTES_PER_PIXEL + PEAK_BYTES_PER_TECHNIQUE_PIXEL * techniques) * H * W
         + PEAK_BYTES_PER_TRIANGLE * triangles
         + PEAK_BYTES_PER_SAMPLE * samples
         + PEAK_BYTES_PER_KEPT_SAMPLE * kept
@@ -139,7 +154,7 @@ def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
     )
 
 
-def truth_plan(scene, height: np.ndarray) -> TruthPlan:
+def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAULT) -> TruthPlan:
     """Whether the truth of ``scene`` on the normalised ``height`` map builds its mesh at once or in bands
     (:mod:`hzval.truth.bands`), and the bands' rows: at once when the sweep's estimate with the whole
     mesh fits within :data:`hzval.truth.bands.PEAK_TARGET_BYTES` and the memory available, or where
@@ -154,7 +169,7 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
     full = meshes.triangle_count(levels)
     limit = min(resources.available_bytes(), truth_bands.PEAK_TARGET_BYTES)
     why = truth_bands.why_not(scene)
-    if why is not None or estimate_peak_bytes(scene, rows, cols, full) <= limit:
+    if why is not None or estimate_peak_bytes(scene, rows, cols, full, techniques=techniques) <= limit:
         return TruthPlan(full, why_single=why)
     H, W = sc.image_shape(rows, cols, scene.camera)
     bands = truth_samples.bands(H, W, scene.spp)
@@ -164,7 +179,7 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
         scene, z_max - z_min, truth_common.lift_for(z_min, z_max), scene.light.azimuths_deg
     )
     wrap = scene.material.boundary == "wrap"
-    room = min(limit, estimate_peak_bytes(scene, rows, cols, 0, keeps=False))
+    room = min(limit, estimate_peak_bytes(scene, rows, cols, 0, keeps=False, techniques=techniques))
     best = None
     for band_rows in range(H - H % step if H > step else step, 0, -step):
         most = max(truth_bands.band_triangles(g, levels, rows, H, W, bands, band_rows, up, down, wrap))
@@ -174,7 +189,7 @@ def truth_plan(scene, height: np.ndarray) -> TruthPlan:
     return TruthPlan(full, band_rows=best[0], band_triangles=best[1])
 
 
-def _model_peak_bytes(scene, rows: int, cols: int) -> int:
+def _model_peak_bytes(scene, rows: int, cols: int, techniques: int = TECHNIQUES_BY_DEFAULT) -> int:
     """The peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
     (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images."""
     from hzval.geometry import displace, model
@@ -190,7 +205,7 @@ def _model_peak_bytes(scene, rows: int, cols: int) -> int:
         + mesh_bytes
         + model_truth.BYTES_PER_TRIANGLE * triangles
         + model_truth.bytes_per_sample(scene) * H * W * scene.spp
-        + PEAK_BYTES_PER_PIXEL * H * W
+        + (PEAK_BYTES_PER_PIXEL + PEAK_BYTES_PER_TECHNIQUE_PIXEL * techniques) * H * W
     )
 
 
@@ -228,7 +243,11 @@ def check_frame_pixels(scene, rows: int, cols: int) -> int:
 
 
 def check_fits(
-    scene, params: BakeParams, height: np.ndarray | None = None, plan: TruthPlan | None = None
+    scene,
+    params: BakeParams,
+    height: np.ndarray | None = None,
+    plan: TruthPlan | None = None,
+    techniques: int = TECHNIQUES_BY_DEFAULT,
 ) -> int:
     """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
     bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
@@ -236,21 +255,21 @@ def check_fits(
     truth's own triangles (:func:`hzval.truth.plane.mesh_triangles`), and a refusal names
     ``--truth-tolerance`` as well. ``plan``: the truth's (:func:`truth_plan`, made here if not given): a
     mesh in bands is charged by its largest band, at the larger of the bands' phase and the rest of
-    the sweep."""
+    the sweep. ``techniques``: how many the sweep runs."""
     rows, cols = material_shape(scene) if height is None else np.shape(height)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)
     triangles = None
     if not scene.mesh.is_plane:
-        need = _model_peak_bytes(scene, rows, cols)  # the model's truth counts its rings itself
+        need = _model_peak_bytes(scene, rows, cols, techniques)  # the model's truth counts its rings
     else:
         if height is not None and plan is None:
-            plan = truth_plan(scene, height)
+            plan = truth_plan(scene, height, techniques)
         triangles = None if plan is None else plan.triangles
-        need = estimate_peak_bytes(scene, rows, cols, triangles)
+        need = estimate_peak_bytes(scene, rows, cols, triangles, techniques=techniques)
         if plan is not None and plan.band_rows is not None:
             need = max(
-                estimate_peak_bytes(scene, rows, cols, 0, keeps=False),
+                estimate_peak_bytes(scene, rows, cols, 0, keeps=False, techniques=techniques),
                 band_peak_bytes(scene, rows, cols, plan.band_triangles),
             )
     mesh = ""

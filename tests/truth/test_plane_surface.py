@@ -310,3 +310,16 @@ def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "--truth-tolerance" in err and "triangles" in err and "estimated" in err
     assert not out.exists()
+
+
+def test_the_estimate_charges_each_technique_and_assumes_the_default_set():
+    """Each technique adds its frame and comparison per pixel; an estimate made before the techniques
+    are chosen charges the default set (TECHNIQUES_BY_DEFAULT, kept equal to the registry's)."""
+    from hzval.scene import spec as sc
+    from hzval.techniques import registry
+
+    assert memory.TECHNIQUES_BY_DEFAULT == len(registry.defaults())
+    scene = sc.override(sc.Scene(), size=64, spp=2).validate()
+    three, eight = (memory.estimate_peak_bytes(scene, 64, 64, 1000, techniques=n) for n in (3, 8))
+    assert eight - three == pytest.approx(5 * memory.PEAK_BYTES_PER_TECHNIQUE_PIXEL * 64 * 64, abs=2)
+    assert memory.estimate_peak_bytes(scene, 64, 64, 1000) == eight
