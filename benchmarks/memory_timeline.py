@@ -127,7 +127,7 @@ def main(argv=None) -> None:
     tl.wrap(sweep, "_build_techniques")
     tl.wrap(sweep, "_render")
     tl.wrap(sweep, "_finish")
-    tl.wrap(sweep, "_set_up")
+    tl.wrap(sweep, "set_up")
     t0 = time.perf_counter()
     try:
         cli.main(["sweep", *sweep_args])
