@@ -56,11 +56,13 @@ __all__ = [
 #: frames (its hits: every sample up to hzval.truth.samples.KEEP_SAMPLES, one band's beyond). Fitted to the
 #: peaks measured on this machine (``python benchmarks/bench_production.py``; docs/truth-surface.md, "Cost").
 PEAK_BASE_BYTES = 0.3 * 2**30
-PEAK_BYTES_PER_PIXEL = 190
+PEAK_BYTES_PER_PIXEL = 115
 #: What each technique adds per pixel at the peak: its frame (image and factor, float32) and what its
-#: comparison keeps for the writers, held together until the frame is written. Fitted to the 2048
-#: bricks: 8.16 GiB with the eight default techniques against 7.35 GiB with three.
-PEAK_BYTES_PER_TECHNIQUE_PIXEL = 45
+#: comparison keeps for the writers, held together until the frame is written. Fitted to the bricks
+#: with the eight default techniques against three: 8.16 GiB against 7.35 at 2048 (41 bytes a pixel
+#: each), 17.12 GiB against 11.94 at 4096 (65: its frame's comparison and files peak there,
+#: ``benchmarks/memory_timeline.py``); the larger, with a margin.
+PEAK_BYTES_PER_TECHNIQUE_PIXEL = 70
 #: The techniques a sweep runs when none are named (``hzval.techniques.registry.defaults``; a test
 #: keeps the two equal): what an estimate made before they are chosen charges.
 TECHNIQUES_BY_DEFAULT = 8
@@ -263,10 +265,16 @@ def check_fits(
     if not scene.mesh.is_plane:
         need = _model_peak_bytes(scene, rows, cols, techniques)  # the model's truth counts its rings
     else:
+        from hzval.truth import bands as truth_bands
+
         if height is not None and plan is None:
             plan = truth_plan(scene, height, techniques)
         triangles = None if plan is None else plan.triangles
         need = estimate_peak_bytes(scene, rows, cols, triangles, techniques=techniques)
+        if plan is None and truth_bands.why_not(scene) is None:
+            # before the map is read: its mesh may be built in bands, so only the rest of the sweep
+            # is sure to be needed (this check refuses only what cannot fit; the next one knows)
+            need = estimate_peak_bytes(scene, rows, cols, 0, keeps=False, techniques=techniques)
         if plan is not None and plan.band_rows is not None:
             need = max(
                 estimate_peak_bytes(scene, rows, cols, 0, keeps=False, techniques=techniques),
