@@ -43,6 +43,7 @@ __all__ = [
     "CONTENTS",
     "needs_horizon",
     "needs_occlusion",
+    "OCCLUSION",
     "bake",
     "write_bake",
     "read_bake",
@@ -197,7 +198,7 @@ class Bake:
         """What the bake holds (:data:`CONTENTS`)."""
         if self.horizon is None:
             return ("normal",)
-        return CONTENTS if self.bent_normal is not None else CONTENTS[:3]
+        return CONTENTS if self.bent_normal is not None else _without_occlusion()
 
     @property
     def layers(self) -> tuple[np.ndarray, ...]:
@@ -291,20 +292,26 @@ METHOD_NOTES: dict[str, str] = {
 #: (:mod:`hzval.bake.occlusion`). Techniques declare which they read
 #: (:meth:`hzval.techniques.registry.Technique.bake_needs`); a sweep bakes what its techniques need.
 CONTENTS: tuple[str, ...] = ("normal", "horizon_map", "ambient", "bent_normal", "ssbump_map")
+#: The contents of the directional occlusion, baked only for the techniques that read them.
+OCCLUSION: tuple[str, ...] = ("bent_normal", "ssbump_map")
 
 
 def needs_occlusion(needs) -> bool:
     """Whether bake needs ``needs`` call for the directional occlusion (the bent normals and the
     self-shadowed bump map): at 2048 x 2048 they take 3.5 s of a 4.4 s bake, so a sweep whose
     techniques read neither bakes without them."""
-    return bool({"bent_normal", "ssbump_map"} & set(needs))
+    return bool(set(OCCLUSION) & set(needs))
+
+
+def _without_occlusion() -> tuple[str, ...]:
+    return tuple(c for c in CONTENTS if c not in OCCLUSION)
 
 
 def needs_horizon(needs) -> bool:
     """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
     bake: the horizon map, and the ambient maps and directional occlusion, which are made from its
     sines."""
-    return bool({"horizon_map", "ambient", "bent_normal", "ssbump_map"} & set(needs))
+    return bool({"horizon_map", "ambient", *OCCLUSION} & set(needs))
 
 
 def bake(
@@ -544,7 +551,7 @@ def cached_bake(
         record = documents.read_json(folder / "bake.json")
         held = record.get("contents", CONTENTS)
         if horizon:
-            wanted = CONTENTS if occlusion else CONTENTS[:3]
+            wanted = CONTENTS if occlusion else _without_occlusion()
             same = (
                 set(wanted) <= set(held)  # a bake from before a content was added is baked anew
                 and BakeParams.normalise_record(record["parameters"]) == params.record()

@@ -590,45 +590,23 @@ def _finish(
 ) -> dict:
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
-    # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
-    # the comparison, and after each of its steps, whose buffers differ in size and would each stay
-    # cached (0.2 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
-    # every frame's buffers cost 1 s a frame at 2048
-    release = backend.release_memory if not setup.truth.keeps else (lambda: None)
-    release()
-    t0, c0 = time.perf_counter(), time.process_time()
-    ref = compare.Reference(t_frame, scale)
-    compared = []
-    for t, f in r.techniques:
-        release()
-        metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
-        # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
-        # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
-        compared.append((t, f, metrics, {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}))
-        del maps
-    release()
-    floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, t_frame.layers.get("visibility"))
-    none = _no_shadows(
-        ref, r.plain if r.base is None else r.base, t_frame.layers.get("visibility"), t_frame.mask
-    )
-    truth_shown = writing.shown(ref.display)
-    del ref
+    t0 = time.perf_counter()
+    with _cpu(clock["cpu_s"], "compare"):
+        compared, floor, none, truth_shown = _score_light(setup, r, scale)
     clock["compare_s"] += time.perf_counter() - t0
-    clock["cpu_s"]["compare"] = clock["cpu_s"].get("compare", 0.0) + time.process_time() - c0
-    c0 = time.process_time()
-    rel, tech_files, seconds = writing.write_frame(
-        out,
-        records.frame_folder(az, r.elevation_deg),
-        t_frame,
-        r.plain,
-        compared,
-        scale,
-        truth_shown=truth_shown,
-        all_files=all_files,
-        mask=t_frame.mask,
-    )
+    with _cpu(clock["cpu_s"], "write"):
+        rel, tech_files, seconds = writing.write_frame(
+            out,
+            records.frame_folder(az, r.elevation_deg),
+            t_frame,
+            r.plain,
+            compared,
+            scale,
+            truth_shown=truth_shown,
+            all_files=all_files,
+            mask=t_frame.mask,
+        )
     clock["write_s"] += seconds
-    clock["cpu_s"]["write"] = clock["cpu_s"].get("write", 0.0) + time.process_time() - c0
     frame = {
         "name": records.frame_folder(az, r.elevation_deg),
         "azimuth_deg": az,
@@ -653,6 +631,32 @@ def _finish(
         _handedness_statistics(setup.truth.handedness, r, per)
     frame.update(files=rel, techniques=per)
     return frame
+
+
+def _score_light(setup: _Setup, r: _Rendered, scale: float) -> tuple:
+    """One light's comparisons: ``(technique, frame, metrics, what its files need)`` per technique,
+    the perfect-shadows floor, the no-shadows baseline and the truth's 8-bit preview values."""
+    t_frame = r.truth
+    # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
+    # the comparison, and after each of its steps, whose buffers differ in size and would each stay
+    # cached (0.2 GiB of a 4096 sweep's peak); smaller images keep them: re-faulting the pages of
+    # every frame's buffers cost 1 s a frame at 2048
+    release = backend.release_memory if not setup.truth.keeps else (lambda: None)
+    release()
+    ref = compare.Reference(t_frame, scale)
+    compared = []
+    for t, f in r.techniques:
+        release()
+        metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
+        # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
+        # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
+        compared.append((t, f, metrics, {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}))
+        del maps
+    release()
+    V = t_frame.layers.get("visibility")
+    floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
+    none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
+    return compared, floor, none, writing.shown(ref.display)
 
 
 def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:

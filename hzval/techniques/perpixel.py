@@ -121,6 +121,14 @@ def add_storage_flag(parser, name: str, texture: Texture) -> None:
         pass  # another technique that reads it added it
 
 
+def _checked_storage(storage: dict | None) -> dict:
+    """``{texture: storage}`` as given, each one of :data:`STORAGES`, else one line naming its flag."""
+    for t, value in (storage or {}).items():
+        if value not in STORAGES:
+            raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {value!r}")
+    return dict(storage or {})
+
+
 class FactorKernel(FlatShading):
     """One kernel for the factors of every per-pixel technique of a context: their textures packed
     once, the normal fetched once, each technique's ``F`` a layer of the same pass (``factor0``,
@@ -230,10 +238,7 @@ class PerPixelFactor(Technique):
         **settings,
     ):
         self.scene, self.bake = scene, bake
-        self.storage = {t: self.texture(t).default for t in self.textures} | dict(storage or {})
-        for t, s in self.storage.items():
-            if s not in STORAGES:
-                raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {s!r}")
+        self.storage = {t: self.texture(t).default for t in self.textures} | _checked_storage(storage)
         self.settings = self.validate(settings)
         self.simulated = tuple(e for e in EFFECTS if scene.declares(e) and e not in self.not_modelled)
         self._kernel = kernel if kernel is not None else FactorKernel(scene, bake, samples)
@@ -294,9 +299,7 @@ class PerPixelFactor(Technique):
         """Refuse a setting before anything is written (its flag named by the caller,
         :func:`hzval.techniques.registry.flag_errors`)."""
         own = dict(settings)
-        for t, value in (own.pop("storage", None) or {}).items():
-            if value not in STORAGES:
-                raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {value!r}")
+        _checked_storage(own.pop("storage", None))
         cls.validate(own)
 
     @classmethod
