@@ -33,12 +33,13 @@ with ``"LDR", inputsRGB=True`` (``src/nanobindFLIP.cpp``):
 Borders are clamped to the edge (FLIP's ``Min(Max(0, x + ix), w - 1)``). The
 work is three Dr.Jit kernels per image on the current variant (the LLVM
 backend vectorises them over every core; CUDA runs the same code): the
-colour conversion to YCxCz; the x-direction passes, one gather of each
-plane per tap shared by the filters that read it (Cz by two, the feature
-luminance by three), over the image with its edge rows repeated above and
-below it; and the y-direction passes, whose taps are then plain offsets of
-a pixel's index (cheaper than clamping each), fused with everything that
-follows them. Both passes are correlations, the filter index running with
+colour conversion to YCxCz, over the image with its edges repeated around
+it; the x-direction passes; and the y-direction passes, fused with
+everything that follows them. Each lane of a pass computes :data:`BLOCK`
+neighbouring pixels, whose taps overlap: it reads their ``BLOCK + 2r``
+inputs once (a sixth of the reads of one gather per tap and pixel), and a
+plane read by several filters (Cz by two, the feature luminance by three) is
+read once for all. Both passes are correlations, the filter index running with
 the image index, summed in float32 in FLIP's tap order. Image sizes enter
 the kernels as opaque values, so one compiled kernel serves every size.
 Every per-pixel step is float32 with FLIP's constants and expression order
@@ -107,6 +108,7 @@ __all__ = [
     "filters",
     "FlipReference",
     "flip_error",
+    "separable_filter",
     "mean_error",
     "flip",
 ]
@@ -529,65 +531,177 @@ def filters(ppd: float = DEFAULT_PPD) -> Filters:
 # -- the pipeline, in Dr.Jit ------------------------------------------------------------------------
 
 
+#: The pixels one lane of a filter pass computes: eight of a row in the x pass, eight of a column in
+#: the y pass. Their taps overlap, so a lane reads the ``8 + 2r`` inputs of all eight once (the x
+#: pass as packet loads of eight floats) instead of ``2r + 1`` per pixel: a sixth of the memory
+#: reads, the same arithmetic in the same order.
+BLOCK = 8
+
+
 class _Grid:
-    """Pixel indices of an ``h x w`` image, row-major, for FLIP's two passes. The x-direction pass
-    runs over the image with ``pad`` rows above and below it, each a copy of the nearest edge row
-    (FLIP's ``Min(Max(0, y + iy), h - 1)``, made once instead of per tap); the y-direction pass then
-    reads row ``y + k`` of that padded plane for its tap ``k``, a plain offset of the pixel's index.
-    The sizes are opaque, so one compiled kernel serves every image size."""
+    """The index arithmetic of FLIP's two passes over an ``h x w`` image, in blocks of :data:`BLOCK`.
+
+    - **Padded planes** (what the colour conversion writes and the x pass reads): the image with its
+      edges repeated, ``pad`` rows above and at least ``pad`` below (up to a whole number of row
+      blocks) and ``BLOCK * q`` columns left and right: FLIP's ``Min(Max(0, x + ix), w - 1)``, made
+      once instead of per tap. Row-major, ``stride`` floats a row (a multiple of :data:`BLOCK`).
+    - **x pass**: lane ``(row, b)`` of ``rows * nb`` reads packets ``b`` to ``b + 2q`` of its padded
+      row and computes columns ``BLOCK b + k``, ``k < BLOCK``; its results are stored row-major,
+      ``wb = BLOCK nb`` floats a row (one packet store each).
+    - **y pass**: lane ``(c, x)`` of ``hc * wb`` reads rows ``BLOCK c + m`` of column ``x`` of those
+      results and computes rows ``BLOCK c + k``: one array per ``k`` (the *blocked* layout, which
+      :meth:`image` turns back into an ``h x w`` image).
+
+    Pixels past the image's last row or column (to whole blocks) are computed from repeated edges
+    and cut off by :meth:`image`. The sizes are opaque, so one compiled kernel serves every size.
+    """
 
     def __init__(self, h: int, w: int, pad: int):
         import drjit as dr
         import mitsuba as mi
 
+        B = BLOCK
         self.h, self.w, self.pad = h, w, pad
-        self.W = dr.opaque(mi.Int32, w)
-        H = dr.opaque(mi.Int32, h)
-        j = dr.arange(mi.Int32, (h + 2 * pad) * w)  # a padded plane's index
-        row = j // self.W
-        self.x = j - row * self.W
-        self.source_row = dr.clip(row - pad, 0, H - 1)
-        self.i = dr.arange(mi.Int32, h * w)  # a pixel's index
+        self.q, self.nb, self.hc = -(-pad // B), -(-w // B), -(-h // B)
+        self.rows, self.wb = B * self.hc + 2 * pad, B * self.nb
+        self.stride = B * (self.nb + 2 * self.q)
+        self._W, self._H = dr.opaque(mi.Int32, w), dr.opaque(mi.Int32, h)
+        self._packets = dr.opaque(mi.Int32, self.nb + 2 * self.q)  # packets in a padded row
+        self._nb, self._WB = dr.opaque(mi.Int32, self.nb), dr.opaque(mi.Int32, self.wb)
 
-    def along_x(self, offset: int):
-        """Where the padded planes' x pass reads its tap ``offset``: the column clamped to the image."""
+    def source(self):
+        """For each element of a padded plane, the index of the image pixel it repeats."""
         import drjit as dr
+        import mitsuba as mi
 
-        return self.source_row * self.W + dr.clip(self.x + offset, 0, self.W - 1)
+        j = dr.arange(mi.Int32, self.rows * self.stride)
+        S = dr.opaque(mi.Int32, self.stride)
+        row = j // S
+        col = j - row * S
+        y = dr.clip(row - self.pad, 0, self._H - 1)
+        return y * self._W + dr.clip(col - BLOCK * self.q, 0, self._W - 1)
 
-    def along_y(self, offset: int):
-        """Where a pixel's y pass reads its tap ``offset`` in a padded plane."""
-        return self.i + (self.pad + offset) * self.W
+    def x_window(self, plane) -> list:
+        """For each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row from column
+        ``BLOCK (b - q)`` of the image on, read as ``2q + 1`` packet loads."""
+        import drjit as dr
+        import mitsuba as mi
+
+        lanes = self.rows * self.nb
+        lane = dr.arange(mi.Int32, lanes)
+        row = lane // self._nb
+        first = row * self._packets + (lane - row * self._nb)
+        values = []
+        for j in range(2 * self.q + 1):
+            packet = dr.gather(mi.ArrayXf, plane, mi.UInt32(first + j), shape=(BLOCK, lanes))
+            values.extend(packet[k] for k in range(BLOCK))
+        return values
+
+    def x_store(self, outputs: list):
+        """The x pass's ``BLOCK`` outputs of each lane, stored row-major (``wb`` a row)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        lanes = self.rows * self.nb
+        target = dr.zeros(mi.Float, lanes * BLOCK)
+        dr.scatter(target, mi.ArrayXf(*outputs), dr.arange(mi.UInt32, lanes))
+        return target
+
+    def y_window(self, plane, first: int, count: int) -> dict:
+        """For each y-pass lane, rows ``BLOCK c + m`` of its column of an x-pass result, by ``m`` from
+        ``first`` (padded rows) for ``count`` rows."""
+        import drjit as dr
+        import mitsuba as mi
+
+        lane = dr.arange(mi.Int32, self.hc * self.wb)
+        c = lane // self._WB
+        base = c * (BLOCK * self._WB) + (lane - c * self._WB)
+        rows = range(first, first + count)
+        return {m: dr.gather(mi.Float, plane, mi.UInt32(base + m * self._WB)) for m in rows}
+
+    def image(self, blocked: list) -> np.ndarray:
+        """An ``h x w`` float32 image of a quantity in the blocked layout (one array per ``k``)."""
+        a = np.stack([np.asarray(v, dtype=f32).reshape(self.hc, self.wb) for v in blocked], axis=1)
+        return a.reshape(BLOCK * self.hc, self.wb)[: self.h, : self.w]
 
 
-def _correlate(planes, weights, index):
-    """FLIP's 1-D passes: ``sum_i w[i] plane[index(i - r)]`` for each ``(plane, w)`` of ``weights``
-    (``weights``: per plane, a tuple of filters applied to it), summed in float32 in FLIP's order
-    (``i`` from 0 to ``2r``); a plane read by several filters is read once per tap."""
-    import drjit as dr
-    import mitsuba as mi
+def _taps(values, weights, first):
+    """``sum_i weights[i] values[first + i]``, summed in float32 in FLIP's order (``i`` from 0 to ``2r``):
+    one output of FLIP's 1-D passes, which are correlations (the filter index runs with the image's)."""
+    acc = None
+    for i, w in enumerate(weights):
+        term = values[first + i] * float(w)
+        acc = term if acc is None else acc + term
+    return acc
 
+
+def _x_pass(grid: _Grid, planes, weights) -> list:
+    """FLIP's x-direction passes: for each ``(plane, filters)`` of ``planes`` and ``weights``, each
+    filter's correlation along the rows, a row-major array of the padded rows (:class:`_Grid`)."""
     out = []
     for plane, filters_of in zip(planes, weights):
+        window = grid.x_window(plane)
         r = (len(filters_of[0]) - 1) // 2
-        acc = [None] * len(filters_of)
-        for i in range(2 * r + 1):
-            v = dr.gather(mi.Float, plane, index(i - r))
-            for k, w in enumerate(filters_of):
-                term = v * float(w[i])
-                acc[k] = term if acc[k] is None else acc[k] + term
-        out.extend(acc)
+        for w in filters_of:
+            out.append(grid.x_store([_taps(window, w, BLOCK * grid.q - r + k) for k in range(BLOCK)]))
     return out
 
 
-def _image_planes(img: np.ndarray, grid: _Grid):
-    """The ``(H, W, 3)`` image's R, G and B as float32 Dr.Jit arrays (``display`` values cast to float32
-    as FLIP's Python wrapper takes them), gathered from one flat array of it: Dr.Jit maps NumPy
-    memory as it is, and a gather, unlike a strided load, compiles one kernel for every alignment."""
+def _y_pass(grid: _Grid, planes, weights) -> list:
+    """FLIP's y-direction passes over x-pass results: for each ``(plane, filters)``, each filter's
+    correlation along the columns, in the blocked layout (a list of :data:`BLOCK` arrays)."""
+    out = []
+    for plane, filters_of in zip(planes, weights):
+        r = (len(filters_of[0]) - 1) // 2
+        window = grid.y_window(plane, grid.pad - r, BLOCK + 2 * r)
+        for w in filters_of:
+            out.append([_taps(window, w, grid.pad - r + k) for k in range(BLOCK)])
+    return out
+
+
+def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray) -> np.ndarray:
+    """One plane through FLIP's two passes, as :class:`FlipReference` filters its planes.
+
+    Parameters
+    ----------
+    plane : numpy.ndarray
+        ``(H, W)`` values, computed in float32.
+    along_x, along_y : numpy.ndarray
+        Odd-length filters, centred: the correlation along the rows with ``along_x``, then along the
+        columns with ``along_y``, edges clamped, each output summed in float32 tap by tap.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32.
+    """
     import drjit as dr
     import mitsuba as mi
 
-    i = dr.arange(mi.UInt32, grid.h * grid.w) * 3
+    from hzval.core import backend
+
+    backend.variant()
+    a = np.ascontiguousarray(plane, dtype=f32)
+    if a.ndim != 2 or a.size == 0 or len(along_x) % 2 == 0 or len(along_y) % 2 == 0:
+        raise ValueError(f"need a non-empty (H, W) plane and odd-length filters, got {a.shape}")
+    grid = _Grid(*a.shape, (max(len(along_x), len(along_y)) - 1) // 2)
+    padded = dr.gather(mi.Float, mi.Float(a.ravel()), mi.UInt32(grid.source()))
+    (x,) = _x_pass(grid, (padded,), ((along_x,),))
+    dr.eval(x)
+    (y,) = _y_pass(grid, (x,), ((along_y,),))
+    dr.eval(y)
+    return grid.image(y)
+
+
+def _image_planes(img: np.ndarray, grid: _Grid):
+    """The ``(H, W, 3)`` image's R, G and B as float32 Dr.Jit arrays over the padded planes
+    (:meth:`_Grid.source`; ``display`` values cast to float32 as FLIP's Python wrapper takes them),
+    gathered from one flat array of it: Dr.Jit maps NumPy memory as it is, and a gather, unlike a
+    strided load, compiles one kernel for every alignment."""
+    import drjit as dr
+    import mitsuba as mi
+
+    i = mi.UInt32(grid.source() * 3)
     if img.dtype == np.float64 and img.flags.c_contiguous:
         # cast in the kernel, as NumPy casts (to nearest): no float32 copy made on one core first
         flat = mi.Float64(img.ravel())
@@ -598,8 +712,9 @@ def _image_planes(img: np.ndarray, grid: _Grid):
 
 class _Side:
     """One image's FLIP quantities: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``) and its edge
-    and point magnitudes (``edge``, ``point``), as unevaluated Dr.Jit expressions over the x-filtered
-    planes, which are evaluated (FLIP's first loops: to YCxCz, then the x-direction passes)."""
+    and point magnitudes (``edge``, ``point``), each in the blocked layout of :class:`_Grid` (a list
+    of :data:`BLOCK` unevaluated Dr.Jit expressions over the x pass's results, which are evaluated:
+    FLIP's first loops, to YCxCz and then the x-direction passes)."""
 
     def __init__(self, display: np.ndarray, f: Filters):
         import drjit as dr
@@ -611,19 +726,21 @@ class _Side:
         yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
         dr.eval(yy, cx, cz, yn)
         # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
-        x_pass = _correlate(
-            (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)), g.along_x
-        )
+        x_pass = _x_pass(g, (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)))
         dr.eval(x_pass)
         sp0, sp1, sp2, sp3, ft0, ft1, ft2 = x_pass
-        # the y-direction passes, and what follows them
-        yy, cx, cz1, cz2 = _correlate((sp0, sp1, sp2, sp3), ((f.y,), (f.cx,), (f.cz1,), (f.cz2,)), g.along_y)
-        r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy, cx, cz1 + cz2)))
-        self.L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
-        self.A, self.B = hunt(self.L, a), hunt(self.L, b)
-        dx, ddx, dy, ddy = _correlate((ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)), g.along_y)
-        self.edge = dr.sqrt(dx * dx + dy * dy)
-        self.point = dr.sqrt(ddx * ddx + ddy * ddy)
+        # the y-direction passes, and what follows them, for each of a lane's pixels
+        yy, cx, cz1, cz2 = _y_pass(g, (sp0, sp1, sp2, sp3), ((f.y,), (f.cx,), (f.cz1,), (f.cz2,)))
+        dx, ddx, dy, ddy = _y_pass(g, (ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)))
+        self.L, self.A, self.B, self.edge, self.point = ([] for _ in range(5))
+        for k in range(BLOCK):
+            r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy[k], cx[k], cz1[k] + cz2[k])))
+            L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
+            self.L.append(L)
+            self.A.append(hunt(L, a))
+            self.B.append(hunt(L, b))
+            self.edge.append(dr.sqrt(dx[k] * dx[k] + dy[k] * dy[k]))
+            self.point.append(dr.sqrt(ddx[k] * ddx[k] + ddy[k] * ddy[k]))
 
 
 def _check_image(img, name: str) -> np.ndarray:
@@ -642,8 +759,9 @@ class FlipReference:
     ``ppd``: pixels per degree (FLIP's default, 67.02, unless given).
     ``L``, ``A``, ``B``: its spatially filtered, clamped, Hunt-adjusted CIELAB
     (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: the magnitudes of its
-    first- and second-derivative feature responses; each a float32 Dr.Jit array of
-    the current variant, row-major.
+    first- and second-derivative feature responses; each float32 Dr.Jit arrays of
+    the current variant in the blocked layout of the passes (``grid``, a ``_Grid``: one
+    array per row of a block; ``grid.image`` makes one an image).
     """
 
     def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD):
@@ -656,6 +774,7 @@ class FlipReference:
         self.filters = filters(ppd)
         self.shape = disp.shape[:2]
         side = _Side(disp, self.filters)
+        self.grid = side.grid
         self.L, self.A, self.B, self.edge, self.point = side.L, side.A, side.B, side.edge, side.point
         dr.eval(self.L, self.A, self.B, self.edge, self.point)
 
@@ -698,15 +817,20 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
     # evaluated apart, as the reference's are: in one kernel with what follows, CUDA's compiler may
     # round them otherwise (FLIP of an image against itself was 6e-7 there, not 0)
     dr.eval(t.L, t.A, t.B, t.edge, t.point)
-    cd = _powf(hyab(ref.L, ref.A, ref.B, t.L, t.A, t.B), _K(QC))
     # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
     pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
-    cd = dr.select(cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT))
     nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
-    fd = _powf(nf * dr.maximum(dr.abs(ref.edge - t.edge), dr.abs(ref.point - t.point)), _K(QF))
-    err = _powf(cd, 1.0 - fd)
+    err = []
+    for k in range(BLOCK):
+        cd = _powf(hyab(ref.L[k], ref.A[k], ref.B[k], t.L[k], t.A[k], t.B[k]), _K(QC))
+        cd = dr.select(
+            cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT)
+        )
+        feature = dr.maximum(dr.abs(ref.edge[k] - t.edge[k]), dr.abs(ref.point[k] - t.point[k]))
+        fd = _powf(nf * feature, _K(QF))
+        err.append(_powf(cd, 1.0 - fd))
     dr.eval(err)
-    err = np.asarray(err, dtype=f32).reshape(ref.shape)
+    err = t.grid.image(err)
     return err, mean_error(err)
 
 

@@ -156,6 +156,7 @@ SMOKE = {
     ],
     "studies/turned_techniques.py": ["--spp", "1"],
     "benchmarks/bench_mikktspace.py": ["--segments", "16", "--size", "32", "--repeat", "1"],
+    "benchmarks/bench_flip.py": ["--baseline", str(ROOT), "--sizes", "40", "--repeat", "1"],
 }
 NO_SMOKE = {
     "benchmarks/bench_bake.py": "compiles the C seed peer (tests/bake/test_horizon_peer.py does, marker gcc)",
@@ -175,6 +176,7 @@ NO_SMOKE = {
 #: The smoke runs that take a second or two: the default run keeps them, so that a renamed API breaks a
 #: test at once; the others are slow.
 FAST = {
+    "benchmarks/bench_flip.py",
     "benchmarks/bench_horizon.py",
     "benchmarks/bench_horizon_methods.py",
     "benchmarks/bench_pom.py",
