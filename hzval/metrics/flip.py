@@ -557,17 +557,18 @@ class _Grid:
     """
 
     def __init__(self, h: int, w: int, pad: int):
-        import drjit as dr
-        import mitsuba as mi
-
         B = BLOCK
         self.h, self.w, self.pad = h, w, pad
         self.q, self.nb, self.hc = -(-pad // B), -(-w // B), -(-h // B)
         self.rows, self.wb = B * self.hc + 2 * pad, B * self.nb
         self.stride = B * (self.nb + 2 * self.q)
-        self._W, self._H = dr.opaque(mi.Int32, w), dr.opaque(mi.Int32, h)
-        self._packets = dr.opaque(mi.Int32, self.nb + 2 * self.q)  # packets in a padded row
-        self._nb, self._WB = dr.opaque(mi.Int32, self.nb), dr.opaque(mi.Int32, self.wb)
+
+    def _opaque(self, n: int):
+        # a size as a kernel input, not a literal: one compiled kernel serves every size
+        import drjit as dr
+        import mitsuba as mi
+
+        return dr.opaque(mi.Int32, n)
 
     def source(self):
         """For each element of a padded plane, the index of the image pixel it repeats."""
@@ -575,11 +576,11 @@ class _Grid:
         import mitsuba as mi
 
         j = dr.arange(mi.Int32, self.rows * self.stride)
-        S = dr.opaque(mi.Int32, self.stride)
+        S, W, H = self._opaque(self.stride), self._opaque(self.w), self._opaque(self.h)
         row = j // S
         col = j - row * S
-        y = dr.clip(row - self.pad, 0, self._H - 1)
-        return y * self._W + dr.clip(col - BLOCK * self.q, 0, self._W - 1)
+        y = dr.clip(row - self.pad, 0, H - 1)
+        return y * W + dr.clip(col - BLOCK * self.q, 0, W - 1)
 
     def x_window(self, plane) -> list:
         """For each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row from column
@@ -589,8 +590,9 @@ class _Grid:
 
         lanes = self.rows * self.nb
         lane = dr.arange(mi.Int32, lanes)
-        row = lane // self._nb
-        first = row * self._packets + (lane - row * self._nb)
+        nb = self._opaque(self.nb)
+        row = lane // nb
+        first = row * self._opaque(self.nb + 2 * self.q) + (lane - row * nb)  # packets in a padded row
         values = []
         for j in range(2 * self.q + 1):
             packet = dr.gather(mi.ArrayXf, plane, mi.UInt32(first + j), shape=(BLOCK, lanes))
@@ -614,10 +616,11 @@ class _Grid:
         import mitsuba as mi
 
         lane = dr.arange(mi.Int32, self.hc * self.wb)
-        c = lane // self._WB
-        base = c * (BLOCK * self._WB) + (lane - c * self._WB)
+        WB = self._opaque(self.wb)
+        c = lane // WB
+        base = c * (BLOCK * WB) + (lane - c * WB)
         rows = range(first, first + count)
-        return {m: dr.gather(mi.Float, plane, mi.UInt32(base + m * self._WB)) for m in rows}
+        return {m: dr.gather(mi.Float, plane, mi.UInt32(base + m * WB)) for m in rows}
 
     def image(self, blocked: list) -> np.ndarray:
         """An ``h x w`` float32 image of a quantity in the blocked layout (one array per ``k``)."""
@@ -693,54 +696,108 @@ def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray
     return grid.image(y)
 
 
-def _image_planes(img: np.ndarray, grid: _Grid):
-    """The ``(H, W, 3)`` image's R, G and B as float32 Dr.Jit arrays over the padded planes
-    (:meth:`_Grid.source`; ``display`` values cast to float32 as FLIP's Python wrapper takes them),
-    gathered from one flat array of it: Dr.Jit maps NumPy memory as it is, and a gather, unlike a
-    strided load, compiles one kernel for every alignment."""
+def _flat_image(img: np.ndarray):
+    """An ``(H, W, 3)`` image as one flat Dr.Jit array: float64 as it is (Dr.Jit maps NumPy memory
+    without a copy; the kernel casts it to float32 as NumPy casts, to nearest), else float32, as
+    FLIP's Python wrapper takes it."""
+    import mitsuba as mi
+
+    if img.dtype == np.float64 and img.flags.c_contiguous:
+        return mi.Float64(img.ravel())
+    return mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
+
+
+def _image_planes(flat, grid: _Grid):
+    """R, G and B of a :func:`_flat_image` as float32 Dr.Jit arrays over the padded planes
+    (:meth:`_Grid.source`), gathered: a gather, unlike a strided load, compiles one kernel for
+    every alignment."""
     import drjit as dr
     import mitsuba as mi
 
     i = mi.UInt32(grid.source() * 3)
-    if img.dtype == np.float64 and img.flags.c_contiguous:
-        # cast in the kernel, as NumPy casts (to nearest): no float32 copy made on one core first
-        flat = mi.Float64(img.ravel())
+    if isinstance(flat, mi.Float64):
         return tuple(mi.Float(dr.gather(mi.Float64, flat, i + c)) for c in range(3))
-    flat = mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
     return tuple(dr.gather(mi.Float, flat, i + c) for c in range(3))
 
 
-class _Side:
-    """One image's FLIP quantities: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``) and its edge
-    and point magnitudes (``edge``, ``point``), each in the blocked layout of :class:`_Grid` (a list
-    of :data:`BLOCK` unevaluated Dr.Jit expressions over the x pass's results, which are evaluated:
-    FLIP's first loops, to YCxCz and then the x-direction passes)."""
+def _side(flat, h: int, w: int, ppd: float) -> tuple:
+    """One image's FLIP quantities, evaluated: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``)
+    and its edge and point magnitudes, each in the blocked layout of :class:`_Grid` (a list of
+    :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image. Three kernels: to
+    YCxCz, the x-direction passes, and the y-direction passes with all that follows them."""
+    import drjit as dr
 
-    def __init__(self, display: np.ndarray, f: Filters):
-        import drjit as dr
+    f = filters(ppd)
+    g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
+    r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(flat, g))
+    yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
+    yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
+    dr.eval(yy, cx, cz, yn)
+    # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
+    x_pass = _x_pass(g, (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)))
+    dr.eval(x_pass)
+    sp0, sp1, sp2, sp3, ft0, ft1, ft2 = x_pass
+    # the y-direction passes, and what follows them, for each of a lane's pixels
+    yy, cx, cz1, cz2 = _y_pass(g, (sp0, sp1, sp2, sp3), ((f.y,), (f.cx,), (f.cz1,), (f.cz2,)))
+    dx, ddx, dy, ddy = _y_pass(g, (ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)))
+    out = ([], [], [], [], [])
+    for k in range(BLOCK):
+        r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy[k], cx[k], cz1[k] + cz2[k])))
+        L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
+        for quantity, v in zip(
+            out,
+            (
+                L,
+                hunt(L, a),
+                hunt(L, b),
+                dr.sqrt(dx[k] * dx[k] + dy[k] * dy[k]),
+                dr.sqrt(ddx[k] * ddx[k] + ddy[k] * ddy[k]),
+            ),
+        ):
+            quantity.append(v)
+    # evaluated apart from the error: in one kernel with it, CUDA's compiler may round them
+    # otherwise (FLIP of an image against itself was 6e-7 there, not 0)
+    dr.eval(out)
+    return out
 
-        h, w = display.shape[:2]
-        self.grid = g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
-        r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(display, g))
-        yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
-        yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
-        dr.eval(yy, cx, cz, yn)
-        # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
-        x_pass = _x_pass(g, (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)))
-        dr.eval(x_pass)
-        sp0, sp1, sp2, sp3, ft0, ft1, ft2 = x_pass
-        # the y-direction passes, and what follows them, for each of a lane's pixels
-        yy, cx, cz1, cz2 = _y_pass(g, (sp0, sp1, sp2, sp3), ((f.y,), (f.cx,), (f.cz1,), (f.cz2,)))
-        dx, ddx, dy, ddy = _y_pass(g, (ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)))
-        self.L, self.A, self.B, self.edge, self.point = ([] for _ in range(5))
-        for k in range(BLOCK):
-            r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy[k], cx[k], cz1[k] + cz2[k])))
-            L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
-            self.L.append(L)
-            self.A.append(hunt(L, a))
-            self.B.append(hunt(L, b))
-            self.edge.append(dr.sqrt(dx[k] * dx[k] + dy[k] * dy[k]))
-            self.point.append(dr.sqrt(ddx[k] * ddx[k] + ddy[k] * ddy[k]))
+
+def _error(ref: tuple, flat, h: int, w: int, ppd: float) -> list:
+    """The per-pixel FLIP of the :func:`_flat_image` ``flat`` against a reference's :func:`_side`,
+    evaluated, in the blocked layout of :class:`_Grid`."""
+    import drjit as dr
+
+    f = filters(ppd)
+    t = _side(flat, h, w, ppd)
+    # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
+    pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
+    nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
+    err = []
+    for k in range(BLOCK):
+        (rl, ra, rb, re, rp), (tl, ta, tb, te, tp) = ([q[k] for q in side] for side in (ref, t))
+        cd = _powf(hyab(rl, ra, rb, tl, ta, tb), _K(QC))
+        cd = dr.select(
+            cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT)
+        )
+        fd = _powf(nf * dr.maximum(dr.abs(re - te), dr.abs(rp - tp)), _K(QF))
+        err.append(_powf(cd, 1.0 - fd))
+    dr.eval(err)
+    return err
+
+
+#: The image shapes (and pixels per degree, and input types) for which :func:`_frozen` keeps the
+#: kernels it recorded, the most recently used first.
+FROZEN_SHAPES = 8
+
+
+@functools.cache
+def _frozen(fn):
+    """``fn`` (:func:`_side` or :func:`_error`) frozen (``drjit.freeze``): its kernels are recorded
+    at the first call for a shape and launched again at the next ones without tracing the Python
+    that made them, which at 512 x 512 was a third of FLIP's time. The sizes are Python arguments,
+    so that each shape gets its own recording (a recording holds the sizes it was made with)."""
+    import drjit as dr
+
+    return dr.freeze(fn, limit=FROZEN_SHAPES)
 
 
 def _check_image(img, name: str) -> np.ndarray:
@@ -765,18 +822,17 @@ class FlipReference:
     """
 
     def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD):
-        import drjit as dr
 
         from hzval.core import backend
 
         backend.variant()
         disp = _check_image(reference_display, "reference")
-        self.filters = filters(ppd)
-        self.shape = disp.shape[:2]
-        side = _Side(disp, self.filters)
-        self.grid = side.grid
-        self.L, self.A, self.B, self.edge, self.point = side.L, side.A, side.B, side.edge, side.point
-        dr.eval(self.L, self.A, self.B, self.edge, self.point)
+        self.filters, self.ppd = filters(ppd), float(f32(ppd))
+        self.shape = h, w = disp.shape[:2]
+        f = self.filters
+        self.grid = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
+        flat = _flat_image(disp)
+        self.L, self.A, self.B, self.edge, self.point = _frozen(_side)(flat, h, w, self.ppd)
 
 
 def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray, float]:
@@ -804,7 +860,6 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
     ValueError
         For images of different sizes.
     """
-    import drjit as dr
 
     disp = _check_image(test_display, "test")
     if disp.shape[:2] != ref.shape:
@@ -812,25 +867,8 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
             f"reference and test image resolutions differ: {ref.shape[0]} x {ref.shape[1]} "
             f"against {disp.shape[0]} x {disp.shape[1]}"
         )
-    f = ref.filters
-    t = _Side(disp, f)
-    # evaluated apart, as the reference's are: in one kernel with what follows, CUDA's compiler may
-    # round them otherwise (FLIP of an image against itself was 6e-7 there, not 0)
-    dr.eval(t.L, t.A, t.B, t.edge, t.point)
-    # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
-    pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
-    nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
-    err = []
-    for k in range(BLOCK):
-        cd = _powf(hyab(ref.L[k], ref.A[k], ref.B[k], t.L[k], t.A[k], t.B[k]), _K(QC))
-        cd = dr.select(
-            cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT)
-        )
-        feature = dr.maximum(dr.abs(ref.edge[k] - t.edge[k]), dr.abs(ref.point[k] - t.point[k]))
-        fd = _powf(nf * feature, _K(QF))
-        err.append(_powf(cd, 1.0 - fd))
-    dr.eval(err)
-    err = t.grid.image(err)
+    quantities = (ref.L, ref.A, ref.B, ref.edge, ref.point)
+    err = ref.grid.image(_frozen(_error)(quantities, _flat_image(disp), *ref.shape, ref.ppd))
     return err, mean_error(err)
 
 

@@ -152,6 +152,21 @@ def test_reference_reused_for_several_tests_is_the_same_as_fresh():
         assert mean == mean1
 
 
+def test_kernels_replayed_for_a_shape_are_the_traced_ones():
+    """FLIP's kernels are recorded once per image shape and replayed (``FROZEN_SHAPES`` of them kept):
+    shapes interleaved, more of them than are kept, and new images of a shape seen before give the
+    same maps as the first call of each, which traced them."""
+    shapes = [(8 + 3 * i, 20 - i) for i in range(F.FROZEN_SHAPES + 2)]
+    images = {s: (noise(s), noise(s)) for s in shapes}
+    first = {s: F.flip(*images[s], PPD)[0] for s in shapes}
+    for s in reversed(shapes):
+        np.testing.assert_array_equal(F.flip(*images[s], PPD)[0], first[s])
+    for s in shapes[:3]:
+        a, b = noise(s), noise(s)
+        want, _ = reference_flip(a, b)
+        assert float(np.max(np.abs(F.flip(a, b, PPD)[0] - want))) <= 2e-5
+
+
 def test_a_crop_away_from_its_border_is_the_whole_images():
     """Each pixel reads its neighbours within the filters' radii (x, then y), clamped at the image's
     border: a crop's pixels farther than that from the crop's border are the whole image's, bit for
