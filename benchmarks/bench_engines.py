@@ -32,7 +32,10 @@ def sweep(extra: list[str], out: Path) -> tuple[float, dict]:
 
 def stages(t: dict, stems: set[str]) -> dict[str, float]:
     """A run's time by stage: set-up (bake, truth, techniques), renders, scoring, writing."""
-    render = t.get("truth_s", 0.0) + t.get("plain_s", 0.0) + sum(t.get(f"{s}_s", 0.0) for s in stems)
+    own = t.get("technique_frames_s")  # the renders' wall time; older runs: each technique's own, summed
+    if own is None:
+        own = t.get("plain_s", 0.0) + sum(t.get(f"{s}_s", 0.0) for s in stems)
+    render = t.get("truth_s", 0.0) + own
     return {
         "set-up": sum(v for k, v in t.items() if k.endswith("setup_s") or k == "bake_s"),
         "renders": render,
