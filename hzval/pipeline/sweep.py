@@ -212,6 +212,18 @@ def _cpu(seconds: dict, stage: str):
         seconds[stage] = seconds.get(stage, 0.0) + time.process_time() - c0
 
 
+@contextlib.contextmanager
+def _stage(clock: dict, stage: str):
+    """Add the block's wall time to ``clock[stage + "_s"]`` and its CPU time to ``clock["cpu_s"][stage]``
+    (:func:`_cpu`): a stage that runs in parts, such as each technique's render between comparisons."""
+    t0 = time.perf_counter()
+    try:
+        with _cpu(clock["cpu_s"], stage):
+            yield
+    finally:
+        clock[f"{stage}_s"] += time.perf_counter() - t0
+
+
 def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> _Setup:
     """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
     with the report), build the truth and every selected technique; timed."""
@@ -531,8 +543,8 @@ def lights(scene) -> list[tuple[float | None, float]]:
 
 def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_files: bool, bar) -> list[dict]:
     """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of :func:`lights`) gives
-    them: their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then compared and
-    written (:func:`_finish`).
+    them: their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then its techniques
+    rendered and compared one by one, and written (:func:`_finish`).
 
     One frame at a time, every stage on all cores: the comparison and the truth are both Dr.Jit
     kernels, so overlapping them gains next to nothing and costs memory and clear stage timings."""
@@ -545,12 +557,10 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
         # otherwise be made beside them (1.8 GB at 4096 x 4096)
         with _cpu(clock["cpu_s"], "truth_frames"):
             t_frame = setup.truth.render(az)
-        t0 = time.perf_counter()
-        with _cpu(clock["cpu_s"], "technique_frames"):
+        # the techniques' renders as they ran (technique_frames_s): a technique's own frame time
+        # (<stem>_s) includes the unshadowed shading it composes its image from, which they share
+        with _stage(clock, "technique_frames"):
             rendered = _render(setup, t_frame, az, el, scale, clock)
-        # the techniques' renders as they ran: a technique's own frame time (<stem>_s) includes the
-        # unshadowed shading it composes its image from, which every such technique shares
-        clock["technique_frames_s"] += time.perf_counter() - t0
         del t_frame
         frames.append(_finish(out, scene, setup, rendered, scale, clock, all_files))
         del rendered
@@ -559,40 +569,44 @@ def _frames(out: Path, scene, setup: _Setup, scale: float, clock: dict, all_file
 
 @dataclasses.dataclass
 class _Rendered:
-    """One light's renders: the truth, the unshadowed shading and its direct term, each technique's
-    frame, and (a view other than ``top``) each technique's error at the truth's hit points."""
+    """One light's renders: the truth, the unshadowed shading and its direct term, (a view other than
+    ``top``) each technique's error at the truth's hit points, and, once :func:`_score_light` has
+    rendered and compared them, each technique's frame without its image (kept only for
+    ``--all-files``: the comparison has what the report shows of it)."""
 
     azimuth_deg: float
     elevation_deg: float | None  # None: the scene's one elevation
     truth: object
     plain: object
     direct: np.ndarray
-    techniques: list
     perfect: dict
     base: object = None  # a model's no-shadows frame: the base mesh's own shadow alone
+    background: np.ndarray | None = None  # a view: the linear colour of the pixels it does not see
+    techniques: list = dataclasses.field(default_factory=list)
 
 
 def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, clock: dict) -> _Rendered:
-    """The techniques' renders of the light at ``(el, az)`` beside the truth's ``t_frame`` (a view's
-    unseen pixels made the background in every image)."""
+    """The renders of the light at ``(el, az)`` beside the truth's ``t_frame`` that every technique's
+    comparison reads: the unshadowed shading, a model's base shadow, a view's perfect-parallax errors
+    (a view's unseen pixels made the background in every image). The techniques' own frames are
+    rendered one at a time as they are compared (:func:`_score_light`): holding all of them at once
+    was 2 GB at 4096 x 4096 with eight techniques."""
     plain, direct = setup.unshadowed.render(az, el)
     clock["plain_s"] += plain.seconds
-    rendered = [(t, t.render(az, elevation_deg=el)) for t in setup.techniques]
     base = None if setup.base_shadow is None else setup.base_shadow.render(az, elevation_deg=el)
     mask = t_frame.mask
-    perfect = {}
+    perfect, bg = {}, None
     if mask is not None:
         # a view: what no camera ray sees is the background in every image, and left out of the metrics
         bg = (cv.srgb_decode(np.asarray(writing.UNSEEN_DISPLAY)) / scale).astype(np.float32)
         t_frame, plain = _unseen(t_frame, mask, bg), _unseen(plain, mask, bg)
-        rendered = [(t, _unseen(f, mask, bg)) for t, f in rendered]
         base = None if base is None else _unseen(base, mask, bg)
         V = t_frame.layers.get("visibility")
         for t in setup.perfect:
             F = t.render(az, elevation_deg=el).layers.get("factor")
             if V is not None and F is not None:
                 perfect[t.name] = compare.visibility_metrics(V, F, mask)[0]
-    return _Rendered(az, el, t_frame, plain, direct, rendered, perfect, base)
+    return _Rendered(az, el, t_frame, plain, direct, perfect, base, bg)
 
 
 def _finish(
@@ -600,10 +614,7 @@ def _finish(
 ) -> dict:
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
-    t0 = time.perf_counter()
-    with _cpu(clock["cpu_s"], "compare"):
-        compared, floor, none, truth_shown = _score_light(setup, r, scale)
-    clock["compare_s"] += time.perf_counter() - t0
+    compared, floor, none, truth_shown = _score_light(setup, r, scale, clock, all_files)
     with _cpu(clock["cpu_s"], "write"):
         rel, tech_files, seconds = writing.write_frame(
             out,
@@ -643,9 +654,11 @@ def _finish(
     return frame
 
 
-def _score_light(setup: _Setup, r: _Rendered, scale: float) -> tuple:
-    """One light's comparisons: ``(technique, frame, metrics, what its files need)`` per technique,
-    the perfect-shadows floor, the no-shadows baseline and the truth's 8-bit preview values."""
+def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool) -> tuple:
+    """One light's techniques, each rendered and compared in turn (timed as ``technique_frames`` and
+    ``compare``): ``(technique, frame, metrics, what its files need)`` per technique, the
+    perfect-shadows floor, the no-shadows baseline and the truth's 8-bit preview values. ``r.techniques``
+    gets each technique's frame, its image dropped unless ``all_files`` writes it."""
     t_frame = r.truth
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
@@ -653,20 +666,30 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float) -> tuple:
     # every frame's buffers cost 1 s a frame at 2048
     release = backend.release_memory if not setup.truth.keeps else (lambda: None)
     release()
-    ref = compare.Reference(t_frame, scale)
+    with _stage(clock, "compare"):
+        ref = compare.Reference(t_frame, scale)
     compared = []
-    for t, f in r.techniques:
+    for t in setup.techniques:
+        with _stage(clock, "technique_frames"):
+            f = t.render(r.azimuth_deg, elevation_deg=r.elevation_deg)
+            f = f if r.background is None else _unseen(f, t_frame.mask, r.background)
         release()
-        metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
-        # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
-        # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
-        compared.append((t, f, metrics, {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}))
+        with _stage(clock, "compare"):
+            metrics, maps = compare.compare(t_frame, f, scale, reference=ref)
+            # only what the writers need, as small as it comes: the preview's 8-bit values (an eighth
+            # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
+            kept = {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}
         del maps
+        compared.append((t, f if all_files else dataclasses.replace(f, image=None), metrics, kept))
+        del f
+    r.techniques = [(t, f) for t, f, _, _ in compared]
     release()
     V = t_frame.layers.get("visibility")
-    floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
-    none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
-    return compared, floor, none, writing.shown(ref.display)
+    with _stage(clock, "compare"):
+        floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
+        none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
+        truth_shown = writing.shown(ref.display)
+    return compared, floor, none, truth_shown
 
 
 def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:
