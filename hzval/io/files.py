@@ -47,6 +47,7 @@ __all__ = [
     "rgb_of",
     "library_output",
     "run_writers",
+    "Writers",
     "Indexed",
     "write_png",
     "PREVIEW_ABOVE_PX",
@@ -622,23 +623,50 @@ def library_output() -> Iterator:
 
 
 def run_writers(jobs) -> None:
-    """Run the callables ``jobs`` (each writes a file) on the host pool, a thread per core (the
-    image encoders release the GIL), and wait for every one. A writer's error is re-raised here; on
-    it, or Ctrl-C, the writers not yet started are cancelled and the running ones awaited, so that
-    none puts a file into a folder after its caller has removed it."""
-    import concurrent.futures
+    """Run the callables ``jobs`` (each writes a file) on the host pool and wait for every one
+    (:class:`Writers`)."""
+    with Writers() as writers:
+        for job in jobs:
+            writers.submit(job)
 
-    from hzval.core import backend
 
-    pending = [backend.host_pool().submit(job) for job in jobs]
-    try:
-        for done in pending:
+class Writers:
+    """File writers started as they are given (:meth:`submit`), on the host pool, a thread per core
+    (the image encoders release the GIL), and awaited when the ``with`` block ends. A writer's error
+    is raised there; on it, or on an error or Ctrl-C in the block, the writers not yet started are
+    cancelled and the running ones awaited, so that none puts a file into a folder after its caller
+    has removed it."""
+
+    def __enter__(self) -> "Writers":
+        self.pending: list = []
+        return self
+
+    def submit(self, job) -> None:
+        """Start the callable ``job`` (it writes a file) on the host pool."""
+        from hzval.core import backend
+
+        self.pending.append(backend.host_pool().submit(job))
+
+    def wait(self) -> None:
+        """Wait for every writer started so far; a writer's error is raised here."""
+        for done in self.pending:
             done.result()
-    except BaseException:
-        for p in pending:
-            p.cancel()
-        concurrent.futures.wait(pending)
-        raise
+
+    def __exit__(self, kind, error, trace) -> bool:
+        import concurrent.futures
+
+        try:
+            if kind is None:
+                self.wait()
+        except BaseException:
+            kind = BaseException
+            raise
+        finally:
+            if kind is not None:
+                for p in self.pending:
+                    p.cancel()
+                concurrent.futures.wait(self.pending)
+        return False
 
 
 # --------------------------------------------------------------------------
@@ -678,32 +706,53 @@ def write_png(
     Pillow's ``convert("RGB")``) to the same RGB pixels.
     """
     target = Path(path)
-    img = _png_image(pixels, grey)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
-    with ctx as tmp:
-        img.save(tmp, format="PNG", compress_level=compress_level)
-
-
-def _png_image(pixels: np.ndarray | Indexed, grey: bool):
-    """The Pillow image :func:`write_png` saves."""
-    from PIL import Image
-
     if isinstance(pixels, Indexed):
-        index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
-        if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:
-            raise ValueError(
-                f"an Indexed image needs (rows, cols) indices and 1-256 RGB colours, "
-                f"got {index.shape} and {palette.shape}"
-            )
-        img = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
-        img.putpalette(palette.tobytes(), rawmode="RGB")
-        return img
+        img = _palette_image(pixels)
+        with ctx as tmp:
+            img.save(tmp, format="PNG", compress_level=compress_level)
+        return
+    import imagecodecs
+
+    # libpng through imagecodecs, each row Paeth-filtered: Pillow tries five filters on every row
+    # and keeps the best, 1.7x the time for 1.4% fewer bytes on a rendered frame
+    data = imagecodecs.png_encode(_png_pixels(pixels, grey), level=compress_level, filter=PNG_FILTER)
+    with ctx as tmp:
+        Path(tmp).write_bytes(data)
+
+
+#: The PNG row filter :func:`write_png` uses for grey and RGB images (PNG's filter type 4, Paeth):
+#: the fewest bytes of the single filters on the sweep's renders (``imagecodecs.PNG.FILTER``).
+PNG_FILTER = 128
+
+
+def _png_pixels(pixels: np.ndarray, grey: bool) -> np.ndarray:
+    """The pixels :func:`write_png` encodes: uint8 or uint16, grey RGB as one channel with ``grey``."""
     pixels = np.ascontiguousarray(pixels)
     if pixels.dtype not in (np.uint8, np.uint16):
         raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
+    if pixels.ndim not in (2, 3) or (pixels.ndim == 3 and pixels.shape[-1] not in (3, 4)):
+        raise ValueError(f"write_png needs (rows, cols[, 3|4]) pixels, got {pixels.shape}")
+    if pixels.dtype == np.uint16 and pixels.ndim != 2:
+        raise ValueError(f"16-bit pixels are written as grey only, got {pixels.shape}")
     if grey and pixels.dtype == np.uint8 and pixels.ndim == 3 and pixels.shape[-1] == 3 and is_grey(pixels):
         pixels = np.ascontiguousarray(pixels[..., 0])
-    return Image.fromarray(pixels)  # uint16 (rows, cols): 16-bit grey ("I;16")
+    return pixels
+
+
+def _palette_image(pixels: Indexed):
+    """The Pillow image of a palette image (mode ``"P"``), which :func:`write_png` saves."""
+    from PIL import Image
+
+    index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
+    if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:
+        raise ValueError(
+            f"an Indexed image needs (rows, cols) indices and 1-256 RGB colours, "
+            f"got {index.shape} and {palette.shape}"
+        )
+    img = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
+    img.putpalette(palette.tobytes(), rawmode="RGB")
+    return img
 
 
 #: A PNG with more pixels than this on its longer side also gets a preview (:func:`preview_of`)

@@ -25,7 +25,7 @@ Output folder::
                                           most 1024 px); with --all-files also plain.exr,
                                           <stem>.exr, visibility.png, <stem>_factor.png
 
-Frame files (:func:`write_frame`): EXRs in half float, ZIP (2^-11 relative,
+Frame files (:class:`writing.FrameWriter`): EXRs in half float, ZIP (2^-11 relative,
 below the previews' 8-bit quantisation; the metrics are computed before, in
 float32); an image whose R, G and B are equal (every one of a grey material
 under a white light) as one ``Y`` channel and a grey PNG, losslessly
@@ -109,7 +109,7 @@ class Options:
     every technique that applies to the scene's effects; ``exclude`` leaves
     some out; ``settings``: per technique name, the keywords of its
     ``build`` (e.g. ``{"horizon": {"k": 4.0}, "pom": {"steps": 64}}``);
-    ``all_files``: write a frame's derived files too (:func:`writing.write_frame`).
+    ``all_files``: write a frame's derived files too (:class:`writing.FrameWriter`).
     """
 
     radius: int = _BAKE_DEFAULTS.radius
@@ -119,7 +119,7 @@ class Options:
     techniques: tuple[str, ...] | None = None
     exclude: tuple[str, ...] = ()
     settings: dict = dataclasses.field(default_factory=dict)
-    all_files: bool = False  # also the frame files that the others determine (writing.write_frame)
+    all_files: bool = False  # also the frame files that the others determine (writing.FrameWriter)
 
     def bake_params(self, scene) -> BakeParams:
         return BakeParams(
@@ -614,22 +614,16 @@ def _finish(
 ) -> dict:
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
-    compared, floor, none, truth_shown = _score_light(setup, r, scale, clock, all_files)
-    with _cpu(clock["cpu_s"], "write"):
-        rel, tech_files, seconds = writing.write_frame(
-            out,
-            records.frame_folder(az, r.elevation_deg),
-            t_frame,
-            r.plain,
-            compared,
-            scale,
-            truth_shown=truth_shown,
-            all_files=all_files,
-            mask=t_frame.mask,
-        )
-    clock["write_s"] += seconds
+    folder = records.frame_folder(az, r.elevation_deg)
+    # each technique's files start as soon as it is compared; the frame's end waits for them all
+    # (write_s: the truth's files and that wait)
+    with writing.FrameWriter(out, folder, scale, t_frame.mask, all_files) as writer:
+        compared, floor, none, truth_shown = _score_light(setup, r, scale, clock, writer)
+        with _stage(clock, "write"):
+            rel = writer.truth_files(t_frame, r.plain, truth_shown)
+            writer.wait()
     frame = {
-        "name": records.frame_folder(az, r.elevation_deg),
+        "name": folder,
         "azimuth_deg": az,
         "elevation_deg": t_frame.elevation_deg,
         "truth_s": t_frame.seconds,
@@ -640,9 +634,7 @@ def _finish(
         frame["floor"] = floor
     if none is not None:
         frame["no_shadows"] = none
-    per = {
-        t.name: {**_metrics(m), "seconds": f.seconds, "files": tech_files[t.name]} for t, f, m, _ in compared
-    }
+    per = {t.name: {**_metrics(m), "seconds": f.seconds, "files": own} for t, f, m, own in compared}
     for name, value in r.perfect.items():
         per[name]["perfect_parallax_mae"] = value
     for t in setup.techniques:
@@ -654,11 +646,12 @@ def _finish(
     return frame
 
 
-def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, all_files: bool) -> tuple:
-    """One light's techniques, each rendered and compared in turn (timed as ``technique_frames`` and
-    ``compare``): ``(technique, frame, metrics, what its files need)`` per technique, the
-    perfect-shadows floor, the no-shadows baseline and the truth's 8-bit preview values. ``r.techniques``
-    gets each technique's frame, its image dropped unless ``all_files`` writes it."""
+def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer) -> tuple:
+    """One light's techniques, each rendered, compared and its files started in turn (timed as
+    ``technique_frames`` and ``compare``; ``writer``: the frame's :class:`writing.FrameWriter`):
+    ``(technique, frame, metrics, its files)`` per technique, the perfect-shadows floor, the
+    no-shadows baseline and the truth's 8-bit preview values. ``r.techniques`` gets each technique's
+    frame, its image dropped unless the writer writes every file (``--all-files``)."""
     t_frame = r.truth
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
@@ -680,7 +673,9 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, all_fil
             # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
             kept = {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}
         del maps
-        compared.append((t, f if all_files else dataclasses.replace(f, image=None), metrics, kept))
+        own = writer.technique_files(t.file_stem, f, kept, t_frame.layers.get("visibility"))
+        del kept  # the writers hold it until its files are written
+        compared.append((t, f if writer.all_files else dataclasses.replace(f, image=None), metrics, own))
         del f
     r.techniques = [(t, f) for t, f, _, _ in compared]
     release()

@@ -1,9 +1,9 @@
-"""What a sweep writes of each frame: its EXR layers and PNG previews, written by a thread beside the
-next frame's render (PNG compression and EXR encoding release the GIL), and the view's maps."""
+"""What a sweep writes of each frame: its EXR layers and PNG previews, each written on a thread as
+soon as it is made, beside the next technique's render and comparison (PNG compression and EXR
+encoding release the GIL), and the view's maps."""
 
 from __future__ import annotations
 
-import time
 from functools import partial
 from pathlib import Path
 
@@ -18,7 +18,7 @@ __all__ = [
     "UNSEEN_DISPLAY",
     "PNG_LEVEL",
     "shown",
-    "write_frame",
+    "FrameWriter",
     "write_albedo",
 ]
 
@@ -58,25 +58,20 @@ def shown(display: np.ndarray) -> np.ndarray:
     return files.unit_to_u8(display[..., 0] if files.is_grey(display) else display)
 
 
-def write_frame(
-    out: Path,
-    name: str,
-    truth_frame,
-    plain,
-    compared: list,
-    scale: float,
-    truth_shown: np.ndarray | None = None,
-    all_files: bool = False,
-    mask: np.ndarray | None = None,
-) -> tuple[dict, dict, float]:
-    """Write one frame's images; return ``(files, {technique: files}, seconds)``, the files as
-    ``{key: path relative to out}`` (``metrics.json``'s ``files``).
+class FrameWriter:
+    """One frame's files, each written on the host pool (a thread per core: the encoders release the
+    GIL) as soon as it is given: a technique's files while the next technique is rendered and
+    compared, so that what they are made of is freed one technique at a time (the preview's 8-bit
+    values and the FLIP map: 7 bytes a pixel a technique, 0.9 GiB at 4096 x 4096 with eight). A
+    context manager: the ``with`` block's end waits for every file; an error or Ctrl-C in it cancels
+    the files not yet started and waits for the running ones (:class:`hzval.io.files.Writers`), so
+    that no writer outlives the frame to put a file into the staging folder after the sweep has
+    removed it.
 
-    ``compared``: ``(technique, frame, metrics, maps)`` per technique; each
-    technique's files are named after its ``file_stem``: ``<stem>.exr``,
-    ``<stem>.png``, ``<stem>_factor.exr`` and ``.png``, ``<stem>_flip.png``,
-    ``<stem>_visdiff.png``. Previews reuse the 8-bit values of the display values
-    :func:`hzval.metrics.compare.compare` computed (``maps["shown"]``, ``truth_shown``: :func:`shown`).
+    Each technique's files are named after its ``file_stem``: ``<stem>.exr``, ``<stem>.png``,
+    ``<stem>_factor.exr`` and ``.png``, ``<stem>_flip.png``, ``<stem>_visdiff.png``. Previews reuse
+    the 8-bit values of the display values :func:`hzval.metrics.compare.compare` computed
+    (``maps["shown"]``, the truth's: :func:`shown`).
 
     What is written: the truth (``truth.exr``, its variance, ``visibility.exr``), each technique's
     ``F`` (``<stem>_factor.exr``), and the PNGs the report shows. The files that these determine
@@ -91,79 +86,89 @@ def write_frame(
     estimate's own relative error, sqrt(2 / (spp - 1))); an image with R == G == B as one ``Y``
     channel and an 8-bit grey PNG (lossless); FLIP and visibility-difference maps as palette PNGs
     (exact). ``mask``: the pixels a view's camera rays see; the layers' EXRs are NaN at the others.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The report's folder; the frame's files go to ``frames/<name>/`` in it.
+    name : str
+        The frame's folder name (:func:`hzval.pipeline.records.frame_folder`).
+    scale : float
+        The sweep's exposure, for the previews' display values.
+    mask : numpy.ndarray or None
+        ``(H, W)`` bool, the pixels the view sees (``None``: all).
+    all_files : bool
+        Whether to write the files the others determine too.
     """
-    t0 = time.perf_counter()
-    w = _FrameWriter(out / "frames" / name, f"frames/{name}", scale, mask)
-    rel = w.truth_files(truth_frame, plain, truth_shown, all_files)
-    V = truth_frame.layers.get("visibility")
-    per = {
-        t.name: w.technique_files(t.file_stem, frame, maps, V, all_files) for t, frame, _, maps in compared
-    }
-    # Ctrl-C (or a writer's error): no writer outlives this frame to put a file into the staging
-    # folder after the sweep has removed it
-    files.run_writers(w.jobs)
-    return rel, per, time.perf_counter() - t0
 
+    def __init__(self, out: Path, name: str, scale: float, mask: np.ndarray | None, all_files: bool = False):
+        self.folder, self.prefix = out / "frames" / name, f"frames/{name}"
+        self.scale, self.mask, self.all_files = scale, mask, all_files
 
-class _FrameWriter:
-    """The writers of one frame's files (:func:`write_frame`), queued to run on a thread per core:
-    the encoders release the GIL (2 cores: 0.55x the time)."""
+    def __enter__(self) -> "FrameWriter":
+        self._writers = files.Writers().__enter__()
+        return self
 
-    def __init__(self, folder: Path, prefix: str, scale: float, mask: np.ndarray | None):
-        self.folder, self.prefix, self.scale, self.mask = folder, prefix, scale, mask
-        self.jobs: list = []
+    def __exit__(self, kind, error, trace) -> bool:
+        return self._writers.__exit__(kind, error, trace)
 
-    def exr(self, rel: dict, key: str, filename: str, channels) -> None:
-        self.jobs.append(partial(files.write_exr, self.folder / filename, channels, half=True, grey=True))
+    def wait(self) -> None:
+        """Wait for every file started so far (a writer's error is raised here)."""
+        self._writers.wait()
+
+    def _exr(self, rel: dict, key: str, filename: str, channels) -> None:
+        self._writers.submit(partial(files.write_exr, self.folder / filename, channels, half=True, grey=True))
         rel[key] = f"{self.prefix}/{filename}"
 
-    def png(self, rel: dict, key: str, filename: str, make, *args) -> None:
-        self.jobs.append(partial(_write_png_of, self.folder / filename, make, *args))
+    def _png(self, rel: dict, key: str, filename: str, make, *args) -> None:
+        self._writers.submit(partial(_write_png_of, self.folder / filename, make, *args))
         rel[key] = f"{self.prefix}/{filename}"
 
-    def shown(self, img, values=None):
+    def _shown(self, img, values=None):
         # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
         # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
         return shown(compare.display(img, self.scale)) if values is None else values
 
-    def layer(self, values):
+    def _layer(self, values):
         return (
             values
             if self.mask is None
             else np.where(self.mask, values, np.float32(np.nan)).astype(np.float32)
         )
 
-    def truth_files(self, truth_frame, plain, truth_shown, all_files: bool) -> dict:
-        """The truth's and the unshadowed render's files."""
+    def truth_files(self, truth_frame, plain, truth_shown: np.ndarray | None = None) -> dict:
+        """Start the truth's and the unshadowed render's files; their paths, by key."""
         rel: dict = {}
-        self.exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
+        all_files = self.all_files
+        self._exr(rel, "truth", "truth.exr", {"RGB": truth_frame.image})
         if all_files:
-            self.exr(rel, "plain", "plain.exr", {"RGB": plain.image})
+            self._exr(rel, "plain", "plain.exr", {"RGB": plain.image})
         if "image" in truth_frame.variance:
-            self.exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
-        self.png(rel, "truth_png", "truth.png", _as_is, self.shown(truth_frame.image, truth_shown))
-        self.png(rel, "plain_png", "plain.png", _as_is, self.shown(plain.image))
+            self._exr(rel, "truth_variance", "truth_variance.exr", {"RGB": truth_frame.variance["image"]})
+        self._png(rel, "truth_png", "truth.png", _as_is, self._shown(truth_frame.image, truth_shown))
+        self._png(rel, "plain_png", "plain.png", _as_is, self._shown(plain.image))
         V = truth_frame.layers.get("visibility")
         if V is not None:
-            self.exr(rel, "visibility", "visibility.exr", {"Y": self.layer(V)})
+            self._exr(rel, "visibility", "visibility.exr", {"Y": self._layer(V)})
             if all_files:
-                self.png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
+                self._png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
         return rel
 
-    def technique_files(self, stem: str, frame, maps: dict, V, all_files: bool) -> dict:
-        """One technique's files, named after its ``stem``."""
+    def technique_files(self, stem: str, frame, maps: dict, V) -> dict:
+        """Start one technique's files, named after its ``stem`` (``maps``: ``shown`` and ``flip``;
+        ``V``: the truth's visibility, or ``None``); their paths, by key."""
         own: dict = {}
-        if all_files:
-            self.exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
-        self.png(own, "png", f"{stem}.png", _as_is, self.shown(frame.image, maps.get("shown")))
-        self.png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
+        if self.all_files:
+            self._exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
+        self._png(own, "png", f"{stem}.png", _as_is, self._shown(frame.image, maps.get("shown")))
+        self._png(own, "flip_png", f"{stem}_flip.png", images.flip_indexed, maps["flip"])
         F = frame.layers.get("factor")
         if F is not None:
-            self.exr(own, "factor", f"{stem}_factor.exr", {"Y": self.layer(F)})
-            if all_files:
-                self.png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
+            self._exr(own, "factor", f"{stem}_factor.exr", {"Y": self._layer(F)})
+            if self.all_files:
+                self._png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
             if V is not None:
-                self.png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
+                self._png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
         return own
 
 

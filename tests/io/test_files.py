@@ -50,3 +50,25 @@ def test_exr_round_trip(tmp_path):
     back = files.read_exr(tmp_path / "a.exr")
     assert set(back) == {"R", "G", "B", "A", "extra"}
     assert np.array_equal(back["B"], rgba[..., 2]) and np.array_equal(back["extra"], rgba[..., 0])
+
+
+def test_writers_wait_for_every_file_and_raise_a_writers_error(tmp_path):
+    """Writers start at once; the block's end waits for them, and a writer's error is raised there after
+    the others are done or cancelled."""
+    import time
+
+    def slow():
+        time.sleep(0.05)
+        (tmp_path / "slow").write_text("done")
+
+    def fails():
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        with files.Writers() as writers:
+            writers.submit(slow)
+            writers.submit(fails)
+    assert (tmp_path / "slow").read_text() == "done"
+    with files.Writers() as writers:
+        writers.submit(slow)
+    assert (tmp_path / "slow").exists()

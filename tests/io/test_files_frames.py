@@ -106,3 +106,35 @@ def test_a_grey_rgb_png_is_8_bit_grey_and_decodes_to_the_same_rgb(tmp_path):
     files.write_png(tmp_path / "c.png", rgb, grey=True)
     mode, back = png_mode_and_rgb(tmp_path / "c.png")
     assert mode == "RGB" and np.array_equal(back, rgb)
+
+
+@pytest.mark.parametrize(
+    "pixels",
+    [
+        RNG.integers(0, 256, (13, 11, 3), dtype=np.uint8),
+        RNG.integers(0, 256, (5, 17, 4), dtype=np.uint8),
+        RNG.integers(0, 256, (1, 1), dtype=np.uint8),
+        RNG.integers(0, 65536, (7, 6), dtype=np.uint16),
+    ],
+    ids=["rgb", "rgba", "one-grey-pixel", "16-bit-grey"],
+)
+@pytest.mark.parametrize("level", [0, 1, 9])
+def test_png_pixels_read_back_exactly_with_pillow(tmp_path, pixels, level):
+    """Grey and colour PNGs are written by libpng (imagecodecs), read here by Pillow: every value back,
+    at every zlib level, 16-bit grey included."""
+    from PIL import Image
+
+    files.write_png(tmp_path / "p.png", pixels, compress_level=level)
+    with Image.open(tmp_path / "p.png") as im:
+        back = np.asarray(im)
+    assert back.shape == pixels.shape and np.array_equal(back.astype(pixels.dtype), pixels)
+
+
+def test_png_refuses_what_it_cannot_write(tmp_path):
+    with pytest.raises(TypeError):
+        files.write_png(tmp_path / "f.png", np.zeros((2, 2), np.float32))
+    with pytest.raises(ValueError):
+        files.write_png(tmp_path / "two.png", np.zeros((2, 2, 2), np.uint8))
+    with pytest.raises(ValueError):
+        files.write_png(tmp_path / "rgb16.png", np.zeros((2, 2, 3), np.uint16))
+    assert not list(tmp_path.iterdir())

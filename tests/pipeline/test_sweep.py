@@ -42,7 +42,7 @@ SCORES = {
     "files",
 }
 FRAME_FILES = {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
-#: What only --all-files adds (pipeline_writing.write_frame): files the others determine.
+#: What only --all-files adds (pipeline_writing.FrameWriter): files the others determine.
 DERIVED_FILES = {"plain", "visibility_png"}
 
 

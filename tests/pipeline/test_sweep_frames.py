@@ -22,8 +22,17 @@ RNG = np.random.default_rng(7)
 # -- the sweep's frame -------------------------------------------------------------------------
 
 
+def write_frame(out, truth, plain, compared, scale, all_files=False):
+    """A frame's files as the sweep starts them: each technique's, then the truth's; their paths."""
+    V = truth.layers.get("visibility")
+    with pipeline_writing.FrameWriter(out, "az+0", scale, None, all_files) as writer:
+        per = {t.name: writer.technique_files(t.file_stem, f, maps, V) for t, f, _, maps in compared}
+        rel = writer.truth_files(truth, plain)
+    return rel, per
+
+
 def synthetic_frame(size=32, grey=True):
-    """What pipeline_writing.write_frame is given: truth and unshadowed frames, one technique's, compared."""
+    """What a FrameWriter is given: truth and unshadowed frames, one technique's, compared."""
     ns = types.SimpleNamespace
 
     def render():
@@ -39,12 +48,10 @@ def synthetic_frame(size=32, grey=True):
 
 
 @pytest.mark.parametrize("grey", [True, False])
-def test_write_frame_stores_each_file_compactly_and_exactly(tmp_path, grey):
+def test_a_frames_files_are_stored_compactly_and_exactly(tmp_path, grey):
     truth, plain, compared = synthetic_frame(grey=grey)
-    rel, per, seconds = pipeline_writing.write_frame(
-        tmp_path, "az+0", truth, plain, compared, 4.0, all_files=True
-    )
-    assert seconds > 0 and per["horizon"]["flip_png"] == "frames/az+0/horizon_flip.png"
+    rel, per = write_frame(tmp_path, truth, plain, compared, 4.0, all_files=True)
+    assert per["horizon"]["flip_png"] == "frames/az+0/horizon_flip.png"
     layout = {k: exr_layout(tmp_path / p) for k, p in {**rel, **per["horizon"]}.items() if p.endswith(".exr")}
     colour = {"Y"} if grey else {"R", "G", "B"}
     for key in ("truth", "plain", "image", "truth_variance"):
@@ -112,7 +119,7 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
 def test_by_default_a_frame_leaves_out_the_files_the_others_determine(tmp_path):
     """Without --all-files: no plain.exr, technique image EXR or V/F PNG; the rest as with it."""
     truth, plain, compared = synthetic_frame(grey=False)
-    rel, per, _ = pipeline_writing.write_frame(tmp_path, "az+0", truth, plain, compared, 4.0)
+    rel, per = write_frame(tmp_path, truth, plain, compared, 4.0)
     assert set(rel) == {"truth", "truth_variance", "visibility", "truth_png", "plain_png"}
     assert set(per["horizon"]) == {"png", "flip_png", "factor", "visdiff_png"}
     written = {p.name for p in (tmp_path / "frames" / "az+0").iterdir()}
