@@ -125,8 +125,8 @@ class FrameWriter:
         rel[key] = f"{self.prefix}/{filename}"
 
     def _shown(self, img, values=None):
-        # computed here, not in a writer: compare.display runs on the writers' own pool, and a writer
-        # waiting for it holds its thread until the queue has drained (the rest of the frame on one)
+        # computed here, on the sweep's thread, not in a writer: compare.display is a Dr.Jit kernel,
+        # and the sweep's thread launches every one of them
         return shown(compare.display(img, self.scale)) if values is None else values
 
     def _layer(self, values):
