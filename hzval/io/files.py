@@ -1,4 +1,5 @@
-"""Reading and writing hzval's files: EXR (OpenEXR), PNG (Pillow), JSON.
+"""Reading and writing hzval's files: EXR (OpenEXR), PNG (libpng through imagecodecs; palette images
+and reading through Pillow), JSON.
 
 Every writer is atomic: it writes to a hidden temporary name in the target
 folder and renames it into place (``os.replace``), so a reader never sees a

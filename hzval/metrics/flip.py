@@ -36,8 +36,9 @@ backend vectorises them over every core; CUDA runs the same code): the
 colour conversion to YCxCz, over the image with its edges repeated around
 it; the x-direction passes; and the y-direction passes, fused with
 everything that follows them. Each lane of a pass computes :data:`BLOCK`
-neighbouring pixels, whose taps overlap: it reads their ``BLOCK + 2r``
-inputs once (a sixth of the reads of one gather per tap and pixel), and a
+neighbouring pixels, whose taps overlap: it reads their inputs once (the
+x pass as whole packets of eight around them, the y pass the ``BLOCK + 2r``
+rows they need: a fifth of the reads of one gather per tap and pixel), and a
 plane read by several filters (Cz by two, the feature luminance by three) is
 read once for all. Both passes are correlations, the filter index running with
 the image index, summed in float32 in FLIP's tap order. Image sizes enter
@@ -532,9 +533,9 @@ def filters(ppd: float = DEFAULT_PPD) -> Filters:
 
 
 #: The pixels one lane of a filter pass computes: eight of a row in the x pass, eight of a column in
-#: the y pass. Their taps overlap, so a lane reads the ``8 + 2r`` inputs of all eight once (the x
-#: pass as packet loads of eight floats) instead of ``2r + 1`` per pixel: a sixth of the memory
-#: reads, the same arithmetic in the same order.
+#: the y pass. Their taps overlap, so a lane reads the inputs of all eight once (the x pass the
+#: ``2q + 1`` packets of eight floats around them, the y pass the ``8 + 2r`` rows they need) instead
+#: of ``2r + 1`` per pixel: the same arithmetic in the same order, a fraction of the memory reads.
 BLOCK = 8
 
 
@@ -784,20 +785,23 @@ def _error(ref: tuple, flat, h: int, w: int, ppd: float) -> list:
     return err
 
 
-#: The image shapes (and pixels per degree, and input types) for which :func:`_frozen` keeps the
-#: kernels it recorded, the most recently used first.
+#: The recordings :func:`_frozen` keeps, the most recently used first: one for each image shape,
+#: pixels per degree and input type, and on the LLVM backend for each alignment of the NumPy memory
+#: it maps (64-byte aligned or not: a large image is, a small one may be either).
 FROZEN_SHAPES = 8
 
 
 @functools.cache
 def _frozen(fn):
-    """``fn`` (:func:`_side` or :func:`_error`) frozen (``drjit.freeze``): its kernels are recorded
-    at the first call for a shape and launched again at the next ones without tracing the Python
-    that made them, which at 512 x 512 was a third of FLIP's time. The sizes are Python arguments,
-    so that each shape gets its own recording (a recording holds the sizes it was made with)."""
+    """``fn`` (:func:`_side` or :func:`_error`) frozen (``drjit.freeze``, Dr.Jit 1.2 or later): its
+    kernels are recorded at the first call for a shape and launched again at the next ones without
+    tracing the Python that made them, which at 512 x 512 was a third of FLIP's time. The sizes are
+    Python arguments, so that each shape gets its own recording (a recording holds the sizes it was
+    made with). Dr.Jit's warning after ten recordings is for a loop that records on every call; a
+    process that scores many shapes records once for each, as it should."""
     import drjit as dr
 
-    return dr.freeze(fn, limit=FROZEN_SHAPES)
+    return dr.freeze(fn, limit=FROZEN_SHAPES, warn_after=2**30)
 
 
 def _check_image(img, name: str) -> np.ndarray:

@@ -598,7 +598,8 @@ def timing_rows(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
             note = f"{fmt_seconds(v / n_frames)} per frame"
         rows.append({"label": label, "seconds": v, "text": fmt_seconds(v), "note": note})
     for key, value in t.items():  # anything else the sweep timed
-        if key in known or key in ("total_s", "bake_cached"):
+        # technique_frames_s: the renders' wall time, which the rows of plain_s and <stem>_s hold
+        if key in known or key in ("total_s", "bake_cached", "technique_frames_s"):
             continue
         v = num(value)
         if v is not None:

@@ -532,3 +532,15 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
         flipped = page.locator("#frame-0 .flip[data-own='truth'] img").get_attribute("src")
         assert flipped.endswith("horizon.png") and "/previews/" not in flipped
     assert problems == []
+
+
+def test_the_renders_wall_time_is_not_a_stage_of_its_own():
+    """``technique_frames_s`` is the wall time of the renders the technique rows already show: no row of
+    its own, so the stages' shares do not count the renders twice."""
+    views = report_columns.technique_views(
+        {"techniques": {"horizon": {"label": "horizon map", "file_stem": "horizon"}}}
+    )
+    timings = {"truth_s": 1.0, "plain_s": 0.5, "horizon_s": 1.5, "technique_frames_s": 2.0, "compare_s": 1.0}
+    rows = report_columns.timing_rows(timings, 2, views)
+    assert [r for r in rows["rows"] if "technique frames" in r["label"]] == []
+    assert rows["stages"] == 4.0
