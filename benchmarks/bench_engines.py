@@ -30,15 +30,12 @@ def sweep(extra: list[str], out: Path) -> tuple[float, dict]:
     return wall, json.loads((out / "metrics.json").read_text())["timings"]
 
 
-def stages(t: dict, stems: set[str]) -> dict[str, float]:
-    """A run's time by stage: set-up (bake, truth, techniques), renders, scoring, writing."""
-    own = t.get("technique_frames_s")  # the renders' wall time; older runs: each technique's own, summed
-    if own is None:
-        own = t.get("plain_s", 0.0) + sum(t.get(f"{s}_s", 0.0) for s in stems)
-    render = t.get("truth_s", 0.0) + own
+def stages(t: dict) -> dict[str, float]:
+    """A run's time by stage: set-up (bake, truth, techniques), renders (the truth's and the
+    techniques' frames, wall time), scoring, writing."""
     return {
         "set-up": sum(v for k, v in t.items() if k.endswith("setup_s") or k == "bake_s"),
-        "renders": render,
+        "renders": t.get("truth_s", 0.0) + t.get("technique_frames_s", 0.0),
         "scoring": t.get("compare_s", 0.0),
         "writing": t.get("write_s", 0.0) + t.get("report_s", 0.0),
         "total": t.get("total_s", 0.0),
@@ -58,10 +55,8 @@ def main(argv: list[str] | None = None) -> int:
             for name, flags in RUNS.items():
                 out = Path(tmp) / name.replace(",", "-")
                 wall, t = sweep([*extra, *flags], out)
-                m = json.loads((out / "metrics.json").read_text())
-                stems = {v["file_stem"] for v in m["techniques"].values()}
                 walls[name].append(wall)
-                parts[name].append(stages(t, stems))
+                parts[name].append(stages(t))
     med = {k: statistics.median(v) for k, v in walls.items()}
     print(f"hzval sweep {' '.join(extra)}: {args.repeat} runs of each, alternating, warm kernel cache")
     head = ["set-up", "renders", "scoring", "writing", "total"]

@@ -606,7 +606,7 @@ class _Grid:
         import mitsuba as mi
 
         lanes = self.rows * self.nb
-        target = dr.zeros(mi.Float, lanes * BLOCK)
+        target = dr.empty(mi.Float, lanes * BLOCK)  # every element is stored: no fill first
         dr.scatter(target, mi.ArrayXf(*outputs), dr.arange(mi.UInt32, lanes))
         return target
 
