@@ -142,7 +142,7 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     del ns, valid, n
 
 
-def test_trilinear_picks_the_level_a_plane_at_a_known_distance_calls_for():
+def test_trilinear_picks_the_level_a_plane_at_a_known_distance_calls_for(variant):
     """A camera straight down, 2 tile widths (128 texels) above a 64-texel tile, 90 degrees across 64
     pixels: a pixel at the centre covers 2 * 128 * tan(45) / 64 = 4 texels, level log2(4) = 2."""
     cam = camera.Camera(kind="perspective", elevation_deg=90, fov_deg=90, distance=2.0, resolution=(64, 64))

@@ -124,7 +124,7 @@ def _mc_caps(r1, r2, d, n=400_000, seed=0):
 @pytest.mark.parametrize(
     "r1, r2, d", [(0.5, 0.3, 0.6), (1.2, 0.2, 1.25), (1.5, 0.8, 1.0), (0.3, 0.3, 0.1), (1.0, 0.1, 0.5)]
 )
-def test_the_exact_cap_intersection_against_monte_carlo(r1, r2, d):
+def test_the_exact_cap_intersection_against_monte_carlo(variant, r1, r2, d):
     from hzval.core.backend import dr, mi
 
     got = bent_cone.cap_intersection(mi.Float(r1), mi.Float(r2), mi.Float(d))
@@ -132,7 +132,7 @@ def test_the_exact_cap_intersection_against_monte_carlo(r1, r2, d):
     assert float(got[0]) == pytest.approx(_mc_caps(r1, r2, d), abs=0.01)
 
 
-def test_filaments_cap_approximation_meets_the_exact_one_at_its_ends():
+def test_filaments_cap_approximation_meets_the_exact_one_at_its_ends(variant):
     from hzval.core.backend import mi
 
     d = mi.Float(np.linspace(0.0, 2.0, 41))
