@@ -157,6 +157,7 @@ SMOKE = {
     "studies/turned_techniques.py": ["--spp", "1"],
     "benchmarks/bench_mikktspace.py": ["--segments", "16", "--size", "32", "--repeat", "1"],
     "benchmarks/bench_flip.py": ["--baseline", str(ROOT), "--sizes", "40", "--repeat", "1"],
+    "benchmarks/bench_png.py": ["--size", "16", "--frames", "1", "--repeat", "1"],
 }
 NO_SMOKE = {
     "benchmarks/bench_bake.py": "compiles the C seed peer (tests/bake/test_horizon_peer.py does, marker gcc)",
