@@ -615,12 +615,11 @@ def _finish(
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
     folder = records.frame_folder(az, r.elevation_deg)
-    # each technique's files start as soon as it is compared; the frame's end waits for them all
-    # (write_s: the truth's files and that wait)
+    # the truth's files start once its display values are made, each technique's as soon as it is
+    # compared; the frame's end waits for them all (write_s: starting the truth's files and that wait)
     with writing.FrameWriter(out, folder, scale, t_frame.mask, all_files) as writer:
-        compared, floor, none, truth_shown = _score_light(setup, r, scale, clock, writer)
+        compared, floor, none, rel = _score_light(setup, r, scale, clock, writer)
         with _stage(clock, "write"):
-            rel = writer.truth_files(t_frame, r.plain, truth_shown)
             writer.wait()
     frame = {
         "name": folder,
@@ -648,10 +647,11 @@ def _finish(
 
 def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer) -> tuple:
     """One light's techniques, each rendered, compared and its files started in turn (timed as
-    ``technique_frames`` and ``compare``; ``writer``: the frame's :class:`writing.FrameWriter`):
-    ``(technique, frame, metrics, its files)`` per technique, the perfect-shadows floor, the
-    no-shadows baseline and the truth's 8-bit preview values. ``r.techniques`` gets each technique's
-    frame, its image dropped unless the writer writes every file (``--all-files``)."""
+    ``technique_frames`` and ``compare``; ``writer``: the frame's :class:`writing.FrameWriter`),
+    after the truth's files are started: ``(technique, frame, metrics, its files)`` per technique,
+    the perfect-shadows floor, the no-shadows baseline and the truth's files. ``r.techniques`` gets
+    each technique's frame, its image dropped unless the writer writes every file
+    (``--all-files``)."""
     t_frame = r.truth
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
@@ -661,6 +661,8 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     release()
     with _stage(clock, "compare"):
         ref = compare.Reference(t_frame, scale)
+    with _stage(clock, "write"):  # written while the techniques are rendered and compared
+        truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
     compared = []
     for t in setup.techniques:
         with _stage(clock, "technique_frames"):
@@ -683,8 +685,7 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     with _stage(clock, "compare"):
         floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
         none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
-        truth_shown = writing.shown(ref.display)
-    return compared, floor, none, truth_shown
+    return compared, floor, none, truth_files
 
 
 def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:
