@@ -583,13 +583,24 @@ def azimuth_text(values) -> str:
     return f"{listed} ({n} light{'s' if n != 1 else ''})"
 
 
+#: A technique's set-up shorter than this (seconds) gets no row of the report's timings: the techniques
+#: that share another's textures and kernel set up in microseconds, and eight such rows said nothing.
+SETUP_SHOWN_FROM = 1e-3
+
+
 def timing_rows(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
-    rows, known = [], set()
+    """The report's timing rows of a sweep's ``timings`` (``metrics.json``), with each row's share of
+    their sum; ``left_out``: the labels of the set-ups under :data:`SETUP_SHOWN_FROM`."""
+    rows, known, left_out = [], set(), []
     per_frame = {"truth_s", "plain_s"} | {f"{v.stem}_s" for v in views}
+    setups = {f"{v.stem}_setup_s" for v in views}
     for key, label in timing_labels(views):
         known.add(key)
         v = num(t.get(key))
         if v is None:
+            continue
+        if key in setups and v < SETUP_SHOWN_FROM:
+            left_out.append(label)
             continue
         note = ""
         if key == "bake_s" and t.get("bake_cached"):
@@ -620,4 +631,5 @@ def timing_rows(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
         "total_text": fmt_seconds(total if total is not None else stages),
         "total_is_sum": total is None,
         "stages": stages,
+        "left_out": left_out,
     }

@@ -544,3 +544,19 @@ def test_the_renders_wall_time_is_not_a_stage_of_its_own():
     rows = report_columns.timing_rows(timings, 2, views)
     assert [r for r in rows["rows"] if "technique frames" in r["label"]] == []
     assert rows["stages"] == 4.0
+
+
+@pytest.mark.parametrize("setup_s, listed", [(2e-5, False), (9.9e-4, False), (1e-3, True), (0.2, True)])
+def test_a_set_up_under_a_millisecond_is_named_not_drawn(setup_s, listed):
+    """A technique that shares another's kernel sets up in microseconds: its row would say nothing, so
+    it is named under the table instead; its renders keep their row, and the shares their sum."""
+    views = report_columns.technique_views(
+        {"techniques": {"bent-cone": {"label": "bent cone", "file_stem": "bent_cone"}}}
+    )
+    timings = {"truth_s": 1.0, "bent_cone_setup_s": setup_s, "bent_cone_s": 0.5}
+    rows = report_columns.timing_rows(timings, 2, views)
+    labels = [r["label"] for r in rows["rows"]]
+    assert ("bent cone set-up" in labels) is listed
+    assert rows["left_out"] == ([] if listed else ["bent cone set-up"])
+    assert "bent cone renders" in labels
+    assert rows["stages"] == pytest.approx(1.5 + (setup_s if listed else 0.0))
