@@ -344,7 +344,12 @@ def bake(
     timings["horizon_s"] = t2 - t1
     bent = ss = None
     if occlusion:
-        bent, ss = directional.bent_normal(horizon), directional.self_shadowed_bump(horizon, normal)
+        # the bent normals and ssbump's three channels side by side on the host pool: NumPy's loops
+        # release the GIL, and each map is the same as made alone
+        pool = backend.host_pool()
+        bent = pool.submit(directional.bent_normal, horizon)
+        ss = directional.self_shadowed_bump(horizon, normal, pool=pool)
+        bent = bent.result()
         timings["occlusion_s"] = time.perf_counter() - t2
     return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss)
 
