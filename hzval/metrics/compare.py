@@ -37,6 +37,7 @@ import numpy as np
 
 from hzval.core import conventions as cv
 from hzval.core.errors import HzvalError
+from hzval.io import files
 
 __all__ = [
     "LIT_THRESHOLD",
@@ -88,7 +89,7 @@ class FrameMetrics:
         return d
 
 
-def display(image: np.ndarray, scale: float) -> np.ndarray:
+def display(image: np.ndarray, scale: float, *, grey: bool | None = None) -> np.ndarray:
     """Linear radiance to sRGB-encoded display values, as a viewer shows them.
 
     ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.conventions.srgb_encode`, IEC
@@ -101,6 +102,9 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
         Linear radiance, ``(H, W)`` (grey) or ``(H, W, 3)``.
     scale : float
         The exposure (:func:`hzval.core.shading.exposure`): radiance times ``scale`` is 1 at white.
+    grey : bool, optional
+        Whether an ``(H, W, 3)`` image's channels are bitwise equal, when the caller knows (``None``:
+        checked): one channel is encoded and repeated, the same values as three.
 
     Returns
     -------
@@ -114,6 +118,8 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
 
     backend.variant()
     img = np.asarray(image)
+    if img.ndim == 3 and _grey(img, grey):
+        img = img[..., 0]
     grey = img.ndim == 2
     v = mi.Float64(_flat_values(img)) * dr.opaque(mi.Float64, float(scale))
     shown = np.asarray(cv.srgb_encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
@@ -362,9 +368,16 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     return dr.sqrt(x * x + y * y + z * z + RT * y * z)
 
 
-def _rgb_planes(display_rgb: np.ndarray):
+def _grey(rgb: np.ndarray, grey: bool | None) -> bool:
+    """``grey`` as given, else whether the ``(..., 3)`` values' channels are bitwise equal."""
+    return files.is_grey(rgb) if grey is None else bool(grey)
+
+
+def _rgb_planes(display_rgb: np.ndarray, grey: bool | None = None):
     """An ``(H, W, 3)`` display image as three float64 Dr.Jit arrays, gathered from one
-    float64 array of it (which the LLVM backend maps without copying, keeping a reference)."""
+    float64 array of it (which the LLVM backend maps without copying, keeping a reference);
+    ``grey`` (:func:`_grey`): one array three times, so that what is computed from the channels is
+    computed once (Dr.Jit merges equal expressions of equal variables), the same bit for bit."""
     import drjit as dr
     import mitsuba as mi
 
@@ -377,6 +390,8 @@ def _rgb_planes(display_rgb: np.ndarray):
     buf = np.ascontiguousarray(img, dtype=np.float64).ravel()
     flat = mi.Float64(buf)
     i = dr.arange(mi.UInt32, img.shape[0] * img.shape[1]) * 3
+    if _grey(img, grey):
+        return (dr.gather(mi.Float64, flat, i),) * 3
     return tuple(dr.gather(mi.Float64, flat, i + c) for c in range(3))
 
 
@@ -384,11 +399,11 @@ class LabImage:
     """CIELAB (D65) of an sRGB display image, as float64 Dr.Jit arrays of the current variant
     (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images."""
 
-    def __init__(self, display_rgb: np.ndarray):
+    def __init__(self, display_rgb: np.ndarray, *, grey: bool | None = None):
         import drjit as dr
 
         self.shape = tuple(np.shape(display_rgb)[:2])
-        self.L, self.a, self.b = _lab_kernel(*_rgb_planes(display_rgb))
+        self.L, self.a, self.b = _lab_kernel(*_rgb_planes(display_rgb, grey))
         dr.eval(self.L, self.a, self.b)
 
     @classmethod
@@ -438,6 +453,7 @@ def delta_e2000(
     test_display: np.ndarray,
     *,
     reference_lab: "LabImage | np.ndarray | None" = None,
+    grey: bool | None = None,
 ) -> np.ndarray:
     """Per-pixel CIEDE2000 (Sharma, Wu and Dalal 2005) between two sRGB display images, D65.
 
@@ -453,6 +469,9 @@ def delta_e2000(
     reference_lab : LabImage or numpy.ndarray, optional
         The reference's CIELAB when the caller has it (:class:`Reference` keeps it): the same values
         either way.
+    grey : bool, optional
+        Whether the test image's channels are bitwise equal, when the caller knows (``None``:
+        checked): its colour is then converted once, the same values either way.
 
     Returns
     -------
@@ -472,7 +491,7 @@ def delta_e2000(
         ref = reference_lab
     else:
         ref = LabImage.from_array(reference_lab)
-    rgb = _rgb_planes(test_display)
+    rgb = _rgb_planes(test_display, grey)
     if tuple(np.shape(test_display)[:2]) != tuple(ref.shape):
         raise HzvalError(
             f"CIEDE2000 of images of different sizes: {ref.shape} and {np.shape(test_display)[:2]}"
@@ -521,9 +540,10 @@ class Reference:
 
         self.truth, self.scale = truth, float(scale)
         self.linear = _flat_values(truth.image)
-        self.display = display(truth.image, scale)
-        self.lab = LabImage(self.display)
-        self.flip = FlipReference(self.display, FLIP_PPD)
+        grey = files.is_grey(truth.image)
+        self.display = display(truth.image, scale, grey=grey)
+        self.lab = LabImage(self.display, grey=grey)
+        self.flip = FlipReference(self.display, FLIP_PPD, grey=grey)
 
 
 def compare(
@@ -582,7 +602,7 @@ def compare(
 IMAGE_METRICS: tuple[str, ...] = ("flip_mean", "rmse", "psnr_db", "delta_e2000_mean")
 
 
-def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
+def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool | None = None) -> tuple[np.ndarray, float]:
     """:func:`flip` of a test image against a reference's kept half.
 
     Parameters
@@ -591,6 +611,8 @@ def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
         The reference's filtered values (:class:`Reference` keeps them).
     test_display : numpy.ndarray
         ``(H, W, 3)`` sRGB display values in [0, 1].
+    grey : bool, optional
+        Whether its channels are bitwise equal (:func:`hzval.metrics.flip.flip_error`).
 
     Returns
     -------
@@ -602,7 +624,7 @@ def flip_error(ref_flip, test_display: np.ndarray) -> tuple[np.ndarray, float]:
     from hzval.metrics import flip as F
 
     try:
-        return F.flip_error(ref_flip, test_display)
+        return F.flip_error(ref_flip, test_display, grey=grey)
     except ValueError as exc:
         raise HzvalError(f"FLIP refused its input ({exc})") from None
 
@@ -631,11 +653,12 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     mask = ref.truth.mask
     mse = _mean_squared_error(ref, image)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    maps = {"display": display(image, ref.scale)}
-    maps["flip"], flip_mean = flip_error(ref.flip, maps["display"])
+    grey = files.is_grey(image)  # checked once, on the linear values: the display's are grey with them
+    maps = {"display": display(image, ref.scale, grey=grey)}
+    maps["flip"], flip_mean = flip_error(ref.flip, maps["display"], grey=grey)
     if mask is not None:
         flip_mean = float(np.mean(maps["flip"][mask]))
-    maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab)
+    maps["delta_e"] = delta_e2000(ref.display, maps["display"], reference_lab=ref.lab, grey=grey)
     return {
         "flip_mean": flip_mean,
         "rmse": math.sqrt(mse),

@@ -719,29 +719,32 @@ def _flat_image(img: np.ndarray):
     return mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
 
 
-def _image_planes(flat, grid: _Grid):
+def _image_planes(flat, grid: _Grid, grey: bool):
     """R, G and B of a :func:`_flat_image` as float32 Dr.Jit arrays over the padded planes
     (:meth:`_Grid.source`), gathered: a gather, unlike a strided load, compiles one kernel for
-    every alignment."""
+    every alignment. ``grey``: R, G and B are bitwise equal, and R is gathered for all three, so
+    that what is computed from them is computed once (Dr.Jit merges equal expressions of equal
+    variables) and is the same bit for bit."""
     import drjit as dr
     import mitsuba as mi
 
     i = mi.UInt32(grid.source() * 3)
-    if isinstance(flat, mi.Float64):
-        return tuple(mi.Float(dr.gather(mi.Float64, flat, i + c)) for c in range(3))
-    return tuple(dr.gather(mi.Float, flat, i + c) for c in range(3))
+    kind = mi.Float64 if isinstance(flat, mi.Float64) else mi.Float
+    planes = tuple(mi.Float(dr.gather(kind, flat, i + c)) for c in range(1 if grey else 3))
+    return planes * 3 if grey else planes
 
 
-def _side(flat, h: int, w: int, ppd: float) -> tuple:
+def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
     """One image's FLIP quantities, evaluated: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``)
     and its edge and point magnitudes, each in the blocked layout of :class:`_Grid` (a list of
-    :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image. Three kernels: to
-    YCxCz, the x-direction passes, and the y-direction passes with all that follows them."""
+    :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image; ``grey``: whether its
+    channels are bitwise equal (:func:`_image_planes`). Three kernels: to YCxCz, the x-direction
+    passes, and the y-direction passes with all that follows them."""
     import drjit as dr
 
     f = filters(ppd)
     g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
-    r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(flat, g))
+    r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(flat, g, grey))
     yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
     yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
     dr.eval(yy, cx, cz, yn)
@@ -773,13 +776,13 @@ def _side(flat, h: int, w: int, ppd: float) -> tuple:
     return out
 
 
-def _error(ref: tuple, flat, h: int, w: int, ppd: float) -> list:
-    """The per-pixel FLIP of the :func:`_flat_image` ``flat`` against a reference's :func:`_side`,
-    evaluated, in the blocked layout of :class:`_Grid`."""
+def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
+    """The per-pixel FLIP of the :func:`_flat_image` ``flat`` (``grey``: :func:`_side`'s) against a
+    reference's :func:`_side`, evaluated, in the blocked layout of :class:`_Grid`."""
     import drjit as dr
 
     f = filters(ppd)
-    t = _side(flat, h, w, ppd)
+    t = _side(flat, h, w, ppd, grey)
     # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
     pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
     nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
@@ -797,7 +800,7 @@ def _error(ref: tuple, flat, h: int, w: int, ppd: float) -> list:
 
 
 #: The recordings :func:`_frozen` keeps, the most recently used first: one for each image shape,
-#: pixels per degree and input type, and on the LLVM backend for each alignment of the NumPy memory
+#: pixels per degree, input type and greyness, and on the LLVM backend for each alignment of the NumPy memory
 #: it maps (64-byte aligned or not: a large image is, a small one may be either).
 FROZEN_SHAPES = 8
 
@@ -828,7 +831,8 @@ class FlipReference:
     """The reference image's half of LDR-FLIP, computed once for any number of test images.
 
     ``reference_display``: ``(H, W, 3)`` sRGB-encoded display values in [0, 1];
-    ``ppd``: pixels per degree (FLIP's default, 67.02, unless given).
+    ``ppd``: pixels per degree (FLIP's default, 67.02, unless given); ``grey``: whether its channels
+    are bitwise equal, when the caller knows (``None``: checked; :func:`flip_error`).
     ``L``, ``A``, ``B``: its spatially filtered, clamped, Hunt-adjusted CIELAB
     (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: the magnitudes of its
     first- and second-derivative feature responses; each float32 Dr.Jit arrays of
@@ -836,8 +840,7 @@ class FlipReference:
     array per row of a block; ``grid.image`` makes one an image).
     """
 
-    def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD):
-
+    def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD, *, grey: bool | None = None):
         from hzval.core import backend
 
         backend.variant()
@@ -846,11 +849,20 @@ class FlipReference:
         self.shape = h, w = disp.shape[:2]
         f = self.filters
         self.grid = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
-        flat = _flat_image(disp)
-        self.L, self.A, self.B, self.edge, self.point = _frozen(_side)(flat, h, w, self.ppd)
+        flat, grey = _flat_image(disp), _grey(disp, grey)
+        self.L, self.A, self.B, self.edge, self.point = _frozen(_side)(flat, h, w, self.ppd, grey)
 
 
-def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray, float]:
+def _grey(display: np.ndarray, grey: bool | None) -> bool:
+    """``grey`` as given, else whether the display values' channels are bitwise equal."""
+    from hzval.io import files
+
+    return files.is_grey(display) if grey is None else bool(grey)
+
+
+def flip_error(
+    ref: FlipReference, test_display: np.ndarray, *, grey: bool | None = None
+) -> tuple[np.ndarray, float]:
     """LDR-FLIP (Andersson et al. 2020) of a test image against a kept reference.
 
     The colour difference (HyAB of the filtered, Hunt-adjusted Lab values, to the power ``QC`` and
@@ -862,6 +874,9 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
         The reference's filtered values.
     test_display : numpy.ndarray
         ``(H, W, 3)`` sRGB display values in [0, 1].
+    grey : bool, optional
+        Whether its channels are bitwise equal, when the caller knows (``None``: checked). A grey
+        image's colour is converted once, not three times: the same map either way.
 
     Returns
     -------
@@ -883,7 +898,8 @@ def flip_error(ref: FlipReference, test_display: np.ndarray) -> tuple[np.ndarray
             f"against {disp.shape[0]} x {disp.shape[1]}"
         )
     quantities = (ref.L, ref.A, ref.B, ref.edge, ref.point)
-    err = ref.grid.image(_frozen(_error)(quantities, _flat_image(disp), *ref.shape, ref.ppd))
+    flat, grey = _flat_image(disp), _grey(disp, grey)
+    err = ref.grid.image(_frozen(_error)(quantities, flat, *ref.shape, ref.ppd, grey))
     return err, mean_error(err)
 
 

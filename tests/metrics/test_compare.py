@@ -104,3 +104,31 @@ def test_image_metrics_match_flip_evaluator_and_colour_science():
         de = C.delta_e2000_colour(ref.display, maps["display"])
         assert np.max(np.abs(maps["delta_e"] - de)) < 1e-9
         assert scores["delta_e2000_mean"] == pytest.approx(float(np.mean(de)), abs=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (37, 50), (64, 9)])
+def test_a_grey_image_scores_the_same_through_its_one_channel(variant, shape):
+    """A grey image's colour is converted once, not three times (display values, CIELAB, CIEDE2000
+    and FLIP): every value is the same bit for bit as through the three channels, and an image that
+    is grey but for one pixel is not taken for grey."""
+    from hzval.metrics import flip as F
+
+    rng = np.random.default_rng(sum(shape))
+    grey = lambda a: np.repeat(a[..., None], 3, axis=-1)  # noqa: E731
+    ref = grey(rng.random(shape).astype(np.float32))
+    test = grey(np.clip(ref[..., 0] + 0.2 * rng.standard_normal(shape), 0, 1.2).astype(np.float32))
+    same = lambda a, b: np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()  # noqa: E731
+    for img in (ref, test):
+        assert same(C.display(img, 0.9, grey=True), C.display(img, 0.9, grey=False))
+    r_disp, t_disp = C.display(ref, 0.9), C.display(test, 0.9)
+    assert same(C.LabImage(r_disp, grey=True).numpy(), C.LabImage(r_disp, grey=False).numpy())
+    assert same(C.delta_e2000(r_disp, t_disp, grey=True), C.delta_e2000(r_disp, t_disp, grey=False))
+    both = [F.flip_error(F.FlipReference(r_disp, grey=g), t_disp, grey=g)[0] for g in (True, False)]
+    assert same(*both)
+    ref_frame = Frame(0.0, 30.0, ref, {})
+    scores = C.image_metrics(C.Reference(ref_frame, 0.9), test)[0]
+    assert scores == C.image_metrics(C.Reference(ref_frame, 0.9), test[..., [0, 0, 0]])[0]
+    if ref.size > 3:
+        test[0, 0, 1] += 0.25
+        assert not C.files.is_grey(test)
+        assert not same(C.display(test, 0.9)[..., 1], C.display(test, 0.9)[..., 0])
