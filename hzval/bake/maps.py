@@ -344,9 +344,10 @@ def bake(
     timings["horizon_s"] = t2 - t1
     bent = ss = None
     if occlusion:
-        # the bent normals and ssbump's three channels side by side on the host pool: NumPy's loops
-        # release the GIL, and each map is the same as made alone
-        pool = backend.host_pool()
+        # the bent normals and ssbump's three channels two at a time (NumPy's loops release the GIL),
+        # each map the same as made alone; two, whatever the cores, is what occlusion.BYTES_PER_TEXEL
+        # charges
+        pool = backend.host_pool(2)
         bent = pool.submit(directional.bent_normal, horizon)
         ss = directional.self_shadowed_bump(horizon, normal, pool=pool)
         bent = bent.result()

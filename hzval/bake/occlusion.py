@@ -50,10 +50,10 @@ HL2_BASIS = np.array(
     ]
 )
 
-#: Bytes per texel that the two maps add to a bake at its peak, made side by side
+#: Bytes per texel that the two maps add to a bake at its peak, made two at a time
 #: (:func:`hzval.bake.maps.bake`): their six float32 channels and the temporaries of two of them at
 #: once (NumPy's allocations traced at 512 x 512: 92 to 105 bytes a texel, as the jobs interleave;
-#: 52 made in turn).
+#: 52 made in turn, 140 to 160 four at a time).
 BYTES_PER_TEXEL = 112
 
 

@@ -714,18 +714,25 @@ def write_png(
 
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
-    strategy = zlib.Z_RLE if runs else zlib.Z_DEFAULT_STRATEGY
     if isinstance(pixels, Indexed):
         img = _palette_image(pixels)
-        with ctx as tmp:
-            img.save(tmp, format="PNG", compress_level=compress_level, compress_type=strategy)
+        with ctx as tmp:  # without runs, Pillow's own strategy
+            img.save(
+                tmp,
+                format="PNG",
+                compress_level=compress_level,
+                **({"compress_type": zlib.Z_RLE} if runs else {}),
+            )
         return
     import imagecodecs
 
     # libpng through imagecodecs, each row Paeth-filtered: Pillow tries five filters on every row
     # and keeps the best, 1.7x the time for 1.4% fewer bytes on a rendered frame
     data = imagecodecs.png_encode(
-        _png_pixels(pixels, grey), level=compress_level, strategy=strategy, filter=PNG_FILTER
+        _png_pixels(pixels, grey),
+        level=compress_level,
+        strategy=zlib.Z_RLE if runs else None,
+        filter=PNG_FILTER,
     )
     with ctx as tmp:
         Path(tmp).write_bytes(data)
