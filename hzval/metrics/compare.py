@@ -89,7 +89,7 @@ class FrameMetrics:
         return d
 
 
-def display(image: np.ndarray, scale: float, *, grey: bool | None = None) -> np.ndarray:
+def display(image: np.ndarray, scale: float) -> np.ndarray:
     """Linear radiance to sRGB-encoded display values, as a viewer shows them.
 
     ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.conventions.srgb_encode`, IEC
@@ -102,9 +102,6 @@ def display(image: np.ndarray, scale: float, *, grey: bool | None = None) -> np.
         Linear radiance, ``(H, W)`` (grey) or ``(H, W, 3)``.
     scale : float
         The exposure (:func:`hzval.core.shading.exposure`): radiance times ``scale`` is 1 at white.
-    grey : bool, optional
-        Whether an ``(H, W, 3)`` image's channels are bitwise equal, when the caller knows (``None``:
-        checked): one channel is encoded and repeated, the same values as three.
 
     Returns
     -------
@@ -118,8 +115,6 @@ def display(image: np.ndarray, scale: float, *, grey: bool | None = None) -> np.
 
     backend.variant()
     img = np.asarray(image)
-    if img.ndim == 3 and _grey(img, grey):
-        img = img[..., 0]
     grey = img.ndim == 2
     v = mi.Float64(_flat_values(img)) * dr.opaque(mi.Float64, float(scale))
     shown = np.asarray(cv.srgb_encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
@@ -541,7 +536,7 @@ class Reference:
         self.truth, self.scale = truth, float(scale)
         self.linear = _flat_values(truth.image)
         grey = files.is_grey(truth.image)
-        self.display = display(truth.image, scale, grey=grey)
+        self.display = display(truth.image, scale)
         self.lab = LabImage(self.display, grey=grey)
         self.flip = FlipReference(self.display, FLIP_PPD, grey=grey)
 
@@ -654,7 +649,7 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     mse = _mean_squared_error(ref, image)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
     grey = files.is_grey(image)  # checked once, on the linear values: the display's are grey with them
-    maps = {"display": display(image, ref.scale, grey=grey)}
+    maps = {"display": display(image, ref.scale)}
     maps["flip"], flip_mean = flip_error(ref.flip, maps["display"], grey=grey)
     if mask is not None:
         flip_mean = float(np.mean(maps["flip"][mask]))

@@ -615,8 +615,9 @@ def _finish(
     """Compare and write one light's renders; its ``metrics.json`` frame."""
     t_frame, az = r.truth, r.azimuth_deg
     folder = records.frame_folder(az, r.elevation_deg)
-    # the truth's files start once its display values are made, each technique's as soon as it is
-    # compared; the frame's end waits for them all (write_s: starting the truth's files and that wait)
+    # the truth's files start once its display values are made (a large image's after the
+    # techniques), each technique's as soon as it is compared; the frame's end waits for them all
+    # (write_s: starting the truth's files and that wait)
     with writing.FrameWriter(out, folder, scale, t_frame.mask, all_files) as writer:
         compared, floor, none, rel = _score_light(setup, r, scale, clock, writer)
         with _stage(clock, "write"):
@@ -648,7 +649,8 @@ def _finish(
 def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer) -> tuple:
     """One light's techniques, each rendered, compared and its files started in turn (timed as
     ``technique_frames`` and ``compare``; ``writer``: the frame's :class:`writing.FrameWriter`),
-    after the truth's files are started: ``(technique, frame, metrics, its files)`` per technique,
+    the truth's files started before them (after them where the truth does not keep its samples,
+    a large image): ``(technique, frame, metrics, its files)`` per technique,
     the perfect-shadows floor, the no-shadows baseline and the truth's files. ``r.techniques`` gets
     each technique's frame, its image dropped unless the writer writes every file
     (``--all-files``)."""
@@ -661,8 +663,12 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     release()
     with _stage(clock, "compare"):
         ref = compare.Reference(t_frame, scale)
-    with _stage(clock, "write"):  # written while the techniques are rendered and compared
-        truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
+    truth_files = None
+    if setup.truth.keeps:
+        # written while the techniques are rendered and compared; a larger image's wait for the
+        # frame's end, where the techniques' buffers are freed (0.3 GiB of a 4096 sweep's peak)
+        with _stage(clock, "write"):
+            truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
     compared = []
     for t in setup.techniques:
         with _stage(clock, "technique_frames"):
@@ -685,6 +691,9 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     with _stage(clock, "compare"):
         floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
         none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
+    if truth_files is None:
+        with _stage(clock, "write"):
+            truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
     return compared, floor, none, truth_files
 
 

@@ -108,9 +108,9 @@ def test_image_metrics_match_flip_evaluator_and_colour_science():
 
 @pytest.mark.parametrize("shape", [(1, 1), (37, 50), (64, 9)])
 def test_a_grey_image_scores_the_same_through_its_one_channel(variant, shape, monkeypatch):
-    """A grey image's colour is converted once, not three times (display values, CIELAB, CIEDE2000
-    and FLIP): every value is the same bit for bit as through the three channels, and an image that
-    is grey but for one pixel is not taken for grey."""
+    """A grey image's colour is converted once, not three times (CIELAB, CIEDE2000 and FLIP): every
+    value is the same bit for bit as through the three channels, and an image that is grey but for
+    one pixel is not taken for grey."""
     from hzval.metrics import flip as F
 
     rng = np.random.default_rng(sum(shape))
@@ -118,8 +118,6 @@ def test_a_grey_image_scores_the_same_through_its_one_channel(variant, shape, mo
     ref = grey(rng.random(shape).astype(np.float32))
     test = grey(np.clip(ref[..., 0] + 0.2 * rng.standard_normal(shape), 0, 1.2).astype(np.float32))
     same = lambda a, b: np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()  # noqa: E731
-    for img in (ref, test):
-        assert same(C.display(img, 0.9, grey=True), C.display(img, 0.9, grey=False))
     r_disp, t_disp = C.display(ref, 0.9), C.display(test, 0.9)
     assert same(C.LabImage(r_disp, grey=True).numpy(), C.LabImage(r_disp, grey=False).numpy())
     assert same(C.delta_e2000(r_disp, t_disp, grey=True), C.delta_e2000(r_disp, t_disp, grey=False))
