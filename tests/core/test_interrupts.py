@@ -10,6 +10,15 @@ import pytest
 from hzval.core import errors, interrupts
 
 
+@pytest.fixture(autouse=True)
+def python_sigint():
+    """Python's own SIGINT handler for each test: a process started in the background by a shell
+    without job control inherits SIGINT ignored, and Python then leaves it ignored."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 def _held_signal():
     with interrupts.held() as hold:
         hold.start()
