@@ -363,16 +363,12 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     return dr.sqrt(x * x + y * y + z * z + RT * y * z)
 
 
-def _grey(rgb: np.ndarray, grey: bool | None) -> bool:
-    """``grey`` as given, else whether the ``(..., 3)`` values' channels are bitwise equal."""
-    return files.is_grey(rgb) if grey is None else bool(grey)
-
-
-def _rgb_planes(display_rgb: np.ndarray, grey: bool | None = None):
+def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
     """An ``(H, W, 3)`` display image as three float64 Dr.Jit arrays, gathered from one
     float64 array of it (which the LLVM backend maps without copying, keeping a reference);
-    ``grey`` (:func:`_grey`): one array three times, so that what is computed from the channels is
-    computed once (Dr.Jit merges equal expressions of equal variables), the same bit for bit."""
+    ``grey`` (its channels bitwise equal, as the caller has checked): one array three times, so
+    that what is computed from the channels is computed once (Dr.Jit merges equal expressions of
+    equal variables), the same bit for bit."""
     import drjit as dr
     import mitsuba as mi
 
@@ -385,7 +381,7 @@ def _rgb_planes(display_rgb: np.ndarray, grey: bool | None = None):
     buf = np.ascontiguousarray(img, dtype=np.float64).ravel()
     flat = mi.Float64(buf)
     i = dr.arange(mi.UInt32, img.shape[0] * img.shape[1]) * 3
-    if _grey(img, grey):
+    if grey:
         return (dr.gather(mi.Float64, flat, i),) * 3
     return tuple(dr.gather(mi.Float64, flat, i + c) for c in range(3))
 
@@ -394,7 +390,7 @@ class LabImage:
     """CIELAB (D65) of an sRGB display image, as float64 Dr.Jit arrays of the current variant
     (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images."""
 
-    def __init__(self, display_rgb: np.ndarray, *, grey: bool | None = None):
+    def __init__(self, display_rgb: np.ndarray, *, grey: bool = False):
         import drjit as dr
 
         self.shape = tuple(np.shape(display_rgb)[:2])
@@ -448,7 +444,7 @@ def delta_e2000(
     test_display: np.ndarray,
     *,
     reference_lab: "LabImage | np.ndarray | None" = None,
-    grey: bool | None = None,
+    grey: bool = False,
 ) -> np.ndarray:
     """Per-pixel CIEDE2000 (Sharma, Wu and Dalal 2005) between two sRGB display images, D65.
 
@@ -465,8 +461,9 @@ def delta_e2000(
         The reference's CIELAB when the caller has it (:class:`Reference` keeps it): the same values
         either way.
     grey : bool, optional
-        Whether the test image's channels are bitwise equal, when the caller knows (``None``:
-        checked): its colour is then converted once, the same values either way.
+        The test image's channels are bitwise equal, as the caller has checked
+        (:func:`hzval.io.files.is_grey`): its colour is then converted once, the same values either
+        way.
 
     Returns
     -------
@@ -597,7 +594,7 @@ def compare(
 IMAGE_METRICS: tuple[str, ...] = ("flip_mean", "rmse", "psnr_db", "delta_e2000_mean")
 
 
-def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool | None = None) -> tuple[np.ndarray, float]:
+def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool = False) -> tuple[np.ndarray, float]:
     """:func:`flip` of a test image against a reference's kept half.
 
     Parameters
@@ -607,7 +604,7 @@ def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool | None = None) 
     test_display : numpy.ndarray
         ``(H, W, 3)`` sRGB display values in [0, 1].
     grey : bool, optional
-        Whether its channels are bitwise equal (:func:`hzval.metrics.flip.flip_error`).
+        Its channels are bitwise equal, as the caller has checked (:func:`hzval.metrics.flip.flip_error`).
 
     Returns
     -------

@@ -831,8 +831,8 @@ class FlipReference:
     """The reference image's half of LDR-FLIP, computed once for any number of test images.
 
     ``reference_display``: ``(H, W, 3)`` sRGB-encoded display values in [0, 1];
-    ``ppd``: pixels per degree (FLIP's default, 67.02, unless given); ``grey``: whether its channels
-    are bitwise equal, when the caller knows (``None``: checked; :func:`flip_error`).
+    ``ppd``: pixels per degree (FLIP's default, 67.02, unless given); ``grey``: its channels are
+    bitwise equal, as the caller has checked (:func:`flip_error`).
     ``L``, ``A``, ``B``: its spatially filtered, clamped, Hunt-adjusted CIELAB
     (``L``, ``0.01 L a``, ``0.01 L b``); ``edge``, ``point``: the magnitudes of its
     first- and second-derivative feature responses; each float32 Dr.Jit arrays of
@@ -840,7 +840,7 @@ class FlipReference:
     array per row of a block; ``grid.image`` makes one an image).
     """
 
-    def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD, *, grey: bool | None = None):
+    def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD, *, grey: bool = False):
         from hzval.core import backend
 
         backend.variant()
@@ -849,19 +849,12 @@ class FlipReference:
         self.shape = h, w = disp.shape[:2]
         f = self.filters
         self.grid = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
-        flat, grey = _flat_image(disp), _grey(disp, grey)
-        self.L, self.A, self.B, self.edge, self.point = _frozen(_side)(flat, h, w, self.ppd, grey)
-
-
-def _grey(display: np.ndarray, grey: bool | None) -> bool:
-    """``grey`` as given, else whether the display values' channels are bitwise equal."""
-    from hzval.io import files
-
-    return files.is_grey(display) if grey is None else bool(grey)
+        flat = _flat_image(disp)
+        self.L, self.A, self.B, self.edge, self.point = _frozen(_side)(flat, h, w, self.ppd, bool(grey))
 
 
 def flip_error(
-    ref: FlipReference, test_display: np.ndarray, *, grey: bool | None = None
+    ref: FlipReference, test_display: np.ndarray, *, grey: bool = False
 ) -> tuple[np.ndarray, float]:
     """LDR-FLIP (Andersson et al. 2020) of a test image against a kept reference.
 
@@ -875,8 +868,8 @@ def flip_error(
     test_display : numpy.ndarray
         ``(H, W, 3)`` sRGB display values in [0, 1].
     grey : bool, optional
-        Whether its channels are bitwise equal, when the caller knows (``None``: checked). A grey
-        image's colour is converted once, not three times: the same map either way.
+        Its channels are bitwise equal, as the caller has checked (:func:`hzval.io.files.is_grey`):
+        its colour is then converted once, not three times, the same map either way.
 
     Returns
     -------
@@ -898,8 +891,7 @@ def flip_error(
             f"against {disp.shape[0]} x {disp.shape[1]}"
         )
     quantities = (ref.L, ref.A, ref.B, ref.edge, ref.point)
-    flat, grey = _flat_image(disp), _grey(disp, grey)
-    err = ref.grid.image(_frozen(_error)(quantities, flat, *ref.shape, ref.ppd, grey))
+    err = ref.grid.image(_frozen(_error)(quantities, _flat_image(disp), *ref.shape, ref.ppd, bool(grey)))
     return err, mean_error(err)
 
 

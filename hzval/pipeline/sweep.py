@@ -663,12 +663,15 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     release()
     with _stage(clock, "compare"):
         ref = compare.Reference(t_frame, scale)
-    truth_files = None
-    if setup.truth.keeps:
-        # written while the techniques are rendered and compared; a larger image's wait for the
-        # frame's end, where the techniques' buffers are freed (0.3 GiB of a 4096 sweep's peak)
+
+    def truth_files() -> dict:
         with _stage(clock, "write"):
-            truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
+            return writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
+
+    # the truth's files are written while the techniques are rendered and compared; a large image's
+    # are started at the end instead, as before, where the techniques' buffers are freed and the
+    # encoders' own do not add to the sweep's peak
+    early = truth_files() if setup.truth.keeps else None
     compared = []
     for t in setup.techniques:
         with _stage(clock, "technique_frames"):
@@ -691,10 +694,7 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
     with _stage(clock, "compare"):
         floor = _floor(ref, r.direct, setup.unshadowed.ambient_image, V)
         none = _no_shadows(ref, r.plain if r.base is None else r.base, V, t_frame.mask)
-    if truth_files is None:
-        with _stage(clock, "write"):
-            truth_files = writer.truth_files(t_frame, r.plain, writing.shown(ref.display))
-    return compared, floor, none, truth_files
+    return compared, floor, none, early if early is not None else truth_files()
 
 
 def _shadow_statistics(scene, setup: _Setup, r: _Rendered, frame: dict, per: dict) -> None:
