@@ -109,6 +109,7 @@ class FrameWriter:
     def __init__(self, out: Path, name: str, scale: float, mask: np.ndarray | None, all_files: bool = False):
         self.folder, self.prefix = out / "frames" / name, f"frames/{name}"
         self.scale, self.mask, self.all_files = scale, mask, all_files
+        self._visdiff: tuple | None = None  # (V, its images.VisibilityDiff), made at the first technique
 
     def __enter__(self) -> "FrameWriter":
         self._writers = files.Writers().__enter__()
@@ -173,8 +174,15 @@ class FrameWriter:
             if self.all_files:
                 self._png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
             if V is not None:
-                self._png(own, "visdiff_png", f"{stem}_visdiff.png", images.visibility_diff_indexed, V, F)
+                self._png(own, "visdiff_png", f"{stem}_visdiff.png", self._truth_diff(V).indexed, F)
         return own
+
+    def _truth_diff(self, V) -> images.VisibilityDiff:
+        # the truth's half of the frame's visibility-difference maps, made once, on the sweep's
+        # thread, for every technique's map: a writer then only marks a technique's leaks
+        if self._visdiff is None or self._visdiff[0] is not V:
+            self._visdiff = (V, images.VisibilityDiff(V))
+        return self._visdiff[1]
 
 
 def _as_is(pixels):

@@ -23,6 +23,7 @@ __all__ = [
     "hex_colour",
     "visibility_diff_image",
     "visibility_diff_indexed",
+    "VisibilityDiff",
     "magma",
     "magma_palette",
     "magma_index",
@@ -49,35 +50,63 @@ def visibility_diff_image(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     round; lit means at least :data:`hzval.metrics.compare.LIT_THRESHOLD`, as the
     metrics count them.
     """
-    grey, leak, false_shadow = _visibility_diff_parts(V, F)
-    img = np.repeat(grey[..., None], 3, axis=-1)
-    img[leak] = LEAK_RGB
-    img[false_shadow] = FALSE_SHADOW_RGB
-    return img
+    return VisibilityDiff(V).image(F)
 
 
 def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> files.Indexed | np.ndarray:
     """:func:`visibility_diff_image` as a palette image, pixel for pixel: its grey levels (at most
     128 for ``V`` in [0, 1]) and the two colours, a third of the RGB bytes. RGB in the case
     (non-finite ``V``) where more than 256 colours would be needed."""
-    grey, leak, false_shadow = _visibility_diff_parts(V, F)
-    levels = np.flatnonzero(np.bincount(grey[~(leak | false_shadow)].ravel(), minlength=256))
-    if len(levels) > 254:
-        return visibility_diff_image(V, F)
-    slot = np.zeros(256, np.uint8)
-    slot[levels] = np.arange(len(levels))
-    index = slot[grey]
-    index[leak] = len(levels)
-    index[false_shadow] = len(levels) + 1
-    palette = np.concatenate([np.repeat(levels[:, None], 3, axis=1), [LEAK_RGB, FALSE_SHADOW_RGB]])
-    return files.Indexed(index, palette.astype(np.uint8))
+    return VisibilityDiff(V).indexed(F)
 
 
-def _visibility_diff_parts(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(grey uint8, leak mask, false-shadow mask)`` of the visibility-difference map."""
-    grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
-    lit_truth, lit_test = V >= LIT_THRESHOLD, F >= LIT_THRESHOLD
-    return grey, lit_test & ~lit_truth, ~lit_test & lit_truth
+class VisibilityDiff:
+    """The truth's half of the visibility-difference maps of one frame (:func:`visibility_diff_image`),
+    made once for every technique's factor compared with it: its grey levels, where it is lit, and
+    how many pixels have each grey level.
+
+    Parameters
+    ----------
+    V : numpy.ndarray
+        ``(H, W)`` the truth's visibility, in [0, 1].
+    """
+
+    def __init__(self, V: np.ndarray):
+        V = np.asarray(V)
+        self.grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
+        self.lit = V >= LIT_THRESHOLD
+        self._counts = np.bincount(self.grey.ravel(), minlength=256)
+
+    def _marks(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(leak mask, false-shadow mask)`` of the factor ``F``."""
+        lit_test = np.asarray(F) >= LIT_THRESHOLD
+        return lit_test & ~self.lit, ~lit_test & self.lit
+
+    def image(self, F: np.ndarray) -> np.ndarray:
+        """The map of ``F`` as 8-bit RGB ``(H, W, 3)``."""
+        leak, false_shadow = self._marks(F)
+        img = np.repeat(self.grey[..., None], 3, axis=-1)
+        img[leak] = LEAK_RGB
+        img[false_shadow] = FALSE_SHADOW_RGB
+        return img
+
+    def indexed(self, F: np.ndarray) -> files.Indexed | np.ndarray:
+        """The map of ``F`` as a palette image (:func:`visibility_diff_indexed`)."""
+        leak, false_shadow = self._marks(F)
+        marked = leak | false_shadow
+        # the grey levels left where neither colour is painted: every pixel's count less the
+        # marked ones' (few), not a count over a copy of the unmarked pixels
+        shown = self._counts - np.bincount(self.grey[marked], minlength=256)
+        levels = np.flatnonzero(shown)
+        if len(levels) > 254:
+            return self.image(F)
+        slot = np.zeros(256, np.uint8)
+        slot[levels] = np.arange(len(levels))
+        index = slot[self.grey]
+        index[leak] = len(levels)
+        index[false_shadow] = len(levels) + 1
+        palette = np.concatenate([np.repeat(levels[:, None], 3, axis=1), [LEAK_RGB, FALSE_SHADOW_RGB]])
+        return files.Indexed(index, palette.astype(np.uint8))
 
 
 def magma(values: np.ndarray) -> np.ndarray:
@@ -103,8 +132,9 @@ def magma_index(values: np.ndarray) -> np.ndarray:
     """The magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
     matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma` paints it
     black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each."""
-    x = np.clip(_as_float(values), 0, 1) * 256
-    x = np.where(np.isnan(x), 0, np.minimum(x, 255))
+    x = np.multiply(_as_float(values), 256)
+    np.fmax(x, 0, out=x)  # fmax, not maximum: NaN gives 0
+    np.minimum(x, 255, out=x)
     return x.astype(np.uint8)
 
 

@@ -65,3 +65,24 @@ def test_the_visibility_difference_palette_png_decodes_to_the_rgb_map(tmp_path, 
     files.write_png(tmp_path / "vd.png", made)
     mode, back = png_mode_and_rgb(tmp_path / "vd.png")
     assert mode == "P" and np.array_equal(back, expected)
+
+
+def test_one_truth_half_serves_every_factor_of_a_frame():
+    """A frame's :class:`images.VisibilityDiff`, made once, paints each technique's map as a map made
+    for that technique alone: the same pixels, and only the grey levels left unpainted in its palette
+    (a level every pixel of which is a leak drops out)."""
+    V = (np.round(RNG.random((30, 40)) * 4) / 4).astype(np.float32)
+    V[:, :10] = 0.125  # a level no other pixel has, shadowed by the truth ...
+    truth = images.VisibilityDiff(V)
+    for spread in (0.0, 0.2, 0.6):
+        F = np.clip(V + RNG.normal(0, spread, V.shape), 0, 1).astype(np.float32)
+        F[:, :10] = 1.0  # ... and wholly lit by the technique: all leaks
+        made = truth.indexed(F)
+        expected = visdiff_as_before(V, F)
+        assert np.array_equal(made.rgb(), expected)
+        grey_levels = {int(p[0]) for p in made.palette[:-2]}
+        assert grey_levels == {
+            int(g) for g in np.unique(expected[(expected == expected[..., :1]).all(-1)][:, 0])
+        }
+        assert 80 not in grey_levels  # unit_to_u8(0.25 + 0.5 * 0.125)
+        assert np.array_equal(truth.image(F), expected)
