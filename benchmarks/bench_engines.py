@@ -3,6 +3,10 @@ same sweep with ``--techniques horizon,terrain,pom``, run alternately in fresh p
 ratio of their median wall times (issue 39's bound: at most 1.25x), with each run's stages from
 ``metrics.json`` (render, scoring, writing), so that a reader sees where the added time goes.
 
+A shared machine's speed drifts by more than the gap a ratio is read against, so it also prints
+each pair's own ratio (a default run over the run beside it): their median and range say how far
+one pass of the benchmark can be trusted.
+
     .venv/bin/python benchmarks/bench_engines.py [--repeat 3] [SWEEP ARGS ...]
 """
 
@@ -66,6 +70,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {k:22s} {med[k]:7.2f} " + " ".join(f"{s[h]:8.2f}" for h in head))
     base = "horizon,terrain,pom"
     print(f"default / {base}: {med['default'] / med[base]:.3f}x (wall time, median)")
+    pairs = sorted(d / b for d, b in zip(walls["default"], walls[base]))
+    print(
+        f"  each pair: {' '.join(f'{r:.3f}' for r in pairs)} "
+        f"(median {statistics.median(pairs):.3f}x, {pairs[0]:.3f}-{pairs[-1]:.3f})"
+    )
     return 0
 
 

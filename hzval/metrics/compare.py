@@ -558,8 +558,9 @@ def compare(
         Visibility scores (where both frames have them, :func:`visibility_metrics`), the reflection
         error (where both have reflection occlusion), and the image scores (:func:`image_metrics`).
     maps : dict of numpy.ndarray
-        ``flip``, ``delta_e``, ``display`` (the technique's display values) and, with visibility,
-        ``visibility_diff`` (``F - V``).
+        ``flip``, ``delta_e`` and ``display`` (the technique's display values), per pixel
+        (:func:`image_metrics`); the visibility maps are drawn from ``F`` and ``V`` themselves
+        (:mod:`hzval.report.images`).
     """
     ref = reference if reference is not None else Reference(truth, scale)
     maps: dict[str, np.ndarray] = {}
@@ -567,7 +568,6 @@ def compare(
     mask = truth.mask
     if V is not None and F is not None:
         mae, leak, false_shadow = visibility_metrics(V, F, mask)
-        maps["visibility_diff"] = np.asarray(F, np.float32) - np.asarray(V, np.float32)
     else:
         mae = leak = false_shadow = None
     O, R = test.layers.get("reflection_occlusion"), truth.layers.get("reflection_occlusion")
