@@ -131,7 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     # the LLVM is chosen above; the variant when the first renderer asks for it (hzval.core.backend.variant)
     backend.request(args.variant)
     try:
-        with interrupts.terminate_as_interrupt():  # SIGTERM unwinds as Ctrl-C does: nothing left behind
+        # SIGTERM unwinds as Ctrl-C does, nothing left behind, even where it lands in Dr.Jit's tracing
+        with interrupts.terminate_as_interrupt(), interrupts.unwrapped():
             return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)

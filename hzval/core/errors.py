@@ -13,6 +13,7 @@ __all__ = [
     "InputError",
     "EnvironmentProblem",
     "Interrupted",
+    "interruption",
 ]
 
 #: Exit status for a finished job or a passed check.
@@ -57,3 +58,33 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, signum: int):
         self.signum = int(signum)
         super().__init__(f"signal {self.signum}")
+
+
+def interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt (Ctrl-C, or SIGTERM as :class:`Interrupted`) behind an error, or ``None``:
+    ``exc`` itself or the first in its chain of causes and contexts.
+
+    Dr.Jit raises what a traced or frozen function raised (a signal's interrupt among them: Python
+    runs the handler wherever the main thread is) as a ``RuntimeError`` caused by it, so a stop
+    that lands in a symbolic loop or a recording arrives as that error.
+
+    Examples
+    --------
+    >>> try:
+    ...     try:
+    ...         raise Interrupted(15)
+    ...     except Interrupted as stop:
+    ...         raise RuntimeError("dr.while_loop(): encountered an exception") from stop
+    ... except RuntimeError as exc:
+    ...     interruption(exc).signum
+    15
+    >>> interruption(ValueError("no")) is None
+    True
+    """
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None

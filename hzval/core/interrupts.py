@@ -14,6 +14,9 @@ interrupted, and a signal that comes during them does not make a finished run
 exit 130 over a report already in place. Python runs signal handlers in the
 main thread only; elsewhere (a Dask worker's thread) nothing is held.
 
+:func:`unwrapped` raises an interrupt that Dr.Jit passed on as the cause of its own error as
+the interrupt it is.
+
 :func:`cases` marks a loop of runs (``models``' cases, ``views``' sweeps): there a
 signal held during one run's swap is raised as it ends, so the loop stops between
 cases instead of going on with a Ctrl-C swallowed.
@@ -29,7 +32,7 @@ from typing import Iterator
 
 from hzval.core import errors
 
-__all__ = ["HELD", "terminate_as_interrupt", "held", "cases"]
+__all__ = ["HELD", "terminate_as_interrupt", "unwrapped", "held", "cases"]
 
 #: The signals :func:`held` holds.
 HELD = (signal.SIGINT, signal.SIGTERM)
@@ -54,6 +57,22 @@ def terminate_as_interrupt() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def unwrapped() -> Iterator[None]:
+    """Within the block, an error caused by an interrupt is raised as that interrupt
+    (:func:`hzval.core.errors.interruption`): a Ctrl-C or SIGTERM that lands while Dr.Jit traces a loop
+    or records a frozen function then unwinds as one, through every handler that tells an interrupt
+    from an error (a run's folder, a suite's overview), and exits 130 or 143, not 1 with a
+    traceback."""
+    try:
+        yield
+    except Exception as exc:
+        stop = errors.interruption(exc)
+        if stop is None:
+            raise
+        raise stop from None
 
 
 class _Hold:

@@ -467,7 +467,8 @@ def run(
     try:
         with interrupts.held() as hold, files.output_folder(out, force=force):
             with files.Staging(out) as stage:
-                result = _run(scene, out, stage.dir, options, command, progress, gates)
+                with interrupts.unwrapped():  # a stop inside Dr.Jit's tracing unwinds as a stop
+                    result = _run(scene, out, stage.dir, options, command, progress, gates)
                 hold.start()  # the last signal check: from here the run completes
                 stage.swap()
     finally:

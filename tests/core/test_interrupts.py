@@ -45,3 +45,32 @@ def test_a_held_signal_stops_a_loop_of_runs_when_its_run_has_ended():
 def test_a_signal_before_the_hold_raises_at_once():
     with pytest.raises(KeyboardInterrupt), interrupts.held():
         os.kill(os.getpid(), signal.SIGINT)
+
+
+def _loop_that_is_stopped(signum):
+    """A Dr.Jit symbolic loop whose body is interrupted, as a signal handler raising in it does."""
+    import drjit as dr
+    import mitsuba as mi
+
+    def body(i):
+        raise errors.Interrupted(signum)
+
+    i = dr.arange(mi.UInt32, 4)
+    return dr.while_loop((i,), lambda i: i < 2, body)
+
+
+def test_dr_jit_passes_an_interrupt_on_as_the_cause_of_its_own_error(variant):
+    with pytest.raises(RuntimeError) as caught:
+        _loop_that_is_stopped(signal.SIGTERM)
+    assert errors.interruption(caught.value).signum == signal.SIGTERM
+
+
+def test_an_interrupt_inside_dr_jit_tracing_unwinds_as_itself(variant):
+    with pytest.raises(errors.Interrupted) as caught, interrupts.unwrapped():
+        _loop_that_is_stopped(signal.SIGTERM)
+    assert caught.value.signum == signal.SIGTERM
+
+
+def test_other_errors_pass_through_unwrapped_as_they_are():
+    with pytest.raises(ValueError, match="not a stop"), interrupts.unwrapped():
+        raise ValueError("not a stop")

@@ -532,6 +532,34 @@ def test_an_interrupted_sweep_of_another_map_keeps_the_old_report_bake_included(
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # put back as it was
 
 
+def test_a_signal_that_lands_inside_dr_jit_tracing_stops_the_run_as_a_signal(
+    tmp_path, monkeypatch, capsys, variant
+):
+    """SIGTERM while Dr.Jit traces a loop (as FLIP's recording or pom's march are traced): Dr.Jit
+    passes the interrupt on as the cause of a RuntimeError, and the run still exits 143, with one
+    line and no traceback, and leaves nothing behind."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from hzval.metrics import compare
+
+    def traced_when_the_signal_comes(*a, **kw):
+        def body(i):
+            os.kill(os.getpid(), signal.SIGTERM)  # cli.main made SIGTERM an interrupt: raised here
+            time.sleep(1)
+            return (i + 1,)
+
+        i = dr.arange(mi.UInt32, 4)
+        dr.while_loop((i,), lambda i: i < 2, body)
+
+    monkeypatch.setattr(compare, "flip_error", traced_when_the_signal_comes)
+    out = tmp_path / "o"
+    assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 128 + signal.SIGTERM
+    assert not out.exists()
+    err = capsys.readouterr().err
+    assert "hzval: interrupted" in err and "Traceback" not in err
+
+
 def test_a_late_signal_does_not_undo_a_finished_run(tmp_path, monkeypatch, capsys, variant):
     """SIGINT during the swap: the run had passed its last signal check, so it completes (exit 0)
     with the new report in place, and says that the signal came too late."""
