@@ -61,12 +61,24 @@ class Interrupted(KeyboardInterrupt):
 
 
 def interruption(exc: BaseException) -> KeyboardInterrupt | None:
-    """The interrupt (Ctrl-C, or SIGTERM as :class:`Interrupted`) behind an error, or ``None``:
-    ``exc`` itself or the first in its chain of causes and contexts.
+    """The interrupt (Ctrl-C, or SIGTERM as :class:`Interrupted`) behind an error, or ``None``.
 
     Dr.Jit raises what a traced or frozen function raised (a signal's interrupt among them: Python
     runs the handler wherever the main thread is) as a ``RuntimeError`` caused by it, so a stop
-    that lands in a symbolic loop or a recording arrives as that error.
+    that lands in a symbolic loop or a recording arrives as that error. The walk follows
+    ``__cause__``, else ``__context__`` even where it is suppressed: an error re-raised ``from None``
+    while an interrupt unwound (FLIP's refusal, :func:`hzval.metrics.compare.flip_error`) hides it
+    there; a chain that loops ends the walk.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The error.
+
+    Returns
+    -------
+    KeyboardInterrupt or None
+        ``exc`` itself if it is an interrupt, else the first interrupt in its chain.
 
     Examples
     --------

@@ -618,7 +618,7 @@ def _finish(
     folder = records.frame_folder(az, r.elevation_deg)
     # the truth's files start once its display values are made (a large image's after the
     # techniques), each technique's as soon as it is compared; the frame's end waits for them all
-    # (write_s: starting the truth's files and that wait)
+    # (write_s: starting the truth's and the techniques' files, and that wait)
     with writing.FrameWriter(out, folder, scale, t_frame.mask, all_files) as writer:
         compared, floor, none, rel = _score_light(setup, r, scale, clock, writer)
         with _stage(clock, "write"):
@@ -685,7 +685,8 @@ def _score_light(setup: _Setup, r: _Rendered, scale: float, clock: dict, writer)
             # of the float64 display values: 400 MB a technique at 4096 x 4096) and the FLIP map
             kept = {"shown": writing.shown(maps["display"]), "flip": maps["flip"]}
         del maps
-        own = writer.technique_files(t.file_stem, f, kept, t_frame.layers.get("visibility"))
+        with _stage(clock, "write"):  # starting its files (the frame's visibility map's truth half once)
+            own = writer.technique_files(t.file_stem, f, kept, t_frame.layers.get("visibility"))
         del kept  # the writers hold it until its files are written
         compared.append((t, f if writer.all_files else dataclasses.replace(f, image=None), metrics, own))
         del f

@@ -69,6 +69,13 @@ class VisibilityDiff:
     ----------
     V : numpy.ndarray
         ``(H, W)`` the truth's visibility, in [0, 1].
+
+    Attributes
+    ----------
+    grey : numpy.ndarray
+        ``(H, W)`` uint8, the map's grey where the technique agrees (``0.25 + 0.5 V``).
+    lit : numpy.ndarray
+        ``(H, W)`` bool, where the truth is lit (at least :data:`hzval.metrics.compare.LIT_THRESHOLD`).
     """
 
     def __init__(self, V: np.ndarray):
@@ -83,7 +90,7 @@ class VisibilityDiff:
         return lit_test & ~self.lit, ~lit_test & self.lit
 
     def image(self, F: np.ndarray) -> np.ndarray:
-        """The map of ``F`` as 8-bit RGB ``(H, W, 3)``."""
+        """The map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as 8-bit RGB ``(H, W, 3)``."""
         leak, false_shadow = self._marks(F)
         img = np.repeat(self.grey[..., None], 3, axis=-1)
         img[leak] = LEAK_RGB
@@ -91,7 +98,8 @@ class VisibilityDiff:
         return img
 
     def indexed(self, F: np.ndarray) -> files.Indexed | np.ndarray:
-        """The map of ``F`` as a palette image (:func:`visibility_diff_indexed`)."""
+        """The map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as a palette image
+        (:func:`visibility_diff_indexed`)."""
         leak, false_shadow = self._marks(F)
         marked = leak | false_shadow
         # the grey levels left where neither colour is painted: every pixel's count less the
@@ -132,7 +140,10 @@ def magma_index(values: np.ndarray) -> np.ndarray:
     """The magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
     matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma` paints it
     black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each."""
-    x = np.multiply(_as_float(values), 256)
+    v = _as_float(values)
+    x = np.empty_like(v)  # an array even for a scalar, so that the steps below work in place
+    with np.errstate(over="ignore"):  # a value beyond max / 256 is 255 either way
+        np.multiply(v, 256, out=x)
     np.fmax(x, 0, out=x)  # fmax, not maximum: NaN gives 0
     np.minimum(x, 255, out=x)
     return x.astype(np.uint8)

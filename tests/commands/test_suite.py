@@ -468,3 +468,43 @@ def test_each_sweep_reports_its_own_peak_memory():
     del big
     reset_peak_rss()
     assert peak_rss_bytes() < base + 0.5 * 300 * 2**20  # forgotten after the reset
+
+
+def test_a_stop_inside_dr_jit_tracing_stops_an_in_process_suite(tmp_path, monkeypatch, variant):
+    """A SIGTERM's interrupt raised inside a Dr.Jit loop while the second material is compared: Dr.Jit
+    passes it on as a RuntimeError's cause, and the sweep raises it again as the interrupt
+    (:func:`hzval.core.interrupts.unwrapped`), so the suite stops with an interrupted overview
+    instead of recording the material as failed and going on to the next."""
+    import signal
+
+    import drjit as dr
+    import mitsuba as mi
+
+    from hzval.core import errors
+    from hzval.metrics import compare
+
+    real_flip, real_sweep = compare.flip_error, suite.sweep_material
+    current: list[str] = []
+
+    def sweep_material(task):
+        current.append(task.entry.name)
+        return real_sweep(task)
+
+    def flip_error(*a, **kw):
+        if current[-1] == "gravel":
+
+            def body(i):
+                raise errors.Interrupted(signal.SIGTERM)
+
+            dr.while_loop((dr.arange(mi.UInt32, 4),), lambda i: i < 2, body)
+        return real_flip(*a, **kw)
+
+    monkeypatch.setattr(suite, "sweep_material", sweep_material)
+    monkeypatch.setattr(compare, "flip_error", flip_error)
+    items = suite.entries(["planks", "gravel", "fabric"], **SMALL)
+    with pytest.raises(KeyboardInterrupt):
+        suite.run(items, tmp_path / "s", workers=0, progress=False)
+    assert current == ["planks", "gravel"]  # fabric never started
+    result = json.loads((tmp_path / "s" / "suite.json").read_text())
+    assert result["suite"]["interrupted"]
+    assert "failed" not in {r.get("status") for r in result["materials"] if r["name"] == "gravel"}

@@ -74,3 +74,12 @@ def test_an_interrupt_inside_dr_jit_tracing_unwinds_as_itself(variant):
 def test_other_errors_pass_through_unwrapped_as_they_are():
     with pytest.raises(ValueError, match="not a stop"), interrupts.unwrapped():
         raise ValueError("not a stop")
+
+
+def test_an_errors_chain_that_loops_has_no_interrupt_and_ends():
+    first, second = RuntimeError("a"), ValueError("b")
+    first.__cause__, second.__context__ = second, first
+    assert errors.interruption(first) is None
+    second.__context__ = KeyboardInterrupt()  # found behind a suppressed context too
+    second.__suppress_context__ = True
+    assert isinstance(errors.interruption(first), KeyboardInterrupt)

@@ -86,3 +86,17 @@ def test_one_truth_half_serves_every_factor_of_a_frame():
         }
         assert 80 not in grey_levels  # unit_to_u8(0.25 + 0.5 * 0.125)
         assert np.array_equal(truth.image(F), expected)
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64])
+def test_magma_index_is_matplotlibs_floor_of_256_x_with_nan_as_zero(dtype):
+    big = np.finfo(dtype).max  # beyond max / 256: 256 x is infinite, and no overflow to report
+    values = np.array(
+        [np.nan, -np.inf, -big, -1.0, -0.0, 0.0, 1 / 256, 0.5, 255 / 256, 1.0, big, np.inf], dtype
+    )
+    with np.errstate(all="raise"):
+        index = images.magma_index(values)
+    assert index.dtype == np.uint8
+    assert index.tolist() == [0, 0, 0, 0, 0, 0, 1, 128, 255, 255, 255, 255]
+    assert images.magma_index(np.finfo(dtype).max).tolist() == 255  # a scalar too
+    assert images.magma_index(dtype(0.25)).tolist() == 64
