@@ -569,8 +569,8 @@ class _Grid:
         """``a // n`` of non-negative Int32 arrays, as the truncated float64 quotient: exact (a
         quotient within ``1 / n`` of the next integer is at least ``2^-32`` from it relatively, far
         above float64's rounding) and a SIMD division, where LLVM turns an integer division by a
-        value that is not a constant into one scalar division a lane (seven times the time of this
-        kernel's index arithmetic at 512 x 512)."""
+        value that is not a constant into one scalar division a lane (``benchmarks/bench_flip.py``
+        measures the difference)."""
         import mitsuba as mi
 
         return mi.Int32(mi.Float64(a) / mi.Float64(n))

@@ -49,8 +49,8 @@ UNSEEN_DISPLAY = (0.33, 0.42, 0.55)
 #: level 1' has the measurements).
 PNG_LEVEL = 1
 #: ... with zlib's run-length strategy (:func:`hzval.io.files.write_png`'s ``runs``): at level 1 it
-#: takes a third less time than the default strategy on a rendered frame, for 5% fewer bytes, and a
-#: fifth less on a FLIP map, for 3% more (``benchmarks/bench_png.py``).
+#: is faster than the default strategy on the frames' renders and maps, for about as many bytes
+#: (``benchmarks/bench_png.py``; benchmarks/README.md has the figures).
 PNG_RUNS = True
 
 
