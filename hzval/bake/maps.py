@@ -206,6 +206,33 @@ class Bake:
         n = cv.CHANNELS_PER_LAYER
         return tuple(self.horizon[..., n * i : n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
+    def checked(self) -> "Bake":
+        """This bake, once every map is finite and every normal a unit vector; else one line naming
+        the map, how many texels are wrong, and ``--depth``. No bake with a NaN, an infinity or a
+        zero normal is used or written."""
+        maps = {
+            "horizon": self.horizon,
+            "normal": self.normal,
+            "ambient": self.mean_cos,
+            "ambient mean_cos2": self.mean_cos2,
+            "bent_normal": self.bent_normal,
+            "ssbump": self.ssbump,
+        }
+        for name, values in maps.items():
+            if values is None:
+                continue
+            bad = ~np.isfinite(values)
+            if name in ("normal", "bent_normal"):
+                with np.errstate(invalid="ignore", over="ignore"):
+                    bad = bad.any(-1) | ~(np.abs(np.linalg.norm(values, axis=-1) - 1.0) <= 1e-3)
+            if bad.any():
+                raise InputError(
+                    "--depth",
+                    f"the bake at depth {self.params.depth:g} made {int(bad.sum())} of {bad.size} values "
+                    f"of its {name} map non-finite or not unit length; nothing was written",
+                )
+        return self
+
 
 def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
     """A :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``):
@@ -323,10 +350,13 @@ def bake(
     from hzval.core import backend
 
     params.validate()
+    cv.check_relief(height, params.depth, params.boundary)
     if not horizon:
         t0 = time.perf_counter()
         only = normals_only(height, params.depth, params.boundary)
-        return dataclasses.replace(only, params=params, timings={"normal_s": time.perf_counter() - t0})
+        return dataclasses.replace(
+            only, params=params, timings={"normal_s": time.perf_counter() - t0}
+        ).checked()
     backend.variant()
     timings = {}
     t0 = time.perf_counter()
@@ -352,7 +382,7 @@ def bake(
         ss = directional.self_shadowed_bump(horizon, normal, pool=pool)
         bent = bent.result()
         timings["occlusion_s"] = time.perf_counter() - t2
-    return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss)
+    return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss).checked()
 
 
 def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]:
@@ -368,6 +398,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     from hzval.io import files
 
     t0 = time.perf_counter()
+    result.checked()
     layers = result.layers if result.horizon is not None else ()
     # the weight cube map holds Lengyel's 8 channel weights (2 RGBA layers):
     # a 16-direction map has no GPU cube path (hzval.techniques.horizon), so none is written

@@ -11,7 +11,8 @@ ambient map's do.
     The cosine-weighted mean open direction (about the tangent plane's normal ``+z``, as the ambient
     map's ``mean_cos2``), normalised. Per azimuth, with ``theta_h = pi/2 - alpha`` the open polar
     angle: ``int_0^theta_h (sin theta cos phi, sin theta sin phi, cos theta) cos theta sin theta
-    d theta = ((1 - s^2)^(3/2) (cos phi, sin phi), 1 - s^3) / 3``. An open texel gives ``+z``.
+    d theta = ((1 - s^2)^(3/2) (cos phi, sin phi), 1 - s^3) / 3``. An open texel gives ``+z``, and
+    so does one closed on every side (no open direction: its AO is 0).
 ``ssbump``
     Valve's self-shadowed bump map (Green 2007, "Efficient Self-Shadowed Radiosity Normal
     Mapping", SIGGRAPH course; Source SDK 2013's ``height2ssbump``): per basis vector ``b_c`` of
@@ -84,6 +85,8 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
     >>> b = bent_normal(np.array([[[1.0, 0, 0, 0, 0, 0, 0, 0]]]))[0, 0]
     >>> bool(b[0] < 0 and abs(b[1]) < 1e-6)
     True
+    >>> bent_normal(np.ones((1, 1, 8)))[0, 0].tolist()
+    [0.0, 0.0, 1.0]
     """
     sines = np.asarray(sines)
     D = sines.shape[-1]
@@ -95,7 +98,13 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
         out[..., 0] += side * np.float32(math.cos(phi))
         out[..., 1] += side * np.float32(math.sin(phi))
         out[..., 2] += 1.0 - sk * sk * sk
-    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    norm = np.linalg.norm(out, axis=-1, keepdims=True)
+    # a texel closed on every side (every s = 1) has no open direction: +z, as its AO is 0 and a
+    # cone about any axis is empty
+    closed = norm[..., 0] == 0.0
+    out[closed] = (0.0, 0.0, 1.0)
+    norm[closed] = 1.0
+    out /= norm
     return out
 
 

@@ -43,6 +43,9 @@ def run(args) -> int:
         height, info = scenes.load_material(scene)
         info["path"] = files.report_path(info["path"], args.out)  # bake.json carries no absolute folders
         t_load = time.perf_counter() - t0
+        if args.write_mesh:  # before the bake: a mesh that cannot be built leaves nothing written
+            need = bake.estimate_bytes(*height.shape, params)
+            mesh.check_fits(args.height or "--size", height, params.depth, params.boundary, also=need)
         result = bake.bake(height, params)
         result.timings = {"load_s": t_load, **result.timings}
         written = bake.write_bake(result, args.out, input_info=info)

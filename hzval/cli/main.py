@@ -140,6 +140,13 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # a read-only or full disk, no permission: one line, its path
         print(f"hzval: error: {files.os_error(exc, '--out')}", file=sys.stderr)
         return errors.EXIT_BAD_INPUT
+    except MemoryError:  # past every estimate (each refuses what it knows will not fit): one line
+        print(
+            f"hzval: error: {args.command}: ran out of memory beyond its estimate; nothing was kept "
+            "(a smaller map, --depth or --spp fits)",
+            file=sys.stderr,
+        )
+        return errors.EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         print("hzval: interrupted", file=sys.stderr)
         return 128 + getattr(exc, "signum", signal.SIGINT)

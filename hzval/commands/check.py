@@ -122,6 +122,8 @@ __all__ = [
 BLOCK = 8
 #: Largest side of a check render, in texels (references stay small).
 MAX_CHECK_SIZE = 128
+#: Smallest ``[check] size``: the smallest height map hzval takes (:data:`hzval.io.heightmap.MIN_SIDE`).
+MIN_CHECK_SIZE = 8
 
 
 @dataclass(frozen=True)
@@ -147,7 +149,35 @@ class Tiers:
                 scene.source or scene.name,
                 f"unknown tolerance {sorted(unknown)[0]!r}; use fail, fail_percent, hard_fail, warn",
             )
-        return dataclasses.replace(base, **{k: float(v) for k, v in given.items()})
+        tiers = dataclasses.replace(base, **{k: _number(scene, k, v) for k, v in given.items()})
+        return tiers.validated(scene, "truth" if kind == "truth" else "technique")
+
+    def validated(self, scene, kind: str) -> "Tiers":
+        """These tiers, each in its range, else one line naming the scene file and the setting:
+        ``fail`` a probability in (0, 1) for the truth (a significance level), a difference in (0, 1]
+        (exposed linear units) for a technique; ``hard_fail`` in (0, 1]; the percentages in
+        [0, 100]. NaN is no number: a NaN tolerance would let every image pass."""
+        fail_ok = 0 < self.fail < 1 if kind == "truth" else 0 < self.fail <= 1
+        checks = {
+            "fail": (fail_ok, "in (0, 1), a significance level" if kind == "truth" else "in (0, 1]"),
+            "hard_fail": (0 < self.hard_fail <= 1, "in (0, 1]"),
+            "fail_percent": (0 <= self.fail_percent <= 100, "a percentage in [0, 100]"),
+            "warn": (0 <= self.warn <= 100, "a percentage in [0, 100]"),
+        }
+        for name, (ok, want) in checks.items():
+            if not ok:  # NaN fails every comparison, so lands here
+                raise InputError(
+                    scene.source or scene.name,
+                    f"[tolerances] {name} = {getattr(self, name)!r} for the {kind}: must be {want}",
+                )
+        return self
+
+
+def _number(scene, key: str, value) -> float:
+    """A tolerance's value as a float, or one line naming the scene file."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(scene.source or scene.name, f"[tolerances] {key} = {value!r}: must be a number")
+    return float(value)
 
 
 #: Default tiers. technique: absolute differences in exposed linear units (1 =
@@ -252,6 +282,14 @@ def check_scene(scene):
     size = c.get("size")
     if size is not None and not materials.is_builtin(scene.material.height):
         raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
+    if size is not None and (
+        isinstance(size, bool) or not isinstance(size, int) or not MIN_CHECK_SIZE <= size <= MAX_CHECK_SIZE
+    ):
+        raise InputError(
+            scene.source or scene.name,
+            f"check.size must be in [{MIN_CHECK_SIZE}, {MAX_CHECK_SIZE}] texels (references stay "
+            f"small), got {size!r}",
+        )
     unknown = set(c) - {"size", "azimuths", "spp", "depth", "resolution"}
     if unknown:
         raise InputError(
@@ -366,6 +404,10 @@ def compare_image(
             {},
         )
     _, b = _values(ref, names)
+    bad = _non_finite(ref, names, kind)
+    if bad:
+        # NaN compares false with every bound: such a reference would pass anything
+        return "fail", [f"the reference has {bad}: render it again with --update"], {}, {}
     s = np.array([scale if n in "RGB" else 1.0 for n in names])
     a, b = a * s, b * s
     diff = a - b
@@ -378,8 +420,14 @@ def compare_image(
         "pixels": n_pix,
     }
     reasons: list[str] = []
-    if not np.isfinite(a).all():
-        return "fail", ["the new render has non-finite values"], numbers, {"score": absdiff.max(-1)}
+    bad = _non_finite(new, names, kind)
+    if bad:
+        return (
+            "fail",
+            [f"the new render has {bad}"],
+            numbers,
+            {"score": np.nan_to_num(absdiff.max(-1), nan=1.0)},
+        )
     if kind != "truth":
         failing, maps = _technique_test(absdiff, tiers, reasons)
     else:
@@ -399,6 +447,18 @@ def compare_image(
             maps,
         )
     return "pass", [], numbers, maps
+
+
+def _non_finite(ch: dict[str, np.ndarray], names: list[str], kind: str) -> str:
+    """``""``, or what of an image is not finite: how many pixels, of how many, and in which channels
+    (a truth's variances included)."""
+    names = [*names, *(f"var.{n}" for n in names)] if kind == "truth" else names
+    bad = {n: ~np.isfinite(np.asarray(ch[n])) for n in names if n in ch}
+    where = [n for n, b in bad.items() if b.any()]
+    if not where:
+        return ""
+    pixels = np.logical_or.reduce([bad[n] for n in where])
+    return f"{int(pixels.sum())} of {pixels.size} pixels not finite (NaN or infinite) in {', '.join(where)}"
 
 
 def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[np.ndarray, dict]:
@@ -511,6 +571,15 @@ def _former_reference(references: Path, scene: str, frame: str, entry) -> Path |
     return old if old.is_file() else None
 
 
+def _check_only(only: list[str] | None, names: list[str]) -> None:
+    """Refuse, in one line naming ``--only``, a name that is no scene's: a check of nothing passes."""
+    for name in only or ():
+        if name not in names:
+            near = difflib.get_close_matches(name, names, n=1)
+            hint = f"did you mean {near[0]!r}? " if near else ""
+            raise InputError("--only", f"no scene is named {name!r} ({hint}the scenes: {', '.join(names)})")
+
+
 def load_scenes(scenes_dir: str | Path) -> list:
     from hzval.scene import spec as sc
 
@@ -536,9 +605,15 @@ def run(
     t0 = time.perf_counter()
     scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
     references = Path(references) if references else repository_path("reference")
-    scenes = [check_scene(s) for s in load_scenes(scenes_dir) if not only or s.name in only]
+    loaded = load_scenes(scenes_dir)
+    _check_only(only, [s.name for s in loaded])
+    scenes = [check_scene(s) for s in loaded if not only or s.name in only]
     for s in scenes:  # each name is a folder of reference/, which --update writes
         paths.file_name(s.name, s.source or s.name, "name")
+        # every tolerance read and checked before the first render
+        Tiers.of(s, "truth")
+        for kind, (_, name) in _variants(s).items():
+            Tiers.of(s, kind, name)
     result = CheckResult(images=[])
     here = backend_name(backend.variant())
     for scene in tqdm(scenes, desc="check", unit="scene", disable=not progress, leave=False):

@@ -122,6 +122,8 @@ def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
             np.asarray(h, np.float64) * mat.depth * cols,
             min(mesh.MIN_ELEVATION_DEG, max(light.elevation_deg, 1.0)),
         )
+    what = "--size" if materials.is_builtin(mat.height) else mat.height
+    mesh.check_fits(what, h, mat.depth, mat.boundary, margin=margin)
     m = mesh.displaced_mesh(
         h, mat.depth, mat.boundary, margin=margin, normals=mat.shading == "smooth", name="surface"
     )

@@ -65,6 +65,7 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_DEPTH_OPEN",
     "check_depth",
+    "check_relief",
     "height_scale",
     "heights_in_texels",
     "pad_heights",
@@ -409,6 +410,67 @@ def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
         tile = "an open tile" if boundary == "open" else f"a {boundary} tile"
         raise InputError(what, f"must be in (0, {top:g}] image widths for {tile} ({why}), got {depth:g}")
     return float(depth)
+
+
+def check_relief(height: np.ndarray, depth: float, boundary: str = "wrap", what="height map") -> float:
+    """The relief of a height map at ``depth``, checked against what the truth can render.
+
+    :func:`check_depth` bounds ``depth``, the height of ``H = 1``; a map whose values run past
+    [0, 1] (an EXR of heights in metres) stands taller by its range. The bound is the same
+    (:data:`MAX_DEPTH` on a ``wrap`` tile, :data:`MAX_DEPTH_OPEN` on an ``open`` one), applied to
+    ``depth * (max H - min H)``, so a map in [0, 1] passes wherever its depth does.
+
+    Parameters
+    ----------
+    height : numpy.ndarray
+        ``H[row, col]``, finite.
+    depth : float
+        The world height of ``H = 1``, in image widths.
+    boundary : {"wrap", "open"}
+    what : str or path-like
+        The file named first in the error.
+
+    Returns
+    -------
+    float
+        The relief, in image widths.
+
+    Raises
+    ------
+    hzval.core.errors.InputError
+        One line naming ``what``, its height range and ``--depth``, when the relief is past the bound.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_relief(np.array([[0.0, 0.5]]), 0.05)
+    0.025
+    >>> check_relief(np.array([[0.0, 1000.0]]), 0.05, what="dem.exr")
+    Traceback (most recent call last):
+    ...
+    hzval.core.errors.InputError: dem.exr: heights run from 0 to 1000; at --depth 0.05 that is a relief of 50 image widths, above the 10 a wrap tile allows (scale the heights to [0, 1], or --depth 0.01 or less)
+    """  # noqa: E501
+    lo, hi = float(np.min(height)), float(np.max(height))
+    relief = float(depth) * (hi - lo)
+    top = MAX_DEPTH_OPEN if boundary == "open" else MAX_DEPTH
+    if not relief <= top:  # NaN included
+        tile = "an open tile" if boundary == "open" else f"a {boundary} tile"
+        most = top / (hi - lo) if math.isfinite(hi - lo) and hi > lo else 0.0
+        raise InputError(
+            what,
+            f"heights run from {lo:g} to {hi:g}; at --depth {depth:g} that is a relief of {relief:.3g} "
+            f"image widths, above the {top:g} {tile} allows (scale the heights to [0, 1], or --depth "
+            f"{_round_down(most)} or less)",
+        )
+    return relief
+
+
+def _round_down(x: float) -> str:
+    """``x`` rounded down to two significant digits, as a flag's value."""
+    if x <= 0:
+        return "0"
+    step = 10.0 ** (math.floor(math.log10(x)) - 1)
+    return f"{float(f'{math.floor(x / step + 1e-9) * step:.2g}'):g}"
 
 
 def height_scale(depth: float, cols: int) -> float:

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core.errors import InputError
 
 __all__ = [
     "MIN_ELEVATION_DEG",
@@ -53,6 +54,9 @@ __all__ = [
     "cell_levels",
     "BYTES_PER_TRIANGLE",
     "triangle_count",
+    "mesh_size",
+    "MESH_BYTES_PER_TRIANGLE",
+    "check_fits",
     "tessellate",
     "piece",
     "piece_mesh",
@@ -230,7 +234,6 @@ def write_ply(m, path) -> None:
     """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.files.atomic_path`).
     Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
     line naming the file here (:class:`hzval.core.errors.InputError`)."""
-    from hzval.core.errors import InputError
     from hzval.io import files
 
     with files.atomic_path(path) as tmp:
@@ -340,6 +343,80 @@ def triangle_count(levels: np.ndarray) -> int:
     counts = np.bincount(levels.ravel(), minlength=MAX_LEVEL + 1).astype(np.int64)
     n = np.arange(len(counts), dtype=np.int64)
     return int(2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:]))
+
+
+def mesh_size(
+    h_texels: np.ndarray, boundary: str, margin: int | None = None, tolerance: float = DEFAULT_TOLERANCE
+) -> tuple[int, int]:
+    """``(vertices, triangles)`` of :func:`displaced_mesh`'s mesh of heights ``h_texels`` (texels),
+    counted without building its grid: a ``wrap`` mesh's margin repeats the tile, so its cells' levels
+    (:func:`cell_levels`) are the tile's own, each counted as often as the margin repeats it.
+    ``margin``: as :func:`grid`'s (default :func:`wrap_margin`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> mesh_size(np.zeros((4, 4)), "wrap", margin=0)
+    (16, 18)
+    >>> mesh_size(np.zeros((4, 4)), "wrap", margin=2)
+    (64, 98)
+    """
+    h = np.asarray(h_texels, np.float32)
+    rows, cols = h.shape
+    if boundary != "wrap":
+        g = grid(h, boundary)
+        return _size(g.z.shape, cell_levels(g.z, tolerance), 1, 1)
+    m = wrap_margin(h, MIN_ELEVATION_DEG) if margin is None else int(margin)
+    levels = cell_levels(np.pad(h, ((0, 1), (0, 1)), mode="wrap"), tolerance)  # the periodic cells
+    # padded cell (k, j) is the tile's cell ((k - m) mod rows, (j - m) mod cols)
+    per_row = np.bincount((np.arange(rows + 2 * m - 1) - m) % rows, minlength=rows)
+    per_col = np.bincount((np.arange(cols + 2 * m - 1) - m) % cols, minlength=cols)
+    return _size((rows + 2 * m, cols + 2 * m), levels, per_row, per_col)
+
+
+def _size(shape: tuple[int, int], levels: np.ndarray, per_row, per_col) -> tuple[int, int]:
+    """``(vertices, triangles)`` of a grid of ``shape`` vertices whose cell ``(r, c)`` of ``levels`` is
+    repeated ``per_row[r] * per_col[c]`` times."""
+    weight = np.outer(np.broadcast_to(per_row, levels.shape[:1]), np.broadcast_to(per_col, levels.shape[1:]))
+    counts = np.bincount(levels.ravel(), weights=weight.ravel().astype(np.float64), minlength=MAX_LEVEL + 1)
+    n = np.arange(len(counts), dtype=np.float64)
+    triangles = 2 * counts[0] + np.sum(4 * n[1:] ** 2 * counts[1:])
+    # a fanned cell adds its sub-grid's inner nodes and its sub-cells' centres
+    extra = np.sum(((n[1:] + 1) ** 2 - 4 + n[1:] ** 2) * counts[1:])
+    return int(shape[0]) * int(shape[1]) + int(extra), int(triangles)
+
+
+#: Peak bytes per triangle while :func:`displaced_mesh` builds a mesh with vertex normals and texture
+#: coordinates and it is written (``benchmarks/bench_mesh_memory.py``: 112-134 measured on the bricks,
+#: half a vertex a triangle), with a margin.
+MESH_BYTES_PER_TRIANGLE = 160
+
+
+def check_fits(
+    what, height: np.ndarray, depth: float, boundary: str, *, margin: int | None = None, also: float = 0
+) -> int:
+    """Refuse, before its grid is allocated, a :func:`displaced_mesh` of the normalised ``height`` at
+    ``depth`` that would not fit in the memory available (:func:`hzval.core.resources.refuse_over`):
+    its triangles (:func:`mesh_size`) at :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held
+    beside it. A tall relief asks for a wide wrap margin and fine cells; the line names ``what`` (the
+    map), its height range and ``--depth``. Returns the estimate in bytes."""
+    from hzval.core import resources
+
+    h = cv.heights_in_texels(height, depth)
+    rows, cols = h.shape
+    m = (wrap_margin(h) if margin is None else int(margin)) if boundary == "wrap" else 0
+    vertices, triangles = mesh_size(h, boundary, m)
+    need = also + MESH_BYTES_PER_TRIANGLE * triangles
+    lo, hi = float(np.min(height)), float(np.max(height))
+    count = f"{triangles / 1e6:,.0f}M" if triangles >= 1e6 else f"{triangles:,}"
+    task = (
+        f"the displaced mesh of {cols}x{rows} texels with heights {lo:g} to {hi:g} at --depth {depth:g} "
+        f"({count} triangles" + (f", a wrap margin of {m} texels)" if m else ")")
+    )
+    resources.refuse_over(what, need, task, "a smaller --depth or a smaller map")
+    if vertices >= 2**32:
+        raise InputError(what, f"{task} has {vertices:.3g} vertices, more than a mesh can index (2^32)")
+    return int(need)
 
 
 def tessellate(

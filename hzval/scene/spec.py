@@ -683,14 +683,19 @@ def light_samples(
 
 
 def load_material_height(spec: MaterialSpec):
-    """The scene's height map as a :class:`hzval.io.heightmap.HeightMap`."""
+    """The scene's height map as a :class:`hzval.io.heightmap.HeightMap`, its relief at the
+    material's depth checked (:func:`hzval.core.conventions.check_relief`): a map of heights in
+    metres is refused here, in one line, before anything is built from it."""
     if materials.is_builtin(spec.height):
         m = materials.get(spec.height)
-        return heightmap.from_array(
+        hm = heightmap.from_array(
             materials.generate(spec.height, spec.size).height,
             source=f"built-in {m.label}, {spec.size}x{spec.size}",
         )
-    return heightmap.check_usable(heightmap.load_height(spec.height))
+    else:
+        hm = heightmap.check_usable(heightmap.load_height(spec.height))
+    cv.check_relief(hm.height, spec.depth, spec.boundary, hm.path or hm.source)
+    return hm
 
 
 def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:

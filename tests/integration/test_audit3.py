@@ -1,0 +1,225 @@
+"""The third audit (issue 53): no wrong number passes and nothing takes the machine down. One test (or
+a few) per defect; the readers' fuzzing is in test_faults_fuzz.py."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hzval.bake import maps as bake
+from hzval.cli import main as cli
+from hzval.commands import check
+from hzval.core import conventions as cv
+from hzval.core import resources
+from hzval.core.errors import InputError
+from hzval.geometry import tile
+from hzval.io import files
+from tests.integration.test_faults import hzval, one_line
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def metres(tmp_path: Path, top: float = 1000.0, size: int = 16) -> Path:
+    """A terrain of heights in metres, ``0..top``, as an EXR."""
+    rng = np.random.default_rng(7)
+    path = tmp_path / f"dem_{top:g}.exr"
+    files.write_exr(path, {"Y": (rng.random((size, size)) * top).astype(np.float32)})
+    return path
+
+
+# 1. a height map's relief is bounded before anything is built from it ---------------------------
+
+
+@pytest.mark.parametrize("top", [1000.0, 1e4 * 1000, 7e4, 1e30])
+@pytest.mark.parametrize("command", [["bake", "--mesh"], ["export-scene"]])
+def test_a_map_in_metres_is_refused_naming_its_heights_and_depth(tmp_path, top, command):
+    """The audit's reproductions, one process each under an address-space limit: one line naming the
+    file, its height range and --depth; exit 2; no folder."""
+    dem = metres(tmp_path, top)
+    rc, err, _ = hzval(command[0], dem, *command[1:], "--out", tmp_path / "o")
+    assert rc == 2, err
+    one_line(err, dem.name, "heights run from", "--depth", "image widths")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_of_a_map_in_metres_is_refused_before_it_renders(tmp_path, capsys, variant):
+    dem = metres(tmp_path)
+    assert cli.main(["sweep", str(dem), "--quiet", "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, dem.name, "--depth")
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_relief_bound_is_the_depth_bound_for_a_map_in_0_1():
+    """A map in [0, 1] passes wherever its depth does; a taller one by its range; NaN never passes."""
+    unit = np.array([[0.0, 1.0]])
+    assert cv.check_relief(unit, cv.MAX_DEPTH) == cv.MAX_DEPTH
+    assert cv.check_relief(unit, cv.MAX_DEPTH_OPEN, "open") == cv.MAX_DEPTH_OPEN
+    assert cv.check_relief(np.array([[5.0, 7.0]]), 5.0) == 10.0  # an offset does not count
+    with pytest.raises(InputError, match="--depth 5 or less"):
+        cv.check_relief(np.array([[0.0, 2.0]]), 10.0)
+    with pytest.raises(InputError):
+        cv.check_relief(np.array([[0.0, np.inf]]), 0.05)
+
+
+def test_the_suggested_depth_passes(tmp_path):
+    """The depth a refusal suggests is accepted for the same map."""
+    h = np.array([[0.0, 1234.5]])
+    with pytest.raises(InputError) as e:
+        cv.check_relief(h, 0.05)
+    depth = float(str(e.value).split("or --depth ")[1].split(" ")[0])
+    assert cv.check_relief(h, depth) <= cv.MAX_DEPTH
+
+
+def test_a_mesh_that_would_not_fit_is_refused_before_its_grid(tmp_path, monkeypatch, capsys, variant):
+    """A deep relief that the truth accepts asks bake --mesh for a wide wrap margin: counted first."""
+    monkeypatch.setattr(resources, "available_bytes", lambda: 2**28)
+    built = []
+    monkeypatch.setattr(tile, "grid", lambda *a, **k: built.append(1))
+    rc = cli.main(["bake", "--size", "32", "--depth", "5", "--mesh", "--out", str(tmp_path / "o")])
+    assert rc == 2 and not built
+    one_line(capsys.readouterr().err, "--size", "displaced mesh", "wrap margin", "--depth 5")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    "boundary, margin", [("wrap", None), ("wrap", 0), ("wrap", 3), ("wrap", 40), ("open", None)]
+)
+def test_mesh_size_counts_the_mesh_exactly(boundary, margin):
+    """Counted from the tile's cells, without the grid: the wrap margin repeats them."""
+    rng = np.random.default_rng(3)
+    h = (rng.random((13, 17)) * 6).astype(np.float32)
+    positions, faces, _ = tile.tessellate(tile.grid(h, boundary, margin=margin))
+    assert tile.mesh_size(h, boundary, margin) == (len(positions), len(faces))
+
+
+def test_an_open_terrain_at_the_deepest_depth_bakes_finite_maps(tmp_path, capsys, variant):
+    """Depth 1000 on an open built-in closed some texels on every side: their bent normal was 0/0."""
+    out = tmp_path / "b"
+    assert cli.main(["bake", "--size", "32", "--boundary", "open", "--depth", "1000", "--out", str(out)]) == 0
+    for name in ("normal", "ambient", "bent_normal", "ssbump", "horizon0", "horizon1"):
+        for channel, values in files.read_exr(out / f"{name}.exr").items():
+            assert np.isfinite(values).all(), (name, channel)
+    n = files.read_exr(out / "bent_normal.exr")
+    length = np.sqrt(n["R"] ** 2 + n["G"] ** 2 + n["B"] ** 2)
+    assert np.allclose(length, 1.0, atol=1e-5)
+
+
+def test_a_bake_with_a_non_finite_texel_is_never_written(tmp_path, variant):
+    result = bake.bake(np.random.default_rng(1).random((16, 16)), bake.BakeParams())
+    result.ssbump[3, 4, 1] = np.nan
+    with pytest.raises(InputError, match="ssbump"):
+        bake.write_bake(result, tmp_path / "b", input_info={})
+    assert not (tmp_path / "b").exists()
+    result.ssbump[3, 4, 1] = 0.5
+    result.normal[0, 0] = 0.0  # a zero normal: the audit's x1e30 wrote a whole map of them
+    with pytest.raises(InputError, match="normal"):
+        result.checked()
+
+
+def test_memory_beyond_every_estimate_is_one_line(monkeypatch, capsys, tmp_path):
+    from hzval.cli import bake as bake_command
+
+    def boom(args):
+        raise MemoryError
+
+    monkeypatch.setattr(bake_command, "run", boom)
+    assert cli.main(["bake", "--size", "16", "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, "bake", "out of memory")
+
+
+# 2. check fails against references that are not finite ------------------------------------------
+
+
+@pytest.fixture
+def references(tmp_path):
+    copy = tmp_path / "reference"
+    shutil.copytree(ROOT / "reference" / "bricks", copy / "bricks")
+    return copy
+
+
+def poison(path: Path, value: float = np.nan, where=slice(None)) -> None:
+    channels = files.read_exr(path)
+    for v in channels.values():
+        v[where] = value
+    files.write_exr(path, channels)
+
+
+@pytest.mark.parametrize("kind", ["truth", "horizon", "bent_cone"])
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_check_fails_a_reference_that_is_not_finite(references, capsys, variant, kind, value):
+    poison(references / "bricks" / "az+0" / f"{kind}.exr", value, (slice(0, 3), slice(None)))
+    result = check.run(references=references, only=["bricks"])
+    failed = [r for r in result.images if r.status == "fail"]
+    assert [(r.frame, r.kind) for r in failed] == [("az+0", kind)]
+    assert "not finite" in failed[0].reasons[0] and "--update" in failed[0].reasons[0]
+
+
+def test_check_update_rewrites_an_all_nan_reference(references, variant):
+    for p in (references / "bricks").rglob("*.exr"):
+        poison(p)
+    assert not check.run(references=references, only=["bricks"]).passed
+    updated = check.run(references=references, only=["bricks"], update=True)
+    assert len(updated.updated) == len(updated.images)
+    assert check.run(references=references, only=["bricks"]).passed
+
+
+# 5. tolerances are checked where they are read, before anything renders --------------------------
+
+
+def scene_with(tmp_path: Path, table: str, line: str) -> Path:
+    text = (ROOT / "scenes" / "bricks.toml").read_text()
+    head, _, rest = text.partition(f"[tolerances.{table}]\n")
+    assert rest, table
+    body = "\n".join(x for x in rest.split("\n") if not x.startswith(line.split("=")[0].strip() + " "))
+    folder = tmp_path / "scenes"
+    folder.mkdir(exist_ok=True)
+    (folder / "bricks.toml").write_text(f"{head}[tolerances.{table}]\n{line}\n{body}")
+    return folder
+
+
+@pytest.mark.parametrize(
+    "table, line",
+    [
+        ("truth", "fail = 1.5"),
+        ("truth", "fail = 0"),
+        ("truth", "fail = -0.5"),
+        ("truth", "fail = nan"),
+        ("technique", "fail = nan"),
+        ("technique", "hard_fail = inf"),
+        ("truth", "fail_percent = 101"),
+        ("technique", 'fail = "tight"'),
+    ],
+)
+def test_a_tolerance_out_of_range_is_refused_before_rendering(tmp_path, monkeypatch, capsys, table, line):
+    monkeypatch.setattr(check, "render_references", lambda *a, **k: pytest.fail("rendered"))
+    rc = cli.main(["check", "--scenes", str(scene_with(tmp_path, table, line)), "--quiet"])
+    assert rc == 2
+    one_line(capsys.readouterr().err, "bricks.toml", line.split(" =")[0])
+
+
+def test_the_shipped_scenes_tolerances_are_valid():
+    for scene in check.load_scenes(ROOT / "scenes"):
+        check.Tiers.of(scene, "truth")
+        check.Tiers.of(scene, "horizon", "horizon")
+
+
+# 6. and 16. what check is asked to check ------------------------------------------------------------
+
+
+def test_check_only_a_name_that_matches_nothing_is_refused(capsys):
+    assert cli.main(["check", "--only", "brick", "--quiet"]) == 2
+    one_line(capsys.readouterr().err, "--only", "'brick'", "did you mean 'bricks'")
+
+
+@pytest.mark.parametrize("size", [100000, 0, 3, 12.5, "true"])
+def test_check_size_out_of_range_is_refused(tmp_path, capsys, size):
+    text = (ROOT / "scenes" / "bricks.toml").read_text()
+    assert "\nsize = 96 " in text
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "bricks.toml").write_text(text.replace("\nsize = 96 ", f"\nsize = {size} ", 1))
+    assert cli.main(["check", "--scenes", str(folder), "--quiet"]) == 2
+    one_line(capsys.readouterr().err, "bricks.toml", "check.size")
