@@ -415,10 +415,17 @@ def gates(args):
     )
 
 
-def gate_exit(failed: list[str]) -> int:
-    """Print each gate failure on one line; exit 1 if there is any."""
+def gate_exit(record: dict | None) -> int:
+    """Print a run's gates (``metrics.json``'s ``gates``), each failure and each error on one line; exit 2
+    where any could not be evaluated (``errors``), else 1 where any failed."""
+    record = record or {}
+    failed = record.get("failed", [])
     for line in failed:
         print(f"hzval: gate failed: {line}", file=sys.stderr)
+    for line in record.get("errors", []):
+        print(f"hzval: error: {line}", file=sys.stderr)
+    if record.get("errors"):
+        return errors.EXIT_BAD_INPUT
     return errors.EXIT_CHECK_FAILED if failed else errors.EXIT_OK
 
 

@@ -74,12 +74,18 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Sweep every material of ``args``; print the overview. Exit 1 if one failed or a gate did."""
     from hzval.commands import suite
+    from hzval.techniques import registry as technique
 
     items = suite.entries(args.inputs, **scenes.scene_overrides(args))
     _size_note(args.size, items)
     workers = args.workers if args.workers is not None else suite.default_workers(items)
     command = flags.command_line(args)
     gates = flags.gates(args)
+    if gates:  # every metric's name, and each material's baseline, before anything renders
+        gates.check_before(technique.names())
+        for e in items:
+            if gates.baseline_path is not None and (gates.baseline_path / e.name / "metrics.json").is_file():
+                suite.material_baseline(gates, e.name)
     result = suite.run(
         items,
         args.out,
@@ -98,7 +104,9 @@ def run(args) -> int:
         f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "
         f"overview: {args.out / 'index.html'}"
     )
-    gated = flags.gate_exit(result.get("gates", {}).get("failed", []))
+    gated = flags.gate_exit(result.get("gates"))
+    if gated == errors.EXIT_BAD_INPUT:
+        return gated
     return errors.EXIT_OK if not s["failed"] and not gated else errors.EXIT_CHECK_FAILED
 
 

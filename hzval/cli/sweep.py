@@ -36,12 +36,17 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Sweep the scene of ``args``; print its table and one line of times. Exit 1 on a failed gate."""
     from hzval.pipeline import records, sweep
+    from hzval.techniques import registry as technique
 
     scene = scenes.scene_from_args(args)
     options = flags.sweep_options(args)
     out = args.out or Path("reports") / scene.name
     command = flags.command_line(args)
     gates = flags.gates(args)
+    if gates:  # every name and the baseline's settings, before anything renders
+        requested = None if options.techniques is None else list(options.techniques)
+        names = [t.name for t in technique.select(requested, scene, exclude=options.exclude)]
+        gates.check_before(names, records.scene_parameters(scene, out, names))
     result = sweep.run(
         scene, out, options=options, command=command, progress=not args.quiet, force=args.force, gates=gates
     )
@@ -50,7 +55,7 @@ def run(args) -> int:
         print(f"hzval: warning: {w}", file=sys.stderr)
     print(records.summary_table(result))
     print(run_line(result, out))
-    return flags.gate_exit(result.get("gates", {}).get("failed", []))
+    return flags.gate_exit(result.get("gates"))
 
 
 def run_line(result: dict, out: Path) -> str:

@@ -66,7 +66,13 @@ __all__ = [
     "frame_noise",
     "regressions",
     "Gates",
+    "check_names",
+    "check_shape",
     "DIRECTION",
+    "FRAME_METRICS",
+    "TECHNIQUE_METRICS",
+    "FLOOR_METRICS",
+    "TRUTH_METRICS",
     "ALPHA",
     "ABS_TOLERANCE",
     "REL_TOLERANCE",
@@ -87,6 +93,28 @@ DIRECTION = {
     "leak_fraction_facing": 1,
     "false_shadow_fraction_facing": 1,
 }
+#: The numbers a condition may name (module docstring), as ``metrics.json`` holds them: a frame's own,
+#: a technique's (``frames[i].techniques.NAME``), the floor's and the truth's
+#: (a score's frames carry the engine's image scores at their top level too;
+#: ``tests/integration/test_audit3.py`` keeps these equal to what a sweep and a score write).
+FRAME_METRICS = (
+    "truth_s",
+    "azimuth_deg",
+    "elevation_deg",
+    "flip_mean",
+    "rmse",
+    "psnr_db",
+    "delta_e2000_mean",
+)
+TECHNIQUE_METRICS = (*DIRECTION, "seconds")
+FLOOR_METRICS = ("flip_mean", "rmse", "psnr_db", "delta_e2000_mean")
+TRUTH_METRICS = (
+    "attached_fraction",
+    "cast_fraction",
+    "partial_fraction",
+    "shadowed_fraction",
+    "visibility_se",
+)
 #: The family-wise significance level of a baseline comparison (``hzval check``'s ``fail`` default).
 ALPHA = 0.01
 #: A change smaller than this is never a regression: ABS_TOLERANCE + REL_TOLERANCE * |baseline mean|.
@@ -184,6 +212,72 @@ def parse(expr: str) -> Condition:
     return Condition(expr.strip(), left, op, right)
 
 
+def known_names(techniques) -> list[str]:
+    """Every name a condition may use in a run of ``techniques`` (:data:`FRAME_METRICS` and the rest)."""
+    return [
+        *FRAME_METRICS,
+        *(f"floor.{k}" for k in FLOOR_METRICS),
+        *(f"truth.{k}" for k in TRUTH_METRICS),
+        *(f"{t}.{k}" for t in techniques for k in TECHNIQUE_METRICS),
+    ]
+
+
+def check_names(conditions: list[Condition], techniques) -> None:
+    """Refuse, before a run, a condition that names no number the run will write: an unknown metric,
+    or a technique the run does not score (``techniques``: its names). One line naming
+    ``--fail-if``, with the nearest names."""
+    known = set(known_names(techniques))
+    for cond in conditions:
+        for op in (cond.left, cond.right):
+            if op.path is None or op.path in known:
+                continue
+            head, dot, _ = op.path.partition(".")
+            near = difflib.get_close_matches(op.path, sorted(known), n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(near)}?" if near else ""
+            what = (
+                f"{head} is not a technique of this run ({', '.join(techniques) or 'none'})"
+                if dot and head not in ("floor", "truth", *techniques)
+                else f"{op.path} is no metric hzval writes"
+            )
+            raise InputError("--fail-if", f"{cond.text!r}: {what}{hint}")
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_shape(data, file) -> dict:
+    """``data`` (a ``metrics.json`` read as JSON) when it has the shape a gate reads: ``frames`` a list
+    of objects, each with a numeric ``azimuth_deg`` (and ``elevation_deg`` a number or null), its
+    ``techniques``, ``truth`` and ``floor`` objects; ``parameters``, ``material`` and ``techniques``
+    objects. Else one line naming ``--baseline``, the file and the key."""
+
+    def bad(key: str, want: str):
+        raise InputError(
+            "--baseline", f"{file}: {key} must be {want} (not the metrics.json of a sweep or a score)"
+        )
+
+    if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
+        bad("frames", "a list")
+    for key in ("parameters", "material", "techniques"):
+        if data.get(key) is not None and not isinstance(data[key], dict):
+            bad(key, "an object")
+    for i, f in enumerate(data["frames"]):
+        if not isinstance(f, dict):
+            bad(f"frames[{i}]", "an object")
+        if not _number(f.get("azimuth_deg")) or not math.isfinite(f["azimuth_deg"]):
+            bad(f"frames[{i}].azimuth_deg", "a number")
+        if f.get("elevation_deg") is not None and not _number(f["elevation_deg"]):
+            bad(f"frames[{i}].elevation_deg", "a number or null")
+        for key in ("techniques", "truth", "floor"):
+            if f.get(key) is not None and not isinstance(f[key], dict):
+                bad(f"frames[{i}].{key}", "an object")
+        for name, per in (f.get("techniques") or {}).items():
+            if not isinstance(per, dict):
+                bad(f"frames[{i}].techniques.{name}", "an object")
+    return data
+
+
 def _table(frame: dict, path: str) -> tuple[dict | None, str]:
     """The table of ``frame`` that holds ``path``'s value, and its key there."""
     head, _, key = path.partition(".")
@@ -273,9 +367,7 @@ def read_baseline(path: str | Path) -> dict:
         data = documents.read_json(file)
     except InputError as exc:
         raise InputError("--baseline", str(exc)) from None
-    if not isinstance(data, dict) or not isinstance(data.get("frames"), list):
-        raise InputError("--baseline", f"{file}: not the metrics.json of a sweep or a score (no frames)")
-    return data
+    return check_shape(data, file)
 
 
 def check_same_settings(new: dict, old: dict, where: str) -> None:
@@ -473,11 +565,25 @@ class Gates:
             out += regressions(tests, where)
         return out, tests
 
+    def check_before(self, techniques, parameters: dict | None = None) -> "Gates":
+        """These gates, once every condition names a number a run of ``techniques`` writes
+        (:func:`check_names`) and the baseline has the ``parameters`` of the run to come (the
+        ``metrics.json`` ``parameters`` it will write, where known): called before anything renders."""
+        check_names(self.conditions, list(techniques))
+        if self.baseline is not None and parameters is not None:
+            check_same_settings({"parameters": parameters}, self.baseline, str(self.baseline_path))
+        return self
+
     def apply(self, metrics: dict) -> dict:
         """Test ``metrics`` (one sweep's or score's) and store ``metrics["gates"]``: ``{failed,
-        conditions, baseline, tests}``; returns it."""
-        failed, tests = self.failures(metrics)
-        metrics["gates"] = self.record(failed, tests)
+        conditions, baseline, tests}``, and ``errors``, one line each, where they could not be evaluated
+        (a baseline of another height map): the run's report is kept either way. Returns it."""
+        try:
+            failed, tests = self.failures(metrics)
+        except InputError as exc:
+            metrics["gates"] = {**self.record([], []), "errors": [str(exc)]}
+        else:
+            metrics["gates"] = self.record(failed, tests)
         return metrics["gates"]
 
     def record(self, failed: list[str], tests: list[dict]) -> dict:

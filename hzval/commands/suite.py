@@ -60,9 +60,10 @@ from pathlib import Path
 import numpy as np
 
 from hzval import materials
+from hzval.commands import gates as gates_module
 from hzval.core import backend, errors, resources
 from hzval.core.errors import InputError
-from hzval.io import files, heightmap
+from hzval.io import documents, files, heightmap
 from hzval.pipeline import sweep
 from hzval.report import pages as report
 from hzval.report import ranking
@@ -78,6 +79,8 @@ __all__ = [
     "sweep_material",
     "summarise",
     "write_overview",
+    "gate_failures",
+    "material_baseline",
     "summary_table",
     "HEIGHT_SUFFIXES",
     "LIGHTS_SHOWN",
@@ -669,39 +672,36 @@ def _sort_key(row: dict) -> tuple:
 def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
     """``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``
     (:class:`hzval.commands.gates.Gates`), its baseline the same material's in the baseline suite's folder;
-    each failure line names the material. A material missing from the baseline is a failure too."""
-    from hzval.io import documents
-
-    failed = []
+    each failure line names the material. A material whose gates cannot be evaluated (no baseline of
+    it, a baseline of another shape or settings) gets a line in ``errors`` (exit 2), the others are
+    still tested."""
+    failed, unevaluated = [], []
     for row in rows:
         if row["status"] != "ok":
             continue
         name = row["name"]
         metrics = documents.read_json(out / name / "metrics.json")
-        baseline = None
-        if gates.baseline_path is not None:
-            path = gates.baseline_path / name / "metrics.json"
-            if not path.is_file():
-                failed.append(
-                    f"{name}: --baseline: {path} is missing (no such material in the baseline suite)"
-                )
-                continue
-            try:
-                baseline = documents.read_json(path)
-            except InputError as exc:
-                failed.append(f"{name}: --baseline: {exc}")
-                continue
-            if not isinstance(baseline, dict) or not isinstance(baseline.get("frames"), list):
-                failed.append(f"{name}: --baseline: {path}: not the metrics.json of a sweep (no frames)")
-                continue
         try:
+            baseline = material_baseline(gates, name)
             lines, _ = gates.failures(
                 metrics, baseline=baseline, where=name, use_baseline=baseline is not None
             )
         except InputError as exc:  # another material's settings, a metric it lacks: its own line
-            lines = [f"{name}: {exc}"]
+            unevaluated.append(f"{name}: {exc}")
+            continue
         failed += lines
-    return gates.record(failed, [])
+    return {**gates.record(failed, []), **({"errors": unevaluated} if unevaluated else {})}
+
+
+def material_baseline(gates, name: str) -> dict | None:
+    """The baseline suite's ``metrics.json`` of material ``name`` (checked by
+    :func:`hzval.commands.gates.read_baseline`), ``None`` without ``--baseline``."""
+    if gates.baseline_path is None:
+        return None
+    path = gates.baseline_path / name / "metrics.json"
+    if not path.is_file():
+        raise InputError("--baseline", f"{path} is missing (no such material in the baseline suite)")
+    return gates_module.read_baseline(path)
 
 
 def write_overview(

@@ -15,6 +15,7 @@ __all__ = [
     "frame_folder",
     "frame_name",
     "engine_frames",
+    "scene_parameters",
     "view_parameters",
     "mesh_parameters",
     "summary_table",
@@ -142,6 +143,28 @@ def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> d
             "decodes sRGB and divides by the exposure)",
             "f": "f_<name>.exr or .png: the shadow factor F in [0, 1] per pixel (one channel, no sRGB)",
         },
+    }
+
+
+def scene_parameters(scene, out: Path, techniques: list[str]) -> dict:
+    """``metrics.json``'s ``parameters`` of a sweep of ``scene`` into ``out`` with ``techniques`` (their
+    names): known before the sweep runs, so that a baseline's can be compared first."""
+    return {
+        "depth": scene.material.depth,
+        "boundary": scene.material.boundary,
+        "elevation_deg": scene.light.elevation_deg,
+        "elevations_deg": list(scene.light.elevations()),
+        "azimuths_deg": list(scene.light.azimuths_deg),
+        "light": scene.light.kind,
+        "light_radius_deg": scene.light.radius_deg,
+        "effects": list(scene.effects),
+        "spp": scene.spp,
+        "seed": scene.seed,
+        "supersampling": scene.camera.supersampling,
+        "truth_tolerance": scene.material.truth_tolerance,
+        **view_parameters(scene),
+        **mesh_parameters(scene, out),
+        "techniques": list(techniques),
     }
 
 
