@@ -210,26 +210,26 @@ class Bake:
         """This bake, once every map is finite and every normal a unit vector; else one line naming
         the map, how many texels are wrong, and ``--depth``. No bake with a NaN, an infinity or a
         zero normal is used or written."""
-        maps = {
-            "horizon": self.horizon,
-            "normal": self.normal,
-            "ambient": self.mean_cos,
-            "ambient mean_cos2": self.mean_cos2,
-            "bent_normal": self.bent_normal,
-            "ssbump": self.ssbump,
+        maps = {  # by the files they are written to
+            "horizon*.exr": self.horizon,
+            "normal.exr": self.normal,
+            "ambient.exr mean_cos": self.mean_cos,
+            "ambient.exr mean_cos2": self.mean_cos2,
+            "bent_normal.exr": self.bent_normal,
+            "ssbump.exr": self.ssbump,
         }
         for name, values in maps.items():
             if values is None:
                 continue
             bad = ~np.isfinite(values)
-            if name in ("normal", "bent_normal"):
+            if name in ("normal.exr", "bent_normal.exr"):
                 with np.errstate(invalid="ignore", over="ignore"):
                     bad = bad.any(-1) | ~(np.abs(np.linalg.norm(values, axis=-1) - 1.0) <= 1e-3)
             if bad.any():
                 raise InputError(
                     "--depth",
                     f"the bake at depth {self.params.depth:g} made {int(bad.sum())} of {bad.size} values "
-                    f"of its {name} map non-finite or not unit length; nothing was written",
+                    f"of {name} non-finite or not unit length; nothing was written",
                 )
         return self
 

@@ -550,6 +550,8 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """
     import OpenEXR
 
+    if not Path(path).is_file():  # the library would call a missing file "0 parts"
+        raise InputError(path, "no such file" if not Path(path).exists() else "not a file")
     with library_output() as printed:
         try:
             with OpenEXR.File(str(path), separate_channels=True) as f:

@@ -6,6 +6,8 @@ Each reader starts from a file hzval itself wrote (or a valid hand-written one),
 replaces one value anywhere in it (up to four levels deep) with any JSON or TOML value, or deletes
 it; fixed examples add the truncations, a nesting far past :data:`hzval.io.documents.MAX_DEPTH`, an
 empty file and bytes that are not UTF-8. Examples are derandomised: the run is the same every time.
+Each reader must accept its seed, and a share of the generated cases (:data:`ACCEPTED`), so that
+the test reaches past the first refusal. Images and the gates' grammar: test_fuzz_readers.py.
 """
 
 from __future__ import annotations
@@ -93,13 +95,16 @@ def fixed_texts(text: str) -> list[bytes]:
     return [raw[: len(raw) // 3], raw[: 2 * len(raw) // 3], raw[:-1], b"", b"\xff\xfe\x00", b"[" * 100_000]
 
 
-def answers(reader, path: Path, data: bytes) -> None:
-    """``reader`` on ``path`` holding ``data``: a result, or one line of InputError."""
+def answers(reader, path: Path, data: bytes) -> bool:
+    """``reader`` on ``path`` holding ``data``: a result (``True``), or one line of InputError
+    (``False``); anything else fails the test."""
     path.write_bytes(data)
     try:
         reader()
     except InputError as exc:
         assert "\n" not in str(exc), str(exc)
+        return False
+    return True
 
 
 # --------------------------------------------------------------------------------------------------
@@ -116,7 +121,10 @@ def sweep_dir(tmp_path_factory, variant):
     frames.mkdir()
     for f in json.loads((out / "frames.json").read_text())["frames"]:
         shutil.copyfile(out / "frames" / f["name"] / "horizon.exr", frames / f"{f['name']}.exr")
-    (frames / "engine.toml").write_text('label = "engine"\nexposure = 1.0\n')
+    # a sidecar the reader accepts: [engine] and [parameters] (a top-level label is refused)
+    (frames / "engine.toml").write_text(
+        '[engine]\nlabel = "engine"\nsummary = "a test renderer"\n[parameters]\nexposure = 1.0\nmips = 4\n'
+    )
     return out, frames
 
 
@@ -130,6 +138,7 @@ def readers(sweep_dir, tmp_path_factory):
     """``{name: (file, reader, toml)}``: a fresh copy of each file and its reader."""
     sweep, frames = sweep_dir
     s, f = _copy(tmp_path_factory, sweep), _copy(tmp_path_factory, frames)
+    own = (sweep / "metrics.json").read_text()
     b = _copy(tmp_path_factory, sweep / "bake")
     h = materials.generate(spec.Scene().material.height, 16).height
     record = json.loads((b / "bake.json").read_text())
@@ -145,6 +154,12 @@ def readers(sweep_dir, tmp_path_factory):
         "metrics.json (score)": (s / "metrics.json", lambda: score_cmd.score(f, s), False),
         "engine.toml (score)": (f / "engine.toml", lambda: score_cmd.score(f, s), True),
         "metrics.json (--baseline)": (s / "metrics.json", lambda: gates.read_baseline(s), False),
+        # read, then compared with the run's own: the tests a baseline feeds
+        "metrics.json (--baseline, compared)": (
+            s / "metrics.json",
+            lambda: gates.Gates(["horizon.flip_mean>1"], s).failures(json.loads(own)),
+            False,
+        ),
         "scene (--scene)": (scene, lambda: spec.load_scene(scene), True),
         "encoding (--horizon-encoding)": (enc, lambda: external.Encoding.from_toml(enc), True),
         "bake.json (a cached bake)": (
@@ -162,6 +177,7 @@ NAMES = [
     "metrics.json (score)",
     "engine.toml (score)",
     "metrics.json (--baseline)",
+    "metrics.json (--baseline, compared)",
     "scene (--scene)",
     "encoding (--horizon-encoding)",
     "bake.json (a cached bake)",
@@ -170,20 +186,30 @@ NAMES = [
 ]
 
 
+#: The least share of the generated cases each reader must accept: a seed it refused, or mutations
+#: that never get past its first check, would test nothing (the sidecar's seed was once refused whole).
+ACCEPTED = 0.1
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_every_reader_answers_broken_files_in_one_line(name, sweep_dir, tmp_path_factory):
     path, reader, toml = readers(sweep_dir, tmp_path_factory)[name]
     text = path.read_text()
+    assert answers(reader, path, text.encode()), f"the seed of {name} is refused"
     for data in fixed_texts(text):
         answers(reader, path, data)
     doc = tomllib.loads(text) if toml else json.loads(text)
+    accepted = []
 
     @SETTINGS
     @given(mutated(doc, toml))
     def fuzz(changed):
-        answers(reader, path, dump(changed, toml).encode())
+        accepted.append(answers(reader, path, dump(changed, toml).encode()))
 
     fuzz()
+    share = sum(accepted) / len(accepted)
+    print(f"{name}: {share:.0%} of {len(accepted)} cases accepted")
+    assert share >= ACCEPTED, f"{name}: only {share:.0%} of the cases got past the reader's checks"
 
 
 def test_the_readers_list_is_every_reader(sweep_dir, tmp_path_factory):
