@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     backend.request(args.variant)
     try:
         # SIGTERM unwinds as Ctrl-C does, nothing left behind, even where it lands in Dr.Jit's tracing
-        with interrupts.terminate_as_interrupt(), interrupts.unwrapped():
+        with interrupts.terminate_as_interrupt(), interrupts.unwrapped(), interrupts.command():
             return args.run(args)
     except errors.HzvalError as exc:
         print(f"hzval: error: {exc}", file=sys.stderr)

@@ -61,7 +61,7 @@ import numpy as np
 
 from hzval import materials
 from hzval.commands import gates as gates_module
-from hzval.core import backend, errors, resources
+from hzval.core import backend, errors, interrupts, resources
 from hzval.core.errors import InputError
 from hzval.io import documents, files, heightmap
 from hzval.pipeline import sweep
@@ -288,6 +288,33 @@ def sweep_material(task: Task) -> dict:
         )
 
 
+def _earlier_rows(out: Path) -> dict[str, dict]:
+    """The finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
+    still there, by name, their origins as given (``write_overview`` makes them portable again);
+    none where there is no readable overview."""
+    from hzval.io import documents
+
+    try:
+        rows = documents.read_json(out / "suite.json").get("materials") or []
+    except (InputError, AttributeError):
+        return {}
+    kept = {}
+    for row in rows:
+        if not isinstance(row, dict) or row.get("status") != "ok" or not isinstance(row.get("name"), str):
+            continue
+        if (out / row["name"] / "metrics.json").is_file():
+            kept[row["name"]] = {**row, "origin": _given_origin(row.get("origin"), out)}
+    return kept
+
+
+def _given_origin(origin, out: Path):
+    """The inverse of :func:`_portable_origin`: a row's origin with its path resolved against ``out``."""
+    if not isinstance(origin, str) or origin == "built-in":
+        return origin
+    path, plus, rest = origin.partition(" + ")
+    return str((out / path).resolve()) + (plus + rest if plus else "")
+
+
 def _not_run(entry: Entry, why: str = "the suite was interrupted first") -> dict:
     return {
         "name": entry.name,
@@ -457,8 +484,15 @@ def run(
     rows: list[dict | None] = [None] * len(tasks)
     engine = {"name": "in-process", "started": time.time()}
 
+    earlier = _earlier_rows(out)
+
     def overview(interrupted: bool = False) -> dict:
-        done = [r if r is not None else _not_run(t.entry) for t, r in zip(tasks, rows)]
+        # interrupted, a material this run did not finish keeps the earlier run's row where its
+        # report is still on disk (an interrupted sweep leaves it as it was)
+        done = [
+            r if r is not None else earlier.get(t.entry.name) or _not_run(t.entry)
+            for t, r in zip(tasks, rows)
+        ]
         return write_overview(
             out,
             done,
@@ -513,8 +547,10 @@ def _bar(total: int, progress: bool):
 
 
 def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
-    """Each task in this process, one after another, into ``rows`` (in the tasks' order)."""
-    with _bar(len(tasks), progress) as bar:
+    """Each task in this process, one after another, into ``rows`` (in the tasks' order); a signal
+    held during one material's swap stops the suite once that material is in
+    (:func:`hzval.core.interrupts.cases`)."""
+    with interrupts.cases(), _bar(len(tasks), progress) as bar:
         for i, task in enumerate(tasks):
             bar.set_postfix_str(task.entry.name)
             rows[i] = sweep_material(task)

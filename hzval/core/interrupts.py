@@ -17,6 +17,9 @@ main thread only; elsewhere (a Dask worker's thread) nothing is held.
 :func:`unwrapped` raises an interrupt that Dr.Jit passed on as the cause of its own error as
 the interrupt it is.
 
+:func:`command` is the extent of one command: a run whose output is in place holds its signals to
+there, so a Ctrl-C while it prints its table neither cuts it short nor makes it exit 130.
+
 :func:`cases` marks a loop of runs (``models``' cases, ``views``' sweeps): there a
 signal held during one run's swap is raised as it ends, so the loop stops between
 cases instead of going on with a Ctrl-C swallowed.
@@ -32,7 +35,7 @@ from typing import Iterator
 
 from hzval.core import errors
 
-__all__ = ["HELD", "terminate_as_interrupt", "unwrapped", "held", "cases"]
+__all__ = ["HELD", "terminate_as_interrupt", "unwrapped", "held", "cases", "command"]
 
 #: The signals :func:`held` holds.
 HELD = (signal.SIGINT, signal.SIGTERM)
@@ -94,6 +97,42 @@ class _Hold:
             signal.signal(s, handler)
         self._saved.clear()
 
+    def take(self, other: "_Hold") -> None:
+        """Go on holding what ``other`` holds, to this hold's end (a command's, :func:`command`)."""
+        if self._saved:  # already holding: ``other`` replaced this hold's own recorder; put it back
+            other.restore()
+            self.caught += other.caught
+        else:
+            self._saved, other._saved = other._saved, {}
+            self.caught = other.caught  # its recorder appends here
+
+
+#: The hold of the command that runs now (:func:`command`), to which a finished run hands its own.
+_command_hold: _Hold | None = None
+
+
+def _dropped(caught: list[int]) -> None:
+    print(
+        f"hzval: {signal.Signals(caught[0]).name} came after the output was complete; it is kept",
+        file=sys.stderr,
+    )
+
+
+@contextlib.contextmanager
+def command() -> Iterator[None]:
+    """The extent of one command (``hzval.cli.main``): a run whose output is in place (a :func:`held`
+    region that started holding) goes on holding SIGINT and SIGTERM to here, so that the command
+    prints its table and exits with its own status; a signal held is dropped with one line."""
+    global _command_hold
+    outer, _command_hold = _command_hold, _Hold()
+    try:
+        yield
+    finally:
+        hold, _command_hold = _command_hold, outer
+        hold.restore()
+        if hold.caught:
+            _dropped(hold.caught)
+
 
 @contextlib.contextmanager
 def held() -> Iterator[_Hold]:
@@ -103,15 +142,14 @@ def held() -> Iterator[_Hold]:
     try:
         yield hold
     finally:
-        hold.restore()
-        if hold.caught and _loops:  # inside a loop of runs: this run is whole, the loop stops here
-            raise errors.Interrupted(hold.caught[0])
-        if hold.caught:
-            print(
-                f"hzval: {signal.Signals(hold.caught[0]).name} came after the output was complete; "
-                "it is kept",
-                file=sys.stderr,
-            )
+        if hold._saved and not _loops and _command_hold is not None:
+            _command_hold.take(hold)  # the output is in place: hold on until the command ends
+        else:
+            hold.restore()
+            if hold.caught and _loops:  # inside a loop of runs: this run is whole, the loop stops here
+                raise errors.Interrupted(hold.caught[0])
+            if hold.caught:
+                _dropped(hold.caught)
 
 
 @contextlib.contextmanager

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import hashlib
 import json
 import os
@@ -232,8 +233,16 @@ def _check_folder(folder: Path) -> None:
 
 
 def os_error(exc: OSError, fallback: str | os.PathLike) -> InputError:
-    """An :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path."""
+    """An :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path: the
+    path the file would have had, its staging folders (:class:`Staging`) left out.
+
+    >>> str(os_error(OSError(28, "No space left on device", "r/.hzval-staging-ab12/frames/x.exr"), "--out"))
+    'r/frames/x.exr: No space left on device'
+    """
     where = exc.filename if exc.filename is not None else fallback
+    if isinstance(where, (str, os.PathLike)):
+        parts = [p for p in Path(where).parts if not p.startswith(_OWN_PREFIXES[0])]
+        where = Path(*parts) if parts else where
     return InputError(where, exc.strerror or first_line(exc))
 
 
@@ -508,8 +517,25 @@ def write_exr(
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     with ctx as tmp:
-        with OpenEXR.File(header, chans) as f:
-            f.write(str(tmp))
+        try:
+            with OpenEXR.File(header, chans) as f:
+                f.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR's text for what the OS said
+            raise _write_error(exc, target) from None
+
+
+#: The OS errors an EXR write reports in its own words, by their text (OpenEXR raises RuntimeError).
+_WRITE_ERRNOS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO)
+
+
+def _write_error(exc: RuntimeError, target: Path) -> Exception:
+    """The :class:`OSError` a library's write error stands for (a full disk: ENOSPC; a file too large:
+    EFBIG), naming ``target`` rather than its temporary name; else one line naming ``target``."""
+    text = str(exc)
+    for code in _WRITE_ERRNOS:
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(target))
+    return InputError(target, f"cannot be written ({first_line(exc)})")
 
 
 def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarray]:

@@ -351,3 +351,97 @@ def test_a_suite_keeps_every_material_when_one_baseline_is_missing(tmp_path, cap
     assert "gravel: --baseline" in err and "Traceback" not in err
     suite = json.loads((tmp_path / "b" / "suite.json").read_text())
     assert {m["name"]: m["status"] for m in suite["materials"]} == {"bricks": "ok", "gravel": "ok"}
+
+
+# 4. a full disk during an EXR write ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, says", [("No space left on device", "No space left"), ("File too large", "too large")]
+)
+def test_a_full_disk_during_an_exr_write_is_one_line_naming_the_file(
+    tmp_path, monkeypatch, capsys, text, says
+):
+    import OpenEXR
+
+    class Full:
+        def __init__(self, *a, **k):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *a):
+            return False
+
+        def write(self, path):
+            raise RuntimeError(f'Failed to write pixel data to image file "{path}". {text}.')
+
+    monkeypatch.setattr(OpenEXR, "File", Full)
+    out = tmp_path / "b"
+    assert cli.main(["bake", "--size", "16", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    one_line(err, says, str(out / "horizon0.exr"))
+    assert ".hzval-staging" not in err and not out.exists()
+
+
+# 7. and 8. Ctrl-C on a re-run of a suite; Ctrl-C once the report is in place ----------------------
+
+
+def test_ctrl_c_on_a_suite_rerun_keeps_the_earlier_rows(tmp_path, monkeypatch, capsys, variant):
+    import json
+
+    from hzval.commands import suite
+
+    argv = ["suite", "planks", "gravel", "--size", "16", "--azimuths", "0", "--spp", "1", "--quiet"]
+    argv += ["--techniques", "horizon", "--workers", "0", "--out", str(tmp_path / "s")]
+    assert cli.main(argv) == 0
+    before = json.loads((tmp_path / "s" / "suite.json").read_text())
+    real = suite.sweep_material
+
+    def interrupt_the_second(task):
+        if task.entry.name == "gravel":
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(suite, "sweep_material", interrupt_the_second)
+    assert cli.main(argv) == 130
+    after = json.loads((tmp_path / "s" / "suite.json").read_text())
+    assert after["suite"]["interrupted"] and after["suite"]["not_run"] == 0
+    rows = {r["name"]: r for r in after["materials"]}
+    assert {n: r["status"] for n, r in rows.items()} == {"planks": "ok", "gravel": "ok"}
+    old = {r["name"]: r for r in before["materials"]}
+    assert rows["gravel"]["origin"] == old["gravel"]["origin"]
+    assert rows["gravel"]["techniques"] == old["gravel"]["techniques"]
+    assert "not run" not in (tmp_path / "s" / "index.html").read_text().split("Interrupted")[-1]
+
+
+@pytest.mark.parametrize("command", ["sweep", "score"])
+def test_ctrl_c_after_the_swap_lets_the_command_finish(base_run, tmp_path, monkeypatch, capsys, command):
+    """A SIGINT while the table is printed, after the new report replaced the old: exit 0, the table
+    whole, and one line saying the signal came too late."""
+    import json
+    import os
+    import signal
+
+    from hzval.pipeline import records
+
+    real = records.summary_table
+
+    def table_with_a_signal(result):
+        os.kill(os.getpid(), signal.SIGINT)
+        return real(result)
+
+    monkeypatch.setattr(records, "summary_table", table_with_a_signal)
+    if command == "sweep":
+        argv = [*SWEEP16, "--techniques", "horizon", "--out", str(tmp_path / "o")]
+    else:
+        engine = tmp_path / "engine"
+        engine.mkdir()
+        for f in json.loads((base_run / "frames.json").read_text())["frames"]:
+            shutil.copyfile(base_run / "frames" / f["name"] / "horizon.exr", engine / f"{f['name']}.exr")
+        argv = ["score", str(engine), "--against", str(base_run), "--out", str(tmp_path / "o")]
+    assert cli.main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "report" in out and "SIGINT came after the output was complete" in err
+    assert (tmp_path / "o" / "metrics.json").is_file()
