@@ -105,6 +105,7 @@ def run(args) -> int:
         raise errors.InputError("--guard", f"must be a number >= 0, got {args.guard}")
     lights = fitted_training.parse_lights(args.lights, "--lights")
     held_out = fitted_training.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
+    fitted_training.check_held_out(lights, held_out)
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
     params = flags.bake_params(args, scene)
     rows, cols = memory.material_shape(scene)

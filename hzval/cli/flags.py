@@ -392,6 +392,25 @@ def technique_options(args) -> dict:
     return {"techniques": requested, "exclude": tuple(args.exclude), "settings": settings}
 
 
+def check_technique_flags(args, names) -> None:
+    """Refuse a technique's flag given to a run that leaves out every technique that reads it
+    (``names``: the run's): ``--horizon-map`` with ``--techniques pom`` was ignored in silence."""
+    from hzval.techniques import registry as technique
+
+    readers: dict[str, list[str]] = {}
+    for n in technique.names():
+        t = technique.get(n)
+        for flag in {*t.flags.values(), *t.input_flags}:
+            readers.setdefault(flag, []).append(n)
+    argv = getattr(args, "argv", None) or []
+    for flag, by in readers.items():
+        if not any(a == flag or a.startswith(flag + "=") for a in argv) or set(by) & set(names):
+            continue
+        raise errors.InputError(
+            flag, f"is read by {', '.join(by)}, which this run leaves out (it runs {', '.join(names)})"
+        )
+
+
 def sweep_options(args):
     """The :class:`hzval.pipeline.sweep.Options` of the sweep flags."""
     from hzval.pipeline import sweep

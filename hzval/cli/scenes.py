@@ -197,6 +197,11 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
         raise _as_flag(exc, given) from None
     if "size" in given and not builtin(scene.material.height):  # a scene file's own height map
         refuse_size(given["size"], scene.material.height)
+    if "light_radius" in given and scene.light.kind != "soft":  # it would be ignored in silence
+        raise errors.InputError(
+            "--light-radius",
+            f"applies to a soft light (--light soft); this run's light is {scene.light.kind}",
+        )
     return dataclasses.replace(scene, name=scene_name(args, scene))
 
 

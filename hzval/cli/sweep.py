@@ -43,9 +43,10 @@ def run(args) -> int:
     out = args.out or Path("reports") / scene.name
     command = flags.command_line(args)
     gates = flags.gates(args)
+    requested = None if options.techniques is None else list(options.techniques)
+    names = [t.name for t in technique.select(requested, scene, exclude=options.exclude)]
+    flags.check_technique_flags(args, names)
     if gates:  # every name and the baseline's settings, before anything renders
-        requested = None if options.techniques is None else list(options.techniques)
-        names = [t.name for t in technique.select(requested, scene, exclude=options.exclude)]
         gates.check_before(names, records.scene_parameters(scene, out, names))
     result = sweep.run(
         scene, out, options=options, command=command, progress=not args.quiet, force=args.force, gates=gates

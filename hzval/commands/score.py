@@ -152,6 +152,45 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
         paths.file_name(f["name"], sweep_dir / "frames.json", f"frames[{i}].name")
     for i, f in enumerate(swept):
         _check_stored_paths(f, sweep_dir, f"frames[{i}]")
+    _check_agrees(metrics, engine, sweep_dir)
+
+
+def _check_agrees(metrics: dict, engine: dict, sweep_dir: Path) -> None:
+    """Refuse a ``frames.json`` whose settings that change an image are not ``metrics.json``'s (an
+    edited exposure scored an engine's frames against the truth at another brightness: FLIP 0 at 646
+    dB): the exposure, the material's digest, the effects, the samples and every frame's light."""
+    params = metrics.get("parameters") or {}
+    samples = engine.get("samples") if isinstance(engine.get("samples"), dict) else {}
+    pairs = [
+        ("exposure", engine.get("exposure"), (metrics.get("exposure") or {}).get("scale")),
+        (
+            "material.digest",
+            (engine.get("material") or {}).get("digest"),
+            (metrics.get("material") or {}).get("digest"),
+        ),
+        ("effects", engine.get("effects"), params.get("effects")),
+        ("samples.spp", samples.get("spp"), params.get("spp")),
+        ("samples.seed", samples.get("seed"), params.get("seed")),
+    ]
+    for i, (f, m) in enumerate(zip(engine["frames"], metrics["frames"])):
+        pairs += [
+            (f"frames[{i}].azimuth_deg", f.get("azimuth_deg"), m.get("azimuth_deg")),
+            (f"frames[{i}].elevation_deg", f.get("elevation_deg"), m.get("elevation_deg")),
+        ]
+    for key, a, b in pairs:
+        if a is None or b is None:
+            continue  # an older sweep's files: what they do not record is not compared
+        same = math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12) if _is_number(a) and _is_number(b) else a == b
+        if not same:
+            raise InputError(
+                sweep_dir / "frames.json",
+                f"{key} is {a!r}, the sweep's metrics.json says {b!r}: frames.json was edited or comes "
+                "from another sweep (sweep again)",
+            )
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
@@ -198,15 +237,54 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
     return img
 
 
+#: How far above the brightest radiance the scene can produce an engine's frame may go before it is
+#: refused (a slip of pi, of a gamma, of sRGB twice stays far below; it gets a warning instead).
+BRIGHTEST_FACTOR = 1000.0
+
+
+def _bounded(path: Path, img: np.ndarray, metrics: dict) -> np.ndarray:
+    _check_brightness(path, img, metrics)
+    return img
+
+
+def _check_brightness(path: Path, img: np.ndarray, metrics: dict) -> None:
+    """Refuse a frame far brighter than the scene can be (``metrics.json``'s ``exposure.max_radiance``
+    times :data:`BRIGHTEST_FACTOR`): its squared errors overflow, and no score of it means anything."""
+    brightest = (metrics.get("exposure") or {}).get("max_radiance")
+    if not _is_number(brightest) or brightest <= 0:
+        return
+    top = float(np.max(np.abs(img)))
+    if top > BRIGHTEST_FACTOR * brightest:
+        raise InputError(
+            path,
+            f"has radiance up to {top:.3g}, {top / brightest:.3g} times the brightest the scene can produce "
+            f"({brightest:.3g}, metrics.json exposure.max_radiance): not a frame of this scene's units",
+        )
+
+
 def _find(frames_dir: Path, name: str, prefix: str = "", required: bool = True) -> Path | None:
-    for ext in (".exr", ".png"):
-        if (frames_dir / f"{prefix}{name}{ext}").is_file():
-            return frames_dir / f"{prefix}{name}{ext}"
+    found = [frames_dir / f"{prefix}{name}{ext}" for ext in (".exr", ".png")]
+    found = [p for p in found if p.is_file()]
+    if len(found) == 2:
+        raise InputError(
+            found[0], f"and {found[1].name} are both the frame for light {name}: keep the one to score"
+        )
+    if found:
+        return found[0]
     if not required:
         return None
     raise InputError(
         frames_dir / f"{prefix}{name}.exr", f"missing: the frame for light {name} (an .exr or .png)"
     )
+
+
+def _one_value(path: Path, planes: list) -> None:
+    """Refuse a shadow factor stored in colour channels that differ: F is one value a pixel, and
+    reading one channel of a colour image would score something else in silence."""
+    if len(planes) > 1 and any(not np.array_equal(planes[0], p) for p in planes[1:]):
+        raise InputError(
+            path, "a shadow factor is one value a pixel: its R, G and B differ (store F as grey)"
+        )
 
 
 def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
@@ -218,12 +296,16 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
         if key is None:
             raise InputError(path, f"a shadow factor needs one channel (Y), has {', '.join(sorted(ch))}")
         F = np.asarray(ch[key], np.float32)
+        _one_value(path, [ch[k] for k in "RGB" if k in ch])
     else:
         from PIL import Image
 
         try:
             with Image.open(path) as im:
                 depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
+                if im.mode in ("RGB", "RGBA", "P"):
+                    rgb = np.asarray(im.convert("RGB"))
+                    _one_value(path, [rgb[..., 0], rgb[..., 1], rgb[..., 2]])
                 F = np.asarray(im if depth != 255.0 else im.convert("L"), np.float64) / depth
         except OSError as exc:
             raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
@@ -339,7 +421,7 @@ def score(
         (
             f,
             p,
-            None if p is None else read_frame(p, exposure, (H, W)),
+            None if p is None else _bounded(p, read_frame(p, exposure, (H, W)), metrics),
             None if fp is None else read_factor(fp, (H, W)),
             fp,
         )

@@ -63,7 +63,7 @@ from hzval import materials
 from hzval.commands import gates as gates_module
 from hzval.core import backend, errors, interrupts, resources
 from hzval.core.errors import InputError
-from hzval.io import documents, files, heightmap
+from hzval.io import documents, files, heightmap, paths
 from hzval.pipeline import sweep
 from hzval.report import pages as report
 from hzval.report import ranking
@@ -218,11 +218,11 @@ def _height_entry(path: Path) -> Entry:
         except InputError as exc:
             return Entry(
                 path.stem,
-                sc.override(sc.Scene(), height=str(path.resolve())),
+                sc.override(sc.Scene(), height=str(paths.resolved(path))),
                 f"{path} + {sidecar.name}",
                 error=str(exc),
             )
-    return Entry(path.stem, sc.override(sc.Scene(), height=str(path.resolve())), str(path))
+    return Entry(path.stem, sc.override(sc.Scene(), height=str(paths.resolved(path))), str(path))
 
 
 def estimate_peak_bytes(entry: Entry) -> int:

@@ -20,9 +20,10 @@ from __future__ import annotations
 import importlib
 import os
 
-from hzval.core.errors import EnvironmentProblem
+from hzval.core.errors import EnvironmentProblem, InputError
 
 __all__ = [
+    "VARIANTS",
     "dr",
     "mi",
     "MIN_LLVM_MAJOR",
@@ -78,6 +79,9 @@ _FIX = (
 
 _chosen: str | None = None
 _requested: str | None = None
+#: The Mitsuba variants hzval renders with: vectorised (Dr.Jit's JIT) and RGB, on the CPU (LLVM) or
+#: an NVIDIA GPU (CUDA); its kernels are written for no other.
+VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
 
 
 def request(name: str | None) -> None:
@@ -158,11 +162,18 @@ def variant(requested: str | None = None) -> str:
     name = requested or _requested or os.environ.get("HZVAL_VARIANT") or None
     if name is None and _chosen is not None:
         return _chosen
+    what = "--variant" if (requested or _requested) else "$HZVAL_VARIANT"
     if name is None:
         name = "cuda_ad_rgb" if dr.has_backend(dr.JitBackend.CUDA) else "llvm_ad_rgb"
+    if name not in VARIANTS:  # scalar, mono and spectral variants are Mitsuba's, not hzval's
+        raise InputError(what, f"{name!r} is not a variant hzval renders with: {' or '.join(VARIANTS)}")
     if name not in mi.variants():
         raise EnvironmentProblem(
             f"Mitsuba variant {name!r} is not available; this build has {', '.join(mi.variants())}"
+        )
+    if name.startswith("cuda") and not dr.has_backend(dr.JitBackend.CUDA):
+        raise InputError(
+            what, f"{name} needs an NVIDIA GPU and its driver, and Dr.Jit sees none here: use llvm_ad_rgb"
         )
     if name.startswith("llvm"):
         check_llvm()

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,6 +69,7 @@ __all__ = [
     "correlation",
     "advice",
     "warnings",
+    "repeated_layers",
 ]
 
 #: The value encodings a channel may hold (module docstring).
@@ -125,9 +127,24 @@ class Encoding:
 
 
 def read_layers(paths: list[str | Path]) -> np.ndarray:
-    """The layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32."""
+    """The layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32; one
+    file given twice is refused (it would stand for two layers' directions)."""
     from PIL import Image
 
+    seen: dict = {}
+    for i, p in enumerate(paths):
+        try:
+            key = os.stat(p)
+        except OSError:
+            continue  # a missing layer is named below
+        key = (key.st_dev, key.st_ino)
+        if key in seen:
+            raise InputError(
+                p,
+                f"is given twice to --horizon-map (layers {seen[key]} and {i}): each layer holds "
+                "other directions",
+            )
+        seen[key] = i
     out = []
     for p in paths:
         p = Path(p)
@@ -385,3 +402,20 @@ def warnings(result: dict, layers, height) -> list[str]:
         ]
     line = advice(result)
     return [line] if line else []
+
+
+def repeated_layers(raw: np.ndarray, layers) -> list[str]:
+    """A warning where two layers of an external map hold the same values (a layer exported twice
+    under two names), unless every value is the same (a flat surface's map may be so)."""
+    n = cv.CHANNELS_PER_LAYER
+    parts = [raw[..., n * i : n * (i + 1)] for i in range(raw.shape[-1] // n)]
+    if float(np.ptp(raw)) == 0.0:
+        return []
+    for i in range(len(parts)):
+        for j in range(i + 1, len(parts)):
+            if np.array_equal(parts[i], parts[j]):
+                return [
+                    f"horizon map layers {layers[i]} and {layers[j]} hold the same values, though they stand "
+                    "for other directions: was one layer exported twice? (--horizon-map)"
+                ]
+    return []

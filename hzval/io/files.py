@@ -304,7 +304,7 @@ def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -
         return None
     try:
         return Path(os.path.relpath(Path(path).resolve(), Path(report_dir).resolve())).as_posix()
-    except ValueError:
+    except (ValueError, RuntimeError, OSError):  # another drive; a loop of links
         return os.fspath(path)
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "MAX_NAME_CHARS",
     "file_name",
     "inside",
+    "resolved",
     "is_data_uri",
     "uri_path",
     "no_symlink_below",
@@ -114,11 +115,27 @@ def inside(folder: str | os.PathLike, rel, where: str | os.PathLike, key: str) -
         raise InputError(where, f"{key} {rel!r} is an absolute path: hzval reads only inside {folder}")
     base = Path(folder)
     path = base / rel
-    root = base.resolve()
-    target = path.resolve()
+    root = resolved(base, where, key)
+    target = resolved(path, where, key)
     if target != root and root not in target.parents:
         raise InputError(where, f"{key} {rel!r} leads outside {folder}: hzval reads only inside it")
     return path
+
+
+def resolved(path: str | os.PathLike, where: str | os.PathLike | None = None, key: str = "") -> Path:
+    """``path`` with its links followed (:meth:`pathlib.Path.resolve`); a loop of links is one line
+    naming ``where`` and ``key`` (default: the path itself), where Python raises a RuntimeError.
+
+    Examples
+    --------
+    >>> resolved("/tmp/../tmp").as_posix()
+    '/tmp'
+    """
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError):  # RuntimeError: a loop (Python 3.11); OSError: ELOOP
+        what = f"{key} {os.fspath(path)!r}: " if key else ""
+        raise InputError(where or path, f"{what}a loop of symbolic links") from None
 
 
 def is_data_uri(uri) -> bool:

@@ -385,9 +385,8 @@ def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: lis
     if sat_out:  # defaults the user never asked for: one line, not a warning each
         notices.append(f"on a model, the default {', '.join(sat_out)} sit{'s' * (len(sat_out) == 1)} out")
     if not built:
-        raise InputError(
-            "--techniques", "no technique is left to score: " + "; ".join(notices[-len(chosen) :])
-        )
+        why = "; ".join(notices[-len(chosen) :]) if chosen and notices else "every one was left out"
+        raise InputError("--techniques", f"no technique is left to score: {why}")
     return built
 
 

@@ -51,11 +51,12 @@ from hzval import materials
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.geometry.tile import DEFAULT_TOLERANCE
-from hzval.io import heightmap
+from hzval.io import heightmap, paths
 from hzval.scene.camera import Camera, stream
 from hzval.scene.lookup import Lookup
 
 __all__ = [
+    "IRRADIANCE_RANGE",
     "EFFECTS",
     "SHADINGS",
     "DEFAULT_AZIMUTHS_TEXT",
@@ -110,6 +111,12 @@ DEFAULT_TRUTH_TOLERANCE = DEFAULT_TOLERANCE
 
 #: The albedo of a height map that comes without one.
 DEFAULT_ALBEDO = 0.8
+
+
+#: The irradiances a scene may declare: float32 renders hold a pixel's variance, about the square of
+#: its radiance, between 1.2e-38 (the smallest normal) and 3.4e38; these keep it well inside, and
+#: cover every unit a renderer uses (1 here; 1e5 lux for the sun).
+IRRADIANCE_RANGE = (1e-6, 1e9)
 
 
 @dataclass(frozen=True)
@@ -259,8 +266,13 @@ class Scene:
                 f"material.size of the built-in {m.height} must be at least "
                 f"{materials.get(m.height).min_size}, got {m.size}",
             )
-        if lt.irradiance <= 0:
-            raise InputError(what, f"light.irradiance must be positive, got {lt.irradiance}")
+        lo, hi = IRRADIANCE_RANGE
+        if not lo <= lt.irradiance <= hi:
+            raise InputError(
+                what,
+                f"light.irradiance must be in [{lo:g}, {hi:g}] (renders are float32: a pixel's variance, "
+                f"the square of its radiance, must stay finite and normal), got {lt.irradiance:g}",
+            )
         if int(self.seed) != self.seed or self.seed < 0:
             raise InputError(what, f"samples.seed must be a non-negative integer, got {self.seed}")
         if self.interreflection_depth < 2:
@@ -417,7 +429,7 @@ def load_sidecar(path: str | Path, height: str | Path) -> Scene:
     """The sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
     file says; a sidecar that names another height map is an error (it would sweep another material
     under this map's name)."""
-    path, height = Path(path), Path(height).resolve()
+    path, height = Path(path), paths.resolved(height)
     scene = load_scene(path, height=height)
     if scene.material.height != str(height):
         raise InputError(
@@ -511,9 +523,9 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
             )
         mat = {**material_defaults(mat["height"]), **mat}
         if not materials.is_builtin(mat["height"]):
-            mat["height"] = str((path.parent / mat["height"]).resolve())
+            mat["height"] = str(paths.resolved(path.parent / mat["height"], path, "material.height"))
         if isinstance(mat.get("albedo"), str):
-            mat["albedo"] = str((path.parent / mat["albedo"]).resolve())
+            mat["albedo"] = str(paths.resolved(path.parent / mat["albedo"], path, "material.albedo"))
         light = dict(data.get("light", {}))
         if "azimuths" in light:
             light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
@@ -525,7 +537,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
         samples = data.get("samples", {})
         mesh = dict(data.get("mesh", {}))
         if Path(str(mesh.get("shape", ""))).suffix.lower() in MESH_SUFFIXES:
-            mesh["shape"] = str((path.parent / mesh["shape"]).resolve())
+            mesh["shape"] = str(paths.resolved(path.parent / mesh["shape"], path, "mesh.shape"))
         scene = Scene(
             name=data.get("name", path.stem),
             material=MaterialSpec(**mat),

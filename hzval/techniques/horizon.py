@@ -365,12 +365,16 @@ class Horizon(FlatShading, Technique):
             **settings,
         )
         own.external = [str(p) for p in horizon_map]
-        own.warnings = tuple(external.warnings(found, own.external, ctx.scene.material.height))
+        own.warnings = tuple(
+            external.repeated_layers(raw, own.external)
+            + external.warnings(found, own.external, ctx.scene.material.height)
+        )
         own.extras = {"external_bake": {**found, "paths": own.external, "warnings": list(own.warnings)}}
         return own
 
     #: The command line's flag of each setting (errors name the flag,
     # :func:`hzval.techniques.registry.flag_errors`).
+    input_flags = ("--horizon-map", "--horizon-encoding")
     flags = {
         "k": "--horizon-k",
         "path": "--horizon-path",

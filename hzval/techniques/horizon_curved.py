@@ -152,6 +152,7 @@ class CurvedHorizon(Horizon):
     file_stem = "horizon_curved"
     needs = ("shadow",)
     by_default = False
+    input_flags = ()  # it starts from the bake, never from --horizon-map
     flags = {"k": "--horizon-k", "storage": "--horizon-storage", "curvature": "--horizon-curvature"}
 
     @classmethod
@@ -163,8 +164,19 @@ class CurvedHorizon(Horizon):
     def build(cls, ctx: Context, *, curvature: float = 0.0, **settings) -> "CurvedHorizon":
         curvature = float(curvature)
         if not math.isfinite(curvature):
-            raise InputError("curvature", f"the normal curvature must be a finite number, got {curvature}")
+            raise InputError("--horizon-curvature", f"must be a finite number, got {curvature}")
         bake = ctx.bake
+        # a constant curvature models the surface over the bake's search: it must bend less than a
+        # radian there (a radius of curvature at least the search radius), or every horizon drops
+        search = bake.params.radius or max(ctx.height.shape)  # the exact bake searches the whole map
+        reach = search / ctx.height.shape[1]  # texture widths
+        if abs(curvature) * reach > 1.0:
+            raise InputError(
+                "--horizon-curvature",
+                f"{curvature:g} bends the surface {abs(curvature) * reach:.3g} radians over the bake's "
+                f"search radius ({search} texels of {ctx.height.shape[1]}); at most "
+                f"{1.0 / reach:g} in magnitude",
+            )
         if curvature != 0.0:
             h = cv.heights_in_texels(ctx.height, ctx.scene.material.depth)
             p = bake.params

@@ -167,6 +167,8 @@ class Technique:
     #: from the bottom up as the report stacks them (``metrics.json``'s ``techniques.NAME.split_parts``);
     #: none by default.
     split_parts: ClassVar[tuple[tuple[str, str], ...]] = ()
+    #: Flags of the command line that give it inputs rather than settings (``--horizon-map``).
+    input_flags: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def applies(cls, scene: Scene) -> bool:
@@ -318,7 +320,14 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
         if not t.applies(scene):
             raise InputError("--techniques", f"{t.name} needs the scene to declare {', '.join(t.needs)}")
     order = list(REGISTRY)
-    return sorted((t for t in classes if t.name not in exclude), key=lambda t: order.index(t.name))
+    chosen = sorted((t for t in classes if t.name not in exclude), key=lambda t: order.index(t.name))
+    if not chosen:
+        raise InputError(
+            "--techniques",
+            f"no technique is left to score: {', '.join(wanted)} "
+            f"{'is' if len(wanted) == 1 else 'are'} left out too (--no-{wanted[0]})",
+        )
+    return chosen
 
 
 def replace_effects(scene: Scene, effects) -> Scene:

@@ -445,3 +445,164 @@ def test_ctrl_c_after_the_swap_lets_the_command_finish(base_run, tmp_path, monke
     out, err = capsys.readouterr()
     assert "report" in out and "SIGINT came after the output was complete" in err
     assert (tmp_path / "o" / "metrics.json").is_file()
+
+
+# 10. variants hzval does not render with -------------------------------------------------------------
+
+
+def test_a_variant_hzval_does_not_render_with_is_one_line(tmp_path):
+    rc, err, _ = hzval("sweep", "--size", "16", "--variant", "scalar_rgb", "--out", tmp_path / "o")
+    assert rc == 2
+    one_line(err, "--variant", "scalar_rgb", "llvm_ad_rgb")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_cuda_variant_without_a_gpu_is_one_line(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    import drjit as dr
+
+    if dr.has_backend(dr.JitBackend.CUDA):
+        pytest.skip("this machine has a GPU: the CUDA variant is available")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "HZVAL_VARIANT": "cuda_ad_rgb"}
+    argv = [sys.executable, "-m", "hzval", "sweep", "--size", "16", "--out", str(tmp_path / "o")]
+    p = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 2
+    one_line(p.stderr, "$HZVAL_VARIANT", "NVIDIA GPU")
+    assert not (tmp_path / "o").exists()
+
+
+# 11. an irradiance float32 cannot hold -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("irradiance", ["1e39", "1e-39", "1e-45"])
+def test_an_irradiance_float32_cannot_render_is_refused_naming_the_scene(tmp_path, capsys, irradiance):
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'[material]\nheight = "bricks"\nsize = 16\n[light]\nirradiance = {irradiance}\n')
+    assert cli.main(["sweep", "--scene", str(scene), "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, "s.toml", "light.irradiance")
+    assert not (tmp_path / "o").exists()
+
+
+# 12. and 13. score: links that loop, and results that were silently wrong --------------------------
+
+
+@pytest.fixture
+def engine(base_run, tmp_path):
+    import json
+
+    d = tmp_path / "engine"
+    d.mkdir()
+    for f in json.loads((base_run / "frames.json").read_text())["frames"]:
+        shutil.copyfile(base_run / "frames" / f["name"] / "horizon.exr", d / f"{f['name']}.exr")
+    return d
+
+
+def score(engine: Path, sweep: Path, out: Path) -> int:
+    return cli.main(["score", str(engine), "--against", str(sweep), "--out", str(out)])
+
+
+def test_a_loop_of_links_in_a_sweep_folder_is_one_line(base_run, engine, tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    shutil.copytree(base_run, sweep, symlinks=True)
+    truth = sweep / "frames" / "az+0" / "truth.exr"
+    truth.unlink()
+    truth.symlink_to(truth.name)
+    assert score(engine, sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "metrics.json", "a loop of symbolic links")
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_exposure_edited_in_frames_json_is_refused(base_run, engine, tmp_path, capsys):
+    import json
+
+    sweep = tmp_path / "sweep"
+    shutil.copytree(base_run, sweep)
+    frames = json.loads((sweep / "frames.json").read_text())
+    frames["exposure"] *= 2
+    (sweep / "frames.json").write_text(json.dumps(frames))
+    assert score(engine, sweep, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "frames.json", "exposure", "metrics.json")
+
+
+def test_a_colour_shadow_factor_is_refused(base_run, engine, tmp_path, capsys):
+    F = np.random.default_rng(0).random((16, 16, 3)).astype(np.float32)
+    for name in ("az+0", "az+45"):
+        files.write_exr(engine / f"f_{name}.exr", {"RGB": F})
+    assert score(engine, base_run, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "f_az+0.exr", "R, G and B differ")
+    for name in ("az+0", "az+45"):  # the same value in R, G and B is grey
+        files.write_exr(engine / f"f_{name}.exr", {"RGB": np.repeat(F[..., :1], 3, -1)})
+    assert score(engine, base_run, tmp_path / "o") == 0
+
+
+def test_a_frame_far_brighter_than_the_scene_is_refused(base_run, engine, tmp_path, capsys):
+    files.write_exr(engine / "az+45.exr", {"RGB": np.full((16, 16, 3), 1e38, np.float32)})
+    assert score(engine, base_run, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "az+45.exr", "brightest the scene can produce")
+
+
+def test_a_frame_given_as_exr_and_png_is_refused(base_run, engine, tmp_path, capsys):
+    from PIL import Image
+
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(engine / "az+0.png")
+    assert score(engine, base_run, tmp_path / "o") == 2
+    one_line(capsys.readouterr().err, "az+0.exr", "az+0.png", "keep the one")
+
+
+# 14. and 15. the same layer twice; held-out lights that are training lights ---------------------------
+
+
+def test_the_same_horizon_layer_twice_is_refused_and_a_copy_fails_strict(base_run, tmp_path, capsys):
+    layer = base_run / "bake" / "horizon0.exr"
+    argv = [*SWEEP16, "--techniques", "horizon", "--out", str(tmp_path / "o")]
+    assert cli.main([*argv, "--horizon-map", f"{layer},{layer}"]) == 2
+    one_line(capsys.readouterr().err, "horizon0.exr", "given twice")
+    shutil.copyfile(layer, tmp_path / "copy.exr")
+    assert cli.main([*argv, "--horizon-map", f"{layer},{tmp_path / 'copy.exr'}", "--strict"]) == 1
+    assert "hold the same values" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("held_out", ["30@0", "30@360", "45@0,90;30@0"])
+def test_held_out_lights_that_are_training_lights_are_refused(tmp_path, capsys, held_out):
+    argv = [
+        "fit",
+        "--size",
+        "16",
+        "--lights",
+        "30@0,90",
+        "--held-out",
+        held_out,
+        "--out",
+        str(tmp_path / "f"),
+    ]
+    assert cli.main(argv) == 2
+    one_line(capsys.readouterr().err, "--held-out", "training lights too")
+    assert not (tmp_path / "f").exists()
+
+
+# 16. the smaller ones --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        (["--light-radius", "2"], "--light-radius"),
+        (["--techniques", "pom", "--horizon-k", "4"], "--horizon-k"),
+        (["--techniques", "horizon", "--no-horizon"], "horizon is left out too"),
+        (["--techniques", "horizon-curved", "--horizon-curvature=-1e30"], "--horizon-curvature"),
+    ],
+)
+def test_a_flag_that_would_be_ignored_or_break_every_pixel_is_refused(tmp_path, capsys, extra, says, variant):
+    assert cli.main([*SWEEP16, *extra, "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, says)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_horizon_map_for_a_run_without_horizon_is_refused(base_run, tmp_path, capsys):
+    layers = f"{base_run / 'bake' / 'horizon0.exr'},{base_run / 'bake' / 'horizon1.exr'}"
+    argv = [*SWEEP16, "--techniques", "pom", "--horizon-map", layers, "--out", str(tmp_path / "o")]
+    assert cli.main(argv) == 2
+    one_line(capsys.readouterr().err, "--horizon-map", "leaves out")

@@ -43,6 +43,7 @@ class FittedHorizon(Horizon):
     needs = ("shadow",)
     by_default = False
     not_on_models = "the fit trains on the plane's top view (docs/fit.md)"
+    input_flags = ()  # it starts from the bake, never from --horizon-map
     flags = {"k": "--horizon-k", "storage": "--horizon-storage"}
     #: A frame's ``split`` of the baked map's mean |F - V|, from the bottom up (:meth:`frame_extras`).
     split_parts = (

@@ -15,6 +15,7 @@ from hzval.scene import spec as sc
 from hzval.techniques import horizon
 
 __all__ = [
+    "check_held_out",
     "TRAINING_LIGHTS",
     "HELD_OUT_LIGHTS",
     "TRAINING_SAMPLES",
@@ -54,6 +55,33 @@ FIT_BYTES_PER_PIXEL_LIGHT = 4
 FIT_BYTES_PER_SAMPLE = 8
 FIT_BYTES_PER_TEXEL = 8 * 4 * 8
 FIT_BYTES_PER_BAND_SAMPLE = 160
+
+
+def check_held_out(lights, held_out) -> None:
+    """Refuse held-out lights that are training lights too (an azimuth taken modulo 360): their
+    score would be the training score under the held-out name. One line naming ``--held-out``.
+
+    Examples
+    --------
+    >>> check_held_out(((30.0, 0.0),), ((30.0, 15.0),))
+    >>> check_held_out(((30.0, 0.0),), ((30.0, 360.0),))
+    Traceback (most recent call last):
+    ...
+    hzval.core.errors.InputError: --held-out: 1 of its 1 lights are training lights too (30@360): a held-out score comes from lights the fit did not see
+    """  # noqa: E501
+
+    def key(light):
+        return (round(float(light[0]), 9), round(float(light[1]) % 360.0, 9))
+
+    seen = {key(light) for light in lights}
+    both = [light for light in held_out if key(light) in seen]
+    if both:
+        shown = ", ".join(f"{e:g}@{a:g}" for e, a in both[:4]) + (" ..." if len(both) > 4 else "")
+        raise InputError(
+            "--held-out",
+            f"{len(both)} of its {len(held_out)} lights are training lights too ({shown}): a held-out "
+            "score comes from lights the fit did not see",
+        )
 
 
 def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
