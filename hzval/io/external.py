@@ -301,14 +301,37 @@ def correlation(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
     return float((a * b).sum()) / den if den > 0 else 0.0
 
 
-def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8) -> dict:
+#: The light elevations, in degrees, at which :func:`shadow_error` compares a reading's shadows.
+SHADOW_ELEVATIONS: tuple[float, ...] = tuple(float(e) for e in range(5, 90, 10))
+
+
+def shadow_error(raw: np.ndarray, exact: np.ndarray, enc: Encoding, k: float = 8.0) -> float:
+    """How a reading of the map would shadow: the mean ``|F - V|`` over every texel, stored direction
+    and :data:`SHADOW_ELEVATIONS`, with ``F = clamp(k (sin e - s) + 1, 0, 1)`` of the sines read under
+    ``enc`` (Lengyel's factor) and ``V = [sin e > s_exact]`` of hzval's exact horizons.
+
+    A map fitted to render well (``hzval fit``) can lie closer to the exact sines under another
+    reading, yet shadow worse under it: a convention is suggested only where this is lower.
+    """
+    s = to_hzval(raw, enc)
+    exact = np.asarray(exact, np.float32)
+    total = 0.0
+    for e in SHADOW_ELEVATIONS:
+        z = np.float32(math.sin(math.radians(e)))
+        F = np.clip(np.float32(k) * (z - s) + np.float32(1.0), 0.0, 1.0)
+        total += float(np.mean(np.abs(F - (z > exact)), dtype=np.float64))
+    return total / len(SHADOW_ELEVATIONS)
+
+
+def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8, k: float = 8.0) -> dict:
     """``{declared, best_match, scores, matches, correlation, describes}``, each convention with its
     mean |s - s_exact|.
 
     In two stages: the ring (which channel points where) under the declared value encoding, then
     the value encoding on the best ring. ``best_match`` is the lowest of every candidate;
     ``suggested`` what a warning proposes: at each stage the declared choice unless another's error
-    is :data:`CLEARLY_BETTER` lower;
+    is :data:`CLEARLY_BETTER` lower, and then only where it also shadows better (:func:`shadow_error`,
+    at the technique's ``k``);
     ``matches``: the map describes the height map (``correlation`` of the best match at least
     :data:`DESCRIBES_CORRELATION`) and no candidate's error is :data:`CLEARLY_BETTER` lower than
     the declared convention's. ``scores``: the ``keep`` best of every candidate.
@@ -330,6 +353,12 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
     suggested, suggested_mae = min(value_scores, key=lambda es: es[1])
     if suggested_mae >= ring_mae * (1 - CLEARLY_BETTER):
         suggested, suggested_mae = ring, ring_mae
+    # suggested only where it would also shadow better (|F - V| against the exact horizons' V)
+    shadows = {declared: shadow_error(raw, exact, declared, k)}
+    if suggested != declared:
+        shadows[suggested] = shadow_error(raw, exact, suggested, k)
+        if shadows[suggested] >= shadows[declared]:
+            suggested, suggested_mae = declared, declared_mae
     everything = sorted(ring_scores + value_scores + [(declared, declared_mae)], key=lambda es: es[1])
     best, best_mae = everything[0]
     seen, rows = set(), []
@@ -343,9 +372,9 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
     describes = corr is None or corr >= DESCRIBES_CORRELATION
     fits = suggested == declared
     return {
-        "declared": {**declared.record(), "mae": declared_mae},
+        "declared": {**declared.record(), "mae": declared_mae, "shadow_error": shadows[declared]},
         "best_match": {**best.record(), "mae": best_mae},
-        "suggested": {**suggested.record(), "mae": suggested_mae},
+        "suggested": {**suggested.record(), "mae": suggested_mae, "shadow_error": shadows[suggested]},
         "scores": rows,
         "matches": bool(fits and describes),
         "convention_fits": bool(fits),
@@ -382,10 +411,16 @@ def advice(result: dict) -> str | None:
     ]
     detail = "; ".join(what) or "another convention fits better"
     fix = f"; try {' '.join(flags)}" if flags else ""
+    shadows = (
+        f"; its shadows |F - V| {b['shadow_error']:.4f} against {d['shadow_error']:.4f} as declared"
+        if "shadow_error" in d and "shadow_error" in b
+        else ""
+    )
     return (
         f"horizon map: {detail} (declared {d['channels']} channels at {d['azimuth0']:g} degrees "
         f"{d['direction']}, +y {d['y']}, {d['values']}: |s - exact| {d['mae']:.4f}; better "
-        f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f}){fix}"
+        f"{b['azimuth0']:g} degrees {b['direction']}, +y {b['y']}, {b['values']}: {b['mae']:.4f}"
+        f"{shadows}){fix}"
     )
 
 

@@ -356,7 +356,9 @@ class Horizon(FlatShading, Technique):
                 f"{ctx.height.shape[1]}x{ctx.height.shape[0]}",
             )
         sines = external.to_hzval(raw, enc)
-        found = external.detect(raw, _reference_horizons(ctx, enc.channels), enc)
+        found = external.detect(
+            raw, _reference_horizons(ctx, enc.channels), enc, k=float(settings.get("k") or DEFAULT_K)
+        )
         own = cls(
             ctx.scene,
             dataclasses.replace(ctx.bake, horizon=sines),
