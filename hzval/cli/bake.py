@@ -61,7 +61,7 @@ def run(args) -> int:
         else "exact horizons, unlimited radius"
     )
     print(
-        f"baked {info['source']} ({cols}x{rows}, depth {params.depth:g}, {how}, "
+        f"baked {scenes.input_name(args, info)} ({cols}x{rows}, depth {params.depth:g}, {how}, "
         f"{params.boundary}) in {total:.2f} s -> {args.out} ({len(written)} files)"
     )
     return errors.EXIT_OK

@@ -60,7 +60,22 @@ def run(args) -> int:
     hm = sc.load_material_height(scene.material)
     written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth, force=args.force)
     print(
-        f"wrote {', '.join(str(p) for p in written)}; render it with: mitsuba {args.out / 'scene.xml'} "
+        f"wrote {', '.join(str(p) for p in written)}; render it with: {_mitsuba()} {args.out / 'scene.xml'} "
         f"-o {args.out / 'mitsuba.exr'}"
     )
     return errors.EXIT_OK
+
+
+def _mitsuba() -> str:
+    """Mitsuba's command as this hzval can run it: the one beside this Python (a virtualenv's
+    ``bin/``, which need not be on PATH), relative to the working folder where it is below it."""
+    import os
+    import shutil
+    import sys
+    from pathlib import Path
+
+    beside = Path(sys.executable).parent / "mitsuba"
+    if not beside.is_file():
+        return shutil.which("mitsuba") or "mitsuba"
+    rel = os.path.relpath(beside)
+    return rel if not rel.startswith("..") else str(beside)

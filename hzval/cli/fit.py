@@ -170,7 +170,7 @@ def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
 def _print_fit(args, info, rows, cols, result) -> None:
     parts = [f"{w} |F-V| {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in result.mae.items()]
     print(
-        f"fitted {info['source']} ({cols}x{rows}, {args.storage}, k {result.k:.3g}) "
+        f"fitted {scenes.input_name(args, info)} ({cols}x{rows}, {args.storage}, k {result.k:.3g}) "
         f"in {result.epochs} epochs, "
         f"{result.seconds['fit']:.1f} s ({'converged' if result.converged else 'not converged'}): "
         f"{'; '.join(parts)} -> {args.out}"

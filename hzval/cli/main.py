@@ -60,7 +60,27 @@ class _Parser(argparse.ArgumentParser):
     usage block is left out (it buried the error under 35 lines)."""
 
     def error(self, message: str):
-        self.exit(errors.EXIT_BAD_INPUT, f"hzval: error: {message}; see '{self.prog} --help'\n")
+        self.exit(
+            errors.EXIT_BAD_INPUT,
+            f"hzval: error: {message}{self._nearest(message)}; see '{self.prog} --help'\n",
+        )
+
+    def _nearest(self, message: str) -> str:
+        """``; did you mean --elevation?`` for an unknown flag near a known one of any command."""
+        import difflib
+
+        if not message.startswith("unrecognized arguments:"):
+            return ""
+        known = {o for a in self._actions for o in a.option_strings}
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                known |= {o for p in a.choices.values() for b in p._actions for o in b.option_strings}
+        for word in message.split(":", 1)[1].split():
+            if word.startswith("--"):
+                near = difflib.get_close_matches(word.split("=")[0], sorted(known), n=1, cutoff=0.75)
+                if near:
+                    return f" (did you mean {near[0]}?)"
+        return ""
 
 
 class _Subcommands(argparse._SubParsersAction):

@@ -249,6 +249,13 @@ def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
     return errors.InputError("--" + KEY_FLAGS[key].replace("_", "-"), rest)
 
 
+def input_name(args, info: dict) -> str:
+    """How a command's closing line names its input: the height map's file as given, then what was read
+    of it (``h.png: 16-bit PNG, grey``), or the built-in material."""
+    height = getattr(args, "height", None)
+    return f"{height}: {info['source']}" if height else info["source"]
+
+
 def load_material(scene) -> tuple["np.ndarray", dict]:  # noqa: F821
     """The height map of ``scene``'s material (:func:`hzval.scene.spec.load_material_height`, the one
     loader) and the record ``bake.json`` and ``fit.json`` keep of it."""

@@ -372,6 +372,27 @@ def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
     )
 
 
+def _check_every_light(frames_dir: Path, names: list[str], found: list, prefix: str, ignored: list[str]):
+    """Refuse, in one line, frames for some lights only: naming the lights that have none and the
+    files that match no light's name (a misnamed ``az+30_F.exr`` is named, not a light it is not)."""
+    missing = [n for n, p in zip(names, found) if p is None]
+    if not missing:
+        return
+    what = "image" if not prefix else "shadow factor"
+    lights = ", ".join(missing[:4]) + (" ..." if len(missing) > 4 else "")
+    stray = (
+        f"; {', '.join(ignored[:3])} {'match' if len(ignored) > 1 else 'matches'} no light's name"
+        if ignored
+        else ""
+    )
+    raise InputError(
+        frames_dir / f"{prefix}{missing[0]}.exr",
+        f"missing: no {what} for {len(missing)} of {len(names)} lights ({lights}){stray} (expected "
+        f"{prefix}<name>.exr or .png, with the names of frames.json: {', '.join(names[:3])}"
+        f"{' ...' if len(names) > 3 else ''})",
+    )
+
+
 def _ignored_line(frames_dir: Path, ignored: list[str], names: list[str]) -> str:
     shown = ", ".join(ignored[:4]) + (" ..." if len(ignored) > 4 else "")
     return (
@@ -404,11 +425,11 @@ def score(
     exposure = float(engine["exposure"])
     W, H = engine["image_size"]
     factors = [_find(frames_dir, f["name"], "f_", required=False) for f in engine["frames"]]
-    # F alone (no image for any light, F for every one): the visibility scores only
-    f_only = all(factors) and not any(_find(frames_dir, n, required=False) for n in names)
-    todo = [
-        (f, None if f_only else _find(frames_dir, f["name"]), fp) for f, fp in zip(engine["frames"], factors)
-    ]
+    images = [_find(frames_dir, n, required=False) for n in names]
+    # F alone (no image for any light): the visibility scores only
+    f_only = any(factors) and not any(images)
+    _check_every_light(frames_dir, names, factors if f_only else images, "f_" if f_only else "", ignored)
+    todo = [(f, None if f_only else p, fp) for f, p, fp in zip(engine["frames"], images, factors)]
     given = [t for t in todo if t[2] is not None]
     if given and len(given) < len(todo):
         missing = next(f["name"] for f, _, fp in todo if fp is None)

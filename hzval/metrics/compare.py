@@ -59,6 +59,7 @@ __all__ = [
     "IMAGE_METRICS",
     "flip_error",
     "image_metrics",
+    "pooled_psnr_db",
 ]
 
 #: A layer value at or above this counts as lit (``V`` and ``F`` alike): the
@@ -698,3 +699,24 @@ def _mean_squared_error(ref: Reference, image: np.ndarray) -> float:
 def _seen(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
     """The pixels of ``values`` ``(H, W[, C])`` that ``mask`` keeps (all for ``None``)."""
     return values if mask is None else values[mask]
+
+
+def pooled_psnr_db(rmses) -> float | None:
+    """The PSNR of several frames together, ``10 log10(1 / mean(rmse^2))`` (peak 1): the frames' mean
+    squared error, not the mean of their decibels, which one near-identical frame (150 dB) would
+    dominate. ``inf`` when every frame is identical, ``None`` with no frame.
+
+    Examples
+    --------
+    >>> round(pooled_psnr_db([0.1, 0.1]), 6)
+    20.0
+    >>> round(pooled_psnr_db([0.1, 1e-8]), 2)  # the decibels' mean would be 90
+    23.01
+    >>> pooled_psnr_db([0.0, 0.0])
+    inf
+    """
+    values = [float(r) ** 2 for r in rmses if isinstance(r, (int, float)) and math.isfinite(r)]
+    if not values:
+        return None
+    mse = sum(values) / len(values)
+    return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)

@@ -9,6 +9,7 @@ import textwrap
 from pathlib import Path
 
 from hzval.io import files
+from hzval.metrics import compare
 from hzval.scene import lookup
 
 __all__ = [
@@ -254,7 +255,7 @@ def summary_table(result: dict) -> str:
             num(mean(recs, "false_shadow_fraction", vis), 2, 100, "%"),
             num(mean(recs, "flip_mean"), 4),
             num(mean(recs, "delta_e2000_mean"), 3),
-            "inf" if psnr and all(p is None for p in psnr) else num(mean(recs, "psnr_db"), 2),
+            _psnr_cell(compare.pooled_psnr_db([r.get("rmse") for r in recs]), psnr),
             num(mean(recs, "seconds"), 1, 1000),
         )
         rows.append(row)
@@ -266,6 +267,13 @@ def summary_table(result: dict) -> str:
     return "\n".join(
         [line(head), line(["-" * w for w in widths]), *map(line, rows), *_table_notes(result, facing, hits)]
     )
+
+
+def _psnr_cell(pooled: float | None, psnr: list) -> str:
+    """The terminal's PSNR of a technique over the frames (:func:`hzval.metrics.compare.pooled_psnr_db`)."""
+    if pooled is None:
+        return "inf" if psnr and all(p is None for p in psnr) else "-"
+    return "inf" if math.isinf(pooled) else f"{pooled:.2f}"
 
 
 def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:

@@ -29,6 +29,7 @@ from typing import Any, Callable
 from urllib.parse import quote
 
 from hzval.io import files
+from hzval.metrics import compare
 from hzval.report import columns, images, plots, ranking
 from hzval.techniques import registry as technique
 
@@ -92,6 +93,9 @@ def _columns(frames: list[dict], metrics: tuple[columns.Metric, ...]) -> list[di
         mean_title = f"mean over {len(finite)} frame{'s' if len(finite) != 1 else ''}"
         if len(finite) < len(measured):
             mean_title += f" (without the {len(measured) - len(finite)} infinite)"
+        if m.key == "psnr_db" and measured:  # decibels do not average: the frames' mean squared error
+            mean = compare.pooled_psnr_db([f.get("rmse") for f in frames])
+            mean_title = f"PSNR of the mean squared error over {len(measured)} frames"
         cols.append(
             {
                 "metric": m,

@@ -365,8 +365,8 @@ def check_light_count(n: int, what: str = "--azimuths") -> int:
 
 
 def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
-    """``"-60:60:15"`` (start:stop:step, stop included), ``"0,45,90"`` or a list, in degrees; finite,
-    at most :data:`MAX_LIGHTS` of them (counted before the list is made)."""
+    """``"-60:60:15"`` (start:stop:step, stop included; a negative step counts down), ``"0,45,90"``
+    or a list, in degrees; finite, at most :data:`MAX_LIGHTS` of them (counted before the list is made)."""
     bad = InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}")
     if isinstance(text, (list, tuple)):
         check_light_count(len(text), what)
@@ -380,8 +380,14 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
             start, stop, step = (float(v) for v in text.split(":"))
         except ValueError:
             raise bad from None
-        if not all(map(math.isfinite, (start, stop, step))) or step <= 0 or stop < start:
+        if not all(map(math.isfinite, (start, stop, step))):
             raise bad
+        if step == 0 or (stop - start) * step < 0:  # a step that never reaches STOP: say which way
+            raise InputError(
+                what,
+                f"{text!r} counts from {start:g} toward {stop:g} in steps of {step:g}, which never get "
+                f"there; use {start:g}:{stop:g}:{math.copysign(abs(step) or 15.0, stop - start):g}",
+            )
         count = math.floor((stop - start) / step + 1e-9) + 1
         check_light_count(count, what)
         values = tuple(start + i * step for i in range(int(count)))

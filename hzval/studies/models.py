@@ -497,12 +497,24 @@ def _says(t: dict) -> str:
     o = t.get("overall") or {}
     if o.get("change") is None:
         return t["verdict"]
-    falls = ", ".join(f"{f['from']:+g}->{f['to']:+g} by {-f['z']:.1f} SE" for f in t["falls"])
+    falls = ", ".join(_fall(f) for f in t["falls"])
     return (
         f"{t['verdict']} (flat to 1/R = {o['to']:+g}: {o['change']:+.4f}, {o['z']:+.1f} SE"
         + (f"; falls {falls}" if falls else "")
         + ")"
     )
+
+
+def _fall(f: dict) -> str:
+    """One step that does not rise: ``+0.25->+0.5 by 1.3 SE``, or ``no change`` where it is flat to a
+    tenth of a standard error (never ``by -0.0 SE``)."""
+    step = f"{f['from']:+g}->{f['to']:+g}"
+    z = f.get("z")
+    if z is None:
+        return step
+    if round(-z, 1) == 0:
+        return f"{step} no change"
+    return f"{step} by {-z:.1f} SE"
 
 
 def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:

@@ -28,3 +28,123 @@ def test_a_fitted_map_passes_strict(tmp_path, capsys, variant, material):
     capsys.readouterr()
     assert cli.main(argv) == 0
     assert "horizon map:" not in capsys.readouterr().err
+
+
+# 8. a flat map is the null test ------------------------------------------------------------------------
+
+
+def test_a_flat_map_sweeps_with_f_1_for_every_technique(tmp_path, capsys, variant):
+    import json
+
+    import numpy as np
+
+    from hzval.io import files
+
+    np.save(tmp_path / "flat.npy", np.full((24, 24), 0.4, np.float32))
+    out = tmp_path / "o"
+    argv = ["sweep", str(tmp_path / "flat.npy"), "--azimuths", "-60,0,45", "--spp", "2", "--all-files"]
+    assert cli.main([*argv, "--quiet", "--out", str(out)]) == 0
+    assert "few shadows to test" in capsys.readouterr().err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert len(metrics["techniques"]) >= 8
+    for frame in metrics["frames"]:
+        for name, scores in frame["techniques"].items():
+            assert scores["visibility_mae"] == 0.0, name
+            F = files.read_exr(out / scores["files"]["factor"])
+            assert all(np.all(v == 1.0) for v in F.values()), name
+
+
+# 9. score names a misnamed frame and the light that has none ---------------------------------------------
+
+
+def test_score_names_the_misnamed_frame_and_the_light_without_one(tmp_path, capsys, variant):
+    import shutil
+
+    sweep = tmp_path / "sweep"
+    argv = ["sweep", "--size", "16", "--azimuths", "0,30", "--spp", "1", "--techniques", "horizon"]
+    assert cli.main([*argv, "--all-files", "--quiet", "--out", str(sweep)]) == 0
+    engine = tmp_path / "engine"
+    engine.mkdir()
+    shutil.copyfile(sweep / "frames" / "az+0" / "horizon_factor.exr", engine / "f_az+0.exr")
+    shutil.copyfile(sweep / "frames" / "az+30" / "horizon_factor.exr", engine / "az+30_F.exr")
+    capsys.readouterr()
+    assert cli.main(["score", str(engine), "--against", str(sweep), "--out", str(tmp_path / "s")]) == 2
+    one_line(capsys.readouterr().err, "f_az+30.exr", "(az+30)", "az+30_F.exr matches no light's name")
+
+
+# 10. the smaller list -------------------------------------------------------------------------------------
+
+
+def test_the_psnr_of_a_sweep_is_that_of_its_mean_squared_error(tmp_path, capsys, variant):
+    import json
+    import math
+
+    from hzval.metrics import compare
+
+    out = tmp_path / "o"
+    argv = ["sweep", "--material", "gravel", "--size", "32", "--azimuths", "0,45", "--spp", "2"]
+    assert (
+        cli.main([*argv, "--techniques", "horizon", "--elevation", "15", "--quiet", "--out", str(out)]) == 0
+    )
+    table = capsys.readouterr().out
+    frames = json.loads((out / "metrics.json").read_text())["frames"]
+    rmse = [f["techniques"]["horizon"]["rmse"] for f in frames]
+    want = 10 * math.log10(1 / (sum(r * r for r in rmse) / len(rmse)))
+    assert compare.pooled_psnr_db(rmse) == pytest.approx(want)
+    row = next(line for line in table.splitlines() if line.startswith("horizon "))
+    assert f"{want:.2f}" in row.split()
+    assert compare.pooled_psnr_db([0.1, 1e-8]) < 24  # one identical frame does not carry the mean
+
+
+@pytest.mark.parametrize("text, says", [("60:-60:15", "use 60:-60:-15"), ("-60:60:-15", "use -60:60:15")])
+def test_an_azimuth_range_that_never_gets_there_says_which_way(capsys, text, says):
+    assert cli.main(["sweep", "--size", "16", f"--azimuths={text}", "--out", "/nonexistent/o"]) == 2
+    one_line(capsys.readouterr().err, "--azimuths", says)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (4, 4)])
+def test_the_smallest_map_is_one_rule_in_one_wording(tmp_path, capsys, shape):
+    import numpy as np
+
+    np.save(tmp_path / "m.npy", np.random.default_rng(0).random(shape))
+    assert cli.main(["sweep", str(tmp_path / "m.npy"), "--out", str(tmp_path / "o")]) == 2
+    one_line(capsys.readouterr().err, f"is {shape[1]}x{shape[0]} texels; a height map needs at least 8x8")
+
+
+def test_export_scene_names_the_mitsuba_it_can_run(tmp_path, capsys, variant):
+    import shlex
+
+    assert cli.main(["export-scene", "--size", "16", "--out", str(tmp_path / "e")]) == 0
+    command = capsys.readouterr().out.split("render it with: ", 1)[1].split()[0]
+    assert Path(command).is_file() or shlex.split(command)[0] == "mitsuba", command
+
+
+def test_bake_and_fit_name_their_input_file(tmp_path, capsys, variant):
+    import numpy as np
+
+    np.save(tmp_path / "m.npy", np.random.default_rng(0).random((16, 16)).astype(np.float32))
+    assert cli.main(["bake", str(tmp_path / "m.npy"), "--out", str(tmp_path / "b")]) == 0
+    assert f"baked {tmp_path / 'm.npy'}: .npy float32" in capsys.readouterr().out
+    argv = ["fit", str(tmp_path / "m.npy"), "--lights", "30@0,90", "--held-out", "45@45", "--spp", "1"]
+    assert cli.main([*argv, "--out", str(tmp_path / "f")]) == 0
+    assert f"fitted {tmp_path / 'm.npy'}: .npy float32" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("typed, meant", [("--elevations", "--elevation"), ("--held_out", "--held-out")])
+def test_a_misspelt_flag_gets_a_did_you_mean(capsys, typed, meant):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["sweep", typed, "30"])
+    assert exc.value.code == 2
+    one_line(capsys.readouterr().err, f"did you mean {meant}?")
+
+
+def test_a_flat_step_of_a_trend_is_no_change_not_minus_zero():
+    from hzval.studies import models
+
+    trend = {
+        "verdict": "rises within noise",
+        "overall": {"change": 0.01, "to": 0.5, "z": 2.0},
+        "falls": [{"from": 0.0, "to": 0.125, "z": -0.0}, {"from": 0.25, "to": 0.5, "z": -1.34}],
+    }
+    said = models._says(trend)
+    assert "-0.0" not in said and "+0->+0.125 no change" in said and "by 1.3 SE" in said

@@ -353,11 +353,11 @@ BAD_INPUTS = {
     ),
     "1x1 png": (
         lambda p: _grey_png(p / "one.png", 1, 1),
-        "image is 1x1 pixels (rows x columns); a height map needs at least 2",
+        "is 1x1 texels; a height map needs at least 8x8",
     ),
     "0x5 npy": (
         lambda p: _npy(p, np.zeros((0, 5))),
-        "image is 0x5 pixels (rows x columns); a height map needs at least 2",
+        "is 5x0 texels; a height map needs at least 8x8",
     ),
     "nan npy": (_nan_npy, "contains 3 NaN and 0 infinite values"),
     "nan exr": (_nan_exr, "contains 2 NaN and 1 infinite values"),
@@ -430,7 +430,7 @@ def test_from_array():
     "array,problem",
     [
         (np.full((2, 2), np.inf), "array: contains 0 NaN and 4 infinite values"),
-        (np.zeros((1, 1)), "array: image is 1x1 pixels (rows x columns); a height map needs at least 2"),
+        (np.zeros((1, 1)), "array: is 1x1 texels; a height map needs at least 8x8"),
         (np.zeros((2, 2), bool), "array: array has dtype bool; a height map needs real numbers"),
         (np.zeros((2, 2, 2)), "array: array has shape (2, 2, 2)"),
     ],
