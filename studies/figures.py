@@ -71,22 +71,26 @@ def _provenance(command: str) -> str:
 
 def default_sweep() -> str:
     """README's headline table: every technique on the default sweep, and the perfect-shadows floor."""
+    from hzval.report import ranking
+
     m = _sweep()
     frames = m["frames"]
     rows = [
-        "| technique | mean \\|F - V\\| (range over the sweep) | mean FLIP (range) | frame time |",
+        "| technique | mean \\|F - V\\| over the pixels facing the light (range over the sweep) "
+        "| mean FLIP (range) | frame time |",
         "|---|---|---|---|",
     ]
     for name, info in m["techniques"].items():
         per = [f["techniques"][name] for f in frames]
         ms = 1000 * sum(t["seconds"] for t in per) / len(per)
         rows.append(
-            f"| `{name}`: {info['label']} | {_spread([t['visibility_mae'] for t in per])} | "
+            f"| `{name}`: {info['label']} | {_spread([ranking.visibility_of(t) for t in per])} | "
             f"{_spread([t['flip_mean'] for t in per])} | {ms:.0f} ms |"
         )
     none = [f["no_shadows"] for f in frames if "no_shadows" in f]
+    none_mae = _spread([ranking.visibility_of(n) for n in none])
     rows.append(
-        f"| no shadows (F = 1: the unshadowed shading) | {_spread([n['visibility_mae'] for n in none])} | "
+        f"| no shadows (F = 1: the unshadowed shading) | {none_mae} | "
         f"{_spread([n['flip_mean'] for n in none])} | — |"
     )
     floor = [f["floor"]["flip_mean"] for f in frames if "floor" in f]
@@ -183,12 +187,48 @@ def engines() -> str:
     return "\n".join(rows) + f"\n\n*{what}.* " + _provenance(command)
 
 
+def tradeoff() -> str:
+    """docs/GUIDE.md's tradeoff table: every setting `hzval tradeoff` measures on the 256 x 256 bricks,
+    |F - V| over the pixels facing the light (the headline), its Pareto front in bold."""
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run(
+            [*HZVAL, "tradeoff", "--size", "256", "--quiet", "--out", tmp],
+            check=True,
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+        )
+        data = json.loads((Path(tmp) / "tradeoff.json").read_text())
+    rows = [
+        "| setting | kind | time | texture memory | \\|F - V\\| (facing) | FLIP |",
+        "|---|---|---|---|---|---|",
+    ]
+    for p in data["points"]:
+        t = p["time_s"]
+        time_ = f"{t * 1000:.1f} ms" if t < 1 else f"{t:.2f} s"
+        err = p["visibility_mae_facing"] if p["visibility_mae_facing"] is not None else p["visibility_mae"]
+        err_ = f"**{err:.4f}**" if p["pareto"] else f"{err:.4f}"
+        name = p["name"] + (f" ({p['params']['note']})" if p["params"].get("note") else "")
+        rows.append(
+            f"| {name} | {p['kind']} | {time_} | {p['storage_bytes'] / 2**20:.1f} MiB | {err_} | "
+            f"{p['flip_mean']:.3f} |"
+        )
+    rec = data["recommendation"]
+    said = f"recommended: {rec['setting']} ({rec['error']:.4f}; the best: {rec['best']}"
+    said += f", {rec['best_error']:.4f})"
+    return (
+        "\n".join(rows)
+        + f"\n\n*bricks, 256 x 256; {said}; in bold the Pareto front of each kind.* "
+        + _provenance("hzval tradeoff --size 256")
+    )
+
+
 #: name -> (function, quick): quick figures run by default, the others only when named.
 FIGURES = {
     "default-sweep": (default_sweep, True),
     "reflection": (reflection, True),
     "pom-steps": (pom_steps, False),
     "engines": (engines, False),
+    "tradeoff": (tradeoff, False),
 }
 
 

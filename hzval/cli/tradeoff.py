@@ -107,17 +107,13 @@ def _print_recommendation(rec: dict | None) -> None:
     if not rec:
         return
     print(
-        f"\nrecommended: {rec['setting']} (|F-V| {rec['visibility_mae']:.4f}; "
-        f"best {rec['best']} {rec['best_visibility_mae']:.4f})"
+        f"\nrecommended: {rec['setting']} (|F-V| {rec['error']:.4f}; "
+        f"best {rec['best']} {rec['best_error']:.4f})"
     )
     if "own" in rec:
         h = rec["own"]
-        default = (
-            ""
-            if rec["default"] is None
-            else f"; default {rec['default']} {rec['default_visibility_mae']:.4f}"
-        )
+        default = "" if rec["default"] is None else f"; default {rec['default']} {rec['default_error']:.4f}"
         print(
             f"for the {technique.get(h['technique']).label}'s own settings: {h['setting']} "
-            f"(|F-V| {h['visibility_mae']:.4f}{default})"
+            f"(|F-V| {h['error']:.4f}{default})"
         )

@@ -68,10 +68,13 @@ def run(args) -> int:
     )
     for r in data["rows"]:
         fp, pe = r["footprint_texels"].get("p50"), r["parallax_error_texels"].get("mean")
-        vals = "  ".join(f"{r['techniques'][n]['visibility_mae']:9.4f}" for n in names)
+        vals = "  ".join(f"{views.headline(r['techniques'][n]):9.4f}" for n in names)
         print(
             f"{r['view']:10} {r['lookup']:14} {fp if fp is not None else float('nan'):9.2f} "
             f"{pe if pe is not None else float('nan'):9.3f}  {vals}"
         )
+    print(
+        "|F-V|: over the pixels facing the light in the top view (as hzval sweep), the whole image elsewhere"
+    )
     print(f"report: {out / 'index.html'}")
     return errors.EXIT_OK

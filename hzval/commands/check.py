@@ -110,6 +110,7 @@ __all__ = [
     "CheckResult",
     "check_scene",
     "render_references",
+    "check_material",
     "compare_image",
     "run",
     "write_report",
@@ -280,8 +281,6 @@ def check_scene(scene):
     """
     c = scene.check
     size = c.get("size")
-    if size is not None and not materials.is_builtin(scene.material.height):
-        raise InputError(scene.source or scene.name, "check.size applies to built-in materials only")
     if size is not None and (
         isinstance(size, bool) or not isinstance(size, int) or not MIN_CHECK_SIZE <= size <= MAX_CHECK_SIZE
     ):
@@ -298,7 +297,7 @@ def check_scene(scene):
         )
     return sc.override(
         scene,
-        size=size,
+        size=size if materials.is_builtin(scene.material.height) else None,  # a file: check_material
         azimuths=c.get("azimuths"),
         spp=c.get("spp"),
         depth=c.get("depth"),
@@ -306,15 +305,45 @@ def check_scene(scene):
     )
 
 
-def renderers(scene, height: np.ndarray, points=None) -> dict:
+def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
+    """The height map and linear albedo ``(rows, cols, 3)`` the check renders: a built-in material
+    generated at ``check.size``; a file's, where larger than ``check.size`` (default
+    :data:`MAX_CHECK_SIZE`), averaged down (box filter, the aspect kept) until its larger side is,
+    so that a user's map of any size has small references."""
+    hm = sc.load_material_height(scene.material)
+    h = hm.height
+    rows, cols = h.shape
+    if materials.is_builtin(scene.material.height):
+        return h, sc.load_albedo(scene.material, rows, cols)
+    target = int(scene.check.get("size") or MAX_CHECK_SIZE)
+    albedo = sc.load_albedo(scene.material, rows, cols)
+    if max(rows, cols) <= target:
+        return h, albedo
+    scale = target / max(rows, cols)
+    shape = (max(MIN_CHECK_SIZE, round(rows * scale)), max(MIN_CHECK_SIZE, round(cols * scale)))
+    small = np.stack([_box(albedo[..., c], shape) for c in range(3)], axis=-1)
+    return _box(h, shape), small
+
+
+def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``values`` averaged down to ``shape`` ``(rows, cols)`` (each output texel the mean of the input
+    area it covers: Pillow's box filter, in float32)."""
+    from PIL import Image
+
+    img = Image.fromarray(np.ascontiguousarray(values, np.float32))
+    return np.asarray(img.resize((shape[1], shape[0]), Image.Resampling.BOX), np.float32)
+
+
+def renderers(scene, height: np.ndarray, points=None, albedo: np.ndarray | None = None) -> dict:
     """``{kind: (variant, technique class, built technique)}``: every check variant of every
     technique that applies to ``scene`` (on a model, ``points``: the truth's samples, and only the
-    techniques that render on models)."""
+    techniques that render on models); ``albedo`` as :func:`check_material` gives it (default: the
+    material's at the map's size)."""
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
-    ctx = technique.Context(
-        scene, height, bake.bake(height, params), sc.load_albedo(scene.material, rows, cols), points=points
-    )
+    if albedo is None:
+        albedo = sc.load_albedo(scene.material, rows, cols)
+    ctx = technique.Context(scene, height, bake.bake(height, params), albedo, points=points)
     out = {}
     for t in technique.select(None, scene):
         if points is not None and t.not_on_models:
@@ -330,18 +359,18 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
     # another seed moves the samples: only the truth takes it (the techniques are
     # deterministic, and their references hold their images at the scene's own positions)
     truth_scene = scene if seed is None else dataclasses.replace(scene, seed=int(seed))
-    hm = sc.load_material_height(scene.material)
-    rows, cols = hm.height.shape
+    height, albedo = check_material(scene)
+    rows, cols = height.shape
     if max(rows, cols) > MAX_CHECK_SIZE:
         raise InputError(
             scene.source or scene.name,
             f"{cols}x{rows} is too large for a reference (at most {MAX_CHECK_SIZE} px; set check.size)",
         )
-    the_truth, points = sweep.truth_of(truth_scene, hm.height, sc.load_albedo(scene.material, rows, cols))
+    the_truth, points = sweep.truth_of(truth_scene, height, albedo)
     if points is not None and seed is not None:
         # the techniques read at the truth's hits: at the scene's own seed, whatever the truth's
-        points = sweep.truth_of(scene, hm.height, sc.load_albedo(scene.material, rows, cols))[1]
-    kinds = renderers(scene, hm.height, points)
+        points = sweep.truth_of(scene, height, albedo)[1]
+    kinds = renderers(scene, height, points, albedo)
     out = {}
     for el, az in sweep.lights(scene):  # a scene over several elevations: each (elevation, azimuth)
         name = frame_folder(az, el)

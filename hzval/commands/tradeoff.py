@@ -24,9 +24,14 @@ setting of :func:`settings` against it, each with
     for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of
     uint32 indices
     per texel, margin excluded) for the truth.
+``visibility_mae_facing``
+    the headline: mean over the sweep of the mean ``|F - V|`` against the converged truth's
+    visibility ``V`` (for truth settings: ``|V_n - V|``) over the pixels that face the light
+    (:mod:`hzval.metrics.facing`), as ``hzval sweep`` measures it; ``None`` for a view other than
+    ``top``, which has no facing mask. The front and the recommendation read it (else the whole
+    image's).
 ``visibility_mae``
-    mean over the sweep of the mean ``|F - V|`` against the converged
-    truth's visibility ``V`` (for truth settings: ``|V_n - V|``).
+    the same over the whole image.
 ``flip_mean``
     mean over the sweep of the mean FLIP error of the image against the
     converged truth's image (display values, :func:`hzval.metrics.compare.flip`).
@@ -64,9 +69,11 @@ import numpy as np
 
 from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
+from hzval.core import conventions as cv
 from hzval.core import shading
 from hzval.io import files
 from hzval.metrics import compare
+from hzval.metrics import facing as hzfacing
 from hzval.pipeline import sweep
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
@@ -104,9 +111,15 @@ class Point:
     flip_mean: float
     pareto: bool = False
     params: dict = field(default_factory=dict)
+    visibility_mae_facing: float | None = None
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+    @property
+    def error(self) -> float:
+        """The headline ``|F - V|``: over the pixels facing the light, where measured."""
+        return self.visibility_mae if self.visibility_mae_facing is None else self.visibility_mae_facing
 
     @property
     def label(self) -> str:
@@ -209,6 +222,7 @@ class _Reference:
     display: list[np.ndarray]
     scale: float
     seconds: float
+    facing: list = field(default_factory=list)  # per light: the pixels facing it (top view), or None
 
 
 def _reference(scene, height, truth_spp: int) -> _Reference:
@@ -222,18 +236,36 @@ def _reference(scene, height, truth_spp: int) -> _Reference:
         vis.append(f.layers["visibility"])
         disp.append(compare.display(f.image, scale))
     rows, cols = height.shape
+    facing = [None] * len(vis)
+    if scene.camera.kind == "top":  # as the sweep measures: the normal map's texels that face each light
+        normal = cv.normal_map(cv.heights_in_texels(height, scene.material.depth), scene.material.boundary)
+        facing = [
+            hzfacing.facing_mask(normal, scene.light.direction(az, el), scene.camera.supersampling)
+            for el, az in sweep.lights(scene)
+        ]
     return _Reference(
-        scene, height, sc.load_albedo(scene.material, rows, cols), vis, disp, scale, time.perf_counter() - t0
+        scene,
+        height,
+        sc.load_albedo(scene.material, rows, cols),
+        vis,
+        disp,
+        scale,
+        time.perf_counter() - t0,
+        facing,
     )
 
 
-def _errors(ref: _Reference, frames) -> tuple[float, float]:
-    mae, flip = [], []
-    for f, V, d in zip(frames, ref.visibility, ref.display):
-        F = f.layers.get("factor", f.layers.get("visibility"))
-        mae.append(float(np.mean(np.abs(np.asarray(F, np.float64) - V))))
+def _errors(ref: _Reference, frames) -> tuple[float, float, float | None]:
+    """``(|F - V| over the image, FLIP, |F - V| over the facing pixels or None)``, means over the sweep."""
+    mae, flip, facing = [], [], []
+    for f, V, d, mask in zip(frames, ref.visibility, ref.display, ref.facing):
+        F = np.asarray(f.layers.get("factor", f.layers.get("visibility")), np.float64)
+        mae.append(float(np.mean(np.abs(F - V))))
         flip.append(compare.flip(d, compare.display(f.image, ref.scale))[1])
-    return float(np.mean(mae)), float(np.mean(flip))
+        if mask is not None:
+            facing.append(hzfacing.facing_metrics(V, F, mask)["visibility_mae_facing"])
+    measured = [v for v in facing if v is not None]
+    return float(np.mean(mae)), float(np.mean(flip)), (float(np.mean(measured)) if measured else None)
 
 
 def _render(renderer, el: float | None, az: float, **kw):
@@ -326,9 +358,16 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
     if s.kind == "truth":
         tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)
         frames, t = _render_all(tr, lights, repeat=1)  # seconds a frame: timing noise is small here
-        mae, flip = _errors(ref, frames)
+        mae, flip, facing = _errors(ref, frames)
         return Point(
-            s.name, s.kind, float(t), rows * cols * (12 + 24), mae, flip, params={"spp": s.truth_spp}
+            s.name,
+            s.kind,
+            float(t),
+            rows * cols * (12 + 24),
+            mae,
+            flip,
+            params={"spp": s.truth_spp},
+            visibility_mae_facing=facing,
         )
     cls = technique.get(s.technique)
     ctx = technique.Context(scene, height, bk, ref.albedo)
@@ -351,7 +390,7 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
             p["note"] = f"{p['kernel']}ed kernel, chosen for a fast first bake"
     if kw != s.settings:
         p["note"] = ", ".join(f"{k} = {v:.3g}" for k, v in kw.items() if s.settings.get(k) != v)
-    mae, flip = _errors(ref, frames)
+    mae, flip, facing = _errors(ref, frames)
     return Point(
         s.name,
         s.kind,
@@ -360,29 +399,37 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
         mae,
         flip,
         params=p,
+        visibility_mae_facing=facing,
     )
 
 
 def mark_pareto(points: list[Point]) -> None:
     """Set ``pareto`` on the points no other point of the same kind dominates in
-    (time_s, storage_bytes, visibility_mae)."""
+    (time_s, storage_bytes, the headline |F - V|: :attr:`Point.error`)."""
     for p in points:
-        obj = (p.time_s, p.storage_bytes, p.visibility_mae)
+        obj = (p.time_s, p.storage_bytes, p.error)
         p.pareto = not any(
             q is not p
             and q.kind == p.kind
-            and all(a <= b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
-            and any(a < b for a, b in zip((q.time_s, q.storage_bytes, q.visibility_mae), obj))
+            and all(a <= b for a, b in zip((q.time_s, q.storage_bytes, q.error), obj))
+            and any(a < b for a, b in zip((q.time_s, q.storage_bytes, q.error), obj))
             for q in points
         )
 
 
 def _pick(cand: list[Point], tolerance: float) -> tuple[Point, Point]:
     """``(pick, best)``: the least storage, then time, within ``tolerance`` of the best."""
-    best = min(cand, key=lambda p: p.visibility_mae)
-    limit = best.visibility_mae * (1 + tolerance) + 1e-4
-    good = [p for p in cand if p.visibility_mae <= limit]
-    return min(good, key=lambda p: (p.storage_bytes, p.time_s, p.visibility_mae)), best
+    best = min(cand, key=lambda p: p.error)
+    limit = best.error * (1 + tolerance) + 1e-4
+    good = [p for p in cand if p.error <= limit]
+    return min(good, key=lambda p: (p.storage_bytes, p.time_s, p.error)), best
+
+
+#: What a recommendation's ``error`` is, by whether the points have facing pixels (the top view).
+ERROR_IS = {
+    True: "mean |F - V| over the pixels that face the light",
+    False: "mean |F - V| over the whole image (a view other than top has no facing mask)",
+}
 
 
 def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
@@ -398,12 +445,13 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
     default = next((p for p in points if "(default)" in p.name), None)
     out = {
         "setting": pick.name,
-        "visibility_mae": pick.visibility_mae,
+        "error": pick.error,
+        "error_is": ERROR_IS[pick.visibility_mae_facing is not None],
         "best": best.name,
-        "best_visibility_mae": best.visibility_mae,
+        "best_error": best.error,
         "tolerance": tolerance,
         "default": default.name if default else None,
-        "default_visibility_mae": default.visibility_mae if default else None,
+        "default_error": default.error if default else None,
     }
     baked = next((p.params.get("technique") for p in cand if p.kind == "bake"), None)
     own = [p for p in cand if p.kind == "bake" or p.params.get("technique", "") == baked]
@@ -412,12 +460,12 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
         out["own"] = {
             "technique": baked,
             "setting": hpick.name,
-            "visibility_mae": hpick.visibility_mae,
+            "error": hpick.error,
             "best": hbest.name,
-            "best_visibility_mae": hbest.visibility_mae,
+            "best_error": hbest.error,
         }
     truths = sorted((p for p in points if p.kind == "truth"), key=lambda p: p.params.get("spp", 0))
-    enough = next((p for p in truths if p.visibility_mae <= best.visibility_mae / 10), None)
+    enough = next((p for p in truths if p.error <= best.error / 10), None)
     if enough:
         out["truth"] = enough.name
     return out
@@ -446,19 +494,17 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
             area = 30 + 270 * p.storage_bytes / smax
             ax.scatter(
                 p.time_s,
-                p.visibility_mae,
+                p.error,
                 s=area,
                 alpha=0.75,
                 color="#d62728" if p.pareto else "#1f77b4",
                 edgecolors="black",
                 linewidths=0.5,
             )
-            ax.annotate(
-                p.label, (p.time_s, p.visibility_mae), fontsize=7, xytext=(4, 4), textcoords="offset points"
-            )
+            ax.annotate(p.label, (p.time_s, p.error), fontsize=7, xytext=(4, 4), textcoords="offset points")
         front = sorted((p for p in pts if p.pareto), key=lambda p: p.time_s)
         if len(front) > 1:
-            ax.plot([p.time_s for p in front], [p.visibility_mae for p in front], color="#d62728", lw=1)
+            ax.plot([p.time_s for p in front], [p.error for p in front], color="#d62728", lw=1)
         times = [p.time_s for p in pts if p.time_s > 0]
         if times and max(times) > 10 * min(times):
             # decades only, in engineering units: finer log ticks crowd the axis
@@ -469,7 +515,8 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
             ax.xaxis.set_major_locator(MaxNLocator(4))
         ax.xaxis.set_major_formatter(EngFormatter(unit="s", places=None, sep=" "))
         ax.set_xlabel(labels[kind])
-        ax.set_ylabel("visibility mean |F - V|")
+        facing = all(p.visibility_mae_facing is not None for p in pts)
+        ax.set_ylabel("mean |F - V|" + (" (pixels facing the light)" if facing else " (whole image)"))
         ax.set_title(kind)
         ax.grid(True, alpha=0.3)
     fig.suptitle(
@@ -512,6 +559,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
                     "time_s",
                     "storage_bytes",
                     "visibility_mae",
+                    "visibility_mae_facing",
                     "flip_mean",
                     "pareto",
                     "params",
@@ -544,7 +592,7 @@ def table(points: list[Point]) -> str:
             p.kind,
             _fmt_s(p.time_s),
             _fmt_bytes(p.storage_bytes),
-            f"{p.visibility_mae:.4f}",
+            f"{p.error:.4f}",
             f"{p.flip_mean:.4f}",
             "*" if p.pareto else "",
         )

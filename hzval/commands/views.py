@@ -14,10 +14,13 @@ half a texel) and far (about 4 across, 8 along).
 
     {"format": "hzval views 1", "material": {...}, "rows": [
         {"view", "lookup", "camera": {kind, elevation_deg, ...}, "footprint_texels", "parallax_error_texels",
-         "seen_fraction", "report", "techniques": {name: {visibility_mae, perfect_parallax_mae, flip_mean}}}]}
+         "seen_fraction", "report", "techniques": {name: {visibility_mae, visibility_mae_facing,
+         perfect_parallax_mae, flip_mean}}}]}
 
 Every number is a mean over the sweep's frames (and, within a frame, over the
-pixels that see the surface).
+pixels that see the surface). The tables and plots show :func:`headline`: ``|F - V|`` over the
+pixels facing the light, as ``hzval sweep`` does, where a view has them (``top``), else the whole
+image's (the other views have no facing mask).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from hzval.core.errors import InputError
 from hzval.io import files
 from hzval.scene import camera, lookup
 
-__all__ = ["VIEWS", "LOOKUPS", "run"]
+__all__ = ["VIEWS", "LOOKUPS", "run", "headline"]
 
 #: The views: name -> camera.
 VIEWS: dict[str, camera.Camera] = {
@@ -118,6 +121,13 @@ def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str,
     return data
 
 
+def headline(scores: dict) -> float | None:
+    """A technique's ``|F - V|`` in a row: over the pixels facing the light where measured (the top
+    view), else over the whole image."""
+    facing = scores.get("visibility_mae_facing")
+    return scores.get("visibility_mae") if facing is None else facing
+
+
 def _pick(names, table: dict, flag: str) -> list[str]:
     if names is None:
         return list(table)
@@ -134,7 +144,8 @@ def _row(view: str, kind: str, result: dict, report: Path) -> dict:
     for name in result["techniques"]:
         per = [f["techniques"][name] for f in frames]
         techniques[name] = {
-            k: _mean([p.get(k) for p in per]) for k in ("visibility_mae", "perfect_parallax_mae", "flip_mean")
+            k: _mean([p.get(k) for p in per])
+            for k in ("visibility_mae", "visibility_mae_facing", "perfect_parallax_mae", "flip_mean")
         }
     v = result.get("view") or {}
     cam = VIEWS[view]
@@ -209,17 +220,17 @@ def _plot(path: Path, rows: list[dict]) -> None:
         for k in kinds:
             pts = [r for r in rows if r["lookup"] == k or r["view"] == "top"]
             ortho = sorted(
-                (r["camera"]["elevation_deg"], r["techniques"][name]["visibility_mae"])
+                (r["camera"]["elevation_deg"], headline(r["techniques"][name]))
                 for r in pts
                 if r["camera"]["kind"] != "perspective"
-                and r["techniques"].get(name, {}).get("visibility_mae") is not None
+                and headline(r["techniques"].get(name, {})) is not None
             )
             if ortho:
                 axes[i][0].plot(*zip(*ortho), marker="o", label=k)
             foot = sorted(
-                (r["footprint_texels"]["p50"], r["techniques"][name]["visibility_mae"])
+                (r["footprint_texels"]["p50"], headline(r["techniques"][name]))
                 for r in pts
-                if r["techniques"].get(name, {}).get("visibility_mae") is not None
+                if headline(r["techniques"].get(name, {})) is not None
                 and r["footprint_texels"].get("p50") is not None
             )
             if foot:
@@ -227,12 +238,12 @@ def _plot(path: Path, rows: list[dict]) -> None:
         axes[i][0].set(
             title=f"{name}: error against view elevation",
             xlabel="view elevation (degrees)",
-            ylabel="mean |F − V|",
+            ylabel="mean |F − V| (top: facing pixels)",
         )
         axes[i][1].set(
             title=f"{name}: error against pixel footprint",
             xlabel="texels a pixel covers (median)",
-            ylabel="mean |F − V|",
+            ylabel="mean |F − V| (top: facing pixels)",
             xscale="log",
         )
         # a footprint axis spans under a decade: its minor ticks' labels ran into each other

@@ -119,15 +119,16 @@ def test_recommendation_takes_the_cheapest_within_tolerance():
     assert rec["setting"] == "small" and rec["best"] == "big (default)"
     assert rec["truth"] == "truth, 64"
     assert "own" not in rec  # the pick is a setting of the baked technique already
+    assert rec["error_is"] == tradeoff.ERROR_IS[False]  # these points have no facing |F - V|
     pts.append(Point("terrain", "technique", 1.0, 50, 0.02, 0, params={"technique": "terrain"}))
     rec = tradeoff.recommend(pts)
     assert rec["setting"] == "terrain"
     assert rec["own"] == {
         "technique": "horizon",
         "setting": "small",
-        "visibility_mae": 0.105,
+        "error": 0.105,
         "best": "big (default)",
-        "best_visibility_mae": 0.100,
+        "best_error": 0.100,
     }
 
 
@@ -198,3 +199,16 @@ def test_full_tradeoff_of_the_builtin_material(variant, tmp_path):
     assert cli.main(["tradeoff", "--size", "64", "--truth-spp", "64", "--quiet", "--out", str(out)]) == 0
     data = json.loads((out / "tradeoff.json").read_text())
     assert len(data["points"]) >= 18
+
+
+def test_the_headline_error_is_the_facing_one_where_measured():
+    """The front and the recommendation read |F - V| over the pixels facing the light, as the sweep
+    does; a point without one (another view) falls back on the whole image's."""
+    a = Point("a", "technique", 1.0, 10, 0.30, 0, visibility_mae_facing=0.10)
+    b = Point("b", "technique", 1.0, 10, 0.20, 0, visibility_mae_facing=0.15)
+    assert (a.error, b.error) == (0.10, 0.15)
+    tradeoff.mark_pareto([a, b])
+    assert a.pareto and not b.pareto  # by the whole image b would win
+    rec = tradeoff.recommend([a, b], tolerance=0.0)
+    assert rec["setting"] == "a" and rec["error"] == 0.10 and rec["error_is"] == tradeoff.ERROR_IS[True]
+    assert Point("c", "truth", 1.0, 1, 0.05, 0).error == 0.05

@@ -148,3 +148,33 @@ def test_a_flat_step_of_a_trend_is_no_change_not_minus_zero():
     }
     said = models._says(trend)
     assert "-0.0" not in said and "+0->+0.125 no change" in said and "by 1.3 SE" in said
+
+
+# 5. check takes a user's map of any size --------------------------------------------------------------------
+
+
+def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
+    import numpy as np
+    from PIL import Image
+
+    from hzval import materials
+    from hzval.commands import check
+    from hzval.scene import spec
+
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    h = materials.generate("cobblestones", 256).height
+    Image.fromarray((h * 65535).astype(np.uint16)).save(scenes / "mine.png")
+    (scenes / "mine.toml").write_text(
+        'name = "mine"\n[material]\nheight = "mine.png"\n[light]\nazimuths = "0,90"\n[samples]\nspp = 4\n'
+    )
+    argv = ["check", "--scenes", str(scenes), "--references", str(tmp_path / "ref"), "--quiet"]
+    assert cli.main([*argv, "--update"]) == 0
+    assert cli.main(argv) == 0
+    height, albedo = check.check_material(check.check_scene(spec.load_scene(scenes / "mine.toml")))
+    assert height.shape == (check.MAX_CHECK_SIZE,) * 2 and albedo.shape == (*height.shape, 3)
+    # a box filter: the mean height is kept
+    assert abs(float(height.mean()) - float(h.mean())) < 1e-4
+    (scenes / "mine.toml").write_text((scenes / "mine.toml").read_text() + "[check]\nsize = 64\n")
+    height, _ = check.check_material(check.check_scene(spec.load_scene(scenes / "mine.toml")))
+    assert height.shape == (64, 64)
