@@ -178,3 +178,10 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
     (scenes / "mine.toml").write_text((scenes / "mine.toml").read_text() + "[check]\nsize = 64\n")
     height, _ = check.check_material(check.check_scene(spec.load_scene(scenes / "mine.toml")))
     assert height.shape == (64, 64)
+
+
+# 11. the README is short ---------------------------------------------------------------------------------
+
+
+def test_the_readme_is_at_most_300_lines():
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 300
