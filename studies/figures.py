@@ -222,6 +222,101 @@ def tradeoff() -> str:
     )
 
 
+#: The gates' figure: the built-in materials at 256 texels, the default lights (30 degrees, -60..60).
+GATE_ARGS = ("--size", "256", "--spp", "8")
+#: The |F - V| levels the picture strip shows.
+LEVELS = (0.01, 0.03, 0.1, 0.2)
+
+
+def _round_up(x: float) -> str:
+    """``x`` rounded up to two significant digits, as a threshold."""
+    import math
+
+    if x <= 0:
+        return "0"
+    step = 10.0 ** (math.floor(math.log10(x)) - 1)
+    return f"{math.ceil(x / step - 1e-9) * step:.2g}"
+
+
+def gates() -> str:
+    """docs/ci.md's recommended gates: each technique's sweep mean of |F - V| (facing) and FLIP on every
+    built-in material, a threshold a quarter above the largest, and docs/levels.png, what those levels
+    look like (truth | technique | visibility difference, from the same runs)."""
+    from hzval.report import ranking
+
+    rows_of: dict[str, list] = {}
+    picks = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in ENGINE_MAPS:
+            out = Path(tmp) / name
+            subprocess.run(
+                [*HZVAL, "sweep", "--material", name, *GATE_ARGS, "--quiet", "--out", str(out)],
+                check=True,
+                cwd=ROOT,
+                stdout=subprocess.DEVNULL,
+            )
+            m = json.loads((out / "metrics.json").read_text())
+            for t in m["techniques"]:
+                per = [f["techniques"][t] for f in m["frames"]]
+                vis = [ranking.visibility_of(r) for r in per]
+                flip = [r["flip_mean"] for r in per]
+                rows_of.setdefault(t, []).append((sum(vis) / len(vis), sum(flip) / len(flip)))
+                picks += [(v, r["flip_mean"], name, t, f, out) for v, r, f in zip(vis, per, m["frames"])]
+        strip = _level_strip(picks)
+    head = [
+        "| technique | mean \\|F - V\\| over the built-ins: median (range) | `--fail-if` | "
+        "mean FLIP: median (range) | `--fail-if` |",
+        "|---|---|---|---|---|",
+    ]
+    for t, rs in rows_of.items():
+        vis, flip = sorted(r[0] for r in rs), sorted(r[1] for r in rs)
+        head.append(
+            f"| `{t}` | {vis[len(vis) // 2]:.3f} ({vis[0]:.3f}-{vis[-1]:.3f}) | "
+            f"`mean({t}.visibility_mae_facing)>{_round_up(1.25 * vis[-1])}` | "
+            f"{flip[len(flip) // 2]:.3f} ({flip[0]:.3f}-{flip[-1]:.3f}) | "
+            f"`mean({t}.flip_mean)>{_round_up(1.25 * flip[-1])}` |"
+        )
+    what = (
+        f"each technique's sweep means on the {len(ENGINE_MAPS)} built-in materials "
+        f"({', '.join(ENGINE_MAPS)}); a threshold a quarter above the worst material's, which every "
+        "built-in passes today"
+    )
+    command = "hzval sweep --material NAME " + " ".join(GATE_ARGS)
+    return "\n".join(head) + f"\n\n*{what}.* " + _provenance(command) + "\n\n" + strip
+
+
+def _level_strip(picks: list) -> str:
+    """docs/levels.png: for each of :data:`LEVELS` the frame whose |F - V| is nearest, its truth,
+    technique and visibility difference side by side (a 96-pixel crop where the difference is
+    largest); the markdown that shows it and says what each column is."""
+    import numpy as np
+    from PIL import Image
+
+    crop, tiles, said = 96, [], []
+    for level in LEVELS:
+        v, flip, name, t, frame, out = min(picks, key=lambda p: abs(p[0] - level))
+        files = frame["techniques"][t]["files"]
+        images = [out / frame["files"]["truth_png"], out / files["png"], out / files["visdiff_png"]]
+        arrays = [np.asarray(Image.open(p).convert("RGB")) for p in images]
+        diff = arrays[2].astype(np.int32).sum(-1)
+        diff = np.abs(diff - np.median(diff))
+        h, w = diff.shape
+        cs = np.cumsum(np.cumsum(np.pad(diff, ((1, 0), (1, 0))), 0), 1)
+        win = cs[crop:, crop:] - cs[:-crop, crop:] - cs[crop:, :-crop] + cs[:-crop, :-crop]
+        r, c = np.unravel_index(int(np.argmax(win)), win.shape)
+        tiles.append(np.concatenate([a[r : r + crop, c : c + crop] for a in arrays], axis=1))
+        said.append(f"{level:g}: {name}, `{t}` at {frame['name']} (|F - V| {v:.3f}, FLIP {flip:.3f})")
+    gap = np.full((crop, 8, 3), 255, np.uint8)
+    strip = np.concatenate([x for tile in tiles for x in (tile, gap)][:-1], axis=1)
+    Image.fromarray(strip).save(ROOT / "docs" / "levels.png", optimize=True)
+    return (
+        "![What |F - V| levels look like: truth, technique and visibility difference for each level]"
+        "(levels.png)\n\n*Left to right, |F - V| near " + "; ".join(said) + ". Each: truth | technique | "
+        "visibility difference (leaks and false shadows in two colours), the 96-pixel crop where the "
+        "difference is largest.*"
+    )
+
+
 #: name -> (function, quick): quick figures run by default, the others only when named.
 FIGURES = {
     "default-sweep": (default_sweep, True),
@@ -229,6 +324,7 @@ FIGURES = {
     "pom-steps": (pom_steps, False),
     "engines": (engines, False),
     "tradeoff": (tradeoff, False),
+    "gates": (gates, False),
 }
 
 

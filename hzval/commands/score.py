@@ -58,7 +58,18 @@ from hzval.report import images
 from hzval.report import pages as report
 from hzval.scene.spec import Frame
 
-__all__ = ["score", "write", "read_frame", "read_factor", "read_sidecar", "LABEL", "NAME", "SIDECAR"]
+__all__ = [
+    "score",
+    "write",
+    "read_frame",
+    "read_factor",
+    "read_sidecar",
+    "sampling_flip",
+    "ALIASING_FLIP",
+    "LABEL",
+    "NAME",
+    "SIDECAR",
+]
 
 #: What the report calls the scored images, unless the sidecar names them.
 LABEL = "your renderer"
@@ -483,7 +494,8 @@ def score(
         "techniques": techniques,
         "warnings": ([_ignored_line(frames_dir, ignored, names)] if ignored else [])
         + ([F_ONLY_LINE] if f_only else [])
-        + _brightness_summary(warnings),
+        + _brightness_summary(warnings)
+        + [w for w in (_sampling_warning(frames),) if w],
         "frames": frames,
     }
     if match is not None:
@@ -553,7 +565,66 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     slip = None if img is None else brightness.diagnose(img, truth.image, exposure, png=path.suffix == ".png")
     if slip:
         frame["brightness"] = slip
+    sampling = None if img is None else sampling_flip(sweep_dir, swept, img, exposure, F)
+    if sampling is not None:
+        frame["sampling"] = sampling
     return frame, image_maps, None if slip is None else (f["name"], slip)
+
+
+#: How much more than the sweep's own technique an engine's frame may differ from the sweep's
+#: unshadowed shading where both are fully lit, in FLIP, before ``score`` says it aliases.
+ALIASING_FLIP = 0.005
+
+
+def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float, F) -> dict | None:
+    """How far the engine's frame is from the sweep's unshadowed shading (``plain.png``, the sweep's
+    own samples) on the pixels the truth lights fully (and the engine, where its F is given), in mean
+    FLIP, beside the same for the sweep's lead technique: shadows cannot differ there, so what does
+    is the sampling (or the shading). ``{engine, sweep, technique}``; ``None`` where the sweep kept no
+    such files."""
+    files_ = swept.get("files") or {}
+    techniques = swept.get("techniques") or {}
+    lead = next((n for n, t in techniques.items() if (t.get("files") or {}).get("png")), None)
+    if not files_.get("plain_png") or not files_.get("visibility") or lead is None:
+        return None
+    V = files.read_exr(sweep_dir / files_["visibility"])["Y"]
+    lit = V >= 1.0
+    if F is not None:
+        lit &= F >= 1.0
+    own_F = techniques[lead]["files"].get("factor")
+    own_lit = lit if own_F is None else lit & (next(iter(files.read_exr(sweep_dir / own_F).values())) >= 1.0)
+    if lit.sum() < 64 or own_lit.sum() < 64:
+        return None
+    plain = _display_png(sweep_dir / files_["plain_png"])
+    flip_map = compare.flip(plain, compare.display(img, exposure))[0]
+    own = compare.flip(plain, _display_png(sweep_dir / techniques[lead]["files"]["png"]))[0]
+    return {"engine": float(flip_map[lit].mean()), "sweep": float(own[own_lit].mean()), "technique": lead}
+
+
+def _display_png(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        arr = np.asarray(im.convert("RGB"), np.float64) / 255.0
+    return arr
+
+
+def _sampling_warning(frames: list[dict]) -> str | None:
+    """One line where the engine's frames alias more than the sweep's own technique
+    (:func:`sampling_flip`)."""
+    found = [f["sampling"] for f in frames if f.get("sampling")]
+    if not found:
+        return None
+    engine = sum(x["engine"] for x in found) / len(found)
+    sweep = sum(x["sweep"] for x in found) / len(found)
+    if engine - sweep <= ALIASING_FLIP:
+        return None
+    return (
+        f"the frames differ from the sweep's unshadowed shading by FLIP {engine:.3f} on the pixels both "
+        f"light fully, the sweep's own {found[0]['technique']} by {sweep:.3f}: about {engine - sweep:.3f} "
+        "of the engine's FLIP is its sampling (aliasing), not its shadows; render frames.json's samples "
+        "per pixel, or compare shadows by |F - V| (f_<name>.exr)"
+    )
 
 
 def _brightness_summary(found: list) -> list[str]:

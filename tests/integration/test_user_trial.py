@@ -185,3 +185,61 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
 
 def test_the_readme_is_at_most_300_lines():
     assert len((ROOT / "README.md").read_text().splitlines()) <= 300
+
+
+# 7. score says when the engine's frames alias more than the sweep's ----------------------------------------
+
+
+def test_score_says_when_one_sample_frames_alias(tmp_path, capsys, variant):
+    import shutil
+
+    argv = ["sweep", "--material", "gravel", "--size", "96", "--azimuths", "0,45", "--techniques", "horizon"]
+    for spp in (16, 1):
+        assert (
+            cli.main([*argv, "--spp", str(spp), "--all-files", "--quiet", "--out", str(tmp_path / f"s{spp}")])
+            == 0
+        )
+    for spp in (16, 1):  # the sweep's own sampling, then one sample a pixel
+        engine = tmp_path / f"engine{spp}"
+        engine.mkdir()
+        for light in ("az+0", "az+45"):
+            shutil.copyfile(tmp_path / f"s{spp}" / "frames" / light / "horizon.exr", engine / f"{light}.exr")
+    capsys.readouterr()
+    same = [
+        "score",
+        str(tmp_path / "engine16"),
+        "--against",
+        str(tmp_path / "s16"),
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    assert cli.main(same) == 0
+    assert "sampling (aliasing)" not in capsys.readouterr().err
+    one = [
+        "score",
+        str(tmp_path / "engine1"),
+        "--against",
+        str(tmp_path / "s16"),
+        "--out",
+        str(tmp_path / "p"),
+    ]
+    assert cli.main(one) == 0
+    err = capsys.readouterr().err
+    assert "sampling (aliasing), not its shadows" in err and "frames.json's samples" in err
+
+
+# 6. the recommended gates are gates ----------------------------------------------------------------------
+
+
+def test_the_recommended_gates_parse_and_name_what_a_sweep_writes():
+    import re
+
+    from hzval.commands import gates
+    from hzval.techniques import registry as technique
+
+    text = (ROOT / "docs" / "ci.md").read_text()
+    figure = text.split("<!-- figure:gates -->")[1].split("<!-- /figure:gates -->")[0]
+    conditions = re.findall(r"`(mean\([^`]+)`", figure)
+    assert len(conditions) == 2 * len(technique.defaults())
+    gates.check_names([gates.parse(c) for c in conditions], technique.defaults())
+    assert (ROOT / "docs" / "levels.png").is_file() and "levels.png" in figure
