@@ -315,6 +315,13 @@ def _given_origin(origin, out: Path):
     return str((out / path).resolve()) + (plus + rest if plus else "")
 
 
+def _facing_mean(records: list[dict]) -> dict:
+    """``{"visibility_mae_facing": mean}`` over the records that have one; ``{}`` where none has (a view
+    without a facing mask), so that the row's |F - V| is its whole image's."""
+    mean = _mean(r.get("visibility_mae_facing") for r in records)
+    return {} if mean is None else {"visibility_mae_facing": mean}
+
+
 def _not_run(entry: Entry, why: str = "the suite was interrupted first") -> dict:
     return {
         "name": entry.name,
@@ -367,13 +374,12 @@ def summarise(entry: Entry, metrics: dict) -> dict:
     FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
     frames = metrics["frames"]
     table = ranking.by_elevation(metrics)
-    # |F - V| as the sweep's report and its ranking measure it: over the pixels facing the light
+    # |F - V| as the sweep's report and its ranking measure it: over the pixels facing the light, where
+    # the sweep has them (ranking.visibility_of reads it, else the whole image's visibility_mae)
     techniques = {
         name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
-        | {
-            "visibility_mae": _mean(ranking.visibility_of(f["techniques"][name]) for f in frames),
-            "worse_at": ranking.worse_than_none(table, name),
-        }
+        | _facing_mean([f["techniques"][name] for f in frames])
+        | {"worse_at": ranking.worse_than_none(table, name)}
         for name in metrics["techniques"]
     }
     m, p = metrics["material"], metrics["parameters"]
@@ -393,7 +399,8 @@ def summarise(entry: Entry, metrics: dict) -> dict:
         "techniques": techniques,
         "floor": {"flip_mean": _mean((f.get("floor") or {}).get("flip_mean") for f in frames)},
         "no_shadows": {
-            "visibility_mae": _mean(ranking.visibility_of(f.get("no_shadows") or {}) for f in frames),
+            "visibility_mae": _mean((f.get("no_shadows") or {}).get("visibility_mae") for f in frames),
+            **_facing_mean([f.get("no_shadows") or {} for f in frames]),
             "flip_mean": _mean((f.get("no_shadows") or {}).get("flip_mean") for f in frames),
         },
         "truth_s": _mean(f.get("truth_s") for f in frames),
@@ -701,7 +708,7 @@ def _sort_key(row: dict) -> tuple:
     if row["status"] != "ok":
         return (0, 0.0, row["name"])
     tech = next(iter(row["techniques"].values()), {})
-    v = tech.get("visibility_mae")
+    v = ranking.visibility_of(tech)
     return (1, -(v if v is not None else -1.0), row["name"])
 
 
@@ -846,12 +853,12 @@ def summary_table(result: dict) -> str:
         if r["status"] != "ok":
             lines.append(f"{r['name'][:20]:20s}  failed: {r['error']}")
             continue
-        scores = {n: r["techniques"].get(n, {}).get("visibility_mae") for n in names}
+        scores = {n: ranking.visibility_of(r["techniques"].get(n, {})) for n in names}
         scored = [(v, n) for n, v in scores.items() if v is not None]
         best_v, best = min(scored) if scored else (None, "-")
         t = r["techniques"].get(lead, {})
         lines.append(
-            f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(t.get('visibility_mae')):>6s}  "
+            f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(ranking.visibility_of(t)):>6s}  "
             f"{_fixed(t.get('flip_mean')):>6s}  {best[:20]:>20s}  {_fixed(best_v):>6s}  {r['seconds']:7.1f}"
         )
     return "\n".join(lines)

@@ -699,7 +699,7 @@ def _suite_row(r: dict, names: list[str]) -> dict:
     for n in names:
         t = r["techniques"].get(n, {})
         cells += [
-            _cell_of(t.get("visibility_mae"), columns.fixed(4)),
+            _cell_of(ranking.visibility_of(t), columns.fixed(4)),
             _cell_of(t.get("flip_mean"), columns.fixed(4)),
             _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], columns.fixed(0)),
         ]
@@ -734,7 +734,7 @@ def suite_ranking(result: dict) -> list[dict]:
         recs = [t for t in recs if isinstance(t, dict)]
         if not recs:
             continue
-        vis = [columns.num(t.get("visibility_mae")) for t in recs]
+        vis = [ranking.visibility_of(t) for t in recs]
         flip = [columns.num(t.get("flip_mean")) for t in recs]
         vis, flip = [v for v in vis if v is not None], [v for v in flip if v is not None]
         worse = sum(bool(t.get("worse_at")) for t in recs)
