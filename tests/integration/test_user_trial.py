@@ -243,3 +243,13 @@ def test_the_recommended_gates_parse_and_name_what_a_sweep_writes():
     assert len(conditions) == 2 * len(technique.defaults())
     gates.check_names([gates.parse(c) for c in conditions], technique.defaults())
     assert (ROOT / "docs" / "levels.png").is_file() and "levels.png" in figure
+
+
+def test_the_recipe_uploads_the_report_without_the_bake_and_the_exrs():
+    """A default sweep writes 70 MB, 24 MB of it the bake and 2 MB a frame of EXRs: the artefact leaves
+    them out (10, the smaller list)."""
+    from tests.integration.test_ci import recipe_steps
+
+    upload = next(s for s in recipe_steps() if "upload-artifact" in s.get("uses", ""))
+    paths = upload["with"]["path"].split()
+    assert "reports/" in paths and "!reports/**/bake/" in paths and "!reports/**/*.exr" in paths
