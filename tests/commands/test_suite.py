@@ -16,6 +16,7 @@ from hzval.core.errors import InputError
 from hzval.io import files
 from hzval.pipeline import sweep
 from hzval.scene import spec as S
+from tests.helpers import interrupt_material
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
 #: Scores a suite row must reproduce from a standalone sweep (times differ run to run).
@@ -438,14 +439,7 @@ def test_a_sidecar_that_names_another_material_is_refused(tmp_path):
 
 def test_ctrl_c_writes_the_overview_of_what_finished(tmp_path, monkeypatch, variant):
     items = suite.entries(["planks", "gravel", "fabric"], **SMALL)
-    real = suite.sweep_material
-
-    def interrupt_the_second(task):
-        if task.entry.name == "gravel":
-            raise KeyboardInterrupt
-        return real(task)
-
-    monkeypatch.setattr(suite, "sweep_material", interrupt_the_second)
+    interrupt_material(monkeypatch, "gravel")
     with pytest.raises(KeyboardInterrupt):
         suite.run(items, tmp_path, workers=0, progress=False)
     result = json.loads((tmp_path / "suite.json").read_text())

@@ -17,6 +17,7 @@ from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import tile
 from hzval.io import files
+from tests.helpers import interrupt_material
 from tests.integration.test_faults import hzval, one_line
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -391,20 +392,11 @@ def test_a_full_disk_during_an_exr_write_is_one_line_naming_the_file(
 def test_ctrl_c_on_a_suite_rerun_keeps_the_earlier_rows(tmp_path, monkeypatch, capsys, variant):
     import json
 
-    from hzval.commands import suite
-
     argv = ["suite", "planks", "gravel", "--size", "16", "--azimuths", "0", "--spp", "1", "--quiet"]
     argv += ["--techniques", "horizon", "--workers", "0", "--out", str(tmp_path / "s")]
     assert cli.main(argv) == 0
     before = json.loads((tmp_path / "s" / "suite.json").read_text())
-    real = suite.sweep_material
-
-    def interrupt_the_second(task):
-        if task.entry.name == "gravel":
-            raise KeyboardInterrupt
-        return real(task)
-
-    monkeypatch.setattr(suite, "sweep_material", interrupt_the_second)
+    interrupt_material(monkeypatch, "gravel")
     assert cli.main(argv) == 130
     after = json.loads((tmp_path / "s" / "suite.json").read_text())
     assert after["suite"]["interrupted"] and after["suite"]["not_run"] == 0
