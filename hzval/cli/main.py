@@ -16,13 +16,39 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hzval.cli import bake, check, export_scene, fit, materials, models, score, suite, sweep, tradeoff, views
+from hzval.cli import (
+    bake,
+    check,
+    export_scene,
+    export_textures,
+    fit,
+    materials,
+    models,
+    score,
+    suite,
+    sweep,
+    tradeoff,
+    views,
+)
 from hzval.core import errors
 
 __all__ = ["COMMANDS", "build_parser", "typed_flags", "main"]
 
 #: The commands, in the order of ``hzval --help``.
-COMMANDS = (bake, sweep, check, tradeoff, views, models, export_scene, score, suite, materials, fit)
+COMMANDS = (
+    bake,
+    sweep,
+    check,
+    tradeoff,
+    views,
+    models,
+    export_scene,
+    export_textures,
+    score,
+    suite,
+    materials,
+    fit,
+)
 
 
 def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, str]:

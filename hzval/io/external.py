@@ -148,6 +148,16 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
     out = []
     for p in paths:
         p = Path(p)
+        if p.suffix.lower() == ".ktx2":  # hzval export-textures' layers: level 0, as a GPU decodes it
+            from hzval.io import ktx2
+
+            tex = ktx2.read(p)
+            if tex.format.channels != 4:
+                raise InputError(
+                    p, f"a horizon layer must be RGBA (4 channels), got a KTX2 of VK_FORMAT_{tex.format.name}"
+                )
+            out.append(ktx2.decode_level(tex, 0))
+            continue
         if p.suffix.lower() == ".exr":
             ch = files.read_exr(p)
             if not all(c in ch for c in "RGBA"):
