@@ -87,6 +87,7 @@ SMOKE = {
     "benchmarks/bench_horizon.py": ["--size", "64", "--spp", "1", "--paths", "exact", "--frames", "2"],
     "benchmarks/bench_horizon_methods.py": ["--sizes", "64", "--repeat", "1"],
     "benchmarks/bench_meshes.py": ["--size", "64"],
+    "benchmarks/bench_ktx2.py": ["--size", "32", "--materials", "gravel"],
     "benchmarks/bench_mesh_memory.py": ["--cases", "32:0.05:0,32:0.2:auto"],
     "benchmarks/bench_models.py": ["--size", "64", "--triangles", "200", "--resolution", "64", "--spp", "1"],
     "benchmarks/bench_pom.py": [
@@ -179,6 +180,7 @@ NO_SMOKE = {
 #: test at once; the others are slow.
 FAST = {
     "benchmarks/bench_flip.py",
+    "benchmarks/bench_ktx2.py",
     "benchmarks/bench_horizon.py",
     "benchmarks/bench_horizon_methods.py",
     "benchmarks/bench_pom.py",
