@@ -178,3 +178,18 @@ def test_a_ktx2_layer_that_is_not_rgba_is_one_line(tmp_path):
     ktx2.write(tmp_path / "r.ktx2", texture("R8_UNORM"))
     with pytest.raises(InputError, match="must be RGBA"):
         external.read_layers([Path(tmp_path / "r.ktx2")])
+
+
+def test_an_8_bit_export_is_within_half_a_level_of_the_bake(tmp_path, variant):
+    from hzval.bake import maps
+
+    run = tmp_path / "s"
+    assert cli.main([*SWEEP, "--techniques", "horizon", "--horizon-storage", "u8", "--out", str(run)]) == 0
+    assert cli.main(["export-textures", str(run), "--out", str(tmp_path / "t")]) == 0
+    sines = maps.read_bake(run / "bake").horizon
+    for i in range(2):
+        p = oracle.parse((tmp_path / "t" / f"horizon{i}.ktx2").read_bytes())
+        assert p.vk_format == ktx2.FORMATS["R8G8B8A8_UNORM"].vk
+        offset, length, _ = p.levels[0]
+        texels = np.frombuffer(p.raw[offset : offset + length], np.uint8).reshape(64, 64, 4) / 255.0
+        assert np.abs(texels - sines[..., 4 * i : 4 * i + 4]).max() <= 0.5 / 255 + 1e-6
