@@ -38,7 +38,14 @@ import numpy as np
 
 from hzval.core import conventions as cv
 
-__all__ = ["HL2_BASIS", "bent_normal", "self_shadowed_bump", "BYTES_PER_TEXEL"]
+__all__ = [
+    "HL2_BASIS",
+    "bent_normal",
+    "uniform_ao",
+    "uniform_bent_normal",
+    "self_shadowed_bump",
+    "BYTES_PER_TEXEL",
+]
 
 #: Half-Life 2's radiosity normal-mapping basis in tangent space (Source SDK's ``g_localBumpBasis``;
 #: McTaggart 2004, "Half-Life 2 / Valve Source Shading"), one unit vector per row, ``+y`` up the image.
@@ -106,6 +113,55 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
     norm[closed] = 1.0
     out /= norm
     return out
+
+
+def uniform_ao(sines: np.ndarray) -> np.ndarray:
+    """The open share of the hemisphere's solid angle, counted uniformly (Oat & Sander 2007's
+    visibility, not the cosine-weighted AO): per azimuth wedge ``int_alpha^(pi/2) cos t dt = 1 - s``,
+    so ``mean_k (1 - s_k)``; ``(rows, cols)`` float32 in [0, 1].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> float(uniform_ao(np.full((1, 1, 8), 0.25))[0, 0])
+    0.75
+    """
+    sines = np.asarray(sines)
+    D = sines.shape[-1]
+    out = np.zeros(sines.shape[:-1], np.float32)
+    for k in range(D):
+        out += 1.0 - _channel(sines, k)
+    return out / np.float32(D)
+
+
+def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
+    """The plain (solid-angle) average of the open directions, normalised (Oat & Sander 2007's bent
+    normal): per azimuth ``phi``, with ``alpha = asin s``, ``int_alpha^(pi/2) (cos t cos phi,
+    cos t sin phi, sin t) cos t dt = ((pi/4 - alpha/2 - sin(2 alpha)/4) (cos phi, sin phi),
+    (1 - s^2) / 2)``; ``(rows, cols, 3)`` float32, ``+z`` where nothing is open.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> uniform_bent_normal(np.zeros((1, 1, 8)))[0, 0].round(6).tolist()
+    [0.0, 0.0, 1.0]
+    """
+    sines = np.asarray(sines)
+    D = sines.shape[-1]
+    out = np.zeros((*sines.shape[:-1], 3), np.float32)
+    for k in range(D):
+        phi = math.radians(cv.channel_azimuth_deg(k, D))
+        sk = _channel(sines, k)
+        alpha = np.arcsin(sk)
+        side = np.float32(math.pi / 4) - alpha / 2 - np.sin(2 * alpha) / 4
+        out[..., 0] += side * np.float32(math.cos(phi))
+        out[..., 1] += side * np.float32(math.sin(phi))
+        out[..., 2] += (1.0 - sk * sk) / 2
+    norm = np.linalg.norm(out, axis=-1, keepdims=True)
+    closed = norm[..., 0] <= 1e-12
+    out[closed] = (0.0, 0.0, 1.0)
+    norm[closed] = 1.0
+    return (out / norm).astype(np.float32)
 
 
 def _G(p: float, bz: float, t):

@@ -1,18 +1,26 @@
 """Bent cones: the ``bent-cone`` technique (ambient aperture lighting applied to the sun).
 
-Oat & Sander 2007, "Ambient Aperture Lighting"; Jimenez et al. 2016, "Practical Real-Time Strategies
-for Accurate Indirect Occlusion". The open directions of a texel are taken to be a cone about the
-bent normal ``B`` (``bent_normal.exr``; 8-bit as a normal map with ``--bent-normal-storage u8``)
-whose cosine-weighted solid angle is the ambient occlusion ``AO`` (``mean_cos2``): a cone of
+The open directions of a texel are taken to be a cone about a bent normal ``B``. Two conventions
+(``--bent-cone-variant``):
+
+``jimenez`` (the default; Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate Indirect
+Occlusion", as HDRP): ``B`` the cosine-weighted mean open direction (``bent_normal.exr``) and a
+cone whose cosine-weighted solid angle is the ambient occlusion ``AO`` (``mean_cos2``): a cone of
 half-angle ``theta_v`` holds the cosine-weighted share ``sin^2 theta_v``, so
-``cos theta_v = sqrt(1 - AO)``.
+``cos theta_v = sqrt(1 - AO)``;
+``oat-sander`` (Oat & Sander 2007, "Ambient Aperture Lighting"): ``B`` the plain (solid-angle)
+average of the open directions and a cone whose solid angle is the uniformly counted open share
+``V`` of the hemisphere, ``2 pi (1 - cos theta_v) = 2 pi V``, so ``cos theta_v = 1 - V``; both
+from the bake's horizon sines (:func:`hzval.bake.occlusion.uniform_bent_normal`,
+:func:`hzval.bake.occlusion.uniform_ao`). Either is stored as ``--bent-normal-storage`` and
+``--ao-storage`` say (8-bit as a normal map with ``u8``).
 
 ``F`` is the share of the light's disc inside the cone:
 
 - a hard light is the limit of a small disc: ``F = 1`` where ``B.L >= cos theta_v``, else 0;
 - a soft light of angular radius ``r`` (:class:`hzval.scene.spec.Light`) takes the exact solid angle of
   the intersection of two spherical caps (:func:`cap_intersection`) over the disc's
-  ``2 pi (1 - cos r)``, or with ``--bent-cone-variant filament`` Filament's smooth approximation
+  ``2 pi (1 - cos r)``, or with ``--bent-cone-intersection filament`` Filament's smooth approximation
   (``sphericalCapsIntersection``, after Oat & Sander 2007), which Filament and HDRP ship for
   specular occlusion.
 """
@@ -21,13 +29,21 @@ from __future__ import annotations
 
 import math
 
+from hzval.bake import occlusion
 from hzval.core.backend import dr, mi
 from hzval.techniques.perpixel import PerPixelFactor
 
-__all__ = ["BentCone", "VARIANTS", "cap_intersection", "cap_intersection_filament"]
+__all__ = ["BentCone", "VARIANTS", "INTERSECTIONS", "cap_intersection", "cap_intersection_filament"]
 
+#: The cone's convention (module docstring).
+VARIANTS: tuple[str, ...] = ("jimenez", "oat-sander")
 #: How a soft light's disc is intersected with the cone.
-VARIANTS: tuple[str, ...] = ("exact", "filament")
+INTERSECTIONS: tuple[str, ...] = ("exact", "filament")
+#: The planes the ``oat-sander`` variant derives from the horizon sines, by the texture they replace.
+_UNIFORM = {
+    "bent-normal": ("bent_normal_uniform", occlusion.uniform_bent_normal),
+    "ao": ("ao_uniform", occlusion.uniform_ao),
+}
 
 
 def cap_intersection(r1, r2, d):
@@ -86,7 +102,8 @@ class BentCone(PerPixelFactor):
     name = "bent-cone"
     label = "bent cone"
     summary = (
-        "bent normal + visibility cone cos = sqrt(1 - AO), intersected with the light (Oat & Sander 2007)"
+        "bent normal + visibility cone cos = sqrt(1 - AO) (Jimenez 2016) or 1 - V (Oat & Sander 2007), "
+        "intersected with the light"
     )
     file_stem = "bent_cone"
     textures = ("bent-normal", "ao")
@@ -95,13 +112,29 @@ class BentCone(PerPixelFactor):
         "bent-normal-storage": "--bent-normal-storage",
         "ao-storage": "--ao-storage",
         "variant": "--bent-cone-variant",
+        "intersection": "--bent-cone-intersection",
     }
 
     @classmethod
     def validate(cls, settings: dict) -> dict:
         variant = cls.choice(settings, "variant", VARIANTS)
+        intersection = cls.choice(settings, "intersection", INTERSECTIONS)
         super().validate(settings)
-        return {"variant": variant}
+        return {"variant": variant, "intersection": intersection}
+
+    def plane(self, name: str):
+        if self.settings["variant"] != "oat-sander" or self.bake.horizon is None:
+            return super().plane(name)
+        if not hasattr(self, "_uniform"):
+            self._uniform = {}
+        if name not in self._uniform:
+            self._uniform[name] = _UNIFORM[name][1](self.bake.horizon)
+        return self._uniform[name]
+
+    def plane_name(self, name: str) -> str:
+        if self.settings["variant"] != "oat-sander":
+            return super().plane_name(name)
+        return _UNIFORM[name][0]
 
     def constants(self) -> dict:
         light = self.scene.light
@@ -110,14 +143,17 @@ class BentCone(PerPixelFactor):
 
     def factor(self, tex: dict, n, L, c: dict):
         B = dr.normalize(mi.Vector3f(*tex["bent-normal"]))
-        cos_v = dr.sqrt(dr.maximum(1.0 - tex["ao"][0], 0.0))
+        if self.settings["variant"] == "oat-sander":  # the cone holds the open solid angle
+            cos_v = 1.0 - tex["ao"][0]
+        else:  # the cone holds the cosine-weighted open share
+            cos_v = dr.sqrt(dr.maximum(1.0 - tex["ao"][0], 0.0))
         cos_d = dr.dot(B, L)
         r = c["r"]
         if r == 0.0:  # a hard light: the disc's limit
             return dr.select(cos_d >= cos_v, 1.0, 0.0)
         theta_v = dr.maximum(dr.acos(dr.clip(cos_v, -1.0, 1.0)), 1e-6)
         d = dr.acos(dr.clip(cos_d, -1.0, 1.0))
-        meet = cap_intersection if self.settings["variant"] == "exact" else cap_intersection_filament
+        meet = cap_intersection if self.settings["intersection"] == "exact" else cap_intersection_filament
         return meet(theta_v, r, d) / (2.0 * math.pi * (1.0 - math.cos(r)))
 
     @classmethod
@@ -126,6 +162,14 @@ class BentCone(PerPixelFactor):
         parser.add_argument(
             "--bent-cone-variant",
             choices=VARIANTS,
+            default="jimenez",
+            help="bent cones: the cosine-weighted bent normal and cos = sqrt(1 - AO) (Jimenez 2016, "
+            "HDRP), or the plain average and cos = 1 - V of the open solid angle (Oat & Sander 2007) "
+            "(default jimenez)",
+        )
+        parser.add_argument(
+            "--bent-cone-intersection",
+            choices=INTERSECTIONS,
             default="exact",
             help="bent cones: a soft light's disc meets the cone exactly, or by Filament's smooth "
             "approximation (default exact; a hard light is the same in both)",
@@ -133,4 +177,8 @@ class BentCone(PerPixelFactor):
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        return {**super().settings_from_args(args), "variant": args.bent_cone_variant}
+        return {
+            **super().settings_from_args(args),
+            "variant": args.bent_cone_variant,
+            "intersection": args.bent_cone_intersection,
+        }

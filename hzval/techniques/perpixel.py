@@ -172,7 +172,7 @@ class FactorKernel(FlatShading):
     # -- the hooks of the flat shading ----------------------------------------------------------
 
     def _slot(self, member, texture: str) -> str:
-        return f"{texture}:{member.storage[texture]}"
+        return f"{member.plane_name(texture)}:{member.storage[texture]}"
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
         planes: dict[str, np.ndarray] = {}
@@ -180,9 +180,7 @@ class FactorKernel(FlatShading):
             for t in m.textures:
                 tx = m.texture(t)
                 if self._slot(m, t) not in planes:
-                    planes[self._slot(m, t)] = stored(
-                        getattr(self.bake, tx.field), m.storage[t], signed=tx.signed
-                    )
+                    planes[self._slot(m, t)] = stored(m.plane(t), m.storage[t], signed=tx.signed)
         if any(m.reads_normal for m in self.members):
             planes[NORMAL_SLOT] = self.bake.normal
         return list(planes.items())
@@ -250,6 +248,16 @@ class PerPixelFactor(Technique):
     def texture(cls, name: str) -> Texture:
         """The texture of that name it reads."""
         return cls.own_textures.get(name) or TEXTURES[name]
+
+    def plane(self, name: str) -> np.ndarray:
+        """The values of texture ``name`` before storage: the bake's field (a variant may derive
+        its own, :meth:`plane_name` naming them)."""
+        return getattr(self.bake, self.texture(name).field)
+
+    def plane_name(self, name: str) -> str:
+        """What :meth:`plane` holds for texture ``name``: the same name, the same values (techniques
+        that read them share the kernel's one copy)."""
+        return self.texture(name).field
 
     # -- what a subclass gives ------------------------------------------------------------------
 

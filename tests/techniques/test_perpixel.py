@@ -149,11 +149,12 @@ def test_a_soft_light_inside_a_wide_cone_is_whole_and_outside_it_none():
     bake = B.bake(h, B.BakeParams(depth=0.1, boundary="wrap"))
     scene = make_scene(h.shape, 0.1, "wrap", kind="soft", radius=5.0)
     for variant in bent_cone.VARIANTS:
-        t = BentCone(scene, bake, variant=variant, **_storage(BentCone))
-        assert np.allclose(t.sample([4.5], [4.5], 0.0, 45.0)["factor"], 1.0, atol=1e-5)
-        assert np.allclose(t.sample([4.5], [4.5], 0.0, 0.0)["factor"], 0.5, atol=1e-4)  # half the disc up
+        for intersection in bent_cone.INTERSECTIONS:
+            t = BentCone(scene, bake, variant=variant, intersection=intersection, **_storage(BentCone))
+            assert np.allclose(t.sample([4.5], [4.5], 0.0, 45.0)["factor"], 1.0, atol=1e-5)
+            assert np.allclose(t.sample([4.5], [4.5], 0.0, 0.0)["factor"], 0.5, atol=1e-4)  # half the disc up
     # the disc's centre 2.5 degrees up: the segment below the plane is 0.195 of a 5-degree disc
-    t = BentCone(scene, bake, variant="exact", **_storage(BentCone))
+    t = BentCone(scene, bake, intersection="exact", **_storage(BentCone))
     assert np.allclose(t.sample([4.5], [4.5], 0.0, 2.5)["factor"], 0.805, atol=0.005)
 
 
@@ -282,7 +283,7 @@ def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, 
     assert abs(Bn[0]) < 1e-9 and abs(Bn[1]) < 1e-9  # the groove is symmetric: B is +z
     radius = 6.0
     scene = make_scene((8, 8), 0.1, "wrap", kind="soft", radius=radius)
-    t = BentCone(scene, bake, variant="exact", **_storage(BentCone))
+    t = BentCone(scene, bake, intersection="exact", **_storage(BentCone))
     theta_v = math.acos(math.sqrt(1 - ao[0, 0]))
     el = 90.0 - math.degrees(theta_v) + offset
     got = float(t.sample([4.5], [4.5], az, el)["factor"][0])
@@ -311,3 +312,55 @@ def test_a_bad_setting_is_one_line_naming_its_flag(tmp_path, capsys, argv, flag)
     err = capsys.readouterr().err
     assert err.startswith(f"hzval: error: {flag}") or f"argument {flag}" in err
     assert err.count("\n") == 1 and not (tmp_path / "o").exists()
+
+
+def test_oat_and_sanders_cone_is_the_open_solid_angle_about_the_plain_mean_direction():
+    """Against a Monte Carlo count that shares nothing with the formulas: directions uniform on the
+    hemisphere, open where above their wedge's horizon; the open share is V, their mean direction B."""
+    from hzval.bake import occlusion
+
+    rng = np.random.default_rng(4)
+    sines = np.array([[[0.9, 0.5, 0.0, 0.2, 0.7, 0.1, 0.0, 0.3]]], np.float32)
+    z = rng.random(400_000)  # uniform on the hemisphere: z uniform, azimuth uniform
+    phi = rng.random(400_000) * 2 * np.pi
+    w = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], -1)
+    wedge = np.round(phi / (2 * np.pi / 8)).astype(int) % 8
+    open_ = z > sines[0, 0][wedge]
+    assert occlusion.uniform_ao(sines)[0, 0] == pytest.approx(open_.mean(), abs=3e-3)
+    mean = w[open_].mean(0)
+    B = occlusion.uniform_bent_normal(sines)[0, 0]
+    assert np.allclose(B, mean / np.linalg.norm(mean), atol=5e-3)
+    # a closed texel has no open direction: +z, and an empty cone (V = 0, cos = 1)
+    assert occlusion.uniform_bent_normal(np.ones((1, 1, 8), np.float32))[0, 0].tolist() == [0.0, 0.0, 1.0]
+
+
+def test_the_oat_sander_variant_reads_its_own_planes_and_a_wider_cone(baked):
+    """Both conventions make a horizon the same all round into the open cap itself (cos = 1 - V =
+    sqrt(1 - AO) = s); on a bumpy terrain they differ, the plain mean and the solid angle lighting more
+    at 12 degrees here."""
+    from hzval.bake import occlusion
+
+    s = np.full((1, 1, 8), 0.3, np.float32)
+    assert 1.0 - occlusion.uniform_ao(s)[0, 0] == pytest.approx(0.3, abs=1e-6)
+    h, bake = baked
+    t = BentCone(make_scene(h.shape, 0.12, "wrap"), bake, variant="oat-sander", **_storage(BentCone))
+    assert t.plane_name("ao") == "ao_uniform" and t.plane("ao").shape == bake.mean_cos2.shape
+    j = BentCone(make_scene(h.shape, 0.12, "wrap"), bake, variant="jimenez", **_storage(BentCone))
+    assert j.plane_name("ao") == "mean_cos2"
+    fo = probe(BentCone, h, bake, 30.0, 12.0, variant="oat-sander", **_storage(BentCone))
+    fj = probe(BentCone, h, bake, 30.0, 12.0, variant="jimenez", **_storage(BentCone))
+    assert fo.mean() > fj.mean()
+
+
+def test_the_cli_takes_the_variant_and_the_intersection(tmp_path, variant):
+    import json
+
+    from hzval.cli import main as cli
+
+    argv = ["sweep", "--size", "32", "--azimuths", "0", "--spp", "1", "--techniques", "bent-cone", "--quiet"]
+    argv += ["--bent-cone-variant", "oat-sander", "--light", "soft", "--light-radius", "3"]
+    assert cli.main([*argv, "--bent-cone-intersection", "filament", "--out", str(tmp_path / "o")]) == 0
+    params = json.loads((tmp_path / "o" / "metrics.json").read_text())["techniques"]["bent-cone"][
+        "parameters"
+    ]
+    assert params["variant"] == "oat-sander" and params["intersection"] == "filament"
