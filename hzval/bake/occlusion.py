@@ -95,24 +95,7 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
     >>> bent_normal(np.ones((1, 1, 8)))[0, 0].tolist()
     [0.0, 0.0, 1.0]
     """
-    sines = np.asarray(sines)
-    D = sines.shape[-1]
-    out = np.zeros((*sines.shape[:-1], 3), np.float32)
-    for k in range(D):
-        phi = math.radians(cv.channel_azimuth_deg(k, D))
-        sk = _channel(sines, k)
-        side = np.maximum(1.0 - sk * sk, 0.0) ** 1.5
-        out[..., 0] += side * np.float32(math.cos(phi))
-        out[..., 1] += side * np.float32(math.sin(phi))
-        out[..., 2] += 1.0 - sk * sk * sk
-    norm = np.linalg.norm(out, axis=-1, keepdims=True)
-    # a texel closed on every side (every s = 1) has no open direction: +z, as its AO is 0 and a
-    # cone about any axis is empty
-    closed = norm[..., 0] == 0.0
-    out[closed] = (0.0, 0.0, 1.0)
-    norm[closed] = 1.0
-    out /= norm
-    return out
+    return _mean_direction(sines, lambda s: np.maximum(1.0 - s * s, 0.0) ** 1.5, lambda s: 1.0 - s * s * s)
 
 
 def uniform_ao(sines: np.ndarray) -> np.ndarray:
@@ -146,22 +129,35 @@ def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
     >>> uniform_bent_normal(np.zeros((1, 1, 8)))[0, 0].round(6).tolist()
     [0.0, 0.0, 1.0]
     """
+
+    def side(sk):
+        alpha = np.arcsin(sk)
+        return np.float32(math.pi / 4) - alpha / 2 - np.sin(2 * alpha) / 4
+
+    # arcsin(1) in float32 leaves a closed texel's sum a rounding above 0
+    return _mean_direction(sines, side, lambda sk: (1.0 - sk * sk) / 2, closed_below=1e-12)
+
+
+def _mean_direction(sines: np.ndarray, side, up, closed_below: float = 0.0) -> np.ndarray:
+    """``sum_k (side(s_k) (cos phi_k, sin phi_k), up(s_k))`` over the ``D`` azimuths, normalised;
+    ``+z`` where its length is at most ``closed_below`` (a texel closed on every side: its AO is 0,
+    and a cone about any axis is empty). ``(rows, cols, 3)`` float32."""
     sines = np.asarray(sines)
     D = sines.shape[-1]
     out = np.zeros((*sines.shape[:-1], 3), np.float32)
     for k in range(D):
         phi = math.radians(cv.channel_azimuth_deg(k, D))
         sk = _channel(sines, k)
-        alpha = np.arcsin(sk)
-        side = np.float32(math.pi / 4) - alpha / 2 - np.sin(2 * alpha) / 4
-        out[..., 0] += side * np.float32(math.cos(phi))
-        out[..., 1] += side * np.float32(math.sin(phi))
-        out[..., 2] += (1.0 - sk * sk) / 2
+        horizontal = side(sk)
+        out[..., 0] += horizontal * np.float32(math.cos(phi))
+        out[..., 1] += horizontal * np.float32(math.sin(phi))
+        out[..., 2] += up(sk)
     norm = np.linalg.norm(out, axis=-1, keepdims=True)
-    closed = norm[..., 0] <= 1e-12
+    closed = norm[..., 0] <= closed_below
     out[closed] = (0.0, 0.0, 1.0)
     norm[closed] = 1.0
-    return (out / norm).astype(np.float32)
+    out /= norm
+    return out
 
 
 def _G(p: float, bz: float, t):
