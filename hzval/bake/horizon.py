@@ -154,6 +154,7 @@ def horizon_map(
     *,
     kernel: str = "auto",
     directions: int = cv.CHANNEL_COUNT,
+    lift: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Seed horizon bake of heights in texel units.
 
@@ -162,7 +163,9 @@ def horizon_map(
     channel ``k`` the mean of the ``angles / D + 1`` bins centred on azimuth
     ``360 k / D`` degrees) and the two ``(rows, cols)`` ambient terms over
     all bins, float32. Runs on the current Mitsuba variant's Dr.Jit backend
-    (:func:`hzval.core.backend.variant`).
+    (:func:`hzval.core.backend.variant`). ``lift``: texels each texel's own height is raised by
+    before it looks for its horizon (Valve's ``height2ssbump`` lifts its rays' origins by 0.55 texel,
+    so that rises lower than that do not occlude); 0 leaves the kernels as they are.
 
     ``kernel`` chooses how the offset table (:func:`horizon_table`) becomes
     code; both forms compute the same float32 operations on the same values
@@ -208,9 +211,9 @@ def horizon_map(
         return drow * pcols + dcol
 
     if kernel == "loop":
-        max_tan = _max_tan_loop(mi.Float(flat), start, lanes, table, angles, shift_of)
+        max_tan = _max_tan_loop(mi.Float(flat), start, lanes, table, angles, shift_of, lift)
     else:
-        max_tan = _max_tan_unrolled(flat, start, lanes, table, angles, shift_of)
+        max_tan = _max_tan_unrolled(flat, start, lanes, table, angles, shift_of, lift)
     channels, mean_cos, mean_cos2 = _channels(max_tan, angles, directions)
     dr.eval(*channels, mean_cos, mean_cos2)
 
@@ -223,7 +226,9 @@ def horizon_map(
     return result
 
 
-def _max_tan_unrolled(flat: np.ndarray, start: int, lanes: int, table, angles: int, shift_of) -> list:
+def _max_tan_unrolled(
+    flat: np.ndarray, start: int, lanes: int, table, angles: int, shift_of, lift: float = 0.0
+) -> list:
     """Per bin, the largest ``tan = dh / r`` of the offsets it covers: one block of code per
     offset group, neighbours read as zero-copy shifted views on the LLVM backend (contiguous
     loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation."""
@@ -242,7 +247,7 @@ def _max_tan_unrolled(flat: np.ndarray, start: int, lanes: int, table, angles: i
         def neighbour(shift: int):
             return dr.gather(mi.Float, source, mi.UInt32(lane + shift))
 
-    h0 = neighbour(0)
+    h0 = neighbour(0) if lift == 0.0 else neighbour(0) + lift
     max_tan = [mi.Float(0.0) for _ in range(angles)]
     for group in table:
         # max over the group of tan = dh / r; clamped at 0 by the bins' start
@@ -277,7 +282,9 @@ def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object
     return channels, mean_cos, mean_cos2
 
 
-def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angles: int, shift_of) -> list:
+def _max_tan_loop(
+    source, start: int, lanes: int, table: list[OffsetGroup], angles: int, shift_of, lift: float = 0.0
+) -> list:
     """The ``angles`` per-bin maxima of ``tan`` (>= 0) by symbolic Dr.Jit loops over ``table``.
 
     ``source`` is the flat padded map (:func:`horizon_map`), lane ``l`` the
@@ -318,6 +325,8 @@ def _max_tan_loop(source, start: int, lanes: int, table: list[OffsetGroup], angl
     # opaque: the radius and the map's width change these, and must not change the kernel
     lane = dr.arange(mi.Int32, lanes) + dr.opaque(mi.Int32, start)
     h0 = dr.gather(mi.Float, source, mi.UInt32(lane))
+    if lift != 0.0:
+        h0 = h0 + lift
     n_groups = dr.opaque(mi.UInt32, len(table))
 
     def group_body(gi, best):

@@ -66,6 +66,12 @@ BAKE_BYTES_PER_TEXEL = 160
 BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION = 16
 
 
+#: Valve's lift of the self-shadowed bump map's ray origins, texels (``height2ssbump``).
+SSBUMP_LIFT = 0.55
+#: The largest lift accepted: a rise of a texel's whole search radius would open every texel.
+MAX_SSBUMP_LIFT = 16.0
+
+
 @dataclass(frozen=True)
 class BakeParams:
     """Parameters of a bake (``hzval bake``'s options).
@@ -86,6 +92,10 @@ class BakeParams:
     the odd multiples of 22.5 degrees a ray from a texel centre meets no
     texel centres, so the exact sweeps would need interpolated heights
     (not implemented; :meth:`validate` says so).
+    ``ssbump_lift``: texels the self-shadowed bump map's rays start above each texel (Valve's
+    ``height2ssbump``, ``surf_pnt.z += 0.55``): the seed's sweep at this radius and these bins
+    with the origin raised (:func:`horizon_map`'s ``lift``), whatever ``method``; 0 reads the
+    horizon map itself.
     """
 
     depth: float = 0.05
@@ -94,9 +104,15 @@ class BakeParams:
     boundary: str = "wrap"
     method: str = "seed"
     directions: int = cv.CHANNEL_COUNT
+    ssbump_lift: float = SSBUMP_LIFT
 
     def validate(self) -> "BakeParams":
         cv.check_depth(self.depth, "--depth", self.boundary)
+        lift = self.ssbump_lift
+        if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not 0.0 <= lift <= MAX_SSBUMP_LIFT:
+            raise InputError(
+                "--ssbump-lift", f"must be a number of texels in [0, {MAX_SSBUMP_LIFT:g}], got {lift}"
+            )
         if self.method not in METHODS:
             raise InputError(
                 "--method", f"unknown bake method {self.method!r}; available: {', '.join(METHODS)}"
@@ -155,11 +171,12 @@ class BakeParams:
 
     @staticmethod
     def normalise_record(record: dict) -> dict:
-        """``record`` as :meth:`record` writes it now: a missing ``directions`` is 8.
+        """``record`` as :meth:`record` writes it now: a missing ``directions`` is 8 and a missing
+        ``ssbump_lift`` 0.
 
-        The bake cache compares records, and a ``bake.json`` from before
-        ``directions`` existed holds an 8-direction bake."""
-        return {"directions": cv.CHANNEL_COUNT, **record}
+        The bake cache compares records, and a ``bake.json`` from before either existed holds an
+        8-direction bake whose self-shadowed bump map was not lifted."""
+        return {"directions": cv.CHANNEL_COUNT, "ssbump_lift": 0.0, **record}
 
 
 #: Horizon bake methods (``BakeParams.method``, ``--method``).
@@ -379,10 +396,22 @@ def bake(
         # charges
         pool = backend.host_pool(2)
         bent = pool.submit(directional.bent_normal, horizon)
-        ss = directional.self_shadowed_bump(horizon, normal, pool=pool)
+        ss = directional.self_shadowed_bump(_ssbump_horizon(h, horizon, params), normal, pool=pool)
         bent = bent.result()
         timings["occlusion_s"] = time.perf_counter() - t2
     return Bake(params, horizon, normal, mean_cos, mean_cos2, timings, bent_normal=bent, ssbump=ss).checked()
+
+
+def _ssbump_horizon(h: np.ndarray, horizon: np.ndarray, params: BakeParams) -> np.ndarray:
+    """The horizons the self-shadowed bump map is made from: ``horizon`` itself without a lift, else
+    the seed's sweep from origins raised by ``params.ssbump_lift`` texels (:class:`BakeParams`)."""
+    if params.ssbump_lift == 0.0:
+        return horizon
+    d = BakeParams()
+    radius, angles = (params.radius, params.angles) if params.method == "seed" else (d.radius, d.angles)
+    return horizon_map(
+        h, radius, angles, params.boundary, directions=params.directions, lift=float(params.ssbump_lift)
+    )[0]
 
 
 def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]:
@@ -502,7 +531,8 @@ def _output_notes(directions: int, full: bool = True, occluded: bool = True) -> 
         notes["bent_normal"] = "cosine-weighted mean unoccluded direction, tangent space (PNG: 0.5 + 0.5 b)"
         notes["ssbump_map"] = (
             "Valve's self-shadowed bump map: max(0, n . b_c) times the open share about b_c, "
-            "b_c Half-Life 2's basis (docs/techniques.md)"
+            "b_c Half-Life 2's basis, from horizons seen from ssbump_lift texels above the texel "
+            "(docs/techniques.md)"
         )
     if directions == cv.CHANNEL_COUNT:
         notes["cube"] = (

@@ -114,6 +114,14 @@ def add_bake_flags(p: argparse.ArgumentParser) -> None:
         f"the 8 channel directions, unlimited radius; ignores --radius and --angles) "
         f"(default {d.method})",
     )
+    p.add_argument(
+        "--ssbump-lift",
+        type=float,
+        default=d.ssbump_lift,
+        metavar="TEXELS",
+        help="how far above each texel the self-shadowed bump map's rays start, so that lower rises "
+        f"do not occlude (Valve's height2ssbump: 0.55; 0: none) (default {d.ssbump_lift:g})",
+    )
 
 
 def add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
@@ -380,7 +388,11 @@ def technique_options(args) -> dict:
     if args.techniques is not None:
         requested = tuple(n.strip() for n in args.techniques.split(",") if n.strip())
     params = bake.BakeParams(
-        radius=args.radius, angles=args.angles, method=args.method, directions=args.directions
+        radius=args.radius,
+        angles=args.angles,
+        method=args.method,
+        directions=args.directions,
+        ssbump_lift=args.ssbump_lift,
     ).validate()
     settings = {}
     for n in technique.names():
@@ -420,6 +432,7 @@ def sweep_options(args):
         angles=args.angles,
         method=args.method,
         directions=args.directions,
+        ssbump_lift=args.ssbump_lift,
         all_files=args.all_files,
         **technique_options(args),
     )
@@ -461,6 +474,7 @@ def bake_params(args, scene):
         boundary=scene.material.boundary,
         method=args.method,
         directions=getattr(args, "directions", d.directions),
+        ssbump_lift=getattr(args, "ssbump_lift", d.ssbump_lift),
     ).validate()
 
 

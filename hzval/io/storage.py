@@ -15,7 +15,8 @@ Formats (:data:`STORAGES`)
     ``bc3``    BC3 (DXT5) RGBA layers: colour end points in 5:6:5, 8-bit alpha, 1 byte a texel;
     ``bc1``    BC1 (DXT1) RGB textures, 8 bytes a block: the channels packed three to a texture
                (8 channels in 3 textures);
-    ``bc4``    BC4, one channel a texture, 8 bytes a block.
+    ``bc4``    BC4, one channel a texture, 8 bytes a block;
+    ``bc5``    BC5, two channels a texture, 16 bytes a block (a bent normal's x and y).
 
 Each block format also comes as ``<format>-sqrt``: the texture holds ``sqrt(s)``
 and the shader squares what it samples, which spends the 8-bit and block
@@ -23,8 +24,8 @@ precision where horizons are low (shallow angles), as radial-Fourier and
 map-bumper horizon maps do. ``u8-sqrt`` likewise.
 
 Encoders and decoders are maintained PyPI packages, not code of hzval's:
-``etcpak`` (BC1, BC3, BC4, BC7 encoders) and ``texture2ddecoder`` (Perfare's decoders, as a GPU decodes the
-blocks; its output is BGRA). A map whose sides are not multiples of 4 is
+``etcpak`` (BC1, BC3, BC4, BC5, BC7 encoders) and ``texture2ddecoder`` (Perfare's decoders, as a GPU
+decodes the blocks; its output is BGRA). A map whose sides are not multiples of 4 is
 padded by repeating its edge (as engines pad) and cropped back.
 """
 
@@ -121,6 +122,7 @@ def _codecs() -> dict[str, tuple[Callable, Callable]]:
         "bc3": (etcpak.compress_bc3, t2d.decode_bc3),
         "bc1": (etcpak.compress_bc1, t2d.decode_bc1),
         "bc4": (etcpak.compress_bc4, t2d.decode_bc4),
+        "bc5": (etcpak.compress_bc5, t2d.decode_bc5),
     }
 
 
@@ -135,6 +137,7 @@ def _table() -> dict[str, Storage]:
         "bc3": ("BC3 (DXT5) RGBA", 4, 16),
         "bc1": ("BC1 (DXT1) RGB, 3 channels a texture", 3, 8),
         "bc4": ("BC4, a texture a channel", 1, 8),
+        "bc5": ("BC5, two channels a texture", 2, 16),
     }
     codecs = _codecs()
     for name, (label, channels, block) in layout.items():

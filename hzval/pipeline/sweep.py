@@ -116,6 +116,7 @@ class Options:
     angles: int = _BAKE_DEFAULTS.angles
     method: str = _BAKE_DEFAULTS.method  # horizon bake method: "seed" or "exact"
     directions: int = _BAKE_DEFAULTS.directions
+    ssbump_lift: float = _BAKE_DEFAULTS.ssbump_lift
     techniques: tuple[str, ...] | None = None
     exclude: tuple[str, ...] = ()
     settings: dict = dataclasses.field(default_factory=dict)
@@ -129,6 +130,7 @@ class Options:
             boundary=scene.material.boundary,
             method=self.method,
             directions=self.directions,
+            ssbump_lift=self.ssbump_lift,
         ).validate()
 
 

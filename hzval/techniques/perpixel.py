@@ -14,8 +14,10 @@ the sample's own tangent frame, so each renders on models too.
 A subclass sets the :class:`hzval.techniques.registry.Technique` attributes, :attr:`textures` (the
 texture planes it reads and how each is stored) and :meth:`PerPixelFactor.factor`. Every texture is
 stored as baked (``float``, the default: a sweep's factor images are then each formula on the written
-bake) or as engines store it (``u8``: 8 bits per channel, unit vectors as a normal map's), chosen
-with a ``--<texture>-storage`` flag (:data:`STORAGES`); the tradeoff measures both side by side.
+bake) or as engines store it, chosen with a ``--<texture>-storage`` flag (:attr:`Texture.storages`):
+``u8`` (8 bits a channel, unit vectors as a normal map's) or a block format of
+:mod:`hzval.io.storage` (BC4 for AO, BC5 for a bent normal's x and y with z rebuilt, BC1 or BC7 for
+SSBump's three channels). The tradeoff measures each side by side.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
+from hzval.io import storage as hz_storage
 from hzval.io.files import unit_to_u8
 from hzval.scene import lookup
 from hzval.scene.spec import EFFECTS, Frame, Scene
@@ -42,10 +45,13 @@ __all__ = [
     "Texture",
     "TEXTURES",
     "stored",
+    "texture_bytes",
     "add_storage_flag",
+    "through",
 ]
 
-#: How a texture of these techniques may be stored: as baked, or 8 bits per channel.
+#: How every texture of these techniques may be stored: as baked, or 8 bits per channel; each
+#: texture adds the block formats engines use for it (:attr:`Texture.storages`).
 STORAGES: tuple[str, ...] = ("float", "u8")
 
 
@@ -53,20 +59,34 @@ STORAGES: tuple[str, ...] = ("float", "u8")
 class Texture:
     """A texture these techniques read: the :class:`hzval.bake.maps.Bake` field that holds it, the
     bake content that makes it (:data:`hzval.bake.maps.CONTENTS`), whether it is a unit vector (stored
-    in 8 bits as ``0.5 + 0.5 v``, as a normal map) and what it is, for ``--help``."""
+    as ``0.5 + 0.5 v``, as a normal map), what it is, for ``--help``, and how it may be stored."""
 
     field: str
     content: str
     signed: bool
     what: str
     default: str = "float"
+    #: Its storage formats: :data:`STORAGES` and the block formats of :mod:`hzval.io.storage` engines use.
+    storages: tuple[str, ...] = STORAGES
 
 
 #: The textures more than one technique reads, by the name of their ``--<name>-storage`` flag; a
 #: technique's own texture is its class's (:attr:`PerPixelFactor.own_textures`).
 TEXTURES: dict[str, Texture] = {
-    "ao": Texture("mean_cos2", "ambient", False, "the ambient-occlusion map (ambient.exr's mean_cos2)"),
-    "bent-normal": Texture("bent_normal", "bent_normal", True, "the bent-normal map (bent_normal.exr)"),
+    "ao": Texture(
+        "mean_cos2",
+        "ambient",
+        False,
+        "the ambient-occlusion map (ambient.exr's mean_cos2)",
+        storages=(*STORAGES, "bc4"),
+    ),
+    "bent-normal": Texture(
+        "bent_normal",
+        "bent_normal",
+        True,
+        "the bent-normal map (bent_normal.exr)",
+        storages=(*STORAGES, "bc5"),
+    ),
 }
 
 #: The slot of the normal map's normal when the shading itself reads no normal (``shadow`` alone).
@@ -79,10 +99,12 @@ def stored(values: np.ndarray, storage: str, *, signed: bool = False) -> np.ndar
     Parameters
     ----------
     values : numpy.ndarray
-        The baked texture: values in [0, 1], or unit vectors (``signed``).
+        The baked texture ``(rows, cols[, C])``: values in [0, 1], or unit vectors (``signed``).
     storage : str
-        ``"float"`` (as baked) or ``"u8"`` (rounded to the nearest of 256 levels, as an upload does;
-        unit vectors as ``0.5 + 0.5 v``, decoded and renormalised, as a normal map's are).
+        ``"float"`` (as baked), ``"u8"`` (rounded to the nearest of 256 levels, as an upload does;
+        unit vectors as ``0.5 + 0.5 v``, decoded and renormalised, as a normal map's are) or a block
+        format of :mod:`hzval.io.storage` (encoded and decoded; unit vectors keep ``x`` and ``y`` alone,
+        BC5's layout, and the shader rebuilds ``z = sqrt(1 - x^2 - y^2)``).
     signed : bool
         Whether ``values`` are unit vectors (the last axis).
 
@@ -100,11 +122,64 @@ def stored(values: np.ndarray, storage: str, *, signed: bool = False) -> np.ndar
     v = np.asarray(values, np.float32)
     if storage == "float":
         return v
+    if storage != "u8":
+        return _block_stored(v, hz_storage.get(storage), signed)
     q = unit_to_u8(0.5 + 0.5 * v if signed else v).astype(np.float32) / np.float32(255.0)
     if not signed:
         return q
-    q = 2.0 * q - 1.0
-    return (q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)).astype(np.float32)
+    return _unit(2.0 * q - 1.0)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return (v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)).astype(np.float32)
+
+
+def _block_stored(v: np.ndarray, fmt, signed: bool) -> np.ndarray:
+    """:func:`stored` of a block format: channels packed as :meth:`hzval.io.storage.Storage.roundtrip`
+    packs them; a unit vector's ``x, y`` as ``0.5 + 0.5 v`` and ``z`` rebuilt (BC5 normal maps)."""
+    if not signed:
+        flat = v[..., None] if v.ndim == 2 else v
+        return fmt.roundtrip(np.clip(flat, 0.0, 1.0)).reshape(v.shape)
+    xy = 2.0 * fmt.roundtrip(np.clip(0.5 + 0.5 * v[..., :2], 0.0, 1.0)) - 1.0
+    z = np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1), 0.0))
+    return _unit(np.concatenate([xy, z[..., None]], axis=-1))
+
+
+def texture_bytes(texture: Texture, storage: str, rows: int, cols: int, channels: int) -> int:
+    """What the GPU holds of a texture's top level stored as ``storage``, bytes.
+
+    Parameters
+    ----------
+    texture : Texture
+        The texture (a unit vector's ``z`` is rebuilt by the shader in a block format).
+    storage : str
+        One of ``texture.storages``.
+    rows, cols, channels : int
+        Its size.
+
+    Returns
+    -------
+    int
+        4 bytes a channel as float, 1 as u8; a block format's blocks
+        (:meth:`hzval.io.storage.Storage.bytes`).
+
+    Examples
+    --------
+    >>> texture_bytes(TEXTURES["ao"], "bc4", 64, 64, 1) / (64 * 64)
+    0.5
+    >>> texture_bytes(TEXTURES["bent-normal"], "bc5", 64, 64, 3) / (64 * 64)
+    1.0
+    """
+    if storage in STORAGES:
+        return int(rows * cols * channels * (4 if storage == "float" else 1))
+    return hz_storage.get(storage).bytes(rows, cols, 2 if texture.signed else channels)
+
+
+def through(value, surrogate, on: bool = True):
+    """``value``, with ``surrogate``'s gradient when ``on`` (a straight-through estimator, Bengio et
+    al. 2013): a fit's way past a factor's clamps and steps, whose own gradient is 0 where a texel is
+    wrong. Off (a render), ``value`` itself."""
+    return surrogate + dr.detach(value - surrogate) if on else value
 
 
 def add_storage_flag(parser, name: str, texture: Texture) -> None:
@@ -112,20 +187,21 @@ def add_storage_flag(parser, name: str, texture: Texture) -> None:
     try:
         parser.add_argument(
             f"--{name}-storage",
-            choices=STORAGES,
+            choices=texture.storages,
             default=texture.default,
-            help=f"how {texture.what} is stored: float as baked, or u8 as engines store it "
+            help=f"how {texture.what} is stored: float as baked, or as engines store it "
             f"(default {texture.default})",
         )
     except argparse.ArgumentError:
         pass  # another technique that reads it added it
 
 
-def _checked_storage(storage: dict | None) -> dict:
-    """``{texture: storage}`` as given, each one of :data:`STORAGES`, else one line naming its flag."""
+def _checked_storage(cls, storage: dict | None) -> dict:
+    """``{texture: storage}`` as given, each one of its texture's storages, else one line naming its flag."""
     for t, value in (storage or {}).items():
-        if value not in STORAGES:
-            raise InputError(f"{t}-storage", f"must be one of {', '.join(STORAGES)}, got {value!r}")
+        choices = cls.texture(t).storages
+        if value not in choices:
+            raise InputError(f"{t}-storage", f"must be one of {', '.join(choices)}, got {value!r}")
     return dict(storage or {})
 
 
@@ -178,9 +254,8 @@ class FactorKernel(FlatShading):
         planes: dict[str, np.ndarray] = {}
         for m in self.members:
             for t in m.textures:
-                tx = m.texture(t)
                 if self._slot(m, t) not in planes:
-                    planes[self._slot(m, t)] = stored(m.plane(t), m.storage[t], signed=tx.signed)
+                    planes[self._slot(m, t)] = m.stored_plane(t)
         if any(m.reads_normal for m in self.members):
             planes[NORMAL_SLOT] = self.bake.normal
         return list(planes.items())
@@ -236,7 +311,9 @@ class PerPixelFactor(Technique):
         **settings,
     ):
         self.scene, self.bake = scene, bake
-        self.storage = {t: self.texture(t).default for t in self.textures} | _checked_storage(storage)
+        self.storage = {t: self.texture(t).default for t in self.textures} | _checked_storage(
+            type(self), storage
+        )
         self.settings = self.validate(settings)
         self.simulated = tuple(e for e in EFFECTS if scene.declares(e) and e not in self.not_modelled)
         self._kernel = kernel if kernel is not None else FactorKernel(scene, bake, samples)
@@ -258,6 +335,11 @@ class PerPixelFactor(Technique):
         """What :meth:`plane` holds for texture ``name``: the same name, the same values (techniques
         that read them share the kernel's one copy)."""
         return self.texture(name).field
+
+    def stored_plane(self, name: str) -> np.ndarray:
+        """What the shader samples of texture ``name``: :meth:`plane` as its storage keeps it
+        (:func:`stored`)."""
+        return stored(self.plane(name), self.storage[name], signed=self.texture(name).signed)
 
     # -- what a subclass gives ------------------------------------------------------------------
 
@@ -307,7 +389,7 @@ class PerPixelFactor(Technique):
         """Refuse a setting before anything is written (its flag named by the caller,
         :func:`hzval.techniques.registry.flag_errors`)."""
         own = dict(settings)
-        _checked_storage(own.pop("storage", None))
+        _checked_storage(cls, own.pop("storage", None))
         cls.validate(own)
 
     @classmethod
@@ -328,22 +410,39 @@ class PerPixelFactor(Technique):
             out.append(
                 Variant(f"{cls.label} (8-bit textures)", {"storage": dict.fromkeys(cls.textures, "u8")})
             )
+            blocks = {t: [s for s in cls.texture(t).storages if s not in STORAGES] for t in cls.textures}
+            for i in range(max(len(b) for b in blocks.values())):
+                # the i-th block format of each texture (the last where it has fewer)
+                chosen = {t: b[min(i, len(b) - 1)] for t, b in blocks.items() if b}
+                label = ", ".join(f"{s.upper()} {t}" for t, s in chosen.items())
+                out.append(
+                    Variant(f"{cls.label} ({label})", {"storage": dict.fromkeys(cls.textures, "u8") | chosen})
+                )
+        return out
+
+    def texture_bytes(self) -> dict[str, int]:
+        """Each texture it reads as stored, bytes of the top level (:func:`texture_bytes`)."""
+        out = {}
+        for t in self.textures:
+            a = self.plane(t)
+            rows, cols = a.shape[:2]
+            out[t] = texture_bytes(
+                self.texture(t), self.storage[t], rows, cols, 1 if a.ndim == 2 else a.shape[-1]
+            )
         return out
 
     def storage_bytes(self) -> int:
-        """The textures it reads as stored (4 bytes a channel as float, 1 as u8)."""
-        total = 0
-        for t in self.textures:
-            a = getattr(self.bake, self.texture(t).field)
-            total += a.size * (4 if self.storage[t] == "float" else 1)
-        return int(total)
+        """The textures it reads as stored (:meth:`texture_bytes`), in all."""
+        return int(sum(self.texture_bytes().values()))
 
     @property
     def parameters(self) -> dict:
         out = {"simulated": list(self.simulated), **self.settings}
         if self.textures:
+            texels = self.bake.normal.shape[0] * self.bake.normal.shape[1]
             out["storage"] = dict(self.storage)
             out["storage_bytes"] = self.storage_bytes()
+            out["bytes_per_texel"] = {t: b / texels for t, b in self.texture_bytes().items()}
         return out
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:

@@ -36,7 +36,13 @@ class SSBump(PerPixelFactor):
     textures = ("ssbump",)
     square_symmetric = False  # Half-Life 2's basis: symmetric about x alone (HL2_BASIS)
     own_textures = {
-        "ssbump": Texture("ssbump", "ssbump_map", False, "the self-shadowed bump map (ssbump.exr)")
+        "ssbump": Texture(
+            "ssbump",
+            "ssbump_map",
+            False,
+            "the self-shadowed bump map (ssbump.exr)",
+            storages=("float", "u8", "bc1", "bc7"),
+        )
     }
     flags = {"ssbump-storage": "--ssbump-storage"}
 

@@ -224,6 +224,7 @@ def test_params_record_radius_and_angles_as_unused(variant):
         "boundary": "wrap",
         "method": "exact",
         "directions": 8,
+        "ssbump_lift": 0.55,
     }
     assert B.BakeParams.from_record(p.record()).method == "exact"
     assert B.BakeParams(radius=1, angles=3, method="exact").validate()  # ignored, so not checked
@@ -266,6 +267,7 @@ def test_cli_bake_method_exact(variant, tmp_path, capsys):
         "boundary": "wrap",
         "method": "exact",
         "directions": 8,
+        "ssbump_lift": 0.55,
     }
     assert "unlimited radius" in capsys.readouterr().out
     with pytest.raises(SystemExit):  # argparse rejects an unknown method
