@@ -50,7 +50,7 @@ Optimisation
     |p - p_baked|`` (:data:`PRIOR`), keeps the sines that the training lights
     leave free where the bake put them. Each light's loss is weighted by
     ``1 + lambda``, its multiplier raised after each epoch by its relative
-    excess over the baked map's loss (:func:`_reweight`, :data:`CONSTRAIN`):
+    excess over the baked map's loss (:func:`hzval.techniques.fitted.model.reweight`, :data:`CONSTRAIN`):
     dual ascent on "no training light worse than the bake". With ``guard``,
     :func:`hzval.techniques.fitted.guard.guard` gives the bake back to the texels that
     still do worse nearby on some training light.
@@ -75,12 +75,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hzval.core import backend
-from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
 from hzval.io import storage as hz_storage
 from hzval.scene import lookup
 from hzval.techniques import horizon
 from hzval.techniques.fitted import guard as fit_guard
+from hzval.techniques.fitted import model as fit_model
 from hzval.techniques.fitted import training
 
 __all__ = [
@@ -98,17 +99,17 @@ __all__ = [
     "fit",
     "guarded",
 ]
-#: ``eps`` of the Charbonnier loss (module docstring): a sixteenth of the 16-spp truth's V step.
-CHARBONNIER_EPS = 1.0 / 256.0
+#: ``eps`` of the Charbonnier loss (module docstring).
+CHARBONNIER_EPS = fit_model.CHARBONNIER_EPS
 #: Lights per Adam step.
-BATCH_LIGHTS = 8
+BATCH_LIGHTS = fit_model.BATCH_LIGHTS
 #: Adam's learning rate on the sines (and on log k).
 LEARNING_RATE = 0.02
 #: Relative improvement of an epoch's loss below which the fit counts as converged.
 TOLERANCE = 5e-3
 MAX_EPOCHS = 60
 #: Plateaus (learning rate halved at each) after which the fit has converged.
-HALVINGS = 3
+HALVINGS = fit_model.HALVINGS
 #: The largest k that ``fit_k`` may reach (the tradeoff's golden-section search's bound).
 MAX_K = 128.0
 #: Weight of the pull toward the baked map, ``PRIOR * mean |p - p_baked|`` over every sine (0: none).
@@ -118,11 +119,11 @@ MAX_K = 128.0
 #: the pull, fabric's fitted |F - V| was 1.04x the baked map's and ridges' 1.16x; with 0.05 / 0.1
 #: fabric's 0.86x / 0.80x (its training error 0.021 / 0.026 instead of 0.0185).
 PRIOR = 0.1
-#: The step of the per-light weights (:func:`_reweight`): a light 10 % worse than the bake gains 0.1 x this
+#: The step of the per-light weights (:func:`hzval.techniques.fitted.model.reweight`): a light 10 % worse than the bake gains 0.1 x this
 #: weight an epoch (0: the plain mean over lights).
 CONSTRAIN = 2.0
 #: The smallest baked loss a light's excess is relative to (a light the bake gets all but exactly right).
-CONSTRAINT_FLOOR = 1e-4
+CONSTRAINT_FLOOR = fit_model.CONSTRAINT_FLOOR
 
 
 @dataclass
@@ -183,19 +184,12 @@ class FitResult:
         }
 
 
-class _Model:
-    """The horizon technique with its horizon texture replaced by differentiable parameters.
-
-    One kernel (a forward and a backward pass) covers a *group* of lights: lane ``i`` is sample
-    ``i % n`` of light ``i // n`` of the group, its channel weights the technique's own
-    (``_channel_weights``) of that light's direction; a group holds at most :data:`BAND_SAMPLES`
-    lanes (one light in pixel bands beyond that), which bounds the AD graph's memory.
-    """
+class _Model(fit_model.LightBatches):
+    """The horizon technique with its horizon texture replaced by differentiable parameters
+    (:class:`hzval.techniques.fitted.model.LightBatches`: the lights' channel weights are the
+    technique's own, ``_channel_weights``, of each light's direction)."""
 
     def __init__(self, scene, bake, k: float, storage: str, V_list: list[np.ndarray]):
-        import drjit as dr
-        import mitsuba as mi
-
         self.scene = training.fit_scene(scene)
         self.ap = horizon.Horizon(self.scene, bake, None, k=k)
         if set(self.ap._slots) != {horizon.HORIZON_SLOT}:
@@ -204,18 +198,11 @@ class _Model:
         self.storage = hz_storage.get(storage)
         self.rows, self.cols = self.ap.rows, self.ap.cols
         self.P, self.spp = self.ap.pixels, self.ap.spp
-        self.group = max(1, training.BAND_SAMPLES // (self.P * self.spp))
-        band = max(1, training.BAND_SAMPLES // self.spp)
-        self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
-        V = lookup.aligned_empty(len(V_list) * self.P)
-        for i, v in enumerate(V_list):  # one copy, not a stack and then an aligned copy
-            V[i * self.P : (i + 1) * self.P] = np.asarray(v, np.float32).ravel()
-        self.V = mi.Float(V)
-        self._mi, self._dr = mi, dr
+        self.k = self.ap._k
+        self.setup(V_list)
 
     def set_parameters(self, p, logk=None) -> None:
         """Upload the parameters: the stored map's values, with the parameters' gradient."""
-        dr, mi = self._dr, self._mi
         if self.storage.name == "float":
             value = p
         else:
@@ -224,16 +211,14 @@ class _Model:
         self.texture.set_tensor(value)
         self.k = dr.exp(logk) if logk is not None else self.ap._k
 
+    def upload(self, values) -> None:
+        self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(values, np.float32))))
+
     def factor(self, lights, a: int, b: int):
         """The pixel means of F, light-major, of ``lights`` over pixels ``a..b`` (straight-through clamp)."""
-        dr, mi = self._dr, self._mi
-        d = np.array([cv.light_direction(az, e) for e, az in lights], np.float32)
-        L = mi.Vector3f(*(mi.Float(d[:, i].copy()) for i in range(3)))
+        L = fit_model.light_vectors(lights)
         w = self.ap._channel_weights(L)
-        n = (b - a) * self.spp
-        lane = dr.arange(mi.UInt32, len(lights) * n)
-        li = lane // n
-        sample = lane - li * n + a * self.spp
+        li, sample = self.sample_lanes(len(lights), a, b)
         if self.spp == 1:
             u, v = dr.gather(mi.Float, self.ap._u, sample), dr.gather(mi.Float, self.ap._v, sample)
         else:
@@ -247,55 +232,7 @@ class _Model:
             self.k,
             straight_through=True,
         )
-        return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
-
-    def errors(self, sines: np.ndarray, k: float, lights, V_list):
-        """``|F - V|`` (rows, cols) float32 per light of ``lights`` (and the V they were given in) of
-        ``sines`` as stored, at shadow hardness ``k``, without gradients
-        (:mod:`hzval.techniques.fitted.guard`)."""
-        dr, mi = self._dr, self._mi
-        with dr.suspend_grad():
-            self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(sines, np.float32))))
-            self.k = k
-            for first in range(0, len(lights), self.group):
-                group = lights[first : first + self.group]
-                F = np.concatenate(
-                    [
-                        np.asarray(self.factor(group, a, b), np.float32).reshape(len(group), b - a)
-                        for a, b in self.bands
-                    ],
-                    axis=1,
-                )
-                for i, f in enumerate(F):
-                    yield np.abs(f.reshape(self.rows, self.cols) - V_list[first + i])
-
-    def backward(self, indices, lights, scale: float, weights=None, per_light=None) -> float:
-        """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
-        and the V they were given in), each light's loss times ``weights[i]`` if given; return the
-        unweighted loss (a float) and put each light's into ``per_light[i]`` if given."""
-        dr, mi = self._dr, self._mi
-        total = 0.0
-        for first in range(0, len(indices), self.group):
-            group = [int(i) for i in indices[first : first + self.group]]
-            for a, b in self.bands:
-                F = self.factor([lights[i] for i in group], a, b)
-                m = b - a
-                lane = dr.arange(mi.UInt32, len(group) * m)
-                li = lane // m
-                at = dr.gather(mi.UInt32, mi.UInt32(np.array(group, np.uint32)), li) * self.P + (
-                    lane - li * m + a
-                )
-                diff = F - dr.gather(mi.Float, self.V, at)
-                pixel = dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS**2)) - CHARBONNIER_EPS
-                dr.eval(pixel)
-                sums = np.asarray(dr.block_sum(dr.detach(pixel), m), np.float64)  # one per light of the group
-                if per_light is not None:
-                    per_light[group] += sums
-                if weights is not None:
-                    pixel = pixel * dr.gather(mi.Float, mi.Float(np.asarray(weights, np.float32)[group]), li)
-                dr.backward(dr.sum(pixel) * scale)
-                total += float(sums.sum())
-        return total
+        return self.pixel_mean(F)
 
 
 def fit(
@@ -480,7 +417,8 @@ def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tole
     blocks = bool(stored.block_bytes)
 
     def errors(sines, baked):
-        return model.errors(sines, k if baked else k_fit, lights, V)
+        model.k = k if baked else k_fit  # read as the generator runs, which is before the next call
+        return model.errors(sines, lights, V)
 
     return fit_guard.guard(
         stored.roundtrip(bake.horizon),
@@ -529,80 +467,36 @@ def _optimise(
     constrain: float = 0.0,
 ):
     """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
-    converged)``. ``constrain``: the step of the per-light weights (:func:`_reweight`; 0: none)."""
-    import sys
-
-    import drjit as dr
-    import mitsuba as mi
-    from tqdm import tqdm
-
+    converged)``. ``constrain``: the step of the per-light weights
+    (:func:`hzval.techniques.fitted.model.reweight`; 0: none)."""
     model = _Model(scene, bake, k, storage, V_list)
-    opt = mi.ad.Adam(lr=lr)
-    start = mi.TensorXf(lookup.aligned(np.clip(bake.horizon, 0.0, 1.0)))
-    opt["h"] = mi.TensorXf(start)
-    if fit_k:
-        opt["logk"] = mi.Float(math.log(k))
-    rng = np.random.default_rng(scene.seed)
-    norm = 1.0 / (model.P * len(lights))
-    curve, times, steps, calm, converged = [], [], 0, 0, False
-    weights = np.ones(len(lights), np.float32) if constrain > 0 else None
-    if weights is not None:
-        baked = _light_losses(model, hz_storage.get(storage).roundtrip(bake.horizon), k, lights, V_list)
-    bar = tqdm(
-        range(max_epochs), desc="fit", unit="epoch", disable=not progress, file=sys.stderr, leave=False
+    stored = hz_storage.get(storage)
+    baked = None
+    if constrain > 0:
+        model.k = k
+        baked = model.light_losses(stored.roundtrip(bake.horizon), lights, V_list)
+
+    def project(opt) -> None:
+        fit_model.clip_unit(opt, "h")
+        if fit_k:
+            opt["logk"] = dr.clip(opt["logk"], 0.0, math.log(MAX_K))
+
+    opt, curve, times, steps, converged = fit_model.optimise(
+        model,
+        {"h": mi.TensorXf(lookup.aligned(np.clip(bake.horizon, 0.0, 1.0)))},
+        lights,
+        set_parameters=lambda opt: model.set_parameters(opt["h"], opt["logk"] if fit_k else None),
+        project=project,
+        baked_losses=baked,
+        extra={"logk": mi.Float(math.log(k))} if fit_k else None,
+        tolerance=tolerance,
+        max_epochs=max_epochs,
+        lr=lr,
+        prior=prior,
+        constrain=constrain,
+        seed=scene.seed,
+        progress=progress,
     )
-    for _ in bar:
-        t0, total, per = time.perf_counter(), 0.0, np.zeros(len(lights))
-        order = rng.permutation(len(lights))
-        for first in range(0, len(order), BATCH_LIGHTS):
-            model.set_parameters(opt["h"], opt["logk"] if fit_k else None)
-            total += model.backward(order[first : first + BATCH_LIGHTS], lights, norm, weights, per) * norm
-            if prior > 0:
-                # where the training lights leave a sine free, it stays the bake's (docs/fit.md, "Limits")
-                pull = prior * dr.mean(dr.abs(opt["h"].array - start.array), axis=None)
-                dr.backward(pull)
-                total += (
-                    float(np.asarray(dr.detach(pull)).ravel()[0])
-                    * len(order[first : first + BATCH_LIGHTS])
-                    / len(lights)
-                )
-            opt.step()
-            opt["h"] = dr.clip(opt["h"], 0.0, 1.0)
-            if fit_k:
-                opt["logk"] = dr.clip(opt["logk"], 0.0, math.log(MAX_K))
-            steps += 1
-        if weights is not None:
-            weights = _reweight(weights, per / model.P, baked, constrain)
-        curve.append(total)
-        times.append(time.perf_counter() - t0)
-        bar.set_postfix_str(f"loss {total:.5f}")
-        if len(curve) > 1 and curve[-2] - total <= tolerance * total:
-            # a plateau: halve the step; converged after HALVINGS of them
-            calm += 1
-            if calm >= HALVINGS:
-                converged = True
-                break
-            opt.set_learning_rate(lr * 0.5**calm)
-    bar.close()
     h = np.asarray(opt["h"], np.float32).reshape(model.rows, model.cols, -1)
     k_fit = float(np.exp(np.asarray(opt["logk"])[0])) if fit_k else float(k)
-    return hz_storage.get(storage).roundtrip(h), k_fit, curve, times, steps, converged
-
-
-def _light_losses(model: _Model, sines: np.ndarray, k: float, lights, V_list) -> np.ndarray:
-    """The Charbonnier loss of each light (its pixels' mean) of ``sines`` as stored."""
-    eps = CHARBONNIER_EPS
-    return np.array(
-        [
-            float(np.mean(np.sqrt(e.astype(np.float64) ** 2 + eps**2) - eps))
-            for e in model.errors(sines, k, lights, V_list)
-        ]
-    )
-
-
-def _reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: float) -> np.ndarray:
-    """The per-light weights after an epoch: ``1 + lambda``, each light's multiplier ``lambda`` raised by
-    ``step`` times its relative excess over the baked map's loss (clipped to [-1, 1]; its floor
-    :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light worse than the bake")."""
-    excess = np.clip((losses - baked) / np.maximum(baked, CONSTRAINT_FLOOR), -1.0, 1.0)
-    return (1.0 + np.maximum(0.0, weights - 1.0 + step * excess)).astype(np.float32)
+    return stored.roundtrip(h), k_fit, curve, times, steps, converged
