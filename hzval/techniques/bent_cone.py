@@ -31,7 +31,7 @@ import math
 
 from hzval.bake import occlusion
 from hzval.core.backend import dr, mi
-from hzval.techniques.perpixel import PerPixelFactor
+from hzval.techniques.perpixel import PerPixelFactor, through
 
 __all__ = ["BentCone", "VARIANTS", "INTERSECTIONS", "cap_intersection", "cap_intersection_filament"]
 
@@ -146,15 +146,19 @@ class BentCone(PerPixelFactor):
         if self.settings["variant"] == "oat-sander":  # the cone holds the open solid angle
             cos_v = 1.0 - tex["ao"][0]
         else:  # the cone holds the cosine-weighted open share
-            cos_v = dr.sqrt(dr.maximum(1.0 - tex["ao"][0], 0.0))
+            closed = dr.maximum(1.0 - tex["ao"][0], 0.0)
+            cos_v = through(dr.sqrt(closed), dr.sqrt(dr.maximum(closed, 1e-4)), self.straight_through)
         cos_d = dr.dot(B, L)
         r = c["r"]
         if r == 0.0:  # a hard light: the disc's limit
-            return dr.select(cos_d >= cos_v, 1.0, 0.0)
-        theta_v = dr.maximum(dr.acos(dr.clip(cos_v, -1.0, 1.0)), 1e-6)
-        d = dr.acos(dr.clip(cos_d, -1.0, 1.0))
-        meet = cap_intersection if self.settings["intersection"] == "exact" else cap_intersection_filament
-        return meet(theta_v, r, d) / (2.0 * math.pi * (1.0 - math.cos(r)))
+            F = dr.select(cos_d >= cos_v, 1.0, 0.0)
+        else:
+            theta_v = dr.maximum(dr.acos(dr.clip(cos_v, -1.0, 1.0)), 1e-6)
+            d = dr.acos(dr.clip(cos_d, -1.0, 1.0))
+            meet = cap_intersection if self.settings["intersection"] == "exact" else cap_intersection_filament
+            F = meet(theta_v, r, d) / (2.0 * math.pi * (1.0 - math.cos(r)))
+        # a fit's gradient: how far the light is inside the cone (a step's own is 0)
+        return through(F, cos_d - cos_v, self.straight_through)
 
     @classmethod
     def add_arguments(cls, parser) -> None:

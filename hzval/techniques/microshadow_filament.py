@@ -17,12 +17,12 @@ Filament's saturated ``N.L`` gives.
 from __future__ import annotations
 
 from hzval.core.backend import dr
-from hzval.techniques.perpixel import PerPixelFactor
+from hzval.techniques.perpixel import PerPixelFactor, through
 
 __all__ = ["MicroshadowFilament", "micro_shadow"]
 
 
-def micro_shadow(nl, ao):
+def micro_shadow(nl, ao, straight_through: bool = False):
     """Chan's micro-shadow factor (module docstring), Dr.Jit or NumPy-free scalars alike.
 
     Parameters
@@ -31,6 +31,9 @@ def micro_shadow(nl, ao):
         ``N . L``.
     ao : drjit.Float
         The open fraction in [0, 1].
+    straight_through : bool
+        With the gradient of the unclamped ramp ``N.L / sqrt(1 - AO)`` (a fit's,
+        :func:`hzval.techniques.perpixel.through`); the value is the same.
 
     Returns
     -------
@@ -39,7 +42,9 @@ def micro_shadow(nl, ao):
     """
     closed = dr.maximum(1.0 - ao, 0.0)
     f = dr.clip(nl / dr.sqrt(dr.maximum(closed, 1e-30)), 0.0, 1.0)
-    return dr.select(closed > 0.0, f * f, dr.select(nl > 0.0, 1.0, 0.0))
+    F = dr.select(closed > 0.0, f * f, dr.select(nl > 0.0, 1.0, 0.0))
+    # the ramp's gradient, its closed share floored so that an open texel's stays finite
+    return through(F, nl / dr.sqrt(dr.maximum(closed, 1e-4)), straight_through)
 
 
 class MicroshadowFilament(PerPixelFactor):
@@ -53,4 +58,4 @@ class MicroshadowFilament(PerPixelFactor):
     flags = {"ao-storage": "--ao-storage"}
 
     def factor(self, tex: dict, n, L, c: dict):
-        return micro_shadow(dr.dot(n, L), tex["ao"][0])
+        return micro_shadow(dr.dot(n, L), tex["ao"][0], self.straight_through)

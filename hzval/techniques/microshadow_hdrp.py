@@ -17,7 +17,7 @@ import math
 
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
-from hzval.techniques.perpixel import PerPixelFactor
+from hzval.techniques.perpixel import PerPixelFactor, through
 
 __all__ = ["MicroshadowHDRP", "DEFAULT_OPACITY"]
 
@@ -51,7 +51,8 @@ class MicroshadowHDRP(PerPixelFactor):
 
     def factor(self, tex: dict, n, L, c: dict):
         nl, ao = dr.dot(n, L), tex["ao"][0]
-        shadow = dr.clip(nl + 2.0 * ao * ao - 1.0, 0.0, 1.0)
+        ramp = nl + 2.0 * ao * ao - 1.0
+        shadow = through(dr.clip(ramp, 0.0, 1.0), ramp, self.straight_through)
         return dr.select(nl > 0.0, dr.lerp(1.0, shadow, c["opacity"]), 1.0)
 
     @classmethod

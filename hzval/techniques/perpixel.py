@@ -231,31 +231,34 @@ class FactorKernel(FlatShading):
         """The members' factors for one light (built at the first call; the last one kept)."""
         key = (float(azimuth_deg), elevation_deg)
         if self._last is None or self._last[0] != key:
-            self._build()
+            self.prepare()
             self._last = (key, self.render(azimuth_deg, elevation_deg=elevation_deg))
         return self._last[1]
 
     def sample_factors(self, x, y, azimuth_deg: float, elevation_deg: float | None) -> dict:
         """Per-point factors (:meth:`hzval.techniques.surface.FlatShading.sample`), by layer name."""
-        self._build()
+        self.prepare()
         return self.sample(x, y, azimuth_deg, elevation_deg)
 
-    def _build(self) -> None:
+    def prepare(self) -> None:
+        """Build the kernel with its members now (the first frame does otherwise)."""
         if not self._built:
             self._built = True
             FlatShading.__init__(self, *self._args, samples=self._samples)
 
     # -- the hooks of the flat shading ----------------------------------------------------------
 
-    def _slot(self, member, texture: str) -> str:
+    def slot(self, member, texture: str) -> str:
+        """The name of ``member``'s texture in the packed texture (shared by the members that read
+        the same plane stored the same way)."""
         return f"{member.plane_name(texture)}:{member.storage[texture]}"
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
         planes: dict[str, np.ndarray] = {}
         for m in self.members:
             for t in m.textures:
-                if self._slot(m, t) not in planes:
-                    planes[self._slot(m, t)] = m.stored_plane(t)
+                if self.slot(m, t) not in planes:
+                    planes[self.slot(m, t)] = m.stored_plane(t)
         if any(m.reads_normal for m in self.members):
             planes[NORMAL_SLOT] = self.bake.normal
         return list(planes.items())
@@ -271,7 +274,7 @@ class FactorKernel(FlatShading):
     def _shadowed(self, direct, tex: dict, uni: dict, out: dict, shadows: bool, probe: bool):
         n = dr.normalize(mi.Vector3f(*tex[NORMAL_SLOT])) if NORMAL_SLOT in tex else None
         for i, m in enumerate(self.members):
-            own = {t: tex[self._slot(m, t)] for t in m.textures}
+            own = {t: tex[self.slot(m, t)] for t in m.textures}
             F = dr.clip(m.factor(own, n if m.reads_normal else None, uni["L"], self._constants[i]), 0.0, 1.0)
             # within float32 rounding of 1 is 1: a ratio of two sums that are equal for an open
             # texel (ssbump) must not shade a flat surface
@@ -297,6 +300,9 @@ class PerPixelFactor(Technique):
     own_textures: ClassVar[dict[str, Texture]] = {}
     #: Whether :meth:`factor` reads the normal map's normal.
     reads_normal: ClassVar[bool] = True
+    #: Whether :meth:`factor` gives its clamps and steps a gradient (:func:`through`): a fit's
+    #: forward model sets it; the values are the same.
+    straight_through: bool = False
 
     def __init__(
         self,
@@ -316,8 +322,8 @@ class PerPixelFactor(Technique):
         )
         self.settings = self.validate(settings)
         self.simulated = tuple(e for e in EFFECTS if scene.declares(e) and e not in self.not_modelled)
-        self._kernel = kernel if kernel is not None else FactorKernel(scene, bake, samples)
-        self._layer = self._kernel.add(self)
+        self.kernel = kernel if kernel is not None else FactorKernel(scene, bake, samples)
+        self._layer = self.kernel.add(self)
         self._plain = plain if plain is not None else Unshadowed(scene, bake, albedo, samples=samples)
         self.shape = self._plain.shape
 
@@ -450,14 +456,14 @@ class PerPixelFactor(Technique):
         pixel mean of ``F`` from the shared kernel (:meth:`FactorKernel.frame`), plus its ambient
         term; the kernel's time is shared out among the techniques that joined it. Layers:
         ``factor`` and the declared effects'."""
-        frame = self._kernel.frame(azimuth_deg, elevation_deg)
+        frame = self.kernel.frame(azimuth_deg, elevation_deg)
         F = frame.layers[self._layer]
-        return self._plain.shade(azimuth_deg, elevation_deg, F, frame.seconds / len(self._kernel.members))
+        return self._plain.shade(azimuth_deg, elevation_deg, F, frame.seconds / len(self.kernel.members))
 
     def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None) -> dict[str, np.ndarray]:
         """Per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging:
         ``{"factor": (n,)}``."""
-        return {"factor": self._kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}
+        return {"factor": self.kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}
 
 
 class BaseShadow(PerPixelFactor):

@@ -334,6 +334,29 @@ class FlatShading:
         dr.eval(uni)
         return uni
 
+    # -- what a fit reads (hzval.techniques.fitted.textures) -------------------------------------
+
+    @property
+    def slots(self) -> dict[str, slice]:
+        """The packed texture's channels of each plane, by name."""
+        return dict(self._slots)
+
+    def texture_level(self):
+        """The packed texture's top level (a :class:`mitsuba.Texture2f`), whose tensor a fit replaces."""
+        return self._texture.levels[0]
+
+    def positions(self, sample):
+        """``(u, v)``: the texture coordinates of the samples ``sample`` (indices into the image's
+        samples, pixel-major)."""
+        if self.spp == 1:
+            return dr.gather(mi.Float, self._u, sample), dr.gather(mi.Float, self._v, sample)
+        uv = dr.gather(mi.Point2f, self._uv, sample)
+        return uv.x, uv.y
+
+    def fetch(self, u, v) -> dict:
+        """The filtered top-level texture values at ``(u, v)``, by plane name."""
+        return self._fetch(u, v)
+
     def _fetch(self, u, v, pixel=None) -> dict:
         """Filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
         (whose footprints a mip filter reads; ``None``: level 0)."""

@@ -98,6 +98,7 @@ __all__ = [
     "FitResult",
     "fit",
     "guarded",
+    "truths",
 ]
 #: ``eps`` of the Charbonnier loss (module docstring).
 CHARBONNIER_EPS = fit_model.CHARBONNIER_EPS
@@ -119,7 +120,8 @@ MAX_K = 128.0
 #: the pull, fabric's fitted |F - V| was 1.04x the baked map's and ridges' 1.16x; with 0.05 / 0.1
 #: fabric's 0.86x / 0.80x (its training error 0.021 / 0.026 instead of 0.0185).
 PRIOR = 0.1
-#: The step of the per-light weights (:func:`hzval.techniques.fitted.model.reweight`): a light 10 % worse than the bake gains 0.1 x this
+#: The step of the per-light weights (:func:`hzval.techniques.fitted.model.reweight`): a light 10 %
+#: worse than the bake gains 0.1 x this
 #: weight an epoch (0: the plain mean over lights).
 CONSTRAIN = 2.0
 #: The smallest baked loss a light's excess is relative to (a light the bake gets all but exactly right).
@@ -308,7 +310,7 @@ def fit(
         scene, spp=min(scene.spp, int(train_spp or training.training_spp(scene.spp, rows * cols)))
     )
     t0, c0 = time.perf_counter(), time.process_time()
-    V_train, V_held = _truth(train, scene, height, lights, held_out, progress)
+    V_train, V_held = truths(train, scene, height, lights, held_out, progress)
     t_truth, c_truth = time.perf_counter() - t0, time.process_time() - c0
 
     t0, c0 = time.perf_counter(), time.process_time()
@@ -431,7 +433,7 @@ def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tole
     )
 
 
-def _truth(train, scene, height, lights, held_out, progress: bool):
+def truths(train, scene, height, lights, held_out, progress: bool):
     """The truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
     with a progress bar."""
     import sys

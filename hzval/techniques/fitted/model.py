@@ -58,8 +58,9 @@ class LightBatches:
     ``spp`` before calling :meth:`setup`, and gives :meth:`factor` and :meth:`upload`.
     """
 
-    def setup(self, V_list: list[np.ndarray]) -> None:
-        """Groups, bands and the truth's ``V`` of every light, one copy, light-major."""
+    def setup(self, V_list: list[np.ndarray], masks: list[np.ndarray] | None = None) -> None:
+        """Groups, bands and the truth's ``V`` of every light, one copy, light-major; ``masks``: per
+        light, the pixels the loss counts (``None``: all)."""
         self.group = max(1, training.BAND_SAMPLES // (self.P * self.spp))
         band = max(1, training.BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
@@ -67,6 +68,12 @@ class LightBatches:
         for i, v in enumerate(V_list):  # one copy, not a stack and then an aligned copy
             V[i * self.P : (i + 1) * self.P] = np.asarray(v, np.float32).ravel()
         self.V = mi.Float(V)
+        self.masks, self.W = masks, None
+        if masks is not None:
+            W = lookup.aligned_empty(len(masks) * self.P)
+            for i, m in enumerate(masks):
+                W[i * self.P : (i + 1) * self.P] = np.asarray(m, np.float32).ravel()
+            self.W = mi.Float(W)
 
     def factor(self, lights, a: int, b: int):
         """The pixel means of ``F`` over pixels ``a..b`` of each of ``lights``, light-major."""
@@ -107,10 +114,11 @@ class LightBatches:
     def light_losses(self, values, lights, V_list) -> np.ndarray:
         """The Charbonnier loss of each light (its pixels' mean) of ``values`` as stored."""
         eps = CHARBONNIER_EPS
+        masks = self.masks if self.masks is not None else [1.0] * len(lights)
         return np.array(
             [
-                float(np.mean(np.sqrt(e.astype(np.float64) ** 2 + eps**2) - eps))
-                for e in self.errors(values, lights, V_list)
+                float(np.mean((np.sqrt(e.astype(np.float64) ** 2 + eps**2) - eps) * m))
+                for e, m in zip(self.errors(values, lights, V_list), masks)
             ]
         )
 
@@ -131,6 +139,8 @@ class LightBatches:
                 )
                 diff = F - dr.gather(mi.Float, self.V, at)
                 pixel = dr.sqrt(dr.fma(diff, diff, CHARBONNIER_EPS**2)) - CHARBONNIER_EPS
+                if self.W is not None:
+                    pixel = pixel * dr.gather(mi.Float, self.W, at)
                 dr.eval(pixel)
                 sums = np.asarray(dr.block_sum(dr.detach(pixel), m), np.float64)  # one per light of the group
                 if per_light is not None:
