@@ -1,5 +1,5 @@
-"""``hzval fit``: the horizon map fitted to the truth, the representation's floor
-(:mod:`hzval.techniques.fitted.fit`)."""
+"""``hzval fit``'s flags: a technique's textures fitted to the truth, the representation's floor
+(:mod:`hzval.commands.fit`)."""
 
 from __future__ import annotations
 
@@ -7,14 +7,20 @@ import math
 from pathlib import Path
 
 from hzval.cli import flags, scenes
+from hzval.commands import fit as fit_command
 from hzval.core import errors
+
+#: The flags that only the horizon map's fit reads.
+HORIZON_FLAGS = ("--k", "--fit-k", "--storage", "--guard")
 
 
 def add_parser(sub) -> None:
-    """``hzval fit``: the best horizon map (:mod:`hzval.techniques.fitted.fit`)."""
+    """``hzval fit``: the best textures of a technique (:mod:`hzval.commands.fit`)."""
     from hzval.bake import maps as bake
     from hzval.io import storage
+    from hzval.techniques import registry as technique
     from hzval.techniques.fitted import guard as fit_guard
+    from hzval.techniques.fitted import textures as fitted_textures
     from hzval.techniques.fitted import training as fitted_training
     from hzval.techniques.horizon import DEFAULT_K
 
@@ -22,13 +28,20 @@ def add_parser(sub) -> None:
 
     p = sub.add_parser(
         "fit",
-        help="fit the horizon map to the truth (the representation's floor)",
-        description="Fit the 8 horizon channels of a material to the truth's visibility with "
-        "Dr.Jit's automatic differentiation through the horizon technique's own "
-        "lookup and factor (docs/fit.md); writes horizon0/1.exr and .png in the "
-        "bake's layout and fit.json.",
+        help="fit a technique's textures to the truth (the representation's floor)",
+        description="Fit a technique's textures to the truth's visibility through its own lookup and "
+        "factor (docs/fit.md): the horizon map's 8 channels with Dr.Jit's automatic "
+        "differentiation (horizon0/1.exr and .png in the bake's layout), or a per-pixel "
+        "technique's AO (a per-texel search), bent normal and AO, or self-shadowed bump map "
+        "(Adam); writes fit.json.",
     )
     flags.add_material_args(p)
+    p.add_argument(
+        "--technique",
+        default=fit_command.HORIZON,
+        choices=[fit_command.HORIZON, *fitted_textures.fittable()],
+        help=f"whose textures to fit (default {fit_command.HORIZON})",
+    )
     p.add_argument(
         "--lights",
         default=fitted_training.TRAINING_LIGHTS,
@@ -86,6 +99,15 @@ def add_parser(sub) -> None:
         default=d.method,
         help=f"the bake the fit starts from and is compared with (default {d.method})",
     )
+    p.add_argument(
+        "--ssbump-lift",
+        type=float,
+        default=d.ssbump_lift,
+        metavar="TEXELS",
+        help=f"the self-shadowed bump map's ray lift (default {d.ssbump_lift:g})",
+    )
+    for name in fitted_textures.fittable():  # their storage, variant and opacity flags
+        technique.get(name).add_arguments(p)
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(run=run)
@@ -95,14 +117,10 @@ def run(args) -> int:
     """Bake, fit, write; one line of figures."""
     from hzval.bake import maps as bake
     from hzval.io import files
-    from hzval.techniques.fitted import fit
     from hzval.techniques.fitted import training as fitted_training
     from hzval.truth import memory
 
-    if not (math.isfinite(args.k) and args.k > 0):
-        raise errors.InputError("--k", f"must be a positive number, got {args.k}")
-    if args.guard is not None and not (math.isfinite(args.guard) and args.guard >= 0):
-        raise errors.InputError("--guard", f"must be a number >= 0, got {args.guard}")
+    _check_flags(args)
     lights = fitted_training.parse_lights(args.lights, "--lights")
     held_out = fitted_training.parse_lights(args.held_out, "--held-out") if args.held_out.strip() else ()
     fitted_training.check_held_out(lights, held_out)
@@ -111,67 +129,76 @@ def run(args) -> int:
     rows, cols = memory.material_shape(scene)
     what = args.height or "--size"
     bake.check_fits(what, rows, cols, params)
+    guarded = args.technique == fit_command.HORIZON and args.guard is not None
     fitted_training.check_fits(
-        what, rows, cols, scene.spp, len(lights) * (1 if args.guard is None else 2) + len(held_out), scene
+        what, rows, cols, scene.spp, len(lights) * (2 if guarded else 1) + len(held_out), scene
     )
     with files.output_folder(args.out, force=args.force):
         height, info = scenes.load_material(scene)
         baked = bake.bake(height, params)
-        result = _fitted(args, fit, height, baked, scene, params, info, lights, held_out)
-    _print_fit(args, info, rows, cols, result)
+        info = {**info, "depth": params.depth, "boundary": params.boundary, "bake": params.record()}
+        if args.technique == fit_command.HORIZON:
+            result = fit_command.fit_horizon(
+                height, baked, scene, info, args.out, options=_horizon_options(args), progress=not args.quiet
+            )
+            how = f"{args.storage}, k {result.k:.3g}"
+            found = f"{result.epochs} epochs"
+        else:
+            result = fit_command.fit_technique(
+                height,
+                baked,
+                scene,
+                args.technique,
+                info,
+                args.out,
+                options=_technique_options(args),
+                progress=not args.quiet,
+            )
+            how = ", ".join(f"{t} {s}" for t, s in result.storage.items())
+            found = " then ".join(result.options["steps"])
+    print(
+        f"fitted {args.technique} on {scenes.input_name(args, info)} ({cols}x{rows}, {how}) in "
+        f"{result.seconds['fit']:.1f} s by {found} "
+        f"({'converged' if result.converged else 'not converged'}): "
+        f"{fit_command.summary(result.mae)} -> {args.out}"
+    )
     return errors.EXIT_OK
 
 
-def _fitted(args, fit, height, baked, scene, params, info, lights, held_out):
-    """The fit of ``baked`` to the truth, written to ``args.out`` with the sweep's cache key."""
-    from hzval.techniques.fitted import store as fitted_store
-
-    result = fit.fit(
-        height,
-        baked,
-        scene,
-        lights=lights,
-        held_out=held_out,
-        fit_k=args.fit_k,
-        storage=args.storage,
-        k=args.k,
-        guard=args.guard,
-        progress=not args.quiet,
-    )
-    # the key of the sweep's cache (hzval.techniques.fitted.horizon_fit): a fit written into a
-    # sweep's out/fit is reused there
-    key = fitted_store.cache_key(
-        height,
-        baked,
-        scene,
-        {
-            "k": float(args.k),
-            "storage": args.storage,
-            "fit_k": bool(args.fit_k),
-            "lights": args.lights,
-            "held_out": args.held_out,
-            **({"guard": args.guard} if args.guard is not None else {}),
-        },
-    )
-    fitted_store.write_fit(
-        result,
-        args.out,
-        input_info={
-            **info,
-            "depth": params.depth,
-            "boundary": params.boundary,
-            "bake": params.record(),
-            "key": key,
-        },
-    )
-    return result
+def _check_flags(args) -> None:
+    """Refuse a bad value, and a horizon-only flag given to another technique's fit."""
+    if not (math.isfinite(args.k) and args.k > 0):
+        raise errors.InputError("--k", f"must be a positive number, got {args.k}")
+    if args.guard is not None and not (math.isfinite(args.guard) and args.guard >= 0):
+        raise errors.InputError("--guard", f"must be a number >= 0, got {args.guard}")
+    if args.technique != fit_command.HORIZON:
+        argv = getattr(args, "argv", None) or []
+        for flag in HORIZON_FLAGS:
+            if any(a == flag or a.startswith(flag + "=") for a in argv):
+                raise errors.InputError(
+                    flag, f"is the horizon map's fit's; --technique {args.technique} ignores it"
+                )
 
 
-def _print_fit(args, info, rows, cols, result) -> None:
-    parts = [f"{w} |F-V| {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in result.mae.items()]
-    print(
-        f"fitted {scenes.input_name(args, info)} ({cols}x{rows}, {args.storage}, k {result.k:.3g}) "
-        f"in {result.epochs} epochs, "
-        f"{result.seconds['fit']:.1f} s ({'converged' if result.converged else 'not converged'}): "
-        f"{'; '.join(parts)} -> {args.out}"
-    )
+def _horizon_options(args) -> dict:
+    """:func:`hzval.techniques.fitted.fit.fit`'s keywords (the sweep's cache key's settings)."""
+    return {
+        "k": float(args.k),
+        "storage": args.storage,
+        "fit_k": bool(args.fit_k),
+        "lights": args.lights,
+        "held_out": args.held_out,
+        "guard": args.guard,
+    }
+
+
+def _technique_options(args) -> dict:
+    """:func:`hzval.techniques.fitted.textures.fit_textures`'s keywords, the technique's settings from
+    its own flags."""
+    from hzval.techniques import registry as technique
+
+    return {
+        "settings": technique.get(args.technique).settings_from_args(args),
+        "lights": args.lights,
+        "held_out": args.held_out,
+    }

@@ -71,6 +71,10 @@ REGISTRY: dict[str, str] = {
     "bent-cone": "hzval.techniques.bent_cone:BentCone",
     "ssbump": "hzval.techniques.ssbump:SSBump",
     "terminator": "hzval.techniques.terminator:Terminator",
+    "microshadow-filament-fit": "hzval.techniques.fitted.perpixel_fit:FittedFilament",
+    "microshadow-hdrp-fit": "hzval.techniques.fitted.perpixel_fit:FittedHDRP",
+    "bent-cone-fit": "hzval.techniques.fitted.perpixel_fit:FittedBentCone",
+    "ssbump-fit": "hzval.techniques.fitted.perpixel_fit:FittedSSBump",
 }
 
 

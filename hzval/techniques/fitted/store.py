@@ -18,8 +18,11 @@ __all__ = [
     "FIT_VERSION",
     "write_fit",
     "read_fit",
+    "write_texture_fit",
+    "read_texture_fit",
     "cache_key",
     "cached_fit",
+    "cached_texture_fit",
 ]
 
 #: Bumped when the fit changes what it finds: a cached fit of another version is made anew.
@@ -98,6 +101,70 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
     return np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1), record
 
 
+def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path]:
+    """Write a texture fit (:class:`hzval.techniques.fitted.textures.TextureFit`), all or nothing:
+    ``<texture>.exr`` (one channel ``Y``, or ``RGB``) and an 8-bit PNG of each, and ``fit.json``.
+
+    Parameters
+    ----------
+    result : hzval.techniques.fitted.textures.TextureFit
+        The fit.
+    out : str or path-like
+        The folder.
+    input_info : dict
+        What ``fit.json`` records of the input.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
+    from hzval.io import files
+
+    with files.Staging(out) as stage:
+        for t, plane in result.planes.items():
+            stem = t.replace("-", "_")
+            channels = {"Y": plane} if plane.ndim == 2 else {"RGB": plane}
+            files.write_exr(stage.path(f"{stem}.exr"), channels, atomic=False, compression="none")
+            shown = plane if plane.ndim == 2 or plane.min() >= 0 else 0.5 + 0.5 * plane
+            files.write_png(stage.path(f"{stem}.png"), files.unit_to_u8(shown), atomic=False)
+        digests = {
+            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            for p in sorted(stage.dir.rglob("*"))
+            if p.is_file()
+        }
+        files.write_json(
+            stage.path("fit.json"),
+            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
+            atomic=False,
+        )
+        return stage.commit()
+
+
+def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
+    """A texture fit written by :func:`write_texture_fit`: ``(planes by texture, fit.json)``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Its folder.
+
+    Returns
+    -------
+    tuple
+        ``({texture: float32 array}, record)``.
+    """
+    from hzval.io import documents, files
+
+    folder = Path(folder)
+    record = documents.read_json(folder / "fit.json")
+    planes = {}
+    for t in record["textures"]:
+        layers = files.read_exr(folder / f"{t.replace('-', '_')}.exr")
+        planes[t] = layers["Y"] if "Y" in layers else np.stack([layers[c] for c in "RGB"], axis=-1)
+    return planes, record
+
+
 def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
     """The digest a cached fit is reused by.
 
@@ -173,3 +240,56 @@ def cached_fit(
     if folder is not None:
         write_fit(result, folder, input_info={"key": key})
     return result, result.horizon, record, False
+
+
+def cached_texture_fit(
+    height: np.ndarray,
+    bake,
+    scene,
+    folder: str | Path | None,
+    name: str,
+    *,
+    progress: bool = False,
+    **settings,
+) -> tuple[dict, dict, bool]:
+    """A technique's texture fit from ``folder`` when its key and file digests match, else a new one
+    written there (:func:`cached_fit`'s rules).
+
+    Parameters
+    ----------
+    height, bake, scene
+        As :func:`hzval.techniques.fitted.textures.fit_textures`.
+    folder : str or path-like or None
+        The cache's folder (``None``: keep nothing).
+    name : str
+        The technique.
+    progress : bool
+        Show progress bars.
+    **settings
+        :func:`hzval.techniques.fitted.textures.fit_textures`'s keywords.
+
+    Returns
+    -------
+    tuple
+        ``(planes, record, cached)``.
+    """
+    from hzval.io import documents, files, paths
+    from hzval.techniques.fitted import textures
+
+    key = cache_key(height, bake, scene, {"technique": name, **settings})
+    if folder is not None:
+        folder = Path(folder)
+        try:
+            record = documents.read_json(folder / "fit.json")
+            if record["input"]["key"] == key and all(
+                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
+                for n, d in record["files"].items()
+            ):
+                planes, record = read_texture_fit(folder)
+                return planes, record, True
+        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
+            pass
+    result = textures.fit_textures(height, bake, scene, name, progress=progress, **settings)
+    if folder is not None:
+        write_texture_fit(result, folder, input_info={"key": key})
+    return result.planes, result.record(), False
