@@ -157,7 +157,7 @@ def run(args) -> int:
             how = ", ".join(f"{t} {s}" for t, s in result.storage.items())
             found = " then ".join(result.options["steps"])
     print(
-        f"fitted {args.technique} on {scenes.input_name(args, info)} ({cols}x{rows}, {how}) in "
+        f"fitted {scenes.input_name(args, info)} ({args.technique}, {cols}x{rows}, {how}) in "
         f"{result.seconds['fit']:.1f} s by {found} "
         f"({'converged' if result.converged else 'not converged'}): "
         f"{fit_command.summary(result.mae)} -> {args.out}"

@@ -59,6 +59,10 @@ TECHNIQUE_COLOURS = (
     "#ff6b6b",
     "#c0c0c0",
     "#4f9dff",
+    "#f59e6b",
+    "#a0d8ff",
+    "#d4a5ff",
+    "#e8e07a",
 )
 #: Line styles of the techniques in the plots, in the same order.
 TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))

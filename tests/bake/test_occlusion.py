@@ -96,7 +96,6 @@ def test_the_channels_made_side_by_side_are_the_channels_made_in_turn():
     makes both at once, with them)."""
     from concurrent.futures import ThreadPoolExecutor
 
-
     rng = np.random.default_rng(3)
     sines = rng.uniform(-0.2, 1.0, size=(37, 23, 8)).astype(np.float32)
     n = rng.normal(size=(37, 23, 3)) * [0.4, 0.4, 0.0] + [0, 0, 1]

@@ -75,6 +75,7 @@ def test_bake_writes_every_file_and_a_record(variant, height_png, tmp_path):
         "boundary": "open",
         "method": "seed",
         "directions": 8,
+        "ssbump_lift": 0.55,
     }
     assert record["input"]["digest"].startswith("sha256:")
     assert record["input"]["rows"] == 24 and record["input"]["cols"] == 40

@@ -35,7 +35,7 @@ def split(shipped: dict | None, fitted: dict | None, key: str = SCORE) -> dict:
 
     Examples
     --------
-    >>> split({"visibility_mae_facing": 0.12}, {"visibility_mae_facing": 0.05})["bake_loss"]
+    >>> split({"visibility_mae_facing": 0.12}, {"visibility_mae_facing": 0.05})["split"]["bake_loss"]
     0.07
     """
     if not shipped or not fitted or shipped.get(key) is None or fitted.get(key) is None:
