@@ -235,7 +235,9 @@ def summary_table(result: dict) -> str:
     def num(v, digits, scale=1.0, suffix=""):
         return "-" if v is None else f"{v * scale:.{digits}f}{suffix}"
 
-    head = ("technique", "|F-V|") + (("at hits",) if hits else ()) + ("leaks", "false sh.", "FLIP", "dE2000")
+    floor = {r["name"]: r["floor"] for r in ranking.ranking(result)} if ranking.fits(result) else None
+    head = ("technique", "|F-V|") + (("floor",) if floor else ()) + (("at hits",) if hits else ())
+    head += ("leaks", "false sh.", "FLIP", "dE2000")
     head += ("PSNR dB", "ms/frame")
     rows = []
     for n in [*names, ranking.NONE]:
@@ -249,6 +251,7 @@ def summary_table(result: dict) -> str:
         # on a model the baseline keeps the base mesh's own shadow, which every technique's F holds too
         none = f"{n} (F = 1)" if not result.get("mesh") else f"{n} (F = M)"
         row = (none if n == ranking.NONE else n, num(mean(recs, "visibility_mae", vis), 4))
+        row += (num(floor.get(n), 4),) if floor else ()
         row += (num(mean(recs, "perfect_parallax_mae"), 4),) if hits else ()
         row += (
             num(mean(recs, "leak_fraction", vis), 2, 100, "%"),
@@ -274,6 +277,40 @@ def _psnr_cell(pooled: float | None, psnr: list) -> str:
     if pooled is None:
         return "inf" if psnr and all(p is None for p in psnr) else "-"
     return "inf" if math.isinf(pooled) else f"{pooled:.2f}"
+
+
+def _floor_notes(result: dict, several: bool) -> list[str]:
+    """A line per fitted technique: its shipped |F-V| split into what the bake loses and its floor (the
+    representation's), beside no shadows, per elevation; and where even the floor does harm."""
+    from hzval.report import ranking
+
+    def cell(v):
+        return "-" if v is None else f"{v:.4f}"
+
+    notes = []
+    for n, rows in ranking.floors(result).items():
+        parts = [
+            (f"{r['elevation_deg']:g} deg: " if several else "")
+            + f"{cell(r['shipped'])} = bake loss {cell(r['bake_loss'])} + floor {cell(r['floor'])} "
+            f"(no shadows {cell(r['none'])})"
+            for r in rows
+        ]
+        notes.append(f"{n} against its fit ({rows[0]['fit']}): " + "; ".join(parts))
+        if any(r["bake_loss"] is not None and r["bake_loss"] < 0 for r in rows):
+            notes.append(
+                f"{n}: a negative bake loss is a fit worse than the bake at that elevation (it traded it "
+                "for its training lights): there the floor is not reached"
+            )
+    harm = ranking.formula_harms(result)
+    if harm:
+        notes.append(
+            "the formula itself does harm (even its fitted floor is worse than no shadows): "
+            + "; ".join(
+                n + (" at " + ", ".join(f"{e:g}" for e in at) + " deg" if several else "")
+                for n, at in harm.items()
+            )
+        )
+    return notes
 
 
 def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
@@ -313,7 +350,11 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     floor = ranking.floor_note(result)
     if floor:
         notes.append(floor)
+    notes += _floor_notes(result, several)
+    fitted = set(ranking.fits(result).values())
     for n, t in (result.get("techniques") or {}).items():
+        if n in fitted:
+            continue  # its floor's notes split the error (_floor_notes)
         parts = [p["key"] for p in t.get("split_parts") or []]
         sums = {
             k: [((f.get("techniques") or {}).get(n) or {}).get("split", {}).get(k) for f in frames]

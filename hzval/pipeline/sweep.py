@@ -791,6 +791,7 @@ def _result(scene, options: Options, setup: _Setup, timings: dict, frames: list[
             **(
                 {"split_parts": [{"key": k, "label": lb} for k, lb in t.split_parts]} if t.split_parts else {}
             ),
+            **({"fit_of": t.fit_of} if t.fit_of else {}),
         }
         for t in setup.techniques
     }

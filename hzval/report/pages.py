@@ -592,12 +592,19 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
     colours = {v.name: v.colour for v in views}
     several = len({f.get("elevation_deg") for f in metrics.get("frames") or [] if isinstance(f, dict)}) > 1
 
+    def at(elevations):
+        return " at " + ", ".join(f"{e:g}°" for e in elevations) if several else ""
+
     def worse(r):
-        if not r["worse_at"]:
-            return ""
-        if not several:
-            return "worse than no shadows"
-        return "worse than no shadows at " + ", ".join(f"{e:g}°" for e in r["worse_at"])
+        out = "worse than no shadows" + at(r["worse_at"]) if r["worse_at"] else ""
+        if r["harms_at"]:
+            out += (
+                ("; " if out else "")
+                + "even its fitted floor"
+                + at(r["harms_at"])
+                + ": the formula does harm"
+            )
+        return out
 
     out = []
     for i, r in enumerate(rows):
@@ -607,6 +614,8 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
                 "label": r["label"],
                 "colour": colours.get(r["name"], plots.NONE_COLOUR),
                 "vis": columns.fixed(4)(r["visibility_mae"]),
+                "floor": columns.fixed(4)(r["floor"]),
+                "bake_loss": columns.fixed(4)(r["bake_loss"]),
                 "hits": columns.fixed(4)(r["at_hits"]),
                 "flip": columns.fixed(4)(r["flip_mean"]),
                 "bytes": "—" if r["bytes_per_texel"] is None else f"{r['bytes_per_texel']:g}",
@@ -616,7 +625,14 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
             }
         )
     hits = any(r["at_hits"] is not None for r in rows)
-    return {"rows": out, "several": several, "hits": hits, "note": ranking.floor_note(metrics)}
+    floors = any(r["floor"] is not None for r in rows)
+    return {
+        "rows": out,
+        "several": several,
+        "hits": hits,
+        "floors": floors,
+        "note": ranking.floor_note(metrics),
+    }
 
 
 def environment():
@@ -667,6 +683,11 @@ def write_plots(out: str | Path, metrics: dict) -> dict[str, str | None]:
         plot_files["elevation"] = "plots/elevation.png"
     for sv in plots.split_views(metrics, views):
         plots.plot_split(out / sv.plot, frames, sv)
+    per_byte = ranking.error_per_byte(metrics)
+    plot_files["error_per_byte"] = None
+    if any(p["bytes_per_texel"] > 0 for points in per_byte.values() for p in points):
+        plots.plot_error_per_byte(out / "plots" / "error_per_byte.png", per_byte, views)
+        plot_files["error_per_byte"] = "plots/error_per_byte.png"
     return plot_files
 
 

@@ -19,6 +19,7 @@ __all__ = [
     "split_views",
     "split_context",
     "plot_split",
+    "plot_error_per_byte",
 ]
 
 
@@ -535,4 +536,45 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
         ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: columns.fmt_deg(x)))
     ax.set_ylim(bottom=min(0.0, float(np.nanmin(vals)) if np.isfinite(vals).any() else 0.0))
     ax.grid(False, axis="x")
+    _save(fig, path)
+
+
+def plot_error_per_byte(
+    path: Path, table: dict[float, list[dict]], views: list[columns.TechniqueView], title: str = ""
+) -> None:
+    """Error against bytes per texel, one panel per light elevation
+    (:func:`hzval.report.ranking.error_per_byte`'s ``table``): a shipped technique filled, a fitted one
+    hollow, no shadows at 0 bytes, the Pareto front of least bytes and least error as a step line."""
+    colours = {v.name: v.colour for v in views}
+    n = max(1, len(table))
+    fig = _figure(min(13.0, 1.2 + 4.0 * n), 4.2)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    fig.subplots_adjust(left=0.06, right=0.78, top=0.86, bottom=0.14, wspace=0.25)
+    seen = {}
+    for ax, (elevation, points) in zip(axes, table.items()):
+        _style_axes(ax, f"{title}light elevation {elevation:g}°")
+        for p in points:
+            # a fit in its technique's colour, hollow: the pair reads as one technique's two bakes
+            colour = colours.get(p.get("fit_of") or p["name"], colours.get(p["name"], NONE_COLOUR))
+            h = ax.scatter(
+                [p["bytes_per_texel"]],
+                [p["error"]],
+                s=46,
+                marker="o" if not p["fitted"] else "D",
+                facecolors="none" if p["fitted"] else colour,
+                edgecolors=colour,
+                linewidths=1.6,
+                zorder=4,
+            )
+            seen.setdefault(p["label"], h)
+        front = sorted((p["bytes_per_texel"], p["error"]) for p in points if p["pareto"])
+        if front:
+            ax.step(*zip(*front), where="post", color=_MUTED, linewidth=1.0, linestyle=":", zorder=2)
+        ax.set_xlabel("bytes per texel (textures as stored, top level)", color=_MUTED, fontsize=8)
+        ax.set_ylim(bottom=0)
+        ax.set_xlim(left=-0.3)
+    axes[0].set_ylabel("mean |F − V|, pixels facing the light", color=_MUTED, fontsize=8)
+    fig.legend(
+        list(seen.values()), list(seen), loc="center right", fontsize=8, frameon=False, labelcolor=_TEXT
+    )
     _save(fig, path)

@@ -7,7 +7,11 @@ frame's mean ``|F - V|`` (over the pixels that face the light where measured,
 :mod:`hzval.metrics.facing`) and mean FLIP; the frame's ``no_shadows`` record is the same for
 ``F = 1`` (the unshadowed shading). :func:`ranking` ranks the techniques by ``|F - V|`` over the
 whole sweep (FLIP breaks ties) and marks the elevations at which a technique's ``|F - V|`` is
-above no shadows': there it does harm. Pure data, no markup: pages and the terminal format it.
+above no shadows': there it does harm. Where a sweep also ran a technique's fit (``NAME-fit``,
+``metrics.json``'s ``techniques.FIT.fit_of``), :func:`floors` gives per elevation its shipped score,
+its floor (the fitted textures' score), no shadows', and the split of the shipped error into what
+the bake loses and what the representation cannot hold; a floor above no shadows means the formula
+itself does harm there, whatever the bake. Pure data, no markup: pages and the terminal format it.
 """
 
 from __future__ import annotations
@@ -18,10 +22,26 @@ import numpy as np
 
 from hzval.report import columns
 
-__all__ = ["NONE", "by_elevation", "ranking", "worse_than_none", "floor_note", "visibility_of"]
+__all__ = [
+    "NONE",
+    "by_elevation",
+    "ranking",
+    "worse_than_none",
+    "floor_note",
+    "visibility_of",
+    "fits",
+    "floors",
+    "formula_harms",
+    "pareto",
+    "error_per_byte",
+]
 
 #: The baseline's name in :func:`by_elevation`: no shadows at all, ``F = 1``.
 NONE = "no shadows"
+#: How far above no shadows' mean ``|F - V|`` a floor must be for the formula to count as doing harm
+#: (:func:`floors`): a thousandth, the terminal's last digit but one, so that a floor of 0.00002 against
+#: 0 at a high sun is not called harm.
+HARM_MARGIN = 1e-3
 
 
 def visibility_of(record: dict) -> float | None:
@@ -90,6 +110,66 @@ def worse_than_none(table: dict[str, list[dict]], name: str) -> list[float]:
     ]
 
 
+def fits(metrics: dict) -> dict[str, str]:
+    """``{shipped technique: its fit}`` for the fits a sweep ran beside their technique."""
+    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    return {
+        t["fit_of"]: name
+        for name, t in info.items()
+        if isinstance(t, dict) and t.get("fit_of") in info and t.get("fit_of") != name
+    }
+
+
+def floors(metrics: dict) -> dict[str, list[dict]]:
+    """Each fitted technique's floor per light elevation.
+
+    Parameters
+    ----------
+    metrics : dict
+        A sweep's ``metrics.json``.
+
+    Returns
+    -------
+    dict
+        ``{shipped technique: [row, ...]}`` in increasing elevation, a row ``elevation_deg``, ``fit``
+        (its fit's name), ``shipped``, ``floor`` and ``none`` (mean ``|F - V|``, :func:`visibility_of`),
+        ``bake_loss`` (shipped minus floor: what a better bake could win back), ``representation``
+        (the floor: what the formula cannot do even with the best textures) and ``harms`` (the floor
+        above no shadows by more than :data:`HARM_MARGIN`: the formula itself does harm there); a value
+        is ``None`` where unmeasured. A negative ``bake_loss`` is a fit that does worse than the bake
+        at that elevation, having traded it for its training lights.
+    """
+    table = by_elevation(metrics)
+    none = {r["elevation_deg"]: r["visibility_mae"] for r in table.get(NONE, [])}
+    out = {}
+    for shipped, fit in fits(metrics).items():
+        floor = {r["elevation_deg"]: r["visibility_mae"] for r in table.get(fit, [])}
+        rows = []
+        for r in table.get(shipped, []):
+            e, s = r["elevation_deg"], r["visibility_mae"]
+            f, n = floor.get(e), none.get(e)
+            rows.append(
+                {
+                    "elevation_deg": e,
+                    "fit": fit,
+                    "shipped": s,
+                    "floor": f,
+                    "none": n,
+                    "bake_loss": None if s is None or f is None else s - f,
+                    "representation": f,
+                    "harms": f is not None and n is not None and f > n + HARM_MARGIN,
+                }
+            )
+        out[shipped] = rows
+    return out
+
+
+def formula_harms(metrics: dict) -> dict[str, list[float]]:
+    """``{shipped technique: elevations}`` where even its fitted floor is worse than no shadows."""
+    out = {n: [r["elevation_deg"] for r in rows if r["harms"]] for n, rows in floors(metrics).items()}
+    return {n: at for n, at in out.items() if at}
+
+
 def ranking(metrics: dict) -> list[dict]:
     """The sweep's techniques ranked, best first, with no shadows among them as the baseline.
 
@@ -105,13 +185,16 @@ def ranking(metrics: dict) -> list[dict]:
         ``at_hits`` (on a model or a view: ``|F - V|`` read at the truth's own hits, no parallax;
         ``None`` where not measured),
         ``bytes_per_texel`` (its textures as stored, the normal map aside; ``None`` for the baseline),
-        ``ms_per_frame`` (its mean render time), ``worse_at`` (:func:`worse_than_none`) and
-        ``baseline`` (true for :data:`NONE`). Ranked by ``visibility_mae``, then ``flip_mean``;
-        unmeasured last.
+        ``ms_per_frame`` (its mean render time), ``worse_at`` (:func:`worse_than_none`),
+        ``floor`` and ``bake_loss`` (its fit's mean ``|F - V|`` and the shipped minus that, where the
+        sweep ran its fit; else ``None``), ``harms_at`` (the elevations where even that floor is worse
+        than no shadows) and ``baseline`` (true for :data:`NONE`). Ranked by ``visibility_mae``, then
+        ``flip_mean``; unmeasured last.
     """
     table = by_elevation(metrics)
     info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
     frames = [f for f in metrics.get("frames") or [] if isinstance(f, dict)]
+    fitted, harms = fits(metrics), formula_harms(metrics)
     rows = []
     for name in [*info, NONE]:
         records = [
@@ -132,9 +215,17 @@ def ranking(metrics: dict) -> list[dict]:
                 "bytes_per_texel": None if name == NONE else columns.num(t.get("texture_bytes_per_texel")),
                 "ms_per_frame": None if seconds is None else 1000.0 * seconds,
                 "worse_at": [] if name == NONE else worse_than_none(table, name),
+                "floor": None,
+                "bake_loss": None,
+                "harms_at": harms.get(name, []),
                 "baseline": name == NONE,
             }
         )
+    means = {r["name"]: r["visibility_mae"] for r in rows}
+    for r in rows:
+        floor = means.get(fitted.get(r["name"]))
+        if floor is not None and r["visibility_mae"] is not None:
+            r["floor"], r["bake_loss"] = floor, r["visibility_mae"] - floor
 
     def key(r):
         inf = float("inf")
@@ -165,3 +256,57 @@ def floor_note(metrics: dict) -> str | None:
         f"or above {listed}; the shading's own difference from the truth's dominates, so the table ranks "
         "by |F - V|"
     )
+
+
+def pareto(points: list[tuple[float, float]]) -> list[bool]:
+    """Which of ``(cost, error)`` points no other point is at least as good as in both and better in one.
+
+    Examples
+    --------
+    >>> pareto([(0.0, 0.2), (1.0, 0.1), (1.0, 0.15), (4.0, 0.1)])
+    [True, True, False, False]
+    """
+    return [
+        not any(q != p and q[0] <= p[0] and q[1] <= p[1] and (q[0] < p[0] or q[1] < p[1]) for q in points)
+        for p in points
+    ]
+
+
+def error_per_byte(metrics: dict) -> dict[float, list[dict]]:
+    """Each technique's error against the bytes per texel its textures take, per light elevation.
+
+    Parameters
+    ----------
+    metrics : dict
+        A sweep's ``metrics.json``.
+
+    Returns
+    -------
+    dict
+        ``{elevation: [point, ...]}``, a point ``name``, ``label``, ``bytes_per_texel`` (its textures as
+        stored, top level, the normal map aside; no shadows 0), ``error`` (mean ``|F - V|`` at that
+        elevation, :func:`visibility_of`), ``fitted`` (a ``NAME-fit``), ``fit_of`` (the technique it
+        fits, or ``None``) and ``pareto`` (on the front of
+        least bytes and least error, :func:`pareto`).
+    """
+    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    out: dict[float, list[dict]] = defaultdict(list)
+    for name, rows in by_elevation(metrics).items():
+        t = info.get(name) if isinstance(info.get(name), dict) else {}
+        b = 0.0 if name == NONE else columns.num(t.get("texture_bytes_per_texel"))
+        for r in rows:
+            if b is not None and r["visibility_mae"] is not None:
+                out[r["elevation_deg"]].append(
+                    {
+                        "name": name,
+                        "label": "no shadows (F = 1)" if name == NONE else str(t.get("label") or name),
+                        "bytes_per_texel": float(b),
+                        "error": r["visibility_mae"],
+                        "fitted": bool(t.get("fit_of")),
+                        "fit_of": t.get("fit_of"),
+                    }
+                )
+    for points in out.values():
+        for p, front in zip(points, pareto([(p["bytes_per_texel"], p["error"]) for p in points])):
+            p["pareto"] = front
+    return dict(sorted(out.items()))

@@ -171,6 +171,9 @@ class Technique:
     #: from the bottom up as the report stacks them (``metrics.json``'s ``techniques.NAME.split_parts``);
     #: none by default.
     split_parts: ClassVar[tuple[tuple[str, str], ...]] = ()
+    #: The technique whose textures this one fits to the truth (``horizon-fit``'s is ``horizon``):
+    #: its scores are that technique's floor (:func:`hzval.report.ranking.floors`); ``None``: none.
+    fit_of: ClassVar[str | None] = None
     #: Flags of the command line that give it inputs rather than settings (``--horizon-map``).
     input_flags: ClassVar[tuple[str, ...]] = ()
 

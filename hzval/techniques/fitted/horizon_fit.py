@@ -40,6 +40,7 @@ class FittedHorizon(Horizon):
         "beside the bake"
     )
     file_stem = "horizon_fit"
+    fit_of = Horizon.name
     needs = ("shadow",)
     by_default = False
     not_on_models = "the fit trains on the plane's top view (docs/fit.md)"

@@ -57,6 +57,10 @@ class FittedTextures:
     fitted: dict | None = None
     fit_record: dict | None = None
 
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        cls.fit_of = cls.fitted_from.name
+
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         """The textures it starts from, and the height map the truth it fits to is traced from."""
