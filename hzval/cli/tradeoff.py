@@ -61,6 +61,12 @@ def add_parser(sub) -> None:
         metavar="TEXT",
         help="measure only the settings whose names contain TEXT (repeatable)",
     )
+    p.add_argument(
+        "--fits",
+        action="store_true",
+        help="also fit each per-pixel technique's textures to the truth at each of its storages "
+        "(NAME-fit; a fit a setting): the floors beside the shipped points in the error per byte",
+    )
     p.add_argument("--out", type=Path, default=None, help="output folder (default reports/tradeoff-<name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -80,7 +86,7 @@ def run(args) -> int:
     tradeoff.check_fits(scene, truth_spp)  # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
     points, info = tradeoff.measure(
-        scene, hm.height, truth_spp=truth_spp, only=args.only, progress=not args.quiet
+        scene, hm.height, truth_spp=truth_spp, only=args.only, fits=args.fits, progress=not args.quiet
     )
     if not points:
         raise errors.InputError("--only", "no setting matches")
@@ -95,6 +101,8 @@ def run(args) -> int:
     }
     index = tradeoff.write_tradeoff(out, points, info, material=material, command=command, force=args.force)
     print(tradeoff.table(points))
+    for line in tradeoff.floor_lines(points):
+        print(line)
     _print_recommendation(tradeoff.recommend(points))
     print(f"report: {index}")
     return errors.EXIT_OK

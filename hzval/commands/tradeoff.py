@@ -164,10 +164,11 @@ def baked_technique(scene=None) -> str | None:
     )
 
 
-def settings(scene=None) -> list[Setting]:
+def settings(scene=None, *, fits: bool = False) -> list[Setting]:
     """Every setting :func:`measure` measures, defaults first: the bake's (rendered with
     :func:`baked_technique`), every technique's own from the registry (those that apply to
-    ``scene``, when given), and the truth's ray counts."""
+    ``scene``, when given; a technique that fits another's textures, ``NAME-fit``, only with
+    ``fits``: each of its settings is a fit), and the truth's ray counts."""
     s: list[Setting] = []
     baked = baked_technique(scene)
     if baked is not None:
@@ -187,7 +188,7 @@ def settings(scene=None) -> list[Setting]:
         ]
     for name in technique.names():
         t = technique.get(name)
-        if scene is not None and not t.applies(scene):
+        if (scene is not None and not t.applies(scene)) or (t.fit_of and not fits):
             continue
         s += [
             Setting(
@@ -319,14 +320,16 @@ def measure(
     *,
     truth_spp: int = DEFAULT_TRUTH_SPP,
     only: list[str] | None = None,
+    fits: bool = False,
     progress: bool = False,
 ) -> tuple[list[Point], dict]:
-    """Measure every setting of :func:`settings` (or those whose names contain one of ``only``)."""
+    """Measure every setting of :func:`settings` (or those whose names contain one of ``only``;
+    ``fits``: the fitted techniques' too)."""
     from tqdm import tqdm
 
     ref = _reference(scene, height, truth_spp)
     base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
-    todo = [s for s in settings(scene) if not only or any(o in s.name for o in only)]
+    todo = [s for s in settings(scene, fits=fits) if not only or any(o in s.name for o in only)]
     bakes: dict = {}
     points = []
     for s in tqdm(todo, desc="tradeoff", unit="setting", disable=not progress, leave=False):
@@ -542,7 +545,10 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
     from hzval.report import pages as report
 
     rec = recommend(points)
+    texels = info["rows"] * info["cols"]
     data = {
+        "error_per_byte": error_per_byte(points, texels),
+        "floors": floors(points),
         "material": material,
         "measurement": info,
         "recommendation": rec,
@@ -569,18 +575,128 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
         ],
     }
     plot_tradeoff(out / "pareto.png", points)
+    per_byte = _plot_error_per_byte(out / "error_per_byte.png", data["error_per_byte"], info)
     files.write_json(out / "tradeoff.json", data)
     html = (
         report.environment()
         .get_template("tradeoff.html.j2")
         .render(
-            points=points, rec=rec, info=info, material=material, command=command, versions=data["versions"]
+            points=points,
+            rec=rec,
+            info=info,
+            material=material,
+            command=command,
+            versions=data["versions"],
+            per_byte=per_byte,
+            floors=floor_lines(points),
         )
     )
     index = out / "index.html"
     with files.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
+
+
+def error_per_byte(points: list[Point], texels: int) -> list[dict]:
+    """The techniques' settings as error against bytes per texel, each marked on the front of least bytes
+    and least error (:func:`hzval.report.ranking.pareto`): ``tradeoff.json``'s ``error_per_byte``.
+
+    Parameters
+    ----------
+    points : list of Point
+        The measured settings (those of kind ``technique`` are kept).
+    texels : int
+        The material's texels.
+
+    Returns
+    -------
+    list of dict
+        ``name``, ``technique``, ``fitted`` (a ``NAME-fit``'s setting), ``storage``,
+        ``bytes_per_texel``, ``error`` (:attr:`Point.error`) and ``pareto``.
+    """
+    from hzval.report import ranking
+
+    kept = [p for p in points if p.kind == "technique"]
+    out = [
+        {
+            "name": p.name,
+            "technique": p.params.get("technique"),
+            "fitted": bool(technique.get(p.params["technique"]).fit_of)
+            if p.params.get("technique")
+            else False,
+            "storage": p.params.get("storage"),
+            "bytes_per_texel": p.storage_bytes / texels,
+            "error": p.error,
+        }
+        for p in kept
+    ]
+    for row, front in zip(out, ranking.pareto([(r["bytes_per_texel"], r["error"]) for r in out])):
+        row["pareto"] = front
+    return out
+
+
+def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None:
+    """:func:`error_per_byte` as the report draws it (:func:`hzval.report.plots.plot_error_per_byte`),
+    a panel for the sweep's lights; its file name, or ``None`` with no technique setting."""
+    from hzval.report import columns, plots
+
+    if not rows:
+        return None
+    names = list(dict.fromkeys(r["technique"] for r in rows))
+    views = columns.technique_views({"techniques": {n: {"label": technique.get(n).label} for n in names}})
+    points = [
+        {**r, "label": r["name"], "fit_of": technique.get(r["technique"]).fit_of, "name": r["technique"]}
+        for r in rows
+    ]
+    elevations = ", ".join(f"{e:g}" for e in info["elevations_deg"])
+    plots.plot_error_per_byte(
+        path, {info["elevation_deg"]: points}, views, title=f"lights at {elevations}°"
+    )
+    return path.name
+
+
+def floors(points: list[Point]) -> list[dict]:
+    """Each fitted setting beside the shipped one of the same storage: ``technique``, ``storage``,
+    ``shipped`` and ``floor`` (:attr:`Point.error`) and ``bake_loss`` (shipped minus floor):
+    ``tradeoff.json``'s ``floors``.
+
+    Parameters
+    ----------
+    points : list of Point
+        The measured settings.
+
+    Returns
+    -------
+    list of dict
+    """
+    shipped = {
+        (p.params.get("technique"), repr(p.params.get("storage"))): p for p in points if p.kind == "technique"
+    }
+    out = []
+    for p in points:
+        name = p.params.get("technique")
+        of = technique.get(name).fit_of if name else None
+        base = shipped.get((of, repr(p.params.get("storage")))) if of else None
+        if base is not None:
+            out.append(
+                {
+                    "technique": of,
+                    "storage": p.params.get("storage"),
+                    "shipped": base.error,
+                    "floor": p.error,
+                    "bake_loss": base.error - p.error,
+                }
+            )
+    return out
+
+
+def floor_lines(points: list[Point]) -> list[str]:
+    """:func:`floors` for the terminal, a line each."""
+    return [
+        f"{f['technique']} ({', '.join(f'{t} {s}' for t, s in (f['storage'] or {}).items())}): shipped "
+        f"{f['shipped']:.4f} = bake loss {f['bake_loss']:.4f} + floor {f['floor']:.4f}"
+        for f in floors(points)
+    ]
 
 
 def table(points: list[Point]) -> str:

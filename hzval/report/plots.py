@@ -540,7 +540,7 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
 
 
 def plot_error_per_byte(
-    path: Path, table: dict[float, list[dict]], views: list[columns.TechniqueView], title: str = ""
+    path: Path, table: dict[float, list[dict]], views: list[columns.TechniqueView], title: str | None = None
 ) -> None:
     """Error against bytes per texel, one panel per light elevation
     (:func:`hzval.report.ranking.error_per_byte`'s ``table``): a shipped technique filled, a fitted one
@@ -552,7 +552,7 @@ def plot_error_per_byte(
     fig.subplots_adjust(left=0.06, right=0.78, top=0.86, bottom=0.14, wspace=0.25)
     seen = {}
     for ax, (elevation, points) in zip(axes, table.items()):
-        _style_axes(ax, f"{title}light elevation {elevation:g}°")
+        _style_axes(ax, title or f"light elevation {elevation:g}°")
         for p in points:
             # a fit in its technique's colour, hollow: the pair reads as one technique's two bakes
             colour = colours.get(p.get("fit_of") or p["name"], colours.get(p["name"], NONE_COLOUR))

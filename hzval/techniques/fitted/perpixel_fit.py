@@ -10,6 +10,7 @@ fitted error, its floor), over the pixels facing the light. Opt-in, as ``horizon
 
 from __future__ import annotations
 
+import dataclasses
 from typing import ClassVar
 
 import numpy as np
@@ -121,7 +122,12 @@ class FittedTextures:
 
     @classmethod
     def tradeoff_variants(cls) -> list:
-        return []
+        """The shipped technique's storages, each fitted (``hzval tradeoff --fits``)."""
+        shipped = cls.fitted_from
+        return [
+            dataclasses.replace(v, name=v.name.replace(shipped.label, cls.label, 1))
+            for v in shipped.tradeoff_variants()
+        ]
 
     @classmethod
     def add_arguments(cls, parser) -> None:
