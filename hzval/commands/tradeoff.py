@@ -645,13 +645,16 @@ def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None
     names = list(dict.fromkeys(r["technique"] for r in rows))
     views = columns.technique_views({"techniques": {n: {"label": technique.get(n).label} for n in names}})
     points = [
-        {**r, "label": r["name"], "fit_of": technique.get(r["technique"]).fit_of, "name": r["technique"]}
+        {
+            **r,
+            "label": technique.get(r["technique"]).label,
+            "fit_of": technique.get(r["technique"]).fit_of,
+            "name": r["technique"],
+        }
         for r in rows
     ]
     elevations = ", ".join(f"{e:g}" for e in info["elevations_deg"])
-    plots.plot_error_per_byte(
-        path, {info["elevation_deg"]: points}, views, title=f"lights at {elevations}°"
-    )
+    plots.plot_error_per_byte(path, {info["elevation_deg"]: points}, views, title=f"lights at {elevations}°")
     return path.name
 
 

@@ -547,9 +547,10 @@ def plot_error_per_byte(
     hollow, no shadows at 0 bytes, the Pareto front of least bytes and least error as a step line."""
     colours = {v.name: v.colour for v in views}
     n = max(1, len(table))
-    fig = _figure(min(13.0, 1.2 + 4.0 * n), 4.2)
+    width = 3.4 + 4.0 * n  # the legend's 3 inches beside the panels
+    fig = _figure(width, 4.2)
     axes = fig.subplots(1, n, squeeze=False)[0]
-    fig.subplots_adjust(left=0.06, right=0.78, top=0.86, bottom=0.14, wspace=0.25)
+    fig.subplots_adjust(left=0.8 / width, right=1 - 3.0 / width, top=0.88, bottom=0.14, wspace=0.25)
     seen = {}
     for ax, (elevation, points) in zip(axes, table.items()):
         _style_axes(ax, title or f"light elevation {elevation:g}°")
