@@ -35,6 +35,7 @@ from hzval.io import documents, files, ktx2, storage
 from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
+from hzval.techniques.fitted import store as fitted_store
 
 __all__ = ["export", "FILE", "plan"]
 
@@ -80,6 +81,9 @@ def plan(run_dir: Path) -> dict:
     if (run_dir / "fit.json").is_file():
         fit = documents.read_json(run_dir / "fit.json")
         store = fit.get("storage", "float") if isinstance(fit, dict) else "float"
+        if isinstance(store, dict):  # a per-pixel technique's textures (hzval fit --technique)
+            stores = {_content_of(t): s for t, s in store.items()}
+            return _plan("texture-fit", run_dir, stores, "average", tuple(stores))
         return _plan("fit", run_dir, {"horizon_map": store}, "average", ("horizon_map",))
     if (run_dir / "bake.json").is_file():
         return _plan("bake", run_dir, {}, "average", TEXTURES)
@@ -160,15 +164,36 @@ def _maps(p: dict) -> dict:
         layers = sorted(folder.glob("horizon*.exr"), key=lambda f: int(f.stem[7:] or 0))
         sines = np.concatenate([_rgba(files.read_exr(f)) for f in layers], axis=-1)
         return _horizon(sines, p["storage"].get("horizon_map", "float"), p["mips"])
+    if p["kind"] == "texture-fit":
+        planes, _ = fitted_store.read_texture_fit(folder)
+        return _occlusion({_content_of(t): v for t, v in planes.items()}, p)
     b = bake.read_bake(folder)
     out = {}
     if "horizon_map" in p["textures"] and b.horizon is not None:
         out.update(_horizon(b.horizon, p["storage"].get("horizon_map", "float"), p["mips"]))
     if "normal" in p["textures"]:
         out["normal"] = _vector(b.normal, "float", "the normal map: unit tangent-space normal", "normal")
-    if "ambient" in p["textures"] and b.mean_cos2 is not None:
+    maps = {"ambient": b.mean_cos2, "bent_normal": b.bent_normal, "ssbump_map": b.ssbump}
+    out.update(_occlusion({k: v for k, v in maps.items() if v is not None}, p))
+    return out
+
+
+#: The KTX2 format of the AO and ssbump textures in each storage.
+AO_FORMATS = {"float": "R16_SFLOAT", "u8": "R8_UNORM", "bc4": "BC4_UNORM_BLOCK"}
+SSBUMP_FORMATS = {
+    "float": "R16G16B16A16_SFLOAT",
+    "u8": "R8G8B8A8_UNORM",
+    "bc1": "BC1_RGB_UNORM_BLOCK",
+    "bc7": "BC7_UNORM_BLOCK",
+}
+
+
+def _occlusion(maps: dict, p: dict) -> dict:
+    """The AO, bent-normal and ssbump textures of ``maps`` (by bake content) that ``p`` selects, each in
+    its storage."""
+    out = {}
+    if "ambient" in p["textures"] and "ambient" in maps:
         store = p["storage"].get("ambient", "float")
-        fmt = "R16_SFLOAT" if store == "float" else "R8_UNORM"
         what = {
             "bake_content": "ambient",
             "channels": ["AO"],
@@ -176,23 +201,25 @@ def _maps(p: dict) -> dict:
             "storage": store,
             "source": SOURCES["ambient"],
         }
-        out["ambient"] = (b.mean_cos2[..., None], fmt, what)
-    if "bent_normal" in p["textures"] and b.bent_normal is not None:
+        out["ambient"] = (np.asarray(maps["ambient"], np.float32)[..., None], AO_FORMATS[store], what)
+    if "bent_normal" in p["textures"] and "bent_normal" in maps:
         store = p["storage"].get("bent_normal", "float")
         out["bent_normal"] = _vector(
-            b.bent_normal, store, "the bent normal: unit tangent-space vector", "bent_normal"
+            maps["bent_normal"], store, "the bent normal: unit tangent-space vector", "bent_normal"
         )
-    if "ssbump_map" in p["textures"] and b.ssbump is not None:
+    if "ssbump_map" in p["textures"] and "ssbump_map" in maps:
         store = p["storage"].get("ssbump_map", "float")
-        fmt = "R16G16B16A16_SFLOAT" if store == "float" else "R8G8B8A8_UNORM"
+        fmt = SSBUMP_FORMATS[store]
+        three = ktx2.FORMATS[fmt].channels == 3
         what = {
             "bake_content": "ssbump_map",
-            "channels": ["basis 0", "basis 1", "basis 2", "1"],
+            "channels": ["basis 0", "basis 1", "basis 2"] + ([] if three else ["1"]),
             "encoding": "as stored, in [0, 1]",
             "storage": store,
             "source": SOURCES["ssbump_map"],
         }
-        out[Path(_SSBUMP_FILE).stem] = (_with_one(b.ssbump), fmt, what)
+        v = np.asarray(maps["ssbump_map"], np.float32)
+        out[Path(_SSBUMP_FILE).stem] = (v if three else _with_one(v), fmt, what)
     return out
 
 
@@ -205,13 +232,21 @@ def _with_one(v: np.ndarray) -> np.ndarray:
 
 
 def _vector(n: np.ndarray, store: str, meaning: str, key: str) -> tuple:
+    channels = ["x", "y", "z", "1"]
     if store == "float":
         values, fmt, enc = _with_one(n), "R16G16B16A16_SFLOAT", "x, y, z as they are; A = 1"
+    elif store == "bc5":  # a BC5 normal map's two channels: the shader rebuilds z
+        values, fmt, enc = (
+            0.5 + 0.5 * n[..., :2],
+            "BC5_UNORM_BLOCK",
+            "0.5 + 0.5 (x, y); z = sqrt(1 - x² - y²)",
+        )
+        channels = ["x", "y"]
     else:
         values, fmt, enc = _with_one(0.5 + 0.5 * n), "R8G8B8A8_UNORM", "0.5 + 0.5 (x, y, z); A = 1"
     what = {
         "bake_content": key,
-        "channels": ["x", "y", "z", "1"],
+        "channels": channels,
         "meaning": meaning,
         "encoding": enc,
         "storage": store,
