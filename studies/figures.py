@@ -318,6 +318,85 @@ def _level_strip(picks: list) -> str:
 
 
 #: name -> (function, quick): quick figures run by default, the others only when named.
+#: The floors' figure: four built-in materials and a photo-like map, 128 texels, at elevations off
+#: the fits' training grid (10, 20, 40, 60) but 30, the default sweep's.
+FLOOR_MAPS = ("bricks", "gravel", "ridges", "panels")
+FLOOR_ARGS = ("--size", "128", "--spp", "4", "--elevation", "25,30,50", "--azimuths", "-60:60:30")
+FLOOR_TECHNIQUES = ("microshadow-filament", "microshadow-hdrp", "bent-cone", "ssbump")
+
+
+def floors() -> str:
+    """docs/techniques.md's floors: each per-pixel technique shipped and with its textures fitted to
+    the truth (NAME-fit), beside no shadows, per elevation, over several maps; and docs/floors.png,
+    the error per byte of every technique and storage, shipped and fitted, with its Pareto front."""
+    import numpy as np
+
+    from hzval.report import columns, plots, ranking
+
+    wanted = ",".join(n for t in FLOOR_TECHNIQUES for n in (t, f"{t}-fit"))
+    storages = (
+        ("float", ()),
+        ("u8", ("--ao-storage", "u8", "--bent-normal-storage", "u8", "--ssbump-storage", "u8")),
+        ("bc", ("--ao-storage", "bc4", "--bent-normal-storage", "bc5", "--ssbump-storage", "bc1")),
+    )
+    runs: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        np.save(Path(tmp) / "photo-like.npy", photo_like(7, 1.8))
+        for store, flags in storages:
+            for name in (*FLOOR_MAPS, "photo-like"):
+                source = (
+                    ("--material", name) if name != "photo-like" else (str(Path(tmp) / "photo-like.npy"),)
+                )
+                runs[f"{name}/{store}"] = _sweep(*source, *FLOOR_ARGS, "--techniques", wanted, *flags)
+    float_runs = [r for k, r in runs.items() if k.endswith("/float")]
+    per = [ranking.floors(r) for r in float_runs]
+    tables = [ranking.by_elevation(r) for r in float_runs]
+    elevations = [r["elevation_deg"] for r in tables[0][ranking.NONE]]
+    rows = [
+        "| technique | " + " | ".join(f"{e:g}°: shipped / floor / no shadows" for e in elevations) + " |",
+        "|---" * (len(elevations) + 1) + "|",
+    ]
+    for t in FLOOR_TECHNIQUES:
+        cells = []
+        for k in range(len(elevations)):
+            s, f, n = (np.mean([p[t][k][key] for p in per]) for key in ("shipped", "floor", "none"))
+            harm = sum(p[t][k]["harms"] for p in per)
+            cells.append(f"{s:.3f} / {f:.3f} / {n:.3f}" + (f" (harms {harm}/{len(per)})" if harm else ""))
+        rows.append(f"| `{t}` | " + " | ".join(cells) + " |")
+    # error per byte: every technique and storage, shipped and fitted, averaged over the maps
+    points: dict[float, list[dict]] = {}
+    for store, _ in storages:
+        group = [r for k, r in runs.items() if k.endswith(f"/{store}")]
+        for e in elevations:
+            tabs = [ranking.error_per_byte(r)[e] for r in group]
+            for i, p in enumerate(tabs[0]):
+                if store != "float" and p["name"] == ranking.NONE:
+                    continue
+                mean = float(np.mean([tab[i]["error"] for tab in tabs]))
+                points.setdefault(e, []).append({**p, "error": mean})
+    for pts in points.values():
+        for p, front in zip(pts, ranking.pareto([(p["bytes_per_texel"], p["error"]) for p in pts])):
+            p["pareto"] = front
+    views = columns.technique_views(float_runs[0])
+    plots.plot_error_per_byte(ROOT / "docs" / "floors.png", points, views)
+    what = (
+        f"mean |F - V| over the pixels facing the light, averaged over {len(per)} maps ("
+        + ", ".join((*FLOOR_MAPS, "a photo-like map"))
+        + ") and the azimuths; the floor is the technique with its textures fitted to the truth on "
+        "lights at 10, 20, 40 and 60 degrees (NAME-fit, float storage); in brackets, on how many maps "
+        "even the floor is worse than no shadows"
+    )
+    command = "hzval sweep MAP " + " ".join(FLOOR_ARGS) + " --techniques NAME,NAME-fit,..."
+    return (
+        "\n".join(rows)
+        + f"\n\n*{what}.* "
+        + _provenance(command)
+        + "\n\n![error per byte](floors.png)\n\n*docs/floors.png: the same runs at float, u8 and BC "
+        "(BC4 AO, BC5 bent normal, BC1 ssbump) storage; fitted hollow; the dotted steps are the Pareto "
+        "front of least bytes and least error.*"
+    )
+
+
 FIGURES = {
     "default-sweep": (default_sweep, True),
     "reflection": (reflection, True),
@@ -325,6 +404,7 @@ FIGURES = {
     "engines": (engines, False),
     "tradeoff": (tradeoff, False),
     "gates": (gates, False),
+    "floors": (floors, False),
 }
 
 

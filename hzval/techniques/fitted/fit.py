@@ -345,6 +345,10 @@ def fit(
                 "baked": float(np.mean(before)),
                 "fitted": float(np.mean(after)),
                 "lights_worse": int(sum(a > b for a, b in zip(after, before))),
+                "per_light": [
+                    {"elevation_deg": e, "azimuth_deg": az, "baked": b, "fitted": a}
+                    for (e, az), b, a in zip(ls, before, after)
+                ],
             }
     settings = {
         "tolerance": tolerance,

@@ -98,7 +98,7 @@ class FittedHorizon(Horizon):
             "cached": cached,
             "k": record["k"],
             "fit_k": record["fit_k"],
-            "mae": record["mae"],
+            "mae": {w: {k: v for k, v in m.items() if k != "per_light"} for w, m in record["mae"].items()},
             "epochs": record["epochs"],
             "converged": record["converged"],
             "seconds": record["seconds"],

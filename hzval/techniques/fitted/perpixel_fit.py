@@ -117,6 +117,15 @@ class FittedTextures:
         )
 
     @classmethod
+    def check_settings(cls, bake_params, settings: dict) -> None:
+        """The shipped technique's checks, the fit's lights aside."""
+        own = {k: v for k, v in settings.items() if k not in ("lights", "held_out")}
+        super().check_settings(bake_params, own)
+        for key in ("lights", "held_out"):
+            if settings.get(key):
+                fitted_training.parse_lights(settings[key], key)
+
+    @classmethod
     def check_variants(cls) -> list:
         return []  # the regression check guards the shipped technique; a fit is its study
 

@@ -32,14 +32,13 @@ from hzval.scene import lookup
 from hzval.techniques import perpixel
 from hzval.techniques import registry as technique
 from hzval.techniques.fitted import fit as horizon_fit
+from hzval.techniques.fitted import guard as fit_guard
 from hzval.techniques.fitted import model as fit_model
 from hzval.techniques.fitted import training
 
 __all__ = [
     "PRIOR",
     "SEARCH_STRIDE",
-    "SEARCH_SLACK",
-    "SEARCH_GUARD_ROUNDS",
     "TextureFit",
     "TextureModel",
     "fittable",
@@ -258,11 +257,6 @@ PRIOR = 0.0
 #: The per-texel search's first pass tries every ``SEARCH_STRIDE``-th of the 256 levels, the second
 #: the levels within ``SEARCH_STRIDE - 1`` of each texel's best: 48 passes over the lights, not 256.
 SEARCH_STRIDE = 8
-#: How much worse (summed |F - V| over an elevation's lights) a pixel may do at one training elevation
-#: with a searched level than with the bake's (:func:`search`).
-SEARCH_SLACK = 0.0
-#: Passes that give a pixel whose realised errors are worse its bake's level back.
-SEARCH_GUARD_ROUNDS = 4
 
 
 def search(
@@ -271,16 +265,11 @@ def search(
     """The best of 256 levels for each texel of the one-channel texture ``t``, the others as ``values``.
 
     Each candidate level is tried at every texel at once and scored by its pixel's ``|F - V|`` over
-    the pixels facing the light (the fit's top view has a pixel a texel): exact where a pixel's
-    samples read its own texel alone, and a close estimate under the bilinear filter, which mixes in
-    the neighbours' candidates. A coarse pass (every :data:`SEARCH_STRIDE`-th level), then each
-    texel's best's neighbourhood of levels.
-
-    The errors are summed per training elevation, each elevation weighted by ``1 + lambda``: the
-    plain sum trades the elevations the bake gets nearly right (the higher ones) for the low ones,
-    whose errors are largest, and loses on lights between them. Dual ascent on "no elevation worse
-    than the bake" (:data:`SEARCH_ROUNDS`, :data:`SEARCH_STEP`) raises the weight of an elevation
-    the coarse pass makes worse, as the horizon fit's per-light weights do.
+    the lights, where the pixel faces each, each light weighted by one over its facing pixels (the
+    fit's criterion, :func:`facing_errors`); the fit's top view has a pixel a texel, so the score is
+    exact where a pixel's samples read its own texel alone, and a close estimate under the bilinear
+    filter, which mixes in the neighbours' candidates. A coarse pass (every :data:`SEARCH_STRIDE`-th
+    level), then each texel's best's neighbourhood of levels.
 
     Parameters
     ----------
@@ -300,31 +289,22 @@ def search(
     """
     rows, cols = model.rows, model.cols
     masks = model.masks if model.masks is not None else [np.ones((rows, cols), bool)] * len(lights)
-    groups = sorted({e for e, _ in lights})
-    of = [groups.index(e) for e, _ in lights]
-
-    def per_elevation(values_t: np.ndarray) -> np.ndarray:
-        """``(elevations, rows, cols)``: each pixel's |F - V| summed over an elevation's lights."""
-        trial = dict(values)
-        trial[t] = values_t
-        out = np.zeros((len(groups), rows, cols))
-        for e, m, g in zip(model.errors(trial, lights, V), masks, of):
-            out[g] += e * m
-        return out
+    weights = [m / max(int(m.sum()), 1) for m in masks]
 
     def level_map(index: np.ndarray) -> np.ndarray:
         return model.stored(t, (index.astype(np.float32) / np.float32(255.0))[..., None])[..., 0]
 
-    base = per_elevation(values[t])  # (G, rows, cols)
-    best = np.rint(np.asarray(values[t], np.float64) * 255.0).astype(np.int64)
-    best_cost = base.sum(axis=0)
+    def cost(values_t: np.ndarray) -> np.ndarray:
+        trial = dict(values)
+        trial[t] = values_t
+        return sum(e * w for e, w in zip(model.errors(trial, lights, V), weights))
+
+    best = np.rint(np.clip(np.asarray(values[t], np.float64), 0.0, 1.0) * 255.0).astype(np.int64)
+    best_cost = cost(values[t])
 
     def consider(index: np.ndarray) -> None:
-        E = per_elevation(level_map(index))
-        # a pixel takes a level only if no training elevation does worse there than with the bake's
-        ok = (E <= base + SEARCH_SLACK).all(axis=0)
-        c = E.sum(axis=0)
-        better = ok & (c < best_cost)
+        c = cost(level_map(index))
+        better = c < best_cost
         best[better], best_cost[better] = index[better], c[better]
 
     for level in [*range(0, 256, SEARCH_STRIDE), 255]:
@@ -333,18 +313,46 @@ def search(
     for o in range(-(SEARCH_STRIDE - 1), SEARCH_STRIDE):
         if o != 0:
             consider(np.clip(start + o, 0, 255))
-    baked_index = np.rint(np.asarray(values[t], np.float64) * 255.0).astype(np.int64)
-    for _ in range(SEARCH_GUARD_ROUNDS):
-        # the filter mixes each sample's texel with its neighbours': where the map as a whole does
-        # worse at some elevation than the bake, the pixel's texel goes back to the bake's level
-        worse = (per_elevation(level_map(best)) > base + SEARCH_SLACK).any(axis=0) & (best != baked_index)
-        if not worse.any():
-            break
-        best[worse] = baked_index[worse]
+    best = _refine(best, lambda index: cost(level_map(index)), model.tech.bake.params.boundary)
     found = level_map(best)
     trial = dict(values)
     trial[t] = found
     return found, _mean_error(model, trial, lights, V)
+
+
+#: The offsets of the refinement's candidates from each texel's level (:func:`_refine`).
+REFINE_OFFSETS = (-16, -8, -4, -2, -1, 1, 2, 4, 8, 16)
+#: Passes of the refinement over the lattices.
+REFINE_ROUNDS = 3
+
+
+def _refine(best: np.ndarray, cost, boundary: str) -> np.ndarray:
+    """Coordinate descent on the levels with the neighbours' levels as they are: the filter makes a
+    texel's level reach the 3 x 3 pixels about it, so texels 3 apart (9 interleaved lattices) can
+    move at once and each move's cost is exactly the change over its own neighbourhood. Every
+    lattice tries :data:`REFINE_OFFSETS`; a texel keeps a move that lowers its neighbourhood's cost.
+    The levels are kept only where the whole map's cost falls (a wrapped side not a multiple of 3
+    puts two lattice texels closer across the seam)."""
+    current = cost(best)
+    out = best.copy()
+    rows, cols = best.shape
+    r, c = np.indices((rows, cols))
+    for lattice in [*range(9)] * REFINE_ROUNDS:
+        on = (r % 3 == lattice // 3) & (c % 3 == lattice % 3)
+        here = fit_guard.neighbourhood_sum(current, boundary)
+        for o in REFINE_OFFSETS:
+            trial = out.copy()
+            trial[on] = np.clip(out[on] + o, 0, 255)
+            after = cost(trial)
+            gain = on & (fit_guard.neighbourhood_sum(after, boundary) < here)
+            if gain.any():
+                out[gain] = trial[gain]
+                # the pixels a moved texel reaches took their cost from the trial: the other moves
+                # of the trial reach other pixels
+                moved = fit_guard.neighbourhood_sum(gain.astype(np.float64), boundary) > 0
+                current = np.where(moved, after, current)
+                here = fit_guard.neighbourhood_sum(current, boundary)
+    return out if cost(out).sum() < cost(best).sum() else best
 
 
 def _mean_error(model: TextureModel, values: dict, lights, V) -> float:
@@ -376,23 +384,22 @@ def _fit(model: TextureModel, cls, baked: dict, lights, V, adam: dict):
         if error < current:
             values[t], current = found, error
             how.append(f"per-texel search of {t}")
-    else:
-        opt, curve, times, steps, converged = fit_model.optimise(
-            model,
-            {t: mi.TensorXf(lookup.aligned(_channels(values[t]))) for t in cls.textures},
-            lights,
-            set_parameters=model.set_parameters,
-            project=_project(cls, cls.textures),
-            baked_losses=model.light_losses(baked, lights, V) if adam["constrain"] > 0 else None,
-            **adam,
-        )
-        moved = {}
-        for t in cls.textures:
-            a = model.stored(t, np.asarray(opt[t], np.float32).reshape(model.rows, model.cols, -1))
-            moved[t] = a[..., 0] if a.shape[-1] == 1 else a  # the bake's shape
-        if _mean_error(model, moved, lights, V) < current:
-            values = moved
-            how.append("Adam over " + ", ".join(cls.textures))
+    opt, curve, times, steps, converged = fit_model.optimise(
+        model,
+        {t: mi.TensorXf(lookup.aligned(_channels(values[t]))) for t in cls.textures},
+        lights,
+        set_parameters=model.set_parameters,
+        project=_project(cls, cls.textures),
+        baked_losses=model.light_losses(baked, lights, V) if adam["constrain"] > 0 else None,
+        **adam,
+    )
+    moved = {}
+    for t in cls.textures:
+        a = model.stored(t, np.asarray(opt[t], np.float32).reshape(model.rows, model.cols, -1))
+        moved[t] = a[..., 0] if a.shape[-1] == 1 else a  # the bake's shape
+    if _mean_error(model, moved, lights, V) < current:
+        values = moved
+        how.append("Adam over " + ", ".join(cls.textures))
     return values, curve, times, steps, converged, how or ["none: the bake did best"]
 
 
