@@ -351,10 +351,7 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     if floor:
         notes.append(floor)
     notes += _floor_notes(result, several)
-    fitted = set(ranking.fits(result).values())
     for n, t in (result.get("techniques") or {}).items():
-        if n in fitted:
-            continue  # its floor's notes split the error (_floor_notes)
         parts = [p["key"] for p in t.get("split_parts") or []]
         sums = {
             k: [((f.get("techniques") or {}).get(n) or {}).get("split", {}).get(k) for f in frames]

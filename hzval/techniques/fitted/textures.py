@@ -381,9 +381,11 @@ def _fit(model: TextureModel, cls, baked: dict, lights, V, adam: dict):
     if separable(model):
         (t,) = cls.textures
         found, error = search(model, t, values, lights, V)
+        trial = {**values, t: found}
         if error < current:
-            values[t], current = found, error
+            values, current = trial, error
             how.append(f"per-texel search of {t}")
+        return values, curve, times, steps, converged, how or ["none: the bake did best"]
     opt, curve, times, steps, converged = fit_model.optimise(
         model,
         {t: mi.TensorXf(lookup.aligned(_channels(values[t]))) for t in cls.textures},
