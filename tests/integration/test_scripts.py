@@ -84,6 +84,7 @@ SMOKE = {
     "benchmarks/bench_bake_radius.py": ["--size", "64", "--radii", "4", "--repeat", "1"],
     "benchmarks/bench_compare.py": ["--sizes", "64", "--tests", "1", "--repeat", "1"],
     "benchmarks/bench_fit.py": ["--size", "32", "--spp", "1", "--train-spp", "1"],
+    "benchmarks/bench_fit_textures.py": ["--size", "24", "--spp", "1", "--techniques", "microshadow-hdrp"],
     "benchmarks/bench_horizon.py": ["--size", "64", "--spp", "1", "--paths", "exact", "--frames", "2"],
     "benchmarks/bench_horizon_methods.py": ["--sizes", "64", "--repeat", "1"],
     "benchmarks/bench_meshes.py": ["--size", "64"],

@@ -227,6 +227,17 @@ def facing_errors(model: TextureModel, values: dict, lights, V) -> list[float]:
     return out
 
 
+def _release() -> None:
+    """Free the fit's arrays now. Many wrap NumPy memory without a copy (the LLVM backend's zero-copy
+    views), whose release is a host callback; collected later, inside the symbolic loop of a sweep's
+    next kernel, the callback cannot be recorded and Dr.Jit aborts (``enqueue_host_func(): this
+    function cannot be recorded``: four fits in one sweep did)."""
+    import gc
+
+    gc.collect()
+    dr.sync_thread()
+
+
 def _channels(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, np.float32)
     return a[..., None] if a.ndim == 2 else a
@@ -490,10 +501,13 @@ def fit_textures(
                     for (e, az), b, a in zip(ls, before, after)
                 ],
             }
+    used, stores = dict(model.tech.settings), dict(model.tech.storage)
+    del model, m
+    _release()
     return TextureFit(
         name,
-        {k: v for k, v in model.tech.settings.items()},
-        dict(model.tech.storage),
+        used,
+        stores,
         fitted,
         lights,
         held_out,
