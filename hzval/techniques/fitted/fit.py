@@ -156,31 +156,13 @@ class FitResult:
 
     def record(self) -> dict:
         """``fit.json``'s content."""
-        m = self.mae
         return {
             "format": "hzval fit 1",
             "k": self.k,
             "fit_k": self.fit_k,
             "storage": self.storage,
-            "mae": m,
-            "fitted_over_baked": {
-                w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None) for w in m
-            },
-            "loss": {
-                "kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {CHARBONNIER_EPS:g}; "
-                "straight-through clamp",
-                "per_epoch": self.loss,
-                "epoch_seconds": self.epoch_seconds,
-            },
-            "epochs": self.epochs,
-            "steps": self.steps,
-            "converged": self.converged,
-            "seconds": self.seconds,
+            **fit_model.run_record(self, "straight-through clamp"),
             "settings": self.settings,
-            "lights": {
-                "training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.lights],
-                "held_out": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.held_out],
-            },
             "conventions": "horizon0/1 as hzval bake writes them: channel c (azimuth 45 c deg, "
             "counterclockwise from +x) in layer c // 4; sines in [0, 1]",
         }

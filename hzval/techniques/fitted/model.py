@@ -31,6 +31,7 @@ __all__ = [
     "optimise",
     "reweight",
     "clip_unit",
+    "run_record",
 ]
 
 #: ``eps`` of the Charbonnier loss (docs/fit.md): a sixteenth of the 16-spp truth's V step.
@@ -263,3 +264,27 @@ def optimise(
 def clip_unit(opt, key: str) -> None:
     """Keep ``opt[key]`` in [0, 1]."""
     opt[key] = dr.clip(opt[key], 0.0, 1.0)
+
+
+def run_record(result, through: str) -> dict:
+    """What every ``fit.json`` records of a fit's run: the errors before and after and their ratio,
+    the loss per epoch (``through``: what its gradient passes straight through), the epochs, steps,
+    seconds and lights of ``result`` (a fit's result dataclass)."""
+    m = result.mae
+    return {
+        "mae": m,
+        "fitted_over_baked": {w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None) for w in m},
+        "loss": {
+            "kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {CHARBONNIER_EPS:g}; {through}",
+            "per_epoch": result.loss,
+            "epoch_seconds": result.epoch_seconds,
+        },
+        "epochs": result.epochs,
+        "steps": result.steps,
+        "converged": result.converged,
+        "seconds": result.seconds,
+        "lights": {
+            "training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in result.lights],
+            "held_out": [{"elevation_deg": e, "azimuth_deg": a} for e, a in result.held_out],
+        },
+    }

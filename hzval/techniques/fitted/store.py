@@ -47,16 +47,24 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
     list of pathlib.Path
         The files written.
     """
-    from hzval.io import files
 
     layers = [
         result.horizon[..., c : c + cv.CHANNELS_PER_LAYER]
         for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)
     ]
+    images = {f"horizon{i}": ({"RGBA": layer}, layer) for i, layer in enumerate(layers)}
+    return _write(out, images, result.record(), input_info)
+
+
+def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
+    """``NAME.exr`` and ``NAME.png`` of each ``images[NAME] = (EXR channels, PNG values in [0, 1])``
+    and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing."""
+    from hzval.io import files
+
     with files.Staging(out) as stage:
-        for i, layer in enumerate(layers):
-            files.write_exr(stage.path(f"horizon{i}.exr"), {"RGBA": layer}, atomic=False, compression="none")
-            files.write_png(stage.path(f"horizon{i}.png"), files.unit_to_u8(layer), atomic=False)
+        for name, (channels, shown) in images.items():
+            files.write_exr(stage.path(f"{name}.exr"), channels, atomic=False, compression="none")
+            files.write_png(stage.path(f"{name}.png"), files.unit_to_u8(shown), atomic=False)
         digests = {
             p.relative_to(stage.dir).as_posix(): files.file_digest(p)
             for p in sorted(stage.dir.rglob("*"))
@@ -64,7 +72,7 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
         }
         files.write_json(
             stage.path("fit.json"),
-            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
+            {"input": input_info, **record, "versions": backend.versions(), "files": digests},
             atomic=False,
         )
         return stage.commit()
@@ -119,26 +127,14 @@ def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path
     list of pathlib.Path
         The files written.
     """
-    from hzval.io import files
+    from hzval.techniques import registry as technique
 
-    with files.Staging(out) as stage:
-        for t, plane in result.planes.items():
-            stem = t.replace("-", "_")
-            channels = {"Y": plane} if plane.ndim == 2 else {"RGB": plane}
-            files.write_exr(stage.path(f"{stem}.exr"), channels, atomic=False, compression="none")
-            shown = plane if plane.ndim == 2 or plane.min() >= 0 else 0.5 + 0.5 * plane
-            files.write_png(stage.path(f"{stem}.png"), files.unit_to_u8(shown), atomic=False)
-        digests = {
-            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
-            for p in sorted(stage.dir.rglob("*"))
-            if p.is_file()
-        }
-        files.write_json(
-            stage.path("fit.json"),
-            {"input": input_info, **result.record(), "versions": backend.versions(), "files": digests},
-            atomic=False,
-        )
-        return stage.commit()
+    images = {}
+    for t, plane in result.planes.items():
+        channels = {"Y": plane} if plane.ndim == 2 else {"RGB": plane}
+        signed = technique.get(result.technique).texture(t).signed  # a unit vector: 0.5 + 0.5 v
+        images[t.replace("-", "_")] = (channels, 0.5 + 0.5 * plane if signed else plane)
+    return _write(out, images, result.record(), input_info)
 
 
 def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
@@ -220,26 +216,34 @@ def cached_fit(
     tuple
         ``(result or None, sines, record, cached)``: ``result`` is ``None`` for a cached fit.
     """
-    from hzval.io import documents, files, paths
 
     key = cache_key(height, bake, scene, settings)
-    if folder is not None:
-        folder = Path(folder)
-        try:  # a missing, damaged or hand-edited cache is fitted anew; nothing outside it is read
-            record = documents.read_json(folder / "fit.json")
-            if record["input"]["key"] == key and all(
-                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
-                for n, d in record["files"].items()
-            ):
-                sines, record = read_fit(folder)
-                return None, sines, record, True
-        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
-            pass
+    if _holds(folder, key):
+        sines, record = read_fit(folder)
+        return None, sines, record, True
     result = fit.fit(height, bake, scene, progress=progress, **settings)
     record = result.record()
     if folder is not None:
         write_fit(result, folder, input_info={"key": key})
     return result, result.horizon, record, False
+
+
+def _holds(folder, key: str) -> bool:
+    """Whether ``folder`` holds the fit of ``key``, every file as written. A missing, damaged or
+    hand-edited cache does not; nothing outside the folder is read."""
+    from hzval.io import documents, files, paths
+
+    if folder is None:
+        return False
+    folder = Path(folder)
+    try:
+        record = documents.read_json(folder / "fit.json")
+        return record["input"]["key"] == key and all(
+            files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
+            for n, d in record["files"].items()
+        )
+    except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
 
 
 def cached_texture_fit(
@@ -273,22 +277,12 @@ def cached_texture_fit(
     tuple
         ``(planes, record, cached)``.
     """
-    from hzval.io import documents, files, paths
     from hzval.techniques.fitted import textures
 
     key = cache_key(height, bake, scene, {"technique": name, **settings})
-    if folder is not None:
-        folder = Path(folder)
-        try:
-            record = documents.read_json(folder / "fit.json")
-            if record["input"]["key"] == key and all(
-                files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
-                for n, d in record["files"].items()
-            ):
-                planes, record = read_texture_fit(folder)
-                return planes, record, True
-        except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
-            pass
+    if _holds(folder, key):
+        planes, record = read_texture_fit(folder)
+        return planes, record, True
     result = textures.fit_textures(height, bake, scene, name, progress=progress, **settings)
     if folder is not None:
         write_texture_fit(result, folder, input_info={"key": key})

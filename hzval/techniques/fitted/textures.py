@@ -97,32 +97,14 @@ class TextureFit:
 
     def record(self) -> dict:
         """``fit.json``'s content."""
-        m = self.mae
         return {
             "format": "hzval fit 2",
             "technique": self.technique,
             "settings": self.settings,
             "storage": self.storage,
             "textures": sorted(self.planes),
-            "mae": m,
-            "fitted_over_baked": {
-                w: (m[w]["fitted"] / m[w]["baked"] if m[w]["baked"] > 0 else None) for w in m
-            },
-            "loss": {
-                "kind": f"Charbonnier sqrt(d^2 + eps^2) - eps, eps = {fit_model.CHARBONNIER_EPS:g}; "
-                "straight-through clamps and steps",
-                "per_epoch": self.loss,
-                "epoch_seconds": self.epoch_seconds,
-            },
-            "epochs": self.epochs,
-            "steps": self.steps,
-            "converged": self.converged,
-            "seconds": self.seconds,
+            **fit_model.run_record(self, "straight-through clamps and steps"),
             "options": self.options,
-            "lights": {
-                "training": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.lights],
-                "held_out": [{"elevation_deg": e, "azimuth_deg": a} for e, a in self.held_out],
-            },
         }
 
 
