@@ -336,7 +336,6 @@ def floors() -> str:
     wanted = ",".join(n for t in FLOOR_TECHNIQUES for n in (t, f"{t}-fit"))
     storages = (
         ("float", ()),
-        ("u8", ("--ao-storage", "u8", "--bent-normal-storage", "u8", "--ssbump-storage", "u8")),
         ("bc", ("--ao-storage", "bc4", "--bent-normal-storage", "bc5", "--ssbump-storage", "bc1")),
     )
     runs: dict[str, dict] = {}
@@ -391,7 +390,7 @@ def floors() -> str:
         "\n".join(rows)
         + f"\n\n*{what}.* "
         + _provenance(command)
-        + "\n\n![error per byte](floors.png)\n\n*docs/floors.png: the same runs at float, u8 and BC "
+        + "\n\n![error per byte](floors.png)\n\n*docs/floors.png: the same runs at float and BC "
         "(BC4 AO, BC5 bent normal, BC1 ssbump) storage; fitted hollow; the dotted steps are the Pareto "
         "front of least bytes and least error.*"
     )
