@@ -343,10 +343,11 @@ def floors() -> str:
         np.save(Path(tmp) / "photo-like.npy", photo_like(7, 1.8))
         for store, flags in storages:
             for name in (*FLOOR_MAPS, "photo-like"):
-                source = (
-                    ("--material", name) if name != "photo-like" else (str(Path(tmp) / "photo-like.npy"),)
-                )
-                runs[f"{name}/{store}"] = _sweep(*source, *FLOOR_ARGS, "--techniques", wanted, *flags)
+                if name == "photo-like":  # a file has its own size
+                    source = (str(Path(tmp) / "photo-like.npy"), *FLOOR_ARGS[2:])
+                else:
+                    source = ("--material", name, *FLOOR_ARGS)
+                runs[f"{name}/{store}"] = _sweep(*source, "--techniques", wanted, *flags)
     float_runs = [r for k, r in runs.items() if k.endswith("/float")]
     per = [ranking.floors(r) for r in float_runs]
     tables = [ranking.by_elevation(r) for r in float_runs]
