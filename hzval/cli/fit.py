@@ -143,6 +143,7 @@ def run(args) -> int:
             )
             how = f"{args.storage}, k {result.k:.3g}"
             found = f"{result.epochs} epochs"
+            scope = " (whole image)"  # the horizon fit's loss and scores count every pixel
         else:
             result = fit_command.fit_technique(
                 height,
@@ -156,11 +157,12 @@ def run(args) -> int:
             )
             how = ", ".join(f"{t} {s}" for t, s in result.storage.items())
             found = " then ".join(result.options["steps"])
+            scope = ""  # over the pixels facing the light
     print(
         f"fitted {scenes.input_name(args, info)} ({args.technique}, {cols}x{rows}, {how}) in "
         f"{result.seconds['fit']:.1f} s by {found} "
         f"({'converged' if result.converged else 'not converged'}): "
-        f"{fit_command.summary(result.mae)} -> {args.out}"
+        f"{fit_command.summary(result.mae, scope)} -> {args.out}"
     )
     return errors.EXIT_OK
 
