@@ -94,9 +94,9 @@ def _input_map(size: int) -> tuple[np.ndarray, str]:
 
 def _peer_vs_bake(peer: np.ndarray, out: Path) -> dict[str, float]:
     """Max abs differences between the peer's output and a bake folder's EXRs."""
-    from hzval.io import files
+    from hzval.io import codecs
 
-    h0, h1, amb = (files.read_exr(out / name) for name in ("horizon0.exr", "horizon1.exr", "ambient.exr"))
+    h0, h1, amb = (codecs.read_exr(out / name) for name in ("horizon0.exr", "horizon1.exr", "ambient.exr"))
     horizon = np.stack([h0[c] for c in "RGBA"] + [h1[c] for c in "RGBA"], axis=-1)
     return {
         "horizon": float(np.abs(horizon - peer[..., :8]).max()),
@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     from hzval.bake import horizon as bake_horizon
     from hzval.core import backend
     from hzval.core import conventions as cv
-    from hzval.io import files, heightmap
+    from hzval.io import codecs, heightmap
 
     work = Path(tempfile.mkdtemp(prefix="hzval-bench-")) if args.keep is None else args.keep
     work.mkdir(parents=True, exist_ok=True)
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         # -- the input: a 16-bit PNG, and the heights hzval decodes from it
         height, what = _input_map(args.size)
         png = work / f"bricks{args.size}.png"
-        files.write_png(png, np.round(np.clip(height, 0.0, 1.0) * 65535.0).astype(np.uint16))
+        codecs.write_png(png, np.round(np.clip(height, 0.0, 1.0) * 65535.0).astype(np.uint16))
         decoded = heightmap.load_height(png).height.astype(np.float32)
         rows, cols = decoded.shape
         raw = work / "height.f32"

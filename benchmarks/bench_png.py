@@ -31,16 +31,16 @@ def kind(path: Path) -> str:
 
 
 def pixels(path: Path):
-    """What the sweep's writer encodes: an :class:`hzval.io.files.Indexed` image for a palette PNG,
+    """What the sweep's writer encodes: an :class:`hzval.io.codecs.Indexed` image for a palette PNG,
     else the uint8 values."""
     from PIL import Image
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     with Image.open(path) as im:
         if im.mode == "P":
             palette = np.asarray(im.getpalette(), np.uint8).reshape(-1, 3)
-            return files.Indexed(np.asarray(im), palette)
+            return codecs.Indexed(np.asarray(im), palette)
         return np.asarray(im)
 
 
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=2, help="frames of the sweep to read (default 2)")
     parser.add_argument("--size", type=int, default=512, help="without --sweep: its size (default 512)")
     args = parser.parse_args(argv)
-    from hzval.io import files
+    from hzval.io import codecs
     from hzval.pipeline import writing
 
     folder = args.sweep
@@ -82,7 +82,9 @@ def main(argv: list[str] | None = None) -> int:
                 for i, runs in ((1, False), (2, True)):
 
                     def encode(runs=runs, image=image):
-                        files.write_png(target, image, compress_level=writing.PNG_LEVEL, grey=True, runs=runs)
+                        codecs.write_png(
+                            target, image, compress_level=writing.PNG_LEVEL, grey=True, runs=runs
+                        )
 
                     row[i] += cpu_ms(encode, args.repeat)
                     row[i + 2] += target.stat().st_size

@@ -88,9 +88,9 @@ def _pixels(path: Path):
     import numpy as np
 
     if path.suffix == ".exr":
-        from hzval.io import files
+        from hzval.io import codecs
 
-        return {k: np.asarray(v) for k, v in files.read_exr(path).items()}
+        return {k: np.asarray(v) for k, v in codecs.read_exr(path).items()}
     from PIL import Image
 
     with Image.open(path) as img:

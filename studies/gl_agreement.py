@@ -71,7 +71,7 @@ def _from_sweep(args) -> int:
     import json
     from pathlib import Path
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     out = Path(args.from_sweep)
     m = json.loads((out / "metrics.json").read_text())
@@ -81,8 +81,8 @@ def _from_sweep(args) -> int:
     )
     worst_mean = worst_max = 0.0
     for f in m["frames"]:
-        a = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"].astype(np.float64)
-        b = files.read_exr(out / f["techniques"]["horizon-gl"]["files"]["factor"])["Y"].astype(np.float64)
+        a = codecs.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"].astype(np.float64)
+        b = codecs.read_exr(out / f["techniques"]["horizon-gl"]["files"]["factor"])["Y"].astype(np.float64)
         d = np.abs(a - b)
         worst_mean, worst_max = max(worst_mean, d.mean()), max(worst_max, d.max())
         print(

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def main() -> None:
-    from hzval.io import files
+    from hzval.io import codecs
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("mesh")
@@ -78,9 +78,9 @@ def main() -> None:
         for f in m["frames"]:
 
             def rgb(key):
-                return np.stack([files.read_exr(out / f["files"][key])[c] for c in "RGB"], -1)  # noqa: B023 - called within this iteration
+                return np.stack([codecs.read_exr(out / f["files"][key])[c] for c in "RGB"], -1)  # noqa: B023 - called within this iteration
 
-            V = files.read_exr(out / f["files"]["visibility"])["Y"]
+            V = codecs.read_exr(out / f["files"]["visibility"])["Y"]
             lit = np.isfinite(V) & (V == 1.0)
             d = np.abs(rgb("truth") - rgb("plain"))[lit]
             scores = ", ".join(f"{k} |F-V| {v['visibility_mae']:.4f}" for k, v in f["techniques"].items())

@@ -96,9 +96,9 @@ def sweep(height: Path, out: Path, mesh: str | None, args) -> dict:
 
 
 def factors(out: Path, m: dict, name: str) -> list[np.ndarray]:
-    from hzval.io import files
+    from hzval.io import codecs
 
-    return [files.read_exr(out / f["techniques"][name]["files"]["factor"])["Y"] for f in m["frames"]]
+    return [codecs.read_exr(out / f["techniques"][name]["files"]["factor"])["Y"] for f in m["frames"]]
 
 
 def main() -> None:

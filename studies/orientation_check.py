@@ -43,7 +43,7 @@ ORIENTATIONS = (
 def make_photos(out: Path) -> list[Path]:
     """Two photo-like 8-bit height maps, ``gravel.png`` and ``bricks.png`` (module docstring)."""
     from hzval import materials
-    from hzval.io import files
+    from hzval.io import codecs
 
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(3)
@@ -53,7 +53,7 @@ def make_photos(out: Path) -> list[Path]:
         h = (h - h.min()) / (h.max() - h.min())
         h = np.clip(h + rng.normal(0.0, 0.01, h.shape), 0.0, 1.0)
         path = out / f"{name}.png"
-        files.write_png(path, np.round(h * 255).astype(np.uint8))
+        codecs.write_png(path, np.round(h * 255).astype(np.uint8))
         paths.append(path)
     return paths
 
@@ -77,7 +77,7 @@ def run_case(
 ) -> dict:
     """One sweep of a turned map: its truth's mean V and horizon's mean |F - V|."""
     from hzval.core import conventions as cv
-    from hzval.io import files, heightmap
+    from hzval.io import codecs, heightmap
     from hzval.pipeline import sweep
     from hzval.scene import spec as sc
 
@@ -100,7 +100,7 @@ def run_case(
     folder = out / f"{height_path.stem}-{boundary}-{name}"
     m = sweep.run(scene, folder, options=sweep.Options(techniques=("horizon",)), progress=False)
     fr = m["frames"][0]
-    V = files.read_exr(folder / fr["files"]["visibility"])
+    V = codecs.read_exr(folder / fr["files"]["visibility"])
     V = next(iter(V.values())) if isinstance(V, dict) else V
     h_tex = cv.heights_in_texels(h, 0.05).astype(np.float64)
     return {

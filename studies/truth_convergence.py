@@ -32,7 +32,7 @@ def sweep_at(scene, tolerance: float, out: Path) -> dict:
     """Mean V over the frames and horizon's mean |F - V| of one sweep at ``tolerance``."""
     import dataclasses
 
-    from hzval.io import files
+    from hzval.io import codecs
     from hzval.pipeline import sweep
 
     scene = dataclasses.replace(
@@ -41,7 +41,7 @@ def sweep_at(scene, tolerance: float, out: Path) -> dict:
     m = sweep.run(scene, out, options=sweep.Options(techniques=("horizon",)), progress=False)
     vs, fvs = [], []
     for fr in m["frames"]:
-        V = files.read_exr(out / fr["files"]["visibility"])
+        V = codecs.read_exr(out / fr["files"]["visibility"])
         vs.append(float(np.mean(next(iter(V.values())) if isinstance(V, dict) else V)))
         fvs.append(float(fr["techniques"]["horizon"]["visibility_mae"]))
     return {

@@ -424,7 +424,7 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     map only for 8 directions (it holds Lengyel's 8 channel weights).
     """
     from hzval.core import backend
-    from hzval.io import files
+    from hzval.io import codecs, documents, staging
 
     t0 = time.perf_counter()
     result.checked()
@@ -443,35 +443,35 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     jobs = []
 
     def exr(name, channels):
-        jobs.append(lambda: files.write_exr(stage.path(name), channels, atomic=False, compression="none"))
+        jobs.append(lambda: codecs.write_exr(stage.path(name), channels, atomic=False, compression="none"))
 
     def png(name, make, *args):
-        jobs.append(lambda: files.write_png(stage.path(name), make(*args), atomic=False, compress_level=0))
+        jobs.append(lambda: codecs.write_png(stage.path(name), make(*args), atomic=False, compress_level=0))
 
-    with files.Staging(out) as stage:
+    with staging.Staging(out) as stage:
         for i, layer in enumerate(layers):
             exr(f"horizon{i}.exr", {"RGBA": layer})
-            png(f"horizon{i}.png", files.unit_to_u8, layer)
+            png(f"horizon{i}.png", codecs.unit_to_u8, layer)
         exr("normal.exr", {"RGB": result.normal})
-        png("normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.normal)
+        png("normal.png", lambda n: codecs.unit_to_u8(0.5 + 0.5 * n), result.normal)
         if full:
             exr("ambient.exr", {"mean_cos": result.mean_cos, "mean_cos2": result.mean_cos2})
         if result.bent_normal is not None:
             exr("bent_normal.exr", {"RGB": result.bent_normal})
-            png("bent_normal.png", lambda n: files.unit_to_u8(0.5 + 0.5 * n), result.bent_normal)
+            png("bent_normal.png", lambda n: codecs.unit_to_u8(0.5 + 0.5 * n), result.bent_normal)
             exr("ssbump.exr", {"RGB": result.ssbump})
-            png("ssbump.png", files.unit_to_u8, result.ssbump)
+            png("ssbump.png", codecs.unit_to_u8, result.ssbump)
         if cube is not None:
             for i, face in enumerate(cube_layout.CUBE_FACES):
                 png(f"cube/{face}.png", np.asarray, cube[i])
-        files.run_writers(jobs)
+        codecs.run_writers(jobs)
         timings = dict(result.timings, write_s=time.perf_counter() - t0)
         digests = {
-            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            p.relative_to(stage.dir).as_posix(): staging.file_digest(p)
             for p in sorted(stage.dir.rglob("*"))
             if p.is_file()
         }
-        files.write_json(
+        documents.write_json(
             stage.path("bake.json"),
             {
                 "input": input_info,
@@ -553,24 +553,24 @@ def read_bake(folder: str | Path) -> Bake:
     i.e. ``horizon0``-``horizon1``, when ``bake.json`` predates it)."""
     import json
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
     params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
     if "horizon_map" not in record.get("contents", CONTENTS):
-        n = files.read_exr(folder / "normal.exr")
+        n = codecs.read_exr(folder / "normal.exr")
         return Bake(
             params, None, np.stack([n[c] for c in "RGB"], axis=-1), None, None, dict(record["timings_s"])
         )
-    layers = [files.read_exr(folder / f"horizon{i}.exr") for i in range(cv.layer_count(params.directions))]
-    n, amb = files.read_exr(folder / "normal.exr"), files.read_exr(folder / "ambient.exr")
+    layers = [codecs.read_exr(folder / f"horizon{i}.exr") for i in range(cv.layer_count(params.directions))]
+    n, amb = codecs.read_exr(folder / "normal.exr"), codecs.read_exr(folder / "ambient.exr")
     horizon = np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1)
     normal = np.stack([n[c] for c in "RGB"], axis=-1)
     bent = ss = None
     if "bent_normal" in record.get("contents", CONTENTS):
         bent, ss = (
-            np.stack([files.read_exr(folder / name)[c] for c in "RGB"], axis=-1)
+            np.stack([codecs.read_exr(folder / name)[c] for c in "RGB"], axis=-1)
             for name in ("bent_normal.exr", "ssbump.exr")
         )
     return Bake(
@@ -609,10 +609,9 @@ def cached_bake(
     written (default ``folder``): a sweep stages it, so that a failed run leaves the old bake.
     """
 
-    from hzval.io import files
+    from hzval.io import documents, staging
 
     folder = Path(folder)
-    from hzval.io import documents
 
     try:
         record = documents.read_json(folder / "bake.json")
@@ -629,7 +628,7 @@ def cached_bake(
     except (InputError, ValueError, KeyError, TypeError, AttributeError):
         same = False  # no usable cache (a missing, damaged or hand-edited bake.json): bake anew
     if same:
-        damaged = _damaged_file(folder, record.get("files"), files.file_digest)
+        damaged = _damaged_file(folder, record.get("files"), staging.file_digest)
         if damaged is None:
             try:
                 return read_bake(folder), True

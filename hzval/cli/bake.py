@@ -31,7 +31,7 @@ def run(args) -> int:
     """Bake the material of ``args`` into ``--out``; one line of figures."""
     from hzval.bake import maps as bake
     from hzval.geometry import tile as mesh
-    from hzval.io import files
+    from hzval.io import staging
     from hzval.truth import memory
 
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
@@ -39,9 +39,9 @@ def run(args) -> int:
     rows, cols = memory.material_shape(scene)  # estimated before the map is decoded or generated
     bake.check_fits(args.height or "--size", rows, cols, params)
     t0 = time.perf_counter()
-    with files.output_folder(args.out, force=args.force):
+    with staging.output_folder(args.out, force=args.force):
         height, info = scenes.load_material(scene)
-        info["path"] = files.report_path(info["path"], args.out)  # bake.json carries no absolute folders
+        info["path"] = staging.report_path(info["path"], args.out)  # bake.json carries no absolute folders
         t_load = time.perf_counter() - t0
         if args.write_mesh:  # before the bake: a mesh that cannot be built leaves nothing written
             need = bake.estimate_bytes(*height.shape, params)

@@ -116,7 +116,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Bake, fit, write; one line of figures."""
     from hzval.bake import maps as bake
-    from hzval.io import files
+    from hzval.io import staging
     from hzval.techniques.fitted import training as fitted_training
     from hzval.truth import memory
 
@@ -133,7 +133,7 @@ def run(args) -> int:
     fitted_training.check_fits(
         what, rows, cols, scene.spp, len(lights) * (2 if guarded else 1) + len(held_out), scene
     )
-    with files.output_folder(args.out, force=args.force):
+    with staging.output_folder(args.out, force=args.force):
         height, info = scenes.load_material(scene)
         baked = bake.bake(height, params)
         info = {**info, "depth": params.depth, "boundary": params.boundary, "bake": params.record()}

@@ -134,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in COMMANDS:
         command.add_parser(sub)
-    for p in sub.choices.values():  # every command that writes a folder (hzval.io.files.output_folder)
+    for p in sub.choices.values():  # every command that writes a folder (hzval.io.staging.output_folder)
         if "--out" in p._option_string_actions or "--report" in p._option_string_actions:
             p.add_argument(
                 "--force",
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     import signal
 
     from hzval.core import backend, interrupts
-    from hzval.io import files
+    from hzval.io import staging
 
     argv = list(sys.argv[1:] if argv is None else argv)
     backend.prefer_working_llvm()  # before the parser imports the techniques, and so Dr.Jit
@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hzval: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except OSError as exc:  # a read-only or full disk, no permission: one line, its path
-        print(f"hzval: error: {files.os_error(exc, '--out')}", file=sys.stderr)
+        print(f"hzval: error: {staging.os_error(exc, '--out')}", file=sys.stderr)
         return errors.EXIT_BAD_INPUT
     except MemoryError:  # past every estimate (each refuses what it knows will not fit): one line
         print(

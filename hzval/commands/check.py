@@ -87,9 +87,9 @@ import numpy as np
 
 from hzval import materials
 from hzval.bake import maps as bake
-from hzval.core import backend, shading
+from hzval.core import backend, errors, shading
 from hzval.core.errors import InputError
-from hzval.io import files, paths
+from hzval.io import atomic, codecs, paths, staging
 from hzval.metrics import compare
 from hzval.pipeline import sweep
 from hzval.pipeline.records import frame_folder
@@ -212,7 +212,7 @@ def backend_name(variant: str) -> str:
 def reference_backend(path: Path) -> str:
     """The backend that rendered a reference file: its header's :data:`BACKEND_ATTRIBUTE`, else
     ``llvm`` (references written before the attribute were all rendered there)."""
-    return files.read_exr_attributes(path).get(BACKEND_ATTRIBUTE, "llvm")
+    return codecs.read_exr_attributes(path).get(BACKEND_ATTRIBUTE, "llvm")
 
 
 def across_backends(tiers: Tiers) -> Tiers:
@@ -658,9 +658,9 @@ def run(
             r = ImageResult(scene.name, frame, kind, "new", tiers=tiers, new=new, scale=scale)
             if path.is_file():
                 try:
-                    ref = files.read_exr(path)
+                    ref = codecs.read_exr(path)
                 except Exception as exc:  # a corrupt reference fails its image, not the run
-                    r.status, r.reasons = "fail", [f"{path}: unreadable reference ({files.first_line(exc)})"]
+                    r.status, r.reasons = "fail", [f"{path}: unreadable reference ({errors.first_line(exc)})"]
                 else:
                     r.reference = ref
                     made_on = reference_backend(path)
@@ -673,7 +673,7 @@ def run(
                 r.reasons = [f"no reference at {path}"]
             if update and (r.status in ("new", "fail") or path == old):
                 target = reference_file(references, scene.name, frame, kind)
-                files.write_exr(target, new, attributes={BACKEND_ATTRIBUTE: here})
+                codecs.write_exr(target, new, attributes={BACKEND_ATTRIBUTE: here})
                 if path == old:
                     old.unlink()  # renamed: the reference now has its variant's name
                 result.updated.append(str(target))
@@ -712,10 +712,10 @@ def summary(result: CheckResult) -> str:
 
 def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
     """``out/index.html``: reference | new | difference for every image, failures first; the folder
-    held while it is written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
+    held while it is written (:func:`hzval.io.staging.output_folder`, ``force`` as there)."""
     out = Path(out)
-    with files.output_folder(out, force=force):
-        return _write_report(result, out, files.portable_command(command))
+    with staging.output_folder(out, force=force):
+        return _write_report(result, out, staging.portable_command(command))
 
 
 def _write_report(result: CheckResult, out: Path, command: str) -> Path:
@@ -752,7 +752,7 @@ def _write_report(result: CheckResult, out: Path, command: str) -> Path:
             else:
                 top = r.tiers.hard_fail
                 entry["diff_caption"] = f"largest |new - ref| per pixel; white at hard_fail = {top:g}"
-            files.write_png(out / f"{stem}-diff.png", images.magma(score / top))
+            codecs.write_png(out / f"{stem}-diff.png", images.magma(score / top))
             entry["diff"] = f"{stem}-diff.png"
         items.append(entry)
     html = (
@@ -769,14 +769,14 @@ def _write_report(result: CheckResult, out: Path, command: str) -> Path:
         )
     )
     index = out / "index.html"
-    with files.atomic_path(index) as tmp:
+    with atomic.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
 
 
 def _write_preview(out: Path, rel: str, ch: dict, scale: float) -> str:
     rgb = np.stack([ch["R"], ch["G"], ch["B"]], -1)
-    files.write_png(out / rel, files.unit_to_u8(compare.display(rgb, scale)))
+    codecs.write_png(out / rel, codecs.unit_to_u8(compare.display(rgb, scale)))
     return rel
 
 

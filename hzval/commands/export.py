@@ -49,11 +49,11 @@ import numpy as np
 
 from hzval import materials
 from hzval.bake.maps import BakeParams
-from hzval.core import backend, resources
+from hzval.core import backend, errors, resources
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.geometry import tile as mesh
-from hzval.io import files
+from hzval.io import atomic, codecs, staging
 from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape
 from hzval.truth import memory
 
@@ -89,9 +89,9 @@ def write_scene(
 
     ``height``: the normalised height map ``(rows, cols)``. Returns the paths
     written; every file is written under a temporary name and renamed, in a folder held as
-    :func:`hzval.io.files.output_folder` holds it (``force`` as there).
+    :func:`hzval.io.staging.output_folder` holds it (``force`` as there).
     """
-    with files.output_folder(out, force=force):
+    with staging.output_folder(out, force=force):
         if not scene.mesh.is_plane:
             return _write_model(scene, height, Path(out), azimuth_deg)
         return _write_scene(scene, height, Path(out), azimuth_deg)
@@ -133,7 +133,7 @@ def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
     reflectance = _reflectance(scene, out, written)
     sensor = _top_sensor(scene, rows, cols, float(h.max()) * mat.depth * cols)
     xml = _scene_xml(scene, sensor, azimuth_deg, reflectance)
-    with files.atomic_path(out / "scene.xml") as tmp:
+    with atomic.atomic_path(out / "scene.xml") as tmp:
         Path(tmp).write_text(xml, encoding="utf-8")
     written.append(out / "scene.xml")
     return written
@@ -149,7 +149,7 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
         a = DEFAULT_ALBEDO if albedo is None else float(albedo)
         return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
     if own is not None:  # a built-in material's linear albedo, stored as sRGB as a bitmap expects
-        rgb = files.unit_to_u8(cv.srgb_encode(own))
+        rgb = codecs.unit_to_u8(cv.srgb_encode(own))
     else:
         from PIL import Image
 
@@ -157,8 +157,8 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
             with Image.open(albedo) as img:
                 rgb = np.asarray(img.convert("RGB"))
         except OSError as exc:
-            raise InputError(albedo, f"not a readable albedo image ({files.first_line(exc)})") from None
-    files.write_png(out / "albedo.png", rgb)
+            raise InputError(albedo, f"not a readable albedo image ({errors.first_line(exc)})") from None
+    codecs.write_png(out / "albedo.png", rgb)
     written.append(out / "albedo.png")
     return (
         '<texture type="bitmap" name="reflectance"><string name="filename" value="albedo.png"/>'
@@ -269,7 +269,7 @@ def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
     a = np.mean(load_albedo(scene.material, *h.shape), axis=(0, 1))
     reflectance = f'<rgb name="reflectance" value={_v(*a)}/>'
     xml = _scene_xml(scene, _view_sensor(scene, truth.view), azimuth_deg, reflectance)
-    with files.atomic_path(written[2]) as tmp:
+    with atomic.atomic_path(written[2]) as tmp:
         Path(tmp).write_text(xml, encoding="utf-8")
     return written
 

@@ -31,7 +31,7 @@ import numpy as np
 from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.io import documents, files, ktx2, storage
+from hzval.io import codecs, documents, ktx2, staging, storage
 from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
@@ -121,7 +121,7 @@ def export(run_dir, out, *, zstd: bool = False, force: bool = False) -> list[Pat
     maps = _maps(p)
     if not maps:
         raise InputError(run_dir, "holds none of the textures its techniques read (a bake without them)")
-    with files.swapped_in(out, force=force) as work:
+    with staging.swapped_in(out, force=force) as work:
         described, written = {}, []
         for name, (values, fmt_name, what) in maps.items():
             tex = _texture(values, ktx2.FORMATS[fmt_name], max_mips=what.get("max_mips", False))
@@ -136,7 +136,7 @@ def export(run_dir, out, *, zstd: bool = False, force: bool = False) -> list[Pat
                 **{k: v for k, v in what.items() if k != "max_mips"},
             }
             written.append(Path(out) / f"{name}.ktx2")
-        files.write_json(work / FILE, _description(p, described))
+        documents.write_json(work / FILE, _description(p, described))
         written.append(Path(out) / FILE)
     return written
 
@@ -162,7 +162,7 @@ def _maps(p: dict) -> dict:
     folder = p["bake"]
     if p["kind"] == "fit":
         layers = sorted(folder.glob("horizon*.exr"), key=lambda f: int(f.stem[7:] or 0))
-        sines = np.concatenate([_rgba(files.read_exr(f)) for f in layers], axis=-1)
+        sines = np.concatenate([_rgba(codecs.read_exr(f)) for f in layers], axis=-1)
         return _horizon(sines, p["storage"].get("horizon_map", "float"), p["mips"])
     if p["kind"] == "texture-fit":
         planes, _ = fitted_store.read_texture_fit(folder)
@@ -294,7 +294,7 @@ def _texture(values: np.ndarray, fmt: ktx2.Format, *, max_mips: bool = False) ->
     if fmt.half:
         quantise = lambda a: a.astype(np.float16).astype(np.float32)  # noqa: E731
     else:
-        quantise = lambda a: files.unit_to_u8(a).astype(np.float32) / np.float32(255.0)  # noqa: E731
+        quantise = lambda a: codecs.unit_to_u8(a).astype(np.float32) / np.float32(255.0)  # noqa: E731
     chain = lookup.mip_chain(
         quantise(values), everything if max_mips else None, stored=everything, quantise=quantise
     )

@@ -51,8 +51,9 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core import errors
 from hzval.core.errors import InputError
-from hzval.io import documents, files, paths
+from hzval.io import codecs, documents, paths, staging
 from hzval.metrics import compare
 from hzval.report import images
 from hzval.report import pages as report
@@ -226,7 +227,7 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
     """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
     PNG decoded from sRGB and divided by the exposure."""
     if path.suffix.lower() == ".exr":
-        img = files.read_rgb_exr(path)
+        img = codecs.read_rgb_exr(path)
     else:
         from PIL import Image
 
@@ -235,7 +236,7 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
                 depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
                 arr = np.asarray(im.convert("RGB") if depth == 255.0 else im, dtype=np.float64) / depth
         except OSError as exc:
-            raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
+            raise InputError(path, f"not a readable PNG ({errors.first_line(exc)})") from None
         arr = np.repeat(arr[..., None], 3, axis=-1) if arr.ndim == 2 else arr[..., :3]
         img = cv.srgb_decode(arr) / exposure
     img = np.asarray(img, np.float32)
@@ -302,7 +303,7 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
     """An engine's shadow factor ``F`` ``(H, W)`` float32 in [0, 1]: an EXR's one channel (Y, R or
     the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB decoding)."""
     if path.suffix.lower() == ".exr":
-        ch = files.read_exr(path)
+        ch = codecs.read_exr(path)
         key = next((k for k in ("Y", "R", "F", "V") if k in ch), next(iter(ch)) if len(ch) == 1 else None)
         if key is None:
             raise InputError(path, f"a shadow factor needs one channel (Y), has {', '.join(sorted(ch))}")
@@ -319,7 +320,7 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
                     _one_value(path, [rgb[..., 0], rgb[..., 1], rgb[..., 2]])
                 F = np.asarray(im if depth != 255.0 else im.convert("L"), np.float64) / depth
         except OSError as exc:
-            raise InputError(path, f"not a readable PNG ({files.first_line(exc)})") from None
+            raise InputError(path, f"not a readable PNG ({errors.first_line(exc)})") from None
         F = F.astype(np.float32)
     if F.shape != tuple(shape):
         raise InputError(path, f"is {F.shape[1]}x{F.shape[0]}, the sweep's frames are {shape[1]}x{shape[0]}")
@@ -354,7 +355,7 @@ def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
     path = sweep_dir / "bake" / "normal.exr"
     if not path.is_file():
         return None
-    ch = files.read_exr(path)
+    ch = codecs.read_exr(path)
     keys = [k for k in ("X", "Y", "Z") if k in ch] or [k for k in ("R", "G", "B") if k in ch]
     return np.stack([ch[k] for k in keys], axis=-1) if len(keys) == 3 else None
 
@@ -519,7 +520,7 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
     truth = Frame(
-        f["azimuth_deg"], f["elevation_deg"], files.read_rgb_exr(sweep_dir / swept["files"]["truth"])
+        f["azimuth_deg"], f["elevation_deg"], codecs.read_rgb_exr(sweep_dir / swept["files"]["truth"])
     )
     if img is None:  # F alone: no image to score
         scores, image_maps = dict.fromkeys(compare.IMAGE_METRICS), {}
@@ -528,7 +529,7 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     own = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in scores.items()}
     vis = swept["files"].get("visibility")
     if F is not None and vis:
-        V = files.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
+        V = codecs.read_exr(sweep_dir / vis)["Y"].astype(np.float32)
         own.update(
             zip(
                 ("visibility_mae", "leak_fraction", "false_shadow_fraction"),
@@ -587,12 +588,12 @@ def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float
     lead = next((n for n, t in techniques.items() if (t.get("files") or {}).get("png")), None)
     if not files_.get("plain_png") or not files_.get("visibility") or lead is None:
         return None
-    V = files.read_exr(sweep_dir / files_["visibility"])["Y"]
+    V = codecs.read_exr(sweep_dir / files_["visibility"])["Y"]
     lit = V >= 1.0
     if F is not None:
         lit &= F >= 1.0
     own_F = techniques[lead]["files"].get("factor")
-    own_lit = lit if own_F is None else lit & (next(iter(files.read_exr(sweep_dir / own_F).values())) >= 1.0)
+    own_lit = lit if own_F is None else lit & (next(iter(codecs.read_exr(sweep_dir / own_F).values())) >= 1.0)
     if lit.sum() < 64 or own_lit.sum() < 64:
         return None
     plain = _display_png(sweep_dir / files_["plain_png"])
@@ -646,7 +647,7 @@ def write(
     """``out/metrics.json`` and ``out/index.html``: the engine's images as the lead technique beside the
     sweep's truth and the sweep's techniques (whose images are copied in, so the report stands
     alone). Returns the index. The folder is held while they are written
-    (:func:`hzval.io.files.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first
+    (:func:`hzval.io.staging.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first
     and
     listed at the top of the report."""
     out = Path(out)
@@ -654,7 +655,7 @@ def write(
         gates.apply(result)
     # all or nothing, as the sweep: written into a staging folder inside out and swapped in whole, so
     # a failure or an interrupt leaves an earlier report byte for byte, and no link in out is followed
-    with files.swapped_in(out, force=force) as work:
+    with staging.swapped_in(out, force=force) as work:
         _write(result, maps, out, work, command)
     return out / "index.html"
 
@@ -682,11 +683,11 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
         own = {}
         if "display" in image_maps:  # not when F alone was given
             own = {"png": f"frames/{name}/{NAME}.png", "flip_png": f"frames/{name}/{NAME}_flip.png"}
-            files.write_png(stage / own["png"], files.unit_to_u8(image_maps["display"]))
-            files.write_png(stage / own["flip_png"], images.flip_image(image_maps["flip"]))
+            codecs.write_png(stage / own["png"], codecs.unit_to_u8(image_maps["display"]))
+            codecs.write_png(stage / own["flip_png"], images.flip_image(image_maps["flip"]))
         if "F" in image_maps:
             own["visdiff_png"] = f"frames/{name}/{NAME}_visdiff.png"
-            files.write_png(
+            codecs.write_png(
                 stage / own["visdiff_png"], images.visibility_diff_image(image_maps["V"], image_maps["F"])
             )
         frame["techniques"][NAME]["files"] = own
@@ -702,13 +703,13 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
     # the paths relative to the report's folder: a shared report carries no absolute folders
     portable = {
         **result,
-        "against": files.report_path(result["against"], out),
-        "frames_dir": files.report_path(result["frames_dir"], out),
+        "against": staging.report_path(result["against"], out),
+        "frames_dir": staging.report_path(result["frames_dir"], out),
         "frames": [
             {
                 **f,
-                "file": f["file"] and files.report_path(f["file"], out),
-                **({"factor_file": files.report_path(f["factor_file"], out)} if "factor_file" in f else {}),
+                "file": f["file"] and staging.report_path(f["file"], out),
+                **({"factor_file": staging.report_path(f["factor_file"], out)} if "factor_file" in f else {}),
             }
             for f in result["frames"]
         ],
@@ -716,7 +717,7 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
     if "gates" in portable and portable["gates"].get("baseline"):
         portable["gates"] = {
             **portable["gates"],
-            "baseline": files.report_path(portable["gates"]["baseline"], out),
+            "baseline": staging.report_path(portable["gates"]["baseline"], out),
         }
-    files.write_json(stage / "metrics.json", portable)
+    documents.write_json(stage / "metrics.json", portable)
     return index

@@ -63,7 +63,7 @@ from hzval import materials
 from hzval.commands import gates as gates_module
 from hzval.core import backend, errors, interrupts, resources
 from hzval.core.errors import InputError
-from hzval.io import documents, files, heightmap, paths
+from hzval.io import atomic, codecs, documents, heightmap, paths, staging
 from hzval.pipeline import sweep
 from hzval.report import pages as report
 from hzval.report import ranking
@@ -132,7 +132,7 @@ class Task:
     command: str
     threads: int | None  # Dr.Jit threads in the worker; None leaves them alone
     token: str = ""  # what DIR/.hzval-suite holds: a worker that reads it sees the caller's DIR
-    force: bool = False  # write beside files hzval did not write (hzval.io.files.output_folder)
+    force: bool = False  # write beside files hzval did not write (hzval.io.staging.output_folder)
     topic: str = ""  # the Dask event topic of started tasks (_log_start); "" in this process
 
 
@@ -282,7 +282,7 @@ def sweep_material(task: Task) -> dict:
     except Exception as exc:  # a material's crash is its own row, not the suite's end
         return _failed(
             entry,
-            f"{type(exc).__name__}: {files.first_line(exc)}",
+            f"{type(exc).__name__}: {errors.first_line(exc)}",
             time.perf_counter() - t0,
             traceback.format_exc(),
         )
@@ -455,7 +455,7 @@ def run(
     between a material that crashes and the others;
     ``cluster``: a Dask scheduler's address instead (its workers decide). The overview is written
     once every material is in, failed ones included; the run holds ``out``
-    (:func:`hzval.io.files.output_folder`, ``force`` as there) as each sweep holds its material's
+    (:func:`hzval.io.staging.output_folder`, ``force`` as there) as each sweep holds its material's
     folder. With more than one
     worker, worker processes are spawned: a script that calls this must do so under
     ``if __name__ == "__main__":``. Ctrl-C stops the run with an overview of what finished (the rest
@@ -512,7 +512,7 @@ def run(
             gates=None if interrupted or not gates else gate_failures(gates, out, done),
         )
 
-    with files.output_folder(out, force=force, keep_on_interrupt=True):
+    with staging.output_folder(out, force=force, keep_on_interrupt=True):
         try:
             if token:
                 (out / TOKEN_FILE).write_text(token, encoding="utf-8")
@@ -610,7 +610,7 @@ def _run_dask(
                 cluster.close()
             _remove(scratch)
             raise InputError(
-                "--cluster", f"no Dask scheduler at {address} ({files.first_line(exc)})"
+                "--cluster", f"no Dask scheduler at {address} ({errors.first_line(exc)})"
             ) from None
     engine["name"] = f"dask.distributed {distributed.__version__} at {address}"
     futures: dict = {}
@@ -681,7 +681,9 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
         if ran is False or (started is None and not Path(task.out).exists()):
             return _not_run(task.entry, f"the scheduler was lost before it started ({type(exc).__name__})")
         return _failed(task.entry, f"the scheduler was lost while it ran ({type(exc).__name__})", None)
-    return _failed(task.entry, f"its task could not run: {type(exc).__name__}: {files.first_line(exc)}", None)
+    return _failed(
+        task.entry, f"its task could not run: {type(exc).__name__}: {errors.first_line(exc)}", None
+    )
 
 
 def _completed(task: Task, since: float) -> dict | None:
@@ -762,7 +764,7 @@ def write_overview(
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
     record of :func:`gate_failures`, listed first)."""
     rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
-    command = files.portable_command(command)
+    command = staging.portable_command(command)
     for row in rows:
         if row["status"] == "ok":
             row["thumbs"] = _thumbnails(out, row)
@@ -794,20 +796,20 @@ def write_overview(
         "materials": rows,
         **({"gates": gates} if gates else {}),
     }
-    files.write_json(out / "suite.json", result)
+    documents.write_json(out / "suite.json", result)
     html = report.render_suite(result)
-    with files.atomic_path(out / "index.html") as tmp:
+    with atomic.atomic_path(out / "index.html") as tmp:
         tmp.write_text(html, encoding="utf-8")
     return result
 
 
 def _portable_origin(origin: str | None, out: Path) -> str | None:
     """A row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
-    ``out`` (:func:`hzval.io.files.report_path`)."""
+    ``out`` (:func:`hzval.io.staging.report_path`)."""
     if not origin or origin == "built-in":
         return origin
     path, plus, rest = origin.partition(" + ")
-    return files.report_path(path, out) + (plus + rest if plus else "")
+    return staging.report_path(path, out) + (plus + rest if plus else "")
 
 
 def _thumbnails(out: Path, row: dict) -> dict:
@@ -832,7 +834,7 @@ def _thumbnails(out: Path, row: dict) -> dict:
             except OSError:
                 continue
             (out / dst).parent.mkdir(parents=True, exist_ok=True)
-            files.write_png(out / dst, pixels)
+            codecs.write_png(out / dst, pixels)
             thumbs[az][kind] = dst.as_posix()
     return thumbs
 

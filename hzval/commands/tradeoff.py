@@ -71,7 +71,7 @@ from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 from hzval.core import shading
-from hzval.io import files
+from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
 from hzval.pipeline import sweep
@@ -526,7 +526,7 @@ def plot_tradeoff(path: Path, points: list[Point]) -> None:
         "what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory", fontsize=10
     )
     fig.tight_layout()
-    files.write_figure(path, fig, dpi=110)
+    codecs.write_figure(path, fig, dpi=110)
     plt.close(fig)
 
 
@@ -534,10 +534,10 @@ def write_tradeoff(
     out: str | Path, points: list[Point], info: dict, *, material: dict, command: str, force: bool = False
 ) -> Path:
     """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path. The
-    folder is held while they are written (:func:`hzval.io.files.output_folder`, ``force`` as there)."""
+    folder is held while they are written (:func:`hzval.io.staging.output_folder`, ``force`` as there)."""
     out = Path(out)
-    with files.output_folder(out, force=force):
-        return _write_tradeoff(out, points, info, material, files.portable_command(command))
+    with staging.output_folder(out, force=force):
+        return _write_tradeoff(out, points, info, material, staging.portable_command(command))
 
 
 def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, command: str) -> Path:
@@ -576,7 +576,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
     }
     plot_tradeoff(out / "pareto.png", points)
     per_byte = _plot_error_per_byte(out / "error_per_byte.png", data["error_per_byte"], info)
-    files.write_json(out / "tradeoff.json", data)
+    documents.write_json(out / "tradeoff.json", data)
     html = (
         report.environment()
         .get_template("tradeoff.html.j2")
@@ -592,7 +592,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
         )
     )
     index = out / "index.html"
-    with files.atomic_path(index) as tmp:
+    with atomic.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
 

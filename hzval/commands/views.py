@@ -33,7 +33,7 @@ import numpy as np
 
 from hzval.core import interrupts
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import atomic, codecs, documents, staging
 from hzval.scene import camera, lookup
 
 __all__ = ["VIEWS", "LOOKUPS", "run", "headline"]
@@ -72,17 +72,17 @@ def run(
     ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
     lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
     mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds
-    ``out`` (:func:`hzval.io.files.output_folder`, ``force`` as there) and writes into a staging
+    ``out`` (:func:`hzval.io.staging.output_folder`, ``force`` as there) and writes into a staging
     folder swapped in whole: a failure, or a Ctrl-C (which stops the run between sweeps), leaves an
     earlier report byte for byte and no folder it created."""
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
     kinds = _pick(lookups, LOOKUPS, "--lookups")
-    with files.swapped_in(out, force=force) as work:  # all or nothing, as a sweep
+    with staging.swapped_in(out, force=force) as work:  # all or nothing, as a sweep
         with interrupts.cases():
             data = _run(scene, work, chosen, kinds, options, progress, command, force)
-        data["command"] = files.portable_command(command)
-        files.write_json(work / "views.json", data)
+        data["command"] = staging.portable_command(command)
+        documents.write_json(work / "views.json", data)
         _write_page(work, data)
     return data
 
@@ -195,7 +195,7 @@ def _write_page(out: Path, data: dict) -> None:
             plot="plots/views.png",
         )
     )
-    with files.atomic_path(out / "index.html") as tmp:
+    with atomic.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
 
@@ -256,4 +256,4 @@ def _plot(path: Path, rows: list[dict]) -> None:
                 fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
             )  # outside: it never covers a line
     fig.tight_layout()
-    files.write_figure(path, fig)
+    codecs.write_figure(path, fig)

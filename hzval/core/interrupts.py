@@ -3,13 +3,13 @@
 :func:`terminate_as_interrupt` makes SIGTERM (``kill``, a batch system's
 stop) raise :class:`hzval.core.errors.Interrupted`, a ``KeyboardInterrupt``, so that
 a run stopped either way removes its staging folder, its lock, and any folder
-it created (:func:`hzval.io.files.output_folder`); by default SIGTERM ends the
+it created (:func:`hzval.io.staging.output_folder`); by default SIGTERM ends the
 process at once and leaves them behind.
 
 :func:`held` holds SIGINT and SIGTERM from the moment a run's output is complete
 (the last signal check is the moment it is entered: a signal before it raised
 there and then) until the run has left its folder: the swap of the new report
-into place (:meth:`hzval.io.files.Staging.swap`) and the lock's removal are not
+into place (:meth:`hzval.io.staging.Staging.swap`) and the lock's removal are not
 interrupted, and a signal that comes during them does not make a finished run
 exit 130 over a report already in place. Python runs signal handlers in the
 main thread only; elsewhere (a Dask worker's thread) nothing is held.

@@ -230,7 +230,7 @@ def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") 
     """
     import pygltflib
 
-    from hzval.io import files
+    from hzval.io import atomic
 
     rot = tg.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
     arrays = [
@@ -275,5 +275,5 @@ def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") 
         buffers=[pygltflib.Buffer(byteLength=offset)],
     )
     g.set_binary_blob(b"".join(blobs))
-    with files.atomic_path(path) as tmp:
+    with atomic.atomic_path(path) as tmp:
         g.save_binary(str(tmp))

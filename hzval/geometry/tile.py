@@ -231,16 +231,17 @@ def displaced_mesh(
 
 
 def write_ply(m, path) -> None:
-    """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.files.atomic_path`).
+    """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.atomic.atomic_path`).
     Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
     line naming the file here (:class:`hzval.core.errors.InputError`)."""
-    from hzval.io import files
+    from hzval.core import errors
+    from hzval.io import atomic
 
-    with files.atomic_path(path) as tmp:
+    with atomic.atomic_path(path) as tmp:
         try:
             m.write_ply(str(tmp))
         except RuntimeError as exc:
-            problem = files.first_line(exc).rpartition(": ")[2] or "cannot be written"
+            problem = errors.first_line(exc).rpartition(": ")[2] or "cannot be written"
             raise InputError(path, problem) from None
 
 

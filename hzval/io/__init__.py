@@ -1,12 +1,12 @@
-"""Files in and out: atomic EXR, PNG and JSON writing and the staged output folder (files), height maps
-from PNG, EXR and .npy (heightmap), a user's own horizon map and its convention (external), and how
-a horizon map is stored for the GPU (storage), the path rule for paths read from files (paths), and JSON and
-TOML read with one-line errors (documents).
+"""Files in and out: output folders written whole or not at all (staging), EXR and PNG (codecs),
+JSON and TOML read and written with one-line errors (documents), height maps (heightmap), a user's
+own horizon map and its convention (external), how a texture is stored for the GPU (storage), KTX2
+containers (ktx2), and the path rule for paths read from files (paths).
 """
 
 from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("documents", "external", "files", "heightmap", "paths", "storage"),
+    ("codecs", "documents", "external", "heightmap", "ktx2", "paths", "staging", "atomic", "storage"),
 )

@@ -8,14 +8,19 @@ Every JSON or TOML file hzval reads (``frames.json``, ``metrics.json``, ``--base
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import json
 import os
 import tomllib
 from pathlib import Path
 
-from hzval.core.errors import InputError
+import numpy as np
 
-__all__ = ["MAX_DEPTH", "depth", "read_json", "read_toml", "loads_json", "loads_toml"]
+from hzval.core.errors import InputError
+from hzval.io.atomic import atomic_path
+
+__all__ = ["MAX_DEPTH", "depth", "read_json", "read_toml", "loads_json", "loads_toml", "write_json"]
 
 #: The deepest nesting of arrays and tables hzval accepts; its own files nest at most 8 deep.
 MAX_DEPTH = 64
@@ -96,3 +101,50 @@ def read_json(path: str | os.PathLike):
 def read_toml(path: str | os.PathLike):
     """A TOML file's content (:func:`loads_toml`); a missing or unreadable file is one line."""
     return loads_toml(_text(Path(path)), path)
+
+
+def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
+    """Write ``data`` as indented strict JSON, atomically.
+
+    Strict: JSON has no NaN or infinity, and a value that is not finite is
+    refused with one line naming the file and the key (a caller writes
+    ``null`` for what it knows may be undefined), never written as ``NaN``.
+    """
+    try:
+        text = json.dumps(data, indent=2, sort_keys=False, default=_json_default, allow_nan=False) + "\n"
+    except ValueError:
+        raise InputError(
+            path,
+            f"{_non_finite_key(data) or 'a value'} is not a finite number; "
+            "strict JSON has no NaN or infinity, so nothing was written",
+        ) from None
+    target = Path(path)
+    ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
+    with ctx as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _non_finite_key(data, where: str = "") -> str | None:
+    """The first key path (``frames[0].flip_mean``) of ``data`` that holds a NaN or infinity."""
+    if isinstance(data, (float, np.floating)):
+        return None if np.isfinite(data) else (where or "the value")
+    items = (
+        data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, (list, tuple)) else ()
+    )
+    for k, v in items:
+        found = _non_finite_key(v, f"{where}[{k}]" if isinstance(k, int) else f"{where}.{k}".lstrip("."))
+        if found:
+            return found
+    return None
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.asdict(obj)
+    raise TypeError(f"cannot serialise {type(obj).__name__}")

@@ -53,8 +53,9 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core import errors
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import codecs
 
 __all__ = [
     "Encoding",
@@ -159,7 +160,7 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
             out.append(ktx2.decode_level(tex, 0))
             continue
         if p.suffix.lower() == ".exr":
-            ch = files.read_exr(p)
+            ch = codecs.read_exr(p)
             if not all(c in ch for c in "RGBA"):
                 raise InputError(
                     p, f"a horizon layer needs R, G, B and A channels, has {', '.join(sorted(ch))}"
@@ -178,7 +179,7 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
         except FileNotFoundError:
             raise InputError(p, "no such horizon layer") from None
         except OSError as exc:
-            raise InputError(p, f"not a readable image ({files.first_line(exc)})") from None
+            raise InputError(p, f"not a readable image ({errors.first_line(exc)})") from None
         scale = 65535.0 if arr.dtype == np.uint16 else 255.0
         if arr.ndim != 3 or arr.shape[-1] != 4:
             raise InputError(p, f"a horizon layer must be RGBA, got shape {arr.shape}")

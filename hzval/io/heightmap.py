@@ -31,8 +31,8 @@ import numpy as np
 from PIL import Image, ImageFile, UnidentifiedImageError
 
 from hzval.core.conventions import luminance_weights
-from hzval.core.errors import InputError
-from hzval.io.files import first_line, library_output, read_exr
+from hzval.core.errors import InputError, first_line
+from hzval.io.codecs import library_output, read_exr
 
 __all__ = ["SUFFIXES", "MIN_SIDE", "HeightMap", "probe_shape", "load_height", "check_usable", "from_array"]
 

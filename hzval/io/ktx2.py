@@ -144,9 +144,9 @@ def _kvd(kv: dict) -> bytes:
 
 
 def write(path, tex: Texture, *, zstd: bool = False) -> None:
-    """Write ``tex`` to ``path`` (atomically: :func:`hzval.io.files.atomic_path`); ``zstd``:
+    """Write ``tex`` to ``path`` (atomically: :func:`hzval.io.atomic.atomic_path`); ``zstd``:
     supercompress each level with Zstandard."""
-    from hzval.io import files
+    from hzval.io import atomic
 
     fmt, n = tex.format, len(tex.levels)
     for i, data in enumerate(tex.levels):
@@ -175,7 +175,7 @@ def write(path, tex: Texture, *, zstd: bool = False) -> None:
     header += struct.pack("<4I2Q", dfd_at, len(d), kvd_at, len(k), 0, 0)
     for i in range(n):
         header += struct.pack("<3Q", offsets[i], len(stored[i]), len(tex.levels[i]))
-    with files.atomic_path(path) as tmp:
+    with atomic.atomic_path(path) as tmp:
         Path(tmp).write_bytes(header + d + k + body)
 
 
@@ -264,12 +264,12 @@ def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
 
 def encode_level(values: np.ndarray, fmt: Format) -> bytes:
     """A level's bytes in ``fmt`` from float32 ``(rows, cols, channels)`` texels in [0, 1] (UNORM and
-    BC formats; 8-bit quantisation by :func:`hzval.io.files.unit_to_u8`) or as they are (half floats).
+    BC formats; 8-bit quantisation by :func:`hzval.io.codecs.unit_to_u8`) or as they are (half floats).
     BC blocks are etcpak's, on an RGBA8 image padded to whole blocks by repeating its edge, the
     channels it lacks 0 and alpha 255."""
     import etcpak
 
-    from hzval.io.files import unit_to_u8
+    from hzval.io.codecs import unit_to_u8
 
     v = np.asarray(values, np.float32)
     if v.ndim == 2:

@@ -203,7 +203,7 @@ def no_symlink_below(out: str | os.PathLike, rel: str | os.PathLike) -> None:
 def stored_input(folder: str | os.PathLike, stored, where: str | os.PathLike, key: str) -> Path:
     """An input file a run recorded (``material.path``, ``parameters.mesh``), found from any folder.
 
-    A run records its inputs relative to its own folder (:func:`hzval.io.files.report_path`), so
+    A run records its inputs relative to its own folder (:func:`hzval.io.staging.report_path`), so
     the path is resolved against ``folder``, not the current directory. Unlike the run's own files
     (:func:`inside`), an input may lie outside ``folder``: it is only read, and the caller checks
     that it is still the file the run read (the material's digest).

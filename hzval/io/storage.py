@@ -10,7 +10,7 @@ tradeoff`` measures each.
 
 Formats (:data:`STORAGES`)
     ``float``  the bake's float32, 4 bytes a channel;
-    ``u8``     8-bit RGBA layers (:func:`hzval.io.files.unit_to_u8`), 1 byte a channel;
+    ``u8``     8-bit RGBA layers (:func:`hzval.io.codecs.unit_to_u8`), 1 byte a channel;
     ``bc7``    BC7 RGBA layers, 16 bytes a 4 x 4 block (1 byte a texel for 4 channels);
     ``bc3``    BC3 (DXT5) RGBA layers: colour end points in 5:6:5, 8-bit alpha, 1 byte a texel;
     ``bc1``    BC1 (DXT1) RGB textures, 8 bytes a block: the channels packed three to a texture
@@ -41,7 +41,7 @@ import texture2ddecoder
 
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.io.files import unit_to_u8
+from hzval.io.codecs import unit_to_u8
 
 __all__ = ["Storage", "STORAGES", "get", "names"]
 

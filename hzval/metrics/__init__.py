@@ -7,5 +7,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("brightness", "compare", "facing", "flip"),
+    ("brightness", "compare", "facing", "flip", "flip_colour"),
 )

@@ -37,7 +37,7 @@ import numpy as np
 
 from hzval.core import conventions as cv
 from hzval.core.errors import HzvalError
-from hzval.io import files
+from hzval.io import codecs
 
 __all__ = [
     "LIT_THRESHOLD",
@@ -463,7 +463,7 @@ def delta_e2000(
         either way.
     grey : bool, optional
         The test image's channels are bitwise equal, as the caller has checked
-        (:func:`hzval.io.files.is_grey`): its colour is then converted once, the same values either
+        (:func:`hzval.io.codecs.is_grey`): its colour is then converted once, the same values either
         way.
 
     Returns
@@ -533,7 +533,7 @@ class Reference:
 
         self.truth, self.scale = truth, float(scale)
         self.linear = _flat_values(truth.image)
-        grey = files.is_grey(truth.image)
+        grey = codecs.is_grey(truth.image)
         self.display = display(truth.image, scale)
         self.lab = LabImage(self.display, grey=grey)
         self.flip = FlipReference(self.display, FLIP_PPD, grey=grey)
@@ -646,7 +646,7 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
     mask = ref.truth.mask
     mse = _mean_squared_error(ref, image)
     psnr = float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
-    grey = files.is_grey(image)  # checked once, on the linear values: the display's are grey with them
+    grey = codecs.is_grey(image)  # checked once, on the linear values: the display's are grey with them
     maps = {"display": display(image, ref.scale)}
     maps["flip"], flip_mean = flip_error(ref.flip, maps["display"], grey=grey)
     if mask is not None:

@@ -1,75 +1,19 @@
 """LDR-FLIP in Dr.Jit float32, NVIDIA's C++ reference step for step, with the reference side reusable.
 
-FLIP (Andersson, Nilsson, Akenine-Moller, Oskarsson, Astrom and Fairchild,
-"FLIP: A Difference Evaluator for Alternating Images", Proc. ACM Comput.
-Graph. Interact. Tech. (HPG 2020) 3(2), 15) is the per-pixel perceived
-difference, in [0, 1], between a reference and a test image flipped back and
-forth at ``ppd`` pixels per degree of visual angle. This module follows the
-CPU path of NVlabs/flip's ``src/cpp/FLIP.h`` (``LDR_FLIP``:
-``setSpatialFilters``, ``setFeatureFilter``, ``calculateSpatialFilterRadius``,
-``computeColorDifference``, ``computeFeatureDifferenceAndFinalError`` and the
-``color3`` conversions), called as ``flip-evaluator``'s Python wrapper calls it
-with ``"LDR", inputsRGB=True`` (``src/nanobindFLIP.cpp``):
+FLIP (Andersson et al., "FLIP: A Difference Evaluator for Alternating Images", HPG 2020) is the
+per-pixel perceived difference, in [0, 1], between a reference and a test image at ``ppd`` pixels
+per degree. This module follows the CPU path of NVlabs/flip's ``src/cpp/FLIP.h`` (``LDR_FLIP``),
+called as ``flip-evaluator``'s Python wrapper calls it (``"LDR", inputsRGB=True``): the colour
+pipeline (YCxCz filtered by the contrast sensitivity Gaussians, CIELAB, Hunt, HyAB) and the feature
+pipeline (Gaussian first and second derivatives of the luminance), combined as
+``colour_difference ** (1 - feature_difference)``. The per-pixel colour steps are
+:mod:`hzval.metrics.flip_colour`'s.
 
-1. sRGB-encoded inputs are decoded to linear RGB (``sRGBToLinearRGB``, before
-   any clamping), clamped to [0, 1] (``evaluate``'s ``clamp``) and taken to
-   YCxCz (``LinearRGBToXYZ``, ``XYZToYCxCz``, D65);
-2. colour pipeline: Y and Cx are filtered with one Gaussian each, Cz with the
-   sum of two, all separably (NVlabs/flip's ``misc/separatedConvolutions.pdf``:
-   the two-Gaussian Cz filter is the sum of two separable passes with
-   ``GaussianSqrt`` weights, normalised together); the result goes back to
-   linear RGB, is clamped to [0, 1], goes to CIELAB, gets the Hunt adjustment
-   (``a, b *= 0.01 L``), and the HyAB distance ``|dL| + |(da, db)|`` raised to
-   :data:`QC` is remapped to [0, 1] against ``cmax`` (``computeMaxDistance``,
-   green against blue) with :data:`PC` and :data:`PT`;
-3. feature pipeline: the luminance ``(Y + 16) / 116`` of the unfiltered YCxCz is
-   filtered with the first and second derivatives of a Gaussian of standard
-   deviation ``0.5 * W * ppd`` (separably: derivative along one axis, the
-   Gaussian along the other); edge and point magnitudes are the lengths of the
-   (x, y) responses, and the feature difference is
-   ``(max(|edge_r - edge_t|, |point_r - point_t|) / sqrt 2) ** QF``;
-4. the error is ``colour_difference ** (1 - feature_difference)``.
-
-Borders are clamped to the edge (FLIP's ``Min(Max(0, x + ix), w - 1)``). The
-work is three Dr.Jit kernels per image on the current variant (the LLVM
-backend vectorises them over every core; CUDA runs the same code): the
-colour conversion to YCxCz, over the image with its edges repeated around
-it; the x-direction passes; and the y-direction passes, fused with
-everything that follows them. Each lane of a pass computes :data:`BLOCK`
-neighbouring pixels, whose taps overlap: it reads their inputs once (the
-x pass as whole packets of eight around them, the y pass the ``BLOCK + 2r``
-rows they need: a fifth of the reads of one gather per tap and pixel), and a
-plane read by several filters (Cz by two, the feature luminance by three) is
-read once for all. Both passes are correlations, the filter index running with
-the image index, summed in float32 in FLIP's tap order. Image sizes enter
-the kernels as opaque values, so one compiled kernel serves every size.
-Every per-pixel step is float32 with FLIP's constants and expression order
-(``powf`` where FLIP has it, ``x / 12.92`` and not ``x * (1 / 12.92)``, NaN
-clamped to 0 as its ``Max`` macro does); Dr.Jit's ``pow`` and ``exp`` are not
-glibc's, so the values differ from the C++ by float32 rounding. The mean is
-FLIP's: a float32 running sum over the map in row-major order, divided by the
-pixel count (``FLIP::evaluate``), which at 2048 x 2048 differs from the
-float64 mean of the same map by about 1e-6.
-
-Validated against ``flip-evaluator`` (NVlabs/flip's nanobind build, 1.7) by
-``tests/metrics/test_flip.py``: the means agree to 1e-4 (in practice a few 1e-7; 1.3e-5
-on a hard black-white edge) on noise, gradients, constant, tiny (1 x 1 to 5 x
-40), non-square and shaded-bricks images, and per pixel to 2e-5 on all but
-the renders (1e-3) and the hard edge (5e-3). The larger ones are in flat
-regions near a difference, where the two images' filtered colours agree to
-float32 rounding: FLIP's error there is that rounding (``|dLab| ** 0.7``)
-raised to ``1 - feature_difference``, in either implementation.
-``benchmarks/bench_compare.py`` times the two side by side (benchmarks/README.md).
-
-Images are ``(H, W, 3)`` sRGB-encoded display values, nominally in [0, 1]
-(any float dtype; computed in float32); rows are y (row 0 first, as FLIP's
-``y``), columns x. Any size works, 1 x 1 included: the filters are wider than
-such an image and clamp to its edge, as FLIP's do.
-
-The reference's half of the work (its filtered, Hunt-adjusted Lab and its
-edge and point magnitudes) depends on the reference alone: a
-:class:`FlipReference` holds it, and :func:`flip_error` compares any number of
-test images with it at the cost of the test side only.
+Images are ``(H, W, 3)`` sRGB-encoded display values in [0, 1], rows y, columns x; borders clamp
+to the edge; any size works. The reference's half of the work depends on it alone: a
+:class:`FlipReference` holds it, and :func:`flip_error` compares test images with it. The kernels,
+the blocking of the filter passes, the float32 details and the validation against
+``flip-evaluator`` are in docs/flip.md.
 """
 
 from __future__ import annotations
@@ -80,30 +24,34 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval.core import conventions as cv
+from hzval.metrics.flip_colour import (
+    DEFAULT_PPD,
+    GAUSS_A1,
+    GAUSS_A2,
+    GAUSS_B1,
+    GAUSS_B2,
+    PC,
+    PI,
+    PT,
+    QC,
+    QF,
+    W,
+    clamp_unit,
+    f32,
+    hunt,
+    hyab,
+    k32,
+    linear_rgb_to_xyz,
+    max_distance,
+    powf,
+    srgb_to_linear,
+    xyz_to_cielab,
+    xyz_to_linear_rgb,
+    xyz_to_ycxcz,
+    ycxcz_to_xyz,
+)
 
 __all__ = [
-    "f32",
-    "QC",
-    "PC",
-    "PT",
-    "W",
-    "QF",
-    "GAUSS_A1",
-    "GAUSS_B1",
-    "GAUSS_A2",
-    "GAUSS_B2",
-    "PI",
-    "DEFAULT_PPD",
-    "srgb_to_linear",
-    "linear_rgb_to_xyz",
-    "xyz_to_linear_rgb",
-    "xyz_to_ycxcz",
-    "ycxcz_to_xyz",
-    "xyz_to_cielab",
-    "hunt",
-    "hyab",
-    "max_distance",
     "spatial_filter_radius",
     "Filters",
     "filters",
@@ -114,287 +62,6 @@ __all__ = [
     "flip",
 ]
 
-f32 = np.float32
-
-#: FLIP's constants (``FLIPConstants`` in FLIP.h): the colour-difference exponent ``qc``,
-QC = f32(0.7)
-#: the fraction ``pc`` of ``cmax`` below which colour differences are compressed,
-PC = f32(0.4)
-#: the error ``pt`` those differences map to at most,
-PT = f32(0.95)
-#: the feature filter's width ``w`` in degrees (its standard deviation is ``0.5 w ppd`` pixels),
-W = f32(0.082)
-#: and the feature-difference exponent ``qf``.
-QF = f32(0.5)
-
-#: The contrast sensitivity functions' Gaussians (``GaussianConstants`` in FLIP.h, the paper's
-#: Table 1) for Y, Cx and Cz: ``a1 sqrt(pi / b1) exp(-pi^2 x^2 / b1) + a2 sqrt(pi / b2) exp(-pi^2 x^2 / b2)``.
-GAUSS_A1 = (f32(1.0), f32(1.0), f32(34.1))
-GAUSS_B1 = (f32(0.0047), f32(0.0053), f32(0.04))
-GAUSS_A2 = (f32(0.0), f32(0.0), f32(13.5))
-GAUSS_B2 = (f32(1.0e-5), f32(1.0e-5), f32(0.025))
-
-#: FLIP's pi (``FLIP::PI``, as a float).
-PI = f32(3.14159265358979)
-
-#: FLIP's default viewing condition: 0.7 m from a 3840-pixel, 0.7 m wide monitor
-#: (``calculatePPD(0.7, 3840, 0.7)`` = 67.02 pixels per degree).
-DEFAULT_PPD = f32(0.7) * (f32(3840.0) / f32(0.7)) * (PI / f32(180.0))
-
-
-def _K(v):
-    """A float32 constant of FLIP's, as the value both NumPy and Dr.Jit (a Python float: exact)
-    compute with."""
-    return float(f32(v))
-
-
-_ILLUMINANT = (_K(0.950428545), 1.0, _K(1.088900371))  # DEFAULT_ILLUMINANT (D65)
-_INV_ILLUMINANT = (_K(1.052156925), 1.0, _K(0.918357670))  # INV_DEFAULT_ILLUMINANT
-
-_RGB_TO_XYZ = (
-    (
-        _K(f32(10135552.0) / f32(24577794.0)),
-        _K(f32(8788810.0) / f32(24577794.0)),
-        _K(f32(4435075.0) / f32(24577794.0)),
-    ),
-    (
-        _K(f32(2613072.0) / f32(12288897.0)),
-        _K(f32(8788810.0) / f32(12288897.0)),
-        _K(f32(887015.0) / f32(12288897.0)),
-    ),
-    (
-        _K(f32(1425312.0) / f32(73733382.0)),
-        _K(f32(8788810.0) / f32(73733382.0)),
-        _K(f32(70074185.0) / f32(73733382.0)),
-    ),
-)
-_XYZ_TO_RGB = (
-    (_K(3.241003275), _K(-1.537398934), _K(-0.498615861)),
-    (_K(-0.969224334), _K(1.875930071), _K(0.041554224)),
-    (_K(0.055639423), _K(-0.204011202), _K(1.057148933)),
-)
-
-# -- FLIP.h's color3 conversions, on planes ------------------------------------------------------
-
-
-def _numpy(v) -> bool:
-    """Whether ``v`` is a NumPy value (the filters' constants) rather than a Dr.Jit array (the images)."""
-    return not cv.is_drjit(v)
-
-
-def _where(cond, a, b):
-    if _numpy(cond):
-        return np.where(cond, a, b)
-    import drjit as dr
-
-    return dr.select(cond, a, b)
-
-
-def _powf(x, e):
-    """``powf(x, e)`` for ``x >= 0`` (``powf(0, 0) = 1``, ``powf(0, e > 0) = 0``)."""
-    if _numpy(x):
-        return np.power(x, e)
-    import drjit as dr
-
-    at_zero = (1.0 if e == 0 else 0.0) if _numpy(e) else dr.select(e == 0, 1.0, 0.0)
-    return dr.select(x > 0, dr.power(dr.maximum(x, 1e-38), e), at_zero)
-
-
-def _sqrt(x):
-    if _numpy(x):
-        return np.sqrt(x)
-    import drjit as dr
-
-    return dr.sqrt(x)
-
-
-def _abs(x):
-    if _numpy(x):
-        return np.abs(x)
-    import drjit as dr
-
-    return dr.abs(x)
-
-
-def _clamp(v):
-    """``Min(Max(v, 0), 1)``: NaN becomes 0, as FLIP's macros make it."""
-    if _numpy(v):
-        return np.fmin(np.fmax(v, f32(0.0)), f32(1.0))
-    import drjit as dr
-
-    return dr.select(v > 0.0, dr.minimum(v, 1.0), 0.0)  # NaN > 0 is false: 0
-
-
-def srgb_to_linear(c):
-    """FLIP's ``color3::sRGBToLinearRGB``: the sRGB transfer function's inverse (IEC 61966-2-1),
-    ``c / 12.92`` up to 0.04045, ``((c + 0.055) / 1.055) ^ 2.4`` above, in float32.
-
-    Parameters
-    ----------
-    c : numpy.ndarray or drjit.Float
-        sRGB-encoded values in [0, 1].
-
-    Returns
-    -------
-    numpy.ndarray or drjit.Float
-        Linear values.
-    """
-    with np.errstate(invalid="ignore"):
-        return _where(c <= _K(0.04045), c / _K(12.92), _powf((c + _K(0.055)) / _K(1.055), _K(2.4)))
-
-
-def _mat(m, x, y, z):
-    return (
-        m[0][0] * x + m[0][1] * y + m[0][2] * z,
-        m[1][0] * x + m[1][1] * y + m[1][2] * z,
-        m[2][0] * x + m[2][1] * y + m[2][2] * z,
-    )
-
-
-def linear_rgb_to_xyz(r, g, b):
-    """FLIP's ``color3::LinearRGBToXYZ``: linear sRGB primaries to CIE XYZ, D65.
-
-    Parameters
-    ----------
-    r, g, b : numpy.ndarray or drjit.Float
-        Linear RGB, float32.
-
-    Returns
-    -------
-    tuple
-        ``(x, y, z)``.
-    """
-    return _mat(_RGB_TO_XYZ, r, g, b)
-
-
-def xyz_to_linear_rgb(x, y, z):
-    """FLIP's ``color3::XYZToLinearRGB``: CIE XYZ to linear sRGB primaries, D65.
-
-    Parameters
-    ----------
-    x, y, z : numpy.ndarray or drjit.Float
-        CIE XYZ (D65), float32.
-
-    Returns
-    -------
-    tuple
-        ``(r, g, b)``.
-    """
-    return _mat(_XYZ_TO_RGB, x, y, z)
-
-
-def xyz_to_ycxcz(x, y, z):
-    """FLIP's ``color3::XYZToYCxCz``: the opponent space FLIP filters in,
-    ``Y = 116 y/yn - 16``, ``Cx = 500 (x/xn - y/yn)``, ``Cz = 200 (y/yn - z/zn)``.
-
-    Parameters
-    ----------
-    x, y, z : numpy.ndarray or drjit.Float
-        CIE XYZ (D65), float32.
-
-    Returns
-    -------
-    tuple
-        ``(Y, Cx, Cz)``.
-    """
-    x, y, z = x * _INV_ILLUMINANT[0], y * _INV_ILLUMINANT[1], z * _INV_ILLUMINANT[2]
-    return 116.0 * y - 16.0, 500.0 * (x - y), 200.0 * (y - z)
-
-
-def ycxcz_to_xyz(yy, cx, cz):
-    """FLIP's ``color3::YCxCzToXYZ``, the inverse of :func:`xyz_to_ycxcz`.
-
-    Parameters
-    ----------
-    yy, cx, cz : numpy.ndarray or drjit.Float
-        YCxCz values, float32.
-
-    Returns
-    -------
-    tuple
-        ``(x, y, z)``, D65.
-    """
-    y = (yy + 16.0) / 116.0
-    cx, cz = cx / 500.0, cz / 200.0
-    return (y + cx) * _ILLUMINANT[0], y * _ILLUMINANT[1], (y - cz) * _ILLUMINANT[2]
-
-
-_DELTA = f32(6.0) / f32(29.0)
-_DELTA_CUBE = _K(_DELTA * (_DELTA * _DELTA))
-_LAB_FACTOR = _K(f32(1.0) / (f32(3.0) * (_DELTA * _DELTA)))
-_LAB_TERM = _K(f32(4.0) / f32(29.0))
-_THIRD = _K(f32(1.0) / f32(3.0))
-
-
-def _lab_f(t):
-    return _where(t > _DELTA_CUBE, _powf(t, _THIRD), _LAB_FACTOR * t + _LAB_TERM)
-
-
-def xyz_to_cielab(x, y, z):
-    """FLIP's ``color3::XYZToCIELab`` (D65), with ``powf(t, 1/3)`` as FLIP has it, not ``cbrtf``.
-
-    Parameters
-    ----------
-    x, y, z : numpy.ndarray or drjit.Float
-        CIE XYZ (D65), float32.
-
-    Returns
-    -------
-    tuple
-        ``(L*, a*, b*)``.
-    """
-    fx, fy, fz = (
-        _lab_f(x * _INV_ILLUMINANT[0]),
-        _lab_f(y * _INV_ILLUMINANT[1]),
-        _lab_f(z * _INV_ILLUMINANT[2]),
-    )
-    return 116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)
-
-
-def hunt(luminance, chrominance):
-    """FLIP's ``color3::Hunt``: the Hunt effect's adjustment of a chrominance, ``0.01 L C``.
-
-    Parameters
-    ----------
-    luminance, chrominance : numpy.ndarray or drjit.Float
-        ``L*`` and ``a*`` (or ``b*``).
-
-    Returns
-    -------
-    numpy.ndarray or drjit.Float
-        The adjusted chrominance.
-    """
-    return _K(0.01) * luminance * chrominance
-
-
-def hyab(l1, a1, b1, l2, a2, b2):
-    """FLIP's ``color3::HyAB`` distance: city-block in L, Euclidean in (a, b),
-    ``|L1 - L2| + sqrt((a1 - a2)^2 + (b1 - b2)^2)``.
-
-    Parameters
-    ----------
-    l1, a1, b1, l2, a2, b2 : numpy.ndarray or drjit.Float
-        Two Hunt-adjusted Lab colours.
-
-    Returns
-    -------
-    numpy.ndarray or drjit.Float
-        The distance.
-    """
-    da, db = a1 - a2, b1 - b2
-    return _abs(l1 - l2) + _sqrt(da * da + db * db)
-
-
-def max_distance() -> np.float32:
-    """``color3::computeMaxDistance(qc)``: the Hunt-adjusted HyAB of green against blue, to the ``QC``."""
-    green = xyz_to_cielab(*linear_rgb_to_xyz(f32(0.0), f32(1.0), f32(0.0)))
-    blue = xyz_to_cielab(*linear_rgb_to_xyz(f32(0.0), f32(0.0), f32(1.0)))
-    g = (green[0], hunt(green[0], green[1]), hunt(green[0], green[2]))
-    b = (blue[0], hunt(blue[0], blue[1]), hunt(blue[0], blue[2]))
-    return f32(np.power(f32(hyab(*g, *b)), QC))
-
-
-# -- the filters -----------------------------------------------------------------------------------
 
 _PI_SQ = PI * PI
 
@@ -744,9 +411,9 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
 
     f = filters(ppd)
     g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
-    r, gr, b = (_clamp(srgb_to_linear(c)) for c in _image_planes(flat, g, grey))
+    r, gr, b = (clamp_unit(srgb_to_linear(c)) for c in _image_planes(flat, g, grey))
     yy, cx, cz = xyz_to_ycxcz(*linear_rgb_to_xyz(r, gr, b))
-    yn = yy * _K(f32(1.0) / f32(116.0)) + _K(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
+    yn = yy * k32(f32(1.0) / f32(116.0)) + k32(f32(16.0) / f32(116.0))  # oneOver116, sixteenOver116
     dr.eval(yy, cx, cz, yn)
     # Y, Cx, Cz (first Gaussian), Cz (second); d/dx, d2/dx2 and the Gaussian of (Y + 16) / 116
     x_pass = _x_pass(g, (yy, cx, cz, yn), ((f.y,), (f.cx,), (f.cz1, f.cz2), (f.dg, f.ddg, f.g)))
@@ -757,7 +424,7 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
     dx, ddx, dy, ddy = _y_pass(g, (ft0, ft1, ft2), ((f.g,), (f.g,), (f.dg, f.ddg)))
     out = ([], [], [], [], [])
     for k in range(BLOCK):
-        r, gr, b = (_clamp(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy[k], cx[k], cz1[k] + cz2[k])))
+        r, gr, b = (clamp_unit(c) for c in xyz_to_linear_rgb(*ycxcz_to_xyz(yy[k], cx[k], cz1[k] + cz2[k])))
         L, a, b = xyz_to_cielab(*linear_rgb_to_xyz(r, gr, b))
         for quantity, v in zip(
             out,
@@ -784,17 +451,19 @@ def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
     f = filters(ppd)
     t = _side(flat, h, w, ppd, grey)
     # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
-    pccmax, above = _K(f.pccmax), _K(f.cmax - f.pccmax)
-    nf = _K(f32(1.0) / np.sqrt(f32(2.0)))
+    pccmax, above = k32(f.pccmax), k32(f.cmax - f.pccmax)
+    nf = k32(f32(1.0) / np.sqrt(f32(2.0)))
     err = []
     for k in range(BLOCK):
         (rl, ra, rb, re, rp), (tl, ta, tb, te, tp) = ([q[k] for q in side] for side in (ref, t))
-        cd = _powf(hyab(rl, ra, rb, tl, ta, tb), _K(QC))
+        cd = powf(hyab(rl, ra, rb, tl, ta, tb), k32(QC))
         cd = dr.select(
-            cd < pccmax, cd * _K(PT / f.pccmax), _K(PT) + ((cd - pccmax) / above) * _K(f32(1.0) - PT)
+            cd < pccmax,
+            cd * k32(PT / f.pccmax),
+            k32(PT) + ((cd - pccmax) / above) * k32(f32(1.0) - PT),
         )
-        fd = _powf(nf * dr.maximum(dr.abs(re - te), dr.abs(rp - tp)), _K(QF))
-        err.append(_powf(cd, 1.0 - fd))
+        fd = powf(nf * dr.maximum(dr.abs(re - te), dr.abs(rp - tp)), k32(QF))
+        err.append(powf(cd, 1.0 - fd))
     dr.eval(err)
     return err
 
@@ -868,7 +537,7 @@ def flip_error(
     test_display : numpy.ndarray
         ``(H, W, 3)`` sRGB display values in [0, 1].
     grey : bool, optional
-        Its channels are bitwise equal, as the caller has checked (:func:`hzval.io.files.is_grey`):
+        Its channels are bitwise equal, as the caller has checked (:func:`hzval.io.codecs.is_grey`):
         its colour is then converted once, not three times, the same map either way.
 
     Returns

@@ -8,7 +8,7 @@ import math
 import textwrap
 from pathlib import Path
 
-from hzval.io import files
+from hzval.io import staging
 from hzval.metrics import compare
 from hzval.scene import lookup
 
@@ -199,7 +199,7 @@ def mesh_parameters(scene, out: Path) -> dict:
         return {}
     shape = scene.mesh.shape
     return {
-        "mesh": shape if shape in model.SHAPES else files.report_path(shape, out),
+        "mesh": shape if shape in model.SHAPES else staging.report_path(shape, out),
         "uv_scale": scene.mesh.uv_scale,
         "up": scene.mesh.up,
         "tangent_bug": scene.mesh.tangent_bug,

@@ -29,7 +29,7 @@ Frame files (:class:`writing.FrameWriter`): EXRs in half float, ZIP (2^-11 relat
 below the previews' 8-bit quantisation; the metrics are computed before, in
 float32); an image whose R, G and B are equal (every one of a grey material
 under a white light) as one ``Y`` channel and a grey PNG, losslessly
-(:func:`hzval.io.files.read_rgb_exr` reads R, G, B or Y); FLIP and
+(:func:`hzval.io.codecs.read_rgb_exr` reads R, G, B or Y); FLIP and
 visibility-difference maps as palette PNGs, pixel for pixel the RGB ones.
 
 Speed: the truth's display values, Lab and FLIP half are computed once per
@@ -66,7 +66,7 @@ from hzval.bake.maps import BakeParams
 from hzval.core import backend, interrupts, resources, shading
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import documents, staging
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
 from hzval.pipeline import records, writing
@@ -250,7 +250,7 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         "digest": hm.digest,
         "rows": rows,
         "cols": cols,
-        "path": files.report_path(hm.path, out),
+        "path": staging.report_path(hm.path, out),
     }
     t0 = time.perf_counter()
     cpu: dict[str, float] = {}
@@ -259,7 +259,10 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         notices.append(f"{hm.path}: a colour image, read as heights by its {hm.source.split('-> ')[-1]}")
     needs = technique.bake_needs(chosen, scene)
     horizon = bake.needs_horizon(needs)
-    record = {**material, "path": files.report_path(hm.path, out / "bake")}  # relative to bake.json's folder
+    record = {
+        **material,
+        "path": staging.report_path(hm.path, out / "bake"),
+    }  # relative to bake.json's folder
     with _cpu(cpu, "bake"):
         baked, cached = bake.cached_bake(
             hm.height,
@@ -457,7 +460,7 @@ def run(
     ``frames.json``) is written into a staging folder inside ``out`` and swapped
     in whole at the end, so an error, Ctrl-C or SIGTERM leaves ``out`` as it was,
     its bake included (a new bake is staged too), and a new ``out`` not at all.
-    ``out`` must be new, empty or hzval's (:func:`hzval.io.files.output_folder`;
+    ``out`` must be new, empty or hzval's (:func:`hzval.io.staging.output_folder`;
     ``force`` writes beside other files, which are kept); the run holds it: a
     second run into it fails at once. Signals are held from the swap on
     (:func:`hzval.core.interrupts.held`). ``gates`` (:class:`hzval.commands.gates.Gates`): tested on
@@ -466,8 +469,8 @@ def run(
     out = Path(out)
     reset_peak_rss()  # this sweep's own peak, even after others in this process
     try:
-        with interrupts.held() as hold, files.output_folder(out, force=force):
-            with files.Staging(out) as stage:
+        with interrupts.held() as hold, staging.output_folder(out, force=force):
+            with staging.Staging(out) as stage:
                 with interrupts.unwrapped():  # a stop inside Dr.Jit's tracing unwinds as a stop
                     result = _run(scene, out, stage.dir, options, command, progress, gates)
                 hold.start()  # the last signal check: from here the run completes
@@ -529,8 +532,8 @@ def _run(
     timings["total_s"] = time.perf_counter() - t_start
     report.write_page(report_dir, result, plot_files, command=command)
     frames = records.engine_frames(scene, result, setup.albedo_constant, albedo_files)
-    files.write_json(report_dir / "frames.json", frames)
-    files.write_json(report_dir / "metrics.json", result)
+    documents.write_json(report_dir / "frames.json", frames)
+    documents.write_json(report_dir / "metrics.json", result)
     return result
 
 

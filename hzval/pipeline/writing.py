@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.io import files
+from hzval.io import codecs
 from hzval.metrics import compare
 from hzval.report import images
 
@@ -32,11 +32,11 @@ def write_view_maps(report_dir: Path, maps: dict, seen: np.ndarray) -> dict:
     rel = {}
     for name, values in maps.items():
         v = np.where(seen, values, np.float32(np.nan)).astype(np.float32)
-        files.write_exr(folder / f"{name}.exr", {"Y": v}, half=False)
+        codecs.write_exr(folder / f"{name}.exr", {"Y": v}, half=False)
         top = float(np.nanmax(v)) if np.isfinite(v).any() else 1.0
         rgb = images.magma(np.nan_to_num(v / max(top, 1e-12)))
-        rgb[~seen] = files.unit_to_u8(np.asarray(UNSEEN_DISPLAY))
-        files.write_png(folder / f"{name}.png", rgb)
+        rgb[~seen] = codecs.unit_to_u8(np.asarray(UNSEEN_DISPLAY))
+        codecs.write_png(folder / f"{name}.png", rgb)
         rel[name] = f"view/{name}.exr"
         rel[f"{name}_png"] = f"view/{name}.png"
     return rel
@@ -48,7 +48,7 @@ UNSEEN_DISPLAY = (0.33, 0.42, 0.55)
 #: higher level saves under 2% of a frame's bytes for several times the time (commit 'PNGs at
 #: level 1' has the measurements).
 PNG_LEVEL = 1
-#: ... with zlib's run-length strategy (:func:`hzval.io.files.write_png`'s ``runs``): at level 1 it
+#: ... with zlib's run-length strategy (:func:`hzval.io.codecs.write_png`'s ``runs``): at level 1 it
 #: is faster than the default strategy on the frames' renders and maps, for about as many bytes
 #: (``benchmarks/bench_png.py``; benchmarks/README.md has the figures).
 PNG_RUNS = True
@@ -58,9 +58,9 @@ def shown(display: np.ndarray) -> np.ndarray:
     """A preview's 8-bit values of display values ``(H, W, 3)``: ``(H, W)`` where they are grey.
 
     Grey display values are quantised once, not per channel: the same values, a third of the
-    work, and :func:`hzval.io.files.write_png` takes the ``(H, W)`` result as the grey PNG it would
+    work, and :func:`hzval.io.codecs.write_png` takes the ``(H, W)`` result as the grey PNG it would
     have made of them."""
-    return files.unit_to_u8(display[..., 0] if files.is_grey(display) else display)
+    return codecs.unit_to_u8(display[..., 0] if codecs.is_grey(display) else display)
 
 
 class FrameWriter:
@@ -69,7 +69,7 @@ class FrameWriter:
     compared, so that what they are made of is freed one technique at a time (the preview's 8-bit
     values and the FLIP map: 7 bytes a pixel a technique, 0.9 GiB at 4096 x 4096 with eight). A
     context manager: the ``with`` block's end waits for every file; an error or Ctrl-C in it cancels
-    the files not yet started and waits for the running ones (:class:`hzval.io.files.Writers`), so
+    the files not yet started and waits for the running ones (:class:`hzval.io.codecs.Writers`), so
     that no writer outlives the frame to put a file into the staging folder after the sweep has
     removed it.
 
@@ -112,7 +112,7 @@ class FrameWriter:
         self._visdiff: tuple | None = None  # (V, its images.VisibilityDiff), made at the first technique
 
     def __enter__(self) -> "FrameWriter":
-        self._writers = files.Writers().__enter__()
+        self._writers = codecs.Writers().__enter__()
         return self
 
     def __exit__(self, kind, error, trace) -> bool:
@@ -123,7 +123,9 @@ class FrameWriter:
         self._writers.wait()
 
     def _exr(self, rel: dict, key: str, filename: str, channels) -> None:
-        self._writers.submit(partial(files.write_exr, self.folder / filename, channels, half=True, grey=True))
+        self._writers.submit(
+            partial(codecs.write_exr, self.folder / filename, channels, half=True, grey=True)
+        )
         rel[key] = f"{self.prefix}/{filename}"
 
     def _png(self, rel: dict, key: str, filename: str, make, *args) -> None:
@@ -157,7 +159,7 @@ class FrameWriter:
         if V is not None:
             self._exr(rel, "visibility", "visibility.exr", {"Y": self._layer(V)})
             if all_files:
-                self._png(rel, "visibility_png", "visibility.png", files.unit_to_u8, V)
+                self._png(rel, "visibility_png", "visibility.png", codecs.unit_to_u8, V)
         return rel
 
     def technique_files(self, stem: str, frame, maps: dict, V) -> dict:
@@ -172,7 +174,7 @@ class FrameWriter:
         if F is not None:
             self._exr(own, "factor", f"{stem}_factor.exr", {"Y": self._layer(F)})
             if self.all_files:
-                self._png(own, "factor_png", f"{stem}_factor.png", files.unit_to_u8, F)
+                self._png(own, "factor_png", f"{stem}_factor.png", codecs.unit_to_u8, F)
             if V is not None:
                 self._png(own, "visdiff_png", f"{stem}_visdiff.png", self._truth_diff(V).indexed, F)
         return own
@@ -191,8 +193,8 @@ def _as_is(pixels):
 
 def _write_png_of(path: Path, make, *args) -> None:
     """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
-    with the report's preview if it is large (:func:`hzval.io.files.write_png_with_preview`)."""
-    files.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True, runs=PNG_RUNS)
+    with the report's preview if it is large (:func:`hzval.io.codecs.write_png_with_preview`)."""
+    codecs.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True, runs=PNG_RUNS)
 
 
 def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
@@ -214,8 +216,8 @@ def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
     """
     from hzval.core import conventions as cv
 
-    files.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
-    files.write_png(folder / "albedo.png", files.unit_to_u8(cv.srgb_encode(np.clip(albedo, 0.0, 1.0))))
+    codecs.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
+    codecs.write_png(folder / "albedo.png", codecs.unit_to_u8(cv.srgb_encode(np.clip(albedo, 0.0, 1.0))))
     return {
         "linear": "albedo.exr",
         "srgb": "albedo.png",

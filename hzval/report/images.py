@@ -3,8 +3,8 @@
 One module owns them, so that the sweep that paints them, the report that
 explains them (legends, plot lines) and the check that shows its own
 difference maps agree on every colour. Images out are 8-bit sRGB
-``(H, W, 3)`` arrays ready for :func:`hzval.io.files.write_png`, or the same
-pixels as :class:`hzval.io.files.Indexed` palette images (``*_indexed``: the
+``(H, W, 3)`` arrays ready for :func:`hzval.io.codecs.write_png`, or the same
+pixels as :class:`hzval.io.codecs.Indexed` palette images (``*_indexed``: the
 sweep's frame files, a third of the bytes).
 """
 
@@ -14,7 +14,7 @@ import functools
 
 import numpy as np
 
-from hzval.io import files
+from hzval.io import codecs
 from hzval.metrics.compare import LIT_THRESHOLD
 
 __all__ = [
@@ -53,7 +53,7 @@ def visibility_diff_image(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return VisibilityDiff(V).image(F)
 
 
-def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> files.Indexed | np.ndarray:
+def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> codecs.Indexed | np.ndarray:
     """:func:`visibility_diff_image` as a palette image, pixel for pixel: its grey levels (at most
     128 for ``V`` in [0, 1]) and the two colours, a third of the RGB bytes. RGB in the case
     (non-finite ``V``) where more than 256 colours would be needed."""
@@ -80,7 +80,7 @@ class VisibilityDiff:
 
     def __init__(self, V: np.ndarray):
         V = np.asarray(V)
-        self.grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
+        self.grey = codecs.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
         self.lit = V >= LIT_THRESHOLD
         self._counts = np.bincount(self.grey.ravel(), minlength=256)
 
@@ -97,7 +97,7 @@ class VisibilityDiff:
         img[false_shadow] = FALSE_SHADOW_RGB
         return img
 
-    def indexed(self, F: np.ndarray) -> files.Indexed | np.ndarray:
+    def indexed(self, F: np.ndarray) -> codecs.Indexed | np.ndarray:
         """The map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as a palette image
         (:func:`visibility_diff_indexed`)."""
         leak, false_shadow = self._marks(F)
@@ -114,7 +114,7 @@ class VisibilityDiff:
         index[leak] = len(levels)
         index[false_shadow] = len(levels) + 1
         palette = np.concatenate([np.repeat(levels[:, None], 3, axis=1), [LEAK_RGB, FALSE_SHADOW_RGB]])
-        return files.Indexed(index, palette.astype(np.uint8))
+        return codecs.Indexed(index, palette.astype(np.uint8))
 
 
 def magma(values: np.ndarray) -> np.ndarray:
@@ -160,11 +160,11 @@ def flip_image(error: np.ndarray) -> np.ndarray:
     return magma(error)
 
 
-def flip_indexed(error: np.ndarray) -> files.Indexed | np.ndarray:
+def flip_indexed(error: np.ndarray) -> codecs.Indexed | np.ndarray:
     """:func:`flip_image` as a palette image of magma's 256 colours, pixel for pixel (the index is
     the colour map's, so nothing is lost), a third of the RGB bytes; RGB if ``error`` has a NaN
     (whose black is no magma colour)."""
     error = _as_float(error)
     if np.isnan(error).any():
         return flip_image(error)
-    return files.Indexed(magma_index(error), magma_palette())
+    return codecs.Indexed(magma_index(error), magma_palette())

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable
 from urllib.parse import quote
 
-from hzval.io import files
+from hzval.io import atomic, codecs, staging
 from hzval.metrics import compare
 from hzval.report import columns, images, plots, ranking
 from hzval.techniques import registry as technique
@@ -49,7 +49,7 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 def _src(out: Path, rel) -> dict | None:
     """A file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
-    ``None`` if absent. A large PNG with a preview (:func:`hzval.io.files.preview_of`) is shown by
+    ``None`` if absent. A large PNG with a preview (:func:`hzval.io.codecs.preview_of`) is shown by
     its preview: ``src`` is the preview's, ``full`` the file's own URL and ``width`` its width in
     pixels, which the page loads when the reader zooms in (else both ``None``)."""
     if not isinstance(rel, str) or not rel:
@@ -57,7 +57,7 @@ def _src(out: Path, rel) -> dict | None:
     if not (out / rel).is_file():
         return {"src": None, "path": rel, "full": None, "width": None}
     url = quote(rel.replace("\\", "/"), safe="/")
-    preview = files.preview_of(rel)
+    preview = codecs.preview_of(rel)
     if rel.endswith(".png") and (out / preview).is_file():
         from PIL import Image
 
@@ -694,9 +694,9 @@ def write_plots(out: str | Path, metrics: dict) -> dict[str, str | None]:
 def write_page(out: str | Path, metrics: dict, plot_files: dict, *, command: str) -> Path:
     """``out/index.html`` of a sweep's ``metrics`` and its :func:`write_plots`; the index path."""
     out = Path(out)
-    html = render_html(build_context(out, metrics, files.portable_command(command), plot_files))
+    html = render_html(build_context(out, metrics, staging.portable_command(command), plot_files))
     index = out / "index.html"
-    with files.atomic_path(index) as tmp:
+    with atomic.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
 

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from hzval.io import files
+from hzval.io import codecs
 from hzval.report import columns
 
 __all__ = [
@@ -58,7 +58,7 @@ def _style_axes(ax, title: str) -> None:
 
 
 def _save(fig, path: Path) -> None:
-    files.write_figure(path, fig, dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
+    codecs.write_figure(path, fig, dpi=150, facecolor=fig.get_facecolor(), pil_kwargs={"compress_level": 3})
 
 
 #: The perfect-shadows floor's line in the plots.

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval.geometry import tangent_bugs
-from hzval.io import files
+from hzval.io import codecs
 
 __all__ = ["CASES", "measure", "run", "page_context"]
 
@@ -158,7 +158,7 @@ def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
             if j == 0:
                 ax.set_ylabel(bug, fontsize=9)
     fig.colorbar(im, ax=axes, shrink=0.4, label=f"{lead} F - V (blue: lit too much)")
-    files.write_figure(path, fig)
+    codecs.write_figure(path, fig)
 
 
 def page_context(bugs: dict) -> dict:

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import interrupts
-from hzval.io import files
+from hzval.io import atomic, codecs, documents, staging
 
 __all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
@@ -93,11 +93,11 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
     written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C (which
     stops the run between cases), leaves an earlier report byte for byte and no folder it made."""
     out = Path(out)
-    with files.swapped_in(out, force=force) as work:
+    with staging.swapped_in(out, force=force) as work:
         with interrupts.cases():
             data = _run(scene, work, progress, command, force)
-        data["command"] = files.portable_command(command)
-        files.write_json(work / "models.json", data)
+        data["command"] = staging.portable_command(command)
+        documents.write_json(work / "models.json", data)
         _write_page(work, data)
     return data
 
@@ -215,7 +215,7 @@ def _write_page(out: Path, data: dict) -> None:
         "bugs": bug_signatures.page_context(data["bugs"]) if data.get("bugs") else None,
     }
     page = pages.environment().get_template("models.html.j2").render(**context)
-    with files.atomic_path(out / "index.html") as tmp:
+    with atomic.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
 
@@ -256,7 +256,7 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
         fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
     )  # outside: it never covers a line
     fig.tight_layout()
-    files.write_figure(path, fig)
+    codecs.write_figure(path, fig)
     return {
         "plot": f"plots/{path.name}",
         "names": list(series),
@@ -302,7 +302,7 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
         fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
     )  # outside: it never covers a line
     fig.tight_layout()
-    files.write_figure(path, fig)
+    codecs.write_figure(path, fig)
 
 
 # -- the band: curvature and nothing else (hzval.studies.curvature_band) --------------------------------
@@ -545,7 +545,7 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
         fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
     )  # outside: it never covers a line
     fig.tight_layout()
-    files.write_figure(path, fig)
+    codecs.write_figure(path, fig)
 
 
 def summary_table(data: dict) -> str:

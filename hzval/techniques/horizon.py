@@ -62,7 +62,7 @@ Two paths:
     (:func:`hzval.core.conventions.channel_weights`), computed in the kernel.
 ``gpu``
     what a GPU running Lengyel's Listing 5.1 computes: the horizon layers
-    quantised to 8 bits (:func:`hzval.io.files.unit_to_u8` / 255), the 16x16
+    quantised to 8 bits (:func:`hzval.io.codecs.unit_to_u8` / 255), the 16x16
     8-bit weight cube map of :func:`hzval.bake.maps.weight_cube` sampled
     bilinearly and seamlessly across its faces, as OpenGL defines it
     (:mod:`hzval.techniques.cubemap`), mips quantised to the storage (:func:`hzval.scene.lookup.mip_chain`),

@@ -31,7 +31,7 @@ import numpy as np
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
 from hzval.io import storage as hz_storage
-from hzval.io.files import unit_to_u8
+from hzval.io.codecs import unit_to_u8
 from hzval.scene import lookup
 from hzval.scene.spec import EFFECTS, Frame, Scene
 from hzval.techniques.registry import Context, Technique, Variant, replace_effects

@@ -8,7 +8,7 @@ import pytest
 
 from hzval import materials
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 
 
 def _err(capsys) -> str:
@@ -38,7 +38,7 @@ def test_an_unknown_material_is_one_line_with_the_nearest_names(tmp_path, capsys
 @pytest.fixture()
 def height_file(tmp_path):
     path = tmp_path / "stones.png"
-    files.write_png(path, np.round(materials.generate("cobblestones", 24).height * 65535).astype(np.uint16))
+    codecs.write_png(path, np.round(materials.generate("cobblestones", 24).height * 65535).astype(np.uint16))
     return path
 
 
@@ -67,7 +67,7 @@ def test_a_sidecar_typo_names_the_key_and_the_file(height_file, tmp_path, capsys
 def test_a_failed_run_into_a_new_folder_leaves_no_folder(height_file, tmp_path, capsys):
     """The set-up fails after the bake (a one-layer horizon map): neither bake/ nor the lock is left."""
     layer = tmp_path / "h0.png"
-    files.write_png(layer, np.zeros((24, 24, 4), np.uint8))
+    codecs.write_png(layer, np.zeros((24, 24, 4), np.uint8))
     out = tmp_path / "new" / "deeper"
     assert (
         cli.main(

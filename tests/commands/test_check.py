@@ -11,7 +11,7 @@ import pytest
 from hzval import materials
 from hzval.cli import main as cli
 from hzval.commands import check
-from hzval.io import files
+from hzval.io import codecs
 from hzval.techniques import horizon
 from hzval.techniques import registry as technique
 
@@ -52,7 +52,7 @@ def test_shipped_references_pass(variant):
 
 def test_references_are_small():
     for p in SHIPPED.rglob("*.exr"):
-        ch = files.read_exr(p)
+        ch = codecs.read_exr(p)
         h, w = next(iter(ch.values())).shape
         assert 32 <= max(h, w) <= check.MAX_CHECK_SIZE, p
 
@@ -79,9 +79,9 @@ def test_truth_rendered_with_another_seed_passes(variant, refs, seed):
 
 
 def _edit(path, fn):
-    ch = files.read_exr(path)
+    ch = codecs.read_exr(path)
     fn(ch)
-    files.write_exr(path, ch)
+    codecs.write_exr(path, ch)
 
 
 def test_a_visibly_darker_patch_in_a_truth_reference_fails(variant, refs, tmp_path):
@@ -115,9 +115,9 @@ def test_a_changed_approximation_reference_fails(variant, refs):
 
     # marked as this backend's (the exact path's images agree across backends to 3e-6), so that the
     # tight tiers apply here on CUDA too
-    ch = files.read_exr(target)
+    ch = codecs.read_exr(target)
     nudge(ch)
-    files.write_exr(target, ch, attributes={check.BACKEND_ATTRIBUTE: check.backend_name(variant)})
+    codecs.write_exr(target, ch, attributes={check.BACKEND_ATTRIBUTE: check.backend_name(variant)})
     st = statuses(check.run(references=refs, only=["wall"]))
     assert st["wall/az+135/horizon"] == "fail"
     assert st["wall/az+135/horizon_gpu"] == "pass" and st["wall/az+135/truth"] == "pass"
@@ -194,12 +194,12 @@ def test_a_reference_from_another_backend_is_compared_at_the_cross_backend_tiers
     target.unlink()
     check.run(references=refs, only=["wall"], update=True)
     assert check.reference_backend(target) == here
-    ref = files.read_exr(target)
+    ref = codecs.read_exr(target)
 
     def status(change, backend):
         ch = {k: v.copy() for k, v in ref.items()}
         change(ch)
-        files.write_exr(target, ch, attributes={check.BACKEND_ATTRIBUTE: backend})
+        codecs.write_exr(target, ch, attributes={check.BACKEND_ATTRIBUTE: backend})
         result = check.run(references=refs, only=["wall"])
         r = next(r for r in result.images if r.name == "wall/az+135/horizon_gpu")
         assert r.other_backend == (None if backend == here else backend)

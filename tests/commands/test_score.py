@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 
 
 @pytest.fixture(scope="module")
@@ -105,13 +105,13 @@ def test_bad_frames_are_one_line_errors(sweep_dir, tmp_path, capsys):
     cases.append((missing, sweep_dir, "az+0"))
     small = tmp_path / "small"
     shutil.copytree(good, small)
-    files.write_exr(small / "az+0.exr", {"RGB": np.zeros((8, 8, 3), np.float32)})
+    codecs.write_exr(small / "az+0.exr", {"RGB": np.zeros((8, 8, 3), np.float32)})
     cases.append((small, sweep_dir, "8x8"))
     nan = tmp_path / "nan"
     shutil.copytree(good, nan)
     img = np.zeros((48, 48, 3), np.float32)
     img[3, 4] = np.nan
-    files.write_exr(nan / "az+0.exr", {"RGB": img})
+    codecs.write_exr(nan / "az+0.exr", {"RGB": img})
     cases.append((nan, sweep_dir, "non-finite"))
     cases.append((good, tmp_path, "is not a sweep's folder"))
     for frames, against, needle in cases:

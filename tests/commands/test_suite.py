@@ -13,7 +13,7 @@ from hzval import materials
 from hzval.cli import main as cli
 from hzval.commands import suite
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import codecs, staging
 from hzval.pipeline import sweep
 from hzval.scene import spec as S
 from tests.helpers import interrupt_material
@@ -28,7 +28,7 @@ def _folder(tmp_path):
     d = tmp_path / "maps"
     d.mkdir()
     h = materials.generate("cobblestones", 32).height
-    files.write_png(d / "stones.png", np.round(h * 65535).astype(np.uint16))
+    codecs.write_png(d / "stones.png", np.round(h * 65535).astype(np.uint16))
     (d / "stones.toml").write_text(
         '[material]\ndepth = 0.3\nboundary = "open"\n[light]\nelevation_deg = 40\n'
     )
@@ -399,7 +399,7 @@ def test_the_overview_sorts_in_a_browser(in_process):
 
 def test_a_second_suite_into_a_busy_folder_is_refused(tmp_path):
     out = tmp_path / "o"
-    with files.folder_lock(out, "hzval suite (first)"):
+    with staging.folder_lock(out, "hzval suite (first)"):
         with pytest.raises(InputError, match="in use by another hzval run"):
             suite.run(suite.entries(["planks"], **SMALL), out, workers=0, progress=False)
 

@@ -19,7 +19,7 @@ import pytest
 
 from hzval.bake import maps as bake
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import codecs
 from hzval.scene import camera, lookup
 from hzval.scene import camera as hz_camera
 from hzval.scene import spec as sc
@@ -199,7 +199,7 @@ def test_an_independent_march_of_the_recorded_rays_agrees_with_the_truth(
     report = _march_check().check(tmp_path / "s", spp=4)
     assert report["mean_abs_diff"] < 0.035
     # what no ray sees is NaN in V's file and left out of the metrics
-    V = files.read_exr(tmp_path / "s" / result["frames"][0]["files"]["visibility"])
+    V = codecs.read_exr(tmp_path / "s" / result["frames"][0]["files"]["visibility"])
     V = next(iter(V.values())) if isinstance(V, dict) else V
     seen = np.isfinite(V)
     assert seen.mean() == pytest.approx(result["view"]["seen_fraction"], abs=1e-9)

@@ -224,14 +224,14 @@ def _engine_frames(sweep, folder):
     sweep saw nothing) as ``f_<name>.exr``."""
     import json
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     folder.mkdir()
     for f in json.loads((sweep / "metrics.json").read_text())["frames"]:
         name = f["files"]["truth"].split("/")[-2]
-        ch = files.read_exr(sweep / f["techniques"]["horizon"]["files"]["factor"])
-        files.write_exr(folder / f"f_{name}.exr", {"Y": np.nan_to_num(next(iter(ch.values())), nan=0.0)})
-        files.write_exr(folder / f"{name}.exr", files.read_exr(sweep / f["files"]["truth"]))
+        ch = codecs.read_exr(sweep / f["techniques"]["horizon"]["files"]["factor"])
+        codecs.write_exr(folder / f"f_{name}.exr", {"Y": np.nan_to_num(next(iter(ch.values())), nan=0.0)})
+        codecs.write_exr(folder / f"{name}.exr", codecs.read_exr(sweep / f["files"]["truth"]))
     return folder
 
 

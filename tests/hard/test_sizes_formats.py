@@ -16,7 +16,7 @@ from PIL import Image
 import hzval.bake as B
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
-from hzval.io import files, heightmap
+from hzval.io import codecs, heightmap
 from hzval.techniques.horizon import Horizon
 
 from ._ref import assert_bake_sane, assert_unit, channel_share, horizon_f64, make_scene, truth, uniform_bake
@@ -137,9 +137,9 @@ def same_data(tmp_path_factory):
     d = tmp_path_factory.mktemp("formats")
     v = np.random.default_rng(9).integers(0, 256, (17, 29))
     Image.fromarray(v.astype(np.uint8)).save(d / "h8.png")
-    files.write_png(d / "h16.png", (v * 257).astype(np.uint16))
+    codecs.write_png(d / "h16.png", (v * 257).astype(np.uint16))
     values = (v / 255.0).astype(np.float32)
-    files.write_exr(d / "h.exr", {"Y": values})
+    codecs.write_exr(d / "h.exr", {"Y": values})
     np.save(d / "h.npy", values)
     return d, values
 
@@ -159,7 +159,7 @@ def test_every_format_of_the_same_data_bakes_the_same(variant, same_data, tmp_pa
             cli.main(["bake", str(d / name), "--depth", "0.2", "--boundary", "open", "--out", str(out)]) == 0
         )
         outs[name] = {
-            f: files.read_exr(out / f) for f in ("horizon0.exr", "horizon1.exr", "normal.exr", "ambient.exr")
+            f: codecs.read_exr(out / f) for f in ("horizon0.exr", "horizon1.exr", "normal.exr", "ambient.exr")
         }
     first = outs["h8.png"]
     for name, got in outs.items():

@@ -342,7 +342,7 @@ def test_score_on_a_model_sweep_runs_from_any_folder(tmp_path, monkeypatch, vari
     """The sweep ran in ``work/`` with relative paths; ``score`` runs in ``elsewhere/`` and still finds
     the height map and the mesh (recorded relative to the sweep's folder) for its tangent-bug match."""
     from hzval import materials
-    from hzval.io import files
+    from hzval.io import codecs
     from tests.geometry.test_model import write_obj
 
     work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
@@ -362,8 +362,8 @@ def test_score_on_a_model_sweep_runs_from_any_folder(tmp_path, monkeypatch, vari
     for f in json.loads((work / "s" / "frames.json").read_text())["frames"]:
         d = work / "s" / "frames" / f["name"]
         shutil.copyfile(d / "horizon.exr", frames / f"{f['name']}.exr")
-        factor = files.read_exr(d / "horizon_factor.exr")["Y"]  # NaN off the model: an engine's 1
-        files.write_exr(frames / f"f_{f['name']}.exr", {"Y": np.nan_to_num(factor, nan=1.0)})
+        factor = codecs.read_exr(d / "horizon_factor.exr")["Y"]  # NaN off the model: an engine's 1
+        codecs.write_exr(frames / f"f_{f['name']}.exr", {"Y": np.nan_to_num(factor, nan=1.0)})
     monkeypatch.chdir(elsewhere)
     assert score(Path("../work/engine"), Path("../work/s"), Path("o")) == 0, capsys.readouterr().err
     result = json.loads((elsewhere / "o" / "metrics.json").read_text())
@@ -423,13 +423,13 @@ def test_ctrl_c_during_a_cases_swap_stops_views_there(tmp_path, views_dir, monke
 
     from hzval.commands import views
     from hzval.core import errors
-    from hzval.io import files
+    from hzval.io import staging
     from hzval.pipeline import sweep
 
     scene, first = views_dir
     out = tmp_path / "v"
     shutil.copytree(first, out)
-    before, swap, real, calls = snapshot(out), files.Staging.swap, sweep.run, []
+    before, swap, real, calls = snapshot(out), staging.Staging.swap, sweep.run, []
 
     def interrupted_swap(self):
         os.kill(os.getpid(), signal.SIGINT)
@@ -439,7 +439,7 @@ def test_ctrl_c_during_a_cases_swap_stops_views_there(tmp_path, views_dir, monke
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(files.Staging, "swap", interrupted_swap)
+    monkeypatch.setattr(staging.Staging, "swap", interrupted_swap)
     monkeypatch.setattr(sweep, "run", counted)
     with pytest.raises(errors.Interrupted):
         views.run(scene, out, views=["top", "ortho-45"], lookups=["bilinear"], progress=False)

@@ -16,7 +16,7 @@ from hzval.core import conventions as cv
 from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import tile
-from hzval.io import files
+from hzval.io import codecs
 from tests.helpers import interrupt_material
 from tests.integration.test_faults import hzval, one_line
 
@@ -27,7 +27,7 @@ def metres(tmp_path: Path, top: float = 1000.0, size: int = 16) -> Path:
     """A terrain of heights in metres, ``0..top``, as an EXR."""
     rng = np.random.default_rng(7)
     path = tmp_path / f"dem_{top:g}.exr"
-    files.write_exr(path, {"Y": (rng.random((size, size)) * top).astype(np.float32)})
+    codecs.write_exr(path, {"Y": (rng.random((size, size)) * top).astype(np.float32)})
     return path
 
 
@@ -101,9 +101,9 @@ def test_an_open_terrain_at_the_deepest_depth_bakes_finite_maps(tmp_path, capsys
     out = tmp_path / "b"
     assert cli.main(["bake", "--size", "32", "--boundary", "open", "--depth", "1000", "--out", str(out)]) == 0
     for name in ("normal", "ambient", "bent_normal", "ssbump", "horizon0", "horizon1"):
-        for channel, values in files.read_exr(out / f"{name}.exr").items():
+        for channel, values in codecs.read_exr(out / f"{name}.exr").items():
             assert np.isfinite(values).all(), (name, channel)
-    n = files.read_exr(out / "bent_normal.exr")
+    n = codecs.read_exr(out / "bent_normal.exr")
     length = np.sqrt(n["R"] ** 2 + n["G"] ** 2 + n["B"] ** 2)
     assert np.allclose(length, 1.0, atol=1e-5)
 
@@ -142,10 +142,10 @@ def references(tmp_path):
 
 
 def poison(path: Path, value: float = np.nan, where=slice(None)) -> None:
-    channels = files.read_exr(path)
+    channels = codecs.read_exr(path)
     for v in channels.values():
         v[where] = value
-    files.write_exr(path, channels)
+    codecs.write_exr(path, channels)
 
 
 @pytest.mark.parametrize("kind", ["truth", "horizon", "bent_cone"])
@@ -522,16 +522,16 @@ def test_an_exposure_edited_in_frames_json_is_refused(base_run, engine, tmp_path
 def test_a_colour_shadow_factor_is_refused(base_run, engine, tmp_path, capsys):
     F = np.random.default_rng(0).random((16, 16, 3)).astype(np.float32)
     for name in ("az+0", "az+45"):
-        files.write_exr(engine / f"f_{name}.exr", {"RGB": F})
+        codecs.write_exr(engine / f"f_{name}.exr", {"RGB": F})
     assert score(engine, base_run, tmp_path / "o") == 2
     one_line(capsys.readouterr().err, "f_az+0.exr", "R, G and B differ")
     for name in ("az+0", "az+45"):  # the same value in R, G and B is grey
-        files.write_exr(engine / f"f_{name}.exr", {"RGB": np.repeat(F[..., :1], 3, -1)})
+        codecs.write_exr(engine / f"f_{name}.exr", {"RGB": np.repeat(F[..., :1], 3, -1)})
     assert score(engine, base_run, tmp_path / "o") == 0
 
 
 def test_a_frame_far_brighter_than_the_scene_is_refused(base_run, engine, tmp_path, capsys):
-    files.write_exr(engine / "az+45.exr", {"RGB": np.full((16, 16, 3), 1e38, np.float32)})
+    codecs.write_exr(engine / "az+45.exr", {"RGB": np.full((16, 16, 3), 1e38, np.float32)})
     assert score(engine, base_run, tmp_path / "o") == 2
     one_line(capsys.readouterr().err, "az+45.exr", "brightest the scene can produce")
 

@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 
 BAKE_FILES = {
     "horizon0.exr",
@@ -80,14 +80,14 @@ def test_bake_writes_every_file_and_a_record(variant, height_png, tmp_path):
     assert record["input"]["digest"].startswith("sha256:")
     assert record["input"]["rows"] == 24 and record["input"]["cols"] == 40
     assert "horizon_s" in record["timings_s"] and record["versions"]["mitsuba"]
-    h0 = files.read_exr(out / "horizon0.exr")
+    h0 = codecs.read_exr(out / "horizon0.exr")
     assert set(h0) == {"R", "G", "B", "A"} and h0["R"].shape == (24, 40)
     png = np.asarray(Image.open(out / "horizon0.png"))
     assert png.shape == (24, 40, 4)
     assert np.abs(png[..., 1] / 255.0 - h0["G"]).max() <= 0.5 / 255 + 1e-6
-    amb = files.read_exr(out / "ambient.exr")
+    amb = codecs.read_exr(out / "ambient.exr")
     assert set(amb) == {"mean_cos", "mean_cos2"}
-    n = files.read_exr(out / "normal.exr")
+    n = codecs.read_exr(out / "normal.exr")
     assert np.allclose(n["R"] ** 2 + n["G"] ** 2 + n["B"] ** 2, 1.0, atol=1e-5)
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == [".hzval"]  # no staging or lock left
 
@@ -108,7 +108,7 @@ def test_8_and_16_bit_png_of_the_same_data_bake_the_same(variant, height_png, tm
             == 0
         )
     for f in ("horizon0.exr", "horizon1.exr", "normal.exr", "ambient.exr"):
-        a, b = files.read_exr(tmp_path / "h8" / f), files.read_exr(tmp_path / "h16" / f)
+        a, b = codecs.read_exr(tmp_path / "h8" / f), codecs.read_exr(tmp_path / "h16" / f)
         for ch in a:
             assert np.array_equal(a[ch], b[ch]), (f, ch)
 

@@ -14,7 +14,7 @@ import pytest
 
 from hzval.bake.occlusion import HL2_BASIS
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 from hzval.scene import camera as cam
 from hzval.scene import spec as sc
 
@@ -80,8 +80,8 @@ def swept(tmp_path_factory):
 
 def test_each_factor_image_is_its_formula_on_the_written_bake(swept):
     bake = swept / "bake"
-    normal, amb = files.read_exr(bake / "normal.exr"), files.read_exr(bake / "ambient.exr")
-    bent, ss = files.read_exr(bake / "bent_normal.exr"), files.read_exr(bake / "ssbump.exr")
+    normal, amb = codecs.read_exr(bake / "normal.exr"), codecs.read_exr(bake / "ambient.exr")
+    bent, ss = codecs.read_exr(bake / "bent_normal.exr"), codecs.read_exr(bake / "ssbump.exr")
     maps = {
         "normal": np.stack([normal[c] for c in "RGB"], -1),
         "ao": amb["mean_cos2"],
@@ -99,7 +99,7 @@ def test_each_factor_image_is_its_formula_on_the_written_bake(swept):
         facing = ((n_pix @ L) > 0).reshape(rows * cols, spp).mean(axis=1).reshape(rows, cols) == 1
         for name, stem in ENGINE.items():
             want = formula(name, tex, L).reshape(rows * cols, spp).mean(axis=1).reshape(rows, cols)
-            got = files.read_exr(swept / "frames" / frame["name"] / f"{stem}_factor.exr")["Y"]
+            got = codecs.read_exr(swept / "frames" / frame["name"] / f"{stem}_factor.exr")["Y"]
             per_pixel, mean = TOLERANCE[name]
             d = np.abs(got - want)[facing]
             assert d.max() <= per_pixel, (name, frame["name"], float(d.max()))
@@ -112,7 +112,7 @@ def test_every_elevation_azimuth_pair_is_a_frame_with_a_no_shadows_baseline(swep
     assert pairs == [(e, a) for e in (15.0, 45.0, 75.0) for a in (-60.0, 0.0, 60.0)]
     assert len({f["name"] for f in m["frames"]}) == 9
     for f in m["frames"]:
-        V = files.read_exr(swept / f["files"]["visibility"])["Y"]
+        V = codecs.read_exr(swept / f["files"]["visibility"])["Y"]
         assert f["no_shadows"]["visibility_mae"] == pytest.approx(float(np.mean(1 - V)), abs=1e-6)
     html = (swept / "index.html").read_text()
     assert "plots/elevation.png" in html and "no shadows" in html
@@ -135,7 +135,7 @@ def test_each_renders_on_models(tmp_path, mesh):
     # no technique's shadows on a model is the base mesh's own shadow, not F = 1: its error is below
     # F = 1's wherever the model shadows itself
     for f in m["frames"]:
-        V = files.read_exr(out / f["files"]["visibility"])["Y"]
+        V = codecs.read_exr(out / f["files"]["visibility"])["Y"]
         seen = np.isfinite(V)
         one = float(np.mean(1 - V[seen]))
         assert f["no_shadows"]["visibility_mae"] <= one + 1e-9

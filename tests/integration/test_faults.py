@@ -27,7 +27,7 @@ from hzval import materials
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.io import files
+from hzval.io import atomic, codecs, documents, staging
 from hzval.scene import spec as S
 from hzval.truth import memory
 
@@ -175,18 +175,18 @@ def test_a_folder_with_a_file_of_the_users_keeps_it(tmp_path, variant, capsys):
     # only because the user asked; the user's plot survives the swap of plots/
     assert cli.main(["sweep", *SMALL, "--out", str(out), "--force"]) == 0
     assert (out / "plots" / "mine.txt").read_text() == "mine" and (out / "plots" / "metrics.png").is_file()
-    assert "plots/mine.txt" in files.foreign_files(out)  # still the user's
+    assert "plots/mine.txt" in staging.foreign_files(out)  # still the user's
 
 
 @pytest.mark.slow
 def test_a_report_folder_is_hzvals_and_can_be_swept_again(tmp_path, variant):
     out = tmp_path / "o"
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 0
-    assert files.foreign_files(out) == []
-    marker = json.loads((out / files.MARKER_NAME).read_text())
+    assert staging.foreign_files(out) == []
+    marker = json.loads((out / staging.MARKER_NAME).read_text())
     assert "metrics.json" in marker["files"] and "bake/bake.json" in marker["files"]
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 0
-    assert not (out / files.LOCK_NAME).exists()  # the lock is removed at exit
+    assert not (out / staging.LOCK_NAME).exists()  # the lock is removed at exit
 
 
 def test_an_empty_folder_is_accepted_and_bake_refuses_foreign_files(tmp_path, height_npy, capsys):
@@ -245,7 +245,7 @@ def _layers(tmp_path, values: np.ndarray, name="h") -> list[Path]:
     paths = []
     for i in range(values.shape[-1] // 4):
         p = tmp_path / f"{name}{i}.exr"
-        files.write_exr(p, {"RGBA": values[..., 4 * i : 4 * i + 4]})
+        codecs.write_exr(p, {"RGBA": values[..., 4 * i : 4 * i + 4]})
         paths.append(p)
     return paths
 
@@ -295,7 +295,9 @@ def test_external_layers_must_be_rgba_of_the_declared_count_and_range(tmp_path):
 
 def test_json_is_strict_at_the_writer(tmp_path):
     with pytest.raises(InputError, match=r"frames\[1\]\.flip_mean is not a finite number"):
-        files.write_json(tmp_path / "m.json", {"frames": [{"flip_mean": 0.1}, {"flip_mean": float("nan")}]})
+        documents.write_json(
+            tmp_path / "m.json", {"frames": [{"flip_mean": 0.1}, {"flip_mean": float("nan")}]}
+        )
     assert not list(tmp_path.iterdir())
 
 
@@ -353,17 +355,19 @@ def test_an_out_that_is_a_file_is_one_line(tmp_path, capsys):
 def test_a_read_only_full_or_forbidden_out_is_one_line(tmp_path, capsys, monkeypatch, code, variant):
     """The error injected where hzval's files are written (root ignores permissions, and a read-only
     mount needs privileges this test does not have)."""
-    real = files.atomic_path
+    real = atomic.atomic_path
 
     def failing(path):
         raise OSError(code, os.strerror(code), str(path))
 
     out = tmp_path / "o"
-    monkeypatch.setattr(files, "atomic_path", failing)
+    for module in (atomic, codecs, documents):  # every place hzval opens a file to write
+        monkeypatch.setattr(module, "atomic_path", failing)
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 2
     one_line(capsys.readouterr().err, os.strerror(code), str(out))
     assert not out.exists()  # nothing left behind
-    monkeypatch.setattr(files, "atomic_path", real)
+    for module in (atomic, codecs, documents):
+        monkeypatch.setattr(module, "atomic_path", real)
 
 
 def test_a_mesh_on_a_full_disk_is_one_line(tmp_path):
@@ -460,10 +464,10 @@ def test_score_against_a_folder_of_the_wrong_shape_is_one_line(tmp_path, capsys)
 )
 def test_a_held_folder_is_refused_by_every_command(tmp_path, capsys, argv):
     out = tmp_path / "o"
-    with files.folder_lock(out):
+    with staging.folder_lock(out):
         assert cli.main([*argv, "--out", str(out)]) == 2
         one_line(capsys.readouterr().err, "in use by another hzval run")
-        holder = (out / files.LOCK_NAME).read_text()
+        holder = (out / staging.LOCK_NAME).read_text()
         assert "pid" in holder and "hzval" not in holder  # no command line in the lock
     assert not out.exists()
 
@@ -563,16 +567,16 @@ def test_a_signal_that_lands_inside_dr_jit_tracing_stops_the_run_as_a_signal(
 def test_a_late_signal_does_not_undo_a_finished_run(tmp_path, monkeypatch, capsys, variant):
     """SIGINT during the swap: the run had passed its last signal check, so it completes (exit 0)
     with the new report in place, and says that the signal came too late."""
-    real = files.Staging.swap
+    real = staging.Staging.swap
 
     def swap_with_a_signal(self):
         os.kill(os.getpid(), signal.SIGINT)
         real(self)
 
-    monkeypatch.setattr(files.Staging, "swap", swap_with_a_signal)
+    monkeypatch.setattr(staging.Staging, "swap", swap_with_a_signal)
     out = tmp_path / "o"
     assert cli.main(["sweep", *SMALL, "--out", str(out)]) == 0
-    assert (out / "metrics.json").is_file() and not (out / files.LOCK_NAME).exists()
+    assert (out / "metrics.json").is_file() and not (out / staging.LOCK_NAME).exists()
     assert "SIGINT came after the output was complete" in capsys.readouterr().err
 
 
@@ -714,5 +718,5 @@ def test_portable_command_rewrites_absolute_paths_only(tmp_path, monkeypatch):
     here = tmp_path.name
     cmd = f"hzval sweep {tmp_path}/maps/x.png --out={tmp_path}/r --depth 0.1 rel/y.png"
     assert (
-        files.portable_command(cmd) == f"hzval sweep {here}/maps/x.png --out={here}/r --depth 0.1 rel/y.png"
+        staging.portable_command(cmd) == f"hzval sweep {here}/maps/x.png --out={here}/r --depth 0.1 rel/y.png"
     )

@@ -30,7 +30,7 @@ from hzval.commands import gates
 from hzval.commands import score as score_cmd
 from hzval.core.errors import InputError
 from hzval.geometry import model
-from hzval.io import external, files
+from hzval.io import external, staging
 from hzval.scene import spec
 from tests.geometry.test_model import QUAD_F, QUAD_P, QUAD_UV, write_gltf
 
@@ -168,7 +168,7 @@ def readers(sweep_dir, tmp_path_factory):
             False,
         ),
         "glTF (--mesh)": (gltf, lambda: model.load(str(gltf)), False),
-        "the folder's marker": (s / files.MARKER_NAME, lambda: files.foreign_files(s), False),
+        "the folder's marker": (s / staging.MARKER_NAME, lambda: staging.foreign_files(s), False),
     }
 
 

@@ -23,7 +23,7 @@ from PIL import Image
 from hzval.commands import check, gates
 from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError
-from hzval.io import external, files, heightmap
+from hzval.io import codecs, external, heightmap
 
 SETTINGS = settings(
     max_examples=40, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck)
@@ -108,8 +108,8 @@ def test_exr_heights_are_taken_as_they_are_or_refused_when_not_finite(tmp_path):
     def case(values, half):
         path = tmp_path / "h.exr"
         with np.errstate(over="ignore"):  # float32 beyond half's range becomes infinite, as a file would
-            files.write_exr(path, {"Y": values.astype(np.float16) if half else values})
-        stored = files.read_exr(path)["Y"]
+            codecs.write_exr(path, {"Y": values.astype(np.float16) if half else values})
+        stored = codecs.read_exr(path)["Y"]
         got = read(path)
         tally(got is not None)
         if values.size < 2 or not np.isfinite(stored).all():
@@ -165,7 +165,7 @@ def valid_file(tmp_path: Path, kind: str) -> bytes:
     values = np.random.default_rng(5).random((6, 7)).astype(np.float32)
     path = tmp_path / f"seed.{kind}"
     if kind == "exr":
-        files.write_exr(path, {"Y": values}, compression="none")
+        codecs.write_exr(path, {"Y": values}, compression="none")
     elif kind == "npy":
         np.save(path, values)
     else:
@@ -202,7 +202,7 @@ def test_a_height_map_with_bytes_overwritten_is_read_whole_or_refused_in_one_lin
 
 def test_a_missing_exr_is_named_missing(tmp_path):
     with pytest.raises(InputError, match="no such file"):
-        files.read_exr(tmp_path / "none.exr")
+        codecs.read_exr(tmp_path / "none.exr")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -221,7 +221,7 @@ def test_horizon_layers_are_taken_when_finite_and_in_range(tmp_path):
     def case(values):
         paths = [tmp_path / "h0.exr", tmp_path / "h1.exr"]
         for i, p in enumerate(paths):
-            files.write_exr(p, {"RGBA": values[..., 4 * i : 4 * i + 4]})
+            codecs.write_exr(p, {"RGBA": values[..., 4 * i : 4 * i + 4]})
         try:
             got = external.check_layers(external.read_layers(paths), enc, paths)
         except InputError as exc:

@@ -45,12 +45,12 @@ def test_a_light_elevation_outside_0_to_90_is_refused_naming_the_flag(elevation,
 
 
 def test_a_folder_that_cannot_be_written_is_named_not_its_lock_file(tmp_path, monkeypatch, capsys):
-    from hzval.io import files
+    from hzval.io import staging
 
     real = os.open
 
     def read_only(path, *a, **k):
-        if str(path).endswith(files.LOCK_NAME):
+        if str(path).endswith(staging.LOCK_NAME):
             raise PermissionError(errno.EACCES, "Permission denied", str(path))
         return real(path, *a, **k)
 
@@ -59,7 +59,7 @@ def test_a_folder_that_cannot_be_written_is_named_not_its_lock_file(tmp_path, mo
     assert cli.main(["sweep", "--size", "16", "--azimuths", "0", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     one_line_naming(err, str(out), "cannot be written")
-    assert files.LOCK_NAME not in err
+    assert staging.LOCK_NAME not in err
 
 
 def test_score_against_a_frames_folder_never_advises_writing_into_it(tmp_path, capsys):
@@ -235,13 +235,13 @@ def test_the_outputs_page_recipe_writes_frames_score_reads(tmp_path, monkeypatch
 def test_a_built_in_albedo_image_is_written_beside_frames_json(tmp_path, variant):
     import json
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     argv = ["sweep", "--material", "gravel", "--size", "16", "--azimuths", "0", "--spp", "1"]
     assert cli.main([*argv, "--techniques", "horizon", "--quiet", "--out", str(tmp_path / "s")]) == 0
     albedo = json.loads((tmp_path / "s" / "frames.json").read_text())["albedo"]
     assert albedo["kind"] == "image"
-    linear = files.read_exr(tmp_path / "s" / albedo["linear"])
+    linear = codecs.read_exr(tmp_path / "s" / albedo["linear"])
     assert linear["R"].shape == (16, 16) and (tmp_path / "s" / albedo["srgb"]).is_file()
     from hzval import materials
 

@@ -11,7 +11,7 @@ import pytest
 
 from hzval import materials
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 
 SIZE, DEPTH = 32, 0.1
 
@@ -76,9 +76,9 @@ def render(sweep_dir, folder, factor: float = 1.0, with_f: bool = True):
         img, F = shade(
             height, DEPTH, f["light_direction"], spec["albedo"]["linear"], spec["light"]["irradiance"]
         )
-        files.write_exr(folder / f"{f['name']}.exr", {"RGB": img * factor})
+        codecs.write_exr(folder / f"{f['name']}.exr", {"RGB": img * factor})
         if with_f:
-            files.write_exr(folder / f"f_{f['name']}.exr", {"Y": F})
+            codecs.write_exr(folder / f"f_{f['name']}.exr", {"Y": F})
     return folder
 
 

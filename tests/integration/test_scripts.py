@@ -253,7 +253,7 @@ def test_compare_runs_finds_a_changed_score(tmp_path):
     import json
 
     from hzval.cli import main as cli
-    from hzval.io import files
+    from hzval.io import codecs
 
     argv = ["sweep", "--size", "16", "--azimuths", "0", "--spp", "1", "--techniques", "horizon", "--quiet"]
     for run in ("a", "b"):
@@ -266,9 +266,9 @@ def test_compare_runs_finds_a_changed_score(tmp_path):
     data["frames"][0]["techniques"]["horizon"]["flip_mean"] += 1e-9
     metrics.write_text(json.dumps(data))
     truth = tmp_path / "b" / "sweep" / "frames" / "az+0" / "truth.exr"
-    layers = files.read_exr(truth)
+    layers = codecs.read_exr(truth)
     layers["Y"][0, 0] += 0.5
-    files.write_exr(truth, layers)
+    codecs.write_exr(truth, layers)
     changed = subprocess.run(
         [*script, str(tmp_path / "a"), str(tmp_path / "b")], capture_output=True, text=True
     )

@@ -38,7 +38,7 @@ def test_a_flat_map_sweeps_with_f_1_for_every_technique(tmp_path, capsys, varian
 
     import numpy as np
 
-    from hzval.io import files
+    from hzval.io import codecs
 
     np.save(tmp_path / "flat.npy", np.full((24, 24), 0.4, np.float32))
     out = tmp_path / "o"
@@ -50,7 +50,7 @@ def test_a_flat_map_sweeps_with_f_1_for_every_technique(tmp_path, capsys, varian
     for frame in metrics["frames"]:
         for name, scores in frame["techniques"].items():
             assert scores["visibility_mae"] == 0.0, name
-            F = files.read_exr(out / scores["files"]["factor"])
+            F = codecs.read_exr(out / scores["files"]["factor"])
             assert all(np.all(v == 1.0) for v in F.values()), name
 
 

@@ -12,7 +12,7 @@ import pytest
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
 from hzval.core.errors import InputError
-from hzval.io import external, files
+from hzval.io import codecs, external
 from hzval.io.external import Encoding
 from hzval.materials.bricks import bricks
 from tests.bake.test_horizon_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
@@ -125,13 +125,13 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(
     h = bricks(64)
     depth = 0.2  # 12.8 texels of relief: a radius of 4 sees less than 16 does
     peer = run_peer(seed_peer, h, depth, 4, 32, "wrap", tmp_path)[..., :8]
-    u8 = files.unit_to_u8(peer)
+    u8 = codecs.unit_to_u8(peer)
     mirrored = u8[..., [(8 - k) % 8 for k in range(8)]]
     np.save(tmp_path / "bricks.npy", h)
     results = {}
     for name, layers in (("own", u8), ("mirrored", mirrored)):
-        files.write_png(tmp_path / f"{name}0.png", layers[..., :4])
-        files.write_png(tmp_path / f"{name}1.png", layers[..., 4:])
+        codecs.write_png(tmp_path / f"{name}0.png", layers[..., :4])
+        codecs.write_png(tmp_path / f"{name}1.png", layers[..., 4:])
         out = tmp_path / name
         assert (
             cli.main(
@@ -180,7 +180,7 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(
         .render(0.0)
         .layers["factor"]
     )
-    F = files.read_exr(out / m["frames"][0]["techniques"]["horizon"]["files"]["factor"])["Y"]
+    F = codecs.read_exr(out / m["frames"][0]["techniques"]["horizon"]["files"]["factor"])["Y"]
     np.testing.assert_allclose(F, theirs, atol=2**-12 + 1e-6)  # the file is half float: 2^-12 in [0, 1]
     assert np.abs(F - horizon.Horizon(sc, own_bake).render(0.0).layers["factor"]).mean() > 1e-3
     m2, err2, _ = results["mirrored"]
@@ -203,8 +203,8 @@ def test_encoding_from_toml_and_bad_layers(tmp_path):
         Encoding.from_toml(tmp_path / "bad.toml")
     with pytest.raises(InputError, match="values"):
         Encoding(values="cubic").validate()
-    files.write_png(tmp_path / "a.png", np.zeros((4, 4, 4), np.uint8))
-    files.write_png(tmp_path / "b.png", np.zeros((4, 5, 4), np.uint8))
+    codecs.write_png(tmp_path / "a.png", np.zeros((4, 4, 4), np.uint8))
+    codecs.write_png(tmp_path / "b.png", np.zeros((4, 5, 4), np.uint8))
     with pytest.raises(InputError, match="differ in size"):
         external.read_layers([tmp_path / "a.png", tmp_path / "b.png"])
     with pytest.raises(InputError, match="no such"):
@@ -212,8 +212,8 @@ def test_encoding_from_toml_and_bad_layers(tmp_path):
 
 
 def test_a_map_of_another_size_is_refused_before_anything_is_written(variant, tmp_path, capsys):
-    files.write_png(tmp_path / "h0.png", np.zeros((8, 8, 4), np.uint8))
-    files.write_png(tmp_path / "h1.png", np.zeros((8, 8, 4), np.uint8))
+    codecs.write_png(tmp_path / "h0.png", np.zeros((8, 8, 4), np.uint8))
+    codecs.write_png(tmp_path / "h1.png", np.zeros((8, 8, 4), np.uint8))
     out = tmp_path / "out"
     assert (
         cli.main(
@@ -284,9 +284,9 @@ def test_strict_fails_a_sweep_on_a_map_that_does_not_describe_it(variant, tmp_pa
 
     np.save(tmp_path / "bricks.npy", bricks(32))
     other = bake.bake(materials.generate("gravel", 32).height, bake.BakeParams(depth=0.05)).horizon
-    u8 = files.unit_to_u8(np.clip(other, 0, 1))
-    files.write_png(tmp_path / "g0.png", u8[..., :4])
-    files.write_png(tmp_path / "g1.png", u8[..., 4:])
+    u8 = codecs.unit_to_u8(np.clip(other, 0, 1))
+    codecs.write_png(tmp_path / "g0.png", u8[..., :4])
+    codecs.write_png(tmp_path / "g1.png", u8[..., 4:])
     argv = [
         "sweep",
         str(tmp_path / "bricks.npy"),

@@ -11,7 +11,7 @@ from PIL import Image, ImageFile
 
 from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError
-from hzval.io.files import write_exr, write_png
+from hzval.io.codecs import write_exr, write_png
 from hzval.io.heightmap import HeightMap, from_array, load_height, probe_shape
 
 RNG = np.random.default_rng(20240607)

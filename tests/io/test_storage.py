@@ -8,7 +8,7 @@ import pytest
 
 from hzval.bake import maps as bake
 from hzval.io import storage
-from hzval.io.files import unit_to_u8
+from hzval.io.codecs import unit_to_u8
 from hzval.techniques import horizon
 from tests.truth.test_plane import make_scene
 

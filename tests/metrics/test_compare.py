@@ -7,6 +7,7 @@ import pytest
 
 from hzval.core import conventions as cv
 from hzval.core.errors import HzvalError
+from hzval.io import codecs
 from hzval.metrics import compare as C
 from hzval.scene.spec import Frame
 
@@ -126,9 +127,9 @@ def test_a_grey_image_scores_the_same_through_its_one_channel(variant, shape, mo
     ref_frame = Frame(0.0, 30.0, ref, {})
     scores = C.image_metrics(C.Reference(ref_frame, 0.9), test)[0]
     with monkeypatch.context() as m:  # every image taken for colour: the three-channel path
-        m.setattr(C.files, "is_grey", lambda a: False)
+        m.setattr(codecs, "is_grey", lambda a: False)
         assert scores == C.image_metrics(C.Reference(ref_frame, 0.9), test)[0]
     if ref.size > 3:
         test[0, 0, 1] += 0.25
-        assert not C.files.is_grey(test)
+        assert not codecs.is_grey(test)
         assert not same(C.display(test, 0.9)[..., 1], C.display(test, 0.9)[..., 0])

@@ -75,7 +75,7 @@ the surface evaluation, the ray traversal and intersection (hzval's is Mitsuba's
 mesh, with a wrap margin and hops), the shadow-ray offset and the light direction are computed
 here from the report's numbers alone. It shares the normalised height map (read with
 ``hzval.io.heightmap``, a built-in regenerated with ``hzval.materials`` and its digest checked
-against the report's) and ``hzval.io.files.read_exr``.
+against the report's) and ``hzval.io.codecs.read_exr``.
 """
 
 from __future__ import annotations
@@ -592,12 +592,12 @@ def load_material(
 
 
 def _read_visibility(path: Path) -> np.ndarray:
-    from hzval.io import files
+    from hzval.io import codecs
 
     if not path.exists():
         raise CheckError(f"missing {path}")
     try:
-        ch = files.read_exr(path)
+        ch = codecs.read_exr(path)
     except Exception as exc:
         raise CheckError(f"cannot read {path}: {exc}") from None
     for name in ("Y", "V", "R"):

@@ -193,12 +193,12 @@ def test_wrap_shadow_from_the_next_tile():
 
 
 def _write_sweep(tmp_path, H, depth, record, V, boundary="open"):
-    from hzval.io import files
+    from hzval.io import codecs
 
     np.save(tmp_path / "height.npy", H.astype(np.float32))
     rel = "frames/f0/visibility.exr"
     (tmp_path / "frames" / "f0").mkdir(parents=True)
-    files.write_exr(tmp_path / rel, {"Y": V.astype(np.float32)})
+    codecs.write_exr(tmp_path / rel, {"Y": V.astype(np.float32)})
     metrics = {
         "material": {
             "name": "t",

@@ -11,7 +11,7 @@ import pytest
 
 from hzval.cli import main as cli
 from hzval.core import resources
-from hzval.io import files
+from hzval.io import codecs, staging
 from hzval.pipeline import records as pipeline_records
 from hzval.pipeline import sweep
 from hzval.pipeline import writing as pipeline_writing
@@ -98,8 +98,8 @@ def test_frame_files_exist_and_hold_what_they_say(variant, bricks_sweep):
     for f in m["frames"]:
         for rel in f["files"].values():
             assert not rel.startswith("/") and (out / rel).is_file(), rel
-        V = files.read_exr(out / f["files"]["visibility"])
-        F = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])
+        V = codecs.read_exr(out / f["files"]["visibility"])
+        F = codecs.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])
         assert list(V) == ["Y"] and list(F) == ["Y"]  # one-channel
         assert V["Y"].shape == F["Y"].shape == (48, 48)  # one pixel per texel
         for layer in (V["Y"], F["Y"]):
@@ -187,8 +187,8 @@ def test_wall_shadow_is_seen_by_both(variant, tmp_path):
     )
     m = json.loads((out / "metrics.json").read_text())
     (f,) = m["frames"]
-    V = files.read_exr(out / f["files"]["visibility"])["Y"]
-    F = files.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"]
+    V = codecs.read_exr(out / f["files"]["visibility"])["Y"]
+    F = codecs.read_exr(out / f["techniques"]["horizon"]["files"]["factor"])["Y"]
     length = 8 / math.tan(math.radians(30))
     # light from -x (azimuth 180): the shadow falls on +x of the wall, columns 11 .. 10 + length
     row = 16
@@ -264,8 +264,8 @@ def test_every_technique_is_compared_on_the_same_sweep(variant, bricks_sweep, na
         assert not {"image", "factor_png"} & set(te["files"])  # --all-files only
         for rel in te["files"].values():
             assert (out / rel).is_file(), rel
-        V = files.read_exr(out / f["files"]["visibility"])["Y"]
-        TF = files.read_exr(out / te["files"]["factor"])["Y"]
+        V = codecs.read_exr(out / f["files"]["visibility"])["Y"]
+        TF = codecs.read_exr(out / te["files"]["factor"])["Y"]
         assert TF.shape == (48, 48) and np.isfinite(TF).all() and 0 <= TF.min() and TF.max() <= 1
         assert te["visibility_mae"] == pytest.approx(float(np.mean(np.abs(TF - V))), abs=2**-12)  # half files
         with Image.open(out / te["files"]["png"]) as img:
@@ -577,10 +577,9 @@ def test_a_finished_sweep_replaces_the_old_report_whole(variant, tmp_path):
 
 def test_a_second_sweep_into_a_busy_folder_names_the_first(variant, tmp_path, capsys):
     from hzval.cli import main as cli
-    from hzval.io import files
 
     out = tmp_path / "out"
-    with files.folder_lock(out, "hzval sweep (the first run)"):
+    with staging.folder_lock(out, "hzval sweep (the first run)"):
         assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     # the holder's pid, not its command line (which may hold private paths: issue 33)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hzval.cli import main as cli
-from hzval.io import files
+from hzval.io import codecs
 from hzval.metrics import compare
 from hzval.pipeline import writing as pipeline_writing
 from tests.io.test_files_frames import exr_layout, png_mode_and_rgb
@@ -59,19 +59,19 @@ def test_a_frames_files_are_stored_compactly_and_exactly(tmp_path, grey):
     assert layout["visibility"]["Y"] == layout["factor"]["Y"] == "HALF"
     t, frame, _, maps = compared[0]
     for key, img in (("truth", truth.image), ("plain", plain.image)):
-        back = files.read_rgb_exr(tmp_path / rel[key])
+        back = codecs.read_rgb_exr(tmp_path / rel[key])
         assert np.array_equal(back, img.astype(np.float16).astype(np.float32)), key
     for key, img in (
         ("truth_png", compare.display(truth.image, 4.0)),
         ("plain_png", compare.display(plain.image, 4.0)),
     ):
         mode, back = png_mode_and_rgb(tmp_path / rel[key])
-        assert mode == ("L" if grey else "RGB") and np.array_equal(back, files.unit_to_u8(img)), key
+        assert mode == ("L" if grey else "RGB") and np.array_equal(back, codecs.unit_to_u8(img)), key
     V, F = truth.layers["visibility"], frame.layers["factor"]
     for key, want_mode, expected in (
         ("flip_png", "P", magma_as_before(maps["flip"])),
         ("visdiff_png", "P", visdiff_as_before(V, F)),
-        ("png", "L" if grey else "RGB", files.unit_to_u8(maps["display"])),
+        ("png", "L" if grey else "RGB", codecs.unit_to_u8(maps["display"])),
     ):
         mode, back = png_mode_and_rgb(tmp_path / per["horizon"][key])
         assert mode == want_mode and np.array_equal(back, expected), key
@@ -103,7 +103,7 @@ def test_a_default_sweeps_renders_are_grey_and_score_from_their_files(variant, t
     (f,) = json.loads((out / "metrics.json").read_text())["frames"]
     own = f["techniques"]["horizon"]["files"]
     for path in (f["files"]["truth"], f["files"]["plain"], own["image"], f["files"]["truth_variance"]):
-        assert set(files.read_exr(out / path)) == {"Y"}, path
+        assert set(codecs.read_exr(out / path)) == {"Y"}, path
     assert exr_layout(out / f["files"]["truth"])["Y"] == "HALF"
     modes = {
         key: png_mode_and_rgb(out / path)[0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hzval.io import files
+from hzval.io import codecs
 from hzval.metrics import compare
 from hzval.report import images
 from tests.io.test_files_frames import png_mode_and_rgb
@@ -27,7 +27,7 @@ def test_the_flip_palette_png_decodes_to_the_rgb_map(tmp_path, dtype):
     error = np.concatenate([edges, RNG.random(64 * 64 - edges.size)]).astype(dtype).reshape(64, 64)
     expected = magma_as_before(error)
     assert np.array_equal(images.flip_image(error), expected)
-    files.write_png(tmp_path / "flip.png", images.flip_indexed(error))
+    codecs.write_png(tmp_path / "flip.png", images.flip_indexed(error))
     mode, back = png_mode_and_rgb(tmp_path / "flip.png")
     assert mode == "P" and np.array_equal(back, expected)
 
@@ -42,7 +42,7 @@ def test_a_flip_map_with_nan_is_rgb_with_nan_black_as_before(tmp_path):
 
 def visdiff_as_before(V, F):
     """The visibility-difference map as the sweep painted it before palettes."""
-    grey = files.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
+    grey = codecs.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
     img = np.repeat(grey[..., None], 3, axis=-1)
     lit_v, lit_f = V >= compare.LIT_THRESHOLD, F >= compare.LIT_THRESHOLD
     img[lit_f & ~lit_v] = images.LEAK_RGB
@@ -61,8 +61,8 @@ def test_the_visibility_difference_palette_png_decodes_to_the_rgb_map(tmp_path, 
     }
     assert np.array_equal(images.visibility_diff_image(V, F), expected)
     made = images.visibility_diff_indexed(V, F)
-    assert isinstance(made, files.Indexed) and len(made.palette) <= (levels or 128) + 3
-    files.write_png(tmp_path / "vd.png", made)
+    assert isinstance(made, codecs.Indexed) and len(made.palette) <= (levels or 128) + 3
+    codecs.write_png(tmp_path / "vd.png", made)
     mode, back = png_mode_and_rgb(tmp_path / "vd.png")
     assert mode == "P" and np.array_equal(back, expected)
 

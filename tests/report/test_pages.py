@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from hzval.io import files
+from hzval.io import codecs, documents
 from hzval.report import columns as report_columns
 from hzval.report import pages as report
 
@@ -59,7 +59,7 @@ def _shadow(h: np.ndarray, az: float, el: float, depth: float, step: float) -> n
 
 def _srgb_u8(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0, 1)
-    return files.unit_to_u8(np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055))
+    return codecs.unit_to_u8(np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055))
 
 
 def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarray]:
@@ -86,7 +86,7 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
     truth, approx, plain = (albedo * (0.08 + 1.4 * ndl * s[..., None]) for s in (V, F, np.ones_like(V)))
     err = np.abs(truth - approx).mean(axis=-1)
     flip = (colormaps["magma"](np.clip(err * 2.5, 0, 1))[..., :3] * 255 + 0.5).astype(np.uint8)
-    vis = np.repeat(files.unit_to_u8(0.25 + 0.5 * V)[..., None], 3, axis=-1)
+    vis = np.repeat(codecs.unit_to_u8(0.25 + 0.5 * V)[..., None], 3, axis=-1)
     vis[(F >= 0.5) & (V < 0.5)] = LEAK_RGB
     vis[(F < 0.5) & (V >= 0.5)] = FALSE_SHADOW_RGB
     return {
@@ -95,8 +95,8 @@ def fake_frame_images(n: int, az: float, el: float = 30.0) -> dict[str, np.ndarr
         "plain_png": _srgb_u8(plain),
         "flip_png": flip,
         "visdiff_png": vis,
-        "visibility_png": files.unit_to_u8(V),
-        "factor_png": files.unit_to_u8(F),
+        "visibility_png": codecs.unit_to_u8(V),
+        "factor_png": codecs.unit_to_u8(F),
     }
 
 
@@ -116,7 +116,7 @@ def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dic
         rel, own = {}, {}
         for key, img in imgs.items():
             name = key.removesuffix("_png") + ".png"
-            files.write_png_with_preview(out / folder / name, img)  # as the sweep: previews if large
+            codecs.write_png_with_preview(out / folder / name, img)  # as the sweep: previews if large
             (own if key in own_keys else rel)[own_keys.get(key, key)] = f"{folder}/{name}"
         for key in ("truth", "visibility"):
             rel[key] = f"{folder}/{key}.exr"  # not written: the report only links files that exist
@@ -201,7 +201,7 @@ def make_fake_out(out: Path, size: int = 16, azimuths=(-15.0, 0.0, 15.0)) -> dic
         },
         "frames": frames,
     }
-    files.write_json(out / "metrics.json", metrics)
+    documents.write_json(out / "metrics.json", metrics)
     return metrics
 
 
@@ -474,12 +474,12 @@ def test_report_in_a_browser(tmp_path):
 
 def test_large_images_get_previews_that_average_their_pixels(tmp_path):
     small = np.full((8, 8, 3), 7, np.uint8)
-    assert not files.write_png_with_preview(tmp_path / "small.png", small)
+    assert not codecs.write_png_with_preview(tmp_path / "small.png", small)
     assert not (tmp_path / "previews").exists()
     rng = np.random.default_rng(2)
-    big = rng.integers(0, 256, (files.PREVIEW_ABOVE_PX + 5, 30, 3), dtype=np.uint8)  # 2053 x 30
-    assert files.write_png_with_preview(tmp_path / "big.png", big)
-    with Image.open(tmp_path / files.preview_of("big.png")) as im:
+    big = rng.integers(0, 256, (codecs.PREVIEW_ABOVE_PX + 5, 30, 3), dtype=np.uint8)  # 2053 x 30
+    assert codecs.write_png_with_preview(tmp_path / "big.png", big)
+    with Image.open(tmp_path / codecs.preview_of("big.png")) as im:
         prev = np.asarray(im.convert("RGB"))
     f = 3  # the smallest whole factor down to 1024 rows
     assert prev.shape == (-(-big.shape[0] // f), -(-30 // f), 3)
@@ -489,7 +489,7 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
     last = big[-left:, :3].astype(np.float64)
     last = np.concatenate([last] + [last[-1:]] * (f - left))
     assert np.array_equal(prev[-1, 0], np.rint(last.mean(axis=(0, 1))).astype(np.uint8))
-    assert files.preview_of("frames/az+0/truth.png") == "frames/az+0/previews/truth.png"
+    assert codecs.preview_of("frames/az+0/truth.png") == "frames/az+0/previews/truth.png"
 
 
 @pytest.mark.browser
@@ -497,9 +497,9 @@ def test_large_images_get_previews_that_average_their_pixels(tmp_path):
     reason="a browser on a report of large images; test_report_in_a_browser keeps the browser fast"
 )
 def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
-    """Images above files.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
+    """Images above codecs.PREVIEW_ABOVE_PX are shown by their previews; zooming in loads the full
     files of the views on screen, scaled by the full width; the page's load time is printed."""
-    n = files.PREVIEW_ABOVE_PX + 52  # 2100: previews of 1050
+    n = codecs.PREVIEW_ABOVE_PX + 52  # 2100: previews of 1050
     out = tmp_path / "big"
     metrics = make_fake_out(out, size=16, azimuths=(-15.0, 15.0))
     metrics["material"].update(rows=n, cols=n)
@@ -509,7 +509,7 @@ def test_a_large_report_shows_previews_and_loads_full_images_on_zoom(tmp_path):
                 with Image.open(out / rel) as im:
                     small = np.asarray(im)
                 big = np.repeat(np.repeat(small, -(-n // 16), axis=0), -(-n // 16), axis=1)[:n, :n]
-                files.write_png_with_preview(out / rel, np.ascontiguousarray(big), compress_level=1)
+                codecs.write_png_with_preview(out / rel, np.ascontiguousarray(big), compress_level=1)
     index = report.write_report(out, metrics, command=COMMAND)
     problems: list[str] = []
     with chromium_page(problems) as page:

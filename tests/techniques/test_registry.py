@@ -115,11 +115,11 @@ def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_pa
     table = capsys.readouterr().out
     m = json.loads((out / "metrics.json").read_text())
     assert "never" in m["techniques"] and m["simulated"]["never"] == ["shadow", "diffuse"]
-    from hzval.io import files
+    from hzval.io import codecs
 
     for f in m["frames"]:
         own = f["techniques"]["never"]
-        V = files.read_exr(out / f["files"]["visibility"])["Y"].astype(np.float64)
+        V = codecs.read_exr(out / f["files"]["visibility"])["Y"].astype(np.float64)
         assert own["visibility_mae"] == pytest.approx(np.mean(1.0 - V), abs=1e-6)
         assert own["false_shadow_fraction"] == 0.0
         assert own["leak_fraction"] == pytest.approx(np.mean(V < 0.5), abs=1e-9)

@@ -59,18 +59,18 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
 def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
     """``NAME.exr`` and ``NAME.png`` of each ``images[NAME] = (EXR channels, PNG values in [0, 1])``
     and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing."""
-    from hzval.io import files
+    from hzval.io import codecs, documents, staging
 
-    with files.Staging(out) as stage:
+    with staging.Staging(out) as stage:
         for name, (channels, shown) in images.items():
-            files.write_exr(stage.path(f"{name}.exr"), channels, atomic=False, compression="none")
-            files.write_png(stage.path(f"{name}.png"), files.unit_to_u8(shown), atomic=False)
+            codecs.write_exr(stage.path(f"{name}.exr"), channels, atomic=False, compression="none")
+            codecs.write_png(stage.path(f"{name}.png"), codecs.unit_to_u8(shown), atomic=False)
         digests = {
-            p.relative_to(stage.dir).as_posix(): files.file_digest(p)
+            p.relative_to(stage.dir).as_posix(): staging.file_digest(p)
             for p in sorted(stage.dir.rglob("*"))
             if p.is_file()
         }
-        files.write_json(
+        documents.write_json(
             stage.path("fit.json"),
             {"input": input_info, **record, "versions": backend.versions(), "files": digests},
             atomic=False,
@@ -98,12 +98,12 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
     hzval.core.errors.InputError
         For a missing or malformed ``fit.json``.
     """
-    from hzval.io import documents, files
+    from hzval.io import codecs, documents
 
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
     layers = [
-        files.read_exr(folder / f"horizon{i}.exr")
+        codecs.read_exr(folder / f"horizon{i}.exr")
         for i in range(len([n for n in record["files"] if n.endswith(".exr")]))
     ]
     return np.stack([layer[c] for layer in layers for c in "RGBA"], axis=-1), record
@@ -150,13 +150,13 @@ def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
     tuple
         ``({texture: float32 array}, record)``.
     """
-    from hzval.io import documents, files
+    from hzval.io import codecs, documents
 
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
     planes = {}
     for t in record["textures"]:
-        layers = files.read_exr(folder / f"{t.replace('-', '_')}.exr")
+        layers = codecs.read_exr(folder / f"{t.replace('-', '_')}.exr")
         planes[t] = layers["Y"] if "Y" in layers else np.stack([layers[c] for c in "RGB"], axis=-1)
     return planes, record
 
@@ -231,7 +231,7 @@ def cached_fit(
 def _holds(folder, key: str) -> bool:
     """Whether ``folder`` holds the fit of ``key``, every file as written. A missing, damaged or
     hand-edited cache does not; nothing outside the folder is read."""
-    from hzval.io import documents, files, paths
+    from hzval.io import documents, paths, staging
 
     if folder is None:
         return False
@@ -239,7 +239,7 @@ def _holds(folder, key: str) -> bool:
     try:
         record = documents.read_json(folder / "fit.json")
         return record["input"]["key"] == key and all(
-            files.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
+            staging.file_digest(paths.inside(folder, n, folder / "fit.json", "files")) == d
             for n, d in record["files"].items()
         )
     except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):

@@ -49,7 +49,7 @@ from hzval.bake.maps import CUBE_SIZE, weight_cube
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import storage as hz_storage
-from hzval.io.files import unit_to_u8
+from hzval.io.codecs import unit_to_u8
 from hzval.scene import lookup
 from hzval.scene.spec import Frame, Scene, image_shape
 from hzval.techniques import horizon, pom, surface
