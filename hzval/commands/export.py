@@ -49,8 +49,7 @@ import numpy as np
 
 from hzval import materials
 from hzval.bake.maps import BakeParams
-from hzval.core import backend, errors, resources
-from hzval.core import conventions as cv
+from hzval.core import backend, errors, resources, srgb
 from hzval.core.errors import InputError
 from hzval.geometry import tile as mesh
 from hzval.io import atomic, codecs, staging
@@ -149,7 +148,7 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
         a = DEFAULT_ALBEDO if albedo is None else float(albedo)
         return f'<rgb name="reflectance" value="{a:.9g}, {a:.9g}, {a:.9g}"/>'
     if own is not None:  # a built-in material's linear albedo, stored as sRGB as a bitmap expects
-        rgb = codecs.unit_to_u8(cv.srgb_encode(own))
+        rgb = codecs.unit_to_u8(srgb.encode(own))
     else:
         from PIL import Image
 

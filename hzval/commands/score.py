@@ -50,8 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.core import conventions as cv
-from hzval.core import errors
+from hzval.core import errors, srgb
 from hzval.core.errors import InputError
 from hzval.io import codecs, documents, paths, staging
 from hzval.metrics import compare
@@ -238,7 +237,7 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
         except OSError as exc:
             raise InputError(path, f"not a readable PNG ({errors.first_line(exc)})") from None
         arr = np.repeat(arr[..., None], 3, axis=-1) if arr.ndim == 2 else arr[..., :3]
-        img = cv.srgb_decode(arr) / exposure
+        img = srgb.decode(arr) / exposure
     img = np.asarray(img, np.float32)
     if img.shape[:2] != tuple(shape):
         raise InputError(

@@ -8,5 +8,16 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("backend", "conventions", "cube", "errors", "exports", "interrupts", "resources", "shading", "strict"),
+    (
+        "backend",
+        "conventions",
+        "cube",
+        "errors",
+        "exports",
+        "interrupts",
+        "resources",
+        "shading",
+        "srgb",
+        "strict",
+    ),
 )

@@ -1,4 +1,4 @@
-"""The conventions of hzval: axes, directions, height scale, boundaries, colour.
+"""The conventions of hzval: axes, directions, height scale, boundaries.
 
 This module is the only place that defines them (docs/ARCHITECTURE.md,
 "Conventions"); every other module asks it. Tests in
@@ -32,7 +32,7 @@ Boundary
 
 Colour
     Renders are linear float. Albedo images are sRGB-encoded; previews are
-    sRGB-encoded 8-bit. The transfer functions are colour-science's.
+    sRGB-encoded 8-bit. The transfer functions are :mod:`hzval.core.srgb`'s.
 """
 
 from __future__ import annotations
@@ -74,9 +74,6 @@ __all__ = [
     "azimuth_of",
     "channel_layer",
     "channel_weights",
-    "srgb_decode",
-    "srgb_encode",
-    "luminance_weights",
 ]
 Boundary = Literal["wrap", "open"]
 BOUNDARIES: tuple[str, ...] = ("wrap", "open")
@@ -354,19 +351,11 @@ def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
     return dcol, -drow
 
 
-#: The deepest relief hzval renders: ``depth`` (the world height of ``H = 1`` in image widths) at
-#: most 10, a relief ten times as tall as the tile is wide. Why: the truth's shadow rays over a
-#: ``wrap`` tile are traced in hops of at most half a tile (:mod:`hzval.truth.plane`, "Boundaries"), so a
-#: ray leaving the lowest point at elevation ``e`` needs ``2 depth / tan(e)`` hops: 113 at depth 10
-#: and 10 degrees, 10^9 at the 10^8 the audit tried (it did not end in 600 s). Measured at the
-#: bound: 256 x 256, 4 spp, a light at 2 degrees, 4.8 s a frame of the truth (0.05 s at the
-#: bricks' 0.05). Far past it the relief in texels (``depth * cols``, float32) outgrows the
-#: precision of a camera ray's hit (the audit's 1e30: "a camera ray missed"). Depth 5 is a
-#: supported case; the built-in materials use 0.02-0.12. An ``open`` tile has no hops (a
-#: ray leaves it once it has crossed it), so its bound is only the precision's: a spike 1000 texels
-#: tall on a 16-texel terrain (depth 62.5) is one of the hard cases (tests/hard/test_geometry.py).
+#: The deepest relief hzval renders on a ``wrap`` tile: ``depth`` (the world height of ``H = 1`` in
+#: image widths) at most 10. The truth's shadow rays cross such a tile in hops of at most half a
+#: tile, ``2 depth / tan(e)`` of them at elevation ``e`` (docs/reliability.md, "Bounds").
 MAX_DEPTH = 10.0
-#: The deepest relief of an ``open`` tile (module comment above).
+#: The deepest relief of an ``open`` tile: no hops there, only float32's precision bounds it.
 MAX_DEPTH_OPEN = 1000.0
 
 
@@ -737,82 +726,3 @@ def channel_weights(lx, ly, directions: int = CHANNEL_COUNT) -> np.ndarray:
     w_hi = np.take_along_axis(w, hi[..., None], axis=-1) + frac[..., None]
     np.put_along_axis(w, hi[..., None], w_hi, axis=-1)
     return w
-
-
-def srgb_decode(values: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values to linear (IEC 61966-2-1, colour-science's ``cctf_decoding``).
-
-    Parameters
-    ----------
-    values : array_like
-        Encoded values in [0, 1].
-
-    Returns
-    -------
-    numpy.ndarray
-        float64 linear values.
-
-    Examples
-    --------
-    >>> round(float(srgb_decode(0.5)), 6)
-    0.214041
-    """
-    import colour
-
-    return np.asarray(colour.cctf_decoding(np.asarray(values, dtype=np.float64), function="sRGB"))
-
-
-def srgb_encode(values):
-    """Linear values to sRGB-encoded values (IEC 61966-2-1), negatives as 0.
-
-    NumPy values go through colour-science's ``cctf_encoding(function="sRGB")``. A Dr.Jit array
-    (``mi.Float64``: the comparison's display values, :func:`hzval.metrics.compare.display`) is encoded in a
-    kernel by the formula colour-science evaluates, ``12.92 L`` at or below ``L = 0.0031308``, else
-    ``1.055 L^(1/2.4) - 0.055``: within 4e-16 of it in float64 (Dr.Jit's ``pow`` is not NumPy's).
-
-    Parameters
-    ----------
-    values : array_like or Dr.Jit array
-        Linear values.
-
-    Returns
-    -------
-    numpy.ndarray or Dr.Jit array
-        Encoded values, the type of ``values``.
-
-    Examples
-    --------
-    >>> round(float(srgb_encode(0.214041)), 4), float(srgb_encode(-1.0))
-    (0.5, 0.0)
-    """
-    if is_drjit(values):
-        import drjit as dr
-
-        v = dr.maximum(values, 0.0)
-        return dr.select(v <= 0.0031308, v * 12.92, 1.055 * dr.power(v, 1 / 2.4) - 0.055)
-    import colour
-
-    v = np.clip(np.asarray(values, dtype=np.float64), 0.0, None)
-    return np.asarray(colour.cctf_encoding(v, function="sRGB"))
-
-
-def luminance_weights() -> np.ndarray:
-    """Weights of R, G, B in the luminance Y of the sRGB / Rec. 709 primaries.
-
-    Taken from colour-science's sRGB RGB-to-XYZ matrix (its Y row), so that RGB height maps are reduced as
-    ``Y = w . rgb`` on their data values.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(3,)`` float64, summing to 1.
-
-    Examples
-    --------
-    >>> w = luminance_weights()
-    >>> round(float(w.sum()), 6), round(float(w[1]), 4)
-    (1.0, 0.7152)
-    """
-    import colour
-
-    return np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ[1], dtype=np.float64)

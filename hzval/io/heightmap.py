@@ -6,7 +6,7 @@ and 16-bit values are divided by 255 and 65535 and are not sRGB-decoded,
 because a height map's encoder wrote heights, not light. EXR and ``.npy``
 values are taken as they are. Colour inputs are reduced to their luminance
 ``Y = w . rgb`` on the stored values, with the weights of
-:func:`hzval.core.conventions.luminance_weights`; alpha never contributes.
+:func:`hzval.core.srgb.luminance_weights`; alpha never contributes.
 
 Every failure is an :class:`~hzval.core.errors.InputError` naming the file: the
 command line prints it as one line, and a height map that is truncated,
@@ -30,8 +30,8 @@ from typing import Callable, Iterator
 import numpy as np
 from PIL import Image, ImageFile, UnidentifiedImageError
 
-from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError, first_line
+from hzval.core.srgb import luminance_weights
 from hzval.io.codecs import library_output, read_exr
 
 __all__ = ["SUFFIXES", "MIN_SIDE", "HeightMap", "probe_shape", "load_height", "check_usable", "from_array"]

@@ -18,7 +18,7 @@ reach far beyond the horizon bake's radius (spikes, a hard case).
 
 Conventions (docs/ARCHITECTURE.md): ``H[row, col]`` float32 in [0, 1], row 0
 at the top; the albedo is linear RGB ``(rows, cols, 3)`` float32 (sRGB
-colours decoded by :func:`hzval.core.conventions.srgb_decode`), or ``None`` for the
+colours decoded by :func:`hzval.core.srgb.decode`), or ``None`` for the
 scene's constant albedo. A material's ``depth`` is the world height of
 ``H = 1`` in image widths, so its features keep their proportions at every
 size: feature counts are fixed per period (fewer where a feature would be

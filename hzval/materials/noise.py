@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hzval.core import conventions as cv
+from hzval.core import srgb
 
 __all__ = ["periodic_noise", "smoothstep", "Cells", "cells", "count", "grid", "finish", "tint", "shape_of"]
 
@@ -160,9 +160,9 @@ def cells(
     return Cells(idx, dx1, dy1, np.sqrt(best), edge.astype(np.float32), cw, ch)
 
 
-def tint(srgb: tuple[float, float, float], variation: np.ndarray | float = 0.0) -> np.ndarray:
+def tint(encoded: tuple[float, float, float], variation: np.ndarray | float = 0.0) -> np.ndarray:
     """A linear albedo ``(..., 3)`` float32 from an sRGB colour scaled by ``1 + variation``
     (per texel or per feature), clipped to [0.02, 0.9] (no perfect black or white)."""
-    base = np.asarray(cv.srgb_decode(np.asarray(srgb, np.float64)), np.float32)
+    base = np.asarray(srgb.decode(np.asarray(encoded, np.float64)), np.float32)
     v = np.asarray(variation, np.float32)[..., None]
     return np.clip(base * (1.0 + v), 0.02, 0.9).astype(np.float32)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hzval.core import conventions as cv
+from hzval.core import srgb
 
 __all__ = ["diagnose", "SLIPS", "BETTER", "NOTICEABLE"]
 
@@ -39,8 +39,8 @@ def _slips(x: np.ndarray) -> dict:
         "1/pi": x / np.pi,
         "gamma": x ** (1 / 2.2),
         "degamma": x**2.2,
-        "srgb": cv.srgb_encode(x),
-        "linear": cv.srgb_decode(x),
+        "srgb": srgb.encode(x),
+        "linear": srgb.decode(x),
     }
 
 

@@ -35,7 +35,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from hzval.core import conventions as cv
+from hzval.core import srgb
 from hzval.core.errors import HzvalError
 from hzval.io import codecs
 
@@ -93,7 +93,7 @@ class FrameMetrics:
 def display(image: np.ndarray, scale: float) -> np.ndarray:
     """Linear radiance to sRGB-encoded display values, as a viewer shows them.
 
-    ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.conventions.srgb_encode`, IEC
+    ``srgb_encode(clip(scale * image, 0, 1))`` (:func:`hzval.core.srgb.encode`, IEC
     61966-2-1), in one float64 Dr.Jit kernel over every value; it matches colour-science's
     ``cctf_encoding`` to 4e-16 (``benchmarks/bench_compare.py`` has the timings).
 
@@ -118,7 +118,7 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     img = np.asarray(image)
     grey = img.ndim == 2
     v = mi.Float64(_flat_values(img)) * dr.opaque(mi.Float64, float(scale))
-    shown = np.asarray(cv.srgb_encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
+    shown = np.asarray(srgb.encode(dr.clip(v, 0.0, 1.0)), dtype=np.float64).reshape(img.shape)
     return np.repeat(shown[..., None], 3, axis=-1) if grey else shown
 
 

@@ -63,8 +63,7 @@ import numpy as np
 
 from hzval.bake import maps as bake
 from hzval.bake.maps import BakeParams
-from hzval.core import backend, interrupts, resources, shading
-from hzval.core import conventions as cv
+from hzval.core import backend, interrupts, resources, shading, srgb
 from hzval.core.errors import InputError
 from hzval.io import documents, staging
 from hzval.metrics import compare
@@ -603,7 +602,7 @@ def _render(setup: _Setup, t_frame, az: float, el: float | None, scale: float, c
     perfect, bg = {}, None
     if mask is not None:
         # a view: what no camera ray sees is the background in every image, and left out of the metrics
-        bg = (cv.srgb_decode(np.asarray(writing.UNSEEN_DISPLAY)) / scale).astype(np.float32)
+        bg = (srgb.decode(np.asarray(writing.UNSEEN_DISPLAY)) / scale).astype(np.float32)
         t_frame, plain = _unseen(t_frame, mask, bg), _unseen(plain, mask, bg)
         base = None if base is None else _unseen(base, mask, bg)
         V = t_frame.layers.get("visibility")

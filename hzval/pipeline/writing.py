@@ -214,10 +214,10 @@ def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
         ``frames.json``'s ``albedo`` paths, relative to ``folder``: ``linear``, ``srgb`` and the
         ``encoding`` of each.
     """
-    from hzval.core import conventions as cv
+    from hzval.core import srgb
 
     codecs.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
-    codecs.write_png(folder / "albedo.png", codecs.unit_to_u8(cv.srgb_encode(np.clip(albedo, 0.0, 1.0))))
+    codecs.write_png(folder / "albedo.png", codecs.unit_to_u8(srgb.encode(np.clip(albedo, 0.0, 1.0))))
     return {
         "linear": "albedo.exr",
         "srgb": "albedo.png",

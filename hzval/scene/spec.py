@@ -49,6 +49,7 @@ import numpy as np
 
 from hzval import materials
 from hzval.core import conventions as cv
+from hzval.core import srgb
 from hzval.core.errors import InputError
 from hzval.geometry.tile import DEFAULT_TOLERANCE
 from hzval.io import heightmap, paths
@@ -739,7 +740,7 @@ def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
         raise InputError(
             spec.albedo, f"albedo is {rgb.shape[1]}x{rgb.shape[0]}, the height map {cols}x{rows}"
         )
-    return cv.srgb_decode(rgb).astype(np.float32)
+    return srgb.decode(rgb).astype(np.float32)
 
 
 @dataclass

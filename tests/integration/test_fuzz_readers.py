@@ -21,8 +21,8 @@ from hypothesis.extra import numpy as hnp
 from PIL import Image
 
 from hzval.commands import check, gates
-from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError
+from hzval.core.srgb import luminance_weights
 from hzval.io import codecs, external, heightmap
 
 SETTINGS = settings(

@@ -105,7 +105,7 @@ def test_a_jpeg_is_read_as_its_luminance():
 
     from PIL import Image
 
-    from hzval.core.conventions import luminance_weights
+    from hzval.core.srgb import luminance_weights
     from hzval.io import heightmap
 
     with tempfile.TemporaryDirectory() as d:

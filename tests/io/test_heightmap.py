@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image, ImageFile
 
-from hzval.core.conventions import luminance_weights
 from hzval.core.errors import InputError
+from hzval.core.srgb import luminance_weights
 from hzval.io.codecs import write_exr, write_png
 from hzval.io.heightmap import HeightMap, from_array, load_height, probe_shape
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from hzval.core import conventions as cv
+from hzval.core import srgb
 from hzval.metrics import brightness
 
 
@@ -25,8 +25,8 @@ def truth_image():
     [
         ("pi", lambda T, e: np.pi * T, False),
         ("1/pi", lambda T, e: T / np.pi, False),
-        ("srgb", lambda T, e: cv.srgb_encode(np.clip(T * e, 0, 1)) / e, False),
-        ("linear", lambda T, e: cv.srgb_decode(np.clip(T * e, 0, 1)) / e, True),
+        ("srgb", lambda T, e: srgb.encode(np.clip(T * e, 0, 1)) / e, False),
+        ("linear", lambda T, e: srgb.decode(np.clip(T * e, 0, 1)) / e, True),
         ("degamma", lambda T, e: np.clip(T * e, 0, 1) ** 2.2 / e, False),
     ],
 )
