@@ -74,6 +74,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Sweep every material of ``args``; print the overview. Exit 1 if one failed or a gate did."""
     from hzval.commands import suite
+    from hzval.report import overview
     from hzval.techniques import registry as technique
 
     items = suite.entries(args.inputs, **scenes.scene_overrides(args))
@@ -98,7 +99,7 @@ def run(args) -> int:
         force=args.force,
         gates=gates,
     )
-    print(suite.summary_table(result))
+    print(overview.summary_table(result))
     s = result["suite"]
     print(
         f"\n{s['materials']} materials ({s['failed']} failed) in {s['seconds']:.1f} s on {s['engine']}; "

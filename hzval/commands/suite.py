@@ -63,12 +63,11 @@ from hzval import materials
 from hzval.commands import gates as gates_module
 from hzval.core import backend, errors, interrupts, resources
 from hzval.core.errors import InputError
-from hzval.io import atomic, codecs, documents, heightmap, paths, staging
+from hzval.io import documents, heightmap, paths, staging
 from hzval.pipeline import sweep
-from hzval.report import pages as report
+from hzval.report import overview as overview_page
 from hzval.report import ranking
 from hzval.scene import spec as sc
-from hzval.techniques import registry as technique
 from hzval.truth import memory
 
 __all__ = [
@@ -78,10 +77,8 @@ __all__ = [
     "run",
     "sweep_material",
     "summarise",
-    "write_overview",
     "gate_failures",
     "material_baseline",
-    "summary_table",
     "HEIGHT_SUFFIXES",
     "LIGHTS_SHOWN",
 ]
@@ -90,8 +87,6 @@ __all__ = [
 HEIGHT_SUFFIXES = heightmap.SUFFIXES
 #: Thumbnails per material and technique: the sweep's first, middle and last lights.
 LIGHTS_SHOWN = 3
-#: Side of a thumbnail in pixels.
-THUMB_PX = 144
 #: Names under DIR that are the overview's own, never a material's folder.
 RESERVED = ("thumbs",)
 #: The file in DIR by which a cluster's worker proves it sees the caller's DIR.
@@ -290,8 +285,8 @@ def sweep_material(task: Task) -> dict:
 
 def _earlier_rows(out: Path) -> dict[str, dict]:
     """The finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
-    still there, by name, their origins as given (``write_overview`` makes them portable again);
-    none where there is no readable overview."""
+    still there, by name, their origins as given (:func:`hzval.report.overview.write_overview`
+    makes them portable again); none where there is no readable overview."""
     from hzval.io import documents
 
     try:
@@ -500,7 +495,7 @@ def run(
             r if r is not None else earlier.get(t.entry.name) or _not_run(t.entry)
             for t, r in zip(tasks, rows)
         ]
-        return write_overview(
+        return overview_page.write_overview(
             out,
             done,
             command=command,
@@ -705,15 +700,6 @@ def _completed(task: Task, since: float) -> dict | None:
 # --------------------------------------------------------------------------
 
 
-def _sort_key(row: dict) -> tuple:
-    """Worst first: failed materials, then the first technique's mean |F - V|."""
-    if row["status"] != "ok":
-        return (0, 0.0, row["name"])
-    tech = next(iter(row["techniques"].values()), {})
-    v = ranking.visibility_of(tech)
-    return (1, -(v if v is not None else -1.0), row["name"])
-
-
 def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
     """``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``
     (:class:`hzval.commands.gates.Gates`), its baseline the same material's in the baseline suite's folder;
@@ -747,124 +733,3 @@ def material_baseline(gates, name: str) -> dict | None:
     if not path.is_file():
         raise InputError("--baseline", f"{path} is missing (no such material in the baseline suite)")
     return gates_module.read_baseline(path)
-
-
-def write_overview(
-    out: Path,
-    rows: list[dict],
-    *,
-    command: str,
-    engine: str,
-    workers: int | None,
-    cluster: str | None,
-    seconds: float,
-    interrupted: bool = False,
-    gates: dict | None = None,
-) -> dict:
-    """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
-    record of :func:`gate_failures`, listed first)."""
-    rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=_sort_key)
-    command = staging.portable_command(command)
-    for row in rows:
-        if row["status"] == "ok":
-            row["thumbs"] = _thumbnails(out, row)
-    names = []
-    for row in rows:
-        names += [n for n in row.get("techniques", {}) if n not in names]
-    techniques = {
-        n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
-        for n in names
-        if n in technique.REGISTRY
-    }
-    result = {
-        "suite": {
-            "command": command,
-            "engine": engine,
-            "workers": workers,
-            "cluster": cluster,
-            "seconds": seconds,
-            "materials": len(rows),
-            "interrupted": interrupted,
-            "failed": sum(r["status"] == "failed" for r in rows),
-            "not_run": sum(r["status"] == "not run" for r in rows),
-            "versions": {
-                **backend.versions(),
-                "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")})),
-            },
-        },
-        "techniques": techniques,
-        "materials": rows,
-        **({"gates": gates} if gates else {}),
-    }
-    documents.write_json(out / "suite.json", result)
-    html = report.render_suite(result)
-    with atomic.atomic_path(out / "index.html") as tmp:
-        tmp.write_text(html, encoding="utf-8")
-    return result
-
-
-def _portable_origin(origin: str | None, out: Path) -> str | None:
-    """A row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
-    ``out`` (:func:`hzval.io.staging.report_path`)."""
-    if not origin or origin == "built-in":
-        return origin
-    path, plus, rest = origin.partition(" + ")
-    return staging.report_path(path, out) + (plus + rest if plus else "")
-
-
-def _thumbnails(out: Path, row: dict) -> dict:
-    """Downsampled copies of the chosen frames under ``out/thumbs/<name>/``; same layout as
-    ``row["files"]``, paths relative to ``out``."""
-    from PIL import Image
-
-    thumbs = {}
-    for az, images in row["files"].items():
-        thumbs[az] = {}
-        for kind, rel in images.items():
-            if rel is None:
-                continue
-            src = out / row["name"] / rel
-            slug = re.sub(r"[^0-9A-Za-z+.-]+", "_", az).strip("_")
-            dst = Path("thumbs") / row["name"] / f"az{slug}_{kind}.png"
-            try:
-                with Image.open(src) as img:
-                    img = img.convert("RGB")
-                    img.thumbnail((THUMB_PX, THUMB_PX), Image.Resampling.BOX)
-                    pixels = np.asarray(img)
-            except OSError:
-                continue
-            (out / dst).parent.mkdir(parents=True, exist_ok=True)
-            codecs.write_png(out / dst, pixels)
-            thumbs[az][kind] = dst.as_posix()
-    return thumbs
-
-
-def summary_table(result: dict) -> str:
-    """The terminal's tables, under 100 columns: the techniques over every material that ran, best
-    first (their means, and on how many materials each is worse than no shadows at some light
-    elevation: the overview's first table), then a line per material, worst first by the lead
-    technique: its lead |F - V| and FLIP, its best technique and its sweep's time, or why it failed."""
-    ranked = report.suite_ranking(result)
-    width = max([len("technique"), *(len(r["label"]) for r in ranked)])
-    lines = [f"{'technique':{width}s}   |F-V|    FLIP  worse than no shadows on"]
-    lines += [f"{r['label']:{width}s}  {r['vis']:>6s}  {r['flip']:>6s}  {r['worse']}" for r in ranked]
-    names = list(result["techniques"])
-    lead = names[0] if names else None
-    lines += ["", f"{'material':20s}  {'lead':>20s}   |F-V|    FLIP  {'best':>20s}   |F-V|  sweep s"]
-    for r in result["materials"]:
-        if r["status"] != "ok":
-            lines.append(f"{r['name'][:20]:20s}  failed: {r['error']}")
-            continue
-        scores = {n: ranking.visibility_of(r["techniques"].get(n, {})) for n in names}
-        scored = [(v, n) for n, v in scores.items() if v is not None]
-        best_v, best = min(scored) if scored else (None, "-")
-        t = r["techniques"].get(lead, {})
-        lines.append(
-            f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(ranking.visibility_of(t)):>6s}  "
-            f"{_fixed(t.get('flip_mean')):>6s}  {best[:20]:>20s}  {_fixed(best_v):>6s}  {r['seconds']:7.1f}"
-        )
-    return "\n".join(lines)
-
-
-def _fixed(v) -> str:
-    return "-" if v is None else f"{v:.4f}"

@@ -775,7 +775,7 @@ def suite_ranking(result: dict) -> list[dict]:
 
 
 def render_suite(result: dict) -> str:
-    """The suite's ``index.html`` for :func:`hzval.commands.suite.write_overview`'s ``result``."""
+    """The suite's ``index.html`` for :func:`hzval.report.overview.write_overview`'s ``result``."""
     names = list(result["techniques"])
     s = result["suite"]
     context = {

@@ -1,0 +1,150 @@
+"""The suite's overview: thumbnails, ``suite.json`` and ``index.html`` over every material's row,
+worst first, and the terminal's tables of the same (docs/ARCHITECTURE.md, "suite.json")."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from hzval.core import backend
+from hzval.io import atomic, codecs, documents, staging
+from hzval.report import pages as report
+from hzval.report import ranking
+from hzval.techniques import registry as technique
+
+__all__ = ["THUMB_PX", "sort_key", "write_overview", "summary_table"]
+
+#: Side of a thumbnail in pixels.
+THUMB_PX = 144
+
+
+def sort_key(row: dict) -> tuple:
+    """Worst first: failed materials, then the first technique's mean |F - V|."""
+    if row["status"] != "ok":
+        return (0, 0.0, row["name"])
+    tech = next(iter(row["techniques"].values()), {})
+    v = ranking.visibility_of(tech)
+    return (1, -(v if v is not None else -1.0), row["name"])
+
+
+def write_overview(
+    out: Path,
+    rows: list[dict],
+    *,
+    command: str,
+    engine: str,
+    workers: int | None,
+    cluster: str | None,
+    seconds: float,
+    interrupted: bool = False,
+    gates: dict | None = None,
+) -> dict:
+    """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
+    record of :func:`gate_failures`, listed first)."""
+    rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=sort_key)
+    command = staging.portable_command(command)
+    for row in rows:
+        if row["status"] == "ok":
+            row["thumbs"] = _thumbnails(out, row)
+    names = []
+    for row in rows:
+        names += [n for n in row.get("techniques", {}) if n not in names]
+    techniques = {
+        n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
+        for n in names
+        if n in technique.REGISTRY
+    }
+    result = {
+        "suite": {
+            "command": command,
+            "engine": engine,
+            "workers": workers,
+            "cluster": cluster,
+            "seconds": seconds,
+            "materials": len(rows),
+            "interrupted": interrupted,
+            "failed": sum(r["status"] == "failed" for r in rows),
+            "not_run": sum(r["status"] == "not run" for r in rows),
+            "versions": {
+                **backend.versions(),
+                "variant": ", ".join(sorted({r["variant"] for r in rows if r.get("variant")})),
+            },
+        },
+        "techniques": techniques,
+        "materials": rows,
+        **({"gates": gates} if gates else {}),
+    }
+    documents.write_json(out / "suite.json", result)
+    html = report.render_suite(result)
+    with atomic.atomic_path(out / "index.html") as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return result
+
+
+def _portable_origin(origin: str | None, out: Path) -> str | None:
+    """A row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
+    ``out`` (:func:`hzval.io.staging.report_path`)."""
+    if not origin or origin == "built-in":
+        return origin
+    path, plus, rest = origin.partition(" + ")
+    return staging.report_path(path, out) + (plus + rest if plus else "")
+
+
+def _thumbnails(out: Path, row: dict) -> dict:
+    """Downsampled copies of the chosen frames under ``out/thumbs/<name>/``; same layout as
+    ``row["files"]``, paths relative to ``out``."""
+    from PIL import Image
+
+    thumbs = {}
+    for az, images in row["files"].items():
+        thumbs[az] = {}
+        for kind, rel in images.items():
+            if rel is None:
+                continue
+            src = out / row["name"] / rel
+            slug = re.sub(r"[^0-9A-Za-z+.-]+", "_", az).strip("_")
+            dst = Path("thumbs") / row["name"] / f"az{slug}_{kind}.png"
+            try:
+                with Image.open(src) as img:
+                    img = img.convert("RGB")
+                    img.thumbnail((THUMB_PX, THUMB_PX), Image.Resampling.BOX)
+                    pixels = np.asarray(img)
+            except OSError:
+                continue
+            (out / dst).parent.mkdir(parents=True, exist_ok=True)
+            codecs.write_png(out / dst, pixels)
+            thumbs[az][kind] = dst.as_posix()
+    return thumbs
+
+
+def summary_table(result: dict) -> str:
+    """The terminal's tables, under 100 columns: the techniques over every material that ran, best
+    first (their means, and on how many materials each is worse than no shadows at some light
+    elevation: the overview's first table), then a line per material, worst first by the lead
+    technique: its lead |F - V| and FLIP, its best technique and its sweep's time, or why it failed."""
+    ranked = report.suite_ranking(result)
+    width = max([len("technique"), *(len(r["label"]) for r in ranked)])
+    lines = [f"{'technique':{width}s}   |F-V|    FLIP  worse than no shadows on"]
+    lines += [f"{r['label']:{width}s}  {r['vis']:>6s}  {r['flip']:>6s}  {r['worse']}" for r in ranked]
+    names = list(result["techniques"])
+    lead = names[0] if names else None
+    lines += ["", f"{'material':20s}  {'lead':>20s}   |F-V|    FLIP  {'best':>20s}   |F-V|  sweep s"]
+    for r in result["materials"]:
+        if r["status"] != "ok":
+            lines.append(f"{r['name'][:20]:20s}  failed: {r['error']}")
+            continue
+        scores = {n: ranking.visibility_of(r["techniques"].get(n, {})) for n in names}
+        scored = [(v, n) for n, v in scores.items() if v is not None]
+        best_v, best = min(scored) if scored else (None, "-")
+        t = r["techniques"].get(lead, {})
+        lines.append(
+            f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(ranking.visibility_of(t)):>6s}  "
+            f"{_fixed(t.get('flip_mean')):>6s}  {best[:20]:>20s}  {_fixed(best_v):>6s}  {r['seconds']:7.1f}"
+        )
+    return "\n".join(lines)
+
+
+def _fixed(v) -> str:
+    return "-" if v is None else f"{v:.4f}"
