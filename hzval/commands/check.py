@@ -91,7 +91,7 @@ from hzval.core import backend, errors, shading
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, paths, staging
 from hzval.metrics import compare
-from hzval.pipeline import sweep
+from hzval.pipeline import renders, sweep
 from hzval.pipeline.records import frame_folder
 from hzval.report import images
 from hzval.scene import spec as sc
@@ -372,7 +372,7 @@ def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str]
         points = sweep.truth_of(scene, height, albedo)[1]
     kinds = renderers(scene, height, points, albedo)
     out = {}
-    for el, az in sweep.lights(scene):  # a scene over several elevations: each (elevation, azimuth)
+    for el, az in renders.lights(scene):  # a scene over several elevations: each (elevation, azimuth)
         name = frame_folder(az, el)
         if el is not None:
             the_truth.light_at(el)

@@ -74,7 +74,7 @@ from hzval.core import shading
 from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
-from hzval.pipeline import sweep
+from hzval.pipeline import renders
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import memory
@@ -232,7 +232,7 @@ def _reference(scene, height, truth_spp: int) -> _Reference:
     tr = truth.Truth(conv, height)
     scale = shading.exposure(scene)
     vis, disp = [], []
-    for el, az in sweep.lights(scene):
+    for el, az in renders.lights(scene):
         f = _render(tr, el, az)
         vis.append(f.layers["visibility"])
         disp.append(compare.display(f.image, scale))
@@ -242,7 +242,7 @@ def _reference(scene, height, truth_spp: int) -> _Reference:
         normal = cv.normal_map(cv.heights_in_texels(height, scene.material.depth), scene.material.boundary)
         facing = [
             hzfacing.facing_mask(normal, scene.light.direction(az, el), scene.camera.supersampling)
-            for el, az in sweep.lights(scene)
+            for el, az in renders.lights(scene)
         ]
     return _Reference(
         scene,
@@ -281,7 +281,7 @@ def _render(renderer, el: float | None, az: float, **kw):
 
 
 def _render_all(renderer, lights, repeat: int = 3, **kw):
-    """The sweep's frames (``lights``: :func:`hzval.pipeline.sweep.lights`) and a frame's time: the
+    """The sweep's frames (``lights``: :func:`hzval.pipeline.renders.lights`) and a frame's time: the
     mean over the sweep, the best of ``repeat`` sweeps (settings that share a kernel differ by about
     10% from one sweep to the next otherwise)."""
     _render(renderer, *lights[0], **kw)  # compile (or load) the kernels: time warm frames only
@@ -356,7 +356,7 @@ def measure(
 
 def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Point:
     """One setting's point: its time (a bake's for bake settings, else a frame's), storage and errors."""
-    scene, height, lights = ref.scene, ref.height, sweep.lights(ref.scene)
+    scene, height, lights = ref.scene, ref.height, renders.lights(ref.scene)
     rows, cols = height.shape
     if s.kind == "truth":
         tr = truth.Truth(dataclasses.replace(scene, spp=s.truth_spp, seed=scene.seed + 2), height)

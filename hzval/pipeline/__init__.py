@@ -4,5 +4,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("records", "sweep", "writing"),
+    ("records", "renders", "sweep", "writing"),
 )

@@ -1,7 +1,7 @@
 """The answer to "is X worth shipping instead of Y?": every technique of a sweep ranked, and its error
 against light elevation beside no shadows at all.
 
-A sweep's frames are ``(elevation, azimuth)`` pairs (:func:`hzval.pipeline.sweep.lights`). Per
+A sweep's frames are ``(elevation, azimuth)`` pairs (:func:`hzval.pipeline.renders.lights`). Per
 technique and elevation, :func:`by_elevation` takes the mean over that elevation's azimuths of the
 frame's mean ``|F - V|`` (over the pixels that face the light where measured,
 :mod:`hzval.metrics.facing`) and mean FLIP; the frame's ``no_shadows`` record is the same for

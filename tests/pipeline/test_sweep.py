@@ -536,10 +536,10 @@ def test_ctrl_c_leaves_the_folder_as_it_was(variant, tmp_path, capsys, monkeypat
     that report as it was, and nothing of its own but the (whole) bake cache; one line, exit 130.
     ``render``: the truth's; ``_finish``: while the light is compared and its files written."""
     from hzval.cli import main as cli
-    from hzval.pipeline import sweep as sw
+    from hzval.pipeline import renders
     from hzval.truth import plane as truth
 
-    owner = truth.Truth if stage == "render" else sw
+    owner = truth.Truth if stage == "render" else renders
 
     out = tmp_path / "out"
     assert cli.main(SMALL_SWEEP + ["--out", str(out)]) == 0
