@@ -71,9 +71,9 @@ def main() -> None:
     )
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
+    from hzval.commands import models as ms
     from hzval.scene import spec as S
     from hzval.studies import curvature_band as cb
-    from hzval.studies import models as ms
 
     size = args.size if args.size is not None else (None if args.height else 128)
     scene = S.override(

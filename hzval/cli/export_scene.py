@@ -1,4 +1,5 @@
-"""``hzval export-scene``: the truth of one light as a Mitsuba 3 scene file (:mod:`hzval.commands.export`)."""
+"""``hzval export-scene``: the truth of one light as a Mitsuba 3 scene file
+(:mod:`hzval.commands.export_scene`)."""
 
 from __future__ import annotations
 
@@ -50,15 +51,15 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Write the scene of ``args``'s light ``--azimuth`` into ``--out``."""
-    from hzval.commands import export
+    from hzval.commands import export_scene
     from hzval.scene import spec as sc
 
     scene = scenes.scene_from_args(args, quiet=True)
     if not math.isfinite(args.azimuth):
         raise errors.InputError("--azimuth", f"must be a finite number of degrees, got {args.azimuth}")
-    export.check_fits(scene)  # before the map is generated or decoded
+    export_scene.check_fits(scene)  # before the map is generated or decoded
     hm = sc.load_material_height(scene.material)
-    written = export.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth, force=args.force)
+    written = export_scene.write_scene(scene, hm.height, args.out, azimuth_deg=args.azimuth, force=args.force)
     print(
         f"wrote {', '.join(str(p) for p in written)}; render it with: {_mitsuba()} {args.out / 'scene.xml'} "
         f"-o {args.out / 'mitsuba.exr'}"

@@ -115,10 +115,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake, fit, write; one line of figures."""
-    from hzval.bake import maps as bake
-    from hzval.io import staging
     from hzval.techniques.fitted import training as fitted_training
-    from hzval.truth import memory
 
     _check_flags(args)
     lights = fitted_training.parse_lights(args.lights, "--lights")
@@ -126,38 +123,28 @@ def run(args) -> int:
     fitted_training.check_held_out(lights, held_out)
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
     params = flags.bake_params(args, scene)
-    rows, cols = memory.material_shape(scene)
-    what = args.height or "--size"
-    bake.check_fits(what, rows, cols, params)
-    guarded = args.technique == fit_command.HORIZON and args.guard is not None
-    fitted_training.check_fits(
-        what, rows, cols, scene.spp, len(lights) * (2 if guarded else 1) + len(held_out), scene
+    horizon = args.technique == fit_command.HORIZON
+    result, info = fit_command.run(
+        scene,
+        params,
+        args.technique,
+        args.out,
+        lights=lights,
+        held_out=held_out,
+        options=_horizon_options(args) if horizon else _technique_options(args),
+        what=args.height or "--size",
+        force=args.force,
+        progress=not args.quiet,
     )
-    with staging.output_folder(args.out, force=args.force):
-        height, info = scenes.load_material(scene)
-        baked = bake.bake(height, params)
-        info = {**info, "depth": params.depth, "boundary": params.boundary, "bake": params.record()}
-        if args.technique == fit_command.HORIZON:
-            result = fit_command.fit_horizon(
-                height, baked, scene, info, args.out, options=_horizon_options(args), progress=not args.quiet
-            )
-            how = f"{args.storage}, k {result.k:.3g}"
-            found = f"{result.epochs} epochs"
-            scope = " (whole image)"  # the horizon fit's loss and scores count every pixel
-        else:
-            result = fit_command.fit_technique(
-                height,
-                baked,
-                scene,
-                args.technique,
-                info,
-                args.out,
-                options=_technique_options(args),
-                progress=not args.quiet,
-            )
-            how = ", ".join(f"{t} {s}" for t, s in result.storage.items())
-            found = " then ".join(result.options["steps"])
-            scope = ""  # over the pixels facing the light
+    if horizon:
+        how = f"{args.storage}, k {result.k:.3g}"
+        found = f"{result.epochs} epochs"
+        scope = " (whole image)"  # the horizon fit's loss and scores count every pixel
+    else:
+        how = ", ".join(f"{t} {s}" for t, s in result.storage.items())
+        found = " then ".join(result.options["steps"])
+        scope = ""  # over the pixels facing the light
+    rows, cols = info["rows"], info["cols"]
     print(
         f"fitted {scenes.input_name(args, info)} ({args.technique}, {cols}x{rows}, {how}) in "
         f"{result.seconds['fit']:.1f} s by {found} "

@@ -1,4 +1,4 @@
-"""``hzval materials``: the built-in materials, a line each (:mod:`hzval.materials`)."""
+"""``hzval materials``'s flags (:mod:`hzval.commands.materials`)."""
 
 from __future__ import annotations
 
@@ -16,10 +16,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from hzval import materials
+    from hzval.commands import materials as materials_command
 
-    print(f"{'name':13s} {'depth':>6s}  {'boundary':8s}  what it is")
-    for name in materials.names():
-        m = materials.get(name)
-        print(f"{name:13s} {m.depth:6g}  {m.boundary:8s}  {m.label}: {m.summary}")
+    print(materials_command.table())
     return errors.EXIT_OK

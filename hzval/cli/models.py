@@ -1,5 +1,5 @@
 """``hzval models``: what curvature costs, one material on caps, bowls, a ring and the cube
-(:mod:`hzval.studies.models`)."""
+(:mod:`hzval.commands.models`)."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every case of ``args``'s material; print the table."""
-    from hzval.studies import models as models_study
+    from hzval.commands import models as models_study
 
     scene = scenes.scene_from_args(args, DEFAULTS)
     out = args.out or Path("reports") / f"models-{scene.name}"

@@ -254,16 +254,3 @@ def input_name(args, info: dict) -> str:
     of it (``h.png: 16-bit PNG, grey``), or the built-in material."""
     height = getattr(args, "height", None)
     return f"{height}: {info['source']}" if height else info["source"]
-
-
-def load_material(scene) -> tuple["np.ndarray", dict]:  # noqa: F821
-    """The height map of ``scene``'s material (:func:`hzval.scene.spec.load_material_height`, the one
-    loader) and the record ``bake.json`` and ``fit.json`` keep of it."""
-    from hzval.scene import spec as sc
-
-    hm = sc.load_material_height(scene.material)
-    m = scene.material
-    info = {"path": None, "builtin": m.height, "size": m.size} if builtin(m.height) else {"path": hm.path}
-    rows, cols = hm.height.shape
-    info.update(source=hm.source, digest=hm.digest, rows=rows, cols=cols)
-    return hm.height, info

@@ -10,12 +10,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hzval.bake import maps as bake
+from hzval.io import staging
+from hzval.scene import spec as sc
 from hzval.techniques.fitted import fit as horizon_fit
 from hzval.techniques.fitted import store as fitted_store
 from hzval.techniques.fitted import textures as fitted_textures
+from hzval.techniques.fitted import training as fitted_training
 from hzval.techniques.horizon import Horizon
+from hzval.truth import memory
 
-__all__ = ["HORIZON", "fit_horizon", "fit_technique", "summary"]
+__all__ = ["HORIZON", "fit_horizon", "fit_technique", "run", "summary"]
 
 #: ``--technique``'s name for the horizon map (the registry's ``horizon``).
 HORIZON = Horizon.name
@@ -83,3 +88,48 @@ def summary(mae: dict, scope: str = "") -> str:
     return "; ".join(
         f"{w} |F-V|{scope} {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in mae.items()
     )
+
+
+def run(scene, params, technique: str, out: Path, *, lights, held_out, options: dict, what: str, **kw):
+    """Bake ``scene``'s material with ``params``, fit ``technique``'s textures and write them to ``out``.
+
+    Parameters
+    ----------
+    scene : hzval.scene.spec.Scene
+    params : hzval.bake.maps.BakeParams
+    technique : str
+        :data:`HORIZON`, or a name of :func:`hzval.techniques.fitted.textures.fittable`.
+    out : pathlib.Path
+        The output folder (:func:`hzval.io.staging.output_folder`; ``force`` in ``kw``).
+    lights, held_out : sequence of (elevation, azimuth)
+        The training and the held-out lights, degrees (only their number is used here: the memory
+        check); ``options`` carries them as the user gave them.
+    options : dict
+        :func:`fit_horizon`'s or :func:`fit_technique`'s ``options``.
+    what : str
+        The file or flag an error names.
+    **kw
+        ``force`` and ``progress``.
+
+    Returns
+    -------
+    tuple
+        ``(result, info)``: the fit's result and the material's record.
+    """
+    rows, cols = memory.material_shape(scene)
+    bake.check_fits(what, rows, cols, params)
+    guarded = technique == HORIZON and options.get("guard") is not None
+    renders = len(lights) * (2 if guarded else 1) + len(held_out)
+    fitted_training.check_fits(what, rows, cols, scene.spp, renders, scene)
+    progress = kw.get("progress", True)
+    with staging.output_folder(out, force=kw.get("force", False)):
+        height, info = sc.material_record(scene)
+        baked = bake.bake(height, params)
+        info = {**info, "depth": params.depth, "boundary": params.boundary, "bake": params.record()}
+        if technique == HORIZON:
+            result = fit_horizon(height, baked, scene, info, out, options=options, progress=progress)
+        else:
+            result = fit_technique(
+                height, baked, scene, technique, info, out, options=options, progress=progress
+            )
+    return result, info

@@ -505,8 +505,9 @@ def score(
 
 
 def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
-    """On a model's sweep, which tangent-frame bug the engine's F matches (:mod:`hzval.studies.bug_match`)."""
-    from hzval.studies import bug_match
+    """On a model's sweep, which tangent-frame bug the engine's F matches
+    (:mod:`hzval.pipeline.bug_match`)."""
+    from hzval.pipeline import bug_match
 
     return bug_match.diagnose(metrics, sweep_dir, factors)
 

@@ -57,6 +57,7 @@ from hzval.scene.camera import Camera, stream
 from hzval.scene.lookup import Lookup
 
 __all__ = [
+    "material_record",
     "IRRADIANCE_RANGE",
     "EFFECTS",
     "SHADINGS",
@@ -765,3 +766,19 @@ class Frame:
     variance: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
     mask: np.ndarray | None = None
+
+
+def material_record(scene: Scene) -> tuple[np.ndarray, dict]:
+    """The height map of ``scene``'s material (:func:`load_material_height`, the one loader) and the
+    record ``bake.json`` and ``fit.json`` keep of it: its file (or the built-in's name and size), how
+    it was read, its digest and shape."""
+    hm = load_material_height(scene.material)
+    m = scene.material
+    info = (
+        {"path": None, "builtin": m.height, "size": m.size}
+        if materials.is_builtin(m.height)
+        else {"path": hm.path}
+    )
+    rows, cols = hm.height.shape
+    info.update(source=hm.source, digest=hm.digest, rows=rows, cols=cols)
+    return hm.height, info

@@ -13,7 +13,7 @@ Each case is a model with both handedness signs, seen so that both show:
 
 The truth is traced once per case (it never depends on the bug); the lead technique's ``F`` is
 rendered with every bug of :data:`hzval.geometry.tangent_bugs.BUGS`
-(:func:`hzval.studies.bug_match.bug_factors`:
+(:func:`hzval.pipeline.bug_match.bug_factors`:
 only the techniques' frames change), at the camera's samples (the flat surface, as an engine without
 parallax mapping reads it) and at the truth's own hits (perfect parallax: what the bug does to the
 lookup itself, without the parallax error that hides it on a steep relief). The scene's lights are turned to
@@ -78,7 +78,7 @@ def measure(
     """One case: ``(record, maps)``; ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the
     signature light (module docstring)."""
     from hzval.geometry import model
-    from hzval.studies import bug_match
+    from hzval.pipeline import bug_match
     from hzval.truth.model import ModelTruth
 
     sc = _case_scene(scene, shape, view_azimuth, light_azimuth, uv_scale)

@@ -13,7 +13,7 @@ normal ``n`` sees the light's centre ``L`` at the scene's elevation count:
 What else moves with R, and how it is held fixed:
 
 - *the texture*: the caps' UVs keep one texture per world unit (``world_per_uv = 1``,
-  hzval.studies.models), so depth and the relief in texels are the same;
+  hzval.commands.models), so depth and the relief in texels are the same;
 - *the metric*: no map flattens a sphere; the geodesic polar UVs shrink tangential lengths by
   ``sin(r/R) / (r/R)``. Only texels within :data:`WINDOW` texture widths of the centre count: at
   the smallest radius (0.5) they are compressed by 2.2% at most (``1 - sin(0.36)/0.36``);

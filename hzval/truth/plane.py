@@ -25,7 +25,7 @@ Shading (``[material] shading``)
     the truth's shading *is* the techniques' and every remaining difference
     is the shadows (``tests/truth/test_plane_fidelity.py``). Mitsuba's own renderer
     interpolates vertex normals over each triangle instead
-    (:mod:`hzval.commands.export` writes them to the PLY); the two differ by a few
+    (:mod:`hzval.commands.export_scene` writes them to the PLY); the two differ by a few
     thousandths of white on rough maps. ``faceted``: each triangle's own
     normal, as before (on a photographed map it put 67% of the image error
     into the shading). The geometric normal ``n`` still decides what faces

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from hzval.cli import main as cli
-from hzval.commands import export
+from hzval.commands import export_scene
 from hzval.core import shading
 from hzval.materials.bricks import bricks
 from hzval.scene import spec as S
@@ -36,9 +36,9 @@ CASES = {
 @pytest.mark.parametrize("azimuth", [180.0, 30.0])
 def test_mitsubas_direct_integrator_agrees_with_the_truth(variant, tmp_path, case, azimuth):
     h, sc = CASES[case]()
-    export.write_scene(sc, h, tmp_path, azimuth_deg=azimuth)
+    export_scene.write_scene(sc, h, tmp_path, azimuth_deg=azimuth)
     mine = truth.Truth(sc, h).render(azimuth)
-    theirs = export.mitsuba_render(tmp_path / "scene.xml")
+    theirs = export_scene.mitsuba_render(tmp_path / "scene.xml")
     assert theirs.shape == mine.image.shape
     d = (theirs - mine.image)[..., 0] * shading.exposure(sc)
     assert abs(d.mean()) < 0.002  # no bias beyond the leak
@@ -51,7 +51,7 @@ def test_mitsubas_direct_integrator_agrees_with_the_truth(variant, tmp_path, cas
 
 def test_the_scene_file_names_what_the_truth_traces(variant, tmp_path):
     h, sc = CASES["wall"]()
-    written = export.write_scene(sc, h, tmp_path, azimuth_deg=90.0)
+    written = export_scene.write_scene(sc, h, tmp_path, azimuth_deg=90.0)
     assert sorted(p.name for p in written) == ["mesh.ply", "scene.xml"]
     root = ET.parse(tmp_path / "scene.xml").getroot()
     assert root.find("integrator").get("type") == "direct"
@@ -89,5 +89,5 @@ def test_a_model_exports_its_frames_its_displaced_mesh_and_a_scene_mitsuba_rende
     np.testing.assert_allclose(back.tangents, used.tangents, atol=1e-6)
     np.testing.assert_allclose(back.uvs, used.uvs, atol=1e-6)
     assert (out / "mesh.ply").stat().st_size > 0
-    image = export.mitsuba_render(out / "scene.xml", spp=4)
+    image = export_scene.mitsuba_render(out / "scene.xml", spp=4)
     assert image.shape[2] == 3 and image.max() > 0 and (image == 0).any()  # the sphere, and sky

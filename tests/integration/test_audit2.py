@@ -371,7 +371,7 @@ def test_score_on_a_model_sweep_runs_from_any_folder(tmp_path, monkeypatch, vari
 
 
 def test_a_moved_height_map_is_named(tmp_path, sweep_dir):
-    from hzval.studies import bug_match
+    from hzval.pipeline import bug_match
 
     metrics = json.loads((sweep_dir / "metrics.json").read_text())
     metrics["parameters"]["mesh"] = "sphere"

@@ -15,9 +15,9 @@ STAGES = {
     "sweep": ([], "hzval.pipeline.sweep", "run", 0),
     "tradeoff": ([], "hzval.commands.tradeoff", "check_fits", 0),
     "fit": (["--out", "OUT"], "hzval.techniques.fitted.training", "check_fits", 5),
-    "models": ([], "hzval.studies.models", "run", 0),
+    "models": ([], "hzval.commands.models", "run", 0),
     "views": ([], "hzval.commands.views", "run", 0),
-    "export-scene": (["--out", "OUT"], "hzval.commands.export", "check_fits", 0),
+    "export-scene": (["--out", "OUT"], "hzval.commands.export_scene", "check_fits", 0),
 }
 
 

@@ -139,7 +139,7 @@ def test_a_misspelt_flag_gets_a_did_you_mean(capsys, typed, meant):
 
 
 def test_a_flat_step_of_a_trend_is_no_change_not_minus_zero():
-    from hzval.studies import models
+    from hzval.commands import models
 
     trend = {
         "verdict": "rises within noise",

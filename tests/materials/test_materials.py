@@ -245,12 +245,12 @@ def test_sweep_of_a_built_in_material(variant, tmp_path, capsys):
 
 
 def test_export_writes_a_built_in_materials_albedo(variant, tmp_path):
-    from hzval.commands import export
+    from hzval.commands import export_scene
 
     s = S.override(S.Scene(), height="planks", size=16)
-    written = export.write_scene(s, materials.generate("planks", 16).height, tmp_path)
+    written = export_scene.write_scene(s, materials.generate("planks", 16).height, tmp_path)
     assert tmp_path / "albedo.png" in written
     s2 = dataclasses.replace(s, material=dataclasses.replace(s.material, albedo=0.5))
-    assert tmp_path / "albedo.png" not in export.write_scene(
+    assert tmp_path / "albedo.png" not in export_scene.write_scene(
         s2, materials.generate("planks", 16).height, tmp_path / "b"
     )

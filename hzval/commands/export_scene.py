@@ -219,7 +219,7 @@ def _scene_xml(scene: Scene, sensor: str, azimuth_deg: float, reflectance: str) 
     L = light.direction(azimuth_deg)
     on = "the tile" if scene.mesh.is_plane else f"{scene.mesh.shape}, world units, z up"
     return f"""<?xml version="1.0" encoding="utf-8"?>
-<!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export):
+<!-- hzval's ground truth for one light, as Mitsuba 3 renders it (hzval.commands.export_scene):
      {scene.name} on {on}, depth {scene.material.depth:g}, {scene.material.boundary}, \
 {scene.material.shading} shading,
      light azimuth {azimuth_deg:g}, elevation {light.elevation_deg:g} degrees; tangent space in texels,

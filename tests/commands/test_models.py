@@ -1,4 +1,4 @@
-"""The curvature study's meshes (hzval.studies.models): caps on their sphere, UVs at one texture per
+"""The curvature study's meshes (hzval.commands.models): caps on their sphere, UVs at one texture per
 world unit, a bowl the cap's mirror; ``hzval models`` end to end (slow)."""
 
 import json
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from hzval.commands import models as models_study
 from hzval.geometry import model
-from hzval.studies import models as models_study
 
 
 @pytest.mark.parametrize("radius,sign", [(0.5, 1), (2.0, 1), (1.0, -1), (math.inf, 1)])
