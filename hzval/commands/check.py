@@ -8,70 +8,7 @@ and every technique of the registry that applies to the scene
 ``exact`` and ``gpu`` paths, the others as built), and compares each image
 with its reference::
 
-    reference/<scene>/az<azimuth>/truth.exr        R, G, B, V and var.R, var.G, var.B, var.V
-    reference/<scene>/az<azimuth>/<variant>.exr    R, G, B, F   (horizon, horizon_gpu, terrain, pom, ...)
-
-(linear radiance as rendered; ``V`` the truth's visibility, ``F`` the
-technique's shadow factor, ``var.*`` the variance of each pixel's mean).
-The techniques are deterministic and share the ``technique`` tiers, which a
-scene may set per technique or variant. Values are
-compared after the sweep's exposure (:func:`hzval.core.shading.exposure`), so a
-difference of 1 is the difference between black and a white Lambertian
-surface facing the light.
-
-Two kinds of image, two tests
-    A technique is deterministic: a pixel's score is its largest
-    absolute difference over the channels, and tolerances are tight (what
-    float rounding on another CPU or on a GPU may change, no more).
-
-    The truth is Monte Carlo: a new render with another seed differs from
-    the reference by noise alone, which the check must not mistake for a
-    regression. Each pixel is z-tested: ``z = |new - ref| / sqrt(var_new +
-    var_ref)``, two-sided p-value ``erfc(z / sqrt 2)``, as Mitsuba 3's own
-    render tests do (``src/render/tests/test_renders.py``: a z-test against
-    the reference's variance, with the Sidak correction ``alpha' = 1 - (1 -
-    alpha)^(1/n)`` for ``n`` tests). A per-pixel test at 16 samples cannot
-    see a change that stays within one pixel's noise yet covers many pixels
-    (a patch 20% darker), so the means of 8 x 8 blocks of pixels are tested
-    too (Jung, Hanika and Dachsbacher 2020, "Detecting Bias in Monte Carlo
-    Renderers using Welch's t-test", test pixel regions for the same
-    reason), all ``n`` pixel and block tests under one Sidak correction.
-
-    A pixel whose samples all agree has a sample variance of 0, though its
-    mean is uncertain: the variance of each mean is floored at
-    ``s^2 q (1 - q) / spp`` with ``q = 1 / (spp + 2)`` (Laplace's rule of
-    succession: after ``spp`` agreeing samples of a 0/1 event the other
-    outcome still has a probability of about ``1 / (spp + 2)``), ``s`` the
-    larger of the two values. Stratified sampling makes the estimated
-    variance an upper bound: the test errs toward passing noise.
-
-Tiers, per scene (``[tolerances.truth]``, ``[tolerances.technique]`` for every
-technique, then ``[tolerances.<technique>]`` and ``[tolerances.<variant>]``,
-each overriding the one before; ``[tolerances.approx]``, schema 1's name, is
-read as ``technique``; the defaults are :data:`DEFAULT_TIERS`)
-    ``fail``: when a pixel fails - technique: its difference exceeds ``fail``;
-    truth: its p-value is below the Sidak-corrected level ``fail``.
-    ``fail_percent``: the image fails when more than this percentage of its
-    pixels fail; a failing 8 x 8 block (truth) always fails it.
-    ``hard_fail``: the image fails outright - technique: any pixel differs by
-    more than ``hard_fail``; truth: the image means differ by more than
-    ``hard_fail`` (a bias no per-pixel allowance may hide).
-    ``warn``: a passing image is flagged when more than this percentage of
-    its pixels fail.
-
-``--update`` rewrites only the references that are missing or failing, and records in each file's
-header the backend that rendered it (``hzval_backend``: ``llvm`` or ``cuda``; a reference without it
-was rendered on LLVM, as every shipped one is).
-
-On another backend than its reference's, a technique's image is compared at
-:data:`CROSS_BACKEND_TIERS` (or the scene's, where looser). CUDA's single-precision division and
-square root are approximate and its compiler fuses multiplies and adds: a difference of about 1e-6
-moves a value across a step of the technique (an 8-bit level of the GPU emulation's horizon map,
-bent-cone's cone edge, terrain's ramp), so a few pixels differ by up to a level. Measured on an H200
-against the shipped LLVM references: at most 0.076% of an image's pixels differ by more than 1e-4,
-at most 0.043% by more than 1e-3, the largest by 0.0166 (one 8-bit level of a horizon sine at
-``k = 8``, times the shading); bent-cone's soft light (an arccosine near 1) differs by up to 4.7e-4
-on 5.6% of its pixels.
+The design in full: docs/internals.md, "hzval.commands.check".
 """
 
 from __future__ import annotations

@@ -3,41 +3,7 @@
 :func:`write_scene` writes, for one light of a scene, what
 :class:`hzval.truth.plane.Truth` traces, in Mitsuba's own terms::
 
-    DIR/scene.xml     the scene: integrator, sensor, emitter, shape
-    DIR/mesh.ply      the displaced mesh with its vertex normals (smooth shading) and texture
-                      coordinates, its wrap margin included (hzval.geometry.tile)
-    DIR/albedo.png    the albedo image, when the material has one
-
-so that ``mitsuba DIR/scene.xml`` renders it (``-o out.exr``). On a model (``--mesh``) it writes
-``DIR/base.glb``, the base mesh as hzval used it with its tangent frames (``TANGENT``, glTF's
-conventions: a user diffs them against their engine's), ``DIR/mesh.ply``, the displaced model
-the truth traces, and ``DIR/scene.xml`` seen from the truth's camera. The scene has
-
-``direct``
-    Mitsuba's direct-illumination integrator, one emitter sample per
-    camera sample (``shadow``: shadow rays; without ``shadow`` declared,
-    Mitsuba still tests visibility: there is no way to ask it not to).
-``orthographic``
-    sensor straight down over the tile: ``to_world`` = scale by half the
-    tile (texels) then look from above its centre to it, up = +y, so that
-    image x runs along +x and row 0 is at the top (docs/ARCHITECTURE.md,
-    "Conventions"); a ``box`` pixel filter: each pixel is the mean of its
-    samples, as the truth's is.
-``directional``
-    emitter toward ``-L`` with the light's ``irradiance`` (a ``soft`` light
-    is written as its centre direction: Mitsuba has no distant disk light).
-``diffuse``
-    BSDF with the material's linear albedo (constant), or its sRGB image
-    read as a bitmap with nearest filtering (the truth reads the texel that
-    holds a sample).
-
-What differs from hzval's truth is how shadow rays start: Mitsuba's
-``spawn_ray`` offsets leak light where shadows begin and self-shadow near
-valley edges (:mod:`hzval.truth.plane`, "Self-intersection": 0.15-0.35% of the
-samples in shadow lit on the bricks at 30 degrees), and its rays see the
-wrap margin only, not the endless tiling (exact for lights at or above
-:data:`hzval.geometry.tile.MIN_ELEVATION_DEG`). ``tests/commands/test_export.py`` renders an
-exported scene with Mitsuba and compares it with the truth.
+The design in full: docs/internals.md, "hzval.commands.export_scene".
 """
 
 from __future__ import annotations

@@ -5,41 +5,7 @@ fails the run).
 A condition (:func:`parse`) compares a metric of ``metrics.json`` with a number
 or with another metric::
 
-    horizon.flip_mean>0.1                          every frame: its horizon FLIP
-    pom.visibility_mae>horizon.visibility_mae      every frame: pom's |F-V| against horizon's
-    mean(horizon.flip_mean)>0.05                   the sweep's mean over its frames
-    max(terrain.leak_fraction)>=0.01               the sweep's largest
-    floor.flip_mean>0.02   truth.shadowed_fraction<0.01   truth_s>1
-
-A name is ``TECHNIQUE.METRIC`` (``frames[i].techniques.TECHNIQUE.METRIC``:
-``horizon``, ``terrain``, ``pom``, ``engine`` in ``hzval score``, ...),
-``floor.METRIC`` and ``truth.METRIC`` (``frames[i].floor``, ``frames[i].truth``),
-or a frame's own key (``truth_s``). Without ``mean(...)``/``max(...)`` a
-condition is tested per frame and fails on every frame where it holds,
-naming them; with them, once for the sweep. A frame where a side has no
-value (an infinite PSNR is ``null``) is not tested. Operators: ``>``,
-``>=``, ``<``, ``<=``.
-
-A baseline (:func:`baseline_tests`, :func:`regressions`) is an earlier run of the same settings
-(material digest, scene parameters: :func:`check_same_settings`); each
-technique's settings may differ, which is what a baseline is for. Per
-technique and metric of :data:`DIRECTION` the worsening ``d_i`` of each
-frame (``new - old``; for PSNR ``old - new``) is tested with the noise-aware
-z-test of ``hzval check`` (:func:`hzval.commands.check.p_value`, one-sided here, and
-the Sidak correction :func:`hzval.commands.check.sidak_level` over the run's tests at
-:data:`ALPHA`): ``z = sum d_i / sqrt(sum sigma_i^2)``, ``sigma_i`` the noise
-the truth's Monte Carlo estimate puts on frame ``i``'s difference
-(:func:`_variance`). Two runs of the same seed render the same truth:
-``sigma_i = 0`` and any worsening is the technique's. Runs of different
-seeds: a visibility metric's ``sigma_i`` is each run's standard error
-(:mod:`hzval.metrics.facing`: ``visibility_se``, ``partial_fraction``); an image
-metric's (FLIP, RMSE, ...) has no such formula, and the frames' scatter of ``d``
-cannot stand in for one (a seed moves every frame's samples alike), so the
-test is recorded untested, ``p`` null: compare image metrics at one seed. ``tau``
-(:data:`ABS_TOLERANCE` + :data:`REL_TOLERANCE` of the baseline's mean) is
-the least worsening worth failing a build on, however significant (float
-rounding on another machine): a test fails when ``p < alpha'`` and
-``mean(d) > tau``. Timings are not tested (another machine, another load).
+The design in full: docs/internals.md, "hzval.commands.gates".
 """
 
 from __future__ import annotations

@@ -14,31 +14,7 @@ RMSE, PSNR, CIEDE2000), beside that frame's perfect-shadows floor, and
 ``flip_mean``, ``rmse``, ``psnr_db``, ``delta_e2000_mean``) and a report
 in which the external images are a technique beside the truth.
 
-The truth is the sweep's ``truth.exr``, which holds it in half float
-(2^-11 relative; the sweep scored its techniques in float32 before writing
-it). So a sweep's own EXR images, themselves half, scored here come within
-2e-5 of the sweep's FLIP and RMSE and 1e-4 of its CIEDE2000 (measured at
-most 6e-6 FLIP, 1.3e-6 RMSE and 1.4e-5 CIEDE2000 at 48 x 48 texels, 8e-7
-FLIP at 256 x 256), a thousandth of what its 8-bit PNG previews'
-quantisation adds (2e-3 to 4e-3 FLIP, 0.07 CIEDE2000);
-``tests/commands/test_score.py`` holds it to that.
-
-A real comparison (:func:`score`): the engine (``engine`` in
-``metrics.json``, the report's lead) sits beside every technique the sweep
-scored, whose metrics, parameters and images are the sweep's own, with every
-metric the sweep has. Its shadow factor ``F`` per light (``f_az+0.exr``, one
-channel, or a grey 8/16-bit ``f_az+0.png``, values in [0, 1] as they are)
-gives ``|F - V|``, leaks and false shadows against the sweep's ``V``, over
-the whole image and over the pixels that face the light (:mod:`hzval.metrics.facing`,
-from the sweep's ``bake/normal.exr``). Its parameters are only what
-``FRAMES_DIR/engine.toml`` says (:func:`read_sidecar`): ``[engine]`` ``label``
-and ``summary``, ``[parameters]`` any values; none otherwise. A frame off the
-truth's brightness as a whole (pi, gamma 2.2, sRGB twice) gets one warning
-naming the likely cause (:mod:`hzval.metrics.brightness`).
-
-Bad input is one line naming the file: a folder that is not a sweep's, a
-missing frame, a wrong size, a non-finite value, an unreadable image, an F
-for some lights only, a sidecar key that is not known.
+The design in full: docs/internals.md, "hzval.commands.score".
 """
 
 from __future__ import annotations

@@ -11,35 +11,7 @@ sidecar are materials too (``hzval suite scenes/`` runs the shipped scenes).
 unchanged: a material's ``DIR/<name>/`` has the very scores ``hzval sweep``
 gives it with the same settings) and, once all are in, writes the overview::
 
-    DIR/index.html      thumbnails (the truth and each technique at three lights) and a sortable
-                        table of each material's mean errors and times, worst first
-    DIR/suite.json      the same numbers (docs/ARCHITECTURE.md, "suite.json")
-    DIR/thumbs/         the thumbnails
-    DIR/<name>/         each material's sweep report
-
-Where the sweeps run (:func:`run`, ``workers`` and ``cluster``)
-    A pool of worker processes on this machine, a Dask ``LocalCluster``, by
-    default (:func:`default_workers`: one per core, as memory allows): a
-    material that crashes its process (a segfault, the kernel's OOM killer)
-    is one failed row. ``workers=0``: in this process, one material after
-    another, nothing between a crash and the others. With
-    ``cluster``: the Dask scheduler at that address (``tcp://host:8786``),
-    whose workers must have hzval installed and see ``DIR`` and the inputs
-    at the same paths (a shared filesystem; a task checks and fails with a
-    line that says so; start them with ``--nthreads 1`` and the setting
-    ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null``,
-    as :func:`_run_dask` gives its local cluster). One task per
-    material, ``retries=0``; a task that raises, or whose worker dies, is one
-    failed material on the overview, never the end of the others (a worker's
-    death is retried on another unless the scheduler has
-    ``distributed.scheduler.allowed-failures: 0``, as the local one has). A task that never
-    returns is told apart (:func:`_classify`): a material whose report completed anyway is ok, one
-    that no worker started is "not run", one whose worker died or whose scheduler was lost while
-    it ran is failed. A local cluster listens on 127.0.0.1 only and serves no dashboard.
-
-    Dask distributed was chosen over Ray after measuring both
-    (``benchmarks/bench_suite_engines.py``; benchmarks/README.md has the figures). Each local
-    worker's Dr.Jit runs ``cores / workers`` threads; the scores are the same in every case.
+The design in full: docs/internals.md, "hzval.commands.suite".
 """
 
 from __future__ import annotations

@@ -4,58 +4,7 @@
 (:mod:`hzval.truth.plane` at ``truth_spp`` samples per pixel), then measures every
 setting of :func:`settings` against it, each with
 
-``time_s``
-    what the setting costs in time: for a bake setting (``kind = "bake"``)
-    the bake (normal and horizon maps, in process, kernels warm, best of
-    two; in the kernel form :func:`hzval.bake.horizon.kernel_for` chooses, which
-    for a large radius is the looped one, fast to compile and slower to
-    run: ``params["kernel"]``); for a technique setting
-    (``"technique"``) a frame's render, mean over the sweep,
-    best of three sweeps (a bake setting's frame time is
-    ``params["frame_s"]``); for a truth setting (``"truth"``) a frame of the
-    truth at that many shadow rays, mean over the sweep.
-``storage_bytes``
-    the texture memory the setting needs at run time: the horizon map
-    (channels x texels x 1 byte for 8-bit storage, 4 for float; 8 channels,
-    or 16 for the "16 directions" bake settings), plus the
-    weight cube map (6 faces x 16 x 16 texels x 2 RGBA layers, 8-bit) where
-    it is sampled; each technique's own
-    (:meth:`hzval.techniques.registry.Technique.storage_bytes`: the 16-bit height map
-    for the terrain technique and the ray march); the displaced mesh (a float32 vertex and two triangles of
-    uint32 indices
-    per texel, margin excluded) for the truth.
-``visibility_mae_facing``
-    the headline: mean over the sweep of the mean ``|F - V|`` against the converged truth's
-    visibility ``V`` (for truth settings: ``|V_n - V|``) over the pixels that face the light
-    (:mod:`hzval.metrics.facing`), as ``hzval sweep`` measures it; ``None`` for a view other than
-    ``top``, which has no facing mask. The front and the recommendation read it (else the whole
-    image's).
-``visibility_mae``
-    the same over the whole image.
-``flip_mean``
-    mean over the sweep of the mean FLIP error of the image against the
-    converged truth's image (display values, :func:`hzval.metrics.compare.flip`).
-
-Technique settings come from the registry
-(:meth:`hzval.techniques.registry.Technique.tradeoff_variants`), every technique's
-own (``"technique"``: the horizon map's storage, weights and k, pom at 4 to
-64 steps, ...), each point's ``params`` naming its technique and setting
-(``technique``, ``steps``, ``storage``, ...). Bake settings vary the horizon
-bake and are rendered with the first technique that reads it
-(:func:`baked_technique`).
-
-and marks the Pareto front (no other setting of the same kind is at least
-as good in time, storage and visibility error and better in one) within each
-kind, since a bake's seconds and a frame's milliseconds do not trade against
-each other. Every setting but the one it varies is the default
-(:class:`hzval.bake.maps.BakeParams`, ``k = 8``, float storage, analytic
-weights); the techniques sample each pixel at the scene's ``spp``
-positions, the converged truth at ``truth_spp`` others.
-
-A technique may fit a setting to the converged truth
-(:meth:`hzval.techniques.registry.Technique.fit`): the horizon map fits ``k``, the k
-whose ramp ``F = clamp(k (Lz - s) + 1, 0, 1)`` best matches the truth's
-penumbrae.
+The design in full: docs/internals.md, "hzval.commands.tradeoff".
 """
 
 from __future__ import annotations

@@ -6,43 +6,7 @@ The truth (:mod:`hzval.truth.plane`), every technique (:mod:`hzval.techniques.su
 sides of a comparison cannot drift apart: whatever differs between them is
 the surface, never the shading (docs/ARCHITECTURE.md, "Shading").
 
-Units: radiance is linear; ``E`` is the light's irradiance on a surface
-facing it (:attr:`hzval.scene.spec.Light.irradiance`); a Lambertian surface of
-albedo ``a`` lit at angle ``theta`` shows ``a / pi * E * cos(theta)``.
-
-Terms, per sample (``n`` the shading normal, ``L`` toward the light, ``v``
-toward the viewer, all unit vectors in tangent space):
-
-``diffuse``
-    ``albedo / pi * E * max(0, n.L)`` (Lambert; FGED2 ch. 7).
-``specular``
-    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]`` with ``h = normalize(L + v)``
-    (Blinn-Phong with FGED2's ``float(nl > 0.0)`` gate), ``KS`` =
-    :data:`SPECULAR_KS`, ``ALPHA`` = :data:`SPECULAR_EXPONENT`.
-``direct``
-    ``D`` = diffuse + specular, whichever are declared; ``E`` (grey) when
-    neither is: a scene of shadows alone shows ``E`` times the visibility.
-``ambient``
-    ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE``: a uniform sky over
-    the upper hemisphere seen through the unoccluded cosine-weighted
-    fraction ``A``.
-
-A frame's image is ``D * S + ambient``, ``S`` the shadow term (the truth's
-visibility ``V`` or a technique's factor ``F``).
-
-Soft light
-    A disk of angular radius ``rho`` is sampled uniformly in solid angle
-    (:func:`hzval.scene.spec.light_samples`), one direction per sample. Over the
-    cone the mean of ``cos`` of the angle to its axis is ``(1 + cos rho) /
-    2`` (``int cos dw = pi sin^2 rho`` over ``Omega = 2 pi (1 - cos rho)``),
-    so a surface facing the disk's centre receives ``E`` when each direction
-    carries :func:`disk_sample_irradiance` ``= 2 E / (1 + cos rho)``; a
-    technique, which sees the centre direction alone, uses ``E``.
-Exposure
-    :func:`exposure` maps the largest radiance the declared effects can
-    produce (:func:`max_radiance`: a white surface facing the light, specular
-    peak and unoccluded sky included) to display value 1, so that nothing a
-    display metric sees is clipped.
+The design in full: docs/internals.md, "hzval.core.shading".
 """
 
 from __future__ import annotations

@@ -69,8 +69,8 @@ MIN_ELEVATION_DEG = 10.0
 #: The truth's wrap margin (``capped``) is at most :data:`MIN_MARGIN_CAP` texels, or this many tile
 #: widths if more: a deep relief would otherwise ask for a margin of ``relief / tan(10 deg)`` (depth 5
 #: on 512 texels: 14,500 texels a side, a mesh of 30,000 x 30,000 vertices). Rays that need more than
-#: the margin hop (:mod:`hzval.truth.plane`, "Boundaries"), each hop as far as the mesh reaches from where
-#: it starts (the tile's width from most points), so the cap costs a second hop to the rays that
+#: the margin hop (docs/internals.md, the truth's "Boundaries"), each hop as far as the mesh reaches
+#: from where it starts (the tile's width from most points), so the cap costs a second hop to the rays that
 #: leave near the tile's edge, not accuracy; a margin for the whole shadow was a fifth of the mesh
 #: (the 2048 bricks at 30 degrees: 165 texels, 36.7M triangles against 28.9M with 32).
 MAX_MARGIN_TILES = 0.0
@@ -138,7 +138,7 @@ def grid(
 def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -> np.ndarray:
     """``(V, 3)`` float32: the normal map's normals (:func:`hzval.core.conventions.normal_map`) interpolated
     bilinearly between texel centres at each vertex's ``(x, y)`` and normalised, as the truth's
-    ``smooth`` shading reads them (:mod:`hzval.truth.plane`, "Shading"): a texel centre takes its texel's
+    ``smooth`` shading reads them (docs/internals.md, the truth's "Shading"): a texel centre takes its texel's
     normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
     clamped)."""
     from hzval.core.conventions import normal_map

@@ -7,39 +7,7 @@ toward azimuth ``360 k / D`` counterclockwise, +y up the image,
 docs/ARCHITECTURE.md "Conventions"), which the ``horizon`` technique then
 shades with in place of hzval's own bake (``hzval sweep --horizon-map``).
 
-Encoding (the declared one, from options or a TOML file of these keys)
-    ``channels``    8 or 16, in order through the layers' R, G, B, A;
-    ``azimuth0``    degrees: the azimuth of channel 0, in the baker's own frame;
-    ``direction``   ``"ccw"`` or ``"cw"``: which way channel numbers turn;
-    ``y``           ``"up"`` (hzval's) or ``"down"``: the baker's +y on screen.
-                    With +y down every azimuth of the baker's frame is the
-                    mirror image of hzval's: ``phi = -phi_baker``;
-    ``values``      what a channel holds of the horizon's elevation angle
-                    ``a``: ``sine`` (hzval's), ``cosine`` (``cos a``),
-                    ``angle`` (``a / 90 degrees``), ``tangent`` (``tan a``)
-                    or ``sqrt`` (the signed square root of ``sin a``, as
-                    radial-Fourier and map-bumper horizon maps store it).
-
-Channel ``j`` of the baker points, in hzval's frame, to
-``phi_j = s_y (azimuth0 + s_d 360 j / D)`` (``s_y = -1`` for ``y = down``,
-``s_d = -1`` for ``cw``); hzval's channel ``k`` is interpolated linearly
-around the ring between the two baker channels either side of ``360 k /
-D`` (exactly one of them when ``azimuth0`` is a multiple of ``360 / D``).
-
-Detection (:func:`detect`)
-    The external map is decoded under every candidate convention - the
-    ``2 D`` rotations and reflections of the channel ring (``D`` choices of
-    channel 0 times two directions of turning; a ``y = down`` baker is a
-    reflection too, and the candidates name it so), times the five value
-    encodings - and each decoding is compared with hzval's own exact bake
-    of the same height map (:func:`hzval.bake.maps.bake`, ``method = "exact"``):
-    the mean ``|s - s_exact|`` over texels and channels. The best match is
-    the convention the map was most likely baked in: a map baked at another
-    radius than the exact bake's unlimited one still matches its own
-    convention best, because a wrong convention moves every shadow to
-    another azimuth. The declared convention stands unless another fits
-    clearly better (:data:`CLEARLY_BETTER`), ring first, then values; when
-    one does, one line says what looks wrong.
+The design in full: docs/internals.md, "hzval.io.external".
 """
 
 from __future__ import annotations

@@ -1,51 +1,6 @@
 """The sweep: the truth and every technique for every light of a scene, compared.
 
-For a scene (:mod:`hzval.scene.spec`), :func:`run` bakes the material (or reuses
-the bake in ``out/bake`` when input digest and parameters match), builds the
-ground truth (:mod:`hzval.truth.plane`), the unshadowed shading
-(:class:`hzval.techniques.surface.Unshadowed`, the report's "normal mapping only") and
-every selected technique (:mod:`hzval.techniques.registry`: by default each one that
-applies to the declared effects) once, then renders each light of the sweep
-with all of them. Each technique's frame is compared with the same truth
-(:mod:`hzval.metrics.compare`) and its images are written under ``out/frames``;
-``metrics.json`` and the HTML report (:mod:`hzval.report.pages`) close the run.
-Nothing here names a technique: each one's settings, scores and files are
-under its name in ``metrics.json`` (``techniques.NAME``,
-``frames[i].techniques.NAME``), and the bake holds only what the chosen
-techniques read (:func:`hzval.techniques.registry.bake_needs`).
-
-Output folder::
-
-    index.html, metrics.json, plots/      the report
-    bake/                                 the bake (cache)
-    frames/az<azimuth>/                   per light: truth.exr, truth_variance.exr, visibility.exr
-                                          (V), truth.png, plain.png; per technique
-                                          <stem>_factor.exr (F), <stem>.png, <stem>_flip.png,
-                                          <stem>_visdiff.png; previews/ (PNGs above 2048 px, at
-                                          most 1024 px); with --all-files also plain.exr,
-                                          <stem>.exr, visibility.png, <stem>_factor.png
-
-Frame files (:class:`writing.FrameWriter`): EXRs in half float, ZIP (2^-11 relative,
-below the previews' 8-bit quantisation; the metrics are computed before, in
-float32); an image whose R, G and B are equal (every one of a grey material
-under a white light) as one ``Y`` channel and a grey PNG, losslessly
-(:func:`hzval.io.codecs.read_rgb_exr` reads R, G, B or Y); FLIP and
-visibility-difference maps as palette PNGs, pixel for pixel the RGB ones.
-
-Speed: the truth's display values, Lab and FLIP half are computed once per
-frame for every comparison (:class:`hzval.metrics.compare.Reference`); the
-unshadowed render once per frame for every technique that shades with it;
-previews reuse the comparison's display values; PNG previews are compressed
-at zlib level 1 (:data:`PNG_LEVEL`). None of this changes a value.
-
-Memory: a sweep's peak is estimated before anything is allocated
-(:func:`estimate_peak_bytes`, :func:`check_fits`); past 2^27 samples the
-truth renders in bands (:mod:`hzval.truth.plane`, "Memory") and Dr.Jit's freed
-buffers are handed back every frame; a frame keeps only the 8-bit previews
-and FLIP maps of its comparisons until they are written. A sweep whose
-estimate is at most half of the memory available keeps the memory it frees
-for its next allocations until it ends (:data:`RETAIN_BELOW_SHARE`,
-:func:`hzval.core.backend.retain_freed_memory`).
+The design in full: docs/internals.md, "hzval.pipeline.sweep".
 """
 
 from __future__ import annotations

@@ -99,7 +99,7 @@ EFFECTS: tuple[str, ...] = (
     "reflection_occlusion",
     "interreflection",
 )
-#: How the truth shades the displaced mesh (:mod:`hzval.truth.plane`, "Shading"): with
+#: How the truth shades the displaced mesh (docs/internals.md, the truth's "Shading"): with
 #: the normal interpolated from vertex normals, as a displaced mesh is shaded
 #: and as the techniques' normal map is, or with each triangle's flat normal.
 SHADINGS: tuple[str, ...] = ("smooth", "faceted")

@@ -8,50 +8,7 @@ contact shadows march the depth buffer the same way). It needs only the
 height map, like the terrain technique, but it is evaluated per pixel and
 per light with no per-light precomputation, so its cost is its step count.
 
-Per sample (tangent space in texel units, :mod:`hzval.core.conventions`; heights
-``h`` in texels; light at azimuth ``phi``, elevation ``e``):
-
-March
-    From the shaded point ``p`` at height ``h0 = H(p)`` the ray rises
-    ``tan(e)`` per texel toward ``d = (cos phi, sin phi)``. It leaves the
-    height range at ``t_max = (h_max - h0) / tan(e)`` texels, so ``N`` linear
-    steps sample ``t_i = i t_max / N``, ``i = 1..N``, at ray height ``z_i =
-    h0 + t_i tan(e)`` against the height map ``H_i = H(p + t_i d)``
-    (bilinear between texel centres; ``wrap`` repeats, ``open`` has nothing
-    beyond the tile's border, as the truth's open mesh).
-Hard (``variant="hard"``)
-    ``F = 0`` if any ``H_i > z_i`` (by more than a few float32 ulps,
-    :data:`EPSILON_PER_HEIGHT`), else 1: the point sees the light unless a
-    sample lies above the ray. A blocker narrower than a step can be
-    stepped over (light leaks), which more steps cure; the shadow's far edge
-    is found to within one step, ``t_max / N``.
-Soft (``variant="soft"``; Tatarchuk's approximate soft shadows)
-    ``F = clamp(1 - w max(0, max_i (H_i - z_i) / t_i), 0, 1)``: ``(H_i - z_i)
-    / t_i`` is the tangent of how far the sample rises above the ray, seen
-    from the point, so the shadow darkens as a blocker rises into the light
-    and grows softer with the blocker's distance, as a penumbra does. The
-    softness ``w`` (:data:`DEFAULT_SOFTNESS` for a hard light; for a disk
-    light of angular radius ``rho``, ``1 / tan(rho)``: dark once the blocker
-    covers the disk's upper half) is the technique's only constant. As in
-    Tatarchuk's form, a blocker just below the ray does not lighten or darken
-    anything: the penumbra lies inside the geometric shadow.
-
-Lights at or above the zenith light everything, at or below the horizon
-nothing (as :mod:`hzval.techniques.surface`). The shading is the other techniques':
-:class:`hzval.techniques.surface.Unshadowed` times the pixel mean of ``F``
-(:func:`hzval.core.shading.compose`).
-
-Skipping
-    Steps that cannot block are passed over: where a sample's ray height is at least the largest
-    height within a few texels (:data:`SKIP_RADIUS`, a one-level maximum mipmap), the samples
-    within that reach along the ray are not read. ``F`` is bit for bit the full march's
-    (:class:`SkipTable` says why).
-
-Dr.Jit: one kernel for every step count, light and material (the step count,
-the light's direction, ``tan(e)``, ``h_max`` and ``w`` are opaque), one per
-variant; a per-pixel loop over the pixel's samples, each marching in a
-symbolic loop, so that no per-sample value goes through memory.
-``benchmarks/bench_pom.py`` measures its frame time against the steps.
+The design in full: docs/internals.md, "hzval.techniques.pom".
 """
 
 from __future__ import annotations

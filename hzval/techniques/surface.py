@@ -5,58 +5,7 @@ shade the flat plane ``z = 0`` from the bake's textures alone, as a real-time
 renderer would, and compute only the effects that the scene declares
 (docs/ARCHITECTURE.md, "Effects"). This module owns that shading:
 
-- :class:`FlatShading`, the kernel: the scene's sample positions as texture
-  coordinates, one packed texture of the channels the declared effects read
-  (normal, albedo, ambient), filtered as the scene's lookup says
-  (:class:`hzval.scene.lookup.Filtered`), and the per-pixel loop over samples. A
-  technique that shades in the same kernel (the horizon map,
-  :mod:`hzval.techniques.horizon`) subclasses it and adds its own texture planes,
-  uniforms and terms through the hooks :meth:`FlatShading._extra_planes`,
-  :meth:`FlatShading._extra_uniforms`, :meth:`FlatShading._shadowed` and
-  :meth:`FlatShading._extra_layers`.
-- :class:`Unshadowed`, that shading without any technique's shadow (the
-  report's "normal mapping only"), split into its direct and ambient parts,
-  as a per-pixel factor needs it.
-- :class:`HeightFieldShadow`, the base of the techniques that read the height
-  map and multiply the unshadowed shading by a per-pixel factor (terrain,
-  pom).
-
-Conventions (:mod:`hzval.core.conventions`): tangent space in texel units, +x
-right, +y up the image, +z out of the surface; ``L`` toward the light
-(:func:`hzval.core.conventions.light_direction`); the view ``v`` toward the
-camera: ``+z`` for the ``top`` view, an orthographic camera's direction
-otherwise. Every texture is filtered bilinearly between texel centres
-(texel ``(row, col)`` at ``x = col + 0.5``, ``y = rows - row - 0.5``;
-``wrap`` repeats, ``open`` clamps to the edge), in float32 arithmetic
-(``use_accel=False``) on every backend: CUDA's texture units resolve the
-position within a texel to 1/256, which would make the two backends disagree.
-Radiance is linear; the light's ``irradiance`` ``E`` is the irradiance on a
-surface facing it.
-
-Per sample, the terms of :mod:`hzval.core.shading`:
-
-``diffuse``
-    ``albedo / pi * E * max(0, n.L)``, ``n`` the normal map's (renormalised)
-    normal (FGED2 ch. 7, Lambert).
-``specular``
-    ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]``, ``h = normalize(L + v)``
-    (FGED2 ch. 7, Blinn-Phong with its ``float(nl > 0.0)`` gate).
-``ambient``
-    ``+ albedo * A * E / pi``: a uniform sky of radiance ``E / pi`` seen
-    through the ambient map ``A`` (``mean_cos2``, the exact cosine-weighted
-    unoccluded fraction, or ``mean_cos``, Lengyel's term).
-
-The image is ``D * F + ambient``, ``D`` the sum of the declared direct terms,
-or ``E`` (grey) when neither ``diffuse`` nor ``specular`` is declared, and
-``F`` a technique's shadow factor (1 here). Every direct term is gated by
-``[Lz > 0]``: the flat surface cannot be lit from below its tangent plane.
-
-Speed: textures and sample positions are uploaded once, in the constructor;
-what changes per frame (``L``) and the per-object constants enter kernels as
-opaque Dr.Jit arrays, so that a new light reuses the compiled kernels
-(docs/ARCHITECTURE.md, "Known pitfalls"). A frame is a one-lane kernel for
-its uniforms and the shading kernel, one lane per pixel, looping over the
-pixel's samples, so that no per-sample value goes through memory.
+The design in full: docs/internals.md, "hzval.techniques.surface".
 """
 
 from __future__ import annotations

@@ -7,44 +7,7 @@ every point has its own: the interpolated vertex normal ``n`` and tangent
 (:mod:`hzval.geometry.tangents`). This module builds what both sides of a model's
 sweep read:
 
-The truth
-    The base mesh cut in UV space along the texel grid and displaced along
-    its interpolated normals by ``H(uv) * depth * world_per_uv``, welded
-    across UV seams (:mod:`hzval.geometry.cells`, :mod:`hzval.geometry.displace`), in a
-    ``mi.Scene`` with nothing else in it. Camera rays (:func:`model_view`) are
-    traced once; each hit keeps its point, the displaced triangle's normal
-    ``n_g``, and the base mesh's ``uv``, point, normal and tangent there,
-    interpolated over the displaced triangle with its barycentric coordinates
-    (the displaced mesh's vertices carry their base values). Shading as on the
-    plane (:mod:`hzval.core.shading`): the shading normal is the normal map at
-    ``uv`` carried into the world by the frame, the very normal the techniques
-    shade with, so lit pixels of the truth equal the unshadowed shading at the
-    same point. ``V`` = 1 where the ray toward ``L`` escapes the displaced
-    mesh; 0 where ``n_g.L <= 0`` or ``n.L <= 0`` (the base surface's own
-    horizon, as the plane's ``L.z <= 0``). Rays start at the hit lifted along
-    ``n`` by :data:`hzval.truth.common.LIFT_TEXELS` texels (the displaced surface is
-    a height field over the base surface along ``n``). ``reflection_occlusion``
-    is the plane's ``R`` (:meth:`hzval.truth.plane.Truth._trace_reflection`, its
-    functions :func:`hzval.truth.common.lobe_sample` and
-    :func:`hzval.truth.common.reflection_estimate`) per camera-ray hit: the glossy
-    lobe about the shading normal, seen from the sample's own ``v`` (toward
-    the camera: per pixel in perspective), its directions traced against the
-    displaced model, blocked where ``n_g.wo <= 0`` or ``n.wo <= 0``; once,
-    as it does not depend on the light.
-The techniques' samples (:meth:`ModelTruth.samples`)
-    Where the camera's rays meet the techniques' own surface, the base mesh
-    at the lookup's plane (``mean``: offset along its welded normals by the
-    relief's mean), as an engine shades; or at the truth's hits (perfect
-    parallax, a second set of scores as for a view on the plane). Each sample
-    has its texel position, its frame and its direction toward the camera,
-    and ``macro(L)``, the base mesh's own visibility of the light (a shadow
-    ray against that undisplaced surface, which stands in for an engine's
-    shadow map), which every technique's factor is multiplied by: the score
-    is then the technique's, not the macro shadow's.
-
-Pixels: a pixel is seen when every one of its samples hits both meshes; the
-others (the background, the silhouette's partly covered pixels) are left out
-of every score (``Frame.mask``).
+The design in full: docs/internals.md, "hzval.truth.model".
 """
 
 from __future__ import annotations

@@ -35,12 +35,13 @@ MIN_TRACED_ELEVATION_DEG = 0.25
 class CameraRays:
     """The truth's camera rays (a part of :class:`hzval.truth.plane.Truth`): where each sample of the
     view meets the displaced mesh, kept between frames or traced again band by band
-    (:mod:`hzval.truth.plane`, "Memory"), with the albedo and shading normal there."""
+    (docs/internals.md, the truth's "Memory"), with the albedo and shading normal there."""
 
     def _trace_camera_rays(self) -> None:
         """Where every sample's camera ray meets the surface, once, and what does not depend on the
         light (``A``, ``R``). One band keeps its samples (:class:`samples.Samples`) for every frame; with
-        more (:mod:`hzval.truth.plane`, "Memory") only ``A`` is kept, per band, and the reflection layer."""
+        more (docs/internals.md, the truth's "Memory") only ``A`` is kept, per band, and the reflection
+        layer."""
         t0 = time.perf_counter()
         self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
         self.seen, self.hits = None, None

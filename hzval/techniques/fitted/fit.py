@@ -6,63 +6,7 @@ representation's floor (what eight directions, linear interpolation between
 them and one ``k`` ramp can do), and ``baked - fitted`` is what the bake
 loses. :func:`fit` finds it.
 
-Training data
-    The truth's visibility ``V`` (:class:`hzval.truth.plane.Truth`, the ``top``
-    view, the scene's samples) for each training light: by default hard
-    lights at elevations 10, 20, 40 and 60 degrees and azimuths 0 to 345 by
-    15 (:data:`TRAINING_LIGHTS`); a soft light's ``V`` is an average of hard
-    ones. None is at the default sweep's elevation, 30 degrees, so a sweep
-    scores the fit on lights it did not see. :data:`HELD_OUT_LIGHTS` (25
-    degrees, azimuths -52.5 to 52.5 by 15) are scored, never trained on.
-    The training lights are rendered at :func:`training_spp` samples a pixel
-    (a budget of :data:`TRAINING_SAMPLES` a light), the held-out ones at the
-    scene's; one truth set-up serves every elevation (:func:`visibility`).
-
-The forward model
-    The horizon technique's own kernel (:class:`hzval.techniques.horizon.Horizon`):
-    its texture (:class:`hzval.scene.lookup.Filtered`, bilinear, the bake's wrap or
-    clamp), its per-light channel weights (``_uniforms``) and its factor
-    (:func:`hzval.techniques.horizon.shadow_factor`), at the sweep's own sample
-    positions, averaged per pixel as the sweep's ``factor`` layer is. Only
-    the texture's tensor is replaced by the differentiable parameters.
-
-The loss
-    ``mean sqrt((F - V)^2 + eps^2) - eps`` (Charbonnier, a smoothed L1,
-    ``eps =`` :data:`CHARBONNIER_EPS`), over pixels and lights. It is
-    ``|F - V|`` to within ``eps`` where it matters, and differentiable where
-    ``F = V``: most pixels are fully lit or fully shadowed and exactly
-    right, where ``|.|`` has no gradient to speak of and an L2 would weigh
-    the few large errors most. The clamp of eq. 5.4 has zero gradient where
-    ``F`` is saturated, so a texel that is wrongly saturated (F = 0 where
-    the truth is lit) would never move: the factor's clamp is
-    straight-through (its gradient is the unclamped ramp's); where it is
-    saturated and right, the Charbonnier term's gradient is 0 anyway.
-
-Optimisation
-    Adam (:class:`mitsuba.ad.Adam`, Kingma and Ba 2015) on the ``rows x cols x
-    8`` sines, clipped to the stored range [0, 1] after every step, from the
-    baked map; with ``fit_k`` also on ``log k`` (clipped to [0, log 128]).
-    Lights are taken in shuffled batches of :data:`BATCH_LIGHTS` (one Adam
-    step each); an *epoch* is a pass over every light. When an epoch improves
-    the loss by less than ``tolerance`` (relative), the learning rate is
-    halved; the fit has converged at the :data:`HALVINGS`-th such plateau (or
-    stops after ``max_epochs``). A pull toward the baked map, ``prior * mean
-    |p - p_baked|`` (:data:`PRIOR`), keeps the sines that the training lights
-    leave free where the bake put them. Each light's loss is weighted by
-    ``1 + lambda``, its multiplier raised after each epoch by its relative
-    excess over the baked map's loss (:func:`hzval.techniques.fitted.model.reweight`, :data:`CONSTRAIN`):
-    dual ascent on "no training light worse than the bake". With ``guard``,
-    :func:`hzval.techniques.fitted.guard.guard` gives the bake back to the texels that
-    still do worse nearby on some training light.
-
-Storage
-    ``float``: the sines as they are. ``u8`` and the block formats
-    (:mod:`hzval.io.storage`): quantisation-aware, the forward model samples the
-    stored map (``Storage.roundtrip`` of the parameters, recomputed every
-    step) and the gradient passes straight through the rounding (Bengio et
-    al. 2013's straight-through estimator), so the optimiser moves the
-    parameters to the stored values that score best. The result holds what
-    the GPU samples: the stored map, decoded.
+The design in full: docs/internals.md, "hzval.techniques.fitted.fit".
 """
 
 from __future__ import annotations
