@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from hzval.cli import flags
+from hzval.metrics.results import SweepResult
 
 
 def add_parser(sub) -> None:
@@ -40,7 +41,7 @@ def run(args) -> int:
     gates = flags.gates(args)
     result, maps = score.score(args.frames, args.against, strict=args.strict)
     if gates:  # the engine and the sweep's techniques, before the report is written
-        gates.check_before(result.get("techniques") or {})
+        gates.check_before(SweepResult.of(result).techniques)
     out = args.out or args.frames / "score"
     command = flags.command_line(args)
     index = score.write(result, maps, out, command=command, force=args.force, gates=gates)

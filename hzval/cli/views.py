@@ -7,6 +7,7 @@ from pathlib import Path
 
 from hzval.cli import flags, scenes
 from hzval.core import errors
+from hzval.metrics.results import techniques_of
 
 #: The command's own scene defaults (:func:`hzval.cli.scenes.scene_from_args`).
 DEFAULTS = {"size": 128, "azimuths": "-60:60:30", "spp": 4}
@@ -62,7 +63,7 @@ def run(args) -> int:
         command=command,
         force=args.force,
     )
-    names = sorted({n for r in data["rows"] for n in r["techniques"]})
+    names = sorted({n for r in data["rows"] for n in techniques_of(r)})
     print(
         f"{'view':10} {'lookup':14} {'footprint':>9} {'parallax':>9}  " + "  ".join(f"{n:>9}" for n in names)
     )

@@ -32,6 +32,7 @@ from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import codecs, documents, ktx2, staging, storage
+from hzval.metrics.results import SweepResult
 from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
@@ -92,13 +93,13 @@ def plan(run_dir: Path) -> dict:
             run_dir, "holds no bake: give the folder hzval sweep (with its bake/), bake or fit wrote"
         )
     metrics = documents.read_json(run_dir / "metrics.json")
-    techniques = metrics.get("techniques") if isinstance(metrics, dict) else None
-    if not isinstance(techniques, dict):
+    techniques = SweepResult.of(metrics).techniques
+    if not techniques:
         raise InputError(run_dir / "metrics.json", "not a sweep's metrics.json (no techniques)")
     textures: list[str] = []
     store: dict[str, str] = {}
     for name, info in techniques.items():
-        params = (info.get("parameters") if isinstance(info, dict) else None) or {}
+        params = info.parameters
         reads = technique.get(name).bake_needs(sc.Scene()) if name in technique.REGISTRY else frozenset()
         textures += [t for t in TEXTURES if t in reads and t not in textures]
         given = params.get("storage")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from hzval.core.errors import InputError
 from hzval.io import documents
+from hzval.metrics.results import FrameRecord, SweepResult, malformed_techniques
 
 __all__ = [
     "Operand",
@@ -238,9 +240,8 @@ def check_shape(data, file) -> dict:
         for key in ("techniques", "truth", "floor"):
             if f.get(key) is not None and not isinstance(f[key], dict):
                 bad(f"frames[{i}].{key}", "an object")
-        for name, per in (f.get("techniques") or {}).items():
-            if not isinstance(per, dict):
-                bad(f"frames[{i}].techniques.{name}", "an object")
+        for name in malformed_techniques(f):
+            bad(f"frames[{i}].techniques.{name}", "an object")
     return data
 
 
@@ -249,8 +250,8 @@ def _table(frame: dict, path: str) -> tuple[dict | None, str]:
     head, _, key = path.partition(".")
     if not key:
         return frame, head
-    table = frame.get(head) if head in ("floor", "truth") else (frame.get("techniques") or {}).get(head)
-    return (table if isinstance(table, dict) else None), key
+    table = frame.get(head) if head in ("floor", "truth") else FrameRecord(frame).scores(head)
+    return (table if isinstance(table, Mapping) else None), key
 
 
 def _lookup(frame: dict, path: str):
@@ -264,7 +265,7 @@ def _known(frames: list[dict]) -> list[str]:
         names |= {k for k, v in f.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
         for head in ("floor", "truth"):
             names |= {f"{head}.{k}" for k, v in (f.get(head) or {}).items() if not isinstance(v, dict)}
-        for t, per in (f.get("techniques") or {}).items():
+        for t, per in FrameRecord(f).techniques.items():
             names |= {f"{t}.{k}" for k, v in per.items() if not isinstance(v, (dict, str))}
     return sorted(names)
 
@@ -412,7 +413,8 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
 
     fn, fo = _frames_by_light(new), _frames_by_light(old)
     shared = [az for az in fn if az in fo]
-    names = [n for n in (new.get("techniques") or {}) if n in (old.get("techniques") or {})]
+    known = SweepResult.of(old).techniques
+    names = [n for n in SweepResult.of(new).techniques if n in known]
     same, pixels = _same_truth(new, old), _pixels(new)
     tests = []
     for name in names:

@@ -44,6 +44,7 @@ import numpy as np
 
 from hzval.core import interrupts
 from hzval.io import atomic, codecs, documents, staging
+from hzval.metrics.results import SweepResult, techniques_of
 
 __all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
@@ -145,7 +146,7 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
         "rows": rows,
     }
     _add_bands(data, bands)
-    data["bugs"] = _bug_signatures(scene, out, result["techniques"], progress)
+    data["bugs"] = _bug_signatures(scene, out, SweepResult.of(result).names, progress)
     return data
 
 
@@ -166,8 +167,9 @@ def _mean(values) -> float | None:
 def _row(name: str, curvature, result: dict) -> dict:
     """One case's means over its lights."""
     techniques = {}
-    for t in result["techniques"]:
-        per = [f["techniques"][t] for f in result["frames"]]
+    run = SweepResult.of(result)
+    for t in run.techniques:
+        per = [f.techniques[t] for f in run.frames]
         techniques[t] = {
             k: _mean([p.get(k) for p in per])
             for k in (
@@ -194,7 +196,7 @@ def _write_page(out: Path, data: dict) -> None:
     from hzval.studies import bug_signatures
 
     rows = data["rows"]
-    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    names = list(dict.fromkeys(t for r in rows for t in techniques_of(r)))
     _plot(out / "plots" / "models.png", rows, names)
     keys = ("visibility_mae", "leak_fraction", "false_shadow_fraction", "perfect_parallax_mae")
     context = {
@@ -206,7 +208,7 @@ def _write_page(out: Path, data: dict) -> None:
                 "case": r["case"],
                 "report": r["report"],
                 "curvature": "-" if r["curvature"] is None else f"{r['curvature']:+.3g}",
-                "cells": [_f4(r["techniques"].get(n, {}).get(k)) for n in names for k in keys],
+                "cells": [_f4(techniques_of(r).get(n, {}).get(k)) for n in names for k in keys],
             }
             for r in rows
         ],
@@ -233,9 +235,9 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
     series = {
         n: [
-            (r["curvature"], r["techniques"][n]["reflection_mae"])
+            (r["curvature"], techniques_of(r)[n]["reflection_mae"])
             for r in pts
-            if r["techniques"].get(n, {}).get("reflection_mae") is not None
+            if techniques_of(r).get(n, {}).get("reflection_mae") is not None
         ]
         for n in names
     }
@@ -263,7 +265,7 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
         "rows": [
             {
                 "case": r["case"],
-                "cells": [_f4(r["techniques"].get(n, {}).get("reflection_mae")) for n in series],
+                "cells": [_f4(techniques_of(r).get(n, {}).get("reflection_mae")) for n in series],
             }
             for r in rows
         ],
@@ -279,16 +281,16 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
     for n in names:
         err = [
-            (r["curvature"], r["techniques"][n]["visibility_mae"])
+            (r["curvature"], techniques_of(r)[n]["visibility_mae"])
             for r in pts
-            if r["techniques"].get(n, {}).get("visibility_mae") is not None
+            if techniques_of(r).get(n, {}).get("visibility_mae") is not None
         ]
         if err:
             ax.plot(*zip(*err), marker="o", label=n)
         fl = [
-            (r["curvature"], r["techniques"][n]["perfect_parallax_mae"])
+            (r["curvature"], techniques_of(r)[n]["perfect_parallax_mae"])
             for r in pts
-            if r["techniques"].get(n, {}).get("perfect_parallax_mae") is not None
+            if techniques_of(r).get(n, {}).get("perfect_parallax_mae") is not None
         ]
         if fl:
             ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
@@ -332,7 +334,7 @@ def _add_bands(data: dict, bands: dict) -> None:
     convex = [
         r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")
     ]
-    names = list(dict.fromkeys(t for r in convex for t in r["band"]["techniques"]))
+    names = list(dict.fromkeys(t for r in convex for t in techniques_of(r["band"])))
     data["band"] = {
         "half_deg": cb.BAND_DEG,
         "window": cb.WINDOW,
@@ -341,13 +343,13 @@ def _add_bands(data: dict, bands: dict) -> None:
     }
     data["trend"] = {}
     for n in names:
-        have = [r for r in convex if n in r["band"]["techniques"]]
-        mae = [(r["curvature"], r["band"]["techniques"][n]["per_frame"]) for r in have]
+        have = [r for r in convex if n in techniques_of(r["band"])]
+        mae = [(r["curvature"], techniques_of(r["band"])[n]["per_frame"]) for r in have]
         exc = [
             (
                 r["curvature"],
-                r["band"]["techniques"][n].get("per_frame_excess")
-                or [0.0] * len(r["band"]["techniques"][n]["per_frame"]),
+                techniques_of(r["band"])[n].get("per_frame_excess")
+                or [0.0] * len(techniques_of(r["band"])[n]["per_frame"]),
             )
             for r in have
         ]
@@ -418,7 +420,7 @@ def _by_azimuth(row: dict, azimuths) -> list[dict]:
                 "normal_curvature": kx * c * c + ky * s * s,
                 "excess": {
                     n: (t.get("per_frame_excess") or [None] * (i + 1))[i]
-                    for n, t in row["band"]["techniques"].items()
+                    for n, t in techniques_of(row["band"]).items()
                 },
             }
         )
@@ -444,7 +446,7 @@ def _band_context(out: Path, data: dict) -> dict | None:
     if not rows:
         return None
     b = data["band"]
-    names = list(dict.fromkeys(t for r in rows for t in r["band"]["techniques"]))
+    names = list(dict.fromkeys(t for r in rows for t in techniques_of(r["band"])))
     _band_plot(out / "plots" / "band.png", rows, names)
     return {
         "half_deg": f"{b['half_deg']:g}",
@@ -464,7 +466,7 @@ def _band_context(out: Path, data: dict) -> dict | None:
 def _band_row(r: dict, names: list[str]) -> dict:
     cells = []
     for n in names:
-        t = r["band"]["techniques"].get(n, {})
+        t = techniques_of(r["band"]).get(n, {})
         seam = t.get("seam")
         cells += [_pm(t.get(k), signed=k == "excess") for k in ("mae", "flat", "excess", "floor")]
         cells.append(
@@ -526,9 +528,9 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
     for n in names:
         have = [
-            (r["curvature"], r["band"]["techniques"][n].get("excess"))
+            (r["curvature"], techniques_of(r["band"])[n].get("excess"))
             for r in pts
-            if n in r["band"]["techniques"]
+            if n in techniques_of(r["band"])
         ]
         have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
         if have:
@@ -557,9 +559,9 @@ def summary_table(data: dict) -> str:
         return f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"
 
     rows = data["rows"]
-    names = list(dict.fromkeys(t for r in rows for t in r["techniques"]))
+    names = list(dict.fromkeys(t for r in rows for t in techniques_of(r)))
     refl = [
-        n for n in names if any(r["techniques"].get(n, {}).get("reflection_mae") is not None for r in rows)
+        n for n in names if any(techniques_of(r).get(n, {}).get("reflection_mae") is not None for r in rows)
     ]
     lines = [
         f"{'case':10} {'1/R':>7}  "
@@ -568,7 +570,7 @@ def summary_table(data: dict) -> str:
     ]
     for r in rows:
         k = f"{'-':>7}" if r["curvature"] is None else f"{r['curvature']:+7.3f}"  # the ring, the cube
-        t = r["techniques"]
+        t = techniques_of(r)
         vals = "  ".join(
             f"{num(t[n]['visibility_mae'], 9)} {num(t[n]['perfect_parallax_mae'])}" for n in names if n in t
         )

@@ -30,6 +30,7 @@ from hzval.core import errors, srgb
 from hzval.core.errors import InputError
 from hzval.io import codecs, documents, paths, staging
 from hzval.metrics import compare
+from hzval.metrics.results import raw_techniques
 from hzval.report import images
 from hzval.report import pages as report
 from hzval.scene.spec import Frame
@@ -185,8 +186,8 @@ def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
     (:func:`hzval.io.paths.inside`), before anything is read or copied."""
     where = sweep_dir / "metrics.json"
     tables = [(f"{key}.files", frame["files"])]
-    techniques = frame.get("techniques") or {}
-    if not isinstance(techniques, dict):
+    techniques = raw_techniques(frame)
+    if techniques is None:
         raise InputError(where, f"not a sweep's metrics.json: {key}.techniques must be an object")
     for name, per in techniques.items():
         if not isinstance(per, dict) or not isinstance(per.get("files") or {}, dict):
@@ -455,7 +456,7 @@ def score(
             "parameters_from": sidecar["path"],
             "simulated": list((metrics.get("parameters") or {}).get("effects", [])),
         },
-        **{k: v for k, v in (metrics.get("techniques") or {}).items() if k != NAME},
+        **{k: v for k, v in (raw_techniques(metrics) or {}).items() if k != NAME},
     }
     result = {
         "material": metrics.get("material", {}),
@@ -521,9 +522,7 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
     per = {
         NAME: own,
         **{
-            k: {kk: vv for kk, vv in v.items()}
-            for k, v in (swept.get("techniques") or {}).items()
-            if k != NAME
+            k: {kk: vv for kk, vv in v.items()} for k, v in (raw_techniques(swept) or {}).items() if k != NAME
         },
     }
     frame = {
@@ -560,7 +559,7 @@ def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float
     is the sampling (or the shading). ``{engine, sweep, technique}``; ``None`` where the sweep kept no
     such files."""
     files_ = swept.get("files") or {}
-    techniques = swept.get("techniques") or {}
+    techniques = raw_techniques(swept) or {}
     lead = next((n for n, t in techniques.items() if (t.get("files") or {}).get("png")), None)
     if not files_.get("plain_png") or not files_.get("visibility") or lead is None:
         return None
@@ -666,10 +665,11 @@ def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Pa
             codecs.write_png(
                 stage / own["visdiff_png"], images.visibility_diff_image(image_maps["V"], image_maps["F"])
             )
-        frame["techniques"][NAME]["files"] = own
-        for tname, per in frame["techniques"].items():
+        scored = raw_techniques(frame) or {}
+        scored[NAME]["files"] = own
+        for tname, per in scored.items():
             if tname != NAME:
-                theirs = (swept_frame.get("techniques") or {}).get(tname, {}).get("files") or {}
+                theirs = (raw_techniques(swept_frame) or {}).get(tname, {}).get("files") or {}
                 per["files"] = {
                     k: d
                     for k in ("png", "flip_png", "visdiff_png")

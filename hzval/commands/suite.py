@@ -36,6 +36,7 @@ from hzval.commands import gates as gates_module
 from hzval.core import backend, errors, interrupts, resources
 from hzval.core.errors import InputError
 from hzval.io import documents, heightmap, paths, staging
+from hzval.metrics.results import FrameRecord, SweepResult
 from hzval.pipeline import sweep
 from hzval.report import overview as overview_page
 from hzval.report import ranking
@@ -340,14 +341,16 @@ def summarise(entry: Entry, metrics: dict) -> dict:
     mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
     FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
     frames = metrics["frames"]
+    run = SweepResult.of(metrics)
+    scores = [f.techniques for f in run.frames]
     table = ranking.by_elevation(metrics)
     # |F - V| as the sweep's report and its ranking measure it: over the pixels facing the light, where
     # the sweep has them (ranking.visibility_of reads it, else the whole image's visibility_mae)
     techniques = {
-        name: {key: _mean(f["techniques"][name].get(key) for f in frames) for key in MEANS}
-        | _facing_mean([f["techniques"][name] for f in frames])
+        name: {key: _mean(per[name].get(key) for per in scores) for key in MEANS}
+        | _facing_mean([per[name] for per in scores])
         | {"worse_at": ranking.worse_than_none(table, name)}
-        for name in metrics["techniques"]
+        for name in run.techniques
     }
     m, p = metrics["material"], metrics["parameters"]
     return {
@@ -374,11 +377,11 @@ def summarise(entry: Entry, metrics: dict) -> dict:
         "seconds": metrics["timings"]["total_s"],
         "peak_rss_bytes": metrics["memory"]["peak_rss_bytes"],
         "variant": metrics["versions"].get("variant"),  # the Mitsuba variant its worker ran
-        "files": _thumbnail_sources(frames, metrics["techniques"]),
+        "files": _thumbnail_sources(run.frames, run.names),
     }
 
 
-def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
+def _thumbnail_sources(frames: list[FrameRecord], techniques: list[str]) -> dict:
     """``{light: {"truth": png, <technique>: png}}`` (``light``: ``+15°``, and its elevation in a sweep
     over several; relative to the material's folder) for the
     sweep's first, middle and last lights."""
@@ -392,7 +395,7 @@ def _thumbnail_sources(frames: list[dict], techniques: dict) -> dict:
             label += f" (elevation {f['elevation_deg']:g}°)"
         out[label] = {
             "truth": f["files"]["truth_png"],
-            **{name: f["techniques"][name]["files"]["png"] for name in techniques},
+            **{name: f.techniques[name].files["png"] for name in techniques},
         }
     return out
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hzval.metrics.results import SweepResult
 from hzval.pipeline import records
 from hzval.pipeline import sweep as pipeline_sweep
 from hzval.techniques import registry as technique
@@ -43,7 +44,7 @@ def run_line(result: dict, out: Path) -> str:
     """The line under the table: frames, the run's total time (the report's own) and where it went,
     the peak memory, and where the report is."""
     t = result["timings"]
-    stems = {info["file_stem"] for info in result["techniques"].values()}
+    stems = {info["file_stem"] for info in SweepResult.of(result).techniques.values()}
     setup = t.get("plain_setup_s", 0.0) + sum(t.get(f"{s}_setup_s", 0.0) for s in stems)
     parts = [
         f"bake {t['bake_s']:.2f} s{', cached' if t['bake_cached'] else ''}",

@@ -34,6 +34,7 @@ import numpy as np
 from hzval.core import interrupts
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
+from hzval.metrics.results import SweepResult, techniques_of
 from hzval.scene import camera, lookup
 
 __all__ = ["VIEWS", "LOOKUPS", "run", "headline"]
@@ -139,10 +140,10 @@ def _pick(names, table: dict, flag: str) -> list[str]:
 
 def _row(view: str, kind: str, result: dict, report: Path) -> dict:
     """One sweep's means (module docstring)."""
-    frames = result["frames"]
+    run = SweepResult.of(result)
     techniques = {}
-    for name in result["techniques"]:
-        per = [f["techniques"][name] for f in frames]
+    for name in run.techniques:
+        per = [f.techniques[name] for f in run.frames]
         techniques[name] = {
             k: _mean([p.get(k) for p in per])
             for k in ("visibility_mae", "visibility_mae_facing", "perfect_parallax_mae", "flip_mean")
@@ -202,7 +203,7 @@ def _write_page(out: Path, data: dict) -> None:
 def _technique_names(rows: list[dict]) -> list[str]:
     names: list[str] = []
     for r in rows:
-        names += [n for n in r["techniques"] if n not in names]
+        names += [n for n in techniques_of(r) if n not in names]
     return names
 
 
@@ -220,17 +221,17 @@ def _plot(path: Path, rows: list[dict]) -> None:
         for k in kinds:
             pts = [r for r in rows if r["lookup"] == k or r["view"] == "top"]
             ortho = sorted(
-                (r["camera"]["elevation_deg"], headline(r["techniques"][name]))
+                (r["camera"]["elevation_deg"], headline(techniques_of(r)[name]))
                 for r in pts
                 if r["camera"]["kind"] != "perspective"
-                and headline(r["techniques"].get(name, {})) is not None
+                and headline(techniques_of(r).get(name) or {}) is not None
             )
             if ortho:
                 axes[i][0].plot(*zip(*ortho), marker="o", label=k)
             foot = sorted(
-                (r["footprint_texels"]["p50"], headline(r["techniques"][name]))
+                (r["footprint_texels"]["p50"], headline(techniques_of(r)[name]))
                 for r in pts
-                if headline(r["techniques"].get(name, {})) is not None
+                if headline(techniques_of(r).get(name) or {}) is not None
                 and r["footprint_texels"].get("p50") is not None
             )
             if foot:

@@ -21,6 +21,7 @@ import numpy as np
 
 from hzval.core.errors import InputError
 from hzval.geometry import tangent_bugs
+from hzval.metrics.results import SweepResult
 
 __all__ = ["MARGIN", "scene_of", "bug_factors", "diagnose"]
 
@@ -106,7 +107,7 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
     from hzval.truth.model import ModelTruth
 
     scene = scene_of(metrics, sweep_dir)
-    lead = metrics["parameters"]["techniques"][0]
+    lead = SweepResult.of(metrics).chosen[0]
     hm = S.load_material_height(scene.material)
     if hm.digest != metrics["material"].get("digest", hm.digest):
         raise InputError(

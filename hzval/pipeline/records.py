@@ -10,6 +10,7 @@ from pathlib import Path
 
 from hzval.io import staging
 from hzval.metrics import compare
+from hzval.metrics.results import SweepResult
 from hzval.scene import lookup
 
 __all__ = [
@@ -219,10 +220,10 @@ def summary_table(result: dict) -> str:
     ``metrics.json`` hold every frame."""
     from hzval.report import ranking
 
-    frames = [f for f in result.get("frames") or [] if isinstance(f, dict)]
-    names = list(result.get("techniques") or {})
-    facing = any("visibility_mae_facing" in t for f in frames for t in (f.get("techniques") or {}).values())
-    hits = any("perfect_parallax_mae" in t for f in frames for t in (f.get("techniques") or {}).values())
+    run = SweepResult.of(result)
+    frames, names = run.frames, run.names
+    facing = any("visibility_mae_facing" in t for f in frames for t in f.techniques.values())
+    hits = any("perfect_parallax_mae" in t for f in frames for t in f.techniques.values())
 
     def vis(t: dict, key: str):
         return t.get(f"{key}_facing", t.get(key)) if facing else t.get(key)
@@ -241,10 +242,8 @@ def summary_table(result: dict) -> str:
     head += ("PSNR dB", "ms/frame")
     rows = []
     for n in [*names, ranking.NONE]:
-        recs = [
-            f.get("no_shadows") if n == ranking.NONE else (f.get("techniques") or {}).get(n) for f in frames
-        ]
-        recs = [r for r in recs if isinstance(r, dict)]
+        found = [f.no_shadows if n == ranking.NONE else f.scores(n) for f in frames]
+        recs = [r for r in found if r is not None]
         if not recs:
             continue
         psnr = [r.get("psnr_db") for r in recs]
@@ -317,17 +316,14 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     """:func:`summary_table`'s lines under the table."""
     from hzval.report import ranking
 
-    frames = [f for f in result.get("frames") or [] if isinstance(f, dict)]
+    run = SweepResult.of(result)
+    frames = run.frames
     notes = []
     if result.get("mesh"):
         notes.append("F = M: no technique's shadows, the base mesh's own shadow M alone (every F holds it)")
     worst = []
-    for n in result.get("techniques") or {}:
-        scored = [
-            (ranking.visibility_of(t), frame_name(f))
-            for f in frames
-            if isinstance(t := (f.get("techniques") or {}).get(n), dict)
-        ]
+    for n in run.techniques:
+        scored = [(ranking.visibility_of(t), frame_name(f)) for f in frames if (t := f.scores(n)) is not None]
         scored = [(v, name) for v, name in scored if isinstance(v, (int, float)) and math.isfinite(v)]
         if len(scored) > 1:
             v, name = max(scored)
@@ -336,7 +332,7 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
         notes.append("worst frame by |F-V|: " + ", ".join(worst))
     table = ranking.by_elevation(result)
     several = len(table.get(ranking.NONE, [])) > 1
-    harm = [(n, ranking.worse_than_none(table, n)) for n in result.get("techniques") or {}]
+    harm = [(n, ranking.worse_than_none(table, n)) for n in run.techniques]
     harm = [(n, at) for n, at in harm if at]
     if harm:
         notes.append(
@@ -351,12 +347,9 @@ def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     if floor:
         notes.append(floor)
     notes += _floor_notes(result, several)
-    for n, t in (result.get("techniques") or {}).items():
+    for n, t in run.techniques.items():
         parts = [p["key"] for p in t.get("split_parts") or []]
-        sums = {
-            k: [((f.get("techniques") or {}).get(n) or {}).get("split", {}).get(k) for f in frames]
-            for k in parts
-        }
+        sums = {k: [(f.scores(n) or {}).get("split", {}).get(k) for f in frames] for k in parts}
         sums = {k: [v for v in vs if isinstance(v, (int, float))] for k, vs in sums.items()}
         if parts and any(sums.values()):
             notes.append(

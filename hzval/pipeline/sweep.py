@@ -20,6 +20,7 @@ from hzval.core import backend, interrupts, resources, shading
 from hzval.core.errors import InputError
 from hzval.io import documents, staging
 from hzval.metrics import facing as hzfacing
+from hzval.metrics.results import FrameRecord
 from hzval.pipeline import records, renders, writing
 from hzval.report import pages as report
 from hzval.scene import camera, lookup
@@ -404,7 +405,7 @@ def _run(
         bar.close()
     timings = {**setup.timings, "truth_s": sum(f["truth_s"] for f in frames), **clock}
     for t in setup.techniques:
-        timings[f"{t.file_stem}_s"] = sum(f["techniques"][t.name]["seconds"] for f in frames)
+        timings[f"{t.file_stem}_s"] = sum(FrameRecord(f).techniques[t.name]["seconds"] for f in frames)
     result = _result(scene, options, setup, timings, frames, out)
     if gates:
         gates.apply(result)  # a baseline of other settings raises here: nothing is swapped in

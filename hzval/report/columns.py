@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
+from hzval.metrics.results import FrameRecord, SweepResult
+
 __all__ = [
     "TRUTH_COLOUR",
     "TECHNIQUE_COLOURS",
@@ -355,17 +357,11 @@ def technique_colour(name: str, place: int) -> str:
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
     """The techniques of a sweep's ``metrics`` (``techniques``), in their order; the first leads."""
-    info = metrics.get("techniques")
-    info = info if isinstance(info, dict) else {}
+    result = SweepResult.of(metrics)
     views = []
-    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
-    for i, (name, t) in enumerate(info.items()):
-        t = t if isinstance(t, dict) else {}
-        parallax = any(
-            isinstance((f.get("techniques") or {}).get(name), dict)
-            and "perfect_parallax_mae" in f["techniques"][name]
-            for f in frames
-        )
+    frames = result.frames
+    for i, (name, t) in enumerate(result.techniques.items()):
+        parallax = any("perfect_parallax_mae" in (f.scores(name) or {}) for f in frames)
         views.append(
             TechniqueView(
                 str(name),
@@ -383,7 +379,7 @@ def flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
     """Frames with every technique's metrics lifted to ``<name>_<key>`` and its seconds to ``<name>_s``."""
     out = []
     for f in frames:
-        per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
+        per = FrameRecord(f).techniques
         g = dict(f)
         if isinstance(f.get("floor"), dict):
             g.update({f"floor_{k}": val for k, val in f["floor"].items()})
@@ -391,7 +387,7 @@ def flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
             g.update({f"truth_{k}": val for k, val in f["truth"].items()})
         for v in views:
             m = per.get(v.name)
-            if isinstance(m, dict):
+            if m is not None:
                 g.update({f"{v.name}_{k}": val for k, val in m.items() if k not in ("files", "seconds")})
                 # the report's visibility columns: over the pixels that face the light, where measured
                 for whole, facing in FACING.items():
@@ -473,7 +469,7 @@ PANELS: tuple[tuple[str, str, str], ...] = (
     ("flip_png", "FLIP error", ""),
     ("visdiff_png", "visibility difference", "F against V"),
 )
-#: A technique's images after the lead's (keys of ``frames[i]["techniques"][name]["files"]``).
+#: A technique's images after the lead's (keys of ``frames[i].techniques.NAME.files``).
 TECHNIQUE_PANELS: tuple[tuple[str, str, str], ...] = (
     ("png", "", "Dr.Jit"),
     ("flip_png", "FLIP error", ""),
@@ -484,7 +480,7 @@ RAW_FILES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("EXR", (("truth", "truth"), ("plain", "plain"), ("visibility", "V"), ("truth_variance", "variance"))),
     ("PNG", (("visibility_png", "V"),)),
 )
-#: A technique's raw files (keys of ``frames[i]["techniques"][name]["files"]``).
+#: A technique's raw files (keys of ``frames[i].techniques.NAME.files``).
 TECHNIQUE_RAW_FILES: tuple[tuple[str, str], ...] = (
     ("image", "image"),
     ("factor", "F"),

@@ -10,6 +10,7 @@ import numpy as np
 
 from hzval.core import backend
 from hzval.io import atomic, codecs, documents, staging
+from hzval.metrics.results import SuiteResult, techniques_of
 from hzval.report import pages as report
 from hzval.report import ranking
 from hzval.techniques import registry as technique
@@ -24,7 +25,7 @@ def sort_key(row: dict) -> tuple:
     """Worst first: failed materials, then the first technique's mean |F - V|."""
     if row["status"] != "ok":
         return (0, 0.0, row["name"])
-    tech = next(iter(row["techniques"].values()), {})
+    tech = next(iter(techniques_of(row).values()), {})
     v = ranking.visibility_of(tech)
     return (1, -(v if v is not None else -1.0), row["name"])
 
@@ -50,7 +51,7 @@ def write_overview(
             row["thumbs"] = _thumbnails(out, row)
     names = []
     for row in rows:
-        names += [n for n in row.get("techniques", {}) if n not in names]
+        names += [n for n in techniques_of(row) if n not in names]
     techniques = {
         n: {"label": technique.get(n).label, "summary": technique.get(n).summary}
         for n in names
@@ -128,17 +129,19 @@ def summary_table(result: dict) -> str:
     width = max([len("technique"), *(len(r["label"]) for r in ranked)])
     lines = [f"{'technique':{width}s}   |F-V|    FLIP  worse than no shadows on"]
     lines += [f"{r['label']:{width}s}  {r['vis']:>6s}  {r['flip']:>6s}  {r['worse']}" for r in ranked]
-    names = list(result["techniques"])
+    suite = SuiteResult.of(result)
+    names = suite.names
     lead = names[0] if names else None
     lines += ["", f"{'material':20s}  {'lead':>20s}   |F-V|    FLIP  {'best':>20s}   |F-V|  sweep s"]
-    for r in result["materials"]:
+    for r in suite.materials:
         if r["status"] != "ok":
             lines.append(f"{r['name'][:20]:20s}  failed: {r['error']}")
             continue
-        scores = {n: ranking.visibility_of(r["techniques"].get(n, {})) for n in names}
+        per = r.techniques
+        scores = {n: ranking.visibility_of(per.get(n) or {}) for n in names}
         scored = [(v, n) for n, v in scores.items() if v is not None]
         best_v, best = min(scored) if scored else (None, "-")
-        t = r["techniques"].get(lead, {})
+        t = per.get(lead) or {}
         lines.append(
             f"{r['name'][:20]:20s}  {(lead or '-')[:20]:>20s}  {_fixed(ranking.visibility_of(t)):>6s}  "
             f"{_fixed(t.get('flip_mean')):>6s}  {best[:20]:>20s}  {_fixed(best_v):>6s}  {r['seconds']:7.1f}"

@@ -30,6 +30,7 @@ from urllib.parse import quote
 
 from hzval.io import atomic, codecs, staging
 from hzval.metrics import compare
+from hzval.metrics.results import FrameRecord, SuiteResult, SweepResult, techniques_of
 from hzval.report import columns, images, plots, ranking
 from hzval.techniques import registry as technique
 
@@ -231,7 +232,7 @@ def _parameters(p: dict) -> list[dict]:
 
 def _technique_parameters(metrics: dict, views: list[columns.TechniqueView]) -> list[dict]:
     """Each technique's own settings (``techniques[name].parameters``), for the parameters card."""
-    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    info = SweepResult.of(metrics).techniques
     out = []
     for v in views:
         params = (info.get(v.name) or {}).get("parameters") or {}
@@ -369,9 +370,8 @@ def _shown_metrics(frames: list[dict], views: list[columns.TechniqueView]) -> tu
 
 def _technique_files(f: dict, v: columns.TechniqueView) -> dict:
     """A technique's files in a frame (``frames[i].techniques[name].files``)."""
-    per = f.get("techniques") if isinstance(f.get("techniques"), dict) else {}
-    own = (per.get(v.name) or {}).get("files") if isinstance(per.get(v.name), dict) else None
-    return own if isinstance(own, dict) else {}
+    own = FrameRecord(f).scores(v.name)
+    return own.files if own is not None else {}
 
 
 def _frame_view(
@@ -493,12 +493,8 @@ def _worst_frame(
 
 def _visibility_scope(metrics: dict) -> str | None:
     """What the report's visibility columns are measured over (:data:`columns.FACING`), in words."""
-    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
-    facing = any(
-        isinstance(t, dict) and "visibility_mae_facing" in t
-        for f in frames
-        for t in (f.get("techniques") or {}).values()
-    )
+    frames = SweepResult.of(metrics).frames
+    facing = any("visibility_mae_facing" in t for f in frames for t in f.techniques.values())
     if not facing:
         return None
     away = [columns.num((f.get("truth") or {}).get("attached_fraction")) for f in frames]
@@ -717,15 +713,16 @@ def _suite_row(r: dict, names: list[str]) -> dict:
     if r["status"] != "ok":
         return row
     cells = []
+    per = techniques_of(r)
     for n in names:
-        t = r["techniques"].get(n, {})
+        t = per.get(n) or {}
         cells += [
             _cell_of(ranking.visibility_of(t), columns.fixed(4)),
             _cell_of(t.get("flip_mean"), columns.fixed(4)),
             _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], columns.fixed(0)),
         ]
     kinds = [{"name": "truth", "label": "truth"}] + [
-        {"name": n, "label": technique.get(n).label.split(" (")[0]} for n in names if n in r["techniques"]
+        {"name": n, "label": technique.get(n).label.split(" (")[0]} for n in names if n in per
     ]
     row.update(
         size=f"{r['cols']} × {r['rows']}",
@@ -748,11 +745,13 @@ def suite_ranking(result: dict) -> list[dict]:
     """The suite's first table: each technique's means over the materials that ran, best first, and on
     how many of them it is worse than no shadows at some light elevation (no shadows last, the
     baseline)."""
-    ok = [r for r in result["materials"] if r.get("status") == "ok"]
+    suite = SuiteResult.of(result)
+    info = suite.techniques
+    ok = [r for r in suite.materials if r.get("status") == "ok"]
     rows = []
-    for n in [*result["techniques"], ranking.NONE]:
-        recs = [r.get("no_shadows") if n == ranking.NONE else r["techniques"].get(n) for r in ok]
-        recs = [t for t in recs if isinstance(t, dict)]
+    for n in [*info, ranking.NONE]:
+        found = [r.no_shadows if n == ranking.NONE else r.techniques.get(n) for r in ok]
+        recs = [t for t in found if t is not None]
         if not recs:
             continue
         vis = [ranking.visibility_of(t) for t in recs]
@@ -761,7 +760,7 @@ def suite_ranking(result: dict) -> list[dict]:
         worse = sum(bool(t.get("worse_at")) for t in recs)
         rows.append(
             {
-                "label": "no shadows (F = 1)" if n == ranking.NONE else result["techniques"][n]["label"],
+                "label": "no shadows (F = 1)" if n == ranking.NONE else info[n]["label"],
                 "vis": sum(vis) / len(vis) if vis else None,
                 "flip": sum(flip) / len(flip) if flip else None,
                 "worse": "" if n == ranking.NONE else f"{worse} of {len(recs)}",
@@ -776,7 +775,8 @@ def suite_ranking(result: dict) -> list[dict]:
 
 def render_suite(result: dict) -> str:
     """The suite's ``index.html`` for :func:`hzval.report.overview.write_overview`'s ``result``."""
-    names = list(result["techniques"])
+    info = SuiteResult.of(result).techniques
+    names = list(info)
     s = result["suite"]
     context = {
         "count": s["materials"],
@@ -788,7 +788,7 @@ def render_suite(result: dict) -> str:
         "seconds": columns.fmt_seconds(s["seconds"]),
         "versions": s.get("versions") or {},
         "command": s["command"],
-        "techniques": [{"name": n, **result["techniques"][n]} for n in names],
+        "techniques": [{"name": n, **info[n]} for n in names],
         "rows": [_suite_row(r, names) for r in result["materials"]],
         "ranking": suite_ranking(result),
         "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hzval.io import codecs
+from hzval.metrics.results import FrameRecord, SweepResult
 from hzval.report import columns
 
 __all__ = [
@@ -395,20 +396,19 @@ class SplitView:
 
 
 def _split_of(f: dict, name: str) -> dict | None:
-    """``frames[i].techniques[name].split``, or ``None``."""
-    per = f.get("techniques")
-    m = per.get(name) if isinstance(per, dict) else None
-    s = m.get("split") if isinstance(m, dict) else None
+    """``frames[i].techniques.NAME.split``, or ``None``."""
+    m = FrameRecord(f).scores(name)
+    s = m.get("split") if m is not None else None
     return s if isinstance(s, dict) else None
 
 
 def split_views(metrics: dict, views: list[columns.TechniqueView]) -> list[SplitView]:
     """The techniques that declare ``split_parts`` and split at least one frame, in their order."""
-    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
-    frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
+    result = SweepResult.of(metrics)
+    info, frames = result.techniques, result.frames
     out = []
     for v in views:
-        t = info.get(v.name) if isinstance(info.get(v.name), dict) else {}
+        t = info.get(v.name) or {}
         parts = tuple(
             (str(p["key"]), str(p.get("label") or p["key"]))
             for p in (t.get("split_parts") or [])

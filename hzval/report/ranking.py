@@ -20,6 +20,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from hzval.metrics.results import Scores, SweepResult
 from hzval.report import columns
 
 __all__ = [
@@ -67,17 +68,16 @@ def by_elevation(metrics: dict) -> dict[str, list[dict]]:
     rows: dict[str, dict[float, dict[str, list]]] = defaultdict(
         lambda: defaultdict(lambda: defaultdict(list))
     )
-    for f in metrics.get("frames") or []:
-        if not isinstance(f, dict) or columns.num(f.get("elevation_deg")) is None:
+    for f in SweepResult.of(metrics).frames:
+        if columns.num(f.get("elevation_deg")) is None:
             continue
         e = float(f["elevation_deg"])
-        records = dict(f.get("techniques") or {})
-        if isinstance(f.get("no_shadows"), dict):
-            records[NONE] = f["no_shadows"]
+        records: dict[str, Scores] = dict(f.techniques)
+        if f.no_shadows is not None:
+            records[NONE] = f.no_shadows
         for name, r in records.items():
-            if isinstance(r, dict):
-                rows[name][e]["visibility_mae"].append(visibility_of(r))
-                rows[name][e]["flip_mean"].append(columns.num(r.get("flip_mean")))
+            rows[name][e]["visibility_mae"].append(visibility_of(r))
+            rows[name][e]["flip_mean"].append(columns.num(r.get("flip_mean")))
     out = {}
     for name, per in rows.items():
         out[name] = [
@@ -112,12 +112,8 @@ def worse_than_none(table: dict[str, list[dict]], name: str) -> list[float]:
 
 def fits(metrics: dict) -> dict[str, str]:
     """``{shipped technique: its fit}`` for the fits a sweep ran beside their technique."""
-    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
-    return {
-        t["fit_of"]: name
-        for name, t in info.items()
-        if isinstance(t, dict) and t.get("fit_of") in info and t.get("fit_of") != name
-    }
+    info = SweepResult.of(metrics).techniques
+    return {t.fit_of: name for name, t in info.items() if t.fit_of in info and t.fit_of != name}
 
 
 def floors(metrics: dict) -> dict[str, list[dict]]:
@@ -192,18 +188,16 @@ def ranking(metrics: dict) -> list[dict]:
         ``flip_mean``; unmeasured last.
     """
     table = by_elevation(metrics)
-    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
-    frames = [f for f in metrics.get("frames") or [] if isinstance(f, dict)]
+    result = SweepResult.of(metrics)
+    info = result.techniques
     fitted, harms = fits(metrics), formula_harms(metrics)
     rows = []
     for name in [*info, NONE]:
-        records = [
-            (f.get("no_shadows") if name == NONE else (f.get("techniques") or {}).get(name)) for f in frames
-        ]
-        records = [r for r in records if isinstance(r, dict)]
+        found = [f.no_shadows if name == NONE else f.scores(name) for f in result.frames]
+        records = [r for r in found if r is not None]
         if not records:
             continue
-        t = info.get(name) if isinstance(info.get(name), dict) else {}
+        t = info.get(name) or {}
         seconds = _mean([columns.num(r.get("seconds")) for r in records])
         rows.append(
             {
@@ -239,8 +233,7 @@ def floor_note(metrics: dict) -> str | None:
     """One line where the image scores cannot rank the shadows: the perfect-shadows floor's mean FLIP
     (exact shadows on the techniques' shading) at or above a technique's, so that FLIP there measures
     the shading, not the shadows; ``None`` where every technique's FLIP is above the floor's."""
-    frames = [f for f in metrics.get("frames") or [] if isinstance(f, dict)]
-    floor = _mean([columns.num((f.get("floor") or {}).get("flip_mean")) for f in frames])
+    floor = _mean([columns.num((f.floor or {}).get("flip_mean")) for f in SweepResult.of(metrics).frames])
     if floor is None:
         return None
     below = [
@@ -289,10 +282,10 @@ def error_per_byte(metrics: dict) -> dict[float, list[dict]]:
         fits, or ``None``) and ``pareto`` (on the front of
         least bytes and least error, :func:`pareto`).
     """
-    info = metrics.get("techniques") if isinstance(metrics.get("techniques"), dict) else {}
+    info = SweepResult.of(metrics).techniques
     out: dict[float, list[dict]] = defaultdict(list)
     for name, rows in by_elevation(metrics).items():
-        t = info.get(name) if isinstance(info.get(name), dict) else {}
+        t = info.get(name) or {}
         b = 0.0 if name == NONE else columns.num(t.get("texture_bytes_per_texel"))
         for r in rows:
             if b is not None and r["visibility_mae"] is not None:

@@ -39,6 +39,7 @@ import math
 
 import numpy as np
 
+from hzval.metrics.results import techniques_of
 from hzval.studies import seam_share
 
 __all__ = [
@@ -186,9 +187,10 @@ def paired(case: dict, flat: dict | None) -> dict:
     technique leaks, so that a convex surface, whose truth is more lit, lowers its error), each
     ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
     :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame."""
+    scored: dict[str, dict] = {}  # each technique's entry, filled below
     row = {
         "texels": float(np.mean(case["texels"])) if case["texels"] else 0.0,
-        "techniques": {},
+        "techniques": scored,
         "seam_edges": case.get("seam_edges", 0),
     }
     if "lit" in case:  # the truth's lit share in the band, and what curvature changes of it
@@ -196,9 +198,9 @@ def paired(case: dict, flat: dict | None) -> dict:
         row["lit"] = summary(frame_means(case["lit"], on))
         if flat is not None:
             row["lit_excess"] = summary(frame_means(case["lit"], on) - frame_means(flat["lit"], on))
-    for name, maps in case["techniques"].items():
+    for name, maps in techniques_of(case).items():
         on = np.isfinite(maps["mae"])
-        other = None if flat is None else flat["techniques"].get(name)
+        other = None if flat is None else techniques_of(flat).get(name)
         if other is not None:
             on &= np.isfinite(other["mae"])
         mae = frame_means(maps["mae"], on)
@@ -218,7 +220,7 @@ def paired(case: dict, flat: dict | None) -> dict:
             entry["per_frame_excess"] = [None if not math.isfinite(v) else float(v) for v in mae - ref]
         if maps.get("seam") and row["seam_edges"]:
             entry["seam"] = _seam_stat(maps["seam"])
-        row["techniques"][name] = entry
+        scored[name] = entry
     return row
 
 
