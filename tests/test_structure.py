@@ -262,3 +262,49 @@ def test_pages_are_rendered_by_jinja_templates_only():
         if m in p.read_text().lower()
     ]
     assert found == []
+
+
+#: Issue 54's bounds: a file of hzval/ holds one job in at most this many lines, and its module
+#: docstring says what it holds in at most this many (the design notes are in docs/internals.md).
+MAX_LINES, MAX_DOCSTRING_LINES = 800, 40
+
+
+def _modules() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def test_no_file_is_over_its_bound():
+    long = [
+        f"{p.relative_to(PACKAGE)}: {n}"
+        for p in _modules()
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    ]
+    assert long == []
+
+
+def test_no_module_docstring_is_an_essay():
+    long = []
+    for p in _modules():
+        doc = ast.get_docstring(ast.parse(p.read_text()), clean=False) or ""
+        if doc.count("\n") + 1 > MAX_DOCSTRING_LINES:
+            long.append(f"{p.relative_to(PACKAGE)}: {doc.count(chr(10)) + 1} lines")
+    assert long == []
+
+
+def test_only_the_records_module_reads_a_techniques_object_by_its_key():
+    """Scores are read through hzval.metrics.results's records, not by string keys."""
+    import re
+
+    key = re.compile(r"""\[["']techniques["']\]|\.get\(["']techniques["']""")
+    owner = PACKAGE / "metrics" / "results.py"
+    found = [str(p.relative_to(PACKAGE)) for p in _modules() if p != owner and key.search(p.read_text())]
+    assert found == []
+
+
+def test_every_command_has_its_module_under_commands():
+    """hzval/cli/NAME.py parses NAME's flags; its work is hzval/commands/NAME.py's."""
+    from hzval.cli import main
+
+    names = [c.__name__.rsplit(".", 1)[1] for c in main.COMMANDS]
+    missing = [n for n in names if not (PACKAGE / "commands" / f"{n}.py").is_file()]
+    assert missing == []

@@ -69,7 +69,7 @@ def run(args) -> int:
     )
     for r in data["rows"]:
         fp, pe = r["footprint_texels"].get("p50"), r["parallax_error_texels"].get("mean")
-        vals = "  ".join(f"{views.headline(r['techniques'][n]):9.4f}" for n in names)
+        vals = "  ".join(f"{views.headline(techniques_of(r)[n]):9.4f}" for n in names)
         print(
             f"{r['view']:10} {r['lookup']:14} {fp if fp is not None else float('nan'):9.2f} "
             f"{pe if pe is not None else float('nan'):9.3f}  {vals}"

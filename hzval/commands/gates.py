@@ -528,7 +528,7 @@ class Gates:
                     "--baseline",
                     f"{label}: no technique and metric in common with this run (another "
                     f"hzval's metrics.json, or other techniques: "
-                    f"{', '.join(baseline.get('techniques') or {}) or 'none'})",
+                    f"{', '.join(SweepResult.of(baseline).techniques) or 'none'})",
                 )
             out += regressions(tests, where)
         return out, tests

@@ -3,23 +3,29 @@ gated (:func:`hzval.pipeline.sweep.run` does the work)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
+from hzval.commands.gates import Gates
 from hzval.metrics.results import SweepResult
 from hzval.pipeline import records
 from hzval.pipeline import sweep as pipeline_sweep
+from hzval.scene.spec import Scene
 from hzval.techniques import registry as technique
 
 __all__ = ["selected", "run", "run_line"]
 
 
-def selected(scene, options: pipeline_sweep.Options) -> list[str]:
+def selected(scene: Scene, options: pipeline_sweep.Options) -> list[str]:
     """The names of the techniques a sweep of ``scene`` with ``options`` renders, registry order."""
     requested = None if options.techniques is None else list(options.techniques)
     return [t.name for t in technique.select(requested, scene, exclude=options.exclude)]
 
 
-def run(scene, out: Path, *, options: pipeline_sweep.Options, gates=None, **kw) -> dict:
+def run(
+    scene: Scene, out: Path, *, options: pipeline_sweep.Options, gates: Gates | None = None, **kw: Any
+) -> dict[str, Any]:
     """Sweep ``scene`` into ``out``; ``metrics.json``'s content.
 
     Parameters
@@ -40,7 +46,7 @@ def run(scene, out: Path, *, options: pipeline_sweep.Options, gates=None, **kw) 
     return pipeline_sweep.run(scene, out, options=options, gates=gates, **kw)
 
 
-def run_line(result: dict, out: Path) -> str:
+def run_line(result: Mapping[str, Any], out: Path) -> str:
     """The line under the table: frames, the run's total time (the report's own) and where it went,
     the peak memory, and where the report is."""
     t = result["timings"]

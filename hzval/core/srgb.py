@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from hzval.core import conventions
@@ -33,7 +35,7 @@ def decode(values: np.ndarray) -> np.ndarray:
     return np.asarray(colour.cctf_decoding(np.asarray(values, dtype=np.float64), function="sRGB"))
 
 
-def encode(values):
+def encode(values: Any) -> Any:
     """Linear values to sRGB-encoded values (IEC 61966-2-1), negatives as 0.
 
     NumPy values go through colour-science's ``cctf_encoding(function="sRGB")``. A Dr.Jit array
