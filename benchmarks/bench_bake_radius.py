@@ -67,7 +67,7 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     """Runs in a fresh process: one cold (or disk-cached) call, then warm calls; prints JSON."""
     import drjit as dr
 
-    from hzval.bake import horizon as bake
+    from hzval.bake import horizon as bake_horizon
     from hzval.core import backend
     from hzval.core import conventions as cv
     from hzval.materials.bricks import bricks
@@ -78,22 +78,22 @@ def _child(size: int, radius: int, kernel: str, repeat: int, save: str | None) -
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         dr.kernel_history()
         t0 = time.perf_counter()
-        first = bake.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)  # returns NumPy: synchronous
+        first = bake_horizon.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)  # returns NumPy: synchronous
         first_s = time.perf_counter() - t0
         hist = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
     warm = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        bake.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)
+        bake_horizon.horizon_map(h, radius, ANGLES, BOUNDARY, **kw)
         warm.append(time.perf_counter() - t0)
     if save:
         np.save(save, np.concatenate([first[0], first[1][..., None], first[2][..., None]], axis=-1))
-    offsets = sum(len(g.offsets) for g in bake.horizon_table(radius, ANGLES))
+    offsets = sum(len(g.offsets) for g in bake_horizon.horizon_table(radius, ANGLES))
     lanes = size * (size + 2 * (radius - 1))
     print(
         json.dumps(
             {
-                "form": bake.choose_kernel(offsets, lanes) if kernel == "auto" else kernel,
+                "form": bake_horizon.choose_kernel(offsets, lanes) if kernel == "auto" else kernel,
                 "first_s": first_s,
                 "warm_s": warm,
                 "codegen_s": sum(k["codegen_time"] for k in hist) / 1e3,

@@ -38,7 +38,7 @@ import numpy as np
 
 def _images(size: int, tests: int, seed: int = 0):
     from hzval import materials
-    from hzval.metrics import compare as C
+    from hzval.metrics import compare
 
     h = materials.generate("bricks", size, 0).height.astype(np.float64)
     gy, gx = np.gradient(h * 0.05 * size)
@@ -58,28 +58,30 @@ def _images(size: int, tests: int, seed: int = 0):
         img = shade(2.0 * (i + 1))
         if i == 1:
             img[size // 4 : size // 2, size // 5 : size // 2] *= 0.3
-        out.append(C.display(img, 1.5))
-    return C.display(truth, 1.5), out
+        out.append(compare.display(img, 1.5))
+    return compare.display(truth, 1.5), out
 
 
 def _old(ref, tests):
     import colour
 
-    from hzval.metrics import compare as C
+    from hzval.metrics import compare
 
     def lab_of(rgb):
         return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(rgb, apply_cctf_decoding=True))
 
     clock = dict.fromkeys(("flip_ref", "de_ref", "flip", "de"), 0.0)
     t0 = time.perf_counter()
-    ref_lab = C.by_rows(lab_of, ref)
+    ref_lab = compare.by_rows(lab_of, ref)
     clock["de_ref"] = time.perf_counter() - t0
     res = []
     for t in tests:
         t0 = time.perf_counter()
-        fmap, fmean = C.flip_evaluator_flip(ref, t)
+        fmap, fmean = compare.flip_evaluator_flip(ref, t)
         t1 = time.perf_counter()
-        de = C.by_rows(lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref_lab, C.by_rows(lab_of, t))
+        de = compare.by_rows(
+            lambda a, b: colour.delta_E(a, b, method="CIE 2000"), ref_lab, compare.by_rows(lab_of, t)
+        )
         clock["flip"] += t1 - t0
         clock["de"] += time.perf_counter() - t1
         res.append((fmap, fmean, de))
@@ -87,21 +89,21 @@ def _old(ref, tests):
 
 
 def _new(ref, tests):
-    from hzval.metrics import compare as C
-    from hzval.metrics import flip as F
+    from hzval.metrics import compare
+    from hzval.metrics import flip as hzflip
 
     clock = dict.fromkeys(("flip_ref", "de_ref", "flip", "de"), 0.0)
     t0 = time.perf_counter()
-    fref = F.FlipReference(ref, C.FLIP_PPD)
+    fref = hzflip.FlipReference(ref, compare.FLIP_PPD)
     t1 = time.perf_counter()
-    lab = C.LabImage(ref)
+    lab = compare.LabImage(ref)
     clock["flip_ref"], clock["de_ref"] = t1 - t0, time.perf_counter() - t1
     res = []
     for t in tests:
         t0 = time.perf_counter()
-        fmap, fmean = F.flip_error(fref, t)
+        fmap, fmean = hzflip.flip_error(fref, t)
         t1 = time.perf_counter()
-        de = C.delta_e2000(ref, t, reference_lab=lab)
+        de = compare.delta_e2000(ref, t, reference_lab=lab)
         clock["flip"] += t1 - t0
         clock["de"] += time.perf_counter() - t1
         res.append((fmap, fmean, de))

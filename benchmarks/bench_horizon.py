@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     import hzval.bake as B
     from hzval.core import backend
     from hzval.materials.bricks import bricks
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques.horizon import Horizon
 
     variant = backend.variant()
@@ -97,9 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     for effects in [tuple(e.strip() for e in s.split(",") if e.strip()) for s in args.effects.split(";")]:
         for spp in (int(s) for s in args.spp.split(",")):
             for path in args.paths.split(","):
-                scene = S.Scene(
-                    material=S.MaterialSpec(size=args.size, depth=DEPTH),
-                    light=S.Light(elevation_deg=ELEVATION),
+                scene = sc.Scene(
+                    material=sc.MaterialSpec(size=args.size, depth=DEPTH),
+                    light=sc.Light(elevation_deg=ELEVATION),
                     effects=effects,
                     spp=spp,
                 ).validate()

@@ -41,14 +41,14 @@ def main() -> None:
 
     hzval.init()
     from hzval import materials
-    from hzval.bake import maps
+    from hzval.bake import maps as bake
     from hzval.io import ktx2
     from tests.oracles import ktx2_parser as oracle
 
     print(f"{'material':14} {'format':6} {'mean |err|':>10} {'max |err|':>10} {'bytes':>8} {'encode ms':>10}")
     for name in args.materials.split(","):
         h = materials.generate(name, args.size).height
-        sines = maps.bake(h, maps.BakeParams()).horizon
+        sines = bake.bake(h, bake.BakeParams()).horizon
         for storage, (fmt_name, per) in FORMATS.items():
             fmt = ktx2.FORMATS[fmt_name]
             values = sines[..., :per]

@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from hzval.core import backend
     from hzval.materials.bricks import bricks
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.truth.plane import Truth
 
     variant = backend.variant()
@@ -61,10 +61,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     height = bricks(args.size)
     t_material = time.perf_counter() - t0
-    sc = S.Scene(
+    scn = sc.Scene(
         name="bricks",
-        material=S.MaterialSpec(height="bricks", size=args.size, depth=0.05, boundary="wrap"),
-        light=S.Light(
+        material=sc.MaterialSpec(height="bricks", size=args.size, depth=0.05, boundary="wrap"),
+        light=sc.Light(
             kind=args.light,
             radius_deg=args.radius if args.light == "soft" else 0.0,
             elevation_deg=args.elevation,
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=0,
     ).validate()
     t0 = time.perf_counter()
-    truth = Truth(sc, height)
+    truth = Truth(scn, height)
     t_init = time.perf_counter() - t0
     verts = truth.mesh.vertex_count()
     faces = truth.mesh.face_count()

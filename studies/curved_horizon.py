@@ -31,16 +31,16 @@ def corrected(setup, curvature: float) -> dict:
     """``{"horizon-curved": (camera, truth)}``: the ``horizon-curved`` technique (the registry's) for
     the case's ``curvature`` (texture widths^-1) on the sweep's bake, at the camera's hits and at
     the truth's."""
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import registry as technique
 
     base = next(t for t in setup.techniques if t.name == "horizon")
-    sc = base.scene
-    height = S.load_material_height(sc.material).height
-    albedo = S.load_albedo(sc.material, *height.shape)
+    scn = base.scene
+    height = sc.load_material_height(scn.material).height
+    albedo = sc.load_albedo(scn.material, *height.shape)
 
     def make(at):
-        context = technique.Context(sc, height, base.bake, albedo, points=setup.truth.samples(at))
+        context = technique.Context(scn, height, base.bake, albedo, points=setup.truth.samples(at))
         return technique.get("horizon-curved").build(context, curvature=curvature)
 
     return {"horizon-curved": (make("camera"), make("truth"))}
@@ -48,14 +48,18 @@ def corrected(setup, curvature: float) -> dict:
 
 def gain(case: dict) -> dict:
     """Baked minus corrected band |F - V| and floor, per light, as ``{mean, se}``."""
-    from hzval.studies import curvature_band as cb
+    from hzval.studies import curvature_band
 
     t = case["techniques"]
     out = {}
     for key in ("mae", "floor"):
         on = np.isfinite(t["horizon"][key]) & np.isfinite(t["horizon-curved"][key])
-        a, b = (cb.frame_means(t[n][key], on) for n in ("horizon", "horizon-curved"))
-        out[key] = {"horizon": cb.summary(a), "horizon-curved": cb.summary(b), "gain": cb.summary(a - b)}
+        a, b = (curvature_band.frame_means(t[n][key], on) for n in ("horizon", "horizon-curved"))
+        out[key] = {
+            "horizon": curvature_band.summary(a),
+            "horizon-curved": curvature_band.summary(b),
+            "gain": curvature_band.summary(a - b),
+        }
     return out
 
 
@@ -71,13 +75,13 @@ def main() -> None:
     )
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
-    from hzval.commands import models as ms
-    from hzval.scene import spec as S
-    from hzval.studies import curvature_band as cb
+    from hzval.commands import models as models_command
+    from hzval.scene import spec as sc
+    from hzval.studies import curvature_band
 
     size = args.size if args.size is not None else (None if args.height else 128)
-    scene = S.override(
-        S.Scene(),
+    scene = sc.override(
+        sc.Scene(),
         height=args.height or args.material,
         size=size,
         depth=args.depth,
@@ -86,7 +90,7 @@ def main() -> None:
         spp=2,
     )  # hzval models' defaults
     wanted = args.cases.split(",")
-    cases = {name: (curvature, spec) for name, curvature, spec in ms.cases()}
+    cases = {name: (curvature, spec) for name, curvature, spec in models_command.cases()}
     runs = [(n, cases[n][0], cases[n][1], cases[n][0]) for n in wanted if n in cases]
     for c in args.control.split(",") if args.control else []:
         # the control: the correction of 1/R = c on the flat patch, where it is wrong
@@ -94,9 +98,11 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, curvature, spec, corrected_for in runs:
-            sc = cb.band_scene(ms.case_scene(scene, Path(tmp), name.split("@")[0], spec))
-            case = cb.measure(
-                sc,
+            scn = curvature_band.band_scene(
+                models_command.case_scene(scene, Path(tmp), name.split("@")[0], spec)
+            )
+            case = curvature_band.measure(
+                scn,
                 Path(tmp) / name.split("@")[0],
                 extra=lambda setup: corrected(setup, corrected_for),  # noqa: B023 - called within this iteration
             )

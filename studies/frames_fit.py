@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from hzval.bake import maps as bake
     from hzval.core import backend
-    from hzval.io import storage
+    from hzval.io import storage as hz_storage
     from hzval.scene import spec as sc
     from hzval.techniques.fitted import fit
 
@@ -96,7 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         train = dataclasses.replace(scene, spp=r.settings["train_spp"])
         V = fitted_training.visibility(train, hm.height, r.lights)
         for tol in (float(t) for t in args.guards.split(",")):
-            g, rec = fit.guarded(train, baked, storage.get(r.storage), V, r.lights, r.horizon, r.k, r.k, tol)
+            g, rec = fit.guarded(
+                train, baked, hz_storage.get(r.storage), V, r.lights, r.horizon, r.k, r.k, tol
+            )
             maps.append((f"guard {tol:g}", g, rec))
     for label, sines, rec in maps:
         got = _frames(fs, baked, sines, r.k, held)

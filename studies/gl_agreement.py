@@ -25,10 +25,10 @@ import numpy as np
 
 
 def _scene(args):
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
-    base = S.Scene()
-    scene = S.override(
+    base = sc.Scene()
+    scene = sc.override(
         base,
         height=args.height,
         size=args.size,
@@ -48,10 +48,10 @@ def _scene(args):
 def _context(scene, texel_centres: bool):
     from hzval.bake import maps as bake
     from hzval.scene import lookup
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import registry as technique
 
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     baked = bake.bake(hm.height, params)
     rows, cols = hm.height.shape
@@ -60,9 +60,9 @@ def _context(scene, texel_centres: bool):
         r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
         like = lookup.Samples(np.zeros(1, np.float32), np.zeros(1, np.float32), rows, cols, 1)
         points = lookup.from_points((c + 0.5).ravel(), (rows - r - 0.5).ravel(), like, "texel centres")
-        scene = S.override(scene, spp=1)
+        scene = sc.override(scene, spp=1)
     return technique.Context(
-        scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points
+        scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), points=points
     )
 
 

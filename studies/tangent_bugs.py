@@ -10,7 +10,7 @@ HEIGHT: built-in materials or image files (default: bricks spikes).
 import argparse
 import time
 
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.studies import bug_signatures
 
 
@@ -30,8 +30,8 @@ def main() -> None:
     )
     for height in a.heights:
         is_file = "." in height
-        sc = S.override(
-            S.Scene(),
+        scn = sc.override(
+            sc.Scene(),
             height=height,
             size=None if is_file else a.size,
             spp=a.spp,
@@ -39,10 +39,10 @@ def main() -> None:
             resolution=(a.resolution, a.resolution),
             azimuths=a.azimuths,
         )
-        h = S.load_material_height(sc.material).height
+        h = sc.load_material_height(scn.material).height
         for case, (shape, az, light_az, uv_scale) in bug_signatures.CASES.items():
             t0 = time.perf_counter()
-            rec, _ = bug_signatures.measure(sc, h, "horizon", shape, az, light_az, uv_scale)
+            rec, _ = bug_signatures.measure(scn, h, "horizon", shape, az, light_az, uv_scale)
             for bug, r in rec["bugs"].items():
 
                 def fmt(v, k=4):

@@ -303,8 +303,8 @@ def test_only_the_records_module_reads_a_techniques_object_by_its_key():
 
 def test_every_command_has_its_module_under_commands():
     """hzval/cli/NAME.py parses NAME's flags; its work is hzval/commands/NAME.py's."""
-    from hzval.cli import main
+    from hzval.cli import main as cli
 
-    names = [c.__name__.rsplit(".", 1)[1] for c in main.COMMANDS]
+    names = [c.__name__.rsplit(".", 1)[1] for c in cli.COMMANDS]
     missing = [n for n in names if not (PACKAGE / "commands" / f"{n}.py").is_file()]
     assert missing == []

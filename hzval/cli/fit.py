@@ -17,7 +17,7 @@ HORIZON_FLAGS = ("--k", "--fit-k", "--storage", "--guard")
 def add_parser(sub) -> None:
     """``hzval fit``: the best textures of a technique (:mod:`hzval.commands.fit`)."""
     from hzval.bake import maps as bake
-    from hzval.io import storage
+    from hzval.io import storage as hz_storage
     from hzval.techniques import registry as technique
     from hzval.techniques.fitted import guard as fit_guard
     from hzval.techniques.fitted import textures as fitted_textures
@@ -64,7 +64,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--storage",
-        choices=storage.names(),
+        choices=hz_storage.names(),
         default="float",
         help="how the map is stored; the fit is quantisation-aware for all but float (default float)",
     )

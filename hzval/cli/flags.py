@@ -275,13 +275,14 @@ def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
 def add_view_flags(p: argparse.ArgumentParser) -> None:
     """The camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
     :mod:`hzval.scene.lookup`)."""
-    from hzval.scene import camera, lookup
+    from hzval.scene import camera as hz_camera
+    from hzval.scene import lookup
 
-    c, lk = camera.Camera(), lookup.Lookup()
+    c, lk = hz_camera.Camera(), lookup.Lookup()
     g = p.add_argument_group("view", "where the camera is, and how the techniques read their textures")
     g.add_argument(
         "--camera",
-        choices=camera.KINDS,
+        choices=hz_camera.KINDS,
         default=None,
         help=f"top (straight down, one pixel per texel), orthographic or perspective (default {c.kind})",
     )
@@ -345,9 +346,9 @@ def add_view_flags(p: argparse.ArgumentParser) -> None:
 
 
 def scene_module():
-    from hzval.scene import spec as scene
+    from hzval.scene import spec as sc
 
-    return scene
+    return sc
 
 
 def light_default():

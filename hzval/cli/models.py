@@ -50,12 +50,12 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every case of ``args``'s material; print the table."""
-    from hzval.commands import models as models_study
+    from hzval.commands import models as models_command
 
     scene = scenes.scene_from_args(args, DEFAULTS)
     out = args.out or Path("reports") / f"models-{scene.name}"
     command = flags.command_line(args)
-    data = models_study.run(scene, out, progress=not args.quiet, command=command, force=args.force)
-    print(models_study.summary_table(data))
+    data = models_command.run(scene, out, progress=not args.quiet, command=command, force=args.force)
+    print(models_command.summary_table(data))
     print(f"report: {out / 'index.html'}")
     return 0

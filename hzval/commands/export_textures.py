@@ -31,7 +31,8 @@ import numpy as np
 from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.io import codecs, documents, ktx2, staging, storage
+from hzval.io import codecs, documents, ktx2, staging
+from hzval.io import storage as hz_storage
 from hzval.metrics.results import SweepResult
 from hzval.scene import lookup
 from hzval.scene import spec as sc
@@ -258,7 +259,7 @@ def _vector(n: np.ndarray, store: str, meaning: str, key: str) -> tuple:
 
 def _horizon(sines: np.ndarray, store: str, mips: str) -> dict:
     """The horizon map's textures in storage ``store``: its channels packed as the storage packs them."""
-    s = storage.get(store)
+    s = hz_storage.get(store)
     base = store.removesuffix("-sqrt")
     fmt = HORIZON_FORMATS[base]
     per = 4 if base in ("float", "u8", "bc7", "bc3") else s.channels

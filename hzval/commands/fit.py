@@ -13,7 +13,7 @@ from pathlib import Path
 from hzval.bake import maps as bake
 from hzval.io import staging
 from hzval.scene import spec as sc
-from hzval.techniques.fitted import fit as horizon_fit
+from hzval.techniques.fitted import fit
 from hzval.techniques.fitted import store as fitted_store
 from hzval.techniques.fitted import textures as fitted_textures
 from hzval.techniques.fitted import training as fitted_training
@@ -50,7 +50,7 @@ def fit_horizon(height, baked, scene, info: dict, out: Path, *, options: dict, p
     -------
     hzval.techniques.fitted.fit.FitResult
     """
-    result = horizon_fit.fit(height, baked, scene, progress=progress, **options)
+    result = fit.fit(height, baked, scene, progress=progress, **options)
     keyed = {k: v for k, v in options.items() if k != "guard" or v is not None}
     key = fitted_store.cache_key(height, baked, scene, keyed)
     fitted_store.write_fit(result, out, input_info={**info, "key": key})

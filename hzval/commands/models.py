@@ -104,7 +104,7 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
 
 
 def case_scene(scene, out: Path, name: str, spec):
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
     kind, value, sign = spec
     if kind in ("cap", "ring"):
@@ -114,7 +114,7 @@ def case_scene(scene, out: Path, name: str, spec):
         cam = dataclasses.replace(scene.camera, kind="orthographic", elevation_deg=60.0, azimuth_deg=-90.0)
     else:
         mesh = dataclasses.replace(scene.mesh, shape=value, uv_scale=1.0)
-        cam = dataclasses.replace(S.MODEL_CAMERA, resolution=scene.camera.resolution)
+        cam = dataclasses.replace(sc.MODEL_CAMERA, resolution=scene.camera.resolution)
     return dataclasses.replace(scene, mesh=mesh, camera=cam, name=f"{scene.name} {name}").validate()
 
 
@@ -152,10 +152,10 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
 
 def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
     """Each tangent bug's signature with the lead technique (:mod:`hzval.studies.bug_signatures`)."""
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.studies import bug_signatures
 
-    height = S.load_material_height(scene.material).height
+    height = sc.load_material_height(scene.material).height
     return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
 
 
@@ -192,7 +192,7 @@ def _row(name: str, curvature, result: dict) -> dict:
 
 def _write_page(out: Path, data: dict) -> None:
     """``out/index.html`` from ``models.html.j2`` (:func:`hzval.report.pages.environment`), and its plots."""
-    from hzval.report import pages
+    from hzval.report import pages as report
     from hzval.studies import bug_signatures
 
     rows = data["rows"]
@@ -216,7 +216,7 @@ def _write_page(out: Path, data: dict) -> None:
         "band": _band_context(out, data),
         "bugs": bug_signatures.page_context(data["bugs"]) if data.get("bugs") else None,
     }
-    page = pages.environment().get_template("models.html.j2").render(**context)
+    page = report.environment().get_template("models.html.j2").render(**context)
     with atomic.atomic_path(out / "index.html") as tmp:
         tmp.write_text(page, encoding="utf-8")
 
@@ -313,33 +313,33 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 def _band_maps(scene, case_dir: Path) -> dict:
     """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
     lights)."""
-    from hzval.studies import curvature_band as cb
+    from hzval.studies import curvature_band
 
-    return cb.measure(cb.band_scene(scene), case_dir)
+    return curvature_band.measure(curvature_band.band_scene(scene), case_dir)
 
 
 def _add_bands(data: dict, bands: dict) -> None:
     """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
     study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
     rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`)."""
-    from hzval.studies import curvature_band as cb
+    from hzval.studies import curvature_band
 
     flat = bands.get("flat")
     for r in data["rows"]:
         if r["case"] in bands:
             patch = r["case"] != "flat" and r["mesh"].get("source", "").endswith(".obj")  # the patch's UVs
-            r["band"] = cb.paired(bands[r["case"]], flat if patch else None)
+            r["band"] = curvature_band.paired(bands[r["case"]], flat if patch else None)
         if "principal_curvatures" in r and "band" in r:
-            r["band"]["by_azimuth"] = _by_azimuth(r, cb.AZIMUTHS)
+            r["band"]["by_azimuth"] = _by_azimuth(r, curvature_band.AZIMUTHS)
     convex = [
         r for r in data["rows"] if "band" in r and (r["case"].startswith("cap+") or r["case"] == "flat")
     ]
     names = list(dict.fromkeys(t for r in convex for t in techniques_of(r["band"])))
     data["band"] = {
-        "half_deg": cb.BAND_DEG,
-        "window": cb.WINDOW,
-        "azimuths": list(cb.AZIMUTHS),
-        "resolution": list(cb.RESOLUTION),
+        "half_deg": curvature_band.BAND_DEG,
+        "window": curvature_band.WINDOW,
+        "azimuths": list(curvature_band.AZIMUTHS),
+        "resolution": list(curvature_band.RESOLUTION),
     }
     data["trend"] = {}
     for n in names:
@@ -353,7 +353,7 @@ def _add_bands(data: dict, bands: dict) -> None:
             )
             for r in have
         ]
-        data["trend"][n] = {"mae": cb.trend(mae), "excess": cb.trend(exc)}
+        data["trend"][n] = {"mae": curvature_band.trend(mae), "excess": curvature_band.trend(exc)}
 
 
 # -- the inside of a torus's ring -----------------------------------------------------------

@@ -492,7 +492,8 @@ def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
     """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
     sweep's techniques' own; ``(frame, maps, brightness warning or None)``."""
-    from hzval.metrics import brightness, facing
+    from hzval.metrics import brightness
+    from hzval.metrics import facing as hzfacing
 
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
@@ -516,7 +517,7 @@ def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, norm
         # sweep leaves the pixels that see no surface NaN in V: scored over the seen ones, as the sweep did
         if normal is not None:
             ss = int((metrics.get("parameters") or {}).get("supersampling") or 1)
-            own.update(facing.facing_metrics(V, F, facing.facing_mask(normal, f["light_direction"], ss)))
+            own.update(hzfacing.facing_metrics(V, F, hzfacing.facing_mask(normal, f["light_direction"], ss)))
         image_maps = {**image_maps, "V": V, "F": F}
     own["files"] = {}
     per = {

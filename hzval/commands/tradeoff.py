@@ -430,9 +430,9 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
 
 def plot_tradeoff(path: Path, points: list[Point]) -> None:
     """Time against visibility error, one panel per kind; marker area ~ storage; Pareto front ringed."""
-    import matplotlib
+    import matplotlib as mpl
 
-    matplotlib.use("Agg")
+    mpl.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator, NullFormatter
 

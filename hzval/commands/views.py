@@ -35,19 +35,20 @@ from hzval.core import interrupts
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics.results import SweepResult, techniques_of
-from hzval.scene import camera, lookup
+from hzval.scene import camera as hz_camera
+from hzval.scene import lookup
 
 __all__ = ["VIEWS", "LOOKUPS", "run", "headline"]
 
 #: The views: name -> camera.
-VIEWS: dict[str, camera.Camera] = {
-    "top": camera.Camera(),
-    "ortho-60": camera.Camera(kind="orthographic", elevation_deg=60),
-    "ortho-45": camera.Camera(kind="orthographic", elevation_deg=45),
-    "ortho-30": camera.Camera(kind="orthographic", elevation_deg=30),
-    "ortho-15": camera.Camera(kind="orthographic", elevation_deg=15),
-    "near": camera.Camera(kind="perspective", elevation_deg=35, distance=0.5, fov_deg=40),
-    "far": camera.Camera(kind="perspective", elevation_deg=35, distance=6.0, fov_deg=40),
+VIEWS: dict[str, hz_camera.Camera] = {
+    "top": hz_camera.Camera(),
+    "ortho-60": hz_camera.Camera(kind="orthographic", elevation_deg=60),
+    "ortho-45": hz_camera.Camera(kind="orthographic", elevation_deg=45),
+    "ortho-30": hz_camera.Camera(kind="orthographic", elevation_deg=30),
+    "ortho-15": hz_camera.Camera(kind="orthographic", elevation_deg=15),
+    "near": hz_camera.Camera(kind="perspective", elevation_deg=35, distance=0.5, fov_deg=40),
+    "far": hz_camera.Camera(kind="perspective", elevation_deg=35, distance=6.0, fov_deg=40),
 }
 #: The lookups each view is swept with: name -> settings.
 LOOKUPS: dict[str, lookup.Lookup] = {

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from hzval.core import conventions
+from hzval.core import conventions as cv
 
 __all__ = ["decode", "encode", "luminance_weights"]
 
@@ -58,7 +58,7 @@ def encode(values: Any) -> Any:
     >>> round(float(encode(0.214041)), 4), float(encode(-1.0))
     (0.5, 0.0)
     """
-    if conventions.is_drjit(values):
+    if cv.is_drjit(values):
         import drjit as dr  # only for a Dr.Jit array
 
         v = dr.maximum(values, 0.0)

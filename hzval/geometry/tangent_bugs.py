@@ -100,9 +100,9 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
 def face_frames_at(model, prim: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(t, b, n)`` ``(N, 3)`` float32: the frame of the base triangles ``prim`` of ``model``
     (:func:`hzval.geometry.tangents.face_frames`), ``b = w cross(n, t)`` with the triangle's own ``w``."""
-    from hzval.geometry import tangents
+    from hzval.geometry import tangents as tg
 
-    fn, ft = tangents.face_frames(model.positions, model.uvs, model.faces)
+    fn, ft = tg.face_frames(model.positions, model.uvs, model.faces)
     prim = np.asarray(prim, np.int64)
     n, t, w = fn[prim], ft[prim, :3], ft[prim, 3]
     b = np.cross(n, t) * w[:, None]

@@ -201,10 +201,10 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
     :mod:`hzval.metrics.flip` at :data:`FLIP_PPD` pixels per degree; :class:`Reference` keeps the
     reference's half for several test images (:func:`flip_error`).
     """
-    from hzval.metrics import flip as F
+    from hzval.metrics import flip as hzflip
 
     try:
-        return F.flip(reference_display, test_display, FLIP_PPD)
+        return hzflip.flip(reference_display, test_display, FLIP_PPD)
     except ValueError as exc:
         raise HzvalError(f"FLIP refused its input ({exc})") from None
 
@@ -614,10 +614,10 @@ def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool = False) -> tup
     mean : float
         Its mean.
     """
-    from hzval.metrics import flip as F
+    from hzval.metrics import flip as hzflip
 
     try:
-        return F.flip_error(ref_flip, test_display, grey=grey)
+        return hzflip.flip_error(ref_flip, test_display, grey=grey)
     except ValueError as exc:
         raise HzvalError(f"FLIP refused its input ({exc})") from None
 

@@ -60,6 +60,14 @@ class _Record(Mapping[str, Any]):
         v = self.record.get(key)
         return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
+    def _object(self, key: str) -> dict[str, Any]:
+        v = self.record.get(key)
+        return v if isinstance(v, dict) else {}
+
+    def _scores(self, key: str) -> Scores | None:
+        v = self.record.get(key)
+        return Scores(v) if isinstance(v, dict) else None
+
 
 class Scores(_Record):
     """One technique's scores in one frame (``frames[i].techniques.NAME``), or the frame's
@@ -90,8 +98,7 @@ class Scores(_Record):
     @property
     def files(self) -> dict[str, Any]:
         """Its files, relative to the report (``image``, ``png``, ``factor``, ...)."""
-        files = self.record.get("files")
-        return files if isinstance(files, dict) else {}
+        return self._object("files")
 
 
 class TechniqueInfo(_Record):
@@ -116,8 +123,7 @@ class TechniqueInfo(_Record):
     @property
     def parameters(self) -> dict[str, Any]:
         """Its settings in this run."""
-        p = self.record.get("parameters")
-        return p if isinstance(p, dict) else {}
+        return self._object("parameters")
 
     @property
     def fit_of(self) -> str | None:
@@ -153,20 +159,17 @@ class FrameRecord(_Record):
     @property
     def no_shadows(self) -> Scores | None:
         """The scores of ``F = 1``, the unshadowed shading (the baseline)."""
-        r = self.record.get("no_shadows")
-        return Scores(r) if isinstance(r, dict) else None
+        return self._scores("no_shadows")
 
     @property
     def floor(self) -> Scores | None:
         """The scores of perfect shadows (the unshadowed shading times the truth's ``V``)."""
-        r = self.record.get("floor")
-        return Scores(r) if isinstance(r, dict) else None
+        return self._scores("floor")
 
     @property
     def files(self) -> dict[str, Any]:
         """The truth's files, relative to the report."""
-        files = self.record.get("files")
-        return files if isinstance(files, dict) else {}
+        return self._object("files")
 
 
 class SweepResult(_Record):
@@ -230,8 +233,7 @@ class MaterialRow(_Record):
     @property
     def no_shadows(self) -> Scores | None:
         """The means of ``F = 1``."""
-        r = self.record.get("no_shadows")
-        return Scores(r) if isinstance(r, dict) else None
+        return self._scores("no_shadows")
 
 
 class SuiteResult(_Record):

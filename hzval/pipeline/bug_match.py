@@ -34,7 +34,7 @@ def scene_of(metrics: dict, sweep_dir: Path):
     sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``."""
     from hzval.geometry import model
     from hzval.io import paths
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
     where = Path(sweep_dir) / "metrics.json"
@@ -45,8 +45,8 @@ def scene_of(metrics: dict, sweep_dir: Path):
     mesh = p["mesh"]
     if mesh not in model.SHAPES:
         mesh = str(paths.stored_input(sweep_dir, mesh, where, "parameters.mesh"))
-    sc = S.override(
-        S.Scene(),
+    scn = sc.override(
+        sc.Scene(),
         height=height,
         size=int(m["cols"]),
         depth=p["depth"],
@@ -72,7 +72,7 @@ def scene_of(metrics: dict, sweep_dir: Path):
         uv_scale=p.get("uv_scale"),
         up=p.get("up"),
     )
-    return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none"))
+    return dataclasses.replace(scn, mesh=dataclasses.replace(scn.mesh, tangent_bug="none"))
 
 
 def bug_factors(
@@ -82,13 +82,13 @@ def bug_factors(
     the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples ``at``
     (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`)."""
     from hzval.bake.maps import BakeParams, bake
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import registry as technique
 
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     ctx = technique.Context(
-        truth.scene, height, b, S.load_albedo(scene.material, *height.shape), points=truth.samples(at=at)
+        truth.scene, height, b, sc.load_albedo(scene.material, *height.shape), points=truth.samples(at=at)
     )
     tech = technique.get(name).build(ctx)
     # every light of the sweep, in its order (elevation by elevation, as the engine's frames)
@@ -103,12 +103,12 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
     if "mesh" not in metrics or not (metrics.get("parameters") or {}).get("mesh"):
         return None
     from hzval.geometry import model
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.truth.model import ModelTruth
 
     scene = scene_of(metrics, sweep_dir)
     lead = SweepResult.of(metrics).chosen[0]
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     if hm.digest != metrics["material"].get("digest", hm.digest):
         raise InputError(
             Path(sweep_dir) / "metrics.json",

@@ -23,7 +23,8 @@ from hzval.metrics import facing as hzfacing
 from hzval.metrics.results import FrameRecord
 from hzval.pipeline import records, renders, writing
 from hzval.report import pages as report
-from hzval.scene import camera, lookup
+from hzval.scene import camera as hz_camera
+from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques import surface
@@ -210,7 +211,7 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         from hzval.techniques import perpixel
 
         setup.base_shadow = perpixel.BaseShadow.build(ctx)  # joins the context's factor kernel
-    camera.forget_sample_positions()
+    hz_camera.forget_sample_positions()
     lookup.forget()
     backend.release_memory()
     return setup

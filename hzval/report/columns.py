@@ -345,9 +345,9 @@ def technique_colour(name: str, place: int) -> str:
     >>> technique_colour(names[0], 3) == technique_colour(names[0], 0) == TECHNIQUE_COLOURS[0]
     True
     """
-    from hzval.techniques import registry
+    from hzval.techniques import registry as technique
 
-    known = registry.names()
+    known = technique.names()
     if name in known:
         return TECHNIQUE_COLOURS[known.index(name) % len(TECHNIQUE_COLOURS)]
     if name == "engine":

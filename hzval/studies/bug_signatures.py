@@ -51,10 +51,10 @@ CASES: dict[str, tuple[str, float, float, float]] = {
 def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv_scale: float):
     """``scene`` on ``shape`` (bug ``none``) in the models' perspective view from ``view_azimuth``,
     its lights turned by ``light_azimuth``."""
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
-    cam = dataclasses.replace(S.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
+    cam = dataclasses.replace(sc.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
     light = dataclasses.replace(
         scene.light, azimuths_deg=tuple(a + light_azimuth for a in scene.light.azimuths_deg)
     )
@@ -139,11 +139,11 @@ def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = Tru
 
 def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
     """Rows: the bugs; columns: the cases; each ``F - V`` at its case's signature light."""
-    import matplotlib
+    import matplotlib as mpl
     from matplotlib.figure import Figure
 
     names = list(cases)
-    cmap = matplotlib.colormaps["RdBu"].with_extremes(bad="0.8")
+    cmap = mpl.colormaps["RdBu"].with_extremes(bad="0.8")
     fig = Figure(figsize=(2.4 * len(names) + 1.6, 2.2 * len(tangent_bugs.NAMES)), dpi=100)
     axes = fig.subplots(len(tangent_bugs.NAMES), len(names), squeeze=False)
     for j, case in enumerate(names):

@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from hzval.core import backend
-from hzval.geometry import tile as meshes
+from hzval.geometry import tile as mesh
 
 __all__ = [
     "PEAK_TARGET_BYTES",
@@ -104,7 +104,7 @@ def reach(scene, relief: float, lift: float, azimuths) -> tuple[float, float]:
     return up + pad, down + pad
 
 
-def cover_runs(g: meshes.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) -> list[tuple[int, int]]:
+def cover_runs(g: mesh.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) -> list[tuple[int, int]]:
     """Runs ``(first, stop)`` of the cell rows of the vertex grid ``g`` (its rows run toward -y) that
     meet ``y_lo <= y <= y_hi`` (texels; beyond the tile for a band near its edge): ``wrap``, the cells
     of the tile and its margin whose ``y`` is in it modulo the tile's ``rows``, since hops wrap a ray
@@ -140,7 +140,7 @@ def band_y(rows: int, H: int, p0: int, p1: int, up: float, down: float) -> tuple
 
 
 def band_triangles(
-    g: meshes.Grid,
+    g: mesh.Grid,
     levels: np.ndarray,
     rows: int,
     H: int,
@@ -153,7 +153,7 @@ def band_triangles(
 ) -> list[int]:
     """Triangles of each band's mesh (:func:`group_bands`, :func:`cover_runs`), counted without building
     them: what :func:`hzval.truth.memory.truth_plan` weighs."""
-    per_row = np.concatenate([[0], np.cumsum(meshes.row_triangles(levels))])
+    per_row = np.concatenate([[0], np.cumsum(mesh.row_triangles(levels))])
     counts = []
     for group in group_bands(bands, W, band_rows):
         y_lo, y_hi = band_y(rows, H, bands[group[0]][0] // W, bands[group[-1]][1] // W, up, down)
@@ -161,7 +161,7 @@ def band_triangles(
     return counts
 
 
-def band_scene(g: meshes.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
+def band_scene(g: mesh.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
     """A Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run,
     :func:`hzval.geometry.tile.piece_mesh`)."""
     import mitsuba as mi
@@ -169,7 +169,7 @@ def band_scene(g: meshes.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
     return mi.load_dict(
         {
             "type": "scene",
-            **{f"band{k}": meshes.piece_mesh(g, levels, a, b, f"band{k}") for k, (a, b) in enumerate(runs)},
+            **{f"band{k}": mesh.piece_mesh(g, levels, a, b, f"band{k}") for k, (a, b) in enumerate(runs)},
         }
     )
 
@@ -188,7 +188,7 @@ def band_pass(t, azimuths) -> dict[float, list[np.ndarray]]:
         y_lo, y_hi = band_y(t.rows, H, t.bands[group[0]][0] // W, t.bands[group[-1]][1] // W, up, down)
         runs = cover_runs(t._grid, t.rows, y_lo, y_hi, wrap)
         t.mi_scene = band_scene(t._grid, t._levels, runs)
-        n = sum(int(meshes.row_triangles(t._levels[a:b]).sum()) for a, b in runs)
+        n = sum(int(mesh.row_triangles(t._levels[a:b]).sum()) for a, b in runs)
         triangles, largest = triangles + n, max(largest, n)
         for i in group:
             st = t._camera_samples(*t.bands[i])

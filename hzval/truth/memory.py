@@ -19,7 +19,7 @@ from hzval.bake import maps as bake
 from hzval.bake.maps import BakeParams
 from hzval.core import resources
 from hzval.core.errors import InputError
-from hzval.geometry import tile as meshes
+from hzval.geometry import tile as mesh
 from hzval.io import heightmap
 from hzval.scene import spec as sc
 from hzval.truth import common as truth_common
@@ -169,7 +169,7 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
 
     rows, cols = np.shape(height)
     g, levels, h_tex = truth.mesh_grid(scene, height)
-    full = meshes.triangle_count(levels)
+    full = mesh.triangle_count(levels)
     limit = min(resources.available_bytes(), truth_bands.PEAK_TARGET_BYTES)
     why = truth_bands.why_not(scene)
     if why is not None or estimate_peak_bytes(scene, rows, cols, full, techniques=techniques) <= limit:

@@ -23,7 +23,8 @@ from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
-from hzval.geometry import tangent_bugs, tangents
+from hzval.geometry import tangent_bugs
+from hzval.geometry import tangents as tg
 from hzval.scene import lookup
 from hzval.scene.camera import Camera, View, view_axes
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples
@@ -315,7 +316,7 @@ class ModelTruth:
         prim = dr.select(hit, pi.prim_index, 0)
         at = mesh.at(prim, pi.prim_uv.x, pi.prim_uv.y)
         si = pi.compute_surface_interaction(ray)
-        t, b, n = tangents.orthonormal(at("n", 3), at("t", 3), at("w", 1))
+        t, b, n = tg.orthonormal(at("n", 3), at("t", 3), at("w", 1))
         t, b, n = (
             dr.select(hit, a, mi.Vector3f(*e)) for a, e in ((t, (1, 0, 0)), (b, (0, 1, 0)), (n, (0, 0, 1)))
         )
@@ -528,7 +529,7 @@ class ModelTruth:
         -1 where the UVs are mirrored) where every sample of a seen pixel has it, 0 elsewhere (a
         pixel across a mirror seam, or unseen). A tangent bug does not change it."""
         t, b, n = (np.stack([np.asarray(c, np.float64) for c in self._own[k]], -1) for k in ("t", "b", "n"))
-        w = tangents.handedness(t, b, n).reshape(-1, self.spp)
+        w = tg.handedness(t, b, n).reshape(-1, self.spp)
         sign = np.where((w < 0).all(axis=1), -1, np.where((w > 0).all(axis=1), 1, 0)).reshape(self.shape)
         return np.where(self.seen, sign, 0).astype(np.int8)
 

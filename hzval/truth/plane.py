@@ -14,10 +14,11 @@ from hzval.core import backend, resources, shading
 from hzval.core import conventions as cv
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
-from hzval.geometry import tile as meshes
+from hzval.geometry import tile as mesh
 from hzval.scene.spec import EFFECTS, Frame, Scene, image_shape, light_samples
 from hzval.truth import bands as truth_bands
-from hzval.truth import common, rays, samples
+from hzval.truth import common, rays
+from hzval.truth import samples as truth_samples
 
 __all__ = [
     "SIMULATES",
@@ -47,8 +48,8 @@ def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
     memory with it)."""
     everywhere = any(scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
     if everywhere:
-        return meshes.MIN_ELEVATION_DEG
-    return max(meshes.MIN_ELEVATION_DEG, lowest)
+        return mesh.MIN_ELEVATION_DEG
+    return max(mesh.MIN_ELEVATION_DEG, lowest)
 
 
 def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
@@ -57,13 +58,13 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
     :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``)."""
     light = scene.light
     lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
-    min_elevation = min(meshes.MIN_ELEVATION_DEG, lowest) if lowest > 0 else meshes.MIN_ELEVATION_DEG
+    min_elevation = min(mesh.MIN_ELEVATION_DEG, lowest) if lowest > 0 else mesh.MIN_ELEVATION_DEG
     if scene.material.boundary != "wrap":
         return min_elevation, 0
     # never wider than the margin for 10 degrees, nor than 32 texels: longer rays hop (see
     # "Boundaries"), while a margin for a grazing light or a deep relief would grow as
     # relief / tan(e), quadratically in memory
-    return min_elevation, meshes.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
+    return min_elevation, mesh.wrap_margin(h_texels, _margin_elevation_deg(scene, lowest), capped=True)
 
 
 def mesh_grid(scene: Scene, height: np.ndarray):
@@ -74,21 +75,21 @@ def mesh_grid(scene: Scene, height: np.ndarray):
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
     min_elevation, margin = surface_margin(scene, h_tex)
-    g = meshes.grid(
+    g = mesh.grid(
         h_tex,
         mat.boundary,
         min_elevation_deg=min_elevation,
         margin=margin if mat.boundary == "wrap" else None,
     )
-    tolerance = meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
-    return g, meshes.cell_levels(g.z, tolerance), h_tex
+    tolerance = mesh.DEFAULT_TOLERANCE if mat.truth_tolerance is None else mat.truth_tolerance
+    return g, mesh.cell_levels(g.z, tolerance), h_tex
 
 
 def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
     """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
     included (:func:`mesh_grid`), counted without building it: what
     :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh."""
-    return meshes.triangle_count(mesh_grid(scene, height)[1])
+    return mesh.triangle_count(mesh_grid(scene, height)[1])
 
 
 class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
@@ -164,8 +165,8 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         self._albedo_texels = common.albedo_texels(scene, rows, cols, albedo)
         self._positions = self._check_positions(positions)
         self.count = self.shape[0] * self.shape[1] * self.spp
-        self.keeps = samples.keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
-        self.bands = samples.band_ranges(self.shape, self.spp, band_samples)
+        self.keeps = truth_samples.keeps_samples(*self.shape, self.spp) if keep is None else bool(keep)
+        self.bands = truth_samples.band_ranges(self.shape, self.spp, band_samples)
         self.mesh_bands, self._vis = None, {}
         if self.mesh_band_rows is not None:
             # the frames shade from each sample's visibility bit: nothing of the camera rays is kept
@@ -188,7 +189,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         info: dict = {}
         margin = self.margin if mat.boundary == "wrap" else None
         if self.mesh_band_rows is None:
-            self.mesh = meshes.displaced_mesh(
+            self.mesh = mesh.displaced_mesh(
                 h,
                 mat.depth,
                 mat.boundary,
@@ -202,16 +203,14 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         else:
             # in bands (hzval.truth.bands): the whole grid and its levels, as displaced_mesh makes them
             self.mesh = None
-            self._grid = meshes.grid(
+            self._grid = mesh.grid(
                 h_tex, mat.boundary, min_elevation_deg=self.min_elevation_deg, margin=margin
             )
-            tolerance = (
-                meshes.DEFAULT_TOLERANCE if mat.truth_tolerance is None else float(mat.truth_tolerance)
-            )
-            self._levels = meshes.cell_levels(self._grid.z, tolerance)
+            tolerance = mesh.DEFAULT_TOLERANCE if mat.truth_tolerance is None else float(mat.truth_tolerance)
+            self._levels = mesh.cell_levels(self._grid.z, tolerance)
             info.update(levels=self._levels, tolerance=tolerance)
         # the finest sub-cell grid: every edge of the mesh is on one of its lines (samples.off_edge_lines)
-        self.edge_level = meshes.edge_level(info["levels"])
+        self.edge_level = mesh.edge_level(info["levels"])
         self.tolerance = info["tolerance"]
         del info
         self._normals = None
@@ -270,7 +269,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
             )
         return xs, ys
 
-    def _trace_ambient(self, st: "samples.Samples"):
+    def _trace_ambient(self, st: "truth_samples.Samples"):
         """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
         import drjit as dr
         import mitsuba as mi
@@ -290,7 +289,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         self.timings["ambient_s"] += time.perf_counter() - t0
         return ambient
 
-    def _trace_reflection(self, st: "samples.Samples") -> tuple[np.ndarray, np.ndarray]:
+    def _trace_reflection(self, st: "truth_samples.Samples") -> tuple[np.ndarray, np.ndarray]:
         """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that
         escapes
         (independent of the light, once).
@@ -318,7 +317,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     # Frames
     # ------------------------------------------------------------------
 
-    def light_directions(self, azimuth_deg: float, st: "samples.Samples | None" = None):
+    def light_directions(self, azimuth_deg: float, st: "truth_samples.Samples | None" = None):
         """``(L, lowest, highest)``: the light direction of every sample of ``st`` (default: every
         sample, one band), and the lowest and highest elevations of the light, radians.
 
@@ -437,7 +436,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         )
 
     def _render_band(
-        self, st: "samples.Samples", azimuth_deg: float
+        self, st: "truth_samples.Samples", azimuth_deg: float
     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Pixel means and variances of the mean (:func:`common.mean_and_variance`) over the samples of the
         band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;

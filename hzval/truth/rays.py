@@ -13,7 +13,8 @@ from hzval.core import backend
 from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE
 from hzval.scene.camera import sample_positions
 from hzval.truth import bands as truth_bands
-from hzval.truth import common, samples
+from hzval.truth import common
+from hzval.truth import samples as truth_samples
 
 __all__ = [
     "MIN_TRACED_ELEVATION_DEG",
@@ -59,7 +60,7 @@ class CameraRays:
             if not self.keeps and not (ambient or reflects):
                 # nothing to keep from a band's rays: each frame traces them again; count the
                 # samples moved off edge lines only (positions, no rays: 40 s less at 4096)
-                self.moved_off_edges += samples.off_edge_lines(
+                self.moved_off_edges += truth_samples.off_edge_lines(
                     *self._band_positions(first, stop)[:2], self.rows, self.cols, self.edge_level
                 )[2]
                 continue
@@ -88,7 +89,7 @@ class CameraRays:
             self._vis = truth_bands.band_pass(self, self.scene.light.azimuths_deg)
             self.timings["bands_s"] = time.perf_counter() - t0
 
-    def _camera_samples(self, first: int, stop: int) -> "samples.Samples":
+    def _camera_samples(self, first: int, stop: int) -> "truth_samples.Samples":
         """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
         (lifted origin, geometric and shading normal) and the albedo of the texel that holds each
         (an expression over the positions: the kernels that read it gather it)."""
@@ -97,7 +98,7 @@ class CameraRays:
 
         rows, cols, spp = self.rows, self.cols, self.spp
         xs, ys, seen = self._band_positions(first, stop)
-        xs, ys, moved = samples.off_edge_lines(xs, ys, rows, cols, self.edge_level)
+        xs, ys, moved = truth_samples.off_edge_lines(xs, ys, rows, cols, self.edge_level)
         x, y = mi.Float(xs), mi.Float(ys)
         del xs, ys
         o, n, ns, valid = self._surface_at(x, y, coherent=True)
@@ -108,7 +109,7 @@ class CameraRays:
         if not bool(dr.all(valid)):
             raise RuntimeError("truth: a camera ray missed the displaced mesh (a sample outside the tile?)")
         backend.sync()
-        return samples.Samples(
+        return truth_samples.Samples(
             first,
             stop,
             first * spp,
@@ -195,17 +196,17 @@ class CameraRays:
             xs, ys = np.clip(xs, 0.0, self.cols), np.clip(ys, 0.0, self.rows)
         return xs, ys, seen
 
-    def _shading_samples(self, first: int, stop: int) -> "samples.Samples":
+    def _shading_samples(self, first: int, stop: int) -> "truth_samples.Samples":
         """The samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
         shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their visibility is
         :meth:`_band_visibility`'s)."""
         import mitsuba as mi
 
         xs, ys, _ = self._band_positions(first, stop)
-        xs, ys, moved = samples.off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
+        xs, ys, moved = truth_samples.off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
         x, y = mi.Float(xs), mi.Float(ys)
         albedo = self._albedo_at(x, y) if self._albedo_texels is not None else None
-        return samples.Samples(
+        return truth_samples.Samples(
             first,
             stop,
             first * self.spp,
@@ -217,7 +218,7 @@ class CameraRays:
             moved,
         )
 
-    def _band_visibility(self, azimuth_deg: float, st: "samples.Samples"):
+    def _band_visibility(self, azimuth_deg: float, st: "truth_samples.Samples"):
         """``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass` (a light not
         of the scene's sweep gets its own pass)."""
         import mitsuba as mi
@@ -249,7 +250,7 @@ class RayQueries:
     tile's hops, and the per-sample random streams. They read the Truth's Mitsuba scene and its
     tile geometry."""
 
-    def _rng(self, stream: int, st: "samples.Samples"):
+    def _rng(self, stream: int, st: "truth_samples.Samples"):
         """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
         in the whole image: deterministic, and the same in a band as in one piece."""
         return common.stream_rng(self.scene.seed, stream, st.start, st.count)
@@ -449,7 +450,7 @@ class PathTracing:
     """The truth's interreflection (a part of :class:`hzval.truth.plane.Truth`): paths up to the scene's
     declared depth, as Mitsuba's ``path`` integrator would trace them on the displaced mesh."""
 
-    def _path_trace(self, st: "samples.Samples", L1, vis1, azimuth_deg: float):
+    def _path_trace(self, st: "truth_samples.Samples", L1, vis1, azimuth_deg: float):
         """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
 
         As in Mitsuba's ``path`` integrator, ``max_depth`` counts path

@@ -14,16 +14,16 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import horizon as B
-from hzval.bake import maps
+from hzval.bake import horizon as bake_horizon
+from hzval.bake import maps as bake
 from hzval.core import conventions as cv
 
 ANGLES = 32
 
 
 def both(h, radius, boundary, **kw):
-    unrolled = B.horizon_map(h, radius, ANGLES, boundary, kernel="unrolled", **kw)
-    loop = B.horizon_map(h, radius, ANGLES, boundary, kernel="loop", **kw)
+    unrolled = bake_horizon.horizon_map(h, radius, ANGLES, boundary, kernel="unrolled", **kw)
+    loop = bake_horizon.horizon_map(h, radius, ANGLES, boundary, kernel="loop", **kw)
     return unrolled, loop
 
 
@@ -57,8 +57,8 @@ def test_loop_and_unrolled_agree_bit_for_bit(variant, radius, boundary):
 def test_loop_agrees_with_16_directions_and_64_bins(variant):
     rng = np.random.default_rng(7)
     h = cv.heights_in_texels(rng.random((11, 10)).astype(np.float32), 0.3)
-    a = B.horizon_map(h, 6, 64, "wrap", kernel="unrolled", directions=16)
-    b = B.horizon_map(h, 6, 64, "wrap", kernel="loop", directions=16)
+    a = bake_horizon.horizon_map(h, 6, 64, "wrap", kernel="unrolled", directions=16)
+    b = bake_horizon.horizon_map(h, 6, 64, "wrap", kernel="loop", directions=16)
     assert a[0].shape == (11, 10, 16)
     assert_identical(a, b)
 
@@ -87,9 +87,9 @@ def test_an_occluder_counts_just_inside_the_radius_and_not_at_it(variant, kernel
     for i, j in inside:
         assert i * i + j * j < radius * radius
         h, (row, col) = occluder_map(radius, i, j, height)
-        hz = B.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
+        hz = bake_horizon.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
         sine = height / math.hypot(height, math.hypot(i, j))
-        covered = next(g.bins for g in B.horizon_table(radius, ANGLES) if (i, j) in g.offsets)
+        covered = next(g.bins for g in bake_horizon.horizon_table(radius, ANGLES) if (i, j) in g.offsets)
         for c in range(cv.CHANNEL_COUNT):
             centre = c * ANGLES // cv.CHANNEL_COUNT
             mine = {(centre + d) % ANGLES for d in range(-2, 3)}
@@ -99,40 +99,40 @@ def test_an_occluder_counts_just_inside_the_radius_and_not_at_it(variant, kernel
     for i, j in outside:
         assert i * i + j * j >= radius * radius
         h, (row, col) = occluder_map(radius, i, j, height)
-        hz = B.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
+        hz = bake_horizon.horizon_map(h, radius, ANGLES, boundary, kernel=kernel)[0][row, col]
         assert np.all(hz == 0.0), (i, j)
 
 
 def test_auto_unrolls_the_default_radius_and_loops_large_radii_on_small_maps():
-    assert B.choose_kernel(792, 1) == "unrolled"  # radius 16
-    assert B.choose_kernel(792, 4096 * 4126) == "unrolled"  # ... at every size
-    assert B.choose_kernel(B.UNROLL_MAX_OFFSETS, 1) == "unrolled"
+    assert bake_horizon.choose_kernel(792, 1) == "unrolled"  # radius 16
+    assert bake_horizon.choose_kernel(792, 4096 * 4126) == "unrolled"  # ... at every size
+    assert bake_horizon.choose_kernel(bake_horizon.UNROLL_MAX_OFFSETS, 1) == "unrolled"
     r32, r64 = 3204, 12848
-    assert B.choose_kernel(r32, 512 * 574) == "loop"
-    assert B.choose_kernel(r64, 512 * 638) == "loop"
+    assert bake_horizon.choose_kernel(r32, 512 * 574) == "loop"
+    assert bake_horizon.choose_kernel(r64, 512 * 638) == "loop"
     # large maps: the loop's slower run outweighs the unrolled kernel's compile
-    assert B.choose_kernel(r32, 4096 * 4158) == "unrolled"
+    assert bake_horizon.choose_kernel(r32, 4096 * 4158) == "unrolled"
 
 
 def test_the_default_bake_takes_the_unrolled_kernel(variant, monkeypatch):
     def fail(*args, **kwargs):
         raise AssertionError("the default radius must not take the loop")
 
-    monkeypatch.setattr(B, "_max_tan_loop", fail)
-    maps.bake(np.zeros((8, 8), np.float32), maps.BakeParams())
+    monkeypatch.setattr(bake_horizon, "_max_tan_loop", fail)
+    bake.bake(np.zeros((8, 8), np.float32), bake.BakeParams())
 
 
 def test_auto_takes_the_loop_for_a_large_radius_on_a_small_map(variant, monkeypatch):
     calls = []
-    original = B._max_tan_loop
-    monkeypatch.setattr(B, "_max_tan_loop", lambda *a, **k: calls.append(1) or original(*a, **k))
+    original = bake_horizon._max_tan_loop
+    monkeypatch.setattr(bake_horizon, "_max_tan_loop", lambda *a, **k: calls.append(1) or original(*a, **k))
     rng = np.random.default_rng(3)
     h = cv.heights_in_texels(rng.random((12, 12)).astype(np.float32), 0.1)
-    auto = B.horizon_map(h, 40, ANGLES, "wrap")
+    auto = bake_horizon.horizon_map(h, 40, ANGLES, "wrap")
     assert calls == [1]
-    assert_identical(auto, B.horizon_map(h, 40, ANGLES, "wrap", kernel="loop"))
+    assert_identical(auto, bake_horizon.horizon_map(h, 40, ANGLES, "wrap", kernel="loop"))
 
 
 def test_unknown_kernel_form_is_rejected():
     with pytest.raises(ValueError, match="kernel form"):
-        B.horizon_map(np.zeros((4, 4), np.float32), 4, ANGLES, "wrap", kernel="fast")
+        bake_horizon.horizon_map(np.zeros((4, 4), np.float32), 4, ANGLES, "wrap", kernel="fast")

@@ -22,7 +22,7 @@ from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.materials.bricks import bricks
 from hzval.scene.spec import MaterialSpec, Scene
-from hzval.techniques import horizon as A
+from hzval.techniques import horizon
 from tests.hard._ref import horizon_f64
 
 
@@ -142,8 +142,8 @@ def test_cube_weights_and_the_gpu_path_need_8_directions(variant):
     scene = Scene(material=MaterialSpec(size=8), spp=1)
     for kw in ({"path": "gpu"}, {"weights": "cube"}):
         with pytest.raises(InputError, match="8"):
-            A.Horizon(scene, r, **kw)
-    A.Horizon(scene, r, storage="u8")  # 8-bit storage works for any D
+            horizon.Horizon(scene, r, **kw)
+    horizon.Horizon(scene, r, storage="u8")  # 8-bit storage works for any D
 
 
 @pytest.mark.parametrize("c", [0, 1, 3, 5, 10, 15])
@@ -151,7 +151,7 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
     rng = np.random.default_rng(c)
     r = bake(rng.random((8, 8)), depth=0.2, directions=16)
     scene = Scene(material=MaterialSpec(size=8), spp=1)
-    a = A.Horizon(scene, r)
+    a = horizon.Horizon(scene, r)
     rows, cols = 8, 8
     x, y = cv.texel_centres(rows, cols)
     az, el = cv.channel_azimuth_deg(c, 16), 20.0
@@ -159,7 +159,7 @@ def test_light_on_a_channel_reads_that_channel(variant, c):
     channel = r.horizon[..., c].ravel()
     assert np.allclose(out["horizon_sine"], channel, atol=1e-6)
     lz = math.sin(math.radians(el))
-    assert np.allclose(out["factor"], np.clip(A.DEFAULT_K * (lz - channel) + 1, 0, 1), atol=1e-5)
+    assert np.allclose(out["factor"], np.clip(horizon.DEFAULT_K * (lz - channel) + 1, 0, 1), atol=1e-5)
 
 
 def test_bricks_16_directions_against_the_truth(variant, capsys):
@@ -173,7 +173,7 @@ def test_bricks_16_directions_against_the_truth(variant, capsys):
     V = [f.layers["visibility"] for f in map(truth.Truth(scene, h).render, scene.light.azimuths_deg)]
     mae = {}
     for d in (8, 16):
-        ap = A.Horizon(scene, B.bake(h, B.BakeParams(directions=d)), albedo)
+        ap = horizon.Horizon(scene, B.bake(h, B.BakeParams(directions=d)), albedo)
         F = [ap.render(az).layers["factor"] for az in scene.light.azimuths_deg]
         assert all(np.isfinite(f).all() and (f >= 0).all() and (f <= 1).all() for f in F)
         mae[d] = float(np.mean([np.mean(np.abs(f.astype(np.float64) - v)) for f, v in zip(F, V)]))

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps, occlusion
+from hzval.bake import maps as bake
+from hzval.bake import occlusion
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.materials import generate
@@ -106,7 +107,7 @@ def test_the_channels_made_side_by_side_are_the_channels_made_in_turn():
             occlusion.self_shadowed_bump(sines, n, pool=pool).view(np.uint32), alone.view(np.uint32)
         )
     h = generate("bricks", 32, seed=2).height
-    baked = maps.bake(h, maps.BakeParams(depth=0.1, ssbump_lift=0.0))
+    baked = bake.bake(h, bake.BakeParams(depth=0.1, ssbump_lift=0.0))
     assert np.array_equal(baked.ssbump, occlusion.self_shadowed_bump(baked.horizon, baked.normal))
     assert np.array_equal(baked.bent_normal, occlusion.bent_normal(baked.horizon))
 
@@ -125,7 +126,7 @@ def test_a_rise_under_the_lift_does_not_occlude_and_one_over_it_does(variant):
         h[:, 20:24] = step  # texels, as heights_in_texels gives them
         depth = 1.0 / 32  # H = 1 is 1 texel high at 32 columns
         height = h  # normalised heights: one unit a texel at this depth
-        baked = maps.bake(height, maps.BakeParams(depth=depth, boundary="open", ssbump_lift=0.55))
+        baked = bake.bake(height, bake.BakeParams(depth=depth, boundary="open", ssbump_lift=0.55))
         ground = baked.ssbump[16, 18]  # two texels west of the step, facing it along +x
         assert np.allclose(cv.heights_in_texels(height, depth), h)
         if occluded:
@@ -135,18 +136,18 @@ def test_a_rise_under_the_lift_does_not_occlude_and_one_over_it_does(variant):
 
 
 def test_the_lifted_horizons_are_lower_and_both_kernels_agree(variant):
-    from hzval.bake import horizon as hz
+    from hzval.bake import horizon as bake_horizon
 
     h = generate("gravel", 48, seed=4).height * 6.0
-    plain = hz.horizon_map(h, 8, 32, "wrap")[0]
-    unrolled = hz.horizon_map(h, 8, 32, "wrap", kernel="unrolled", lift=0.55)[0]
-    loop = hz.horizon_map(h, 8, 32, "wrap", kernel="loop", lift=0.55)[0]
+    plain = bake_horizon.horizon_map(h, 8, 32, "wrap")[0]
+    unrolled = bake_horizon.horizon_map(h, 8, 32, "wrap", kernel="unrolled", lift=0.55)[0]
+    loop = bake_horizon.horizon_map(h, 8, 32, "wrap", kernel="loop", lift=0.55)[0]
     assert np.array_equal(unrolled.view(np.uint32), loop.view(np.uint32))
     assert (unrolled <= plain).all() and (unrolled < plain).any()
-    assert np.array_equal(hz.horizon_map(h, 8, 32, "wrap", lift=0.0)[0], plain)
+    assert np.array_equal(bake_horizon.horizon_map(h, 8, 32, "wrap", lift=0.0)[0], plain)
 
 
 def test_a_bake_record_without_the_lift_is_an_unlifted_bake():
-    assert maps.BakeParams.normalise_record({"depth": 0.05})["ssbump_lift"] == 0.0
+    assert bake.BakeParams.normalise_record({"depth": 0.05})["ssbump_lift"] == 0.0
     with pytest.raises(InputError, match="--ssbump-lift"):
-        maps.BakeParams(ssbump_lift=-0.1).validate()
+        bake.BakeParams(ssbump_lift=-0.1).validate()

@@ -19,7 +19,7 @@ from hzval.cli import main as cli
 from hzval.commands import export_scene
 from hzval.core import shading
 from hzval.materials.bricks import bricks
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.truth import plane as truth
 from tests.truth.test_plane import column_wall, make_scene
 
@@ -28,7 +28,7 @@ CASES = {
         column_wall(40, 40, 20),
         make_scene((40, 40), 4 / 40, "open", effects=("shadow", "diffuse"), spp=64, elevation=30.0),
     ),
-    "bricks": lambda: (bricks(48), S.override(S.Scene(), size=48, spp=64, depth=0.1)),
+    "bricks": lambda: (bricks(48), sc.override(sc.Scene(), size=48, spp=64, depth=0.1)),
 }
 
 

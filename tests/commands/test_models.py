@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from hzval.commands import models as models_study
+from hzval.commands import models as models_command
 from hzval.geometry import model
 
 
 @pytest.mark.parametrize("radius,sign", [(0.5, 1), (2.0, 1), (1.0, -1), (math.inf, 1)])
 def test_a_cap_lies_on_its_sphere(tmp_path, radius, sign):
     path = tmp_path / "cap.obj"
-    models_study.cap_obj(path, radius, sign)
+    models_command.cap_obj(path, radius, sign)
     m = model.load(str(path), up="z")
     p, n = m.positions, m.normals
     if math.isinf(radius):
@@ -58,8 +58,8 @@ def test_the_study_end_to_end(tmp_path):
     )
     d = json.loads((out / "models.json").read_text())
     cases = [r["case"] for r in d["rows"]]
-    assert cases == [f"cap+{r:g}" for r in models_study.RADII] + [
-        f"bowl+{r:g}" for r in models_study.BOWLS
+    assert cases == [f"cap+{r:g}" for r in models_command.RADII] + [
+        f"bowl+{r:g}" for r in models_command.BOWLS
     ] + ["ring", "flat", "cube"]
     for r in d["rows"]:
         assert 0.0 <= r["techniques"]["horizon"]["visibility_mae"] <= 1.0
@@ -87,9 +87,9 @@ def test_the_study_end_to_end(tmp_path):
 
 
 def test_the_ring_is_concave_along_the_ring_and_convex_across_the_tube(tmp_path):
-    tube, rho = models_study.RING
+    tube, rho = models_command.RING
     path = tmp_path / "ring.obj"
-    models_study.ring_obj(path, tube, rho)
+    models_command.ring_obj(path, tube, rho)
     m = model.load(str(path), up="z")
     p, n = m.positions, m.normals
     assert np.allclose(p[np.argmin(np.linalg.norm(p, axis=1))], 0.0) and n[:, 2].min() > 0
@@ -114,7 +114,7 @@ def test_the_rings_normal_curvature_along_each_light_is_eulers():
         "principal_curvatures": {"along_ring_x": -0.5, "across_tube_y": 1.0},
         "band": {"techniques": {"horizon": {"per_frame_excess": [0.1, 0.2, 0.3]}}},
     }
-    by = models_study._by_azimuth(row, (0.0, 45.0, 90.0))
+    by = models_command._by_azimuth(row, (0.0, 45.0, 90.0))
     assert [round(b["normal_curvature"], 12) for b in by] == [-0.5, 0.25, 1.0]
     assert [b["excess"]["horizon"] for b in by] == [0.1, 0.2, 0.3]
 
@@ -133,7 +133,7 @@ def test_the_terminal_table_shows_reflection_and_the_bugs():
             },
         },
     }
-    text = models_study.summary_table(data).splitlines()
+    text = models_command.summary_table(data).splitlines()
     assert "horizon |o-R|" in text[0] and text[1].split()[-1] == "0.2000" and text[2].split()[-1] == "-"
     assert text[-1].endswith("swap-uv 1.50x") and "none" not in text[-1].split(":")[-1]
     assert text[2].split()[:2] == ["cube", "-"] and "nan" not in "\n".join(text).lower()  # no 1/R on a cube

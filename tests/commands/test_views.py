@@ -20,8 +20,8 @@ import pytest
 from hzval.bake import maps as bake
 from hzval.core.errors import InputError
 from hzval.io import codecs
-from hzval.scene import camera, lookup
 from hzval.scene import camera as hz_camera
+from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth import plane as truth
@@ -51,9 +51,9 @@ def _record_rays(rec: dict, rows_px: int, cols_px: int):
 @pytest.mark.parametrize(
     "cam",
     [
-        camera.Camera(kind="orthographic", elevation_deg=30, azimuth_deg=20),
-        camera.Camera(kind="perspective", elevation_deg=35, fov_deg=50, resolution=(40, 30)),
-        camera.Camera(),
+        hz_camera.Camera(kind="orthographic", elevation_deg=30, azimuth_deg=20),
+        hz_camera.Camera(kind="perspective", elevation_deg=35, fov_deg=50, resolution=(40, 30)),
+        hz_camera.Camera(),
     ],
 )
 def test_the_record_rebuilds_the_rays(cam):
@@ -70,7 +70,7 @@ def test_the_record_rebuilds_the_rays(cam):
 
 
 def test_the_top_record_is_the_top_views_positions():
-    cam = camera.Camera(supersampling=2)
+    cam = hz_camera.Camera(supersampling=2)
     view = cam.view(8, 12)
     assert view.record()["resolution"] == [24, 16]
     o, d = _record_rays(view.record(), 16, 24)
@@ -89,8 +89,8 @@ def test_a_plane_seen_obliquely_is_fully_lit_and_read_at_the_exact_point():
     h = np.full((32, 32), 0.5, np.float32)
     z0 = 0.5 * 0.05 * 32
     for cam in (
-        camera.Camera(kind="orthographic", elevation_deg=25, azimuth_deg=-70),
-        camera.Camera(kind="perspective", elevation_deg=35),
+        hz_camera.Camera(kind="orthographic", elevation_deg=25, azimuth_deg=-70),
+        hz_camera.Camera(kind="perspective", elevation_deg=35),
     ):
         scene = _flat_scene(cam)
         T = truth.Truth(scene, h)
@@ -120,7 +120,7 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     light from +x at 30 degrees throws its shadow to x = 40.5 - 8 / tan(30) = 26.64."""
     base = sc.load_scene(ROOT / "scenes" / "wall.toml")
     scene = dataclasses.replace(
-        base, camera=camera.Camera(kind="orthographic", elevation_deg=45, azimuth_deg=-120), spp=4
+        base, camera=hz_camera.Camera(kind="orthographic", elevation_deg=45, azimuth_deg=-120), spp=4
     ).validate()
     h = sc.load_material_height(scene.material).height
     T = truth.Truth(scene, h)
@@ -145,7 +145,9 @@ def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
 def test_trilinear_picks_the_level_a_plane_at_a_known_distance_calls_for(variant):
     """A camera straight down, 2 tile widths (128 texels) above a 64-texel tile, 90 degrees across 64
     pixels: a pixel at the centre covers 2 * 128 * tan(45) / 64 = 4 texels, level log2(4) = 2."""
-    cam = camera.Camera(kind="perspective", elevation_deg=90, fov_deg=90, distance=2.0, resolution=(64, 64))
+    cam = hz_camera.Camera(
+        kind="perspective", elevation_deg=90, fov_deg=90, distance=2.0, resolution=(64, 64)
+    )
     view = cam.view(64, 64, (0.0, 0.0))
     fp = view.footprints(0.0).reshape(64, 64, 4)
     centre = fp[31:33, 31:33].reshape(-1, 4)
@@ -189,7 +191,7 @@ def test_an_independent_march_of_the_recorded_rays_agrees_with_the_truth(
 ):
     from hzval.pipeline import sweep
 
-    cam = camera.Camera(kind=camera_kind, elevation_deg=45 if camera_kind == "orthographic" else 35)
+    cam = hz_camera.Camera(kind=camera_kind, elevation_deg=45 if camera_kind == "orthographic" else 35)
     scene = sc.override(
         sc.Scene(), height="gravel", size=64, boundary=boundary, azimuths="-45,30", spp=4, parallax=parallax
     )
@@ -218,7 +220,7 @@ def test_parallax_mapping_brings_the_lookup_toward_the_truths_point():
     errors = {}
     for p in ("none", "offset", "occlusion"):
         scene = _flat_scene(
-            camera.Camera(kind="orthographic", elevation_deg=40), lookup=lookup.Lookup(parallax=p)
+            hz_camera.Camera(kind="orthographic", elevation_deg=40), lookup=lookup.Lookup(parallax=p)
         )
         T = truth.Truth(scene, h)
         s = lookup.samples_for(scene, 64, 64, h)
@@ -230,12 +232,12 @@ def test_parallax_mapping_brings_the_lookup_toward_the_truths_point():
 
 def test_view_settings_are_checked():
     with pytest.raises(InputError, match="elevation"):
-        camera.Camera(kind="orthographic", elevation_deg=0).validate("x")
+        hz_camera.Camera(kind="orthographic", elevation_deg=0).validate("x")
     with pytest.raises(InputError, match="--view-elevation"):
         sc.override(sc.Scene(), view_elevation=30.0)
     with pytest.raises(InputError, match="perspective"):
         dataclasses.replace(
-            sc.Scene(effects=("shadow", "specular")), camera=camera.Camera(kind="perspective")
+            sc.Scene(effects=("shadow", "specular")), camera=hz_camera.Camera(kind="perspective")
         ).validate()
     with pytest.raises(InputError, match="lookup.filter"):
         lookup.Lookup(filter="cubic").validate("x")

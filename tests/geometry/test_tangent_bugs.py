@@ -19,7 +19,7 @@ import pytest
 from hzval.bake.maps import BakeParams, bake
 from hzval.core.errors import InputError
 from hzval.geometry import model, tangent_bugs
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.truth.model import ModelTruth
 
@@ -37,8 +37,8 @@ def _scene(n=32, bug="none", **kw):
         resolution=(n, n),
     )
     base.update(kw)
-    sc = S.override(S.Scene(), **base)
-    return dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug=bug))
+    scn = sc.override(sc.Scene(), **base)
+    return dataclasses.replace(scn, mesh=dataclasses.replace(scn.mesh, tangent_bug=bug))
 
 
 def _quad(uvs):
@@ -51,15 +51,15 @@ MIRRORED_U = [(1, 0), (0, 0), (0, 1), (1, 1)]
 
 
 def _frames(uvs, bug, n=16):
-    sc = _scene(n, bug)
+    scn = _scene(n, bug)
     h = np.zeros((n, n), np.float32)
-    mt = ModelTruth(sc, h, _quad(uvs))
+    mt = ModelTruth(scn, h, _quad(uvs))
     return mt.samples().frames[mt.seen_samples]  # a missed sample keeps the world's frame
 
 
-def _horizon(mt, sc, h):
-    b = bake(h, BakeParams(depth=sc.material.depth, boundary=sc.material.boundary))
-    ctx = technique.Context(sc, h, b, S.load_albedo(sc.material, *h.shape), points=mt.samples())
+def _horizon(mt, scn, h):
+    b = bake(h, BakeParams(depth=scn.material.depth, boundary=scn.material.boundary))
+    ctx = technique.Context(scn, h, b, sc.load_albedo(scn.material, *h.shape), points=mt.samples())
     return technique.get("horizon").build(ctx)
 
 
@@ -71,11 +71,11 @@ def test_none_is_the_frames_themselves():
 
 
 def test_none_renders_as_before(variant):
-    sc = _scene(24, mesh="cube", boundary="wrap", camera="perspective", view_azimuth=150)
-    h = S.load_material_height(sc.material).height
+    scn = _scene(24, mesh="cube", boundary="wrap", camera="perspective", view_azimuth=150)
+    h = sc.load_material_height(scn.material).height
     a = ModelTruth(
-        S.override(
-            S.Scene(),
+        sc.override(
+            sc.Scene(),
             size=24,
             depth=0.08,
             spp=2,
@@ -90,7 +90,7 @@ def test_none_renders_as_before(variant):
         h,
         model.load("cube"),
     ).samples()
-    b = ModelTruth(sc, h, model.load("cube")).samples()
+    b = ModelTruth(scn, h, model.load("cube")).samples()
     np.testing.assert_array_equal(a.frames, b.frames)
     np.testing.assert_array_equal(a.x, b.x)
 
@@ -125,11 +125,11 @@ def test_a_mirror_in_v_is_invisible_on_ridges_along_v(variant, bug):
     for along in ("v", "u"):
         h = _ridges(n, along)
         for b in ("none", bug):
-            sc = _scene(n, b, azimuths="-60,60,150", boundary="wrap")  # no edge to mirror
-            mt = ModelTruth(sc, h, _quad(XY))
-            tech = _horizon(mt, sc, h)
+            scn = _scene(n, b, azimuths="-60,60,150", boundary="wrap")  # no edge to mirror
+            mt = ModelTruth(scn, h, _quad(XY))
+            tech = _horizon(mt, scn, h)
             F[along, b] = np.stack(
-                [tech.render(az).layers["factor"][mt.seen] for az in sc.light.azimuths_deg]
+                [tech.render(az).layers["factor"][mt.seen] for az in scn.light.azimuths_deg]
             )
     np.testing.assert_allclose(F["v", bug], F["v", "none"], atol=2e-3)
     assert np.abs(F["u", bug] - F["u", "none"]).mean() > 0.05
@@ -144,7 +144,7 @@ def test_ignore_handedness_doubles_the_error_on_the_cubes_mirrored_face(variant,
     h = _ridges(n, "u")
     err, mirrored = {}, None
     for bug in ("none", "ignore-handedness"):
-        sc = _scene(
+        scn = _scene(
             n,
             bug,
             mesh="cube",
@@ -156,17 +156,17 @@ def test_ignore_handedness_doubles_the_error_on_the_cubes_mirrored_face(variant,
             resolution=(48, 48),
             elevation=30,
         )
-        mt = ModelTruth(sc, h, model.load("cube", tangents=frames))
+        mt = ModelTruth(scn, h, model.load("cube", tangents=frames))
         f = mt.samples().frames
         if mirrored is None:
             w = np.sign(np.sum(np.cross(f[:, 6:9], f[:, 0:3]) * f[:, 3:6], axis=1))
-            mirrored = (w.reshape(-1, sc.spp) < 0).all(axis=1).reshape(mt.shape) & mt.seen
+            mirrored = (w.reshape(-1, scn.spp) < 0).all(axis=1).reshape(mt.shape) & mt.seen
             assert mirrored.sum() > 200
-        tech = _horizon(mt, sc, h)
+        tech = _horizon(mt, scn, h)
         err[bug] = np.mean(
             [
                 np.abs(tech.render(az).layers["factor"] - mt.render(az).layers["visibility"])[mirrored]
-                for az in sc.light.azimuths_deg
+                for az in scn.light.azimuths_deg
             ]
         )
     assert err["ignore-handedness"] >= 2.0 * err["none"], err
@@ -278,13 +278,15 @@ def test_score_names_the_bug_of_frames_rendered_with_it(tmp_path, bug):
 def test_per_face_is_faceted_on_a_curved_model(variant):
     """On the sphere the per-face frame is each triangle's own: constant over the triangle (as few
     distinct normals as triangles seen) and off the interpolated frame, which varies smoothly."""
-    sc = _scene(16, "per-face", mesh="sphere", boundary="wrap", camera="perspective", resolution=(32, 32))
+    scn = _scene(16, "per-face", mesh="sphere", boundary="wrap", camera="perspective", resolution=(32, 32))
     h = np.zeros((16, 16), np.float32)
     sphere = model.load("sphere", shape_args={"segments": 12, "rings": 6})
-    mt = ModelTruth(sc, h, sphere)
+    mt = ModelTruth(scn, h, sphere)
     face = mt.samples().frames[mt.seen_samples]
     none = (
-        ModelTruth(dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, tangent_bug="none")), h, sphere)
+        ModelTruth(
+            dataclasses.replace(scn, mesh=dataclasses.replace(scn.mesh, tangent_bug="none")), h, sphere
+        )
         .samples()
         .frames[mt.seen_samples]
     )

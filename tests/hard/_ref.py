@@ -24,8 +24,8 @@ import numpy as np
 
 import hzval.bake as B
 from hzval.core import conventions as cv
-from hzval.geometry import tile as M
-from hzval.scene import spec as S
+from hzval.geometry import tile as mesh
+from hzval.scene import spec as sc
 
 # --------------------------------------------------------------------------
 # Checks every output must pass
@@ -110,8 +110,8 @@ def mesh_triangles(h_texels, boundary, margin=None, tolerance=None):
     the bilinear surface at ``tolerance`` (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`, the
     truth's).
     The references below trace these triangles in float64, independently of Mitsuba."""
-    g = M.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
-    pos, faces, _ = M.tessellate(g, M.DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    g = mesh.grid(np.asarray(h_texels, np.float32), boundary, margin=margin)
+    pos, faces, _ = mesh.tessellate(g, mesh.DEFAULT_TOLERANCE if tolerance is None else tolerance)
     return pos.astype(np.float64)[faces.astype(np.int64)]
 
 
@@ -212,12 +212,12 @@ def make_scene(
     irradiance=1.0,
     albedo=0.5,
 ):
-    return S.Scene(
+    return sc.Scene(
         name="hard",
-        material=S.MaterialSpec(
+        material=sc.MaterialSpec(
             height="hard", size=max(shape[1], 2), depth=depth, boundary=boundary, albedo=albedo
         ),
-        light=S.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
+        light=sc.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
         effects=tuple(effects),
         spp=spp,
         seed=seed,

@@ -18,7 +18,7 @@ import pytest
 
 from hzval.core import conventions as cv
 from hzval.scene import camera as hz_camera
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.truth.samples import off_edge_lines as _off_edge_lines
 
 from ._ref import classify, mesh_horizon_tan, mesh_triangles, texel_centres_flat, truth
@@ -58,7 +58,7 @@ def test_no_acne_and_no_leaks_at_grazing_light(noise, boundary, elevation, where
         t = truth(h, depth, boundary, positions=(xs, ys), elevation=elevation, spp=1)
     else:
         t = truth(h, depth, boundary, elevation=elevation, spp=4)
-        xs, ys = hz_camera.sample_positions(N, N, S.Camera(), 4, 0)
+        xs, ys = hz_camera.sample_positions(N, N, sc.Camera(), 4, 0)
     if where == "vertices":
         assert t.moved_off_edges == xs.size
     mx, my, _ = _off_edge_lines(xs, ys, N, N, t.edge_level)
@@ -90,7 +90,7 @@ def test_soft_light_of_tiny_radius_converges_to_the_hard_one(noise, radius):
     e = 5.0
     hard = truth(h, depth, "open", elevation=e, spp=4)
     soft = truth(h, depth, "open", elevation=e, spp=4, kind="soft", radius=radius)
-    xs, ys = hz_camera.sample_positions(N, N, S.Camera(), 4, 0)
+    xs, ys = hz_camera.sample_positions(N, N, sc.Camera(), 4, 0)
     mx, my, _ = _off_edge_lines(xs, ys, N, N, hard.edge_level)
     tris = mesh_triangles(cv.heights_in_texels(h, depth), "open")
     diffs = []

@@ -131,12 +131,12 @@ def test_a_late_failure_leaves_the_earlier_report_byte_for_byte(tmp_path, sweep_
     frames, out = engine_frames(tmp_path, sweep_dir), tmp_path / "o"
     assert score(frames, sweep_dir, out) == 0
     before = snapshot(out)
-    from hzval.report import pages
+    from hzval.report import pages as report
 
     def fail(*a, **k):
         raise InputError(out / "index.html", "a late failure")
 
-    monkeypatch.setattr(pages, "render_html", fail)
+    monkeypatch.setattr(report, "render_html", fail)
     assert score(frames, sweep_dir, out) == 2
     assert snapshot(out) == before
 

@@ -15,7 +15,7 @@ from hzval.commands import check
 from hzval.core import conventions as cv
 from hzval.core import resources
 from hzval.core.errors import InputError
-from hzval.geometry import tile
+from hzval.geometry import tile as mesh
 from hzval.io import codecs
 from tests.helpers import interrupt_material
 from tests.integration.test_faults import hzval, one_line
@@ -78,7 +78,7 @@ def test_a_mesh_that_would_not_fit_is_refused_before_its_grid(tmp_path, monkeypa
     """A deep relief that the truth accepts asks bake --mesh for a wide wrap margin: counted first."""
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**28)
     built = []
-    monkeypatch.setattr(tile, "grid", lambda *a, **k: built.append(1))
+    monkeypatch.setattr(mesh, "grid", lambda *a, **k: built.append(1))
     rc = cli.main(["bake", "--size", "32", "--depth", "5", "--mesh", "--out", str(tmp_path / "o")])
     assert rc == 2 and not built
     one_line(capsys.readouterr().err, "--size", "displaced mesh", "wrap margin", "--depth 5")
@@ -92,8 +92,8 @@ def test_mesh_size_counts_the_mesh_exactly(boundary, margin):
     """Counted from the tile's cells, without the grid: the wrap margin repeats them."""
     rng = np.random.default_rng(3)
     h = (rng.random((13, 17)) * 6).astype(np.float32)
-    positions, faces, _ = tile.tessellate(tile.grid(h, boundary, margin=margin))
-    assert tile.mesh_size(h, boundary, margin) == (len(positions), len(faces))
+    positions, faces, _ = mesh.tessellate(mesh.grid(h, boundary, margin=margin))
+    assert mesh.mesh_size(h, boundary, margin) == (len(positions), len(faces))
 
 
 def test_an_open_terrain_at_the_deepest_depth_bakes_finite_maps(tmp_path, capsys, variant):

@@ -15,7 +15,7 @@ import pytest
 from hzval.bake.occlusion import HL2_BASIS
 from hzval.cli import main as cli
 from hzval.io import codecs
-from hzval.scene import camera as cam
+from hzval.scene import camera as hz_camera
 from hzval.scene import spec as sc
 
 ENGINE = {
@@ -91,7 +91,7 @@ def test_each_factor_image_is_its_formula_on_the_written_bake(swept):
     engine = json.loads((swept / "frames.json").read_text())
     rows, cols = maps["ao"].shape
     spp = engine["samples"]["spp"]
-    x, y = cam.sample_positions(rows, cols, sc.Camera(), spp, engine["samples"]["seed"])
+    x, y = hz_camera.sample_positions(rows, cols, sc.Camera(), spp, engine["samples"]["seed"])
     tex = {k: bilinear(v, x.astype(np.float64), y.astype(np.float64)) for k, v in maps.items()}
     n_pix = tex["normal"] / np.linalg.norm(tex["normal"], axis=-1, keepdims=True)
     for frame in engine["frames"]:

@@ -28,7 +28,7 @@ from hzval.cli import main as cli
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.truth import memory
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,25 +72,25 @@ def one_line(err: str, *needles: str) -> None:
 def test_a_billion_lights_is_refused_in_seconds_under_a_memory_limit(tmp_path):
     rc, err, seconds = hzval("sweep", "--size", "64", "--azimuths=0:1e9:1e-9", "--out", tmp_path / "o")
     assert rc == 2 and seconds < 10
-    one_line(err, "--azimuths", str(S.MAX_LIGHTS))
+    one_line(err, "--azimuths", str(sc.MAX_LIGHTS))
     assert not (tmp_path / "o").exists()
 
 
 def test_the_light_count_is_computed_not_listed():
     with pytest.raises(InputError, match="360001 lights"):
-        S.parse_azimuths("0:360:0.001")
-    assert len(S.parse_azimuths("-180:180:1")) == S.MAX_LIGHTS  # the bound itself is allowed
+        sc.parse_azimuths("0:360:0.001")
+    assert len(sc.parse_azimuths("-180:180:1")) == sc.MAX_LIGHTS  # the bound itself is allowed
     for bad in ("0:inf:1", "nan,1", "0:10:0"):
         with pytest.raises(InputError, match="--azimuths"):
-            S.parse_azimuths(bad)
+            sc.parse_azimuths(bad)
 
 
 def test_frames_times_pixels_is_bounded_before_anything_is_allocated():
 
-    scene = S.override(S.Scene(), size=4096, azimuths="0:360:2")  # 181 lights of 16.8M pixels
+    scene = sc.override(sc.Scene(), size=4096, azimuths="0:360:2")  # 181 lights of 16.8M pixels
     with pytest.raises(InputError, match="frame pixels"):
         memory.check_frame_pixels(scene, 4096, 4096)
-    assert memory.check_frame_pixels(S.override(S.Scene(), size=4096), 4096, 4096) == 9 * 4096**2
+    assert memory.check_frame_pixels(sc.override(sc.Scene(), size=4096), 4096, 4096) == 9 * 4096**2
 
 
 # 2. the local cluster listens on loopback only -----------------------------------------------
@@ -626,7 +626,7 @@ def test_views_leaves_no_empty_view_folder(tmp_path, monkeypatch, variant):
         raise InputError("sweep", "injected")
 
     monkeypatch.setattr(sweep, "_run", broken)
-    scene = S.override(S.Scene(), size=16, azimuths="0", spp=1)
+    scene = sc.override(sc.Scene(), size=16, azimuths="0", spp=1)
     with pytest.raises(InputError):
         views.run(scene, out, views=["top"], progress=False)
     assert list(out.iterdir()) == []
@@ -650,7 +650,7 @@ def test_a_scene_file_is_strict(tmp_path, text, needle, capsys):
     p = tmp_path / "gravel.toml"
     p.write_text(text)
     with pytest.raises(InputError, match=None) as e:
-        S.load_scene(p)
+        sc.load_scene(p)
     assert needle in str(e.value) and str(p) in str(e.value)
     assert cli.main(["sweep", "--scene", str(p), "--out", str(tmp_path / "o")]) == 2
     one_line(capsys.readouterr().err, needle)

@@ -31,7 +31,7 @@ from hzval.commands import score as score_cmd
 from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.io import external, staging
-from hzval.scene import spec
+from hzval.scene import spec as sc
 from tests.geometry.test_model import QUAD_F, QUAD_P, QUAD_UV, write_gltf
 
 SETTINGS = settings(
@@ -140,7 +140,7 @@ def readers(sweep_dir, tmp_path_factory):
     s, f = _copy(tmp_path_factory, sweep), _copy(tmp_path_factory, frames)
     own = (sweep / "metrics.json").read_text()
     b = _copy(tmp_path_factory, sweep / "bake")
-    h = materials.generate(spec.Scene().material.height, 16).height
+    h = materials.generate(sc.Scene().material.height, 16).height
     record = json.loads((b / "bake.json").read_text())
     params = bake.BakeParams.from_record(bake.BakeParams.normalise_record(record["parameters"]))
     gltf_dir = tmp_path_factory.mktemp("gltf")
@@ -160,7 +160,7 @@ def readers(sweep_dir, tmp_path_factory):
             lambda: gates.Gates(["horizon.flip_mean>1"], s).failures(json.loads(own)),
             False,
         ),
-        "scene (--scene)": (scene, lambda: spec.load_scene(scene), True),
+        "scene (--scene)": (scene, lambda: sc.load_scene(scene), True),
         "encoding (--horizon-encoding)": (enc, lambda: external.Encoding.from_toml(enc), True),
         "bake.json (a cached bake)": (
             b / "bake.json",

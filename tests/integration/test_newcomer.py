@@ -307,9 +307,9 @@ def test_a_technique_has_one_colour_on_every_page():
 #: Every technique's colour is distinct on a page, the registry's and score's engine alike.
 def test_every_registered_technique_has_its_own_colour():
     from hzval.report import columns
-    from hzval.techniques import registry
+    from hzval.techniques import registry as technique
 
-    score = {"techniques": {"engine": {}, **{n: {} for n in registry.names()}}, "frames": []}
+    score = {"techniques": {"engine": {}, **{n: {} for n in technique.names()}}, "frames": []}
     colours = [v.colour for v in columns.technique_views(score)]
     assert len(set(colours)) == len(colours)
 
@@ -371,14 +371,14 @@ def test_the_perfect_shadows_floor_is_never_marked_worst(tmp_path, variant):
     error) have no cell marked worst, while the technique's error columns have theirs."""
     import json
 
-    from hzval.report import pages
+    from hzval.report import pages as report
 
     out = tmp_path / "s"
     argv = ["sweep", "--material", "gravel", "--size", "32", "--depth", "0.1", "--elevation", "20"]
     argv += ["--azimuths", "0,90,180", "--spp", "2", "--techniques", "horizon", "--quiet", "--out", str(out)]
     assert cli.main(argv) == 0
     metrics = json.loads((out / "metrics.json").read_text())
-    ctx = pages.build_context(out, metrics, "", {"metrics": None, "timings": None})
+    ctx = report.build_context(out, metrics, "", {"metrics": None, "timings": None})
     cells = [c for f in ctx["frames"] for c in f["cells"]]
     floor = [c for c in cells if c["key"].startswith("floor_")]
     assert floor and len({c["text"] for c in floor}) > 1 and not any(c["worst"] for c in floor)
@@ -411,6 +411,6 @@ def test_the_terminal_table_fits_100_columns_with_every_technique(tmp_path, vari
     lines = capsys.readouterr().out.splitlines()
     table = lines[: lines.index("")] if "" in lines else lines
     assert max(len(line) for line in table) <= 100
-    from hzval.techniques import registry
+    from hzval.techniques import registry as technique
 
-    assert [r.split()[0] for r in table[2 : 2 + len(registry.defaults())]] == registry.defaults()
+    assert [r.split()[0] for r in table[2 : 2 + len(technique.defaults())]] == technique.defaults()

@@ -139,14 +139,14 @@ def test_a_misspelt_flag_gets_a_did_you_mean(capsys, typed, meant):
 
 
 def test_a_flat_step_of_a_trend_is_no_change_not_minus_zero():
-    from hzval.commands import models
+    from hzval.commands import models as models_command
 
     trend = {
         "verdict": "rises within noise",
         "overall": {"change": 0.01, "to": 0.5, "z": 2.0},
         "falls": [{"from": 0.0, "to": 0.125, "z": -0.0}, {"from": 0.25, "to": 0.5, "z": -1.34}],
     }
-    said = models._says(trend)
+    said = models_command._says(trend)
     assert "-0.0" not in said and "+0->+0.125 no change" in said and "by 1.3 SE" in said
 
 
@@ -159,7 +159,7 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
 
     from hzval import materials
     from hzval.commands import check
-    from hzval.scene import spec
+    from hzval.scene import spec as sc
 
     scenes = tmp_path / "scenes"
     scenes.mkdir()
@@ -171,12 +171,12 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
     argv = ["check", "--scenes", str(scenes), "--references", str(tmp_path / "ref"), "--quiet"]
     assert cli.main([*argv, "--update"]) == 0
     assert cli.main(argv) == 0
-    height, albedo = check.check_material(check.check_scene(spec.load_scene(scenes / "mine.toml")))
+    height, albedo = check.check_material(check.check_scene(sc.load_scene(scenes / "mine.toml")))
     assert height.shape == (check.MAX_CHECK_SIZE,) * 2 and albedo.shape == (*height.shape, 3)
     # a box filter: the mean height is kept
     assert abs(float(height.mean()) - float(h.mean())) < 1e-4
     (scenes / "mine.toml").write_text((scenes / "mine.toml").read_text() + "[check]\nsize = 64\n")
-    height, _ = check.check_material(check.check_scene(spec.load_scene(scenes / "mine.toml")))
+    height, _ = check.check_material(check.check_scene(sc.load_scene(scenes / "mine.toml")))
     assert height.shape == (64, 64)
 
 

@@ -161,14 +161,14 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(
     assert m["techniques"]["horizon"]["parameters"]["bake"].startswith("external: ")
     assert "external: " in (out / "index.html").read_text(encoding="utf-8")
     # F follows the external map: it is the factor of the peer's sines, not of hzval's radius-16 bake
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import horizon
 
-    sc = S.override(S.Scene(), height=str(tmp_path / "bricks.npy"), depth=depth, azimuths="0", spp=4)
+    scn = sc.override(sc.Scene(), height=str(tmp_path / "bricks.npy"), depth=depth, azimuths="0", spp=4)
     own_bake = bake.bake(h, bake.BakeParams(depth=depth))
     theirs = (
         horizon.Horizon(
-            sc,
+            scn,
             bake.Bake(
                 own_bake.params,
                 u8.astype(np.float32) / 255,
@@ -182,7 +182,7 @@ def test_an_independent_radius_4_bake_drives_the_horizon_technique(
     )
     F = codecs.read_exr(out / m["frames"][0]["techniques"]["horizon"]["files"]["factor"])["Y"]
     np.testing.assert_allclose(F, theirs, atol=2**-12 + 1e-6)  # the file is half float: 2^-12 in [0, 1]
-    assert np.abs(F - horizon.Horizon(sc, own_bake).render(0.0).layers["factor"]).mean() > 1e-3
+    assert np.abs(F - horizon.Horizon(scn, own_bake).render(0.0).layers["factor"]).mean() > 1e-3
     m2, err2, _ = results["mirrored"]
     assert not m2["external_bake"]["matches"] and m2["external_bake"]["best_match"]["y"] == "down"
     assert err2.startswith("hzval: warning: horizon map: the channels look mirrored: is +y down?")

@@ -181,12 +181,12 @@ def test_a_ktx2_layer_that_is_not_rgba_is_one_line(tmp_path):
 
 
 def test_an_8_bit_export_is_within_half_a_level_of_the_bake(tmp_path, variant):
-    from hzval.bake import maps
+    from hzval.bake import maps as bake
 
     run = tmp_path / "s"
     assert cli.main([*SWEEP, "--techniques", "horizon", "--horizon-storage", "u8", "--out", str(run)]) == 0
     assert cli.main(["export-textures", str(run), "--out", str(tmp_path / "t")]) == 0
-    sines = maps.read_bake(run / "bake").horizon
+    sines = bake.read_bake(run / "bake").horizon
     for i in range(2):
         p = oracle.parse((tmp_path / "t" / f"horizon{i}.ktx2").read_bytes())
         assert p.vk_format == ktx2.FORMATS["R8G8B8A8_UNORM"].vk

@@ -12,7 +12,7 @@ from hzval import materials
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
 from hzval.materials import cobblestones, fabric, noise, panels, planks, spikes
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 
 NAMES = materials.names()
 WRAPPING = [n for n in NAMES if materials.get(n).boundary == "wrap"]
@@ -187,25 +187,25 @@ def test_planks_have_grooves_between_rows():
 
 
 def test_a_scene_takes_its_materials_depth_boundary_and_albedo():
-    s = S.override(S.Scene(), height="ridges", size=32)
+    s = sc.override(sc.Scene(), height="ridges", size=32)
     assert (s.material.depth, s.material.boundary) == (0.08, "open")
-    a = S.load_albedo(s.material, 32, 32)
+    a = sc.load_albedo(s.material, 32, 32)
     np.testing.assert_array_equal(a, materials.generate("ridges", 32).albedo)
-    assert S.override(S.Scene(), height="ridges", depth=0.02).material.depth == 0.02
+    assert sc.override(sc.Scene(), height="ridges", depth=0.02).material.depth == 0.02
     # back to the bricks: their own defaults again, and the constant albedo
-    b = S.override(s, height="bricks")
+    b = sc.override(s, height="bricks")
     assert (b.material.depth, b.material.boundary) == (0.05, "wrap")
-    assert np.all(S.load_albedo(b.material, 8, 8) == S.DEFAULT_ALBEDO)
+    assert np.all(sc.load_albedo(b.material, 8, 8) == sc.DEFAULT_ALBEDO)
 
 
 def test_scene_files_name_built_in_materials(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text('[material]\nheight = "spikes"\nsize = 16\n')
-    s = S.load_scene(p)
+    s = sc.load_scene(p)
     assert s.material.height == "spikes" and s.material.depth == materials.get("spikes").depth
     p.write_text('[material]\nheight = "spikes"\nsize = 4\n')
     with pytest.raises(Exception, match="at least 8"):
-        S.load_scene(p)
+        sc.load_scene(p)
 
 
 def test_hzval_materials_lists_them(capsys):
@@ -247,7 +247,7 @@ def test_sweep_of_a_built_in_material(variant, tmp_path, capsys):
 def test_export_writes_a_built_in_materials_albedo(variant, tmp_path):
     from hzval.commands import export_scene
 
-    s = S.override(S.Scene(), height="planks", size=16)
+    s = sc.override(sc.Scene(), height="planks", size=16)
     written = export_scene.write_scene(s, materials.generate("planks", 16).height, tmp_path)
     assert tmp_path / "albedo.png" in written
     s2 = dataclasses.replace(s, material=dataclasses.replace(s.material, albedo=0.5))

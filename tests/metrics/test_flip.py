@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from hzval.core.errors import HzvalError
-from hzval.metrics import compare as C
-from hzval.metrics import flip as F
+from hzval.metrics import compare
+from hzval.metrics import flip as hzflip
 
-PPD = C.FLIP_PPD
+PPD = compare.FLIP_PPD
 
 
 def contracts_fma(variant) -> bool:
@@ -48,7 +48,7 @@ def reference_flip(ref, test, ppd=PPD):
 
 def check(ref, test, max_pixel, ppd=PPD, max_mean=1e-4):
     want_map, want_mean = reference_flip(ref, test, ppd)
-    got_map, got_mean = F.flip(ref, test, ppd)
+    got_map, got_mean = hzflip.flip(ref, test, ppd)
     assert got_map.shape == want_map.shape and got_map.dtype == np.float32
     assert abs(got_mean - want_mean) <= max_mean
     assert float(np.max(np.abs(got_map - want_map))) <= max_pixel
@@ -81,7 +81,7 @@ def bricks_renders():
     shadowed = a.copy()
     shadowed[30:60, 20:50] *= 0.3
     grainy = a * (1 + 0.05 * rng.standard_normal(a.shape))
-    return [C.display(x, 1.5) for x in (a, b, shadowed, grainy)]
+    return [compare.display(x, 1.5) for x in (a, b, shadowed, grainy)]
 
 
 # -- FLIP ------------------------------------------------------------------------------------------
@@ -151,10 +151,10 @@ def test_rendered_images():
 
 def test_reference_reused_for_several_tests_is_the_same_as_fresh():
     a, *tests = bricks_renders()
-    ref = F.FlipReference(a, PPD)
+    ref = hzflip.FlipReference(a, PPD)
     for t in tests + [noise(a.shape[:2])]:
-        m, mean = F.flip_error(ref, t)
-        m1, mean1 = F.flip(a, t, PPD)
+        m, mean = hzflip.flip_error(ref, t)
+        m1, mean1 = hzflip.flip(a, t, PPD)
         np.testing.assert_array_equal(m, m1)
         assert mean == mean1
 
@@ -163,15 +163,15 @@ def test_kernels_replayed_for_a_shape_are_the_traced_ones():
     """FLIP's kernels are recorded once per image shape and replayed (``FROZEN_SHAPES`` of them kept):
     shapes interleaved, more of them than are kept, and new images of a shape seen before give the
     same maps as the first call of each, which traced them."""
-    shapes = [(8 + 3 * i, 20 - i) for i in range(F.FROZEN_SHAPES + 2)]
+    shapes = [(8 + 3 * i, 20 - i) for i in range(hzflip.FROZEN_SHAPES + 2)]
     images = {s: (noise(s), noise(s)) for s in shapes}
-    first = {s: F.flip(*images[s], PPD)[0] for s in shapes}
+    first = {s: hzflip.flip(*images[s], PPD)[0] for s in shapes}
     for s in reversed(shapes):
-        np.testing.assert_array_equal(F.flip(*images[s], PPD)[0], first[s])
+        np.testing.assert_array_equal(hzflip.flip(*images[s], PPD)[0], first[s])
     for s in shapes[:3]:
         a, b = noise(s), noise(s)
         want, _ = reference_flip(a, b)
-        assert float(np.max(np.abs(F.flip(a, b, PPD)[0] - want))) <= 2e-5
+        assert float(np.max(np.abs(hzflip.flip(a, b, PPD)[0] - want))) <= 2e-5
 
 
 def test_a_crop_away_from_its_border_is_the_whole_images(variant):
@@ -180,11 +180,11 @@ def test_a_crop_away_from_its_border_is_the_whole_images(variant):
     bit, whatever the sizes (one kernel serves every size). Where the backend contracts FMAs, a
     pixel's place in its block decides which products fuse: there they agree to float32 rounding."""
     a, b = noise((90, 130)), noise((90, 130))
-    whole, _ = F.flip(a, b, PPD)
-    f = F.filters(PPD)
+    whole, _ = hzflip.flip(a, b, PPD)
+    f = hzflip.filters(PPD)
     m = 2 * max(f.spatial_radius, f.feature_radius)
     crop = (slice(7, 83), slice(20, 111))
-    part, _ = F.flip(a[crop], b[crop], PPD)
+    part, _ = hzflip.flip(a[crop], b[crop], PPD)
     if contracts_fma(variant):
         np.testing.assert_allclose(part[m:-m, m:-m], whole[crop][m:-m, m:-m], rtol=0, atol=1e-6)
     else:
@@ -219,10 +219,10 @@ def test_blocked_passes_are_the_plain_passes_bit_for_bit(variant, shape, ppd):
     they agree within float32 summation's bound, ``(n_x + n_y) eps`` times the sum of
     ``|w_x| |w_y| |plane|`` over the taps (Higham, *Accuracy and Stability of Numerical
     Algorithms*, 2002, eq. 4.4)."""
-    f = F.filters(ppd)
+    f = hzflip.filters(ppd)
     plane = (100.0 * noise(shape)[..., 0] - 16.0).astype(np.float32)
     for along_x, along_y in ((f.y, f.y), (f.cz1, f.cz2), (f.dg, f.g), (f.g, f.ddg), (f.g, f.y)):
-        got = F.separable_filter(plane, along_x, along_y)
+        got = hzflip.separable_filter(plane, along_x, along_y)
         want = numpy_separable_filter(plane, along_x, along_y)
         if not contracts_fma(variant):
             np.testing.assert_array_equal(got, want)
@@ -234,9 +234,9 @@ def test_blocked_passes_are_the_plain_passes_bit_for_bit(variant, shape, ppd):
 
 def test_separable_filter_refuses_what_it_cannot_filter():
     with pytest.raises(ValueError):
-        F.separable_filter(np.zeros((4, 4, 3)), np.ones(3), np.ones(3))
+        hzflip.separable_filter(np.zeros((4, 4, 3)), np.ones(3), np.ones(3))
     with pytest.raises(ValueError):
-        F.separable_filter(np.zeros((4, 4)), np.ones(2), np.ones(3))
+        hzflip.separable_filter(np.zeros((4, 4)), np.ones(2), np.ones(3))
 
 
 def test_mean_is_flips_float32_running_sum():
@@ -244,11 +244,11 @@ def test_mean_is_flips_float32_running_sum():
     total = np.float32(0)
     for v in m.ravel():
         total = np.float32(total + v)
-    assert F.mean_error(m) == float(total / np.float32(m.size))
+    assert hzflip.mean_error(m) == float(total / np.float32(m.size))
 
 
 def test_filters_are_flips():
-    f = F.filters(PPD)
+    f = hzflip.filters(PPD)
     assert f.spatial_radius == 10 and f.feature_radius == 9  # at 67 ppd
     for w in (f.y, f.cx, f.g):
         assert w.sum() == pytest.approx(1.0, abs=1e-6)
@@ -262,17 +262,17 @@ def test_filters_are_flips():
 
 def test_bad_input_is_an_error():
     with pytest.raises(ValueError):
-        F.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
+        hzflip.flip(np.zeros((4, 4, 3)), np.zeros((5, 4, 3)))
     with pytest.raises(ValueError):
-        F.flip(np.zeros((4, 4)), np.zeros((4, 4)))
+        hzflip.flip(np.zeros((4, 4)), np.zeros((4, 4)))
     with pytest.raises(HzvalError):
-        C.flip(np.zeros((4, 4, 3)), np.zeros((4, 5, 3)))
+        compare.flip(np.zeros((4, 4, 3)), np.zeros((4, 5, 3)))
 
 
 def test_compare_uses_it():
     a, b, *_ = bricks_renders()
-    m, mean = C.flip(a, b)
-    m0, mean0 = C.flip_evaluator_flip(a, b)
+    m, mean = compare.flip(a, b)
+    m0, mean0 = compare.flip_evaluator_flip(a, b)
     assert abs(mean - mean0) < 1e-6 and np.max(np.abs(m - m0)) < 1e-3
 
 
@@ -320,30 +320,34 @@ def test_delta_e2000_against_colour_science(case):
         pairs = [(noise((1, 257)), noise((1, 257)))]
     for a, b in pairs:
         want = colour_de(a, b)
-        got = C.delta_e2000(a, b)
+        got = compare.delta_e2000(a, b)
         assert got.shape == a.shape[:2] and got.dtype == np.float64
         assert float(np.max(np.abs(got - want))) < 1e-9
-        np.testing.assert_allclose(C.lab(a), colour_lab(a), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(compare.lab(a), colour_lab(a), rtol=0, atol=1e-9)
 
 
 def test_delta_e2000_with_the_reference_lab_given():
     a, b, c = noise((40, 50)), noise((40, 50)), noise((40, 50))
-    lab = C.LabImage(a)
-    fresh = C.delta_e2000(a, b)
-    np.testing.assert_array_equal(C.delta_e2000(a, b, reference_lab=lab), fresh)
-    np.testing.assert_allclose(C.delta_e2000(a, b, reference_lab=colour_lab(a)), fresh, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(C.delta_e2000(a, c, reference_lab=lab), C.delta_e2000(a, c))  # reused
+    lab = compare.LabImage(a)
+    fresh = compare.delta_e2000(a, b)
+    np.testing.assert_array_equal(compare.delta_e2000(a, b, reference_lab=lab), fresh)
+    np.testing.assert_allclose(
+        compare.delta_e2000(a, b, reference_lab=colour_lab(a)), fresh, rtol=0, atol=1e-9
+    )
+    np.testing.assert_array_equal(
+        compare.delta_e2000(a, c, reference_lab=lab), compare.delta_e2000(a, c)
+    )  # reused
     np.testing.assert_allclose(lab.numpy(), colour_lab(a), rtol=0, atol=1e-9)
 
 
 def test_delta_e2000_known_values():
     black, white = np.zeros((2, 2, 3)), np.ones((2, 2, 3))
-    assert np.all(C.delta_e2000(black, black) == 0)
-    np.testing.assert_allclose(C.delta_e2000(white, black), 100.0, atol=0.01)
+    assert np.all(compare.delta_e2000(black, black) == 0)
+    np.testing.assert_allclose(compare.delta_e2000(white, black), 100.0, atol=0.01)
     with pytest.raises(HzvalError):
-        C.delta_e2000(black, np.zeros((2, 3, 3)))
+        compare.delta_e2000(black, np.zeros((2, 3, 3)))
 
 
 def test_delta_e2000_colour_is_colour_science():
     a, b = noise((30, 20)), noise((30, 20))
-    np.testing.assert_array_equal(C.delta_e2000_colour(a, b), colour_de(a, b))
+    np.testing.assert_array_equal(compare.delta_e2000_colour(a, b), colour_de(a, b))

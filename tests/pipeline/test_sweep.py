@@ -597,9 +597,9 @@ def test_a_sweep_that_would_not_fit_is_refused_before_it_allocates(variant, tmp_
     """The estimate (hzval.truth.memory.estimate_peak_bytes) against the memory available: over it, one line
     naming the input and the estimate, exit 2, nothing written; under it, recorded beside the peak."""
     from hzval.cli import main as cli
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
-    scene = S.override(S.Scene(), size=1024)
+    scene = sc.override(sc.Scene(), size=1024)
     whole = memory.estimate_peak_bytes(scene, 1024, 1024)
     assert 2.0 * 2**30 < whole < 3.0 * 2**30  # measured: 2.35 GiB (benchmarks/README.md)
     # before the map is read, what is sure to be needed: the sweep without the truth's mesh, which

@@ -16,21 +16,21 @@ import pytest
 
 from hzval.bake.maps import BakeParams, bake
 from hzval.scene import lookup
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques import surface
 
 
 def _scene(n=24, effects="shadow,diffuse", spp=2):
-    return S.override(S.Scene(), size=n, depth=0.15, spp=spp, azimuths="0", effects=effects)
+    return sc.override(sc.Scene(), size=n, depth=0.15, spp=spp, azimuths="0", effects=effects)
 
 
 def _contexts(scene, turn_deg=0.0, macro=None):
     """The plane's context, and one whose samples carry frames turned by ``turn_deg`` about +z."""
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     rows, cols = hm.height.shape
     b = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
-    albedo = S.load_albedo(scene.material, rows, cols)
+    albedo = sc.load_albedo(scene.material, rows, cols)
     plane = technique.Context(scene, hm.height, b, albedo)
     own = plane.samples()
     c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))

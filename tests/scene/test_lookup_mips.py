@@ -7,7 +7,7 @@ import pytest
 from hzval.bake.maps import BakeParams, bake
 from hzval.io import storage as hz_storage
 from hzval.scene import lookup
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques.horizon import Horizon
 
 
@@ -30,8 +30,8 @@ def test_each_level_is_made_from_the_stored_one_below_and_stored_again():
 
 @pytest.mark.parametrize("storage,quantised", [("u8", True), ("float", False)])
 def test_the_gpu_paths_horizon_levels_are_the_storages(variant, storage, quantised):
-    scene = S.override(
-        S.Scene(),
+    scene = sc.override(
+        sc.Scene(),
         size=16,
         effects="shadow",
         spp=1,
@@ -40,7 +40,7 @@ def test_the_gpu_paths_horizon_levels_are_the_storages(variant, storage, quantis
         resolution=(8, 8),
         filter="trilinear",
     ).validate()
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth).validate())
     ap = Horizon(scene, baked, path="gpu", storage=storage, height=hm.height)
     slot = ap._slots["horizon"]

@@ -3,9 +3,10 @@ mirrored sphere): a bug of the handedness touches only the mirrored half, pixel 
 
 import numpy as np
 
-from hzval.geometry import model, tangent_bugs, tangents
-from hzval.scene import spec as S
-from hzval.studies import bug_signatures as B
+from hzval.geometry import model, tangent_bugs
+from hzval.geometry import tangents as tg
+from hzval.scene import spec as sc
+from hzval.studies import bug_signatures
 
 
 def test_mirrored_sphere_mirrors_the_minus_y_half():
@@ -31,12 +32,12 @@ def test_handedness_is_the_frames_sign():
     rng = np.random.default_rng(0)
     t, n = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     w = rng.choice([-1.0, 1.0], 50)
-    assert (tangents.handedness(t, w[:, None] * np.cross(n, t), n) == w).all()
+    assert (tg.handedness(t, w[:, None] * np.cross(n, t), n) == w).all()
 
 
 def test_a_handedness_bug_moves_only_the_mirrored_half():
-    sc = S.override(
-        S.Scene(),
+    scn = sc.override(
+        sc.Scene(),
         height="spikes",
         size=32,
         spp=1,
@@ -44,8 +45,8 @@ def test_a_handedness_bug_moves_only_the_mirrored_half():
         camera="orthographic",
         resolution=(32, 32),
     )
-    h = S.load_material_height(sc.material).height
-    rec, maps = B.measure(sc, h, "horizon", "mirrored-sphere", 0.0, -90.0, uv_scale=2.0)
+    h = sc.load_material_height(scn.material).height
+    rec, maps = bug_signatures.measure(scn, h, "horizon", "mirrored-sphere", 0.0, -90.0, uv_scale=2.0)
     bugs = rec["bugs"]
     assert rec["mirrored_pixels"] > 50 and rec["unmirrored_pixels"] > 50
     assert set(bugs) == set(tangent_bugs.NAMES)

@@ -18,7 +18,7 @@ from hzval.core import cube as cube_layout
 from hzval.core.errors import InputError
 from hzval.materials import bricks as brick_wall
 from hzval.scene import camera as hz_camera
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques.horizon import CUBE_SIZE, DEFAULT_FADE, Horizon
 from tests.oracles.cube_reference import seamless_bilinear
 
@@ -84,7 +84,7 @@ def bilerp(tex, x, y, boundary):
 
 
 def pixel_mean(values, scene, rows, cols):
-    h, w = S.image_shape(rows, cols, scene.camera)
+    h, w = sc.image_shape(rows, cols, scene.camera)
     return values.reshape(h * w, scene.spp, *values.shape[1:]).mean(axis=1).reshape(h, w, *values.shape[1:])
 
 
@@ -102,14 +102,14 @@ def uniform_bake(horizon, normal=(0.0, 0.0, 1.0), rows=8, cols=8, boundary="wrap
 
 
 def scene(size=32, effects=("shadow",), spp=4, elevation=30.0, **kw):
-    mat = S.MaterialSpec(
+    mat = sc.MaterialSpec(
         size=size,
         depth=kw.pop("depth", 0.1),
         boundary=kw.pop("boundary", "wrap"),
         albedo=kw.pop("albedo", 0.8),
     )
-    light = S.Light(elevation_deg=elevation, irradiance=kw.pop("irradiance", 1.0))
-    return S.Scene(material=mat, light=light, effects=tuple(effects), spp=spp, **kw).validate()
+    light = sc.Light(elevation_deg=elevation, irradiance=kw.pop("irradiance", 1.0))
+    return sc.Scene(material=mat, light=light, effects=tuple(effects), spp=spp, **kw).validate()
 
 
 # --------------------------------------------------------------------------
@@ -125,8 +125,8 @@ def bricks(variant):
 @pytest.fixture(scope="module")
 def grid(bricks):
     """Frames of both paths for every (azimuth, elevation) of the grid."""
-    sc = scene(effects=("shadow", "diffuse", "specular"))
-    apps = {p: Horizon(sc, bricks, path=p) for p in ("exact", "gpu")}
+    scn = scene(effects=("shadow", "diffuse", "specular"))
+    apps = {p: Horizon(scn, bricks, path=p) for p in ("exact", "gpu")}
     frames = {
         (p, az, el): a.render(az, elevation_deg=el)
         for p, a in apps.items()
@@ -142,7 +142,7 @@ def grid(bricks):
 
 
 def test_simulated_lists_exactly_the_declared_effects(bricks):
-    every = S.EFFECTS
+    every = sc.EFFECTS
     a = Horizon(scene(effects=every), bricks)
     assert a.simulated == tuple(e for e in every if e != "interreflection")
     b = Horizon(scene(effects=("specular", "shadow")), bricks)
@@ -153,15 +153,15 @@ def test_simulated_lists_exactly_the_declared_effects(bricks):
 
 
 def test_bad_parameters_are_refused(bricks):
-    sc = scene()
+    scn = scene()
     for kw in ({"path": "cuda"}, {"ambient": "mean"}, {"k": 0.0}, {"k": float("nan")}, {"fade": -1.0}):
         with pytest.raises(InputError):
-            Horizon(sc, bricks, **kw)
+            Horizon(scn, bricks, **kw)
 
 
 def test_frames_have_the_scene_shape(bricks):
-    sc = scene(effects=("shadow", "diffuse"), camera=S.Camera(supersampling=2), spp=1)
-    f = Horizon(sc, bricks).render(15.0)
+    scn = scene(effects=("shadow", "diffuse"), camera=sc.Camera(supersampling=2), spp=1)
+    f = Horizon(scn, bricks).render(15.0)
     assert f.image.shape == (64, 64, 3) and f.layers["factor"].shape == (64, 64)
     assert f.image.dtype == np.float32 and f.seconds > 0
 
@@ -266,10 +266,10 @@ def channel_blocks(variant):
         np.ones((4, 32), np.float32),
         np.ones((4, 32), np.float32),
     )
-    sc = scene(size=32)
+    scn = scene(size=32)
     x = np.array([4 * c + 1.5 for c in range(8)])  # column 4c + 1, texel centre
     y = np.full(8, 4 - 1 - 0.5)  # row 1
-    return {p: Horizon(sc, bake, path=p) for p in ("exact", "gpu")}, x, y
+    return {p: Horizon(scn, bake, path=p) for p in ("exact", "gpu")}, x, y
 
 
 LIGHTS = [
@@ -334,8 +334,8 @@ def test_zero_weight_leaks_one_255th_on_layer_0_only(channel_blocks):
 @pytest.mark.parametrize("path", ["exact", "gpu"])
 def test_flat_plane_is_lambert_and_unshadowed(variant, path):
     flat = B.bake(np.full((16, 16), 0.3, np.float32), B.BakeParams(depth=0.1))
-    sc = scene(size=16, effects=("shadow", "diffuse"), albedo=0.5, irradiance=2.0)
-    a = Horizon(sc, flat, path=path)
+    scn = scene(size=16, effects=("shadow", "diffuse"), albedo=0.5, irradiance=2.0)
+    a = Horizon(scn, flat, path=path)
     for az in (0.0, 45.0, 123.0, 360.0, -0.0):
         for el in ELEVATIONS:
             f = a.render(az, elevation_deg=el)
@@ -347,8 +347,8 @@ def test_flat_plane_is_lambert_and_unshadowed(variant, path):
 
 
 def test_shadow_only_scene_shades_grey_irradiance_times_factor(bricks):
-    sc = scene(effects=("shadow",), irradiance=3.0, spp=1)
-    f = Horizon(sc, bricks).render(30.0)
+    scn = scene(effects=("shadow",), irradiance=3.0, spp=1)
+    f = Horizon(scn, bricks).render(30.0)
     assert np.array_equal(f.image[..., 0], f.image[..., 2])
     assert f.image[..., 1] == pytest.approx(3.0 * f.layers["factor"], rel=1e-6)
 
@@ -391,14 +391,14 @@ def test_wall_pixel_averages_its_samples(wall):
     # Pixel (4, 18) is d = 2 from the wall; its samples interpolate between
     # d = 3, 2, 1, whose sines are all known: the pixel is the mean of eq. 5.4
     # over its samples.
-    sc = scene(effects=("shadow",), boundary="open", spp=16)
-    a = Horizon(sc, wall)
+    scn = scene(effects=("shadow",), boundary="open", spp=16)
+    a = Horizon(scn, wall)
     s_col = np.zeros(32)
     for d in (1, 2, 3):
         s_col[WALL_COL - d] = wall_sine(d)
-    x, y = hz_camera.sample_positions(8, 32, sc.camera, sc.spp, sc.seed)
+    x, y = hz_camera.sample_positions(8, 32, scn.camera, scn.spp, scn.seed)
     p = 4 * 32 + 18
-    xs = x[p * sc.spp : (p + 1) * sc.spp].astype(np.float64) - 0.5
+    xs = x[p * scn.spp : (p + 1) * scn.spp].astype(np.float64) - 0.5
     c0 = np.floor(xs).astype(int)
     s = (1 - (xs - c0)) * s_col[c0] + (xs - c0) * s_col[c0 + 1]
     for el in (40.0, 45.0, 50.0, 60.0):
@@ -426,17 +426,17 @@ def test_k_per_frame_is_eq_5_4s_k(wall):
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_without_shadows_the_image_is_plain_lambert(variant, boundary):
     bake = B.bake(brick_wall.bricks(24), B.BakeParams(depth=0.1, boundary=boundary))
-    sc = scene(size=24, effects=("shadow", "diffuse"), irradiance=1.5, boundary=boundary, spp=4)
+    scn = scene(size=24, effects=("shadow", "diffuse"), irradiance=1.5, boundary=boundary, spp=4)
     rng = np.random.default_rng(3)
     albedo = rng.uniform(0.1, 0.9, (24, 24, 3)).astype(np.float32)
-    a = Horizon(sc, bake, albedo)
-    x, y = hz_camera.sample_positions(24, 24, sc.camera, sc.spp, sc.seed)
+    a = Horizon(scn, bake, albedo)
+    x, y = hz_camera.sample_positions(24, 24, scn.camera, scn.spp, scn.seed)
     n = bilerp(bake.normal, x, y, boundary)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     alb = bilerp(albedo, x, y, boundary)
     for az, el in ((0.0, 30.0), (110.0, 12.0), (250.0, 60.0)):
         L = light32(az, el).astype(np.float64)
-        expect = pixel_mean(alb / math.pi * 1.5 * np.maximum(n @ L, 0)[:, None], sc, 24, 24)
+        expect = pixel_mean(alb / math.pi * 1.5 * np.maximum(n @ L, 0)[:, None], scn, 24, 24)
         f = a.render(az, shadows=False, elevation_deg=el)
         assert "factor" not in f.layers
         assert f.image == pytest.approx(expect, rel=1e-5, abs=1e-7)
@@ -467,10 +467,10 @@ def test_specular_is_blinn_phong(variant):
 
 @pytest.mark.parametrize("term", ["mean_cos2", "mean_cos"])
 def test_ambient_map_is_sampled_and_added(bricks, term):
-    sc = scene(effects=("ambient",), irradiance=2.0, albedo=0.6)
-    f = Horizon(sc, bricks, ambient=term).render(0.0, elevation_deg=-5.0)  # no direct light
-    x, y = hz_camera.sample_positions(32, 32, sc.camera, sc.spp, sc.seed)
-    A = pixel_mean(bilerp(getattr(bricks, term), x, y, "wrap"), sc, 32, 32)
+    scn = scene(effects=("ambient",), irradiance=2.0, albedo=0.6)
+    f = Horizon(scn, bricks, ambient=term).render(0.0, elevation_deg=-5.0)  # no direct light
+    x, y = hz_camera.sample_positions(32, 32, scn.camera, scn.spp, scn.seed)
+    A = pixel_mean(bilerp(getattr(bricks, term), x, y, "wrap"), scn, 32, 32)
     assert f.layers["ambient"] == pytest.approx(A, rel=1e-5)
     assert f.image == pytest.approx(np.repeat(0.6 * A[..., None] * 2.0 / math.pi, 3, -1), rel=1e-5)
 
@@ -504,7 +504,7 @@ def test_a_new_light_compiles_no_kernel(bricks, path, spp):
     kernels. Two frames warm them: on CUDA an object's first frame traces its uniforms kernel with
     one dead literal fewer than its later frames (PTX keeps a literal as an instruction, LLVM IR
     inlines it), so a second kernel is compiled once, at its second frame (seen on an H200)."""
-    a = Horizon(scene(effects=S.EFFECTS, spp=spp), bricks, path=path, k=5.0)
+    a = Horizon(scene(effects=sc.EFFECTS, spp=spp), bricks, path=path, k=5.0)
     a.render(10.0)
     a.render(20.0)
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):

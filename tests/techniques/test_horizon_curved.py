@@ -42,13 +42,13 @@ def test_convex_lowers_every_horizon_and_concave_raises_it():
 
 def _context(size=32):
     from hzval.bake.maps import BakeParams, bake
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import registry as technique
 
-    scene = S.override(S.Scene(), height="bricks", size=size, effects="shadow", spp=1).validate()
-    hm = S.load_material_height(scene.material)
+    scene = sc.override(sc.Scene(), height="bricks", size=size, effects="shadow", spp=1).validate()
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary="wrap").validate())
-    return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, size, size))
+    return technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, size, size))
 
 
 def test_the_technique_is_a_plug_in_that_is_horizon_at_zero_curvature_and_brighter_when_convex():

@@ -9,11 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from hzval.bake import maps as B
+from hzval.bake import maps as bake
 from hzval.bake import occlusion
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.techniques import bent_cone, registry
+from hzval.techniques import bent_cone
+from hzval.techniques import registry as technique
 from hzval.techniques.bent_cone import BentCone
 from hzval.techniques.microshadow_filament import MicroshadowFilament
 from hzval.techniques.microshadow_hdrp import MicroshadowHDRP
@@ -40,14 +41,14 @@ def bumps(n: int = N, seed: int = 3) -> np.ndarray:
 @pytest.fixture(scope="module")
 def baked():
     h = bumps()
-    return h, B.bake(h, B.BakeParams(depth=0.12, boundary="wrap"))
+    return h, bake.bake(h, bake.BakeParams(depth=0.12, boundary="wrap"))
 
 
-def probe(cls, h, bake, az, el, **kw):
+def probe(cls, h, baked, az, el, **kw):
     """``F`` at every texel centre, and the texels' ``(row, col)`` order: row-major."""
     rows, cols = h.shape
     r, c = np.mgrid[0:rows, 0:cols]
-    t = cls(make_scene(h.shape, 0.12, "wrap"), bake, **kw)
+    t = cls(make_scene(h.shape, 0.12, "wrap"), baked, **kw)
     out = t.sample((c + 0.5).ravel(), (rows - r - 0.5).ravel(), az, el)
     return out["factor"].reshape(rows, cols)
 
@@ -65,51 +66,51 @@ def _storage(cls):
 
 @pytest.mark.parametrize("az, el", [(0, 15), (130, 30), (250, 60)])
 def test_filament_is_chans_formula(baked, az, el):
-    h, bake = baked
-    n, L, ao = bake.normal.astype(np.float64), light(az, el), bake.mean_cos2.astype(np.float64)
+    h, baked = baked
+    n, L, ao = baked.normal.astype(np.float64), light(az, el), baked.mean_cos2.astype(np.float64)
     nl = n @ L
     with np.errstate(divide="ignore", invalid="ignore"):
         want = np.where(ao < 1, np.clip(nl / np.sqrt(1 - ao), 0, 1) ** 2, (nl > 0) * 1.0)
-    got = probe(MicroshadowFilament, h, bake, az, el, **_storage(MicroshadowFilament))
+    got = probe(MicroshadowFilament, h, baked, az, el, **_storage(MicroshadowFilament))
     np.testing.assert_allclose(got, want, atol=2e-5)
 
 
 @pytest.mark.parametrize("opacity", [1.0, 0.4])
 def test_hdrp_is_brinck_and_maximovs_formula(baked, opacity):
-    h, bake = baked
-    n, L, ao = bake.normal.astype(np.float64), light(200, 25), bake.mean_cos2.astype(np.float64)
+    h, baked = baked
+    n, L, ao = baked.normal.astype(np.float64), light(200, 25), baked.mean_cos2.astype(np.float64)
     nl = n @ L
     want = np.where(nl > 0, 1 + opacity * (np.clip(nl + 2 * ao * ao - 1, 0, 1) - 1), 1.0)
-    got = probe(MicroshadowHDRP, h, bake, 200, 25, opacity=opacity, **_storage(MicroshadowHDRP))
+    got = probe(MicroshadowHDRP, h, baked, 200, 25, opacity=opacity, **_storage(MicroshadowHDRP))
     np.testing.assert_allclose(got, want, atol=2e-5)
 
 
 def test_an_open_flat_surface_is_never_shadowed_by_any_of_them():
     h = np.zeros((16, 16), np.float32)
-    bake = B.bake(h, B.BakeParams(depth=0.12, boundary="wrap"))
-    assert np.all(bake.mean_cos2 == 1.0)
+    baked = bake.bake(h, bake.BakeParams(depth=0.12, boundary="wrap"))
+    assert np.all(baked.mean_cos2 == 1.0)
     for name in ENGINE:
-        cls = registry.get(name)
+        cls = technique.get(name)
         for el in (1.0, 20.0, 89.0):
             for storage in ("float", "u8"):
                 kw = {"storage": dict.fromkeys(cls.textures, storage)}
-                F = probe(cls, h, bake, 33.0, el, **kw)
+                F = probe(cls, h, baked, 33.0, el, **kw)
                 # 8 bits store ssbump's open 1/sqrt(3) as 147/255: the one rounding an engine sees
                 tol = {"u8": 0.5 / 255 * math.sqrt(3), "float": 1e-6}[storage] if name == "ssbump" else 0.0
                 assert np.all(np.abs(F - 1.0) <= tol), (name, el, storage, F.min())
 
 
 def test_hdrp_at_zero_opacity_shadows_nothing(baked):
-    h, bake = baked
-    assert np.all(probe(MicroshadowHDRP, h, bake, 10, 10, opacity=0.0) == 1.0)
+    h, baked = baked
+    assert np.all(probe(MicroshadowHDRP, h, baked, 10, 10, opacity=0.0) == 1.0)
 
 
 def test_bent_cone_of_a_hard_light_is_the_step_at_the_cones_edge(baked):
-    h, bake = baked
+    h, baked = baked
     L = light(75, 20)
-    Bn, ao = bake.bent_normal.astype(np.float64), bake.mean_cos2.astype(np.float64)
+    Bn, ao = baked.bent_normal.astype(np.float64), baked.mean_cos2.astype(np.float64)
     margin = Bn @ L - np.sqrt(1 - ao)
-    got = probe(BentCone, h, bake, 75, 20, **_storage(BentCone))
+    got = probe(BentCone, h, baked, 75, 20, **_storage(BentCone))
     decided = np.abs(margin) > 1e-4
     np.testing.assert_array_equal(got[decided], (margin[decided] >= 0) * 1.0)
 
@@ -146,32 +147,32 @@ def test_filaments_cap_approximation_meets_the_exact_one_at_its_ends(variant):
 
 def test_a_soft_light_inside_a_wide_cone_is_whole_and_outside_it_none():
     h = np.zeros((8, 8), np.float32)
-    bake = B.bake(h, B.BakeParams(depth=0.1, boundary="wrap"))
+    baked = bake.bake(h, bake.BakeParams(depth=0.1, boundary="wrap"))
     scene = make_scene(h.shape, 0.1, "wrap", kind="soft", radius=5.0)
     for variant in bent_cone.VARIANTS:
         for intersection in bent_cone.INTERSECTIONS:
-            t = BentCone(scene, bake, variant=variant, intersection=intersection, **_storage(BentCone))
+            t = BentCone(scene, baked, variant=variant, intersection=intersection, **_storage(BentCone))
             assert np.allclose(t.sample([4.5], [4.5], 0.0, 45.0)["factor"], 1.0, atol=1e-5)
             assert np.allclose(t.sample([4.5], [4.5], 0.0, 0.0)["factor"], 0.5, atol=1e-4)  # half the disc up
     # the disc's centre 2.5 degrees up: the segment below the plane is 0.195 of a 5-degree disc
-    t = BentCone(scene, bake, intersection="exact", **_storage(BentCone))
+    t = BentCone(scene, baked, intersection="exact", **_storage(BentCone))
     assert np.allclose(t.sample([4.5], [4.5], 0.0, 2.5)["factor"], 0.805, atol=0.005)
 
 
 def test_ssbump_is_greens_projection_onto_the_basis(baked):
-    h, bake = baked
-    L, n, S = light(300, 35), bake.normal.astype(np.float64), bake.ssbump.astype(np.float64)
+    h, baked = baked
+    L, n, S = light(300, 35), baked.normal.astype(np.float64), baked.ssbump.astype(np.float64)
     w = np.maximum(occlusion.HL2_BASIS @ L, 0)
     open_ = np.maximum(n @ occlusion.HL2_BASIS.T, 0) @ w
     want = np.where(open_ > 0, (S @ w) / np.where(open_ > 0, open_, 1), 0.0)
-    got = probe(SSBump, h, bake, 300, 35, **_storage(SSBump))
+    got = probe(SSBump, h, baked, 300, 35, **_storage(SSBump))
     np.testing.assert_allclose(got, np.clip(want, 0, 1), atol=2e-5)
 
 
 @pytest.mark.parametrize("variant", ["conty", "chiang"])
 def test_terminator_terms_are_the_published_formulas(baked, variant):
-    h, bake = baked
-    n, L = bake.normal.astype(np.float64), light(45, 12)
+    h, baked = baked
+    n, L = baked.normal.astype(np.float64), light(45, 12)
     cos_d, cos_i, nl = n[..., 2], L[2], n @ L
     if variant == "conty":
         a2 = np.clip((1 / cos_d**2 - 1) / 8, 0, 1)
@@ -179,7 +180,7 @@ def test_terminator_terms_are_the_published_formulas(baked, variant):
     else:
         g = cos_i / np.where(nl > 0, nl * cos_d, 1)
         want = np.where(nl > 0, np.where(g >= 1, 1, np.where(g <= 0, 0, -(g**3) + g**2 + g)), 1.0)
-    got = probe(Terminator, h, bake, 45, 12, variant=variant)
+    got = probe(Terminator, h, baked, 45, 12, variant=variant)
     np.testing.assert_allclose(got, want, atol=3e-5)
     assert got.min() < 0.999  # the bumps tilt the normals enough for the term to act
 
@@ -188,25 +189,25 @@ def test_terminator_terms_are_the_published_formulas(baked, variant):
 def test_a_mirrored_map_gives_the_mirrored_factor(name):
     """Mirror in y (rows reversed) and the light with it (azimuth -phi): F mirrors. The HL2 basis
     maps onto itself under this mirror, so ssbump must too."""
-    cls = registry.get(name)
+    cls = technique.get(name)
     h = bumps(seed=5)
     m = h[::-1].copy()
-    p = B.BakeParams(depth=0.12, boundary="wrap")
+    p = bake.BakeParams(depth=0.12, boundary="wrap")
     kw = _storage(cls)
-    a = probe(cls, h, B.bake(h, p), 35.0, 25.0, **kw)
-    b = probe(cls, m, B.bake(m, p), -35.0, 25.0, **kw)
+    a = probe(cls, h, bake.bake(h, p), 35.0, 25.0, **kw)
+    b = probe(cls, m, bake.bake(m, p), -35.0, 25.0, **kw)
     np.testing.assert_allclose(b[::-1], a, atol=2e-4)
 
 
 @pytest.mark.parametrize("name", ["microshadow-filament", "microshadow-hdrp", "bent-cone", "terminator"])
 def test_a_quarter_turned_map_gives_the_turned_factor(name):
-    cls = registry.get(name)
+    cls = technique.get(name)
     h = bumps(seed=7)
     t = np.rot90(h).copy()  # counterclockwise on screen: +x goes to +y
-    p = B.BakeParams(depth=0.12, boundary="wrap")
+    p = bake.BakeParams(depth=0.12, boundary="wrap")
     kw = _storage(cls)
-    a = probe(cls, h, B.bake(h, p), 20.0, 30.0, **kw)
-    b = probe(cls, t, B.bake(t, p), 110.0, 30.0, **kw)
+    a = probe(cls, h, bake.bake(h, p), 20.0, 30.0, **kw)
+    b = probe(cls, t, bake.bake(t, p), 110.0, 30.0, **kw)
     np.testing.assert_allclose(b, np.rot90(a), atol=2e-4)
 
 
@@ -220,20 +221,20 @@ def test_eight_bit_storage_rounds_to_the_nearest_level_and_keeps_unit_vectors():
 
 
 def test_settings_out_of_range_are_refused_naming_the_setting(baked):
-    h, bake = baked
+    h, baked = baked
     scene = make_scene(h.shape, 0.12, "wrap")
     with pytest.raises(InputError, match="opacity"):
-        MicroshadowHDRP(scene, bake, opacity=1.5)
+        MicroshadowHDRP(scene, baked, opacity=1.5)
     with pytest.raises(InputError, match="variant"):
-        Terminator(scene, bake, variant="blinn")
+        Terminator(scene, baked, variant="blinn")
     with pytest.raises(InputError, match="ao-storage"):
-        MicroshadowFilament(scene, bake, storage={"ao": "bc7"})
+        MicroshadowFilament(scene, baked, storage={"ao": "bc7"})
 
 
 def test_every_engine_technique_is_on_by_default_for_shadows_and_renders_on_models():
     for name in ENGINE:
-        cls = registry.get(name)
-        assert name in registry.defaults() and cls.needs == ("shadow",) and not cls.not_on_models
+        cls = technique.get(name)
+        assert name in technique.defaults() and cls.needs == ("shadow",) and not cls.not_on_models
         assert {
             v.settings.get("storage", {}).get(t) for v in cls.tradeoff_variants() for t in cls.textures
         } >= ({"float", "u8"} if cls.textures else set())
@@ -268,8 +269,8 @@ def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, 
     sines = np.broadcast_to(sines, (8, 8, D)).astype(np.float32)
     normal = np.broadcast_to(np.array([0, 0, 1], np.float32), (8, 8, 3))
     ao = np.mean(1 - sines.astype(np.float64) ** 2, axis=-1)
-    bake = B.Bake(
-        B.BakeParams(depth=0.1, boundary="wrap", directions=D),
+    baked = bake.Bake(
+        bake.BakeParams(depth=0.1, boundary="wrap", directions=D),
         sines,
         normal.copy(),
         ao.astype(np.float32),
@@ -283,7 +284,7 @@ def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, 
     assert abs(Bn[0]) < 1e-9 and abs(Bn[1]) < 1e-9  # the groove is symmetric: B is +z
     radius = 6.0
     scene = make_scene((8, 8), 0.1, "wrap", kind="soft", radius=radius)
-    t = BentCone(scene, bake, intersection="exact", **_storage(BentCone))
+    t = BentCone(scene, baked, intersection="exact", **_storage(BentCone))
     theta_v = math.acos(math.sqrt(1 - ao[0, 0]))
     el = 90.0 - math.degrees(theta_v) + offset
     got = float(t.sample([4.5], [4.5], az, el)["factor"][0])
@@ -316,7 +317,7 @@ def test_a_bad_setting_is_one_line_naming_its_flag(tmp_path, capsys, argv, flag)
 
 def test_oat_and_sanders_cone_is_the_open_solid_angle_about_the_plain_mean_direction():
     """Against a Monte Carlo count that shares nothing with the formulas: directions uniform on the
-    hemisphere, open where above their wedge's horizon; the open share is V, their mean direction B."""
+    hemisphere, open where above their wedge's horizon; the open share is V, their mean direction bake."""
     from hzval.bake import occlusion
 
     rng = np.random.default_rng(4)
@@ -342,13 +343,13 @@ def test_the_oat_sander_variant_reads_its_own_planes_and_a_wider_cone(baked):
 
     s = np.full((1, 1, 8), 0.3, np.float32)
     assert 1.0 - occlusion.uniform_ao(s)[0, 0] == pytest.approx(0.3, abs=1e-6)
-    h, bake = baked
-    t = BentCone(make_scene(h.shape, 0.12, "wrap"), bake, variant="oat-sander", **_storage(BentCone))
-    assert t.plane_name("ao") == "ao_uniform" and t.plane("ao").shape == bake.mean_cos2.shape
-    j = BentCone(make_scene(h.shape, 0.12, "wrap"), bake, variant="jimenez", **_storage(BentCone))
+    h, baked = baked
+    t = BentCone(make_scene(h.shape, 0.12, "wrap"), baked, variant="oat-sander", **_storage(BentCone))
+    assert t.plane_name("ao") == "ao_uniform" and t.plane("ao").shape == baked.mean_cos2.shape
+    j = BentCone(make_scene(h.shape, 0.12, "wrap"), baked, variant="jimenez", **_storage(BentCone))
     assert j.plane_name("ao") == "mean_cos2"
-    fo = probe(BentCone, h, bake, 30.0, 12.0, variant="oat-sander", **_storage(BentCone))
-    fj = probe(BentCone, h, bake, 30.0, 12.0, variant="jimenez", **_storage(BentCone))
+    fo = probe(BentCone, h, baked, 30.0, 12.0, variant="oat-sander", **_storage(BentCone))
+    fj = probe(BentCone, h, baked, 30.0, 12.0, variant="jimenez", **_storage(BentCone))
     assert fo.mean() > fj.mean()
 
 

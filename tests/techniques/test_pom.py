@@ -131,10 +131,10 @@ def test_converges_to_the_truths_visibility_on_the_bricks(variant):
     from about 0.013 at 4 steps to about 0.005 at 64 (spp 4; the rest is the bilinear height field
     against the mesh's triangles and the truth's noise)."""
     from hzval.materials.bricks import bricks
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
 
     h = bricks(64)
-    scene = S.override(S.Scene(), size=64, effects="shadow", spp=4)
+    scene = sc.override(sc.Scene(), size=64, effects="shadow", spp=4)
     t = truth.Truth(scene, h)
     azimuths = (-60.0, 0.0, 45.0)
     V = [t.render(az).layers["visibility"] for az in azimuths]

@@ -20,7 +20,7 @@ from hzval.cli import main as cli
 from hzval.commands import check, tradeoff
 from hzval.core.errors import InputError
 from hzval.pipeline import sweep
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.scene.spec import Frame
 from hzval.techniques import registry as technique
 from hzval.techniques import surface
@@ -55,10 +55,10 @@ def with_toy(monkeypatch):
 def small_context(effects=("shadow", "diffuse"), n=24):
     from hzval.materials.bricks import bricks
 
-    scene = S.override(S.Scene(), size=n, depth=0.2, effects=",".join(effects), spp=2, azimuths="0")
+    scene = sc.override(sc.Scene(), size=n, depth=0.2, effects=",".join(effects), spp=2, azimuths="0")
     h = bricks(n)
     params = bake.BakeParams(depth=scene.material.depth)
-    return technique.Context(scene, h, bake.bake(h, params), S.load_albedo(scene.material, n, n))
+    return technique.Context(scene, h, bake.bake(h, params), sc.load_albedo(scene.material, n, n))
 
 
 @pytest.mark.parametrize("name", technique.names())
@@ -148,7 +148,7 @@ def test_one_registry_line_adds_a_technique_everywhere(variant, with_toy, tmp_pa
     )
     assert "never" not in json.loads((tmp_path / "out2" / "metrics.json").read_text())["techniques"]
     # the check guards it, and the tradeoff measures it
-    scene = check.check_scene(S.override(S.Scene(), size=24, azimuths="0", spp=1))
+    scene = check.check_scene(sc.override(sc.Scene(), size=24, azimuths="0", spp=1))
     assert "never" in check.renderers(scene, __import__("hzval.materials.bricks").materials.bricks.bricks(24))
     assert any(s.technique == "never" for s in tradeoff.settings(scene))
 

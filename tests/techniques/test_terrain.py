@@ -14,19 +14,18 @@ import numpy as np
 import pytest
 
 from hzval.core.errors import InputError
-from hzval.techniques import surface
-from hzval.techniques import terrain as T
+from hzval.techniques import surface, terrain
 from tests.truth.test_plane import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
 def shadow(h, depth, boundary="open", impl="drjit", **kw):
-    return T.TerrainShadow(
+    return terrain.TerrainShadow(
         make_scene(np.shape(h), depth, boundary, **kw), np.asarray(h, np.float32), impl=impl
     )
 
 
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
-@pytest.mark.parametrize("impl", T.IMPLS)
+@pytest.mark.parametrize("impl", terrain.IMPLS)
 def test_flat_map_is_fully_lit(variant, boundary, impl):
     ts = shadow(np.full((12, 16), 0.3), 0.1, boundary, impl, elevation=10.0, spp=4)
     for azimuth in (0.0, 77.0, 200.0, -45.0):
@@ -62,7 +61,7 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
         assert expected * c - 1.0 < across <= expected * c + 0.05
 
 
-@pytest.mark.parametrize("impl", T.IMPLS)
+@pytest.mark.parametrize("impl", terrain.IMPLS)
 def test_wrap_shadow_crosses_the_edge_and_open_does_not(variant, impl):
     """A wall at column 37 of 40 lit from -x (azimuth 180) casts its shadow toward +x, past the right
     edge: wrap brings it back at the left, open does not."""
@@ -139,33 +138,33 @@ def test_soft_light_widens_the_penumbra_with_distance(variant):
 
 def test_bad_ramp_and_impl_are_refused(variant):
     with pytest.raises(InputError, match="ramp"):
-        T.TerrainShadow(make_scene((4, 4), 0.1), np.zeros((4, 4)), ramp=0.0)
+        terrain.TerrainShadow(make_scene((4, 4), 0.1), np.zeros((4, 4)), ramp=0.0)
     with pytest.raises(InputError, match="impl"):
-        T.TerrainShadow(make_scene((4, 4), 0.1), np.zeros((4, 4)), impl="cuda-please")
+        terrain.TerrainShadow(make_scene((4, 4), 0.1), np.zeros((4, 4)), impl="cuda-please")
 
 
 @pytest.fixture(scope="module")
 def bricks64(variant):
     from hzval.bake import maps as bake
-    from hzval.scene import spec as S
+    from hzval.scene import spec as sc
     from hzval.techniques import horizon
     from hzval.truth import plane as truth
 
-    sc = S.Scene(material=S.MaterialSpec(size=64), effects=("shadow", "diffuse")).validate()
-    height = S.load_material_height(sc.material).height
-    bk = bake.bake(height, bake.BakeParams(depth=sc.material.depth, boundary="wrap"))
-    return sc, height, bk, truth.Truth(sc, height), horizon.Horizon(sc, bk)
+    scn = sc.Scene(material=sc.MaterialSpec(size=64), effects=("shadow", "diffuse")).validate()
+    height = sc.load_material_height(scn.material).height
+    bk = bake.bake(height, bake.BakeParams(depth=scn.material.depth, boundary="wrap"))
+    return scn, height, bk, truth.Truth(scn, height), horizon.Horizon(scn, bk)
 
 
 def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
     """Mean |F - V| over Figure 5.3's sweep at 64 px: terrain 0.012, horizon map 0.021 (measured)."""
     from hzval.metrics import compare
 
-    sc, height, bk, tr, ap = bricks64
-    shared = surface.Unshadowed(sc, bk)
-    ts = T.TerrainShadow(sc, height, bake=bk, unshadowed=shared)
+    scn, height, bk, tr, ap = bricks64
+    shared = surface.Unshadowed(scn, bk)
+    ts = terrain.TerrainShadow(scn, height, bake=bk, unshadowed=shared)
     terrain_mae, horizon_mae = [], []
-    for az in sc.light.azimuths_deg:
+    for az in scn.light.azimuths_deg:
         V = tr.render(az).layers["visibility"]
         plain = ap.render(az, shadows=False)
         f = ts.render(az)
@@ -180,9 +179,9 @@ def test_closer_to_the_truth_than_the_horizon_map_on_bricks(bricks64):
 
 
 def test_without_a_bake_it_shades_with_its_own_normal_map(bricks64):
-    sc, height, bk, _, ap = bricks64
-    own = T.TerrainShadow(sc, height)
-    shared = T.TerrainShadow(sc, height, bake=bk, unshadowed=surface.Unshadowed(sc, bk))
+    scn, height, bk, _, ap = bricks64
+    own = terrain.TerrainShadow(scn, height)
+    shared = terrain.TerrainShadow(scn, height, bake=bk, unshadowed=surface.Unshadowed(scn, bk))
     a, b = own.render(20.0), shared.render(20.0)
     np.testing.assert_allclose(a.image, b.image, atol=1e-5)
     assert own.simulated == shared.simulated == ("shadow", "diffuse")
@@ -195,11 +194,11 @@ def test_ambient_is_not_shadowed(variant):
     from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE
 
     h = column_wall(16, 32, 20)
-    sc = make_scene(
+    scn = make_scene(
         h.shape, 4 / 32, "open", effects=("shadow", "diffuse", "ambient"), spp=4, albedo=0.5, irradiance=2.0
     )
     bk = bake.bake(h, bake.BakeParams(depth=4 / 32, boundary="open"))
-    f = T.TerrainShadow(sc, h, bake=bk).render(0.0)
+    f = terrain.TerrainShadow(scn, h, bake=bk).render(0.0)
     dark = f.layers["factor"] == 0
     assert dark.sum() > 16
     sky = 0.5 * 2.0 * SKY_RADIANCE_PER_IRRADIANCE * f.layers["ambient"][dark]

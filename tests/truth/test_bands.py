@@ -13,8 +13,8 @@ import pytest
 
 from hzval import materials
 from hzval.core import resources
-from hzval.geometry import tile as M
-from hzval.truth import bands as TB
+from hzval.geometry import tile as mesh
+from hzval.truth import bands as truth_bands
 from hzval.truth import memory
 from tests.truth.test_plane import make_scene
 
@@ -40,9 +40,9 @@ def _same_frames(h, boundary, n_bands):
     # sample bands and meshes of rows / 16 rows: narrower than the shadows' reach along y
     bands = Truth(sc, h, mesh_band_rows=rows // n_bands, band_samples=rows // 16 * h.shape[1] * 4)
     assert len(bands.mesh_bands) == n_bands and bands.mesh is None
-    up, down = TB.reach(sc, bands.relief, bands.lift, AZIMUTHS)
-    assert rows // n_bands < up - TB.PAD_TEXELS < rows / 2 and up == down
-    total = M.triangle_count(bands._levels)
+    up, down = truth_bands.reach(sc, bands.relief, bands.lift, AZIMUTHS)
+    assert rows // n_bands < up - truth_bands.PAD_TEXELS < rows / 2 and up == down
+    total = mesh.triangle_count(bands._levels)
     assert (
         bands.band_triangles_largest < total < bands.band_triangles_built
     )  # each band a part, and its cover
@@ -71,7 +71,9 @@ def test_a_cover_without_the_reach_differs(variant, bricks, monkeypatch):
 
     sc = _scene(bricks, "wrap")
     one = Truth(sc, bricks)
-    monkeypatch.setattr(TB, "reach", lambda *a, **k: (TB.PAD_TEXELS, TB.PAD_TEXELS))
+    monkeypatch.setattr(
+        truth_bands, "reach", lambda *a, **k: (truth_bands.PAD_TEXELS, truth_bands.PAD_TEXELS)
+    )
     short = Truth(sc, bricks, mesh_band_rows=8, band_samples=8 * 128 * 4)
     a, b = one.render(90.0).layers["visibility"], short.render(90.0).layers["visibility"]
     # shadows cut at the bands' edges: more light, in many pixels
@@ -80,21 +82,23 @@ def test_a_cover_without_the_reach_differs(variant, bricks, monkeypatch):
 
 def test_cover_runs_wrap_around_the_tile():
     h = np.zeros((16, 8), np.float32)
-    g = M.grid(h, "wrap", margin=3)
+    g = mesh.grid(h, "wrap", margin=3)
     # y in [14, 18]: the tile's top rows and, modulo 16, the margin's bottom rows (y in [-2, 2])
     # cell i spans y from 17.5 - i to 18.5 - i: cells 0-4 in the tile's top, 16-20 the margin below
-    assert TB.cover_runs(g, 16, 14.0, 18.0, True) == [(0, 5), (16, 21)]
-    assert TB.cover_runs(g, 16, 14.0, 18.0, False) == [(0, 5)]
-    open_g = M.grid(h, "open")
-    assert TB.cover_runs(open_g, 16, 4.0, 6.0, False) == [(10, 13)]
+    assert truth_bands.cover_runs(g, 16, 14.0, 18.0, True) == [(0, 5), (16, 21)]
+    assert truth_bands.cover_runs(g, 16, 14.0, 18.0, False) == [(0, 5)]
+    open_g = mesh.grid(h, "open")
+    assert truth_bands.cover_runs(open_g, 16, 4.0, 6.0, False) == [(10, 13)]
 
 
 def test_why_not_names_the_rays_that_leave_a_band():
     h = np.zeros((8, 8), np.float32)
-    assert TB.why_not(_scene(h, "wrap")) is None
-    assert "ambient" in TB.why_not(dataclasses.replace(_scene(h, "wrap"), effects=("shadow", "ambient")))
-    assert "faceted" in TB.why_not(_scene(h, "wrap", shading="faceted"))
-    assert "horizon" in TB.why_not(_scene(h, "wrap", kind="soft", radius=10.0, elevation=5.0))
+    assert truth_bands.why_not(_scene(h, "wrap")) is None
+    assert "ambient" in truth_bands.why_not(
+        dataclasses.replace(_scene(h, "wrap"), effects=("shadow", "ambient"))
+    )
+    assert "faceted" in truth_bands.why_not(_scene(h, "wrap", shading="faceted"))
+    assert "horizon" in truth_bands.why_not(_scene(h, "wrap", kind="soft", radius=10.0, elevation=5.0))
 
 
 def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
@@ -108,7 +112,7 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
         sc, material=dataclasses.replace(sc.material, height="bricks", size=1024), spp=16
     )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
+    monkeypatch.setattr(truth_bands, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
     plan = memory.truth_plan(sc, height)
     assert plan.band_rows is not None and 0 < plan.band_triangles < plan.triangles
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)
@@ -130,7 +134,7 @@ def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
         sc, material=dataclasses.replace(sc.material, height="bricks", size=64), effects=("shadow", "ambient")
     )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(TB, "PEAK_TARGET_BYTES", 2**20)
+    monkeypatch.setattr(truth_bands, "PEAK_TARGET_BYTES", 2**20)
     plan = memory.truth_plan(sc, height)
     assert plan.band_rows is None and "ambient" in plan.why_single
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)
@@ -147,8 +151,8 @@ def test_bands_of_a_soft_light_and_a_magnified_image_are_the_single_mesh(variant
     one = Truth(sc, h)
     bands = Truth(sc, h, mesh_band_rows=16, band_samples=8 * 128 * 4)
     assert len(bands.mesh_bands) == 8
-    up, down = TB.reach(sc, bands.relief, bands.lift, AZIMUTHS)
-    assert up == down and up > 2 * TB.PAD_TEXELS  # a soft light's directions: the whole run
+    up, down = truth_bands.reach(sc, bands.relief, bands.lift, AZIMUTHS)
+    assert up == down and up > 2 * truth_bands.PAD_TEXELS  # a soft light's directions: the whole run
     for az in (90.0, -60.0, 180.0):
         a, b = one.render(az), bands.render(az)
         np.testing.assert_array_equal(a.layers["visibility"], b.layers["visibility"])

@@ -14,7 +14,7 @@ import numpy as np
 
 from hzval.bake.maps import BakeParams, bake
 from hzval.geometry import model
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques import surface
 from hzval.truth import plane as truth
@@ -34,17 +34,17 @@ def _scene(n=48, **kw):
         resolution=(n, n),
     )
     base.update(kw)
-    return S.override(S.Scene(), **base)
+    return sc.override(sc.Scene(), **base)
 
 
 def _height(scene):
-    return S.load_material_height(scene.material).height
+    return sc.load_material_height(scene.material).height
 
 
 def _context(scene, h, points):
     b = bake(h, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     rows, cols = h.shape
-    return technique.Context(scene, h, b, S.load_albedo(scene.material, rows, cols), points=points)
+    return technique.Context(scene, h, b, sc.load_albedo(scene.material, rows, cols), points=points)
 
 
 def _quad(uvs):

@@ -26,7 +26,7 @@ from hzval.core import conventions as cv
 from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import model
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques.horizon import DEFAULT_FADE
 from hzval.truth import model as model_truth
@@ -50,7 +50,7 @@ def _scene(n=48, **kw):
         effects=EFFECTS,
     )
     base.update(kw)
-    return S.override(S.Scene(), **base)
+    return sc.override(sc.Scene(), **base)
 
 
 def _context(scene, h, points, horizon_zero=False):
@@ -58,7 +58,7 @@ def _context(scene, h, points, horizon_zero=False):
     if horizon_zero:
         b = dataclasses.replace(b, horizon=np.zeros_like(b.horizon))
     rows, cols = h.shape
-    return technique.Context(scene, h, b, S.load_albedo(scene.material, rows, cols), points=points)
+    return technique.Context(scene, h, b, sc.load_albedo(scene.material, rows, cols), points=points)
 
 
 def _quad(uvs):
@@ -89,7 +89,7 @@ def _quad_run(scene, h, name):
 
 def test_the_xy_quads_reflection_is_the_planes(variant):
     scene = _scene()
-    h = S.load_material_height(scene.material).height
+    h = sc.load_material_height(scene.material).height
     seen, R, o = _quad_run(scene, h, "xy")
     plane = truth.Truth(scene, h)
     az = scene.light.azimuths_deg[0]
@@ -108,7 +108,7 @@ def test_the_xy_quads_reflection_is_the_planes(variant):
 
 def test_mirrored_and_turned_quads_give_the_same_reflection(variant):
     scene = _scene()
-    h = S.load_material_height(scene.material).height
+    h = sc.load_material_height(scene.material).height
     runs = {name: _quad_run(scene, h, name) for name in QUADS}
     seen0, R0, o0 = runs["xy"]
     mae0 = np.abs(o0 - R0)[seen0].mean()
@@ -147,7 +147,7 @@ def test_the_fade_uses_the_interpolated_vertex_normal(variant):
         resolution=(64, 64),
         spp=2,
     )
-    h = S.load_material_height(scene.material).height
+    h = sc.load_material_height(scene.material).height
     mt = ModelTruth(scene, h, model.load("sphere"))
     samples = mt.samples()
     ctx = _context(scene, h, samples, horizon_zero=True)
@@ -209,7 +209,7 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
     )
     lobe = dataclasses.replace(plain, effects=tuple(EFFECTS.split(",")))
     assert model_truth.bytes_per_sample(lobe) > model_truth.bytes_per_sample(plain)
-    h = S.load_material_height(plain.material).height
+    h = sc.load_material_height(plain.material).height
     sphere = model.load("sphere")
     from hzval.geometry import displace
 
@@ -247,7 +247,7 @@ def test_specular_in_perspective_on_a_model_is_each_samples_own_view(variant):
         spp=2,
         effects="shadow,diffuse,specular",
     )
-    h = S.load_material_height(scene.material).height
+    h = sc.load_material_height(scene.material).height
     mt = ModelTruth(scene, h, model.load("sphere"))
     plain = surface.unshadowed(_context(scene, h, mt.samples("truth")))
     t = mt.render(30.0)

@@ -19,7 +19,7 @@ import pytest
 
 from hzval.core.errors import InputError
 from hzval.scene import camera as hz_camera
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
@@ -41,13 +41,13 @@ def make_scene(
     depth_ir=2,
     shading="smooth",
 ):
-    return S.Scene(
+    return sc.Scene(
         name="test",
-        material=S.MaterialSpec(
+        material=sc.MaterialSpec(
             height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo, shading=shading
         ),
-        camera=S.Camera(supersampling=supersampling),
-        light=S.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
+        camera=sc.Camera(supersampling=supersampling),
+        light=sc.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
         effects=tuple(effects),
         interreflection_depth=depth_ir,
         spp=spp,
@@ -112,7 +112,7 @@ def on_mesh_edges(rows, cols):
 )
 def test_simulated_lists_exactly_the_declared_effects(variant, effects):
     t = truth(np.zeros((4, 5)), 0.1, effects=effects, spp=1)
-    assert t.simulated == tuple(e for e in S.EFFECTS if e in effects)
+    assert t.simulated == tuple(e for e in sc.EFFECTS if e in effects)
     f = t.render(0.0)
     assert set(f.layers) == ({"visibility"} if "shadow" in effects else set()) | (
         {"ambient"} if "ambient" in effects else set()
@@ -221,9 +221,9 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
 def test_the_shipped_wall_scene_casts_its_documented_shadow(variant):
     from hzval.truth.plane import Truth
 
-    sc = S.load_scene(SCENES / "wall.toml")
-    t = Truth(sc, S.load_material_height(sc.material).height)
-    e = math.radians(sc.light.elevation_deg)
+    scn = sc.load_scene(SCENES / "wall.toml")
+    t = Truth(scn, sc.load_material_height(scn.material).height)
+    e = math.radians(scn.light.elevation_deg)
     for azimuth in (0.0, 180.0):
         V = t.render(azimuth).layers["visibility"]
         assert (1.0 - V[8:-8]).sum(axis=1).mean() == pytest.approx(8.0 / math.tan(e), abs=0.2)
@@ -244,9 +244,9 @@ def _disk_visible_fraction(t):
 def soft_wall(variant):
     from hzval.truth.plane import Truth
 
-    sc = S.load_scene(SCENES / "wall-soft.toml")
-    height = S.load_material_height(sc.material).height
-    return sc, height, Truth(sc, height)
+    scn = sc.load_scene(SCENES / "wall-soft.toml")
+    height = sc.load_material_height(scn.material).height
+    return scn, height, Truth(scn, height)
 
 
 def test_soft_penumbra_has_the_width_the_geometry_predicts(soft_wall):
@@ -257,8 +257,8 @@ def test_soft_penumbra_has_the_width_the_geometry_predicts(soft_wall):
     a straight edge. Rows are alike (the wall spans the map), so their mean
     is compared with that fraction averaged over each pixel.
     """
-    sc, _, t = soft_wall
-    h, e, rho = 8.0, math.radians(sc.light.elevation_deg), math.radians(sc.light.radius_deg)
+    scn, _, t = soft_wall
+    h, e, rho = 8.0, math.radians(scn.light.elevation_deg), math.radians(scn.light.radius_deg)
     top = 40.5
     V = t.render(0.0).layers["visibility"][8:-8].mean(axis=0)
     d_lo, d_hi = h / math.tan(e + rho), h / math.tan(e - rho)  # 11.43, 17.16
@@ -280,9 +280,9 @@ def test_soft_penumbra_has_the_width_the_geometry_predicts(soft_wall):
 
 
 def test_soft_light_variance_image_is_the_binomial_one_and_matches_the_spread(soft_wall):
-    sc, _, t = soft_wall
+    scn, _, t = soft_wall
     f = t.render(0.0)
-    V, var, spp = f.layers["visibility"], f.variance["visibility"], sc.spp
+    V, var, spp = f.layers["visibility"], f.variance["visibility"], scn.spp
     # shadow rays give 0 or 1, so the sample variance of the mean is V (1 - V) / (spp - 1)
     np.testing.assert_allclose(var, V * (1.0 - V) / (spp - 1), atol=1e-7)
     # rows 8..55 are exchangeable: their spread per column is the variance of one pixel mean
@@ -307,14 +307,14 @@ def test_soft_light_of_vanishing_radius_converges_to_the_hard_light(variant):
 def test_fixed_seed_is_deterministic_and_another_seed_differs(soft_wall):
     from hzval.truth.plane import Truth
 
-    sc, height, t = soft_wall
+    scn, height, t = soft_wall
     a = t.render(45.0)
     b = t.render(45.0)
-    c = Truth(sc, height).render(45.0)
+    c = Truth(scn, height).render(45.0)
     assert np.array_equal(a.layers["visibility"], b.layers["visibility"])
     assert np.array_equal(a.layers["visibility"], c.layers["visibility"])
     assert np.array_equal(a.image, c.image)
-    d = Truth(dataclasses.replace(sc, seed=1), height).render(45.0)
+    d = Truth(dataclasses.replace(scn, seed=1), height).render(45.0)
     assert not np.array_equal(a.layers["visibility"], d.layers["visibility"])
     assert abs(a.layers["visibility"].mean() - d.layers["visibility"].mean()) < 0.01
 
@@ -401,7 +401,7 @@ def test_blinn_phong_specular_on_a_flat_plane(variant):
     np.testing.assert_allclose(both, expected + a / math.pi * E * math.sin(math.radians(e)), rtol=1e-5)
 
 
-@pytest.mark.parametrize("shading", S.SHADINGS)
+@pytest.mark.parametrize("shading", sc.SHADINGS)
 def test_diffuse_is_mitsubas_own_diffuse_bsdf_on_the_displaced_mesh(variant, bumps, shading):
     """The truth shades with its own Lambert (module docstring); it must equal
     Mitsuba's ``diffuse`` plugin evaluated at the same surface interactions: with
@@ -478,7 +478,7 @@ def test_a_low_soft_light_sees_past_endless_walls_traced_in_hops(variant):
     V = t.render(azimuth).layers["visibility"]
     xs, ys = hz_camera.sample_positions(rows, cols, t.scene.camera, 16, 0)
     xs, ys, _ = _off_edge_lines(xs, ys, rows, cols)
-    L = S.light_samples(t.scene.light, azimuth, xs.size, 0).astype(np.float64)
+    L = sc.light_samples(t.scene.light, azimuth, xs.size, 0).astype(np.float64)
     top = wall + 0.5
     d = np.where(L[:, 0] > 0, (top - xs) % cols, (xs - top) % cols)
     clears = L[:, 2] > np.abs(L[:, 0]) * h / np.where(d == 0, cols, d)
@@ -798,14 +798,14 @@ def test_deep_relief_keeps_a_small_margin_and_sees_the_same_shadows(variant, mon
     (a mesh 20 times the tile a side); the capped margin is 32 texels, and its rays hop to the same
     visibility, sample for sample, as the full margin's."""
     from hzval.core import conventions as cv
-    from hzval.geometry import tile as meshes
+    from hzval.geometry import tile as mesh
     from hzval.materials.bricks import bricks
 
     h = bricks(48)
     capped = truth(h, 2.0, "wrap", elevation=10.0, spp=4)
-    assert capped.margin == meshes.MIN_MARGIN_CAP
-    assert capped.margin < meshes.wrap_margin(cv.heights_in_texels(h, 2.0), 10.0) / 10
-    monkeypatch.setattr(meshes, "MAX_MARGIN_TILES", 1e9)
+    assert capped.margin == mesh.MIN_MARGIN_CAP
+    assert capped.margin < mesh.wrap_margin(cv.heights_in_texels(h, 2.0), 10.0) / 10
+    monkeypatch.setattr(mesh, "MAX_MARGIN_TILES", 1e9)
     full = truth(h, 2.0, "wrap", elevation=10.0, spp=4)
     assert full.margin > 400
     for az in (0.0, 37.0, -120.0):
@@ -884,12 +884,12 @@ def test_bands_give_the_pixels_of_one_piece(kw):
     from hzval.truth.plane import Truth
 
     h = np.random.default_rng(8).random((17, 13)).astype(np.float32)
-    sc = make_scene(h.shape, 0.15, **kw)
-    whole = Truth(sc, h)
-    ss = sc.camera.supersampling
+    scn = make_scene(h.shape, 0.15, **kw)
+    whole = Truth(scn, h)
+    ss = scn.camera.supersampling
     frames = [whole.render(az) for az in (-40.0, 25.0)]
     for rows, keep in ((3, False), (7, False), (3, True)):
-        banded = Truth(sc, h, band_samples=rows * 13 * ss * sc.spp, keep=keep)
+        banded = Truth(scn, h, band_samples=rows * 13 * ss * scn.spp, keep=keep)
         assert len(banded.bands) == -(-17 * ss // rows) and len(whole.bands) == 1
         assert banded.keeps is keep and whole.keeps
         assert banded.moved_off_edges == whole.moved_off_edges

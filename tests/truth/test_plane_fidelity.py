@@ -20,7 +20,7 @@ import pytest
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
 from hzval.core import shading
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import horizon, surface
 from hzval.truth import plane as truth
 from tests.truth.test_plane import make_scene
@@ -35,16 +35,16 @@ def rough(n=48, sigma=1.2, seed=5):
 
 def lit_difference(h, depth, shading_, azimuth, boundary="wrap"):
     """Mean exposed |truth - unshadowed shading| over the pixels the truth sees fully lit."""
-    sc = make_scene(
+    scn = make_scene(
         h.shape, depth, boundary, effects=("shadow", "diffuse"), spp=16, shading=shading_, elevation=40.0
     )
-    fr = truth.Truth(sc, h).render(azimuth)
-    plain, _ = surface.Unshadowed(sc, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(
+    fr = truth.Truth(scn, h).render(azimuth)
+    plain, _ = surface.Unshadowed(scn, bake.bake(h, bake.BakeParams(depth=depth, boundary=boundary))).render(
         azimuth
     )
     lit = fr.layers["visibility"] == 1.0
     assert lit.mean() > 0.3
-    return float((np.abs(fr.image - plain.image).mean(-1)[lit]).mean() * shading.exposure(sc))
+    return float((np.abs(fr.image - plain.image).mean(-1)[lit]).mean() * shading.exposure(scn))
 
 
 @pytest.mark.parametrize("azimuth", [0.0, 135.0])
@@ -66,16 +66,16 @@ def test_open_border_is_shaded_as_the_normal_map_shades_it(variant):
     h = (((r - 9.5) / 10) ** 2 + ((c - 11.5) / 12) ** 2).astype(np.float32)
     out = {}
     for shade in ("smooth", "faceted"):
-        sc = make_scene(h.shape, 0.2, "open", effects=("diffuse",), spp=16, elevation=40.0, shading=shade)
-        T = truth.Truth(sc, h).render(180.0).image[..., 0]
+        scn = make_scene(h.shape, 0.2, "open", effects=("diffuse",), spp=16, elevation=40.0, shading=shade)
+        T = truth.Truth(scn, h).render(180.0).image[..., 0]
         A = (
-            horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open")))
+            horizon.Horizon(scn, bake.bake(h, bake.BakeParams(depth=0.2, boundary="open")))
             .render(180.0)
             .image[..., 0]
         )
         border = np.zeros(h.shape, bool)
         border[:, [0, -1]] = border[[0, -1], :] = True
-        out[shade] = np.abs(T - A)[border].mean() * shading.exposure(sc)
+        out[shade] = np.abs(T - A)[border].mean() * shading.exposure(scn)
     assert out["smooth"] < 0.004 and out["faceted"] > 3 * out["smooth"], out
 
 
@@ -84,7 +84,7 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
     so the plane shows albedo / pi * E * sin(e), as the technique computes from the disk's centre."""
     h = np.full((16, 16), 0.5, np.float32)
     for elevation in (40.0, 90.0):
-        sc = make_scene(
+        scn = make_scene(
             h.shape,
             0.1,
             "wrap",
@@ -96,8 +96,8 @@ def test_a_soft_light_gives_a_plane_facing_it_its_irradiance(variant):
             albedo=0.7,
             irradiance=2.0,
         )
-        t = truth.Truth(sc, h).render(30.0).image
-        a = horizon.Horizon(sc, bake.bake(h, bake.BakeParams(depth=0.1))).render(30.0).image
+        t = truth.Truth(scn, h).render(30.0).image
+        a = horizon.Horizon(scn, bake.bake(h, bake.BakeParams(depth=0.1))).render(30.0).image
         expect = 0.7 / math.pi * 2.0 * math.sin(math.radians(elevation))
         assert a.mean() == pytest.approx(expect, rel=1e-5)
         assert t.mean() == pytest.approx(expect, rel=0.003)
@@ -114,14 +114,14 @@ def test_the_exposure_never_clips_what_the_declared_effects_can_produce(variant,
     from hzval.materials.bricks import bricks
 
     h = bricks(64)
-    sc = S.override(S.Scene(), size=64, effects=",".join(effects), spp=4, elevation=60.0)
-    shown = truth.Truth(sc, h).render(0.0).image * shading.exposure(sc)
+    scn = sc.override(sc.Scene(), size=64, effects=",".join(effects), spp=4, elevation=60.0)
+    shown = truth.Truth(scn, h).render(0.0).image * shading.exposure(scn)
     assert (shown >= 1.0).mean() < 0.01 and shown.max() <= 1.0 + 1e-5
     assert shown.max() > 0.5
-    E = sc.light.irradiance
+    E = scn.light.irradiance
     diffuse = "diffuse" in effects
     expect = (E / math.pi if diffuse else E) + 0.04 * E * ("specular" in effects) + E / math.pi
-    assert shading.max_radiance(sc) == pytest.approx(expect)
+    assert shading.max_radiance(scn) == pytest.approx(expect)
 
 
 def _tilted_reflection_reference(tilt_deg: float, n: int = 2_000_000, seed: int = 7) -> tuple[float, float]:
@@ -157,8 +157,8 @@ def test_reflection_fraction_on_a_tilted_plane_carries_the_estimators_weight(var
     x = np.tile(np.arange(n, dtype=np.float32), (n, 1))
     depth = math.tan(math.radians(tilt)) * (n - 1) / n  # H * depth * cols rises tan(tilt) a texel
     h = x / (n - 1)
-    sc = make_scene(h.shape, depth, "open", effects=("reflection_occlusion",), spp=256, shading="faceted")
-    R = truth.Truth(sc, h).render(0.0).layers["reflection_occlusion"][2:-2, 2:-2]
+    scn = make_scene(h.shape, depth, "open", effects=("reflection_occlusion",), spp=256, shading="faceted")
+    R = truth.Truth(scn, h).render(0.0).layers["reflection_occlusion"][2:-2, 2:-2]
     # the ramp rises toward +x, so its normal leans toward -x: mirror the reference's tilt
     weighted, unweighted = _tilted_reflection_reference(tilt)
     assert abs(weighted - unweighted) > 0.008

@@ -13,7 +13,7 @@ import pytest
 
 from hzval.core import conventions as cv
 from hzval.core import resources
-from hzval.geometry import tile as M
+from hzval.geometry import tile as mesh
 from hzval.truth import memory
 from tests.oracles import turned_techniques as turned
 
@@ -55,8 +55,8 @@ def heights_down(mesh, x, y):
 def test_a_planar_map_takes_two_triangles_a_cell_either_way_round():
     rows, cols = 5, 7
     yy, xx = np.mgrid[0:rows, 0:cols]
-    g = M.grid((0.3 * xx - 0.7 * yy).astype(np.float32), "open")
-    P, F, levels = M.tessellate(g, 1e-6)
+    g = mesh.grid((0.3 * xx - 0.7 * yy).astype(np.float32), "open")
+    P, F, levels = mesh.tessellate(g, 1e-6)
     assert (levels == 0).all() and len(F) == 2 * levels.size and len(P) == g.z.size
 
 
@@ -66,7 +66,7 @@ def test_a_saddle_is_within_the_tolerance_and_converges(variant):
     x, y = rng.uniform(0.5, 1.5, 2000), rng.uniform(0.5, 1.5, 2000)
     errors = []
     for tol in (0.5, 0.1, 0.02, 0.004):
-        m = M.displaced_mesh(h, 2.0, "open", tolerance=tol, texcoords=False)  # heights 0 and 4 texels
+        m = mesh.displaced_mesh(h, 2.0, "open", tolerance=tol, texcoords=False)  # heights 0 and 4 texels
         err = np.abs(heights_down(m, x, y) - bilinear(h * 4.0, x, y)).max()
         assert err <= tol + 1e-5
         errors.append(err)
@@ -76,7 +76,7 @@ def test_a_saddle_is_within_the_tolerance_and_converges(variant):
 
 def test_the_mesh_meets_the_bilinear_surface_at_texel_centres_and_on_cell_edges(variant):
     h = np.random.default_rng(2).random((6, 9)).astype(np.float32)
-    m = M.displaced_mesh(h, 0.5, "open", tolerance=0.01, texcoords=False)
+    m = mesh.displaced_mesh(h, 0.5, "open", tolerance=0.01, texcoords=False)
     h_tex = cv.heights_in_texels(h, 0.5)
     # a texel centre's column line: the bilinear surface is linear along it, and so is every mesh
     x = np.full(50, 3.5)
@@ -100,9 +100,9 @@ def _mesh_of(P, F):
 def test_a_turned_map_is_the_turned_surface(variant, boundary, turn):
     name, f, _ = turn
     h = cv.heights_in_texels(np.random.default_rng(3).random((8, 8)).astype(np.float32), 0.3)
-    ga, gb = M.grid(h, boundary, margin=2), M.grid(np.ascontiguousarray(f(h)), boundary, margin=2)
-    Pa, Fa, la = M.tessellate(ga, 0.02)
-    Pb, Fb, lb = M.tessellate(gb, 0.02)
+    ga, gb = mesh.grid(h, boundary, margin=2), mesh.grid(np.ascontiguousarray(f(h)), boundary, margin=2)
+    Pa, Fa, la = mesh.tessellate(ga, 0.02)
+    Pb, Fb, lb = mesh.tessellate(gb, 0.02)
     assert len(Fa) == len(Fb) and np.array_equal(np.sort(la.ravel()), np.sort(lb.ravel()))
     # the turn of the tangent frame about the tile's centre (8 x 8: the same span either way)
     rot = np.array(
@@ -269,12 +269,12 @@ def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_
 
     scene = sc.override(sc.Scene(), size=64, azimuths="0", spp=2).validate()
     h = materials.generate("bricks", 64).height
-    g = M.grid(
+    g = mesh.grid(
         cv.heights_in_texels(h, scene.material.depth),
         "wrap",
         margin=truth.surface_margin(scene, cv.heights_in_texels(h, scene.material.depth))[1],
     )
-    _, faces, _ = M.tessellate(g, scene.material.truth_tolerance)
+    _, faces, _ = mesh.tessellate(g, scene.material.truth_tolerance)
     assert truth.mesh_triangles(scene, h) == len(faces)
     fine = sc.override(scene, truth_tolerance=0.0005)
     extra = truth.mesh_triangles(fine, h) - len(faces)
@@ -316,9 +316,9 @@ def test_the_estimate_charges_each_technique_and_assumes_the_default_set():
     """Each technique adds its frame and comparison per pixel; an estimate made before the techniques
     are chosen charges the default set (TECHNIQUES_BY_DEFAULT, kept equal to the registry's)."""
     from hzval.scene import spec as sc
-    from hzval.techniques import registry
+    from hzval.techniques import registry as technique
 
-    assert memory.TECHNIQUES_BY_DEFAULT == len(registry.defaults())
+    assert memory.TECHNIQUES_BY_DEFAULT == len(technique.defaults())
     scene = sc.override(sc.Scene(), size=64, spp=2).validate()
     three, eight = (memory.estimate_peak_bytes(scene, 64, 64, 1000, techniques=n) for n in (3, 8))
     assert eight - three == pytest.approx(5 * memory.PEAK_BYTES_PER_TECHNIQUE_PIXEL * 64 * 64, abs=2)

@@ -26,7 +26,7 @@ from hzval.scene import lookup
 from hzval.techniques import horizon
 from hzval.techniques.fitted import guard as fit_guard
 from hzval.techniques.fitted import model as fit_model
-from hzval.techniques.fitted import training
+from hzval.techniques.fitted import training as fitted_training
 
 __all__ = [
     "CHARBONNIER_EPS",
@@ -118,7 +118,7 @@ class _Model(fit_model.LightBatches):
     technique's own, ``_channel_weights``, of each light's direction)."""
 
     def __init__(self, scene, bake, k: float, storage: str, V_list: list[np.ndarray]):
-        self.scene = training.fit_scene(scene)
+        self.scene = fitted_training.fit_scene(scene)
         self.ap = horizon.Horizon(self.scene, bake, None, k=k)
         if set(self.ap._slots) != {horizon.HORIZON_SLOT}:
             raise AssertionError("the fit's technique must hold the horizon channels alone")
@@ -168,8 +168,8 @@ def fit(
     bake,
     scene,
     *,
-    lights=training.TRAINING_LIGHTS,
-    held_out=training.HELD_OUT_LIGHTS,
+    lights=fitted_training.TRAINING_LIGHTS,
+    held_out=fitted_training.HELD_OUT_LIGHTS,
     fit_k: bool = False,
     storage: str = "float",
     k: float = horizon.DEFAULT_K,
@@ -220,20 +220,20 @@ def fit(
         The fitted sines, ``k``, the errors per light before and after, epochs and times.
     """
     backend.variant()
-    lights = training.parse_lights(lights) if isinstance(lights, str) else tuple(lights)
+    lights = fitted_training.parse_lights(lights) if isinstance(lights, str) else tuple(lights)
     if isinstance(held_out, str):
-        held_out = training.parse_lights(held_out, "held_out") if held_out.strip() else ()
+        held_out = fitted_training.parse_lights(held_out, "held_out") if held_out.strip() else ()
     held_out = tuple(held_out)
     stored = hz_storage.get(storage)
     if not (math.isfinite(k) and k > 0):
         raise InputError("--k", f"must be a positive number, got {k}")
     rows, cols = height.shape
     # the guard holds the bake's |F - V| per pixel and training light beside V: as much again
-    training.check_fits(
+    fitted_training.check_fits(
         "HEIGHT", rows, cols, scene.spp, len(lights) * (2 if guard is not None else 1) + len(held_out), scene
     )
     train = dataclasses.replace(
-        scene, spp=min(scene.spp, int(train_spp or training.training_spp(scene.spp, rows * cols)))
+        scene, spp=min(scene.spp, int(train_spp or fitted_training.training_spp(scene.spp, rows * cols)))
     )
     t0, c0 = time.perf_counter(), time.process_time()
     V_train, V_held = truths(train, scene, height, lights, held_out, progress)
@@ -264,8 +264,8 @@ def fit(
     for name, s, ls, V in (("training", train, lights, V_train), ("held_out", scene, held_out, V_held)):
         if ls:
             before, after = (
-                training.light_errors(s, bake, baked_stored, ls, V, k),
-                training.light_errors(s, bake, fitted, ls, V, k_fit),
+                fitted_training.light_errors(s, bake, baked_stored, ls, V, k),
+                fitted_training.light_errors(s, bake, fitted, ls, V, k_fit),
             )
             mae[name] = {
                 "baked": float(np.mean(before)),
@@ -378,7 +378,7 @@ def truths(train, scene, height, lights, held_out, progress: bool):
         file=sys.stderr,
         leave=False,
     ) as bar:
-        return training.visibility(train, height, lights, bar), training.visibility(
+        return fitted_training.visibility(train, height, lights, bar), fitted_training.visibility(
             scene, height, held_out, bar
         ) if held_out else []
 

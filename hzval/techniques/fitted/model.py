@@ -19,7 +19,7 @@ import numpy as np
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.scene import lookup
-from hzval.techniques.fitted import training
+from hzval.techniques.fitted import training as fitted_training
 
 __all__ = [
     "CHARBONNIER_EPS",
@@ -62,8 +62,8 @@ class LightBatches:
     def setup(self, V_list: list[np.ndarray], masks: list[np.ndarray] | None = None) -> None:
         """Groups, bands and the truth's ``V`` of every light, one copy, light-major; ``masks``: per
         light, the pixels the loss counts (``None``: all)."""
-        self.group = max(1, training.BAND_SAMPLES // (self.P * self.spp))
-        band = max(1, training.BAND_SAMPLES // self.spp)
+        self.group = max(1, fitted_training.BAND_SAMPLES // (self.P * self.spp))
+        band = max(1, fitted_training.BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
         V = lookup.aligned_empty(len(V_list) * self.P)
         for i, v in enumerate(V_list):  # one copy, not a stack and then an aligned copy

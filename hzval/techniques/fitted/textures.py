@@ -27,14 +27,14 @@ from hzval.core import backend
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
-from hzval.metrics import facing
+from hzval.metrics import facing as hzfacing
 from hzval.scene import lookup
 from hzval.techniques import perpixel
 from hzval.techniques import registry as technique
-from hzval.techniques.fitted import fit as horizon_fit
+from hzval.techniques.fitted import fit
 from hzval.techniques.fitted import guard as fit_guard
 from hzval.techniques.fitted import model as fit_model
-from hzval.techniques.fitted import training
+from hzval.techniques.fitted import training as fitted_training
 
 __all__ = [
     "PRIOR",
@@ -116,7 +116,7 @@ class TextureModel(fit_model.LightBatches):
     """
 
     def __init__(self, scene, bake, cls, settings: dict, V_list: list[np.ndarray], lights=()):
-        self.scene = training.fit_scene(scene)
+        self.scene = fitted_training.fit_scene(scene)
         self.tech = cls(self.scene, bake, None, **settings)
         self.tech.straight_through = True
         self.kernel = self.tech.kernel
@@ -129,7 +129,7 @@ class TextureModel(fit_model.LightBatches):
         self._layout(np.asarray(self.level.tensor(), np.float32))
         # the pixels facing each light: elsewhere the direct term the factor multiplies is 0
         self.setup(
-            V_list, [facing.facing_mask(bake.normal, L) for L in _directions(lights)] if V_list else None
+            V_list, [hzfacing.facing_mask(bake.normal, L) for L in _directions(lights)] if V_list else None
         )
 
     def _layout(self, packed: np.ndarray) -> None:
@@ -204,7 +204,7 @@ def facing_errors(model: TextureModel, values: dict, lights, V) -> list[float]:
     0 where none does)."""
     out = []
     for e, (el, az) in zip(model.errors(values, lights, V), lights):
-        m = facing.facing_mask(model.tech.bake.normal, cv.light_direction(az, el))
+        m = hzfacing.facing_mask(model.tech.bake.normal, cv.light_direction(az, el))
         out.append(float(e[m].mean()) if m.any() else 0.0)
     return out
 
@@ -405,14 +405,14 @@ def fit_textures(
     name: str,
     *,
     settings: dict | None = None,
-    lights=training.TRAINING_LIGHTS,
-    held_out=training.HELD_OUT_LIGHTS,
-    tolerance: float = horizon_fit.TOLERANCE,
-    max_epochs: int = horizon_fit.MAX_EPOCHS,
-    learning_rate: float = horizon_fit.LEARNING_RATE,
+    lights=fitted_training.TRAINING_LIGHTS,
+    held_out=fitted_training.HELD_OUT_LIGHTS,
+    tolerance: float = fit.TOLERANCE,
+    max_epochs: int = fit.MAX_EPOCHS,
+    learning_rate: float = fit.LEARNING_RATE,
     prior: float = PRIOR,
     train_spp: int | None = None,
-    constrain: float = horizon_fit.CONSTRAIN,
+    constrain: float = fit.CONSTRAIN,
     progress: bool = True,
 ) -> TextureFit:
     """Fit a per-pixel technique's textures to the truth (module docstring; docs/fit.md).
@@ -440,17 +440,17 @@ def fit_textures(
     cls = check_fittable(name)
     settings = dict(settings or {})
     cls.check_settings(bake.params, settings)
-    lights = training.parse_lights(lights) if isinstance(lights, str) else tuple(lights)
+    lights = fitted_training.parse_lights(lights) if isinstance(lights, str) else tuple(lights)
     if isinstance(held_out, str):
-        held_out = training.parse_lights(held_out, "held_out") if held_out.strip() else ()
+        held_out = fitted_training.parse_lights(held_out, "held_out") if held_out.strip() else ()
     held_out = tuple(held_out)
     rows, cols = height.shape
-    training.check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
+    fitted_training.check_fits("HEIGHT", rows, cols, scene.spp, len(lights) + len(held_out), scene)
     train = dataclasses.replace(
-        scene, spp=min(scene.spp, int(train_spp or training.training_spp(scene.spp, rows * cols)))
+        scene, spp=min(scene.spp, int(train_spp or fitted_training.training_spp(scene.spp, rows * cols)))
     )
     t0, c0 = time.perf_counter(), time.process_time()
-    V_train, V_held = horizon_fit.truths(train, scene, height, lights, held_out, progress)
+    V_train, V_held = fit.truths(train, scene, height, lights, held_out, progress)
     t_truth, c_truth = time.perf_counter() - t0, time.process_time() - c0
 
     t0, c0 = time.perf_counter(), time.process_time()

@@ -23,7 +23,7 @@ from hzval.core.errors import InputError
 from hzval.io import external
 from hzval.pipeline import sweep
 from hzval.scene import lookup
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import horizon
 from hzval.techniques import registry as technique
 from hzval.techniques.fitted import fit, horizon_fit
@@ -37,7 +37,7 @@ HELD = "30@45:225:180"
 def _setup(n=24, spp=1, depth=0.1, height=None):
     from hzval.materials.bricks import bricks
 
-    scene = S.override(S.Scene(), size=n, depth=depth, spp=spp, effects="shadow")
+    scene = sc.override(sc.Scene(), size=n, depth=depth, spp=spp, effects="shadow")
     h = bricks(n) if height is None else height
     return scene, h, bake.bake(h, bake.BakeParams(depth=depth).validate())
 
@@ -275,7 +275,7 @@ def test_cli_fit_writes_the_map_and_refuses_bad_lights(variant, tmp_path, capsys
 
 
 def test_horizon_fit_is_opt_in_cached_and_splits_the_error(variant, tmp_path):
-    scene = S.override(S.Scene(), size=16, depth=0.1, spp=2, azimuths="0,90")
+    scene = sc.override(sc.Scene(), size=16, depth=0.1, spp=2, azimuths="0,90")
     assert "horizon-fit" not in [t.name for t in technique.select(None, scene)]
     opts = sweep.Options(
         techniques=("horizon", "horizon-fit"), settings={"horizon-fit": {"lights": FEW, "held_out": ""}}
@@ -315,7 +315,7 @@ def test_one_truth_set_up_renders_every_elevation_as_a_fresh_one(variant, bounda
     from hzval.truth import plane as truth
 
     scene, h, _ = _setup(n=20, spp=2)
-    scene = S.override(scene, boundary=boundary)
+    scene = sc.override(scene, boundary=boundary)
     lights = ((12.0, 30.0), (35.0, 200.0), (35.0, 10.0), (70.0, -45.0))
     shared = fitted_training.visibility(scene, h, lights)
     base = fitted_training.fit_scene(scene)

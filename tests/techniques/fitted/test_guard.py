@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from hzval.bake import maps as bake
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import horizon
 from hzval.techniques.fitted import fit
 from hzval.techniques.fitted import guard as fit_guard
@@ -87,7 +87,7 @@ def test_a_real_fit_regresses_nowhere_beyond_the_tolerance(variant):
     from hzval.materials.bricks import bricks
 
     n = 24
-    scene = S.override(S.Scene(), size=n, depth=0.1, spp=2, effects="shadow")
+    scene = sc.override(sc.Scene(), size=n, depth=0.1, spp=2, effects="shadow")
     h = bricks(n)
     b = bake.bake(h, bake.BakeParams(depth=0.1).validate())
     lights = "20,40@0:270:90"

@@ -16,7 +16,7 @@ from hzval.pipeline import records as pipeline_records
 from hzval.pipeline import sweep
 from hzval.report import columns as report_columns
 from hzval.report import plots as report_plots
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 
 FEW = "20,40@0:270:90"
 
@@ -25,7 +25,7 @@ FEW = "20,40@0:270:90"
 def split_sweep(tmp_path_factory, request):
     request.getfixturevalue("variant")
     out = tmp_path_factory.mktemp("split")
-    scene = S.override(S.Scene(), size=16, depth=0.1, spp=2, azimuths="0,45,90")
+    scene = sc.override(sc.Scene(), size=16, depth=0.1, spp=2, azimuths="0,45,90")
     opts = sweep.Options(
         techniques=("horizon", "horizon-fit"), settings={"horizon-fit": {"lights": FEW, "held_out": ""}}
     )

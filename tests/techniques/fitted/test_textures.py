@@ -19,15 +19,14 @@ import pytest
 from hzval.bake import maps as bake
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
-from hzval.metrics import facing
+from hzval.metrics import facing as hzfacing
 from hzval.pipeline import records
 from hzval.report import ranking
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import perpixel
 from hzval.techniques import registry as technique
-from hzval.techniques.fitted import fit as horizon_fit
+from hzval.techniques.fitted import fit, textures
 from hzval.techniques.fitted import store as fitted_store
-from hzval.techniques.fitted import textures
 from hzval.techniques.fitted import training as fitted_training
 
 FEW = "20,40@0:270:90"  # 8 training lights: fast fits for the tests
@@ -38,7 +37,7 @@ FITTABLE = ("microshadow-filament", "microshadow-hdrp", "bent-cone", "ssbump")
 def _setup(n=24, spp=1, depth=0.1, material="bricks"):
     from hzval.materials import generate
 
-    scene = S.override(S.Scene(), size=n, depth=depth, spp=spp, effects="shadow")
+    scene = sc.override(sc.Scene(), size=n, depth=depth, spp=spp, effects="shadow")
     h = generate(material, n, seed=1).height
     return scene, h, bake.bake(h, bake.BakeParams(depth=depth).validate())
 
@@ -89,7 +88,7 @@ def test_block_storage_keeps_the_values_and_rebuilds_a_unit_z(variant):
 def test_metrics_record_the_bytes_per_texel_of_the_formats(variant, tmp_path):
     from hzval.pipeline import sweep
 
-    scene = S.override(S.Scene(), size=16, effects="shadow", azimuths="0")
+    scene = sc.override(sc.Scene(), size=16, effects="shadow", azimuths="0")
     opts = sweep.Options(
         techniques=("bent-cone", "ssbump"),
         settings={
@@ -181,8 +180,8 @@ def _oracle(scene, h, b, name, lights):
     weighted by its facing count, the fit's criterion) kept at its best level."""
     cls = technique.get(name)
     fs = fitted_training.fit_scene(scene)
-    V, _ = horizon_fit.truths(fs, fs, h, lights, (), False)
-    masks = [facing.facing_mask(b.normal, cv.light_direction(az, e)) for e, az in lights]
+    V, _ = fit.truths(fs, fs, h, lights, (), False)
+    masks = [hzfacing.facing_mask(b.normal, cv.light_direction(az, e)) for e, az in lights]
     best = np.full(h.shape, np.inf)
     for level in range(256):
         uniform = dataclasses.replace(b, mean_cos2=np.full_like(b.mean_cos2, level / 255.0))
@@ -271,9 +270,9 @@ def test_cli_fits_a_technique_and_refuses_the_horizon_flags(variant, tmp_path, c
 
 def test_a_sweep_with_a_fit_shows_the_floor(variant, tmp_path):
     from hzval.pipeline import sweep
-    from hzval.report import pages
+    from hzval.report import pages as report
 
-    scene = S.override(S.Scene(), size=20, depth=0.1, effects="shadow", azimuths="0,90", elevation="30,50")
+    scene = sc.override(sc.Scene(), size=20, depth=0.1, effects="shadow", azimuths="0,90", elevation="30,50")
     opts = sweep.Options(
         techniques=("microshadow-filament", "microshadow-filament-fit"),
         settings={"microshadow-filament-fit": {"lights": FEW, "held_out": ""}},
@@ -287,7 +286,7 @@ def test_a_sweep_with_a_fit_shows_the_floor(variant, tmp_path):
     table = records.summary_table(result)
     assert "floor" in table.splitlines()[0] and "bake loss" in table
     assert (tmp_path / "run" / "fit" / "microshadow_filament_fit" / "fit.json").is_file()
-    pages.write_report(tmp_path / "run", result, command="hzval sweep")
+    report.write_report(tmp_path / "run", result, command="hzval sweep")
     html = (tmp_path / "run" / "index.html").read_text()
     assert "bake loses" in html and (tmp_path / "run" / "plots" / "error_per_byte.png").is_file()
 

@@ -25,7 +25,7 @@ from hzval.bake.maps import BakeParams, bake
 from hzval.cli import main as cli
 from hzval.core.errors import InputError
 from hzval.scene import lookup
-from hzval.scene import spec as S
+from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques.gl import context as gl
 from hzval.techniques.horizon import Horizon
@@ -57,24 +57,24 @@ def edge_lights() -> list[tuple[float, float]]:
 
 
 def texel_centre_context(size: int = 32, height: str = "bricks", boundary: str = "wrap") -> technique.Context:
-    scene = S.override(
-        S.Scene(), height=height, size=size, boundary=boundary, effects="shadow", spp=1
+    scene = sc.override(
+        sc.Scene(), height=height, size=size, boundary=boundary, effects="shadow", spp=1
     ).validate()
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
     rows, cols = hm.height.shape
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     like = lookup.Samples(np.zeros(1, np.float32), np.zeros(1, np.float32), rows, cols, 1)
     points = lookup.from_points((c + 0.5).ravel(), (rows - r - 0.5).ravel(), like, "texel centres")
     return technique.Context(
-        scene, hm.height, baked, S.load_albedo(scene.material, rows, cols), points=points
+        scene, hm.height, baked, sc.load_albedo(scene.material, rows, cols), points=points
     )
 
 
 def minified_context(size: int = 32, boundary: str = "wrap") -> technique.Context:
     """The orthographic view from straight above at half the map's resolution (lambda = 1), trilinear."""
-    scene = S.override(
-        S.Scene(),
+    scene = sc.override(
+        sc.Scene(),
         size=size,
         boundary=boundary,
         effects="shadow",
@@ -84,9 +84,9 @@ def minified_context(size: int = 32, boundary: str = "wrap") -> technique.Contex
         resolution=(size // 2, size // 2),
         filter="trilinear",
     ).validate()
-    hm = S.load_material_height(scene.material)
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
-    return technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, size, size))
+    return technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, size, size))
 
 
 def differences(ctx: technique.Context, lights, storage: str = "u8") -> tuple[float, float]:
@@ -190,10 +190,10 @@ def test_without_seamless_filtering_the_edges_disagree(monkeypatch):
 @pytest.mark.parametrize("boundary", ["wrap", "open"])
 def test_jittered_samples_of_a_sweep_agree(boundary):
     # the sweep's own samples (4 spp, jittered): texels blended bilinearly, also across the open border
-    scene = S.override(S.Scene(), size=32, boundary=boundary, effects="shadow", spp=4).validate()
-    hm = S.load_material_height(scene.material)
+    scene = sc.override(sc.Scene(), size=32, boundary=boundary, effects="shadow", spp=4).validate()
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth, boundary=boundary).validate())
-    ctx = technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, 32, 32))
+    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, 32, 32))
     lights = [(a, 30.0) for a in scene.light.azimuths_deg] + [(45.0, 35.26)]
     from hzval.techniques.gl.horizon_gl import HorizonGL
 
@@ -223,7 +223,7 @@ def test_the_frame_is_the_unshadowed_shading_times_the_shaders_factor():
 
 
 def test_gl_techniques_are_opt_in():
-    scene = S.Scene()
+    scene = sc.Scene()
     chosen = [t.name for t in technique.select(None, scene)]
     assert "horizon-gl" not in chosen and "pom-gl" not in chosen
     assert [t.name for t in technique.select(["horizon-gl", "horizon"], scene)] == ["horizon", "horizon-gl"]
@@ -351,10 +351,10 @@ def test_pom_gl_marches_as_pom():
     from hzval.techniques.gl.horizon_gl import PomGL
     from hzval.techniques.pom import RayMarchShadow
 
-    scene = S.override(S.Scene(), size=32, effects="shadow", spp=4).validate()
-    hm = S.load_material_height(scene.material)
+    scene = sc.override(sc.Scene(), size=32, effects="shadow", spp=4).validate()
+    hm = sc.load_material_height(scene.material)
     baked = bake(hm.height, BakeParams(depth=scene.material.depth).validate())
-    ctx = technique.Context(scene, hm.height, baked, S.load_albedo(scene.material, 32, 32))
+    ctx = technique.Context(scene, hm.height, baked, sc.load_albedo(scene.material, 32, 32))
     for variant_ in ("hard", "soft"):
         a, b = (
             RayMarchShadow.build(ctx, variant=variant_, steps=16),
