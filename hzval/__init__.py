@@ -40,6 +40,7 @@ def init(variant: str | None = None) -> str:
     renders with (:func:`hzval.core.backend.prefer_working_llvm`, :func:`hzval.core.backend.variant`);
     return the variant. Call it before anything imports Dr.Jit: Dr.Jit reads
     ``DRJIT_LIBLLVM_PATH`` when it is first imported."""
+    # importing hzval changes nothing: the backend loads when init runs
     from hzval.core import backend
 
     backend.prefer_working_llvm()

@@ -308,3 +308,46 @@ def test_every_command_has_its_module_under_commands():
     names = [c.__name__.rsplit(".", 1)[1] for c in cli.COMMANDS]
     missing = [n for n in names if not (PACKAGE / "commands" / f"{n}.py").is_file()]
     assert missing == []
+
+
+def _late_imports() -> tuple[int, list[tuple[Path, int, bool]]]:
+    """Every import statement of hzval/, and those inside functions: (file, line, has a reason)."""
+    total, late = 0, []
+    for p in _modules():
+        lines = p.read_text().splitlines()
+        tree = ast.parse("\n".join(lines))
+        total += sum(isinstance(n, (ast.Import, ast.ImportFrom)) for n in ast.walk(tree))
+        inner = sorted(
+            {
+                n.lineno
+                for f in ast.walk(tree)
+                if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                for n in ast.walk(f)
+                if isinstance(n, (ast.Import, ast.ImportFrom))
+            }
+        )
+        for ln in inner:
+            above = lines[ln - 2].strip()
+            # a block of imports shares the reason its first one gives
+            reason = "#" in lines[ln - 1] or above.startswith("#") or (ln - 1 in inner and late[-1][2])
+            late.append((p, ln, reason))
+    return total, late
+
+
+def test_imports_sit_at_the_top_and_a_late_one_says_why():
+    """Issue 54: under a tenth of the imports inside functions (Dr.Jit after the LLVM is chosen, the
+    CLI's commands on use, the slow optional packages where used), each with its reason."""
+    total, late = _late_imports()
+    assert len(late) < 0.1 * total, f"{len(late)} of {total} imports are inside functions"
+    silent = [f"{p.relative_to(PACKAGE)}:{ln}" for p, ln, reason in late if not reason]
+    assert silent == []
+
+
+def test_the_cli_imports_no_renderer_before_it_chooses_the_llvm():
+    """Dr.Jit reads DRJIT_LIBLLVM_PATH when first imported: importing the CLI must not load it."""
+    import subprocess
+    import sys
+
+    probe = "import sys, hzval.cli.main; print(sorted({'drjit', 'mitsuba', 'matplotlib'} & set(sys.modules)))"
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "[]"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import drjit as dr
 import numpy as np
 
 from hzval.core import conventions as cv
@@ -191,7 +192,7 @@ def _sweep_drjit(
     map without copying (LLVM backend only): one is written, the other read.
     :func:`exact_horizon_map` checks afterwards that the writes landed there.
     """
-    import drjit as dr
+    # the LLVM backend's types: this kernel maps NumPy memory, which only LLVM can
     from drjit.llvm import Float, Int32, UInt32
 
     rows, cols = shape
@@ -249,6 +250,7 @@ def _sweep_drjit(
 
 def _have_llvm() -> bool:
     try:
+        # whether Dr.Jit loads at all decides the path
         import drjit as dr
 
         return bool(dr.has_backend(dr.JitBackend.LLVM))
@@ -345,7 +347,7 @@ def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray
     channel into one interleaved buffer, then one kernel for the ambient terms
     (:func:`ambient_from_sines`'s formulas; 10x faster than NumPy's strided
     passes over the 8 channels at 2048 x 2048)."""
-    import drjit as dr
+    # the LLVM backend's types: this kernel maps NumPy memory, which only LLVM can
     from drjit.llvm import Float, UInt32
 
     rows, cols = h.shape

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
@@ -184,8 +186,6 @@ def horizon_map(
         :func:`choose_kernel`: unrolled up to :data:`UNROLL_MAX_OFFSETS`
         offsets (the default radius 16), else the faster first bake.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     if kernel not in KERNELS:
         raise ValueError(f"unknown kernel form {kernel!r}; available: {', '.join(KERNELS)}")
@@ -232,8 +232,6 @@ def _max_tan_unrolled(
     """Per bin, the largest ``tan = dh / r`` of the offsets it covers: one block of code per
     offset group, neighbours read as zero-copy shifted views on the LLVM backend (contiguous
     loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation."""
-    import drjit as dr
-    import mitsuba as mi
 
     if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
 
@@ -265,7 +263,6 @@ def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object
     """``(channels, mean_cos, mean_cos2)`` from the bins' largest tangents: ``sin = sqrt(t^2 /
     (t^2 + 1))``, each channel the mean of the ``angles / D + 1`` bins centred on it, and the
     ambient terms' means over all bins."""
-    import drjit as dr
 
     cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]  # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))
@@ -307,8 +304,6 @@ def _max_tan_loop(
     Every value is the same float32 ``(h_n - h_0) * (1/r)`` and max is exact
     and order-free, so the result equals the unrolled kernel's bit for bit.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     pairs, group_first, group_end, bin_first, bin_end, bins = [], [], [], [], [], []
     for group in table:

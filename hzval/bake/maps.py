@@ -13,6 +13,7 @@ digest; the exact method records ``radius`` and ``angles`` as ``null``).
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -22,10 +23,12 @@ import numpy as np
 from hzval.bake import occlusion as directional
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
+from hzval.core import backend, resources
 from hzval.core import conventions as cv
 from hzval.core import cube as cube_layout
 from hzval.core.conventions import normal_map  # re-exported: the bake's first map
 from hzval.core.errors import InputError
+from hzval.io import codecs, documents, paths, staging
 
 __all__ = [
     "CUBE_SIZE",
@@ -315,7 +318,6 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
 
 def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
     """Raise :class:`InputError` naming ``what`` if the bake would not fit in memory."""
-    from hzval.core import resources
 
     resources.refuse_over(what, estimate_bytes(rows, cols, params), f"a {cols}x{rows} bake", "a smaller map")
 
@@ -364,7 +366,6 @@ def bake(
     """Bake a normalised height map ``H[row, col]`` into the technique's textures; ``horizon=False``:
     the normal map alone (:func:`normals_only`), without the horizon bake's cost; ``occlusion=False``:
     without the directional occlusion (:func:`needs_occlusion`)."""
-    from hzval.core import backend
 
     params.validate()
     cv.check_relief(height, params.depth, params.boundary)
@@ -423,8 +424,6 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     ``.png``), channels ``4 l .. 4 l + 3`` in layer ``l``; the weight cube
     map only for 8 directions (it holds Lengyel's 8 channel weights).
     """
-    from hzval.core import backend
-    from hzval.io import codecs, documents, staging
 
     t0 = time.perf_counter()
     result.checked()
@@ -551,9 +550,6 @@ def read_bake(folder: str | Path) -> Bake:
 
     The number of horizon layers follows the recorded ``directions`` (8,
     i.e. ``horizon0``-``horizon1``, when ``bake.json`` predates it)."""
-    import json
-
-    from hzval.io import codecs
 
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
@@ -609,8 +605,6 @@ def cached_bake(
     written (default ``folder``): a sweep stages it, so that a failed run leaves the old bake.
     """
 
-    from hzval.io import documents, staging
-
     folder = Path(folder)
 
     try:
@@ -646,7 +640,6 @@ def _damaged_file(folder: Path, digests, digest_of) -> str | None:
     agree. A record without digests names ``bake.json`` itself."""
     if not isinstance(digests, dict) or not digests:
         return str(folder / "bake.json") + " (no file digests)"
-    from hzval.io import paths
 
     for name, want in digests.items():
         try:  # a name that leaves the bake's folder is damage too: nothing outside is read

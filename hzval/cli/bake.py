@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from hzval.cli import flags, scenes
-from hzval.commands import bake as bake_command
 from hzval.core import errors
 
 
@@ -29,6 +28,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake the material of ``args`` into ``--out``; one line of figures."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
+    from hzval.commands import bake as bake_command
+
     scene = scenes.scene_from_args(args, quiet=True)  # HEIGHT's sidecar gives depth and boundary
     params = flags.bake_params(args, scene)
     done = bake_command.run(

@@ -49,6 +49,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import check
 
     result = check.run(

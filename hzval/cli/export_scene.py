@@ -4,6 +4,9 @@
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import sys
 from pathlib import Path
 
 from hzval.cli import flags, scenes
@@ -51,6 +54,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Write the scene of ``args``'s light ``--azimuth`` into ``--out``."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import export_scene
     from hzval.scene import spec as sc
 
@@ -70,10 +75,6 @@ def run(args) -> int:
 def _mitsuba() -> str:
     """Mitsuba's command as this hzval can run it: the one beside this Python (a virtualenv's
     ``bin/``, which need not be on PATH), relative to the working folder where it is below it."""
-    import os
-    import shutil
-    import sys
-    from pathlib import Path
 
     beside = Path(sys.executable).parent / "mitsuba"
     if not beside.is_file():

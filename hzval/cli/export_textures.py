@@ -22,6 +22,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import export_textures
 
     written = export_textures.export(args.run_dir, args.out, zstd=args.zstd, force=args.force)

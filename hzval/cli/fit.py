@@ -7,8 +7,8 @@ import math
 from pathlib import Path
 
 from hzval.cli import flags, scenes
-from hzval.commands import fit as fit_command
 from hzval.core import errors
+from hzval.io import storage as hz_storage
 
 #: The flags that only the horizon map's fit reads.
 HORIZON_FLAGS = ("--k", "--fit-k", "--storage", "--guard")
@@ -16,8 +16,10 @@ HORIZON_FLAGS = ("--k", "--fit-k", "--storage", "--guard")
 
 def add_parser(sub) -> None:
     """``hzval fit``: the best textures of a technique (:mod:`hzval.commands.fit`)."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
-    from hzval.io import storage as hz_storage
+    from hzval.commands import fit as fit_command
     from hzval.techniques import registry as technique
     from hzval.techniques.fitted import guard as fit_guard
     from hzval.techniques.fitted import textures as fitted_textures
@@ -115,6 +117,9 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake, fit, write; one line of figures."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
+    from hzval.commands import fit as fit_command
     from hzval.techniques.fitted import training as fitted_training
 
     _check_flags(args)
@@ -156,6 +161,10 @@ def run(args) -> int:
 
 def _check_flags(args) -> None:
     """Refuse a bad value, and a horizon-only flag given to another technique's fit."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
+    from hzval.commands import fit as fit_command
+
     if not (math.isfinite(args.k) and args.k > 0):
         raise errors.InputError("--k", f"must be a positive number, got {args.k}")
     if args.guard is not None and not (math.isfinite(args.guard) and args.guard >= 0):
@@ -184,6 +193,8 @@ def _horizon_options(args) -> dict:
 def _technique_options(args) -> dict:
     """:func:`hzval.techniques.fitted.textures.fit_textures`'s keywords, the technique's settings from
     its own flags."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
     return {

@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import argparse
 import math
+import shlex
 import sys
 from pathlib import Path
 
+from hzval import materials
 from hzval.core import errors
+from hzval.scene import camera as hz_camera
 
 
 def add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
-    from hzval import materials
 
     if default_size is None:
         default_size = materials.DEFAULT_SIZE
@@ -60,6 +62,8 @@ def add_material_args(p: argparse.ArgumentParser, default_size: int | None = Non
 def add_technique_args(p: argparse.ArgumentParser) -> None:
     """``--techniques``, a ``--no-NAME`` for each technique, and each technique's
     own options (:meth:`hzval.techniques.registry.Technique.add_arguments`), from the registry."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
     names = technique.names()
@@ -87,6 +91,8 @@ def add_technique_args(p: argparse.ArgumentParser) -> None:
 
 def add_bake_flags(p: argparse.ArgumentParser) -> None:
     """The horizon bake's flags (:class:`hzval.bake.maps.BakeParams`, whose defaults they show)."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
 
     d = bake.BakeParams()
@@ -157,6 +163,8 @@ def add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
 def add_sweep_flags(p: argparse.ArgumentParser) -> None:
     """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
     defaults those of :class:`hzval.scene.spec.Scene`."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     d, light = sc.Scene(), sc.Light()
@@ -259,6 +267,8 @@ def add_mesh_flags(p: argparse.ArgumentParser) -> None:
 
 def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
     """``--truth-tolerance``: how closely the truth's triangles follow the bilinear surface."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.geometry import tile as mesh
 
     p.add_argument(
@@ -275,7 +285,8 @@ def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
 def add_view_flags(p: argparse.ArgumentParser) -> None:
     """The camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
     :mod:`hzval.scene.lookup`)."""
-    from hzval.scene import camera as hz_camera
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import lookup
 
     c, lk = hz_camera.Camera(), lookup.Lookup()
@@ -346,6 +357,8 @@ def add_view_flags(p: argparse.ArgumentParser) -> None:
 
 
 def scene_module():
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     return sc
@@ -382,6 +395,8 @@ def truth_tolerance(args):
 def technique_options(args) -> dict:
     """``sweep.Options`` keywords of the technique options, each checked, an error naming the flag
     as typed (:func:`hzval.techniques.registry.flag_errors`)."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
     from hzval.techniques import registry as technique
 
@@ -408,6 +423,8 @@ def technique_options(args) -> dict:
 def check_technique_flags(args, names) -> None:
     """Refuse a technique's flag given to a run that leaves out every technique that reads it
     (``names``: the run's): ``--horizon-map`` with ``--techniques pom`` was ignored in silence."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
     readers: dict[str, list[str]] = {}
@@ -426,6 +443,8 @@ def check_technique_flags(args, names) -> None:
 
 def sweep_options(args):
     """The :class:`hzval.pipeline.sweep.Options` of the sweep flags."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.pipeline import sweep
 
     return sweep.Options(
@@ -441,6 +460,8 @@ def sweep_options(args):
 
 def gates(args):
     """The :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import gates
 
     return gates.Gates(
@@ -465,6 +486,8 @@ def gate_exit(record: dict | None) -> int:
 def bake_params(args, scene):
     """The :class:`hzval.bake.maps.BakeParams` of the bake flags (:func:`add_bake_flags`) on ``scene``'s
     material (its depth and boundary: HEIGHT's sidecar's where it has one), checked."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
 
     d = bake.BakeParams()
@@ -487,7 +510,6 @@ def print_notes(args) -> None:
 
 def command_line(args) -> str:
     """The command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
-    import shlex
 
     return "hzval " + " ".join(shlex.quote(a) for a in (getattr(args, "argv", None) or []))
 

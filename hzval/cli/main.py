@@ -14,8 +14,11 @@ can act on are one line on stderr, ``hzval: error: <what>: <problem>``.
 from __future__ import annotations
 
 import argparse
+import difflib
+import signal
 import sys
 
+import hzval
 from hzval.cli import (
     bake,
     check,
@@ -30,7 +33,8 @@ from hzval.cli import (
     tradeoff,
     views,
 )
-from hzval.core import errors
+from hzval.core import backend, errors, interrupts
+from hzval.io import staging
 
 __all__ = ["COMMANDS", "build_parser", "typed_flags", "main"]
 
@@ -93,7 +97,6 @@ class _Parser(argparse.ArgumentParser):
 
     def _nearest(self, message: str) -> str:
         """``; did you mean --elevation?`` for an unknown flag near a known one of any command."""
-        import difflib
 
         if not message.startswith("unrecognized arguments:"):
             return ""
@@ -121,7 +124,6 @@ class _Subcommands(argparse._SubParsersAction):
 def build_parser() -> argparse.ArgumentParser:
     """The ``hzval`` parser: :func:`_common`'s flags, then each of :data:`COMMANDS`' own, and
     ``--force`` for every command that writes a folder."""
-    import hzval
 
     parser = _Parser(
         prog="hzval",
@@ -163,10 +165,6 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command ``argv`` (default ``sys.argv[1:]``); the exit status (module docstring)."""
-    import signal
-
-    from hzval.core import backend, interrupts
-    from hzval.io import staging
 
     argv = list(sys.argv[1:] if argv is None else argv)
     backend.prefer_working_llvm()  # before the parser imports the techniques, and so Dr.Jit

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from hzval.commands import materials as materials_command
 from hzval.core import errors
 
 
@@ -16,7 +17,6 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from hzval.commands import materials as materials_command
 
     print(materials_command.table())
     return errors.EXIT_OK

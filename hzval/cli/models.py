@@ -50,6 +50,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every case of ``args``'s material; print the table."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import models as models_command
 
     scene = scenes.scene_from_args(args, DEFAULTS)

@@ -9,15 +9,17 @@ command line (HEIGHT or ``--material``, :func:`material_of`) is checked here, on
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import sys
 from pathlib import Path
 
+from hzval import materials
 from hzval.cli import flags
 from hzval.core import errors
+from hzval.io import documents, heightmap
 
 
 def builtin(name: str) -> bool:
-    from hzval import materials
 
     return materials.is_builtin(name)
 
@@ -36,9 +38,6 @@ def material_of(args) -> str | None:
 
 def check_material_name(name: str) -> None:
     """Refuse an unknown built-in material's name in one line, with the nearest names."""
-    import difflib
-
-    from hzval import materials
 
     if materials.is_builtin(name):
         return
@@ -53,7 +52,6 @@ def check_material_name(name: str) -> None:
 
 def refuse_size(size: int, height: str) -> None:
     """``--size`` names a built-in material's size; a height map file has its own (nothing resamples it)."""
-    from hzval.io import heightmap
 
     try:
         rows, cols = heightmap.probe_shape(height)
@@ -80,6 +78,8 @@ def scene_name(args, scene) -> str:
 def model_view(base, overrides: dict) -> dict:
     """``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where the sweep is on a model and
     neither the scene nor the flags place a camera: a model seen from straight above shows one face."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     shape = overrides.get("mesh") or base.mesh.shape
@@ -131,7 +131,8 @@ def base_scene(args, *, quiet: bool = False):
     """The scene the flags change, and the TOML it was read from (``{}`` for none): ``--scene``'s
     file where the command has one, else HEIGHT's sidecar (``gravel.toml`` beside ``gravel.png``,
     said on stderr unless ``quiet``), else the built-in default scene."""
-    from hzval.io import documents
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     if getattr(args, "scene", None):
@@ -166,6 +167,8 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
     hzval.scene.spec.Scene
         Validated, named after HEIGHT's stem, else ``--material``, else the scene file's name.
     """
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     base, data = base_scene(args, quiet=quiet)
@@ -208,6 +211,8 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 def check_elevations(value) -> tuple[float, ...]:
     """The light elevations of ``--elevation`` (one number, a list or START:STOP:STEP), each in
     (0, 90] degrees, else one line naming the flag."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
     try:

@@ -9,12 +9,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from hzval import materials
 from hzval.cli import flags, scenes
 from hzval.core import errors
 
 
 def add_parser(sub) -> None:
-    from hzval import materials
 
     p = sub.add_parser(
         "suite",
@@ -73,6 +73,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every material of ``args``; print the overview. Exit 1 if one failed or a gate did."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import suite
     from hzval.report import overview
     from hzval.techniques import registry as technique

@@ -9,6 +9,8 @@ from hzval.cli import flags, scenes
 
 
 def add_parser(sub) -> None:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
     labels = ", ".join(technique.get(n).label for n in technique.names())
@@ -35,6 +37,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep the scene of ``args``; print its table and one line of times. Exit 1 on a failed gate."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import sweep as sweep_command
     from hzval.pipeline import records
 

@@ -9,12 +9,16 @@ from hzval.core import errors
 
 
 def _truth_spp() -> int:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import tradeoff
 
     return tradeoff.DEFAULT_TRUTH_SPP
 
 
 def _default_size() -> int:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import tradeoff
 
     return tradeoff.DEFAULT_SIZE
@@ -75,6 +79,8 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Measure every setting on the scene of ``args`` (HEIGHT's sidecar included); print the table
     and the recommendation."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import tradeoff
     from hzval.scene import spec as sc
 
@@ -110,6 +116,8 @@ def run(args) -> int:
 
 def _print_recommendation(rec: dict | None) -> None:
     """The recommended setting, and the best of the lead technique's own settings."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
     if not rec:

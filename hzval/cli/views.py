@@ -7,13 +7,14 @@ from pathlib import Path
 
 from hzval.cli import flags, scenes
 from hzval.core import errors
-from hzval.metrics.results import techniques_of
 
 #: The command's own scene defaults (:func:`hzval.cli.scenes.scene_from_args`).
 DEFAULTS = {"size": 128, "azimuths": "-60:60:30", "spp": 4}
 
 
 def add_parser(sub) -> None:
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import views
 
     p = sub.add_parser(
@@ -49,7 +50,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every view and lookup of ``args``; print a row each."""
+
+    # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import views
+    from hzval.metrics.results import techniques_of
 
     scene = scenes.scene_from_args(args, DEFAULTS)
     out = args.out or Path("reports") / f"views-{scene.name}"

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
+from tqdm import tqdm
 
 from hzval import materials
 from hzval.bake import maps as bake
@@ -31,6 +33,7 @@ from hzval.metrics import compare
 from hzval.pipeline import renders, sweep
 from hzval.pipeline.records import frame_folder
 from hzval.report import images
+from hzval.report import pages as report
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 
@@ -265,7 +268,6 @@ def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
 def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """``values`` averaged down to ``shape`` ``(rows, cols)`` (each output texel the mean of the input
     area it covers: Pillow's box filter, in float32)."""
-    from PIL import Image
 
     img = Image.fromarray(np.ascontiguousarray(values, np.float32))
     return np.asarray(img.resize((shape[1], shape[0]), Image.Resampling.BOX), np.float32)
@@ -471,6 +473,7 @@ def _truth_test(
 
 
 def _p_value(z: np.ndarray) -> np.ndarray:
+    # SciPy: 0.3-0.4 s to import, paid only where it is used
     from scipy.special import erfc
 
     return erfc(z / math.sqrt(2.0))
@@ -547,7 +550,6 @@ def _check_only(only: list[str] | None, names: list[str]) -> None:
 
 
 def load_scenes(scenes_dir: str | Path) -> list:
-    from hzval.scene import spec as sc
 
     found = sorted(Path(scenes_dir).glob("*.toml"))
     if not found:
@@ -566,7 +568,6 @@ def run(
 ) -> CheckResult:
     """Render the shipped scenes and compare them with ``references``; with ``update``,
     rewrite the references that are missing or failing."""
-    from tqdm import tqdm
 
     t0 = time.perf_counter()
     scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
@@ -656,7 +657,6 @@ def write_report(result: CheckResult, out: str | Path, *, command: str = "", for
 
 
 def _write_report(result: CheckResult, out: Path, command: str) -> Path:
-    from hzval.report import pages as report
 
     order = {"fail": 0, "new": 1, "warn": 2, "pass": 3}
     items = []

@@ -8,19 +8,24 @@ The design in full: docs/internals.md, "hzval.commands.export_scene".
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+import mitsuba as mi
 import numpy as np
+from PIL import Image
 
 from hzval import materials
 from hzval.bake.maps import BakeParams
 from hzval.core import backend, errors, resources, srgb
 from hzval.core.errors import InputError
+from hzval.geometry import gltf, model
 from hzval.geometry import tile as mesh
 from hzval.io import atomic, codecs, staging
-from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape
+from hzval.scene.spec import DEFAULT_ALBEDO, Scene, image_shape, load_albedo
 from hzval.truth import memory
+from hzval.truth.model import ModelTruth
 
 __all__ = ["write_scene", "mitsuba_render", "FILES"]
 
@@ -36,7 +41,6 @@ def check_fits(scene: Scene) -> int:
     map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
     nothing is rendered (on a model: :func:`hzval.truth.memory.check_fits`'s model estimate);
     return it in bytes."""
-    import dataclasses
 
     one = dataclasses.replace(scene, spp=1)
     rows, cols = memory.material_shape(one)
@@ -116,8 +120,6 @@ def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
     if own is not None:  # a built-in material's linear albedo, stored as sRGB as a bitmap expects
         rgb = codecs.unit_to_u8(srgb.encode(own))
     else:
-        from PIL import Image
-
         try:
             with Image.open(albedo) as img:
                 rgb = np.asarray(img.convert("RGB"))
@@ -215,11 +217,6 @@ def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
     ``--tangents``), ``mesh.ply``, the displaced model the truth traces, and ``scene.xml`` seen
     from the truth's camera. The displaced mesh carries no texture coordinates, so the diffuse
     reflectance is the albedo's mean."""
-    import dataclasses
-
-    from hzval.geometry import gltf, model
-    from hzval.scene.spec import load_albedo
-    from hzval.truth.model import ModelTruth
 
     backend.variant()
     scene = _direct_only(dataclasses.replace(scene, spp=1))
@@ -242,7 +239,6 @@ def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
 def mitsuba_render(path: str | Path, spp: int | None = None) -> np.ndarray:
     """Render an exported ``scene.xml`` with Mitsuba: ``(rows, cols, 3)`` float32 linear radiance."""
     backend.variant()
-    import mitsuba as mi
 
     scene = mi.load_file(str(path))
     return np.asarray(mi.render(scene, spp=spp or 0), dtype=np.float32)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.commands import check
 from hzval.core.errors import InputError
 from hzval.io import documents
 from hzval.metrics.results import FrameRecord, SweepResult, malformed_techniques
@@ -409,7 +410,6 @@ def _variance(fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: i
 def baseline_tests(new: dict, old: dict) -> list[dict]:
     """Per technique (in both runs) and metric of :data:`DIRECTION`: the frames' worsenings ``d_i``,
     ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring)."""
-    from hzval.commands import check
 
     fn, fo = _frames_by_light(new), _frames_by_light(old)
     shared = [az for az in fn if az in fo]
@@ -459,7 +459,6 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
 def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) -> list[str]:
     """The lines of the tests that are significant regressions at :data:`ALPHA`, Sidak-corrected over
     ``n_tests`` (default: these tests)."""
-    from hzval.commands import check
 
     level = check.sidak_level(ALPHA, n_tests or len(tests))
     prefix = f"{where}: " if where else ""

@@ -45,6 +45,10 @@ import numpy as np
 from hzval.core import interrupts
 from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics.results import SweepResult, techniques_of
+from hzval.pipeline import sweep
+from hzval.report import pages as report
+from hzval.scene import spec as sc
+from hzval.studies import bug_signatures, curvature_band, seam_share
 
 __all__ = ["run", "summary_table", "RADII", "BOWLS", "RING", "cap_obj", "ring_obj"]
 
@@ -104,7 +108,6 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
 
 
 def case_scene(scene, out: Path, name: str, spec):
-    from hzval.scene import spec as sc
 
     kind, value, sign = spec
     if kind in ("cap", "ring"):
@@ -119,7 +122,6 @@ def case_scene(scene, out: Path, name: str, spec):
 
 
 def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
-    from hzval.pipeline import sweep
 
     rows, bands = [], {}
     todo = cases()
@@ -152,8 +154,6 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
 
 def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
     """Each tangent bug's signature with the lead technique (:mod:`hzval.studies.bug_signatures`)."""
-    from hzval.scene import spec as sc
-    from hzval.studies import bug_signatures
 
     height = sc.load_material_height(scene.material).height
     return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
@@ -192,8 +192,6 @@ def _row(name: str, curvature, result: dict) -> dict:
 
 def _write_page(out: Path, data: dict) -> None:
     """``out/index.html`` from ``models.html.j2`` (:func:`hzval.report.pages.environment`), and its plots."""
-    from hzval.report import pages as report
-    from hzval.studies import bug_signatures
 
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in techniques_of(r)))
@@ -230,6 +228,7 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
     with the interpolated vertex normal against the traced glossy lobe), against signed curvature
     1/R, where the study declares ``reflection_occlusion``; the page's figure and table
     (``None``: no case has it)."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.figure import Figure
 
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
@@ -274,6 +273,7 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
 
 def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     """Each technique's mean |F - V| (and its floor, dashed) against signed curvature 1/R."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7, 4), dpi=110)
@@ -313,7 +313,6 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 def _band_maps(scene, case_dir: Path) -> dict:
     """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
     lights)."""
-    from hzval.studies import curvature_band
 
     return curvature_band.measure(curvature_band.band_scene(scene), case_dir)
 
@@ -322,7 +321,6 @@ def _add_bands(data: dict, bands: dict) -> None:
     """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
     study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
     rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`)."""
-    from hzval.studies import curvature_band
 
     flat = bands.get("flat")
     for r in data["rows"]:
@@ -489,7 +487,6 @@ def _band_row(r: dict, names: list[str]) -> dict:
 
 
 def _seam_texels() -> str:
-    from hzval.studies import seam_share
 
     return f"{seam_share.SEAM_TEXELS:g}"
 
@@ -521,6 +518,7 @@ def _fall(f: dict) -> str:
 
 def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     """Each technique's band excess over the flat patch, with one standard error, against 1/R."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7, 4), dpi=110)

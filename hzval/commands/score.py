@@ -25,12 +25,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
-from hzval.core import errors, srgb
+from hzval.core import errors, srgb, strict
 from hzval.core.errors import InputError
 from hzval.io import codecs, documents, paths, staging
-from hzval.metrics import compare
+from hzval.metrics import brightness, compare
+from hzval.metrics import facing as hzfacing
 from hzval.metrics.results import raw_techniques
+from hzval.pipeline import bug_match
 from hzval.report import images
 from hzval.report import pages as report
 from hzval.scene.spec import Frame
@@ -205,8 +208,6 @@ def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarra
     if path.suffix.lower() == ".exr":
         img = codecs.read_rgb_exr(path)
     else:
-        from PIL import Image
-
         try:
             with Image.open(path) as im:
                 depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
@@ -286,8 +287,6 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
         F = np.asarray(ch[key], np.float32)
         _one_value(path, [ch[k] for k in "RGB" if k in ch])
     else:
-        from PIL import Image
-
         try:
             with Image.open(path) as im:
                 depth = 65535.0 if im.mode in ("I;16", "I;16B", "I", "I;16L") else 255.0
@@ -308,7 +307,6 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
 def read_sidecar(frames_dir: Path) -> dict:
     """``FRAMES_DIR/engine.toml``: ``{label, summary, parameters, path}`` (module docstring); the
     defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`)."""
-    from hzval.core import strict
 
     path = frames_dir / SIDECAR
     out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}
@@ -484,7 +482,6 @@ def score(
 def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
     """On a model's sweep, which tangent-frame bug the engine's F matches
     (:mod:`hzval.pipeline.bug_match`)."""
-    from hzval.pipeline import bug_match
 
     return bug_match.diagnose(metrics, sweep_dir, factors)
 
@@ -492,8 +489,6 @@ def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
     """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
     sweep's techniques' own; ``(frame, maps, brightness warning or None)``."""
-    from hzval.metrics import brightness
-    from hzval.metrics import facing as hzfacing
 
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
@@ -579,7 +574,6 @@ def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float
 
 
 def _display_png(path: Path) -> np.ndarray:
-    from PIL import Image
 
     with Image.open(path) as im:
         arr = np.asarray(im.convert("RGB"), np.float64) / 255.0

@@ -17,6 +17,9 @@ The design in full: docs/internals.md, "hzval.commands.suite".
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import json
+import logging
 import math
 import os
 import re
@@ -30,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hzval import materials
 from hzval.commands import gates as gates_module
@@ -162,7 +166,6 @@ def _entries_of(item) -> list[Entry]:
     if materials.is_builtin(str(item)):
         scene = sc.override(sc.Scene(), height=str(item))
         return [Entry(str(item), dataclasses.replace(scene, name=str(item)), "built-in")]
-    import difflib
 
     near = difflib.get_close_matches(str(item), materials.names(), n=1, cutoff=0.6)
     hint = f"; did you mean {' or '.join(near)}?" if near else ""
@@ -238,6 +241,7 @@ def sweep_material(task: Task) -> dict:
             )
         backend.variant(task.variant)
         if task.threads:
+            # in the worker, once its variant is set
             import drjit as dr
 
             dr.set_thread_count(task.threads)
@@ -260,7 +264,6 @@ def _earlier_rows(out: Path) -> dict[str, dict]:
     """The finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
     still there, by name, their origins as given (:func:`hzval.report.overview.write_overview`
     makes them portable again); none where there is no readable overview."""
-    from hzval.io import documents
 
     try:
         rows = documents.read_json(out / "suite.json").get("materials") or []
@@ -310,6 +313,7 @@ def _log_start(task: Task) -> None:
     if not task.topic:
         return
     try:
+        # Dask: 0.5 s to import, paid only by a suite on workers
         import distributed
 
         distributed.get_worker().log_event(task.topic, {"name": task.entry.name})
@@ -516,7 +520,6 @@ def check_address(address: str) -> str:
 
 
 def _bar(total: int, progress: bool):
-    from tqdm import tqdm
 
     return tqdm(
         total=total, desc="suite", unit="material", disable=not progress, file=sys.stderr, leave=False
@@ -540,7 +543,6 @@ def _run_dask(
     """Each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish: a
     ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``. ``engine["name"]``
     says which."""
-    import logging
 
     import dask  # imported here: 0.5 s that a suite in this process does not need
     import distributed
@@ -632,6 +634,7 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
     (:func:`_completed`); else, by what failed, "not run" (no worker ever started it), failed with
     "its worker died" (:class:`distributed.KilledWorker` of a started task), or failed or "not run"
     with "the scheduler was lost"."""
+    # Dask: 0.5 s to import, paid only by a suite on workers
     import distributed
 
     done = _completed(task, since)
@@ -663,7 +666,6 @@ def _completed(task: Task, since: float) -> dict | None:
     try:
         if path.stat().st_mtime < since:
             return None
-        import json
 
         return summarise(task.entry, json.loads(path.read_text(encoding="utf-8")))
     except (OSError, ValueError, KeyError, TypeError):

@@ -15,16 +15,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
+from hzval.core import backend, shading
 from hzval.core import conventions as cv
-from hzval.core import shading
 from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
 from hzval.pipeline import renders
+from hzval.report import columns, plots, ranking
+from hzval.report import pages as report
 from hzval.scene import spec as sc
+from hzval.scene.spec import Scene
 from hzval.techniques import registry as technique
 from hzval.truth import memory
 from hzval.truth import plane as truth
@@ -99,7 +103,6 @@ class Setting:
 def baked_technique(scene=None) -> str | None:
     """The technique the bake settings are rendered with: the first in the registry that reads the
     horizon bake (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``."""
-    from hzval.scene.spec import Scene
 
     sc_ = scene if scene is not None else Scene()
     return next(
@@ -274,7 +277,6 @@ def measure(
 ) -> tuple[list[Point], dict]:
     """Measure every setting of :func:`settings` (or those whose names contain one of ``only``;
     ``fits``: the fitted techniques' too)."""
-    from tqdm import tqdm
 
     ref = _reference(scene, height, truth_spp)
     base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
@@ -430,9 +432,11 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
 
 def plot_tradeoff(path: Path, points: list[Point]) -> None:
     """Time against visibility error, one panel per kind; marker area ~ storage; Pareto front ringed."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     import matplotlib as mpl
 
     mpl.use("Agg")
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     import matplotlib.pyplot as plt
     from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator, NullFormatter
 
@@ -490,8 +494,6 @@ def write_tradeoff(
 
 
 def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, command: str) -> Path:
-    from hzval.core import backend
-    from hzval.report import pages as report
 
     rec = recommend(points)
     texels = info["rows"] * info["cols"]
@@ -563,7 +565,6 @@ def error_per_byte(points: list[Point], texels: int) -> list[dict]:
         ``name``, ``technique``, ``fitted`` (a ``NAME-fit``'s setting), ``storage``,
         ``bytes_per_texel``, ``error`` (:attr:`Point.error`) and ``pareto``.
     """
-    from hzval.report import ranking
 
     kept = [p for p in points if p.kind == "technique"]
     out = [
@@ -587,7 +588,6 @@ def error_per_byte(points: list[Point], texels: int) -> list[dict]:
 def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None:
     """:func:`error_per_byte` as the report draws it (:func:`hzval.report.plots.plot_error_per_byte`),
     a panel for the sweep's lights; its file name, or ``None`` with no technique setting."""
-    from hzval.report import columns, plots
 
     if not rows:
         return None

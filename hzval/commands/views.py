@@ -35,6 +35,8 @@ from hzval.core import interrupts
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
 from hzval.metrics.results import SweepResult, techniques_of
+from hzval.pipeline import sweep
+from hzval.report import pages as report
 from hzval.scene import camera as hz_camera
 from hzval.scene import lookup
 
@@ -91,7 +93,6 @@ def run(
 
 def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str, force: bool) -> dict:
     """:func:`run`'s sweeps into ``out`` (the staging folder); the ``views.json`` content."""
-    from hzval.pipeline import sweep
 
     rows = []
     runs = [(v, k) for v in chosen for k in kinds if not (v == "top" and k != kinds[0])]
@@ -182,7 +183,6 @@ def _mean(values) -> float | None:
 
 
 def _write_page(out: Path, data: dict) -> None:
-    from hzval.report import pages as report
 
     plots = out / "plots"
     _plot(plots / "views.png", data["rows"])
@@ -211,6 +211,7 @@ def _technique_names(rows: list[dict]) -> list[str]:
 def _plot(path: Path, rows: list[dict]) -> None:
     """Two panels per technique row: |F - V| against view elevation (the top and orthographic
     views) and against the median pixel footprint (every view), one line per lookup."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 

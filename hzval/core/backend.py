@@ -17,9 +17,15 @@ thread per core this process may use (:func:`host_cores`).
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import glob
 import importlib
 import os
+import re
+from concurrent.futures import ThreadPoolExecutor
 
+import hzval
 from hzval.core.errors import EnvironmentProblem, InputError
 
 __all__ = [
@@ -105,8 +111,6 @@ def prefer_working_llvm() -> None:
     broken LLVM 15 even when ``libllvm19`` is installed beside it. Must run
     before Dr.Jit initialises its LLVM backend; ``hzval/__init__`` calls it.
     """
-    import glob
-    import re
 
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return
@@ -123,6 +127,7 @@ def prefer_working_llvm() -> None:
 
 def check_llvm() -> tuple[int, int, int]:
     """Return the LLVM version that Dr.Jit loaded; raise if it is missing or broken."""
+    # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
 
     version = tuple(dr.detail.llvm_version())
@@ -156,6 +161,7 @@ def variant(requested: str | None = None) -> str:
         When the variant cannot be set up on this machine, with what to do.
     """
     global _chosen
+    # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
     import mitsuba as mi
 
@@ -184,6 +190,7 @@ def variant(requested: str | None = None) -> str:
 
 def sync() -> None:
     """Wait for queued kernels; Dr.Jit evaluates asynchronously, so time after this."""
+    # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
 
     dr.sync_thread()
@@ -193,6 +200,7 @@ def release_memory() -> None:
     """Hand Dr.Jit's cache of freed buffers back to the system (``dr.flush_malloc_cache``): a sweep's
     set-up and each frame's renders leave gigabytes of them at 4096 x 4096, which would otherwise
     stay resident beside the NumPy images of the comparison (about 1.5 GB of a 4096 sweep's peak)."""
+    # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
 
     dr.sync_thread()
@@ -211,8 +219,6 @@ _retaining = False
 
 def _mallopt():
     """glibc's ``mallopt`` (and ``malloc_trim``) through ctypes, or ``None`` off glibc."""
-    import ctypes
-    import ctypes.util
 
     try:
         if "glibc" not in (os.confstr("CS_GNU_LIBC_VERSION") or ""):
@@ -262,10 +268,9 @@ def hand_back_freed_memory() -> None:
 
 def versions() -> dict[str, str]:
     """Versions of hzval, Mitsuba, Dr.Jit and the LLVM in use, for reports."""
+    # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
     import mitsuba as mi
-
-    import hzval
 
     out = {"hzval": hzval.__version__, "mitsuba": mi.__version__, "drjit": dr.__version__}
     llvm = tuple(dr.detail.llvm_version())
@@ -300,7 +305,6 @@ def host_pool(workers: int | None = None):
     concurrent.futures.ThreadPoolExecutor
         Made once per process and size, then reused.
     """
-    from concurrent.futures import ThreadPoolExecutor
 
     n = max(1, int(workers or host_cores()))
     if n not in _pools:

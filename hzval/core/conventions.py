@@ -301,6 +301,7 @@ def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
     (0.125, 0.125)
     """
     if is_drjit(x):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         import mitsuba as mi
 
         return mi.Float(mi.Float64(x) / cols), mi.Float((rows - mi.Float64(y)) / rows)
@@ -654,6 +655,7 @@ def azimuth_of(x, y):
     True
     """
     try:
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         import drjit as dr
 
         if dr.is_array_v(x) or dr.is_array_v(y):

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 __all__ = [
@@ -164,8 +166,6 @@ def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
     mitsuba.Color3f
         Linear radiance.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     if not (diffuse or specular):
         return mi.Color3f(E)

@@ -10,11 +10,14 @@ followed.
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
+import pygltflib
 
 from hzval.core.errors import InputError
 from hzval.geometry import tangents as tg
+from hzval.io import atomic, paths
 
 __all__ = ["read_parts", "write_glb"]
 
@@ -121,7 +124,6 @@ def _gltf_part(g, blob, prim, m):
 def _gltf_check_uris(g, path: str) -> None:
     """Every buffer URI of the glTF at ``path`` is embedded (``data:``) or names a file inside the
     glTF's folder (:func:`hzval.io.paths.uri_path`): checked before any buffer is opened."""
-    from hzval.io import paths
 
     folder = os.path.dirname(os.fspath(path)) or "."
     for i, b in enumerate(g.buffers or []):
@@ -168,9 +170,6 @@ def read_parts(path: str) -> tuple:
         One line naming the file: a URI outside its folder, a node reached twice, missing buffer
         data, a required extension, no triangles, or content pygltflib cannot read.
     """
-    import warnings
-
-    import pygltflib
 
     try:
         with warnings.catch_warnings():
@@ -228,9 +227,6 @@ def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") 
     up : {"y", "z"}
         The written file's up axis.
     """
-    import pygltflib
-
-    from hzval.io import atomic
 
     rot = tg.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
     arrays = [

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import inspect
 import math
 import os
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ from typing import Callable
 import numpy as np
 
 from hzval.core.errors import InputError
-from hzval.geometry import gltf
+from hzval.geometry import gltf, mikktspace
 from hzval.geometry import tangents as tg
 
 __all__ = [
@@ -596,6 +597,7 @@ def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh
     trimesh splits a vertex where its UVs differ (OBJ's ``f v/vt``) and keeps the file's ``vn`` /
     PLY normals, which it holds in each geometry's cache; a file without them gets
     :func:`smooth_normals`. Its UVs are OBJ's: ``v = 0`` at the bottom row."""
+    # trimesh: 0.6 s to import, paid only by a model read from a file
     import trimesh
 
     try:
@@ -662,7 +664,6 @@ READERS: dict[str, Callable[..., BaseMesh]] = {
 
 def _shape(name: str, uv_scale: float, args: dict) -> BaseMesh:
     """``SHAPES[name](**args)``, a bad keyword or value as one line naming the shape's argument."""
-    import inspect
 
     params = {k: p.default for k, p in inspect.signature(SHAPES[name]).parameters.items() if k != "uv_scale"}
     for key, value in args.items():
@@ -691,7 +692,6 @@ def with_frames(mesh: BaseMesh, method: str) -> BaseMesh:
     A corner whose frame has no tangent (a vertex surrounded by degenerate UVs) gets one orthogonal
     to its normal. One line naming ``--tangents`` for a method the mesh cannot have.
     """
-    from hzval.geometry import mikktspace
 
     try:
         used = tg.resolve(method, mesh.tangent_source == "file", mesh.source in SHAPES)

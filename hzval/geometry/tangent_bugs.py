@@ -41,6 +41,7 @@ from typing import Callable
 import numpy as np
 
 from hzval.core.errors import InputError
+from hzval.geometry import tangents as tg
 
 __all__ = ["Bug", "BUGS", "NAMES", "check", "apply", "face_frames_at"]
 
@@ -100,7 +101,6 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
 def face_frames_at(model, prim: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(t, b, n)`` ``(N, 3)`` float32: the frame of the base triangles ``prim`` of ``model``
     (:func:`hzval.geometry.tangents.face_frames`), ``b = w cross(n, t)`` with the triangle's own ``w``."""
-    from hzval.geometry import tangents as tg
 
     fn, ft = tg.face_frames(model.positions, model.uvs, model.faces)
     prim = np.asarray(prim, np.int64)

@@ -110,6 +110,7 @@ def resolve(method: str, has_file_tangents: bool, builtin: bool) -> str:
 
 def _dot(a, b):
     if cv.is_drjit(a):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import dr
 
         return dr.dot(a, b)
@@ -118,6 +119,7 @@ def _dot(a, b):
 
 def _cross(a, b):
     if cv.is_drjit(a):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import dr
 
         return dr.cross(a, b)
@@ -127,6 +129,7 @@ def _cross(a, b):
 def normalize(a):
     """``a / |a|``; a zero vector stays zero (NumPy) rather than becoming NaN."""
     if cv.is_drjit(a):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import dr
 
         return dr.normalize(a)
@@ -145,6 +148,7 @@ def _scale(v, s):
 def sign(w):
     """+1 where ``w >= 0``, else -1 (an interpolated handedness is a sign again)."""
     if cv.is_drjit(w):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import dr
 
         return dr.select(w >= 0, 1.0, -1.0)
@@ -185,6 +189,7 @@ def to_tangent(v, n, t, w):
     product), the inverse of :func:`to_world` for the same ``(n, t, w)``."""
     t, b, n = orthonormal(n, t, w)
     if cv.is_drjit(v):
+        # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import mi
 
         return mi.Vector3f(_dot(t, v), _dot(b, v), _dot(n, v))

@@ -31,10 +31,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core import errors, resources
+from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
+from hzval.io import atomic
 
 __all__ = [
     "MIN_ELEVATION_DEG",
@@ -141,7 +145,6 @@ def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -
     ``smooth`` shading reads them (docs/internals.md, the truth's "Shading"): a texel centre takes its texel's
     normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
     clamped)."""
-    from hzval.core.conventions import normal_map
 
     nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
     n = cv.bilinear_at(nmap, positions[:, 0], positions[:, 1], boundary)
@@ -203,7 +206,6 @@ def displaced_mesh(
     receives the cells' ``levels``
     (:func:`cell_levels`) and the ``tolerance`` used.
     """
-    import mitsuba as mi
 
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
@@ -234,8 +236,6 @@ def write_ply(m, path) -> None:
     """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.atomic.atomic_path`).
     Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
     line naming the file here (:class:`hzval.core.errors.InputError`)."""
-    from hzval.core import errors
-    from hzval.io import atomic
 
     with atomic.atomic_path(path) as tmp:
         try:
@@ -401,7 +401,6 @@ def check_fits(
     its triangles (:func:`mesh_size`) at :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held
     beside it. A tall relief asks for a wide wrap margin and fine cells; the line names ``what`` (the
     map), its height range and ``--depth``. Returns the estimate in bytes."""
-    from hzval.core import resources
 
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
@@ -444,8 +443,6 @@ def tessellate(
     del X, Y
     levels = cell_levels(g.z, tolerance) if levels is None else np.asarray(levels, np.uint8)
     if budget_bytes is not None:
-        from hzval.core import resources
-
         n = triangle_count(levels)
         resources.refuse_over(
             "--truth-tolerance",
@@ -498,7 +495,6 @@ def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "
     """The cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh`` of positions and faces
     only (what the truth reads), tessellated with the whole grid's ``levels`` (:func:`piece`,
     :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth.bands`)."""
-    import mitsuba as mi
 
     positions, faces, _ = tessellate(piece(g, first, stop), levels=levels[first:stop])
     mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)

@@ -4,15 +4,22 @@ atomic (:func:`hzval.io.atomic.atomic_path`)."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import errno
 import os
+import sys
 import tempfile
+import zlib
 from pathlib import Path
 from typing import Iterator, Mapping, NamedTuple
 
+import imagecodecs
 import numpy as np
+import OpenEXR
+from PIL import Image
 
+from hzval.core import backend
 from hzval.core.errors import InputError, first_line
 from hzval.io.atomic import atomic_path
 
@@ -76,7 +83,6 @@ def write_exr(
     bytes; :func:`read_rgb_exr` reads either back as RGB.
     ``attributes``: string attributes for the header (:func:`read_exr_attributes` reads them back).
     """
-    import OpenEXR
 
     chans: dict[str, np.ndarray] = {}
     for name, arr in channels.items():
@@ -153,7 +159,6 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
     Raises :class:`InputError` naming the file if it cannot be read.
     """
-    import OpenEXR
 
     if not Path(path).is_file():  # the library would call a missing file "0 parts"
         raise InputError(path, "no such file" if not Path(path).exists() else "not a file")
@@ -173,7 +178,6 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
     """The string attributes of an EXR's first header (those :func:`write_exr` was given, and any
     other writer's); ``{}`` for a file that cannot be read (:func:`read_exr` names its problem)."""
-    import OpenEXR
 
     with library_output():
         try:
@@ -210,7 +214,6 @@ def library_output() -> Iterator:
     command line that promises one-line errors must not let that through.
     Yields a function that returns the captured lines.
     """
-    import sys
 
     for stream in (sys.stdout, sys.stderr):
         stream.flush()
@@ -251,7 +254,6 @@ class Writers:
 
     def submit(self, job) -> None:
         """Start the callable ``job`` (it writes a file) on the host pool."""
-        from hzval.core import backend
 
         self.pending.append(backend.host_pool().submit(job))
 
@@ -261,7 +263,6 @@ class Writers:
             done.result()
 
     def __exit__(self, kind, error, trace) -> bool:
-        import concurrent.futures
 
         try:
             if kind is None:
@@ -317,7 +318,6 @@ def write_png(
     byte only: on filtered renders and palette maps at level 1 it is faster
     than the default search and about as small (``benchmarks/bench_png.py``).
     """
-    import zlib
 
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
@@ -331,7 +331,6 @@ def write_png(
                 **({"compress_type": zlib.Z_RLE} if runs else {}),
             )
         return
-    import imagecodecs
 
     # libpng through imagecodecs, each row Paeth-filtered: Pillow tries five filters on every row
     # and keeps the best, 1.7x the time for 1.4% fewer bytes on a rendered frame
@@ -366,7 +365,6 @@ def _png_pixels(pixels: np.ndarray, grey: bool) -> np.ndarray:
 
 def _palette_image(pixels: Indexed):
     """The Pillow image of a palette image (mode ``"P"``), which :func:`write_png` saves."""
-    from PIL import Image
 
     index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
     if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:

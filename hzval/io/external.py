@@ -19,11 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from hzval.core import conventions as cv
-from hzval.core import errors
+from hzval.core import errors, strict
 from hzval.core.errors import InputError
-from hzval.io import codecs
+from hzval.io import codecs, documents, ktx2
 
 __all__ = [
     "Encoding",
@@ -56,7 +57,6 @@ class Encoding:
     values: str = "sine"
 
     def validate(self, what: str = "--horizon-map") -> "Encoding":
-        from hzval.core import strict
 
         for f, hint in strict.schema_of(Encoding).items():  # types checked, not coerced
             strict.check_value(getattr(self, f), hint, what, f)
@@ -83,8 +83,6 @@ class Encoding:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Encoding":
-        from hzval.core import strict
-        from hzval.io import documents
 
         data = documents.read_toml(path)
         if not isinstance(data, dict):
@@ -98,7 +96,6 @@ class Encoding:
 def read_layers(paths: list[str | Path]) -> np.ndarray:
     """The layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32; one
     file given twice is refused (it would stand for two layers' directions)."""
-    from PIL import Image
 
     seen: dict = {}
     for i, p in enumerate(paths):
@@ -118,8 +115,6 @@ def read_layers(paths: list[str | Path]) -> np.ndarray:
     for p in paths:
         p = Path(p)
         if p.suffix.lower() == ".ktx2":  # hzval export-textures' layers: level 0, as a GPU decodes it
-            from hzval.io import ktx2
-
             tex = ktx2.read(p)
             if tex.format.channels != 4:
                 raise InputError(

@@ -28,6 +28,8 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import numpy as np
+import OpenEXR
+import png
 from PIL import Image, ImageFile, UnidentifiedImageError
 
 from hzval.core.errors import InputError, first_line
@@ -337,7 +339,6 @@ def _decode_png_pillow(path: _PathLike) -> tuple[np.ndarray, bool]:
 
 def _decode_png_pypng(path: _PathLike) -> tuple[np.ndarray, bool]:
     """16-bit samples ``(rows, cols, planes)`` of a colour or grey+alpha PNG, and whether it has tRNS."""
-    import png
 
     with _open(path) as f:
         try:
@@ -354,7 +355,6 @@ def _decode_png_pypng(path: _PathLike) -> tuple[np.ndarray, bool]:
 
 
 def _probe_exr(path: _PathLike) -> tuple[int, int]:
-    import OpenEXR
 
     with library_output():  # the C library prints its complaints; we raise ours
         try:

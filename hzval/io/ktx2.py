@@ -20,9 +20,15 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
+import etcpak
+import imagecodecs
 import numpy as np
+import texture2ddecoder
 
+import hzval
 from hzval.core.errors import InputError
+from hzval.io import atomic
+from hzval.io.codecs import unit_to_u8
 
 __all__ = [
     "IDENTIFIER",
@@ -146,7 +152,6 @@ def _kvd(kv: dict) -> bytes:
 def write(path, tex: Texture, *, zstd: bool = False) -> None:
     """Write ``tex`` to ``path`` (atomically: :func:`hzval.io.atomic.atomic_path`); ``zstd``:
     supercompress each level with Zstandard."""
-    from hzval.io import atomic
 
     fmt, n = tex.format, len(tex.levels)
     for i, data in enumerate(tex.levels):
@@ -220,19 +225,16 @@ def _read_kvd(data: bytes) -> dict:
 
 
 def _writer() -> str:
-    import hzval
 
     return f"hzval {hzval.__version__}"
 
 
 def _zstd_encode(data: bytes) -> bytes:
-    import imagecodecs
 
     return bytes(imagecodecs.zstd_encode(data, level=19))
 
 
 def _zstd_decode(data: bytes) -> bytes:
-    import imagecodecs
 
     return bytes(imagecodecs.zstd_decode(data))
 
@@ -240,7 +242,6 @@ def _zstd_decode(data: bytes) -> bytes:
 def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
     """A level's texels as float32 ``(rows, cols, channels)``: UNORM over 255, half floats as they
     are, BC blocks decoded as a GPU decodes them (texture2ddecoder), cropped to the level's size."""
-    import texture2ddecoder
 
     fmt = tex.format
     w, h = max(1, tex.width >> level), max(1, tex.height >> level)
@@ -267,9 +268,6 @@ def encode_level(values: np.ndarray, fmt: Format) -> bytes:
     BC formats; 8-bit quantisation by :func:`hzval.io.codecs.unit_to_u8`) or as they are (half floats).
     BC blocks are etcpak's, on an RGBA8 image padded to whole blocks by repeating its edge, the
     channels it lacks 0 and alpha 255."""
-    import etcpak
-
-    from hzval.io.codecs import unit_to_u8
 
     v = np.asarray(values, np.float32)
     if v.ndim == 2:

@@ -4,8 +4,10 @@ which moves a set of outputs into place only once every file is written."""
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import hashlib
 import os
+import shlex
 import shutil
 import socket
 import tempfile
@@ -13,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Iterator
 
+from hzval.core import interrupts
 from hzval.core.errors import InputError, first_line
 from hzval.io import documents
 
@@ -77,7 +80,6 @@ def folder_lock(folder: str | os.PathLike, command: str = "") -> Iterator[Path]:
 def _take_lock(path: Path, folder: Path) -> int:
     """An open descriptor of ``path`` holding its exclusive ``flock``. A holder that left removed the
     file it locked: a lock on that unlinked file would hold nothing, so take the new one."""
-    import fcntl
 
     while True:
         try:
@@ -107,7 +109,6 @@ def _is_own(name: str) -> bool:
 
 def _listed(folder: Path) -> set[str] | None:
     """The files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
-    from hzval.io import documents
 
     try:
         data = documents.read_json(folder / MARKER_NAME)
@@ -263,7 +264,6 @@ def portable_command(command: str) -> str:
     str
         The command line, shell-quoted; as given where it does not split into words.
     """
-    import shlex
 
     try:
         words = shlex.split(command, comments=False)
@@ -307,7 +307,6 @@ def swapped_in(out: str | os.PathLike, *, force: bool = False) -> Iterator[Path]
     pathlib.Path
         The staging folder.
     """
-    from hzval.core import interrupts
 
     with interrupts.held() as hold, output_folder(out, force=force):
         with Staging(out) as stage:

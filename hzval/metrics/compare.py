@@ -33,11 +33,16 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+import drjit as dr
+import flip_evaluator
+import mitsuba as mi
 import numpy as np
 
-from hzval.core import srgb
+from hzval.core import backend, srgb
 from hzval.core.errors import HzvalError
 from hzval.io import codecs
+from hzval.metrics import flip as hzflip
+from hzval.metrics.flip import FlipReference
 
 __all__ = [
     "LIT_THRESHOLD",
@@ -109,10 +114,6 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     numpy.ndarray
         ``(H, W, 3)`` float64 display values in [0, 1]; a grey image is repeated on the three channels.
     """
-    import drjit as dr
-    import mitsuba as mi
-
-    from hzval.core import backend
 
     backend.variant()
     img = np.asarray(image)
@@ -149,10 +150,6 @@ def visibility_metrics(
     hzval.core.errors.HzvalError
         When ``V`` and ``F`` differ in shape.
     """
-    import drjit as dr
-    import mitsuba as mi
-
-    from hzval.core import backend
 
     backend.variant()
     if np.shape(V) != np.shape(F):
@@ -201,7 +198,6 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
     :mod:`hzval.metrics.flip` at :data:`FLIP_PPD` pixels per degree; :class:`Reference` keeps the
     reference's half for several test images (:func:`flip_error`).
     """
-    from hzval.metrics import flip as hzflip
 
     try:
         return hzflip.flip(reference_display, test_display, FLIP_PPD)
@@ -230,7 +226,6 @@ def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray)
     hzval.core.errors.HzvalError
         Where the package's wrapper would exit the process (``sys.exit``) or raises ``RuntimeError``.
     """
-    import flip_evaluator
 
     try:
         err, mean, _ = flip_evaluator.evaluate(
@@ -274,7 +269,6 @@ def by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
     numpy.ndarray
         ``fn``'s result, the blocks concatenated along the rows.
     """
-    from hzval.core import backend
 
     rows = arrays[0].shape[0]
     n = min(backend.host_cores(), rows // PARALLEL_MIN_ROWS)
@@ -305,7 +299,6 @@ _SRGB_LINEAR_BELOW = 1.055 * 0.0031308 ** (1 / 2.4) - 0.055
 
 def _lab_kernel(r, g, b):
     """Dr.Jit: sRGB-encoded ``r, g, b`` (float64 arrays of the current variant) to CIELAB."""
-    import drjit as dr
 
     def decode(v):
         return dr.select(_SRGB_LINEAR_BELOW >= v, v / 12.92, dr.power((v + 0.055) / 1.055, 2.4))
@@ -320,7 +313,6 @@ def _lab_kernel(r, g, b):
 
 def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     """Dr.Jit: CIEDE2000 (k_L = k_C = k_H = 1) of two CIELAB arrays, as colour-science has it."""
-    import drjit as dr
 
     rad, deg = math.pi / 180, 180 / math.pi
     C1, C2 = dr.sqrt(a1 * a1 + b1 * b1), dr.sqrt(a2 * a2 + b2 * b2)
@@ -370,10 +362,6 @@ def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
     ``grey`` (its channels bitwise equal, as the caller has checked): one array three times, so
     that what is computed from the channels is computed once (Dr.Jit merges equal expressions of
     equal variables), the same bit for bit."""
-    import drjit as dr
-    import mitsuba as mi
-
-    from hzval.core import backend
 
     backend.variant()
     img = np.asarray(display_rgb)
@@ -392,7 +380,6 @@ class LabImage:
     (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images."""
 
     def __init__(self, display_rgb: np.ndarray, *, grey: bool = False):
-        import drjit as dr
 
         self.shape = tuple(np.shape(display_rgb)[:2])
         self.L, self.a, self.b = _lab_kernel(*_rgb_planes(display_rgb, grey))
@@ -401,10 +388,6 @@ class LabImage:
     @classmethod
     def from_array(cls, lab: np.ndarray) -> "LabImage":
         """A :class:`LabImage` of given ``(H, W, 3)`` CIELAB values."""
-        import drjit as dr
-        import mitsuba as mi
-
-        from hzval.core import backend
 
         backend.variant()
         lab = np.asarray(lab, dtype=np.float64)
@@ -476,7 +459,6 @@ def delta_e2000(
     hzval.core.errors.HzvalError
         For images of different sizes.
     """
-    import drjit as dr
 
     if reference_lab is None:
         ref = LabImage(reference_display)
@@ -508,6 +490,7 @@ def delta_e2000_colour(reference_display: np.ndarray, test_display: np.ndarray) 
     numpy.ndarray
         ``(H, W)`` float64 CIEDE2000.
     """
+    # colour-science: 1.7 s to import, paid only where a conversion runs
     import colour
 
     def lab_of(rgb):
@@ -529,7 +512,6 @@ class Reference:
     """
 
     def __init__(self, truth, scale: float):
-        from hzval.metrics.flip import FlipReference
 
         self.truth, self.scale = truth, float(scale)
         self.linear = _flat_values(truth.image)
@@ -614,7 +596,6 @@ def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool = False) -> tup
     mean : float
         Its mean.
     """
-    from hzval.metrics import flip as hzflip
 
     try:
         return hzflip.flip_error(ref_flip, test_display, grey=grey)
@@ -663,10 +644,6 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
 def _flat_values(image: np.ndarray):
     """An image's values, row-major, as a float32 or float64 Dr.Jit array gathered from its NumPy
     memory (a gather: a mapped array's contiguous load would compile one kernel per alignment)."""
-    import drjit as dr
-    import mitsuba as mi
-
-    from hzval.core import backend
 
     backend.variant()
     img = np.asarray(image)
@@ -677,8 +654,6 @@ def _flat_values(image: np.ndarray):
 
 def _mean_squared_error(ref: Reference, image: np.ndarray) -> float:
     """Mean of ``(scale (truth - image))^2`` over the values of the pixels the truth sees, in float64."""
-    import drjit as dr
-    import mitsuba as mi
 
     img = np.asarray(image)
     if img.shape != ref.truth.image.shape:

@@ -22,8 +22,11 @@ import functools
 import math
 from dataclasses import dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
+from hzval.core import backend
 from hzval.metrics.flip_colour import (
     DEFAULT_PPD,
     GAUSS_A1,
@@ -238,21 +241,16 @@ class _Grid:
         above float64's rounding) and a SIMD division, where LLVM turns an integer division by a
         value that is not a constant into one scalar division a lane (``benchmarks/bench_flip.py``
         measures the difference)."""
-        import mitsuba as mi
 
         return mi.Int32(mi.Float64(a) / mi.Float64(n))
 
     def _opaque(self, n: int):
         # a size as a kernel input, not a literal: one compiled kernel serves every size
-        import drjit as dr
-        import mitsuba as mi
 
         return dr.opaque(mi.Int32, n)
 
     def source(self):
         """For each element of a padded plane, the index of the image pixel it repeats."""
-        import drjit as dr
-        import mitsuba as mi
 
         j = dr.arange(mi.Int32, self.rows * self.stride)
         S, W, H = self._opaque(self.stride), self._opaque(self.w), self._opaque(self.h)
@@ -264,8 +262,6 @@ class _Grid:
     def x_window(self, plane) -> list:
         """For each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row from column
         ``BLOCK (b - q)`` of the image on, read as ``2q + 1`` packet loads."""
-        import drjit as dr
-        import mitsuba as mi
 
         lanes = self.rows * self.nb
         lane = dr.arange(mi.Int32, lanes)
@@ -280,8 +276,6 @@ class _Grid:
 
     def x_store(self, outputs: list):
         """The x pass's ``BLOCK`` outputs of each lane, stored row-major (``wb`` a row)."""
-        import drjit as dr
-        import mitsuba as mi
 
         lanes = self.rows * self.nb
         target = dr.empty(mi.Float, lanes * BLOCK)  # every element is stored: no fill first
@@ -291,8 +285,6 @@ class _Grid:
     def y_window(self, plane, first: int, count: int) -> dict:
         """For each y-pass lane, rows ``BLOCK c + m`` of its column of an x-pass result, by ``m`` from
         ``first`` (padded rows) for ``count`` rows."""
-        import drjit as dr
-        import mitsuba as mi
 
         lane = dr.arange(mi.Int32, self.hc * self.wb)
         WB = self._opaque(self.wb)
@@ -357,10 +349,6 @@ def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray
     numpy.ndarray
         ``(H, W)`` float32.
     """
-    import drjit as dr
-    import mitsuba as mi
-
-    from hzval.core import backend
 
     backend.variant()
     a = np.ascontiguousarray(plane, dtype=f32)
@@ -379,7 +367,6 @@ def _flat_image(img: np.ndarray):
     """An ``(H, W, 3)`` image as one flat Dr.Jit array: float64 as it is (Dr.Jit maps NumPy memory
     without a copy; the kernel casts it to float32 as NumPy casts, to nearest), else float32, as
     FLIP's Python wrapper takes it."""
-    import mitsuba as mi
 
     if img.dtype == np.float64 and img.flags.c_contiguous:
         return mi.Float64(img.ravel())
@@ -392,8 +379,6 @@ def _image_planes(flat, grid: _Grid, grey: bool):
     every alignment. ``grey``: R, G and B are bitwise equal, and R is gathered for all three, so
     that what is computed from them is computed once (Dr.Jit merges equal expressions of equal
     variables) and is the same bit for bit."""
-    import drjit as dr
-    import mitsuba as mi
 
     i = mi.UInt32(grid.source() * 3)
     kind = mi.Float64 if isinstance(flat, mi.Float64) else mi.Float
@@ -407,7 +392,6 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
     :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image; ``grey``: whether its
     channels are bitwise equal (:func:`_image_planes`). Three kernels: to YCxCz, the x-direction
     passes, and the y-direction passes with all that follows them."""
-    import drjit as dr
 
     f = filters(ppd)
     g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
@@ -446,7 +430,6 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
 def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
     """The per-pixel FLIP of the :func:`_flat_image` ``flat`` (``grey``: :func:`_side`'s) against a
     reference's :func:`_side`, evaluated, in the blocked layout of :class:`_Grid`."""
-    import drjit as dr
 
     f = filters(ppd)
     t = _side(flat, h, w, ppd, grey)
@@ -482,7 +465,6 @@ def _frozen(fn):
     Python arguments, so that each shape gets its own recording (a recording holds the sizes it was
     made with). Dr.Jit's warning after ten recordings is for a loop that records on every call; a
     process that scores many shapes records once for each, as it should."""
-    import drjit as dr
 
     return dr.freeze(fn, limit=FROZEN_SHAPES, warn_after=2**30)
 
@@ -510,7 +492,6 @@ class FlipReference:
     """
 
     def __init__(self, reference_display: np.ndarray, ppd: float = DEFAULT_PPD, *, grey: bool = False):
-        from hzval.core import backend
 
         backend.variant()
         disp = _check_image(reference_display, "reference")

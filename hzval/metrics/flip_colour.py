@@ -4,6 +4,7 @@ CIELAB, the Hunt adjustment and the HyAB distance (docs/flip.md)."""
 
 from __future__ import annotations
 
+import drjit as dr
 import numpy as np
 
 from hzval.core import conventions as cv
@@ -110,7 +111,6 @@ def _numpy(v) -> bool:
 def _where(cond, a, b):
     if _numpy(cond):
         return np.where(cond, a, b)
-    import drjit as dr
 
     return dr.select(cond, a, b)
 
@@ -119,7 +119,6 @@ def powf(x, e):
     """``powf(x, e)`` for ``x >= 0`` (``powf(0, 0) = 1``, ``powf(0, e > 0) = 0``)."""
     if _numpy(x):
         return np.power(x, e)
-    import drjit as dr
 
     at_zero = (1.0 if e == 0 else 0.0) if _numpy(e) else dr.select(e == 0, 1.0, 0.0)
     return dr.select(x > 0, dr.power(dr.maximum(x, 1e-38), e), at_zero)
@@ -128,7 +127,6 @@ def powf(x, e):
 def _sqrt(x):
     if _numpy(x):
         return np.sqrt(x)
-    import drjit as dr
 
     return dr.sqrt(x)
 
@@ -136,7 +134,6 @@ def _sqrt(x):
 def _abs(x):
     if _numpy(x):
         return np.abs(x)
-    import drjit as dr
 
     return dr.abs(x)
 
@@ -145,7 +142,6 @@ def clamp_unit(v):
     """``Min(Max(v, 0), 1)``: NaN becomes 0, as FLIP's macros make it."""
     if _numpy(v):
         return np.fmin(np.fmax(v, f32(0.0)), f32(1.0))
-    import drjit as dr
 
     return dr.select(v > 0.0, dr.minimum(v, 1.0), 0.0)  # NaN > 0 is false: 0
 

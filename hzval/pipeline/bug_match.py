@@ -19,9 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.bake.maps import BakeParams, bake
 from hzval.core.errors import InputError
-from hzval.geometry import tangent_bugs
+from hzval.geometry import model, tangent_bugs
+from hzval.io import paths
 from hzval.metrics.results import SweepResult
+from hzval.scene import spec as sc
+from hzval.techniques import registry as technique
+from hzval.truth.model import ModelTruth
 
 __all__ = ["MARGIN", "scene_of", "bug_factors", "diagnose"]
 
@@ -32,9 +37,6 @@ MARGIN = 0.67
 def scene_of(metrics: dict, sweep_dir: Path):
     """The sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json`` (the keys a model's
     sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``."""
-    from hzval.geometry import model
-    from hzval.io import paths
-    from hzval.scene import spec as sc
 
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
     where = Path(sweep_dir) / "metrics.json"
@@ -81,9 +83,6 @@ def bug_factors(
     """The technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
     the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples ``at``
     (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`)."""
-    from hzval.bake.maps import BakeParams, bake
-    from hzval.scene import spec as sc
-    from hzval.techniques import registry as technique
 
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
@@ -102,9 +101,6 @@ def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict 
     horizon map by default), or ``None`` where the sweep is not on a model."""
     if "mesh" not in metrics or not (metrics.get("parameters") or {}).get("mesh"):
         return None
-    from hzval.geometry import model
-    from hzval.scene import spec as sc
-    from hzval.truth.model import ModelTruth
 
     scene = scene_of(metrics, sweep_dir)
     lead = SweepResult.of(metrics).chosen[0]

@@ -8,9 +8,11 @@ import math
 import textwrap
 from pathlib import Path
 
+from hzval.geometry import model
 from hzval.io import staging
 from hzval.metrics import compare
 from hzval.metrics.results import SweepResult
+from hzval.report import ranking
 from hzval.scene import lookup
 
 __all__ = [
@@ -194,7 +196,6 @@ def view_parameters(scene) -> dict:
 def mesh_parameters(scene, out: Path) -> dict:
     """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
     file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere."""
-    from hzval.geometry import model
 
     if scene.mesh.is_plane:
         return {}
@@ -218,7 +219,6 @@ def summary_table(result: dict) -> str:
     a technique is worse than no shadows (:func:`hzval.report.ranking.worse_than_none`), its split of
     the error where it has one (``split_parts``), and what ``|F-V|`` is measured over. The report and
     ``metrics.json`` hold every frame."""
-    from hzval.report import ranking
 
     run = SweepResult.of(result)
     frames, names = run.frames, run.names
@@ -281,7 +281,6 @@ def _psnr_cell(pooled: float | None, psnr: list) -> str:
 def _floor_notes(result: dict, several: bool) -> list[str]:
     """A line per fitted technique: its shipped |F-V| split into what the bake loses and its floor (the
     representation's), beside no shadows, per elevation; and where even the floor does harm."""
-    from hzval.report import ranking
 
     def cell(v):
         return "-" if v is None else f"{v:.4f}"
@@ -314,7 +313,6 @@ def _floor_notes(result: dict, several: bool) -> list[str]:
 
 def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     """:func:`summary_table`'s lines under the table."""
-    from hzval.report import ranking
 
     run = SweepResult.of(result)
     frames = run.frames

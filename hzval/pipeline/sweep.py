@@ -8,16 +8,19 @@ from __future__ import annotations
 import dataclasses
 import os
 import platform
+import resource
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hzval.bake import maps as bake
 from hzval.bake.maps import BakeParams
 from hzval.core import backend, interrupts, resources, shading
 from hzval.core.errors import InputError
+from hzval.geometry import model
 from hzval.io import documents, staging
 from hzval.metrics import facing as hzfacing
 from hzval.metrics.results import FrameRecord
@@ -26,8 +29,9 @@ from hzval.report import pages as report
 from hzval.scene import camera as hz_camera
 from hzval.scene import lookup
 from hzval.scene import spec as sc
+from hzval.techniques import perpixel, surface
 from hzval.techniques import registry as technique
-from hzval.techniques import surface
+from hzval.truth import model as model_truth
 from hzval.truth import plane as truth
 from hzval.truth.memory import (
     RETAIN_BELOW_SHARE,
@@ -100,7 +104,6 @@ def peak_rss_bytes() -> int:
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
-    import resource
 
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return int(rss if sys.platform == "darwin" else rss * 1024)
@@ -208,8 +211,6 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
         perfect_ctx = dataclasses.replace(ctx, points=the_truth.samples("truth"), _shared={})
         setup.perfect = [t.build(perfect_ctx, **options.settings.get(t.name, {})) for t in chosen]
     if points is not None and scene.declares("shadow"):
-        from hzval.techniques import perpixel
-
         setup.base_shadow = perpixel.BaseShadow.build(ctx)  # joins the context's factor kernel
     hz_camera.forget_sample_positions()
     lookup.forget()
@@ -252,8 +253,6 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
             )
         plan = truth_plan(scene, height) if plan is None else plan
         return truth.Truth(scene, height, mesh_band_rows=plan.band_rows), None
-    from hzval.geometry import model
-    from hzval.truth import model as model_truth
 
     base = model.load(
         scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
@@ -378,7 +377,6 @@ def _run(
     scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None
 ) -> dict:
     """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
-    from tqdm import tqdm
 
     t_start = time.perf_counter()
     setup = set_up(scene, out, options, report_dir)

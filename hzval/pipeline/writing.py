@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hzval.core import srgb
 from hzval.io import codecs
 from hzval.metrics import compare
 from hzval.report import images
@@ -214,7 +215,6 @@ def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
         ``frames.json``'s ``albedo`` paths, relative to ``folder``: ``linear``, ``srgb`` and the
         ``encoding`` of each.
     """
-    from hzval.core import srgb
 
     codecs.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
     codecs.write_png(folder / "albedo.png", codecs.unit_to_u8(srgb.encode(np.clip(albedo, 0.0, 1.0))))

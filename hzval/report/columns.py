@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 from hzval.metrics.results import FrameRecord, SweepResult
+from hzval.techniques import registry as technique
 
 __all__ = [
     "TRUTH_COLOUR",
@@ -345,7 +346,6 @@ def technique_colour(name: str, place: int) -> str:
     >>> technique_colour(names[0], 3) == technique_colour(names[0], 0) == TECHNIQUE_COLOURS[0]
     True
     """
-    from hzval.techniques import registry as technique
 
     known = technique.names()
     if name in known:

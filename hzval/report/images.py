@@ -129,6 +129,7 @@ def magma(values: np.ndarray) -> np.ndarray:
 @functools.cache
 def magma_palette() -> np.ndarray:
     """matplotlib's magma as 256 8-bit sRGB colours ``(256, 3)``, rounded to nearest."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib import colormaps
 
     palette = (colormaps["magma"](np.arange(256))[..., :3] * 255 + 0.5).astype(np.uint8)

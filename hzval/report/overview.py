@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from hzval.core import backend
 from hzval.io import atomic, codecs, documents, staging
@@ -96,7 +97,6 @@ def _portable_origin(origin: str | None, out: Path) -> str | None:
 def _thumbnails(out: Path, row: dict) -> dict:
     """Downsampled copies of the chosen frames under ``out/thumbs/<name>/``; same layout as
     ``row["files"]``, paths relative to ``out``."""
-    from PIL import Image
 
     thumbs = {}
     for az, images in row["files"].items():

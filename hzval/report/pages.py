@@ -28,6 +28,9 @@ from pathlib import Path
 from typing import Any, Callable
 from urllib.parse import quote
 
+import jinja2
+from PIL import Image
+
 from hzval.io import atomic, codecs, staging
 from hzval.metrics import compare
 from hzval.metrics.results import FrameRecord, SuiteResult, SweepResult, techniques_of
@@ -60,8 +63,6 @@ def _src(out: Path, rel) -> dict | None:
     url = quote(rel.replace("\\", "/"), safe="/")
     preview = codecs.preview_of(rel)
     if rel.endswith(".png") and (out / preview).is_file():
-        from PIL import Image
-
         with Image.open(out / rel) as img:  # reads the header only
             width = img.size[0]
         return {"src": quote(preview, safe="/"), "path": rel, "full": url, "width": width}
@@ -632,7 +633,6 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
 
 
 def environment():
-    import jinja2
 
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(TEMPLATES)),

@@ -7,9 +7,11 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from hzval.io import codecs
 from hzval.metrics.results import FrameRecord, SweepResult
-from hzval.report import columns
+from hzval.report import columns, ranking
 
 __all__ = [
     "FLOOR_COLOUR",
@@ -39,6 +41,7 @@ _BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
 def _figure(width: float, height: float):
     """A figure on an Agg canvas. Margins are set by hand: constrained layout
     would double the time a plot takes."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -98,7 +101,6 @@ def _by_azimuth(frames: list[dict]) -> list[dict]:
     """Flattened frames merged per azimuth, each number the mean over the azimuth's elevations (a
     sweep over several elevations: :func:`plot_elevation` shows the elevations); a key whose every
     value is ``None`` (PSNR of identical images) stays ``None``."""
-    import numpy as np
 
     groups: dict = {}
     for f in frames:
@@ -117,7 +119,7 @@ def _by_azimuth(frames: list[dict]) -> list[dict]:
 def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueView]) -> None:
     """Small multiples: every quality metric against azimuth, a line per technique (over several
     elevations, its mean over them); the worst frame ringed; one legend, outside the panels."""
-    import numpy as np
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
 
     several = len({columns.num(f.get("elevation_deg")) for f in frames}) > 1
@@ -242,7 +244,6 @@ NONE_COLOUR = "#f5f5f5"
 def plot_elevation(path: Path, table: dict[str, list[dict]], views: list[columns.TechniqueView]) -> None:
     """Mean ``|F - V|`` and mean FLIP against the light's elevation, a line per technique and one for
     no shadows at all (:func:`hzval.report.ranking.by_elevation`'s ``table``); legends outside the axes."""
-    from hzval.report import ranking
 
     fig = _figure(13.0, 4.2)
     axes = fig.subplots(1, 2)
@@ -276,7 +277,7 @@ def plot_elevation(path: Path, table: dict[str, list[dict]], views: list[columns
 
 def plot_timings(path: Path, timings: dict, frames: list[dict], views: list[columns.TechniqueView]) -> None:
     """Where the time goes: the run's stages, and each frame's truth and technique times."""
-    import numpy as np
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     t = columns.timing_rows(timings, len(frames), views)
@@ -421,7 +422,6 @@ def split_views(metrics: dict, views: list[columns.TechniqueView]) -> list[Split
 
 def _split_values(frames: list[dict], sv: SplitView):
     """``(azimuths, values)``: the frames' azimuths and each part's value per frame (NaN: missing)."""
-    import numpy as np
 
     az = np.array(
         [
@@ -479,7 +479,7 @@ def split_context(frames: list[dict], sv: SplitView) -> dict:
 def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
     """A stacked bar per frame against azimuth: the split's parts from the bottom up, their sum the whole
     error; a negative part is drawn hatched down from the top of the others, in :data:`_WORST`."""
-    import numpy as np
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
 
     az, vals = _split_values(frames, sv)

@@ -42,10 +42,13 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
+from hzval.scene.camera import sample_positions
 
 __all__ = [
     "PLANES",
@@ -153,6 +156,7 @@ class Samples:
         if self.frames is None:
             return None
         if self._frames is None:
+            # only on the Dr.Jit path: NumPy callers never load Dr.Jit
             import mitsuba as mi
 
             self._frames = mi.Float(aligned(np.ascontiguousarray(self.frames, np.float32).ravel()))
@@ -165,8 +169,6 @@ FRAME_FLOATS = 12
 
 def frame_of(frames, index):
     """``(t, b, n, v)`` of the samples ``index`` (``mi.UInt32``) from :meth:`Samples.frame_array`."""
-    import drjit as dr
-    import mitsuba as mi
 
     # a Vector3f gather reads floats 3 i .. 3 i + 2: a sample's four vectors are i = 4 index + k
     return tuple(dr.gather(mi.Vector3f, frames, index * (FRAME_FLOATS // 3) + k) for k in range(4))
@@ -175,8 +177,6 @@ def frame_of(frames, index):
 def to_tangent(frame, d):
     """The world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
     ``(t, b, n)`` being :func:`hzval.geometry.tangents.orthonormal`'s (FGED2's TBN product)."""
-    import drjit as dr
-    import mitsuba as mi
 
     t, b, n = frame[:3]
     return mi.Vector3f(dr.dot(t, d), dr.dot(b, d), dr.dot(n, d))
@@ -198,7 +198,6 @@ def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -
     views meet the base plane (:func:`plane_height`), take the parallax
     mapping the lookup asks for, and wrap into the tile.
     """
-    from hzval.scene.camera import sample_positions
 
     cam, lk = scene.camera, scene.lookup
     mat = scene.material
@@ -278,8 +277,6 @@ def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, 
 
 
 def height_texture(h: np.ndarray, boundary: str):
-    import drjit as dr
-    import mitsuba as mi
 
     wrap = dr.WrapMode.Repeat if boundary == "wrap" else dr.WrapMode.Clamp
     return mi.Texture2f(
@@ -301,8 +298,6 @@ def parallax_lookup(
     first of ``z_i = z_hi - i (z_hi - z_lo) / N`` where the ray is below the surface, refined
     by the secant through the last two steps' heights above it.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     rows, cols = tex.shape[0], tex.shape[1]
     px, py = mi.Float(xy[:, 0].astype(np.float32)), mi.Float(xy[:, 1].astype(np.float32))
@@ -395,8 +390,6 @@ class Filtered:
         aligned=None,
         quantise=None,
     ):
-        import drjit as dr
-        import mitsuba as mi
 
         self.lookup = lookup
         wrap = dr.WrapMode.Repeat if boundary == "wrap" else dr.WrapMode.Clamp
@@ -424,7 +417,6 @@ class Filtered:
 
     def _set_footprint(self, fp: np.ndarray) -> None:
         """The per-pixel footprints on the device, and the range of levels and taps they need."""
-        import mitsuba as mi
 
         fp = np.nan_to_num(np.asarray(fp, np.float64), nan=1.0)
         lc, lr = np.hypot(fp[:, 0], fp[:, 1]), np.hypot(fp[:, 2], fp[:, 3])
@@ -446,8 +438,6 @@ class Filtered:
         """The filtered channels at ``uv`` (``mi.Point2f``) for lanes of the pixels ``pixel``."""
         if self._footprint is None or pixel is None:
             return self.levels[0].eval(uv)
-        import drjit as dr
-        import mitsuba as mi
 
         fp = dr.gather(mi.Vector4f, self._footprint, pixel)
         lc, lr = dr.norm(mi.Vector2f(fp.x, fp.y)), dr.norm(mi.Vector2f(fp.z, fp.w))
@@ -474,7 +464,6 @@ class Filtered:
     def _trilinear(self, uv, lam, active) -> list:
         """The levels either side of ``lam`` blended linearly (a tent of weights over the levels
         the image's footprints reach)."""
-        import drjit as dr
 
         total = None
         lo, hi = self.level_range
@@ -501,8 +490,6 @@ def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
     returns ``mi.Float`` arrays (e.g. :func:`hzval.core.conventions.tangent_to_uv`). Each value is a
     gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
     one kernel per alignment); the result is Dr.Jit's own, aligned, memory."""
-    import drjit as dr
-    import mitsuba as mi
 
     n = int(np.size(x))
     out = dr.empty(mi.Float, 2 * n)

@@ -46,13 +46,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from hzval import materials
 from hzval.core import conventions as cv
-from hzval.core import srgb
+from hzval.core import srgb, strict
 from hzval.core.errors import InputError
+from hzval.geometry import tangent_bugs
+from hzval.geometry import tangents as tg
 from hzval.geometry.tile import DEFAULT_TOLERANCE
-from hzval.io import heightmap, paths
+from hzval.io import documents, heightmap, paths
 from hzval.scene.camera import Camera, stream
 from hzval.scene.lookup import Lookup
 
@@ -335,10 +338,8 @@ class Scene:
             )
         if ms.up not in (None, "y", "z"):
             raise InputError(what if self.source else "--up", f"the up axis must be y or z, got {ms.up!r}")
-        from hzval.geometry import tangent_bugs
 
         tangent_bugs.check(ms.tangent_bug, what if self.source else "--tangent-bug")
-        from hzval.geometry import tangents as tg
 
         if ms.tangents not in tg.METHODS:
             raise InputError(
@@ -458,7 +459,6 @@ def _height_beside(path: Path) -> str | None:
 def _schema() -> dict:
     """What a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
     dataclasses each table fills (:func:`hzval.core.strict.schema_of`), and the top-level ``name``."""
-    from hzval.core import strict
 
     azimuths = str | tuple[float, ...]
     tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
@@ -490,7 +490,6 @@ def _schema() -> dict:
 def check_file(data: dict, path: str | Path) -> None:
     """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
     a value of the wrong type: types are checked, not coerced (:mod:`hzval.core.strict`)."""
-    from hzval.core import strict
 
     schema = _schema()
     strict.check_keys(data, {"name": None, **schema}, path)
@@ -515,7 +514,6 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
     """
     path = Path(path)
-    from hzval.io import documents
 
     data = documents.read_toml(path)
     check_file(data, path)
@@ -730,7 +728,6 @@ def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
         if not 0 <= a <= 1:
             raise InputError("material.albedo", f"must be in [0, 1], got {a}")
         return np.full((rows, cols, 3), a, np.float32)
-    from PIL import Image
 
     try:
         with Image.open(spec.albedo) as img:

@@ -32,8 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.geometry import tangent_bugs
+from hzval.geometry import model, tangent_bugs
 from hzval.io import codecs
+from hzval.pipeline import bug_match
+from hzval.scene import spec as sc
+from hzval.truth.model import ModelTruth
 
 __all__ = ["CASES", "measure", "run", "page_context"]
 
@@ -51,7 +54,6 @@ CASES: dict[str, tuple[str, float, float, float]] = {
 def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv_scale: float):
     """``scene`` on ``shape`` (bug ``none``) in the models' perspective view from ``view_azimuth``,
     its lights turned by ``light_azimuth``."""
-    from hzval.scene import spec as sc
 
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
     cam = dataclasses.replace(sc.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
@@ -77,9 +79,6 @@ def measure(
 ) -> tuple[dict, dict]:
     """One case: ``(record, maps)``; ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the
     signature light (module docstring)."""
-    from hzval.geometry import model
-    from hzval.pipeline import bug_match
-    from hzval.truth.model import ModelTruth
 
     sc = _case_scene(scene, shape, view_azimuth, light_azimuth, uv_scale)
     truth = ModelTruth(sc, height, model.load(shape, uv_scale=uv_scale))
@@ -139,6 +138,7 @@ def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = Tru
 
 def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
     """Rows: the bugs; columns: the cases; each ``F - V`` at its case's signature light."""
+    # matplotlib: 0.6 s to import, paid only where a figure is drawn
     import matplotlib as mpl
     from matplotlib.figure import Figure
 

@@ -39,7 +39,9 @@ import math
 
 import numpy as np
 
+from hzval.core import backend
 from hzval.metrics.results import techniques_of
+from hzval.pipeline import sweep
 from hzval.studies import seam_share
 
 __all__ = [
@@ -115,8 +117,6 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
     texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more
     techniques to measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
     (studies/curved_horizon.py)."""
-    from hzval.core import backend
-    from hzval.pipeline import sweep
 
     setup = sweep.set_up(scene, case_dir, sweep.Options())
     try:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hzval.geometry import model as hm
+
 __all__ = ["SEAM_TEXELS", "seam_distance_texels", "shares"]
 
 #: "Within a few texels": the bake's bilinear lookup reaches one texel across, its search farther.
@@ -24,9 +26,8 @@ _STEPS_PER_TEXEL = 4
 def seam_distance_texels(model, points: np.ndarray, texel_world: float) -> np.ndarray:
     """``(N,)``: the distance of each world point to the nearest seam edge of ``model``, in
     texels (``texel_world`` world units each); ``inf`` without seams, NaN where a point is NaN."""
+    # SciPy: 0.3-0.4 s to import, paid only where it is used
     from scipy.spatial import cKDTree
-
-    from hzval.geometry import model as hm
 
     points = np.asarray(points, np.float64)
     out = np.full(len(points), np.inf)

@@ -30,6 +30,9 @@ Without seamless filtering a GPU clamps to the face's edge texels
 
 from __future__ import annotations
 
+import drjit as dr
+import mitsuba as mi
+
 __all__ = ["FACE_AXES", "face_coordinates", "bilinear"]
 
 #: Per face (OpenGL order +x, -x, +y, -y, +z, -z): the direction of face coordinates ``(sc, tc)``
@@ -60,8 +63,6 @@ def face_coordinates(x, y, z):
     s, t : drjit.Float
         ``(sc / |ma| + 1) / 2`` and ``(tc / |ma| + 1) / 2``, in [0, 1].
     """
-    import drjit as dr
-    import mitsuba as mi
 
     ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
     use_x = (ax >= ay) & (ax >= az)
@@ -85,8 +86,6 @@ def face_coordinates(x, y, z):
 def _texel_direction(face, sc, tc):
     """The direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face``
     (:data:`FACE_AXES`)."""
-    import drjit as dr
-    import mitsuba as mi
 
     comps = []
     for axis in range(3):
@@ -102,8 +101,6 @@ def _texel(cube, n: int, face, i, j, seamless: bool):
     """The texel ``(i, j)`` (column, row; Int32, possibly one off the face) of ``face``, as a ``mi.Vector4f``
     gathered from ``cube`` (``(6, n, n, 4)`` float32 flattened): on the adjacent face (seamless) or the
     clamped edge texel."""
-    import drjit as dr
-    import mitsuba as mi
 
     if seamless:
         sc = (mi.Float(i) + 0.5) * (2.0 / n) - 1.0
@@ -135,8 +132,6 @@ def bilinear(cube, n: int, d, seamless: bool = True):
     mitsuba.Vector4f
         The filtered RGBA.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     face, s, t = face_coordinates(d.x, d.y, d.z)
     u, v = dr.fma(s, float(n), -0.5), dr.fma(t, float(n), -0.5)

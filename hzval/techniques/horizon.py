@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hzval.bake.maps import CUBE_SIZE, weight_cube
+from hzval.bake.maps import CUBE_SIZE, BakeParams, bake, weight_cube
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
@@ -630,7 +630,6 @@ def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
 def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
     """hzval's own horizons of the context's height map to detect an external bake's convention by:
     the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16."""
-    from hzval.bake.maps import BakeParams, bake
 
     p = ctx.bake.params
     params = (

@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 import time
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
@@ -154,8 +156,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     def _upload(self, h: np.ndarray, samples) -> None:
         """The height texture (texel units) and the samples' texture coordinates, once."""
-        import drjit as dr
-        import mitsuba as mi
 
         scene = self.scene
         wrap = dr.WrapMode.Repeat if scene.material.boundary == "wrap" else dr.WrapMode.Clamp
@@ -268,8 +268,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     def factor(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
         """Pixel means of ``F``, ``shape`` float32 in [0, 1]."""
-        import drjit as dr
-        import mitsuba as mi
 
         if self._frames is not None:
             return self._factor_on_model(azimuth_deg, elevation_deg)
@@ -301,8 +299,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
         """Pixel means of ``F`` on a model: each sample marches toward the world's light in its own
         tangent frame (:class:`hzval.scene.lookup.Samples`), times the base mesh's shadow. A light below a
         sample's tangent plane gives 0, one along its normal 1, as on the plane."""
-        import drjit as dr
-        import mitsuba as mi
 
         direction = cv.light_direction(azimuth_deg, elevation_deg)
         Lw = dr.opaque(mi.Vector3f, [float(c) for c in direction])
@@ -334,8 +330,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     def _march(self, uv, du, dv, tan_e):
         """``F`` of the samples at texture coordinates ``uv`` (module docstring, "March")."""
-        import drjit as dr
-        import mitsuba as mi
 
         c = self._c
         open_tile = self.scene.material.boundary == "open"
@@ -398,8 +392,7 @@ class SkipTable:
     """
 
     def __init__(self, h: np.ndarray, radius: float, boundary: str):
-        import drjit as dr
-        import mitsuba as mi
+        # SciPy: 0.3-0.4 s to import, paid only where it is used
         from scipy import ndimage
 
         if not (math.isfinite(radius) and radius >= 0):
@@ -420,8 +413,6 @@ class SkipTable:
         tile (``p - floor(p)``, exact in float32: no division, which CUDA approximates), or clamped
         to its border. Where rounding puts ``p`` in a neighbour of its texel, ``p`` lies within half
         a texel and an ulp of that neighbour's centre: inside the reach's spare half texel."""
-        import drjit as dr
-        import mitsuba as mi
 
         cols, rows = self._ints
         u, v = (p.x - dr.floor(p.x), p.y - dr.floor(p.y)) if self.wrap else (p.x, p.y)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from hzval.core.backend import dr
 from hzval.techniques.perpixel import PerPixelFactor
+from hzval.techniques.registry import Variant
 
 __all__ = ["Terminator", "VARIANTS", "conty", "chiang"]
 
@@ -82,6 +83,5 @@ class Terminator(PerPixelFactor):
 
     @classmethod
     def tradeoff_variants(cls):
-        from hzval.techniques.registry import Variant
 
         return [Variant(f"{cls.label} ({v})", {"variant": v}, {"variant": v}) for v in VARIANTS]

@@ -20,6 +20,8 @@ import math
 import time
 from dataclasses import dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
@@ -371,8 +373,6 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     def _upload_samples(self, samples) -> None:
         """The scene's sample positions, as the truth and the horizon map use them."""
-        import drjit as dr
-        import mitsuba as mi
 
         scene = self.scene
         self.spp = int(scene.spp)
@@ -501,8 +501,6 @@ class TerrainShadow(surface.HeightFieldShadow):
     @staticmethod
     def _plan_constants(plan: SweepPlan) -> dict:
         """The plan's numbers as opaque Dr.Jit values (one kernel for every light and map)."""
-        import drjit as dr
-        import mitsuba as mi
 
         op, Float, Int32 = dr.opaque, mi.Float, mi.Int32
         return {
@@ -520,8 +518,6 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     def _sweep_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float):
         """The sweep: per line and recorded column, ``(B_hi, B_hi - B_lo)`` pairs."""
-        import drjit as dr
-        import mitsuba as mi
 
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque
@@ -579,8 +575,6 @@ class TerrainShadow(surface.HeightFieldShadow):
     def _gap_ramp_drjit(self, plan: SweepPlan, rec):
         """The texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs:
         the boundary interpolated between the two lines that bracket each texel."""
-        import drjit as dr
-        import mitsuba as mi
 
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque
@@ -630,8 +624,6 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     def _sample(self, gap_ramp):
         """Pixel means of ``clamp(gap / ramp + 1, 0, 1)`` over the pixel's samples (bilinear)."""
-        import drjit as dr
-        import mitsuba as mi
 
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         rows, cols = self.rows, self.cols

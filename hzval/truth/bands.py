@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
@@ -164,7 +165,6 @@ def band_triangles(
 def band_scene(g: mesh.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
     """A Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run,
     :func:`hzval.geometry.tile.piece_mesh`)."""
-    import mitsuba as mi
 
     return mi.load_dict(
         {

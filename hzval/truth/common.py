@@ -9,6 +9,8 @@ import dataclasses
 import math
 from typing import Protocol, runtime_checkable
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
@@ -64,8 +66,6 @@ def sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
     distribution ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``, ``pdf(wo) =
     pdf(h) / (4 wo.h)`` (Walter et al. 2007), so the weight stays bounded.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     wo_d = mi.Frame3f(n).to_world(mi.warp.square_to_cosine_hemisphere(u))
     if p_spec > 0.0:
@@ -95,8 +95,6 @@ def stream_rng(seed: int, stream: int, start: int, count: int):
     """A PCG32 per sample ``start <= k < start + count`` of the image, seeded by the scene's ``seed``
     and a ``stream`` tag: deterministic, and the same in a band as in one piece (the plane's truth
     in bands, a model's in one piece, :mod:`hzval.truth.model`)."""
-    import drjit as dr
-    import mitsuba as mi
 
     state = (int(seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
     # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
@@ -120,7 +118,6 @@ def lobe_sample(ns, v, u):
     (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``); the constant cancels in
     the ratio, so ``w = wo.h`` where ``ns.wo > 0``, else 0.
     """
-    import drjit as dr
 
     wo, h = _lobe_direction(ns, v, u)
     return wo, dr.select(dr.dot(ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
@@ -131,7 +128,6 @@ def reflection_estimate(w, V, spp: int) -> tuple[np.ndarray, np.ndarray]:
     and escapes ``V`` (0/1) of ``spp`` consecutive samples a pixel: ``R = sum w V / sum w`` (0
     where ``sum w = 0``) and the ratio estimator's variance ``sum w^2 (V - R)^2 / (sum w)^2``
     (NaN for one sample a pixel, which has none)."""
-    import drjit as dr
 
     sums = [dr.block_sum(x, spp) for x in (w * V, w, w * w * V, w * w)]
     dr.eval(sums)
@@ -152,8 +148,6 @@ def _lobe_direction(n, v, u):
     ``v`` reflected about it (Walter et al. 2007); with ``h = n`` it is the
     mirror direction. It may point below the surface. Returns ``(wo, h)``.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     cos_h = dr.power(u.x, 1.0 / (SPECULAR_EXPONENT + 1.0))
     sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
@@ -170,8 +164,6 @@ def mean_and_variance(s1, ss, spp):
     surface; a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1``
     in the denominator) over ``n``: NaN for one sample, which has none.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     if isinstance(spp, int):
         mean = s1 / spp
@@ -232,7 +224,6 @@ def albedo_texels(scene: Scene, rows: int, cols: int, albedo=None):
     ``albedo``: the texels themselves, ``(rows, cols, 3)`` linear; default the material's
     (:func:`hzval.scene.spec.load_albedo`).
     """
-    import mitsuba as mi
 
     if not any(scene.declares(e) for e in NEEDS_ALBEDO):
         return None
@@ -250,8 +241,6 @@ def albedo_at(texels, rows, cols, x, y, active=True):
     ``rows`` and ``cols``: the map's size as opaque ``mi.Float`` values (``dr.opaque``), so that one
     kernel serves every map size.
     """
-    import drjit as dr
-    import mitsuba as mi
 
     n_cols, n_rows = mi.Int32(cols), mi.Int32(rows)
     col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)

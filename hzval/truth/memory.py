@@ -19,10 +19,13 @@ from hzval.bake import maps as bake
 from hzval.bake.maps import BakeParams
 from hzval.core import resources
 from hzval.core.errors import InputError
+from hzval.geometry import displace, model
 from hzval.geometry import tile as mesh
 from hzval.io import heightmap
 from hzval.scene import spec as sc
+from hzval.truth import bands as truth_bands
 from hzval.truth import common as truth_common
+from hzval.truth import model as model_truth
 from hzval.truth import plane as truth
 from hzval.truth import samples as truth_samples
 
@@ -165,7 +168,6 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
     sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the sweep's estimate
     (so that the bands do not raise its peak; within that target and the memory available, if
     lower): fewer, larger bands build fewer triangles twice (their covers overlap)."""
-    from hzval.truth import bands as truth_bands
 
     rows, cols = np.shape(height)
     g, levels, h_tex = truth.mesh_grid(scene, height)
@@ -195,8 +197,6 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
 def _model_peak_bytes(scene, rows: int, cols: int, techniques: int = TECHNIQUES_BY_DEFAULT) -> int:
     """The peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
     (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images."""
-    from hzval.geometry import displace, model
-    from hzval.truth import model as model_truth
 
     base = model.load(
         scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
@@ -266,8 +266,6 @@ def check_fits(
     if not scene.mesh.is_plane:
         need = _model_peak_bytes(scene, rows, cols, techniques)  # the model's truth counts its rings
     else:
-        from hzval.truth import bands as truth_bands
-
         if height is not None and plan is None:
             plan = truth_plan(scene, height, techniques)
         triangles = None if plan is None else plan.triangles

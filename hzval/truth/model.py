@@ -23,7 +23,7 @@ from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
-from hzval.geometry import tangent_bugs
+from hzval.geometry import displace, tangent_bugs
 from hzval.geometry import tangents as tg
 from hzval.scene import lookup
 from hzval.scene.camera import Camera, View, view_axes
@@ -192,7 +192,6 @@ class ModelTruth:
     keeps = True  # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
 
     def __init__(self, scene: Scene, height: np.ndarray, model, *, albedo: np.ndarray | None = None):
-        from hzval.geometry import displace
 
         backend.variant()
         self.scene, self.model = scene.validate(), model
@@ -259,7 +258,6 @@ class ModelTruth:
     def _check_fits(self, model, h: np.ndarray) -> None:
         """Refuse, before it is built, a displaced mesh (its twisted cells' rings counted) and camera
         hits that would not fit in the memory available: one line naming the tolerance."""
-        from hzval.geometry import displace
 
         mat = self.scene.material
         triangles, mesh_bytes = displace.estimate(

@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 import time
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend, resources, shading
@@ -176,8 +178,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
 
     def _build_surface(self, h: np.ndarray) -> None:
         """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
-        import drjit as dr
-        import mitsuba as mi
 
         rows, cols = self.rows, self.cols
         mat, light = self.scene.material, self.scene.light
@@ -271,8 +271,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
 
     def _trace_ambient(self, st: "truth_samples.Samples"):
         """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
-        import drjit as dr
-        import mitsuba as mi
 
         t0 = time.perf_counter()
         rng = self._rng(common.AMBIENT_STREAM, st)
@@ -298,8 +296,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         direction escapes; ``R`` and its variance: :func:`common.reflection_estimate`
         (a model's truth, :mod:`hzval.truth.model`, calls the same two).
         """
-        import drjit as dr
-        import mitsuba as mi
 
         t0 = time.perf_counter()
         rng = self._rng(common.REFLECTION_STREAM, st)
@@ -327,8 +323,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         are its disk's (elevation -+ radius), the same in every band: the hops they ask for
         suffice for each of its directions.
         """
-        import drjit as dr
-        import mitsuba as mi
 
         light = self.scene.light
         if light.kind == "hard":
@@ -358,8 +352,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         lights that reach below the margin's elevation take the hops they
         need, stopping early once every ray is resolved.
         """
-        import drjit as dr
-        import mitsuba as mi
 
         if highest <= 0.0:
             return dr.zeros(mi.Float, dr.width(o))
@@ -441,8 +433,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         """Pixel means and variances of the mean (:func:`common.mean_and_variance`) over the samples of the
         band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;
         only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``."""
-        import drjit as dr
-        import mitsuba as mi
 
         sc = self.scene
         L, lowest, highest = self.light_directions(azimuth_deg, st)

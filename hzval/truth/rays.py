@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 import time
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
@@ -93,8 +95,6 @@ class CameraRays:
         """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
         (lifted origin, geometric and shading normal) and the albedo of the texel that holds each
         (an expression over the positions: the kernels that read it gather it)."""
-        import drjit as dr
-        import mitsuba as mi
 
         rows, cols, spp = self.rows, self.cols, self.spp
         xs, ys, seen = self._band_positions(first, stop)
@@ -169,8 +169,6 @@ class CameraRays:
         in the tile (``wrap``: the endless tiling, in hops; ``open``: the tile alone) and which rays
         do. A ray first runs in float64, on the host, to just above the highest point (wrapped into
         the tile), so that the float32 rays start near the surface whatever the eye's distance."""
-        import drjit as dr
-        import mitsuba as mi
 
         o, d = self.view.rays(self.spp, self.scene.seed, first, stop)
         down = d[:, 2] < 0.0
@@ -200,7 +198,6 @@ class CameraRays:
         """The samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
         shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their visibility is
         :meth:`_band_visibility`'s)."""
-        import mitsuba as mi
 
         xs, ys, _ = self._band_positions(first, stop)
         xs, ys, moved = truth_samples.off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
@@ -221,7 +218,6 @@ class CameraRays:
     def _band_visibility(self, azimuth_deg: float, st: "truth_samples.Samples"):
         """``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass` (a light not
         of the scene's sweep gets its own pass)."""
-        import mitsuba as mi
 
         az = float(azimuth_deg)
         if az not in self._vis:
@@ -267,8 +263,6 @@ class RayQueries:
         plus :attr:`lift`: vertically above the height field, it is above
         every triangle around it (module docstring, "Self-intersection").
         """
-        import drjit as dr
-        import mitsuba as mi
 
         c = self._c
         px, py = x, y
@@ -293,8 +287,6 @@ class RayQueries:
     def _shading_normal(self, x, y):
         """The ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation
         (module docstring, "Shading")."""
-        import drjit as dr
-        import mitsuba as mi
 
         c = self._c
         # u, v of hzval.core.conventions.tangent_to_uv, in the kernel
@@ -316,8 +308,6 @@ class RayQueries:
 
     def _advance(self, o, d, maxt):
         """The point ``o + maxt d``, wrapped back into the tile (``wrap`` only)."""
-        import drjit as dr
-        import mitsuba as mi
 
         c = self._c
         p = o + d * maxt
@@ -332,7 +322,6 @@ class RayQueries:
         rounding) in the ray's horizontal direction. At least :attr:`_hop` texels horizontally; a ray
         from inside the tile runs the tile's width or more, so a narrow margin costs hops only to the
         rays that leave near the tile's edge."""
-        import drjit as dr
 
         c = self._c
         run_x = dr.select(d.x >= 0.0, c["cols"] + c["edge"] - o.x, o.x + c["edge"])
@@ -353,8 +342,6 @@ class RayQueries:
         ``coherent`` tells Embree that neighbouring rays travel together
         (parallel shadow rays from neighbouring samples: about 30% faster).
         """
-        import drjit as dr
-        import mitsuba as mi
 
         active = d.z > 0.0
         if skip is not None:
@@ -388,8 +375,6 @@ class RayQueries:
         """``hops`` hops of the rays ``o + t d`` (``wrap``; ``o`` in the tile): ``(blocked, active, o)``,
         the rays that met the surface, those still under its top after the last hop, and where they
         are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved."""
-        import drjit as dr
-        import mitsuba as mi
 
         top = self._c["top"]
         blocked = mi.Bool(False)
@@ -417,8 +402,6 @@ class RayQueries:
         position is kept: the path continues from :meth:`_surface_at` there,
         with an exact, lifted origin.
         """
-        import drjit as dr
-        import mitsuba as mi
 
         if self.scene.material.boundary == "open":
             si = self.mi_scene.ray_intersect(mi.Ray3f(o, d), active)
@@ -477,8 +460,6 @@ class PathTracing:
         tiling; every ray here takes the same robust origins and hops as the
         shadow rays.
         """
-        import drjit as dr
-        import mitsuba as mi
 
         sc = self.scene
         light = sc.light
@@ -539,7 +520,6 @@ class PathTracing:
     def _light_sample(self, rng, centre, cos_max):
         """A direction toward the light for a later path vertex: the centre of a hard light, or a
         direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius)."""
-        import mitsuba as mi
 
         if self.scene.light.kind != "soft":
             return centre

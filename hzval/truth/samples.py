@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 __all__ = [
@@ -120,8 +122,6 @@ def off_edge_lines(
 
 def _on_edge_lines_index(xs: np.ndarray, ys: np.ndarray, level: int = 1) -> np.ndarray:
     """Indices (int64) of the samples exactly on a line of mesh edges (:func:`off_edge_lines`)."""
-    import drjit as dr
-    import mitsuba as mi
 
     i = dr.arange(mi.UInt32, xs.size)
     n = dr.opaque(mi.Float, float(level))

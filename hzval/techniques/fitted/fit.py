@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from tqdm import tqdm
 
 from hzval.core import backend
 from hzval.core.backend import dr, mi
@@ -366,9 +368,6 @@ def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tole
 def truths(train, scene, height, lights, held_out, progress: bool):
     """The truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
     with a progress bar."""
-    import sys
-
-    from tqdm import tqdm
 
     with tqdm(
         total=len(lights) + len(held_out),

@@ -15,6 +15,7 @@ import time
 from typing import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
@@ -216,7 +217,6 @@ def optimise(
     tuple
         ``(opt, loss per epoch, seconds per epoch, steps, converged)``.
     """
-    from tqdm import tqdm
 
     opt = mi.ad.Adam(lr=lr)
     for key, value in start.items():

@@ -12,7 +12,9 @@ import numpy as np
 from hzval.core import backend
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
-from hzval.techniques.fitted import fit
+from hzval.io import codecs, documents, paths, staging
+from hzval.techniques import registry as technique
+from hzval.techniques.fitted import fit, textures
 
 __all__ = [
     "FIT_VERSION",
@@ -59,7 +61,6 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
 def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
     """``NAME.exr`` and ``NAME.png`` of each ``images[NAME] = (EXR channels, PNG values in [0, 1])``
     and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing."""
-    from hzval.io import codecs, documents, staging
 
     with staging.Staging(out) as stage:
         for name, (channels, shown) in images.items():
@@ -98,7 +99,6 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
     hzval.core.errors.InputError
         For a missing or malformed ``fit.json``.
     """
-    from hzval.io import codecs, documents
 
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
@@ -127,7 +127,6 @@ def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path
     list of pathlib.Path
         The files written.
     """
-    from hzval.techniques import registry as technique
 
     images = {}
     for t, plane in result.planes.items():
@@ -150,7 +149,6 @@ def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
     tuple
         ``({texture: float32 array}, record)``.
     """
-    from hzval.io import codecs, documents
 
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
@@ -231,7 +229,6 @@ def cached_fit(
 def _holds(folder, key: str) -> bool:
     """Whether ``folder`` holds the fit of ``key``, every file as written. A missing, damaged or
     hand-edited cache does not; nothing outside the folder is read."""
-    from hzval.io import documents, paths, staging
 
     if folder is None:
         return False
@@ -277,7 +274,6 @@ def cached_texture_fit(
     tuple
         ``(planes, record, cached)``.
     """
-    from hzval.techniques.fitted import textures
 
     key = cache_key(height, bake, scene, {"technique": name, **settings})
     if _holds(folder, key):

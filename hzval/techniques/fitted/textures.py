@@ -18,6 +18,7 @@ Ranges: an AO or a self-shadowed bump channel lies in [0, 1]; a bent normal is r
 from __future__ import annotations
 
 import dataclasses
+import gc
 import time
 from dataclasses import dataclass, field
 
@@ -214,7 +215,6 @@ def _release() -> None:
     views), whose release is a host callback; collected later, inside the symbolic loop of a sweep's
     next kernel, the callback cannot be recorded and Dr.Jit aborts (``enqueue_host_func(): this
     function cannot be recorded``: four fits in one sweep did)."""
-    import gc
 
     gc.collect()
     dr.sync_thread()

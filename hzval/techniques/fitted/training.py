@@ -9,10 +9,14 @@ import math
 
 import numpy as np
 
+from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.scene import lookup
 from hzval.scene import spec as sc
+from hzval.scene.camera import Camera
 from hzval.techniques import horizon
+from hzval.truth import memory
+from hzval.truth import plane as truth
 
 __all__ = [
     "check_held_out",
@@ -162,7 +166,6 @@ def fit_scene(scene) -> "sc.Scene":
     -------
     hzval.scene.spec.Scene
     """
-    from hzval.scene.camera import Camera
 
     light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
     return dataclasses.replace(
@@ -194,7 +197,6 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
     list of numpy.ndarray
         ``(H, W)`` float32 ``V``, one per light, in order.
     """
-    from hzval.truth import plane as truth
 
     base = fit_scene(scene)
     elevations = sorted(dict.fromkeys(e for e, _ in lights))
@@ -250,8 +252,6 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
     )
     render = 0
     if scene is not None:
-        from hzval.truth import memory
-
         render = memory.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
     return int(FIT_BYTES_PER_PIXEL_LIGHT * P * lights + max(optimise, render))
 
@@ -276,7 +276,6 @@ def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=Non
     hzval.core.errors.InputError
         One line (:func:`hzval.core.resources.refuse_over`).
     """
-    from hzval.core import resources
 
     return resources.refuse_over(
         what,

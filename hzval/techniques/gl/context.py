@@ -34,6 +34,8 @@ from importlib import resources
 
 import numpy as np
 
+from hzval.core import conventions as cv
+
 __all__ = ["Unavailable", "context", "info", "shader_source", "SamplePass", "BAND_WIDTH", "BAND_ROWS"]
 
 #: Fragments per row of a band of samples.
@@ -59,6 +61,7 @@ def context():
     if _context is not None:
         return _context
     try:
+        # optional: the GL techniques only
         import moderngl
     except ImportError as e:
         raise Unavailable(f"no moderngl ({e}): {INSTALL}") from None
@@ -122,7 +125,6 @@ class SamplePass:
     """
 
     def __init__(self, library: str, define: str, samples, shape: tuple[int, int]):
-        from hzval.core import conventions as cv
 
         ctx = self.ctx = context()
         source = "\n".join(
