@@ -10,5 +10,5 @@
 
 Every folder is a package, so same-named files (``tests/bake/test_horizon.py`` and
 ``tests/techniques/test_horizon.py``) do not clash; test modules import shared helpers by their
-full name (``from tests.truth.test_plane import make_scene``).
+full name (``from tests.helpers import make_scene``).
 """

@@ -1,4 +1,6 @@
 import os
+import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -10,6 +12,8 @@ os.environ.setdefault("HZVAL_VARIANT", "llvm_ad_rgb")
 from hzval.core import backend as _backend  # noqa: E402
 
 _backend.prefer_working_llvm()
+
+from tests.helpers import GCC, SOURCE  # noqa: E402 - after the LLVM is chosen
 
 
 @pytest.fixture(scope="session")
@@ -28,3 +32,23 @@ def any_map(monkeypatch):
     from hzval.io import heightmap
 
     monkeypatch.setattr(heightmap, "check_usable", lambda hm: hm)
+
+
+@pytest.fixture(scope="session")
+def seed_peer(tmp_path_factory) -> Path:
+    """The seed peer, compiled once per session (no -march=native: portable rounding)."""
+    exe = tmp_path_factory.mktemp("seed_peer") / "seed_bake"
+    cmd = [GCC, "-O2", "-fopenmp", "-o", str(exe), str(SOURCE), "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
+    return exe
+
+
+@pytest.fixture(scope="session")
+def seed_peer_hoisted(tmp_path_factory) -> Path:
+    """The seed peer's -DHOISTED_TABLE variant (offset table computed once), compiled once."""
+    exe = tmp_path_factory.mktemp("seed_peer_hoisted") / "seed_bake_hoisted"
+    cmd = [GCC, "-O2", "-fopenmp", "-DHOISTED_TABLE", "-o", str(exe), str(SOURCE), "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
+    return exe

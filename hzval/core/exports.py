@@ -9,6 +9,7 @@ subpackages import one another cannot form a cycle through an ``__init__``.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from collections.abc import Callable, Sequence
 
 __all__ = ["exports"]
@@ -48,7 +49,8 @@ def exports(package: str, modules: Sequence[str]) -> tuple[Callable, Callable]:
             return list(load())
         if name.startswith("__"):
             raise AttributeError(name)
-        if name in modules:  # ``from hzval.truth import plane``: that module alone
+        if name in modules or importlib.util.find_spec(f"{package}.{name}") is not None:
+            # ``from hzval.truth import plane``: that module alone, whether it re-exports or not
             return importlib.import_module(f"{package}.{name}")
         where = load().get(name)
         if where is None:

@@ -13,18 +13,13 @@ reproduce the literal one bit for bit.
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from hzval.bake import horizon as bake_horizon
 from hzval.core import conventions as cv
+from tests.helpers import GCC, run_peer
 
-GCC = shutil.which("gcc")
-SOURCE = Path(__file__).resolve().parents[2] / "tests" / "oracles" / "seed_bake.c"
 #: Largest difference allowed between hzval and the peer (values are in [0, 1]).
 TOLERANCE = 2e-6
 
@@ -34,49 +29,6 @@ pytestmark = [
         GCC is None, reason="gcc is not installed: cannot compile the seed peer tests/oracles/seed_bake.c"
     ),
 ]
-
-
-@pytest.fixture(scope="session")
-def seed_peer(tmp_path_factory) -> Path:
-    """The seed peer, compiled once per session (no -march=native: portable rounding)."""
-    exe = tmp_path_factory.mktemp("seed_peer") / "seed_bake"
-    cmd = [GCC, "-O2", "-fopenmp", "-o", str(exe), str(SOURCE), "-lm"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
-    return exe
-
-
-@pytest.fixture(scope="session")
-def seed_peer_hoisted(tmp_path_factory) -> Path:
-    """The seed peer's -DHOISTED_TABLE variant (offset table computed once), compiled once."""
-    exe = tmp_path_factory.mktemp("seed_peer_hoisted") / "seed_bake_hoisted"
-    cmd = [GCC, "-O2", "-fopenmp", "-DHOISTED_TABLE", "-o", str(exe), str(SOURCE), "-lm"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
-    return exe
-
-
-def run_peer(
-    exe: Path, height: np.ndarray, depth: float, radius: int, angles: int, boundary: str, workdir: Path
-) -> np.ndarray:
-    """The peer's ``(rows, cols, 10)`` output: 8 channel sines, mean_cos, mean_cos2."""
-    rows, cols = height.shape
-    src, dst = workdir / "height.f32", workdir / "peer.f32"
-    np.ascontiguousarray(height, dtype="<f4").tofile(src)
-    cmd = [
-        str(exe),
-        str(src),
-        str(rows),
-        str(cols),
-        repr(float(depth)),
-        str(radius),
-        str(angles),
-        boundary,
-        str(dst),
-    ]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
-    return np.fromfile(dst, dtype="<f4").reshape(rows, cols, 10)
 
 
 # (rows, cols, depth, boundary, radius, angles). Dr.Jit compiles one kernel per

@@ -13,31 +13,11 @@ from hzval.bake import occlusion
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.materials import generate
-
-
-def _directions(D: int, elevations: int = 4000):
-    """Unit directions of a dense midpoint rule over the upper hemisphere, per horizon azimuth:
-    ``(phi_k, t_j)`` and their weights ``cos t dt dphi``."""
-    t = (np.arange(elevations) + 0.5) * (math.pi / 2) / elevations
-    out = []
-    for k in range(D):
-        phi = math.radians(cv.channel_azimuth_deg(k, D))
-        w = np.stack([np.cos(t) * math.cos(phi), np.cos(t) * math.sin(phi), np.sin(t)], axis=-1)
-        out.append((w, np.cos(t) * (math.pi / 2) / elevations * (2 * math.pi / D)))
-    return t, out
-
-
-def _dense_bent(s: np.ndarray) -> np.ndarray:
-    t, dirs = _directions(len(s))
-    acc = np.zeros(3)
-    for (w, dw), sk in zip(dirs, s):
-        open_ = t > math.asin(min(max(sk, 0.0), 1.0))
-        acc += ((w[:, 2] * dw)[:, None] * w)[open_].sum(axis=0)  # cosine-weighted, about +z
-    return acc / np.linalg.norm(acc)
+from tests.helpers import dense_bent_normal, hemisphere_directions
 
 
 def _dense_ssbump(s: np.ndarray, n: np.ndarray) -> np.ndarray:
-    t, dirs = _directions(len(s))
+    t, dirs = hemisphere_directions(len(s))
     out = []
     for b in occlusion.HL2_BASIS:
         seen = whole = 0.0
@@ -55,7 +35,7 @@ def test_bent_normal_is_the_cosine_weighted_mean_open_direction(D):
     sines = rng.uniform(0.0, 0.95, size=(5, 1, D)).astype(np.float32)
     got = occlusion.bent_normal(sines)
     for i in range(5):
-        np.testing.assert_allclose(got[i, 0], _dense_bent(sines[i, 0]), atol=2e-3)
+        np.testing.assert_allclose(got[i, 0], dense_bent_normal(sines[i, 0]), atol=2e-3)
 
 
 def test_an_open_texel_bends_nothing_and_a_wall_bends_away_from_it():

@@ -21,7 +21,7 @@ from hzval.core import shading
 from hzval.materials.bricks import bricks
 from hzval.scene import spec as sc
 from hzval.truth import plane as truth
-from tests.truth.test_plane import column_wall, make_scene
+from tests.helpers import column_wall, make_scene
 
 CASES = {
     "wall": lambda: (

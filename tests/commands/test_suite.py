@@ -353,7 +353,7 @@ def test_the_overview_sorts_in_a_browser(in_process):
     """Chromium: every thumbnail loads, no console errors, and a click on a column sorts the rows."""
     import os
 
-    from tests.report.test_pages import CHROMIUM, CHROMIUM_ARGS
+    from tests.helpers import CHROMIUM, CHROMIUM_ARGS
 
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")

@@ -160,10 +160,10 @@ def test_the_reference_agrees_on_a_degenerate_and_frameless_mix(reference, tmp_p
 
 def test_auto_uses_a_files_tangents_unchanged_and_mikktspace_without(tmp_path):
     from hzval.geometry import tangents as tg
-    from tests.geometry.test_model import QUAD_F as F
-    from tests.geometry.test_model import QUAD_P as P
-    from tests.geometry.test_model import QUAD_UV as UV
-    from tests.geometry.test_model import write_gltf
+    from tests.helpers import QUAD_F as F
+    from tests.helpers import QUAD_P as P
+    from tests.helpers import QUAD_UV as UV
+    from tests.helpers import write_gltf
 
     # orthonormal file tangents that MikkTSpace would not give (turned 30 degrees in the plane)
     c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
@@ -211,7 +211,7 @@ def test_export_scene_writes_the_references_frames_of_a_users_model(reference, t
     """The Done-when of issue 40: a glTF with seams and mirrored islands and no TANGENT, exported by
     ``hzval export-scene``; base.glb's tangents, corner by corner, against the reference's."""
     from hzval.cli import main as cli
-    from tests.geometry.test_model import write_gltf
+    from tests.helpers import write_gltf
 
     p, n, uv, f = seams_and_mirrors()
     src = write_gltf(tmp_path / "user.gltf", p, uv, f, normals=n)

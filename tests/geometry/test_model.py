@@ -2,72 +2,17 @@
 up-axis conventions, glTF TANGENT round trips, and bad files as one InputError naming the file."""
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 
 from hzval.core.errors import InputError
 from hzval.geometry import model
-
-QUAD_P = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
-QUAD_UV = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
-QUAD_F = np.array([[0, 1, 2], [0, 2, 3]])
+from tests.helpers import QUAD_F, QUAD_P, QUAD_UV, write_gltf, write_obj
 
 
 def _edge_counts(mesh):
     return model.edge_table(mesh.faces, mesh.weld)[3]
-
-
-def write_obj(path, p, uv, f, normals=True):
-    lines = [f"v {x} {y} {z}" for x, y, z in p] + [f"vt {u} {v}" for u, v in uv]
-    lines += ["vn 0 0 1"] if normals else []
-    fmt = "{0}/{0}/1" if normals else "{0}/{0}"
-    lines += ["f " + " ".join(fmt.format(i + 1) for i in tri) for tri in f]
-    path.write_text("\n".join(lines) + "\n")
-    return str(path)
-
-
-def write_gltf(path, p, uv, f, normals=None, tangents=None):
-    """A glTF 2.0 file written by pygltflib, UVs given in hzval's convention (written as 1 - v)."""
-    import pygltflib
-
-    arrays = [
-        np.asarray(f, np.uint32).ravel(),
-        np.asarray(p, np.float32),
-        (np.asarray(uv, np.float64) * [1, -1] + [0, 1]).astype(np.float32),
-    ]
-    kinds = [("SCALAR", pygltflib.UNSIGNED_INT), ("VEC3", pygltflib.FLOAT), ("VEC2", pygltflib.FLOAT)]
-    names = ["POSITION", "TEXCOORD_0"]
-    for name, a, kind in (("NORMAL", normals, "VEC3"), ("TANGENT", tangents, "VEC4")):
-        if a is not None:
-            arrays.append(np.asarray(a, np.float32))
-            kinds.append((kind, pygltflib.FLOAT))
-            names.append(name)
-    blob, views, accessors = b"", [], []
-    for i, (a, (kind, ct)) in enumerate(zip(arrays, kinds)):
-        views.append(pygltflib.BufferView(buffer=0, byteOffset=len(blob), byteLength=a.nbytes))
-        extra = dict(max=a.max(0).tolist(), min=a.min(0).tolist()) if i == 1 else {}
-        accessors.append(
-            pygltflib.Accessor(
-                bufferView=i, componentType=ct, type=kind, count=len(a) if a.ndim > 1 else a.size, **extra
-            )
-        )
-        blob += a.tobytes()
-    attrs = pygltflib.Attributes(**{n: i + 1 for i, n in enumerate(names)})
-    g = pygltflib.GLTF2(
-        scenes=[pygltflib.Scene(nodes=[0])],
-        nodes=[pygltflib.Node(mesh=0)],
-        meshes=[pygltflib.Mesh(primitives=[pygltflib.Primitive(attributes=attrs, indices=0)])],
-        accessors=accessors,
-        bufferViews=views,
-        buffers=[pygltflib.Buffer(byteLength=len(blob))],
-    )
-    g.set_binary_blob(blob)
-    with warnings.catch_warnings():  # a .gltf gets its blob as a .bin beside it, which pygltflib says
-        warnings.simplefilter("ignore")
-        g.save(str(path))
-    return str(path)
 
 
 # ------------------------------------------------------------------------------------------

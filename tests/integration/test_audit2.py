@@ -14,8 +14,7 @@ import pytest
 from hzval.cli import main as cli
 from hzval.core.errors import InputError
 from hzval.geometry import model
-from tests.geometry.test_model import QUAD_F, QUAD_P, QUAD_UV, write_gltf
-from tests.integration.test_faults import one_line
+from tests.helpers import QUAD_F, QUAD_P, QUAD_UV, one_line, write_gltf
 
 
 @pytest.fixture(scope="module")
@@ -343,7 +342,7 @@ def test_score_on_a_model_sweep_runs_from_any_folder(tmp_path, monkeypatch, vari
     the height map and the mesh (recorded relative to the sweep's folder) for its tangent-bug match."""
     from hzval import materials
     from hzval.io import codecs
-    from tests.geometry.test_model import write_obj
+    from tests.helpers import write_obj
 
     work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
     work.mkdir(), elsewhere.mkdir()
@@ -466,7 +465,7 @@ def test_a_degenerate_mesh_is_refused_naming_it(positions, uv_scale, message):
 
 
 def test_a_degenerate_mesh_is_refused_before_the_sweep_writes(tmp_path, variant, capsys):
-    from tests.geometry.test_model import write_obj
+    from tests.helpers import write_obj
 
     write_obj(tmp_path / "line.obj", [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], QUAD_UV, QUAD_F)
     argv = ["sweep", "--mesh", str(tmp_path / "line.obj"), "--size", "16", "--resolution", "16x16"]
@@ -476,7 +475,7 @@ def test_a_degenerate_mesh_is_refused_before_the_sweep_writes(tmp_path, variant,
 
 
 def test_small_and_large_meshes_in_range_still_sweep(tmp_path, variant):
-    from tests.geometry.test_model import write_obj
+    from tests.helpers import write_obj
 
     for scale in (2e-6, 5e6):
         write_obj(tmp_path / "q.obj", QUAD_P * scale, QUAD_UV, QUAD_F)

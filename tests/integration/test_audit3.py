@@ -17,8 +17,7 @@ from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import tile as mesh
 from hzval.io import codecs
-from tests.helpers import interrupt_material
-from tests.integration.test_faults import hzval, one_line
+from tests.helpers import hzval, interrupt_material, one_line
 
 ROOT = Path(__file__).resolve().parents[2]
 

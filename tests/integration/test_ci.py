@@ -5,23 +5,12 @@ regresses (--horizon-k 2)."""
 from __future__ import annotations
 
 import os
-import re
 import subprocess
 from pathlib import Path
 
 import pytest
-import yaml
 
-ROOT = Path(__file__).resolve().parents[2]
-RECIPE = ROOT / "docs" / "ci.md"
-
-
-def recipe_steps() -> list[dict]:
-    """The steps of the recipe's one job (the first ```yaml block of docs/ci.md)."""
-    block = re.search(r"```yaml\n(.*?)```", RECIPE.read_text(encoding="utf-8"), re.S).group(1)
-    jobs = yaml.safe_load(block)["jobs"]
-    (job,) = jobs.values()
-    return job["steps"]
+from tests.helpers import ROOT, recipe_steps
 
 
 def test_the_recipe_is_a_github_actions_workflow():

@@ -12,7 +12,6 @@ from __future__ import annotations
 import errno
 import json
 import os
-import resource
 import signal
 import subprocess
 import sys
@@ -30,40 +29,9 @@ from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
 from hzval.scene import spec as sc
 from hzval.truth import memory
+from tests.helpers import ROOT, hzval, one_line
 
-ROOT = Path(__file__).resolve().parents[2]
 SMALL = ["--size", "24", "--azimuths", "0", "--spp", "4", "--techniques", "horizon", "--quiet"]
-
-
-def hzval(*argv, limit_gib: float | None = 4.0, timeout: float = 60, cwd=None):
-    """``python -m hzval ARGV`` in a process of its own, its address space limited to ``limit_gib``
-    (LLVM reserves a few GiB of address space of its own); ``(rc, stderr, seconds)``."""
-
-    def limit():
-        if limit_gib:
-            size = int(limit_gib * 2**30)
-            resource.setrlimit(resource.RLIMIT_AS, (size, size))
-
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "HZVAL_VARIANT": "llvm_ad_rgb"}
-    t0 = time.perf_counter()
-    p = subprocess.run(
-        [sys.executable, "-m", "hzval", *map(str, argv)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        preexec_fn=limit,
-        env=env,
-        cwd=cwd,
-    )
-    return p.returncode, p.stderr.strip(), time.perf_counter() - t0
-
-
-def one_line(err: str, *needles: str) -> None:
-    """An error of the command line: one line, ``hzval: error:``, no traceback, naming each needle."""
-    err = err.strip()
-    assert err.startswith("hzval: error:") and "\n" not in err and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, (n, err)
 
 
 # 1. a bound on the number of lights, counted before any list is made ------------------------

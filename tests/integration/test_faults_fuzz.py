@@ -32,7 +32,7 @@ from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.io import external, staging
 from hzval.scene import spec as sc
-from tests.geometry.test_model import QUAD_F, QUAD_P, QUAD_UV, write_gltf
+from tests.helpers import QUAD_F, QUAD_P, QUAD_UV, write_gltf
 
 SETTINGS = settings(
     max_examples=30,

@@ -345,7 +345,7 @@ LAYOUT_PROBLEMS = """() => {
 def test_the_sweep_and_score_pages_lay_out_at_1400_px(tmp_path, variant):
     """Every page at 1400 px in headless Chromium: no card taller than its content (the score page's
     effects card stretched its row to 1,300 px) and no clipped label, with every default technique."""
-    from tests.report.test_pages import chromium_page
+    from tests.helpers import chromium_page
 
     sweep, frames = tmp_path / "s", tmp_path / "engine"
     argv = ["sweep", "--material", "bricks", "--size", "24", "--azimuths", "-30,30", "--spp", "1"]

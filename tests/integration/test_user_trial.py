@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from hzval.cli import main as cli
-from tests.integration.test_faults import one_line
+from tests.helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -248,7 +248,7 @@ def test_the_recommended_gates_parse_and_name_what_a_sweep_writes():
 def test_the_recipe_uploads_the_report_without_the_bake_and_the_exrs():
     """A default sweep writes 70 MB, 24 MB of it the bake and 2 MB a frame of EXRs: the artefact leaves
     them out (10, the smaller list)."""
-    from tests.integration.test_ci import recipe_steps
+    from tests.helpers import recipe_steps
 
     upload = next(s for s in recipe_steps() if "upload-artifact" in s.get("uses", ""))
     paths = upload["with"]["path"].split()

@@ -15,7 +15,7 @@ from hzval.core.errors import InputError
 from hzval.io import codecs, external
 from hzval.io.external import Encoding
 from hzval.materials.bricks import bricks
-from tests.bake.test_horizon_peer import GCC, run_peer, seed_peer  # noqa: F401 - the compiled-once fixture
+from tests.helpers import GCC, run_peer
 
 
 def encode(sines: np.ndarray, enc: Encoding) -> np.ndarray:
@@ -115,7 +115,7 @@ def test_detection_names_what_looks_wrong(variant, bricks64, stored, declared, e
 @pytest.mark.skipif(GCC is None, reason="gcc is not installed: cannot compile the seed peer")
 def test_an_independent_radius_4_bake_drives_the_horizon_technique(
     variant,
-    seed_peer,  # noqa: F811 - the fixture imported above
+    seed_peer,  # tests/conftest.py's compiled-once fixture
     tmp_path,
     capsys,
 ):

@@ -9,27 +9,14 @@ tests/report/test_images.py, the sweep's frames in tests/pipeline/test_sweep_fra
 from __future__ import annotations
 
 import numpy as np
-import OpenEXR
 import pytest
 from PIL import Image
 
 from hzval.core.errors import InputError
 from hzval.io import codecs
+from tests.helpers import exr_layout, png_mode_and_rgb
 
 RNG = np.random.default_rng(7)
-
-
-def exr_layout(path) -> dict[str, str]:
-    """``{channel: "HALF" | "FLOAT"}`` of an EXR as stored, and its compression under ``"compression"``."""
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        out = {name: ch.type().name for name, ch in f.channels().items()}
-        out["compression"] = f.header()["compression"].name
-    return out
-
-
-def png_mode_and_rgb(path) -> tuple[str, np.ndarray]:
-    with Image.open(path) as im:
-        return im.mode, np.asarray(im.convert("RGB"))
 
 
 # -- EXR ---------------------------------------------------------------------------------------
@@ -124,7 +111,6 @@ def test_a_grey_rgb_png_is_8_bit_grey_and_decodes_to_the_same_rgb(tmp_path):
 def test_png_pixels_read_back_exactly_with_pillow(tmp_path, pixels, level):
     """Grey and colour PNGs are written by libpng (imagecodecs), read here by Pillow: every value back,
     at every zlib level, 16-bit grey included."""
-    from PIL import Image
 
     codecs.write_png(tmp_path / "p.png", pixels, compress_level=level)
     with Image.open(tmp_path / "p.png") as im:

@@ -14,7 +14,7 @@ import pytest
 from hzval.cli import main as cli
 from hzval.core.errors import InputError
 from hzval.io import ktx2
-from tests.integration.test_faults import one_line
+from tests.helpers import one_line
 from tests.oracles import ktx2_parser as oracle
 
 BLOCK_FORMATS = [n for n, f in ktx2.FORMATS.items() if f.block == 4]

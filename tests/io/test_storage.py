@@ -10,7 +10,7 @@ from hzval.bake import maps as bake
 from hzval.io import storage as hz_storage
 from hzval.io.codecs import unit_to_u8
 from hzval.techniques import horizon
-from tests.truth.test_plane import make_scene
+from tests.helpers import make_scene
 
 
 def smooth_sines(rows=64, cols=64, D=8, seed=3):

@@ -13,8 +13,7 @@ from hzval.cli import main as cli
 from hzval.io import codecs
 from hzval.metrics import compare
 from hzval.pipeline import writing as pipeline_writing
-from tests.io.test_files_frames import exr_layout, png_mode_and_rgb
-from tests.report.test_images import magma_as_before, visdiff_as_before
+from tests.helpers import exr_layout, magma_as_before, png_mode_and_rgb, visdiff_as_before
 
 RNG = np.random.default_rng(7)
 

@@ -7,18 +7,10 @@ import numpy as np
 import pytest
 
 from hzval.io import codecs
-from hzval.metrics import compare
 from hzval.report import images
-from tests.io.test_files_frames import png_mode_and_rgb
+from tests.helpers import magma_as_before, png_mode_and_rgb, visdiff_as_before
 
 RNG = np.random.default_rng(7)
-
-
-def magma_as_before(values):
-    """The FLIP map as the sweep painted it before palettes: matplotlib's magma, 8-bit RGB."""
-    from matplotlib import colormaps
-
-    return (colormaps["magma"](np.clip(values, 0, 1))[..., :3] * 255 + 0.5).astype(np.uint8)
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
@@ -38,16 +30,6 @@ def test_a_flip_map_with_nan_is_rgb_with_nan_black_as_before(tmp_path):
     made = images.flip_indexed(error)
     assert isinstance(made, np.ndarray) and np.array_equal(made, magma_as_before(error))
     assert made[2, 3].tolist() == [0, 0, 0]
-
-
-def visdiff_as_before(V, F):
-    """The visibility-difference map as the sweep painted it before palettes."""
-    grey = codecs.unit_to_u8(0.25 + 0.5 * np.clip(V, 0, 1))
-    img = np.repeat(grey[..., None], 3, axis=-1)
-    lit_v, lit_f = V >= compare.LIT_THRESHOLD, F >= compare.LIT_THRESHOLD
-    img[lit_f & ~lit_v] = images.LEAK_RGB
-    img[~lit_f & lit_v] = images.FALSE_SHADOW_RGB
-    return img
 
 
 @pytest.mark.parametrize("levels", [4, None])  # V = k/4 as spp 4 gives it; any value in [0, 1]

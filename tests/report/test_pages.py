@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import re
@@ -18,6 +17,7 @@ from PIL import Image
 from hzval.io import codecs, documents
 from hzval.report import columns as report_columns
 from hzval.report import pages as report
+from tests.helpers import chromium_page
 
 NASTY_NAME = "<b>x.png"
 COMMAND = "hzval sweep '<b>x.png' --azimuths -15:15:15 --out 'a&b' && echo \"<script>alert(1)</script>\""
@@ -345,39 +345,6 @@ def test_template_never_marks_data_safe():
 # --------------------------------------------------------------------------
 # In a real browser (Debian's chromium, driven by Playwright; never downloads one)
 # --------------------------------------------------------------------------
-
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-
-
-@contextlib.contextmanager
-def chromium_page(problems: list[str]):
-    """A 1440 x 900 page of headless chromium that records page errors and failed requests in
-    ``problems``; the test is skipped where chromium or Playwright is missing."""
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("the playwright Python package is not importable (pip install playwright)")
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            page = browser.new_page(viewport={"width": 1440, "height": 900})
-            page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-            page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
-            yield page
-        finally:
-            browser.close()
 
 
 @pytest.mark.browser

@@ -21,7 +21,7 @@ from hzval.techniques.microshadow_hdrp import MicroshadowHDRP
 from hzval.techniques.perpixel import stored
 from hzval.techniques.ssbump import SSBump
 from hzval.techniques.terminator import Terminator
-from tests.truth.test_plane import make_scene
+from tests.helpers import make_scene
 
 N = 32
 ENGINE = ["microshadow-filament", "microshadow-hdrp", "bent-cone", "ssbump", "terminator"]
@@ -278,9 +278,9 @@ def test_bent_cone_in_a_v_groove_is_the_analytic_cap_intersection(wall_deg, az, 
         bent_normal=occlusion.bent_normal(sines),
         ssbump=occlusion.self_shadowed_bump(sines, normal),
     )
-    from tests.bake.test_occlusion import _dense_bent
+    from tests.helpers import dense_bent_normal
 
-    Bn = _dense_bent(sines[0, 0].astype(np.float64))
+    Bn = dense_bent_normal(sines[0, 0].astype(np.float64))
     assert abs(Bn[0]) < 1e-9 and abs(Bn[1]) < 1e-9  # the groove is symmetric: B is +z
     radius = 6.0
     scene = make_scene((8, 8), 0.1, "wrap", kind="soft", radius=radius)

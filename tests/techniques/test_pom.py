@@ -18,7 +18,7 @@ from hzval.cli import main as cli
 from hzval.core.errors import InputError
 from hzval.techniques import pom
 from hzval.truth import plane as truth
-from tests.truth.test_plane import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
+from tests.helpers import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
 def march(h, depth, boundary="open", **kw):

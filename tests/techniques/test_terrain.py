@@ -15,7 +15,7 @@ import pytest
 
 from hzval.core.errors import InputError
 from hzval.techniques import surface, terrain
-from tests.truth.test_plane import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
+from tests.helpers import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 
 def shadow(h, depth, boundary="open", impl="drjit", **kw):

@@ -16,7 +16,7 @@ from hzval.core import resources
 from hzval.geometry import tile as mesh
 from hzval.truth import bands as truth_bands
 from hzval.truth import memory
-from tests.truth.test_plane import make_scene
+from tests.helpers import make_scene
 
 AZIMUTHS = (-60.0, 0.0, 90.0, -90.0, 20.0, 135.0, 180.0)
 

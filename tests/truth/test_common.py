@@ -6,17 +6,17 @@ import numpy as np
 
 from hzval.geometry import model
 from hzval.truth import common
-from tests.truth.test_model import _height, _scene
+from tests.helpers import material_height, model_case_scene
 
 
 def test_both_truths_implement_the_interface(variant):
     from hzval.truth.model import ModelTruth
     from hzval.truth.plane import Truth
 
-    plane = _scene(n=16, effects="shadow,diffuse")
-    assert isinstance(Truth(plane, _height(plane)), common.TruthLike)
-    cube = _scene(n=16, mesh="cube", camera="perspective", view_elevation=35, view_azimuth=-30)
-    assert isinstance(ModelTruth(cube, _height(cube), model.load("cube")), common.TruthLike)
+    plane = model_case_scene(n=16, effects="shadow,diffuse")
+    assert isinstance(Truth(plane, material_height(plane)), common.TruthLike)
+    cube = model_case_scene(n=16, mesh="cube", camera="perspective", view_elevation=35, view_azimuth=-30)
+    assert isinstance(ModelTruth(cube, material_height(cube), model.load("cube")), common.TruthLike)
     assert not isinstance(object(), common.TruthLike)
 
 
@@ -29,7 +29,7 @@ def test_the_albedo_is_the_nearest_texel_with_y_up_the_image(variant):
     rows, cols = 5, 7
     rng = np.random.default_rng(1)
     a = rng.random((rows, cols, 3), dtype=np.float32)
-    scene = _scene(n=16, effects="shadow,diffuse")
+    scene = model_case_scene(n=16, effects="shadow,diffuse")
     texels = common.albedo_texels(scene, rows, cols, a)
     x = np.concatenate([rng.uniform(-1, cols + 1, 200), np.arange(cols + 1.0), [0.0, cols]])
     y = np.concatenate([rng.uniform(-1, rows + 1, 200), np.zeros(cols + 1), [rows, 0.0]])
@@ -42,5 +42,5 @@ def test_the_albedo_is_the_nearest_texel_with_y_up_the_image(variant):
 
 
 def test_no_albedo_where_no_effect_reads_it():
-    scene = _scene(n=16, effects="shadow")
+    scene = model_case_scene(n=16, effects="shadow")
     assert common.albedo_texels(scene, 4, 4) is None

@@ -19,26 +19,7 @@ from hzval.techniques import registry as technique
 from hzval.techniques import surface
 from hzval.truth import plane as truth
 from hzval.truth.model import ModelTruth
-
-
-def _scene(n=48, **kw):
-    base = dict(
-        size=n,
-        depth=0.08,
-        spp=4,
-        azimuths="-45,30",
-        boundary="open",
-        camera="orthographic",
-        view_elevation=60,
-        view_azimuth=-90,
-        resolution=(n, n),
-    )
-    base.update(kw)
-    return sc.override(sc.Scene(), **base)
-
-
-def _height(scene):
-    return sc.load_material_height(scene.material).height
+from tests.helpers import material_height, model_case_scene
 
 
 def _context(scene, h, points):
@@ -69,8 +50,8 @@ def _render_quad(scene, h, name):
 
 
 def test_quads_carrying_one_surface_agree_pixel_by_pixel(variant):
-    scene = _scene()
-    h = _height(scene)
+    scene = model_case_scene()
+    h = material_height(scene)
     runs = {name: _render_quad(scene, h, name) for name in QUADS}
     mt0, frames0 = runs["xy"]
     seen = mt0.seen
@@ -91,8 +72,8 @@ def test_the_xy_quad_is_the_plane(variant):
     frames the tile, so the techniques' factors are the plane's pixel for pixel, and the truth's
     surface (cut along the texel grid, a fan about every cell's centre) is the plane's: the same
     mean V and |F - V| to the noise of the few samples that land differently."""
-    scene = _scene(n=64)
-    h = _height(scene)
+    scene = model_case_scene(n=64)
+    h = material_height(scene)
     mt, frames = _render_quad(scene, h, "xy")
     plane = truth.Truth(scene, h)
     tech = technique.get("horizon").build(_context(scene, h, None))
@@ -108,7 +89,7 @@ def test_the_xy_quad_is_the_plane(variant):
 
 
 def test_lit_truth_is_the_unshadowed_shading_at_its_hits(variant):
-    scene = _scene(
+    scene = model_case_scene(
         n=48,
         mesh="cube",
         camera="perspective",
@@ -117,7 +98,7 @@ def test_lit_truth_is_the_unshadowed_shading_at_its_hits(variant):
         boundary="wrap",
         effects="shadow,diffuse",
     )
-    h = _height(scene)
+    h = material_height(scene)
     mt = ModelTruth(scene, h, model.load("cube"))
     plain = surface.unshadowed(_context(scene, h, mt.samples("truth")))
     for az in scene.light.azimuths_deg:
@@ -132,7 +113,7 @@ def test_the_displaced_cube_is_closed(variant):
     """From straight above (orthographic, top), every pixel whose centre lies over the cube's top
     face sees the cube: a crack at a welded seam would let a camera ray through."""
     n = 64
-    scene = _scene(
+    scene = model_case_scene(
         n=n,
         mesh="cube",
         camera="top",
@@ -142,7 +123,7 @@ def test_the_displaced_cube_is_closed(variant):
         view_azimuth=None,
         resolution=None,
     )
-    mt = ModelTruth(scene, _height(scene), model.load("cube"))
+    mt = ModelTruth(scene, material_height(scene), model.load("cube"))
     v = mt.view
     c = (np.arange(n) + 0.5) / n * 2 - 1  # film coordinates of pixel centres
     half = v.film_size[0] / 2
@@ -154,7 +135,7 @@ def test_the_displaced_cube_is_closed(variant):
 
 def test_the_base_meshs_shadow_is_the_truths(variant):
     """A torus under a low light shadows itself: the truth is dark where the base mesh is."""
-    scene = _scene(
+    scene = model_case_scene(
         n=32,
         mesh="torus",
         camera="perspective",
@@ -165,7 +146,7 @@ def test_the_base_meshs_shadow_is_the_truths(variant):
         azimuths="0",
         resolution=(64, 64),
     )
-    mt = ModelTruth(scene, _height(scene), model.load("torus"))
+    mt = ModelTruth(scene, material_height(scene), model.load("torus"))
     assert mt.macro_shadowed(0.0) > 0.02
     t = mt.render(0.0)
     L = scene.light.direction(0.0)

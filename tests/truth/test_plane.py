@@ -20,39 +20,9 @@ import pytest
 from hzval.core.errors import InputError
 from hzval.scene import camera as hz_camera
 from hzval.scene import spec as sc
+from tests.helpers import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
-
-
-def make_scene(
-    shape,
-    depth,
-    boundary="open",
-    *,
-    effects=("shadow",),
-    elevation=30.0,
-    kind="hard",
-    radius=0.0,
-    spp=16,
-    seed=0,
-    irradiance=1.0,
-    albedo=0.5,
-    supersampling=1,
-    depth_ir=2,
-    shading="smooth",
-):
-    return sc.Scene(
-        name="test",
-        material=sc.MaterialSpec(
-            height="test", size=shape[1], depth=depth, boundary=boundary, albedo=albedo, shading=shading
-        ),
-        camera=sc.Camera(supersampling=supersampling),
-        light=sc.Light(kind=kind, radius_deg=radius, elevation_deg=elevation, irradiance=irradiance),
-        effects=tuple(effects),
-        interreflection_depth=depth_ir,
-        spp=spp,
-        seed=seed,
-    ).validate()
 
 
 def truth(h, depth, boundary="open", **kw):
@@ -66,18 +36,6 @@ def truth(h, depth, boundary="open", **kw):
         positions=positions,
         albedo=albedo,
     )
-
-
-def column_wall(rows, cols, col):
-    h = np.zeros((rows, cols), np.float32)
-    h[:, col] = 1.0
-    return h
-
-
-def row_wall(rows, cols, row):
-    h = np.zeros((rows, cols), np.float32)
-    h[row, :] = 1.0
-    return h
 
 
 def on_mesh_edges(rows, cols):
@@ -150,10 +108,6 @@ def test_light_below_the_horizon_lights_nothing(variant, elevation):
         assert np.all(t.render(30.0).layers["visibility"] == 0.0)
 
 
-WALL_H = 4.0  # texels: H = 1 at depth 4 / 40 on a 40-wide map
-WALL_AT = 20
-
-
 @pytest.fixture(scope="module")
 def walls(variant):
     """Truths of a column wall and a row wall (40x40, open), per elevation."""
@@ -161,39 +115,6 @@ def walls(variant):
     for e in (30.0, 50.0):
         out["col", e] = truth(column_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e)
         out["row", e] = truth(row_wall(40, 40, WALL_AT), WALL_H / 40, elevation=e)
-    return out
-
-
-def wall_shadow_extents(column, row, azimuth):
-    """Shadow extents across a column wall and a row wall at ``WALL_AT`` (40x40), lit from ``azimuth``.
-
-    ``column()`` and ``row()`` give the lit fraction (``V`` or ``F``, 1 = lit)
-    of the two walls. Checks the side each shadow falls on (light from +x:
-    toward -x; from +y, up the image: toward larger rows) and that the other
-    side is fully lit; returns ``[(texels across the wall, |cos| or |sin| of
-    the azimuth)]`` for each wall the light is not parallel to.
-    """
-    phi = math.radians(azimuth)
-    top = WALL_AT + 0.5
-    cx, cy = math.cos(phi), math.sin(phi)
-    out = []
-    if abs(cx) > 0.1:
-        lit = column()
-        middle = lit[8:-2] if cy > 0 else lit[2:-8]  # rows whose casters are inside the map
-        x = np.arange(40) + 0.5
-        centroid = ((1.0 - middle).sum(axis=0) * x).sum() / (1.0 - middle).sum()
-        assert (centroid < top) if cx > 0 else (centroid > top)
-        assert np.all((lit[:, WALL_AT + 1 :] if cx > 0 else lit[:, :WALL_AT]) == 1.0)
-        out.append(((1.0 - middle).sum(axis=1).mean(), abs(cx)))
-    if abs(cy) > 0.1:
-        lit = row()
-        middle = lit[:, 2:-8] if cx > 0 else lit[:, 8:-2]
-        r = np.arange(40) + 0.5
-        centroid = ((1.0 - middle).sum(axis=1) * r).sum() / (1.0 - middle).sum()
-        assert (centroid > top) if cy > 0 else (centroid < top)
-        assert np.all((lit[:WALL_AT] if cy > 0 else lit[WALL_AT + 1 :]) == 1.0)
-        out.append(((1.0 - middle).sum(axis=0).mean(), abs(cy)))
-    assert out
     return out
 
 

@@ -23,7 +23,7 @@ from hzval.core import shading
 from hzval.scene import spec as sc
 from hzval.techniques import horizon, surface
 from hzval.truth import plane as truth
-from tests.truth.test_plane import make_scene
+from tests.helpers import make_scene
 
 
 def rough(n=48, sigma=1.2, seed=5):
