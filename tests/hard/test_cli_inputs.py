@@ -232,7 +232,8 @@ def test_the_console_script_prints_one_line_and_no_traceback(tmp_path):
             capture_output=True,
             text=True,
             timeout=300,
-            env={"HZVAL_VARIANT": "llvm_ad_rgb", "PATH": "/usr/bin:/bin"},
+            # a bare environment but HOME: without it Dr.Jit warns on stderr that it keeps no kernel cache
+            env={"HZVAL_VARIANT": "llvm_ad_rgb", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)},
         )
         assert proc.returncode == 2, proc.stderr
         assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
