@@ -43,9 +43,10 @@ from pathlib import Path
 import numpy as np
 
 from hzval.core import interrupts
-from hzval.io import atomic, codecs, documents, staging
+from hzval.io import atomic, documents, staging
 from hzval.metrics.results import SweepResult, techniques_of
 from hzval.pipeline import sweep
+from hzval.report import figures
 from hzval.report import pages as report
 from hzval.scene import spec as sc
 from hzval.studies import bug_signatures, curvature_band, seam_share
@@ -228,36 +229,12 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
     with the interpolated vertex normal against the traced glossy lobe), against signed curvature
     1/R, where the study declares ``reflection_occlusion``; the page's figure and table
     (``None``: no case has it)."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    from matplotlib.figure import Figure
-
-    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
-    series = {
-        n: [
-            (r["curvature"], techniques_of(r)[n]["reflection_mae"])
-            for r in pts
-            if techniques_of(r).get(n, {}).get("reflection_mae") is not None
-        ]
-        for n in names
-    }
-    series = {n: s for n, s in series.items() if s}
+    series = {n: s for n in names if (s := _against_curvature(rows, n, "reflection_mae"))}
     if not series:
         return None
-    fig = Figure(figsize=(7, 4), dpi=110)
-    ax = fig.subplots()
-    for n, s in series.items():
-        ax.plot(*zip(*s), marker="o", label=n)
-    ax.set(
-        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
-        ylabel="mean |o − R|",
-        title="reflection occlusion against curvature",
-    )
-    ax.grid(alpha=0.3)
-    ax.legend(
-        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
-    )  # outside: it never covers a line
-    fig.tight_layout()
-    codecs.write_figure(path, fig)
+    lines = [figures.Line(n, pts) for n, pts in series.items()]
+    panel = figures.Panel("reflection occlusion against curvature", figures.CURVATURE, "mean |o − R|", lines)
+    figures.plot_panels(path, [[panel]], (7, 4))
     return {
         "plot": f"plots/{path.name}",
         "names": list(series),
@@ -271,40 +248,26 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
     }
 
 
+def _against_curvature(rows: list[dict], name: str, key: str) -> list[tuple[float, float]]:
+    """Technique ``name``'s ``key`` against each case's signed curvature, in increasing curvature."""
+    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    return [
+        (r["curvature"], techniques_of(r)[name][key])
+        for r in pts
+        if techniques_of(r).get(name, {}).get(key) is not None
+    ]
+
+
 def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
     """Each technique's mean |F - V| (and its floor, dashed) against signed curvature 1/R."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(7, 4), dpi=110)
-    ax = fig.subplots()
-    pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    lines = []
     for n in names:
-        err = [
-            (r["curvature"], techniques_of(r)[n]["visibility_mae"])
-            for r in pts
-            if techniques_of(r).get(n, {}).get("visibility_mae") is not None
-        ]
-        if err:
-            ax.plot(*zip(*err), marker="o", label=n)
-        fl = [
-            (r["curvature"], techniques_of(r)[n]["perfect_parallax_mae"])
-            for r in pts
-            if techniques_of(r).get(n, {}).get("perfect_parallax_mae") is not None
-        ]
-        if fl:
-            ax.plot(*zip(*fl), linestyle="--", alpha=0.6, label=f"{n} floor")
-    ax.set(
-        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
-        ylabel="mean |F − V|",
-        title="error against curvature",
-    )
-    ax.grid(alpha=0.3)
-    ax.legend(
-        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
-    )  # outside: it never covers a line
-    fig.tight_layout()
-    codecs.write_figure(path, fig)
+        if err := _against_curvature(rows, n, "visibility_mae"):
+            lines.append(figures.Line(n, err))
+        if fl := _against_curvature(rows, n, "perfect_parallax_mae"):
+            lines.append(figures.Line(f"{n} floor", fl, dashed=True))
+    panel = figures.Panel("error against curvature", figures.CURVATURE, "mean |F − V|", lines)
+    figures.plot_panels(path, [[panel]], (7, 4))
 
 
 # -- the band: curvature and nothing else (hzval.studies.curvature_band) --------------------------------
@@ -518,12 +481,8 @@ def _fall(f: dict) -> str:
 
 def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
     """Each technique's band excess over the flat patch, with one standard error, against 1/R."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(7, 4), dpi=110)
-    ax = fig.subplots()
     pts = sorted((r for r in rows if r["curvature"] is not None), key=lambda r: r["curvature"])
+    lines = []
     for n in names:
         have = [
             (r["curvature"], techniques_of(r["band"])[n].get("excess"))
@@ -532,20 +491,10 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
         ]
         have = [(k, e["mean"], e["se"] or 0.0) for k, e in have if e and e["mean"] is not None]
         if have:
-            k, m, se = zip(*have)
-            ax.errorbar(k, m, yerr=se, marker="o", capsize=3, label=n)
-    ax.axhline(0.0, color="k", lw=0.8)
-    ax.set(
-        xlabel="signed curvature 1/R (texture widths⁻¹; + convex)",
-        ylabel="band |F − V| − flat's, same texels",
-        title="what curvature alone costs (± 1 SE)",
-    )
-    ax.grid(alpha=0.3)
-    ax.legend(
-        fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
-    )  # outside: it never covers a line
-    fig.tight_layout()
-    codecs.write_figure(path, fig)
+            lines.append(figures.Line(n, [(k, m) for k, m, _ in have], errors=[se for *_, se in have]))
+    ylabel = "band |F − V| − flat's, same texels"
+    panel = figures.Panel("what curvature alone costs (± 1 SE)", figures.CURVATURE, ylabel, lines, zero=True)
+    figures.plot_panels(path, [[panel]], (7, 4))
 
 
 def summary_table(data: dict) -> str:

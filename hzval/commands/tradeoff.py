@@ -21,11 +21,11 @@ from hzval.bake import horizon as bake_horizon
 from hzval.bake import maps as bake
 from hzval.core import backend, shading
 from hzval.core import conventions as cv
-from hzval.io import atomic, codecs, documents, staging
+from hzval.io import atomic, documents, staging
 from hzval.metrics import compare
 from hzval.metrics import facing as hzfacing
 from hzval.pipeline import renders
-from hzval.report import columns, plots, ranking
+from hzval.report import columns, figures, plots, ranking
 from hzval.report import pages as report
 from hzval.scene import spec as sc
 from hzval.scene.spec import Scene
@@ -430,59 +430,6 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
 # --------------------------------------------------------------------------
 
 
-def plot_tradeoff(path: Path, points: list[Point]) -> None:
-    """Time against visibility error, one panel per kind; marker area ~ storage; Pareto front ringed."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    import matplotlib as mpl
-
-    mpl.use("Agg")
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator, NullFormatter
-
-    kinds = [k for k in KINDS if any(p.kind == k for p in points)]
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4.6 * len(kinds), 4.2), squeeze=False)
-    labels = {"bake": "bake time (s)", "technique": "frame time (s)", "truth": "truth frame time (s)"}
-    smax = max(p.storage_bytes for p in points) or 1
-    for ax, kind in zip(axes[0], kinds):
-        pts = [p for p in points if p.kind == kind]
-        for p in pts:
-            area = 30 + 270 * p.storage_bytes / smax
-            ax.scatter(
-                p.time_s,
-                p.error,
-                s=area,
-                alpha=0.75,
-                color="#d62728" if p.pareto else "#1f77b4",
-                edgecolors="black",
-                linewidths=0.5,
-            )
-            ax.annotate(p.label, (p.time_s, p.error), fontsize=7, xytext=(4, 4), textcoords="offset points")
-        front = sorted((p for p in pts if p.pareto), key=lambda p: p.time_s)
-        if len(front) > 1:
-            ax.plot([p.time_s for p in front], [p.error for p in front], color="#d62728", lw=1)
-        times = [p.time_s for p in pts if p.time_s > 0]
-        if times and max(times) > 10 * min(times):
-            # decades only, in engineering units: finer log ticks crowd the axis
-            ax.set_xscale("log")
-            ax.xaxis.set_major_locator(LogLocator(numticks=6))
-            ax.xaxis.set_minor_formatter(NullFormatter())
-        else:
-            ax.xaxis.set_major_locator(MaxNLocator(4))
-        ax.xaxis.set_major_formatter(EngFormatter(unit="s", places=None, sep=" "))
-        ax.set_xlabel(labels[kind])
-        facing = all(p.visibility_mae_facing is not None for p in pts)
-        ax.set_ylabel("mean |F - V|" + (" (pixels facing the light)" if facing else " (whole image)"))
-        ax.set_title(kind)
-        ax.grid(True, alpha=0.3)
-    fig.suptitle(
-        "what accuracy costs: red = Pareto front of its kind; marker area ~ texture memory", fontsize=10
-    )
-    fig.tight_layout()
-    codecs.write_figure(path, fig, dpi=110)
-    plt.close(fig)
-
-
 def write_tradeoff(
     out: str | Path, points: list[Point], info: dict, *, material: dict, command: str, force: bool = False
 ) -> Path:
@@ -525,7 +472,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
             for p in points
         ],
     }
-    plot_tradeoff(out / "pareto.png", points)
+    figures.plot_tradeoff(out / "pareto.png", points, KINDS)
     per_byte = _plot_error_per_byte(out / "error_per_byte.png", data["error_per_byte"], info)
     documents.write_json(out / "tradeoff.json", data)
     html = (

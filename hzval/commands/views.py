@@ -33,9 +33,10 @@ import numpy as np
 
 from hzval.core import interrupts
 from hzval.core.errors import InputError
-from hzval.io import atomic, codecs, documents, staging
+from hzval.io import atomic, documents, staging
 from hzval.metrics.results import SweepResult, techniques_of
 from hzval.pipeline import sweep
+from hzval.report import figures
 from hzval.report import pages as report
 from hzval.scene import camera as hz_camera
 from hzval.scene import lookup
@@ -211,52 +212,31 @@ def _technique_names(rows: list[dict]) -> list[str]:
 def _plot(path: Path, rows: list[dict]) -> None:
     """Two panels per technique row: |F - V| against view elevation (the top and orthographic
     views) and against the median pixel footprint (every view), one line per lookup."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
     names = _technique_names(rows)
     kinds = list(dict.fromkeys(r["lookup"] for r in rows))
-    fig = Figure(figsize=(10, 3.2 * max(1, len(names))), dpi=110)
-    axes = fig.subplots(max(1, len(names)), 2, squeeze=False)
-    for i, name in enumerate(names):
+    ylabel = "mean |F − V| (top: facing pixels)"
+    grid = []
+    for name in names:
+        scored = [r for r in rows if headline(techniques_of(r).get(name) or {}) is not None]
+        elevation = figures.Panel(f"{name}: error against view elevation", "view elevation (degrees)", ylabel)
+        footprint = figures.Panel(
+            f"{name}: error against pixel footprint", "texels a pixel covers (median)", ylabel, footprint=True
+        )
         for k in kinds:
-            pts = [r for r in rows if r["lookup"] == k or r["view"] == "top"]
+            pts = [r for r in scored if r["lookup"] == k or r["view"] == "top"]
             ortho = sorted(
                 (r["camera"]["elevation_deg"], headline(techniques_of(r)[name]))
                 for r in pts
                 if r["camera"]["kind"] != "perspective"
-                and headline(techniques_of(r).get(name) or {}) is not None
             )
             if ortho:
-                axes[i][0].plot(*zip(*ortho), marker="o", label=k)
+                elevation.lines.append(figures.Line(k, ortho))
             foot = sorted(
                 (r["footprint_texels"]["p50"], headline(techniques_of(r)[name]))
                 for r in pts
-                if headline(techniques_of(r).get(name) or {}) is not None
-                and r["footprint_texels"].get("p50") is not None
+                if r["footprint_texels"].get("p50") is not None
             )
             if foot:
-                axes[i][1].plot(*zip(*foot), marker="o", label=k)
-        axes[i][0].set(
-            title=f"{name}: error against view elevation",
-            xlabel="view elevation (degrees)",
-            ylabel="mean |F − V| (top: facing pixels)",
-        )
-        axes[i][1].set(
-            title=f"{name}: error against pixel footprint",
-            xlabel="texels a pixel covers (median)",
-            ylabel="mean |F − V| (top: facing pixels)",
-            xscale="log",
-        )
-        # a footprint axis spans under a decade: its minor ticks' labels ran into each other
-        axes[i][1].xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-        axes[i][1].xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        axes[i][1].xaxis.set_minor_formatter(NullFormatter())
-        for ax in axes[i]:
-            ax.grid(alpha=0.3)
-            ax.legend(
-                fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
-            )  # outside: it never covers a line
-    fig.tight_layout()
-    codecs.write_figure(path, fig)
+                footprint.lines.append(figures.Line(k, foot))
+        grid.append([elevation, footprint])
+    figures.plot_panels(path, grid, (10, 3.2 * max(1, len(names))))

@@ -8,5 +8,5 @@ from hzval.core.exports import exports
 
 __getattr__, __dir__ = exports(
     __name__,
-    ("columns", "images", "overview", "pages", "plots", "ranking"),
+    ("columns", "figures", "images", "overview", "pages", "plots", "ranking"),
 )

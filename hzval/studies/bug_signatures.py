@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from hzval.geometry import model, tangent_bugs
-from hzval.io import codecs
 from hzval.pipeline import bug_match
+from hzval.report import figures
 from hzval.scene import spec as sc
 from hzval.truth.model import ModelTruth
 
@@ -132,33 +132,23 @@ def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = Tru
         if progress:
             print(f"hzval models: tangent bugs on {name}", flush=True)
         cases[name], maps[name] = measure(scene, height, lead, shape, az, light_az, uv_scale)
-    _figure(out / "plots" / "bugs.png", cases, maps, lead)
+    names = list(cases)
+    figures.plot_signed_maps(
+        out / "plots" / "bugs.png",
+        [[maps[case][bug] for case in names] for bug in tangent_bugs.NAMES],
+        tangent_bugs.NAMES,
+        [f"{case}, light {cases[case]['signature_azimuth_deg']:g} deg" for case in names],
+        notes=[
+            [_mirrored_note(cases[case]["bugs"][bug]["mirrored_ratio"]) for case in names]
+            for bug in tangent_bugs.NAMES
+        ],
+        label=f"{lead} F - V (blue: lit too much)",
+    )
     return {"technique": lead, "cases": cases, "figure": "plots/bugs.png"}
 
 
-def _figure(path: Path, cases: dict, maps: dict, lead: str) -> None:
-    """Rows: the bugs; columns: the cases; each ``F - V`` at its case's signature light."""
-    # matplotlib: 0.6 s to import, paid only where a figure is drawn
-    import matplotlib as mpl
-    from matplotlib.figure import Figure
-
-    names = list(cases)
-    cmap = mpl.colormaps["RdBu"].with_extremes(bad="0.8")
-    fig = Figure(figsize=(2.4 * len(names) + 1.6, 2.2 * len(tangent_bugs.NAMES)), dpi=100)
-    axes = fig.subplots(len(tangent_bugs.NAMES), len(names), squeeze=False)
-    for j, case in enumerate(names):
-        axes[0, j].set_title(f"{case}, light {cases[case]['signature_azimuth_deg']:g} deg", fontsize=9)
-        for i, bug in enumerate(tangent_bugs.NAMES):
-            ax = axes[i, j]
-            im = ax.imshow(maps[case][bug], cmap=cmap, vmin=-1, vmax=1, interpolation="nearest")
-            ratio = cases[case]["bugs"][bug]["mirrored_ratio"]
-            if ratio is not None:
-                ax.text(0.02, 0.02, f"mirrored {ratio:.2f}x", transform=ax.transAxes, fontsize=7)
-            ax.set_xticks([]), ax.set_yticks([])
-            if j == 0:
-                ax.set_ylabel(bug, fontsize=9)
-    fig.colorbar(im, ax=axes, shrink=0.4, label=f"{lead} F - V (blue: lit too much)")
-    codecs.write_figure(path, fig)
+def _mirrored_note(ratio: float | None) -> str | None:
+    return None if ratio is None else f"mirrored {ratio:.2f}x"
 
 
 def page_context(bugs: dict) -> dict:
