@@ -2,9 +2,6 @@
 and the weight cube map, written to and read from a bake folder.
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("maps", "horizon", "exact"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -1,8 +1,5 @@
 """The ``hzval`` command: a thin layer that turns flags into the dataclasses the commands take."""
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("main",),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

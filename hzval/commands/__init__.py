@@ -6,23 +6,6 @@ frames scored (score), models of several curvatures (models), the truth as a Mit
 truth (fit) and the built-in materials (materials).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    (
-        "bake",
-        "check",
-        "export_scene",
-        "export_textures",
-        "fit",
-        "gates",
-        "materials",
-        "models",
-        "score",
-        "suite",
-        "sweep",
-        "tradeoff",
-        "views",
-    ),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

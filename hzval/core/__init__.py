@@ -4,20 +4,6 @@ colour), how a point turns light into radiance (shading), the Mitsuba/Dr.Jit var
 the subpackages' lazy re-exports. Nothing here imports another hzval subpackage.
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    (
-        "backend",
-        "conventions",
-        "cube",
-        "errors",
-        "exports",
-        "interrupts",
-        "resources",
-        "shading",
-        "srgb",
-        "strict",
-    ),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -5,9 +5,6 @@ texel grid (cells), the displaced model the truth traces (displace), and the eng
 bugs reproduced on purpose (tangent_bugs).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("cells", "displace", "gltf", "model", "tangent_bugs", "tangents", "tile"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -4,9 +4,6 @@ own horizon map and its convention (external), how a texture is stored for the G
 containers (ktx2), and the path rule for paths read from files (paths).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("codecs", "documents", "external", "heightmap", "ktx2", "paths", "staging", "atomic", "storage"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

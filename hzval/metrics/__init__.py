@@ -3,9 +3,6 @@
 (facing), and exposure found from brightness (brightness).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("brightness", "compare", "facing", "flip", "flip_colour"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -1,8 +1,5 @@
 """The sweep: the truth and every technique for every light of a scene, compared, written and reported."""
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("records", "renders", "sweep", "writing"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

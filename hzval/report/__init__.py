@@ -4,9 +4,6 @@ each metric's column, the technique views and the colours of the truth and each 
 ranked and its error against light elevation (ranking), and the Jinja templates.
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("columns", "figures", "images", "overview", "pages", "plots", "ranking"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -3,9 +3,6 @@
 and their signatures (bug_signatures; the matching is hzval.pipeline.bug_match).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("bug_signatures", "curvature_band", "seam_share"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

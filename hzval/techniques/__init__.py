@@ -7,25 +7,6 @@ Valve's self-shadowed bump maps (ssbump) and the bump-terminator term (terminato
 technique is a module and a line in the registry.
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    (
-        "cubemap",
-        "horizon",
-        "horizon_curved",
-        "pom",
-        "registry",
-        "surface",
-        "terrain",
-        "fitted",
-        "gl",
-        "perpixel",
-        "microshadow_filament",
-        "microshadow_hdrp",
-        "bent_cone",
-        "ssbump",
-        "terminator",
-    ),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -2,9 +2,6 @@
 band of rows at a time when the whole mesh would not fit (bands), and on a model (model).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("bands", "model", "plane"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -2,9 +2,6 @@
 the ``horizon-fit`` technique (horizon_fit).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("fit", "guard", "horizon_fit", "store", "training"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -2,9 +2,6 @@
 ``horizon-gl`` and ``pom-gl`` techniques (horizon_gl).
 """
 
-from hzval.core.exports import exports
+import lazy_loader
 
-__getattr__, __dir__ = exports(
-    __name__,
-    ("context", "horizon_gl"),
-)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -1,4 +1,5 @@
-"""hzval.core.exports: a subpackage's names re-exported on first use, a submodule imported alone."""
+"""Each subpackage re-exports its modules' public names on first use (lazy_loader, from its
+``__init__.pyi``), and a submodule asked of its package is imported alone."""
 
 from __future__ import annotations
 
@@ -9,8 +10,9 @@ from pathlib import Path
 import pytest
 
 from hzval import geometry, truth
+from tests import stubs
 
-PACKAGE = Path(__file__).resolve().parents[2] / "hzval"
+PACKAGE = Path(__file__).resolve().parents[1] / "hzval"
 
 
 def test_a_public_name_is_found_in_its_module():
@@ -19,6 +21,16 @@ def test_a_public_name_is_found_in_its_module():
     assert truth.Truth is Truth
     with pytest.raises(AttributeError):
         geometry.no_such_name  # noqa: B018
+
+
+def test_every_stub_is_current():
+    """Each ``__init__.pyi`` is what tests/stubs.py writes from the modules' ``__all__`` now."""
+    stale = [
+        str(p.relative_to(PACKAGE))
+        for p in stubs.packages()
+        if (p / "__init__.pyi").read_text() != stubs.stub(p)
+    ]
+    assert stale == [], "run python -m tests.stubs"
 
 
 def test_a_submodule_is_imported_alone():

@@ -1,0 +1,105 @@
+# Written by tests/stubs.py from each module's __all__ (python -m tests.stubs); do not edit.
+from . import backend, conventions, cube, errors, interrupts, resources, shading, srgb, strict
+from .backend import (
+    VARIANTS as VARIANTS,
+    dr as dr,
+    mi as mi,
+    MIN_LLVM_MAJOR as MIN_LLVM_MAJOR,
+    request as request,
+    prefer_working_llvm as prefer_working_llvm,
+    check_llvm as check_llvm,
+    variant as variant,
+    sync as sync,
+    release_memory as release_memory,
+    retain_freed_memory as retain_freed_memory,
+    hand_back_freed_memory as hand_back_freed_memory,
+    versions as versions,
+    host_cores as host_cores,
+    host_pool as host_pool,
+)
+from .conventions import (
+    normal_map as normal_map,
+    Boundary as Boundary,
+    BOUNDARIES as BOUNDARIES,
+    CHANNEL_COUNT as CHANNEL_COUNT,
+    CHANNEL_AZIMUTHS_DEG as CHANNEL_AZIMUTHS_DEG,
+    CHANNELS_PER_LAYER as CHANNELS_PER_LAYER,
+    DIRECTION_COUNTS as DIRECTION_COUNTS,
+    channel_azimuth_deg as channel_azimuth_deg,
+    channel_azimuths_deg as channel_azimuths_deg,
+    channels_per_radian as channels_per_radian,
+    layer_count as layer_count,
+    texel_centres as texel_centres,
+    bilinear_at as bilinear_at,
+    is_drjit as is_drjit,
+    tangent_to_uv as tangent_to_uv,
+    tangent_to_pixel_offset as tangent_to_pixel_offset,
+    pixel_to_tangent_offset as pixel_to_tangent_offset,
+    MAX_DEPTH as MAX_DEPTH,
+    MAX_DEPTH_OPEN as MAX_DEPTH_OPEN,
+    check_depth as check_depth,
+    check_relief as check_relief,
+    height_scale as height_scale,
+    heights_in_texels as heights_in_texels,
+    pad_heights as pad_heights,
+    height_gradient as height_gradient,
+    light_direction as light_direction,
+    azimuth_of as azimuth_of,
+    channel_layer as channel_layer,
+    channel_weights as channel_weights,
+)
+from .cube import (
+    CUBE_FACES as CUBE_FACES,
+    cube_texel_directions as cube_texel_directions,
+    cube_lookup as cube_lookup,
+    encode_signed_weight as encode_signed_weight,
+)
+from .errors import (
+    first_line as first_line,
+    EXIT_OK as EXIT_OK,
+    EXIT_CHECK_FAILED as EXIT_CHECK_FAILED,
+    EXIT_BAD_INPUT as EXIT_BAD_INPUT,
+    EXIT_ENVIRONMENT as EXIT_ENVIRONMENT,
+    HzvalError as HzvalError,
+    InputError as InputError,
+    EnvironmentProblem as EnvironmentProblem,
+    Interrupted as Interrupted,
+    interruption as interruption,
+)
+from .interrupts import (
+    HELD as HELD,
+    terminate_as_interrupt as terminate_as_interrupt,
+    unwrapped as unwrapped,
+    held as held,
+    cases as cases,
+    command as command,
+)
+from .resources import (
+    GIB as GIB,
+    available_bytes as available_bytes,
+    refuse_over as refuse_over,
+)
+from .shading import (
+    SPECULAR_KS as SPECULAR_KS,
+    SPECULAR_EXPONENT as SPECULAR_EXPONENT,
+    SKY_RADIANCE_PER_IRRADIANCE as SKY_RADIANCE_PER_IRRADIANCE,
+    exposure as exposure,
+    max_radiance as max_radiance,
+    disk_sample_irradiance as disk_sample_irradiance,
+    direct as direct,
+    sky as sky,
+    compose as compose,
+    ipow as ipow,
+)
+from .srgb import (
+    decode as decode,
+    encode as encode,
+    luminance_weights as luminance_weights,
+)
+from .strict import (
+    check_keys as check_keys,
+    check_value as check_value,
+    check_table as check_table,
+    schema_of as schema_of,
+    describe as describe,
+)
