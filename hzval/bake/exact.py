@@ -127,9 +127,8 @@ def _sweep_numpy(h: np.ndarray, lines: SweepLines) -> np.ndarray:
 
     The same sweep as :func:`_sweep_drjit`, vectorised across lines: the
     Python loop runs over positions, and the stack walk is masked to the lines
-    that still pop. Used where Dr.Jit's LLVM backend is missing; about 40x
-    slower than the kernel at 512 x 512 on this 2-core machine
-    (``benchmarks/bench_horizon_methods.py``).
+    that still pop. Used where Dr.Jit's LLVM backend is missing; far slower than the kernel
+    (``benchmarks/bench_horizon_methods.py`` measures both).
     """
     rows, cols = h.shape
     flat = h.ravel()

@@ -434,11 +434,9 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     cube = weight_cube() if full and result.directions == cv.CHANNEL_COUNT else None
     layers = layers if full else ()
 
-    # Writing dominated a 2048x2048 bake: zlib runs at ~35 MB/s here, and
-    # ZIP shrinks float32 horizon data by 8% and 8-bit layers by 12%. So bake
-    # outputs are stored uncompressed (write time 2.8 s -> ~1.2 s), and the
-    # files are written on a thread per core: the encoders release the GIL
-    # (1.2 s -> 0.7 s at 2048 on 2 cores).
+    # Writing dominated a large bake, and compression gained little on horizon data: the outputs are
+    # stored uncompressed, on a thread per core (the encoders release the GIL). docs/internals.md,
+    # "Measurements the code rests on", has the figures.
     jobs = []
 
     def exr(name, channels):

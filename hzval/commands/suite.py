@@ -208,8 +208,8 @@ def estimate_peak_bytes(entry: Entry) -> int:
 
 
 def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:
-    """Workers for this machine: one per core (each then runs Dr.Jit and FLIP on one thread: on this
-    2-core machine two workers swept the built-in suite in 260 s, one worker on both cores in 280 s),
+    """Workers for this machine: one per core (each then runs Dr.Jit and FLIP on one thread, which
+    swept the built-in suite faster than one worker on every core: docs/internals.md),
     no more than there are materials, and no more than fit in 80% of the available memory beside
     each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
     cores = (os.cpu_count() or 1) if cores is None else cores

@@ -237,10 +237,9 @@ def retain_freed_memory() -> bool:
     Why: glibc maps every allocation above 32 MB (a 2048 x 2048 RGB image in float32 is 48 MB) on
     its own and unmaps it when freed, so the next one is pages new to the process, which the kernel
     zeroes (and a virtual machine's host may have to provide) at 1-3 s of system time per GB here.
-    A sweep makes and drops such images in every frame. Measured on this 2-core machine (a 2048
-    sweep of five lights, horizon and terrain, run after run): compare 9.8-9.9 s against 12.3-13.1
-    s, the techniques' frames 6.6-7.1 s against 8.9-9.0 s, the whole run 51.5-55.5 s against
-    58.4-68.8 s, for 0.7 GB more peak memory. :func:`hzval.pipeline.sweep.run` asks for it where its
+    A sweep makes and drops such images in every frame; keeping them saves about a tenth of a large
+    sweep for more peak memory (docs/internals.md, "Measurements the code rests on").
+    :func:`hzval.pipeline.sweep.run` asks for it where its
     estimated peak is a small part of what is available (:data:`hzval.truth.memory.RETAIN_BELOW_SHARE`)."""
     global _retaining
     fns = _mallopt()
