@@ -1,7 +1,7 @@
-"""The foundations every layer stands on: the conventions (axes, directions, height scale, boundaries,
-colour), how a point turns light into radiance (shading), the Mitsuba/Dr.Jit variant and its LLVM
-(backend), the errors and exit codes, interrupts, strict TOML reading, memory plans (resources) and
-the subpackages' lazy re-exports. Nothing here imports another hzval subpackage.
+"""The foundations every layer stands on: the conventions (axes, directions, height scale, boundaries),
+the sRGB encodings (srgb), how a point turns light into radiance (shading), the Mitsuba/Dr.Jit
+variant and its LLVM (backend), the errors and exit codes, interrupts, strict TOML reading, memory
+plans (resources) and the cube's face layout (cube). Nothing here imports another hzval subpackage.
 """
 
 import lazy_loader

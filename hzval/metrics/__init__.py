@@ -1,6 +1,7 @@
 """Scores of a frame against the truth: mean |F - V|, leaks, false shadows, RMSE, PSNR, CIEDE2000
-(compare), FLIP in Dr.Jit (flip), what a frame has to shadow and scores over light-facing pixels
-(facing), and exposure found from brightness (brightness).
+(compare), FLIP in Dr.Jit (flip, its colour steps flip_colour), what a frame has to shadow and
+scores over light-facing pixels (facing), exposure found from brightness (brightness), and a run's
+result read as typed records (results).
 """
 
 import lazy_loader

@@ -110,6 +110,11 @@ class TechniqueInfo(_Record):
         super().__init__(record)
         self.name = name
 
+    @classmethod
+    def of(cls, record: Mapping[str, Any] | None) -> Self:
+        """Refused: a technique's record needs its name (``TechniqueInfo(name, record)``)."""
+        raise TypeError("TechniqueInfo needs its name: TechniqueInfo(name, record)")
+
     @property
     def label(self) -> str:
         """Its name in tables and plots."""

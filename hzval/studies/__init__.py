@@ -1,6 +1,6 @@
-"""Studies whose numbers the docs quote: what models cost (models), curvature at fixed light elevation
-(curvature_band), the share of error at seams (seam_share), and the tangent-frame bugs' signatures
-and their signatures (bug_signatures; the matching is hzval.pipeline.bug_match).
+"""Studies whose numbers the docs quote: curvature at fixed light elevation (curvature_band), the
+share of error at seams (seam_share) and the tangent-frame bugs' signatures (bug_signatures; the
+matching is hzval.pipeline.bug_match, the models' study hzval.commands.models).
 """
 
 import lazy_loader
