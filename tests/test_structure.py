@@ -344,10 +344,14 @@ def test_imports_sit_at_the_top_and_a_late_one_says_why():
 
 
 def test_the_cli_imports_no_renderer_before_it_chooses_the_llvm():
-    """Dr.Jit reads DRJIT_LIBLLVM_PATH when first imported: importing the CLI must not load it."""
+    """Dr.Jit reads DRJIT_LIBLLVM_PATH when first imported: importing the CLI, or the library's modules
+    (hzval.core.backend's dr and mi load it at first use), must not load it."""
     import subprocess
     import sys
 
-    probe = "import sys, hzval.cli.main; print(sorted({'drjit', 'mitsuba', 'matplotlib'} & set(sys.modules)))"
+    probe = (
+        "import sys, hzval.cli.main, hzval.scene.spec, hzval.bake.maps, hzval.metrics.compare, "
+        "hzval.truth.plane; print(sorted({'drjit', 'mitsuba', 'matplotlib'} & set(sys.modules)))"
+    )
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == "[]"

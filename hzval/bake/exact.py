@@ -12,10 +12,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import drjit as dr
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core.backend import dr  # Dr.Jit loads at first use, once the LLVM is chosen
 
 __all__ = ["CHANNEL_STEPS", "SweepLines", "sweep_lines", "ambient_from_sines", "exact_horizon_map"]
 

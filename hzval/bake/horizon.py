@@ -25,11 +25,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 
 __all__ = [
     "TEXEL_HALF_EXTENT",

@@ -12,13 +12,13 @@ import dataclasses
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-import mitsuba as mi
 import numpy as np
 from PIL import Image
 
 from hzval import materials
 from hzval.bake.maps import BakeParams
 from hzval.core import backend, errors, resources, srgb
+from hzval.core.backend import mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.errors import InputError
 from hzval.geometry import gltf, model
 from hzval.geometry import tile as mesh

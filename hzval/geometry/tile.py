@@ -31,11 +31,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
 from hzval.core import errors, resources
+from hzval.core.backend import mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
 from hzval.io import atomic

@@ -33,12 +33,11 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-import drjit as dr
 import flip_evaluator
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend, srgb
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.errors import HzvalError
 from hzval.io import codecs
 from hzval.metrics import flip as hzflip

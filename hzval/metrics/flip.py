@@ -22,11 +22,10 @@ import functools
 import math
 from dataclasses import dataclass
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.metrics.flip_colour import (
     DEFAULT_PPD,
     GAUSS_A1,

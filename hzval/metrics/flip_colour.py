@@ -4,10 +4,10 @@ CIELAB, the Hunt adjustment and the HyAB distance (docs/flip.md)."""
 
 from __future__ import annotations
 
-import drjit as dr
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core.backend import dr  # Dr.Jit loads at first use, once the LLVM is chosen
 
 __all__ = [
     "f32",

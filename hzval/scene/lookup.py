@@ -42,11 +42,10 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.errors import InputError
 from hzval.scene.camera import sample_positions
 

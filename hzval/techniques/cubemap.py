@@ -30,8 +30,7 @@ Without seamless filtering a GPU clamps to the face's edge texels
 
 from __future__ import annotations
 
-import drjit as dr
-import mitsuba as mi
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 
 __all__ = ["FACE_AXES", "face_coordinates", "bilinear"]
 

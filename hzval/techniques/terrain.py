@@ -20,12 +20,11 @@ import math
 import time
 from dataclasses import dataclass
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
 from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.errors import InputError
 from hzval.scene import lookup
 from hzval.scene.spec import Frame, Scene, image_shape

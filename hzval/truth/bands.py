@@ -32,10 +32,10 @@ from __future__ import annotations
 
 import math
 
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
+from hzval.core.backend import mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.geometry import tile as mesh
 
 __all__ = [

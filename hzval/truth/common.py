@@ -9,11 +9,10 @@ import dataclasses
 import math
 from typing import Protocol, runtime_checkable
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.errors import InputError
 from hzval.core.shading import SPECULAR_EXPONENT, SPECULAR_KS
 from hzval.scene.spec import Frame, Scene, load_albedo

@@ -8,12 +8,11 @@ from __future__ import annotations
 import math
 import time
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend, resources, shading
 from hzval.core import conventions as cv
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
 from hzval.geometry import tile as mesh

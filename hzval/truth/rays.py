@@ -7,11 +7,10 @@ from __future__ import annotations
 import math
 import time
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from hzval.core import backend
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.shading import SKY_RADIANCE_PER_IRRADIANCE
 from hzval.scene.camera import sample_positions
 from hzval.truth import bands as truth_bands

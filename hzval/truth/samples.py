@@ -6,9 +6,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
+
+from hzval.core.backend import dr, mi  # Dr.Jit loads at first use, once the LLVM is chosen
 
 __all__ = [
     "KEEP_SAMPLES",
