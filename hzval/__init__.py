@@ -39,7 +39,8 @@ def init(variant: str | None = None) -> str:
     """Choose, once, the LLVM library Dr.Jit's CPU backend loads and the Mitsuba variant hzval
     renders with (:func:`hzval.core.backend.prefer_working_llvm`, :func:`hzval.core.backend.variant`);
     return the variant. Call it before anything imports Dr.Jit: Dr.Jit reads
-    ``DRJIT_LIBLLVM_PATH`` when it is first imported."""
+    ``DRJIT_LIBLLVM_PATH`` when it is first imported.
+    """
     # importing hzval changes nothing: the backend loads when init runs
     from hzval.core import backend
 

@@ -78,7 +78,7 @@ class SweepLines:
 
 
 def sweep_lines(rows: int, cols: int, channel: int, boundary: str) -> SweepLines:
-    """The lines of channel ``channel`` (0..7) on a ``rows x cols`` map (:class:`SweepLines`)."""
+    """Return the lines of channel ``channel`` (0..7) on a ``rows x cols`` map (:class:`SweepLines`)."""
     dx, dy = CHANNEL_STEPS[channel]
     drow, dcol = cv.tangent_to_pixel_offset(dx, dy)
     if boundary == "wrap":
@@ -345,7 +345,8 @@ def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray
     """:func:`exact_horizon_map` on Dr.Jit's LLVM backend: one sweep kernel per
     channel into one interleaved buffer, then one kernel for the ambient terms
     (:func:`ambient_from_sines`'s formulas; 10x faster than NumPy's strided
-    passes over the 8 channels at 2048 x 2048)."""
+    passes over the 8 channels at 2048 x 2048).
+    """
     # the LLVM backend's types: this kernel maps NumPy memory, which only LLVM can
     from drjit.llvm import Float, UInt32
 

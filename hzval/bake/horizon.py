@@ -66,7 +66,7 @@ class OffsetGroup:
 
 
 def horizon_table(radius: int, angles: int) -> list[OffsetGroup]:
-    """The seed's offset-to-bins table, grouped by the bins each offset covers.
+    """Return the seed's offset-to-bins table, grouped by the bins each offset covers.
 
     Computed in float32 exactly as the seed's C code does (``atan2f``,
     ``atanf``, ``floorf``/``ceilf`` of ``(direction -+ delta) * angles / 2pi``),
@@ -122,7 +122,7 @@ LOOP_RUN_NS = 1.5
 
 
 def choose_kernel(offsets: int, lanes: int) -> str:
-    """The kernel form that :func:`horizon_map` uses by default (``kernel="auto"``).
+    """Return the kernel form that :func:`horizon_map` uses by default (``kernel="auto"``).
 
     ``offsets``: entries of the offset table (:func:`horizon_table`);
     ``lanes``: texels of the padded rows, ``rows * (cols + 2 (radius - 1))``.
@@ -141,8 +141,9 @@ def choose_kernel(offsets: int, lanes: int) -> str:
 
 
 def kernel_for(rows: int, cols: int, radius: int, angles: int) -> str:
-    """The kernel form :func:`horizon_map` takes by default for a ``rows x cols`` map
-    (:func:`choose_kernel` on its offset table and its lanes, the padded rows)."""
+    """Return the kernel form :func:`horizon_map` takes by default for a ``rows x cols`` map
+    (:func:`choose_kernel` on its offset table and its lanes, the padded rows).
+    """
     offsets = sum(len(g.offsets) for g in horizon_table(radius, angles))
     return choose_kernel(offsets, rows * (cols + 2 * (radius - 1)))
 
@@ -185,7 +186,6 @@ def horizon_map(
         :func:`choose_kernel`: unrolled up to :data:`UNROLL_MAX_OFFSETS`
         offsets (the default radius 16), else the faster first bake.
     """
-
     if kernel not in KERNELS:
         raise ValueError(f"unknown kernel form {kernel!r}; available: {', '.join(KERNELS)}")
     if directions not in cv.DIRECTION_COUNTS or angles % (2 * directions):
@@ -230,8 +230,8 @@ def _max_tan_unrolled(
 ) -> list:
     """Per bin, the largest ``tan = dh / r`` of the offsets it covers: one block of code per
     offset group, neighbours read as zero-copy shifted views on the LLVM backend (contiguous
-    loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation."""
-
+    loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation.
+    """
     if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
 
         def neighbour(shift: int):
@@ -261,8 +261,8 @@ def _max_tan_unrolled(
 def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object, object]:
     """``(channels, mean_cos, mean_cos2)`` from the bins' largest tangents: ``sin = sqrt(t^2 /
     (t^2 + 1))``, each channel the mean of the ``angles / D + 1`` bins centred on it, and the
-    ambient terms' means over all bins."""
-
+    ambient terms' means over all bins.
+    """
     cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]  # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))
     half = angles // (2 * directions)  # each channel: 2 half + 1 = angles / D + 1 bins
@@ -281,7 +281,7 @@ def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object
 def _max_tan_loop(
     source, start: int, lanes: int, table: list[OffsetGroup], angles: int, shift_of, lift: float = 0.0
 ) -> list:
-    """The ``angles`` per-bin maxima of ``tan`` (>= 0) by symbolic Dr.Jit loops over ``table``.
+    """Return the ``angles`` per-bin maxima of ``tan`` (>= 0) by symbolic Dr.Jit loops over ``table``.
 
     ``source`` is the flat padded map (:func:`horizon_map`), lane ``l`` the
     texel at flat index ``start + l``, ``shift_of(i, j)`` the flat shift of
@@ -303,7 +303,6 @@ def _max_tan_loop(
     Every value is the same float32 ``(h_n - h_0) * (1/r)`` and max is exact
     and order-free, so the result equals the unrolled kernel's bit for bit.
     """
-
     pairs, group_first, group_end, bin_first, bin_end, bins = [], [], [], [], [], []
     for group in table:
         group_first.append(len(pairs))

@@ -153,7 +153,7 @@ class BakeParams:
         return self
 
     def record(self) -> dict:
-        """The parameters as ``bake.json`` records them (and the bake cache compares).
+        """Return the parameters as ``bake.json`` records them (and the bake cache compares).
 
         The ``exact`` method has no search radius and no angular bins: it
         records ``radius`` and ``angles`` as ``None`` rather than values it
@@ -166,10 +166,11 @@ class BakeParams:
 
     @classmethod
     def from_record(cls, record: dict) -> "BakeParams":
-        """The inverse of :meth:`record` (``None`` entries take the defaults).
+        """Return the inverse of :meth:`record` (``None`` entries take the defaults).
 
         A record without ``directions`` (written before it existed) is a
-        bake of the seed's 8 directions."""
+        bake of the seed's 8 directions.
+        """
         return cls(**{k: v for k, v in record.items() if v is not None})
 
     @staticmethod
@@ -178,7 +179,8 @@ class BakeParams:
         ``ssbump_lift`` 0.
 
         The bake cache compares records, and a ``bake.json`` from before either existed holds an
-        8-direction bake whose self-shadowed bump map was not lifted."""
+        8-direction bake whose self-shadowed bump map was not lifted.
+        """
         return {"directions": cv.CHANNEL_COUNT, "ssbump_lift": 0.0, **record}
 
 
@@ -227,9 +229,10 @@ class Bake:
         return tuple(self.horizon[..., n * i : n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
     def checked(self) -> "Bake":
-        """This bake, once every map is finite and every normal a unit vector; else one line naming
+        """Return this bake once every map is finite and every normal a unit vector; else one line naming
         the map, how many texels are wrong, and ``--depth``. No bake with a NaN, an infinity or a
-        zero normal is used or written."""
+        zero normal is used or written.
+        """
         maps = {  # by the files they are written to
             "horizon*.exr": self.horizon,
             "normal.exr": self.normal,
@@ -255,9 +258,10 @@ class Bake:
 
 
 def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
-    """A :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``):
+    """Return a :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``):
     the unshadowed shading of a technique that reads no horizon map, built
-    without the horizon bake's cost. ``height`` normalised, ``(rows, cols)``."""
+    without the horizon bake's cost. ``height`` normalised, ``(rows, cols)``.
+    """
     h = cv.heights_in_texels(height, depth)
     return Bake(
         params=BakeParams(depth=depth, boundary=boundary),
@@ -279,7 +283,7 @@ def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
 
 
 def weight_cube(size: int | None = None) -> np.ndarray:
-    """The 8-bit channel-weight cube map, ``(6, size, size, 4)`` uint8, OpenGL face order.
+    """Return the 8-bit channel-weight cube map, ``(6, size, size, 4)`` uint8, OpenGL face order.
 
     Component ``c`` of a texel holds the weight of channel ``c`` (positive)
     or of channel ``c + 4`` (negative: at most one of the two is non-zero),
@@ -318,7 +322,6 @@ def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
 
 def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
     """Raise :class:`InputError` naming ``what`` if the bake would not fit in memory."""
-
     resources.refuse_over(what, estimate_bytes(rows, cols, params), f"a {cols}x{rows} bake", "a smaller map")
 
 
@@ -345,7 +348,8 @@ OCCLUSION: tuple[str, ...] = ("bent_normal", "ssbump_map")
 def needs_occlusion(needs) -> bool:
     """Whether bake needs ``needs`` call for the directional occlusion (the bent normals and the
     self-shadowed bump map): at 2048 x 2048 they take 3.5 s of a 4.4 s bake, so a sweep whose
-    techniques read neither bakes without them."""
+    techniques read neither bakes without them.
+    """
     return bool(set(OCCLUSION) & set(needs))
 
 
@@ -356,7 +360,8 @@ def _without_occlusion() -> tuple[str, ...]:
 def needs_horizon(needs) -> bool:
     """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
     bake: the horizon map, and the ambient maps and directional occlusion, which are made from its
-    sines."""
+    sines.
+    """
     return bool({"horizon_map", "ambient", *OCCLUSION} & set(needs))
 
 
@@ -365,8 +370,8 @@ def bake(
 ) -> Bake:
     """Bake a normalised height map ``H[row, col]`` into the technique's textures; ``horizon=False``:
     the normal map alone (:func:`normals_only`), without the horizon bake's cost; ``occlusion=False``:
-    without the directional occlusion (:func:`needs_occlusion`)."""
-
+    without the directional occlusion (:func:`needs_occlusion`).
+    """
     params.validate()
     cv.check_relief(height, params.depth, params.boundary)
     if not horizon:
@@ -404,8 +409,9 @@ def bake(
 
 
 def _ssbump_horizon(h: np.ndarray, horizon: np.ndarray, params: BakeParams) -> np.ndarray:
-    """The horizons the self-shadowed bump map is made from: ``horizon`` itself without a lift, else
-    the seed's sweep from origins raised by ``params.ssbump_lift`` texels (:class:`BakeParams`)."""
+    """Return the horizons the self-shadowed bump map is made from: ``horizon`` itself without a lift, else
+    the seed's sweep from origins raised by ``params.ssbump_lift`` texels (:class:`BakeParams`).
+    """
     if params.ssbump_lift == 0.0:
         return horizon
     d = BakeParams()
@@ -424,7 +430,6 @@ def write_bake(result: Bake, out: str | Path, *, input_info: dict) -> list[Path]
     ``.png``), channels ``4 l .. 4 l + 3`` in layer ``l``; the weight cube
     map only for 8 directions (it holds Lengyel's 8 channel weights).
     """
-
     t0 = time.perf_counter()
     result.checked()
     layers = result.layers if result.horizon is not None else ()
@@ -512,7 +517,8 @@ def _normal_record(params: BakeParams) -> dict:
 def _output_notes(directions: int, full: bool = True, occluded: bool = True) -> dict:
     """``bake.json``'s description of the files of a ``directions``-channel bake (``full``: with the
     horizon and ambient maps, ``occluded``: and the directional occlusion; else the normal map
-    alone)."""
+    alone).
+    """
     n = cv.CHANNELS_PER_LAYER
     notes = {}
     if not full:
@@ -547,8 +553,8 @@ def read_bake(folder: str | Path) -> Bake:
     """Read a bake written by :func:`write_bake` back from its EXR files (exact float32).
 
     The number of horizon layers follows the recorded ``directions`` (8,
-    i.e. ``horizon0``-``horizon1``, when ``bake.json`` predates it)."""
-
+    i.e. ``horizon0``-``horizon1``, when ``bake.json`` predates it).
+    """
     folder = Path(folder)
     record = json.loads((folder / "bake.json").read_text())
     params = BakeParams.from_record(BakeParams.normalise_record(record["parameters"]))
@@ -602,7 +608,6 @@ def cached_bake(
     anew, with one line saying why appended to ``notices``. ``write_to``: where a new bake is
     written (default ``folder``): a sweep stages it, so that a failed run leaves the old bake.
     """
-
     folder = Path(folder)
 
     try:
@@ -634,8 +639,9 @@ def cached_bake(
 
 
 def _damaged_file(folder: Path, digests, digest_of) -> str | None:
-    """The first cache file whose digest differs from the record (or is missing); ``None`` if all
-    agree. A record without digests names ``bake.json`` itself."""
+    """Return the first cache file whose digest differs from the record (or is missing); ``None`` if all
+    agree. A record without digests names ``bake.json`` itself.
+    """
     if not isinstance(digests, dict) or not digests:
         return str(folder / "bake.json") + " (no file digests)"
 

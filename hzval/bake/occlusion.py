@@ -67,12 +67,13 @@ BYTES_PER_TEXEL = 112
 
 def _channel(sines: np.ndarray, k: int) -> np.ndarray:
     """Channel ``k`` of the horizon sines, clipped to [0, 1] (one channel at a time: no copy of the
-    whole map)."""
+    whole map).
+    """
     return np.clip(np.asarray(sines[..., k], np.float32), 0.0, 1.0)
 
 
 def bent_normal(sines: np.ndarray) -> np.ndarray:
-    """The bent normal of each texel (module docstring).
+    """Return the bent normal of each texel (module docstring).
 
     Parameters
     ----------
@@ -99,7 +100,7 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
 
 
 def uniform_ao(sines: np.ndarray) -> np.ndarray:
-    """The open share of the hemisphere's solid angle, counted uniformly (Oat & Sander 2007's
+    """Return the open share of the hemisphere's solid angle, counted uniformly (Oat & Sander 2007's
     visibility, not the cosine-weighted AO): per azimuth wedge ``int_alpha^(pi/2) cos t dt = 1 - s``,
     so ``mean_k (1 - s_k)``; ``(rows, cols)`` float32 in [0, 1].
 
@@ -118,7 +119,7 @@ def uniform_ao(sines: np.ndarray) -> np.ndarray:
 
 
 def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
-    """The plain (solid-angle) average of the open directions, normalised (Oat & Sander 2007's bent
+    """Return the plain (solid-angle) average of the open directions, normalised (Oat & Sander 2007's bent
     normal): per azimuth ``phi``, with ``alpha = asin s``, ``int_alpha^(pi/2) (cos t cos phi,
     cos t sin phi, sin t) cos t dt = ((pi/4 - alpha/2 - sin(2 alpha)/4) (cos phi, sin phi),
     (1 - s^2) / 2)``; ``(rows, cols, 3)`` float32, ``+z`` where nothing is open.
@@ -141,7 +142,8 @@ def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
 def _mean_direction(sines: np.ndarray, side, up, closed_below: float = 0.0) -> np.ndarray:
     """``sum_k (side(s_k) (cos phi_k, sin phi_k), up(s_k))`` over the ``D`` azimuths, normalised;
     ``+z`` where its length is at most ``closed_below`` (a texel closed on every side: its AO is 0,
-    and a cone about any axis is empty). ``(rows, cols, 3)`` float32."""
+    and a cone about any axis is empty). ``(rows, cols, 3)`` float32.
+    """
     sines = np.asarray(sines)
     D = sines.shape[-1]
     out = np.zeros((*sines.shape[:-1], 3), np.float32)
@@ -168,7 +170,8 @@ def _G(p: float, bz: float, t):
 def _shares(p: float, bz: float, alpha) -> tuple[float, np.ndarray]:
     """``(whole, lost)``: the weighted share of one azimuth's upward directions about ``b`` (where
     ``p cos t + bz sin t > 0``), and the part of it below the horizon ``alpha``; ``lost`` is exactly 0
-    where nothing is, so an open texel's share is exactly whole."""
+    where nothing is, so an open texel's share is exactly whole.
+    """
     start = max(0.0, -math.atan2(p, bz))  # where the weight turns positive
     whole = max(float(_G(p, bz, math.pi / 2.0) - _G(p, bz, start)), 0.0)
     top = np.maximum(alpha, np.float32(start))
@@ -218,7 +221,8 @@ def self_shadowed_bump(sines: np.ndarray, normal: np.ndarray, pool=None) -> np.n
 
 def _ssbump_channel(sines: np.ndarray, n: np.ndarray, b: np.ndarray) -> np.ndarray:
     """One channel of :func:`self_shadowed_bump`, the basis vector ``b``'s: ``max(0, n . b)`` times
-    the share of its weighted hemisphere that the horizons leave open, ``(rows, cols)`` float32."""
+    the share of its weighted hemisphere that the horizons leave open, ``(rows, cols)`` float32.
+    """
     D = sines.shape[-1]
     lost = np.zeros(sines.shape[:-1], np.float32)
     whole = 0.0

@@ -28,7 +28,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake the material of ``args`` into ``--out``; one line of figures."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import bake as bake_command
 

@@ -1,5 +1,6 @@
 """``hzval check``: the shipped scenes against ``reference/``, the CI regression
-(:mod:`hzval.commands.check`)."""
+(:mod:`hzval.commands.check`).
+"""
 
 from __future__ import annotations
 

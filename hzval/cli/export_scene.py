@@ -1,5 +1,6 @@
 """``hzval export-scene``: the truth of one light as a Mitsuba 3 scene file
-(:mod:`hzval.commands.export_scene`)."""
+(:mod:`hzval.commands.export_scene`).
+"""
 
 from __future__ import annotations
 
@@ -54,7 +55,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Write the scene of ``args``'s light ``--azimuth`` into ``--out``."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import export_scene
     from hzval.scene import spec as sc
@@ -74,8 +74,8 @@ def run(args) -> int:
 
 def _mitsuba() -> str:
     """Mitsuba's command as this hzval can run it: the one beside this Python (a virtualenv's
-    ``bin/``, which need not be on PATH), relative to the working folder where it is below it."""
-
+    ``bin/``, which need not be on PATH), relative to the working folder where it is below it.
+    """
     beside = Path(sys.executable).parent / "mitsuba"
     if not beside.is_file():
         return shutil.which("mitsuba") or "mitsuba"

@@ -1,5 +1,6 @@
 """``hzval fit``'s flags: a technique's textures fitted to the truth, the representation's floor
-(:mod:`hzval.commands.fit`)."""
+(:mod:`hzval.commands.fit`).
+"""
 
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ HORIZON_FLAGS = ("--k", "--fit-k", "--storage", "--guard")
 
 def add_parser(sub) -> None:
     """``hzval fit``: the best textures of a technique (:mod:`hzval.commands.fit`)."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
     from hzval.commands import fit as fit_command
@@ -117,7 +117,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Bake, fit, write; one line of figures."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import fit as fit_command
     from hzval.techniques.fitted import training as fitted_training
@@ -161,7 +160,6 @@ def run(args) -> int:
 
 def _check_flags(args) -> None:
     """Refuse a bad value, and a horizon-only flag given to another technique's fit."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import fit as fit_command
 
@@ -192,8 +190,8 @@ def _horizon_options(args) -> dict:
 
 def _technique_options(args) -> dict:
     """:func:`hzval.techniques.fitted.textures.fit_textures`'s keywords, the technique's settings from
-    its own flags."""
-
+    its own flags.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 

@@ -61,8 +61,8 @@ def add_material_args(p: argparse.ArgumentParser, default_size: int | None = Non
 
 def add_technique_args(p: argparse.ArgumentParser) -> None:
     """``--techniques``, a ``--no-NAME`` for each technique, and each technique's
-    own options (:meth:`hzval.techniques.registry.Technique.add_arguments`), from the registry."""
-
+    own options (:meth:`hzval.techniques.registry.Technique.add_arguments`), from the registry.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
@@ -90,8 +90,7 @@ def add_technique_args(p: argparse.ArgumentParser) -> None:
 
 
 def add_bake_flags(p: argparse.ArgumentParser) -> None:
-    """The horizon bake's flags (:class:`hzval.bake.maps.BakeParams`, whose defaults they show)."""
-
+    """Add the horizon bake's flags (:class:`hzval.bake.maps.BakeParams`, whose defaults they show)."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
 
@@ -161,9 +160,9 @@ def add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
 
 
 def add_sweep_flags(p: argparse.ArgumentParser) -> None:
-    """The light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
-    defaults those of :class:`hzval.scene.spec.Scene`."""
-
+    """Add the light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
+    defaults those of :class:`hzval.scene.spec.Scene`.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -225,7 +224,7 @@ def add_sweep_flags(p: argparse.ArgumentParser) -> None:
 
 
 def add_mesh_flags(p: argparse.ArgumentParser) -> None:
-    """The surface the material is on (:mod:`hzval.geometry.model`)."""
+    """Add the flags of the surface the material is on (:mod:`hzval.geometry.model`)."""
     g = p.add_argument_group("mesh", "the surface the material is on (docs/meshes.md)")
     g.add_argument(
         "--mesh",
@@ -267,7 +266,6 @@ def add_mesh_flags(p: argparse.ArgumentParser) -> None:
 
 def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
     """``--truth-tolerance``: how closely the truth's triangles follow the bilinear surface."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.geometry import tile as mesh
 
@@ -283,9 +281,9 @@ def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
 
 
 def add_view_flags(p: argparse.ArgumentParser) -> None:
-    """The camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
-    :mod:`hzval.scene.lookup`)."""
-
+    """Add the camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
+    :mod:`hzval.scene.lookup`).
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import lookup
 
@@ -365,7 +363,7 @@ def scene_module():
 
 
 def light_default():
-    """The default light (:class:`hzval.scene.spec.Light`), whose values the help texts show."""
+    """Return the default light (:class:`hzval.scene.spec.Light`), whose values the help texts show."""
     return scene_module().Light()
 
 
@@ -394,8 +392,8 @@ def truth_tolerance(args):
 
 def technique_options(args) -> dict:
     """``sweep.Options`` keywords of the technique options, each checked, an error naming the flag
-    as typed (:func:`hzval.techniques.registry.flag_errors`)."""
-
+    as typed (:func:`hzval.techniques.registry.flag_errors`).
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
     from hzval.techniques import registry as technique
@@ -422,8 +420,8 @@ def technique_options(args) -> dict:
 
 def check_technique_flags(args, names) -> None:
     """Refuse a technique's flag given to a run that leaves out every technique that reads it
-    (``names``: the run's): ``--horizon-map`` with ``--techniques pom`` was ignored in silence."""
-
+    (``names``: the run's): ``--horizon-map`` with ``--techniques pom`` was ignored in silence.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 
@@ -442,8 +440,7 @@ def check_technique_flags(args, names) -> None:
 
 
 def sweep_options(args):
-    """The :class:`hzval.pipeline.sweep.Options` of the sweep flags."""
-
+    """Return the :class:`hzval.pipeline.sweep.Options` of the sweep flags."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.pipeline import sweep
 
@@ -459,8 +456,7 @@ def sweep_options(args):
 
 
 def gates(args):
-    """The :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
-
+    """Return the :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import gates
 
@@ -471,7 +467,8 @@ def gates(args):
 
 def gate_exit(record: dict | None) -> int:
     """Print a run's gates (``metrics.json``'s ``gates``), each failure and each error on one line; exit 2
-    where any could not be evaluated (``errors``), else 1 where any failed."""
+    where any could not be evaluated (``errors``), else 1 where any failed.
+    """
     record = record or {}
     failed = record.get("failed", [])
     for line in failed:
@@ -484,9 +481,9 @@ def gate_exit(record: dict | None) -> int:
 
 
 def bake_params(args, scene):
-    """The :class:`hzval.bake.maps.BakeParams` of the bake flags (:func:`add_bake_flags`) on ``scene``'s
-    material (its depth and boundary: HEIGHT's sidecar's where it has one), checked."""
-
+    """Return the :class:`hzval.bake.maps.BakeParams` of the bake flags (:func:`add_bake_flags`) on ``scene``'s
+    material (its depth and boundary: HEIGHT's sidecar's where it has one), checked.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
 
@@ -503,17 +500,16 @@ def bake_params(args, scene):
 
 
 def print_notes(args) -> None:
-    """The notes the flags' scene left for the end of a run (:func:`hzval.cli.scenes.scene_from_args`)."""
+    """Print the notes the flags' scene left for the end of a run (:func:`hzval.cli.scenes.scene_from_args`)."""
     for note in getattr(args, "notes", []):
         print(f"hzval: note: {note}", file=sys.stderr)
 
 
 def command_line(args) -> str:
-    """The command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
-
+    """Return the command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
     return "hzval " + " ".join(shlex.quote(a) for a in (getattr(args, "argv", None) or []))
 
 
 def names(text: str | None) -> list[str] | None:
-    """A comma-separated flag value (``--views top,ortho-45``) as its names; ``None`` if not given."""
+    """Return a comma-separated flag value (``--views top,ortho-45``) as its names; ``None`` if not given."""
     return None if text is None else [v.strip() for v in text.split(",") if v.strip()]

@@ -57,7 +57,8 @@ COMMANDS = (
 
 def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, str]:
     """``{canonical flag: the spelling in argv}`` for the flags of ``parser`` that ``argv`` uses under
-    another name (a hidden alias such as ``--k`` for ``--horizon-k``): errors name what was typed."""
+    another name (a hidden alias such as ``--k`` for ``--horizon-k``): errors name what was typed.
+    """
     canonical: dict[str, str] = {}
     for a in parser._actions:
         if a.option_strings and a.help != argparse.SUPPRESS:
@@ -75,7 +76,7 @@ def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, s
 
 
 def _common() -> argparse.ArgumentParser:
-    """The flags every command takes, before or after its name (argparse ``parents=``)."""
+    """Return the flags every command takes, before or after its name (argparse ``parents=``)."""
     common = _Parser(add_help=False)
     common.add_argument(
         "--variant",
@@ -87,7 +88,8 @@ def _common() -> argparse.ArgumentParser:
 
 class _Parser(argparse.ArgumentParser):
     """An argument error is one line naming the flag as typed, and where to read more: argparse's
-    usage block is left out (it buried the error under 35 lines)."""
+    usage block is left out (it buried the error under 35 lines).
+    """
 
     def error(self, message: str):
         self.exit(
@@ -97,7 +99,6 @@ class _Parser(argparse.ArgumentParser):
 
     def _nearest(self, message: str) -> str:
         """``; did you mean --elevation?`` for an unknown flag near a known one of any command."""
-
         if not message.startswith("unrecognized arguments:"):
             return ""
         known = {o for a in self._actions for o in a.option_strings}
@@ -122,9 +123,9 @@ class _Subcommands(argparse._SubParsersAction):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``hzval`` parser: :func:`_common`'s flags, then each of :data:`COMMANDS`' own, and
-    ``--force`` for every command that writes a folder."""
-
+    """Return the ``hzval`` parser: :func:`_common`'s flags, then each of :data:`COMMANDS`' own, and
+    ``--force`` for every command that writes a folder.
+    """
     parser = _Parser(
         prog="hzval",
         parents=[_common()],
@@ -165,7 +166,6 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command ``argv`` (default ``sys.argv[1:]``); the exit status (module docstring)."""
-
     argv = list(sys.argv[1:] if argv is None else argv)
     backend.prefer_working_llvm()  # before the parser imports the techniques, and so Dr.Jit
     args = build_parser().parse_args(_join_negative_values(argv))

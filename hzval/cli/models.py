@@ -1,5 +1,6 @@
 """``hzval models``: what curvature costs, one material on caps, bowls, a ring and the cube
-(:mod:`hzval.commands.models`)."""
+(:mod:`hzval.commands.models`).
+"""
 
 from __future__ import annotations
 
@@ -50,7 +51,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every case of ``args``'s material; print the table."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import models as models_command
 

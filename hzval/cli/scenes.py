@@ -25,8 +25,9 @@ def builtin(name: str) -> bool:
 
 
 def material_of(args) -> str | None:
-    """The material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
-    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size)."""
+    """Return the material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
+    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size).
+    """
     if args.height is not None and args.material is not None:
         raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
     if args.material is not None:
@@ -38,7 +39,6 @@ def material_of(args) -> str | None:
 
 def check_material_name(name: str) -> None:
     """Refuse an unknown built-in material's name in one line, with the nearest names."""
-
     if materials.is_builtin(name):
         return
     near = difflib.get_close_matches(name, materials.names(), n=1, cutoff=0.6)
@@ -52,7 +52,6 @@ def check_material_name(name: str) -> None:
 
 def refuse_size(size: int, height: str) -> None:
     """``--size`` names a built-in material's size; a height map file has its own (nothing resamples it)."""
-
     try:
         rows, cols = heightmap.probe_shape(height)
         own = f" ({cols}x{rows})"
@@ -66,8 +65,9 @@ def refuse_size(size: int, height: str) -> None:
 
 
 def scene_name(args, scene) -> str:
-    """A sweep's name: HEIGHT's stem, else the scene's (a built-in material's name unless a scene file
-    names it)."""
+    """Return a sweep's name: HEIGHT's stem, else the scene's (a built-in material's name unless a scene file
+    names it).
+    """
     if args.height is not None:
         return Path(args.height).stem
     if getattr(args, "material", None) is not None and not getattr(args, "scene", None):
@@ -76,9 +76,9 @@ def scene_name(args, scene) -> str:
 
 
 def model_view(base, overrides: dict) -> dict:
-    """``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where the sweep is on a model and
-    neither the scene nor the flags place a camera: a model seen from straight above shows one face."""
-
+    """Return ``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where the sweep is on a model and
+    neither the scene nor the flags place a camera: a model seen from straight above shows one face.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -119,8 +119,9 @@ FILE_KEYS = {
 
 
 def scene_overrides(args) -> dict:
-    """The flags of ``args`` that change a scene (:data:`OVERRIDES`), ``None`` where not given or
-    where the command has no such flag; the material is :func:`material_of`'s."""
+    """Return the flags of ``args`` that change a scene (:data:`OVERRIDES`), ``None`` where not given or
+    where the command has no such flag; the material is :func:`material_of`'s.
+    """
     out = {k: getattr(args, k, None) for k in OVERRIDES}
     out["truth_tolerance"] = flags.truth_tolerance(args)
     out["resolution"] = flags.resolution(getattr(args, "resolution", None))
@@ -128,10 +129,10 @@ def scene_overrides(args) -> dict:
 
 
 def base_scene(args, *, quiet: bool = False):
-    """The scene the flags change, and the TOML it was read from (``{}`` for none): ``--scene``'s
+    """Return the scene the flags change, and the TOML it was read from (``{}`` for none): ``--scene``'s
     file where the command has one, else HEIGHT's sidecar (``gravel.toml`` beside ``gravel.png``,
-    said on stderr unless ``quiet``), else the built-in default scene."""
-
+    said on stderr unless ``quiet``), else the built-in default scene.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -148,7 +149,7 @@ def base_scene(args, *, quiet: bool = False):
 
 
 def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
-    """The scene a command's flags describe: the one way every command builds one.
+    """Return the scene a command's flags describe: the one way every command builds one.
 
     Parameters
     ----------
@@ -167,7 +168,6 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
     hzval.scene.spec.Scene
         Validated, named after HEIGHT's stem, else ``--material``, else the scene file's name.
     """
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -209,9 +209,9 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 
 
 def check_elevations(value) -> tuple[float, ...]:
-    """The light elevations of ``--elevation`` (one number, a list or START:STOP:STEP), each in
-    (0, 90] degrees, else one line naming the flag."""
-
+    """Return the light elevations of ``--elevation`` (one number, a list or START:STOP:STEP), each in
+    (0, 90] degrees, else one line naming the flag.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -244,8 +244,9 @@ KEY_FLAGS = {
 
 
 def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
-    """An error about a scene key the flags set, named by its flag (``--size: must be at least 8``);
-    errors about a scene file's own values keep naming the file."""
+    """Return an error about a scene key the flags set, named by its flag (``--size: must be at least 8``);
+    errors about a scene file's own values keep naming the file.
+    """
     key = next((k for k in KEY_FLAGS if exc.problem.startswith(k + " ")), None)
     if exc.what != "scene" or key is None or KEY_FLAGS[key] not in given and key != "material.size":
         return exc
@@ -256,6 +257,7 @@ def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
 
 def input_name(args, info: dict) -> str:
     """How a command's closing line names its input: the height map's file as given, then what was read
-    of it (``h.png: 16-bit PNG, grey``), or the built-in material."""
+    of it (``h.png: 16-bit PNG, grey``), or the built-in material.
+    """
     height = getattr(args, "height", None)
     return f"{height}: {info['source']}" if height else info["source"]

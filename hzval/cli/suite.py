@@ -73,7 +73,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every material of ``args``; print the overview. Exit 1 if one failed or a gate did."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import suite
     from hzval.report import overview
@@ -115,7 +114,8 @@ def run(args) -> int:
 
 def _size_note(size: int | None, items) -> None:
     """``--size`` names the built-in materials' size: refused when every material is a file, a note
-    naming the files otherwise."""
+    naming the files otherwise.
+    """
     if size is None:
         return
     own = [e for e in items if not scenes.builtin(e.scene.material.height)]

@@ -37,7 +37,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep the scene of ``args``; print its table and one line of times. Exit 1 on a failed gate."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import sweep as sweep_command
     from hzval.pipeline import records

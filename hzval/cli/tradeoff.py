@@ -78,8 +78,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Measure every setting on the scene of ``args`` (HEIGHT's sidecar included); print the table
-    and the recommendation."""
-
+    and the recommendation.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import tradeoff
     from hzval.scene import spec as sc
@@ -115,8 +115,7 @@ def run(args) -> int:
 
 
 def _print_recommendation(rec: dict | None) -> None:
-    """The recommended setting, and the best of the lead technique's own settings."""
-
+    """Print the recommended setting, and the best of the lead technique's own settings."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 

@@ -1,5 +1,6 @@
 """``hzval views``: one material swept from a set of views with a set of lookups
-(:mod:`hzval.commands.views`)."""
+(:mod:`hzval.commands.views`).
+"""
 
 from __future__ import annotations
 
@@ -50,7 +51,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Sweep every view and lookup of ``args``; print a row each."""
-
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import views
     from hzval.metrics.results import techniques_of

@@ -1,5 +1,6 @@
 """``hzval bake``: a height map's textures (:func:`hzval.bake.maps.bake`) written to a folder, and
-optionally its displaced mesh."""
+optionally its displaced mesh.
+"""
 
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ __all__ = ["BakeRun", "run"]
 @dataclass
 class BakeRun:
     """What :func:`run` did: the material's record (``bake.json``'s ``input``), the files written
-    and the wall time in seconds."""
+    and the wall time in seconds.
+    """
 
     info: dict
     written: list[Path]

@@ -78,7 +78,7 @@ class Tiers:
 
     @classmethod
     def of(cls, scene, kind: str, technique_name: str | None = None) -> "Tiers":
-        """The tiers of image ``kind`` (``truth`` or a technique's check variant) of ``scene``."""
+        """Return the tiers of image ``kind`` (``truth`` or a technique's check variant) of ``scene``."""
         base = DEFAULT_TIERS["truth" if kind == "truth" else "technique"]
         tables = ("truth",) if kind == "truth" else ("approx", "technique", technique_name, kind)
         given = {}
@@ -94,10 +94,11 @@ class Tiers:
         return tiers.validated(scene, "truth" if kind == "truth" else "technique")
 
     def validated(self, scene, kind: str) -> "Tiers":
-        """These tiers, each in its range, else one line naming the scene file and the setting:
+        """Return these tiers, each in its range, else one line naming the scene file and the setting:
         ``fail`` a probability in (0, 1) for the truth (a significance level), a difference in (0, 1]
         (exposed linear units) for a technique; ``hard_fail`` in (0, 1]; the percentages in
-        [0, 100]. NaN is no number: a NaN tolerance would let every image pass."""
+        [0, 100]. NaN is no number: a NaN tolerance would let every image pass.
+        """
         fail_ok = 0 < self.fail < 1 if kind == "truth" else 0 < self.fail <= 1
         checks = {
             "fail": (fail_ok, "in (0, 1), a significance level" if kind == "truth" else "in (0, 1]"),
@@ -115,7 +116,7 @@ class Tiers:
 
 
 def _number(scene, key: str, value) -> float:
-    """A tolerance's value as a float, or one line naming the scene file."""
+    """Return a tolerance's value as a float, or one line naming the scene file."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(scene.source or scene.name, f"[tolerances] {key} = {value!r}: must be a number")
     return float(value)
@@ -150,8 +151,9 @@ def backend_name(variant: str) -> str:
 
 
 def reference_backend(path: Path) -> str:
-    """The backend that rendered a reference file: its header's :data:`BACKEND_ATTRIBUTE`, else
-    ``llvm`` (references written before the attribute were all rendered there)."""
+    """Return the backend that rendered a reference file: its header's :data:`BACKEND_ATTRIBUTE`, else
+    ``llvm`` (references written before the attribute were all rendered there).
+    """
     return codecs.read_exr_attributes(path).get(BACKEND_ATTRIBUTE, "llvm")
 
 
@@ -246,10 +248,11 @@ def check_scene(scene):
 
 
 def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The height map and linear albedo ``(rows, cols, 3)`` the check renders: a built-in material
+    """Return the height map and linear albedo ``(rows, cols, 3)`` the check renders: a built-in material
     generated at ``check.size``; a file's, where larger than ``check.size`` (default
     :data:`MAX_CHECK_SIZE`), averaged down (box filter, the aspect kept) until its larger side is,
-    so that a user's map of any size has small references."""
+    so that a user's map of any size has small references.
+    """
     hm = sc.load_material_height(scene.material)
     h = hm.height
     rows, cols = h.shape
@@ -267,8 +270,8 @@ def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
 
 def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """``values`` averaged down to ``shape`` ``(rows, cols)`` (each output texel the mean of the input
-    area it covers: Pillow's box filter, in float32)."""
-
+    area it covers: Pillow's box filter, in float32).
+    """
     img = Image.fromarray(np.ascontiguousarray(values, np.float32))
     return np.asarray(img.resize((shape[1], shape[0]), Image.Resampling.BOX), np.float32)
 
@@ -277,7 +280,8 @@ def renderers(scene, height: np.ndarray, points=None, albedo: np.ndarray | None 
     """``{kind: (variant, technique class, built technique)}``: every check variant of every
     technique that applies to ``scene`` (on a model, ``points``: the truth's samples, and only the
     techniques that render on models); ``albedo`` as :func:`check_material` gives it (default: the
-    material's at the map's size)."""
+    material's at the map's size).
+    """
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
     if albedo is None:
@@ -294,7 +298,8 @@ def renderers(scene, height: np.ndarray, points=None, albedo: np.ndarray | None 
 
 def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
     """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
-    ``seed`` replaces the scene's seed for the truth."""
+    ``seed`` replaces the scene's seed for the truth.
+    """
     # another seed moves the samples: only the truth takes it (the techniques are
     # deterministic, and their references hold their images at the scene's own positions)
     truth_scene = scene if seed is None else dataclasses.replace(scene, seed=int(seed))
@@ -340,8 +345,9 @@ def _rgb(image: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
-    """The value channels (not ``var.*``) stacked last, in the order of ``names`` if given
-    (an EXR file lists its channels sorted by name)."""
+    """Return the value channels (not ``var.*``) stacked last, in the order of ``names`` if given
+    (an EXR file lists its channels sorted by name).
+    """
     names = names or [k for k in ch if not k.startswith("var.")]
     return names, np.stack([np.asarray(ch[k], np.float64) for k in names], axis=-1)
 
@@ -419,7 +425,8 @@ def compare_image(
 
 def _non_finite(ch: dict[str, np.ndarray], names: list[str], kind: str) -> str:
     """``""``, or what of an image is not finite: how many pixels, of how many, and in which channels
-    (a truth's variances included)."""
+    (a truth's variances included).
+    """
     names = [*names, *(f"var.{n}" for n in names)] if kind == "truth" else names
     bad = {n: ~np.isfinite(np.asarray(ch[n])) for n in names if n in ch}
     where = [n for n, b in bad.items() if b.any()]
@@ -430,7 +437,7 @@ def _non_finite(ch: dict[str, np.ndarray], names: list[str], kind: str) -> str:
 
 
 def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[np.ndarray, dict]:
-    """A deterministic image: a pixel's score is its largest absolute difference over the channels."""
+    """Return a deterministic image: a pixel's score is its largest absolute difference over the channels."""
     score = absdiff.max(-1)
     if (score > tiers.hard_fail).any():
         reasons.append(f"a pixel differs by {score.max():.3g} > hard_fail {tiers.hard_fail:g}")
@@ -440,8 +447,9 @@ def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[n
 def _truth_test(
     new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict, reasons: list
 ) -> tuple[np.ndarray, dict]:
-    """A Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
-    bound on the bias of the image mean (module docstring)."""
+    """Return a Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
+    bound on the bias of the image mean (module docstring).
+    """
     var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
     var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
     q = 1.0 / (spp + 2)
@@ -480,21 +488,24 @@ def _p_value(z: np.ndarray) -> np.ndarray:
 
 
 def p_value(z, *, one_sided: bool = False):
-    """The p-value of a z-score: two-sided ``erfc(z / sqrt 2)`` (the truth's test), or one-sided,
-    half of it (a test of one direction only, e.g. a regression: :mod:`hzval.commands.gates`)."""
+    """Return the p-value of a z-score: two-sided ``erfc(z / sqrt 2)`` (the truth's test), or one-sided,
+    half of it (a test of one direction only, e.g. a regression: :mod:`hzval.commands.gates`).
+    """
     p = _p_value(np.asarray(z, np.float64))
     return p / 2.0 if one_sided else p
 
 
 def sidak_level(alpha: float, n_tests: int) -> float:
-    """The per-test level of ``n_tests`` tests at family-wise level ``alpha`` (Sidak:
-    ``1 - (1 - alpha)^(1/n)``, computed without cancellation)."""
+    """Return the per-test level of ``n_tests`` tests at family-wise level ``alpha`` (Sidak:
+    ``1 - (1 - alpha)^(1/n)``, computed without cancellation).
+    """
     return -math.expm1(math.log1p(-alpha) / max(int(n_tests), 1))
 
 
 def _block_sums(x: np.ndarray) -> np.ndarray:
     """Means of ``BLOCK x BLOCK`` blocks (for differences) are sums / BLOCK^2; variances of
-    means are sums / BLOCK^4: the ratio tested is the same, so sums are enough."""
+    means are sums / BLOCK^4: the ratio tested is the same, so sums are enough.
+    """
     h, w = x.shape[0] // BLOCK * BLOCK, x.shape[1] // BLOCK * BLOCK
     x = x[:h, :w]
     return x.reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK, -1).sum(axis=(1, 3))
@@ -511,7 +522,8 @@ def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
 
 def _variants(scene) -> dict:
     """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``; a
-    ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line."""
+    ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line.
+    """
     out = {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
     known = {
         "truth",
@@ -532,8 +544,9 @@ def _variants(scene) -> dict:
 
 
 def _former_reference(references: Path, scene: str, frame: str, entry) -> Path | None:
-    """The reference a variant had under its former name (:attr:`hzval.techniques.registry.Variant.formerly`),
-    if there is one and none under its name: a reference folder of an earlier release."""
+    """Return the reference a variant had under its former name (:attr:`hzval.techniques.registry.Variant.formerly`),
+    if there is one and none under its name: a reference folder of an earlier release.
+    """
     if entry is None or not entry[0].formerly:
         return None
     old = reference_file(references, scene, frame, entry[0].formerly)
@@ -567,8 +580,8 @@ def run(
     only: list[str] | None = None,
 ) -> CheckResult:
     """Render the shipped scenes and compare them with ``references``; with ``update``,
-    rewrite the references that are missing or failing."""
-
+    rewrite the references that are missing or failing.
+    """
     t0 = time.perf_counter()
     scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
     references = Path(references) if references else repository_path("reference")
@@ -650,7 +663,8 @@ def summary(result: CheckResult) -> str:
 
 def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
     """``out/index.html``: reference | new | difference for every image, failures first; the folder
-    held while it is written (:func:`hzval.io.staging.output_folder`, ``force`` as there)."""
+    held while it is written (:func:`hzval.io.staging.output_folder`, ``force`` as there).
+    """
     out = Path(out)
     with staging.output_folder(out, force=force):
         return _write_report(result, out, staging.portable_command(command))

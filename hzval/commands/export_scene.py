@@ -40,8 +40,8 @@ def check_fits(scene: Scene) -> int:
     until the
     map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
     nothing is rendered (on a model: :func:`hzval.truth.memory.check_fits`'s model estimate);
-    return it in bytes."""
-
+    return it in bytes.
+    """
     one = dataclasses.replace(scene, spp=1)
     rows, cols = memory.material_shape(one)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
@@ -68,7 +68,8 @@ def write_scene(
 
 def _direct_only(scene: Scene) -> Scene:
     """``scene`` validated, refused in one line where it declares what Mitsuba's direct integrator
-    does not render."""
+    does not render.
+    """
     scene = scene.validate()
     if any(scene.declares(e) for e in ("interreflection", "specular", "ambient", "reflection_occlusion")):
         raise InputError(
@@ -109,7 +110,7 @@ def _write_scene(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float
 
 
 def _reflectance(scene: Scene, out: Path, written: list[Path]) -> str:
-    """The diffuse BSDF's ``reflectance`` element; copies an albedo image beside the scene."""
+    """Return the diffuse BSDF's ``reflectance`` element; copies an albedo image beside the scene."""
     albedo = scene.material.albedo
     own = None
     if albedo is None and materials.is_builtin(scene.material.height):
@@ -151,7 +152,7 @@ def _film(scene: Scene, width: int, height: int) -> str:
 
 
 def _top_sensor(scene: Scene, rows: int, cols: int, top: float) -> str:
-    """The orthographic sensor straight down over the tile (module docstring)."""
+    """Return the orthographic sensor straight down over the tile (module docstring)."""
     height, width = image_shape(rows, cols, scene.camera)
     cx, cy = cols / 2.0, rows / 2.0
     eye = top + 1.0 + 0.05 * max(rows, cols)
@@ -167,7 +168,7 @@ def _top_sensor(scene: Scene, rows: int, cols: int, top: float) -> str:
 
 
 def _view_sensor(scene: Scene, view) -> str:
-    """A perspective sensor at a model truth's view (:func:`hzval.truth.model.model_view`)."""
+    """Return a perspective sensor at a model truth's view (:func:`hzval.truth.model.model_view`)."""
     eye, target = np.asarray(view.eye, float), np.asarray(view.target, float)
     far = 10.0 * float(np.linalg.norm(eye - target)) + 1.0
     return f"""<sensor type="perspective">
@@ -213,11 +214,11 @@ def _scene_xml(scene: Scene, sensor: str, azimuth_deg: float, reflectance: str) 
 
 
 def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
-    """A model's export: ``base.glb``, the base mesh as hzval used it (its frames included:
+    """Return a model's export: ``base.glb``, the base mesh as hzval used it (its frames included:
     ``--tangents``), ``mesh.ply``, the displaced model the truth traces, and ``scene.xml`` seen
     from the truth's camera. The displaced mesh carries no texture coordinates, so the diffuse
-    reflectance is the albedo's mean."""
-
+    reflectance is the albedo's mean.
+    """
     backend.variant()
     scene = _direct_only(dataclasses.replace(scene, spp=1))
     base = model.load(

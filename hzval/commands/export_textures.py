@@ -71,14 +71,15 @@ _SSBUMP_FILE = "ssbump.exr"
 
 
 def _content_of(storage_key: str) -> str:
-    """The bake content a technique's ``parameters.storage`` key stores (``ao``: the ambient map)."""
+    """Return the bake content a technique's ``parameters.storage`` key stores (``ao``: the ambient map)."""
     key = storage_key.replace("-", "_")
     return "ambient" if key == "ao" else key if key in TEXTURES else f"{key}_map"
 
 
 def plan(run_dir: Path) -> dict:
-    """What ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``; one line
-    naming the folder when it is no run's."""
+    """Read what ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``; one line
+    naming the folder when it is no run's.
+    """
     run_dir = Path(run_dir)
     if (run_dir / "fit.json").is_file():
         fit = documents.read_json(run_dir / "fit.json")
@@ -118,7 +119,8 @@ def _plan(kind: str, folder: Path, store: dict, mips: str, textures: tuple) -> d
 
 def export(run_dir, out, *, zstd: bool = False, force: bool = False) -> list[Path]:
     """Write ``run_dir``'s textures into ``out`` as KTX2 (module docstring) and ``textures.json``;
-    return the paths written. All or nothing: the files are staged and swapped in whole."""
+    return the paths written. All or nothing: the files are staged and swapped in whole.
+    """
     p = plan(Path(run_dir))
     maps = _maps(p)
     if not maps:
@@ -191,8 +193,9 @@ SSBUMP_FORMATS = {
 
 
 def _occlusion(maps: dict, p: dict) -> dict:
-    """The AO, bent-normal and ssbump textures of ``maps`` (by bake content) that ``p`` selects, each in
-    its storage."""
+    """Return the AO, bent-normal and ssbump textures of ``maps`` (by bake content) that ``p`` selects, each in
+    its storage.
+    """
     out = {}
     if "ambient" in p["textures"] and "ambient" in maps:
         store = p["storage"].get("ambient", "float")
@@ -258,7 +261,7 @@ def _vector(n: np.ndarray, store: str, meaning: str, key: str) -> tuple:
 
 
 def _horizon(sines: np.ndarray, store: str, mips: str) -> dict:
-    """The horizon map's textures in storage ``store``: its channels packed as the storage packs them."""
+    """Return the horizon map's textures in storage ``store``: its channels packed as the storage packs them."""
     s = hz_storage.get(store)
     base = store.removesuffix("-sqrt")
     fmt = HORIZON_FORMATS[base]
@@ -291,7 +294,8 @@ def _horizon(sines: np.ndarray, store: str, mips: str) -> dict:
 
 def _texture(values: np.ndarray, fmt: ktx2.Format, *, max_mips: bool = False) -> ktx2.Texture:
     """Every mip level of ``values`` (:func:`hzval.scene.lookup.mip_chain`), each quantised to the
-    format (8-bit or half) before the next is made from it, encoded."""
+    format (8-bit or half) before the next is made from it, encoded.
+    """
     everything = slice(None)
     if fmt.half:
         quantise = lambda a: a.astype(np.float16).astype(np.float32)  # noqa: E731

@@ -162,9 +162,10 @@ def _operand(text: str, expr: str) -> Operand:
 
 
 def parse(expr: str) -> Condition:
-    """A ``--fail-if`` expression as a :class:`Condition` (module docstring); one line naming
+    """Return a ``--fail-if`` expression as a :class:`Condition` (module docstring); one line naming
     ``--fail-if`` for anything else. Parsing is linear in the text's length (possessive
-    quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first."""
+    quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first.
+    """
     if len(expr) > MAX_EXPRESSION:
         raise InputError("--fail-if", f"{expr[:40]!r}...: longer than {MAX_EXPRESSION} characters")
     parts = _SPLIT.split(expr)
@@ -194,7 +195,8 @@ def known_names(techniques) -> list[str]:
 def check_names(conditions: list[Condition], techniques) -> None:
     """Refuse, before a run, a condition that names no number the run will write: an unknown metric,
     or a technique the run does not score (``techniques``: its names). One line naming
-    ``--fail-if``, with the nearest names."""
+    ``--fail-if``, with the nearest names.
+    """
     known = set(known_names(techniques))
     for cond in conditions:
         for op in (cond.left, cond.right):
@@ -216,10 +218,11 @@ def _number(value) -> bool:
 
 
 def check_shape(data, file) -> dict:
-    """``data`` (a ``metrics.json`` read as JSON) when it has the shape a gate reads: ``frames`` a list
+    """Return ``data`` (a ``metrics.json`` read as JSON) when it has the shape a gate reads: ``frames`` a list
     of objects, each with a numeric ``azimuth_deg`` (and ``elevation_deg`` a number or null), its
     ``techniques``, ``truth`` and ``floor`` objects; ``parameters``, ``material`` and ``techniques``
-    objects. Else one line naming ``--baseline``, the file and the key."""
+    objects. Else one line naming ``--baseline``, the file and the key.
+    """
 
     def bad(key: str, want: str):
         raise InputError(
@@ -247,7 +250,7 @@ def check_shape(data, file) -> dict:
 
 
 def _table(frame: dict, path: str) -> tuple[dict | None, str]:
-    """The table of ``frame`` that holds ``path``'s value, and its key there."""
+    """Return the table of ``frame`` that holds ``path``'s value, and its key there."""
     head, _, key = path.partition(".")
     if not key:
         return frame, head
@@ -294,8 +297,9 @@ def _frame_name(f: dict) -> str:
 
 
 def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
-    """The failures of ``cond`` on ``metrics.json``'s content: one line per condition that fails,
-    naming its frames and their values (none: the gate passes)."""
+    """Return the failures of ``cond`` on ``metrics.json``'s content: one line per condition that fails,
+    naming its frames and their values (none: the gate passes).
+    """
     frames = metrics.get("frames") or []
     left, right = _values(frames, cond.left, cond.text), _values(frames, cond.right, cond.text)
     test = _OPS[cond.op]
@@ -325,8 +329,9 @@ def _g(v) -> str:
 
 
 def read_baseline(path: str | Path) -> dict:
-    """The ``metrics.json`` of an earlier run (its folder, or the file); one line naming
-    ``--baseline`` if there is none or it cannot be read."""
+    """Return the ``metrics.json`` of an earlier run (its folder, or the file); one line naming
+    ``--baseline`` if there is none or it cannot be read.
+    """
     path = Path(path)
     file = path / "metrics.json" if path.is_dir() else path
     if not file.is_file():
@@ -340,7 +345,8 @@ def read_baseline(path: str | Path) -> dict:
 
 def check_same_settings(new: dict, old: dict, where: str) -> None:
     """Refuse (one line naming ``--baseline``) a baseline of another material or other scene
-    parameters (:data:`SAME`); the techniques' own settings may differ."""
+    parameters (:data:`SAME`); the techniques' own settings may differ.
+    """
     a, b = (new.get("material") or {}).get("digest"), (old.get("material") or {}).get("digest")
     if a and b and a != b:
         raise InputError("--baseline", f"{where}: another height map (digest {b[:19]}, this run's {a[:19]})")
@@ -357,8 +363,9 @@ def check_same_settings(new: dict, old: dict, where: str) -> None:
 
 
 def _frames_by_light(metrics: dict) -> dict:
-    """A run's frames by their light, ``(elevation, azimuth)``: a sweep over several elevations has
-    several frames of one azimuth."""
+    """Return a run's frames by their light, ``(elevation, azimuth)``: a sweep over several elevations has
+    several frames of one azimuth.
+    """
     return {
         (round(float(f.get("elevation_deg") or 0.0), 6), round(float(f["azimuth_deg"]), 6)): f
         for f in metrics.get("frames", [])
@@ -380,8 +387,9 @@ def _pixels(metrics: dict) -> int:
 
 
 def frame_noise(frame: dict, metric: str, pixels: int) -> float | None:
-    """The standard error the truth's Monte Carlo noise puts on one frame's ``metric`` (module
-    docstring), from the frame's truth statistics (:mod:`hzval.metrics.facing`); ``None`` if unknown."""
+    """Return the standard error the truth's Monte Carlo noise puts on one frame's ``metric`` (module
+    docstring), from the frame's truth statistics (:mod:`hzval.metrics.facing`); ``None`` if unknown.
+    """
     t = frame.get("truth") or {}
     facing = metric.endswith("_facing")
     share = max(1.0 - float(t.get("attached_fraction") or 0.0), 1e-9) if facing else 1.0
@@ -395,7 +403,8 @@ def frame_noise(frame: dict, metric: str, pixels: int) -> float | None:
 
 def _variance(fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: int):
     """``sum sigma_i^2`` of a test's worsenings (module docstring), or ``None`` when it cannot be
-    estimated (an image metric of runs of different seeds)."""
+    estimated (an image metric of runs of different seeds).
+    """
     if same:
         return 0.0
     noise = [(frame_noise(a, metric, pixels), frame_noise(b, metric, pixels)) for a, b in zip(fn, fo)]
@@ -409,8 +418,8 @@ def _variance(fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: i
 
 def baseline_tests(new: dict, old: dict) -> list[dict]:
     """Per technique (in both runs) and metric of :data:`DIRECTION`: the frames' worsenings ``d_i``,
-    ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring)."""
-
+    ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring).
+    """
     fn, fo = _frames_by_light(new), _frames_by_light(old)
     shared = [az for az in fn if az in fo]
     known = SweepResult.of(old).techniques
@@ -457,9 +466,9 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
 
 
 def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) -> list[str]:
-    """The lines of the tests that are significant regressions at :data:`ALPHA`, Sidak-corrected over
-    ``n_tests`` (default: these tests)."""
-
+    """Return the lines of the tests that are significant regressions at :data:`ALPHA`, Sidak-corrected over
+    ``n_tests`` (default: these tests).
+    """
     level = check.sidak_level(ALPHA, n_tests or len(tests))
     prefix = f"{where}: " if where else ""
     return [
@@ -477,7 +486,8 @@ def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) 
 
 class Gates:
     """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run; :meth:`apply`
-    tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists)."""
+    tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists).
+    """
 
     def __init__(
         self, conditions: list[str] | None = None, baseline: str | Path | None = None, strict: bool = False
@@ -505,7 +515,8 @@ class Gates:
     ) -> tuple[list, list]:
         """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
         (default: :attr:`baseline`; none with ``use_baseline`` false); a baseline of other settings is
-        an InputError."""
+        an InputError.
+        """
         out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
         if self.strict:  # every warning about an external bake (hzval.io.external.warnings) fails the run
             prefix = f"{where}: " if where else ""
@@ -533,9 +544,10 @@ class Gates:
         return out, tests
 
     def check_before(self, techniques, parameters: dict | None = None) -> "Gates":
-        """These gates, once every condition names a number a run of ``techniques`` writes
+        """Return these gates once every condition names a number a run of ``techniques`` writes
         (:func:`check_names`) and the baseline has the ``parameters`` of the run to come (the
-        ``metrics.json`` ``parameters`` it will write, where known): called before anything renders."""
+        ``metrics.json`` ``parameters`` it will write, where known): called before anything renders.
+        """
         check_names(self.conditions, list(techniques))
         if self.baseline is not None and parameters is not None:
             check_same_settings({"parameters": parameters}, self.baseline, str(self.baseline_path))
@@ -544,7 +556,8 @@ class Gates:
     def apply(self, metrics: dict) -> dict:
         """Test ``metrics`` (one sweep's or score's) and store ``metrics["gates"]``: ``{failed,
         conditions, baseline, tests}``, and ``errors``, one line each, where they could not be evaluated
-        (a baseline of another height map): the run's report is kept either way. Returns it."""
+        (a baseline of another height map): the run's report is kept either way. Returns it.
+        """
         try:
             failed, tests = self.failures(metrics)
         except InputError as exc:

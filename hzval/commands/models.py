@@ -67,7 +67,8 @@ CELLS = 32
 
 def cap_obj(path: Path, radius: float, sign: int) -> None:
     """Write the cap (``sign`` +1), bowl (-1) or plane (``radius`` inf) of the module docstring as
-    an OBJ at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side."""
+    an OBJ at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side.
+    """
     g = np.linspace(-A, A, CELLS + 1)
     x, y = (a.ravel() for a in np.meshgrid(g, g))
     r = np.hypot(x, y)
@@ -97,7 +98,8 @@ def run(scene, out: str | Path, *, progress: bool = True, command: str = "", for
     """Sweep ``scene`` (its material, lights, spp) on every case into ``out``; write ``models.json``
     and ``index.html``; return the ``models.json`` content. All or nothing, as a sweep: the cases are
     written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C (which
-    stops the run between cases), leaves an earlier report byte for byte and no folder it made."""
+    stops the run between cases), leaves an earlier report byte for byte and no folder it made.
+    """
     out = Path(out)
     with staging.swapped_in(out, force=force) as work:
         with interrupts.cases():
@@ -155,7 +157,6 @@ def _run(scene, out: Path, progress: bool, command: str, force: bool) -> dict:
 
 def _bug_signatures(scene, out: Path, techniques, progress: bool) -> dict:
     """Each tangent bug's signature with the lead technique (:mod:`hzval.studies.bug_signatures`)."""
-
     height = sc.load_material_height(scene.material).height
     return bug_signatures.run(scene, height, list(techniques)[0], out, progress=progress)
 
@@ -193,7 +194,6 @@ def _row(name: str, curvature, result: dict) -> dict:
 
 def _write_page(out: Path, data: dict) -> None:
     """``out/index.html`` from ``models.html.j2`` (:func:`hzval.report.pages.environment`), and its plots."""
-
     rows = data["rows"]
     names = list(dict.fromkeys(t for r in rows for t in techniques_of(r)))
     _plot(out / "plots" / "models.png", rows, names)
@@ -228,7 +228,8 @@ def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | N
     """Each technique's reflection-occlusion error, mean |o - R| (``reflection_mae``: Toolbag's fade
     with the interpolated vertex normal against the traced glossy lobe), against signed curvature
     1/R, where the study declares ``reflection_occlusion``; the page's figure and table
-    (``None``: no case has it)."""
+    (``None``: no case has it).
+    """
     series = {n: s for n in names if (s := _against_curvature(rows, n, "reflection_mae"))}
     if not series:
         return None
@@ -274,17 +275,17 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 
 
 def _band_maps(scene, case_dir: Path) -> dict:
-    """The case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
-    lights)."""
-
+    """Return the case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
+    lights).
+    """
     return curvature_band.measure(curvature_band.band_scene(scene), case_dir)
 
 
 def _add_bands(data: dict, bands: dict) -> None:
     """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
     study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
-    rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`)."""
-
+    rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`).
+    """
     flat = bands.get("flat")
     for r in data["rows"]:
         if r["case"] in bands:
@@ -332,7 +333,8 @@ def ring_obj(path: Path, tube: float, rho: float) -> None:
     ``1 + tube (1 - cos tau) / rho`` (1.04 at the rim, 1.008 inside the band's window). Along x the
     surface bends toward its normal (concave, normal curvature ``-1/rho``), along y away from it
     (convex, ``+1/tube``): the inside of a torus's ring, with one texture per world unit (the
-    built-in torus's UVs are stretched 3:1 there, around the ring against around the tube)."""
+    built-in torus's UVs are stretched 3:1 there, around the ring against around the tube).
+    """
     g = np.linspace(-A, A, CELLS + 1)
     x, y = (a.ravel() for a in np.meshgrid(g, g))
     phi, tau = x / rho, y / tube
@@ -348,8 +350,9 @@ def ring_obj(path: Path, tube: float, rho: float) -> None:
 
 
 def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) -> None:
-    """A ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
-    seen from the normals' side."""
+    """Write a ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
+    seen from the normals' side.
+    """
     k = CELLS + 1
     i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
     a = (j * k + i).ravel()
@@ -362,7 +365,7 @@ def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) ->
 
 
 def _ring_row(row: dict, spec) -> None:
-    """The ring case's principal curvatures (texture widths^-1, + convex) and their directions."""
+    """Add the ring case's principal curvatures (texture widths^-1, + convex) and their directions."""
     if spec[0] == "ring":
         tube, rho = spec[1]
         row["principal_curvatures"] = {"along_ring_x": -1.0 / rho, "across_tube_y": 1.0 / tube}
@@ -370,7 +373,8 @@ def _ring_row(row: dict, spec) -> None:
 
 def _by_azimuth(row: dict, azimuths) -> list[dict]:
     """Per light of the band: its azimuth, the normal curvature along its direction (Euler:
-    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch."""
+    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch.
+    """
     kx, ky = row["principal_curvatures"]["along_ring_x"], row["principal_curvatures"]["across_tube_y"]
     out = []
     for i, az in enumerate(azimuths):
@@ -400,9 +404,10 @@ def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
 
 
 def _band_context(out: Path, data: dict) -> dict | None:
-    """The band's section of the page (per case and technique: |F - V|, the flat patch's on the same
+    """Return the band's section of the page (per case and technique: |F - V|, the flat patch's on the same
     texels, the excess, the floor, the seams' share; the trend's verdicts) and its excess plot;
-    ``None`` where no case has a band."""
+    ``None`` where no case has a band.
+    """
     rows = [r for r in data["rows"] if "band" in r]
     if not rows:
         return None
@@ -455,7 +460,7 @@ def _seam_texels() -> str:
 
 
 def _says(t: dict) -> str:
-    """A trend as one phrase: its verdict, the whole change with its z, and any falls' z."""
+    """Return a trend as one phrase: its verdict, the whole change with its z, and any falls' z."""
     o = t.get("overall") or {}
     if o.get("change") is None:
         return t["verdict"]
@@ -469,7 +474,8 @@ def _says(t: dict) -> str:
 
 def _fall(f: dict) -> str:
     """One step that does not rise: ``+0.25->+0.5 by 1.3 SE``, or ``no change`` where it is flat to a
-    tenth of a standard error (never ``by -0.0 SE``)."""
+    tenth of a standard error (never ``by -0.0 SE``).
+    """
     step = f"{f['from']:+g}->{f['to']:+g}"
     z = f.get("z")
     if z is None:
@@ -500,7 +506,8 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
 def summary_table(data: dict) -> str:
     """``models.json``'s content as the terminal's table: per case each technique's mean |F - V|
     and floor (and its reflection error where measured), the trends' verdicts and each tangent
-    bug's mirrored |F - V| against the correct frames'."""
+    bug's mirrored |F - V| against the correct frames'.
+    """
 
     def num(v, w=7):
         return f"{v:{w}.4f}" if v is not None else f"{'-':>{w}}"

@@ -66,7 +66,7 @@ F_ONLY_LINE = (
 
 
 def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
-    """The sweep's ``metrics.json`` and ``frames.json``."""
+    """Return the sweep's ``metrics.json`` and ``frames.json``."""
     out = []
     for name in ("metrics.json", "frames.json"):
         path = sweep_dir / name
@@ -83,7 +83,8 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
 def _check_shape(metrics, engine, sweep_dir: Path) -> None:
     """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
     ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score`
-    reads)."""
+    reads).
+    """
 
     def need(ok: bool, name: str, key: str, what: str) -> None:
         if not ok:
@@ -149,7 +150,8 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
 def _check_agrees(metrics: dict, engine: dict, sweep_dir: Path) -> None:
     """Refuse a ``frames.json`` whose settings that change an image are not ``metrics.json``'s (an
     edited exposure scored an engine's frames against the truth at another brightness: FLIP 0 at 646
-    dB): the exposure, the material's digest, the effects, the samples and every frame's light."""
+    dB): the exposure, the material's digest, the effects, the samples and every frame's light.
+    """
     params = metrics.get("parameters") or {}
     samples = engine.get("samples") if isinstance(engine.get("samples"), dict) else {}
     pairs = [
@@ -186,7 +188,8 @@ def _is_number(v) -> bool:
 
 def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
     """Every file a sweep's frame names (its own and its techniques') resolves inside the sweep folder
-    (:func:`hzval.io.paths.inside`), before anything is read or copied."""
+    (:func:`hzval.io.paths.inside`), before anything is read or copied.
+    """
     where = sweep_dir / "metrics.json"
     tables = [(f"{key}.files", frame["files"])]
     techniques = raw_techniques(frame)
@@ -203,8 +206,9 @@ def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
 
 
 def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
-    """An engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
-    PNG decoded from sRGB and divided by the exposure."""
+    """Return an engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
+    PNG decoded from sRGB and divided by the exposure.
+    """
     if path.suffix.lower() == ".exr":
         img = codecs.read_rgb_exr(path)
     else:
@@ -238,7 +242,8 @@ def _bounded(path: Path, img: np.ndarray, metrics: dict) -> np.ndarray:
 
 def _check_brightness(path: Path, img: np.ndarray, metrics: dict) -> None:
     """Refuse a frame far brighter than the scene can be (``metrics.json``'s ``exposure.max_radiance``
-    times :data:`BRIGHTEST_FACTOR`): its squared errors overflow, and no score of it means anything."""
+    times :data:`BRIGHTEST_FACTOR`): its squared errors overflow, and no score of it means anything.
+    """
     brightest = (metrics.get("exposure") or {}).get("max_radiance")
     if not _is_number(brightest) or brightest <= 0:
         return
@@ -269,7 +274,8 @@ def _find(frames_dir: Path, name: str, prefix: str = "", required: bool = True) 
 
 def _one_value(path: Path, planes: list) -> None:
     """Refuse a shadow factor stored in colour channels that differ: F is one value a pixel, and
-    reading one channel of a colour image would score something else in silence."""
+    reading one channel of a colour image would score something else in silence.
+    """
     if len(planes) > 1 and any(not np.array_equal(planes[0], p) for p in planes[1:]):
         raise InputError(
             path, "a shadow factor is one value a pixel: its R, G and B differ (store F as grey)"
@@ -277,8 +283,9 @@ def _one_value(path: Path, planes: list) -> None:
 
 
 def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    """An engine's shadow factor ``F`` ``(H, W)`` float32 in [0, 1]: an EXR's one channel (Y, R or
-    the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB decoding)."""
+    """Return an engine's shadow factor ``F`` ``(H, W)`` float32 in [0, 1]: an EXR's one channel (Y, R or
+    the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB decoding).
+    """
     if path.suffix.lower() == ".exr":
         ch = codecs.read_exr(path)
         key = next((k for k in ("Y", "R", "F", "V") if k in ch), next(iter(ch)) if len(ch) == 1 else None)
@@ -306,8 +313,8 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
 
 def read_sidecar(frames_dir: Path) -> dict:
     """``FRAMES_DIR/engine.toml``: ``{label, summary, parameters, path}`` (module docstring); the
-    defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`)."""
-
+    defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`).
+    """
     path = frames_dir / SIDECAR
     out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}
     if not path.is_file():
@@ -322,8 +329,9 @@ def read_sidecar(frames_dir: Path) -> dict:
 
 
 def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
-    """The sweep's normal map (``bake/normal.exr``, ``(rows, cols, 3)``) for the facing pixels, if
-    the sweep kept its bake and its view is ``top``."""
+    """Return the sweep's normal map (``bake/normal.exr``, ``(rows, cols, 3)``) for the facing pixels, if
+    the sweep kept its bake and its view is ``top``.
+    """
     if (metrics.get("camera") or {}).get("kind", "top") != "top":
         return None
     path = sweep_dir / "bake" / "normal.exr"
@@ -335,7 +343,7 @@ def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
 
 
 def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
-    """The files of ``frames_dir`` that ``score`` would ignore: none of ``<name>.exr|png``,
+    """Return the files of ``frames_dir`` that ``score`` would ignore: none of ``<name>.exr|png``,
     ``f_<name>.exr|png`` (``names``: the sweep's frames) or :data:`SIDECAR`; hidden files and
     folders (a report inside it) aside.
 
@@ -360,7 +368,8 @@ def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
 
 def _check_every_light(frames_dir: Path, names: list[str], found: list, prefix: str, ignored: list[str]):
     """Refuse, in one line, frames for some lights only: naming the lights that have none and the
-    files that match no light's name (a misnamed ``az+30_F.exr`` is named, not a light it is not)."""
+    files that match no light's name (a misnamed ``az+30_F.exr`` is named, not a light it is not).
+    """
     missing = [n for n, p in zip(names, found) if p is None]
     if not missing:
         return
@@ -480,16 +489,14 @@ def score(
 
 
 def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
-    """On a model's sweep, which tangent-frame bug the engine's F matches
-    (:mod:`hzval.pipeline.bug_match`)."""
-
+    """On a model's sweep, which tangent-frame bug the engine's F matches (:mod:`hzval.pipeline.bug_match`)."""
     return bug_match.diagnose(metrics, sweep_dir, factors)
 
 
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
     """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
-    sweep's techniques' own; ``(frame, maps, brightness warning or None)``."""
-
+    sweep's techniques' own; ``(frame, maps, brightness warning or None)``.
+    """
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
     truth = Frame(
@@ -553,7 +560,8 @@ def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float
     own samples) on the pixels the truth lights fully (and the engine, where its F is given), in mean
     FLIP, beside the same for the sweep's lead technique: shadows cannot differ there, so what does
     is the sampling (or the shading). ``{engine, sweep, technique}``; ``None`` where the sweep kept no
-    such files."""
+    such files.
+    """
     files_ = swept.get("files") or {}
     techniques = raw_techniques(swept) or {}
     lead = next((n for n, t in techniques.items() if (t.get("files") or {}).get("png")), None)
@@ -581,8 +589,7 @@ def _display_png(path: Path) -> np.ndarray:
 
 
 def _sampling_warning(frames: list[dict]) -> str | None:
-    """One line where the engine's frames alias more than the sweep's own technique
-    (:func:`sampling_flip`)."""
+    """One line where the engine's frames alias more than the sweep's own technique (:func:`sampling_flip`)."""
     found = [f["sampling"] for f in frames if f.get("sampling")]
     if not found:
         return None
@@ -619,7 +626,8 @@ def write(
     alone). Returns the index. The folder is held while they are written
     (:func:`hzval.io.staging.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first
     and
-    listed at the top of the report."""
+    listed at the top of the report.
+    """
     out = Path(out)
     if gates:
         gates.apply(result)
@@ -631,8 +639,9 @@ def write(
 
 
 def _copy(sweep_dir: Path, stage: Path, name: str, rel: str | None) -> str | None:
-    """A sweep's file (checked inside it by :func:`score`) copied to ``frames/<name>/`` of the staged
-    report; its path relative to the report."""
+    """Return a sweep's file (checked inside it by :func:`score`) copied to ``frames/<name>/`` of the staged
+    report; its path relative to the report.
+    """
     if not rel or not (sweep_dir / rel).is_file():
         return None
     dst = f"frames/{name}/{Path(rel).name}"
@@ -642,7 +651,7 @@ def _copy(sweep_dir: Path, stage: Path, name: str, rel: str | None) -> str | Non
 
 
 def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Path:
-    """The report's files into ``stage``, their recorded paths relative to ``out`` (where they land)."""
+    """Return the report's files into ``stage``, their recorded paths relative to ``out`` (where they land)."""
     sweep_dir = Path(result["against"])
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
         frame["files"] = {

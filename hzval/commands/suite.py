@@ -85,7 +85,8 @@ MEANS = (
 @dataclass(frozen=True)
 class Entry:
     """One material of the suite: its unique ``name`` (its folder under ``DIR``), the scene to sweep
-    and where it came from (``origin``: "built-in", a scene file, or a height map [+ sidecar])."""
+    and where it came from (``origin``: "built-in", a scene file, or a height map [+ sidecar]).
+    """
 
     name: str
     scene: sc.Scene
@@ -114,13 +115,14 @@ class Task:
 
 
 def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
-    """The suite's materials: one :class:`Entry` per input (each built-in material when there is
+    """Return the suite's materials: one :class:`Entry` per input (each built-in material when there is
     none), with the sweep flags ``overrides`` (:func:`hzval.scene.spec.override`'s keywords) applied to
     every one. A name is the folder of its report under DIR and a part of URLs: characters other than
     letters, digits, ``.``, ``_`` and ``-`` become ``_``, and names are made unique with ``-2``,
     ``-3``. An input that is no file, folder or built-in material, or a folder without height maps or
     scenes, is an :class:`InputError` before anything runs; a height map that cannot be read is not:
-    it becomes that material's failure."""
+    it becomes that material's failure.
+    """
     found: list[Entry] = []
     for item in inputs or materials.names():
         found.extend(_entries_of(item))
@@ -180,8 +182,10 @@ def _scene_entry(path: Path) -> Entry:
 
 
 def _height_entry(path: Path) -> Entry:
-    """A height map with its sidecar scene (``<stem>.toml`` beside it), if there is one. A sidecar
-    that cannot be used is that material's failed row, as a map that cannot be read is."""
+    """Return a height map with its sidecar scene (``<stem>.toml`` beside it), if there is one.
+
+    A sidecar that cannot be used is that material's failed row, as a map that cannot be read is.
+    """
     sidecar = sc.sidecar_of(path)
     if sidecar is not None:
         try:
@@ -199,7 +203,8 @@ def _height_entry(path: Path) -> Entry:
 def estimate_peak_bytes(entry: Entry) -> int:
     """``entry``'s sweep's estimated peak (:func:`hzval.truth.memory.estimate_peak_bytes`), from its size
     alone (a height map's header, a built-in material's ``size``); a map that cannot be read counts
-    as tiny (it will fail on its own)."""
+    as tiny (it will fail on its own).
+    """
     try:
         rows, cols = memory.material_shape(entry.scene)
     except InputError:
@@ -211,7 +216,8 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
     """Workers for this machine: one per core (each then runs Dr.Jit and FLIP on one thread, which
     swept the built-in suite faster than one worker on every core: docs/internals.md),
     no more than there are materials, and no more than fit in 80% of the available memory beside
-    each other at the largest material's estimated peak (:func:`estimate_peak_bytes`)."""
+    each other at the largest material's estimated peak (:func:`estimate_peak_bytes`).
+    """
     cores = (os.cpu_count() or 1) if cores is None else cores
     available = resources.available_bytes() if available is None else available
     largest = max((estimate_peak_bytes(e) for e in items), default=1)
@@ -226,7 +232,8 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
 def sweep_material(task: Task) -> dict:
     """Sweep one material into ``task.out``; its row of ``suite.json`` (:func:`summarise`), or
     ``{"status": "failed", "error": <one line>}``. Runs in a worker process; never raises for a
-    material's own failure, so one bad material cannot take the others down."""
+    material's own failure, so one bad material cannot take the others down.
+    """
     entry, out = task.entry, Path(task.out)
     t0 = time.perf_counter()
     if entry.error:
@@ -261,10 +268,10 @@ def sweep_material(task: Task) -> dict:
 
 
 def _earlier_rows(out: Path) -> dict[str, dict]:
-    """The finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
+    """Return the finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
     still there, by name, their origins as given (:func:`hzval.report.overview.write_overview`
-    makes them portable again); none where there is no readable overview."""
-
+    makes them portable again); none where there is no readable overview.
+    """
     try:
         rows = documents.read_json(out / "suite.json").get("materials") or []
     except (InputError, AttributeError):
@@ -279,7 +286,7 @@ def _earlier_rows(out: Path) -> dict[str, dict]:
 
 
 def _given_origin(origin, out: Path):
-    """The inverse of :func:`_portable_origin`: a row's origin with its path resolved against ``out``."""
+    """Return the inverse of :func:`_portable_origin`: a row's origin with its path resolved against ``out``."""
     if not isinstance(origin, str) or origin == "built-in":
         return origin
     path, plus, rest = origin.partition(" + ")
@@ -288,7 +295,8 @@ def _given_origin(origin, out: Path):
 
 def _facing_mean(records: list[dict]) -> dict:
     """``{"visibility_mae_facing": mean}`` over the records that have one; ``{}`` where none has (a view
-    without a facing mask), so that the row's |F - V| is its whole image's."""
+    without a facing mask), so that the row's |F - V| is its whole image's.
+    """
     mean = _mean(r.get("visibility_mae_facing") for r in records)
     return {} if mean is None else {"visibility_mae_facing": mean}
 
@@ -309,7 +317,8 @@ START_TOPIC = "hzval-suite-started-{pid}"
 
 def _log_start(task: Task) -> None:
     """On a Dask worker, tell the scheduler that this material has started: a worker's death is then
-    told apart from the loss of workers before a material ran (:func:`_classify`)."""
+    told apart from the loss of workers before a material ran (:func:`_classify`).
+    """
     if not task.topic:
         return
     try:
@@ -341,9 +350,10 @@ def _mean(values) -> float | None:
 
 
 def summarise(entry: Entry, metrics: dict) -> dict:
-    """A material's row of ``suite.json`` from its sweep's ``metrics.json`` content: per technique the
+    """Return a material's row of ``suite.json`` from its sweep's ``metrics.json`` content: per technique the
     mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
-    FLIP, the sweep's time and peak memory, and where its report is (relative to the suite)."""
+    FLIP, the sweep's time and peak memory, and where its report is (relative to the suite).
+    """
     frames = metrics["frames"]
     run = SweepResult.of(metrics)
     scores = [f.techniques for f in run.frames]
@@ -388,7 +398,8 @@ def summarise(entry: Entry, metrics: dict) -> dict:
 def _thumbnail_sources(frames: list[FrameRecord], techniques: list[str]) -> dict:
     """``{light: {"truth": png, <technique>: png}}`` (``light``: ``+15°``, and its elevation in a sweep
     over several; relative to the material's folder) for the
-    sweep's first, middle and last lights."""
+    sweep's first, middle and last lights.
+    """
     n = len(frames)
     picks = sorted({0, n // 2, n - 1})[:LIGHTS_SHOWN]
     out = {}
@@ -436,7 +447,8 @@ def run(
     marked "not run"), each finished material's report whole. ``gates`` (:class:`hzval.commands.gates.Gates`):
     tested on each finished material's ``metrics.json`` (a ``--baseline`` is an earlier suite's folder,
     whose ``<name>/metrics.json`` each material is compared with), their failures in ``suite.json``'s
-    ``gates`` and at the top of the overview (:func:`gate_failures`)."""
+    ``gates`` and at the top of the overview (:func:`gate_failures`).
+    """
     if workers < 0:
         raise InputError("--workers", f"must be 0 (this process) or more, got {workers}")
     if cluster is not None:
@@ -508,7 +520,8 @@ ADDRESS = re.compile(r"(?:(?:tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(
 
 def check_address(address: str) -> str:
     """``address`` if it is a Dask scheduler's (:data:`ADDRESS`, a port up to 65535), else one line
-    naming ``--cluster`` and the value."""
+    naming ``--cluster`` and the value.
+    """
     m = ADDRESS.fullmatch(str(address))
     if m is None or not 0 < int(m.group(2)) < 65536:
         raise InputError(
@@ -529,7 +542,8 @@ def _bar(total: int, progress: bool):
 def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
     """Each task in this process, one after another, into ``rows`` (in the tasks' order); a signal
     held during one material's swap stops the suite once that material is in
-    (:func:`hzval.core.interrupts.cases`)."""
+    (:func:`hzval.core.interrupts.cases`).
+    """
     with interrupts.cases(), _bar(len(tasks), progress) as bar:
         for i, task in enumerate(tasks):
             bar.set_postfix_str(task.entry.name)
@@ -542,8 +556,8 @@ def _run_dask(
 ) -> None:
     """Each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish: a
     ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``. ``engine["name"]``
-    says which."""
-
+    says which.
+    """
     import dask  # imported here: 0.5 s that a suite in this process does not need
     import distributed
 
@@ -621,8 +635,9 @@ LOOPBACK = "127.0.0.1"
 
 
 def _started(client, topic: str) -> set[str] | None:
-    """The materials whose tasks said they started (:func:`_log_start`); ``None`` if the scheduler
-    cannot say (it is gone)."""
+    """Return the materials whose tasks said they started (:func:`_log_start`); ``None`` if the scheduler
+    cannot say (it is gone).
+    """
     try:
         return {msg.get("name") for _, msg in client.get_events(topic)}
     except Exception:
@@ -630,10 +645,11 @@ def _started(client, topic: str) -> set[str] | None:
 
 
 def _classify(task: Task, exc: BaseException, started: set[str] | None, since: float) -> dict:
-    """A material's row when its task did not return: its report if that completed all the same
+    """Return a material's row when its task did not return: its report if that completed all the same
     (:func:`_completed`); else, by what failed, "not run" (no worker ever started it), failed with
     "its worker died" (:class:`distributed.KilledWorker` of a started task), or failed or "not run"
-    with "the scheduler was lost"."""
+    with "the scheduler was lost".
+    """
     # Dask: 0.5 s to import, paid only by a suite on workers
     import distributed
 
@@ -660,8 +676,9 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
 
 
 def _completed(task: Task, since: float) -> dict | None:
-    """The row of a material whose sweep wrote its whole report during this suite (``metrics.json``
-    swapped in after ``since``, a wall-clock time), though its task's result never came back."""
+    """Return the row of a material whose sweep wrote its whole report during this suite (``metrics.json``
+    swapped in after ``since``, a wall-clock time), though its task's result never came back.
+    """
     path = Path(task.out) / "metrics.json"
     try:
         if path.stat().st_mtime < since:
@@ -682,7 +699,8 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
     (:class:`hzval.commands.gates.Gates`), its baseline the same material's in the baseline suite's folder;
     each failure line names the material. A material whose gates cannot be evaluated (no baseline of
     it, a baseline of another shape or settings) gets a line in ``errors`` (exit 2), the others are
-    still tested."""
+    still tested.
+    """
     failed, unevaluated = [], []
     for row in rows:
         if row["status"] != "ok":
@@ -702,8 +720,9 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
 
 
 def material_baseline(gates, name: str) -> dict | None:
-    """The baseline suite's ``metrics.json`` of material ``name`` (checked by
-    :func:`hzval.commands.gates.read_baseline`), ``None`` without ``--baseline``."""
+    """Return the baseline suite's ``metrics.json`` of material ``name`` (checked by
+    :func:`hzval.commands.gates.read_baseline`), ``None`` without ``--baseline``.
+    """
     if gates.baseline_path is None:
         return None
     path = gates.baseline_path / name / "metrics.json"

@@ -1,5 +1,6 @@
 """``hzval sweep``: the truth and every chosen technique over a light sweep, scored, reported and
-gated (:func:`hzval.pipeline.sweep.run` does the work)."""
+gated (:func:`hzval.pipeline.sweep.run` does the work).
+"""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ __all__ = ["selected", "run", "run_line"]
 
 
 def selected(scene: Scene, options: pipeline_sweep.Options) -> list[str]:
-    """The names of the techniques a sweep of ``scene`` with ``options`` renders, registry order."""
+    """Return the names of the techniques a sweep of ``scene`` with ``options`` renders, registry order."""
     requested = None if options.techniques is None else list(options.techniques)
     return [t.name for t in technique.select(requested, scene, exclude=options.exclude)]
 
@@ -47,8 +48,9 @@ def run(
 
 
 def run_line(result: Mapping[str, Any], out: Path) -> str:
-    """The line under the table: frames, the run's total time (the report's own) and where it went,
-    the peak memory, and where the report is."""
+    """Return the line under the table: frames, the run's total time (the report's own) and where it went,
+    the peak memory, and where the report is.
+    """
     t = result["timings"]
     stems = {info["file_stem"] for info in SweepResult.of(result).techniques.values()}
     setup = t.get("plain_setup_s", 0.0) + sum(t.get(f"{s}_setup_s", 0.0) for s in stems)

@@ -101,9 +101,9 @@ class Setting:
 
 
 def baked_technique(scene=None) -> str | None:
-    """The technique the bake settings are rendered with: the first in the registry that reads the
-    horizon bake (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``."""
-
+    """Return the technique the bake settings are rendered with: the first in the registry that reads the
+    horizon bake (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``.
+    """
     sc_ = scene if scene is not None else Scene()
     return next(
         (
@@ -120,7 +120,8 @@ def settings(scene=None, *, fits: bool = False) -> list[Setting]:
     """Every setting :func:`measure` measures, defaults first: the bake's (rendered with
     :func:`baked_technique`), every technique's own from the registry (those that apply to
     ``scene``, when given; a technique that fits another's textures, ``NAME-fit``, only with
-    ``fits``: each of its settings is a fit), and the truth's ray counts."""
+    ``fits``: each of its settings is a fit), and the truth's ray counts.
+    """
     s: list[Setting] = []
     baked = baked_technique(scene)
     if baked is not None:
@@ -223,7 +224,8 @@ def _errors(ref: _Reference, frames) -> tuple[float, float, float | None]:
 
 def _render(renderer, el: float | None, az: float, **kw):
     """One light's frame of a truth (lit from ``el`` first, :meth:`hzval.truth.plane.Truth.light_at`)
-    or a technique; ``el`` ``None``: the scene's one elevation."""
+    or a technique; ``el`` ``None``: the scene's one elevation.
+    """
     if el is None:
         return renderer.render(az, **kw)
     if hasattr(renderer, "light_at"):
@@ -233,9 +235,10 @@ def _render(renderer, el: float | None, az: float, **kw):
 
 
 def _render_all(renderer, lights, repeat: int = 3, **kw):
-    """The sweep's frames (``lights``: :func:`hzval.pipeline.renders.lights`) and a frame's time: the
+    """Return the sweep's frames (``lights``: :func:`hzval.pipeline.renders.lights`) and a frame's time: the
     mean over the sweep, the best of ``repeat`` sweeps (settings that share a kernel differ by about
-    10% from one sweep to the next otherwise)."""
+    10% from one sweep to the next otherwise).
+    """
     _render(renderer, *lights[0], **kw)  # compile (or load) the kernels: time warm frames only
     frames = [_render(renderer, el, az, **kw) for el, az in lights]
     best = float(np.mean([f.seconds for f in frames]))
@@ -257,8 +260,8 @@ def _timed_bake(height, params):
 def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
     """Refuse, before the map is generated or decoded, a tradeoff that would not fit in memory: the
     sweep's estimate (:func:`hzval.truth.memory.check_fits`) at the converged truth's ``truth_spp``, the
-    most samples it holds; return the estimate in bytes."""
-
+    most samples it holds; return the estimate in bytes.
+    """
     spp = max(int(scene.spp), int(truth_spp))
     return memory.check_fits(
         dataclasses.replace(scene, spp=spp),
@@ -276,8 +279,8 @@ def measure(
     progress: bool = False,
 ) -> tuple[list[Point], dict]:
     """Measure every setting of :func:`settings` (or those whose names contain one of ``only``;
-    ``fits``: the fitted techniques' too)."""
-
+    ``fits``: the fitted techniques' too).
+    """
     ref = _reference(scene, height, truth_spp)
     base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
     todo = [s for s in settings(scene, fits=fits) if not only or any(o in s.name for o in only)]
@@ -359,7 +362,8 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
 
 def mark_pareto(points: list[Point]) -> None:
     """Set ``pareto`` on the points no other point of the same kind dominates in
-    (time_s, storage_bytes, the headline |F - V|: :attr:`Point.error`)."""
+    (time_s, storage_bytes, the headline |F - V|: :attr:`Point.error`).
+    """
     for p in points:
         obj = (p.time_s, p.storage_bytes, p.error)
         p.pareto = not any(
@@ -387,11 +391,12 @@ ERROR_IS = {
 
 
 def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
-    """The setting to use: among the techniques' settings (bake and technique), the one of least
+    """Return the setting to use: among the techniques' settings (bake and technique), the one of least
     storage, then least time, whose visibility error is within ``tolerance`` (relative) of the best;
     the same among the settings of the technique whose bake is varied (its bake and its own), under
     ``own`` with that technique's name, since another technique (terrain shadows) has another
-    cost, a sweep per light; and the fewest truth rays whose own error is below a tenth of the best."""
+    cost, a sweep per light; and the fewest truth rays whose own error is below a tenth of the best.
+    """
     cand = [p for p in points if p.kind != "truth"]
     if not cand:
         return {}
@@ -433,8 +438,10 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
 def write_tradeoff(
     out: str | Path, points: list[Point], info: dict, *, material: dict, command: str, force: bool = False
 ) -> Path:
-    """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path. The
-    folder is held while they are written (:func:`hzval.io.staging.output_folder`, ``force`` as there)."""
+    """``out/tradeoff.json``, ``out/pareto.png`` and ``out/index.html``; returns the index path.
+
+    The folder is held while they are written (:func:`hzval.io.staging.output_folder`, ``force`` as there).
+    """
     out = Path(out)
     with staging.output_folder(out, force=force):
         return _write_tradeoff(out, points, info, material, staging.portable_command(command))
@@ -496,7 +503,7 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
 
 
 def error_per_byte(points: list[Point], texels: int) -> list[dict]:
-    """The techniques' settings as error against bytes per texel, each marked on the front of least bytes
+    """Return the techniques' settings as error against bytes per texel, each marked on the front of least bytes
     and least error (:func:`hzval.report.ranking.pareto`): ``tradeoff.json``'s ``error_per_byte``.
 
     Parameters
@@ -512,7 +519,6 @@ def error_per_byte(points: list[Point], texels: int) -> list[dict]:
         ``name``, ``technique``, ``fitted`` (a ``NAME-fit``'s setting), ``storage``,
         ``bytes_per_texel``, ``error`` (:attr:`Point.error`) and ``pareto``.
     """
-
     kept = [p for p in points if p.kind == "technique"]
     out = [
         {
@@ -534,8 +540,8 @@ def error_per_byte(points: list[Point], texels: int) -> list[dict]:
 
 def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None:
     """:func:`error_per_byte` as the report draws it (:func:`hzval.report.plots.plot_error_per_byte`),
-    a panel for the sweep's lights; its file name, or ``None`` with no technique setting."""
-
+    a panel for the sweep's lights; its file name, or ``None`` with no technique setting.
+    """
     if not rows:
         return None
     names = list(dict.fromkeys(r["technique"] for r in rows))
@@ -599,7 +605,7 @@ def floor_lines(points: list[Point]) -> list[str]:
 
 
 def table(points: list[Point]) -> str:
-    """The points as a plain-text table for the terminal."""
+    """Return the points as a plain-text table for the terminal."""
     head = ("setting", "kind", "time", "storage", "|F-V|", "FLIP", "pareto")
     rows = [
         (

@@ -79,7 +79,8 @@ def run(
     mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds
     ``out`` (:func:`hzval.io.staging.output_folder`, ``force`` as there) and writes into a staging
     folder swapped in whole: a failure, or a Ctrl-C (which stops the run between sweeps), leaves an
-    earlier report byte for byte and no folder it created."""
+    earlier report byte for byte and no folder it created.
+    """
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
     kinds = _pick(lookups, LOOKUPS, "--lookups")
@@ -94,7 +95,6 @@ def run(
 
 def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str, force: bool) -> dict:
     """:func:`run`'s sweeps into ``out`` (the staging folder); the ``views.json`` content."""
-
     rows = []
     runs = [(v, k) for v in chosen for k in kinds if not (v == "top" and k != kinds[0])]
     for i, (v, k) in enumerate(runs):
@@ -126,8 +126,9 @@ def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str,
 
 
 def headline(scores: dict) -> float | None:
-    """A technique's ``|F - V|`` in a row: over the pixels facing the light where measured (the top
-    view), else over the whole image."""
+    """Return a technique's ``|F - V|`` in a row: over the pixels facing the light where measured (the top
+    view), else over the whole image.
+    """
     facing = scores.get("visibility_mae_facing")
     return scores.get("visibility_mae") if facing is None else facing
 
@@ -211,7 +212,8 @@ def _technique_names(rows: list[dict]) -> list[str]:
 
 def _plot(path: Path, rows: list[dict]) -> None:
     """Two panels per technique row: |F - V| against view elevation (the top and orthographic
-    views) and against the median pixel footprint (every view), one line per lookup."""
+    views) and against the median pixel footprint (every view), one line per lookup.
+    """
     names = _technique_names(rows)
     kinds = list(dict.fromkeys(r["lookup"] for r in rows))
     ylabel = "mean |F − V| (top: facing pixels)"

@@ -111,7 +111,6 @@ def prefer_working_llvm() -> None:
     broken LLVM 15 even when ``libllvm19`` is installed beside it. Must run
     before Dr.Jit initialises its LLVM backend; ``hzval/__init__`` calls it.
     """
-
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return
     found = []
@@ -199,7 +198,8 @@ def sync() -> None:
 def release_memory() -> None:
     """Hand Dr.Jit's cache of freed buffers back to the system (``dr.flush_malloc_cache``): a sweep's
     set-up and each frame's renders leave gigabytes of them at 4096 x 4096, which would otherwise
-    stay resident beside the NumPy images of the comparison (about 1.5 GB of a 4096 sweep's peak)."""
+    stay resident beside the NumPy images of the comparison (about 1.5 GB of a 4096 sweep's peak).
+    """
     # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
     import drjit as dr
 
@@ -218,8 +218,7 @@ _retaining = False
 
 
 def _mallopt():
-    """glibc's ``mallopt`` (and ``malloc_trim``) through ctypes, or ``None`` off glibc."""
-
+    """Glibc's ``mallopt`` (and ``malloc_trim``) through ctypes, or ``None`` off glibc."""
     try:
         if "glibc" not in (os.confstr("CS_GNU_LIBC_VERSION") or ""):
             return None
@@ -240,7 +239,8 @@ def retain_freed_memory() -> bool:
     A sweep makes and drops such images in every frame; keeping them saves about a tenth of a large
     sweep for more peak memory (docs/internals.md, "Measurements the code rests on").
     :func:`hzval.pipeline.sweep.run` asks for it where its
-    estimated peak is a small part of what is available (:data:`hzval.truth.memory.RETAIN_BELOW_SHARE`)."""
+    estimated peak is a small part of what is available (:data:`hzval.truth.memory.RETAIN_BELOW_SHARE`).
+    """
     global _retaining
     fns = _mallopt()
     if fns is None:
@@ -253,7 +253,8 @@ def retain_freed_memory() -> bool:
 def hand_back_freed_memory() -> None:
     """Undo :func:`retain_freed_memory` (if it took effect) and hand the memory it kept back to the
     system (``malloc_trim``), so that what runs next in this process, another sweep's peak
-    included, starts from what it uses itself."""
+    included, starts from what it uses itself.
+    """
     global _retaining
     if not _retaining:
         return
@@ -292,7 +293,7 @@ _pools: dict = {}
 
 
 def host_pool(workers: int | None = None):
-    """The process's thread pool for host-side work (NumPy and colour-science release the GIL).
+    """Return the process's thread pool for host-side work (NumPy and colour-science release the GIL).
 
     Parameters
     ----------
@@ -304,7 +305,6 @@ def host_pool(workers: int | None = None):
     concurrent.futures.ThreadPoolExecutor
         Made once per process and size, then reused.
     """
-
     n = max(1, int(workers or host_cores()))
     if n not in _pools:
         _pools[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix="hzval-host")

@@ -210,7 +210,7 @@ def texel_centres(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bilinear_at(image: np.ndarray, x, y, boundary: str) -> np.ndarray:
-    """An image read bilinearly between texel centres at tangent-space points (NumPy, float64).
+    """Return an image read bilinearly between texel centres at tangent-space points (NumPy, float64).
 
     The truth's vertex normals (:func:`hzval.geometry.tile.vertex_normals`) and a model's displacement
     (:func:`hzval.geometry.displace.bilinear`) read through it.
@@ -311,7 +311,7 @@ def tangent_to_uv(x, y, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
-    """A tangent-space offset as an offset in the image's rows and columns.
+    """Return a tangent-space offset as an offset in the image's rows and columns.
 
     Parameters
     ----------
@@ -332,7 +332,7 @@ def tangent_to_pixel_offset(dx: int, dy: int) -> tuple[int, int]:
 
 
 def pixel_to_tangent_offset(drow: int, dcol: int) -> tuple[int, int]:
-    """An offset in rows and columns as a tangent-space one; :func:`tangent_to_pixel_offset` inverted.
+    """Return an offset in rows and columns as a tangent-space one; :func:`tangent_to_pixel_offset` inverted.
 
     Parameters
     ----------
@@ -361,7 +361,7 @@ MAX_DEPTH_OPEN = 1000.0
 
 
 def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
-    """A relief depth, checked against what the truth can render.
+    """Return a relief depth, checked against what the truth can render.
 
     Parameters
     ----------
@@ -403,7 +403,7 @@ def check_depth(depth, what: str = "--depth", boundary: str = "wrap") -> float:
 
 
 def check_relief(height: np.ndarray, depth: float, boundary: str = "wrap", what="height map") -> float:
-    """The relief of a height map at ``depth``, checked against what the truth can render.
+    """Return the relief of a height map at ``depth``, checked against what the truth can render.
 
     :func:`check_depth` bounds ``depth``, the height of ``H = 1``; a map whose values run past
     [0, 1] (an EXR of heights in metres) stands taller by its range. The bound is the same
@@ -464,7 +464,7 @@ def _round_down(x: float) -> str:
 
 
 def height_scale(depth: float, cols: int) -> float:
-    """The factor from a normalised height ``H`` to texel units.
+    """Return the factor from a normalised height ``H`` to texel units.
 
     Parameters
     ----------
@@ -487,7 +487,7 @@ def height_scale(depth: float, cols: int) -> float:
 
 
 def heights_in_texels(height: np.ndarray, depth: float) -> np.ndarray:
-    """The heights every stage reads: ``H * depth * cols`` in texel units.
+    """Return the heights every stage reads: ``H * depth * cols`` in texel units.
 
     Parameters
     ----------
@@ -512,7 +512,7 @@ def heights_in_texels(height: np.ndarray, depth: float) -> np.ndarray:
 
 
 def pad_heights(h: np.ndarray, pad: int | tuple, boundary: str) -> np.ndarray:
-    """A height map extended beyond its edges as the boundary prescribes.
+    """Return a height map extended beyond its edges as the boundary prescribes.
 
     Parameters
     ----------
@@ -579,7 +579,7 @@ def height_gradient(h: np.ndarray, boundary: str) -> tuple[np.ndarray, np.ndarra
 
 
 def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
-    """Unit tangent-space normals of a height field: ``normalize(-dh/dx, -dh/dy, 1)``.
+    """Return the unit tangent-space normals of a height field: ``normalize(-dh/dx, -dh/dy, 1)``.
 
     Central differences of heights in texel units (:func:`height_gradient`; FGED2 ch. 7, with its
     listing's use-before-definition fixed, docs/ARCHITECTURE.md). The bake stores them; the truth's
@@ -611,7 +611,7 @@ def normal_map(h_texels: np.ndarray, boundary: str) -> np.ndarray:
 
 
 def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
-    """The unit tangent-space vector toward a light: ``L = (cos e cos phi, cos e sin phi, sin e)``.
+    """Return the unit tangent-space vector toward a light: ``L = (cos e cos phi, cos e sin phi, sin e)``.
 
     Parameters
     ----------
@@ -636,7 +636,7 @@ def light_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
 
 
 def azimuth_of(x, y):
-    """The azimuth of a tangent-space direction, on NumPy and Dr.Jit arrays alike.
+    """Return the azimuth of a tangent-space direction, on NumPy and Dr.Jit arrays alike.
 
     Parameters
     ----------

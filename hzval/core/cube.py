@@ -1,5 +1,6 @@
 """The weight cube map's layout and encoding (Lengyel, section 5.3): the OpenGL face order, each
-texel's centre direction, the face and texel a direction reads, and a signed weight as 8 bits."""
+texel's centre direction, the face and texel a direction reads, and a signed weight as 8 bits.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ CUBE_FACES: tuple[str, ...] = ("posx", "negx", "posy", "negy", "posz", "negz")
 
 
 def cube_texel_directions(size: int) -> np.ndarray:
-    """The unnormalised direction through the centre of every texel of a cube map.
+    """Return the unnormalised direction through the centre of every texel of a cube map.
 
     The face layout is the OpenGL specification's (4.6, table 8.19): a direction ``r`` with major axis
     ``ma`` is looked up at ``s = (sc / |ma| + 1) / 2`` (column) and ``t = (tc / |ma| + 1) / 2`` (row, row 0
@@ -49,7 +50,7 @@ def cube_texel_directions(size: int) -> np.ndarray:
 
 
 def cube_lookup(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The face and face coordinates of directions; the inverse of :func:`cube_texel_directions`.
+    """Return the face and face coordinates of directions; the inverse of :func:`cube_texel_directions`.
 
     Parameters
     ----------

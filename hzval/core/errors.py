@@ -54,7 +54,8 @@ class EnvironmentProblem(HzvalError):
 
 class Interrupted(KeyboardInterrupt):
     """SIGTERM (or another stop signal) as an interrupt: the run unwinds as on Ctrl-C; the command
-    line exits ``128 + signum`` (:mod:`hzval.core.interrupts`)."""
+    line exits ``128 + signum`` (:mod:`hzval.core.interrupts`).
+    """
 
     def __init__(self, signum: int):
         self.signum = int(signum)
@@ -62,7 +63,7 @@ class Interrupted(KeyboardInterrupt):
 
 
 def interruption(exc: BaseException) -> KeyboardInterrupt | None:
-    """The interrupt (Ctrl-C, or SIGTERM as :class:`Interrupted`) behind an error, or ``None``.
+    """Return the interrupt (Ctrl-C, or SIGTERM as :class:`Interrupted`) behind an error, or ``None``.
 
     Dr.Jit raises what a traced or frozen function raised (a signal's interrupt among them: Python
     runs the handler wherever the main thread is) as a ``RuntimeError`` caused by it, so a stop
@@ -104,6 +105,6 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
 
 
 def first_line(exc: BaseException) -> str:
-    """The first line of an exception's message, for one-line errors."""
+    """Return the first line of an exception's message, for one-line errors."""
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]

@@ -51,7 +51,8 @@ def _raise_interrupted(signum, frame) -> None:
 @contextlib.contextmanager
 def terminate_as_interrupt() -> Iterator[None]:
     """Within the block, SIGTERM raises :class:`hzval.core.errors.Interrupted` (main thread only; the
-    previous handler is put back at its end, for a caller that runs commands in its own process)."""
+    previous handler is put back at its end, for a caller that runs commands in its own process).
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -68,7 +69,8 @@ def unwrapped() -> Iterator[None]:
     (:func:`hzval.core.errors.interruption`): a Ctrl-C or SIGTERM that lands while Dr.Jit traces a loop
     or records a frozen function then unwinds as one, through every handler that tells an interrupt
     from an error (a run's folder, a suite's overview), and exits 130 or 143, not 1 with a
-    traceback."""
+    traceback.
+    """
     try:
         yield
     except Exception as exc:
@@ -120,9 +122,10 @@ def _dropped(caught: list[int]) -> None:
 
 @contextlib.contextmanager
 def command() -> Iterator[None]:
-    """The extent of one command (``hzval.cli.main``): a run whose output is in place (a :func:`held`
+    """Yield the extent of one command (``hzval.cli.main``): a run whose output is in place (a :func:`held`
     region that started holding) goes on holding SIGINT and SIGTERM to here, so that the command
-    prints its table and exits with its own status; a signal held is dropped with one line."""
+    prints its table and exits with its own status; a signal held is dropped with one line.
+    """
     global _command_hold
     outer, _command_hold = _command_hold, _Hold()
     try:
@@ -136,8 +139,9 @@ def command() -> Iterator[None]:
 
 @contextlib.contextmanager
 def held() -> Iterator[_Hold]:
-    """A region whose signals, once :meth:`_Hold.start` is called, wait for its end and are then
-    dropped with one line on stderr: the run they would have stopped had finished."""
+    """Yield a region whose signals, once :meth:`_Hold.start` is called, wait for its end and are then
+    dropped with one line on stderr: the run they would have stopped had finished.
+    """
     hold = _Hold()
     try:
         yield hold
@@ -154,9 +158,10 @@ def held() -> Iterator[_Hold]:
 
 @contextlib.contextmanager
 def cases() -> Iterator[None]:
-    """A loop of runs, each with its own :func:`held` swap: a signal one of them held is raised
+    """Yield a loop of runs, each with its own :func:`held` swap: a signal one of them held is raised
     (:class:`hzval.core.errors.Interrupted`) when that run has finished, so the loop stops between
-    runs; the caller's own staging then leaves the earlier output as it was."""
+    runs; the caller's own staging then leaves the earlier output as it was.
+    """
     global _loops
     _loops += 1
     try:

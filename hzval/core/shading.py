@@ -42,7 +42,7 @@ SKY_RADIANCE_PER_IRRADIANCE = 1.0 / math.pi
 
 
 def max_radiance(scene) -> float:
-    """The largest radiance a scene's declared direct and sky terms can produce, with a white albedo.
+    """Return the largest radiance a scene's declared direct and sky terms can produce, with a white albedo.
 
     ``E / pi`` (diffuse, facing the light) ``+ KS E`` (specular, at its peak ``n.h = 1``), or ``E`` (grey,
     neither declared), ``+ E * SKY_RADIANCE_PER_IRRADIANCE`` (ambient, the whole sky seen). Interreflection
@@ -67,7 +67,7 @@ def max_radiance(scene) -> float:
 
 
 def exposure(scene) -> float:
-    """The scale from radiance to display values, so that :func:`max_radiance` shows as 1.
+    """Return the scale from radiance to display values, so that :func:`max_radiance` shows as 1.
 
     Parameters
     ----------
@@ -82,7 +82,7 @@ def exposure(scene) -> float:
 
 
 def disk_sample_irradiance(E: float, radius_deg: float) -> float:
-    """The irradiance each sampled direction of a soft light carries (module docstring, "Soft light").
+    """Return the irradiance each sampled direction of a soft light carries (module docstring, "Soft light").
 
     A disk of angular radius ``rho`` sampled uniformly in solid angle delivers ``E (1 + cos rho) / 2`` to a
     surface facing its centre when each direction carries ``E``; scaling by ``2 / (1 + cos rho)`` makes it
@@ -142,7 +142,7 @@ def ipow(x, n: int):
 
 
 def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
-    """The direct term ``D`` of the module docstring, per sample (Dr.Jit arrays in and out).
+    """Return the direct term ``D`` of the module docstring, per sample (Dr.Jit arrays in and out).
 
     Lambert (FGED2 ch. 7) ``albedo / pi * E * max(0, n.L)`` plus Blinn-Phong
     ``KS * E * max(0, n.h)^ALPHA * [n.L > 0]``, whichever are declared; ``E`` (grey) when neither is.
@@ -166,7 +166,6 @@ def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
     mitsuba.Color3f
         Linear radiance.
     """
-
     if not (diffuse or specular):
         return mi.Color3f(E)
     nl = dr.dot(n, L)
@@ -181,7 +180,7 @@ def direct(n, L, v, albedo, E, *, diffuse: bool, specular: bool, h=None):
 
 
 def sky(albedo, A, E):
-    """The ambient term: ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE``.
+    """Return the ambient term: ``albedo * A * E * SKY_RADIANCE_PER_IRRADIANCE``.
 
     Parameters
     ----------
@@ -209,7 +208,7 @@ def sky(albedo, A, E):
 def compose(
     direct_image: np.ndarray, factor: np.ndarray, ambient_image: np.ndarray | None = None
 ) -> np.ndarray:
-    """A frame's image ``D * F + ambient`` per pixel.
+    """Return a frame's image ``D * F + ambient`` per pixel.
 
     Techniques whose factor is computed per pixel (terrain, pom) shade with it here; the horizon map
     multiplies per sample in its kernel. The two differ only where the direct term varies inside a pixel

@@ -72,7 +72,7 @@ def check_keys(table: Mapping, known, path: str | os.PathLike, where: str = "") 
 
 
 def describe(hint) -> str:
-    """A type hint in words, for error messages.
+    """Return a type hint in words, for error messages.
 
     Parameters
     ----------
@@ -154,7 +154,7 @@ def check_value(value, hint, path: str | os.PathLike, name: str) -> None:
 
 
 def schema_of(cls, rename: Mapping[str, str] | None = None, drop=()) -> dict:
-    """The keys a TOML table may hold, from the dataclass it fills.
+    """Return the keys a TOML table may hold, from the dataclass it fills.
 
     Parameters
     ----------

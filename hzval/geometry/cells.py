@@ -45,7 +45,8 @@ def ring_levels(height_texels: np.ndarray, boundary: str, tolerance: float) -> n
     """``(rows, cols)`` int: the rings of each cell's fans (module docstring), the plane's own level
     for the cell's twist and the tolerance (:func:`hzval.geometry.tile.cell_levels`; a planar cell one ring).
     Cell ``(ky, kx)`` spans ``x`` in ``[kx + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]``
-    (texel row ``rows - 1 - ky``); ``wrap`` wraps the last cells around, ``open`` clamps them flat."""
+    (texel row ``rows - 1 - ky``); ``wrap`` wraps the last cells around, ``open`` clamps them flat.
+    """
     h = np.asarray(height_texels, np.float64)[::-1]  # row 0: the first texel centre along y
     z = np.pad(h, ((0, 1), (0, 1)), mode="wrap" if boundary == "wrap" else "edge")
     return np.maximum(cell_levels(z, float(tolerance)), 1).astype(np.int64)
@@ -61,7 +62,8 @@ CORNER, EDGE, INSIDE = 0, 1, 2
 
 def _pair_chunks(X: np.ndarray, Y: np.ndarray, faces: np.ndarray, usable: np.ndarray):
     """``(face, kx, ky)`` of every cell that each usable triangle's bounding box touches, in chunks of
-    about :data:`CHUNK_PAIRS` (a cell ``(ky, kx)`` spans ``[kx + 0.5, kx + 1.5] x [ky + 0.5, ky + 1.5]``)."""
+    about :data:`CHUNK_PAIRS` (a cell ``(ky, kx)`` spans ``[kx + 0.5, kx + 1.5] x [ky + 0.5, ky + 1.5]``).
+    """
     fx, fy = X[faces], Y[faces]
     kx0, kx1 = (np.floor(v - 0.5).astype(np.int64) for v in (fx.min(1), fx.max(1)))
     ky0, ky1 = (np.floor(v - 0.5).astype(np.int64) for v in (fy.min(1), fy.max(1)))
@@ -82,7 +84,8 @@ def _pair_chunks(X: np.ndarray, Y: np.ndarray, faces: np.ndarray, usable: np.nda
 
 def _where(X, Y, faces, f, kx, ky) -> np.ndarray:
     """Per pair: 1 where the cell lies wholly inside its triangle, -1 wholly outside, 0 near one of
-    its edges (the cell's centre within half a diagonal of the edge's line: cut it)."""
+    its edges (the cell's centre within half a diagonal of the edge's line: cut it).
+    """
     cx, cy = X[faces[f]], Y[faces[f]]
     mx, my = kx + 1.0, ky + 1.0  # the cell's centre
     inside = np.ones(len(f), bool)
@@ -99,7 +102,7 @@ def _where(X, Y, faces, f, kx, ky) -> np.ndarray:
 
 
 def _square(kx, ky):
-    """The :func:`_polygons` of cells wholly inside their triangles: their four corners."""
+    """Return the :func:`_polygons` of cells wholly inside their triangles: their four corners."""
     x0, y0 = kx + 0.5, ky + 0.5
     px = np.stack([x0, x0 + 1.0, x0 + 1.0, x0], 1)
     py = np.stack([y0, y0, y0 + 1.0, y0 + 1.0], 1)
@@ -115,11 +118,12 @@ def _square(kx, ky):
 
 
 def _polygons(X, Y, faces, f, kx, ky):
-    """The convex piece of triangle ``f`` in cell ``(ky, kx)``, for each pair: ``(px, py, kind, vid,
+    """Return the convex piece of triangle ``f`` in cell ``(ky, kx)``, for each pair: ``(px, py, kind, vid,
     t, count)``, ``(P, S)`` slots sorted counterclockwise in texel space (invalid slots last), ``count``
     the distinct vertices (< 3: no piece). ``kind``: :data:`CORNER` (``vid`` the base vertex),
     :data:`EDGE` (``vid`` the edge's corner index ``e``, ``t`` along it from its lower vertex id),
-    :data:`INSIDE`."""
+    :data:`INSIDE`.
+    """
     tri = faces[f]  # (P, 3) vertex ids
     cx, cy = X[tri], Y[tri]
     x0, y0 = kx + 0.5, ky + 0.5
@@ -177,8 +181,9 @@ def _polygons(X, Y, faces, f, kx, ky):
 
 
 def _sorted_distinct(px, py, kind, vid, t, valid):
-    """The valid slots sorted by angle about their mean, near-duplicates (1e-9 texels) merged into the
-    most exact of them (a corner, then an edge point of lowest ``t``), invalid slots last."""
+    """Return the valid slots sorted by angle about their mean, near-duplicates (1e-9 texels) merged into the
+    most exact of them (a corner, then an edge point of lowest ``t``), invalid slots last.
+    """
     S = px.shape[1]
     n = np.maximum(valid.sum(1), 1)
     mx = np.where(valid, px, 0.0).sum(1) / n
@@ -213,10 +218,11 @@ def _sorted_distinct(px, py, kind, vid, t, valid):
 
 
 def _fans(px, py, kind, vid, t, count, rings, flip):
-    """The triangles of each piece: a fan about its vertices' mean, cut into ``rings`` rings (module
+    """Return the triangles of each piece: a fan about its vertices' mean, cut into ``rings`` rings (module
     docstring), counterclockwise in texel space (``flip``: the other way round, for a triangle
     mirrored in UV). Returns the vertex records ``(x, y, kind, vid, t, pair)`` and ``(T, 3)``
-    indices into them, ``pair`` the piece each came from."""
+    indices into them, ``pair`` the piece each came from.
+    """
     P, S = px.shape
     slot = np.arange(S)[None, :]
     live = slot < count[:, None]
@@ -306,10 +312,11 @@ def cut(
     height_texels: np.ndarray | None = None,
     tolerance: float | None = None,
 ):
-    """``base`` cut along the texel grid of a ``texels = (rows, cols)`` image (module docstring):
+    """Cut ``base`` along the texel grid of a ``texels = (rows, cols)`` image (module docstring):
     ``(vertices, faces, base_face, rings)`` with ``vertices`` a dict of per-vertex arrays (``kind``,
     ``vid``, ``face``, ``t``, ``x``, ``y``) that :func:`attributes` turns into positions and
-    frames; ``rings`` per cell from ``height_texels`` and ``tolerance`` (None: one ring)."""
+    frames; ``rings`` per cell from ``height_texels`` and ``tolerance`` (None: one ring).
+    """
     rows, cols = texels
     X, Y = base.uvs[:, 0] * cols, base.uvs[:, 1] * rows
     faces = base.faces
@@ -367,7 +374,8 @@ def cut(
 
 def _group(*columns) -> np.ndarray:
     """``(N,)`` int64 ids of the distinct rows of the integer ``columns`` (by a lexicographic sort,
-    far faster than ``np.unique(axis=0)``), and the first row of each."""
+    far faster than ``np.unique(axis=0)``), and the first row of each.
+    """
     order = np.lexsort(columns[::-1])
     diff = np.zeros(len(order), bool)
     diff[0] = True
@@ -380,7 +388,7 @@ def _group(*columns) -> np.ndarray:
 
 
 def _edge_ends(base, face: np.ndarray, e: np.ndarray):
-    """The lower and higher vertex ids of edge ``e`` (corner ``e`` to ``e + 1``) of ``face``."""
+    """Return the lower and higher vertex ids of edge ``e`` (corner ``e`` to ``e + 1``) of ``face``."""
     tri = base.faces[face]
     a = np.take_along_axis(tri, e[:, None].astype(np.int64), 1)[:, 0]
     b = np.take_along_axis(tri, ((e + 1) % 3)[:, None].astype(np.int64), 1)[:, 0]
@@ -388,10 +396,11 @@ def _edge_ends(base, face: np.ndarray, e: np.ndarray):
 
 
 def _unique_vertices(base, v: dict, tris: np.ndarray):
-    """The distinct vertices of the records ``v`` and ``tris`` in their indices, triangles that
+    """Return the distinct vertices of the records ``v`` and ``tris`` in their indices, triangles that
     collapsed dropped. On its side of any seam a vertex is: a base corner by its id; an edge point
     by its edge's two vertex ids and ``t``; a cell corner by its triangle and texel position (exact
-    half-integers); a fan's centre or ring point (``fresh``) is its piece's alone."""
+    half-integers); a fan's centre or ring point (``fresh``) is its piece's alone.
+    """
     n = len(v["kind"])
     ident = np.full(n, -1, np.int64)
     first_rows, count = [], 0
@@ -425,7 +434,8 @@ def _unique_vertices(base, v: dict, tris: np.ndarray):
 
 def _weld_edge(base, u: dict):
     """Per vertex: its weld edge key ``wlo * W + whi`` (edge points; -1 otherwise), ``t`` along the
-    edge from ``wlo`` (edge points) and the weld id (corners; -1 otherwise)."""
+    edge from ``wlo`` (edge points) and the weld id (corners; -1 otherwise).
+    """
     W = int(base.weld.max()) + 1
     e = u["kind"] == EDGE
     E = np.full(len(e), -1, np.int64)
@@ -440,7 +450,8 @@ def _weld_edge(base, u: dict):
 
 def _snap(E: np.ndarray, t3: np.ndarray, eps: float = 1e-9) -> np.ndarray:
     """``t3`` with the points of one weld edge closer than ``eps`` given the lowest ``t`` of their
-    cluster: both sides of a seam cut at the same grid line then share one point."""
+    cluster: both sides of a seam cut at the same grid line then share one point.
+    """
     on = np.flatnonzero(E >= 0)
     order = on[np.lexsort((t3[on], E[on]))]
     e, t = E[order], t3[order]
@@ -467,7 +478,8 @@ def _seam_keys(base, W: int) -> np.ndarray:
 
 def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
     """For triangle edges ``(i, j)`` (vertex indices): the weld edge both ends lie on (-1: none) and
-    their ``t`` along it."""
+    their ``t`` along it.
+    """
     ki, kj = u["kind"][i], u["kind"][j]
     key = np.full(len(i), -1, np.int64)
     ti, tj = t3[i].copy(), t3[j].copy()
@@ -489,7 +501,8 @@ def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
 def _stitch(base, u: dict, faces: np.ndarray, base_face: np.ndarray, eps: float = 1e-9):
     """Put every point of a seam's either side on both (module docstring, "Seams"): each triangle
     with an edge on a seam is fanned from its third vertex through the other side's points on that
-    edge. ``u`` gains the new edge points (``t3`` their place along the weld edge)."""
+    edge. ``u`` gains the new edge points (``t3`` their place along the weld edge).
+    """
     E, t3, w, W = _weld_edge(base, u)
     t3 = _snap(E, t3, eps)
     seams = _seam_keys(base, W)
@@ -572,9 +585,10 @@ def mesh(
     height_texels: np.ndarray | None = None,
     tolerance: float | None = None,
 ) -> dict:
-    """The cut base mesh (module docstring): per vertex ``positions`` (on the base mesh),
+    """Return the cut base mesh (module docstring): per vertex ``positions`` (on the base mesh),
     ``normals``, ``tangents`` (xyz and ``w``), ``uvs`` and ``weld`` (one id per place, across
-    seams); ``faces`` counterclockwise as the base's and ``base_face`` the triangle each came from."""
+    seams); ``faces`` counterclockwise as the base's and ``base_face`` the triangle each came from.
+    """
     rows, cols = texels
     v, tris, base_face = cut(base, texels, boundary, height_texels=height_texels, tolerance=tolerance)
     u, faces, ok = _unique_vertices(base, v, tris)
@@ -592,7 +606,8 @@ def mesh(
 def _attributes(base, u: dict, rows: int, cols: int) -> dict:
     """Positions, frames, UVs and weld ids of the vertices ``u`` (module docstring, "Canonical
     points"): corners as the base's, edge points from their edge's two ends, inside points from
-    their triangle's UV map."""
+    their triangle's UV map.
+    """
     n_v = len(u["kind"])
     first_of_weld = np.zeros(int(base.weld.max()) + 1, np.int64)
     first_of_weld[base.weld[::-1]] = np.arange(len(base.weld))[::-1]

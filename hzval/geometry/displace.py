@@ -55,11 +55,13 @@ BYTES_PER_TRIANGLE = 420
 
 @dataclass(frozen=True)
 class Refined:
-    """A base mesh cut to the texel scale. Per vertex: ``positions (V, 3)`` (on the base mesh),
-    ``normals (V, 3)`` (interpolated, normalised), ``tangents (V, 4)`` (interpolated,
-    re-orthonormalised against the normal, ``w`` kept), ``uvs (V, 2)``, ``weld (V,)`` (one id per
-    position, equal across a seam); ``faces (F, 3)`` int64 counterclockwise as the base's,
-    ``base_face (F,)`` the base triangle each came from."""
+    """A base mesh cut to the texel scale.
+
+    Per vertex: ``positions (V, 3)`` (on the base mesh), ``normals (V, 3)`` (interpolated, normalised),
+    ``tangents (V, 4)`` (interpolated, re-orthonormalised against the normal, ``w`` kept), ``uvs (V, 2)``,
+    ``weld (V,)`` (one id per position, equal across a seam); ``faces (F, 3)`` int64 counterclockwise as the
+    base's, ``base_face (F,)`` the base triangle each came from.
+    """
 
     positions: np.ndarray
     normals: np.ndarray
@@ -79,10 +81,11 @@ def refine(
     depth: float | None = None,
     tolerance: float | None = None,
 ) -> Refined:
-    """``base`` cut in UV space along the texel grid of a ``texels = (rows, cols)`` image, each piece
+    """Cut ``base`` in UV space along the texel grid of a ``texels = (rows, cols)`` image, each piece
     a fan, watertight across UV seams (:mod:`hzval.geometry.cells`). With ``height`` (normalised, the map
     itself) and ``depth``, a twisted cell's fans are cut into rings until they are within
-    ``tolerance`` texels of the bilinear patch (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`)."""
+    ``tolerance`` texels of the bilinear patch (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`).
+    """
     h_tex = None
     if height is not None:
         h_tex = cv.heights_in_texels(np.asarray(height, np.float32), float(depth))
@@ -107,7 +110,8 @@ def estimate(
     cells they cross: ``|du| + |dv|``) and ``F`` base triangles, fitted within 5% to the shapes
     and a 20k-triangle torus at 64^2 to 256^2 (commit message), :data:`BYTES_PER_TRIANGLE` each.
     With the map (``height``, ``depth``, ``tolerance`` as :func:`refine` takes them) the cells'
-    rings count too: a fan's edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean)."""
+    rings count too: a fan's edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean).
+    """
     rows, cols = texels
     uv = base.uvs[base.faces] * [cols, rows]
     area = 0.5 * np.abs(
@@ -133,7 +137,8 @@ def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
     """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres at
     hzval UVs (u right, v up the image, :mod:`hzval.geometry.model`), as the plane reads it
     (:func:`hzval.core.conventions.bilinear_at` at ``x = u cols``, ``y = v rows``). Returns ``(V,)``
-    or ``(V, k)`` float64."""
+    or ``(V, k)`` float64.
+    """
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
     rows, cols = np.shape(image)[:2]
@@ -150,14 +155,15 @@ def shading_normals(refined: Refined, normal_map: np.ndarray, boundary: str) -> 
     """``(V, 3)`` float32 unit world normals of the refined vertices: the tangent-space normal map
     (``(rows, cols, 3)``, :func:`hzval.core.conventions.normal_map`: x along +u, y along +v, z out) read at
     each vertex (:func:`bilinear`) and carried to the world by the vertex's frame
-    (:func:`hzval.geometry.tangents.to_world`), as the techniques carry it at their hit points."""
+    (:func:`hzval.geometry.tangents.to_world`), as the techniques carry it at their hit points.
+    """
     m = bilinear(normal_map, refined.uvs, boundary)
     n = tg.to_world(m, refined.normals, refined.tangents[:, :3], refined.tangents[:, 3])
     return tg.normalize(n).astype(np.float32)
 
 
 def weld_means(weld: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The mean of ``values`` (``(V,)`` or ``(V, k)``) over each weld id, ``(W, ...)``."""
+    """Return the mean of ``values`` (``(V,)`` or ``(V, k)``) over each weld id, ``(W, ...)``."""
     count = np.bincount(weld).astype(np.float64)
     if values.ndim == 1:
         return np.bincount(weld, values) / count
@@ -180,7 +186,7 @@ def displace(
     *,
     weld: str = "miter",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``, one position per
+    """Return the truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``, one position per
     refined vertex, ``p + n H(uv) depth world_per_uv`` with ``H`` from :func:`sample_height`
     (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld
     id (a seam's sides, a hard edge's) share one position, bit for bit, pushed by their mean height
@@ -188,7 +194,8 @@ def displace(
     ``mean`` by ``h m / |m|``; ``miter`` by ``h m / |m|^2`` (at most :data:`MAX_MITER` ``h``), which
     moves the point by ``h`` along each of two normals, or three at right angles, so that a hard
     edge's faces stay flat up to it (a constant height grows a cube into a cube). Along a smooth
-    seam (equal normals) the two are the same."""
+    seam (equal normals) the two are the same.
+    """
     if np.ndim(height) != 2 or not np.all(np.isfinite(height)):
         raise ValueError("height must be a finite (rows, cols) array")
     if weld not in WELDS:

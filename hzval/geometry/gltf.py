@@ -36,7 +36,8 @@ _GLTF_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 def _gltf_accessor(g, blob: bytes, index: int) -> np.ndarray:
     """Accessor ``index`` of the glTF ``g`` as a ``(count, width)`` float64 array (indices as
-    integers), honouring ``byteStride`` and ``normalized``. Sparse accessors: ``ValueError``."""
+    integers), honouring ``byteStride`` and ``normalized``. Sparse accessors: ``ValueError``.
+    """
     a = g.accessors[index]
     if a.sparse is not None:
         raise ValueError(f"accessor {index} is sparse, which hzval does not read")
@@ -55,7 +56,7 @@ def _gltf_accessor(g, blob: bytes, index: int) -> np.ndarray:
 
 
 def _gltf_node_matrix(node) -> np.ndarray:
-    """A node's local 4 x 4 transform: its ``matrix`` (column-major) or ``T R S``."""
+    """Return a node's local 4 x 4 transform: its ``matrix`` (column-major) or ``T R S``."""
     if node.matrix is not None:
         return np.asarray(node.matrix, np.float64).reshape(4, 4).T
     x, y, z, w = node.rotation or (0.0, 0.0, 0.0, 1.0)
@@ -78,7 +79,8 @@ def _gltf_primitives(g):
 
     glTF 2.0 ("Nodes and Hierarchy") requires the nodes to form disjoint strict trees: a node
     reached twice (a cycle, a child listed twice, a node under two parents) is a ``ValueError``,
-    so the walk visits each node at most once and ends."""
+    so the walk visits each node at most once and ends.
+    """
     roots = (
         g.scenes[g.scene or 0].nodes
         if g.scenes
@@ -103,7 +105,8 @@ def _gltf_primitives(g):
 
 def _gltf_part(g, blob, prim, m):
     """One triangle primitive as ``(positions, uvs, normals, tangents, faces)`` in the file's
-    axes with its node's transform applied; glTF's ``v`` flipped to hzval's (``1 - v``)."""
+    axes with its node's transform applied; glTF's ``v`` flipped to hzval's (``1 - v``).
+    """
     at = prim.attributes
     if at.TEXCOORD_0 is None:
         raise ValueError("has no texture coordinates (TEXCOORD_0)")
@@ -123,8 +126,8 @@ def _gltf_part(g, blob, prim, m):
 
 def _gltf_check_uris(g, path: str) -> None:
     """Every buffer URI of the glTF at ``path`` is embedded (``data:``) or names a file inside the
-    glTF's folder (:func:`hzval.io.paths.uri_path`): checked before any buffer is opened."""
-
+    glTF's folder (:func:`hzval.io.paths.uri_path`): checked before any buffer is opened.
+    """
     folder = os.path.dirname(os.fspath(path)) or "."
     for i, b in enumerate(g.buffers or []):
         if b.uri is not None and not paths.is_data_uri(b.uri):
@@ -134,7 +137,8 @@ def _gltf_check_uris(g, path: str) -> None:
 def _gltf_check(g, blob: bytes) -> None:
     """``ValueError`` for what the reader cannot decode: required extensions (Draco, meshopt
     compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
-    the ``.gltf``)."""
+    the ``.gltf``).
+    """
     if g.extensionsRequired:
         raise ValueError(
             f"needs glTF extension(s) {', '.join(g.extensionsRequired)}, which hzval does not "
@@ -148,7 +152,7 @@ def _gltf_check(g, blob: bytes) -> None:
 
 
 def read_parts(path: str) -> tuple:
-    """The triangles of a glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``), by pygltflib.
+    """Return the triangles of a glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``), by pygltflib.
 
     Every triangle primitive of the default scene with its node transforms applied, in the file's
     axes; ``TEXCOORD_0`` (``v -> 1 - v``), ``NORMAL`` and ``TANGENT`` where every primitive has them.
@@ -170,7 +174,6 @@ def read_parts(path: str) -> tuple:
         One line naming the file: a URI outside its folder, a node reached twice, missing buffer
         data, a required extension, no triangles, or content pygltflib cannot read.
     """
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -204,7 +207,7 @@ def read_parts(path: str) -> tuple:
 
 
 def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") -> None:
-    """A mesh as a binary glTF 2.0 file: ``POSITION``, ``NORMAL``, ``TEXCOORD_0`` and ``TANGENT``.
+    """Write a mesh as a binary glTF 2.0 file: ``POSITION``, ``NORMAL``, ``TEXCOORD_0`` and ``TANGENT``.
 
     The inverse of :func:`read_parts` with hzval's model reader: hzval's z-up world turned to
     glTF's y up (``up="y"``, the spec's; ``"z"`` keeps the axes), ``v`` flipped back to glTF's
@@ -227,7 +230,6 @@ def write_glb(path, positions, normals, uvs, tangents, faces, *, up: str = "y") 
     up : {"y", "z"}
         The written file's up axis.
     """
-
     rot = tg.Y_UP_TO_Z_UP.T if up == "y" else np.eye(3)  # z-up world to the file's axes
     arrays = [
         ("POSITION", np.asarray(positions, np.float64) @ rot.T, "VEC3"),

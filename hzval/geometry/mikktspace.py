@@ -89,7 +89,8 @@ def _neighbours(weld: np.ndarray, good: np.ndarray) -> np.ndarray:
     """``(F, 3)`` the good triangle across each edge ``i`` (corner ``i`` to ``i + 1``) of a good
     triangle, wound oppositely over the same welded vertices, or -1. An edge that only two
     triangles share is paired by sorting; where more share it, each directed edge takes the first
-    free opposite one in triangle order, as the reference pairs them."""
+    free opposite one in triangle order, as the reference pairs them.
+    """
     out = np.full(weld.shape, -1, np.int64)
     faces = np.flatnonzero(good)
     a, b = weld[faces], np.roll(weld[faces], -1, axis=1)
@@ -128,7 +129,8 @@ def _pair_shared(out: np.ndarray, faces, a: list, b: list, edges) -> None:
 def _groups(weld, neighbours, preserving, framed, good) -> tuple[np.ndarray, np.ndarray]:
     """``(group of each corner, orientation of each group)`` (module docstring, step 3): -1 for a
     corner no group reached. Depth first, as the reference's ``AssignRecur``: from a corner, its
-    triangle's neighbour across the edge leaving it, then across the edge arriving at it."""
+    triangle's neighbour across the edge leaving it, then across the edge arriving at it.
+    """
     w, nb = weld.tolist(), neighbours.tolist()
     orient, has_frame = preserving.tolist(), framed.tolist()
     group = [[-1, -1, -1] for _ in w]
@@ -213,8 +215,9 @@ def corner_tangents(positions, normals, uvs, faces) -> np.ndarray:
 
 
 def _leftovers(out: np.ndarray, weld: np.ndarray, good: np.ndarray, seen: np.ndarray) -> None:
-    """A degenerate triangle's corners take the frame of the first good, grouped corner at their
-    welded vertex (module docstring, step 5)."""
+    """Give a degenerate triangle's corners the frame of the first good, grouped corner at their
+    welded vertex (module docstring, step 5).
+    """
     bad = np.flatnonzero(~good)
     if not len(bad):
         return
@@ -228,7 +231,7 @@ def _leftovers(out: np.ndarray, weld: np.ndarray, good: np.ndarray, seen: np.nda
 
 
 def per_vertex(positions, normals, uvs, faces, corners: np.ndarray):
-    """A mesh's arrays with a vertex for each distinct frame its corners hold.
+    """Return a mesh's arrays with a vertex for each distinct frame its corners hold.
 
     MikkTSpace gives each corner a frame; a vertex whose corners hold different frames (a mirror
     line with shared texture coordinates) becomes one vertex per frame, with its position, normal

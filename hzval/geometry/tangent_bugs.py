@@ -90,7 +90,8 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
     """``frames`` (``(N, 12)`` float32: ``t, b, n, v`` per sample, :data:`hzval.scene.lookup.FRAME_FLOATS`)
     with ``t, b, n`` as the bug ``name`` makes them; ``v`` (toward the camera, world) unchanged.
     ``face()`` returns each sample's base triangle's frame ``(t, b, n)`` (only ``per-face`` calls
-    it). ``none`` returns ``frames`` itself, untouched."""
+    it). ``none`` returns ``frames`` itself, untouched.
+    """
     if check(name) == "none":
         return frames
     t, b, n = (frames[:, 3 * k : 3 * k + 3] for k in range(3))
@@ -100,8 +101,8 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
 
 def face_frames_at(model, prim: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(t, b, n)`` ``(N, 3)`` float32: the frame of the base triangles ``prim`` of ``model``
-    (:func:`hzval.geometry.tangents.face_frames`), ``b = w cross(n, t)`` with the triangle's own ``w``."""
-
+    (:func:`hzval.geometry.tangents.face_frames`), ``b = w cross(n, t)`` with the triangle's own ``w``.
+    """
     fn, ft = tg.face_frames(model.positions, model.uvs, model.faces)
     prim = np.asarray(prim, np.int64)
     n, t, w = fn[prim], ft[prim, :3], ft[prim, 3]

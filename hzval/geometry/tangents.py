@@ -64,7 +64,7 @@ METHODS: tuple[str, ...] = ("auto", "mikktspace", "fged2", "file")
 
 
 def resolve(method: str, has_file_tangents: bool, builtin: bool) -> str:
-    """The frames ``method`` stands for on one mesh.
+    """Return the frames ``method`` stands for on one mesh.
 
     ``auto`` is the file's ``TANGENT`` where it has one, else MikkTSpace, as glTF 2.0 asks of a
     client; hzval's built-in shapes, which have no file, keep the FGED2 frames they were measured
@@ -127,7 +127,7 @@ def _cross(a, b):
 
 
 def normalize(a):
-    """``a / |a|``; a zero vector stays zero (NumPy) rather than becoming NaN."""
+    """Return ``a / |a|``; a zero vector stays zero (NumPy) rather than becoming NaN."""
     if cv.is_drjit(a):
         # only on the Dr.Jit path: NumPy callers never load Dr.Jit
         from hzval.core.backend import dr
@@ -166,17 +166,19 @@ def reject(t, n):
 
 
 def orthonormal(n, t, w):
-    """The frame ``(t, b, n)`` at a point from interpolated (not unit, not orthogonal) ``n``, ``t``
+    """Return the frame ``(t, b, n)`` at a point from interpolated (not unit, not orthogonal) ``n``, ``t``
     and handedness ``w``: ``n`` normalised, ``t`` rejected from it (FGED2's
-    ``FetchObjectNormalVector``), ``b = sign(w) cross(n, t)``. Returns ``(t, b, n)``."""
+    ``FetchObjectNormalVector``), ``b = sign(w) cross(n, t)``. Returns ``(t, b, n)``.
+    """
     n = normalize(n)
     t = reject(t, n)
     return t, _scale(_cross(n, t), sign(w)), n
 
 
 def to_world(v, n, t, w):
-    """A tangent-space vector ``v = (x, y, z)`` (x along +u, y along +v, z out) in the world:
-    ``x t + y b + z n`` with the frame :func:`orthonormal` makes of ``(n, t, w)``."""
+    """Return a tangent-space vector ``v = (x, y, z)`` (x along +u, y along +v, z out) in the world:
+    ``x t + y b + z n`` with the frame :func:`orthonormal` makes of ``(n, t, w)``.
+    """
     t, b, n = orthonormal(n, t, w)
     if cv.is_drjit(v):
         return t * v.x + b * v.y + n * v.z
@@ -185,8 +187,9 @@ def to_world(v, n, t, w):
 
 
 def to_tangent(v, n, t, w):
-    """A world vector ``v`` in tangent space: ``(dot(t, v), dot(b, v), dot(n, v))`` (FGED2's TBN
-    product), the inverse of :func:`to_world` for the same ``(n, t, w)``."""
+    """Return a world vector ``v`` in tangent space: ``(dot(t, v), dot(b, v), dot(n, v))`` (FGED2's TBN
+    product), the inverse of :func:`to_world` for the same ``(n, t, w)``.
+    """
     t, b, n = orthonormal(n, t, w)
     if cv.is_drjit(v):
         # only on the Dr.Jit path: NumPy callers never load Dr.Jit
@@ -205,7 +208,8 @@ def uv_derivatives(positions, uvs, faces):
     """Per triangle ``(dP/du, dP/dv, det)`` (``(F, 3)``, ``(F, 3)``, ``(F,)``), FGED2's
     ``t = (e1 y2 - e2 y1) / det``, ``b = (e2 x1 - e1 x2) / det`` with ``e1, e2`` the edges from
     vertex 0 and ``(x, y)`` their UV differences, ``det = x1 y2 - x2 y1`` (the UV area doubled,
-    signed). Triangles with a degenerate UV map (:data:`DEGENERATE_UV`) get zero derivatives."""
+    signed). Triangles with a degenerate UV map (:data:`DEGENERATE_UV`) get zero derivatives.
+    """
     p = np.asarray(positions, np.float64)[faces]
     w = np.asarray(uvs, np.float64)[faces]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
@@ -223,7 +227,8 @@ def compute(positions, normals, uvs, faces) -> np.ndarray:
     ``dP/du``, ``dP/dv`` (:func:`uv_derivatives`) added to its three vertices, ``t`` rejected from
     the unit vertex normal, ``w = +1`` where ``dot(cross(t, b), n) > 0`` else ``-1`` (FGED2 takes
     the sums for ``t, b``). A vertex whose sum vanishes (only degenerate UVs around it) gets a
-    tangent orthogonal to its normal (:func:`any_tangent`) and ``w = +1``."""
+    tangent orthogonal to its normal (:func:`any_tangent`) and ``w = +1``.
+    """
     faces = np.asarray(faces, np.int64)
     n = normalize(normals)
     dpdu, dpdv, _ = uv_derivatives(positions, uvs, faces)
@@ -241,17 +246,19 @@ def compute(positions, normals, uvs, faces) -> np.ndarray:
 
 
 def any_tangent(n) -> np.ndarray:
-    """A unit vector orthogonal to each unit ``n`` (``(k, 3)``): ``x`` rejected from it, or ``y``
-    where ``n`` is nearly ``x``."""
+    """Return a unit vector orthogonal to each unit ``n`` (``(k, 3)``): ``x`` rejected from it, or ``y``
+    where ``n`` is nearly ``x``.
+    """
     n = np.asarray(n, np.float64).reshape(-1, 3)
     axis = np.where((np.abs(n[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     return reject(axis, n)
 
 
 def from_file(tangents, normals) -> np.ndarray:
-    """A file's ``(V, 4)`` tangents (glTF ``TANGENT``: xyz along +u, w the handedness) as hzval
+    """Return a file's ``(V, 4)`` tangents (glTF ``TANGENT``: xyz along +u, w the handedness) as hzval
     keeps them: xyz rejected from the unit normal (a writer's rounding), w reduced to its sign.
-    ``ValueError`` names what is wrong (the reader turns it into one line naming the file)."""
+    ``ValueError`` names what is wrong (the reader turns it into one line naming the file).
+    """
     t4 = np.asarray(tangents, np.float64)
     if t4.ndim != 2 or t4.shape[1] != 4:
         raise ValueError(f"TANGENT must have 4 components per vertex, got shape {t4.shape}")
@@ -269,7 +276,8 @@ def from_file(tangents, normals) -> np.ndarray:
 
 def rotate(tangents, matrix) -> np.ndarray:
     """Tangents ``(V, 4)`` under a linear map ``matrix`` (3 x 3, applied as ``M @ t``): xyz mapped
-    and normalised, ``w`` times ``sign(det M)`` (a mirror turns the bitangent's side over)."""
+    and normalised, ``w`` times ``sign(det M)`` (a mirror turns the bitangent's side over).
+    """
     m = np.asarray(matrix, np.float64)
     t = normalize(np.asarray(tangents, np.float64)[:, :3] @ m.T)
     return np.concatenate([t, tangents[:, 3:4] * np.sign(np.linalg.det(m))], axis=-1)
@@ -283,7 +291,8 @@ def rotate(tangents, matrix) -> np.ndarray:
 @dataclass(frozen=True)
 class Frames:
     """The frames a renderer interpolates: ``normal (k, 3)`` unit, ``tangent (k, 4)`` (xyz unit,
-    w = +1/-1), one per vertex (``per = "vertex"``) or per triangle (``"face"``)."""
+    w = +1/-1), one per vertex (``per = "vertex"``) or per triangle (``"face"``).
+    """
 
     per: str
     normal: np.ndarray
@@ -292,7 +301,8 @@ class Frames:
 
 def handedness(t, b, n) -> np.ndarray:
     """``(N,)`` the sign ``w`` of frames given as ``(N, 3)`` arrays: ``sign(dot(cross(n, t), b))``
-    (+1: the UVs as drawn, -1: mirrored; this module's ``b = w cross(n, t)``), 0 for a degenerate one."""
+    (+1: the UVs as drawn, -1: mirrored; this module's ``b = w cross(n, t)``), 0 for a degenerate one.
+    """
     t, b, n = (np.asarray(a, np.float64) for a in (t, b, n))
     return np.sign(_dot(np.cross(n, t), b))
 
@@ -301,7 +311,8 @@ def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
     """Per triangle ``(normal (F, 3), tangent (F, 4))``: the geometric normal (counterclockwise
     winding), ``dP/du`` rejected from it, ``w`` the sign of ``dot(cross(dP/du, dP/dv), n)``, the
     same as the sign of the UV area seen from the normal's side. A triangle without UV derivatives
-    gets :func:`any_tangent` and ``w = +1``."""
+    gets :func:`any_tangent` and ``w = +1``.
+    """
     p = np.asarray(positions, np.float64)[faces]
     n = normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     dpdu, dpdv, _ = uv_derivatives(positions, uvs, faces)
@@ -314,10 +325,11 @@ def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
 
 
 def frames(mesh, mode: str = "vertex") -> Frames:
-    """The frames of a :class:`hzval.geometry.model.BaseMesh`: ``"vertex"``, its own per-vertex normals and
+    """Return the frames of a :class:`hzval.geometry.model.BaseMesh`: ``"vertex"``, its own per-vertex normals and
     tangents (the file's or :func:`compute`'s), which a renderer interpolates; ``"face"``, each
     triangle's own flat frame (:func:`face_frames`), the faceted frame a careless exporter gives
-    (:mod:`hzval.geometry.tangent_bugs` has the other bugs)."""
+    (:mod:`hzval.geometry.tangent_bugs` has the other bugs).
+    """
     if mode == "vertex":
         return Frames("vertex", mesh.normals, mesh.tangents)
     if mode == "face":

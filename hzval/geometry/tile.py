@@ -144,8 +144,8 @@ def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -
     bilinearly between texel centres at each vertex's ``(x, y)`` and normalised, as the truth's
     ``smooth`` shading reads them (docs/internals.md, the truth's "Shading"): a texel centre takes its texel's
     normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
-    clamped)."""
-
+    clamped).
+    """
     nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
     n = cv.bilinear_at(nmap, positions[:, 0], positions[:, 1], boundary)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
@@ -190,7 +190,7 @@ def displaced_mesh(
     info: dict | None = None,
     budget_bytes: int | None = None,
 ):
-    """The displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
+    """Return the displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
     interpolation of the texel centres' heights, tessellated to within ``tolerance`` texels
     (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
 
@@ -206,7 +206,6 @@ def displaced_mesh(
     receives the cells' ``levels``
     (:func:`cell_levels`) and the ``tolerance`` used.
     """
-
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     g = grid(h, boundary, min_elevation_deg=min_elevation_deg, margin=margin)
@@ -234,9 +233,10 @@ def displaced_mesh(
 
 def write_ply(m, path) -> None:
     """Write the Mitsuba mesh ``m`` to ``path`` as PLY, atomically (:func:`hzval.io.atomic.atomic_path`).
-    Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one
-    line naming the file here (:class:`hzval.core.errors.InputError`)."""
 
+    Mitsuba reports a failed write (a full disk) as a ``RuntimeError`` with its own text; it is one line
+    naming the file here (:class:`hzval.core.errors.InputError`).
+    """
     with atomic.atomic_path(path) as tmp:
         try:
             m.write_ply(str(tmp))
@@ -263,7 +263,8 @@ MAX_LEVEL = 16
 
 def twists(z: np.ndarray) -> np.ndarray:
     """``(ny-1, nx-1)`` float64: each cell's twist ``h00 - h10 - h01 + h11`` (texels), the ``d`` of the
-    bilinear patch ``a + b u + c v + d u v`` on its four corners; 0 for a planar cell."""
+    bilinear patch ``a + b u + c v + d u v`` on its four corners; 0 for a planar cell.
+    """
     z = np.asarray(z, np.float64)
     return z[:-1, :-1] - z[:-1, 1:] - z[1:, :-1] + z[1:, 1:]
 
@@ -296,12 +297,13 @@ def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
 
 
 def _fan_template(n: int):
-    """The local tessellation of a cell at level ``n``: ``(uv, faces)`` with ``uv`` ``(k, 2)`` float64
+    """Return the local tessellation of a cell at level ``n``: ``(uv, faces)`` with ``uv`` ``(k, 2)`` float64
     of its vertices that are not the cell's corners (sub-grid nodes, then sub-cell centres) and
     ``faces`` ``(4 n^2, 3)`` int64 of local indices, 0-3 the corners ``a (u=0, v=0), b (1, 0),
     d (0, 1), e (1, 1)`` and ``4 + i`` vertex ``i`` of ``uv``; ``u`` runs with the columns, ``v`` with
     the rows (toward -y), so that ``(A, M, B)`` around the sub-cell's corners is counterclockwise
-    seen from +z, as :func:`triangles`."""
+    seen from +z, as :func:`triangles`.
+    """
     code = np.full((n + 1, n + 1), -1, np.int64)
     code[0, 0], code[0, n], code[n, 0], code[n, n] = 0, 1, 2, 3
     nodes = [(i, j) for i in range(n + 1) for j in range(n + 1) if code[i, j] < 0]
@@ -322,7 +324,8 @@ def _fan_template(n: int):
 def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """``(len(r), len(uv), 3)`` float32 points of the bilinear patches of cells ``(r, c)`` at ``uv``:
     the same float64 expression for every cell, so a node on a shared edge has the same bits from
-    either side (the other corners' weights are exactly 0 there)."""
+    either side (the other corners' weights are exactly 0 there).
+    """
     u, v = uv[None, :, 0], uv[None, :, 1]
     x = (1.0 - u) * g.x[c][:, None] + u * g.x[c + 1][:, None]
     y = (1.0 - v) * g.y[r][:, None] + v * g.y[r + 1][:, None]
@@ -377,7 +380,8 @@ def mesh_size(
 
 def _size(shape: tuple[int, int], levels: np.ndarray, per_row, per_col) -> tuple[int, int]:
     """``(vertices, triangles)`` of a grid of ``shape`` vertices whose cell ``(r, c)`` of ``levels`` is
-    repeated ``per_row[r] * per_col[c]`` times."""
+    repeated ``per_row[r] * per_col[c]`` times.
+    """
     weight = np.outer(np.broadcast_to(per_row, levels.shape[:1]), np.broadcast_to(per_col, levels.shape[1:]))
     counts = np.bincount(levels.ravel(), weights=weight.ravel().astype(np.float64), minlength=MAX_LEVEL + 1)
     n = np.arange(len(counts), dtype=np.float64)
@@ -400,8 +404,8 @@ def check_fits(
     ``depth`` that would not fit in the memory available (:func:`hzval.core.resources.refuse_over`):
     its triangles (:func:`mesh_size`) at :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held
     beside it. A tall relief asks for a wide wrap margin and fine cells; the line names ``what`` (the
-    map), its height range and ``--depth``. Returns the estimate in bytes."""
-
+    map), its height range and ``--depth``. Returns the estimate in bytes.
+    """
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     m = (wrap_margin(h) if margin is None else int(margin)) if boundary == "wrap" else 0
@@ -425,7 +429,7 @@ def tessellate(
     budget_bytes: int | None = None,
     levels: np.ndarray | None = None,
 ):
-    """The triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
+    """Return the triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
 
     Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
     first, then each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and
@@ -485,17 +489,18 @@ def tessellate(
 
 
 def piece(g: Grid, first: int, stop: int) -> Grid:
-    """The vertex rows ``first <= r <= stop`` of ``g``: its cell rows ``first <= i < stop`` (the same
+    """Return the vertex rows ``first <= r <= stop`` of ``g``: its cell rows ``first <= i < stop`` (the same
     coordinates and heights, so a piece tessellated with the whole's levels, :func:`tessellate`, is
-    made of the whole's own triangles, bit for bit)."""
+    made of the whole's own triangles, bit for bit).
+    """
     return Grid(g.x, g.y[first : stop + 1], g.z[first : stop + 1], g.margin)
 
 
 def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "band"):
-    """The cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh`` of positions and faces
+    """Return the cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh`` of positions and faces
     only (what the truth reads), tessellated with the whole grid's ``levels`` (:func:`piece`,
-    :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth.bands`)."""
-
+    :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth.bands`).
+    """
     positions, faces, _ = tessellate(piece(g, first, stop), levels=levels[first:stop])
     mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
     params = mi.traverse(mesh)
@@ -509,12 +514,14 @@ def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "
 
 def row_triangles(levels: np.ndarray) -> np.ndarray:
     """``(ny-1,)`` int64: the triangles of each cell row of a tessellation of these levels
-    (:func:`triangle_count`, row by row)."""
+    (:func:`triangle_count`, row by row).
+    """
     lv = np.asarray(levels, np.int64)
     return np.where(lv == 0, 2, 4 * lv * lv).sum(axis=1)
 
 
 def edge_level(levels: np.ndarray) -> int:
-    """The finest sub-cell grid of a tessellation: its largest level, at least 1 (every edge of the
-    mesh lies on a line ``(x - 1/2) n``, ``(y - 1/2) n`` integer, or on a diagonal of that grid's cells)."""
+    """Return the finest sub-cell grid of a tessellation: its largest level, at least 1 (every edge of the
+    mesh lies on a line ``(x - 1/2) n``, ``(y - 1/2) n`` integer, or on a diagonal of that grid's cells).
+    """
     return max(1, int(levels.max(initial=0)))

@@ -1,5 +1,6 @@
 """A file written atomically: under a hidden name in its folder, renamed into place once whole, so a
-reader never sees a partial file and a crash leaves none behind."""
+reader never sees a partial file and a crash leaves none behind.
+"""
 
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
 
 
 def _umask() -> int:
-    """The process's umask (read by setting it and setting it back)."""
+    """Return the process's umask (read by setting it and setting it back)."""
     mask = os.umask(0o022)
     os.umask(mask)
     return mask

@@ -1,6 +1,7 @@
 """Image codecs: EXR through OpenEXR, PNG through libpng (imagecodecs; palette images and reading
 through Pillow), matplotlib figures as PNG, and the previews of large PNGs. Every writer is
-atomic (:func:`hzval.io.atomic.atomic_path`)."""
+atomic (:func:`hzval.io.atomic.atomic_path`).
+"""
 
 from __future__ import annotations
 
@@ -83,7 +84,6 @@ def write_exr(
     bytes; :func:`read_rgb_exr` reads either back as RGB.
     ``attributes``: string attributes for the header (:func:`read_exr_attributes` reads them back).
     """
-
     chans: dict[str, np.ndarray] = {}
     for name, arr in channels.items():
         arr = np.asarray(arr, dtype=np.float32)
@@ -114,8 +114,9 @@ _WRITE_ERRNOS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EAC
 
 
 def _write_error(exc: RuntimeError, target: Path) -> Exception:
-    """The :class:`OSError` a library's write error stands for (a full disk: ENOSPC; a file too large:
-    EFBIG), naming ``target`` rather than its temporary name; else one line naming ``target``."""
+    """Return the :class:`OSError` a library's write error stands for (a full disk: ENOSPC; a file too large:
+    EFBIG), naming ``target`` rather than its temporary name; else one line naming ``target``.
+    """
     text = str(exc)
     for code in _WRITE_ERRNOS:
         if os.strerror(code) in text:
@@ -126,7 +127,8 @@ def _write_error(exc: RuntimeError, target: Path) -> Exception:
 def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarray]:
     """``{"R": .., "G": .., "B": ..[, "A": ..]}`` of an ``(rows, cols, 3|4)`` float32 array, or
     ``{"Y": ..[, "A": ..]}`` with ``grey`` when R, G and B are bitwise equal (NaNs and signed zeros
-    included, so nothing is lost)."""
+    included, so nothing is lost).
+    """
     planes = {c: np.ascontiguousarray(arr[..., k]) for k, c in enumerate(name)}
     if grey and is_grey(arr[..., :3]):
         return {"Y": planes["R"], **({"A": planes["A"]} if "A" in planes else {})}
@@ -135,7 +137,8 @@ def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarra
 
 def is_grey(rgb: np.ndarray) -> bool:
     """Whether the channels of an ``(..., 3)`` array are bitwise equal everywhere (floats compared as
-    their bits: NaNs and signed zeros included)."""
+    their bits: NaNs and signed zeros included).
+    """
     rgb = np.asarray(rgb)
     if rgb.shape[-1:] != (3,):
         return False
@@ -144,8 +147,9 @@ def is_grey(rgb: np.ndarray) -> bool:
 
 
 def _as_half(arr: np.ndarray) -> np.ndarray:
-    """A float32 channel as float16 (rounded to nearest), unless a finite value would become infinite
-    (beyond :data:`HALF_MAX` and its rounding margin)."""
+    """Return a float32 channel as float16 (rounded to nearest), unless a finite value would become infinite
+    (beyond :data:`HALF_MAX` and its rounding margin).
+    """
     with np.errstate(over="ignore"):
         h = arr.astype(np.float16)
     overflow = np.isinf(h)
@@ -159,7 +163,6 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
     Raises :class:`InputError` naming the file if it cannot be read.
     """
-
     if not Path(path).is_file():  # the library would call a missing file "0 parts"
         raise InputError(path, "no such file" if not Path(path).exists() else "not a file")
     with library_output() as printed:
@@ -176,9 +179,9 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 
 def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
-    """The string attributes of an EXR's first header (those :func:`write_exr` was given, and any
-    other writer's); ``{}`` for a file that cannot be read (:func:`read_exr` names its problem)."""
-
+    """Return the string attributes of an EXR's first header (those :func:`write_exr` was given, and any
+    other writer's); ``{}`` for a file that cannot be read (:func:`read_exr` names its problem).
+    """
     with library_output():
         try:
             with OpenEXR.File(str(path), header_only=True) as f:
@@ -188,7 +191,7 @@ def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
 
 
 def read_rgb_exr(path: str | os.PathLike) -> np.ndarray:
-    """An EXR's colour as ``(rows, cols, 3)`` float32: its ``R, G, B`` channels, or its grey ``Y``
+    """Return an EXR's colour as ``(rows, cols, 3)`` float32: its ``R, G, B`` channels, or its grey ``Y``
     channel repeated (:func:`write_exr` with ``grey`` stores an image with R == G == B so; the
     sweep's frames are written that way). Half channels come back as float32, exactly.
 
@@ -214,7 +217,6 @@ def library_output() -> Iterator:
     command line that promises one-line errors must not let that through.
     Yields a function that returns the captured lines.
     """
-
     for stream in (sys.stdout, sys.stderr):
         stream.flush()
     lines: list[str] = []
@@ -235,7 +237,8 @@ def library_output() -> Iterator:
 
 def run_writers(jobs) -> None:
     """Run the callables ``jobs`` (each writes a file) on the host pool and wait for every one
-    (:class:`Writers`)."""
+    (:class:`Writers`).
+    """
     with Writers() as writers:
         for job in jobs:
             writers.submit(job)
@@ -246,7 +249,8 @@ class Writers:
     (the image encoders release the GIL), and awaited when the ``with`` block ends. A writer's error
     is raised there; on it, or on an error or Ctrl-C in the block, the writers not yet started are
     cancelled and the running ones awaited, so that none puts a file into a folder after its caller
-    has removed it."""
+    has removed it.
+    """
 
     def __enter__(self) -> "Writers":
         self.pending: list = []
@@ -254,7 +258,6 @@ class Writers:
 
     def submit(self, job) -> None:
         """Start the callable ``job`` (it writes a file) on the host pool."""
-
         self.pending.append(backend.host_pool().submit(job))
 
     def wait(self) -> None:
@@ -286,13 +289,14 @@ class Writers:
 class Indexed(NamedTuple):
     """An 8-bit palette image: ``index`` uint8 ``(rows, cols)`` into ``palette`` uint8 ``(n, 3)``
     sRGB colours, ``n <= 256``. Exact for an image of at most 256 colours (a colour map's, a
-    legend's), at about a third of an RGB PNG's bytes; it decodes to ``palette[index]``."""
+    legend's), at about a third of an RGB PNG's bytes; it decodes to ``palette[index]``.
+    """
 
     index: np.ndarray
     palette: np.ndarray
 
     def rgb(self) -> np.ndarray:
-        """The image as uint8 ``(rows, cols, 3)``."""
+        """Return the image as uint8 ``(rows, cols, 3)``."""
         return self.palette[self.index]
 
 
@@ -318,7 +322,6 @@ def write_png(
     byte only: on filtered renders and palette maps at level 1 it is faster
     than the default search and about as small (``benchmarks/bench_png.py``).
     """
-
     target = Path(path)
     ctx = atomic_path(target) if atomic else contextlib.nullcontext(target)
     if isinstance(pixels, Indexed):
@@ -350,7 +353,7 @@ PNG_FILTER = 128
 
 
 def _png_pixels(pixels: np.ndarray, grey: bool) -> np.ndarray:
-    """The pixels :func:`write_png` encodes: uint8 or uint16, grey RGB as one channel with ``grey``."""
+    """Return the pixels :func:`write_png` encodes: uint8 or uint16, grey RGB as one channel with ``grey``."""
     pixels = np.ascontiguousarray(pixels)
     if pixels.dtype not in (np.uint8, np.uint16):
         raise TypeError(f"write_png needs uint8 or uint16 pixels, got {pixels.dtype}")
@@ -364,8 +367,7 @@ def _png_pixels(pixels: np.ndarray, grey: bool) -> np.ndarray:
 
 
 def _palette_image(pixels: Indexed):
-    """The Pillow image of a palette image (mode ``"P"``), which :func:`write_png` saves."""
-
+    """Return the Pillow image of a palette image (mode ``"P"``), which :func:`write_png` saves."""
     index, palette = np.ascontiguousarray(pixels.index, np.uint8), np.asarray(pixels.palette, np.uint8)
     if index.ndim != 2 or palette.ndim != 2 or palette.shape[1] != 3 or not 1 <= len(palette) <= 256:
         raise ValueError(
@@ -385,15 +387,17 @@ PREVIEW_PX = 1024
 
 
 def write_figure(path: str | os.PathLike, fig, **savefig) -> None:
-    """A matplotlib figure as a PNG at ``path``, atomically (:func:`atomic_path`, which makes the
-    folder); ``savefig``: matplotlib's own options (``dpi``, ``facecolor``, ...)."""
+    """Write a matplotlib figure as a PNG at ``path``, atomically (:func:`atomic_path`, which makes the
+    folder); ``savefig``: matplotlib's own options (``dpi``, ``facecolor``, ...).
+    """
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", **savefig)
 
 
 def preview_of(rel: str) -> str:
     """Where the preview of the PNG ``rel`` lives: ``frames/az+0/truth.png`` ->
-    ``frames/az+0/previews/truth.png`` (the writer's and the report's one convention)."""
+    ``frames/az+0/previews/truth.png`` (the writer's and the report's one convention).
+    """
     head, _, name = rel.replace("\\", "/").rpartition("/")
     return f"{head}/previews/{name}" if head else f"previews/{name}"
 
@@ -402,7 +406,8 @@ def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed
     """:func:`write_png`, and, for an image larger than :data:`PREVIEW_ABOVE_PX`, its preview at
     :func:`preview_of` (every channel box-averaged over ``f x f`` pixels, ``f`` the smallest whole
     factor that brings it to :data:`PREVIEW_PX`; edges repeated to a multiple of ``f``). Returns
-    whether a preview was written."""
+    whether a preview was written.
+    """
     write_png(path, pixels, **kw)
     rows, cols = (pixels.index if isinstance(pixels, Indexed) else np.asarray(pixels)).shape[:2]
     if max(rows, cols) <= PREVIEW_ABOVE_PX:
@@ -420,7 +425,8 @@ def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed
 
 def unit_to_u8(values: np.ndarray) -> np.ndarray:
     """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does); NaN (a pixel
-    that sees no surface) is 0."""
+    that sees no surface) is 0.
+    """
     # the float32 product, then rounded and clipped in place: one temporary, not four
     out = np.multiply(values, np.float32(255.0), dtype=np.float32)
     np.nan_to_num(out, copy=False, nan=0.0)

@@ -27,7 +27,7 @@ MAX_DEPTH = 64
 
 
 def depth(value) -> int:
-    """The nesting depth of lists and dicts in ``value``, walked without recursion.
+    """Return the nesting depth of lists and dicts in ``value``, walked without recursion.
 
     Parameters
     ----------
@@ -94,12 +94,12 @@ def _text(path: Path) -> str:
 
 
 def read_json(path: str | os.PathLike):
-    """A JSON file's content (:func:`loads_json`); a missing or unreadable file is one line."""
+    """Return a JSON file's content (:func:`loads_json`); a missing or unreadable file is one line."""
     return loads_json(_text(Path(path)), path)
 
 
 def read_toml(path: str | os.PathLike):
-    """A TOML file's content (:func:`loads_toml`); a missing or unreadable file is one line."""
+    """Return a TOML file's content (:func:`loads_toml`); a missing or unreadable file is one line."""
     return loads_toml(_text(Path(path)), path)
 
 
@@ -125,7 +125,7 @@ def write_json(path: str | os.PathLike, data, *, atomic: bool = True) -> None:
 
 
 def _non_finite_key(data, where: str = "") -> str | None:
-    """The first key path (``frames[0].flip_mean``) of ``data`` that holds a NaN or infinity."""
+    """Return the first key path (``frames[0].flip_mean``) of ``data`` that holds a NaN or infinity."""
     if isinstance(data, (float, np.floating)):
         return None if np.isfinite(data) else (where or "the value")
     items = (

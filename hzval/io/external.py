@@ -94,9 +94,9 @@ class Encoding:
 
 
 def read_layers(paths: list[str | Path]) -> np.ndarray:
-    """The layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32; one
-    file given twice is refused (it would stand for two layers' directions)."""
-
+    """Return the layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32; one
+    file given twice is refused (it would stand for two layers' directions).
+    """
     seen: dict = {}
     for i, p in enumerate(paths):
         try:
@@ -168,7 +168,8 @@ VALUE_RANGES: dict[str, tuple[float, float]] = {
 def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
     """``raw`` (:func:`read_layers`) if it holds the layers ``enc`` declares (``channels / 4`` RGBA
     layers, no more, no fewer) with finite values in the encoding's range (:data:`VALUE_RANGES`);
-    else one line naming the first layer and what is wrong."""
+    else one line naming the first layer and what is wrong.
+    """
     first = paths[0] if isinstance(paths, (list, tuple)) and paths else paths
     layers = cv.layer_count(enc.channels)
     if raw.shape[-1] != enc.channels:
@@ -209,7 +210,7 @@ def _decode_values(v: np.ndarray, values: str) -> np.ndarray:
 
 
 def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
-    """The sines in hzval's layout ``(rows, cols, D)`` float32 from the stored values (module docstring)."""
+    """Return the sines in hzval's layout ``(rows, cols, D)`` float32 from the stored values (module docstring)."""
     D = enc.channels
     if raw.shape[-1] < D:
         raise InputError("--horizon-map", f"{D} channels declared, the layers hold {raw.shape[-1]}")
@@ -231,7 +232,8 @@ def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
 
 def load(paths: list[str | Path], enc: Encoding) -> np.ndarray:
     """Read, check (:func:`check_layers`) and convert an external bake: sines ``(rows, cols, D)`` in
-    hzval's layout."""
+    hzval's layout.
+    """
     enc = enc.validate()
     return to_hzval(check_layers(read_layers(paths), enc, list(paths)), enc)
 
@@ -254,8 +256,9 @@ MIN_SPREAD = 0.005
 
 
 def rings(D: int) -> list[tuple[str, str, float]]:
-    """The 2 D rotations and reflections of a ring of ``D`` channels, as ``(y, direction,
-    azimuth0)``: a reflection named as +y down first (the likelier bug), then as clockwise."""
+    """Return the 2 D rotations and reflections of a ring of ``D`` channels, as ``(y, direction,
+    azimuth0)``: a reflection named as +y down first (the likelier bug), then as clockwise.
+    """
     step = 360.0 / D
     return [(y, d, r * step) for y, d in (("up", "ccw"), ("down", "ccw"), ("up", "cw")) for r in range(D)]
 
@@ -265,9 +268,10 @@ def _score(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
 
 
 def correlation(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
-    """The Pearson correlation over texels and channels between ``raw`` decoded under ``enc`` and
+    """Return the Pearson correlation over texels and channels between ``raw`` decoded under ``enc`` and
     hzval's exact horizons, each channel's mean removed first (a map of the right surface baked at a
-    short radius is lower everywhere, yet correlated; one of another surface is not)."""
+    short radius is lower everywhere, yet correlated; one of another surface is not).
+    """
     a = to_hzval(raw, enc).astype(np.float64)
     b = np.asarray(exact, np.float64)
     a, b = a - a.mean(axis=(0, 1)), b - b.mean(axis=(0, 1))
@@ -298,7 +302,7 @@ def shadow_error(raw: np.ndarray, exact: np.ndarray, enc: Encoding, k: float = 8
 
 
 def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8, k: float = 8.0) -> dict:
-    """``{declared, best_match, scores, matches, correlation, describes}``, each convention with its
+    """Return ``{declared, best_match, scores, matches, correlation, describes}``, each convention with its
     mean |s - s_exact|.
 
     In two stages: the ring (which channel points where) under the declared value encoding, then
@@ -361,7 +365,8 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
 def advice(result: dict) -> str | None:
     """One line on what looks wrong when another convention fits clearly better than the declared
     one, each fix named by its flag, else ``None`` (also when the map does not describe the height
-    map at all: :func:`warnings` says that instead)."""
+    map at all: :func:`warnings` says that instead).
+    """
     if result.get("convention_fits", result["matches"]) or not result.get("describes", True):
         return None
     d, b = result["declared"], result.get("suggested", result["best_match"])
@@ -400,7 +405,8 @@ def advice(result: dict) -> str | None:
 
 def warnings(result: dict, layers, height) -> list[str]:
     """Every warning of a detection (:func:`detect`), each naming the flag that fixes it: the map
-    does not describe the height map (naming both files), or :func:`advice`'s convention."""
+    does not describe the height map (naming both files), or :func:`advice`'s convention.
+    """
     if not result.get("describes", True):
         names = ",".join(str(p) for p in layers)
         return [
@@ -414,8 +420,9 @@ def warnings(result: dict, layers, height) -> list[str]:
 
 
 def repeated_layers(raw: np.ndarray, layers) -> list[str]:
-    """A warning where two layers of an external map hold the same values (a layer exported twice
-    under two names), unless every value is the same (a flat surface's map may be so)."""
+    """Return a warning where two layers of an external map hold the same values (a layer exported twice
+    under two names), unless every value is the same (a flat surface's map may be so).
+    """
     n = cv.CHANNELS_PER_LAYER
     parts = [raw[..., n * i : n * (i + 1)] for i in range(raw.shape[-1] // n)]
     if float(np.ptp(raw)) == 0.0:

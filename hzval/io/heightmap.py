@@ -316,7 +316,7 @@ def _load_png(path: _PathLike) -> tuple[np.ndarray, str]:
 
 
 def _decode_png_pillow(path: _PathLike) -> tuple[np.ndarray, bool]:
-    """Samples ``(rows, cols, planes)`` and whether the file has tRNS.
+    """Return the samples ``(rows, cols, planes)`` and whether the file has tRNS.
 
     1-bit grey and palettes are converted to 8 bits, and Pillow scales 2- and
     4-bit grey to 0..255, so that every sample counts in 255ths (65535ths for
@@ -339,7 +339,6 @@ def _decode_png_pillow(path: _PathLike) -> tuple[np.ndarray, bool]:
 
 def _decode_png_pypng(path: _PathLike) -> tuple[np.ndarray, bool]:
     """16-bit samples ``(rows, cols, planes)`` of a colour or grey+alpha PNG, and whether it has tRNS."""
-
     with _open(path) as f:
         try:
             cols, rows, lines, info = png.Reader(file=f).read()
@@ -447,8 +446,9 @@ _PILLOW_GREY = {"L": 255.0, "I;16": 65535.0, "I;16B": 65535.0, "I": 1.0, "F": 1.
 
 
 def _load_pillow(path: _PathLike) -> tuple[np.ndarray, str]:
-    """A grey image's samples over its white (8 and 16 bits: data in [0, 1]; 32-bit integer and
-    float: as stored), or a colour image's 8-bit luminance, Pillow's conversion to RGB first."""
+    """Return a grey image's samples over its white (8 and 16 bits: data in [0, 1]; 32-bit integer and
+    float: as stored), or a colour image's 8-bit luminance, Pillow's conversion to RGB first.
+    """
     try:
         with _pillow_strict(), Image.open(path) as img:
             img.load()

@@ -57,7 +57,8 @@ _FLOAT_ONE, _FLOAT_MINUS_ONE = 0x3F800000, 0xBF800000
 class Format:
     """A texture format: its ``VkFormat``, texel block (``block`` texels a side, ``block_bytes``
     bytes), channels, DFD colour model and samples ``((channel id, bit offset, bits), ...)``, and
-    ``typeSize`` (the data's unit for endianness: 1, or 2 for 16-bit floats)."""
+    ``typeSize`` (the data's unit for endianness: 1, or 2 for 16-bit floats).
+    """
 
     name: str
     vk: int
@@ -103,7 +104,8 @@ _BY_VK = {f.vk: f for f in FORMATS.values()}
 @dataclass
 class Texture:
     """A KTX2 texture: its format, size, levels' bytes (level 0 first, uncompressed) and key/value
-    data (``{key: value}``, strings)."""
+    data (``{key: value}``, strings).
+    """
 
     format: Format
     width: int
@@ -114,7 +116,7 @@ class Texture:
 
 
 def dfd(fmt: Format, srgb: bool = False) -> bytes:
-    """The Data Format Descriptor of ``fmt``: its total size, then one basic descriptor block.
+    """Return the Data Format Descriptor of ``fmt``: its total size, then one basic descriptor block.
 
     >>> len(dfd(FORMATS["BC7_UNORM_BLOCK"])), len(dfd(FORMATS["R8G8B8A8_UNORM"]))
     (44, 92)
@@ -151,8 +153,8 @@ def _kvd(kv: dict) -> bytes:
 
 def write(path, tex: Texture, *, zstd: bool = False) -> None:
     """Write ``tex`` to ``path`` (atomically: :func:`hzval.io.atomic.atomic_path`); ``zstd``:
-    supercompress each level with Zstandard."""
-
+    supercompress each level with Zstandard.
+    """
     fmt, n = tex.format, len(tex.levels)
     for i, data in enumerate(tex.levels):
         w, h = max(1, tex.width >> i), max(1, tex.height >> i)
@@ -185,8 +187,9 @@ def write(path, tex: Texture, *, zstd: bool = False) -> None:
 
 
 def read(path) -> Texture:
-    """A KTX2 file as :class:`Texture` (its levels decompressed); one line naming the file for a file
-    that is not one of the textures :func:`write` writes."""
+    """Return a KTX2 file as :class:`Texture` (its levels decompressed); one line naming the file for a file
+    that is not one of the textures :func:`write` writes.
+    """
     raw = Path(path).read_bytes() if Path(path).is_file() else None
     if raw is None:
         raise InputError(path, "no such file")
@@ -240,9 +243,9 @@ def _zstd_decode(data: bytes) -> bytes:
 
 
 def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
-    """A level's texels as float32 ``(rows, cols, channels)``: UNORM over 255, half floats as they
-    are, BC blocks decoded as a GPU decodes them (texture2ddecoder), cropped to the level's size."""
-
+    """Return a level's texels as float32 ``(rows, cols, channels)``: UNORM over 255, half floats as they
+    are, BC blocks decoded as a GPU decodes them (texture2ddecoder), cropped to the level's size.
+    """
     fmt = tex.format
     w, h = max(1, tex.width >> level), max(1, tex.height >> level)
     data = tex.levels[level]
@@ -264,11 +267,11 @@ def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
 
 
 def encode_level(values: np.ndarray, fmt: Format) -> bytes:
-    """A level's bytes in ``fmt`` from float32 ``(rows, cols, channels)`` texels in [0, 1] (UNORM and
+    """Return a level's bytes in ``fmt`` from float32 ``(rows, cols, channels)`` texels in [0, 1] (UNORM and
     BC formats; 8-bit quantisation by :func:`hzval.io.codecs.unit_to_u8`) or as they are (half floats).
     BC blocks are etcpak's, on an RGBA8 image padded to whole blocks by repeating its edge, the
-    channels it lacks 0 and alpha 255."""
-
+    channels it lacks 0 and alpha 255.
+    """
     v = np.asarray(values, np.float32)
     if v.ndim == 2:
         v = v[..., None]

@@ -35,7 +35,7 @@ _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
 def file_name(value, where: str | os.PathLike, key: str) -> str:
-    """A name read from a file, checked to be usable as one path component.
+    r"""Return a name read from a file, checked to be usable as one path component.
 
     Parameters
     ----------
@@ -150,7 +150,7 @@ def is_data_uri(uri) -> bool:
 
 
 def uri_path(folder: str | os.PathLike, uri, where: str | os.PathLike, key: str) -> Path:
-    """The file a relative URI reference names (glTF 2.0, "URIs"), checked by :func:`inside`.
+    """Return the file a relative URI reference names (glTF 2.0, "URIs"), checked by :func:`inside`.
 
     Parameters
     ----------
@@ -201,7 +201,7 @@ def no_symlink_below(out: str | os.PathLike, rel: str | os.PathLike) -> None:
 
 
 def stored_input(folder: str | os.PathLike, stored, where: str | os.PathLike, key: str) -> Path:
-    """An input file a run recorded (``material.path``, ``parameters.mesh``), found from any folder.
+    """Return an input file a run recorded (``material.path``, ``parameters.mesh``), found from any folder.
 
     A run records its inputs relative to its own folder (:func:`hzval.io.staging.report_path`), so
     the path is resolved against ``folder``, not the current directory. Unlike the run's own files

@@ -1,5 +1,6 @@
 """Output folders written whole or not at all: the folder's lock and marker, and :class:`Staging`,
-which moves a set of outputs into place only once every file is written."""
+which moves a set of outputs into place only once every file is written.
+"""
 
 from __future__ import annotations
 
@@ -78,9 +79,11 @@ def folder_lock(folder: str | os.PathLike, command: str = "") -> Iterator[Path]:
 
 
 def _take_lock(path: Path, folder: Path) -> int:
-    """An open descriptor of ``path`` holding its exclusive ``flock``. A holder that left removed the
-    file it locked: a lock on that unlinked file would hold nothing, so take the new one."""
+    """Return an open descriptor of ``path`` holding its exclusive ``flock``.
 
+    A holder that left removed the file it locked: a lock on that unlinked file would hold nothing, so take
+    the new one.
+    """
     while True:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -108,8 +111,7 @@ def _is_own(name: str) -> bool:
 
 
 def _listed(folder: Path) -> set[str] | None:
-    """The files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
-
+    """Return the files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
     try:
         data = documents.read_json(folder / MARKER_NAME)
         return {str(p) for p in data["files"]}
@@ -119,7 +121,8 @@ def _listed(folder: Path) -> set[str] | None:
 
 def _walk_files(folder: Path) -> list[str]:
     """Every file under ``folder`` (relative POSIX paths), hzval's bookkeeping and the folders of other
-    hzval runs (a subfolder with a marker of its own: a suite's or views' sweeps) left out."""
+    hzval runs (a subfolder with a marker of its own: a suite's or views' sweeps) left out.
+    """
     found = []
     for root, dirs, names in os.walk(folder):
         here = Path(root)
@@ -129,7 +132,7 @@ def _walk_files(folder: Path) -> list[str]:
 
 
 def foreign_files(folder: str | os.PathLike) -> list[str]:
-    """The files under ``folder`` that hzval did not write (not listed in its marker), as relative paths."""
+    """Return the files under ``folder`` that hzval did not write (not listed in its marker), as relative paths."""
     folder = Path(folder)
     if not folder.is_dir():
         return []
@@ -151,7 +154,7 @@ def _write_marker(folder: Path, foreign: set[str]) -> None:
 
 
 def _first_missing(folder: Path) -> Path | None:
-    """The outermost folder of ``folder`` and its parents that does not exist yet (what a run creates)."""
+    """Return the outermost folder of ``folder`` and its parents that does not exist yet (what a run creates)."""
     missing = None
     for p in [folder, *folder.parents]:
         if p.exists() or p.is_symlink():
@@ -172,7 +175,7 @@ def _check_folder(folder: Path) -> None:
 
 
 def os_error(exc: OSError, fallback: str | os.PathLike) -> InputError:
-    """An :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path: the
+    """Return an :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path: the
     path the file would have had, its staging folders (:class:`Staging`) left out.
 
     >>> str(os_error(OSError(28, "No space left on device", "r/.hzval-staging-ab12/frames/x.exr"), "--out"))
@@ -238,7 +241,8 @@ def output_folder(
 def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -> str | None:
     """``path`` as a report records it: relative to ``report_dir`` (``../maps/x.png`` for a file
     beside it), so that a shared report does not carry the absolute folders (a home folder's user
-    name) it was made in; the path as given where no relative one exists (another drive)."""
+    name) it was made in; the path as given where no relative one exists (another drive).
+    """
     if path is None:
         return None
     try:
@@ -248,7 +252,7 @@ def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -
 
 
 def portable_command(command: str) -> str:
-    """A command line as a report shows it: one that runs from the folder it was run in.
+    """Return a command line as a report shows it: one that runs from the folder it was run in.
 
     Each absolute path in it (``/home/me/x.png``, ``--out=/home/me/r``) is made relative to the
     current directory (``../maps/x.png``), so the line carries no home folder's name and still
@@ -264,7 +268,6 @@ def portable_command(command: str) -> str:
     str
         The command line, shell-quoted; as given where it does not split into words.
     """
-
     try:
         words = shlex.split(command, comments=False)
     except ValueError:
@@ -290,7 +293,7 @@ def file_digest(path: str | os.PathLike) -> str:
 
 @contextlib.contextmanager
 def swapped_in(out: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
-    """A run's output, all or nothing: hold ``out`` (:func:`output_folder`), yield a staging folder
+    """Yield a run's output, all or nothing: hold ``out`` (:func:`output_folder`), yield a staging folder
     inside it to write into, then swap that in whole (:meth:`Staging.swap`) with signals held from
     the last moment (:func:`hzval.core.interrupts.held`). A failure or an interrupt before the swap
     leaves an earlier report byte for byte.
@@ -307,7 +310,6 @@ def swapped_in(out: str | os.PathLike, *, force: bool = False) -> Iterator[Path]
     pathlib.Path
         The staging folder.
     """
-
     with interrupts.held() as hold, output_folder(out, force=force):
         with Staging(out) as stage:
             yield stage.dir
@@ -355,7 +357,8 @@ class Staging:
         replaces the old folder (none of hzval's old files in it survive), a file the old file. Each
         swap is two renames, so a reader sees the old entry or the new one. Files that hzval did not
         write (:func:`foreign_files`; there only with ``--force``) are moved into the new folder
-        first: only hzval's own files are ever replaced."""
+        first: only hzval's own files are ever replaced.
+        """
         foreign = foreign_files(self.out)
         for src in sorted(self.dir.iterdir()):
             dst = self.out / src.name

@@ -50,7 +50,8 @@ __all__ = ["Storage", "STORAGES", "get", "names"]
 class Storage:
     """A storage format: ``channels`` per texture, ``block_bytes`` per 4 x 4 block (0: uncompressed,
     ``texel_bytes`` per channel and texel), its codec (``None``: uncompressed) and whether it stores
-    ``sqrt(s)``."""
+    ``sqrt(s)``.
+    """
 
     name: str
     label: str
@@ -68,8 +69,10 @@ class Storage:
         return textures * math.ceil(rows / 4) * math.ceil(cols / 4) * self.block_bytes
 
     def roundtrip(self, sines: np.ndarray, blocks_out: list | None = None) -> np.ndarray:
-        """What the GPU samples (before filtering) of the sines ``(rows, cols, D)`` in [0, 1]: float32.
-        ``blocks_out`` (a list; block formats) receives the encoded blocks of each texture, as uploaded."""
+        """Return what the GPU samples (before filtering) of the sines ``(rows, cols, D)`` in [0, 1]: float32.
+
+        ``blocks_out`` (a list; block formats) receives the encoded blocks of each texture, as uploaded.
+        """
         s = np.asarray(sines, np.float32)
         if self.name == "float":
             return s
@@ -83,7 +86,8 @@ class Storage:
 
 def _encode_blocks(v: np.ndarray, per_texture: int, encode) -> tuple[list[tuple[list[int], bytes]], int, int]:
     """``([(channels, blocks), ...], W, H)``: the channels of ``v`` packed ``per_texture`` to RGBA8
-    images padded to multiples of 4 by repeating the edge, each encoded (the bytes a GPU uploads)."""
+    images padded to multiples of 4 by repeating the edge, each encoded (the bytes a GPU uploads).
+    """
     rows, cols, D = v.shape
     pr, pc = -rows % 4, -cols % 4
     padded = np.pad(v, ((0, pr), (0, pc), (0, 0)), mode="edge")
@@ -102,7 +106,8 @@ def _block_roundtrip(
     v: np.ndarray, per_texture: int, encode, decode, blocks_out: list | None = None
 ) -> np.ndarray:
     """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack;
-    ``blocks_out`` (a list) receives each texture's encoded blocks."""
+    ``blocks_out`` (a list) receives each texture's encoded blocks.
+    """
     rows, cols, D = v.shape
     textures, W, H = _encode_blocks(v, per_texture, encode)
     out = np.empty((H, W, D), np.float32)
@@ -158,12 +163,12 @@ STORAGES: dict[str, Storage] = _table()
 
 
 def names() -> list[str]:
-    """The storage format names."""
+    """Return the storage format names."""
     return list(STORAGES)
 
 
 def get(name: str) -> Storage:
-    """The storage format called ``name``."""
+    """Return the storage format called ``name``."""
     if name not in STORAGES:
         raise InputError("--storage", f"unknown storage {name!r}; choose from {', '.join(STORAGES)}")
     return STORAGES[name]

@@ -67,7 +67,8 @@ REGISTRY: dict[str, str] = {
 @dataclass(frozen=True)
 class Generated:
     """A generated material: height ``(rows, cols)`` in [0, 1] and linear albedo ``(rows, cols, 3)``
-    or ``None`` (the scene's constant); both float32 and read-only (they are cached)."""
+    or ``None`` (the scene's constant); both float32 and read-only (they are cached).
+    """
 
     height: np.ndarray
     albedo: np.ndarray | None
@@ -102,7 +103,7 @@ def is_builtin(name: str | None) -> bool:
 
 
 def get(name: str) -> Material:
-    """The material registered as ``name``; ``KeyError`` names the known ones."""
+    """Return the material registered as ``name``; ``KeyError`` names the known ones."""
     try:
         module, attribute = REGISTRY[name].split(":")
     except KeyError:
@@ -123,7 +124,8 @@ def _generate(name: str, shape: tuple[int, int], seed: int) -> Generated:
 
 def generate(name: str, size: int | tuple[int, int] = DEFAULT_SIZE, seed: int = 1) -> Generated:
     """Material ``name`` at ``size`` (``n`` or ``(rows, cols)``); the last few are cached, so the
-    height and the albedo of one scene are generated once."""
+    height and the albedo of one scene are generated once.
+    """
     shape = (int(size), int(size)) if np.ndim(size) == 0 else tuple(int(s) for s in size)
     m = get(name)
     if min(shape) < m.min_size:

@@ -52,7 +52,7 @@ _MIN_BRICK_PX = 48  # narrowest brick, in texels (fewer bricks on small maps)
 def bricks(
     size: int | tuple[int, int] = DEFAULT_SIZE, *, seed: int = 1, bricks_across: int = 4
 ) -> np.ndarray:
-    """A seamlessly tiling height map of a brick wall in running bond.
+    """Return a seamlessly tiling height map of a brick wall in running bond.
 
     Parameters
     ----------
@@ -99,7 +99,8 @@ def bricks(
 @dataclass(frozen=True)
 class _Bond:
     """The running bond: ``n`` bricks per course, ``courses`` courses, brick size in texels, and per
-    texel its position in its brick (``fu``, ``fv`` in [0, 1)) and the brick's index."""
+    texel its position in its brick (``fu``, ``fv`` in [0, 1)) and the brick's index.
+    """
 
     n: int
     courses: int
@@ -111,9 +112,10 @@ class _Bond:
 
 
 def _bond(rows: int, cols: int, bricks_across: int) -> _Bond:
-    """n bricks per course, an even number of courses, bricks ~2:1; brick-space coordinates of texel
+    """N bricks per course, an even number of courses, bricks ~2:1; brick-space coordinates of texel
     centres, shifted by a quarter brick and half a course so the image edges cut through bricks
-    (the seam is then a real test of tiling, not hidden in a joint)."""
+    (the seam is then a real test of tiling, not hidden in a joint).
+    """
     f32 = np.float32
     n = max(1, min(bricks_across, cols // _MIN_BRICK_PX))
     n = max(n, -(-cols // rows))  # two courses of half-width bricks fit
@@ -144,8 +146,10 @@ def _brick_properties(rng, count: int) -> dict[str, np.ndarray]:
 
 
 def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.ndarray]:
-    """Noise fields, all exactly periodic, drawn in a fixed order. Scales are in texels, tied to the
-    brick height so the look does not depend on the resolution."""
+    """Noise fields, all exactly periodic, drawn in a fixed order.
+
+    Scales are in texels, tied to the brick height so the look does not depend on the resolution.
+    """
     s = brick_h / 64.0
     return {
         "chip": periodic_noise(rng, shape, (5.0 * s,), (1.0,)),
@@ -158,7 +162,8 @@ def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.n
 
 def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
     """Inset distance (texels) to the brick boundary, with slightly rounded corners, less half the
-    mortar joint; the edge wanders a little along its length."""
+    mortar joint; the edge wanders a little along its length.
+    """
     f32 = np.float32
     mortar = max(_MORTAR_MIN_PX, _MORTAR_FRACTION * bond.brick_h)
     qx = (f32(0.5) - np.abs(bond.fu - f32(0.5))) * f32(bond.brick_w)
@@ -173,7 +178,7 @@ def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
 
 
 def _relief(bond: _Bond, b: dict[str, np.ndarray], fields: dict[str, np.ndarray]) -> np.ndarray:
-    """The height: mortar, the bevelled brick face, chips, grain (:func:`bricks`, Notes)."""
+    """Return the height: mortar, the bevelled brick face, chips, grain (:func:`bricks`, Notes)."""
     f32 = np.float32
     ids, brick_h = bond.brick_id, bond.brick_h
     inset = _inset(bond, fields["edge"])

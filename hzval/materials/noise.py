@@ -30,21 +30,24 @@ def shape_of(size, name: str, min_size: int) -> tuple[int, int]:
 
 def grid(shape: tuple[int, int], across: int, min_px: float) -> tuple[int, int]:
     """``(gy, gx)`` cells per period for ``across`` features across the width, as many down as keep
-    them about square (:func:`count` on each axis)."""
+    them about square (:func:`count` on each axis).
+    """
     rows, cols = shape
     gx = count(cols, across, min_px)
     return count(rows, max(1, round(gx * rows / cols)), min_px), gx
 
 
 def finish(height: np.ndarray, albedo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A material's result: height clipped to [0, 1], albedo to [0.02, 0.9] (no perfect black or
-    white), both float32."""
+    """Return a material's result: height clipped to [0, 1], albedo to [0.02, 0.9] (no perfect black or
+    white), both float32.
+    """
     return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
 
 
 def count(length: int, wanted: int, min_px: float, *, even: bool = False) -> int:
     """Features per period along an axis of ``length`` texels: ``wanted``, fewer where a feature
-    would be narrower than ``min_px`` texels, at least 1 (2 and even with ``even``)."""
+    would be narrower than ``min_px`` texels, at least 1 (2 and even with ``even``).
+    """
     n = max(1, min(int(wanted), int(length // min_px)))
     if even:
         n = max(2, n - n % 2)
@@ -121,7 +124,8 @@ def cells(
     """One feature point per cell of a ``counts = (gy, gx)`` grid over the period, placed uniformly
     in the middle ``jitter`` of its cell; distances wrap, so the diagram tiles. The edge distance is
     exact for the 3 x 3 neighbourhood searched (Worley 1996's cellular texture basis, with the
-    bisector distance ``(|x - b|^2 - |x - a|^2) / (2 |b - a|)`` of Quilez's Voronoi edges)."""
+    bisector distance ``(|x - b|^2 - |x - a|^2) / (2 |b - a|)`` of Quilez's Voronoi edges).
+    """
     rows, cols = shape
     gy, gx = counts
     cw, ch = cols / gx, rows / gy
@@ -161,8 +165,9 @@ def cells(
 
 
 def tint(encoded: tuple[float, float, float], variation: np.ndarray | float = 0.0) -> np.ndarray:
-    """A linear albedo ``(..., 3)`` float32 from an sRGB colour scaled by ``1 + variation``
-    (per texel or per feature), clipped to [0.02, 0.9] (no perfect black or white)."""
+    """Return a linear albedo ``(..., 3)`` float32 from an sRGB colour scaled by ``1 + variation``
+    (per texel or per feature), clipped to [0.02, 0.9] (no perfect black or white).
+    """
     base = np.asarray(srgb.decode(np.asarray(encoded, np.float64)), np.float32)
     v = np.asarray(variation, np.float32)[..., None]
     return np.clip(base * (1.0 + v), 0.02, 0.9).astype(np.float32)

@@ -113,7 +113,6 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
     numpy.ndarray
         ``(H, W, 3)`` float64 display values in [0, 1]; a grey image is repeated on the three channels.
     """
-
     backend.variant()
     img = np.asarray(image)
     grey = img.ndim == 2
@@ -125,7 +124,7 @@ def display(image: np.ndarray, scale: float) -> np.ndarray:
 def visibility_metrics(
     V: np.ndarray, F: np.ndarray, mask: np.ndarray | None = None
 ) -> tuple[float, float, float]:
-    """The visibility scores of a technique's shadow factor against the truth's visibility.
+    """Return the visibility scores of a technique's shadow factor against the truth's visibility.
 
     A pixel is lit where its value is at least :data:`LIT_THRESHOLD`; one float64 Dr.Jit kernel
     computes the three sums (the counts exact, the mean NumPy's to 1e-15).
@@ -149,7 +148,6 @@ def visibility_metrics(
     hzval.core.errors.HzvalError
         When ``V`` and ``F`` differ in shape.
     """
-
     backend.variant()
     if np.shape(V) != np.shape(F):
         raise HzvalError(f"visibility layers of different shapes: {np.shape(V)} and {np.shape(F)}")
@@ -173,7 +171,7 @@ def visibility_metrics(
 
 
 def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:
-    """The FLIP error (Andersson et al. 2020, LDR) of a test image against a reference.
+    """Return the FLIP error (Andersson et al. 2020, LDR) of a test image against a reference.
 
     Parameters
     ----------
@@ -197,7 +195,6 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
     :mod:`hzval.metrics.flip` at :data:`FLIP_PPD` pixels per degree; :class:`Reference` keeps the
     reference's half for several test images (:func:`flip_error`).
     """
-
     try:
         return hzflip.flip(reference_display, test_display, FLIP_PPD)
     except ValueError as exc:
@@ -225,7 +222,6 @@ def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray)
     hzval.core.errors.HzvalError
         Where the package's wrapper would exit the process (``sys.exit``) or raises ``RuntimeError``.
     """
-
     try:
         err, mean, _ = flip_evaluator.evaluate(
             np.ascontiguousarray(reference_display, dtype=np.float32),
@@ -268,7 +264,6 @@ def by_rows(fn, *arrays: np.ndarray) -> np.ndarray:
     numpy.ndarray
         ``fn``'s result, the blocks concatenated along the rows.
     """
-
     rows = arrays[0].shape[0]
     n = min(backend.host_cores(), rows // PARALLEL_MIN_ROWS)
     if n < 2:
@@ -312,7 +307,6 @@ def _lab_kernel(r, g, b):
 
 def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
     """Dr.Jit: CIEDE2000 (k_L = k_C = k_H = 1) of two CIELAB arrays, as colour-science has it."""
-
     rad, deg = math.pi / 180, 180 / math.pi
     C1, C2 = dr.sqrt(a1 * a1 + b1 * b1), dr.sqrt(a2 * a2 + b2 * b2)
     Cb7 = dr.power((C1 + C2) / 2, 7)
@@ -356,12 +350,12 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
 
 
 def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
-    """An ``(H, W, 3)`` display image as three float64 Dr.Jit arrays, gathered from one
+    """Return an ``(H, W, 3)`` display image as three float64 Dr.Jit arrays, gathered from one
     float64 array of it (which the LLVM backend maps without copying, keeping a reference);
     ``grey`` (its channels bitwise equal, as the caller has checked): one array three times, so
     that what is computed from the channels is computed once (Dr.Jit merges equal expressions of
-    equal variables), the same bit for bit."""
-
+    equal variables), the same bit for bit.
+    """
     backend.variant()
     img = np.asarray(display_rgb)
     if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] * img.shape[1] == 0:
@@ -376,7 +370,8 @@ def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
 
 class LabImage:
     """CIELAB (D65) of an sRGB display image, as float64 Dr.Jit arrays of the current variant
-    (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images."""
+    (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images.
+    """
 
     def __init__(self, display_rgb: np.ndarray, *, grey: bool = False):
 
@@ -386,8 +381,7 @@ class LabImage:
 
     @classmethod
     def from_array(cls, lab: np.ndarray) -> "LabImage":
-        """A :class:`LabImage` of given ``(H, W, 3)`` CIELAB values."""
-
+        """Return a :class:`LabImage` of given ``(H, W, 3)`` CIELAB values."""
         backend.variant()
         lab = np.asarray(lab, dtype=np.float64)
         self = cls.__new__(cls)
@@ -458,7 +452,6 @@ def delta_e2000(
     hzval.core.errors.HzvalError
         For images of different sizes.
     """
-
     if reference_lab is None:
         ref = LabImage(reference_display)
     elif isinstance(reference_lab, LabImage):
@@ -523,7 +516,7 @@ class Reference:
 def compare(
     truth, test, scale: float, *, reference: Reference | None = None
 ) -> tuple[FrameMetrics, dict[str, np.ndarray]]:
-    """The metrics of one frame of a technique, and the maps behind them.
+    """Return the metrics of one frame of a technique, and the maps behind them.
 
     Parameters
     ----------
@@ -595,7 +588,6 @@ def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool = False) -> tup
     mean : float
         Its mean.
     """
-
     try:
         return hzflip.flip_error(ref_flip, test_display, grey=grey)
     except ValueError as exc:
@@ -603,7 +595,7 @@ def flip_error(ref_flip, test_display: np.ndarray, *, grey: bool = False) -> tup
 
 
 def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], dict[str, np.ndarray]]:
-    """The image scores of a linear image against the truth of ``ref``.
+    """Return the image scores of a linear image against the truth of ``ref``.
 
     RMSE and PSNR (peak 1) on exposed linear values, FLIP and CIEDE2000 on display values; each a
     mean over the pixels that see the surface (the truth frame's ``mask``; all of the ``top``
@@ -641,9 +633,9 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
 
 
 def _flat_values(image: np.ndarray):
-    """An image's values, row-major, as a float32 or float64 Dr.Jit array gathered from its NumPy
-    memory (a gather: a mapped array's contiguous load would compile one kernel per alignment)."""
-
+    """Return an image's values, row-major, as a float32 or float64 Dr.Jit array gathered from its NumPy
+    memory (a gather: a mapped array's contiguous load would compile one kernel per alignment).
+    """
     backend.variant()
     img = np.asarray(image)
     flat = np.ascontiguousarray(img, dtype=np.float32 if img.dtype.itemsize <= 4 else np.float64).ravel()
@@ -653,7 +645,6 @@ def _flat_values(image: np.ndarray):
 
 def _mean_squared_error(ref: Reference, image: np.ndarray) -> float:
     """Mean of ``(scale (truth - image))^2`` over the values of the pixels the truth sees, in float64."""
-
     img = np.asarray(image)
     if img.shape != ref.truth.image.shape:
         raise HzvalError(f"images of different shapes: {ref.truth.image.shape} and {img.shape}")
@@ -671,12 +662,12 @@ def _mean_squared_error(ref: Reference, image: np.ndarray) -> float:
 
 
 def _seen(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
-    """The pixels of ``values`` ``(H, W[, C])`` that ``mask`` keeps (all for ``None``)."""
+    """Return the pixels of ``values`` ``(H, W[, C])`` that ``mask`` keeps (all for ``None``)."""
     return values if mask is None else values[mask]
 
 
 def pooled_psnr_db(rmses) -> float | None:
-    """The PSNR of several frames together, ``10 log10(1 / mean(rmse^2))`` (peak 1): the frames' mean
+    """Return the PSNR of several frames together, ``10 log10(1 / mean(rmse^2))`` (peak 1): the frames' mean
     squared error, not the mean of their decibels, which one near-identical frame (150 dB) would
     dominate. ``inf`` when every frame is identical, ``None`` with no frame.
 

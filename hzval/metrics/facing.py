@@ -49,7 +49,7 @@ FACING_KEYS = ("visibility_mae_facing", "leak_fraction_facing", "false_shadow_fr
 
 
 def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
-    """The pixels whose texel faces the light.
+    """Return the pixels whose texel faces the light.
 
     Parameters
     ----------
@@ -75,7 +75,7 @@ def facing_mask(normal: np.ndarray, L, supersampling: int = 1) -> np.ndarray:
 def truth_statistics(
     V: np.ndarray, facing: np.ndarray | None, spp: int, seen: np.ndarray | None = None
 ) -> dict:
-    """What the truth has to shadow in one frame (``metrics.json``'s ``frames[i].truth``).
+    """Measure what the truth has to shadow in one frame (``metrics.json``'s ``frames[i].truth``).
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def truth_statistics(
 
 
 def facing_metrics(V: np.ndarray, F: np.ndarray, facing: np.ndarray, seen: np.ndarray | None = None) -> dict:
-    """The visibility metrics over the pixels that face the light.
+    """Return the visibility metrics over the pixels that face the light.
 
     Parameters
     ----------

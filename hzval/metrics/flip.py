@@ -100,7 +100,8 @@ def spatial_filter_radius(ppd: float) -> int:
 class Filters:
     """FLIP's 1-D filters at one ``ppd``: spatial ``y``, ``cx``, ``cz1``, ``cz2`` of radius
     ``spatial_radius``; feature ``g``, ``dg``, ``ddg`` of radius ``feature_radius``; and the
-    colour remapping's ``cmax`` and ``pccmax``."""
+    colour remapping's ``cmax`` and ``pccmax``.
+    """
 
     ppd: np.float32
     spatial_radius: int
@@ -140,7 +141,8 @@ def _spatial_filters(ppd: np.float32, radius: int):
 
 def _feature_filters(ppd: np.float32):
     """``setFeatureFilter``: a Gaussian (sum 1) and its first and second derivatives (positive
-    weights summing to 1, negative ones to -1)."""
+    weights summing to 1, negative ones to -1).
+    """
     sd = f32(0.5) * W * ppd
     radius = int(math.ceil(f32(3.0) * sd))
     n = 2 * radius + 1
@@ -235,12 +237,12 @@ class _Grid:
 
     @staticmethod
     def _quotient(a, n):
-        """``a // n`` of non-negative Int32 arrays, as the truncated float64 quotient: exact (a
+        """Return ``a // n`` of non-negative Int32 arrays, as the truncated float64 quotient: exact (a
         quotient within ``1 / n`` of the next integer is at least ``2^-32`` from it relatively, far
         above float64's rounding) and a SIMD division, where LLVM turns an integer division by a
         value that is not a constant into one scalar division a lane (``benchmarks/bench_flip.py``
-        measures the difference)."""
-
+        measures the difference).
+        """
         return mi.Int32(mi.Float64(a) / mi.Float64(n))
 
     def _opaque(self, n: int):
@@ -250,7 +252,6 @@ class _Grid:
 
     def source(self):
         """For each element of a padded plane, the index of the image pixel it repeats."""
-
         j = dr.arange(mi.Int32, self.rows * self.stride)
         S, W, H = self._opaque(self.stride), self._opaque(self.w), self._opaque(self.h)
         row = self._quotient(j, S)
@@ -260,8 +261,8 @@ class _Grid:
 
     def x_window(self, plane) -> list:
         """For each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row from column
-        ``BLOCK (b - q)`` of the image on, read as ``2q + 1`` packet loads."""
-
+        ``BLOCK (b - q)`` of the image on, read as ``2q + 1`` packet loads.
+        """
         lanes = self.rows * self.nb
         lane = dr.arange(mi.Int32, lanes)
         nb = self._opaque(self.nb)
@@ -274,8 +275,7 @@ class _Grid:
         return values
 
     def x_store(self, outputs: list):
-        """The x pass's ``BLOCK`` outputs of each lane, stored row-major (``wb`` a row)."""
-
+        """Return the x pass's ``BLOCK`` outputs of each lane, stored row-major (``wb`` a row)."""
         lanes = self.rows * self.nb
         target = dr.empty(mi.Float, lanes * BLOCK)  # every element is stored: no fill first
         dr.scatter(target, mi.ArrayXf(*outputs), dr.arange(mi.UInt32, lanes))
@@ -283,8 +283,8 @@ class _Grid:
 
     def y_window(self, plane, first: int, count: int) -> dict:
         """For each y-pass lane, rows ``BLOCK c + m`` of its column of an x-pass result, by ``m`` from
-        ``first`` (padded rows) for ``count`` rows."""
-
+        ``first`` (padded rows) for ``count`` rows.
+        """
         lane = dr.arange(mi.Int32, self.hc * self.wb)
         WB = self._opaque(self.wb)
         c = self._quotient(lane, WB)
@@ -293,14 +293,15 @@ class _Grid:
         return {m: dr.gather(mi.Float, plane, mi.UInt32(base + m * WB)) for m in rows}
 
     def image(self, blocked: list) -> np.ndarray:
-        """An ``h x w`` float32 image of a quantity in the blocked layout (one array per ``k``)."""
+        """Return an ``h x w`` float32 image of a quantity in the blocked layout (one array per ``k``)."""
         a = np.stack([np.asarray(v, dtype=f32).reshape(self.hc, self.wb) for v in blocked], axis=1)
         return a.reshape(BLOCK * self.hc, self.wb)[: self.h, : self.w]
 
 
 def _taps(values, weights, first):
     """``sum_i weights[i] values[first + i]``, summed in float32 in FLIP's order (``i`` from 0 to ``2r``):
-    one output of FLIP's 1-D passes, which are correlations (the filter index runs with the image's)."""
+    one output of FLIP's 1-D passes, which are correlations (the filter index runs with the image's).
+    """
     acc = None
     for i, w in enumerate(weights):
         term = values[first + i] * float(w)
@@ -310,7 +311,8 @@ def _taps(values, weights, first):
 
 def _x_pass(grid: _Grid, planes, weights) -> list:
     """FLIP's x-direction passes: for each ``(plane, filters)`` of ``planes`` and ``weights``, each
-    filter's correlation along the rows, a row-major array of the padded rows (:class:`_Grid`)."""
+    filter's correlation along the rows, a row-major array of the padded rows (:class:`_Grid`).
+    """
     out = []
     for plane, filters_of in zip(planes, weights):
         window = grid.x_window(plane)
@@ -322,7 +324,8 @@ def _x_pass(grid: _Grid, planes, weights) -> list:
 
 def _y_pass(grid: _Grid, planes, weights) -> list:
     """FLIP's y-direction passes over x-pass results: for each ``(plane, filters)``, each filter's
-    correlation along the columns, in the blocked layout (a list of :data:`BLOCK` arrays)."""
+    correlation along the columns, in the blocked layout (a list of :data:`BLOCK` arrays).
+    """
     out = []
     for plane, filters_of in zip(planes, weights):
         r = (len(filters_of[0]) - 1) // 2
@@ -348,7 +351,6 @@ def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray
     numpy.ndarray
         ``(H, W)`` float32.
     """
-
     backend.variant()
     a = np.ascontiguousarray(plane, dtype=f32)
     if a.ndim != 2 or a.size == 0 or len(along_x) % 2 == 0 or len(along_y) % 2 == 0:
@@ -363,10 +365,10 @@ def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray
 
 
 def _flat_image(img: np.ndarray):
-    """An ``(H, W, 3)`` image as one flat Dr.Jit array: float64 as it is (Dr.Jit maps NumPy memory
+    """Return an ``(H, W, 3)`` image as one flat Dr.Jit array: float64 as it is (Dr.Jit maps NumPy memory
     without a copy; the kernel casts it to float32 as NumPy casts, to nearest), else float32, as
-    FLIP's Python wrapper takes it."""
-
+    FLIP's Python wrapper takes it.
+    """
     if img.dtype == np.float64 and img.flags.c_contiguous:
         return mi.Float64(img.ravel())
     return mi.Float(np.ascontiguousarray(img, dtype=f32).ravel())
@@ -377,8 +379,8 @@ def _image_planes(flat, grid: _Grid, grey: bool):
     (:meth:`_Grid.source`), gathered: a gather, unlike a strided load, compiles one kernel for
     every alignment. ``grey``: R, G and B are bitwise equal, and R is gathered for all three, so
     that what is computed from them is computed once (Dr.Jit merges equal expressions of equal
-    variables) and is the same bit for bit."""
-
+    variables) and is the same bit for bit.
+    """
     i = mi.UInt32(grid.source() * 3)
     kind = mi.Float64 if isinstance(flat, mi.Float64) else mi.Float
     planes = tuple(mi.Float(dr.gather(kind, flat, i + c)) for c in range(1 if grey else 3))
@@ -390,8 +392,8 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
     and its edge and point magnitudes, each in the blocked layout of :class:`_Grid` (a list of
     :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image; ``grey``: whether its
     channels are bitwise equal (:func:`_image_planes`). Three kernels: to YCxCz, the x-direction
-    passes, and the y-direction passes with all that follows them."""
-
+    passes, and the y-direction passes with all that follows them.
+    """
     f = filters(ppd)
     g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
     r, gr, b = (clamp_unit(srgb_to_linear(c)) for c in _image_planes(flat, g, grey))
@@ -427,9 +429,9 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
 
 
 def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
-    """The per-pixel FLIP of the :func:`_flat_image` ``flat`` (``grey``: :func:`_side`'s) against a
-    reference's :func:`_side`, evaluated, in the blocked layout of :class:`_Grid`."""
-
+    """Return the per-pixel FLIP of the :func:`_flat_image` ``flat`` (``grey``: :func:`_side`'s) against a
+    reference's :func:`_side`, evaluated, in the blocked layout of :class:`_Grid`.
+    """
     f = filters(ppd)
     t = _side(flat, h, w, ppd, grey)
     # remap to [0, 1]: [0, pccmax) to [0, pt), the rest to [pt, 1]
@@ -463,8 +465,8 @@ def _frozen(fn):
     tracing the Python that made them, which at 512 x 512 was a third of FLIP's time. The sizes are
     Python arguments, so that each shape gets its own recording (a recording holds the sizes it was
     made with). Dr.Jit's warning after ten recordings is for a loop that records on every call; a
-    process that scores many shapes records once for each, as it should."""
-
+    process that scores many shapes records once for each, as it should.
+    """
     return dr.freeze(fn, limit=FROZEN_SHAPES, warn_after=2**30)
 
 
@@ -532,7 +534,6 @@ def flip_error(
     ValueError
         For images of different sizes.
     """
-
     disp = _check_image(test_display, "test")
     if disp.shape[:2] != ref.shape:
         raise ValueError(

@@ -1,6 +1,7 @@
 """FLIP's constants and per-pixel colour steps (``FLIP.h``'s ``FLIPConstants`` and ``color3``
 conversions) in float32, on NumPy values or Dr.Jit arrays alike: sRGB to linear, XYZ, YCxCz and
-CIELAB, the Hunt adjustment and the HyAB distance (docs/flip.md)."""
+CIELAB, the Hunt adjustment and the HyAB distance (docs/flip.md).
+"""
 
 from __future__ import annotations
 
@@ -65,8 +66,9 @@ DEFAULT_PPD = f32(0.7) * (f32(3840.0) / f32(0.7)) * (PI / f32(180.0))
 
 
 def k32(v):
-    """A float32 constant of FLIP's, as the value both NumPy and Dr.Jit (a Python float: exact)
-    compute with."""
+    """Return a float32 constant of FLIP's, as the value both NumPy and Dr.Jit (a Python float: exact)
+    compute with.
+    """
     return float(f32(v))
 
 

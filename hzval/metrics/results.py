@@ -71,7 +71,8 @@ class _Record(Mapping[str, Any]):
 
 class Scores(_Record):
     """One technique's scores in one frame (``frames[i].techniques.NAME``), or the frame's
-    ``no_shadows`` or ``floor``: ``visibility_mae``, ``flip_mean``, ... by name, and its files."""
+    ``no_shadows`` or ``floor``: ``visibility_mae``, ``flip_mean``, ... by name, and its files.
+    """
 
     __slots__ = ()
 
@@ -191,7 +192,7 @@ class SweepResult(_Record):
     __slots__ = ()
 
     def to_json(self) -> dict[str, Any]:
-        """The JSON object, as written to ``metrics.json`` (the same object: nothing is copied)."""
+        """Return the JSON object, as written to ``metrics.json`` (the same object: nothing is copied)."""
         return self.record
 
     @property
@@ -226,7 +227,8 @@ class SweepResult(_Record):
 
 class MaterialRow(_Record):
     """One material of a suite (``suite.json``'s ``materials[i]``): its status and each technique's
-    means over its sweep."""
+    means over its sweep.
+    """
 
     __slots__ = ()
 
@@ -264,9 +266,10 @@ class SuiteResult(_Record):
 
 
 def techniques_of(record: Mapping[str, Any] | None) -> dict[str, Scores]:
-    """The ``techniques`` object of any record that scores techniques by name (a sweep's frame, a
+    """Return the ``techniques`` object of any record that scores techniques by name (a sweep's frame, a
     suite's material, a row of ``views.json`` or ``models.json``): ``{name: its scores}``; an entry
-    that is not an object is left out, and a record without one gives ``{}``."""
+    that is not an object is left out, and a record without one gives ``{}``.
+    """
     if isinstance(record, _Record):
         record = record.record
     per = record.get("techniques") if isinstance(record, dict) else None
@@ -276,8 +279,9 @@ def techniques_of(record: Mapping[str, Any] | None) -> dict[str, Scores]:
 
 
 def technique_info(record: Mapping[str, Any] | None) -> dict[str, TechniqueInfo]:
-    """The ``techniques`` object of a run's record (``metrics.json``, ``suite.json``, ...) as
-    ``{name: what it is}``."""
+    """Return the ``techniques`` object of a run's record (``metrics.json``, ``suite.json``, ...) as
+    ``{name: what it is}``.
+    """
     if isinstance(record, _Record):
         record = record.record
     info = record.get("techniques") if isinstance(record, dict) else None
@@ -287,8 +291,9 @@ def technique_info(record: Mapping[str, Any] | None) -> dict[str, TechniqueInfo]
 
 
 def malformed_techniques(record: Mapping[str, Any] | None) -> list[str]:
-    """The names under a record's ``techniques`` whose entry is not an object (what a file's check
-    names; the records leave them out)."""
+    """Return the names under a record's ``techniques`` whose entry is not an object (what a file's check
+    names; the records leave them out).
+    """
     if isinstance(record, _Record):
         record = record.record
     per = record.get("techniques") if isinstance(record, dict) else None
@@ -296,8 +301,9 @@ def malformed_techniques(record: Mapping[str, Any] | None) -> list[str]:
 
 
 def raw_techniques(record: Mapping[str, Any] | None) -> dict[str, Any] | None:
-    """A record's ``techniques`` object as stored, for the code that builds or checks one: ``{}``
-    where it has none, ``None`` where it is not an object."""
+    """Return a record's ``techniques`` object as stored, for the code that builds or checks one: ``{}``
+    where it has none, ``None`` where it is not an object.
+    """
     if isinstance(record, _Record):
         record = record.record
     per = record.get("techniques", {}) if isinstance(record, dict) else {}

@@ -35,9 +35,9 @@ MARGIN = 0.67
 
 
 def scene_of(metrics: dict, sweep_dir: Path):
-    """The sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json`` (the keys a model's
-    sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``."""
-
+    """Return the sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json`` (the keys a model's
+    sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``.
+    """
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
     where = Path(sweep_dir) / "metrics.json"
     # inputs are recorded relative to the sweep's folder: found from any directory
@@ -80,10 +80,10 @@ def scene_of(metrics: dict, sweep_dir: Path):
 def bug_factors(
     scene, height: np.ndarray, truth, bug: str, name: str, at: str = "camera"
 ) -> list[np.ndarray]:
-    """The technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
+    """Return the technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
     the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples ``at``
-    (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`)."""
-
+    (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`).
+    """
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
     ctx = technique.Context(
@@ -98,7 +98,8 @@ def bug_factors(
 def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict | None:
     """``{"errors": {bug: mean |F - F_bug|}, "best", "named", "line"}`` for the engine's ``factors``
     (one ``(H, W)`` per light of the sweep), against the sweep's lead technique (its first: the
-    horizon map by default), or ``None`` where the sweep is not on a model."""
+    horizon map by default), or ``None`` where the sweep is not on a model.
+    """
     if "mesh" not in metrics or not (metrics.get("parameters") or {}).get("mesh"):
         return None
 

@@ -1,6 +1,7 @@
 """What a sweep records besides its images: ``frames.json`` (what an engine needs to render the same
 frames, :func:`engine_frames`), ``metrics.json``'s view and mesh parameters, and the terminal's
-table (:func:`summary_table`)."""
+table (:func:`summary_table`).
+"""
 
 from __future__ import annotations
 
@@ -40,8 +41,9 @@ def frame_folder(azimuth_deg: float, elevation_deg: float | None = None) -> str:
 
 
 def frame_name(frame: dict) -> str:
-    """The name of a ``metrics.json`` or ``frames.json`` frame: its own ``name``, else (a sweep of
-    before the elevation axis) its azimuth's :func:`frame_folder`."""
+    """Return the name of a ``metrics.json`` or ``frames.json`` frame: its own ``name``, else (a sweep of
+    before the elevation axis) its azimuth's :func:`frame_folder`.
+    """
     return frame.get("name") or frame_folder(frame["azimuth_deg"])
 
 
@@ -56,7 +58,8 @@ def engine_frames(
     radiance, the albedo, the samples per pixel and the rule that places them, the display exposure
     and what it means for an EXR and a PNG, the image size and the material (:func:`_engine_notes`).
     ``albedo_files``: where an albedo image was written beside it
-    (:func:`hzval.pipeline.writing.write_albedo`)."""
+    (:func:`hzval.pipeline.writing.write_albedo`).
+    """
     m = result["material"]
     return {
         "format": "hzval engine frames 2",
@@ -89,9 +92,10 @@ def engine_frames(
 
 
 def _light_radiance(light) -> dict:
-    """The light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
+    """Return the light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
     irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
-    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading")."""
+    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading").
+    """
     if light.kind != "soft" or not light.radius_deg:
         return {
             "radiance": None,
@@ -108,7 +112,8 @@ def _light_radiance(light) -> dict:
 def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> dict:
     """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
     besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
-    too bright, FLIP 0.68)."""
+    too bright, FLIP 0.68).
+    """
     if isinstance(albedo_constant, float):
         albedo = {"kind": "constant", "linear": albedo_constant}
     else:  # an image: written beside frames.json, as linear EXR and as sRGB PNG
@@ -152,7 +157,8 @@ def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> d
 
 def scene_parameters(scene, out: Path, techniques: list[str]) -> dict:
     """``metrics.json``'s ``parameters`` of a sweep of ``scene`` into ``out`` with ``techniques`` (their
-    names): known before the sweep runs, so that a baseline's can be compared first."""
+    names): known before the sweep runs, so that a baseline's can be compared first.
+    """
     return {
         "depth": scene.material.depth,
         "boundary": scene.material.boundary,
@@ -173,8 +179,9 @@ def scene_parameters(scene, out: Path, techniques: list[str]) -> dict:
 
 
 def view_parameters(scene) -> dict:
-    """The camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
-    view with the default lookup, whose parameters are as they always were)."""
+    """Return the camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
+    view with the default lookup, whose parameters are as they always were).
+    """
     cam, lk = scene.camera, scene.lookup
     if cam.kind == "top" and lk == lookup.Lookup():
         return {}
@@ -194,9 +201,9 @@ def view_parameters(scene) -> dict:
 
 
 def mesh_parameters(scene, out: Path) -> dict:
-    """The mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
-    file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere."""
-
+    """Return the mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
+    file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere.
+    """
     if scene.mesh.is_plane:
         return {}
     shape = scene.mesh.shape
@@ -213,13 +220,13 @@ TABLE_WIDTH = 100
 
 
 def summary_table(result: dict) -> str:
-    """The sweep's scores for the terminal, under 100 columns: a row per technique (the means over its
+    """Return the sweep's scores for the terminal, under 100 columns: a row per technique (the means over its
     frames of its visibility and image scores, and its render time per frame), then no shadows at all
     (``F = 1``) as the baseline, then notes: each technique's worst frame, the light elevations at which
     a technique is worse than no shadows (:func:`hzval.report.ranking.worse_than_none`), its split of
     the error where it has one (``split_parts``), and what ``|F-V|`` is measured over. The report and
-    ``metrics.json`` hold every frame."""
-
+    ``metrics.json`` hold every frame.
+    """
     run = SweepResult.of(result)
     frames, names = run.frames, run.names
     facing = any("visibility_mae_facing" in t for f in frames for t in f.techniques.values())
@@ -272,15 +279,16 @@ def summary_table(result: dict) -> str:
 
 
 def _psnr_cell(pooled: float | None, psnr: list) -> str:
-    """The terminal's PSNR of a technique over the frames (:func:`hzval.metrics.compare.pooled_psnr_db`)."""
+    """Return the terminal's PSNR of a technique over the frames (:func:`hzval.metrics.compare.pooled_psnr_db`)."""
     if pooled is None:
         return "inf" if psnr and all(p is None for p in psnr) else "-"
     return "inf" if math.isinf(pooled) else f"{pooled:.2f}"
 
 
 def _floor_notes(result: dict, several: bool) -> list[str]:
-    """A line per fitted technique: its shipped |F-V| split into what the bake loses and its floor (the
-    representation's), beside no shadows, per elevation; and where even the floor does harm."""
+    """Return a line per fitted technique: its shipped |F-V| split into what the bake loses and its floor (the
+    representation's), beside no shadows, per elevation; and where even the floor does harm.
+    """
 
     def cell(v):
         return "-" if v is None else f"{v:.4f}"
@@ -313,7 +321,6 @@ def _floor_notes(result: dict, several: bool) -> list[str]:
 
 def _table_notes(result: dict, facing: bool, hits: bool) -> list[str]:
     """:func:`summary_table`'s lines under the table."""
-
     run = SweepResult.of(result)
     frames = run.frames
     notes = []

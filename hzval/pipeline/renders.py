@@ -1,6 +1,7 @@
 """A sweep's frames: each light rendered by the truth and every technique, scored against the
 truth and written (:func:`render_frames`), with what :func:`hzval.pipeline.sweep.set_up` builds
-once before them (:class:`Setup`) and the clocks that time each stage."""
+once before them (:class:`Setup`) and the clocks that time each stage.
+"""
 
 from __future__ import annotations
 
@@ -70,7 +71,8 @@ class Setup:
 @contextlib.contextmanager
 def cpu_time(seconds: dict, stage: str):
     """Add the process's CPU time (every thread's: Dr.Jit's workers and the writers' too) over the
-    block to ``seconds[stage]``: ``metrics.json``'s ``timings.cpu_s``, beside the stages' wall time."""
+    block to ``seconds[stage]``: ``metrics.json``'s ``timings.cpu_s``, beside the stages' wall time.
+    """
     c0 = time.process_time()
     try:
         yield
@@ -81,7 +83,8 @@ def cpu_time(seconds: dict, stage: str):
 @contextlib.contextmanager
 def stage_time(clock: dict, stage: str):
     """Add the block's wall time to ``clock[stage + "_s"]`` and its CPU time to ``clock["cpu_s"][stage]``
-    (:func:`cpu_time`): a stage that runs in parts, such as each technique's render between comparisons."""
+    (:func:`cpu_time`): a stage that runs in parts, such as each technique's render between comparisons.
+    """
     t0 = time.perf_counter()
     try:
         with cpu_time(clock["cpu_s"], stage):
@@ -91,9 +94,10 @@ def stage_time(clock: dict, stage: str):
 
 
 def lights(scene) -> list[tuple[float | None, float]]:
-    """The sweep's lights, ``(elevation, azimuth)`` in degrees: every azimuth at each elevation of
+    """Return the sweep's lights, ``(elevation, azimuth)`` in degrees: every azimuth at each elevation of
     :meth:`hzval.scene.spec.Light.elevations` in turn; the elevation ``None`` where there is one (its
-    frames keep their azimuth's name, :func:`hzval.pipeline.records.frame_folder`)."""
+    frames keep their azimuth's name, :func:`hzval.pipeline.records.frame_folder`).
+    """
     light = scene.light
     several = len(light.elevations()) > 1
     return [(e if several else None, az) for e in light.elevations() for az in light.azimuths_deg]
@@ -107,7 +111,8 @@ def render_frames(
     rendered and compared one by one, and written (:func:`_finish`).
 
     One frame at a time, every stage on all cores: the comparison and the truth are both Dr.Jit
-    kernels, so overlapping them gains next to nothing and costs memory and clear stage timings."""
+    kernels, so overlapping them gains next to nothing and costs memory and clear stage timings.
+    """
     frames: list[dict] = []
     for el, az in bar:
         bar.set_postfix_str(f"azimuth {az:+g} deg" + ("" if el is None else f", elevation {el:g}"))
@@ -132,7 +137,8 @@ class _Rendered:
     """One light's renders: the truth, the unshadowed shading and its direct term, (a view other than
     ``top``) each technique's error at the truth's hit points, and, once :func:`_score_light` has
     rendered and compared them, each technique's frame without its image (kept only for
-    ``--all-files``: the comparison has what the report shows of it)."""
+    ``--all-files``: the comparison has what the report shows of it).
+    """
 
     azimuth_deg: float
     elevation_deg: float | None  # None: the scene's one elevation
@@ -146,11 +152,12 @@ class _Rendered:
 
 
 def _render(setup: Setup, t_frame, az: float, el: float | None, scale: float, clock: dict) -> _Rendered:
-    """The renders of the light at ``(el, az)`` beside the truth's ``t_frame`` that every technique's
+    """Return the renders of the light at ``(el, az)`` beside the truth's ``t_frame`` that every technique's
     comparison reads: the unshadowed shading, a model's base shadow, a view's perfect-parallax errors
     (a view's unseen pixels made the background in every image). The techniques' own frames are
     rendered one at a time as they are compared (:func:`_score_light`): holding all of them at once
-    was 2 GB at 4096 x 4096 with eight techniques."""
+    was 2 GB at 4096 x 4096 with eight techniques.
+    """
     plain, direct = setup.unshadowed.render(az, el)
     clock["plain_s"] += plain.seconds
     base = None if setup.base_shadow is None else setup.base_shadow.render(az, elevation_deg=el)
@@ -211,7 +218,8 @@ def _score_light(setup: Setup, r: _Rendered, scale: float, clock: dict, writer) 
     a large image): ``(technique, frame, metrics, its files)`` per technique,
     the perfect-shadows floor, the no-shadows baseline and the truth's files. ``r.techniques`` gets
     each technique's frame, its image dropped unless the writer writes every file
-    (``--all-files``)."""
+    (``--all-files``).
+    """
     t_frame = r.truth
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
     # the comparison, and after each of its steps, whose buffers differ in size and would each stay
@@ -257,8 +265,9 @@ def _score_light(setup: Setup, r: _Rendered, scale: float, clock: dict, writer) 
 
 
 def _shadow_statistics(scene, setup: Setup, r: _Rendered, frame: dict, per: dict) -> None:
-    """The truth's shadowed and attached fractions (``frame["truth"]``) and each technique's visibility
-    metrics over the pixels that face the light (:mod:`hzval.metrics.facing`)."""
+    """Record the truth's shadowed and attached fractions (``frame["truth"]``) and each technique's visibility
+    metrics over the pixels that face the light (:mod:`hzval.metrics.facing`).
+    """
     V = r.truth.layers.get("visibility")
     if V is None:
         return
@@ -284,7 +293,8 @@ def _shadow_statistics(scene, setup: Setup, r: _Rendered, frame: dict, per: dict
 def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
     """On a model with mirrored UVs, each technique's |F - V| over the pixels whose UVs are mirrored
     (``visibility_mae_mirrored``) and over those as drawn (``visibility_mae_unmirrored``): where a
-    tangent bug of the handedness would show (:mod:`hzval.geometry.tangent_bugs`)."""
+    tangent bug of the handedness would show (:mod:`hzval.geometry.tangent_bugs`).
+    """
     V = r.truth.layers.get("visibility")
     if V is None or not (sign < 0).any():
         return
@@ -303,13 +313,14 @@ def _unseen(frame, mask: np.ndarray, background: np.ndarray):
 
 
 def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | None, V: np.ndarray | None):
-    """The perfect-shadows floor of a frame: the techniques' unshadowed shading times the truth's own
+    """Return the perfect-shadows floor of a frame: the techniques' unshadowed shading times the truth's own
     visibility, ``direct * V + ambient``, scored against the truth (``compare.IMAGE_METRICS``).
 
     No technique can score better than its shadows being exactly right, so
     this is the part of every image score that is not the shadows' (the
     shading's difference from the truth's, and the truth's noise); ``None``
-    without ``shadow``."""
+    without ``shadow``.
+    """
     if V is None:
         return None
     scores, _ = compare.image_metrics(ref, shading.compose(direct, V, ambient))
@@ -317,10 +328,11 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
 
 
 def _no_shadows(ref: compare.Reference, none, V: np.ndarray | None, mask) -> dict | None:
-    """The baseline of a frame, no technique's shadows (``F = 1``: the unshadowed shading, the
+    """Return the baseline of a frame, no technique's shadows (``F = 1``: the unshadowed shading, the
     report's normal mapping only; on a model ``F`` is the base mesh's own shadow, which every
     technique's factor holds too): its image scores and ``|F - V|``. A technique worse than it at
-    some light elevation does harm there. ``none``: its frame; ``None`` without ``shadow``."""
+    some light elevation does harm there. ``none``: its frame; ``None`` without ``shadow``.
+    """
     if V is None:
         return None
     scores, _ = compare.image_metrics(ref, none.image)

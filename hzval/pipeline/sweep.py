@@ -96,7 +96,8 @@ def peak_rss_bytes() -> int:
 
     Linux: ``VmHWM`` of ``/proc/self/status``, which :func:`reset_peak_rss` can reset, so that a
     second sweep in one process (``hzval suite``) reports its own peak; elsewhere ``ru_maxrss``
-    (KiB on Linux, bytes on macOS), which only ever grows."""
+    (KiB on Linux, bytes on macOS), which only ever grows.
+    """
     try:
         with open("/proc/self/status", encoding="ascii") as f:
             for line in f:
@@ -111,7 +112,8 @@ def peak_rss_bytes() -> int:
 
 def reset_peak_rss() -> None:
     """Start :func:`peak_rss_bytes` afresh from the current resident memory (Linux 4.0+: writing 5 to
-    ``/proc/self/clear_refs`` resets ``VmHWM``); a no-op where that is not possible."""
+    ``/proc/self/clear_refs`` resets ``VmHWM``); a no-op where that is not possible.
+    """
     try:
         with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
             f.write("5")
@@ -125,7 +127,8 @@ def _machine() -> str:
 
 def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> renders.Setup:
     """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
-    with the report), build the truth and every selected technique; timed."""
+    with the report), build the truth and every selected technique; timed.
+    """
     backend.variant()
     chosen = technique.select(
         list(options.techniques) if options.techniques is not None else None, scene, exclude=options.exclude
@@ -220,7 +223,8 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
 
 def _band_record(the_truth) -> dict:
     """``metrics.json`` ``memory.truth_bands`` of a truth whose mesh was built in bands
-    (:mod:`hzval.truth.bands`): pixel rows a band, bands, triangles of the largest and of them all."""
+    (:mod:`hzval.truth.bands`): pixel rows a band, bands, triangles of the largest and of them all.
+    """
     if getattr(the_truth, "mesh_bands", None) is None:
         return {}
     return {
@@ -234,7 +238,7 @@ def _band_record(the_truth) -> dict:
 
 
 def _constant(values: np.ndarray) -> float | None:
-    """The one value of ``values`` if they are all equal, else ``None``."""
+    """Return the one value of ``values`` if they are all equal, else ``None``."""
     v = np.asarray(values)
     first = float(v.flat[0]) if v.size else None
     return first if first is not None and bool(np.all(v == v.flat[0])) else None
@@ -244,7 +248,8 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
     """``(truth, points)``: the plane's :class:`hzval.truth.plane.Truth` (the techniques read where the
     camera's rays meet their plane: ``points`` None; its mesh at once or in bands, as ``plan`` or
     :func:`truth_plan` says), or on a model (``[mesh]``) its
-    :class:`hzval.truth.model.ModelTruth` and the techniques' samples at its hits, with their frames."""
+    :class:`hzval.truth.model.ModelTruth` and the techniques' samples at its hits, with their frames.
+    """
     if scene.mesh.is_plane:
         if scene.mesh.tangent_bug != "none":
             raise InputError(
@@ -263,7 +268,8 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
 
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
     """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
-    (:class:`hzval.techniques.registry.Unavailable`) is skipped with its one-line notice."""
+    (:class:`hzval.techniques.registry.Unavailable`) is skipped with its one-line notice.
+    """
     built, sat_out = [], []
     on_model = ctx.points is not None and ctx.points.frames is not None
     for t in chosen:
@@ -289,8 +295,9 @@ def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: lis
 
 
 def _set_up_view(setup: renders.Setup, ctx, chosen, options: Options) -> None:
-    """A view other than ``top``: every technique again at the truth's own hit points (perfect
-    parallax, :attr:`hzval.pipeline.renders.Setup.perfect`) and the view's errors (:func:`view_errors`)."""
+    """Set up a view other than ``top``: every technique again at the truth's own hit points (perfect
+    parallax, :attr:`hzval.pipeline.renders.Setup.perfect`) and the view's errors (:func:`view_errors`).
+    """
     hits = setup.truth.hits
     own = ctx.samples()
     at_truth = lookup.from_points(hits[0], hits[1], own)
@@ -308,7 +315,8 @@ def view_errors(the_truth, samples: lookup.Samples) -> tuple[dict, dict]:
     tiles) between the point a technique shades and the truth's hit point of the same sample;
     ``footprint``: per pixel, ``max(|dP/dcol|, |dP/drow|)`` on the technique's plane, the texels
     a pixel covers (OpenGL's ``rho``). The record has their means and quantiles over the pixels
-    that see the surface."""
+    that see the surface.
+    """
     rows, cols, spp = samples.rows, samples.cols, samples.spp
     hx, hy = the_truth.hits
     dx = samples.x.astype(np.float64) - hx
@@ -377,7 +385,6 @@ def _run(
     scene, out: Path, report_dir: Path, options: Options, command: str, progress: bool, gates=None
 ) -> dict:
     """:func:`run`'s work: the bake into ``out/bake``, everything else into ``report_dir``."""
-
     t_start = time.perf_counter()
     setup = set_up(scene, out, options, report_dir)
     if setup.view_maps:
@@ -432,8 +439,9 @@ def _run(
 def _result(
     scene, options: Options, setup: renders.Setup, timings: dict, frames: list[dict], out: Path
 ) -> dict:
-    """The content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"); ``out`` the folder it is
-    written to."""
+    """Return the content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"); ``out`` the folder it is
+    written to.
+    """
     techniques = {
         t.name: {
             "label": t.label,

@@ -1,6 +1,7 @@
 """What a sweep writes of each frame: its EXR layers and PNG previews, each written on a thread as
 soon as it is made, beside the next technique's render and comparison (PNG compression and EXR
-encoding release the GIL), and the view's maps."""
+encoding release the GIL), and the view's maps.
+"""
 
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ __all__ = [
 def write_view_maps(report_dir: Path, maps: dict, seen: np.ndarray) -> dict:
     """``view/<name>.exr`` (texels, NaN where no surface is seen) and a PNG of each of the view's
     maps (magma, 0 to the largest seen value, the unseen pixels in the background colour);
-    their paths relative to ``report_dir``."""
+    their paths relative to ``report_dir``.
+    """
     folder = report_dir / "view"
     rel = {}
     for name, values in maps.items():
@@ -56,11 +58,12 @@ PNG_RUNS = True
 
 
 def shown(display: np.ndarray) -> np.ndarray:
-    """A preview's 8-bit values of display values ``(H, W, 3)``: ``(H, W)`` where they are grey.
+    """Return a preview's 8-bit values of display values ``(H, W, 3)``: ``(H, W)`` where they are grey.
 
     Grey display values are quantised once, not per channel: the same values, a third of the
     work, and :func:`hzval.io.codecs.write_png` takes the ``(H, W)`` result as the grey PNG it would
-    have made of them."""
+    have made of them.
+    """
     return codecs.unit_to_u8(display[..., 0] if codecs.is_grey(display) else display)
 
 
@@ -165,7 +168,8 @@ class FrameWriter:
 
     def technique_files(self, stem: str, frame, maps: dict, V) -> dict:
         """Start one technique's files, named after its ``stem`` (``maps``: ``shown`` and ``flip``;
-        ``V``: the truth's visibility, or ``None``); their paths, by key."""
+        ``V``: the truth's visibility, or ``None``); their paths, by key.
+        """
         own: dict = {}
         if self.all_files:
             self._exr(own, "image", f"{stem}.exr", {"RGB": frame.image})
@@ -194,12 +198,13 @@ def _as_is(pixels):
 
 def _write_png_of(path: Path, make, *args) -> None:
     """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
-    with the report's preview if it is large (:func:`hzval.io.codecs.write_png_with_preview`)."""
+    with the report's preview if it is large (:func:`hzval.io.codecs.write_png_with_preview`).
+    """
     codecs.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True, runs=PNG_RUNS)
 
 
 def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
-    """An albedo image where an engine finds it: ``albedo.exr`` (``R, G, B``, linear, as the truth
+    """Return an albedo image where an engine finds it: ``albedo.exr`` (``R, G, B``, linear, as the truth
     reads it) and ``albedo.png`` (sRGB, as an engine's texture holds it), in ``folder``.
 
     Parameters
@@ -215,7 +220,6 @@ def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
         ``frames.json``'s ``albedo`` paths, relative to ``folder``: ``linear``, ``srgb`` and the
         ``encoding`` of each.
     """
-
     codecs.write_exr(folder / "albedo.exr", {"RGB": np.asarray(albedo, np.float32)})
     codecs.write_png(folder / "albedo.png", codecs.unit_to_u8(srgb.encode(np.clip(albedo, 0.0, 1.0))))
     return {

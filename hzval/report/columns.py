@@ -1,6 +1,7 @@
 """The report's vocabulary: each metric's column (label, format, which way is worse), the technique views,
 the image panels and raw files of a frame, the labels of parameters, timings and versions, and the
-colours and line styles every page and plot gives the truth and each technique."""
+colours and line styles every page and plot gives the truth and each technique.
+"""
 
 from __future__ import annotations
 
@@ -72,7 +73,7 @@ TECHNIQUE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
 
 def num(x) -> float | None:
-    """A finite float, or ``None`` (missing, null, NaN, not a number)."""
+    """Return a finite float, or ``None`` (missing, null, NaN, not a number)."""
     if isinstance(x, bool) or x is None:
         return None
     try:
@@ -83,8 +84,9 @@ def num(x) -> float | None:
 
 
 def frame_label(frame: dict) -> str:
-    """A frame's short label: its azimuth (``+15°``), and in a sweep over several elevations (an
-    ``el`` name) its elevation too (``+15° (elevation 30°)``)."""
+    """Return a frame's short label: its azimuth (``+15°``), and in a sweep over several elevations (an
+    ``el`` name) its elevation too (``+15° (elevation 30°)``).
+    """
     az = fmt_deg(frame.get("azimuth_deg"))
     name = frame.get("name")
     if isinstance(name, str) and name.startswith("el"):
@@ -324,7 +326,7 @@ ENGINE_COLOUR = "#ff7a45"
 
 
 def technique_colour(name: str, place: int) -> str:
-    """A technique's colour, the same on every page and plot whichever technique leads: the
+    """Return a technique's colour, the same on every page and plot whichever technique leads: the
     registry's techniques by their place in it (:func:`hzval.techniques.registry.names`),
     ``score``'s engine its own, any other by its place in the list shown.
 
@@ -346,7 +348,6 @@ def technique_colour(name: str, place: int) -> str:
     >>> technique_colour(names[0], 3) == technique_colour(names[0], 0) == TECHNIQUE_COLOURS[0]
     True
     """
-
     known = technique.names()
     if name in known:
         return TECHNIQUE_COLOURS[known.index(name) % len(TECHNIQUE_COLOURS)]
@@ -356,7 +357,7 @@ def technique_colour(name: str, place: int) -> str:
 
 
 def technique_views(metrics: dict) -> list[TechniqueView]:
-    """The techniques of a sweep's ``metrics`` (``techniques``), in their order; the first leads."""
+    """Return the techniques of a sweep's ``metrics`` (``techniques``), in their order; the first leads."""
     result = SweepResult.of(metrics)
     views = []
     frames = result.frames
@@ -401,7 +402,7 @@ def flatten(frames: list[dict], views: list[TechniqueView]) -> list[dict]:
 
 
 def lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
-    """The summary table's columns of the lead technique: every score it has in some frame."""
+    """Return the summary table's columns of the lead technique: every score it has in some frame."""
     shown = []
     for m in TECHNIQUE_METRICS:
         key = f"{v.name}_{m.key}"
@@ -414,7 +415,7 @@ def lead_metrics(v: TechniqueView, frames: list[dict]) -> tuple["Metric", ...]:
 
 
 def technique_metrics(v: TechniqueView) -> tuple["Metric", ...]:
-    """The summary table's columns of a technique after the lead."""
+    """Return the summary table's columns of a technique after the lead."""
     return (
         Metric(
             f"{v.name}_visibility_mae",
@@ -528,7 +529,7 @@ _TIMING_LABELS: tuple[tuple[str, str], ...] = (
 
 
 def timing_labels(views: list[TechniqueView]) -> tuple[tuple[str, str], ...]:
-    """The stages of a sweep's timings: the fixed ones, then each technique's set-up and renders."""
+    """Return the stages of a sweep's timings: the fixed ones, then each technique's set-up and renders."""
     fixed = _TIMING_LABELS[:5]
     own = tuple(
         pair
@@ -550,7 +551,7 @@ VERSION_LABELS: tuple[tuple[str, str], ...] = (
 
 
 def value_text(key: str, value) -> str:
-    """A parameter, version or material value as text."""
+    """Return a parameter, version or material value as text."""
     if value is None:
         return "—"
     if isinstance(value, bool):
@@ -589,9 +590,10 @@ SETUP_SHOWN_FROM = 1e-3
 
 
 def timing_rows(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
-    """The report's timing rows of a sweep's ``timings`` (``metrics.json``), with each row's share of
+    """Return the report's timing rows of a sweep's ``timings`` (``metrics.json``), with each row's share of
     their sum; ``left_out``: the labels of the set-ups under :data:`SETUP_SHOWN_FROM` (``left_out_below``:
-    that bound as the page writes it)."""
+    that bound as the page writes it).
+    """
     rows, known, left_out = [], set(), []
     per_frame = {"truth_s", "plain_s"} | {f"{v.stem}_s" for v in views}
     setups = {f"{v.stem}_setup_s" for v in views}

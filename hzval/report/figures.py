@@ -1,6 +1,7 @@
 """The figures of the commands past the sweep (matplotlib, Agg, no pyplot state): lines against one
 axis in a grid of panels (``views``, ``models``), what accuracy costs (``tradeoff``) and the tangent
-bugs' signatures (``models``). The sweep report's own are :mod:`hzval.report.plots`'."""
+bugs' signatures (``models``). The sweep report's own are :mod:`hzval.report.plots`'.
+"""
 
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ CURVATURE = "signed curvature 1/R (texture widths⁻¹; + convex)"
 @dataclass
 class Line:
     """One line of a panel: its legend's label and its points ``(x, y)``; ``dashed`` draws it thin
-    and dashed without markers (a floor); ``errors`` draws each point's ``± error`` instead."""
+    and dashed without markers (a floor); ``errors`` draws each point's ``± error`` instead.
+    """
 
     label: str
     points: Sequence[tuple[float, float]]
@@ -31,7 +33,8 @@ class Line:
 @dataclass
 class Panel:
     """A panel of lines: its title, axis labels and lines; ``footprint`` puts x on a log scale ticked
-    1, 2, 5 (a footprint spans under a decade); ``zero`` draws the line ``y = 0``."""
+    1, 2, 5 (a footprint spans under a decade); ``zero`` draws the line ``y = 0``.
+    """
 
     title: str
     xlabel: str
@@ -138,7 +141,7 @@ def plot_signed_maps(
     notes,
     label: str,
 ) -> None:
-    """A grid of signed maps in [-1, 1] (blue positive, red negative, NaN grey) with one colour bar.
+    """Draw a grid of signed maps in [-1, 1] (blue positive, red negative, NaN grey) with one colour bar.
 
     Parameters
     ----------

@@ -56,7 +56,8 @@ def visibility_diff_image(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> codecs.Indexed | np.ndarray:
     """:func:`visibility_diff_image` as a palette image, pixel for pixel: its grey levels (at most
     128 for ``V`` in [0, 1]) and the two colours, a third of the RGB bytes. RGB in the case
-    (non-finite ``V``) where more than 256 colours would be needed."""
+    (non-finite ``V``) where more than 256 colours would be needed.
+    """
     return VisibilityDiff(V).indexed(F)
 
 
@@ -90,7 +91,7 @@ class VisibilityDiff:
         return lit_test & ~self.lit, ~lit_test & self.lit
 
     def image(self, F: np.ndarray) -> np.ndarray:
-        """The map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as 8-bit RGB ``(H, W, 3)``."""
+        """Return the map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as 8-bit RGB ``(H, W, 3)``."""
         leak, false_shadow = self._marks(F)
         img = np.repeat(self.grey[..., None], 3, axis=-1)
         img[leak] = LEAK_RGB
@@ -98,8 +99,9 @@ class VisibilityDiff:
         return img
 
     def indexed(self, F: np.ndarray) -> codecs.Indexed | np.ndarray:
-        """The map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as a palette image
-        (:func:`visibility_diff_indexed`)."""
+        """Return the map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as a palette image
+        (:func:`visibility_diff_indexed`).
+        """
         leak, false_shadow = self._marks(F)
         marked = leak | false_shadow
         # the grey levels left where neither colour is painted: every pixel's count less the
@@ -119,7 +121,8 @@ class VisibilityDiff:
 
 def magma(values: np.ndarray) -> np.ndarray:
     """Values in [0, 1] (clipped) as 8-bit RGB through matplotlib's magma, FLIP's own colour map
-    (NaN black, as matplotlib's "bad" colour without its alpha)."""
+    (NaN black, as matplotlib's "bad" colour without its alpha).
+    """
     values = _as_float(values)
     rgb = magma_palette()[magma_index(values)]
     rgb[np.isnan(values)] = 0
@@ -128,7 +131,7 @@ def magma(values: np.ndarray) -> np.ndarray:
 
 @functools.cache
 def magma_palette() -> np.ndarray:
-    """matplotlib's magma as 256 8-bit sRGB colours ``(256, 3)``, rounded to nearest."""
+    """Matplotlib's magma as 256 8-bit sRGB colours ``(256, 3)``, rounded to nearest."""
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib import colormaps
 
@@ -138,9 +141,10 @@ def magma_palette() -> np.ndarray:
 
 
 def magma_index(values: np.ndarray) -> np.ndarray:
-    """The magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
+    """Return the magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
     matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma` paints it
-    black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each."""
+    black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each.
+    """
     v = _as_float(values)
     x = np.empty_like(v)  # an array even for a scalar, so that the steps below work in place
     with np.errstate(over="ignore"):  # a value beyond max / 256 is 255 either way
@@ -151,20 +155,21 @@ def magma_index(values: np.ndarray) -> np.ndarray:
 
 
 def _as_float(values) -> np.ndarray:
-    """An array of a float type as it is (its own precision decides the index), others as float64."""
+    """Return an array of a float type as it is (its own precision decides the index), others as float64."""
     values = np.asarray(values)
     return values if np.issubdtype(values.dtype, np.floating) else values.astype(np.float64)
 
 
 def flip_image(error: np.ndarray) -> np.ndarray:
-    """A FLIP error map (``(H, W)`` in [0, 1]) as 8-bit RGB, as FLIP shows it."""
+    """Return a FLIP error map (``(H, W)`` in [0, 1]) as 8-bit RGB, as FLIP shows it."""
     return magma(error)
 
 
 def flip_indexed(error: np.ndarray) -> codecs.Indexed | np.ndarray:
     """:func:`flip_image` as a palette image of magma's 256 colours, pixel for pixel (the index is
     the colour map's, so nothing is lost), a third of the RGB bytes; RGB if ``error`` has a NaN
-    (whose black is no magma colour)."""
+    (whose black is no magma colour).
+    """
     error = _as_float(error)
     if np.isnan(error).any():
         return flip_image(error)

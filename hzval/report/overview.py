@@ -1,5 +1,6 @@
 """The suite's overview: thumbnails, ``suite.json`` and ``index.html`` over every material's row,
-worst first, and the terminal's tables of the same (docs/ARCHITECTURE.md, "suite.json")."""
+worst first, and the terminal's tables of the same (docs/ARCHITECTURE.md, "suite.json").
+"""
 
 from __future__ import annotations
 
@@ -44,7 +45,8 @@ def write_overview(
     gates: dict | None = None,
 ) -> dict:
     """Thumbnails, ``suite.json`` and ``index.html`` for the rows of every material (``gates``: the
-    record of :func:`gate_failures`, listed first)."""
+    record of :func:`gate_failures`, listed first).
+    """
     rows = sorted(({**r, "origin": _portable_origin(r.get("origin"), out)} for r in rows), key=sort_key)
     command = staging.portable_command(command)
     for row in rows:
@@ -86,8 +88,9 @@ def write_overview(
 
 
 def _portable_origin(origin: str | None, out: Path) -> str | None:
-    """A row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
-    ``out`` (:func:`hzval.io.staging.report_path`)."""
+    """Return a row's ``origin`` (``built-in``, a scene file, ``map + sidecar``) with its path relative to
+    ``out`` (:func:`hzval.io.staging.report_path`).
+    """
     if not origin or origin == "built-in":
         return origin
     path, plus, rest = origin.partition(" + ")
@@ -96,8 +99,8 @@ def _portable_origin(origin: str | None, out: Path) -> str | None:
 
 def _thumbnails(out: Path, row: dict) -> dict:
     """Downsampled copies of the chosen frames under ``out/thumbs/<name>/``; same layout as
-    ``row["files"]``, paths relative to ``out``."""
-
+    ``row["files"]``, paths relative to ``out``.
+    """
     thumbs = {}
     for az, images in row["files"].items():
         thumbs[az] = {}
@@ -121,10 +124,11 @@ def _thumbnails(out: Path, row: dict) -> dict:
 
 
 def summary_table(result: dict) -> str:
-    """The terminal's tables, under 100 columns: the techniques over every material that ran, best
+    """Return the terminal's tables, under 100 columns: the techniques over every material that ran, best
     first (their means, and on how many materials each is worse than no shadows at some light
     elevation: the overview's first table), then a line per material, worst first by the lead
-    technique: its lead |F - V| and FLIP, its best technique and its sweep's time, or why it failed."""
+    technique: its lead |F - V| and FLIP, its best technique and its sweep's time, or why it failed.
+    """
     ranked = report.suite_ranking(result)
     width = max([len("technique"), *(len(r["label"]) for r in ranked)])
     lines = [f"{'technique':{width}s}   |F-V|    FLIP  worse than no shadows on"]

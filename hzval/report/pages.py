@@ -52,10 +52,11 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 
 def _src(out: Path, rel) -> dict | None:
-    """A file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
+    """Return a file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
     ``None`` if absent. A large PNG with a preview (:func:`hzval.io.codecs.preview_of`) is shown by
     its preview: ``src`` is the preview's, ``full`` the file's own URL and ``width`` its width in
-    pixels, which the page loads when the reader zooms in (else both ``None``)."""
+    pixels, which the page loads when the reader zooms in (else both ``None``).
+    """
     if not isinstance(rel, str) or not rel:
         return None
     if not (out / rel).is_file():
@@ -146,7 +147,7 @@ def _cell(col: dict, i: int, frame: dict, starts: set[str]) -> dict:
 
 
 def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
-    """The worst value of each quality metric and the frame it comes from."""
+    """Return the worst value of each quality metric and the frame it comes from."""
     tiles = []
     for col in cols:
         m: columns.Metric = col["metric"]
@@ -189,7 +190,7 @@ def _glance(cols: list[dict], frames: list[dict]) -> list[dict]:
 
 
 def _effects(parameters: dict, simulated: dict, views: list[columns.TechniqueView]) -> dict:
-    """The declared effects, what the truth and each technique simulated, and what each left out."""
+    """Return the declared effects, what the truth and each technique simulated, and what each left out."""
     declared = [str(e) for e in (parameters.get("effects") or [])]
     truth = [str(e) for e in (simulated.get("truth") or [])]
     rows, notes = [], []
@@ -273,7 +274,7 @@ def _material(m: dict, camera: dict | None = None) -> dict:
 
 
 def _aspect(cols, rows, camera: dict) -> str:
-    """The images' aspect ratio: the camera's resolution, else the tile's."""
+    """Return the images' aspect ratio: the camera's resolution, else the tile's."""
     res = camera.get("resolution")
     if isinstance(res, (list, tuple)) and len(res) == 2 and all(columns.num(c) for c in res):
         cols, rows = res
@@ -281,8 +282,9 @@ def _aspect(cols, rows, camera: dict) -> str:
 
 
 def _view(out: Path, metrics: dict) -> dict | None:
-    """The camera and the view's errors (``metrics.json``'s ``camera`` and ``view``), for a view other
-    than ``top``; ``None`` for it."""
+    """Return the camera and the view's errors (``metrics.json``'s ``camera`` and ``view``), for a view other
+    than ``top``; ``None`` for it.
+    """
     cam, view = metrics.get("camera") or {}, metrics.get("view")
     if cam.get("kind", "top") == "top" or not isinstance(view, dict):
         return None
@@ -339,8 +341,9 @@ def _column_groups(metrics: tuple[columns.Metric, ...]) -> list[dict]:
 
 
 def _shown_metrics(frames: list[dict], views: list[columns.TechniqueView]) -> tuple[columns.Metric, ...]:
-    """The summary table's columns: the lead technique's scores, the render times, the floor where
-    measured, then a few for each other technique."""
+    """Return the summary table's columns: the lead technique's scores, the render times, the floor where
+    measured, then a few for each other technique.
+    """
     if not views:
         return (columns.TRUTH_TIME,)
     lead = views[0]
@@ -370,7 +373,7 @@ def _shown_metrics(frames: list[dict], views: list[columns.TechniqueView]) -> tu
 
 
 def _technique_files(f: dict, v: columns.TechniqueView) -> dict:
-    """A technique's files in a frame (``frames[i].techniques[name].files``)."""
+    """Return a technique's files in a frame (``frames[i].techniques[name].files``)."""
     own = FrameRecord(f).scores(v.name)
     return own.files if own is not None else {}
 
@@ -440,8 +443,9 @@ def _frame_view(
 def _worst_frame(
     out: Path, frames: list[dict], frame_views: list[dict], views: list[columns.TechniqueView]
 ) -> dict | None:
-    """The report's first screen: the frame where the lead technique's |F - V| (over the pixels that
-    face the light, where measured; else its FLIP) is largest, as truth | technique | difference."""
+    """Return the report's first screen: the frame where the lead technique's |F - V| (over the pixels that
+    face the light, where measured; else its FLIP) is largest, as truth | technique | difference.
+    """
     if not views or not frames:
         return None
     lead = views[0]
@@ -493,7 +497,7 @@ def _worst_frame(
 
 
 def _visibility_scope(metrics: dict) -> str | None:
-    """What the report's visibility columns are measured over (:data:`columns.FACING`), in words."""
+    """Say what the report's visibility columns are measured over (:data:`columns.FACING`), in words."""
     frames = SweepResult.of(metrics).frames
     facing = any("visibility_mae_facing" in t for f in frames for t in f.techniques.values())
     if not facing:
@@ -582,7 +586,7 @@ def build_context(out: Path, metrics: dict, command: str, plot_files: dict[str, 
 
 
 def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
-    """The report's first table (:func:`hzval.report.ranking.ranking`), formatted."""
+    """Return the report's first table (:func:`hzval.report.ranking.ranking`), formatted."""
     rows = ranking.ranking(metrics)
     if not rows:
         return None
@@ -648,7 +652,7 @@ def environment():
 
 
 def render_html(context: dict) -> str:
-    """The page for a :func:`build_context` result."""
+    """Return the page for a :func:`build_context` result."""
     return environment().get_template("report.html.j2").render(**context)
 
 
@@ -665,8 +669,9 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
 
 
 def write_plots(out: str | Path, metrics: dict) -> dict[str, str | None]:
-    """The report's plots of a sweep's ``metrics`` into ``out/plots``; their paths relative to ``out``
-    (``None``: a plot the sweep has no data for)."""
+    """Return the report's plots of a sweep's ``metrics`` into ``out/plots``; their paths relative to ``out``
+    (``None``: a plot the sweep has no data for).
+    """
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
     views = columns.technique_views(metrics)
@@ -702,7 +707,7 @@ def _cell_of(value, fmt: Callable[[Any], str]) -> dict:
 
 
 def _suite_row(r: dict, names: list[str]) -> dict:
-    """A material's row and card, formatted."""
+    """Return a material's row and card, formatted."""
     row = {
         "name": r["name"],
         "origin": r.get("origin", ""),
@@ -742,9 +747,10 @@ def _suite_row(r: dict, names: list[str]) -> dict:
 
 
 def suite_ranking(result: dict) -> list[dict]:
-    """The suite's first table: each technique's means over the materials that ran, best first, and on
+    """Return the suite's first table: each technique's means over the materials that ran, best first, and on
     how many of them it is worse than no shadows at some light elevation (no shadows last, the
-    baseline)."""
+    baseline).
+    """
     suite = SuiteResult.of(result)
     info = suite.techniques
     ok = [r for r in suite.materials if r.get("status") == "ok"]
@@ -774,7 +780,7 @@ def suite_ranking(result: dict) -> list[dict]:
 
 
 def render_suite(result: dict) -> str:
-    """The suite's ``index.html`` for :func:`hzval.report.overview.write_overview`'s ``result``."""
+    """Return the suite's ``index.html`` for :func:`hzval.report.overview.write_overview`'s ``result``."""
     info = SuiteResult.of(result).techniques
     names = list(info)
     s = result["suite"]

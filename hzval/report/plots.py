@@ -1,5 +1,6 @@
 """The report's plots (matplotlib, Agg, no pyplot state): each technique's metrics and times against
-the light's azimuth, and the split of a technique's error into parts (``Technique.split_parts``)."""
+the light's azimuth, and the split of a technique's error into parts (``Technique.split_parts``).
+"""
 
 from __future__ import annotations
 
@@ -39,8 +40,10 @@ _BG, _PANEL, _TEXT, _MUTED, _GRID, _ACCENT, _WORST = (
 
 
 def _figure(width: float, height: float):
-    """A figure on an Agg canvas. Margins are set by hand: constrained layout
-    would double the time a plot takes."""
+    """Return a figure on an Agg canvas.
+
+    Margins are set by hand: constrained layout would double the time a plot takes.
+    """
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -73,7 +76,8 @@ def _metric_panels(views: list[columns.TechniqueView], floor: bool) -> tuple:
     """``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`; a line is
     ``(key, label, colour, scale, style)`` on the flattened frames (:func:`columns.flatten`).
     Image metrics get the perfect-shadows floor's line where the sweep has it. Leaks are each
-    technique's solid line, false shadows its dashed one."""
+    technique's solid line, false shadows its dashed one.
+    """
 
     def one(key, floored=False):
         lines = [(f"{v.name}_{key}", v.label, v.colour, 1.0, v.style) for v in views]
@@ -100,8 +104,8 @@ def _metric_panels(views: list[columns.TechniqueView], floor: bool) -> tuple:
 def _by_azimuth(frames: list[dict]) -> list[dict]:
     """Flattened frames merged per azimuth, each number the mean over the azimuth's elevations (a
     sweep over several elevations: :func:`plot_elevation` shows the elevations); a key whose every
-    value is ``None`` (PSNR of identical images) stays ``None``."""
-
+    value is ``None`` (PSNR of identical images) stays ``None``.
+    """
     groups: dict = {}
     for f in frames:
         groups.setdefault(columns.num(f.get("azimuth_deg")), []).append(f)
@@ -118,7 +122,8 @@ def _by_azimuth(frames: list[dict]) -> list[dict]:
 
 def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueView]) -> None:
     """Small multiples: every quality metric against azimuth, a line per technique (over several
-    elevations, its mean over them); the worst frame ringed; one legend, outside the panels."""
+    elevations, its mean over them); the worst frame ringed; one legend, outside the panels.
+    """
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
 
@@ -243,8 +248,8 @@ NONE_COLOUR = "#f5f5f5"
 
 def plot_elevation(path: Path, table: dict[str, list[dict]], views: list[columns.TechniqueView]) -> None:
     """Mean ``|F - V|`` and mean FLIP against the light's elevation, a line per technique and one for
-    no shadows at all (:func:`hzval.report.ranking.by_elevation`'s ``table``); legends outside the axes."""
-
+    no shadows at all (:func:`hzval.report.ranking.by_elevation`'s ``table``); legends outside the axes.
+    """
     fig = _figure(13.0, 4.2)
     axes = fig.subplots(1, 2)
     fig.subplots_adjust(left=0.05, right=0.8, top=0.9, bottom=0.14, wspace=0.2)
@@ -389,7 +394,8 @@ SPLIT_COLOURS = ("#6cc3ff", "#f2c14e", "#c7e36b", "#ff8fa3")
 @dataclass(frozen=True)
 class SplitView:
     """A technique's ``split`` of each frame as the report shows it: ``parts`` ``(key, label)`` from the
-    bottom up (``metrics.json``'s ``techniques.NAME.split_parts``), its plot's path under the sweep."""
+    bottom up (``metrics.json``'s ``techniques.NAME.split_parts``), its plot's path under the sweep.
+    """
 
     view: columns.TechniqueView
     parts: tuple[tuple[str, str], ...]
@@ -404,7 +410,7 @@ def _split_of(f: dict, name: str) -> dict | None:
 
 
 def split_views(metrics: dict, views: list[columns.TechniqueView]) -> list[SplitView]:
-    """The techniques that declare ``split_parts`` and split at least one frame, in their order."""
+    """Return the techniques that declare ``split_parts`` and split at least one frame, in their order."""
     result = SweepResult.of(metrics)
     info, frames = result.techniques, result.frames
     out = []
@@ -422,7 +428,6 @@ def split_views(metrics: dict, views: list[columns.TechniqueView]) -> list[Split
 
 def _split_values(frames: list[dict], sv: SplitView):
     """``(azimuths, values)``: the frames' azimuths and each part's value per frame (NaN: missing)."""
-
     az = np.array(
         [
             columns.num(f.get("azimuth_deg")) if columns.num(f.get("azimuth_deg")) is not None else np.nan
@@ -446,8 +451,9 @@ def _split_values(frames: list[dict], sv: SplitView):
 
 
 def split_context(frames: list[dict], sv: SplitView) -> dict:
-    """The split's table: per frame its parts, their sum and each part's share of it; a negative part
-    (the fit worse than the bake on that frame) flagged."""
+    """Return the split's table: per frame its parts, their sum and each part's share of it; a negative part
+    (the fit worse than the bake on that frame) flagged.
+    """
     _, vals = _split_values(frames, sv)
     rows = []
     for f, row in zip(frames, vals):
@@ -477,8 +483,9 @@ def split_context(frames: list[dict], sv: SplitView) -> dict:
 
 
 def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
-    """A stacked bar per frame against azimuth: the split's parts from the bottom up, their sum the whole
-    error; a negative part is drawn hatched down from the top of the others, in :data:`_WORST`."""
+    """Plot a stacked bar per frame against azimuth: the split's parts from the bottom up, their sum the whole
+    error; a negative part is drawn hatched down from the top of the others, in :data:`_WORST`.
+    """
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
 
@@ -544,7 +551,8 @@ def plot_error_per_byte(
 ) -> None:
     """Error against bytes per texel, one panel per light elevation
     (:func:`hzval.report.ranking.error_per_byte`'s ``table``): a shipped technique filled, a fitted one
-    hollow, no shadows at 0 bytes, the Pareto front of least bytes and least error as a step line."""
+    hollow, no shadows at 0 bytes, the Pareto front of least bytes and least error as a step line.
+    """
     colours = {v.name: v.colour for v in views}
     n = max(1, len(table))
     width = 3.4 + 4.0 * n  # the legend's 3 inches beside the panels

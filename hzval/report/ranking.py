@@ -46,8 +46,9 @@ HARM_MARGIN = 1e-3
 
 
 def visibility_of(record: dict) -> float | None:
-    """A frame record's ``|F - V|``: over the pixels facing the light where measured (the report's,
-    the ranking's and the suite's), else over the whole image."""
+    """Return a frame record's ``|F - V|``: over the pixels facing the light where measured (the report's,
+    the ranking's and the suite's), else over the whole image.
+    """
     return columns.num(record.get("visibility_mae_facing", record.get("visibility_mae")))
 
 
@@ -98,8 +99,9 @@ def _mean(values: list) -> float | None:
 
 
 def worse_than_none(table: dict[str, list[dict]], name: str) -> list[float]:
-    """The elevations (degrees) at which ``name``'s mean ``|F - V|`` is above no shadows' (of
-    :func:`by_elevation`'s ``table``)."""
+    """Return the elevations (degrees) at which ``name``'s mean ``|F - V|`` is above no shadows' (of
+    :func:`by_elevation`'s ``table``).
+    """
     none = {r["elevation_deg"]: r["visibility_mae"] for r in table.get(NONE, [])}
     return [
         r["elevation_deg"]
@@ -167,7 +169,7 @@ def formula_harms(metrics: dict) -> dict[str, list[float]]:
 
 
 def ranking(metrics: dict) -> list[dict]:
-    """The sweep's techniques ranked, best first, with no shadows among them as the baseline.
+    """Return the sweep's techniques ranked, best first, with no shadows among them as the baseline.
 
     Parameters
     ----------
@@ -232,7 +234,8 @@ def ranking(metrics: dict) -> list[dict]:
 def floor_note(metrics: dict) -> str | None:
     """One line where the image scores cannot rank the shadows: the perfect-shadows floor's mean FLIP
     (exact shadows on the techniques' shading) at or above a technique's, so that FLIP there measures
-    the shading, not the shadows; ``None`` where every technique's FLIP is above the floor's."""
+    the shading, not the shadows; ``None`` where every technique's FLIP is above the floor's.
+    """
     floor = _mean([columns.num((f.floor or {}).get("flip_mean")) for f in SweepResult.of(metrics).frames])
     if floor is None:
         return None

@@ -137,8 +137,9 @@ class Camera:
         return int(self.resolution[1]), int(self.resolution[0])
 
     def toward_eye(self) -> tuple[float, float, float] | None:
-        """The unit direction from the surface toward an orthographic camera (``top``: ``+z``);
-        ``None`` for a perspective one, whose direction differs per pixel."""
+        """Return the unit direction from the surface toward an orthographic camera (``top``: ``+z``);
+        ``None`` for a perspective one, whose direction differs per pixel.
+        """
         if self.kind == "top":
             return (0.0, 0.0, 1.0)
         if self.kind == "perspective":
@@ -200,7 +201,8 @@ class Camera:
 def view_axes(elevation_deg: float, azimuth_deg: float) -> tuple[np.ndarray, tuple]:
     """``(w, up)``: the unit direction from the surface toward a camera at ``elevation_deg`` and
     ``azimuth_deg`` (the light's convention), ``w = (cos e cos a, cos e sin a, sin e)``, and its up
-    vector, ``+z``, or for a view straight down ``-(cos a, sin a, 0)`` (module docstring)."""
+    vector, ``+z``, or for a view straight down ``-(cos a, sin a, 0)`` (module docstring).
+    """
     e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
     w = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
     up = (0.0, 0.0, 1.0) if elevation_deg < 90.0 - 1e-9 else (-math.cos(a), -math.sin(a), 0.0)
@@ -255,8 +257,7 @@ class View:
         return f, r, np.cross(r, f)
 
     def rays_at(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Origins and unit directions ``(n, 3)`` float64 of the rays at film coordinates ``u, v`` in [-1,
-        1]."""
+        """Origins and unit directions ``(n, 3)`` float64 of the rays at film coordinates ``u, v`` in [-1, 1]."""
         f, r, t = self.basis()
         eye = np.asarray(self.eye, float)
         u, v = np.asarray(u, float)[:, None], np.asarray(v, float)[:, None]
@@ -271,8 +272,7 @@ class View:
         return o, np.broadcast_to(f, o.shape).copy()
 
     def film_coordinates(self, pixels: np.ndarray, ju: np.ndarray, jv: np.ndarray):
-        """``(u, v)`` of samples at jitters ``ju, jv`` ``(n, spp)`` in the pixels ``pixels`` (flat
-        indices)."""
+        """``(u, v)`` of samples at jitters ``ju, jv`` ``(n, spp)`` in the pixels ``pixels`` (flat indices)."""
         W, H = self.resolution
         prow, pcol = np.divmod(np.asarray(pixels), W)
         u = 2.0 * (pcol[:, None] + ju) / W - 1.0
@@ -280,14 +280,16 @@ class View:
         return u.ravel(), v.ravel()
 
     def rays(self, spp: int, seed: int, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
-        """The camera rays of the samples of the pixels ``first <= p < stop``: origins and unit
-        directions, float64 ``(n, 3)``, sample ``s`` of pixel ``p`` at row ``(p - first) * spp + s``."""
+        """Return the camera rays of the samples of the pixels ``first <= p < stop``: origins and unit
+        directions, float64 ``(n, 3)``, sample ``s`` of pixel ``p`` at row ``(p - first) * spp + s``.
+        """
         ju, jv = pixel_jitter(self.shape, spp, seed, first, stop)
         return self.rays_at(*self.film_coordinates(np.arange(first, stop), ju, jv))
 
     def plane_points(self, o: np.ndarray, d: np.ndarray, z0: float) -> tuple[np.ndarray, np.ndarray]:
         """Where the rays ``o + t d`` meet the plane ``z = z0``: ``(xy (n, 2) float64, hit (n,) bool)``;
-        a ray that does not descend (``d.z >= 0``) misses, and its point is the tile's centre."""
+        a ray that does not descend (``d.z >= 0``) misses, and its point is the tile's centre.
+        """
         dz = d[:, 2]
         hit = dz < -1e-12
         t = np.where(hit, (z0 - o[:, 2]) / np.where(hit, dz, -1.0), 0.0)
@@ -301,7 +303,8 @@ class View:
         differentials of the pixel centres, differenced half a pixel either side), NaN where the
         pixel's centre ray misses the plane. ``points(o, d) -> (xy, hit)`` replaces the plane (a
         model's surface, :mod:`hzval.truth.model`); ``period`` ``(cols, rows)``: differences taken
-        the short way across a wrapping tile."""
+        the short way across a wrapping tile.
+        """
         points = points or (lambda o, d: self.plane_points(o, d, z0))
         W, H = self.resolution
         pixels = np.arange(H * W)
@@ -351,7 +354,8 @@ def pixel_jitter(
 
 def stream(entropy, offset: int) -> np.random.Generator:
     """``np.random.default_rng(entropy)`` advanced by ``offset`` doubles (PCG64 draws one 64-bit
-    word per double of ``random``)."""
+    word per double of ``random``).
+    """
     bits = np.random.PCG64(np.random.SeedSequence(entropy))
     bits.advance(offset)
     return np.random.Generator(bits)
@@ -393,8 +397,9 @@ def sample_positions(
 
 @functools.lru_cache(maxsize=1)
 def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
-    """The whole image's positions, made once for the truth and every technique of a sweep
-    (read-only: they share them)."""
+    """Return the whole image's positions, made once for the truth and every technique of a sweep
+    (read-only: they share them).
+    """
     height, width = camera.image_shape(rows, cols)
     xs, ys = _positions(rows, cols, camera, spp, seed, 0, height * width)
     xs.flags.writeable = ys.flags.writeable = False
@@ -403,7 +408,8 @@ def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
 
 def forget_sample_positions() -> None:
     """Drop the whole image's shared positions (:func:`sample_positions`): a sweep's set-up is done
-    with them once the truth and every technique hold what they need (2.1 GB at 4096 x 4096)."""
+    with them once the truth and every technique hold what they need (2.1 GB at 4096 x 4096).
+    """
     _all_positions.cache_clear()
 
 

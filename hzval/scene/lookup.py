@@ -105,7 +105,7 @@ class Lookup:
 
 
 def plane_height(lookup: Lookup, z_lo: float, z_hi: float, z_mean: float) -> float:
-    """The base plane's height in texels."""
+    """Return the base plane's height in texels."""
     return {"bottom": z_lo, "mean": z_mean, "top": z_hi}[lookup.plane]
 
 
@@ -142,8 +142,9 @@ class Samples:
     _frames: object = dataclasses.field(default=None, repr=False)
 
     def uv(self):
-        """The positions as texture coordinates, interleaved ``u0, v0, u1, ...`` in one aligned
-        ``mi.Float`` (:func:`interleaved`), made once and shared by every technique."""
+        """Return the positions as texture coordinates, interleaved ``u0, v0, u1, ...`` in one aligned
+        ``mi.Float`` (:func:`interleaved`), made once and shared by every technique.
+        """
         if self._uv is None:
             rows, cols = self.rows, self.cols
             self._uv = interleaved(self.x, self.y, lambda a, b: cv.tangent_to_uv(a, b, rows, cols))
@@ -151,7 +152,8 @@ class Samples:
 
     def frame_array(self):
         """:attr:`frames` as one aligned flat ``mi.Float`` (12 floats a sample), made once and shared
-        by every technique; ``None`` on the plane."""
+        by every technique; ``None`` on the plane.
+        """
         if self.frames is None:
             return None
         if self._frames is None:
@@ -168,15 +170,14 @@ FRAME_FLOATS = 12
 
 def frame_of(frames, index):
     """``(t, b, n, v)`` of the samples ``index`` (``mi.UInt32``) from :meth:`Samples.frame_array`."""
-
     # a Vector3f gather reads floats 3 i .. 3 i + 2: a sample's four vectors are i = 4 index + k
     return tuple(dr.gather(mi.Vector3f, frames, index * (FRAME_FLOATS // 3) + k) for k in range(4))
 
 
 def to_tangent(frame, d):
-    """The world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
-    ``(t, b, n)`` being :func:`hzval.geometry.tangents.orthonormal`'s (FGED2's TBN product)."""
-
+    """Return the world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
+    ``(t, b, n)`` being :func:`hzval.geometry.tangents.orthonormal`'s (FGED2's TBN product).
+    """
     t, b, n = frame[:3]
     return mi.Vector3f(dr.dot(t, d), dr.dot(b, d), dr.dot(n, d))
 
@@ -190,14 +191,13 @@ def forget() -> None:
 
 
 def samples_for(scene, rows: int, cols: int, height: np.ndarray | None = None) -> Samples:
-    """The scene's :class:`Samples`, made once for every technique of a sweep.
+    """Return the scene's :class:`Samples`, made once for every technique of a sweep.
 
     ``top`` without a mip filter needs no height map (``height`` may be
     ``None``): its samples are :func:`hzval.scene.camera.sample_positions`. Other
     views meet the base plane (:func:`plane_height`), take the parallax
     mapping the lookup asks for, and wrap into the tile.
     """
-
     cam, lk = scene.camera, scene.lookup
     mat = scene.material
     key = (
@@ -253,7 +253,8 @@ _CHUNK_PIXELS = 1 << 16
 
 def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, np.ndarray]:
     """Where the camera's rays (``view``) meet the base plane ``z = z0`` (and the parallax mapping),
-    float32 texels."""
+    float32 texels.
+    """
     lk = scene.lookup
     rows, cols = h.shape
     z_lo, z_hi = view.z_lo, view.z_hi
@@ -290,14 +291,13 @@ def height_texture(h: np.ndarray, boundary: str):
 def parallax_lookup(
     lk: Lookup, tex, xy: np.ndarray, d: np.ndarray, z0: float, z_lo: float, z_hi: float
 ) -> np.ndarray:
-    """The plane points ``xy`` moved by the parallax mapping ``lk.parallax`` along the rays ``d``.
+    """Return the plane points ``xy`` moved by the parallax mapping ``lk.parallax`` along the rays ``d``.
 
     The ray through ``p0 = xy`` at the plane is at ``p(z) = p0 + d_xy (z0 - z) / -d_z`` at
     height ``z``. ``offset``: ``p0 + d_xy (z0 - h(p0))`` (offset limiting); ``occlusion``: the
     first of ``z_i = z_hi - i (z_hi - z_lo) / N`` where the ray is below the surface, refined
     by the secant through the last two steps' heights above it.
     """
-
     rows, cols = tex.shape[0], tex.shape[1]
     px, py = mi.Float(xy[:, 0].astype(np.float32)), mi.Float(xy[:, 1].astype(np.float32))
     dx, dy = mi.Float(d[:, 0].astype(np.float32)), mi.Float(d[:, 1].astype(np.float32))
@@ -338,15 +338,17 @@ def parallax_lookup(
 def mip_chain(
     data: np.ndarray, max_channels: slice | None = None, *, stored: slice | None = None, quantise=None
 ) -> list[np.ndarray]:
-    """Levels 0.. of ``data`` ``(rows, cols, C)`` float32 down to 1x1: each the 2x2 average of the
-    one below (``max_channels``: those channels by the 2x2 maximum); an odd size drops its last
-    row or column.
+    """Levels 0..
+
+    of ``data`` ``(rows, cols, C)`` float32 down to 1x1: each the 2x2 average of the one below
+    (``max_channels``: those channels by the 2x2 maximum); an odd size drops its last row or column.
 
     ``quantise`` (with ``stored``, the channels it applies to): what the texture's storage makes
     of a level, e.g. :meth:`hzval.io.storage.Storage.roundtrip`. A GPU's chain of an RGBA8 texture
     is RGBA8 (``glGenerateMipmap`` filters the stored level below and stores the result in the
     texture's format), so each level is quantised before the next is made from it; a float chain
-    of an 8-bit map is 0.016-0.027 in F from the GPU's at lambda 1-2 (docs/gpu-pipeline.md)."""
+    of an 8-bit map is 0.016-0.027 in F from the GPU's at lambda 1-2 (docs/gpu-pipeline.md).
+    """
 
     def halve(a: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
         m = a.shape[axis] // 2
@@ -415,8 +417,7 @@ class Filtered:
             self._set_footprint(samples.footprint)
 
     def _set_footprint(self, fp: np.ndarray) -> None:
-        """The per-pixel footprints on the device, and the range of levels and taps they need."""
-
+        """Upload the per-pixel footprints on the device, and the range of levels and taps they need."""
         fp = np.nan_to_num(np.asarray(fp, np.float64), nan=1.0)
         lc, lr = np.hypot(fp[:, 0], fp[:, 1]), np.hypot(fp[:, 2], fp[:, 3])
         taps = 1
@@ -434,7 +435,7 @@ class Filtered:
         self._footprint = mi.Float(np.ascontiguousarray(fp.astype(np.float32)).ravel())
 
     def eval(self, uv, pixel=None) -> list:
-        """The filtered channels at ``uv`` (``mi.Point2f``) for lanes of the pixels ``pixel``."""
+        """Return the filtered channels at ``uv`` (``mi.Point2f``) for lanes of the pixels ``pixel``."""
         if self._footprint is None or pixel is None:
             return self.levels[0].eval(uv)
 
@@ -461,9 +462,9 @@ class Filtered:
         return self._trilinear(uv, lam, mi.Bool(True))
 
     def _trilinear(self, uv, lam, active) -> list:
-        """The levels either side of ``lam`` blended linearly (a tent of weights over the levels
-        the image's footprints reach)."""
-
+        """Return the levels either side of ``lam`` blended linearly (a tent of weights over the levels
+        the image's footprints reach).
+        """
         total = None
         lo, hi = self.level_range
         for level in range(lo, hi + 1):
@@ -488,8 +489,8 @@ def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
     temporary is made (the output alone: 2.1 GB at 4096 x 4096 x 16). ``convert`` takes and
     returns ``mi.Float`` arrays (e.g. :func:`hzval.core.conventions.tangent_to_uv`). Each value is a
     gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
-    one kernel per alignment); the result is Dr.Jit's own, aligned, memory."""
-
+    one kernel per alignment); the result is Dr.Jit's own, aligned, memory.
+    """
     n = int(np.size(x))
     out = dr.empty(mi.Float, 2 * n)
     for a in range(0, n, _CHUNK):
@@ -507,14 +508,14 @@ def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
 
 
 def aligned_empty(size: int, alignment: int = 64) -> np.ndarray:
-    """An uninitialised float32 array of ``size`` that starts on an ``alignment``-byte boundary."""
+    """Return an uninitialised float32 array of ``size`` that starts on an ``alignment``-byte boundary."""
     buf = np.empty(size + alignment // 4, dtype=np.float32)
     start = (-buf.ctypes.data % alignment) // 4
     return buf[start : start + size]
 
 
 def aligned(a, alignment: int = 64) -> np.ndarray:
-    """A C-contiguous float32 copy of ``a`` that starts on an ``alignment``-byte boundary.
+    """Return a C-contiguous float32 copy of ``a`` that starts on an ``alignment``-byte boundary.
 
     On the LLVM backend Dr.Jit maps NumPy memory without copying it, and it
     reads a texel's channels as one packet (vector loads) only from aligned

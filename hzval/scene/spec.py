@@ -151,7 +151,8 @@ class MeshSpec:
     file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
     axis (``None``: the format's default); ``tangent_bug``: the engine bug the techniques' frames
     are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change);
-    ``tangents``: which frames the mesh uses (:data:`hzval.geometry.tangents.METHODS`)."""
+    ``tangents``: which frames the mesh uses (:data:`hzval.geometry.tangents.METHODS`).
+    """
 
     shape: str = "plane"
     uv_scale: float = 1.0
@@ -191,17 +192,18 @@ class Light:
     elevations_deg: tuple[float, ...] = ()
 
     def direction(self, azimuth_deg: float, elevation_deg: float | None = None) -> np.ndarray:
-        """Unit vector toward the light's centre at ``azimuth_deg`` (and ``elevation_deg``, default
-        :attr:`elevation_deg`)."""
+        """Return the unit vector toward the light's centre at ``azimuth_deg`` (and ``elevation_deg``, default
+        :attr:`elevation_deg`).
+        """
         e = self.elevation_deg if elevation_deg is None else elevation_deg
         return cv.light_direction(azimuth_deg, e)
 
     def elevations(self) -> tuple[float, ...]:
-        """The sweep's light elevations, degrees: :attr:`elevations_deg`, else :attr:`elevation_deg`."""
+        """Return the sweep's light elevations, degrees: :attr:`elevations_deg`, else :attr:`elevation_deg`."""
         return tuple(self.elevations_deg) or (self.elevation_deg,)
 
     def at(self, elevation_deg: float) -> "Light":
-        """This light at one elevation of the sweep (no elevation axis)."""
+        """Return this light at one elevation of the sweep (no elevation axis)."""
         return dataclasses.replace(self, elevation_deg=float(elevation_deg), elevations_deg=())
 
 
@@ -369,7 +371,8 @@ def check_light_count(n: int, what: str = "--azimuths") -> int:
 
 def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
     """``"-60:60:15"`` (start:stop:step, stop included; a negative step counts down), ``"0,45,90"``
-    or a list, in degrees; finite, at most :data:`MAX_LIGHTS` of them (counted before the list is made)."""
+    or a list, in degrees; finite, at most :data:`MAX_LIGHTS` of them (counted before the list is made).
+    """
     bad = InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}")
     if isinstance(text, (list, tuple)):
         check_light_count(len(text), what)
@@ -407,7 +410,8 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
 
 def elevation_fields(values) -> dict:
     """:class:`Light`'s ``elevation_deg`` and ``elevations_deg`` of the elevations ``values`` (repeats
-    dropped, order kept): one is the light's elevation, several a sweep axis built at the lowest."""
+    dropped, order kept): one is the light's elevation, several a sweep axis built at the lowest.
+    """
     values = tuple(dict.fromkeys(float(v) for v in values))
     if len(values) == 1:
         return {"elevation_deg": values[0], "elevations_deg": ()}
@@ -415,13 +419,14 @@ def elevation_fields(values) -> dict:
 
 
 def _pairs(section: dict, keys) -> dict:
-    """A TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
+    """Return a TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
     return {k: (tuple(v) if k in keys and isinstance(v, list) else v) for k, v in section.items()}
 
 
 def material_defaults(height: str) -> dict:
     """``depth`` and ``boundary`` of a scene of ``height`` that does not set them: a built-in
-    material's own, else 0.05 and ``wrap``."""
+    material's own, else 0.05 and ``wrap``.
+    """
     if materials.is_builtin(height):
         m = materials.get(height)
         return {"depth": m.depth, "boundary": m.boundary}
@@ -429,15 +434,16 @@ def material_defaults(height: str) -> dict:
 
 
 def sidecar_of(height: str | Path) -> Path | None:
-    """The sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
+    """Return the sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
     p = Path(height).with_suffix(".toml")
     return p if p.is_file() else None
 
 
 def load_sidecar(path: str | Path, height: str | Path) -> Scene:
-    """The sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
+    """Return the sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
     file says; a sidecar that names another height map is an error (it would sweep another material
-    under this map's name)."""
+    under this map's name).
+    """
     path, height = Path(path), paths.resolved(height)
     scene = load_scene(path, height=height)
     if scene.material.height != str(height):
@@ -450,16 +456,17 @@ def load_sidecar(path: str | Path, height: str | Path) -> Scene:
 
 
 def _height_beside(path: Path) -> str | None:
-    """The height map a sidecar scene ``path`` (naming no height) sits beside: the one file of its stem
-    with a height map suffix, if there is exactly one."""
+    """Return the height map a sidecar scene ``path`` (naming no height) sits beside: the one file of its stem
+    with a height map suffix, if there is exactly one.
+    """
     found = [path.with_suffix(s) for s in heightmap.SUFFIXES if path.with_suffix(s).is_file()]
     return str(found[0]) if len(found) == 1 else None
 
 
 def _schema() -> dict:
-    """What a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
-    dataclasses each table fills (:func:`hzval.core.strict.schema_of`), and the top-level ``name``."""
-
+    """Return what a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
+    dataclasses each table fills (:func:`hzval.core.strict.schema_of`), and the top-level ``name``.
+    """
     azimuths = str | tuple[float, ...]
     tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
     return {
@@ -489,8 +496,8 @@ def _schema() -> dict:
 
 def check_file(data: dict, path: str | Path) -> None:
     """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
-    a value of the wrong type: types are checked, not coerced (:mod:`hzval.core.strict`)."""
-
+    a value of the wrong type: types are checked, not coerced (:mod:`hzval.core.strict`).
+    """
     schema = _schema()
     strict.check_keys(data, {"name": None, **schema}, path)
     if "name" in data:
@@ -567,7 +574,7 @@ def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
 
 
 def override(scene: Scene, **changes) -> Scene:
-    """A copy of ``scene`` with command-line values; ``None`` leaves a value alone.
+    """Return a copy of ``scene`` with command-line values; ``None`` leaves a value alone.
 
     Keys: ``height, size, depth, boundary, shading, truth_tolerance, elevation, azimuths, light, light_radius,
     effects, spp, seed, supersampling``; the camera's ``camera`` (its kind), ``view_elevation``,
@@ -664,7 +671,8 @@ def override(scene: Scene, **changes) -> Scene:
 
 def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
     """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map
-    (:meth:`hzval.scene.camera.Camera.image_shape`)."""
+    (:meth:`hzval.scene.camera.Camera.image_shape`).
+    """
     return camera.image_shape(rows, cols)
 
 
@@ -701,9 +709,10 @@ def light_samples(
 
 
 def load_material_height(spec: MaterialSpec):
-    """The scene's height map as a :class:`hzval.io.heightmap.HeightMap`, its relief at the
+    """Return the scene's height map as a :class:`hzval.io.heightmap.HeightMap`, its relief at the
     material's depth checked (:func:`hzval.core.conventions.check_relief`): a map of heights in
-    metres is refused here, in one line, before anything is built from it."""
+    metres is refused here, in one line, before anything is built from it.
+    """
     if materials.is_builtin(spec.height):
         m = materials.get(spec.height)
         hm = heightmap.from_array(
@@ -718,7 +727,8 @@ def load_material_height(spec: MaterialSpec):
 
 def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
     """Linear albedo ``(rows, cols, 3)`` float32: a constant, an sRGB image decoded to linear, or
-    (``albedo = None``) a built-in material's own."""
+    (``albedo = None``) a built-in material's own.
+    """
     if spec.albedo is None and materials.is_builtin(spec.height):
         own = materials.generate(spec.height, spec.size).albedo
         if own is not None:
@@ -766,9 +776,10 @@ class Frame:
 
 
 def material_record(scene: Scene) -> tuple[np.ndarray, dict]:
-    """The height map of ``scene``'s material (:func:`load_material_height`, the one loader) and the
+    """Return the height map of ``scene``'s material (:func:`load_material_height`, the one loader) and the
     record ``bake.json`` and ``fit.json`` keep of it: its file (or the built-in's name and size), how
-    it was read, its digest and shape."""
+    it was read, its digest and shape.
+    """
     hm = load_material_height(scene.material)
     m = scene.material
     info = (

@@ -53,8 +53,8 @@ CASES: dict[str, tuple[str, float, float, float]] = {
 
 def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv_scale: float):
     """``scene`` on ``shape`` (bug ``none``) in the models' perspective view from ``view_azimuth``,
-    its lights turned by ``light_azimuth``."""
-
+    its lights turned by ``light_azimuth``.
+    """
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
     cam = dataclasses.replace(sc.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
     light = dataclasses.replace(
@@ -78,8 +78,8 @@ def measure(
     uv_scale: float = 1.0,
 ) -> tuple[dict, dict]:
     """One case: ``(record, maps)``; ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the
-    signature light (module docstring)."""
-
+    signature light (module docstring).
+    """
     sc = _case_scene(scene, shape, view_azimuth, light_azimuth, uv_scale)
     truth = ModelTruth(sc, height, model.load(shape, uv_scale=uv_scale))
     vis = [truth.render(az).layers["visibility"] for az in sc.light.azimuths_deg]
@@ -126,7 +126,8 @@ def measure(
 
 def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = True) -> dict:
     """Every case of :data:`CASES` with ``lead``; writes ``out/plots/bugs.png``; returns the
-    ``models.json`` ``bugs`` entry ``{technique, cases: {name: record}, figure}``."""
+    ``models.json`` ``bugs`` entry ``{technique, cases: {name: record}, figure}``.
+    """
     cases, maps = {}, {}
     for name, (shape, az, light_az, uv_scale) in CASES.items():
         if progress:
@@ -152,8 +153,9 @@ def _mirrored_note(ratio: float | None) -> str | None:
 
 
 def page_context(bugs: dict) -> dict:
-    """The study page's section (``models.html.j2``): the figure and the mirrored and unmirrored
-    means of every case and bug, formatted."""
+    """Return the study page's section (``models.html.j2``): the figure and the mirrored and unmirrored
+    means of every case and bug, formatted.
+    """
 
     def f4(c):
         return "-" if c is None else f"{c:.4f}"

@@ -78,14 +78,16 @@ def band_scene(scene, resolution=RESOLUTION, azimuths=AZIMUTHS):
 
 def in_band(n: np.ndarray, L: np.ndarray, elevation_deg: float, half_deg: float = BAND_DEG) -> np.ndarray:
     """Whether each base normal ``n`` (``(..., 3)``, unit, world) sees the direction ``L`` (unit,
-    toward the light) within ``half_deg`` of ``elevation_deg`` above its tangent plane."""
+    toward the light) within ``half_deg`` of ``elevation_deg`` above its tangent plane.
+    """
     local = np.degrees(np.arcsin(np.clip(n @ np.asarray(L, np.float64), -1.0, 1.0)))
     return np.abs(local - elevation_deg) <= half_deg
 
 
 def texel_means(values: np.ndarray, texel: np.ndarray, keep: np.ndarray, size: int) -> np.ndarray:
     """Per texel (flat index ``texel``, ``0 <= texel < size``) the mean of ``values`` over the kept
-    pixels that read it; NaN where none does."""
+    pixels that read it; NaN where none does.
+    """
     idx, v = texel[keep], np.asarray(values, np.float64)[keep]
     count = np.bincount(idx, minlength=size)
     total = np.bincount(idx, weights=v, minlength=size)
@@ -95,7 +97,8 @@ def texel_means(values: np.ndarray, texel: np.ndarray, keep: np.ndarray, size: i
 
 def _pixel_geometry(truth, window: float):
     """Per pixel: the texel its truth's first sample reads (flat index, row-major from ``y = 0``),
-    its base normal (the mean of its samples', unit) and whether it counts (seen, in the window)."""
+    its base normal (the mean of its samples', unit) and whether it counts (seen, in the window).
+    """
     s = truth.samples("truth")
     spp, rows, cols = s.spp, s.rows, s.cols
     x, y = s.x[::spp].astype(np.float64), s.y[::spp].astype(np.float64)
@@ -116,8 +119,8 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
     the camera's hits (``mae``) and at the truth's (``floor``) over the band's pixels, ``(frames,
     texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more
     techniques to measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
-    (studies/curved_horizon.py)."""
-
+    (studies/curved_horizon.py).
+    """
     setup = sweep.set_up(scene, case_dir, sweep.Options())
     try:
         texel, n, keep, size = _pixel_geometry(setup.truth, window)
@@ -155,7 +158,8 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
 def _near_seams(truth):
     """Per pixel: whether its first sample's base point lies within
     :data:`hzval.studies.seam_share.SEAM_TEXELS`
-    of a seam edge, and whether it is seen."""
+    of a seam edge, and whether it is seen.
+    """
     m = truth.model
     spp = truth.spp
     d = seam_share.seam_distance_texels(m, truth.base_points()[::spp], m.world_per_uv / truth.cols)
@@ -172,7 +176,7 @@ def frame_means(maps: np.ndarray, on: np.ndarray) -> np.ndarray:
 
 
 def summary(per_frame: np.ndarray) -> dict:
-    """The mean over the frames, its standard error from their spread and the frames counted."""
+    """Return the mean over the frames, its standard error from their spread and the frames counted."""
     v = per_frame[np.isfinite(per_frame)]
     if len(v) == 0:
         return {"mean": None, "se": None, "frames": 0}
@@ -186,7 +190,8 @@ def paired(case: dict, flat: dict | None) -> dict:
     difference (``excess``), the signed ``F - V`` (``bias``, and the flat patch's ``flat_bias``: + where the
     technique leaks, so that a convex surface, whose truth is more lit, lowers its error), each
     ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
-    :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame."""
+    :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame.
+    """
     scored: dict[str, dict] = {}  # each technique's entry, filled below
     row = {
         "texels": float(np.mean(case["texels"])) if case["texels"] else 0.0,
@@ -225,7 +230,7 @@ def paired(case: dict, flat: dict | None) -> dict:
 
 
 def _seam_stat(per_frame: list[dict]) -> dict:
-    """The frames' error share near seams (mean, standard error) and the pixel share there."""
+    """Return the frames' error share near seams (mean, standard error) and the pixel share there."""
     err = np.array([np.nan if f["error_share"] is None else f["error_share"] for f in per_frame])
     pix = [f["pixel_share"] for f in per_frame if f["pixel_share"] is not None]
     return {
@@ -244,7 +249,8 @@ def trend(points: list[tuple[float, list]], noise_z: float = NOISE_Z) -> dict:
     ``verdict``: ``"does not rise"`` unless the whole change (first to last) is up by more than
     ``noise_z`` standard errors; then ``"rises monotonically"`` (every step up) or ``"rises within
     noise"`` (every fall smaller than ``noise_z`` standard errors), else ``"does not rise"``;
-    ``falls`` lists the steps that go down, with their ``z``."""
+    ``falls`` lists the steps that go down, with their ``z``.
+    """
     pts = sorted(points, key=lambda p: p[0])
     steps = [_step(a, b) for a, b in zip(pts, pts[1:])]
     overall = _step(pts[0], pts[-1]) if len(pts) > 1 else None

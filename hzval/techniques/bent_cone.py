@@ -47,7 +47,7 @@ _UNIFORM = {
 
 
 def cap_intersection(r1, r2, d):
-    """The solid angle of the intersection of two spherical caps.
+    """Return the solid angle of the intersection of two spherical caps.
 
     Tovchigrechko & Vakser 2001, "How common is the funnel-like energy landscape in protein-protein
     interactions?" (appendix), as Mazonka 2012, "Solid Angle of Conical Surfaces, Polyhedral Cones,
@@ -88,7 +88,8 @@ def cap_intersection(r1, r2, d):
 def cap_intersection_filament(r1, r2, d):
     """Filament's smooth approximation of :func:`cap_intersection` (``sphericalCapsIntersection``,
     after Oat & Sander 2007): the smaller cap's solid angle times ``smoothstep`` of where ``d`` lies
-    between ``|r1 - r2|`` and ``r1 + r2``. Parameters and result as :func:`cap_intersection`."""
+    between ``|r1 - r2|`` and ``r1 + r2``. Parameters and result as :func:`cap_intersection`.
+    """
     whole = 2.0 * math.pi * (1.0 - dr.maximum(dr.cos(r1), dr.cos(r2)))
     delta = dr.abs(r1 - r2)
     x = 1.0 - dr.clip((d - delta) / dr.maximum(r1 + r2 - delta, 1e-4), 0.0, 1.0)

@@ -48,7 +48,7 @@ FACE_AXES: tuple = (
 
 
 def face_coordinates(x, y, z):
-    """The cube-map face and face coordinates of directions (OpenGL 4.6, table 8.19).
+    """Return the cube-map face and face coordinates of directions (OpenGL 4.6, table 8.19).
 
     Parameters
     ----------
@@ -62,7 +62,6 @@ def face_coordinates(x, y, z):
     s, t : drjit.Float
         ``(sc / |ma| + 1) / 2`` and ``(tc / |ma| + 1) / 2``, in [0, 1].
     """
-
     ax, ay, az = dr.abs(x), dr.abs(y), dr.abs(z)
     use_x = (ax >= ay) & (ax >= az)
     use_y = ~use_x & (ay >= az)
@@ -83,9 +82,9 @@ def face_coordinates(x, y, z):
 
 
 def _texel_direction(face, sc, tc):
-    """The direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face``
-    (:data:`FACE_AXES`)."""
-
+    """Return the direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face``
+    (:data:`FACE_AXES`).
+    """
     comps = []
     for axis in range(3):
         value = mi.Float(0.0)
@@ -97,10 +96,10 @@ def _texel_direction(face, sc, tc):
 
 
 def _texel(cube, n: int, face, i, j, seamless: bool):
-    """The texel ``(i, j)`` (column, row; Int32, possibly one off the face) of ``face``, as a ``mi.Vector4f``
+    """Return the texel ``(i, j)`` (column, row; Int32, possibly one off the face) of ``face``, as a ``mi.Vector4f``
     gathered from ``cube`` (``(6, n, n, 4)`` float32 flattened): on the adjacent face (seamless) or the
-    clamped edge texel."""
-
+    clamped edge texel.
+    """
     if seamless:
         sc = (mi.Float(i) + 0.5) * (2.0 / n) - 1.0
         tc = (mi.Float(j) + 0.5) * (2.0 / n) - 1.0
@@ -112,7 +111,7 @@ def _texel(cube, n: int, face, i, j, seamless: bool):
 
 
 def bilinear(cube, n: int, d, seamless: bool = True):
-    """The bilinearly filtered texel of a cube map toward directions, as a GPU samples it.
+    """Return the bilinearly filtered texel of a cube map toward directions, as a GPU samples it.
 
     Parameters
     ----------
@@ -131,7 +130,6 @@ def bilinear(cube, n: int, d, seamless: bool = True):
     mitsuba.Vector4f
         The filtered RGBA.
     """
-
     face, s, t = face_coordinates(d.x, d.y, d.z)
     u, v = dr.fma(s, float(n), -0.5), dr.fma(t, float(n), -0.5)
     fu, fv = dr.floor(u), dr.floor(v)

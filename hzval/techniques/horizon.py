@@ -150,7 +150,7 @@ class Horizon(FlatShading, Technique):
         return self._shadow or self._reflection
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
-        """The horizon map as stored (:mod:`hzval.io.storage`), first in the packed texture."""
+        """Return the horizon map as stored (:mod:`hzval.io.storage`), first in the packed texture."""
         return (
             [(HORIZON_SLOT, hz_storage.get(self.storage).roundtrip(self.bake.horizon))]
             if self._needs_horizon
@@ -161,9 +161,10 @@ class Horizon(FlatShading, Technique):
         return self._slots.get(HORIZON_SLOT)
 
     def _mip_quantise(self):
-        """What the horizon map's storage makes of each mip level (:func:`hzval.scene.lookup.mip_chain`):
+        """Return what the horizon map's storage makes of each mip level (:func:`hzval.scene.lookup.mip_chain`):
         ``None`` for float; else the storage's round trip, as a GPU's chain of an RGBA8 (or BC7)
-        texture is RGBA8 (BC7)."""
+        texture is RGBA8 (BC7).
+        """
         if self.storage == "float" or HORIZON_SLOT not in self._slots:
             return None
         return hz_storage.get(self.storage).roundtrip
@@ -181,7 +182,8 @@ class Horizon(FlatShading, Technique):
 
     def _extra_uniforms(self, uni: dict, shadows: bool, overrides: dict) -> None:
         """``k`` (``overrides["k"]`` for a sweep over k that reuses textures and kernels) and the
-        light's channel weights, the same for every sample of the frame."""
+        light's channel weights, the same for every sample of the frame.
+        """
         k = overrides.pop("k", None)
         super()._extra_uniforms(uni, shadows, overrides)
         uni["k"] = self._k
@@ -209,7 +211,8 @@ class Horizon(FlatShading, Technique):
         (:meth:`hzval.techniques.surface.FlatShading._lane_uniforms`; ``n_vertex`` the base mesh's
         interpolated
         vertex normal), so ``r`` is the world's reflection about the shading normal in that frame:
-        ``r.z = dot(r, n_vertex)``, Toolbag's own dot product, and ``r``'s azimuth the horizon lookup's."""
+        ``r.z = dot(r, n_vertex)``, Toolbag's own dot product, and ``r``'s azimuth the horizon lookup's.
+        """
         if not self._reflection:
             return
         # r = reflect(-v, n) = 2 (n.v) n - v (the top view's v = +z: (2 nz nx, 2 nz ny, 2 nz^2 - 1))
@@ -233,15 +236,17 @@ class Horizon(FlatShading, Technique):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The horizon map (an external one replaces it, but hzval's own is what it is checked
-        against) and the normal and ambient maps."""
+        """Return the horizon map (an external one replaces it, but hzval's own is what it is checked
+        against) and the normal and ambient maps.
+        """
         return frozenset({"horizon_map", "normal", "ambient"})
 
     @classmethod
     def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Horizon":
         """From a context; ``horizon_map`` (layer paths) and ``encoding``
         (:class:`hzval.io.external.Encoding`) replace the bake's horizon map by an external one, whose
-        convention is checked against hzval's exact bake (:func:`hzval.io.external.detect`)."""
+        convention is checked against hzval's exact bake (:func:`hzval.io.external.detect`).
+        """
         if not horizon_map:
             return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
         raw = external.read_layers(list(horizon_map))
@@ -442,8 +447,9 @@ class Horizon(FlatShading, Technique):
 
     @classmethod
     def fit(cls, ctx: Context, settings: dict, visibility: list[np.ndarray], azimuths) -> dict:
-        """``settings`` with ``k = "fit"`` replaced by the k that minimises the sweep's mean ``|F - V|``
-        against ``visibility`` (one layer per azimuth): a golden-section search on ``log k`` in [1, 128]."""
+        """Return ``settings`` with ``k = "fit"`` replaced by the k that minimises the sweep's mean ``|F - V|``
+        against ``visibility`` (one layer per azimuth): a golden-section search on ``log k`` in [1, 128].
+        """
         if settings.get("k") != "fit":
             return settings
         ap = cls.build(ctx, **{**settings, "k": DEFAULT_K})
@@ -462,7 +468,7 @@ class Horizon(FlatShading, Technique):
         return {**settings, "k": _golden_section(cost, math.log(1.0), math.log(128.0))}
 
     def storage_bytes(self) -> int:
-        """The horizon map as stored (:meth:`hzval.io.storage.Storage.bytes`) and the weight cube map."""
+        """Return the horizon map as stored (:meth:`hzval.io.storage.Storage.bytes`) and the weight cube map."""
         rows, cols, ch = self.bake.horizon.shape
         return hz_storage.get(self.storage).bytes(rows, cols, ch) + (
             CUBE_BYTES if self.weights == "cube" else 0
@@ -509,7 +515,7 @@ class Horizon(FlatShading, Technique):
         elevation_deg: float | None = None,
         k: float | None = None,
     ) -> Frame:
-        """The frame of the light at ``azimuth_deg`` (degrees)
+        """Return the frame of the light at ``azimuth_deg`` (degrees)
         (:meth:`hzval.techniques.surface.FlatShading.render`).
 
         ``k`` defaults to the object's. ``shadows=False`` leaves out the
@@ -532,7 +538,8 @@ class Horizon(FlatShading, Technique):
         k: float | None = None,
     ) -> dict[str, np.ndarray]:
         """Per-point values (:meth:`hzval.techniques.surface.FlatShading.sample`); when shadowing, also
-        ``horizon_sine`` (``s`` of eq. 5.3/5.4)."""
+        ``horizon_sine`` (``s`` of eq. 5.3/5.4).
+        """
         return super().sample(
             x, y, azimuth_deg, elevation_deg, shadows=shadows, **({} if k is None else {"k": k})
         )
@@ -542,7 +549,7 @@ class Horizon(FlatShading, Technique):
     # ------------------------------------------------------------------
 
     def _channel_weights(self, d) -> list:
-        """The ``D`` channel weights toward the azimuth of directions ``d`` (path-specific)."""
+        """Return the ``D`` channel weights toward the azimuth of directions ``d`` (path-specific)."""
         return (
             self._exact_weights(d, self.directions) if self.weights == "analytic" else self._cube_weights(d)
         )
@@ -584,8 +591,10 @@ class Horizon(FlatShading, Technique):
 
 
 def _dot(h: list, w: list):
-    """``sum_c w_c h_c`` over the channels, as one RGBA dot product per layer, summed
-    in layer order (eq. 5.3: two layers for 8 channels, four for 16)."""
+    """``sum_c w_c h_c`` over the channels, as one RGBA dot product per layer, summed in layer order (eq.
+
+    5.3: two layers for 8 channels, four for 16).
+    """
     n = cv.CHANNELS_PER_LAYER
     total = None
     for first in range(0, len(h), n):
@@ -628,9 +637,9 @@ def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
 
 
 def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
-    """hzval's own horizons of the context's height map to detect an external bake's convention by:
-    the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16."""
-
+    """Hzval's own horizons of the context's height map to detect an external bake's convention by:
+    the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16.
+    """
     p = ctx.bake.params
     params = (
         BakeParams(depth=p.depth, boundary=p.boundary, method="exact")

@@ -48,7 +48,7 @@ __all__ = ["sine_change", "bin_tangents", "CurvedHorizon"]
 
 
 def bin_tangents(h_texels: np.ndarray, kappa: float, radius: int, angles: int, boundary: str) -> np.ndarray:
-    """The largest horizon slope of each bin on a curved surface.
+    """Return the largest horizon slope of each bin on a curved surface.
 
     Per bin (azimuth ``360 b / angles`` degrees) and texel, the largest ``Delta h / d - kappa d / 2``
     over the steps ``d = 1 .. radius`` texels along the bin's direction (bilinear heights): the
@@ -141,7 +141,8 @@ class CurvedHorizon(Horizon):
     every direction. ``curvature = 0`` renders the bake itself, bit for bit as ``horizon``. Opt-in
     (``--techniques horizon,horizon-curved``): one number per model is what it knows of the shape;
     a per-vertex curvature (the shape operator of the base mesh's normals along each light) is not
-    built (docs/models.md)."""
+    built (docs/models.md).
+    """
 
     name = "horizon-curved"
     label = "curvature-corrected horizon map"
@@ -157,7 +158,7 @@ class CurvedHorizon(Horizon):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The horizon map it corrects, and the height map the correction searches again."""
+        """Return the horizon map it corrects, and the height map the correction searches again."""
         return super().bake_needs(scene) | {"height"}
 
     @classmethod

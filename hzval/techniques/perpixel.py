@@ -59,7 +59,8 @@ STORAGES: tuple[str, ...] = ("float", "u8")
 class Texture:
     """A texture these techniques read: the :class:`hzval.bake.maps.Bake` field that holds it, the
     bake content that makes it (:data:`hzval.bake.maps.CONTENTS`), whether it is a unit vector (stored
-    as ``0.5 + 0.5 v``, as a normal map), what it is, for ``--help``, and how it may be stored."""
+    as ``0.5 + 0.5 v``, as a normal map), what it is, for ``--help``, and how it may be stored.
+    """
 
     field: str
     content: str
@@ -94,7 +95,7 @@ NORMAL_SLOT = "factor_normal"
 
 
 def stored(values: np.ndarray, storage: str, *, signed: bool = False) -> np.ndarray:
-    """What the shader samples of a texture stored as ``storage``.
+    """Return what the shader samples of a texture stored as ``storage``.
 
     Parameters
     ----------
@@ -136,7 +137,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 def _block_stored(v: np.ndarray, fmt, signed: bool) -> np.ndarray:
     """:func:`stored` of a block format: channels packed as :meth:`hzval.io.storage.Storage.roundtrip`
-    packs them; a unit vector's ``x, y`` as ``0.5 + 0.5 v`` and ``z`` rebuilt (BC5 normal maps)."""
+    packs them; a unit vector's ``x, y`` as ``0.5 + 0.5 v`` and ``z`` rebuilt (BC5 normal maps).
+    """
     if not signed:
         flat = v[..., None] if v.ndim == 2 else v
         return fmt.roundtrip(np.clip(flat, 0.0, 1.0)).reshape(v.shape)
@@ -146,7 +148,7 @@ def _block_stored(v: np.ndarray, fmt, signed: bool) -> np.ndarray:
 
 
 def texture_bytes(texture: Texture, storage: str, rows: int, cols: int, channels: int) -> int:
-    """What the GPU holds of a texture's top level stored as ``storage``, bytes.
+    """Return what the GPU holds of a texture's top level stored as ``storage``, bytes.
 
     Parameters
     ----------
@@ -178,7 +180,8 @@ def texture_bytes(texture: Texture, storage: str, rows: int, cols: int, channels
 def through(value, surrogate, on: bool = True):
     """``value``, with ``surrogate``'s gradient when ``on`` (a straight-through estimator, Bengio et
     al. 2013): a fit's way past a factor's clamps and steps, whose own gradient is 0 where a texel is
-    wrong. Off (a render), ``value`` itself."""
+    wrong. Off (a render), ``value`` itself.
+    """
     return surrogate + dr.detach(value - surrogate) if on else value
 
 
@@ -211,7 +214,8 @@ class FactorKernel(FlatShading):
     ``factor1``, ...). Techniques join it (:meth:`add`), its first frame builds it; a
     frame is kept until the light moves, so that the techniques of a sweep's frame share one render.
     The shading itself is not computed here: each technique composes its image from the shared
-    unshadowed shading (:class:`hzval.techniques.surface.Unshadowed`), as terrain and pom do."""
+    unshadowed shading (:class:`hzval.techniques.surface.Unshadowed`), as terrain and pom do.
+    """
 
     def __init__(self, scene: Scene, bake, samples: lookup.Samples | None = None):
         self._args = (replace_effects(scene, ("shadow",)), bake)
@@ -221,14 +225,16 @@ class FactorKernel(FlatShading):
         self._last: tuple | None = None
 
     def add(self, member) -> str:
-        """Join ``member`` (a :class:`PerPixelFactor`); the name of its factor layer. One that joins
-        after a frame makes the next frame build the kernel again, with every member."""
+        """Join ``member`` (a :class:`PerPixelFactor`); the name of its factor layer.
+
+        One that joins after a frame makes the next frame build the kernel again, with every member.
+        """
         self._built, self._last = False, None
         self.members.append(member)
         return f"factor{len(self.members) - 1}"
 
     def frame(self, azimuth_deg: float, elevation_deg: float | None) -> Frame:
-        """The members' factors for one light (built at the first call; the last one kept)."""
+        """Return the members' factors for one light (built at the first call; the last one kept)."""
         key = (float(azimuth_deg), elevation_deg)
         if self._last is None or self._last[0] != key:
             self.prepare()
@@ -249,8 +255,9 @@ class FactorKernel(FlatShading):
     # -- the hooks of the flat shading ----------------------------------------------------------
 
     def slot(self, member, texture: str) -> str:
-        """The name of ``member``'s texture in the packed texture (shared by the members that read
-        the same plane stored the same way)."""
+        """Return the name of ``member``'s texture in the packed texture (shared by the members that read
+        the same plane stored the same way).
+        """
         return f"{member.plane_name(texture)}:{member.storage[texture]}"
 
     def _extra_planes(self) -> list[tuple[str, np.ndarray]]:
@@ -286,10 +293,12 @@ class FactorKernel(FlatShading):
 
 
 class PerPixelFactor(Technique):
-    """A technique whose factor is a formula of the sample's textures, normal and light (module
-    docstring). ``storage``: ``{texture: "float" | "u8"}`` for the textures it reads; ``kernel``: the
-    context's :class:`FactorKernel` it joins (default its own); ``plain``: the unshadowed shading its
-    image is composed from (default its own)."""
+    """A technique whose factor is a formula of the sample's textures, normal and light (module docstring).
+
+    ``storage``: ``{texture: "float" | "u8"}`` for the textures it reads; ``kernel``: the context's
+    :class:`FactorKernel` it joins (default its own); ``plain``: the unshadowed shading its image is composed
+    from (default its own).
+    """
 
     needs = ("shadow",)
     not_modelled = NOT_MODELLED
@@ -329,30 +338,34 @@ class PerPixelFactor(Technique):
 
     @classmethod
     def texture(cls, name: str) -> Texture:
-        """The texture of that name it reads."""
+        """Return the texture of that name it reads."""
         return cls.own_textures.get(name) or TEXTURES[name]
 
     def plane(self, name: str) -> np.ndarray:
-        """The values of texture ``name`` before storage: the bake's field (a variant may derive
-        its own, :meth:`plane_name` naming them)."""
+        """Return the values of texture ``name`` before storage: the bake's field (a variant may derive
+        its own, :meth:`plane_name` naming them).
+        """
         return getattr(self.bake, self.texture(name).field)
 
     def plane_name(self, name: str) -> str:
-        """What :meth:`plane` holds for texture ``name``: the same name, the same values (techniques
-        that read them share the kernel's one copy)."""
+        """Return what :meth:`plane` holds for texture ``name``: the same name, the same values (techniques
+        that read them share the kernel's one copy).
+        """
         return self.texture(name).field
 
     def stored_plane(self, name: str) -> np.ndarray:
-        """What the shader samples of texture ``name``: :meth:`plane` as its storage keeps it
-        (:func:`stored`)."""
+        """Return what the shader samples of texture ``name``: :meth:`plane` as its storage keeps it
+        (:func:`stored`).
+        """
         return stored(self.plane(name), self.storage[name], signed=self.texture(name).signed)
 
     # -- what a subclass gives ------------------------------------------------------------------
 
     @classmethod
     def validate(cls, settings: dict) -> dict:
-        """The technique's own settings, checked (raise :class:`hzval.core.errors.InputError` naming
-        the setting); none by default."""
+        """Return the technique's own settings, checked (raise :class:`hzval.core.errors.InputError` naming
+        the setting); none by default.
+        """
         if settings:
             raise TypeError(f"unexpected settings {', '.join(settings)}")
         return {}
@@ -360,7 +373,8 @@ class PerPixelFactor(Technique):
     @staticmethod
     def choice(settings: dict, key: str, choices: tuple[str, ...]) -> str:
         """``settings[key]`` (popped), one of ``choices`` (the first when unset), else one line naming
-        the setting."""
+        the setting.
+        """
         value = settings.pop(key, None) or choices[0]
         if value not in choices:
             raise InputError(key, f"must be one of {', '.join(choices)}, got {value!r}")
@@ -371,9 +385,10 @@ class PerPixelFactor(Technique):
         return {}
 
     def factor(self, tex: dict, n, L, c: dict):
-        """The shadow factor ``F`` of a sample: ``tex`` its filtered textures by name, ``n`` the normal
+        """Return the shadow factor ``F`` of a sample: ``tex`` its filtered textures by name, ``n`` the normal
         map's unit normal (``None`` when :attr:`reads_normal` is false), ``L`` the unit light in its
-        tangent frame, ``c`` :meth:`constants`."""
+        tangent frame, ``c`` :meth:`constants`.
+        """
         raise NotImplementedError
 
     # -- the Technique interface ----------------------------------------------------------------
@@ -386,14 +401,16 @@ class PerPixelFactor(Technique):
     @classmethod
     def build(cls, ctx: Context, **settings) -> "PerPixelFactor":
         """From a context: the context's one factor kernel and unshadowed shading, shared with its
-        other per-pixel techniques."""
+        other per-pixel techniques.
+        """
         kernel = ctx.shared("perpixel factors", lambda: FactorKernel(ctx.scene, ctx.bake, ctx.samples()))
         return cls(ctx.scene, ctx.bake, ctx.albedo, kernel=kernel, plain=unshadowed(ctx), **settings)
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         """Refuse a setting before anything is written (its flag named by the caller,
-        :func:`hzval.techniques.registry.flag_errors`)."""
+        :func:`hzval.techniques.registry.flag_errors`).
+        """
         own = dict(settings)
         _checked_storage(cls, own.pop("storage", None))
         cls.validate(own)
@@ -438,7 +455,7 @@ class PerPixelFactor(Technique):
         return out
 
     def storage_bytes(self) -> int:
-        """The textures it reads as stored (:meth:`texture_bytes`), in all."""
+        """Return the textures it reads as stored (:meth:`texture_bytes`), in all."""
         return int(sum(self.texture_bytes().values()))
 
     @property
@@ -452,24 +469,27 @@ class PerPixelFactor(Technique):
         return out
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """The frame of the light at ``azimuth_deg``: the unshadowed shading's direct term times the
+        """Return the frame of the light at ``azimuth_deg``: the unshadowed shading's direct term times the
         pixel mean of ``F`` from the shared kernel (:meth:`FactorKernel.frame`), plus its ambient
         term; the kernel's time is shared out among the techniques that joined it. Layers:
-        ``factor`` and the declared effects'."""
+        ``factor`` and the declared effects'.
+        """
         frame = self.kernel.frame(azimuth_deg, elevation_deg)
         F = frame.layers[self._layer]
         return self._plain.shade(azimuth_deg, elevation_deg, F, frame.seconds / len(self.kernel.members))
 
     def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None) -> dict[str, np.ndarray]:
         """Per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging:
-        ``{"factor": (n,)}``."""
+        ``{"factor": (n,)}``.
+        """
         return {"factor": self.kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}
 
 
 class BaseShadow(PerPixelFactor):
     """No technique's shadows: ``F = 1``, which on a model is the base mesh's own shadow alone (the
     kernel multiplies every factor by it). The sweep's no-shadows baseline on a model, where a
-    technique's factor includes that shadow too; not a registered technique."""
+    technique's factor includes that shadow too; not a registered technique.
+    """
 
     name = "no shadows"
     label = "no shadows"

@@ -68,7 +68,7 @@ def set_up_march(
     unshadowed,
     samples,
 ):
-    """What every ray march of the height map sets up (this module's, and a GL shader's).
+    """Set up what every ray march of the height map sets up (this module's, and a GL shader's).
 
     Its settings are checked and kept on ``tech``; the image's shape, the heights in texels, their
     maximum and the unshadowed shading it multiplies are made.
@@ -154,8 +154,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
         self._upload(h, samples)
 
     def _upload(self, h: np.ndarray, samples) -> None:
-        """The height texture (texel units) and the samples' texture coordinates, once."""
-
+        """Upload the height texture (texel units) and the samples' texture coordinates, once."""
         scene = self.scene
         wrap = dr.WrapMode.Repeat if scene.material.boundary == "wrap" else dr.WrapMode.Clamp
         # float32 filtering on every backend (CUDA's texture units resolve a texel to 1/256)
@@ -238,8 +237,9 @@ class RayMarchShadow(surface.HeightFieldShadow):
         return v
 
     def storage_bytes(self) -> int:
-        """The height map alone, 16-bit (the skip table is hzval's acceleration of its march, not a
-        texture the technique needs)."""
+        """Return the height map alone, 16-bit (the skip table is hzval's acceleration of its march, not a
+        texture the technique needs).
+        """
         return self.rows * self.cols * 2
 
     @property
@@ -257,9 +257,10 @@ class RayMarchShadow(surface.HeightFieldShadow):
     # -- rendering -------------------------------------------------------------
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """The frame for the light at ``azimuth_deg`` (degrees): the unshadowed shading times
+        """Return the frame for the light at ``azimuth_deg`` (degrees): the unshadowed shading times
         the pixel mean of ``F`` (``layers["factor"]``); ``seconds`` its wall time, the
-        unshadowed shading's included."""
+        unshadowed shading's included.
+        """
         t0 = time.perf_counter()
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         F = self.factor(azimuth_deg, e)
@@ -267,7 +268,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     def factor(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
         """Pixel means of ``F``, ``shape`` float32 in [0, 1]."""
-
         if self._frames is not None:
             return self._factor_on_model(azimuth_deg, elevation_deg)
         if elevation_deg >= 90.0:
@@ -297,8 +297,8 @@ class RayMarchShadow(surface.HeightFieldShadow):
     def _factor_on_model(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
         """Pixel means of ``F`` on a model: each sample marches toward the world's light in its own
         tangent frame (:class:`hzval.scene.lookup.Samples`), times the base mesh's shadow. A light below a
-        sample's tangent plane gives 0, one along its normal 1, as on the plane."""
-
+        sample's tangent plane gives 0, one along its normal 1, as on the plane.
+        """
         direction = cv.light_direction(azimuth_deg, elevation_deg)
         Lw = dr.opaque(mi.Vector3f, [float(c) for c in direction])
         M = self._macro(direction) if self._macro is not None else None
@@ -329,7 +329,6 @@ class RayMarchShadow(surface.HeightFieldShadow):
 
     def _march(self, uv, du, dv, tan_e):
         """``F`` of the samples at texture coordinates ``uv`` (module docstring, "March")."""
-
         c = self._c
         open_tile = self.scene.material.boundary == "open"
         h0 = self._height.eval(uv)[0]
@@ -411,8 +410,8 @@ class SkipTable:
         """``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``): wrapped into the
         tile (``p - floor(p)``, exact in float32: no division, which CUDA approximates), or clamped
         to its border. Where rounding puts ``p`` in a neighbour of its texel, ``p`` lies within half
-        a texel and an ulp of that neighbour's centre: inside the reach's spare half texel."""
-
+        a texel and an ulp of that neighbour's centre: inside the reach's spare half texel.
+        """
         cols, rows = self._ints
         u, v = (p.x - dr.floor(p.x), p.y - dr.floor(p.y)) if self.wrap else (p.x, p.y)
         x = dr.clip(mi.Int32(dr.floor(u * self._size[0])), 0, cols - 1)

@@ -81,7 +81,8 @@ REGISTRY: dict[str, str] = {
 class Unavailable(Exception):
     """Raised by :meth:`Technique.build` when this machine cannot run the technique (no OpenGL
     context for the GL techniques): the message is one line saying what to install; the sweep
-    skips the technique with it and goes on."""
+    skips the technique with it and goes on.
+    """
 
 
 @dataclass(frozen=True)
@@ -127,14 +128,13 @@ class Context:
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:
-        """Where every technique of the context reads its textures
-        (:func:`hzval.scene.lookup.samples_for`)."""
+        """Where every technique of the context reads its textures (:func:`hzval.scene.lookup.samples_for`)."""
         if self.points is not None:
             return self.points
         return lookup.samples_for(self.scene, *self.height.shape, self.height)
 
     def shared(self, key: str, make: Callable[[], Any]) -> Any:
-        """The object stored under ``key``, made by ``make()`` the first time."""
+        """Return the object stored under ``key``, made by ``make()`` the first time."""
         if key not in self._shared:
             self._shared[key] = make()
         return self._shared[key]
@@ -184,14 +184,15 @@ class Technique:
 
     @classmethod
     def simulates(cls, scene: Scene) -> tuple[str, ...]:
-        """The declared effects less those it does not model, in :data:`hzval.scene.spec.EFFECTS` order."""
+        """Return the declared effects less those it does not model, in :data:`hzval.scene.spec.EFFECTS` order."""
         return tuple(e for e in EFFECTS if scene.declares(e) and e not in cls.not_modelled)
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """What the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
+        """Return what the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
         ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
-        its techniques need; by default everything."""
+        its techniques need; by default everything.
+        """
         return frozenset({"normal", "horizon_map", "ambient", "height"})
 
     @classmethod
@@ -214,28 +215,30 @@ class Technique:
 
     @classmethod
     def settings_from_args(cls, args) -> dict:
-        """The :meth:`build` keywords of the options :meth:`add_arguments` added."""
+        """Return the :meth:`build` keywords of the options :meth:`add_arguments` added."""
         return {}
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
         """Refuse settings that cannot work with this bake, before anything is written
-        (raise :class:`hzval.core.errors.InputError`)."""
+        (raise :class:`hzval.core.errors.InputError`).
+        """
 
     @classmethod
     def check_variants(cls) -> list[Variant]:
-        """The images ``hzval check`` guards: one reference per variant, named after it."""
+        """Return the images ``hzval check`` guards: one reference per variant, named after it."""
         return [Variant(cls.file_stem)]
 
     @classmethod
     def tradeoff_variants(cls) -> list[Variant]:
-        """The settings ``hzval tradeoff`` measures; by default the technique as built."""
+        """Return the settings ``hzval tradeoff`` measures; by default the technique as built."""
         return [Variant(cls.label)]
 
     @classmethod
     def fit(cls, ctx: Context, settings: dict, visibility: list, azimuths) -> dict:
-        """``settings`` with any value the technique fits to a converged truth filled in
-        (``visibility``: the truth's V per azimuth); by default unchanged."""
+        """Return ``settings`` with any value the technique fits to a converged truth filled in
+        (``visibility``: the truth's V per azimuth); by default unchanged.
+        """
         return settings
 
     def storage_bytes(self) -> int:
@@ -246,23 +249,25 @@ class Technique:
     def frame_extras(cls, scores: dict) -> dict:
         """Entries the technique adds to its own record of a frame (``frames[i].techniques.NAME``)
         from every technique's scores of that frame, ``{name: metrics}`` (e.g. how its error
-        splits against another's); by default none."""
+        splits against another's); by default none.
+        """
         return {}
 
 
 def names() -> list[str]:
-    """The registered technique names, in registry order."""
+    """Return the registered technique names, in registry order."""
     return list(REGISTRY)
 
 
 def defaults() -> list[str]:
-    """The names a sweep renders when none are asked for: the registry less the techniques that are
-    not on by default (:attr:`Technique.by_default`)."""
+    """Return the names a sweep renders when none are asked for: the registry less the techniques that are
+    not on by default (:attr:`Technique.by_default`).
+    """
     return [n for n in REGISTRY if get(n).by_default]
 
 
 def get(name: str) -> type[Technique]:
-    """The technique class registered under a name.
+    """Return the technique class registered under a name.
 
     Parameters
     ----------
@@ -287,7 +292,7 @@ def get(name: str) -> type[Technique]:
 
 
 def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[type[Technique]]:
-    """The techniques to render for a scene.
+    """Return the techniques to render for a scene.
 
     Parameters
     ----------
@@ -338,7 +343,7 @@ def select(requested: list[str] | None, scene: Scene, *, exclude=()) -> list[typ
 
 
 def replace_effects(scene: Scene, effects) -> Scene:
-    """The scene with another effect list (for the shading a technique builds on).
+    """Return the scene with another effect list (for the shading a technique builds on).
 
     Parameters
     ----------
@@ -353,7 +358,7 @@ def replace_effects(scene: Scene, effects) -> Scene:
 
 
 def bake_needs(techniques, scene: Scene) -> frozenset[str]:
-    """What a sweep must bake for its techniques.
+    """Return what a sweep must bake for its techniques.
 
     Parameters
     ----------
@@ -374,7 +379,7 @@ def bake_needs(techniques, scene: Scene) -> frozenset[str]:
 
 @contextlib.contextmanager
 def flag_errors(cls: type[Technique], typed: dict[str, str] | None = None):
-    """A context in which errors about a technique's settings name its command-line flag.
+    """Yield a context in which errors about a technique's settings name its command-line flag.
 
     Parameters
     ----------

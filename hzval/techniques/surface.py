@@ -80,12 +80,13 @@ class FlatShading:
         return []
 
     def _max_channels(self) -> slice | None:
-        """The packed channels a ``max`` mip chain takes the maximum of, and a storage quantises
-        (:func:`hzval.scene.lookup.mip_chain`)."""
+        """Return the packed channels a ``max`` mip chain takes the maximum of, and a storage quantises
+        (:func:`hzval.scene.lookup.mip_chain`).
+        """
         return None
 
     def _mip_quantise(self):
-        """What the storage of :meth:`_max_channels` makes of each mip level; ``None``: float."""
+        """Return what the storage of :meth:`_max_channels` makes of each mip level; ``None``: float."""
         return None
 
     def _extra_uniforms(self, uni: dict, shadows: bool, overrides: dict) -> None:
@@ -94,27 +95,30 @@ class FlatShading:
             raise TypeError(f"unexpected render settings {', '.join(overrides)}")
 
     def _shadowed(self, direct, tex: dict, uni: dict, out: dict, shadows: bool, probe: bool):
-        """The direct term times the technique's factor (none here), its layers into ``out``."""
+        """Return the direct term times the technique's factor (none here), its layers into ``out``."""
         return direct
 
     def _extra_layers(self, tex: dict, n, out: dict, uni: dict) -> None:
-        """A technique's layers after the ambient term (``n``: the normal map's normal; ``uni``: the
-        frame's uniforms, on a model the sample's own, :meth:`_lane_uniforms`)."""
+        """Add a technique's layers after the ambient term (``n``: the normal map's normal; ``uni``: the
+        frame's uniforms, on a model the sample's own, :meth:`_lane_uniforms`).
+        """
 
     def _factor_layers(self) -> tuple[str, ...]:
-        """The layers that are shadow factors, which the base mesh's shadow ``M`` multiplies on a model."""
+        """Return the layers that are shadow factors, which the base mesh's shadow ``M`` multiplies on a model."""
         return ("factor",)
 
     def _extra_layout(self, shadows: bool) -> tuple[list, list]:
-        """The technique's layers of :meth:`_shade`, ``(name, channels)``: those before the ambient
-        term's layer (its factor) and those after (:meth:`_extra_layers`)."""
+        """Return the technique's layers of :meth:`_shade`, ``(name, channels)``: those before the ambient
+        term's layer (its factor) and those after (:meth:`_extra_layers`).
+        """
         return [], []
 
     # -- set-up ---------------------------------------------------------------------------------
 
     def _upload_textures(self, albedo, samples: lookup.Samples) -> None:
         """One packed texture holding only the channels needed, so that each sample computes one set
-        of bilinear indices, filtered as the scene's lookup says (:class:`hzval.scene.lookup.Filtered`)."""
+        of bilinear indices, filtered as the scene's lookup says (:class:`hzval.scene.lookup.Filtered`).
+        """
         bake, rows, cols = self.bake, self.rows, self.cols
         planes: list[np.ndarray] = []
         self._slots: dict[str, slice] = {}
@@ -164,10 +168,12 @@ class FlatShading:
         self._E = dr.opaque(mi.Float, float(self.scene.light.irradiance))
 
     def _upload_samples(self, samples: lookup.Samples) -> None:
-        """Sample positions as texture coordinates. One sample per pixel: two plain arrays. More:
-        (u, v) pairs in the scene's pixel-major order, which the per-pixel loop gathers as one packet
-        per sample; a pixel's samples share cache lines (a sample-major layout, with its stride of a
-        power-of-two number of pixels, thrashed the caches: 2x slower)."""
+        """Sample positions as texture coordinates.
+
+        One sample per pixel: two plain arrays. More: (u, v) pairs in the scene's pixel-major order, which the
+        per-pixel loop gathers as one packet per sample; a pixel's samples share cache lines (a sample-major
+        layout, with its stride of a power-of-two number of pixels, thrashed the caches: 2x slower).
+        """
         spp = int(self.scene.spp)
         self.spp, self.pixels = spp, self.shape[0] * self.shape[1]
         if spp == 1:
@@ -191,12 +197,13 @@ class FlatShading:
         dark: bool = False,
         **overrides,
     ) -> Frame:
-        """The frame of the light at ``azimuth_deg`` (degrees); ``elevation_deg`` defaults to the
+        """Return the frame of the light at ``azimuth_deg`` (degrees); ``elevation_deg`` defaults to the
         scene light's. ``shadows=False`` leaves out a technique's factor; ``overrides``: a
         technique's per-frame settings (:meth:`_extra_uniforms`); ``dark``: no direct light at all (the
         ambient term alone; on a model a light below the world's horizon still lights the samples
         that face down). ``seconds`` is the frame's wall
-        time, kernels synchronised and images read back."""
+        time, kernels synchronised and images read back.
+        """
         t0 = time.perf_counter()
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         uni = self._uniforms(azimuth_deg, elevation, shadows, overrides)
@@ -218,7 +225,7 @@ class FlatShading:
         return Frame(float(azimuth_deg), elevation, image, layers, seconds=time.perf_counter() - t0)
 
     def _shade_samples(self, uni: dict, shadows: bool) -> dict:
-        """The pixel means of :meth:`_shade` over each pixel's samples, in one kernel."""
+        """Return the pixel means of :meth:`_shade` over each pixel's samples, in one kernel."""
         names, zeros = self._output_layout(shadows)
         P, spp = self.pixels, self.spp
         pixel = dr.arange(mi.UInt32, P)
@@ -248,7 +255,8 @@ class FlatShading:
     ) -> dict[str, np.ndarray]:
         """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging: keys as
         :meth:`render`'s layers, plus ``image`` ``(n, 3)`` (at ``x = col + 0.5``, ``y = rows - row -
-        0.5`` the bilinear filter returns that texel exactly)."""
+        0.5`` the bilinear filter returns that texel exactly).
+        """
         if self._frames is not None:
             raise NotImplementedError(
                 "per-point probes are of the plane; a model's samples have their own frames"
@@ -266,8 +274,9 @@ class FlatShading:
     # -- kernels --------------------------------------------------------------------------------
 
     def _uniforms(self, azimuth_deg: float, elevation_deg: float, shadows: bool, overrides: dict) -> dict:
-        """The frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``: what is the same
-        for every sample (the half vector, a technique's light weights) is computed once a frame."""
+        """Return the frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``: what is the same
+        for every sample (the half vector, a technique's light weights) is computed once a frame.
+        """
         L = dr.opaque(mi.Vector3f, [float(c) for c in cv.light_direction(azimuth_deg, elevation_deg)])
         uni = {"L": L}
         if self._frames is not None:
@@ -291,24 +300,26 @@ class FlatShading:
         return dict(self._slots)
 
     def texture_level(self):
-        """The packed texture's top level (a :class:`mitsuba.Texture2f`), whose tensor a fit replaces."""
+        """Return the packed texture's top level (a :class:`mitsuba.Texture2f`), whose tensor a fit replaces."""
         return self._texture.levels[0]
 
     def positions(self, sample):
         """``(u, v)``: the texture coordinates of the samples ``sample`` (indices into the image's
-        samples, pixel-major)."""
+        samples, pixel-major).
+        """
         if self.spp == 1:
             return dr.gather(mi.Float, self._u, sample), dr.gather(mi.Float, self._v, sample)
         uv = dr.gather(mi.Point2f, self._uv, sample)
         return uv.x, uv.y
 
     def fetch(self, u, v) -> dict:
-        """The filtered top-level texture values at ``(u, v)``, by plane name."""
+        """Return the filtered top-level texture values at ``(u, v)``, by plane name."""
         return self._fetch(u, v)
 
     def _fetch(self, u, v, pixel=None) -> dict:
-        """Filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
-        (whose footprints a mip filter reads; ``None``: level 0)."""
+        """Fetch the filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
+        (whose footprints a mip filter reads; ``None``: level 0).
+        """
         if self._texture is None:
             return {}
         vals = self._texture.eval(mi.Point2f(u, v), pixel)
@@ -318,7 +329,8 @@ class FlatShading:
         """On a model, the uniforms of the samples ``index``: the world's light in each sample's
         tangent frame (:func:`hzval.scene.lookup.to_tangent`), what a technique derives from it, the
         sample's own view ``v`` toward the camera in that frame and the half vector toward it, and
-        the base mesh's shadow ``M`` (``None``: none)."""
+        the base mesh's shadow ``M`` (``None``: none).
+        """
         frame = lookup.frame_of(self._frames, index)
         shadows, overrides = self._lane
         lane = {"L": lookup.to_tangent(frame, uni["L"]), "dark": uni.get("dark", False)}
@@ -332,7 +344,8 @@ class FlatShading:
 
     def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None, index=None) -> dict:
         """Per-sample outputs: ``image`` (Color3f) and the declared layers; ``index``: the samples'
-        place in the image's samples (on a model, where their frames are)."""
+        place in the image's samples (on a model, where their frames are).
+        """
         tex = self._fetch(u, v, pixel)
         M = None
         if self._frames is not None:
@@ -367,7 +380,7 @@ class FlatShading:
         return out
 
     def _output_layout(self, shadows: bool) -> tuple[list[tuple[str, int]], int]:
-        """The loop state of :meth:`render`: a flat list of Floats, ``(name, channels)`` in order."""
+        """Return the loop state of :meth:`render`: a flat list of Floats, ``(name, channels)`` in order."""
         before, after = self._extra_layout(shadows)
         names = [("image", 3), *before]
         if self._ambient:
@@ -470,8 +483,9 @@ class Unshadowed:
         seconds: float,
         layers: dict | None = None,
     ) -> Frame:
-        """The frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
-        the unshadowed render's time counts toward it, as an engine would pay it."""
+        """Return the frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
+        the unshadowed render's time counts toward it, as an engine would pay it.
+        """
         frame, direct = self.render(azimuth_deg, elevation_deg)
         image = shading.compose(direct, factor, self.ambient_image)
         out = {k: v for k, v in frame.layers.items() if k != "reflection_occlusion"}
@@ -480,7 +494,7 @@ class Unshadowed:
 
 
 def unshadowed(ctx: Context) -> Unshadowed:
-    """The unshadowed shading of a context, built once and shared by its techniques.
+    """Return the unshadowed shading of a context, built once and shared by its techniques.
 
     Parameters
     ----------
@@ -499,7 +513,8 @@ class HeightFieldShadow(Technique):
     """Base of the techniques that read the height map and multiply the :class:`Unshadowed`
     shading by a per-pixel factor (terrain, pom): they are built as ``cls(scene, height,
     bake=..., albedo=..., unshadowed=..., **settings)``. Their bake needs are the normal map
-    (and the ambient map where the scene declares ``ambient``)."""
+    (and the ambient map where the scene declares ``ambient``).
+    """
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
@@ -528,7 +543,8 @@ class HeightFieldShadow(Technique):
     ) -> Unshadowed:
         """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
         without one from the normal map alone (:func:`hzval.bake.maps.normals_only`), which serves
-        ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map."""
+        ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map.
+        """
         if shared is not None:
             return shared
         if bake is None:

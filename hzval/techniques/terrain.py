@@ -100,7 +100,7 @@ class SweepPlan:
         return self.steps - self.m
 
     def step_of_column(self, c: np.ndarray) -> np.ndarray:
-        """The recording step ``j`` of ``A``'s column ``c``."""
+        """Return the recording step ``j`` of ``A``'s column ``c``."""
         if not self.wrap:
             return c
         r0 = self.record_from
@@ -187,7 +187,7 @@ def _line_heights_numpy(A: np.ndarray, y: np.ndarray, col: int, wrap: bool) -> n
 def boundaries_numpy(
     h: np.ndarray, plan: SweepPlan, tan_hi_el: float, tan_lo_el: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The shadow boundaries of every texel, in NumPy (the reference for the Dr.Jit sweep).
+    """Return the shadow boundaries of every texel, in NumPy (the reference for the Dr.Jit sweep).
 
     Parameters
     ----------
@@ -371,8 +371,7 @@ class TerrainShadow(surface.HeightFieldShadow):
         self._upload_samples(samples)
 
     def _upload_samples(self, samples) -> None:
-        """The scene's sample positions, as the truth and the horizon map use them."""
-
+        """Upload the scene's sample positions, as the truth and the horizon map use them."""
         scene = self.scene
         self.spp = int(scene.spp)
         x, y = samples.x, samples.y
@@ -418,7 +417,7 @@ class TerrainShadow(surface.HeightFieldShadow):
         return [Variant("terrain shadow map (Raudins)", params={"ramp_texels": DEFAULT_RAMP})]
 
     def storage_bytes(self) -> int:
-        """The height map alone, 16-bit: the boundary is recomputed per light."""
+        """Return the height map alone, 16-bit: the boundary is recomputed per light."""
         return self.rows * self.cols * 2
 
     @property
@@ -453,7 +452,7 @@ class TerrainShadow(surface.HeightFieldShadow):
         )
 
     def factor(self, azimuth_deg: float, elevation_deg: float | None = None) -> np.ndarray:
-        """The pixel means of the terrain factor ``F``, ``shape`` float32 in [0, 1]."""
+        """Return the pixel means of the terrain factor ``F``, ``shape`` float32 in [0, 1]."""
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         if e >= 90.0:
             return np.ones(self.shape, np.float32)
@@ -492,15 +491,15 @@ class TerrainShadow(surface.HeightFieldShadow):
     def _factor_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float) -> np.ndarray:
         """Three kernels: the sweep (one lane per line, a symbolic loop over
         steps), the texels' ``(h - B_hi, ramp)``, and the samples' factor
-        averaged per pixel. Every per-frame value is opaque."""
+        averaged per pixel. Every per-frame value is opaque.
+        """
         rec = self._sweep_drjit(plan, tan_hi, tan_lo)
         F = self._sample(self._gap_ramp_drjit(plan, rec))
         return np.asarray(F, dtype=np.float32).reshape(self.shape)
 
     @staticmethod
     def _plan_constants(plan: SweepPlan) -> dict:
-        """The plan's numbers as opaque Dr.Jit values (one kernel for every light and map)."""
-
+        """Return the plan's numbers as opaque Dr.Jit values (one kernel for every light and map)."""
         op, Float, Int32 = dr.opaque, mi.Float, mi.Int32
         return {
             "n": op(Int32, plan.n),
@@ -516,8 +515,7 @@ class TerrainShadow(surface.HeightFieldShadow):
         }
 
     def _sweep_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float):
-        """The sweep: per line and recorded column, ``(B_hi, B_hi - B_lo)`` pairs."""
-
+        """Return the sweep: per line and recorded column, ``(B_hi, B_hi - B_lo)`` pairs."""
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque
         k = self._plan_constants(plan)
@@ -572,9 +570,9 @@ class TerrainShadow(surface.HeightFieldShadow):
         return rec
 
     def _gap_ramp_drjit(self, plan: SweepPlan, rec):
-        """The texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs:
-        the boundary interpolated between the two lines that bracket each texel."""
-
+        """Return the texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs:
+        the boundary interpolated between the two lines that bracket each texel.
+        """
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque
         k = self._plan_constants(plan)
@@ -623,7 +621,6 @@ class TerrainShadow(surface.HeightFieldShadow):
 
     def _sample(self, gap_ramp):
         """Pixel means of ``clamp(gap / ramp + 1, 0, 1)`` over the pixel's samples (bilinear)."""
-
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         rows, cols = self.rows, self.cols
         R, C = dr.opaque(Int32, rows), dr.opaque(Int32, cols)

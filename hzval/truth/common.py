@@ -1,7 +1,8 @@
 """What the plane's and the model's truths share: the rays' lift above the surface, the random streams,
 the glossy lobe and its sampling, the reflection estimate and the per-pixel mean and variance of
 0/1 samples. Each formula is written once here; :mod:`hzval.truth.plane` and
-:mod:`hzval.truth.model` read it."""
+:mod:`hzval.truth.model` read it.
+"""
 
 from __future__ import annotations
 
@@ -43,8 +44,9 @@ REFLECTION_STREAM = 0x5EF1
 
 
 def lift_for(z_min: float, z_max: float) -> float:
-    """The ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``
-    (module docstring, "Self-intersection")."""
+    """Return the ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``
+    (module docstring, "Self-intersection").
+    """
     return max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(z_min), abs(z_max)))
 
 
@@ -65,7 +67,6 @@ def sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
     distribution ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``, ``pdf(wo) =
     pdf(h) / (4 wo.h)`` (Walter et al. 2007), so the weight stays bounded.
     """
-
     wo_d = mi.Frame3f(n).to_world(mi.warp.square_to_cosine_hemisphere(u))
     if p_spec > 0.0:
         wo_s, _ = _lobe_direction(n, v, u)
@@ -91,10 +92,10 @@ def sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
 
 
 def stream_rng(seed: int, stream: int, start: int, count: int):
-    """A PCG32 per sample ``start <= k < start + count`` of the image, seeded by the scene's ``seed``
+    """Return a PCG32 per sample ``start <= k < start + count`` of the image, seeded by the scene's ``seed``
     and a ``stream`` tag: deterministic, and the same in a band as in one piece (the plane's truth
-    in bands, a model's in one piece, :mod:`hzval.truth.model`)."""
-
+    in bands, a model's in one piece, :mod:`hzval.truth.model`).
+    """
     state = (int(seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
     # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
     # sample k of one piece starts from initstate + k with the sequence 2k, so lane j of a
@@ -117,7 +118,6 @@ def lobe_sample(ns, v, u):
     (alpha + 1) / (2 pi) (n.h)^alpha / (4 wo.h)``); the constant cancels in
     the ratio, so ``w = wo.h`` where ``ns.wo > 0``, else 0.
     """
-
     wo, h = _lobe_direction(ns, v, u)
     return wo, dr.select(dr.dot(ns, wo) > 0.0, dr.maximum(dr.dot(wo, h), 0.0), 0.0)
 
@@ -126,8 +126,8 @@ def reflection_estimate(w, V, spp: int) -> tuple[np.ndarray, np.ndarray]:
     """``(R, variance)`` per pixel (flat float32) from per-sample weights ``w`` (:func:`lobe_sample`)
     and escapes ``V`` (0/1) of ``spp`` consecutive samples a pixel: ``R = sum w V / sum w`` (0
     where ``sum w = 0``) and the ratio estimator's variance ``sum w^2 (V - R)^2 / (sum w)^2``
-    (NaN for one sample a pixel, which has none)."""
-
+    (NaN for one sample a pixel, which has none).
+    """
     sums = [dr.block_sum(x, spp) for x in (w * V, w, w * w * V, w * w)]
     dr.eval(sums)
     backend.sync()
@@ -140,14 +140,13 @@ def reflection_estimate(w, V, spp: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _lobe_direction(n, v, u):
-    """A direction of the Blinn-Phong lobe about normal ``n`` seen from ``v``, from ``u`` in [0, 1)^2.
+    """Return a direction of the Blinn-Phong lobe about normal ``n`` seen from ``v``, from ``u`` in [0, 1)^2.
 
     The half vector ``h`` has ``pdf(h) = (alpha + 1) / (2 pi) (n.h)^alpha``
     (``alpha`` = :data:`hzval.core.shading.SPECULAR_EXPONENT`) and the direction is
     ``v`` reflected about it (Walter et al. 2007); with ``h = n`` it is the
     mirror direction. It may point below the surface. Returns ``(wo, h)``.
     """
-
     cos_h = dr.power(u.x, 1.0 / (SPECULAR_EXPONENT + 1.0))
     sin_h = dr.safe_sqrt(1.0 - cos_h * cos_h)
     phi = 2.0 * math.pi * u.y
@@ -163,7 +162,6 @@ def mean_and_variance(s1, ss, spp):
     surface; a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1``
     in the denominator) over ``n``: NaN for one sample, which has none.
     """
-
     if isinstance(spp, int):
         mean = s1 / spp
         var = (
@@ -204,7 +202,7 @@ class TruthLike(Protocol):
     timings: dict
 
     def render(self, azimuth_deg: float) -> Frame:
-        """The frame of the light at ``azimuth_deg``: its layers (``V``, the image, ...) per pixel."""
+        """Render the frame of the light at ``azimuth_deg``: its layers (``V``, the image, ...) per pixel."""
         ...
 
     def light_at(self, elevation_deg: float) -> None:
@@ -217,13 +215,12 @@ NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
 
 
 def albedo_texels(scene: Scene, rows: int, cols: int, albedo=None):
-    """The linear albedo texels of ``scene``'s material as one flat ``mi.Float`` array, row-major
+    """Return the linear albedo texels of ``scene``'s material as one flat ``mi.Float`` array, row-major
     ``(rows, cols, 3)``, or ``None`` when no declared effect reads it (:data:`NEEDS_ALBEDO`).
 
     ``albedo``: the texels themselves, ``(rows, cols, 3)`` linear; default the material's
     (:func:`hzval.scene.spec.load_albedo`).
     """
-
     if not any(scene.declares(e) for e in NEEDS_ALBEDO):
         return None
     a = load_albedo(scene.material, rows, cols) if albedo is None else np.asarray(albedo, np.float32)
@@ -233,14 +230,13 @@ def albedo_texels(scene: Scene, rows: int, cols: int, albedo=None):
 
 
 def albedo_at(texels, rows, cols, x, y, active=True):
-    """The linear albedo of the texel that holds the texel-unit point ``(x, y)``: nearest, as the
+    """Return the linear albedo of the texel that holds the texel-unit point ``(x, y)``: nearest, as the
     techniques read it (column ``floor(x)``, row ``rows - ceil(y)``: exact in float32, where
     ``rows - y`` itself would round).
 
     ``rows`` and ``cols``: the map's size as opaque ``mi.Float`` values (``dr.opaque``), so that one
     kernel serves every map size.
     """
-
     n_cols, n_rows = mi.Int32(cols), mi.Int32(rows)
     col = dr.clip(mi.Int32(dr.floor(x)), 0, n_cols - 1)
     row = dr.clip(mi.Int32(rows - dr.ceil(y)), 0, n_rows - 1)

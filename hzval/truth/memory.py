@@ -97,12 +97,13 @@ def estimate_peak_bytes(
     keeps: bool | None = None,
     techniques: int = TECHNIQUES_BY_DEFAULT,
 ) -> int:
-    """The peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
+    """Return the peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
     in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
     (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
     ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
     samples' camera hits (default :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none).
-    ``techniques``: how many the sweep runs (:data:`PEAK_BYTES_PER_TECHNIQUE_PIXEL` each)."""
+    ``techniques``: how many the sweep runs (:data:`PEAK_BYTES_PER_TECHNIQUE_PIXEL` each).
+    """
     H, W = sc.image_shape(rows, cols, scene.camera)
     samples = H * W * scene.spp
     if triangles is None:
@@ -140,7 +141,8 @@ PEAK_BYTES_PER_BAND_TRIANGLE = 135
 class TruthPlan:
     """How the truth of a sweep holds its mesh (:func:`truth_plan`): ``triangles`` of the whole mesh;
     ``band_rows`` (pixel rows a band) and ``band_triangles`` (the largest band's) where it is built in
-    bands, else ``None`` and 0; ``why_single``: why it cannot be built in bands (``None`` where it can)."""
+    bands, else ``None`` and 0; ``why_single``: why it cannot be built in bands (``None`` where it can).
+    """
 
     triangles: int
     band_rows: int | None = None
@@ -149,7 +151,7 @@ class TruthPlan:
 
 
 def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
-    """The peak of the truth's phase in bands (:data:`PEAK_BAND_BYTES_PER_PIXEL` and the rest)."""
+    """Return the peak of the truth's phase in bands (:data:`PEAK_BAND_BYTES_PER_PIXEL` and the rest)."""
     H, W = sc.image_shape(rows, cols, scene.camera)
     bits = H * W * scene.spp * len(scene.light.azimuths_deg) / 8
     return int(
@@ -167,8 +169,8 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
     a ray could leave a band (:func:`hzval.truth.bands.why_not`); else in the largest bands of whole
     sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the sweep's estimate
     (so that the bands do not raise its peak; within that target and the memory available, if
-    lower): fewer, larger bands build fewer triangles twice (their covers overlap)."""
-
+    lower): fewer, larger bands build fewer triangles twice (their covers overlap).
+    """
     rows, cols = np.shape(height)
     g, levels, h_tex = truth.mesh_grid(scene, height)
     full = mesh.triangle_count(levels)
@@ -195,9 +197,9 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
 
 
 def _model_peak_bytes(scene, rows: int, cols: int, techniques: int = TECHNIQUES_BY_DEFAULT) -> int:
-    """The peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
-    (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images."""
-
+    """Return the peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
+    (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images.
+    """
     base = model.load(
         scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
     )
@@ -230,7 +232,8 @@ MAX_FRAME_PIXELS = 2**31
 def check_frame_pixels(scene, rows: int, cols: int) -> int:
     """Lights (azimuths times elevations) times pixels of a sweep of ``scene`` on a ``rows x cols``
     map, if at most :data:`MAX_FRAME_PIXELS`; else one line naming ``--azimuths`` (``--elevation``
-    over several elevations)."""
+    over several elevations).
+    """
     H, W = sc.image_shape(rows, cols, scene.camera)
     lights = len(scene.light.azimuths_deg) * len(scene.light.elevations())
     n = lights * H * W
@@ -258,7 +261,8 @@ def check_fits(
     truth's own triangles (:func:`hzval.truth.plane.mesh_triangles`), and a refusal names
     ``--truth-tolerance`` as well. ``plan``: the truth's (:func:`truth_plan`, made here if not given): a
     mesh in bands is charged by its largest band, at the larger of the bands' phase and the rest of
-    the sweep. ``techniques``: how many the sweep runs."""
+    the sweep. ``techniques``: how many the sweep runs.
+    """
     rows, cols = material_shape(scene) if height is None else np.shape(height)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height
     bake.check_fits(what, rows, cols, params)

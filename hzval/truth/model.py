@@ -58,12 +58,13 @@ BYTES_PER_REFLECTION_SAMPLE = 48
 def bytes_per_sample(scene: Scene) -> int:
     """Bytes a sample of ``scene``'s truth on a model takes at its peak: its kept hit and frame
     (:data:`BYTES_PER_SAMPLE`) and, where ``reflection_occlusion`` is declared, the lobe's rays
-    (:data:`BYTES_PER_REFLECTION_SAMPLE`)."""
+    (:data:`BYTES_PER_REFLECTION_SAMPLE`).
+    """
     return BYTES_PER_SAMPLE + (BYTES_PER_REFLECTION_SAMPLE if scene.declares("reflection_occlusion") else 0)
 
 
 def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> View:
-    """The camera over a model whose displaced surface lies within ``points`` ``(N, 3)`` (world
+    """Return the camera over a model whose displaced surface lies within ``points`` ``(N, 3)`` (world
     units), looking from elevation/azimuth about the world's up axis (+z) as
     :meth:`hzval.scene.camera.Camera.view` looks at a tile (``top``: straight down).
 
@@ -71,7 +72,8 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
     centre, or farther where the field of view needs it to hold the sphere. An orthographic film
     spans the points' projection, at the image's aspect, centred on it: on a unit quad whose UVs
     are its ``(x, y)`` these are the plane's own rays (its film is the tile), so the two agree
-    pixel for pixel (``tests/truth/test_model.py``)."""
+    pixel for pixel (``tests/truth/test_model.py``).
+    """
     H, W = shape
     e = 90.0 if camera.kind == "top" else camera.elevation_deg
     a = -90.0 if camera.kind == "top" else camera.azimuth_deg
@@ -122,8 +124,7 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
 
 
 def _rays(o: np.ndarray, d: np.ndarray):
-    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64,
-    :meth:`hzval.scene.camera.View.rays`)."""
+    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64, :meth:`hzval.scene.camera.View.rays`)."""
     return mi.Ray3f(
         mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
         mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))),
@@ -132,7 +133,8 @@ def _rays(o: np.ndarray, d: np.ndarray):
 
 def _welded_normals(model) -> np.ndarray:
     """``(V, 3)``: each vertex's normal averaged over the vertices at its position (``model.weld``),
-    so that a surface offset along them stays closed where the normals split (a cube's edges)."""
+    so that a surface offset along them stays closed where the normals split (a cube's edges).
+    """
     ids = model.weld
     sums = np.zeros((int(ids.max()) + 1, 3))
     np.add.at(sums, ids, model.normals)
@@ -143,7 +145,8 @@ def _welded_normals(model) -> np.ndarray:
 class _Traced:
     """A triangle mesh in its own ``mi.Scene`` and the base mesh's values at its vertices (``uvs``,
     ``normals``, ``tangents`` of ``frames``; ``p`` the base point, ``base_positions`` where the mesh
-    is the base mesh displaced), interpolated at a hit by :meth:`at`."""
+    is the base mesh displaced), interpolated at a hit by :meth:`at`.
+    """
 
     def __init__(self, name: str, positions: np.ndarray, faces: np.ndarray, frames):
         m = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
@@ -170,7 +173,8 @@ class _Traced:
 
     def at(self, prim, b1, b2):
         """``f(key, size)``: the vertex values ``key`` (``size`` floats a vertex) at barycentrics
-        ``(b1, b2)`` of the triangles ``prim`` (Mitsuba's: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``)."""
+        ``(b1, b2)`` of the triangles ``prim`` (Mitsuba's: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``).
+        """
         ids = [dr.gather(mi.UInt32, self._faces, prim * 3 + k) for k in range(3)]
 
         def value(key: str, size: int):
@@ -186,7 +190,8 @@ class ModelTruth:
     :class:`hzval.truth.plane.Truth` interface: :meth:`render`, ``shape``, ``seen``, ``view``,
     ``simulated``, ``timings``, ``hits`` (``None``: the techniques' samples are
     :meth:`samples`), plus ``model`` (the base mesh) and ``plane_offset`` (world units along the
-    normals from the base mesh to the techniques' surface, the lookup's plane)."""
+    normals from the base mesh to the techniques' surface, the lookup's plane).
+    """
 
     hits = None
     keeps = True  # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
@@ -257,8 +262,8 @@ class ModelTruth:
 
     def _check_fits(self, model, h: np.ndarray) -> None:
         """Refuse, before it is built, a displaced mesh (its twisted cells' rings counted) and camera
-        hits that would not fit in the memory available: one line naming the tolerance."""
-
+        hits that would not fit in the memory available: one line naming the tolerance.
+        """
         mat = self.scene.material
         triangles, mesh_bytes = displace.estimate(
             model,
@@ -285,7 +290,8 @@ class ModelTruth:
     def _trace_camera(self) -> None:
         """Every sample's camera ray against the displaced model (the truth's hit) and against the
         techniques' surface (theirs: where an engine shades), once; what the frames read there, kept.
-        :attr:`seen`: the pixels all of whose samples hit both."""
+        :attr:`seen`: the pixels all of whose samples hit both.
+        """
         H, W = self.shape
         spp = self.spp
         o, d = self.view.rays(spp, self.scene.seed, 0, H * W)
@@ -308,7 +314,8 @@ class ModelTruth:
         ``(x, y)`` of its ``uv``, the base point ``pb`` and ``v`` toward the camera; ``shade``: also the
         shading normal (the normal map at ``uv`` carried into the world) and the albedo there. A
         sample that misses keeps the world's frame at the texture's centre: traced, and counted for
-        nothing."""
+        nothing.
+        """
         pi = mesh.scene.ray_intersect_preliminary(ray, coherent=True)
         hit = pi.is_valid()
         prim = dr.select(hit, pi.prim_index, 0)
@@ -352,15 +359,15 @@ class ModelTruth:
         return self._displaced.mesh
 
     def _albedo_at(self, x, y):
-        """The albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, nearest, as on the plane)."""
+        """Return the albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, nearest, as on the plane)."""
         return common.albedo_at(self._albedo, *self._size, x, y)
 
     def _origin(self, p, n):
-        """A ray's start: ``p`` lifted along the base normal ``n`` (module docstring)."""
+        """Return a ray's start: ``p`` lifted along the base normal ``n`` (module docstring)."""
         return p + n * self.lift
 
     def _trace_ambient(self):
-        """``A`` per sample: a cosine-weighted direction about the shading normal escapes (once)."""
+        """Trace ``A`` per sample: a cosine-weighted direction about the shading normal escapes (once)."""
         t0 = time.perf_counter()
         st = self._st
         count = dr.width(st["hit"])
@@ -383,7 +390,8 @@ class ModelTruth:
     def _trace_reflection(self) -> tuple[np.ndarray, np.ndarray]:
         """``R`` per pixel and its variance ``(H, W)``: the share of the glossy lobe about each hit's
         shading normal, seen from its own ``v``, that escapes the displaced model (module docstring;
-        the plane's estimator and random streams, sample for sample where the rays are the plane's)."""
+        the plane's estimator and random streams, sample for sample where the rays are the plane's).
+        """
         t0 = time.perf_counter()
         st = self._st
         count = dr.width(st["hit"])
@@ -412,8 +420,9 @@ class ModelTruth:
         common.relight(self, elevation_deg)
 
     def render(self, azimuth_deg: float) -> Frame:
-        """The frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation
-        the scene's): :meth:`hzval.truth.plane.Truth.render`'s layers, ``mask`` the seen pixels."""
+        """Return the frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation
+        the scene's): :meth:`hzval.truth.plane.Truth.render`'s layers, ``mask`` the seen pixels.
+        """
         t0 = time.perf_counter()
         sc, st = self.scene, self._st
         L = self._light(azimuth_deg)
@@ -469,7 +478,8 @@ class ModelTruth:
 
     def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
         """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
-        (:func:`hzval.truth.common.mean_and_variance`), ``(H, W[, 3])`` float32 each."""
+        (:func:`hzval.truth.common.mean_and_variance`), ``(H, W[, 3])`` float32 each.
+        """
         spp, (H, W) = self.spp, self.shape
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
         if img is not None:
@@ -496,9 +506,10 @@ class ModelTruth:
     # -- what the techniques read ---------------------------------------------------------------
 
     def macro(self, direction) -> object:
-        """The base mesh's own visibility of the world direction ``direction`` per sample (``mi.Float``,
+        """Return the base mesh's own visibility of the world direction ``direction`` per sample (``mi.Float``,
         0 or 1): a shadow ray from the base point against the undisplaced model, which an engine's
-        shadow map answers. The last direction's is kept: every technique of a frame reads it."""
+        shadow map answers. The last direction's is kept: every technique of a frame reads it.
+        """
         key = tuple(float(c) for c in direction)
         if self._macro_key != key:
             st = self._own
@@ -511,8 +522,9 @@ class ModelTruth:
         return self._macro_value
 
     def macro_shadowed(self, azimuth_deg: float) -> float:
-        """The share of the seen pixels' samples that face the light (``n.L > 0``) but that the base
-        mesh shadows: what the engine's shadow map, not the technique, decides (``metrics.json``)."""
+        """Return the share of the seen pixels' samples that face the light (``n.L > 0``) but that the base
+        mesh shadows: what the engine's shadow map, not the technique, decides (``metrics.json``).
+        """
         direction = self.scene.light.direction(azimuth_deg)
         M = self.macro(direction)
         L = mi.Vector3f(*(float(c) for c in direction))
@@ -525,17 +537,19 @@ class ModelTruth:
     def handedness(self) -> np.ndarray:
         """``(H, W)`` int8: the sign ``w`` of the correct frames (:func:`hzval.geometry.tangents.handedness`:
         -1 where the UVs are mirrored) where every sample of a seen pixel has it, 0 elsewhere (a
-        pixel across a mirror seam, or unseen). A tangent bug does not change it."""
+        pixel across a mirror seam, or unseen). A tangent bug does not change it.
+        """
         t, b, n = (np.stack([np.asarray(c, np.float64) for c in self._own[k]], -1) for k in ("t", "b", "n"))
         w = tg.handedness(t, b, n).reshape(-1, self.spp)
         sign = np.where((w < 0).all(axis=1), -1, np.where((w > 0).all(axis=1), 1, 0)).reshape(self.shape)
         return np.where(self.seen, sign, 0).astype(np.int8)
 
     def samples(self, at: str = "camera") -> lookup.Samples:
-        """The techniques' :class:`hzval.scene.lookup.Samples`, with their frames: where the camera's rays
+        """Return the techniques' :class:`hzval.scene.lookup.Samples`, with their frames: where the camera's rays
         meet their surface (``"camera"``, as an engine shades: moved by the lookup's parallax mapping
         along each ray in its sample's tangent frame, with each pixel's footprint for a mip filter),
-        or at the truth's own hits (``"truth"``: perfect parallax, a view's second set of scores)."""
+        or at the truth's own hits (``"truth"``: perfect parallax, a view's second set of scores).
+        """
         st = self._own if at == "camera" else self._st
         xy = np.stack([np.asarray(st["x"], np.float64), np.asarray(st["y"], np.float64)], -1)
         frames = np.stack([np.asarray(c, np.float32) for k in ("t", "b", "n", "v") for c in st[k]], axis=-1)
@@ -567,16 +581,18 @@ class ModelTruth:
 
     def base_points(self) -> np.ndarray:
         """``(pixels * spp, 3)`` float64: the base mesh's point (world) under every sample's truth
-        hit, the point whose uv and frame the hit keeps (NaN where the sample misses)."""
+        hit, the point whose uv and frame the hit keeps (NaN where the sample misses).
+        """
         p = np.stack([np.asarray(c, np.float64) for c in self._st["pb"]], -1)
         p[~np.asarray(self._st["hit"], bool)] = np.nan
         return p
 
     def _engine_frames(self, frames: np.ndarray) -> np.ndarray:
-        """The techniques' frames with the scene's tangent bug (:mod:`hzval.geometry.tangent_bugs`; ``none``:
+        """Return the techniques' frames with the scene's tangent bug (:mod:`hzval.geometry.tangent_bugs`; ``none``:
         ``frames`` themselves). ``per-face`` takes the base triangle the camera's ray meets on the
         techniques' surface, for the truth's hits too (the same ray's, which differs from the
-        displaced hit's base triangle only within the relief's height of an edge)."""
+        displaced hit's base triangle only within the relief's height of an edge).
+        """
         bug = self.scene.mesh.tangent_bug
         prim = self._own["prim"]
         return tangent_bugs.apply(
@@ -586,7 +602,8 @@ class ModelTruth:
     def _footprints(self) -> np.ndarray:
         """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the
         next (:meth:`hzval.scene.camera.View.footprints` with the surface's hits for the plane's points;
-        ``wrap`` across the tile the short way; NaN where a ray misses)."""
+        ``wrap`` across the tile the short way; NaN where a ray misses).
+        """
 
         def points(o, d):
             ray = _rays(o, d)

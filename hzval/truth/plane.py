@@ -41,12 +41,13 @@ SIMULATES: tuple[str, ...] = (
 
 
 def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
-    """The elevation, degrees, whose rays the wrap margin holds without a hop: the light's
+    """Return the elevation, degrees, whose rays the wrap margin holds without a hop: the light's
     lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
     in every direction: ambient, reflection, paths) :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`;
     never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
     instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
-    memory with it)."""
+    memory with it).
+    """
     everywhere = any(scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
     if everywhere:
         return mesh.MIN_ELEVATION_DEG
@@ -56,7 +57,8 @@ def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
 def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
     """``(min_elevation_deg, margin)`` of the truth's mesh of heights ``h_texels`` (texels): the lowest
     elevation its rays are traced toward (the light's lowest direction, at most
-    :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``)."""
+    :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``).
+    """
     light = scene.light
     lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
     min_elevation = min(mesh.MIN_ELEVATION_DEG, lowest) if lowest > 0 else mesh.MIN_ELEVATION_DEG
@@ -72,7 +74,8 @@ def mesh_grid(scene: Scene, height: np.ndarray):
     """``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised ``height`` map
     for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.geometry.tile.cell_levels`
     at
-    ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle."""
+    ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle.
+    """
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
     min_elevation, margin = surface_margin(scene, h_tex)
@@ -89,7 +92,8 @@ def mesh_grid(scene: Scene, height: np.ndarray):
 def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
     """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
     included (:func:`mesh_grid`), counted without building it: what
-    :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh."""
+    :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh.
+    """
     return mesh.triangle_count(mesh_grid(scene, height)[1])
 
 
@@ -176,8 +180,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         self._trace_camera_rays()
 
     def _build_surface(self, h: np.ndarray) -> None:
-        """The displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
-
+        """Build the displaced mesh (with its wrap margin), the ray lift and the kernels' constants."""
         rows, cols = self.rows, self.cols
         mat, light = self.scene.material, self.scene.light
         t0 = time.perf_counter()
@@ -257,7 +260,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         self.timings["mesh_s"] = time.perf_counter() - t0
 
     def _check_positions(self, positions):
-        """The tests' own sample positions, flat float32, or ``None`` for the scene's."""
+        """Return the tests' own sample positions, flat float32, or ``None`` for the scene's."""
         if positions is None:
             return None
         xs, ys = (np.ascontiguousarray(p, dtype=np.float32).ravel() for p in positions)
@@ -269,8 +272,7 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         return xs, ys
 
     def _trace_ambient(self, st: "truth_samples.Samples"):
-        """``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
-
+        """Trace ``A`` per sample: a cosine-weighted direction escapes (independent of the light, once)."""
         t0 = time.perf_counter()
         rng = self._rng(common.AMBIENT_STREAM, st)
         # cosine-weighted about the shading normal; a direction into the triangle hit is blocked
@@ -295,7 +297,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         direction escapes; ``R`` and its variance: :func:`common.reflection_estimate`
         (a model's truth, :mod:`hzval.truth.model`, calls the same two).
         """
-
         t0 = time.perf_counter()
         rng = self._rng(common.REFLECTION_STREAM, st)
         wo, w = common.lobe_sample(
@@ -322,7 +323,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         are its disk's (elevation -+ radius), the same in every band: the hops they ask for
         suffice for each of its directions.
         """
-
         light = self.scene.light
         if light.kind == "hard":
             v = light.direction(azimuth_deg)
@@ -351,7 +351,6 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         lights that reach below the margin's elevation take the hops they
         need, stopping early once every ray is resolved.
         """
-
         if highest <= 0.0:
             return dr.zeros(mi.Float, dr.width(o))
         hops = self._hops_for(lowest)
@@ -431,8 +430,8 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Pixel means and variances of the mean (:func:`common.mean_and_variance`) over the samples of the
         band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;
-        only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``."""
-
+        only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``.
+        """
         sc = self.scene
         L, lowest, highest = self.light_directions(azimuth_deg, st)
         sums: dict[str, object] = {}

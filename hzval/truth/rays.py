@@ -1,6 +1,7 @@
 """The plane truth's rays: the camera's rays and their hits (CameraRays), shadow, ambient and reflection
 queries against the displaced tile with its hops across a wrapping tile (RayQueries), and the path
-tracer of ``interreflection`` (PathTracing). :class:`hzval.truth.plane.Truth` is made of them."""
+tracer of ``interreflection`` (PathTracing). :class:`hzval.truth.plane.Truth` is made of them.
+"""
 
 from __future__ import annotations
 
@@ -37,13 +38,15 @@ MIN_TRACED_ELEVATION_DEG = 0.25
 class CameraRays:
     """The truth's camera rays (a part of :class:`hzval.truth.plane.Truth`): where each sample of the
     view meets the displaced mesh, kept between frames or traced again band by band
-    (docs/internals.md, the truth's "Memory"), with the albedo and shading normal there."""
+    (docs/internals.md, the truth's "Memory"), with the albedo and shading normal there.
+    """
 
     def _trace_camera_rays(self) -> None:
         """Where every sample's camera ray meets the surface, once, and what does not depend on the
         light (``A``, ``R``). One band keeps its samples (:class:`samples.Samples`) for every frame; with
         more (docs/internals.md, the truth's "Memory") only ``A`` is kept, per band, and the reflection
-        layer."""
+        layer.
+        """
         t0 = time.perf_counter()
         self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
         self.seen, self.hits = None, None
@@ -91,10 +94,10 @@ class CameraRays:
             self.timings["bands_s"] = time.perf_counter() - t0
 
     def _camera_samples(self, first: int, stop: int) -> "truth_samples.Samples":
-        """The samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
+        """Return the samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
         (lifted origin, geometric and shading normal) and the albedo of the texel that holds each
-        (an expression over the positions: the kernels that read it gather it)."""
-
+        (an expression over the positions: the kernels that read it gather it).
+        """
         rows, cols, spp = self.rows, self.cols, self.spp
         xs, ys, seen = self._band_positions(first, stop)
         xs, ys, moved = truth_samples.off_edge_lines(xs, ys, rows, cols, self.edge_level)
@@ -122,13 +125,14 @@ class CameraRays:
         )
 
     def _albedo_at(self, x, y, active=True):
-        """The albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, the map's size opaque)."""
+        """Return the albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, the map's size opaque)."""
         return common.albedo_at(self._albedo_texels, self._c["rows"], self._c["cols"], x, y, active)
 
     def _band_positions(self, first: int, stop: int):
         """``(x, y, seen)`` of the samples of the pixels ``first <= p < stop``: the scene's top-view
         positions or the tests' (``seen`` None: all), or where the camera's rays meet the surface
-        (``seen``: which do; the others are put on the tile, and count for nothing)."""
+        (``seen``: which do; the others are put on the tile, and count for nothing).
+        """
         scene, spp = self.scene, self.spp
         if self.hits is not None:
             a, b = first * spp, stop * spp
@@ -149,7 +153,8 @@ class CameraRays:
     def _trace_view(self) -> None:
         """Trace every camera ray once (a view other than ``top``): :attr:`seen`, the pixels whose
         rays meet the surface, and, when the truth keeps its samples (:attr:`keeps`), :attr:`hits`
-        (float32 ``(x, y)`` of each sample's surface point, in the tile), which the frames reuse."""
+        (float32 ``(x, y)`` of each sample's surface point, in the tile), which the frames reuse.
+        """
         H, W = self.shape
         seen_px, hx, hy, hs = [], [], [], []
         for first, stop in self.bands:
@@ -167,8 +172,8 @@ class CameraRays:
         """Where the camera rays of the pixels ``first <= p < stop`` meet the surface: float32 ``x, y``
         in the tile (``wrap``: the endless tiling, in hops; ``open``: the tile alone) and which rays
         do. A ray first runs in float64, on the host, to just above the highest point (wrapped into
-        the tile), so that the float32 rays start near the surface whatever the eye's distance."""
-
+        the tile), so that the float32 rays start near the surface whatever the eye's distance.
+        """
         o, d = self.view.rays(self.spp, self.scene.seed, first, stop)
         down = d[:, 2] < 0.0
         top = self.z_max + 4.0 * self.lift + 1e-3
@@ -194,10 +199,10 @@ class CameraRays:
         return xs, ys, seen
 
     def _shading_samples(self, first: int, stop: int) -> "truth_samples.Samples":
-        """The samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
+        """Return the samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
         shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their visibility is
-        :meth:`_band_visibility`'s)."""
-
+        :meth:`_band_visibility`'s).
+        """
         xs, ys, _ = self._band_positions(first, stop)
         xs, ys, moved = truth_samples.off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
         x, y = mi.Float(xs), mi.Float(ys)
@@ -216,8 +221,8 @@ class CameraRays:
 
     def _band_visibility(self, azimuth_deg: float, st: "truth_samples.Samples"):
         """``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass` (a light not
-        of the scene's sweep gets its own pass)."""
-
+        of the scene's sweep gets its own pass).
+        """
         az = float(azimuth_deg)
         if az not in self._vis:
             self._vis.update(truth_bands.band_pass(self, [az]))
@@ -226,7 +231,7 @@ class CameraRays:
         return mi.Float(bits.astype(np.float32))
 
     def _frame_samples(self):
-        """The samples of every band for a frame: the kept ones, or each band's traced again."""
+        """Yield the samples of every band for a frame: the kept ones, or each band's traced again."""
         if self._kept is not None:
             yield from self._kept
             return
@@ -243,11 +248,13 @@ class RayQueries:
     """The truth's ray queries against the displaced mesh (a part of :class:`hzval.truth.plane.Truth`):
     where a ray from above meets the surface, whether a shadow ray is blocked, across a ``wrap``
     tile's hops, and the per-sample random streams. They read the Truth's Mitsuba scene and its
-    tile geometry."""
+    tile geometry.
+    """
 
     def _rng(self, stream: int, st: "truth_samples.Samples"):
-        """A PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
-        in the whole image: deterministic, and the same in a band as in one piece."""
+        """Return a PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
+        in the whole image: deterministic, and the same in a band as in one piece.
+        """
         return common.stream_rng(self.scene.seed, stream, st.start, st.count)
 
     def _surface_at(self, x, y, active=True, coherent: bool = False):
@@ -262,7 +269,6 @@ class RayQueries:
         plus :attr:`lift`: vertically above the height field, it is above
         every triangle around it (module docstring, "Self-intersection").
         """
-
         c = self._c
         px, py = x, y
         if self.scene.material.boundary == "open":
@@ -284,9 +290,9 @@ class RayQueries:
         return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
 
     def _shading_normal(self, x, y):
-        """The ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation
-        (module docstring, "Shading")."""
-
+        """Return the ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation
+        (module docstring, "Shading").
+        """
         c = self._c
         # u, v of hzval.core.conventions.tangent_to_uv, in the kernel
         uv = mi.Point2f(x / c["cols"], (c["rows"] - y) / c["rows"])
@@ -306,8 +312,7 @@ class RayQueries:
         return max(1, math.ceil(run / self._hop))
 
     def _advance(self, o, d, maxt):
-        """The point ``o + maxt d``, wrapped back into the tile (``wrap`` only)."""
-
+        """Return the point ``o + maxt d``, wrapped back into the tile (``wrap`` only)."""
         c = self._c
         p = o + d * maxt
         return mi.Point3f(
@@ -320,8 +325,8 @@ class RayQueries:
         + e]`` (``e`` = margin - 0.75: the mesh ends at margin - 0.5, a quarter texel kept for float32's
         rounding) in the ray's horizontal direction. At least :attr:`_hop` texels horizontally; a ray
         from inside the tile runs the tile's width or more, so a narrow margin costs hops only to the
-        rays that leave near the tile's edge."""
-
+        rays that leave near the tile's edge.
+        """
         c = self._c
         run_x = dr.select(d.x >= 0.0, c["cols"] + c["edge"] - o.x, o.x + c["edge"])
         run_y = dr.select(d.y >= 0.0, c["rows"] + c["edge"] - o.y, o.y + c["edge"])
@@ -341,7 +346,6 @@ class RayQueries:
         ``coherent`` tells Embree that neighbouring rays travel together
         (parallel shadow rays from neighbouring samples: about 30% faster).
         """
-
         active = d.z > 0.0
         if skip is not None:
             active &= ~skip
@@ -373,8 +377,8 @@ class RayQueries:
     def _hop_loop(self, o, d, active, hops: int, coherent, dynamic: bool):
         """``hops`` hops of the rays ``o + t d`` (``wrap``; ``o`` in the tile): ``(blocked, active, o)``,
         the rays that met the surface, those still under its top after the last hop, and where they
-        are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved."""
-
+        are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved.
+        """
         top = self._c["top"]
         blocked = mi.Bool(False)
         for i in range(hops):
@@ -401,7 +405,6 @@ class RayQueries:
         position is kept: the path continues from :meth:`_surface_at` there,
         with an exact, lifted origin.
         """
-
         if self.scene.material.boundary == "open":
             si = self.mi_scene.ray_intersect(mi.Ray3f(o, d), active)
             hit = active & si.is_valid()
@@ -430,7 +433,8 @@ class RayQueries:
 
 class PathTracing:
     """The truth's interreflection (a part of :class:`hzval.truth.plane.Truth`): paths up to the scene's
-    declared depth, as Mitsuba's ``path`` integrator would trace them on the displaced mesh."""
+    declared depth, as Mitsuba's ``path`` integrator would trace them on the displaced mesh.
+    """
 
     def _path_trace(self, st: "truth_samples.Samples", L1, vis1, azimuth_deg: float):
         """Radiance per sample of paths up to Mitsuba's ``max_depth`` = ``interreflection_depth``.
@@ -459,7 +463,6 @@ class PathTracing:
         tiling; every ray here takes the same robust origins and hops as the
         shadow rays.
         """
-
         sc = self.scene
         light = sc.light
         E_sky = self._c["E_sky"]
@@ -517,9 +520,9 @@ class PathTracing:
         return result
 
     def _light_sample(self, rng, centre, cos_max):
-        """A direction toward the light for a later path vertex: the centre of a hard light, or a
-        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius)."""
-
+        """Return a direction toward the light for a later path vertex: the centre of a hard light, or a
+        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius).
+        """
         if self.scene.light.kind != "soft":
             return centre
         return mi.Frame3f(centre).to_world(

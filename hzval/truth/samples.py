@@ -1,5 +1,6 @@
 """How the plane truth holds its samples: which are kept between frames, the bands of whole pixel rows
-they are traced in, and the samples that fall on a cell's edge."""
+they are traced in, and the samples that fall on a cell's edge.
+"""
 
 from __future__ import annotations
 
@@ -32,21 +33,24 @@ KEPT_BAND_SAMPLES = 1 << 22
 
 
 def bands(rows: int, cols: int, spp: int) -> list[tuple[int, int]]:
-    """The bands of pixels in which a truth of a ``rows x cols`` image at ``spp`` works
-    (:func:`band_ranges`)."""
+    """Return the bands of pixels in which a truth of a ``rows x cols`` image at ``spp`` works
+    (:func:`band_ranges`).
+    """
     return band_ranges((rows, cols), spp)
 
 
 def keeps_samples(rows: int, cols: int, spp: int) -> bool:
     """Whether a truth of a ``rows x cols`` image at ``spp`` keeps every sample's camera hit between
-    frames (up to :data:`KEEP_SAMPLES`; module docstring, "Memory")."""
+    frames (up to :data:`KEEP_SAMPLES`; module docstring, "Memory").
+    """
     return rows * cols * spp <= KEEP_SAMPLES
 
 
 def band_ranges(shape: tuple[int, int], spp: int, band_samples: int | None = None) -> list[tuple[int, int]]:
     """Whole rows of pixels, ``[(first, stop), ...]`` pixel indices, each of at most ``band_samples``
     samples (at least one row); default: bands of :data:`KEPT_BAND_SAMPLES` where the samples are
-    kept (:func:`keeps_samples`), else of :data:`BAND_SAMPLES`."""
+    kept (:func:`keeps_samples`), else of :data:`BAND_SAMPLES`.
+    """
     H, W = shape
     if band_samples is None:
         band_samples = KEPT_BAND_SAMPLES if keeps_samples(H, W, spp) else BAND_SAMPLES
@@ -58,7 +62,8 @@ def band_ranges(shape: tuple[int, int], spp: int, band_samples: int | None = Non
 class Samples:
     """The camera samples of a band of pixels ``first <= p < stop`` (samples ``start`` to ``start +
     count``): lifted origin ``o``, geometric normal ``n``, shading normal ``ns``, ``albedo`` (or
-    None), ``A`` (``ambient``, when declared), and how many were ``moved`` off a line of edges."""
+    None), ``A`` (``ambient``, when declared), and how many were ``moved`` off a line of edges.
+    """
 
     first: int
     stop: int
@@ -121,8 +126,7 @@ def off_edge_lines(
 
 
 def _on_edge_lines_index(xs: np.ndarray, ys: np.ndarray, level: int = 1) -> np.ndarray:
-    """Indices (int64) of the samples exactly on a line of mesh edges (:func:`off_edge_lines`)."""
-
+    """Return the indices (int64) of the samples exactly on a line of mesh edges (:func:`off_edge_lines`)."""
     i = dr.arange(mi.UInt32, xs.size)
     n = dr.opaque(mi.Float, float(level))
     x = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(xs, np.float32)), i)

@@ -117,7 +117,8 @@ class FitResult:
 class _Model(fit_model.LightBatches):
     """The horizon technique with its horizon texture replaced by differentiable parameters
     (:class:`hzval.techniques.fitted.model.LightBatches`: the lights' channel weights are the
-    technique's own, ``_channel_weights``, of each light's direction)."""
+    technique's own, ``_channel_weights``, of each light's direction).
+    """
 
     def __init__(self, scene, bake, k: float, storage: str, V_list: list[np.ndarray]):
         self.scene = fitted_training.fit_scene(scene)
@@ -145,7 +146,7 @@ class _Model(fit_model.LightBatches):
         self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(values, np.float32))))
 
     def factor(self, lights, a: int, b: int):
-        """The pixel means of F, light-major, of ``lights`` over pixels ``a..b`` (straight-through clamp)."""
+        """Return the pixel means of F, light-major, of ``lights`` over pixels ``a..b`` (straight-through clamp)."""
         L = fit_model.light_vectors(lights)
         w = self.ap._channel_weights(L)
         li, sample = self.sample_lanes(len(lights), a, b)
@@ -318,7 +319,7 @@ def fit(
 
 
 def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tolerance: float):
-    """The optimiser's map guarded against the baked map, on the training lights.
+    """Return the optimiser's map guarded against the baked map, on the training lights.
 
     :func:`hzval.techniques.fitted.guard.guard` through the fit's forward model, both maps stored
     alike; a block storage format guards whole blocks.
@@ -366,9 +367,9 @@ def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tole
 
 
 def truths(train, scene, height, lights, held_out, progress: bool):
-    """The truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
-    with a progress bar."""
-
+    """Return the truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
+    with a progress bar.
+    """
     with tqdm(
         total=len(lights) + len(held_out),
         desc="truth",
@@ -399,7 +400,8 @@ def _optimise(
 ):
     """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
     converged)``. ``constrain``: the step of the per-light weights
-    (:func:`hzval.techniques.fitted.model.reweight`; 0: none)."""
+    (:func:`hzval.techniques.fitted.model.reweight`; 0: none).
+    """
     model = _Model(scene, bake, k, storage, V_list)
     stored = hz_storage.get(storage)
     baked = None

@@ -45,7 +45,7 @@ ROUNDS = 8
 
 
 def neighbourhood_sum(x: np.ndarray, boundary: str, radius: int = 1) -> np.ndarray:
-    """The sum of ``x`` over each texel's ``(2 radius + 1)^2`` neighbourhood.
+    """Return the sum of ``x`` over each texel's ``(2 radius + 1)^2`` neighbourhood.
 
     Parameters
     ----------

@@ -54,7 +54,7 @@ class FittedHorizon(Horizon):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The horizon map it starts from, and the height map the truth it fits to is traced from."""
+        """Return the horizon map it starts from, and the height map the truth it fits to is traced from."""
         return super().bake_needs(scene) | {"height"}
 
     @classmethod
@@ -70,7 +70,8 @@ class FittedHorizon(Horizon):
         **settings,
     ) -> "FittedHorizon":
         """``lights``/``held_out``: the fit's training and held-out lights
-        (:func:`hzval.techniques.fitted.training.parse_lights`)."""
+        (:func:`hzval.techniques.fitted.training.parse_lights`).
+        """
         storage = storage or "float"
         _, sines, record, cached = fitted_store.cached_fit(
             ctx.height,
@@ -149,7 +150,8 @@ class FittedHorizon(Horizon):
     def frame_extras(cls, scores: dict) -> dict:
         """``split``, beside the baked map's scores: its mean ``|F - V|`` as ``bake_loss`` (baked minus
         fitted: what a better baker could win back) and ``representation`` (the fitted map's: what
-        eight interpolated directions and one ``k`` ramp cannot hold); nothing without both."""
+        eight interpolated directions and one ``k`` ramp cannot hold); nothing without both.
+        """
         baked, fitted = scores.get(Horizon.name), scores.get(cls.name)
         if (
             not baked

@@ -61,8 +61,9 @@ class LightBatches:
     """
 
     def setup(self, V_list: list[np.ndarray], masks: list[np.ndarray] | None = None) -> None:
-        """Groups, bands and the truth's ``V`` of every light, one copy, light-major; ``masks``: per
-        light, the pixels the loss counts (``None``: all)."""
+        """Set up the groups, bands and the truth's ``V`` of every light, one copy, light-major; ``masks``: per
+        light, the pixels the loss counts (``None``: all).
+        """
         self.group = max(1, fitted_training.BAND_SAMPLES // (self.P * self.spp))
         band = max(1, fitted_training.BAND_SAMPLES // self.spp)
         self.bands = [(a, min(self.P, a + band)) for a in range(0, self.P, band)]
@@ -78,7 +79,7 @@ class LightBatches:
             self.W = mi.Float(W)
 
     def factor(self, lights, a: int, b: int):
-        """The pixel means of ``F`` over pixels ``a..b`` of each of ``lights``, light-major."""
+        """Return the pixel means of ``F`` over pixels ``a..b`` of each of ``lights``, light-major."""
         raise NotImplementedError
 
     def upload(self, values) -> None:
@@ -93,12 +94,13 @@ class LightBatches:
         return li, lane - li * n + a * self.spp
 
     def pixel_mean(self, F):
-        """The mean of ``F`` over each pixel's consecutive samples."""
+        """Return the mean of ``F`` over each pixel's consecutive samples."""
         return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
 
     def errors(self, values, lights, V_list):
         """``|F - V|`` ``(rows, cols)`` float32 per light of ``lights`` (and the ``V`` they were given in)
-        of ``values`` as stored, without gradients."""
+        of ``values`` as stored, without gradients.
+        """
         with dr.suspend_grad():
             self.upload(values)
             for first in range(0, len(lights), self.group):
@@ -114,7 +116,7 @@ class LightBatches:
                     yield np.abs(f.reshape(self.rows, self.cols) - V_list[first + i])
 
     def light_losses(self, values, lights, V_list) -> np.ndarray:
-        """The Charbonnier loss of each light (its pixels' mean) of ``values`` as stored."""
+        """Return the Charbonnier loss of each light (its pixels' mean) of ``values`` as stored."""
         eps = CHARBONNIER_EPS
         masks = self.masks if self.masks is not None else [1.0] * len(lights)
         return np.array(
@@ -127,7 +129,8 @@ class LightBatches:
     def backward(self, indices, lights, scale: float, weights=None, per_light=None) -> float:
         """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
         and the V they were given in), each light's loss times ``weights[i]`` if given; return the
-        unweighted loss (a float) and put each light's into ``per_light[i]`` if given."""
+        unweighted loss (a float) and put each light's into ``per_light[i]`` if given.
+        """
         total = 0.0
         for first in range(0, len(indices), self.group):
             group = [int(i) for i in indices[first : first + self.group]]
@@ -155,7 +158,7 @@ class LightBatches:
 
 
 def reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: float) -> np.ndarray:
-    """The per-light weights after an epoch: ``1 + lambda``, each light's multiplier ``lambda`` raised by
+    """Return the per-light weights after an epoch: ``1 + lambda``, each light's multiplier ``lambda`` raised by
     ``step`` times its relative excess over the baked loss (clipped to [-1, 1]; its floor
     :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light worse than the bake").
 
@@ -217,7 +220,6 @@ def optimise(
     tuple
         ``(opt, loss per epoch, seconds per epoch, steps, converged)``.
     """
-
     opt = mi.ad.Adam(lr=lr)
     for key, value in start.items():
         opt[key] = type(value)(value)
@@ -267,9 +269,10 @@ def clip_unit(opt, key: str) -> None:
 
 
 def run_record(result, through: str) -> dict:
-    """What every ``fit.json`` records of a fit's run: the errors before and after and their ratio,
+    """Return what every ``fit.json`` records of a fit's run: the errors before and after and their ratio,
     the loss per epoch (``through``: what its gradient passes straight through), the epochs, steps,
-    seconds and lights of ``result`` (a fit's result dataclass)."""
+    seconds and lights of ``result`` (a fit's result dataclass).
+    """
     m = result.mae
     return {
         "mae": m,

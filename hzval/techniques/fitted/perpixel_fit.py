@@ -31,7 +31,7 @@ SCORE = "visibility_mae_facing"
 
 
 def split(shipped: dict | None, fitted: dict | None, key: str = SCORE) -> dict:
-    """A frame's ``split`` of the shipped technique's error: ``bake_loss`` (shipped minus fitted) and
+    """Return a frame's ``split`` of the shipped technique's error: ``bake_loss`` (shipped minus fitted) and
     ``representation`` (the fitted error); ``{}`` without both scores.
 
     Examples
@@ -64,7 +64,7 @@ class FittedTextures:
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The textures it starts from, and the height map the truth it fits to is traced from."""
+        """Return the textures it starts from, and the height map the truth it fits to is traced from."""
         return super().bake_needs(scene) | {"height"}
 
     @classmethod
@@ -77,7 +77,8 @@ class FittedTextures:
         **settings,
     ):
         """``lights``/``held_out``: the fit's training and held-out lights; ``settings``: the shipped
-        technique's (its storage and variant, which the fit keeps)."""
+        technique's (its storage and variant, which the fit keeps).
+        """
         folder = None if ctx.cache is None else ctx.cache / cls.file_stem
         planes, record, cached = fitted_store.cached_texture_fit(
             ctx.height,
@@ -105,11 +106,11 @@ class FittedTextures:
         return self.fitted[name] if self.fitted is not None else super().plane(name)
 
     def plane_name(self, name: str) -> str:
-        """The fitted planes are its own, never shared with the shipped technique's."""
+        """Return the fitted planes are its own, never shared with the shipped technique's."""
         return f"{super().plane_name(name)}:{self.name}"
 
     def stored_plane(self, name: str) -> np.ndarray:
-        """The fit's planes are what the GPU samples already (the storage, decoded)."""
+        """Return the fit's planes are what the GPU samples already (the storage, decoded)."""
         return (
             np.asarray(self.plane(name), np.float32)
             if self.fitted is not None
@@ -118,7 +119,7 @@ class FittedTextures:
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
-        """The shipped technique's checks, the fit's lights aside."""
+        """Run the shipped technique's checks, the fit's lights aside."""
         own = {k: v for k, v in settings.items() if k not in ("lights", "held_out")}
         super().check_settings(bake_params, own)
         for key in ("lights", "held_out"):
@@ -131,7 +132,7 @@ class FittedTextures:
 
     @classmethod
     def tradeoff_variants(cls) -> list:
-        """The shipped technique's storages, each fitted (``hzval tradeoff --fits``)."""
+        """Return the shipped technique's storages, each fitted (``hzval tradeoff --fits``)."""
         shipped = cls.fitted_from
         return [
             dataclasses.replace(v, name=v.name.replace(shipped.label, cls.label, 1))

@@ -1,5 +1,6 @@
 """A fit kept on disk: its files in the bake's layout and ``fit.json`` (:func:`write_fit`,
-:func:`read_fit`), and the cache a sweep reuses a fit from (:func:`cache_key`, :func:`cached_fit`)."""
+:func:`read_fit`), and the cache a sweep reuses a fit from (:func:`cache_key`, :func:`cached_fit`).
+"""
 
 from __future__ import annotations
 
@@ -49,7 +50,6 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
     list of pathlib.Path
         The files written.
     """
-
     layers = [
         result.horizon[..., c : c + cv.CHANNELS_PER_LAYER]
         for c in range(0, result.horizon.shape[-1], cv.CHANNELS_PER_LAYER)
@@ -60,8 +60,8 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
 
 def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
     """``NAME.exr`` and ``NAME.png`` of each ``images[NAME] = (EXR channels, PNG values in [0, 1])``
-    and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing."""
-
+    and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing.
+    """
     with staging.Staging(out) as stage:
         for name, (channels, shown) in images.items():
             codecs.write_exr(stage.path(f"{name}.exr"), channels, atomic=False, compression="none")
@@ -80,7 +80,7 @@ def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
 
 
 def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
-    """A fit written by :func:`write_fit`.
+    """Return a fit written by :func:`write_fit`.
 
     Parameters
     ----------
@@ -99,7 +99,6 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
     hzval.core.errors.InputError
         For a missing or malformed ``fit.json``.
     """
-
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
     layers = [
@@ -127,7 +126,6 @@ def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path
     list of pathlib.Path
         The files written.
     """
-
     images = {}
     for t, plane in result.planes.items():
         channels = {"Y": plane} if plane.ndim == 2 else {"RGB": plane}
@@ -137,7 +135,7 @@ def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path
 
 
 def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
-    """A texture fit written by :func:`write_texture_fit`: ``(planes by texture, fit.json)``.
+    """Return a texture fit written by :func:`write_texture_fit`: ``(planes by texture, fit.json)``.
 
     Parameters
     ----------
@@ -149,7 +147,6 @@ def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
     tuple
         ``({texture: float32 array}, record)``.
     """
-
     folder = Path(folder)
     record = documents.read_json(folder / "fit.json")
     planes = {}
@@ -160,7 +157,7 @@ def read_texture_fit(folder: str | Path) -> tuple[dict, dict]:
 
 
 def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
-    """The digest a cached fit is reused by.
+    """Return the digest a cached fit is reused by.
 
     Parameters
     ----------
@@ -195,7 +192,7 @@ def cache_key(height: np.ndarray, bake, scene, settings: dict) -> str:
 def cached_fit(
     height: np.ndarray, bake, scene, folder: str | Path | None, *, progress: bool = False, **settings
 ) -> tuple[fit.FitResult | None, np.ndarray, dict, bool]:
-    """The fit in ``folder`` when its key and file digests match, else a new one written there.
+    """Return the fit in ``folder`` when its key and file digests match, else a new one written there.
 
     Parameters
     ----------
@@ -214,7 +211,6 @@ def cached_fit(
     tuple
         ``(result or None, sines, record, cached)``: ``result`` is ``None`` for a cached fit.
     """
-
     key = cache_key(height, bake, scene, settings)
     if _holds(folder, key):
         sines, record = read_fit(folder)
@@ -227,9 +223,10 @@ def cached_fit(
 
 
 def _holds(folder, key: str) -> bool:
-    """Whether ``folder`` holds the fit of ``key``, every file as written. A missing, damaged or
-    hand-edited cache does not; nothing outside the folder is read."""
+    """Whether ``folder`` holds the fit of ``key``, every file as written.
 
+    A missing, damaged or hand-edited cache does not; nothing outside the folder is read.
+    """
     if folder is None:
         return False
     folder = Path(folder)
@@ -253,7 +250,7 @@ def cached_texture_fit(
     progress: bool = False,
     **settings,
 ) -> tuple[dict, dict, bool]:
-    """A technique's texture fit from ``folder`` when its key and file digests match, else a new one
+    """Return a technique's texture fit from ``folder`` when its key and file digests match, else a new one
     written there (:func:`cached_fit`'s rules).
 
     Parameters
@@ -274,7 +271,6 @@ def cached_texture_fit(
     tuple
         ``(planes, record, cached)``.
     """
-
     key = cache_key(height, bake, scene, {"technique": name, **settings})
     if _holds(folder, key):
         planes, record = read_texture_fit(folder)

@@ -52,7 +52,7 @@ __all__ = [
 
 
 def fittable() -> list[str]:
-    """The registered techniques whose textures can be fitted: per-pixel factors that read textures."""
+    """Return the registered techniques whose textures can be fitted: per-pixel factors that read textures."""
     out = []
     for name in technique.names():
         cls = technique.get(name)
@@ -66,7 +66,7 @@ def fittable() -> list[str]:
 
 
 def check_fittable(name: str, flag: str = "--technique") -> type:
-    """The class of technique ``name`` if its textures can be fitted, else one line naming ``flag``."""
+    """Return the class of technique ``name`` if its textures can be fitted, else one line naming ``flag``."""
     if name not in fittable():
         raise InputError(flag, f"cannot fit {name!r}; fittable: horizon, {', '.join(fittable())}")
     return technique.get(name)
@@ -135,7 +135,8 @@ class TextureModel(fit_model.LightBatches):
 
     def _layout(self, packed: np.ndarray) -> None:
         """Where each fitted texture's channels sit in the packed texture: per packed value, whether
-        it is the texture's and which of its parameter's values it is; the rest stay ``packed``'s."""
+        it is the texture's and which of its parameter's values it is; the rest stay ``packed``'s.
+        """
         texels, self.C = self.rows * self.cols, packed.shape[-1]
         slots = self.kernel.slots
         self.widths, self._mask, self._index = {}, {}, {}
@@ -150,12 +151,13 @@ class TextureModel(fit_model.LightBatches):
         self._constant = mi.Float(lookup.aligned(packed.ravel()))
 
     def stored(self, t: str, values: np.ndarray) -> np.ndarray:
-        """What the shader samples of texture ``t``'s ``values`` ``(rows, cols, channels)`` in the
-        technique's storage."""
+        """Return what the shader samples of texture ``t``'s ``values`` ``(rows, cols, channels)`` in the
+        technique's storage.
+        """
         return perpixel.stored(values, self.tech.storage[t], signed=self.tech.texture(t).signed)
 
     def _packed(self, values: dict):
-        """The packed texture with ``values`` (by texture; Dr.Jit tensors, gradients kept) in place."""
+        """Return the packed texture with ``values`` (by texture; Dr.Jit tensors, gradients kept) in place."""
         out = self._constant
         for t in self.names:
             out = dr.select(
@@ -182,7 +184,7 @@ class TextureModel(fit_model.LightBatches):
             )
 
     def factor(self, lights, a: int, b: int):
-        """The pixel means of the technique's ``F`` (clamped to [0, 1] straight through), light-major."""
+        """Return the pixel means of the technique's ``F`` (clamped to [0, 1] straight through), light-major."""
         L = fit_model.light_vectors(lights)
         li, sample = self.sample_lanes(len(lights), a, b)
         u, v = self.kernel.positions(sample)
@@ -202,7 +204,8 @@ def _directions(lights) -> list:
 
 def facing_errors(model: TextureModel, values: dict, lights, V) -> list[float]:
     """Each light's mean ``|F - V|`` over the pixels facing it (the sweep's ``visibility_mae_facing``;
-    0 where none does)."""
+    0 where none does).
+    """
     out = []
     for e, (el, az) in zip(model.errors(values, lights, V), lights):
         m = hzfacing.facing_mask(model.tech.bake.normal, cv.light_direction(az, el))
@@ -211,11 +214,13 @@ def facing_errors(model: TextureModel, values: dict, lights, V) -> list[float]:
 
 
 def _release() -> None:
-    """Free the fit's arrays now. Many wrap NumPy memory without a copy (the LLVM backend's zero-copy
-    views), whose release is a host callback; collected later, inside the symbolic loop of a sweep's
-    next kernel, the callback cannot be recorded and Dr.Jit aborts (``enqueue_host_func(): this
-    function cannot be recorded``: four fits in one sweep did)."""
+    """Free the fit's arrays now.
 
+    Many wrap NumPy memory without a copy (the LLVM backend's zero-copy views), whose release is a host
+    callback; collected later, inside the symbolic loop of a sweep's next kernel, the callback cannot be
+    recorded and Dr.Jit aborts (``enqueue_host_func(): this function cannot be recorded``: four fits in one
+    sweep did).
+    """
     gc.collect()
     dr.sync_thread()
 
@@ -255,7 +260,7 @@ SEARCH_STRIDE = 8
 def search(
     model: TextureModel, t: str, values: dict, lights, V: list[np.ndarray]
 ) -> tuple[np.ndarray, float]:
-    """The best of 256 levels for each texel of the one-channel texture ``t``, the others as ``values``.
+    """Return the best of 256 levels for each texel of the one-channel texture ``t``, the others as ``values``.
 
     Each candidate level is tried at every texel at once and scored by its pixel's ``|F - V|`` over
     the lights, where the pixel faces each, each light weighted by one over its facing pixels (the
@@ -325,7 +330,8 @@ def _refine(best: np.ndarray, cost, boundary: str) -> np.ndarray:
     move at once and each move's cost is exactly the change over its own neighbourhood. Every
     lattice tries :data:`REFINE_OFFSETS`; a texel keeps a move that lowers its neighbourhood's cost.
     The levels are kept only where the whole map's cost falls (a wrapped side not a multiple of 3
-    puts two lattice texels closer across the seam)."""
+    puts two lattice texels closer across the seam).
+    """
     current = cost(best)
     out = best.copy()
     rows, cols = best.shape
@@ -356,19 +362,21 @@ def _mean_error(model: TextureModel, values: dict, lights, V) -> float:
 def separable(model: TextureModel) -> bool:
     """Whether the technique reads one one-channel texture (the micro-shadowing techniques' AO): its
     factor at a sample is then a function of that texel's value alone (and the normal map's), and the
-    loss separates per texel up to the filter (:func:`search`)."""
+    loss separates per texel up to the filter (:func:`search`).
+    """
     return len(model.names) == 1 and model.widths[model.names[0]] == 1
 
 
 def _fit(model: TextureModel, cls, baked: dict, lights, V, adam: dict):
-    """The textures that do best on the training lights: one one-channel texture searched per texel
+    """Return the textures that do best on the training lights: one one-channel texture searched per texel
     (:func:`search`); several textures, or one of several channels, by Adam from the bake
     (:func:`hzval.techniques.fitted.model.optimise`) with the horizon fit's per-light weights. A
     search over one texture of several would trade the lights between the training elevations away
     (bent-cone's AO alone: ridges at 25 degrees 0.0215 -> 0.0241 over pixels facing the light). The
     result is kept only where it lowers the training error, so it is never worse there than the bake.
 
-    Returns ``(textures as stored, loss per epoch, seconds per epoch, steps, converged, steps taken)``."""
+    Returns ``(textures as stored, loss per epoch, seconds per epoch, steps, converged, steps taken)``.
+    """
     values, current, how = dict(baked), _mean_error(model, baked, lights, V), []
     curve, times, steps, converged = [], [], 0, True
     if separable(model):

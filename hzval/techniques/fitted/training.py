@@ -1,6 +1,7 @@
 """What a fit trains on and what it costs: its lights (:func:`parse_lights`), its samples, its scene
 (shadows only, the top view), the truth's visibility of every light from one set-up, the errors of a
-map on them, and the memory it needs (:func:`estimate_bytes`, :func:`check_fits`)."""
+map on them, and the memory it needs (:func:`estimate_bytes`, :func:`check_fits`).
+"""
 
 from __future__ import annotations
 
@@ -89,7 +90,7 @@ def check_held_out(lights, held_out) -> None:
 
 
 def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float], ...]:
-    """The training (or held-out) lights of a spec.
+    """Return the training (or held-out) lights of a spec.
 
     Parameters
     ----------
@@ -133,7 +134,7 @@ def parse_lights(spec: str, what: str = "--lights") -> tuple[tuple[float, float]
 
 
 def training_spp(spp: int, pixels: int) -> int:
-    """Samples per pixel of the training lights' truth and forward model.
+    """Return the samples per pixel of the training lights' truth and forward model.
 
     Parameters
     ----------
@@ -151,7 +152,7 @@ def training_spp(spp: int, pixels: int) -> int:
 
 
 def fit_scene(scene) -> "sc.Scene":
-    """The scene the fit renders, from a sweep's.
+    """Return the scene the fit renders, from a sweep's.
 
     Shadows only (``V`` and ``F`` are all it compares), a hard light, the ``top`` view with the
     default lookup (a pixel a texel, bilinear), whatever view the sweep has: the fitted map is a
@@ -166,7 +167,6 @@ def fit_scene(scene) -> "sc.Scene":
     -------
     hzval.scene.spec.Scene
     """
-
     light = dataclasses.replace(scene.light, kind="hard", radius_deg=0.0)
     return dataclasses.replace(
         scene, effects=("shadow",), light=light, camera=Camera(), lookup=lookup.Lookup()
@@ -174,7 +174,7 @@ def fit_scene(scene) -> "sc.Scene":
 
 
 def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
-    """The truth's visibility of each light, from one set-up.
+    """Return the truth's visibility of each light, from one set-up.
 
     One :class:`hzval.truth.plane.Truth`, set up for the lowest elevation of ``lights``, renders them
     all: its mesh's tolerance and wrap margin serve every higher light (a higher ray clears the
@@ -197,7 +197,6 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
     list of numpy.ndarray
         ``(H, W)`` float32 ``V``, one per light, in order.
     """
-
     base = fit_scene(scene)
     elevations = sorted(dict.fromkeys(e for e, _ in lights))
     if not elevations:
@@ -220,7 +219,7 @@ def visibility(scene, height: np.ndarray, lights, bar=None) -> list[np.ndarray]:
 
 
 def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
-    """The fit's estimated peak memory.
+    """Return the fit's estimated peak memory.
 
     The truth's ``V`` of every light, beside the larger of the truth's own peak while it renders
     (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene`` is given) and
@@ -276,7 +275,6 @@ def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=Non
     hzval.core.errors.InputError
         One line (:func:`hzval.core.resources.refuse_over`).
     """
-
     return resources.refuse_over(
         what,
         estimate_bytes(rows, cols, spp, lights, scene),

@@ -56,7 +56,7 @@ class Unavailable(Exception):
 
 
 def context():
-    """The process's headless moderngl context (made at the first call), or :class:`Unavailable`."""
+    """Return the process's headless moderngl context (made at the first call), or :class:`Unavailable`."""
     global _context
     if _context is not None:
         return _context
@@ -80,7 +80,7 @@ def context():
 
 
 def info() -> dict:
-    """The context's GL version, renderer and vendor (for ``metrics.json``), and Mesa's ``GALLIVM_PERF``."""
+    """Return the context's GL version, renderer and vendor (for ``metrics.json``), and Mesa's ``GALLIVM_PERF``."""
     c = context().info
     out = {"version": c["GL_VERSION"], "renderer": c["GL_RENDERER"], "vendor": c["GL_VENDOR"]}
     if os.environ.get("GALLIVM_PERF"):
@@ -89,7 +89,7 @@ def info() -> dict:
 
 
 def shader_source(name: str) -> str:
-    """The text of a shader shipped with hzval.
+    """Return the text of a shader shipped with hzval.
 
     Parameters
     ----------
@@ -104,8 +104,9 @@ def shader_source(name: str) -> str:
 
 
 def _band_texture(ctx, values: np.ndarray, components: int):
-    """A float32 texture of ``components`` per texel holding ``values`` ``(n, components)`` row by row,
-    :data:`BAND_WIDTH` wide (the last row padded), read with ``texelFetch``."""
+    """Return a float32 texture of ``components`` per texel holding ``values`` ``(n, components)`` row by row,
+    :data:`BAND_WIDTH` wide (the last row padded), read with ``texelFetch``.
+    """
     n = values.shape[0]
     width = min(BAND_WIDTH, max(n, 1))
     rows = -(-n // width)
@@ -146,7 +147,8 @@ class SamplePass:
 
     def _footprints(self, samples):
         """Per-pixel ``(du/dcol, dv/dcol, du/drow, dv/drow)``: texels to texture coordinates
-        (``u = x / cols``, ``v = (rows - y) / rows``); zeros (level 0) without footprints."""
+        (``u = x / cols``, ``v = (rows - y) / rows``); zeros (level 0) without footprints.
+        """
         fp = samples.footprint
         if fp is None:
             values = np.zeros((1, 4), np.float32)
@@ -163,8 +165,9 @@ class SamplePass:
                 self.program[name].value = value
 
     def run(self, textures: dict) -> np.ndarray:
-        """The pixel means of the pass's output, float32 ``shape``; ``textures`` maps sampler
-        uniform names to moderngl textures (the sample and footprint textures are bound here)."""
+        """Return the pixel means of the pass's output, float32 ``shape``; ``textures`` maps sampler
+        uniform names to moderngl textures (the sample and footprint textures are bound here).
+        """
         units = {"samplePositions": None, "pixelFootprints": self.footprints, **textures}
         for unit, name in enumerate(units):
             if name in self.program:

@@ -89,7 +89,7 @@ class _GLTechnique(surface.HeightFieldShadow):
         return []
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """The unshadowed shading times the pixel mean of the shader's ``F``; ``seconds`` the wall time."""
+        """Return the unshadowed shading times the pixel mean of the shader's ``F``; ``seconds`` the wall time."""
         t0 = time.perf_counter()
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         F = self.factor(azimuth_deg, e)
@@ -97,8 +97,11 @@ class _GLTechnique(surface.HeightFieldShadow):
 
 
 class HorizonGL(_GLTechnique):
-    """Listing 5.1 on OpenGL (module docstring). ``k``: the shadow hardness; ``storage``: the horizon
-    map's (:data:`hzval.io.storage.STORAGES`, not the ``-sqrt`` ones: the shader samples sines)."""
+    """Listing 5.1 on OpenGL (module docstring).
+
+    ``k``: the shadow hardness; ``storage``: the horizon map's (:data:`hzval.io.storage.STORAGES`, not the
+    ``-sqrt`` ones: the shader samples sines).
+    """
 
     name = "horizon-gl"
     label = "horizon map on OpenGL"
@@ -111,8 +114,9 @@ class HorizonGL(_GLTechnique):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """The horizon map, and what the unshadowed shading reads
-        (:class:`hzval.techniques.surface.HeightFieldShadow`)."""
+        """Return the horizon map, and what the unshadowed shading reads
+        (:class:`hzval.techniques.surface.HeightFieldShadow`).
+        """
         return super().bake_needs(scene) | {"horizon_map"}
 
     def __init__(
@@ -181,7 +185,8 @@ class HorizonGL(_GLTechnique):
 
 class PomGL(_GLTechnique):
     """The ``pom`` march in GLSL (``hzval/techniques/gl/shaders/pom_shadow.glsl``) on OpenGL: settings as
-    :class:`hzval.techniques.pom.RayMarchShadow`'s."""
+    :class:`hzval.techniques.pom.RayMarchShadow`'s.
+    """
 
     name = "pom-gl"
     label = "ray-marched shadows on OpenGL"
@@ -238,7 +243,8 @@ class PomGL(_GLTechnique):
 
     def factor(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
         """Pixel means of the shader's ``F`` (lights at or above the zenith light everything, at or
-        below the horizon nothing, as :mod:`hzval.techniques.pom`)."""
+        below the horizon nothing, as :mod:`hzval.techniques.pom`).
+        """
         if elevation_deg >= 90.0:
             return np.ones(self.shape, np.float32)
         if elevation_deg <= 0.0:
@@ -273,14 +279,14 @@ def _validate(bake, k: float, storage: str) -> None:
 
 
 def _layers(level: np.ndarray, u8: bool) -> bytes:
-    """A level ``(rows, cols, 8)`` as the array texture's two RGBA layers, layer-major."""
+    """Return a level ``(rows, cols, 8)`` as the array texture's two RGBA layers, layer-major."""
     n = cv.CHANNELS_PER_LAYER
     layers = np.stack([level[..., :n], level[..., n : 2 * n]])
     return np.ascontiguousarray(unit_to_u8(layers) if u8 else layers.astype(np.float32)).tobytes()
 
 
 def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
-    """The horizon map's 2-D array texture with its levels (module docstring)."""
+    """Return the horizon map's 2-D array texture with its levels (module docstring)."""
     lk = scene.lookup
     chain, blocks = _stored_chain(horizon, storage, lk)
     u8 = storage != "float"
@@ -311,7 +317,8 @@ def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
 def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarray], list[list[bytes]]]:
     """``(levels, blocks)``: what the GPU samples at each level (level 0 alone without a mip
     filter), each made from the stored one below and stored again (:func:`hzval.scene.lookup.mip_chain`'s
-    ``quantise``, as ``--path gpu`` makes them); for ``bc7`` each level's encoded blocks per layer."""
+    ``quantise``, as ``--path gpu`` makes them); for ``bc7`` each level's encoded blocks per layer.
+    """
     st = hz_storage.get(storage)
     keep = storage == "bc7"
     blocks: list[list[bytes]] = []
@@ -335,7 +342,7 @@ def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarra
 
 
 def _cube_texture(ctx):
-    """The 16 x 16 RGBA8 weight cube map, faces +x, -x, +y, -y, +z, -z; bilinear, level 0 only."""
+    """Return the 16 x 16 RGBA8 weight cube map, faces +x, -x, +y, -y, +z, -z; bilinear, level 0 only."""
     faces = weight_cube(CUBE_SIZE)
     tex = ctx.texture_cube(
         (CUBE_SIZE, CUBE_SIZE), 4, b"".join(np.ascontiguousarray(f).tobytes() for f in faces)
@@ -348,7 +355,7 @@ _gl_functions: dict = {}
 
 
 def _gl_function(name: str, *argtypes):
-    """A GL entry point through EGL (moderngl has no per-level upload for array textures)."""
+    """Return a GL entry point through EGL (moderngl has no per-level upload for array textures)."""
     if name not in _gl_functions:
         egl = ctypes.CDLL("libEGL.so.1")
         egl.eglGetProcAddress.restype = ctypes.c_void_p
