@@ -23,6 +23,20 @@ def test_a_public_name_is_found_in_its_module():
         geometry.no_such_name  # noqa: B018
 
 
+def test_a_name_two_modules_define_is_not_re_exported():
+    """Two modules' ``VARIANTS`` are different tuples: the package names neither rather than the
+    first alphabetically; a name one module defines and another aliases is the defining module's."""
+    from hzval import techniques
+    from hzval.techniques import pom
+    from hzval.techniques.fitted import fit, model
+
+    owner = stubs.owners(PACKAGE / "techniques")
+    assert owner["VARIANTS"] is None and not hasattr(techniques, "VARIANTS")
+    assert pom.VARIANTS != techniques.bent_cone.VARIANTS
+    assert stubs.owners(PACKAGE / "techniques" / "fitted")["HALVINGS"] == "model"
+    assert techniques.fitted.HALVINGS is model.HALVINGS is fit.HALVINGS
+
+
 def test_every_stub_is_current():
     """Each ``__init__.pyi`` is what tests/stubs.py writes from the modules' ``__all__`` now."""
     stale = [

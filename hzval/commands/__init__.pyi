@@ -2,7 +2,6 @@
 from . import bake, check, export_scene, export_textures, fit, gates, materials, models, score, suite, sweep, tradeoff, views
 from .bake import (
     BakeRun as BakeRun,
-    run as run,
 )
 from .check import (
     Tiers as Tiers,

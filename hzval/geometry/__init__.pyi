@@ -10,7 +10,6 @@ from .cells import (
     mesh as mesh,
 )
 from .displace import (
-    BYTES_PER_TRIANGLE as BYTES_PER_TRIANGLE,
     Refined as Refined,
     refine as refine,
     estimate as estimate,
@@ -33,7 +32,6 @@ from .model import (
     WELD_TOLERANCE as WELD_TOLERANCE,
     MAX_DEGENERATE_UV_AREA as MAX_DEGENERATE_UV_AREA,
     UP_AXES as UP_AXES,
-    Y_UP_TO_Z_UP as Y_UP_TO_Z_UP,
     BaseMesh as BaseMesh,
     weld_ids as weld_ids,
     edge_table as edge_table,
@@ -64,6 +62,7 @@ from .tangent_bugs import (
     face_frames_at as face_frames_at,
 )
 from .tangents import (
+    Y_UP_TO_Z_UP as Y_UP_TO_Z_UP,
     METHODS as METHODS,
     resolve as resolve,
     DEGENERATE_UV as DEGENERATE_UV,

@@ -22,7 +22,6 @@ from .compare import (
     delta_e2000_colour as delta_e2000_colour,
     Reference as Reference,
     IMAGE_METRICS as IMAGE_METRICS,
-    flip_error as flip_error,
     image_metrics as image_metrics,
     pooled_psnr_db as pooled_psnr_db,
 )

@@ -2,7 +2,6 @@
 from . import bug_signatures, curvature_band, seam_share
 from .bug_signatures import (
     CASES as CASES,
-    measure as measure,
     run as run,
     page_context as page_context,
 )

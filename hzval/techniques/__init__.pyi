@@ -2,7 +2,6 @@
 from . import bent_cone, cubemap, horizon, horizon_curved, microshadow_filament, microshadow_hdrp, perpixel, pom, registry, ssbump, surface, terminator, terrain, fitted, gl
 from .bent_cone import (
     BentCone as BentCone,
-    VARIANTS as VARIANTS,
     INTERSECTIONS as INTERSECTIONS,
     cap_intersection as cap_intersection,
     cap_intersection_filament as cap_intersection_filament,
@@ -15,7 +14,6 @@ from .cubemap import (
 from .horizon import (
     Horizon as Horizon,
     PATHS as PATHS,
-    STORAGES as STORAGES,
     WEIGHTS as WEIGHTS,
     AMBIENT_TERMS as AMBIENT_TERMS,
     DEFAULT_K as DEFAULT_K,

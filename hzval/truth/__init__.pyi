@@ -51,7 +51,6 @@ from .memory import (
 from .model import (
     ModelTruth as ModelTruth,
     model_view as model_view,
-    SIMULATES as SIMULATES,
     bytes_per_sample as bytes_per_sample,
 )
 from .plane import (

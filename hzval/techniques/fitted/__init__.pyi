@@ -1,16 +1,10 @@
 # Written by tests/stubs.py from each module's __all__ (python -m tests.stubs); do not edit.
 from . import fit, guard, horizon_fit, model, perpixel_fit, store, textures, training
 from .fit import (
-    CHARBONNIER_EPS as CHARBONNIER_EPS,
-    BATCH_LIGHTS as BATCH_LIGHTS,
     LEARNING_RATE as LEARNING_RATE,
-    TOLERANCE as TOLERANCE,
     MAX_EPOCHS as MAX_EPOCHS,
-    HALVINGS as HALVINGS,
     MAX_K as MAX_K,
-    PRIOR as PRIOR,
     CONSTRAIN as CONSTRAIN,
-    CONSTRAINT_FLOOR as CONSTRAINT_FLOOR,
     FitResult as FitResult,
     guarded as guarded,
     truths as truths,
@@ -23,6 +17,10 @@ from .horizon_fit import (
     FittedHorizon as FittedHorizon,
 )
 from .model import (
+    CHARBONNIER_EPS as CHARBONNIER_EPS,
+    BATCH_LIGHTS as BATCH_LIGHTS,
+    HALVINGS as HALVINGS,
+    CONSTRAINT_FLOOR as CONSTRAINT_FLOOR,
     LightBatches as LightBatches,
     light_vectors as light_vectors,
     optimise as optimise,
