@@ -36,10 +36,11 @@ except PackageNotFoundError:  # run from a source tree that was never installed
 
 
 def init(variant: str | None = None) -> str:
-    """Choose, once, the LLVM library Dr.Jit's CPU backend loads and the Mitsuba variant hzval
-    renders with (:func:`hzval.core.backend.prefer_working_llvm`, :func:`hzval.core.backend.variant`);
-    return the variant. Call it before anything imports Dr.Jit: Dr.Jit reads
-    ``DRJIT_LIBLLVM_PATH`` when it is first imported.
+    """Choose the LLVM library Dr.Jit's CPU backend loads and the Mitsuba variant hzval renders with.
+
+    The choice is made once (:func:`hzval.core.backend.prefer_working_llvm`,
+    :func:`hzval.core.backend.variant`), and the variant is returned. Call it before anything imports Dr.Jit:
+    Dr.Jit reads ``DRJIT_LIBLLVM_PATH`` when it is first imported.
     """
     # importing hzval changes nothing: the backend loads when init runs
     from hzval.core import backend

@@ -342,10 +342,11 @@ def exact_horizon_map(
 
 
 def _exact_drjit(h: np.ndarray, all_lines: list[SweepLines]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`exact_horizon_map` on Dr.Jit's LLVM backend: one sweep kernel per
-    channel into one interleaved buffer, then one kernel for the ambient terms
-    (:func:`ambient_from_sines`'s formulas; 10x faster than NumPy's strided
-    passes over the 8 channels at 2048 x 2048).
+    """Compute :func:`exact_horizon_map` on Dr.Jit's LLVM backend.
+
+    It runs one sweep kernel per channel into one interleaved buffer, then one kernel for the ambient terms
+    (:func:`ambient_from_sines`'s formulas; 10x faster than NumPy's strided passes over the 8 channels at 2048
+    x 2048).
     """
     # the LLVM backend's types: this kernel maps NumPy memory, which only LLVM can
     from drjit.llvm import Float, UInt32

@@ -141,8 +141,9 @@ def choose_kernel(offsets: int, lanes: int) -> str:
 
 
 def kernel_for(rows: int, cols: int, radius: int, angles: int) -> str:
-    """Return the kernel form :func:`horizon_map` takes by default for a ``rows x cols`` map
-    (:func:`choose_kernel` on its offset table and its lanes, the padded rows).
+    """Return the kernel form :func:`horizon_map` takes by default for a ``rows x cols`` map.
+
+    It is :func:`choose_kernel` on its offset table and its lanes, the padded rows.
     """
     offsets = sum(len(g.offsets) for g in horizon_table(radius, angles))
     return choose_kernel(offsets, rows * (cols + 2 * (radius - 1)))
@@ -228,9 +229,10 @@ def horizon_map(
 def _max_tan_unrolled(
     flat: np.ndarray, start: int, lanes: int, table, angles: int, shift_of, lift: float = 0.0
 ) -> list:
-    """Per bin, the largest ``tan = dh / r`` of the offsets it covers: one block of code per
-    offset group, neighbours read as zero-copy shifted views on the LLVM backend (contiguous
-    loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation.
+    """Return, per bin, the largest ``tan = dh / r`` of the offsets it covers.
+
+    There is one block of code per offset group, neighbours read as zero-copy shifted views on the LLVM
+    backend (contiguous loads) and gathered elsewhere. ``flat`` must outlive the kernel's evaluation.
     """
     if dr.backend_v(mi.Float) == dr.JitBackend.LLVM:
 
@@ -259,9 +261,10 @@ def _max_tan_unrolled(
 
 
 def _channels(max_tan: list, angles: int, directions: int) -> tuple[list, object, object]:
-    """``(channels, mean_cos, mean_cos2)`` from the bins' largest tangents: ``sin = sqrt(t^2 /
-    (t^2 + 1))``, each channel the mean of the ``angles / D + 1`` bins centred on it, and the
-    ambient terms' means over all bins.
+    """Return the channels and the ambient terms' means from the bins' largest tangents.
+
+    The result is ``(channels, mean_cos, mean_cos2)``: ``sin = sqrt(t^2 / (t^2 + 1))``, each channel the mean
+    of the ``angles / D + 1`` bins centred on it, and the ambient terms' means over all bins.
     """
     cos2 = [dr.rcp(dr.fma(t, t, 1.0)) for t in max_tan]  # 1 / (1 + tan^2)
     sines = [t * dr.sqrt(c) for t, c in zip(max_tan, cos2)]  # sqrt(t^2 / (t^2 + 1))

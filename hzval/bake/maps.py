@@ -110,6 +110,7 @@ class BakeParams:
     ssbump_lift: float = SSBUMP_LIFT
 
     def validate(self) -> "BakeParams":
+        """Return these parameters, each in its range, else raise one line naming the flag."""
         cv.check_depth(self.depth, "--depth", self.boundary)
         lift = self.ssbump_lift
         if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not 0.0 <= lift <= MAX_SSBUMP_LIFT:
@@ -175,8 +176,9 @@ class BakeParams:
 
     @staticmethod
     def normalise_record(record: dict) -> dict:
-        """``record`` as :meth:`record` writes it now: a missing ``directions`` is 8 and a missing
-        ``ssbump_lift`` 0.
+        """Return ``record`` as :meth:`record` writes it now.
+
+        A missing ``directions`` is 8 and a missing ``ssbump_lift`` 0.
 
         The bake cache compares records, and a ``bake.json`` from before either existed holds an
         8-direction bake whose self-shadowed bump map was not lifted.
@@ -229,9 +231,10 @@ class Bake:
         return tuple(self.horizon[..., n * i : n * (i + 1)] for i in range(cv.layer_count(self.directions)))
 
     def checked(self) -> "Bake":
-        """Return this bake once every map is finite and every normal a unit vector; else one line naming
-        the map, how many texels are wrong, and ``--depth``. No bake with a NaN, an infinity or a
-        zero normal is used or written.
+        """Return this bake once every map is finite and every normal a unit vector.
+
+        Otherwise the error is one line naming the map, how many texels are wrong, and ``--depth``. No bake
+        with a NaN, an infinity or a zero normal is used or written.
         """
         maps = {  # by the files they are written to
             "horizon*.exr": self.horizon,
@@ -258,9 +261,10 @@ class Bake:
 
 
 def normals_only(height: np.ndarray, depth: float, boundary: str) -> "Bake":
-    """Return a :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``):
-    the unshadowed shading of a technique that reads no horizon map, built
-    without the horizon bake's cost. ``height`` normalised, ``(rows, cols)``.
+    """Return a :class:`Bake` of the normal map alone (``horizon`` and the ambient maps ``None``).
+
+    It is the unshadowed shading of a technique that reads no horizon map, built without the horizon bake's
+    cost. ``height`` is normalised, ``(rows, cols)``.
     """
     h = cv.heights_in_texels(height, depth)
     return Bake(
@@ -346,9 +350,10 @@ OCCLUSION: tuple[str, ...] = ("bent_normal", "ssbump_map")
 
 
 def needs_occlusion(needs) -> bool:
-    """Whether bake needs ``needs`` call for the directional occlusion (the bent normals and the
-    self-shadowed bump map): at 2048 x 2048 they take 3.5 s of a 4.4 s bake, so a sweep whose
-    techniques read neither bakes without them.
+    """Return whether the bake needs ``needs`` call for the directional occlusion.
+
+    The directional occlusion is the bent normals and the self-shadowed bump map. At 2048 x 2048 they take 3.5
+    s of a 4.4 s bake, so a sweep whose techniques read neither bakes without them.
     """
     return bool(set(OCCLUSION) & set(needs))
 
@@ -358,9 +363,10 @@ def _without_occlusion() -> tuple[str, ...]:
 
 
 def needs_horizon(needs) -> bool:
-    """Whether bake needs ``needs`` (names of :data:`CONTENTS`, ``"height"`` aside) call for the horizon
-    bake: the horizon map, and the ambient maps and directional occlusion, which are made from its
-    sines.
+    """Return whether the bake needs ``needs`` call for the horizon bake.
+
+    ``needs`` are names of :data:`CONTENTS`, ``"height"`` aside. The horizon bake is the horizon map, and the
+    ambient maps and directional occlusion, which are made from its sines.
     """
     return bool({"horizon_map", "ambient", *OCCLUSION} & set(needs))
 
@@ -368,9 +374,10 @@ def needs_horizon(needs) -> bool:
 def bake(
     height: np.ndarray, params: BakeParams = BakeParams(), *, horizon: bool = True, occlusion: bool = True
 ) -> Bake:
-    """Bake a normalised height map ``H[row, col]`` into the technique's textures; ``horizon=False``:
-    the normal map alone (:func:`normals_only`), without the horizon bake's cost; ``occlusion=False``:
-    without the directional occlusion (:func:`needs_occlusion`).
+    """Bake a normalised height map ``H[row, col]`` into the technique's textures.
+
+    With ``horizon=False``, the normal map alone (:func:`normals_only`), without the horizon bake's cost; with
+    ``occlusion=False``, without the directional occlusion (:func:`needs_occlusion`).
     """
     params.validate()
     cv.check_relief(height, params.depth, params.boundary)
@@ -409,8 +416,10 @@ def bake(
 
 
 def _ssbump_horizon(h: np.ndarray, horizon: np.ndarray, params: BakeParams) -> np.ndarray:
-    """Return the horizons the self-shadowed bump map is made from: ``horizon`` itself without a lift, else
-    the seed's sweep from origins raised by ``params.ssbump_lift`` texels (:class:`BakeParams`).
+    """Return the horizons the self-shadowed bump map is made from.
+
+    They are ``horizon`` itself without a lift, else the seed's sweep from origins raised by
+    ``params.ssbump_lift`` texels (:class:`BakeParams`).
     """
     if params.ssbump_lift == 0.0:
         return horizon
@@ -515,9 +524,10 @@ def _normal_record(params: BakeParams) -> dict:
 
 
 def _output_notes(directions: int, full: bool = True, occluded: bool = True) -> dict:
-    """``bake.json``'s description of the files of a ``directions``-channel bake (``full``: with the
-    horizon and ambient maps, ``occluded``: and the directional occlusion; else the normal map
-    alone).
+    """Return ``bake.json``'s description of the files of a ``directions``-channel bake.
+
+    With ``full``, the bake has the horizon and ambient maps, and with ``occluded`` also the directional
+    occlusion; else it is the normal map alone.
     """
     n = cv.CHANNELS_PER_LAYER
     notes = {}
@@ -597,10 +607,11 @@ def cached_bake(
     occlusion: bool = True,
     write_to: str | Path | None = None,
 ) -> tuple[Bake, bool]:
-    """Bake into ``folder``, or read the bake already there if it was made from the
-    same input (``digest``) with the same parameters, holds what is asked for (``horizon``:
-    the horizon and ambient maps, and with ``occlusion`` the directional occlusion; else the normal
-    map alone) and its files are intact. Returns ``(bake, cached)``.
+    """Bake into ``folder``, or read the bake already there; return ``(bake, cached)``.
+
+    The bake there is read if it was made from the same input (``digest``) with the same parameters, holds
+    what is asked for (``horizon``: the horizon and ambient maps, and with ``occlusion`` the directional
+    occlusion; else the normal map alone) and its files are intact.
 
     Every file of the cache must still have the SHA-256 that ``bake.json``
     recorded when it was written (:func:`write_bake`): a truncated or
@@ -639,8 +650,9 @@ def cached_bake(
 
 
 def _damaged_file(folder: Path, digests, digest_of) -> str | None:
-    """Return the first cache file whose digest differs from the record (or is missing); ``None`` if all
-    agree. A record without digests names ``bake.json`` itself.
+    """Return the first cache file whose digest differs from the record (or is missing).
+
+    It is ``None`` if all agree. A record without digests names ``bake.json`` itself.
     """
     if not isinstance(digests, dict) or not digests:
         return str(folder / "bake.json") + " (no file digests)"

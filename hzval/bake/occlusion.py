@@ -66,8 +66,9 @@ BYTES_PER_TEXEL = 112
 
 
 def _channel(sines: np.ndarray, k: int) -> np.ndarray:
-    """Channel ``k`` of the horizon sines, clipped to [0, 1] (one channel at a time: no copy of the
-    whole map).
+    """Return channel ``k`` of the horizon sines, clipped to [0, 1].
+
+    It takes one channel at a time: no copy of the whole map.
     """
     return np.clip(np.asarray(sines[..., k], np.float32), 0.0, 1.0)
 
@@ -100,9 +101,10 @@ def bent_normal(sines: np.ndarray) -> np.ndarray:
 
 
 def uniform_ao(sines: np.ndarray) -> np.ndarray:
-    """Return the open share of the hemisphere's solid angle, counted uniformly (Oat & Sander 2007's
-    visibility, not the cosine-weighted AO): per azimuth wedge ``int_alpha^(pi/2) cos t dt = 1 - s``,
-    so ``mean_k (1 - s_k)``; ``(rows, cols)`` float32 in [0, 1].
+    """Return the open share of the hemisphere's solid angle, counted uniformly.
+
+    This is Oat & Sander 2007's visibility, not the cosine-weighted AO: per azimuth wedge ``int_alpha^(pi/2)
+    cos t dt = 1 - s``, so ``mean_k (1 - s_k)``; ``(rows, cols)`` float32 in [0, 1].
 
     Examples
     --------
@@ -119,10 +121,11 @@ def uniform_ao(sines: np.ndarray) -> np.ndarray:
 
 
 def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
-    """Return the plain (solid-angle) average of the open directions, normalised (Oat & Sander 2007's bent
-    normal): per azimuth ``phi``, with ``alpha = asin s``, ``int_alpha^(pi/2) (cos t cos phi,
-    cos t sin phi, sin t) cos t dt = ((pi/4 - alpha/2 - sin(2 alpha)/4) (cos phi, sin phi),
-    (1 - s^2) / 2)``; ``(rows, cols, 3)`` float32, ``+z`` where nothing is open.
+    """Return the plain (solid-angle) average of the open directions, normalised.
+
+    This is Oat & Sander 2007's bent normal: per azimuth ``phi``, with ``alpha = asin s``, ``int_alpha^(pi/2)
+    (cos t cos phi, cos t sin phi, sin t) cos t dt = ((pi/4 - alpha/2 - sin(2 alpha)/4) (cos phi, sin phi), (1
+    - s^2) / 2)``; ``(rows, cols, 3)`` float32, ``+z`` where nothing is open.
 
     Examples
     --------
@@ -140,9 +143,11 @@ def uniform_bent_normal(sines: np.ndarray) -> np.ndarray:
 
 
 def _mean_direction(sines: np.ndarray, side, up, closed_below: float = 0.0) -> np.ndarray:
-    """``sum_k (side(s_k) (cos phi_k, sin phi_k), up(s_k))`` over the ``D`` azimuths, normalised;
-    ``+z`` where its length is at most ``closed_below`` (a texel closed on every side: its AO is 0,
-    and a cone about any axis is empty). ``(rows, cols, 3)`` float32.
+    """Return the sum of the ``side`` and ``up`` terms over the ``D`` azimuths, normalised.
+
+    The sum is ``sum_k (side(s_k) (cos phi_k, sin phi_k), up(s_k))``; the result is ``+z`` where its length is
+    at most ``closed_below`` (a texel closed on every side: its AO is 0, and a cone about any axis is empty).
+    ``(rows, cols, 3)`` float32.
     """
     sines = np.asarray(sines)
     D = sines.shape[-1]
@@ -168,9 +173,11 @@ def _G(p: float, bz: float, t):
 
 
 def _shares(p: float, bz: float, alpha) -> tuple[float, np.ndarray]:
-    """``(whole, lost)``: the weighted share of one azimuth's upward directions about ``b`` (where
-    ``p cos t + bz sin t > 0``), and the part of it below the horizon ``alpha``; ``lost`` is exactly 0
-    where nothing is, so an open texel's share is exactly whole.
+    """Return one azimuth's weighted share of upward directions about ``b`` and the part below the horizon.
+
+    The result is ``(whole, lost)``: ``whole`` is the weighted share of one azimuth's upward directions about
+    ``b`` (where ``p cos t + bz sin t > 0``), ``lost`` the part of it below the horizon ``alpha``; ``lost`` is
+    exactly 0 where nothing is, so an open texel's share is exactly whole.
     """
     start = max(0.0, -math.atan2(p, bz))  # where the weight turns positive
     whole = max(float(_G(p, bz, math.pi / 2.0) - _G(p, bz, start)), 0.0)
@@ -220,8 +227,10 @@ def self_shadowed_bump(sines: np.ndarray, normal: np.ndarray, pool=None) -> np.n
 
 
 def _ssbump_channel(sines: np.ndarray, n: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """One channel of :func:`self_shadowed_bump`, the basis vector ``b``'s: ``max(0, n . b)`` times
-    the share of its weighted hemisphere that the horizons leave open, ``(rows, cols)`` float32.
+    """Return one channel of :func:`self_shadowed_bump`, the basis vector ``b``'s.
+
+    It is ``max(0, n . b)`` times the share of its weighted hemisphere that the horizons leave open, ``(rows,
+    cols)`` float32.
     """
     D = sines.shape[-1]
     lost = np.zeros(sines.shape[:-1], np.float32)

@@ -9,6 +9,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
+    """Add the ``bake`` command's parser to ``sub``."""
     p = sub.add_parser(
         "bake",
         help="bake normal, horizon and ambient maps from a height map",

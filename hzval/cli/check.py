@@ -1,5 +1,6 @@
-"""``hzval check``: the shipped scenes against ``reference/``, the CI regression
-(:mod:`hzval.commands.check`).
+"""``hzval check``: the shipped scenes against ``reference/``, the CI regression.
+
+See :mod:`hzval.commands.check`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
+    """Add the ``check`` command's parser to ``sub``."""
     p = sub.add_parser(
         "check",
         help="render the shipped scenes and compare them with reference/ (CI)",
@@ -50,7 +52,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-
+    """Run ``hzval check`` with the parsed ``args``; return its exit code."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import check
 

@@ -1,5 +1,6 @@
-"""``hzval export-scene``: the truth of one light as a Mitsuba 3 scene file
-(:mod:`hzval.commands.export_scene`).
+"""``hzval export-scene``: the truth of one light as a Mitsuba 3 scene file.
+
+See :mod:`hzval.commands.export_scene`.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
+    """Add the ``export-scene`` command's parser to ``sub``."""
     p = sub.add_parser(
         "export-scene",
         help="write the truth of one light as a Mitsuba 3 scene file",
@@ -73,8 +75,10 @@ def run(args) -> int:
 
 
 def _mitsuba() -> str:
-    """Mitsuba's command as this hzval can run it: the one beside this Python (a virtualenv's
-    ``bin/``, which need not be on PATH), relative to the working folder where it is below it.
+    """Return Mitsuba's command as this hzval can run it.
+
+    It is the one beside this Python (a virtualenv's ``bin/``, which need not be on PATH), relative to the
+    working folder where it is below it.
     """
     beside = Path(sys.executable).parent / "mitsuba"
     if not beside.is_file():

@@ -8,6 +8,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
+    """Add the ``export-textures`` command's parser to ``sub``."""
     p = sub.add_parser(
         "export-textures",
         help="write a run's textures as KTX2 files an engine loads, in the storage they were scored with",
@@ -22,7 +23,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-
+    """Run ``hzval export-textures`` with the parsed ``args``; return its exit code."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import export_textures
 

@@ -1,5 +1,6 @@
-"""``hzval fit``'s flags: a technique's textures fitted to the truth, the representation's floor
-(:mod:`hzval.commands.fit`).
+"""``hzval fit``'s flags: a technique's textures fitted to the truth, the representation's floor.
+
+See :mod:`hzval.commands.fit`.
 """
 
 from __future__ import annotations
@@ -189,8 +190,9 @@ def _horizon_options(args) -> dict:
 
 
 def _technique_options(args) -> dict:
-    """:func:`hzval.techniques.fitted.textures.fit_textures`'s keywords, the technique's settings from
-    its own flags.
+    """Return the technique's settings from its own flags, as keywords of a fit.
+
+    The keywords are :func:`hzval.techniques.fitted.textures.fit_textures`'s.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique

@@ -20,7 +20,7 @@ from hzval.scene import camera as hz_camera
 
 
 def add_material_args(p: argparse.ArgumentParser, default_size: int | None = None) -> None:
-
+    """Add the material's flags to ``p``: its height map or ``--material``, depth and the rest."""
     if default_size is None:
         default_size = materials.DEFAULT_SIZE
     p.add_argument(
@@ -60,8 +60,10 @@ def add_material_args(p: argparse.ArgumentParser, default_size: int | None = Non
 
 
 def add_technique_args(p: argparse.ArgumentParser) -> None:
-    """``--techniques``, a ``--no-NAME`` for each technique, and each technique's
-    own options (:meth:`hzval.techniques.registry.Technique.add_arguments`), from the registry.
+    """Add ``--techniques``, a ``--no-NAME`` for each technique, and each technique's own options.
+
+    They come from the registry; each technique's options are
+    :meth:`hzval.techniques.registry.Technique.add_arguments`'s.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
@@ -160,8 +162,9 @@ def add_gate_flags(p: argparse.ArgumentParser, strict: bool = True) -> None:
 
 
 def add_sweep_flags(p: argparse.ArgumentParser) -> None:
-    """Add the light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``), their
-    defaults those of :class:`hzval.scene.spec.Scene`.
+    """Add the light, samples, shading, bake and technique flags of ``sweep`` (and ``suite``).
+
+    Their defaults are those of :class:`hzval.scene.spec.Scene`.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
@@ -281,8 +284,9 @@ def add_truth_tolerance_flag(p: argparse.ArgumentParser) -> None:
 
 
 def add_view_flags(p: argparse.ArgumentParser) -> None:
-    """Add the camera's and the techniques' lookup flags (:mod:`hzval.scene.camera`,
-    :mod:`hzval.scene.lookup`).
+    """Add the camera's and the techniques' lookup flags.
+
+    See :mod:`hzval.scene.camera` and :mod:`hzval.scene.lookup`.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import lookup
@@ -355,7 +359,7 @@ def add_view_flags(p: argparse.ArgumentParser) -> None:
 
 
 def scene_module():
-
+    """Return :mod:`hzval.scene.spec`, imported on first use."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
 
@@ -391,8 +395,9 @@ def truth_tolerance(args):
 
 
 def technique_options(args) -> dict:
-    """``sweep.Options`` keywords of the technique options, each checked, an error naming the flag
-    as typed (:func:`hzval.techniques.registry.flag_errors`).
+    """Return the ``sweep.Options`` keywords of the technique options, each checked.
+
+    An error names the flag as typed (:func:`hzval.techniques.registry.flag_errors`).
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
@@ -419,8 +424,9 @@ def technique_options(args) -> dict:
 
 
 def check_technique_flags(args, names) -> None:
-    """Refuse a technique's flag given to a run that leaves out every technique that reads it
-    (``names``: the run's): ``--horizon-map`` with ``--techniques pom`` was ignored in silence.
+    """Refuse a technique's flag given to a run that leaves out every technique that reads it.
+
+    ``names`` are the run's techniques. ``--horizon-map`` with ``--techniques pom`` was ignored in silence.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
@@ -456,7 +462,10 @@ def sweep_options(args):
 
 
 def gates(args):
-    """Return the :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``, checked before the run."""
+    """Return the :class:`hzval.commands.gates.Gates` of ``--fail-if`` and ``--baseline``.
+
+    They are checked before the run.
+    """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import gates
 
@@ -466,8 +475,9 @@ def gates(args):
 
 
 def gate_exit(record: dict | None) -> int:
-    """Print a run's gates (``metrics.json``'s ``gates``), each failure and each error on one line; exit 2
-    where any could not be evaluated (``errors``), else 1 where any failed.
+    """Print a run's gates (``metrics.json``'s ``gates``), each failure and each error on one line.
+
+    Exit 2 where any could not be evaluated (``errors``), else 1 where any failed.
     """
     record = record or {}
     failed = record.get("failed", [])
@@ -481,8 +491,10 @@ def gate_exit(record: dict | None) -> int:
 
 
 def bake_params(args, scene):
-    """Return the :class:`hzval.bake.maps.BakeParams` of the bake flags (:func:`add_bake_flags`) on ``scene``'s
-    material (its depth and boundary: HEIGHT's sidecar's where it has one), checked.
+    """Return the :class:`hzval.bake.maps.BakeParams` of the bake flags on ``scene``'s material, checked.
+
+    The bake flags are :func:`add_bake_flags`'s; the material's depth and boundary are HEIGHT's sidecar's
+    where it has one.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.bake import maps as bake
@@ -500,13 +512,19 @@ def bake_params(args, scene):
 
 
 def print_notes(args) -> None:
-    """Print the notes the flags' scene left for the end of a run (:func:`hzval.cli.scenes.scene_from_args`)."""
+    """Print the notes the flags' scene left for the end of a run.
+
+    The scene is :func:`hzval.cli.scenes.scene_from_args`'s.
+    """
     for note in getattr(args, "notes", []):
         print(f"hzval: note: {note}", file=sys.stderr)
 
 
 def command_line(args) -> str:
-    """Return the command as typed (``hzval sweep m.png --spp 4``), shell-quoted, for a report's Reproduce line."""
+    """Return the command as typed (``hzval sweep m.png --spp 4``), shell-quoted.
+
+    It is for a report's Reproduce line.
+    """
     return "hzval " + " ".join(shlex.quote(a) for a in (getattr(args, "argv", None) or []))
 
 

@@ -56,8 +56,10 @@ COMMANDS = (
 
 
 def typed_flags(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, str]:
-    """``{canonical flag: the spelling in argv}`` for the flags of ``parser`` that ``argv`` uses under
-    another name (a hidden alias such as ``--k`` for ``--horizon-k``): errors name what was typed.
+    """Return the spelling in ``argv`` of each flag of ``parser`` that ``argv`` uses under another name.
+
+    The result is ``{canonical flag: the spelling in argv}``; another name is a hidden alias such as ``--k``
+    for ``--horizon-k``, so that errors name what was typed.
     """
     canonical: dict[str, str] = {}
     for a in parser._actions:
@@ -87,8 +89,9 @@ def _common() -> argparse.ArgumentParser:
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument error is one line naming the flag as typed, and where to read more: argparse's
-    usage block is left out (it buried the error under 35 lines).
+    """An argument parser whose errors are one line naming the flag as typed, and where to read more.
+
+    Argparse's usage block is left out (it buried the error under 35 lines).
     """
 
     def error(self, message: str):
@@ -123,8 +126,10 @@ class _Subcommands(argparse._SubParsersAction):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Return the ``hzval`` parser: :func:`_common`'s flags, then each of :data:`COMMANDS`' own, and
-    ``--force`` for every command that writes a folder.
+    """Return the ``hzval`` parser with every command's flags.
+
+    It has :func:`_common`'s flags, then each of :data:`COMMANDS`' own, and ``--force`` for every command that
+    writes a folder.
     """
     parser = _Parser(
         prog="hzval",

@@ -7,6 +7,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
+    """Add the ``materials`` command's parser to ``sub``."""
     p = sub.add_parser(
         "materials",
         help="list the built-in materials",
@@ -17,6 +18,6 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-
+    """Print the built-in materials' table; return the exit code."""
     print(materials_command.table())
     return errors.EXIT_OK

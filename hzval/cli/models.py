@@ -1,5 +1,6 @@
-"""``hzval models``: what curvature costs, one material on caps, bowls, a ring and the cube
-(:mod:`hzval.commands.models`).
+"""``hzval models``: what curvature costs, one material on caps, bowls, a ring and the cube.
+
+See :mod:`hzval.commands.models`.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ DEFAULTS = {
 
 
 def add_parser(sub) -> None:
+    """Add the ``models`` command's parser to ``sub``."""
     p = sub.add_parser(
         "models",
         help="what curvature costs: the light sweep on spheres, bowls and the cube",

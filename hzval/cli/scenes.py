@@ -20,13 +20,15 @@ from hzval.io import documents, heightmap
 
 
 def builtin(name: str) -> bool:
-
+    """Return whether ``name`` is a built-in material rather than a height map's file."""
     return materials.is_builtin(name)
 
 
 def material_of(args) -> str | None:
-    """Return the material the command line names: HEIGHT's path, ``--material``'s name, or ``None``; one line
-    for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has its own size).
+    """Return the material the command line names: HEIGHT's path, ``--material``'s name, or ``None``.
+
+    One line is given for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has
+    its own size).
     """
     if args.height is not None and args.material is not None:
         raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
@@ -65,8 +67,9 @@ def refuse_size(size: int, height: str) -> None:
 
 
 def scene_name(args, scene) -> str:
-    """Return a sweep's name: HEIGHT's stem, else the scene's (a built-in material's name unless a scene file
-    names it).
+    """Return a sweep's name: HEIGHT's stem, else the scene's.
+
+    The scene's name is a built-in material's name unless a scene file names it.
     """
     if args.height is not None:
         return Path(args.height).stem
@@ -76,8 +79,10 @@ def scene_name(args, scene) -> str:
 
 
 def model_view(base, overrides: dict) -> dict:
-    """Return ``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where the sweep is on a model and
-    neither the scene nor the flags place a camera: a model seen from straight above shows one face.
+    """Return ``overrides`` with :data:`hzval.scene.spec.MODEL_CAMERA`'s view where it applies.
+
+    It applies where the sweep is on a model and neither the scene nor the flags place a camera: a model seen
+    from straight above shows one face.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
@@ -119,8 +124,10 @@ FILE_KEYS = {
 
 
 def scene_overrides(args) -> dict:
-    """Return the flags of ``args`` that change a scene (:data:`OVERRIDES`), ``None`` where not given or
-    where the command has no such flag; the material is :func:`material_of`'s.
+    """Return the flags of ``args`` that change a scene (:data:`OVERRIDES`).
+
+    Each is ``None`` where not given or where the command has no such flag; the material is
+    :func:`material_of`'s.
     """
     out = {k: getattr(args, k, None) for k in OVERRIDES}
     out["truth_tolerance"] = flags.truth_tolerance(args)
@@ -129,20 +136,22 @@ def scene_overrides(args) -> dict:
 
 
 def base_scene(args, *, quiet: bool = False):
-    """Return the scene the flags change, and the TOML it was read from (``{}`` for none): ``--scene``'s
-    file where the command has one, else HEIGHT's sidecar (``gravel.toml`` beside ``gravel.png``,
-    said on stderr unless ``quiet``), else the built-in default scene.
+    """Return the scene the flags change, and the TOML it was read from (``{}`` for none).
+
+    The scene is ``--scene``'s file where the command has one, else HEIGHT's sidecar (``gravel.toml`` beside
+    ``gravel.png``, said on stderr unless ``quiet``), else the built-in default scene.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
+    from hzval.scene import files as scene_files
     from hzval.scene import spec as sc
 
     if getattr(args, "scene", None):
-        return sc.load_scene(args.scene), documents.read_toml(args.scene)
+        return scene_files.load_scene(args.scene), documents.read_toml(args.scene)
     height = getattr(args, "height", None)
-    side = None if height is None else sc.sidecar_of(height)
+    side = None if height is None else scene_files.sidecar_of(height)
     if side is None:
         return sc.Scene(), {}
-    scene = sc.load_sidecar(side, height)
+    scene = scene_files.load_sidecar(side, height)
     if not quiet:
         print(f"hzval: using the sidecar scene {side}", file=sys.stderr)
     return scene, documents.read_toml(side)
@@ -209,8 +218,9 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 
 
 def check_elevations(value) -> tuple[float, ...]:
-    """Return the light elevations of ``--elevation`` (one number, a list or START:STOP:STEP), each in
-    (0, 90] degrees, else one line naming the flag.
+    """Return the light elevations of ``--elevation``, each in (0, 90] degrees.
+
+    ``--elevation`` is one number, a list or START:STOP:STEP; else the error is one line naming the flag.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc
@@ -244,8 +254,9 @@ KEY_FLAGS = {
 
 
 def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
-    """Return an error about a scene key the flags set, named by its flag (``--size: must be at least 8``);
-    errors about a scene file's own values keep naming the file.
+    """Return an error about a scene key the flags set, named by its flag.
+
+    For example ``--size: must be at least 8``. Errors about a scene file's own values keep naming the file.
     """
     key = next((k for k in KEY_FLAGS if exc.problem.startswith(k + " ")), None)
     if exc.what != "scene" or key is None or KEY_FLAGS[key] not in given and key != "material.size":
@@ -256,8 +267,10 @@ def _as_flag(exc: errors.InputError, given: dict) -> errors.InputError:
 
 
 def input_name(args, info: dict) -> str:
-    """How a command's closing line names its input: the height map's file as given, then what was read
-    of it (``h.png: 16-bit PNG, grey``), or the built-in material.
+    """Return how a command's closing line names its input.
+
+    It is the height map's file as given, then what was read of it (``h.png: 16-bit PNG, grey``), or the
+    built-in material.
     """
     height = getattr(args, "height", None)
     return f"{height}: {info['source']}" if height else info["source"]

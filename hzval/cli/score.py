@@ -10,6 +10,7 @@ from hzval.metrics.results import SweepResult
 
 
 def add_parser(sub) -> None:
+    """Add the ``score`` command's parser to ``sub``."""
     p = sub.add_parser(
         "score",
         help="score your engine's frames of a sweep against its truth",
@@ -35,7 +36,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-
+    """Run ``hzval score`` with the parsed ``args``; return its exit code."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import score
     from hzval.pipeline import records

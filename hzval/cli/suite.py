@@ -15,7 +15,7 @@ from hzval.core import errors
 
 
 def add_parser(sub) -> None:
-
+    """Add the ``suite`` command's parser to ``sub``."""
     p = sub.add_parser(
         "suite",
         help="sweep many materials (the built-in ones by default) and write an overview",
@@ -113,8 +113,9 @@ def run(args) -> int:
 
 
 def _size_note(size: int | None, items) -> None:
-    """``--size`` names the built-in materials' size: refused when every material is a file, a note
-    naming the files otherwise.
+    """Check ``--size``, which names the built-in materials' size.
+
+    It is refused when every material is a file; otherwise a note names the files.
     """
     if size is None:
         return

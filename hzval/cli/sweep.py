@@ -9,7 +9,7 @@ from hzval.cli import flags, scenes
 
 
 def add_parser(sub) -> None:
-
+    """Add the ``sweep`` command's parser to ``sub``."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.techniques import registry as technique
 

@@ -25,6 +25,7 @@ def _default_size() -> int:
 
 
 def add_parser(sub) -> None:
+    """Add the ``tradeoff`` command's parser to ``sub``."""
     p = sub.add_parser(
         "tradeoff",
         help="measure what accuracy costs in time and memory on one material",
@@ -77,8 +78,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    """Measure every setting on the scene of ``args`` (HEIGHT's sidecar included); print the table
-    and the recommendation.
+    """Measure every setting on the scene of ``args`` (HEIGHT's sidecar included).
+
+    Print the table and the recommendation.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import tradeoff

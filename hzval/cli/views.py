@@ -1,5 +1,6 @@
-"""``hzval views``: one material swept from a set of views with a set of lookups
-(:mod:`hzval.commands.views`).
+"""``hzval views``: one material swept from a set of views with a set of lookups.
+
+See :mod:`hzval.commands.views`.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ DEFAULTS = {"size": 128, "azimuths": "-60:60:30", "spp": 4}
 
 
 def add_parser(sub) -> None:
-
+    """Add the ``views`` command's parser to ``sub``."""
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.commands import views
 

@@ -1,9 +1,13 @@
-"""Every ``hzval`` command's work, one module each, as functions the CLI and tests call: the sweep
-(sweep), a bake (bake), image-diff regression (check), gates that fail a build (gates), what
-accuracy costs (tradeoff), many materials at once (suite), a set of views (views), an engine's own
-frames scored (score), models of several curvatures (models), the truth as a Mitsuba scene
-(export_scene), a run's textures as KTX2 (export_textures), a technique's textures fitted to the
-truth (fit) and the built-in materials (materials).
+"""Every ``hzval`` command's work, one module each, as functions the CLI and tests call.
+
+- ``sweep``: the light sweep, scored, reported and gated; ``gates``: what fails a build.
+- ``bake``, ``fit``: a height map's textures, baked or fitted to the truth.
+- ``check``: the image-diff regression against ``reference/``.
+- ``tradeoff``: what accuracy costs; ``suite``: many materials at once.
+- ``views``, ``models``: the sweep from a set of views, and on models of several curvatures.
+- ``score``: an engine's own frames scored.
+- ``export_scene``, ``export_textures``: the truth as a Mitsuba scene, a run's textures as KTX2.
+- ``materials``: the built-in materials.
 """
 
 import lazy_loader

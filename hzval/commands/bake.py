@@ -1,5 +1,6 @@
-"""``hzval bake``: a height map's textures (:func:`hzval.bake.maps.bake`) written to a folder, and
-optionally its displaced mesh.
+"""``hzval bake``: a height map's textures written to a folder, and optionally its displaced mesh.
+
+The textures are :func:`hzval.bake.maps.bake`'s.
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ __all__ = ["BakeRun", "run"]
 
 @dataclass
 class BakeRun:
-    """What :func:`run` did: the material's record (``bake.json``'s ``input``), the files written
-    and the wall time in seconds.
+    """What :func:`run` did: the material's record, the files written and the wall time in seconds.
+
+    The material's record is ``bake.json``'s ``input``.
     """
 
     info: dict

@@ -34,6 +34,7 @@ from hzval.pipeline import renders, sweep
 from hzval.pipeline.records import frame_folder
 from hzval.report import images
 from hzval.report import pages as report
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 
@@ -94,10 +95,12 @@ class Tiers:
         return tiers.validated(scene, "truth" if kind == "truth" else "technique")
 
     def validated(self, scene, kind: str) -> "Tiers":
-        """Return these tiers, each in its range, else one line naming the scene file and the setting:
-        ``fail`` a probability in (0, 1) for the truth (a significance level), a difference in (0, 1]
-        (exposed linear units) for a technique; ``hard_fail`` in (0, 1]; the percentages in
-        [0, 100]. NaN is no number: a NaN tolerance would let every image pass.
+        """Return these tiers once each is in its range.
+
+        Otherwise the error is one line naming the scene file and the setting. ``fail`` is a probability in
+        (0, 1) for the truth (a significance level), a difference in (0, 1] (exposed linear units) for a
+        technique; ``hard_fail`` is in (0, 1]; the percentages are in [0, 100]. NaN is no number: a NaN
+        tolerance would let every image pass.
         """
         fail_ok = 0 < self.fail < 1 if kind == "truth" else 0 < self.fail <= 1
         checks = {
@@ -151,8 +154,10 @@ def backend_name(variant: str) -> str:
 
 
 def reference_backend(path: Path) -> str:
-    """Return the backend that rendered a reference file: its header's :data:`BACKEND_ATTRIBUTE`, else
-    ``llvm`` (references written before the attribute were all rendered there).
+    """Return the backend that rendered a reference file.
+
+    It is its header's :data:`BACKEND_ATTRIBUTE`, else ``llvm`` (references written before the attribute were
+    all rendered there).
     """
     return codecs.read_exr_attributes(path).get(BACKEND_ATTRIBUTE, "llvm")
 
@@ -188,20 +193,25 @@ class ImageResult:
 
     @property
     def name(self) -> str:
+        """Return the image's name in the check's report: ``scene/frame/kind``."""
         return f"{self.scene}/{self.frame}/{self.kind}"
 
 
 @dataclass
 class CheckResult:
+    """The outcome of a check: every image compared, the references updated and the wall time."""
+
     images: list[ImageResult]
     updated: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
     @property
     def passed(self) -> bool:
+        """Return whether every image passed (a warning passes)."""
         return all(r.status in ("pass", "warn") for r in self.images)
 
     def count(self, status: str) -> int:
+        """Return how many images have ``status``."""
         return sum(r.status == status for r in self.images)
 
 
@@ -248,10 +258,11 @@ def check_scene(scene):
 
 
 def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
-    """Return the height map and linear albedo ``(rows, cols, 3)`` the check renders: a built-in material
-    generated at ``check.size``; a file's, where larger than ``check.size`` (default
-    :data:`MAX_CHECK_SIZE`), averaged down (box filter, the aspect kept) until its larger side is,
-    so that a user's map of any size has small references.
+    """Return the height map and linear albedo ``(rows, cols, 3)`` the check renders.
+
+    A built-in material is generated at ``check.size``; a file's, where larger than ``check.size`` (default
+    :data:`MAX_CHECK_SIZE`), is averaged down (box filter, the aspect kept) until its larger side is, so that
+    a user's map of any size has small references.
     """
     hm = sc.load_material_height(scene.material)
     h = hm.height
@@ -269,18 +280,20 @@ def check_material(scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """``values`` averaged down to ``shape`` ``(rows, cols)`` (each output texel the mean of the input
-    area it covers: Pillow's box filter, in float32).
+    """Return ``values`` averaged down to ``shape`` ``(rows, cols)``.
+
+    Each output texel is the mean of the input area it covers: Pillow's box filter, in float32.
     """
     img = Image.fromarray(np.ascontiguousarray(values, np.float32))
     return np.asarray(img.resize((shape[1], shape[0]), Image.Resampling.BOX), np.float32)
 
 
 def renderers(scene, height: np.ndarray, points=None, albedo: np.ndarray | None = None) -> dict:
-    """``{kind: (variant, technique class, built technique)}``: every check variant of every
-    technique that applies to ``scene`` (on a model, ``points``: the truth's samples, and only the
-    techniques that render on models); ``albedo`` as :func:`check_material` gives it (default: the
-    material's at the map's size).
+    """Return every check variant of every technique that applies to ``scene``.
+
+    The result is ``{kind: (variant, technique class, built technique)}``. On a model, ``points`` are the
+    truth's samples, and only the techniques that render on models are included; ``albedo`` is as
+    :func:`check_material` gives it (default: the material's at the map's size).
     """
     params = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary).validate()
     rows, cols = height.shape
@@ -297,7 +310,8 @@ def renderers(scene, height: np.ndarray, points=None, albedo: np.ndarray | None 
 
 
 def render_references(scene, *, seed: int | None = None) -> dict[tuple[str, str], dict[str, np.ndarray]]:
-    """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``;
+    """Render ``scene`` (already :func:`check_scene`'d) into ``{(frame, kind): channels}``.
+
     ``seed`` replaces the scene's seed for the truth.
     """
     # another seed moves the samples: only the truth takes it (the techniques are
@@ -345,8 +359,9 @@ def _rgb(image: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _values(ch: dict[str, np.ndarray], names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
-    """Return the value channels (not ``var.*``) stacked last, in the order of ``names`` if given
-    (an EXR file lists its channels sorted by name).
+    """Return the value channels (not ``var.*``) stacked last, in the order of ``names`` if given.
+
+    An EXR file lists its channels sorted by name.
     """
     names = names or [k for k in ch if not k.startswith("var.")]
     return names, np.stack([np.asarray(ch[k], np.float64) for k in names], axis=-1)
@@ -424,8 +439,9 @@ def compare_image(
 
 
 def _non_finite(ch: dict[str, np.ndarray], names: list[str], kind: str) -> str:
-    """``""``, or what of an image is not finite: how many pixels, of how many, and in which channels
-    (a truth's variances included).
+    """Return what of an image is not finite, or ``""``.
+
+    It says how many pixels, of how many, and in which channels (a truth's variances included).
     """
     names = [*names, *(f"var.{n}" for n in names)] if kind == "truth" else names
     bad = {n: ~np.isfinite(np.asarray(ch[n])) for n in names if n in ch}
@@ -447,8 +463,10 @@ def _technique_test(absdiff: np.ndarray, tiers: Tiers, reasons: list) -> tuple[n
 def _truth_test(
     new, ref, names, a, b, diff, absdiff, s, tiers: Tiers, spp: int, numbers: dict, reasons: list
 ) -> tuple[np.ndarray, dict]:
-    """Return a Monte Carlo image: z-tests of every pixel and 8 x 8 block under one Sidak correction, and a
-    bound on the bias of the image mean (module docstring).
+    """Test a Monte Carlo image against its reference with per-pixel and per-block z-tests.
+
+    The z-tests of every pixel and 8 x 8 block are under one Sidak correction, and there is a bound on the
+    bias of the image mean (module docstring).
     """
     var_a = np.stack([np.asarray(new[f"var.{n}"], np.float64) for n in names], -1) * s * s
     var_b = np.stack([np.asarray(ref[f"var.{n}"], np.float64) for n in names], -1) * s * s
@@ -488,23 +506,28 @@ def _p_value(z: np.ndarray) -> np.ndarray:
 
 
 def p_value(z, *, one_sided: bool = False):
-    """Return the p-value of a z-score: two-sided ``erfc(z / sqrt 2)`` (the truth's test), or one-sided,
-    half of it (a test of one direction only, e.g. a regression: :mod:`hzval.commands.gates`).
+    """Return the p-value of a z-score, two-sided or one-sided.
+
+    Two-sided is ``erfc(z / sqrt 2)`` (the truth's test); one-sided is half of it (a test of one direction
+    only, e.g. a regression: :mod:`hzval.commands.gates`).
     """
     p = _p_value(np.asarray(z, np.float64))
     return p / 2.0 if one_sided else p
 
 
 def sidak_level(alpha: float, n_tests: int) -> float:
-    """Return the per-test level of ``n_tests`` tests at family-wise level ``alpha`` (Sidak:
-    ``1 - (1 - alpha)^(1/n)``, computed without cancellation).
+    """Return the per-test level of ``n_tests`` tests at family-wise level ``alpha``.
+
+    It is Sidak's ``1 - (1 - alpha)^(1/n)``, computed without cancellation.
     """
     return -math.expm1(math.log1p(-alpha) / max(int(n_tests), 1))
 
 
 def _block_sums(x: np.ndarray) -> np.ndarray:
-    """Means of ``BLOCK x BLOCK`` blocks (for differences) are sums / BLOCK^2; variances of
-    means are sums / BLOCK^4: the ratio tested is the same, so sums are enough.
+    """Return the sums of ``BLOCK x BLOCK`` blocks.
+
+    Means of the blocks (for differences) are sums / BLOCK^2; variances of means are sums / BLOCK^4: the ratio
+    tested is the same, so sums are enough.
     """
     h, w = x.shape[0] // BLOCK * BLOCK, x.shape[1] // BLOCK * BLOCK
     x = x[:h, :w]
@@ -521,8 +544,9 @@ def reference_file(references: Path, scene: str, frame: str, kind: str) -> Path:
 
 
 def _variants(scene) -> dict:
-    """``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``; a
-    ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line.
+    """Return ``{variant name: (variant, technique name)}`` of the techniques that apply to ``scene``.
+
+    A ``[tolerances.X]`` table whose name is no technique's or variant's is refused, in one line.
     """
     out = {v.name: (v, t.name) for t in technique.select(None, scene) for v in t.check_variants()}
     known = {
@@ -544,8 +568,10 @@ def _variants(scene) -> dict:
 
 
 def _former_reference(references: Path, scene: str, frame: str, entry) -> Path | None:
-    """Return the reference a variant had under its former name (:attr:`hzval.techniques.registry.Variant.formerly`),
-    if there is one and none under its name: a reference folder of an earlier release.
+    """Return the reference a variant had under its former name, if there is one and none under its name.
+
+    The former name is :attr:`hzval.techniques.registry.Variant.formerly`; this is the case of a reference
+    folder of an earlier release.
     """
     if entry is None or not entry[0].formerly:
         return None
@@ -567,7 +593,7 @@ def load_scenes(scenes_dir: str | Path) -> list:
     found = sorted(Path(scenes_dir).glob("*.toml"))
     if not found:
         raise InputError(scenes_dir, "no scene files (*.toml)")
-    return [sc.load_scene(p) for p in found]
+    return [scene_files.load_scene(p) for p in found]
 
 
 def run(
@@ -579,8 +605,9 @@ def run(
     progress: bool = False,
     only: list[str] | None = None,
 ) -> CheckResult:
-    """Render the shipped scenes and compare them with ``references``; with ``update``,
-    rewrite the references that are missing or failing.
+    """Render the shipped scenes and compare them with ``references``.
+
+    With ``update``, rewrite the references that are missing or failing.
     """
     t0 = time.perf_counter()
     scenes_dir = Path(scenes_dir) if scenes_dir else repository_path("scenes")
@@ -662,8 +689,9 @@ def summary(result: CheckResult) -> str:
 
 
 def write_report(result: CheckResult, out: str | Path, *, command: str = "", force: bool = False) -> Path:
-    """``out/index.html``: reference | new | difference for every image, failures first; the folder
-    held while it is written (:func:`hzval.io.staging.output_folder`, ``force`` as there).
+    """Write ``out/index.html``: reference | new | difference for every image, failures first.
+
+    The folder is held while it is written (:func:`hzval.io.staging.output_folder`, ``force`` as there).
     """
     out = Path(out)
     with staging.output_folder(out, force=force):

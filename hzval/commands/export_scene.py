@@ -35,12 +35,12 @@ FILES: tuple[str, ...] = ("scene.xml", "mesh.ply", "albedo.png", "base.glb")
 
 
 def check_fits(scene: Scene) -> int:
-    """Refuse, before the map is generated or decoded, an export that would not fit in memory: the
-    sweep's estimate (:func:`hzval.truth.memory.estimate_peak_bytes`, its mesh at four triangles a texel
-    until the
-    map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a pixel, since
-    nothing is rendered (on a model: :func:`hzval.truth.memory.check_fits`'s model estimate);
-    return it in bytes.
+    """Refuse, before the map is generated or decoded, an export that would not fit in memory.
+
+    The estimate is the sweep's (:func:`hzval.truth.memory.estimate_peak_bytes`, its mesh at four triangles a
+    texel until the map is read; :func:`hzval.geometry.tile.tessellate` refuses a larger one) at one sample a
+    pixel, since nothing is rendered (on a model: :func:`hzval.truth.memory.check_fits`'s model estimate); it
+    is returned in bytes.
     """
     one = dataclasses.replace(scene, spp=1)
     rows, cols = memory.material_shape(one)
@@ -67,8 +67,9 @@ def write_scene(
 
 
 def _direct_only(scene: Scene) -> Scene:
-    """``scene`` validated, refused in one line where it declares what Mitsuba's direct integrator
-    does not render.
+    """Return ``scene`` validated.
+
+    It is refused in one line where it declares what Mitsuba's direct integrator does not render.
     """
     scene = scene.validate()
     if any(scene.declares(e) for e in ("interreflection", "specular", "ambient", "reflection_occlusion")):
@@ -214,10 +215,11 @@ def _scene_xml(scene: Scene, sensor: str, azimuth_deg: float, reflectance: str) 
 
 
 def _write_model(scene: Scene, height: np.ndarray, out: Path, azimuth_deg: float) -> list[Path]:
-    """Return a model's export: ``base.glb``, the base mesh as hzval used it (its frames included:
-    ``--tangents``), ``mesh.ply``, the displaced model the truth traces, and ``scene.xml`` seen
-    from the truth's camera. The displaced mesh carries no texture coordinates, so the diffuse
-    reflectance is the albedo's mean.
+    """Write a model's export: ``base.glb``, ``mesh.ply`` and ``scene.xml``; return the paths.
+
+    ``base.glb`` is the base mesh as hzval used it (its frames included: ``--tangents``), ``mesh.ply`` the
+    displaced model the truth traces, and ``scene.xml`` is seen from the truth's camera. The displaced mesh
+    carries no texture coordinates, so the diffuse reflectance is the albedo's mean.
     """
     backend.variant()
     scene = _direct_only(dataclasses.replace(scene, spp=1))

@@ -1,5 +1,7 @@
-"""``hzval export-textures``: a run's textures as KTX2 files an engine loads, in the storage they were
-scored with, with full mip chains and ``textures.json`` saying what each channel means.
+"""``hzval export-textures``: a run's textures as KTX2 files an engine loads.
+
+They are in the storage they were scored with, with full mip chains and ``textures.json`` saying what each
+channel means.
 
 :func:`export` reads ``RUN_DIR``, what ``hzval sweep`` (its ``bake/`` and ``metrics.json``), ``hzval
 bake`` (``bake.json``) or ``hzval fit`` (``fit.json``) wrote, and writes one KTX2 file
@@ -77,8 +79,9 @@ def _content_of(storage_key: str) -> str:
 
 
 def plan(run_dir: Path) -> dict:
-    """Read what ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``; one line
-    naming the folder when it is no run's.
+    """Read what ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``.
+
+    One line names the folder when it is no run's.
     """
     run_dir = Path(run_dir)
     if (run_dir / "fit.json").is_file():
@@ -118,8 +121,9 @@ def _plan(kind: str, folder: Path, store: dict, mips: str, textures: tuple) -> d
 
 
 def export(run_dir, out, *, zstd: bool = False, force: bool = False) -> list[Path]:
-    """Write ``run_dir``'s textures into ``out`` as KTX2 (module docstring) and ``textures.json``;
-    return the paths written. All or nothing: the files are staged and swapped in whole.
+    """Write ``run_dir``'s textures into ``out`` as KTX2 (module docstring) and ``textures.json``.
+
+    Return the paths written. All or nothing: the files are staged and swapped in whole.
     """
     p = plan(Path(run_dir))
     maps = _maps(p)
@@ -193,8 +197,9 @@ SSBUMP_FORMATS = {
 
 
 def _occlusion(maps: dict, p: dict) -> dict:
-    """Return the AO, bent-normal and ssbump textures of ``maps`` (by bake content) that ``p`` selects, each in
-    its storage.
+    """Return the AO, bent-normal and ssbump textures of ``maps`` (by bake content) that ``p`` selects.
+
+    Each is in its storage.
     """
     out = {}
     if "ambient" in p["textures"] and "ambient" in maps:
@@ -261,7 +266,10 @@ def _vector(n: np.ndarray, store: str, meaning: str, key: str) -> tuple:
 
 
 def _horizon(sines: np.ndarray, store: str, mips: str) -> dict:
-    """Return the horizon map's textures in storage ``store``: its channels packed as the storage packs them."""
+    """Return the horizon map's textures in storage ``store``.
+
+    Its channels are packed as the storage packs them.
+    """
     s = hz_storage.get(store)
     base = store.removesuffix("-sqrt")
     fmt = HORIZON_FORMATS[base]
@@ -293,8 +301,9 @@ def _horizon(sines: np.ndarray, store: str, mips: str) -> dict:
 
 
 def _texture(values: np.ndarray, fmt: ktx2.Format, *, max_mips: bool = False) -> ktx2.Texture:
-    """Every mip level of ``values`` (:func:`hzval.scene.lookup.mip_chain`), each quantised to the
-    format (8-bit or half) before the next is made from it, encoded.
+    """Return every mip level of ``values`` (:func:`hzval.scene.lookup.mip_chain`), encoded.
+
+    Each level is quantised to the format (8-bit or half) before the next is made from it.
     """
     everything = slice(None)
     if fmt.half:

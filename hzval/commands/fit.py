@@ -82,9 +82,10 @@ def fit_technique(
 
 
 def summary(mae: dict, scope: str = "") -> str:
-    """``training |F-V| 0.0524 baked -> 0.0306 fitted; held_out ...``: one line's figures; ``scope``
-    says what the means are over where it is not the pixels facing the light (the horizon fit's:
-    ``" (whole image)"``).
+    """Return one line's figures: each set's mean |F-V|, baked against fitted.
+
+    For example ``training |F-V| 0.0524 baked -> 0.0306 fitted; held_out ...``. ``scope`` says what the means
+    are over where it is not the pixels facing the light (the horizon fit's: ``" (whole image)"``).
     """
     return "; ".join(
         f"{w} |F-V|{scope} {m['baked']:.4f} baked -> {m['fitted']:.4f} fitted" for w, m in mae.items()

@@ -1,6 +1,7 @@
-"""Gates that fail a build: ``--fail-if EXPR``, ``--baseline DIR`` (``sweep``, ``score``, ``suite``) and
-``--strict`` (``sweep``, ``suite``: every warning about an external horizon map, :mod:`hzval.io.external`,
-fails the run).
+"""Gates that fail a build: ``--fail-if EXPR``, ``--baseline DIR`` and ``--strict``.
+
+The first two are for ``sweep``, ``score`` and ``suite``; ``--strict`` is for ``sweep`` and ``suite``: every
+warning about an external horizon map (:mod:`hzval.io.external`) fails the run.
 
 A condition (:func:`parse`) compares a metric of ``metrics.json`` with a number
 or with another metric::
@@ -129,6 +130,7 @@ class Operand:
     aggregate: str | None = None  # None (per frame), "mean", "max", "min"
 
     def text(self) -> str:
+        """Return the operand as the condition wrote it."""
         if self.path is None:
             return f"{self.number:g}"
         return f"{self.aggregate}({self.path})" if self.aggregate else self.path
@@ -145,6 +147,7 @@ class Condition:
 
     @property
     def per_frame(self) -> bool:
+        """Return whether the condition is checked frame by frame (an operand names a per-frame score)."""
         return any(o.path is not None and o.aggregate is None for o in (self.left, self.right))
 
 
@@ -162,8 +165,9 @@ def _operand(text: str, expr: str) -> Operand:
 
 
 def parse(expr: str) -> Condition:
-    """Return a ``--fail-if`` expression as a :class:`Condition` (module docstring); one line naming
-    ``--fail-if`` for anything else. Parsing is linear in the text's length (possessive
+    """Return a ``--fail-if`` expression as a :class:`Condition` (module docstring).
+
+    Anything else gives one line naming ``--fail-if``. Parsing is linear in the text's length (possessive
     quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first.
     """
     if len(expr) > MAX_EXPRESSION:
@@ -193,9 +197,10 @@ def known_names(techniques) -> list[str]:
 
 
 def check_names(conditions: list[Condition], techniques) -> None:
-    """Refuse, before a run, a condition that names no number the run will write: an unknown metric,
-    or a technique the run does not score (``techniques``: its names). One line naming
-    ``--fail-if``, with the nearest names.
+    """Refuse, before a run, a condition that names no number the run will write.
+
+    That is an unknown metric, or a technique the run does not score (``techniques``: its names). The refusal
+    is one line naming ``--fail-if``, with the nearest names.
     """
     known = set(known_names(techniques))
     for cond in conditions:
@@ -218,10 +223,11 @@ def _number(value) -> bool:
 
 
 def check_shape(data, file) -> dict:
-    """Return ``data`` (a ``metrics.json`` read as JSON) when it has the shape a gate reads: ``frames`` a list
-    of objects, each with a numeric ``azimuth_deg`` (and ``elevation_deg`` a number or null), its
-    ``techniques``, ``truth`` and ``floor`` objects; ``parameters``, ``material`` and ``techniques``
-    objects. Else one line naming ``--baseline``, the file and the key.
+    """Return ``data`` (a ``metrics.json`` read as JSON) when it has the shape a gate reads.
+
+    ``frames`` is a list of objects, each with a numeric ``azimuth_deg`` (and ``elevation_deg`` a number or
+    null), its ``techniques``, ``truth`` and ``floor`` objects; ``parameters``, ``material`` and
+    ``techniques`` are objects. Otherwise the error is one line naming ``--baseline``, the file and the key.
     """
 
     def bad(key: str, want: str):
@@ -297,8 +303,9 @@ def _frame_name(f: dict) -> str:
 
 
 def evaluate(cond: Condition, metrics: dict, where: str = "") -> list[str]:
-    """Return the failures of ``cond`` on ``metrics.json``'s content: one line per condition that fails,
-    naming its frames and their values (none: the gate passes).
+    """Return the failures of ``cond`` on ``metrics.json``'s content.
+
+    There is one line per condition that fails, naming its frames and their values (none: the gate passes).
     """
     frames = metrics.get("frames") or []
     left, right = _values(frames, cond.left, cond.text), _values(frames, cond.right, cond.text)
@@ -329,8 +336,9 @@ def _g(v) -> str:
 
 
 def read_baseline(path: str | Path) -> dict:
-    """Return the ``metrics.json`` of an earlier run (its folder, or the file); one line naming
-    ``--baseline`` if there is none or it cannot be read.
+    """Return the ``metrics.json`` of an earlier run (its folder, or the file).
+
+    One line names ``--baseline`` if there is none or it cannot be read.
     """
     path = Path(path)
     file = path / "metrics.json" if path.is_dir() else path
@@ -344,8 +352,9 @@ def read_baseline(path: str | Path) -> dict:
 
 
 def check_same_settings(new: dict, old: dict, where: str) -> None:
-    """Refuse (one line naming ``--baseline``) a baseline of another material or other scene
-    parameters (:data:`SAME`); the techniques' own settings may differ.
+    """Refuse a baseline of another material or other scene parameters (:data:`SAME`).
+
+    The refusal is one line naming ``--baseline``; the techniques' own settings may differ.
     """
     a, b = (new.get("material") or {}).get("digest"), (old.get("material") or {}).get("digest")
     if a and b and a != b:
@@ -363,8 +372,9 @@ def check_same_settings(new: dict, old: dict, where: str) -> None:
 
 
 def _frames_by_light(metrics: dict) -> dict:
-    """Return a run's frames by their light, ``(elevation, azimuth)``: a sweep over several elevations has
-    several frames of one azimuth.
+    """Return a run's frames by their light, ``(elevation, azimuth)``.
+
+    A sweep over several elevations has several frames of one azimuth.
     """
     return {
         (round(float(f.get("elevation_deg") or 0.0), 6), round(float(f["azimuth_deg"]), 6)): f
@@ -387,8 +397,10 @@ def _pixels(metrics: dict) -> int:
 
 
 def frame_noise(frame: dict, metric: str, pixels: int) -> float | None:
-    """Return the standard error the truth's Monte Carlo noise puts on one frame's ``metric`` (module
-    docstring), from the frame's truth statistics (:mod:`hzval.metrics.facing`); ``None`` if unknown.
+    """Return the standard error the truth's Monte Carlo noise puts on one frame's ``metric``.
+
+    It comes from the frame's truth statistics (:mod:`hzval.metrics.facing`), as in the module docstring;
+    ``None`` if unknown.
     """
     t = frame.get("truth") or {}
     facing = metric.endswith("_facing")
@@ -402,8 +414,9 @@ def frame_noise(frame: dict, metric: str, pixels: int) -> float | None:
 
 
 def _variance(fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: int):
-    """``sum sigma_i^2`` of a test's worsenings (module docstring), or ``None`` when it cannot be
-    estimated (an image metric of runs of different seeds).
+    """Return ``sum sigma_i^2`` of a test's worsenings (module docstring).
+
+    It is ``None`` when it cannot be estimated (an image metric of runs of different seeds).
     """
     if same:
         return 0.0
@@ -417,8 +430,10 @@ def _variance(fn: list[dict], fo: list[dict], metric: str, same: bool, pixels: i
 
 
 def baseline_tests(new: dict, old: dict) -> list[dict]:
-    """Per technique (in both runs) and metric of :data:`DIRECTION`: the frames' worsenings ``d_i``,
-    ``z = sum d_i / sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring).
+    """Return a test of the frames' worsenings per technique and metric of :data:`DIRECTION`.
+
+    The techniques are those in both runs. Each test has the frames' worsenings ``d_i``, ``z = sum d_i /
+    sqrt(sum sigma_i^2)`` and its one-sided p-value (module docstring).
     """
     fn, fo = _frames_by_light(new), _frames_by_light(old)
     shared = [az for az in fn if az in fo]
@@ -466,8 +481,9 @@ def baseline_tests(new: dict, old: dict) -> list[dict]:
 
 
 def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) -> list[str]:
-    """Return the lines of the tests that are significant regressions at :data:`ALPHA`, Sidak-corrected over
-    ``n_tests`` (default: these tests).
+    """Return the lines of the tests that are significant regressions at :data:`ALPHA`.
+
+    They are Sidak-corrected over ``n_tests`` (default: these tests).
     """
     level = check.sidak_level(ALPHA, n_tests or len(tests))
     prefix = f"{where}: " if where else ""
@@ -485,8 +501,9 @@ def regressions(tests: list[dict], where: str = "", n_tests: int | None = None) 
 
 
 class Gates:
-    """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run; :meth:`apply`
-    tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists).
+    """``--fail-if`` conditions and a ``--baseline``, parsed and read before a run.
+
+    :meth:`apply` tests a run's ``metrics.json`` content and records ``gates`` in it (what the report lists).
     """
 
     def __init__(
@@ -508,14 +525,16 @@ class Gates:
                 )
 
     def __bool__(self) -> bool:
+        """Return whether any gate is set (a condition, a baseline or ``--strict``)."""
         return bool(self.conditions) or self.baseline_path is not None or self.strict
 
     def failures(
         self, metrics: dict, baseline: dict | None = None, where: str = "", use_baseline: bool = True
     ) -> tuple[list, list]:
-        """``(failure lines, baseline tests)`` of one run against the conditions and ``baseline``
-        (default: :attr:`baseline`; none with ``use_baseline`` false); a baseline of other settings is
-        an InputError.
+        """Return the failure lines and baseline tests of one run against the conditions and ``baseline``.
+
+        The result is ``(failure lines, baseline tests)``; ``baseline`` defaults to :attr:`baseline` (none
+        with ``use_baseline`` false); a baseline of other settings is an InputError.
         """
         out = [line for c in self.conditions for line in evaluate(c, metrics, where)]
         if self.strict:  # every warning about an external bake (hzval.io.external.warnings) fails the run
@@ -544,9 +563,11 @@ class Gates:
         return out, tests
 
     def check_before(self, techniques, parameters: dict | None = None) -> "Gates":
-        """Return these gates once every condition names a number a run of ``techniques`` writes
-        (:func:`check_names`) and the baseline has the ``parameters`` of the run to come (the
-        ``metrics.json`` ``parameters`` it will write, where known): called before anything renders.
+        """Return these gates once every condition names a number a run of ``techniques`` writes.
+
+        The conditions are checked by :func:`check_names`, and the baseline must have the ``parameters`` of
+        the run to come (the ``metrics.json`` ``parameters`` it will write, where known). It is called before
+        anything renders.
         """
         check_names(self.conditions, list(techniques))
         if self.baseline is not None and parameters is not None:
@@ -554,9 +575,11 @@ class Gates:
         return self
 
     def apply(self, metrics: dict) -> dict:
-        """Test ``metrics`` (one sweep's or score's) and store ``metrics["gates"]``: ``{failed,
-        conditions, baseline, tests}``, and ``errors``, one line each, where they could not be evaluated
-        (a baseline of another height map): the run's report is kept either way. Returns it.
+        """Test ``metrics`` (one sweep's or score's), store ``metrics["gates"]`` and return it.
+
+        ``metrics["gates"]`` is ``{failed, conditions, baseline, tests}``, and ``errors``, one line each,
+        where they could not be evaluated (a baseline of another height map): the run's report is kept either
+        way.
         """
         try:
             failed, tests = self.failures(metrics)
@@ -567,6 +590,7 @@ class Gates:
         return metrics["gates"]
 
     def record(self, failed: list[str], tests: list[dict]) -> dict:
+        """Return what ``metrics.json`` records of the gates: the failures, the conditions and the tests."""
         return {
             "failed": failed,
             "conditions": [c.text for c in self.conditions],

@@ -66,8 +66,9 @@ CELLS = 32
 
 
 def cap_obj(path: Path, radius: float, sign: int) -> None:
-    """Write the cap (``sign`` +1), bowl (-1) or plane (``radius`` inf) of the module docstring as
-    an OBJ at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side.
+    """Write the cap (``sign`` +1), bowl (-1) or plane (``radius`` inf) of the module docstring as an OBJ.
+
+    It is written at ``path``: positions z up, UVs, normals, counterclockwise seen from the normals' side.
     """
     g = np.linspace(-A, A, CELLS + 1)
     x, y = (a.ravel() for a in np.meshgrid(g, g))
@@ -95,10 +96,11 @@ def cases() -> list[tuple[str, float, str | None]]:
 
 
 def run(scene, out: str | Path, *, progress: bool = True, command: str = "", force: bool = False) -> dict:
-    """Sweep ``scene`` (its material, lights, spp) on every case into ``out``; write ``models.json``
-    and ``index.html``; return the ``models.json`` content. All or nothing, as a sweep: the cases are
-    written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C (which
-    stops the run between cases), leaves an earlier report byte for byte and no folder it made.
+    """Sweep ``scene`` (its material, lights, spp) on every case into ``out``.
+
+    Write ``models.json`` and ``index.html``; return the ``models.json`` content. All or nothing, as a sweep:
+    the cases are written into a staging folder inside ``out`` and swapped in whole, so a failure, or a Ctrl-C
+    (which stops the run between cases), leaves an earlier report byte for byte and no folder it made.
     """
     out = Path(out)
     with staging.swapped_in(out, force=force) as work:
@@ -225,10 +227,11 @@ def _f4(v) -> str:
 
 
 def _plot_reflection(path: Path, rows: list[dict], names: list[str]) -> dict | None:
-    """Each technique's reflection-occlusion error, mean |o - R| (``reflection_mae``: Toolbag's fade
-    with the interpolated vertex normal against the traced glossy lobe), against signed curvature
-    1/R, where the study declares ``reflection_occlusion``; the page's figure and table
-    (``None``: no case has it).
+    """Plot each technique's reflection-occlusion error against signed curvature 1/R.
+
+    The error is mean |o - R| (``reflection_mae``: Toolbag's fade with the interpolated vertex normal against
+    the traced glossy lobe), plotted where the study declares ``reflection_occlusion``. Return the page's
+    figure and table (``None``: no case has it).
     """
     series = {n: s for n in names if (s := _against_curvature(rows, n, "reflection_mae"))}
     if not series:
@@ -275,16 +278,19 @@ def _plot(path: Path, rows: list[dict], names: list[str]) -> None:
 
 
 def _band_maps(scene, case_dir: Path) -> dict:
-    """Return the case's band texel maps (:func:`hzval.studies.curvature_band.measure`, its own camera and
-    lights).
+    """Return the case's band texel maps.
+
+    They are :func:`hzval.studies.curvature_band.measure`'s, with its own camera and lights.
     """
     return curvature_band.measure(curvature_band.band_scene(scene), case_dir)
 
 
 def _add_bands(data: dict, bands: dict) -> None:
-    """Each band-measured row's ``band`` (against the flat patch on the same texels) and the
-    study's ``trend``: per technique, whether the band's |F - V| and its excess over the flat patch
-    rise from the flat patch through the caps as R shrinks (:func:`hzval.studies.curvature_band.trend`).
+    """Add each band-measured row's ``band`` and the study's ``trend``.
+
+    The ``band`` is against the flat patch on the same texels. The ``trend`` says, per technique, whether the
+    band's |F - V| and its excess over the flat patch rise from the flat patch through the caps as R shrinks
+    (:func:`hzval.studies.curvature_band.trend`).
     """
     flat = bands.get("flat")
     for r in data["rows"]:
@@ -322,9 +328,10 @@ def _add_bands(data: dict, bands: dict) -> None:
 
 
 def ring_obj(path: Path, tube: float, rho: float) -> None:
-    """Write a ``2 A`` square patch of a torus about its inner equator as an OBJ at ``path`` (z up,
-    the patch's centre at the origin, its normal +z): tube radius ``tube``, the inner equator a
-    circle of radius ``rho`` about the torus's axis, which runs along y at height ``rho``.
+    """Write a ``2 A`` square patch of a torus about its inner equator as an OBJ at ``path``.
+
+    The patch is z up, its centre at the origin and its normal +z. The tube radius is ``tube``, and the inner
+    equator is a circle of radius ``rho`` about the torus's axis, which runs along y at height ``rho``.
 
     A grid point ``(x, y)`` goes to ring angle ``phi = x / rho`` and tube angle ``tau = y / tube``
     (from the inner equator): ``p = C + (rho + tube (1 - cos tau)) e(phi) + tube sin tau y``,
@@ -350,8 +357,9 @@ def ring_obj(path: Path, tube: float, rho: float) -> None:
 
 
 def _write_grid_obj(path: Path, p: np.ndarray, n: np.ndarray, uv: np.ndarray) -> None:
-    """Write a ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ, counterclockwise
-    seen from the normals' side.
+    """Write a ``CELLS x CELLS`` grid's positions, normals and UVs (x fastest) as an OBJ.
+
+    The winding is counterclockwise seen from the normals' side.
     """
     k = CELLS + 1
     i, j = np.meshgrid(np.arange(CELLS), np.arange(CELLS))
@@ -372,8 +380,10 @@ def _ring_row(row: dict, spec) -> None:
 
 
 def _by_azimuth(row: dict, azimuths) -> list[dict]:
-    """Per light of the band: its azimuth, the normal curvature along its direction (Euler:
-    ``k_x cos^2 phi + k_y sin^2 phi``) and each technique's excess over the flat patch.
+    """Return, per light of the band, its azimuth, normal curvature and each technique's excess.
+
+    The normal curvature is along the light's direction (Euler: ``k_x cos^2 phi + k_y sin^2 phi``); the excess
+    is over the flat patch.
     """
     kx, ky = row["principal_curvatures"]["along_ring_x"], row["principal_curvatures"]["across_tube_y"]
     out = []
@@ -404,9 +414,10 @@ def _pm(stat: dict | None, digits: int = 4, signed: bool = False) -> str:
 
 
 def _band_context(out: Path, data: dict) -> dict | None:
-    """Return the band's section of the page (per case and technique: |F - V|, the flat patch's on the same
-    texels, the excess, the floor, the seams' share; the trend's verdicts) and its excess plot;
-    ``None`` where no case has a band.
+    """Return the band's section of the page and its excess plot.
+
+    Per case and technique the section has |F - V|, the flat patch's on the same texels, the excess, the floor
+    and the seams' share, and it has the trend's verdicts; ``None`` where no case has a band.
     """
     rows = [r for r in data["rows"] if "band" in r]
     if not rows:
@@ -473,8 +484,10 @@ def _says(t: dict) -> str:
 
 
 def _fall(f: dict) -> str:
-    """One step that does not rise: ``+0.25->+0.5 by 1.3 SE``, or ``no change`` where it is flat to a
-    tenth of a standard error (never ``by -0.0 SE``).
+    """Return one step that does not rise, as text.
+
+    For example ``+0.25->+0.5 by 1.3 SE``, or ``no change`` where it is flat to a tenth of a standard error
+    (never ``by -0.0 SE``).
     """
     step = f"{f['from']:+g}->{f['to']:+g}"
     z = f.get("z")
@@ -504,9 +517,10 @@ def _band_plot(path: Path, rows: list[dict], names: list[str]) -> None:
 
 
 def summary_table(data: dict) -> str:
-    """``models.json``'s content as the terminal's table: per case each technique's mean |F - V|
-    and floor (and its reflection error where measured), the trends' verdicts and each tangent
-    bug's mirrored |F - V| against the correct frames'.
+    """Return ``models.json``'s content as the terminal's table.
+
+    Per case it shows each technique's mean |F - V| and floor (and its reflection error where measured), the
+    trends' verdicts and each tangent bug's mirrored |F - V| against the correct frames'.
     """
 
     def num(v, w=7):

@@ -1,5 +1,6 @@
-"""Score an engine's own frames against a sweep's truth, beside hzval's techniques on the same sweep:
-``hzval score FRAMES_DIR --against SWEEP_DIR``.
+"""Scoring of an engine's own frames against a sweep's truth, beside hzval's techniques on the same sweep.
+
+The command is ``hzval score FRAMES_DIR --against SWEEP_DIR``.
 
 An engineer renders the sweep's frames with their own baker and shader,
 from what ``SWEEP_DIR/frames.json`` says (camera, light directions in
@@ -81,9 +82,10 @@ def _sweep(sweep_dir: Path) -> tuple[dict, dict]:
 
 
 def _check_shape(metrics, engine, sweep_dir: Path) -> None:
-    """Refuse, with one line naming the file and the key, a sweep folder whose ``frames.json`` or
-    ``metrics.json`` is not of the shape :func:`hzval.pipeline.sweep.run` writes (what :func:`score`
-    reads).
+    """Refuse a sweep folder whose ``frames.json`` or ``metrics.json`` is not of the expected shape.
+
+    The refusal is one line naming the file and the key. The expected shape is the one
+    :func:`hzval.pipeline.sweep.run` writes (what :func:`score` reads).
     """
 
     def need(ok: bool, name: str, key: str, what: str) -> None:
@@ -148,9 +150,10 @@ def _check_shape(metrics, engine, sweep_dir: Path) -> None:
 
 
 def _check_agrees(metrics: dict, engine: dict, sweep_dir: Path) -> None:
-    """Refuse a ``frames.json`` whose settings that change an image are not ``metrics.json``'s (an
-    edited exposure scored an engine's frames against the truth at another brightness: FLIP 0 at 646
-    dB): the exposure, the material's digest, the effects, the samples and every frame's light.
+    """Refuse a ``frames.json`` whose settings that change an image are not ``metrics.json``'s.
+
+    Those settings are the exposure, the material's digest, the effects, the samples and every frame's light.
+    An edited exposure scored an engine's frames against the truth at another brightness: FLIP 0 at 646 dB.
     """
     params = metrics.get("parameters") or {}
     samples = engine.get("samples") if isinstance(engine.get("samples"), dict) else {}
@@ -187,8 +190,10 @@ def _is_number(v) -> bool:
 
 
 def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
-    """Every file a sweep's frame names (its own and its techniques') resolves inside the sweep folder
-    (:func:`hzval.io.paths.inside`), before anything is read or copied.
+    """Check that every file a sweep's frame names resolves inside the sweep folder.
+
+    The files are the frame's own and its techniques' (:func:`hzval.io.paths.inside`); the check runs before
+    anything is read or copied.
     """
     where = sweep_dir / "metrics.json"
     tables = [(f"{key}.files", frame["files"])]
@@ -206,8 +211,9 @@ def _check_stored_paths(frame: dict, sweep_dir: Path, key: str) -> None:
 
 
 def read_frame(path: Path, exposure: float, shape: tuple[int, int]) -> np.ndarray:
-    """Return an engine's frame as linear radiance ``(H, W, 3)`` float32: EXR as stored (RGB, or Y as grey),
-    PNG decoded from sRGB and divided by the exposure.
+    """Return an engine's frame as linear radiance ``(H, W, 3)`` float32.
+
+    EXR is read as stored (RGB, or Y as grey); PNG is decoded from sRGB and divided by the exposure.
     """
     if path.suffix.lower() == ".exr":
         img = codecs.read_rgb_exr(path)
@@ -241,8 +247,10 @@ def _bounded(path: Path, img: np.ndarray, metrics: dict) -> np.ndarray:
 
 
 def _check_brightness(path: Path, img: np.ndarray, metrics: dict) -> None:
-    """Refuse a frame far brighter than the scene can be (``metrics.json``'s ``exposure.max_radiance``
-    times :data:`BRIGHTEST_FACTOR`): its squared errors overflow, and no score of it means anything.
+    """Refuse a frame far brighter than the scene can be.
+
+    The limit is ``metrics.json``'s ``exposure.max_radiance`` times :data:`BRIGHTEST_FACTOR`: such a frame's
+    squared errors overflow, and no score of it means anything.
     """
     brightest = (metrics.get("exposure") or {}).get("max_radiance")
     if not _is_number(brightest) or brightest <= 0:
@@ -273,8 +281,9 @@ def _find(frames_dir: Path, name: str, prefix: str = "", required: bool = True) 
 
 
 def _one_value(path: Path, planes: list) -> None:
-    """Refuse a shadow factor stored in colour channels that differ: F is one value a pixel, and
-    reading one channel of a colour image would score something else in silence.
+    """Refuse a shadow factor stored in colour channels that differ.
+
+    F is one value a pixel, and reading one channel of a colour image would score something else in silence.
     """
     if len(planes) > 1 and any(not np.array_equal(planes[0], p) for p in planes[1:]):
         raise InputError(
@@ -283,8 +292,10 @@ def _one_value(path: Path, planes: list) -> None:
 
 
 def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    """Return an engine's shadow factor ``F`` ``(H, W)`` float32 in [0, 1]: an EXR's one channel (Y, R or
-    the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB decoding).
+    """Return an engine's shadow factor ``F`` as ``(H, W)`` float32 in [0, 1].
+
+    It is an EXR's one channel (Y, R or the only one), or a grey PNG's values over 255 or 65535 (data, no sRGB
+    decoding).
     """
     if path.suffix.lower() == ".exr":
         ch = codecs.read_exr(path)
@@ -312,8 +323,9 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
 
 
 def read_sidecar(frames_dir: Path) -> dict:
-    """``FRAMES_DIR/engine.toml``: ``{label, summary, parameters, path}`` (module docstring); the
-    defaults without one. Unknown tables or keys are one line (:mod:`hzval.core.strict`).
+    """Read ``FRAMES_DIR/engine.toml`` as ``{label, summary, parameters, path}`` (module docstring).
+
+    Without one, the defaults. Unknown tables or keys are one line (:mod:`hzval.core.strict`).
     """
     path = frames_dir / SIDECAR
     out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}
@@ -329,8 +341,10 @@ def read_sidecar(frames_dir: Path) -> dict:
 
 
 def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
-    """Return the sweep's normal map (``bake/normal.exr``, ``(rows, cols, 3)``) for the facing pixels, if
-    the sweep kept its bake and its view is ``top``.
+    """Return the sweep's normal map for the facing pixels.
+
+    The map is ``bake/normal.exr`` (``(rows, cols, 3)``), returned if the sweep kept its bake and its view is
+    ``top``.
     """
     if (metrics.get("camera") or {}).get("kind", "top") != "top":
         return None
@@ -343,9 +357,10 @@ def _normal(sweep_dir: Path, metrics: dict) -> np.ndarray | None:
 
 
 def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
-    """Return the files of ``frames_dir`` that ``score`` would ignore: none of ``<name>.exr|png``,
-    ``f_<name>.exr|png`` (``names``: the sweep's frames) or :data:`SIDECAR`; hidden files and
-    folders (a report inside it) aside.
+    """Return the files of ``frames_dir`` that ``score`` would ignore.
+
+    Those are the files that are none of ``<name>.exr|png``, ``f_<name>.exr|png`` (``names``: the sweep's
+    frames) or :data:`SIDECAR`; hidden files and folders (a report inside it) aside.
 
     Parameters
     ----------
@@ -367,8 +382,10 @@ def unexpected_files(frames_dir: Path, names: list[str]) -> list[str]:
 
 
 def _check_every_light(frames_dir: Path, names: list[str], found: list, prefix: str, ignored: list[str]):
-    """Refuse, in one line, frames for some lights only: naming the lights that have none and the
-    files that match no light's name (a misnamed ``az+30_F.exr`` is named, not a light it is not).
+    """Refuse, in one line, frames for some lights only.
+
+    The line names the lights that have none and the files that match no light's name (a misnamed
+    ``az+30_F.exr`` is named, not a light it is not).
     """
     missing = [n for n, p in zip(names, found) if p is None]
     if not missing:
@@ -489,13 +506,18 @@ def score(
 
 
 def _tangent_bug(metrics: dict, sweep_dir: Path, factors: list) -> dict | None:
-    """On a model's sweep, which tangent-frame bug the engine's F matches (:mod:`hzval.pipeline.bug_match`)."""
+    """Return the tangent-frame bug that the engine's F matches, on a model's sweep.
+
+    See :mod:`hzval.pipeline.bug_match`.
+    """
     return bug_match.diagnose(metrics, sweep_dir, factors)
 
 
 def _score_frame(sweep_dir, metrics, engine, f, path, img, F, fpath, swept, normal):
-    """One light: the engine's scores (image; with F, visibility, whole and facing) beside the
-    sweep's techniques' own; ``(frame, maps, brightness warning or None)``.
+    """Score one light: the engine's scores beside the sweep's techniques' own.
+
+    The engine's scores are the image's and, with F, the visibility's, whole and facing. Returns ``(frame,
+    maps, brightness warning or None)``.
     """
     exposure = float(engine["exposure"])
     # R, G, B or (the sweep's grey truth) Y, in half float: see the module's docstring
@@ -556,11 +578,12 @@ ALIASING_FLIP = 0.005
 
 
 def sampling_flip(sweep_dir: Path, swept: dict, img: np.ndarray, exposure: float, F) -> dict | None:
-    """How far the engine's frame is from the sweep's unshadowed shading (``plain.png``, the sweep's
-    own samples) on the pixels the truth lights fully (and the engine, where its F is given), in mean
-    FLIP, beside the same for the sweep's lead technique: shadows cannot differ there, so what does
-    is the sampling (or the shading). ``{engine, sweep, technique}``; ``None`` where the sweep kept no
-    such files.
+    """Return how far, in mean FLIP, the engine's frame is from the sweep's unshadowed shading.
+
+    The unshadowed shading is ``plain.png`` (the sweep's own samples); the comparison is on the pixels the
+    truth lights fully (and the engine, where its F is given). It sits beside the same for the sweep's lead
+    technique: shadows cannot differ there, so what does is the sampling (or the shading). The result is
+    ``{engine, sweep, technique}``; ``None`` where the sweep kept no such files.
     """
     files_ = swept.get("files") or {}
     techniques = raw_techniques(swept) or {}
@@ -589,7 +612,10 @@ def _display_png(path: Path) -> np.ndarray:
 
 
 def _sampling_warning(frames: list[dict]) -> str | None:
-    """One line where the engine's frames alias more than the sweep's own technique (:func:`sampling_flip`)."""
+    """Return one line where the engine's frames alias more than the sweep's own technique.
+
+    See :func:`sampling_flip`.
+    """
     found = [f["sampling"] for f in frames if f.get("sampling")]
     if not found:
         return None
@@ -621,12 +647,12 @@ def _brightness_summary(found: list) -> list[str]:
 def write(
     result: dict, maps: list, out: str | Path, *, command: str = "", force: bool = False, gates=None
 ) -> Path:
-    """``out/metrics.json`` and ``out/index.html``: the engine's images as the lead technique beside the
-    sweep's truth and the sweep's techniques (whose images are copied in, so the report stands
-    alone). Returns the index. The folder is held while they are written
-    (:func:`hzval.io.staging.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are tested first
-    and
-    listed at the top of the report.
+    """Write ``out/metrics.json`` and ``out/index.html`` and return the index.
+
+    The report shows the engine's images as the lead technique beside the sweep's truth and the sweep's
+    techniques (whose images are copied in, so the report stands alone). The folder is held while they are
+    written (:func:`hzval.io.staging.output_folder`); ``gates`` (:class:`hzval.commands.gates.Gates`) are
+    tested first and listed at the top of the report.
     """
     out = Path(out)
     if gates:
@@ -639,8 +665,9 @@ def write(
 
 
 def _copy(sweep_dir: Path, stage: Path, name: str, rel: str | None) -> str | None:
-    """Return a sweep's file (checked inside it by :func:`score`) copied to ``frames/<name>/`` of the staged
-    report; its path relative to the report.
+    """Copy a sweep's file into ``frames/<name>/`` of the staged report; return its path relative to it.
+
+    The file was checked inside the sweep by :func:`score`.
     """
     if not rel or not (sweep_dir / rel).is_file():
         return None
@@ -651,7 +678,10 @@ def _copy(sweep_dir: Path, stage: Path, name: str, rel: str | None) -> str | Non
 
 
 def _write(result: dict, maps: list, out: Path, stage: Path, command: str) -> Path:
-    """Return the report's files into ``stage``, their recorded paths relative to ``out`` (where they land)."""
+    """Write the report's files into ``stage``, with their recorded paths relative to ``out``.
+
+    ``out`` is where they land.
+    """
     sweep_dir = Path(result["against"])
     for frame, (name, swept_frame, image_maps) in zip(result["frames"], maps):
         frame["files"] = {

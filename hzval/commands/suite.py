@@ -44,6 +44,7 @@ from hzval.metrics.results import FrameRecord, SweepResult
 from hzval.pipeline import sweep
 from hzval.report import overview as overview_page
 from hzval.report import ranking
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 from hzval.truth import memory
 
@@ -84,8 +85,10 @@ MEANS = (
 
 @dataclass(frozen=True)
 class Entry:
-    """One material of the suite: its unique ``name`` (its folder under ``DIR``), the scene to sweep
-    and where it came from (``origin``: "built-in", a scene file, or a height map [+ sidecar]).
+    """One material of the suite: its unique name, the scene to sweep and where it came from.
+
+    The ``name`` is its folder under ``DIR``; ``origin`` is "built-in", a scene file, or a height map [+
+    sidecar].
     """
 
     name: str
@@ -115,13 +118,14 @@ class Task:
 
 
 def entries(inputs: list[str | Path] | None = None, **overrides) -> list[Entry]:
-    """Return the suite's materials: one :class:`Entry` per input (each built-in material when there is
-    none), with the sweep flags ``overrides`` (:func:`hzval.scene.spec.override`'s keywords) applied to
-    every one. A name is the folder of its report under DIR and a part of URLs: characters other than
-    letters, digits, ``.``, ``_`` and ``-`` become ``_``, and names are made unique with ``-2``,
-    ``-3``. An input that is no file, folder or built-in material, or a folder without height maps or
-    scenes, is an :class:`InputError` before anything runs; a height map that cannot be read is not:
-    it becomes that material's failure.
+    """Return the suite's materials, one :class:`Entry` per input, with ``overrides`` applied to every one.
+
+    With no input, there is one for each built-in material. ``overrides`` are the sweep flags
+    (:func:`hzval.scene.spec.override`'s keywords). A name is the folder of its report under DIR and a part of
+    URLs: characters other than letters, digits, ``.``, ``_`` and ``-`` become ``_``, and names are made
+    unique with ``-2``, ``-3``. An input that is no file, folder or built-in material, or a folder without
+    height maps or scenes, is an :class:`InputError` before anything runs; a height map that cannot be read is
+    not: it becomes that material's failure.
     """
     found: list[Entry] = []
     for item in inputs or materials.names():
@@ -177,7 +181,7 @@ def _entries_of(item) -> list[Entry]:
 
 
 def _scene_entry(path: Path) -> Entry:
-    scene = sc.load_scene(path)
+    scene = scene_files.load_scene(path)
     return Entry(scene.name, scene, str(path))
 
 
@@ -186,10 +190,10 @@ def _height_entry(path: Path) -> Entry:
 
     A sidecar that cannot be used is that material's failed row, as a map that cannot be read is.
     """
-    sidecar = sc.sidecar_of(path)
+    sidecar = scene_files.sidecar_of(path)
     if sidecar is not None:
         try:
-            return Entry(path.stem, sc.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
+            return Entry(path.stem, scene_files.load_sidecar(sidecar, path), f"{path} + {sidecar.name}")
         except InputError as exc:
             return Entry(
                 path.stem,
@@ -201,9 +205,10 @@ def _height_entry(path: Path) -> Entry:
 
 
 def estimate_peak_bytes(entry: Entry) -> int:
-    """``entry``'s sweep's estimated peak (:func:`hzval.truth.memory.estimate_peak_bytes`), from its size
-    alone (a height map's header, a built-in material's ``size``); a map that cannot be read counts
-    as tiny (it will fail on its own).
+    """Return ``entry``'s sweep's estimated peak from its size alone.
+
+    The estimate is :func:`hzval.truth.memory.estimate_peak_bytes`'s; the size is a height map's header or a
+    built-in material's ``size``. A map that cannot be read counts as tiny (it will fail on its own).
     """
     try:
         rows, cols = memory.material_shape(entry.scene)
@@ -213,10 +218,12 @@ def estimate_peak_bytes(entry: Entry) -> int:
 
 
 def default_workers(items: list[Entry], cores: int | None = None, available: int | None = None) -> int:
-    """Workers for this machine: one per core (each then runs Dr.Jit and FLIP on one thread, which
-    swept the built-in suite faster than one worker on every core: docs/internals.md),
-    no more than there are materials, and no more than fit in 80% of the available memory beside
-    each other at the largest material's estimated peak (:func:`estimate_peak_bytes`).
+    """Return the number of workers for this machine.
+
+    That is one per core (each then runs Dr.Jit and FLIP on one thread, which swept the built-in suite faster
+    than one worker on every core: docs/internals.md), no more than there are materials, and no more than fit
+    in 80% of the available memory beside each other at the largest material's estimated peak
+    (:func:`estimate_peak_bytes`).
     """
     cores = (os.cpu_count() or 1) if cores is None else cores
     available = resources.available_bytes() if available is None else available
@@ -230,9 +237,10 @@ def default_workers(items: list[Entry], cores: int | None = None, available: int
 
 
 def sweep_material(task: Task) -> dict:
-    """Sweep one material into ``task.out``; its row of ``suite.json`` (:func:`summarise`), or
-    ``{"status": "failed", "error": <one line>}``. Runs in a worker process; never raises for a
-    material's own failure, so one bad material cannot take the others down.
+    """Sweep one material into ``task.out`` and return its row of ``suite.json``.
+
+    The row is :func:`summarise`'s, or ``{"status": "failed", "error": <one line>}``. Runs in a worker
+    process; never raises for a material's own failure, so one bad material cannot take the others down.
     """
     entry, out = task.entry, Path(task.out)
     t0 = time.perf_counter()
@@ -268,8 +276,9 @@ def sweep_material(task: Task) -> dict:
 
 
 def _earlier_rows(out: Path) -> dict[str, dict]:
-    """Return the finished materials of an earlier suite in ``out`` (its ``suite.json``) whose reports are
-    still there, by name, their origins as given (:func:`hzval.report.overview.write_overview`
+    """Return the finished materials of an earlier suite in ``out`` whose reports are still there, by name.
+
+    They come from its ``suite.json``, their origins as given (:func:`hzval.report.overview.write_overview`
     makes them portable again); none where there is no readable overview.
     """
     try:
@@ -286,7 +295,10 @@ def _earlier_rows(out: Path) -> dict[str, dict]:
 
 
 def _given_origin(origin, out: Path):
-    """Return the inverse of :func:`_portable_origin`: a row's origin with its path resolved against ``out``."""
+    """Return a row's origin with its path resolved against ``out``.
+
+    This is the inverse of :func:`_portable_origin`.
+    """
     if not isinstance(origin, str) or origin == "built-in":
         return origin
     path, plus, rest = origin.partition(" + ")
@@ -294,8 +306,10 @@ def _given_origin(origin, out: Path):
 
 
 def _facing_mean(records: list[dict]) -> dict:
-    """``{"visibility_mae_facing": mean}`` over the records that have one; ``{}`` where none has (a view
-    without a facing mask), so that the row's |F - V| is its whole image's.
+    """Return the mean ``visibility_mae_facing`` over the records that have one.
+
+    The result is ``{"visibility_mae_facing": mean}``; ``{}`` where none has (a view without a facing mask),
+    so that the row's |F - V| is its whole image's.
     """
     mean = _mean(r.get("visibility_mae_facing") for r in records)
     return {} if mean is None else {"visibility_mae_facing": mean}
@@ -316,8 +330,9 @@ START_TOPIC = "hzval-suite-started-{pid}"
 
 
 def _log_start(task: Task) -> None:
-    """On a Dask worker, tell the scheduler that this material has started: a worker's death is then
-    told apart from the loss of workers before a material ran (:func:`_classify`).
+    """Tell the scheduler, on a Dask worker, that this material has started.
+
+    A worker's death is then told apart from the loss of workers before a material ran (:func:`_classify`).
     """
     if not task.topic:
         return
@@ -350,9 +365,11 @@ def _mean(values) -> float | None:
 
 
 def summarise(entry: Entry, metrics: dict) -> dict:
-    """Return a material's row of ``suite.json`` from its sweep's ``metrics.json`` content: per technique the
-    mean over the sweep of each of :data:`MEANS` (``seconds``: the mean frame time), the floor's mean
-    FLIP, the sweep's time and peak memory, and where its report is (relative to the suite).
+    """Return a material's row of ``suite.json`` from its sweep's ``metrics.json`` content.
+
+    The row holds, per technique, the mean over the sweep of each of :data:`MEANS` (``seconds``: the mean
+    frame time), the floor's mean FLIP, the sweep's time and peak memory, and where its report is (relative to
+    the suite).
     """
     frames = metrics["frames"]
     run = SweepResult.of(metrics)
@@ -396,9 +413,10 @@ def summarise(entry: Entry, metrics: dict) -> dict:
 
 
 def _thumbnail_sources(frames: list[FrameRecord], techniques: list[str]) -> dict:
-    """``{light: {"truth": png, <technique>: png}}`` (``light``: ``+15°``, and its elevation in a sweep
-    over several; relative to the material's folder) for the
-    sweep's first, middle and last lights.
+    """Return the thumbnails' PNGs for the sweep's first, middle and last lights.
+
+    The result is ``{light: {"truth": png, <technique>: png}}`` (``light``: ``+15°``, and its elevation in a
+    sweep over several), the paths relative to the material's folder.
     """
     n = len(frames)
     picks = sorted({0, n // 2, n - 1})[:LIGHTS_SHOWN]
@@ -519,8 +537,10 @@ ADDRESS = re.compile(r"(?:(?:tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(
 
 
 def check_address(address: str) -> str:
-    """``address`` if it is a Dask scheduler's (:data:`ADDRESS`, a port up to 65535), else one line
-    naming ``--cluster`` and the value.
+    """Return ``address`` if it is a Dask scheduler's, else refuse it in one line.
+
+    A scheduler's address is :data:`ADDRESS`, with a port up to 65535; the line names ``--cluster`` and the
+    value.
     """
     m = ADDRESS.fullmatch(str(address))
     if m is None or not 0 < int(m.group(2)) < 65536:
@@ -540,8 +560,9 @@ def _bar(total: int, progress: bool):
 
 
 def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
-    """Each task in this process, one after another, into ``rows`` (in the tasks' order); a signal
-    held during one material's swap stops the suite once that material is in
+    """Run each task in this process, one after another, into ``rows`` in the tasks' order.
+
+    A signal held during one material's swap stops the suite once that material is in
     (:func:`hzval.core.interrupts.cases`).
     """
     with interrupts.cases(), _bar(len(tasks), progress) as bar:
@@ -554,9 +575,10 @@ def _run_here(tasks: list[Task], rows: list, progress: bool) -> None:
 def _run_dask(
     tasks: list[Task], rows: list, engine: dict, workers: int | None, address: str | None, progress: bool
 ) -> None:
-    """Each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish: a
-    ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``. ``engine["name"]``
-    says which.
+    """Run each task on a Dask cluster, into ``rows`` (in the tasks' order) as they finish.
+
+    The cluster is a ``LocalCluster`` of ``workers`` processes, or the scheduler at ``address``;
+    ``engine["name"]`` says which.
     """
     import dask  # imported here: 0.5 s that a suite in this process does not need
     import distributed
@@ -635,8 +657,9 @@ LOOPBACK = "127.0.0.1"
 
 
 def _started(client, topic: str) -> set[str] | None:
-    """Return the materials whose tasks said they started (:func:`_log_start`); ``None`` if the scheduler
-    cannot say (it is gone).
+    """Return the materials whose tasks said they started (:func:`_log_start`).
+
+    ``None`` if the scheduler cannot say (it is gone).
     """
     try:
         return {msg.get("name") for _, msg in client.get_events(topic)}
@@ -645,10 +668,11 @@ def _started(client, topic: str) -> set[str] | None:
 
 
 def _classify(task: Task, exc: BaseException, started: set[str] | None, since: float) -> dict:
-    """Return a material's row when its task did not return: its report if that completed all the same
-    (:func:`_completed`); else, by what failed, "not run" (no worker ever started it), failed with
-    "its worker died" (:class:`distributed.KilledWorker` of a started task), or failed or "not run"
-    with "the scheduler was lost".
+    """Return a material's row when its task did not return.
+
+    The row is its report if that completed all the same (:func:`_completed`); else, by what failed, "not run"
+    (no worker ever started it), failed with "its worker died" (:class:`distributed.KilledWorker` of a started
+    task), or failed or "not run" with "the scheduler was lost".
     """
     # Dask: 0.5 s to import, paid only by a suite on workers
     import distributed
@@ -676,8 +700,10 @@ def _classify(task: Task, exc: BaseException, started: set[str] | None, since: f
 
 
 def _completed(task: Task, since: float) -> dict | None:
-    """Return the row of a material whose sweep wrote its whole report during this suite (``metrics.json``
-    swapped in after ``since``, a wall-clock time), though its task's result never came back.
+    """Return the row of a material whose sweep wrote its whole report during this suite.
+
+    Its ``metrics.json`` was swapped in after ``since``, a wall-clock time, though its task's result never
+    came back.
     """
     path = Path(task.out) / "metrics.json"
     try:
@@ -695,11 +721,12 @@ def _completed(task: Task, since: float) -> dict | None:
 
 
 def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
-    """``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``
-    (:class:`hzval.commands.gates.Gates`), its baseline the same material's in the baseline suite's folder;
-    each failure line names the material. A material whose gates cannot be evaluated (no baseline of
-    it, a baseline of another shape or settings) gets a line in ``errors`` (exit 2), the others are
-    still tested.
+    """Return ``suite.json``'s ``gates``: each finished material's ``metrics.json`` tested by ``gates``.
+
+    ``gates`` is a :class:`hzval.commands.gates.Gates`; a material's baseline is the same material's in the
+    baseline suite's folder, and each failure line names the material. A material whose gates cannot be
+    evaluated (no baseline of it, a baseline of another shape or settings) gets a line in ``errors`` (exit 2);
+    the others are still tested.
     """
     failed, unevaluated = [], []
     for row in rows:
@@ -720,8 +747,9 @@ def gate_failures(gates, out: Path, rows: list[dict]) -> dict:
 
 
 def material_baseline(gates, name: str) -> dict | None:
-    """Return the baseline suite's ``metrics.json`` of material ``name`` (checked by
-    :func:`hzval.commands.gates.read_baseline`), ``None`` without ``--baseline``.
+    """Return the baseline suite's ``metrics.json`` of material ``name``.
+
+    It is checked by :func:`hzval.commands.gates.read_baseline`; ``None`` without ``--baseline``.
     """
     if gates.baseline_path is None:
         return None

@@ -1,5 +1,6 @@
-"""``hzval sweep``: the truth and every chosen technique over a light sweep, scored, reported and
-gated (:func:`hzval.pipeline.sweep.run` does the work).
+"""``hzval sweep``: the truth and every chosen technique over a light sweep, scored, reported and gated.
+
+:func:`hzval.pipeline.sweep.run` does the work.
 """
 
 from __future__ import annotations
@@ -48,8 +49,10 @@ def run(
 
 
 def run_line(result: Mapping[str, Any], out: Path) -> str:
-    """Return the line under the table: frames, the run's total time (the report's own) and where it went,
-    the peak memory, and where the report is.
+    """Return the line printed under the table.
+
+    It gives the frames, the run's total time (the report's own) and where it went, the peak memory, and where
+    the report is.
     """
     t = result["timings"]
     stems = {info["file_stem"] for info in SweepResult.of(result).techniques.values()}

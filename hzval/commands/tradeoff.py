@@ -67,6 +67,7 @@ class Point:
     visibility_mae_facing: float | None = None
 
     def as_dict(self) -> dict:
+        """Return the point as a JSON object."""
         return dataclasses.asdict(self)
 
     @property
@@ -101,8 +102,10 @@ class Setting:
 
 
 def baked_technique(scene=None) -> str | None:
-    """Return the technique the bake settings are rendered with: the first in the registry that reads the
-    horizon bake (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``.
+    """Return the technique the bake settings are rendered with.
+
+    It is the first in the registry that reads the horizon bake
+    (:meth:`hzval.techniques.registry.Technique.bake_needs`) and applies to ``scene``.
     """
     sc_ = scene if scene is not None else Scene()
     return next(
@@ -117,10 +120,11 @@ def baked_technique(scene=None) -> str | None:
 
 
 def settings(scene=None, *, fits: bool = False) -> list[Setting]:
-    """Every setting :func:`measure` measures, defaults first: the bake's (rendered with
-    :func:`baked_technique`), every technique's own from the registry (those that apply to
-    ``scene``, when given; a technique that fits another's textures, ``NAME-fit``, only with
-    ``fits``: each of its settings is a fit), and the truth's ray counts.
+    """Return every setting :func:`measure` measures, defaults first.
+
+    They are the bake's (rendered with :func:`baked_technique`), every technique's own from the registry
+    (those that apply to ``scene``, when given; a technique that fits another's textures, ``NAME-fit``, only
+    with ``fits``: each of its settings is a fit), and the truth's ray counts.
     """
     s: list[Setting] = []
     baked = baked_technique(scene)
@@ -223,8 +227,10 @@ def _errors(ref: _Reference, frames) -> tuple[float, float, float | None]:
 
 
 def _render(renderer, el: float | None, az: float, **kw):
-    """One light's frame of a truth (lit from ``el`` first, :meth:`hzval.truth.plane.Truth.light_at`)
-    or a technique; ``el`` ``None``: the scene's one elevation.
+    """Render one light's frame of a truth or a technique.
+
+    A truth is lit from ``el`` first (:meth:`hzval.truth.plane.Truth.light_at`); ``el`` ``None``: the scene's
+    one elevation.
     """
     if el is None:
         return renderer.render(az, **kw)
@@ -235,9 +241,10 @@ def _render(renderer, el: float | None, az: float, **kw):
 
 
 def _render_all(renderer, lights, repeat: int = 3, **kw):
-    """Return the sweep's frames (``lights``: :func:`hzval.pipeline.renders.lights`) and a frame's time: the
-    mean over the sweep, the best of ``repeat`` sweeps (settings that share a kernel differ by about
-    10% from one sweep to the next otherwise).
+    """Return the sweep's frames and a frame's time.
+
+    ``lights`` are :func:`hzval.pipeline.renders.lights`'s. The time is the mean over the sweep, the best of
+    ``repeat`` sweeps (settings that share a kernel differ by about 10% from one sweep to the next otherwise).
     """
     _render(renderer, *lights[0], **kw)  # compile (or load) the kernels: time warm frames only
     frames = [_render(renderer, el, az, **kw) for el, az in lights]
@@ -258,9 +265,10 @@ def _timed_bake(height, params):
 
 
 def check_fits(scene, truth_spp: int = DEFAULT_TRUTH_SPP) -> int:
-    """Refuse, before the map is generated or decoded, a tradeoff that would not fit in memory: the
-    sweep's estimate (:func:`hzval.truth.memory.check_fits`) at the converged truth's ``truth_spp``, the
-    most samples it holds; return the estimate in bytes.
+    """Refuse a tradeoff that would not fit in memory, before the map is generated or decoded.
+
+    The test is the sweep's estimate (:func:`hzval.truth.memory.check_fits`) at the converged truth's
+    ``truth_spp``, the most samples it holds. Returns the estimate in bytes.
     """
     spp = max(int(scene.spp), int(truth_spp))
     return memory.check_fits(
@@ -278,8 +286,9 @@ def measure(
     fits: bool = False,
     progress: bool = False,
 ) -> tuple[list[Point], dict]:
-    """Measure every setting of :func:`settings` (or those whose names contain one of ``only``;
-    ``fits``: the fitted techniques' too).
+    """Measure every setting of :func:`settings`, or those whose names contain one of ``only``.
+
+    With ``fits``, the fitted techniques' settings too.
     """
     ref = _reference(scene, height, truth_spp)
     base = bake.BakeParams(depth=scene.material.depth, boundary=scene.material.boundary)
@@ -361,8 +370,9 @@ def _measure_one(s: Setting, ref: _Reference, bk, bake_s: float, params) -> Poin
 
 
 def mark_pareto(points: list[Point]) -> None:
-    """Set ``pareto`` on the points no other point of the same kind dominates in
-    (time_s, storage_bytes, the headline |F - V|: :attr:`Point.error`).
+    """Set ``pareto`` on the points no other point of the same kind dominates.
+
+    Dominance is in (time_s, storage_bytes, the headline |F - V|: :attr:`Point.error`).
     """
     for p in points:
         obj = (p.time_s, p.storage_bytes, p.error)
@@ -391,11 +401,13 @@ ERROR_IS = {
 
 
 def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
-    """Return the setting to use: among the techniques' settings (bake and technique), the one of least
-    storage, then least time, whose visibility error is within ``tolerance`` (relative) of the best;
-    the same among the settings of the technique whose bake is varied (its bake and its own), under
-    ``own`` with that technique's name, since another technique (terrain shadows) has another
-    cost, a sweep per light; and the fewest truth rays whose own error is below a tenth of the best.
+    """Return the setting to use among the techniques' settings, and the fewest truth rays to use.
+
+    Among the techniques' settings (bake and technique) it is the one of least storage, then least time, whose
+    visibility error is within ``tolerance`` (relative) of the best; the same among the settings of the
+    technique whose bake is varied (its bake and its own) is given under ``own`` with that technique's name,
+    since another technique (terrain shadows) has another cost, a sweep per light. The truth's are the fewest
+    rays whose own error is below a tenth of the best.
     """
     cand = [p for p in points if p.kind != "truth"]
     if not cand:
@@ -503,8 +515,10 @@ def _write_tradeoff(out: Path, points: list[Point], info: dict, material: dict, 
 
 
 def error_per_byte(points: list[Point], texels: int) -> list[dict]:
-    """Return the techniques' settings as error against bytes per texel, each marked on the front of least bytes
-    and least error (:func:`hzval.report.ranking.pareto`): ``tradeoff.json``'s ``error_per_byte``.
+    """Return the techniques' settings as error against bytes per texel.
+
+    Each is marked on the front of least bytes and least error (:func:`hzval.report.ranking.pareto`). This is
+    ``tradeoff.json``'s ``error_per_byte``.
 
     Parameters
     ----------
@@ -539,8 +553,10 @@ def error_per_byte(points: list[Point], texels: int) -> list[dict]:
 
 
 def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None:
-    """:func:`error_per_byte` as the report draws it (:func:`hzval.report.plots.plot_error_per_byte`),
-    a panel for the sweep's lights; its file name, or ``None`` with no technique setting.
+    """Plot :func:`error_per_byte` as the report draws it, a panel for the sweep's lights.
+
+    The drawing is :func:`hzval.report.plots.plot_error_per_byte`'s. Returns its file name, or ``None`` with
+    no technique setting.
     """
     if not rows:
         return None
@@ -561,9 +577,10 @@ def _plot_error_per_byte(path: Path, rows: list[dict], info: dict) -> str | None
 
 
 def floors(points: list[Point]) -> list[dict]:
-    """Each fitted setting beside the shipped one of the same storage: ``technique``, ``storage``,
-    ``shipped`` and ``floor`` (:attr:`Point.error`) and ``bake_loss`` (shipped minus floor):
-    ``tradeoff.json``'s ``floors``.
+    """Return each fitted setting beside the shipped one of the same storage.
+
+    Each row has ``technique``, ``storage``, ``shipped`` and ``floor`` (:attr:`Point.error`) and ``bake_loss``
+    (shipped minus floor). This is ``tradeoff.json``'s ``floors``.
 
     Parameters
     ----------

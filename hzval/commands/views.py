@@ -73,13 +73,14 @@ def run(
     command: str = "",
     force: bool = False,
 ) -> dict:
-    """Sweep ``scene`` from every view with every lookup into ``out``; write ``views.json`` and
-    ``index.html``; return the ``views.json`` content. The ``top`` view is swept with the first
-    lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
-    mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds
-    ``out`` (:func:`hzval.io.staging.output_folder`, ``force`` as there) and writes into a staging
-    folder swapped in whole: a failure, or a Ctrl-C (which stops the run between sweeps), leaves an
-    earlier report byte for byte and no folder it created.
+    """Sweep ``scene`` from every view with every lookup into ``out``.
+
+    Writes ``views.json`` and ``index.html``; returns the ``views.json`` content. The ``top`` view is swept
+    with the first lookup only: straight down, a ray meets the plane where it meets the surface, so parallax
+    mapping moves nothing, and a pixel covers one texel, where mips read level 0. The run holds ``out``
+    (:func:`hzval.io.staging.output_folder`, ``force`` as there) and writes into a staging folder swapped in
+    whole: a failure, or a Ctrl-C (which stops the run between sweeps), leaves an earlier report byte for byte
+    and no folder it created.
     """
     out = Path(out)
     chosen = _pick(views, VIEWS, "--views")
@@ -126,8 +127,9 @@ def _run(scene, out: Path, chosen, kinds, options, progress: bool, command: str,
 
 
 def headline(scores: dict) -> float | None:
-    """Return a technique's ``|F - V|`` in a row: over the pixels facing the light where measured (the top
-    view), else over the whole image.
+    """Return a technique's ``|F - V|`` in a row.
+
+    It is over the pixels facing the light where measured (the top view), else over the whole image.
     """
     facing = scores.get("visibility_mae_facing")
     return scores.get("visibility_mae") if facing is None else facing
@@ -211,8 +213,10 @@ def _technique_names(rows: list[dict]) -> list[str]:
 
 
 def _plot(path: Path, rows: list[dict]) -> None:
-    """Two panels per technique row: |F - V| against view elevation (the top and orthographic
-    views) and against the median pixel footprint (every view), one line per lookup.
+    """Draw two panels per technique row: |F - V| against view elevation and against pixel footprint.
+
+    Elevation covers the top and orthographic views; the footprint is the median pixel footprint, over every
+    view. Each panel has one line per lookup.
     """
     names = _technique_names(rows)
     kinds = list(dict.fromkeys(r["lookup"] for r in rows))

@@ -1,7 +1,11 @@
-"""The foundations every layer stands on: the conventions (axes, directions, height scale, boundaries),
-the sRGB encodings (srgb), how a point turns light into radiance (shading), the Mitsuba/Dr.Jit
-variant and its LLVM (backend), the errors and exit codes, interrupts, strict TOML reading, memory
-plans (resources) and the cube's face layout (cube). Nothing here imports another hzval subpackage.
+"""The foundations every layer stands on, which import no other hzval subpackage.
+
+- ``conventions``: axes, directions, height scale, boundaries; ``cube``: the weight cube map's layout.
+- ``shading``: how a point turns light into radiance; ``srgb``: the sRGB encodings.
+- ``budget``: every memory estimate's figures and formulas; ``resources``: the memory available and
+  the refusal of a run that would not fit.
+- ``backend``: the Mitsuba/Dr.Jit variant and its LLVM.
+- ``errors``, ``interrupts``, ``strict``: one-line errors and exit codes, signals, strict TOML.
 """
 
 import lazy_loader

@@ -196,8 +196,9 @@ def sync() -> None:
 
 
 def release_memory() -> None:
-    """Hand Dr.Jit's cache of freed buffers back to the system (``dr.flush_malloc_cache``): a sweep's
-    set-up and each frame's renders leave gigabytes of them at 4096 x 4096, which would otherwise
+    """Hand Dr.Jit's cache of freed buffers back to the system (``dr.flush_malloc_cache``).
+
+    A sweep's set-up and each frame's renders leave gigabytes of them at 4096 x 4096, which would otherwise
     stay resident beside the NumPy images of the comparison (about 1.5 GB of a 4096 sweep's peak).
     """
     # Dr.Jit loads only once the LLVM is chosen (prefer_working_llvm)
@@ -229,9 +230,10 @@ def _mallopt():
 
 
 def retain_freed_memory() -> bool:
-    """Keep memory that this process frees for its next allocations, rather than hand it back to the
-    system (glibc's ``mallopt``: no chunk mapped on its own, the heap's top not trimmed below 2 GB),
-    until :func:`hand_back_freed_memory`; ``True`` where that took effect (glibc), ``False`` elsewhere.
+    """Keep memory this process frees for its next allocations, rather than hand it back to the system.
+
+    This uses glibc's ``mallopt`` (no chunk mapped on its own, the heap's top not trimmed below 2 GB), until
+    :func:`hand_back_freed_memory`. Returns ``True`` where that took effect (glibc), ``False`` elsewhere.
 
     Why: glibc maps every allocation above 32 MB (a 2048 x 2048 RGB image in float32 is 48 MB) on
     its own and unmaps it when freed, so the next one is pages new to the process, which the kernel
@@ -251,9 +253,10 @@ def retain_freed_memory() -> bool:
 
 
 def hand_back_freed_memory() -> None:
-    """Undo :func:`retain_freed_memory` (if it took effect) and hand the memory it kept back to the
-    system (``malloc_trim``), so that what runs next in this process, another sweep's peak
-    included, starts from what it uses itself.
+    """Undo :func:`retain_freed_memory` and hand the memory it kept back to the system.
+
+    The undo applies if it took effect; the memory is handed back with ``malloc_trim``, so that what runs next
+    in this process, another sweep's peak included, starts from what it uses itself.
     """
     global _retaining
     if not _retaining:

@@ -1,5 +1,7 @@
-"""The weight cube map's layout and encoding (Lengyel, section 5.3): the OpenGL face order, each
-texel's centre direction, the face and texel a direction reads, and a signed weight as 8 bits.
+"""The weight cube map's layout and encoding (Lengyel, section 5.3).
+
+It covers the OpenGL face order, each texel's centre direction, the face and texel a direction reads, and a
+signed weight as 8 bits.
 """
 
 from __future__ import annotations

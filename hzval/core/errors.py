@@ -53,8 +53,9 @@ class EnvironmentProblem(HzvalError):
 
 
 class Interrupted(KeyboardInterrupt):
-    """SIGTERM (or another stop signal) as an interrupt: the run unwinds as on Ctrl-C; the command
-    line exits ``128 + signum`` (:mod:`hzval.core.interrupts`).
+    """SIGTERM (or another stop signal) as an interrupt.
+
+    The run unwinds as on Ctrl-C; the command line exits ``128 + signum`` (:mod:`hzval.core.interrupts`).
     """
 
     def __init__(self, signum: int):

@@ -50,8 +50,10 @@ def _raise_interrupted(signum, frame) -> None:
 
 @contextlib.contextmanager
 def terminate_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM raises :class:`hzval.core.errors.Interrupted` (main thread only; the
-    previous handler is put back at its end, for a caller that runs commands in its own process).
+    """Make SIGTERM raise :class:`hzval.core.errors.Interrupted` within the block.
+
+    This holds in the main thread only; the previous handler is put back at its end, for a caller that runs
+    commands in its own process.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -65,11 +67,11 @@ def terminate_as_interrupt() -> Iterator[None]:
 
 @contextlib.contextmanager
 def unwrapped() -> Iterator[None]:
-    """Within the block, an error caused by an interrupt is raised as that interrupt
-    (:func:`hzval.core.errors.interruption`): a Ctrl-C or SIGTERM that lands while Dr.Jit traces a loop
-    or records a frozen function then unwinds as one, through every handler that tells an interrupt
-    from an error (a run's folder, a suite's overview), and exits 130 or 143, not 1 with a
-    traceback.
+    """Raise an error caused by an interrupt as that interrupt, within the block.
+
+    See :func:`hzval.core.errors.interruption`. A Ctrl-C or SIGTERM that lands while Dr.Jit traces a loop or
+    records a frozen function then unwinds as one, through every handler that tells an interrupt from an error
+    (a run's folder, a suite's overview), and exits 130 or 143, not 1 with a traceback.
     """
     try:
         yield
@@ -122,9 +124,11 @@ def _dropped(caught: list[int]) -> None:
 
 @contextlib.contextmanager
 def command() -> Iterator[None]:
-    """Yield the extent of one command (``hzval.cli.main``): a run whose output is in place (a :func:`held`
-    region that started holding) goes on holding SIGINT and SIGTERM to here, so that the command
-    prints its table and exits with its own status; a signal held is dropped with one line.
+    """Yield the extent of one command (``hzval.cli.main``).
+
+    A run whose output is in place (a :func:`held` region that started holding) goes on holding SIGINT and
+    SIGTERM to here, so that the command prints its table and exits with its own status; a signal held is
+    dropped with one line.
     """
     global _command_hold
     outer, _command_hold = _command_hold, _Hold()
@@ -139,8 +143,9 @@ def command() -> Iterator[None]:
 
 @contextlib.contextmanager
 def held() -> Iterator[_Hold]:
-    """Yield a region whose signals, once :meth:`_Hold.start` is called, wait for its end and are then
-    dropped with one line on stderr: the run they would have stopped had finished.
+    """Yield a region whose signals, once :meth:`_Hold.start` is called, wait for its end.
+
+    They are then dropped with one line on stderr: the run they would have stopped had finished.
     """
     hold = _Hold()
     try:
@@ -158,9 +163,10 @@ def held() -> Iterator[_Hold]:
 
 @contextlib.contextmanager
 def cases() -> Iterator[None]:
-    """Yield a loop of runs, each with its own :func:`held` swap: a signal one of them held is raised
-    (:class:`hzval.core.errors.Interrupted`) when that run has finished, so the loop stops between
-    runs; the caller's own staging then leaves the earlier output as it was.
+    """Yield a loop of runs, each with its own :func:`held` swap.
+
+    A signal one of them held is raised (:class:`hzval.core.errors.Interrupted`) when that run has finished,
+    so the loop stops between runs; the caller's own staging then leaves the earlier output as it was.
     """
     global _loops
     _loops += 1

@@ -1,5 +1,6 @@
-"""The sRGB transfer functions and the luminance of its primaries, as colour-science gives them
-(IEC 61966-2-1): albedo images and previews are sRGB-encoded, renders linear.
+"""The sRGB transfer functions and the luminance of its primaries, as colour-science gives them.
+
+The standard is IEC 61966-2-1. Albedo images and previews are sRGB-encoded, renders linear.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
-"""Meshes: the tile's displaced triangle mesh (tile), a model's base mesh from the built-in shapes or
-OBJ/PLY/glTF files (model; glTF through gltf), tangent frames (tangents, their one owner), a base mesh cut
-along the
-texel grid (cells), the displaced model the truth traces (displace), and the engine tangent-frame
-bugs reproduced on purpose (tangent_bugs).
+"""Meshes: the tile's and a model's, their tangent frames, and the displaced model the truth traces.
+
+- ``tile``: the tile's displaced triangle mesh.
+- ``model``: a model's base mesh, built in or read from OBJ, PLY or glTF (``gltf``).
+- ``tangents``: tangent frames, their one owner; ``mikktspace``: MikkTSpace's frames.
+- ``cells``: a base mesh cut along the texel grid; ``displace``: the displaced model.
+- ``tangent_bugs``: engine tangent-frame bugs, reproduced on purpose.
 """
 
 import lazy_loader

@@ -42,10 +42,12 @@ CHUNK_PAIRS = 1 << 18
 
 
 def ring_levels(height_texels: np.ndarray, boundary: str, tolerance: float) -> np.ndarray:
-    """``(rows, cols)`` int: the rings of each cell's fans (module docstring), the plane's own level
-    for the cell's twist and the tolerance (:func:`hzval.geometry.tile.cell_levels`; a planar cell one ring).
-    Cell ``(ky, kx)`` spans ``x`` in ``[kx + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]``
-    (texel row ``rows - 1 - ky``); ``wrap`` wraps the last cells around, ``open`` clamps them flat.
+    """Return the rings of each cell's fans as a ``(rows, cols)`` int array (module docstring).
+
+    Each is the plane's own level for the cell's twist and the tolerance
+    (:func:`hzval.geometry.tile.cell_levels`; a planar cell one ring). Cell ``(ky, kx)`` spans ``x`` in ``[kx
+    + 0.5, kx + 1.5]``, ``y`` in ``[ky + 0.5, ky + 1.5]`` (texel row ``rows - 1 - ky``); ``wrap`` wraps the
+    last cells around, ``open`` clamps them flat.
     """
     h = np.asarray(height_texels, np.float64)[::-1]  # row 0: the first texel centre along y
     z = np.pad(h, ((0, 1), (0, 1)), mode="wrap" if boundary == "wrap" else "edge")
@@ -61,8 +63,10 @@ CORNER, EDGE, INSIDE = 0, 1, 2
 
 
 def _pair_chunks(X: np.ndarray, Y: np.ndarray, faces: np.ndarray, usable: np.ndarray):
-    """``(face, kx, ky)`` of every cell that each usable triangle's bounding box touches, in chunks of
-    about :data:`CHUNK_PAIRS` (a cell ``(ky, kx)`` spans ``[kx + 0.5, kx + 1.5] x [ky + 0.5, ky + 1.5]``).
+    """Yield ``(face, kx, ky)`` of every cell that each usable triangle's bounding box touches, in chunks.
+
+    The chunks are of about :data:`CHUNK_PAIRS`; a cell ``(ky, kx)`` spans ``[kx + 0.5, kx + 1.5] x [ky + 0.5,
+    ky + 1.5]``.
     """
     fx, fy = X[faces], Y[faces]
     kx0, kx1 = (np.floor(v - 0.5).astype(np.int64) for v in (fx.min(1), fx.max(1)))
@@ -83,8 +87,10 @@ def _pair_chunks(X: np.ndarray, Y: np.ndarray, faces: np.ndarray, usable: np.nda
 
 
 def _where(X, Y, faces, f, kx, ky) -> np.ndarray:
-    """Per pair: 1 where the cell lies wholly inside its triangle, -1 wholly outside, 0 near one of
-    its edges (the cell's centre within half a diagonal of the edge's line: cut it).
+    """Return, per pair, where the cell lies against its triangle: 1 inside, -1 outside, 0 near an edge.
+
+    1 means wholly inside, -1 wholly outside; 0 is near one of its edges (the cell's centre within half a
+    diagonal of the edge's line: cut it).
     """
     cx, cy = X[faces[f]], Y[faces[f]]
     mx, my = kx + 1.0, ky + 1.0  # the cell's centre
@@ -118,11 +124,12 @@ def _square(kx, ky):
 
 
 def _polygons(X, Y, faces, f, kx, ky):
-    """Return the convex piece of triangle ``f`` in cell ``(ky, kx)``, for each pair: ``(px, py, kind, vid,
-    t, count)``, ``(P, S)`` slots sorted counterclockwise in texel space (invalid slots last), ``count``
-    the distinct vertices (< 3: no piece). ``kind``: :data:`CORNER` (``vid`` the base vertex),
-    :data:`EDGE` (``vid`` the edge's corner index ``e``, ``t`` along it from its lower vertex id),
-    :data:`INSIDE`.
+    """Return the convex piece of triangle ``f`` in cell ``(ky, kx)``, for each pair.
+
+    The pieces are ``(px, py, kind, vid, t, count)``, ``(P, S)`` slots sorted counterclockwise in texel space
+    (invalid slots last), ``count`` the distinct vertices (< 3: no piece). ``kind``: :data:`CORNER` (``vid``
+    the base vertex), :data:`EDGE` (``vid`` the edge's corner index ``e``, ``t`` along it from its lower
+    vertex id), :data:`INSIDE`.
     """
     tri = faces[f]  # (P, 3) vertex ids
     cx, cy = X[tri], Y[tri]
@@ -181,8 +188,10 @@ def _polygons(X, Y, faces, f, kx, ky):
 
 
 def _sorted_distinct(px, py, kind, vid, t, valid):
-    """Return the valid slots sorted by angle about their mean, near-duplicates (1e-9 texels) merged into the
-    most exact of them (a corner, then an edge point of lowest ``t``), invalid slots last.
+    """Return the valid slots sorted by angle about their mean, near-duplicates merged, invalid slots last.
+
+    Near-duplicates are within 1e-9 texels and are merged into the most exact of them (a corner, then an edge
+    point of lowest ``t``).
     """
     S = px.shape[1]
     n = np.maximum(valid.sum(1), 1)
@@ -218,10 +227,11 @@ def _sorted_distinct(px, py, kind, vid, t, valid):
 
 
 def _fans(px, py, kind, vid, t, count, rings, flip):
-    """Return the triangles of each piece: a fan about its vertices' mean, cut into ``rings`` rings (module
-    docstring), counterclockwise in texel space (``flip``: the other way round, for a triangle
-    mirrored in UV). Returns the vertex records ``(x, y, kind, vid, t, pair)`` and ``(T, 3)``
-    indices into them, ``pair`` the piece each came from.
+    """Return the triangles of each piece: a fan about its vertices' mean, cut into ``rings`` rings.
+
+    The rings are as in the module docstring. The triangles are counterclockwise in texel space (``flip``: the
+    other way round, for a triangle mirrored in UV). Returns the vertex records ``(x, y, kind, vid, t, pair)``
+    and ``(T, 3)`` indices into them, ``pair`` the piece each came from.
     """
     P, S = px.shape
     slot = np.arange(S)[None, :]
@@ -312,10 +322,11 @@ def cut(
     height_texels: np.ndarray | None = None,
     tolerance: float | None = None,
 ):
-    """Cut ``base`` along the texel grid of a ``texels = (rows, cols)`` image (module docstring):
-    ``(vertices, faces, base_face, rings)`` with ``vertices`` a dict of per-vertex arrays (``kind``,
-    ``vid``, ``face``, ``t``, ``x``, ``y``) that :func:`attributes` turns into positions and
-    frames; ``rings`` per cell from ``height_texels`` and ``tolerance`` (None: one ring).
+    """Cut ``base`` along the texel grid of a ``texels = (rows, cols)`` image (module docstring).
+
+    Returns ``(vertices, faces, base_face, rings)`` with ``vertices`` a dict of per-vertex arrays (``kind``,
+    ``vid``, ``face``, ``t``, ``x``, ``y``) that :func:`attributes` turns into positions and frames; ``rings``
+    per cell from ``height_texels`` and ``tolerance`` (None: one ring).
     """
     rows, cols = texels
     X, Y = base.uvs[:, 0] * cols, base.uvs[:, 1] * rows
@@ -373,8 +384,9 @@ def cut(
 
 
 def _group(*columns) -> np.ndarray:
-    """``(N,)`` int64 ids of the distinct rows of the integer ``columns`` (by a lexicographic sort,
-    far faster than ``np.unique(axis=0)``), and the first row of each.
+    """Return ``(N,)`` int64 ids of the integer ``columns``' distinct rows, and the first row of each.
+
+    They are found by a lexicographic sort, far faster than ``np.unique(axis=0)``.
     """
     order = np.lexsort(columns[::-1])
     diff = np.zeros(len(order), bool)
@@ -396,9 +408,10 @@ def _edge_ends(base, face: np.ndarray, e: np.ndarray):
 
 
 def _unique_vertices(base, v: dict, tris: np.ndarray):
-    """Return the distinct vertices of the records ``v`` and ``tris`` in their indices, triangles that
-    collapsed dropped. On its side of any seam a vertex is: a base corner by its id; an edge point
-    by its edge's two vertex ids and ``t``; a cell corner by its triangle and texel position (exact
+    """Return the distinct vertices of the records ``v`` and ``tris`` in their indices.
+
+    Triangles that collapsed are dropped. On its side of any seam a vertex is: a base corner by its id; an
+    edge point by its edge's two vertex ids and ``t``; a cell corner by its triangle and texel position (exact
     half-integers); a fan's centre or ring point (``fresh``) is its piece's alone.
     """
     n = len(v["kind"])
@@ -433,8 +446,10 @@ def _unique_vertices(base, v: dict, tris: np.ndarray):
 
 
 def _weld_edge(base, u: dict):
-    """Per vertex: its weld edge key ``wlo * W + whi`` (edge points; -1 otherwise), ``t`` along the
-    edge from ``wlo`` (edge points) and the weld id (corners; -1 otherwise).
+    """Return, per vertex, its weld edge key, its ``t`` along that edge and its weld id.
+
+    The key is ``wlo * W + whi`` (edge points; -1 otherwise), ``t`` runs along the edge from ``wlo`` (edge
+    points), and the weld id is the corners' (-1 otherwise).
     """
     W = int(base.weld.max()) + 1
     e = u["kind"] == EDGE
@@ -449,8 +464,9 @@ def _weld_edge(base, u: dict):
 
 
 def _snap(E: np.ndarray, t3: np.ndarray, eps: float = 1e-9) -> np.ndarray:
-    """``t3`` with the points of one weld edge closer than ``eps`` given the lowest ``t`` of their
-    cluster: both sides of a seam cut at the same grid line then share one point.
+    """Return ``t3`` with a weld edge's points closer than ``eps`` given their cluster's lowest ``t``.
+
+    Both sides of a seam cut at the same grid line then share one point.
     """
     on = np.flatnonzero(E >= 0)
     order = on[np.lexsort((t3[on], E[on]))]
@@ -477,8 +493,9 @@ def _seam_keys(base, W: int) -> np.ndarray:
 
 
 def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
-    """For triangle edges ``(i, j)`` (vertex indices): the weld edge both ends lie on (-1: none) and
-    their ``t`` along it.
+    """Return, for triangle edges ``(i, j)``, the weld edge both ends lie on and their ``t`` along it.
+
+    ``i`` and ``j`` are vertex indices; the weld edge is -1 where there is none.
     """
     ki, kj = u["kind"][i], u["kind"][j]
     key = np.full(len(i), -1, np.int64)
@@ -499,9 +516,10 @@ def _edge_on(u: dict, E, t3, w, W: int, i: np.ndarray, j: np.ndarray):
 
 
 def _stitch(base, u: dict, faces: np.ndarray, base_face: np.ndarray, eps: float = 1e-9):
-    """Put every point of a seam's either side on both (module docstring, "Seams"): each triangle
-    with an edge on a seam is fanned from its third vertex through the other side's points on that
-    edge. ``u`` gains the new edge points (``t3`` their place along the weld edge).
+    """Put every point of a seam's either side on both (module docstring, "Seams").
+
+    Each triangle with an edge on a seam is fanned from its third vertex through the other side's points on
+    that edge. ``u`` gains the new edge points (``t3`` their place along the weld edge).
     """
     E, t3, w, W = _weld_edge(base, u)
     t3 = _snap(E, t3, eps)
@@ -585,9 +603,11 @@ def mesh(
     height_texels: np.ndarray | None = None,
     tolerance: float | None = None,
 ) -> dict:
-    """Return the cut base mesh (module docstring): per vertex ``positions`` (on the base mesh),
-    ``normals``, ``tangents`` (xyz and ``w``), ``uvs`` and ``weld`` (one id per place, across
-    seams); ``faces`` counterclockwise as the base's and ``base_face`` the triangle each came from.
+    """Return the cut base mesh (module docstring).
+
+    It holds per vertex ``positions`` (on the base mesh), ``normals``, ``tangents`` (xyz and ``w``), ``uvs``
+    and ``weld`` (one id per place, across seams); ``faces`` counterclockwise as the base's and ``base_face``
+    the triangle each came from.
     """
     rows, cols = texels
     v, tris, base_face = cut(base, texels, boundary, height_texels=height_texels, tolerance=tolerance)
@@ -604,9 +624,10 @@ def mesh(
 
 
 def _attributes(base, u: dict, rows: int, cols: int) -> dict:
-    """Positions, frames, UVs and weld ids of the vertices ``u`` (module docstring, "Canonical
-    points"): corners as the base's, edge points from their edge's two ends, inside points from
-    their triangle's UV map.
+    """Return the positions, frames, UVs and weld ids of the vertices ``u``.
+
+    As in the module docstring, "Canonical points": corners as the base's, edge points from their edge's two
+    ends, inside points from their triangle's UV map.
     """
     n_v = len(u["kind"])
     first_of_weld = np.zeros(int(base.weld.max()) + 1, np.int64)

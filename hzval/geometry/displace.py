@@ -81,9 +81,10 @@ def refine(
     depth: float | None = None,
     tolerance: float | None = None,
 ) -> Refined:
-    """Cut ``base`` in UV space along the texel grid of a ``texels = (rows, cols)`` image, each piece
-    a fan, watertight across UV seams (:mod:`hzval.geometry.cells`). With ``height`` (normalised, the map
-    itself) and ``depth``, a twisted cell's fans are cut into rings until they are within
+    """Cut ``base`` in UV space along the texel grid of a ``texels = (rows, cols)`` image.
+
+    Each piece is a fan, watertight across UV seams (:mod:`hzval.geometry.cells`). With ``height``
+    (normalised, the map itself) and ``depth``, a twisted cell's fans are cut into rings until they are within
     ``tolerance`` texels of the bilinear patch (default :data:`hzval.geometry.tile.DEFAULT_TOLERANCE`).
     """
     h_tex = None
@@ -105,12 +106,13 @@ def estimate(
     depth: float | None = None,
     tolerance: float | None = None,
 ) -> tuple[int, int]:
-    """``(triangles, bytes)`` of :func:`refine` before it runs, one ring a cell: ``4 A + 2.2 P +
-    1.1 F`` triangles for ``A`` texels of UV area, ``P`` texels of the base triangles' edges (the
-    cells they cross: ``|du| + |dv|``) and ``F`` base triangles, fitted within 5% to the shapes
-    and a 20k-triangle torus at 64^2 to 256^2 (commit message), :data:`BYTES_PER_TRIANGLE` each.
-    With the map (``height``, ``depth``, ``tolerance`` as :func:`refine` takes them) the cells'
-    rings count too: a fan's edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean).
+    """Return the ``(triangles, bytes)`` of :func:`refine` before it runs, one ring a cell.
+
+    That is ``4 A + 2.2 P + 1.1 F`` triangles for ``A`` texels of UV area, ``P`` texels of the base triangles'
+    edges (the cells they cross: ``|du| + |dv|``) and ``F`` base triangles, fitted within 5% to the shapes and
+    a 20k-triangle torus at 64^2 to 256^2 (commit message), :data:`BYTES_PER_TRIANGLE` each. With the map
+    (``height``, ``depth``, ``tolerance`` as :func:`refine` takes them) the cells' rings count too: a fan's
+    edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean).
     """
     rows, cols = texels
     uv = base.uvs[base.faces] * [cols, rows]
@@ -134,10 +136,11 @@ def estimate(
 
 
 def bilinear(image: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndarray:
-    """``image`` (``(rows, cols)`` or ``(rows, cols, k)``) read bilinearly between texel centres at
-    hzval UVs (u right, v up the image, :mod:`hzval.geometry.model`), as the plane reads it
-    (:func:`hzval.core.conventions.bilinear_at` at ``x = u cols``, ``y = v rows``). Returns ``(V,)``
-    or ``(V, k)`` float64.
+    """Read ``image`` bilinearly between texel centres at hzval UVs, as the plane reads it.
+
+    ``image`` is ``(rows, cols)`` or ``(rows, cols, k)``; the UVs have u right, v up the image
+    (:mod:`hzval.geometry.model`); the plane reads it with :func:`hzval.core.conventions.bilinear_at` at ``x =
+    u cols``, ``y = v rows``. Returns ``(V,)`` or ``(V, k)`` float64.
     """
     if boundary not in cv.BOUNDARIES:
         raise ValueError(f"unknown boundary {boundary!r}")
@@ -152,10 +155,11 @@ def sample_height(height: np.ndarray, uvs: np.ndarray, boundary: str) -> np.ndar
 
 
 def shading_normals(refined: Refined, normal_map: np.ndarray, boundary: str) -> np.ndarray:
-    """``(V, 3)`` float32 unit world normals of the refined vertices: the tangent-space normal map
-    (``(rows, cols, 3)``, :func:`hzval.core.conventions.normal_map`: x along +u, y along +v, z out) read at
-    each vertex (:func:`bilinear`) and carried to the world by the vertex's frame
-    (:func:`hzval.geometry.tangents.to_world`), as the techniques carry it at their hit points.
+    """Return the refined vertices' unit world normals from the tangent-space normal map.
+
+    They are ``(V, 3)`` float32. The map (``(rows, cols, 3)``, :func:`hzval.core.conventions.normal_map`: x
+    along +u, y along +v, z out) is read at each vertex (:func:`bilinear`) and carried to the world by the
+    vertex's frame (:func:`hzval.geometry.tangents.to_world`), as the techniques carry it at their hit points.
     """
     m = bilinear(normal_map, refined.uvs, boundary)
     n = tg.to_world(m, refined.normals, refined.tangents[:, :3], refined.tangents[:, 3])
@@ -186,15 +190,15 @@ def displace(
     *,
     weld: str = "miter",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Return the truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``, one position per
-    refined vertex, ``p + n H(uv) depth world_per_uv`` with ``H`` from :func:`sample_height`
-    (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices of one weld
-    id (a seam's sides, a hard edge's) share one position, bit for bit, pushed by their mean height
-    ``h`` along the mean ``m`` of their unit normals (their first normal where those cancel):
-    ``mean`` by ``h m / |m|``; ``miter`` by ``h m / |m|^2`` (at most :data:`MAX_MITER` ``h``), which
-    moves the point by ``h`` along each of two normals, or three at right angles, so that a hard
-    edge's faces stay flat up to it (a constant height grows a cube into a cube). Along a smooth
-    seam (equal normals) the two are the same.
+    """Return the truth's surface: ``(positions (V, 3) float32, faces (F, 3) uint32)``.
+
+    There is one position per refined vertex, ``p + n H(uv) depth world_per_uv`` with ``H`` from
+    :func:`sample_height` (``height`` ``(rows, cols)`` in [0, 1], ``depth`` in texture widths). The vertices
+    of one weld id (a seam's sides, a hard edge's) share one position, bit for bit, pushed by their mean
+    height ``h`` along the mean ``m`` of their unit normals (their first normal where those cancel): ``mean``
+    by ``h m / |m|``; ``miter`` by ``h m / |m|^2`` (at most :data:`MAX_MITER` ``h``), which moves the point by
+    ``h`` along each of two normals, or three at right angles, so that a hard edge's faces stay flat up to it
+    (a constant height grows a cube into a cube). Along a smooth seam (equal normals) the two are the same.
     """
     if np.ndim(height) != 2 or not np.all(np.isfinite(height)):
         raise ValueError("height must be a finite (rows, cols) array")

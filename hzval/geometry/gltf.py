@@ -35,8 +35,10 @@ _GLTF_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
 def _gltf_accessor(g, blob: bytes, index: int) -> np.ndarray:
-    """Accessor ``index`` of the glTF ``g`` as a ``(count, width)`` float64 array (indices as
-    integers), honouring ``byteStride`` and ``normalized``. Sparse accessors: ``ValueError``.
+    """Return accessor ``index`` of the glTF ``g`` as a ``(count, width)`` float64 array.
+
+    Indices come as integers; ``byteStride`` and ``normalized`` are honoured. Sparse accessors:
+    ``ValueError``.
     """
     a = g.accessors[index]
     if a.sparse is not None:
@@ -74,8 +76,9 @@ def _gltf_node_matrix(node) -> np.ndarray:
 
 
 def _gltf_primitives(g):
-    """``(primitive, world matrix)`` of every mesh primitive the default scene (or, without
-    scenes, every root node) instances, walking the node tree.
+    """Yield ``(primitive, world matrix)`` of every mesh primitive the default scene instances.
+
+    Without scenes, those every root node instances; the walk follows the node tree.
 
     glTF 2.0 ("Nodes and Hierarchy") requires the nodes to form disjoint strict trees: a node
     reached twice (a cycle, a child listed twice, a node under two parents) is a ``ValueError``,
@@ -104,8 +107,10 @@ def _gltf_primitives(g):
 
 
 def _gltf_part(g, blob, prim, m):
-    """One triangle primitive as ``(positions, uvs, normals, tangents, faces)`` in the file's
-    axes with its node's transform applied; glTF's ``v`` flipped to hzval's (``1 - v``).
+    """Return one triangle primitive as ``(positions, uvs, normals, tangents, faces)``.
+
+    They are in the file's axes with its node's transform applied; glTF's ``v`` is flipped to hzval's (``1 -
+    v``).
     """
     at = prim.attributes
     if at.TEXCOORD_0 is None:
@@ -125,8 +130,10 @@ def _gltf_part(g, blob, prim, m):
 
 
 def _gltf_check_uris(g, path: str) -> None:
-    """Every buffer URI of the glTF at ``path`` is embedded (``data:``) or names a file inside the
-    glTF's folder (:func:`hzval.io.paths.uri_path`): checked before any buffer is opened.
+    """Check that every buffer URI of the glTF at ``path`` is embedded or names a file in its folder.
+
+    Embedded means ``data:``; a named file must be inside the glTF's folder (:func:`hzval.io.paths.uri_path`).
+    The check runs before any buffer is opened.
     """
     folder = os.path.dirname(os.fspath(path)) or "."
     for i, b in enumerate(g.buffers or []):
@@ -135,9 +142,10 @@ def _gltf_check_uris(g, path: str) -> None:
 
 
 def _gltf_check(g, blob: bytes) -> None:
-    """``ValueError`` for what the reader cannot decode: required extensions (Draco, meshopt
-    compression...) or buffer data missing or shorter than the file says (a ``.bin`` not beside
-    the ``.gltf``).
+    """Raise ``ValueError`` for what the reader cannot decode.
+
+    That is required extensions (Draco, meshopt compression...) or buffer data missing or shorter than the
+    file says (a ``.bin`` not beside the ``.gltf``).
     """
     if g.extensionsRequired:
         raise ValueError(

@@ -86,10 +86,11 @@ def _triangle_frames(p, w):
 
 
 def _neighbours(weld: np.ndarray, good: np.ndarray) -> np.ndarray:
-    """``(F, 3)`` the good triangle across each edge ``i`` (corner ``i`` to ``i + 1``) of a good
-    triangle, wound oppositely over the same welded vertices, or -1. An edge that only two
-    triangles share is paired by sorting; where more share it, each directed edge takes the first
-    free opposite one in triangle order, as the reference pairs them.
+    """Return, as ``(F, 3)``, the good triangle across each edge of a good triangle, or -1.
+
+    Edge ``i`` runs from corner ``i`` to ``i + 1``; the triangle across is wound oppositely over the same
+    welded vertices. An edge that only two triangles share is paired by sorting; where more share it, each
+    directed edge takes the first free opposite one in triangle order, as the reference pairs them.
     """
     out = np.full(weld.shape, -1, np.int64)
     faces = np.flatnonzero(good)
@@ -127,9 +128,11 @@ def _pair_shared(out: np.ndarray, faces, a: list, b: list, edges) -> None:
 
 
 def _groups(weld, neighbours, preserving, framed, good) -> tuple[np.ndarray, np.ndarray]:
-    """``(group of each corner, orientation of each group)`` (module docstring, step 3): -1 for a
-    corner no group reached. Depth first, as the reference's ``AssignRecur``: from a corner, its
-    triangle's neighbour across the edge leaving it, then across the edge arriving at it.
+    """Return the group of each corner and the orientation of each group (module docstring, step 3).
+
+    The group is -1 for a corner no group reached. The search is depth first, as the reference's
+    ``AssignRecur``: from a corner, its triangle's neighbour across the edge leaving it, then across the edge
+    arriving at it.
     """
     w, nb = weld.tolist(), neighbours.tolist()
     orient, has_frame = preserving.tolist(), framed.tolist()
@@ -215,8 +218,9 @@ def corner_tangents(positions, normals, uvs, faces) -> np.ndarray:
 
 
 def _leftovers(out: np.ndarray, weld: np.ndarray, good: np.ndarray, seen: np.ndarray) -> None:
-    """Give a degenerate triangle's corners the frame of the first good, grouped corner at their
-    welded vertex (module docstring, step 5).
+    """Give a degenerate triangle's corners the first good, grouped corner's frame at their welded vertex.
+
+    See the module docstring, step 5.
     """
     bad = np.flatnonzero(~good)
     if not len(bad):

@@ -138,8 +138,9 @@ class BaseMesh:
 
     @property
     def mirrored_fraction(self) -> float:
-        """Share of the UV area on triangles whose handedness is -1 (the sign of their vertices'
-        summed ``w``): mirrored UV islands.
+        """Return the share of the UV area on mirrored UV islands.
+
+        Those are the triangles whose handedness is -1 (the sign of their vertices' summed ``w``).
         """
         w = self.tangents[self.faces, 3].sum(axis=1)
         a = np.abs(self.uv_areas)
@@ -157,8 +158,9 @@ class BaseMesh:
         return centre, float(np.linalg.norm(self.positions - centre, axis=-1).max())
 
     def record(self) -> dict:
-        """``metrics.json``'s ``mesh``: ``{source, triangles, world_per_uv, tangents,
-        mirrored_fraction, seam_edges}``.
+        """Return ``metrics.json``'s ``mesh`` record.
+
+        It is ``{source, triangles, world_per_uv, tangents, mirrored_fraction, seam_edges}``.
         """
         return {
             "source": self.source,
@@ -177,8 +179,9 @@ class BaseMesh:
 
 
 def weld_ids(positions: np.ndarray, tolerance: float = WELD_TOLERANCE) -> np.ndarray:
-    """``(V,)`` int64: one id per distinct position (to ``tolerance`` of the bounding-box
-    diagonal), numbered in the order of first appearance, so vertex 0's id is 0.
+    """Return ``(V,)`` int64 ids, one per distinct position, numbered in the order of first appearance.
+
+    A position is distinct to ``tolerance`` of the bounding-box diagonal. Vertex 0's id is therefore 0.
     """
     p = np.asarray(positions, np.float64)
     if len(p) == 0:
@@ -192,10 +195,11 @@ def weld_ids(positions: np.ndarray, tolerance: float = WELD_TOLERANCE) -> np.nda
 
 
 def edge_table(faces: np.ndarray, weld: np.ndarray):
-    """Return the edges of a mesh on welded ids: ``(key (F, 3), unique, inverse, counts)``; face
-    ``f``'s edge ``e`` runs from corner ``e`` to ``(e + 1) % 3`` and its key is
-    ``lo * W + hi`` of the two welded ids (``W`` their count); ``unique`` the distinct keys,
-    ``inverse (F, 3)`` each edge's row in it and ``counts`` the triangles on each.
+    """Return the edges of a mesh on welded ids: ``(key (F, 3), unique, inverse, counts)``.
+
+    Face ``f``'s edge ``e`` runs from corner ``e`` to ``(e + 1) % 3`` and its key is ``lo * W + hi`` of the
+    two welded ids (``W`` their count); ``unique`` the distinct keys, ``inverse (F, 3)`` each edge's row in it
+    and ``counts`` the triangles on each.
     """
     w = weld[faces]
     a, b = w, np.roll(w, -1, axis=1)
@@ -233,9 +237,11 @@ def seam_edge_ends(mesh: BaseMesh, tolerance: float = 1e-9) -> np.ndarray:
 
 
 def smooth_normals(positions: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
-    """Angle-weighted vertex normals (each triangle's unit normal times its angle at the vertex,
-    Thuermer & Wuethrich 1998), summed over each welded position, so both sides of a UV seam get
-    the same normal and a quad's triangulation does not change it (a file without normals).
+    """Return angle-weighted vertex normals, summed over each welded position.
+
+    Each triangle's unit normal is weighted by its angle at the vertex (Thuermer & Wuethrich 1998). Both sides
+    of a UV seam then get the same normal, and a quad's triangulation does not change it. They serve a file
+    without normals.
     """
     p = positions[faces]
     face_n = tg.normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
@@ -256,10 +262,11 @@ def _check_finite(source: str, **arrays) -> None:
 
 
 def _check_extent(source: str, positions: np.ndarray, uvs: np.ndarray, faces: np.ndarray) -> None:
-    """Refuse, before anything is built or rendered, a mesh too small or too large to trace
-    (:data:`EXTENT_RANGE`: a node scale of 0, coordinates of 1e-200 or 1e200), one whose triangles
-    have no area (:data:`MIN_AREA_SHARE` of the squared size: collinear vertices) and UVs that
-    cover almost nothing (:data:`MIN_UV_AREA`).
+    """Refuse, before anything is built or rendered, a mesh too small or too large to trace.
+
+    Too small or too large means outside :data:`EXTENT_RANGE` (a node scale of 0, coordinates of 1e-200 or
+    1e200). Also refused: a mesh whose triangles have no area (:data:`MIN_AREA_SHARE` of the squared size:
+    collinear vertices) and UVs that cover almost nothing (:data:`MIN_UV_AREA`).
     """
     low, high = EXTENT_RANGE
     size = float(np.ptp(positions, axis=0).max())
@@ -283,8 +290,10 @@ def _check_extent(source: str, positions: np.ndarray, uvs: np.ndarray, faces: np
 
 
 def _check_uvs(source: str, mesh: BaseMesh) -> None:
-    """Zero UV area, or degenerate UV triangles on more than :data:`MAX_DEGENERATE_UV_AREA` of the
-    world area, is refused: the texture has no size there, no frame, no displacement.
+    """Refuse a mesh with zero UV area or too much of its world area on degenerate UV triangles.
+
+    The limit is :data:`MAX_DEGENERATE_UV_AREA` of the world area. The texture has no size there, no frame, no
+    displacement.
     """
     area = np.abs(mesh.uv_areas)
     if not area.sum() > 0:
@@ -312,9 +321,11 @@ def _check_manifold(source: str, mesh: BaseMesh) -> None:
 def build(
     source: str, positions, uvs, faces, *, normals=None, tangents=None, uv_scale: float = 1.0, up: str = "z"
 ) -> BaseMesh:
-    """Return a checked :class:`BaseMesh` from z-up arrays: ``normals`` (None: :func:`smooth_normals`),
-    ``tangents`` (the file's, None: :func:`hzval.geometry.tangents.compute`); ``uvs`` get ``uv_scale``.
-    Bad meshes raise :class:`InputError` naming ``source``.
+    """Return a checked :class:`BaseMesh` from z-up arrays.
+
+    ``normals`` are given or (None) :func:`smooth_normals`; ``tangents`` are the file's or (None)
+    :func:`hzval.geometry.tangents.compute`; ``uvs`` get ``uv_scale``. Bad meshes raise :class:`InputError`
+    naming ``source``.
     """
     p = np.asarray(positions, np.float64).reshape(-1, 3)
     f = np.asarray(faces, np.int64).reshape(-1, 3)
@@ -372,8 +383,10 @@ def to_z_up(up: str, positions, normals=None, tangents=None):
 
 
 def plane(*, uv_scale: float = 1.0) -> BaseMesh:
-    """Return the unit quad ``[0, 1]^2`` at ``z = 0``, UVs ``(x, y)``, normal +z: today's tile
-    (``world_per_uv`` = 1, frame ``(x, y, z)``), two triangles along the (0, 0)-(1, 1) diagonal.
+    """Return the unit quad ``[0, 1]^2`` at ``z = 0``, UVs ``(x, y)``, normal +z.
+
+    It is today's tile (``world_per_uv`` = 1, frame ``(x, y, z)``), two triangles along the (0, 0)-(1, 1)
+    diagonal.
     """
     p = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     return build(
@@ -397,8 +410,9 @@ CUBE_FACES = (
 
 
 def cube(*, size: float = 1.0, uv_scale: float = 1.0) -> BaseMesh:
-    """Return the cube of edge ``size`` centred at the origin, each face the whole texture
-    (:data:`CUBE_FACES`), four vertices and two triangles a face, flat normals.
+    """Return the cube of edge ``size`` centred at the origin, each face the whole texture.
+
+    The faces are :data:`CUBE_FACES`, four vertices and two triangles a face, with flat normals.
     """
     uv = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
     p, n, w, f = [], [], [], []
@@ -420,9 +434,11 @@ def cube(*, size: float = 1.0, uv_scale: float = 1.0) -> BaseMesh:
 
 
 def _grid_faces(rows: int, cols: int, skip=None) -> np.ndarray:
-    """Triangles of a ``(rows + 1) x (cols + 1)`` vertex grid (index ``i * (cols + 1) + j``, ``i``
-    along +v, ``j`` along +u), each cell ``(a, b, c), (a, c, d)`` counterclockwise in UV; ``skip``
-    ``(rows, cols, 2)`` bool drops triangles (a pole's collapsed ones).
+    """Return the triangles of a ``(rows + 1) x (cols + 1)`` vertex grid.
+
+    A vertex's index is ``i * (cols + 1) + j``, ``i`` along +v, ``j`` along +u; each cell is ``(a, b, c), (a,
+    c, d)`` counterclockwise in UV; ``skip`` ``(rows, cols, 2)`` bool drops triangles (a pole's collapsed
+    ones).
     """
     i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     a = i * (cols + 1) + j
@@ -432,10 +448,11 @@ def _grid_faces(rows: int, cols: int, skip=None) -> np.ndarray:
 
 
 def _sphere_grid(radius: float, segments: int, rings: int, phi: tuple[float, float], u_of):
-    """One ``(positions, uvs, normals, faces)`` part of a UV sphere about the z axis: longitudes
-    ``phi[0]..phi[1]`` (counterclockwise from +x seen from +z) in ``segments`` columns, ``rings``
-    rows from the south pole to the north, ``u = u_of(f)`` of the share ``f`` (0 to 1) of the span,
-    ``v`` the latitude (0 south, 1 north); each pole's vertices at the middle of their column (its
+    """Return one ``(positions, uvs, normals, faces)`` part of a UV sphere about the z axis.
+
+    It spans longitudes ``phi[0]..phi[1]`` (counterclockwise from +x seen from +z) in ``segments`` columns,
+    ``rings`` rows from the south pole to the north, ``u = u_of(f)`` of the share ``f`` (0 to 1) of the span,
+    ``v`` the latitude (0 south, 1 north); each pole's vertices sit at the middle of their column (its
     collapsed triangle dropped).
     """
     v = np.arange(rings + 1) / rings
@@ -456,11 +473,12 @@ def _sphere_grid(radius: float, segments: int, rings: int, phi: tuple[float, flo
 
 
 def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0) -> BaseMesh:
-    """Return a UV sphere about the z axis: ``u`` the longitude / 2 pi (counterclockwise from +x seen
-    from +z), ``v`` the latitude from the south pole (0) to the north (1); the seam at
-    ``u = 0 / 1`` (the +x half-plane) and each pole's vertices (one per segment, at the middle of
-    its ``u`` span). World area ``4 pi r^2`` as ``segments, rings`` grow (``world_per_uv`` ->
-    ``r sqrt(4 pi)``).
+    """Return a UV sphere about the z axis.
+
+    ``u`` is the longitude / 2 pi (counterclockwise from +x seen from +z), ``v`` the latitude from the south
+    pole (0) to the north (1); the seam is at ``u = 0 / 1`` (the +x half-plane) and each pole's vertices (one
+    per segment, at the middle of its ``u`` span). World area ``4 pi r^2`` as ``segments, rings`` grow
+    (``world_per_uv`` -> ``r sqrt(4 pi)``).
     """
     p, uv, n, f = _sphere_grid(radius, segments, rings, (0.0, 2 * np.pi), lambda f: f)
     return build("sphere", p, uv, f, normals=n, uv_scale=uv_scale)
@@ -469,12 +487,13 @@ def sphere(*, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale
 def mirrored_sphere(
     *, radius: float = 1.0, segments: int = 64, rings: int = 32, uv_scale: float = 1.0
 ) -> BaseMesh:
-    """Return the UV sphere unwrapped as an artist mirrors a symmetric model: the +y half (longitudes 0 to
-    pi) has ``u = longitude / pi``, the -y half the same UVs mirrored (``u = (2 pi - longitude) /
-    pi``), so a point and its mirror image in the xz plane read the same texel and the -y half has
-    handedness ``w = -1`` (``mirrored_fraction`` 1/2). The halves keep their own vertices along the
-    two mirror meridians, as exporters split them (their tangents point opposite ways), which makes
-    those meridians seams of equal UVs. ``world_per_uv`` -> ``r sqrt(2 pi)``.
+    """Return the UV sphere unwrapped as an artist mirrors a symmetric model.
+
+    The +y half (longitudes 0 to pi) has ``u = longitude / pi``, the -y half the same UVs mirrored (``u = (2
+    pi - longitude) / pi``), so a point and its mirror image in the xz plane read the same texel and the -y
+    half has handedness ``w = -1`` (``mirrored_fraction`` 1/2). The halves keep their own vertices along the
+    two mirror meridians, as exporters split them (their tangents point opposite ways), which makes those
+    meridians seams of equal UVs. ``world_per_uv`` -> ``r sqrt(2 pi)``.
     """
     segments = max(2, segments // 2)
     parts = [
@@ -487,11 +506,12 @@ def mirrored_sphere(
 def torus(
     *, major: float = 1.0, minor: float = 0.25, segments: int = 64, sides: int = 32, uv_scale: float = 1.0
 ) -> BaseMesh:
-    """Return a torus about the z axis, tube centre ``major`` from the axis, tube radius ``minor``:
-    ``u`` around the axis (counterclockwise from +x seen from +z), ``v`` around the tube from the
-    outer equator (0) over the top; seams where each wraps. The inner ring (``v = 1/2``) is a
-    saddle: convex across the tube (normal curvature ``1 / minor``), concave around the axis
-    (``-1 / (major - minor)``; ``hzval models``' ``ring`` case).
+    """Return a torus about the z axis, tube centre ``major`` from the axis, tube radius ``minor``.
+
+    ``u`` runs around the axis (counterclockwise from +x seen from +z), ``v`` around the tube from the outer
+    equator (0) over the top; there are seams where each wraps. The inner ring (``v = 1/2``) is a saddle:
+    convex across the tube (normal curvature ``1 / minor``), concave around the axis (``-1 / (major -
+    minor)``; ``hzval models``' ``ring`` case).
     """
     uu, vv = np.meshgrid(np.arange(segments + 1) / segments, np.arange(sides + 1) / sides)
     phi, psi = 2 * np.pi * uu, 2 * np.pi * vv
@@ -509,10 +529,12 @@ def torus(
 
 
 def _disk_grid(k: int):
-    """Return a ``k x k`` quad grid of the unit square mapped onto the unit disk (the elliptical grid
-    mapping ``(x sqrt(1 - y^2/2), y sqrt(1 - x^2/2))``, no singular centre): ``(xy (V, 2), faces,
-    rim)``, ``rim`` the ``4 k`` boundary vertices counterclockwise from ``(1, 0)`` (``k`` even).
-    Cells split along the diagonal that avoids the square's corners (no sliver there).
+    """Return a ``k x k`` quad grid of the unit square mapped onto the unit disk.
+
+    The mapping is the elliptical grid mapping ``(x sqrt(1 - y^2/2), y sqrt(1 - x^2/2))``, with no singular
+    centre. The result is ``(xy (V, 2), faces, rim)``, ``rim`` the ``4 k`` boundary vertices counterclockwise
+    from ``(1, 0)`` (``k`` even). Cells split along the diagonal that avoids the square's corners (no sliver
+    there).
     """
     s = np.linspace(-1.0, 1.0, k + 1)
     x, y = np.meshgrid(s, s)  # vertex (i, j) = row i (y), column j (x), index i (k + 1) + j
@@ -544,11 +566,13 @@ def cylinder(
     caps: bool = True,
     uv_scale: float = 1.0,
 ) -> BaseMesh:
-    """Return a cylinder about the z axis from ``-height/2`` to ``height/2``, ``segments`` (a multiple of
-    4) around and ``stacks`` up: the side's ``u`` the angle / 2 pi (counterclockwise from +x seen
-    from +z, seam at +x), ``v`` up; ``caps``: two disks (closed), each the texture's inscribed
-    circle seen from outside (top: u along +x, v along +y; bottom: u along +x, v along -y; neither
-    mirrored), a square grid mapped onto the disk (:func:`_disk_grid`) whose rim is the side's.
+    """Return a cylinder about the z axis from ``-height/2`` to ``height/2``.
+
+    It has ``segments`` (a multiple of 4) around and ``stacks`` up: the side's ``u`` is the angle / 2 pi
+    (counterclockwise from +x seen from +z, seam at +x), ``v`` up. With ``caps`` it gets two disks (closed),
+    each the texture's inscribed circle seen from outside (top: u along +x, v along +y; bottom: u along +x, v
+    along -y; neither mirrored), a square grid mapped onto the disk (:func:`_disk_grid`) whose rim is the
+    side's.
     """
     if segments % 4 or segments < 8:
         raise ValueError(f"segments must be a multiple of 4 (at least 8), got {segments}")
@@ -609,10 +633,11 @@ SHAPES: dict[str, Callable[..., BaseMesh]] = {
 
 
 def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
-    """Return an OBJ or PLY by trimesh, every triangle mesh of the file (with its node transform) in one:
-    trimesh splits a vertex where its UVs differ (OBJ's ``f v/vt``) and keeps the file's ``vn`` /
-    PLY normals, which it holds in each geometry's cache; a file without them gets
-    :func:`smooth_normals`. Its UVs are OBJ's: ``v = 0`` at the bottom row.
+    """Return an OBJ or PLY read by trimesh, every triangle mesh of the file in one.
+
+    Each triangle mesh comes with its node transform. trimesh splits a vertex where its UVs differ (OBJ's ``f
+    v/vt``) and keeps the file's ``vn`` / PLY normals, which it holds in each geometry's cache; a file without
+    them gets :func:`smooth_normals`. Its UVs are OBJ's: ``v = 0`` at the bottom row.
     """
     # trimesh: 0.6 s to import, paid only by a model read from a file
     import trimesh
@@ -654,9 +679,11 @@ def read_trimesh(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh
 
 
 def read_gltf(path: str, *, uv_scale: float = 1.0, up: str = "y") -> BaseMesh:
-    """Return a glTF 2.0 file (``.gltf`` with its buffers, or ``.glb``): the triangles of its default scene
-    (:func:`hzval.geometry.gltf.read_parts`), turned z-up; its ``TANGENT`` used when every primitive
-    has one, else all are computed.
+    """Return the triangles of a glTF 2.0 file's default scene, turned z-up.
+
+    The file is a ``.gltf`` with its buffers, or a ``.glb``; the triangles come from
+    :func:`hzval.geometry.gltf.read_parts`. Its ``TANGENT`` is used when every primitive has one, else all are
+    computed.
     """
     p, uv, n, t, faces = gltf.read_parts(path)
     p, n, t = to_z_up(up, p, n, t)
@@ -735,11 +762,13 @@ def load(
     shape_args: dict | None = None,
     tangents: str = "auto",
 ) -> BaseMesh:
-    """Return the base mesh ``spec`` names: a built-in shape (:data:`SHAPES`, with ``shape_args``, e.g.
-    ``{"radius": 2}``; ``up`` ignored: they are z up) or a file by its extension
-    (:data:`READERS`), read with the up axis ``up`` (None: y, the module's "Up axis of files").
-    ``uv_scale`` > 0 repeats the texture; ``tangents`` names its frames (:func:`with_frames`).
-    Anything wrong is one :class:`InputError` naming the file or the flag.
+    """Return the base mesh ``spec`` names, a built-in shape or a file read by its extension.
+
+    A built-in shape is one of :data:`SHAPES`, with ``shape_args`` (e.g. ``{"radius": 2}``), and ignores
+    ``up``: they are z up. A file is chosen by its extension (:data:`READERS`) and read with the up axis
+    ``up`` (None: y, the module's "Up axis of files"). ``uv_scale`` > 0 repeats the texture; ``tangents``
+    names its frames (:func:`with_frames`). Anything wrong is one :class:`InputError` naming the file or the
+    flag.
     """
     return with_frames(_load(spec, uv_scale=uv_scale, up=up, shape_args=shape_args), tangents)
 

@@ -1,5 +1,6 @@
-"""Engine bugs on purpose: the techniques' tangent frames as a careless engine builds them, while
-the truth keeps the correct ones (docs/meshes.md, "Tangent bugs").
+"""Engine bugs on purpose: the techniques' tangent frames as a careless engine builds them.
+
+The truth keeps the correct ones (docs/meshes.md, "Tangent bugs").
 
 A sample's frame is ``(t, b, n)`` (:mod:`hzval.geometry.tangents`: ``t`` along +u, ``b = w cross(n, t)``
 along +v, ``n`` out). Everything the techniques do on a model goes through it: the light in
@@ -87,10 +88,11 @@ def check(name: str, what: str = "--tangent-bug") -> str:
 
 
 def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None) -> np.ndarray:
-    """``frames`` (``(N, 12)`` float32: ``t, b, n, v`` per sample, :data:`hzval.scene.lookup.FRAME_FLOATS`)
-    with ``t, b, n`` as the bug ``name`` makes them; ``v`` (toward the camera, world) unchanged.
-    ``face()`` returns each sample's base triangle's frame ``(t, b, n)`` (only ``per-face`` calls
-    it). ``none`` returns ``frames`` itself, untouched.
+    """Return ``frames`` with ``t, b, n`` as the bug ``name`` makes them.
+
+    ``frames`` is ``(N, 12)`` float32: ``t, b, n, v`` per sample (:data:`hzval.scene.lookup.FRAME_FLOATS`);
+    ``v`` (toward the camera, world) is unchanged. ``face()`` returns each sample's base triangle's frame
+    ``(t, b, n)`` (only ``per-face`` calls it). ``none`` returns ``frames`` itself, untouched.
     """
     if check(name) == "none":
         return frames
@@ -100,8 +102,10 @@ def apply(name: str, frames: np.ndarray, face: Callable[[], tuple] | None = None
 
 
 def face_frames_at(model, prim: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t, b, n)`` ``(N, 3)`` float32: the frame of the base triangles ``prim`` of ``model``
-    (:func:`hzval.geometry.tangents.face_frames`), ``b = w cross(n, t)`` with the triangle's own ``w``.
+    """Return the frame of the base triangles ``prim`` of ``model``.
+
+    The result is ``(t, b, n)``, each ``(N, 3)`` float32 (:func:`hzval.geometry.tangents.face_frames`), with
+    ``b = w cross(n, t)`` and the triangle's own ``w``.
     """
     fn, ft = tg.face_frames(model.positions, model.uvs, model.faces)
     prim = np.asarray(prim, np.int64)

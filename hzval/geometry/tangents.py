@@ -1,5 +1,6 @@
-"""Tangent frames: the one module that owns how a mesh's UVs become the frame in which a texture's
-tangent space meets the world (docs/meshes.md, "Tangent frames").
+"""Tangent frames: how a mesh's UVs become the frame in which a texture's tangent space meets the world.
+
+This is the one module that owns it (docs/meshes.md, "Tangent frames").
 
 A frame is ``(t, w, n)``: ``n`` the unit normal, ``t`` the unit tangent along +u (orthogonal to
 ``n``), ``w = +1/-1`` the handedness, and the bitangent along +v is ``b = w * cross(n, t)``
@@ -166,9 +167,10 @@ def reject(t, n):
 
 
 def orthonormal(n, t, w):
-    """Return the frame ``(t, b, n)`` at a point from interpolated (not unit, not orthogonal) ``n``, ``t``
-    and handedness ``w``: ``n`` normalised, ``t`` rejected from it (FGED2's
-    ``FetchObjectNormalVector``), ``b = sign(w) cross(n, t)``. Returns ``(t, b, n)``.
+    """Return the frame ``(t, b, n)`` at a point from interpolated ``n``, ``t`` and handedness ``w``.
+
+    The interpolated ``n`` and ``t`` are not unit, not orthogonal: ``n`` is normalised, ``t`` rejected from it
+    (FGED2's ``FetchObjectNormalVector``), and ``b = sign(w) cross(n, t)``. Returns ``(t, b, n)``.
     """
     n = normalize(n)
     t = reject(t, n)
@@ -176,8 +178,10 @@ def orthonormal(n, t, w):
 
 
 def to_world(v, n, t, w):
-    """Return a tangent-space vector ``v = (x, y, z)`` (x along +u, y along +v, z out) in the world:
-    ``x t + y b + z n`` with the frame :func:`orthonormal` makes of ``(n, t, w)``.
+    """Return a tangent-space vector ``v = (x, y, z)`` in the world.
+
+    x is along +u, y along +v, z out; the result is ``x t + y b + z n`` with the frame :func:`orthonormal`
+    makes of ``(n, t, w)``.
     """
     t, b, n = orthonormal(n, t, w)
     if cv.is_drjit(v):
@@ -187,8 +191,10 @@ def to_world(v, n, t, w):
 
 
 def to_tangent(v, n, t, w):
-    """Return a world vector ``v`` in tangent space: ``(dot(t, v), dot(b, v), dot(n, v))`` (FGED2's TBN
-    product), the inverse of :func:`to_world` for the same ``(n, t, w)``.
+    """Return a world vector ``v`` in tangent space.
+
+    The result is ``(dot(t, v), dot(b, v), dot(n, v))`` (FGED2's TBN product), the inverse of :func:`to_world`
+    for the same ``(n, t, w)``.
     """
     t, b, n = orthonormal(n, t, w)
     if cv.is_drjit(v):
@@ -205,10 +211,11 @@ def to_tangent(v, n, t, w):
 
 
 def uv_derivatives(positions, uvs, faces):
-    """Per triangle ``(dP/du, dP/dv, det)`` (``(F, 3)``, ``(F, 3)``, ``(F,)``), FGED2's
-    ``t = (e1 y2 - e2 y1) / det``, ``b = (e2 x1 - e1 x2) / det`` with ``e1, e2`` the edges from
-    vertex 0 and ``(x, y)`` their UV differences, ``det = x1 y2 - x2 y1`` (the UV area doubled,
-    signed). Triangles with a degenerate UV map (:data:`DEGENERATE_UV`) get zero derivatives.
+    """Return per triangle ``(dP/du, dP/dv, det)``, shaped ``(F, 3)``, ``(F, 3)`` and ``(F,)``.
+
+    They are FGED2's ``t = (e1 y2 - e2 y1) / det``, ``b = (e2 x1 - e1 x2) / det`` with ``e1, e2`` the edges
+    from vertex 0 and ``(x, y)`` their UV differences, ``det = x1 y2 - x2 y1`` (the UV area doubled, signed).
+    Triangles with a degenerate UV map (:data:`DEGENERATE_UV`) get zero derivatives.
     """
     p = np.asarray(positions, np.float64)[faces]
     w = np.asarray(uvs, np.float64)[faces]
@@ -223,11 +230,12 @@ def uv_derivatives(positions, uvs, faces):
 
 
 def compute(positions, normals, uvs, faces) -> np.ndarray:
-    """``(V, 4)`` float64 per-vertex tangents by FGED2's ``CalculateTangents``: each triangle's
-    ``dP/du``, ``dP/dv`` (:func:`uv_derivatives`) added to its three vertices, ``t`` rejected from
-    the unit vertex normal, ``w = +1`` where ``dot(cross(t, b), n) > 0`` else ``-1`` (FGED2 takes
-    the sums for ``t, b``). A vertex whose sum vanishes (only degenerate UVs around it) gets a
-    tangent orthogonal to its normal (:func:`any_tangent`) and ``w = +1``.
+    """Return ``(V, 4)`` float64 per-vertex tangents by FGED2's ``CalculateTangents``.
+
+    Each triangle's ``dP/du``, ``dP/dv`` (:func:`uv_derivatives`) is added to its three vertices, ``t``
+    rejected from the unit vertex normal, ``w = +1`` where ``dot(cross(t, b), n) > 0`` else ``-1`` (FGED2
+    takes the sums for ``t, b``). A vertex whose sum vanishes (only degenerate UVs around it) gets a tangent
+    orthogonal to its normal (:func:`any_tangent`) and ``w = +1``.
     """
     faces = np.asarray(faces, np.int64)
     n = normalize(normals)
@@ -246,8 +254,9 @@ def compute(positions, normals, uvs, faces) -> np.ndarray:
 
 
 def any_tangent(n) -> np.ndarray:
-    """Return a unit vector orthogonal to each unit ``n`` (``(k, 3)``): ``x`` rejected from it, or ``y``
-    where ``n`` is nearly ``x``.
+    """Return a unit vector orthogonal to each unit ``n`` (``(k, 3)``).
+
+    It is ``x`` rejected from ``n``, or ``y`` where ``n`` is nearly ``x``.
     """
     n = np.asarray(n, np.float64).reshape(-1, 3)
     axis = np.where((np.abs(n[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
@@ -255,9 +264,11 @@ def any_tangent(n) -> np.ndarray:
 
 
 def from_file(tangents, normals) -> np.ndarray:
-    """Return a file's ``(V, 4)`` tangents (glTF ``TANGENT``: xyz along +u, w the handedness) as hzval
-    keeps them: xyz rejected from the unit normal (a writer's rounding), w reduced to its sign.
-    ``ValueError`` names what is wrong (the reader turns it into one line naming the file).
+    """Return a file's ``(V, 4)`` tangents as hzval keeps them.
+
+    The file's tangents are glTF ``TANGENT``: xyz along +u, w the handedness. xyz is rejected from the unit
+    normal (a writer's rounding), w reduced to its sign. ``ValueError`` names what is wrong (the reader turns
+    it into one line naming the file).
     """
     t4 = np.asarray(tangents, np.float64)
     if t4.ndim != 2 or t4.shape[1] != 4:
@@ -275,8 +286,10 @@ def from_file(tangents, normals) -> np.ndarray:
 
 
 def rotate(tangents, matrix) -> np.ndarray:
-    """Tangents ``(V, 4)`` under a linear map ``matrix`` (3 x 3, applied as ``M @ t``): xyz mapped
-    and normalised, ``w`` times ``sign(det M)`` (a mirror turns the bitangent's side over).
+    """Return tangents ``(V, 4)`` under a linear map ``matrix`` (3 x 3, applied as ``M @ t``).
+
+    xyz is mapped and normalised, ``w`` multiplied by ``sign(det M)`` (a mirror turns the bitangent's side
+    over).
     """
     m = np.asarray(matrix, np.float64)
     t = normalize(np.asarray(tangents, np.float64)[:, :3] @ m.T)
@@ -290,8 +303,10 @@ def rotate(tangents, matrix) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Frames:
-    """The frames a renderer interpolates: ``normal (k, 3)`` unit, ``tangent (k, 4)`` (xyz unit,
-    w = +1/-1), one per vertex (``per = "vertex"``) or per triangle (``"face"``).
+    """The frames a renderer interpolates, one per vertex or per triangle.
+
+    They are ``normal (k, 3)`` unit and ``tangent (k, 4)`` (xyz unit, w = +1/-1), with ``per = "vertex"`` or
+    ``"face"``.
     """
 
     per: str
@@ -300,18 +315,21 @@ class Frames:
 
 
 def handedness(t, b, n) -> np.ndarray:
-    """``(N,)`` the sign ``w`` of frames given as ``(N, 3)`` arrays: ``sign(dot(cross(n, t), b))``
-    (+1: the UVs as drawn, -1: mirrored; this module's ``b = w cross(n, t)``), 0 for a degenerate one.
+    """Return the sign ``w`` of frames given as ``(N, 3)`` arrays, shaped ``(N,)``.
+
+    It is ``sign(dot(cross(n, t), b))`` (+1: the UVs as drawn, -1: mirrored; this module's ``b = w cross(n,
+    t)``), 0 for a degenerate one.
     """
     t, b, n = (np.asarray(a, np.float64) for a in (t, b, n))
     return np.sign(_dot(np.cross(n, t), b))
 
 
 def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
-    """Per triangle ``(normal (F, 3), tangent (F, 4))``: the geometric normal (counterclockwise
-    winding), ``dP/du`` rejected from it, ``w`` the sign of ``dot(cross(dP/du, dP/dv), n)``, the
-    same as the sign of the UV area seen from the normal's side. A triangle without UV derivatives
-    gets :func:`any_tangent` and ``w = +1``.
+    """Return per triangle ``(normal (F, 3), tangent (F, 4))``.
+
+    The normal is the geometric one (counterclockwise winding), the tangent ``dP/du`` rejected from it, ``w``
+    the sign of ``dot(cross(dP/du, dP/dv), n)``, the same as the sign of the UV area seen from the normal's
+    side. A triangle without UV derivatives gets :func:`any_tangent` and ``w = +1``.
     """
     p = np.asarray(positions, np.float64)[faces]
     n = normalize(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
@@ -325,10 +343,11 @@ def face_frames(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
 
 
 def frames(mesh, mode: str = "vertex") -> Frames:
-    """Return the frames of a :class:`hzval.geometry.model.BaseMesh`: ``"vertex"``, its own per-vertex normals and
-    tangents (the file's or :func:`compute`'s), which a renderer interpolates; ``"face"``, each
-    triangle's own flat frame (:func:`face_frames`), the faceted frame a careless exporter gives
-    (:mod:`hzval.geometry.tangent_bugs` has the other bugs).
+    """Return the frames of a :class:`hzval.geometry.model.BaseMesh`, per vertex or per face.
+
+    ``"vertex"`` gives its own per-vertex normals and tangents (the file's or :func:`compute`'s), which a
+    renderer interpolates; ``"face"`` each triangle's own flat frame (:func:`face_frames`), the faceted frame
+    a careless exporter gives (:mod:`hzval.geometry.tangent_bugs` has the other bugs).
     """
     if mode == "vertex":
         return Frames("vertex", mesh.normals, mesh.tangents)

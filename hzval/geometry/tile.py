@@ -140,11 +140,12 @@ def grid(
 
 
 def vertex_normals(h_texels: np.ndarray, positions: np.ndarray, boundary: str) -> np.ndarray:
-    """``(V, 3)`` float32: the normal map's normals (:func:`hzval.core.conventions.normal_map`) interpolated
-    bilinearly between texel centres at each vertex's ``(x, y)`` and normalised, as the truth's
-    ``smooth`` shading reads them (docs/internals.md, the truth's "Shading"): a texel centre takes its texel's
-    normal, a margin vertex that of the texel it repeats (``wrap``), the skirt the border's (``open``,
-    clamped).
+    """Return the normal map's normals interpolated bilinearly at each vertex and normalised.
+
+    The result is ``(V, 3)`` float32: the normals of :func:`hzval.core.conventions.normal_map`, interpolated
+    between texel centres at each vertex's ``(x, y)``, as the truth's ``smooth`` shading reads them
+    (docs/internals.md, the truth's "Shading"). A texel centre takes its texel's normal, a margin vertex that
+    of the texel it repeats (``wrap``), the skirt the border's (``open``, clamped).
     """
     nmap = normal_map(np.asarray(h_texels, np.float32), boundary)
     n = cv.bilinear_at(nmap, positions[:, 0], positions[:, 1], boundary)
@@ -190,9 +191,10 @@ def displaced_mesh(
     info: dict | None = None,
     budget_bytes: int | None = None,
 ):
-    """Return the displaced surface of a normalised height map as a ``mitsuba.Mesh``: the bilinear
-    interpolation of the texel centres' heights, tessellated to within ``tolerance`` texels
-    (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
+    """Return the displaced surface of a normalised height map as a ``mitsuba.Mesh``.
+
+    The surface is the bilinear interpolation of the texel centres' heights, tessellated to within
+    ``tolerance`` texels (:func:`tessellate`; default :data:`DEFAULT_TOLERANCE`), margin and skirt included.
 
     ``texcoords``: each vertex's texture coordinates (:func:`hzval.core.conventions.tangent_to_uv`), for
     a file that others texture; the truth reads none (``False``: 0.3 s and 0.2 GB less at 2048).
@@ -262,17 +264,19 @@ MAX_LEVEL = 16
 
 
 def twists(z: np.ndarray) -> np.ndarray:
-    """``(ny-1, nx-1)`` float64: each cell's twist ``h00 - h10 - h01 + h11`` (texels), the ``d`` of the
-    bilinear patch ``a + b u + c v + d u v`` on its four corners; 0 for a planar cell.
+    """Return each cell's twist ``h00 - h10 - h01 + h11`` (texels), ``(ny-1, nx-1)`` float64.
+
+    It is the ``d`` of the bilinear patch ``a + b u + c v + d u v`` on its four corners; 0 for a planar cell.
     """
     z = np.asarray(z, np.float64)
     return z[:-1, :-1] - z[:-1, 1:] - z[1:, :-1] + z[1:, 1:]
 
 
 def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
-    """``(ny-1, nx-1)`` uint8: how each cell of a vertex grid of heights ``z`` (texels) is tessellated
-    so that no point of its triangles is more than ``tolerance`` texels above or below the bilinear
-    surface of its four corners.
+    """Return how each cell of a vertex grid of heights ``z`` (texels) is tessellated.
+
+    The result is ``(ny-1, nx-1)`` uint8, chosen so that no point of a cell's triangles is more than
+    ``tolerance`` texels above or below the bilinear surface of its four corners.
 
     0: a planar cell (twist ``d`` = 0 to the heights' rounding, :func:`twists`,
     :data:`PLANAR_TWIST`), two triangles, either way round: they are the bilinear patch. ``n >= 1`` (a power
@@ -297,12 +301,13 @@ def cell_levels(z: np.ndarray, tolerance: float) -> np.ndarray:
 
 
 def _fan_template(n: int):
-    """Return the local tessellation of a cell at level ``n``: ``(uv, faces)`` with ``uv`` ``(k, 2)`` float64
-    of its vertices that are not the cell's corners (sub-grid nodes, then sub-cell centres) and
-    ``faces`` ``(4 n^2, 3)`` int64 of local indices, 0-3 the corners ``a (u=0, v=0), b (1, 0),
-    d (0, 1), e (1, 1)`` and ``4 + i`` vertex ``i`` of ``uv``; ``u`` runs with the columns, ``v`` with
-    the rows (toward -y), so that ``(A, M, B)`` around the sub-cell's corners is counterclockwise
-    seen from +z, as :func:`triangles`.
+    """Return the local tessellation of a cell at level ``n`` as ``(uv, faces)``.
+
+    ``uv`` is ``(k, 2)`` float64 of its vertices that are not the cell's corners (sub-grid nodes, then
+    sub-cell centres) and ``faces`` ``(4 n^2, 3)`` int64 of local indices, 0-3 the corners ``a (u=0, v=0), b
+    (1, 0), d (0, 1), e (1, 1)`` and ``4 + i`` vertex ``i`` of ``uv``. ``u`` runs with the columns, ``v`` with
+    the rows (toward -y), so that ``(A, M, B)`` around the sub-cell's corners is counterclockwise seen from
+    +z, as :func:`triangles`.
     """
     code = np.full((n + 1, n + 1), -1, np.int64)
     code[0, 0], code[0, n], code[n, 0], code[n, n] = 0, 1, 2, 3
@@ -322,9 +327,10 @@ def _fan_template(n: int):
 
 
 def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """``(len(r), len(uv), 3)`` float32 points of the bilinear patches of cells ``(r, c)`` at ``uv``:
-    the same float64 expression for every cell, so a node on a shared edge has the same bits from
-    either side (the other corners' weights are exactly 0 there).
+    """Return the points of the bilinear patches of cells ``(r, c)`` at ``uv``.
+
+    The result is ``(len(r), len(uv), 3)`` float32, from the same float64 expression for every cell, so a node
+    on a shared edge has the same bits from either side (the other corners' weights are exactly 0 there).
     """
     u, v = uv[None, :, 0], uv[None, :, 1]
     x = (1.0 - u) * g.x[c][:, None] + u * g.x[c + 1][:, None]
@@ -352,10 +358,11 @@ def triangle_count(levels: np.ndarray) -> int:
 def mesh_size(
     h_texels: np.ndarray, boundary: str, margin: int | None = None, tolerance: float = DEFAULT_TOLERANCE
 ) -> tuple[int, int]:
-    """``(vertices, triangles)`` of :func:`displaced_mesh`'s mesh of heights ``h_texels`` (texels),
-    counted without building its grid: a ``wrap`` mesh's margin repeats the tile, so its cells' levels
-    (:func:`cell_levels`) are the tile's own, each counted as often as the margin repeats it.
-    ``margin``: as :func:`grid`'s (default :func:`wrap_margin`).
+    """Return ``(vertices, triangles)`` of :func:`displaced_mesh`'s mesh of heights ``h_texels``.
+
+    The heights are in texels. They are counted without building its grid: a ``wrap`` mesh's margin repeats
+    the tile, so its cells' levels (:func:`cell_levels`) are the tile's own, each counted as often as the
+    margin repeats it. ``margin``: as :func:`grid`'s (default :func:`wrap_margin`).
 
     Examples
     --------
@@ -379,8 +386,9 @@ def mesh_size(
 
 
 def _size(shape: tuple[int, int], levels: np.ndarray, per_row, per_col) -> tuple[int, int]:
-    """``(vertices, triangles)`` of a grid of ``shape`` vertices whose cell ``(r, c)`` of ``levels`` is
-    repeated ``per_row[r] * per_col[c]`` times.
+    """Return ``(vertices, triangles)`` of a grid of ``shape`` vertices whose cells are repeated.
+
+    Cell ``(r, c)`` of ``levels`` is repeated ``per_row[r] * per_col[c]`` times.
     """
     weight = np.outer(np.broadcast_to(per_row, levels.shape[:1]), np.broadcast_to(per_col, levels.shape[1:]))
     counts = np.bincount(levels.ravel(), weights=weight.ravel().astype(np.float64), minlength=MAX_LEVEL + 1)
@@ -400,11 +408,13 @@ MESH_BYTES_PER_TRIANGLE = 160
 def check_fits(
     what, height: np.ndarray, depth: float, boundary: str, *, margin: int | None = None, also: float = 0
 ) -> int:
-    """Refuse, before its grid is allocated, a :func:`displaced_mesh` of the normalised ``height`` at
-    ``depth`` that would not fit in the memory available (:func:`hzval.core.resources.refuse_over`):
-    its triangles (:func:`mesh_size`) at :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held
-    beside it. A tall relief asks for a wide wrap margin and fine cells; the line names ``what`` (the
-    map), its height range and ``--depth``. Returns the estimate in bytes.
+    """Refuse, before its grid is allocated, a :func:`displaced_mesh` too large for the memory available.
+
+    The mesh is of the normalised ``height`` at ``depth``; the check is
+    :func:`hzval.core.resources.refuse_over` on its triangles (:func:`mesh_size`) at
+    :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held beside it. A tall relief asks for a wide wrap
+    margin and fine cells; the line names ``what`` (the map), its height range and ``--depth``. Returns the
+    estimate in bytes.
     """
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
@@ -489,17 +499,19 @@ def tessellate(
 
 
 def piece(g: Grid, first: int, stop: int) -> Grid:
-    """Return the vertex rows ``first <= r <= stop`` of ``g``: its cell rows ``first <= i < stop`` (the same
-    coordinates and heights, so a piece tessellated with the whole's levels, :func:`tessellate`, is
-    made of the whole's own triangles, bit for bit).
+    """Return the vertex rows ``first <= r <= stop`` of ``g``, its cell rows ``first <= i < stop``.
+
+    They keep the same coordinates and heights, so a piece tessellated with the whole's levels
+    (:func:`tessellate`) is made of the whole's own triangles, bit for bit.
     """
     return Grid(g.x, g.y[first : stop + 1], g.z[first : stop + 1], g.margin)
 
 
 def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "band"):
-    """Return the cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh`` of positions and faces
-    only (what the truth reads), tessellated with the whole grid's ``levels`` (:func:`piece`,
-    :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth.bands`).
+    """Return the cell rows ``first <= i < stop`` of the grid ``g`` as a ``mitsuba.Mesh``.
+
+    It has positions and faces only (what the truth reads), tessellated with the whole grid's ``levels``
+    (:func:`piece`, :func:`tessellate`): a band of the truth's mesh (:mod:`hzval.truth.bands`).
     """
     positions, faces, _ = tessellate(piece(g, first, stop), levels=levels[first:stop])
     mesh = mi.Mesh(name, len(positions), len(faces), has_vertex_normals=False, has_vertex_texcoords=False)
@@ -513,15 +525,18 @@ def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "
 
 
 def row_triangles(levels: np.ndarray) -> np.ndarray:
-    """``(ny-1,)`` int64: the triangles of each cell row of a tessellation of these levels
-    (:func:`triangle_count`, row by row).
+    """Return the triangles of each cell row of a tessellation of these levels, ``(ny-1,)`` int64.
+
+    It is :func:`triangle_count`, row by row.
     """
     lv = np.asarray(levels, np.int64)
     return np.where(lv == 0, 2, 4 * lv * lv).sum(axis=1)
 
 
 def edge_level(levels: np.ndarray) -> int:
-    """Return the finest sub-cell grid of a tessellation: its largest level, at least 1 (every edge of the
-    mesh lies on a line ``(x - 1/2) n``, ``(y - 1/2) n`` integer, or on a diagonal of that grid's cells).
+    """Return the finest sub-cell grid of a tessellation: its largest level, at least 1.
+
+    Every edge of the mesh lies on a line ``(x - 1/2) n``, ``(y - 1/2) n`` integer, or on a diagonal of that
+    grid's cells.
     """
     return max(1, int(levels.max(initial=0)))

@@ -1,7 +1,10 @@
-"""Files in and out: output folders written whole or not at all (staging), EXR and PNG (codecs),
-JSON and TOML read and written with one-line errors (documents), height maps (heightmap), a user's
-own horizon map and its convention (external), how a texture is stored for the GPU (storage), KTX2
-containers (ktx2), and the path rule for paths read from files (paths).
+"""Files in and out: output folders, images, documents, height maps, horizon maps and textures.
+
+- ``staging``: output folders written whole or not at all; ``atomic``: one file written atomically.
+- ``codecs``: EXR, PNG and figures; ``documents``: JSON and TOML with one-line errors.
+- ``heightmap``: height maps; ``external``: a user's own horizon map and its convention.
+- ``storage``: how a texture is stored for the GPU; ``ktx2``: KTX2 containers.
+- ``paths``: the rule for paths read from files.
 """
 
 import lazy_loader

@@ -1,5 +1,6 @@
-"""A file written atomically: under a hidden name in its folder, renamed into place once whole, so a
-reader never sees a partial file and a crash leaves none behind.
+"""A file written atomically: under a hidden name in its folder, renamed into place once whole.
+
+A reader therefore never sees a partial file and a crash leaves none behind.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""Image codecs: EXR through OpenEXR, PNG through libpng (imagecodecs; palette images and reading
-through Pillow), matplotlib figures as PNG, and the previews of large PNGs. Every writer is
-atomic (:func:`hzval.io.atomic.atomic_path`).
+"""Image codecs: EXR, PNG, matplotlib figures as PNG, and the previews of large PNGs.
+
+EXR goes through OpenEXR, PNG through libpng (imagecodecs; palette images and reading through Pillow). Every
+writer is atomic (:func:`hzval.io.atomic.atomic_path`).
 """
 
 from __future__ import annotations
@@ -114,8 +115,10 @@ _WRITE_ERRNOS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EAC
 
 
 def _write_error(exc: RuntimeError, target: Path) -> Exception:
-    """Return the :class:`OSError` a library's write error stands for (a full disk: ENOSPC; a file too large:
-    EFBIG), naming ``target`` rather than its temporary name; else one line naming ``target``.
+    """Return the :class:`OSError` a library's write error stands for, naming ``target``.
+
+    A full disk is ENOSPC, a file too large EFBIG; the error names ``target`` rather than its temporary name.
+    Any other error becomes one line naming ``target``.
     """
     text = str(exc)
     for code in _WRITE_ERRNOS:
@@ -125,9 +128,10 @@ def _write_error(exc: RuntimeError, target: Path) -> Exception:
 
 
 def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarray]:
-    """``{"R": .., "G": .., "B": ..[, "A": ..]}`` of an ``(rows, cols, 3|4)`` float32 array, or
-    ``{"Y": ..[, "A": ..]}`` with ``grey`` when R, G and B are bitwise equal (NaNs and signed zeros
-    included, so nothing is lost).
+    """Return the colour channels of an ``(rows, cols, 3|4)`` float32 array by name.
+
+    They are ``{"R": .., "G": .., "B": ..[, "A": ..]}``, or ``{"Y": ..[, "A": ..]}`` with ``grey`` when R, G
+    and B are bitwise equal (NaNs and signed zeros included, so nothing is lost).
     """
     planes = {c: np.ascontiguousarray(arr[..., k]) for k, c in enumerate(name)}
     if grey and is_grey(arr[..., :3]):
@@ -136,8 +140,9 @@ def _split_colour(name: str, arr: np.ndarray, grey: bool) -> dict[str, np.ndarra
 
 
 def is_grey(rgb: np.ndarray) -> bool:
-    """Whether the channels of an ``(..., 3)`` array are bitwise equal everywhere (floats compared as
-    their bits: NaNs and signed zeros included).
+    """Check whether the channels of an ``(..., 3)`` array are bitwise equal everywhere.
+
+    Floats are compared as their bits: NaNs and signed zeros included.
     """
     rgb = np.asarray(rgb)
     if rgb.shape[-1:] != (3,):
@@ -147,8 +152,9 @@ def is_grey(rgb: np.ndarray) -> bool:
 
 
 def _as_half(arr: np.ndarray) -> np.ndarray:
-    """Return a float32 channel as float16 (rounded to nearest), unless a finite value would become infinite
-    (beyond :data:`HALF_MAX` and its rounding margin).
+    """Return a float32 channel as float16 (rounded to nearest) unless that makes a finite value infinite.
+
+    That is a value beyond :data:`HALF_MAX` and its rounding margin.
     """
     with np.errstate(over="ignore"):
         h = arr.astype(np.float16)
@@ -179,8 +185,10 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 
 def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
-    """Return the string attributes of an EXR's first header (those :func:`write_exr` was given, and any
-    other writer's); ``{}`` for a file that cannot be read (:func:`read_exr` names its problem).
+    """Return the string attributes of an EXR's first header.
+
+    They are those :func:`write_exr` was given, and any other writer's; ``{}`` for a file that cannot be read
+    (:func:`read_exr` names its problem).
     """
     with library_output():
         try:
@@ -191,9 +199,11 @@ def read_exr_attributes(path: str | os.PathLike) -> dict[str, str]:
 
 
 def read_rgb_exr(path: str | os.PathLike) -> np.ndarray:
-    """Return an EXR's colour as ``(rows, cols, 3)`` float32: its ``R, G, B`` channels, or its grey ``Y``
-    channel repeated (:func:`write_exr` with ``grey`` stores an image with R == G == B so; the
-    sweep's frames are written that way). Half channels come back as float32, exactly.
+    """Return an EXR's colour as ``(rows, cols, 3)`` float32.
+
+    It is its ``R, G, B`` channels, or its grey ``Y`` channel repeated (:func:`write_exr` with ``grey`` stores
+    an image with R == G == B so; the sweep's frames are written that way). Half channels come back as
+    float32, exactly.
 
     Raises :class:`InputError` naming the file if it has neither.
     """
@@ -236,8 +246,9 @@ def library_output() -> Iterator:
 
 
 def run_writers(jobs) -> None:
-    """Run the callables ``jobs`` (each writes a file) on the host pool and wait for every one
-    (:class:`Writers`).
+    """Run the callables ``jobs`` (each writes a file) on the host pool and wait for every one.
+
+    This uses :class:`Writers`.
     """
     with Writers() as writers:
         for job in jobs:
@@ -245,14 +256,16 @@ def run_writers(jobs) -> None:
 
 
 class Writers:
-    """File writers started as they are given (:meth:`submit`), on the host pool, a thread per core
-    (the image encoders release the GIL), and awaited when the ``with`` block ends. A writer's error
-    is raised there; on it, or on an error or Ctrl-C in the block, the writers not yet started are
-    cancelled and the running ones awaited, so that none puts a file into a folder after its caller
-    has removed it.
+    """File writers started as given, on the host pool, and awaited when the ``with`` block ends.
+
+    Writers are given by :meth:`submit`; the pool has a thread per core (the image encoders release the GIL).
+    A writer's error is raised when the block ends; on it, or on an error or Ctrl-C in the block, the writers
+    not yet started are cancelled and the running ones awaited, so that none puts a file into a folder after
+    its caller has removed it.
     """
 
     def __enter__(self) -> "Writers":
+        """Start collecting the writes to wait for."""
         self.pending: list = []
         return self
 
@@ -266,7 +279,7 @@ class Writers:
             done.result()
 
     def __exit__(self, kind, error, trace) -> bool:
-
+        """Wait for the writers; on an error, cancel those not yet started and wait for the running ones."""
         try:
             if kind is None:
                 self.wait()
@@ -287,9 +300,10 @@ class Writers:
 
 
 class Indexed(NamedTuple):
-    """An 8-bit palette image: ``index`` uint8 ``(rows, cols)`` into ``palette`` uint8 ``(n, 3)``
-    sRGB colours, ``n <= 256``. Exact for an image of at most 256 colours (a colour map's, a
-    legend's), at about a third of an RGB PNG's bytes; it decodes to ``palette[index]``.
+    """An 8-bit palette image: ``index`` uint8 ``(rows, cols)`` into ``palette`` uint8 ``(n, 3)``.
+
+    The palette holds sRGB colours, ``n <= 256``. It is exact for an image of at most 256 colours (a colour
+    map's, a legend's), at about a third of an RGB PNG's bytes; it decodes to ``palette[index]``.
     """
 
     index: np.ndarray
@@ -387,26 +401,31 @@ PREVIEW_PX = 1024
 
 
 def write_figure(path: str | os.PathLike, fig, **savefig) -> None:
-    """Write a matplotlib figure as a PNG at ``path``, atomically (:func:`atomic_path`, which makes the
-    folder); ``savefig``: matplotlib's own options (``dpi``, ``facecolor``, ...).
+    """Write a matplotlib figure as a PNG at ``path``, atomically.
+
+    The write goes through :func:`atomic_path`, which makes the folder. ``savefig``: matplotlib's own options
+    (``dpi``, ``facecolor``, ...).
     """
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", **savefig)
 
 
 def preview_of(rel: str) -> str:
-    """Where the preview of the PNG ``rel`` lives: ``frames/az+0/truth.png`` ->
-    ``frames/az+0/previews/truth.png`` (the writer's and the report's one convention).
+    """Return where the preview of the PNG ``rel`` lives.
+
+    For example ``frames/az+0/truth.png`` -> ``frames/az+0/previews/truth.png`` (the writer's and the report's
+    one convention).
     """
     head, _, name = rel.replace("\\", "/").rpartition("/")
     return f"{head}/previews/{name}" if head else f"previews/{name}"
 
 
 def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed, **kw) -> bool:
-    """:func:`write_png`, and, for an image larger than :data:`PREVIEW_ABOVE_PX`, its preview at
-    :func:`preview_of` (every channel box-averaged over ``f x f`` pixels, ``f`` the smallest whole
-    factor that brings it to :data:`PREVIEW_PX`; edges repeated to a multiple of ``f``). Returns
-    whether a preview was written.
+    """Write a PNG by :func:`write_png` and, for a large image, its preview at :func:`preview_of`.
+
+    A preview is written for an image larger than :data:`PREVIEW_ABOVE_PX`: every channel box-averaged over
+    ``f x f`` pixels, ``f`` the smallest whole factor that brings it to :data:`PREVIEW_PX`; edges repeated to
+    a multiple of ``f``. Returns whether a preview was written.
     """
     write_png(path, pixels, **kw)
     rows, cols = (pixels.index if isinstance(pixels, Indexed) else np.asarray(pixels)).shape[:2]
@@ -424,8 +443,9 @@ def write_png_with_preview(path: str | os.PathLike, pixels: np.ndarray | Indexed
 
 
 def unit_to_u8(values: np.ndarray) -> np.ndarray:
-    """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does); NaN (a pixel
-    that sees no surface) is 0.
+    """Quantise values in [0, 1] to 8 bits, rounding to nearest (as a GPU upload does).
+
+    NaN (a pixel that sees no surface) is 0.
     """
     # the float32 product, then rounded and clipped in place: one temporary, not four
     out = np.multiply(values, np.float32(255.0), dtype=np.float32)

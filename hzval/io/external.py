@@ -57,7 +57,7 @@ class Encoding:
     values: str = "sine"
 
     def validate(self, what: str = "--horizon-map") -> "Encoding":
-
+        """Return this encoding if each field has its type and range, else raise one line naming ``what``."""
         for f, hint in strict.schema_of(Encoding).items():  # types checked, not coerced
             strict.check_value(getattr(self, f), hint, what, f)
         if self.channels not in cv.DIRECTION_COUNTS:
@@ -73,9 +73,11 @@ class Encoding:
         return self
 
     def record(self) -> dict:
+        """Return the encoding as a JSON object."""
         return dataclasses.asdict(self)
 
     def describe(self) -> str:
+        """Return the encoding in words, for the terminal."""
         return (
             f"{self.channels} channels, channel 0 at {self.azimuth0:g} degrees, {self.direction}, "
             f"+y {self.y}, {self.values}"
@@ -83,7 +85,7 @@ class Encoding:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Encoding":
-
+        """Read an encoding from a TOML file, refusing unknown keys in one line naming ``path``."""
         data = documents.read_toml(path)
         if not isinstance(data, dict):
             raise InputError(path, "is not a table of encoding keys")
@@ -94,8 +96,9 @@ class Encoding:
 
 
 def read_layers(paths: list[str | Path]) -> np.ndarray:
-    """Return the layers' RGBA values in [0, 1] concatenated: ``(rows, cols, 4 * len(paths))`` float32; one
-    file given twice is refused (it would stand for two layers' directions).
+    """Return the layers' RGBA values in [0, 1] concatenated, ``(rows, cols, 4 * len(paths))`` float32.
+
+    One file given twice is refused (it would stand for two layers' directions).
     """
     seen: dict = {}
     for i, p in enumerate(paths):
@@ -166,9 +169,11 @@ VALUE_RANGES: dict[str, tuple[float, float]] = {
 
 
 def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
-    """``raw`` (:func:`read_layers`) if it holds the layers ``enc`` declares (``channels / 4`` RGBA
-    layers, no more, no fewer) with finite values in the encoding's range (:data:`VALUE_RANGES`);
-    else one line naming the first layer and what is wrong.
+    """Check that ``raw`` holds the layers ``enc`` declares, with finite values in the encoding's range.
+
+    ``raw`` comes from :func:`read_layers`; the layers are ``channels / 4`` RGBA layers, no more, no fewer,
+    and the ranges are :data:`VALUE_RANGES`. Returns ``raw``; else one line names the first layer and what is
+    wrong.
     """
     first = paths[0] if isinstance(paths, (list, tuple)) and paths else paths
     layers = cv.layer_count(enc.channels)
@@ -210,7 +215,10 @@ def _decode_values(v: np.ndarray, values: str) -> np.ndarray:
 
 
 def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
-    """Return the sines in hzval's layout ``(rows, cols, D)`` float32 from the stored values (module docstring)."""
+    """Return the sines in hzval's layout ``(rows, cols, D)`` float32 from the stored values.
+
+    See the module docstring.
+    """
     D = enc.channels
     if raw.shape[-1] < D:
         raise InputError("--horizon-map", f"{D} channels declared, the layers hold {raw.shape[-1]}")
@@ -231,8 +239,9 @@ def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
 
 
 def load(paths: list[str | Path], enc: Encoding) -> np.ndarray:
-    """Read, check (:func:`check_layers`) and convert an external bake: sines ``(rows, cols, D)`` in
-    hzval's layout.
+    """Read, check (:func:`check_layers`) and convert an external bake.
+
+    The result is the sines ``(rows, cols, D)`` in hzval's layout.
     """
     enc = enc.validate()
     return to_hzval(check_layers(read_layers(paths), enc, list(paths)), enc)
@@ -256,8 +265,10 @@ MIN_SPREAD = 0.005
 
 
 def rings(D: int) -> list[tuple[str, str, float]]:
-    """Return the 2 D rotations and reflections of a ring of ``D`` channels, as ``(y, direction,
-    azimuth0)``: a reflection named as +y down first (the likelier bug), then as clockwise.
+    """Return the 2 D rotations and reflections of a ring of ``D`` channels.
+
+    Each is ``(y, direction, azimuth0)``: a reflection named as +y down first (the likelier bug), then as
+    clockwise.
     """
     step = 360.0 / D
     return [(y, d, r * step) for y, d in (("up", "ccw"), ("down", "ccw"), ("up", "cw")) for r in range(D)]
@@ -268,8 +279,9 @@ def _score(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
 
 
 def correlation(raw: np.ndarray, exact: np.ndarray, enc: Encoding) -> float:
-    """Return the Pearson correlation over texels and channels between ``raw`` decoded under ``enc`` and
-    hzval's exact horizons, each channel's mean removed first (a map of the right surface baked at a
+    """Return the Pearson correlation between ``raw`` decoded under ``enc`` and hzval's exact horizons.
+
+    It runs over texels and channels, each channel's mean removed first (a map of the right surface baked at a
     short radius is lower everywhere, yet correlated; one of another surface is not).
     """
     a = to_hzval(raw, enc).astype(np.float64)
@@ -284,9 +296,11 @@ SHADOW_ELEVATIONS: tuple[float, ...] = tuple(float(e) for e in range(5, 90, 10))
 
 
 def shadow_error(raw: np.ndarray, exact: np.ndarray, enc: Encoding, k: float = 8.0) -> float:
-    """How a reading of the map would shadow: the mean ``|F - V|`` over every texel, stored direction
-    and :data:`SHADOW_ELEVATIONS`, with ``F = clamp(k (sin e - s) + 1, 0, 1)`` of the sines read under
-    ``enc`` (Lengyel's factor) and ``V = [sin e > s_exact]`` of hzval's exact horizons.
+    """Return how a reading of the map would shadow, as a mean ``|F - V|``.
+
+    The mean runs over every texel, stored direction and :data:`SHADOW_ELEVATIONS`, with ``F = clamp(k (sin e
+    - s) + 1, 0, 1)`` of the sines read under ``enc`` (Lengyel's factor) and ``V = [sin e > s_exact]`` of
+    hzval's exact horizons.
 
     A map fitted to render well (``hzval fit``) can lie closer to the exact sines under another
     reading, yet shadow worse under it: a convention is suggested only where this is lower.
@@ -302,8 +316,9 @@ def shadow_error(raw: np.ndarray, exact: np.ndarray, enc: Encoding, k: float = 8
 
 
 def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8, k: float = 8.0) -> dict:
-    """Return ``{declared, best_match, scores, matches, correlation, describes}``, each convention with its
-    mean |s - s_exact|.
+    """Return the conventions' scores, each convention with its mean |s - s_exact|.
+
+    The result is ``{declared, best_match, scores, matches, correlation, describes}``.
 
     In two stages: the ring (which channel points where) under the declared value encoding, then
     the value encoding on the best ring. ``best_match`` is the lowest of every candidate;
@@ -363,9 +378,10 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
 
 
 def advice(result: dict) -> str | None:
-    """One line on what looks wrong when another convention fits clearly better than the declared
-    one, each fix named by its flag, else ``None`` (also when the map does not describe the height
-    map at all: :func:`warnings` says that instead).
+    """Return a line on what looks wrong where another convention fits clearly better, else ``None``.
+
+    Another convention fits clearly better than the declared one; the line names each fix by its flag. It is
+    also ``None`` when the map does not describe the height map at all (:func:`warnings` says that instead).
     """
     if result.get("convention_fits", result["matches"]) or not result.get("describes", True):
         return None
@@ -404,8 +420,10 @@ def advice(result: dict) -> str | None:
 
 
 def warnings(result: dict, layers, height) -> list[str]:
-    """Every warning of a detection (:func:`detect`), each naming the flag that fixes it: the map
-    does not describe the height map (naming both files), or :func:`advice`'s convention.
+    """Return every warning of a detection (:func:`detect`), each naming the flag that fixes it.
+
+    The warnings are: the map does not describe the height map (naming both files), or :func:`advice`'s
+    convention.
     """
     if not result.get("describes", True):
         names = ",".join(str(p) for p in layers)
@@ -420,8 +438,10 @@ def warnings(result: dict, layers, height) -> list[str]:
 
 
 def repeated_layers(raw: np.ndarray, layers) -> list[str]:
-    """Return a warning where two layers of an external map hold the same values (a layer exported twice
-    under two names), unless every value is the same (a flat surface's map may be so).
+    """Return a warning where two layers of an external map hold the same values.
+
+    Such layers are one exported twice under two names. No warning is given when every value is the same (a
+    flat surface's map may be so).
     """
     n = cv.CHANNELS_PER_LAYER
     parts = [raw[..., n * i : n * (i + 1)] for i in range(raw.shape[-1] // n)]

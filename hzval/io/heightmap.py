@@ -108,8 +108,9 @@ def load_height(path: _PathLike, *, max_pixels: int | None = None) -> HeightMap:
 
 
 def check_usable(hm: HeightMap) -> HeightMap:
-    """Refuse, in one line naming the file, a height map smaller than :data:`MIN_SIDE` texels a side
-    (a flat one runs: it is the null test where every technique must give ``F = 1``).
+    """Refuse, in one line naming the file, a height map smaller than :data:`MIN_SIDE` texels a side.
+
+    A flat one runs: it is the null test where every technique must give ``F = 1``.
 
     Parameters
     ----------
@@ -446,8 +447,10 @@ _PILLOW_GREY = {"L": 255.0, "I;16": 65535.0, "I;16B": 65535.0, "I": 1.0, "F": 1.
 
 
 def _load_pillow(path: _PathLike) -> tuple[np.ndarray, str]:
-    """Return a grey image's samples over its white (8 and 16 bits: data in [0, 1]; 32-bit integer and
-    float: as stored), or a colour image's 8-bit luminance, Pillow's conversion to RGB first.
+    """Return a grey image's samples over its white, or a colour image's 8-bit luminance.
+
+    Grey samples of 8 and 16 bits give data in [0, 1]; 32-bit integer and float ones come as stored. A colour
+    image goes through Pillow's conversion to RGB first.
     """
     try:
         with _pillow_strict(), Image.open(path) as img:

@@ -55,9 +55,10 @@ _FLOAT_ONE, _FLOAT_MINUS_ONE = 0x3F800000, 0xBF800000
 
 @dataclass(frozen=True)
 class Format:
-    """A texture format: its ``VkFormat``, texel block (``block`` texels a side, ``block_bytes``
-    bytes), channels, DFD colour model and samples ``((channel id, bit offset, bits), ...)``, and
-    ``typeSize`` (the data's unit for endianness: 1, or 2 for 16-bit floats).
+    """A texture format: ``VkFormat``, texel block, channels, DFD colour model, samples and ``typeSize``.
+
+    The texel block is ``block`` texels a side, ``block_bytes`` bytes; samples are ``((channel id, bit offset,
+    bits), ...)``; ``typeSize`` is the data's unit for endianness: 1, or 2 for 16-bit floats.
     """
 
     name: str
@@ -103,8 +104,9 @@ _BY_VK = {f.vk: f for f in FORMATS.values()}
 
 @dataclass
 class Texture:
-    """A KTX2 texture: its format, size, levels' bytes (level 0 first, uncompressed) and key/value
-    data (``{key: value}``, strings).
+    """A KTX2 texture: its format, size, levels' bytes and key/value data.
+
+    The levels are level 0 first, uncompressed; the key/value data is ``{key: value}``, strings.
     """
 
     format: Format
@@ -152,8 +154,9 @@ def _kvd(kv: dict) -> bytes:
 
 
 def write(path, tex: Texture, *, zstd: bool = False) -> None:
-    """Write ``tex`` to ``path`` (atomically: :func:`hzval.io.atomic.atomic_path`); ``zstd``:
-    supercompress each level with Zstandard.
+    """Write ``tex`` to ``path`` atomically (:func:`hzval.io.atomic.atomic_path`).
+
+    ``zstd``: supercompress each level with Zstandard.
     """
     fmt, n = tex.format, len(tex.levels)
     for i, data in enumerate(tex.levels):
@@ -187,8 +190,9 @@ def write(path, tex: Texture, *, zstd: bool = False) -> None:
 
 
 def read(path) -> Texture:
-    """Return a KTX2 file as :class:`Texture` (its levels decompressed); one line naming the file for a file
-    that is not one of the textures :func:`write` writes.
+    """Return a KTX2 file as :class:`Texture`, its levels decompressed.
+
+    A file that is not one of the textures :func:`write` writes is one line naming the file.
     """
     raw = Path(path).read_bytes() if Path(path).is_file() else None
     if raw is None:
@@ -243,8 +247,10 @@ def _zstd_decode(data: bytes) -> bytes:
 
 
 def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
-    """Return a level's texels as float32 ``(rows, cols, channels)``: UNORM over 255, half floats as they
-    are, BC blocks decoded as a GPU decodes them (texture2ddecoder), cropped to the level's size.
+    """Return a level's texels as float32 ``(rows, cols, channels)``.
+
+    UNORM is over 255, half floats are as they are, BC blocks are decoded as a GPU decodes them
+    (texture2ddecoder), cropped to the level's size.
     """
     fmt = tex.format
     w, h = max(1, tex.width >> level), max(1, tex.height >> level)
@@ -267,10 +273,11 @@ def decode_level(tex: Texture, level: int = 0) -> np.ndarray:
 
 
 def encode_level(values: np.ndarray, fmt: Format) -> bytes:
-    """Return a level's bytes in ``fmt`` from float32 ``(rows, cols, channels)`` texels in [0, 1] (UNORM and
-    BC formats; 8-bit quantisation by :func:`hzval.io.codecs.unit_to_u8`) or as they are (half floats).
-    BC blocks are etcpak's, on an RGBA8 image padded to whole blocks by repeating its edge, the
-    channels it lacks 0 and alpha 255.
+    """Return a level's bytes in ``fmt`` from float32 ``(rows, cols, channels)`` texels.
+
+    UNORM and BC formats take texels in [0, 1] (8-bit quantisation by :func:`hzval.io.codecs.unit_to_u8`),
+    half floats take them as they are. BC blocks are etcpak's, on an RGBA8 image padded to whole blocks by
+    repeating its edge, the channels it lacks 0 and alpha 255.
     """
     v = np.asarray(values, np.float32)
     if v.ndim == 2:

@@ -123,8 +123,10 @@ def inside(folder: str | os.PathLike, rel, where: str | os.PathLike, key: str) -
 
 
 def resolved(path: str | os.PathLike, where: str | os.PathLike | None = None, key: str = "") -> Path:
-    """``path`` with its links followed (:meth:`pathlib.Path.resolve`); a loop of links is one line
-    naming ``where`` and ``key`` (default: the path itself), where Python raises a RuntimeError.
+    """Return ``path`` with its links followed (:meth:`pathlib.Path.resolve`).
+
+    A loop of links is one line naming ``where`` and ``key`` (default: the path itself), where Python raises a
+    RuntimeError.
 
     Examples
     --------

@@ -1,5 +1,7 @@
-"""Output folders written whole or not at all: the folder's lock and marker, and :class:`Staging`,
-which moves a set of outputs into place only once every file is written.
+"""Output folders written whole or not at all.
+
+The module holds the folder's lock and marker, and :class:`Staging`, which moves a set of outputs into place
+only once every file is written.
 """
 
 from __future__ import annotations
@@ -111,7 +113,10 @@ def _is_own(name: str) -> bool:
 
 
 def _listed(folder: Path) -> set[str] | None:
-    """Return the files ``folder``'s marker lists (paths relative to it), or ``None`` without a readable marker."""
+    """Return the files ``folder``'s marker lists (paths relative to it).
+
+    It returns ``None`` without a readable marker.
+    """
     try:
         data = documents.read_json(folder / MARKER_NAME)
         return {str(p) for p in data["files"]}
@@ -120,8 +125,10 @@ def _listed(folder: Path) -> set[str] | None:
 
 
 def _walk_files(folder: Path) -> list[str]:
-    """Every file under ``folder`` (relative POSIX paths), hzval's bookkeeping and the folders of other
-    hzval runs (a subfolder with a marker of its own: a suite's or views' sweeps) left out.
+    """Return every file under ``folder`` (relative POSIX paths) that is not hzval's bookkeeping.
+
+    The folders of other hzval runs (a subfolder with a marker of its own: a suite's or views' sweeps) are
+    left out too.
     """
     found = []
     for root, dirs, names in os.walk(folder):
@@ -132,7 +139,10 @@ def _walk_files(folder: Path) -> list[str]:
 
 
 def foreign_files(folder: str | os.PathLike) -> list[str]:
-    """Return the files under ``folder`` that hzval did not write (not listed in its marker), as relative paths."""
+    """Return the files under ``folder`` that hzval did not write, as relative paths.
+
+    They are the files not listed in its marker.
+    """
     folder = Path(folder)
     if not folder.is_dir():
         return []
@@ -154,7 +164,10 @@ def _write_marker(folder: Path, foreign: set[str]) -> None:
 
 
 def _first_missing(folder: Path) -> Path | None:
-    """Return the outermost folder of ``folder`` and its parents that does not exist yet (what a run creates)."""
+    """Return the outermost folder of ``folder`` and its parents that does not exist yet.
+
+    It is what a run creates.
+    """
     missing = None
     for p in [folder, *folder.parents]:
         if p.exists() or p.is_symlink():
@@ -175,8 +188,10 @@ def _check_folder(folder: Path) -> None:
 
 
 def os_error(exc: OSError, fallback: str | os.PathLike) -> InputError:
-    """Return an :class:`OSError` (read-only or full disk, no permission, ...) as one line naming its path: the
-    path the file would have had, its staging folders (:class:`Staging`) left out.
+    """Return an :class:`OSError` as one line naming its path.
+
+    The error may be a read-only or full disk, no permission, ...; the path named is the one the file would
+    have had, its staging folders (:class:`Staging`) left out.
 
     >>> str(os_error(OSError(28, "No space left on device", "r/.hzval-staging-ab12/frames/x.exr"), "--out"))
     'r/frames/x.exr: No space left on device'
@@ -239,9 +254,10 @@ def output_folder(
 
 
 def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -> str | None:
-    """``path`` as a report records it: relative to ``report_dir`` (``../maps/x.png`` for a file
-    beside it), so that a shared report does not carry the absolute folders (a home folder's user
-    name) it was made in; the path as given where no relative one exists (another drive).
+    """Return ``path`` as a report records it: relative to ``report_dir``.
+
+    A file beside it is ``../maps/x.png``; so a shared report does not carry the absolute folders (a home
+    folder's user name) it was made in. Where no relative path exists (another drive), the path is as given.
     """
     if path is None:
         return None
@@ -293,10 +309,12 @@ def file_digest(path: str | os.PathLike) -> str:
 
 @contextlib.contextmanager
 def swapped_in(out: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
-    """Yield a run's output, all or nothing: hold ``out`` (:func:`output_folder`), yield a staging folder
-    inside it to write into, then swap that in whole (:meth:`Staging.swap`) with signals held from
-    the last moment (:func:`hzval.core.interrupts.held`). A failure or an interrupt before the swap
-    leaves an earlier report byte for byte.
+    """Yield a run's output, all or nothing, through a staging folder swapped in whole.
+
+    It holds ``out`` (:func:`output_folder`), yields a staging folder inside it to write into, then swaps that
+    in whole (:meth:`Staging.swap`) with signals held from the last moment
+    (:func:`hzval.core.interrupts.held`). A failure or an interrupt before the swap leaves an earlier report
+    byte for byte.
 
     Parameters
     ----------
@@ -353,11 +371,12 @@ class Staging:
         return final
 
     def swap(self) -> None:
-        """Put each staged top-level entry in place of ``out``'s entry of that name, whole: a folder
-        replaces the old folder (none of hzval's old files in it survive), a file the old file. Each
-        swap is two renames, so a reader sees the old entry or the new one. Files that hzval did not
-        write (:func:`foreign_files`; there only with ``--force``) are moved into the new folder
-        first: only hzval's own files are ever replaced.
+        """Put each staged top-level entry in place of ``out``'s entry of that name, whole.
+
+        A folder replaces the old folder (none of hzval's old files in it survive), a file the old file. Each
+        swap is two renames, so a reader sees the old entry or the new one. Files that hzval did not write
+        (:func:`foreign_files`; there only with ``--force``) are moved into the new folder first: only hzval's
+        own files are ever replaced.
         """
         foreign = foreign_files(self.out)
         for src in sorted(self.dir.iterdir()):
@@ -389,9 +408,11 @@ class Staging:
             shutil.rmtree(p, ignore_errors=True)
 
     def __enter__(self) -> "Staging":
+        """Enter the staging: the folder is removed on leaving unless committed."""
         return self
 
     def __exit__(self, *exc) -> None:
+        """Remove the staging folder (and the output folder it created) unless committed."""
         if not self._committed:
             shutil.rmtree(self.dir, ignore_errors=True)
             if self._created_out:

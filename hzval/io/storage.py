@@ -48,9 +48,10 @@ __all__ = ["Storage", "STORAGES", "get", "names"]
 
 @dataclass(frozen=True)
 class Storage:
-    """A storage format: ``channels`` per texture, ``block_bytes`` per 4 x 4 block (0: uncompressed,
-    ``texel_bytes`` per channel and texel), its codec (``None``: uncompressed) and whether it stores
-    ``sqrt(s)``.
+    """A storage format: its channels, block or texel size, codec and whether it stores ``sqrt(s)``.
+
+    It has ``channels`` per texture, ``block_bytes`` per 4 x 4 block (0: uncompressed, ``texel_bytes`` per
+    channel and texel), and its codec (``None``: uncompressed).
     """
 
     name: str
@@ -85,8 +86,10 @@ class Storage:
 
 
 def _encode_blocks(v: np.ndarray, per_texture: int, encode) -> tuple[list[tuple[list[int], bytes]], int, int]:
-    """``([(channels, blocks), ...], W, H)``: the channels of ``v`` packed ``per_texture`` to RGBA8
-    images padded to multiples of 4 by repeating the edge, each encoded (the bytes a GPU uploads).
+    """Return the channels of ``v`` packed ``per_texture`` to RGBA8 images, each encoded.
+
+    The result is ``([(channels, blocks), ...], W, H)``; the images are padded to multiples of 4 by repeating
+    the edge, and the encoded bytes are what a GPU uploads.
     """
     rows, cols, D = v.shape
     pr, pc = -rows % 4, -cols % 4
@@ -105,7 +108,8 @@ def _encode_blocks(v: np.ndarray, per_texture: int, encode) -> tuple[list[tuple[
 def _block_roundtrip(
     v: np.ndarray, per_texture: int, encode, decode, blocks_out: list | None = None
 ) -> np.ndarray:
-    """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack;
+    """Pack the channels ``per_texture`` to an RGBA8 image, encode, decode (BGRA) and unpack.
+
     ``blocks_out`` (a list) receives each texture's encoded blocks.
     """
     rows, cols, D = v.shape

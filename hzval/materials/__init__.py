@@ -66,8 +66,10 @@ REGISTRY: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Generated:
-    """A generated material: height ``(rows, cols)`` in [0, 1] and linear albedo ``(rows, cols, 3)``
-    or ``None`` (the scene's constant); both float32 and read-only (they are cached).
+    """A generated material: height in [0, 1] and linear albedo, both float32 and read-only.
+
+    The height is ``(rows, cols)``, the albedo ``(rows, cols, 3)`` or ``None`` (the scene's constant); both
+    are read-only because they are cached.
     """
 
     height: np.ndarray
@@ -94,6 +96,7 @@ class Material:
 
 
 def names() -> list[str]:
+    """Return the built-in materials' names, in the registry's order."""
     return list(REGISTRY)
 
 
@@ -123,8 +126,9 @@ def _generate(name: str, shape: tuple[int, int], seed: int) -> Generated:
 
 
 def generate(name: str, size: int | tuple[int, int] = DEFAULT_SIZE, seed: int = 1) -> Generated:
-    """Material ``name`` at ``size`` (``n`` or ``(rows, cols)``); the last few are cached, so the
-    height and the albedo of one scene are generated once.
+    """Return material ``name`` at ``size`` (``n`` or ``(rows, cols)``).
+
+    The last few are cached, so the height and the albedo of one scene are generated once.
     """
     shape = (int(size), int(size)) if np.ndim(size) == 0 else tuple(int(s) for s in size)
     m = get(name)

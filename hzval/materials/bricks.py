@@ -98,8 +98,10 @@ def bricks(
 
 @dataclass(frozen=True)
 class _Bond:
-    """The running bond: ``n`` bricks per course, ``courses`` courses, brick size in texels, and per
-    texel its position in its brick (``fu``, ``fv`` in [0, 1)) and the brick's index.
+    """The running bond: bricks per course, courses, brick size, and each texel's place in its brick.
+
+    There are ``n`` bricks per course and ``courses`` courses, the brick size is in texels, and per texel it
+    holds its position in its brick (``fu``, ``fv`` in [0, 1)) and the brick's index.
     """
 
     n: int
@@ -112,9 +114,10 @@ class _Bond:
 
 
 def _bond(rows: int, cols: int, bricks_across: int) -> _Bond:
-    """N bricks per course, an even number of courses, bricks ~2:1; brick-space coordinates of texel
-    centres, shifted by a quarter brick and half a course so the image edges cut through bricks
-    (the seam is then a real test of tiling, not hidden in a joint).
+    """Return the running bond: N bricks per course, an even number of courses, bricks ~2:1.
+
+    It gives the brick-space coordinates of texel centres, shifted by a quarter brick and half a course so the
+    image edges cut through bricks (the seam is then a real test of tiling, not hidden in a joint).
     """
     f32 = np.float32
     n = max(1, min(bricks_across, cols // _MIN_BRICK_PX))
@@ -161,8 +164,9 @@ def _noise_fields(rng, shape: tuple[int, int], brick_h: float) -> dict[str, np.n
 
 
 def _inset(bond: _Bond, edge_field: np.ndarray) -> np.ndarray:
-    """Inset distance (texels) to the brick boundary, with slightly rounded corners, less half the
-    mortar joint; the edge wanders a little along its length.
+    """Return the inset distance (texels) to the brick boundary, less half the mortar joint.
+
+    The boundary has slightly rounded corners; the edge wanders a little along its length.
     """
     f32 = np.float32
     mortar = max(_MORTAR_MIN_PX, _MORTAR_FRACTION * bond.brick_h)

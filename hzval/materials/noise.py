@@ -29,8 +29,9 @@ def shape_of(size, name: str, min_size: int) -> tuple[int, int]:
 
 
 def grid(shape: tuple[int, int], across: int, min_px: float) -> tuple[int, int]:
-    """``(gy, gx)`` cells per period for ``across`` features across the width, as many down as keep
-    them about square (:func:`count` on each axis).
+    """Return ``(gy, gx)`` cells per period for ``across`` features across the width.
+
+    As many go down as keep them about square (:func:`count` on each axis).
     """
     rows, cols = shape
     gx = count(cols, across, min_px)
@@ -38,15 +39,18 @@ def grid(shape: tuple[int, int], across: int, min_px: float) -> tuple[int, int]:
 
 
 def finish(height: np.ndarray, albedo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return a material's result: height clipped to [0, 1], albedo to [0.02, 0.9] (no perfect black or
-    white), both float32.
+    """Return a material's result: height clipped to [0, 1], albedo to [0.02, 0.9], both float32.
+
+    The albedo's range leaves no perfect black or white.
     """
     return np.clip(height, 0.0, 1.0).astype(np.float32), np.clip(albedo, 0.02, 0.9).astype(np.float32)
 
 
 def count(length: int, wanted: int, min_px: float, *, even: bool = False) -> int:
-    """Features per period along an axis of ``length`` texels: ``wanted``, fewer where a feature
-    would be narrower than ``min_px`` texels, at least 1 (2 and even with ``even``).
+    """Return the features per period along an axis of ``length`` texels.
+
+    It is ``wanted``, fewer where a feature would be narrower than ``min_px`` texels, at least 1 (2 and even
+    with ``even``).
     """
     n = max(1, min(int(wanted), int(length // min_px)))
     if even:
@@ -95,6 +99,7 @@ def periodic_noise(
 
 
 def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    """Return the smoothstep of ``x`` between the edges ``e0`` and ``e1`` (0 below, 1 above)."""
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
@@ -121,10 +126,11 @@ class Cells:
 def cells(
     rng: np.random.Generator, shape: tuple[int, int], counts: tuple[int, int], jitter: float = 0.8
 ) -> Cells:
-    """One feature point per cell of a ``counts = (gy, gx)`` grid over the period, placed uniformly
-    in the middle ``jitter`` of its cell; distances wrap, so the diagram tiles. The edge distance is
-    exact for the 3 x 3 neighbourhood searched (Worley 1996's cellular texture basis, with the
-    bisector distance ``(|x - b|^2 - |x - a|^2) / (2 |b - a|)`` of Quilez's Voronoi edges).
+    """Return one feature point per cell of a ``counts = (gy, gx)`` grid over the period.
+
+    Each is placed uniformly in the middle ``jitter`` of its cell; distances wrap, so the diagram tiles. The
+    edge distance is exact for the 3 x 3 neighbourhood searched (Worley 1996's cellular texture basis, with
+    the bisector distance ``(|x - b|^2 - |x - a|^2) / (2 |b - a|)`` of Quilez's Voronoi edges).
     """
     rows, cols = shape
     gy, gx = counts
@@ -165,8 +171,10 @@ def cells(
 
 
 def tint(encoded: tuple[float, float, float], variation: np.ndarray | float = 0.0) -> np.ndarray:
-    """Return a linear albedo ``(..., 3)`` float32 from an sRGB colour scaled by ``1 + variation``
-    (per texel or per feature), clipped to [0.02, 0.9] (no perfect black or white).
+    """Return a linear albedo ``(..., 3)`` float32 from an sRGB colour scaled by ``1 + variation``.
+
+    ``variation`` is per texel or per feature; the result is clipped to [0.02, 0.9] (no perfect black or
+    white).
     """
     base = np.asarray(srgb.decode(np.asarray(encoded, np.float64)), np.float32)
     v = np.asarray(variation, np.float32)[..., None]

@@ -1,7 +1,10 @@
-"""Scores of a frame against the truth: mean |F - V|, leaks, false shadows, RMSE, PSNR, CIEDE2000
-(compare), FLIP in Dr.Jit (flip, its colour steps flip_colour), what a frame has to shadow and
-scores over light-facing pixels (facing), exposure found from brightness (brightness), and a run's
-result read as typed records (results).
+"""Scores of a frame against the truth, from mean |F - V| to FLIP, and a run's result as records.
+
+- ``compare``: mean |F - V|, leaks, false shadows, RMSE, PSNR and CIEDE2000.
+- ``flip``: FLIP in Dr.Jit, with its colour steps in ``flip_colour``.
+- ``facing``: what a frame has to shadow, and scores over the pixels facing the light.
+- ``brightness``: an engine's exposure error found from its brightness.
+- ``results``: ``metrics.json`` and ``suite.json`` read as typed records.
 """
 
 import lazy_loader

@@ -78,6 +78,8 @@ FLIP_PPD = 67.0
 
 @dataclass(frozen=True)
 class FrameMetrics:
+    """A technique's scores in one frame against the truth: visibility errors, FLIP, RMSE, PSNR, ΔE."""
+
     visibility_mae: float | None
     leak_fraction: float | None
     false_shadow_fraction: float | None
@@ -88,6 +90,7 @@ class FrameMetrics:
     reflection_mae: float | None = None
 
     def as_dict(self) -> dict:
+        """Return the scores as a JSON object; ``reflection_mae`` only where the scene declares it."""
         d = asdict(self)
         if d["reflection_mae"] is None:  # only scenes that declare reflection_occlusion have it
             del d["reflection_mae"]
@@ -202,8 +205,10 @@ def flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.nd
 
 
 def flip_evaluator_flip(reference_display: np.ndarray, test_display: np.ndarray) -> tuple[np.ndarray, float]:
-    """:func:`flip` through NVIDIA's ``flip-evaluator`` package, the implementation
-    :mod:`hzval.metrics.flip` is validated against (the tests, ``benchmarks/bench_compare.py``).
+    """Compute :func:`flip` through NVIDIA's ``flip-evaluator`` package.
+
+    It is the implementation :mod:`hzval.metrics.flip` is validated against (the tests,
+    ``benchmarks/bench_compare.py``).
 
     Parameters
     ----------
@@ -350,10 +355,11 @@ def _delta_e2000_kernel(L1, a1, b1, L2, a2, b2):
 
 
 def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
-    """Return an ``(H, W, 3)`` display image as three float64 Dr.Jit arrays, gathered from one
-    float64 array of it (which the LLVM backend maps without copying, keeping a reference);
-    ``grey`` (its channels bitwise equal, as the caller has checked): one array three times, so
-    that what is computed from the channels is computed once (Dr.Jit merges equal expressions of
+    """Return an ``(H, W, 3)`` display image as three float64 Dr.Jit arrays.
+
+    They are gathered from one float64 array of it (which the LLVM backend maps without copying, keeping a
+    reference). With ``grey`` (its channels bitwise equal, as the caller has checked) it is one array three
+    times, so that what is computed from the channels is computed once (Dr.Jit merges equal expressions of
     equal variables), the same bit for bit.
     """
     backend.variant()
@@ -369,8 +375,9 @@ def _rgb_planes(display_rgb: np.ndarray, grey: bool = False):
 
 
 class LabImage:
-    """CIELAB (D65) of an sRGB display image, as float64 Dr.Jit arrays of the current variant
-    (``L``, ``a``, ``b``, row-major), for :func:`delta_e2000` against several test images.
+    """CIELAB (D65) of an sRGB display image, as float64 Dr.Jit arrays of the current variant.
+
+    The arrays are ``L``, ``a``, ``b``, row-major, for :func:`delta_e2000` against several test images.
     """
 
     def __init__(self, display_rgb: np.ndarray, *, grey: bool = False):
@@ -469,8 +476,9 @@ def delta_e2000(
 
 
 def delta_e2000_colour(reference_display: np.ndarray, test_display: np.ndarray) -> np.ndarray:
-    """:func:`delta_e2000` through colour-science, in row blocks (:func:`by_rows`): the
-    implementation the kernel is validated against (the tests, ``benchmarks/bench_compare.py``).
+    """Compute :func:`delta_e2000` through colour-science, in row blocks (:func:`by_rows`).
+
+    It is the implementation the kernel is validated against (the tests, ``benchmarks/bench_compare.py``).
 
     Parameters
     ----------
@@ -633,8 +641,10 @@ def image_metrics(ref: Reference, image: np.ndarray) -> tuple[dict[str, float], 
 
 
 def _flat_values(image: np.ndarray):
-    """Return an image's values, row-major, as a float32 or float64 Dr.Jit array gathered from its NumPy
-    memory (a gather: a mapped array's contiguous load would compile one kernel per alignment).
+    """Return an image's values, row-major, as a float32 or float64 Dr.Jit array.
+
+    The array is gathered from its NumPy memory (a gather: a mapped array's contiguous load would compile one
+    kernel per alignment).
     """
     backend.variant()
     img = np.asarray(image)
@@ -667,9 +677,10 @@ def _seen(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
 
 
 def pooled_psnr_db(rmses) -> float | None:
-    """Return the PSNR of several frames together, ``10 log10(1 / mean(rmse^2))`` (peak 1): the frames' mean
-    squared error, not the mean of their decibels, which one near-identical frame (150 dB) would
-    dominate. ``inf`` when every frame is identical, ``None`` with no frame.
+    """Return the PSNR of several frames together, ``10 log10(1 / mean(rmse^2))`` (peak 1).
+
+    It uses the frames' mean squared error, not the mean of their decibels, which one near-identical frame
+    (150 dB) would dominate. It is ``inf`` when every frame is identical, ``None`` with no frame.
 
     Examples
     --------

@@ -79,8 +79,9 @@ def _gaussian_sqrt(x2, a, b):
 
 
 def spatial_filter_radius(ppd: float) -> int:
-    """FLIP's ``calculateSpatialFilterRadius``: three standard deviations of the widest contrast
-    sensitivity Gaussian, in pixels.
+    """Return the spatial filter radius in pixels, as FLIP's ``calculateSpatialFilterRadius``.
+
+    It is three standard deviations of the widest contrast sensitivity Gaussian.
 
     Parameters
     ----------
@@ -98,9 +99,10 @@ def spatial_filter_radius(ppd: float) -> int:
 
 @dataclass(frozen=True)
 class Filters:
-    """FLIP's 1-D filters at one ``ppd``: spatial ``y``, ``cx``, ``cz1``, ``cz2`` of radius
-    ``spatial_radius``; feature ``g``, ``dg``, ``ddg`` of radius ``feature_radius``; and the
-    colour remapping's ``cmax`` and ``pccmax``.
+    """FLIP's 1-D filters at one ``ppd``, with the colour remapping's ``cmax`` and ``pccmax``.
+
+    The spatial ones are ``y``, ``cx``, ``cz1``, ``cz2`` of radius ``spatial_radius``; the feature ones ``g``,
+    ``dg``, ``ddg`` of radius ``feature_radius``.
     """
 
     ppd: np.float32
@@ -140,8 +142,9 @@ def _spatial_filters(ppd: np.float32, radius: int):
 
 
 def _feature_filters(ppd: np.float32):
-    """``setFeatureFilter``: a Gaussian (sum 1) and its first and second derivatives (positive
-    weights summing to 1, negative ones to -1).
+    """Return FLIP's feature filters (``setFeatureFilter``): a Gaussian and its first two derivatives.
+
+    The Gaussian sums to 1; the derivatives' positive weights sum to 1, their negative ones to -1.
     """
     sd = f32(0.5) * W * ppd
     radius = int(math.ceil(f32(3.0) * sd))
@@ -237,11 +240,12 @@ class _Grid:
 
     @staticmethod
     def _quotient(a, n):
-        """Return ``a // n`` of non-negative Int32 arrays, as the truncated float64 quotient: exact (a
-        quotient within ``1 / n`` of the next integer is at least ``2^-32`` from it relatively, far
-        above float64's rounding) and a SIMD division, where LLVM turns an integer division by a
-        value that is not a constant into one scalar division a lane (``benchmarks/bench_flip.py``
-        measures the difference).
+        """Return ``a // n`` of non-negative Int32 arrays, as the truncated float64 quotient.
+
+        It is exact (a quotient within ``1 / n`` of the next integer is at least ``2^-32`` from it relatively,
+        far above float64's rounding) and a SIMD division, where LLVM turns an integer division by a value
+        that is not a constant into one scalar division a lane (``benchmarks/bench_flip.py`` measures the
+        difference).
         """
         return mi.Int32(mi.Float64(a) / mi.Float64(n))
 
@@ -260,8 +264,9 @@ class _Grid:
         return y * W + dr.clip(col - BLOCK * self.q, 0, W - 1)
 
     def x_window(self, plane) -> list:
-        """For each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row from column
-        ``BLOCK (b - q)`` of the image on, read as ``2q + 1`` packet loads.
+        """Return, for each x-pass lane, the ``BLOCK (2q + 1)`` values of its padded row.
+
+        They start at column ``BLOCK (b - q)`` of the image and are read as ``2q + 1`` packet loads.
         """
         lanes = self.rows * self.nb
         lane = dr.arange(mi.Int32, lanes)
@@ -282,8 +287,9 @@ class _Grid:
         return target
 
     def y_window(self, plane, first: int, count: int) -> dict:
-        """For each y-pass lane, rows ``BLOCK c + m`` of its column of an x-pass result, by ``m`` from
-        ``first`` (padded rows) for ``count`` rows.
+        """Return, for each y-pass lane, rows ``BLOCK c + m`` of its column of an x-pass result.
+
+        The rows go by ``m`` from ``first`` (padded rows) for ``count`` rows.
         """
         lane = dr.arange(mi.Int32, self.hc * self.wb)
         WB = self._opaque(self.wb)
@@ -299,8 +305,10 @@ class _Grid:
 
 
 def _taps(values, weights, first):
-    """``sum_i weights[i] values[first + i]``, summed in float32 in FLIP's order (``i`` from 0 to ``2r``):
-    one output of FLIP's 1-D passes, which are correlations (the filter index runs with the image's).
+    """Return ``sum_i weights[i] values[first + i]``, summed in float32 in FLIP's order.
+
+    ``i`` runs from 0 to ``2r``. It is one output of FLIP's 1-D passes, which are correlations (the filter
+    index runs with the image's).
     """
     acc = None
     for i, w in enumerate(weights):
@@ -310,8 +318,10 @@ def _taps(values, weights, first):
 
 
 def _x_pass(grid: _Grid, planes, weights) -> list:
-    """FLIP's x-direction passes: for each ``(plane, filters)`` of ``planes`` and ``weights``, each
-    filter's correlation along the rows, a row-major array of the padded rows (:class:`_Grid`).
+    """Return FLIP's x-direction passes, each filter's correlation along the rows.
+
+    One per filter of each ``(plane, filters)`` of ``planes`` and ``weights``, each a row-major array of the
+    padded rows (:class:`_Grid`).
     """
     out = []
     for plane, filters_of in zip(planes, weights):
@@ -323,8 +333,9 @@ def _x_pass(grid: _Grid, planes, weights) -> list:
 
 
 def _y_pass(grid: _Grid, planes, weights) -> list:
-    """FLIP's y-direction passes over x-pass results: for each ``(plane, filters)``, each filter's
-    correlation along the columns, in the blocked layout (a list of :data:`BLOCK` arrays).
+    """Return FLIP's y-direction passes over the x-pass results, each filter's correlation along columns.
+
+    One per filter of each ``(plane, filters)``, in the blocked layout (a list of :data:`BLOCK` arrays).
     """
     out = []
     for plane, filters_of in zip(planes, weights):
@@ -365,9 +376,10 @@ def separable_filter(plane: np.ndarray, along_x: np.ndarray, along_y: np.ndarray
 
 
 def _flat_image(img: np.ndarray):
-    """Return an ``(H, W, 3)`` image as one flat Dr.Jit array: float64 as it is (Dr.Jit maps NumPy memory
-    without a copy; the kernel casts it to float32 as NumPy casts, to nearest), else float32, as
-    FLIP's Python wrapper takes it.
+    """Return an ``(H, W, 3)`` image as one flat Dr.Jit array, as FLIP's Python wrapper takes it.
+
+    A float64 image stays as it is (Dr.Jit maps NumPy memory without a copy; the kernel casts it to float32 as
+    NumPy casts, to nearest); any other becomes float32.
     """
     if img.dtype == np.float64 and img.flags.c_contiguous:
         return mi.Float64(img.ravel())
@@ -375,10 +387,11 @@ def _flat_image(img: np.ndarray):
 
 
 def _image_planes(flat, grid: _Grid, grey: bool):
-    """R, G and B of a :func:`_flat_image` as float32 Dr.Jit arrays over the padded planes
-    (:meth:`_Grid.source`), gathered: a gather, unlike a strided load, compiles one kernel for
-    every alignment. ``grey``: R, G and B are bitwise equal, and R is gathered for all three, so
-    that what is computed from them is computed once (Dr.Jit merges equal expressions of equal
+    """Gather R, G and B of a :func:`_flat_image` as float32 Dr.Jit arrays over the padded planes.
+
+    The padded planes are :meth:`_Grid.source`'s. They are gathered because a gather, unlike a strided load,
+    compiles one kernel for every alignment. ``grey``: R, G and B are bitwise equal, and R is gathered for all
+    three, so that what is computed from them is computed once (Dr.Jit merges equal expressions of equal
     variables) and is the same bit for bit.
     """
     i = mi.UInt32(grid.source() * 3)
@@ -388,11 +401,12 @@ def _image_planes(flat, grid: _Grid, grey: bool):
 
 
 def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
-    """One image's FLIP quantities, evaluated: its filtered, Hunt-adjusted Lab (``L``, ``A``, ``B``)
-    and its edge and point magnitudes, each in the blocked layout of :class:`_Grid` (a list of
+    """Evaluate one image's FLIP quantities: filtered, Hunt-adjusted Lab and edge and point magnitudes.
+
+    The Lab is ``L``, ``A``, ``B``, and each quantity is in the blocked layout of :class:`_Grid` (a list of
     :data:`BLOCK` arrays). ``flat``: :func:`_flat_image` of the ``h x w`` image; ``grey``: whether its
-    channels are bitwise equal (:func:`_image_planes`). Three kernels: to YCxCz, the x-direction
-    passes, and the y-direction passes with all that follows them.
+    channels are bitwise equal (:func:`_image_planes`). Three kernels: to YCxCz, the x-direction passes, and
+    the y-direction passes with all that follows them.
     """
     f = filters(ppd)
     g = _Grid(h, w, max(f.spatial_radius, f.feature_radius))
@@ -429,8 +443,10 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
 
 
 def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
-    """Return the per-pixel FLIP of the :func:`_flat_image` ``flat`` (``grey``: :func:`_side`'s) against a
-    reference's :func:`_side`, evaluated, in the blocked layout of :class:`_Grid`.
+    """Return the per-pixel FLIP of ``flat`` against a reference's :func:`_side`, evaluated.
+
+    ``flat`` is a :func:`_flat_image` and ``grey`` is :func:`_side`'s. The result is in the blocked layout of
+    :class:`_Grid`.
     """
     f = filters(ppd)
     t = _side(flat, h, w, ppd, grey)
@@ -460,12 +476,13 @@ FROZEN_SHAPES = 8
 
 @functools.cache
 def _frozen(fn):
-    """``fn`` (:func:`_side` or :func:`_error`) frozen (``drjit.freeze``, Dr.Jit 1.2 or later): its
-    kernels are recorded at the first call for a shape and launched again at the next ones without
-    tracing the Python that made them, which at 512 x 512 was a third of FLIP's time. The sizes are
-    Python arguments, so that each shape gets its own recording (a recording holds the sizes it was
-    made with). Dr.Jit's warning after ten recordings is for a loop that records on every call; a
-    process that scores many shapes records once for each, as it should.
+    """Return ``fn`` (:func:`_side` or :func:`_error`) frozen with ``drjit.freeze`` (Dr.Jit 1.2 or later).
+
+    Its kernels are recorded at the first call for a shape and launched again at the next ones without tracing
+    the Python that made them, which at 512 x 512 was a third of FLIP's time. The sizes are Python arguments,
+    so that each shape gets its own recording (a recording holds the sizes it was made with). Dr.Jit's warning
+    after ten recordings is for a loop that records on every call; a process that scores many shapes records
+    once for each, as it should.
     """
     return dr.freeze(fn, limit=FROZEN_SHAPES, warn_after=2**30)
 

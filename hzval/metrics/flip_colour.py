@@ -1,6 +1,7 @@
-"""FLIP's constants and per-pixel colour steps (``FLIP.h``'s ``FLIPConstants`` and ``color3``
-conversions) in float32, on NumPy values or Dr.Jit arrays alike: sRGB to linear, XYZ, YCxCz and
-CIELAB, the Hunt adjustment and the HyAB distance (docs/flip.md).
+"""FLIP's constants and per-pixel colour steps in float32, on NumPy values or Dr.Jit arrays alike.
+
+They are ``FLIP.h``'s ``FLIPConstants`` and ``color3`` conversions: sRGB to linear, XYZ, YCxCz and CIELAB, the
+Hunt adjustment and the HyAB distance (docs/flip.md).
 """
 
 from __future__ import annotations
@@ -66,8 +67,9 @@ DEFAULT_PPD = f32(0.7) * (f32(3840.0) / f32(0.7)) * (PI / f32(180.0))
 
 
 def k32(v):
-    """Return a float32 constant of FLIP's, as the value both NumPy and Dr.Jit (a Python float: exact)
-    compute with.
+    """Return a float32 constant of FLIP's as the value both NumPy and Dr.Jit compute with.
+
+    The value is a Python float, which is exact.
     """
     return float(f32(v))
 
@@ -149,8 +151,10 @@ def clamp_unit(v):
 
 
 def srgb_to_linear(c):
-    """FLIP's ``color3::sRGBToLinearRGB``: the sRGB transfer function's inverse (IEC 61966-2-1),
-    ``c / 12.92`` up to 0.04045, ``((c + 0.055) / 1.055) ^ 2.4`` above, in float32.
+    """Convert sRGB to linear in float32, as FLIP's ``color3::sRGBToLinearRGB`` does.
+
+    This is the sRGB transfer function's inverse (IEC 61966-2-1): ``c / 12.92`` up to 0.04045, ``((c + 0.055)
+    / 1.055) ^ 2.4`` above.
 
     Parameters
     ----------
@@ -211,8 +215,9 @@ def xyz_to_linear_rgb(x, y, z):
 
 
 def xyz_to_ycxcz(x, y, z):
-    """FLIP's ``color3::XYZToYCxCz``: the opponent space FLIP filters in,
-    ``Y = 116 y/yn - 16``, ``Cx = 500 (x/xn - y/yn)``, ``Cz = 200 (y/yn - z/zn)``.
+    """Convert CIE XYZ to YCxCz, the opponent space FLIP filters in (FLIP's ``color3::XYZToYCxCz``).
+
+    It computes ``Y = 116 y/yn - 16``, ``Cx = 500 (x/xn - y/yn)``, ``Cz = 200 (y/yn - z/zn)``.
 
     Parameters
     ----------
@@ -295,8 +300,9 @@ def hunt(luminance, chrominance):
 
 
 def hyab(l1, a1, b1, l2, a2, b2):
-    """FLIP's ``color3::HyAB`` distance: city-block in L, Euclidean in (a, b),
-    ``|L1 - L2| + sqrt((a1 - a2)^2 + (b1 - b2)^2)``.
+    """Return FLIP's ``color3::HyAB`` distance: city-block in L, Euclidean in (a, b).
+
+    The distance is ``|L1 - L2| + sqrt((a1 - a2)^2 + (b1 - b2)^2)``.
 
     Parameters
     ----------

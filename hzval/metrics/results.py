@@ -1,6 +1,8 @@
-"""A sweep's result as typed records over its ``metrics.json`` (schema 2, docs/ARCHITECTURE.md,
-"metrics.json"): the run (:class:`SweepResult`), what each technique is (:class:`TechniqueInfo`),
-each light's frame (:class:`FrameRecord`) and a technique's scores in it (:class:`Scores`).
+"""A sweep's result as typed records over its ``metrics.json`` (schema 2).
+
+The schema is in docs/ARCHITECTURE.md, "metrics.json". The records are the run (:class:`SweepResult`), what
+each technique is (:class:`TechniqueInfo`), each light's frame (:class:`FrameRecord`) and a technique's scores
+in it (:class:`Scores`).
 
 Each record is a read-only mapping over the JSON it stands for, with typed attributes for what the
 stages read; the JSON stays the one copy, so a record written back (:meth:`SweepResult.to_json`) is
@@ -70,8 +72,10 @@ class _Record(Mapping[str, Any]):
 
 
 class Scores(_Record):
-    """One technique's scores in one frame (``frames[i].techniques.NAME``), or the frame's
-    ``no_shadows`` or ``floor``: ``visibility_mae``, ``flip_mean``, ... by name, and its files.
+    """One technique's scores in one frame, or the frame's ``no_shadows`` or ``floor``.
+
+    A technique's are ``frames[i].techniques.NAME``. They give ``visibility_mae``, ``flip_mean``, ... by name,
+    and its files.
     """
 
     __slots__ = ()
@@ -226,8 +230,9 @@ class SweepResult(_Record):
 
 
 class MaterialRow(_Record):
-    """One material of a suite (``suite.json``'s ``materials[i]``): its status and each technique's
-    means over its sweep.
+    """One material of a suite: its status and each technique's means over its sweep.
+
+    It is ``suite.json``'s ``materials[i]``.
     """
 
     __slots__ = ()
@@ -266,9 +271,11 @@ class SuiteResult(_Record):
 
 
 def techniques_of(record: Mapping[str, Any] | None) -> dict[str, Scores]:
-    """Return the ``techniques`` object of any record that scores techniques by name (a sweep's frame, a
-    suite's material, a row of ``views.json`` or ``models.json``): ``{name: its scores}``; an entry
-    that is not an object is left out, and a record without one gives ``{}``.
+    """Return ``{name: its scores}`` from any record that scores techniques by name.
+
+    They are read from the record's ``techniques`` object; such a record is a sweep's frame, a suite's
+    material, a row of ``views.json`` or ``models.json``. An entry that is not an object is left out, and a
+    record without one gives ``{}``.
     """
     if isinstance(record, _Record):
         record = record.record
@@ -279,8 +286,9 @@ def techniques_of(record: Mapping[str, Any] | None) -> dict[str, Scores]:
 
 
 def technique_info(record: Mapping[str, Any] | None) -> dict[str, TechniqueInfo]:
-    """Return the ``techniques`` object of a run's record (``metrics.json``, ``suite.json``, ...) as
-    ``{name: what it is}``.
+    """Return the ``techniques`` object of a run's record as ``{name: what it is}``.
+
+    A run's record is ``metrics.json``, ``suite.json``, and the like.
     """
     if isinstance(record, _Record):
         record = record.record
@@ -291,8 +299,9 @@ def technique_info(record: Mapping[str, Any] | None) -> dict[str, TechniqueInfo]
 
 
 def malformed_techniques(record: Mapping[str, Any] | None) -> list[str]:
-    """Return the names under a record's ``techniques`` whose entry is not an object (what a file's check
-    names; the records leave them out).
+    """Return the names under a record's ``techniques`` whose entry is not an object.
+
+    These are what a file's check names; the records leave them out.
     """
     if isinstance(record, _Record):
         record = record.record
@@ -301,8 +310,9 @@ def malformed_techniques(record: Mapping[str, Any] | None) -> list[str]:
 
 
 def raw_techniques(record: Mapping[str, Any] | None) -> dict[str, Any] | None:
-    """Return a record's ``techniques`` object as stored, for the code that builds or checks one: ``{}``
-    where it has none, ``None`` where it is not an object.
+    """Return a record's ``techniques`` object as stored, for the code that builds or checks one.
+
+    It is ``{}`` where the record has none, ``None`` where it is not an object.
     """
     if isinstance(record, _Record):
         record = record.record

@@ -1,4 +1,9 @@
-"""The sweep: the truth and every technique for every light of a scene, compared, written and reported."""
+"""The sweep: the truth and every technique for every light of a scene, compared, written and reported.
+
+- ``sweep``: the run, from the scene to the report; ``renders``: each light's frames, scored.
+- ``writing``: what a frame writes; ``records``: what a sweep records besides its images.
+- ``bug_match``: which tangent-frame bug an engine's factors look like.
+"""
 
 import lazy_loader
 

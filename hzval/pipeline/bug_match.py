@@ -35,8 +35,9 @@ MARGIN = 0.67
 
 
 def scene_of(metrics: dict, sweep_dir: Path):
-    """Return the sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json`` (the keys a model's
-    sweep records: material, depth, boundary, lights, camera, lookup plane, mesh), bug ``none``.
+    """Return the sweep's :class:`hzval.scene.spec.Scene` rebuilt from its ``metrics.json``, bug ``none``.
+
+    It reads the keys a model's sweep records: material, depth, boundary, lights, camera, lookup plane, mesh.
     """
     p, m, cam = metrics["parameters"], metrics["material"], metrics["camera"]
     where = Path(sweep_dir) / "metrics.json"
@@ -80,9 +81,10 @@ def scene_of(metrics: dict, sweep_dir: Path):
 def bug_factors(
     scene, height: np.ndarray, truth, bug: str, name: str, at: str = "camera"
 ) -> list[np.ndarray]:
-    """Return the technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``, on
-    the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples ``at``
-    (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`).
+    """Return technique ``name``'s ``F`` ``(H, W)`` per light of ``scene`` with the frames of ``bug``.
+
+    They are computed on the model ``truth`` (:class:`hzval.truth.model.ModelTruth`) traced, at its samples
+    ``at`` (``"camera"``, or ``"truth"``: perfect parallax; :meth:`ModelTruth.samples`).
     """
     truth.scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, tangent_bug=bug))
     b = bake(height, BakeParams(depth=scene.material.depth, boundary=scene.material.boundary))
@@ -96,9 +98,11 @@ def bug_factors(
 
 
 def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict | None:
-    """``{"errors": {bug: mean |F - F_bug|}, "best", "named", "line"}`` for the engine's ``factors``
-    (one ``(H, W)`` per light of the sweep), against the sweep's lead technique (its first: the
-    horizon map by default), or ``None`` where the sweep is not on a model.
+    """Compare the engine's ``factors`` with the sweep's lead technique's under each bug.
+
+    The result is ``{"errors": {bug: mean |F - F_bug|}, "best", "named", "line"}``, or ``None`` where the
+    sweep is not on a model. ``factors`` holds one ``(H, W)`` per light of the sweep; the lead technique is
+    the sweep's first (the horizon map by default).
     """
     if "mesh" not in metrics or not (metrics.get("parameters") or {}).get("mesh"):
         return None

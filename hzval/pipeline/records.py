@@ -1,6 +1,7 @@
-"""What a sweep records besides its images: ``frames.json`` (what an engine needs to render the same
-frames, :func:`engine_frames`), ``metrics.json``'s view and mesh parameters, and the terminal's
-table (:func:`summary_table`).
+"""What a sweep records besides its images.
+
+That is ``frames.json`` (what an engine needs to render the same frames, :func:`engine_frames`),
+``metrics.json``'s view and mesh parameters, and the terminal's table (:func:`summary_table`).
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ __all__ = [
 
 
 def frame_folder(azimuth_deg: float, elevation_deg: float | None = None) -> str:
-    """Folder name of a frame: ``az-60``, ``az+0``, ``az+7.5``; in a sweep over several elevations
-    the elevation first, ``el15_az+0``.
+    """Return the folder name of a frame: ``az-60``, ``az+0``, ``az+7.5``.
+
+    In a sweep over several elevations the elevation comes first, ``el15_az+0``.
 
     Examples
     --------
@@ -41,8 +43,10 @@ def frame_folder(azimuth_deg: float, elevation_deg: float | None = None) -> str:
 
 
 def frame_name(frame: dict) -> str:
-    """Return the name of a ``metrics.json`` or ``frames.json`` frame: its own ``name``, else (a sweep of
-    before the elevation axis) its azimuth's :func:`frame_folder`.
+    """Return the name of a ``metrics.json`` or ``frames.json`` frame.
+
+    It is the frame's own ``name``, else (a sweep of before the elevation axis) its azimuth's
+    :func:`frame_folder`.
     """
     return frame.get("name") or frame_folder(frame["azimuth_deg"])
 
@@ -92,9 +96,11 @@ def engine_frames(
 
 
 def _light_radiance(light) -> dict:
-    """Return the light's radiance: a ``hard`` light is a direction (a delta: no radiance, only its
-    irradiance ``E`` on a surface facing it); a ``soft`` disk of angular radius ``rho`` whose
-    facing surface receives ``E`` has ``L = E / (pi sin^2 rho)`` (docs/ARCHITECTURE.md, "Shading").
+    """Return the light's radiance.
+
+    A ``hard`` light is a direction (a delta: no radiance, only its irradiance ``E`` on a surface facing it);
+    a ``soft`` disk of angular radius ``rho`` whose facing surface receives ``E`` has ``L = E / (pi sin^2
+    rho)`` (docs/ARCHITECTURE.md, "Shading").
     """
     if light.kind != "soft" or not light.radius_deg:
         return {
@@ -110,9 +116,10 @@ def _light_radiance(light) -> dict:
 
 
 def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> dict:
-    """``frames.json``'s albedo, samples and exposure: what a frame scored against the truth must match
-    besides the shadows (a one-sample shader loses 0.01-0.016 FLIP to aliasing alone; a frame pi times
-    too bright, FLIP 0.68).
+    """Return ``frames.json``'s albedo, samples and exposure.
+
+    These are what a frame scored against the truth must match besides the shadows (a one-sample shader loses
+    0.01-0.016 FLIP to aliasing alone; a frame pi times too bright, FLIP 0.68).
     """
     if isinstance(albedo_constant, float):
         albedo = {"kind": "constant", "linear": albedo_constant}
@@ -156,8 +163,10 @@ def _engine_notes(scene, albedo_constant, albedo_files: dict | None = None) -> d
 
 
 def scene_parameters(scene, out: Path, techniques: list[str]) -> dict:
-    """``metrics.json``'s ``parameters`` of a sweep of ``scene`` into ``out`` with ``techniques`` (their
-    names): known before the sweep runs, so that a baseline's can be compared first.
+    """Return ``metrics.json``'s ``parameters`` of a sweep of ``scene`` into ``out`` with ``techniques``.
+
+    ``techniques`` are their names. The parameters are known before the sweep runs, so that a baseline's can
+    be compared first.
     """
     return {
         "depth": scene.material.depth,
@@ -179,8 +188,9 @@ def scene_parameters(scene, out: Path, techniques: list[str]) -> dict:
 
 
 def view_parameters(scene) -> dict:
-    """Return the camera's and the lookup's settings for ``metrics.json``'s parameters (none for the ``top``
-    view with the default lookup, whose parameters are as they always were).
+    """Return the camera's and the lookup's settings for ``metrics.json``'s parameters.
+
+    There are none for the ``top`` view with the default lookup, whose parameters are as they always were.
     """
     cam, lk = scene.camera, scene.lookup
     if cam.kind == "top" and lk == lookup.Lookup():
@@ -201,8 +211,10 @@ def view_parameters(scene) -> dict:
 
 
 def mesh_parameters(scene, out: Path) -> dict:
-    """Return the mesh's settings for ``metrics.json``'s parameters (none for the plane, as before); a mesh
-    file relative to ``out``, as the material's path is, so that ``score`` finds it from anywhere.
+    """Return the mesh's settings for ``metrics.json``'s parameters.
+
+    There are none for the plane, as before. A mesh file is relative to ``out``, as the material's path is, so
+    that ``score`` finds it from anywhere.
     """
     if scene.mesh.is_plane:
         return {}
@@ -220,12 +232,13 @@ TABLE_WIDTH = 100
 
 
 def summary_table(result: dict) -> str:
-    """Return the sweep's scores for the terminal, under 100 columns: a row per technique (the means over its
-    frames of its visibility and image scores, and its render time per frame), then no shadows at all
-    (``F = 1``) as the baseline, then notes: each technique's worst frame, the light elevations at which
-    a technique is worse than no shadows (:func:`hzval.report.ranking.worse_than_none`), its split of
-    the error where it has one (``split_parts``), and what ``|F-V|`` is measured over. The report and
-    ``metrics.json`` hold every frame.
+    """Return the sweep's scores for the terminal, under 100 columns.
+
+    It has a row per technique (the means over its frames of its visibility and image scores, and its render
+    time per frame), then no shadows at all (``F = 1``) as the baseline, then notes: each technique's worst
+    frame, the light elevations at which a technique is worse than no shadows
+    (:func:`hzval.report.ranking.worse_than_none`), its split of the error where it has one (``split_parts``),
+    and what ``|F-V|`` is measured over. The report and ``metrics.json`` hold every frame.
     """
     run = SweepResult.of(result)
     frames, names = run.frames, run.names
@@ -279,15 +292,20 @@ def summary_table(result: dict) -> str:
 
 
 def _psnr_cell(pooled: float | None, psnr: list) -> str:
-    """Return the terminal's PSNR of a technique over the frames (:func:`hzval.metrics.compare.pooled_psnr_db`)."""
+    """Return the terminal's PSNR of a technique over the frames.
+
+    See :func:`hzval.metrics.compare.pooled_psnr_db`.
+    """
     if pooled is None:
         return "inf" if psnr and all(p is None for p in psnr) else "-"
     return "inf" if math.isinf(pooled) else f"{pooled:.2f}"
 
 
 def _floor_notes(result: dict, several: bool) -> list[str]:
-    """Return a line per fitted technique: its shipped |F-V| split into what the bake loses and its floor (the
-    representation's), beside no shadows, per elevation; and where even the floor does harm.
+    """Return a line per fitted technique, with its shipped |F-V| split per elevation.
+
+    The split is into what the bake loses and its floor (the representation's), beside no shadows; the lines
+    also say where even the floor does harm.
     """
 
     def cell(v):

@@ -1,6 +1,8 @@
-"""A sweep's frames: each light rendered by the truth and every technique, scored against the
-truth and written (:func:`render_frames`), with what :func:`hzval.pipeline.sweep.set_up` builds
-once before them (:class:`Setup`) and the clocks that time each stage.
+"""A sweep's frames: each light rendered by the truth and every technique, scored and written.
+
+Each is scored against the truth and written by :func:`render_frames`, with what
+:func:`hzval.pipeline.sweep.set_up` builds once before them (:class:`Setup`) and the clocks that time each
+stage.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ def finite(x):
 
 
 def metrics_record(m: compare.FrameMetrics) -> dict:
+    """Return a frame's scores as ``metrics.json`` records them (a non-finite number as ``null``)."""
     return {k: finite(v) for k, v in m.as_dict().items()}
 
 
@@ -70,8 +73,10 @@ class Setup:
 
 @contextlib.contextmanager
 def cpu_time(seconds: dict, stage: str):
-    """Add the process's CPU time (every thread's: Dr.Jit's workers and the writers' too) over the
-    block to ``seconds[stage]``: ``metrics.json``'s ``timings.cpu_s``, beside the stages' wall time.
+    """Add the process's CPU time over the block to ``seconds[stage]``.
+
+    The time is every thread's: Dr.Jit's workers and the writers' too. It is ``metrics.json``'s
+    ``timings.cpu_s``, beside the stages' wall time.
     """
     c0 = time.process_time()
     try:
@@ -82,8 +87,10 @@ def cpu_time(seconds: dict, stage: str):
 
 @contextlib.contextmanager
 def stage_time(clock: dict, stage: str):
-    """Add the block's wall time to ``clock[stage + "_s"]`` and its CPU time to ``clock["cpu_s"][stage]``
-    (:func:`cpu_time`): a stage that runs in parts, such as each technique's render between comparisons.
+    """Add the block's wall time to ``clock[stage + "_s"]`` and its CPU time to ``clock["cpu_s"][stage]``.
+
+    The CPU time is :func:`cpu_time`'s. This is for a stage that runs in parts, such as each technique's
+    render between comparisons.
     """
     t0 = time.perf_counter()
     try:
@@ -94,9 +101,11 @@ def stage_time(clock: dict, stage: str):
 
 
 def lights(scene) -> list[tuple[float | None, float]]:
-    """Return the sweep's lights, ``(elevation, azimuth)`` in degrees: every azimuth at each elevation of
-    :meth:`hzval.scene.spec.Light.elevations` in turn; the elevation ``None`` where there is one (its
-    frames keep their azimuth's name, :func:`hzval.pipeline.records.frame_folder`).
+    """Return the sweep's lights, ``(elevation, azimuth)`` in degrees.
+
+    They are every azimuth at each elevation of :meth:`hzval.scene.spec.Light.elevations` in turn; the
+    elevation is ``None`` where there is one (its frames keep their azimuth's name,
+    :func:`hzval.pipeline.records.frame_folder`).
     """
     light = scene.light
     several = len(light.elevations()) > 1
@@ -106,9 +115,10 @@ def lights(scene) -> list[tuple[float | None, float]]:
 def render_frames(
     out: Path, scene, setup: Setup, scale: float, clock: dict, all_files: bool, bar
 ) -> list[dict]:
-    """Every light of the sweep, as the progress bar ``bar`` (a ``tqdm`` of :func:`lights`) gives
-    them: their ``metrics.json`` frames, in order, each rendered (:func:`_render`), then its techniques
-    rendered and compared one by one, and written (:func:`_finish`).
+    """Render, compare and write every light of the sweep; return their ``metrics.json`` frames in order.
+
+    The lights come as the progress bar ``bar`` (a ``tqdm`` of :func:`lights`) gives them; each is rendered
+    (:func:`_render`), then its techniques rendered and compared one by one, and written (:func:`_finish`).
 
     One frame at a time, every stage on all cores: the comparison and the truth are both Dr.Jit
     kernels, so overlapping them gains next to nothing and costs memory and clear stage timings.
@@ -134,10 +144,12 @@ def render_frames(
 
 @dataclasses.dataclass
 class _Rendered:
-    """One light's renders: the truth, the unshadowed shading and its direct term, (a view other than
-    ``top``) each technique's error at the truth's hit points, and, once :func:`_score_light` has
-    rendered and compared them, each technique's frame without its image (kept only for
-    ``--all-files``: the comparison has what the report shows of it).
+    """One light's renders, from the truth to each technique's frame once it is compared.
+
+    They are the truth, the unshadowed shading and its direct term, (a view other than ``top``) each
+    technique's error at the truth's hit points, and, once :func:`_score_light` has rendered and compared
+    them, each technique's frame without its image (kept only for ``--all-files``: the comparison has what the
+    report shows of it).
     """
 
     azimuth_deg: float
@@ -152,10 +164,11 @@ class _Rendered:
 
 
 def _render(setup: Setup, t_frame, az: float, el: float | None, scale: float, clock: dict) -> _Rendered:
-    """Return the renders of the light at ``(el, az)`` beside the truth's ``t_frame`` that every technique's
-    comparison reads: the unshadowed shading, a model's base shadow, a view's perfect-parallax errors
-    (a view's unseen pixels made the background in every image). The techniques' own frames are
-    rendered one at a time as they are compared (:func:`_score_light`): holding all of them at once
+    """Return the renders of the light at ``(el, az)`` that every technique's comparison reads.
+
+    They sit beside the truth's ``t_frame``: the unshadowed shading, a model's base shadow, a view's
+    perfect-parallax errors (a view's unseen pixels made the background in every image). The techniques' own
+    frames are rendered one at a time as they are compared (:func:`_score_light`): holding all of them at once
     was 2 GB at 4096 x 4096 with eight techniques.
     """
     plain, direct = setup.unshadowed.render(az, el)
@@ -212,13 +225,13 @@ def _finish(out: Path, scene, setup: Setup, r: _Rendered, scale: float, clock: d
 
 
 def _score_light(setup: Setup, r: _Rendered, scale: float, clock: dict, writer) -> tuple:
-    """One light's techniques, each rendered, compared and its files started in turn (timed as
-    ``technique_frames`` and ``compare``; ``writer``: the frame's :class:`writing.FrameWriter`),
-    the truth's files started before them (after them where the truth does not keep its samples,
-    a large image): ``(technique, frame, metrics, its files)`` per technique,
-    the perfect-shadows floor, the no-shadows baseline and the truth's files. ``r.techniques`` gets
-    each technique's frame, its image dropped unless the writer writes every file
-    (``--all-files``).
+    """Render, compare and start the files of one light's techniques, each in turn.
+
+    This is timed as ``technique_frames`` and ``compare``; ``writer`` is the frame's
+    :class:`writing.FrameWriter`. The truth's files are started before them (after them where the truth does
+    not keep its samples, a large image). The result is ``(technique, frame, metrics, its files)`` per
+    technique, the perfect-shadows floor, the no-shadows baseline and the truth's files. ``r.techniques`` gets
+    each technique's frame, its image dropped unless the writer writes every file (``--all-files``).
     """
     t_frame = r.truth
     # an image too large for the truth to keep its samples: hand Dr.Jit's freed buffers back before
@@ -265,8 +278,10 @@ def _score_light(setup: Setup, r: _Rendered, scale: float, clock: dict, writer) 
 
 
 def _shadow_statistics(scene, setup: Setup, r: _Rendered, frame: dict, per: dict) -> None:
-    """Record the truth's shadowed and attached fractions (``frame["truth"]``) and each technique's visibility
-    metrics over the pixels that face the light (:mod:`hzval.metrics.facing`).
+    """Record the truth's shadowed and attached fractions and each technique's visibility metrics.
+
+    The fractions go into ``frame["truth"]``; the metrics are over the pixels that face the light
+    (:mod:`hzval.metrics.facing`).
     """
     V = r.truth.layers.get("visibility")
     if V is None:
@@ -291,9 +306,11 @@ def _shadow_statistics(scene, setup: Setup, r: _Rendered, frame: dict, per: dict
 
 
 def _handedness_statistics(sign: np.ndarray, r: _Rendered, per: dict) -> None:
-    """On a model with mirrored UVs, each technique's |F - V| over the pixels whose UVs are mirrored
-    (``visibility_mae_mirrored``) and over those as drawn (``visibility_mae_unmirrored``): where a
-    tangent bug of the handedness would show (:mod:`hzval.geometry.tangent_bugs`).
+    """Record each technique's |F - V| over mirrored and unmirrored pixels on a model with mirrored UVs.
+
+    ``visibility_mae_mirrored`` is over the pixels whose UVs are mirrored and ``visibility_mae_unmirrored``
+    over those as drawn: where a tangent bug of the handedness would show
+    (:mod:`hzval.geometry.tangent_bugs`).
     """
     V = r.truth.layers.get("visibility")
     if V is None or not (sign < 0).any():
@@ -313,8 +330,10 @@ def _unseen(frame, mask: np.ndarray, background: np.ndarray):
 
 
 def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | None, V: np.ndarray | None):
-    """Return the perfect-shadows floor of a frame: the techniques' unshadowed shading times the truth's own
-    visibility, ``direct * V + ambient``, scored against the truth (``compare.IMAGE_METRICS``).
+    """Return the perfect-shadows floor of a frame, scored against the truth.
+
+    It is the techniques' unshadowed shading times the truth's own visibility, ``direct * V + ambient``,
+    scored with ``compare.IMAGE_METRICS``.
 
     No technique can score better than its shadows being exactly right, so
     this is the part of every image score that is not the shadows' (the
@@ -328,10 +347,11 @@ def _floor(ref: compare.Reference, direct: np.ndarray, ambient: np.ndarray | Non
 
 
 def _no_shadows(ref: compare.Reference, none, V: np.ndarray | None, mask) -> dict | None:
-    """Return the baseline of a frame, no technique's shadows (``F = 1``: the unshadowed shading, the
-    report's normal mapping only; on a model ``F`` is the base mesh's own shadow, which every
-    technique's factor holds too): its image scores and ``|F - V|``. A technique worse than it at
-    some light elevation does harm there. ``none``: its frame; ``None`` without ``shadow``.
+    """Return the baseline of a frame, no technique's shadows: its image scores and ``|F - V|``.
+
+    The baseline is ``F = 1``: the unshadowed shading, the report's normal mapping only; on a model ``F`` is
+    the base mesh's own shadow, which every technique's factor holds too. A technique worse than it at some
+    light elevation does harm there. ``none``: its frame; ``None`` without ``shadow``.
     """
     if V is None:
         return None

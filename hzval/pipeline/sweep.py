@@ -80,6 +80,7 @@ class Options:
     all_files: bool = False  # also the frame files that the others determine (writing.FrameWriter)
 
     def bake_params(self, scene) -> BakeParams:
+        """Return the bake's parameters for ``scene`` under these options."""
         return BakeParams(
             depth=scene.material.depth,
             radius=self.radius,
@@ -111,8 +112,10 @@ def peak_rss_bytes() -> int:
 
 
 def reset_peak_rss() -> None:
-    """Start :func:`peak_rss_bytes` afresh from the current resident memory (Linux 4.0+: writing 5 to
-    ``/proc/self/clear_refs`` resets ``VmHWM``); a no-op where that is not possible.
+    """Start :func:`peak_rss_bytes` afresh from the current resident memory.
+
+    On Linux 4.0+, writing 5 to ``/proc/self/clear_refs`` resets ``VmHWM``; this is a no-op where that is not
+    possible.
     """
     try:
         with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
@@ -126,8 +129,10 @@ def _machine() -> str:
 
 
 def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -> renders.Setup:
-    """Bake (or reuse the bake in ``out/bake``; a new one goes into ``report_dir/bake``, swapped in
-    with the report), build the truth and every selected technique; timed.
+    """Bake, then build the truth and every selected technique, timed.
+
+    The bake in ``out/bake`` is reused where there is one; a new one goes into ``report_dir/bake``, swapped in
+    with the report.
     """
     backend.variant()
     chosen = technique.select(
@@ -222,8 +227,10 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
 
 
 def _band_record(the_truth) -> dict:
-    """``metrics.json`` ``memory.truth_bands`` of a truth whose mesh was built in bands
-    (:mod:`hzval.truth.bands`): pixel rows a band, bands, triangles of the largest and of them all.
+    """Return ``metrics.json``'s ``memory.truth_bands`` of a truth whose mesh was built in bands.
+
+    The bands are :mod:`hzval.truth.bands`'s. The record holds the pixel rows a band, the bands, and the
+    triangles of the largest and of them all.
     """
     if getattr(the_truth, "mesh_bands", None) is None:
         return {}
@@ -245,9 +252,11 @@ def _constant(values: np.ndarray) -> float | None:
 
 
 def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | None = None):
-    """``(truth, points)``: the plane's :class:`hzval.truth.plane.Truth` (the techniques read where the
-    camera's rays meet their plane: ``points`` None; its mesh at once or in bands, as ``plan`` or
-    :func:`truth_plan` says), or on a model (``[mesh]``) its
+    """Return the truth and the techniques' sample points, on the plane or on a model.
+
+    The result is ``(truth, points)``. On the plane it is the plane's :class:`hzval.truth.plane.Truth` (the
+    techniques read where the camera's rays meet their plane: ``points`` None; its mesh at once or in bands,
+    as ``plan`` or :func:`truth_plan` says). On a model (``[mesh]``) it is its
     :class:`hzval.truth.model.ModelTruth` and the techniques' samples at its hits, with their frames.
     """
     if scene.mesh.is_plane:
@@ -267,8 +276,10 @@ def truth_of(scene, height: np.ndarray, albedo: np.ndarray, plan: TruthPlan | No
 
 
 def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: list) -> list:
-    """Each chosen technique built from ``ctx`` (timed); one this machine cannot run
-    (:class:`hzval.techniques.registry.Unavailable`) is skipped with its one-line notice.
+    """Build each chosen technique from ``ctx``, timed.
+
+    One this machine cannot run (:class:`hzval.techniques.registry.Unavailable`) is skipped with its one-line
+    notice.
     """
     built, sat_out = [], []
     on_model = ctx.points is not None and ctx.points.frames is not None
@@ -295,8 +306,10 @@ def _build_techniques(ctx, chosen, options: Options, timings: dict, notices: lis
 
 
 def _set_up_view(setup: renders.Setup, ctx, chosen, options: Options) -> None:
-    """Set up a view other than ``top``: every technique again at the truth's own hit points (perfect
-    parallax, :attr:`hzval.pipeline.renders.Setup.perfect`) and the view's errors (:func:`view_errors`).
+    """Set up a view other than ``top``: perfect-parallax techniques and the view's errors.
+
+    Every technique is set up again at the truth's own hit points (perfect parallax,
+    :attr:`hzval.pipeline.renders.Setup.perfect`), and the view's errors are :func:`view_errors`'s.
     """
     hits = setup.truth.hits
     own = ctx.samples()
@@ -439,8 +452,9 @@ def _run(
 def _result(
     scene, options: Options, setup: renders.Setup, timings: dict, frames: list[dict], out: Path
 ) -> dict:
-    """Return the content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json"); ``out`` the folder it is
-    written to.
+    """Return the content of ``metrics.json`` (docs/ARCHITECTURE.md, "metrics.json").
+
+    ``out`` is the folder it is written to.
     """
     techniques = {
         t.name: {

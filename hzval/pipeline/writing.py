@@ -1,6 +1,7 @@
-"""What a sweep writes of each frame: its EXR layers and PNG previews, each written on a thread as
-soon as it is made, beside the next technique's render and comparison (PNG compression and EXR
-encoding release the GIL), and the view's maps.
+"""What a sweep writes of each frame: its EXR layers and PNG previews, and the view's maps.
+
+Each file is written on a thread as soon as it is made, beside the next technique's render and comparison (PNG
+compression and EXR encoding release the GIL).
 """
 
 from __future__ import annotations
@@ -27,9 +28,10 @@ __all__ = [
 
 
 def write_view_maps(report_dir: Path, maps: dict, seen: np.ndarray) -> dict:
-    """``view/<name>.exr`` (texels, NaN where no surface is seen) and a PNG of each of the view's
-    maps (magma, 0 to the largest seen value, the unseen pixels in the background colour);
-    their paths relative to ``report_dir``.
+    """Write ``view/<name>.exr`` and a PNG of each of the view's maps, and return their paths.
+
+    The EXRs are in texels, NaN where no surface is seen; the PNGs are in magma, 0 to the largest seen value,
+    the unseen pixels in the background colour. The paths are relative to ``report_dir``.
     """
     folder = report_dir / "view"
     rel = {}
@@ -68,14 +70,14 @@ def shown(display: np.ndarray) -> np.ndarray:
 
 
 class FrameWriter:
-    """One frame's files, each written on the host pool (a thread per core: the encoders release the
-    GIL) as soon as it is given: a technique's files while the next technique is rendered and
-    compared, so that what they are made of is freed one technique at a time (the preview's 8-bit
-    values and the FLIP map: 7 bytes a pixel a technique, 0.9 GiB at 4096 x 4096 with eight). A
-    context manager: the ``with`` block's end waits for every file; an error or Ctrl-C in it cancels
-    the files not yet started and waits for the running ones (:class:`hzval.io.codecs.Writers`), so
-    that no writer outlives the frame to put a file into the staging folder after the sweep has
-    removed it.
+    """One frame's files, each written on the host pool as soon as it is given.
+
+    The host pool has a thread per core: the encoders release the GIL. A technique's files are written while
+    the next technique is rendered and compared, so that what they are made of is freed one technique at a
+    time (the preview's 8-bit values and the FLIP map: 7 bytes a pixel a technique, 0.9 GiB at 4096 x 4096
+    with eight). A context manager: the ``with`` block's end waits for every file; an error or Ctrl-C in it
+    cancels the files not yet started and waits for the running ones (:class:`hzval.io.codecs.Writers`), so
+    that no writer outlives the frame to put a file into the staging folder after the sweep has removed it.
 
     Each technique's files are named after its ``file_stem``: ``<stem>.exr``, ``<stem>.png``,
     ``<stem>_factor.exr`` and ``.png``, ``<stem>_flip.png``, ``<stem>_visdiff.png``. Previews reuse
@@ -116,10 +118,12 @@ class FrameWriter:
         self._visdiff: tuple | None = None  # (V, its images.VisibilityDiff), made at the first technique
 
     def __enter__(self) -> "FrameWriter":
+        """Start the frame's writers."""
         self._writers = codecs.Writers().__enter__()
         return self
 
     def __exit__(self, kind, error, trace) -> bool:
+        """Wait for the frame's writes; an error of a write is raised here."""
         return self._writers.__exit__(kind, error, trace)
 
     def wait(self) -> None:
@@ -167,8 +171,9 @@ class FrameWriter:
         return rel
 
     def technique_files(self, stem: str, frame, maps: dict, V) -> dict:
-        """Start one technique's files, named after its ``stem`` (``maps``: ``shown`` and ``flip``;
-        ``V``: the truth's visibility, or ``None``); their paths, by key.
+        """Start one technique's files, named after its ``stem``, and return their paths by key.
+
+        ``maps``: ``shown`` and ``flip``; ``V``: the truth's visibility, or ``None``.
         """
         own: dict = {}
         if self.all_files:
@@ -197,15 +202,18 @@ def _as_is(pixels):
 
 
 def _write_png_of(path: Path, make, *args) -> None:
-    """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey,
-    with the report's preview if it is large (:func:`hzval.io.codecs.write_png_with_preview`).
+    """Write ``make(*args)`` (uint8 pixels or a palette image) at :data:`PNG_LEVEL`, grey RGB as grey.
+
+    A large image gets the report's preview too (:func:`hzval.io.codecs.write_png_with_preview`).
     """
     codecs.write_png_with_preview(path, make(*args), compress_level=PNG_LEVEL, grey=True, runs=PNG_RUNS)
 
 
 def write_albedo(folder: Path, albedo: np.ndarray) -> dict:
-    """Return an albedo image where an engine finds it: ``albedo.exr`` (``R, G, B``, linear, as the truth
-    reads it) and ``albedo.png`` (sRGB, as an engine's texture holds it), in ``folder``.
+    """Write an albedo image in ``folder``, where an engine finds it.
+
+    The files are ``albedo.exr`` (``R, G, B``, linear, as the truth reads it) and ``albedo.png`` (sRGB, as an
+    engine's texture holds it).
 
     Parameters
     ----------

@@ -1,7 +1,10 @@
-"""What a person reads: the sweep's HTML report (pages), its plots (plots), the vocabulary both use:
-each metric's column, the technique views and the colours of the truth and each technique
-(columns), the visibility-difference and FLIP maps and their colours (images), every technique
-ranked and its error against light elevation (ranking), and the Jinja templates.
+"""What a person reads: the sweep's HTML report, its plots and the figures of the other commands.
+
+- ``pages``: the sweep's report; ``overview``: the suite's.
+- ``plots``: the report's plots; ``figures``: the other commands' figures.
+- ``columns``: the vocabulary both use (columns, technique views, colours).
+- ``images``: the visibility-difference and FLIP maps; ``ranking``: the techniques ranked.
+- ``templates/``: the Jinja templates.
 """
 
 import lazy_loader

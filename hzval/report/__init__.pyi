@@ -58,6 +58,8 @@ from .overview import (
     sort_key as sort_key,
     write_overview as write_overview,
     summary_table as summary_table,
+    suite_ranking as suite_ranking,
+    render_suite as render_suite,
 )
 from .pages import (
     TEMPLATES as TEMPLATES,
@@ -67,8 +69,6 @@ from .pages import (
     write_report as write_report,
     write_plots as write_plots,
     write_page as write_page,
-    render_suite as render_suite,
-    suite_ranking as suite_ranking,
 )
 from .plots import (
     FLOOR_COLOUR as FLOOR_COLOUR,

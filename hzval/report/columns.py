@@ -1,6 +1,8 @@
-"""The report's vocabulary: each metric's column (label, format, which way is worse), the technique views,
-the image panels and raw files of a frame, the labels of parameters, timings and versions, and the
-colours and line styles every page and plot gives the truth and each technique.
+"""The report's vocabulary: columns, technique views, frame panels, labels, colours and line styles.
+
+Each metric's column has its label, format and which way is worse. A frame has image panels and raw files; the
+labels are those of parameters, timings and versions; the colours and line styles are those every page and
+plot gives the truth and each technique.
 """
 
 from __future__ import annotations
@@ -84,8 +86,9 @@ def num(x) -> float | None:
 
 
 def frame_label(frame: dict) -> str:
-    """Return a frame's short label: its azimuth (``+15°``), and in a sweep over several elevations (an
-    ``el`` name) its elevation too (``+15° (elevation 30°)``).
+    """Return a frame's short label, its azimuth (``+15°``).
+
+    In a sweep over several elevations (an ``el`` name) it has its elevation too (``+15° (elevation 30°)``).
     """
     az = fmt_deg(frame.get("azimuth_deg"))
     name = frame.get("name")
@@ -122,6 +125,7 @@ def fmt_seconds(x) -> str:
 
 
 def fixed(digits: int) -> Callable[[Any], str]:
+    """Return a formatter of numbers to ``digits`` decimals (a dash for a missing one)."""
     return lambda v: "—" if num(v) is None else f"{num(v):.{digits}f}"
 
 
@@ -326,8 +330,9 @@ ENGINE_COLOUR = "#ff7a45"
 
 
 def technique_colour(name: str, place: int) -> str:
-    """Return a technique's colour, the same on every page and plot whichever technique leads: the
-    registry's techniques by their place in it (:func:`hzval.techniques.registry.names`),
+    """Return a technique's colour, the same on every page and plot whichever technique leads.
+
+    The registry's techniques get theirs by their place in it (:func:`hzval.techniques.registry.names`),
     ``score``'s engine its own, any other by its place in the list shown.
 
     Parameters
@@ -572,6 +577,7 @@ def value_text(key: str, value) -> str:
 
 
 def azimuth_text(values) -> str:
+    """Return the azimuths in words: first, last and step where evenly spaced (3 or more), else a list."""
     vals = [num(v) for v in values]
     if not vals or any(v is None for v in vals):
         return ", ".join(str(v) for v in values) or "none"
@@ -590,9 +596,10 @@ SETUP_SHOWN_FROM = 1e-3
 
 
 def timing_rows(t: dict, n_frames: int, views: list[TechniqueView]) -> dict:
-    """Return the report's timing rows of a sweep's ``timings`` (``metrics.json``), with each row's share of
-    their sum; ``left_out``: the labels of the set-ups under :data:`SETUP_SHOWN_FROM` (``left_out_below``:
-    that bound as the page writes it).
+    """Return the report's timing rows of a sweep's ``timings`` (``metrics.json``).
+
+    Each row has its share of their sum. ``left_out``: the labels of the set-ups under
+    :data:`SETUP_SHOWN_FROM` (``left_out_below``: that bound as the page writes it).
     """
     rows, known, left_out = [], set(), []
     per_frame = {"truth_s", "plain_s"} | {f"{v.stem}_s" for v in views}

@@ -1,6 +1,8 @@
-"""The figures of the commands past the sweep (matplotlib, Agg, no pyplot state): lines against one
-axis in a grid of panels (``views``, ``models``), what accuracy costs (``tradeoff``) and the tangent
-bugs' signatures (``models``). The sweep report's own are :mod:`hzval.report.plots`'.
+"""The figures of the commands past the sweep (matplotlib, Agg, no pyplot state).
+
+They are lines against one axis in a grid of panels (``views``, ``models``), what accuracy costs
+(``tradeoff``) and the tangent bugs' signatures (``models``). The sweep report's own are
+:mod:`hzval.report.plots`'.
 """
 
 from __future__ import annotations
@@ -20,8 +22,10 @@ CURVATURE = "signed curvature 1/R (texture widths⁻¹; + convex)"
 
 @dataclass
 class Line:
-    """One line of a panel: its legend's label and its points ``(x, y)``; ``dashed`` draws it thin
-    and dashed without markers (a floor); ``errors`` draws each point's ``± error`` instead.
+    """One line of a panel: its legend's label and its points ``(x, y)``.
+
+    ``dashed`` draws it thin and dashed without markers (a floor); ``errors`` draws each point's ``± error``
+    instead.
     """
 
     label: str
@@ -32,8 +36,10 @@ class Line:
 
 @dataclass
 class Panel:
-    """A panel of lines: its title, axis labels and lines; ``footprint`` puts x on a log scale ticked
-    1, 2, 5 (a footprint spans under a decade); ``zero`` draws the line ``y = 0``.
+    """A panel of lines: its title, axis labels and lines.
+
+    ``footprint`` puts x on a log scale ticked 1, 2, 5 (a footprint spans under a decade); ``zero`` draws the
+    line ``y = 0``.
     """
 
     title: str

@@ -54,17 +54,19 @@ def visibility_diff_image(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def visibility_diff_indexed(V: np.ndarray, F: np.ndarray) -> codecs.Indexed | np.ndarray:
-    """:func:`visibility_diff_image` as a palette image, pixel for pixel: its grey levels (at most
-    128 for ``V`` in [0, 1]) and the two colours, a third of the RGB bytes. RGB in the case
-    (non-finite ``V``) where more than 256 colours would be needed.
+    """Return :func:`visibility_diff_image` as a palette image, pixel for pixel, a third of the RGB bytes.
+
+    The palette is its grey levels (at most 128 for ``V`` in [0, 1]) and the two colours. It is RGB in the
+    case (non-finite ``V``) where more than 256 colours would be needed.
     """
     return VisibilityDiff(V).indexed(F)
 
 
 class VisibilityDiff:
-    """The truth's half of the visibility-difference maps of one frame (:func:`visibility_diff_image`),
-    made once for every technique's factor compared with it: its grey levels, where it is lit, and
-    how many pixels have each grey level.
+    """The truth's half of one frame's visibility-difference maps, made once for every technique's factor.
+
+    The maps are :func:`visibility_diff_image`'s, each factor compared with it. It holds its grey levels,
+    where it is lit, and how many pixels have each grey level.
 
     Parameters
     ----------
@@ -99,8 +101,9 @@ class VisibilityDiff:
         return img
 
     def indexed(self, F: np.ndarray) -> codecs.Indexed | np.ndarray:
-        """Return the map of a technique's factor ``F`` (``(H, W)`` in [0, 1]) as a palette image
-        (:func:`visibility_diff_indexed`).
+        """Return the map of a technique's factor ``F`` as a palette image.
+
+        ``F`` is ``(H, W)`` in [0, 1]; the image is :func:`visibility_diff_indexed`'s.
         """
         leak, false_shadow = self._marks(F)
         marked = leak | false_shadow
@@ -120,8 +123,9 @@ class VisibilityDiff:
 
 
 def magma(values: np.ndarray) -> np.ndarray:
-    """Values in [0, 1] (clipped) as 8-bit RGB through matplotlib's magma, FLIP's own colour map
-    (NaN black, as matplotlib's "bad" colour without its alpha).
+    """Return values in [0, 1] (clipped) as 8-bit RGB through matplotlib's magma, FLIP's own colour map.
+
+    NaN is black, as matplotlib's "bad" colour without its alpha.
     """
     values = _as_float(values)
     rgb = magma_palette()[magma_index(values)]
@@ -141,9 +145,10 @@ def magma_palette() -> np.ndarray:
 
 
 def magma_index(values: np.ndarray) -> np.ndarray:
-    """Return the magma colour (:func:`magma_palette`) index of values in [0, 1] (clipped), uint8, as
-    matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma` paints it
-    black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each.
+    """Return the magma colour (:func:`magma_palette`) index, uint8, of values in [0, 1] (clipped).
+
+    It is picked as matplotlib picks it: ``floor(256 x)``, 1 in the top colour; NaN gets 0 (:func:`magma`
+    paints it black). ``256 x`` is exact in any binary float type, so the index is matplotlib's for each.
     """
     v = _as_float(values)
     x = np.empty_like(v)  # an array even for a scalar, so that the steps below work in place
@@ -166,9 +171,10 @@ def flip_image(error: np.ndarray) -> np.ndarray:
 
 
 def flip_indexed(error: np.ndarray) -> codecs.Indexed | np.ndarray:
-    """:func:`flip_image` as a palette image of magma's 256 colours, pixel for pixel (the index is
-    the colour map's, so nothing is lost), a third of the RGB bytes; RGB if ``error`` has a NaN
-    (whose black is no magma colour).
+    """Return :func:`flip_image` as a palette image of magma's 256 colours, pixel for pixel.
+
+    The index is the colour map's, so nothing is lost, and it takes a third of the RGB bytes. It is RGB if
+    ``error`` has a NaN (whose black is no magma colour).
     """
     error = _as_float(error)
     if np.isnan(error).any():

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Callable
 from urllib.parse import quote
 
 import jinja2
@@ -33,9 +32,8 @@ from PIL import Image
 
 from hzval.io import atomic, codecs, staging
 from hzval.metrics import compare
-from hzval.metrics.results import FrameRecord, SuiteResult, SweepResult, techniques_of
+from hzval.metrics.results import FrameRecord, SweepResult
 from hzval.report import columns, images, plots, ranking
-from hzval.techniques import registry as technique
 
 __all__ = [
     "TEMPLATES",
@@ -45,17 +43,17 @@ __all__ = [
     "write_report",
     "write_plots",
     "write_page",
-    "render_suite",
-    "suite_ranking",
 ]
 TEMPLATES = Path(__file__).parent / "templates"
 
 
 def _src(out: Path, rel) -> dict | None:
-    """Return a file of the report as ``{"src": URL-quoted relative path, "path": as given, "full", "width"}``;
-    ``None`` if absent. A large PNG with a preview (:func:`hzval.io.codecs.preview_of`) is shown by
-    its preview: ``src`` is the preview's, ``full`` the file's own URL and ``width`` its width in
-    pixels, which the page loads when the reader zooms in (else both ``None``).
+    """Return a file of the report as ``{"src", "path", "full", "width"}``; ``None`` if absent.
+
+    ``src`` is the URL-quoted relative path and ``path`` the path as given. A large PNG with a preview
+    (:func:`hzval.io.codecs.preview_of`) is shown by its preview: ``src`` is the preview's, ``full`` the
+    file's own URL and ``width`` its width in pixels, which the page loads when the reader zooms in (else both
+    ``None``).
     """
     if not isinstance(rel, str) or not rel:
         return None
@@ -282,8 +280,9 @@ def _aspect(cols, rows, camera: dict) -> str:
 
 
 def _view(out: Path, metrics: dict) -> dict | None:
-    """Return the camera and the view's errors (``metrics.json``'s ``camera`` and ``view``), for a view other
-    than ``top``; ``None`` for it.
+    """Return the camera and the view's errors for a view other than ``top``; ``None`` for it.
+
+    They are ``metrics.json``'s ``camera`` and ``view``.
     """
     cam, view = metrics.get("camera") or {}, metrics.get("view")
     if cam.get("kind", "top") == "top" or not isinstance(view, dict):
@@ -341,8 +340,10 @@ def _column_groups(metrics: tuple[columns.Metric, ...]) -> list[dict]:
 
 
 def _shown_metrics(frames: list[dict], views: list[columns.TechniqueView]) -> tuple[columns.Metric, ...]:
-    """Return the summary table's columns: the lead technique's scores, the render times, the floor where
-    measured, then a few for each other technique.
+    """Return the summary table's columns.
+
+    They are the lead technique's scores, the render times, the floor where measured, then a few for each
+    other technique.
     """
     if not views:
         return (columns.TRUTH_TIME,)
@@ -443,8 +444,10 @@ def _frame_view(
 def _worst_frame(
     out: Path, frames: list[dict], frame_views: list[dict], views: list[columns.TechniqueView]
 ) -> dict | None:
-    """Return the report's first screen: the frame where the lead technique's |F - V| (over the pixels that
-    face the light, where measured; else its FLIP) is largest, as truth | technique | difference.
+    """Return the report's first screen: the lead technique's worst frame, truth | technique | difference.
+
+    The worst frame is the one where the lead technique's |F - V| (over the pixels that face the light, where
+    measured; else its FLIP) is largest.
     """
     if not views or not frames:
         return None
@@ -637,7 +640,7 @@ def _ranking(metrics: dict, views: list[columns.TechniqueView]) -> dict | None:
 
 
 def environment():
-
+    """Return the Jinja2 environment of the report's templates (autoescaped HTML)."""
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(TEMPLATES)),
         autoescape=jinja2.select_autoescape(
@@ -669,8 +672,9 @@ def write_report(out: str | Path, metrics: dict, *, command: str) -> Path:
 
 
 def write_plots(out: str | Path, metrics: dict) -> dict[str, str | None]:
-    """Return the report's plots of a sweep's ``metrics`` into ``out/plots``; their paths relative to ``out``
-    (``None``: a plot the sweep has no data for).
+    """Write the report's plots of a sweep's ``metrics`` into ``out/plots``.
+
+    It returns their paths relative to ``out`` (``None``: a plot the sweep has no data for).
     """
     out = Path(out)
     frames = [f for f in (metrics.get("frames") or []) if isinstance(f, dict)]
@@ -700,103 +704,3 @@ def write_page(out: str | Path, metrics: dict, plot_files: dict, *, command: str
     with atomic.atomic_path(index) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return index
-
-
-def _cell_of(value, fmt: Callable[[Any], str]) -> dict:
-    return {"v": "" if value is None else f"{value:.6g}", "text": "—" if value is None else fmt(value)}
-
-
-def _suite_row(r: dict, names: list[str]) -> dict:
-    """Return a material's row and card, formatted."""
-    row = {
-        "name": r["name"],
-        "origin": r.get("origin", ""),
-        "status": r["status"],
-        "report": r.get("report"),
-        "error": r.get("error", ""),
-    }
-    if r["status"] != "ok":
-        return row
-    cells = []
-    per = techniques_of(r)
-    for n in names:
-        t = per.get(n) or {}
-        cells += [
-            _cell_of(ranking.visibility_of(t), columns.fixed(4)),
-            _cell_of(t.get("flip_mean"), columns.fixed(4)),
-            _cell_of(None if t.get("seconds") is None else 1000 * t["seconds"], columns.fixed(0)),
-        ]
-    kinds = [{"name": "truth", "label": "truth"}] + [
-        {"name": n, "label": technique.get(n).label.split(" (")[0]} for n in names if n in per
-    ]
-    row.update(
-        size=f"{r['cols']} × {r['rows']}",
-        texels=r["cols"] * r["rows"],
-        depth=f"{r['depth']:g}",
-        boundary=r["boundary"],
-        cells=cells,
-        floor=_cell_of(r["floor"].get("flip_mean"), columns.fixed(4)),
-        truth=_cell_of(None if r.get("truth_s") is None else 1000 * r["truth_s"], columns.fixed(0)),
-        sweep=_cell_of(r.get("seconds"), columns.fixed(1)),
-        peak=_cell_of(r["peak_rss_bytes"] / 2**30, columns.fixed(2)),
-        lights=list(r.get("thumbs", {})),
-        thumbs=r.get("thumbs", {}),
-        kinds=kinds,
-    )
-    return row
-
-
-def suite_ranking(result: dict) -> list[dict]:
-    """Return the suite's first table: each technique's means over the materials that ran, best first, and on
-    how many of them it is worse than no shadows at some light elevation (no shadows last, the
-    baseline).
-    """
-    suite = SuiteResult.of(result)
-    info = suite.techniques
-    ok = [r for r in suite.materials if r.get("status") == "ok"]
-    rows = []
-    for n in [*info, ranking.NONE]:
-        found = [r.no_shadows if n == ranking.NONE else r.techniques.get(n) for r in ok]
-        recs = [t for t in found if t is not None]
-        if not recs:
-            continue
-        vis = [ranking.visibility_of(t) for t in recs]
-        flip = [columns.num(t.get("flip_mean")) for t in recs]
-        vis, flip = [v for v in vis if v is not None], [v for v in flip if v is not None]
-        worse = sum(bool(t.get("worse_at")) for t in recs)
-        rows.append(
-            {
-                "label": "no shadows (F = 1)" if n == ranking.NONE else info[n]["label"],
-                "vis": sum(vis) / len(vis) if vis else None,
-                "flip": sum(flip) / len(flip) if flip else None,
-                "worse": "" if n == ranking.NONE else f"{worse} of {len(recs)}",
-                "baseline": n == ranking.NONE,
-            }
-        )
-    rows.sort(key=lambda r: (r["baseline"], r["vis"] is None, r["vis"] or 0.0))
-    for r in rows:
-        r["vis"], r["flip"] = columns.fixed(4)(r["vis"]), columns.fixed(4)(r["flip"])
-    return rows
-
-
-def render_suite(result: dict) -> str:
-    """Return the suite's ``index.html`` for :func:`hzval.report.overview.write_overview`'s ``result``."""
-    info = SuiteResult.of(result).techniques
-    names = list(info)
-    s = result["suite"]
-    context = {
-        "count": s["materials"],
-        "failed": s["failed"],
-        "not_run": s.get("not_run", 0),
-        "interrupted": s.get("interrupted", False),
-        "engine": s["engine"],
-        "workers": s["workers"],
-        "seconds": columns.fmt_seconds(s["seconds"]),
-        "versions": s.get("versions") or {},
-        "command": s["command"],
-        "techniques": [{"name": n, **info[n]} for n in names],
-        "rows": [_suite_row(r, names) for r in result["materials"]],
-        "ranking": suite_ranking(result),
-        "gates": result.get("gates") if isinstance(result.get("gates"), dict) else None,
-    }
-    return environment().get_template("suite.html.j2").render(**context)

@@ -1,5 +1,7 @@
-"""The report's plots (matplotlib, Agg, no pyplot state): each technique's metrics and times against
-the light's azimuth, and the split of a technique's error into parts (``Technique.split_parts``).
+"""The report's plots (matplotlib, Agg, no pyplot state).
+
+They are each technique's metrics and times against the light's azimuth, and the split of a technique's error
+into parts (``Technique.split_parts``).
 """
 
 from __future__ import annotations
@@ -73,10 +75,11 @@ FLOOR_COLOUR = "#8d8d96"
 
 
 def _metric_panels(views: list[columns.TechniqueView], floor: bool) -> tuple:
-    """``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`; a line is
-    ``(key, label, colour, scale, style)`` on the flattened frames (:func:`columns.flatten`).
-    Image metrics get the perfect-shadows floor's line where the sweep has it. Leaks are each
-    technique's solid line, false shadows its dashed one.
+    """Return ``(title, lines, worse, unit)`` per panel of :func:`plot_metrics`.
+
+    A line is ``(key, label, colour, scale, style)`` on the flattened frames (:func:`columns.flatten`). Image
+    metrics get the perfect-shadows floor's line where the sweep has it. Leaks are each technique's solid
+    line, false shadows its dashed one.
     """
 
     def one(key, floored=False):
@@ -102,9 +105,10 @@ def _metric_panels(views: list[columns.TechniqueView], floor: bool) -> tuple:
 
 
 def _by_azimuth(frames: list[dict]) -> list[dict]:
-    """Flattened frames merged per azimuth, each number the mean over the azimuth's elevations (a
-    sweep over several elevations: :func:`plot_elevation` shows the elevations); a key whose every
-    value is ``None`` (PSNR of identical images) stays ``None``.
+    """Merge the flattened frames per azimuth, each number the mean over the azimuth's elevations.
+
+    This is for a sweep over several elevations (:func:`plot_elevation` shows the elevations). A key whose
+    every value is ``None`` (PSNR of identical images) stays ``None``.
     """
     groups: dict = {}
     for f in frames:
@@ -121,8 +125,10 @@ def _by_azimuth(frames: list[dict]) -> list[dict]:
 
 
 def plot_metrics(path: Path, frames: list[dict], views: list[columns.TechniqueView]) -> None:
-    """Small multiples: every quality metric against azimuth, a line per technique (over several
-    elevations, its mean over them); the worst frame ringed; one legend, outside the panels.
+    """Plot every quality metric against azimuth as small multiples, a line per technique.
+
+    Over several elevations a technique's line is its mean over them. The worst frame is ringed; there is one
+    legend, outside the panels.
     """
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
@@ -247,8 +253,10 @@ NONE_COLOUR = "#f5f5f5"
 
 
 def plot_elevation(path: Path, table: dict[str, list[dict]], views: list[columns.TechniqueView]) -> None:
-    """Mean ``|F - V|`` and mean FLIP against the light's elevation, a line per technique and one for
-    no shadows at all (:func:`hzval.report.ranking.by_elevation`'s ``table``); legends outside the axes.
+    """Plot mean ``|F - V|`` and mean FLIP against the light's elevation, a line per technique.
+
+    One more line is for no shadows at all. The data is :func:`hzval.report.ranking.by_elevation`'s ``table``;
+    the legends are outside the axes.
     """
     fig = _figure(13.0, 4.2)
     axes = fig.subplots(1, 2)
@@ -393,8 +401,10 @@ SPLIT_COLOURS = ("#6cc3ff", "#f2c14e", "#c7e36b", "#ff8fa3")
 
 @dataclass(frozen=True)
 class SplitView:
-    """A technique's ``split`` of each frame as the report shows it: ``parts`` ``(key, label)`` from the
-    bottom up (``metrics.json``'s ``techniques.NAME.split_parts``), its plot's path under the sweep.
+    """A technique's ``split`` of each frame as the report shows it.
+
+    It holds ``parts``, ``(key, label)`` from the bottom up (``metrics.json``'s
+    ``techniques.NAME.split_parts``), and its plot's path under the sweep.
     """
 
     view: columns.TechniqueView
@@ -451,8 +461,9 @@ def _split_values(frames: list[dict], sv: SplitView):
 
 
 def split_context(frames: list[dict], sv: SplitView) -> dict:
-    """Return the split's table: per frame its parts, their sum and each part's share of it; a negative part
-    (the fit worse than the bake on that frame) flagged.
+    """Return the split's table: per frame its parts, their sum and each part's share of it.
+
+    A negative part (the fit worse than the bake on that frame) is flagged.
     """
     _, vals = _split_values(frames, sv)
     rows = []
@@ -483,8 +494,10 @@ def split_context(frames: list[dict], sv: SplitView) -> dict:
 
 
 def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
-    """Plot a stacked bar per frame against azimuth: the split's parts from the bottom up, their sum the whole
-    error; a negative part is drawn hatched down from the top of the others, in :data:`_WORST`.
+    """Plot a stacked bar per frame against azimuth: the split's parts from the bottom up.
+
+    Their sum is the whole error; a negative part is drawn hatched down from the top of the others, in
+    :data:`_WORST`.
     """
     # matplotlib: 0.6 s to import, paid only where a figure is drawn
     from matplotlib.ticker import FuncFormatter
@@ -549,9 +562,11 @@ def plot_split(path: Path, frames: list[dict], sv: SplitView) -> None:
 def plot_error_per_byte(
     path: Path, table: dict[float, list[dict]], views: list[columns.TechniqueView], title: str | None = None
 ) -> None:
-    """Error against bytes per texel, one panel per light elevation
-    (:func:`hzval.report.ranking.error_per_byte`'s ``table``): a shipped technique filled, a fitted one
-    hollow, no shadows at 0 bytes, the Pareto front of least bytes and least error as a step line.
+    """Plot error against bytes per texel, one panel per light elevation.
+
+    The data is :func:`hzval.report.ranking.error_per_byte`'s ``table``. A shipped technique is filled, a
+    fitted one hollow, no shadows at 0 bytes, and the Pareto front of least bytes and least error is a step
+    line.
     """
     colours = {v.name: v.colour for v in views}
     n = max(1, len(table))

@@ -1,5 +1,6 @@
-"""The answer to "is X worth shipping instead of Y?": every technique of a sweep ranked, and its error
-against light elevation beside no shadows at all.
+"""Every technique of a sweep ranked, and its error against light elevation beside no shadows at all.
+
+This is the answer to "is X worth shipping instead of Y?".
 
 A sweep's frames are ``(elevation, azimuth)`` pairs (:func:`hzval.pipeline.renders.lights`). Per
 technique and elevation, :func:`by_elevation` takes the mean over that elevation's azimuths of the
@@ -46,8 +47,9 @@ HARM_MARGIN = 1e-3
 
 
 def visibility_of(record: dict) -> float | None:
-    """Return a frame record's ``|F - V|``: over the pixels facing the light where measured (the report's,
-    the ranking's and the suite's), else over the whole image.
+    """Return a frame record's ``|F - V|``, over the pixels facing the light where measured.
+
+    That one is the report's, the ranking's and the suite's; else it is over the whole image.
     """
     return columns.num(record.get("visibility_mae_facing", record.get("visibility_mae")))
 
@@ -99,8 +101,9 @@ def _mean(values: list) -> float | None:
 
 
 def worse_than_none(table: dict[str, list[dict]], name: str) -> list[float]:
-    """Return the elevations (degrees) at which ``name``'s mean ``|F - V|`` is above no shadows' (of
-    :func:`by_elevation`'s ``table``).
+    """Return the elevations (degrees) at which ``name``'s mean ``|F - V|`` is above no shadows'.
+
+    Both means are those of :func:`by_elevation`'s ``table``.
     """
     none = {r["elevation_deg"]: r["visibility_mae"] for r in table.get(NONE, [])}
     return [
@@ -232,9 +235,11 @@ def ranking(metrics: dict) -> list[dict]:
 
 
 def floor_note(metrics: dict) -> str | None:
-    """One line where the image scores cannot rank the shadows: the perfect-shadows floor's mean FLIP
-    (exact shadows on the techniques' shading) at or above a technique's, so that FLIP there measures
-    the shading, not the shadows; ``None`` where every technique's FLIP is above the floor's.
+    """Return one line where the image scores cannot rank the shadows.
+
+    That is where the perfect-shadows floor's mean FLIP (exact shadows on the techniques' shading) is at or
+    above a technique's, so that FLIP there measures the shading, not the shadows; ``None`` where every
+    technique's FLIP is above the floor's.
     """
     floor = _mean([columns.num((f.floor or {}).get("flip_mean")) for f in SweepResult.of(metrics).frames])
     if floor is None:

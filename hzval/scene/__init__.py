@@ -1,6 +1,8 @@
-"""The scene one description gives the truth and every technique: material, lights, effects and sweep
-(spec), the camera and its rays and footprints (camera), and where a technique reads its textures on
-the plane or on a model (lookup).
+"""The scene one description gives the truth and every technique.
+
+- ``spec``: material, lights, effects and sweep.
+- ``camera``: the camera, its rays and footprints.
+- ``lookup``: where a technique reads its textures, on the plane or on a model.
 """
 
 import lazy_loader

@@ -1,5 +1,5 @@
 # Written by tests/stubs.py from each module's __all__ (python -m tests.stubs); do not edit.
-from . import camera, lookup, spec
+from . import camera, files, lookup, spec
 from .camera import (
     KINDS as KINDS,
     Camera as Camera,
@@ -10,6 +10,12 @@ from .camera import (
     sample_positions as sample_positions,
     forget_sample_positions as forget_sample_positions,
     SAMPLE_CHUNK_PIXELS as SAMPLE_CHUNK_PIXELS,
+)
+from .files import (
+    sidecar_of as sidecar_of,
+    load_sidecar as load_sidecar,
+    check_file as check_file,
+    load_scene as load_scene,
 )
 from .lookup import (
     PLANES as PLANES,
@@ -53,10 +59,6 @@ from .spec import (
     parse_azimuths as parse_azimuths,
     elevation_fields as elevation_fields,
     material_defaults as material_defaults,
-    sidecar_of as sidecar_of,
-    load_sidecar as load_sidecar,
-    check_file as check_file,
-    load_scene as load_scene,
     override as override,
     image_shape as image_shape,
     light_samples as light_samples,

@@ -137,7 +137,8 @@ class Camera:
         return int(self.resolution[1]), int(self.resolution[0])
 
     def toward_eye(self) -> tuple[float, float, float] | None:
-        """Return the unit direction from the surface toward an orthographic camera (``top``: ``+z``);
+        """Return the unit direction from the surface toward an orthographic camera (``top``: ``+z``).
+
         ``None`` for a perspective one, whose direction differs per pixel.
         """
         if self.kind == "top":
@@ -199,9 +200,11 @@ class Camera:
 
 
 def view_axes(elevation_deg: float, azimuth_deg: float) -> tuple[np.ndarray, tuple]:
-    """``(w, up)``: the unit direction from the surface toward a camera at ``elevation_deg`` and
-    ``azimuth_deg`` (the light's convention), ``w = (cos e cos a, cos e sin a, sin e)``, and its up
-    vector, ``+z``, or for a view straight down ``-(cos a, sin a, 0)`` (module docstring).
+    """Return ``(w, up)``, a camera's unit direction from the surface and its up vector.
+
+    The camera is at ``elevation_deg`` and ``azimuth_deg`` (the light's convention), ``w = (cos e cos a, cos e
+    sin a, sin e)``; the up vector is ``+z``, or for a view straight down ``-(cos a, sin a, 0)`` (module
+    docstring).
     """
     e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
     w = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
@@ -234,6 +237,7 @@ class View:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """Return the image's ``(rows, cols)``."""
         return int(self.resolution[1]), int(self.resolution[0])
 
     def record(self) -> dict:
@@ -257,7 +261,10 @@ class View:
         return f, r, np.cross(r, f)
 
     def rays_at(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Origins and unit directions ``(n, 3)`` float64 of the rays at film coordinates ``u, v`` in [-1, 1]."""
+        """Return the rays' origins and unit directions at film coordinates ``u, v`` in [-1, 1].
+
+        Both are ``(n, 3)`` float64.
+        """
         f, r, t = self.basis()
         eye = np.asarray(self.eye, float)
         u, v = np.asarray(u, float)[:, None], np.asarray(v, float)[:, None]
@@ -272,7 +279,10 @@ class View:
         return o, np.broadcast_to(f, o.shape).copy()
 
     def film_coordinates(self, pixels: np.ndarray, ju: np.ndarray, jv: np.ndarray):
-        """``(u, v)`` of samples at jitters ``ju, jv`` ``(n, spp)`` in the pixels ``pixels`` (flat indices)."""
+        """Return ``(u, v)`` of the samples at jitters ``ju, jv`` in the pixels ``pixels``.
+
+        The jitters are ``(n, spp)``; ``pixels`` are flat indices.
+        """
         W, H = self.resolution
         prow, pcol = np.divmod(np.asarray(pixels), W)
         u = 2.0 * (pcol[:, None] + ju) / W - 1.0
@@ -280,15 +290,19 @@ class View:
         return u.ravel(), v.ravel()
 
     def rays(self, spp: int, seed: int, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
-        """Return the camera rays of the samples of the pixels ``first <= p < stop``: origins and unit
-        directions, float64 ``(n, 3)``, sample ``s`` of pixel ``p`` at row ``(p - first) * spp + s``.
+        """Return the camera rays of the samples of the pixels ``first <= p < stop``.
+
+        They are origins and unit directions, float64 ``(n, 3)``, sample ``s`` of pixel ``p`` at row ``(p -
+        first) * spp + s``.
         """
         ju, jv = pixel_jitter(self.shape, spp, seed, first, stop)
         return self.rays_at(*self.film_coordinates(np.arange(first, stop), ju, jv))
 
     def plane_points(self, o: np.ndarray, d: np.ndarray, z0: float) -> tuple[np.ndarray, np.ndarray]:
-        """Where the rays ``o + t d`` meet the plane ``z = z0``: ``(xy (n, 2) float64, hit (n,) bool)``;
-        a ray that does not descend (``d.z >= 0``) misses, and its point is the tile's centre.
+        """Return where the rays ``o + t d`` meet the plane ``z = z0``.
+
+        The result is ``(xy (n, 2) float64, hit (n,) bool)``; a ray that does not descend (``d.z >= 0``)
+        misses, and its point is the tile's centre.
         """
         dz = d[:, 2]
         hit = dz < -1e-12
@@ -298,12 +312,13 @@ class View:
         return xy, hit
 
     def footprints(self, z0: float | None = None, points=None, period=None) -> np.ndarray:
-        """Per pixel, how far the point seen on the plane ``z = z0`` moves from one pixel to the next:
-        ``(H * W, 4)`` float32 ``(dx/dcol, dy/dcol, dx/drow, dy/drow)`` in texels (the ray
-        differentials of the pixel centres, differenced half a pixel either side), NaN where the
-        pixel's centre ray misses the plane. ``points(o, d) -> (xy, hit)`` replaces the plane (a
-        model's surface, :mod:`hzval.truth.model`); ``period`` ``(cols, rows)``: differences taken
-        the short way across a wrapping tile.
+        """Return per pixel how far the point seen on the plane ``z = z0`` moves to the next pixel.
+
+        The result is ``(H * W, 4)`` float32 ``(dx/dcol, dy/dcol, dx/drow, dy/drow)`` in texels (the ray
+        differentials of the pixel centres, differenced half a pixel either side), NaN where the pixel's
+        centre ray misses the plane. ``points(o, d) -> (xy, hit)`` replaces the plane (a model's surface,
+        :mod:`hzval.truth.model`); ``period`` ``(cols, rows)``: differences taken the short way across a
+        wrapping tile.
         """
         points = points or (lambda o, d: self.plane_points(o, d, z0))
         W, H = self.resolution
@@ -328,8 +343,9 @@ class View:
 def pixel_jitter(
     shape: tuple[int, int], spp: int, seed: int, a: int, b: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Where in its pixel each sample of the pixels ``a <= p < b`` lies: ``(ju, jv)``, ``(b - a, spp)``
-    float64 in [0, 1).
+    """Return where in its pixel each sample of the pixels ``a <= p < b`` lies.
+
+    The result is ``(ju, jv)``, ``(b - a, spp)`` float64 in [0, 1).
 
     One PCG64 stream, all ``u`` then all ``v`` of the whole image, one double
     each; a band starts its own copy at its offset (``PCG64.advance``), so
@@ -353,8 +369,9 @@ def pixel_jitter(
 
 
 def stream(entropy, offset: int) -> np.random.Generator:
-    """``np.random.default_rng(entropy)`` advanced by ``offset`` doubles (PCG64 draws one 64-bit
-    word per double of ``random``).
+    """Return ``np.random.default_rng(entropy)`` advanced by ``offset`` doubles.
+
+    PCG64 draws one 64-bit word per double of ``random``.
     """
     bits = np.random.PCG64(np.random.SeedSequence(entropy))
     bits.advance(offset)
@@ -369,8 +386,9 @@ def stream(entropy, offset: int) -> np.random.Generator:
 def sample_positions(
     rows: int, cols: int, camera: Camera, spp: int, seed: int, pixels: tuple[int, int] | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent-space ``(x, y)`` of every sample of the ``top`` view, float32 arrays of shape ``(pixels *
-    spp,)``.
+    """Return the tangent-space ``(x, y)`` of every sample of the ``top`` view.
+
+    They are float32 arrays of shape ``(pixels * spp,)``.
 
     Sample ``s`` of pixel ``p = prow * width + pcol`` is at index ``p * spp + s``,
     at the jitter of :func:`hzval.scene.camera.pixel_jitter` in its pixel. Both
@@ -397,8 +415,9 @@ def sample_positions(
 
 @functools.lru_cache(maxsize=1)
 def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
-    """Return the whole image's positions, made once for the truth and every technique of a sweep
-    (read-only: they share them).
+    """Return the whole image's positions, made once for the truth and every technique of a sweep.
+
+    They are read-only, since the truth and the techniques share them.
     """
     height, width = camera.image_shape(rows, cols)
     xs, ys = _positions(rows, cols, camera, spp, seed, 0, height * width)
@@ -407,8 +426,10 @@ def _all_positions(rows: int, cols: int, camera: Camera, spp: int, seed: int):
 
 
 def forget_sample_positions() -> None:
-    """Drop the whole image's shared positions (:func:`sample_positions`): a sweep's set-up is done
-    with them once the truth and every technique hold what they need (2.1 GB at 4096 x 4096).
+    """Drop the whole image's shared positions (:func:`sample_positions`).
+
+    A sweep's set-up is done with them once the truth and every technique hold what they need (2.1 GB at 4096
+    x 4096).
     """
     _all_positions.cache_clear()
 

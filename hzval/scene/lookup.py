@@ -88,6 +88,7 @@ class Lookup:
     parallax_steps: int = 32
 
     def validate(self, what: str) -> "Lookup":
+        """Return this lookup if each setting is one it allows, else raise one line naming ``what``."""
         for name, allowed in (("plane", PLANES), ("filter", FILTERS), ("mips", MIPS), ("parallax", PARALLAX)):
             if getattr(self, name) not in allowed:
                 raise InputError(
@@ -101,6 +102,7 @@ class Lookup:
 
     @property
     def mipmapped(self) -> bool:
+        """Return whether the filter reads a mip chain."""
         return self.filter in ("trilinear", "anisotropic")
 
 
@@ -142,8 +144,9 @@ class Samples:
     _frames: object = dataclasses.field(default=None, repr=False)
 
     def uv(self):
-        """Return the positions as texture coordinates, interleaved ``u0, v0, u1, ...`` in one aligned
-        ``mi.Float`` (:func:`interleaved`), made once and shared by every technique.
+        """Return the positions as texture coordinates interleaved ``u0, v0, u1, ...`` in one ``mi.Float``.
+
+        The ``mi.Float`` is aligned (:func:`interleaved`), made once and shared by every technique.
         """
         if self._uv is None:
             rows, cols = self.rows, self.cols
@@ -151,8 +154,9 @@ class Samples:
         return self._uv
 
     def frame_array(self):
-        """:attr:`frames` as one aligned flat ``mi.Float`` (12 floats a sample), made once and shared
-        by every technique; ``None`` on the plane.
+        """Return :attr:`frames` as one aligned flat ``mi.Float`` (12 floats a sample).
+
+        It is made once and shared by every technique; ``None`` on the plane.
         """
         if self.frames is None:
             return None
@@ -175,8 +179,9 @@ def frame_of(frames, index):
 
 
 def to_tangent(frame, d):
-    """Return the world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``, the frame
-    ``(t, b, n)`` being :func:`hzval.geometry.tangents.orthonormal`'s (FGED2's TBN product).
+    """Return the world direction ``d`` in a sample's tangent space: ``(t.d, b.d, n.d)``.
+
+    The frame ``(t, b, n)`` is :func:`hzval.geometry.tangents.orthonormal`'s (FGED2's TBN product).
     """
     t, b, n = frame[:3]
     return mi.Vector3f(dr.dot(t, d), dr.dot(b, d), dr.dot(n, d))
@@ -252,8 +257,9 @@ _CHUNK_PIXELS = 1 << 16
 
 
 def _view_positions(scene, h: np.ndarray, view, z0: float) -> tuple[np.ndarray, np.ndarray]:
-    """Where the camera's rays (``view``) meet the base plane ``z = z0`` (and the parallax mapping),
-    float32 texels.
+    """Return where the camera's rays (``view``) meet the base plane ``z = z0``, in float32 texels.
+
+    The positions include the parallax mapping.
     """
     lk = scene.lookup
     rows, cols = h.shape
@@ -462,8 +468,9 @@ class Filtered:
         return self._trilinear(uv, lam, mi.Bool(True))
 
     def _trilinear(self, uv, lam, active) -> list:
-        """Return the levels either side of ``lam`` blended linearly (a tent of weights over the levels
-        the image's footprints reach).
+        """Return the levels either side of ``lam`` blended linearly.
+
+        The blend is a tent of weights over the levels the image's footprints reach.
         """
         total = None
         lo, hi = self.level_range
@@ -484,11 +491,12 @@ _CHUNK = 1 << 22
 
 
 def interleaved(x: np.ndarray, y: np.ndarray, convert=None):
-    """``mi.Float`` of ``convert(x, y)`` (default: ``(x, y)``) interleaved pair by pair, float32,
-    made in Dr.Jit kernels on every core, :data:`_CHUNK` samples at a time so that no full-size
-    temporary is made (the output alone: 2.1 GB at 4096 x 4096 x 16). ``convert`` takes and
-    returns ``mi.Float`` arrays (e.g. :func:`hzval.core.conventions.tangent_to_uv`). Each value is a
-    gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
+    """Return a float32 ``mi.Float`` of ``convert(x, y)`` interleaved pair by pair.
+
+    ``convert`` defaults to ``(x, y)``. The array is made in Dr.Jit kernels on every core, :data:`_CHUNK`
+    samples at a time so that no full-size temporary is made (the output alone: 2.1 GB at 4096 x 4096 x 16).
+    ``convert`` takes and returns ``mi.Float`` arrays (e.g. :func:`hzval.core.conventions.tangent_to_uv`).
+    Each value is a gather from a copy of its chunk (a contiguous load from mapped NumPy memory would compile
     one kernel per alignment); the result is Dr.Jit's own, aligned, memory.
     """
     n = int(np.size(x))

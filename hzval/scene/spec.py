@@ -1,7 +1,7 @@
 """The scene: one description that both the truth and the approximation render.
 
 A scene names a material, a camera, a light with its sweep, the effects it
-calls for, and sample counts. It is read from TOML (``scenes/*.toml``) and
+calls for, and sample counts. It is read from TOML (``scenes/*.toml``, :mod:`hzval.scene.files`) and
 the command line overrides it. Only the surface differs between the two
 renderers; everything here (camera, sample positions, light directions,
 units) is shared, so that any error that is not the technique's shows up as
@@ -11,31 +11,6 @@ Units and conventions: positions in texel units of the tangent space of
 :mod:`hzval.core.conventions`; the light's ``irradiance`` is the irradiance E on
 a surface facing it (so a Lambertian surface of albedo a shows radiance
 ``a / pi * E * cos(theta)``); angles in degrees.
-
-TOML layout (every key optional; see ``scenes/bricks.toml``)::
-
-    name = "bricks"
-    [material]  height = "bricks" (a built-in material: ``hzval materials``) | "path/relative/to/scene.png",
-                size, depth, boundary (default: the material's), albedo (default: the material's),
-                shading = "smooth" | "faceted", truth_tolerance (texels; hzval.geometry.tile.cell_levels)
-    [camera]    kind = "top" | "orthographic" | "perspective", supersampling = 1 (top), elevation_deg,
-                azimuth_deg, fov_deg, distance (tile widths), resolution = [W, H], film_size = [w, h]
-                (hzval.scene.camera)
-    [lookup]    plane = "bottom" | "mean" | "top", filter = "nearest" | "bilinear" | "trilinear" |
-                "anisotropic", mips = "average" | "max", max_anisotropy, parallax = "none" | "offset" |
-                "occlusion", parallax_steps: how the techniques find and read their textures
-                (hzval.scene.lookup)
-    [mesh]      shape = "plane" (the tile, the default) | "cube" | "sphere" | "cylinder" | "torus" |
-                "path/relative/to/scene.obj" (.obj, .ply, .gltf, .glb with texture coordinates), uv_scale
-                (the texture repeats), up = "y" | "z" (the file's up axis): the surface the material is on
-                (hzval.geometry.model; docs/meshes.md)
-    [light]     kind = "hard" | "soft", radius_deg, elevation_deg, azimuths = "-60:60:15", irradiance
-    [effects]   list = ["shadow", "diffuse"], interreflection_depth = 3
-    [samples]   spp = 16, seed = 0
-    [check]     size, azimuths, spp, depth, resolution: how the regression check renders it
-    (hzval.commands.check)
-    [tolerances.truth], [tolerances.technique], [tolerances.NAME]  fail, fail_percent, hard_fail, warn
-    (hzval.commands.check)
 """
 
 from __future__ import annotations
@@ -43,19 +18,18 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from hzval import materials
 from hzval.core import conventions as cv
-from hzval.core import srgb, strict
+from hzval.core import srgb
 from hzval.core.errors import InputError
 from hzval.geometry import tangent_bugs
 from hzval.geometry import tangents as tg
 from hzval.geometry.tile import DEFAULT_TOLERANCE
-from hzval.io import documents, heightmap, paths
+from hzval.io import heightmap
 from hzval.scene.camera import Camera, stream
 from hzval.scene.lookup import Lookup
 
@@ -81,10 +55,6 @@ __all__ = [
     "parse_azimuths",
     "elevation_fields",
     "material_defaults",
-    "sidecar_of",
-    "load_sidecar",
-    "check_file",
-    "load_scene",
     "override",
     "image_shape",
     "light_samples",
@@ -147,10 +117,11 @@ class MaterialSpec:
 
 @dataclass(frozen=True)
 class MeshSpec:
-    """The surface the material is on (:mod:`hzval.geometry.model`): ``shape`` a built-in shape or a mesh
-    file's path; ``uv_scale``: how often the texture repeats across the UVs; ``up``: the file's up
-    axis (``None``: the format's default); ``tangent_bug``: the engine bug the techniques' frames
-    are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change);
+    """The surface the material is on (:mod:`hzval.geometry.model`).
+
+    ``shape`` is a built-in shape or a mesh file's path; ``uv_scale``: how often the texture repeats across
+    the UVs; ``up``: the file's up axis (``None``: the format's default); ``tangent_bug``: the engine bug the
+    techniques' frames are built with (:data:`hzval.geometry.tangent_bugs.BUGS`; the truth's never change);
     ``tangents``: which frames the mesh uses (:data:`hzval.geometry.tangents.METHODS`).
     """
 
@@ -192,14 +163,18 @@ class Light:
     elevations_deg: tuple[float, ...] = ()
 
     def direction(self, azimuth_deg: float, elevation_deg: float | None = None) -> np.ndarray:
-        """Return the unit vector toward the light's centre at ``azimuth_deg`` (and ``elevation_deg``, default
-        :attr:`elevation_deg`).
+        """Return the unit vector toward the light's centre at ``azimuth_deg`` and ``elevation_deg``.
+
+        ``elevation_deg`` defaults to :attr:`elevation_deg`.
         """
         e = self.elevation_deg if elevation_deg is None else elevation_deg
         return cv.light_direction(azimuth_deg, e)
 
     def elevations(self) -> tuple[float, ...]:
-        """Return the sweep's light elevations, degrees: :attr:`elevations_deg`, else :attr:`elevation_deg`."""
+        """Return the sweep's light elevations in degrees.
+
+        They are :attr:`elevations_deg`, else :attr:`elevation_deg`.
+        """
         return tuple(self.elevations_deg) or (self.elevation_deg,)
 
     def at(self, elevation_deg: float) -> "Light":
@@ -219,6 +194,8 @@ DEFAULT_INTERREFLECTION_DEPTH = 3
 
 @dataclass(frozen=True)
 class Scene:
+    """A scene: the material, the surface it is on, the camera, the lights, the lookup, the effects."""
+
     name: str = "bricks"
     material: MaterialSpec = MaterialSpec()
     camera: Camera = Camera()
@@ -234,6 +211,7 @@ class Scene:
     source: str | None = None  # the TOML file it came from
 
     def validate(self) -> "Scene":
+        """Return this scene if every setting is in its range, else raise one line naming the file or flag."""
         what = self.source or "scene"
         m, lt = self.material, self.light
         cv.check_depth(m.depth, f"{what}: material.depth" if self.source else "--depth", m.boundary)
@@ -322,6 +300,7 @@ class Scene:
         return self
 
     def declares(self, effect: str) -> bool:
+        """Return whether the scene declares ``effect`` (:data:`EFFECTS`)."""
         return effect in self.effects
 
     def _validate_mesh(self, what: str) -> None:
@@ -370,8 +349,11 @@ def check_light_count(n: int, what: str = "--azimuths") -> int:
 
 
 def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, ...]:
-    """``"-60:60:15"`` (start:stop:step, stop included; a negative step counts down), ``"0,45,90"``
-    or a list, in degrees; finite, at most :data:`MAX_LIGHTS` of them (counted before the list is made).
+    """Parse azimuths in degrees from a range, a comma-separated list or a list.
+
+    A range is ``"-60:60:15"`` (start:stop:step, stop included; a negative step counts down), a
+    comma-separated list ``"0,45,90"``. The azimuths are finite, at most :data:`MAX_LIGHTS` of them (counted
+    before the list is made).
     """
     bad = InputError(what, f"expected START:STOP:STEP or a comma-separated list of degrees, got {text!r}")
     if isinstance(text, (list, tuple)):
@@ -409,8 +391,10 @@ def parse_azimuths(text: str | list, what: str = "--azimuths") -> tuple[float, .
 
 
 def elevation_fields(values) -> dict:
-    """:class:`Light`'s ``elevation_deg`` and ``elevations_deg`` of the elevations ``values`` (repeats
-    dropped, order kept): one is the light's elevation, several a sweep axis built at the lowest.
+    """Return :class:`Light`'s ``elevation_deg`` and ``elevations_deg`` of the elevations ``values``.
+
+    Repeats are dropped and the order kept: one elevation is the light's elevation, several a sweep axis built
+    at the lowest.
     """
     values = tuple(dict.fromkeys(float(v) for v in values))
     if len(values) == 1:
@@ -418,159 +402,15 @@ def elevation_fields(values) -> dict:
     return {"elevation_deg": min(values), "elevations_deg": values}
 
 
-def _pairs(section: dict, keys) -> dict:
-    """Return a TOML section with the lists under ``keys`` as tuples (frozen, hashable settings)."""
-    return {k: (tuple(v) if k in keys and isinstance(v, list) else v) for k, v in section.items()}
-
-
 def material_defaults(height: str) -> dict:
-    """``depth`` and ``boundary`` of a scene of ``height`` that does not set them: a built-in
-    material's own, else 0.05 and ``wrap``.
+    """Return ``depth`` and ``boundary`` for a scene of ``height`` that does not set them.
+
+    They are a built-in material's own, else 0.05 and ``wrap``.
     """
     if materials.is_builtin(height):
         m = materials.get(height)
         return {"depth": m.depth, "boundary": m.boundary}
     return {"depth": MaterialSpec.depth, "boundary": MaterialSpec.boundary}
-
-
-def sidecar_of(height: str | Path) -> Path | None:
-    """Return the sidecar scene of a height map file: ``gravel.toml`` beside ``gravel.png``, if there is one."""
-    p = Path(height).with_suffix(".toml")
-    return p if p.is_file() else None
-
-
-def load_sidecar(path: str | Path, height: str | Path) -> Scene:
-    """Return the sidecar scene ``path`` of the height map ``height``: the map is its material, whatever the
-    file says; a sidecar that names another height map is an error (it would sweep another material
-    under this map's name).
-    """
-    path, height = Path(path), paths.resolved(height)
-    scene = load_scene(path, height=height)
-    if scene.material.height != str(height):
-        raise InputError(
-            path,
-            f"names the material {scene.material.height!r}, but it is the sidecar scene of "
-            f"{height.name}: remove its material.height",
-        )
-    return scene
-
-
-def _height_beside(path: Path) -> str | None:
-    """Return the height map a sidecar scene ``path`` (naming no height) sits beside: the one file of its stem
-    with a height map suffix, if there is exactly one.
-    """
-    found = [path.with_suffix(s) for s in heightmap.SUFFIXES if path.with_suffix(s).is_file()]
-    return str(found[0]) if len(found) == 1 else None
-
-
-def _schema() -> dict:
-    """Return what a scene file may hold (module docstring, "TOML layout"): ``{table: {key: type}}`` from the
-    dataclasses each table fills (:func:`hzval.core.strict.schema_of`), and the top-level ``name``.
-    """
-    azimuths = str | tuple[float, ...]
-    tiers = {k: float for k in ("fail", "fail_percent", "hard_fail", "warn")}
-    return {
-        "material": strict.schema_of(MaterialSpec),
-        "camera": strict.schema_of(Camera),
-        "lookup": strict.schema_of(Lookup),
-        "mesh": strict.schema_of(MeshSpec),
-        "light": {
-            **strict.schema_of(Light, drop=("azimuths_deg", "elevations_deg")),
-            "azimuths": azimuths,
-            "elevations": azimuths,
-        },
-        "effects": {"list": tuple[str, ...], "interreflection_depth": int},
-        "samples": {"spp": int, "seed": int},
-        "check": {
-            "size": int,
-            "azimuths": azimuths,
-            "spp": int,
-            "depth": float,
-            "resolution": tuple[int, int],
-        },
-        # [tolerances.truth], [tolerances.technique] and one per technique or check variant, whose
-        # names the registry knows: hzval.commands.check checks them (scene imports no technique)
-        "tolerances": {"*": tiers},
-    }
-
-
-def check_file(data: dict, path: str | Path) -> None:
-    """Refuse a scene file with an unknown table or key (the nearest known name in the one line) or
-    a value of the wrong type: types are checked, not coerced (:mod:`hzval.core.strict`).
-    """
-    schema = _schema()
-    strict.check_keys(data, {"name": None, **schema}, path)
-    if "name" in data:
-        strict.check_value(data["name"], str | int, path, "name")
-    for table, keys in schema.items():
-        if table not in data:
-            continue
-        if table == "tolerances":
-            strict.check_table(data[table], {k: dict for k in data[table]}, path, table)
-            for kind, tiers in data[table].items():
-                strict.check_table(tiers, keys["*"], path, f"{table}.{kind}")
-        else:
-            strict.check_table(data[table], keys, path, table)
-
-
-def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
-    """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
-
-    When the file names no height map, the material is ``height`` if given, else the height map of
-    the same stem beside the file (the file is its sidecar: ``gravel.toml`` for ``gravel.png``), else
-    the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
-    """
-    path = Path(path)
-
-    data = documents.read_toml(path)
-    check_file(data, path)
-    try:
-        mat = dict(data.get("material", {}))
-        if "height" not in mat:
-            mat["height"] = str(height) if height is not None else (_height_beside(path) or materials.DEFAULT)
-        if "size" in mat and not materials.is_builtin(mat["height"]):
-            raise InputError(
-                path,
-                f"material.size applies to built-in materials only; the height map "
-                f"{mat['height']} has its own size (resize the file, or leave size out)",
-            )
-        mat = {**material_defaults(mat["height"]), **mat}
-        if not materials.is_builtin(mat["height"]):
-            mat["height"] = str(paths.resolved(path.parent / mat["height"], path, "material.height"))
-        if isinstance(mat.get("albedo"), str):
-            mat["albedo"] = str(paths.resolved(path.parent / mat["albedo"], path, "material.albedo"))
-        light = dict(data.get("light", {}))
-        if "azimuths" in light:
-            light["azimuths_deg"] = parse_azimuths(light.pop("azimuths"), f"{path}: light.azimuths")
-        if "elevations" in light:
-            light.update(
-                elevation_fields(parse_azimuths(light.pop("elevations"), f"{path}: light.elevations"))
-            )
-        effects = data.get("effects", {})
-        samples = data.get("samples", {})
-        mesh = dict(data.get("mesh", {}))
-        if Path(str(mesh.get("shape", ""))).suffix.lower() in MESH_SUFFIXES:
-            mesh["shape"] = str(paths.resolved(path.parent / mesh["shape"], path, "mesh.shape"))
-        scene = Scene(
-            name=data.get("name", path.stem),
-            material=MaterialSpec(**mat),
-            camera=Camera(**_pairs(data.get("camera", {}), ("resolution", "film_size"))),
-            mesh=MeshSpec(**mesh),
-            lookup=Lookup(**data.get("lookup", {})),
-            light=Light(**light),
-            effects=tuple(effects.get("list", DEFAULT_EFFECTS)),
-            interreflection_depth=effects.get("interreflection_depth", DEFAULT_INTERREFLECTION_DEPTH),
-            spp=samples.get("spp", 16),
-            seed=samples.get("seed", 0),
-            tolerances=dict(data.get("tolerances", {})),
-            check=dict(data.get("check", {})),
-            source=str(path),
-        )
-    except TypeError as exc:  # check_file has refused unknown keys: what is left is a value's
-        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
-    except ValueError as exc:  # a value of the wrong kind, e.g. spp = "x"
-        raise InputError(path, f"bad setting ({str(exc).splitlines()[0]})") from None
-    return scene.validate()
 
 
 def override(scene: Scene, **changes) -> Scene:
@@ -670,8 +510,9 @@ def override(scene: Scene, **changes) -> Scene:
 
 
 def image_shape(rows: int, cols: int, camera: Camera) -> tuple[int, int]:
-    """Pixels ``(H, W)`` of a render of a ``rows x cols`` height map
-    (:meth:`hzval.scene.camera.Camera.image_shape`).
+    """Return the pixels ``(H, W)`` of a render of a ``rows x cols`` height map.
+
+    They are :meth:`hzval.scene.camera.Camera.image_shape`'s.
     """
     return camera.image_shape(rows, cols)
 
@@ -709,9 +550,10 @@ def light_samples(
 
 
 def load_material_height(spec: MaterialSpec):
-    """Return the scene's height map as a :class:`hzval.io.heightmap.HeightMap`, its relief at the
-    material's depth checked (:func:`hzval.core.conventions.check_relief`): a map of heights in
-    metres is refused here, in one line, before anything is built from it.
+    """Return the scene's height map as a :class:`hzval.io.heightmap.HeightMap`, its relief checked.
+
+    The relief is checked at the material's depth (:func:`hzval.core.conventions.check_relief`): a map of
+    heights in metres is refused here, in one line, before anything is built from it.
     """
     if materials.is_builtin(spec.height):
         m = materials.get(spec.height)
@@ -726,8 +568,9 @@ def load_material_height(spec: MaterialSpec):
 
 
 def load_albedo(spec: MaterialSpec, rows: int, cols: int) -> np.ndarray:
-    """Linear albedo ``(rows, cols, 3)`` float32: a constant, an sRGB image decoded to linear, or
-    (``albedo = None``) a built-in material's own.
+    """Return the linear albedo ``(rows, cols, 3)`` float32.
+
+    It is a constant, an sRGB image decoded to linear, or (``albedo = None``) a built-in material's own.
     """
     if spec.albedo is None and materials.is_builtin(spec.height):
         own = materials.generate(spec.height, spec.size).albedo
@@ -776,9 +619,10 @@ class Frame:
 
 
 def material_record(scene: Scene) -> tuple[np.ndarray, dict]:
-    """Return the height map of ``scene``'s material (:func:`load_material_height`, the one loader) and the
-    record ``bake.json`` and ``fit.json`` keep of it: its file (or the built-in's name and size), how
-    it was read, its digest and shape.
+    """Return ``scene``'s material height map and the record ``bake.json`` and ``fit.json`` keep of it.
+
+    The height map comes from :func:`load_material_height`, the one loader; the record holds its file (or the
+    built-in's name and size), how it was read, its digest and shape.
     """
     hm = load_material_height(scene.material)
     m = scene.material

@@ -1,6 +1,8 @@
-"""Studies whose numbers the docs quote: curvature at fixed light elevation (curvature_band), the
-share of error at seams (seam_share) and the tangent-frame bugs' signatures (bug_signatures; the
-matching is hzval.pipeline.bug_match, the models' study hzval.commands.models).
+"""Studies whose numbers the docs quote.
+
+- ``curvature_band``: curvature at a fixed local light elevation.
+- ``seam_share``: the share of error near UV seams.
+- ``bug_signatures``: the tangent-frame bugs' signatures (matched by :mod:`hzval.pipeline.bug_match`).
 """
 
 import lazy_loader

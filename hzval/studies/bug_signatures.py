@@ -1,5 +1,6 @@
-"""What each tangent-frame bug looks like on a model with mirrored UVs (docs/models.md,
-"Tangent-bug signatures"), for ``hzval models``.
+"""What each tangent-frame bug looks like on a model with mirrored UVs, for ``hzval models``.
+
+See docs/models.md, "Tangent-bug signatures".
 
 A user whose own engine shows a visibility-difference picture like one of these can name the cause.
 Each case is a model with both handedness signs, seen so that both show:
@@ -52,8 +53,9 @@ CASES: dict[str, tuple[str, float, float, float]] = {
 
 
 def _case_scene(scene, shape: str, view_azimuth: float, light_azimuth: float, uv_scale: float):
-    """``scene`` on ``shape`` (bug ``none``) in the models' perspective view from ``view_azimuth``,
-    its lights turned by ``light_azimuth``.
+    """Return ``scene`` on ``shape`` (bug ``none``) in the models' perspective view from ``view_azimuth``.
+
+    Its lights are turned by ``light_azimuth``.
     """
     mesh = dataclasses.replace(scene.mesh, shape=shape, uv_scale=uv_scale, tangent_bug="none")
     cam = dataclasses.replace(sc.MODEL_CAMERA, azimuth_deg=view_azimuth, resolution=scene.camera.resolution)
@@ -77,8 +79,9 @@ def measure(
     light_azimuth: float,
     uv_scale: float = 1.0,
 ) -> tuple[dict, dict]:
-    """One case: ``(record, maps)``; ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the
-    signature light (module docstring).
+    """Measure one case, returning ``(record, maps)``.
+
+    ``maps[bug]`` is ``F - V`` ``(H, W)`` (NaN unseen) at the signature light (module docstring).
     """
     sc = _case_scene(scene, shape, view_azimuth, light_azimuth, uv_scale)
     truth = ModelTruth(sc, height, model.load(shape, uv_scale=uv_scale))
@@ -125,8 +128,9 @@ def measure(
 
 
 def run(scene, height: np.ndarray, lead: str, out: Path, *, progress: bool = True) -> dict:
-    """Every case of :data:`CASES` with ``lead``; writes ``out/plots/bugs.png``; returns the
-    ``models.json`` ``bugs`` entry ``{technique, cases: {name: record}, figure}``.
+    """Measure every case of :data:`CASES` with ``lead`` and write ``out/plots/bugs.png``.
+
+    Return the ``models.json`` ``bugs`` entry ``{technique, cases: {name: record}, figure}``.
     """
     cases, maps = {}, {}
     for name, (shape, az, light_az, uv_scale) in CASES.items():
@@ -153,8 +157,9 @@ def _mirrored_note(ratio: float | None) -> str | None:
 
 
 def page_context(bugs: dict) -> dict:
-    """Return the study page's section (``models.html.j2``): the figure and the mirrored and unmirrored
-    means of every case and bug, formatted.
+    """Return the study page's section (``models.html.j2``).
+
+    It holds the figure and the mirrored and unmirrored means of every case and bug, formatted.
     """
 
     def f4(c):

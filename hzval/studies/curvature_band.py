@@ -1,5 +1,7 @@
-"""Curvature and nothing else: each technique's |F - V| in a band of local light elevations, on a fixed
-window of the texture, per texel, beside the flat patch's on the same texels (docs/models.md).
+"""Curvature and nothing else: each technique's |F - V| in a band of local light elevations.
+
+It is taken on a fixed window of the texture, per texel, beside the flat patch's on the same texels
+(docs/models.md).
 
 Why a band. On a cap of radius ``R`` the base normal turns by ``r / R`` at geodesic distance ``r``
 from the centre, so one world light meets the surface at a different local elevation on every pixel:
@@ -77,16 +79,19 @@ def band_scene(scene, resolution=RESOLUTION, azimuths=AZIMUTHS):
 
 
 def in_band(n: np.ndarray, L: np.ndarray, elevation_deg: float, half_deg: float = BAND_DEG) -> np.ndarray:
-    """Whether each base normal ``n`` (``(..., 3)``, unit, world) sees the direction ``L`` (unit,
-    toward the light) within ``half_deg`` of ``elevation_deg`` above its tangent plane.
+    """Return whether each base normal ``n`` sees ``L`` within ``half_deg`` of ``elevation_deg``.
+
+    ``n`` is ``(..., 3)``, unit, world, and ``L`` the direction toward the light, unit; the elevation is above
+    the normal's tangent plane.
     """
     local = np.degrees(np.arcsin(np.clip(n @ np.asarray(L, np.float64), -1.0, 1.0)))
     return np.abs(local - elevation_deg) <= half_deg
 
 
 def texel_means(values: np.ndarray, texel: np.ndarray, keep: np.ndarray, size: int) -> np.ndarray:
-    """Per texel (flat index ``texel``, ``0 <= texel < size``) the mean of ``values`` over the kept
-    pixels that read it; NaN where none does.
+    """Return per texel the mean of ``values`` over the kept pixels that read it.
+
+    Texels are the flat indices ``texel``, ``0 <= texel < size``; NaN where no pixel does.
     """
     idx, v = texel[keep], np.asarray(values, np.float64)[keep]
     count = np.bincount(idx, minlength=size)
@@ -96,8 +101,10 @@ def texel_means(values: np.ndarray, texel: np.ndarray, keep: np.ndarray, size: i
 
 
 def _pixel_geometry(truth, window: float):
-    """Per pixel: the texel its truth's first sample reads (flat index, row-major from ``y = 0``),
-    its base normal (the mean of its samples', unit) and whether it counts (seen, in the window).
+    """Return per pixel its texel, its base normal and whether it counts.
+
+    The texel is the one its truth's first sample reads (flat index, row-major from ``y = 0``); the base
+    normal is the mean of its samples', unit; a pixel counts when it is seen and in the window.
     """
     s = truth.samples("truth")
     spp, rows, cols = s.spp, s.rows, s.cols
@@ -114,11 +121,12 @@ def _pixel_geometry(truth, window: float):
 
 
 def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_DEG, extra=None) -> dict:
-    """Render ``scene`` (a case's, :func:`band_scene`) once more, in memory, from the bake that
-    the case's sweep cached in ``case_dir``: per technique and frame the texel maps of |F - V| at
-    the camera's hits (``mae``) and at the truth's (``floor``) over the band's pixels, ``(frames,
-    texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more
-    techniques to measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
+    """Render a case's ``scene`` once more, in memory, from the bake its sweep cached in ``case_dir``.
+
+    ``scene`` is a case's (:func:`band_scene`). The result holds, per technique and frame, the texel maps of
+    |F - V| at the camera's hits (``mae``) and at the truth's (``floor``) over the band's pixels, ``(frames,
+    texels)`` float64 each, and how many texels each frame's band holds. ``extra(setup)``: more techniques to
+    measure beside the sweep's, ``{name: (at the camera's hits, at the truth's)}``
     (studies/curved_horizon.py).
     """
     setup = sweep.set_up(scene, case_dir, sweep.Options())
@@ -156,9 +164,9 @@ def measure(scene, case_dir, *, window: float = WINDOW, half_deg: float = BAND_D
 
 
 def _near_seams(truth):
-    """Per pixel: whether its first sample's base point lies within
-    :data:`hzval.studies.seam_share.SEAM_TEXELS`
-    of a seam edge, and whether it is seen.
+    """Return per pixel whether its first sample's base point is near a seam edge and whether it is seen.
+
+    Near means within :data:`hzval.studies.seam_share.SEAM_TEXELS` of a seam edge.
     """
     m = truth.model
     spp = truth.spp
@@ -185,12 +193,13 @@ def summary(per_frame: np.ndarray) -> dict:
 
 
 def paired(case: dict, flat: dict | None) -> dict:
-    """One case's band row from :func:`measure`'s maps: per technique the band's mean |F - V|
-    (``mae``), its floor, the flat patch's on the same texels of each frame (``flat``) and the
-    difference (``excess``), the signed ``F - V`` (``bias``, and the flat patch's ``flat_bias``: + where the
-    technique leaks, so that a convex surface, whose truth is more lit, lowers its error), each
-    ``{mean, se, frames}``, and ``per_frame`` (the frames' means:
-    :func:`trend`'s paired steps); ``texels``: the band's texels, mean per frame.
+    """Return one case's band row from :func:`measure`'s maps.
+
+    It holds, per technique, the band's mean |F - V| (``mae``), its floor, the flat patch's on the same texels
+    of each frame (``flat``) and the difference (``excess``), the signed ``F - V`` (``bias``, and the flat
+    patch's ``flat_bias``: + where the technique leaks, so that a convex surface, whose truth is more lit,
+    lowers its error), each ``{mean, se, frames}``, and ``per_frame`` (the frames' means: :func:`trend`'s
+    paired steps); ``texels``: the band's texels, mean per frame.
     """
     scored: dict[str, dict] = {}  # each technique's entry, filled below
     row = {

@@ -24,8 +24,10 @@ _STEPS_PER_TEXEL = 4
 
 
 def seam_distance_texels(model, points: np.ndarray, texel_world: float) -> np.ndarray:
-    """``(N,)``: the distance of each world point to the nearest seam edge of ``model``, in
-    texels (``texel_world`` world units each); ``inf`` without seams, NaN where a point is NaN.
+    """Return the distance of each world point to the nearest seam edge of ``model``, in texels.
+
+    The result is ``(N,)``, a texel being ``texel_world`` world units; ``inf`` without seams, NaN where a
+    point is NaN.
     """
     # SciPy: 0.3-0.4 s to import, paid only where it is used
     from scipy.spatial import cKDTree
@@ -48,9 +50,10 @@ def seam_distance_texels(model, points: np.ndarray, texel_world: float) -> np.nd
 
 
 def shares(error: np.ndarray, near: np.ndarray, keep: np.ndarray) -> dict:
-    """Over the pixels ``keep``: the share of the summed ``error`` on the pixels ``near`` a seam
-    (``error_share``) and the share of the pixels there (``pixel_share``); ``None`` where nothing
-    is kept or no error.
+    """Return the seams' share of the summed error and of the pixels, over the pixels ``keep``.
+
+    ``error_share`` is the share of the summed ``error`` on the pixels ``near`` a seam and ``pixel_share`` the
+    share of the pixels there; ``None`` where nothing is kept or no error.
     """
     e, n = np.asarray(error, np.float64)[keep], np.asarray(near, bool)[keep]
     total = float(e.sum())

@@ -1,10 +1,14 @@
-"""The self-shadowing techniques, one plug-in per module, registered by name (registry): the flat
-surface's shading they build on (surface), Lengyel's horizon mapping (horizon, horizon_curved),
-Raudins' terrain shadows (terrain), the ray march (pom), the horizon map fitted to the truth
-(fitted/), the shipped GLSL on OpenGL (gl/), and what engines ship, each a per-pixel factor
-(perpixel): AO micro-shadowing (microshadow_filament, microshadow_hdrp), bent cones (bent_cone),
-Valve's self-shadowed bump maps (ssbump) and the bump-terminator term (terminator). Adding a
-technique is a module and a line in the registry.
+"""The self-shadowing techniques, one plug-in per module, registered by name (``registry``).
+
+- ``surface``: the flat surface's shading every technique builds on.
+- ``horizon``, ``horizon_curved``: Lengyel's horizon mapping; ``cubemap``: its weight cube's sampling.
+- ``terrain``: Raudins' terrain shadows; ``pom``: the ray march.
+- ``perpixel``: the base of what engines ship, a factor per pixel: AO micro-shadowing
+  (``microshadow_filament``, ``microshadow_hdrp``), bent cones (``bent_cone``), Valve's
+  self-shadowed bump maps (``ssbump``) and the bump-terminator term (``terminator``).
+- ``fitted/``: textures fitted to the truth; ``gl/``: the shipped GLSL on OpenGL.
+
+Adding a technique is a module and a line in the registry.
 """
 
 import lazy_loader

@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import math
 
+from typing_extensions import override
+
 from hzval.bake import occlusion
 from hzval.core.backend import dr, mi
 from hzval.techniques.perpixel import PerPixelFactor, through
@@ -86,9 +88,11 @@ def cap_intersection(r1, r2, d):
 
 
 def cap_intersection_filament(r1, r2, d):
-    """Filament's smooth approximation of :func:`cap_intersection` (``sphericalCapsIntersection``,
-    after Oat & Sander 2007): the smaller cap's solid angle times ``smoothstep`` of where ``d`` lies
-    between ``|r1 - r2|`` and ``r1 + r2``. Parameters and result as :func:`cap_intersection`.
+    """Return Filament's smooth approximation of :func:`cap_intersection`.
+
+    It is ``sphericalCapsIntersection``, after Oat & Sander 2007: the smaller cap's solid angle times
+    ``smoothstep`` of where ``d`` lies between ``|r1 - r2|`` and ``r1 + r2``. Parameters and result as
+    :func:`cap_intersection`.
     """
     whole = 2.0 * math.pi * (1.0 - dr.maximum(dr.cos(r1), dr.cos(r2)))
     delta = dr.abs(r1 - r2)
@@ -117,12 +121,14 @@ class BentCone(PerPixelFactor):
     }
 
     @classmethod
+    @override
     def validate(cls, settings: dict) -> dict:
         variant = cls.choice(settings, "variant", VARIANTS)
         intersection = cls.choice(settings, "intersection", INTERSECTIONS)
         super().validate(settings)
         return {"variant": variant, "intersection": intersection}
 
+    @override
     def plane(self, name: str):
         if self.settings["variant"] != "oat-sander" or self.bake.horizon is None:
             return super().plane(name)
@@ -132,16 +138,19 @@ class BentCone(PerPixelFactor):
             self._uniform[name] = _UNIFORM[name][1](self.bake.horizon)
         return self._uniform[name]
 
+    @override
     def plane_name(self, name: str) -> str:
         if self.settings["variant"] != "oat-sander":
             return super().plane_name(name)
         return _UNIFORM[name][0]
 
+    @override
     def constants(self) -> dict:
         light = self.scene.light
         r = math.radians(light.radius_deg) if light.kind == "soft" else 0.0
         return {"r": r}
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         B = dr.normalize(mi.Vector3f(*tex["bent-normal"]))
         if self.settings["variant"] == "oat-sander":  # the cone holds the open solid angle
@@ -162,6 +171,7 @@ class BentCone(PerPixelFactor):
         return through(F, cos_d - cos_v, self.straight_through)
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         super().add_arguments(parser)
         parser.add_argument(
@@ -181,6 +191,7 @@ class BentCone(PerPixelFactor):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {
             **super().settings_from_args(args),

@@ -82,8 +82,9 @@ def face_coordinates(x, y, z):
 
 
 def _texel_direction(face, sc, tc):
-    """Return the direction of face coordinates ``(sc, tc)`` in [-1, 1] (or beyond) of ``face``
-    (:data:`FACE_AXES`).
+    """Return the direction of face coordinates ``(sc, tc)`` of ``face``.
+
+    The coordinates are in [-1, 1] (or beyond); the faces are :data:`FACE_AXES`.
     """
     comps = []
     for axis in range(3):
@@ -96,9 +97,10 @@ def _texel_direction(face, sc, tc):
 
 
 def _texel(cube, n: int, face, i, j, seamless: bool):
-    """Return the texel ``(i, j)`` (column, row; Int32, possibly one off the face) of ``face``, as a ``mi.Vector4f``
-    gathered from ``cube`` (``(6, n, n, 4)`` float32 flattened): on the adjacent face (seamless) or the
-    clamped edge texel.
+    """Return the texel ``(i, j)`` of ``face`` as a ``mi.Vector4f`` gathered from ``cube``.
+
+    ``(i, j)`` is column, row (Int32, possibly one off the face); ``cube`` is ``(6, n, n, 4)`` float32
+    flattened. The texel is read on the adjacent face (seamless) or is the clamped edge texel.
     """
     if seamless:
         sc = (mi.Float(i) + 0.5) * (2.0 / n) - 1.0

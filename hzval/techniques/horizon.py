@@ -18,6 +18,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.bake.maps import CUBE_SIZE, BakeParams, bake, weight_cube
 from hzval.core import conventions as cv
@@ -161,9 +162,10 @@ class Horizon(FlatShading, Technique):
         return self._slots.get(HORIZON_SLOT)
 
     def _mip_quantise(self):
-        """Return what the horizon map's storage makes of each mip level (:func:`hzval.scene.lookup.mip_chain`):
-        ``None`` for float; else the storage's round trip, as a GPU's chain of an RGBA8 (or BC7)
-        texture is RGBA8 (BC7).
+        """Return what the horizon map's storage makes of each mip level.
+
+        This is ``None`` for float, else the storage's round trip (:func:`hzval.scene.lookup.mip_chain`), as a
+        GPU's chain of an RGBA8 (or BC7) texture is RGBA8 (BC7).
         """
         if self.storage == "float" or HORIZON_SLOT not in self._slots:
             return None
@@ -181,8 +183,9 @@ class Horizon(FlatShading, Technique):
             dr.eval(self._cube)
 
     def _extra_uniforms(self, uni: dict, shadows: bool, overrides: dict) -> None:
-        """``k`` (``overrides["k"]`` for a sweep over k that reuses textures and kernels) and the
-        light's channel weights, the same for every sample of the frame.
+        """Set ``k`` and the light's channel weights, the same for every sample of the frame.
+
+        ``k`` is ``overrides["k"]`` for a sweep over k that reuses textures and kernels.
         """
         k = overrides.pop("k", None)
         super()._extra_uniforms(uni, shadows, overrides)
@@ -236,16 +239,19 @@ class Horizon(FlatShading, Technique):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """Return the horizon map (an external one replaces it, but hzval's own is what it is checked
-        against) and the normal and ambient maps.
+        """Return the horizon map and the normal and ambient maps.
+
+        An external horizon map replaces the baked one, but hzval's own is what it is checked against.
         """
         return frozenset({"horizon_map", "normal", "ambient"})
 
     @classmethod
     def build(cls, ctx: Context, *, horizon_map=None, encoding=None, **settings) -> "Horizon":
-        """From a context; ``horizon_map`` (layer paths) and ``encoding``
-        (:class:`hzval.io.external.Encoding`) replace the bake's horizon map by an external one, whose
-        convention is checked against hzval's exact bake (:func:`hzval.io.external.detect`).
+        """Build the horizon technique from a context.
+
+        ``horizon_map`` (layer paths) and ``encoding`` (:class:`hzval.io.external.Encoding`) replace the
+        bake's horizon map by an external one, whose convention is checked against hzval's exact bake
+        (:func:`hzval.io.external.detect`).
         """
         if not horizon_map:
             return cls(ctx.scene, ctx.bake, ctx.albedo, samples=ctx.samples(), **settings)
@@ -297,6 +303,7 @@ class Horizon(FlatShading, Technique):
     }
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         def add(flag: str, **kw) -> None:
             parser.add_argument(flag, **kw)
@@ -378,6 +385,7 @@ class Horizon(FlatShading, Technique):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         out = {
             "k": args.horizon_k,
@@ -414,6 +422,7 @@ class Horizon(FlatShading, Technique):
         return out
 
     @classmethod
+    @override
     def check_settings(cls, bake_params, settings: dict) -> None:
         if settings.get("path") == "gpu" and bake_params.directions != cv.CHANNEL_COUNT:
             raise InputError(
@@ -423,6 +432,7 @@ class Horizon(FlatShading, Technique):
             )
 
     @classmethod
+    @override
     def check_variants(cls) -> list[Variant]:
         # the references of hzval 0.1 (metrics.json schema 1) were named after "the approximation"
         return [
@@ -431,6 +441,7 @@ class Horizon(FlatShading, Technique):
         ]
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list[Variant]:
         v = [Variant("8-bit horizon map", {"storage": "u8"})]
         v += [
@@ -447,8 +458,10 @@ class Horizon(FlatShading, Technique):
 
     @classmethod
     def fit(cls, ctx: Context, settings: dict, visibility: list[np.ndarray], azimuths) -> dict:
-        """Return ``settings`` with ``k = "fit"`` replaced by the k that minimises the sweep's mean ``|F - V|``
-        against ``visibility`` (one layer per azimuth): a golden-section search on ``log k`` in [1, 128].
+        """Return ``settings`` with ``k = "fit"`` replaced by the k that minimises the sweep's error.
+
+        The error is the sweep's mean ``|F - V|`` against ``visibility`` (one layer per azimuth), minimised by
+        a golden-section search on ``log k`` in [1, 128].
         """
         if settings.get("k") != "fit":
             return settings
@@ -468,7 +481,10 @@ class Horizon(FlatShading, Technique):
         return {**settings, "k": _golden_section(cost, math.log(1.0), math.log(128.0))}
 
     def storage_bytes(self) -> int:
-        """Return the horizon map as stored (:meth:`hzval.io.storage.Storage.bytes`) and the weight cube map."""
+        """Return the bytes of the horizon map as stored and of the weight cube map.
+
+        The horizon map's are :meth:`hzval.io.storage.Storage.bytes`.
+        """
         rows, cols, ch = self.bake.horizon.shape
         return hz_storage.get(self.storage).bytes(rows, cols, ch) + (
             CUBE_BYTES if self.weights == "cube" else 0
@@ -515,8 +531,9 @@ class Horizon(FlatShading, Technique):
         elevation_deg: float | None = None,
         k: float | None = None,
     ) -> Frame:
-        """Return the frame of the light at ``azimuth_deg`` (degrees)
-        (:meth:`hzval.techniques.surface.FlatShading.render`).
+        """Return the frame of the light at ``azimuth_deg`` (degrees).
+
+        See :meth:`hzval.techniques.surface.FlatShading.render`.
 
         ``k`` defaults to the object's. ``shadows=False`` leaves out the
         horizon factor (plain normal mapping); the other declared effects stay.
@@ -537,8 +554,9 @@ class Horizon(FlatShading, Technique):
         shadows: bool = True,
         k: float | None = None,
     ) -> dict[str, np.ndarray]:
-        """Per-point values (:meth:`hzval.techniques.surface.FlatShading.sample`); when shadowing, also
-        ``horizon_sine`` (``s`` of eq. 5.3/5.4).
+        """Return per-point values (:meth:`hzval.techniques.surface.FlatShading.sample`).
+
+        When shadowing, they include ``horizon_sine`` too (``s`` of eq. 5.3/5.4).
         """
         return super().sample(
             x, y, azimuth_deg, elevation_deg, shadows=shadows, **({} if k is None else {"k": k})
@@ -637,8 +655,9 @@ def shadow_factor(h: list, w: list, Lz, k, *, straight_through: bool = False):
 
 
 def _reference_horizons(ctx: Context, directions: int) -> np.ndarray:
-    """Hzval's own horizons of the context's height map to detect an external bake's convention by:
-    the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16.
+    """Return hzval's own horizons of the context's height map, to detect an external bake's convention.
+
+    They are the exact bake for 8 directions, a wide seed bake (radius 32, 64 bins) for 16.
     """
     p = ctx.bake.params
     params = (

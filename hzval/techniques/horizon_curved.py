@@ -1,6 +1,7 @@
-"""The horizon map's stored sines corrected for the surface's normal curvature: the derivation, the
-correction for a constant curvature and the ``horizon-curved`` technique that renders it (
-item 2; measured in studies/curved_horizon.py, docs/models.md).
+"""The horizon map's stored sines corrected for the surface's normal curvature.
+
+The module holds the derivation, the correction for a constant curvature and the ``horizon-curved`` technique
+that renders it (item 2; measured in studies/curved_horizon.py, docs/models.md).
 
 Derivation. Let a point ``p`` of the base surface have the tangent plane ``z = 0``, heights ``h`` in
 texels, and the surface's normal curvature along the azimuth ``phi`` be ``kappa`` (texels^-1, + convex:
@@ -37,6 +38,7 @@ import dataclasses
 import math
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
@@ -135,13 +137,14 @@ def sine_change(
 
 
 class CurvedHorizon(Horizon):
-    """The ``horizon-curved`` technique: :class:`hzval.techniques.horizon.Horizon` rendering the bake's sines
-    plus :func:`sine_change` for the model's normal curvature ``curvature`` (``--horizon-curvature``,
-    texture widths^-1, + convex: ``world_per_uv / R`` for a sphere of radius ``R``), the same along
-    every direction. ``curvature = 0`` renders the bake itself, bit for bit as ``horizon``. Opt-in
-    (``--techniques horizon,horizon-curved``): one number per model is what it knows of the shape;
-    a per-vertex curvature (the shape operator of the base mesh's normals along each light) is not
-    built (docs/models.md).
+    """The ``horizon-curved`` technique: the bake's sines plus :func:`sine_change` for a curvature.
+
+    It is a :class:`hzval.techniques.horizon.Horizon` rendering them for the model's normal curvature
+    ``curvature`` (``--horizon-curvature``, texture widths^-1, + convex: ``world_per_uv / R`` for a sphere of
+    radius ``R``), the same along every direction. ``curvature = 0`` renders the bake itself, bit for bit as
+    ``horizon``. It is opt-in (``--techniques horizon,horizon-curved``): one number per model is what it knows
+    of the shape; a per-vertex curvature (the shape operator of the base mesh's normals along each light) is
+    not built (docs/models.md).
     """
 
     name = "horizon-curved"
@@ -162,6 +165,7 @@ class CurvedHorizon(Horizon):
         return super().bake_needs(scene) | {"height"}
 
     @classmethod
+    @override
     def build(cls, ctx: Context, *, curvature: float = 0.0, **settings) -> "CurvedHorizon":
         curvature = float(curvature)
         if not math.isfinite(curvature):
@@ -196,6 +200,7 @@ class CurvedHorizon(Horizon):
         return own
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         parser.add_argument(
             "--horizon-curvature",
@@ -209,6 +214,7 @@ class CurvedHorizon(Horizon):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {
             "k": args.horizon_k,
@@ -217,18 +223,22 @@ class CurvedHorizon(Horizon):
         }
 
     @classmethod
+    @override
     def check_variants(cls) -> list:
         return []  # the regression check guards the bake's technique
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list:
         return []
 
     @classmethod
+    @override
     def fit(cls, ctx, settings, visibility, azimuths) -> dict:
         return settings
 
     @property
+    @override
     def parameters(self) -> dict:
         return {
             **super().parameters,

@@ -16,6 +16,8 @@ Filament's saturated ``N.L`` gives.
 
 from __future__ import annotations
 
+from typing_extensions import override
+
 from hzval.core.backend import dr
 from hzval.techniques.perpixel import PerPixelFactor, through
 
@@ -57,5 +59,6 @@ class MicroshadowFilament(PerPixelFactor):
     textures = ("ao",)
     flags = {"ao-storage": "--ao-storage"}
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         return micro_shadow(dr.dot(n, L), tex["ao"][0], self.straight_through)

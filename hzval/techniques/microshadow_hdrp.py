@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import math
 
+from typing_extensions import override
+
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
 from hzval.techniques.perpixel import PerPixelFactor, through
@@ -38,6 +40,7 @@ class MicroshadowHDRP(PerPixelFactor):
     flags = {"ao-storage": "--ao-storage", "opacity": "--microshadow-hdrp-opacity"}
 
     @classmethod
+    @override
     def validate(cls, settings: dict) -> dict:
         opacity = settings.pop("opacity", None)
         super().validate(settings)
@@ -46,9 +49,11 @@ class MicroshadowHDRP(PerPixelFactor):
             raise InputError("opacity", f"the micro-shadow opacity must be in [0, 1], got {opacity!r}")
         return {"opacity": float(opacity)}
 
+    @override
     def constants(self) -> dict:
         return {"opacity": dr.opaque(mi.Float, self.settings["opacity"])}
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         nl, ao = dr.dot(n, L), tex["ao"][0]
         ramp = nl + 2.0 * ao * ao - 1.0
@@ -56,6 +61,7 @@ class MicroshadowHDRP(PerPixelFactor):
         return dr.select(nl > 0.0, dr.lerp(1.0, shadow, c["opacity"]), 1.0)
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         super().add_arguments(parser)
         parser.add_argument(
@@ -67,5 +73,6 @@ class MicroshadowHDRP(PerPixelFactor):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {**super().settings_from_args(args), "opacity": args.microshadow_hdrp_opacity}

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.core.backend import dr, mi
 from hzval.core.errors import InputError
@@ -57,9 +58,11 @@ STORAGES: tuple[str, ...] = ("float", "u8")
 
 @dataclass(frozen=True)
 class Texture:
-    """A texture these techniques read: the :class:`hzval.bake.maps.Bake` field that holds it, the
-    bake content that makes it (:data:`hzval.bake.maps.CONTENTS`), whether it is a unit vector (stored
-    as ``0.5 + 0.5 v``, as a normal map), what it is, for ``--help``, and how it may be stored.
+    """A texture these techniques read.
+
+    It records the :class:`hzval.bake.maps.Bake` field that holds it, the bake content that makes it
+    (:data:`hzval.bake.maps.CONTENTS`), whether it is a unit vector (stored as ``0.5 + 0.5 v``, as a normal
+    map), what it is, for ``--help``, and how it may be stored.
     """
 
     field: str
@@ -136,8 +139,10 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def _block_stored(v: np.ndarray, fmt, signed: bool) -> np.ndarray:
-    """:func:`stored` of a block format: channels packed as :meth:`hzval.io.storage.Storage.roundtrip`
-    packs them; a unit vector's ``x, y`` as ``0.5 + 0.5 v`` and ``z`` rebuilt (BC5 normal maps).
+    """Return :func:`stored` of a block format.
+
+    Channels are packed as :meth:`hzval.io.storage.Storage.roundtrip` packs them; a unit vector's ``x, y`` as
+    ``0.5 + 0.5 v`` and ``z`` rebuilt (BC5 normal maps).
     """
     if not signed:
         flat = v[..., None] if v.ndim == 2 else v
@@ -178,9 +183,10 @@ def texture_bytes(texture: Texture, storage: str, rows: int, cols: int, channels
 
 
 def through(value, surrogate, on: bool = True):
-    """``value``, with ``surrogate``'s gradient when ``on`` (a straight-through estimator, Bengio et
-    al. 2013): a fit's way past a factor's clamps and steps, whose own gradient is 0 where a texel is
-    wrong. Off (a render), ``value`` itself.
+    """Return ``value`` with ``surrogate``'s gradient when ``on``.
+
+    This is a straight-through estimator (Bengio et al. 2013): a fit's way past a factor's clamps and steps,
+    whose own gradient is 0 where a texel is wrong. Off (a render), it is ``value`` itself.
     """
     return surrogate + dr.detach(value - surrogate) if on else value
 
@@ -209,12 +215,13 @@ def _checked_storage(cls, storage: dict | None) -> dict:
 
 
 class FactorKernel(FlatShading):
-    """One kernel for the factors of every per-pixel technique of a context: their textures packed
-    once, the normal fetched once, each technique's ``F`` a layer of the same pass (``factor0``,
-    ``factor1``, ...). Techniques join it (:meth:`add`), its first frame builds it; a
-    frame is kept until the light moves, so that the techniques of a sweep's frame share one render.
-    The shading itself is not computed here: each technique composes its image from the shared
-    unshadowed shading (:class:`hzval.techniques.surface.Unshadowed`), as terrain and pom do.
+    """One kernel for the factors of every per-pixel technique of a context.
+
+    Their textures are packed once, the normal fetched once, each technique's ``F`` a layer of the same pass
+    (``factor0``, ``factor1``, ...). Techniques join it (:meth:`add`), its first frame builds it; a frame is
+    kept until the light moves, so that the techniques of a sweep's frame share one render. The shading itself
+    is not computed here: each technique composes its image from the shared unshadowed shading
+    (:class:`hzval.techniques.surface.Unshadowed`), as terrain and pom do.
     """
 
     def __init__(self, scene: Scene, bake, samples: lookup.Samples | None = None):
@@ -255,8 +262,9 @@ class FactorKernel(FlatShading):
     # -- the hooks of the flat shading ----------------------------------------------------------
 
     def slot(self, member, texture: str) -> str:
-        """Return the name of ``member``'s texture in the packed texture (shared by the members that read
-        the same plane stored the same way).
+        """Return the name of ``member``'s texture in the packed texture.
+
+        The name is shared by the members that read the same plane stored the same way.
         """
         return f"{member.plane_name(texture)}:{member.storage[texture]}"
 
@@ -342,20 +350,23 @@ class PerPixelFactor(Technique):
         return cls.own_textures.get(name) or TEXTURES[name]
 
     def plane(self, name: str) -> np.ndarray:
-        """Return the values of texture ``name`` before storage: the bake's field (a variant may derive
-        its own, :meth:`plane_name` naming them).
+        """Return the values of texture ``name`` before storage.
+
+        They are the bake's field (a variant may derive its own, :meth:`plane_name` naming them).
         """
         return getattr(self.bake, self.texture(name).field)
 
     def plane_name(self, name: str) -> str:
-        """Return what :meth:`plane` holds for texture ``name``: the same name, the same values (techniques
-        that read them share the kernel's one copy).
+        """Return what :meth:`plane` holds for texture ``name``.
+
+        It is the same name, with the same values (techniques that read them share the kernel's one copy).
         """
         return self.texture(name).field
 
     def stored_plane(self, name: str) -> np.ndarray:
-        """Return what the shader samples of texture ``name``: :meth:`plane` as its storage keeps it
-        (:func:`stored`).
+        """Return what the shader samples of texture ``name``.
+
+        That is :meth:`plane` as its storage keeps it (:func:`stored`).
         """
         return stored(self.plane(name), self.storage[name], signed=self.texture(name).signed)
 
@@ -363,8 +374,9 @@ class PerPixelFactor(Technique):
 
     @classmethod
     def validate(cls, settings: dict) -> dict:
-        """Return the technique's own settings, checked (raise :class:`hzval.core.errors.InputError` naming
-        the setting); none by default.
+        """Return the technique's own settings, checked.
+
+        Raise :class:`hzval.core.errors.InputError` naming the setting; none by default.
         """
         if settings:
             raise TypeError(f"unexpected settings {', '.join(settings)}")
@@ -372,8 +384,9 @@ class PerPixelFactor(Technique):
 
     @staticmethod
     def choice(settings: dict, key: str, choices: tuple[str, ...]) -> str:
-        """``settings[key]`` (popped), one of ``choices`` (the first when unset), else one line naming
-        the setting.
+        """Return ``settings[key]``, popped, one of ``choices`` (the first when unset).
+
+        Anything else is refused in one line naming the setting.
         """
         value = settings.pop(key, None) or choices[0]
         if value not in choices:
@@ -385,48 +398,56 @@ class PerPixelFactor(Technique):
         return {}
 
     def factor(self, tex: dict, n, L, c: dict):
-        """Return the shadow factor ``F`` of a sample: ``tex`` its filtered textures by name, ``n`` the normal
-        map's unit normal (``None`` when :attr:`reads_normal` is false), ``L`` the unit light in its
-        tangent frame, ``c`` :meth:`constants`.
+        """Return the shadow factor ``F`` of a sample.
+
+        ``tex`` is its filtered textures by name, ``n`` the normal map's unit normal (``None`` when
+        :attr:`reads_normal` is false), ``L`` the unit light in its tangent frame, ``c`` :meth:`constants`.
         """
         raise NotImplementedError
 
     # -- the Technique interface ----------------------------------------------------------------
 
     @classmethod
+    @override
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         own = {cls.texture(t).content for t in cls.textures}
         return frozenset({"normal"} | own | ({"ambient"} if scene.declares("ambient") else set()))
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "PerPixelFactor":
-        """From a context: the context's one factor kernel and unshadowed shading, shared with its
-        other per-pixel techniques.
+        """Build the technique from a context.
+
+        It uses the context's one factor kernel and unshadowed shading, shared with its other per-pixel
+        techniques.
         """
         kernel = ctx.shared("perpixel factors", lambda: FactorKernel(ctx.scene, ctx.bake, ctx.samples()))
         return cls(ctx.scene, ctx.bake, ctx.albedo, kernel=kernel, plain=unshadowed(ctx), **settings)
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
-        """Refuse a setting before anything is written (its flag named by the caller,
-        :func:`hzval.techniques.registry.flag_errors`).
+        """Refuse a setting before anything is written.
+
+        The caller names its flag (:func:`hzval.techniques.registry.flag_errors`).
         """
         own = dict(settings)
         _checked_storage(cls, own.pop("storage", None))
         cls.validate(own)
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         for t in cls.textures:
             add_storage_flag(parser, t, cls.texture(t))
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         if not cls.textures:
             return {}
         return {"storage": {t: getattr(args, f"{t.replace('-', '_')}_storage") for t in cls.textures}}
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list[Variant]:
         out = [Variant(f"{cls.label} (float textures)", {"storage": dict.fromkeys(cls.textures, "float")})]
         if cls.textures:
@@ -459,6 +480,7 @@ class PerPixelFactor(Technique):
         return int(sum(self.texture_bytes().values()))
 
     @property
+    @override
     def parameters(self) -> dict:
         out = {"simulated": list(self.simulated), **self.settings}
         if self.textures:
@@ -469,26 +491,30 @@ class PerPixelFactor(Technique):
         return out
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """Return the frame of the light at ``azimuth_deg``: the unshadowed shading's direct term times the
-        pixel mean of ``F`` from the shared kernel (:meth:`FactorKernel.frame`), plus its ambient
-        term; the kernel's time is shared out among the techniques that joined it. Layers:
-        ``factor`` and the declared effects'.
+        """Return the frame of the light at ``azimuth_deg``.
+
+        It is the unshadowed shading's direct term times the pixel mean of ``F`` from the shared kernel
+        (:meth:`FactorKernel.frame`), plus its ambient term; the kernel's time is shared out among the
+        techniques that joined it. Layers: ``factor`` and the declared effects'.
         """
         frame = self.kernel.frame(azimuth_deg, elevation_deg)
         F = frame.layers[self._layer]
         return self._plain.shade(azimuth_deg, elevation_deg, F, frame.seconds / len(self.kernel.members))
 
     def sample(self, x, y, azimuth_deg: float, elevation_deg: float | None = None) -> dict[str, np.ndarray]:
-        """Per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging:
-        ``{"factor": (n,)}``.
+        """Return per-point ``F`` at tangent-space points ``(x, y)`` (texel units), no averaging.
+
+        The result is ``{"factor": (n,)}``.
         """
         return {"factor": self.kernel.sample_factors(x, y, azimuth_deg, elevation_deg)[self._layer]}
 
 
 class BaseShadow(PerPixelFactor):
-    """No technique's shadows: ``F = 1``, which on a model is the base mesh's own shadow alone (the
-    kernel multiplies every factor by it). The sweep's no-shadows baseline on a model, where a
-    technique's factor includes that shadow too; not a registered technique.
+    """The no-shadows baseline: no technique's shadows, ``F = 1``.
+
+    On a model this is the base mesh's own shadow alone (the kernel multiplies every factor by it). It is the
+    sweep's no-shadows baseline on a model, where a technique's factor includes that shadow too; it is not a
+    registered technique.
     """
 
     name = "no shadows"
@@ -496,5 +522,6 @@ class BaseShadow(PerPixelFactor):
     file_stem = "no_shadows"
     reads_normal = False
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         return dr.full(mi.Float, 1.0, dr.width(L.z))

@@ -17,6 +17,7 @@ import math
 import time
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.core import backend
 from hzval.core import conventions as cv
@@ -180,6 +181,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
     # -- the Technique interface (hzval.techniques.registry) --------------------------
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         parser.add_argument(
             "--pom-steps",
@@ -209,10 +211,12 @@ class RayMarchShadow(surface.HeightFieldShadow):
     flags = {"steps": "--pom-steps", "variant": "--pom-variant", "softness": "--pom-softness"}
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {"steps": args.pom_steps, "variant": args.pom_variant, "softness": args.pom_softness}
 
     @classmethod
+    @override
     def check_settings(cls, bake_params, settings: dict) -> None:
         _validate(
             settings.get("steps", DEFAULT_STEPS),
@@ -221,6 +225,7 @@ class RayMarchShadow(surface.HeightFieldShadow):
         )
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list[Variant]:
         v = [
             Variant(f"pom, {n} steps", {"steps": n, "variant": "hard"}, {"steps": n, "variant": "hard"})
@@ -237,12 +242,14 @@ class RayMarchShadow(surface.HeightFieldShadow):
         return v
 
     def storage_bytes(self) -> int:
-        """Return the height map alone, 16-bit (the skip table is hzval's acceleration of its march, not a
-        texture the technique needs).
+        """Return the storage in bytes: the height map alone, 16-bit.
+
+        The skip table is hzval's acceleration of its march, not a texture the technique needs.
         """
         return self.rows * self.cols * 2
 
     @property
+    @override
     def parameters(self) -> dict:
         out = {
             "technique": "height-field ray march (parallax occlusion mapping's shadows)",
@@ -257,9 +264,10 @@ class RayMarchShadow(surface.HeightFieldShadow):
     # -- rendering -------------------------------------------------------------
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """Return the frame for the light at ``azimuth_deg`` (degrees): the unshadowed shading times
-        the pixel mean of ``F`` (``layers["factor"]``); ``seconds`` its wall time, the
-        unshadowed shading's included.
+        """Return the frame for the light at ``azimuth_deg`` (degrees).
+
+        The image is the unshadowed shading times the pixel mean of ``F`` (``layers["factor"]``); ``seconds``
+        is its wall time, the unshadowed shading's included.
         """
         t0 = time.perf_counter()
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
@@ -295,9 +303,11 @@ class RayMarchShadow(surface.HeightFieldShadow):
         return np.asarray(F, dtype=np.float32).reshape(self.shape)
 
     def _factor_on_model(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
-        """Pixel means of ``F`` on a model: each sample marches toward the world's light in its own
-        tangent frame (:class:`hzval.scene.lookup.Samples`), times the base mesh's shadow. A light below a
-        sample's tangent plane gives 0, one along its normal 1, as on the plane.
+        """Return the pixel means of ``F`` on a model.
+
+        Each sample marches toward the world's light in its own tangent frame
+        (:class:`hzval.scene.lookup.Samples`), times the base mesh's shadow. A light below a sample's tangent
+        plane gives 0, one along its normal 1, as on the plane.
         """
         direction = cv.light_direction(azimuth_deg, elevation_deg)
         Lw = dr.opaque(mi.Vector3f, [float(c) for c in direction])
@@ -407,10 +417,11 @@ class SkipTable:
         self._ints = (dr.opaque(mi.Int32, self.cols), dr.opaque(mi.Int32, self.rows))
 
     def at(self, p):
-        """``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``): wrapped into the
-        tile (``p - floor(p)``, exact in float32: no division, which CUDA approximates), or clamped
-        to its border. Where rounding puts ``p`` in a neighbour of its texel, ``p`` lies within half
-        a texel and an ulp of that neighbour's centre: inside the reach's spare half texel.
+        """Return ``M`` at the texel that holds texture coordinates ``p`` (``mi.Point2f``).
+
+        ``p`` is wrapped into the tile (``p - floor(p)``, exact in float32: no division, which CUDA
+        approximates), or clamped to its border. Where rounding puts ``p`` in a neighbour of its texel, ``p``
+        lies within half a texel and an ulp of that neighbour's centre: inside the reach's spare half texel.
         """
         cols, rows = self._ints
         u, v = (p.x - dr.floor(p.x), p.y - dr.floor(p.y)) if self.wrap else (p.x, p.y)

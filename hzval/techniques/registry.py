@@ -79,9 +79,10 @@ REGISTRY: dict[str, str] = {
 
 
 class Unavailable(Exception):
-    """Raised by :meth:`Technique.build` when this machine cannot run the technique (no OpenGL
-    context for the GL techniques): the message is one line saying what to install; the sweep
-    skips the technique with it and goes on.
+    """The error :meth:`Technique.build` raises when this machine cannot run the technique.
+
+    An example is no OpenGL context for the GL techniques. The message is one line saying what to install; the
+    sweep skips the technique with it and goes on.
     """
 
 
@@ -128,7 +129,10 @@ class Context:
     _shared: dict = field(default_factory=dict, repr=False)
 
     def samples(self) -> lookup.Samples:
-        """Where every technique of the context reads its textures (:func:`hzval.scene.lookup.samples_for`)."""
+        """Return where every technique of the context reads its textures.
+
+        See :func:`hzval.scene.lookup.samples_for`.
+        """
         if self.points is not None:
             return self.points
         return lookup.samples_for(self.scene, *self.height.shape, self.height)
@@ -184,22 +188,29 @@ class Technique:
 
     @classmethod
     def simulates(cls, scene: Scene) -> tuple[str, ...]:
-        """Return the declared effects less those it does not model, in :data:`hzval.scene.spec.EFFECTS` order."""
+        """Return the declared effects less those the technique does not model.
+
+        They are in :data:`hzval.scene.spec.EFFECTS` order.
+        """
         return tuple(e for e in EFFECTS if scene.declares(e) and e not in cls.not_modelled)
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """Return what the technique reads for ``scene``: names of :data:`hzval.bake.maps.CONTENTS` (``normal``,
-        ``horizon_map``, ``ambient``) and ``height`` (the height map itself). A sweep bakes only what
-        its techniques need; by default everything.
+        """Return what the technique reads for ``scene``.
+
+        These are names of :data:`hzval.bake.maps.CONTENTS` (``normal``, ``horizon_map``, ``ambient``) and
+        ``height`` (the height map itself). A sweep bakes only what its techniques need; by default
+        everything.
         """
         return frozenset({"normal", "horizon_map", "ambient", "height"})
 
     @classmethod
     def build(cls, ctx: Context, **settings) -> "Technique":
+        """Build the technique on ``ctx`` with its ``settings`` (each subclass's own)."""
         raise NotImplementedError
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
+        """Render the frame of the light at ``azimuth_deg`` (and ``elevation_deg``, default the scene's)."""
         raise NotImplementedError
 
     @property
@@ -220,8 +231,9 @@ class Technique:
 
     @classmethod
     def check_settings(cls, bake_params, settings: dict) -> None:
-        """Refuse settings that cannot work with this bake, before anything is written
-        (raise :class:`hzval.core.errors.InputError`).
+        """Refuse settings that cannot work with this bake, before anything is written.
+
+        A refusal raises :class:`hzval.core.errors.InputError`.
         """
 
     @classmethod
@@ -236,8 +248,9 @@ class Technique:
 
     @classmethod
     def fit(cls, ctx: Context, settings: dict, visibility: list, azimuths) -> dict:
-        """Return ``settings`` with any value the technique fits to a converged truth filled in
-        (``visibility``: the truth's V per azimuth); by default unchanged.
+        """Return ``settings`` with any value the technique fits to a converged truth filled in.
+
+        ``visibility`` is the truth's V per azimuth. By default ``settings`` is returned unchanged.
         """
         return settings
 
@@ -247,9 +260,10 @@ class Technique:
 
     @classmethod
     def frame_extras(cls, scores: dict) -> dict:
-        """Entries the technique adds to its own record of a frame (``frames[i].techniques.NAME``)
-        from every technique's scores of that frame, ``{name: metrics}`` (e.g. how its error
-        splits against another's); by default none.
+        """Return the entries the technique adds to its own record of a frame.
+
+        The record is ``frames[i].techniques.NAME``; the entries come from every technique's scores of that
+        frame, ``{name: metrics}`` (e.g. how its error splits against another's). By default there are none.
         """
         return {}
 
@@ -260,8 +274,9 @@ def names() -> list[str]:
 
 
 def defaults() -> list[str]:
-    """Return the names a sweep renders when none are asked for: the registry less the techniques that are
-    not on by default (:attr:`Technique.by_default`).
+    """Return the names a sweep renders when none are asked for.
+
+    They are the registry less the techniques that are not on by default (:attr:`Technique.by_default`).
     """
     return [n for n in REGISTRY if get(n).by_default]
 

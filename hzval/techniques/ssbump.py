@@ -19,6 +19,8 @@ and which hzval leaves out of the score (docs/techniques.md).
 
 from __future__ import annotations
 
+from typing_extensions import override
+
 from hzval.bake.occlusion import HL2_BASIS
 from hzval.core.backend import dr, mi
 from hzval.techniques.perpixel import PerPixelFactor, Texture
@@ -46,6 +48,7 @@ class SSBump(PerPixelFactor):
     }
     flags = {"ssbump-storage": "--ssbump-storage"}
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         S = tex["ssbump"]
         lit = open_ = 0.0

@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.bake.maps import normals_only
 from hzval.core import backend, shading
@@ -80,8 +81,9 @@ class FlatShading:
         return []
 
     def _max_channels(self) -> slice | None:
-        """Return the packed channels a ``max`` mip chain takes the maximum of, and a storage quantises
-        (:func:`hzval.scene.lookup.mip_chain`).
+        """Return the packed channels a ``max`` mip chain takes the maximum of, and a storage quantises.
+
+        See :func:`hzval.scene.lookup.mip_chain`.
         """
         return None
 
@@ -99,25 +101,33 @@ class FlatShading:
         return direct
 
     def _extra_layers(self, tex: dict, n, out: dict, uni: dict) -> None:
-        """Add a technique's layers after the ambient term (``n``: the normal map's normal; ``uni``: the
-        frame's uniforms, on a model the sample's own, :meth:`_lane_uniforms`).
+        """Add a technique's layers after the ambient term.
+
+        ``n`` is the normal map's normal; ``uni`` is the frame's uniforms, on a model the sample's own
+        (:meth:`_lane_uniforms`).
         """
 
     def _factor_layers(self) -> tuple[str, ...]:
-        """Return the layers that are shadow factors, which the base mesh's shadow ``M`` multiplies on a model."""
+        """Return the layers that are shadow factors.
+
+        On a model the base mesh's shadow ``M`` multiplies them.
+        """
         return ("factor",)
 
     def _extra_layout(self, shadows: bool) -> tuple[list, list]:
-        """Return the technique's layers of :meth:`_shade`, ``(name, channels)``: those before the ambient
-        term's layer (its factor) and those after (:meth:`_extra_layers`).
+        """Return the technique's layers of :meth:`_shade`, ``(name, channels)``.
+
+        They are those before the ambient term's layer (its factor) and those after (:meth:`_extra_layers`).
         """
         return [], []
 
     # -- set-up ---------------------------------------------------------------------------------
 
     def _upload_textures(self, albedo, samples: lookup.Samples) -> None:
-        """One packed texture holding only the channels needed, so that each sample computes one set
-        of bilinear indices, filtered as the scene's lookup says (:class:`hzval.scene.lookup.Filtered`).
+        """Upload one packed texture holding only the channels needed.
+
+        Each sample thus computes one set of bilinear indices, filtered as the scene's lookup says
+        (:class:`hzval.scene.lookup.Filtered`).
         """
         bake, rows, cols = self.bake, self.rows, self.cols
         planes: list[np.ndarray] = []
@@ -197,12 +207,12 @@ class FlatShading:
         dark: bool = False,
         **overrides,
     ) -> Frame:
-        """Return the frame of the light at ``azimuth_deg`` (degrees); ``elevation_deg`` defaults to the
-        scene light's. ``shadows=False`` leaves out a technique's factor; ``overrides``: a
-        technique's per-frame settings (:meth:`_extra_uniforms`); ``dark``: no direct light at all (the
-        ambient term alone; on a model a light below the world's horizon still lights the samples
-        that face down). ``seconds`` is the frame's wall
-        time, kernels synchronised and images read back.
+        """Return the frame of the light at ``azimuth_deg`` (degrees).
+
+        ``elevation_deg`` defaults to the scene light's. ``shadows=False`` leaves out a technique's factor;
+        ``overrides``: a technique's per-frame settings (:meth:`_extra_uniforms`); ``dark``: no direct light
+        at all (the ambient term alone; on a model a light below the world's horizon still lights the samples
+        that face down). ``seconds`` is the frame's wall time, kernels synchronised and images read back.
         """
         t0 = time.perf_counter()
         elevation = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
@@ -253,9 +263,10 @@ class FlatShading:
         shadows: bool = True,
         **overrides,
     ) -> dict[str, np.ndarray]:
-        """Per-point values at tangent-space points ``(x, y)`` (texel units), no averaging: keys as
-        :meth:`render`'s layers, plus ``image`` ``(n, 3)`` (at ``x = col + 0.5``, ``y = rows - row -
-        0.5`` the bilinear filter returns that texel exactly).
+        """Return per-point values at tangent-space points ``(x, y)`` (texel units), no averaging.
+
+        The keys are as :meth:`render`'s layers, plus ``image`` ``(n, 3)`` (at ``x = col + 0.5``, ``y = rows -
+        row - 0.5`` the bilinear filter returns that texel exactly).
         """
         if self._frames is not None:
             raise NotImplementedError(
@@ -274,8 +285,10 @@ class FlatShading:
     # -- kernels --------------------------------------------------------------------------------
 
     def _uniforms(self, azimuth_deg: float, elevation_deg: float, shadows: bool, overrides: dict) -> dict:
-        """Return the frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``: what is the same
-        for every sample (the half vector, a technique's light weights) is computed once a frame.
+        """Return the frame's uniforms, evaluated in a one-lane kernel from an opaque ``L``.
+
+        What is the same for every sample (the half vector, a technique's light weights) is computed once a
+        frame.
         """
         L = dr.opaque(mi.Vector3f, [float(c) for c in cv.light_direction(azimuth_deg, elevation_deg)])
         uni = {"L": L}
@@ -300,12 +313,16 @@ class FlatShading:
         return dict(self._slots)
 
     def texture_level(self):
-        """Return the packed texture's top level (a :class:`mitsuba.Texture2f`), whose tensor a fit replaces."""
+        """Return the packed texture's top level, whose tensor a fit replaces.
+
+        It is a :class:`mitsuba.Texture2f`.
+        """
         return self._texture.levels[0]
 
     def positions(self, sample):
-        """``(u, v)``: the texture coordinates of the samples ``sample`` (indices into the image's
-        samples, pixel-major).
+        """Return ``(u, v)``, the texture coordinates of the samples ``sample``.
+
+        ``sample`` holds indices into the image's samples, pixel-major.
         """
         if self.spp == 1:
             return dr.gather(mi.Float, self._u, sample), dr.gather(mi.Float, self._v, sample)
@@ -317,8 +334,9 @@ class FlatShading:
         return self._fetch(u, v)
 
     def _fetch(self, u, v, pixel=None) -> dict:
-        """Fetch the filtered texture values at texture coordinates ``(u, v)`` of lanes in the pixels ``pixel``
-        (whose footprints a mip filter reads; ``None``: level 0).
+        """Fetch the filtered texture values at texture coordinates ``(u, v)``.
+
+        The lanes are in the pixels ``pixel``, whose footprints a mip filter reads (``None``: level 0).
         """
         if self._texture is None:
             return {}
@@ -326,10 +344,11 @@ class FlatShading:
         return {name: vals[s] for name, s in self._slots.items()}
 
     def _lane_uniforms(self, uni: dict, index) -> tuple[dict, object]:
-        """On a model, the uniforms of the samples ``index``: the world's light in each sample's
-        tangent frame (:func:`hzval.scene.lookup.to_tangent`), what a technique derives from it, the
-        sample's own view ``v`` toward the camera in that frame and the half vector toward it, and
-        the base mesh's shadow ``M`` (``None``: none).
+        """Return the uniforms of the samples ``index`` on a model.
+
+        They are the world's light in each sample's tangent frame (:func:`hzval.scene.lookup.to_tangent`),
+        what a technique derives from it, the sample's own view ``v`` toward the camera in that frame and the
+        half vector toward it, and the base mesh's shadow ``M`` (``None``: none).
         """
         frame = lookup.frame_of(self._frames, index)
         shadows, overrides = self._lane
@@ -343,8 +362,9 @@ class FlatShading:
         return lane, M
 
     def _shade(self, u, v, uni: dict, shadows: bool, probe: bool = False, pixel=None, index=None) -> dict:
-        """Per-sample outputs: ``image`` (Color3f) and the declared layers; ``index``: the samples'
-        place in the image's samples (on a model, where their frames are).
+        """Return the per-sample outputs: ``image`` (Color3f) and the declared layers.
+
+        ``index`` is the samples' place in the image's samples (on a model, where their frames are).
         """
         tex = self._fetch(u, v, pixel)
         M = None
@@ -483,8 +503,9 @@ class Unshadowed:
         seconds: float,
         layers: dict | None = None,
     ) -> Frame:
-        """Return the frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``:
-        the unshadowed render's time counts toward it, as an engine would pay it.
+        """Return the frame of a technique whose per-pixel factor is ``factor``, found in ``seconds``.
+
+        The unshadowed render's time counts toward it, as an engine would pay it.
         """
         frame, direct = self.render(azimuth_deg, elevation_deg)
         image = shading.compose(direct, factor, self.ambient_image)
@@ -510,17 +531,20 @@ def unshadowed(ctx: Context) -> Unshadowed:
 
 
 class HeightFieldShadow(Technique):
-    """Base of the techniques that read the height map and multiply the :class:`Unshadowed`
-    shading by a per-pixel factor (terrain, pom): they are built as ``cls(scene, height,
-    bake=..., albedo=..., unshadowed=..., **settings)``. Their bake needs are the normal map
-    (and the ambient map where the scene declares ``ambient``).
+    """Base of the techniques that multiply the :class:`Unshadowed` shading by a per-pixel factor.
+
+    These techniques (terrain, pom) read the height map and are built as ``cls(scene, height, bake=...,
+    albedo=..., unshadowed=..., **settings)``. Their bake needs are the normal map (and the ambient map where
+    the scene declares ``ambient``).
     """
 
     @classmethod
+    @override
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
         return frozenset({"normal", "height"} | ({"ambient"} if scene.declares("ambient") else set()))
 
     @classmethod
+    @override
     def build(cls, ctx: Context, **settings) -> "HeightFieldShadow":
         return cls(
             ctx.scene,
@@ -541,9 +565,11 @@ class HeightFieldShadow(Technique):
         shared: Unshadowed | None,
         samples: lookup.Samples | None = None,
     ) -> Unshadowed:
-        """``shared``, or the unshadowed shading of a technique built on its own: from ``bake``, or
-        without one from the normal map alone (:func:`hzval.bake.maps.normals_only`), which serves
-        ``diffuse`` and ``specular``; ``ambient`` needs the bake's ambient map.
+        """Return ``shared``, or the unshadowed shading of a technique built on its own.
+
+        That shading comes from ``bake``, or without one from the normal map alone
+        (:func:`hzval.bake.maps.normals_only`), which serves ``diffuse`` and ``specular``; ``ambient`` needs
+        the bake's ambient map.
         """
         if shared is not None:
             return shared

@@ -20,6 +20,8 @@ which is ``+z`` in each sample's tangent frame too.
 
 from __future__ import annotations
 
+from typing_extensions import override
+
 from hzval.core.backend import dr
 from hzval.techniques.perpixel import PerPixelFactor
 from hzval.techniques.registry import Variant
@@ -58,17 +60,20 @@ class Terminator(PerPixelFactor):
     flags = {"variant": "--terminator-variant"}
 
     @classmethod
+    @override
     def validate(cls, settings: dict) -> dict:
         variant = cls.choice(settings, "variant", VARIANTS)
         super().validate(settings)
         return {"variant": variant}
 
+    @override
     def factor(self, tex: dict, n, L, c: dict):
         if self.settings["variant"] == "conty":
             return conty(n.z, L.z)
         return chiang(dr.dot(n, L), L.z, n.z)
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         parser.add_argument(
             "--terminator-variant",
@@ -78,10 +83,12 @@ class Terminator(PerPixelFactor):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {"variant": args.terminator_variant}
 
     @classmethod
+    @override
     def tradeoff_variants(cls):
 
         return [Variant(f"{cls.label} ({v})", {"variant": v}, {"variant": v}) for v in VARIANTS]

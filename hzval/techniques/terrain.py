@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.core import backend
 from hzval.core import conventions as cv
@@ -97,6 +98,7 @@ class SweepPlan:
 
     @property
     def record_from(self) -> int:
+        """Return the first step whose column is recorded, ``steps - m`` (the class docstring)."""
         return self.steps - self.m
 
     def step_of_column(self, c: np.ndarray) -> np.ndarray:
@@ -387,6 +389,7 @@ class TerrainShadow(surface.HeightFieldShadow):
     # -- the Technique interface (hzval.techniques.registry) --------------------------
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         parser.add_argument(
             "--terrain-ramp",
@@ -401,10 +404,12 @@ class TerrainShadow(surface.HeightFieldShadow):
     flags = {"ramp": "--terrain-ramp"}
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {"ramp": args.terrain_ramp}
 
     @classmethod
+    @override
     def check_settings(cls, bake_params, settings: dict) -> None:
         ramp = settings.get("ramp", DEFAULT_RAMP)
         if isinstance(ramp, bool) or not (
@@ -413,6 +418,7 @@ class TerrainShadow(surface.HeightFieldShadow):
             raise InputError("ramp", f"the terrain ramp must be a positive number of texels, got {ramp}")
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list[Variant]:
         return [Variant("terrain shadow map (Raudins)", params={"ramp_texels": DEFAULT_RAMP})]
 
@@ -441,6 +447,7 @@ class TerrainShadow(surface.HeightFieldShadow):
         return lo, hi
 
     def plan(self, azimuth_deg: float, elevation_deg: float) -> SweepPlan:
+        """Return the sweep's plan for the light at ``azimuth_deg``, ``elevation_deg``."""
         low, _ = self.elevations(elevation_deg)
         return plan_sweep(
             self.rows,
@@ -489,9 +496,10 @@ class TerrainShadow(surface.HeightFieldShadow):
     # ------------------------------------------------------------------
 
     def _factor_drjit(self, plan: SweepPlan, tan_hi: float, tan_lo: float) -> np.ndarray:
-        """Three kernels: the sweep (one lane per line, a symbolic loop over
-        steps), the texels' ``(h - B_hi, ramp)``, and the samples' factor
-        averaged per pixel. Every per-frame value is opaque.
+        """Return the per-pixel factor from three kernels; every per-frame value is opaque.
+
+        The kernels are the sweep (one lane per line, a symbolic loop over steps), the texels' ``(h - B_hi,
+        ramp)``, and the samples' factor averaged per pixel.
         """
         rec = self._sweep_drjit(plan, tan_hi, tan_lo)
         F = self._sample(self._gap_ramp_drjit(plan, rec))
@@ -570,8 +578,9 @@ class TerrainShadow(surface.HeightFieldShadow):
         return rec
 
     def _gap_ramp_drjit(self, plan: SweepPlan, rec):
-        """Return the texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs:
-        the boundary interpolated between the two lines that bracket each texel.
+        """Return the texels of ``A``, written to the height map's layout as ``(gap, ramp)`` pairs.
+
+        The boundary is interpolated between the two lines that bracket each texel.
         """
         Float, Int32, UInt32 = mi.Float, mi.Int32, mi.UInt32
         op = dr.opaque

@@ -60,8 +60,9 @@ PAD_TEXELS = 2.0
 
 
 def why_not(scene) -> str | None:
-    """Why a truth of ``scene`` cannot build its mesh in bands (a ray could leave a band's cover), or
-    ``None`` where it can (module docstring).
+    """Return why a truth of ``scene`` cannot build its mesh in bands, or ``None`` where it can.
+
+    It cannot where a ray could leave a band's cover (module docstring).
     """
     if scene.camera.kind != "top":
         return f"the {scene.camera.kind} view's camera rays cross rows"
@@ -78,9 +79,11 @@ def why_not(scene) -> str | None:
 
 
 def reach(scene, relief: float, lift: float, azimuths) -> tuple[float, float]:
-    """``(up, down)``: texels along +y and -y that the rays of a sample may run (module docstring),
-    for the lights at ``azimuths`` (degrees), :data:`PAD_TEXELS` included. ``relief``: the map's highest
-    less its lowest point, texels; ``lift``: the truth's ray lift (:attr:`hzval.truth.plane.Truth.lift`).
+    """Return ``(up, down)``: texels along +y and -y that the rays of a sample may run.
+
+    See the module docstring. They are for the lights at ``azimuths`` (degrees), :data:`PAD_TEXELS` included.
+    ``relief``: the map's highest less its lowest point, texels; ``lift``: the truth's ray lift
+    (:attr:`hzval.truth.plane.Truth.lift`).
     """
     pad = PAD_TEXELS
     light = scene.light
@@ -108,10 +111,11 @@ def reach(scene, relief: float, lift: float, azimuths) -> tuple[float, float]:
 
 
 def cover_runs(g: mesh.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) -> list[tuple[int, int]]:
-    """Return the runs ``(first, stop)`` of the cell rows of the vertex grid ``g`` (its rows run toward -y) that
-    meet ``y_lo <= y <= y_hi`` (texels; beyond the tile for a band near its edge): ``wrap``, the cells
-    of the tile and its margin whose ``y`` is in it modulo the tile's ``rows``, since hops wrap a ray
-    back into the tile.
+    """Return the runs ``(first, stop)`` of the cell rows of ``g`` that meet ``y_lo <= y <= y_hi``.
+
+    ``g`` is the vertex grid (its rows run toward -y); ``y`` is in texels, beyond the tile for a band near its
+    edge. With ``wrap`` they are the cells of the tile and its margin whose ``y`` is in it modulo the tile's
+    ``rows``, since hops wrap a ray back into the tile.
     """
     top, bottom = g.y[:-1], g.y[1:]  # cell i spans bottom[i] <= y <= top[i]
     need = np.zeros(top.shape, bool)
@@ -123,9 +127,10 @@ def cover_runs(g: mesh.Grid, rows: int, y_lo: float, y_hi: float, wrap: bool) ->
 
 
 def group_bands(bands: list[tuple[int, int]], cols: int, band_rows: int) -> list[list[int]]:
-    """Return the truth's sample bands (:func:`hzval.truth.samples.bands`: pixel index ranges of whole rows, ``cols``
-    pixels a row) in consecutive groups of at most ``band_rows`` pixel rows (at least one band): the
-    bands that share a mesh.
+    """Return the truth's sample bands in consecutive groups of at most ``band_rows`` pixel rows.
+
+    The sample bands are :func:`hzval.truth.samples.bands`: pixel index ranges of whole rows, ``cols`` pixels
+    a row. Each group holds at least one band; a group's bands are the bands that share a mesh.
     """
     groups: list[list[int]] = []
     first_row = None
@@ -139,8 +144,9 @@ def group_bands(bands: list[tuple[int, int]], cols: int, band_rows: int) -> list
 
 
 def band_y(rows: int, H: int, p0: int, p1: int, up: float, down: float) -> tuple[float, float]:
-    """``(y_lo, y_hi)``: the texels ``y`` that the samples of pixel rows ``[p0, p1)`` of an image of
-    ``H`` rows of a ``rows``-row map reach (``up``, ``down``: :func:`reach`).
+    """Return ``(y_lo, y_hi)``: the texels ``y`` that the samples of pixel rows ``[p0, p1)`` reach.
+
+    The image has ``H`` rows and the map ``rows`` rows; ``up`` and ``down`` are :func:`reach`'s.
     """
     return rows - p1 * rows / H - down, rows - p0 * rows / H + up
 
@@ -157,8 +163,10 @@ def band_triangles(
     down: float,
     wrap: bool,
 ) -> list[int]:
-    """Triangles of each band's mesh (:func:`group_bands`, :func:`cover_runs`), counted without building
-    them: what :func:`hzval.truth.memory.truth_plan` weighs.
+    """Return the triangles of each band's mesh, counted without building them.
+
+    The bands are :func:`group_bands`'s, their meshes :func:`cover_runs`'s; the counts are what
+    :func:`hzval.truth.memory.truth_plan` weighs.
     """
     per_row = np.concatenate([[0], np.cumsum(mesh.row_triangles(levels))])
     counts = []
@@ -169,8 +177,9 @@ def band_triangles(
 
 
 def band_scene(g: mesh.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
-    """Return a Mitsuba scene of the cell rows ``runs`` of ``g`` (one mesh a run,
-    :func:`hzval.geometry.tile.piece_mesh`).
+    """Return a Mitsuba scene of the cell rows ``runs`` of ``g``.
+
+    It has one mesh a run (:func:`hzval.geometry.tile.piece_mesh`).
     """
     return mi.load_dict(
         {
@@ -181,10 +190,12 @@ def band_scene(g: mesh.Grid, levels: np.ndarray, runs: list[tuple[int, int]]):
 
 
 def band_pass(t, azimuths) -> dict[float, list[np.ndarray]]:
-    """Every light's visibility at every sample of the truth ``t`` (a :class:`hzval.truth.plane.Truth` whose
-    mesh is in bands), one mesh band at a time: ``{azimuth: [bits of each sample band]}``, the 0/1
-    visibility of :meth:`hzval.truth.plane.Truth._visible` packed eight samples a byte (``np.packbits``).
-    Each band's mesh is built, its camera rays and the lights' shadow rays traced in it, and freed.
+    """Return every light's visibility at every sample of the truth ``t``, one mesh band at a time.
+
+    ``t`` is a :class:`hzval.truth.plane.Truth` whose mesh is in bands. The result is ``{azimuth: [bits of
+    each sample band]}``, the 0/1 visibility of :meth:`hzval.truth.plane.Truth._visible` packed eight samples
+    a byte (``np.packbits``). Each band's mesh is built, its camera rays and the lights' shadow rays traced in
+    it, and freed.
     """
     H, W = t.shape
     wrap = t.scene.material.boundary == "wrap"

@@ -1,6 +1,7 @@
-"""What the plane's and the model's truths share: the rays' lift above the surface, the random streams,
-the glossy lobe and its sampling, the reflection estimate and the per-pixel mean and variance of
-0/1 samples. Each formula is written once here; :mod:`hzval.truth.plane` and
+"""What the plane's and the model's truths share, each formula written once.
+
+That is the rays' lift above the surface, the random streams, the glossy lobe and its sampling, the reflection
+estimate and the per-pixel mean and variance of 0/1 samples. :mod:`hzval.truth.plane` and
 :mod:`hzval.truth.model` read it.
 """
 
@@ -44,8 +45,9 @@ REFLECTION_STREAM = 0x5EF1
 
 
 def lift_for(z_min: float, z_max: float) -> float:
-    """Return the ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``
-    (module docstring, "Self-intersection").
+    """Return the ray origins' lift above the surface, texels, for heights from ``z_min`` to ``z_max``.
+
+    See the module docstring, "Self-intersection".
     """
     return max(LIFT_TEXELS, LIFT_PER_HEIGHT * max(abs(z_min), abs(z_max)))
 
@@ -92,9 +94,10 @@ def sample_bsdf(scene: Scene, n, v, albedo, p_spec: float, u_lobe, u):
 
 
 def stream_rng(seed: int, stream: int, start: int, count: int):
-    """Return a PCG32 per sample ``start <= k < start + count`` of the image, seeded by the scene's ``seed``
-    and a ``stream`` tag: deterministic, and the same in a band as in one piece (the plane's truth
-    in bands, a model's in one piece, :mod:`hzval.truth.model`).
+    """Return a PCG32 per sample ``start <= k < start + count`` of the image.
+
+    Each is seeded by the scene's ``seed`` and a ``stream`` tag: deterministic, and the same in a band as in
+    one piece (the plane's truth in bands, a model's in one piece, :mod:`hzval.truth.model`).
     """
     state = (int(seed) * 0x9E3779B97F4A7C15 + stream) & 0xFFFFFFFFFFFFFFFF
     # Dr.Jit's PCG32(size, initstate, initseq) adds each lane's index to both (drjit/random.h):
@@ -108,9 +111,10 @@ def stream_rng(seed: int, stream: int, start: int, count: int):
 
 
 def lobe_sample(ns, v, u):
-    """``(wo, w)``: a direction of the glossy lobe about the shading normal ``ns`` seen from ``v``
-    (toward the camera, unit), from ``u`` in [0, 1)^2 (:func:`_lobe_direction`), and its weight in
-    the estimate of ``R`` (the ``reflection_occlusion`` layer, module docstring).
+    """Return ``(wo, w)``: a direction of the glossy lobe about ``ns`` and its weight in ``R``'s estimate.
+
+    ``ns`` is the shading normal, seen from ``v`` (toward the camera, unit); the direction comes from ``u`` in
+    [0, 1)^2 (:func:`_lobe_direction`); ``R`` is the ``reflection_occlusion`` layer (module docstring).
 
     Drawn from the lobe's half-vector distribution, each direction carries the
     estimator's weight ``f cos / pdf = ks 8 pi (wo.h) / (alpha + 1)``
@@ -123,10 +127,11 @@ def lobe_sample(ns, v, u):
 
 
 def reflection_estimate(w, V, spp: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(R, variance)`` per pixel (flat float32) from per-sample weights ``w`` (:func:`lobe_sample`)
-    and escapes ``V`` (0/1) of ``spp`` consecutive samples a pixel: ``R = sum w V / sum w`` (0
-    where ``sum w = 0``) and the ratio estimator's variance ``sum w^2 (V - R)^2 / (sum w)^2``
-    (NaN for one sample a pixel, which has none).
+    """Return ``(R, variance)`` per pixel (flat float32) from per-sample weights and escapes.
+
+    The weights are ``w`` (:func:`lobe_sample`) and the escapes ``V`` (0/1), of ``spp`` consecutive samples a
+    pixel: ``R = sum w V / sum w`` (0 where ``sum w = 0``) and the ratio estimator's variance ``sum w^2 (V -
+    R)^2 / (sum w)^2`` (NaN for one sample a pixel, which has none).
     """
     sums = [dr.block_sum(x, spp) for x in (w * V, w, w * w * V, w * w)]
     dr.eval(sums)
@@ -155,8 +160,9 @@ def _lobe_direction(n, v, u):
 
 
 def mean_and_variance(s1, ss, spp):
-    """Pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2: float64
-    Dr.Jit arrays in, float32 arrays out (rounded once, from float64).
+    """Return pixel means and variances of the mean from per-pixel sums of x and of (x - mean)^2.
+
+    Float64 Dr.Jit arrays go in, float32 arrays come out (rounded once, from float64).
 
     ``spp``: the samples of every pixel (an ``int``), or an array of each pixel's (those that see the
     surface; a pixel of none has mean 0). The variance of the mean is the sample variance (``n - 1``
@@ -178,8 +184,9 @@ def mean_and_variance(s1, ss, spp):
 
 @runtime_checkable
 class TruthLike(Protocol):
-    """What a sweep asks of a truth: the plane's (:class:`hzval.truth.plane.Truth`) and a model's
-    (:class:`hzval.truth.model.ModelTruth`) alike.
+    """What a sweep asks of a truth, the plane's and a model's alike.
+
+    The plane's is :class:`hzval.truth.plane.Truth`, a model's :class:`hzval.truth.model.ModelTruth`.
 
     Attributes
     ----------
@@ -215,8 +222,10 @@ NEEDS_ALBEDO = ("diffuse", "ambient", "interreflection")
 
 
 def albedo_texels(scene: Scene, rows: int, cols: int, albedo=None):
-    """Return the linear albedo texels of ``scene``'s material as one flat ``mi.Float`` array, row-major
-    ``(rows, cols, 3)``, or ``None`` when no declared effect reads it (:data:`NEEDS_ALBEDO`).
+    """Return the linear albedo texels of ``scene``'s material as one flat ``mi.Float`` array.
+
+    The array is row-major ``(rows, cols, 3)``, or ``None`` when no declared effect reads it
+    (:data:`NEEDS_ALBEDO`).
 
     ``albedo``: the texels themselves, ``(rows, cols, 3)`` linear; default the material's
     (:func:`hzval.scene.spec.load_albedo`).
@@ -230,9 +239,10 @@ def albedo_texels(scene: Scene, rows: int, cols: int, albedo=None):
 
 
 def albedo_at(texels, rows, cols, x, y, active=True):
-    """Return the linear albedo of the texel that holds the texel-unit point ``(x, y)``: nearest, as the
-    techniques read it (column ``floor(x)``, row ``rows - ceil(y)``: exact in float32, where
-    ``rows - y`` itself would round).
+    """Return the linear albedo of the texel that holds the texel-unit point ``(x, y)``.
+
+    It is the nearest, as the techniques read it (column ``floor(x)``, row ``rows - ceil(y)``: exact in
+    float32, where ``rows - y`` itself would round).
 
     ``rows`` and ``cols``: the map's size as opaque ``mi.Float`` values (``dr.opaque``), so that one
     kernel serves every map size.
@@ -244,11 +254,12 @@ def albedo_at(texels, rows, cols, x, y, active=True):
 
 
 def relight(truth, elevation_deg: float) -> bool:
-    """Point ``truth``'s light (``truth.scene``) at ``elevation_deg``, a sweep's elevation axis
-    (:meth:`hzval.scene.spec.Light.elevations`): at least the elevation it was built for
-    (``truth.built_elevation_deg``), whose margins and bands hold the longest shadow rays, and so
-    every higher light's. Whether the light changed (what a truth that traced its lights ahead must
-    trace again).
+    """Point ``truth``'s light (``truth.scene``) at ``elevation_deg``; return whether the light changed.
+
+    ``elevation_deg`` is on a sweep's elevation axis (:meth:`hzval.scene.spec.Light.elevations`): at least the
+    elevation it was built for (``truth.built_elevation_deg``), whose margins and bands hold the longest
+    shadow rays, and so every higher light's. A changed light is what a truth that traced its lights ahead
+    must trace again.
 
     Raises
     ------

@@ -97,10 +97,11 @@ def estimate_peak_bytes(
     keeps: bool | None = None,
     techniques: int = TECHNIQUES_BY_DEFAULT,
 ) -> int:
-    """Return the peak resident memory a sweep of ``scene`` on a ``rows x cols`` map is expected to reach,
-    in bytes (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the truth's mesh's
-    (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel.
-    ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
+    """Return the peak resident memory, in bytes, a sweep of ``scene`` is expected to reach.
+
+    The sweep is on a ``rows x cols`` map (:data:`PEAK_BYTES_PER_PIXEL` and the rest); ``triangles``: the
+    truth's mesh's (:func:`hzval.truth.plane.mesh_triangles`), else :data:`TRIANGLES_PER_PIXEL_BEFORE_THE_MAP`
+    a texel. ``metrics.json`` records it beside the measured peak. ``keeps``: whether the truth keeps its
     samples' camera hits (default :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none).
     ``techniques``: how many the sweep runs (:data:`PEAK_BYTES_PER_TECHNIQUE_PIXEL` each).
     """
@@ -139,9 +140,11 @@ PEAK_BYTES_PER_BAND_TRIANGLE = 135
 
 @dataclasses.dataclass(frozen=True)
 class TruthPlan:
-    """How the truth of a sweep holds its mesh (:func:`truth_plan`): ``triangles`` of the whole mesh;
-    ``band_rows`` (pixel rows a band) and ``band_triangles`` (the largest band's) where it is built in
-    bands, else ``None`` and 0; ``why_single``: why it cannot be built in bands (``None`` where it can).
+    """How the truth of a sweep holds its mesh (:func:`truth_plan`).
+
+    ``triangles`` is the whole mesh's; ``band_rows`` (pixel rows a band) and ``band_triangles`` (the largest
+    band's) where it is built in bands, else ``None`` and 0; ``why_single``: why it cannot be built in bands
+    (``None`` where it can).
     """
 
     triangles: int
@@ -163,12 +166,13 @@ def band_peak_bytes(scene, rows: int, cols: int, band_triangles: int) -> int:
 
 
 def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAULT) -> TruthPlan:
-    """Whether the truth of ``scene`` on the normalised ``height`` map builds its mesh at once or in bands
-    (:mod:`hzval.truth.bands`), and the bands' rows: at once when the sweep's estimate with the whole
-    mesh fits within :data:`hzval.truth.bands.PEAK_TARGET_BYTES` and the memory available, or where
-    a ray could leave a band (:func:`hzval.truth.bands.why_not`); else in the largest bands of whole
-    sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the sweep's estimate
-    (so that the bands do not raise its peak; within that target and the memory available, if
+    """Return whether the truth builds its mesh at once or in bands, and the bands' rows.
+
+    The truth is of ``scene`` on the normalised ``height`` map; bands are :mod:`hzval.truth.bands`. It is at
+    once when the sweep's estimate with the whole mesh fits within :data:`hzval.truth.bands.PEAK_TARGET_BYTES`
+    and the memory available, or where a ray could leave a band (:func:`hzval.truth.bands.why_not`); else in
+    the largest bands of whole sample bands whose phase (:func:`band_peak_bytes`) stays within the rest of the
+    sweep's estimate (so that the bands do not raise its peak; within that target and the memory available, if
     lower): fewer, larger bands build fewer triangles twice (their covers overlap).
     """
     rows, cols = np.shape(height)
@@ -197,8 +201,10 @@ def truth_plan(scene, height: np.ndarray, techniques: int = TECHNIQUES_BY_DEFAUL
 
 
 def _model_peak_bytes(scene, rows: int, cols: int, techniques: int = TECHNIQUES_BY_DEFAULT) -> int:
-    """Return the peak of a sweep on a model (:mod:`hzval.truth.model`): the displaced mesh's triangles
-    (:func:`hzval.geometry.displace.estimate`), every sample's kept hit and frame, and the images.
+    """Return the peak of a sweep on a model (:mod:`hzval.truth.model`).
+
+    It counts the displaced mesh's triangles (:func:`hzval.geometry.displace.estimate`), every sample's kept
+    hit and frame, and the images.
     """
     base = model.load(
         scene.mesh.shape, uv_scale=scene.mesh.uv_scale, up=scene.mesh.up, tangents=scene.mesh.tangents
@@ -230,9 +236,10 @@ MAX_FRAME_PIXELS = 2**31
 
 
 def check_frame_pixels(scene, rows: int, cols: int) -> int:
-    """Lights (azimuths times elevations) times pixels of a sweep of ``scene`` on a ``rows x cols``
-    map, if at most :data:`MAX_FRAME_PIXELS`; else one line naming ``--azimuths`` (``--elevation``
-    over several elevations).
+    """Return a sweep's frame pixels, lights times pixels, if at most :data:`MAX_FRAME_PIXELS`.
+
+    The sweep is of ``scene`` on a ``rows x cols`` map; its lights are azimuths times elevations. Otherwise
+    the error is one line naming ``--azimuths`` (``--elevation`` over several elevations).
     """
     H, W = sc.image_shape(rows, cols, scene.camera)
     lights = len(scene.light.azimuths_deg) * len(scene.light.elevations())
@@ -255,13 +262,14 @@ def check_fits(
     plan: TruthPlan | None = None,
     techniques: int = TECHNIQUES_BY_DEFAULT,
 ) -> int:
-    """Refuse, before anything is allocated, a sweep of more than :data:`MAX_FRAME_PIXELS`, or whose
-    bake or whose estimated peak (:func:`estimate_peak_bytes`) would not fit in the memory available
-    now; return the estimate. ``height``: the normalised map, once read: the estimate then counts the
-    truth's own triangles (:func:`hzval.truth.plane.mesh_triangles`), and a refusal names
-    ``--truth-tolerance`` as well. ``plan``: the truth's (:func:`truth_plan`, made here if not given): a
-    mesh in bands is charged by its largest band, at the larger of the bands' phase and the rest of
-    the sweep. ``techniques``: how many the sweep runs.
+    """Refuse a sweep that would not fit, before anything is allocated; return the estimate.
+
+    A sweep is refused when it has more than :data:`MAX_FRAME_PIXELS`, or when its bake or its estimated peak
+    (:func:`estimate_peak_bytes`) would not fit in the memory available now. ``height``: the normalised map,
+    once read: the estimate then counts the truth's own triangles (:func:`hzval.truth.plane.mesh_triangles`),
+    and a refusal names ``--truth-tolerance`` as well. ``plan``: the truth's (:func:`truth_plan`, made here if
+    not given): a mesh in bands is charged by its largest band, at the larger of the bands' phase and the rest
+    of the sweep. ``techniques``: how many the sweep runs.
     """
     rows, cols = material_shape(scene) if height is None else np.shape(height)
     what = "--size" if materials.is_builtin(scene.material.height) else scene.material.height

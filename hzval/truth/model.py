@@ -56,17 +56,19 @@ BYTES_PER_REFLECTION_SAMPLE = 48
 
 
 def bytes_per_sample(scene: Scene) -> int:
-    """Bytes a sample of ``scene``'s truth on a model takes at its peak: its kept hit and frame
-    (:data:`BYTES_PER_SAMPLE`) and, where ``reflection_occlusion`` is declared, the lobe's rays
-    (:data:`BYTES_PER_REFLECTION_SAMPLE`).
+    """Return the bytes a sample of ``scene``'s truth on a model takes at its peak.
+
+    These are its kept hit and frame (:data:`BYTES_PER_SAMPLE`) and, where ``reflection_occlusion`` is
+    declared, the lobe's rays (:data:`BYTES_PER_REFLECTION_SAMPLE`).
     """
     return BYTES_PER_SAMPLE + (BYTES_PER_REFLECTION_SAMPLE if scene.declares("reflection_occlusion") else 0)
 
 
 def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> View:
-    """Return the camera over a model whose displaced surface lies within ``points`` ``(N, 3)`` (world
-    units), looking from elevation/azimuth about the world's up axis (+z) as
-    :meth:`hzval.scene.camera.Camera.view` looks at a tile (``top``: straight down).
+    """Return the camera over a model whose displaced surface lies within ``points``.
+
+    ``points`` is ``(N, 3)`` (world units). The camera looks from elevation/azimuth about the world's up axis
+    (+z) as :meth:`hzval.scene.camera.Camera.view` looks at a tile (``top``: straight down).
 
     A perspective eye frames the points' bounding sphere: ``distance`` sphere diameters from its
     centre, or farther where the field of view needs it to hold the sphere. An orthographic film
@@ -124,7 +126,10 @@ def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> Vi
 
 
 def _rays(o: np.ndarray, d: np.ndarray):
-    """``mi.Ray3f`` of host origins and directions ``(n, 3)`` (float64, :meth:`hzval.scene.camera.View.rays`)."""
+    """Return ``mi.Ray3f`` of host origins and directions ``(n, 3)``.
+
+    The origins and directions are float64 (:meth:`hzval.scene.camera.View.rays`).
+    """
     return mi.Ray3f(
         mi.Point3f(*(mi.Float(o[:, j].astype(np.float32)) for j in range(3))),
         mi.Vector3f(*(mi.Float(d[:, j].astype(np.float32)) for j in range(3))),
@@ -132,8 +137,10 @@ def _rays(o: np.ndarray, d: np.ndarray):
 
 
 def _welded_normals(model) -> np.ndarray:
-    """``(V, 3)``: each vertex's normal averaged over the vertices at its position (``model.weld``),
-    so that a surface offset along them stays closed where the normals split (a cube's edges).
+    """Return ``(V, 3)``: each vertex's normal averaged over the vertices at its position.
+
+    The vertices at a position are ``model.weld``'s. The average keeps a surface offset along the normals
+    closed where the normals split (a cube's edges).
     """
     ids = model.weld
     sums = np.zeros((int(ids.max()) + 1, 3))
@@ -143,9 +150,10 @@ def _welded_normals(model) -> np.ndarray:
 
 
 class _Traced:
-    """A triangle mesh in its own ``mi.Scene`` and the base mesh's values at its vertices (``uvs``,
-    ``normals``, ``tangents`` of ``frames``; ``p`` the base point, ``base_positions`` where the mesh
-    is the base mesh displaced), interpolated at a hit by :meth:`at`.
+    """A triangle mesh in its own ``mi.Scene`` and the base mesh's values at its vertices.
+
+    The values are ``uvs``, ``normals``, ``tangents`` of ``frames``; ``p`` the base point, ``base_positions``
+    where the mesh is the base mesh displaced. :meth:`at` interpolates them at a hit.
     """
 
     def __init__(self, name: str, positions: np.ndarray, faces: np.ndarray, frames):
@@ -172,8 +180,10 @@ class _Traced:
         }
 
     def at(self, prim, b1, b2):
-        """``f(key, size)``: the vertex values ``key`` (``size`` floats a vertex) at barycentrics
-        ``(b1, b2)`` of the triangles ``prim`` (Mitsuba's: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``).
+        """Return ``f(key, size)``, which interpolates the vertex values ``key`` at a hit.
+
+        ``size`` is the floats a vertex; ``f`` gives them at barycentrics ``(b1, b2)`` of the triangles
+        ``prim`` (Mitsuba's: ``(1 - b1 - b2) p0 + b1 p1 + b2 p2``).
         """
         ids = [dr.gather(mi.UInt32, self._faces, prim * 3 + k) for k in range(3)]
 
@@ -186,11 +196,12 @@ class _Traced:
 
 
 class ModelTruth:
-    """The truth of one scene, height map and model (module docstring); the plane's
-    :class:`hzval.truth.plane.Truth` interface: :meth:`render`, ``shape``, ``seen``, ``view``,
-    ``simulated``, ``timings``, ``hits`` (``None``: the techniques' samples are
-    :meth:`samples`), plus ``model`` (the base mesh) and ``plane_offset`` (world units along the
-    normals from the base mesh to the techniques' surface, the lookup's plane).
+    """The truth of one scene, height map and model (module docstring).
+
+    It has the plane's :class:`hzval.truth.plane.Truth` interface: :meth:`render`, ``shape``, ``seen``,
+    ``view``, ``simulated``, ``timings``, ``hits`` (``None``: the techniques' samples are :meth:`samples`),
+    plus ``model`` (the base mesh) and ``plane_offset`` (world units along the normals from the base mesh to
+    the techniques' surface, the lookup's plane).
     """
 
     hits = None
@@ -261,8 +272,10 @@ class ModelTruth:
         self._macro_key, self._macro_value = None, None
 
     def _check_fits(self, model, h: np.ndarray) -> None:
-        """Refuse, before it is built, a displaced mesh (its twisted cells' rings counted) and camera
-        hits that would not fit in the memory available: one line naming the tolerance.
+        """Refuse a displaced mesh and camera hits that would not fit in the memory available.
+
+        The check comes before the mesh is built and counts its twisted cells' rings; the refusal is one line
+        naming the tolerance.
         """
         mat = self.scene.material
         triangles, mesh_bytes = displace.estimate(
@@ -288,9 +301,11 @@ class ModelTruth:
     # -- camera rays, once ----------------------------------------------------------------------
 
     def _trace_camera(self) -> None:
-        """Every sample's camera ray against the displaced model (the truth's hit) and against the
-        techniques' surface (theirs: where an engine shades), once; what the frames read there, kept.
-        :attr:`seen`: the pixels all of whose samples hit both.
+        """Trace every sample's camera ray once, against the displaced model and the techniques' surface.
+
+        The hit on the displaced model is the truth's; the one on the techniques' surface is theirs (where an
+        engine shades). What the frames read there is kept. :attr:`seen`: the pixels all of whose samples hit
+        both.
         """
         H, W = self.shape
         spp = self.spp
@@ -309,12 +324,13 @@ class ModelTruth:
         self._reflection = self._trace_reflection() if self.scene.declares("reflection_occlusion") else None
 
     def _hits(self, mesh: "_Traced", ray, *, shade: bool) -> dict:
-        """Where ``ray`` meets ``mesh``: the point, its triangle's normal ``ng`` (on the side of the
-        base normal), the frame (:func:`hzval.geometry.tangents.orthonormal`), the texel position
-        ``(x, y)`` of its ``uv``, the base point ``pb`` and ``v`` toward the camera; ``shade``: also the
-        shading normal (the normal map at ``uv`` carried into the world) and the albedo there. A
-        sample that misses keeps the world's frame at the texture's centre: traced, and counted for
-        nothing.
+        """Return where ``ray`` meets ``mesh`` and the values there.
+
+        These are the point, its triangle's normal ``ng`` (on the side of the base normal), the frame
+        (:func:`hzval.geometry.tangents.orthonormal`), the texel position ``(x, y)`` of its ``uv``, the base
+        point ``pb`` and ``v`` toward the camera; ``shade``: also the shading normal (the normal map at ``uv``
+        carried into the world) and the albedo there. A sample that misses keeps the world's frame at the
+        texture's centre: traced, and counted for nothing.
         """
         pi = mesh.scene.ray_intersect_preliminary(ray, coherent=True)
         hit = pi.is_valid()
@@ -359,7 +375,10 @@ class ModelTruth:
         return self._displaced.mesh
 
     def _albedo_at(self, x, y):
-        """Return the albedo at ``(x, y)`` (:func:`hzval.truth.common.albedo_at`, nearest, as on the plane)."""
+        """Return the albedo at ``(x, y)``, nearest, as on the plane.
+
+        See :func:`hzval.truth.common.albedo_at`.
+        """
         return common.albedo_at(self._albedo, *self._size, x, y)
 
     def _origin(self, p, n):
@@ -388,9 +407,11 @@ class ModelTruth:
         return A
 
     def _trace_reflection(self) -> tuple[np.ndarray, np.ndarray]:
-        """``R`` per pixel and its variance ``(H, W)``: the share of the glossy lobe about each hit's
-        shading normal, seen from its own ``v``, that escapes the displaced model (module docstring;
-        the plane's estimator and random streams, sample for sample where the rays are the plane's).
+        """Return ``R`` per pixel and its variance ``(H, W)``.
+
+        ``R`` is the share of the glossy lobe about each hit's shading normal, seen from its own ``v``, that
+        escapes the displaced model (module docstring; the plane's estimator and random streams, sample for
+        sample where the rays are the plane's).
         """
         t0 = time.perf_counter()
         st = self._st
@@ -420,8 +441,10 @@ class ModelTruth:
         common.relight(self, elevation_deg)
 
     def render(self, azimuth_deg: float) -> Frame:
-        """Return the frame of the light at ``azimuth_deg`` (degrees, about the world's up axis; elevation
-        the scene's): :meth:`hzval.truth.plane.Truth.render`'s layers, ``mask`` the seen pixels.
+        """Return the frame of the light at ``azimuth_deg`` (degrees, about the world's up axis).
+
+        The elevation is the scene's. The layers are :meth:`hzval.truth.plane.Truth.render`'s, ``mask`` the
+        seen pixels.
         """
         t0 = time.perf_counter()
         sc, st = self.scene, self._st
@@ -477,8 +500,9 @@ class ModelTruth:
         )
 
     def _reduce(self, sums: dict, img) -> tuple[dict, dict]:
-        """Pixel means and variances of the mean of the 0/1 layers ``sums`` and the radiance ``img``
-        (:func:`hzval.truth.common.mean_and_variance`), ``(H, W[, 3])`` float32 each.
+        """Reduce the 0/1 layers ``sums`` and radiance ``img`` to pixel means and variances of the mean.
+
+        See :func:`hzval.truth.common.mean_and_variance`; each is ``(H, W[, 3])`` float32.
         """
         spp, (H, W) = self.spp, self.shape
         reduced = {k: dr.block_sum(v, spp) for k, v in sums.items()}
@@ -506,9 +530,10 @@ class ModelTruth:
     # -- what the techniques read ---------------------------------------------------------------
 
     def macro(self, direction) -> object:
-        """Return the base mesh's own visibility of the world direction ``direction`` per sample (``mi.Float``,
-        0 or 1): a shadow ray from the base point against the undisplaced model, which an engine's
-        shadow map answers. The last direction's is kept: every technique of a frame reads it.
+        """Return the base mesh's own visibility of the world direction ``direction`` per sample.
+
+        It is a ``mi.Float``, 0 or 1: a shadow ray from the base point against the undisplaced model, which an
+        engine's shadow map answers. The last direction's is kept: every technique of a frame reads it.
         """
         key = tuple(float(c) for c in direction)
         if self._macro_key != key:
@@ -522,8 +547,10 @@ class ModelTruth:
         return self._macro_value
 
     def macro_shadowed(self, azimuth_deg: float) -> float:
-        """Return the share of the seen pixels' samples that face the light (``n.L > 0``) but that the base
-        mesh shadows: what the engine's shadow map, not the technique, decides (``metrics.json``).
+        """Return the share of the seen pixels' samples that face the light but that the base mesh shadows.
+
+        Facing the light is ``n.L > 0``. This is what the engine's shadow map, not the technique, decides
+        (``metrics.json``).
         """
         direction = self.scene.light.direction(azimuth_deg)
         M = self.macro(direction)
@@ -535,9 +562,11 @@ class ModelTruth:
 
     @functools.cached_property
     def handedness(self) -> np.ndarray:
-        """``(H, W)`` int8: the sign ``w`` of the correct frames (:func:`hzval.geometry.tangents.handedness`:
-        -1 where the UVs are mirrored) where every sample of a seen pixel has it, 0 elsewhere (a
-        pixel across a mirror seam, or unseen). A tangent bug does not change it.
+        """Return ``(H, W)`` int8: the sign ``w`` of the correct frames per pixel.
+
+        ``w`` is :func:`hzval.geometry.tangents.handedness`'s: -1 where the UVs are mirrored. It is given
+        where every sample of a seen pixel has it, 0 elsewhere (a pixel across a mirror seam, or unseen). A
+        tangent bug does not change it.
         """
         t, b, n = (np.stack([np.asarray(c, np.float64) for c in self._own[k]], -1) for k in ("t", "b", "n"))
         w = tg.handedness(t, b, n).reshape(-1, self.spp)
@@ -545,10 +574,12 @@ class ModelTruth:
         return np.where(self.seen, sign, 0).astype(np.int8)
 
     def samples(self, at: str = "camera") -> lookup.Samples:
-        """Return the techniques' :class:`hzval.scene.lookup.Samples`, with their frames: where the camera's rays
-        meet their surface (``"camera"``, as an engine shades: moved by the lookup's parallax mapping
-        along each ray in its sample's tangent frame, with each pixel's footprint for a mip filter),
-        or at the truth's own hits (``"truth"``: perfect parallax, a view's second set of scores).
+        """Return the techniques' :class:`hzval.scene.lookup.Samples`, with their frames.
+
+        They lie where the camera's rays meet their surface (``"camera"``, as an engine shades: moved by the
+        lookup's parallax mapping along each ray in its sample's tangent frame, with each pixel's footprint
+        for a mip filter), or at the truth's own hits (``"truth"``: perfect parallax, a view's second set of
+        scores).
         """
         st = self._own if at == "camera" else self._st
         xy = np.stack([np.asarray(st["x"], np.float64), np.asarray(st["y"], np.float64)], -1)
@@ -580,17 +611,20 @@ class ModelTruth:
         )
 
     def base_points(self) -> np.ndarray:
-        """``(pixels * spp, 3)`` float64: the base mesh's point (world) under every sample's truth
-        hit, the point whose uv and frame the hit keeps (NaN where the sample misses).
+        """Return the base mesh's point (world) under every sample's truth hit.
+
+        The result is ``(pixels * spp, 3)`` float64: the point whose uv and frame the hit keeps (NaN where the
+        sample misses).
         """
         p = np.stack([np.asarray(c, np.float64) for c in self._st["pb"]], -1)
         p[~np.asarray(self._st["hit"], bool)] = np.nan
         return p
 
     def _engine_frames(self, frames: np.ndarray) -> np.ndarray:
-        """Return the techniques' frames with the scene's tangent bug (:mod:`hzval.geometry.tangent_bugs`; ``none``:
-        ``frames`` themselves). ``per-face`` takes the base triangle the camera's ray meets on the
-        techniques' surface, for the truth's hits too (the same ray's, which differs from the
+        """Return the techniques' frames with the scene's tangent bug (:mod:`hzval.geometry.tangent_bugs`).
+
+        With ``none`` they are ``frames`` themselves. ``per-face`` takes the base triangle the camera's ray
+        meets on the techniques' surface, for the truth's hits too (the same ray's, which differs from the
         displaced hit's base triangle only within the relief's height of an edge).
         """
         bug = self.scene.mesh.tangent_bug
@@ -600,9 +634,10 @@ class ModelTruth:
         )
 
     def _footprints(self) -> np.ndarray:
-        """Per pixel, how far the texel seen on the techniques' surface moves from one pixel to the
-        next (:meth:`hzval.scene.camera.View.footprints` with the surface's hits for the plane's points;
-        ``wrap`` across the tile the short way; NaN where a ray misses).
+        """Return, per pixel, how far the texel seen on the techniques' surface moves to the next pixel.
+
+        See :meth:`hzval.scene.camera.View.footprints`, with the surface's hits for the plane's points;
+        ``wrap`` across the tile the short way; NaN where a ray misses.
         """
 
         def points(o, d):

@@ -41,12 +41,12 @@ SIMULATES: tuple[str, ...] = (
 
 
 def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
-    """Return the elevation, degrees, whose rays the wrap margin holds without a hop: the light's
-    lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
-    in every direction: ambient, reflection, paths) :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`;
-    never lower than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels
-    instead of 581, a mesh of 2405^2 vertices instead of 3211^2 (the BVH's build time and
-    memory with it).
+    """Return the elevation, degrees, whose rays the wrap margin holds without a hop.
+
+    It is the light's lowest direction (``lowest``) when shadow rays toward it are the only rays, else (rays
+    in every direction: ambient, reflection, paths) :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`; never lower
+    than that. The bricks at 30 degrees on 2048 texels: a margin of 178 texels instead of 581, a mesh of
+    2405^2 vertices instead of 3211^2 (the BVH's build time and memory with it).
     """
     everywhere = any(scene.declares(e) for e in ("ambient", "reflection_occlusion", "interreflection"))
     if everywhere:
@@ -55,9 +55,11 @@ def _margin_elevation_deg(scene: Scene, lowest: float) -> float:
 
 
 def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
-    """``(min_elevation_deg, margin)`` of the truth's mesh of heights ``h_texels`` (texels): the lowest
-    elevation its rays are traced toward (the light's lowest direction, at most
-    :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`) and its wrap margin in texels (0 for ``open``).
+    """Return ``(min_elevation_deg, margin)`` of the truth's mesh of heights ``h_texels`` (texels).
+
+    ``min_elevation_deg`` is the lowest elevation its rays are traced toward (the light's lowest direction, at
+    most :data:`hzval.geometry.tile.MIN_ELEVATION_DEG`), ``margin`` its wrap margin in texels (0 for
+    ``open``).
     """
     light = scene.light
     lowest = light.elevation_deg - (light.radius_deg if light.kind == "soft" else 0.0)
@@ -71,10 +73,11 @@ def surface_margin(scene: Scene, h_texels: np.ndarray) -> tuple[float, int]:
 
 
 def mesh_grid(scene: Scene, height: np.ndarray):
-    """``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised ``height`` map
-    for ``scene`` (margin and skirt included) and its cells' levels (:func:`hzval.geometry.tile.cell_levels`
-    at
-    ``material.truth_tolerance``), as :class:`Truth` makes them, without a triangle.
+    """Return the truth mesh's vertex grid and its cells' levels, without a triangle.
+
+    The result is ``(grid, levels, h_texels)``: the vertex grid of the truth's mesh of the normalised
+    ``height`` map for ``scene`` (margin and skirt included) and its cells' levels
+    (:func:`hzval.geometry.tile.cell_levels` at ``material.truth_tolerance``), as :class:`Truth` makes them.
     """
     mat = scene.material
     h_tex = cv.heights_in_texels(np.asarray(height, np.float32), mat.depth)
@@ -90,9 +93,10 @@ def mesh_grid(scene: Scene, height: np.ndarray):
 
 
 def mesh_triangles(scene: Scene, height: np.ndarray) -> int:
-    """Triangles of the truth's mesh of the normalised ``height`` map for ``scene``, margin and skirt
-    included (:func:`mesh_grid`), counted without building it: what
-    :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh.
+    """Return the triangles of the truth's mesh, counted without building it.
+
+    The mesh is of the normalised ``height`` map for ``scene``, margin and skirt included (:func:`mesh_grid`);
+    the count is what :func:`hzval.truth.memory.estimate_peak_bytes` charges for the mesh.
     """
     return mesh.triangle_count(mesh_grid(scene, height)[1])
 
@@ -289,9 +293,9 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
         return ambient
 
     def _trace_reflection(self, st: "truth_samples.Samples") -> tuple[np.ndarray, np.ndarray]:
-        """``R`` per pixel of the band ``st`` and its variance (flat): the share of the glossy lobe that
-        escapes
-        (independent of the light, once).
+        """Return ``R`` per pixel of the band ``st`` and its variance (flat).
+
+        ``R`` is the share of the glossy lobe that escapes (independent of the light, once).
 
         Directions and weights: :func:`common.lobe_sample`; ``V`` = 1 where the
         direction escapes; ``R`` and its variance: :func:`common.reflection_estimate`
@@ -314,8 +318,10 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     # ------------------------------------------------------------------
 
     def light_directions(self, azimuth_deg: float, st: "truth_samples.Samples | None" = None):
-        """``(L, lowest, highest)``: the light direction of every sample of ``st`` (default: every
-        sample, one band), and the lowest and highest elevations of the light, radians.
+        """Return ``(L, lowest, highest)``: the samples' light directions and the light's elevation bounds.
+
+        ``L`` is the light direction of every sample of ``st`` (default: every sample, one band); ``lowest``
+        and ``highest`` are the lowest and highest elevations of the light, radians.
 
         A hard light is one opaque vector for all samples (a new azimuth
         changes its value, not the kernel); a soft one an array from
@@ -428,9 +434,11 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
     def _render_band(
         self, st: "truth_samples.Samples", azimuth_deg: float
     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Pixel means and variances of the mean (:func:`common.mean_and_variance`) over the samples of the
-        band ``st``: ``visibility`` and ``ambient`` (the 0/1 samples) and ``image`` (the radiance;
-        only where an effect shades), each a pair of flat float32 arrays ``(pixels[, 3])``.
+        """Return pixel means and variances of the mean over the samples of the band ``st``.
+
+        See :func:`common.mean_and_variance`. They are of ``visibility`` and ``ambient`` (the 0/1 samples) and
+        ``image`` (the radiance; only where an effect shades), each a pair of flat float32 arrays ``(pixels[,
+        3])``.
         """
         sc = self.scene
         L, lowest, highest = self.light_directions(azimuth_deg, st)

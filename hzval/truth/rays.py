@@ -1,6 +1,8 @@
-"""The plane truth's rays: the camera's rays and their hits (CameraRays), shadow, ambient and reflection
-queries against the displaced tile with its hops across a wrapping tile (RayQueries), and the path
-tracer of ``interreflection`` (PathTracing). :class:`hzval.truth.plane.Truth` is made of them.
+"""The plane truth's rays, of which :class:`hzval.truth.plane.Truth` is made.
+
+They are the camera's rays and their hits (CameraRays), shadow, ambient and reflection queries against the
+displaced tile with its hops across a wrapping tile (RayQueries), and the path tracer of ``interreflection``
+(PathTracing).
 """
 
 from __future__ import annotations
@@ -36,16 +38,18 @@ MIN_TRACED_ELEVATION_DEG = 0.25
 
 
 class CameraRays:
-    """The truth's camera rays (a part of :class:`hzval.truth.plane.Truth`): where each sample of the
-    view meets the displaced mesh, kept between frames or traced again band by band
-    (docs/internals.md, the truth's "Memory"), with the albedo and shading normal there.
+    """The truth's camera rays (a part of :class:`hzval.truth.plane.Truth`).
+
+    They are where each sample of the view meets the displaced mesh, kept between frames or traced again band
+    by band (docs/internals.md, the truth's "Memory"), with the albedo and shading normal there.
     """
 
     def _trace_camera_rays(self) -> None:
-        """Where every sample's camera ray meets the surface, once, and what does not depend on the
-        light (``A``, ``R``). One band keeps its samples (:class:`samples.Samples`) for every frame; with
-        more (docs/internals.md, the truth's "Memory") only ``A`` is kept, per band, and the reflection
-        layer.
+        """Trace every sample's camera ray to the surface once, with what does not depend on the light.
+
+        What does not depend on the light is ``A`` and ``R``. One band keeps its samples
+        (:class:`samples.Samples`) for every frame; with more (docs/internals.md, the truth's "Memory") only
+        ``A`` is kept, per band, and the reflection layer.
         """
         t0 = time.perf_counter()
         self.moved_off_edges, self._kept, self._ambient_bands = 0, None, []
@@ -94,9 +98,11 @@ class CameraRays:
             self.timings["bands_s"] = time.perf_counter() - t0
 
     def _camera_samples(self, first: int, stop: int) -> "truth_samples.Samples":
-        """Return the samples of the pixels ``first <= p < stop``: where their camera rays meet the surface
-        (lifted origin, geometric and shading normal) and the albedo of the texel that holds each
-        (an expression over the positions: the kernels that read it gather it).
+        """Return the samples of the pixels ``first <= p < stop``.
+
+        They are where their camera rays meet the surface (lifted origin, geometric and shading normal) and
+        the albedo of the texel that holds each (an expression over the positions: the kernels that read it
+        gather it).
         """
         rows, cols, spp = self.rows, self.cols, self.spp
         xs, ys, seen = self._band_positions(first, stop)
@@ -129,9 +135,10 @@ class CameraRays:
         return common.albedo_at(self._albedo_texels, self._c["rows"], self._c["cols"], x, y, active)
 
     def _band_positions(self, first: int, stop: int):
-        """``(x, y, seen)`` of the samples of the pixels ``first <= p < stop``: the scene's top-view
-        positions or the tests' (``seen`` None: all), or where the camera's rays meet the surface
-        (``seen``: which do; the others are put on the tile, and count for nothing).
+        """Return ``(x, y, seen)`` of the samples of the pixels ``first <= p < stop``.
+
+        They are the scene's top-view positions or the tests' (``seen`` None: all), or where the camera's rays
+        meet the surface (``seen``: which do; the others are put on the tile, and count for nothing).
         """
         scene, spp = self.scene, self.spp
         if self.hits is not None:
@@ -151,9 +158,11 @@ class CameraRays:
         return (*(p[first * spp : stop * spp] for p in self._positions), None)
 
     def _trace_view(self) -> None:
-        """Trace every camera ray once (a view other than ``top``): :attr:`seen`, the pixels whose
-        rays meet the surface, and, when the truth keeps its samples (:attr:`keeps`), :attr:`hits`
-        (float32 ``(x, y)`` of each sample's surface point, in the tile), which the frames reuse.
+        """Trace every camera ray once, for a view other than ``top``.
+
+        It finds :attr:`seen`, the pixels whose rays meet the surface, and, when the truth keeps its samples
+        (:attr:`keeps`), :attr:`hits` (float32 ``(x, y)`` of each sample's surface point, in the tile), which
+        the frames reuse.
         """
         H, W = self.shape
         seen_px, hx, hy, hs = [], [], [], []
@@ -169,10 +178,11 @@ class CameraRays:
             self.seen_samples = hs[0] if one else np.concatenate(hs)
 
     def _view_hits(self, first: int, stop: int):
-        """Where the camera rays of the pixels ``first <= p < stop`` meet the surface: float32 ``x, y``
-        in the tile (``wrap``: the endless tiling, in hops; ``open``: the tile alone) and which rays
-        do. A ray first runs in float64, on the host, to just above the highest point (wrapped into
-        the tile), so that the float32 rays start near the surface whatever the eye's distance.
+        """Return where the camera rays of the pixels ``first <= p < stop`` meet the surface.
+
+        The hits are float32 ``x, y`` in the tile (``wrap``: the endless tiling, in hops; ``open``: the tile
+        alone), with which rays do. A ray first runs in float64, on the host, to just above the highest point
+        (wrapped into the tile), so that the float32 rays start near the surface whatever the eye's distance.
         """
         o, d = self.view.rays(self.spp, self.scene.seed, first, stop)
         down = d[:, 2] < 0.0
@@ -199,9 +209,10 @@ class CameraRays:
         return xs, ys, seen
 
     def _shading_samples(self, first: int, stop: int) -> "truth_samples.Samples":
-        """Return the samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands: their
-        shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their visibility is
-        :meth:`_band_visibility`'s).
+        """Return the samples of the pixels ``first <= p < stop`` of a truth whose mesh is in bands.
+
+        They hold their shading normals and albedo, which need no mesh (``o`` and ``n`` unset: their
+        visibility is :meth:`_band_visibility`'s).
         """
         xs, ys, _ = self._band_positions(first, stop)
         xs, ys, moved = truth_samples.off_edge_lines(xs, ys, self.rows, self.cols, self.edge_level)
@@ -220,8 +231,9 @@ class CameraRays:
         )
 
     def _band_visibility(self, azimuth_deg: float, st: "truth_samples.Samples"):
-        """``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass` (a light not
-        of the scene's sweep gets its own pass).
+        """Return ``V`` per sample of ``st`` from the bits of :func:`hzval.truth.bands.band_pass`.
+
+        A light not of the scene's sweep gets its own pass.
         """
         az = float(azimuth_deg)
         if az not in self._vis:
@@ -245,15 +257,18 @@ class CameraRays:
 
 
 class RayQueries:
-    """The truth's ray queries against the displaced mesh (a part of :class:`hzval.truth.plane.Truth`):
-    where a ray from above meets the surface, whether a shadow ray is blocked, across a ``wrap``
-    tile's hops, and the per-sample random streams. They read the Truth's Mitsuba scene and its
+    """The truth's ray queries against the displaced mesh (a part of :class:`hzval.truth.plane.Truth`).
+
+    They answer where a ray from above meets the surface and whether a shadow ray is blocked, across a
+    ``wrap`` tile's hops, and hold the per-sample random streams. They read the Truth's Mitsuba scene and its
     tile geometry.
     """
 
     def _rng(self, stream: int, st: "truth_samples.Samples"):
-        """Return a PCG32 per sample of ``st``, seeded by the scene's seed, a stream tag and the sample's index
-        in the whole image: deterministic, and the same in a band as in one piece.
+        """Return a PCG32 per sample of ``st``.
+
+        Each is seeded by the scene's seed, a stream tag and the sample's index in the whole image:
+        deterministic, and the same in a band as in one piece.
         """
         return common.stream_rng(self.scene.seed, stream, st.start, st.count)
 
@@ -290,8 +305,9 @@ class RayQueries:
         return mi.Point3f(x, y, si.p.z + c["lift"]), n, ns, si.is_valid()
 
     def _shading_normal(self, x, y):
-        """Return the ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation
-        (module docstring, "Shading").
+        """Return the ``smooth`` shading normal at ``(x, y)``: the vertex normals' bilinear interpolation.
+
+        See the module docstring, "Shading".
         """
         c = self._c
         # u, v of hzval.core.conventions.tangent_to_uv, in the kernel
@@ -320,12 +336,13 @@ class RayQueries:
         )
 
     def _hop_length(self, o, d):
-        """Per ray, how far ``o + t d`` (``o`` in the tile) runs over the mesh before its end, wrapped
-        back into the tile, could be off it: ``t`` to the nearer of the box ``[-e, cols + e] x [-e, rows
-        + e]`` (``e`` = margin - 0.75: the mesh ends at margin - 0.5, a quarter texel kept for float32's
-        rounding) in the ray's horizontal direction. At least :attr:`_hop` texels horizontally; a ray
-        from inside the tile runs the tile's width or more, so a narrow margin costs hops only to the
-        rays that leave near the tile's edge.
+        """Return, per ray, how far ``o + t d`` runs over the mesh before its end could be off it.
+
+        ``o`` is in the tile and the end is wrapped back into the tile: ``t`` to the nearer of the box ``[-e,
+        cols + e] x [-e, rows + e]`` (``e`` = margin - 0.75: the mesh ends at margin - 0.5, a quarter texel
+        kept for float32's rounding) in the ray's horizontal direction. At least :attr:`_hop` texels
+        horizontally; a ray from inside the tile runs the tile's width or more, so a narrow margin costs hops
+        only to the rays that leave near the tile's edge.
         """
         c = self._c
         run_x = dr.select(d.x >= 0.0, c["cols"] + c["edge"] - o.x, o.x + c["edge"])
@@ -375,9 +392,11 @@ class RayQueries:
         return blocked
 
     def _hop_loop(self, o, d, active, hops: int, coherent, dynamic: bool):
-        """``hops`` hops of the rays ``o + t d`` (``wrap``; ``o`` in the tile): ``(blocked, active, o)``,
-        the rays that met the surface, those still under its top after the last hop, and where they
-        are, wrapped into the tile. With ``dynamic`` the hops stop once every ray is resolved.
+        """Run ``hops`` hops of the rays ``o + t d`` and return ``(blocked, active, o)``.
+
+        This is for ``wrap``, with ``o`` in the tile. ``blocked``: the rays that met the surface; ``active``:
+        those still under its top after the last hop; ``o``: where they are, wrapped into the tile. With
+        ``dynamic`` the hops stop once every ray is resolved.
         """
         top = self._c["top"]
         blocked = mi.Bool(False)
@@ -432,8 +451,10 @@ class RayQueries:
 
 
 class PathTracing:
-    """The truth's interreflection (a part of :class:`hzval.truth.plane.Truth`): paths up to the scene's
-    declared depth, as Mitsuba's ``path`` integrator would trace them on the displaced mesh.
+    """The truth's interreflection (a part of :class:`hzval.truth.plane.Truth`).
+
+    It traces paths up to the scene's declared depth, as Mitsuba's ``path`` integrator would trace them on the
+    displaced mesh.
     """
 
     def _path_trace(self, st: "truth_samples.Samples", L1, vis1, azimuth_deg: float):
@@ -520,8 +541,10 @@ class PathTracing:
         return result
 
     def _light_sample(self, rng, centre, cos_max):
-        """Return a direction toward the light for a later path vertex: the centre of a hard light, or a
-        direction drawn uniformly from a soft light's cone (``cos_max``: cosine of its radius).
+        """Return a direction toward the light for a later path vertex.
+
+        It is the centre of a hard light, or a direction drawn uniformly from a soft light's cone
+        (``cos_max``: cosine of its radius).
         """
         if self.scene.light.kind != "soft":
             return centre

@@ -1,5 +1,7 @@
-"""How the plane truth holds its samples: which are kept between frames, the bands of whole pixel rows
-they are traced in, and the samples that fall on a cell's edge.
+"""How the plane truth holds its samples.
+
+That is which are kept between frames, the bands of whole pixel rows they are traced in, and the samples that
+fall on a cell's edge.
 """
 
 from __future__ import annotations
@@ -33,23 +35,27 @@ KEPT_BAND_SAMPLES = 1 << 22
 
 
 def bands(rows: int, cols: int, spp: int) -> list[tuple[int, int]]:
-    """Return the bands of pixels in which a truth of a ``rows x cols`` image at ``spp`` works
-    (:func:`band_ranges`).
+    """Return the bands of pixels in which a truth of a ``rows x cols`` image at ``spp`` works.
+
+    See :func:`band_ranges`.
     """
     return band_ranges((rows, cols), spp)
 
 
 def keeps_samples(rows: int, cols: int, spp: int) -> bool:
-    """Whether a truth of a ``rows x cols`` image at ``spp`` keeps every sample's camera hit between
-    frames (up to :data:`KEEP_SAMPLES`; module docstring, "Memory").
+    """Return whether a truth of a ``rows x cols`` image at ``spp`` keeps every sample's camera hit.
+
+    The hits are kept between frames, up to :data:`KEEP_SAMPLES` (module docstring, "Memory").
     """
     return rows * cols * spp <= KEEP_SAMPLES
 
 
 def band_ranges(shape: tuple[int, int], spp: int, band_samples: int | None = None) -> list[tuple[int, int]]:
-    """Whole rows of pixels, ``[(first, stop), ...]`` pixel indices, each of at most ``band_samples``
-    samples (at least one row); default: bands of :data:`KEPT_BAND_SAMPLES` where the samples are
-    kept (:func:`keeps_samples`), else of :data:`BAND_SAMPLES`.
+    """Return bands of whole pixel rows as ``[(first, stop), ...]`` pixel indices.
+
+    Each band has at most ``band_samples`` samples (at least one row); default: bands of
+    :data:`KEPT_BAND_SAMPLES` where the samples are kept (:func:`keeps_samples`), else of
+    :data:`BAND_SAMPLES`.
     """
     H, W = shape
     if band_samples is None:
@@ -60,9 +66,11 @@ def band_ranges(shape: tuple[int, int], spp: int, band_samples: int | None = Non
 
 @dataclasses.dataclass
 class Samples:
-    """The camera samples of a band of pixels ``first <= p < stop`` (samples ``start`` to ``start +
-    count``): lifted origin ``o``, geometric normal ``n``, shading normal ``ns``, ``albedo`` (or
-    None), ``A`` (``ambient``, when declared), and how many were ``moved`` off a line of edges.
+    """The camera samples of a band of pixels ``first <= p < stop``.
+
+    They are samples ``start`` to ``start + count``: lifted origin ``o``, geometric normal ``n``, shading
+    normal ``ns``, ``albedo`` (or None), ``A`` (``ambient``, when declared), and how many were ``moved`` off a
+    line of edges.
     """
 
     first: int

@@ -15,7 +15,7 @@ from hzval.commands import suite
 from hzval.core.errors import InputError
 from hzval.io import codecs, staging
 from hzval.pipeline import sweep
-from hzval.scene import spec as sc
+from hzval.scene import files as scene_files
 from tests.helpers import interrupt_material
 
 SMALL = dict(size=24, azimuths="-30,0,30", spp=4)
@@ -317,7 +317,7 @@ def test_a_worker_that_dies_is_one_failed_material(tmp_path):
 def test_a_sidecar_scene_serves_sweep_as_it_serves_suite(tmp_path, capsys, variant):
     d = _folder(tmp_path)
     # the sidecar alone (`--scene stones.toml`) finds the height map beside it
-    s = sc.load_scene(d / "stones.toml")
+    s = scene_files.load_scene(d / "stones.toml")
     assert s.material.height == str((d / "stones.png").resolve()) and s.material.depth == 0.3
     # `hzval sweep stones.png` reads stones.toml and says so
     out = tmp_path / "o"

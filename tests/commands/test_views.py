@@ -21,6 +21,7 @@ from hzval.bake import maps as bake
 from hzval.core.errors import InputError
 from hzval.io import codecs
 from hzval.scene import camera as hz_camera
+from hzval.scene import files as scene_files
 from hzval.scene import lookup
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
@@ -118,7 +119,7 @@ def test_a_plane_seen_obliquely_is_fully_lit_and_read_at_the_exact_point():
 def test_a_walls_shadow_seen_from_45_degrees_lands_where_geometry_puts_it():
     """scenes/wall.png: a ridge of texel centres at x = 40.5, 8 texels high, on flat ground; the
     light from +x at 30 degrees throws its shadow to x = 40.5 - 8 / tan(30) = 26.64."""
-    base = sc.load_scene(ROOT / "scenes" / "wall.toml")
+    base = scene_files.load_scene(ROOT / "scenes" / "wall.toml")
     scene = dataclasses.replace(
         base, camera=hz_camera.Camera(kind="orthographic", elevation_deg=45, azimuth_deg=-120), spp=4
     ).validate()
@@ -249,7 +250,7 @@ def test_a_scene_file_places_the_camera(tmp_path):
         '[camera]\nkind = "perspective"\nelevation_deg = 35\nresolution = [40, 30]\n'
         '[lookup]\nfilter = "anisotropic"\nparallax = "offset"\n'
     )
-    s = sc.load_scene(p)
+    s = scene_files.load_scene(p)
     assert s.camera.kind == "perspective" and s.camera.resolution == (40, 30)
     assert s.camera.image_shape(64, 64) == (30, 40)
     assert s.lookup.filter == "anisotropic" and s.lookup.parallax == "offset"

@@ -27,6 +27,7 @@ from hzval.cli import main as cli
 from hzval.core import conventions as cv
 from hzval.core.errors import InputError
 from hzval.io import atomic, codecs, documents, staging
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 from hzval.truth import memory
 from tests.helpers import ROOT, hzval, one_line
@@ -618,7 +619,7 @@ def test_a_scene_file_is_strict(tmp_path, text, needle, capsys):
     p = tmp_path / "gravel.toml"
     p.write_text(text)
     with pytest.raises(InputError, match=None) as e:
-        sc.load_scene(p)
+        scene_files.load_scene(p)
     assert needle in str(e.value) and str(p) in str(e.value)
     assert cli.main(["sweep", "--scene", str(p), "--out", str(tmp_path / "o")]) == 2
     one_line(capsys.readouterr().err, needle)

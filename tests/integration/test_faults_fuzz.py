@@ -31,6 +31,7 @@ from hzval.commands import score as score_cmd
 from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.io import external, staging
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 from tests.helpers import QUAD_F, QUAD_P, QUAD_UV, write_gltf
 
@@ -160,7 +161,7 @@ def readers(sweep_dir, tmp_path_factory):
             lambda: gates.Gates(["horizon.flip_mean>1"], s).failures(json.loads(own)),
             False,
         ),
-        "scene (--scene)": (scene, lambda: sc.load_scene(scene), True),
+        "scene (--scene)": (scene, lambda: scene_files.load_scene(scene), True),
         "encoding (--horizon-encoding)": (enc, lambda: external.Encoding.from_toml(enc), True),
         "bake.json (a cached bake)": (
             b / "bake.json",

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from hzval.cli import main as cli
+from hzval.scene import files as scene_files
 from tests.helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -159,7 +160,6 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
 
     from hzval import materials
     from hzval.commands import check
-    from hzval.scene import spec as sc
 
     scenes = tmp_path / "scenes"
     scenes.mkdir()
@@ -171,12 +171,12 @@ def test_check_takes_a_users_256_map_after_update(tmp_path, capsys, variant):
     argv = ["check", "--scenes", str(scenes), "--references", str(tmp_path / "ref"), "--quiet"]
     assert cli.main([*argv, "--update"]) == 0
     assert cli.main(argv) == 0
-    height, albedo = check.check_material(check.check_scene(sc.load_scene(scenes / "mine.toml")))
+    height, albedo = check.check_material(check.check_scene(scene_files.load_scene(scenes / "mine.toml")))
     assert height.shape == (check.MAX_CHECK_SIZE,) * 2 and albedo.shape == (*height.shape, 3)
     # a box filter: the mean height is kept
     assert abs(float(height.mean()) - float(h.mean())) < 1e-4
     (scenes / "mine.toml").write_text((scenes / "mine.toml").read_text() + "[check]\nsize = 64\n")
-    height, _ = check.check_material(check.check_scene(sc.load_scene(scenes / "mine.toml")))
+    height, _ = check.check_material(check.check_scene(scene_files.load_scene(scenes / "mine.toml")))
     assert height.shape == (64, 64)
 
 

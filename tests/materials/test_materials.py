@@ -12,6 +12,7 @@ from hzval import materials
 from hzval.cli import main as cli
 from hzval.core import conventions as cv
 from hzval.materials import cobblestones, fabric, noise, panels, planks, spikes
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 
 NAMES = materials.names()
@@ -201,11 +202,11 @@ def test_a_scene_takes_its_materials_depth_boundary_and_albedo():
 def test_scene_files_name_built_in_materials(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text('[material]\nheight = "spikes"\nsize = 16\n')
-    s = sc.load_scene(p)
+    s = scene_files.load_scene(p)
     assert s.material.height == "spikes" and s.material.depth == materials.get("spikes").depth
     p.write_text('[material]\nheight = "spikes"\nsize = 4\n')
     with pytest.raises(Exception, match="at least 8"):
-        sc.load_scene(p)
+        scene_files.load_scene(p)
 
 
 def test_hzval_materials_lists_them(capsys):

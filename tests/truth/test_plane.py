@@ -19,6 +19,7 @@ import pytest
 
 from hzval.core.errors import InputError
 from hzval.scene import camera as hz_camera
+from hzval.scene import files as scene_files
 from hzval.scene import spec as sc
 from tests.helpers import WALL_AT, WALL_H, column_wall, make_scene, row_wall, wall_shadow_extents
 
@@ -142,7 +143,7 @@ def test_wall_casts_a_shadow_h_over_tan_e_long_away_from_the_light(walls, azimut
 def test_the_shipped_wall_scene_casts_its_documented_shadow(variant):
     from hzval.truth.plane import Truth
 
-    scn = sc.load_scene(SCENES / "wall.toml")
+    scn = scene_files.load_scene(SCENES / "wall.toml")
     t = Truth(scn, sc.load_material_height(scn.material).height)
     e = math.radians(scn.light.elevation_deg)
     for azimuth in (0.0, 180.0):
@@ -165,7 +166,7 @@ def _disk_visible_fraction(t):
 def soft_wall(variant):
     from hzval.truth.plane import Truth
 
-    scn = sc.load_scene(SCENES / "wall-soft.toml")
+    scn = scene_files.load_scene(SCENES / "wall-soft.toml")
     height = sc.load_material_height(scn.material).height
     return scn, height, Truth(scn, height)
 

@@ -1,5 +1,9 @@
-"""The horizon map fitted to the truth: the optimiser (fit), its guard against overfitting (guard) and
-the ``horizon-fit`` technique (horizon_fit).
+"""Textures fitted to the truth: the floor of each texture-driven technique.
+
+- ``model``: what every fit shares (training lights in batches, Adam); ``training``: what it trains on.
+- ``fit``: the horizon map's fit; ``textures``: a per-pixel technique's.
+- ``guard``: the bake kept where the fit is worse; ``store``: fits on disk and their cache.
+- ``horizon_fit``, ``perpixel_fit``: the ``horizon-fit`` and ``NAME-fit`` techniques.
 """
 
 import lazy_loader

@@ -115,9 +115,10 @@ class FitResult:
 
 
 class _Model(fit_model.LightBatches):
-    """The horizon technique with its horizon texture replaced by differentiable parameters
-    (:class:`hzval.techniques.fitted.model.LightBatches`: the lights' channel weights are the
-    technique's own, ``_channel_weights``, of each light's direction).
+    """The horizon technique with its horizon texture replaced by differentiable parameters.
+
+    It is a :class:`hzval.techniques.fitted.model.LightBatches`: the lights' channel weights are the
+    technique's own, ``_channel_weights``, of each light's direction.
     """
 
     def __init__(self, scene, bake, k: float, storage: str, V_list: list[np.ndarray]):
@@ -146,7 +147,10 @@ class _Model(fit_model.LightBatches):
         self.texture.set_tensor(mi.TensorXf(lookup.aligned(np.asarray(values, np.float32))))
 
     def factor(self, lights, a: int, b: int):
-        """Return the pixel means of F, light-major, of ``lights`` over pixels ``a..b`` (straight-through clamp)."""
+        """Return the pixel means of F, light-major, of ``lights`` over pixels ``a..b``.
+
+        The clamp is straight-through.
+        """
         L = fit_model.light_vectors(lights)
         w = self.ap._channel_weights(L)
         li, sample = self.sample_lanes(len(lights), a, b)
@@ -185,8 +189,10 @@ def fit(
     constrain: float = CONSTRAIN,
     progress: bool = True,
 ) -> FitResult:
-    """Fit a bake's horizon map to the truth, by Dr.Jit's automatic differentiation through the
-    horizon technique's own lookup and factor (module docstring; docs/fit.md).
+    """Fit a bake's horizon map to the truth by Dr.Jit's automatic differentiation.
+
+    The differentiation runs through the horizon technique's own lookup and factor (module docstring;
+    docs/fit.md).
 
     Parameters
     ----------
@@ -367,8 +373,9 @@ def guarded(scene, bake, stored, V, lights, fitted, k: float, k_fit: float, tole
 
 
 def truths(train, scene, height, lights, held_out, progress: bool):
-    """Return the truth's V for the training lights (at ``train``'s samples) and the held-out ones (``scene``'s),
-    with a progress bar.
+    """Return the truth's V for the training lights and the held-out ones, with a progress bar.
+
+    The training lights' V is at ``train``'s samples, the held-out ones' at ``scene``'s.
     """
     with tqdm(
         total=len(lights) + len(held_out),
@@ -398,9 +405,10 @@ def _optimise(
     prior: float = 0.0,
     constrain: float = 0.0,
 ):
-    """Adam from the baked map (module docstring); ``(stored sines, k, loss and seconds per epoch, steps,
-    converged)``. ``constrain``: the step of the per-light weights
-    (:func:`hzval.techniques.fitted.model.reweight`; 0: none).
+    """Run Adam from the baked map (module docstring).
+
+    Return ``(stored sines, k, loss and seconds per epoch, steps, converged)``. ``constrain``: the step of the
+    per-light weights (:func:`hzval.techniques.fitted.model.reweight`; 0: none).
     """
     model = _Model(scene, bake, k, storage, V_list)
     stored = hz_storage.get(storage)

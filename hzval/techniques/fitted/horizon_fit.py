@@ -1,5 +1,6 @@
-"""The ``horizon-fit`` technique: the horizon technique with the map fitted to the truth
-(:mod:`hzval.techniques.fitted.fit`).
+"""The ``horizon-fit`` technique: the horizon technique with the map fitted to the truth.
+
+The fit is :mod:`hzval.techniques.fitted.fit`'s.
 
 Beside ``horizon`` in a sweep it splits the horizon map's error per frame:
 ``baked - fitted`` is what the bake loses (a better baker could win it
@@ -20,6 +21,8 @@ takes tens of seconds, which a default sweep does not pay.
 from __future__ import annotations
 
 import dataclasses
+
+from typing_extensions import override
 
 from hzval.scene.spec import Scene
 from hzval.techniques.fitted import store as fitted_store
@@ -69,7 +72,9 @@ class FittedHorizon(Horizon):
         held_out: str = fitted_training.HELD_OUT_LIGHTS,
         **settings,
     ) -> "FittedHorizon":
-        """``lights``/``held_out``: the fit's training and held-out lights
+        """Build the technique from a context, its horizon map fitted or read from the cache.
+
+        ``lights``/``held_out``: the fit's training and held-out lights
         (:func:`hzval.techniques.fitted.training.parse_lights`).
         """
         storage = storage or "float"
@@ -107,6 +112,7 @@ class FittedHorizon(Horizon):
         return own
 
     @classmethod
+    @override
     def add_arguments(cls, parser) -> None:
         parser.add_argument(
             "--horizon-fit-k",
@@ -115,6 +121,7 @@ class FittedHorizon(Horizon):
         )
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {
             "k": args.horizon_k,
@@ -127,18 +134,22 @@ class FittedHorizon(Horizon):
         """Nothing beyond the fit's own checks."""
 
     @classmethod
+    @override
     def check_variants(cls) -> list:
         return []  # the regression check guards the bake's technique; a fit is its study
 
     @classmethod
+    @override
     def tradeoff_variants(cls) -> list:
         return []
 
     @classmethod
+    @override
     def fit(cls, ctx, settings, visibility, azimuths) -> dict:
         return settings
 
     @property
+    @override
     def parameters(self) -> dict:
         return {
             **super().parameters,
@@ -148,9 +159,11 @@ class FittedHorizon(Horizon):
 
     @classmethod
     def frame_extras(cls, scores: dict) -> dict:
-        """``split``, beside the baked map's scores: its mean ``|F - V|`` as ``bake_loss`` (baked minus
-        fitted: what a better baker could win back) and ``representation`` (the fitted map's: what
-        eight interpolated directions and one ``k`` ramp cannot hold); nothing without both.
+        """Return the ``split`` beside the baked map's scores: ``bake_loss`` and ``representation``.
+
+        ``bake_loss`` is the baked map's mean ``|F - V|`` minus the fitted one's (what a better baker could
+        win back) and ``representation`` the fitted map's (what eight interpolated directions and one ``k``
+        ramp cannot hold); nothing without both.
         """
         baked, fitted = scores.get(Horizon.name), scores.get(cls.name)
         if (

@@ -61,8 +61,9 @@ class LightBatches:
     """
 
     def setup(self, V_list: list[np.ndarray], masks: list[np.ndarray] | None = None) -> None:
-        """Set up the groups, bands and the truth's ``V`` of every light, one copy, light-major; ``masks``: per
-        light, the pixels the loss counts (``None``: all).
+        """Set up the groups, bands and the truth's ``V`` of every light, one copy, light-major.
+
+        ``masks``: per light, the pixels the loss counts (``None``: all).
         """
         self.group = max(1, fitted_training.BAND_SAMPLES // (self.P * self.spp))
         band = max(1, fitted_training.BAND_SAMPLES // self.spp)
@@ -98,8 +99,9 @@ class LightBatches:
         return dr.block_sum(F, self.spp) * (1.0 / self.spp) if self.spp > 1 else F
 
     def errors(self, values, lights, V_list):
-        """``|F - V|`` ``(rows, cols)`` float32 per light of ``lights`` (and the ``V`` they were given in)
-        of ``values`` as stored, without gradients.
+        """Return ``|F - V|`` ``(rows, cols)`` float32 of ``values`` as stored, per light of ``lights``.
+
+        ``V`` is the one the lights were given in; the errors are computed without gradients.
         """
         with dr.suspend_grad():
             self.upload(values)
@@ -127,9 +129,11 @@ class LightBatches:
         )
 
     def backward(self, indices, lights, scale: float, weights=None, per_light=None) -> float:
-        """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices`` (into ``lights``
-        and the V they were given in), each light's loss times ``weights[i]`` if given; return the
-        unweighted loss (a float) and put each light's into ``per_light[i]`` if given.
+        """Accumulate ``scale *`` the gradient of the summed loss of lights ``indices``.
+
+        ``indices`` index into ``lights`` and the V they were given in; each light's loss is multiplied by
+        ``weights[i]`` if given. Return the unweighted loss (a float) and put each light's into
+        ``per_light[i]`` if given.
         """
         total = 0.0
         for first in range(0, len(indices), self.group):
@@ -158,9 +162,11 @@ class LightBatches:
 
 
 def reweight(weights: np.ndarray, losses: np.ndarray, baked: np.ndarray, step: float) -> np.ndarray:
-    """Return the per-light weights after an epoch: ``1 + lambda``, each light's multiplier ``lambda`` raised by
-    ``step`` times its relative excess over the baked loss (clipped to [-1, 1]; its floor
-    :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light worse than the bake").
+    """Return the per-light weights ``1 + lambda`` after an epoch.
+
+    Each light's multiplier ``lambda`` is raised by ``step`` times its relative excess over the baked loss
+    (clipped to [-1, 1]; its floor :data:`CONSTRAINT_FLOOR`) and kept >= 0 (dual ascent on "no training light
+    worse than the bake").
 
     Examples
     --------
@@ -269,9 +275,10 @@ def clip_unit(opt, key: str) -> None:
 
 
 def run_record(result, through: str) -> dict:
-    """Return what every ``fit.json`` records of a fit's run: the errors before and after and their ratio,
-    the loss per epoch (``through``: what its gradient passes straight through), the epochs, steps,
-    seconds and lights of ``result`` (a fit's result dataclass).
+    """Return what every ``fit.json`` records of a fit's run.
+
+    That is the errors before and after and their ratio, the loss per epoch (``through``: what its gradient
+    passes straight through), the epochs, steps, seconds and lights of ``result`` (a fit's result dataclass).
     """
     m = result.mae
     return {

@@ -31,8 +31,10 @@ SCORE = "visibility_mae_facing"
 
 
 def split(shipped: dict | None, fitted: dict | None, key: str = SCORE) -> dict:
-    """Return a frame's ``split`` of the shipped technique's error: ``bake_loss`` (shipped minus fitted) and
-    ``representation`` (the fitted error); ``{}`` without both scores.
+    """Return a frame's ``split`` of the shipped technique's error.
+
+    It holds ``bake_loss`` (shipped minus fitted) and ``representation`` (the fitted error); ``{}`` without
+    both scores.
 
     Examples
     --------
@@ -59,6 +61,7 @@ class FittedTextures:
     fit_record: dict | None = None
 
     def __init_subclass__(cls, **kw):
+        """Name the shipped technique a fitted subclass fits (``fit_of``)."""
         super().__init_subclass__(**kw)
         cls.fit_of = cls.fitted_from.name
 
@@ -76,8 +79,10 @@ class FittedTextures:
         held_out: str = fitted_training.HELD_OUT_LIGHTS,
         **settings,
     ):
-        """``lights``/``held_out``: the fit's training and held-out lights; ``settings``: the shipped
-        technique's (its storage and variant, which the fit keeps).
+        """Build the technique from a context, its textures fitted or read from the cache.
+
+        ``lights``/``held_out``: the fit's training and held-out lights; ``settings``: the shipped technique's
+        (its storage and variant, which the fit keeps).
         """
         folder = None if ctx.cache is None else ctx.cache / cls.file_stem
         planes, record, cached = fitted_store.cached_texture_fit(
@@ -103,6 +108,7 @@ class FittedTextures:
         return own
 
     def plane(self, name: str) -> np.ndarray:
+        """Return texture ``name``: the fitted one once the fit has run, else the bake's."""
         return self.fitted[name] if self.fitted is not None else super().plane(name)
 
     def plane_name(self, name: str) -> str:
@@ -128,6 +134,7 @@ class FittedTextures:
 
     @classmethod
     def check_variants(cls) -> list:
+        """Return no check variants: the regression check guards the shipped technique."""
         return []  # the regression check guards the shipped technique; a fit is its study
 
     @classmethod
@@ -145,6 +152,7 @@ class FittedTextures:
 
     @property
     def parameters(self) -> dict:
+        """Return the shipped technique's parameters, with the fit's record and its bake named."""
         return {**super().parameters, "bake": "fitted to the truth (hzval fit)", "fit": self.fit_record}
 
     @classmethod

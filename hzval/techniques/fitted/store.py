@@ -1,5 +1,7 @@
-"""A fit kept on disk: its files in the bake's layout and ``fit.json`` (:func:`write_fit`,
-:func:`read_fit`), and the cache a sweep reuses a fit from (:func:`cache_key`, :func:`cached_fit`).
+"""A fit kept on disk, and the cache a sweep reuses a fit from.
+
+The fit's files are in the bake's layout, with ``fit.json`` (:func:`write_fit`, :func:`read_fit`); the cache
+is :func:`cache_key` and :func:`cached_fit`.
 """
 
 from __future__ import annotations
@@ -33,8 +35,10 @@ FIT_VERSION = 2
 
 
 def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> list[Path]:
-    """Write a fit, all or nothing: ``horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs) in
-    :func:`hzval.bake.maps.write_bake`'s layout, and ``fit.json``.
+    """Write a fit, all or nothing: its horizon maps and ``fit.json``.
+
+    The maps are ``horizon0.exr``, ``horizon1.exr`` (and 8-bit PNGs) in :func:`hzval.bake.maps.write_bake`'s
+    layout.
 
     Parameters
     ----------
@@ -59,8 +63,10 @@ def write_fit(result: fit.FitResult, out: str | Path, *, input_info: dict) -> li
 
 
 def _write(out, images: dict, record: dict, input_info: dict) -> list[Path]:
-    """``NAME.exr`` and ``NAME.png`` of each ``images[NAME] = (EXR channels, PNG values in [0, 1])``
-    and ``fit.json`` (``record``, the input, the versions and every file's digest), all or nothing.
+    """Write ``NAME.exr`` and ``NAME.png`` of each image, and ``fit.json``, all or nothing.
+
+    ``images[NAME]`` is ``(EXR channels, PNG values in [0, 1])``; ``fit.json`` holds ``record``, the input,
+    the versions and every file's digest.
     """
     with staging.Staging(out) as stage:
         for name, (channels, shown) in images.items():
@@ -109,8 +115,10 @@ def read_fit(folder: str | Path) -> tuple[np.ndarray, dict]:
 
 
 def write_texture_fit(result, out: str | Path, *, input_info: dict) -> list[Path]:
-    """Write a texture fit (:class:`hzval.techniques.fitted.textures.TextureFit`), all or nothing:
-    ``<texture>.exr`` (one channel ``Y``, or ``RGB``) and an 8-bit PNG of each, and ``fit.json``.
+    """Write a texture fit (:class:`hzval.techniques.fitted.textures.TextureFit`), all or nothing.
+
+    The files are ``<texture>.exr`` (one channel ``Y``, or ``RGB``) and an 8-bit PNG of each, and
+    ``fit.json``.
 
     Parameters
     ----------
@@ -250,8 +258,9 @@ def cached_texture_fit(
     progress: bool = False,
     **settings,
 ) -> tuple[dict, dict, bool]:
-    """Return a technique's texture fit from ``folder`` when its key and file digests match, else a new one
-    written there (:func:`cached_fit`'s rules).
+    """Return a technique's texture fit from ``folder``, else a new one written there.
+
+    The cached fit is taken when its key and file digests match (:func:`cached_fit`'s rules).
 
     Parameters
     ----------

@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.core import backend
 from hzval.core import conventions as cv
@@ -134,8 +135,10 @@ class TextureModel(fit_model.LightBatches):
         )
 
     def _layout(self, packed: np.ndarray) -> None:
-        """Where each fitted texture's channels sit in the packed texture: per packed value, whether
-        it is the texture's and which of its parameter's values it is; the rest stay ``packed``'s.
+        """Record where each fitted texture's channels sit in the packed texture.
+
+        Per packed value: whether it is the texture's and which of its parameter's values it is; the rest stay
+        ``packed``'s.
         """
         texels, self.C = self.rows * self.cols, packed.shape[-1]
         slots = self.kernel.slots
@@ -151,8 +154,9 @@ class TextureModel(fit_model.LightBatches):
         self._constant = mi.Float(lookup.aligned(packed.ravel()))
 
     def stored(self, t: str, values: np.ndarray) -> np.ndarray:
-        """Return what the shader samples of texture ``t``'s ``values`` ``(rows, cols, channels)`` in the
-        technique's storage.
+        """Return what the shader samples of texture ``t``'s ``values`` in the technique's storage.
+
+        ``values`` is ``(rows, cols, channels)``.
         """
         return perpixel.stored(values, self.tech.storage[t], signed=self.tech.texture(t).signed)
 
@@ -177,6 +181,7 @@ class TextureModel(fit_model.LightBatches):
                 values[t] = dr.replace_grad(mi.TensorXf(lookup.aligned(s)), p)
         self.level.set_tensor(self._packed(values))
 
+    @override
     def upload(self, values) -> None:
         with dr.suspend_grad():
             self.level.set_tensor(
@@ -184,7 +189,10 @@ class TextureModel(fit_model.LightBatches):
             )
 
     def factor(self, lights, a: int, b: int):
-        """Return the pixel means of the technique's ``F`` (clamped to [0, 1] straight through), light-major."""
+        """Return the pixel means of the technique's ``F``, light-major.
+
+        ``F`` is clamped to [0, 1] straight through.
+        """
         L = fit_model.light_vectors(lights)
         li, sample = self.sample_lanes(len(lights), a, b)
         u, v = self.kernel.positions(sample)
@@ -203,8 +211,9 @@ def _directions(lights) -> list:
 
 
 def facing_errors(model: TextureModel, values: dict, lights, V) -> list[float]:
-    """Each light's mean ``|F - V|`` over the pixels facing it (the sweep's ``visibility_mae_facing``;
-    0 where none does).
+    """Return each light's mean ``|F - V|`` over the pixels facing it.
+
+    This is the sweep's ``visibility_mae_facing``; 0 where no pixel faces the light.
     """
     out = []
     for e, (el, az) in zip(model.errors(values, lights, V), lights):
@@ -260,7 +269,9 @@ SEARCH_STRIDE = 8
 def search(
     model: TextureModel, t: str, values: dict, lights, V: list[np.ndarray]
 ) -> tuple[np.ndarray, float]:
-    """Return the best of 256 levels for each texel of the one-channel texture ``t``, the others as ``values``.
+    """Return the best of 256 levels for each texel of the one-channel texture ``t``.
+
+    The other textures are as ``values``.
 
     Each candidate level is tried at every texel at once and scored by its pixel's ``|F - V|`` over
     the lights, where the pixel faces each, each light weighted by one over its facing pixels (the
@@ -325,12 +336,13 @@ REFINE_ROUNDS = 3
 
 
 def _refine(best: np.ndarray, cost, boundary: str) -> np.ndarray:
-    """Coordinate descent on the levels with the neighbours' levels as they are: the filter makes a
-    texel's level reach the 3 x 3 pixels about it, so texels 3 apart (9 interleaved lattices) can
-    move at once and each move's cost is exactly the change over its own neighbourhood. Every
-    lattice tries :data:`REFINE_OFFSETS`; a texel keeps a move that lowers its neighbourhood's cost.
-    The levels are kept only where the whole map's cost falls (a wrapped side not a multiple of 3
-    puts two lattice texels closer across the seam).
+    """Refine the levels by coordinate descent, the neighbours' levels as they are.
+
+    The filter makes a texel's level reach the 3 x 3 pixels about it, so texels 3 apart (9 interleaved
+    lattices) can move at once and each move's cost is exactly the change over its own neighbourhood. Every
+    lattice tries :data:`REFINE_OFFSETS`; a texel keeps a move that lowers its neighbourhood's cost. The
+    levels are kept only where the whole map's cost falls (a wrapped side not a multiple of 3 puts two lattice
+    texels closer across the seam).
     """
     current = cost(best)
     out = best.copy()
@@ -360,20 +372,23 @@ def _mean_error(model: TextureModel, values: dict, lights, V) -> float:
 
 
 def separable(model: TextureModel) -> bool:
-    """Whether the technique reads one one-channel texture (the micro-shadowing techniques' AO): its
-    factor at a sample is then a function of that texel's value alone (and the normal map's), and the
-    loss separates per texel up to the filter (:func:`search`).
+    """Return whether the technique reads one one-channel texture (the micro-shadowing techniques' AO).
+
+    Its factor at a sample is then a function of that texel's value alone (and the normal map's), and the loss
+    separates per texel up to the filter (:func:`search`).
     """
     return len(model.names) == 1 and model.widths[model.names[0]] == 1
 
 
 def _fit(model: TextureModel, cls, baked: dict, lights, V, adam: dict):
-    """Return the textures that do best on the training lights: one one-channel texture searched per texel
-    (:func:`search`); several textures, or one of several channels, by Adam from the bake
-    (:func:`hzval.techniques.fitted.model.optimise`) with the horizon fit's per-light weights. A
-    search over one texture of several would trade the lights between the training elevations away
-    (bent-cone's AO alone: ridges at 25 degrees 0.0215 -> 0.0241 over pixels facing the light). The
-    result is kept only where it lowers the training error, so it is never worse there than the bake.
+    """Return the textures that do best on the training lights.
+
+    One one-channel texture is searched per texel (:func:`search`); several textures, or one of several
+    channels, are fitted by Adam from the bake (:func:`hzval.techniques.fitted.model.optimise`) with the
+    horizon fit's per-light weights. A search over one texture of several would trade the lights between the
+    training elevations away (bent-cone's AO alone: ridges at 25 degrees 0.0215 -> 0.0241 over pixels facing
+    the light). The result is kept only where it lowers the training error, so it is never worse there than
+    the bake.
 
     Returns ``(textures as stored, loss per epoch, seconds per epoch, steps, converged, steps taken)``.
     """

@@ -1,6 +1,8 @@
-"""What a fit trains on and what it costs: its lights (:func:`parse_lights`), its samples, its scene
-(shadows only, the top view), the truth's visibility of every light from one set-up, the errors of a
-map on them, and the memory it needs (:func:`estimate_bytes`, :func:`check_fits`).
+"""What a fit trains on and what it costs.
+
+That is its lights (:func:`parse_lights`), its samples, its scene (shadows only, the top view), the truth's
+visibility of every light from one set-up, the errors of a map on them, and the memory it needs
+(:func:`estimate_bytes`, :func:`check_fits`).
 """
 
 from __future__ import annotations
@@ -63,8 +65,10 @@ FIT_BYTES_PER_BAND_SAMPLE = 160
 
 
 def check_held_out(lights, held_out) -> None:
-    """Refuse held-out lights that are training lights too (an azimuth taken modulo 360): their
-    score would be the training score under the held-out name. One line naming ``--held-out``.
+    """Refuse held-out lights that are training lights too (an azimuth taken modulo 360).
+
+    Their score would be the training score under the held-out name. The error is one line naming
+    ``--held-out``.
 
     Examples
     --------

@@ -1,5 +1,7 @@
-"""The shipped GLSL shaders on a real OpenGL pipeline: the headless context (context) and the
-``horizon-gl`` and ``pom-gl`` techniques (horizon_gl).
+"""The shipped GLSL shaders on a real OpenGL pipeline.
+
+- ``context``: the headless context and the sample pass.
+- ``horizon_gl``: the ``horizon-gl`` and ``pom-gl`` techniques.
 """
 
 import lazy_loader

@@ -80,7 +80,10 @@ def context():
 
 
 def info() -> dict:
-    """Return the context's GL version, renderer and vendor (for ``metrics.json``), and Mesa's ``GALLIVM_PERF``."""
+    """Return the context's GL version, renderer and vendor, and Mesa's ``GALLIVM_PERF``.
+
+    The values are for ``metrics.json``.
+    """
     c = context().info
     out = {"version": c["GL_VERSION"], "renderer": c["GL_RENDERER"], "vendor": c["GL_VENDOR"]}
     if os.environ.get("GALLIVM_PERF"):
@@ -104,8 +107,10 @@ def shader_source(name: str) -> str:
 
 
 def _band_texture(ctx, values: np.ndarray, components: int):
-    """Return a float32 texture of ``components`` per texel holding ``values`` ``(n, components)`` row by row,
-    :data:`BAND_WIDTH` wide (the last row padded), read with ``texelFetch``.
+    """Return a float32 texture holding ``values`` ``(n, components)`` row by row.
+
+    It has ``components`` per texel, is :data:`BAND_WIDTH` wide (the last row padded) and is read with
+    ``texelFetch``.
     """
     n = values.shape[0]
     width = min(BAND_WIDTH, max(n, 1))
@@ -146,8 +151,10 @@ class SamplePass:
         self.footprints, self.footprint_width = self._footprints(samples)
 
     def _footprints(self, samples):
-        """Per-pixel ``(du/dcol, dv/dcol, du/drow, dv/drow)``: texels to texture coordinates
-        (``u = x / cols``, ``v = (rows - y) / rows``); zeros (level 0) without footprints.
+        """Return the per-pixel footprints ``(du/dcol, dv/dcol, du/drow, dv/drow)``.
+
+        Texels are turned to texture coordinates (``u = x / cols``, ``v = (rows - y) / rows``); zeros (level
+        0) without footprints.
         """
         fp = samples.footprint
         if fp is None:
@@ -165,8 +172,10 @@ class SamplePass:
                 self.program[name].value = value
 
     def run(self, textures: dict) -> np.ndarray:
-        """Return the pixel means of the pass's output, float32 ``shape``; ``textures`` maps sampler
-        uniform names to moderngl textures (the sample and footprint textures are bound here).
+        """Return the pixel means of the pass's output, float32 ``shape``.
+
+        ``textures`` maps sampler uniform names to moderngl textures (the sample and footprint textures are
+        bound here).
         """
         units = {"samplePositions": None, "pixelFootprints": self.footprints, **textures}
         for unit, name in enumerate(units):

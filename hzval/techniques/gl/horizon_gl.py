@@ -44,6 +44,7 @@ import math
 import time
 
 import numpy as np
+from typing_extensions import override
 
 from hzval.bake.maps import CUBE_SIZE, weight_cube
 from hzval.core import conventions as cv
@@ -89,7 +90,10 @@ class _GLTechnique(surface.HeightFieldShadow):
         return []
 
     def render(self, azimuth_deg: float, *, elevation_deg: float | None = None) -> Frame:
-        """Return the unshadowed shading times the pixel mean of the shader's ``F``; ``seconds`` the wall time."""
+        """Return the unshadowed shading times the pixel mean of the shader's ``F``.
+
+        ``seconds`` is the wall time.
+        """
         t0 = time.perf_counter()
         e = self.scene.light.elevation_deg if elevation_deg is None else float(elevation_deg)
         F = self.factor(azimuth_deg, e)
@@ -114,8 +118,9 @@ class HorizonGL(_GLTechnique):
 
     @classmethod
     def bake_needs(cls, scene: Scene) -> frozenset[str]:
-        """Return the horizon map, and what the unshadowed shading reads
-        (:class:`hzval.techniques.surface.HeightFieldShadow`).
+        """Return the horizon map and what the unshadowed shading reads.
+
+        For the shading, see :class:`hzval.techniques.surface.HeightFieldShadow`.
         """
         return super().bake_needs(scene) | {"horizon_map"}
 
@@ -144,10 +149,12 @@ class HorizonGL(_GLTechnique):
         self._cube = _cube_texture(gl.context())
 
     @classmethod
+    @override
     def settings_from_args(cls, args) -> dict:
         return {"k": args.horizon_k, "storage": args.horizon_storage or "u8"}
 
     @classmethod
+    @override
     def check_settings(cls, bake_params, settings: dict) -> None:
         if bake_params.directions != cv.CHANNEL_COUNT:
             raise InputError(
@@ -160,6 +167,7 @@ class HorizonGL(_GLTechnique):
             raise InputError("storage", f"horizon-gl samples sines; {storage} stores square roots")
 
     @property
+    @override
     def parameters(self) -> dict:
         return {
             "technique": "Listing 5.1 in GLSL on OpenGL",
@@ -172,6 +180,7 @@ class HorizonGL(_GLTechnique):
             "simulated": list(self.simulated),
         }
 
+    @override
     def storage_bytes(self) -> int:
         rows, cols, ch = self.bake.horizon.shape
         return hz_storage.get(self.storage).bytes(rows, cols, ch) + horizon.CUBE_BYTES
@@ -184,7 +193,9 @@ class HorizonGL(_GLTechnique):
 
 
 class PomGL(_GLTechnique):
-    """The ``pom`` march in GLSL (``hzval/techniques/gl/shaders/pom_shadow.glsl``) on OpenGL: settings as
+    """The ``pom`` march in GLSL on OpenGL.
+
+    The shader is ``hzval/techniques/gl/shaders/pom_shadow.glsl``; settings as
     :class:`hzval.techniques.pom.RayMarchShadow`'s.
     """
 
@@ -225,6 +236,7 @@ class PomGL(_GLTechnique):
     check_settings = pom.RayMarchShadow.check_settings
 
     @property
+    @override
     def parameters(self) -> dict:
         out = {
             "technique": "the pom ray march in GLSL on OpenGL",
@@ -238,12 +250,15 @@ class PomGL(_GLTechnique):
             out["softness"] = self.softness
         return out
 
+    @override
     def storage_bytes(self) -> int:
         return self.rows * self.cols * 2
 
     def factor(self, azimuth_deg: float, elevation_deg: float) -> np.ndarray:
-        """Pixel means of the shader's ``F`` (lights at or above the zenith light everything, at or
-        below the horizon nothing, as :mod:`hzval.techniques.pom`).
+        """Return the pixel means of the shader's ``F``.
+
+        Lights at or above the zenith light everything, at or below the horizon nothing, as
+        :mod:`hzval.techniques.pom`.
         """
         if elevation_deg >= 90.0:
             return np.ones(self.shape, np.float32)
@@ -315,9 +330,11 @@ def _horizon_texture(ctx, horizon: np.ndarray, storage: str, scene: Scene):
 
 
 def _stored_chain(horizon: np.ndarray, storage: str, lk) -> tuple[list[np.ndarray], list[list[bytes]]]:
-    """``(levels, blocks)``: what the GPU samples at each level (level 0 alone without a mip
-    filter), each made from the stored one below and stored again (:func:`hzval.scene.lookup.mip_chain`'s
-    ``quantise``, as ``--path gpu`` makes them); for ``bc7`` each level's encoded blocks per layer.
+    """Return what the GPU samples at each mip level and, for ``bc7``, the encoded blocks.
+
+    The result is ``(levels, blocks)``: level 0 alone without a mip filter, each level made from the stored
+    one below and stored again (:func:`hzval.scene.lookup.mip_chain`'s ``quantise``, as ``--path gpu`` makes
+    them); for ``bc7`` each level's encoded blocks per layer.
     """
     st = hz_storage.get(storage)
     keep = storage == "bc7"
