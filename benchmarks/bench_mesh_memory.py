@@ -4,7 +4,7 @@ Builds :func:`hzval.geometry.tile.displaced_mesh` of a built-in material (vertex
 coordinates, as ``bake --mesh`` and ``export-scene`` build it) in a fresh process per case, writes
 it as PLY, and prints the peak's rise over the map's own, in bytes a triangle, beside the count
 :func:`hzval.geometry.tile.mesh_size` gave before anything was built (it must be exact) and
-:data:`hzval.geometry.tile.MESH_BYTES_PER_TRIANGLE`, the figure ``check_fits`` charges.
+:data:`hzval.core.budget.MESH_BYTES_PER_TRIANGLE`, the figure ``check_fits`` charges.
 
 Usage::
 
@@ -47,7 +47,7 @@ def main() -> None:
     ap.add_argument("--material", default="bricks")
     ap.add_argument("--cases", default="512:0.05:0,512:0.5:0,512:0.05:200,1024:0.2:0")
     args = ap.parse_args()
-    from hzval.geometry.tile import MESH_BYTES_PER_TRIANGLE
+    from hzval.core.budget import MESH_BYTES_PER_TRIANGLE
 
     print(f"charged: {MESH_BYTES_PER_TRIANGLE} bytes a triangle")
     print("size  depth  margin  vertices   triangles  counted=built  rise MiB  bytes/triangle")

@@ -44,6 +44,7 @@ def main() -> None:
     ap.add_argument("--up", choices=("y", "z"), default=None)
     a = ap.parse_args()
 
+    from hzval.core import budget
     from hzval.geometry import displace as dp
     from hzval.geometry import model
 
@@ -86,7 +87,7 @@ def main() -> None:
     peak = _peak_mb() - max(start_rss, start_peak)
     print(
         f"memory: peak {_peak_mb():.0f} MiB, {peak * 2**20 / len(f):.0f} bytes per triangle over the "
-        f"start; estimate {dp.BYTES_PER_TRIANGLE}"
+        f"start; estimate {budget.REFINE_BYTES_PER_TRIANGLE}"
     )
     print(f"total: {t4 - t0:.2f} s")
 

@@ -90,7 +90,7 @@ def main(argv=None) -> None:
         "--peak-target",
         type=float,
         default=None,
-        help="GiB: override hzval.truth.bands.PEAK_TARGET_BYTES (a smaller map's mesh in bands)",
+        help="GiB: override hzval.core.budget.PEAK_TARGET_BYTES (a smaller map's mesh in bands)",
     )
     ap.add_argument("sweep", nargs=argparse.REMAINDER)
     args = ap.parse_args(argv)
@@ -106,9 +106,9 @@ def main(argv=None) -> None:
     from hzval.truth import plane as truth
 
     if args.peak_target is not None:
-        from hzval.truth import bands as truth_bands
+        from hzval.core import budget
 
-        truth_bands.PEAK_TARGET_BYTES = int(args.peak_target * 2**30)
+        budget.PEAK_TARGET_BYTES = int(args.peak_target * 2**30)
     if args.keep_samples is not None:
         truth_samples.KEEP_SAMPLES = args.keep_samples
     tl = Timeline()

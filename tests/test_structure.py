@@ -156,6 +156,25 @@ def test_the_package_map_names_every_module():
     assert not missing, f"hzval/__init__.py's module map lacks {missing}"
 
 
+def test_every_package_docstring_names_its_modules():
+    """Each subpackage's ``__init__`` says what it holds: a module added is listed there
+    (the materials, which a registry lists, aside)."""
+    missing = []
+    for init in PACKAGE.rglob("__init__.py"):
+        package = init.parent
+        if package in (PACKAGE, PACKAGE / "materials"):
+            continue
+        doc = ast.get_docstring(ast.parse(init.read_text()))
+        names = [p.stem for p in package.glob("*.py") if p.stem != "__init__"]
+        names += [p.name for p in package.iterdir() if (p / "__init__.py").is_file()]
+        missing += [
+            f"{package.relative_to(PACKAGE)}: {n}"
+            for n in names
+            if f"``{n}``" not in doc and f"``{n}/``" not in doc
+        ]
+    assert missing == []
+
+
 #: docs/ARCHITECTURE.md's "Layout": each subpackage's layer. A module imports only layers below its
 #: own, or its own subpackage.
 LAYERS = {

@@ -23,8 +23,6 @@ from .horizon import (
 )
 from .maps import (
     CUBE_SIZE as CUBE_SIZE,
-    BAKE_BYTES_PER_TEXEL as BAKE_BYTES_PER_TEXEL,
-    BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION as BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION,
     BakeParams as BakeParams,
     METHODS as METHODS,
     Bake as Bake,
@@ -49,5 +47,4 @@ from .occlusion import (
     uniform_ao as uniform_ao,
     uniform_bent_normal as uniform_bent_normal,
     self_shadowed_bump as self_shadowed_bump,
-    BYTES_PER_TEXEL as BYTES_PER_TEXEL,
 )

@@ -23,7 +23,7 @@ import numpy as np
 from hzval.bake import occlusion as directional
 from hzval.bake.exact import exact_horizon_map
 from hzval.bake.horizon import horizon_map
-from hzval.core import backend, resources
+from hzval.core import backend, budget, resources
 from hzval.core import conventions as cv
 from hzval.core import cube as cube_layout
 from hzval.core.conventions import normal_map  # re-exported: the bake's first map
@@ -32,8 +32,6 @@ from hzval.io import codecs, documents, paths, staging
 
 __all__ = [
     "CUBE_SIZE",
-    "BAKE_BYTES_PER_TEXEL",
-    "BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION",
     "BakeParams",
     "METHODS",
     "Bake",
@@ -57,16 +55,6 @@ __all__ = [
 #: Edge length in texels of a face of the weight cube map (Lengyel: 16 x 16
 #: is sufficient); the GPU path of :mod:`hzval.techniques.horizon` samples it.
 CUBE_SIZE = 16
-
-
-#: Bytes of memory per texel that a bake needs at its peak (inputs, padded
-#: copy, ten kernel outputs, their NumPy copies, normal map, 8-bit encodings),
-#: measured with tracemalloc and rounded up, for 8 directions.
-BAKE_BYTES_PER_TEXEL = 160
-#: Bytes per texel that each direction beyond 8 adds (a kernel output, its
-#: NumPy copy and stacked channel, its 8-bit encoding: 4 + 4 + 4 + 1, rounded
-#: up; an estimate from the 8-direction figure, not measured separately).
-BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION = 16
 
 
 #: Valve's lift of the self-shadowed bump map's ray origins, texels (``height2ssbump``).
@@ -309,19 +297,14 @@ def weight_cube(size: int | None = None) -> np.ndarray:
 
 
 def estimate_bytes(rows: int, cols: int, params: BakeParams) -> int:
-    """Peak memory in bytes that baking a ``rows x cols`` map needs (an estimate).
+    """Return the peak memory in bytes that baking a ``rows x cols`` map needs.
 
-    The exact method pads nothing; its sweep scratch (8 bytes per sweep
-    position, at most 2 per texel, reused across channels) is less than the
-    seed's ten kernel outputs, so the seed's figure per texel bounds it.
+    The figures are :func:`hzval.core.budget.bake_bytes`'s. The exact method pads nothing; its sweep scratch
+    (8 bytes per sweep position, at most 2 per texel, reused across channels) is less than the seed's ten
+    kernel outputs, so the seed's figure per texel bounds it.
     """
     pad = params.radius - 1 if params.method == "seed" else 0
-    per_texel = (
-        BAKE_BYTES_PER_TEXEL
-        + directional.BYTES_PER_TEXEL
-        + BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION * (params.directions - cv.CHANNEL_COUNT)
-    )
-    return per_texel * (rows + 2 * pad) * (cols + 2 * pad)
+    return budget.bake_bytes(rows, cols, params.directions, pad)
 
 
 def check_fits(what: str, rows: int, cols: int, params: BakeParams) -> None:
@@ -405,7 +388,7 @@ def bake(
     bent = ss = None
     if occlusion:
         # the bent normals and ssbump's three channels two at a time (NumPy's loops release the GIL),
-        # each map the same as made alone; two, whatever the cores, is what occlusion.BYTES_PER_TEXEL
+        # each map the same as made alone; two, whatever the cores, is what budget.OCCLUSION_BYTES_PER_TEXEL
         # charges
         pool = backend.host_pool(2)
         bent = pool.submit(directional.bent_normal, horizon)

@@ -44,7 +44,6 @@ __all__ = [
     "uniform_ao",
     "uniform_bent_normal",
     "self_shadowed_bump",
-    "BYTES_PER_TEXEL",
 ]
 
 #: Half-Life 2's radiosity normal-mapping basis in tangent space (Source SDK's ``g_localBumpBasis``;
@@ -57,12 +56,6 @@ HL2_BASIS = np.array(
         [-1.0 / math.sqrt(6.0), -1.0 / math.sqrt(2.0), 1.0 / math.sqrt(3.0)],
     ]
 )
-
-#: Bytes per texel that the two maps add to a bake at its peak, made two at a time
-#: (:func:`hzval.bake.maps.bake`): their six float32 channels and the temporaries of two of them at
-#: once (NumPy's allocations traced at 512 x 512: 92 to 105 bytes a texel, as the jobs interleave;
-#: 52 made in turn, 140 to 160 four at a time).
-BYTES_PER_TEXEL = 112
 
 
 def _channel(sines: np.ndarray, k: int) -> np.ndarray:

@@ -1,5 +1,5 @@
 # Written by tests/stubs.py from each module's __all__ (python -m tests.stubs); do not edit.
-from . import backend, conventions, cube, errors, interrupts, resources, shading, srgb, strict
+from . import backend, budget, conventions, cube, errors, interrupts, resources, shading, srgb, strict
 from .backend import (
     VARIANTS as VARIANTS,
     dr as dr,
@@ -16,6 +16,45 @@ from .backend import (
     versions as versions,
     host_cores as host_cores,
     host_pool as host_pool,
+)
+from .budget import (
+    BAKE_BYTES_PER_TEXEL as BAKE_BYTES_PER_TEXEL,
+    BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION as BAKE_BYTES_PER_TEXEL_PER_EXTRA_DIRECTION,
+    OCCLUSION_BYTES_PER_TEXEL as OCCLUSION_BYTES_PER_TEXEL,
+    PEAK_BASE_BYTES as PEAK_BASE_BYTES,
+    PEAK_BYTES_PER_PIXEL as PEAK_BYTES_PER_PIXEL,
+    PEAK_BYTES_PER_TECHNIQUE_PIXEL as PEAK_BYTES_PER_TECHNIQUE_PIXEL,
+    TECHNIQUES_BY_DEFAULT as TECHNIQUES_BY_DEFAULT,
+    PEAK_BYTES_PER_TRIANGLE as PEAK_BYTES_PER_TRIANGLE,
+    TRIANGLES_PER_PIXEL_BEFORE_THE_MAP as TRIANGLES_PER_PIXEL_BEFORE_THE_MAP,
+    PEAK_BYTES_PER_SAMPLE as PEAK_BYTES_PER_SAMPLE,
+    PEAK_BYTES_PER_KEPT_SAMPLE as PEAK_BYTES_PER_KEPT_SAMPLE,
+    STATE_BYTES_PER_SAMPLE as STATE_BYTES_PER_SAMPLE,
+    PEAK_BYTES_PER_VIEW_SAMPLE as PEAK_BYTES_PER_VIEW_SAMPLE,
+    RETAIN_BELOW_SHARE as RETAIN_BELOW_SHARE,
+    PEAK_TARGET_BYTES as PEAK_TARGET_BYTES,
+    PEAK_BAND_BYTES_PER_PIXEL as PEAK_BAND_BYTES_PER_PIXEL,
+    PEAK_BYTES_PER_BAND_TRIANGLE as PEAK_BYTES_PER_BAND_TRIANGLE,
+    MAX_FRAME_PIXELS as MAX_FRAME_PIXELS,
+    TRUTH_BYTES_PER_TRIANGLE as TRUTH_BYTES_PER_TRIANGLE,
+    MESH_BYTES_PER_TRIANGLE as MESH_BYTES_PER_TRIANGLE,
+    REFINE_BYTES_PER_TRIANGLE as REFINE_BYTES_PER_TRIANGLE,
+    MODEL_BYTES_PER_SAMPLE as MODEL_BYTES_PER_SAMPLE,
+    MODEL_BYTES_PER_TRIANGLE as MODEL_BYTES_PER_TRIANGLE,
+    MODEL_BYTES_PER_REFLECTION_SAMPLE as MODEL_BYTES_PER_REFLECTION_SAMPLE,
+    FIT_BASE_BYTES as FIT_BASE_BYTES,
+    FIT_BYTES_PER_PIXEL_LIGHT as FIT_BYTES_PER_PIXEL_LIGHT,
+    FIT_BYTES_PER_SAMPLE as FIT_BYTES_PER_SAMPLE,
+    FIT_BYTES_PER_TEXEL as FIT_BYTES_PER_TEXEL,
+    FIT_BYTES_PER_BAND_SAMPLE as FIT_BYTES_PER_BAND_SAMPLE,
+    bake_bytes as bake_bytes,
+    sweep_peak_bytes as sweep_peak_bytes,
+    band_peak_bytes as band_peak_bytes,
+    model_sample_bytes as model_sample_bytes,
+    model_truth_bytes as model_truth_bytes,
+    model_sweep_peak_bytes as model_sweep_peak_bytes,
+    mesh_bytes as mesh_bytes,
+    fit_bytes as fit_bytes,
 )
 from .conventions import (
     normal_map as normal_map,

@@ -241,7 +241,7 @@ def retain_freed_memory() -> bool:
     A sweep makes and drops such images in every frame; keeping them saves about a tenth of a large
     sweep for more peak memory (docs/internals.md, "Measurements the code rests on").
     :func:`hzval.pipeline.sweep.run` asks for it where its
-    estimated peak is a small part of what is available (:data:`hzval.truth.memory.RETAIN_BELOW_SHARE`).
+    estimated peak is a small part of what is available (:data:`hzval.core.budget.RETAIN_BELOW_SHARE`).
     """
     global _retaining
     fns = _mallopt()

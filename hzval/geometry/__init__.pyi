@@ -99,7 +99,6 @@ from .tile import (
     cell_levels as cell_levels,
     triangle_count as triangle_count,
     mesh_size as mesh_size,
-    MESH_BYTES_PER_TRIANGLE as MESH_BYTES_PER_TRIANGLE,
     check_fits as check_fits,
     tessellate as tessellate,
     piece as piece,

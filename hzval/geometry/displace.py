@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hzval.core import budget
 from hzval.core import conventions as cv
 from hzval.geometry import cells
 from hzval.geometry import tangents as tg
@@ -33,7 +34,6 @@ from hzval.geometry.model import BaseMesh
 from hzval.geometry.tile import DEFAULT_TOLERANCE
 
 __all__ = [
-    "BYTES_PER_TRIANGLE",
     "Refined",
     "refine",
     "estimate",
@@ -45,12 +45,6 @@ __all__ = [
     "MAX_MITER",
     "displace",
 ]
-
-#: Bytes per refined triangle to budget: :func:`refine` and :func:`displace` peak at 330-390 bytes a
-#: triangle over their start (a 20k-triangle torus and model, the plane, 512^2 and 1024^2,
-#: benchmarks/bench_meshes.py) and keep 130-250 (the refined arrays and the displaced positions),
-#: to which Mitsuba's mesh and Embree's BVH add 140 (:data:`hzval.geometry.tile.BYTES_PER_TRIANGLE`).
-BYTES_PER_TRIANGLE = 420
 
 
 @dataclass(frozen=True)
@@ -110,9 +104,10 @@ def estimate(
 
     That is ``4 A + 2.2 P + 1.1 F`` triangles for ``A`` texels of UV area, ``P`` texels of the base triangles'
     edges (the cells they cross: ``|du| + |dv|``) and ``F`` base triangles, fitted within 5% to the shapes and
-    a 20k-triangle torus at 64^2 to 256^2 (commit message), :data:`BYTES_PER_TRIANGLE` each. With the map
-    (``height``, ``depth``, ``tolerance`` as :func:`refine` takes them) the cells' rings count too: a fan's
-    edge of ``n`` rings is ``2 n - 1`` triangles (the cells' mean).
+    a 20k-triangle torus at 64^2 to 256^2 (commit message),
+    :data:`hzval.core.budget.REFINE_BYTES_PER_TRIANGLE` each. With the map (``height``, ``depth``,
+    ``tolerance`` as :func:`refine` takes them) the cells' rings count too: a fan's edge of ``n`` rings is ``2
+    n - 1`` triangles (the cells' mean).
     """
     rows, cols = texels
     uv = base.uvs[base.faces] * [cols, rows]
@@ -127,7 +122,7 @@ def estimate(
         n = cells.ring_levels(h_tex, boundary, DEFAULT_TOLERANCE if tolerance is None else float(tolerance))
         rings = float(np.mean(2 * n - 1))
     triangles = int(rings * (4.0 * area.sum() + 2.2 * perimeter) + 1.1 * len(base.faces))
-    return triangles, triangles * BYTES_PER_TRIANGLE
+    return triangles, triangles * budget.REFINE_BYTES_PER_TRIANGLE
 
 
 # ----------------------------------------------------------------------------------------------

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hzval.core import budget, errors, resources
 from hzval.core import conventions as cv
-from hzval.core import errors, resources
 from hzval.core.backend import mi  # Dr.Jit loads at first use, once the LLVM is chosen
 from hzval.core.conventions import normal_map
 from hzval.core.errors import InputError
@@ -56,10 +56,8 @@ __all__ = [
     "MAX_LEVEL",
     "twists",
     "cell_levels",
-    "BYTES_PER_TRIANGLE",
     "triangle_count",
     "mesh_size",
-    "MESH_BYTES_PER_TRIANGLE",
     "check_fits",
     "tessellate",
     "piece",
@@ -342,12 +340,6 @@ def _bilinear(g: Grid, r: np.ndarray, c: np.ndarray, uv: np.ndarray) -> np.ndarr
     return np.stack([x, y, zz], axis=-1).astype(np.float32)
 
 
-#: Resident bytes per triangle of the truth's mesh: its faces, its share of the vertices and Embree's
-#: BVH (at 2048 x 2048 with a margin of 178: 4.42 GiB against 1.59 GiB for 33.9M triangles against
-#: 11.3M, 134 bytes a triangle more).
-BYTES_PER_TRIANGLE = 140
-
-
 def triangle_count(levels: np.ndarray) -> int:
     """Triangles of a tessellation of these cell levels (:func:`cell_levels`)."""
     counts = np.bincount(levels.ravel(), minlength=MAX_LEVEL + 1).astype(np.int64)
@@ -399,12 +391,6 @@ def _size(shape: tuple[int, int], levels: np.ndarray, per_row, per_col) -> tuple
     return int(shape[0]) * int(shape[1]) + int(extra), int(triangles)
 
 
-#: Peak bytes per triangle while :func:`displaced_mesh` builds a mesh with vertex normals and texture
-#: coordinates and it is written (``benchmarks/bench_mesh_memory.py``: 112-134 measured on the bricks,
-#: half a vertex a triangle), with a margin.
-MESH_BYTES_PER_TRIANGLE = 160
-
-
 def check_fits(
     what, height: np.ndarray, depth: float, boundary: str, *, margin: int | None = None, also: float = 0
 ) -> int:
@@ -412,15 +398,15 @@ def check_fits(
 
     The mesh is of the normalised ``height`` at ``depth``; the check is
     :func:`hzval.core.resources.refuse_over` on its triangles (:func:`mesh_size`) at
-    :data:`MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held beside it. A tall relief asks for a wide wrap
-    margin and fine cells; the line names ``what`` (the map), its height range and ``--depth``. Returns the
-    estimate in bytes.
+    :data:`hzval.core.budget.MESH_BYTES_PER_TRIANGLE`, and ``also`` bytes held beside it. A tall relief asks
+    for a wide wrap margin and fine cells; the line names ``what`` (the map), its height range and
+    ``--depth``. Returns the estimate in bytes.
     """
     h = cv.heights_in_texels(height, depth)
     rows, cols = h.shape
     m = (wrap_margin(h) if margin is None else int(margin)) if boundary == "wrap" else 0
     vertices, triangles = mesh_size(h, boundary, m)
-    need = also + MESH_BYTES_PER_TRIANGLE * triangles
+    need = budget.mesh_bytes(triangles, also)
     lo, hi = float(np.min(height)), float(np.max(height))
     count = f"{triangles / 1e6:,.0f}M" if triangles >= 1e6 else f"{triangles:,}"
     task = (
@@ -441,15 +427,14 @@ def tessellate(
 ):
     """Return the triangles of the bilinear surface of a vertex grid (:func:`cell_levels`).
 
-    Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c``
-    first, then each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and
-    the cells' levels. ``budget_bytes``: refuse (:class:`hzval.core.errors.InputError`), before allocating
-    them, triangles that would need more (:data:`BYTES_PER_TRIANGLE`). A node on an edge that two fanned
-    cells share is made by each (the same bits);
-    where levels differ, the finer cell's nodes lie on the coarser one's straight edge.
-    ``levels``: the cells' levels as given (``tolerance`` unused), for a piece of a larger grid
-    (:func:`piece`) whose levels were decided on the whole, so that its triangles are the whole's own
-    (:func:`cell_levels`' planar rule reads the grid's largest height).
+    Returns ``(positions, faces, levels)``: ``(V, 3)`` float32 vertices (the grid's ``r * nx + c`` first, then
+    each tessellated cell's own), ``(F, 3)`` uint32 faces counterclockwise from +z, and the cells' levels.
+    ``budget_bytes``: refuse (:class:`hzval.core.errors.InputError`), before allocating them, triangles that
+    would need more (:data:`hzval.core.budget.TRUTH_BYTES_PER_TRIANGLE`). A node on an edge that two fanned
+    cells share is made by each (the same bits); where levels differ, the finer cell's nodes lie on the
+    coarser one's straight edge. ``levels``: the cells' levels as given (``tolerance`` unused), for a piece of
+    a larger grid (:func:`piece`) whose levels were decided on the whole, so that its triangles are the
+    whole's own (:func:`cell_levels`' planar rule reads the grid's largest height).
     """
     ny, nx = g.z.shape
     X, Y = np.meshgrid(g.x.astype(np.float32), g.y.astype(np.float32))
@@ -460,7 +445,7 @@ def tessellate(
         n = triangle_count(levels)
         resources.refuse_over(
             "--truth-tolerance",
-            n * BYTES_PER_TRIANGLE,
+            n * budget.TRUTH_BYTES_PER_TRIANGLE,
             f"the truth's surface at a tolerance of {tolerance:g} texels ({n / 1e6:.0f}M triangles, "
             "with its BVH)",
             "a larger tolerance or a smaller map",

@@ -57,7 +57,7 @@ class Setup:
     bake_contents: tuple = ()  # what was baked (hzval.bake.maps.CONTENTS)
     notices: list = dataclasses.field(default_factory=list)  # one-line warnings of the set-up
     estimate: int = 0  # estimated peak memory, bytes
-    retained: bool = False  # freed memory kept (RETAIN_BELOW_SHARE, backend.retain_freed_memory)
+    retained: bool = False  # freed memory kept (budget.RETAIN_BELOW_SHARE, backend.retain_freed_memory)
     perfect: list = dataclasses.field(default_factory=list)  # the techniques at the truth's hits
     base_shadow: object = (
         None  # a model's no-shadows factor: its base mesh's own shadow (perpixel.BaseShadow)

@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from hzval.bake import maps as bake
 from hzval.bake.maps import BakeParams
-from hzval.core import backend, interrupts, resources, shading
+from hzval.core import backend, budget, interrupts, resources, shading
 from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.io import documents, staging
@@ -34,7 +34,6 @@ from hzval.techniques import registry as technique
 from hzval.truth import model as model_truth
 from hzval.truth import plane as truth
 from hzval.truth.memory import (
-    RETAIN_BELOW_SHARE,
     TruthPlan,
     check_fits,
     truth_plan,
@@ -147,7 +146,9 @@ def set_up(scene, out: Path, options: Options, report_dir: Path | None = None) -
     # the truth's own triangles, before they are made
     estimate = check_fits(scene, params, hm.height, plan, techniques=len(chosen))
     # from here on: the frames then reuse what the set-up frees, besides what they free themselves
-    retained = estimate <= RETAIN_BELOW_SHARE * resources.available_bytes() and backend.retain_freed_memory()
+    retained = (
+        estimate <= budget.RETAIN_BELOW_SHARE * resources.available_bytes() and backend.retain_freed_memory()
+    )
     rows, cols = hm.height.shape
     material = {
         "name": scene.name,
@@ -390,7 +391,7 @@ def run(
                 hold.start()  # the last signal check: from here the run completes
                 stage.swap()
     finally:
-        backend.hand_back_freed_memory()  # what the sweep kept (RETAIN_BELOW_SHARE), for what follows
+        backend.hand_back_freed_memory()  # what the sweep kept (budget.RETAIN_BELOW_SHARE), for what follows
     return result
 
 

@@ -1,6 +1,6 @@
 """The scene one description gives the truth and every technique.
 
-- ``spec``: material, lights, effects and sweep.
+- ``spec``: material, lights, effects and sweep; ``files``: a scene file read into one.
 - ``camera``: the camera, its rays and footprints.
 - ``lookup``: where a technique reads its textures, on the plane or on a model.
 """

@@ -1,7 +1,6 @@
 # Written by tests/stubs.py from each module's __all__ (python -m tests.stubs); do not edit.
 from . import bands, common, memory, model, plane, rays, samples
 from .bands import (
-    PEAK_TARGET_BYTES as PEAK_TARGET_BYTES,
     PAD_TEXELS as PAD_TEXELS,
     why_not as why_not,
     reach as reach,
@@ -27,19 +26,6 @@ from .common import (
     mean_and_variance as mean_and_variance,
 )
 from .memory import (
-    PEAK_BASE_BYTES as PEAK_BASE_BYTES,
-    PEAK_BYTES_PER_PIXEL as PEAK_BYTES_PER_PIXEL,
-    PEAK_BYTES_PER_TECHNIQUE_PIXEL as PEAK_BYTES_PER_TECHNIQUE_PIXEL,
-    TECHNIQUES_BY_DEFAULT as TECHNIQUES_BY_DEFAULT,
-    PEAK_BYTES_PER_TRIANGLE as PEAK_BYTES_PER_TRIANGLE,
-    PEAK_BYTES_PER_SAMPLE as PEAK_BYTES_PER_SAMPLE,
-    PEAK_BYTES_PER_KEPT_SAMPLE as PEAK_BYTES_PER_KEPT_SAMPLE,
-    PEAK_BYTES_PER_VIEW_SAMPLE as PEAK_BYTES_PER_VIEW_SAMPLE,
-    TRIANGLES_PER_PIXEL_BEFORE_THE_MAP as TRIANGLES_PER_PIXEL_BEFORE_THE_MAP,
-    RETAIN_BELOW_SHARE as RETAIN_BELOW_SHARE,
-    PEAK_BAND_BYTES_PER_PIXEL as PEAK_BAND_BYTES_PER_PIXEL,
-    PEAK_BYTES_PER_BAND_TRIANGLE as PEAK_BYTES_PER_BAND_TRIANGLE,
-    MAX_FRAME_PIXELS as MAX_FRAME_PIXELS,
     TruthPlan as TruthPlan,
     estimate_peak_bytes as estimate_peak_bytes,
     band_peak_bytes as band_peak_bytes,
@@ -51,14 +37,12 @@ from .memory import (
 from .model import (
     ModelTruth as ModelTruth,
     model_view as model_view,
-    bytes_per_sample as bytes_per_sample,
 )
 from .plane import (
     surface_margin as surface_margin,
     mesh_grid as mesh_grid,
     mesh_triangles as mesh_triangles,
     Truth as Truth,
-    STATE_BYTES_PER_SAMPLE as STATE_BYTES_PER_SAMPLE,
 )
 from .rays import (
     MIN_TRACED_ELEVATION_DEG as MIN_TRACED_ELEVATION_DEG,

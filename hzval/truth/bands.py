@@ -39,7 +39,6 @@ from hzval.core.backend import mi  # Dr.Jit loads at first use, once the LLVM is
 from hzval.geometry import tile as mesh
 
 __all__ = [
-    "PEAK_TARGET_BYTES",
     "PAD_TEXELS",
     "why_not",
     "reach",
@@ -51,9 +50,6 @@ __all__ = [
     "band_pass",
 ]
 
-#: The peak a sweep aims to stay within (a 4096 x 4096 sweep within 16 GiB): past it, or past
-#: the memory available, the truth builds its mesh in bands (:func:`hzval.truth.memory.truth_plan`).
-PEAK_TARGET_BYTES = 16 * 2**30
 #: Texels added to each side of a band's cover: the cell that holds a sample on the band's edge, the
 #: samples moved off edge lines (:func:`hzval.truth.samples.off_edge_lines`, ulps) and float32's rounding.
 PAD_TEXELS = 2.0

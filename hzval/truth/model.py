@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from hzval.core import backend, resources, shading
+from hzval.core import backend, budget, resources, shading
 from hzval.core import conventions as cv
 from hzval.core.backend import dr, mi
 from hzval.core.conventions import normal_map
@@ -39,29 +39,11 @@ from hzval.truth.common import (
     stream_rng,
 )
 
-__all__ = ["ModelTruth", "model_view", "SIMULATES", "bytes_per_sample"]
+__all__ = ["ModelTruth", "model_view", "SIMULATES"]
 
 #: Effects the truth on a model simulates (interreflection: not yet).
 SIMULATES: tuple[str, ...] = ("shadow", "diffuse", "specular", "ambient", "reflection_occlusion")
 _AMBIENT_STREAM = 0xA3B1
-#: Bytes a sample keeps between frames (hit, normals, frame, uv, base point, triangle: 23 floats) and what the
-#: techniques keep of it (their frames, texel positions), and a displaced triangle with its BVH.
-BYTES_PER_SAMPLE = 4 * 23 + 4 * 14
-BYTES_PER_TRIANGLE = 120
-#: What ``reflection_occlusion`` adds a sample: its lobe's ray while it is traced (origin, direction,
-#: weight, masks: about 40 bytes, beside the kept hits) and ``R`` with its variance, kept between frames
-#: (8 bytes a pixel, counted a sample). Measured at 384 x 384 px, 8 spp on the sphere: the peak did not
-#: rise (583 MiB against 590 without): the lobe's rays fit under the camera rays' peak (docs/meshes.md).
-BYTES_PER_REFLECTION_SAMPLE = 48
-
-
-def bytes_per_sample(scene: Scene) -> int:
-    """Return the bytes a sample of ``scene``'s truth on a model takes at its peak.
-
-    These are its kept hit and frame (:data:`BYTES_PER_SAMPLE`) and, where ``reflection_occlusion`` is
-    declared, the lobe's rays (:data:`BYTES_PER_REFLECTION_SAMPLE`).
-    """
-    return BYTES_PER_SAMPLE + (BYTES_PER_REFLECTION_SAMPLE if scene.declares("reflection_occlusion") else 0)
 
 
 def model_view(camera: Camera, points: np.ndarray, shape: tuple[int, int]) -> View:
@@ -205,7 +187,7 @@ class ModelTruth:
     """
 
     hits = None
-    keeps = True  # every sample's hit is kept between frames (BYTES_PER_SAMPLE)
+    keeps = True  # every sample's hit is kept between frames (budget.MODEL_BYTES_PER_SAMPLE)
 
     def __init__(self, scene: Scene, height: np.ndarray, model, *, albedo: np.ndarray | None = None):
 
@@ -286,10 +268,9 @@ class ModelTruth:
             depth=mat.depth,
             tolerance=mat.truth_tolerance,
         )
-        need = (
-            mesh_bytes
-            + BYTES_PER_TRIANGLE * triangles
-            + bytes_per_sample(self.scene) * self.shape[0] * self.shape[1] * self.spp
+        samples = self.shape[0] * self.shape[1] * self.spp
+        need = budget.model_truth_bytes(
+            mesh_bytes, triangles, samples, self.scene.declares("reflection_occlusion")
         )
         resources.refuse_over(
             "--truth-tolerance",

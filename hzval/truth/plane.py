@@ -27,7 +27,6 @@ __all__ = [
     "mesh_grid",
     "mesh_triangles",
     "Truth",
-    "STATE_BYTES_PER_SAMPLE",
 ]
 #: Effects that this truth simulates, in the order of ``hzval.scene.spec.EFFECTS``.
 SIMULATES: tuple[str, ...] = (
@@ -513,9 +512,3 @@ class Truth(rays.CameraRays, rays.RayQueries, rays.PathTracing):
             else:
                 out[k] = (np.asarray(mean, dtype=np.float32), np.asarray(var, dtype=np.float32))
         return out
-
-
-#: Bytes per sample of that state: the lifted origin's height (its x and y are the sample positions
-#: themselves), the geometric and shading normals and ``A`` (8 float32; the albedo is gathered
-#: again by each frame's kernel; ``memory.estimate_peak_bytes`` counts the state).
-STATE_BYTES_PER_SAMPLE = 32

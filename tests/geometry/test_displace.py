@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
+from hzval.core import budget
 from hzval.geometry import displace as dp
 from hzval.geometry import model
 
@@ -162,7 +163,7 @@ def test_estimate_bounds_the_refinement():
         tris, size = dp.estimate(base, (64, 64))
         r = dp.refine(base, (64, 64))
         assert 0.8 * tris <= len(r.faces) <= 1.25 * tris
-        assert size == tris * dp.BYTES_PER_TRIANGLE
+        assert size == tris * budget.REFINE_BYTES_PER_TRIANGLE
 
 
 def test_twisted_cells_get_rings_within_the_tolerance():

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hzval import materials
-from hzval.core import resources
+from hzval.core import budget, resources
 from hzval.geometry import tile as mesh
 from hzval.truth import bands as truth_bands
 from hzval.truth import memory
@@ -112,7 +112,7 @@ def test_a_refusal_in_bands_names_the_flag_and_the_bands(variant, monkeypatch):
         sc, material=dataclasses.replace(sc.material, height="bricks", size=1024), spp=16
     )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(truth_bands, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
+    monkeypatch.setattr(budget, "PEAK_TARGET_BYTES", 2**20)  # a mesh in bands, whatever the map
     plan = memory.truth_plan(sc, height)
     assert plan.band_rows is not None and 0 < plan.band_triangles < plan.triangles
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)
@@ -134,7 +134,7 @@ def test_a_refusal_at_once_says_why_not_in_bands(variant, monkeypatch):
         sc, material=dataclasses.replace(sc.material, height="bricks", size=64), effects=("shadow", "ambient")
     )
     height = load_material_height(sc.material).height
-    monkeypatch.setattr(truth_bands, "PEAK_TARGET_BYTES", 2**20)
+    monkeypatch.setattr(budget, "PEAK_TARGET_BYTES", 2**20)
     plan = memory.truth_plan(sc, height)
     assert plan.band_rows is None and "ambient" in plan.why_single
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**20)

@@ -22,14 +22,13 @@ import pytest
 
 from hzval.bake.maps import BakeParams, bake
 from hzval.cli import main as cli
+from hzval.core import budget, resources
 from hzval.core import conventions as cv
-from hzval.core import resources
 from hzval.core.errors import InputError
 from hzval.geometry import model
 from hzval.scene import spec as sc
 from hzval.techniques import registry as technique
 from hzval.techniques.horizon import DEFAULT_FADE
-from hzval.truth import model as model_truth
 from hzval.truth import plane as truth
 from hzval.truth.model import ModelTruth
 
@@ -208,7 +207,9 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
         effects="shadow,diffuse",
     )
     lobe = dataclasses.replace(plain, effects=tuple(EFFECTS.split(",")))
-    assert model_truth.bytes_per_sample(lobe) > model_truth.bytes_per_sample(plain)
+    assert budget.model_sample_bytes(lobe.declares("reflection_occlusion")) > budget.model_sample_bytes(
+        plain.declares("reflection_occlusion")
+    )
     h = sc.load_material_height(plain.material).height
     sphere = model.load("sphere")
     from hzval.geometry import displace
@@ -221,10 +222,12 @@ def test_the_memory_estimate_counts_the_lobe(variant, monkeypatch):
         depth=plain.material.depth,
         tolerance=plain.material.truth_tolerance,
     )
-    base = mesh_bytes + model_truth.BYTES_PER_TRIANGLE * triangles
+    base = mesh_bytes + budget.MODEL_BYTES_PER_TRIANGLE * triangles
     pixels = 64 * 64 * plain.spp
     monkeypatch.setattr(
-        resources, "available_bytes", lambda: base + model_truth.bytes_per_sample(plain) * pixels + 1
+        resources,
+        "available_bytes",
+        lambda: base + budget.model_sample_bytes(plain.declares("reflection_occlusion")) * pixels + 1,
     )
     ModelTruth(plain, h, sphere)
     with pytest.raises(InputError, match="truth-tolerance"):

@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from hzval.core import budget, resources
 from hzval.core import conventions as cv
-from hzval.core import resources
 from hzval.geometry import tile as mesh
 from hzval.truth import memory
 from tests.oracles import turned_techniques as turned
@@ -282,10 +282,10 @@ def test_the_estimate_counts_the_truths_triangles_and_a_mesh_that_cannot_fit_is_
     assert (
         memory.estimate_peak_bytes(fine, 64, 64, truth.mesh_triangles(fine, h))
         - memory.estimate_peak_bytes(scene, 64, 64, len(faces))
-    ) == pytest.approx(memory.PEAK_BYTES_PER_TRIANGLE * extra, abs=2)
+    ) == pytest.approx(budget.PEAK_BYTES_PER_TRIANGLE * extra, abs=2)
     before_the_map = memory.estimate_peak_bytes(fine, 64, 64)
     monkeypatch.setattr(
-        resources, "available_bytes", lambda: before_the_map + memory.PEAK_BYTES_PER_TRIANGLE * extra // 2
+        resources, "available_bytes", lambda: before_the_map + budget.PEAK_BYTES_PER_TRIANGLE * extra // 2
     )
     out = tmp_path / "o"
     assert (
@@ -318,8 +318,8 @@ def test_the_estimate_charges_each_technique_and_assumes_the_default_set():
     from hzval.scene import spec as sc
     from hzval.techniques import registry as technique
 
-    assert memory.TECHNIQUES_BY_DEFAULT == len(technique.defaults())
+    assert budget.TECHNIQUES_BY_DEFAULT == len(technique.defaults())
     scene = sc.override(sc.Scene(), size=64, spp=2).validate()
     three, eight = (memory.estimate_peak_bytes(scene, 64, 64, 1000, techniques=n) for n in (3, 8))
-    assert eight - three == pytest.approx(5 * memory.PEAK_BYTES_PER_TECHNIQUE_PIXEL * 64 * 64, abs=2)
+    assert eight - three == pytest.approx(5 * budget.PEAK_BYTES_PER_TECHNIQUE_PIXEL * 64 * 64, abs=2)
     assert memory.estimate_peak_bytes(scene, 64, 64, 1000) == eight

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from hzval.core import resources
+from hzval.core import budget, resources
 from hzval.core.errors import InputError
 from hzval.scene import lookup
 from hzval.scene import spec as sc
@@ -27,11 +27,6 @@ __all__ = [
     "HELD_OUT_LIGHTS",
     "TRAINING_SAMPLES",
     "BAND_SAMPLES",
-    "FIT_BASE_BYTES",
-    "FIT_BYTES_PER_PIXEL_LIGHT",
-    "FIT_BYTES_PER_SAMPLE",
-    "FIT_BYTES_PER_TEXEL",
-    "FIT_BYTES_PER_BAND_SAMPLE",
     "parse_lights",
     "training_spp",
     "fit_scene",
@@ -54,14 +49,6 @@ HELD_OUT_LIGHTS = "25@-52.5:52.5:15"
 TRAINING_SAMPLES = 1 << 20
 #: Samples per band of the forward model: bounds the AD graph's memory.
 BAND_SAMPLES = 1 << 23
-#: Memory of a fit (:func:`estimate_bytes`): a base, bytes per pixel and light (V), per sample (uv),
-#: per texel (parameters, gradient, Adam's two moments, the stored copy, the bake) and per sample of
-#: a band (the AD graph of the forward model).
-FIT_BASE_BYTES = 0.4 * 2**30
-FIT_BYTES_PER_PIXEL_LIGHT = 4
-FIT_BYTES_PER_SAMPLE = 8
-FIT_BYTES_PER_TEXEL = 8 * 4 * 8
-FIT_BYTES_PER_BAND_SAMPLE = 160
 
 
 def check_held_out(lights, held_out) -> None:
@@ -227,7 +214,7 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
 
     The truth's ``V`` of every light, beside the larger of the truth's own peak while it renders
     (:func:`hzval.truth.memory.estimate_peak_bytes` of the fit's scene, when ``scene`` is given) and
-    the optimisation's (:data:`FIT_BASE_BYTES` and the per-sample, per-texel and per-band terms).
+    the optimisation's (:func:`hzval.core.budget.fit_bytes`).
 
     Parameters
     ----------
@@ -247,16 +234,10 @@ def estimate_bytes(rows: int, cols: int, spp: int, lights: int, scene=None) -> i
     """
     P = rows * cols
     band = min(P * spp, BAND_SAMPLES)
-    optimise = (
-        FIT_BASE_BYTES
-        + FIT_BYTES_PER_SAMPLE * P * spp
-        + FIT_BYTES_PER_TEXEL * P
-        + FIT_BYTES_PER_BAND_SAMPLE * band
-    )
     render = 0
     if scene is not None:
         render = memory.estimate_peak_bytes(dataclasses.replace(fit_scene(scene), spp=spp), rows, cols)
-    return int(FIT_BYTES_PER_PIXEL_LIGHT * P * lights + max(optimise, render))
+    return budget.fit_bytes(P, spp, lights, band, render)
 
 
 def check_fits(what: str, rows: int, cols: int, spp: int, lights: int, scene=None) -> int:
