@@ -333,7 +333,7 @@ OCCLUSION: tuple[str, ...] = ("bent_normal", "ssbump_map")
 
 
 def needs_occlusion(needs) -> bool:
-    """Return whether the bake needs ``needs`` call for the directional occlusion.
+    """Return whether ``needs``, the names of what the bake must hold, call for the directional occlusion.
 
     The directional occlusion is the bent normals and the self-shadowed bump map. At 2048 x 2048 they take 3.5
     s of a 4.4 s bake, so a sweep whose techniques read neither bakes without them.
@@ -346,7 +346,7 @@ def _without_occlusion() -> tuple[str, ...]:
 
 
 def needs_horizon(needs) -> bool:
-    """Return whether the bake needs ``needs`` call for the horizon bake.
+    """Return whether ``needs``, the names of what the bake must hold, call for the horizon bake.
 
     ``needs`` are names of :data:`CONTENTS`, ``"height"`` aside. The horizon bake is the horizon map, and the
     ambient maps and directional occlusion, which are made from its sines.

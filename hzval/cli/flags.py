@@ -475,9 +475,10 @@ def gates(args):
 
 
 def gate_exit(record: dict | None) -> int:
-    """Print a run's gates (``metrics.json``'s ``gates``), each failure and each error on one line.
+    """Print a run's failed gates and gate errors, one line each; return the exit code.
 
-    Exit 2 where any could not be evaluated (``errors``), else 1 where any failed.
+    The gates are ``metrics.json``'s ``gates``. The code is 2 where any could not be evaluated (``errors``),
+    else 1 where any failed, else 0.
     """
     record = record or {}
     failed = record.get("failed", [])

@@ -27,8 +27,8 @@ def builtin(name: str) -> bool:
 def material_of(args) -> str | None:
     """Return the material the command line names: HEIGHT's path, ``--material``'s name, or ``None``.
 
-    One line is given for an unknown material (the nearest names) and for ``--size`` with HEIGHT (a file has
-    its own size).
+    An unknown material (with the nearest names) and ``--size`` with HEIGHT (a file has its own size) are
+    refused in one line.
     """
     if args.height is not None and args.material is not None:
         raise errors.InputError("--material", f"give HEIGHT ({args.height}) or --material, not both")
@@ -220,7 +220,8 @@ def scene_from_args(args, defaults: dict | None = None, *, quiet: bool = False):
 def check_elevations(value) -> tuple[float, ...]:
     """Return the light elevations of ``--elevation``, each in (0, 90] degrees.
 
-    ``--elevation`` is one number, a list or START:STOP:STEP; else the error is one line naming the flag.
+    ``--elevation`` is one number, a list or START:STOP:STEP; anything else, or an elevation out of range,
+    is refused in one line naming the flag.
     """
     # on use: importing the CLI loads no renderer (the LLVM is chosen first)
     from hzval.scene import spec as sc

@@ -79,9 +79,9 @@ def _content_of(storage_key: str) -> str:
 
 
 def plan(run_dir: Path) -> dict:
-    """Read what ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``.
+    """Return what ``run_dir`` holds: ``{kind, bake, storage: {texture: name}, mips, textures}``.
 
-    One line names the folder when it is no run's.
+    A folder that is no run's is refused in one line naming it.
     """
     run_dir = Path(run_dir)
     if (run_dir / "fit.json").is_file():

@@ -167,8 +167,8 @@ def _operand(text: str, expr: str) -> Operand:
 def parse(expr: str) -> Condition:
     """Return a ``--fail-if`` expression as a :class:`Condition` (module docstring).
 
-    Anything else gives one line naming ``--fail-if``. Parsing is linear in the text's length (possessive
-    quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first.
+    Anything else is refused in one line naming ``--fail-if``. Parsing is linear in the text's length
+    (possessive quantifiers), and texts over :data:`MAX_EXPRESSION` characters are refused first.
     """
     if len(expr) > MAX_EXPRESSION:
         raise InputError("--fail-if", f"{expr[:40]!r}...: longer than {MAX_EXPRESSION} characters")
@@ -338,7 +338,7 @@ def _g(v) -> str:
 def read_baseline(path: str | Path) -> dict:
     """Return the ``metrics.json`` of an earlier run (its folder, or the file).
 
-    One line names ``--baseline`` if there is none or it cannot be read.
+    A missing or unreadable ``metrics.json`` is refused in one line naming ``--baseline``.
     """
     path = Path(path)
     file = path / "metrics.json" if path.is_dir() else path

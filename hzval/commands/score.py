@@ -323,9 +323,10 @@ def read_factor(path: Path, shape: tuple[int, int]) -> np.ndarray:
 
 
 def read_sidecar(frames_dir: Path) -> dict:
-    """Read ``FRAMES_DIR/engine.toml`` as ``{label, summary, parameters, path}`` (module docstring).
+    """Return ``FRAMES_DIR/engine.toml`` as ``{label, summary, parameters, path}`` (module docstring).
 
-    Without one, the defaults. Unknown tables or keys are one line (:mod:`hzval.core.strict`).
+    Without the file, the defaults are returned. Unknown tables or keys are refused in one line
+    (:mod:`hzval.core.strict`).
     """
     path = frames_dir / SIDECAR
     out = {"label": LABEL, "summary": str(frames_dir), "parameters": {}, "path": None}

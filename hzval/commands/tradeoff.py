@@ -406,8 +406,8 @@ def recommend(points: list[Point], tolerance: float = 0.1) -> dict:
     Among the techniques' settings (bake and technique) it is the one of least storage, then least time, whose
     visibility error is within ``tolerance`` (relative) of the best; the same among the settings of the
     technique whose bake is varied (its bake and its own) is given under ``own`` with that technique's name,
-    since another technique (terrain shadows) has another cost, a sweep per light. The truth's are the fewest
-    rays whose own error is below a tenth of the best.
+    since another technique (terrain shadows) has another cost, a sweep per light. For the truth it is the
+    fewest rays whose own error is below a tenth of the best.
     """
     cand = [p for p in points if p.kind != "truth"]
     if not cand:

@@ -626,8 +626,8 @@ def mesh(
 def _attributes(base, u: dict, rows: int, cols: int) -> dict:
     """Return the positions, frames, UVs and weld ids of the vertices ``u``.
 
-    As in the module docstring, "Canonical points": corners as the base's, edge points from their edge's two
-    ends, inside points from their triangle's UV map.
+    Corners are taken as the base's, edge points from their edge's two ends, inside points from their
+    triangle's UV map (module docstring, "Canonical points").
     """
     n_v = len(u["kind"])
     first_of_weld = np.zeros(int(base.weld.max()) + 1, np.int64)

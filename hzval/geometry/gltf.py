@@ -78,7 +78,8 @@ def _gltf_node_matrix(node) -> np.ndarray:
 def _gltf_primitives(g):
     """Yield ``(primitive, world matrix)`` of every mesh primitive the default scene instances.
 
-    Without scenes, those every root node instances; the walk follows the node tree.
+    Without scenes, it yields those of every root node (a node no other lists as a child) and its subtree,
+    walking the node tree.
 
     glTF 2.0 ("Nodes and Hierarchy") requires the nodes to form disjoint strict trees: a node
     reached twice (a cycle, a child listed twice, a node under two parents) is a ``ValueError``,

@@ -510,7 +510,7 @@ def piece_mesh(g: Grid, levels: np.ndarray, first: int, stop: int, name: str = "
 
 
 def row_triangles(levels: np.ndarray) -> np.ndarray:
-    """Return the triangles of each cell row of a tessellation of these levels, ``(ny-1,)`` int64.
+    """Return the number of triangles in each cell row of a tessellation of these levels, ``(ny-1,)`` int64.
 
     It is :func:`triangle_count`, row by row.
     """

@@ -172,8 +172,8 @@ def check_layers(raw: np.ndarray, enc: Encoding, paths) -> np.ndarray:
     """Check that ``raw`` holds the layers ``enc`` declares, with finite values in the encoding's range.
 
     ``raw`` comes from :func:`read_layers`; the layers are ``channels / 4`` RGBA layers, no more, no fewer,
-    and the ranges are :data:`VALUE_RANGES`. Returns ``raw``; else one line names the first layer and what is
-    wrong.
+    and the ranges are :data:`VALUE_RANGES`. Returns ``raw``; anything else is refused in one line naming the
+    first layer and what is wrong.
     """
     first = paths[0] if isinstance(paths, (list, tuple)) and paths else paths
     layers = cv.layer_count(enc.channels)
@@ -217,7 +217,7 @@ def _decode_values(v: np.ndarray, values: str) -> np.ndarray:
 def to_hzval(raw: np.ndarray, enc: Encoding) -> np.ndarray:
     """Return the sines in hzval's layout ``(rows, cols, D)`` float32 from the stored values.
 
-    See the module docstring.
+    The values are decoded and their channels put in hzval's order under ``enc`` (module docstring).
     """
     D = enc.channels
     if raw.shape[-1] < D:
@@ -378,10 +378,10 @@ def detect(raw: np.ndarray, exact: np.ndarray, declared: Encoding, keep: int = 8
 
 
 def advice(result: dict) -> str | None:
-    """Return a line on what looks wrong where another convention fits clearly better, else ``None``.
+    """Return a line on what looks wrong when a convention fits clearly better than the declared one.
 
-    Another convention fits clearly better than the declared one; the line names each fix by its flag. It is
-    also ``None`` when the map does not describe the height map at all (:func:`warnings` says that instead).
+    The line names each fix by its flag. It is ``None`` otherwise, and also when the map does not describe the
+    height map at all (:func:`warnings` says that instead).
     """
     if result.get("convention_fits", result["matches"]) or not result.get("describes", True):
         return None
@@ -440,7 +440,7 @@ def warnings(result: dict, layers, height) -> list[str]:
 def repeated_layers(raw: np.ndarray, layers) -> list[str]:
     """Return a warning where two layers of an external map hold the same values.
 
-    Such layers are one exported twice under two names. No warning is given when every value is the same (a
+    That is one layer exported twice under two names. No warning is given when every value is the same (a
     flat surface's map may be so).
     """
     n = cv.CHANNELS_PER_LAYER

@@ -192,7 +192,7 @@ def write(path, tex: Texture, *, zstd: bool = False) -> None:
 def read(path) -> Texture:
     """Return a KTX2 file as :class:`Texture`, its levels decompressed.
 
-    A file that is not one of the textures :func:`write` writes is one line naming the file.
+    A file that is not one of the textures :func:`write` writes is refused in one line naming the file.
     """
     raw = Path(path).read_bytes() if Path(path).is_file() else None
     if raw is None:

@@ -256,8 +256,9 @@ def output_folder(
 def report_path(path: str | os.PathLike | None, report_dir: str | os.PathLike) -> str | None:
     """Return ``path`` as a report records it: relative to ``report_dir``.
 
-    A file beside it is ``../maps/x.png``; so a shared report does not carry the absolute folders (a home
-    folder's user name) it was made in. Where no relative path exists (another drive), the path is as given.
+    A file beside it is recorded as ``../maps/x.png``, so that a shared report does not carry the absolute
+    folders (a home folder's user name) it was made in. Where no relative path exists (another drive), the
+    path is kept as given.
     """
     if path is None:
         return None

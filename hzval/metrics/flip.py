@@ -445,8 +445,8 @@ def _side(flat, h: int, w: int, ppd: float, grey: bool) -> tuple:
 def _error(ref: tuple, flat, h: int, w: int, ppd: float, grey: bool) -> list:
     """Return the per-pixel FLIP of ``flat`` against a reference's :func:`_side`, evaluated.
 
-    ``flat`` is a :func:`_flat_image` and ``grey`` is :func:`_side`'s. The result is in the blocked layout of
-    :class:`_Grid`.
+    ``flat`` is a :func:`_flat_image` and ``grey`` as :func:`_side` takes it. The result is in the blocked
+    layout of :class:`_Grid`.
     """
     f = filters(ppd)
     t = _side(flat, h, w, ppd, grey)

@@ -74,8 +74,8 @@ class _Record(Mapping[str, Any]):
 class Scores(_Record):
     """One technique's scores in one frame, or the frame's ``no_shadows`` or ``floor``.
 
-    A technique's are ``frames[i].techniques.NAME``. They give ``visibility_mae``, ``flip_mean``, ... by name,
-    and its files.
+    A technique's scores are ``frames[i].techniques.NAME``. They give ``visibility_mae``, ``flip_mean``, ...
+    by name, and its files.
     """
 
     __slots__ = ()

@@ -98,7 +98,7 @@ def bug_factors(
 
 
 def diagnose(metrics: dict, sweep_dir: Path, factors: list[np.ndarray]) -> dict | None:
-    """Compare the engine's ``factors`` with the sweep's lead technique's under each bug.
+    """Return which tangent-frame bug the engine's ``factors`` match, against the sweep's lead technique.
 
     The result is ``{"errors": {bug: mean |F - F_bug|}, "best", "named", "line"}``, or ``None`` where the
     sweep is not on a model. ``factors`` holds one ``(H, W)`` per light of the sweep; the lead technique is

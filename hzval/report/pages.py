@@ -340,7 +340,7 @@ def _column_groups(metrics: tuple[columns.Metric, ...]) -> list[dict]:
 
 
 def _shown_metrics(frames: list[dict], views: list[columns.TechniqueView]) -> tuple[columns.Metric, ...]:
-    """Return the summary table's columns.
+    """Return the summary table's columns: the lead technique's scores, then the others'.
 
     They are the lead technique's scores, the render times, the floor where measured, then a few for each
     other technique.

@@ -49,7 +49,8 @@ HARM_MARGIN = 1e-3
 def visibility_of(record: dict) -> float | None:
     """Return a frame record's ``|F - V|``, over the pixels facing the light where measured.
 
-    That one is the report's, the ranking's and the suite's; else it is over the whole image.
+    Where the facing pixels were not measured it is over the whole image. The report, the ranking and the
+    suite all show this figure.
     """
     return columns.num(record.get("visibility_mae_facing", record.get("visibility_mae")))
 

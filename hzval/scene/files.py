@@ -93,7 +93,7 @@ def _height_beside(path: Path) -> str | None:
 
 
 def _schema() -> dict:
-    """Return what a scene file may hold (the module docstring).
+    """Return what a scene file may hold (module docstring, "TOML layout").
 
     It is ``{table: {key: type}}`` from the dataclasses each table fills
     (:func:`hzval.core.strict.schema_of`), and the top-level ``name``.
@@ -149,9 +149,9 @@ def check_file(data: dict, path: str | Path) -> None:
 def load_scene(path: str | Path, *, height: str | Path | None = None) -> Scene:
     """Read a scene from TOML; a relative ``material.height`` is relative to the scene file.
 
-    When the file names no height map, the material is ``height`` if given, else the height map of
-    the same stem beside the file (the file is its sidecar: ``gravel.toml`` for ``gravel.png``), else
-    the built-in default. Depth and boundary default to the material's (:func:`material_defaults`).
+    When the file names no height map, the material is ``height`` if given, else the height map of the same
+    stem beside the file (the file is its sidecar: ``gravel.toml`` for ``gravel.png``), else the built-in
+    default. Depth and boundary default to the material's (:func:`hzval.scene.spec.material_defaults`).
     """
     path = Path(path)
 

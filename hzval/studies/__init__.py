@@ -3,6 +3,8 @@
 - ``curvature_band``: curvature at a fixed local light elevation.
 - ``seam_share``: the share of error near UV seams.
 - ``bug_signatures``: the tangent-frame bugs' signatures (matched by :mod:`hzval.pipeline.bug_match`).
+
+The models' study that runs them is :mod:`hzval.commands.models`.
 """
 
 import lazy_loader

@@ -376,7 +376,8 @@ class PerPixelFactor(Technique):
     def validate(cls, settings: dict) -> dict:
         """Return the technique's own settings, checked.
 
-        Raise :class:`hzval.core.errors.InputError` naming the setting; none by default.
+        A bad setting raises :class:`hzval.core.errors.InputError` naming it. By default a technique has
+        no settings of its own.
         """
         if settings:
             raise TypeError(f"unexpected settings {', '.join(settings)}")

@@ -77,7 +77,7 @@ def why_not(scene) -> str | None:
 def reach(scene, relief: float, lift: float, azimuths) -> tuple[float, float]:
     """Return ``(up, down)``: texels along +y and -y that the rays of a sample may run.
 
-    See the module docstring. They are for the lights at ``azimuths`` (degrees), :data:`PAD_TEXELS` included.
+    They are for the lights at ``azimuths`` (degrees), :data:`PAD_TEXELS` included (module docstring).
     ``relief``: the map's highest less its lowest point, texels; ``lift``: the truth's ray lift
     (:attr:`hzval.truth.plane.Truth.lift`).
     """

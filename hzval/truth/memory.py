@@ -49,8 +49,8 @@ def estimate_peak_bytes(
 ) -> int:
     """Return the peak resident memory, in bytes, a sweep of ``scene`` is expected to reach.
 
-    The sweep is on a ``rows x cols`` map (:func:`hzval.core.budget.sweep_peak_bytes`); ``triangles``: the
-    truth's mesh's (:func:`hzval.truth.plane.mesh_triangles`), else
+    The sweep is on a ``rows x cols`` map; the bytes are :func:`hzval.core.budget.sweep_peak_bytes`'s.
+    ``triangles``: the truth's mesh's (:func:`hzval.truth.plane.mesh_triangles`), else
     :data:`hzval.core.budget.TRIANGLES_PER_PIXEL_BEFORE_THE_MAP` a texel. ``metrics.json`` records it beside
     the measured peak. ``keeps``: whether the truth keeps its samples' camera hits (default
     :func:`hzval.truth.samples.keeps_samples`; a mesh in bands keeps none). ``techniques``: how many the sweep
