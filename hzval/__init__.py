@@ -16,7 +16,7 @@ it (docs/ARCHITECTURE.md draws them; ``tests/test_structure.py`` enforces the or
 ``geometry``    the tile mesh, models, tangent frames, the displaced model
 ``io``          files, height maps, external horizon maps, storage formats
 ``materials``   the built-in procedural materials (a registry: bricks, cobblestones, ...)
-``core``        conventions, shading, backend, errors, interrupts, strict TOML, memory plans
+``core``        conventions, shading, backend, errors, interrupts, strict TOML, memory figures
 
 Each subpackage's ``__init__`` says what it holds and re-exports its modules' public names
 (``from hzval.truth import Truth``) at their first use.
