@@ -2,7 +2,8 @@
 
 Every command estimates its peak before it allocates, from :mod:`hzval.core.budget`'s figures (the bake:
 :func:`hzval.bake.maps.estimate_bytes`; a sweep: :mod:`hzval.truth.memory`; a fit:
-:func:`hzval.techniques.fitted.training.estimate_bytes`) and hands the estimate to :func:`refuse_over`, which owns the wording users see:
+:func:`hzval.techniques.fitted.training.estimate_bytes`) and hands the estimate to :func:`refuse_over`,
+which owns the wording users see:
 ``WHAT: TASK needs about X GiB of memory (estimated); Y GiB are available (ADVICE)``.
 """
 
