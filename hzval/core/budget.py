@@ -144,6 +144,11 @@ RETAIN_BELOW_SHARE = 0.5
 MAX_FRAME_PIXELS = 2**31
 
 
+def _images_bytes(pixels: int, techniques: int) -> int:
+    """Return what a sweep's images and comparisons hold per frame at the peak, its techniques' included."""
+    return (PEAK_BYTES_PER_PIXEL + PEAK_BYTES_PER_TECHNIQUE_PIXEL * techniques) * pixels
+
+
 def sweep_peak_bytes(
     pixels: int, samples: int, kept: int, triangles: int, techniques: int, view: bool = False
 ) -> int:
@@ -168,7 +173,7 @@ def sweep_peak_bytes(
     extra = PEAK_BYTES_PER_VIEW_SAMPLE * kept + PEAK_BYTES_PER_SAMPLE * samples if view else 0
     return int(
         PEAK_BASE_BYTES
-        + (PEAK_BYTES_PER_PIXEL + PEAK_BYTES_PER_TECHNIQUE_PIXEL * techniques) * pixels
+        + _images_bytes(pixels, techniques)
         + PEAK_BYTES_PER_TRIANGLE * triangles
         + PEAK_BYTES_PER_SAMPLE * samples
         + PEAK_BYTES_PER_KEPT_SAMPLE * kept
@@ -264,13 +269,8 @@ def model_sweep_peak_bytes(
     refined_bytes: int, triangles: int, samples: int, reflection: bool, pixels: int, techniques: int
 ) -> int:
     """Return the peak of a sweep on a model: :func:`model_truth_bytes`, the images and the techniques'."""
-    return int(
-        PEAK_BASE_BYTES
-        + refined_bytes
-        + MODEL_BYTES_PER_TRIANGLE * triangles
-        + model_sample_bytes(reflection) * samples
-        + (PEAK_BYTES_PER_PIXEL + PEAK_BYTES_PER_TECHNIQUE_PIXEL * techniques) * pixels
-    )
+    truth = model_truth_bytes(refined_bytes, triangles, samples, reflection)
+    return int(PEAK_BASE_BYTES + truth + _images_bytes(pixels, techniques))
 
 
 # --------------------------------------------------------------------------
